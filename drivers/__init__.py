@@ -1,0 +1,138 @@
+"""Sensor protocols and I/O for emlogd.
+
+Protocol modules (pure: bytes in, frozen records out; no serial/os/time/threading):
+``nmea0183`` (VHW, VBW, VLW, MTW, HDT/HDG/HDM, Rowe $PRTI01/02), ``rdi_ascii``
+(PD6/PD13), ``rdi_pd0`` (PD0 binary), ``rdi_pd45`` (PD4/PD5 binary).
+I/O modules: ``capture`` (capture v1 files), ``port`` (serial source through
+``serial.serial_for_url``), ``vpty`` (virtual serial port), ``fake`` (fake device).
+
+The registry is explicit and lazy (STYLE.md rule 4): :data:`PROTOCOLS` maps a
+fixed name to ``(module, class)``; :func:`get_decoder` imports on demand.
+Third-party decoders may be added through the ``emlogd.drivers`` entry-point group.
+
+Must not import: calib, emlogd.
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib.metadata import entry_points
+
+from drivers.base import Decoder, DecoderOptions, ErrorPolicy
+from drivers.errors import (
+    CaptureFormatError,
+    ChecksumError,
+    ConfigError,
+    DeviceError,
+    DeviceTimeoutError,
+    EmlogdError,
+    FieldError,
+    FrameError,
+    MissingChecksumError,
+    OutOfRangeError,
+    TooLongError,
+    UnknownProtocolError,
+    UnknownSentenceError,
+)
+from drivers.records import Rejected, SpeedRecord, Stamped
+
+PROTOCOLS: dict[str, tuple[str, str]] = {
+    "nmea0183": ("drivers.nmea0183", "NmeaDecoder"),
+    "pd6": ("drivers.rdi_ascii", "PdAsciiDecoder"),
+    "pd13": ("drivers.rdi_ascii", "PdAsciiDecoder"),
+    "pd0": ("drivers.rdi_pd0", "Pd0Decoder"),
+    "pd4": ("drivers.rdi_pd45", "Pd45Decoder"),
+    "pd5": ("drivers.rdi_pd45", "Pd45Decoder"),
+}
+"""Protocol name -> (module, class). Names are fixed strings, never class names."""
+
+ENTRY_POINT_GROUP = "emlogd.drivers"
+
+
+def _all_protocols() -> dict[str, tuple[str, str]]:
+    found = dict(PROTOCOLS)
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        module, _, cls = ep.value.partition(":")
+        found.setdefault(ep.name, (module, cls))
+    return found
+
+
+def protocol_names() -> list[str]:
+    """Sorted names of every known protocol (built-in and entry points)."""
+    return sorted(_all_protocols())
+
+
+def get_decoder(name: str) -> type[Decoder]:
+    """Return the decoder class registered under ``name``.
+
+    Raises:
+        UnknownProtocolError: ``name`` is not registered; the message lists the valid names.
+    """
+    table = _all_protocols()
+    try:
+        module_name, class_name = table[name]
+    except KeyError:
+        raise UnknownProtocolError(
+            f"unknown protocol {name!r}; valid: {', '.join(sorted(table))}"
+        ) from None
+    cls = getattr(importlib.import_module(module_name), class_name)
+    if not (isinstance(cls, type) and issubclass(cls, Decoder)):
+        raise UnknownProtocolError(f"{module_name}.{class_name} is not a drivers.base.Decoder")
+    return cls
+
+
+def make_decoder(
+    name: str,
+    port: str = "",
+    *,
+    errors: ErrorPolicy = "raise",
+    options: DecoderOptions | None = None,
+) -> Decoder:
+    """Instantiate the decoder for protocol ``name`` (see :class:`Decoder`)."""
+    return get_decoder(name)(port, errors=errors, options=options)
+
+
+def is_binary(name: str) -> bool:
+    """True if protocol ``name`` is binary (stored as ``hex:`` chunks in a capture)."""
+    return get_decoder(name).binary
+
+
+def record_types() -> tuple[type, ...]:
+    """Every record dataclass: the common ones plus each protocol module's ``RECORDS``."""
+    types: list[type] = [SpeedRecord, Rejected, Stamped]
+    seen: set[str] = set()
+    for module_name, _ in PROTOCOLS.values():
+        if module_name in seen:
+            continue
+        seen.add(module_name)
+        types.extend(getattr(importlib.import_module(module_name), "RECORDS", ()))
+    return tuple(types)
+
+
+__all__ = [
+    "PROTOCOLS",
+    "CaptureFormatError",
+    "ChecksumError",
+    "ConfigError",
+    "Decoder",
+    "DecoderOptions",
+    "DeviceError",
+    "DeviceTimeoutError",
+    "EmlogdError",
+    "ErrorPolicy",
+    "FieldError",
+    "FrameError",
+    "MissingChecksumError",
+    "OutOfRangeError",
+    "Rejected",
+    "SpeedRecord",
+    "Stamped",
+    "TooLongError",
+    "UnknownProtocolError",
+    "UnknownSentenceError",
+    "get_decoder",
+    "is_binary",
+    "make_decoder",
+    "protocol_names",
+    "record_types",
+]
