@@ -1,0 +1,45 @@
+"""Common records: SpeedRecord, Stamped, units."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord, Stamped
+
+
+def _speed(lon: float | None, tr: float | None) -> SpeedRecord:
+    return SpeedRecord("p", "stw", lon, tr, True, None, "VBW")
+
+
+class TestSpeedRecord:
+    """The common speed record."""
+
+    def test_magnitude_uses_both_axes(self) -> None:
+        """speed_mps is the horizontal magnitude when the transverse axis is known."""
+        assert _speed(3.0, -4.0).speed_mps == pytest.approx(5.0)
+
+    def test_magnitude_of_single_axis(self) -> None:
+        """Without a transverse value the magnitude is |longitudinal|."""
+        assert _speed(-1.5, None).speed_mps == 1.5
+        assert _speed(None, None).speed_mps is None
+
+    def test_frozen(self) -> None:
+        """Records cannot be modified after creation."""
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            _speed(1.0, None).valid = False  # type: ignore[misc]
+
+    def test_compared_by_value(self) -> None:
+        """Two records with the same fields are equal (not identity equality)."""
+        assert _speed(1.0, 0.5) == _speed(1.0, 0.5)
+        assert Stamped(1.0, "p", _speed(1.0, None)) == Stamped(1.0, "p", _speed(1.0, None))
+
+
+class TestUnits:
+    """Unit constants."""
+
+    def test_knot_and_kmh(self) -> None:
+        """1 kn = 1852/3600 m/s and 1 km/h = 1/3.6 m/s exactly."""
+        assert KNOT_MPS == pytest.approx(0.514444, abs=1e-6)
+        assert 1.852 * KMH_MPS == pytest.approx(KNOT_MPS)

@@ -1,0 +1,28 @@
+"""JSON views of records."""
+
+from __future__ import annotations
+
+import json
+from datetime import UTC, datetime
+
+from drivers.records import SpeedRecord, Stamped
+from emlogd.jsonio import to_jsonable
+
+
+class TestToJsonable:
+    """to_jsonable gives plain JSON types."""
+
+    def test_record_has_type_and_fields(self) -> None:
+        """A dataclass becomes a dict with its class name under 'type'."""
+        rec = SpeedRecord("emlog1", "stw", 1.5, None, True, 10.0, "VHW")
+        d = to_jsonable(rec)
+        assert d["type"] == "SpeedRecord"
+        assert d["longitudinal_mps"] == 1.5
+        assert d["transverse_mps"] is None
+        json.dumps(d)
+
+    def test_nested_and_special_values(self) -> None:
+        """Datetimes, bytes, tuples and non-finite floats are converted."""
+        t = datetime(2025, 6, 1, 6, 0, tzinfo=UTC)
+        d = to_jsonable(Stamped(1.0, "p", {"when": t, "raw": b"\x01\xff", "v": (1, float("nan"))}))
+        assert d["record"] == {"when": t.isoformat(), "raw": "01ff", "v": [1, None]}
