@@ -1,0 +1,157 @@
+"""Accuracy and consistency metrics (paper section IV-C).
+
+- RMSE of reference minus corrected speed (eq. (28)) and the improvement over raw,
+  ``100·(1 − RMSE_cal/RMSE_raw)`` %, as in the paper's Tables II and III;
+- NIS statistics (eqs. (29)–(31)): for a consistent filter with a scalar
+  measurement each NISₖ is χ²(1), so its mean is 1 and 95 % of the samples fall
+  inside the two-sided 95 % χ²(1) bounds [0.00098, 5.024]. The filter is declared
+  **consistent** when the sample mean lies inside the two-sided 95 % interval of
+  χ²(N)/N (Wilson–Hilferty approximation) — the classical test of
+  Bar-Shalom et al. (2001) — which assumes uncorrelated innovations.
+
+Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from statistics import NormalDist
+
+import numpy as np
+import numpy.typing as npt
+
+from calib.errors import DataError
+
+
+def rmse(ref_mps: npt.ArrayLike, est_mps: npt.ArrayLike) -> float:
+    """Root-mean-square error (eq. (28)), ignoring samples where either is nan.
+
+    Args:
+        ref_mps: reference speeds in m/s, shape (N,).
+        est_mps: estimated (raw or corrected) speeds in m/s, shape (N,).
+
+    Returns:
+        The RMSE in m/s.
+
+    Raises:
+        DataError: different shapes or no finite pair.
+    """
+    ref = np.asarray(ref_mps, dtype=np.float64)
+    est = np.asarray(est_mps, dtype=np.float64)
+    if ref.shape != est.shape:
+        raise DataError(f"shapes differ: {ref.shape} and {est.shape}")
+    d = ref - est
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        raise DataError("no finite sample pair for the RMSE")
+    return math.sqrt(float(np.dot(d, d)) / d.size)
+
+
+def improvement_pct(rmse_raw_mps: float, rmse_cal_mps: float) -> float:
+    """Relative RMSE reduction ``100·(1 − cal/raw)`` in % (negative: calibration hurt).
+
+    Args:
+        rmse_raw_mps: RMSE of the raw readings, m/s (> 0).
+        rmse_cal_mps: RMSE of the corrected readings, m/s.
+
+    Returns:
+        The improvement in percent (``nan`` when the raw RMSE is 0).
+    """
+    if rmse_raw_mps <= 0.0:
+        return math.nan
+    return 100.0 * (1.0 - rmse_cal_mps / rmse_raw_mps)
+
+
+def chi2_1_quantile(p: float) -> float:
+    """Quantile of the χ²(1) distribution: ``x`` with ``P(X ≤ x) = p``.
+
+    Args:
+        p: probability in (0, 1).
+
+    Returns:
+        ``z²`` with z the standard-normal quantile of ``(1 + p)/2``.
+    """
+    z = NormalDist().inv_cdf(0.5 * (1.0 + p))
+    return z * z
+
+
+def chi2_mean_bounds(n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Two-sided bounds of the mean of n independent χ²(1) samples (χ²(n)/n).
+
+    Wilson–Hilferty: ``χ²_p(n) ≈ n·(1 − 2/(9n) + z_p·√(2/(9n)))³``.
+
+    Args:
+        n: number of samples (≥ 1).
+        confidence: two-sided confidence level.
+
+    Returns:
+        ``(lower, upper)`` for the sample mean.
+    """
+    c = 2.0 / (9.0 * n)
+    z = NormalDist().inv_cdf(0.5 * (1.0 + confidence))
+    lo = max(1.0 - c - z * math.sqrt(c), 0.0) ** 3
+    hi = (1.0 - c + z * math.sqrt(c)) ** 3
+    return lo, hi
+
+
+@dataclass(frozen=True, slots=True)
+class NisStats:
+    """Summary of a NIS series.
+
+    Attributes:
+        n: number of finite NIS samples used.
+        mean: their mean (1 for a consistent filter).
+        frac_inside: fraction inside ``[lower, upper]`` (≈ ``confidence``).
+        lower: lower χ²(1) bound of a single sample.
+        upper: upper χ²(1) bound of a single sample.
+        mean_lower: lower bound of the mean (χ²(n)/n).
+        mean_upper: upper bound of the mean.
+        consistent: ``mean_lower ≤ mean ≤ mean_upper``.
+    """
+
+    n: int
+    mean: float
+    frac_inside: float
+    lower: float
+    upper: float
+    mean_lower: float
+    mean_upper: float
+    consistent: bool
+
+
+def nis_stats(nis: npt.ArrayLike, *, confidence: float = 0.95, skip: int = 0) -> NisStats:
+    """NIS mean, fraction inside the χ²(1) bounds, and the consistency verdict.
+
+    Args:
+        nis: NIS series, shape (N,); nan entries (no update) are ignored.
+        confidence: two-sided level of the bounds (0.95 as in the paper's figure).
+        skip: leading samples to drop (initial convergence transient).
+
+    Returns:
+        The statistics.
+
+    Raises:
+        DataError: no finite NIS sample, or a confidence outside (0, 1).
+    """
+    if not 0.0 < confidence < 1.0:
+        raise DataError("confidence must be in (0, 1)")
+    a = np.asarray(nis, dtype=np.float64).reshape(-1)[skip:]
+    a = a[np.isfinite(a)]
+    if a.size == 0:
+        raise DataError("no finite NIS sample")
+    lower = chi2_1_quantile((1.0 - confidence) / 2.0)
+    upper = chi2_1_quantile((1.0 + confidence) / 2.0)
+    mean = float(np.mean(a))
+    inside = float(np.mean((a >= lower) & (a <= upper)))
+    m_lo, m_hi = chi2_mean_bounds(a.size, confidence)
+    return NisStats(
+        n=int(a.size),
+        mean=mean,
+        frac_inside=inside,
+        lower=lower,
+        upper=upper,
+        mean_lower=m_lo,
+        mean_upper=m_hi,
+        consistent=m_lo <= mean <= m_hi,
+    )

@@ -1,0 +1,311 @@
+"""The EMlog error models EM1–EM4 of the paper (section III-A, eqs. (10)–(13)).
+
+Every model says what the EMlog reads (``raw``) for a true speed through the water
+``v`` (measured = f(true)), in m/s:
+
+========  ==================================  ==========================
+model     forward model f(v)                  parameters θ (paper order)
+========  ==================================  ==========================
+``EM1``   ``v + b``              (eq. 10)     ``[b]``
+``EM2``   ``(1 + m)·v``          (eq. 11)     ``[m]``
+``EM3``   ``(1 + m)·v + b``      (eq. 12)     ``[m, b]``
+``EM4``   ``a·v² + (1 + m)·v + b`` (eq. 13)   ``[a, m, b]``
+========  ==================================  ==========================
+
+Units: ``b`` in m/s, ``m`` dimensionless, ``a`` in s/m (so ``a·v²`` is m/s).
+
+The error ``raw − v`` is linear in θ: ``raw − v = h(v)·θ`` with the design row
+``h(v)`` of the paper's LS design matrices (eqs. (18)–(21)): ``[1]``, ``[v]``,
+``[v, 1]``, ``[v², v, 1]``. The least-squares and Kalman estimators build on that.
+
+Correction applies the inverse of f. EM1–EM3 (and EM4 with ``a = 0``) are linear:
+``v = (raw − b)/(1 + m)``. For EM4 the quadratic ``a·v² + (1+m)·v + (b − raw) = 0``
+has two roots; the correction is the root nearest the linear solution
+``(raw − b)/(1 + m)``, i.e. the branch of f that contains the operating envelope.
+Documented edge cases, never an exception:
+
+- no real root (the reading lies beyond the extremum of the parabola): the
+  correction is the vertex ``−(1+m)/(2a)``, the speed whose modelled reading is
+  closest to ``raw``;
+- a zero gain (``1 + m = 0`` with ``a = 0``): the model cannot be inverted and
+  the correction is ``nan``.
+
+Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from calib.errors import ModelError
+
+FloatArray = npt.NDArray[np.float64]
+"""A float64 numpy array."""
+
+ModelName = Literal["EM1", "EM2", "EM3", "EM4"]
+"""The four error models of the paper."""
+
+MODEL_NAMES: tuple[ModelName, ...] = ("EM1", "EM2", "EM3", "EM4")
+
+ParamName = Literal["a", "m", "b"]
+"""Short parameter names as the paper writes them (JSON keys use them too)."""
+
+PARAM_NAMES: dict[ModelName, tuple[ParamName, ...]] = {
+    "EM1": ("b",),
+    "EM2": ("m",),
+    "EM3": ("m", "b"),
+    "EM4": ("a", "m", "b"),
+}
+"""The parameter vector θ of each model, in the paper's order."""
+
+PARAM_UNITS: dict[ParamName, str] = {"a": "s/m", "m": "1", "b": "m/s"}
+"""The unit of each parameter."""
+
+
+def check_model(model: str) -> ModelName:
+    """Validate a model name.
+
+    Args:
+        model: ``"EM1"``, ``"EM2"``, ``"EM3"`` or ``"EM4"``.
+
+    Returns:
+        The same name, typed as :data:`ModelName`.
+
+    Raises:
+        ModelError: for any other name (the message lists the valid ones).
+    """
+    if model not in MODEL_NAMES:
+        raise ModelError(f"unknown error model {model!r}; expected one of {', '.join(MODEL_NAMES)}")
+    return model
+
+
+@dataclass(frozen=True, slots=True)
+class Params:
+    """Parameters of one error model; those the model does not use are exactly 0.
+
+    Attributes:
+        model: which error model these parameters belong to.
+        a_spm: quadratic coefficient ``a`` in s/m (EM4 only).
+        m: scale-factor error ``m``, dimensionless (EM2, EM3, EM4).
+        b_mps: bias ``b`` in m/s (EM1, EM3, EM4).
+
+    Raises:
+        ModelError: unknown model, a non-finite value, or a non-zero value for a
+            parameter the model does not have.
+    """
+
+    model: ModelName
+    a_spm: float = 0.0
+    m: float = 0.0
+    b_mps: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_model(self.model)
+        used = PARAM_NAMES[self.model]
+        for name, value in (("a", self.a_spm), ("m", self.m), ("b", self.b_mps)):
+            if not math.isfinite(value):
+                raise ModelError(f"{self.model} parameter {name} is not finite: {value!r}")
+            if name not in used and value != 0.0:
+                raise ModelError(f"{self.model} has no parameter {name} (got {value!r})")
+
+    @classmethod
+    def from_theta(cls, model: str, theta: tuple[float, ...] | list[float] | FloatArray) -> Params:
+        """Build parameters from the paper's vector θ.
+
+        Args:
+            model: the error model.
+            theta: θ in the order of :data:`PARAM_NAMES` (``[a, m, b]`` for EM4), SI units.
+
+        Returns:
+            The parameters.
+
+        Raises:
+            ModelError: unknown model or θ of the wrong length.
+        """
+        name = check_model(model)
+        names = PARAM_NAMES[name]
+        values = [float(v) for v in theta]
+        if len(values) != len(names):
+            raise ModelError(f"{name} takes {len(names)} parameters {names}, got {len(values)}")
+        kw = dict(zip(names, values, strict=True))
+        return cls(name, a_spm=kw.get("a", 0.0), m=kw.get("m", 0.0), b_mps=kw.get("b", 0.0))
+
+    @property
+    def theta(self) -> tuple[float, ...]:
+        """θ in the paper's order (see :data:`PARAM_NAMES`)."""
+        values = {"a": self.a_spm, "m": self.m, "b": self.b_mps}
+        return tuple(values[n] for n in PARAM_NAMES[self.model])
+
+    def as_dict(self) -> dict[str, float]:
+        """The model's parameters by short name, e.g. ``{"m": 0.05, "b": -0.1}`` (SI units)."""
+        return dict(zip(PARAM_NAMES[self.model], self.theta, strict=True))
+
+    def forward(self, v_mps: float) -> float:
+        """What the EMlog reads at true speed ``v_mps`` (eqs. (10)–(13)), noise-free.
+
+        Args:
+            v_mps: true speed through the water in m/s.
+
+        Returns:
+            The modelled reading in m/s.
+        """
+        return (self.a_spm * v_mps + 1.0 + self.m) * v_mps + self.b_mps
+
+    def correct(self, raw_mps: float) -> float:
+        """The true speed for a raw reading: the inverse of :meth:`forward`.
+
+        See the module docstring for the EM4 root choice and the edge cases.
+
+        Args:
+            raw_mps: the EMlog reading in m/s.
+
+        Returns:
+            The corrected speed in m/s (``nan`` only for a zero gain).
+        """
+        return invert(self.a_spm, self.m, self.b_mps, raw_mps)
+
+
+def invert(a_spm: float, m: float, b_mps: float, raw_mps: float) -> float:
+    """Invert ``raw = a·v² + (1+m)·v + b`` for v (scalar fast path of :meth:`Params.correct`).
+
+    Args:
+        a_spm: quadratic coefficient in s/m (0 for EM1–EM3).
+        m: scale-factor error, dimensionless.
+        b_mps: bias in m/s.
+        raw_mps: the EMlog reading in m/s.
+
+    Returns:
+        The corrected speed in m/s: the root nearest the linear solution, the
+        vertex without a real root, ``nan`` for a zero linear gain with ``a = 0``.
+    """
+    gain = 1.0 + m
+    rhs = raw_mps - b_mps
+    a = a_spm
+    if a == 0.0:
+        return rhs / gain if gain != 0.0 else math.nan
+    disc = gain * gain + 4.0 * a * rhs
+    if disc < 0.0:
+        return -gain / (2.0 * a)
+    # Numerically stable roots: q = -(B + sign(B)·√D)/2, roots q/A and C/q.
+    q = -0.5 * (gain + math.copysign(math.sqrt(disc), gain))
+    if q == 0.0:
+        return 0.0
+    root_far = q / a
+    root_near = -rhs / q
+    linear = rhs / gain if gain != 0.0 else 0.0
+    return root_near if abs(root_near - linear) <= abs(root_far - linear) else root_far
+
+
+def zero_params(model: str) -> Params:
+    """The ideal sensor of a model: every parameter 0 (the paper's KF initial state).
+
+    Args:
+        model: the error model.
+
+    Returns:
+        Parameters with ``a = m = b = 0``.
+    """
+    return Params(check_model(model))
+
+
+def n_params(model: str) -> int:
+    """Number of parameters p of a model (1, 1, 2, 3).
+
+    Args:
+        model: the error model.
+
+    Returns:
+        The length of θ.
+    """
+    return len(PARAM_NAMES[check_model(model)])
+
+
+def design_row(model: ModelName, v_mps: float) -> tuple[float, ...]:
+    """The design row h(v) with ``raw − v = h(v)·θ`` (rows of eqs. (18)–(21)).
+
+    Scalar fast path for the per-sample filters (no numpy).
+
+    Args:
+        model: the error model (assumed valid: no check on the fast path).
+        v_mps: the operating-point speed in m/s (the reference speed, pseudo-linear).
+
+    Returns:
+        ``(1,)``, ``(v,)``, ``(v, 1)`` or ``(v², v, 1)``.
+    """
+    if model == "EM3":
+        return (v_mps, 1.0)
+    if model == "EM1":
+        return (1.0,)
+    if model == "EM2":
+        return (v_mps,)
+    return (v_mps * v_mps, v_mps, 1.0)
+
+
+def design_matrix(model: str, v_mps: npt.ArrayLike) -> FloatArray:
+    """The paper's LS design matrix H for a speed series (eqs. (18)–(21)).
+
+    Args:
+        model: the error model.
+        v_mps: reference speeds in m/s, shape (N,).
+
+    Returns:
+        H, shape (N, p), rows h(v_k).
+
+    Raises:
+        ModelError: unknown model.
+    """
+    name = check_model(model)
+    v = np.asarray(v_mps, dtype=np.float64).reshape(-1)
+    ones = np.ones_like(v)
+    columns = {"EM1": (ones,), "EM2": (v,), "EM3": (v, ones), "EM4": (v * v, v, ones)}[name]
+    return np.column_stack(columns)
+
+
+def forward_array(params: Params, v_mps: npt.ArrayLike) -> FloatArray:
+    """Vectorised :meth:`Params.forward`.
+
+    Args:
+        params: the error-model parameters.
+        v_mps: true speeds in m/s, shape (N,).
+
+    Returns:
+        Modelled readings in m/s, shape (N,).
+    """
+    v = np.asarray(v_mps, dtype=np.float64)
+    return np.asarray((params.a_spm * v + 1.0 + params.m) * v + params.b_mps, dtype=np.float64)
+
+
+def correct_array(params: Params, raw_mps: npt.ArrayLike) -> FloatArray:
+    """Vectorised :meth:`Params.correct` (same root choice and edge cases).
+
+    Args:
+        params: the error-model parameters.
+        raw_mps: raw EMlog readings in m/s, shape (N,).
+
+    Returns:
+        Corrected speeds in m/s, shape (N,).
+    """
+    raw = np.asarray(raw_mps, dtype=np.float64)
+    gain = 1.0 + params.m
+    rhs = raw - params.b_mps
+    a = params.a_spm
+    if a == 0.0:
+        if gain == 0.0:
+            return np.full_like(rhs, np.nan)
+        return np.asarray(rhs / gain, dtype=np.float64)
+    disc = gain * gain + 4.0 * a * rhs
+    real = disc >= 0.0
+    sqrt_disc = np.sqrt(np.where(real, disc, 0.0))
+    q = -0.5 * (gain + math.copysign(1.0, gain) * sqrt_disc)
+    safe_q = np.where(q == 0.0, 1.0, q)
+    root_far = q / a
+    root_near = np.where(q == 0.0, 0.0, -rhs / safe_q)
+    linear = rhs / gain if gain != 0.0 else np.zeros_like(rhs)
+    near_is_nearer = np.abs(root_near - linear) <= np.abs(root_far - linear)
+    root = np.where(near_is_nearer, root_near, root_far)
+    return np.asarray(np.where(real, root, -gain / (2.0 * a)), dtype=np.float64)

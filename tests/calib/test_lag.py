@@ -1,0 +1,67 @@
+"""Lag estimation by normalised cross-correlation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.errors import DataError
+from calib.lag import estimate_lag
+
+
+def _speed(t: np.ndarray) -> np.ndarray:
+    """A manoeuvring speed profile (m/s) rich enough to correlate."""
+    return 1.5 + 0.6 * np.sin(2 * np.pi * t / 95.0) + 0.3 * np.sin(2 * np.pi * t / 37.0 + 1.0)
+
+
+class TestEstimateLag:
+    """estimate_lag finds the delay across rates."""
+
+    def test_3_2_s_between_1_hz_and_10_hz(self) -> None:
+        """A 3.2 s delay of a 1 Hz series behind a 10 Hz reference is found within 0.1 s."""
+        rng = np.random.default_rng(3)
+        t_ref = np.arange(0.0, 1200.0, 0.1)
+        v_ref = _speed(t_ref) + rng.normal(0.0, 0.01, t_ref.size)
+        t_meas = np.arange(5.0, 1195.0, 1.0) + 0.37
+        v_meas = 1.05 * _speed(t_meas - 3.2) + 0.1 + rng.normal(0.0, 0.05, t_meas.size)
+        est = estimate_lag(t_meas, v_meas, t_ref, v_ref, 10.0)
+        assert est.lag_s == pytest.approx(3.2, abs=0.1)
+        assert est.peak_corr > 0.95
+        assert not est.at_bound
+
+    def test_sub_sample_refinement(self) -> None:
+        """A lag between grid points is refined beyond the grid step (0.45 s on a 1 s grid)."""
+        t = np.arange(0.0, 1200.0, 1.0)
+        est = estimate_lag(t, _speed(t - 0.45), t, _speed(t), 5.0)
+        assert est.step_s == pytest.approx(1.0)
+        assert est.lag_s == pytest.approx(0.45, abs=0.08)
+
+    def test_negative_lag(self) -> None:
+        """A measurement ahead of the reference gives a negative lag."""
+        t_ref = np.arange(0.0, 900.0, 0.1)
+        t_meas = np.arange(0.0, 900.0, 0.2)
+        est = estimate_lag(t_meas, _speed(t_meas + 1.5), t_ref, _speed(t_ref), 5.0)
+        assert est.lag_s == pytest.approx(-1.5, abs=0.05)
+
+    def test_peak_at_bound_flagged(self) -> None:
+        """A true lag outside the searched range is reported at the bound."""
+        t = np.arange(0.0, 900.0, 0.5)
+        est = estimate_lag(t, _speed(t - 8.0), t, _speed(t), 3.0)
+        assert est.at_bound and est.lag_s == pytest.approx(3.0)
+
+    def test_uncorrelated_noise_has_low_quality(self) -> None:
+        """Independent noise series give a low peak correlation."""
+        rng = np.random.default_rng(4)
+        t = np.arange(0.0, 600.0, 1.0)
+        est = estimate_lag(t, rng.normal(size=t.size), t, rng.normal(size=t.size), 5.0)
+        assert est.peak_corr < 0.3
+
+    def test_rejects_bad_input(self) -> None:
+        """Unsorted times, too little overlap or a non-positive range raise DataError."""
+        t = np.arange(0.0, 100.0, 1.0)
+        with pytest.raises(DataError, match="increasing"):
+            estimate_lag(t[::-1], t, t, t, 5.0)
+        with pytest.raises(DataError, match="overlap"):
+            estimate_lag(t, t, t + 90.0, t, 5.0)
+        with pytest.raises(DataError, match="max_lag_s"):
+            estimate_lag(t, t, t, t, 0.0)

@@ -1,0 +1,161 @@
+"""Batch least squares LS-EM1..LS-EM4."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from calib.errors import DataError, ModelError
+from calib.lsq import fit_ls
+from calib.models import Params, forward_array
+
+
+def _varying(n: int = 600, seed: int = 1) -> tuple[np.ndarray, np.random.Generator]:
+    """Ten minutes at 1 Hz of a vessel sweeping 0.5–4.5 m/s (period 2 min)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=np.float64)
+    return 2.5 + 2.0 * np.sin(2.0 * np.pi * t / 120.0), rng
+
+
+class TestRecovery:
+    """The fits recover the simulated parameters."""
+
+    def test_ls_em3_recovers_m_and_b(self) -> None:
+        """10 min of 1 Hz varying-speed data with σ = 0.05 m/s: m within 0.005, b within 0.01 m/s."""
+        v, rng = _varying()
+        raw = forward_array(Params("EM3", m=0.05, b_mps=0.1), v) + rng.normal(0.0, 0.05, v.size)
+        fit = fit_ls("EM3", v, raw)
+        assert abs(fit.params.m - 0.05) < 0.005
+        assert abs(fit.params.b_mps - 0.1) < 0.01
+        assert fit.identifiable and fit.rank == 2
+        assert fit.rmse_mps == pytest.approx(0.05, rel=0.1)
+
+    def test_ls_em4_recovers_curvature(self) -> None:
+        """On data with curvature LS-EM4 recovers a, m and b within 3 standard errors."""
+        v, rng = _varying(seed=2)
+        truth = Params("EM4", a_spm=0.03, m=0.02, b_mps=0.05)
+        raw = forward_array(truth, v) + rng.normal(0.0, 0.05, v.size)
+        fit = fit_ls("EM4", v, raw)
+        for est, true, se in zip(fit.params.theta, truth.theta, fit.stderr, strict=True):
+            assert abs(est - true) < 3.0 * se
+        assert abs(fit.params.a_spm - 0.03) < 0.005
+
+    @pytest.mark.parametrize("model", ["EM1", "EM2", "EM3", "EM4"])
+    def test_noise_free_exact(self, model: str) -> None:
+        """Without noise every model recovers its own parameters to 1e-9."""
+        v, _ = _varying()
+        theta = {"EM1": (0.1,), "EM2": (0.04,), "EM3": (0.04, 0.1), "EM4": (0.01, 0.04, 0.1)}
+        truth = Params.from_theta(model, theta[model])
+        fit = fit_ls(model, v, forward_array(truth, v))
+        np.testing.assert_allclose(fit.params.theta, truth.theta, atol=1e-9)
+
+    def test_matches_normal_equations(self) -> None:
+        """θ̂ equals the paper's eq. (2) solution on well-conditioned data."""
+        v, rng = _varying()
+        raw = 1.03 * v - 0.05 + rng.normal(0.0, 0.05, v.size)
+        H = np.column_stack([v, np.ones_like(v)])
+        theta = np.linalg.solve(H.T @ H, H.T @ (raw - v))
+        np.testing.assert_allclose(fit_ls("EM3", v, raw).params.theta, theta, rtol=1e-10)
+
+    def test_standard_errors(self) -> None:
+        """Standard errors equal √diag(σ̂²(HᵀH)⁻¹) with σ̂² = RSS/(N − p)."""
+        v, rng = _varying()
+        raw = 1.03 * v - 0.05 + rng.normal(0.0, 0.05, v.size)
+        fit = fit_ls("EM3", v, raw)
+        H = np.column_stack([v, np.ones_like(v)])
+        r = raw - v - H @ np.array(fit.params.theta)
+        cov = (r @ r) / (v.size - 2) * np.linalg.inv(H.T @ H)
+        np.testing.assert_allclose(fit.stderr, np.sqrt(np.diag(cov)), rtol=1e-8)
+        assert fit.det_info == pytest.approx(np.linalg.det(H.T @ H), rel=1e-8)
+        assert fit.cond_info == pytest.approx(np.linalg.cond(H.T @ H), rel=1e-6)
+
+
+class TestWeights:
+    """Weighted least squares."""
+
+    def test_weights_match_row_scaling(self) -> None:
+        """Weights w give the same θ̂ as ordinary LS on rows scaled by √w."""
+        v, rng = _varying()
+        raw = 1.03 * v - 0.05 + rng.normal(0.0, 0.05, v.size)
+        w = rng.uniform(0.2, 3.0, v.size)
+        H = np.column_stack([v, np.ones_like(v)]) * np.sqrt(w)[:, None]
+        theta = np.linalg.lstsq(H, (raw - v) * np.sqrt(w), rcond=None)[0]
+        np.testing.assert_allclose(fit_ls("EM3", v, raw, w).params.theta, theta, rtol=1e-9)
+
+    def test_uniform_weights_change_nothing(self) -> None:
+        """Scaling all weights by a constant leaves θ̂ and its standard errors unchanged."""
+        v, rng = _varying()
+        raw = 1.03 * v - 0.05 + rng.normal(0.0, 0.05, v.size)
+        a, b = fit_ls("EM3", v, raw), fit_ls("EM3", v, raw, np.full(v.size, 7.0))
+        np.testing.assert_allclose(a.params.theta, b.params.theta, rtol=1e-10)
+        np.testing.assert_allclose(a.stderr, b.stderr, rtol=1e-9)
+
+    def test_bad_weights(self) -> None:
+        """Negative or wrongly shaped weights raise DataError."""
+        v, _ = _varying(10)
+        with pytest.raises(DataError):
+            fit_ls("EM3", v, v, -np.ones(10))
+        with pytest.raises(DataError):
+            fit_ls("EM3", v, v, np.ones(9))
+
+
+class TestIdentifiability:
+    """Constant speed: the paper's det(HᵀH) = 0."""
+
+    def test_constant_speed_rank_deficient(self) -> None:
+        """LS-EM3 at exactly constant speed reports rank 1, not identifiable, and does not raise."""
+        rng = np.random.default_rng(3)
+        v = np.full(600, 2.0)
+        raw = 1.05 * v + 0.1 + rng.normal(0.0, 0.05, v.size)
+        fit = fit_ls("EM3", v, raw)
+        assert fit.rank == 1
+        assert not fit.identifiable
+        assert "rank" in fit.reason
+        assert all(math.isinf(s) for s in fit.stderr)
+        assert math.isinf(fit.cond_info)
+        # The minimum-norm solution still predicts the mean error at that speed.
+        assert fit.params.forward(2.0) == pytest.approx(float(np.mean(raw)), abs=1e-9)
+
+    def test_nearly_constant_speed_not_identifiable(self) -> None:
+        """A noisy constant-speed reference is full rank but not identifiable (speed std rule)."""
+        rng = np.random.default_rng(4)
+        v = 2.0 + rng.normal(0.0, 0.01, 600)
+        fit = fit_ls("EM3", v, 1.05 * v + 0.1)
+        assert fit.rank == 2 and not fit.identifiable
+        assert "constant" in fit.reason
+
+    def test_em1_identifiable_at_constant_speed(self) -> None:
+        """The bias alone is identifiable without any speed variation."""
+        v = np.full(100, 2.0)
+        fit = fit_ls("EM1", v, v + 0.2)
+        assert fit.identifiable
+        assert fit.params.b_mps == pytest.approx(0.2)
+
+
+class TestInterface:
+    """Validation and serialisation."""
+
+    def test_mismatched_lengths(self) -> None:
+        """ref and raw of different lengths raise DataError."""
+        with pytest.raises(DataError, match="equal length"):
+            fit_ls("EM3", np.ones(5), np.ones(6))
+
+    def test_nan_rejected(self) -> None:
+        """Non-finite samples raise DataError."""
+        with pytest.raises(DataError, match="finite"):
+            fit_ls("EM3", np.array([1.0, np.nan, 2.0]), np.ones(3))
+
+    def test_unknown_model(self) -> None:
+        """An unknown model raises ModelError."""
+        with pytest.raises(ModelError):
+            fit_ls("EM9", np.ones(5), np.ones(5))
+
+    def test_to_dict_is_json(self) -> None:
+        """to_dict() is JSON-serialisable even with infinite standard errors."""
+        fit = fit_ls("EM3", np.full(20, 2.0), np.full(20, 2.1))
+        doc = json.loads(json.dumps(fit.to_dict(), allow_nan=False))
+        assert doc["stderr"] == {"m": None, "b": None}
+        assert doc["identifiable"] is False

@@ -1,0 +1,77 @@
+"""RMSE, improvement and NIS statistics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from calib.errors import DataError
+from calib.metrics import chi2_1_quantile, chi2_mean_bounds, improvement_pct, nis_stats, rmse
+
+
+class TestRmse:
+    """RMSE and improvement (eq. (28))."""
+
+    def test_known_value(self) -> None:
+        """RMSE of errors 3 and 4 is √12.5."""
+        assert rmse([0.0, 0.0], [3.0, 4.0]) == pytest.approx(math.sqrt(12.5))
+
+    def test_ignores_nan(self) -> None:
+        """nan pairs are skipped."""
+        assert rmse([0.0, np.nan, 0.0], [1.0, 5.0, 1.0]) == pytest.approx(1.0)
+
+    def test_errors(self) -> None:
+        """Different shapes or no finite pair raise DataError."""
+        with pytest.raises(DataError):
+            rmse([1.0], [1.0, 2.0])
+        with pytest.raises(DataError):
+            rmse([np.nan], [1.0])
+
+    def test_improvement(self) -> None:
+        """0.576 → 0.167 m/s is the paper's 71 % improvement; worse is negative."""
+        assert improvement_pct(0.576, 0.167) == pytest.approx(71.0, abs=0.1)
+        assert improvement_pct(0.4, 0.5) == pytest.approx(-25.0)
+        assert math.isnan(improvement_pct(0.0, 0.1))
+
+
+class TestNis:
+    """χ²(1) bounds and the consistency verdict."""
+
+    def test_chi2_quantiles(self) -> None:
+        """The 2.5 % and 97.5 % χ²(1) quantiles are 0.000982 and 5.024."""
+        assert chi2_1_quantile(0.025) == pytest.approx(0.000982, rel=1e-3)
+        assert chi2_1_quantile(0.975) == pytest.approx(5.0239, rel=1e-4)
+
+    def test_mean_bounds(self) -> None:
+        """χ²(1000)/1000 95 % bounds are about [0.914, 1.090] and shrink with n."""
+        lo, hi = chi2_mean_bounds(1000)
+        assert (lo, hi) == pytest.approx((0.9143, 1.0895), abs=2e-3)
+        lo2, hi2 = chi2_mean_bounds(10000)
+        assert lo < lo2 < 1.0 < hi2 < hi
+
+    def test_true_chi2_samples_consistent(self) -> None:
+        """Squared standard-normal samples are consistent with ~95 % inside."""
+        nis = np.random.default_rng(1).normal(size=5000) ** 2
+        st = nis_stats(nis)
+        assert st.consistent
+        assert st.frac_inside == pytest.approx(0.95, abs=0.01)
+        assert st.mean == pytest.approx(1.0, abs=0.05)
+
+    def test_overconfident_detected(self) -> None:
+        """NIS samples 3× too large are flagged inconsistent."""
+        nis = 3.0 * np.random.default_rng(2).normal(size=2000) ** 2
+        assert not nis_stats(nis).consistent
+
+    def test_skip_and_nan(self) -> None:
+        """skip drops leading samples and nan samples are ignored."""
+        st = nis_stats([100.0, np.nan, 1.0, 1.0], skip=1)
+        assert st.n == 2 and st.mean == 1.0
+
+    def test_errors(self) -> None:
+        """No finite sample or a bad confidence raises DataError."""
+        with pytest.raises(DataError):
+            nis_stats([np.nan])
+        with pytest.raises(DataError):
+            nis_stats([1.0], confidence=1.5)
