@@ -453,10 +453,14 @@ def kernel_for(n: int) -> Kernel:
 # P − K uᵀ − w Kᵀ with w = u − S K, algebraically the same expansion as in the
 # kernels (and still first-order insensitive to rounding in K: a gain error δ
 # leaves only S δ δᵀ), with fewer operations. Signature:
-#     step(x, P, q_v, q_p, z_ref, r_ref, h, z_raw, r_raw) -> (y, S) of the raw update.
+#     step(x, P, q_v, q_p, z_ref, r_ref, h_fn, z_raw, r_raw) -> (y, S) of the raw update,
+# where h_fn(v) gives the raw row at the operating point v = z_ref. A step may be
+# specialised for one model and build its row inline (:func:`_step_em3`).
+
+HRow = Callable[[float], tuple[float, ...]]
 
 FusedStep = Callable[
-    [list[float], list[float], float, float, float, float, Sequence[float], float, float],
+    [list[float], list[float], float, float, float, float, HRow, float, float],
     tuple[float, float],
 ]
 
@@ -468,11 +472,12 @@ def _step2(
     q_p: float,
     z_ref: float,
     r_ref: float,
-    h: Sequence[float],
+    h_fn: HRow,
     z: float,
     r: float,
 ) -> tuple[float, float]:
     """Fused predict + reference + raw update of a [v, θ1] filter."""
+    h = h_fn(z_ref)
     p00, p01, p11 = P
     x0, x1 = x
     p00 += q_v
@@ -518,11 +523,12 @@ def _step3(
     q_p: float,
     z_ref: float,
     r_ref: float,
-    h: Sequence[float],
+    h_fn: HRow,
     z: float,
     r: float,
 ) -> tuple[float, float]:
     """Fused predict + reference + raw update of a [v, θ1, θ2] filter."""
+    h = h_fn(z_ref)
     p00, p01, p02, p11, p12, p22 = P
     x0, x1, x2 = x
     p00 += q_v
@@ -576,6 +582,69 @@ def _step3(
     return y, s
 
 
+def _step_em3(
+    x: list[float],
+    P: list[float],
+    q_v: float,
+    q_p: float,
+    z_ref: float,
+    r_ref: float,
+    h_fn: HRow,
+    z: float,
+    r: float,
+) -> tuple[float, float]:
+    """:func:`_step3` specialised for KF-EM3: the raw row ``[1, v, 1]`` (eq. (24)) inline."""
+    p00, p01, p02, p11, p12, p22 = P
+    x0, x1, x2 = x
+    p00 += q_v
+    p11 += q_p
+    p22 += q_p
+    s = p00 + r_ref
+    y = z_ref - x0
+    k0 = p00 / s
+    k1 = p01 / s
+    k2 = p02 / s
+    w0 = p00 - s * k0
+    w1 = p01 - s * k1
+    w2 = p02 - s * k2
+    x0 += k0 * y
+    x1 += k1 * y
+    x2 += k2 * y
+    p00, p01, p02, p11, p12, p22 = (
+        p00 - k0 * p00 - w0 * k0,
+        p01 - k0 * p01 - w0 * k1,
+        p02 - k0 * p02 - w0 * k2,
+        p11 - k1 * p01 - w1 * k1,
+        p12 - k1 * p02 - w1 * k2,
+        p22 - k2 * p02 - w2 * k2,
+    )
+    v = z_ref
+    u0 = p00 + p01 * v + p02
+    u1 = p01 + p11 * v + p12
+    u2 = p02 + p12 * v + p22
+    s = u0 + v * u1 + u2 + r
+    y = z - (x0 + v * x1 + x2)
+    k0 = u0 / s
+    k1 = u1 / s
+    k2 = u2 / s
+    w0 = u0 - s * k0
+    w1 = u1 - s * k1
+    w2 = u2 - s * k2
+    x[0] = x0 + k0 * y
+    x[1] = x1 + k1 * y
+    x[2] = x2 + k2 * y
+    d0 = p00 - k0 * u0 - w0 * k0
+    d1 = p11 - k1 * u1 - w1 * k1
+    d2 = p22 - k2 * u2 - w2 * k2
+    P[0] = d0 if d0 > P_FLOOR else P_FLOOR
+    P[1] = p01 - k0 * u1 - w0 * k1
+    P[2] = p02 - k0 * u2 - w0 * k2
+    P[3] = d1 if d1 > P_FLOOR else P_FLOOR
+    P[4] = p12 - k1 * u2 - w1 * k2
+    P[5] = d2 if d2 > P_FLOOR else P_FLOOR
+    return y, s
+
+
 def _step_composed(
     x: list[float],
     P: list[float],
@@ -583,11 +652,12 @@ def _step_composed(
     q_p: float,
     z_ref: float,
     r_ref: float,
-    h: Sequence[float],
+    h_fn: HRow,
     z: float,
     r: float,
 ) -> tuple[float, float]:
     """Predict + reference + raw update of an n-state [v, θ] filter from the kernels."""
+    h = h_fn(z_ref)
     n = len(x)
     kernel = kernel_for(n)
     idx = 0
@@ -895,6 +965,8 @@ class KfCalibrator(_FastFilter):
         self._h_raw = self.spec.h_raw
         self._r_ref = self.config.r_ref_mps2
         self._fused: FusedStep | None = FUSED_STEPS.get(n, _step_composed) if nd == 1 else None
+        if nd == 1 and self.spec.h_raw is _h_em3:
+            self._fused = _step_em3  # the paper's KF-EM3 with its row built inline
         names = PARAM_NAMES[self.spec.model]
         self._abm = tuple(nd + names.index(p) if p in names else -1 for p in ("a", "m", "b"))
 
@@ -946,7 +1018,7 @@ class KfCalibrator(_FastFilter):
                 self._q_par,
                 ref_mps,
                 self._r_ref,
-                self._h_raw(ref_mps),
+                self._h_raw,
                 raw_mps,
                 self._r_raw,
             )

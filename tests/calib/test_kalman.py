@@ -452,3 +452,24 @@ class TestRunKf:
         """Times that go backwards raise DataError."""
         with pytest.raises(DataError):
             run_kf("EM3", [0.0, 2.0, 1.0], [1.0, 1.0, 1.0], [1.0, 1.0, 1.0])
+
+
+def test_em3_specialised_step_matches_the_generic_three_state_step() -> None:
+    """KF-EM3's inline-row fused step gives the same filter as the generic 3-state step."""
+    from calib.kalman import SPECS, FilterSpec
+
+    generic = FilterSpec("EM3", SPECS["EM3"].states, 1, lambda v: (1.0, v, 1.0))
+    fast = KfCalibrator("EM3")
+    slow = KfCalibrator("EM3", spec=generic)
+    assert fast._fused is not slow._fused
+    rng = np.random.default_rng(7)
+    for k in range(2000):
+        v = 1.5 + 0.5 * math.sin(k / 40.0)
+        raw = 1.05 * v + 0.1 + rng.normal(0.0, 0.05)
+        ref = v + rng.normal(0.0, 0.01)
+        a = fast.update(raw, ref, 0.1)
+        b = slow.update(raw, ref, 0.1)
+        assert a is not None and b is not None
+        assert a.y == pytest.approx(b.y, abs=1e-12) and a.S == pytest.approx(b.S, rel=1e-12)
+    assert fast.x == pytest.approx(slow.x, abs=1e-12)
+    assert np.allclose(fast.covariance(), slow.covariance(), rtol=1e-10, atol=1e-15)
