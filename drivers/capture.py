@@ -1,0 +1,270 @@
+"""Capture v1 files: what serial ports received, with receive times (DESIGN.md).
+
+Text, like candump's log format but for serial ports::
+
+    # emlogd capture v1
+    # port emlog1 nmea0183
+    # port dvl pd0
+    (1748757600.000000) emlog1 $VWVHW,,T,,M,3.50,N,6.48,K*6A
+    (1748757600.051234) dvl hex:7f7f...
+
+The first line is :data:`MAGIC`; ``# port NAME PROTOCOL`` headers come before the
+first record; other ``#`` lines are comments. A record is ``(EPOCH.SECONDS) PORT
+PAYLOAD``, sorted by time. For a text protocol the payload is the received line
+without its CR/LF (it is given back as the line plus CR LF); for a binary protocol,
+and for a text chunk that cannot be stored verbatim (non-printable bytes, a line
+without terminator), it is ``hex:`` + the bytes in lowercase hex, given back exactly.
+
+The reader streams (constant memory, any file size) and names the file and line
+of anything malformed. The writer refuses unknown ports and times going backwards.
+"""
+
+from __future__ import annotations
+
+import binascii
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import TextIO
+
+from drivers.errors import CaptureFormatError
+
+MAGIC = "# emlogd capture v1"
+HEX_PREFIX = "hex:"
+_NAME_OK = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.")
+
+
+@dataclass(frozen=True, slots=True)
+class CaptureRecord:
+    """One record of a capture.
+
+    Attributes:
+        t: receive time, s since the Unix epoch.
+        port: port name.
+        payload: the payload as stored (text line, or ``hex:...``).
+        binary: the payload is hex-encoded bytes.
+        line: 1-based line number in the file.
+    """
+
+    t: float
+    port: str
+    payload: str
+    binary: bool
+    line: int
+
+    @property
+    def data(self) -> bytes:
+        """The received bytes: the text line plus CR LF, or the hex-decoded chunk."""
+        if self.binary:
+            return binascii.unhexlify(self.payload[len(HEX_PREFIX) :])
+        return self.payload.encode("ascii") + b"\r\n"
+
+
+def _check_name(name: str) -> bool:
+    return bool(name) and all(c in _NAME_OK for c in name)
+
+
+def _printable(line: bytes) -> bool:
+    return all(32 <= c < 127 for c in line)
+
+
+class CaptureReader:
+    """Stream the records of a capture file.
+
+    The header (magic and port lines) is read when the reader is created;
+    iterating reads the records lazily, from the start each time.
+
+    Args:
+        path: the capture file.
+
+    Raises:
+        CaptureFormatError: (on creation or while iterating) naming file and line.
+        OSError: the file cannot be opened.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = str(path)
+        self.ports: dict[str, str] = {}
+        with open(self.path, encoding="ascii", errors="strict", newline="") as f:
+            self._read_header(f)
+
+    def _fail(self, line: int, msg: str) -> CaptureFormatError:
+        return CaptureFormatError(self.path, line, msg)
+
+    def _read_header(self, f: TextIO) -> None:
+        try:
+            first = f.readline(256)
+        except UnicodeDecodeError:
+            raise self._fail(1, "not a capture file (non-ASCII bytes)") from None
+        if first.rstrip("\r\n") != MAGIC:
+            raise self._fail(1, f"not a capture v1 file (first line must be {MAGIC!r})")
+        n = 1
+        for raw in f:
+            n += 1
+            line = raw.rstrip("\r\n")
+            if not line.startswith("#"):
+                break
+            self._header_line(line, n)
+
+    def _header_line(self, line: str, n: int) -> None:
+        parts = line[1:].split()
+        if not parts or parts[0] != "port":
+            return  # a comment
+        if len(parts) != 3:
+            raise self._fail(n, "port header must be '# port NAME PROTOCOL'")
+        name, proto = parts[1], parts[2]
+        if not _check_name(name):
+            raise self._fail(n, f"bad port name {name!r}")
+        if name in self.ports and self.ports[name] != proto:
+            raise self._fail(n, f"port {name!r} declared twice")
+        self.ports[name] = proto
+
+    def __iter__(self) -> Iterator[CaptureRecord]:
+        last_t = -math.inf
+        in_header = True
+        try:
+            with open(self.path, encoding="ascii", errors="strict", newline="") as f:
+                for n, raw in enumerate(f, start=1):
+                    line = raw.rstrip("\r\n")
+                    if n == 1 or not line:
+                        continue
+                    if line.startswith("#"):
+                        if not in_header and line[1:].split()[:1] == ["port"]:
+                            raise self._fail(n, "port header after the first record")
+                        continue
+                    in_header = False
+                    rec = self._record(line, n)
+                    if rec.t < last_t:
+                        raise self._fail(n, f"time goes backwards ({rec.t:.6f} < {last_t:.6f})")
+                    last_t = rec.t
+                    yield rec
+        except UnicodeDecodeError as exc:
+            raise self._fail(
+                self._line_of(exc), "non-ASCII bytes (payloads must be hex:)"
+            ) from None
+
+    def _line_of(self, exc: UnicodeDecodeError) -> int:
+        with open(self.path, "rb") as f:
+            head = f.read(exc.start + 1)
+        return head.count(b"\n") + 1
+
+    def _record(self, line: str, n: int) -> CaptureRecord:
+        if not line.startswith("("):
+            raise self._fail(n, "record must start with '(EPOCH.SECONDS)'")
+        close = line.find(") ")
+        if close < 0:
+            raise self._fail(n, "record must be '(EPOCH.SECONDS) PORT PAYLOAD'")
+        try:
+            t = float(line[1:close])
+        except ValueError:
+            raise self._fail(n, f"bad time {line[1:close]!r}") from None
+        if not math.isfinite(t):
+            raise self._fail(n, f"bad time {line[1:close]!r}")
+        port, sep, payload = line[close + 2 :].partition(" ")
+        if port not in self.ports:
+            raise self._fail(
+                n, f"unknown port {port!r} (declared: {', '.join(self.ports) or 'none'})"
+            )
+        if not sep or not payload:
+            raise self._fail(n, "missing payload")
+        binary = payload.startswith(HEX_PREFIX)
+        if binary:
+            digits = payload[len(HEX_PREFIX) :]
+            if not digits or len(digits) % 2:
+                raise self._fail(n, "hex payload must have an even number of digits")
+            try:
+                binascii.unhexlify(digits)
+            except binascii.Error:
+                raise self._fail(n, "bad hex payload") from None
+        return CaptureRecord(t, port, payload, binary, n)
+
+
+def read_ports(path: str | Path) -> dict[str, str]:
+    """The ``# port`` headers of a capture: name -> protocol."""
+    return CaptureReader(path).ports
+
+
+class CaptureWriter:
+    """Write a capture v1 file (context manager).
+
+    Args:
+        path: the file to create (replaced if it exists).
+        ports: port name -> protocol, written as headers.
+
+    Raises:
+        ValueError: a bad port name or unknown protocol.
+    """
+
+    def __init__(self, path: str | Path, ports: Mapping[str, str]) -> None:
+        from drivers import protocol_names
+
+        known = set(protocol_names())
+        for name, proto in ports.items():
+            if not _check_name(name):
+                raise ValueError(f"bad port name {name!r} (letters, digits, _ - . only)")
+            if proto not in known:
+                raise ValueError(f"port {name!r}: unknown protocol {proto!r}")
+        self.path = str(path)
+        self.ports = dict(ports)
+        self._last_t = -math.inf
+        self._f: TextIO | None = open(self.path, "w", encoding="ascii", newline="\n")  # noqa: SIM115
+        self._f.write(MAGIC + "\n")
+        for name, proto in self.ports.items():
+            self._f.write(f"# port {name} {proto}\n")
+
+    def comment(self, text: str) -> None:
+        """A ``#`` comment line (before or between records; one line, printable ASCII)."""
+        if "\n" in text or "\r" in text or not text.isascii():
+            raise ValueError("a comment is one line of ASCII")
+        if text.split()[:1] == ["port"]:
+            raise ValueError("a comment cannot start with 'port'")
+        self._file().write(f"# {text}\n")
+
+    def _file(self) -> TextIO:
+        if self._f is None:
+            raise ValueError("capture writer is closed")
+        return self._f
+
+    def _stamp(self, t: float, port: str) -> str:
+        if port not in self.ports:
+            raise ValueError(f"unknown port {port!r}")
+        if not math.isfinite(t) or t < self._last_t:
+            raise ValueError(f"time {t!r} is not finite or goes backwards (last {self._last_t})")
+        self._last_t = t
+        return f"({t:.6f}) {port} "
+
+    def write_line(self, t: float, port: str, line: bytes) -> None:
+        """A received text line without its CR/LF (stored as hex if not printable ASCII)."""
+        if line and _printable(line) and not line.startswith(HEX_PREFIX.encode()):
+            self._file().write(self._stamp(t, port) + line.decode("ascii") + "\n")
+        else:
+            self.write_chunk(t, port, line + b"\r\n")
+
+    def write_chunk(self, t: float, port: str, data: bytes) -> None:
+        """Received bytes, stored exactly as ``hex:``."""
+        if not data:
+            return
+        self._file().write(self._stamp(t, port) + HEX_PREFIX + data.hex() + "\n")
+
+    def flush(self) -> None:
+        """Flush buffered records to the file."""
+        self._file().flush()
+
+    def close(self) -> None:
+        """Flush and close (idempotent)."""
+        if self._f is not None:
+            self._f.close()
+            self._f = None
+
+    def __enter__(self) -> CaptureWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

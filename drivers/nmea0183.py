@@ -1,0 +1,592 @@
+"""NMEA 0183 speed-log sentences: framing, checksum, typed records, encoders.
+
+Framing is ours (:class:`~drivers.framing.LineFramer`: ``$``/``!`` start, any mix of
+CR/LF, the 82-character limit with a per-port leniency) and so is the checksum
+check (:func:`~drivers.framing.split_nmea`: a wrong checksum is always rejected, a
+missing one unless the port is configured ``checksum: optional``). Then:
+
+- VHW and VBW, the hot path (1–10 Hz per log), are split and converted here
+  directly: every numeric field is checked (``float`` syntax, finite, no ``x`` passed
+  on as a string), every flag field must hold its letter or be empty. The tests
+  check this path against pynmea2's field mapping on every VHW/VBW of the
+  conformance corpus.
+- VLW, MTW, HDT, HDG and HDM go through ``pynmea2.parse`` and then the same
+  type checks (pynmea2 returns the raw string for a field it cannot convert).
+- Rowe ``$PRTI01``/``$PRTI02`` (pynmea2 has no class for them) are parsed here,
+  12- and 14-field forms.
+
+Units out: m/s, degrees, nautical miles, °C. VHW speed is taken from knots, else
+from km/h; ``units_disagree`` flags a knots/km/h pair that differs by more than the
+two-decimal rounding allows. VBW: the water pair is valid when *its own* status is
+``A`` whatever the ground pair says (pynmea2's ``VBW.is_valid`` wants both).
+
+PRTI velocities are taken as the vessel's motion (Rowe's native sign, see
+PROTOCOLS.md §4; not verified for PRTI against GPS). PRTI01 is the instrument frame:
+X is mapped to starboard and Y to forward, assuming the DVL is mounted with beam 3
+forward (Rowe's default); PRTI02 is the earth frame (East, North) and gives no
+ship-frame speed record.
+
+Must not import: serial, os, time, threading (pure module).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import ClassVar
+
+import pynmea2
+
+from drivers.base import Decoder, DecoderOptions, ErrorPolicy
+from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
+from drivers.framing import LineFramer, split_nmea, with_checksum
+from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord
+
+MAX_SPEED_MPS = 40.0
+"""Largest plausible speed of a survey vehicle (~78 kn); beyond is out_of_range."""
+
+PRTI_INVALID = -99999
+"""Rowe's invalid-velocity marker in $PRTI sentences (mm/s)."""
+
+
+# ------------------------------------------------------------------ records
+
+
+@dataclass(frozen=True, slots=True)
+class Vhw:
+    """VHW — water speed and heading.
+
+    Attributes:
+        talker: the two-character talker ID (metadata only).
+        heading_true_deg: true heading, deg, or None.
+        heading_mag_deg: magnetic heading, deg, or None.
+        stw_knots: speed through water as sent in knots, or None.
+        stw_kmh: speed through water as sent in km/h, or None.
+        stw_mps: speed through water in m/s (from knots, else km/h), or None when
+            both are empty (the record then gives an invalid speed record).
+        units_disagree: knots and km/h both present and inconsistent.
+    """
+
+    talker: str
+    heading_true_deg: float | None
+    heading_mag_deg: float | None
+    stw_knots: float | None
+    stw_kmh: float | None
+    stw_mps: float | None
+    units_disagree: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Vbw:
+    """VBW — dual ground/water speed (6- or 10-field form), m/s, + ahead / + starboard."""
+
+    talker: str
+    water_long_mps: float | None
+    water_trans_mps: float | None
+    water_valid: bool
+    ground_long_mps: float | None
+    ground_trans_mps: float | None
+    ground_valid: bool
+    stern_water_mps: float | None = None
+    stern_water_valid: bool = False
+    stern_ground_mps: float | None = None
+    stern_ground_valid: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Vlw:
+    """VLW — distances in nautical miles (ground pair: NMEA 3 8-field form)."""
+
+    talker: str
+    total_nm: float | None
+    trip_nm: float | None
+    ground_total_nm: float | None = None
+    ground_trip_nm: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Mtw:
+    """MTW — water temperature in °C (None when the field is empty)."""
+
+    talker: str
+    temperature_c: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class Heading:
+    """HDT, HDG or HDM.
+
+    Attributes:
+        talker: talker ID.
+        sentence: ``"HDT"``, ``"HDG"`` or ``"HDM"``.
+        heading_deg: the heading as sent (HDG: magnetic *sensor* heading), or None.
+        true: the heading is true (HDT).
+        deviation_deg: HDG deviation, + east, or None.
+        variation_deg: HDG variation, + east, or None.
+    """
+
+    talker: str
+    sentence: str
+    heading_deg: float | None
+    true: bool
+    deviation_deg: float | None = None
+    variation_deg: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Prti:
+    """Rowe $PRTI01 (instrument frame) or $PRTI02 (earth frame).
+
+    Attributes:
+        sentence: ``"PRTI01"`` or ``"PRTI02"``.
+        start_time_s: sample start time since power-up, s.
+        sample: ensemble number.
+        temperature_c: water temperature, °C.
+        bottom_mps: bottom-track (X, Y, Z) or (E, N, U), m/s; None when invalid.
+        bottom_depth_m: range to bottom, m (0 = no bottom).
+        water_mps: water-mass (X, Y, Z) or (E, N, U), m/s; None when invalid or empty.
+        water_depth_m: water-mass layer depth, m, or None.
+        status: status word (bit 0x0004 BT hold, 0x0008 BT searching).
+        subsystem: subsystem code (14-field form), or None.
+        cepo_index: CEPO index (14-field form), or None.
+    """
+
+    sentence: str
+    start_time_s: float
+    sample: int
+    temperature_c: float
+    bottom_mps: tuple[float, float, float] | None
+    bottom_depth_m: float
+    water_mps: tuple[float, float, float] | None
+    water_depth_m: float | None
+    status: int
+    subsystem: str | None = None
+    cepo_index: int | None = None
+
+    @property
+    def bottom_valid(self) -> bool:
+        """Bottom track usable: velocities valid, a bottom found, not hold/searching."""
+        return self.bottom_mps is not None and self.bottom_depth_m > 0 and not self.status & 0x000C
+
+
+RECORDS = (Vhw, Vbw, Vlw, Mtw, Heading, Prti)
+
+
+# ------------------------------------------------------------------ field helpers
+
+
+def _num(field: str, name: str, raw: bytes) -> float | None:
+    """An optional decimal field: None when empty, else a finite float."""
+    if not field:
+        return None
+    try:
+        x = float(field)
+    except ValueError:
+        raise FieldError(f"{name}: {field!r} is not a number", raw) from None
+    if not math.isfinite(x) or field.strip() != field or "_" in field:
+        raise FieldError(f"{name}: {field!r} is not a number", raw)
+    return x
+
+
+def _flag(field: str, allowed: str, name: str, raw: bytes) -> str:
+    if field and field not in allowed:
+        raise FieldError(f"{name}: flag {field!r}, expected {allowed} or empty", raw)
+    return field
+
+
+def _heading(x: float | None, name: str, raw: bytes) -> float | None:
+    if x is not None and not 0.0 <= x <= 360.0:
+        raise OutOfRangeError(f"{name} {x} outside 0..360", raw)
+    return x
+
+
+def _speed(x: float | None, name: str, raw: bytes) -> float | None:
+    if x is not None and abs(x) > MAX_SPEED_MPS:
+        raise OutOfRangeError(f"{name} {x:.2f} m/s beyond ±{MAX_SPEED_MPS:g}", raw)
+    return x
+
+
+def _kn(x: float | None) -> float | None:
+    return None if x is None else x * KNOT_MPS
+
+
+def _status(field: str, name: str, raw: bytes) -> bool:
+    if field not in ("A", "V", ""):
+        raise FieldError(f"{name}: status {field!r}, expected A or V", raw)
+    return field == "A"
+
+
+# ------------------------------------------------------------------ sentence parsers
+
+
+def parse_vhw(talker: str, f: list[str], raw: bytes) -> Vhw:
+    """Fields after the address of a VHW sentence."""
+    if len(f) != 8:
+        raise FieldError(f"VHW has {len(f)} fields, expected 8", raw)
+    ht = _heading(_num(f[0], "heading true", raw), "heading true", raw)
+    _flag(f[1], "T", "VHW field 2", raw)
+    hm = _heading(_num(f[2], "heading magnetic", raw), "heading magnetic", raw)
+    _flag(f[3], "M", "VHW field 4", raw)
+    kn = _num(f[4], "speed knots", raw)
+    _flag(f[5], "N", "VHW field 6", raw)
+    kmh = _num(f[6], "speed km/h", raw)
+    _flag(f[7], "K", "VHW field 8", raw)
+    mps = kn * KNOT_MPS if kn is not None else (kmh * KMH_MPS if kmh is not None else None)
+    _speed(mps, "STW", raw)
+    disagree = False
+    if kn is not None and kmh is not None:
+        # each field is rounded to its own decimals: allow one unit of the coarser one
+        decimals = min(_decimals(f[4]), _decimals(f[6]))
+        tol_kmh = 1.5 * 10.0**-decimals * 1.852 + 0.01 * abs(kmh)
+        disagree = abs(kn * 1.852 - kmh) > tol_kmh
+    return Vhw(talker, ht, hm, kn, kmh, mps, disagree)
+
+
+def _decimals(field: str) -> int:
+    _, _, frac = field.partition(".")
+    return len(frac)
+
+
+def parse_vbw(talker: str, f: list[str], raw: bytes) -> Vbw:
+    """Fields after the address of a VBW sentence (6 or 10 fields)."""
+    if len(f) not in (6, 10):
+        raise FieldError(f"VBW has {len(f)} fields, expected 6 or 10", raw)
+    wl = _speed(_kn(_num(f[0], "water longitudinal", raw)), "water longitudinal", raw)
+    wt = _speed(_kn(_num(f[1], "water transverse", raw)), "water transverse", raw)
+    wv = _status(f[2], "water status", raw)
+    gl = _speed(_kn(_num(f[3], "ground longitudinal", raw)), "ground longitudinal", raw)
+    gt = _speed(_kn(_num(f[4], "ground transverse", raw)), "ground transverse", raw)
+    gv = _status(f[5], "ground status", raw)
+    if len(f) == 6:
+        return Vbw(talker, wl, wt, wv and wl is not None, gl, gt, gv and gl is not None)
+    sw = _speed(_kn(_num(f[6], "stern water", raw)), "stern water", raw)
+    swv = _status(f[7], "stern water status", raw)
+    sg = _speed(_kn(_num(f[8], "stern ground", raw)), "stern ground", raw)
+    sgv = _status(f[9], "stern ground status", raw)
+    return Vbw(
+        talker,
+        wl,
+        wt,
+        wv and wl is not None,
+        gl,
+        gt,
+        gv and gl is not None,
+        sw,
+        swv and sw is not None,
+        sg,
+        sgv and sg is not None,
+    )
+
+
+def _pyn_num(value: object, name: str, raw: bytes) -> float | None:
+    """A pynmea2 attribute that must be a number (Decimal/float) or None."""
+    if value is None or value == "":
+        return None
+    if isinstance(value, str):
+        return _num(value, name, raw)
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise FieldError(f"{name}: {value!r} is not a number", raw) from None
+    if not math.isfinite(x):
+        raise FieldError(f"{name}: {value!r} is not finite", raw)
+    return x
+
+
+def _with_pynmea2(sentence: str, text: str, raw: bytes) -> object:
+    try:
+        return pynmea2.parse(text, check=False)
+    except pynmea2.ParseError as exc:
+        raise FieldError(f"{sentence}: {exc.args[0] if exc.args else exc}", raw) from None
+
+
+def parse_vlw(talker: str, f: list[str], text: str, raw: bytes) -> Vlw:
+    """VLW through pynmea2 (4- or 8-field form)."""
+    if len(f) not in (4, 8):
+        raise FieldError(f"VLW has {len(f)} fields, expected 4 or 8", raw)
+    for i in range(1, len(f), 2):
+        _flag(f[i], "N", f"VLW field {i + 1}", raw)
+    msg = _with_pynmea2("VLW", text, raw)
+    total = _pyn_num(getattr(msg, "trip_distance", None), "VLW total", raw)
+    trip = _pyn_num(getattr(msg, "trip_distance_reset", None), "VLW trip", raw)
+    gtot = _num(f[4], "VLW ground total", raw) if len(f) == 8 else None
+    gtrip = _num(f[6], "VLW ground trip", raw) if len(f) == 8 else None
+    for x, name in (
+        (total, "total"),
+        (trip, "trip"),
+        (gtot, "ground total"),
+        (gtrip, "ground trip"),
+    ):
+        if x is not None and x < 0:
+            raise OutOfRangeError(f"VLW {name} distance {x} < 0", raw)
+    return Vlw(talker, total, trip, gtot, gtrip)
+
+
+def parse_mtw(talker: str, f: list[str], text: str, raw: bytes) -> Mtw:
+    """MTW through pynmea2."""
+    if len(f) != 2:
+        raise FieldError(f"MTW has {len(f)} fields, expected 2", raw)
+    _flag(f[1], "C", "MTW unit", raw)
+    msg = _with_pynmea2("MTW", text, raw)
+    temp = _pyn_num(getattr(msg, "temperature", None), "MTW temperature", raw)
+    if temp is not None and not -5.0 <= temp <= 60.0:
+        raise OutOfRangeError(f"water temperature {temp} °C outside -5..60", raw)
+    return Mtw(talker, temp)
+
+
+def _signed(value: float | None, direction: str, name: str, raw: bytes) -> float | None:
+    _flag(direction, "EW", name, raw)
+    if value is None:
+        return None
+    return -value if direction == "W" else value
+
+
+def parse_heading(kind: str, talker: str, f: list[str], text: str, raw: bytes) -> Heading:
+    """HDT / HDM / HDG through pynmea2."""
+    expected = {"HDT": 2, "HDM": 2, "HDG": 5}[kind]
+    if len(f) != expected:
+        raise FieldError(f"{kind} has {len(f)} fields, expected {expected}", raw)
+    msg = _with_pynmea2(kind, text, raw)
+    heading = _heading(_pyn_num(getattr(msg, "heading", None), f"{kind} heading", raw), kind, raw)
+    if kind == "HDT":
+        _flag(f[1], "T", "HDT flag", raw)
+        return Heading(talker, kind, heading, True)
+    if kind == "HDM":
+        _flag(f[1], "M", "HDM flag", raw)
+        return Heading(talker, kind, heading, False)
+    dev = _pyn_num(getattr(msg, "deviation", None), "HDG deviation", raw)
+    var = _pyn_num(getattr(msg, "variation", None), "HDG variation", raw)
+    return Heading(
+        talker,
+        kind,
+        heading,
+        False,
+        _signed(dev, f[2], "HDG deviation direction", raw),
+        _signed(var, f[4], "HDG variation direction", raw),
+    )
+
+
+def _int(field: str, name: str, raw: bytes, base: int = 10) -> int:
+    try:
+        return int(field, base)
+    except ValueError:
+        raise FieldError(f"{name}: {field!r} is not an integer", raw) from None
+
+
+def _mm(field: str, name: str, raw: bytes) -> float | None:
+    """A PRTI velocity in mm/s → m/s; None for empty or -99999."""
+    if not field:
+        return None
+    v = _int(field, name, raw)
+    if v == PRTI_INVALID:
+        return None
+    return v / 1000.0
+
+
+def _vec3(v: list[float | None]) -> tuple[float, float, float] | None:
+    a, b, c = v
+    return None if a is None or b is None or c is None else (a, b, c)
+
+
+def parse_prti(sentence: str, f: list[str], raw: bytes) -> Prti:
+    """Rowe $PRTI01/$PRTI02 (12 or 14 fields after the address)."""
+    if len(f) not in (12, 14):
+        raise FieldError(f"{sentence} has {len(f)} fields, expected 12 or 14", raw)
+    start = _int(f[0], "start time", raw) / 100.0
+    sample = _int(f[1], "sample", raw)
+    temp = _int(f[2], "temperature", raw) / 100.0
+    bt = [_mm(f[i], f"bottom velocity {i - 2}", raw) for i in (3, 4, 5)]
+    depth = _int(f[6], "bottom depth", raw) / 1000.0 if f[6] else 0.0
+    wm = [_mm(f[i], f"water velocity {i - 6}", raw) for i in (7, 8, 9)]
+    wdepth = _int(f[10], "water depth", raw) / 1000.0 if f[10] else None
+    status = _int(f[11], "status", raw, 16) if f[11] else 0
+    bottom = _vec3(bt)
+    water = _vec3(wm)
+    for vec, name in ((bottom, "bottom"), (water, "water")):
+        if vec is not None:
+            for v in vec:
+                _speed(v, f"{sentence} {name} velocity", raw)
+    sub = f[12] if len(f) == 14 else None
+    cepo = _int(f[13], "CEPO index", raw) if len(f) == 14 and f[13] else None
+    return Prti(sentence, start, sample, temp, bottom, depth, water, wdepth, status, sub, cepo)
+
+
+# ------------------------------------------------------------------ decoder
+
+
+class NmeaDecoder(Decoder):
+    """NMEA 0183 decoder (see the module docstring)."""
+
+    protocol: ClassVar[str] = "nmea0183"
+    binary: ClassVar[bool] = False
+
+    def __init__(
+        self,
+        port: str = "",
+        *,
+        errors: ErrorPolicy = "raise",
+        options: DecoderOptions | None = None,
+    ) -> None:
+        super().__init__(port, errors=errors, options=options)
+        self._framer = LineFramer(b"$!", self.options.max_length)
+        self._required = self.options.checksum == "required"
+
+    def _split(self, data: bytes) -> Iterable[bytes | FrameError]:
+        return self._framer.feed(data)
+
+    def _flush(self) -> Iterable[bytes | FrameError]:
+        return self._framer.flush()
+
+    def parse_frame(self, frame: bytes) -> object:
+        """Decode one sentence (without CR LF) into a record.
+
+        Raises:
+            FrameError: a subclass naming the reject reason.
+        """
+        body = split_nmea(frame, required=self._required)
+        if frame[:1] != b"$":
+            raise UnknownSentenceError("encapsulated (!) sentences are not decoded", frame)
+        try:
+            text = body.decode("ascii")
+        except UnicodeDecodeError:
+            raise FieldError("non-ASCII bytes in the sentence", frame) from None
+        if not text.isprintable():
+            raise FieldError("control characters in the sentence", frame)
+        address, sep, rest = text.partition(",")
+        if not sep:
+            raise FieldError(f"no field after the address {address[:16]!r}", frame)
+        fields = rest.split(",")
+        if address.startswith("P"):
+            if address in ("PRTI01", "PRTI02"):
+                return parse_prti(address, fields, frame)
+            raise UnknownSentenceError(f"proprietary sentence {address} not decoded", frame)
+        if len(address) != 5 or not address.isalnum():
+            raise FieldError(f"bad address field {address[:16]!r}", frame)
+        talker, kind = address[:2], address[2:]
+        if kind == "VHW":
+            return parse_vhw(talker, fields, frame)
+        if kind == "VBW":
+            return parse_vbw(talker, fields, frame)
+        if kind in ("VLW", "MTW", "HDT", "HDG", "HDM"):
+            text_full = f"${text}"
+            if kind == "VLW":
+                return parse_vlw(talker, fields, text_full, frame)
+            if kind == "MTW":
+                return parse_mtw(talker, fields, text_full, frame)
+            return parse_heading(kind, talker, fields, text_full, frame)
+        raise UnknownSentenceError(f"sentence {kind} not decoded", frame)
+
+    def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
+        """VHW → stw; VBW → stw (water pair) and sog (ground pair, if sent); PRTI01 → sog."""
+        port = self.port
+        if isinstance(record, Vhw):
+            heading = (
+                record.heading_true_deg
+                if record.heading_true_deg is not None
+                else record.heading_mag_deg
+            )
+            return (
+                SpeedRecord(
+                    port, "stw", record.stw_mps, None, record.stw_mps is not None, heading, "VHW"
+                ),
+            )
+        if isinstance(record, Vbw):
+            out = [
+                SpeedRecord(
+                    port,
+                    "stw",
+                    record.water_long_mps,
+                    record.water_trans_mps,
+                    record.water_valid,
+                    None,
+                    "VBW",
+                )
+            ]
+            if record.ground_long_mps is not None or record.ground_valid:
+                out.append(
+                    SpeedRecord(
+                        port,
+                        "sog",
+                        record.ground_long_mps,
+                        record.ground_trans_mps,
+                        record.ground_valid,
+                        None,
+                        "VBW:G",
+                    )
+                )
+            return tuple(out)
+        if isinstance(record, Prti) and record.sentence == "PRTI01":
+            bt = record.bottom_mps
+            if bt is None:
+                return (SpeedRecord(port, "sog", None, None, False, None, "PRTI01"),)
+            return (SpeedRecord(port, "sog", bt[1], bt[0], record.bottom_valid, None, "PRTI01"),)
+        return ()
+
+
+# ------------------------------------------------------------------ encoders
+
+
+def _fmt(x: float | None, decimals: int) -> str:
+    if x is None:
+        return ""
+    if not math.isfinite(x):
+        raise ValueError(f"cannot encode a non-finite value {x!r}")
+    s = f"{x:.{decimals}f}"
+    return "0." + "0" * decimals if s.startswith("-") and float(s) == 0.0 else s
+
+
+def _talker(talker: str) -> str:
+    if len(talker) != 2 or not talker.isalnum() or (not talker.isupper() and not talker.isdigit()):
+        raise ValueError(f"talker must be two uppercase letters or digits, not {talker!r}")
+    return talker
+
+
+def encode_vhw(
+    stw_mps: float,
+    *,
+    heading_true_deg: float | None = None,
+    heading_mag_deg: float | None = None,
+    talker: str = "VW",
+    decimals: int = 2,
+) -> str:
+    """A VHW sentence (without CR LF): knots and km/h both filled and consistent.
+
+    Raises:
+        ValueError: a non-finite value or a bad talker.
+    """
+    if not math.isfinite(stw_mps):
+        raise ValueError(f"cannot encode a non-finite speed {stw_mps!r}")
+    kn = _fmt(stw_mps / KNOT_MPS, decimals)
+    kmh = _fmt(stw_mps / KMH_MPS, decimals)
+    ht = _fmt(None if heading_true_deg is None else heading_true_deg % 360.0, 1)
+    hm = _fmt(None if heading_mag_deg is None else heading_mag_deg % 360.0, 1)
+    body = f"{_talker(talker)}VHW,{ht},T,{hm},M,{kn},N,{kmh},K"
+    return with_checksum(body)
+
+
+def encode_vbw(
+    water_long_mps: float,
+    water_trans_mps: float,
+    *,
+    water_valid: bool = True,
+    ground_long_mps: float | None = None,
+    ground_trans_mps: float | None = None,
+    ground_valid: bool = False,
+    talker: str = "VM",
+    decimals: int = 2,
+) -> str:
+    """A 6-field VBW sentence (without CR LF), speeds in knots.
+
+    Raises:
+        ValueError: a non-finite value or a bad talker.
+    """
+    wl = _fmt(water_long_mps / KNOT_MPS, decimals)
+    wt = _fmt(water_trans_mps / KNOT_MPS, decimals)
+    gl = _fmt(None if ground_long_mps is None else ground_long_mps / KNOT_MPS, decimals)
+    gt = _fmt(None if ground_trans_mps is None else ground_trans_mps / KNOT_MPS, decimals)
+    body = (
+        f"{_talker(talker)}VBW,{wl},{wt},{'A' if water_valid else 'V'},"
+        f"{gl},{gt},{'A' if ground_valid else 'V'}"
+    )
+    return with_checksum(body)

@@ -1,0 +1,461 @@
+"""Teledyne-RDI PD6 and PD13 ASCII output (which Rowe SeaPILOT emulates).
+
+An ensemble is a block of ``:XX,...`` lines (PROTOCOLS.md §5.1–5.2) in this order:
+``:SA :TS [:RA] [:WI :WS :WE :WD] :BI :BS :BE :BD [:HM]``. PD6 has no checksum, so
+every line is validated instead: its type, its field count, numeric syntax (spaces
+and a leading ``+`` allowed, PD13 pads with spaces), and the ``A``/``V`` status.
+
+Assembly: a block starts at ``:SA`` and is emitted as one :class:`Pd6Ensemble` when
+its ``:BD`` line arrives (the last line PD6/PD13 send; a Pathfinder's trailing
+``:HM`` comes out as its own :class:`PdHealth` record). A block is never spliced:
+a line out of order, a repeated line, or a rejected line inside the block discards
+the whole block, counted once as ``framing`` (the rejected line itself is counted
+under its own reason). Lines before the first ``:SA`` are discarded the same way.
+
+Invalid data: velocity −32768 (mm/s) or status ``V`` → the vector is None.
+
+Sign convention: PD6/PD13 give the **vessel's** motion (``:BS`` T + = moving to
+starboard, L + = moving forward, N + = moving away from the bottom; ``:BE`` + =
+moving east/north/up), so the speed record is ``:BS`` as is (PD0 is the opposite).
+``:RA`` beam ranges are in decimetres (the manual's example pairs 71.31 dm with
+``:BD`` 7.13 m); they are converted to metres.
+
+Must not import: serial, os, time, threading (pure module).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from datetime import datetime
+from typing import ClassVar
+
+from drivers.base import Decoder, DecoderOptions, ErrorPolicy
+from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
+from drivers.framing import LineFramer
+from drivers.records import SpeedRecord
+
+INVALID = -32768
+"""PD6/PD0 invalid-velocity marker, mm/s."""
+
+ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
+"""Line types of one ensemble, in transmission order."""
+
+_RANK = {k: i for i, k in enumerate(ORDER)}
+
+
+@dataclass(frozen=True, slots=True)
+class Velocity:
+    """A velocity triple (plus the error velocity for the instrument frame), m/s.
+
+    Attributes:
+        a, b, c: the components (instrument X/Y/Z, ship T/L/N, earth E/N/U).
+        error: error velocity (instrument frame only), m/s, or None.
+    """
+
+    a: float
+    b: float
+    c: float
+    error: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class DistanceMadeGood:
+    """``:WD``/``:BD``: distance made good east/north/up (m), range (m), time since good (s)."""
+
+    east_m: float
+    north_m: float
+    up_m: float
+    range_m: float
+    time_since_good_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class Pd6Ensemble:
+    """One PD6/PD13 ensemble (velocities None when invalid or not sent).
+
+    Attributes:
+        pitch_deg, roll_deg, heading_deg: attitude, degrees.
+        timestamp: the DVL clock ``YYMMDDHHmmsshh`` as sent.
+        salinity_ppt, temperature_c, depth_m, sound_speed_mps: :TS environment.
+        bit: built-in-test result.
+        pressure_kpa: :RA pressure (PD13), or None.
+        beam_ranges_m: :RA range to bottom per beam, m (PD13), or None.
+        water_instrument, water_ship, water_earth: water-mass velocities.
+        water_dmg: :WD, or None.
+        bottom_instrument, bottom_ship, bottom_earth: bottom-track velocities.
+        bottom_dmg: :BD, or None.
+    """
+
+    pitch_deg: float
+    roll_deg: float
+    heading_deg: float
+    timestamp: str
+    salinity_ppt: float
+    temperature_c: float
+    depth_m: float
+    sound_speed_mps: float
+    bit: int
+    pressure_kpa: float | None
+    beam_ranges_m: tuple[float, float, float, float] | None
+    water_instrument: Velocity | None
+    water_ship: Velocity | None
+    water_earth: Velocity | None
+    water_dmg: DistanceMadeGood | None
+    bottom_instrument: Velocity | None
+    bottom_ship: Velocity | None
+    bottom_earth: Velocity | None
+    bottom_dmg: DistanceMadeGood | None
+
+    @property
+    def bottom_range_m(self) -> float | None:
+        """Range to the bottom from :BD, m (None if not sent)."""
+        return self.bottom_dmg.range_m if self.bottom_dmg is not None else None
+
+
+@dataclass(frozen=True, slots=True)
+class PdHealth:
+    """A Pathfinder ``:HM`` system-health line, fields kept as text (not all documented)."""
+
+    fields: tuple[str, ...]
+
+
+RECORDS = (Velocity, DistanceMadeGood, Pd6Ensemble, PdHealth)
+
+
+def _num(field: str, name: str, raw: bytes) -> float:
+    f = field.strip()
+    try:
+        x = float(f)
+    except ValueError:
+        raise FieldError(f"{name}: {field!r} is not a number", raw) from None
+    if not f or "_" in f or not math.isfinite(x):
+        raise FieldError(f"{name}: {field!r} is not a number", raw)
+    return x
+
+
+def _int(field: str, name: str, raw: bytes) -> int:
+    f = field.strip()
+    try:
+        return int(f)
+    except ValueError:
+        raise FieldError(f"{name}: {field!r} is not an integer", raw) from None
+
+
+def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | None:
+    """``n`` integer mm/s values then a status letter; None when invalid."""
+    if len(fields) != n + 1:
+        raise FieldError(f":{kind} has {len(fields)} fields, expected {n + 1}", raw)
+    status = fields[n].strip()
+    if status not in ("A", "V"):
+        raise FieldError(f":{kind} status {status!r}, expected A or V", raw)
+    values = [_int(f, f":{kind} field {i + 1}", raw) for i, f in enumerate(fields[:n])]
+    for v in values:
+        if not INVALID <= v <= 32767:
+            raise OutOfRangeError(f":{kind} velocity {v} mm/s outside int16", raw)
+    if status == "V" or INVALID in values[:3]:
+        return None
+    err = None
+    if n == 4:
+        err = None if values[3] == INVALID else values[3] / 1000.0
+    return Velocity(values[0] / 1000.0, values[1] / 1000.0, values[2] / 1000.0, err)
+
+
+def _dmg(fields: list[str], kind: str, raw: bytes) -> DistanceMadeGood:
+    if len(fields) != 5:
+        raise FieldError(f":{kind} has {len(fields)} fields, expected 5", raw)
+    e, n, u, r, dt = (_num(f, f":{kind} field {i + 1}", raw) for i, f in enumerate(fields))
+    if r < 0 or dt < 0:
+        raise OutOfRangeError(f":{kind} range {r} or time {dt} negative", raw)
+    return DistanceMadeGood(e, n, u, r, dt)
+
+
+@dataclass(slots=True)
+class _Block:
+    lines: dict[str, object]
+    last_rank: int
+    damaged: str = ""
+
+
+class PdAsciiDecoder(Decoder):
+    """PD6/PD13 decoder (registry names ``pd6`` and ``pd13``; see the module docstring)."""
+
+    protocol: ClassVar[str] = "pd6"
+    binary: ClassVar[bool] = False
+
+    def __init__(
+        self,
+        port: str = "",
+        *,
+        errors: ErrorPolicy = "raise",
+        options: DecoderOptions | None = None,
+    ) -> None:
+        super().__init__(port, errors=errors, options=options)
+        self._framer = LineFramer(b":", self.options.max_length)
+        self._block: _Block | None = None
+
+    # A line is a frame; parse_frame returns a line tuple, and the ensemble logic
+    # runs in feed() so that one ensemble record comes out per block.
+
+    def _split(self, data: bytes) -> Iterable[bytes | FrameError]:
+        return self._framer.feed(data)
+
+    def _flush(self) -> Iterable[bytes | FrameError]:
+        out: list[bytes | FrameError] = list(self._framer.flush())
+        if self._block is not None:
+            out.append(FrameError("incomplete ensemble at end of stream (no :BD)"))
+            self._block = None
+        return out
+
+    def feed(self, data: bytes) -> Iterator[object]:
+        """Decode a chunk; yields complete ensembles (and rejects per the error policy)."""
+        self._pending.extend(self._split(data))
+        while self._pending:
+            item = self._pending.popleft()
+            if isinstance(item, FrameError):
+                self._damage(f"a line was rejected ({item.reason})")
+                yield from self._reject(item)
+                continue
+            try:
+                kind, value = self.parse_line(item)
+            except FrameError as exc:
+                if not exc.raw:
+                    exc.raw = item[:256]
+                self._damage(f"line rejected ({exc.reason})")
+                yield from self._reject(exc)
+                continue
+            yield from self._assemble(kind, value, item)
+
+    def _damage(self, why: str) -> None:
+        if self._block is not None and not self._block.damaged:
+            self._block.damaged = why
+
+    def _assemble(self, kind: str, value: object, raw: bytes) -> Iterator[object]:
+        if kind == "HM":
+            self.counters.records += 1
+            yield value
+            return
+        rank = _RANK[kind]
+        block = self._block
+        if kind == "SA":
+            if block is not None:
+                self._block = None
+                yield from self._reject(
+                    FrameError("ensemble discarded: no :BD before the next :SA")
+                )
+            self._block = _Block({"SA": value}, rank)
+            return
+        if block is None:
+            yield from self._reject(
+                FrameError(f":{kind} outside an ensemble (no :SA before it)", raw)
+            )
+            return
+        if rank <= block.last_rank:
+            self._block = None
+            yield from self._reject(
+                FrameError(f"ensemble discarded: :{kind} out of order or repeated", raw)
+            )
+            return
+        block.lines[kind] = value
+        block.last_rank = rank
+        if kind != "BD":
+            return
+        self._block = None
+        if block.damaged:
+            yield from self._reject(FrameError(f"ensemble discarded: {block.damaged}", raw))
+            return
+        missing = [k for k in ("SA", "TS", "BS") if k not in block.lines]
+        if missing:
+            yield from self._reject(
+                FrameError(f"ensemble discarded: no {', '.join(':' + m for m in missing)}", raw)
+            )
+            return
+        self.counters.records += 1
+        yield self._ensemble(block.lines)
+
+    @staticmethod
+    def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
+        sa = lines["SA"]
+        ts = lines["TS"]
+        assert isinstance(sa, tuple) and isinstance(ts, tuple)
+        ra = lines.get("RA")
+
+        def vel(k: str) -> Velocity | None:
+            v = lines.get(k)
+            return v if isinstance(v, Velocity) else None
+
+        def dmg(k: str) -> DistanceMadeGood | None:
+            v = lines.get(k)
+            return v if isinstance(v, DistanceMadeGood) else None
+
+        return Pd6Ensemble(
+            pitch_deg=sa[0],
+            roll_deg=sa[1],
+            heading_deg=sa[2],
+            timestamp=ts[0],
+            salinity_ppt=ts[1],
+            temperature_c=ts[2],
+            depth_m=ts[3],
+            sound_speed_mps=ts[4],
+            bit=ts[5],
+            pressure_kpa=ra[0] if isinstance(ra, tuple) else None,
+            beam_ranges_m=ra[1] if isinstance(ra, tuple) else None,
+            water_instrument=vel("WI"),
+            water_ship=vel("WS"),
+            water_earth=vel("WE"),
+            water_dmg=dmg("WD"),
+            bottom_instrument=vel("BI"),
+            bottom_ship=vel("BS"),
+            bottom_earth=vel("BE"),
+            bottom_dmg=dmg("BD"),
+        )
+
+    def parse_frame(self, frame: bytes) -> object:
+        """Decode one line: ``(kind, value)`` (ensembles come from :meth:`feed`)."""
+        return self.parse_line(frame)
+
+    def parse_line(self, frame: bytes) -> tuple[str, object]:
+        """Parse one ``:XX,...`` line into (type, value).
+
+        Raises:
+            FrameError: a subclass naming the reject reason.
+        """
+        try:
+            text = frame.decode("ascii")
+        except UnicodeDecodeError:
+            raise FieldError("non-ASCII bytes in the line", frame) from None
+        if not text.isprintable():
+            raise FieldError("control characters in the line", frame)
+        kind, sep, rest = text[1:].partition(",")
+        kind = kind.strip()
+        if not sep:
+            raise FieldError(f"line {text[:8]!r} has no fields", frame)
+        fields = rest.split(",")
+        if kind == "SA":
+            if len(fields) != 3:
+                raise FieldError(f":SA has {len(fields)} fields, expected 3", frame)
+            pitch, roll, heading = (_num(f, ":SA", frame) for f in fields)
+            if not (-90 <= pitch <= 90 and -180 <= roll <= 180 and 0 <= heading <= 360):
+                raise OutOfRangeError(
+                    f":SA attitude {pitch}, {roll}, {heading} out of range", frame
+                )
+            return kind, (pitch, roll, heading)
+        if kind == "TS":
+            if len(fields) not in (6, 7):
+                raise FieldError(f":TS has {len(fields)} fields, expected 6 or 7", frame)
+            stamp = fields[0].strip()
+            if len(stamp) != 14 or not stamp.isdigit():
+                raise FieldError(f":TS time {stamp!r} is not YYMMDDHHmmsshh", frame)
+            sal, temp, depth, c = (_num(f, ":TS", frame) for f in fields[1:5])
+            bit = _int(fields[5], ":TS BIT", frame)
+            if not (0 <= sal <= 50 and -5 <= temp <= 60 and 1300 <= c <= 1700):
+                raise OutOfRangeError(f":TS environment {sal}, {temp}, {c} out of range", frame)
+            if len(fields) == 7 and fields[6].strip() not in ("O", "W", "X"):
+                raise FieldError(f":TS leak flag {fields[6]!r}, expected O, W or X", frame)
+            return kind, (stamp, sal, temp, depth, c, bit)
+        if kind == "RA":
+            if len(fields) != 5:
+                raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
+            p, *r = (_num(f, ":RA", frame) for f in fields)
+            return kind, (p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0))
+        if kind in ("WI", "BI"):
+            return kind, _velocity(fields, 4, kind, frame)
+        if kind in ("WS", "WE", "BS", "BE"):
+            return kind, _velocity(fields, 3, kind, frame)
+        if kind in ("WD", "BD"):
+            return kind, _dmg(fields, kind, frame)
+        if kind == "HM":
+            return kind, PdHealth(tuple(f.strip() for f in fields))
+        raise UnknownSentenceError(f"line type :{kind[:4]} not decoded", frame)
+
+    def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
+        """:BS → sog (source ``PD6:BS``), :WS → stw (``PD6:WS``); vessel-motion sign."""
+        if not isinstance(record, Pd6Ensemble):
+            return ()
+        port, hdg = self.port, record.heading_deg
+        bs = record.bottom_ship
+        out = [
+            SpeedRecord(port, "sog", bs.b, bs.a, True, hdg, "PD6:BS")
+            if bs is not None
+            else SpeedRecord(port, "sog", None, None, False, hdg, "PD6:BS")
+        ]
+        ws = record.water_ship
+        if ws is not None:
+            out.append(SpeedRecord(port, "stw", ws.b, ws.a, True, hdg, "PD6:WS"))
+        return tuple(out)
+
+
+# ------------------------------------------------------------------ encoder
+
+
+def _mm(v: float | None) -> str:
+    if v is None:
+        return f"{INVALID:+06d}"
+    if not math.isfinite(v):
+        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
+    return f"{max(min(round(v * 1000.0), 32767), -32767):+06d}"
+
+
+def _vel_line(kind: str, values: tuple[float, ...] | None, n: int) -> str:
+    if values is None:
+        return f":{kind}," + ",".join([_mm(None)] * n) + ",V"
+    return f":{kind}," + ",".join(_mm(v) for v in values) + ",A"
+
+
+def encode_pd6(
+    *,
+    timestamp: datetime,
+    heading_deg: float,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+    bottom_ship_mps: tuple[float, float, float] | None = None,
+    range_m: float | None = None,
+    water_ship_mps: tuple[float, float, float] | None = None,
+    salinity_ppt: float = 35.0,
+    temperature_c: float = 15.0,
+    depth_m: float = 0.0,
+    sound_speed_mps: float = 1500.0,
+    bottom_dmg_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    time_since_good_s: float = 0.0,
+) -> list[str]:
+    """The PD6 lines of one ensemble (without CR LF), TRDI widths.
+
+    Sends ``:SA :TS :BI :BS :BE :BD``, plus the water-mass lines when
+    ``water_ship_mps`` is given. Ship-frame vectors are (T, L, N): + starboard,
+    + forward, + away from the bottom (vessel motion). The instrument frame is taken
+    aligned with the ship (X = T, Y = L); the earth frame is the ship frame rotated
+    by the heading (pitch and roll ignored). ``None`` sends −32768 with status V.
+
+    Raises:
+        ValueError: non-finite values.
+    """
+    psi = math.radians(heading_deg)
+
+    def earth(v: tuple[float, float, float] | None) -> tuple[float, float, float] | None:
+        if v is None:
+            return None
+        t, lo, n = v
+        return (lo * math.sin(psi) + t * math.cos(psi), lo * math.cos(psi) - t * math.sin(psi), n)
+
+    lines = [
+        f":SA,{pitch_deg:+06.2f},{roll_deg:+06.2f},{heading_deg % 360.0:06.2f}",
+        f":TS,{timestamp:%y%m%d%H%M%S}{timestamp.microsecond // 10000:02d},{salinity_ppt:04.1f},"
+        f"{temperature_c:+05.1f},{depth_m:06.1f},{sound_speed_mps:06.1f},000",
+    ]
+    if water_ship_mps is not None:
+        lines += [
+            _vel_line("WI", (*water_ship_mps, 0.0), 4),
+            _vel_line("WS", water_ship_mps, 3),
+            _vel_line("WE", earth(water_ship_mps), 3),
+            ":WD,+0000.00,+0000.00,+0000.00,0000.00,000.00",
+        ]
+    e, n, u = bottom_dmg_m
+    rng = 0.0 if range_m is None else range_m
+    lines += [
+        _vel_line("BI", None if bottom_ship_mps is None else (*bottom_ship_mps, 0.0), 4),
+        _vel_line("BS", bottom_ship_mps, 3),
+        _vel_line("BE", earth(bottom_ship_mps), 3),
+        f":BD,{e:+011.2f},{n:+011.2f},{u:+011.2f},{rng:07.2f},{time_since_good_s:06.2f}",
+    ]
+    return lines

@@ -1,0 +1,96 @@
+"""The sentences the daemon emits: corrected VHW/VBW and the status sentence.
+
+Corrected speeds are encoded by :mod:`drivers.nmea0183` (knots and km/h both
+filled and consistent — ArduPilot reads km/h, Signal K reads knots). The status
+sentence is proprietary (``$P`` + a three-letter maker code + ``S``)::
+
+    $PEMLS,emlog1,L,EM3,,+0.1712,+0.120,,2.1e-03,3.4e-03,1.02,V*hh
+
+fields: UUT port (at most 8 characters), state (``L`` learning, ``F`` frozen,
+``U`` uncalibrated), model, the parameters a (s/m), m, b (m/s) of the good
+calibration (empty when the model lacks one or there is none), their standard
+deviations, the running NIS mean (empty before learning), and the reference state
+(``V`` valid, ``L`` lost, ``S`` stale, ``W`` too slow, ``N`` none yet). Every
+sentence is checksummed and at most 82 characters with CR LF.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from drivers import nmea0183
+from drivers.framing import with_checksum
+
+MAX_SENTENCE = 82
+"""NMEA 0183 limit in characters, CR LF included."""
+
+STATE_CODES = {"learning": "L", "frozen": "F", "uncalibrated": "U"}
+REF_CODES = {"valid": "V", "lost": "L", "stale": "S", "slow": "W", "none": "N"}
+
+
+@dataclass(frozen=True, slots=True)
+class StatusFields:
+    """The content of one status sentence."""
+
+    port: str
+    state: str
+    model: str
+    params: Mapping[str, float] = field(default_factory=dict)
+    std: Mapping[str, float] = field(default_factory=dict)
+    nis_mean: float | None = None
+    ref_state: str = "none"
+    maker: str = "EML"
+
+
+def _num(x: float | None, spec: str) -> str:
+    if x is None or not math.isfinite(x):
+        return ""
+    return format(x, spec)
+
+
+def encode_status(f: StatusFields) -> str:
+    """The status sentence (without CR LF).
+
+    Raises:
+        ValueError: a maker code that is not three uppercase letters.
+    """
+    if not (len(f.maker) == 3 and f.maker.isalpha() and f.maker.isupper()):
+        raise ValueError(f"maker code must be three uppercase letters, not {f.maker!r}")
+    nis = None if f.nis_mean is None else min(f.nis_mean, 999.99)
+    fields = [
+        f"P{f.maker}S",
+        "".join(c for c in f.port if c.isascii() and (c.isalnum() or c in "_-"))[:8],
+        STATE_CODES.get(f.state, "U"),
+        f.model,
+        _num(f.params.get("a"), "+.4f"),
+        _num(f.params.get("m"), "+.4f"),
+        _num(f.params.get("b"), "+.3f"),
+        _num(f.std.get("a"), ".1e"),
+        _num(f.std.get("m"), ".1e"),
+        _num(f.std.get("b"), ".1e"),
+        _num(nis, ".2f"),
+        REF_CODES.get(f.ref_state, "N"),
+    ]
+    sentence = with_checksum(",".join(fields))
+    if len(sentence) + 2 > MAX_SENTENCE:  # cannot happen with the widths above
+        raise ValueError(f"status sentence too long: {sentence}")
+    return sentence
+
+
+def encode_vhw(
+    stw_mps: float,
+    heading_true_deg: float | None = None,
+    heading_mag_deg: float | None = None,
+    talker: str = "VW",
+) -> str:
+    """A corrected VHW: STW in knots and km/h, headings passed through."""
+    return nmea0183.encode_vhw(
+        stw_mps, heading_true_deg=heading_true_deg, heading_mag_deg=heading_mag_deg, talker=talker
+    )
+
+
+def encode_vbw(long_mps: float, trans_mps: float | None, talker: str = "VW") -> str:
+    """A corrected VBW: water pair only (a missing transverse speed is sent as 0)."""
+    return nmea0183.encode_vbw(long_mps, 0.0 if trans_mps is None else trans_mps, talker=talker)
