@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import signal
 import sys
@@ -21,11 +22,25 @@ from typing import Any
 from drivers import DecoderOptions, EmlogdError, make_decoder, protocol_names
 from drivers.base import Decoder
 from emlogd import __version__
+from emlogd.dataset import CaptureData
 from emlogd.jsonio import to_jsonable
+from emlogd.offline import (
+    CalibrationResult,
+    Pairing,
+    calibrate,
+    crossval,
+    evaluate,
+    load_captures,
+    load_params,
+    save_params,
+)
+from emlogd.tables import fmt, render, table2, table3
 
 Handler = Callable[[argparse.Namespace], int]
 
 _SNIFF_CHUNK = 4096
+DEMO_TRAIN = "demo-figure8.cap"
+DEMO_TEST = "demo-straight.cap"
 
 
 class UsageError(EmlogdError):
@@ -302,6 +317,257 @@ def cmd_fake(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- simulate
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Write the simulated sea trial (five captures and truth.yaml)."""
+    from emlogd.simulate import simulate
+
+    if not 0.0 < args.scale <= 10.0:
+        raise UsageError(f"--scale must be in (0, 10], not {args.scale}")
+    result = simulate(
+        args.outdir,
+        seed=args.seed,
+        scale=args.scale,
+        dvl_format=args.dvl_format,
+        progress=_progress,
+    )
+    _progress_done()
+    for tr, path in zip(result.trajectories, result.files, strict=True):
+        lines = sum(tr.lines.values())
+        raw = ", ".join(f"{k} {v:.3f}" for k, v in tr.rmse_raw_mps.items())
+        sys.stdout.write(
+            f"{path}: {tr.duration_s / 60.0:6.1f} min, {lines:8d} lines, raw RMSE m/s: {raw}\n"
+        )
+    sys.stdout.write(f"{result.truth_path}: truth ({result.elapsed_s:.1f} s)\n")
+    return 0
+
+
+# ---------------------------------------------------------------------------- offline
+
+
+def _pairing(args: argparse.Namespace) -> Pairing:
+    return Pairing(
+        args.uut,
+        args.ref,
+        args.ref_field,
+        args.uut_source,
+        "magnitude" if args.magnitude else "longitudinal",
+    )
+
+
+def _lag_arg(value: str) -> float | None:
+    if value == "auto":
+        return None
+    try:
+        return float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected auto or seconds, not {value!r}") from None
+
+
+def _load(paths: Sequence[str], pairing: Pairing) -> list[CaptureData]:
+    datas = load_captures(paths, pairing, progress=_progress)
+    _progress_done()
+    return datas
+
+
+def _calibration_text(res: CalibrationResult) -> str:
+    se = res.stderr
+    params = "\n".join(
+        f"  {k:<2} = {v:+.5f} ± {fmt(se.get(k), '.5f')}" for k, v in res.params.as_dict().items()
+    )
+    lag = res.lag
+    lag_txt = f"{lag.lag_s:.2f} s ({lag.source}"
+    if lag.per_capture:
+        lag_txt += "; " + ", ".join(
+            f"{k} {e.lag_s:.2f} s r={e.peak_corr:.2f}" for k, e in lag.per_capture.items()
+        )
+    lag_txt += ")"
+    if lag.note:
+        lag_txt += f"\n  warning: {lag.note}"
+    ident = "yes" if res.identifiable else f"NO: {res.reason}"
+    out = [
+        f"{res.method.upper()}-{res.params.model}: {res.pairing.uut} against "
+        f"{res.pairing.ref} ({res.pairing.ref_field}), {res.n_samples} samples",
+        f"lag          {lag_txt}",
+        "parameters (± standard error):",
+        params,
+        f"identifiable {ident}",
+        f"condition    {fmt(res.condition_number, '.3g')}",
+        f"RMSE raw     {fmt(res.rmse_raw, '.4f')} m/s",
+        f"RMSE cal     {fmt(res.rmse_cal, '.4f')} m/s",
+        f"improvement  {fmt(res.improvement_pct, '.1f')} %",
+    ]
+    if res.nis_mean is not None:
+        out.append(
+            f"NIS          mean {fmt(res.nis_mean, '.2f')}, "
+            f"{fmt(100.0 * (res.nis_frac_inside or math.nan), '.1f')} % inside the 95 % bounds"
+        )
+    return "\n".join(out) + "\n"
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Estimate an error model of one EMlog against a reference from captures."""
+    pairing = _pairing(args)
+    datas = _load(args.captures, pairing)
+    res = calibrate(datas, pairing, args.model, args.method, lag=args.lag)
+    if args.save:
+        save_params(args.save, res)
+    if args.json:
+        sys.stdout.write(json.dumps(res.to_dict(), indent=2) + "\n")
+    else:
+        sys.stdout.write(_calibration_text(res))
+        if args.save:
+            sys.stdout.write(f"saved        {args.save}\n")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """Apply frozen parameters to captures: RMSE raw and calibrated per capture."""
+    pf = load_params(args.params)
+    pairing = Pairing(
+        args.uut or pf.pairing.uut,
+        args.ref or pf.pairing.ref,
+        args.ref_field or pf.pairing.ref_field,
+        pf.pairing.uut_source,
+        pf.pairing.component,
+    )
+    lag_s = pf.lag_s if args.lag is None else args.lag
+    datas = _load(args.captures, pairing)
+    rows = evaluate(datas, pf.params, pairing, lag_s)
+    if args.json:
+        doc = {
+            "model": pf.params.model,
+            "params": pf.params.as_dict(),
+            "lag_s": lag_s,
+            "uut": pairing.uut,
+            "ref": pairing.ref,
+            "captures": [r.to_dict() for r in rows],
+        }
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        return 0
+    sys.stdout.write(
+        f"{pf.params.model} {pf.params.as_dict()} from {args.params}, "
+        f"{pairing.uut} against {pairing.ref}, lag {lag_s:.2f} s\n"
+    )
+    sys.stdout.write(
+        render(
+            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %"],
+            [
+                [
+                    r.capture,
+                    str(r.n_samples),
+                    fmt(r.rmse_raw, ".4f"),
+                    fmt(r.rmse_cal, ".4f"),
+                    fmt(r.improvement_pct, ".1f"),
+                ]
+                for r in rows
+            ],
+        )
+    )
+    return 0
+
+
+def _table2_pair(names: list[str], spec: str | None) -> tuple[str, str]:
+    if spec:
+        train, sep, test = spec.partition(",")
+        if not sep or train not in names or test not in names:
+            raise UsageError(f"--table2 TRAIN,TEST with names from {', '.join(names)}")
+        return train, test
+    fig = next((n for n in names if "figure" in n), names[0])
+    straight = next((n for n in names if "straight" in n and n != fig), None)
+    return fig, straight or next(n for n in names if n != fig)
+
+
+def cmd_crossval(args: argparse.Namespace) -> int:
+    """Cross-validate every estimator over the captures (the paper's Tables II and III)."""
+    pairing = _pairing(args)
+    datas = _load(args.captures, pairing)
+    t0 = time.perf_counter()
+
+    def progress(done: int, total: int, what: str) -> None:
+        _progress(f"crossval: {what}", done / total)
+
+    result, lag = crossval(datas, pairing, lag=args.lag, workers=args.workers, progress=progress)
+    _progress_done()
+    elapsed = time.perf_counter() - t0
+    if args.csv:
+        import csv
+
+        rows = result.csv_rows()
+        with open(args.csv, "w", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    if args.json:
+        doc = {"lag": lag.as_dict(), "uut": pairing.uut, "ref": pairing.ref, **result.to_dict()}
+        sys.stdout.write(json.dumps(doc) + "\n")
+        return 0
+    names = [s.name for s in result.segments]
+    train, test = _table2_pair(names, args.table2)
+    estimators = args.estimator or ["LS-EM3"]
+    for est in estimators:
+        if est not in result.estimators:
+            raise UsageError(f"--estimator {est}: choose from {', '.join(result.estimators)}")
+        sys.stdout.write(table3(result, est) + "\n")
+    sys.stdout.write(table2(result, train, test))
+    sys.stdout.write(
+        f"\n{result.n_out_of_sample} out-of-sample evaluations, lag {lag.lag_s:.2f} s, "
+        f"{elapsed:.1f} s\n"
+    )
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """PNG figures like the paper's (needs the report extra)."""
+    from emlogd.report import report
+
+    pairing = _pairing(args)
+    datas = _load(args.captures, pairing)
+    paths = report(datas, pairing, args.out, model=args.model, lag=args.lag, progress=_progress)
+    _progress_done()
+    for path in paths:
+        sys.stdout.write(f"{path}\n")
+    return 0
+
+
+# ---------------------------------------------------------------------------- demo
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Decode the bundled example, calibrate EMlog1 on the figure-8, test on the straight run."""
+    from importlib.resources import as_file, files
+
+    res_dir = files("emlogd") / "data"
+    with as_file(res_dir / DEMO_TRAIN) as train_path, as_file(res_dir / DEMO_TEST) as test_path:
+        paths = [str(train_path), str(test_path)]
+        out = sys.stdout
+        out.write("emlogd demo: a short simulated sea trial (emlogd simulate), bundled.\n\n")
+        for path in paths:
+            args.file, args.protocol, args._decoders = path, None, {}
+            n = sum(1 for _ in _dump_records(args))
+            summary = {
+                name: {"protocol": proto, **dec.counters.as_dict()}
+                for name, (proto, dec) in args._decoders.items()
+            }
+            out.write(f"{Path(path).name}: {n} records and rejects decoded\n")
+            out.write(_summary_table(summary) + "\n")
+        pairing = Pairing("emlog1", "dvl")
+        datas = _load(paths, pairing)
+        res = calibrate(datas[:1], pairing, "EM3", "ls")
+        out.write(f"calibrate on {Path(paths[0]).name}:\n")
+        out.write(_calibration_text(res) + "\n")
+        rows = evaluate(datas[1:], res.params, pairing, res.lag.lag_s)
+        for r in rows:
+            out.write(
+                f"evaluate on {Path(r.capture).name} (frozen parameters): RMSE "
+                f"{fmt(r.rmse_raw, '.3f')} -> {fmt(r.rmse_cal, '.3f')} m/s "
+                f"({fmt(r.improvement_pct, '.1f')} %)\n"
+            )
+    return 0
+
+
 # ---------------------------------------------------------------------------- parser
 
 
@@ -383,6 +649,118 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--fast", action="store_true", help="as fast as the reader takes it")
     p.add_argument("--loop", action="store_true", help="start again at the end")
     p.set_defaults(handler=cmd_fake)
+
+    p = sub.add_parser(
+        "demo",
+        help="decode the bundled example, calibrate, evaluate",
+        description="Decode the bundled example captures (a short simulated trial), "
+        "calibrate EMlog1 against the DVL on the figure-8 and evaluate on the straight run.",
+    )
+    p.set_defaults(handler=cmd_demo, json=False, checksum_optional=False, max_length=None)
+
+    p = sub.add_parser(
+        "simulate",
+        help="write a simulated sea trial (five captures and truth.yaml)",
+        description="Simulate the paper's sea trial: 1-transit, 2-figure8, 3-straight, "
+        "4-circles, 5-return as capture v1 files in OUTDIR, plus truth.yaml.",
+    )
+    p.add_argument("outdir", help="output directory (created if missing)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--scale", type=float, default=1.0, help="duration factor (0.1: 10 %% as long)")
+    p.add_argument(
+        "--dvl-format", choices=["pd6", "pd0"], default="pd6", help="DVL output (default pd6)"
+    )
+    p.set_defaults(handler=cmd_simulate)
+
+    def pairing_args(p: argparse.ArgumentParser, required: bool = True) -> None:
+        p.add_argument("--uut", required=required, metavar="PORT", help="EMlog port to calibrate")
+        p.add_argument("--ref", required=required, metavar="PORT", help="reference port")
+        p.add_argument(
+            "--ref-field",
+            choices=["bottom", "water", "speed"],
+            default="bottom" if required else None,
+            help="reference: DVL bottom track (default), DVL water track, or an EMlog's speed",
+        )
+
+    def common_offline(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
+        p.add_argument(
+            "--magnitude",
+            action="store_true",
+            help="compare horizontal speed magnitudes instead of longitudinal speeds",
+        )
+        p.add_argument(
+            "--lag",
+            type=_lag_arg,
+            default=None,
+            metavar="auto|SECONDS",
+            help="UUT latency (default auto: cross-correlation)",
+        )
+        p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
+
+    p = sub.add_parser(
+        "calibrate",
+        help="fit an error model of one EMlog against a reference",
+        description="Estimate the lag, fit EM1..EM4 by least squares or the Kalman filter, "
+        "print parameters ± standard errors, identifiability, RMSE raw and calibrated.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    pairing_args(p)
+    p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
+    p.add_argument("--method", choices=["ls", "kf"], default="ls")
+    p.add_argument("--save", metavar="PARAMS.yaml", help="write the parameters file")
+    common_offline(p)
+    p.set_defaults(handler=cmd_calibrate)
+
+    p = sub.add_parser(
+        "evaluate",
+        help="apply frozen parameters to captures",
+        description="Apply a parameters file (calibrate --save) to captures: RMSE raw, "
+        "calibrated and the improvement per capture.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    p.add_argument("--params", required=True, metavar="PARAMS.yaml", help="parameters file")
+    pairing_args(p, required=False)
+    p.add_argument(
+        "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
+    )
+    p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
+    p.set_defaults(handler=cmd_evaluate)
+
+    p = sub.add_parser(
+        "crossval",
+        help="cross-validate every estimator over captures (Tables II and III)",
+        description="Train LS-EM1..4 and KF-EM1..4 on each capture, evaluate on every other; "
+        "print the paper's Table III layout (per estimator) and Table II layout (one pair).",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files (≥ 2)")
+    pairing_args(p)
+    common_offline(p)
+    p.add_argument("--csv", metavar="FILE", help="write every evaluation as CSV")
+    p.add_argument(
+        "--estimator",
+        action="append",
+        metavar="NAME",
+        help="Table III for this estimator (repeatable; default LS-EM3)",
+    )
+    p.add_argument(
+        "--table2", metavar="TRAIN,TEST", help="Table II pair (default figure-8, straight)"
+    )
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.set_defaults(handler=cmd_crossval)
+
+    p = sub.add_parser(
+        "report",
+        help="PNG figures like the paper's (extra: emlogd[report])",
+        description="Write figures to --out: speeds raw/calibrated/reference, KF convergence "
+        "sleeve (±3σ), NIS with χ² bounds, the track map, cross-validation heat maps.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    pairing_args(p)
+    p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
+    common_offline(p)
+    p.set_defaults(handler=cmd_report)
 
     return parser
 
