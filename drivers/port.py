@@ -1,0 +1,238 @@
+"""Serial input: a port opened through ``serial.serial_for_url``, read in chunks.
+
+``serial_for_url`` means ``/dev/ttyUSB0``, ``/dev/pts/N``, ``loop://``,
+``socket://host:port`` and ``spy://...`` all work. This is the only module that
+opens serial ports. A :class:`SerialSource`:
+
+- reads whatever is waiting in one non-blocking call (never byte-at-a-time
+  ``readline``) and stamps it with the receive time (:class:`Chunk`);
+- survives unplugging: an error or EOF closes the port, emits ``disconnected`` and
+  retries with backoff (``backoff_s``) from :meth:`poll`; a device missing at start is
+  the same case, not a crash;
+- detects silence: no data for ``stale_timeout_s`` emits one ``stale`` event, data
+  coming back emits ``alive``.
+
+Events are queued and drained with :meth:`events`. The daemon registers
+:meth:`fileno` in its selector (sources without a file descriptor, like
+``loop://``, are read each loop turn).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import serial
+
+from drivers.errors import DeviceError
+
+EventKind = Literal["connected", "disconnected", "stale", "alive", "error"]
+
+
+@dataclass(frozen=True, slots=True)
+class Chunk:
+    """Bytes read in one call, with the receive time (s since the epoch)."""
+
+    t: float
+    port: str
+    data: bytes
+
+
+@dataclass(frozen=True, slots=True)
+class PortEvent:
+    """A change of a port's state."""
+
+    t: float
+    port: str
+    kind: EventKind
+    detail: str
+
+
+class SerialSource:
+    """One input port.
+
+    Args:
+        name: port name (records and events carry it).
+        url: a device path or any pyserial URL.
+        baudrate: serial rate, bit/s.
+        stale_timeout_s: silence after which a ``stale`` event is emitted.
+        read_size: most bytes read in one call.
+        backoff_s: reconnect delays, the last one repeating.
+        clock: receive-time clock (epoch seconds).
+        monotonic: clock for timeouts and backoff.
+
+    Raises:
+        DeviceError: the URL scheme is not one pyserial knows.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        url: str,
+        *,
+        baudrate: int = 9600,
+        stale_timeout_s: float = 5.0,
+        read_size: int = 4096,
+        backoff_s: Sequence[float] = (0.5, 1.0, 2.0, 5.0),
+        clock: Callable[[], float] = time.time,
+        monotonic: Callable[[], float] = time.monotonic,
+    ) -> None:
+        if not backoff_s:
+            raise ValueError("backoff_s needs at least one delay")
+        self.name = name
+        self.url = url
+        self.baudrate = baudrate
+        self.stale_timeout_s = stale_timeout_s
+        self.read_size = read_size
+        self.backoff_s = tuple(backoff_s)
+        self.clock = clock
+        self.monotonic = monotonic
+        self._ser: serial.SerialBase | None = None
+        self._events: list[PortEvent] = []
+        self._attempt = 0
+        self._next_try: float | None = None
+        self._last_data: float | None = None
+        self._stale = False
+        self._ever_connected = False
+        self.bytes = 0
+        self.chunks = 0
+        self.reconnects = 0
+        self.errors = 0
+        self._check_url()
+
+    def _check_url(self) -> None:
+        try:
+            serial.serial_for_url(self.url, do_not_open=True)
+        except ValueError as exc:
+            raise DeviceError(f"port {self.name}: invalid URL {self.url!r}: {exc}") from None
+        except (serial.SerialException, OSError):
+            pass  # a device that is missing now is retried later
+
+    # -- state ----------------------------------------------------------------
+
+    @property
+    def is_open(self) -> bool:
+        """The port is open."""
+        return self._ser is not None
+
+    def _event(self, kind: EventKind, detail: str = "") -> None:
+        self._events.append(PortEvent(self.clock(), self.name, kind, detail))
+
+    def events(self) -> list[PortEvent]:
+        """Drain the queued events."""
+        out, self._events = self._events, []
+        return out
+
+    def counters_dict(self) -> dict[str, object]:
+        """Figures for the status event."""
+        return {
+            "open": self.is_open,
+            "bytes": self.bytes,
+            "chunks": self.chunks,
+            "reconnects": self.reconnects,
+            "errors": self.errors,
+            "stale": self._stale,
+        }
+
+    # -- open / close ---------------------------------------------------------
+
+    def open(self) -> bool:
+        """Try to open the port now; on failure schedule a retry. Returns success."""
+        if self._ser is not None:
+            return True
+        try:
+            ser = serial.serial_for_url(
+                self.url, baudrate=self.baudrate, timeout=0, do_not_open=True
+            )
+            ser.open()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self._schedule(f"cannot open {self.url}: {exc}")
+            return False
+        self._ser = ser
+        if self._ever_connected:
+            self.reconnects += 1
+        self._ever_connected = True
+        self._attempt = 0
+        self._next_try = None
+        self._last_data = self.monotonic()
+        self._event("connected", self.url)
+        return True
+
+    def _schedule(self, why: str) -> None:
+        delay = self.backoff_s[min(self._attempt, len(self.backoff_s) - 1)]
+        first = self._next_try is None and self._attempt == 0
+        self._attempt += 1
+        self._next_try = self.monotonic() + delay
+        if first:
+            self._event("disconnected", why)
+
+    def _lost(self, why: str) -> None:
+        self.errors += 1
+        self._close_port()
+        self._attempt = 0
+        self._next_try = None
+        self._schedule(why)
+
+    def _close_port(self) -> None:
+        ser, self._ser = self._ser, None
+        if ser is not None:
+            with contextlib.suppress(serial.SerialException, OSError):
+                ser.close()
+
+    def close(self) -> None:
+        """Close the port and stop retrying."""
+        self._close_port()
+        self._next_try = None
+
+    def fileno(self) -> int | None:
+        """File descriptor to select on, or None (closed, or a URL without one)."""
+        ser = self._ser
+        if ser is None:
+            return None
+        try:
+            fd = ser.fileno()
+        except (AttributeError, serial.SerialException, OSError, NotImplementedError):
+            return None
+        return fd if isinstance(fd, int) and fd >= 0 else None
+
+    # -- data -----------------------------------------------------------------
+
+    def read(self) -> Chunk | None:
+        """Read what is waiting (non-blocking). None if nothing, or the port was lost."""
+        ser = self._ser
+        if ser is None:
+            return None
+        try:
+            waiting = int(getattr(ser, "in_waiting", 0))
+            data = ser.read(min(max(waiting, 1), self.read_size) if waiting else self.read_size)
+        except (serial.SerialException, OSError) as exc:
+            self._lost(f"read failed: {exc}")
+            return None
+        if not data:
+            return None
+        now = self.clock()
+        self._last_data = self.monotonic()
+        self.bytes += len(data)
+        self.chunks += 1
+        if self._stale:
+            self._stale = False
+            self._event("alive", "data again")
+        return Chunk(now, self.name, bytes(data))
+
+    def poll(self) -> list[PortEvent]:
+        """Drive reconnects and silence detection; return (and drain) the events."""
+        now = self.monotonic()
+        if self._ser is None and self._next_try is not None and now >= self._next_try:
+            self.open()
+        if (
+            self._ser is not None
+            and not self._stale
+            and self._last_data is not None
+            and now - self._last_data > self.stale_timeout_s
+        ):
+            self._stale = True
+            self._event("stale", f"no data for {now - self._last_data:.1f} s")
+        return self.events()

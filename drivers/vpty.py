@@ -1,0 +1,155 @@
+"""A virtual serial port: a pty whose slave is published at a stable symlink.
+
+The daemon writes corrected NMEA to the pty master; an autopilot (or a test) opens
+the symlink like a serial device. Properties:
+
+- The slave is put in raw mode (no echo, no CR/LF translation) and chmod-ed to
+  ``mode`` (default 0660, optionally chown-ed to ``group``); the settings persist
+  while the master is open, whoever opens the slave afterwards.
+- The symlink is replaced atomically (temporary symlink + rename); a stale
+  symlink is replaced, a regular file or directory at that path is refused. It is
+  removed on :meth:`close` if it still points at this pty.
+- Readers may open and close the slave at any time without blocking the writer:
+  the master is non-blocking, and while no process has the slave open (the master
+  polls ``POLLHUP``) nothing is written at all, so a reader that opens late sees no
+  stale backlog, only what is written after it opened. A reader that opens but
+  stops reading fills the pty buffer; further writes are dropped and counted, never
+  blocking. Anything a reader writes back is drained and discarded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import grp
+import os
+import select
+import tty
+from pathlib import Path
+from types import TracebackType
+
+from drivers.errors import DeviceError
+
+
+class VirtualPort:
+    """A pty published at ``link``.
+
+    Args:
+        link: the symlink path (its parent directory is created).
+        mode: permission bits of the slave device.
+        group: group name or id to own the slave device (None: unchanged).
+
+    Raises:
+        DeviceError: the pty cannot be created or the link cannot be published.
+    """
+
+    def __init__(
+        self, link: str | Path, *, mode: int = 0o660, group: str | int | None = None
+    ) -> None:
+        self.link = Path(link)
+        self.written = 0
+        self.dropped = 0
+        try:
+            master, slave = os.openpty()
+        except OSError as exc:
+            raise DeviceError(f"cannot create a pty: {exc.strerror}") from None
+        try:
+            tty.setraw(slave)
+            self.slave_path = os.ttyname(slave)
+            Path(self.slave_path).chmod(mode)
+            if group is not None:
+                gid = group if isinstance(group, int) else grp.getgrnam(group).gr_gid
+                os.chown(self.slave_path, -1, gid)
+        except (OSError, KeyError) as exc:
+            os.close(master)
+            raise DeviceError(f"cannot configure the pty for {self.link}: {exc}") from None
+        finally:
+            os.close(slave)
+        os.set_blocking(master, False)
+        self.master = master
+        self._poll = select.poll()
+        self._poll.register(master, select.POLLHUP | select.POLLIN)
+        try:
+            self._publish()
+        except OSError as exc:
+            os.close(master)
+            raise DeviceError(f"cannot publish {self.link}: {exc.strerror or exc}") from None
+
+    def _publish(self) -> None:
+        link = self.link
+        link.parent.mkdir(parents=True, exist_ok=True)
+        if link.exists() and not link.is_symlink():
+            raise OSError(errno.EEXIST, f"{link} exists and is not a symlink")
+        tmp = link.with_name(f".{link.name}.{os.getpid()}.tmp")
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        tmp.symlink_to(self.slave_path)
+        tmp.replace(link)
+
+    def fileno(self) -> int:
+        """The master's file descriptor."""
+        return self.master
+
+    def has_reader(self) -> bool:
+        """True while some process has the slave open."""
+        hup = False
+        for _, ev in self._poll.poll(0):
+            if ev & select.POLLIN:
+                self._drain()
+            if ev & select.POLLHUP:
+                hup = True
+        return not hup
+
+    def _drain(self) -> None:
+        with contextlib.suppress(BlockingIOError, OSError):
+            while os.read(self.master, 4096):
+                pass
+
+    def write(self, data: bytes) -> int:
+        """Write without blocking; return the bytes written (0 when dropped)."""
+        if not self.has_reader():
+            self.dropped += len(data)
+            return 0
+        try:
+            n = os.write(self.master, data)
+        except (BlockingIOError, InterruptedError):
+            self.dropped += len(data)
+            return 0
+        except OSError as exc:
+            if exc.errno == errno.EIO:  # the reader went away between poll and write
+                self.dropped += len(data)
+                return 0
+            raise
+        self.written += n
+        if n < len(data):
+            self.dropped += len(data) - n
+        return n
+
+    def wait_writable(self, timeout_s: float) -> bool:
+        """Wait until a reader is attached and the pty takes data (for fake devices)."""
+        p = select.poll()
+        p.register(self.master, select.POLLOUT)
+        for _, ev in p.poll(max(timeout_s, 0.0) * 1000.0):
+            return bool(ev & select.POLLOUT) and not ev & select.POLLHUP
+        return False
+
+    def close(self) -> None:
+        """Remove the symlink (if it is still ours) and close the pty (idempotent)."""
+        if self.master < 0:
+            return
+        with contextlib.suppress(OSError):
+            if self.link.is_symlink() and str(self.link.readlink()) == self.slave_path:
+                self.link.unlink()
+        os.close(self.master)
+        self.master = -1
+
+    def __enter__(self) -> VirtualPort:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
