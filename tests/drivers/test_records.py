@@ -41,5 +41,5 @@ class TestUnits:
 
     def test_knot_and_kmh(self) -> None:
         """1 kn = 1852/3600 m/s and 1 km/h = 1/3.6 m/s exactly."""
-        assert KNOT_MPS == pytest.approx(0.514444, abs=1e-6)
-        assert 1.852 * KMH_MPS == pytest.approx(KNOT_MPS)
+        assert pytest.approx(0.514444, abs=1e-6) == KNOT_MPS
+        assert pytest.approx(KNOT_MPS) == 1.852 * KMH_MPS

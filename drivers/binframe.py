@@ -1,0 +1,118 @@
+"""Framing of checksummed binary ensembles (PD0 and PD4/PD5), shared by both decoders.
+
+A frame starts with a header byte sequence, carries its length (excluding the
+2-byte checksum) at a fixed offset, and ends with the 16-bit sum of every byte
+before it. The framer buffers bytes (bounded), emits complete frames whose
+checksum matches, and resynchronises after garbage or a corrupted frame by
+searching again from the byte after the bad header. A run of garbage is reported
+once (one ``framing`` reject), not per byte; a checksum mismatch is one
+``checksum`` reject, and the rest of that corrupted frame (skipped while searching
+for the next header) is part of the same reject, not a second one.
+
+Must not import: serial, os, time, threading (pure module).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+
+from drivers.errors import ChecksumError, FrameError
+
+MAX_BUFFER = 65536
+"""Bytes kept while looking for a frame (memory bound)."""
+
+
+def sum16(data: bytes | bytearray | memoryview) -> int:
+    """16-bit sum of the bytes (the PD0/PD4/PD5 checksum)."""
+    return sum(data) & 0xFFFF
+
+
+class BinaryFramer:
+    """Split a byte stream into checksummed frames.
+
+    Args:
+        header: the bytes a frame starts with (``b"\\x7f\\x7f"``, ``b"\\x7d"``).
+        length_of: given the buffer (at least ``min_header`` bytes from a header),
+            the frame length without the checksum, or None if the header is not
+            plausible (the framer then searches on).
+        min_header: bytes needed before ``length_of`` can decide.
+        name: protocol name for messages.
+    """
+
+    __slots__ = ("_absorb", "_buf", "_garbage", "_header", "_length_of", "_min_header", "_name")
+
+    def __init__(
+        self,
+        header: bytes,
+        length_of: Callable[[bytearray], int | None],
+        min_header: int,
+        name: str,
+    ) -> None:
+        self._header = header
+        self._length_of = length_of
+        self._min_header = min_header
+        self._name = name
+        self._buf = bytearray()
+        self._garbage = 0
+        self._absorb = False
+
+    def _skip(self, n: int) -> Iterator[FrameError]:
+        """Drop n leading bytes as garbage (reported when the run ends)."""
+        del self._buf[:n]
+        if not self._absorb:
+            self._garbage += n
+        return iter(())
+
+    def _end_garbage(self) -> Iterator[FrameError]:
+        if self._garbage:
+            n, self._garbage = self._garbage, 0
+            yield FrameError(f"{n} bytes of garbage between {self._name} frames")
+
+    def feed(self, data: bytes) -> Iterator[bytes | FrameError]:
+        """Add bytes; yield complete frames (checksum verified) and framing errors."""
+        buf = self._buf
+        buf += data
+        while True:
+            i = buf.find(self._header)
+            if i < 0:
+                # keep a possible partial header at the end
+                keep = len(self._header) - 1
+                if len(buf) > keep:
+                    yield from self._skip(len(buf) - keep)
+                return
+            if i > 0:
+                yield from self._skip(i)
+            if len(buf) < self._min_header:
+                return
+            n = self._length_of(buf)
+            if n is None:
+                yield from self._skip(1)
+                continue
+            if len(buf) < n + 2:
+                if len(buf) > MAX_BUFFER:
+                    yield from self._skip(1)
+                    continue
+                return
+            frame = bytes(buf[:n])
+            stored = buf[n] | buf[n + 1] << 8
+            if sum16(frame) != stored:
+                yield from self._end_garbage()
+                yield ChecksumError(
+                    f"{self._name} checksum {stored:04X} != computed {sum16(frame):04X}",
+                    frame[:64],
+                )
+                del buf[:1]  # resync from the byte after this header
+                self._absorb = True
+                continue
+            yield from self._end_garbage()
+            self._absorb = False
+            del buf[: n + 2]
+            yield frame
+
+    def flush(self) -> Iterator[FrameError]:
+        """End of stream: report buffered bytes that never became a frame."""
+        if self._buf and not self._absorb:
+            self._garbage += len(self._buf)
+        self._buf.clear()
+        self._absorb = False
+        yield from self._end_garbage()
