@@ -1,8 +1,7 @@
 """structlog configuration: JSON lines when the stream is not a terminal, console otherwise.
 
 Library modules only call ``structlog.get_logger(__name__)``; the CLI calls
-:func:`configure_logging` once. Never touches the stdlib root logger
-(no ``logging.basicConfig``).
+:func:`configure_logging` once. The stdlib root logger is never configured.
 """
 
 from __future__ import annotations
