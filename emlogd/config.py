@@ -1,0 +1,442 @@
+"""The daemon's YAML configuration, validated at load.
+
+Every error names the file, the line and the key, e.g.
+``emlogd.yaml:14: calibration[0].model: 'EM5' is not one of EM1, EM2, EM3, EM4``.
+Unknown keys, duplicate keys, wrong types and bad values are all errors; relative
+paths (serial devices given as files, the state file, the pty link) are resolved
+against the config file's directory, so an example config works from anywhere.
+The full schema with defaults is documented in ``examples/emlogd.yaml``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from drivers import protocol_names
+from drivers.errors import ConfigError
+
+DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
+DVL_PROTOCOLS = ("pd6", "pd13", "pd0", "pd4", "pd5", "nmea0183")
+"""Protocols that can carry a DVL bottom track (nmea0183: Rowe $PRTI01)."""
+
+Role = Literal["uut", "reference", "aux"]
+RefField = Literal["bottom", "water", "speed"]
+
+
+@dataclass(frozen=True, slots=True)
+class PortConfig:
+    """One input port (``ports`` list)."""
+
+    name: str
+    url: str
+    protocol: str
+    role: Role
+    baud: int = 9600
+    checksum: Literal["required", "optional"] = "required"
+    max_length: int = 82
+    rate_hz: float | None = None
+    stale_timeout_s: float = 5.0
+
+
+@dataclass(frozen=True, slots=True)
+class UutConfig:
+    """Calibration of one EMlog (``calibration`` list)."""
+
+    uut: str
+    reference: str
+    model: str = "EM3"
+    reference_field: RefField = "bottom"
+    uut_source: Literal["VHW", "VBW"] = "VHW"
+    lag_s: float | None = None
+    lag_window_s: float = 300.0
+    max_lag_s: float = 10.0
+    learn: bool = True
+    apply: bool = True
+    min_ref_speed_mps: float = 0.3
+    max_param_std: Mapping[str, float] = field(
+        default_factory=lambda: {"a": 0.01, "m": 0.02, "b": 0.03}
+    )
+    excitation_half_life_s: float = 600.0
+    r_raw_mps: float = 0.0514
+    r_ref_mps: float = 0.01
+    q_params: float = 1e-7
+    p0: float = 0.25
+    persist_interval_s: float = 60.0
+    persist_min_change_sigma: float = 1.0
+    persist_min_change_abs: float = 1e-3
+
+
+@dataclass(frozen=True, slots=True)
+class OutputConfig:
+    """Where the corrected NMEA goes (``outputs``)."""
+
+    pty: str | None = "/run/emlogd/emlog0"
+    pty_mode: int = 0o660
+    tcp: str | None = None
+    udp: str | None = None
+    stdout: bool = False
+    talker: str = "VW"
+    maker: str = "EML"
+    status_interval_s: float = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class Config:
+    """A validated configuration."""
+
+    path: str
+    ports: tuple[PortConfig, ...]
+    calibration: tuple[UutConfig, ...]
+    outputs: OutputConfig = field(default_factory=OutputConfig)
+    state_path: str = "/var/lib/emlogd/state.yaml"
+    control_socket: str = "/run/emlogd/control.sock"
+    log_format: Literal["auto", "json", "console"] = "auto"
+    log_level: Literal["debug", "info", "warning", "error"] = "info"
+    status_interval_s: float = 10.0
+
+    def port(self, name: str) -> PortConfig:
+        """The port called ``name``."""
+        for p in self.ports:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+
+# ------------------------------------------------------------------ loading
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that keeps nodes (for line numbers)."""
+
+
+class _Ctx:
+    def __init__(self, path: str, loader: _Loader) -> None:
+        self.path = path
+        self.loader = loader
+
+    def fail(self, node: yaml.Node | None, where: str, msg: str) -> ConfigError:
+        line = node.start_mark.line + 1 if node is not None else 1
+        return ConfigError(
+            f"{self.path}:{line}: {where}: {msg}" if where else f"{self.path}:{line}: {msg}"
+        )
+
+    def mapping(self, node: yaml.Node, where: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+        if not isinstance(node, yaml.MappingNode):
+            raise self.fail(node, where, "expected a mapping (key: value)")
+        out: dict[str, tuple[yaml.Node, yaml.Node]] = {}
+        for k, v in node.value:
+            if not isinstance(k, yaml.ScalarNode) or not isinstance(k.value, str):
+                raise self.fail(k, where, "keys must be strings")
+            if k.value in out:
+                raise self.fail(k, f"{where}.{k.value}" if where else k.value, "duplicate key")
+            out[k.value] = (k, v)
+        return out
+
+    def sequence(self, node: yaml.Node, where: str) -> list[yaml.Node]:
+        if not isinstance(node, yaml.SequenceNode):
+            raise self.fail(node, where, "expected a list")
+        return list(node.value)
+
+    def scalar(self, node: yaml.Node, where: str) -> Any:
+        if not isinstance(node, yaml.ScalarNode):
+            raise self.fail(node, where, "expected a single value")
+        return self.loader.construct_object(node, deep=True)
+
+
+Check = Callable[[_Ctx, yaml.Node, str], Any]
+
+
+def _str(pattern: str | None = None, what: str = "") -> Check:
+    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+        v = ctx.scalar(node, where)
+        if not isinstance(v, str) or not v:
+            raise ctx.fail(node, where, f"expected a non-empty string, got {v!r}")
+        if pattern is not None and not re.fullmatch(pattern, v):
+            raise ctx.fail(node, where, f"{v!r} is not {what}")
+        return v
+
+    return check
+
+
+def _opt_str() -> Check:
+    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+        v = ctx.scalar(node, where)
+        if v is None:
+            return None
+        if not isinstance(v, str) or not v:
+            raise ctx.fail(node, where, f"expected a string or null, got {v!r}")
+        return v
+
+    return check
+
+
+def _enum(*choices: str) -> Check:
+    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+        v = ctx.scalar(node, where)
+        if v not in choices:
+            raise ctx.fail(node, where, f"{v!r} is not one of {', '.join(choices)}")
+        return v
+
+    return check
+
+
+def _bool(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+    v = ctx.scalar(node, where)
+    if not isinstance(v, bool):
+        raise ctx.fail(node, where, f"expected true or false, got {v!r}")
+    return v
+
+
+def _num(
+    lo: float, hi: float, *, integer: bool = False, lo_open: bool = False, optional: bool = False
+) -> Check:
+    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+        v = ctx.scalar(node, where)
+        if v is None and optional:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise ctx.fail(node, where, f"expected a number, got {v!r}")
+        if integer and not isinstance(v, int):
+            raise ctx.fail(node, where, f"expected an integer, got {v!r}")
+        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
+            bound = f"({lo}, {hi}]" if lo_open else f"[{lo}, {hi}]"
+            raise ctx.fail(node, where, f"{v!r} is out of range {bound}")
+        return v
+
+    return check
+
+
+def _lag(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+    v = ctx.scalar(node, where)
+    if v == "auto":
+        return None
+    if isinstance(v, bool) or not isinstance(v, int | float) or not -30.0 <= v <= 30.0:
+        raise ctx.fail(node, where, f"expected auto or seconds within ±30, got {v!r}")
+    return float(v)
+
+
+def _hostport(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+    v = ctx.scalar(node, where)
+    if v is None:
+        return None
+    text = str(v)
+    host, sep, port = text.rpartition(":")
+    if (
+        not port.isdigit()
+        or not 0 < int(port) < 65536
+        or (sep and not re.fullmatch(r"[\w.\-\[\]:]*", host))
+    ):
+        raise ctx.fail(node, where, f"{text!r} is not HOST:PORT (port 1..65535)")
+    return text
+
+
+def _param_std(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+    m = ctx.mapping(node, where)
+    out = {}
+    for key, (kn, vn) in m.items():
+        if key not in ("a", "m", "b"):
+            raise ctx.fail(kn, f"{where}.{key}", "unknown parameter (a, m or b)")
+        out[key] = _num(0.0, 10.0, lo_open=True)(ctx, vn, f"{where}.{key}")
+    return out
+
+
+def _section(
+    ctx: _Ctx,
+    node: yaml.Node,
+    where: str,
+    spec: Mapping[str, tuple[str, Check]],
+    required: tuple[str, ...] = (),
+) -> dict[str, Any]:
+    """Check a mapping against ``spec`` (yaml key -> (attribute, check))."""
+    m = ctx.mapping(node, where)
+    for key, (kn, _) in m.items():
+        if key not in spec:
+            raise ctx.fail(
+                kn, f"{where}.{key}" if where else key, f"unknown key (valid: {', '.join(spec)})"
+            )
+    for key in required:
+        if key not in m:
+            raise ctx.fail(node, where, f"missing required key {key!r}")
+    return {
+        spec[k][0]: spec[k][1](ctx, vn, f"{where}.{k}" if where else k) for k, (_, vn) in m.items()
+    }
+
+
+_NAME = r"[A-Za-z0-9_.\-]{1,32}"
+
+PORT_SPEC: dict[str, tuple[str, Check]] = {
+    "name": ("name", _str(_NAME, "a port name (letters, digits, _ . -; at most 32)")),
+    "url": ("url", _str()),
+    "protocol": ("protocol", _str()),
+    "role": ("role", _enum("uut", "reference", "aux")),
+    "baud": ("baud", _num(50, 4_000_000, integer=True)),
+    "checksum": ("checksum", _enum("required", "optional")),
+    "max_length": ("max_length", _num(8, 1024, integer=True)),
+    "rate_hz": ("rate_hz", _num(0.0, 1000.0, lo_open=True, optional=True)),
+    "stale_timeout_s": ("stale_timeout_s", _num(0.0, 3600.0, lo_open=True)),
+}
+
+UUT_SPEC: dict[str, tuple[str, Check]] = {
+    "uut": ("uut", _str(_NAME, "a port name")),
+    "reference": ("reference", _str(_NAME, "a port name")),
+    "model": ("model", _enum("EM1", "EM2", "EM3", "EM4")),
+    "reference_field": ("reference_field", _enum("bottom", "water", "speed")),
+    "uut_source": ("uut_source", _enum("VHW", "VBW")),
+    "lag": ("lag_s", _lag),
+    "lag_window_s": ("lag_window_s", _num(10.0, 7200.0)),
+    "max_lag_s": ("max_lag_s", _num(0.0, 30.0, lo_open=True)),
+    "learn": ("learn", _bool),
+    "apply": ("apply", _bool),
+    "min_ref_speed_mps": ("min_ref_speed_mps", _num(0.0, 20.0)),
+    "max_param_std": ("max_param_std", _param_std),
+    "excitation_half_life_s": ("excitation_half_life_s", _num(1.0, 86400.0)),
+    "r_raw_mps": ("r_raw_mps", _num(0.0, 10.0, lo_open=True)),
+    "r_ref_mps": ("r_ref_mps", _num(0.0, 10.0, lo_open=True)),
+    "q_params": ("q_params", _num(0.0, 1.0)),
+    "p0": ("p0", _num(0.0, 100.0, lo_open=True)),
+    "persist_interval_s": ("persist_interval_s", _num(0.0, 86400.0)),
+    "persist_min_change_sigma": ("persist_min_change_sigma", _num(0.0, 100.0)),
+    "persist_min_change_abs": ("persist_min_change_abs", _num(0.0, 10.0)),
+}
+
+OUTPUT_SPEC: dict[str, tuple[str, Check]] = {
+    "pty": ("pty", _opt_str()),
+    "pty_mode": ("pty_mode", _num(0, 0o777, integer=True)),
+    "tcp": ("tcp", _hostport),
+    "udp": ("udp", _hostport),
+    "stdout": ("stdout", _bool),
+    "talker": ("talker", _str(r"[A-Z]{2}", "two uppercase letters")),
+    "maker": ("maker", _str(r"[A-Z]{3}", "three uppercase letters")),
+    "status_interval_s": ("status_interval_s", _num(0.0, 3600.0)),
+}
+
+TOP_SPEC: dict[str, tuple[str, Check]] = {
+    "state_file": ("state_path", _str()),
+    "control_socket": ("control_socket", _str()),
+    "log_format": ("log_format", _enum("auto", "json", "console")),
+    "log_level": ("log_level", _enum("debug", "info", "warning", "error")),
+    "status_interval_s": ("status_interval_s", _num(0.5, 3600.0)),
+}
+
+
+def load_config(path: str | Path) -> Config:
+    """Load and validate a config file.
+
+    Raises:
+        ConfigError: anything wrong, naming file, line and key.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p}: cannot read the config: {exc}") from None
+    return parse_config(text, str(p), base=p.resolve().parent)
+
+
+def parse_config(text: str, path: str = "<config>", *, base: Path | None = None) -> Config:
+    """Validate config text (see :func:`load_config`)."""
+    loader = _Loader(text)
+    try:
+        root = loader.get_single_node()
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else 1
+        raise ConfigError(
+            f"{path}:{line}: not valid YAML: {getattr(exc, 'problem', exc)}"
+        ) from None
+    finally:
+        loader.dispose()
+    ctx = _Ctx(path, loader)
+    if root is None:
+        raise ConfigError(f"{path}:1: the config is empty")
+    top = ctx.mapping(root, "")
+    known = {"ports", "calibration", "outputs", *TOP_SPEC}
+    for key, (kn, _) in top.items():
+        if key not in known:
+            raise ctx.fail(kn, key, f"unknown key (valid: {', '.join(sorted(known))})")
+    if "ports" not in top:
+        raise ctx.fail(root, "", "missing required key 'ports'")
+    protocols = set(protocol_names())
+    ports: list[PortConfig] = []
+    port_nodes: dict[str, yaml.Node] = {}
+    for i, node in enumerate(ctx.sequence(top["ports"][1], "ports")):
+        where = f"ports[{i}]"
+        kw = _section(ctx, node, where, PORT_SPEC, ("name", "url", "protocol", "role"))
+        if kw["protocol"] not in protocols:
+            raise ctx.fail(
+                node,
+                f"{where}.protocol",
+                f"{kw['protocol']!r} is not one of {', '.join(sorted(protocols))}",
+            )
+        if kw["name"] in port_nodes:
+            raise ctx.fail(node, f"{where}.name", f"duplicate port name {kw['name']!r}")
+        if base is not None and "://" not in kw["url"] and not kw["url"].startswith("/"):
+            kw["url"] = str(base / kw["url"])
+        port_nodes[kw["name"]] = node
+        ports.append(PortConfig(**kw))
+    if not ports:
+        raise ctx.fail(top["ports"][1], "ports", "at least one port is needed")
+    by_name = {p.name: p for p in ports}
+    uuts: list[UutConfig] = []
+    seen_uut: set[str] = set()
+    cal_nodes = ctx.sequence(top["calibration"][1], "calibration") if "calibration" in top else []
+    for i, node in enumerate(cal_nodes):
+        where = f"calibration[{i}]"
+        kw = _section(ctx, node, where, UUT_SPEC, ("uut", "reference"))
+        uut, ref = kw["uut"], kw["reference"]
+        if uut not in by_name:
+            raise ctx.fail(node, f"{where}.uut", f"no port named {uut!r}")
+        if ref not in by_name:
+            raise ctx.fail(node, f"{where}.reference", f"no port named {ref!r}")
+        if by_name[uut].role != "uut":
+            raise ctx.fail(
+                node, f"{where}.uut", f"port {uut!r} has role {by_name[uut].role}, not uut"
+            )
+        if by_name[uut].protocol != "nmea0183":
+            raise ctx.fail(node, f"{where}.uut", f"port {uut!r} must speak nmea0183 (VHW/VBW)")
+        if uut == ref:
+            raise ctx.fail(node, f"{where}.reference", "the reference must be another port")
+        if uut in seen_uut:
+            raise ctx.fail(node, f"{where}.uut", f"{uut!r} is calibrated twice")
+        seen_uut.add(uut)
+        field_ = kw.get("reference_field", "bottom")
+        rproto = by_name[ref].protocol
+        if field_ == "speed" and rproto != "nmea0183":
+            raise ctx.fail(
+                node,
+                f"{where}.reference_field",
+                f"speed needs an EMlog (nmea0183) reference, {ref!r} is {rproto}",
+            )
+        if field_ == "water" and rproto not in ("pd6", "pd13"):
+            raise ctx.fail(
+                node,
+                f"{where}.reference_field",
+                f"water track (:WS) needs a pd6/pd13 reference, {ref!r} is {rproto}",
+            )
+        if field_ == "bottom" and rproto not in DVL_PROTOCOLS:
+            raise ctx.fail(
+                node,
+                f"{where}.reference_field",
+                f"bottom track needs a DVL reference, {ref!r} is {rproto}",
+            )
+        uuts.append(UutConfig(**kw))
+    outputs = OutputConfig()
+    if "outputs" in top:
+        kw = _section(ctx, top["outputs"][1], "outputs", OUTPUT_SPEC)
+        if base is not None and kw.get("pty") and not kw["pty"].startswith("/"):
+            kw["pty"] = str(base / kw["pty"])
+        outputs = OutputConfig(**kw)
+    rest = {
+        TOP_SPEC[k][0]: TOP_SPEC[k][1](ctx, vn, k) for k, (_, vn) in top.items() if k in TOP_SPEC
+    }
+    for key in ("state_path", "control_socket"):
+        if base is not None and key in rest and not rest[key].startswith("/"):
+            rest[key] = str(base / rest[key])
+    return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
