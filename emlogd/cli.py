@@ -532,6 +532,163 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- daemon
+
+
+def _config_path(args: argparse.Namespace) -> str:
+    from emlogd.config import DEFAULT_PATH
+
+    return str(getattr(args, "config", None) or DEFAULT_PATH)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """Run the daemon in the foreground (systemd runs it this way)."""
+    import structlog
+
+    from emlogd.config import load_config
+    from emlogd.daemon import Daemon
+    from emlogd.logsetup import configure_logging
+
+    cfg = load_config(_config_path(args))
+    configure_logging(cfg.log_format, cfg.log_level)
+    log = structlog.get_logger("emlogd")
+    return Daemon(cfg.path, log, state_path=args.state).run()
+
+
+def cmd_check_config(args: argparse.Namespace) -> int:
+    """Validate a config file without starting."""
+    from emlogd.config import load_config
+
+    cfg = load_config(args.file)
+    ports = ", ".join(f"{p.name} ({p.protocol}, {p.role})" for p in cfg.ports)
+    uuts = ", ".join(
+        f"{u.uut} {u.model} vs {u.reference} ({u.reference_field})" for u in cfg.calibration
+    )
+    sys.stdout.write(f"{args.file}: ok\n  ports: {ports}\n  calibration: {uuts or 'none'}\n")
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Run the daemon's pipeline over captures; write the corrected NMEA; print a summary."""
+    import dataclasses
+
+    from emlogd.config import load_config
+    from emlogd.pipeline import Output, Pipeline
+    from emlogd.replay import replay
+    from emlogd.settings import pipeline_from_config, snapshot_to_state, state_to_snapshot
+    from emlogd.state import StateStore
+
+    cfg = load_config(args.config)
+    ports, uuts = pipeline_from_config(cfg)
+    if args.learn is not None:
+        uuts = [dataclasses.replace(u, learn=args.learn) for u in uuts]
+    store = StateStore(args.state) if args.state else None
+    snapshots = {}
+    if store is not None:
+        states, report = store.load()
+        for line in report:
+            sys.stderr.write(f"emlogd replay: {line}\n")
+        snapshots = {k: state_to_snapshot(v) for k, v in states.items()}
+    pipeline = Pipeline(ports, uuts, snapshots)
+
+    def persist(_: Output) -> None:
+        if store is not None:
+            store.save({s.uut: snapshot_to_state(s) for s in pipeline.good_snapshots()})
+
+    to_stdout = args.out is None and not args.json
+    sink = open(args.out, "wb") if args.out else (sys.stdout.buffer if to_stdout else None)  # noqa: SIM115
+    try:
+        result = replay(
+            pipeline,
+            args.captures,
+            sink=sink,
+            speed=None if args.fast or args.speed is None else args.speed,
+            on_persist=persist,
+            progress=_progress,
+        )
+    finally:
+        _progress_done()
+        if args.out and sink is not None:
+            sink.close()
+    if store is not None and pipeline.good_snapshots():
+        persist(Output())
+    doc = result.to_dict()
+    if args.json:
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        return 0
+    out = sys.stderr if to_stdout else sys.stdout
+    rows = []
+    uut_docs = doc["uuts"]
+    assert isinstance(uut_docs, dict)
+    for name, u in uut_docs.items():
+        params = u["params"] or {}
+        rows.append(
+            [
+                name,
+                u["state"],
+                ", ".join(f"{k}={v:+.4f}" for k, v in params.items()) or "-",
+                fmt(u["lag_s"], ".2f"),
+                fmt(u["rmse_raw"], ".4f"),
+                fmt(u["rmse_corrected"], ".4f"),
+                str(u["freezes"]),
+            ]
+        )
+    out.write(
+        render(
+            ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"],
+            rows,
+            left=3,
+        )
+    )
+    out.write(
+        f"{result.records} records in {result.elapsed_s:.1f} s "
+        f"({result.span_s / max(result.elapsed_s, 1e-9):.0f}x real time), "
+        f"{result.emitted} sentences emitted, {result.persisted} persists\n"
+    )
+    return 0
+
+
+def _socket_path(args: argparse.Namespace) -> str:
+    if args.socket:
+        return str(args.socket)
+    from emlogd.config import load_config
+
+    return load_config(_config_path(args)).control_socket
+
+
+def cmd_control(args: argparse.Namespace) -> int:
+    """status / freeze / learn / reset through the daemon's control socket."""
+    from emlogd.control import request
+
+    req: dict[str, object] = {"cmd": args.command}
+    if getattr(args, "uut", None):
+        req["port"] = args.uut
+    if args.command == "learn":
+        req["on"] = args.state == "on"
+    resp = request(_socket_path(args), req)
+    if not resp.get("ok"):
+        raise EmlogdError(f"the daemon refused: {resp.get('error')}")
+    if args.command == "status" and not args.json:
+        status = resp.get("status", {})
+        assert isinstance(status, dict)
+        for name, u in status.get("uuts", {}).items():
+            params = ", ".join(f"{k}={v:+.4f}" for k, v in (u.get("params") or {}).items())
+            sys.stdout.write(
+                f"{name}: {u['state']}, reference {u['reference']}, {u['model']} "
+                f"{params or '(no calibration)'}, lag {fmt(u.get('lag_s'), '.2f')} s, "
+                f"learning {'on' if u['learning_enabled'] else 'off'}\n"
+            )
+        for name, p in status.get("ports", {}).items():
+            rejects = sum(p["rejects"].values())
+            sys.stdout.write(
+                f"port {name}: {p['records']} records, {rejects} rejects"
+                f"{', STALE' if p['stale'] else ''}\n"
+            )
+        return 0
+    sys.stdout.write(json.dumps(resp, indent=2, default=str) + "\n")
+    return 0
+
+
 # ---------------------------------------------------------------------------- demo
 
 
@@ -761,6 +918,55 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
     common_offline(p)
     p.set_defaults(handler=cmd_report)
+
+    p = sub.add_parser(
+        "run",
+        help="run the daemon (foreground; systemd Type=notify)",
+        description="Read the sensors, learn the calibration, emit corrected NMEA.",
+    )
+    p.add_argument("--config", metavar="FILE", help="config file (default /etc/emlogd/emlogd.yaml)")
+    p.add_argument("--state", metavar="FILE", help="override the config's state file")
+    p.set_defaults(handler=cmd_run)
+
+    p = sub.add_parser("check-config", help="validate a config file without starting")
+    p.add_argument("file", help="config file")
+    p.set_defaults(handler=cmd_check_config)
+
+    p = sub.add_parser(
+        "replay",
+        help="run the daemon's pipeline over captures",
+        description="The same pipeline as the daemon, over captures in order (state carried "
+        "across files): corrected NMEA to --out (or stdout), then a summary.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    p.add_argument("--config", required=True, metavar="FILE", help="config file")
+    p.add_argument(
+        "--state", metavar="FILE", help="load frozen parameters from and persist to FILE"
+    )
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--learn", dest="learn", action="store_true", default=None, help="learn")
+    g.add_argument("--no-learn", dest="learn", action="store_false", help="frozen parameters only")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--speed", type=float, metavar="X", help="pace at X times real time")
+    g.add_argument("--fast", action="store_true", help="as fast as possible (default)")
+    p.add_argument("--out", metavar="FILE", help="write the corrected NMEA here")
+    p.add_argument("--json", action="store_true", help="summary as one JSON document")
+    p.set_defaults(handler=cmd_replay)
+
+    for name, text in (
+        ("status", "show the running daemon's calibration and ports"),
+        ("freeze", "stop learning (all UUTs or --uut) and persist"),
+        ("reset", "forget the calibration (all UUTs or --uut)"),
+        ("learn", "switch learning on or off"),
+    ):
+        p = sub.add_parser(name, help=text, description=text + " (through the control socket).")
+        if name == "learn":
+            p.add_argument("state", choices=["on", "off"])
+        p.add_argument("--uut", metavar="PORT", help="one UUT only")
+        p.add_argument("--config", metavar="FILE", help="config file naming the control socket")
+        p.add_argument("--socket", metavar="PATH", help="control socket path")
+        p.add_argument("--json", action="store_true", help="raw JSON answer")
+        p.set_defaults(handler=cmd_control)
 
     return parser
 
