@@ -16,12 +16,14 @@ and for a text chunk that cannot be stored verbatim (non-printable bytes, a line
 without terminator), it is ``hex:`` + the bytes in lowercase hex, given back exactly.
 
 The reader streams (constant memory, any file size) and names the file and line
-of anything malformed. The writer refuses unknown ports and times going backwards.
+of anything malformed; a file whose name ends in ``.gz`` is read through gzip. The
+writer refuses unknown ports and times going backwards.
 """
 
 from __future__ import annotations
 
 import binascii
+import gzip
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -62,6 +64,12 @@ class CaptureRecord:
         return self.payload.encode("ascii") + b"\r\n"
 
 
+def _open_text(path: str) -> TextIO:
+    if path.endswith(".gz"):
+        return gzip.open(path, "rt", encoding="ascii", errors="strict", newline="")
+    return open(path, encoding="ascii", errors="strict", newline="")
+
+
 def _check_name(name: str) -> bool:
     return bool(name) and all(c in _NAME_OK for c in name)
 
@@ -87,8 +95,11 @@ class CaptureReader:
     def __init__(self, path: str | Path) -> None:
         self.path = str(path)
         self.ports: dict[str, str] = {}
-        with open(self.path, encoding="ascii", errors="strict", newline="") as f:
-            self._read_header(f)
+        try:
+            with _open_text(self.path) as f:
+                self._read_header(f)
+        except (gzip.BadGzipFile, EOFError) as exc:
+            raise self._fail(1, f"not a readable gzip file: {exc}") from None
 
     def _fail(self, line: int, msg: str) -> CaptureFormatError:
         return CaptureFormatError(self.path, line, msg)
@@ -125,7 +136,7 @@ class CaptureReader:
         last_t = -math.inf
         in_header = True
         try:
-            with open(self.path, encoding="ascii", errors="strict", newline="") as f:
+            with _open_text(self.path) as f:
                 for n, raw in enumerate(f, start=1):
                     line = raw.rstrip("\r\n")
                     if n == 1 or not line:

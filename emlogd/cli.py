@@ -39,8 +39,6 @@ from emlogd.tables import fmt, render, table2, table3
 Handler = Callable[[argparse.Namespace], int]
 
 _SNIFF_CHUNK = 4096
-DEMO_TRAIN = "demo-figure8.cap"
-DEMO_TEST = "demo-straight.cap"
 
 
 class UsageError(EmlogdError):
@@ -96,11 +94,17 @@ def _sniff_protocol(path: Path) -> str:
 
 
 def _is_capture(path: Path) -> bool:
+    import gzip
+
     from drivers.capture import MAGIC
 
-    with open(path, "rb") as f:
-        first = f.readline(256)
-    return first.rstrip(b"\r\n") == MAGIC.encode("ascii")
+    opener = gzip.open if path.name.endswith(".gz") else open
+    try:
+        with opener(path, "rb") as f:
+            first = f.readline(256)
+    except (gzip.BadGzipFile, EOFError):
+        return False
+    return bool(first.rstrip(b"\r\n") == MAGIC.encode("ascii"))
 
 
 # ---------------------------------------------------------------------------- dump
@@ -693,35 +697,12 @@ def cmd_control(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """Decode the bundled example, calibrate EMlog1 on the figure-8, test on the straight run."""
-    from importlib.resources import as_file, files
+    """The real daemon calibrating the bundled example live (fake devices on ptys)."""
+    from emlogd.demo import run_demo
 
-    res_dir = files("emlogd") / "data"
-    with as_file(res_dir / DEMO_TRAIN) as train_path, as_file(res_dir / DEMO_TEST) as test_path:
-        paths = [str(train_path), str(test_path)]
-        out = sys.stdout
-        out.write("emlogd demo: a short simulated sea trial (emlogd simulate), bundled.\n\n")
-        for path in paths:
-            args.file, args.protocol, args._decoders = path, None, {}
-            n = sum(1 for _ in _dump_records(args))
-            summary = {
-                name: {"protocol": proto, **dec.counters.as_dict()}
-                for name, (proto, dec) in args._decoders.items()
-            }
-            out.write(f"{Path(path).name}: {n} records and rejects decoded\n")
-            out.write(_summary_table(summary) + "\n")
-        pairing = Pairing("emlog1", "dvl")
-        datas = _load(paths, pairing)
-        res = calibrate(datas[:1], pairing, "EM3", "ls")
-        out.write(f"calibrate on {Path(paths[0]).name}:\n")
-        out.write(_calibration_text(res) + "\n")
-        rows = evaluate(datas[1:], res.params, pairing, res.lag.lag_s)
-        for r in rows:
-            out.write(
-                f"evaluate on {Path(r.capture).name} (frozen parameters): RMSE "
-                f"{fmt(r.rmse_raw, '.3f')} -> {fmt(r.rmse_cal, '.3f')} m/s "
-                f"({fmt(r.improvement_pct, '.1f')} %)\n"
-            )
+    if not 1.0 <= args.speed <= 50.0:
+        raise UsageError("--speed must be within 1..50")
+    run_demo(speed=args.speed, workdir=args.workdir)
     return 0
 
 
@@ -809,11 +790,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "demo",
-        help="decode the bundled example, calibrate, evaluate",
-        description="Decode the bundled example captures (a short simulated trial), "
-        "calibrate EMlog1 against the DVL on the figure-8 and evaluate on the straight run.",
+        help="the daemon calibrating the bundled example, live (about 40 s)",
+        description="Serve the bundled example (a simulated figure-8) from three fake serial "
+        "devices on ptys, run the real daemon against them, read its corrected NMEA, show the "
+        "calibration converging and the error before and after.",
     )
-    p.set_defaults(handler=cmd_demo, json=False, checksum_optional=False, max_length=None)
+    p.add_argument("--speed", type=float, default=10.0, help="replay speed (default 10x)")
+    p.add_argument("--workdir", metavar="DIR", help="keep config, ptys, log and state here")
+    p.set_defaults(handler=cmd_demo)
 
     p = sub.add_parser(
         "simulate",

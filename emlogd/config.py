@@ -63,7 +63,7 @@ class UutConfig:
     max_param_std: Mapping[str, float] = field(
         default_factory=lambda: {"a": 0.01, "m": 0.02, "b": 0.03}
     )
-    excitation_half_life_s: float = 600.0
+    excitation_half_life_samples: float = 600.0
     r_raw_mps: float = 0.0514
     r_ref_mps: float = 0.01
     q_params: float = 1e-7
@@ -296,7 +296,7 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
     "apply": ("apply", _bool),
     "min_ref_speed_mps": ("min_ref_speed_mps", _num(0.0, 20.0)),
     "max_param_std": ("max_param_std", _param_std),
-    "excitation_half_life_s": ("excitation_half_life_s", _num(1.0, 86400.0)),
+    "excitation_half_life_samples": ("excitation_half_life_samples", _num(1.0, 86400.0)),
     "r_raw_mps": ("r_raw_mps", _num(0.0, 10.0, lo_open=True)),
     "r_ref_mps": ("r_ref_mps", _num(0.0, 10.0, lo_open=True)),
     "q_params": ("q_params", _num(0.0, 1.0)),

@@ -88,7 +88,7 @@ class UutSettings:
         apply: emit corrected sentences (False: status only).
         min_ref_speed_mps: no learning below this reference speed.
         max_param_std: parameter name -> largest σ for a calibration to count as good.
-        excitation_half_life_s: memory of the excitation window, s (at the UUT rate).
+        excitation_half_life_samples: memory of the excitation window, in UUT samples.
         persist_interval_s: least record time between two persists of this UUT.
         persist_min_change_sigma: persist only if a parameter moved by this many σ…
         persist_min_change_abs: …or by this absolute amount.
@@ -113,7 +113,7 @@ class UutSettings:
     max_param_std: Mapping[str, float] = field(
         default_factory=lambda: {"a": 0.01, "m": 0.02, "b": 0.03}
     )
-    excitation_half_life_s: float = 600.0
+    excitation_half_life_samples: float = 600.0
     persist_interval_s: float = 60.0
     persist_min_change_sigma: float = 1.0
     persist_min_change_abs: float = 1e-3
@@ -324,7 +324,7 @@ class _Uut:
             _LagCollector(s.lag_window_s, s.max_lag_s, 20) if s.lag_s is None else None
         )
         self.ref = RefBuffer(int((s.max_lag_s + 5.0) * 20) + 64)
-        self.window = ExcitationWindow(max(s.excitation_half_life_s, 1.0), s.rule)
+        self.window = ExcitationWindow(max(s.excitation_half_life_samples, 1.0), s.rule)
         self.t_prev: float | None = None
         self.t_status = -math.inf
         self.learn_on = s.learn

@@ -36,7 +36,7 @@ def pipeline_from_config(cfg: Config) -> tuple[list[PortSettings], list[UutSetti
             apply=u.apply,
             min_ref_speed_mps=u.min_ref_speed_mps,
             max_param_std=dict(u.max_param_std),
-            excitation_half_life_s=u.excitation_half_life_s,
+            excitation_half_life_samples=u.excitation_half_life_samples,
             persist_interval_s=u.persist_interval_s,
             persist_min_change_sigma=u.persist_min_change_sigma,
             persist_min_change_abs=u.persist_min_change_abs,
