@@ -1,0 +1,83 @@
+"""Line framing and NMEA checksums."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from drivers.errors import ChecksumError, FrameError, MissingChecksumError, TooLongError
+from drivers.framing import LineFramer, nmea_checksum, split_nmea, with_checksum
+
+
+def _feed(framer: LineFramer, data: bytes) -> list[bytes | FrameError]:
+    return list(framer.feed(data)) + list(framer.flush())
+
+
+def test_any_mix_of_terminators() -> None:
+    f = LineFramer(b"$", 82)
+    out = _feed(f, b"$A*00\r\n$B*00\n$C*00\r$D*00\n\r\n")
+    assert out == [b"$A*00", b"$B*00", b"$C*00", b"$D*00"]
+
+
+def test_garbage_and_spliced_frames_are_framing_errors() -> None:
+    f = LineFramer(b"$!", 82)
+    out = _feed(f, b"xx$GPGGA,1$VWVHW,2*00\r\n")
+    assert isinstance(out[0], FrameError) and out[0].raw == b"xx"
+    assert isinstance(out[1], FrameError) and out[1].raw == b"$GPGGA,1"
+    assert out[2] == b"$VWVHW,2*00"
+
+
+def test_too_long_and_cap() -> None:
+    f = LineFramer(b"$", 82, cap=256)
+    out = _feed(f, b"$" + b"A" * 80 + b"\r\n" + b"$" + b"B" * 78 + b"\r\n")
+    assert isinstance(out[0], TooLongError)
+    assert out[1] == b"$" + b"B" * 78
+    f = LineFramer(b"$", 82, cap=256)
+    out = list(f.feed(b"$" + b"C" * 10_000))
+    assert len(out) == 1 and isinstance(out[0], TooLongError)
+    assert len(f._buf) == 0
+    out = _feed(f, b"more junk\n$OK*00\n")
+    assert out == [b"$OK*00"]  # the rest of the long line is dropped up to its terminator
+
+
+def test_unterminated_line_reported_at_flush() -> None:
+    f = LineFramer(b"$", 82)
+    assert list(f.feed(b"$PARTIAL")) == []
+    (err,) = list(f.flush())
+    assert isinstance(err, FrameError) and err.raw == b"$PARTIAL"
+
+
+def test_checksum_helpers() -> None:
+    s = with_checksum("VWVHW,,T,,M,3.50,N,6.48,K")
+    assert s.endswith("*" + format(nmea_checksum(s[1:-3].encode()), "02X"))
+    assert split_nmea(s.encode()) == s[1:-3].encode()
+    assert split_nmea(s.lower().replace("vwvhw", "VWVHW").encode()) is not None
+    with pytest.raises(ChecksumError, match="computed"):
+        split_nmea(s[:-1].encode() + b"0" if s[-1] != "0" else s[:-1].encode() + b"1")
+    with pytest.raises(MissingChecksumError):
+        split_nmea(b"$VWVHW,1")
+    assert split_nmea(b"$VWVHW,1", required=False) == b"VWVHW,1"
+    with pytest.raises(ChecksumError, match="malformed"):
+        split_nmea(b"$VWVHW,1*G1")
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    lines=st.lists(st.text(alphabet="ABC,.0123", max_size=30), max_size=10),
+    cuts=st.lists(st.integers(0, 400), max_size=10),
+)
+def test_chunking_never_changes_the_frames(lines: list[str], cuts: list[int]) -> None:
+    data = b"".join(b"$" + ln.encode() + b"\r\n" for ln in lines)
+    whole = _feed(LineFramer(b"$", 82), data)
+    f = LineFramer(b"$", 82)
+    out: list[bytes | FrameError] = []
+    prev = 0
+    for c in sorted(cuts):
+        out.extend(f.feed(data[prev:c]))
+        prev = c
+    out.extend(f.feed(data[prev:]))
+    out.extend(f.flush())
+    assert [o if isinstance(o, bytes) else (type(o), o.raw) for o in out] == [
+        o if isinstance(o, bytes) else (type(o), o.raw) for o in whole
+    ]

@@ -1,0 +1,105 @@
+"""PD4/PD5: layout round trip, sign convention, frames, resync (no real capture exists)."""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from drivers.rdi_pd45 import Pd45Decoder, Pd45Ensemble, encode_pd45
+
+
+@pytest.mark.parametrize("pd5", [False, True])
+def test_round_trip_ship_frame(pd5: bool) -> None:
+    b = encode_pd45(
+        pd5=pd5, bottom_ship_mps=(1.5, -0.25), range_m=20.0, heading_deg=30.0, temperature_c=12.34
+    )
+    assert len(b) == (88 if pd5 else 47)
+    dec = Pd45Decoder("dvl")
+    (e,) = dec.decode_all(b)
+    assert isinstance(e, Pd45Ensemble)
+    assert e.format == ("PD5" if pd5 else "PD4")
+    assert e.coord_frame == "ship"
+    assert e.bottom_mms[:2] == (-250, 1500)  # X transverse, Y longitudinal, vessel motion
+    assert e.bottom_range_cm == (2000,) * 4
+    assert e.temperature_c == pytest.approx(12.34)
+    assert e.heading_deg == (30.0 if pd5 else None)
+    (sp,) = dec.speed_records(e)
+    assert (sp.longitudinal_mps, sp.transverse_mps, sp.valid) == (1.5, -0.25, True)
+    assert sp.source == ("PD5:BT" if pd5 else "PD4:BT")
+
+
+def test_earth_frame_needs_a_heading() -> None:
+    dec = Pd45Decoder("dvl")
+    pd4 = dec.decode_all(encode_pd45(bottom_ship_mps=(1.0, 0.0), range_m=5, coord_frame="earth"))[0]
+    (sp,) = dec.speed_records(pd4)
+    assert not sp.valid  # PD4 carries no heading: earth velocities cannot be rotated
+    pd5 = dec.decode_all(
+        encode_pd45(
+            pd5=True, bottom_ship_mps=(1.0, 0.3), range_m=5, coord_frame="earth", heading_deg=77
+        )
+    )[0]
+    (sp,) = dec.speed_records(pd5)
+    assert sp.valid
+    assert sp.longitudinal_mps == pytest.approx(1.0, abs=2e-3)
+    assert sp.transverse_mps == pytest.approx(0.3, abs=2e-3)
+
+
+def test_no_bottom_lock() -> None:
+    dec = Pd45Decoder("dvl")
+    (e,) = dec.decode_all(encode_pd45(bottom_ship_mps=None))
+    assert isinstance(e, Pd45Ensemble)
+    assert e.bottom_mms[0] is None and not e.bottom_lock
+    (sp,) = dec.speed_records(e)
+    assert not sp.valid
+
+
+def test_bad_checksum_and_resync() -> None:
+    good = encode_pd45(bottom_ship_mps=(1.0, 0.0), range_m=5)
+    bad = bytearray(good)
+    bad[10] ^= 0xFF
+    dec = Pd45Decoder("dvl", errors="yield")
+    out = dec.decode_all(b"junk" + bytes(bad) + good + b"\x7d\x00" + good)
+    assert sum(isinstance(r, Pd45Ensemble) for r in out) == 2
+    assert dec.counters.rejects["checksum"] == 1
+    assert dec.counters.rejects["framing"] >= 1
+
+
+def test_wrong_length_for_the_structure_is_not_a_frame() -> None:
+    frame = bytearray(encode_pd45(bottom_ship_mps=(1.0, 0.0), range_m=5))
+    struct.pack_into("<H", frame, 2, 86)  # PD4 id with the PD5 length
+    dec = Pd45Decoder("dvl", errors="skip")
+    assert dec.decode_all(bytes(frame)) == []
+    assert dec.counters.rejected >= 1
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    fwd=st.floats(-20, 20),
+    stb=st.floats(-5, 5),
+    pd5=st.booleans(),
+    cuts=st.lists(st.integers(0, 200), max_size=8),
+)
+def test_round_trip_and_chunking(fwd: float, stb: float, pd5: bool, cuts: list[int]) -> None:
+    data = encode_pd45(pd5=pd5, bottom_ship_mps=(fwd, stb), range_m=10) * 2
+    dec = Pd45Decoder("dvl")
+    out: list[object] = []
+    prev = 0
+    for c in sorted(cuts):
+        out.extend(dec.feed(data[prev:c]))
+        prev = c
+    out.extend(dec.feed(data[prev:]))
+    out.extend(dec.flush())
+    assert len(out) == 2
+    (sp,) = dec.speed_records(out[0])
+    assert sp.longitudinal_mps == pytest.approx(round(fwd * 1000) / 1000, abs=1e-9)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=500))
+def test_random_bytes_never_raise(data: bytes) -> None:
+    dec = Pd45Decoder("dvl", errors="skip")
+    for r in dec.decode_all(b"\x7d" + data):
+        assert isinstance(r, Pd45Ensemble)
