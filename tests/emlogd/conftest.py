@@ -1,0 +1,21 @@
+"""Shared fixtures for the application tests: a small simulated trial on disk."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from emlogd.simulate import SimulationResult, simulate
+
+
+@pytest.fixture(scope="session")
+def trial(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
+    """The five trajectories at 20 % of the paper's durations (seed 1), written once."""
+    return simulate(tmp_path_factory.mktemp("trial"), seed=1, scale=0.2)
+
+
+@pytest.fixture(scope="session")
+def trial_files(trial: SimulationResult) -> dict[str, Path]:
+    """Capture path by trajectory name (transit, figure-8, straight, circles, return)."""
+    return {t.name: p for t, p in zip(trial.trajectories, trial.files, strict=True)}
