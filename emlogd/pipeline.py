@@ -242,7 +242,11 @@ class RefBuffer:
         return self._buf[-1] if self._buf else None
 
     def at(self, t: float) -> float | None:
-        """The reference at time ``t`` by linear interpolation, or None."""
+        """The reference at time ``t`` by linear interpolation, or None.
+
+        Between two valid samples at most ``max_gap_s`` away: interpolated. After
+        the newest sample: that sample, for up to ``max_gap_s / 2``. Otherwise None.
+        """
         buf = self._buf
         after: tuple[float, float, bool] | None = None
         for i in range(len(buf) - 1, -1, -1):
@@ -254,7 +258,11 @@ class RefBuffer:
                 return None
             if s[0] == t:
                 return s[1]
-            if after is None or not after[2]:
+            if after is None:
+                # the newest sample is before t (a lag shorter than the reference
+                # interval): hold it briefly rather than wait for the next one
+                return s[1] if t - s[0] <= self.max_gap_s / 2 else None
+            if not after[2]:
                 return None
             if t - s[0] > self.max_gap_s or after[0] - t > self.max_gap_s:
                 return None
@@ -323,7 +331,7 @@ class _Uut:
         self.lag_collector = (
             _LagCollector(s.lag_window_s, s.max_lag_s, 20) if s.lag_s is None else None
         )
-        self.ref = RefBuffer(int((s.max_lag_s + 5.0) * 20) + 64)
+        self.ref = RefBuffer(int((s.max_lag_s + 5.0) * 50) + 64)  # up to 50 Hz references
         self.window = ExcitationWindow(max(s.excitation_half_life_samples, 1.0), s.rule)
         self.t_prev: float | None = None
         self.t_status = -math.inf
