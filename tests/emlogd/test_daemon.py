@@ -1,0 +1,189 @@
+"""End to end: the real daemon (subprocess) against fake devices on ptys.
+
+Captures are replayed faster than real time, so the configured latencies are the
+simulator's divided by the replay speed.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from drivers.capture import CaptureWriter
+from drivers.fake import FakeDevice
+from emlogd.control import request
+from emlogd.state import StateStore
+
+SPEED = 20.0
+
+CONFIG = f"""\
+ports:
+  - {{name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut, baud: 4800}}
+  - {{name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut, baud: 38400}}
+  - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, stale_timeout_s: 1}}
+  - {{name: junk, url: links/junk, protocol: nmea0183, role: aux}}
+calibration:
+  - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
+     excitation_half_life_samples: 120, persist_interval_s: 0.5}}
+  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5}}
+outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_interval_s: 0.2}}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+status_interval_s: 1
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Daemon:
+    def __init__(self, work: Path) -> None:
+        self.work = work
+        self.log = open(work / "daemon.log", "ab")  # noqa: SIM115
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
+            cwd=work,
+        )
+        self.fd = -1
+        self.buf = b""
+        self.lines: list[bytes] = []
+        deadline = time.monotonic() + 20
+        while not (work / "out" / "emlog0").exists():
+            assert self.proc.poll() is None, (work / "daemon.log").read_text()
+            assert time.monotonic() < deadline, "the daemon did not start"
+            time.sleep(0.02)
+        self.fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+
+    def pump(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            r, _, _ = select.select([self.fd], [], [], 0.05)
+            if r:
+                try:
+                    self.buf += os.read(self.fd, 65536)
+                except (BlockingIOError, OSError):
+                    continue
+                *done, self.buf = self.buf.split(b"\r\n")
+                self.lines.extend(done)
+
+    def status(self) -> dict[str, object]:
+        resp = request(self.work / "run" / "control.sock", {"cmd": "status"})
+        assert resp["ok"], resp
+        st = resp["status"]
+        assert isinstance(st, dict)
+        return st
+
+    def stop(self, sig: int = signal.SIGTERM) -> int:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+        self.proc.send_signal(sig)
+        rc = self.proc.wait(20)
+        self.log.close()
+        return rc
+
+
+def _setup(tmp_path: Path) -> Path:
+    for sub in ("links", "out", "state", "run"):
+        (tmp_path / sub).mkdir()
+    (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
+    junk = tmp_path / "junk.cap"
+    with CaptureWriter(junk, {"junk": "nmea0183"}) as w:
+        for k in range(3000):
+            w.write_chunk(1.0 + k * 0.001, "junk", os.urandom(400) + b"\n" + b"A" * 2000)
+    return junk
+
+
+def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None:
+    junk = _setup(tmp_path)
+    capture = trial_files["figure-8"]
+    links = tmp_path / "links"
+    devices = {
+        p: FakeDevice(capture, p, links / p, speed=SPEED).start() for p in ("emlog1", "emlog2", "dvl")
+    }
+    garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
+    d = Daemon(tmp_path)
+    try:
+        # a TCP client that connects and never reads must not stall the pty output
+        cfg = (tmp_path / "emlogd.yaml").read_text()
+        tcp_port = int(cfg.split('tcp: "127.0.0.1:')[1].split('"')[0])
+        lazy = socket.create_connection(("127.0.0.1", tcp_port))
+        lazy.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1024)
+        d.pump(6.0)
+        # unplug and replug EMlog2 at the same path
+        devices["emlog2"].stop()
+        devices["emlog2"].join(5)
+        d.pump(1.0)
+        devices["emlog2"] = FakeDevice(capture, "emlog2", links / "emlog2", speed=SPEED).start()
+        while not all(dev.finished.is_set() for dev in devices.values()):
+            d.pump(0.5)
+            assert d.proc.poll() is None
+        d.pump(0.5)
+        st = d.status()
+        uuts = st["uuts"]
+        ports = st["ports"]
+        assert isinstance(uuts, dict) and isinstance(ports, dict)
+        e1 = uuts["emlog1"]
+        assert e1["params"] is not None, e1
+        assert e1["rmse_corrected"] < 0.5 * e1["rmse_raw"], e1  # ≥ 50 % better than raw
+        assert sum(ports["junk"]["rejects"].values()) > 100  # the garbage port is counted
+        assert ports["emlog2"]["records"] > 0
+        vhw = [ln for ln in d.lines if ln[3:6] == b"VHW"]
+        status = [ln for ln in d.lines if ln.startswith(b"$PEMLS")]
+        assert len(vhw) > 200 and status
+        # the DVL stops: the parameters freeze, the output goes on
+        devices["dvl"].stop()
+        frozen = dict(e1["params"])
+        for p in ("emlog1",):
+            devices[p].stop()
+            devices[p].join(5)
+            devices[p] = FakeDevice(capture, p, links / p, speed=SPEED).start()
+        d.pump(3.0)
+        st2 = d.status()["uuts"]
+        assert isinstance(st2, dict)
+        assert st2["emlog1"]["state"] == "frozen" and st2["emlog1"]["params"] == frozen
+        assert st2["emlog1"]["reference"] in ("stale", "lost")
+        n_before = len([ln for ln in d.lines if ln[3:6] == b"VHW"])
+        d.pump(1.0)
+        assert len([ln for ln in d.lines if ln[3:6] == b"VHW"]) > n_before
+        lazy.close()
+        assert d.stop() == 0
+    finally:
+        if d.proc.poll() is None:
+            d.proc.kill()
+        for dev in [*devices.values(), garbage]:
+            dev.stop()
+            dev.join(5)
+    # SIGTERM persisted the frozen calibration; a restart loads it
+    states, report = StateStore(tmp_path / "state" / "state.yaml").load()
+    assert "emlog1" in states and states["emlog1"].params == pytest.approx(frozen)
+    log = (tmp_path / "daemon.log").read_text()
+    assert '"event": "ready"' in log and '"event": "stopped"' in log
+    assert "port_disconnected" in log and log.count("port_connected") >= 4
+    d2 = Daemon(tmp_path)
+    try:
+        d2.pump(0.5)
+        st3 = d2.status()["uuts"]
+        assert isinstance(st3, dict)
+        assert st3["emlog1"]["params"] == pytest.approx(frozen)
+        assert st3["emlog1"]["state"] == "frozen"
+        resp = request(tmp_path / "run" / "control.sock", {"cmd": "learn", "on": False})
+        assert resp["ok"] and resp["learning"] is False
+        assert request(tmp_path / "run" / "control.sock", {"cmd": "reset", "port": "nope"})["ok"] is False
+    finally:
+        assert d2.stop(signal.SIGINT) == 0
+    assert not (tmp_path / "out" / "emlog0").exists()  # the pty link is removed on exit
