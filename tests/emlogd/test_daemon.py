@@ -169,7 +169,7 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
             dev.stop()
             dev.join(5)
     # SIGTERM persisted the frozen calibration; a restart loads it
-    states, report = StateStore(tmp_path / "state" / "state.yaml").load()
+    states, _report = StateStore(tmp_path / "state" / "state.yaml").load()
     assert "emlog1" in states and states["emlog1"].params == pytest.approx(frozen)
     log = (tmp_path / "daemon.log").read_text()
     assert '"event": "ready"' in log and '"event": "stopped"' in log
