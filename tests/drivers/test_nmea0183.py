@@ -1,0 +1,269 @@
+"""NMEA 0183 decoder and encoders: units, validity rules, rejects, properties."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from drivers.base import DecoderOptions
+from drivers.errors import ChecksumError, FieldError, OutOfRangeError, UnknownSentenceError
+from drivers.framing import with_checksum
+from drivers.nmea0183 import NmeaDecoder, Vbw, Vhw, encode_vbw, encode_vhw
+from drivers.records import KMH_MPS, KNOT_MPS, Rejected
+
+
+def _parse(body: str) -> object:
+    return NmeaDecoder("x").parse_frame(with_checksum(body).encode())
+
+
+def _feed_all(data: bytes, **kw: object) -> tuple[list[object], NmeaDecoder]:
+    dec = NmeaDecoder("x", errors="yield", **kw)  # type: ignore[arg-type]
+    return dec.decode_all(data), dec
+
+
+def test_vhw_units_and_disagreement() -> None:
+    r = _parse("VWVHW,,T,,M,3.50,N,6.48,K")
+    assert (
+        isinstance(r, Vhw) and r.stw_mps == pytest.approx(3.5 * KNOT_MPS) and not r.units_disagree
+    )
+    r = _parse("VWVHW,,T,,M,,N,6.48,K")
+    assert isinstance(r, Vhw) and r.stw_mps == pytest.approx(6.48 * KMH_MPS)
+    r = _parse("VWVHW,,T,,M,3.50,N,9.00,K")
+    assert isinstance(r, Vhw) and r.units_disagree and r.stw_mps == pytest.approx(3.5 * KNOT_MPS)
+    r = _parse("VWVHW,,T,,M,-1.2,N,-2.2,K")  # astern
+    assert isinstance(r, Vhw) and r.stw_mps == pytest.approx(-1.2 * KNOT_MPS)
+    (sp,) = NmeaDecoder("p").speed_records(_parse("VWVHW,10,T,12,M,2,N,3.7,K"))
+    assert (sp.port, sp.kind, sp.source, sp.heading_deg, sp.valid) == (
+        "p",
+        "stw",
+        "VHW",
+        10.0,
+        True,
+    )
+
+
+def test_vbw_water_pair_valid_even_when_ground_is_v() -> None:
+    r = _parse("VMVBW,2.0,-0.3,A,,,V")
+    assert isinstance(r, Vbw) and r.water_valid and not r.ground_valid
+    sps = NmeaDecoder("p").speed_records(r)
+    assert len(sps) == 1 and sps[0].source == "VBW" and sps[0].valid
+    assert sps[0].transverse_mps == pytest.approx(-0.3 * KNOT_MPS)
+    both = NmeaDecoder("p").speed_records(_parse("VMVBW,2.0,0.1,V,2.1,0.2,A"))
+    assert [(s.source, s.kind, s.valid) for s in both] == [
+        ("VBW", "stw", False),
+        ("VBW:G", "sog", True),
+    ]
+
+
+@pytest.mark.parametrize(
+    ("body", "error"),
+    [
+        ("VWVHW,x,T,,M,3.5,N,,K", FieldError),
+        ("VWVHW,,T,,M,3.5,N,,K,extra", FieldError),
+        ("VWVHW,,Q,,M,3.5,N,,K", FieldError),
+        ("VWVHW,400,T,,M,3.5,N,,K", OutOfRangeError),
+        ("VWVHW,,T,,M,100,N,,K", OutOfRangeError),
+        ("VWVHW,,T,,M,nan,N,,K", FieldError),
+        ("VWVHW,,T,,M,1_0,N,,K", FieldError),
+        ("VMVBW,1,2,B,,,V", FieldError),
+        ("VMVBW,1,2,A", FieldError),
+        ("VWMTW,99,C", OutOfRangeError),
+        ("VWVLW,-1,N,2,N", OutOfRangeError),
+        ("GPGGA,1,2,3", UnknownSentenceError),
+        ("PXYZ,1", UnknownSentenceError),
+        ("VW,1", FieldError),
+        ("VWVHW", FieldError),
+        ("PRTI01,1,2,x,0,0,0,0,,,,,0000", FieldError),
+    ],
+)
+def test_field_errors(body: str, error: type[Exception]) -> None:
+    with pytest.raises(error):
+        _parse(body)
+
+
+def test_checksum_policies_and_counters() -> None:
+    good = encode_vhw(2.0) + "\r\n"
+    data = (
+        good
+        + "$VWVHW,,T,,M,3.50,N,6.48,K\r\n"
+        + good[:-4]
+        + ("00" if not good.endswith("*00\r\n") else "11")
+        + "\r\n"
+        + "x" * 100
+        + "\r\n"
+    ).encode()
+    out, dec = _feed_all(data)
+    assert [type(r).__name__ for r in out] == ["Vhw", "Rejected", "Rejected", "Rejected"]
+    assert dec.counters.rejects["missing_checksum"] == 1
+    assert dec.counters.rejects["checksum"] == 1
+    assert dec.counters.rejects["framing"] == 1
+    assert dec.counters.records == 1
+    out, dec = _feed_all(data, options=DecoderOptions(checksum="optional"))
+    assert sum(isinstance(r, Vhw) for r in out) == 2  # the wrong checksum is still rejected
+    assert dec.counters.rejects["checksum"] == 1
+
+
+def test_length_limit_and_leniency() -> None:
+    long = with_checksum(
+        "VWVHW,,T,,M,3.50000000000000000000000000000000000000000000000000000000000,N,,K"
+    )
+    out, _ = _feed_all((long + "\r\n").encode())
+    assert isinstance(out[0], Rejected) and out[0].reason == "too_long"
+    out, _ = _feed_all((long + "\r\n").encode(), options=DecoderOptions(max_length=200))
+    assert isinstance(out[0], Vhw)
+
+
+def test_raise_mode_keeps_the_rest_of_the_chunk() -> None:
+    dec = NmeaDecoder("x")
+    data = ("$VWVHW,1*00\r\n" + encode_vhw(1.0) + "\r\n").encode()
+    with pytest.raises(ChecksumError):
+        list(dec.feed(data))
+    assert [type(r).__name__ for r in dec.feed(b"")] == ["Vhw"]
+
+
+def test_ais_is_an_unknown_sentence() -> None:
+    out, _ = _feed_all(b"!AIVDM,1,1,,A,13aI8e?P00PGpU:NR6s00?vT2000,0,0*1C\r\n")
+    assert isinstance(out[0], Rejected)
+    assert out[0].reason in ("unknown_sentence", "checksum")
+
+
+def test_encoders() -> None:
+    s = encode_vhw(2.0, heading_true_deg=361.0, heading_mag_deg=-1.0)
+    r = NmeaDecoder("x").parse_frame(s.encode())
+    assert isinstance(r, Vhw)
+    assert r.heading_true_deg == 1.0 and r.heading_mag_deg == 359.0
+    assert r.stw_kmh == pytest.approx(r.stw_knots * 1.852, abs=0.01)  # type: ignore[operator]
+    assert encode_vhw(-0.0001).split(",")[5] == "0.00"  # never "-0.00"
+    with pytest.raises(ValueError):
+        encode_vhw(float("nan"))
+    with pytest.raises(ValueError):
+        encode_vhw(1.0, talker="vw")
+    v = NmeaDecoder("x").parse_frame(
+        encode_vbw(1.0, -0.5, ground_long_mps=1.1, ground_trans_mps=0.0, ground_valid=True).encode()
+    )
+    assert isinstance(v, Vbw) and v.ground_valid and v.water_valid
+
+
+speeds = st.floats(min_value=-20.0, max_value=20.0, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    stw=speeds,
+    ht=st.one_of(st.none(), st.floats(0, 359.9)),
+    hm=st.one_of(st.none(), st.floats(0, 359.9)),
+)
+def test_vhw_round_trip(stw: float, ht: float | None, hm: float | None) -> None:
+    s = encode_vhw(stw, heading_true_deg=ht, heading_mag_deg=hm)
+    assert len(s) + 2 <= 82
+    r = NmeaDecoder("x").parse_frame(s.encode())
+    assert isinstance(r, Vhw)
+    assert r.stw_mps == pytest.approx(stw, abs=0.006)
+    assert not r.units_disagree
+
+
+@settings(max_examples=300, deadline=None)
+@given(lon=speeds, tr=speeds)
+def test_vbw_round_trip(lon: float, tr: float) -> None:
+    s = encode_vbw(lon, tr)
+    assert len(s) + 2 <= 82
+    r = NmeaDecoder("x").parse_frame(s.encode())
+    assert isinstance(r, Vbw) and r.water_valid
+    assert r.water_long_mps == pytest.approx(lon, abs=0.006)
+    assert r.water_trans_mps == pytest.approx(tr, abs=0.006)
+
+
+STREAM = (
+    encode_vhw(2.0) + "\r\n" + encode_vbw(1.0, 0.1) + "\n" + "$GPGGA,bad\r\n"
+    + encode_vhw(2.5, heading_true_deg=90) + "\r" + "junk$VWVHW,1,2\r\n" + encode_vbw(0.5, 0.0) + "\r\n"
+).encode()  # fmt: skip
+
+
+@settings(max_examples=200, deadline=None)
+@given(cuts=st.lists(st.integers(0, len(STREAM)), max_size=15))
+def test_chunk_boundaries_do_not_matter(cuts: list[int]) -> None:
+    whole, _ = _feed_all(STREAM)
+    dec = NmeaDecoder("x", errors="yield")
+    out: list[object] = []
+    prev = 0
+    for c in sorted(cuts):
+        out.extend(dec.feed(STREAM[prev:c]))
+        prev = c
+    out.extend(dec.feed(STREAM[prev:]))
+    out.extend(dec.flush())
+    assert out == whole
+
+
+def test_byte_at_a_time() -> None:
+    whole, _ = _feed_all(STREAM)
+    dec = NmeaDecoder("x", errors="yield")
+    out = [r for b in STREAM for r in dec.feed(bytes([b]))] + list(dec.flush())
+    assert out == whole
+
+
+GOOD = (encode_vbw(1.234, -0.567) + "\r\n").encode()
+
+
+def _flip(pos: int, value: int) -> None:
+    data = bytearray(GOOD)
+    pos %= len(data) - 2  # leave the terminator alone
+    if data[pos] == value:
+        return
+    data[pos] = value
+    out, _ = _feed_all(bytes(data))
+    original = NmeaDecoder("x").decode_all(GOOD)[0]
+    for r in out:
+        assert isinstance(r, Rejected) or r == original
+
+
+@settings(max_examples=500, deadline=None)
+@given(pos=st.integers(0, 200), value=st.integers(0, 255))
+def test_a_corrupted_sentence_never_yields_a_wrong_record(pos: int, value: int) -> None:
+    _flip(pos, value)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(pos=st.integers(0, 200), value=st.integers(0, 255))
+def test_fuzz_corrupted_sentences(pos: int, value: int) -> None:
+    _flip(pos, value)
+
+
+def _random(data: bytes) -> None:
+    dec = NmeaDecoder("x", errors="skip")
+    for r in dec.decode_all(data):
+        assert not isinstance(r, Rejected)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=2000))
+def test_random_bytes_never_raise(data: bytes) -> None:
+    _random(data)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(st.binary(max_size=2000))
+def test_fuzz_random_bytes(data: bytes) -> None:
+    _random(data)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.sampled_from(
+            [encode_vhw(1.5), encode_vbw(1.0, 0.2), "$VWVHW", "\r\n", "\n", "$", "*", ",,,", "x"]
+        ),
+        max_size=30,
+    )
+)
+def test_spliced_and_truncated_frames(parts: list[str]) -> None:
+    dec = NmeaDecoder("x", errors="yield")
+    out = dec.decode_all("".join(parts).encode())
+    good = {
+        NmeaDecoder("x").parse_frame(s.encode()) for s in (encode_vhw(1.5), encode_vbw(1.0, 0.2))
+    }
+    for r in out:
+        assert isinstance(r, Rejected) or r in good
+    assert dec.counters.records + dec.counters.rejected == len(out)
