@@ -1,0 +1,182 @@
+"""PD6/PD13: the TRDI manual example, ensemble assembly, invalid markers, sign, round trip."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from drivers.rdi_ascii import Pd6Ensemble, PdAsciiDecoder, PdHealth, encode_pd6
+from drivers.records import Rejected
+
+EXAMPLE = (
+    Path(__file__).resolve().parents[1] / "data" / "dvl" / "trdi_pathfinder_guide_pd13_example.txt"
+)
+TS = datetime(2025, 6, 12, 8, 0, 1, 230000, tzinfo=UTC)
+
+
+def _lines(**kw: object) -> bytes:
+    args: dict[str, object] = {
+        "timestamp": TS,
+        "heading_deg": 90.0,
+        "bottom_ship_mps": (0.1, 1.5, 0.0),
+        "range_m": 25.3,
+    }
+    args.update(kw)
+    return "".join(x + "\r\n" for x in encode_pd6(**args)).encode()  # type: ignore[arg-type]
+
+
+def test_manual_pd13_example() -> None:
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    (e,) = dec.decode_all(EXAMPLE.read_bytes())
+    assert isinstance(e, Pd6Ensemble)
+    assert (e.pitch_deg, e.roll_deg, e.heading_deg) == (-2.31, 1.92, 75.2)
+    assert e.timestamp == "04081111563644"
+    assert (e.salinity_ppt, e.temperature_c, e.depth_m, e.sound_speed_mps, e.bit) == (
+        35.0,
+        21.0,
+        0.0,
+        1524.0,
+        0,
+    )
+    assert e.pressure_kpa == 0.0
+    assert e.beam_ranges_m == pytest.approx((7.131, 7.132, 7.132, 7.131))
+    assert e.water_ship is None and e.water_earth is None  # -32768, V
+    assert e.bottom_instrument is not None and e.bottom_instrument.error == pytest.approx(-0.004)
+    assert e.bottom_ship is not None
+    assert (e.bottom_ship.a, e.bottom_ship.b, e.bottom_ship.c) == (-0.013, 0.021, -0.02)
+    assert e.bottom_earth is not None and (e.bottom_earth.a, e.bottom_earth.b) == (0.017, 0.018)
+    assert e.bottom_range_m == 7.13
+    (sp,) = dec.speed_records(e)
+    # PD6 :BS is the vessel's motion: longitudinal = L, transverse = T, no sign change
+    assert (sp.longitudinal_mps, sp.transverse_mps, sp.source, sp.kind) == (
+        0.021,
+        -0.013,
+        "PD6:BS",
+        "sog",
+    )
+    assert sp.heading_deg == 75.2
+
+
+def test_round_trip_and_water_track() -> None:
+    dec = PdAsciiDecoder("dvl")
+    (e,) = dec.decode_all(_lines(water_ship_mps=(0.05, 1.4, 0.0)))
+    assert isinstance(e, Pd6Ensemble)
+    assert e.bottom_ship is not None and (e.bottom_ship.a, e.bottom_ship.b) == (0.1, 1.5)
+    assert (
+        e.bottom_earth is not None
+        and e.bottom_earth.a == pytest.approx(1.5)
+        and e.bottom_earth.b == pytest.approx(-0.1)
+    )
+    assert e.timestamp == "25061208000123"
+    sps = dec.speed_records(e)
+    assert [s.source for s in sps] == ["PD6:BS", "PD6:WS"]
+    assert sps[1].kind == "stw" and sps[1].longitudinal_mps == 1.4
+
+
+def test_no_bottom_lock() -> None:
+    dec = PdAsciiDecoder("dvl")
+    (e,) = dec.decode_all(_lines(bottom_ship_mps=None, range_m=None))
+    assert isinstance(e, Pd6Ensemble) and e.bottom_ship is None and e.bottom_earth is None
+    (sp,) = dec.speed_records(e)
+    assert not sp.valid and sp.longitudinal_mps is None
+
+
+def test_a_bad_line_discards_the_block_and_is_counted_twice() -> None:
+    block = _lines().replace(b":BS,+00100", b":BS,+0x100")
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    out = dec.decode_all(block + _lines())
+    assert sum(isinstance(r, Pd6Ensemble) for r in out) == 1
+    reasons = sorted(r.reason for r in out if isinstance(r, Rejected))
+    assert reasons == ["bad_field", "framing"]
+
+
+@pytest.mark.parametrize(
+    ("mangle", "reason"),
+    [
+        (lambda b: b.replace(b":BS", b":BS,1"), "bad_field"),  # field count
+        (lambda b: b.replace(b",A\r\n:BE", b",Q\r\n:BE"), "bad_field"),  # status letter
+        (
+            lambda b: b.replace(b":SA,+00.00,+00.00,090.00", b":SA,+00.00,+00.00,490.00"),
+            "out_of_range",
+        ),
+        (lambda b: b.replace(b":TS,25061208000123", b":TS,2506120800012"), "bad_field"),
+        (lambda b: b.replace(b":BI", b":XX"), "unknown_sentence"),
+    ],
+)
+def test_line_validation(mangle: object, reason: str) -> None:
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    out = dec.decode_all(mangle(_lines()))  # type: ignore[operator]
+    assert not any(isinstance(r, Pd6Ensemble) for r in out)
+    assert dec.counters.rejects[reason] == 1
+
+
+def test_missing_and_out_of_order_lines() -> None:
+    lines = _lines().split(b"\r\n")
+    no_bd = b"\r\n".join(lines[:-2]) + b"\r\n"
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    out = dec.decode_all(no_bd + _lines())
+    assert sum(isinstance(r, Pd6Ensemble) for r in out) == 1  # the next :SA discards the torn block
+    assert dec.counters.rejects["framing"] == 1
+    swapped = b"\r\n".join([lines[0], lines[1], lines[3], lines[2], *lines[4:]])
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    assert not any(isinstance(r, Pd6Ensemble) for r in dec.decode_all(swapped))
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    dec.decode_all(b":BS,+00001,+00002,+00003,A\r\n")
+    assert dec.counters.rejects["framing"] == 1  # a line outside an ensemble
+
+
+def test_pathfinder_health_line() -> None:
+    dec = PdAsciiDecoder("dvl")
+    out = dec.decode_all(_lines() + b":HM,G,G,0000,0000,12.345,1.234,10.000\r\n")
+    assert isinstance(out[0], Pd6Ensemble) and isinstance(out[1], PdHealth)
+    assert out[1].fields[0] == "G"
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    t=st.floats(-10, 10),
+    l_=st.floats(-10, 10),
+    heading=st.floats(0, 359.99),
+    cuts=st.lists(st.integers(0, 400), max_size=8),
+)
+def test_round_trip_any_chunking(t: float, l_: float, heading: float, cuts: list[int]) -> None:
+    data = _lines(bottom_ship_mps=(t, l_, 0.0), heading_deg=heading)
+    dec = PdAsciiDecoder("dvl")
+    out: list[object] = []
+    prev = 0
+    for c in sorted(cuts):
+        out.extend(dec.feed(data[prev:c]))
+        prev = c
+    out.extend(dec.feed(data[prev:]))
+    out.extend(dec.flush())
+    (e,) = out
+    assert isinstance(e, Pd6Ensemble) and e.bottom_ship is not None
+    assert e.bottom_ship.a == pytest.approx(t, abs=6e-4) and e.bottom_ship.b == pytest.approx(
+        l_, abs=6e-4
+    )
+
+
+@settings(max_examples=300, deadline=None)
+@given(pos=st.integers(0, 400), value=st.integers(0, 255))
+def test_a_corrupted_byte_never_yields_a_wrong_ensemble(pos: int, value: int) -> None:
+    data = bytearray(_lines())
+    original = PdAsciiDecoder("dvl").decode_all(bytes(data))[0]
+    pos %= len(data)
+    if data[pos] == value:
+        return
+    data[pos] = value
+    for r in PdAsciiDecoder("dvl", errors="skip").decode_all(bytes(data)):
+        # a digit changed inside a number is undetectable without a checksum (PD6 has
+        # none); anything structural must not produce an ensemble with other fields
+        if isinstance(r, Pd6Ensemble):
+            assert r.timestamp == original.timestamp or chr(value).isdigit()
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=2000))
+def test_random_bytes_never_raise(data: bytes) -> None:
+    PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
