@@ -29,7 +29,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import TextIO
+from typing import BinaryIO, TextIO
 
 from drivers.errors import CaptureFormatError
 
@@ -64,6 +64,12 @@ class CaptureRecord:
         return self.payload.encode("ascii") + b"\r\n"
 
 
+def _open_binary(path: str) -> BinaryIO:
+    if path.endswith(".gz"):
+        return gzip.open(path, "rb")  # type: ignore[return-value]
+    return open(path, "rb")
+
+
 def _open_text(path: str) -> TextIO:
     if path.endswith(".gz"):
         return gzip.open(path, "rt", encoding="ascii", errors="strict", newline="")
@@ -96,7 +102,7 @@ class CaptureReader:
         self.path = str(path)
         self.ports: dict[str, str] = {}
         try:
-            with _open_text(self.path) as f:
+            with _open_binary(self.path) as f:
                 self._read_header(f)
         except (gzip.BadGzipFile, EOFError) as exc:
             raise self._fail(1, f"not a readable gzip file: {exc}") from None
@@ -104,19 +110,19 @@ class CaptureReader:
     def _fail(self, line: int, msg: str) -> CaptureFormatError:
         return CaptureFormatError(self.path, line, msg)
 
-    def _read_header(self, f: TextIO) -> None:
-        try:
-            first = f.readline(256)
-        except UnicodeDecodeError:
-            raise self._fail(1, "not a capture file (non-ASCII bytes)") from None
-        if first.rstrip("\r\n") != MAGIC:
+    def _read_header(self, f: BinaryIO) -> None:
+        first = f.readline(256)
+        if first.rstrip(b"\r\n") != MAGIC.encode("ascii"):
             raise self._fail(1, f"not a capture v1 file (first line must be {MAGIC!r})")
         n = 1
         for raw in f:
             n += 1
-            line = raw.rstrip("\r\n")
-            if not line.startswith("#"):
+            if not raw.startswith(b"#"):
                 break
+            try:
+                line = raw.decode("ascii").rstrip("\r\n")
+            except UnicodeDecodeError:
+                raise self._fail(n, "non-ASCII bytes in a header line") from None
             self._header_line(line, n)
 
     def _header_line(self, line: str, n: int) -> None:

@@ -113,7 +113,8 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
     capture = trial_files["figure-8"]
     links = tmp_path / "links"
     devices = {
-        p: FakeDevice(capture, p, links / p, speed=SPEED).start() for p in ("emlog1", "emlog2", "dvl")
+        p: FakeDevice(capture, p, links / p, speed=SPEED).start()
+        for p in ("emlog1", "emlog2", "dvl")
     }
     garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
     d = Daemon(tmp_path)
@@ -183,7 +184,10 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         assert st3["emlog1"]["state"] == "frozen"
         resp = request(tmp_path / "run" / "control.sock", {"cmd": "learn", "on": False})
         assert resp["ok"] and resp["learning"] is False
-        assert request(tmp_path / "run" / "control.sock", {"cmd": "reset", "port": "nope"})["ok"] is False
+        assert (
+            request(tmp_path / "run" / "control.sock", {"cmd": "reset", "port": "nope"})["ok"]
+            is False
+        )
     finally:
         assert d2.stop(signal.SIGINT) == 0
     assert not (tmp_path / "out" / "emlog0").exists()  # the pty link is removed on exit

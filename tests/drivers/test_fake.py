@@ -1,0 +1,75 @@
+"""Fake devices: the reader on the link receives exactly the capture's bytes, in order."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from drivers.capture import CaptureReader
+from drivers.fake import FakeDevice
+
+
+def _collect(link: Path, n: int, timeout: float = 10.0) -> bytes:
+    deadline = time.monotonic() + timeout
+    while not link.exists():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    fd = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+    out = b""
+    try:
+        while len(out) < n and time.monotonic() < deadline:
+            try:
+                out += os.read(fd, 65536)
+            except BlockingIOError:
+                time.sleep(0.005)
+    finally:
+        os.close(fd)
+    return out
+
+
+@pytest.fixture
+def capture(make_capture: Callable[..., Path]) -> Path:
+    records = []
+    for k in range(300):
+        records.append((100.0 + k * 0.01, "emlog1", b"$VWVHW,,T,,M,%d.00,N,,K*00" % k, False))
+        records.append((100.0 + k * 0.01 + 0.001, "dvl", bytes([0x7F, 0x7F, k % 256]) * 3, True))
+    return make_capture({"emlog1": "nmea0183", "dvl": "pd0"}, records)
+
+
+@pytest.mark.parametrize("speed", [None, 20.0])
+def test_reader_receives_the_ports_bytes(
+    capture: Path, tmp_path: Path, speed: float | None
+) -> None:
+    expected = b"".join(r.data for r in CaptureReader(capture) if r.port == "emlog1")
+    dev = FakeDevice(capture, "emlog1", tmp_path / "emlog1", speed=speed).start()
+    try:
+        got = _collect(tmp_path / "emlog1", len(expected))
+        assert got == expected
+        assert dev.finished.wait(5) and dev.sent_records == 300
+    finally:
+        dev.stop()
+        dev.join(5)
+    assert not (tmp_path / "emlog1").exists()
+
+
+def test_binary_port_and_loop(capture: Path, tmp_path: Path) -> None:
+    once = b"".join(r.data for r in CaptureReader(capture) if r.port == "dvl")
+    dev = FakeDevice(capture, "dvl", tmp_path / "dvl", speed=None, loop=True).start()
+    try:
+        got = _collect(tmp_path / "dvl", 2 * len(once) + 10)
+        assert got.startswith(once + once)
+    finally:
+        dev.stop()
+        dev.join(5)
+    assert dev.stopped
+
+
+def test_unknown_port_and_bad_speed(capture: Path, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="no port"):
+        FakeDevice(capture, "gps", tmp_path / "x")
+    with pytest.raises(ValueError, match="speed"):
+        FakeDevice(capture, "dvl", tmp_path / "x", speed=0.0)
