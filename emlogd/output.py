@@ -9,7 +9,8 @@ sentence is proprietary (``$P`` + a three-letter maker code + ``S``)::
 fields: UUT port (at most 8 characters), state (``L`` learning, ``F`` frozen,
 ``U`` uncalibrated), model, the parameters a (s/m), m, b (m/s) of the good
 calibration (empty when the model lacks one or there is none), their standard
-deviations, the running NIS mean (empty before learning), and the reference state
+deviations (parameters clamped to ±9.9999, σ to two-digit exponents), the running
+NIS mean (empty before learning), and the reference state
 (``V`` valid, ``L`` lost, ``S`` stale, ``W`` too slow, ``N`` none yet). Every
 sentence is checksummed and at most 82 characters with CR LF.
 """
@@ -44,6 +45,18 @@ class StatusFields:
     maker: str = "EML"
 
 
+def _clamp(x: float | None) -> float | None:
+    """A parameter clamped to ±9.9999 (a calibration beyond that is nonsense anyway)."""
+    return None if x is None else max(min(x, 9.9999), -9.9999)
+
+
+def _std(x: float | None) -> float | None:
+    """σ clamped to a two-digit exponent (below 1e-9 is sent as 0)."""
+    if x is None or not math.isfinite(x):
+        return None
+    return 0.0 if abs(x) < 1e-9 else min(abs(x), 9.9e9)
+
+
 def _num(x: float | None, spec: str) -> str:
     if x is None or not math.isfinite(x):
         return ""
@@ -64,12 +77,12 @@ def encode_status(f: StatusFields) -> str:
         "".join(c for c in f.port if c.isascii() and (c.isalnum() or c in "_-"))[:8],
         STATE_CODES.get(f.state, "U"),
         f.model,
-        _num(f.params.get("a"), "+.4f"),
-        _num(f.params.get("m"), "+.4f"),
-        _num(f.params.get("b"), "+.3f"),
-        _num(f.std.get("a"), ".1e"),
-        _num(f.std.get("m"), ".1e"),
-        _num(f.std.get("b"), ".1e"),
+        _num(_clamp(f.params.get("a")), "+.4f"),
+        _num(_clamp(f.params.get("m")), "+.4f"),
+        _num(_clamp(f.params.get("b")), "+.3f"),
+        _num(_std(f.std.get("a")), ".1e"),
+        _num(_std(f.std.get("m")), ".1e"),
+        _num(_std(f.std.get("b")), ".1e"),
         _num(nis, ".2f"),
         REF_CODES.get(f.ref_state, "N"),
     ]

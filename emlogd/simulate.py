@@ -62,6 +62,9 @@ GAP_S = 300.0
 DT_S = 0.05
 """Integration step of the kinematics, s."""
 
+FIGURE8_SWING_RAD = 2.404825557695773
+"""Heading swing of the figure-8, the first zero of the Bessel function J0."""
+
 
 @dataclass(frozen=True, slots=True)
 class TrajectorySpec:
@@ -259,10 +262,13 @@ def kinematics(spec: TrajectorySpec, duration_s: float, rng: np.random.Generator
     ph = rng.uniform(0.0, 2.0 * math.pi, 4)
     kind = spec.kind
     if kind == "figure-8":
-        # ~90 s cycle: a full loop to port then to starboard; speed dips in each turn.
+        # ~90 s cycle: a loop to port then one to starboard; speed dips in each turn.
+        # Heading psi = c + A sin(wt) with A = 2.405 rad, the first zero of J0: the
+        # mean of the unit heading vector over a cycle is J0(A) = 0, so the eight
+        # closes on itself instead of creeping along the course.
         omega = 2.0 * math.pi / 90.0
-        rate = math.pi * omega * np.sin(omega * t + ph[0])
-        u_cmd = mean + 0.35 - 0.7 * np.sin(omega * t + ph[0]) ** 2
+        rate = FIGURE8_SWING_RAD * omega * np.cos(omega * t + ph[0])
+        u_cmd = mean + 0.35 - 0.7 * np.cos(omega * t + ph[0]) ** 2
     elif kind == "circles":
         # full loops of ~2 min at three throttle settings
         rate = np.full(n, 2.0 * math.pi / 120.0)
