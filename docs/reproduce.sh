@@ -13,7 +13,7 @@ emlogd crossval "${caps[@]}" --uut emlog2 --ref dvl --estimator LS-EM3
 echo "== EMlog1 vs EMlog2 (relative)"
 emlogd crossval "${caps[@]}" --uut emlog1 --ref emlog2 --ref-field speed --estimator LS-EM3
 echo "== identifiability of the straight run"
-emlogd calibrate "$out"/3-straight.cap --uut emlog1 --ref dvl --lag 3.17
+emlogd calibrate "$out"/3-straight.cap --uut emlog1 --ref dvl --lag 3.3
 echo "== KF-EM3 on the figure-8"
 emlogd calibrate "$out"/2-figure8.cap --uut emlog1 --ref dvl --method kf
-emlogd report "$out"/2-figure8.cap "$out"/3-straight.cap --uut emlog1 --ref dvl --out "$out/figures"
+emlogd report "${caps[@]}" --uut emlog1 --ref dvl --out "$out/figures"
