@@ -138,8 +138,11 @@ class CaptureData:
 
     @property
     def name(self) -> str:
-        """The capture's file name without the extension (e.g. ``2-figure8``)."""
-        return Path(self.path).stem
+        """The capture's file name without ``.cap``/``.gz`` (e.g. ``2-figure8``)."""
+        name = Path(self.path).name
+        for suffix in (".gz", ".cap"):
+            name = name.removesuffix(suffix)
+        return name
 
     def sources(self, port: str) -> list[str]:
         """Sources seen on ``port``."""
