@@ -191,3 +191,70 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
     finally:
         assert d2.stop(signal.SIGINT) == 0
     assert not (tmp_path / "out" / "emlog0").exists()  # the pty link is removed on exit
+
+
+def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
+    """READY=1 over a real notify socket, sensors absent at start, SIGHUP good and bad."""
+    for sub in ("links", "out", "state", "run"):
+        (tmp_path / sub).mkdir()
+    cfg = tmp_path / "emlogd.yaml"
+    base = CONFIG.replace("{tcp}", str(_free_port()))
+    cfg.write_text(base)
+    notify = tmp_path / "notify.sock"
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind(str(notify))
+    srv.settimeout(20)
+    log = open(tmp_path / "daemon.log", "wb")  # noqa: SIM115
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "run", "--config", str(cfg)],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        cwd=tmp_path,
+        env={**os.environ, "NOTIFY_SOCKET": str(notify), "WATCHDOG_USEC": "1000000"},
+    )
+    try:
+        messages = [srv.recv(4096).decode() for _ in range(2)]
+        assert messages[0] == "READY=1"
+        assert messages[1].startswith("STATUS=emlog1 uncalibrated")
+        # no sensor exists: the daemon runs and says so
+        st = request(tmp_path / "run" / "control.sock", {"cmd": "status"})["status"]
+        assert isinstance(st, dict) and st["uuts"]["emlog1"]["state"] == "uncalibrated"
+        deadline = time.monotonic() + 5
+        while b"WATCHDOG=1" not in srv.recv(4096) and time.monotonic() < deadline:
+            pass
+        # a good reload moves the control socket
+        cfg.write_text(base.replace("run/control.sock", "run/control2.sock"))
+        proc.send_signal(signal.SIGHUP)
+        deadline = time.monotonic() + 10
+        while not (tmp_path / "run" / "control2.sock").exists():
+            assert time.monotonic() < deadline, (tmp_path / "daemon.log").read_text()
+            time.sleep(0.05)
+        assert request(tmp_path / "run" / "control2.sock", {"cmd": "status"})["ok"]
+        # a bad reload keeps the running config
+        cfg.write_text(
+            base.replace("protocol: pd6", "protocol: pd9").replace(
+                "run/control.sock", "run/control2.sock"
+            )
+        )
+        proc.send_signal(signal.SIGHUP)
+        time.sleep(1.0)
+        assert request(tmp_path / "run" / "control2.sock", {"cmd": "status"})["ok"]
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(20) == 0
+        rest = []
+        srv.settimeout(1)
+        try:
+            while True:
+                rest.append(srv.recv(4096).decode())
+        except TimeoutError:
+            pass
+        assert "STOPPING=1" in rest
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        log.close()
+        srv.close()
+    text = (tmp_path / "daemon.log").read_text()
+    assert '"event": "reloaded"' in text and '"event": "reload_failed"' in text
+    assert "port_disconnected" in text
