@@ -121,3 +121,31 @@ def test_gzip_and_streaming(tmp_path: Path) -> None:
     bad.write_bytes(b"not gzip")
     with pytest.raises(CaptureFormatError, match="gzip"):
         CaptureReader(bad)
+
+
+def _read_any(tmp_path: Path, content: bytes) -> None:
+    path = tmp_path / "fz.cap"
+    path.write_bytes(b"# emlogd capture v1\n# port a nmea0183\n" + content)
+    try:
+        for rec in CaptureReader(path):
+            assert rec.port == "a"
+            rec.data  # noqa: B018 - decoding the payload must not raise either
+    except CaptureFormatError as exc:
+        assert str(exc).startswith(f"{path}:")
+
+
+@settings(
+    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(st.binary(max_size=400))
+def test_reader_only_raises_capture_format_errors(tmp_path: Path, content: bytes) -> None:
+    _read_any(tmp_path, content)
+
+
+@pytest.mark.fuzz
+@settings(
+    max_examples=100_000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(st.binary(max_size=400))
+def test_fuzz_reader(tmp_path: Path, content: bytes) -> None:
+    _read_any(tmp_path, content)

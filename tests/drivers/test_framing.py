@@ -81,3 +81,21 @@ def test_chunking_never_changes_the_frames(lines: list[str], cuts: list[int]) ->
     assert [o if isinstance(o, bytes) else (type(o), o.raw) for o in out] == [
         o if isinstance(o, bytes) else (type(o), o.raw) for o in whole
     ]
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(data=st.binary(max_size=600), cuts=st.lists(st.integers(0, 600), max_size=10))
+def test_fuzz_framer_chunking(data: bytes, cuts: list[int]) -> None:
+    whole = _feed(LineFramer(b"$!", 82), data)
+    f = LineFramer(b"$!", 82)
+    out: list[bytes | FrameError] = []
+    prev = 0
+    for c in sorted(cuts):
+        out.extend(f.feed(data[prev:c]))
+        prev = c
+    out.extend(f.feed(data[prev:]))
+    out.extend(f.flush())
+    assert [o if isinstance(o, bytes) else o.reason for o in out] == [
+        o if isinstance(o, bytes) else o.reason for o in whole
+    ]

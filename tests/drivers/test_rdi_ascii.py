@@ -180,3 +180,17 @@ def test_a_corrupted_byte_never_yields_a_wrong_ensemble(pos: int, value: int) ->
 @given(st.binary(max_size=2000))
 def test_random_bytes_never_raise(data: bytes) -> None:
     PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(st.binary(max_size=2000))
+def test_fuzz_random_bytes(data: bytes) -> None:
+    PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(pos=st.integers(0, 400), value=st.integers(0, 255))
+def test_fuzz_corrupted_byte(pos: int, value: int) -> None:
+    test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]

@@ -103,3 +103,12 @@ def test_random_bytes_never_raise(data: bytes) -> None:
     dec = Pd45Decoder("dvl", errors="skip")
     for r in dec.decode_all(b"\x7d" + data):
         assert isinstance(r, Pd45Ensemble)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(st.binary(max_size=500))
+def test_fuzz_random_bytes(data: bytes) -> None:
+    dec = Pd45Decoder("dvl", errors="skip")
+    for r in dec.decode_all(b"\x7d" + data):
+        assert isinstance(r, Pd45Ensemble)

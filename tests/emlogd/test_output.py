@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivers.framing import split_nmea
@@ -90,3 +90,37 @@ def test_corrected_vbw_has_a_valid_water_pair() -> None:
     assert float(f[2]) == pytest.approx(-0.1 / (1852 / 3600), abs=0.01)
     assert f[3] == "A"
     assert not math.isnan(float(f[1]))
+
+
+def _status_round_trip(m: float, b: float, sm: float, nis: float | None) -> None:
+    s = encode_status(
+        StatusFields(
+            "emlog1", "learning", "EM3", {"m": m, "b": b}, {"m": sm, "b": sm}, nis, "valid"
+        )
+    )
+    f = _fields(s)
+    assert len(s) + 2 <= 82
+    assert float(f[5]) == pytest.approx(max(min(m, 9.9999), -9.9999), abs=5e-5)
+    assert float(f[6]) == pytest.approx(max(min(b, 9.9999), -9.9999), abs=5e-4)
+
+
+@given(
+    m=st.floats(-20, 20),
+    b=st.floats(-20, 20),
+    sm=st.floats(0, 1),
+    nis=st.one_of(st.none(), st.floats(0, 1e6)),
+)
+def test_status_round_trip(m: float, b: float, sm: float, nis: float | None) -> None:
+    _status_round_trip(m, b, sm, nis)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(
+    m=st.floats(-20, 20),
+    b=st.floats(-20, 20),
+    sm=st.floats(0, 1),
+    nis=st.one_of(st.none(), st.floats(0, 1e6)),
+)
+def test_fuzz_status_round_trip(m: float, b: float, sm: float, nis: float | None) -> None:
+    _status_round_trip(m, b, sm, nis)
