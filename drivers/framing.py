@@ -32,12 +32,13 @@ class LineFramer:
             the next terminator and reported once as :class:`TooLongError`.
     """
 
-    __slots__ = ("_buf", "_cap", "_discarding", "_max_length", "_starts")
+    __slots__ = ("_buf", "_cap", "_discarding", "_max_length", "_start_bytes", "_starts")
 
     def __init__(self, starts: bytes, max_length: int, cap: int = 1024) -> None:
         if not starts:
             raise ValueError("starts must name at least one start character")
         self._starts = frozenset(starts)
+        self._start_bytes = tuple(bytes([c]) for c in sorted(self._starts))
         self._max_length = max_length
         self._cap = max(cap, max_length)
         self._buf = bytearray()
@@ -45,44 +46,43 @@ class LineFramer:
 
     def feed(self, data: bytes) -> Iterator[bytes | FrameError]:
         """Add bytes; yield every complete frame (or framing error) they finish."""
+        if not data:
+            return
+        if self._discarding:
+            cut = _first_terminator(data)
+            if cut < 0:
+                return
+            self._discarding = False
+            data = data[cut + 1 :]
+            if not data:
+                return
         buf = self._buf
-        start = 0
-        n = len(data)
-        while start < n:
-            # find the next terminator (CR or LF) in data[start:]
-            lf = data.find(b"\n", start)
-            cr = data.find(b"\r", start)
-            if lf < 0 and cr < 0:
-                end = -1
-            elif lf < 0:
-                end = cr
-            elif cr < 0:
-                end = lf
-            else:
-                end = min(lf, cr)
-            piece = data[start:] if end < 0 else data[start:end]
-            if self._discarding:
-                if end < 0:
-                    return
-                self._discarding = False
-            elif len(buf) + len(piece) > self._cap:
+        if b"\n" not in data and b"\r" not in data:
+            if len(buf) + len(data) > self._cap:
                 yield TooLongError(
                     f"line longer than {self._cap} bytes without a terminator",
-                    bytes(buf[:64]) + piece[:64],
+                    bytes(buf[:64]) + data[:64],
                 )
                 buf.clear()
-                if end < 0:
-                    self._discarding = True
-                    return
+                self._discarding = True
+                return
+            buf += data
+            return
+        whole = bytes(buf) + data if buf else data
+        buf.clear()
+        lines = whole.splitlines()  # bytes: splits on CR, LF and CR LF only
+        rest = b"" if whole[-1] in (10, 13) else lines.pop()
+        for line in lines:
+            if line:
+                yield from self._line(line)
+        if rest:
+            if len(rest) > self._cap:
+                yield TooLongError(
+                    f"line longer than {self._cap} bytes without a terminator", rest[:128]
+                )
+                self._discarding = True
             else:
-                buf += piece
-                if end < 0:
-                    return
-                if buf:
-                    line = bytes(buf)
-                    buf.clear()
-                    yield from self._line(line)
-            start = end + 1
+                buf += rest
 
     def flush(self) -> Iterator[FrameError]:
         """Report an unterminated line left in the buffer, and clear it."""
@@ -93,8 +93,14 @@ class LineFramer:
         self._discarding = False
 
     def _line(self, line: bytes) -> Iterator[bytes | FrameError]:
-        starts = self._starts
-        cuts = [i for i, c in enumerate(line) if c in starts]
+        if line[0] in self._starts and sum(line.count(b, 1) for b in self._start_bytes) == 0:
+            frame = line.rstrip(b" \t")  # the common case: one frame, nothing spliced
+            if len(frame) + 2 > self._max_length:
+                yield TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
+                return
+            yield frame
+            return
+        cuts = sorted(i for b in self._start_bytes for i in _positions(line, b))
         if not cuts:
             yield FrameError("line without a start character", line)
             return
@@ -107,6 +113,22 @@ class LineFramer:
             yield TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
             return
         yield frame
+
+
+def _first_terminator(data: bytes) -> int:
+    lf, cr = data.find(b"\n"), data.find(b"\r")
+    if lf < 0:
+        return cr
+    if cr < 0:
+        return lf
+    return min(lf, cr)
+
+
+def _positions(line: bytes, sub: bytes) -> Iterator[int]:
+    i = line.find(sub)
+    while i >= 0:
+        yield i
+        i = line.find(sub, i + 1)
 
 
 def nmea_checksum(body: bytes) -> int:

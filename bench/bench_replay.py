@@ -1,0 +1,133 @@
+"""Benchmark: replay throughput of the daemon's pipeline against a parsing anchor.
+
+Runs the full-scale simulated trial (about 1.0 M lines, 221 min) through the same
+:class:`emlogd.pipeline.Pipeline` that ``emlogd replay --fast`` drives (decode →
+align → filter → encode, records already in memory), and times in the same run an
+anchor doing the least any NMEA tool does with the same bytes: ``pynmea2.parse(line,
+check=True)`` on every NMEA line plus split-and-convert (``float``/``int`` of every
+field) of every PD6 line. Also times the whole ``emlogd replay`` command, which adds
+reading the 58 MB of capture files.
+
+Targets (issue 6): ≥ 1000× real time and ≤ 1.3× the anchor. Prints figures only.
+
+Run: ``python bench/bench_replay.py [--outdir DIR] [--scale 1.0]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pynmea2
+
+from drivers.capture import CaptureReader
+from emlogd.config import load_config
+from emlogd.pipeline import Output, Pipeline
+from emlogd.replay import TICK_S
+from emlogd.settings import pipeline_from_config
+from emlogd.simulate import simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _anchor(records: list[tuple[float, str, bytes]]) -> float:
+    t0 = time.perf_counter()
+    for _, port, data in records:
+        for line in data.split(b"\r\n"):
+            if not line:
+                continue
+            if port == "dvl":
+                fields = line.decode("ascii", "replace").split(",")
+                for f in fields[1:]:
+                    f = f.strip()
+                    try:
+                        int(f)
+                    except ValueError:
+                        try:  # noqa: SIM105 - try/except is cheaper: keep the anchor lean
+                            float(f)
+                        except ValueError:
+                            pass
+            else:
+                try:  # noqa: SIM105 - as above
+                    pynmea2.parse(line.decode("ascii", "replace"), check=True)
+                except pynmea2.ParseError:
+                    pass
+    return time.perf_counter() - t0
+
+
+def _pipeline(records: list[tuple[float, str, bytes]]) -> tuple[float, Pipeline]:
+    cfg = load_config(ROOT / "examples" / "emlogd.yaml")
+    ports, uuts = pipeline_from_config(cfg)
+    p = Pipeline(ports, uuts)
+    sink: list[bytes] = []
+    t0 = time.perf_counter()
+    out = Output()
+    t_tick = -1e18
+    for t, port, data in records:
+        p.feed(t, port, data, out)
+        if t - t_tick >= TICK_S:  # as emlogd.replay does
+            t_tick = t
+            p.tick(t, out)
+        if out.emits:
+            sink.append(b"".join(e.sentence.encode() + b"\r\n" for e in out.emits))
+            out.emits.clear()
+        out.events.clear()
+        out.persist.clear()
+    return time.perf_counter() - t0, p
+
+
+def main() -> None:
+    """Generate (or reuse) the trial, time pipeline and anchor, print figures."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--outdir", help="existing or new trial directory")
+    ap.add_argument("--scale", type=float, default=1.0)
+    args = ap.parse_args()
+    outdir = Path(args.outdir or tempfile.mkdtemp(prefix="emlogd-bench-"))
+    files = sorted(outdir.glob("[1-5]-*.cap"))
+    if len(files) != 5:
+        files = list(simulate(outdir, seed=1, scale=args.scale).files)
+    records = [(r.t, r.port, r.data) for f in files for r in CaptureReader(f)]
+    n_lines = sum(d.count(b"\n") for _, _, d in records)
+    span = sum((lambda rs: rs[-1].t - rs[0].t)(list(CaptureReader(f))) for f in files)
+    print(
+        f"trial: {len(files)} captures, {len(records)} records, {n_lines} lines, {span / 60:.1f} min"
+    )
+    best_p = best_a = float("inf")
+    pipe = None
+    for _ in range(3):
+        tp, pipe = _pipeline(records)
+        ta = _anchor(records)
+        best_p, best_a = min(best_p, tp), min(best_a, ta)
+    assert pipe is not None
+    print(
+        f"pipeline (decode+align+KF+encode): {best_p:6.2f} s  {n_lines / best_p:9.0f} lines/s  "
+        f"{span / best_p:7.0f}x real time  (target >= 1000x)"
+    )
+    print(
+        f"anchor (pynmea2.parse check=True + PD6 split/convert): {best_a:6.2f} s  "
+        f"{n_lines / best_a:9.0f} lines/s"
+    )
+    print(f"pipeline / anchor: {best_p / best_a:.2f}  (target <= 1.3)")
+    uuts = pipe.status()["uuts"]
+    assert isinstance(uuts, dict)
+    for name, u in uuts.items():
+        print(f"  {name}: {u['state']}, rmse raw {u['rmse_raw']}, corrected {u['rmse_corrected']}")
+    t0 = time.perf_counter()
+    subprocess.run(
+        [sys.executable, "-m", "emlogd", "replay", *map(str, files), "--config",
+         str(ROOT / "examples" / "emlogd.yaml"), "--json"],
+        check=True, stdout=subprocess.DEVNULL,
+    )  # fmt: skip
+    wall = time.perf_counter() - t0
+    print(
+        f"emlogd replay --fast (whole command, reading the captures): {wall:.2f} s, "
+        f"{span / wall:.0f}x real time"
+    )
+
+
+if __name__ == "__main__":
+    main()
