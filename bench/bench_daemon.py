@@ -1,0 +1,318 @@
+"""Benchmarks of the real daemon: start → READY, latency, CPU and memory.
+
+1. start → READY=1: ``emlogd run`` as a subprocess with a notify socket.
+2. Latency: a VHW sentence written into an input pty → the corrected VHW readable on
+   the daemon's output pty, at 10 Hz with a 10 Hz PD6 DVL alongside; median and p99,
+   and the same through a bare single-threaded Python pty forwarder timed in the same
+   run.
+3. CPU and RSS at live rates: three fake devices replay the simulated figure-8 at real
+   speed (1 Hz VHW, 10 Hz VBW + 5 Hz VHW, 10 Hz PD6) for ``--live-seconds``.
+4. RSS growth over 24 simulated hours replayed fast through the pipeline (in a child
+   process, the trial repeated with shifted times).
+
+Targets (issue 6): READY ≤ 1.5 s; latency median ≤ 1 ms, p99 ≤ 5 ms, ≤ 2× the
+forwarder; CPU ≤ 1 % of a core; RSS ≤ 80 MiB; growth ≤ 1 MiB. Prints figures only.
+
+Run: ``python bench/bench_daemon.py [--live-seconds 60] [--trial DIR]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import select
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+from drivers.nmea0183 import encode_vhw
+from drivers.rdi_ascii import encode_pd6
+from drivers.vpty import VirtualPort
+from emlogd.state import CalibrationState, StateStore
+
+CONFIG = """\
+ports:
+  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
+  - {name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut}
+  - {name: dvl, url: links/dvl, protocol: pd6, role: reference}
+calibration:
+  - {uut: emlog1, reference: dvl, lag: 0.0}
+  - {uut: emlog2, reference: dvl, lag: 0.0}
+outputs: {pty: out/emlog0, status_interval_s: 1}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+log_level: warning
+status_interval_s: 10
+"""
+
+FORWARDER = r"""
+import os, select, sys, tty
+src = os.open(sys.argv[1], os.O_RDONLY | os.O_NOCTTY)
+m, s = os.openpty(); tty.setraw(s)
+os.symlink(os.ttyname(s), sys.argv[2])
+os.close(s)
+print("ready", flush=True)
+while True:
+    select.select([src], [], [])
+    data = os.read(src, 4096)
+    if not data:
+        break
+    os.write(m, data)
+"""
+
+
+def _setup(work: Path) -> Path:
+    for sub in ("links", "out", "state", "run"):
+        (work / sub).mkdir(parents=True, exist_ok=True)
+    cfg = work / "emlogd.yaml"
+    cfg.write_text(CONFIG)
+    StateStore(work / "state" / "state.yaml").save(
+        {"emlog1": CalibrationState("emlog1", "EM3", {"m": 0.1, "b": 0.05})}
+    )
+    return cfg
+
+
+def _start(work: Path, cfg: Path) -> tuple[subprocess.Popen[bytes], float, socket.socket]:
+    notify = work / "notify.sock"
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind(str(notify))
+    srv.settimeout(30)
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "run", "--config", str(cfg)],
+        cwd=work,
+        env={**os.environ, "NOTIFY_SOCKET": str(notify)},
+        stdout=subprocess.DEVNULL,
+    )
+    while srv.recv(4096) != b"READY=1":
+        pass
+    return proc, time.perf_counter() - t0, srv
+
+
+def _open_reader(path: Path) -> int:
+    deadline = time.monotonic() + 10
+    while not path.exists():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"{path} never appeared")
+        time.sleep(0.01)
+    return os.open(path, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+
+
+def _measure(inp: VirtualPort, dvl: VirtualPort | None, out_fd: int, n: int, marker: bytes) -> list[float]:
+    """Write n VHW at 10 Hz (PD6 in between); time until the next line containing marker."""
+    lat = []
+    buf = b""
+    for k in range(n):
+        if dvl is not None:
+            for line in encode_pd6(
+                timestamp=datetime.now(UTC), heading_deg=10.0, bottom_ship_mps=(0.0, 1.5, 0.0), range_m=20
+            ):
+                dvl.write(line.encode() + b"\r\n")
+        time.sleep(0.05)
+        sentence = encode_vhw(1.0 + (k % 100) * 0.01).encode() + b"\r\n"
+        t0 = time.perf_counter()
+        inp.write(sentence)
+        deadline = t0 + 2.0
+        got = False
+        while not got and time.perf_counter() < deadline:
+            r, _, _ = select.select([out_fd], [], [], 0.5)
+            if not r:
+                continue
+            buf += os.read(out_fd, 65536)
+            while b"\n" in buf:
+                line, _, buf = buf.partition(b"\n")
+                if marker in line:
+                    lat.append(time.perf_counter() - t0)
+                    got = True
+        time.sleep(0.05)
+    return lat
+
+
+def _pct(xs: list[float], q: float) -> float:
+    s = sorted(xs)
+    return s[min(len(s) - 1, int(q * len(s)))]
+
+
+def bench_latency(n: int) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        cfg = _setup(work)
+        readies = []
+        for _ in range(3):
+            proc, ready, srv = _start(work, cfg)
+            readies.append(ready)
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(20)
+            srv.close()
+            (work / "notify.sock").unlink()
+        print(f"start -> READY=1: median {statistics.median(readies):.3f} s over 3 starts "
+              f"(target <= 1.5 s)")
+        emlog = VirtualPort(work / "links" / "emlog1")
+        dvl = VirtualPort(work / "links" / "dvl")
+        proc, _, srv = _start(work, cfg)
+        try:
+            time.sleep(1.0)  # the daemon opens the input ptys
+            out_fd = _open_reader(work / "out" / "emlog0")
+            lat = _measure(emlog, dvl, out_fd, n, b"VWVHW")
+            os.close(out_fd)
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(20)
+            srv.close()
+            emlog.close()
+            dvl.close()
+        src = VirtualPort(work / "links" / "fwd-in")
+        fwd = subprocess.Popen(
+            [sys.executable, "-c", FORWARDER, str(work / "links" / "fwd-in"), str(work / "fwd-out")],
+            stdout=subprocess.PIPE,
+        )
+        assert fwd.stdout is not None
+        fwd.stdout.readline()
+        out_fd = _open_reader(work / "fwd-out")
+        base = _measure(src, None, out_fd, n, b"VWVHW")
+        os.close(out_fd)
+        fwd.kill()
+        fwd.wait()
+        src.close()
+    med, p99 = statistics.median(lat), _pct(lat, 0.99)
+    bmed, bp99 = statistics.median(base), _pct(base, 0.99)
+    print(f"latency input pty -> corrected VHW on the output pty, {len(lat)} of {n} sentences:")
+    print(f"  daemon    median {med * 1e3:.3f} ms  p99 {p99 * 1e3:.3f} ms  (targets 1 ms, 5 ms)")
+    print(f"  forwarder median {bmed * 1e3:.3f} ms  p99 {bp99 * 1e3:.3f} ms")
+    print(f"  ratio     median {med / bmed:.2f}x  p99 {p99 / bp99:.2f}x  (target <= 2x)")
+
+
+def _proc_cpu_rss(pid: int) -> tuple[float, int]:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    cpu = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    rss = 0
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            rss = int(line.split()[1]) * 1024
+    return cpu, rss
+
+
+def bench_live(trial: Path, seconds: float) -> None:
+    from drivers.fake import FakeDevice
+
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        cfg = _setup(work)
+        capture = trial / "2-figure8.cap"
+        fakes = [
+            FakeDevice(capture, p, work / "links" / p, speed=1.0).start()
+            for p in ("emlog1", "emlog2", "dvl")
+        ]
+        proc, _, srv = _start(work, cfg)
+        try:
+            time.sleep(5.0)  # warm up: ports open, imports done
+            cpu0, _ = _proc_cpu_rss(proc.pid)
+            t0 = time.monotonic()
+            peak = 0
+            while time.monotonic() - t0 < seconds:
+                time.sleep(1.0)
+                peak = max(peak, _proc_cpu_rss(proc.pid)[1])
+            cpu1, rss = _proc_cpu_rss(proc.pid)
+            wall = time.monotonic() - t0
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(20)
+            srv.close()
+            for f in fakes:
+                f.stop()
+                f.join(5)
+    print(f"live rates for {wall:.0f} s (1 Hz VHW + 10 Hz VBW + 5 Hz VHW + 10 Hz PD6):")
+    print(f"  CPU {100 * (cpu1 - cpu0) / wall:.2f} % of one core (target <= 1 %)")
+    print(f"  RSS {rss / 2**20:.1f} MiB, peak {peak / 2**20:.1f} MiB (target <= 80 MiB)")
+
+
+GROWTH = r"""
+import resource, sys
+from pathlib import Path
+from drivers.capture import CaptureReader
+from emlogd.config import load_config
+from emlogd.pipeline import Output, Pipeline
+from emlogd.settings import pipeline_from_config
+def rss():
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+cfg = load_config(sys.argv[2])
+p = Pipeline(*pipeline_from_config(cfg))
+files = sorted(Path(sys.argv[1]).glob("[1-5]-*.cap"))
+span = 0.0
+t_last = 0.0
+hour = None
+offset = 0.0
+out = Output()
+n = 0
+while span < 24 * 3600:
+    first = None
+    for f in files:
+        for r in CaptureReader(f):
+            t = r.t + offset
+            if first is None:
+                first = t
+            p.feed(t, r.port, r.data, out)
+            n += 1
+            if n % 2000 == 0:
+                p.tick(t, out)
+            out.emits.clear(); out.events.clear(); out.persist.clear()
+            t_last = t
+    span += t_last - first
+    offset = t_last + 1.0 - (first - offset)
+    if hour is None:
+        hour = rss()
+print(f"{n} {span} {hour} {rss()}")
+"""
+
+
+def bench_growth(trial: Path) -> None:
+    root = Path(__file__).resolve().parents[1]
+    code = GROWTH.replace(
+        "    offset = t_last + 1.0 - files and (t_last + 1.0 - (first - offset)) or 0.0",
+        "    offset = t_last + 1.0 - (first - offset)",
+    )
+    t0 = time.perf_counter()
+    r = subprocess.run(
+        [sys.executable, "-c", code, str(trial), str(root / "examples" / "emlogd.yaml")],
+        capture_output=True, text=True, check=True, cwd=root,
+    )  # fmt: skip
+    n, span, first, last = r.stdout.split()
+    print(f"24 simulated hours through the pipeline: {int(n)} records, {float(span) / 3600:.1f} h "
+          f"in {time.perf_counter() - t0:.0f} s")
+    print(f"  RSS after the first pass {int(first) / 2**20:.1f} MiB, at the end {int(last) / 2**20:.1f} MiB, "
+          f"growth {(int(last) - int(first)) / 2**20:+.2f} MiB (target <= 1 MiB)")
+
+
+def main() -> None:
+    """Run the daemon benchmarks and print figures."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--live-seconds", type=float, default=60.0)
+    ap.add_argument("--trial", help="directory with the simulated trial (default: simulate one)")
+    ap.add_argument("--sentences", type=int, default=300)
+    ap.add_argument("--skip", nargs="*", default=[], choices=["latency", "live", "growth"])
+    args = ap.parse_args()
+    trial = Path(args.trial) if args.trial else None
+    if trial is None or len(list(trial.glob("[1-5]-*.cap"))) != 5:
+        from emlogd.simulate import simulate
+
+        trial = Path(tempfile.mkdtemp(prefix="emlogd-trial-"))
+        simulate(trial, seed=1)
+    if "latency" not in args.skip:
+        bench_latency(args.sentences)
+    if "live" not in args.skip:
+        bench_live(trial, args.live_seconds)
+    if "growth" not in args.skip:
+        bench_growth(trial)
+
+
+if __name__ == "__main__":
+    main()
