@@ -68,8 +68,13 @@ class BinaryFramer:
             n, self._garbage = self._garbage, 0
             yield FrameError(f"{n} bytes of garbage between {self._name} frames")
 
-    def feed(self, data: bytes) -> Iterator[bytes | FrameError]:
-        """Add bytes; yield complete frames (checksum verified) and framing errors."""
+    def feed(self, data: bytes, *, final: bool = False) -> Iterator[bytes | FrameError]:
+        """Add bytes; yield complete frames (checksum verified) and framing errors.
+
+        With ``final`` (end of stream) a header whose frame cannot complete any more
+        (a corrupted length) is reported and skipped, and the search goes on in the
+        bytes after it, so a good frame behind a damaged one is not lost.
+        """
         buf = self._buf
         buf += data
         while True:
@@ -83,12 +88,25 @@ class BinaryFramer:
             if i > 0:
                 yield from self._skip(i)
             if len(buf) < self._min_header:
+                if final:
+                    yield from self._skip(len(buf))
                 return
             n = self._length_of(buf)
             if n is None:
                 yield from self._skip(1)
                 continue
             if len(buf) < n + 2:
+                if final:
+                    if not self._absorb:
+                        yield from self._end_garbage()
+                        yield FrameError(
+                            f"{self._name} frame truncated at end of stream "
+                            f"({len(buf)} of {n + 2} bytes)",
+                            bytes(buf[:64]),
+                        )
+                    del buf[:1]
+                    self._absorb = True
+                    continue
                 if len(buf) > MAX_BUFFER:
                     yield from self._skip(1)
                     continue
@@ -109,8 +127,9 @@ class BinaryFramer:
             del buf[: n + 2]
             yield frame
 
-    def flush(self) -> Iterator[FrameError]:
-        """End of stream: report buffered bytes that never became a frame."""
+    def flush(self) -> Iterator[bytes | FrameError]:
+        """End of stream: complete what can be, report what never became a frame."""
+        yield from self.feed(b"", final=True)
         if self._buf and not self._absorb:
             self._garbage += len(self._buf)
         self._buf.clear()

@@ -210,3 +210,14 @@ def test_random_bytes_never_raise_in_skip_mode(data: bytes) -> None:
     dec = Pd0Decoder("dvl", errors="skip")
     for r in dec.decode_all(b"\x7f\x7f" + data):
         assert isinstance(r, Pd0Ensemble)
+
+
+def test_a_corrupted_length_at_end_of_file_does_not_swallow_the_next_ensemble() -> None:
+    """Found by the fuzz run: ensemble 2's length field +512 made the framer wait for
+    bytes that never came, and the end of the file took ensemble 3 with it."""
+    data = bytearray((DATA / "ooi_adcp_auv_3.pd0").read_bytes())
+    data[435] ^= 2
+    dec = Pd0Decoder("dvl", errors="yield")
+    out = dec.decode_all(bytes(data))
+    assert [e.ensemble_number for e in out if isinstance(e, Pd0Ensemble)] == [14, 16]
+    assert dec.counters.rejected == 1
