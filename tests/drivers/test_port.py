@@ -118,3 +118,41 @@ def test_bad_url_scheme_is_a_device_error() -> None:
         SerialSource("x", "nonsense://here")
     with pytest.raises(ValueError, match="backoff"):
         SerialSource("x", "loop://", backoff_s=())
+
+
+def _replug_cycles(tmp_path: Path, cycles: int) -> None:
+    link = tmp_path / "emlog1"
+    src = SerialSource("emlog1", str(link), backoff_s=(0.005,))
+    fds_before = None
+    for k in range(cycles):
+        vp = VirtualPort(link)
+        if k == 0:
+            src.open()
+        deadline = time.monotonic() + 5
+        while not src.is_open and time.monotonic() < deadline:
+            src.poll()
+            time.sleep(0.002)
+        assert src.is_open, f"cycle {k}: no reconnect"
+        msg = b"$cycle,%d*00\r\n" % k
+        vp.write(msg)
+        assert _read_all(src, len(msg)) == msg
+        vp.close()  # unplug
+        deadline = time.monotonic() + 5
+        while src.is_open and time.monotonic() < deadline:
+            src.read()
+            time.sleep(0.002)
+        assert not src.is_open
+        if k == 1:
+            fds_before = sum(1 for _ in Path("/proc/self/fd").iterdir())
+    src.close()
+    assert src.reconnects == cycles - 1
+    assert fds_before is not None and sum(1 for _ in Path("/proc/self/fd").iterdir()) <= fds_before
+
+
+def test_replug_cycles_leak_no_descriptors(tmp_path: Path) -> None:
+    _replug_cycles(tmp_path, 10)
+
+
+@pytest.mark.soak
+def test_hundred_replug_cycles(tmp_path: Path) -> None:
+    _replug_cycles(tmp_path, 100)
