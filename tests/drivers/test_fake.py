@@ -73,3 +73,37 @@ def test_unknown_port_and_bad_speed(capture: Path, tmp_path: Path) -> None:
         FakeDevice(capture, "gps", tmp_path / "x")
     with pytest.raises(ValueError, match="speed"):
         FakeDevice(capture, "dvl", tmp_path / "x", speed=0.0)
+
+
+def test_serial_source_reads_a_fake_device_and_survives_its_restart(
+    capture: Path, tmp_path: Path
+) -> None:
+    from drivers.port import SerialSource
+
+    link = tmp_path / "emlog1"
+    expected = b"".join(r.data for r in CaptureReader(capture) if r.port == "emlog1")
+    src = SerialSource("emlog1", str(link), backoff_s=(0.01,))
+    for round_ in range(2):
+        dev = FakeDevice(capture, "emlog1", link, speed=None).start()
+        deadline = time.monotonic() + 10
+        while not src.is_open and time.monotonic() < deadline:
+            if round_ == 0:
+                src.open()
+            src.poll()
+            time.sleep(0.01)
+        got = b""
+        while len(got) < len(expected) and time.monotonic() < deadline:
+            c = src.read()
+            if c is None:
+                time.sleep(0.002)
+                continue
+            got += c.data
+        assert got == expected, f"round {round_}"
+        dev.stop()  # the device goes away: the source notices and retries
+        dev.join(5)
+        while src.is_open and time.monotonic() < deadline:
+            src.read()
+            time.sleep(0.005)
+        assert not src.is_open
+    assert src.reconnects == 1
+    src.close()
