@@ -198,3 +198,40 @@ def test_control_commands_without_daemon(
 ) -> None:
     assert main(["status", "--socket", str(tmp_path / "none.sock")]) == 1
     assert "is emlogd running" in capsys.readouterr().err
+
+
+def test_fake_then_record_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`emlogd fake` (a subprocess) serves a capture; `emlogd record` captures it back."""
+    import subprocess
+    import sys
+    import time
+
+    from drivers.capture import CaptureReader, CaptureWriter
+
+    src = tmp_path / "src.cap"
+    lines = [b"$VWVHW,,T,,M,%d.00,N,,K*00" % k for k in range(50)]
+    with CaptureWriter(src, {"emlog1": "nmea0183"}) as w:
+        for k, line in enumerate(lines):
+            w.write_line(1000.0 + k * 0.01, "emlog1", line)
+    link = tmp_path / "links" / "emlog1"
+    fake = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "fake", str(src), "--link", str(link), "--speed", "5"],
+        stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 20
+        while not link.exists():
+            assert time.monotonic() < deadline and fake.poll() is None
+            time.sleep(0.02)
+        out = tmp_path / "rec.cap"
+        rc = main(
+            ["record", "--port", f"emlog1={link},baud=4800", "--out", str(out), "--duration", "3"]
+        )
+        assert rc == 0
+    finally:
+        fake.terminate()
+        fake.wait(10)
+    assert "wrote" in capsys.readouterr().err
+    got = [r.payload.encode() for r in CaptureReader(out)]
+    assert got == lines
+    assert CaptureReader(out).ports == {"emlog1": "nmea0183"}
