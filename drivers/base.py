@@ -21,7 +21,7 @@ from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import ClassVar, Literal
+from typing import ClassVar, Literal, Protocol
 
 from drivers.errors import REJECT_REASONS, FrameError, RejectReason
 from drivers.records import Rejected, SpeedRecord
@@ -179,3 +179,41 @@ class Decoder(ABC):
     def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
         """Map a record of this protocol to zero or more common speed records."""
         return ()
+
+
+class Framer(Protocol):
+    """What :class:`FramedDecoder` needs of a framer (line or binary)."""
+
+    def feed(self, data: bytes) -> Iterable[bytes | FrameError]:
+        """Add bytes; return the frames and framing errors they complete."""
+
+    def flush(self) -> Iterable[bytes | FrameError]:
+        """End of stream: the frames still completable and the errors for the rest."""
+
+
+class FramedDecoder(Decoder):
+    """A decoder whose framing is delegated to a framer object.
+
+    Subclasses implement :meth:`_make_framer` (called once, after the options are
+    set) instead of :meth:`_split` and :meth:`_flush`.
+    """
+
+    def __init__(
+        self,
+        port: str = "",
+        *,
+        errors: ErrorPolicy = "raise",
+        options: DecoderOptions | None = None,
+    ) -> None:
+        super().__init__(port, errors=errors, options=options)
+        self._framer = self._make_framer()
+
+    @abstractmethod
+    def _make_framer(self) -> Framer:
+        """The framer for this decoder's protocol and options."""
+
+    def _split(self, data: bytes) -> Iterable[bytes | FrameError]:
+        return self._framer.feed(data)
+
+    def _flush(self) -> Iterable[bytes | FrameError]:
+        return self._framer.flush()

@@ -32,14 +32,13 @@ Must not import: serial, os, time, threading (pure module).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import ClassVar
 
 import pynmea2
 
-from drivers.base import Decoder, DecoderOptions, ErrorPolicy
-from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
+from drivers.base import FramedDecoder, Framer
+from drivers.errors import FieldError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer, split_nmea, with_checksum
 from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord
 
@@ -415,28 +414,14 @@ def parse_prti(sentence: str, f: list[str], raw: bytes) -> Prti:
 # ------------------------------------------------------------------ decoder
 
 
-class NmeaDecoder(Decoder):
+class NmeaDecoder(FramedDecoder):
     """NMEA 0183 decoder (see the module docstring)."""
 
     protocol: ClassVar[str] = "nmea0183"
     binary: ClassVar[bool] = False
 
-    def __init__(
-        self,
-        port: str = "",
-        *,
-        errors: ErrorPolicy = "raise",
-        options: DecoderOptions | None = None,
-    ) -> None:
-        super().__init__(port, errors=errors, options=options)
-        self._framer = LineFramer(b"$!", self.options.max_length)
-        self._required = self.options.checksum == "required"
-
-    def _split(self, data: bytes) -> Iterable[bytes | FrameError]:
-        return self._framer.feed(data)
-
-    def _flush(self) -> Iterable[bytes | FrameError]:
-        return self._framer.flush()
+    def _make_framer(self) -> Framer:
+        return LineFramer(b"$!", self.options.max_length)
 
     def parse_frame(self, frame: bytes) -> object:
         """Decode one sentence (without CR LF) into a record.
@@ -444,7 +429,7 @@ class NmeaDecoder(Decoder):
         Raises:
             FrameError: a subclass naming the reject reason.
         """
-        body = split_nmea(frame, required=self._required)
+        body = split_nmea(frame, required=self.options.checksum == "required")
         if frame[:1] != b"$":
             raise UnknownSentenceError("encapsulated (!) sentences are not decoded", frame)
         try:

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar
 
-from drivers.base import Decoder, DecoderOptions, ErrorPolicy
+from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
 from drivers.records import SpeedRecord
@@ -178,7 +178,7 @@ class _Block:
     damaged: str = ""
 
 
-class PdAsciiDecoder(Decoder):
+class PdAsciiDecoder(FramedDecoder):
     """PD6/PD13 decoder (registry names ``pd6`` and ``pd13``; see the module docstring)."""
 
     protocol: ClassVar[str] = "pd6"
@@ -191,18 +191,17 @@ class PdAsciiDecoder(Decoder):
         errors: ErrorPolicy = "raise",
         options: DecoderOptions | None = None,
     ) -> None:
-        super().__init__(port, errors=errors, options=options)
-        self._framer = LineFramer(b":", self.options.max_length)
         self._block: _Block | None = None
+        super().__init__(port, errors=errors, options=options)
 
     # A line is a frame; parse_frame returns a line tuple, and the ensemble logic
     # runs in feed() so that one ensemble record comes out per block.
 
-    def _split(self, data: bytes) -> Iterable[bytes | FrameError]:
-        return self._framer.feed(data)
+    def _make_framer(self) -> Framer:
+        return LineFramer(b":", self.options.max_length)
 
     def _flush(self) -> Iterable[bytes | FrameError]:
-        out: list[bytes | FrameError] = list(self._framer.flush())
+        out: list[bytes | FrameError] = list(super()._flush())
         if self._block is not None:
             out.append(FrameError("incomplete ensemble at end of stream (no :BD)"))
             self._block = None

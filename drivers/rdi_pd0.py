@@ -26,14 +26,13 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, Literal
 
-from drivers.base import Decoder, DecoderOptions, ErrorPolicy
+from drivers.base import FramedDecoder, Framer
 from drivers.binframe import BinaryFramer, sum16
-from drivers.errors import FieldError, FrameError, OutOfRangeError
+from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import SpeedRecord
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
@@ -113,27 +112,14 @@ def _int16(v: int) -> int | None:
     return None if v == INVALID else v
 
 
-class Pd0Decoder(Decoder):
+class Pd0Decoder(FramedDecoder):
     """PD0 decoder (see the module docstring)."""
 
     protocol: ClassVar[str] = "pd0"
     binary: ClassVar[bool] = True
 
-    def __init__(
-        self,
-        port: str = "",
-        *,
-        errors: ErrorPolicy = "raise",
-        options: DecoderOptions | None = None,
-    ) -> None:
-        super().__init__(port, errors=errors, options=options)
-        self._framer = BinaryFramer(HEADER, _length_of, 6, "PD0")
-
-    def _split(self, data: bytes) -> Iterable[bytes | FrameError]:
-        return self._framer.feed(data)
-
-    def _flush(self) -> Iterable[bytes | FrameError]:
-        return self._framer.flush()
+    def _make_framer(self) -> Framer:
+        return BinaryFramer(HEADER, _length_of, 6, "PD0")
 
     def parse_frame(self, frame: bytes) -> Pd0Ensemble:
         """Decode one checksum-verified ensemble (without its checksum).

@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
-from drivers.base import Decoder, DecoderOptions, ErrorPolicy
+from drivers.base import FramedDecoder, Framer
 from drivers.binframe import BinaryFramer, sum16
-from drivers.errors import FieldError, FrameError
+from drivers.errors import FieldError
 from drivers.records import SpeedRecord
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
@@ -107,27 +106,14 @@ def _v(values: tuple[int, ...]) -> tuple[int | None, int | None, int | None, int
     return (a, b, c, d)
 
 
-class Pd45Decoder(Decoder):
+class Pd45Decoder(FramedDecoder):
     """PD4/PD5 decoder (registry names ``pd4`` and ``pd5``; both formats are accepted)."""
 
     protocol: ClassVar[str] = "pd4"
     binary: ClassVar[bool] = True
 
-    def __init__(
-        self,
-        port: str = "",
-        *,
-        errors: ErrorPolicy = "raise",
-        options: DecoderOptions | None = None,
-    ) -> None:
-        super().__init__(port, errors=errors, options=options)
-        self._framer = BinaryFramer(HEADER, _length_of, 4, "PD4/PD5")
-
-    def _split(self, data: bytes) -> Iterable[bytes | FrameError]:
-        return self._framer.feed(data)
-
-    def _flush(self) -> Iterable[bytes | FrameError]:
-        return self._framer.flush()
+    def _make_framer(self) -> Framer:
+        return BinaryFramer(HEADER, _length_of, 4, "PD4/PD5")
 
     def parse_frame(self, frame: bytes) -> Pd45Ensemble:
         """Decode one checksum-verified PD4/PD5 frame (without the checksum).
