@@ -20,6 +20,8 @@ Events are queued and drained with :meth:`events`. The daemon registers
 from __future__ import annotations
 
 import contextlib
+import os
+import select
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -28,6 +30,9 @@ from typing import Literal
 import serial
 
 from drivers.errors import DeviceError
+
+EMPTY_READS_LOST = 50
+"""Consecutive empty reads of a raw descriptor after which the port counts as lost."""
 
 EventKind = Literal["connected", "disconnected", "stale", "alive", "error"]
 
@@ -91,6 +96,8 @@ class SerialSource:
         self.clock = clock
         self.monotonic = monotonic
         self._ser: serial.SerialBase | None = None
+        self._raw_fd: int | None = None
+        self._empty = 0
         self._events: list[PortEvent] = []
         self._attempt = 0
         self._next_try: float | None = None
@@ -152,6 +159,10 @@ class SerialSource:
             self._schedule(f"cannot open {self.url}: {exc}")
             return False
         self._ser = ser
+        # A plain POSIX port (device, pty) is read with one os.read on its
+        # non-blocking descriptor: pyserial's read adds an ioctl and a select per call.
+        # Other URL handlers (spy://, socket://, loop://) keep pyserial's read.
+        self._raw_fd = self.fileno() if type(ser).__module__ == "serial.serialposix" else None
         if self._ever_connected:
             self.reconnects += 1
         self._ever_connected = True
@@ -178,6 +189,7 @@ class SerialSource:
 
     def _close_port(self) -> None:
         ser, self._ser = self._ser, None
+        self._raw_fd = None
         if ser is not None:
             with contextlib.suppress(serial.SerialException, OSError):
                 ser.close()
@@ -206,8 +218,23 @@ class SerialSource:
         if ser is None:
             return None
         try:
-            waiting = int(getattr(ser, "in_waiting", 0))
-            data = ser.read(min(max(waiting, 1), self.read_size) if waiting else self.read_size)
+            if self._raw_fd is not None:
+                try:
+                    data = os.read(self._raw_fd, self.read_size)
+                except BlockingIOError:
+                    return None
+                if not data:
+                    # a raw tty with VMIN = 0 reads empty when nothing waits; a port that
+                    # keeps reading empty while select says readable is gone
+                    readable, _, _ = select.select([self._raw_fd], [], [], 0)
+                    self._empty = self._empty + 1 if readable else 0
+                    if self._empty >= EMPTY_READS_LOST:
+                        raise OSError("device reports readiness to read but returns no data")
+                    return None
+                self._empty = 0
+            else:
+                waiting = int(getattr(ser, "in_waiting", 0))
+                data = ser.read(min(max(waiting, 1), self.read_size) if waiting else self.read_size)
         except (serial.SerialException, OSError) as exc:
             self._lost(f"read failed: {exc}")
             return None

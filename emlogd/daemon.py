@@ -37,6 +37,9 @@ from emlogd.state import StateStore
 SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
 
+HOUSEKEEPING_S = 0.1
+"""Least time between two rounds of reconnects, stale checks, status and watchdog."""
+
 
 class Daemon:
     """The running service.
@@ -189,6 +192,7 @@ class Daemon:
         next_status = self.clock() + cfg.status_interval_s
         wd = self.notifier.watchdog_interval_s
         next_watchdog = self.clock() + wd if wd else None
+        next_housekeeping = 0.0
         while not self.stop:
             for key, _ in self.sel.select(timeout=SELECT_TIMEOUT_S):
                 key.data()
@@ -200,11 +204,14 @@ class Daemon:
             if self.reload:
                 self.reload = False
                 self._reload()
+            now = self.clock()
+            if now < next_housekeeping:
+                continue  # data wake-ups do no more than read, decode and emit
+            next_housekeeping = now + HOUSEKEEPING_S
             for src in self.sources.values():
                 self._log_port_events(src.poll())
                 self._log_port_events(src.events())
             self._sync_registrations()
-            now = self.clock()
             assert self.pipeline is not None
             self._handle(self.pipeline.tick(now))
             if now >= next_status:
