@@ -41,6 +41,7 @@ ports:
   - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
   - {name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut}
   - {name: dvl, url: links/dvl, protocol: pd6, role: reference}
+  - {name: junk, url: links/junk, protocol: nmea0183, role: aux}
 calibration:
   - {uut: emlog1, reference: dvl, lag: 0.0}
   - {uut: emlog2, reference: dvl, lag: 0.0}
@@ -140,7 +141,41 @@ def _pct(xs: list[float], q: float) -> float:
     return s[min(len(s) - 1, int(q * len(s)))]
 
 
-def bench_latency(n: int) -> None:
+class _Flood:
+    """Full-speed garbage on a port: random bytes, 10 kB lines without newline, and a
+    valid sentence every 10 ms."""
+
+    def __init__(self, link: Path) -> None:
+        import threading
+
+        self.vp = VirtualPort(link)
+        self.stop = threading.Event()
+        self.sent = 0
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self) -> None:
+        junk = [os.urandom(4096), b"A" * 10_000, os.urandom(1000) + b"\n"]
+        valid = encode_vhw(2.0).encode() + b"\r\n"
+        last = 0.0
+        k = 0
+        while not self.stop.is_set():
+            if not self.vp.wait_writable(0.05):
+                continue
+            self.sent += self.vp.write(junk[k % 3])
+            k += 1
+            now = time.monotonic()
+            if now - last >= 0.01:
+                last = now
+                self.sent += self.vp.write(valid)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(5)
+        self.vp.close()
+
+
+def bench_latency(n: int, flood: bool = False) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         cfg = _setup(work)
@@ -157,17 +192,25 @@ def bench_latency(n: int) -> None:
         emlog = VirtualPort(work / "links" / "emlog1")
         dvl = VirtualPort(work / "links" / "dvl")
         proc, _, srv = _start(work, cfg)
+        flooder = _Flood(work / "links" / "junk") if flood else None
         try:
             time.sleep(1.0)  # the daemon opens the input ptys
+            rss0 = _proc_cpu_rss(proc.pid)[1]
             out_fd = _open_reader(work / "out" / "emlog0")
             lat = _measure(emlog, dvl, out_fd, n, b"VWVHW")
             os.close(out_fd)
+            cpu, rss1 = _proc_cpu_rss(proc.pid)
         finally:
+            if flooder is not None:
+                flooder.close()
             proc.send_signal(signal.SIGTERM)
             proc.wait(20)
             srv.close()
             emlog.close()
             dvl.close()
+        if flooder is not None:
+            print(f"with a garbage flood on a 4th port ({flooder.sent / 2**20:.0f} MiB sent): "
+                  f"daemon RSS {rss0 / 2**20:.1f} -> {rss1 / 2**20:.1f} MiB, CPU {cpu:.1f} s")
         src = VirtualPort(work / "links" / "fwd-in")
         fwd = subprocess.Popen(
             [sys.executable, "-c", FORWARDER, str(work / "links" / "fwd-in"), str(work / "fwd-out")],
@@ -299,6 +342,7 @@ def main() -> None:
     ap.add_argument("--trial", help="directory with the simulated trial (default: simulate one)")
     ap.add_argument("--sentences", type=int, default=300)
     ap.add_argument("--skip", nargs="*", default=[], choices=["latency", "live", "growth"])
+    ap.add_argument("--flood", action="store_true", help="latency with a garbage flood on a 4th port")
     args = ap.parse_args()
     trial = Path(args.trial) if args.trial else None
     if trial is None or len(list(trial.glob("[1-5]-*.cap"))) != 5:
@@ -307,7 +351,7 @@ def main() -> None:
         trial = Path(tempfile.mkdtemp(prefix="emlogd-trial-"))
         simulate(trial, seed=1)
     if "latency" not in args.skip:
-        bench_latency(args.sentences)
+        bench_latency(args.sentences, args.flood)
     if "live" not in args.skip:
         bench_live(trial, args.live_seconds)
     if "growth" not in args.skip:
