@@ -258,3 +258,71 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
     text = (tmp_path / "daemon.log").read_text()
     assert '"event": "reloaded"' in text and '"event": "reload_failed"' in text
     assert "port_disconnected" in text
+
+
+def _can_mount(where: Path) -> bool:
+    if os.geteuid() != 0:
+        return False
+    where.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(where)], capture_output=True
+    )
+    return r.returncode == 0
+
+
+@pytest.mark.parametrize("fault", ["read-only", "full"])
+def test_state_directory_read_only_or_full(
+    tmp_path: Path, trial_files: dict[str, Path], fault: str
+) -> None:
+    """The state directory fails under the running daemon: it keeps running, reports
+    it, and the previous state file stays intact (a real tmpfs, remounted read-only or
+    filled up)."""
+    state_dir = tmp_path / "state"
+    if not _can_mount(state_dir):
+        pytest.skip("needs root and mount (tmpfs) to make a directory read-only or full")
+    try:
+        for sub in ("links", "out", "run"):
+            (tmp_path / sub).mkdir()
+        (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
+        store = StateStore(state_dir / "state.yaml")
+        from emlogd.state import CalibrationState
+
+        store.save({"emlog1": CalibrationState("emlog1", "EM3", {"m": 0.0, "b": 0.0})})
+        before = store.path.read_bytes()
+        if fault == "read-only":
+            subprocess.run(["mount", "-o", "remount,ro", str(state_dir)], check=True)
+        else:
+            fd = os.open(state_dir / "filler", os.O_WRONLY | os.O_CREAT, 0o600)
+            try:
+                while True:
+                    os.write(fd, b"\0" * 4096)
+            except OSError:
+                pass  # ENOSPC: the file system is full
+            finally:
+                os.close(fd)
+        links = tmp_path / "links"
+        capture = trial_files["figure-8"]
+        devices = [
+            FakeDevice(capture, p, links / p, speed=SPEED).start()
+            for p in ("emlog1", "emlog2", "dvl")
+        ]
+        d = Daemon(tmp_path)
+        try:
+            while not all(dev.finished.is_set() for dev in devices):
+                d.pump(0.5)
+                assert d.proc.poll() is None  # keeps running
+            resp = request(tmp_path / "run" / "control.sock", {"cmd": "status"})
+            assert (
+                resp["ok"] and isinstance(resp["state_errors"], int) and resp["state_errors"] >= 1
+            )
+            assert d.stop() == 0  # the final persist fails too: still a clean exit
+        finally:
+            if d.proc.poll() is None:
+                d.proc.kill()
+            for dev in devices:
+                dev.stop()
+                dev.join(5)
+        assert store.path.read_bytes() == before  # never corrupted, never half-written
+        assert "state_write_failed" in (tmp_path / "daemon.log").read_text()
+    finally:
+        subprocess.run(["umount", "-l", str(state_dir)], capture_output=True)
