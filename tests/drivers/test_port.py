@@ -124,6 +124,7 @@ def _replug_cycles(tmp_path: Path, cycles: int) -> None:
     link = tmp_path / "emlog1"
     src = SerialSource("emlog1", str(link), backoff_s=(0.005,))
     fds_before = None
+    rss_before = 0
     for k in range(cycles):
         vp = VirtualPort(link)
         if k == 0:
@@ -144,9 +145,18 @@ def _replug_cycles(tmp_path: Path, cycles: int) -> None:
         assert not src.is_open
         if k == 1:
             fds_before = sum(1 for _ in Path("/proc/self/fd").iterdir())
+            rss_before = _rss()
     src.close()
     assert src.reconnects == cycles - 1
     assert fds_before is not None and sum(1 for _ in Path("/proc/self/fd").iterdir()) <= fds_before
+    assert _rss() - rss_before < 2 * 2**20  # no memory growth beyond allocator noise
+
+
+def _rss() -> int:
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    return 0
 
 
 def test_replug_cycles_leak_no_descriptors(tmp_path: Path) -> None:
