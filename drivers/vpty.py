@@ -19,8 +19,12 @@ the symlink like a serial device. Properties:
   full) the writer opens the slave briefly, asks how much waits unread in its line
   discipline (``FIONREAD``) and, above ``max_backlog``, discards it
   (``tcflush(TCIFLUSH)``, which also empties the kernel's flip buffers). A reader
-  that resumes therefore gets at most about ``max_backlog`` bytes of old data (the
-  first line may be cut) and then live data. ``max_backlog=None`` keeps the kernel
+  that resumes therefore gets about ``max_backlog`` bytes of old data (the first
+  line may be cut) and then live data. FIONREAD does not see bytes the kernel has
+  not yet moved from its flip buffers to the line discipline (it does so
+  asynchronously): at serial rates that is nothing, but a writer bursting faster
+  than that can leave up to the pty's capacity (~20 KB); never more, because a
+  full pty is flushed before the next write. ``max_backlog=None`` keeps the kernel
   behaviour (a real serial port: up to ~68 KB queue, further writes dropped), which
   fake devices use so that a slow test reader still gets every byte.
 

@@ -49,6 +49,9 @@ from drivers.base import Decoder
 from drivers.records import SpeedRecord
 from emlogd.output import StatusFields, encode_status, encode_vbw, encode_vhw
 
+MIN_LAG_CORRELATION = 0.6
+"""A lag estimate with a weaker correlation peak is not used (the window slides on)."""
+
 RefField = Literal["bottom", "water", "speed"]
 RefState = Literal["valid", "lost", "stale", "slow", "none"]
 CalState = Literal["learning", "frozen", "uncalibrated"]
@@ -297,12 +300,18 @@ class _LagCollector:
         except CalibrationError as exc:
             reason = str(exc)
         else:
-            if est.peak_corr >= 0.3 and not est.at_bound:
+            if est.peak_corr >= MIN_LAG_CORRELATION and not est.at_bound and est.lag_s >= 0.0:
                 return est.lag_s, f"peak correlation {est.peak_corr:.2f}"
-            reason = (
-                f"no clear correlation peak (r={est.peak_corr:.2f}"
-                f"{', at the search bound' if est.at_bound else ''})"
-            )
+            if est.lag_s < 0.0 and est.peak_corr >= MIN_LAG_CORRELATION:
+                reason = (
+                    f"negative lag {est.lag_s:.2f} s (the EMlog would lead its reference): "
+                    "not used"
+                )
+            else:
+                reason = (
+                    f"no clear correlation peak (r={est.peak_corr:.2f}"
+                    f"{', at the search bound' if est.at_bound else ''})"
+                )
         for q in (self.uut, self.ref):
             for _ in range(len(q) // 2):
                 q.popleft()

@@ -102,9 +102,11 @@ def test_a_stalled_reader_resumes_with_recent_data(tmp_path: Path) -> None:
         finally:
             os.close(fd)
     assert got.endswith(_sentence(19_999))
-    # only the last part is left (at most the limit and two check intervals)
-    assert 0 < len(got) <= 2048 + 2 * 512 + len(_sentence(0))
-    assert _sentence(0) not in got and _sentence(19_000) not in got
+    # only recent data is left: a burst can leave up to the pty's own capacity
+    # (~20 KB, ~640 sentences) that the kernel had not yet handed to the line
+    # discipline, never the old backlog (without the limit: sentence 0 onwards)
+    first = int(got[got.index(b"$") :].split(b",")[5])
+    assert first >= 19_000, first
 
 
 def test_a_live_reader_loses_nothing(tmp_path: Path) -> None:

@@ -202,3 +202,22 @@ def test_deterministic() -> None:
     a = _run(_pipeline(), _stream(300))
     b = _run(_pipeline(), _stream(300))
     assert [e.sentence for e in a.emits] == [e.sentence for e in b.emits]
+
+
+def test_auto_lag_found_and_a_negative_lag_refused() -> None:
+    ports = [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")]
+    auto = Pipeline(ports, [UutSettings(port="log", reference_port="dvl", lag_window_s=200.0)])
+    out = _run(auto, _stream(400))
+    found = [e for e in out.events if e.kind == "lag_estimated"]
+    assert found and abs(found[0].detail["lag_s"]) < 0.2  # the stream has no latency
+    # the reference arrives 3 s late: the EMlog would lead it, which the pipeline refuses
+    late = Pipeline(ports, [UutSettings(port="log", reference_port="dvl", lag_window_s=200.0)])
+    shifted = sorted(
+        ((t + 3.0, p, d) if p == "dvl" else (t, p, d) for t, p, d in _stream(400)),
+        key=lambda x: x[0],
+    )
+    out = _run(late, iter(shifted))
+    assert not [e for e in out.events if e.kind == "lag_estimated"]
+    retries = [e for e in out.events if e.kind == "lag_retry"]
+    assert retries and "negative lag" in str(retries[0].detail["why"])
+    assert late.status()["uuts"]["log"]["lag_s"] is None  # type: ignore[index]
