@@ -65,7 +65,9 @@ class FakeDevice:
         self.linger = linger
         self.finished = threading.Event()
         self.sleep = sleep
-        self.vport = VirtualPort(link)
+        # no backlog limit: like a real serial port, the kernel queues what the reader
+        # has not read yet (a slow test reader still gets every byte)
+        self.vport = VirtualPort(link, max_backlog=None)
         self.link = Path(link)
         self.sent_records = 0
         self._stop = threading.Event()

@@ -12,23 +12,46 @@ the symlink like a serial device. Properties:
 - Readers may open and close the slave at any time without blocking the writer:
   the master is non-blocking, and while no process has the slave open (the master
   polls ``POLLHUP``) nothing is written at all, so a reader that opens late sees no
-  stale backlog, only what is written after it opened. A reader that opens but
-  stops reading fills the pty buffer; further writes are dropped and counted, never
-  blocking. Anything a reader writes back is drained and discarded.
+  stale backlog, only what is written after it opened. Anything a reader writes back
+  is drained and discarded.
+- A reader that keeps the slave open but stops reading does not get a stale backlog
+  either: after every ``max_backlog // 4`` bytes written (and whenever the pty is
+  full) the writer opens the slave briefly, asks how much waits unread in its line
+  discipline (``FIONREAD``) and, above ``max_backlog``, discards it
+  (``tcflush(TCIFLUSH)``, which also empties the kernel's flip buffers). A reader
+  that resumes therefore gets about ``max_backlog`` bytes of old data (the first
+  line may be cut) and then live data. FIONREAD does not see bytes the kernel has
+  not yet moved from its flip buffers to the line discipline (it does so
+  asynchronously): at serial rates that is nothing, but a writer bursting faster
+  than that can leave up to the pty's capacity (~20 KB); never more, because a
+  full pty is flushed before the next write. ``max_backlog=None`` keeps the kernel
+  behaviour (a real serial port: up to ~68 KB queue, further writes dropped), which
+  fake devices use so that a slow test reader still gets every byte.
+
+Why not keep a slave descriptor open and flush periodically: the master reports
+``POLLHUP`` only while *no* descriptor of the slave is open, which is the one
+reliable way on Linux to know whether a reader is attached at all.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import grp
 import os
 import select
+import struct
+import termios
 import tty
 from pathlib import Path
 from types import TracebackType
 
 from drivers.errors import DeviceError
+
+LDISC_BUF = 4096
+"""Bytes the Linux line discipline buffers for a reader (``N_TTY_BUF_SIZE``); FIONREAD
+never reports more, so ``max_backlog`` must stay below it."""
 
 
 class VirtualPort:
@@ -38,17 +61,35 @@ class VirtualPort:
         link: the symlink path (its parent directory is created).
         mode: permission bits of the slave device.
         group: group name or id to own the slave device (None: unchanged).
+        max_backlog: unread bytes a stalled reader may keep queued before they are
+            discarded (1 .. 4095), or None for no limit (kernel behaviour).
+
+    Attributes:
+        written: bytes the pty accepted.
+        dropped: bytes not written (no reader, or the pty was full).
+        flushes: times a stalled reader's backlog was discarded.
 
     Raises:
         DeviceError: the pty cannot be created or the link cannot be published.
+        ValueError: ``max_backlog`` out of range.
     """
 
     def __init__(
-        self, link: str | Path, *, mode: int = 0o660, group: str | int | None = None
+        self,
+        link: str | Path,
+        *,
+        mode: int = 0o660,
+        group: str | int | None = None,
+        max_backlog: int | None = 2048,
     ) -> None:
+        if max_backlog is not None and not 0 < max_backlog < LDISC_BUF:
+            raise ValueError(f"max_backlog must be 1 .. {LDISC_BUF - 1} or None, not {max_backlog}")
         self.link = Path(link)
+        self.max_backlog = max_backlog
         self.written = 0
         self.dropped = 0
+        self.flushes = 0
+        self._unchecked = 0
         try:
             master, slave = os.openpty()
         except OSError as exc:
@@ -105,22 +146,55 @@ class VirtualPort:
             while os.read(self.master, 4096):
                 pass
 
+    def _trim_backlog(self, limit: int, *, full: bool) -> bool:
+        """Discard a stalled reader's queue if above ``limit`` bytes (or ``full``)."""
+        self._unchecked = 0
+        try:
+            fd = os.open(self.slave_path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        except OSError:
+            return False
+        try:
+            raw = fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0")
+            queued: int = struct.unpack("i", raw)[0]
+            if not full and queued <= limit:
+                return False
+            termios.tcflush(fd, termios.TCIFLUSH)
+        except (OSError, termios.error):
+            return False
+        finally:
+            os.close(fd)
+        self.flushes += 1
+        return True
+
+    def _write(self, data: bytes) -> int | None:
+        """One write; None when the pty is full."""
+        try:
+            return os.write(self.master, data)
+        except (BlockingIOError, InterruptedError):
+            return None
+
     def write(self, data: bytes) -> int:
         """Write without blocking; return the bytes written (0 when dropped)."""
         if not self.has_reader():
             self.dropped += len(data)
             return 0
+        limit = self.max_backlog
+        if limit is not None and self._unchecked >= max(1, limit // 4):
+            self._trim_backlog(limit, full=False)
         try:
-            n = os.write(self.master, data)
-        except (BlockingIOError, InterruptedError):
-            self.dropped += len(data)
-            return 0
+            n = self._write(data)
+            if n is None and limit is not None and self._trim_backlog(limit, full=True):
+                n = self._write(data)
         except OSError as exc:
             if exc.errno == errno.EIO:  # the reader went away between poll and write
                 self.dropped += len(data)
                 return 0
             raise
+        if n is None:
+            self.dropped += len(data)
+            return 0
         self.written += n
+        self._unchecked += n
         if n < len(data):
             self.dropped += len(data) - n
         return n

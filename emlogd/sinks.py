@@ -269,13 +269,14 @@ class PtySink:
 
     def write(self, line: bytes) -> None:
         try:
-            self.port.write(line)
+            n = self.port.write(line)
         except OSError as exc:
             if exc.errno not in (errno.EAGAIN, errno.EIO):
                 self.counters.errors += 1
             return
-        self.counters.sentences += 1
-        self.counters.bytes += len(line)
+        if n:  # 0: nobody reads the pty (or it is full); VirtualPort counts the drop
+            self.counters.sentences += 1
+            self.counters.bytes += n
 
     def close(self) -> None:
         self.port.close()

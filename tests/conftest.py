@@ -1,4 +1,4 @@
-"""Shared fixtures: real pseudo-terminals and capture files on disk."""
+"""Shared fixtures: real pseudo-terminals, capture files on disk, fake devices."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from drivers.capture import CaptureWriter
+from drivers.fake import FakeDevice
 
 
 @pytest.fixture
@@ -26,10 +27,13 @@ def pty_pair() -> Iterator[tuple[int, int, str]]:
 
 
 @pytest.fixture
-def make_capture(tmp_path: Path) -> Callable[..., Path]:
-    """Write a capture: make_capture({port: protocol}, [(t, port, bytes, binary)], name=...)."""
+def write_capture(tmp_path: Path) -> Callable[..., Path]:
+    """Write a capture: write_capture({port: protocol}, [(t, port, bytes, binary)], name=...).
 
-    def make(
+    Text records (``binary`` false) are lines without CR/LF, binary records chunks.
+    """
+
+    def write(
         ports: dict[str, str],
         records: Sequence[tuple[float, str, bytes, bool]],
         name: str = "c.cap",
@@ -43,4 +47,41 @@ def make_capture(tmp_path: Path) -> Callable[..., Path]:
                     w.write_line(t, port, data)
         return path
 
-    return make
+    return write
+
+
+@pytest.fixture
+def make_capture(write_capture: Callable[..., Path]) -> Callable[..., Path]:
+    """The same as :func:`write_capture` (older name)."""
+    return write_capture
+
+
+@pytest.fixture
+def fake_device(tmp_path: Path) -> Iterator[Callable[..., FakeDevice]]:
+    """Start fake devices: fake_device(capture, port, speed=None, loop=False, link=None).
+
+    The device serves ``port`` of ``capture`` at ``link`` (default
+    ``tmp_path/links/PORT``) in a background thread; every device started is stopped
+    and joined at teardown (and must have ended).
+    """
+    devices: list[FakeDevice] = []
+
+    def start(
+        capture: Path,
+        port: str,
+        *,
+        speed: float | None = None,
+        loop: bool = False,
+        link: Path | None = None,
+    ) -> FakeDevice:
+        where = link if link is not None else tmp_path / "links" / port
+        dev = FakeDevice(capture, port, where, speed=speed, loop=loop).start()
+        devices.append(dev)
+        return dev
+
+    yield start
+    for dev in devices:
+        dev.stop()
+    for dev in devices:
+        dev.join(5)
+        assert dev._thread is not None and not dev._thread.is_alive(), "a fake device hung"

@@ -32,12 +32,12 @@ def _collect(link: Path, n: int, timeout: float = 10.0) -> bytes:
 
 
 @pytest.fixture
-def capture(make_capture: Callable[..., Path]) -> Path:
+def capture(write_capture: Callable[..., Path]) -> Path:
     records = []
     for k in range(300):
         records.append((100.0 + k * 0.01, "emlog1", b"$VWVHW,,T,,M,%d.00,N,,K*00" % k, False))
         records.append((100.0 + k * 0.01 + 0.001, "dvl", bytes([0x7F, 0x7F, k % 256]) * 3, True))
-    return make_capture({"emlog1": "nmea0183", "dvl": "pd0"}, records)
+    return write_capture({"emlog1": "nmea0183", "dvl": "pd0"}, records)
 
 
 @pytest.mark.parametrize("speed", [None, 20.0])
@@ -56,16 +56,36 @@ def test_reader_receives_the_ports_bytes(
     assert not (tmp_path / "emlog1").exists()
 
 
-def test_binary_port_and_loop(capture: Path, tmp_path: Path) -> None:
+def test_binary_port_and_loop(capture: Path, fake_device: Callable[..., FakeDevice]) -> None:
     once = b"".join(r.data for r in CaptureReader(capture) if r.port == "dvl")
-    dev = FakeDevice(capture, "dvl", tmp_path / "dvl", speed=None, loop=True).start()
-    try:
-        got = _collect(tmp_path / "dvl", 2 * len(once) + 10)
-        assert got.startswith(once + once)
-    finally:
-        dev.stop()
-        dev.join(5)
-    assert dev.stopped
+    dev = fake_device(capture, "dvl", loop=True)
+    got = _collect(dev.link, 2 * len(once) + 10)
+    assert got.startswith(once + once)
+    assert not dev.finished.is_set()  # looping until stopped
+    dev.stop()
+    assert dev.finished.wait(5) and dev.stopped
+    dev.join(5)
+    assert not dev.link.exists()
+
+
+def test_timing_is_honoured(
+    write_capture: Callable[..., Path], fake_device: Callable[..., FakeDevice]
+) -> None:
+    # 1 s of capture at twice real time takes at least 0.5 s (only a lower bound is
+    # asserted: a loaded machine may be slower, never faster)
+    records = [(50.0 + 0.1 * k, "e", b"$VWVHW,%d*00" % k, False) for k in range(11)]
+    cap = write_capture({"e": "nmea0183"}, records)
+    expected = b"".join(b"$VWVHW,%d*00\r\n" % k for k in range(11))
+    for speed, link in ((2.0, "timed"), (None, "fast")):
+        dev = fake_device(cap, "e", speed=speed, link=cap.parent / link)
+        t0 = time.monotonic()
+        assert _collect(dev.link, len(expected)) == expected
+        assert dev.finished.wait(10)
+        took = time.monotonic() - t0
+        if speed is not None:
+            assert took >= 0.5 * 0.99, took
+        else:
+            assert dev.sent_records == 11
 
 
 def test_unknown_port_and_bad_speed(capture: Path, tmp_path: Path) -> None:

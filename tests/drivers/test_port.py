@@ -26,6 +26,12 @@ def _read_all(src: SerialSource, n: int, timeout: float = 5.0) -> bytes:
     return out
 
 
+def _is_open(src: SerialSource) -> bool:
+    # a call, not the property: mypy would keep `src.is_open` narrowed across the
+    # loops below, which change it
+    return src.is_open
+
+
 def test_reads_a_real_pty_in_chunks(pty_pair: tuple[int, int, str]) -> None:
     master, _, path = pty_pair
     src = SerialSource("emlog1", path, baudrate=4800)
@@ -76,18 +82,18 @@ def test_unplug_and_replug_at_the_same_path(tmp_path: Path) -> None:
     assert _read_all(src, 5) == b"one\r\n"
     vp.close()  # unplugged
     deadline = time.monotonic() + 5
-    while src.is_open and time.monotonic() < deadline:
+    while _is_open(src) and time.monotonic() < deadline:
         src.read()
         time.sleep(0.01)
-    assert not src.is_open
+    assert not _is_open(src)
     assert [e.kind for e in src.events()] == ["disconnected"]
     vp2 = VirtualPort(link)  # replugged: a new pty at the same symlink
     try:
         deadline = time.monotonic() + 5
-        while not src.is_open and time.monotonic() < deadline:
+        while not _is_open(src) and time.monotonic() < deadline:
             src.poll()
             time.sleep(0.02)
-        assert src.is_open and src.reconnects == 1
+        assert _is_open(src) and src.reconnects == 1
         vp2.write(b"two\r\n")
         assert _read_all(src, 5) == b"two\r\n"
     finally:
@@ -130,19 +136,19 @@ def _replug_cycles(tmp_path: Path, cycles: int) -> None:
         if k == 0:
             src.open()
         deadline = time.monotonic() + 5
-        while not src.is_open and time.monotonic() < deadline:
+        while not _is_open(src) and time.monotonic() < deadline:
             src.poll()
             time.sleep(0.002)
-        assert src.is_open, f"cycle {k}: no reconnect"
+        assert _is_open(src), f"cycle {k}: no reconnect"
         msg = b"$cycle,%d*00\r\n" % k
         vp.write(msg)
         assert _read_all(src, len(msg)) == msg
         vp.close()  # unplug
         deadline = time.monotonic() + 5
-        while src.is_open and time.monotonic() < deadline:
+        while _is_open(src) and time.monotonic() < deadline:
             src.read()
             time.sleep(0.002)
-        assert not src.is_open
+        assert not _is_open(src)
         if k == 1:
             fds_before = sum(1 for _ in Path("/proc/self/fd").iterdir())
             rss_before = _rss()

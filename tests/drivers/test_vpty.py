@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import time
@@ -70,17 +71,65 @@ def test_late_reader_sees_no_backlog(tmp_path: Path) -> None:
             os.close(fd)
 
 
+def _sentence(k: int) -> bytes:
+    return b"$VWVHW,,T,,M,%05d,N,6.48,K*6A\r\n" % k
+
+
 def test_a_reader_that_never_reads_never_blocks_the_writer(tmp_path: Path) -> None:
-    with VirtualPort(tmp_path / "p") as vp:
+    # without a backlog limit (kernel behaviour): the pty fills, further writes are dropped
+    with VirtualPort(tmp_path / "p", max_backlog=None) as vp:
         fd = _open(tmp_path / "p")
         try:
             t0 = time.monotonic()
-            for _ in range(20_000):
-                vp.write(b"$VWVHW,,T,,M,3.50,N,6.48,K*6A\r\n")
+            for k in range(20_000):
+                vp.write(_sentence(k))
             assert time.monotonic() - t0 < 30  # generous: only catches a blocked writer
-            assert vp.dropped > 0 and vp.written > 0
+            assert vp.dropped > 0 and vp.written > 0 and vp.flushes == 0
+            got = _read(fd)
+            assert got.startswith(_sentence(0))  # the oldest data: a stale backlog
         finally:
             os.close(fd)
+
+
+def test_a_stalled_reader_resumes_with_recent_data(tmp_path: Path) -> None:
+    with VirtualPort(tmp_path / "p", max_backlog=2048) as vp:
+        fd = _open(tmp_path / "p")
+        try:
+            for k in range(20_000):
+                assert vp.write(_sentence(k)) == len(_sentence(k))  # never full, never blocks
+            assert vp.dropped == 0 and vp.flushes > 0
+            got = _read(fd)
+        finally:
+            os.close(fd)
+    assert got.endswith(_sentence(19_999))
+    # only recent data is left: a burst can leave up to the pty's own capacity
+    # (~20 KB, ~640 sentences) that the kernel had not yet handed to the line
+    # discipline, never the old backlog (without the limit: sentence 0 onwards)
+    first = int(got[got.index(b"$") :].split(b",")[5])
+    assert first >= 19_000, first
+
+
+def test_a_live_reader_loses_nothing(tmp_path: Path) -> None:
+    with VirtualPort(tmp_path / "p") as vp:
+        fd = _open(tmp_path / "p")
+        expected = b"".join(_sentence(k) for k in range(3000))
+        got = b""
+        try:
+            for k in range(3000):
+                assert vp.write(_sentence(k)) == len(_sentence(k))
+                with contextlib.suppress(BlockingIOError):
+                    got += os.read(fd, 65536)
+            got += _read(fd)
+        finally:
+            os.close(fd)
+        assert got == expected and vp.flushes == 0
+
+
+@pytest.mark.parametrize("bad", [0, -1, 4096, 100_000])
+def test_max_backlog_range(tmp_path: Path, bad: int) -> None:
+    with pytest.raises(ValueError, match="max_backlog"):
+        VirtualPort(tmp_path / "p", max_backlog=bad)
+    assert not (tmp_path / "p").exists()
 
 
 def test_replaces_a_stale_link_and_refuses_a_file(tmp_path: Path) -> None:
