@@ -106,14 +106,19 @@ def _open_reader(path: Path) -> int:
     return os.open(path, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
 
 
-def _measure(inp: VirtualPort, dvl: VirtualPort | None, out_fd: int, n: int, marker: bytes) -> list[float]:
+def _measure(
+    inp: VirtualPort, dvl: VirtualPort | None, out_fd: int, n: int, marker: bytes
+) -> list[float]:
     """Write n VHW at 10 Hz (PD6 in between); time until the next line containing marker."""
     lat = []
     buf = b""
     for k in range(n):
         if dvl is not None:
             for line in encode_pd6(
-                timestamp=datetime.now(UTC), heading_deg=10.0, bottom_ship_mps=(0.0, 1.5, 0.0), range_m=20
+                timestamp=datetime.now(UTC),
+                heading_deg=10.0,
+                bottom_ship_mps=(0.0, 1.5, 0.0),
+                range_m=20,
             ):
                 dvl.write(line.encode() + b"\r\n")
         time.sleep(0.05)
@@ -187,8 +192,10 @@ def bench_latency(n: int, flood: bool = False) -> None:
             proc.wait(20)
             srv.close()
             (work / "notify.sock").unlink()
-        print(f"start -> READY=1: median {statistics.median(readies):.3f} s over 3 starts "
-              f"(target <= 1.5 s)")
+        print(
+            f"start -> READY=1: median {statistics.median(readies):.3f} s over 3 starts "
+            f"(target <= 1.5 s)"
+        )
         emlog = VirtualPort(work / "links" / "emlog1")
         dvl = VirtualPort(work / "links" / "dvl")
         proc, _, srv = _start(work, cfg)
@@ -209,11 +216,19 @@ def bench_latency(n: int, flood: bool = False) -> None:
             emlog.close()
             dvl.close()
         if flooder is not None:
-            print(f"with a garbage flood on a 4th port ({flooder.sent / 2**20:.0f} MiB sent): "
-                  f"daemon RSS {rss0 / 2**20:.1f} -> {rss1 / 2**20:.1f} MiB, CPU {cpu:.1f} s")
+            print(
+                f"with a garbage flood on a 4th port ({flooder.sent / 2**20:.0f} MiB sent): "
+                f"daemon RSS {rss0 / 2**20:.1f} -> {rss1 / 2**20:.1f} MiB, CPU {cpu:.1f} s"
+            )
         src = VirtualPort(work / "links" / "fwd-in")
         fwd = subprocess.Popen(
-            [sys.executable, "-c", FORWARDER, str(work / "links" / "fwd-in"), str(work / "fwd-out")],
+            [
+                sys.executable,
+                "-c",
+                FORWARDER,
+                str(work / "links" / "fwd-in"),
+                str(work / "fwd-out"),
+            ],
             stdout=subprocess.PIPE,
         )
         assert fwd.stdout is not None
@@ -329,10 +344,14 @@ def bench_growth(trial: Path) -> None:
         capture_output=True, text=True, check=True, cwd=root,
     )  # fmt: skip
     n, span, first, last = r.stdout.split()
-    print(f"24 simulated hours through the pipeline: {int(n)} records, {float(span) / 3600:.1f} h "
-          f"in {time.perf_counter() - t0:.0f} s")
-    print(f"  RSS after the first pass {int(first) / 2**20:.1f} MiB, at the end {int(last) / 2**20:.1f} MiB, "
-          f"growth {(int(last) - int(first)) / 2**20:+.2f} MiB (target <= 1 MiB)")
+    print(
+        f"24 simulated hours through the pipeline: {int(n)} records, {float(span) / 3600:.1f} h "
+        f"in {time.perf_counter() - t0:.0f} s"
+    )
+    print(
+        f"  RSS after the first pass {int(first) / 2**20:.1f} MiB, at the end {int(last) / 2**20:.1f} MiB, "
+        f"growth {(int(last) - int(first)) / 2**20:+.2f} MiB (target <= 1 MiB)"
+    )
 
 
 def main() -> None:
@@ -342,7 +361,9 @@ def main() -> None:
     ap.add_argument("--trial", help="directory with the simulated trial (default: simulate one)")
     ap.add_argument("--sentences", type=int, default=300)
     ap.add_argument("--skip", nargs="*", default=[], choices=["latency", "live", "growth"])
-    ap.add_argument("--flood", action="store_true", help="latency with a garbage flood on a 4th port")
+    ap.add_argument(
+        "--flood", action="store_true", help="latency with a garbage flood on a 4th port"
+    )
     args = ap.parse_args()
     trial = Path(args.trial) if args.trial else None
     if trial is None or len(list(trial.glob("[1-5]-*.cap"))) != 5:

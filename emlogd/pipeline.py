@@ -304,8 +304,7 @@ class _LagCollector:
                 return est.lag_s, f"peak correlation {est.peak_corr:.2f}"
             if est.lag_s < 0.0 and est.peak_corr >= MIN_LAG_CORRELATION:
                 reason = (
-                    f"negative lag {est.lag_s:.2f} s (the EMlog would lead its reference): "
-                    "not used"
+                    f"negative lag {est.lag_s:.2f} s (the EMlog would lead its reference): not used"
                 )
             else:
                 reason = (
