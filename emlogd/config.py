@@ -23,6 +23,8 @@ from drivers import protocol_names
 from drivers.errors import ConfigError
 
 DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
+DEFAULT_MAX_LAG_S = 10.0
+"""Default lag search range and reference buffer depth, s."""
 DVL_PROTOCOLS = ("pd6", "pd13", "pd0", "pd4", "pd5", "nmea0183")
 """Protocols that can carry a DVL bottom track (nmea0183: Rowe $PRTI01)."""
 
@@ -56,7 +58,7 @@ class UutConfig:
     uut_source: Literal["VHW", "VBW"] = "VHW"
     lag_s: float | None = None
     lag_window_s: float = 300.0
-    max_lag_s: float = 10.0
+    max_lag_s: float = DEFAULT_MAX_LAG_S
     learn: bool = True
     apply: bool = True
     min_ref_speed_mps: float = 0.3
@@ -217,8 +219,8 @@ def _lag(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
     v = ctx.scalar(node, where)
     if v == "auto":
         return None
-    if isinstance(v, bool) or not isinstance(v, int | float) or not -30.0 <= v <= 30.0:
-        raise ctx.fail(node, where, f"expected auto or seconds within ±30, got {v!r}")
+    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 30.0:
+        raise ctx.fail(node, where, f"expected auto or seconds in [0, 30], got {v!r}")
     return float(v)
 
 
@@ -229,7 +231,7 @@ def _hostport(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
     text = str(v)
     host, sep, port = text.rpartition(":")
     if (
-        not port.isdigit()
+        not re.fullmatch(r"[0-9]{1,5}", port)
         or not 0 < int(port) < 65536
         or (sep and not re.fullmatch(r"[\w.\-\[\]:]*", host))
     ):
@@ -326,6 +328,71 @@ TOP_SPEC: dict[str, tuple[str, Check]] = {
 }
 
 
+def _values(ctx: _Ctx, node: yaml.Node, where: str) -> dict[str, yaml.Node]:
+    """The value node of each key of a (checked) mapping, for precise line numbers."""
+    return {k: vn for k, (_, vn) in ctx.mapping(node, where).items()}
+
+
+def _check_uut(
+    ctx: _Ctx,
+    kw: dict[str, Any],
+    at: Mapping[str, yaml.Node],
+    where: str,
+    by_name: Mapping[str, PortConfig],
+) -> UutConfig:
+    """Cross-check one ``calibration`` entry against the ports."""
+    uut, ref = kw["uut"], kw["reference"]
+    if uut not in by_name:
+        raise ctx.fail(at["uut"], f"{where}.uut", f"no port named {uut!r}")
+    if ref not in by_name:
+        raise ctx.fail(at["reference"], f"{where}.reference", f"no port named {ref!r}")
+    if by_name[uut].role != "uut":
+        raise ctx.fail(
+            at["uut"], f"{where}.uut", f"port {uut!r} has role {by_name[uut].role}, not uut"
+        )
+    if by_name[uut].protocol != "nmea0183":
+        raise ctx.fail(at["uut"], f"{where}.uut", f"port {uut!r} must speak nmea0183 (VHW/VBW)")
+    if uut == ref:
+        raise ctx.fail(at["reference"], f"{where}.reference", "the reference must be another port")
+    field_ = kw.get("reference_field", "bottom")
+    fat = at.get("reference_field", at["reference"])
+    rport = by_name[ref]
+    allowed_roles = ("reference", "uut") if field_ == "speed" else ("reference",)
+    if rport.role not in allowed_roles:
+        raise ctx.fail(
+            at["reference"],
+            f"{where}.reference",
+            f"port {ref!r} has role {rport.role}, not {' or '.join(allowed_roles)}",
+        )
+    if field_ == "speed" and rport.protocol != "nmea0183":
+        raise ctx.fail(
+            fat,
+            f"{where}.reference_field",
+            f"speed needs an EMlog (nmea0183) reference, {ref!r} is {rport.protocol}",
+        )
+    if field_ == "water" and rport.protocol not in ("pd6", "pd13"):
+        raise ctx.fail(
+            fat,
+            f"{where}.reference_field",
+            f"water track (:WS) needs a pd6/pd13 reference, {ref!r} is {rport.protocol}",
+        )
+    if field_ == "bottom" and rport.protocol not in DVL_PROTOCOLS:
+        raise ctx.fail(
+            fat,
+            f"{where}.reference_field",
+            f"bottom track needs a DVL reference, {ref!r} is {rport.protocol}",
+        )
+    max_lag = kw.get("max_lag_s", DEFAULT_MAX_LAG_S)
+    if kw.get("lag_s") is not None and kw["lag_s"] > max_lag:
+        raise ctx.fail(
+            at["lag"],
+            f"{where}.lag",
+            f"{kw['lag_s']!r} s is beyond max_lag_s ({max_lag!r} s): the reference is "
+            "buffered only that far back",
+        )
+    return UutConfig(**kw)
+
+
 def load_config(path: str | Path) -> Config:
     """Load and validate a config file.
 
@@ -365,68 +432,35 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         raise ctx.fail(root, "", "missing required key 'ports'")
     protocols = set(protocol_names())
     ports: list[PortConfig] = []
-    port_nodes: dict[str, yaml.Node] = {}
     for i, node in enumerate(ctx.sequence(top["ports"][1], "ports")):
         where = f"ports[{i}]"
         kw = _section(ctx, node, where, PORT_SPEC, ("name", "url", "protocol", "role"))
+        at = _values(ctx, node, where)
         if kw["protocol"] not in protocols:
             raise ctx.fail(
-                node,
+                at["protocol"],
                 f"{where}.protocol",
                 f"{kw['protocol']!r} is not one of {', '.join(sorted(protocols))}",
             )
-        if kw["name"] in port_nodes:
-            raise ctx.fail(node, f"{where}.name", f"duplicate port name {kw['name']!r}")
+        if any(p.name == kw["name"] for p in ports):
+            raise ctx.fail(at["name"], f"{where}.name", f"duplicate port name {kw['name']!r}")
         if base is not None and "://" not in kw["url"] and not kw["url"].startswith("/"):
             kw["url"] = str(base / kw["url"])
-        port_nodes[kw["name"]] = node
         ports.append(PortConfig(**kw))
     if not ports:
         raise ctx.fail(top["ports"][1], "ports", "at least one port is needed")
     by_name = {p.name: p for p in ports}
     uuts: list[UutConfig] = []
-    seen_uut: set[str] = set()
     cal_nodes = ctx.sequence(top["calibration"][1], "calibration") if "calibration" in top else []
     for i, node in enumerate(cal_nodes):
         where = f"calibration[{i}]"
         kw = _section(ctx, node, where, UUT_SPEC, ("uut", "reference"))
-        uut, ref = kw["uut"], kw["reference"]
-        if uut not in by_name:
-            raise ctx.fail(node, f"{where}.uut", f"no port named {uut!r}")
-        if ref not in by_name:
-            raise ctx.fail(node, f"{where}.reference", f"no port named {ref!r}")
-        if by_name[uut].role != "uut":
+        uut = _check_uut(ctx, kw, _values(ctx, node, where), where, by_name)
+        if any(u.uut == uut.uut for u in uuts):
             raise ctx.fail(
-                node, f"{where}.uut", f"port {uut!r} has role {by_name[uut].role}, not uut"
+                _values(ctx, node, where)["uut"], f"{where}.uut", f"{uut.uut!r} is calibrated twice"
             )
-        if by_name[uut].protocol != "nmea0183":
-            raise ctx.fail(node, f"{where}.uut", f"port {uut!r} must speak nmea0183 (VHW/VBW)")
-        if uut == ref:
-            raise ctx.fail(node, f"{where}.reference", "the reference must be another port")
-        if uut in seen_uut:
-            raise ctx.fail(node, f"{where}.uut", f"{uut!r} is calibrated twice")
-        seen_uut.add(uut)
-        field_ = kw.get("reference_field", "bottom")
-        rproto = by_name[ref].protocol
-        if field_ == "speed" and rproto != "nmea0183":
-            raise ctx.fail(
-                node,
-                f"{where}.reference_field",
-                f"speed needs an EMlog (nmea0183) reference, {ref!r} is {rproto}",
-            )
-        if field_ == "water" and rproto not in ("pd6", "pd13"):
-            raise ctx.fail(
-                node,
-                f"{where}.reference_field",
-                f"water track (:WS) needs a pd6/pd13 reference, {ref!r} is {rproto}",
-            )
-        if field_ == "bottom" and rproto not in DVL_PROTOCOLS:
-            raise ctx.fail(
-                node,
-                f"{where}.reference_field",
-                f"bottom track needs a DVL reference, {ref!r} is {rproto}",
-            )
-        uuts.append(UutConfig(**kw))
+        uuts.append(uut)
     outputs = OutputConfig()
     if "outputs" in top:
         kw = _section(ctx, top["outputs"][1], "outputs", OUTPUT_SPEC)
@@ -440,3 +474,31 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         if base is not None and key in rest and not rest[key].startswith("/"):
             rest[key] = str(base / rest[key])
     return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
+
+
+def _dump_section(obj: Any, spec: Mapping[str, tuple[str, Check]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, (attr, _) in spec.items():
+        value = getattr(obj, attr)
+        if attr == "lag_s" and value is None:
+            value = "auto"
+        elif isinstance(value, Mapping):
+            value = dict(value)
+        out[key] = value
+    return out
+
+
+def dump_config(config: Config) -> str:
+    """The effective configuration (every key, defaults filled in) as YAML.
+
+    Paths are written as loaded (already resolved), so
+    ``parse_config(dump_config(c), c.path) == c``.
+    """
+    doc: dict[str, Any] = {
+        "ports": [_dump_section(p, PORT_SPEC) for p in config.ports],
+        "calibration": [_dump_section(u, UUT_SPEC) for u in config.calibration],
+        "outputs": _dump_section(config.outputs, OUTPUT_SPEC),
+        **_dump_section(config, TOP_SPEC),
+    }
+    name = " ".join(config.path.splitlines())
+    return f"# emlogd effective configuration of {name}\n" + yaml.safe_dump(doc, sort_keys=False)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -30,6 +31,7 @@ from typing import Any
 
 import yaml
 
+from calib.models import PARAM_NAMES
 from drivers.errors import EmlogdError
 
 SCHEMA = 1
@@ -90,8 +92,20 @@ def _state(uut: str, d: Any) -> CalibrationState:
     if not isinstance(d, dict):
         raise StateFormatError(f"uuts.{uut}: expected a mapping")
     try:
-        model = str(d["model"])
+        model = d["model"]
+        if model not in PARAM_NAMES:
+            raise StateFormatError(
+                f"uuts.{uut}.model: {model!r} is not one of {', '.join(PARAM_NAMES)}"
+            )
         params = {str(k): _float(v, f"uuts.{uut}.params.{k}") for k, v in d["params"].items()}
+        if sorted(params) != sorted(PARAM_NAMES[model]):
+            raise StateFormatError(
+                f"uuts.{uut}.params: {model} has {', '.join(PARAM_NAMES[model])},"
+                f" the file has {', '.join(params) or 'none'}"
+            )
+        n_samples = d.get("n_samples", 0)
+        if isinstance(n_samples, bool) or not isinstance(n_samples, int) or n_samples < 0:
+            raise StateFormatError(f"uuts.{uut}.n_samples: expected a count, got {n_samples!r}")
         std = {
             str(k): (math.inf if v is None else _float(v, f"uuts.{uut}.param_std.{k}"))
             for k, v in (d.get("param_std") or {}).items()
@@ -105,18 +119,18 @@ def _state(uut: str, d: Any) -> CalibrationState:
             raise StateFormatError(f"uuts.{uut}.covariance: not square")
         lag = d.get("lag_s")
         exc = {
-            str(k): (math.nan if v is None else float(v))
+            str(k): (math.nan if v is None else _float(v, f"uuts.{uut}.excitation.{k}"))
             for k, v in (d.get("excitation") or {}).items()
         }
         nis = d.get("nis_mean")
         return CalibrationState(
             uut=uut,
-            model=model,
+            model=str(model),
             params=params,
             param_std=std,
             covariance=cov,
             t=_float(d.get("t", 0.0), f"uuts.{uut}.t"),
-            n_samples=int(d.get("n_samples", 0)),
+            n_samples=n_samples,
             lag_s=None if lag is None else _float(lag, f"uuts.{uut}.lag_s"),
             excitation=exc,
             nis_mean=None if nis is None else _float(nis, f"uuts.{uut}.nis_mean"),
@@ -215,15 +229,7 @@ class StateStore:
         tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
         try:
             d.mkdir(parents=True, exist_ok=True)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o640)
-            try:
-                view = memoryview(data)
-                while view:
-                    n = os.write(fd, view)
-                    view = view[n:]
-                os.fsync(fd)
-            finally:
-                os.close(fd)
+            _write_synced(tmp, data)
             self._backup_current()
             tmp.replace(self.path)
             self._fsync_dir()
@@ -231,8 +237,26 @@ class StateStore:
             with contextlib.suppress(OSError):
                 tmp.unlink()
             raise StateWriteError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+        self._remove_orphans()
+
+    def _remove_orphans(self) -> None:
+        """Delete temporary files left by a writer that was killed (its pid is gone)."""
+        orphan = re.compile(rf"\.{re.escape(self.path.name)}(?:\.bak)?\.([0-9]+)\.tmp")
+        try:
+            entries = list(self.path.parent.iterdir())
+        except OSError:
+            return
+        for entry in entries:
+            m = orphan.fullmatch(entry.name)
+            if m is not None and int(m[1]) != os.getpid() and not _alive(int(m[1])):
+                with contextlib.suppress(OSError):
+                    entry.unlink()
 
     def _backup_current(self) -> None:
+        """Make the current file, if valid, the backup; a damaged one is left out.
+
+        The backup is a hard link, or a copy where the file system has none (vfat).
+        """
         try:
             text = self.path.read_text(encoding="utf-8")
         except FileNotFoundError:
@@ -246,7 +270,10 @@ class StateStore:
         link = self.path.with_name(f".{self.path.name}.bak.{os.getpid()}.tmp")
         with contextlib.suppress(FileNotFoundError):
             link.unlink()
-        os.link(self.path, link)
+        try:
+            os.link(self.path, link)
+        except OSError:  # e.g. vfat: no hard links
+            _write_synced(link, text.encode("utf-8"))
         link.replace(self.backup)
 
     def _fsync_dir(self) -> None:
@@ -255,6 +282,30 @@ class StateStore:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+def _write_synced(path: Path, data: bytes) -> None:
+    """Create or truncate ``path`` (mode 0640), write ``data`` and fsync it."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o640)
+    try:
+        view = memoryview(data)
+        while view:
+            n = os.write(fd, view)
+            view = view[n:]
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (one owned by another user counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return True
+    return True
 
 
 def now_iso() -> str:

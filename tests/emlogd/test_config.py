@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from drivers.errors import ConfigError
-from emlogd.config import load_config, parse_config
+from emlogd.config import dump_config, load_config, parse_config
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "emlogd.yaml"
 
@@ -95,6 +95,19 @@ INVALID: list[tuple[str, str, str]] = [
     ("status interval", BASE + "status_interval_s: 0\n", "status_interval_s"),
     ("numeric key", BASE + "1: 2\n", "1: unknown key"),
     ("list key", BASE + "? [a, b]\n: 2\n", "keys must be strings"),
+    ("negative lag", BASE.replace("reference: dvl}", "reference: dvl, lag: -1.5}"), "calibration[0].lag: expected auto or seconds in [0, 30]"),
+    ("lag beyond max_lag_s", BASE.replace("reference: dvl}", "reference: dvl, lag: 12, max_lag_s: 5}"), "calibration[0].lag: 12.0 s is beyond max_lag_s"),
+    ("reference with role aux", BASE.replace("role: reference", "role: aux"), "calibration[0].reference: port 'dvl' has role aux, not reference"),
+    ("DVL reference with role uut", BASE.replace("role: reference", "role: uut"), "calibration[0].reference: port 'dvl' has role uut, not reference"),
+    ("water from an EMlog", BASE.replace("protocol: pd6", "protocol: nmea0183").replace("reference: dvl}", "reference: dvl, reference_field: water}"), "calibration[0].reference_field: water track (:WS) needs a pd6/pd13 reference, 'dvl' is nmea0183"),
+    ("reference is the uut", BASE.replace("reference: dvl}", "reference: emlog1}"), "calibration[0].reference: the reference must be another port"),
+    ("tcp non-ascii digits", BASE + "outputs: {tcp: ':\u0661\u0660'}\n", "outputs.tcp"),
+    ("pty_mode too wide", BASE + "outputs: {pty_mode: 01777}\n", "outputs.pty_mode: 1023 is out of range"),
+    ("rate infinite", BASE.replace("role: uut}", "role: uut, rate_hz: .inf}"), "ports[0].rate_hz: inf is out of range"),
+    ("calibration not a list", BASE.replace("calibration:\n  - {uut: emlog1, reference: dvl}\n", "calibration: {uut: emlog1}\n"), "calibration: expected a list"),
+    ("outputs a list", BASE + "outputs: [a]\n", "outputs: expected a mapping"),
+    ("url a number", BASE.replace("url: /dev/dvl", "url: 7"), "ports[1].url: expected a non-empty string"),
+    ("yaml merge key", BASE + "x: &d {talker: VW}\noutputs: {<<: *d}\n", "x: unknown key"),
 ]  # fmt: skip
 
 
@@ -121,3 +134,84 @@ def test_line_numbers_point_at_the_problem() -> None:
 def test_unreadable_file(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="cannot read"):
         load_config(tmp_path / "missing.yaml")
+
+
+BLOCK = """\
+ports:
+  - name: emlog1
+    url: /dev/emlog1
+    protocol: nmea0183
+    role: uut
+  - name: emlog2
+    url: /dev/emlog2
+    protocol: nmea0183
+    role: uut
+  - name: dvl
+    url: /dev/dvl
+    protocol: pd6
+    role: reference
+calibration:
+  - model: EM3
+    uut: emlog1
+    reference: dvl
+"""
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "line", "key"),
+    [
+        ("    reference: dvl\n", "    reference: gps\n", 17, "calibration[0].reference"),
+        ("    uut: emlog1\n", "    uut: dvl\n", 16, "calibration[0].uut"),
+        ("protocol: pd6", "protocol: pd9", 12, "ports[2].protocol"),
+        ("name: emlog2", "name: emlog1", 6, "ports[1].name"),
+        ("    reference: dvl\n", "    reference: dvl\n    lag: 20\n", 18, "calibration[0].lag"),
+        (
+            "    reference: dvl\n",
+            "    reference: dvl\n    reference_field: speed\n",
+            18,
+            "calibration[0].reference_field",
+        ),
+    ],
+)
+def test_cross_check_errors_point_at_the_value(old: str, new: str, line: int, key: str) -> None:
+    """A cross-check error gives the line of the offending value, not of its entry."""
+    assert old in BLOCK
+    with pytest.raises(ConfigError) as exc:
+        parse_config(BLOCK.replace(old, new, 1), "bad.yaml")
+    assert str(exc.value).startswith(f"bad.yaml:{line}: {key}:"), str(exc.value)
+
+
+def test_an_emlog_with_role_uut_may_be_the_speed_reference() -> None:
+    """EMlog2 calibrated against EMlog1 (reference_field speed) is a valid setup."""
+    cfg = parse_config(
+        BLOCK
+        + "  - {uut: emlog2, reference: emlog1, reference_field: speed, lag: 0.4, max_lag_s: 2}\n"
+    )
+    assert [(u.uut, u.reference, u.reference_field) for u in cfg.calibration] == [
+        ("emlog1", "dvl", "bottom"),
+        ("emlog2", "emlog1", "speed"),
+    ]
+
+
+def test_dump_round_trips_the_example() -> None:
+    """The dumped effective config loads back to an equal Config."""
+    cfg = load_config(EXAMPLE)
+    text = dump_config(cfg)
+    assert "lag: auto" in text
+    assert parse_config(text, cfg.path) == cfg
+
+
+def test_dump_round_trips_non_defaults(tmp_path: Path) -> None:
+    """Every non-default value survives dump and reload (lag in seconds, nulls, maps)."""
+    text = (
+        BLOCK.replace("role: uut\n", "role: uut\n    checksum: optional\n    rate_hz: 2.5\n", 1)
+        + "    lag: 3.2\n    learn: false\n    max_param_std: {m: 0.1}\n    q_params: 1.0e-9\n"
+        + "outputs: {pty: null, tcp: ':10110', udp: '10.0.0.255:10110', talker: II}\n"
+        + "log_format: json\nstate_file: s/state.yaml\n"
+    )
+    f = tmp_path / "c.yaml"
+    f.write_text(text)
+    cfg = load_config(f)
+    assert cfg.calibration[0].lag_s == 3.2 and cfg.outputs.pty is None
+    assert cfg.state_path == str(tmp_path / "s" / "state.yaml")
+    assert parse_config(dump_config(cfg), cfg.path) == cfg

@@ -48,3 +48,26 @@ def test_disabled_and_failing() -> None:
 def test_watchdog_for_another_pid_is_ignored() -> None:
     n = Notifier.from_env({"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "1000", "WATCHDOG_PID": "1"})
     assert n.watchdog_interval_s is None or os.getpid() == 1
+
+
+def test_watchdog_for_our_pid_and_malformed_values() -> None:
+    """WATCHDOG_PID equal to our pid enables the watchdog; malformed or zero values do not."""
+    ours = Notifier.from_env(
+        {"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "30000000", "WATCHDOG_PID": str(os.getpid())}
+    )
+    assert ours.watchdog_interval_s == 15.0
+    for usec in ("", "abc", "-5", "0", "1e6"):
+        n = Notifier.from_env({"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": usec})
+        assert n.watchdog_interval_s is None, usec
+
+
+def test_status_is_one_bounded_line(tmp_path: Path) -> None:
+    """STATUS= carries one line of at most 400 characters, whatever it is given."""
+    path = tmp_path / "n.sock"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
+        srv.bind(str(path))
+        n = Notifier(str(path))
+        assert n.status("a\r\nb" + "x" * 1000)
+        got = _recv(srv)
+    assert got.startswith("STATUS=a b") and len(got) == len("STATUS=") + 400
+    assert "\n" not in got and "\r" not in got

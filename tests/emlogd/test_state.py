@@ -64,13 +64,20 @@ def test_previous_good_file_is_kept_as_backup(tmp_path: Path) -> None:
         lambda t: t.replace("schema: 1", "schema: 2"),
         lambda t: t.replace("m: 0.2", "m: .nan"),
         lambda t: "",
+        lambda t: t.replace("model: EM3", "model: EM9"),
+        lambda t: t.replace("b: 0.05", "z: 0.05", 1),  # parameters that do not fit the model
+        lambda t: t.replace("n_samples: 100", "n_samples: -4"),
+        lambda t: t.replace("condition_number: 900.0", "condition_number: lots"),
     ],
+    ids=["torn", "garbage", "schema", "nan", "empty", "model", "params", "count", "excitation"],
 )
 def test_damaged_file_falls_back_to_the_backup(tmp_path: Path, damage: object) -> None:
     store = StateStore(tmp_path / "state.yaml")
     store.save({"emlog1": _state(0.1)})
     store.save({"emlog1": _state(0.2)})
-    store.path.write_text(damage(store.path.read_text()))  # type: ignore[operator]
+    damaged = damage(store.path.read_text())  # type: ignore[operator]
+    assert damaged != store.path.read_text()
+    store.path.write_text(damaged)
     states, report = store.load()
     assert states["emlog1"].params["m"] == 0.1
     assert any("damaged" in r for r in report) and any("backup" in r for r in report)
@@ -97,6 +104,57 @@ def test_failed_write_leaves_the_previous_file(tmp_path: Path) -> None:
         blocked.save({"emlog1": _state(0.2)})
     assert store.path.read_bytes() == before
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only directory")
+def test_read_only_directory(tmp_path: Path) -> None:
+    """A directory without write permission refuses the save; the file is intact."""
+    store = StateStore(tmp_path / "d" / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    before = store.path.read_bytes()
+    store.path.parent.chmod(0o500)
+    try:
+        with pytest.raises(StateWriteError, match="cannot write"):
+            store.save({"emlog1": _state(0.2)})
+    finally:
+        store.path.parent.chmod(0o700)
+    assert store.path.read_bytes() == before
+    assert store.load() == ({"emlog1": _state(0.1)}, [])
+
+
+def test_orphaned_temp_files_of_dead_writers_are_removed(tmp_path: Path) -> None:
+    """Temp files of a killed writer go at the next save; a live writer's stay."""
+    dead = int(Path("/proc/sys/kernel/pid_max").read_text()) + 1
+    live = os.getppid()
+    names = [
+        f".state.yaml.{dead}.tmp",
+        f".state.yaml.bak.{dead}.tmp",
+        f".state.yaml.{live}.tmp",
+        f".other.yaml.{dead}.tmp",
+    ]
+    for name in names:
+        (tmp_path / name).write_text("partial")
+    StateStore(tmp_path / "state.yaml").save({"emlog1": _state()})
+    assert sorted(f.name for f in tmp_path.iterdir()) == sorted(
+        [f".state.yaml.{live}.tmp", f".other.yaml.{dead}.tmp", "state.yaml"]
+    )
+
+
+def test_backup_is_copied_where_hard_links_fail(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On a file system without hard links the backup is a synced copy."""
+
+    def no_link(src: object, dst: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    monkeypatch.setattr(os, "link", no_link)
+    store.save({"emlog1": _state(0.2)})
+    assert parse_state(store.backup.read_text())["emlog1"].params["m"] == 0.1
+    assert store.load()[0]["emlog1"].params["m"] == 0.2
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
 
 
 def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
@@ -170,6 +228,8 @@ def _kill_loop(tmp_path: Path, rounds: int) -> None:
         assert n >= 1
         last = n
     assert last > 0
+    StateStore(path).save({"emlog1": _state()})
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
 
 
 def test_kill_9_while_saving_never_loses_the_file(tmp_path: Path) -> None:
