@@ -12,6 +12,7 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from itertools import pairwise
 
@@ -32,87 +33,121 @@ class LineFramer:
             the next terminator and reported once as :class:`TooLongError`.
     """
 
-    __slots__ = ("_buf", "_cap", "_discarding", "_max_length", "_start_bytes", "_starts")
+    __slots__ = (
+        "_buf",
+        "_cap",
+        "_discarding",
+        "_max_length",
+        "_one_line",
+        "_start_bytes",
+        "_start_re",
+        "_starts",
+    )
 
     def __init__(self, starts: bytes, max_length: int, cap: int = 1024) -> None:
         if not starts:
             raise ValueError("starts must name at least one start character")
         self._starts = frozenset(starts)
         self._start_bytes = tuple(bytes([c]) for c in sorted(self._starts))
+        chars = b"".join(re.escape(b) for b in self._start_bytes)
+        self._start_re = re.compile(b"[" + chars + b"]")
+        # a start character, no other one, no CR/LF, trailing blanks cut, then CR LF
+        self._one_line = re.compile(
+            b"([" + chars + b"](?:[^" + chars + b"\r\n]*[^" + chars + b"\r\n \t])?)[ \t]*\r\n"
+        ).fullmatch
         self._max_length = max_length
         self._cap = max(cap, max_length)
         self._buf = bytearray()
         self._discarding = False
 
-    def feed(self, data: bytes) -> Iterator[bytes | FrameError]:
-        """Add bytes; yield every complete frame (or framing error) they finish."""
+    def feed(self, data: bytes) -> list[bytes | FrameError]:
+        """Add bytes; return every complete frame (or framing error) they finish."""
+        buf = self._buf
+        if not buf and not self._discarding:
+            # the hot path: one whole line per read, CR LF, a single start character
+            m = self._one_line(data)
+            if m is not None:
+                frame = m.group(1)
+                if len(frame) + 2 <= self._max_length:
+                    return [frame]
+        out: list[bytes | FrameError] = []
         if not data:
-            return
+            return out
         if self._discarding:
             cut = _first_terminator(data)
             if cut < 0:
-                return
+                return out
             self._discarding = False
             data = data[cut + 1 :]
             if not data:
-                return
-        buf = self._buf
+                return out
         if b"\n" not in data and b"\r" not in data:
             if len(buf) + len(data) > self._cap:
-                yield TooLongError(
-                    f"line longer than {self._cap} bytes without a terminator",
-                    bytes(buf[:64]) + data[:64],
+                out.append(
+                    TooLongError(
+                        f"line longer than {self._cap} bytes without a terminator",
+                        bytes(buf[:64]) + data[:64],
+                    )
                 )
                 buf.clear()
                 self._discarding = True
-                return
+                return out
             buf += data
-            return
+            return out
         whole = bytes(buf) + data if buf else data
         buf.clear()
         lines = whole.splitlines()  # bytes: splits on CR, LF and CR LF only
         rest = b"" if whole[-1] in (10, 13) else lines.pop()
         for line in lines:
             if line:
-                yield from self._line(line)
+                self._line(line, out)
         if rest:
             if len(rest) > self._cap:
-                yield TooLongError(
-                    f"line longer than {self._cap} bytes without a terminator", rest[:128]
+                out.append(
+                    TooLongError(
+                        f"line longer than {self._cap} bytes without a terminator", rest[:128]
+                    )
                 )
                 self._discarding = True
             else:
                 buf += rest
+        return out
 
-    def flush(self) -> Iterator[FrameError]:
+    def flush(self) -> list[FrameError]:
         """Report an unterminated line left in the buffer, and clear it."""
+        out: list[FrameError] = []
         if self._buf:
             raw = bytes(self._buf)
             self._buf.clear()
-            yield FrameError("line not terminated at end of stream", raw)
+            out.append(FrameError("line not terminated at end of stream", raw))
         self._discarding = False
+        return out
 
-    def _line(self, line: bytes) -> Iterator[bytes | FrameError]:
-        if line[0] in self._starts and sum(line.count(b, 1) for b in self._start_bytes) == 0:
+    def _line(self, line: bytes, out: list[bytes | FrameError]) -> None:
+        if line[0] in self._starts and self._start_re.search(line, 1) is None:
             frame = line.rstrip(b" \t")  # the common case: one frame, nothing spliced
             if len(frame) + 2 > self._max_length:
-                yield TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
-                return
-            yield frame
+                out.append(
+                    TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
+                )
+            else:
+                out.append(frame)
             return
         cuts = sorted(i for b in self._start_bytes for i in _positions(line, b))
         if not cuts:
-            yield FrameError("line without a start character", line)
+            out.append(FrameError("line without a start character", line))
             return
         if cuts[0] > 0:
-            yield FrameError("garbage before the start character", line[: cuts[0]])
+            out.append(FrameError("garbage before the start character", line[: cuts[0]]))
         for a, b in pairwise(cuts):
-            yield FrameError("truncated frame (a new frame starts inside it)", line[a:b])
+            out.append(FrameError("truncated frame (a new frame starts inside it)", line[a:b]))
         frame = line[cuts[-1] :].rstrip(b" \t")
         if len(frame) + 2 > self._max_length:
-            yield TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
+            out.append(
+                TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
+            )
             return
-        yield frame
+        out.append(frame)
 
 
 def _first_terminator(data: bytes) -> int:

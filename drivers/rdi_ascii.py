@@ -26,6 +26,7 @@ Must not import: serial, os, time, threading (pure module).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from datetime import datetime
@@ -151,13 +152,17 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
     if status not in ("A", "V"):
         raise FieldError(f":{kind} status {status!r}, expected A or V", raw)
     values = [_int(f, f":{kind} field {i + 1}", raw) for i, f in enumerate(fields[:n])]
+    return _velocity_of(values, status == "V", kind, raw)
+
+
+def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
     for v in values:
         if not INVALID <= v <= 32767:
             raise OutOfRangeError(f":{kind} velocity {v} mm/s outside int16", raw)
-    if status == "V" or INVALID in values[:3]:
+    if void or INVALID in values[:3]:
         return None
     err = None
-    if n == 4:
+    if len(values) == 4:
         err = None if values[3] == INVALID else values[3] / 1000.0
     return Velocity(values[0] / 1000.0, values[1] / 1000.0, values[2] / 1000.0, err)
 
@@ -166,9 +171,131 @@ def _dmg(fields: list[str], kind: str, raw: bytes) -> DistanceMadeGood:
     if len(fields) != 5:
         raise FieldError(f":{kind} has {len(fields)} fields, expected 5", raw)
     e, n, u, r, dt = (_num(f, f":{kind} field {i + 1}", raw) for i, f in enumerate(fields))
+    return _dmg_of(e, n, u, r, dt, kind, raw)
+
+
+def _dmg_of(
+    e: float, n: float, u: float, r: float, dt: float, kind: str, raw: bytes
+) -> DistanceMadeGood:
     if r < 0 or dt < 0:
         raise OutOfRangeError(f":{kind} range {r} or time {dt} negative", raw)
     return DistanceMadeGood(e, n, u, r, dt)
+
+
+def _attitude(pitch: float, roll: float, heading: float, raw: bytes) -> tuple[float, float, float]:
+    if not (-90 <= pitch <= 90 and -180 <= roll <= 180 and 0 <= heading <= 360):
+        raise OutOfRangeError(f":SA attitude {pitch}, {roll}, {heading} out of range", raw)
+    return pitch, roll, heading
+
+
+def _environment(
+    stamp: str, sal: float, temp: float, depth: float, c: float, bit: int, raw: bytes
+) -> tuple[str, float, float, float, float, int]:
+    if not (0 <= sal <= 50 and -5 <= temp <= 60 and 1300 <= c <= 1700):
+        raise OutOfRangeError(f":TS environment {sal}, {temp}, {c} out of range", raw)
+    return stamp, sal, temp, depth, c, bit
+
+
+# The fast path: one compiled pattern per line type accepts the plain layouts every
+# DVL sends (decimal numbers, optional spaces and signs); a line it does not match
+# goes through the field-by-field path, which accepts the same and more, and says
+# exactly what is wrong. Both end in the same range checks (the *_of helpers).
+_I = rb" *([+-]?[0-9]+) *"
+_F = rb" *([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)) *"
+_FAST_VEL4 = re.compile(rb":(WI|BI)," + rb",".join([_I] * 4) + rb", *([AV]) *")
+_FAST_VEL3 = re.compile(rb":(WS|WE|BS|BE)," + rb",".join([_I] * 3) + rb", *([AV]) *")
+_FAST_DMG = re.compile(rb":(WD|BD)," + rb",".join([_F] * 5))
+_FAST_SA = re.compile(rb":SA," + rb",".join([_F] * 3))
+_FAST_TS = re.compile(
+    rb":TS, *([0-9]{14}) *," + rb",".join([_F] * 4) + rb"," + _I + rb"(?:, *([OWX]) *)?"
+)
+
+
+def _fast_line(frame: bytes) -> tuple[str, object] | None:
+    """Parse a plain line with one pattern; None to fall back to :meth:`parse_line`'s path."""
+    kind = frame[1:3]
+    if kind[:1] in (b"W", b"B"):
+        if kind[1:] == b"I":
+            m = _FAST_VEL4.fullmatch(frame)
+            if m is None:
+                return None
+            v, x, y, z, e, st = m.groups()
+            k = v.decode()
+            return k, _velocity_of([int(x), int(y), int(z), int(e)], st == b"V", k, frame)
+        if kind[1:] == b"D":
+            m = _FAST_DMG.fullmatch(frame)
+            if m is None:
+                return None
+            v, e1, n1, u1, r1, dt1 = m.groups()
+            k = v.decode()
+            return k, _dmg_of(float(e1), float(n1), float(u1), float(r1), float(dt1), k, frame)
+        m = _FAST_VEL3.fullmatch(frame)
+        if m is None:
+            return None
+        v, x, y, z, st = m.groups()
+        k = v.decode()
+        return k, _velocity_of([int(x), int(y), int(z)], st == b"V", k, frame)
+    if kind == b"SA":
+        m = _FAST_SA.fullmatch(frame)
+        if m is None:
+            return None
+        p, r, h = m.groups()
+        return "SA", _attitude(float(p), float(r), float(h), frame)
+    if kind == b"TS":
+        m = _FAST_TS.fullmatch(frame)
+        if m is None:
+            return None
+        stamp, sal, temp, depth, c, bit, _leak = m.groups()
+        return "TS", _environment(
+            stamp.decode(), float(sal), float(temp), float(depth), float(c), int(bit), frame
+        )
+    return None
+
+
+def _parse_fields(frame: bytes) -> tuple[str, object]:
+    """The field-by-field path of :meth:`PdAsciiDecoder.parse_line` (every line, any layout)."""
+    try:
+        text = frame.decode("ascii")
+    except UnicodeDecodeError:
+        raise FieldError("non-ASCII bytes in the line", frame) from None
+    if not text.isprintable():
+        raise FieldError("control characters in the line", frame)
+    kind, sep, rest = text[1:].partition(",")
+    kind = kind.strip()
+    if not sep:
+        raise FieldError(f"line {text[:8]!r} has no fields", frame)
+    fields = rest.split(",")
+    if kind == "SA":
+        if len(fields) != 3:
+            raise FieldError(f":SA has {len(fields)} fields, expected 3", frame)
+        pitch, roll, heading = (_num(f, ":SA", frame) for f in fields)
+        return kind, _attitude(pitch, roll, heading, frame)
+    if kind == "TS":
+        if len(fields) not in (6, 7):
+            raise FieldError(f":TS has {len(fields)} fields, expected 6 or 7", frame)
+        stamp = fields[0].strip()
+        if len(stamp) != 14 or not stamp.isdigit():
+            raise FieldError(f":TS time {stamp!r} is not YYMMDDHHmmsshh", frame)
+        sal, temp, depth, c = (_num(f, ":TS", frame) for f in fields[1:5])
+        bit = _int(fields[5], ":TS BIT", frame)
+        env = _environment(stamp, sal, temp, depth, c, bit, frame)
+        if len(fields) == 7 and fields[6].strip() not in ("O", "W", "X"):
+            raise FieldError(f":TS leak flag {fields[6]!r}, expected O, W or X", frame)
+        return kind, env
+    if kind == "RA":
+        if len(fields) != 5:
+            raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
+        p, *r = (_num(f, ":RA", frame) for f in fields)
+        return kind, (p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0))
+    if kind in ("WI", "BI"):
+        return kind, _velocity(fields, 4, kind, frame)
+    if kind in ("WS", "WE", "BS", "BE"):
+        return kind, _velocity(fields, 3, kind, frame)
+    if kind in ("WD", "BD"):
+        return kind, _dmg(fields, kind, frame)
+    if kind == "HM":
+        return kind, PdHealth(tuple(f.strip() for f in fields))
+    raise UnknownSentenceError(f"line type :{kind[:4]} not decoded", frame)
 
 
 @dataclass(slots=True)
@@ -209,85 +336,76 @@ class PdAsciiDecoder(FramedDecoder):
 
     def feed(self, data: bytes) -> Iterator[object]:
         """Decode a chunk; yields complete ensembles (and rejects per the error policy)."""
-        self._pending.extend(self._split(data))
-        while self._pending:
-            item = self._pending.popleft()
+        pending = self._pending
+        pending.extend(self._framer.feed(data))
+        while pending:
+            item = pending.popleft()
             if isinstance(item, FrameError):
                 self._damage(f"a line was rejected ({item.reason})")
                 yield from self._reject(item)
                 continue
             try:
-                kind, value = self.parse_line(item)
+                kind, value = _fast_line(item) or _parse_fields(item)
             except FrameError as exc:
                 if not exc.raw:
                     exc.raw = item[:256]
                 self._damage(f"line rejected ({exc.reason})")
                 yield from self._reject(exc)
                 continue
-            yield from self._assemble(kind, value, item)
+            done = self._assemble(kind, value, item)
+            if done is None:
+                continue
+            if isinstance(done, FrameError):
+                yield from self._reject(done)
+                continue
+            self.counters.records += 1
+            yield done
 
     def _damage(self, why: str) -> None:
         if self._block is not None and not self._block.damaged:
             self._block.damaged = why
 
-    def _assemble(self, kind: str, value: object, raw: bytes) -> Iterator[object]:
+    def _assemble(self, kind: str, value: object, raw: bytes) -> object:
+        """Add a parsed line to the block: a finished record, a reject, or None."""
         if kind == "HM":
-            self.counters.records += 1
-            yield value
-            return
+            return value
         rank = _RANK[kind]
         block = self._block
         if kind == "SA":
-            if block is not None:
-                self._block = None
-                yield from self._reject(
-                    FrameError("ensemble discarded: no :BD before the next :SA")
-                )
             self._block = _Block({"SA": value}, rank)
-            return
+            if block is not None:
+                return FrameError("ensemble discarded: no :BD before the next :SA")
+            return None
         if block is None:
-            yield from self._reject(
-                FrameError(f":{kind} outside an ensemble (no :SA before it)", raw)
-            )
-            return
+            return FrameError(f":{kind} outside an ensemble (no :SA before it)", raw)
         if rank <= block.last_rank:
             self._block = None
-            yield from self._reject(
-                FrameError(f"ensemble discarded: :{kind} out of order or repeated", raw)
-            )
-            return
-        block.lines[kind] = value
+            return FrameError(f"ensemble discarded: :{kind} out of order or repeated", raw)
+        lines = block.lines
+        lines[kind] = value
         block.last_rank = rank
         if kind != "BD":
-            return
+            return None
         self._block = None
         if block.damaged:
-            yield from self._reject(FrameError(f"ensemble discarded: {block.damaged}", raw))
-            return
-        missing = [k for k in ("SA", "TS", "BS") if k not in block.lines]
-        if missing:
-            yield from self._reject(
-                FrameError(f"ensemble discarded: no {', '.join(':' + m for m in missing)}", raw)
-            )
-            return
-        self.counters.records += 1
-        yield self._ensemble(block.lines)
+            return FrameError(f"ensemble discarded: {block.damaged}", raw)
+        if "SA" not in lines or "TS" not in lines or "BS" not in lines:
+            missing = [k for k in ("SA", "TS", "BS") if k not in lines]
+            return FrameError(f"ensemble discarded: no {', '.join(':' + m for m in missing)}", raw)
+        return self._ensemble(lines)
 
     @staticmethod
     def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
         sa = lines["SA"]
         ts = lines["TS"]
         assert isinstance(sa, tuple) and isinstance(ts, tuple)
-        ra = lines.get("RA")
-
-        def vel(k: str) -> Velocity | None:
-            v = lines.get(k)
-            return v if isinstance(v, Velocity) else None
-
-        def dmg(k: str) -> DistanceMadeGood | None:
-            v = lines.get(k)
-            return v if isinstance(v, DistanceMadeGood) else None
-
+        get = lines.get
+        ra = get("RA")
+        vel: list[Velocity | None] = []
+        for k in ("WI", "WS", "WE", "BI", "BS", "BE"):
+            v = get(k)
+            vel.append(v if isinstance(v, Velocity) else None)
+        wd, bd = get("WD"), get("BD")
         return Pd6Ensemble(
             pitch_deg=sa[0],
             roll_deg=sa[1],
@@ -300,14 +418,14 @@ class PdAsciiDecoder(FramedDecoder):
             bit=ts[5],
             pressure_kpa=ra[0] if isinstance(ra, tuple) else None,
             beam_ranges_m=ra[1] if isinstance(ra, tuple) else None,
-            water_instrument=vel("WI"),
-            water_ship=vel("WS"),
-            water_earth=vel("WE"),
-            water_dmg=dmg("WD"),
-            bottom_instrument=vel("BI"),
-            bottom_ship=vel("BS"),
-            bottom_earth=vel("BE"),
-            bottom_dmg=dmg("BD"),
+            water_instrument=vel[0],
+            water_ship=vel[1],
+            water_earth=vel[2],
+            water_dmg=wd if isinstance(wd, DistanceMadeGood) else None,
+            bottom_instrument=vel[3],
+            bottom_ship=vel[4],
+            bottom_earth=vel[5],
+            bottom_dmg=bd if isinstance(bd, DistanceMadeGood) else None,
         )
 
     def parse_frame(self, frame: bytes) -> object:
@@ -320,53 +438,7 @@ class PdAsciiDecoder(FramedDecoder):
         Raises:
             FrameError: a subclass naming the reject reason.
         """
-        try:
-            text = frame.decode("ascii")
-        except UnicodeDecodeError:
-            raise FieldError("non-ASCII bytes in the line", frame) from None
-        if not text.isprintable():
-            raise FieldError("control characters in the line", frame)
-        kind, sep, rest = text[1:].partition(",")
-        kind = kind.strip()
-        if not sep:
-            raise FieldError(f"line {text[:8]!r} has no fields", frame)
-        fields = rest.split(",")
-        if kind == "SA":
-            if len(fields) != 3:
-                raise FieldError(f":SA has {len(fields)} fields, expected 3", frame)
-            pitch, roll, heading = (_num(f, ":SA", frame) for f in fields)
-            if not (-90 <= pitch <= 90 and -180 <= roll <= 180 and 0 <= heading <= 360):
-                raise OutOfRangeError(
-                    f":SA attitude {pitch}, {roll}, {heading} out of range", frame
-                )
-            return kind, (pitch, roll, heading)
-        if kind == "TS":
-            if len(fields) not in (6, 7):
-                raise FieldError(f":TS has {len(fields)} fields, expected 6 or 7", frame)
-            stamp = fields[0].strip()
-            if len(stamp) != 14 or not stamp.isdigit():
-                raise FieldError(f":TS time {stamp!r} is not YYMMDDHHmmsshh", frame)
-            sal, temp, depth, c = (_num(f, ":TS", frame) for f in fields[1:5])
-            bit = _int(fields[5], ":TS BIT", frame)
-            if not (0 <= sal <= 50 and -5 <= temp <= 60 and 1300 <= c <= 1700):
-                raise OutOfRangeError(f":TS environment {sal}, {temp}, {c} out of range", frame)
-            if len(fields) == 7 and fields[6].strip() not in ("O", "W", "X"):
-                raise FieldError(f":TS leak flag {fields[6]!r}, expected O, W or X", frame)
-            return kind, (stamp, sal, temp, depth, c, bit)
-        if kind == "RA":
-            if len(fields) != 5:
-                raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
-            p, *r = (_num(f, ":RA", frame) for f in fields)
-            return kind, (p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0))
-        if kind in ("WI", "BI"):
-            return kind, _velocity(fields, 4, kind, frame)
-        if kind in ("WS", "WE", "BS", "BE"):
-            return kind, _velocity(fields, 3, kind, frame)
-        if kind in ("WD", "BD"):
-            return kind, _dmg(fields, kind, frame)
-        if kind == "HM":
-            return kind, PdHealth(tuple(f.strip() for f in fields))
-        raise UnknownSentenceError(f"line type :{kind[:4]} not decoded", frame)
+        return _fast_line(frame) or _parse_fields(frame)
 
     def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
         """:BS → sog (source ``PD6:BS``), :WS → stw (``PD6:WS``); vessel-motion sign."""

@@ -99,3 +99,17 @@ def test_fuzz_framer_chunking(data: bytes, cuts: list[int]) -> None:
     assert [o if isinstance(o, bytes) else o.reason for o in out] == [
         o if isinstance(o, bytes) else o.reason for o in whole
     ]
+
+
+@settings(max_examples=2000, deadline=None)
+@given(st.lists(st.sampled_from([b"$", b"!", b" ", b"\t", b"A", b",", b"*", b"\r", b"\x00"]),
+                max_size=90).map(b"".join))  # fmt: skip
+def test_one_line_fast_path_equals_byte_by_byte(line: bytes) -> None:
+    """A whole line ending CR LF (the hot path) frames as it does fed a byte at a time."""
+    data = line + b"\r\n"
+    fast = LineFramer(b"$!", 82).feed(data)
+    slow_framer = LineFramer(b"$!", 82)
+    slow = [x for i in range(len(data)) for x in slow_framer.feed(data[i : i + 1])]
+    assert [(type(x), x if isinstance(x, bytes) else (str(x), x.raw)) for x in fast] == [
+        (type(x), x if isinstance(x, bytes) else (str(x), x.raw)) for x in slow
+    ]

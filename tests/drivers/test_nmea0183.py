@@ -267,3 +267,57 @@ def test_spliced_and_truncated_frames(parts: list[str]) -> None:
     for r in out:
         assert isinstance(r, Rejected) or r in good
     assert dec.counters.records + dec.counters.rejected == len(out)
+
+
+# VHW/VBW fast path: one pattern, then the same range checks; where it gives a record
+# the field-by-field parsers must give the same one (elsewhere it defers to them).
+_NMEA_TOKENS = [
+    "", "0", "-0", "1", "1.5", "5.43", "10.06", "+2.0", "-3.25", ".5", "5.", "1e1", "1_0",
+    "nan", "inf", " 1", "80.0", "360.0", "360.1", "123.4", "A", "V", "T", "M", "N", "K", "X",
+]  # fmt: skip
+
+
+_NMEA_NUMERIC = ["", "0", "-0", "1", "1.5", "5.43", "10.06", "+2.0", "-3.25", ".5", "5.",
+                 "80.0", "360.0", "360.1", "123.4"]  # fmt: skip
+_NMEA_LAYOUT = {"VHW": ["n", "T", "n", "M", "n", "N", "n", "K"], "VBW": list("nnSnnS")}
+
+
+@st.composite
+def _nmea_sentences(draw: st.DrawFn) -> tuple[str, list[str]]:
+    """Sentences near the plain layouts (most take the fast path), or any token soup."""
+    address = draw(st.sampled_from(["VWVHW", "IIVBW", "VMVBW", "vwVHW", "V!VHW"]))
+    if draw(st.integers(0, 9)) == 0:
+        return address, draw(st.lists(st.sampled_from(_NMEA_TOKENS), min_size=5, max_size=9))
+    plain = {"n": _NMEA_NUMERIC, "S": ["A", "V", ""], "T": ["T", ""], "M": ["M", ""],
+             "N": ["N", ""], "K": ["K", ""]}  # fmt: skip
+    fields = [
+        draw(st.sampled_from(plain[c] if draw(st.integers(0, 19)) else _NMEA_TOKENS))
+        for c in _NMEA_LAYOUT[address[2:]]
+    ]
+    return address, fields
+
+
+@settings(max_examples=3000, deadline=None)
+@given(_nmea_sentences())
+def test_fast_sentence_agrees_with_field_parsers(sentence: tuple[str, list[str]]) -> None:
+    from drivers.nmea0183 import _fast_sentence, parse_vbw, parse_vhw
+
+    address, fields = sentence
+
+    body = (address + "," + ",".join(fields)).encode("ascii")
+    fast = _fast_sentence(body)
+    if fast is None:
+        return
+    slow = (parse_vhw if address.endswith("VHW") else parse_vbw)(address[:2], fields, body)
+    assert slow == fast
+
+
+@pytest.mark.parametrize(
+    "body",
+    [b"VWVHW,123.4,T,,M,5.43,N,10.06,K", b"VWVHW,,,,,5.43,N,,", b"VMVBW,5.43,0.12,A,,,V",
+     b"IIVBW,-1.00,.5,V,2.0,0.0,A"],
+)  # fmt: skip
+def test_fast_sentence_takes_the_plain_layouts(body: bytes) -> None:
+    from drivers.nmea0183 import _fast_sentence
+
+    assert _fast_sentence(body) is not None

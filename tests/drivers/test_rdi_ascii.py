@@ -194,3 +194,75 @@ def test_fuzz_random_bytes(data: bytes) -> None:
 @given(pos=st.integers(0, 400), value=st.integers(0, 255))
 def test_fuzz_corrupted_byte(pos: int, value: int) -> None:
     test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
+
+
+# The one-pattern fast path must agree with the field-by-field path on every line it
+# accepts (same value) or rejects with a range error (same error); other lines fall
+# through to the field-by-field path, so they need no check.
+_TOKENS = [
+    "", "+", "-", "0", "-0", "1", "+00123", "-01234", "-32768", "32767", "32768", "-32769",
+    " 12 ", "  -7", "1.5", "+1.50", ".5", "5.", "-.5", "1e3", "1_0", "nan", "inf", "0x1",
+    "\t1", "99999999", "090.00", "490.00", "1500.0", "1200.0", "35.0", "-5.1", "A", "V",
+    " A ", "Q", "O", "W", "X", "25061208000123", "2506120800012", "000",
+]  # fmt: skip
+
+
+_NUMERIC = [t for t in _TOKENS if t.strip().lstrip("+-").replace(".", "", 1).isdigit()]
+_LAYOUT = {"SA": "fff", "TS": "sffffiL", "RA": "fffff", "WD": "fffff", "BD": "fffff"}
+_LAYOUT |= {k: "iiiiS" for k in ("WI", "BI")} | {k: "iiiS" for k in ("WS", "WE", "BS", "BE")}
+
+
+@st.composite
+def _pd6_lines(draw: st.DrawFn) -> tuple[str, list[str]]:
+    """Lines near the layouts DVLs send (most take the fast path), or any token soup."""
+    kind = draw(st.sampled_from([*_LAYOUT, "HM", "XX"]))
+    if kind not in _LAYOUT or draw(st.integers(0, 9)) == 0:
+        return kind, draw(st.lists(st.sampled_from(_TOKENS), max_size=8))
+    layout = _LAYOUT[kind]
+    if kind == "TS" and draw(st.booleans()):
+        layout = layout[:-1]
+    plain = {"f": _NUMERIC, "i": _NUMERIC, "s": ["25061208000123"], "S": ["A", "V"],
+             "L": ["O", "W", "X"]}  # fmt: skip
+    fields = [
+        draw(st.sampled_from(plain[c] if draw(st.integers(0, 19)) else _TOKENS)) for c in layout
+    ]
+    return kind, fields
+
+
+@settings(max_examples=3000, deadline=None)
+@given(_pd6_lines())
+def test_fast_line_agrees_with_field_path(line_fields: tuple[str, list[str]]) -> None:
+    from drivers.errors import FrameError
+    from drivers.rdi_ascii import _fast_line, _parse_fields
+
+    kind, fields = line_fields
+    line = f":{kind}," + ",".join(fields)
+    raw = line.encode("ascii")
+    try:
+        fast = _fast_line(raw)
+    except FrameError as exc:
+        with pytest.raises(type(exc)) as slow:
+            _parse_fields(raw)
+        assert str(slow.value) == str(exc)
+        return
+    if fast is not None:
+        assert _parse_fields(raw) == fast
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        b":BS,+00100,-00200,+00003,A",
+        b":BI,  +100,  -200,   +3,   +4,V",
+        b":WE,-32768,+00000,+00000,A",
+        b":SA, -2.31, +1.92, 75.20",
+        b":TS,04081111563644,35.0,+21.0,0000.0,1524.0,  0,O",
+        b":BD,+0000000.00,+0000000.00,+0000000.00,0025.30,000.00",
+    ],
+)
+def test_fast_line_takes_the_plain_layouts(line: bytes) -> None:
+    from drivers.rdi_ascii import _fast_line, _parse_fields
+
+    fast = _fast_line(line)
+    assert fast is not None  # the layouts DVLs send do take the fast path
+    assert fast == _parse_fields(line)
