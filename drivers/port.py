@@ -128,6 +128,11 @@ class SerialSource:
     def _event(self, kind: EventKind, detail: str = "") -> None:
         self._events.append(PortEvent(self.clock(), self.name, kind, detail))
 
+    @property
+    def has_events(self) -> bool:
+        """Events are queued (a cheap check before :meth:`events`)."""
+        return bool(self._events)
+
     def events(self) -> list[PortEvent]:
         """Drain the queued events."""
         out, self._events = self._events, []

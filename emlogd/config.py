@@ -45,6 +45,10 @@ class PortConfig:
     max_length: int = 82
     rate_hz: float | None = None
     stale_timeout_s: float = 5.0
+    rest_s: float = 0.02
+    """Reference and aux ports: after a read, leave the port alone this long (fewer
+    wake-ups; data arriving meanwhile is stamped up to this late). 0 disables; UUT
+    ports never rest."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -283,6 +287,7 @@ PORT_SPEC: dict[str, tuple[str, Check]] = {
     "max_length": ("max_length", _num(8, 1024, integer=True)),
     "rate_hz": ("rate_hz", _num(0.0, 1000.0, lo_open=True, optional=True)),
     "stale_timeout_s": ("stale_timeout_s", _num(0.0, 3600.0, lo_open=True)),
+    "rest_s": ("rest_s", _num(0.0, 1.0)),
 }
 
 UUT_SPEC: dict[str, tuple[str, Check]] = {

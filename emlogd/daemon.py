@@ -67,6 +67,11 @@ class Daemon:
         self.sel = selectors.DefaultSelector()
         self.sources: dict[str, SerialSource] = {}
         self.registered: dict[str, int] = {}
+        self.unselectable: list[str] = []
+        self.resting: dict[str, float] = {}
+        self.rest_due = 0.0
+        self.scratch = Output()
+        self.rest_s: dict[str, float] = {}
         self.sinks: list[Sink] = []
         self.control: ControlServer | None = None
         self.store: StateStore | None = None
@@ -139,6 +144,7 @@ class Daemon:
             src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
             src.open()
             self.sources[p.name] = src
+            self.rest_s[p.name] = p.rest_s
             self._log_port_events(src.events())
         self._sync_registrations()
 
@@ -176,6 +182,7 @@ class Daemon:
                     self.sel.unregister(fd)
             src.close()
         self.sources.clear()
+        self.resting.clear()
         if self.control is not None:
             self.control.close()
             self.control = None
@@ -194,12 +201,17 @@ class Daemon:
         next_watchdog = self.clock() + wd if wd else None
         next_housekeeping = 0.0
         while not self.stop:
-            for key, _ in self.sel.select(timeout=SELECT_TIMEOUT_S):
+            timeout = SELECT_TIMEOUT_S
+            if self.resting:
+                timeout = min(timeout, max(self.rest_due - time.monotonic(), 0.0))
+            for key, _ in self.sel.select(timeout=timeout):
                 key.data()
                 if self._stopping():
                     break
-            for name, src in self.sources.items():
-                if src.is_open and name not in self.registered:
+            if self.resting and time.monotonic() >= self.rest_due:
+                self._wake_rested()
+            if self.unselectable:
+                for name in self.unselectable:
                     self._read(name)  # a source without a file descriptor (loop://)
             if self.reload:
                 self.reload = False
@@ -222,10 +234,12 @@ class Daemon:
                 next_watchdog = now + (wd or 1.0)
 
     def _stopping(self) -> bool:
-        return self.stop
+        return self.stop  # a call: mypy would take the loop's `not self.stop` as fixed
 
     def _sync_registrations(self) -> None:
         for name, src in self.sources.items():
+            if name in self.resting:
+                continue
             fd = src.fileno()
             if self.registered.get(name) == fd:
                 continue
@@ -236,25 +250,69 @@ class Daemon:
             if fd is not None:
                 self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._read(n))
                 self.registered[name] = fd
+        self.unselectable = [
+            name
+            for name, src in self.sources.items()
+            if src.is_open and name not in self.registered and name not in self.resting
+        ]
 
-    def _read(self, name: str) -> None:
+    def _read(self, name: str, *, rest: bool = True) -> None:
+        """Read one port and feed the pipeline; a reference or aux port then rests.
+
+        After a read, a port that is not a UUT rests for its ``rest_s`` (0.02 s by
+        default): its descriptor leaves the selector, then it is read once directly
+        and selected again. The DVL sends six lines per ensemble, each a wake-up
+        costing more than its decoding; they now come in two reads. The price is a
+        receive time up to ``rest_s`` late for the lines that arrive while the port
+        rests. UUT ports never rest: their latency is the output's.
+        """
         src = self.sources[name]
         chunk = src.read()
-        self._log_port_events(src.events())
+        if src.has_events:
+            self._log_port_events(src.events())
         if chunk is None:
             self._sync_registrations()
             return
         assert self.pipeline is not None
-        self._handle(self.pipeline.feed(chunk.t, name, chunk.data))
+        self._handle(self.pipeline.feed(chunk.t, name, chunk.data, self.scratch))
+        if rest and name not in self.pipeline.uuts:
+            rest_s = self.rest_s.get(name, 0.0)
+            if rest_s > 0.0:
+                fd = self.registered.pop(name, None)
+                if fd is not None:
+                    with contextlib.suppress(KeyError, ValueError):
+                        self.sel.unregister(fd)
+                    due = time.monotonic() + rest_s
+                    self.resting[name] = due
+                    self.rest_due = min(self.resting.values())
+
+    def _wake_rested(self) -> None:
+        """Read the ports whose rest is over once, and give them back to the selector."""
+        now = time.monotonic()
+        due = [name for name, t in self.resting.items() if now >= t]
+        if not due:
+            return
+        for name in due:
+            del self.resting[name]
+            if name in self.sources:
+                self._read(name, rest=False)
+        self.rest_due = min(self.resting.values(), default=0.0)
+        self._sync_registrations()
 
     def _handle(self, out: Output) -> None:
+        """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""
         if out.emits:
             data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in out.emits)
+            out.emits.clear()
             for sink in self.sinks:
                 sink.write(data)
-        for ev in out.events:
-            self.log.info(ev.kind, port=ev.port, **dict(ev.detail))
+        if out.events:
+            events = list(out.events)
+            out.events.clear()
+            for ev in events:
+                self.log.info(ev.kind, port=ev.port, **dict(ev.detail))
         if out.persist:
+            out.persist.clear()
             self._persist()
 
     def _persist(self, *, final: bool = False) -> None:
@@ -358,6 +416,8 @@ class Daemon:
                     self.sel.unregister(fd)
             src.close()
         self.sources.clear()
+        self.resting.clear()
+        self.rest_s.clear()
         self._close_outputs()
         if self.control is not None:
             self.control.close()
@@ -372,6 +432,7 @@ class Daemon:
             src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
             src.open()
             self.sources[p.name] = src
+            self.rest_s[p.name] = p.rest_s
         self._sync_registrations()
         self.log.info("reloaded", config=str(self.config_path))
         self._notify_status()

@@ -40,7 +40,7 @@ CONFIG = """\
 ports:
   - {{name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut, baud: 4800}}
   - {{name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut, baud: 38400}}
-  - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200}}
+  - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, rest_s: 0}}
 calibration:
   - {{uut: emlog1, reference: dvl, model: EM3, lag: {lag1}, excitation_half_life_samples: 120,
      max_param_std: {{m: 0.05, b: 0.08}}}}

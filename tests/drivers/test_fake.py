@@ -105,7 +105,8 @@ def test_serial_source_reads_a_fake_device_and_survives_its_restart(
     src = SerialSource("emlog1", str(link), backoff_s=(0.01,))
     for round_ in range(2):
         dev = FakeDevice(capture, "emlog1", link, speed=None).start()
-        deadline = time.monotonic() + 30  # generous: only catches a hang (it once hit 10 s under heavy load)
+        # generous: only catches a hang (it once hit 10 s under heavy load)
+        deadline = time.monotonic() + 30
         while not src.is_open and time.monotonic() < deadline:
             if round_ == 0:
                 src.open()

@@ -69,6 +69,8 @@ INVALID: list[tuple[str, str, str]] = [
     ("max_length", BASE.replace("role: uut}", "role: uut, max_length: 5000}"), "ports[0].max_length"),
     ("stale timeout", BASE.replace("role: uut}", "role: uut, stale_timeout_s: 0}"), "ports[0].stale_timeout_s"),
     ("rate", BASE.replace("role: uut}", "role: uut, rate_hz: -1}"), "ports[0].rate_hz"),
+    ("rest negative", BASE.replace("role: reference", "role: reference, rest_s: -0.01"), "ports[1].rest_s"),
+    ("rest too long", BASE.replace("role: reference", "role: reference, rest_s: 2"), "ports[1].rest_s"),
     ("bad port name", BASE.replace("name: emlog1", "name: 'em log'").replace("uut: emlog1", "uut: x"), "ports[0].name"),
     ("duplicate port", BASE.replace("name: dvl", "name: emlog1").replace("reference: dvl", "reference: emlog1"), "duplicate port name"),
     ("duplicate key", "ports:\n  - name: a\n    name: b\n", "ports[0].name: duplicate key"),

@@ -28,7 +28,8 @@ CONFIG = f"""\
 ports:
   - {{name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut, baud: 4800}}
   - {{name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut, baud: 38400}}
-  - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, stale_timeout_s: 1}}
+  - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, stale_timeout_s: 1,
+     rest_s: 0}}  # exact receive times at 20x (resting is a real-time CPU saver)
   - {{name: junk, url: links/junk, protocol: nmea0183, role: aux}}
 calibration:
   - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
@@ -326,3 +327,80 @@ def test_state_directory_read_only_or_full(
         assert "state_write_failed" in (tmp_path / "daemon.log").read_text()
     finally:
         subprocess.run(["umount", "-l", str(state_dir)], capture_output=True)
+
+
+class _Source:
+    """A source whose reads return the given chunks (the daemon's view of a port)."""
+
+    has_events = False
+    is_open = True
+
+    def __init__(self, name: str, chunks: list[tuple[float, bytes]], fd: int = -1) -> None:
+        self.name = name
+        self.chunks = chunks
+        self.fd = fd
+
+    def fileno(self) -> int | None:
+        return self.fd if self.fd >= 0 else None
+
+    def read(self) -> object:
+        from drivers.port import Chunk
+
+        if not self.chunks:
+            return None
+        t, data = self.chunks.pop(0)
+        return Chunk(t, self.name, data)
+
+
+class _SpyPipeline:
+    def __init__(self) -> None:
+        self.uuts = {"emlog1": None}
+        self.decoders = {"emlog1": None, "dvl": None}
+        self.calls: list[tuple[float, str, bytes]] = []
+
+    def feed(self, t: float, port: str, data: bytes, out: object = None) -> object:
+        from emlogd.pipeline import Output
+
+        self.calls.append((t, port, data))
+        return out if out is not None else Output()
+
+
+def test_a_reference_port_rests_after_a_read_then_is_read_once_and_selected_again(
+    tmp_path: Path,
+) -> None:
+    from emlogd import daemon as dmod
+
+    _setup(tmp_path)
+    d = dmod.Daemon(tmp_path / "emlogd.yaml", log=None)
+    d.pipeline = _SpyPipeline()  # type: ignore[assignment]
+    d.rest_s = {"dvl": 0.02, "emlog1": 0.02}
+    r, w = os.pipe()
+    r2, w2 = os.pipe()
+    dvl = _Source("dvl", [(1.0, b":SA\r\n"), (1.02, b":TS\r\n:BD\r\n")], fd=r)
+    emlog = _Source("emlog1", [(1.01, b"$VWVHW\r\n")], fd=r2)
+    d.sources = {"dvl": dvl, "emlog1": emlog}  # type: ignore[dict-item]
+    d._sync_registrations()
+    assert d.registered == {"dvl": r, "emlog1": r2}
+    d._read("emlog1")
+    assert d.registered == {"dvl": r, "emlog1": r2} and d.resting == {}  # a UUT never rests
+    del d.registered["emlog1"], d.sources["emlog1"]
+    d.sel.unregister(r2)
+    d._read("dvl")
+    assert d.registered == {} and "dvl" in d.resting  # out of the selector
+    d._sync_registrations()
+    assert d.registered == {}  # a resting port is not put back early
+    assert d.unselectable == []  # nor read on every round as if it had no descriptor
+    d._wake_rested()
+    assert len(dvl.chunks) == 1  # not due yet: nothing read
+    d.resting["dvl"] = 0.0  # due
+    d._wake_rested()
+    assert dvl.chunks == [] and d.resting == {} and d.registered == {"dvl": r}
+    spy = d.pipeline
+    assert [c[2] for c in spy.calls] == [  # type: ignore[attr-defined]
+        b"$VWVHW\r\n",
+        b":SA\r\n",
+        b":TS\r\n:BD\r\n",
+    ]
+    for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
+        os.close(fd)
+    d.sel.close()
