@@ -257,6 +257,39 @@ def _proc_cpu_rss(pid: int) -> tuple[float, int]:
     return cpu, rss
 
 
+FLOOR = r"""
+import os, select, sys, time, tty
+rate, seconds = float(sys.argv[1]), float(sys.argv[2])
+m, s = os.openpty(); tty.setraw(s); tty.setraw(m)
+pid = os.fork()
+if pid == 0:  # the writer: one line per wake-up
+    t = time.monotonic()
+    while True:
+        t += 1.0 / rate
+        time.sleep(max(0.0, t - time.monotonic()))
+        os.write(m, b":BS,+00123,-01234,+00005,A\r\n")
+os.set_blocking(s, False)
+ep = select.epoll(); ep.register(s, select.EPOLLIN)
+def cpu():
+    f = open("/proc/self/stat").read().rsplit(")", 1)[1].split()
+    return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+c0, t0, n = cpu(), time.monotonic(), 0
+while time.monotonic() - t0 < seconds:
+    for fd, ev in ep.poll(0.2):
+        os.read(fd, 4096); n += 1
+w = time.monotonic() - t0
+print(f"{n / w:.1f} {100 * (cpu() - c0) / w:.3f}")
+os.kill(pid, 9)
+"""
+
+
+def _wakeups(pid: int) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("voluntary_ctxt_switches:"):
+            return int(line.split()[1])
+    return 0
+
+
 def bench_live(trial: Path, seconds: float) -> None:
     from drivers.fake import FakeDevice
 
@@ -272,6 +305,7 @@ def bench_live(trial: Path, seconds: float) -> None:
         try:
             time.sleep(5.0)  # warm up: ports open, imports done
             cpu0, _ = _proc_cpu_rss(proc.pid)
+            wake0 = _wakeups(proc.pid)
             t0 = time.monotonic()
             peak = 0
             while time.monotonic() - t0 < seconds:
@@ -279,6 +313,7 @@ def bench_live(trial: Path, seconds: float) -> None:
                 peak = max(peak, _proc_cpu_rss(proc.pid)[1])
             cpu1, rss = _proc_cpu_rss(proc.pid)
             wall = time.monotonic() - t0
+            wakes = (_wakeups(proc.pid) - wake0) / wall
         finally:
             proc.send_signal(signal.SIGTERM)
             proc.wait(20)
@@ -288,6 +323,14 @@ def bench_live(trial: Path, seconds: float) -> None:
                 f.join(5)
     print(f"live rates for {wall:.0f} s (1 Hz VHW + 10 Hz VBW + 5 Hz VHW + 10 Hz PD6):")
     print(f"  CPU {100 * (cpu1 - cpu0) / wall:.2f} % of one core (target <= 1 %)")
+    floor = subprocess.run(
+        [sys.executable, "-c", FLOOR, f"{wakes:.1f}", "30"],
+        check=True, capture_output=True, text=True,
+    ).stdout.split()  # fmt: skip
+    print(
+        f"  {wakes:.1f} wake-ups/s; a bare Python epoll loop reading a pty at "
+        f"{float(floor[0]):.1f} wake-ups/s costs {float(floor[1]):.2f} % (the floor)"
+    )
     print(f"  RSS {rss / 2**20:.1f} MiB, peak {peak / 2**20:.1f} MiB (target <= 80 MiB)")
 
 

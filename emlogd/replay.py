@@ -112,6 +112,7 @@ def replay(
     t_last = 0.0
     pace0: tuple[float, float] | None = None
     t_tick = -float("inf")
+    out = Output()  # reused: delivered, then cleared, after every record
     for path in paths:
         reader = CaptureReader(path)
         size = max(Path(path).stat().st_size, 1)
@@ -128,11 +129,15 @@ def replay(
                 wait = due - monotonic()
                 if wait > 0.0:
                     sleep(wait)
-            out = pipeline.feed(rec.t, rec.port, rec.data)
+            pipeline.feed(rec.t, rec.port, rec.data, out)
             if rec.t - t_tick >= TICK_S:
                 t_tick = rec.t
                 pipeline.tick(rec.t, out)
-            _deliver(out, result, sink, on_persist, on_event)
+            if out.emits or out.events or out.persist:
+                _deliver(out, result, sink, on_persist, on_event)
+                out.emits.clear()
+                out.events.clear()
+                out.persist.clear()
             result.records += 1
             t_last = rec.t
             if progress is not None and result.records % 20_000 == 0:
