@@ -47,8 +47,9 @@ class PortConfig:
     stale_timeout_s: float = 5.0
     rest_s: float = 0.02
     """Reference and aux ports: after a read, leave the port alone this long (fewer
-    wake-ups; data arriving meanwhile is stamped up to this late). 0 disables; UUT
-    ports never rest."""
+    wake-ups; data arriving meanwhile is stamped up to this late). Keep it well under
+    the time the port takes to fill the 4 KiB tty buffer; 0 disables (and suits
+    devices replayed faster than real time). UUT ports never rest."""
 
 
 @dataclass(frozen=True, slots=True)
