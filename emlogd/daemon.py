@@ -210,9 +210,8 @@ class Daemon:
                     break
             if self.resting and time.monotonic() >= self.rest_due:
                 self._wake_rested()
-            if self.unselectable:
-                for name in self.unselectable:
-                    self._read(name)  # a source without a file descriptor (loop://)
+            for name in self.unselectable:
+                self._read(name)  # a source without a file descriptor (loop://)
             if self.reload:
                 self.reload = False
                 self._reload()
@@ -282,8 +281,7 @@ class Daemon:
                 if fd is not None:
                     with contextlib.suppress(KeyError, ValueError):
                         self.sel.unregister(fd)
-                    due = time.monotonic() + rest_s
-                    self.resting[name] = due
+                    self.resting[name] = time.monotonic() + rest_s
                     self.rest_due = min(self.resting.values())
 
     def _wake_rested(self) -> None:
