@@ -404,3 +404,69 @@ def test_a_reference_port_rests_after_a_read_then_is_read_once_and_selected_agai
     for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
         os.close(fd)
     d.sel.close()
+
+
+def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
+    tmp_path: Path,
+) -> None:
+    """Real time, default rest_s: ensembles whose lines come 3 ms apart, an unplug
+    while the port rests, a new pty at the same path: all ensembles are decoded."""
+    from datetime import UTC, datetime
+
+    from drivers.rdi_ascii import encode_pd6
+    from drivers.vpty import VirtualPort
+
+    _setup(tmp_path)
+    cfg = tmp_path / "emlogd.yaml"
+    text = cfg.read_text()
+    assert "rest_s: 0}" in text
+    cfg.write_text(text.replace("rest_s: 0}", "rest_s: 0.02}"))  # the default, real time
+    link = tmp_path / "links" / "dvl"
+    lines = [
+        (x + "\r\n").encode()
+        for x in encode_pd6(
+            timestamp=datetime(2026, 1, 1, tzinfo=UTC), heading_deg=10.0,
+            bottom_ship_mps=(0.0, 1.5, 0.0), range_m=20.0,
+        )
+    ]  # fmt: skip
+
+    def ensembles(vp: VirtualPort, n: int) -> None:
+        for _ in range(n):
+            for ln in lines:
+                vp.write(ln)
+                time.sleep(0.003)  # the serial spacing of the simulator at 115200 Bd
+            time.sleep(0.05)
+
+    def dvl_records() -> int:
+        st = d.status()["ports"]
+        assert isinstance(st, dict)
+        return int(st["dvl"]["records"])
+
+    vp = VirtualPort(link)
+    d = Daemon(tmp_path)
+    try:
+        deadline = time.monotonic() + 10
+        while "port_connected" not in (tmp_path / "daemon.log").read_text():
+            assert time.monotonic() < deadline, "the daemon never opened the DVL"
+            d.pump(0.05)
+        ensembles(vp, 20)
+        d.pump(0.3)
+        assert dvl_records() == 20
+        connected = (tmp_path / "daemon.log").read_text().count("port_connected")
+        for ln in lines[:2]:  # unplugged mid-ensemble, while the port rests
+            vp.write(ln)
+        vp.close()
+        d.pump(0.5)
+        vp = VirtualPort(link)
+        deadline = time.monotonic() + 10
+        while (tmp_path / "daemon.log").read_text().count("port_connected") <= connected:
+            assert time.monotonic() < deadline, "the DVL was not reopened"
+            d.pump(0.1)
+        ensembles(vp, 20)
+        d.pump(0.3)
+        assert dvl_records() == 40
+        assert d.stop() == 0
+    finally:
+        if d.proc.poll() is None:
+            d.proc.kill()
+        vp.close()
