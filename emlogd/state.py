@@ -275,6 +275,10 @@ class StateStore:
         except OSError:  # e.g. vfat: no hard links
             _write_synced(link, text.encode("utf-8"))
         link.replace(self.backup)
+        # rename() between two names of one file does nothing: after a writer killed
+        # between linking the backup and replacing the file, both are one inode
+        with contextlib.suppress(FileNotFoundError):
+            link.unlink()
 
     def _fsync_dir(self) -> None:
         fd = os.open(self.path.parent, os.O_RDONLY | os.O_DIRECTORY)

@@ -239,3 +239,16 @@ def test_kill_9_while_saving_never_loses_the_file(tmp_path: Path) -> None:
 @pytest.mark.soak
 def test_kill_9_soak(tmp_path: Path) -> None:
     _kill_loop(tmp_path, 60)
+
+
+def test_a_backup_that_is_the_same_file_leaves_no_temporary(tmp_path: Path) -> None:
+    """A writer killed between linking the backup and replacing the file leaves the
+    file and its backup as one inode; rename() between them does nothing, so the
+    next save must remove its link itself (it once stayed, named with our own pid)."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state()})
+    store.backup.unlink(missing_ok=True)
+    os.link(store.path, store.backup)
+    store.save({"emlog1": _state()})
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
+    assert store.load()[0]["emlog1"] == _state()
