@@ -125,13 +125,7 @@ class LineFramer:
 
     def _line(self, line: bytes, out: list[bytes | FrameError]) -> None:
         if line[0] in self._starts and self._start_re.search(line, 1) is None:
-            frame = line.rstrip(b" \t")  # the common case: one frame, nothing spliced
-            if len(frame) + 2 > self._max_length:
-                out.append(
-                    TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
-                )
-            else:
-                out.append(frame)
+            self._frame(line.rstrip(b" \t"), out)  # the common case: one frame, nothing spliced
             return
         cuts = sorted(i for b in self._start_bytes for i in _positions(line, b))
         if not cuts:
@@ -141,13 +135,15 @@ class LineFramer:
             out.append(FrameError("garbage before the start character", line[: cuts[0]]))
         for a, b in pairwise(cuts):
             out.append(FrameError("truncated frame (a new frame starts inside it)", line[a:b]))
-        frame = line[cuts[-1] :].rstrip(b" \t")
+        self._frame(line[cuts[-1] :].rstrip(b" \t"), out)
+
+    def _frame(self, frame: bytes, out: list[bytes | FrameError]) -> None:
         if len(frame) + 2 > self._max_length:
             out.append(
                 TooLongError(f"{len(frame) + 2} characters, limit {self._max_length}", frame)
             )
-            return
-        out.append(frame)
+        else:
+            out.append(frame)
 
 
 def _first_terminator(data: bytes) -> int:

@@ -234,13 +234,17 @@ def parse_vhw(talker: str, f: list[str], raw: bytes) -> Vhw:
     _flag(f[7], "K", "VHW field 8", raw)
     mps = kn * KNOT_MPS if kn is not None else (kmh * KMH_MPS if kmh is not None else None)
     _speed(mps, "STW", raw)
-    disagree = False
-    if kn is not None and kmh is not None:
-        # each field is rounded to its own decimals: allow one unit of the coarser one
-        decimals = min(_decimals(f[4]), _decimals(f[6]))
-        tol_kmh = 1.5 * 10.0**-decimals * 1.852 + 0.01 * abs(kmh)
-        disagree = abs(kn * 1.852 - kmh) > tol_kmh
-    return Vhw(talker, ht, hm, kn, kmh, mps, disagree)
+    return Vhw(talker, ht, hm, kn, kmh, mps, _units_disagree(kn, kmh, f[4], f[6]))
+
+
+def _units_disagree(kn: float | None, kmh: float | None, kn_field: str, kmh_field: str) -> bool:
+    """Knots and km/h both sent and further apart than their rounding allows."""
+    if kn is None or kmh is None:
+        return False
+    # each field is rounded to its own decimals: allow one unit of the coarser one
+    decimals = min(_decimals(kn_field), _decimals(kmh_field))
+    tol_kmh = 1.5 * 10.0**-decimals * 1.852 + 0.01 * abs(kmh)
+    return abs(kn * 1.852 - kmh) > tol_kmh
 
 
 def _decimals(field: str) -> int:
@@ -332,11 +336,11 @@ def _fast_sentence(body: bytes) -> Vhw | Vbw | None:
         mps = kn * KNOT_MPS if kn is not None else (kmh * KMH_MPS if kmh is not None else None)
         if mps is not None and abs(mps) > MAX_SPEED_MPS:
             return None
-        disagree = False
-        if kn is not None and kmh is not None:
-            decimals = min(_decimals(kn_.decode()), _decimals(kmh_.decode()))
-            tol_kmh = 1.5 * 10.0**-decimals * 1.852 + 0.01 * abs(kmh)
-            disagree = abs(kn * 1.852 - kmh) > tol_kmh
+        disagree = (
+            kn_ is not None
+            and kmh_ is not None
+            and _units_disagree(kn, kmh, kn_.decode(), kmh_.decode())
+        )
         return Vhw(talker.decode(), ht, hm, kn, kmh, mps, disagree)
     return None
 

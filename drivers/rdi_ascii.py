@@ -212,16 +212,9 @@ _FAST_TS = re.compile(
 
 
 def _fast_line(frame: bytes) -> tuple[str, object] | None:
-    """Parse a plain line with one pattern; None to fall back to :meth:`parse_line`'s path."""
+    """Parse a plain line with one pattern; None to fall back to :func:`_parse_fields`."""
     kind = frame[1:3]
     if kind[:1] in (b"W", b"B"):
-        if kind[1:] == b"I":
-            m = _FAST_VEL4.fullmatch(frame)
-            if m is None:
-                return None
-            v, x, y, z, e, st = m.groups()
-            k = v.decode()
-            return k, _velocity_of([int(x), int(y), int(z), int(e)], st == b"V", k, frame)
         if kind[1:] == b"D":
             m = _FAST_DMG.fullmatch(frame)
             if m is None:
@@ -229,12 +222,12 @@ def _fast_line(frame: bytes) -> tuple[str, object] | None:
             v, e1, n1, u1, r1, dt1 = m.groups()
             k = v.decode()
             return k, _dmg_of(float(e1), float(n1), float(u1), float(r1), float(dt1), k, frame)
-        m = _FAST_VEL3.fullmatch(frame)
+        m = (_FAST_VEL4 if kind[1:] == b"I" else _FAST_VEL3).fullmatch(frame)
         if m is None:
             return None
-        v, x, y, z, st = m.groups()
+        v, *values, st = m.groups()
         k = v.decode()
-        return k, _velocity_of([int(x), int(y), int(z)], st == b"V", k, frame)
+        return k, _velocity_of([int(x) for x in values], st == b"V", k, frame)
     if kind == b"SA":
         m = _FAST_SA.fullmatch(frame)
         if m is None:
@@ -345,7 +338,7 @@ class PdAsciiDecoder(FramedDecoder):
                 yield from self._reject(item)
                 continue
             try:
-                kind, value = _fast_line(item) or _parse_fields(item)
+                kind, value = self.parse_line(item)
             except FrameError as exc:
                 if not exc.raw:
                     exc.raw = item[:256]
