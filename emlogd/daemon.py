@@ -69,7 +69,6 @@ class Daemon:
         self.registered: dict[str, int] = {}
         self.unselectable: list[str] = []
         self.resting: dict[str, float] = {}
-        self.rest_due = 0.0
         self.scratch = Output()
         self.rest_s: dict[str, float] = {}
         self.sinks: list[Sink] = []
@@ -140,6 +139,9 @@ class Daemon:
         self.pipeline = Pipeline(ports, uuts, snapshots)
         self._open_outputs()
         self.control = ControlServer(cfg.control_socket, self._control, self.sel)
+        self._open_sources(cfg)
+
+    def _open_sources(self, cfg: Config) -> None:
         for p in cfg.ports:
             src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
             src.open()
@@ -147,6 +149,17 @@ class Daemon:
             self.rest_s[p.name] = p.rest_s
             self._log_port_events(src.events())
         self._sync_registrations()
+
+    def _close_sources(self) -> None:
+        for name, src in self.sources.items():
+            fd = self.registered.pop(name, None)
+            if fd is not None:
+                with contextlib.suppress(KeyError, ValueError):
+                    self.sel.unregister(fd)
+            src.close()
+        self.sources.clear()
+        self.resting.clear()
+        self.rest_s.clear()
 
     def _open_outputs(self) -> None:
         out = self.config.outputs
@@ -175,14 +188,7 @@ class Daemon:
         self.notifier.stopping()
         if self.pipeline is not None:
             self._persist(final=True)
-        for name, src in self.sources.items():
-            fd = self.registered.pop(name, None)
-            if fd is not None:
-                with contextlib.suppress(KeyError, ValueError):
-                    self.sel.unregister(fd)
-            src.close()
-        self.sources.clear()
-        self.resting.clear()
+        self._close_sources()
         if self.control is not None:
             self.control.close()
             self.control = None
@@ -203,12 +209,12 @@ class Daemon:
         while not self.stop:
             timeout = SELECT_TIMEOUT_S
             if self.resting:
-                timeout = min(timeout, max(self.rest_due - time.monotonic(), 0.0))
+                timeout = min(timeout, max(min(self.resting.values()) - time.monotonic(), 0.0))
             for key, _ in self.sel.select(timeout=timeout):
                 key.data()
                 if self._stopping():
                     break
-            if self.resting and time.monotonic() >= self.rest_due:
+            if self.resting:
                 self._wake_rested()
             for name in self.unselectable:
                 self._read(name)  # a source without a file descriptor (loop://)
@@ -224,7 +230,7 @@ class Daemon:
                 self._log_port_events(src.events())
             self._sync_registrations()
             assert self.pipeline is not None
-            self._handle(self.pipeline.tick(now))
+            self._handle(self.pipeline.tick(now, self.scratch))
             if now >= next_status:
                 next_status = now + self.config.status_interval_s
                 self._status_event()
@@ -282,7 +288,6 @@ class Daemon:
                     with contextlib.suppress(KeyError, ValueError):
                         self.sel.unregister(fd)
                     self.resting[name] = time.monotonic() + rest_s
-                    self.rest_due = min(self.resting.values())
 
     def _wake_rested(self) -> None:
         """Read the ports whose rest is over once, and give them back to the selector."""
@@ -294,7 +299,6 @@ class Daemon:
             del self.resting[name]
             if name in self.sources:
                 self._read(name, rest=False)
-        self.rest_due = min(self.resting.values(), default=0.0)
         self._sync_registrations()
 
     def _handle(self, out: Output) -> None:
@@ -304,11 +308,9 @@ class Daemon:
             out.emits.clear()
             for sink in self.sinks:
                 sink.write(data)
-        if out.events:
-            events = list(out.events)
-            out.events.clear()
-            for ev in events:
-                self.log.info(ev.kind, port=ev.port, **dict(ev.detail))
+        for ev in out.events:
+            self.log.info(ev.kind, port=ev.port, **dict(ev.detail))
+        out.events.clear()
         if out.persist:
             out.persist.clear()
             self._persist()
@@ -407,15 +409,7 @@ class Daemon:
         except (ConfigError, ValueError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return
-        for name, src in list(self.sources.items()):
-            fd = self.registered.pop(name, None)
-            if fd is not None:
-                with contextlib.suppress(KeyError, ValueError):
-                    self.sel.unregister(fd)
-            src.close()
-        self.sources.clear()
-        self.resting.clear()
-        self.rest_s.clear()
+        self._close_sources()
         self._close_outputs()
         if self.control is not None:
             self.control.close()
@@ -426,11 +420,6 @@ class Daemon:
             self.control = ControlServer(new.control_socket, self._control, self.sel)
         except DeviceError as exc:
             self.log.error("reload_outputs_failed", error=str(exc))
-        for p in new.ports:
-            src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
-            src.open()
-            self.sources[p.name] = src
-            self.rest_s[p.name] = p.rest_s
-        self._sync_registrations()
+        self._open_sources(new)
         self.log.info("reloaded", config=str(self.config_path))
         self._notify_status()
