@@ -9,7 +9,7 @@ sentence is proprietary (``$P`` + a three-letter maker code + ``S``)::
 fields: UUT port (at most 8 characters), state (``L`` learning, ``F`` frozen,
 ``U`` uncalibrated), model, the parameters a (s/m), m, b (m/s) of the good
 calibration (empty when the model lacks one or there is none), their standard
-deviations (parameters clamped to ±9.9999, σ to two-digit exponents), the running
+deviations (a and m clamped to ±9.9999, b to ±9.999, σ to two-digit exponents), the running
 NIS mean (empty before learning), and the reference state
 (``V`` valid, ``L`` lost, ``S`` stale, ``W`` too slow, ``N`` none yet). Every
 sentence is checksummed and at most 82 characters with CR LF.
@@ -45,9 +45,10 @@ class StatusFields:
     maker: str = "EML"
 
 
-def _clamp(x: float | None) -> float | None:
-    """A parameter clamped to ±9.9999 (a calibration beyond that is nonsense anyway)."""
-    return None if x is None else max(min(x, 9.9999), -9.9999)
+def _clamp(x: float | None, limit: float) -> float | None:
+    """A parameter clamped to ±limit, the widest its format holds without rounding up
+    a digit (9.9999 for 4 decimals, 9.999 for 3; a calibration beyond is nonsense)."""
+    return None if x is None else max(min(x, limit), -limit)
 
 
 def _std(x: float | None) -> float | None:
@@ -77,9 +78,9 @@ def encode_status(f: StatusFields) -> str:
         "".join(c for c in f.port if c.isascii() and (c.isalnum() or c in "_-"))[:8],
         STATE_CODES.get(f.state, "U"),
         f.model,
-        _num(_clamp(f.params.get("a")), "+.4f"),
-        _num(_clamp(f.params.get("m")), "+.4f"),
-        _num(_clamp(f.params.get("b")), "+.3f"),
+        _num(_clamp(f.params.get("a"), 9.9999), "+.4f"),
+        _num(_clamp(f.params.get("m"), 9.9999), "+.4f"),
+        _num(_clamp(f.params.get("b"), 9.999), "+.3f"),
         _num(_std(f.std.get("a")), ".1e"),
         _num(_std(f.std.get("m")), ".1e"),
         _num(_std(f.std.get("b")), ".1e"),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from drivers.framing import split_nmea
@@ -56,6 +56,14 @@ finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
     state=st.sampled_from(["learning", "frozen", "uncalibrated"]),
     ref=st.sampled_from(["valid", "lost", "stale", "slow", "none"]),
 )
+@example(  # b = 10 was clamped to 9.9999, which "+.3f" rounds up to "+10.000": 83 bytes
+    port="00000000",
+    params={"a": 0.0, "m": 0.0, "b": 10.0},
+    std={"a": 0.0, "m": 0.0, "b": 0.0},
+    nis=100.0,
+    state="learning",
+    ref="valid",
+)
 def test_status_always_fits_and_checksums(
     port: str,
     params: dict[str, float],
@@ -101,7 +109,7 @@ def _status_round_trip(m: float, b: float, sm: float, nis: float | None) -> None
     f = _fields(s)
     assert len(s) + 2 <= 82
     assert float(f[5]) == pytest.approx(max(min(m, 9.9999), -9.9999), abs=5e-5)
-    assert float(f[6]) == pytest.approx(max(min(b, 9.9999), -9.9999), abs=5e-4)
+    assert float(f[6]) == pytest.approx(max(min(b, 9.999), -9.999), abs=5e-4)
 
 
 @given(
