@@ -29,7 +29,7 @@ from drivers.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.control import ControlServer
 from emlogd.notify import Notifier
-from emlogd.pipeline import Output, Pipeline
+from emlogd.pipeline import Emit, Output, Pipeline
 from emlogd.settings import pipeline_from_config, snapshot_to_state, state_to_snapshot
 from emlogd.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
 from emlogd.state import StateStore
@@ -69,7 +69,7 @@ class Daemon:
         self.registered: dict[str, int] = {}
         self.unselectable: list[str] = []
         self.resting: dict[str, float] = {}
-        self.scratch = Output()
+        self.scratch = Output(deliver=self._deliver)
         self.rest_s: dict[str, float] = {}
         self.sinks: list[Sink] = []
         self.control: ControlServer | None = None
@@ -304,16 +304,20 @@ class Daemon:
     def _handle(self, out: Output) -> None:
         """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""
         if out.emits:
-            data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in out.emits)
+            self._deliver(out.emits)
             out.emits.clear()
-            for sink in self.sinks:
-                sink.write(data)
         for ev in out.events:
             self.log.info(ev.kind, port=ev.port, **dict(ev.detail))
         out.events.clear()
         if out.persist:
             out.persist.clear()
             self._persist()
+
+    def _deliver(self, emits: list[Emit]) -> None:
+        """Write sentences to every output sink (called by the pipeline as each is ready)."""
+        data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
+        for sink in self.sinks:
+            sink.write(data)
 
     def _persist(self, *, final: bool = False) -> None:
         assert self.pipeline is not None and self.store is not None

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -192,6 +192,17 @@ class Output:
     emits: list[Emit] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
     persist: list[Snapshot] = field(default_factory=list)
+    deliver: Callable[[list[Emit]], None] | None = None
+    """Live use: takes each corrected sentence as soon as it is ready, before the
+    filter learns from the sample (the latency path); the emits are cleared after.
+    None (replay, tests): the emits stay in :attr:`emits` for the caller."""
+
+    def send(self, emit: Emit) -> None:
+        """Add an emit, handing it to :attr:`deliver` at once when that is set."""
+        self.emits.append(emit)
+        if self.deliver is not None:
+            self.deliver(self.emits)
+            self.emits.clear()
 
 
 @dataclass(slots=True)
@@ -430,11 +441,16 @@ class Pipeline:
             u.lag_collector.ref.append((t, v))
 
     def _uut(self, u: _Uut, t: float, sp: SpeedRecord, out: Output, rec: object) -> None:
+        """Correct and emit with the calibration so far, then learn from the sample.
+
+        Emitting first keeps the filter update off the output's latency path, and
+        makes the corrected error scored here a one-step-ahead one: the parameters
+        that corrected the sample have not seen its reference.
+        """
         raw = sp.longitudinal_mps
         if not sp.valid or raw is None or not math.isfinite(raw):
             return
-        learning_source = sp.source == u.s.uut_source
-        ref = self._learn(u, t, raw, out) if learning_source else None
+        corrected = math.nan
         if u.s.apply and u.good is not None:
             p = u.good
             corrected = invert(p.a_spm, p.m, p.b_mps, raw)
@@ -448,9 +464,11 @@ class Pipeline:
                     )
                 else:
                     sentence = encode_vbw(corrected, sp.transverse_mps, u.s.talker)
-                out.emits.append(Emit(t, u.s.port, sentence))
-                if ref is not None:
-                    u.score.add(raw - ref, corrected - ref)
+                out.send(Emit(t, u.s.port, sentence))
+        if sp.source == u.s.uut_source:
+            ref = self._learn(u, t, raw, out)
+            if ref is not None and math.isfinite(corrected):
+                u.score.add(raw - ref, corrected - ref)
         if t - u.t_status >= u.s.status_interval_s:
             u.t_status = t
             out.emits.append(Emit(t, u.s.port, encode_status(self._status_fields(u))))

@@ -13,6 +13,7 @@ from drivers.framing import split_nmea
 from drivers.nmea0183 import encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from emlogd.pipeline import (
+    Emit,
     Output,
     Pipeline,
     PortSettings,
@@ -125,6 +126,36 @@ def test_learns_converges_and_corrects() -> None:
     for e in out.emits:
         assert len(e.sentence) + 2 <= 82
         split_nmea(e.sentence.encode())  # valid checksum
+
+
+def test_each_sentence_is_delivered_before_the_filter_learns_from_its_sample() -> None:
+    """Live outputs deliver at once: the update stays off the latency path, and the
+    scored corrected error is one-step-ahead (the parameters have not seen it)."""
+    p = _pipeline()
+    _run(p, _stream(300))  # calibrated, learning
+    u = p.uuts["log"]
+    at_delivery: list[int] = []
+
+    def deliver(emits: list[Emit]) -> None:
+        assert [e.sentence[3:6] for e in emits] == ["VHW"]
+        at_delivery.append(u.n_learnt)
+        kept.extend(emits)
+
+    kept: list[Emit] = []
+    out = Output(deliver=deliver)
+    samples = []
+    for t, port, data in _stream(30, start=300.0):
+        before = u.n_learnt
+        at_delivery.clear()
+        p.feed(t, port, data, out)
+        if port == "log":
+            samples.append((before, list(at_delivery), u.n_learnt))
+        assert [e.sentence[3:6] for e in out.emits] in ([], ["MLS"])  # status: the caller's
+        out.emits.clear()
+    assert len(samples) == 30 and len(kept) == 30
+    for before, delivered, after in samples:
+        assert delivered == [before]  # delivered once, before the update
+        assert after == before + 1  # then learnt from
 
 
 def test_reference_loss_freezes_and_output_continues() -> None:
