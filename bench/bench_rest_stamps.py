@@ -1,11 +1,11 @@
 """What resting a reference port costs the calibration: stamps delayed by ``rest_s``.
 
-The daemon leaves a reference port alone for ``rest_s`` after a read (fewer
-wake-ups), so the lines of a DVL ensemble that arrive meanwhile are stamped when the
-rest ends instead of when they arrived. This replays a simulated trial through the
-pipeline with exactly that stamping (every line after an ``:SA`` that arrived within
-``rest`` of it is stamped ``t(:SA) + rest``) and prints the calibration and the RMSE
-of the corrected speed against the DVL for a few rests. Prints figures only.
+When a reference port becomes readable, the daemon leaves it alone for ``rest_s``
+(fewer wake-ups), then reads it: every line that arrived meanwhile is stamped with the
+time of that read. This replays a simulated trial through the pipeline with exactly
+that stamping (a DVL line arriving while no rest runs starts one; it and every line
+arriving before the rest ends are stamped at its end) and prints the calibration and
+the RMSE of the corrected speed against the DVL for a few rests. Prints figures only.
 
 Run: ``python bench/bench_rest_stamps.py [--trial DIR] [--capture 2-figure8.cap]``
 """
@@ -30,13 +30,12 @@ LAGS_S = {"emlog1": 3.3, "emlog2": 0.5}
 
 def _rested(records: list[tuple[float, str, bytes]], rest: float) -> list[tuple[float, str, bytes]]:
     out = []
-    t_sa: float | None = None
+    read_at: float | None = None  # the end of the running rest: when the port is read
     for t, port, data in records:
         if port == "dvl":
-            if data.startswith(b":SA"):
-                t_sa = t
-            elif t_sa is not None and t - t_sa < rest:
-                t = t_sa + rest
+            if read_at is None or t > read_at:
+                read_at = t + rest  # readable while not resting: a rest starts
+            t = read_at
         out.append((t, port, data))
     out.sort(key=lambda r: r[0])  # stable: arrival order among equal stamps
     return out

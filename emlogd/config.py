@@ -46,9 +46,10 @@ class PortConfig:
     rate_hz: float | None = None
     stale_timeout_s: float = 5.0
     rest_s: float = 0.02
-    """Reference and aux ports: after a read, leave the port alone this long (fewer
-    wake-ups; data arriving meanwhile is stamped up to this late). Keep it well under
-    the time the port takes to fill the 4 KiB tty buffer; 0 disables (and suits
+    """Reference and aux ports: once the port is readable, leave it alone this long,
+    then read it (a burst is one read, not a wake-up per line; what arrived is stamped
+    with that read, at most this late). Keep it well under the time the port takes to
+    fill the 4 KiB tty buffer and under the gap between bursts; 0 disables (and suits
     devices replayed faster than real time). UUT ports never rest."""
 
 

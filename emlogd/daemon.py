@@ -225,10 +225,14 @@ class Daemon:
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
+            changed = False  # a port opened or lost: its descriptor changed
             for src in self.sources.values():
-                self._log_port_events(src.poll())
-                self._log_port_events(src.events())
-            self._sync_registrations()
+                events = src.poll()
+                if events:
+                    changed = True
+                    self._log_port_events(events)
+            if changed:
+                self._sync_registrations()
             assert self.pipeline is not None
             self._handle(self.pipeline.tick(now, self.scratch))
             if now >= next_status:
@@ -242,35 +246,49 @@ class Daemon:
         return self.stop  # a call: mypy would take the loop's `not self.stop` as fixed
 
     def _sync_registrations(self) -> None:
-        for name, src in self.sources.items():
-            if name in self.resting:
-                continue
-            fd = src.fileno()
-            if self.registered.get(name) == fd:
-                continue
-            old = self.registered.pop(name, None)
-            if old is not None:
-                with contextlib.suppress(KeyError, ValueError):
-                    self.sel.unregister(old)
-            if fd is not None:
-                self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._read(n))
-                self.registered[name] = fd
+        for name in self.sources:
+            if name not in self.resting:
+                self._register(name)
         self.unselectable = [
             name
             for name, src in self.sources.items()
             if src.is_open and name not in self.registered and name not in self.resting
         ]
 
-    def _read(self, name: str, *, rest: bool = True) -> None:
-        """Read one port and feed the pipeline; a reference or aux port then rests.
+    def _register(self, name: str) -> None:
+        """Select a port on its current descriptor (re-registered if it changed)."""
+        fd = self.sources[name].fileno()
+        if self.registered.get(name) == fd:
+            return
+        old = self.registered.pop(name, None)
+        if old is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                self.sel.unregister(old)
+        if fd is None:
+            return
+        assert self.pipeline is not None
+        if self.rest_s.get(name, 0.0) > 0.0 and name not in self.pipeline.uuts:
+            self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._rest(n))
+        else:
+            self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._read(n))
+        self.registered[name] = fd
 
-        After a read, a port that is not a UUT rests for its ``rest_s`` (0.02 s by
-        default): its descriptor leaves the selector, then it is read once directly
-        and selected again. The DVL sends six lines per ensemble, each a wake-up
-        costing more than its decoding; they now come in two reads. The price is a
-        receive time up to ``rest_s`` late for the lines that arrive while the port
-        rests. UUT ports never rest: their latency is the output's.
+    def _rest(self, name: str) -> None:
+        """A reference or aux port became readable: read it ``rest_s`` later.
+
+        Its descriptor leaves the selector until then, so that a burst (the DVL's six
+        lines per ensemble, about 3 ms apart) is one read instead of a wake-up per
+        line; what is read is stamped with the time of that read. UUT ports never
+        rest: their latency is the output's. ``rest_s: 0`` turns resting off.
         """
+        fd = self.registered.pop(name, None)
+        if fd is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                self.sel.unregister(fd)
+        self.resting[name] = time.monotonic() + self.rest_s[name]
+
+    def _read(self, name: str) -> None:
+        """Read one port and feed the pipeline."""
         src = self.sources[name]
         chunk = src.read()
         if src.has_events:
@@ -280,26 +298,17 @@ class Daemon:
             return
         assert self.pipeline is not None
         self._handle(self.pipeline.feed(chunk.t, name, chunk.data, self.scratch))
-        if rest and name not in self.pipeline.uuts:
-            rest_s = self.rest_s.get(name, 0.0)
-            if rest_s > 0.0:
-                fd = self.registered.pop(name, None)
-                if fd is not None:
-                    with contextlib.suppress(KeyError, ValueError):
-                        self.sel.unregister(fd)
-                    self.resting[name] = time.monotonic() + rest_s
 
     def _wake_rested(self) -> None:
-        """Read the ports whose rest is over once, and give them back to the selector."""
+        """Read the ports whose rest is over, and give them back to the selector."""
         now = time.monotonic()
         due = [name for name, t in self.resting.items() if now >= t]
-        if not due:
-            return
         for name in due:
             del self.resting[name]
             if name in self.sources:
-                self._read(name, rest=False)
-        self._sync_registrations()
+                self._read(name)
+                if name not in self.registered and name in self.sources:
+                    self._register(name)
 
     def _handle(self, out: Output) -> None:
         """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""

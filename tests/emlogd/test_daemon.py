@@ -369,7 +369,7 @@ class _SpyPipeline:
         return out if out is not None else Output()
 
 
-def test_a_reference_port_rests_after_a_read_then_is_read_once_and_selected_again(
+def test_a_readable_reference_port_rests_then_is_read_once_and_selected_again(
     tmp_path: Path,
 ) -> None:
     from emlogd import daemon as dmod
@@ -380,30 +380,31 @@ def test_a_reference_port_rests_after_a_read_then_is_read_once_and_selected_agai
     d.rest_s = {"dvl": 0.02, "emlog1": 0.02}
     r, w = os.pipe()
     r2, w2 = os.pipe()
-    dvl = _Source("dvl", [(1.0, b":SA\r\n"), (1.02, b":TS\r\n:BD\r\n")], fd=r)
+    dvl = _Source("dvl", [(1.02, b":SA\r\n:TS\r\n:BD\r\n"), (1.12, b":SA\r\n")], fd=r)
     emlog = _Source("emlog1", [(1.01, b"$VWVHW\r\n")], fd=r2)
     d.sources = {"dvl": dvl, "emlog1": emlog}  # type: ignore[dict-item]
     d._sync_registrations()
     assert d.registered == {"dvl": r, "emlog1": r2}
-    d._read("emlog1")
-    assert d.registered == {"dvl": r, "emlog1": r2} and d.resting == {}  # a UUT never rests
-    del d.registered["emlog1"], d.sources["emlog1"]
-    d.sel.unregister(r2)
-    d._read("dvl")
-    assert d.registered == {} and "dvl" in d.resting  # out of the selector
+    for fd in (w, w2):
+        os.write(fd, b"x")
+    keys = {key.fd: key for key, _ in d.sel.select(0)}
+    keys[r2].data()  # the UUT is read at once, and never rests
+    assert d.registered == {"dvl": r, "emlog1": r2} and d.resting == {}
+    assert [c[2] for c in d.pipeline.calls] == [b"$VWVHW\r\n"]  # type: ignore[attr-defined]
+    keys[r].data()  # the DVL is not read yet: out of the selector, resting
+    assert d.registered == {"emlog1": r2} and "dvl" in d.resting and len(dvl.chunks) == 2
     d._sync_registrations()
-    assert d.registered == {}  # a resting port is not put back early
+    assert d.registered == {"emlog1": r2}  # a resting port is not put back early
     assert d.unselectable == []  # nor read on every round as if it had no descriptor
     d._wake_rested()
-    assert len(dvl.chunks) == 1  # not due yet: nothing read
+    assert len(dvl.chunks) == 2  # not due yet: nothing read
     d.resting["dvl"] = 0.0  # due
     d._wake_rested()
-    assert dvl.chunks == [] and d.resting == {} and d.registered == {"dvl": r}
+    assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r, "emlog1": r2}
     spy = d.pipeline
     assert [c[2] for c in spy.calls] == [  # type: ignore[attr-defined]
         b"$VWVHW\r\n",
-        b":SA\r\n",
-        b":TS\r\n:BD\r\n",
+        b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read, stamped when read
     ]
     for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
         os.close(fd)
