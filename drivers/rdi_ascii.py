@@ -211,6 +211,90 @@ _FAST_TS = re.compile(
 )
 
 
+# A chunk holding exactly one whole ensemble of the usual layout (the daemon reads a
+# resting DVL once per ensemble) is matched by one pattern and assembled at once;
+# anything else (a partial or extra line, :RA, water lines other than all four, a
+# value failing a range check, a line over max_length) goes line by line.
+_ST = rb", *([AV]) *\r\n"
+_FAST_ENSEMBLE = re.compile(
+    rb":SA," + rb",".join([_F] * 3) + rb"\r\n"
+    rb":TS, *([0-9]{14}) *," + rb",".join([_F] * 4) + rb"," + _I + rb"(?:, *[OWX] *)?\r\n"
+    rb"(?::WI,"
+    + rb",".join([_I] * 4)
+    + _ST
+    + rb":WS,"
+    + rb",".join([_I] * 3)
+    + _ST
+    + rb":WE,"
+    + rb",".join([_I] * 3)
+    + _ST
+    + rb":WD,"
+    + rb",".join([_F] * 5)
+    + rb"\r\n)?"
+    rb":BI,"
+    + rb",".join([_I] * 4)
+    + _ST
+    + rb":BS,"
+    + rb",".join([_I] * 3)
+    + _ST
+    + rb":BE,"
+    + rb",".join([_I] * 3)
+    + _ST
+    + rb":BD,"
+    + rb",".join([_F] * 5)
+    + rb"\r\n"
+)
+
+
+def _fast_ensemble(data: bytes, max_length: int) -> Pd6Ensemble | None:
+    """One whole usual-layout ensemble in one pattern; None to go line by line."""
+    m = _FAST_ENSEMBLE.fullmatch(data)
+    if m is None or any(len(x) + 2 > max_length for x in data.split(b"\r\n")):
+        return None
+    g = m.groups()
+    try:
+        sa = _attitude(float(g[0]), float(g[1]), float(g[2]), data)
+        ts = _environment(
+            g[3].decode(), float(g[4]), float(g[5]), float(g[6]), float(g[7]), int(g[8]), data
+        )
+        wi = ws = we = None
+        wd = None
+        if g[9] is not None:
+            wi = _velocity_of([int(x) for x in g[9:13]], g[13] == b"V", "WI", data)
+            ws = _velocity_of([int(x) for x in g[14:17]], g[17] == b"V", "WS", data)
+            we = _velocity_of([int(x) for x in g[18:21]], g[21] == b"V", "WE", data)
+            e, n, u, r, dt = (float(x) for x in g[22:27])
+            wd = _dmg_of(e, n, u, r, dt, "WD", data)
+        bi = _velocity_of([int(x) for x in g[27:31]], g[31] == b"V", "BI", data)
+        bs = _velocity_of([int(x) for x in g[32:35]], g[35] == b"V", "BS", data)
+        be = _velocity_of([int(x) for x in g[36:39]], g[39] == b"V", "BE", data)
+        e, n, u, r, dt = (float(x) for x in g[40:45])
+        bd = _dmg_of(e, n, u, r, dt, "BD", data)
+    except FrameError:
+        return None  # the line-by-line path says which line and why
+    return Pd6Ensemble(
+        pitch_deg=sa[0],
+        roll_deg=sa[1],
+        heading_deg=sa[2],
+        timestamp=ts[0],
+        salinity_ppt=ts[1],
+        temperature_c=ts[2],
+        depth_m=ts[3],
+        sound_speed_mps=ts[4],
+        bit=ts[5],
+        pressure_kpa=None,
+        beam_ranges_m=None,
+        water_instrument=wi,
+        water_ship=ws,
+        water_earth=we,
+        water_dmg=wd,
+        bottom_instrument=bi,
+        bottom_ship=bs,
+        bottom_earth=be,
+        bottom_dmg=bd,
+    )
+
+
 def _fast_line(frame: bytes) -> tuple[str, object] | None:
     """Parse a plain line with one pattern; None to fall back to :func:`_parse_fields`."""
     kind = frame[1:3]
@@ -318,7 +402,8 @@ class PdAsciiDecoder(FramedDecoder):
     # runs in feed() so that one ensemble record comes out per block.
 
     def _make_framer(self) -> Framer:
-        return LineFramer(b":", self.options.max_length)
+        self._lines = LineFramer(b":", self.options.max_length)
+        return self._lines
 
     def _flush(self) -> Iterable[bytes | FrameError]:
         out: list[bytes | FrameError] = list(super()._flush())
@@ -330,6 +415,12 @@ class PdAsciiDecoder(FramedDecoder):
     def feed(self, data: bytes) -> Iterator[object]:
         """Decode a chunk; yields complete ensembles (and rejects per the error policy)."""
         pending = self._pending
+        if not pending and self._block is None and self._lines.idle:
+            whole = _fast_ensemble(data, self.options.max_length)
+            if whole is not None:
+                self.counters.records += 1
+                yield whole
+                return
         pending.extend(self._framer.feed(data))
         while pending:
             item = pending.popleft()

@@ -212,6 +212,10 @@ _LAYOUT = {"SA": "fff", "TS": "sffffiL", "RA": "fffff", "WD": "fffff", "BD": "ff
 _LAYOUT |= {k: "iiiiS" for k in ("WI", "BI")} | {k: "iiiS" for k in ("WS", "WE", "BS", "BE")}
 
 
+_PLAIN = {"f": _NUMERIC, "i": _NUMERIC, "s": ["25061208000123"], "S": ["A", "V"],
+          "L": ["O", "W", "X"]}  # fmt: skip
+
+
 @st.composite
 def _pd6_lines(draw: st.DrawFn) -> tuple[str, list[str]]:
     """Lines near the layouts DVLs send (most take the fast path), or any token soup."""
@@ -221,10 +225,8 @@ def _pd6_lines(draw: st.DrawFn) -> tuple[str, list[str]]:
     layout = _LAYOUT[kind]
     if kind == "TS" and draw(st.booleans()):
         layout = layout[:-1]
-    plain = {"f": _NUMERIC, "i": _NUMERIC, "s": ["25061208000123"], "S": ["A", "V"],
-             "L": ["O", "W", "X"]}  # fmt: skip
     fields = [
-        draw(st.sampled_from(plain[c] if draw(st.integers(0, 19)) else _TOKENS)) for c in layout
+        draw(st.sampled_from(_PLAIN[c] if draw(st.integers(0, 19)) else _TOKENS)) for c in layout
     ]
     return kind, fields
 
@@ -266,3 +268,78 @@ def test_fast_line_takes_the_plain_layouts(line: bytes) -> None:
     fast = _fast_line(line)
     assert fast is not None  # the layouts DVLs send do take the fast path
     assert fast == _parse_fields(line)
+
+
+# The whole-ensemble fast path (one chunk holding exactly one usual-layout ensemble)
+# must give what the same bytes give line by line: records, rejects and counters.
+_VEL = ["+00123", "-01234", "0", "-32768", "32767", " 12 ", "+00000"]
+_DMG = ["+0000000.00", "0025.30", "000.00", "+1.50", "7"]
+_ENS_PLAIN: dict[str, list[list[str]]] = {
+    "SA": [["-2.31", "+01.92", "075.20", "0"]] * 3,
+    "TS": [["25061208000123"], ["35.0", "0"], ["+15.0", "-1.5"], ["0000.0", "12.5"],
+           ["1500.0", "1524.0"], ["000", "  0"], ["O", "W", "X"]],
+    "WD": [_DMG] * 5, "BD": [_DMG] * 5, "RA": [_DMG] * 5, "HM": [["1", "2"]] * 2,
+} | {k: [_VEL] * 4 + [["A", "V"]] for k in ("WI", "BI")} | {
+    k: [_VEL] * 3 + [["A", "V"]] for k in ("WS", "WE", "BS", "BE")
+}  # fmt: skip
+
+
+@st.composite
+def _pd6_chunks(draw: st.DrawFn) -> bytes:
+    """An ensemble of the usual layout with plausible values: sometimes a line dropped,
+    swapped or added, blanks before CR LF, or a field replaced by any token."""
+    water = ["WI", "WS", "WE", "WD"] if draw(st.booleans()) else []
+    kinds = ["SA", "TS", *water, "BI", "BS", "BE", "BD"]
+    change = draw(st.integers(0, 7))
+    if change == 0:
+        del kinds[draw(st.integers(0, len(kinds) - 1))]
+    elif change == 1:
+        i = draw(st.integers(0, len(kinds) - 2))
+        kinds[i], kinds[i + 1] = kinds[i + 1], kinds[i]
+    elif change == 2:
+        kinds.insert(draw(st.integers(0, len(kinds))), draw(st.sampled_from(["RA", "HM", "WS"])))
+    lines = []
+    for kind in kinds:
+        layout = _ENS_PLAIN[kind]
+        if kind == "TS" and draw(st.booleans()):
+            layout = layout[:-1]
+        fields = [
+            draw(st.sampled_from(plain if draw(st.integers(0, 79)) else _TOKENS))
+            for plain in layout
+        ]
+        pad = draw(st.sampled_from(["", "", "", " "]))
+        lines.append(f":{kind}," + ",".join(fields) + pad + "\r\n")
+    return "".join(lines).encode("ascii")
+
+
+@settings(max_examples=3000, deadline=None)
+@given(_pd6_chunks(), st.sampled_from([82, 50]))
+def test_whole_ensemble_fast_path_agrees_with_line_by_line(data: bytes, max_length: int) -> None:
+    from drivers.base import DecoderOptions
+
+    opts = DecoderOptions(max_length=max_length)
+    whole = PdAsciiDecoder("dvl", errors="yield", options=opts)
+    by_line = PdAsciiDecoder("dvl", errors="yield", options=opts)
+    got = [*whole.feed(data), *whole.flush()]
+    want = [r for ln in data.splitlines(keepends=True) for r in by_line.feed(ln)]
+    assert got == [*want, *by_line.flush()]
+    assert whole.counters.as_dict() == by_line.counters.as_dict()
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {},
+        {"bottom_ship_mps": None, "range_m": None},  # no bottom lock: -32768 and V
+        {"water_ship_mps": (0.1, 1.4, 0.0)},
+        {"pitch_deg": -2.5, "roll_deg": 1.25, "heading_deg": 359.99, "temperature_c": -1.5},
+    ],
+)
+def test_whole_ensemble_fast_path_takes_the_usual_layouts(kw: dict[str, object]) -> None:
+    from drivers.rdi_ascii import _fast_ensemble
+
+    data = _lines(**kw)
+    fast = _fast_ensemble(data, 82)
+    assert fast is not None  # what encode_pd6 and the simulated DVL send
+    by_line = PdAsciiDecoder("dvl")
+    assert [r for ln in data.splitlines(keepends=True) for r in by_line.feed(ln)] == [fast]
