@@ -4,7 +4,7 @@
 2. Latency: a VHW sentence written into an input pty → the corrected VHW readable on
    the daemon's output pty, at 10 Hz with a 10 Hz PD6 DVL alongside; median and p99,
    and the same through a bare single-threaded Python pty forwarder timed in the same
-   run.
+   run, sentence by sentence in turn with the daemon's.
 3. CPU and RSS at live rates: three fake devices replay the simulated figure-8 at real
    speed (1 Hz VHW, 10 Hz VBW + 5 Hz VHW, 10 Hz PD6) for ``--live-seconds``.
 4. RSS growth over 24 simulated hours replayed fast through the pipeline (in a child
@@ -107,38 +107,41 @@ def _open_reader(path: Path) -> int:
 
 
 def _measure(
-    inp: VirtualPort, dvl: VirtualPort | None, out_fd: int, n: int, marker: bytes
-) -> list[float]:
-    """Write n VHW at 10 Hz (PD6 in between); time until the next line containing marker."""
-    lat = []
-    buf = b""
+    targets: list[tuple[VirtualPort, VirtualPort | None, int]], n: int, marker: bytes
+) -> list[list[float]]:
+    """Write n VHW at 10 Hz to each target in turn (PD6 in between where a DVL port is
+    given); time until the next line containing marker on its output. Alternating
+    sentence by sentence, every target sees the same moments of this drifting VM."""
+    lats: list[list[float]] = [[] for _ in targets]
+    bufs = [b""] * len(targets)
     for k in range(n):
-        if dvl is not None:
-            for line in encode_pd6(
-                timestamp=datetime.now(UTC),
-                heading_deg=10.0,
-                bottom_ship_mps=(0.0, 1.5, 0.0),
-                range_m=20,
-            ):
-                dvl.write(line.encode() + b"\r\n")
-        time.sleep(0.05)
-        sentence = encode_vhw(1.0 + (k % 100) * 0.01).encode() + b"\r\n"
-        t0 = time.perf_counter()
-        inp.write(sentence)
-        deadline = t0 + 2.0
-        got = False
-        while not got and time.perf_counter() < deadline:
-            r, _, _ = select.select([out_fd], [], [], 0.5)
-            if not r:
-                continue
-            buf += os.read(out_fd, 65536)
-            while b"\n" in buf:
-                line, _, buf = buf.partition(b"\n")
-                if marker in line:
-                    lat.append(time.perf_counter() - t0)
-                    got = True
-        time.sleep(0.05)
-    return lat
+        for i, (inp, dvl, out_fd) in enumerate(targets):
+            if dvl is not None:
+                for line in encode_pd6(
+                    timestamp=datetime.now(UTC),
+                    heading_deg=10.0,
+                    bottom_ship_mps=(0.0, 1.5, 0.0),
+                    range_m=20,
+                ):
+                    dvl.write(line.encode() + b"\r\n")
+            time.sleep(0.05)
+            sentence = encode_vhw(1.0 + (k % 100) * 0.01).encode() + b"\r\n"
+            t0 = time.perf_counter()
+            inp.write(sentence)
+            deadline = t0 + 2.0
+            got = False
+            while not got and time.perf_counter() < deadline:
+                r, _, _ = select.select([out_fd], [], [], 0.5)
+                if not r:
+                    continue
+                bufs[i] += os.read(out_fd, 65536)
+                while b"\n" in bufs[i]:
+                    reply, _, bufs[i] = bufs[i].partition(b"\n")
+                    if marker in reply:
+                        lats[i].append(time.perf_counter() - t0)
+                        got = True
+            time.sleep(0.05)
+    return lats
 
 
 def _pct(xs: list[float], q: float) -> float:
@@ -198,28 +201,6 @@ def bench_latency(n: int, flood: bool = False) -> None:
         )
         emlog = VirtualPort(work / "links" / "emlog1")
         dvl = VirtualPort(work / "links" / "dvl")
-        proc, _, srv = _start(work, cfg)
-        flooder = _Flood(work / "links" / "junk") if flood else None
-        try:
-            time.sleep(1.0)  # the daemon opens the input ptys
-            rss0 = _proc_cpu_rss(proc.pid)[1]
-            out_fd = _open_reader(work / "out" / "emlog0")
-            lat = _measure(emlog, dvl, out_fd, n, b"VWVHW")
-            os.close(out_fd)
-            cpu, rss1 = _proc_cpu_rss(proc.pid)
-        finally:
-            if flooder is not None:
-                flooder.close()
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(20)
-            srv.close()
-            emlog.close()
-            dvl.close()
-        if flooder is not None:
-            print(
-                f"with a garbage flood on a 4th port ({flooder.sent / 2**20:.0f} MiB sent): "
-                f"daemon RSS {rss0 / 2**20:.1f} -> {rss1 / 2**20:.1f} MiB, CPU {cpu:.1f} s"
-            )
         src = VirtualPort(work / "links" / "fwd-in")
         fwd = subprocess.Popen(
             [
@@ -233,12 +214,33 @@ def bench_latency(n: int, flood: bool = False) -> None:
         )
         assert fwd.stdout is not None
         fwd.stdout.readline()
-        out_fd = _open_reader(work / "fwd-out")
-        base = _measure(src, None, out_fd, n, b"VWVHW")
-        os.close(out_fd)
-        fwd.kill()
-        fwd.wait()
-        src.close()
+        proc, _, srv = _start(work, cfg)
+        flooder = _Flood(work / "links" / "junk") if flood else None
+        try:
+            time.sleep(1.0)  # the daemon opens the input ptys
+            rss0 = _proc_cpu_rss(proc.pid)[1]
+            out_fd = _open_reader(work / "out" / "emlog0")
+            fwd_fd = _open_reader(work / "fwd-out")
+            lat, base = _measure([(emlog, dvl, out_fd), (src, None, fwd_fd)], n, b"VWVHW")
+            os.close(out_fd)
+            os.close(fwd_fd)
+            cpu, rss1 = _proc_cpu_rss(proc.pid)
+        finally:
+            if flooder is not None:
+                flooder.close()
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(20)
+            srv.close()
+            fwd.kill()
+            fwd.wait()
+            emlog.close()
+            dvl.close()
+            src.close()
+        if flooder is not None:
+            print(
+                f"with a garbage flood on a 4th port ({flooder.sent / 2**20:.0f} MiB sent): "
+                f"daemon RSS {rss0 / 2**20:.1f} -> {rss1 / 2**20:.1f} MiB, CPU {cpu:.1f} s"
+            )
     med, p99 = statistics.median(lat), _pct(lat, 0.99)
     bmed, bp99 = statistics.median(base), _pct(base, 0.99)
     print(f"latency input pty -> corrected VHW on the output pty, {len(lat)} of {n} sentences:")
