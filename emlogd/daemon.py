@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import select
 import selectors
 import signal
 import time
@@ -38,6 +39,7 @@ SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
 
 HOUSEKEEPING_S = 0.1
+_ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """Least time between two rounds of reconnects, stale checks, status and watchdog."""
 
 
@@ -69,6 +71,11 @@ class Daemon:
         self.registered: dict[str, int] = {}
         self.unselectable: list[str] = []
         self.resting: dict[str, float] = {}
+        # resting ports wait in their own epoll, one-shot: readiness disarms a port
+        # without a call, and one modify() arms it again after its read
+        self.rest_poll = select.epoll()
+        self.rest_fds: dict[int, str] = {}
+        self.sel.register(self.rest_poll.fileno(), selectors.EVENT_READ, self._rest_ready)
         self.scratch = Output(deliver=self._deliver)
         self.rest_s: dict[str, float] = {}
         self.sinks: list[Sink] = []
@@ -152,10 +159,7 @@ class Daemon:
 
     def _close_sources(self) -> None:
         for name, src in self.sources.items():
-            fd = self.registered.pop(name, None)
-            if fd is not None:
-                with contextlib.suppress(KeyError, ValueError):
-                    self.sel.unregister(fd)
+            self._unregister(name)
             src.close()
         self.sources.clear()
         self.resting.clear()
@@ -196,6 +200,7 @@ class Daemon:
         with contextlib.suppress(KeyError, ValueError):
             self.sel.unregister(self._wake_r)
         self.sel.close()
+        self.rest_poll.close()
         self.log.info("stopped", persists=self.persists, state_errors=self.state_errors)
 
     # -- the loop ---------------------------------------------------------------
@@ -260,32 +265,42 @@ class Daemon:
         fd = self.sources[name].fileno()
         if self.registered.get(name) == fd:
             return
-        old = self.registered.pop(name, None)
-        if old is not None:
-            with contextlib.suppress(KeyError, ValueError):
-                self.sel.unregister(old)
+        self._unregister(name)
         if fd is None:
             return
         assert self.pipeline is not None
         if self.rest_s.get(name, 0.0) > 0.0 and name not in self.pipeline.uuts:
-            self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._rest(n))
+            self.rest_poll.register(fd, _ONE_READ)
+            self.rest_fds[fd] = name
         else:
             self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._read(n))
         self.registered[name] = fd
 
-    def _rest(self, name: str) -> None:
-        """A reference or aux port became readable: read it ``rest_s`` later.
-
-        Its descriptor leaves the selector until then, so that a burst (the DVL's six
-        lines per ensemble, about 3 ms apart) is one read instead of a wake-up per
-        line; what is read is stamped with the time of that read. UUT ports never
-        rest: their latency is the output's. ``rest_s: 0`` turns resting off.
-        """
+    def _unregister(self, name: str) -> None:
         fd = self.registered.pop(name, None)
-        if fd is not None:
+        if fd is None:
+            return
+        if self.rest_fds.pop(fd, None) is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self.rest_poll.unregister(fd)  # gone already if the descriptor was closed
+        else:
             with contextlib.suppress(KeyError, ValueError):
                 self.sel.unregister(fd)
-        self.resting[name] = time.monotonic() + self.rest_s[name]
+
+    def _rest_ready(self) -> None:
+        """A reference or aux port became readable: read it ``rest_s`` later.
+
+        Until then its one-shot registration stays disarmed, so that a burst (the
+        DVL's six lines per ensemble, about 3 ms apart) is one read instead of a
+        wake-up per line; what is read is stamped with the time of that read. UUT
+        ports never rest: their latency is the output's. ``rest_s: 0`` turns resting
+        off.
+        """
+        now = time.monotonic()
+        for fd, _ in self.rest_poll.poll(0):
+            name = self.rest_fds.get(fd)
+            if name is not None:
+                self.resting[name] = now + self.rest_s[name]
 
     def _read(self, name: str) -> None:
         """Read one port and feed the pipeline."""
@@ -300,15 +315,17 @@ class Daemon:
         self._handle(self.pipeline.feed(chunk.t, name, chunk.data, self.scratch))
 
     def _wake_rested(self) -> None:
-        """Read the ports whose rest is over, and give them back to the selector."""
+        """Read the ports whose rest is over, and arm them again."""
         now = time.monotonic()
         due = [name for name, t in self.resting.items() if now >= t]
         for name in due:
             del self.resting[name]
             if name in self.sources:
                 self._read(name)
-                if name not in self.registered and name in self.sources:
-                    self._register(name)
+                fd = self.registered.get(name)
+                if fd is not None and fd in self.rest_fds:
+                    with contextlib.suppress(OSError):
+                        self.rest_poll.modify(fd, _ONE_READ)
 
     def _handle(self, out: Output) -> None:
         """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""

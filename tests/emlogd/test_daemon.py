@@ -369,7 +369,7 @@ class _SpyPipeline:
         return out if out is not None else Output()
 
 
-def test_a_readable_reference_port_rests_then_is_read_once_and_selected_again(
+def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     tmp_path: Path,
 ) -> None:
     from emlogd import daemon as dmod
@@ -384,31 +384,40 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_selected_again(
     emlog = _Source("emlog1", [(1.01, b"$VWVHW\r\n")], fd=r2)
     d.sources = {"dvl": dvl, "emlog1": emlog}  # type: ignore[dict-item]
     d._sync_registrations()
-    assert d.registered == {"dvl": r, "emlog1": r2}
+    assert d.registered == {"dvl": r, "emlog1": r2} and d.rest_fds == {r: "dvl"}
+
+    def round_() -> None:  # one select round, as the loop runs it
+        for key, _ in d.sel.select(0):
+            key.data()
+
     for fd in (w, w2):
-        os.write(fd, b"x")
-    keys = {key.fd: key for key, _ in d.sel.select(0)}
-    keys[r2].data()  # the UUT is read at once, and never rests
-    assert d.registered == {"dvl": r, "emlog1": r2} and d.resting == {}
-    assert [c[2] for c in d.pipeline.calls] == [b"$VWVHW\r\n"]  # type: ignore[attr-defined]
-    keys[r].data()  # the DVL is not read yet: out of the selector, resting
-    assert d.registered == {"emlog1": r2} and "dvl" in d.resting and len(dvl.chunks) == 2
-    d._sync_registrations()
-    assert d.registered == {"emlog1": r2}  # a resting port is not put back early
+        os.write(fd, b"x")  # both readable, and stay so (the fake sources never drain)
+    round_()
+    spy = d.pipeline
+    assert [c[2] for c in spy.calls] == [b"$VWVHW\r\n"]  # type: ignore[attr-defined]
+    assert d.resting.keys() == {"dvl"} and len(dvl.chunks) == 2  # the UUT never rests
+    d._unregister("emlog1")  # only the DVL from here on
+    del d.sources["emlog1"]
+    assert d.registered == {"dvl": r}
+    assert d.sel.select(0) == []  # disarmed: no wake-up while it rests, though readable
     assert d.unselectable == []  # nor read on every round as if it had no descriptor
     d._wake_rested()
     assert len(dvl.chunks) == 2  # not due yet: nothing read
     d.resting["dvl"] = 0.0  # due
     d._wake_rested()
-    assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r, "emlog1": r2}
-    spy = d.pipeline
+    assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r}
     assert [c[2] for c in spy.calls] == [  # type: ignore[attr-defined]
         b"$VWVHW\r\n",
         b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read, stamped when read
     ]
+    round_()
+    assert d.resting.keys() == {"dvl"}  # armed again: still readable, so resting again
+    d._unregister("dvl")
+    assert d.registered == {} and d.rest_fds == {}
     for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
         os.close(fd)
     d.sel.close()
+    d.rest_poll.close()
 
 
 def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
