@@ -216,34 +216,23 @@ _FAST_TS = re.compile(
 # anything else (a partial or extra line, :RA, water lines other than all four, a
 # value failing a range check, a line over max_length) goes line by line.
 _ST = rb", *([AV]) *\r\n"
+
+
+def _vel_pattern(kind: bytes, n: int) -> bytes:
+    return b":" + kind + b"," + b",".join([_I] * n) + _ST
+
+
+def _dmg_pattern(kind: bytes) -> bytes:
+    return b":" + kind + b"," + b",".join([_F] * 5) + rb"\r\n"
+
+
 _FAST_ENSEMBLE = re.compile(
-    rb":SA," + rb",".join([_F] * 3) + rb"\r\n"
-    rb":TS, *([0-9]{14}) *," + rb",".join([_F] * 4) + rb"," + _I + rb"(?:, *[OWX] *)?\r\n"
-    rb"(?::WI,"
-    + rb",".join([_I] * 4)
-    + _ST
-    + rb":WS,"
-    + rb",".join([_I] * 3)
-    + _ST
-    + rb":WE,"
-    + rb",".join([_I] * 3)
-    + _ST
-    + rb":WD,"
-    + rb",".join([_F] * 5)
-    + rb"\r\n)?"
-    rb":BI,"
-    + rb",".join([_I] * 4)
-    + _ST
-    + rb":BS,"
-    + rb",".join([_I] * 3)
-    + _ST
-    + rb":BE,"
-    + rb",".join([_I] * 3)
-    + _ST
-    + rb":BD,"
-    + rb",".join([_F] * 5)
-    + rb"\r\n"
-)
+    b":SA," + b",".join([_F] * 3) + rb"\r\n"
+    + b":TS, *([0-9]{14}) *," + b",".join([_F] * 4) + b"," + _I + rb"(?:, *[OWX] *)?\r\n"
+    + b"(?:" + _vel_pattern(b"WI", 4) + _vel_pattern(b"WS", 3) + _vel_pattern(b"WE", 3)
+    + _dmg_pattern(b"WD") + b")?"
+    + _vel_pattern(b"BI", 4) + _vel_pattern(b"BS", 3) + _vel_pattern(b"BE", 3) + _dmg_pattern(b"BD")
+)  # fmt: skip
 
 
 def _fast_ensemble(data: bytes, max_length: int) -> Pd6Ensemble | None:
