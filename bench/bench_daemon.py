@@ -28,9 +28,11 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from drivers.fake import FakeDevice
 from drivers.nmea0183 import encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from drivers.vpty import VirtualPort
@@ -80,14 +82,17 @@ def _setup(work: Path) -> Path:
     return cfg
 
 
-def _start(work: Path, cfg: Path) -> tuple[subprocess.Popen[bytes], float, socket.socket]:
+def _start(
+    work: Path, cfg: Path, launcher: list[str] | None = None
+) -> tuple[subprocess.Popen[bytes], float, socket.socket]:
+    """``emlogd run`` (or ``launcher`` + ``run ...``) until READY=1; the seconds it took."""
     notify = work / "notify.sock"
     srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     srv.bind(str(notify))
     srv.settimeout(30)
     t0 = time.perf_counter()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "emlogd", "run", "--config", str(cfg)],
+        [*(launcher or [sys.executable, "-m", "emlogd"]), "run", "--config", str(cfg)],
         cwd=work,
         env={**os.environ, "NOTIFY_SOCKET": str(notify)},
         stdout=subprocess.DEVNULL,
@@ -95,6 +100,18 @@ def _start(work: Path, cfg: Path) -> tuple[subprocess.Popen[bytes], float, socke
     while srv.recv(4096) != b"READY=1":
         pass
     return proc, time.perf_counter() - t0, srv
+
+
+def _stop(
+    proc: subprocess.Popen[bytes], srv: socket.socket, fakes: Sequence[FakeDevice] = ()
+) -> None:
+    """SIGTERM the daemon and wait for it; close the notify socket; stop fake devices."""
+    proc.send_signal(signal.SIGTERM)
+    proc.wait(20)
+    srv.close()
+    for f in fakes:
+        f.stop()
+        f.join(5)
 
 
 def _open_reader(path: Path) -> int:
@@ -293,8 +310,6 @@ def _wakeups(pid: int) -> int:
 
 
 def bench_live(trial: Path, seconds: float) -> None:
-    from drivers.fake import FakeDevice
-
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         cfg = _setup(work)
@@ -317,12 +332,7 @@ def bench_live(trial: Path, seconds: float) -> None:
             wall = time.monotonic() - t0
             wakes = (_wakeups(proc.pid) - wake0) / wall
         finally:
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(20)
-            srv.close()
-            for f in fakes:
-                f.stop()
-                f.join(5)
+            _stop(proc, srv, fakes)
     print(f"live rates for {wall:.0f} s (1 Hz VHW + 10 Hz VBW + 5 Hz VHW + 10 Hz PD6):")
     print(f"  CPU {100 * (cpu1 - cpu0) / wall:.2f} % of one core (target <= 1 %)")
     floor = subprocess.run(

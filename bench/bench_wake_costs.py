@@ -15,16 +15,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from bench_daemon import _setup
+from bench_daemon import _setup, _start, _stop
 
 WRAPPER = r"""
 import atexit, collections, json, sys, time
@@ -104,27 +100,11 @@ def main() -> None:
             FakeDevice(trial / "2-figure8.cap", p, work / "links" / p, speed=1.0).start()
             for p in ("emlog1", "emlog2", "dvl")
         ]
-        notify = work / "notify.sock"
-        srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        srv.bind(str(notify))
-        srv.settimeout(30)
-        proc = subprocess.Popen(
-            [sys.executable, "-c", WRAPPER, str(out), "run", "--config", str(cfg)],
-            cwd=work,
-            env={**os.environ, "NOTIFY_SOCKET": str(notify)},
-            stdout=subprocess.DEVNULL,
-        )
+        proc, _, srv = _start(work, cfg, [sys.executable, "-c", WRAPPER, str(out)])
         try:
-            while srv.recv(4096) != b"READY=1":
-                pass
             time.sleep(args.seconds)
         finally:
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(20)
-            srv.close()
-            for f in fakes:
-                f.stop()
-                f.join(5)
+            _stop(proc, srv, fakes)
         data = json.loads(out.read_text())
     wall = data["wall_s"]
     print(f"live rates for {wall:.0f} s; CPU per call and share of one core by step:")
