@@ -23,8 +23,10 @@ Per unit under test (UUT):
   changes, not more often than ``persist_interval_s``).
 - **Output** — each UUT sentence gives a corrected sentence at once (VHW → VHW with
   knots and km/h, heading passed through; VBW → VBW, longitudinal corrected,
-  transverse passed through), always from the last good calibration; before one
-  exists no speed is emitted and the status sentence says ``U`` (uncalibrated).
+  transverse passed through), always from the last good calibration, made before
+  the filter learns from the same sample (and handed to :attr:`Output.deliver` at
+  once when the caller set one); before a calibration exists no speed is emitted
+  and the status sentence says ``U`` (uncalibrated).
   A proprietary status sentence (:func:`emlogd.output.encode_status`) follows at
   most once per ``status_interval_s`` of record time.
 """
