@@ -235,6 +235,41 @@ _FAST_ENSEMBLE = re.compile(
 )  # fmt: skip
 
 
+def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
+    """The ensemble record of an assembled block (lines by type, values parsed)."""
+    sa = lines["SA"]
+    ts = lines["TS"]
+    assert isinstance(sa, tuple) and isinstance(ts, tuple)
+    get = lines.get
+    ra = get("RA")
+    vel: list[Velocity | None] = []
+    for k in ("WI", "WS", "WE", "BI", "BS", "BE"):
+        v = get(k)
+        vel.append(v if isinstance(v, Velocity) else None)
+    wd, bd = get("WD"), get("BD")
+    return Pd6Ensemble(
+        pitch_deg=sa[0],
+        roll_deg=sa[1],
+        heading_deg=sa[2],
+        timestamp=ts[0],
+        salinity_ppt=ts[1],
+        temperature_c=ts[2],
+        depth_m=ts[3],
+        sound_speed_mps=ts[4],
+        bit=ts[5],
+        pressure_kpa=ra[0] if isinstance(ra, tuple) else None,
+        beam_ranges_m=ra[1] if isinstance(ra, tuple) else None,
+        water_instrument=vel[0],
+        water_ship=vel[1],
+        water_earth=vel[2],
+        water_dmg=wd if isinstance(wd, DistanceMadeGood) else None,
+        bottom_instrument=vel[3],
+        bottom_ship=vel[4],
+        bottom_earth=vel[5],
+        bottom_dmg=bd if isinstance(bd, DistanceMadeGood) else None,
+    )
+
+
 def _fast_ensemble(data: bytes, max_length: int) -> Pd6Ensemble | None:
     """One whole usual-layout ensemble in one pattern; None to go line by line."""
     m = _FAST_ENSEMBLE.fullmatch(data)
@@ -261,27 +296,10 @@ def _fast_ensemble(data: bytes, max_length: int) -> Pd6Ensemble | None:
         bd = _dmg_of(e, n, u, r, dt, "BD", data)
     except FrameError:
         return None  # the line-by-line path says which line and why
-    return Pd6Ensemble(
-        pitch_deg=sa[0],
-        roll_deg=sa[1],
-        heading_deg=sa[2],
-        timestamp=ts[0],
-        salinity_ppt=ts[1],
-        temperature_c=ts[2],
-        depth_m=ts[3],
-        sound_speed_mps=ts[4],
-        bit=ts[5],
-        pressure_kpa=None,
-        beam_ranges_m=None,
-        water_instrument=wi,
-        water_ship=ws,
-        water_earth=we,
-        water_dmg=wd,
-        bottom_instrument=bi,
-        bottom_ship=bs,
-        bottom_earth=be,
-        bottom_dmg=bd,
-    )
+    return _ensemble(
+        {"SA": sa, "TS": ts, "WI": wi, "WS": ws, "WE": we, "WD": wd, "BI": bi, "BS": bs,
+         "BE": be, "BD": bd}
+    )  # fmt: skip
 
 
 def _fast_line(frame: bytes) -> tuple[str, object] | None:
@@ -465,41 +483,7 @@ class PdAsciiDecoder(FramedDecoder):
         if "SA" not in lines or "TS" not in lines or "BS" not in lines:
             missing = [k for k in ("SA", "TS", "BS") if k not in lines]
             return FrameError(f"ensemble discarded: no {', '.join(':' + m for m in missing)}", raw)
-        return self._ensemble(lines)
-
-    @staticmethod
-    def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
-        sa = lines["SA"]
-        ts = lines["TS"]
-        assert isinstance(sa, tuple) and isinstance(ts, tuple)
-        get = lines.get
-        ra = get("RA")
-        vel: list[Velocity | None] = []
-        for k in ("WI", "WS", "WE", "BI", "BS", "BE"):
-            v = get(k)
-            vel.append(v if isinstance(v, Velocity) else None)
-        wd, bd = get("WD"), get("BD")
-        return Pd6Ensemble(
-            pitch_deg=sa[0],
-            roll_deg=sa[1],
-            heading_deg=sa[2],
-            timestamp=ts[0],
-            salinity_ppt=ts[1],
-            temperature_c=ts[2],
-            depth_m=ts[3],
-            sound_speed_mps=ts[4],
-            bit=ts[5],
-            pressure_kpa=ra[0] if isinstance(ra, tuple) else None,
-            beam_ranges_m=ra[1] if isinstance(ra, tuple) else None,
-            water_instrument=vel[0],
-            water_ship=vel[1],
-            water_earth=vel[2],
-            water_dmg=wd if isinstance(wd, DistanceMadeGood) else None,
-            bottom_instrument=vel[3],
-            bottom_ship=vel[4],
-            bottom_earth=vel[5],
-            bottom_dmg=bd if isinstance(bd, DistanceMadeGood) else None,
-        )
+        return _ensemble(lines)
 
     def parse_frame(self, frame: bytes) -> object:
         """Decode one line: ``(kind, value)`` (ensembles come from :meth:`feed`)."""
