@@ -30,6 +30,9 @@ class FakeDevice:
         speed: multiple of real time, or None for as fast as possible.
         loop: start again at the end, until stopped.
         wait_for_reader: do not start before a reader has opened the link.
+        settle_s: then wait this long before the first byte, so that the reader has
+            finished opening: pyserial's open ends by flushing the input queue, and a
+            byte written before that flush is lost.
         linger: after the capture ends, stay open (silent, like an idle sensor) until
             :meth:`stop`; closing at once would hang up the reader before it has read
             the last bytes.
@@ -50,6 +53,7 @@ class FakeDevice:
         speed: float | None = 1.0,
         loop: bool = False,
         wait_for_reader: bool = True,
+        settle_s: float = 0.05,
         linger: bool = True,
         sleep: Callable[[float], None] = time.sleep,
     ) -> None:
@@ -62,6 +66,7 @@ class FakeDevice:
         self.speed = speed
         self.loop = loop
         self.wait_for_reader = wait_for_reader
+        self.settle_s = settle_s
         self.linger = linger
         self.finished = threading.Event()
         self.sleep = sleep
@@ -88,6 +93,7 @@ class FakeDevice:
             if self.wait_for_reader:
                 while not self._stop.is_set() and not self.vport.has_reader():
                     self.sleep(0.01)
+                self.sleep(self.settle_s)
             while not self._stop.is_set():
                 self._serve_once()
                 if not self.loop:

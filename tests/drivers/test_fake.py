@@ -128,3 +128,40 @@ def test_serial_source_reads_a_fake_device_and_survives_its_restart(
         assert not src.is_open
     assert src.reconnects == 1
     src.close()
+
+
+def test_a_reader_slow_to_open_still_gets_the_first_record(
+    capture: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """pyserial's open ends by flushing the input queue; on a loaded machine that
+    flush comes well after the device saw the reader: the device waits settle_s."""
+    import serial.serialposix
+
+    from drivers.port import SerialSource
+
+    configure = vars(serial.serialposix.Serial)["_reconfigure_port"]
+
+    def slow(self: serial.serialposix.Serial, *args: object, **kw: object) -> None:
+        time.sleep(0.02)  # between os.open (the device sees a reader) and the flush
+        configure(self, *args, **kw)
+
+    monkeypatch.setattr("serial.serialposix.Serial._reconfigure_port", slow)
+    link = tmp_path / "emlog1"
+    expected = b"".join(r.data for r in CaptureReader(capture) if r.port == "emlog1")
+    dev = FakeDevice(capture, "emlog1", link, speed=None).start()
+    src = SerialSource("emlog1", str(link))
+    try:
+        assert src.open()
+        got = b""
+        deadline = time.monotonic() + 10
+        while len(got) < len(expected) and time.monotonic() < deadline:
+            c = src.read()
+            if c is None:
+                time.sleep(0.002)
+                continue
+            got += c.data
+        assert got == expected
+    finally:
+        src.close()
+        dev.stop()
+        dev.join(5)
