@@ -11,6 +11,7 @@ import pytest
 
 from drivers.capture import CaptureReader
 from drivers.fake import FakeDevice
+from drivers.port import SerialSource
 
 
 def _collect(link: Path, n: int, timeout: float = 10.0) -> bytes:
@@ -95,11 +96,21 @@ def test_unknown_port_and_bad_speed(capture: Path, tmp_path: Path) -> None:
         FakeDevice(capture, "dvl", tmp_path / "x", speed=0.0)
 
 
+def _read_until(src: SerialSource, n: int, deadline: float) -> bytes:
+    """Read ``src`` until ``n`` bytes came or the deadline passed."""
+    got = b""
+    while len(got) < n and time.monotonic() < deadline:
+        c = src.read()
+        if c is None:
+            time.sleep(0.002)
+            continue
+        got += c.data
+    return got
+
+
 def test_serial_source_reads_a_fake_device_and_survives_its_restart(
     capture: Path, tmp_path: Path
 ) -> None:
-    from drivers.port import SerialSource
-
     link = tmp_path / "emlog1"
     expected = b"".join(r.data for r in CaptureReader(capture) if r.port == "emlog1")
     src = SerialSource("emlog1", str(link), backoff_s=(0.01,))
@@ -112,13 +123,7 @@ def test_serial_source_reads_a_fake_device_and_survives_its_restart(
                 src.open()
             src.poll()
             time.sleep(0.01)
-        got = b""
-        while len(got) < len(expected) and time.monotonic() < deadline:
-            c = src.read()
-            if c is None:
-                time.sleep(0.002)
-                continue
-            got += c.data
+        got = _read_until(src, len(expected), deadline)
         assert got == expected, f"round {round_}"
         dev.stop()  # the device goes away: the source notices and retries
         dev.join(5)
@@ -137,8 +142,6 @@ def test_a_reader_slow_to_open_still_gets_the_first_record(
     flush comes well after the device saw the reader: the device waits settle_s."""
     import serial.serialposix
 
-    from drivers.port import SerialSource
-
     configure = vars(serial.serialposix.Serial)["_reconfigure_port"]
 
     def slow(self: serial.serialposix.Serial, *args: object, **kw: object) -> None:
@@ -152,15 +155,7 @@ def test_a_reader_slow_to_open_still_gets_the_first_record(
     src = SerialSource("emlog1", str(link))
     try:
         assert src.open()
-        got = b""
-        deadline = time.monotonic() + 10
-        while len(got) < len(expected) and time.monotonic() < deadline:
-            c = src.read()
-            if c is None:
-                time.sleep(0.002)
-                continue
-            got += c.data
-        assert got == expected
+        assert _read_until(src, len(expected), time.monotonic() + 10) == expected
     finally:
         src.close()
         dev.stop()
