@@ -39,8 +39,10 @@ SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
 
 HOUSEKEEPING_S = 0.1
-_ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """Least time between two rounds of reconnects, stale checks, status and watchdog."""
+
+_ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
+"""How a resting port is registered: one readiness, then disarmed until re-armed."""
 
 
 class Daemon:
