@@ -208,9 +208,7 @@ def bench_latency(n: int, flood: bool = False) -> None:
         for _ in range(3):
             proc, ready, srv = _start(work, cfg)
             readies.append(ready)
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(20)
-            srv.close()
+            _stop(proc, srv)
             (work / "notify.sock").unlink()
         print(
             f"start -> READY=1: median {statistics.median(readies):.3f} s over 3 starts "
@@ -245,9 +243,7 @@ def bench_latency(n: int, flood: bool = False) -> None:
         finally:
             if flooder is not None:
                 flooder.close()
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(20)
-            srv.close()
+            _stop(proc, srv)
             fwd.kill()
             fwd.wait()
             emlog.close()
