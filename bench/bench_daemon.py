@@ -32,11 +32,11 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-from drivers.fake import FakeDevice
+from drivers.io.fake import FakeDevice
+from drivers.io.vpty import VirtualPort
 from drivers.nmea0183 import encode_vhw
 from drivers.rdi_ascii import encode_pd6
-from drivers.vpty import VirtualPort
-from emlogd.state import CalibrationState, StateStore
+from emlogd.daemon.statefile import CalibrationState, StateStore
 
 CONFIG = """\
 ports:
@@ -345,9 +345,9 @@ def bench_live(trial: Path, seconds: float) -> None:
 GROWTH = r"""
 import resource, sys
 from pathlib import Path
-from drivers.capture import CaptureReader
+from drivers.io.capture import CaptureReader
 from emlogd.config import load_config
-from emlogd.pipeline import Output, Pipeline
+from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import pipeline_from_config
 def rss():
     for line in Path("/proc/self/status").read_text().splitlines():
@@ -418,7 +418,7 @@ def main() -> None:
     args = ap.parse_args()
     trial = Path(args.trial) if args.trial else None
     if trial is None or len(list(trial.glob("[1-5]-*.cap"))) != 5:
-        from emlogd.simulate import simulate
+        from emlogd.offline.simulate import simulate
 
         trial = Path(tempfile.mkdtemp(prefix="emlogd-trial-"))
         simulate(trial, seed=1)

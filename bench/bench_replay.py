@@ -1,7 +1,7 @@
 """Benchmark: replay throughput of the daemon's pipeline against a parsing anchor.
 
 Runs the full-scale simulated trial (about 1.0 M lines, 221 min) through the same
-:class:`emlogd.pipeline.Pipeline` that ``emlogd replay --fast`` drives (decode →
+:class:`emlogd.pipeline.core.Pipeline` that ``emlogd replay --fast`` drives (decode →
 align → filter → encode, records already in memory), and times in the same run an
 anchor doing the least any NMEA tool does with the same bytes: ``pynmea2.parse(line,
 check=True)`` on every NMEA line plus split-and-convert (``float``/``int`` of every
@@ -24,12 +24,12 @@ from pathlib import Path
 
 import pynmea2
 
-from drivers.capture import CaptureReader
+from drivers.io.capture import CaptureReader
 from emlogd.config import load_config
-from emlogd.pipeline import Output, Pipeline
-from emlogd.replay import TICK_S
+from emlogd.offline.replay import TICK_S
+from emlogd.offline.simulate import simulate
+from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import pipeline_from_config
-from emlogd.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -69,7 +69,7 @@ def _pipeline(records: list[tuple[float, str, bytes]]) -> tuple[float, Pipeline]
     t_tick = -1e18
     for t, port, data in records:
         p.feed(t, port, data, out)
-        if t - t_tick >= TICK_S:  # as emlogd.replay does
+        if t - t_tick >= TICK_S:  # as emlogd.offline.replay does
             t_tick = t
             p.tick(t, out)
         if out.emits:

@@ -17,11 +17,11 @@ import dataclasses
 import tempfile
 from pathlib import Path
 
-from drivers.capture import CaptureReader
+from drivers.io.capture import CaptureReader
 from emlogd.config import load_config
-from emlogd.pipeline import Output, Pipeline
+from emlogd.offline.simulate import simulate
+from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import pipeline_from_config
-from emlogd.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 LAGS_S = {"emlog1": 3.3, "emlog2": 0.5}

@@ -25,9 +25,9 @@ from bench_daemon import _setup, _start, _stop
 WRAPPER = r"""
 import atexit, collections, json, sys, time
 import calib.kalman as kk
-import drivers.port as dp
-import emlogd.daemon as dm
-import emlogd.pipeline as pp
+import drivers.io.port as dp
+import emlogd.daemon.loop as dm
+import emlogd.pipeline.core as pp
 import selectors
 from emlogd.cli import main
 
@@ -82,8 +82,8 @@ sys.exit(main(sys.argv[2:]))
 
 def main() -> None:
     """Run the timed daemon at live rates and print the CPU by step."""
-    from drivers.fake import FakeDevice
-    from emlogd.simulate import simulate
+    from drivers.io.fake import FakeDevice
+    from emlogd.offline.simulate import simulate
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=40.0)

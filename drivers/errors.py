@@ -2,7 +2,7 @@
 
 Every error emlogd raises on purpose derives from :class:`EmlogdError`, so one
 ``except EmlogdError`` at the CLI boundary turns them into a one-line message.
-pyserial exceptions are translated into :class:`DeviceError` in ``drivers.port``.
+pyserial exceptions are translated into :class:`DeviceError` in ``drivers.io.port``.
 
 Must not import: serial, os, time, threading (pure module).
 """

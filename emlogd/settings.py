@@ -13,8 +13,8 @@ from calib.excitation import ExcitationRule
 from calib.kalman import KfConfig
 from calib.models import PARAM_NAMES, Params, check_model
 from emlogd.config import Config
-from emlogd.pipeline import PortSettings, Snapshot, UutSettings
-from emlogd.state import CalibrationState, now_iso
+from emlogd.daemon.statefile import CalibrationState, now_iso
+from emlogd.pipeline.core import PortSettings, Snapshot, UutSettings
 
 
 def pipeline_from_config(cfg: Config) -> tuple[list[PortSettings], list[UutSettings]]:

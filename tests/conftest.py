@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from drivers.capture import CaptureWriter
-from drivers.fake import FakeDevice
+from drivers.io.capture import CaptureWriter
+from drivers.io.fake import FakeDevice
 
 
 @pytest.fixture

@@ -91,10 +91,10 @@ class TestConventions:
     """Grep-level rules from STYLE.md."""
 
     def test_serial_opened_only_in_port_module(self) -> None:
-        """Only drivers/port.py opens serial ports (always through serial_for_url)."""
+        """Only drivers/io/port.py opens serial ports (always through serial_for_url)."""
         for package in PACKAGES:
             for path in _sources(package):
-                if path == ROOT / "drivers" / "port.py":
+                if path == ROOT / "drivers" / "io" / "port.py":
                     continue
                 text = path.read_text(encoding="utf-8")
                 assert not re.search(r"serial\.(Serial|serial_for_url)\(", text), path

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from emlogd.simulate import SimulationResult, simulate
+from emlogd.offline.simulate import SimulationResult, simulate
 
 
 @pytest.fixture(scope="session")

@@ -8,7 +8,7 @@ import pytest
 
 from calib.models import Params
 from emlogd.config import load_config
-from emlogd.pipeline import Snapshot
+from emlogd.pipeline.core import Snapshot
 from emlogd.settings import pipeline_from_config, snapshot_to_state, state_to_snapshot
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "emlogd.yaml"

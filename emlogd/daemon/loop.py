@@ -1,0 +1,457 @@
+"""``emlogd run``: the daemon loop around the pipeline.
+
+One process, one thread, one ``selectors`` loop. The loop owns the file
+descriptors (serial sources, output sinks, control socket, a self-pipe for
+signals), the clock, sd_notify and the state file; everything else happens in
+:class:`~emlogd.pipeline.core.Pipeline`, the same object ``emlogd replay`` drives.
+
+Signals: SIGTERM/SIGINT persist the good calibrations, close everything and exit
+0; SIGHUP reloads the config (a bad new config is logged and the old one kept).
+A sensor missing at start is a status, not a crash: its source retries with
+backoff and is opened when it appears. Bad input is counted by the decoders; a
+state file that cannot be written is reported and the previous file stays intact.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import selectors
+import signal
+import time
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from drivers.errors import ConfigError, DeviceError, EmlogdError
+from drivers.io.port import PortEvent, SerialSource
+from emlogd.config import Config, load_config
+from emlogd.daemon.control import ControlServer
+from emlogd.daemon.notify import Notifier
+from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
+from emlogd.daemon.statefile import StateStore
+from emlogd.pipeline.core import Emit, Output, Pipeline
+from emlogd.settings import pipeline_from_config, snapshot_to_state, state_to_snapshot
+
+SELECT_TIMEOUT_S = 0.2
+"""Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
+
+HOUSEKEEPING_S = 0.1
+"""Least time between two rounds of reconnects, stale checks, status and watchdog."""
+
+_ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
+"""How a resting port is registered: one readiness, then disarmed until re-armed."""
+
+
+class Daemon:
+    """The running service.
+
+    Args:
+        config_path: the YAML config.
+        log: a structlog-style logger (``log.info(event, **kw)``).
+        state_path: override of the config's state file.
+        clock: the wall clock (receive times of the sources use their own).
+    """
+
+    def __init__(
+        self,
+        config_path: str | Path,
+        log: Any,
+        *,
+        state_path: str | Path | None = None,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.config_path = Path(config_path)
+        self.log = log
+        self.state_override = Path(state_path) if state_path is not None else None
+        self.clock = clock
+        self.config: Config = load_config(self.config_path)
+        self.sel = selectors.DefaultSelector()
+        self.sources: dict[str, SerialSource] = {}
+        self.registered: dict[str, int] = {}
+        self.unselectable: list[str] = []
+        self.resting: dict[str, float] = {}
+        # resting ports wait in their own epoll, one-shot: readiness disarms a port
+        # without a call, and one modify() arms it again after its read
+        self.rest_poll = select.epoll()
+        self.rest_fds: dict[int, str] = {}
+        self.sel.register(self.rest_poll.fileno(), selectors.EVENT_READ, self._rest_ready)
+        self.scratch = Output(deliver=self._deliver)
+        self.rest_s: dict[str, float] = {}
+        self.sinks: list[Sink] = []
+        self.control: ControlServer | None = None
+        self.store: StateStore | None = None
+        self.pipeline: Pipeline | None = None
+        self.notifier = Notifier.from_env()
+        self.stop = False
+        self.reload = False
+        self.state_errors = 0
+        self.persists = 0
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+
+    # -- lifecycle -------------------------------------------------------------
+
+    def run(self) -> int:
+        """Run until SIGTERM/SIGINT; return the exit code."""
+        old = self._install_signals()
+        try:
+            self._start()
+            self.notifier.ready()
+            self._notify_status()
+            self.log.info("ready", config=str(self.config_path), pid=os.getpid())
+            self._loop()
+        finally:
+            self._shutdown()
+            for sig, handler in old.items():
+                signal.signal(sig, handler)
+            signal.set_wakeup_fd(-1)
+            os.close(self._wake_r)
+            os.close(self._wake_w)
+        return 0
+
+    def _install_signals(self) -> dict[int, Any]:
+        def on_stop(signum: int, frame: FrameType | None) -> None:
+            self.stop = True
+
+        def on_hup(signum: int, frame: FrameType | None) -> None:
+            self.reload = True
+
+        old: dict[int, Any] = {
+            signal.SIGTERM: signal.signal(signal.SIGTERM, on_stop),
+            signal.SIGINT: signal.signal(signal.SIGINT, on_stop),
+            signal.SIGHUP: signal.signal(signal.SIGHUP, on_hup),
+        }
+        signal.set_wakeup_fd(self._wake_w, warn_on_full_buffer=False)
+        self.sel.register(self._wake_r, selectors.EVENT_READ, self._drain_wakeup)
+        return old
+
+    def _drain_wakeup(self) -> None:
+        with contextlib.suppress(BlockingIOError, InterruptedError):
+            while os.read(self._wake_r, 512):
+                pass
+
+    def _start(self) -> None:
+        cfg = self.config
+        state_path = self.state_override or Path(cfg.state_path)
+        self.store = StateStore(state_path)
+        states, report = self.store.load()
+        for line in report:
+            self.log.warning("state_file", detail=line, path=str(state_path))
+        snapshots = {uut: state_to_snapshot(st) for uut, st in states.items()}
+        for uut, snap in snapshots.items():
+            self.log.info("calibration_loaded", uut=uut, model=snap.model, **snap.params.as_dict())
+        ports, uuts = pipeline_from_config(cfg)
+        self.pipeline = Pipeline(ports, uuts, snapshots)
+        self._open_outputs()
+        self.control = ControlServer(cfg.control_socket, self._control, self.sel)
+        self._open_sources(cfg)
+
+    def _open_sources(self, cfg: Config) -> None:
+        for p in cfg.ports:
+            src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
+            src.open()
+            self.sources[p.name] = src
+            self.rest_s[p.name] = p.rest_s
+            self._log_port_events(src.events())
+        self._sync_registrations()
+
+    def _close_sources(self) -> None:
+        for name, src in self.sources.items():
+            self._unregister(name)
+            src.close()
+        self.sources.clear()
+        self.resting.clear()
+        self.rest_s.clear()
+
+    def _open_outputs(self) -> None:
+        out = self.config.outputs
+        if out.pty:
+            self.sinks.append(PtySink(out.pty, mode=out.pty_mode))
+        if out.tcp:
+            self.sinks.append(
+                TcpServerSink(
+                    out.tcp,
+                    selector=self.sel,
+                    on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                )
+            )
+        if out.udp:
+            self.sinks.append(UdpSink(out.udp))
+        if out.stdout:
+            self.sinks.append(stdout_sink())
+
+    def _close_outputs(self) -> None:
+        for sink in self.sinks:
+            with contextlib.suppress(OSError):
+                sink.close()
+        self.sinks.clear()
+
+    def _shutdown(self) -> None:
+        self.notifier.stopping()
+        if self.pipeline is not None:
+            self._persist(final=True)
+        self._close_sources()
+        if self.control is not None:
+            self.control.close()
+            self.control = None
+        self._close_outputs()
+        with contextlib.suppress(KeyError, ValueError):
+            self.sel.unregister(self._wake_r)
+        self.sel.close()
+        self.rest_poll.close()
+        self.log.info("stopped", persists=self.persists, state_errors=self.state_errors)
+
+    # -- the loop ---------------------------------------------------------------
+
+    def _loop(self) -> None:
+        cfg = self.config
+        next_status = self.clock() + cfg.status_interval_s
+        wd = self.notifier.watchdog_interval_s
+        next_watchdog = self.clock() + wd if wd else None
+        next_housekeeping = 0.0
+        while not self.stop:
+            timeout = SELECT_TIMEOUT_S
+            if self.resting:
+                timeout = min(timeout, max(min(self.resting.values()) - time.monotonic(), 0.0))
+            for key, _ in self.sel.select(timeout=timeout):
+                key.data()
+                if self._stopping():
+                    break
+            if self.resting:
+                self._wake_rested()
+            for name in self.unselectable:
+                self._read(name)  # a source without a file descriptor (loop://)
+            if self.reload:
+                self.reload = False
+                self._reload()
+            now = self.clock()
+            if now < next_housekeeping:
+                continue  # data wake-ups do no more than read, decode and emit
+            next_housekeeping = now + HOUSEKEEPING_S
+            changed = False  # a port opened or lost: its descriptor changed
+            for src in self.sources.values():
+                events = src.poll()
+                if events:
+                    changed = True
+                    self._log_port_events(events)
+            if changed:
+                self._sync_registrations()
+            assert self.pipeline is not None
+            self._handle(self.pipeline.tick(now, self.scratch))
+            if now >= next_status:
+                next_status = now + self.config.status_interval_s
+                self._status_event()
+            if next_watchdog is not None and now >= next_watchdog:
+                self.notifier.watchdog()
+                next_watchdog = now + (wd or 1.0)
+
+    def _stopping(self) -> bool:
+        return self.stop  # a call: mypy would take the loop's `not self.stop` as fixed
+
+    def _sync_registrations(self) -> None:
+        for name in self.sources:
+            if name not in self.resting:
+                self._register(name)
+        self.unselectable = [
+            name
+            for name, src in self.sources.items()
+            if src.is_open and name not in self.registered and name not in self.resting
+        ]
+
+    def _register(self, name: str) -> None:
+        """Select a port on its current descriptor (re-registered if it changed)."""
+        fd = self.sources[name].fileno()
+        if self.registered.get(name) == fd:
+            return
+        self._unregister(name)
+        if fd is None:
+            return
+        assert self.pipeline is not None
+        if self.rest_s.get(name, 0.0) > 0.0 and name not in self.pipeline.uuts:
+            self.rest_poll.register(fd, _ONE_READ)
+            self.rest_fds[fd] = name
+        else:
+            self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._read(n))
+        self.registered[name] = fd
+
+    def _unregister(self, name: str) -> None:
+        fd = self.registered.pop(name, None)
+        if fd is None:
+            return
+        if self.rest_fds.pop(fd, None) is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self.rest_poll.unregister(fd)  # gone already if the descriptor was closed
+        else:
+            with contextlib.suppress(KeyError, ValueError):
+                self.sel.unregister(fd)
+
+    def _rest_ready(self) -> None:
+        """A reference or aux port became readable: read it ``rest_s`` later.
+
+        Until then its one-shot registration stays disarmed, so that a burst (the
+        DVL's six lines per ensemble, about 3 ms apart) is one read instead of a
+        wake-up per line; what is read is stamped with the time of that read. UUT
+        ports never rest: their latency is the output's. ``rest_s: 0`` turns resting
+        off.
+        """
+        now = time.monotonic()
+        for fd, _ in self.rest_poll.poll(0):
+            name = self.rest_fds.get(fd)
+            if name is not None:
+                self.resting[name] = now + self.rest_s[name]
+
+    def _read(self, name: str) -> None:
+        """Read one port and feed the pipeline."""
+        src = self.sources[name]
+        chunk = src.read()
+        if src.has_events:
+            self._log_port_events(src.events())
+        if chunk is None:
+            self._sync_registrations()
+            return
+        assert self.pipeline is not None
+        self._handle(self.pipeline.feed(chunk.t, name, chunk.data, self.scratch))
+
+    def _wake_rested(self) -> None:
+        """Read the ports whose rest is over, and arm them again."""
+        now = time.monotonic()
+        due = [name for name, t in self.resting.items() if now >= t]
+        for name in due:
+            del self.resting[name]
+            if name in self.sources:
+                self._read(name)
+                fd = self.registered.get(name)
+                if fd is not None and fd in self.rest_fds:
+                    with contextlib.suppress(OSError):
+                        self.rest_poll.modify(fd, _ONE_READ)
+
+    def _handle(self, out: Output) -> None:
+        """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""
+        if out.emits:
+            self._deliver(out.emits)
+            out.emits.clear()
+        for ev in out.events:
+            self.log.info(ev.kind, port=ev.port, **dict(ev.detail))
+        out.events.clear()
+        if out.persist:
+            out.persist.clear()
+            self._persist()
+
+    def _deliver(self, emits: list[Emit]) -> None:
+        """Write sentences to every output sink (called by the pipeline as each is ready)."""
+        data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
+        for sink in self.sinks:
+            sink.write(data)
+
+    def _persist(self, *, final: bool = False) -> None:
+        assert self.pipeline is not None and self.store is not None
+        snaps = self.pipeline.good_snapshots()
+        if not snaps:
+            return
+        try:
+            self.store.save({s.uut: snapshot_to_state(s) for s in snaps})
+        except EmlogdError as exc:
+            self.state_errors += 1
+            self.log.error("state_write_failed", error=str(exc), final=final)
+            return
+        self.persists += 1
+        self.log.info(
+            "calibration_persisted",
+            uuts=[s.uut for s in snaps],
+            final=final,
+            path=str(self.store.path),
+        )
+
+    def _log_port_events(self, events: list[PortEvent]) -> None:
+        for ev in events:
+            level = (
+                self.log.warning if ev.kind in ("disconnected", "stale", "error") else self.log.info
+            )
+            level(f"port_{ev.kind}", port=ev.port, detail=ev.detail)
+
+    def _status_event(self) -> None:
+        assert self.pipeline is not None
+        status = self.pipeline.status()
+        sources = {name: src.counters_dict() for name, src in self.sources.items()}
+        sinks = {s.name: s.counters.as_dict() for s in self.sinks}
+        self.log.info(
+            "status",
+            ports=status["ports"],
+            uuts=status["uuts"],
+            sources=sources,
+            sinks=sinks,
+            state_errors=self.state_errors,
+        )
+        self._notify_status()
+
+    def _notify_status(self) -> None:
+        if self.pipeline is not None:
+            self.notifier.status(self.pipeline.summary()[:200])
+
+    # -- control and reload -------------------------------------------------------
+
+    def _control(self, req: dict[str, object]) -> dict[str, object]:
+        assert self.pipeline is not None
+        cmd = req["cmd"]
+        port = req.get("port")
+        if port is not None and port not in self.pipeline.uuts:
+            raise ValueError(f"no UUT {port!r}; UUTs: {', '.join(self.pipeline.uuts)}")
+        p = port if isinstance(port, str) else None
+        if cmd == "status":
+            return {
+                "status": self.pipeline.status(),
+                "state_file": str(self.store.path) if self.store else None,
+                "state_errors": self.state_errors,
+                "persists": self.persists,
+            }
+        if cmd == "freeze":
+            done = self.pipeline.set_learning(False, p)
+            self._persist()
+            self.log.info("control_freeze", uuts=done)
+            return {"uuts": done, "learning": False}
+        if cmd == "learn":
+            on = req.get("on", True)
+            if not isinstance(on, bool):
+                raise ValueError('learn needs "on": true or false')
+            done = self.pipeline.set_learning(on, p)
+            self.log.info("control_learn", uuts=done, on=on)
+            return {"uuts": done, "learning": on}
+        if cmd == "reset":
+            done = self.pipeline.reset(p)
+            self.log.warning("control_reset", uuts=done)
+            return {"uuts": done}
+        raise ValueError(f"unknown cmd {cmd!r}")
+
+    def _reload(self) -> None:
+        try:
+            new = load_config(self.config_path)
+        except (ConfigError, OSError) as exc:
+            self.log.error("reload_failed", error=str(exc), kept="previous config")
+            return
+        assert self.pipeline is not None
+        self._persist()
+        snapshots = {s.uut: s for s in self.pipeline.good_snapshots()}
+        try:
+            ports, uuts = pipeline_from_config(new)
+            pipeline = Pipeline(ports, uuts, snapshots)
+        except (ConfigError, ValueError) as exc:
+            self.log.error("reload_failed", error=str(exc), kept="previous config")
+            return
+        self._close_sources()
+        self._close_outputs()
+        if self.control is not None:
+            self.control.close()
+        self.config = new
+        self.pipeline = pipeline
+        try:
+            self._open_outputs()
+            self.control = ControlServer(new.control_socket, self._control, self.sel)
+        except DeviceError as exc:
+            self.log.error("reload_outputs_failed", error=str(exc))
+        self._open_sources(new)
+        self.log.info("reloaded", config=str(self.config_path))
+        self._notify_status()

@@ -1,0 +1,174 @@
+"""Serial source: real ptys and loop://, chunked reads, unplug/replug, stale, bad URLs."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import pytest
+
+from drivers.errors import DeviceError
+from drivers.io.port import SerialSource
+from drivers.io.vpty import VirtualPort
+
+
+def _read_all(src: SerialSource, n: int, timeout: float = 5.0) -> bytes:
+    out = b""
+    end = time.monotonic() + timeout
+    while len(out) < n and time.monotonic() < end:
+        c = src.read()
+        if c is None:
+            time.sleep(0.005)
+            continue
+        assert c.port == src.name and c.t > 0
+        out += c.data
+    return out
+
+
+def _is_open(src: SerialSource) -> bool:
+    # a call, not the property: mypy would keep `src.is_open` narrowed across the
+    # loops below, which change it
+    return src.is_open
+
+
+def test_reads_a_real_pty_in_chunks(pty_pair: tuple[int, int, str]) -> None:
+    master, _, path = pty_pair
+    src = SerialSource("emlog1", path, baudrate=4800)
+    assert src.open()
+    assert [e.kind for e in src.events()] == ["connected"]
+    assert isinstance(src.fileno(), int)
+    data = b"".join(b"$VWVHW,,T,,M,%d.00,N,,K*00\r\n" % k for k in range(200))
+    os.write(master, data)
+    got = _read_all(src, len(data))
+    assert got == data
+    assert src.chunks < 200  # chunked, not one read per line
+    src.close()
+    assert not src.is_open and src.fileno() is None
+
+
+def test_loop_url_without_file_descriptor() -> None:
+    src = SerialSource("l", "loop://", baudrate=9600)
+    assert src.open()
+    assert src._ser is not None
+    src._ser.write(b"hello")
+    assert _read_all(src, 5) == b"hello"
+    src.close()
+
+
+def test_missing_device_is_an_event_then_reconnects(tmp_path: Path) -> None:
+    link = tmp_path / "emlog1"
+    clock = [0.0]
+    src = SerialSource("emlog1", str(link), backoff_s=(0.5, 1.0), monotonic=lambda: clock[0])
+    assert not src.open()  # missing at start: not a crash
+    ev = src.events()
+    assert [e.kind for e in ev] == ["disconnected"] and "cannot open" in ev[0].detail
+    assert src.poll() == []  # backoff not elapsed
+    with VirtualPort(link) as vp:
+        clock[0] = 0.6
+        assert [e.kind for e in src.poll()] == ["connected"]
+        vp.write(b"$A*41\r\n")
+        assert _read_all(src, 7) == b"$A*41\r\n"
+        src.close()
+
+
+def test_unplug_and_replug_at_the_same_path(tmp_path: Path) -> None:
+    link = tmp_path / "dvl"
+    vp = VirtualPort(link)
+    src = SerialSource("dvl", str(link), backoff_s=(0.01,))
+    assert src.open()
+    src.events()
+    vp.write(b"one\r\n")
+    assert _read_all(src, 5) == b"one\r\n"
+    vp.close()  # unplugged
+    deadline = time.monotonic() + 5
+    while _is_open(src) and time.monotonic() < deadline:
+        src.read()
+        time.sleep(0.01)
+    assert not _is_open(src)
+    assert [e.kind for e in src.events()] == ["disconnected"]
+    vp2 = VirtualPort(link)  # replugged: a new pty at the same symlink
+    try:
+        deadline = time.monotonic() + 5
+        while not _is_open(src) and time.monotonic() < deadline:
+            src.poll()
+            time.sleep(0.02)
+        assert _is_open(src) and src.reconnects == 1
+        vp2.write(b"two\r\n")
+        assert _read_all(src, 5) == b"two\r\n"
+    finally:
+        src.close()
+        vp2.close()
+
+
+def test_stale_and_alive_events(pty_pair: tuple[int, int, str]) -> None:
+    master, _, path = pty_pair
+    clock = [100.0]
+    src = SerialSource("p", path, stale_timeout_s=2.0, monotonic=lambda: clock[0])
+    src.open()
+    src.events()
+    clock[0] = 101.0
+    assert src.poll() == []
+    clock[0] = 102.5
+    assert [e.kind for e in src.poll()] == ["stale"]
+    clock[0] = 110.0
+    assert src.poll() == []  # reported once
+    os.write(master, b"x\n")
+    _read_all(src, 2)
+    assert [e.kind for e in src.events()] == ["alive"]
+    src.close()
+
+
+def test_bad_url_scheme_is_a_device_error() -> None:
+    with pytest.raises(DeviceError, match="invalid URL"):
+        SerialSource("x", "nonsense://here")
+    with pytest.raises(ValueError, match="backoff"):
+        SerialSource("x", "loop://", backoff_s=())
+
+
+def _replug_cycles(tmp_path: Path, cycles: int) -> None:
+    link = tmp_path / "emlog1"
+    src = SerialSource("emlog1", str(link), backoff_s=(0.005,))
+    fds_before = None
+    rss_before = 0
+    for k in range(cycles):
+        vp = VirtualPort(link)
+        if k == 0:
+            src.open()
+        deadline = time.monotonic() + 5
+        while not _is_open(src) and time.monotonic() < deadline:
+            src.poll()
+            time.sleep(0.002)
+        assert _is_open(src), f"cycle {k}: no reconnect"
+        msg = b"$cycle,%d*00\r\n" % k
+        vp.write(msg)
+        assert _read_all(src, len(msg)) == msg
+        vp.close()  # unplug
+        deadline = time.monotonic() + 5
+        while _is_open(src) and time.monotonic() < deadline:
+            src.read()
+            time.sleep(0.002)
+        assert not _is_open(src)
+        if k == 1:
+            fds_before = sum(1 for _ in Path("/proc/self/fd").iterdir())
+            rss_before = _rss()
+    src.close()
+    assert src.reconnects == cycles - 1
+    assert fds_before is not None and sum(1 for _ in Path("/proc/self/fd").iterdir()) <= fds_before
+    assert _rss() - rss_before < 2 * 2**20  # no memory growth beyond allocator noise
+
+
+def _rss() -> int:
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    return 0
+
+
+def test_replug_cycles_leak_no_descriptors(tmp_path: Path) -> None:
+    _replug_cycles(tmp_path, 10)
+
+
+@pytest.mark.soak
+def test_hundred_replug_cycles(tmp_path: Path) -> None:
+    _replug_cycles(tmp_path, 100)

@@ -1,0 +1,155 @@
+"""Virtual serial port: raw mode, symlink, late readers, stuck readers, cleanup."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import stat
+import time
+from pathlib import Path
+
+import pytest
+
+from drivers.errors import DeviceError
+from drivers.io.vpty import VirtualPort
+
+
+def _open(link: Path) -> int:
+    return os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+
+
+def _read(fd: int, timeout: float = 2.0) -> bytes:
+    end = time.monotonic() + timeout
+    out = b""
+    while time.monotonic() < end:
+        try:
+            chunk = os.read(fd, 65536)
+        except BlockingIOError:
+            if out:
+                break
+            time.sleep(0.01)
+            continue
+        out += chunk
+    return out
+
+
+def test_symlink_mode_and_raw_bytes(tmp_path: Path) -> None:
+    link = tmp_path / "run" / "emlog0"
+    with VirtualPort(link, mode=0o640) as vp:
+        assert link.is_symlink() and str(link.readlink()) == vp.slave_path
+        assert stat.S_IMODE(Path(vp.slave_path).stat().st_mode) == 0o640
+        fd = _open(link)
+        try:
+            assert vp.has_reader()
+            data = b"$VWVHW,1*00\r\n\x00\xff\n\r"
+            assert vp.write(data) == len(data)
+            assert _read(fd) == data  # raw: no CR/LF translation, no echo
+        finally:
+            os.close(fd)
+    assert not link.exists() and not link.is_symlink()
+
+
+def test_late_reader_sees_no_backlog(tmp_path: Path) -> None:
+    link = tmp_path / "p"
+    with VirtualPort(link) as vp:
+        assert not vp.has_reader()
+        assert vp.write(b"stale\r\n") == 0
+        assert vp.dropped == 7
+        fd = _open(link)
+        try:
+            vp.write(b"fresh\r\n")
+            assert _read(fd) == b"fresh\r\n"
+        finally:
+            os.close(fd)
+        time.sleep(0.05)
+        assert vp.write(b"nobody\r\n") == 0  # the reader closed again
+        fd = _open(link)
+        try:
+            vp.write(b"again\r\n")
+            assert _read(fd) == b"again\r\n"
+        finally:
+            os.close(fd)
+
+
+def _sentence(k: int) -> bytes:
+    return b"$VWVHW,,T,,M,%05d,N,6.48,K*6A\r\n" % k
+
+
+def test_a_reader_that_never_reads_never_blocks_the_writer(tmp_path: Path) -> None:
+    # without a backlog limit (kernel behaviour): the pty fills, further writes are dropped
+    with VirtualPort(tmp_path / "p", max_backlog=None) as vp:
+        fd = _open(tmp_path / "p")
+        try:
+            t0 = time.monotonic()
+            for k in range(20_000):
+                vp.write(_sentence(k))
+            assert time.monotonic() - t0 < 30  # generous: only catches a blocked writer
+            assert vp.dropped > 0 and vp.written > 0 and vp.flushes == 0
+            got = _read(fd)
+            assert got.startswith(_sentence(0))  # the oldest data: a stale backlog
+        finally:
+            os.close(fd)
+
+
+def test_a_stalled_reader_resumes_with_recent_data(tmp_path: Path) -> None:
+    with VirtualPort(tmp_path / "p", max_backlog=2048) as vp:
+        fd = _open(tmp_path / "p")
+        try:
+            for k in range(20_000):
+                assert vp.write(_sentence(k)) == len(_sentence(k))  # never full, never blocks
+            assert vp.dropped == 0 and vp.flushes > 0
+            got = _read(fd)
+        finally:
+            os.close(fd)
+    assert got.endswith(_sentence(19_999))
+    # only recent data is left: a burst can leave up to the pty's own capacity
+    # (~20 KB, ~640 sentences) that the kernel had not yet handed to the line
+    # discipline, never the old backlog (without the limit: sentence 0 onwards)
+    first = int(got[got.index(b"$") :].split(b",")[5])
+    assert first >= 19_000, first
+
+
+def test_a_live_reader_loses_nothing(tmp_path: Path) -> None:
+    with VirtualPort(tmp_path / "p") as vp:
+        fd = _open(tmp_path / "p")
+        expected = b"".join(_sentence(k) for k in range(3000))
+        got = b""
+        try:
+            for k in range(3000):
+                assert vp.write(_sentence(k)) == len(_sentence(k))
+                with contextlib.suppress(BlockingIOError):
+                    got += os.read(fd, 65536)
+            got += _read(fd)
+        finally:
+            os.close(fd)
+        assert got == expected and vp.flushes == 0
+
+
+@pytest.mark.parametrize("bad", [0, -1, 4096, 100_000])
+def test_max_backlog_range(tmp_path: Path, bad: int) -> None:
+    with pytest.raises(ValueError, match="max_backlog"):
+        VirtualPort(tmp_path / "p", max_backlog=bad)
+    assert not (tmp_path / "p").exists()
+
+
+def test_replaces_a_stale_link_and_refuses_a_file(tmp_path: Path) -> None:
+    link = tmp_path / "p"
+    link.symlink_to("/dev/pts/does-not-exist")
+    with VirtualPort(link) as vp:
+        assert str(link.readlink()) == vp.slave_path
+    regular = tmp_path / "file"
+    regular.write_text("keep me")
+    with pytest.raises(DeviceError, match="not a symlink"):
+        VirtualPort(regular)
+    assert regular.read_text() == "keep me"
+
+
+def test_close_keeps_a_link_that_is_no_longer_ours(tmp_path: Path) -> None:
+    link = tmp_path / "p"
+    first = VirtualPort(link)
+    second = VirtualPort(link)  # a new daemon took the path over
+    first.close()
+    assert link.is_symlink() and str(link.readlink()) == second.slave_path
+    second.close()
+    first.close()  # idempotent
+    assert not link.is_symlink()

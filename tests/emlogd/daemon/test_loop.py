@@ -1,0 +1,486 @@
+"""End to end: the real daemon (subprocess) against fake devices on ptys.
+
+Captures are replayed faster than real time, so the configured latencies are the
+simulator's divided by the replay speed.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from drivers.io.capture import CaptureWriter
+from drivers.io.fake import FakeDevice
+from emlogd.daemon.control import request
+from emlogd.daemon.statefile import StateStore
+
+SPEED = 20.0
+
+CONFIG = f"""\
+ports:
+  - {{name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut, baud: 4800}}
+  - {{name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut, baud: 38400}}
+  - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, stale_timeout_s: 1,
+     rest_s: 0}}  # exact receive times at 20x (resting is a real-time CPU saver)
+  - {{name: junk, url: links/junk, protocol: nmea0183, role: aux}}
+calibration:
+  - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
+     excitation_half_life_samples: 120, persist_interval_s: 0.5}}
+  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5}}
+outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_interval_s: 0.2}}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+status_interval_s: 1
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Daemon:
+    def __init__(self, work: Path) -> None:
+        self.work = work
+        self.log = open(work / "daemon.log", "ab")  # noqa: SIM115
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
+            cwd=work,
+        )
+        self.fd = -1
+        self.buf = b""
+        self.lines: list[bytes] = []
+        deadline = time.monotonic() + 20
+        while not (work / "out" / "emlog0").exists():
+            assert self.proc.poll() is None, (work / "daemon.log").read_text()
+            assert time.monotonic() < deadline, "the daemon did not start"
+            time.sleep(0.02)
+        self.fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+
+    def pump(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            r, _, _ = select.select([self.fd], [], [], 0.05)
+            if r:
+                try:
+                    self.buf += os.read(self.fd, 65536)
+                except (BlockingIOError, OSError):
+                    continue
+                *done, self.buf = self.buf.split(b"\r\n")
+                self.lines.extend(done)
+
+    def status(self) -> dict[str, object]:
+        resp = request(self.work / "run" / "control.sock", {"cmd": "status"})
+        assert resp["ok"], resp
+        st = resp["status"]
+        assert isinstance(st, dict)
+        return st
+
+    def stop(self, sig: int = signal.SIGTERM) -> int:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+        self.proc.send_signal(sig)
+        rc = self.proc.wait(20)
+        self.log.close()
+        return rc
+
+
+def _setup(tmp_path: Path) -> Path:
+    for sub in ("links", "out", "state", "run"):
+        (tmp_path / sub).mkdir()
+    (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
+    junk = tmp_path / "junk.cap"
+    with CaptureWriter(junk, {"junk": "nmea0183"}) as w:
+        for k in range(3000):
+            w.write_chunk(1.0 + k * 0.001, "junk", os.urandom(400) + b"\n" + b"A" * 2000)
+    return junk
+
+
+def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None:
+    junk = _setup(tmp_path)
+    capture = trial_files["figure-8"]
+    links = tmp_path / "links"
+    devices = {
+        p: FakeDevice(capture, p, links / p, speed=SPEED).start()
+        for p in ("emlog1", "emlog2", "dvl")
+    }
+    garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
+    d = Daemon(tmp_path)
+    try:
+        # a TCP client that connects and never reads must not stall the pty output
+        cfg = (tmp_path / "emlogd.yaml").read_text()
+        tcp_port = int(cfg.split('tcp: "127.0.0.1:')[1].split('"')[0])
+        lazy = socket.create_connection(("127.0.0.1", tcp_port))
+        lazy.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1024)
+        d.pump(6.0)
+        # unplug and replug EMlog2 at the same path
+        devices["emlog2"].stop()
+        devices["emlog2"].join(5)
+        d.pump(1.0)
+        devices["emlog2"] = FakeDevice(capture, "emlog2", links / "emlog2", speed=SPEED).start()
+        while not all(dev.finished.is_set() for dev in devices.values()):
+            d.pump(0.5)
+            assert d.proc.poll() is None
+        d.pump(0.5)
+        st = d.status()
+        uuts = st["uuts"]
+        ports = st["ports"]
+        assert isinstance(uuts, dict) and isinstance(ports, dict)
+        e1 = uuts["emlog1"]
+        assert e1["params"] is not None, e1
+        # ≥ 40 % better than raw: the corrected error is scored one step ahead (each
+        # sample corrected before the filter learns from it), and this short 20x run is
+        # mostly the learning transient (0.50-0.52 of raw here; 0.10 replaying the
+        # full-scale figure-8 capture)
+        assert e1["rmse_corrected"] < 0.6 * e1["rmse_raw"], e1
+        assert sum(ports["junk"]["rejects"].values()) > 100  # the garbage port is counted
+        assert ports["emlog2"]["records"] > 0
+        vhw = [ln for ln in d.lines if ln[3:6] == b"VHW"]
+        status = [ln for ln in d.lines if ln.startswith(b"$PEMLS")]
+        assert len(vhw) > 200 and status
+        # the DVL stops: the parameters freeze, the output goes on
+        devices["dvl"].stop()
+        frozen = dict(e1["params"])
+        for p in ("emlog1",):
+            devices[p].stop()
+            devices[p].join(5)
+            devices[p] = FakeDevice(capture, p, links / p, speed=SPEED).start()
+        d.pump(3.0)
+        st2 = d.status()["uuts"]
+        assert isinstance(st2, dict)
+        assert st2["emlog1"]["state"] == "frozen" and st2["emlog1"]["params"] == frozen
+        assert st2["emlog1"]["reference"] in ("stale", "lost")
+        n_before = len([ln for ln in d.lines if ln[3:6] == b"VHW"])
+        d.pump(1.0)
+        assert len([ln for ln in d.lines if ln[3:6] == b"VHW"]) > n_before
+        lazy.close()
+        assert d.stop() == 0
+    finally:
+        if d.proc.poll() is None:
+            d.proc.kill()
+        for dev in [*devices.values(), garbage]:
+            dev.stop()
+            dev.join(5)
+    # SIGTERM persisted the frozen calibration; a restart loads it
+    states, _report = StateStore(tmp_path / "state" / "state.yaml").load()
+    assert "emlog1" in states and states["emlog1"].params == pytest.approx(frozen)
+    log = (tmp_path / "daemon.log").read_text()
+    assert '"event": "ready"' in log and '"event": "stopped"' in log
+    assert "port_disconnected" in log and log.count("port_connected") >= 4
+    d2 = Daemon(tmp_path)
+    try:
+        d2.pump(0.5)
+        st3 = d2.status()["uuts"]
+        assert isinstance(st3, dict)
+        assert st3["emlog1"]["params"] == pytest.approx(frozen)
+        assert st3["emlog1"]["state"] == "frozen"
+        resp = request(tmp_path / "run" / "control.sock", {"cmd": "learn", "on": False})
+        assert resp["ok"] and resp["learning"] is False
+        assert (
+            request(tmp_path / "run" / "control.sock", {"cmd": "reset", "port": "nope"})["ok"]
+            is False
+        )
+    finally:
+        assert d2.stop(signal.SIGINT) == 0
+    assert not (tmp_path / "out" / "emlog0").exists()  # the pty link is removed on exit
+
+
+def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
+    """READY=1 over a real notify socket, sensors absent at start, SIGHUP good and bad."""
+    for sub in ("links", "out", "state", "run"):
+        (tmp_path / sub).mkdir()
+    cfg = tmp_path / "emlogd.yaml"
+    base = CONFIG.replace("{tcp}", str(_free_port()))
+    cfg.write_text(base)
+    notify = tmp_path / "notify.sock"
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    srv.bind(str(notify))
+    srv.settimeout(20)
+    log = open(tmp_path / "daemon.log", "wb")  # noqa: SIM115
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "run", "--config", str(cfg)],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        cwd=tmp_path,
+        env={**os.environ, "NOTIFY_SOCKET": str(notify), "WATCHDOG_USEC": "1000000"},
+    )
+    try:
+        messages = [srv.recv(4096).decode() for _ in range(2)]
+        assert messages[0] == "READY=1"
+        assert messages[1].startswith("STATUS=emlog1 uncalibrated")
+        # no sensor exists: the daemon runs and says so
+        st = request(tmp_path / "run" / "control.sock", {"cmd": "status"})["status"]
+        assert isinstance(st, dict) and st["uuts"]["emlog1"]["state"] == "uncalibrated"
+        deadline = time.monotonic() + 5
+        while b"WATCHDOG=1" not in srv.recv(4096) and time.monotonic() < deadline:
+            pass
+        # a good reload moves the control socket
+        cfg.write_text(base.replace("run/control.sock", "run/control2.sock"))
+        proc.send_signal(signal.SIGHUP)
+        deadline = time.monotonic() + 10
+        while not (tmp_path / "run" / "control2.sock").exists():
+            assert time.monotonic() < deadline, (tmp_path / "daemon.log").read_text()
+            time.sleep(0.05)
+        assert request(tmp_path / "run" / "control2.sock", {"cmd": "status"})["ok"]
+        # a bad reload keeps the running config
+        cfg.write_text(
+            base.replace("protocol: pd6", "protocol: pd9").replace(
+                "run/control.sock", "run/control2.sock"
+            )
+        )
+        proc.send_signal(signal.SIGHUP)
+        time.sleep(1.0)
+        assert request(tmp_path / "run" / "control2.sock", {"cmd": "status"})["ok"]
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(20) == 0
+        rest = []
+        srv.settimeout(1)
+        try:
+            while True:
+                rest.append(srv.recv(4096).decode())
+        except TimeoutError:
+            pass
+        assert "STOPPING=1" in rest
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        log.close()
+        srv.close()
+    text = (tmp_path / "daemon.log").read_text()
+    assert '"event": "reloaded"' in text and '"event": "reload_failed"' in text
+    assert "port_disconnected" in text
+
+
+def _can_mount(where: Path) -> bool:
+    if os.geteuid() != 0:
+        return False
+    where.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(where)], capture_output=True
+    )
+    return r.returncode == 0
+
+
+@pytest.mark.parametrize("fault", ["read-only", "full"])
+def test_state_directory_read_only_or_full(
+    tmp_path: Path, trial_files: dict[str, Path], fault: str
+) -> None:
+    """The state directory fails under the running daemon: it keeps running, reports
+    it, and the previous state file stays intact (a real tmpfs, remounted read-only or
+    filled up)."""
+    state_dir = tmp_path / "state"
+    if not _can_mount(state_dir):
+        pytest.skip("needs root and mount (tmpfs) to make a directory read-only or full")
+    try:
+        for sub in ("links", "out", "run"):
+            (tmp_path / sub).mkdir()
+        (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
+        store = StateStore(state_dir / "state.yaml")
+        from emlogd.daemon.statefile import CalibrationState
+
+        store.save({"emlog1": CalibrationState("emlog1", "EM3", {"m": 0.0, "b": 0.0})})
+        before = store.path.read_bytes()
+        if fault == "read-only":
+            subprocess.run(["mount", "-o", "remount,ro", str(state_dir)], check=True)
+        else:
+            fd = os.open(state_dir / "filler", os.O_WRONLY | os.O_CREAT, 0o600)
+            try:
+                while True:
+                    os.write(fd, b"\0" * 4096)
+            except OSError:
+                pass  # ENOSPC: the file system is full
+            finally:
+                os.close(fd)
+        links = tmp_path / "links"
+        capture = trial_files["figure-8"]
+        devices = [
+            FakeDevice(capture, p, links / p, speed=SPEED).start()
+            for p in ("emlog1", "emlog2", "dvl")
+        ]
+        d = Daemon(tmp_path)
+        try:
+            while not all(dev.finished.is_set() for dev in devices):
+                d.pump(0.5)
+                assert d.proc.poll() is None  # keeps running
+            resp = request(tmp_path / "run" / "control.sock", {"cmd": "status"})
+            assert (
+                resp["ok"] and isinstance(resp["state_errors"], int) and resp["state_errors"] >= 1
+            )
+            assert d.stop() == 0  # the final persist fails too: still a clean exit
+        finally:
+            if d.proc.poll() is None:
+                d.proc.kill()
+            for dev in devices:
+                dev.stop()
+                dev.join(5)
+        assert store.path.read_bytes() == before  # never corrupted, never half-written
+        assert "state_write_failed" in (tmp_path / "daemon.log").read_text()
+    finally:
+        subprocess.run(["umount", "-l", str(state_dir)], capture_output=True)
+
+
+class _Source:
+    """A source whose reads return the given chunks (the daemon's view of a port)."""
+
+    has_events = False
+    is_open = True
+
+    def __init__(self, name: str, chunks: list[tuple[float, bytes]], fd: int = -1) -> None:
+        self.name = name
+        self.chunks = chunks
+        self.fd = fd
+
+    def fileno(self) -> int | None:
+        return self.fd if self.fd >= 0 else None
+
+    def read(self) -> object:
+        from drivers.io.port import Chunk
+
+        if not self.chunks:
+            return None
+        t, data = self.chunks.pop(0)
+        return Chunk(t, self.name, data)
+
+
+class _SpyPipeline:
+    def __init__(self) -> None:
+        self.uuts = {"emlog1": None}
+        self.decoders = {"emlog1": None, "dvl": None}
+        self.calls: list[tuple[float, str, bytes]] = []
+
+    def feed(self, t: float, port: str, data: bytes, out: object = None) -> object:
+        from emlogd.pipeline.core import Output
+
+        self.calls.append((t, port, data))
+        return out if out is not None else Output()
+
+
+def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
+    tmp_path: Path,
+) -> None:
+    from emlogd.daemon import loop as dmod
+
+    _setup(tmp_path)
+    d = dmod.Daemon(tmp_path / "emlogd.yaml", log=None)
+    d.pipeline = _SpyPipeline()  # type: ignore[assignment]
+    d.rest_s = {"dvl": 0.02, "emlog1": 0.02}
+    r, w = os.pipe()
+    r2, w2 = os.pipe()
+    dvl = _Source("dvl", [(1.02, b":SA\r\n:TS\r\n:BD\r\n"), (1.12, b":SA\r\n")], fd=r)
+    emlog = _Source("emlog1", [(1.01, b"$VWVHW\r\n")], fd=r2)
+    d.sources = {"dvl": dvl, "emlog1": emlog}  # type: ignore[dict-item]
+    d._sync_registrations()
+    assert d.registered == {"dvl": r, "emlog1": r2} and d.rest_fds == {r: "dvl"}
+
+    def round_() -> None:  # one select round, as the loop runs it
+        for key, _ in d.sel.select(0):
+            key.data()
+
+    for fd in (w, w2):
+        os.write(fd, b"x")  # both readable, and stay so (the fake sources never drain)
+    round_()
+    spy = d.pipeline
+    assert [c[2] for c in spy.calls] == [b"$VWVHW\r\n"]  # type: ignore[attr-defined]
+    assert d.resting.keys() == {"dvl"} and len(dvl.chunks) == 2  # the UUT never rests
+    d._unregister("emlog1")  # only the DVL from here on
+    del d.sources["emlog1"]
+    assert d.registered == {"dvl": r}
+    assert d.sel.select(0) == []  # disarmed: no wake-up while it rests, though readable
+    assert d.unselectable == []  # nor read on every round as if it had no descriptor
+    d._wake_rested()
+    assert len(dvl.chunks) == 2  # not due yet: nothing read
+    d.resting["dvl"] = 0.0  # due
+    d._wake_rested()
+    assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r}
+    assert [c[2] for c in spy.calls] == [  # type: ignore[attr-defined]
+        b"$VWVHW\r\n",
+        b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read, stamped when read
+    ]
+    round_()
+    assert d.resting.keys() == {"dvl"}  # armed again: still readable, so resting again
+    d._unregister("dvl")
+    assert d.registered == {} and d.rest_fds == {}
+    for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
+        os.close(fd)
+    d.sel.close()
+    d.rest_poll.close()
+
+
+def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
+    tmp_path: Path,
+) -> None:
+    """Real time, default rest_s: ensembles whose lines come 3 ms apart, an unplug
+    while the port rests, a new pty at the same path: all ensembles are decoded."""
+    from datetime import UTC, datetime
+
+    from drivers.io.vpty import VirtualPort
+    from drivers.rdi_ascii import encode_pd6
+
+    _setup(tmp_path)
+    cfg = tmp_path / "emlogd.yaml"
+    text = cfg.read_text()
+    assert "rest_s: 0}" in text
+    cfg.write_text(text.replace("rest_s: 0}", "rest_s: 0.02}"))  # the default, real time
+    link = tmp_path / "links" / "dvl"
+    lines = [
+        (x + "\r\n").encode()
+        for x in encode_pd6(
+            timestamp=datetime(2026, 1, 1, tzinfo=UTC), heading_deg=10.0,
+            bottom_ship_mps=(0.0, 1.5, 0.0), range_m=20.0,
+        )
+    ]  # fmt: skip
+
+    def ensembles(vp: VirtualPort, n: int) -> None:
+        for _ in range(n):
+            for ln in lines:
+                vp.write(ln)
+                time.sleep(0.003)  # the serial spacing of the simulator at 115200 Bd
+            time.sleep(0.05)
+
+    def dvl_records() -> int:
+        st = d.status()["ports"]
+        assert isinstance(st, dict)
+        return int(st["dvl"]["records"])
+
+    vp = VirtualPort(link)
+    d = Daemon(tmp_path)
+    try:
+        deadline = time.monotonic() + 10
+        while "port_connected" not in (tmp_path / "daemon.log").read_text():
+            assert time.monotonic() < deadline, "the daemon never opened the DVL"
+            d.pump(0.05)
+        ensembles(vp, 20)
+        d.pump(0.3)
+        assert dvl_records() == 20
+        connected = (tmp_path / "daemon.log").read_text().count("port_connected")
+        for ln in lines[:2]:  # unplugged mid-ensemble, while the port rests
+            vp.write(ln)
+        vp.close()
+        d.pump(0.5)
+        vp = VirtualPort(link)
+        deadline = time.monotonic() + 10
+        while (tmp_path / "daemon.log").read_text().count("port_connected") <= connected:
+            assert time.monotonic() < deadline, "the DVL was not reopened"
+            d.pump(0.1)
+        ensembles(vp, 20)
+        d.pump(0.3)
+        assert dvl_records() == 40
+        assert d.stop() == 0
+    finally:
+        if d.proc.poll() is None:
+            d.proc.kill()
+        vp.close()

@@ -1,0 +1,73 @@
+"""sd_notify over a real unix datagram socket (path and abstract namespace)."""
+
+from __future__ import annotations
+
+import os
+import socket
+from pathlib import Path
+
+from emlogd.daemon.notify import Notifier
+
+
+def _recv(sock: socket.socket) -> str:
+    sock.settimeout(5)
+    return sock.recv(4096).decode()
+
+
+def test_messages_reach_the_socket(tmp_path: Path) -> None:
+    path = tmp_path / "notify.sock"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
+        srv.bind(str(path))
+        n = Notifier.from_env({"NOTIFY_SOCKET": str(path), "WATCHDOG_USEC": "4000000"})
+        assert n.enabled and n.watchdog_interval_s == 2.0
+        assert n.ready() and _recv(srv) == "READY=1"
+        assert (
+            n.status("emlog1 learning\nsecond line")
+            and _recv(srv) == "STATUS=emlog1 learning second line"
+        )
+        assert n.watchdog() and _recv(srv) == "WATCHDOG=1"
+        assert n.stopping() and _recv(srv) == "STOPPING=1"
+        assert n.sent == 4
+
+
+def test_abstract_namespace() -> None:
+    name = f"emlogd-test-{os.getpid()}"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
+        srv.bind("\0" + name)
+        n = Notifier(f"@{name}")
+        assert n.ready() and _recv(srv) == "READY=1"
+
+
+def test_disabled_and_failing() -> None:
+    off = Notifier.from_env({})
+    assert not off.enabled and not off.ready() and off.watchdog_interval_s is None
+    gone = Notifier("/nonexistent/notify.sock")
+    assert not gone.ready() and gone.failed == 1
+
+
+def test_watchdog_for_another_pid_is_ignored() -> None:
+    n = Notifier.from_env({"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "1000", "WATCHDOG_PID": "1"})
+    assert n.watchdog_interval_s is None or os.getpid() == 1
+
+
+def test_watchdog_for_our_pid_and_malformed_values() -> None:
+    """WATCHDOG_PID equal to our pid enables the watchdog; malformed or zero values do not."""
+    ours = Notifier.from_env(
+        {"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "30000000", "WATCHDOG_PID": str(os.getpid())}
+    )
+    assert ours.watchdog_interval_s == 15.0
+    for usec in ("", "abc", "-5", "0", "1e6"):
+        n = Notifier.from_env({"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": usec})
+        assert n.watchdog_interval_s is None, usec
+
+
+def test_status_is_one_bounded_line(tmp_path: Path) -> None:
+    """STATUS= carries one line of at most 400 characters, whatever it is given."""
+    path = tmp_path / "n.sock"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
+        srv.bind(str(path))
+        n = Notifier(str(path))
+        assert n.status("a\r\nb" + "x" * 1000)
+        got = _recv(srv)
+    assert got.startswith("STATUS=a b") and len(got) == len("STATUS=") + 400
+    assert "\n" not in got and "\r" not in got

@@ -1,0 +1,137 @@
+"""Output sinks: a TCP client that never reads is dropped, never blocks; UDP; streams."""
+
+from __future__ import annotations
+
+import io
+import selectors
+import socket
+import time
+
+import pytest
+
+from drivers.errors import ConfigError, DeviceError
+from emlogd.daemon.sinks import (
+    TCP_BACKLOG_BYTES,
+    StreamSink,
+    TcpServerSink,
+    UdpSink,
+    parse_hostport,
+)
+
+LINE = b"$VWVHW,,T,,M,3.50,N,6.48,K*6A\r\n"
+
+
+def test_parse_hostport() -> None:
+    assert parse_hostport("127.0.0.1:10110") == ("127.0.0.1", 10110)
+    assert parse_hostport(":10110") == ("0.0.0.0", 10110)
+    assert parse_hostport("10110") == ("0.0.0.0", 10110)
+    assert parse_hostport("[::1]:5") == ("::1", 5)
+    for bad in ("host:", "host:0", "host:70000", "a:b"):
+        with pytest.raises(ConfigError, match="HOST:PORT"):
+            parse_hostport(bad)
+
+
+def _pump(sel: selectors.BaseSelector, until: float = 0.3) -> None:
+    end = time.monotonic() + until
+    while time.monotonic() < end:
+        for key, _ in sel.select(timeout=0.02):
+            key.data()
+
+
+def test_tcp_clients_receive_and_a_stuck_client_is_dropped() -> None:
+    sel = selectors.DefaultSelector()
+    notes: list[tuple[str, str]] = []
+    sink = TcpServerSink("127.0.0.1:0", selector=sel, on_event=lambda k, d: notes.append((k, d)))
+    try:
+        good = socket.create_connection(sink.address)
+        stuck = socket.create_connection(sink.address)
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        _pump(sel)
+        assert sink.counters.clients == 2
+        good.settimeout(5)
+        received = bytearray()
+        t0 = time.monotonic()
+        n = 0
+        # write far more than the socket buffers plus the backlog can hold for a non-reader
+        while sink.counters.dropped_clients == 0 and n < 200_000:
+            sink.write(LINE)
+            n += 1
+            if n % 50 == 0:
+                received += good.recv(1 << 20)
+        elapsed = time.monotonic() - t0
+        assert sink.counters.dropped_clients == 1
+        assert ("client_too_slow", str(stuck.getsockname())) in notes
+        assert sink.counters.clients == 1
+        assert elapsed < 30  # it never blocked; generous, only catches a hang
+        good.setblocking(False)
+        try:
+            while True:
+                chunk = good.recv(1 << 20)
+                if not chunk:
+                    break
+                received += chunk
+        except BlockingIOError:
+            pass
+        assert received.startswith(LINE)
+        assert len(received) % len(LINE) == 0 or len(received) > TCP_BACKLOG_BYTES
+        good.close()
+        stuck.close()
+        _pump(sel)
+        assert sink.counters.clients == 0
+    finally:
+        sink.close()
+        sel.close()
+
+
+def test_tcp_connect_disconnect_loop_leaks_nothing() -> None:
+    sel = selectors.DefaultSelector()
+    sink = TcpServerSink("127.0.0.1:0", selector=sel)
+    try:
+        for _ in range(50):
+            c = socket.create_connection(sink.address)
+            _pump(sel, 0.02)
+            sink.write(LINE)
+            c.close()
+            _pump(sel, 0.02)
+            sink.write(LINE)
+        _pump(sel, 0.1)
+        assert sink.counters.clients == 0
+        assert len(sel.get_map()) == 1  # only the listening socket
+    finally:
+        sink.close()
+        sel.close()
+
+
+def test_tcp_bind_failure_is_a_device_error() -> None:
+    sel = selectors.DefaultSelector()
+    first = TcpServerSink("127.0.0.1:0", selector=sel)
+    try:
+        with pytest.raises(DeviceError, match="TCP output"):
+            TcpServerSink(f"127.0.0.1:{first.address[1]}")
+    finally:
+        first.close()
+        sel.close()
+
+
+def test_udp_sink_sends_datagrams() -> None:
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.settimeout(5)
+    sink = UdpSink(f"127.0.0.1:{rx.getsockname()[1]}")
+    try:
+        sink.write(LINE)
+        assert rx.recv(1024) == LINE
+        assert sink.counters.sentences == 1
+    finally:
+        sink.close()
+        rx.close()
+
+
+def test_stream_sink_counts_errors_instead_of_raising() -> None:
+    buf = io.BytesIO()
+    sink = StreamSink("mem", buf)
+    sink.write(LINE)
+    assert buf.getvalue() == LINE
+    buf.close()
+    sink.write(LINE)
+    assert sink.counters.errors == 1 and sink.counters.sentences == 1

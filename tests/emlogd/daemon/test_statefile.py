@@ -1,0 +1,254 @@
+"""State persistence: round trip, corruption, backup, failed writes, kill -9."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from emlogd.daemon.statefile import (
+    CalibrationState,
+    StateFormatError,
+    StateStore,
+    StateWriteError,
+    dump_state,
+    parse_state,
+)
+
+
+def _state(m: float = 0.1, n: int = 100) -> CalibrationState:
+    return CalibrationState(
+        uut="emlog1",
+        model="EM3",
+        params={"m": m, "b": 0.05},
+        param_std={"m": 0.001, "b": 0.002},
+        covariance=((1e-4, 0.0, 0.0), (0.0, 1e-6, -1e-7), (0.0, -1e-7, 4e-6)),
+        t=1.75e9,
+        n_samples=n,
+        lag_s=3.2,
+        excitation={"condition_number": 900.0, "speed_std_mps": 0.2},
+        nis_mean=1.01,
+        saved_at="2026-11-23T06:00:00+00:00",
+    )
+
+
+def test_round_trip(tmp_path: Path) -> None:
+    store = StateStore(tmp_path / "state.yaml")
+    assert store.load() == ({}, [])
+    store.save({"emlog1": _state()})
+    states, report = store.load()
+    assert report == []
+    assert states == {"emlog1": _state()}
+    assert oct((tmp_path / "state.yaml").stat().st_mode & 0o777) == oct(0o640)
+
+
+def test_previous_good_file_is_kept_as_backup(tmp_path: Path) -> None:
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    store.save({"emlog1": _state(0.2)})
+    assert parse_state(store.backup.read_text())["emlog1"].params["m"] == 0.1
+    assert parse_state(store.path.read_text())["emlog1"].params["m"] == 0.2
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda t: t[: len(t) // 2],  # torn write
+        lambda t: "garbage: [\n",
+        lambda t: t.replace("schema: 1", "schema: 2"),
+        lambda t: t.replace("m: 0.2", "m: .nan"),
+        lambda t: "",
+        lambda t: t.replace("model: EM3", "model: EM9"),
+        lambda t: t.replace("b: 0.05", "z: 0.05", 1),  # parameters that do not fit the model
+        lambda t: t.replace("n_samples: 100", "n_samples: -4"),
+        lambda t: t.replace("condition_number: 900.0", "condition_number: lots"),
+    ],
+    ids=["torn", "garbage", "schema", "nan", "empty", "model", "params", "count", "excitation"],
+)
+def test_damaged_file_falls_back_to_the_backup(tmp_path: Path, damage: object) -> None:
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    store.save({"emlog1": _state(0.2)})
+    damaged = damage(store.path.read_text())  # type: ignore[operator]
+    assert damaged != store.path.read_text()
+    store.path.write_text(damaged)
+    states, report = store.load()
+    assert states["emlog1"].params["m"] == 0.1
+    assert any("damaged" in r for r in report) and any("backup" in r for r in report)
+    # saving again never backs up the damaged file over the good backup
+    store.save({"emlog1": _state(0.3)})
+    assert parse_state(store.backup.read_text())["emlog1"].params["m"] == 0.1
+
+
+def test_both_damaged_starts_uncalibrated(tmp_path: Path) -> None:
+    store = StateStore(tmp_path / "state.yaml")
+    store.path.write_text("x")
+    store.backup.write_text("y")
+    states, report = store.load()
+    assert states == {} and "starting uncalibrated" in report[-1]
+
+
+def test_failed_write_leaves_the_previous_file(tmp_path: Path) -> None:
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    before = store.path.read_bytes()
+    # the directory is replaced by a file: every write fails (works as root too)
+    blocked = StateStore(tmp_path / "state.yaml" / "inner.yaml")
+    with pytest.raises(StateWriteError, match="cannot write"):
+        blocked.save({"emlog1": _state(0.2)})
+    assert store.path.read_bytes() == before
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only directory")
+def test_read_only_directory(tmp_path: Path) -> None:
+    """A directory without write permission refuses the save; the file is intact."""
+    store = StateStore(tmp_path / "d" / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    before = store.path.read_bytes()
+    store.path.parent.chmod(0o500)
+    try:
+        with pytest.raises(StateWriteError, match="cannot write"):
+            store.save({"emlog1": _state(0.2)})
+    finally:
+        store.path.parent.chmod(0o700)
+    assert store.path.read_bytes() == before
+    assert store.load() == ({"emlog1": _state(0.1)}, [])
+
+
+def test_orphaned_temp_files_of_dead_writers_are_removed(tmp_path: Path) -> None:
+    """Temp files of a killed writer go at the next save; a live writer's stay."""
+    dead = int(Path("/proc/sys/kernel/pid_max").read_text()) + 1
+    live = os.getppid()
+    names = [
+        f".state.yaml.{dead}.tmp",
+        f".state.yaml.bak.{dead}.tmp",
+        f".state.yaml.{live}.tmp",
+        f".other.yaml.{dead}.tmp",
+    ]
+    for name in names:
+        (tmp_path / name).write_text("partial")
+    StateStore(tmp_path / "state.yaml").save({"emlog1": _state()})
+    assert sorted(f.name for f in tmp_path.iterdir()) == sorted(
+        [f".state.yaml.{live}.tmp", f".other.yaml.{dead}.tmp", "state.yaml"]
+    )
+
+
+def test_backup_is_copied_where_hard_links_fail(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On a file system without hard links the backup is a synced copy."""
+
+    def no_link(src: object, dst: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    monkeypatch.setattr(os, "link", no_link)
+    store.save({"emlog1": _state(0.2)})
+    assert parse_state(store.backup.read_text())["emlog1"].params["m"] == 0.1
+    assert store.load()[0]["emlog1"].params["m"] == 0.2
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
+
+
+def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
+    """RLIMIT_FSIZE makes the write fail like a full disk (EFBIG) in a child process."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    before = store.path.read_bytes()
+    code = (
+        "import resource, signal, sys\n"
+        "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))\n"
+        "from emlogd.daemon.statefile import StateStore, StateWriteError, CalibrationState\n"
+        f"s = StateStore({str(store.path)!r})\n"
+        "try:\n"
+        "    s.save({'emlog1': CalibrationState('emlog1', 'EM3', {'m': 0.5, 'b': 0.0})})\n"
+        "except StateWriteError as e:\n"
+        "    print('refused', e); sys.exit(0)\n"
+        "sys.exit(3)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "refused" in r.stdout
+    assert store.path.read_bytes() == before
+
+
+def test_dump_marks_the_end() -> None:
+    text = dump_state({"emlog1": _state()})
+    assert text.rstrip().endswith("end: true")
+    with pytest.raises(StateFormatError, match="truncated"):
+        parse_state(text.replace("end: true", ""))
+
+
+def test_non_finite_values_are_written_as_null(tmp_path: Path) -> None:
+    s = CalibrationState("u", "EM3", {"m": 0.1, "b": 0.0}, {"m": math.inf}, nis_mean=math.nan)
+    store = StateStore(tmp_path / "s.yaml")
+    store.save({"u": s})
+    loaded = store.load()[0]["u"]
+    assert loaded.nis_mean is None and loaded.param_std["m"] == math.inf
+
+
+KILLER = """
+import sys
+from emlogd.daemon.statefile import StateStore, CalibrationState
+store = StateStore(sys.argv[1])
+i = 0
+while True:
+    i += 1
+    store.save({"emlog1": CalibrationState("emlog1", "EM3", {"m": i * 1e-6, "b": 0.0},
+                                           n_samples=i)})
+"""
+
+
+def _kill_loop(tmp_path: Path, rounds: int) -> None:
+    path = tmp_path / "state.yaml"
+    last = 0
+    for k in range(rounds):
+        before = path.stat().st_mtime_ns if path.exists() else None
+        proc = subprocess.Popen([sys.executable, "-c", KILLER, str(path)])
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:  # wait for this process's first save
+            if path.exists() and path.stat().st_mtime_ns != before:
+                break
+            time.sleep(0.005)
+        time.sleep((k % 7) * 0.011)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        states, report = StateStore(path).load()
+        assert "emlog1" in states, report
+        assert not any("damaged" in r for r in report if "bak" not in r), report
+        n = states["emlog1"].n_samples
+        assert n >= 1
+        last = n
+    assert last > 0
+    StateStore(path).save({"emlog1": _state()})
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
+
+
+def test_kill_9_while_saving_never_loses_the_file(tmp_path: Path) -> None:
+    _kill_loop(tmp_path, 8)
+
+
+@pytest.mark.soak
+def test_kill_9_soak(tmp_path: Path) -> None:
+    _kill_loop(tmp_path, 60)
+
+
+def test_a_backup_that_is_the_same_file_leaves_no_temporary(tmp_path: Path) -> None:
+    """A writer killed between linking the backup and replacing the file leaves the
+    file and its backup as one inode; rename() between them does nothing, so the
+    next save must remove its link itself (it once stayed, named with our own pid)."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state()})
+    store.backup.unlink(missing_ok=True)
+    os.link(store.path, store.backup)
+    store.save({"emlog1": _state()})
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
+    assert store.load()[0]["emlog1"] == _state()

@@ -1,0 +1,134 @@
+"""Output sentences: status sentence fields, checksum and length; corrected VHW/VBW."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from drivers.framing import split_nmea
+from emlogd.pipeline.sentences import StatusFields, encode_status, encode_vbw, encode_vhw
+
+
+def _fields(sentence: str) -> list[str]:
+    body = split_nmea(sentence.encode("ascii"), required=True)
+    return body.decode("ascii").split(",")
+
+
+def test_status_sentence_fields() -> None:
+    s = encode_status(
+        StatusFields(
+            port="emlog1",
+            state="learning",
+            model="EM3",
+            params={"m": 0.1712, "b": 0.12},
+            std={"m": 0.0021, "b": 0.0034},
+            nis_mean=1.02,
+            ref_state="valid",
+        )
+    )
+    assert s.startswith("$PEMLS,")
+    assert _fields(s) == [
+        "PEMLS", "emlog1", "L", "EM3", "", "+0.1712", "+0.120", "", "2.1e-03", "3.4e-03", "1.02", "V",
+    ]  # fmt: skip
+
+
+def test_uncalibrated_status_has_empty_parameters() -> None:
+    s = encode_status(StatusFields(port="emlog2", state="uncalibrated", model="EM4"))
+    assert _fields(s) == ["PEMLS", "emlog2", "U", "EM4", "", "", "", "", "", "", "", "N"]
+
+
+def test_bad_maker_code_rejected() -> None:
+    with pytest.raises(ValueError, match="maker"):
+        encode_status(StatusFields(port="x", state="frozen", model="EM3", maker="em"))
+
+
+finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
+
+
+@given(
+    port=st.text(min_size=0, max_size=40),
+    params=st.fixed_dictionaries({"a": finite, "m": finite, "b": finite}),
+    std=st.fixed_dictionaries({"a": finite, "m": finite, "b": finite}),
+    nis=st.one_of(st.none(), st.floats(min_value=0, max_value=1e9)),
+    state=st.sampled_from(["learning", "frozen", "uncalibrated"]),
+    ref=st.sampled_from(["valid", "lost", "stale", "slow", "none"]),
+)
+@example(  # b = 10 was clamped to 9.9999, which "+.3f" rounds up to "+10.000": 83 bytes
+    port="00000000",
+    params={"a": 0.0, "m": 0.0, "b": 10.0},
+    std={"a": 0.0, "m": 0.0, "b": 0.0},
+    nis=100.0,
+    state="learning",
+    ref="valid",
+)
+def test_status_always_fits_and_checksums(
+    port: str,
+    params: dict[str, float],
+    std: dict[str, float],
+    nis: float | None,
+    state: str,
+    ref: str,
+) -> None:
+    std = {k: abs(v) for k, v in std.items()}
+    s = encode_status(StatusFields(port, state, "EM4", params, std, nis, ref))
+    assert len(s) + 2 <= 82
+    assert all(32 <= ord(c) < 127 for c in s)
+    assert len(_fields(s)) == 12
+
+
+def test_corrected_vhw_fills_knots_and_kmh() -> None:
+    s = encode_vhw(2.0, 45.0, 43.0, "VW")
+    f = _fields(s)
+    assert f[0] == "VWVHW"
+    assert float(f[1]) == pytest.approx(45.0) and f[2] == "T"
+    assert float(f[3]) == pytest.approx(43.0) and f[4] == "M"
+    knots, kmh = float(f[5]), float(f[7])
+    assert knots == pytest.approx(2.0 / (1852 / 3600), abs=0.01)
+    assert kmh == pytest.approx(7.2, abs=0.01)
+    assert f[6] == "N" and f[8] == "K"
+
+
+def test_corrected_vbw_has_a_valid_water_pair() -> None:
+    f = _fields(encode_vbw(1.5, -0.1, "VW"))
+    assert f[0] == "VWVBW"
+    assert float(f[1]) == pytest.approx(1.5 / (1852 / 3600), abs=0.01)
+    assert float(f[2]) == pytest.approx(-0.1 / (1852 / 3600), abs=0.01)
+    assert f[3] == "A"
+    assert not math.isnan(float(f[1]))
+
+
+def _status_round_trip(m: float, b: float, sm: float, nis: float | None) -> None:
+    s = encode_status(
+        StatusFields(
+            "emlog1", "learning", "EM3", {"m": m, "b": b}, {"m": sm, "b": sm}, nis, "valid"
+        )
+    )
+    f = _fields(s)
+    assert len(s) + 2 <= 82
+    assert float(f[5]) == pytest.approx(max(min(m, 9.9999), -9.9999), abs=5e-5)
+    assert float(f[6]) == pytest.approx(max(min(b, 9.999), -9.999), abs=5e-4)
+
+
+@given(
+    m=st.floats(-20, 20),
+    b=st.floats(-20, 20),
+    sm=st.floats(0, 1),
+    nis=st.one_of(st.none(), st.floats(0, 1e6)),
+)
+def test_status_round_trip(m: float, b: float, sm: float, nis: float | None) -> None:
+    _status_round_trip(m, b, sm, nis)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=100_000, deadline=None)
+@given(
+    m=st.floats(-20, 20),
+    b=st.floats(-20, 20),
+    sm=st.floats(0, 1),
+    nis=st.one_of(st.none(), st.floats(0, 1e6)),
+)
+def test_fuzz_status_round_trip(m: float, b: float, sm: float, nis: float | None) -> None:
+    _status_round_trip(m, b, sm, nis)
