@@ -14,6 +14,13 @@ Training: LS-EMx fits the finite (ref, raw) pairs of the segment
 state, as the paper does. Evaluation applies the inverse model
 (:func:`calib.models.correct_array`).
 
+In the water frame (``current=True``, segments carrying headings) the estimators also
+estimate the sea current. The current is the sea's, not the sensor's: a frozen
+calibration is scored on a test segment against the reference minus the current
+that segment shows (:func:`calib.lsq.fit_current`, fitted for the raw reading and
+for the corrected one alike); where the test segment's heading covers too few
+sectors to tell the current from a bias, against the reference itself.
+
 Per training segment, :meth:`CrossValResult.overall` pools the test segments
 sample-weighted (the RMSE over their concatenation), excluding the training
 segment by default; ``include_training=True`` gives Table III's "overall" column.
@@ -38,9 +45,9 @@ import numpy.typing as npt
 
 from calib.errors import DataError, ModelError
 from calib.kalman import KfConfig, run_kf
-from calib.lsq import fit_ls
+from calib.lsq import fit_current, fit_ls
 from calib.metrics import improvement_pct
-from calib.models import FloatArray, ModelName, Params, check_model, correct_array
+from calib.models import FloatArray, ModelName, Params, check_model, correct_array, zero_params
 
 EstimatorName = Literal[
     "LS-EM1", "LS-EM2", "LS-EM3", "LS-EM4", "KF-EM1", "KF-EM2", "KF-EM3", "KF-EM4"
@@ -82,12 +89,15 @@ class Segment(NamedTuple):
         t_s: sample times in s, shape (N,), non-decreasing.
         raw_mps: raw EMlog speeds in m/s, shape (N,) (nan = missing).
         ref_mps: reference speeds at the same times in m/s, shape (N,) (nan = outage).
+        heading_deg: heading at the reference's time, degrees, shape (N,) (nan =
+            unknown), or None; needed for the current.
     """
 
     name: str
     t_s: npt.ArrayLike
     raw_mps: npt.ArrayLike
     ref_mps: npt.ArrayLike
+    heading_deg: npt.ArrayLike | None = None
 
 
 class _Arrays(NamedTuple):
@@ -97,6 +107,7 @@ class _Arrays(NamedTuple):
     t: FloatArray
     raw: FloatArray
     ref: FloatArray
+    heading: FloatArray | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,16 +137,22 @@ class TrainedEstimator:
         estimator: e.g. ``"LS-EM3"``.
         train: training segment name.
         params: the frozen parameters.
-        param_std: their standard errors (LS) or σ from P (KF), θ order.
+        param_std: their standard errors (LS; None where not determined) or σ from P
+            (KF), by short name.
+        current_mps: the current learnt on the training segment (north, east), m/s,
+            None when not estimated or not determined.
         identifiable: LS identifiability verdict (always None for KF).
-        cond_info: LS condition number of HᵀH (None for KF).
+        unidentifiable: LS: the unknowns the segment does not determine.
+        cond_info: LS condition number of the information matrix (None for KF).
     """
 
     estimator: str
     train: str
     params: Params
-    param_std: tuple[float, ...]
+    param_std: dict[str, float | None]
+    current_mps: tuple[float, float] | None
     identifiable: bool | None
+    unidentifiable: tuple[str, ...]
     cond_info: float | None
 
 
@@ -281,8 +298,14 @@ class CrossValResult:
                     "train": t.train,
                     "model": t.params.model,
                     "params": t.params.as_dict(),
-                    "stderr": [_finite(s) for s in t.param_std],
+                    "stderr": {
+                        k: None if v is None else _finite(v) for k, v in t.param_std.items()
+                    },
+                    "current": None
+                    if t.current_mps is None
+                    else {"north_mps": t.current_mps[0], "east_mps": t.current_mps[1]},
                     "identifiable": t.identifiable,
+                    "unidentifiable": list(t.unidentifiable),
                     "condition_number": None if t.cond_info is None else _finite(t.cond_info),
                 }
                 for t in self.trained
@@ -299,7 +322,8 @@ class CrossValResult:
 
 def _check_segment(seg: Segment | tuple[str, object, object, object]) -> _Arrays:
     """Validate one segment."""
-    name, t_s, raw_mps, ref_mps = seg
+    name, t_s, raw_mps, ref_mps = seg[:4]
+    heading = seg[4] if len(seg) > 4 else None
     t = np.asarray(t_s, dtype=np.float64).reshape(-1)
     raw = np.asarray(raw_mps, dtype=np.float64).reshape(-1)
     ref = np.asarray(ref_mps, dtype=np.float64).reshape(-1)
@@ -309,7 +333,19 @@ def _check_segment(seg: Segment | tuple[str, object, object, object]) -> _Arrays
         raise DataError(f"segment {name!r}: need ≥ 2 finite, non-decreasing times")
     if int(np.count_nonzero(np.isfinite(raw) & np.isfinite(ref))) < 2:
         raise DataError(f"segment {name!r}: fewer than 2 finite (raw, ref) pairs")
-    return _Arrays(str(name), t, raw, ref)
+    hd = None
+    if heading is not None:
+        hd = np.asarray(heading, dtype=np.float64).reshape(-1)
+        if hd.shape != t.shape:
+            raise DataError(f"segment {name!r}: heading and t differ in length")
+    return _Arrays(str(name), t, raw, ref, hd)
+
+
+def _usable(seg: _Arrays, current: bool) -> npt.NDArray[np.bool_]:
+    ok = np.isfinite(seg.raw) & np.isfinite(seg.ref)
+    if current and seg.heading is not None:
+        ok &= np.isfinite(seg.heading)
+    return ok
 
 
 def _info(seg: _Arrays) -> SegmentInfo:
@@ -324,46 +360,95 @@ def _info(seg: _Arrays) -> SegmentInfo:
     )
 
 
-def train(estimator: str, seg: _Arrays, kf_config: KfConfig) -> TrainedEstimator:
+def train(
+    estimator: str, seg: _Arrays, kf_config: KfConfig, *, current: bool = False
+) -> TrainedEstimator:
     """Train one estimator on one validated segment (see the module docstring).
 
     Args:
         estimator: estimator name.
         seg: the segment arrays.
         kf_config: tuning of the KF estimators.
+        current: estimate the current too (the segment must carry headings).
 
     Returns:
         The frozen parameters.
+
+    Raises:
+        DataError: a current without headings.
     """
     method, model = split_estimator(estimator)
+    if current and seg.heading is None:
+        raise DataError(f"segment {seg.name!r} has no heading: the current cannot be estimated")
     if method == "LS":
-        ok = np.isfinite(seg.raw) & np.isfinite(seg.ref)
-        fit = fit_ls(model, seg.ref[ok], seg.raw[ok])
-        return TrainedEstimator(
-            estimator, seg.name, fit.params, fit.stderr, fit.identifiable, fit.cond_info
+        ok = _usable(seg, current)
+        fit = fit_ls(
+            model,
+            seg.ref[ok],
+            seg.raw[ok],
+            heading_deg=None if seg.heading is None or not current else seg.heading[ok],
+            current=current,
         )
-    run = run_kf(model, seg.t, seg.raw, seg.ref, kf_config, history=False)
-    return TrainedEstimator(estimator, seg.name, run.params, run.param_std, None, None)
+        return TrainedEstimator(
+            estimator,
+            seg.name,
+            fit.params,
+            fit.stderr,
+            fit.current_mps,
+            fit.identifiable,
+            fit.unidentifiable,
+            fit.cond_info,
+        )
+    run = run_kf(
+        model,
+        seg.t,
+        seg.raw,
+        seg.ref,
+        kf_config,
+        heading_deg=seg.heading if current else None,
+        current=current,
+        history=False,
+    )
+    std: dict[str, float | None] = dict(run.param_std)
+    return TrainedEstimator(estimator, seg.name, run.params, std, run.current_mps, None, (), None)
 
 
-def evaluate(trained: TrainedEstimator, seg: _Arrays) -> Evaluation:
+def _projected(params: Params, seg: _Arrays, ok: npt.NDArray[np.bool_]) -> FloatArray:
+    """The current the segment shows for ``params``, projected on the hull (0 if unknown)."""
+    if seg.heading is None:
+        return np.zeros(int(np.count_nonzero(ok)))
+    hd = seg.heading[ok]
+    cur = fit_current(params, seg.ref[ok], seg.raw[ok], hd)
+    if cur is None:
+        return np.zeros(hd.size)
+    rad = np.radians(hd)
+    return np.asarray(cur[0] * np.cos(rad) + cur[1] * np.sin(rad), dtype=np.float64)
+
+
+def evaluate(trained: TrainedEstimator, seg: _Arrays, *, current: bool = False) -> Evaluation:
     """Apply frozen parameters to a validated segment.
 
     Args:
         trained: the trained estimator.
         seg: the segment arrays.
+        current: score against the reference minus the segment's own current.
 
     Returns:
         Raw and calibrated RMSE and the improvement.
     """
     cal = correct_array(trained.params, seg.raw)
-    ok = np.isfinite(cal) & np.isfinite(seg.ref) & np.isfinite(seg.raw)
+    ok = np.isfinite(cal) & _usable(seg, current)
     n = int(np.count_nonzero(ok))
     if n == 0:
         r_raw = r_cal = math.nan
     else:
-        d_raw = seg.ref[ok] - seg.raw[ok]
-        d_cal = seg.ref[ok] - cal[ok]
+        ref = seg.ref[ok]
+        c_raw = c_cal = np.zeros(n)
+        if current:
+            c_raw = _projected(zero_params(trained.params.model), seg, ok)
+            c_cal = _projected(trained.params, seg, ok)
+        d_raw = ref - c_raw - seg.raw[ok]
+        d_cal = ref - c_cal - cal[ok]
         r_raw = math.sqrt(float(np.dot(d_raw, d_raw)) / n)
         r_cal = math.sqrt(float(np.dot(d_cal, d_cal)) / n)
     return Evaluation(
@@ -379,10 +464,10 @@ def evaluate(trained: TrainedEstimator, seg: _Arrays) -> Evaluation:
 
 
 def _job(
-    estimator: str, i_train: int, segs: Sequence[_Arrays], kf_config: KfConfig
+    estimator: str, i_train: int, segs: Sequence[_Arrays], kf_config: KfConfig, current: bool
 ) -> tuple[TrainedEstimator, list[Evaluation]]:
-    trained = train(estimator, segs[i_train], kf_config)
-    return trained, [evaluate(trained, s) for s in segs]
+    trained = train(estimator, segs[i_train], kf_config, current=current)
+    return trained, [evaluate(trained, s, current=current) for s in segs]
 
 
 class _WorkerData:
@@ -390,15 +475,17 @@ class _WorkerData:
 
     segs: ClassVar[list[_Arrays]] = []
     cfg: ClassVar[KfConfig] = KfConfig()
+    current: ClassVar[bool] = False
 
 
-def _init_worker(segs: list[_Arrays], kf_config: KfConfig) -> None:
+def _init_worker(segs: list[_Arrays], kf_config: KfConfig, current: bool) -> None:
     _WorkerData.segs = segs
     _WorkerData.cfg = kf_config
+    _WorkerData.current = current
 
 
 def _worker_job(estimator: str, i_train: int) -> tuple[TrainedEstimator, list[Evaluation]]:
-    return _job(estimator, i_train, _WorkerData.segs, _WorkerData.cfg)
+    return _job(estimator, i_train, _WorkerData.segs, _WorkerData.cfg, _WorkerData.current)
 
 
 def cross_validate(
@@ -408,6 +495,7 @@ def cross_validate(
     kf_config: KfConfig | None = None,
     progress: ProgressCallback | None = None,
     workers: int = 1,
+    current: bool = False,
 ) -> CrossValResult:
     """Train every estimator on every segment and evaluate it on every segment.
 
@@ -417,6 +505,8 @@ def cross_validate(
         kf_config: tuning of the KF estimators.
         progress: called as ``progress(done, total, "KF-EM3 on figure-8")``.
         workers: processes to use (1: run in this process).
+        current: estimate the current too and score in the water frame (segments
+            must carry headings).
 
     Returns:
         The result object (tables, JSON, CSV views).
@@ -443,12 +533,12 @@ def cross_validate(
     total = len(jobs)
     if workers == 1:
         for done, (est, i) in enumerate(jobs, start=1):
-            results[(est, i)] = _job(est, i, segs, cfg)
+            results[(est, i)] = _job(est, i, segs, cfg, current)
             if progress is not None:
                 progress(done, total, f"{est} on {names[i]}")
     else:
         with ProcessPoolExecutor(
-            max_workers=workers, initializer=_init_worker, initargs=(segs, cfg)
+            max_workers=workers, initializer=_init_worker, initargs=(segs, cfg, current)
         ) as pool:
             futures = {pool.submit(_worker_job, est, i): (est, i) for est, i in jobs}
             for done, fut in enumerate(as_completed(futures), start=1):

@@ -26,11 +26,3 @@ class ModelError(CalibrationError):
 class DataError(CalibrationError):
     """Input series that cannot be used: wrong shape, mismatched lengths, not finite,
     too short, or time stamps that do not increase."""
-
-
-class NotIdentifiableError(CalibrationError):
-    """Parameters were requested from data that cannot determine them.
-
-    The estimators themselves never raise it (they report ``identifiable=False``);
-    it is for callers that insist on identifiable parameters, e.g. before freezing.
-    """

@@ -1,27 +1,42 @@
-"""Excitation and identifiability of the error-model parameters (paper section III-B).
+"""Excitation and identifiability of every unknown, in the water frame (paper section III-B).
 
-For a window of reference speeds the information matrix is ``HᵀWH`` with the design
-matrix H of the model (eqs. (18)–(21)) and optional sample weights W. The paper
-shows (eqs. (14)–(17)) that for EM3 ``det(HᵀH) = N·Σv² − (Σv)² = N²·var(v)``: it is
-0 at constant speed, so scale factor and bias cannot be separated; the same
-collapse happens for EM4. On real data the reference is noisy, so the matrix is
-never exactly singular; :class:`ExcitationRule` turns the paper's ``det = 0``
-into a documented numerical rule. Parameters are **identifiable** when all of:
+What a calibration estimates are its *unknowns*: the error-model parameters (``a``,
+``m``, ``b``) and, in the water frame, the sea current (``current``: north and east).
+The paper shows (eqs. (14)–(17)) that for EM3 ``det(HᵀH) = N²·var(v)``: at constant
+speed scale and bias cannot be separated. With a current the same holds between the
+bias and the current: ``raw = (1+m)·(u_ground − c_N·cos ψ − c_E·sin ψ) + b`` makes the
+columns of ``b`` and of the current collinear while the heading ψ stays put.
 
-1. there are at least ``min_samples_per_param × p`` samples;
-2. H has full numerical rank p (singular values above ``max(N, p)·ε·s_max``);
-3. ``cond(HᵀWH) ≤ max_cond`` (default 1e8; EM4 on a normal manoeuvre is ~1e3–1e5);
-4. the speed actually varies or is non-zero, as each model needs:
+Every verdict here is judged **in the water frame**: the speed variation that
+determines a scale is that of the speed through the water — the UUT's own readings —
+never that of the reference alone (in a current, circling at constant speed makes the
+*ground* speed swing while the speed through the water does not). The rules, applied
+in order (:func:`judge`):
 
-   - EM1 (θ = [b]): nothing more;
-   - EM2 (θ = [m]): the RMS speed is at least ``min_speed_rms_mps`` (a vessel at
-     rest says nothing about a scale factor);
-   - EM3, EM4: the speed standard deviation is at least ``min_speed_std_mps``
-     (default 0.1 m/s; ``det(HᵀH)/N² = var(v)`` for EM3, the paper's criterion).
+1. **Scale** (``m``, and ``a`` for EM4): not determinable while the speed through the
+   water is nearly constant (its standard deviation below ``min_speed_std_mps``; for
+   EM2, which has no bias, its RMS below ``min_speed_rms_mps``).
+2. **Current**: not separable from the bias while the heading covers fewer than
+   ``min_heading_sectors`` of 8 sectors of 45°. The **bias** is then not determinable
+   either: the along-hull current and the bias are the same unknown on a straight
+   line. A *nuisance offset* takes their sum, so the scale can still be learnt from
+   speed changes, and neither is reported.
+3. **Enough samples**: at least ``min_samples_per_param`` effective samples per
+   unknown.
+4. **Information**: the standard deviation of each remaining unknown from the
+   information matrix (``σ²·(HᵀWH)⁻¹`` over the remaining unknowns and the nuisance
+   offset) must be under its ``max_std_*``; the worst offender is dropped and the
+   rest judged again. ``max_cond`` bounds the condition number.
 
-:func:`excitation` evaluates a batch window exactly (QR of the weighted design
-matrix). :class:`ExcitationWindow` is the fixed-memory online version for the
-daemon: exponentially forgotten speed moments Σw·vᵏ (k = 0..4), O(1) per sample.
+The information matrix is built over five design columns at the operating point
+(the speed through the water u and the heading ψ): ``[u², u, 1, cos ψ, sin ψ]`` —
+``a``, ``m``, ``b`` (or the nuisance offset), ``c_N``, ``c_E`` (the current's columns
+are ``−(1+m)·cos ψ`` and ``−(1+m)·sin ψ``; sign and the factor near 1 do not change
+what is determinable).
+
+:func:`identifiability` judges a batch window; :class:`ExcitationWindow` is the
+fixed-memory online version (exponential forgetting, O(1) per sample). Both call
+:func:`judge`, so the daemon and the offline commands apply one rule.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -29,6 +44,7 @@ Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import cast
 
@@ -36,7 +52,17 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
-from calib.models import FloatArray, ModelName, check_model, design_matrix, n_params
+from calib.models import CURRENT, FloatArray, Layout
+
+N_SECTORS = 8
+"""Heading sectors of 45° used to judge how much of the compass a window covers."""
+
+SECTOR_MIN_FRACTION = 0.03
+"""A sector counts as covered when it holds at least this fraction of the window."""
+
+_COL = {"a": (0,), "m": (1,), "b": (2,), CURRENT: (3, 4)}
+"""Columns of the five-column information matrix ``[u², u, 1, cos ψ, sin ψ]``."""
+_OFFSET = 2
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,10 +70,18 @@ class ExcitationRule:
     """Thresholds of the identifiability rule (see the module docstring).
 
     Attributes:
-        min_samples_per_param: samples needed per parameter (≥ 1).
-        min_speed_std_mps: minimum reference-speed standard deviation for EM3/EM4, m/s.
-        min_speed_rms_mps: minimum RMS reference speed for EM2, m/s.
-        max_cond: largest acceptable condition number of ``HᵀWH``.
+        min_samples_per_param: effective samples needed per unknown (≥ 1).
+        min_speed_std_mps: least standard deviation of the speed through the water
+            for a scale (EM3, EM4), m/s.
+        min_speed_rms_mps: least RMS speed through the water for EM2's scale, m/s.
+        min_heading_sectors: least number of 45° heading sectors covered for the
+            current to be separable from the bias (of 8).
+        max_cond: largest acceptable condition number of the information matrix.
+        max_std_a_spm: largest standard deviation of a determined ``a``, s/m.
+        max_std_m: largest standard deviation of a determined ``m``.
+        max_std_b_mps: largest standard deviation of a determined ``b``, m/s.
+        max_std_current_mps: largest standard deviation of a determined current
+            component, m/s.
 
     Raises:
         ValueError: a threshold out of range.
@@ -56,86 +90,276 @@ class ExcitationRule:
     min_samples_per_param: int = 10
     min_speed_std_mps: float = 0.1
     min_speed_rms_mps: float = 0.3
+    min_heading_sectors: int = 3
     max_cond: float = 1e8
+    max_std_a_spm: float = 0.01
+    max_std_m: float = 0.02
+    max_std_b_mps: float = 0.03
+    max_std_current_mps: float = 0.05
 
     def __post_init__(self) -> None:
         if self.min_samples_per_param < 1:
             raise ValueError("min_samples_per_param must be at least 1")
         if not (self.min_speed_std_mps >= 0.0 and self.min_speed_rms_mps >= 0.0):
             raise ValueError("speed thresholds must be non-negative")
+        if not 1 <= self.min_heading_sectors <= N_SECTORS:
+            raise ValueError(f"min_heading_sectors must be within 1..{N_SECTORS}")
         if not self.max_cond > 1.0:
             raise ValueError("max_cond must exceed 1")
+        for name in ("max_std_a_spm", "max_std_m", "max_std_b_mps", "max_std_current_mps"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be positive")
+
+    def max_std(self, unknown: str) -> float:
+        """The largest standard deviation of a determined unknown, in its unit."""
+        return {
+            "a": self.max_std_a_spm,
+            "m": self.max_std_m,
+            "b": self.max_std_b_mps,
+            CURRENT: self.max_std_current_mps,
+        }[unknown]
 
 
 DEFAULT_RULE = ExcitationRule()
 
 
 @dataclass(frozen=True, slots=True)
-class Excitation:
-    """Excitation of one window for one model.
+class Verdict:
+    """Whether one unknown is determined by a window, and why not.
 
     Attributes:
-        model: the error model.
-        n_samples: number of samples (effective number ``Σw`` for a forgetting window).
-        info: the information matrix ``HᵀWH``, p×p, as nested tuples (units follow θ).
-        det_info: ``det(HᵀWH)``.
-        cond_info: 2-norm condition number of ``HᵀWH`` (``inf`` when singular).
-        rank: numerical rank of H (``≤ p``).
-        speed_mean_mps: (weighted) mean reference speed, m/s.
-        speed_std_mps: (weighted) standard deviation of the reference speed, m/s.
-        speed_rms_mps: (weighted) RMS reference speed, m/s.
-        identifiable: the verdict of the rule.
-        reason: why not identifiable (empty when identifiable), for logs and reports.
+        unknown: ``"a"``, ``"m"``, ``"b"`` or ``"current"``.
+        determined: the data determine it.
+        reason: why not, in words a person understands (empty when determined).
+        std: its standard deviation from the information matrix (the larger
+            component for the current), in its unit; None when not determined.
     """
 
-    model: ModelName
+    unknown: str
+    determined: bool
+    reason: str
+    std: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class WindowStats:
+    """What a window holds, for :func:`judge`.
+
+    Attributes:
+        n_samples: (effective) number of samples.
+        info: ``HᵀWH`` over the five columns ``[u², u, 1, cos ψ, sin ψ]``, shape (5, 5).
+        speed_mean_mps: mean speed through the water (the UUT's readings), m/s.
+        speed_std_mps: its standard deviation, m/s.
+        speed_rms_mps: its RMS, m/s.
+        heading_sectors: 45° sectors covered (None without a heading).
+    """
+
     n_samples: float
-    info: tuple[tuple[float, ...], ...]
-    det_info: float
-    cond_info: float
-    rank: int
+    info: FloatArray
     speed_mean_mps: float
     speed_std_mps: float
     speed_rms_mps: float
-    identifiable: bool
-    reason: str
+    heading_sectors: int | None
+
+
+@dataclass(frozen=True, slots=True)
+class Identifiability:
+    """The verdict on every unknown of one window.
+
+    Attributes:
+        layout: the model and whether a current is estimated.
+        verdicts: one per unknown, in :attr:`Layout.unknowns` order.
+        stats: the window's figures.
+        cond_info: condition number of the information matrix over the determined
+            unknowns (``inf`` when none is).
+        nuisance_offset: a free offset absorbed bias and along-hull current together.
+    """
+
+    layout: Layout
+    verdicts: tuple[Verdict, ...]
+    stats: WindowStats
+    cond_info: float
+    nuisance_offset: bool
+
+    @property
+    def determined(self) -> tuple[str, ...]:
+        """The unknowns the window determines."""
+        return tuple(v.unknown for v in self.verdicts if v.determined)
+
+    @property
+    def unidentifiable(self) -> tuple[str, ...]:
+        """The unknowns it does not determine (empty when all are)."""
+        return tuple(v.unknown for v in self.verdicts if not v.determined)
+
+    @property
+    def identifiable(self) -> bool:
+        """Every unknown is determined."""
+        return not self.unidentifiable
+
+    @property
+    def reason(self) -> str:
+        """Every refusal in words, ``"; "``-separated (empty when identifiable)."""
+        seen: list[str] = []
+        for v in self.verdicts:
+            if not v.determined and v.reason not in seen:
+                seen.append(v.reason)
+        return "; ".join(seen)
+
+    def verdict(self, unknown: str) -> Verdict:
+        """The verdict on one unknown.
+
+        Raises:
+            KeyError: not an unknown of this layout.
+        """
+        for v in self.verdicts:
+            if v.unknown == unknown:
+                return v
+        raise KeyError(unknown)
+
+
+def _columns(unknowns: Sequence[str], offset: bool) -> list[int]:
+    cols = [c for u in unknowns for c in _COL[u]]
+    if offset and _OFFSET not in cols:
+        cols.append(_OFFSET)
+    return sorted(cols)
+
+
+def _stds(info: FloatArray, cols: list[int], sigma2: float) -> tuple[dict[int, float], float]:
+    """Standard deviation of each column's unknown and the condition number."""
+    sub = info[np.ix_(cols, cols)]
+    scale = np.sqrt(np.maximum(np.diag(sub), 1e-300))
+    norm = sub / np.outer(scale, scale)
+    eig = np.linalg.eigvalsh(norm)
+    if not float(eig[0]) > 1e-12 * max(float(eig[-1]), 1e-300):
+        return dict.fromkeys(cols, math.inf), math.inf
+    inv = np.linalg.inv(norm) / np.outer(scale, scale)
+    cond = float(np.linalg.cond(sub))
+    return {c: math.sqrt(max(float(inv[i, i]) * sigma2, 0.0)) for i, c in enumerate(cols)}, cond
 
 
 def judge(
-    model: ModelName,
-    n_samples: float,
-    rank: int,
-    cond_info: float,
-    speed_std_mps: float,
-    speed_rms_mps: float,
-    rule: ExcitationRule = DEFAULT_RULE,
-) -> str:
-    """Apply the identifiability rule.
+    layout: Layout, stats: WindowStats, sigma2_mps2: float, rule: ExcitationRule = DEFAULT_RULE
+) -> Identifiability:
+    """Apply the identifiability rules of the module docstring to one window.
 
     Args:
-        model: the error model.
-        n_samples: (effective) number of samples.
-        rank: numerical rank of the design matrix.
-        cond_info: condition number of the information matrix.
-        speed_std_mps: standard deviation of the reference speed, m/s.
-        speed_rms_mps: RMS reference speed, m/s.
+        layout: the model and whether the current is estimated.
+        stats: the window's figures.
+        sigma2_mps2: variance of one raw residual, (m/s)² (the fit's, or the
+            sensor's nominal noise online).
         rule: the thresholds.
 
     Returns:
-        ``""`` when identifiable, otherwise the first failed condition in words.
+        A verdict per unknown.
     """
-    p = n_params(model)
-    if n_samples < rule.min_samples_per_param * p:
-        return f"too few samples ({n_samples:.0f} < {rule.min_samples_per_param * p})"
-    if rank < p:
-        return f"rank-deficient information matrix (rank {rank} < {p})"
-    if model == "EM2" and speed_rms_mps < rule.min_speed_rms_mps:
-        return f"speed too low for a scale factor (rms {speed_rms_mps:.3f} m/s)"
-    if model in ("EM3", "EM4") and speed_std_mps < rule.min_speed_std_mps:
-        return f"speed nearly constant (std {speed_std_mps:.3f} m/s < {rule.min_speed_std_mps} m/s)"
-    if not cond_info <= rule.max_cond:
-        return f"ill-conditioned information matrix (cond {cond_info:.3g} > {rule.max_cond:.3g})"
-    return ""
+    unknowns = layout.unknowns
+    refused: dict[str, str] = {}
+    scale = [k for k in ("a", "m") if k in unknowns]
+    if layout.model == "EM2":
+        if stats.speed_rms_mps < rule.min_speed_rms_mps:
+            refused["m"] = (
+                "scale not determinable: speed through water too low "
+                f"(rms {stats.speed_rms_mps:.2f} m/s)"
+            )
+    elif scale and stats.speed_std_mps < rule.min_speed_std_mps:
+        why = (
+            "scale not determinable: speed through water nearly constant "
+            f"(σ {stats.speed_std_mps:.2f} m/s)"
+        )
+        for k in scale:
+            refused[k] = why
+    offset = False
+    if layout.current:
+        sectors = stats.heading_sectors
+        if sectors is None:
+            refused[CURRENT] = "current not determinable: no heading"
+        elif sectors < rule.min_heading_sectors:
+            refused[CURRENT] = (
+                f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
+            )
+        if CURRENT in refused:
+            offset = True
+            if "b" in unknowns:
+                refused["b"] = (
+                    "bias not separable from the current: heading covered "
+                    f"{sectors if sectors is not None else 0} of {N_SECTORS} sectors"
+                )
+    free = [u for u in unknowns if u not in refused]
+    stds: dict[str, float] = {}
+    cond = math.inf
+    n_cols = len(_columns(free, offset))
+    if free and stats.n_samples < rule.min_samples_per_param * max(n_cols, 1):
+        why = f"too few samples ({stats.n_samples:.0f} < {rule.min_samples_per_param * n_cols})"
+        for u in free:
+            refused[u] = why
+        free = []
+    while free:
+        cols = _columns(free, offset)
+        by_col, cond = _stds(stats.info, cols, sigma2_mps2)
+        stds = {u: max(by_col[c] for c in _COL[u]) for u in free}
+        ratios = {u: stds[u] / rule.max_std(u) for u in free}
+        worst = max(free, key=lambda u: ratios[u])
+        if ratios[worst] <= 1.0 and cond <= rule.max_cond:
+            break
+        sd = stds[worst]
+        refused[worst] = (
+            f"{_LABEL[worst]} not determinable: weak excitation "
+            f"(σ {sd:.3g} > {rule.max_std(worst):g} {_UNIT[worst]})"
+            if math.isfinite(sd) and ratios[worst] > 1.0
+            else f"{_LABEL[worst]} not determinable: information matrix singular"
+            if not math.isfinite(sd)
+            else f"{_LABEL[worst]} not determinable: ill-conditioned (cond {cond:.3g})"
+        )
+        free.remove(worst)
+        if worst == CURRENT and "b" in free:
+            free.remove("b")
+            refused["b"] = refused[CURRENT].replace("current", "bias", 1)
+            offset = True
+        if not free:
+            cond = math.inf
+    verdicts = tuple(
+        Verdict(u, False, refused[u], None) if u in refused else Verdict(u, True, "", stds.get(u))
+        for u in unknowns
+    )
+    return Identifiability(layout, verdicts, stats, cond, offset)
+
+
+_LABEL = {"a": "curvature", "m": "scale", "b": "bias", CURRENT: "current"}
+_UNIT = {"a": "s/m", "m": "", "b": "m/s", CURRENT: "m/s"}
+
+
+def heading_sectors(heading_deg: npt.ArrayLike, weights: npt.ArrayLike | None = None) -> int:
+    """How many 45° sectors a heading series covers (each with ≥ 3 % of the weight).
+
+    Args:
+        heading_deg: headings in degrees, shape (N,).
+        weights: optional sample weights, shape (N,).
+
+    Returns:
+        0 to 8.
+    """
+    h = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+    w = np.ones_like(h) if weights is None else np.asarray(weights, dtype=np.float64)
+    if h.size == 0:
+        return 0
+    idx = (np.floor(np.mod(h, 360.0) / (360.0 / N_SECTORS)).astype(int)) % N_SECTORS
+    hist = np.bincount(idx, weights=w, minlength=N_SECTORS)
+    total = float(np.sum(hist))
+    return int(np.count_nonzero(hist >= SECTOR_MIN_FRACTION * total)) if total > 0.0 else 0
+
+
+def design5(u_mps: npt.ArrayLike, heading_deg: npt.ArrayLike | None) -> FloatArray:
+    """The five design columns ``[u², u, 1, cos ψ, sin ψ]``, shape (N, 5) (zeros without ψ)."""
+    u = np.asarray(u_mps, dtype=np.float64).reshape(-1)
+    out = np.zeros((u.size, 5))
+    out[:, 0] = u * u
+    out[:, 1] = u
+    out[:, 2] = 1.0
+    if heading_deg is not None:
+        psi = np.radians(np.asarray(heading_deg, dtype=np.float64).reshape(-1))
+        out[:, 3] = np.cos(psi)
+        out[:, 4] = np.sin(psi)
+    return out
 
 
 def speed_stats(v: FloatArray, w: FloatArray | None) -> tuple[float, float, float]:
@@ -175,99 +399,64 @@ def check_weights(weights: npt.ArrayLike | None, n: int) -> FloatArray | None:
     return w
 
 
-def qr_r(A: FloatArray) -> FloatArray:
-    """The R factor of the QR factorisation of A, shape (min(N, p), p) (Q is never formed).
-
-    Args:
-        A: matrix of shape (N, p).
-
-    Returns:
-        The upper-triangular R with ``AᵀA = RᵀR``.
-    """
-    return cast(FloatArray, np.linalg.qr(A, mode="r"))
-
-
-def factor_stats(R: FloatArray, n_rows: int) -> tuple[int, float, float]:
-    """Rank of A and det, cond of ``AᵀA`` from the triangular factor R of ``A = QR``.
-
-    Working on R (``AᵀA = RᵀR``) avoids forming and inverting ``AᵀA``.
-
-    Args:
-        R: the R factor of a matrix A of shape (n_rows, p); shape (min(n_rows, p), p).
-        n_rows: number of rows N of A (for the rank tolerance ``max(N, p)·ε·s_max``).
-
-    Returns:
-        ``(rank, det(AᵀA), cond(AᵀA))``; cond is ``inf`` when A is rank-deficient.
-    """
-    p = R.shape[1]
-    s = np.linalg.svd(R, compute_uv=False)
-    s_max = float(s[0]) if s.size else 0.0
-    tol = s_max * max(n_rows, p) * np.finfo(np.float64).eps
-    rank = int(np.count_nonzero(s > tol))
-    det = float(np.prod(s) ** 2) if s.size == p else 0.0
-    cond = (s_max / float(s[-1])) ** 2 if rank == p else math.inf
-    return rank, det, cond
-
-
-def excitation(
-    model: str,
-    v_ref_mps: npt.ArrayLike,
+def window_stats(
+    u_water_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None = None,
     weights: npt.ArrayLike | None = None,
-    *,
-    rule: ExcitationRule = DEFAULT_RULE,
-) -> Excitation:
-    """Excitation of a batch window (paper eqs. (14)–(17)).
+) -> WindowStats:
+    """The figures of a batch window.
 
     Args:
-        model: the error model.
-        v_ref_mps: reference speeds in m/s, shape (N,), N ≥ 1.
+        u_water_mps: operating-point speed through the water, m/s, shape (N,).
+        raw_mps: the UUT's readings, m/s, shape (N,) (their spread is the speed
+            variation through the water that excites a scale).
+        heading_deg: headings, degrees, shape (N,), or None.
         weights: optional sample weights, shape (N,).
-        rule: identifiability thresholds.
-
-    Returns:
-        The information matrix, its determinant and condition number, the speed
-        statistics and the identifiability verdict.
 
     Raises:
-        ModelError: unknown model.
-        DataError: empty or non-finite speeds, bad weights.
+        DataError: empty or non-finite series, bad weights.
     """
-    name = check_model(model)
-    v = np.asarray(v_ref_mps, dtype=np.float64).reshape(-1)
-    if v.size == 0 or not np.all(np.isfinite(v)):
-        raise DataError("reference speeds must be a non-empty finite series")
-    w = check_weights(weights, v.size)
-    H = design_matrix(name, v)
-    A = H if w is None else H * np.sqrt(w)[:, None]
-    rank, det, cond = factor_stats(qr_r(A), v.size)
-    info = A.T @ A
-    mean, std, rms = speed_stats(v, w)
-    n_eff = float(v.size) if w is None else float(np.sum(w))
-    reason = judge(name, n_eff, rank, cond, std, rms, rule)
-    return Excitation(
-        model=name,
-        n_samples=n_eff,
-        info=tuple(tuple(float(x) for x in row) for row in info),
-        det_info=det,
-        cond_info=cond,
-        rank=rank,
-        speed_mean_mps=mean,
-        speed_std_mps=std,
-        speed_rms_mps=rms,
-        identifiable=not reason,
-        reason=reason,
+    u = np.asarray(u_water_mps, dtype=np.float64).reshape(-1)
+    raw = np.asarray(raw_mps, dtype=np.float64).reshape(-1)
+    if u.size == 0 or u.shape != raw.shape:
+        raise DataError("need a non-empty window with as many readings as speeds")
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(raw))):
+        raise DataError("speeds must be finite")
+    w = check_weights(weights, u.size)
+    D = design5(u, heading_deg)
+    A = D if w is None else D * np.sqrt(w)[:, None]
+    mean, std, rms = speed_stats(raw, w)
+    sectors = None if heading_deg is None else heading_sectors(heading_deg, w)
+    n_eff = float(u.size) if w is None else float(np.sum(w))
+    return WindowStats(n_eff, A.T @ A, mean, std, rms, sectors)
+
+
+def identifiability(
+    layout: Layout,
+    u_water_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    sigma2_mps2: float,
+    *,
+    heading_deg: npt.ArrayLike | None = None,
+    weights: npt.ArrayLike | None = None,
+    rule: ExcitationRule = DEFAULT_RULE,
+) -> Identifiability:
+    """Judge a batch window (see :func:`judge` and :func:`window_stats`)."""
+    return judge(
+        layout, window_stats(u_water_mps, raw_mps, heading_deg, weights), sigma2_mps2, rule
     )
 
 
 class ExcitationWindow:
-    """Fixed-memory online excitation tracker (exponential forgetting).
+    """Fixed-memory online identifiability (exponential forgetting), O(1) per sample.
 
-    Keeps the five moments ``S_k = Σ λ^(age)·v^k`` (k = 0..4) of the reference
-    speed, so the information matrix of any model EM1–EM4 can be rebuilt on demand
-    (EM3: ``[[S2, S1], [S1, S0]]``). :meth:`add` is O(1) over plain floats;
-    :meth:`evaluate` costs a small eigen-decomposition, call it at status rate.
+    Keeps the forgotten sums of the five design columns' products, of the UUT's
+    readings and of the heading sectors; :meth:`evaluate` rebuilds the window's
+    figures and applies :func:`judge`. Call it at status rate.
 
     Args:
+        layout: the filter's unknowns.
         half_life_samples: samples after which a sample's weight has halved
             (``inf`` for a growing window without forgetting).
         rule: identifiability thresholds.
@@ -276,80 +465,86 @@ class ExcitationWindow:
         ValueError: a half-life that is not positive.
     """
 
-    __slots__ = ("_lam", "_s0", "_s1", "_s2", "_s3", "_s4", "rule")
+    __slots__ = ("_info", "_lam", "_r0", "_r1", "_r2", "_sectors", "layout", "rule")
 
-    def __init__(self, half_life_samples: float = math.inf, rule: ExcitationRule = DEFAULT_RULE):
+    def __init__(
+        self,
+        layout: Layout,
+        half_life_samples: float = math.inf,
+        rule: ExcitationRule = DEFAULT_RULE,
+    ) -> None:
         if not half_life_samples > 0.0:
             raise ValueError("half_life_samples must be positive")
+        self.layout = layout
         self._lam = 0.5 ** (1.0 / half_life_samples) if math.isfinite(half_life_samples) else 1.0
         self.rule = rule
-        self._s0 = self._s1 = self._s2 = self._s3 = self._s4 = 0.0
+        self._info = [0.0] * 15
+        self._r0 = self._r1 = self._r2 = 0.0
+        self._sectors = [0.0] * N_SECTORS
 
-    def add(self, v_ref_mps: float) -> None:
-        """Add one reference speed (m/s); older samples fade by the forgetting factor."""
+    def add(self, u_mps: float, raw_mps: float, heading_deg: float | None = None) -> None:
+        """Add one sample: operating-point speed through the water, reading, heading."""
         lam = self._lam
-        v2 = v_ref_mps * v_ref_mps
-        self._s0 = lam * self._s0 + 1.0
-        self._s1 = lam * self._s1 + v_ref_mps
-        self._s2 = lam * self._s2 + v2
-        self._s3 = lam * self._s3 + v2 * v_ref_mps
-        self._s4 = lam * self._s4 + v2 * v2
+        if heading_deg is None:
+            c = s = 0.0
+        else:
+            psi = math.radians(heading_deg)
+            c, s = math.cos(psi), math.sin(psi)
+            sec = self._sectors
+            for i in range(N_SECTORS):
+                sec[i] *= lam
+            sec[int((heading_deg % 360.0) // (360.0 / N_SECTORS)) % N_SECTORS] += 1.0
+        col = (u_mps * u_mps, u_mps, 1.0, c, s)
+        info = self._info
+        k = 0
+        for i in range(5):
+            ci = col[i]
+            for j in range(i, 5):
+                info[k] = lam * info[k] + ci * col[j]
+                k += 1
+        self._r0 = lam * self._r0 + 1.0
+        self._r1 = lam * self._r1 + raw_mps
+        self._r2 = lam * self._r2 + raw_mps * raw_mps
 
     def reset(self) -> None:
         """Forget every sample."""
-        self._s0 = self._s1 = self._s2 = self._s3 = self._s4 = 0.0
+        self._info = [0.0] * 15
+        self._r0 = self._r1 = self._r2 = 0.0
+        self._sectors = [0.0] * N_SECTORS
 
     @property
     def n_effective(self) -> float:
-        """Effective number of samples ``S_0``."""
-        return self._s0
+        """Effective number of samples."""
+        return self._r0
 
-    def evaluate(self, model: str) -> Excitation:
-        """Excitation of the current window for one model.
-
-        Args:
-            model: the error model.
-
-        Returns:
-            The same figures as :func:`excitation` (rank from the eigenvalues of
-            the information matrix built from the moments).
-
-        Raises:
-            ModelError: unknown model.
-        """
-        name = check_model(model)
-        s0, s1, s2, s3, s4 = self._s0, self._s1, self._s2, self._s3, self._s4
-        rows = {
-            "EM1": ((s0,),),
-            "EM2": ((s2,),),
-            "EM3": ((s2, s1), (s1, s0)),
-            "EM4": ((s4, s3, s2), (s3, s2, s1), (s2, s1, s0)),
-        }[name]
-        info = np.array(rows, dtype=np.float64)
-        eig = np.linalg.eigvalsh(info)
-        e_max = float(eig[-1])
-        tol = max(e_max, 0.0) * info.shape[0] * np.finfo(np.float64).eps * 1e3
-        rank = int(np.count_nonzero(eig > tol))
-        p = info.shape[0]
-        cond = e_max / float(eig[0]) if rank == p else math.inf
-        det = float(np.prod(eig)) if rank == p else 0.0
-        if s0 > 0.0:
-            mean = s1 / s0
-            std = math.sqrt(max(s2 / s0 - mean * mean, 0.0))
-            rms = math.sqrt(max(s2 / s0, 0.0))
+    def stats(self) -> WindowStats:
+        """The window's figures."""
+        M = np.zeros((5, 5))
+        k = 0
+        for i in range(5):
+            for j in range(i, 5):
+                M[i, j] = M[j, i] = self._info[k]
+                k += 1
+        r0 = self._r0
+        if r0 > 0.0:
+            mean = self._r1 / r0
+            std = math.sqrt(max(self._r2 / r0 - mean * mean, 0.0))
+            rms = math.sqrt(max(self._r2 / r0, 0.0))
         else:
             mean = std = rms = 0.0
-        reason = judge(name, s0, rank, cond, std, rms, self.rule)
-        return Excitation(
-            model=name,
-            n_samples=s0,
-            info=rows,
-            det_info=det,
-            cond_info=cond,
-            rank=rank,
-            speed_mean_mps=mean,
-            speed_std_mps=std,
-            speed_rms_mps=rms,
-            identifiable=not reason,
-            reason=reason,
+        total = sum(self._sectors)
+        sectors = (
+            sum(1 for w in self._sectors if w >= SECTOR_MIN_FRACTION * total)
+            if total > 0.0
+            else None
         )
+        return WindowStats(r0, M, mean, std, rms, sectors)
+
+    def evaluate(self, sigma2_mps2: float) -> Identifiability:
+        """Judge the current window (:func:`judge`) with a nominal residual variance."""
+        return judge(self.layout, self.stats(), sigma2_mps2, self.rule)
+
+
+def qr_r(A: FloatArray) -> FloatArray:
+    """The R factor of the QR factorisation of A, shape (min(N, p), p) (Q is never formed)."""
+    return cast(FloatArray, np.linalg.qr(A, mode="r"))

@@ -14,6 +14,18 @@ value is a quality figure in [−1, 1], and:
 - the grid peak is refined to sub-sample resolution by fitting a parabola through
   it and its two neighbours.
 
+**In the water frame** (a heading given): a ground-referenced reference carries the
+sea current projected on the hull, ``c_N·cos ψ + c_E·sin ψ``, which swings with the
+heading and would pull a plain correlation peak towards whatever lag best lines the
+current's swing up with the speed log's. The score at each τ is then the *multiple*
+correlation of the measurement with ``[v_ref, cos ψ, sin ψ]`` (all at ``t − τ``,
+the heading interpolated through its cosine and sine, so across 0/360): the current
+is fitted at every candidate lag and cannot shift the peak. Without a heading the
+score is the plain Pearson coefficient (the same thing with one regressor).
+
+:func:`accept` is the one rule deciding whether an estimate is used, for the daemon
+and the offline commands alike.
+
 Sign convention: a positive lag means the measurement is late,
 ``v_meas(t) ≈ v_ref(t − lag)``; align by evaluating the reference at ``t − lag``.
 
@@ -42,6 +54,8 @@ class LagEstimate:
         step_s: grid step used, s.
         n_samples: measurement samples that entered the correlation.
         at_bound: the peak is at ±max_lag_s (the true lag may lie outside).
+        std_s: standard error of the lag from the peak's curvature and the residual
+            (white residuals assumed; ``inf`` when the peak is flat or at the bound), s.
     """
 
     lag_s: float
@@ -49,6 +63,7 @@ class LagEstimate:
     step_s: float
     n_samples: int
     at_bound: bool
+    std_s: float = math.inf
 
 
 def _series(name: str, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -64,12 +79,80 @@ def _series(name: str, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[FloatArray, 
     return ta, va
 
 
+PEAK_HALF_WIDTH_S = 0.5
+"""Half-width of the neighbourhood of the grid peak fitted by a parabola, s."""
+
+MIN_LAG_CORRELATION = 0.6
+"""An estimate with a weaker peak is not used: a straight run at constant speed
+correlates at ~0.4 wherever the lag is."""
+
+MAX_LAG_STD_S = 0.15
+"""An estimate less certain than this is not used: a broad peak (slow speed changes)
+places the lag anywhere within it."""
+
+
+def accept(
+    est: LagEstimate, min_corr: float = MIN_LAG_CORRELATION, max_std_s: float = MAX_LAG_STD_S
+) -> str:
+    """The lag acceptance rule: ``""`` when the estimate may be used, else why not.
+
+    An estimate is used when the peak is not at the search bound, its correlation is
+    at least ``min_corr`` and its standard error at most ``max_std_s``. Negative lags
+    are accepted (a reference may report later than the speed log, e.g. a GNSS
+    receiver's filtered velocity).
+    """
+    if est.at_bound:
+        return f"correlation peak at the search bound ({est.lag_s:+.2f} s, r={est.peak_corr:.2f})"
+    if not est.peak_corr >= min_corr:
+        return f"no clear correlation peak (r={est.peak_corr:.2f} < {min_corr})"
+    if not est.std_s <= max_std_s:
+        return f"correlation peak too broad (lag {est.lag_s:+.2f} ± {est.std_s:.2f} s)"
+    return ""
+
+
+def combine(estimates: list[LagEstimate]) -> float:
+    """One lag from several accepted estimates: their median weighted by 1/σ².
+
+    Robust to one window whose peak is off (the median), and leaning on the
+    sharpest peaks (the weights).
+
+    Raises:
+        DataError: no estimate.
+    """
+    if not estimates:
+        raise DataError("no lag estimate to combine")
+    order = sorted(estimates, key=lambda e: e.lag_s)
+    w = [1.0 / max(e.std_s, 1e-6) ** 2 for e in order]
+    half = 0.5 * sum(w)
+    acc = 0.0
+    for e, wi in zip(order, w, strict=True):
+        acc += wi
+        if acc >= half:
+            return e.lag_s
+    return order[-1].lag_s
+
+
 def _pearson(a: FloatArray, b: FloatArray) -> float:
     """Pearson correlation of two equal-length series (0 when one is constant)."""
     a0 = a - a.mean()
     b0 = b - b.mean()
     den = math.sqrt(float(np.dot(a0, a0)) * float(np.dot(b0, b0)))
     return float(np.dot(a0, b0)) / den if den > 0.0 else 0.0
+
+
+def _multiple(y: FloatArray, ref: FloatArray, cos_h: FloatArray, sin_h: FloatArray) -> float:
+    """Multiple correlation of y with [ref, cos, sin], signed by the reference's coefficient."""
+    X = np.column_stack((ref, cos_h, sin_h, np.ones_like(ref)))
+    X = X - X.mean(axis=0)
+    X[:, 3] = 0.0
+    y0 = y - y.mean()
+    tss = float(y0 @ y0)
+    if tss <= 0.0:
+        return 0.0
+    coef = np.linalg.lstsq(X[:, :3], y0, rcond=None)[0]
+    fit = X[:, :3] @ coef
+    r2 = max(float(fit @ fit) / tss, 0.0)
+    return math.copysign(math.sqrt(min(r2, 1.0)), float(coef[0]))
 
 
 def estimate_lag(
@@ -81,6 +164,7 @@ def estimate_lag(
     *,
     step_s: float | None = None,
     min_samples: int = 30,
+    heading: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
 ) -> LagEstimate:
     """Estimate the latency of a speed series relative to a reference.
 
@@ -92,6 +176,9 @@ def estimate_lag(
         max_lag_s: largest |lag| searched, s (> 0).
         step_s: grid step in s (default: the smaller median sample interval).
         min_samples: fewest usable measurement samples.
+        heading: ``(t_h, heading_deg)`` of the heading at the reference's clock
+            (strictly increasing times): score with the current modelled (see the
+            module docstring).
 
     Returns:
         The lag, the peak correlation and diagnostics.
@@ -118,16 +205,51 @@ def estimate_lag(
         )
     tk = tm[keep]
     vk = vm[keep]
-    corr = np.array([_pearson(vk, np.interp(tk - lag, tr, vr)) for lag in lags])
+    if heading is None:
+        corr = np.array([_pearson(vk, np.interp(tk - lag, tr, vr)) for lag in lags])
+    else:
+        th, psi = _series("heading", heading[0], heading[1])
+        if th[0] > tk[0] - reach or th[-1] < tk[-1] + reach:
+            keep_h = (tk - reach >= th[0]) & (tk + reach <= th[-1])
+            if int(np.count_nonzero(keep_h)) < min_samples:
+                raise DataError("the heading does not cover the measurement window")
+            tk, vk = tk[keep_h], vk[keep_h]
+        rad = np.radians(psi)
+        cos_h, sin_h = np.cos(rad), np.sin(rad)
+        corr = np.array(
+            [
+                _multiple(
+                    vk,
+                    np.interp(tk - lag, tr, vr),
+                    np.interp(tk - lag, th, cos_h),
+                    np.interp(tk - lag, th, sin_h),
+                )
+                for lag in lags
+            ]
+        )
     i = int(np.argmax(corr))
     at_bound = i in (0, lags.size - 1)
     lag = float(lags[i])
     peak = float(corr[i])
+    std = math.inf
     if not at_bound:
-        c_m, c_0, c_p = float(corr[i - 1]), peak, float(corr[i + 1])
-        den = c_m - 2.0 * c_0 + c_p
-        if den < 0.0:
-            delta = 0.5 * (c_m - c_p) / den
-            lag += delta * step_s
-            peak = c_0 - 0.25 * (c_m - c_p) * delta
-    return LagEstimate(lag, min(peak, 1.0), step_s, int(tk.size), at_bound)
+        # The residual fraction s = 1 − r² near its minimum is a parabola,
+        # s(τ) ≈ s_min + A·(τ − τ̂)², fitted over ±PEAK_HALF_WIDTH_S (at least two grid
+        # steps each side) so that the reference's noise, which makes the curve
+        # jagged at the sample spacing, averages out. var(τ̂) = σ²/A with σ² the
+        # residual fraction per degree of freedom (the usual least-squares result).
+        half = max(2, round(PEAK_HALF_WIDTH_S / step_s))
+        lo, hi = max(i - half, 0), min(i + half, lags.size - 1)
+        tau = lags[lo : hi + 1] - lags[i]
+        s_frac = 1.0 - corr[lo : hi + 1] * np.abs(corr[lo : hi + 1])
+        A, B, C = (float(v) for v in np.polyfit(tau, s_frac, 2))
+        if A > 0.0:
+            vertex = -B / (2.0 * A)
+            if abs(vertex) <= float(tau[-1] - tau[0]) / 2.0:
+                lag = float(lags[i]) + vertex
+                s_min = max(C - B * B / (4.0 * A), 0.0)
+                peak = math.sqrt(max(1.0 - s_min, 0.0))
+                dof = tk.size - (4 if heading is not None else 2)
+                if dof > 0:
+                    std = math.sqrt(s_min / dof / A)
+    return LagEstimate(lag, min(peak, 1.0), step_s, int(tk.size), at_bound, std)

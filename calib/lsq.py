@@ -1,20 +1,24 @@
-"""Batch least squares LS-EM1..LS-EM4 (paper section II-A and III-C-1).
+"""Batch least squares LS-EM1..LS-EM4 (paper sections II-A and III-C-1), optionally in the water frame.
 
-The error ``z = raw − v_ref`` is linear in the model parameters θ:
-``z = H·θ + η`` with the paper's design matrices H (eqs. (18)–(21)). The estimate
-minimises the cost J(θ) = Σ wₖ (zₖ − hₖ·θ)² (eq. (1); wₖ = 1 without weights).
-The paper writes its solution with the normal equations (eq. (2)),
-``θ = (HᵀH)⁻¹Hᵀz``; here it is computed stably from one QR factorisation of the
-augmented matrix ``√W·[H | z]``: ``R·θ = Qᵀz``, never inverting ``HᵀH``. The
-residual sum of squares is the last diagonal element of that R squared.
+The paper fits ``raw − v_ref = H·θ`` with its design matrices (eqs. (18)–(21)). Here
+the reference may be ground-referenced (DVL bottom track, GNSS): with a current
+``c = (c_N, c_E)`` and the heading ψ the speed through the water along the hull is
+``u = v_ref − c_N·cos ψ − c_E·sin ψ`` and the EMlog reads
 
-Standard errors are ``√diag(σ̂²·(HᵀWH)⁻¹)`` with the residual variance
-``σ̂² = Σwₖrₖ² / (Σwₖ/N̄·(N − p))`` — for unit weights the textbook
-``RSS/(N − p)``; weights are treated as relative (only their ratios matter).
-``(HᵀWH)⁻¹ = R⁻¹R⁻ᵀ`` uses the small triangular factor only. When H is
-rank-deficient (constant speed for EM3/EM4: the paper's ``det(HᵀH) = 0``) the fit
-does not raise: θ is the minimum-norm solution, the standard errors are ``inf``
-and ``identifiable`` is False (rule in :mod:`calib.excitation`).
+    raw = f_θ(u) + η = a·u² + (1 + m)·u + b + η.
+
+The unknowns are θ and, with ``current=True``, c. The cost ``J = Σ wₖ rₖ²`` (eq. (1))
+is minimised by Gauss–Newton on the residuals ``r = raw − f_θ(u)`` with the Jacobian
+columns ``∂f/∂θ = h(u)`` (the paper's rows) and ``∂f/∂c = −f'(u)·(cos ψ, sin ψ)``;
+without a current the problem is the paper's linear one and a single step solves
+it exactly (QR of the weighted Jacobian, never inverting ``HᵀH``).
+
+Only what the data determine is estimated (:mod:`calib.excitation`): an unknown the
+window does not determine is held at its prior (the given prior parameters, else
+the ideal sensor; zero current) and reported as unidentifiable. When the current is
+not separable from the bias a nuisance offset takes their sum, so a scale can still
+be learnt from speed changes. Standard errors are ``√diag(σ̂²·(JᵀWJ)⁻¹)`` over the
+estimated unknowns with ``σ̂² = Σwₖrₖ² / (Σwₖ/N̄·(N − p))``.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -31,13 +35,18 @@ from calib.errors import DataError
 from calib.excitation import (
     DEFAULT_RULE,
     ExcitationRule,
+    Identifiability,
     check_weights,
-    factor_stats,
+    heading_sectors,
     judge,
-    qr_r,
-    speed_stats,
+    window_stats,
 )
-from calib.models import PARAM_NAMES, FloatArray, ModelName, Params, check_model, design_matrix
+from calib.models import CURRENT, FloatArray, Layout, ModelName, Params, check_model
+
+_A, _M, _B, _CN, _CE, _D = range(6)
+"""Indices of the full unknown vector ``[a, m, b, c_N, c_E, offset]``."""
+
+_MAX_ITER = 30
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,52 +54,50 @@ class LsFit:
     """Result of one least-squares calibration.
 
     Attributes:
-        model: the error model.
-        params: the estimated parameters θ̂.
-        stderr: standard errors of θ̂ in θ order and units (``inf`` if not full rank).
-        rmse_mps: RMS of the fit residuals ``z − Hθ̂`` in m/s (weighted RMS with weights).
+        layout: the model and whether a current was estimated.
+        params: θ̂; an unknown the data do not determine is at its prior.
+        stderr: standard error of each parameter by short name (None: not determined).
+        current_mps: the current (north, east), m/s; None when not estimated or not
+            determined.
+        current_std_mps: its standard errors, m/s.
+        rmse_mps: RMS of the fit residuals ``raw − f_θ(u)``, m/s (weighted RMS with weights).
         n_samples: number of samples N.
-        rank: numerical rank of H.
-        det_info: ``det(HᵀWH)`` (units follow θ).
-        cond_info: condition number of ``HᵀWH`` (``inf`` when rank-deficient).
-        identifiable: verdict of :class:`calib.excitation.ExcitationRule`.
-        reason: why not identifiable (empty otherwise).
+        ident: the verdict on every unknown (see :mod:`calib.excitation`).
     """
 
-    model: ModelName
+    layout: Layout
     params: Params
-    stderr: tuple[float, ...]
+    stderr: dict[str, float | None]
+    current_mps: tuple[float, float] | None
+    current_std_mps: tuple[float, float] | None
     rmse_mps: float
     n_samples: int
-    rank: int
-    det_info: float
-    cond_info: float
-    identifiable: bool
-    reason: str
+    ident: Identifiability
 
-    def stderr_dict(self) -> dict[str, float]:
-        """Standard errors by short parameter name, e.g. ``{"m": ..., "b": ...}``."""
-        return dict(zip(PARAM_NAMES[self.model], self.stderr, strict=True))
+    @property
+    def model(self) -> ModelName:
+        """The error model."""
+        return self.layout.model
 
-    def to_dict(self) -> dict[str, object]:
-        """A JSON-ready summary with stable keys (non-finite floats become None)."""
+    @property
+    def identifiable(self) -> bool:
+        """Every unknown is determined."""
+        return self.ident.identifiable
 
-        def fin(x: float) -> float | None:
-            return x if math.isfinite(x) else None
+    @property
+    def unidentifiable(self) -> tuple[str, ...]:
+        """The unknowns the data do not determine."""
+        return self.ident.unidentifiable
 
-        return {
-            "model": self.model,
-            "method": "ls",
-            "params": self.params.as_dict(),
-            "stderr": {k: fin(v) for k, v in self.stderr_dict().items()},
-            "rmse_fit": self.rmse_mps,
-            "n_samples": self.n_samples,
-            "rank": self.rank,
-            "det_info": self.det_info,
-            "condition_number": fin(self.cond_info),
-            "identifiable": self.identifiable,
-            "reason": self.reason,
-        }
+    @property
+    def reason(self) -> str:
+        """Why some unknowns are not determined (empty when all are)."""
+        return self.ident.reason
+
+    @property
+    def cond_info(self) -> float:
+        """Condition number of the information matrix over the determined unknowns."""
+        return self.ident.cond_info
 
 
 def check_pair(ref_mps: npt.ArrayLike, raw_mps: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -117,71 +124,200 @@ def check_pair(ref_mps: npt.ArrayLike, raw_mps: npt.ArrayLike) -> tuple[FloatArr
     return ref, raw
 
 
+class _Problem:
+    """The data of one fit, with the model's Jacobian at a point."""
+
+    def __init__(
+        self,
+        ref: FloatArray,
+        raw: FloatArray,
+        cos_h: FloatArray,
+        sin_h: FloatArray,
+        sqrt_w: FloatArray | None,
+    ) -> None:
+        self.ref, self.raw, self.cos_h, self.sin_h, self.sqrt_w = ref, raw, cos_h, sin_h, sqrt_w
+
+    def u(self, x: FloatArray) -> FloatArray:
+        """Speed through the water at the unknowns ``x``."""
+        return np.asarray(self.ref - x[_CN] * self.cos_h - x[_CE] * self.sin_h, dtype=np.float64)
+
+    def residual_jacobian(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        u = self.u(x)
+        pred = (x[_A] * u + 1.0 + x[_M]) * u + x[_B] + x[_D]
+        r = self.raw - pred
+        slope = 2.0 * x[_A] * u + 1.0 + x[_M]
+        J = np.column_stack(
+            (u * u, u, np.ones_like(u), -slope * self.cos_h, -slope * self.sin_h, np.ones_like(u))
+        )
+        if self.sqrt_w is not None:
+            r = r * self.sqrt_w
+            J = J * self.sqrt_w[:, None]
+        return np.asarray(r, dtype=np.float64), np.asarray(J, dtype=np.float64)
+
+
+def _solve(
+    problem: _Problem, x0: FloatArray, free: list[int]
+) -> tuple[FloatArray, float, FloatArray]:
+    """Gauss–Newton over the ``free`` unknowns; returns (x, weighted RSS, JᵀWJ over free)."""
+    x = x0.copy()
+    for _ in range(_MAX_ITER):
+        r, J = problem.residual_jacobian(x)
+        if not free:
+            break
+        Jf = J[:, free]
+        step = np.linalg.lstsq(Jf, r, rcond=None)[0]
+        x[free] += step
+        if float(np.max(np.abs(step))) < 1e-12 * (1.0 + float(np.max(np.abs(x[free])))):
+            break
+    r, J = problem.residual_jacobian(x)
+    Jf = J[:, free]
+    return x, float(r @ r), Jf.T @ Jf
+
+
 def fit_ls(
     model: str,
     ref_mps: npt.ArrayLike,
     raw_mps: npt.ArrayLike,
     weights: npt.ArrayLike | None = None,
     *,
+    heading_deg: npt.ArrayLike | None = None,
+    current: bool = False,
+    prior: Params | None = None,
     rule: ExcitationRule = DEFAULT_RULE,
 ) -> LsFit:
-    """LS-EMx: fit one error model to aligned reference and raw speeds.
+    """LS-EMx: fit one error model (and the current) to aligned series.
 
     Args:
         model: ``"EM1"`` … ``"EM4"``.
-        ref_mps: reference (DVL) speeds in m/s, shape (N,), already lag-aligned.
+        ref_mps: reference speeds along the hull in m/s, shape (N,), lag-aligned
+            (over the ground when ``current``).
         raw_mps: raw EMlog speeds in m/s, shape (N,).
         weights: optional non-negative sample weights, shape (N,) (e.g. 1/σₖ²).
+        heading_deg: heading at the reference's time, degrees, shape (N,) (needed
+            with ``current``; without it only the sector verdict uses it).
+        current: estimate the sea current.
+        prior: value of any parameter the data do not determine (default the ideal
+            sensor).
         rule: identifiability thresholds.
 
     Returns:
-        The fit; never raises on rank deficiency (see ``identifiable``).
+        The fit; never raises on poor excitation (see ``ident``).
 
     Raises:
-        ModelError: unknown model.
-        DataError: bad series or weights.
+        ModelError: unknown model, prior of another model.
+        DataError: bad series, weights or headings.
     """
     name = check_model(model)
     ref, raw = check_pair(ref_mps, raw_mps)
     n = ref.size
     w = check_weights(weights, n)
-    H = design_matrix(name, ref)
-    p = H.shape[1]
-    A = np.empty((n, p + 1), dtype=np.float64)
-    A[:, :p] = H
-    np.subtract(raw, ref, out=A[:, p])
-    if w is not None:
-        A *= np.sqrt(w)[:, None]
-    R_aug = qr_r(A)
-    R = R_aug[:p, :p]
-    rank, det, cond = factor_stats(R, n)
-    qtz = R_aug[:p, p]
-    rss = float(R_aug[p, p] ** 2) if R_aug.shape[0] > p else 0.0
-    if rank == p:
-        theta = np.linalg.solve(R, qtz)
-    else:
-        theta = np.linalg.lstsq(R, qtz, rcond=max(n, p) * np.finfo(np.float64).eps)[0]
-        rss = float(np.sum((A[:, p] - A[:, :p] @ theta) ** 2))
+    layout = Layout(name, current)
+    hd: FloatArray | None = None
+    if heading_deg is not None:
+        hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+        if hd.shape != ref.shape or not np.all(np.isfinite(hd)):
+            raise DataError("heading must be finite and as long as the speeds")
+    if current and hd is None:
+        raise DataError("a fit with the current needs the heading")
+    if prior is not None and prior.model != name:
+        raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
+    psi = np.radians(hd) if hd is not None else np.zeros(n)
+    problem = _Problem(ref, raw, np.cos(psi), np.sin(psi), None if w is None else np.sqrt(w))
+    x0 = np.zeros(6)
+    if prior is not None:
+        x0[_A], x0[_M], x0[_B] = prior.a_spm, prior.m, prior.b_mps
+    index = {"a": [_A], "m": [_M], "b": [_B], CURRENT: [_CN, _CE]}
     w_mean = 1.0 if w is None else float(np.sum(w)) / n
-    rmse = math.sqrt(rss / (w_mean * n))
-    if rank == p and n > p:
-        sigma2 = rss / (w_mean * (n - p))
-        r_inv = np.linalg.solve(R, np.eye(p))
-        cov = sigma2 * w_mean * (r_inv @ r_inv.T)
-        stderr = tuple(float(math.sqrt(max(c, 0.0))) for c in np.diag(cov))
-    else:
-        stderr = (math.inf,) * p
-    _, std, rms = speed_stats(ref, w)
-    reason = judge(name, float(n), rank, cond, std, rms, rule)
-    return LsFit(
-        model=name,
-        params=Params.from_theta(name, theta.tolist()),
-        stderr=stderr,
-        rmse_mps=rmse,
-        n_samples=n,
-        rank=rank,
-        det_info=det,
-        cond_info=cond,
-        identifiable=not reason,
-        reason=reason,
+    ident = judge(layout, window_stats(ref, raw, hd, w), 0.0, rule)
+    x, rss, info = x0, math.nan, np.zeros((0, 0))
+    for _ in range(len(layout.unknowns) + 1):
+        free = sorted(i for u in ident.determined for i in index[u])
+        if ident.nuisance_offset and "b" not in ident.determined:
+            free.append(_D)
+        x, rss, info = _solve(problem, x0, free)
+        dof = max(n - len(free), 1)
+        sigma2 = rss / (w_mean * dof)
+        u = problem.u(x)
+        new = judge(layout, window_stats(u, raw, hd, w), sigma2, rule)
+        if new.determined == ident.determined and new.nuisance_offset == ident.nuisance_offset:
+            ident = new
+            break
+        ident = new
+    free = sorted(i for u in ident.determined for i in index[u])
+    if ident.nuisance_offset and "b" not in ident.determined:
+        free.append(_D)
+    x, rss, info = _solve(problem, x0, free)
+    dof = max(n - len(free), 1)
+    sigma2 = rss / (w_mean * dof)
+    std = np.full(6, math.nan)
+    if free and n > len(free):
+        try:
+            cov = sigma2 * w_mean * np.linalg.inv(info)
+            std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        except np.linalg.LinAlgError:
+            std[free] = math.inf
+    params = Params.from_theta(
+        name, [float(x[{"a": _A, "m": _M, "b": _B}[p]]) for p in layout.params]
     )
+    determined = set(ident.determined)
+    stderr = {
+        p: (float(std[{"a": _A, "m": _M, "b": _B}[p]]) if p in determined else None)
+        for p in layout.params
+    }
+    cur = cur_std = None
+    if current and CURRENT in determined:
+        cur = (float(x[_CN]), float(x[_CE]))
+        cur_std = (float(std[_CN]), float(std[_CE]))
+    return LsFit(
+        layout=layout,
+        params=params,
+        stderr=stderr,
+        current_mps=cur,
+        current_std_mps=cur_std,
+        rmse_mps=math.sqrt(rss / (w_mean * n)),
+        n_samples=n,
+        ident=ident,
+    )
+
+
+def fit_current(
+    params: Params,
+    ref_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike,
+    *,
+    rule: ExcitationRule = DEFAULT_RULE,
+) -> tuple[float, float] | None:
+    """The current that best explains a segment with the sensor's parameters frozen.
+
+    What scoring a frozen calibration on another segment needs: the current there is
+    the sea's, not the sensor's, so it is estimated from that segment (north and
+    east, Gauss–Newton with θ fixed) and the corrected speed compared with the
+    reference minus the projected current.
+
+    Args:
+        params: the frozen parameters.
+        ref_mps: reference over the ground along the hull, m/s, shape (N,).
+        raw_mps: raw readings, m/s, shape (N,).
+        heading_deg: headings at the reference's time, degrees, shape (N,).
+        rule: the heading-sector threshold of the identifiability rule.
+
+    Returns:
+        (north, east) in m/s, or None when the heading covers too few sectors for the
+        current to be separable from a bias.
+
+    Raises:
+        DataError: bad series.
+    """
+    ref, raw = check_pair(ref_mps, raw_mps)
+    hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+    if hd.shape != ref.shape or not np.all(np.isfinite(hd)):
+        raise DataError("heading must be finite and as long as the speeds")
+    if heading_sectors(hd) < rule.min_heading_sectors:
+        return None
+    psi = np.radians(hd)
+    problem = _Problem(ref, raw, np.cos(psi), np.sin(psi), None)
+    x0 = np.zeros(6)
+    x0[_A], x0[_M], x0[_B] = params.a_spm, params.m, params.b_mps
+    x, _, _ = _solve(problem, x0, [_CN, _CE])
+    return float(x[_CN]), float(x[_CE])

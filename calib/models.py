@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Final, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -63,8 +63,11 @@ PARAM_NAMES: dict[ModelName, tuple[ParamName, ...]] = {
 }
 """The parameter vector θ of each model, in the paper's order."""
 
-PARAM_UNITS: dict[ParamName, str] = {"a": "s/m", "m": "1", "b": "m/s"}
-"""The unit of each parameter."""
+UnknownName = Literal["a", "m", "b", "current"]
+"""What a calibration can estimate: the model parameters and the sea current (both components)."""
+
+CURRENT: Final = "current"
+"""The unknown name of the sea current (north and east components)."""
 
 
 def check_model(model: str) -> ModelName:
@@ -309,3 +312,53 @@ def correct_array(params: Params, raw_mps: npt.ArrayLike) -> FloatArray:
     near_is_nearer = np.abs(root_near - linear) <= np.abs(root_far - linear)
     root = np.where(near_is_nearer, root_near, root_far)
     return np.asarray(np.where(real, root, -gain / (2.0 * a)), dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True)
+class Layout:
+    """The state vector of one filter: ``[v, θ…, (c_N, c_E)]``.
+
+    Attributes:
+        model: the error model.
+        current: whether the two current states are present.
+    """
+
+    model: ModelName
+    current: bool = False
+
+    @property
+    def params(self) -> tuple[str, ...]:
+        """The model's parameter names θ, in the paper's order."""
+        return PARAM_NAMES[self.model]
+
+    @property
+    def unknowns(self) -> tuple[UnknownName, ...]:
+        """Every unknown the filter estimates (parameters, then ``"current"``)."""
+        names: tuple[UnknownName, ...] = PARAM_NAMES[self.model]
+        return (*names, CURRENT) if self.current else names
+
+    @property
+    def states(self) -> tuple[str, ...]:
+        """State names: ``v_mps``, the parameters, ``c_north_mps``, ``c_east_mps``."""
+        cur = ("c_north_mps", "c_east_mps") if self.current else ()
+        return ("v_mps", *self.params, *cur)
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return 1 + len(self.params) + (2 if self.current else 0)
+
+    def indices(self, unknown: str) -> tuple[int, ...]:
+        """State indices of one unknown (two for the current).
+
+        Raises:
+            ModelError: not an unknown of this layout.
+        """
+        if unknown == CURRENT and self.current:
+            p = len(self.params)
+            return (1 + p, 2 + p)
+        if unknown in self.params:
+            return (1 + self.params.index(unknown),)
+        raise ModelError(
+            f"{unknown!r} is not an unknown of {self.model}{' + current' * self.current}"
+        )

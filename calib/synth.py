@@ -12,6 +12,7 @@ Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -138,3 +139,97 @@ def paper_trial(
         segments.append(seg)
         t0 += minutes * 60.0
     return segments
+
+
+@dataclass(frozen=True, eq=False)
+class WaterFrameSeries:
+    """A synthetic segment in the water frame: a current seen through the heading.
+
+    Attributes:
+        t_s: sample times, s, shape (N,).
+        u_water_mps: true speed through the water along the hull, m/s.
+        heading_deg: true heading, degrees in [0, 360).
+        current_mps: the current (north, east) at each sample, m/s, shape (N, 2).
+        ref_mps: the reference over the ground along the hull (``u + c·(cos ψ, sin ψ)``
+            plus noise), m/s.
+        raw_mps: the EMlog reading ``f(u)`` plus noise, m/s.
+    """
+
+    t_s: FloatArray
+    u_water_mps: FloatArray
+    heading_deg: FloatArray
+    current_mps: FloatArray
+    ref_mps: FloatArray
+    raw_mps: FloatArray
+
+
+def heading_profile(kind: TrajectoryKind, t_s: FloatArray, rng: np.random.Generator) -> FloatArray:
+    """A plausible heading (degrees in [0, 360)) for one trajectory type.
+
+    Figure-8: the heading swings ±138° around a course once per 90 s (the first zero
+    of J0, so the eight closes); circles: a full turn every 120 s; straight: a course
+    held within a degree; transits: a course change every ~8 minutes.
+
+    Raises:
+        DataError: unknown kind.
+    """
+    if kind not in _MEAN_MPS:
+        raise DataError(f"unknown trajectory kind {kind!r}")
+    t = np.asarray(t_s, dtype=np.float64)
+    course = rng.uniform(0.0, 360.0)
+    if kind == "figure-8":
+        psi = course + math.degrees(2.404825557695773) * np.sin(2.0 * math.pi * t / 90.0)
+    elif kind == "circles":
+        psi = course + 360.0 * t / 120.0
+    elif kind == "straight":
+        psi = course + 1.0 * np.sin(2.0 * math.pi * t / 60.0)
+    else:
+        legs = np.floor((t - t[0]) / 480.0).astype(int)
+        turns = rng.uniform(-60.0, 60.0, int(legs.max()) + 1)
+        psi = course + np.cumsum(turns)[legs]
+    return np.asarray(np.mod(psi, 360.0), dtype=np.float64)
+
+
+def water_frame_segment(
+    kind: TrajectoryKind,
+    duration_s: float,
+    rate_hz: float,
+    params: Params,
+    rng: np.random.Generator,
+    *,
+    current_mps: tuple[float, float] = (0.1, -0.15),
+    current_swing_mps: float = 0.0,
+    constant_speed: bool = False,
+    sigma_raw_mps: float = 0.05,
+    sigma_ref_mps: float = 0.01,
+) -> WaterFrameSeries:
+    """One synthetic segment with a sea current and a heading.
+
+    Args:
+        kind: trajectory type (speed and heading profiles).
+        duration_s: length, s.
+        rate_hz: sample rate, Hz.
+        params: the EMlog's true error model.
+        rng: random generator.
+        current_mps: mean current (north, east), m/s.
+        current_swing_mps: amplitude of a tidal change of the current over 6 h, m/s.
+        constant_speed: hold the speed through the water at the trajectory's mean.
+        sigma_raw_mps: EMlog white noise, m/s.
+        sigma_ref_mps: reference white noise, m/s.
+
+    Raises:
+        DataError: non-positive duration or rate, unknown kind.
+    """
+    if not (duration_s > 0.0 and rate_hz > 0.0):
+        raise DataError("duration_s and rate_hz must be positive")
+    n = round(duration_s * rate_hz)
+    t = np.arange(n, dtype=np.float64) / rate_hz
+    u = np.full(n, _MEAN_MPS[kind]) if constant_speed else speed_profile(kind, t, rng)
+    psi = heading_profile(kind, t, rng)
+    tide = current_swing_mps * np.sin(2.0 * math.pi * t / 21600.0)
+    cur = np.column_stack((current_mps[0] + tide, current_mps[1] - 0.5 * tide))
+    rad = np.radians(psi)
+    ground = u + cur[:, 0] * np.cos(rad) + cur[:, 1] * np.sin(rad)
+    ref = ground + rng.normal(0.0, sigma_ref_mps, n)
+    raw = forward_array(params, u) + rng.normal(0.0, sigma_raw_mps, n)
+    return WaterFrameSeries(t, u, psi, cur, ref, raw)

@@ -25,12 +25,12 @@ import yaml
 
 from calib.crossval import ESTIMATORS, CrossValResult, Segment, cross_validate
 from calib.errors import CalibrationError
-from calib.excitation import excitation
+from calib.excitation import identifiability
 from calib.kalman import KfConfig, run_kf
 from calib.lag import LagEstimate, estimate_lag
 from calib.lsq import fit_ls
 from calib.metrics import improvement_pct, nis_stats, rmse
-from calib.models import PARAM_NAMES, Params, check_model, correct_array
+from calib.models import PARAM_NAMES, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
 from emlogd.offline.dataset import (
     AlignedPair,
@@ -299,16 +299,17 @@ def calibrate(
             f"{lag_report.lag_s:.2f} s"
         )
     names = tuple(d.path for d in datas)
-    exc = excitation(model, ref)
+    kfc = kf_config if kf_config is not None else KfConfig()
+    exc = identifiability(Layout(check_model(model)), ref, raw, kfc.r_raw_mps2 + kfc.r_ref_mps2)
     nis_mean = nis_frac = None
     if method == "ls":
         fit = fit_ls(model, ref, raw)
         params = fit.params
-        stderr = fit.stderr_dict()
+        stderr = {k: (math.inf if v is None else v) for k, v in fit.stderr.items()}
     else:
         run = run_kf(model, t, raw, ref, kf_config, history=False)
         params = run.params
-        stderr = dict(zip(PARAM_NAMES[params.model], run.param_std, strict=True))
+        stderr = dict(run.param_std)
         stats = nis_stats(run.nis[np.isfinite(run.nis)])
         nis_mean, nis_frac = stats.mean, stats.frac_inside
     cal = correct_array(params, raw)

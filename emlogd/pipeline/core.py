@@ -45,7 +45,7 @@ from calib.errors import CalibrationError
 from calib.excitation import ExcitationRule, ExcitationWindow
 from calib.kalman import KfCalibrator, KfConfig
 from calib.lag import estimate_lag
-from calib.models import PARAM_NAMES, Params, check_model, invert
+from calib.models import PARAM_NAMES, Layout, Params, check_model, invert
 from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
 from drivers.records import SpeedRecord
@@ -353,7 +353,9 @@ class _Uut:
             _LagCollector(s.lag_window_s, s.max_lag_s, 20) if s.lag_s is None else None
         )
         self.ref = RefBuffer(int((s.max_lag_s + 5.0) * 50) + 64)  # up to 50 Hz references
-        self.window = ExcitationWindow(max(s.excitation_half_life_samples, 1.0), s.rule)
+        self.window = ExcitationWindow(
+            Layout(self.model), max(s.excitation_half_life_samples, 1.0), s.rule
+        )
         self.t_prev: float | None = None
         self.t_status = -math.inf
         self.learn_on = s.learn
@@ -500,12 +502,12 @@ class Pipeline:
             )
             u.ref_state = ref_state
         if ref_state == "valid" and ref is not None:
-            u.window.add(ref)
+            u.window.add(ref, raw)
             u.n_since_eval += 1
             if u.n_since_eval >= 10 or not u.excitation:
                 self._evaluate_window(u)
         learn = u.learn_on and ref_state == "valid" and u.identifiable
-        inn = u.kf.update(raw, ref if ref_state == "valid" else None, dt, learn=learn)
+        inn = u.kf.update(raw, ref if ref_state == "valid" else None, dt, learn=learn).raw
         if learn and inn is not None:
             u.n_learnt += 1
             if len(u.nis) == u.nis.maxlen:
@@ -527,13 +529,13 @@ class Pipeline:
 
     def _evaluate_window(self, u: _Uut) -> None:
         u.n_since_eval = 0
-        ex = u.window.evaluate(u.model)
+        ex = u.window.evaluate(u.s.kf.r_raw_mps2 + u.s.kf.r_ref_mps2)
         u.identifiable = ex.identifiable
         u.excitation = {
-            "n_effective": ex.n_samples,
+            "n_effective": ex.stats.n_samples,
             "condition_number": ex.cond_info,
-            "speed_std_mps": ex.speed_std_mps,
-            "speed_mean_mps": ex.speed_mean_mps,
+            "speed_std_mps": ex.stats.speed_std_mps,
+            "speed_mean_mps": ex.stats.speed_mean_mps,
         }
 
     def _ref_state(self, u: _Uut, t: float, ref: float | None) -> RefState:
@@ -548,7 +550,7 @@ class Pipeline:
         return "valid"
 
     def _supervise(self, u: _Uut, t: float, out: Output) -> None:
-        std: dict[str, float] = dict(zip(u.names, u.kf.param_std, strict=True))
+        std: dict[str, float] = dict(u.kf.param_std)
         if any(std[k] > u.s.max_param_std.get(k, math.inf) for k in u.names):
             return
         params = u.kf.params
@@ -616,7 +618,7 @@ class Pipeline:
         """The good calibration of ``port`` (falls back to the live estimate)."""
         u = self.uuts[port]
         params = u.good if u.good is not None else u.kf.params
-        std = u.good_std or dict(zip(u.names, u.kf.param_std, strict=True))
+        std = u.good_std or dict(u.kf.param_std)
         cov = u.kf.covariance()
         return Snapshot(
             uut=port,
@@ -672,7 +674,7 @@ class Pipeline:
                     "params": u.good.as_dict() if u.good is not None else None,
                     "param_std": u.good_std or None,
                     "estimate": u.kf.params.as_dict(),
-                    "estimate_std": dict(zip(u.names, u.kf.param_std, strict=True)),
+                    "estimate_std": dict(u.kf.param_std),
                     "lag_s": u.lag_s,
                     "identifiable": u.identifiable,
                     "excitation": dict(u.excitation),

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from calib.errors import CalibrationError, DataError, ModelError, NotIdentifiableError
+from calib.errors import CalibrationError, DataError, ModelError
 
 
 class TestHierarchy:
     """Every calib error is a CalibrationError and a ValueError."""
 
-    @pytest.mark.parametrize("cls", [ModelError, DataError, NotIdentifiableError])
+    @pytest.mark.parametrize("cls", [ModelError, DataError])
     def test_subclasses(self, cls: type[Exception]) -> None:
         """Each specific error derives from CalibrationError, itself a ValueError."""
         assert issubclass(cls, CalibrationError)

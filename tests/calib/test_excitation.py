@@ -1,4 +1,4 @@
-"""Excitation and the identifiability rule."""
+"""Identifiability of every unknown, judged in the water frame."""
 
 from __future__ import annotations
 
@@ -8,111 +8,166 @@ import numpy as np
 import pytest
 
 from calib.errors import DataError
-from calib.excitation import ExcitationRule, ExcitationWindow, excitation
+from calib.excitation import (
+    ExcitationRule,
+    ExcitationWindow,
+    heading_sectors,
+    identifiability,
+    window_stats,
+)
+from calib.models import Layout, Params
+from calib.synth import water_frame_segment
+
+SIGMA2 = 0.05**2
+EM3C = Layout("EM3", current=True)
 
 
-class TestExcitation:
-    """Batch window excitation."""
+def _seg(kind: str, *, constant: bool = False, seconds: float = 1200.0, seed: int = 1):
+    return water_frame_segment(
+        kind,  # type: ignore[arg-type]
+        seconds,
+        1.0,
+        Params("EM3", m=0.05, b_mps=0.1),
+        np.random.default_rng(seed),
+        current_mps=(0.25, -0.2),
+        constant_speed=constant,
+    )
 
-    def test_em3_determinant_is_n_squared_variance(self) -> None:
-        """det(HᵀH) = N²·var(v) for EM3 (paper eqs. (14)–(17))."""
-        v = np.random.default_rng(1).uniform(1.0, 3.0, 500)
-        ex = excitation("EM3", v)
-        assert ex.det_info == pytest.approx(v.size**2 * np.var(v), rel=1e-9)
-        expected = np.array([[np.sum(v * v), np.sum(v)], [np.sum(v), 500.0]])
-        np.testing.assert_allclose(np.array(ex.info), expected, rtol=1e-12)
-        assert ex.identifiable and ex.reason == ""
 
-    def test_constant_speed_singular(self) -> None:
-        """At constant speed EM3 and EM4 are rank 1 and not identifiable; EM1 is identifiable."""
-        v = np.full(300, 1.8)
-        for model in ("EM3", "EM4"):
-            ex = excitation(model, v)
-            assert ex.rank == 1 and not ex.identifiable and math.isinf(ex.cond_info)
-        assert excitation("EM1", v).identifiable
-        assert excitation("EM2", v).identifiable
+class TestWindowStats:
+    """The five-column information matrix and the speed figures."""
 
-    def test_em2_at_rest_not_identifiable(self) -> None:
-        """A vessel at rest says nothing about the scale factor."""
-        ex = excitation("EM2", np.random.default_rng(2).normal(0.0, 0.02, 300))
-        assert not ex.identifiable and "scale factor" in ex.reason
+    def test_em3_block_is_the_papers_matrix(self) -> None:
+        """The (u, 1) block is the paper's HᵀH, whose determinant is N²·var(u)."""
+        u = np.random.default_rng(1).uniform(1.0, 3.0, 500)
+        st = window_stats(u, u, np.zeros(500))
+        block = st.info[1:3, 1:3]
+        np.testing.assert_allclose(block, [[np.sum(u * u), np.sum(u)], [np.sum(u), 500.0]])
+        assert np.linalg.det(block) == pytest.approx(500**2 * np.var(u), rel=1e-9)
+
+    def test_speed_figures_come_from_the_readings(self) -> None:
+        """The speed statistics are those of the UUT's readings, not of the reference."""
+        st = window_stats(np.linspace(1.0, 3.0, 100), np.full(100, 2.0))
+        assert st.speed_std_mps == 0.0 and st.speed_mean_mps == 2.0
+
+    def test_bad_input_raises(self) -> None:
+        """Empty or non-finite windows raise DataError."""
+        with pytest.raises(DataError):
+            window_stats([], [])
+        with pytest.raises(DataError):
+            window_stats([1.0, math.nan], [1.0, 1.0])
+
+
+class TestVerdicts:
+    """Which unknowns a window determines, and why not."""
+
+    def test_figure8_in_a_current_determines_everything(self) -> None:
+        """A figure-8 determines scale, bias and current."""
+        s = _seg("figure-8")
+        ident = identifiability(EM3C, s.u_water_mps, s.raw_mps, SIGMA2, heading_deg=s.heading_deg)
+        assert ident.identifiable and ident.unidentifiable == () and ident.reason == ""
+        assert all(v.std is not None for v in ident.verdicts)
+
+    def test_circles_at_constant_speed_leave_the_scale_undetermined(self) -> None:
+        """Circling at constant speed in a current: no scale, but bias and current."""
+        s = _seg("circles", constant=True)
+        ident = identifiability(EM3C, s.u_water_mps, s.raw_mps, SIGMA2, heading_deg=s.heading_deg)
+        assert ident.unidentifiable == ("m",)
+        assert ident.verdict("m").reason.startswith(
+            "scale not determinable: speed through water nearly constant (σ 0.05 m/s)"
+        )
+        assert ident.verdict("b").determined and ident.verdict("current").determined
+
+    def test_the_ground_speed_swing_of_a_circle_is_not_excitation(self) -> None:
+        """Without current states too, the reference's swing in a current excites no scale."""
+        s = _seg("circles", constant=True)
+        assert np.std(s.ref_mps) > 0.2
+        ident = identifiability(Layout("EM3"), s.ref_mps, s.raw_mps, SIGMA2)
+        assert ident.unidentifiable == ("m",)
+
+    def test_a_straight_line_does_not_separate_bias_and_current(self) -> None:
+        """On a straight line bias and current are one unknown; a changing speed still gives the scale."""
+        s = _seg("transit", seconds=400.0, seed=4)
+        ident = identifiability(EM3C, s.u_water_mps, s.raw_mps, SIGMA2, heading_deg=s.heading_deg)
+        assert set(ident.unidentifiable) == {"b", "current"}
+        assert ident.verdict("current").reason == (
+            "current not separable from bias: heading covered 1 of 8 sectors"
+        )
+        assert ident.verdict("m").determined and ident.nuisance_offset
+
+    def test_em2_at_rest_has_no_scale(self) -> None:
+        """A vessel at rest says nothing about EM2's scale factor."""
+        v = np.random.default_rng(2).normal(0.0, 0.02, 300)
+        ident = identifiability(Layout("EM2"), v, v, SIGMA2)
+        assert ident.unidentifiable == ("m",) and "too low" in ident.reason
 
     def test_too_few_samples(self) -> None:
-        """Fewer than min_samples_per_param·p samples are not identifiable."""
-        ex = excitation("EM3", np.linspace(1.0, 3.0, 15))
-        assert not ex.identifiable and "few samples" in ex.reason
+        """Fewer than min_samples_per_param per unknown determine nothing."""
+        u = np.linspace(1.0, 3.0, 15)
+        ident = identifiability(Layout("EM3"), u, u, SIGMA2)
+        assert ident.unidentifiable == ("m", "b") and "too few samples" in ident.reason
 
-    def test_rule_thresholds_apply(self) -> None:
-        """A stricter speed-std threshold turns an identifiable window into a rejected one."""
-        v = np.linspace(1.0, 1.6, 200)  # std ≈ 0.17 m/s
-        assert excitation("EM3", v).identifiable
-        strict = ExcitationRule(min_speed_std_mps=0.5)
-        assert not excitation("EM3", v, rule=strict).identifiable
-
-    def test_em4_ill_conditioned(self) -> None:
-        """EM4 over a very narrow speed band exceeds the condition-number limit."""
-        v = np.random.default_rng(3).uniform(1.5, 1.85, 600)
-        ex = excitation("EM4", v, rule=ExcitationRule(min_speed_std_mps=0.0, max_cond=1e6))
-        assert not ex.identifiable and "ill-conditioned" in ex.reason
-
-    def test_weights_scale_information(self) -> None:
-        """Weights of 2 double the information matrix."""
-        v = np.linspace(1.0, 3.0, 100)
-        a = np.array(excitation("EM3", v).info)
-        b = np.array(excitation("EM3", v, np.full(100, 2.0)).info)
-        np.testing.assert_allclose(b, 2.0 * a)
-
-    def test_rejects_empty(self) -> None:
-        """An empty series raises DataError."""
-        with pytest.raises(DataError):
-            excitation("EM3", [])
+    def test_weak_excitation_is_refused_by_the_standard_deviation(self) -> None:
+        """A scale whose σ from the information matrix exceeds max_std_m is refused."""
+        u = np.linspace(1.5, 1.8, 60)
+        ident = identifiability(
+            Layout("EM3"), u, u, 0.3**2, rule=ExcitationRule(min_speed_std_mps=0.0)
+        )
+        assert "m" in ident.unidentifiable and "weak excitation" in ident.verdict("m").reason
 
     def test_rule_validation(self) -> None:
-        """Nonsensical thresholds raise ValueError."""
+        """Thresholds out of range raise ValueError."""
+        with pytest.raises(ValueError):
+            ExcitationRule(min_heading_sectors=9)
         with pytest.raises(ValueError):
             ExcitationRule(max_cond=0.5)
+        with pytest.raises(ValueError):
+            ExcitationRule(max_std_m=0.0)
+
+
+class TestHeadingSectors:
+    """Coverage of the compass."""
+
+    def test_sectors_wrap_across_north(self) -> None:
+        """350° to 10° covers two sectors, not eight."""
+        assert heading_sectors(np.linspace(-10.0, 10.0, 100) % 360.0) == 2
+
+    def test_a_full_turn_covers_eight(self) -> None:
+        """A full circle covers all eight sectors; a stray sample does not count."""
+        assert heading_sectors(np.arange(0.0, 360.0, 1.0)) == 8
+        assert heading_sectors(np.r_[np.full(500, 90.0), 270.0]) == 1
 
 
 class TestExcitationWindow:
-    """The O(1) online tracker."""
+    """The online window applies the same rule."""
 
-    @pytest.mark.parametrize("model", ["EM1", "EM2", "EM3", "EM4"])
-    def test_matches_batch_without_forgetting(self, model: str) -> None:
-        """Without forgetting the window equals the batch excitation."""
-        v = np.random.default_rng(4).uniform(0.5, 3.0, 400)
-        win = ExcitationWindow()
-        for vk in v.tolist():
-            win.add(vk)
-        online, batch = win.evaluate(model), excitation(model, v)
-        np.testing.assert_allclose(online.info, batch.info, rtol=1e-12)
-        assert online.cond_info == pytest.approx(batch.cond_info, rel=1e-5)
-        assert online.identifiable == batch.identifiable
-        assert online.speed_std_mps == pytest.approx(batch.speed_std_mps, rel=1e-9)
+    @pytest.mark.parametrize("kind", ["figure-8", "circles", "transit"])
+    def test_without_forgetting_it_equals_the_batch_verdict(self, kind: str) -> None:
+        """A window with no forgetting gives the batch verdicts and information matrix."""
+        s = _seg(kind, constant=kind == "circles", seconds=600.0)
+        win = ExcitationWindow(EM3C)
+        for u, r, h in zip(s.u_water_mps, s.raw_mps, s.heading_deg, strict=True):
+            win.add(float(u), float(r), float(h))
+        online = win.evaluate(SIGMA2)
+        batch = identifiability(EM3C, s.u_water_mps, s.raw_mps, SIGMA2, heading_deg=s.heading_deg)
+        assert online.unidentifiable == batch.unidentifiable
+        np.testing.assert_allclose(online.stats.info, batch.stats.info, rtol=1e-9, atol=1e-9)
+        assert online.stats.heading_sectors == batch.stats.heading_sectors
 
-    def test_forgetting_tracks_recent_speed(self) -> None:
-        """With a half-life the window forgets an old manoeuvre and flags a steady run."""
-        win = ExcitationWindow(half_life_samples=60.0)
-        for k in range(600):
-            win.add(1.0 + 1.0 * math.sin(k / 10.0))
-        assert win.evaluate("EM3").identifiable
-        for _ in range(1200):
-            win.add(2.0)
-        ex = win.evaluate("EM3")
-        assert not ex.identifiable
-        assert win.n_effective == pytest.approx(60.0 / math.log(2.0), rel=0.02)
+    def test_forgetting_lets_a_constant_phase_take_over(self) -> None:
+        """After a figure-8, a long constant-speed straight leaves scale and current undetermined."""
+        eight, straight = _seg("figure-8", seconds=600.0), _seg("straight", seconds=1800.0)
+        win = ExcitationWindow(EM3C, half_life_samples=120.0)
+        for s in (eight, straight):
+            for u, r, h in zip(s.u_water_mps, s.raw_mps, s.heading_deg, strict=True):
+                win.add(float(u), float(r), float(h))
+        assert set(win.evaluate(SIGMA2).unidentifiable) == {"m", "b", "current"}
 
-    def test_empty_window(self) -> None:
-        """An empty window is not identifiable and does not raise."""
-        assert not ExcitationWindow().evaluate("EM1").identifiable
-
-    def test_reset(self) -> None:
-        """reset() forgets everything."""
-        win = ExcitationWindow()
-        win.add(1.0)
+    def test_reset_and_bad_half_life(self) -> None:
+        """reset() empties the window; a non-positive half-life raises ValueError."""
+        win = ExcitationWindow(Layout("EM1"))
+        win.add(1.0, 1.0)
         win.reset()
         assert win.n_effective == 0.0
-
-    def test_bad_half_life(self) -> None:
-        """A non-positive half-life raises ValueError."""
         with pytest.raises(ValueError):
-            ExcitationWindow(half_life_samples=0.0)
+            ExcitationWindow(Layout("EM1"), half_life_samples=0.0)

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from calib.errors import DataError
-from calib.lag import estimate_lag
+from calib.lag import LagEstimate, accept, combine, estimate_lag
+from calib.models import Params
+from calib.synth import water_frame_segment
 
 
 def _speed(t: np.ndarray) -> np.ndarray:
@@ -65,3 +67,56 @@ class TestEstimateLag:
             estimate_lag(t, t, t + 90.0, t, 5.0)
         with pytest.raises(DataError, match="max_lag_s"):
             estimate_lag(t, t, t, t, 0.0)
+
+
+class TestWaterFrameLag:
+    """A current seen through the heading cannot shift the lag."""
+
+    @pytest.mark.parametrize("kind", ["figure-8", "circles"])
+    def test_current_does_not_bias_the_lag(self, kind: str) -> None:
+        """In 0.3 m/s of current the water-frame lag is within 0.1 s; the plain one misses or is refused."""
+        seg = water_frame_segment(
+            kind,  # type: ignore[arg-type]
+            900.0,
+            10.0,
+            Params("EM3", m=0.09, b_mps=0.08),
+            np.random.default_rng(2),
+            current_mps=(-0.3, 0.1),
+            sigma_raw_mps=0.03,
+        )
+        t_meas, v_meas = seg.t_s[::10] + 3.2, seg.raw_mps[::10]
+        plain = estimate_lag(t_meas, v_meas, seg.t_s, seg.ref_mps, 10.0, step_s=0.1)
+        water = estimate_lag(
+            t_meas,
+            v_meas,
+            seg.t_s,
+            seg.ref_mps,
+            10.0,
+            step_s=0.1,
+            heading=(seg.t_s, seg.heading_deg),
+        )
+        assert water.lag_s == pytest.approx(3.2, abs=0.1)
+        assert abs(plain.lag_s - 3.2) > 0.1 or accept(plain) != ""
+        assert accept(water) == ""
+
+    def test_standard_error_and_acceptance(self) -> None:
+        """A broad peak has a large standard error and is refused; a bound peak is refused."""
+        t = np.arange(0.0, 300.0, 1.0)
+        slow = 1.5 + 0.2 * np.sin(2 * np.pi * t / 600.0)
+        rng = np.random.default_rng(5)
+        est = estimate_lag(t, slow + rng.normal(0, 0.05, t.size), t, slow, 10.0, step_s=0.1)
+        assert est.std_s > 0.15
+        assert "broad" in accept(est)
+        bound = estimate_lag(t, _speed(t - 8.0), t, _speed(t), 3.0)
+        assert "bound" in accept(bound)
+
+    def test_combine_is_a_weighted_median(self) -> None:
+        """combine() leans on the sharp estimates and ignores one outlier."""
+        e = [
+            LagEstimate(3.2, 0.9, 0.1, 100, False, 0.03),
+            LagEstimate(3.25, 0.9, 0.1, 100, False, 0.05),
+            LagEstimate(4.5, 0.9, 0.1, 100, False, 0.5),
+        ]
+        assert combine(e) == pytest.approx(3.2)
+        with pytest.raises(DataError):
+            combine([])

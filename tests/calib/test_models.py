@@ -11,6 +11,7 @@ import pytest
 from calib.errors import ModelError
 from calib.models import (
     MODEL_NAMES,
+    Layout,
     Params,
     check_model,
     correct_array,
@@ -136,3 +137,21 @@ class TestInverse:
             np.testing.assert_allclose(
                 correct_array(p, raw), [p.correct(r) for r in raw.tolist()], atol=1e-12
             )
+
+
+class TestLayout:
+    """The unknowns of a calibration and the filter's states."""
+
+    def test_names_and_indices(self) -> None:
+        """EM3 with current: states v, m, b, c_N, c_E; the current has two indices."""
+        lay = Layout("EM3", current=True)
+        assert lay.unknowns == ("m", "b", "current")
+        assert lay.states == ("v_mps", "m", "b", "c_north_mps", "c_east_mps")
+        assert lay.n == 5 and lay.indices("current") == (3, 4) and lay.indices("b") == (2,)
+
+    def test_an_unknown_the_layout_lacks_raises(self) -> None:
+        """Asking EM2 for b, or a layout without current for the current, raises ModelError."""
+        with pytest.raises(ModelError):
+            Layout("EM2").indices("b")
+        with pytest.raises(ModelError):
+            Layout("EM3").indices("current")

@@ -7,7 +7,14 @@ import pytest
 
 from calib.errors import DataError
 from calib.models import Params
-from calib.synth import PAPER_TRIAL, paper_trial, simulate_segment, speed_profile
+from calib.synth import (
+    PAPER_TRIAL,
+    heading_profile,
+    paper_trial,
+    simulate_segment,
+    speed_profile,
+    water_frame_segment,
+)
 
 TRUTH = Params("EM3", m=0.05, b_mps=0.1)
 
@@ -52,3 +59,35 @@ class TestSynth:
             speed_profile("zigzag", np.arange(3.0), np.random.default_rng(0))  # type: ignore[arg-type]
         with pytest.raises(DataError):
             simulate_segment("x", "straight", 0.0, 1.0, TRUTH, np.random.default_rng(0))
+
+
+class TestWaterFrameSegment:
+    """Synthetic segments with a current seen through the heading."""
+
+    def test_the_reference_is_the_ground_speed_along_the_hull(self) -> None:
+        """Without noise, ref = u + c_N·cos ψ + c_E·sin ψ and raw = f(u)."""
+        truth = Params("EM3", m=0.05, b_mps=0.1)
+        s = water_frame_segment(
+            "figure-8",
+            300.0,
+            2.0,
+            truth,
+            np.random.default_rng(1),
+            sigma_raw_mps=0.0,
+            sigma_ref_mps=0.0,
+            current_mps=(0.2, -0.1),
+        )
+        psi = np.radians(s.heading_deg)
+        np.testing.assert_allclose(s.ref_mps, s.u_water_mps + 0.2 * np.cos(psi) - 0.1 * np.sin(psi))
+        np.testing.assert_allclose(s.raw_mps, 1.05 * s.u_water_mps + 0.1)
+        assert s.t_s.size == 600 and s.current_mps.shape == (600, 2)
+
+    def test_constant_speed_and_heading_profiles(self) -> None:
+        """Constant-speed circles turn a full circle every 120 s; a straight holds its course."""
+        rng = np.random.default_rng(2)
+        s = water_frame_segment("circles", 240.0, 1.0, Params("EM1"), rng, constant_speed=True)
+        assert np.ptp(s.u_water_mps) == 0.0
+        steps = np.diff(np.unwrap(np.radians(s.heading_deg)))
+        assert np.degrees(np.sum(steps)) == pytest.approx(717.0, abs=1.0)
+        straight = heading_profile("straight", np.arange(0.0, 600.0), rng)
+        assert np.ptp(np.unwrap(np.radians(straight))) < np.radians(2.5)

@@ -108,6 +108,7 @@ def test_missing_port_is_a_clear_error(trial_files: dict[str, Path]) -> None:
 
 
 def test_crossval_is_160_evaluations(trial_files: dict[str, Path]) -> None:
+    """160 out-of-sample evaluations; the straight run determines no scale, the figure-8 does."""
     datas = load_captures(list(trial_files.values()), E1)
     result, lag = crossval(datas, E1, lag=3.3, workers=1)
     assert result.n_out_of_sample == 160
@@ -115,11 +116,13 @@ def test_crossval_is_160_evaluations(trial_files: dict[str, Path]) -> None:
     fig8 = result.params("LS-EM3", "2-figure8")
     assert isinstance(fig8, Params)
     # at 20 % of the paper's durations the figure-8 has under four cycles: it still
-    # helps everywhere, and it generalises far better than the straight run
+    # helps everywhere. The straight run cannot determine a scale: it is held at the
+    # ideal sensor's and only the bias is learnt (the paper's min-norm fit is gone).
     for test in ("1-transit", "3-straight", "4-circles", "5-return"):
         assert result.evaluation("LS-EM3", "2-figure8", test).improvement_pct >= 25
-    fig8_overall = result.overall("LS-EM3")[1]
-    straight_overall = result.overall("LS-EM3")[2]
-    assert fig8_overall.rmse_cal_mps < straight_overall.rmse_cal_mps
+    straight = next(t for t in result.trained if (t.estimator, t.train) == ("LS-EM3", "3-straight"))
+    figure8 = next(t for t in result.trained if (t.estimator, t.train) == ("LS-EM3", "2-figure8"))
+    assert straight.unidentifiable == ("m",) and straight.params.m == 0.0
+    assert figure8.unidentifiable == ()
     with pytest.raises(OfflineError, match="two captures"):
         crossval(datas[:1], E1)

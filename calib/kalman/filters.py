@@ -1,0 +1,382 @@
+"""KF-EM1..KF-EM4 online, optionally with the sea current: O(1) per sample, fixed memory.
+
+The paper's KF-EMx (eqs. (22)–(24), extended to EM4)::
+
+    x = [v, θ]            θ = [b] | [m] | [m, b] | [a, m, b]
+    Φ = I                  P0 = p0·I on θ, x0 = [v0, θ0] (θ0 = 0: the ideal sensor)
+    raw = H_k·x + η        H_k = [1, h(v_op)] = [1, 1] | [1, v] | [1, v, 1] | [1, v², v, 1]
+
+``v`` is the speed through the water along the hull and ``h`` the design row of
+:mod:`calib.models`: the pseudo-linear operating point ``v_op`` is the reference
+speed, so the filter stays linear. Beyond the paper:
+
+- **The reference is a measurement too**: ``ref = v + ε`` (H = [1, 0…]) updates the
+  speed state; the reference update comes first, then the raw one. The raw
+  innovation returned (and its NIS) is against the state already updated with the
+  simultaneous reference, so it measures the calibration model.
+- **The water frame** (``current=True``): two more states, the sea current north and
+  east ``c = (c_N, c_E)`` in m/s. A ground-referenced reference (DVL bottom track,
+  GNSS) sees the speed through the water plus the current projected on the hull,
+  ``ref = v + c_N·cos ψ + c_E·sin ψ + ε`` with the heading ψ; the raw row is
+  unchanged and its operating point becomes the reference minus the projected
+  current. Without a heading for a sample the reference cannot be used (the
+  sample is treated as a reference outage).
+- **Process noise**: v is a random walk driven by acceleration white noise of
+  spectral density ``accel_psd_m2ps3`` (``q_v = psd·dt``); the sensor parameters take
+  the paper's tiny ``q_params`` per step (they change over weeks); the current is a
+  random walk of spectral density ``current_psd_m2ps3`` (it changes over minutes).
+- **Learning is per unknown**: the caller says which unknowns the data determine
+  (``learn``); the others are held at their value (the prior: the last good
+  calibration, else nominal) and taken as known for that sample
+  (:mod:`calib.kalman.kernels`). The speed state always moves.
+- **Gating**: an update whose NIS exceeds ``max_nis`` is not applied and reported
+  as gated (integrity monitoring decides what a run of them means).
+- **Reference outage** (no reference, or no heading with a current): predict, then
+  the raw reading updates the speed state only, every unknown held; the operating
+  point is then the corrected raw reading (inverse model), so the raw innovation is
+  exactly ``corrected(raw) − v̂`` for every model, EM4 included.
+
+Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from calib.errors import DataError, ModelError
+from calib.kalman.kernels import scalar_update, to_lists
+from calib.kalman.reference import Innovation
+from calib.models import CURRENT, Layout, Params, check_model, design_row, invert
+
+DEFAULT_R_RAW_MPS2 = 0.0514**2
+"""EMlog measurement variance: the Airmar DX900+ specification ±0.1 kn taken as 1σ."""
+
+DEFAULT_R_REF_MPS2 = 0.01**2
+"""DVL bottom-track variance (Rowe SeaPILOT ±0.25 % ≈ 0.005 m/s at 2 m/s, doubled)."""
+
+
+@dataclass(frozen=True, slots=True)
+class KfConfig:
+    """Tuning of the KF-EMx filters (paper section IV-A-4 defaults, plus the current).
+
+    Attributes:
+        r_raw_mps2: raw EMlog measurement variance R, (m/s)², from the sensor spec.
+        r_ref_mps2: reference measurement variance, (m/s)².
+        p0: initial variance of every sensor parameter (paper: P0 = 0.25·I), units².
+        q_params: process noise added to each parameter variance per step (paper:
+            Q = 1e-7·I), parameter units².
+        accel_psd_m2ps3: spectral density of the speed random walk, (m/s²)²/Hz.
+        current_p0_m2ps2: initial variance of each current component, (m/s)².
+        current_psd_m2ps3: spectral density of the current random walk, (m/s)²/s
+            (1.7e-5: a standard deviation of 0.1 m/s per 10 minutes, tidal change).
+
+    Raises:
+        ValueError: a variance that is not positive (process noises may be 0).
+    """
+
+    r_raw_mps2: float = DEFAULT_R_RAW_MPS2
+    r_ref_mps2: float = DEFAULT_R_REF_MPS2
+    p0: float = 0.25
+    q_params: float = 1e-7
+    accel_psd_m2ps3: float = 0.01
+    current_p0_m2ps2: float = 0.25
+    current_psd_m2ps3: float = 1.7e-5
+
+    def __post_init__(self) -> None:
+        for name in ("r_raw_mps2", "r_ref_mps2", "p0", "current_p0_m2ps2"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be positive and finite, got {value!r}")
+        for name in ("q_params", "accel_psd_m2ps3", "current_psd_m2ps3"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name} must be non-negative and finite, got {value!r}")
+
+
+class StepResult(NamedTuple):
+    """What one :meth:`KfCalibrator.update` did.
+
+    Attributes:
+        raw: innovation of the raw reading (None without a usable raw reading).
+        ref: innovation of the reference (None when no reference was used).
+        raw_gated: the raw update was refused by the NIS gate.
+        ref_gated: the reference update was refused by the NIS gate.
+        learnt: the unknowns were allowed to move on this sample (reference used).
+    """
+
+    raw: Innovation | None
+    ref: Innovation | None
+    raw_gated: bool
+    ref_gated: bool
+    learnt: bool
+
+
+_INF = math.inf
+
+
+class KfCalibrator:
+    """KF-EMx (optionally with current) online: one object per unit under test.
+
+    Per sample call :meth:`update` with the raw reading, the lag-aligned reference
+    (None during an outage), the time step and, with a current, the heading at the
+    reference's time. Semantics in the module docstring.
+
+    Args:
+        model: ``"EM1"`` … ``"EM4"``.
+        config: tuning (R, P0, Q).
+        current: estimate the sea current (two more states).
+        params0: initial parameters (default: the ideal sensor, θ = 0).
+        current0_mps: initial current (north, east) in m/s (default 0).
+        P0: initial covariance over the whole state, shape (n, n) (default: the
+            speed and each unknown from ``config``).
+        v0_mps: initial speed in m/s.
+
+    Raises:
+        ModelError: unknown model, params of another model, bad P0 or x0.
+    """
+
+    __slots__ = ("_P", "_gains", "_x", "config", "layout")
+
+    def __init__(
+        self,
+        model: str = "EM3",
+        config: KfConfig | None = None,
+        *,
+        current: bool = False,
+        params0: Params | None = None,
+        current0_mps: tuple[float, float] | None = None,
+        P0: npt.ArrayLike | None = None,
+        v0_mps: float = 0.0,
+    ) -> None:
+        self.layout = Layout(check_model(model), bool(current))
+        self.config = config if config is not None else KfConfig()
+        if params0 is not None and params0.model != self.layout.model:
+            raise ModelError(f"params0 are {params0.model}, the filter is {self.layout.model}")
+        theta = params0.theta if params0 is not None else (0.0,) * len(self.layout.params)
+        cur = tuple(current0_mps) if (current and current0_mps is not None) else (0.0, 0.0)
+        x0 = [float(v0_mps), *theta, *(cur if current else ())]
+        if not all(math.isfinite(v) for v in x0):
+            raise ModelError("initial state must be finite")
+        n = self.layout.n
+        if P0 is None:
+            diag = [self.config.p0] * n
+            if current:
+                diag[-2] = diag[-1] = self.config.current_p0_m2ps2
+            M = np.diag(diag)
+        else:
+            M = np.asarray(P0, dtype=np.float64)
+        check_covariance(M, n)
+        self._x = x0
+        self._P = to_lists(M)
+        self._gains: dict[object, list[float]] = {}
+
+    # -- the per-sample path ------------------------------------------------
+
+    def predict(self, dt_s: float) -> None:
+        """Time update over ``dt_s`` seconds (Φ = I): add the process noises.
+
+        Raises:
+            DataError: a negative or non-finite time step.
+        """
+        if not 0.0 <= dt_s < _INF:
+            raise DataError(f"dt_s must be finite and non-negative, got {dt_s!r}")
+        P = self._P
+        cfg = self.config
+        P[0][0] += cfg.accel_psd_m2ps3 * dt_s
+        p = len(self.layout.params)
+        for i in range(1, 1 + p):
+            P[i][i] += cfg.q_params
+        if self.layout.current:
+            dq = cfg.current_psd_m2ps3 * dt_s
+            P[1 + p][1 + p] += dq
+            P[2 + p][2 + p] += dq
+
+    def gains(self, learn: bool | Collection[str]) -> list[float]:
+        """The gain mask for a set of unknowns that may learn (the speed always may).
+
+        Args:
+            learn: True (every unknown), False (none) or the names that may learn.
+        """
+        key: object = learn if isinstance(learn, bool) else frozenset(learn)
+        cached = self._gains.get(key)
+        if cached is not None:
+            return cached
+        lay = self.layout
+        g = [1.0] * lay.n if learn is True else [0.0] * lay.n
+        g[0] = 1.0
+        if not isinstance(learn, bool):
+            for name in learn:
+                for i in lay.indices(name):
+                    g[i] = 1.0
+        self._gains[key] = g
+        return g
+
+    def update(
+        self,
+        raw_mps: float | None,
+        ref_mps: float | None,
+        dt_s: float,
+        *,
+        heading_cs: tuple[float, float] | None = None,
+        learn: bool | Collection[str] = True,
+        max_nis: float = _INF,
+    ) -> StepResult:
+        """One sample: predict over ``dt_s``, then the reference, then the raw update.
+
+        Args:
+            raw_mps: raw EMlog reading in m/s, or None if the UUT gave nothing.
+            ref_mps: lag-aligned reference speed in m/s (along the hull; over the
+                ground with a current), or None during an outage.
+            dt_s: seconds since the previous call (≥ 0).
+            heading_cs: ``(cos ψ, sin ψ)`` of the heading at the reference's time;
+                needed when the filter has a current.
+            learn: which unknowns may move (True: all, False: none; the speed state
+                always moves).
+            max_nis: NIS gate for both updates (``inf``: no gate).
+
+        Returns:
+            The innovations and what was applied.
+
+        Raises:
+            DataError: a negative or non-finite time step.
+        """
+        self.predict(dt_s)
+        lay = self.layout
+        x, P = self._x, self._P
+        n = lay.n
+        use_ref = ref_mps is not None and (not lay.current or heading_cs is not None)
+        inn_ref: Innovation | None = None
+        ref_gated = False
+        gains = self.gains(learn) if use_ref else self.gains(False)
+        v_op = math.nan
+        if use_ref and ref_mps is not None:
+            h_ref = [0.0] * n
+            h_ref[0] = 1.0
+            if lay.current and heading_cs is not None:
+                h_ref[-2], h_ref[-1] = heading_cs
+            y, s, applied = scalar_update(
+                x, P, h_ref, ref_mps, self.config.r_ref_mps2, gains, max_nis
+            )
+            inn_ref = Innovation(y, s, y * y / s)
+            if applied:
+                v_op = ref_mps
+                if lay.current and heading_cs is not None:
+                    v_op -= x[-2] * heading_cs[0] + x[-1] * heading_cs[1]
+            else:
+                ref_gated = True
+                gains = self.gains(False)
+        if raw_mps is None:
+            return StepResult(
+                None, inn_ref, False, ref_gated, inn_ref is not None and not ref_gated
+            )
+        if math.isnan(v_op):
+            v_op = self.corrected(raw_mps)
+            if not math.isfinite(v_op):
+                return StepResult(None, inn_ref, False, ref_gated, False)
+        h_raw = [0.0] * n
+        h_raw[0] = 1.0
+        h_raw[1 : 1 + len(lay.params)] = design_row(lay.model, v_op)
+        y, s, applied = scalar_update(x, P, h_raw, raw_mps, self.config.r_raw_mps2, gains, max_nis)
+        learnt = use_ref and not ref_gated and applied
+        return StepResult(Innovation(y, s, y * y / s), inn_ref, not applied, ref_gated, learnt)
+
+    def corrected(self, raw_mps: float) -> float:
+        """The raw reading corrected with the current parameters (inverse model), m/s."""
+        a, m, b = self._amb()
+        return invert(a, m, b, raw_mps)
+
+    def _amb(self) -> tuple[float, float, float]:
+        vals = dict(zip(self.layout.params, self._x[1 : 1 + len(self.layout.params)], strict=True))
+        return vals.get("a", 0.0), vals.get("m", 0.0), vals.get("b", 0.0)
+
+    # -- covariance management ------------------------------------------------
+
+    def reopen(self, unknowns: Collection[str]) -> None:
+        """Forget what is known of some unknowns: their variance back to the prior.
+
+        Their cross-covariances are zeroed and their values kept (a sensor swap or a
+        calibration that stopped fitting: learn them again from the data).
+        """
+        lay = self.layout
+        P = self._P
+        for name in unknowns:
+            var = self.config.current_p0_m2ps2 if name == CURRENT else self.config.p0
+            for i in lay.indices(name):
+                for j in range(lay.n):
+                    P[i][j] = P[j][i] = 0.0
+                P[i][i] = var
+
+    # -- read-outs ----------------------------------------------------------
+
+    @property
+    def x(self) -> tuple[float, ...]:
+        """The state mean (a copy), in :attr:`Layout.states` order."""
+        return tuple(self._x)
+
+    def covariance(self) -> list[list[float]]:
+        """The full state covariance P (a copy, n rows of n floats)."""
+        return [list(row) for row in self._P]
+
+    @property
+    def params(self) -> Params:
+        """The current parameter estimate θ̂."""
+        p = len(self.layout.params)
+        return Params.from_theta(self.layout.model, self._x[1 : 1 + p])
+
+    @property
+    def param_std(self) -> dict[str, float]:
+        """Standard deviation of each parameter from P, by short name."""
+        P = self._P
+        return {name: math.sqrt(P[1 + i][1 + i]) for i, name in enumerate(self.layout.params)}
+
+    @property
+    def current_mps(self) -> tuple[float, float] | None:
+        """The current estimate (north, east) in m/s, None without current states."""
+        return (self._x[-2], self._x[-1]) if self.layout.current else None
+
+    @property
+    def current_std_mps(self) -> tuple[float, float] | None:
+        """Standard deviations of the current components in m/s."""
+        if not self.layout.current:
+            return None
+        P = self._P
+        return (math.sqrt(P[-2][-2]), math.sqrt(P[-1][-1]))
+
+    @property
+    def speed_mps(self) -> float:
+        """The speed state v̂ (through the water), m/s."""
+        return self._x[0]
+
+    @property
+    def speed_std_mps(self) -> float:
+        """Standard deviation of v̂ in m/s."""
+        return math.sqrt(self._P[0][0])
+
+
+def check_covariance(M: npt.ArrayLike, n: int) -> None:
+    """Raise ModelError unless M is an n×n finite, symmetric, positive-definite matrix.
+
+    Args:
+        M: the matrix.
+        n: the expected size.
+
+    Raises:
+        ModelError: wrong shape, non-finite, not symmetric or not positive definite.
+    """
+    A = np.asarray(M, dtype=np.float64)
+    if A.shape != (n, n):
+        raise ModelError(f"covariance must have shape ({n}, {n}), got {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise ModelError("covariance has non-finite entries")
+    scale = max(float(np.max(np.abs(A))), 1e-300)
+    if not np.allclose(A, A.T, rtol=0.0, atol=1e-9 * scale):
+        raise ModelError("covariance is not symmetric")
+    eig = np.linalg.eigvalsh(0.5 * (A + A.T))
+    if not float(eig[0]) > 0.0:
+        raise ModelError(f"covariance is not positive definite (smallest eigenvalue {eig[0]:.3g})")

@@ -1,0 +1,307 @@
+"""KF-EMx online: against the numpy reference, on simulated data, in the water frame."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from calib.errors import DataError, ModelError
+from calib.kalman import KalmanModel, KfCalibrator, KfConfig, make_state, predict, run_kf, update
+from calib.metrics import nis_stats
+from calib.models import Params, design_row, forward_array
+from calib.synth import water_frame_segment
+
+
+def _sim(
+    n: int, seed: int, truth: Params, cfg: KfConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Data drawn from the filter's own model: random-walk speed, exact R's."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=np.float64)
+    steps = rng.normal(0.0, math.sqrt(cfg.accel_psd_m2ps3), n)
+    v = 2.0 + 0.8 * np.sin(2 * np.pi * t / 240.0) + np.cumsum(steps) * 0.2
+    raw = forward_array(truth, v) + rng.normal(0.0, math.sqrt(cfg.r_raw_mps2), n)
+    ref = v + rng.normal(0.0, math.sqrt(cfg.r_ref_mps2), n)
+    return t, v, raw, ref
+
+
+TRUTH = {
+    "EM1": Params("EM1", b_mps=0.1),
+    "EM2": Params("EM2", m=0.05),
+    "EM3": Params("EM3", m=0.05, b_mps=0.1),
+    "EM4": Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1),
+}
+
+
+class TestAgainstTheReference:
+    """The per-sample filter is the numpy textbook filter, step by step."""
+
+    @pytest.mark.parametrize("current", [False, True])
+    @pytest.mark.parametrize("model", ["EM1", "EM2", "EM3", "EM4"])
+    def test_matches_numpy_with_outages_and_current(self, model: str, current: bool) -> None:
+        """State, covariance and NIS equal predict/update in numpy to 1e-9, outages included."""
+        cfg = KfConfig()
+        t, _, raw, ref = _sim(300, 11, TRUTH[model], cfg)
+        heading = np.radians(np.arange(300) * 3.0)
+        kf = KfCalibrator(model, cfg, current=current, v0_mps=1.0)
+        p = len(TRUTH[model].theta)
+        n = 1 + p + (2 if current else 0)
+        x0 = np.zeros(n)
+        x0[0] = 1.0
+        p0 = np.full(n, cfg.p0)
+        if current:
+            p0[-2:] = cfg.current_p0_m2ps2
+        state = make_state(x0, np.diag(p0))
+        for k in range(t.size):
+            outage = 100 <= k < 160
+            q = np.full(n, cfg.q_params)
+            q[0] = cfg.accel_psd_m2ps3 * 1.0
+            if current:
+                q[-2:] = cfg.current_psd_m2ps3 * 1.0
+            state = predict(state, KalmanModel.of(np.eye(n), np.eye(n)[:1], np.diag(q), [[1.0]]))
+            c, s = math.cos(heading[k]), math.sin(heading[k])
+            if not outage:
+                h_ref = np.zeros(n)
+                h_ref[0] = 1.0
+                if current:
+                    h_ref[-2:] = (c, s)
+                ref_model = KalmanModel.of(
+                    np.eye(n), h_ref[None, :], np.zeros((n, n)), [[cfg.r_ref_mps2]]
+                )
+                state, _ = update(state, ref[k], ref_model)
+                v_op = ref[k] - (state.x[-2] * c + state.x[-1] * s if current else 0.0)
+                free = None
+            else:
+                v_op = Params.from_theta(model, state.x[1 : 1 + p]).correct(raw[k])
+                free = [True] + [False] * (n - 1)
+            h = np.zeros(n)
+            h[0] = 1.0
+            h[1 : 1 + p] = design_row(TRUTH[model].model, v_op)
+            z = raw[k]
+            if free is not None:  # held unknowns are known: their terms move to z
+                z -= float(np.dot(h[1:], state.x[1:]))
+                h[1:] = 0.0
+            raw_model = KalmanModel.of(np.eye(n), h[None, :], np.zeros((n, n)), [[cfg.r_raw_mps2]])
+            state, inn = update(state, z, raw_model, free=free)
+            res = kf.update(raw[k], None if outage else ref[k], 1.0, heading_cs=(c, s))
+            assert res.raw is not None and inn is not None
+            assert res.raw.nis == pytest.approx(inn.nis, rel=1e-9, abs=1e-12)
+            assert res.learnt is not outage
+        np.testing.assert_allclose(kf.x, state.x, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(kf.covariance(), state.P, rtol=1e-7, atol=1e-14)
+
+
+class TestPaperFilters:
+    """KF-EMx without current, as the paper runs them."""
+
+    def test_kf_em3_converges_within_2_sigma(self) -> None:
+        """KF-EM3 ends within 2σ of the truth by its own P."""
+        cfg = KfConfig()
+        truth = TRUTH["EM3"]
+        t, _, raw, ref = _sim(3600, 12, truth, cfg)
+        run = run_kf("EM3", t, raw, ref, cfg)
+        for name, true in truth.as_dict().items():
+            assert abs(run.params.as_dict()[name] - true) <= 2.0 * run.param_std[name]
+        assert run.param_std["m"] < 0.01
+
+    def test_kf_em4_tracks_curvature(self) -> None:
+        """KF-EM4 recovers a quadratic coefficient within 3σ."""
+        cfg = KfConfig()
+        truth = Params("EM4", a_spm=0.03, m=0.02, b_mps=0.05)
+        t, _, raw, ref = _sim(3600, 13, truth, cfg)
+        run = run_kf("EM4", t, raw, ref, cfg)
+        for name, true in truth.as_dict().items():
+            assert abs(run.params.as_dict()[name] - true) <= 3.0 * run.param_std[name]
+
+    def test_constant_speed_sigma_stays_large(self) -> None:
+        """At constant speed m and b stay uncertain (σ > 0.1) though m·v + b is learnt."""
+        rng = np.random.default_rng(14)
+        kf = KfCalibrator("EM3", v0_mps=2.0)
+        for _ in range(3600):
+            kf.update(2.0 * 1.05 + 0.1 + rng.normal(0, 0.05), 2.0, 1.0)
+        assert kf.param_std["m"] > 0.1 and kf.param_std["b"] > 0.1
+        assert kf.corrected(2.0 * 1.05 + 0.1) == pytest.approx(2.0, abs=0.01)
+
+    def test_consistent_filter_nis(self) -> None:
+        """A correctly tuned filter has NIS mean in [0.8, 1.2] and about 95 % inside the bounds."""
+        cfg = KfConfig()
+        t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
+        stats = nis_stats(run_kf("EM3", t, raw, ref, cfg).nis, skip=50)
+        assert 0.8 <= stats.mean <= 1.2
+        assert 0.93 <= stats.frac_inside <= 0.97
+
+    def test_badly_tuned_filter_detected(self) -> None:
+        """With R 100× too small the NIS test flags the filter as inconsistent."""
+        cfg = KfConfig()
+        t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
+        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / 100.0)
+        stats = nis_stats(run_kf("EM3", t, raw, ref, bad).nis, skip=50)
+        assert not stats.consistent
+        assert stats.mean > 5.0 and stats.frac_inside < 0.8
+
+
+class TestWaterFrame:
+    """The current states: what a ground reference needs."""
+
+    def test_figure8_in_a_current_recovers_sensor_and_current(self) -> None:
+        """KF-EM3 with current finds m, b within 0.02/0.03 and the current within 0.03 m/s."""
+        truth = Params("EM3", m=0.09, b_mps=0.08)
+        seg = water_frame_segment(
+            "figure-8", 1800.0, 1.0, truth, np.random.default_rng(3), current_mps=(-0.09, -0.066)
+        )
+        run = run_kf(
+            "EM3", seg.t_s, seg.raw_mps, seg.ref_mps, heading_deg=seg.heading_deg, current=True
+        )
+        assert run.params.m == pytest.approx(0.09, abs=0.02)
+        assert run.params.b_mps == pytest.approx(0.08, abs=0.03)
+        assert run.current_mps is not None
+        assert run.current_mps == pytest.approx((-0.09, -0.066), abs=0.03)
+
+    def test_without_the_current_states_the_parameters_are_the_currents(self) -> None:
+        """The same data without current states leave b or m visibly off the sensor's truth."""
+        truth = Params("EM3", m=0.09, b_mps=0.08)
+        seg = water_frame_segment(
+            "figure-8", 1800.0, 1.0, truth, np.random.default_rng(3), current_mps=(-0.09, -0.066)
+        )
+        run = run_kf("EM3", seg.t_s, seg.raw_mps, seg.ref_mps)
+        err_m = abs(run.params.m - 0.09)
+        err_b = abs(run.params.b_mps - 0.08)
+        assert err_m > 0.02 or err_b > 0.03
+
+    def test_nis_is_consistent_with_the_current(self) -> None:
+        """KF-EM3 with current on a figure-8 in a current has NIS mean in [0.8, 1.2]."""
+        cfg = KfConfig(r_raw_mps2=0.05**2)
+        truth = Params("EM3", m=0.05, b_mps=0.1)
+        seg = water_frame_segment(
+            "figure-8", 3600.0, 1.0, truth, np.random.default_rng(4), current_mps=(0.2, -0.1)
+        )
+        run = run_kf(
+            "EM3", seg.t_s, seg.raw_mps, seg.ref_mps, cfg, heading_deg=seg.heading_deg, current=True
+        )
+        stats = nis_stats(run.nis, skip=100)
+        assert 0.8 <= stats.mean <= 1.2
+
+    def test_learning_only_bias_and_current_holds_the_scale(self) -> None:
+        """learn={b, current} leaves m exactly at its prior while b and the current move."""
+        prior = Params("EM3", m=0.03, b_mps=0.0)
+        kf = KfCalibrator("EM3", current=True, params0=prior)
+        seg = water_frame_segment(
+            "circles",
+            600.0,
+            1.0,
+            Params("EM3", m=0.03, b_mps=0.1),
+            np.random.default_rng(5),
+            constant_speed=True,
+        )
+        for raw, ref, hd in zip(seg.raw_mps, seg.ref_mps, seg.heading_deg, strict=True):
+            rad = math.radians(hd)
+            kf.update(
+                raw, ref, 1.0, heading_cs=(math.cos(rad), math.sin(rad)), learn={"b", "current"}
+            )
+        assert kf.params.m == 0.03
+        assert kf.params.b_mps == pytest.approx(0.1, abs=0.02)
+        assert kf.current_mps == pytest.approx((0.1, -0.15), abs=0.03)
+
+    def test_a_reference_without_heading_is_an_outage(self) -> None:
+        """With current states and no heading the reference is not used and nothing is learnt."""
+        kf = KfCalibrator("EM3", current=True)
+        res = kf.update(2.2, 2.0, 1.0, heading_cs=None)
+        assert res.ref is None and not res.learnt
+        assert kf.params == Params("EM3") and kf.current_mps == (0.0, 0.0)
+
+
+class TestIntegrityHooks:
+    """Gating, consider states and covariance management."""
+
+    def test_a_gated_reference_glitch_teaches_nothing(self) -> None:
+        """A +30 m/s reference is refused by the gate; parameters and speed stay put."""
+        cfg = KfConfig()
+        _t, _, raw, ref = _sim(600, 20, TRUTH["EM3"], cfg)
+        kf = KfCalibrator("EM3", cfg)
+        for k in range(500):
+            kf.update(raw[k], ref[k], 1.0, max_nis=25.0)
+        before = kf.params
+        res = kf.update(raw[500], ref[500] + 30.0, 1.0, max_nis=25.0)
+        assert res.ref_gated and not res.learnt
+        assert kf.params == before
+        assert abs(kf.speed_mps - ref[500]) < 0.3
+
+    def test_learn_false_holds_parameters(self) -> None:
+        """learn=False updates the speed but not the parameters, even with a reference."""
+        kf = KfCalibrator("EM3")
+        kf.update(2.3, 2.0, 1.0, learn=False)
+        assert kf.params == Params("EM3")
+        assert kf.speed_mps == pytest.approx(2.0, abs=0.02)
+
+    def test_reopen_restores_the_prior_variance(self) -> None:
+        """reopen() sets an unknown's variance back to p0 and drops its correlations."""
+        cfg = KfConfig()
+        _t, _, raw, ref = _sim(600, 21, TRUTH["EM3"], cfg)
+        kf = KfCalibrator("EM3", cfg)
+        for k in range(600):
+            kf.update(raw[k], ref[k], 1.0)
+        assert kf.param_std["m"] < 0.05
+        kf.reopen(["m"])
+        P = kf.covariance()
+        assert P[1][1] == cfg.p0 and P[1][0] == P[1][2] == 0.0
+        assert kf.params.m != 0.0
+
+    def test_outage_freezes_parameters_and_carries_speed(self) -> None:
+        """Without reference the parameters stay fixed and v follows the corrected raw reading."""
+        cfg = KfConfig()
+        _t, v, raw, ref = _sim(1200, 16, TRUTH["EM3"], cfg)
+        kf = KfCalibrator("EM3", cfg)
+        for k in range(900):
+            kf.update(raw[k], ref[k], 1.0)
+        frozen = kf.params
+        errors = []
+        for k in range(900, 1200):
+            assert kf.update(raw[k], None, 1.0).raw is not None
+            errors.append(kf.speed_mps - v[k])
+        assert kf.params == frozen
+        assert math.sqrt(np.mean(np.square(errors))) < 0.06
+
+    def test_outage_innovation_is_corrected_minus_state(self) -> None:
+        """In an outage the raw innovation is exactly corrected(raw) − v̂ (prior)."""
+        kf = KfCalibrator("EM4", params0=Params("EM4", a_spm=0.02, m=0.05, b_mps=0.1), v0_mps=1.5)
+        v_prior = kf.speed_mps
+        res = kf.update(2.0, None, 0.0)
+        assert res.raw is not None
+        assert res.raw.y == pytest.approx(kf.params.correct(2.0) - v_prior, abs=1e-12)
+
+    def test_no_raw_reading_gives_no_raw_innovation(self) -> None:
+        """Without a raw reading only the reference is applied."""
+        kf = KfCalibrator("EM1")
+        res = kf.update(None, 1.5, 1.0)
+        assert res.raw is None and res.ref is not None
+        assert kf.speed_mps == pytest.approx(1.5, abs=0.01)
+
+    def test_negative_dt_raises(self) -> None:
+        """A negative time step raises DataError."""
+        with pytest.raises(DataError):
+            KfCalibrator("EM3").update(1.0, 1.0, -1.0)
+
+    def test_p_symmetric_positive_after_long_run(self) -> None:
+        """After 20 000 steps P is positive definite and the object has no __dict__."""
+        cfg = KfConfig(q_params=0.0)
+        _t, _, raw, ref = _sim(20000, 17, TRUTH["EM4"], cfg)
+        kf = KfCalibrator("EM4", cfg)
+        for r, z in zip(raw.tolist(), ref.tolist(), strict=True):
+            kf.update(r, z, 1.0)
+        P = np.array(kf.covariance())
+        np.testing.assert_array_equal(P, P.T)
+        assert np.all(np.linalg.eigvalsh(P) > 0.0)
+        assert not hasattr(kf, "__dict__")
+
+    def test_bad_construction_is_rejected(self) -> None:
+        """Params of another model, a non-SPD P0 and bad tuning raise."""
+        with pytest.raises(ModelError):
+            KfCalibrator("EM3", params0=Params("EM1"))
+        with pytest.raises(ModelError):
+            KfCalibrator("EM3", P0=[[1.0, 0, 0], [0, -1.0, 0], [0, 0, 1.0]])
+        with pytest.raises(ValueError, match="r_raw_mps2"):
+            KfConfig(r_raw_mps2=0.0)
+        with pytest.raises(ValueError, match="current_psd_m2ps3"):
+            KfConfig(current_psd_m2ps3=-1.0)
