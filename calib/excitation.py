@@ -238,7 +238,12 @@ def _stds(info: FloatArray, cols: list[int], sigma2: float) -> tuple[dict[int, f
 
 
 def judge(
-    layout: Layout, stats: WindowStats, sigma2_mps2: float, rule: ExcitationRule = DEFAULT_RULE
+    layout: Layout,
+    stats: WindowStats,
+    sigma2_mps2: float,
+    rule: ExcitationRule = DEFAULT_RULE,
+    *,
+    std_factor: float = 1.0,
 ) -> Identifiability:
     """Apply the identifiability rules of the module docstring to one window.
 
@@ -248,6 +253,9 @@ def judge(
         sigma2_mps2: variance of one raw residual, (m/s)² (the fit's, or the
             sensor's nominal noise online).
         rule: the thresholds.
+        std_factor: multiplies every ``max_std_*`` (an online filter accumulates
+            information beyond its window, so a window whose own information is
+            weak may still be learnt from; only structural degeneracy stops it).
 
     Returns:
         A verdict per unknown.
@@ -297,14 +305,14 @@ def judge(
         cols = _columns(free, offset)
         by_col, cond = _stds(stats.info, cols, sigma2_mps2)
         stds = {u: max(by_col[c] for c in _COL[u]) for u in free}
-        ratios = {u: stds[u] / rule.max_std(u) for u in free}
+        ratios = {u: stds[u] / (rule.max_std(u) * std_factor) for u in free}
         worst = max(free, key=lambda u: ratios[u])
         if ratios[worst] <= 1.0 and cond <= rule.max_cond:
             break
         sd = stds[worst]
         refused[worst] = (
             f"{_LABEL[worst]} not determinable: weak excitation "
-            f"(σ {sd:.3g} > {rule.max_std(worst):g} {_UNIT[worst]})"
+            f"(σ {sd:.3g} > {rule.max_std(worst) * std_factor:g}{_UNIT[worst]})"
             if math.isfinite(sd) and ratios[worst] > 1.0
             else f"{_LABEL[worst]} not determinable: information matrix singular"
             if not math.isfinite(sd)
@@ -325,7 +333,7 @@ def judge(
 
 
 _LABEL = {"a": "curvature", "m": "scale", "b": "bias", CURRENT: "current"}
-_UNIT = {"a": "s/m", "m": "", "b": "m/s", CURRENT: "m/s"}
+_UNIT = {"a": " s/m", "m": "", "b": " m/s", CURRENT: " m/s"}
 
 
 def heading_sectors(heading_deg: npt.ArrayLike, weights: npt.ArrayLike | None = None) -> int:
@@ -540,9 +548,9 @@ class ExcitationWindow:
         )
         return WindowStats(r0, M, mean, std, rms, sectors)
 
-    def evaluate(self, sigma2_mps2: float) -> Identifiability:
+    def evaluate(self, sigma2_mps2: float, *, std_factor: float = 1.0) -> Identifiability:
         """Judge the current window (:func:`judge`) with a nominal residual variance."""
-        return judge(self.layout, self.stats(), sigma2_mps2, self.rule)
+        return judge(self.layout, self.stats(), sigma2_mps2, self.rule, std_factor=std_factor)
 
 
 def qr_r(A: FloatArray) -> FloatArray:

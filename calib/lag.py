@@ -79,14 +79,14 @@ def _series(name: str, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[FloatArray, 
     return ta, va
 
 
-PEAK_HALF_WIDTH_S = 0.5
+PEAK_HALF_WIDTH_S = 1.0
 """Half-width of the neighbourhood of the grid peak fitted by a parabola, s."""
 
 MIN_LAG_CORRELATION = 0.6
 """An estimate with a weaker peak is not used: a straight run at constant speed
 correlates at ~0.4 wherever the lag is."""
 
-MAX_LAG_STD_S = 0.15
+MAX_LAG_STD_S = 0.05
 """An estimate less certain than this is not used: a broad peak (slow speed changes)
 places the lag anywhere within it."""
 
@@ -155,6 +155,83 @@ def _multiple(y: FloatArray, ref: FloatArray, cos_h: FloatArray, sin_h: FloatArr
     return math.copysign(math.sqrt(min(r2, 1.0)), float(coef[0]))
 
 
+SMOOTH_S = 0.5
+"""The reference is averaged over this window before correlating: its own noise,
+interpolated at every candidate lag, would otherwise make the correlation curve
+jagged at the sample spacing (a 10 Hz DVL at ±1 cm/s)."""
+
+
+def _smooth(t: FloatArray, v: FloatArray, width_s: float) -> FloatArray:
+    """Centred moving average over about ``width_s`` (in samples of the median spacing)."""
+    if t.size < 3:
+        return v
+    k = round(width_s / float(np.median(np.diff(t))))
+    if k < 2:
+        return v
+    half = k // 2
+    c = np.concatenate(([0.0], np.cumsum(v)))
+    idx = np.arange(v.size)
+    lo = np.clip(idx - half, 0, v.size)
+    hi = np.clip(idx + half + 1, 0, v.size)
+    return np.asarray((c[hi] - c[lo]) / (hi - lo), dtype=np.float64)
+
+
+def _curve(
+    tk: FloatArray,
+    vk: FloatArray,
+    tr: FloatArray,
+    vr: FloatArray,
+    regress: tuple[FloatArray, FloatArray, FloatArray] | None,
+    lags: FloatArray,
+) -> FloatArray:
+    """The correlation score at every candidate lag."""
+    if regress is None:
+        return np.array([_pearson(vk, np.interp(tk - lag, tr, vr)) for lag in lags])
+    th, cos_h, sin_h = regress
+    return np.array(
+        [
+            _multiple(
+                vk,
+                np.interp(tk - lag, tr, vr),
+                np.interp(tk - lag, th, cos_h),
+                np.interp(tk - lag, th, sin_h),
+            )
+            for lag in lags
+        ]
+    )
+
+
+def _peak(
+    lags: FloatArray, corr: FloatArray, step_s: float, dof: int
+) -> tuple[float, float, float, bool]:
+    """``(lag, peak, std, at_bound)`` of a correlation curve (see the module docstring)."""
+    i = int(np.argmax(corr))
+    at_bound = i in (0, lags.size - 1)
+    lag = float(lags[i])
+    peak = float(corr[i])
+    std = math.inf
+    if at_bound:
+        return lag, peak, std, at_bound
+    # The residual fraction s = 1 − r² near its minimum is a parabola,
+    # s(τ) ≈ s_min + A·(τ − τ̂)², fitted over ±PEAK_HALF_WIDTH_S (at least two grid
+    # steps each side) so that what noise is left averages out. var(τ̂) = σ²/A with
+    # σ² the residual fraction per degree of freedom (the least-squares result).
+    half = max(2, round(PEAK_HALF_WIDTH_S / step_s))
+    lo, hi = max(i - half, 0), min(i + half, lags.size - 1)
+    tau = lags[lo : hi + 1] - lags[i]
+    s_frac = 1.0 - corr[lo : hi + 1] * np.abs(corr[lo : hi + 1])
+    A, B, C = (float(v) for v in np.polyfit(tau, s_frac, 2))
+    if A > 0.0:
+        vertex = -B / (2.0 * A)
+        if abs(vertex) <= float(tau[-1] - tau[0]) / 2.0:
+            lag = float(lags[i]) + vertex
+            s_min = max(C - B * B / (4.0 * A), 0.0)
+            peak = math.sqrt(max(1.0 - s_min, 0.0))
+            if dof > 0:
+                std = math.sqrt(s_min / dof / A)
+    return lag, peak, std, at_bound
+
+
 def estimate_lag(
     t_meas: npt.ArrayLike,
     v_meas: npt.ArrayLike,
@@ -205,9 +282,9 @@ def estimate_lag(
         )
     tk = tm[keep]
     vk = vm[keep]
-    if heading is None:
-        corr = np.array([_pearson(vk, np.interp(tk - lag, tr, vr)) for lag in lags])
-    else:
+    tr, vr = tr, _smooth(tr, vr, SMOOTH_S)
+    regress: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    if heading is not None:
         th, psi = _series("heading", heading[0], heading[1])
         if th[0] > tk[0] - reach or th[-1] < tk[-1] + reach:
             keep_h = (tk - reach >= th[0]) & (tk + reach <= th[-1])
@@ -215,41 +292,20 @@ def estimate_lag(
                 raise DataError("the heading does not cover the measurement window")
             tk, vk = tk[keep_h], vk[keep_h]
         rad = np.radians(psi)
-        cos_h, sin_h = np.cos(rad), np.sin(rad)
-        corr = np.array(
-            [
-                _multiple(
-                    vk,
-                    np.interp(tk - lag, tr, vr),
-                    np.interp(tk - lag, th, cos_h),
-                    np.interp(tk - lag, th, sin_h),
-                )
-                for lag in lags
-            ]
-        )
-    i = int(np.argmax(corr))
-    at_bound = i in (0, lags.size - 1)
-    lag = float(lags[i])
-    peak = float(corr[i])
-    std = math.inf
-    if not at_bound:
-        # The residual fraction s = 1 − r² near its minimum is a parabola,
-        # s(τ) ≈ s_min + A·(τ − τ̂)², fitted over ±PEAK_HALF_WIDTH_S (at least two grid
-        # steps each side) so that the reference's noise, which makes the curve
-        # jagged at the sample spacing, averages out. var(τ̂) = σ²/A with σ² the
-        # residual fraction per degree of freedom (the usual least-squares result).
-        half = max(2, round(PEAK_HALF_WIDTH_S / step_s))
-        lo, hi = max(i - half, 0), min(i + half, lags.size - 1)
-        tau = lags[lo : hi + 1] - lags[i]
-        s_frac = 1.0 - corr[lo : hi + 1] * np.abs(corr[lo : hi + 1])
-        A, B, C = (float(v) for v in np.polyfit(tau, s_frac, 2))
-        if A > 0.0:
-            vertex = -B / (2.0 * A)
-            if abs(vertex) <= float(tau[-1] - tau[0]) / 2.0:
-                lag = float(lags[i]) + vertex
-                s_min = max(C - B * B / (4.0 * A), 0.0)
-                peak = math.sqrt(max(1.0 - s_min, 0.0))
-                dof = tk.size - (4 if heading is not None else 2)
-                if dof > 0:
-                    std = math.sqrt(s_min / dof / A)
+        regress = (th, np.cos(rad), np.sin(rad))
+    n_reg = 4 if regress is not None else 2
+    corr = _curve(tk, vk, tr, vr, regress, lags)
+    lag, peak, std, at_bound = _peak(lags, corr, step_s, tk.size - n_reg)
+    if not at_bound and tk.size >= 2 * min_samples:
+        # The curvature's σ assumes white residuals; the two halves of the window
+        # must also agree (a flat, jagged correlation peak does not repeat).
+        half = tk.size // 2
+        halves = [
+            _peak(lags, _curve(tk[sl], vk[sl], tr, vr, regress, lags), step_s, half - n_reg)
+            for sl in (slice(0, half), slice(half, None))
+        ]
+        if any(h[3] for h in halves):
+            std = math.inf
+        else:
+            std = max(std, abs(halves[0][0] - halves[1][0]) / 2.0)
     return LagEstimate(lag, min(peak, 1.0), step_s, int(tk.size), at_bound, std)

@@ -20,15 +20,18 @@ The error ``raw − v`` is linear in θ: ``raw − v = h(v)·θ`` with the desig
 
 Correction applies the inverse of f. EM1–EM3 (and EM4 with ``a = 0``) are linear:
 ``v = (raw − b)/(1 + m)``. For EM4 the quadratic ``a·v² + (1+m)·v + (b − raw) = 0``
-has two roots; the correction is the root nearest the linear solution
-``(raw − b)/(1 + m)``, i.e. the branch of f that contains the operating envelope.
-Documented edge cases, never an exception:
+has two roots; the correction is always the root on the **increasing branch** of f
+(where ``f'(v) = 2a·v + 1 + m > 0``), the one that tends to the linear solution as
+``a → 0``, computed in the cancellation-free form
+``v = 2·(raw − b) / ((1 + m) + √((1 + m)² + 4a·(raw − b)))``. Documented edge cases,
+never an exception:
 
-- no real root (the reading lies beyond the extremum of the parabola): the
-  correction is the vertex ``−(1+m)/(2a)``, the speed whose modelled reading is
-  closest to ``raw``;
-- a zero gain (``1 + m = 0`` with ``a = 0``): the model cannot be inverted and
-  the correction is ``nan``.
+- no real root (the reading lies beyond the maximum of a parabola with ``a < 0``):
+  the correction is the vertex ``−(1+m)/(2a)``, the speed whose modelled reading is
+  closest to ``raw`` (a calibration inside the physical envelope never gets there
+  within the sensor's range);
+- a gain ``1 + m ≤ 0``: no increasing branch through the origin, the model cannot be
+  inverted and the correction is ``nan``.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -183,25 +186,20 @@ def invert(a_spm: float, m: float, b_mps: float, raw_mps: float) -> float:
         raw_mps: the EMlog reading in m/s.
 
     Returns:
-        The corrected speed in m/s: the root nearest the linear solution, the
-        vertex without a real root, ``nan`` for a zero linear gain with ``a = 0``.
+        The corrected speed in m/s: the root on the increasing branch of f, the vertex
+        without a real root, ``nan`` for a gain ``1 + m ≤ 0``.
     """
     gain = 1.0 + m
+    if not gain > 0.0:
+        return math.nan
     rhs = raw_mps - b_mps
     a = a_spm
     if a == 0.0:
-        return rhs / gain if gain != 0.0 else math.nan
+        return rhs / gain
     disc = gain * gain + 4.0 * a * rhs
     if disc < 0.0:
         return -gain / (2.0 * a)
-    # Numerically stable roots: q = -(B + sign(B)·√D)/2, roots q/A and C/q.
-    q = -0.5 * (gain + math.copysign(math.sqrt(disc), gain))
-    if q == 0.0:
-        return 0.0
-    root_far = q / a
-    root_near = -rhs / q
-    linear = rhs / gain if gain != 0.0 else 0.0
-    return root_near if abs(root_near - linear) <= abs(root_far - linear) else root_far
+    return 2.0 * rhs / (gain + math.sqrt(disc))
 
 
 def zero_params(model: str) -> Params:
@@ -284,7 +282,7 @@ def forward_array(params: Params, v_mps: npt.ArrayLike) -> FloatArray:
 
 
 def correct_array(params: Params, raw_mps: npt.ArrayLike) -> FloatArray:
-    """Vectorised :meth:`Params.correct` (same root choice and edge cases).
+    """Vectorised :meth:`Params.correct` (same branch and edge cases).
 
     Args:
         params: the error-model parameters.
@@ -295,22 +293,15 @@ def correct_array(params: Params, raw_mps: npt.ArrayLike) -> FloatArray:
     """
     raw = np.asarray(raw_mps, dtype=np.float64)
     gain = 1.0 + params.m
+    if not gain > 0.0:
+        return np.full_like(raw, np.nan)
     rhs = raw - params.b_mps
     a = params.a_spm
     if a == 0.0:
-        if gain == 0.0:
-            return np.full_like(rhs, np.nan)
         return np.asarray(rhs / gain, dtype=np.float64)
     disc = gain * gain + 4.0 * a * rhs
     real = disc >= 0.0
-    sqrt_disc = np.sqrt(np.where(real, disc, 0.0))
-    q = -0.5 * (gain + math.copysign(1.0, gain) * sqrt_disc)
-    safe_q = np.where(q == 0.0, 1.0, q)
-    root_far = q / a
-    root_near = np.where(q == 0.0, 0.0, -rhs / safe_q)
-    linear = rhs / gain if gain != 0.0 else np.zeros_like(rhs)
-    near_is_nearer = np.abs(root_near - linear) <= np.abs(root_far - linear)
-    root = np.where(near_is_nearer, root_near, root_far)
+    root = 2.0 * rhs / (gain + np.sqrt(np.where(real, disc, 0.0)))
     return np.asarray(np.where(real, root, -gain / (2.0 * a)), dtype=np.float64)
 
 

@@ -79,6 +79,8 @@ class UutConfig:
     persist_interval_s: float = 60.0
     persist_min_change_sigma: float = 1.0
     persist_min_change_abs: float = 1e-3
+    validation_s: float = 30.0
+    recheck_s: float = 300.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -313,6 +315,8 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
     "persist_interval_s": ("persist_interval_s", _num(0.0, 86400.0)),
     "persist_min_change_sigma": ("persist_min_change_sigma", _num(0.0, 100.0)),
     "persist_min_change_abs": ("persist_min_change_abs", _num(0.0, 10.0)),
+    "validation_s": ("validation_s", _num(0.1, 3600.0)),
+    "recheck_s": ("recheck_s", _num(1.0, 86400.0)),
 }
 
 OUTPUT_SPEC: dict[str, tuple[str, Check]] = {

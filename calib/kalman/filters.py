@@ -312,6 +312,30 @@ class KfCalibrator:
                     P[i][j] = P[j][i] = 0.0
                 P[i][i] = var
 
+    def reacquire_speed(self) -> None:
+        """Forget the speed state: a wide prior variance, its correlations dropped.
+
+        The next reference then sets the speed (after the state lost the reference).
+        """
+        P = self._P
+        for j in range(self.layout.n):
+            P[0][j] = P[j][0] = 0.0
+        P[0][0] = max(self.config.p0, 1.0)
+
+    def restart(self, params: Params) -> None:
+        """Start the parameters again from ``params`` with their prior variance.
+
+        The speed and the current are kept.
+
+        Raises:
+            ModelError: parameters of another model.
+        """
+        if params.model != self.layout.model:
+            raise ModelError(f"params are {params.model}, the filter is {self.layout.model}")
+        p = len(self.layout.params)
+        self._x[1 : 1 + p] = list(params.theta)
+        self.reopen(self.layout.params)
+
     # -- read-outs ----------------------------------------------------------
 
     @property

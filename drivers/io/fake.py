@@ -111,6 +111,10 @@ class FakeDevice:
         for rec in self.reader:
             if self._stop.is_set():
                 return
+            if start is None and self.speed is not None:
+                # the capture's clock starts at its first record, whatever its port:
+                # the ports of one capture keep their offsets
+                start = (rec.t, time.monotonic())
             if rec.port != self.port:
                 continue
             data = rec.data
@@ -121,9 +125,8 @@ class FakeDevice:
                     n = self.vport.write(data)
                     data = data[n:]
             else:
-                if start is None:
-                    start = (rec.t, time.monotonic())
-                due = start[1] + (rec.t - start[0]) / self.speed
+                t0, m0 = start if start is not None else (rec.t, time.monotonic())
+                due = m0 + (rec.t - t0) / self.speed
                 while not self._stop.is_set():
                     wait = due - time.monotonic()
                     if wait <= 0:

@@ -579,25 +579,25 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from emlogd.config import load_config
     from emlogd.daemon.statefile import StateStore
     from emlogd.offline.replay import replay
+    from emlogd.pipeline.calibration import Calibration, checker
     from emlogd.pipeline.core import Output, Pipeline
-    from emlogd.settings import pipeline_from_config, snapshot_to_state, state_to_snapshot
+    from emlogd.settings import pipeline_from_config
 
     cfg = load_config(args.config)
     ports, uuts = pipeline_from_config(cfg)
     if args.learn is not None:
         uuts = [dataclasses.replace(u, learn=args.learn) for u in uuts]
     store = StateStore(args.state) if args.state else None
-    snapshots = {}
+    cals: dict[str, Calibration] = {}
     if store is not None:
-        states, report = store.load()
+        cals, report = store.load(check=checker(uuts))
         for line in report:
             sys.stderr.write(f"emlogd replay: {line}\n")
-        snapshots = {k: state_to_snapshot(v) for k, v in states.items()}
-    pipeline = Pipeline(ports, uuts, snapshots)
+    pipeline = Pipeline(ports, uuts, cals)
 
     def persist(_: Output) -> None:
         if store is not None:
-            store.save({s.uut: snapshot_to_state(s) for s in pipeline.good_snapshots()})
+            store.save({c.uut: c for c in pipeline.calibrations()})
 
     to_stdout = args.out is None and not args.json
     sink = open(args.out, "wb") if args.out else (sys.stdout.buffer if to_stdout else None)  # noqa: SIM115
@@ -614,7 +614,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         _progress_done()
         if args.out and sink is not None:
             sink.close()
-    if store is not None and pipeline.good_snapshots():
+    if store is not None:
         persist(Output())
     doc = result.to_dict()
     if args.json:

@@ -32,8 +32,9 @@ from emlogd.daemon.control import ControlServer
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
+from emlogd.pipeline.calibration import checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
-from emlogd.settings import pipeline_from_config, snapshot_to_state, state_to_snapshot
+from emlogd.settings import pipeline_from_config
 
 SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
@@ -138,14 +139,19 @@ class Daemon:
         cfg = self.config
         state_path = self.state_override or Path(cfg.state_path)
         self.store = StateStore(state_path)
-        states, report = self.store.load()
+        ports, uuts = pipeline_from_config(cfg)
+        cals, report = self.store.load(check=checker(uuts))
         for line in report:
             self.log.warning("state_file", detail=line, path=str(state_path))
-        snapshots = {uut: state_to_snapshot(st) for uut, st in states.items()}
-        for uut, snap in snapshots.items():
-            self.log.info("calibration_loaded", uut=uut, model=snap.model, **snap.params.as_dict())
-        ports, uuts = pipeline_from_config(cfg)
-        self.pipeline = Pipeline(ports, uuts, snapshots)
+        for uut, cal in cals.items():
+            self.log.info(
+                "calibration_loaded",
+                uut=uut,
+                model=cal.params.model,
+                reset=cal.reset,
+                **cal.params.as_dict(),
+            )
+        self.pipeline = Pipeline(ports, uuts, cals)
         self._open_outputs()
         self.control = ControlServer(cfg.control_socket, self._control, self.sel)
         self._open_sources(cfg)
@@ -349,11 +355,11 @@ class Daemon:
 
     def _persist(self, *, final: bool = False) -> None:
         assert self.pipeline is not None and self.store is not None
-        snaps = self.pipeline.good_snapshots()
+        snaps = self.pipeline.calibrations()
         if not snaps:
             return
         try:
-            self.store.save({s.uut: snapshot_to_state(s) for s in snaps})
+            self.store.save({s.uut: s for s in snaps})
         except EmlogdError as exc:
             self.state_errors += 1
             self.log.error("state_write_failed", error=str(exc), final=final)
@@ -434,7 +440,7 @@ class Daemon:
             return
         assert self.pipeline is not None
         self._persist()
-        snapshots = {s.uut: s for s in self.pipeline.good_snapshots()}
+        snapshots = {s.uut: s for s in self.pipeline.calibrations()}
         try:
             ports, uuts = pipeline_from_config(new)
             pipeline = Pipeline(ports, uuts, snapshots)

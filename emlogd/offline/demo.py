@@ -43,8 +43,9 @@ ports:
   - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, rest_s: 0}}
 calibration:
   - {{uut: emlog1, reference: dvl, model: EM3, lag: {lag1}, excitation_half_life_samples: 120,
-     max_param_std: {{m: 0.05, b: 0.08}}}}
-  - {{uut: emlog2, reference: dvl, model: EM3, lag: {lag2}, excitation_half_life_samples: 600}}
+     max_param_std: {{m: 0.05, b: 0.08}}, validation_s: {val}, recheck_s: {recheck}}}
+  - {{uut: emlog2, reference: dvl, model: EM3, lag: {lag2}, excitation_half_life_samples: 600,
+     validation_s: {val}, recheck_s: {recheck}}}
 outputs: {{pty: out/emlog0, status_interval_s: 0.5}}
 state_file: state/state.yaml
 control_socket: run/control.sock
@@ -100,6 +101,8 @@ def run_demo(
             CONFIG.format(
                 lag1=round(LATENCIES_S["emlog1"] / speed, 4),
                 lag2=round(LATENCIES_S["emlog2"] / speed, 4),
+                val=round(30.0 / speed, 3),
+                recheck=round(300.0 / speed, 2),
             ),
             encoding="utf-8",
         )

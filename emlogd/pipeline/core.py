@@ -1,69 +1,76 @@
-"""The calibration pipeline, one object used identically live and in replay.
+"""The calibration pipeline, one object used identically live, in replay and offline.
 
 ``Pipeline.feed(t, port, data)`` takes received bytes with their receive time and
-returns what the daemon should do: corrected sentences to emit, events to log, and
-calibration states to persist. It never reads the wall clock and does no I/O, so a
-replay is deterministic and a test can assert exact outputs (DESIGN.md, data flow).
+returns what the caller should do: corrected sentences to emit, events to log, and
+calibrations to persist. It never reads the wall clock and does no I/O, so a replay
+is deterministic and a test can assert exact outputs.
 
-Per unit under test (UUT):
+Routing (per port, the decoders' common navigation records):
 
-- **Aligner** — the reference samples go into a fixed-size ring
-  (:class:`RefBuffer`); a UUT reading at receive time t is paired with the
-  reference interpolated at ``t − lag``. The lag is configured, or estimated once
-  by cross-correlation over the first ``lag_window_s`` of data (bounded arrays),
-  then fixed. Until it is known the filter does not learn.
-- **Calibrator** — a :class:`calib.kalman.KfCalibrator` with the configured error
-  model, started from the persisted state when there is one.
-- **Supervisor** — learns only while the reference is valid (not lost, not stale,
-  faster than ``min_ref_speed_mps``), learning is on, the lag is known and the
-  recent reference speeds excite the model (:class:`calib.excitation.ExcitationWindow`).
-  Otherwise the filter runs with frozen parameters. Parameters whose standard
-  deviations are all under the thresholds while the window is identifiable become
-  the *good* calibration; it is persisted with hysteresis (not for insignificant
-  changes, not more often than ``persist_interval_s``).
-- **Output** — each UUT sentence gives a corrected sentence at once (VHW → VHW with
-  knots and km/h, heading passed through; VBW → VBW, longitudinal corrected,
-  transverse passed through), always from the last good calibration, made before
-  the filter learns from the same sample (and handed to :attr:`Output.deliver` at
-  once when the caller set one); before a calibration exists no speed is emitted
-  and the status sentence says ``U`` (uncalibrated).
-  A proprietary status sentence (:func:`emlogd.pipeline.sentences.encode_status`) follows at
-  most once per ``status_interval_s`` of record time.
+- a **reference** speed (DVL bottom or water track, another log's speed, or GNSS
+  speed and course projected on the hull with the heading) goes, through a glitch
+  filter (:class:`~emlogd.pipeline.integrity.JumpFilter`), to every UUT that
+  calibrates against that port and field;
+- a **heading** (true, or magnetic with a known variation) goes to its port's ring;
+  each UUT reads its heading from the port it is configured for, or (``auto``) from
+  its reference's port, else its own VHW heading, else any port with a heading;
+- a UUT's **reading** is corrected and emitted at once (the per-UUT
+  :class:`~emlogd.pipeline.uut.UutCalibration` decides how), then queued for
+  learning against the reference at ``t − lag``.
+
+A read that brings several readings of one sentence (a USB-serial stall released
+as a burst) carries one receive time for all: only the newest is fresh; the older
+ones are backlog — neither learnt from nor emitted as new.
+
+Outputs per UUT: VHW → corrected VHW (heading passed through); VBW → corrected VBW;
+a status sentence at most once per ``status_interval_s``, and with current states
+a ``VDR`` (set and drift) whenever the heading determines the current.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, NamedTuple
 
-import numpy as np
-
-from calib.errors import CalibrationError
-from calib.excitation import ExcitationRule, ExcitationWindow
-from calib.kalman import KfCalibrator, KfConfig
-from calib.lag import estimate_lag
-from calib.models import PARAM_NAMES, Layout, Params, check_model, invert
+from calib.excitation import ExcitationRule
+from calib.kalman import KfConfig
+from calib.models import check_model
 from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
-from drivers.records import SpeedRecord
-from emlogd.pipeline.sentences import StatusFields, encode_status, encode_vbw, encode_vhw
+from drivers.nmea0183 import Heading as NmeaHeading
+from drivers.nmea0183 import Vhw
+from drivers.records import KNOT_MPS
+from emlogd.pipeline.align import SampleRing, wrap_deg
+from emlogd.pipeline.calibration import Calibration, check
+from emlogd.pipeline.integrity import Envelope, JumpFilter
+from emlogd.pipeline.sentences import (
+    StatusFields,
+    encode_status,
+    encode_vbw,
+    encode_vdr,
+    encode_vhw,
+)
+from emlogd.pipeline.uut import UutCalibration
 
-MIN_LAG_CORRELATION = 0.6
-"""A lag estimate with a weaker correlation peak is not used (the window slides on)."""
+RefField = Literal["bottom", "water", "speed", "gnss"]
+HeadingSource = str
+"""``auto`` or a port name."""
 
-RefField = Literal["bottom", "water", "speed"]
-RefState = Literal["valid", "lost", "stale", "slow", "none"]
-CalState = Literal["learning", "frozen", "uncalibrated"]
-
-REF_SOURCES: dict[str, tuple[str, ...]] = {
-    "bottom": ("PD6:BS", "PD0:BT", "PD4:BT", "PD5:BT", "PRTI01"),
-    "water": ("PD6:WS",),
-    "speed": ("VHW", "VBW"),
+_ROLE_OF_SOURCE: dict[str, str] = {
+    "PD6:BS": "bottom",
+    "PD0:BT": "bottom",
+    "PD4:BT": "bottom",
+    "PD5:BT": "bottom",
+    "PRTI01": "bottom",
+    "PD6:WS": "water",
+    "VHW": "speed",
+    "VBW": "speed",
 }
-"""Speed-record sources that carry each reference field, by preference."""
+_DVL_HEADING_SOURCES = frozenset({"PD6:BS", "PD6:WS", "PD0:BT", "PD4:BT", "PD5:BT"})
+_UUT_SENTENCES = ("VHW", "VBW")
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,44 +86,25 @@ class PortSettings:
 
 @dataclass(frozen=True, slots=True)
 class UutSettings:
-    """Calibration of one UUT (the ``calibration`` section of the config).
-
-    Attributes:
-        port: the EMlog port.
-        model: ``EM1`` … ``EM4``.
-        reference_port: the reference port.
-        reference_field: ``bottom``/``water`` (DVL) or ``speed`` (another EMlog).
-        lag_s: fixed latency in s, or None to estimate it.
-        lag_window_s: data collected before estimating the lag, s.
-        max_lag_s: lag search range ±s.
-        learn: learning switch at start.
-        apply: emit corrected sentences (False: status only).
-        min_ref_speed_mps: no learning below this reference speed.
-        max_param_std: parameter name -> largest σ for a calibration to count as good.
-        excitation_half_life_samples: memory of the excitation window, in UUT samples.
-        persist_interval_s: least record time between two persists of this UUT.
-        persist_min_change_sigma: persist only if a parameter moved by this many σ…
-        persist_min_change_abs: …or by this absolute amount.
-        kf: filter tuning.
-        rule: identifiability thresholds.
-        uut_source: the UUT sentence the filter learns from (``VHW`` or ``VBW``).
-        talker: talker ID of the corrected sentences.
-        maker: three-letter maker code of the status sentence (``$P`` + maker + ``S``).
-        status_interval_s: least record time between two status sentences.
-    """
+    """Calibration of one UUT (the ``calibration`` section of the config)."""
 
     port: str
+    reference_port: str
     model: str = "EM3"
-    reference_port: str = "dvl"
     reference_field: RefField = "bottom"
+    current: bool = False
+    heading: HeadingSource = "auto"
+    magnetic_variation_deg: float | None = None
     lag_s: float | None = None
     lag_window_s: float = 300.0
     max_lag_s: float = 10.0
     learn: bool = True
     apply: bool = True
     min_ref_speed_mps: float = 0.3
+    min_sog_mps: float = 0.5
+    ref_stale_s: float = 5.0
     max_param_std: Mapping[str, float] = field(
-        default_factory=lambda: {"a": 0.01, "m": 0.02, "b": 0.03}
+        default_factory=lambda: {"a": 0.02, "m": 0.05, "b": 0.08}
     )
     excitation_half_life_samples: float = 600.0
     persist_interval_s: float = 60.0
@@ -128,6 +116,16 @@ class UutSettings:
     talker: str = "VW"
     maker: str = "EML"
     status_interval_s: float = 1.0
+    gate_nis: float = 25.0
+    relearn_gates: int = 30
+    envelope: Envelope = field(default_factory=Envelope)
+    low_speed_mps: float = 0.25
+    stuck_s: float = 60.0
+    zero_s: float = 10.0
+    max_accel_mps2: float = 2.0
+    max_turn_rate_dps: float = 45.0
+    validation_s: float = 30.0
+    recheck_s: float = 300.0
 
     def __post_init__(self) -> None:
         check_model(self.model)
@@ -158,46 +156,17 @@ class Event:
     detail: Mapping[str, object]
 
 
-@dataclass(frozen=True, slots=True)
-class Snapshot:
-    """A calibration worth persisting (the good calibration of one UUT).
-
-    Attributes:
-        uut: UUT port name.
-        model: error model.
-        params: the parameters.
-        param_std: their standard deviations by name.
-        covariance: the filter's full covariance (state order), for a warm restart.
-        t: record time of the calibration, s.
-        n_samples: samples learnt from.
-        lag_s: the latency used.
-        excitation: figures of the excitation window.
-        nis_mean: running NIS mean.
-    """
-
-    uut: str
-    model: str
-    params: Params
-    param_std: Mapping[str, float]
-    covariance: tuple[tuple[float, ...], ...]
-    t: float
-    n_samples: int
-    lag_s: float | None
-    excitation: Mapping[str, float]
-    nis_mean: float | None
-
-
 @dataclass(slots=True)
 class Output:
     """What one :meth:`Pipeline.feed` or :meth:`Pipeline.tick` call produced."""
 
     emits: list[Emit] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
-    persist: list[Snapshot] = field(default_factory=list)
+    persist: list[Calibration] = field(default_factory=list)
     deliver: Callable[[list[Emit]], None] | None = None
-    """Live use: takes each corrected sentence as soon as it is ready, before the
-    filter learns from the sample (the latency path); the emits are cleared after.
-    None (replay, tests): the emits stay in :attr:`emits` for the caller."""
+    """Live use: takes each corrected sentence as soon as it is ready (the latency
+    path); the emits are cleared after. None (replay, tests): the emits stay in
+    :attr:`emits` for the caller."""
 
     def send(self, emit: Emit) -> None:
         """Add an emit, handing it to :attr:`deliver` at once when that is set."""
@@ -207,170 +176,74 @@ class Output:
             self.emits.clear()
 
 
-@dataclass(slots=True)
-class Score:
-    """Running sums for the RMSE of raw and corrected speeds against the reference."""
-
-    n: int = 0
-    ss_raw: float = 0.0
-    ss_cor: float = 0.0
-
-    def add(self, err_raw: float, err_cor: float) -> None:
-        """One sample's errors (reading − reference), m/s."""
-        self.n += 1
-        self.ss_raw += err_raw * err_raw
-        self.ss_cor += err_cor * err_cor
-
-    @property
-    def rmse_raw(self) -> float | None:
-        """RMSE of the raw readings, m/s (None before any sample)."""
-        return math.sqrt(self.ss_raw / self.n) if self.n else None
-
-    @property
-    def rmse_corrected(self) -> float | None:
-        """RMSE of the corrected output, m/s."""
-        return math.sqrt(self.ss_cor / self.n) if self.n else None
+class _Speed(NamedTuple):
+    field: str
+    sentence: str
+    longitudinal_mps: float | None
+    transverse_mps: float | None
+    valid: bool
 
 
-class RefBuffer:
-    """Fixed-size ring of reference samples, queried at a past time.
+class _Heading(NamedTuple):
+    true_deg: float | None
+    magnetic_deg: float | None
+    variation_deg: float | None
 
-    Args:
-        capacity: samples kept (memory bound).
-        max_gap_s: a query is answered only if valid samples lie within this
-            distance on both sides (an outage is never bridged).
-    """
 
-    __slots__ = ("_buf", "max_gap_s")
+class _Gnss(NamedTuple):
+    sog_mps: float | None
+    cog_true_deg: float | None
+    valid: bool
+    variation_deg: float | None
 
-    def __init__(self, capacity: int, max_gap_s: float = 1.0) -> None:
-        self._buf: deque[tuple[float, float, bool]] = deque(maxlen=capacity)
-        self.max_gap_s = max_gap_s
 
-    def add(self, t: float, v: float | None, valid: bool) -> None:
-        """Append one sample (times must not decrease; an earlier one is ignored)."""
-        if self._buf and t < self._buf[-1][0]:
+_Nav = _Speed | _Heading | _Gnss
+
+
+def _nav_items(dec: Decoder, rec: object) -> Iterable[_Nav]:
+    """The navigation content of one decoded record."""
+    if isinstance(rec, NmeaHeading):
+        if rec.heading_deg is None:
             return
-        self._buf.append((t, math.nan if v is None else v, valid and v is not None))
-
-    def last(self) -> tuple[float, float, bool] | None:
-        """The newest sample (t, v, valid), if any."""
-        return self._buf[-1] if self._buf else None
-
-    def at(self, t: float) -> float | None:
-        """The reference at time ``t`` by linear interpolation, or None.
-
-        Between two valid samples at most ``max_gap_s`` away: interpolated. After
-        the newest sample: that sample, for up to ``max_gap_s / 2``. Otherwise None.
-        """
-        buf = self._buf
-        after: tuple[float, float, bool] | None = None
-        for i in range(len(buf) - 1, -1, -1):
-            s = buf[i]
-            if s[0] > t:
-                after = s
-                continue
-            if not s[2]:
-                return None
-            if s[0] == t:
-                return s[1]
-            if after is None:
-                # the newest sample is before t (a lag shorter than the reference
-                # interval): hold it briefly rather than wait for the next one
-                return s[1] if t - s[0] <= self.max_gap_s / 2 else None
-            if not after[2]:
-                return None
-            if t - s[0] > self.max_gap_s or after[0] - t > self.max_gap_s:
-                return None
-            w = (t - s[0]) / (after[0] - s[0])
-            return s[1] + w * (after[1] - s[1])
-        return None
+        if rec.true:
+            yield _Heading(rec.heading_deg, None, None)
+            return
+        mag = rec.heading_deg + (rec.deviation_deg or 0.0)
+        var = rec.variation_deg
+        yield _Heading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var)
+        return
+    if isinstance(rec, Vhw) and (
+        rec.heading_true_deg is not None or rec.heading_mag_deg is not None
+    ):
+        yield _Heading(rec.heading_true_deg, rec.heading_mag_deg, None)
+    for sp in dec.speed_records(rec):
+        field_ = _ROLE_OF_SOURCE.get(sp.source)
+        if field_ is None:
+            continue
+        yield _Speed(field_, sp.source, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
+        if sp.source in _DVL_HEADING_SOURCES and sp.heading_deg is not None:
+            yield _Heading(sp.heading_deg, None, None)
 
 
-class _LagCollector:
-    """Bounded arrays of UUT and reference speeds for the one-off lag estimate."""
+class _PortHeading:
+    """The true-heading ring of one port, with its glitch filter and variation."""
 
-    __slots__ = ("max_lag_s", "ref", "uut", "window_s")
-
-    def __init__(self, window_s: float, max_lag_s: float, ref_rate_cap: int) -> None:
-        self.window_s = window_s
-        self.max_lag_s = max_lag_s
-        cap = int((window_s + 2 * max_lag_s) * ref_rate_cap) + 16
-        self.uut: deque[tuple[float, float]] = deque(maxlen=cap)
-        self.ref: deque[tuple[float, float]] = deque(maxlen=cap)
-
-    def ready(self) -> bool:
-        return bool(self.uut) and self.uut[-1][0] - self.uut[0][0] >= self.window_s
-
-    def estimate(self) -> tuple[float | None, str]:
-        """(lag, "") on success; (None, reason) otherwise — and drop the older half."""
-        tu = np.array([s[0] for s in self.uut])
-        vu = np.array([s[1] for s in self.uut])
-        tr = np.array([s[0] for s in self.ref])
-        vr = np.array([s[1] for s in self.ref])
-        try:
-            est = estimate_lag(tu, vu, tr, vr, self.max_lag_s, step_s=0.1)
-        except CalibrationError as exc:
-            reason = str(exc)
-        else:
-            if est.peak_corr >= MIN_LAG_CORRELATION and not est.at_bound and est.lag_s >= 0.0:
-                return est.lag_s, f"peak correlation {est.peak_corr:.2f}"
-            if est.lag_s < 0.0 and est.peak_corr >= MIN_LAG_CORRELATION:
-                reason = (
-                    f"negative lag {est.lag_s:.2f} s (the EMlog would lead its reference): not used"
-                )
-            else:
-                reason = (
-                    f"no clear correlation peak (r={est.peak_corr:.2f}"
-                    f"{', at the search bound' if est.at_bound else ''})"
-                )
-        for q in (self.uut, self.ref):
-            for _ in range(len(q) // 2):
-                q.popleft()
-        return None, reason
+    def __init__(self, max_turn_rate_dps: float) -> None:
+        self.ring = SampleRing(1024, 2.0, angular=True)
+        self.jumps = JumpFilter(max_turn_rate_dps, 5.0, angular=True)
+        self.refused_magnetic = 0
 
 
 class _Uut:
-    """The per-UUT state of the pipeline."""
+    """One UUT's calibration plus its routing state."""
 
-    def __init__(self, s: UutSettings, snapshot: Snapshot | None) -> None:
+    def __init__(self, s: UutSettings, cal: UutCalibration) -> None:
         self.s = s
-        self.model = check_model(s.model)
-        self.names = PARAM_NAMES[self.model]
-        params0 = snapshot.params if snapshot is not None and snapshot.model == self.model else None
-        p0: np.ndarray | None = None
-        if params0 is not None and snapshot is not None and snapshot.covariance:
-            p0 = np.array(snapshot.covariance, dtype=np.float64)
-            if p0.shape != (len(self.names) + 1,) * 2:
-                p0 = None
-        self.kf = KfCalibrator(self.model, s.kf, params0=params0, P0=p0)
-        self.good: Params | None = params0
-        self.good_std: dict[str, float] = dict(snapshot.param_std) if params0 and snapshot else {}
-        self.persisted: Params | None = params0
-        self.t_persist = -math.inf
-        self.lag_s = s.lag_s
-        self.lag_collector = (
-            _LagCollector(s.lag_window_s, s.max_lag_s, 20) if s.lag_s is None else None
-        )
-        self.ref = RefBuffer(int((s.max_lag_s + 5.0) * 50) + 64)  # up to 50 Hz references
-        self.window = ExcitationWindow(
-            Layout(self.model), max(s.excitation_half_life_samples, 1.0), s.rule
-        )
-        self.t_prev: float | None = None
+        self.cal = cal
+        self.ref_jumps = JumpFilter(s.max_accel_mps2, 0.3)
         self.t_status = -math.inf
-        self.learn_on = s.learn
-        self.state: CalState = "frozen" if params0 is not None else "uncalibrated"
-        self.ref_state: RefState = "none"
-        self.n_learnt = snapshot.n_samples if snapshot is not None else 0
-        self.nis: deque[float] = deque(maxlen=300)
-        self.nis_sum = 0.0
-        self.identifiable = False
-        self.excitation: dict[str, float] = {}
-        self.n_since_eval = 0
-        self.score = Score()
-        self.freezes = 0
-        self.state_prev_learning = False
-        self.t_ref_last = -math.inf
+        self.t_vdr = -math.inf
+        self.heading_port: str | None = None
 
 
 class Pipeline:
@@ -379,14 +252,16 @@ class Pipeline:
     Args:
         ports: the input ports.
         uuts: one entry per calibrated EMlog.
-        snapshots: persisted calibrations by UUT port (warm start).
+        calibrations: persisted calibrations by UUT port (warm start); each is checked
+            first (:func:`emlogd.pipeline.calibration.check`) and ignored with an event
+            when it fails.
     """
 
     def __init__(
         self,
         ports: Sequence[PortSettings],
         uuts: Sequence[UutSettings],
-        snapshots: Mapping[str, Snapshot] | None = None,
+        calibrations: Mapping[str, Calibration] | None = None,
     ) -> None:
         self.ports = {p.name: p for p in ports}
         self.decoders: dict[str, Decoder] = {
@@ -398,17 +273,98 @@ class Pipeline:
             )
             for p in ports
         }
-        snaps = snapshots or {}
+        self.startup_events: list[Event] = []
+        self.headings: dict[str, _PortHeading] = {}
+        self.variation: dict[str, float] = {}
         self.uuts: dict[str, _Uut] = {}
         self._by_ref: dict[str, list[_Uut]] = {}
+        cals = calibrations or {}
         for s in uuts:
             if s.port not in self.ports or s.reference_port not in self.ports:
                 raise ValueError(f"UUT {s.port}: unknown port {s.port!r} or {s.reference_port!r}")
-            u = _Uut(s, snaps.get(s.port))
+            if s.heading != "auto" and s.heading not in self.ports:
+                raise ValueError(f"UUT {s.port}: unknown heading port {s.heading!r}")
+            prior = cals.get(s.port)
+            if prior is not None:
+                why = check(prior, s.envelope)
+                if why:
+                    self.startup_events.append(
+                        Event(prior.t, s.port, "calibration_refused", {"why": why})
+                    )
+                    prior = None
+            u = _Uut(s, self._new_cal(s, prior))
             self.uuts[s.port] = u
             self._by_ref.setdefault(s.reference_port, []).append(u)
         self.last_rx: dict[str, float] = {}
         self.stale: dict[str, bool] = dict.fromkeys(self.ports, False)
+        self.now = -math.inf
+        self._pending_events: list[Event] = []
+
+    def _new_cal(self, s: UutSettings, prior: Calibration | None) -> UutCalibration:
+        port = s.port
+
+        def event(t: float, kind: str, detail: Mapping[str, object]) -> None:
+            self._pending_events.append(Event(t, port, kind, detail))
+
+        return UutCalibration(s, prior, lambda t: self._heading_at(port, t), event)
+
+    # -- headings --------------------------------------------------------------
+
+    def _heading_ports(self, s: UutSettings) -> list[str]:
+        if s.heading != "auto":
+            return [s.heading]
+        order = [s.reference_port, s.port]
+        order += [p for p in self.ports if p not in order]
+        return order
+
+    def _heading_at(self, uut: str, t: float) -> float | None:
+        u = self.uuts.get(uut)
+        if u is None:
+            return None
+        for port in self._heading_ports(u.s):
+            ph = self.headings.get(port)
+            if ph is None:
+                continue
+            h = ph.ring.at(t)
+            if h is None:
+                h = ph.ring.nearest(t, 0.6)
+            if h is not None:
+                if u.heading_port != port:
+                    u.heading_port = port
+                return h
+        return None
+
+    def _heading(self, t: float, port: str, h: _Heading) -> None:
+        ph = self.headings.get(port)
+        if ph is None:
+            ph = self.headings[port] = _PortHeading(self._turn_rate(port))
+        if h.variation_deg is not None:
+            self.variation[port] = h.variation_deg
+        true = h.true_deg
+        if true is None and h.magnetic_deg is not None:
+            var = self._variation(port)
+            if var is None:
+                ph.refused_magnetic += 1
+                return
+            true = wrap_deg(h.magnetic_deg + var)
+        if true is None or not math.isfinite(true):
+            return
+        if ph.jumps.accept(t, true):
+            ph.ring.add(t, wrap_deg(true))
+
+    def _turn_rate(self, port: str) -> float:
+        rates = [u.s.max_turn_rate_dps for u in self.uuts.values()]
+        return max(rates) if rates else 45.0
+
+    def _variation(self, port: str) -> float | None:
+        if port in self.variation:
+            return self.variation[port]
+        for v in self.variation.values():
+            return v
+        for u in self.uuts.values():
+            if u.s.magnetic_variation_deg is not None:
+                return u.s.magnetic_variation_deg
+        return None
 
     # -- input ----------------------------------------------------------------
 
@@ -419,175 +375,145 @@ class Pipeline:
         if dec is None:
             return out
         self.last_rx[port] = t
+        if t > self.now:
+            self.now = t
         if self.stale[port]:
             self.stale[port] = False
             out.events.append(Event(t, port, "alive", {}))
-        for rec in dec.feed(data):
-            for sp in dec.speed_records(rec):
-                self._speed(t, sp, out, rec)
+        items = [(rec, item) for rec in dec.feed(data) for item in _nav_items(dec, rec)]
+        self._route(t, port, items, out)
+        self._after(t, out)
         return out
 
-    def _speed(self, t: float, sp: SpeedRecord, out: Output, rec: object = None) -> None:
-        port = sp.port
-        for r in self._by_ref.get(port, ()):
-            if sp.source in REF_SOURCES[r.s.reference_field]:
-                self._reference(r, t, sp)
+    def _route(self, t: float, port: str, items: list[tuple[object, _Nav]], out: Output) -> None:
         u = self.uuts.get(port)
-        if u is not None and sp.source in ("VHW", "VBW"):
-            self._uut(u, t, sp, out, rec)
+        newest: Counter[str] = Counter()
+        if u is not None:
+            newest.update(
+                it.sentence for _, it in items if isinstance(it, _Speed) and it.field == "speed"
+            )
+        for rec, item in items:
+            if isinstance(item, _Heading):
+                self._heading(t, port, item)
+            elif isinstance(item, _Gnss):
+                self._gnss(t, port, item)
+            else:
+                self._reference(t, port, item)
+                if u is not None and item.field == "speed":
+                    newest[item.sentence] -= 1
+                    self._reading(u, t, item, rec, fresh=newest[item.sentence] == 0, out=out)
 
-    def _reference(self, u: _Uut, t: float, sp: SpeedRecord) -> None:
-        v = sp.longitudinal_mps
-        ok = sp.valid and v is not None and math.isfinite(v)
-        u.ref.add(t, v, ok)
-        u.t_ref_last = t
-        if ok and u.lag_collector is not None and v is not None:
-            u.lag_collector.ref.append((t, v))
+    def _reference(self, t: float, port: str, sp: _Speed) -> None:
+        for u in self._by_ref.get(port, ()):
+            if u.s.reference_field != sp.field:
+                continue
+            v = sp.longitudinal_mps
+            ok = sp.valid and v is not None and math.isfinite(v)
+            if ok and v is not None and not u.ref_jumps.accept(t, v):
+                ok = False
+            u.cal.add_reference(t, v if ok else None, ok)
 
-    def _uut(self, u: _Uut, t: float, sp: SpeedRecord, out: Output, rec: object) -> None:
-        """Correct and emit with the calibration so far, then learn from the sample.
-
-        Emitting first keeps the filter update off the output's latency path, and
-        makes the corrected error scored here a one-step-ahead one: the parameters
-        that corrected the sample have not seen its reference.
-        """
-        raw = sp.longitudinal_mps
-        if not sp.valid or raw is None or not math.isfinite(raw):
-            return
-        corrected = math.nan
-        if u.s.apply and u.good is not None:
-            p = u.good
-            corrected = invert(p.a_spm, p.m, p.b_mps, raw)
-            if math.isfinite(corrected):
-                if sp.source == "VHW":
-                    sentence = encode_vhw(
-                        corrected,
-                        getattr(rec, "heading_true_deg", None),
-                        getattr(rec, "heading_mag_deg", None),
-                        u.s.talker,
-                    )
+    def _gnss(self, t: float, port: str, g: _Gnss) -> None:
+        if g.variation_deg is not None:
+            self.variation[port] = g.variation_deg
+        for u in self._by_ref.get(port, ()):
+            if u.s.reference_field != "gnss":
+                continue
+            along: float | None = None
+            ok = g.valid and g.sog_mps is not None and g.cog_true_deg is not None
+            if ok and g.sog_mps is not None and g.cog_true_deg is not None:
+                psi = self._heading_at(u.s.port, t)
+                if psi is None or g.sog_mps < u.s.min_sog_mps:
+                    ok = False
                 else:
-                    sentence = encode_vbw(corrected, sp.transverse_mps, u.s.talker)
-                out.send(Emit(t, u.s.port, sentence))
-        if sp.source == u.s.uut_source:
-            ref = self._learn(u, t, raw, out)
-            if ref is not None and math.isfinite(corrected):
-                u.score.add(raw - ref, corrected - ref)
+                    along = g.sog_mps * math.cos(math.radians(g.cog_true_deg - psi))
+                    ok = u.ref_jumps.accept(t, along)
+            u.cal.add_reference(t, along if ok else None, ok)
+
+    def _reading(
+        self, u: _Uut, t: float, sp: _Speed, rec: object, *, fresh: bool, out: Output
+    ) -> None:
+        """Correct and emit a UUT reading at once, then queue it for learning."""
+        cal = u.cal
+        raw = sp.longitudinal_mps
+        if not sp.valid or raw is None:
+            return
+        if not cal.in_range(raw):
+            cal.counters.out_of_range += 1
+            return
+        if not fresh:
+            cal.counters.backlog += 1
+            return
+        value = cal.correct(raw)
+        if value is not None:
+            if sp.sentence == "VHW":
+                hdg_t = rec.heading_true_deg if isinstance(rec, Vhw) else None
+                hdg_m = rec.heading_mag_deg if isinstance(rec, Vhw) else None
+                sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
+            else:
+                sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
+            out.send(Emit(t, u.s.port, sentence))
+        if sp.sentence == u.s.uut_source:
+            cal.add_reading(t, raw)
+            cal.drain(self.now)
         if t - u.t_status >= u.s.status_interval_s:
             u.t_status = t
             out.emits.append(Emit(t, u.s.port, encode_status(self._status_fields(u))))
+            self._vdr(u, t, out)
 
-    def _learn(self, u: _Uut, t: float, raw: float, out: Output) -> float | None:
-        """Align, supervise and update the filter; return the valid reference used, if any."""
-        dt = 0.0 if u.t_prev is None else max(t - u.t_prev, 0.0)
-        u.t_prev = t
-        lc = u.lag_collector
-        if lc is not None:
-            lc.uut.append((t, raw))
-            if lc.ready():
-                lag, why = lc.estimate()
-                if lag is not None:
-                    u.lag_s = lag
-                    u.lag_collector = None
-                    out.events.append(
-                        Event(t, u.s.port, "lag_estimated", {"lag_s": lag, "why": why})
-                    )
-                else:
-                    out.events.append(Event(t, u.s.port, "lag_retry", {"why": why}))
-        ref = u.ref.at(t - u.lag_s) if u.lag_s is not None else None
-        ref_state = self._ref_state(u, t, ref)
-        if ref_state != u.ref_state:
-            out.events.append(
-                Event(t, u.s.port, "reference", {"from": u.ref_state, "to": ref_state})
-            )
-            u.ref_state = ref_state
-        if ref_state == "valid" and ref is not None:
-            u.window.add(ref, raw)
-            u.n_since_eval += 1
-            if u.n_since_eval >= 10 or not u.excitation:
-                self._evaluate_window(u)
-        learn = u.learn_on and ref_state == "valid" and u.identifiable
-        inn = u.kf.update(raw, ref if ref_state == "valid" else None, dt, learn=learn).raw
-        if learn and inn is not None:
-            u.n_learnt += 1
-            if len(u.nis) == u.nis.maxlen:
-                u.nis_sum -= u.nis[0]
-            u.nis.append(inn.nis)
-            u.nis_sum += inn.nis
-        new_state: CalState = (
-            "learning" if learn else ("frozen" if u.good is not None else "uncalibrated")
+    def _vdr(self, u: _Uut, t: float, out: Output) -> None:
+        cal = u.cal
+        if not cal.ident_current():
+            return
+        cur = cal.kf.current_mps
+        if cur is None:
+            return
+        drift = math.hypot(cur[0], cur[1])
+        set_true = wrap_deg(math.degrees(math.atan2(cur[1], cur[0])))
+        var = self._variation(u.s.reference_port)
+        set_mag = None if var is None else wrap_deg(set_true - var)
+        out.emits.append(
+            Emit(t, u.s.port, encode_vdr(set_true, set_mag, drift / KNOT_MPS, u.s.talker))
         )
-        if new_state != u.state:
-            out.events.append(Event(t, u.s.port, "state", {"from": u.state, "to": new_state}))
-            u.state = new_state
-        if learn:
-            self._supervise(u, t, out)
-        if new_state == "frozen" and u.state_prev_learning:
-            u.freezes += 1
-        u.state_prev_learning = learn
-        return ref if ref_state == "valid" else None
 
-    def _evaluate_window(self, u: _Uut) -> None:
-        u.n_since_eval = 0
-        ex = u.window.evaluate(u.s.kf.r_raw_mps2 + u.s.kf.r_ref_mps2)
-        u.identifiable = ex.identifiable
-        u.excitation = {
-            "n_effective": ex.stats.n_samples,
-            "condition_number": ex.cond_info,
-            "speed_std_mps": ex.stats.speed_std_mps,
-            "speed_mean_mps": ex.stats.speed_mean_mps,
-        }
-
-    def _ref_state(self, u: _Uut, t: float, ref: float | None) -> RefState:
-        if u.lag_s is None and u.t_ref_last == -math.inf:
-            return "none"
-        if t - u.t_ref_last > self.ports[u.s.reference_port].stale_timeout_s:
-            return "stale"
-        if ref is None:
-            return "lost" if u.lag_s is not None else "none"
-        if abs(ref) < u.s.min_ref_speed_mps:
-            return "slow"
-        return "valid"
-
-    def _supervise(self, u: _Uut, t: float, out: Output) -> None:
-        std: dict[str, float] = dict(u.kf.param_std)
-        if any(std[k] > u.s.max_param_std.get(k, math.inf) for k in u.names):
-            return
-        params = u.kf.params
-        if u.good is None:
-            out.events.append(Event(t, u.s.port, "calibrated", {"params": params.as_dict()}))
-        u.good = params
-        u.good_std = std
-        if t - u.t_persist < u.s.persist_interval_s:
-            return
-        if u.persisted is not None and not self._significant(u, params, std):
-            return
-        u.t_persist = t
-        u.persisted = params
-        out.persist.append(self.snapshot(u.s.port, t))
-
-    @staticmethod
-    def _significant(u: _Uut, params: Params, std: Mapping[str, float]) -> bool:
-        old = u.persisted
-        if old is None:
-            return True
-        a, b = old.as_dict(), params.as_dict()
-        return any(
-            abs(b[k] - a[k])
-            > max(u.s.persist_min_change_sigma * std[k], u.s.persist_min_change_abs)
-            for k in u.names
-        )
+    def _after(self, t: float, out: Output) -> None:
+        for u in self.uuts.values():
+            u.cal.drain(self.now)
+            snap = u.cal.take_snapshot(t)
+            if snap is not None:
+                out.persist.append(snap)
+        if self._pending_events:
+            out.events.extend(self._pending_events)
+            self._pending_events.clear()
 
     # -- time -----------------------------------------------------------------
 
     def tick(self, t: float, out: Output | None = None) -> Output:
-        """Advance to time ``t`` without data: stale detection."""
+        """Advance to time ``t`` without data: stale detection, queued learning."""
         out = out if out is not None else Output()
+        if self.startup_events:
+            out.events.extend(self.startup_events)
+            self.startup_events.clear()
+        if t > self.now:
+            self.now = t
         for name, p in self.ports.items():
             last = self.last_rx.get(name)
             if last is not None and not self.stale[name] and t - last > p.stale_timeout_s:
                 self.stale[name] = True
                 out.events.append(Event(t, name, "stale", {"silent_s": round(t - last, 3)}))
+        self._after(t, out)
+        return out
+
+    def flush(self) -> Output:
+        """End of input (replay): flush every decoder and learn from every queued reading."""
+        out = Output()
+        for port, dec in self.decoders.items():
+            t = self.last_rx.get(port, 0.0)
+            items = [(rec, item) for rec in dec.flush() for item in _nav_items(dec, rec)]
+            self._route(t, port, items, out)
+        for u in self.uuts.values():
+            u.cal.drain(self.now, final=True)
+        self._after(self.now, out)
         return out
 
     # -- control --------------------------------------------------------------
@@ -596,62 +522,45 @@ class Pipeline:
         """Switch learning on or off (one UUT or all); returns the UUTs affected."""
         ports = [port] if port is not None else list(self.uuts)
         for p in ports:
-            self.uuts[p].learn_on = on
+            self.uuts[p].cal.learn_on = on
         return ports
 
     def reset(self, port: str | None = None) -> list[str]:
-        """Forget the calibration of one UUT or all (filter restarted, uncalibrated)."""
+        """Forget the calibration of one UUT or all (uncalibrated; the lag is kept)."""
         ports = [port] if port is not None else list(self.uuts)
         for p in ports:
             u = self.uuts[p]
-            fresh = _Uut(u.s, None)
-            fresh.lag_s = u.lag_s
-            fresh.lag_collector = u.lag_collector
-            fresh.ref = u.ref
-            fresh.learn_on = u.learn_on
-            self.uuts[p] = fresh
-            refs = self._by_ref[u.s.reference_port]
-            refs[refs.index(u)] = fresh
+            old = u.cal
+            fresh = self._new_cal(u.s, None)
+            fresh.lag_s = old.lag_s
+            fresh.lag_finder = old.lag_finder
+            fresh.ref = old.ref
+            fresh.learn_on = old.learn_on
+            fresh.dirty = True
+            fresh.t_persist = -math.inf
+            u.cal = fresh
         return ports
 
-    def snapshot(self, port: str, t: float | None = None) -> Snapshot:
-        """The good calibration of ``port`` (falls back to the live estimate)."""
-        u = self.uuts[port]
-        params = u.good if u.good is not None else u.kf.params
-        std = u.good_std or dict(u.kf.param_std)
-        cov = u.kf.covariance()
-        return Snapshot(
-            uut=port,
-            model=u.model,
-            params=params,
-            param_std=std,
-            covariance=tuple(tuple(float(x) for x in row) for row in cov),
-            t=u.t_prev if t is None and u.t_prev is not None else (t or 0.0),
-            n_samples=u.n_learnt,
-            lag_s=u.lag_s,
-            excitation=dict(u.excitation),
-            nis_mean=self._nis_mean(u),
-        )
+    def calibrations(self) -> list[Calibration]:
+        """The calibration of every UUT (a ``reset`` record when it has none): what is persisted."""
+        return [u.cal.snapshot() for u in self.uuts.values()]
 
-    def good_snapshots(self) -> list[Snapshot]:
-        """Snapshots of every UUT that has a good calibration (what shutdown persists)."""
-        return [self.snapshot(p) for p, u in self.uuts.items() if u.good is not None]
-
-    @staticmethod
-    def _nis_mean(u: _Uut) -> float | None:
-        return u.nis_sum / len(u.nis) if u.nis else None
+    # -- status ---------------------------------------------------------------
 
     def _status_fields(self, u: _Uut) -> StatusFields:
-        p = u.good
+        cal = u.cal
+        p = cal.applied
         return StatusFields(
             port=u.s.port,
             maker=u.s.maker,
-            state=u.state,
-            model=u.model,
+            state=cal.state,
+            model=u.s.model,
             params=p.as_dict() if p is not None else {},
-            std=u.good_std if p is not None else {},
-            nis_mean=self._nis_mean(u),
-            ref_state=u.ref_state,
+            std={k: v for k, v in cal.applied_std.items() if v is not None}
+            if p is not None
+            else {},
+            nis_mean=cal.nis_mean(),
+            ref_state=cal.ref_state,
         )
 
     def status(self) -> dict[str, object]:
@@ -665,60 +574,56 @@ class Pipeline:
                 }
                 for name, dec in self.decoders.items()
             },
-            "uuts": {
-                name: {
-                    "state": u.state,
-                    "reference": u.ref_state,
-                    "learning_enabled": u.learn_on,
-                    "model": u.model,
-                    "params": u.good.as_dict() if u.good is not None else None,
-                    "param_std": u.good_std or None,
-                    "estimate": u.kf.params.as_dict(),
-                    "estimate_std": dict(u.kf.param_std),
-                    "lag_s": u.lag_s,
-                    "identifiable": u.identifiable,
-                    "excitation": dict(u.excitation),
-                    "nis_mean": self._nis_mean(u),
-                    "samples_learnt": u.n_learnt,
-                    "freezes": u.freezes,
-                    "scored_samples": u.score.n,
-                    "rmse_raw": u.score.rmse_raw,
-                    "rmse_corrected": u.score.rmse_corrected,
-                }
-                for name, u in self.uuts.items()
+            "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
+        }
+
+    def _uut_status(self, u: _Uut) -> dict[str, object]:
+        cal = u.cal
+        kf = cal.kf
+        ident = cal.ident
+        cur = kf.current_mps
+        cur_std = kf.current_std_mps
+        return {
+            "state": cal.state,
+            "reason": cal.reason,
+            "reference": cal.ref_state,
+            "heading_port": u.heading_port,
+            "learning_enabled": cal.learn_on,
+            "model": u.s.model,
+            "params": cal.applied.as_dict() if cal.applied is not None else None,
+            "param_std": dict(cal.applied_std) if cal.applied is not None else None,
+            "estimate": kf.params.as_dict(),
+            "estimate_std": kf.param_std,
+            "current": None
+            if cur is None or cur_std is None
+            else {
+                "north_mps": cur[0],
+                "east_mps": cur[1],
+                "std_north_mps": cur_std[0],
+                "std_east_mps": cur_std[1],
+                "determined": cal.ident_current(),
             },
+            "lag_s": cal.lag_s,
+            "determined": list(ident.determined) if ident is not None else [],
+            "unidentifiable": list(ident.unidentifiable) if ident is not None else [],
+            "identifiability": ident.reason if ident is not None else "",
+            "nis_mean": cal.nis_mean(),
+            "samples_learnt": cal.n_learnt,
+            "freezes": cal.freezes,
+            "counters": cal.counters.as_dict(),
+            "scored_samples": cal.score.n,
+            "rmse_raw": cal.score.rmse_raw,
+            "rmse_corrected": cal.score.rmse_corrected,
         }
 
     def summary(self) -> str:
         """One line for sd_notify STATUS=."""
         parts = []
         for name, u in self.uuts.items():
-            if u.good is not None:
-                pv = " ".join(f"{k}={v:+.3f}" for k, v in u.good.as_dict().items())
-                parts.append(f"{name} {u.state} {u.model} {pv} ref {u.ref_state}")
+            cal = u.cal
+            if cal.applied is not None:
+                pv = " ".join(f"{k}={v:+.3f}" for k, v in cal.applied.as_dict().items())
+                parts.append(f"{name} {cal.state} {u.s.model} {pv} ref {cal.ref_state}")
             else:
-                parts.append(f"{name} {u.state} ref {u.ref_state}")
+                parts.append(f"{name} {cal.state} ref {cal.ref_state}")
         return "; ".join(parts)
-
-    def flush(self) -> Output:
-        """End of input (replay): flush every decoder."""
-        out = Output()
-        for port, dec in self.decoders.items():
-            t = self.last_rx.get(port, 0.0)
-            for rec in dec.flush():
-                for sp in dec.speed_records(rec):
-                    self._speed(t, sp, out)
-        return out
-
-
-def feed_all(pipeline: Pipeline, items: Iterable[tuple[float, str, bytes]]) -> Output:
-    """Run a whole record stream through ``pipeline`` (tests and replay helpers)."""
-    out = Output()
-    for t, port, data in items:
-        pipeline.feed(t, port, data, out)
-        pipeline.tick(t, out)
-    flushed = pipeline.flush()
-    out.emits.extend(flushed.emits)
-    out.events.extend(flushed.events)
-    out.persist.extend(flushed.persist)
-    return out

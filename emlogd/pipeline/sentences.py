@@ -105,6 +105,25 @@ def encode_vhw(
     )
 
 
+def encode_vdr(
+    set_true_deg: float, set_mag_deg: float | None, drift_kn: float, talker: str = "VW"
+) -> str:
+    """The current as ``$--VDR,<set true>,T,<set magnetic>,M,<drift kn>,N``.
+
+    The set is the direction the current flows towards. Fields are clamped to their
+    widths (set 0–359.9°, drift 0–99.99 kn); a missing magnetic set is left empty.
+    """
+
+    def deg(x: float | None) -> str:
+        if x is None or not math.isfinite(x):
+            return ""
+        return f"{min(max(x % 360.0, 0.0), 359.9):.1f}"
+
+    drift = f"{min(max(drift_kn, 0.0), 99.99):.2f}" if math.isfinite(drift_kn) else ""
+    body = f"{talker}VDR,{deg(set_true_deg)},T,{deg(set_mag_deg)},M,{drift},N"
+    return with_checksum(body)
+
+
 def encode_vbw(long_mps: float, trans_mps: float | None, talker: str = "VW") -> str:
     """A corrected VBW: water pair only (a missing transverse speed is sent as 0)."""
     return nmea0183.encode_vbw(long_mps, 0.0 if trans_mps is None else trans_mps, talker=talker)

@@ -124,10 +124,18 @@ class TestInverse:
         assert correct_array(p, np.array([6.0]))[0] == pytest.approx(vertex)
 
     def test_zero_gain_gives_nan(self) -> None:
-        """A model with 1+m = 0 cannot be inverted: the correction is nan."""
-        p = Params("EM2", m=-1.0)
-        assert math.isnan(p.correct(1.0))
-        assert np.isnan(correct_array(p, np.array([1.0]))[0])
+        """A model with 1+m ≤ 0 cannot be inverted: the correction is nan."""
+        for m in (-1.0, -1.5):
+            p = Params("EM4", a_spm=0.01, m=m)
+            assert math.isnan(p.correct(1.0))
+            assert np.isnan(correct_array(p, np.array([1.0]))[0])
+
+    def test_em4_takes_the_increasing_branch(self) -> None:
+        """EM4's correction is the root where f increases: 1.9 m/s is never corrected to 1.11."""
+        p = Params("EM4", a_spm=0.3, m=-0.2, b_mps=0.1)
+        v = p.correct(1.9)
+        assert p.forward(v) == pytest.approx(1.9) and 2 * 0.3 * v + 0.8 > 0
+        assert correct_array(p, np.array([1.9]))[0] == pytest.approx(v)
 
     def test_scalar_and_array_agree(self) -> None:
         """The scalar and vectorised inverses pick the same root everywhere."""

@@ -33,8 +33,10 @@ ports:
   - {{name: junk, url: links/junk, protocol: nmea0183, role: aux}}
 calibration:
   - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
-     excitation_half_life_samples: 120, persist_interval_s: 0.5}}
-  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5}}
+     excitation_half_life_samples: 120, persist_interval_s: 0.5,
+     validation_s: {30 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5,
+     validation_s: {30 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
 outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_interval_s: 0.2}}
 state_file: state/state.yaml
 control_socket: run/control.sock
@@ -176,7 +178,8 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
             dev.join(5)
     # SIGTERM persisted the frozen calibration; a restart loads it
     states, _report = StateStore(tmp_path / "state" / "state.yaml").load()
-    assert "emlog1" in states and states["emlog1"].params == pytest.approx(frozen)
+    assert "emlog1" in states and not states["emlog1"].reset
+    assert states["emlog1"].params.as_dict() == pytest.approx(frozen)
     log = (tmp_path / "daemon.log").read_text()
     assert '"event": "ready"' in log and '"event": "stopped"' in log
     assert "port_disconnected" in log and log.count("port_connected") >= 4
@@ -290,9 +293,10 @@ def test_state_directory_read_only_or_full(
             (tmp_path / sub).mkdir()
         (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
         store = StateStore(state_dir / "state.yaml")
-        from emlogd.daemon.statefile import CalibrationState
+        from calib.models import Params
+        from emlogd.pipeline.calibration import Calibration
 
-        store.save({"emlog1": CalibrationState("emlog1", "EM3", {"m": 0.0, "b": 0.0})})
+        store.save({"emlog1": Calibration("emlog1", Params("EM3"), {}, None)})
         before = store.path.read_bytes()
         if fault == "read-only":
             subprocess.run(["mount", "-o", "remount,ro", str(state_dir)], check=True)

@@ -12,33 +12,33 @@ from pathlib import Path
 
 import pytest
 
-from emlogd.daemon.statefile import (
-    CalibrationState,
-    StateFormatError,
-    StateStore,
-    StateWriteError,
-    dump_state,
-    parse_state,
-)
+from calib.models import Params
+from emlogd.calfile import CalibrationFileError, dumps, loads
+from emlogd.daemon.statefile import StateStore, StateWriteError
+from emlogd.pipeline.calibration import Calibration, check
+from emlogd.pipeline.integrity import Envelope
 
 
-def _state(m: float = 0.1, n: int = 100) -> CalibrationState:
-    return CalibrationState(
+def _state(m: float = 0.1, n: int = 100) -> Calibration:
+    return Calibration(
         uut="emlog1",
-        model="EM3",
-        params={"m": m, "b": 0.05},
+        params=Params("EM3", m=m, b_mps=0.05),
         param_std={"m": 0.001, "b": 0.002},
+        lag_s=3.2,
         covariance=((1e-4, 0.0, 0.0), (0.0, 1e-6, -1e-7), (0.0, -1e-7, 4e-6)),
         t=1.75e9,
         n_samples=n,
-        lag_s=3.2,
-        excitation={"condition_number": 900.0, "speed_std_mps": 0.2},
+        reference={"port": "dvl", "field": "bottom"},
         nis_mean=1.01,
-        saved_at="2026-11-23T06:00:00+00:00",
     )
 
 
+def parse_state(text: str) -> dict[str, Calibration]:
+    return loads(text)[0]
+
+
 def test_round_trip(tmp_path: Path) -> None:
+    """A saved calibration loads back equal, mode 0640."""
     store = StateStore(tmp_path / "state.yaml")
     assert store.load() == ({}, [])
     store.save({"emlog1": _state()})
@@ -49,11 +49,12 @@ def test_round_trip(tmp_path: Path) -> None:
 
 
 def test_previous_good_file_is_kept_as_backup(tmp_path: Path) -> None:
+    """Each save keeps the previous good file as .bak."""
     store = StateStore(tmp_path / "state.yaml")
     store.save({"emlog1": _state(0.1)})
     store.save({"emlog1": _state(0.2)})
-    assert parse_state(store.backup.read_text())["emlog1"].params["m"] == 0.1
-    assert parse_state(store.path.read_text())["emlog1"].params["m"] == 0.2
+    assert parse_state(store.backup.read_text())["emlog1"].params.m == 0.1
+    assert parse_state(store.path.read_text())["emlog1"].params.m == 0.2
 
 
 @pytest.mark.parametrize(
@@ -61,17 +62,18 @@ def test_previous_good_file_is_kept_as_backup(tmp_path: Path) -> None:
     [
         lambda t: t[: len(t) // 2],  # torn write
         lambda t: "garbage: [\n",
-        lambda t: t.replace("schema: 1", "schema: 2"),
+        lambda t: t.replace("schema: 2", "schema: 3"),
         lambda t: t.replace("m: 0.2", "m: .nan"),
         lambda t: "",
         lambda t: t.replace("model: EM3", "model: EM9"),
         lambda t: t.replace("b: 0.05", "z: 0.05", 1),  # parameters that do not fit the model
         lambda t: t.replace("n_samples: 100", "n_samples: -4"),
-        lambda t: t.replace("condition_number: 900.0", "condition_number: lots"),
+        lambda t: t.replace("nis_mean: 1.01", "nis_mean: lots"),
     ],
-    ids=["torn", "garbage", "schema", "nan", "empty", "model", "params", "count", "excitation"],
+    ids=["torn", "garbage", "schema", "nan", "empty", "model", "params", "count", "nis"],
 )
 def test_damaged_file_falls_back_to_the_backup(tmp_path: Path, damage: object) -> None:
+    """A damaged file is reported and the backup used; it never replaces the good backup."""
     store = StateStore(tmp_path / "state.yaml")
     store.save({"emlog1": _state(0.1)})
     store.save({"emlog1": _state(0.2)})
@@ -79,14 +81,15 @@ def test_damaged_file_falls_back_to_the_backup(tmp_path: Path, damage: object) -
     assert damaged != store.path.read_text()
     store.path.write_text(damaged)
     states, report = store.load()
-    assert states["emlog1"].params["m"] == 0.1
+    assert states["emlog1"].params.m == 0.1
     assert any("damaged" in r for r in report) and any("backup" in r for r in report)
     # saving again never backs up the damaged file over the good backup
     store.save({"emlog1": _state(0.3)})
-    assert parse_state(store.backup.read_text())["emlog1"].params["m"] == 0.1
+    assert parse_state(store.backup.read_text())["emlog1"].params.m == 0.1
 
 
 def test_both_damaged_starts_uncalibrated(tmp_path: Path) -> None:
+    """Without a good file or backup the daemon starts uncalibrated."""
     store = StateStore(tmp_path / "state.yaml")
     store.path.write_text("x")
     store.backup.write_text("y")
@@ -95,6 +98,7 @@ def test_both_damaged_starts_uncalibrated(tmp_path: Path) -> None:
 
 
 def test_failed_write_leaves_the_previous_file(tmp_path: Path) -> None:
+    """A failed write raises StateWriteError and leaves the previous file and no temporary."""
     store = StateStore(tmp_path / "state.yaml")
     store.save({"emlog1": _state(0.1)})
     before = store.path.read_bytes()
@@ -152,8 +156,8 @@ def test_backup_is_copied_where_hard_links_fail(
     store.save({"emlog1": _state(0.1)})
     monkeypatch.setattr(os, "link", no_link)
     store.save({"emlog1": _state(0.2)})
-    assert parse_state(store.backup.read_text())["emlog1"].params["m"] == 0.1
-    assert store.load()[0]["emlog1"].params["m"] == 0.2
+    assert parse_state(store.backup.read_text())["emlog1"].params.m == 0.1
+    assert store.load()[0]["emlog1"].params.m == 0.2
     assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
 
 
@@ -166,10 +170,12 @@ def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
         "import resource, signal, sys\n"
         "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
         "resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))\n"
-        "from emlogd.daemon.statefile import StateStore, StateWriteError, CalibrationState\n"
+        "from emlogd.daemon.statefile import StateStore, StateWriteError\n"
+        "from emlogd.pipeline.calibration import Calibration\n"
+        "from calib.models import Params\n"
         f"s = StateStore({str(store.path)!r})\n"
         "try:\n"
-        "    s.save({'emlog1': CalibrationState('emlog1', 'EM3', {'m': 0.5, 'b': 0.0})})\n"
+        "    s.save({'emlog1': Calibration('emlog1', Params('EM3', m=0.5), {}, None)})\n"
         "except StateWriteError as e:\n"
         "    print('refused', e); sys.exit(0)\n"
         "sys.exit(3)\n"
@@ -181,29 +187,62 @@ def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
 
 
 def test_dump_marks_the_end() -> None:
-    text = dump_state({"emlog1": _state()})
+    """The end marker comes last: a file without it is truncated."""
+    text = dumps({"emlog1": _state()})
     assert text.rstrip().endswith("end: true")
-    with pytest.raises(StateFormatError, match="truncated"):
+    with pytest.raises(CalibrationFileError, match="truncated"):
         parse_state(text.replace("end: true", ""))
 
 
 def test_non_finite_values_are_written_as_null(tmp_path: Path) -> None:
-    s = CalibrationState("u", "EM3", {"m": 0.1, "b": 0.0}, {"m": math.inf}, nis_mean=math.nan)
+    """A nan NIS and an undetermined σ are written as null and read back as None."""
+    s = Calibration("u", Params("EM3", m=0.1), {"m": None, "b": 0.01}, None, nis_mean=math.nan)
     store = StateStore(tmp_path / "s.yaml")
     store.save({"u": s})
     loaded = store.load()[0]["u"]
-    assert loaded.nis_mean is None and loaded.param_std["m"] == math.inf
+    assert loaded.nis_mean is None and loaded.param_std["m"] is None
+
+
+@pytest.mark.parametrize(
+    "poison",
+    [
+        lambda t: t.replace("m: 0.2", "m: -2.0"),
+        lambda t: t.replace("b: 0.05", "b: 1000000.0"),
+        lambda t: t.replace("b: 0.05", "b: 1.0e+300"),
+        lambda t: t.replace("- - 0.0001", "- - -0.0001"),
+        lambda t: t.replace("- 1.0e-06", "- 1.0e+300"),
+        lambda t: t.replace("lag_s: 3.2", "lag_s: 1.0e+9"),
+    ],
+    ids=["m=-2", "b=1e6", "b=1e300", "not-spd", "cov-1e300", "lag"],
+)
+def test_a_poisoned_file_is_refused_and_the_backup_used(tmp_path: Path, poison: object) -> None:
+    """Absurd parameters, a covariance that is not SPD or a lag that is not one: the .bak."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    store.save({"emlog1": _state(0.2)})
+    text = store.path.read_text()
+    poisoned = poison(text)  # type: ignore[operator]
+    assert poisoned != text
+    store.path.write_text(poisoned)
+    states, report = store.load(check=lambda c: check(c, Envelope()))
+    assert states["emlog1"].params.m == 0.1
+    assert any("refused" in r or "damaged" in r for r in report)
+    store.backup.write_text(poisoned)
+    states, report = store.load(check=lambda c: check(c, Envelope()))
+    assert states == {} and "starting uncalibrated" in report[-1]
 
 
 KILLER = """
 import sys
-from emlogd.daemon.statefile import StateStore, CalibrationState
+from calib.models import Params
+from emlogd.daemon.statefile import StateStore
+from emlogd.pipeline.calibration import Calibration
 store = StateStore(sys.argv[1])
 i = 0
 while True:
     i += 1
-    store.save({"emlog1": CalibrationState("emlog1", "EM3", {"m": i * 1e-6, "b": 0.0},
-                                           n_samples=i)})
+    store.save({"emlog1": Calibration("emlog1", Params("EM3", m=i * 1e-6), {}, None,
+                                      n_samples=i)})
 """
 
 
@@ -233,11 +272,13 @@ def _kill_loop(tmp_path: Path, rounds: int) -> None:
 
 
 def test_kill_9_while_saving_never_loses_the_file(tmp_path: Path) -> None:
+    """kill -9 at any moment of a save leaves a loadable file."""
     _kill_loop(tmp_path, 8)
 
 
 @pytest.mark.soak
 def test_kill_9_soak(tmp_path: Path) -> None:
+    """The same, sixty rounds."""
     _kill_loop(tmp_path, 60)
 
 

@@ -1,0 +1,209 @@
+"""The calibration file: one format for the daemon's state file and ``calibrate --save``.
+
+YAML, under a kind and a schema version, one entry per UUT, each a
+:class:`~emlogd.pipeline.calibration.Calibration`::
+
+    kind: emlogd-calibration
+    schema: 2
+    saved_at: '2026-11-24T10:00:00+00:00'
+    uuts:
+      emlog1:
+        model: EM3            # EM1 … EM4
+        method: online        # online (the daemon), kf or ls (emlogd calibrate)
+        reset: false          # true: the operator reset it; no calibration
+        params: {m: 0.0512, b: 0.1031}
+        param_std: {m: 0.0021, b: 0.0034}   # null: not determined by the data
+        lag_s: 3.21
+        current: true         # estimated with the current states
+        current_mps: {north: -0.09, east: -0.07}          # null: not determined
+        current_std_mps: {north: 0.004, east: 0.004}
+        covariance: [[...], ...]   # the filter's, over [v, θ…, c_N, c_E]; [] for ls
+        t: 1749715200.0       # record time the calibration refers to, s
+        n_samples: 12034
+        reference: {port: dvl, field: bottom}
+        unidentifiable: []
+        nis_mean: 1.01
+        extra: {}             # producer's notes (offline: captures, RMSE)
+    end: true                 # last key: a truncated file is detected
+
+Parsing is strict (:class:`CalibrationFileError` names the key); whether a record may
+be *used* is :func:`emlogd.pipeline.calibration.check`, applied by whoever loads it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from datetime import UTC, datetime
+from typing import Any
+
+import yaml
+
+from calib.errors import CalibrationError
+from calib.models import MODEL_NAMES, PARAM_NAMES, Params
+from drivers.errors import EmlogdError
+from emlogd.pipeline.calibration import Calibration
+
+KIND = "emlogd-calibration"
+SCHEMA = 2
+
+
+class CalibrationFileError(EmlogdError):
+    """A calibration file is damaged, of another kind or of another schema."""
+
+
+def _f(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _ne(pair: tuple[float, float] | None) -> dict[str, float | None] | None:
+    return None if pair is None else {"north": _f(pair[0]), "east": _f(pair[1])}
+
+
+def to_dict(cal: Calibration, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """One entry as plain types."""
+    return {
+        "model": cal.params.model,
+        "method": cal.method,
+        "reset": cal.reset,
+        "params": {k: _f(v) for k, v in cal.params.as_dict().items()},
+        "param_std": {k: _f(v) for k, v in cal.param_std.items()},
+        "lag_s": _f(cal.lag_s),
+        "current": cal.current,
+        "current_mps": _ne(cal.current_mps),
+        "current_std_mps": _ne(cal.current_std_mps),
+        "covariance": [[_f(x) for x in row] for row in cal.covariance],
+        "t": float(cal.t),
+        "n_samples": int(cal.n_samples),
+        "reference": dict(cal.reference),
+        "unidentifiable": list(cal.unidentifiable),
+        "nis_mean": _f(cal.nis_mean),
+        "extra": dict(extra or {}),
+    }
+
+
+def dumps(
+    cals: Mapping[str, Calibration], extra: Mapping[str, Mapping[str, Any]] | None = None
+) -> str:
+    """The file's text (the end marker comes last, so a truncated file is detected)."""
+    doc = {
+        "kind": KIND,
+        "schema": SCHEMA,
+        "saved_at": datetime.now(UTC).isoformat(timespec="seconds"),
+        "uuts": {uut: to_dict(c, (extra or {}).get(uut)) for uut, c in cals.items()},
+        "end": True,
+    }
+    return "# emlogd calibration (do not edit while the daemon runs)\n" + yaml.safe_dump(
+        doc, sort_keys=False
+    )
+
+
+def _num(v: Any, where: str, *, allow_none: bool = False) -> float | None:
+    if v is None and allow_none:
+        return None
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise CalibrationFileError(f"{where}: expected a finite number, got {v!r}")
+    return float(v)
+
+
+def _req(v: Any, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise CalibrationFileError(f"{where}: expected a finite number, got {v!r}")
+    return float(v)
+
+
+def _pair(v: Any, where: str) -> tuple[float, float] | None:
+    if v is None:
+        return None
+    if not isinstance(v, dict):
+        raise CalibrationFileError(f"{where}: expected {{north, east}}")
+    return (_req(v.get("north"), f"{where}.north"), _req(v.get("east"), f"{where}.east"))
+
+
+def from_dict(uut: str, d: Any) -> tuple[Calibration, dict[str, Any]]:
+    """One entry from plain types; returns the record and its ``extra`` notes.
+
+    Raises:
+        CalibrationFileError: anything malformed (the message names the key).
+    """
+    w = f"uuts.{uut}"
+    if not isinstance(d, dict):
+        raise CalibrationFileError(f"{w}: expected a mapping")
+    model = d.get("model")
+    if model not in MODEL_NAMES:
+        raise CalibrationFileError(f"{w}.model: {model!r} is not one of {', '.join(MODEL_NAMES)}")
+    names = PARAM_NAMES[model]
+    values = d.get("params")
+    if not isinstance(values, dict) or sorted(values) != sorted(names):
+        raise CalibrationFileError(f"{w}.params: {model} has {', '.join(names)}")
+    try:
+        params = Params.from_theta(model, [_req(values[n], f"{w}.params.{n}") for n in names])
+    except CalibrationError as exc:
+        raise CalibrationFileError(f"{w}.params: {exc}") from None
+    std_raw = d.get("param_std") or {}
+    if not isinstance(std_raw, dict) or not set(std_raw) <= set(names):
+        raise CalibrationFileError(f"{w}.param_std: keys must be among {', '.join(names)}")
+    std = {str(k): _num(v, f"{w}.param_std.{k}", allow_none=True) for k, v in std_raw.items()}
+    method = d.get("method", "online")
+    if method not in ("online", "kf", "ls"):
+        raise CalibrationFileError(f"{w}.method: {method!r} is not online, kf or ls")
+    cov_raw = d.get("covariance") or []
+    if not isinstance(cov_raw, list) or not all(isinstance(r, list) for r in cov_raw):
+        raise CalibrationFileError(f"{w}.covariance: expected a list of rows")
+    cov = tuple(tuple(_req(x, f"{w}.covariance") for x in row) for row in cov_raw)
+    n = d.get("n_samples", 0)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+        raise CalibrationFileError(f"{w}.n_samples: expected a count, got {n!r}")
+    ref = d.get("reference") or {}
+    if not isinstance(ref, dict):
+        raise CalibrationFileError(f"{w}.reference: expected a mapping")
+    unid = d.get("unidentifiable") or []
+    if not isinstance(unid, list) or not all(isinstance(x, str) for x in unid):
+        raise CalibrationFileError(f"{w}.unidentifiable: expected a list of names")
+    extra = d.get("extra") or {}
+    if not isinstance(extra, dict):
+        raise CalibrationFileError(f"{w}.extra: expected a mapping")
+    cal = Calibration(
+        uut=uut,
+        params=params,
+        param_std=std,
+        lag_s=_num(d.get("lag_s"), f"{w}.lag_s", allow_none=True),
+        current=bool(d.get("current", False)),
+        current_mps=_pair(d.get("current_mps"), f"{w}.current_mps"),
+        current_std_mps=_pair(d.get("current_std_mps"), f"{w}.current_std_mps"),
+        covariance=cov,
+        method=method,
+        t=_req(d.get("t", 0.0), f"{w}.t"),
+        n_samples=n,
+        reference={str(k): str(v) for k, v in ref.items()},
+        unidentifiable=tuple(unid),
+        nis_mean=_num(d.get("nis_mean"), f"{w}.nis_mean", allow_none=True),
+        reset=bool(d.get("reset", False)),
+    )
+    return cal, extra
+
+
+def loads(text: str) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]]]:
+    """Parse a file's text: the records by UUT and their ``extra`` notes.
+
+    Raises:
+        CalibrationFileError: not YAML, wrong kind or schema, truncated, malformed.
+    """
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise CalibrationFileError(f"not valid YAML ({exc.__class__.__name__})") from None
+    if not isinstance(doc, dict) or doc.get("kind") != KIND:
+        raise CalibrationFileError("not an emlogd calibration file")
+    if doc.get("schema") != SCHEMA:
+        raise CalibrationFileError(f"schema {doc.get('schema')!r}, this emlogd reads {SCHEMA}")
+    uuts = doc.get("uuts")
+    if not isinstance(uuts, dict):
+        raise CalibrationFileError("missing uuts")
+    if doc.get("end") is not True:
+        raise CalibrationFileError("truncated (no end marker)")
+    cals: dict[str, Calibration] = {}
+    extras: dict[str, dict[str, Any]] = {}
+    for k, v in uuts.items():
+        cals[str(k)], extras[str(k)] = from_dict(str(k), v)
+    return cals, extras

@@ -1,0 +1,129 @@
+"""The calibration record: what the daemon applies and persists, and what an offline fit saves.
+
+One record for every producer (the online filter, ``emlogd calibrate`` with least
+squares or the Kalman filter) and every consumer (the daemon's warm start,
+``emlogd evaluate``, ``emlogd replay --state``); the state file
+(:mod:`emlogd.calfile`) holds one per UUT. A record is checked before it is used
+(:func:`check`): parameters inside the physical envelope, a covariance that is
+symmetric positive-definite with sane magnitudes and matches the model, a known
+model and a finite lag.
+
+Must not import: serial, os, time, threading, socket (pure module).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal, Protocol
+
+import numpy as np
+
+from calib.errors import ModelError
+from calib.kalman import check_covariance
+from calib.models import Layout, Params
+from emlogd.pipeline.integrity import Envelope
+
+Method = Literal["online", "kf", "ls"]
+"""Who produced a calibration: the daemon's filter, or an offline fit."""
+
+MAX_VARIANCE = 1e4
+"""A covariance entry above this (in the state's units squared) is not a calibration."""
+
+
+@dataclass(frozen=True, slots=True)
+class Calibration:
+    """A calibration of one UUT.
+
+    Attributes:
+        uut: the UUT port name.
+        params: the error model's parameters (the model is ``params.model``).
+        param_std: their standard deviations by short name (None: not determined).
+        lag_s: the UUT's latency behind its reference, s (None: unknown).
+        current: whether the calibration was estimated with the current states.
+        current_mps: the current (north, east) at ``t``, m/s, when determined.
+        current_std_mps: its standard deviations, m/s.
+        covariance: the filter's covariance over :attr:`Layout.states` (online and kf),
+            for a warm start; empty when there is none (ls).
+        method: ``online``, ``kf`` or ``ls``.
+        t: record time the calibration refers to, s since the epoch.
+        n_samples: samples learnt from.
+        reference: ``port`` and ``field`` of the reference it was learnt against.
+        unidentifiable: the unknowns the data did not determine (held at their prior).
+        nis_mean: running NIS mean (online, kf).
+        reset: the UUT was reset by the operator: no calibration (params are nominal).
+    """
+
+    uut: str
+    params: Params
+    param_std: Mapping[str, float | None]
+    lag_s: float | None
+    current: bool = False
+    current_mps: tuple[float, float] | None = None
+    current_std_mps: tuple[float, float] | None = None
+    covariance: tuple[tuple[float, ...], ...] = ()
+    method: Method = "online"
+    t: float = 0.0
+    n_samples: int = 0
+    reference: Mapping[str, str] = field(default_factory=dict)
+    unidentifiable: tuple[str, ...] = ()
+    nis_mean: float | None = None
+    reset: bool = False
+
+    @property
+    def layout(self) -> Layout:
+        """The unknowns (and the filter's state layout) of this calibration."""
+        return Layout(self.params.model, self.current)
+
+
+def check(cal: Calibration, envelope: Envelope) -> str:
+    """``""`` when the calibration may be used, else why not (one line).
+
+    Checks: parameters inside ``envelope``; the current (if any) within it; a finite
+    lag within ±60 s; a covariance, when present, of the layout's shape, finite,
+    symmetric and positive-definite with no variance above :data:`MAX_VARIANCE`;
+    standard deviations finite and non-negative.
+    """
+    if cal.reset:
+        return ""
+    why = envelope.check(cal.params, cal.current_mps)
+    if why:
+        return why
+    if cal.lag_s is not None and not (math.isfinite(cal.lag_s) and abs(cal.lag_s) <= 60.0):
+        return f"lag {cal.lag_s!r} s is not a latency"
+    for name, sd in cal.param_std.items():
+        if sd is not None and not (math.isfinite(sd) and sd >= 0.0):
+            return f"standard deviation of {name} is {sd!r}"
+    if cal.covariance:
+        n = cal.layout.n
+        try:
+            check_covariance(cal.covariance, n)
+        except ModelError as exc:
+            return str(exc)
+        if float(np.max(np.abs(np.asarray(cal.covariance)))) > MAX_VARIANCE:
+            return "covariance magnitudes are not a calibration's"
+    return ""
+
+
+class HasEnvelope(Protocol):
+    """A UUT's settings as far as loading a calibration is concerned."""
+
+    @property
+    def port(self) -> str:
+        """The UUT port."""
+
+    @property
+    def envelope(self) -> Envelope:
+        """Its physical envelope."""
+
+
+def checker(uuts: Iterable[HasEnvelope]) -> Callable[[Calibration], str]:
+    """The check of a loaded calibration against its UUT's envelope (a default one for a
+    UUT the config does not have)."""
+    envelopes = {u.port: u.envelope for u in uuts}
+
+    def check_one(cal: Calibration) -> str:
+        return check(cal, envelopes.get(cal.uut, Envelope()))
+
+    return check_one

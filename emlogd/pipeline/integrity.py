@@ -1,0 +1,284 @@
+"""Integrity monitoring: what may reach the autopilot, and what may be learnt.
+
+The calibration is an integrity monitor as much as a filter. This module holds the
+pieces, each with a reason a person understands (the per-UUT supervisor in
+:mod:`emlogd.pipeline.uut` turns them into decisions, counters and status):
+
+- :class:`Envelope` — the physical envelope of a calibration and of a corrected
+  speed. A calibration outside it is never applied, persisted or loaded; a reading
+  outside the sensor's range is refused; a corrected speed is clamped to it;
+- :class:`UutHealth` — the speed log's own faults: a reading *stuck* (no change
+  beyond quantisation for ``stuck_s`` while the reference moves) or *zero* while the
+  reference says the vessel moves;
+- :class:`JumpFilter` — a reference or heading sample that would need a physically
+  impossible acceleration or turn rate since the last accepted one is a glitch; a
+  new level held for ``confirm_s`` is accepted (after an outage the vessel may
+  really be elsewhere);
+- :class:`PairedWindow` — the RMS errors of the raw reading, the applied calibration
+  and the previous one against the reference, over one forgetting window of the
+  same samples: the figures behind "never worse than raw";
+- :func:`emitted_speed` — the policy at low and out-of-range speeds.
+
+Must not import: serial, os, time, threading, socket (pure module).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from calib.models import Params
+
+QUANTUM_MPS = 0.006
+"""A change of a reading smaller than this is quantisation, not motion (0.01 kn is
+0.005 m/s: the two-decimal knots field of VHW/VBW)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Envelope:
+    """The physical envelope of a calibration and of the speeds it produces.
+
+    Attributes:
+        max_abs_m: largest |m| (a log reading 50 % off is broken, not calibrated).
+        max_abs_b_mps: largest |b|, m/s.
+        max_abs_a_spm: largest |a|, s/m.
+        max_current_mps: largest current magnitude, m/s.
+        max_speed_mps: the sensor's range: a reading above it is refused, a corrected
+            speed is clamped to it, and the inverse model must be monotonic without
+            saturating over ``[0, max_speed_mps]``.
+    """
+
+    max_abs_m: float = 0.5
+    max_abs_b_mps: float = 0.5
+    max_abs_a_spm: float = 0.1
+    max_current_mps: float = 3.0
+    max_speed_mps: float = 8.0
+
+    def check(self, params: Params, current_mps: tuple[float, float] | None = None) -> str:
+        """``""`` when the calibration is inside the envelope, else why not."""
+        a, m, b = params.a_spm, params.m, params.b_mps
+        if not all(math.isfinite(x) for x in (a, m, b)):
+            return "parameters not finite"
+        if abs(m) > self.max_abs_m:
+            return f"scale m={m:+.3f} outside ±{self.max_abs_m:g}"
+        if abs(b) > self.max_abs_b_mps:
+            return f"bias b={b:+.3f} m/s outside ±{self.max_abs_b_mps:g} m/s"
+        if abs(a) > self.max_abs_a_spm:
+            return f"curvature a={a:+.4f} s/m outside ±{self.max_abs_a_spm:g} s/m"
+        g = 1.0 + m
+        vmax = self.max_speed_mps
+        if g + 2.0 * a * vmax <= 0.0:
+            return f"model not monotonic up to {vmax:g} m/s"
+        if a < 0.0 and b - g * g / (4.0 * a) < vmax:
+            return f"inverse model saturates below {vmax:g} m/s"
+        if current_mps is not None:
+            c = math.hypot(*current_mps)
+            if not math.isfinite(c) or c > self.max_current_mps:
+                return f"current {c:.2f} m/s above {self.max_current_mps:g} m/s"
+        return ""
+
+
+def emitted_speed(
+    corrected_mps: float, raw_mps: float, low_speed_mps: float, max_mps: float
+) -> float:
+    """The speed sent to the autopilot for a corrected reading (the low-speed policy).
+
+    Below ``low_speed_mps`` of raw reading the output follows the sensor: it blends
+    from the raw reading (at half the threshold and below) to the corrected one (at
+    the threshold), so a bias never turns a log at rest into phantom sternway or
+    headway. The result is never negative and never above ``max_mps``.
+
+    Args:
+        corrected_mps: the corrected speed, m/s.
+        raw_mps: the raw reading, m/s.
+        low_speed_mps: the threshold, m/s (0 disables the blend).
+        max_mps: the sensor's range, m/s.
+    """
+    out = corrected_mps
+    if low_speed_mps > 0.0 and raw_mps < low_speed_mps:
+        w = min(max((raw_mps - 0.5 * low_speed_mps) / (0.5 * low_speed_mps), 0.0), 1.0)
+        out = w * corrected_mps + (1.0 - w) * raw_mps
+    if not math.isfinite(out):
+        return math.nan
+    return min(max(out, 0.0), max_mps)
+
+
+class UutHealth:
+    """A speed log's faults: stuck, or zero while the reference moves.
+
+    Args:
+        stuck_s: a reading unchanged (beyond :data:`QUANTUM_MPS`) this long while the
+            reference moved by at least ``ref_move_mps`` is stuck, s.
+        zero_s: a reading at zero this long while the reference is above
+            ``moving_mps`` is a dead log, s.
+        ref_move_mps: least change of the reference that proves motion, m/s.
+        moving_mps: reference speed above which the vessel moves, m/s.
+    """
+
+    __slots__ = (
+        "_anchor",
+        "_ref_hi",
+        "_ref_lo",
+        "_t_anchor",
+        "_t_zero",
+        "fault",
+        "moving_mps",
+        "ref_move_mps",
+        "stuck_s",
+        "zero_s",
+    )
+
+    def __init__(
+        self,
+        stuck_s: float = 60.0,
+        zero_s: float = 10.0,
+        ref_move_mps: float = 0.3,
+        moving_mps: float = 0.5,
+    ) -> None:
+        self.stuck_s = stuck_s
+        self.zero_s = zero_s
+        self.ref_move_mps = ref_move_mps
+        self.moving_mps = moving_mps
+        self._anchor = math.nan
+        self._t_anchor = 0.0
+        self._ref_lo = math.inf
+        self._ref_hi = -math.inf
+        self._t_zero: float | None = None
+        self.fault = ""
+        """The current fault: ``""``, ``"uut_stuck"`` or ``"uut_zero"``."""
+
+    def update(self, t: float, raw_mps: float, ref_mps: float | None) -> str:
+        """Add one reading (and the reference at its time, if valid); return the fault."""
+        if not abs(raw_mps - self._anchor) <= QUANTUM_MPS:
+            self._anchor = raw_mps
+            self._t_anchor = t
+            self._ref_lo, self._ref_hi = math.inf, -math.inf
+        if ref_mps is not None:
+            self._ref_lo = min(self._ref_lo, ref_mps)
+            self._ref_hi = max(self._ref_hi, ref_mps)
+        at_zero = abs(raw_mps) <= 2.0 * QUANTUM_MPS
+        if not at_zero or (ref_mps is not None and ref_mps <= self.moving_mps):
+            self._t_zero = None
+        elif ref_mps is not None and self._t_zero is None:
+            self._t_zero = t
+        if self._t_zero is not None and t - self._t_zero >= self.zero_s:
+            self.fault = "uut_zero"
+        elif (
+            t - self._t_anchor >= self.stuck_s and self._ref_hi - self._ref_lo >= self.ref_move_mps
+        ):
+            self.fault = "uut_stuck"
+        elif self.fault == "uut_stuck" and t > self._t_anchor:
+            pass  # unchanged since the fault was declared: it stands until the reading moves
+        else:
+            self.fault = ""
+        return self.fault
+
+
+class JumpFilter:
+    """Refuses samples that would need an impossible rate of change; re-acquires a new level.
+
+    Args:
+        max_rate: the largest physical rate of change (m/s² for speeds, °/s for
+            headings).
+        margin: a change always allowed (noise, quantisation), in the series' unit.
+        confirm_s: a new level that repeats for this long is accepted, s.
+        angular: the series is an angle in degrees.
+    """
+
+    __slots__ = ("_last", "_pending", "angular", "confirm_s", "margin", "max_rate", "rejected")
+
+    def __init__(
+        self, max_rate: float, margin: float, confirm_s: float = 3.0, *, angular: bool = False
+    ) -> None:
+        self.max_rate = max_rate
+        self.margin = margin
+        self.confirm_s = confirm_s
+        self.angular = angular
+        self._last: tuple[float, float] | None = None
+        self._pending: tuple[float, float, float] | None = None
+        self.rejected = 0
+        """Samples refused so far."""
+
+    def _diff(self, a: float, b: float) -> float:
+        d = a - b
+        return abs((d + 180.0) % 360.0 - 180.0) if self.angular else abs(d)
+
+    def accept(self, t: float, value: float) -> bool:
+        """True when the sample is plausible (and becomes the last accepted one)."""
+        last = self._last
+        if last is None:
+            self._last = (t, value)
+            return True
+        allowed = self.margin + self.max_rate * max(t - last[0], 0.0)
+        if self._diff(value, last[1]) <= allowed:
+            self._last = (t, value)
+            self._pending = None
+            return True
+        pend = self._pending
+        if pend is not None and self._diff(value, pend[2]) <= self.margin + self.max_rate * (
+            t - pend[1]
+        ):
+            if t - pend[0] >= self.confirm_s:
+                self._last = (t, value)
+                self._pending = None
+                return True
+            self._pending = (pend[0], t, value)
+        else:
+            self._pending = (t, t, value)
+        self.rejected += 1
+        return False
+
+    def reset(self) -> None:
+        """Forget the last accepted sample (after an outage longer than any physics bound)."""
+        self._last = None
+        self._pending = None
+
+
+class PairedWindow:
+    """RMS errors of raw, applied and previous over the same samples, forgetting in time.
+
+    Fixed memory: three forgotten sums of squares and one forgotten count, so the
+    three figures are always compared on exactly the same samples.
+
+    Args:
+        half_life_s: time after which a sample's weight has halved, s.
+    """
+
+    __slots__ = ("_n", "_ss", "_t", "half_life_s")
+
+    def __init__(self, half_life_s: float) -> None:
+        self.half_life_s = half_life_s
+        self._t: float | None = None
+        self._ss = [0.0, 0.0, 0.0]
+        self._n = 0.0
+
+    def add(self, t: float, e_raw: float, e_applied: float, e_previous: float) -> None:
+        """Add one sample's three errors at time ``t``, m/s."""
+        if self._t is not None and t > self._t:
+            lam = 0.5 ** ((t - self._t) / self.half_life_s)
+            self._ss = [x * lam for x in self._ss]
+            self._n *= lam
+        self._t = t if self._t is None else max(t, self._t)
+        ss = self._ss
+        ss[0] += e_raw * e_raw
+        ss[1] += e_applied * e_applied
+        ss[2] += e_previous * e_previous
+        self._n += 1.0
+
+    @property
+    def n_effective(self) -> float:
+        """Effective number of samples in the window."""
+        return self._n
+
+    def rmse(self) -> tuple[float, float, float]:
+        """(raw, applied, previous) RMS errors, m/s (nan when empty)."""
+        if self._n <= 0.0:
+            return math.nan, math.nan, math.nan
+        r0, r1, r2 = (math.sqrt(x / self._n) for x in self._ss)
+        return r0, r1, r2
+
+    def reset(self) -> None:
+        """Empty the window (the applied or previous calibration changed)."""
+        self._t = None
+        self._ss = [0.0, 0.0, 0.0]
+        self._n = 0.0

@@ -1,0 +1,768 @@
+"""The calibration of one unit under test (UUT): align, learn, supervise, correct.
+
+One :class:`UutCalibration` per EMlog, fed by :class:`emlogd.pipeline.core.Pipeline`
+with the UUT's readings, its reference (already reduced to a speed along the hull)
+and its heading. Nothing here reads a clock or does I/O; times are receive times.
+
+**Emitting** (:meth:`UutCalibration.correct`) uses only the *applied* calibration:
+the last one that beat the raw reading on data it had not learnt from, else the raw
+reading itself (pass-through). It never waits for the reference, so the autopilot's
+latency is the decoder's.
+
+**Learning** (:meth:`UutCalibration.learn`) pairs each reading with the reference and
+the heading at ``t − lag`` (:mod:`emlogd.pipeline.align`); a reading waits in a short
+queue until its reference has arrived. Per sample:
+
+1. the lag: configured, restored with the calibration, or estimated once over
+   ``lag_window_s`` (:mod:`calib.lag`, with the current modelled when there is one);
+2. the reference's state: valid, lost, stale, too slow, or none yet;
+3. the UUT's health (:class:`~emlogd.pipeline.integrity.UutHealth`): a stuck or dead
+   log is neither learnt from nor corrected — its output goes silent;
+4. which unknowns the recent data determine (:class:`calib.excitation.ExcitationWindow`):
+   only those learn; the others are held at their prior (the applied calibration,
+   else nominal). With current states the current always learns — as a nuisance
+   absorbing bias and along-hull current together when they cannot be told apart;
+5. the filter step (:class:`calib.kalman.KfCalibrator`) with an NIS gate: a gated
+   sample teaches nothing; a run of gated readings re-opens the parameters (the
+   sensor changed), a run of gated references re-acquires the speed;
+6. supervision: an estimate whose learnt unknowns are all under ``max_param_std``,
+   inside the envelope, and different enough from the applied calibration becomes
+   a *candidate*, frozen and scored against the reference over the next
+   ``validation_s``; it is applied only if it beats both the raw reading and the
+   applied calibration there. The applied calibration is re-checked on a window of
+   ``recheck_s``: once worse than raw it falls back to the previous good one if that
+   beats raw, else to raw pass-through, and says so.
+
+Errors are scored in the water frame when the UUT has current states: a calibration's
+corrected speed plus the estimated current projected on the hull, against the
+reference over the ground.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from calib.errors import CalibrationError
+from calib.excitation import ExcitationWindow, Identifiability
+from calib.kalman import KfCalibrator
+from calib.lag import accept, estimate_lag
+from calib.models import CURRENT, FloatArray, Layout, Params, check_model, zero_params
+from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.integrity import Envelope, PairedWindow, UutHealth, emitted_speed
+
+if TYPE_CHECKING:
+    from emlogd.pipeline.core import UutSettings
+
+RefState = Literal["valid", "lost", "stale", "slow", "none"]
+CalState = Literal["learning", "frozen", "uncalibrated", "fault"]
+
+EVAL_EVERY = 10
+"""Identifiability is re-judged every this many samples with a valid reference."""
+
+LEARN_STD_FACTOR = 5.0
+"""Online, an unknown may learn while the window's own information gives it a standard
+deviation up to this many times its ``max_std``: the filter's covariance weighs weak
+information, and only a structural degeneracy (constant speed, too few heading
+sectors, a singular window) must stop it. Whether the result is good enough to apply
+is judged on the filter's covariance (``max_param_std``) and the validation window."""
+
+LAG_WINDOW_GROWTH = 4.0
+"""A refused lag estimate lets the window grow up to this many times ``lag_window_s``."""
+
+LAG_MAX_RATE_HZ = 20.0
+"""Reference samples per second the lag window is sized for (a 10 Hz DVL twice over)."""
+
+REOPEN_AFTER = 5
+"""Samples learnt with some parameter held after which that parameter becoming
+determined re-opens every parameter: what was learnt meanwhile was conditional on the
+held value (a scale learnt with the bias held at nominal absorbed the bias)."""
+
+VALIDATION_MIN_SAMPLES = 20
+"""A candidate needs at least this many scored samples in its validation window."""
+
+RECHECK_MIN_SAMPLES = 60.0
+"""The applied calibration is judged once its re-check window holds this many."""
+
+WORSE_FACTOR = 1.05
+WORSE_MARGIN_MPS = 0.005
+"""The applied calibration is worse than raw when its RMSE exceeds raw's × 1.05 + 5 mm/s."""
+
+
+@dataclass
+class Counters:
+    """Why samples were not learnt from (or not emitted), by reason."""
+
+    learnt: int = 0
+    out_of_range: int = 0
+    backlog: int = 0
+    gated_raw: int = 0
+    gated_ref: int = 0
+    no_heading: int = 0
+    uut_fault: int = 0
+    relearn: int = 0
+    reacquire: int = 0
+    envelope: int = 0
+    candidates_rejected: int = 0
+    candidates_applied: int = 0
+    fallbacks: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        """Plain types."""
+        return dict(self.__dict__)
+
+
+@dataclass(slots=True)
+class Score:
+    """Running sums of squared errors against the reference (replay's RMSE figures)."""
+
+    n: int = 0
+    ss_raw: float = 0.0
+    ss_cor: float = 0.0
+
+    def add(self, err_raw: float, err_cor: float) -> None:
+        """One sample's errors (reading − reference), m/s."""
+        self.n += 1
+        self.ss_raw += err_raw * err_raw
+        self.ss_cor += err_cor * err_cor
+
+    @property
+    def rmse_raw(self) -> float | None:
+        """RMSE of the raw readings, m/s (None before any sample)."""
+        return math.sqrt(self.ss_raw / self.n) if self.n else None
+
+    @property
+    def rmse_corrected(self) -> float | None:
+        """RMSE of the emitted speeds, m/s."""
+        return math.sqrt(self.ss_cor / self.n) if self.n else None
+
+
+@dataclass
+class _Candidate:
+    params: Params
+    t0: float
+    raw: float = 0.0
+    cand: float = 0.0
+    applied: float = 0.0
+    n: int = 0
+
+
+class LagFinder:
+    """Bounded series of the UUT, its reference and heading for the one-off lag estimate.
+
+    The first estimate is made over ``window_s``; a refused one keeps the data and
+    waits for a window half as long again, up to :data:`LAG_WINDOW_GROWTH` times the
+    first (a broad correlation peak sharpens with more data); beyond that the older
+    half is dropped and the window slides.
+    """
+
+    def __init__(self, window_s: float, max_lag_s: float, with_heading: bool) -> None:
+        self.window_s = window_s
+        self.target_s = window_s
+        self.max_lag_s = max_lag_s
+        self.with_heading = with_heading
+        cap = int((LAG_WINDOW_GROWTH * window_s + 2 * max_lag_s) * LAG_MAX_RATE_HZ) + 64
+        self.uut = _Series(cap)
+        self.ref = _Series(cap)
+        self.heading = _Series(cap)
+
+    def ready(self) -> bool:
+        """The UUT series spans the current target window."""
+        return self.uut.span() >= self.target_s
+
+    def span(self) -> float:
+        """Time the UUT series spans, s."""
+        return self.uut.span()
+
+    def estimate(self) -> tuple[float | None, float, str]:
+        """``(lag, std, why)``: an accepted lag, or None and why (then the window grows)."""
+        try:
+            est = estimate_lag(
+                self.uut.times(),
+                self.uut.values(),
+                self.ref.times(),
+                self.ref.values(),
+                self.max_lag_s,
+                step_s=0.1,
+                heading=(self.heading.times(), self.heading.values())
+                if self.with_heading
+                else None,
+            )
+        except CalibrationError as exc:
+            why = str(exc)
+        else:
+            why = accept(est)
+            if not why:
+                return est.lag_s, est.std_s, f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
+        if self.target_s < LAG_WINDOW_GROWTH * self.window_s:
+            self.target_s = min(1.5 * self.target_s, LAG_WINDOW_GROWTH * self.window_s)
+        else:
+            for q in (self.uut, self.ref, self.heading):
+                q.drop_older_half()
+        return None, math.inf, why
+
+
+class _Series:
+    """Two bounded deques of floats (times and values): lean fixed memory."""
+
+    __slots__ = ("t", "v")
+
+    def __init__(self, cap: int) -> None:
+        self.t: deque[float] = deque(maxlen=cap)
+        self.v: deque[float] = deque(maxlen=cap)
+
+    def append(self, item: tuple[float, float]) -> None:
+        self.t.append(item[0])
+        self.v.append(item[1])
+
+    def span(self) -> float:
+        return self.t[-1] - self.t[0] if self.t else 0.0
+
+    def times(self) -> FloatArray:
+        return np.fromiter(self.t, dtype=np.float64, count=len(self.t))
+
+    def values(self) -> FloatArray:
+        return np.fromiter(self.v, dtype=np.float64, count=len(self.v))
+
+    def drop_older_half(self) -> None:
+        for _ in range(len(self.t) // 2):
+            self.t.popleft()
+            self.v.popleft()
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+class UutCalibration:
+    """The online calibration of one UUT (see the module docstring).
+
+    Args:
+        s: the UUT's settings (:class:`emlogd.pipeline.core.UutSettings`).
+        prior: a checked calibration to start from (warm start), or None.
+        heading_at: returns the UUT's heading in degrees (true) at a time, or None.
+        event: called as ``event(t, kind, detail)`` for every state change worth a log line.
+    """
+
+    def __init__(
+        self,
+        s: UutSettings,
+        prior: Calibration | None,
+        heading_at: Callable[[float], float | None],
+        event: Callable[[float, str, Mapping[str, object]], None],
+    ) -> None:
+        self.s = s
+        self.layout = Layout(check_model(s.model), s.current)
+        self.heading_at = heading_at
+        self._event = event
+        usable = prior if prior is not None and not prior.reset else None
+        if usable is not None and usable.params.model != s.model:
+            usable = None
+        self.applied: Params | None = usable.params if usable is not None else None
+        self.applied_std: dict[str, float | None] = dict(usable.param_std) if usable else {}
+        self.previous: Params | None = None
+        self.kf = self._new_filter(usable)
+        self.lag_s: float | None = s.lag_s
+        if self.lag_s is None and usable is not None and usable.lag_s is not None:
+            self.lag_s = usable.lag_s
+        self.lag_std_s = math.inf
+        self.lag_finder = (
+            LagFinder(s.lag_window_s, s.max_lag_s, s.current) if self.lag_s is None else None
+        )
+        self.ref = SampleRing(int((s.max_lag_s + 5.0) * 50) + 64)
+        self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
+        self.window = ExcitationWindow(
+            self.layout, max(s.excitation_half_life_samples, 1.0), s.rule
+        )
+        self.ident: Identifiability | None = None
+        self.learn_set: frozenset[str] = frozenset()
+        self.learnt_ever: set[str] = set()
+        self.cond_samples = 0
+        self.health = UutHealth(s.stuck_s, s.zero_s)
+        self.learn_on = s.learn
+        self.state: CalState = "frozen" if self.applied is not None else "uncalibrated"
+        self.reason = (
+            "" if self.applied is not None else "no calibration yet: raw readings pass through"
+        )
+        self.ref_state: RefState = "none"
+        self.t_prev: float | None = None
+        self.t_ref_last = -math.inf
+        self.n_learnt = usable.n_samples if usable is not None else 0
+        self.n_since_eval = 0
+        self.nis: deque[float] = deque(maxlen=300)
+        self.nis_sum = 0.0
+        self.gated_run_raw = 0
+        self.gated_run_ref = 0
+        self.candidate: _Candidate | None = None
+        self.recheck = PairedWindow(s.recheck_s)
+        self.counters = Counters()
+        self.score = Score()
+        self.score_water = Score()
+        self.freezes = 0
+        self._was_learning = False
+        self.t_persist = -math.inf
+        self.persisted: Params | None = self.applied
+        self.dirty = False
+        """The applied calibration changed since it was last handed out for persisting."""
+        self.note = ""
+        """The last supervision decision worth showing with the state (a fallback)."""
+
+    # -- construction -------------------------------------------------------
+
+    def _new_filter(self, prior: Calibration | None) -> KfCalibrator:
+        s = self.s
+        params0 = prior.params if prior is not None else None
+        cur0 = prior.current_mps if prior is not None and prior.current else None
+        cov0 = None
+        if prior is not None and prior.covariance and prior.layout == self.layout:
+            cov0 = np.array(prior.covariance, dtype=np.float64)
+        elif prior is not None:
+            n = self.layout.n
+            diag = np.full(n, s.kf.p0)
+            for i, name in enumerate(self.layout.params):
+                sd = prior.param_std.get(name)
+                if sd is not None and math.isfinite(sd) and sd > 0.0:
+                    diag[1 + i] = max(sd * sd, 1e-12)
+            if self.layout.current:
+                diag[-2:] = s.kf.current_p0_m2ps2
+            cov0 = np.diag(diag)
+        return KfCalibrator(
+            s.model, s.kf, current=s.current, params0=params0, current0_mps=cur0, P0=cov0
+        )
+
+    def _emit(self, t: float, kind: str, detail: Mapping[str, object]) -> None:
+        self._event(t, kind, detail)
+
+    # -- emitting -------------------------------------------------------------
+
+    def correct(self, raw_mps: float) -> float | None:
+        """The speed to send for a reading: applied calibration, or raw; None when silent.
+
+        Silent while the UUT has a fault (a stuck or dead log is not a measurement).
+        """
+        if self.health.fault:
+            return None
+        p = self.applied if self.s.apply else None
+        corrected = raw_mps if p is None else p.correct(raw_mps)
+        out = emitted_speed(corrected, raw_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
+        return out if math.isfinite(out) else None
+
+    def in_range(self, raw_mps: float) -> bool:
+        """A reading the sensor can give: finite, within ``[0, max_speed]`` (sternway aside)."""
+        return math.isfinite(raw_mps) and -1.0 <= raw_mps <= self.s.envelope.max_speed_mps
+
+    # -- inputs -------------------------------------------------------------
+
+    def add_reference(self, t: float, v_mps: float | None, valid: bool) -> None:
+        """One reference sample along the hull (already filtered for glitches)."""
+        if not self.ref.add(t, v_mps, valid):
+            return
+        self.t_ref_last = t
+        lf = self.lag_finder
+        if lf is not None and valid and v_mps is not None and math.isfinite(v_mps):
+            lf.ref.append((t, v_mps))
+            if lf.with_heading:
+                h = self.heading_at(t)
+                if h is not None:
+                    lf.heading.append((t, h))
+
+    def add_reading(self, t: float, raw_mps: float) -> None:
+        """Queue one reading of the learnt sentence for learning (see :meth:`drain`)."""
+        self.pending.append((t, raw_mps))
+
+    def drain(self, now: float, *, final: bool = False) -> None:
+        """Learn from every queued reading whose reference has arrived (or never will).
+
+        Args:
+            now: the pipeline's latest record time, s.
+            final: end of input: learn from everything queued.
+        """
+        while self.pending:
+            t, raw = self.pending[0]
+            lag = self.lag_s
+            if lag is not None and not final:
+                target = t - lag
+                waiting = not self.ref.covers(target)
+                if waiting and now - target <= self.ref.max_gap_s + 1.0:
+                    return
+            self.pending.popleft()
+            self.learn(t, raw)
+
+    # -- learning -----------------------------------------------------------
+
+    def learn(self, t: float, raw: float) -> None:
+        """Align, supervise and update the filter with one reading."""
+        s = self.s
+        dt = 0.0 if self.t_prev is None else max(t - self.t_prev, 0.0)
+        self.t_prev = t
+        self._lag_step(t, raw)
+        lag = self.lag_s
+        ref = self.ref.at(t - lag) if lag is not None else None
+        heading = self.heading_at(t - lag) if lag is not None else None
+        ref_state = self._ref_state(t, ref)
+        if ref_state != self.ref_state:
+            self._emit(t, "reference", {"from": self.ref_state, "to": ref_state})
+            self.ref_state = ref_state
+        fault = self.health.update(t, raw, ref if ref_state == "valid" else None)
+        valid = ref_state == "valid" and ref is not None
+        cs: tuple[float, float] | None = None
+        if heading is not None:
+            psi = math.radians(heading)
+            cs = (math.cos(psi), math.sin(psi))
+        if valid and self.layout.current and cs is None:
+            self.counters.no_heading += 1
+            valid = False
+        current = self.kf.current_mps
+        proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
+        if valid and ref is not None:
+            self.window.add(ref - proj, raw, heading)
+            self.n_since_eval += 1
+            if self.n_since_eval >= EVAL_EVERY or self.ident is None:
+                self._judge(t)
+        learn_set: frozenset[str] | bool = False
+        if self.learn_on and valid and not fault and lag is not None and self.learn_set:
+            learn_set = self.learn_set
+        if fault:
+            self.counters.uut_fault += 1
+        res = self.kf.update(
+            raw,
+            ref if valid else None,
+            dt,
+            heading_cs=cs,
+            learn=learn_set,
+            max_nis=s.gate_nis,
+        )
+        self._gates(t, res.raw_gated, res.ref_gated, valid)
+        learnt = res.learnt and learn_set is not False
+        if learnt and res.raw is not None:
+            self.n_learnt += 1
+            self.counters.learnt += 1
+            if isinstance(learn_set, frozenset):
+                self.learnt_ever |= learn_set
+                if not set(self.layout.params) <= learn_set:
+                    self.cond_samples += 1
+            if len(self.nis) == self.nis.maxlen:
+                self.nis_sum -= self.nis[0]
+            self.nis.append(res.raw.nis)
+            self.nis_sum += res.raw.nis
+            self._envelope(t)
+        if valid and ref is not None and not fault:
+            self._score(t, raw, ref, cs)
+        self._set_state(t, bool(learnt), fault)
+
+    def _lag_step(self, t: float, raw: float) -> None:
+        lf = self.lag_finder
+        if lf is None:
+            return
+        lf.uut.append((t, raw))
+        if not lf.ready():
+            return
+        lag, std, why = lf.estimate()
+        if lag is None:
+            self._emit(t, "lag_retry", {"why": why})
+            return
+        if self.lag_s is None or abs(lag - self.lag_s) > max(0.2, 3.0 * std):
+            self._emit(t, "lag_estimated", {"lag_s": round(lag, 3), "why": why})
+            self.lag_s = lag
+        self.lag_std_s = std
+        self.lag_finder = None
+
+    def _ref_state(self, t: float, ref: float | None) -> RefState:
+        if self.lag_s is None and self.t_ref_last == -math.inf:
+            return "none"
+        if t - self.t_ref_last > self.s.ref_stale_s:
+            return "stale"
+        if ref is None:
+            return "lost" if self.lag_s is not None else "none"
+        if abs(ref) < self.s.min_ref_speed_mps:
+            return "slow"
+        return "valid"
+
+    def _judge(self, t: float) -> None:
+        self.n_since_eval = 0
+        kf = self.s.kf
+        ident = self.window.evaluate(kf.r_raw_mps2 + kf.r_ref_mps2, std_factor=LEARN_STD_FACTOR)
+        before = self.ident.determined if self.ident is not None else None
+        self.ident = ident
+        learn = set(ident.determined)
+        if self.layout.current:
+            learn.add(CURRENT)
+        new = frozenset(learn)
+        gained = (new - self.learn_set) - {CURRENT}
+        if gained and self.cond_samples >= REOPEN_AFTER:
+            params = [p for p in self.layout.unknowns if p in new]
+            self.kf.reopen(params)
+            self._emit(
+                t,
+                "relearn",
+                {
+                    "why": f"{', '.join(sorted(gained))} now determined: learning {', '.join(params)} again"
+                },
+            )
+        if gained:
+            self.cond_samples = 0
+        self.learn_set = new
+        if before != ident.determined:
+            self._emit(
+                t,
+                "identifiability",
+                {"determined": list(ident.determined), "why": ident.reason},
+            )
+
+    def _gates(self, t: float, raw_gated: bool, ref_gated: bool, valid: bool) -> None:
+        s = self.s
+        if ref_gated:
+            self.counters.gated_ref += 1
+            self.gated_run_ref += 1
+            if self.gated_run_ref >= s.relearn_gates:
+                # The speed state lost the reference (after a long outage, or a real
+                # jump the state could not follow): re-acquire it from the reference.
+                self.kf.reacquire_speed()
+                self.counters.reacquire += 1
+                self.gated_run_ref = 0
+                self._emit(t, "reacquire", {"why": "reference gated repeatedly"})
+        elif valid:
+            self.gated_run_ref = 0
+        if raw_gated:
+            self.counters.gated_raw += 1
+            self.gated_run_raw += 1
+            if self.gated_run_raw >= s.relearn_gates:
+                # The readings no longer fit the calibration while the log is healthy:
+                # the sensor changed. Learn its parameters again from the data.
+                self.kf.reopen(self.layout.params)
+                self.counters.relearn += 1
+                self.gated_run_raw = 0
+                self._emit(t, "relearn", {"why": "readings gated repeatedly"})
+        else:
+            self.gated_run_raw = 0
+
+    def _envelope(self, t: float) -> None:
+        """Restart the parameters when the estimate has run far outside the envelope.
+
+        A learning transient may leave the envelope (nothing outside it is applied or
+        persisted); an estimate at twice the limits, or one that cannot be inverted,
+        is a filter captured by something the model does not explain.
+        """
+        env = self.s.envelope
+        wide = Envelope(
+            2.0 * env.max_abs_m,
+            2.0 * env.max_abs_b_mps,
+            2.0 * env.max_abs_a_spm,
+            2.0 * env.max_current_mps,
+            env.max_speed_mps,
+        )
+        why = wide.check(self.kf.params, self.kf.current_mps)
+        if not why:
+            return
+        self.counters.envelope += 1
+        base = self.applied if self.applied is not None else zero_params(self.s.model)
+        self.kf.restart(base)
+        self._emit(t, "envelope", {"why": why, "restart_from": base.as_dict()})
+
+    # -- supervision ----------------------------------------------------------
+
+    def _errors(self, raw: float, ref: float, proj: float, p: Params | None) -> float:
+        corrected = raw if p is None else p.correct(raw)
+        return corrected + proj - ref
+
+    def _score(self, t: float, raw: float, ref: float, cs: tuple[float, float] | None) -> None:
+        current = self.kf.current_mps if self.ident_current() else None
+        proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
+        e_raw = self._errors(raw, ref, proj, None)
+        e_app = self._errors(raw, ref, proj, self.applied)
+        out = self.correct(raw)
+        if out is not None:
+            self.score.add(raw - ref, out - ref)
+            if current is not None:
+                self.score_water.add(raw + proj - ref, out + proj - ref)
+        e_prev = self._errors(raw, ref, proj, self.previous) if self.previous is not None else 0.0
+        self.recheck.add(t, e_raw, e_app, e_prev)
+        cand = self.candidate
+        if cand is not None:
+            cand.raw += e_raw * e_raw
+            cand.applied += e_app * e_app
+            e_c = self._errors(raw, ref, proj, cand.params)
+            cand.cand += e_c * e_c
+            cand.n += 1
+            if t - cand.t0 >= self.s.validation_s and cand.n >= VALIDATION_MIN_SAMPLES:
+                self._decide(t, cand)
+        else:
+            self._propose(t)
+        self._recheck(t)
+
+    def ident_current(self) -> bool:
+        """The current is estimated and the recent headings determine it."""
+        return self.layout.current and self.ident is not None and CURRENT in self.ident.determined
+
+    def _propose(self, t: float) -> None:
+        """Freeze the estimate as a candidate when it is good and new enough."""
+        if not self.learnt_ever & set(self.layout.params) or self.lag_s is None:
+            return
+        est = self.kf.params
+        std = self.kf.param_std
+        for name in self.layout.params:
+            if name in self.learnt_ever and std[name] > self.s.max_param_std.get(name, math.inf):
+                return
+        if self.s.envelope.check(est, self.kf.current_mps):
+            return
+        if self.applied is not None and not self._significant(self.applied, est, std):
+            return
+        self.candidate = _Candidate(est, t)
+
+    def _significant(self, old: Params, new: Params, std: Mapping[str, float]) -> bool:
+        a, b = old.as_dict(), new.as_dict()
+        return any(
+            abs(b[k] - a[k])
+            > max(self.s.persist_min_change_sigma * std[k], self.s.persist_min_change_abs)
+            for k in a
+        )
+
+    def _decide(self, t: float, cand: _Candidate) -> None:
+        self.candidate = None
+        n = cand.n
+        r_raw, r_cand = math.sqrt(cand.raw / n), math.sqrt(cand.cand / n)
+        r_app = math.sqrt(cand.applied / n) if self.applied is not None else r_raw
+        detail = {
+            "params": cand.params.as_dict(),
+            "rmse_raw": round(r_raw, 4),
+            "rmse_candidate": round(r_cand, 4),
+            "rmse_applied": round(r_app, 4),
+            "samples": n,
+        }
+        if r_cand < r_raw and r_cand <= r_app * 1.02 + 0.002:
+            if self.applied is None:
+                self._emit(t, "calibrated", detail)
+            else:
+                self._emit(t, "calibration_updated", detail)
+            self.previous = self.applied
+            self.note = ""
+            self.applied = cand.params
+            self.applied_std = dict(self.kf.param_std)
+            self.recheck.reset()
+            self.counters.candidates_applied += 1
+            self.dirty = True
+        else:
+            self.counters.candidates_rejected += 1
+            self._emit(t, "candidate_rejected", detail)
+
+    def _recheck(self, t: float) -> None:
+        if self.applied is None or self.recheck.n_effective < RECHECK_MIN_SAMPLES:
+            return
+        r_raw, r_app, r_prev = self.recheck.rmse()
+        if not r_app > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS:
+            return
+        detail: dict[str, object] = {
+            "rmse_applied": round(r_app, 4),
+            "rmse_raw": round(r_raw, 4),
+            "window_s": self.s.recheck_s,
+        }
+        prev = self.previous
+        if prev is not None and r_prev < r_raw:
+            self.applied = prev
+            self.note = (
+                f"fell back to the previous calibration: the applied one was worse than raw "
+                f"over {self.s.recheck_s:g} s ({r_app:.3f} vs {r_raw:.3f} m/s)"
+            )
+            detail["to"] = "previous"
+        else:
+            self.applied = None
+            self.note = (
+                f"fell back to raw: the calibration was worse than raw over "
+                f"{self.s.recheck_s:g} s ({r_app:.3f} vs {r_raw:.3f} m/s)"
+            )
+            detail["to"] = "raw"
+        self.previous = None
+        self.recheck.reset()
+        self.candidate = None
+        self.counters.fallbacks += 1
+        self.dirty = True
+        base = self.applied if self.applied is not None else zero_params(self.s.model)
+        self.kf.restart(base)
+        self._emit(t, "fallback", detail)
+
+    def _set_state(self, t: float, learnt: bool, fault: str) -> None:
+        if fault:
+            new: CalState = "fault"
+            self.reason = {
+                "uut_stuck": f"speed log stuck for {self.s.stuck_s:g} s while the reference moves",
+                "uut_zero": f"speed log reads zero for {self.s.zero_s:g} s while the reference moves",
+            }.get(fault, fault)
+        elif learnt:
+            new = "learning"
+            undetermined = self.ident.unidentifiable if self.ident is not None else ()
+            self.reason = (
+                "learning; " + self.ident.reason
+                if self.ident is not None and undetermined
+                else "learning"
+            )
+        else:
+            new = "frozen" if self.applied is not None else "uncalibrated"
+            self.reason = self._why_not_learning()
+        if self.note:
+            self.reason = f"{self.reason}; {self.note}"
+        if new != self.state:
+            self._emit(t, "state", {"from": self.state, "to": new, "why": self.reason})
+            if self.state == "learning" and new == "frozen":
+                self.freezes += 1
+            self.state = new
+
+    def _why_not_learning(self) -> str:
+        s = self.s
+        lf = self.lag_finder
+        if lf is not None and self.lag_s is None:
+            return f"estimating the lag, {lf.span():.0f} of {lf.target_s:.0f} s"
+        if not self.learn_on:
+            return "learning switched off"
+        if self.ref_state != "valid":
+            return {
+                "lost": "reference lost",
+                "stale": "reference silent",
+                "slow": f"reference below {s.min_ref_speed_mps:g} m/s",
+                "none": "no reference yet",
+            }.get(self.ref_state, "reference not valid")
+        if self.ident is not None and not self.learn_set - {CURRENT}:
+            return self.ident.reason or "nothing determinable"
+        return "no heading for the current" if self.layout.current else "waiting"
+
+    # -- read-outs ----------------------------------------------------------
+
+    def nis_mean(self) -> float | None:
+        """Running NIS mean over the last 300 learnt samples."""
+        return self.nis_sum / len(self.nis) if self.nis else None
+
+    def take_snapshot(self, t: float) -> Calibration | None:
+        """The applied calibration to persist, when it changed (and persisting is due)."""
+        if not self.dirty or t - self.t_persist < self.s.persist_interval_s:
+            return None
+        self.dirty = False
+        self.t_persist = t
+        return self.snapshot(t)
+
+    def snapshot(self, t: float | None = None) -> Calibration:
+        """The applied calibration as a record (``reset`` when there is none)."""
+        cur = self.kf.current_mps if self.ident_current() else None
+        cur_std = self.kf.current_std_mps if cur is not None else None
+        return Calibration(
+            uut=self.s.port,
+            params=self.applied if self.applied is not None else zero_params(self.s.model),
+            param_std=dict(self.applied_std) if self.applied is not None else {},
+            lag_s=self.lag_s,
+            current=self.layout.current,
+            current_mps=cur,
+            current_std_mps=cur_std,
+            covariance=tuple(tuple(row) for row in self.kf.covariance())
+            if self.applied is not None
+            else (),
+            method="online",
+            t=t if t is not None else (self.t_prev or 0.0),
+            n_samples=self.n_learnt,
+            reference={"port": self.s.reference_port, "field": self.s.reference_field},
+            unidentifiable=self.ident.unidentifiable if self.ident is not None else (),
+            nis_mean=self.nis_mean(),
+            reset=self.applied is None,
+        )

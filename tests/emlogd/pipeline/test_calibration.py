@@ -1,0 +1,65 @@
+"""Whether a calibration record may be used."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from calib.models import Params
+from emlogd.pipeline.calibration import Calibration, check, checker
+from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.integrity import Envelope
+
+GOOD = Calibration(
+    "emlog1",
+    Params("EM3", m=0.05, b_mps=0.1),
+    {"m": 0.01, "b": 0.02},
+    3.2,
+    covariance=((1.0, 0.0, 0.0), (0.0, 1e-4, 0.0), (0.0, 0.0, 1e-4)),
+)
+
+
+def _with(**kw: object) -> Calibration:
+    values = {f: getattr(GOOD, f) for f in GOOD.__dataclass_fields__}
+    values.update(kw)
+    return Calibration(**values)  # type: ignore[arg-type]
+
+
+class TestCheck:
+    """check() refuses what is not a calibration, with a reason."""
+
+    def test_a_good_record_passes(self) -> None:
+        """Parameters in the envelope, SPD covariance, finite lag: usable."""
+        assert check(GOOD, Envelope()) == ""
+
+    @pytest.mark.parametrize(
+        ("kw", "why"),
+        [
+            ({"params": Params("EM3", m=-2.0)}, "scale"),
+            ({"params": Params("EM3", b_mps=1e6)}, "bias"),
+            ({"lag_s": 1e9}, "lag"),
+            ({"lag_s": math.nan}, "lag"),
+            ({"covariance": ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, 1.0))}, "positive"),
+            ({"covariance": ((1.0, 0.5, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))}, "symmetric"),
+            ({"covariance": ((1e300, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))}, "magnitudes"),
+            ({"covariance": ((1.0,),)}, "shape"),
+            ({"param_std": {"m": -1.0}}, "standard deviation"),
+            ({"current": True, "current_mps": (5.0, 0.0), "covariance": ()}, "current"),
+        ],
+    )
+    def test_poison_is_refused(self, kw: dict[str, object], why: str) -> None:
+        """Every poisoned field is refused with a reason naming it."""
+        assert why in check(_with(**kw), Envelope())
+
+    def test_a_reset_record_is_always_usable(self) -> None:
+        """A reset (no calibration) is a valid state to load."""
+        assert check(_with(params=Params("EM3", m=-2.0), reset=True), Envelope()) == ""
+
+    def test_checker_uses_each_uuts_envelope(self) -> None:
+        """checker() applies the UUT's own envelope (a default one for an unknown UUT)."""
+        tight = UutSettings(
+            port="emlog1", reference_port="dvl", envelope=Envelope(max_abs_b_mps=0.05)
+        )
+        assert "bias" in checker([tight])(GOOD)
+        assert checker([])(GOOD) == ""

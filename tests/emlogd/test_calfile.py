@@ -1,0 +1,68 @@
+"""The calibration file: one format for the state file and calibrate --save."""
+
+from __future__ import annotations
+
+import pytest
+
+from calib.models import Params
+from emlogd.calfile import CalibrationFileError, dumps, loads
+from emlogd.pipeline.calibration import Calibration
+
+FULL = Calibration(
+    uut="emlog2",
+    params=Params("EM4", 0.01, -0.1, 0.05),
+    param_std={"a": 0.001, "m": None, "b": 0.003},
+    lag_s=0.45,
+    current=True,
+    current_mps=(-0.09, 0.07),
+    current_std_mps=(0.004, 0.005),
+    covariance=tuple(tuple(1e-4 if i == j else 0.0 for j in range(6)) for i in range(6)),
+    method="kf",
+    t=1.75e9,
+    n_samples=12,
+    reference={"port": "dvl", "field": "bottom"},
+    unidentifiable=("m",),
+    nis_mean=1.02,
+)
+
+
+class TestRoundTrip:
+    """What is written reads back the same."""
+
+    def test_every_field_round_trips(self) -> None:
+        """A record with every field set, and its extra notes, read back equal."""
+        cals, extras = loads(dumps({"emlog2": FULL}, {"emlog2": {"rmse_cal": 0.05}}))
+        assert cals == {"emlog2": FULL}
+        assert extras == {"emlog2": {"rmse_cal": 0.05}}
+
+    def test_a_reset_record(self) -> None:
+        """A reset UUT is a record too (so a reset survives a restart)."""
+        reset = Calibration("emlog1", Params("EM3"), {}, 3.2, reset=True)
+        assert loads(dumps({"emlog1": reset}))[0]["emlog1"].reset
+
+
+class TestStrictParsing:
+    """A damaged file names what is wrong."""
+
+    @pytest.mark.parametrize(
+        ("edit", "match"),
+        [
+            (lambda t: t.replace("kind: emlogd-calibration", "kind: other"), "not an emlogd"),
+            (lambda t: t.replace("schema: 2", "schema: 1"), "schema 1"),
+            (lambda t: t.replace("end: true", ""), "truncated"),
+            (lambda t: t.replace("model: EM4", "model: EM7"), "model"),
+            (lambda t: t.replace("a: 0.01", "z: 0.01", 1), "params"),
+            (lambda t: t.replace("method: kf", "method: magic"), "method"),
+            (lambda t: t.replace("n_samples: 12", "n_samples: -1"), "n_samples"),
+            (lambda t: t.replace("north: -0.09", "north: yes"), "current_mps.north"),
+            (lambda t: t.replace("lag_s: 0.45", "lag_s: .inf"), "lag_s"),
+            (lambda t: "{", "YAML"),
+        ],
+    )
+    def test_damage_is_named(self, edit: object, match: str) -> None:
+        """Each kind of damage raises CalibrationFileError naming the key."""
+        text = dumps({"emlog2": FULL})
+        bad = edit(text)  # type: ignore[operator]
+        assert bad != text
+        with pytest.raises(CalibrationFileError, match=match):
+            loads(bad)
