@@ -87,8 +87,13 @@ MIN_LAG_CORRELATION = 0.6
 correlates at ~0.4 wherever the lag is."""
 
 MAX_LAG_STD_S = 0.05
-"""An estimate less certain than this is not used: a broad peak (slow speed changes)
-places the lag anywhere within it."""
+"""An estimate less certain than this is not used at first: a broad peak (slow speed
+changes) places the lag anywhere within it."""
+
+MAX_LAG_STD_RELAXED_S = 0.3
+"""When no window gives a sharper peak, an estimate this certain is used and reported
+as uncertain: a latency off by a few tenths of a second costs a calibration far less
+than no calibration at all (or a lag of 0)."""
 
 
 def accept(

@@ -79,7 +79,7 @@ class UutConfig:
     persist_interval_s: float = 60.0
     persist_min_change_sigma: float = 1.0
     persist_min_change_abs: float = 1e-3
-    validation_s: float = 30.0
+    validation_s: float = 120.0
     recheck_s: float = 300.0
 
 

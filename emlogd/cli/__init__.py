@@ -8,6 +8,7 @@ with ``--debug``), 2 usage error. This is the only module allowed to print.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -23,10 +24,9 @@ from drivers import DecoderOptions, EmlogdError, make_decoder, protocol_names
 from drivers.base import Decoder
 from emlogd import __version__
 from emlogd.jsonio import to_jsonable
-from emlogd.offline.dataset import CaptureData
+from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
     CalibrationResult,
-    Pairing,
     calibrate,
     crossval,
     evaluate,
@@ -35,6 +35,7 @@ from emlogd.offline.jobs import (
     save_params,
 )
 from emlogd.offline.tables import fmt, render, table2, table3
+from emlogd.pipeline.core import UutSettings
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -351,14 +352,25 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------- offline
 
 
-def _pairing(args: argparse.Namespace) -> Pairing:
-    return Pairing(
-        args.uut,
-        args.ref,
-        args.ref_field,
-        args.uut_source,
-        "magnitude" if args.magnitude else "longitudinal",
-    )
+def _settings(args: argparse.Namespace, **over: Any) -> UutSettings:
+    """The UUT of an offline job, as the daemon's settings (defaults from the declarations)."""
+    kw: dict[str, Any] = {
+        "port": args.uut,
+        "reference_port": args.ref,
+        "reference_field": args.ref_field or "bottom",
+        "uut_source": getattr(args, "uut_source", None) or "VHW",
+        "component": "magnitude" if getattr(args, "magnitude", False) else "longitudinal",
+        "current": bool(getattr(args, "current", False)),
+        "heading": getattr(args, "heading", None) or "auto",
+        "magnetic_variation_deg": getattr(args, "variation", None),
+    }
+    if getattr(args, "model", None):
+        kw["model"] = args.model
+    kw.update(over)
+    try:
+        return UutSettings(**kw)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _lag_arg(value: str) -> float | None:
@@ -370,35 +382,54 @@ def _lag_arg(value: str) -> float | None:
         raise argparse.ArgumentTypeError(f"expected auto or seconds, not {value!r}") from None
 
 
-def _load(paths: Sequence[str], pairing: Pairing) -> list[CaptureData]:
-    datas = load_captures(paths, pairing, progress=_progress)
+def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace) -> list[Recording]:
+    """Read the captures; without ``--uut-source`` a UUT that sends no VHW is read from VBW."""
+    recs = load_captures(paths, settings, progress=_progress)
+    if not getattr(args, "uut_source", None) and not any(r.raw.size for r in recs):
+        recs = load_captures(
+            paths, dataclasses.replace(settings, uut_source="VBW"), progress=_progress
+        )
     _progress_done()
-    return datas
+    return recs
 
 
 def _calibration_text(res: CalibrationResult) -> str:
     se = res.stderr
+    held = set(res.ident.unidentifiable)
     params = "\n".join(
-        f"  {k:<2} = {v:+.5f} ± {fmt(se.get(k), '.5f')}" for k, v in res.params.as_dict().items()
+        f"  {k:<2} = {v:+.5f} ± {fmt(se.get(k), '.5f')}"
+        + ("   (not determined: held at its prior)" if k in held else "")
+        for k, v in res.params.as_dict().items()
     )
     lag = res.lag
     lag_txt = f"{lag.lag_s:.2f} s ({lag.source}"
     if lag.per_capture:
         lag_txt += "; " + ", ".join(
-            f"{k} {e.lag_s:.2f} s r={e.peak_corr:.2f}" for k, e in lag.per_capture.items()
+            f"{k} {e.lag_s:.2f}±{fmt(e.std_s, '.2f')} s r={e.peak_corr:.2f}"
+            for k, e in lag.per_capture.items()
         )
     lag_txt += ")"
     if lag.note:
         lag_txt += f"\n  warning: {lag.note}"
-    ident = "yes" if res.identifiable else f"NO: {res.reason}"
+    s = res.settings
     out = [
-        f"{res.method.upper()}-{res.params.model}: {res.pairing.uut} against "
-        f"{res.pairing.ref} ({res.pairing.ref_field}), {res.n_samples} samples",
+        f"{res.method.upper()}-{res.params.model}{' + current' if s.current else ''}: "
+        f"{s.port} against {s.reference_port} ({s.reference_field}), {res.n_samples} samples",
         f"lag          {lag_txt}",
         "parameters (± standard error):",
         params,
-        f"identifiable {ident}",
-        f"condition    {fmt(res.condition_number, '.3g')}",
+    ]
+    if res.current_mps is not None:
+        cs = res.current_std_mps or (math.nan, math.nan)
+        out.append(
+            f"current      north {res.current_mps[0]:+.3f} ± {fmt(cs[0], '.3f')} m/s, "
+            f"east {res.current_mps[1]:+.3f} ± {fmt(cs[1], '.3f')} m/s"
+        )
+    elif s.current:
+        out.append("current      not determined")
+    out += [
+        f"identifiable {'yes' if res.identifiable else 'NO: ' + res.ident.reason}",
+        f"condition    {fmt(res.ident.cond_info, '.3g')}",
         f"RMSE raw     {fmt(res.rmse_raw, '.4f')} m/s",
         f"RMSE cal     {fmt(res.rmse_cal, '.4f')} m/s",
         f"improvement  {fmt(res.improvement_pct, '.1f')} %",
@@ -413,9 +444,9 @@ def _calibration_text(res: CalibrationResult) -> str:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Estimate an error model of one EMlog against a reference from captures."""
-    pairing = _pairing(args)
-    datas = _load(args.captures, pairing)
-    res = calibrate(datas, pairing, args.model, args.method, lag=args.lag)
+    settings = _settings(args)
+    recs = _load(args.captures, settings, args)
+    res = calibrate(recs, settings, args.method, lag=args.lag)
     if args.save:
         save_params(args.save, res)
     if args.json:
@@ -428,32 +459,37 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    """Apply frozen parameters to captures: RMSE raw and calibrated per capture."""
-    pf = load_params(args.params)
-    pairing = Pairing(
-        args.uut or pf.pairing.uut,
-        args.ref or pf.pairing.ref,
-        args.ref_field or pf.pairing.ref_field,
-        pf.pairing.uut_source,
-        pf.pairing.component,
+    """Apply a frozen calibration to captures: RMSE raw and calibrated per capture."""
+    cal, extra = load_params(args.params)
+    settings = _settings(
+        args,
+        port=args.uut or cal.uut,
+        reference_port=args.ref or cal.reference.get("port", "dvl"),
+        reference_field=args.ref_field or cal.reference.get("field", "bottom"),
+        model=cal.params.model,
+        current=bool(args.current or cal.current),
+        uut_source=args.uut_source or extra.get("uut_source") or "VHW",
     )
-    lag_s = pf.lag_s if args.lag is None else args.lag
-    datas = _load(args.captures, pairing)
-    rows = evaluate(datas, pf.params, pairing, lag_s)
+    lag_s = cal.lag_s if args.lag is None else args.lag
+    if lag_s is None:
+        raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
+    recs = _load(args.captures, settings, args)
+    rows = evaluate(recs, cal.params, settings, lag_s)
     if args.json:
         doc = {
-            "model": pf.params.model,
-            "params": pf.params.as_dict(),
+            "model": cal.params.model,
+            "params": cal.params.as_dict(),
             "lag_s": lag_s,
-            "uut": pairing.uut,
-            "ref": pairing.ref,
+            "uut": settings.port,
+            "ref": settings.reference_port,
+            "current_states": settings.current,
             "captures": [r.to_dict() for r in rows],
         }
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         return 0
     sys.stdout.write(
-        f"{pf.params.model} {pf.params.as_dict()} from {args.params}, "
-        f"{pairing.uut} against {pairing.ref}, lag {lag_s:.2f} s\n"
+        f"{cal.params.model} {cal.params.as_dict()} from {args.params}, "
+        f"{settings.port} against {settings.reference_port}, lag {lag_s:.2f} s\n"
     )
     sys.stdout.write(
         render(
@@ -486,14 +522,14 @@ def _table2_pair(names: list[str], spec: str | None) -> tuple[str, str]:
 
 def cmd_crossval(args: argparse.Namespace) -> int:
     """Cross-validate every estimator over the captures (the paper's Tables II and III)."""
-    pairing = _pairing(args)
-    datas = _load(args.captures, pairing)
+    settings = _settings(args)
+    recs = _load(args.captures, settings, args)
     t0 = time.perf_counter()
 
     def progress(done: int, total: int, what: str) -> None:
         _progress(f"crossval: {what}", done / total)
 
-    result, lag = crossval(datas, pairing, lag=args.lag, workers=args.workers, progress=progress)
+    result, lag = crossval(recs, settings, lag=args.lag, workers=args.workers, progress=progress)
     _progress_done()
     elapsed = time.perf_counter() - t0
     if args.csv:
@@ -505,7 +541,13 @@ def cmd_crossval(args: argparse.Namespace) -> int:
             writer.writeheader()
             writer.writerows(rows)
     if args.json:
-        doc = {"lag": lag.as_dict(), "uut": pairing.uut, "ref": pairing.ref, **result.to_dict()}
+        doc = {
+            "lag": lag.as_dict(),
+            "uut": settings.port,
+            "ref": settings.reference_port,
+            "current_states": settings.current,
+            **result.to_dict(),
+        }
         sys.stdout.write(json.dumps(doc) + "\n")
         return 0
     names = [s.name for s in result.segments]
@@ -527,9 +569,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     """PNG figures like the paper's (needs the report extra)."""
     from emlogd.offline.report import report
 
-    pairing = _pairing(args)
-    datas = _load(args.captures, pairing)
-    paths = report(datas, pairing, args.out, model=args.model, lag=args.lag, progress=_progress)
+    settings = _settings(args)
+    recs = _load(args.captures, settings, args)
+    paths = report(recs, settings, args.out, lag=args.lag, progress=_progress)
     _progress_done()
     for path in paths:
         sys.stdout.write(f"{path}\n")
@@ -823,7 +865,26 @@ def build_parser() -> argparse.ArgumentParser:
             help="reference: DVL bottom track (default), DVL water track, or an EMlog's speed",
         )
 
+    def water_frame(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--current",
+            action="store_true",
+            help="estimate the sea current too (the water frame; needs a heading)",
+        )
+        p.add_argument(
+            "--heading",
+            metavar="auto|PORT",
+            help="heading source (default auto: the reference's, else the UUT's VHW, else any)",
+        )
+        p.add_argument(
+            "--variation",
+            type=float,
+            metavar="DEG",
+            help="magnetic variation, + east, for magnetic headings without one",
+        )
+
     def common_offline(p: argparse.ArgumentParser) -> None:
+        water_frame(p)
         p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
         p.add_argument(
             "--magnitude",
@@ -862,6 +923,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
     p.add_argument("--params", required=True, metavar="PARAMS.yaml", help="parameters file")
     pairing_args(p, required=False)
+    water_frame(p)
+    p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
     p.add_argument(
         "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
     )

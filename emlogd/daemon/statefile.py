@@ -29,6 +29,7 @@ from pathlib import Path
 
 from drivers.errors import EmlogdError
 from emlogd.calfile import CalibrationFileError, dumps, loads
+from emlogd.fileio import fsync_dir, write_synced
 from emlogd.pipeline.calibration import Calibration
 
 
@@ -99,10 +100,10 @@ class StateStore:
         tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
         try:
             d.mkdir(parents=True, exist_ok=True)
-            _write_synced(tmp, data)
+            write_synced(tmp, data)
             self._backup_current()
             tmp.replace(self.path)
-            self._fsync_dir()
+            fsync_dir(self.path.parent)
         except OSError as exc:
             with contextlib.suppress(OSError):
                 tmp.unlink()
@@ -143,32 +144,12 @@ class StateStore:
         try:
             os.link(self.path, link)
         except OSError:  # e.g. vfat: no hard links
-            _write_synced(link, text.encode("utf-8"))
+            write_synced(link, text.encode("utf-8"))
         link.replace(self.backup)
         # rename() between two names of one file does nothing: after a writer killed
         # between linking the backup and replacing the file, both are one inode
         with contextlib.suppress(FileNotFoundError):
             link.unlink()
-
-    def _fsync_dir(self) -> None:
-        fd = os.open(self.path.parent, os.O_RDONLY | os.O_DIRECTORY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
-def _write_synced(path: Path, data: bytes) -> None:
-    """Create or truncate ``path`` (mode 0640), write ``data`` and fsync it."""
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o640)
-    try:
-        view = memoryview(data)
-        while view:
-            n = os.write(fd, view)
-            view = view[n:]
-        os.fsync(fd)
-    finally:
-        os.close(fd)
 
 
 def _alive(pid: int) -> bool:

@@ -1,138 +1,103 @@
-"""Speed time series from capture files, for the offline commands.
+"""What the offline commands read from captures: a UUT's inputs exactly as the daemon sees them.
 
-One pass over a capture decodes the ports asked for and collects every
-:class:`~drivers.records.SpeedRecord` into numpy arrays, one
-:class:`SpeedSeries` per (port, source sentence). :func:`align` then pairs a
-unit under test (UUT) with a reference: the reference is interpolated at the
-UUT's receive times minus the UUT's latency, only where valid reference samples
-lie close on both sides (a reference outage is never bridged).
+Each capture is streamed through the daemon's own pipeline (:class:`~emlogd.pipeline.core.Pipeline`:
+the same decoders, reference routing, glitch filters, heading selection, magnetic
+variation and burst handling) with a :class:`~emlogd.pipeline.uut.Recorder` attached to
+the UUT: the result is a :class:`Recording` — the UUT's readings, its reference along
+the hull with validity, and the UUT's heading at each reference sample. Alignment at a
+lag (:meth:`Recording.aligned`) applies the one alignment rule of
+:mod:`emlogd.pipeline.align` to the whole recording at once.
 
-The daemon does not use this module: it runs the streaming pipeline. Both share
-the decoders and the speed mapping, so they agree on what a speed is.
+:func:`record_captures` decodes several captures in parallel processes (the decoding
+is the cost; the results are small arrays).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass, field
+import dataclasses
+import math
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
-from drivers import make_decoder
+from calib.models import FloatArray
 from drivers.io.capture import CaptureReader
-from drivers.records import SpeedRecord
+from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
+from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
 
-FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-Component = Literal["magnitude", "longitudinal"]
-ReferenceField = Literal["bottom", "water", "speed"]
-
 ProgressFn = Callable[[str, float], None]
-
-# Sources that carry each reference field, in order of preference.
-_FIELD_SOURCES: dict[str, tuple[str, ...]] = {
-    "bottom": ("PD6:BS", "PD0:BT", "PD4:BT", "PD5:BT", "PRTI01"),
-    "water": ("PD6:WS",),
-    "speed": ("VHW", "VBW"),
-}
-_UUT_SOURCES: tuple[str, ...] = ("VHW", "VBW")
+"""``progress(message, fraction done)``."""
 
 
-@dataclass(frozen=True)
-class SpeedSeries:
-    """The speed records of one port and source sentence, as arrays of shape (n,).
+class CaptureContentError(KeyError):
+    """A capture lacks a port the job needs (the message lists what it has)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Aligned:
+    """A UUT's readings paired with the reference and heading at ``t − lag``.
 
     Attributes:
-        port: port name.
-        source: sentence or block, e.g. ``"VHW"``, ``"VBW"``, ``"PD6:BS"``.
-        kind: ``"stw"`` or ``"sog"``.
-        t: receive times, s since the epoch, non-decreasing.
-        longitudinal: m/s, NaN where absent.
-        transverse: m/s, NaN where absent.
-        valid: the sensor's own validity flag.
-        heading: degrees, NaN where the record carried none.
+        t: reading receive times, s, shape (N,).
+        raw: readings, m/s.
+        ref: reference along the hull at ``t − lag``, m/s (nan: none by the rule).
+        heading: the UUT's heading at ``t − lag``, degrees (nan: unknown).
+        lag_s: the lag applied, s.
     """
 
-    port: str
-    source: str
-    kind: str
     t: FloatArray
-    longitudinal: FloatArray
-    transverse: FloatArray
-    valid: BoolArray
+    raw: FloatArray
+    ref: FloatArray
     heading: FloatArray
+    lag_s: float
+
+    def usable(self, *, heading: bool = False) -> BoolArray:
+        """Samples with a reference (and a heading when ``heading``)."""
+        ok = np.isfinite(self.ref) & np.isfinite(self.raw)
+        return ok & np.isfinite(self.heading) if heading else ok
 
     def __len__(self) -> int:
         return int(self.t.size)
 
-    def values(self, component: Component = "magnitude") -> FloatArray:
-        """Speed in m/s: the horizontal magnitude, or the longitudinal axis alone.
 
-        For a sentence without a transverse axis (VHW) both are the reported speed.
-        """
-        if component == "longitudinal":
-            return self.longitudinal
-        if component != "magnitude":
-            raise ValueError(f"component must be magnitude or longitudinal, not {component!r}")
-        tr = np.where(np.isnan(self.transverse), 0.0, self.transverse)
-        mag = np.hypot(self.longitudinal, tr)
-        return np.where(np.isnan(self.longitudinal), np.nan, mag)
-
-    def usable(self, component: Component = "magnitude") -> BoolArray:
-        """Samples flagged valid whose value is finite."""
-        return self.valid & np.isfinite(self.values(component))
-
-
-@dataclass
-class _Builder:
-    kind: str
-    t: list[float] = field(default_factory=list)
-    lon: list[float] = field(default_factory=list)
-    tr: list[float] = field(default_factory=list)
-    valid: list[bool] = field(default_factory=list)
-    heading: list[float] = field(default_factory=list)
-
-    def add(self, t: float, rec: SpeedRecord) -> None:
-        self.t.append(t)
-        self.lon.append(np.nan if rec.longitudinal_mps is None else rec.longitudinal_mps)
-        self.tr.append(np.nan if rec.transverse_mps is None else rec.transverse_mps)
-        self.valid.append(rec.valid)
-        self.heading.append(np.nan if rec.heading_deg is None else rec.heading_deg)
-
-    def build(self, port: str, source: str) -> SpeedSeries:
-        return SpeedSeries(
-            port,
-            source,
-            self.kind,
-            np.asarray(self.t, dtype=np.float64),
-            np.asarray(self.lon, dtype=np.float64),
-            np.asarray(self.tr, dtype=np.float64),
-            np.asarray(self.valid, dtype=np.bool_),
-            np.asarray(self.heading, dtype=np.float64),
-        )
-
-
-@dataclass(frozen=True)
-class CaptureData:
-    """What one pass over a capture produced.
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """One UUT's inputs from one capture.
 
     Attributes:
         path: the capture file.
-        ports: port name -> protocol, from the header.
-        series: (port, source) -> speed series, for the ports decoded.
-        counters: port -> ``{"records": n, "rejects": {reason: n}}``.
-        t_start: first record time, s (NaN for an empty capture).
+        uut: the UUT port.
+        ports: port name -> protocol (the capture's header).
+        t_read: reading receive times, s.
+        raw: readings of the learnt sentence, m/s (fresh and in range).
+        t_ref: reference sample times, s.
+        v_ref: reference along the hull, m/s (nan when invalid).
+        ok_ref: reference validity (after the glitch filter).
+        heading: the UUT's heading at each reference sample, degrees (nan: unknown).
+        counters: port -> decoder counters (``records``, ``rejects`` by reason).
+        uut_counters: the UUT's own counters (out of range, backlog...).
+        t_start: first record time, s (nan for an empty capture).
         t_end: last record time, s.
     """
 
     path: str
+    uut: str
     ports: dict[str, str]
-    series: dict[tuple[str, str], SpeedSeries]
+    t_read: FloatArray
+    raw: FloatArray
+    t_ref: FloatArray
+    v_ref: FloatArray
+    ok_ref: BoolArray
+    heading: FloatArray
     counters: dict[str, dict[str, object]]
+    uut_counters: dict[str, int]
     t_start: float
     t_end: float
 
@@ -144,177 +109,136 @@ class CaptureData:
             name = name.removesuffix(suffix)
         return name
 
-    def sources(self, port: str) -> list[str]:
-        """Sources seen on ``port``."""
-        return [s for (p, s) in self.series if p == port]
-
-    def uut_series(self, port: str, source: str | None = None) -> SpeedSeries:
-        """The UUT series of ``port``: ``source`` if given, else VHW, else VBW.
-
-        Raises:
-            KeyError: the port has no such series (the message lists what it has).
-        """
-        return self._pick(port, (source,) if source else _UUT_SOURCES)
-
-    def reference_series(self, port: str, field_: ReferenceField = "bottom") -> SpeedSeries:
-        """The reference series of ``port`` for ``field_`` (bottom / water track, or EMlog speed).
-
-        Raises:
-            KeyError: the port carries no series for that field.
-        """
-        if field_ not in _FIELD_SOURCES:
-            raise ValueError(f"reference field must be bottom, water or speed, not {field_!r}")
-        return self._pick(port, _FIELD_SOURCES[field_])
-
-    def _pick(self, port: str, sources: Sequence[str]) -> SpeedSeries:
-        for src in sources:
-            s = self.series.get((port, src))
-            if s is not None and len(s):
-                return s
-        if port not in self.ports:
-            raise KeyError(f"{self.path}: no port {port!r} (has {', '.join(self.ports)})")
-        have = ", ".join(self.sources(port)) or "none"
-        raise KeyError(
-            f"{self.path}: port {port!r} has no {' or '.join(sources)} speeds (has {have})"
-        )
+    def aligned(self, lag_s: float, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Aligned:
+        """Readings paired with the reference and heading at ``t − lag`` (the alignment rule)."""
+        q = self.t_read - lag_s
+        ref = interpolate(self.t_ref, self.v_ref, self.ok_ref, q, max_gap_s)
+        hd_ok = np.isfinite(self.heading)
+        heading = interpolate(self.t_ref, self.heading, hd_ok, q, max_gap_s, angular=True)
+        return Aligned(self.t_read, self.raw, ref, heading, float(lag_s))
 
 
-def load_capture(
-    path: str | Path,
-    ports: Collection[str] | None = None,
-    *,
-    progress: ProgressFn | None = None,
-) -> CaptureData:
-    """Decode ``ports`` (default: all) of a capture into speed series.
+class _Collector:
+    """The :class:`~emlogd.pipeline.uut.Recorder` that fills a :class:`Recording`."""
 
-    Bad frames are skipped and counted (``counters``), never fatal; a malformed
-    capture file raises :class:`~drivers.errors.CaptureFormatError` naming the line.
+    def __init__(self) -> None:
+        self.t_read: list[float] = []
+        self.raw: list[float] = []
+        self.t_ref: list[float] = []
+        self.v_ref: list[float] = []
+        self.ok_ref: list[bool] = []
+        self.heading: list[float] = []
+
+    def reference(
+        self, t: float, v_mps: float | None, valid: bool, heading_deg: float | None
+    ) -> None:
+        self.t_ref.append(t)
+        self.v_ref.append(math.nan if v_mps is None else v_mps)
+        self.ok_ref.append(valid and v_mps is not None)
+        self.heading.append(math.nan if heading_deg is None else heading_deg)
+
+    def reading(self, t: float, raw_mps: float) -> None:
+        self.t_read.append(t)
+        self.raw.append(raw_mps)
+
+
+def record_capture(
+    path: str | Path, settings: UutSettings, *, progress: ProgressFn | None = None
+) -> Recording:
+    """Stream one capture through the daemon's pipeline and record the UUT's inputs.
 
     Args:
-        path: capture v1 file.
-        ports: names of the ports to decode; other ports are skipped unparsed.
-        progress: called as ``progress(message, fraction)`` now and then.
+        path: capture v1 file (``.cap`` or ``.cap.gz``).
+        settings: the UUT (port, reference port and field, heading source...).
+        progress: called now and then with the fraction of the file read.
+
+    Raises:
+        CaptureContentError: the capture lacks the UUT, reference or heading port.
+        CaptureFormatError: a malformed capture (names the line).
     """
     reader = CaptureReader(path)
-    wanted = set(reader.ports) if ports is None else set(ports)
-    missing = wanted - set(reader.ports)
+    needed = [settings.port, settings.reference_port]
+    if settings.heading != "auto":
+        needed.append(settings.heading)
+    missing = [p for p in needed if p not in reader.ports]
     if missing:
-        raise KeyError(
-            f"{path}: no port {', '.join(sorted(missing))} (has {', '.join(reader.ports)})"
+        raise CaptureContentError(
+            f"{path}: no port {', '.join(missing)} (has {', '.join(reader.ports) or 'none'})"
         )
-    decoders = {
-        name: make_decoder(proto, name, errors="skip")
-        for name, proto in reader.ports.items()
-        if name in wanted
-    }
-    builders: dict[tuple[str, str], _Builder] = {}
+    ports = [PortSettings(name, proto) for name, proto in reader.ports.items()]
+    quiet = dataclasses.replace(settings, learn=False, lag_s=0.0)
+    pipeline = Pipeline(ports, [quiet])
+    cal = pipeline.uuts[settings.port].cal
+    col = _Collector()
+    cal.recorder = col
+    cal.record_only = True
+    out = Output()
     size = max(Path(path).stat().st_size, 1)
-    t_first = t_last = float("nan")
-    n = 0
-    for rec in reader:
+    t_first = t_last = math.nan
+    for n, rec in enumerate(reader):
         if n == 0:
             t_first = rec.t
         t_last = rec.t
-        n += 1
-        dec = decoders.get(rec.port)
-        if dec is None:
-            continue
-        for out in dec.feed(rec.data):
-            for sp in dec.speed_records(out):
-                key = (rec.port, sp.source)
-                b = builders.get(key)
-                if b is None:
-                    b = builders[key] = _Builder(sp.kind)
-                b.add(rec.t, sp)
+        pipeline.feed(rec.t, rec.port, rec.data, out)
+        out.emits.clear()
+        out.events.clear()
         if progress is not None and n % 50_000 == 0:
             progress(f"reading {Path(path).name}", min(rec.line * 60 / size, 1.0))
-    for dec in decoders.values():
-        for _ in dec.flush():
-            pass
-    return CaptureData(
-        str(path),
-        dict(reader.ports),
-        {key: b.build(*key) for key, b in builders.items()},
-        {name: dec.counters.as_dict() for name, dec in decoders.items()},
-        t_first,
-        t_last,
+    pipeline.flush()
+    ports_status = pipeline.port_status()
+    return Recording(
+        path=str(path),
+        uut=settings.port,
+        ports=dict(reader.ports),
+        t_read=np.asarray(col.t_read, dtype=np.float64),
+        raw=np.asarray(col.raw, dtype=np.float64),
+        t_ref=np.asarray(col.t_ref, dtype=np.float64),
+        v_ref=np.asarray(col.v_ref, dtype=np.float64),
+        ok_ref=np.asarray(col.ok_ref, dtype=np.bool_),
+        heading=np.asarray(col.heading, dtype=np.float64),
+        counters={
+            name: {"records": v["records"], "rejects": v["rejects"]}
+            for name, v in ports_status.items()
+        },
+        uut_counters=cal.counters.as_dict(),
+        t_start=t_first,
+        t_end=t_last,
     )
 
 
-@dataclass(frozen=True)
-class AlignedPair:
-    """UUT samples paired with the reference at the same physical instant.
-
-    Attributes:
-        t: UUT receive times, s (only samples where both are usable).
-        raw: UUT speed, m/s.
-        ref: reference speed at ``t - lag_s``, m/s.
-        lag_s: the UUT latency applied, s.
-    """
-
-    t: FloatArray
-    raw: FloatArray
-    ref: FloatArray
-    lag_s: float
-
-    def __len__(self) -> int:
-        return int(self.t.size)
+def _record_job(args: tuple[str, UutSettings]) -> Recording:
+    return record_capture(args[0], args[1])
 
 
-def interpolate_valid(
-    t_ref: FloatArray, v_ref: FloatArray, t_query: FloatArray, max_gap_s: float
-) -> FloatArray:
-    """Linear interpolation of a reference at ``t_query``; NaN where it cannot be trusted.
-
-    A query gets a value only if valid reference samples exist within ``max_gap_s``
-    on both sides (so an outage is never bridged) or a sample coincides with it.
-
-    Args:
-        t_ref: reference times of the valid samples, s, non-decreasing, shape (n,).
-        v_ref: reference values, m/s, shape (n,).
-        t_query: times to interpolate at, s, shape (k,).
-        max_gap_s: the largest distance to a neighbouring sample, s.
-
-    Returns:
-        Values at ``t_query``, m/s, NaN where not trusted, shape (k,).
-    """
-    out = np.full(t_query.shape, np.nan)
-    if t_ref.size == 0:
-        return out
-    idx = np.searchsorted(t_ref, t_query)
-    inside = (idx > 0) & (idx < t_ref.size)
-    i = np.clip(idx, 1, max(t_ref.size - 1, 1))
-    left = t_ref[i - 1]
-    right = t_ref[np.minimum(i, t_ref.size - 1)]
-    ok = inside & (t_query - left <= max_gap_s) & (right - t_query <= max_gap_s)
-    out[ok] = np.interp(t_query[ok], t_ref, v_ref)
-    # exact hits on the first or last sample
-    exact = ~ok & np.isin(t_query, t_ref)
-    if exact.any():
-        out[exact] = np.interp(t_query[exact], t_ref, v_ref)
-    return out
-
-
-def align(
-    uut: SpeedSeries,
-    ref: SpeedSeries,
-    lag_s: float,
+def record_captures(
+    paths: Sequence[str | Path],
+    settings: UutSettings,
     *,
-    component: Component = "magnitude",
-    max_gap_s: float = 1.0,
-) -> AlignedPair:
-    """Pair UUT samples with the reference at ``t - lag_s`` (see :func:`interpolate_valid`).
+    workers: int | None = None,
+    progress: ProgressFn | None = None,
+) -> list[Recording]:
+    """:func:`record_capture` for each capture, in parallel processes when there are several.
 
     Args:
-        uut: the unit under test.
-        ref: the reference.
-        lag_s: UUT latency relative to the reference, s (positive: the UUT reports late).
-        component: compare horizontal magnitudes or longitudinal speeds.
-        max_gap_s: largest reference gap bridged by interpolation, s.
+        paths: capture files, in the order the result keeps.
+        settings: the UUT.
+        workers: processes (default: one per core, at most one per capture).
+        progress: called after each capture with the fraction done.
     """
-    ru = ref.usable(component)
-    vals = ref.values(component)
-    ref_at = interpolate_valid(ref.t[ru], vals[ru], uut.t - lag_s, max_gap_s)
-    raw = uut.values(component)
-    keep = uut.usable(component) & np.isfinite(ref_at)
-    return AlignedPair(uut.t[keep], raw[keep], ref_at[keep], float(lag_s))
+    n = len(paths)
+    if workers is None:
+        workers = min(os.cpu_count() or 1, n)
+    if workers <= 1 or n <= 1:
+        out = []
+        for i, p in enumerate(paths):
+            out.append(record_capture(p, settings))
+            if progress is not None:
+                progress(f"read {Path(p).name}", (i + 1) / max(n, 1))
+        return out
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        result: list[Recording] = []
+        for i, rec in enumerate(pool.map(_record_job, [(str(p), settings) for p in paths])):
+            result.append(rec)
+            if progress is not None:
+                progress(f"read {Path(paths[i]).name}", (i + 1) / n)
+        return result

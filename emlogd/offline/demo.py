@@ -101,7 +101,7 @@ def run_demo(
             CONFIG.format(
                 lag1=round(LATENCIES_S["emlog1"] / speed, 4),
                 lag2=round(LATENCIES_S["emlog2"] / speed, 4),
-                val=round(30.0 / speed, 3),
+                val=round(120.0 / speed, 3),
                 recheck=round(300.0 / speed, 2),
             ),
             encoding="utf-8",

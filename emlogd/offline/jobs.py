@@ -1,18 +1,26 @@
 """Offline calibration on captures: calibrate, evaluate, cross-validate.
 
-The offline commands pair a unit under test (an EMlog port) with a reference (the
-DVL's bottom or water track, or another EMlog) from capture files
-(:mod:`emlogd.offline.dataset`), estimate the UUT's latency by cross-correlation, and hand
-lag-aligned arrays to :mod:`calib`. The result objects carry the stable JSON views
-documented in the README.
+A job names one UUT and its reference with the daemon's own settings
+(:class:`~emlogd.pipeline.core.UutSettings`: model, reference port and field,
+current states, heading source...), reads the captures as the daemon would
+(:mod:`emlogd.offline.dataset`), finds the lag with :mod:`calib.lag`'s one rule, and
+fits:
 
-Parameters files (``--save PARAMS.yaml``) are YAML with a schema version; they
-record the model, the parameters and their standard errors, and the pairing
-(UUT, reference, lag) so that ``evaluate`` can apply them without repeating it.
+- ``ls``: batch least squares over every aligned sample (:func:`calib.lsq.fit_ls`,
+  with the current when asked), estimating only what the data determine;
+- ``kf``: the daemon's own online calibration (:class:`~emlogd.pipeline.uut.UutCalibration`)
+  fed the recorded samples in order — so ``emlogd calibrate --method kf`` and
+  ``emlogd replay`` give the same estimate for the same lag.
+
+Whichever the method, the verdict on every unknown comes from the identifiability
+rule over all aligned samples (:func:`calib.excitation.identifiability`). Results carry
+the stable JSON views documented in the README; ``--save`` writes a calibration file
+(:mod:`emlogd.calfile`), the format the daemon's state file uses too.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -21,104 +29,57 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import yaml
 
 from calib.crossval import ESTIMATORS, CrossValResult, Segment, cross_validate
 from calib.errors import CalibrationError
-from calib.excitation import identifiability
-from calib.kalman import KfConfig, run_kf
-from calib.lag import LagEstimate, estimate_lag
-from calib.lsq import fit_ls
+from calib.excitation import Identifiability, identifiability
+from calib.kalman import KfConfig
+from calib.lag import MAX_LAG_STD_RELAXED_S, LagEstimate, accept, combine, estimate_lag
+from calib.lsq import fit_current, fit_ls
 from calib.metrics import improvement_pct, nis_stats, rmse
-from calib.models import PARAM_NAMES, Layout, Params, check_model, correct_array
+from calib.models import CURRENT, FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
+from emlogd.calfile import CalibrationFileError, dumps, loads
+from emlogd.fileio import write_atomic
 from emlogd.offline.dataset import (
-    AlignedPair,
-    CaptureData,
-    Component,
-    ReferenceField,
-    align,
-    load_capture,
+    Aligned,
+    CaptureContentError,
+    ProgressFn,
+    Recording,
+    record_captures,
 )
+from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.uut import UutCalibration
 
 Method = Literal["ls", "kf"]
-ProgressFn = Callable[[str, float], None]
 
-PARAMS_SCHEMA = 1
 DEFAULT_MAX_LAG_S = 10.0
 """Lag search range ±s: the paper's EMlogs lag 3.2 s and 0.45 s."""
-
-MIN_LAG_CORRELATION = 0.6
-"""A per-capture lag estimate with a weaker peak correlation is not trusted (a straight
-run at constant speed correlates at ~0.4 wherever the lag is)."""
 
 
 class OfflineError(EmlogdError):
     """An offline job cannot run on these captures (the message says why)."""
 
 
-@dataclass(frozen=True, slots=True)
-class Pairing:
-    """Which series is calibrated against which.
-
-    Attributes:
-        uut: the EMlog port to calibrate.
-        ref: the reference port.
-        ref_field: ``bottom`` (DVL bottom track), ``water`` (DVL :WS) or ``speed``
-            (another EMlog's VHW/VBW: relative calibration).
-        uut_source: the UUT sentence (``VHW`` or ``VBW``; default VHW, else VBW).
-        component: ``longitudinal`` (default: an EMlog measures along the hull) or
-            ``magnitude``.
-    """
-
-    uut: str
-    ref: str
-    ref_field: ReferenceField = "bottom"
-    uut_source: str | None = None
-    component: Component = "longitudinal"
-
-    def __post_init__(self) -> None:
-        if self.uut == self.ref and self.ref_field == "speed":
-            raise OfflineError("the UUT and the reference must differ")
-
-    def as_dict(self) -> dict[str, object]:
-        """Plain types."""
-        return {
-            "uut": self.uut,
-            "ref": self.ref,
-            "ref_field": self.ref_field,
-            "uut_source": self.uut_source,
-            "component": self.component,
-        }
-
-
 def load_captures(
-    paths: Sequence[str | Path], pairing: Pairing, progress: ProgressFn | None = None
-) -> list[CaptureData]:
-    """Decode the two ports of ``pairing`` from each capture.
+    paths: Sequence[str | Path],
+    settings: UutSettings,
+    progress: ProgressFn | None = None,
+    *,
+    workers: int | None = None,
+) -> list[Recording]:
+    """Read the UUT's inputs from each capture (in parallel when there are several).
 
     Raises:
         OfflineError: a capture lacks one of the ports.
         CaptureFormatError: a malformed capture (names file and line).
     """
-    out = []
-    for i, p in enumerate(paths):
-        if progress is not None:
-            progress(f"reading {Path(p).name}", i / max(len(paths), 1))
-        try:
-            out.append(load_capture(p, {pairing.uut, pairing.ref}))
-        except KeyError as exc:
-            raise OfflineError(str(exc.args[0])) from None
-    return out
-
-
-def _series(data: CaptureData, pairing: Pairing) -> tuple[Any, Any]:
     try:
-        uut = data.uut_series(pairing.uut, pairing.uut_source)
-        ref = data.reference_series(pairing.ref, pairing.ref_field)
-    except KeyError as exc:
+        return record_captures(paths, settings, workers=workers, progress=progress)
+    except CaptureContentError as exc:
         raise OfflineError(str(exc.args[0])) from None
-    return uut, ref
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,14 +88,16 @@ class LagReport:
 
     Attributes:
         lag_s: the UUT latency applied, s (positive: the UUT reports late).
-        source: ``auto`` (estimated), ``given``, or ``fallback`` (no capture gave a
-            trusted estimate: 0 s is used and ``note`` says why).
+        source: ``auto`` (estimated and accepted), ``uncertain`` (no estimate is sharp
+            enough to be accepted; the most certain one within
+            :data:`calib.lag.MAX_LAG_STD_RELAXED_S` is used and ``note`` says so),
+            ``given``, or ``fallback`` (no usable estimate: 0 s, ``note`` says why).
         per_capture: capture name -> estimate (auto and fallback).
         note: why the fallback was used.
     """
 
     lag_s: float
-    source: Literal["auto", "given", "fallback"]
+    source: Literal["auto", "uncertain", "given", "fallback"]
     per_capture: dict[str, LagEstimate] = field(default_factory=dict)
     note: str = ""
 
@@ -145,25 +108,30 @@ class LagReport:
             "source": self.source,
             "note": self.note,
             "per_capture": {
-                k: {"lag_s": e.lag_s, "peak_corr": e.peak_corr, "at_bound": e.at_bound}
+                k: {
+                    "lag_s": e.lag_s,
+                    "std_s": _fin(e.std_s),
+                    "peak_corr": e.peak_corr,
+                    "at_bound": e.at_bound,
+                    "accepted": not accept(e),
+                }
                 for k, e in self.per_capture.items()
             },
         }
 
 
 def find_lag(
-    datas: Sequence[CaptureData],
-    pairing: Pairing,
+    recs: Sequence[Recording],
+    settings: UutSettings,
     lag: float | None,
     *,
     max_lag_s: float = DEFAULT_MAX_LAG_S,
 ) -> LagReport:
     """The UUT latency: ``lag`` if given, else estimated per capture and combined.
 
-    The combined estimate is the median of the trusted per-capture estimates (robust
-    to one capture whose correlation peak is shifted, e.g. by a current rotating with
-    the heading in circles) (peak correlation ≥ :data:`MIN_LAG_CORRELATION`, not at the search bound).
-    Without any, the lag is 0 s and the report's ``source`` is ``fallback``.
+    Each capture's estimate uses the heading (the current modelled) when the UUT has
+    current states; the accepted ones (:func:`calib.lag.accept`) are combined by
+    :func:`calib.lag.combine`. Without any, the lag is 0 s and ``source`` is ``fallback``.
 
     Raises:
         OfflineError: ``lag`` is not finite.
@@ -173,51 +141,55 @@ def find_lag(
             raise OfflineError("lag must be a finite number of seconds")
         return LagReport(float(lag), "given")
     per: dict[str, LagEstimate] = {}
-    for d in datas:
-        uut, ref = _series(d, pairing)
-        uu, ru = uut.usable(pairing.component), ref.usable(pairing.component)
+    for r in recs:
+        ok = r.ok_ref & np.isfinite(r.v_ref)
+        heading = None
+        if settings.current:
+            hok = ok & np.isfinite(r.heading)
+            heading = (r.t_ref[hok], r.heading[hok])
         try:
-            per[d.name] = estimate_lag(
-                uut.t[uu],
-                uut.values(pairing.component)[uu],
-                ref.t[ru],
-                ref.values(pairing.component)[ru],
+            per[r.name] = estimate_lag(
+                *_increasing(r.t_read, r.raw),
+                *_increasing(r.t_ref[ok], r.v_ref[ok]),
                 max_lag_s,
                 step_s=0.1,
+                heading=None if heading is None else _increasing(*heading),
             )
         except CalibrationError:
             continue
-    good = [e for e in per.values() if e.peak_corr >= MIN_LAG_CORRELATION and not e.at_bound]
+    good = [e for e in per.values() if not accept(e)]
     if not good:
+        usable = [e for e in per.values() if not accept(e, max_std_s=MAX_LAG_STD_RELAXED_S)]
+        if usable:
+            best = min(usable, key=lambda e: e.std_s)
+            return LagReport(
+                best.lag_s,
+                "uncertain",
+                per,
+                f"no capture gives a lag to ±0.05 s; the most certain estimate is used "
+                f"({best.lag_s:.2f} ± {best.std_s:.2f} s): prefer --lag SECONDS when known",
+            )
         return LagReport(
             0.0,
             "fallback",
             per,
-            f"no capture shows a clear correlation peak (r ≥ {MIN_LAG_CORRELATION}) within "
-            f"±{max_lag_s:g} s: lag 0 s used; pass --lag SECONDS",
+            f"no capture gives a usable lag estimate within ±{max_lag_s:g} s "
+            f"(a clear correlation peak, σ ≤ {MAX_LAG_STD_RELAXED_S:g} s): lag 0 s used; "
+            "pass --lag SECONDS",
         )
-    lag_s = float(np.median([e.lag_s for e in good]))
-    return LagReport(lag_s, "auto", per)
+    return LagReport(combine(good), "auto", per)
 
 
-def aligned(datas: Sequence[CaptureData], pairing: Pairing, lag_s: float) -> list[AlignedPair]:
-    """One lag-aligned pair per capture (reference outages left out)."""
-    out = []
-    for d in datas:
-        uut, ref = _series(d, pairing)
-        out.append(align(uut, ref, lag_s, component=pairing.component))
-    return out
+def _increasing(t: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The samples whose time increases (the lag search needs strictly increasing times)."""
+    keep = np.ones(t.size, dtype=bool)
+    if t.size > 1:
+        keep[1:] = np.diff(t) > 0.0
+    return t[keep], v[keep]
 
 
-def _concat(pairs: Sequence[AlignedPair]) -> tuple[np.ndarray[Any, Any], ...]:
-    t = np.concatenate([p.t for p in pairs]) if pairs else np.empty(0)
-    raw = np.concatenate([p.raw for p in pairs]) if pairs else np.empty(0)
-    ref = np.concatenate([p.ref for p in pairs]) if pairs else np.empty(0)
-    return t, raw, ref
-
-
-def _fin(x: float) -> float | None:
-    return x if math.isfinite(x) else None
+def _fin(x: float | None) -> float | None:
+    return x if x is not None and math.isfinite(x) else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -225,17 +197,17 @@ class CalibrationResult:
     """What ``emlogd calibrate`` found (JSON keys: :meth:`to_dict`)."""
 
     captures: tuple[str, ...]
-    pairing: Pairing
+    settings: UutSettings
     method: Method
     params: Params
-    stderr: dict[str, float]
+    stderr: dict[str, float | None]
+    current_mps: tuple[float, float] | None
+    current_std_mps: tuple[float, float] | None
     lag: LagReport
     n_samples: int
     rmse_raw: float
     rmse_cal: float
-    identifiable: bool
-    reason: str
-    condition_number: float
+    ident: Identifiability
     nis_mean: float | None = None
     nis_frac_inside: float | None = None
 
@@ -244,179 +216,229 @@ class CalibrationResult:
         """Improvement of the calibrated RMSE over the raw one, %."""
         return improvement_pct(self.rmse_raw, self.rmse_cal)
 
+    @property
+    def identifiable(self) -> bool:
+        """Every unknown is determined."""
+        return self.ident.identifiable
+
+    def calibration(self) -> Calibration:
+        """The result as a calibration record (what ``--save`` writes)."""
+        s = self.settings
+        return Calibration(
+            uut=s.port,
+            params=self.params,
+            param_std=dict(self.stderr),
+            lag_s=self.lag.lag_s,
+            current=s.current,
+            current_mps=self.current_mps,
+            current_std_mps=self.current_std_mps,
+            method=self.method,
+            n_samples=self.n_samples,
+            reference={"port": s.reference_port, "field": s.reference_field},
+            unidentifiable=self.ident.unidentifiable,
+            nis_mean=self.nis_mean,
+        )
+
     def to_dict(self) -> dict[str, object]:
         """The stable JSON document (README: ``calibrate --json``)."""
+        s = self.settings
         return {
             "model": self.params.model,
             "method": self.method,
             "params": self.params.as_dict(),
             "stderr": {k: _fin(v) for k, v in self.stderr.items()},
+            "current": _current_doc(self.current_mps, self.current_std_mps),
             "lag_s": self.lag.lag_s,
             "lag": self.lag.as_dict(),
             "rmse_raw": _fin(self.rmse_raw),
             "rmse_cal": _fin(self.rmse_cal),
             "improvement_pct": _fin(self.improvement_pct),
-            "identifiable": self.identifiable,
-            "reason": self.reason,
-            "condition_number": _fin(self.condition_number),
+            "identifiable": self.ident.identifiable,
+            "unidentifiable": list(self.ident.unidentifiable),
+            "verdicts": {v.unknown: v.reason for v in self.ident.verdicts if not v.determined},
+            "reason": self.ident.reason,
+            "condition_number": _fin(self.ident.cond_info),
             "n_samples": self.n_samples,
             "nis_mean": self.nis_mean,
             "nis_frac_inside": self.nis_frac_inside,
-            "uut": self.pairing.uut,
-            "ref": self.pairing.ref,
-            "ref_field": self.pairing.ref_field,
+            "uut": s.port,
+            "ref": s.reference_port,
+            "ref_field": s.reference_field,
+            "current_states": s.current,
             "captures": list(self.captures),
         }
 
 
+def _current_doc(
+    cur: tuple[float, float] | None, std: tuple[float, float] | None
+) -> dict[str, float | None] | None:
+    if cur is None:
+        return None
+    return {
+        "north_mps": cur[0],
+        "east_mps": cur[1],
+        "std_north_mps": None if std is None else _fin(std[0]),
+        "std_east_mps": None if std is None else _fin(std[1]),
+    }
+
+
+def _concat(pairs: Sequence[Aligned], current: bool) -> tuple[FloatArray, ...]:
+    masks = [p.usable(heading=current) for p in pairs]
+    cat = [
+        np.concatenate([getattr(p, k)[m] for p, m in zip(pairs, masks, strict=True)])
+        if pairs
+        else np.empty(0)
+        for k in ("t", "raw", "ref", "heading")
+    ]
+    return tuple(np.asarray(c, dtype=np.float64) for c in cat)
+
+
+def run_online(recs: Sequence[Recording], settings: UutSettings, lag_s: float) -> UutCalibration:
+    """The daemon's online calibration fed the recorded samples of each capture in order.
+
+    The captures run back to back through one filter (the state carries over), the
+    reference, heading and readings merged in time order as they arrived.
+    """
+    s = dataclasses.replace(settings, lag_s=lag_s, learn=True)
+    heading = SampleRing(4096, 2.0, angular=True)
+    cal = UutCalibration(s, None, lambda t: _heading(heading, t), lambda t, k, d: None)
+    for r in recs:
+        heading.clear()
+        events = sorted(
+            [(float(t), 0, i) for i, t in enumerate(r.t_ref)]
+            + [(float(t), 1, i) for i, t in enumerate(r.t_read)]
+        )
+        for t, kind, i in events:
+            if kind == 0:
+                h = float(r.heading[i])
+                heading.add(t, h if math.isfinite(h) else None, math.isfinite(h))
+                ok = bool(r.ok_ref[i])
+                v = float(r.v_ref[i])
+                cal.add_reference(t, v if ok else None, ok)
+            else:
+                cal.add_reading(t, float(r.raw[i]))
+            cal.drain(t)
+        cal.drain(r.t_end if math.isfinite(r.t_end) else 0.0, final=True)
+    return cal
+
+
+def _heading(ring: SampleRing, t: float) -> float | None:
+    h = ring.at(t)
+    return ring.nearest(t, 0.6) if h is None else h
+
+
 def calibrate(
-    datas: Sequence[CaptureData],
-    pairing: Pairing,
-    model: str,
+    recs: Sequence[Recording],
+    settings: UutSettings,
     method: Method,
     *,
     lag: float | None = None,
-    kf_config: KfConfig | None = None,
 ) -> CalibrationResult:
-    """Estimate ``model`` of the UUT from every capture together.
-
-    LS fits all aligned samples at once; KF runs the filter through the captures in
-    order (continuing its state) and reports the final estimate with σ from P.
-    ``identifiable`` and the condition number come from the excitation of the
-    aligned reference speeds (:func:`calib.excitation.excitation`).
+    """Estimate the UUT's model (and current) from every capture together.
 
     Raises:
-        OfflineError: no aligned samples.
+        OfflineError: no aligned samples, or no heading for a current.
     """
     if method not in ("ls", "kf"):
         raise OfflineError(f"method must be ls or kf, not {method!r}")
-    lag_report = find_lag(datas, pairing, lag)
-    pairs = aligned(datas, pairing, lag_report.lag_s)
-    t, raw, ref = _concat(pairs)
+    lag_report = find_lag(recs, settings, lag)
+    pairs = [r.aligned(lag_report.lag_s) for r in recs]
+    _t, raw, ref, heading = _concat(pairs, settings.current)
     if raw.size == 0:
+        why = " and a heading" if settings.current else ""
         raise OfflineError(
-            f"no {pairing.uut} sample has a valid {pairing.ref} reference at lag "
-            f"{lag_report.lag_s:.2f} s"
+            f"no {settings.port} sample has a valid {settings.reference_port} reference{why} "
+            f"at lag {lag_report.lag_s:.2f} s"
         )
-    names = tuple(d.path for d in datas)
-    kfc = kf_config if kf_config is not None else KfConfig()
-    exc = identifiability(Layout(check_model(model)), ref, raw, kfc.r_raw_mps2 + kfc.r_ref_mps2)
+    layout = Layout(check_model(settings.model), settings.current)
+    kf = settings.kf
+    hd = heading if settings.current else None
     nis_mean = nis_frac = None
     if method == "ls":
-        fit = fit_ls(model, ref, raw)
-        params = fit.params
-        stderr = {k: (math.inf if v is None else v) for k, v in fit.stderr.items()}
+        fit = fit_ls(
+            settings.model, ref, raw, heading_deg=hd, current=settings.current, rule=settings.rule
+        )
+        params, stderr = fit.params, dict(fit.stderr)
+        cur, cur_std = fit.current_mps, fit.current_std_mps
+        ident = fit.ident
     else:
-        run = run_kf(model, t, raw, ref, kf_config, history=False)
-        params = run.params
-        stderr = dict(run.param_std)
-        stats = nis_stats(run.nis[np.isfinite(run.nis)])
-        nis_mean, nis_frac = stats.mean, stats.frac_inside
-    cal = correct_array(params, raw)
+        cal = run_online(recs, settings, lag_report.lag_s)
+        params = cal.kf.params
+        ident = identifiability(
+            layout,
+            ref - _projection(cal.kf.current_mps, heading) if settings.current else ref,
+            raw,
+            kf.r_raw_mps2 + kf.r_ref_mps2,
+            heading_deg=hd,
+            rule=settings.rule,
+        )
+        stderr = {k: (v if k in ident.determined else None) for k, v in cal.kf.param_std.items()}
+        cur = cal.kf.current_mps if CURRENT in ident.determined else None
+        cur_std = cal.kf.current_std_mps if cur is not None else None
+        if cal.nis:
+            stats = nis_stats(np.array(cal.nis, dtype=np.float64))
+            nis_mean, nis_frac = stats.mean, stats.frac_inside
+    corrected = correct_array(params, raw)
+    target = ref - _projection(cur, heading) if cur is not None else ref
     return CalibrationResult(
-        captures=names,
-        pairing=pairing,
+        captures=tuple(r.path for r in recs),
+        settings=settings,
         method=method,
         params=params,
         stderr=stderr,
+        current_mps=cur,
+        current_std_mps=cur_std,
         lag=lag_report,
         n_samples=int(raw.size),
-        rmse_raw=rmse(ref, raw),
-        rmse_cal=rmse(ref, cal),
-        identifiable=exc.identifiable,
-        reason=exc.reason,
-        condition_number=exc.cond_info,
+        rmse_raw=rmse(target, raw),
+        rmse_cal=rmse(target, corrected),
+        ident=ident,
         nis_mean=nis_mean,
         nis_frac_inside=nis_frac,
     )
 
 
-# ------------------------------------------------------------------ parameters files
+def _projection(cur: tuple[float, float] | None, heading_deg: FloatArray) -> FloatArray:
+    if cur is None:
+        return np.zeros_like(heading_deg)
+    psi = np.radians(heading_deg)
+    return np.asarray(cur[0] * np.cos(psi) + cur[1] * np.sin(psi), dtype=np.float64)
 
 
-@dataclass(frozen=True, slots=True)
-class ParamsFile:
-    """A saved calibration: parameters plus the pairing and lag they assume."""
-
-    params: Params
-    stderr: dict[str, float]
-    pairing: Pairing
-    lag_s: float
-    method: str
-    identifiable: bool
-    trained_on: tuple[str, ...]
+# ------------------------------------------------------------------ calibration files
 
 
 def save_params(path: str | Path, result: CalibrationResult) -> None:
-    """Write ``result`` as a parameters file (atomic: temp file, fsync, rename)."""
-    doc = {
-        "schema": PARAMS_SCHEMA,
-        "kind": "emlogd-params",
-        "model": result.params.model,
-        "params": result.params.as_dict(),
-        "stderr": {k: _fin(v) for k, v in result.stderr.items()},
-        "method": result.method,
-        "lag_s": result.lag.lag_s,
-        "identifiable": result.identifiable,
-        "pairing": result.pairing.as_dict(),
-        "trained_on": list(result.captures),
+    """Write ``result`` as a calibration file (atomic)."""
+    extra = {
+        "captures": list(result.captures),
         "rmse_raw": _fin(result.rmse_raw),
         "rmse_cal": _fin(result.rmse_cal),
+        "uut_source": result.settings.uut_source,
+        "component": result.settings.component,
     }
-    p = Path(path)
-    tmp = p.with_name(f".{p.name}.tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write("# emlogd calibration parameters (emlogd calibrate --save)\n")
-        yaml.safe_dump(doc, f, sort_keys=False)
-        f.flush()
-        os.fsync(f.fileno())
-    tmp.replace(p)
+    text = dumps({result.settings.port: result.calibration()}, {result.settings.port: extra})
+    write_atomic(Path(path), text.encode("utf-8"))
 
 
-def load_params(path: str | Path) -> ParamsFile:
-    """Read a parameters file.
+def load_params(path: str | Path) -> tuple[Calibration, dict[str, Any]]:
+    """Read a calibration file written by ``calibrate --save`` (its first UUT).
 
     Raises:
-        OfflineError: unreadable, wrong schema or malformed (the message names the file).
+        OfflineError: unreadable, wrong kind or schema, or malformed (names the file).
     """
     try:
-        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise OfflineError(f"{path}: cannot read parameters: {exc}") from None
-    if not isinstance(doc, dict) or doc.get("kind") != "emlogd-params":
-        raise OfflineError(f"{path}: not an emlogd parameters file")
-    if doc.get("schema") != PARAMS_SCHEMA:
-        raise OfflineError(
-            f"{path}: schema {doc.get('schema')!r}, this emlogd reads {PARAMS_SCHEMA}"
-        )
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise OfflineError(f"{path}: cannot read the calibration file: {exc}") from None
     try:
-        model = str(doc["model"])
-        values = doc["params"]
-        theta = [float(values[name]) for name in PARAM_NAMES[check_model(model)]]
-        params = Params.from_theta(model, theta)
-        pr = doc["pairing"]
-        pairing = Pairing(
-            str(pr["uut"]),
-            str(pr["ref"]),
-            pr.get("ref_field", "bottom"),
-            pr.get("uut_source"),
-            pr.get("component", "longitudinal"),
-        )
-        stderr = {
-            str(k): (math.inf if v is None else float(v))
-            for k, v in (doc.get("stderr") or {}).items()
-        }
-        return ParamsFile(
-            params,
-            stderr,
-            pairing,
-            float(doc["lag_s"]),
-            str(doc.get("method", "")),
-            bool(doc.get("identifiable", False)),
-            tuple(doc.get("trained_on") or ()),
-        )
-    except (KeyError, TypeError, ValueError, AttributeError, CalibrationError) as exc:
-        raise OfflineError(f"{path}: malformed parameters file: {exc!r}") from None
+        cals, extras = loads(text)
+    except CalibrationFileError as exc:
+        raise OfflineError(f"{path}: {exc}") from None
+    if not cals:
+        raise OfflineError(f"{path}: no calibration in the file")
+    uut = next(iter(cals))
+    return cals[uut], extras.get(uut, {})
 
 
 # ------------------------------------------------------------------ evaluate
@@ -424,7 +446,7 @@ def load_params(path: str | Path) -> ParamsFile:
 
 @dataclass(frozen=True, slots=True)
 class EvaluationRow:
-    """Frozen parameters applied to one capture."""
+    """A frozen calibration applied to one capture."""
 
     capture: str
     n_samples: int
@@ -448,16 +470,31 @@ class EvaluationRow:
 
 
 def evaluate(
-    datas: Sequence[CaptureData], params: Params, pairing: Pairing, lag_s: float
+    recs: Sequence[Recording], params: Params, settings: UutSettings, lag_s: float
 ) -> list[EvaluationRow]:
-    """RMSE raw and calibrated per capture, with frozen ``params``."""
+    """RMSE raw and calibrated per capture, with frozen ``params``.
+
+    With current states the comparison is in the water frame: each capture's own
+    current (:func:`calib.lsq.fit_current`, for the raw reading and the corrected one
+    alike) is taken off the reference where its heading determines it.
+    """
     rows = []
-    for d, pair in zip(datas, aligned(datas, pairing, lag_s), strict=True):
-        if len(pair) == 0:
-            rows.append(EvaluationRow(d.path, 0, math.nan, math.nan))
+    for r in recs:
+        pair = r.aligned(lag_s)
+        ok = pair.usable(heading=settings.current)
+        if not ok.any():
+            rows.append(EvaluationRow(r.path, 0, math.nan, math.nan))
             continue
-        cal = correct_array(params, pair.raw)
-        rows.append(EvaluationRow(d.path, len(pair), rmse(pair.ref, pair.raw), rmse(pair.ref, cal)))
+        raw, ref = pair.raw[ok], pair.ref[ok]
+        cal = correct_array(params, raw)
+        target_raw = target_cal = ref
+        if settings.current:
+            hd = pair.heading[ok]
+            target_raw = ref - _projection(fit_current(Params(params.model), ref, raw, hd), hd)
+            target_cal = ref - _projection(fit_current(params, ref, raw, hd), hd)
+        rows.append(
+            EvaluationRow(r.path, int(raw.size), rmse(target_raw, raw), rmse(target_cal, cal))
+        )
     return rows
 
 
@@ -465,8 +502,8 @@ def evaluate(
 
 
 def crossval(
-    datas: Sequence[CaptureData],
-    pairing: Pairing,
+    recs: Sequence[Recording],
+    settings: UutSettings,
     *,
     lag: float | None = None,
     estimators: Sequence[str] = ESTIMATORS,
@@ -482,17 +519,25 @@ def crossval(
     Raises:
         OfflineError: fewer than two captures or duplicate names.
     """
-    if len(datas) < 2:
+    if len(recs) < 2:
         raise OfflineError("cross-validation needs at least two captures")
-    lag_report = find_lag(datas, pairing, lag)
-    pairs = aligned(datas, pairing, lag_report.lag_s)
-    segs = [Segment(d.name, p.t, p.raw, p.ref) for d, p in zip(datas, pairs, strict=True)]
+    lag_report = find_lag(recs, settings, lag)
+    pairs = [r.aligned(lag_report.lag_s) for r in recs]
+    segs = [
+        Segment(r.name, p.t, p.raw, p.ref, p.heading if settings.current else None)
+        for r, p in zip(recs, pairs, strict=True)
+    ]
     if len({s.name for s in segs}) != len(segs):
         raise OfflineError("captures must have distinct file names (they name the segments)")
     n = sum(len(p) for p in pairs)
     if workers is None:
         workers = min(os.cpu_count() or 1, 4) if n > 20_000 else 1
     result = cross_validate(
-        segs, estimators, kf_config=kf_config, progress=progress, workers=workers
+        segs,
+        estimators,
+        kf_config=kf_config if kf_config is not None else settings.kf,
+        progress=progress,
+        workers=workers,
+        current=settings.current,
     )
     return result, lag_report

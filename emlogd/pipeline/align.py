@@ -1,7 +1,9 @@
 """Alignment: a sensor's samples kept in a fixed ring and read back at a past time.
 
-One rule, used by the daemon, ``emlogd replay`` and the offline commands alike (the
-offline commands stream their captures through the same objects):
+One rule, used by the daemon, ``emlogd replay`` and the offline commands alike. It is
+written twice, once per shape of data, and tested equal: :class:`SampleRing` for a
+stream (the daemon's fixed-memory ring, queried near its newest end) and
+:func:`interpolate` for whole recordings (the offline commands, vectorised):
 
 - a series is queried at time ``t`` by linear interpolation between the two samples
   that bracket ``t``, only when **both are valid and each lies within** ``max_gap_s``
@@ -19,6 +21,11 @@ from __future__ import annotations
 
 import math
 from collections import deque
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_MAX_GAP_S = 1.0
 """Largest distance from a query to each bracketing sample, s (a 10 Hz DVL with a
@@ -121,3 +128,55 @@ class SampleRing:
 
     def __len__(self) -> int:
         return len(self._buf)
+
+
+def interpolate(
+    t_s: npt.ArrayLike,
+    values: npt.ArrayLike,
+    valid: npt.ArrayLike,
+    t_query: npt.ArrayLike,
+    max_gap_s: float = DEFAULT_MAX_GAP_S,
+    *,
+    angular: bool = False,
+) -> FloatArray:
+    """The alignment rule over whole arrays: :meth:`SampleRing.at` at every query time.
+
+    Args:
+        t_s: sample times, s, non-decreasing, shape (n,).
+        values: sample values, shape (n,).
+        valid: sample validity, shape (n,).
+        t_query: query times, s, shape (k,).
+        max_gap_s: largest distance from a query to each bracketing sample, s.
+        angular: the values are angles in degrees (shorter arc, result in [0, 360)).
+
+    Returns:
+        The values at the query times, nan where the rule gives nothing, shape (k,).
+    """
+    t = np.asarray(t_s, dtype=np.float64)
+    v = np.asarray(values, dtype=np.float64)
+    ok = np.asarray(valid, dtype=bool) & np.isfinite(v)
+    q = np.asarray(t_query, dtype=np.float64)
+    out = np.full(q.shape, np.nan)
+    n = t.size
+    if n == 0:
+        return out
+    idx = np.searchsorted(t, q, side="right")
+    s = idx - 1
+    has_s = s >= 0
+    s_c = np.clip(s, 0, n - 1)
+    exact = has_s & (t[s_c] == q)
+    out[exact & ok[s_c]] = v[s_c][exact & ok[s_c]]
+    a_c = np.clip(idx, 0, n - 1)
+    inner = has_s & ~exact & (idx < n)
+    inner &= ok[s_c] & ok[a_c]
+    inner &= (q - t[s_c] <= max_gap_s) & (t[a_c] - q <= max_gap_s)
+    span = np.where(inner, t[a_c] - t[s_c], 1.0)
+    w = np.where(inner, (q - t[s_c]) / span, 0.0)
+    lo, hi = v[s_c], v[a_c]
+    if angular:
+        d = (hi - lo + 180.0) % 360.0 - 180.0
+        val = np.mod(lo + w * d, 360.0)
+    else:
+        val = lo + w * (hi - lo)
+    out[inner] = val[inner]
+    return out

@@ -94,6 +94,7 @@ class UutSettings:
     reference_field: RefField = "bottom"
     current: bool = False
     heading: HeadingSource = "auto"
+    component: Literal["longitudinal", "magnitude"] = "longitudinal"
     magnetic_variation_deg: float | None = None
     lag_s: float | None = None
     lag_window_s: float = 300.0
@@ -124,7 +125,7 @@ class UutSettings:
     zero_s: float = 10.0
     max_accel_mps2: float = 2.0
     max_turn_rate_dps: float = 45.0
-    validation_s: float = 30.0
+    validation_s: float = 120.0
     recheck_s: float = 300.0
 
     def __post_init__(self) -> None:
@@ -220,9 +221,17 @@ def _nav_items(dec: Decoder, rec: object) -> Iterable[_Nav]:
         field_ = _ROLE_OF_SOURCE.get(sp.source)
         if field_ is None:
             continue
-        yield _Speed(field_, sp.source, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
         if sp.source in _DVL_HEADING_SOURCES and sp.heading_deg is not None:
-            yield _Heading(sp.heading_deg, None, None)
+            yield _Heading(sp.heading_deg, None, None)  # first: the speed's own heading
+        yield _Speed(field_, sp.source, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
+
+
+def _value(sp: _Speed, component: str) -> float | None:
+    """The speed a UUT compares: along the hull, or the horizontal magnitude."""
+    v = sp.longitudinal_mps
+    if component == "magnitude" and v is not None:
+        return math.hypot(v, sp.transverse_mps or 0.0)
+    return v
 
 
 class _PortHeading:
@@ -407,7 +416,7 @@ class Pipeline:
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field != sp.field:
                 continue
-            v = sp.longitudinal_mps
+            v = _value(sp, u.s.component)
             ok = sp.valid and v is not None and math.isfinite(v)
             if ok and v is not None and not u.ref_jumps.accept(t, v):
                 ok = False
@@ -435,7 +444,7 @@ class Pipeline:
     ) -> None:
         """Correct and emit a UUT reading at once, then queue it for learning."""
         cal = u.cal
-        raw = sp.longitudinal_mps
+        raw = _value(sp, u.s.component)
         if not sp.valid or raw is None:
             return
         if not cal.in_range(raw):
@@ -563,17 +572,21 @@ class Pipeline:
             ref_state=cal.ref_state,
         )
 
+    def port_status(self) -> dict[str, dict[str, object]]:
+        """Per port: decoded records, rejects by reason, staleness, last receive time."""
+        return {
+            name: {
+                **dec.counters.as_dict(),
+                "stale": self.stale[name],
+                "last_rx": self.last_rx.get(name),
+            }
+            for name, dec in self.decoders.items()
+        }
+
     def status(self) -> dict[str, object]:
         """A JSON-ready status: per-port counters and per-UUT calibration state."""
         return {
-            "ports": {
-                name: {
-                    **dec.counters.as_dict(),
-                    "stale": self.stale[name],
-                    "last_rx": self.last_rx.get(name),
-                }
-                for name, dec in self.decoders.items()
-            },
+            "ports": self.port_status(),
             "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
         }
 

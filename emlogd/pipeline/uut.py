@@ -44,14 +44,14 @@ import math
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 
 from calib.errors import CalibrationError
 from calib.excitation import ExcitationWindow, Identifiability
 from calib.kalman import KfCalibrator
-from calib.lag import accept, estimate_lag
+from calib.lag import MAX_LAG_STD_RELAXED_S, MAX_LAG_STD_S, accept, estimate_lag
 from calib.models import CURRENT, FloatArray, Layout, Params, check_model, zero_params
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
@@ -93,6 +93,18 @@ RECHECK_MIN_SAMPLES = 60.0
 WORSE_FACTOR = 1.05
 WORSE_MARGIN_MPS = 0.005
 """The applied calibration is worse than raw when its RMSE exceeds raw's × 1.05 + 5 mm/s."""
+
+
+class Recorder(Protocol):
+    """What the offline commands collect from a UUT: its inputs, exactly as learning sees them."""
+
+    def reference(
+        self, t: float, v_mps: float | None, valid: bool, heading_deg: float | None
+    ) -> None:
+        """One reference sample along the hull and the UUT's heading at its time."""
+
+    def reading(self, t: float, raw_mps: float) -> None:
+        """One reading of the learnt sentence (fresh, in range)."""
 
 
 @dataclass
@@ -197,9 +209,11 @@ class LagFinder:
         except CalibrationError as exc:
             why = str(exc)
         else:
-            why = accept(est)
+            grown = self.target_s >= LAG_WINDOW_GROWTH * self.window_s
+            why = accept(est, max_std_s=MAX_LAG_STD_RELAXED_S if grown else MAX_LAG_STD_S)
             if not why:
-                return est.lag_s, est.std_s, f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
+                note = ", uncertain: the sharpest peak in the longest window" if grown else ""
+                return est.lag_s, est.std_s, f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s{note}"
         if self.target_s < LAG_WINDOW_GROWTH * self.window_s:
             self.target_s = min(1.5 * self.target_s, LAG_WINDOW_GROWTH * self.window_s)
         else:
@@ -311,6 +325,10 @@ class UutCalibration:
         """The applied calibration changed since it was last handed out for persisting."""
         self.note = ""
         """The last supervision decision worth showing with the state (a fallback)."""
+        self.recorder: Recorder | None = None
+        """Offline use: receives every reference sample and reading as learning sees them."""
+        self.record_only = False
+        """With a recorder: only record the readings, learn nothing (reading captures)."""
 
     # -- construction -------------------------------------------------------
 
@@ -363,6 +381,8 @@ class UutCalibration:
         if not self.ref.add(t, v_mps, valid):
             return
         self.t_ref_last = t
+        if self.recorder is not None:
+            self.recorder.reference(t, v_mps, valid, self.heading_at(t))
         lf = self.lag_finder
         if lf is not None and valid and v_mps is not None and math.isfinite(v_mps):
             lf.ref.append((t, v_mps))
@@ -373,6 +393,10 @@ class UutCalibration:
 
     def add_reading(self, t: float, raw_mps: float) -> None:
         """Queue one reading of the learnt sentence for learning (see :meth:`drain`)."""
+        if self.recorder is not None:
+            self.recorder.reading(t, raw_mps)
+            if self.record_only:
+                return
         self.pending.append((t, raw_mps))
 
     def drain(self, now: float, *, final: bool = False) -> None:

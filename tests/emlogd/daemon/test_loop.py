@@ -34,9 +34,9 @@ ports:
 calibration:
   - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
      excitation_half_life_samples: 120, persist_interval_s: 0.5,
-     validation_s: {30 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
   - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5,
-     validation_s: {30 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
 outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_interval_s: 0.2}}
 state_file: state/state.yaml
 control_socket: run/control.sock
@@ -143,11 +143,10 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         assert isinstance(uuts, dict) and isinstance(ports, dict)
         e1 = uuts["emlog1"]
         assert e1["params"] is not None, e1
-        # ≥ 40 % better than raw: the corrected error is scored one step ahead (each
-        # sample corrected before the filter learns from it), and this short 20x run is
-        # mostly the learning transient (0.50-0.52 of raw here; 0.10 replaying the
-        # full-scale figure-8 capture)
-        assert e1["rmse_corrected"] < 0.6 * e1["rmse_raw"], e1
+        # ≥ 25 % better than raw over the whole run: this short 20x run is mostly the
+        # learning transient, and the raw reading passes through until the first
+        # calibration has beaten it over its validation window (0.64 of raw here)
+        assert e1["rmse_corrected"] < 0.75 * e1["rmse_raw"], e1
         assert sum(ports["junk"]["rejects"].values()) > 100  # the garbage port is counted
         assert ports["emlog2"]["records"] > 0
         vhw = [ln for ln in d.lines if ln[3:6] == b"VHW"]

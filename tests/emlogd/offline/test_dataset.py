@@ -1,4 +1,4 @@
-"""Speed series from captures, interpolation across gaps, alignment."""
+"""Recordings: a UUT's inputs read from captures exactly as the daemon sees them."""
 
 from __future__ import annotations
 
@@ -8,63 +8,70 @@ import numpy as np
 import pytest
 
 from drivers.io.capture import CaptureWriter
-from emlogd.offline.dataset import align, interpolate_valid, load_capture
+from drivers.nmea0183 import encode_vhw
+from emlogd.offline.dataset import CaptureContentError, record_capture, record_captures
+from emlogd.pipeline.core import UutSettings
+
+E1 = UutSettings(port="emlog1", reference_port="dvl")
 
 
-def test_series_per_port_and_source(trial_files: dict[str, Path]) -> None:
-    d = load_capture(trial_files["figure-8"])
-    assert set(d.sources("emlog2")) >= {"VHW", "VBW"}
-    assert d.sources("emlog1") == ["VHW"]
-    assert "PD6:BS" in d.sources("dvl")
-    vhw = d.uut_series("emlog1")
-    assert vhw.source == "VHW" and vhw.kind == "stw"
-    assert np.all(np.diff(vhw.t) >= 0)
-    bs = d.reference_series("dvl", "bottom")
-    assert bs.kind == "sog" and np.isfinite(bs.heading[bs.valid]).all()
-    assert d.counters["dvl"]["records"] > 0
-    with pytest.raises(KeyError, match="no port"):
-        d.uut_series("nope")
-    with pytest.raises(KeyError, match="no PD6:WS"):
-        d.reference_series("dvl", "water")
+class TestRecording:
+    """What one capture gives."""
+
+    def test_readings_references_and_headings(self, trial_files: dict[str, Path]) -> None:
+        """The UUT's VHW readings, the DVL's bottom track and its heading, in time order."""
+        rec = record_capture(trial_files["figure-8"], E1)
+        assert rec.name == "2-figure8" and rec.uut == "emlog1"
+        assert rec.raw.size > 200 and np.all(np.diff(rec.t_read) > 0)
+        assert rec.t_ref.size > 10 * rec.raw.size * 0.8
+        assert 0.8 < rec.ok_ref.mean() <= 1.0  # bottom-lock losses are invalid samples
+        assert np.isfinite(rec.heading).mean() > 0.95
+        assert np.all(
+            (rec.heading[np.isfinite(rec.heading)] >= 0)
+            & (rec.heading[np.isfinite(rec.heading)] < 360)
+        )
+        assert rec.counters["dvl"]["records"] > 0
+
+    def test_aligned_at_a_lag_uses_the_alignment_rule(self, trial_files: dict[str, Path]) -> None:
+        """Alignment pairs each reading with the reference at t − lag, nan across outages."""
+        rec = record_capture(trial_files["figure-8"], E1)
+        a = rec.aligned(3.3)
+        ok = a.usable()
+        assert 0.7 < ok.mean() <= 1.0
+        i = int(np.flatnonzero(ok)[10])
+        j = int(np.searchsorted(rec.t_ref, a.t[i] - 3.3))
+        lo, hi = rec.v_ref[j - 1], rec.v_ref[j]
+        assert min(lo, hi) - 1e-9 <= a.ref[i] <= max(lo, hi) + 1e-9
+
+    def test_a_missing_port_is_named(self, trial_files: dict[str, Path]) -> None:
+        """A capture without the UUT's port raises CaptureContentError listing its ports."""
+        with pytest.raises(CaptureContentError, match="no port emlog9"):
+            record_capture(
+                trial_files["figure-8"], UutSettings(port="emlog9", reference_port="dvl")
+            )
+
+    def test_readings_out_of_range_and_bursts_are_not_recorded(self, tmp_path: Path) -> None:
+        """The daemon's guards apply: a 77.7 kn reading is refused, a burst keeps its newest."""
+        cap = tmp_path / "x.cap"
+        with CaptureWriter(cap, {"log": "nmea0183", "dvl": "pd6"}) as w:
+            w.write_line(1.0, "log", encode_vhw(2.0).encode())
+            w.write_line(2.0, "log", encode_vhw(40.0).encode())
+            w.write_chunk(
+                3.0, "log", b"".join((encode_vhw(v) + "\r\n").encode() for v in (2.1, 2.2))
+            )
+        rec = record_capture(cap, UutSettings(port="log", reference_port="dvl"))
+        assert rec.raw.tolist() == pytest.approx([2.0, 2.2], abs=0.003)
+        assert rec.uut_counters["out_of_range"] == 1 and rec.uut_counters["backlog"] == 1
 
 
-def test_only_the_requested_ports_are_decoded(trial_files: dict[str, Path]) -> None:
-    d = load_capture(trial_files["straight"], ["emlog1"])
-    assert set(d.counters) == {"emlog1"}
-    with pytest.raises(KeyError, match="no port"):
-        load_capture(trial_files["straight"], ["emlog9"])
-
-
-def test_interpolation_never_bridges_an_outage() -> None:
-    t_ref = np.array([0.0, 0.1, 0.2, 5.0, 5.1])
-    v_ref = np.array([1.0, 1.1, 1.2, 2.0, 2.1])
-    q = np.array([0.05, 0.15, 2.5, 5.05, 6.0, 0.2])
-    out = interpolate_valid(t_ref, v_ref, q, max_gap_s=0.5)
-    assert out[0] == pytest.approx(1.05) and out[1] == pytest.approx(1.15)
-    assert np.isnan(out[2]) and np.isnan(out[4])
-    assert out[3] == pytest.approx(2.05)
-    assert out[5] == pytest.approx(1.2)
-
-
-def test_align_applies_the_lag(tmp_path: Path) -> None:
-    path = tmp_path / "a.cap"
-    with CaptureWriter(path, {"log": "nmea0183", "ref": "nmea0183"}) as w:
-        for k in range(100):
-            t = 1000.0 + k * 0.5
-            # the reference speed is t-dependent; the log reports it 2 s late
-            ref_kn = (1.0 + 0.01 * k) / 0.514444
-            w.write_line(t, "ref", _vhw(ref_kn).encode())
-            if k >= 4:
-                w.write_line(t + 0.001, "log", _vhw((1.0 + 0.01 * (k - 4)) / 0.514444).encode())
-    d = load_capture(path)
-    pair = align(d.uut_series("log"), d.uut_series("ref"), 2.0, component="longitudinal")
-    assert len(pair) > 80
-    assert np.allclose(pair.raw, pair.ref, atol=0.01)
-    skewed = align(d.uut_series("log"), d.uut_series("ref"), 0.0, component="longitudinal")
-    assert not np.allclose(skewed.raw, skewed.ref, atol=0.01)
-
-
-def _vhw(kn: float) -> str:
-    from drivers.nmea0183 import encode_vhw
-
-    return encode_vhw(kn * 0.514444, talker="VW", decimals=3)
+def test_several_captures_in_parallel_give_the_same_recordings(
+    trial_files: dict[str, Path],
+) -> None:
+    """record_captures with worker processes equals the one-by-one reading, in order."""
+    paths = [trial_files["straight"], trial_files["figure-8"]]
+    serial = record_captures(paths, E1, workers=1)
+    parallel = record_captures(paths, E1, workers=2)
+    assert [r.name for r in parallel] == ["3-straight", "2-figure8"]
+    for a, b in zip(serial, parallel, strict=True):
+        np.testing.assert_array_equal(a.raw, b.raw)
+        np.testing.assert_array_equal(a.v_ref, b.v_ref)

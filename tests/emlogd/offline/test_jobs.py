@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
 
 from calib.models import Params
+from drivers.io.capture import CaptureReader
 from emlogd.offline.jobs import (
     OfflineError,
-    Pairing,
     calibrate,
     crossval,
     evaluate,
@@ -18,106 +19,142 @@ from emlogd.offline.jobs import (
     load_params,
     save_params,
 )
+from emlogd.offline.replay import replay
+from emlogd.pipeline.core import Pipeline, PortSettings, UutSettings
 
-E1 = Pairing("emlog1", "dvl")
-
-
-def test_lag_is_found_near_the_truth(trial_files: dict[str, Path]) -> None:
-    datas = load_captures([trial_files["transit"], trial_files["return"]], E1)
-    lag = find_lag(datas, E1, None)
-    assert lag.source == "auto"
-    # the simulator delays EMlog1 by 3.2 s plus ~0.1 s of 4800-baud transmission;
-    # sea current seen by the DVL but not the EMlog biases the peak (docs/REPRODUCTION.md)
-    assert 2.7 <= lag.lag_s <= 3.9
-    assert set(lag.per_capture) == {"1-transit", "5-return"}
+E1 = UutSettings(port="emlog1", reference_port="dvl")
+E1C = dataclasses.replace(E1, current=True)
 
 
-def test_given_lag_and_fallback(trial_files: dict[str, Path]) -> None:
-    datas = load_captures([trial_files["straight"]], E1)
-    assert find_lag(datas, E1, 3.2).source == "given"
-    fb = find_lag(datas, E1, None)
-    assert fb.source in ("fallback", "auto")
-    with pytest.raises(OfflineError, match="finite"):
-        find_lag(datas, E1, float("nan"))
+class TestLag:
+    """The lag over whole captures."""
+
+    def test_lag_is_found_near_the_truth(self, trial_files: dict[str, Path]) -> None:
+        """EMlog1's 3.2 s (+0.1 s of 4800-baud transmission) within 0.3 s, with the current modelled."""
+        recs = load_captures([trial_files["figure-8"], trial_files["circles"]], E1C)
+        lag = find_lag(recs, E1C, None)
+        assert lag.source in ("auto", "uncertain")
+        assert lag.lag_s == pytest.approx(3.3, abs=0.3)
+        assert set(lag.per_capture) == {"2-figure8", "4-circles"}
+
+    def test_given_lag_and_fallback(self, trial_files: dict[str, Path]) -> None:
+        """A given lag is used as is; a non-finite one is an error."""
+        recs = load_captures([trial_files["straight"]], E1)
+        assert find_lag(recs, E1, 3.2).source == "given"
+        assert find_lag(recs, E1, None).source in ("fallback", "uncertain", "auto")
+        with pytest.raises(OfflineError, match="finite"):
+            find_lag(recs, E1, float("nan"))
 
 
-@pytest.mark.parametrize("method", ["ls", "kf"])
-def test_figure8_calibration_cuts_the_error(trial_files: dict[str, Path], method: str) -> None:
-    datas = load_captures([trial_files["figure-8"]], E1)
-    res = calibrate(datas, E1, "EM3", method, lag=3.3)  # type: ignore[arg-type]
-    assert res.identifiable, res.reason
-    assert res.rmse_raw > 0.4
-    assert res.improvement_pct >= 60.0
-    d = res.to_dict()
-    for key in (
-        "model", "method", "params", "stderr", "lag_s", "rmse_raw", "rmse_cal",
-        "improvement_pct", "identifiable", "condition_number",
-    ):  # fmt: skip
-        assert key in d
-    assert set(d["params"]) == {"m", "b"}  # type: ignore[arg-type]
-    if method == "kf":
-        assert d["nis_mean"] is not None
+class TestCalibrate:
+    """Fits and their verdicts."""
+
+    @pytest.mark.parametrize("method", ["ls", "kf"])
+    def test_figure8_calibration_cuts_the_error(
+        self, trial_files: dict[str, Path], method: str
+    ) -> None:
+        """LS and KF on the figure-8 cut the error by ≥ 60 % and report every key."""
+        recs = load_captures([trial_files["figure-8"]], E1)
+        res = calibrate(recs, E1, method, lag=3.3)  # type: ignore[arg-type]
+        assert res.identifiable, res.ident.reason
+        assert res.rmse_raw > 0.4
+        assert res.improvement_pct >= 60.0
+        d = res.to_dict()
+        for key in (
+            "model", "method", "params", "stderr", "lag_s", "rmse_raw", "rmse_cal",
+            "improvement_pct", "identifiable", "unidentifiable", "condition_number", "current",
+        ):  # fmt: skip
+            assert key in d
+        assert set(d["params"]) == {"m", "b"}  # type: ignore[arg-type]
+        assert d["unidentifiable"] == [] and d["current"] is None
+        if method == "kf":
+            assert d["nis_mean"] is not None
+
+    def test_with_the_current(self, trial_files: dict[str, Path]) -> None:
+        """With the current, circles give the current; the scale is reported undetermined or not."""
+        recs = load_captures([trial_files["circles"]], E1C)
+        res = calibrate(recs, E1C, "ls", lag=3.3)
+        d = res.to_dict()
+        assert d["current"] is not None
+        assert set(d["current"]) == {"north_mps", "east_mps", "std_north_mps", "std_east_mps"}  # type: ignore[arg-type]
+        assert d["identifiable"] is (d["unidentifiable"] == [])
+
+    def test_straight_run_holds_the_scale(self, trial_files: dict[str, Path]) -> None:
+        """The straight run determines no scale: unidentifiable, held at the ideal sensor's."""
+        recs = load_captures([trial_files["straight"]], E1)
+        res = calibrate(recs, E1, "ls", lag=3.3)
+        assert res.ident.unidentifiable == ("m",)
+        assert "constant" in res.ident.reason and res.params.m == 0.0
+        assert res.to_dict()["stderr"]["m"] is None  # type: ignore[index]
+
+    def test_relative_calibration_against_the_other_emlog(
+        self, trial_files: dict[str, Path]
+    ) -> None:
+        """A UUT calibrates against another EMlog's speed."""
+        rel = UutSettings(port="emlog1", reference_port="emlog2", reference_field="speed")
+        recs = load_captures([trial_files["figure-8"]], rel)
+        res = calibrate(recs, rel, "ls", lag=2.8)
+        assert res.n_samples > 100 and res.rmse_cal < res.rmse_raw
+
+    def test_kf_agrees_with_replay(self, trial_files: dict[str, Path]) -> None:
+        """calibrate --method kf and replay of the same capture with the same settings agree exactly."""
+        path = trial_files["figure-8"]
+        settings = dataclasses.replace(E1C, lag_s=3.3)
+        res = calibrate(load_captures([path], settings), settings, "kf", lag=3.3)
+        ports = [PortSettings(n, p) for n, p in CaptureReader(path).ports.items()]
+        pipeline = Pipeline(ports, [settings])
+        replay(pipeline, [path])
+        est = pipeline.status()["uuts"]["emlog1"]["estimate"]  # type: ignore[index]
+        for k, v in res.params.as_dict().items():
+            assert est[k] == pytest.approx(v, abs=1e-9)  # type: ignore[index]
 
 
-def test_straight_run_is_not_identifiable(trial_files: dict[str, Path]) -> None:
-    datas = load_captures([trial_files["straight"]], E1)
-    res = calibrate(datas, E1, "EM3", "ls", lag=3.3)
-    assert not res.identifiable
-    assert "constant" in res.reason
+class TestFiles:
+    """Calibration files and evaluate."""
 
+    def test_round_trip_and_evaluate(self, trial_files: dict[str, Path], tmp_path: Path) -> None:
+        """--save writes a calibration file that evaluate applies to other captures."""
+        recs = load_captures([trial_files["figure-8"]], E1)
+        res = calibrate(recs, E1, "ls", lag=3.3)
+        path = tmp_path / "p.yaml"
+        save_params(path, res)
+        cal, extra = load_params(path)
+        assert cal.params == res.params and cal.lag_s == 3.3 and cal.method == "ls"
+        assert cal.reference == {"port": "dvl", "field": "bottom"}
+        assert extra["captures"] == [str(trial_files["figure-8"])]
+        others = load_captures([trial_files["transit"], trial_files["return"]], E1)
+        rows = evaluate(others, cal.params, E1, 3.3)
+        assert [Path(r.capture).name for r in rows] == ["1-transit.cap", "5-return.cap"]
+        assert all(r.improvement_pct > 30 for r in rows)
+        assert rows[0].to_dict()["n_samples"] == rows[0].n_samples
 
-def test_relative_calibration_against_the_other_emlog(trial_files: dict[str, Path]) -> None:
-    pairing = Pairing("emlog1", "emlog2", "speed")
-    datas = load_captures([trial_files["figure-8"]], pairing)
-    res = calibrate(datas, pairing, "EM3", "ls", lag=2.8)
-    assert res.n_samples > 100 and res.rmse_cal < res.rmse_raw
+    def test_bad_files(self, tmp_path: Path) -> None:
+        """Unreadable, foreign or malformed files are one clear error each."""
+        p = tmp_path / "x.yaml"
+        p.write_text("just: text\n")
+        with pytest.raises(OfflineError, match="not an emlogd calibration file"):
+            load_params(p)
+        p.write_text("kind: emlogd-calibration\nschema: 99\n")
+        with pytest.raises(OfflineError, match="schema"):
+            load_params(p)
+        with pytest.raises(OfflineError, match="cannot read"):
+            load_params(tmp_path / "missing.yaml")
 
-
-def test_params_file_round_trip_and_evaluate(trial_files: dict[str, Path], tmp_path: Path) -> None:
-    datas = load_captures([trial_files["figure-8"]], E1)
-    res = calibrate(datas, E1, "EM3", "ls", lag=3.3)
-    path = tmp_path / "p.yaml"
-    save_params(path, res)
-    pf = load_params(path)
-    assert pf.params == res.params and pf.lag_s == 3.3 and pf.pairing == E1
-    others = load_captures([trial_files["transit"], trial_files["return"]], E1)
-    rows = evaluate(others, pf.params, pf.pairing, pf.lag_s)
-    assert [Path(r.capture).name for r in rows] == ["1-transit.cap", "5-return.cap"]
-    assert all(r.improvement_pct > 30 for r in rows)
-    assert rows[0].to_dict()["n_samples"] == rows[0].n_samples
-
-
-def test_bad_params_files(tmp_path: Path) -> None:
-    p = tmp_path / "x.yaml"
-    p.write_text("just: text\n")
-    with pytest.raises(OfflineError, match="not an emlogd parameters file"):
-        load_params(p)
-    p.write_text("kind: emlogd-params\nschema: 99\n")
-    with pytest.raises(OfflineError, match="schema"):
-        load_params(p)
-    p.write_text("kind: emlogd-params\nschema: 1\nmodel: EM3\nparams: {m: 1}\n")
-    with pytest.raises(OfflineError, match="malformed"):
-        load_params(p)
-    with pytest.raises(OfflineError, match="cannot read"):
-        load_params(tmp_path / "missing.yaml")
-
-
-def test_missing_port_is_a_clear_error(trial_files: dict[str, Path]) -> None:
-    with pytest.raises(OfflineError, match="no port"):
-        load_captures([trial_files["straight"]], Pairing("emlog9", "dvl"))
+    def test_missing_port_is_a_clear_error(self, trial_files: dict[str, Path]) -> None:
+        """A capture without the UUT's port is an OfflineError naming it."""
+        with pytest.raises(OfflineError, match="no port"):
+            load_captures(
+                [trial_files["straight"]], UutSettings(port="emlog9", reference_port="dvl")
+            )
 
 
 def test_crossval_is_160_evaluations(trial_files: dict[str, Path]) -> None:
     """160 out-of-sample evaluations; the straight run determines no scale, the figure-8 does."""
-    datas = load_captures(list(trial_files.values()), E1)
-    result, lag = crossval(datas, E1, lag=3.3, workers=1)
+    recs = load_captures(list(trial_files.values()), E1)
+    result, lag = crossval(recs, E1, lag=3.3, workers=1)
     assert result.n_out_of_sample == 160
     assert lag.lag_s == 3.3
-    fig8 = result.params("LS-EM3", "2-figure8")
-    assert isinstance(fig8, Params)
-    # at 20 % of the paper's durations the figure-8 has under four cycles: it still
-    # helps everywhere. The straight run cannot determine a scale: it is held at the
-    # ideal sensor's and only the bias is learnt (the paper's min-norm fit is gone).
+    assert isinstance(result.params("LS-EM3", "2-figure8"), Params)
     for test in ("1-transit", "3-straight", "4-circles", "5-return"):
         assert result.evaluation("LS-EM3", "2-figure8", test).improvement_pct >= 25
     straight = next(t for t in result.trained if (t.estimator, t.train) == ("LS-EM3", "3-straight"))
@@ -125,4 +162,4 @@ def test_crossval_is_160_evaluations(trial_files: dict[str, Path]) -> None:
     assert straight.unidentifiable == ("m",) and straight.params.m == 0.0
     assert figure8.unidentifiable == ()
     with pytest.raises(OfflineError, match="two captures"):
-        crossval(datas[:1], E1)
+        crossval(recs[:1], E1)

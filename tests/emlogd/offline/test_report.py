@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from emlogd.offline.jobs import Pairing, load_captures
+from emlogd.offline.jobs import load_captures
+from emlogd.pipeline.core import UutSettings
 
 pytest.importorskip("matplotlib")
 
@@ -14,9 +15,9 @@ from emlogd.offline.report import report
 
 
 def test_report_writes_the_figures(trial_files: dict[str, Path], tmp_path: Path) -> None:
-    pairing = Pairing("emlog1", "dvl")
-    datas = load_captures([trial_files["figure-8"], trial_files["straight"]], pairing)
-    paths = report(datas, pairing, tmp_path / "fig", lag=3.3, workers=1)
+    settings = UutSettings(port="emlog1", reference_port="dvl")
+    recs = load_captures([trial_files["figure-8"], trial_files["straight"]], settings)
+    paths = report(recs, settings, tmp_path / "fig", lag=3.3, workers=1)
     names = sorted(p.name for p in paths)
     assert names == sorted(
         [

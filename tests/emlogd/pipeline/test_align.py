@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from emlogd.pipeline.align import SampleRing, wrap_deg
+from emlogd.pipeline.align import SampleRing, interpolate, wrap_deg
 
 
 class TestSampleRing:
@@ -63,3 +66,38 @@ class TestSampleRing:
         with pytest.raises(ValueError):
             SampleRing(10, max_gap_s=0.0)
         assert wrap_deg(-10.0) == 350.0 and wrap_deg(720.0) == 0.0
+
+
+class TestInterpolateArrays:
+    """The vectorised form of the rule equals the ring, query by query."""
+
+    @settings(max_examples=200, deadline=None)
+    @given(
+        steps=st.lists(st.floats(0.0, 0.8), min_size=2, max_size=40),
+        values=st.lists(st.floats(0.0, 359.9), min_size=40, max_size=40),
+        valid=st.lists(st.booleans(), min_size=40, max_size=40),
+        queries=st.lists(st.floats(-1.0, 30.0), min_size=1, max_size=20),
+        angular=st.booleans(),
+    )
+    def test_same_answers_as_the_ring(
+        self,
+        steps: list[float],
+        values: list[float],
+        valid: list[bool],
+        queries: list[float],
+        angular: bool,
+    ) -> None:
+        """interpolate() gives SampleRing.at() for every query (nan for None)."""
+        t = np.cumsum(steps)
+        v = np.array(values[: t.size])
+        ok = np.array(valid[: t.size])
+        ring = SampleRing(100, max_gap_s=0.5, angular=angular)
+        for ti, vi, oi in zip(t, v, ok, strict=True):
+            ring.add(float(ti), float(vi), bool(oi))
+        arr = interpolate(t, v, ok, np.array(queries), 0.5, angular=angular)
+        for q, got in zip(queries, arr, strict=True):
+            want = ring.at(q)
+            if want is None:
+                assert np.isnan(got)
+            else:
+                assert got == pytest.approx(want, abs=1e-9)

@@ -75,7 +75,7 @@ class TestValidation:
         assert cand is not None
         # replace the frozen candidate by one that is plainly wrong
         rig.cal.candidate = type(cand)(Params("EM3", m=-0.3, b_mps=0.4), cand.t0)
-        rig.run(40)
+        rig.run(rig.cal.s.validation_s + 10.0)
         assert "candidate_rejected" in rig.kinds()
         assert rig.cal.applied is None or rig.cal.applied.m > 0.0
 

@@ -1,0 +1,37 @@
+"""The atomic, durable write."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from emlogd.fileio import write_atomic
+
+
+def test_replaces_the_file_with_mode_0640(tmp_path: Path) -> None:
+    """The new content replaces the old; the mode is 0640; no temporary remains."""
+    p = tmp_path / "f.yaml"
+    p.write_text("old")
+    write_atomic(p, b"new")
+    assert p.read_bytes() == b"new"
+    assert p.stat().st_mode & 0o777 == 0o640
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["f.yaml"]
+
+
+def test_a_failed_write_leaves_the_old_file_and_no_temporary(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """When fsync fails the old content stays and the temporary is removed."""
+    p = tmp_path / "f.yaml"
+    p.write_text("old")
+
+    def fail(fd: int) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", fail)
+    with pytest.raises(OSError, match="No space"):
+        write_atomic(p, b"new")
+    assert p.read_text() == "old"
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["f.yaml"]
