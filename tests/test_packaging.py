@@ -36,6 +36,17 @@ class TestWheel:
             assert f"{package}/__init__.py" in names
             assert f"{package}/py.typed" in names
 
+    def test_every_source_module_ships(self, wheel: zipfile.ZipFile) -> None:
+        """Every module of the three packages, subpackages included, is in the wheel."""
+        names = set(wheel.namelist())
+        source = {
+            p.relative_to(ROOT).as_posix()
+            for package in ("emlogd", "drivers", "calib")
+            for p in (ROOT / package).rglob("*.py")
+        }
+        assert source, "no source found"
+        assert sorted(source - names) == []
+
     def test_no_tests_or_tooling_in_wheel(self, wheel: zipfile.ZipFile) -> None:
         """Only the three packages (and metadata) are top-level entries."""
         tops = {n.split("/")[0] for n in wheel.namelist()}
