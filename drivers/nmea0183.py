@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from datetime import UTC, date, datetime, timedelta
 from typing import ClassVar
 
 import pynmea2
@@ -170,7 +171,100 @@ class Prti:
         return self.bottom_mps is not None and self.bottom_depth_m > 0 and not self.status & 0x000C
 
 
-RECORDS = (Vhw, Vbw, Vlw, Mtw, Heading, Prti)
+GNSS_INVALID_MODES = frozenset("NEMS")
+"""NMEA 2.3+ mode indicators that are not a measured fix: not valid, estimated (dead
+reckoning), manual input, simulator."""
+
+
+@dataclass(frozen=True, slots=True)
+class Rmc:
+    """RMC — recommended minimum GNSS data.
+
+    Attributes:
+        talker: talker ID (``GP``, ``GN``, ``GL``...).
+        time_utc: date and time of the fix (aware UTC), or None when either is empty.
+        time_of_day_s: seconds since midnight UTC, or None.
+        status_active: status ``A`` (else ``V``, void).
+        lat_deg: latitude, degrees, + north, or None.
+        lon_deg: longitude, degrees, + east, or None.
+        sog_mps: speed over ground, m/s, or None.
+        cog_true_deg: course over ground, degrees true, or None.
+        variation_deg: magnetic variation, degrees, + east, or None.
+        mode: the NMEA 2.3+ mode indicator (``A`` autonomous, ``D`` differential, ``E``
+            estimated, ``N`` not valid...), or None on older receivers.
+    """
+
+    talker: str
+    time_utc: datetime | None
+    time_of_day_s: float | None
+    status_active: bool
+    lat_deg: float | None
+    lon_deg: float | None
+    sog_mps: float | None
+    cog_true_deg: float | None
+    variation_deg: float | None
+    mode: str | None
+
+    @property
+    def valid(self) -> bool:
+        """An active fix from a measured mode, with a speed."""
+        return (
+            self.status_active
+            and self.sog_mps is not None
+            and (self.mode is None or self.mode not in GNSS_INVALID_MODES)
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Vtg:
+    """VTG — course and speed over ground (m/s, degrees)."""
+
+    talker: str
+    cog_true_deg: float | None
+    cog_mag_deg: float | None
+    sog_mps: float | None
+    mode: str | None
+
+    @property
+    def valid(self) -> bool:
+        """A speed from a measured mode."""
+        return self.sog_mps is not None and (
+            self.mode is None or self.mode not in GNSS_INVALID_MODES
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Gga:
+    """GGA — fix data: time of day, position and fix quality (0 = no fix)."""
+
+    talker: str
+    time_of_day_s: float | None
+    lat_deg: float | None
+    lon_deg: float | None
+    quality: int
+    satellites: int | None
+    hdop: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class Zda:
+    """ZDA — UTC date and time (aware), or None when a field is empty."""
+
+    talker: str
+    time_utc: datetime | None
+
+
+@dataclass(frozen=True, slots=True)
+class Vdr:
+    """VDR — set and drift of the current (set: the direction it flows towards)."""
+
+    talker: str
+    set_true_deg: float | None
+    set_mag_deg: float | None
+    drift_mps: float | None
+
+
+RECORDS = (Vhw, Vbw, Vlw, Mtw, Heading, Prti, Rmc, Vtg, Gga, Zda, Vdr)
 
 
 # ------------------------------------------------------------------ field helpers
@@ -478,6 +572,153 @@ def parse_prti(sentence: str, f: list[str], raw: bytes) -> Prti:
     return Prti(sentence, start, sample, temp, bottom, depth, water, wdepth, status, sub, cepo)
 
 
+def _time_of_day(field: str, raw: bytes) -> float | None:
+    """``hhmmss.ss`` → seconds since midnight, or None when empty."""
+    if not field:
+        return None
+    if len(field) < 6 or not field[:6].isdigit():
+        raise FieldError(f"time {field!r} is not hhmmss.ss", raw)
+    h, m = int(field[0:2]), int(field[2:4])
+    sec = _num(field[4:], "seconds", raw) or 0.0
+    if h > 23 or m > 59 or not 0.0 <= sec < 61.0:
+        raise OutOfRangeError(f"time {field!r} out of range", raw)
+    return h * 3600.0 + m * 60.0 + sec
+
+
+def _date(field: str, raw: bytes) -> date | None:
+    """``ddmmyy`` → a date (years 80–99 are 1980–1999), or None when empty."""
+    if not field:
+        return None
+    if len(field) != 6 or not field.isdigit():
+        raise FieldError(f"date {field!r} is not ddmmyy", raw)
+    yy = int(field[4:6])
+    try:
+        return date(1900 + yy if yy >= 80 else 2000 + yy, int(field[2:4]), int(field[0:2]))
+    except ValueError:
+        raise OutOfRangeError(f"date {field!r} out of range", raw) from None
+
+
+def _at(day: date | None, tod: float | None) -> datetime | None:
+    if day is None or tod is None:
+        return None
+    return datetime(day.year, day.month, day.day, tzinfo=UTC) + timedelta(seconds=tod)
+
+
+def _latlon(value: str, hemi: str, degrees_digits: int, name: str, raw: bytes) -> float | None:
+    """``(d)ddmm.mmmm`` + hemisphere → signed degrees, or None when empty."""
+    if not value:
+        return None
+    head = value.partition(".")[0]
+    if len(head) != degrees_digits + 2 or not head.isdigit():
+        raise FieldError(f"{name} {value!r} is not (d)ddmm.mmmm", raw)
+    deg = int(head[:degrees_digits])
+    minutes = _num(value[degrees_digits:], name, raw) or 0.0
+    if minutes >= 60.0 or deg > (90 if degrees_digits == 2 else 180):
+        raise OutOfRangeError(f"{name} {value!r} out of range", raw)
+    x = deg + minutes / 60.0
+    _flag(hemi, "NS" if degrees_digits == 2 else "EW", f"{name} hemisphere", raw)
+    return -x if hemi in ("S", "W") else x
+
+
+def _mode(f: list[str], i: int, raw: bytes) -> str | None:
+    if len(f) <= i or not f[i]:
+        return None
+    if len(f[i]) != 1 or not f[i].isalpha():
+        raise FieldError(f"mode indicator {f[i]!r}", raw)
+    return f[i]
+
+
+def parse_rmc(talker: str, f: list[str], raw: bytes) -> Rmc:
+    """RMC: 11 fields (NMEA 2.0), 12 with the mode (2.3), 13 with the navigational status (4.1)."""
+    if len(f) not in (11, 12, 13):
+        raise FieldError(f"RMC has {len(f)} fields, expected 11 to 13", raw)
+    tod = _time_of_day(f[0], raw)
+    active = _status(f[1], "RMC status", raw)
+    lat = _latlon(f[2], f[3], 2, "latitude", raw)
+    lon = _latlon(f[4], f[5], 3, "longitude", raw)
+    sog = _speed(_kn(_num(f[6], "RMC speed", raw)), "RMC speed", raw)
+    if sog is not None and sog < 0.0:
+        raise OutOfRangeError(f"RMC speed {sog:.2f} m/s is negative", raw)
+    cog = _heading(_num(f[7], "RMC course", raw), "RMC course", raw)
+    day = _date(f[8], raw)
+    var = _signed(_num(f[9], "RMC variation", raw), f[10], "RMC variation direction", raw)
+    if var is not None and abs(var) > 180.0:
+        raise OutOfRangeError(f"RMC variation {var} beyond ±180", raw)
+    return Rmc(talker, _at(day, tod), tod, active, lat, lon, sog, cog, var, _mode(f, 11, raw))
+
+
+def parse_vtg(talker: str, f: list[str], raw: bytes) -> Vtg:
+    """VTG: 8 fields, 9 with the mode indicator (NMEA 2.3)."""
+    if len(f) not in (8, 9):
+        raise FieldError(f"VTG has {len(f)} fields, expected 8 or 9", raw)
+    cog_t = _heading(_num(f[0], "VTG course true", raw), "VTG course true", raw)
+    _flag(f[1], "T", "VTG field 2", raw)
+    cog_m = _heading(_num(f[2], "VTG course magnetic", raw), "VTG course magnetic", raw)
+    _flag(f[3], "M", "VTG field 4", raw)
+    kn = _num(f[4], "VTG speed knots", raw)
+    _flag(f[5], "N", "VTG field 6", raw)
+    kmh = _num(f[6], "VTG speed km/h", raw)
+    _flag(f[7], "K", "VTG field 8", raw)
+    sog = _kn(kn) if kn is not None else (None if kmh is None else kmh * KMH_MPS)
+    sog = _speed(sog, "VTG speed", raw)
+    if sog is not None and sog < 0.0:
+        raise OutOfRangeError(f"VTG speed {sog:.2f} m/s is negative", raw)
+    return Vtg(talker, cog_t, cog_m, sog, _mode(f, 8, raw))
+
+
+def parse_gga(talker: str, f: list[str], raw: bytes) -> Gga:
+    """GGA: 14 fields."""
+    if len(f) != 14:
+        raise FieldError(f"GGA has {len(f)} fields, expected 14", raw)
+    tod = _time_of_day(f[0], raw)
+    lat = _latlon(f[1], f[2], 2, "latitude", raw)
+    lon = _latlon(f[3], f[4], 3, "longitude", raw)
+    quality = _int(f[5], "GGA fix quality", raw) if f[5] else 0
+    sats = _int(f[6], "GGA satellites", raw) if f[6] else None
+    hdop = _num(f[7], "GGA HDOP", raw)
+    return Gga(talker, tod, lat, lon, quality, sats, hdop)
+
+
+def parse_zda(talker: str, f: list[str], raw: bytes) -> Zda:
+    """ZDA: time, day, month, year, local zone hours and minutes (6 fields)."""
+    if len(f) != 6:
+        raise FieldError(f"ZDA has {len(f)} fields, expected 6", raw)
+    tod = _time_of_day(f[0], raw)
+    if not (f[1] and f[2] and f[3]):
+        return Zda(talker, None)
+    try:
+        day = date(
+            _int(f[3], "ZDA year", raw), _int(f[2], "ZDA month", raw), _int(f[1], "ZDA day", raw)
+        )
+    except ValueError:
+        raise OutOfRangeError("ZDA date out of range", raw) from None
+    return Zda(talker, _at(day, tod))
+
+
+def parse_vdr(talker: str, f: list[str], raw: bytes) -> Vdr:
+    """VDR: set true, T, set magnetic, M, drift knots, N (6 fields)."""
+    if len(f) != 6:
+        raise FieldError(f"VDR has {len(f)} fields, expected 6", raw)
+    st = _heading(_num(f[0], "VDR set true", raw), "VDR set true", raw)
+    _flag(f[1], "T", "VDR field 2", raw)
+    sm = _heading(_num(f[2], "VDR set magnetic", raw), "VDR set magnetic", raw)
+    _flag(f[3], "M", "VDR field 4", raw)
+    drift = _speed(_kn(_num(f[4], "VDR drift", raw)), "VDR drift", raw)
+    _flag(f[5], "N", "VDR field 6", raw)
+    if drift is not None and drift < 0.0:
+        raise OutOfRangeError(f"VDR drift {drift:.2f} m/s is negative", raw)
+    return Vdr(talker, st, sm, drift)
+
+
+_GNSS_PARSERS = {
+    "RMC": parse_rmc,
+    "VTG": parse_vtg,
+    "GGA": parse_gga,
+    "ZDA": parse_zda,
+    "VDR": parse_vdr,
+}
+
+
 # ------------------------------------------------------------------ decoder
 
 
@@ -524,6 +765,9 @@ class NmeaDecoder(FramedDecoder):
             return parse_vhw(talker, fields, frame)
         if kind == "VBW":
             return parse_vbw(talker, fields, frame)
+        gnss = _GNSS_PARSERS.get(kind)
+        if gnss is not None:
+            return gnss(talker, fields, frame)
         if kind in ("VLW", "MTW", "HDT", "HDG", "HDM"):
             text_full = f"${text}"
             if kind == "VLW":
@@ -646,3 +890,154 @@ def encode_vbw(
         f"{gl},{gt},{'A' if ground_valid else 'V'}"
     )
     return with_checksum(body)
+
+
+def _deg(x: float | None, decimals: int = 1) -> str:
+    """A direction in [0, 360) with ``decimals``, empty for None or non-finite."""
+    if x is None or not math.isfinite(x):
+        return ""
+    v = round(x % 360.0, decimals)
+    return _fmt(0.0 if v >= 360.0 else v, decimals)
+
+
+def _lat(x: float | None) -> tuple[str, str]:
+    if x is None or not math.isfinite(x):
+        return "", ""
+    a = min(abs(x), 90.0)
+    d = int(a)
+    return f"{d:02d}{(a - d) * 60.0:07.4f}", "N" if x >= 0 else "S"
+
+
+def _lon(x: float | None) -> tuple[str, str]:
+    if x is None or not math.isfinite(x):
+        return "", ""
+    a = min(abs(x), 180.0)
+    d = int(a)
+    return f"{d:03d}{(a - d) * 60.0:07.4f}", "E" if x >= 0 else "W"
+
+
+def _hms(t: datetime | None) -> str:
+    if t is None:
+        return ""
+    t = t.astimezone(UTC)
+    return f"{t.hour:02d}{t.minute:02d}{t.second:02d}.{t.microsecond // 10000:02d}"
+
+
+def encode_rmc(
+    t: datetime | None,
+    sog_mps: float | None,
+    cog_true_deg: float | None,
+    *,
+    lat_deg: float | None = None,
+    lon_deg: float | None = None,
+    variation_deg: float | None = None,
+    active: bool = True,
+    mode: str = "A",
+    talker: str = "GP",
+) -> str:
+    """An RMC sentence (NMEA 2.3, with the mode indicator; without CR LF).
+
+    Speed is clamped to 0–999.9 kn, a non-finite value leaves its field empty.
+
+    Raises:
+        ValueError: a bad talker or mode.
+    """
+    if len(mode) != 1 or not mode.isalpha():
+        raise ValueError(f"mode must be one letter, not {mode!r}")
+    la, ns = _lat(lat_deg)
+    lo, ew = _lon(lon_deg)
+    kn = (
+        ""
+        if sog_mps is None or not math.isfinite(sog_mps)
+        else _fmt(min(max(sog_mps / KNOT_MPS, 0.0), 999.9), 2)
+    )
+    day = "" if t is None else t.astimezone(UTC).strftime("%d%m%y")
+    if variation_deg is None or not math.isfinite(variation_deg):
+        var, vd = "", ""
+    else:
+        var, vd = _fmt(min(abs(variation_deg), 180.0), 1), "E" if variation_deg >= 0 else "W"
+    body = (
+        f"{_talker(talker)}RMC,{_hms(t)},{'A' if active else 'V'},{la},{ns},{lo},{ew},"
+        f"{kn},{_deg(cog_true_deg)},{day},{var},{vd},{mode}"
+    )
+    return with_checksum(body)
+
+
+def encode_vtg(
+    sog_mps: float | None,
+    cog_true_deg: float | None,
+    *,
+    cog_mag_deg: float | None = None,
+    mode: str = "A",
+    talker: str = "GP",
+) -> str:
+    """A VTG sentence with the mode indicator (without CR LF)."""
+    kn = (
+        ""
+        if sog_mps is None or not math.isfinite(sog_mps)
+        else _fmt(min(max(sog_mps / KNOT_MPS, 0.0), 999.9), 2)
+    )
+    kmh = (
+        ""
+        if sog_mps is None or not math.isfinite(sog_mps)
+        else _fmt(min(max(sog_mps / KMH_MPS, 0.0), 1851.9), 2)
+    )
+    body = (
+        f"{_talker(talker)}VTG,{_deg(cog_true_deg)},T,{_deg(cog_mag_deg)},M,{kn},N,{kmh},K,{mode}"
+    )
+    return with_checksum(body)
+
+
+def encode_gga(
+    t: datetime | None,
+    lat_deg: float | None,
+    lon_deg: float | None,
+    quality: int = 1,
+    *,
+    satellites: int = 10,
+    hdop: float = 0.9,
+    talker: str = "GP",
+) -> str:
+    """A GGA sentence (without CR LF); altitude and geoid fields empty."""
+    la, ns = _lat(lat_deg)
+    lo, ew = _lon(lon_deg)
+    body = (
+        f"{_talker(talker)}GGA,{_hms(t)},{la},{ns},{lo},{ew},{min(max(int(quality), 0), 9)},"
+        f"{min(max(int(satellites), 0), 99):02d},{_fmt(min(max(hdop, 0.0), 99.9), 1)},,M,,M,,"
+    )
+    return with_checksum(body)
+
+
+def encode_zda(t: datetime, talker: str = "GP") -> str:
+    """A ZDA sentence (UTC, local zone 0; without CR LF)."""
+    u = t.astimezone(UTC)
+    body = f"{_talker(talker)}ZDA,{_hms(u)},{u.day:02d},{u.month:02d},{u.year:04d},00,00"
+    return with_checksum(body)
+
+
+def encode_hdt(heading_deg: float, talker: str = "HE") -> str:
+    """An HDT sentence (true heading; without CR LF)."""
+    return with_checksum(f"{_talker(talker)}HDT,{_deg(heading_deg)},T")
+
+
+def encode_hdm(heading_deg: float, talker: str = "HC") -> str:
+    """An HDM sentence (magnetic heading; without CR LF)."""
+    return with_checksum(f"{_talker(talker)}HDM,{_deg(heading_deg)},M")
+
+
+def encode_hdg(
+    sensor_deg: float,
+    deviation_deg: float | None = None,
+    variation_deg: float | None = None,
+    talker: str = "HC",
+) -> str:
+    """An HDG sentence: magnetic sensor heading, deviation and variation (+ east; without CR LF)."""
+
+    def signed(x: float | None) -> tuple[str, str]:
+        if x is None or not math.isfinite(x):
+            return "", ""
+        return _fmt(min(abs(x), 180.0), 1), "E" if x >= 0 else "W"
+
+    d, dd = signed(deviation_deg)
+    v, vd = signed(variation_deg)
+    return with_checksum(f"{_talker(talker)}HDG,{_deg(sensor_deg)},{d},{dd},{v},{vd}")
