@@ -161,9 +161,9 @@ def _multiple(y: FloatArray, ref: FloatArray, cos_h: FloatArray, sin_h: FloatArr
 
 
 SMOOTH_S = 0.5
-"""The reference is averaged over this window before correlating: its own noise,
-interpolated at every candidate lag, would otherwise make the correlation curve
-jagged at the sample spacing (a 10 Hz DVL at ±1 cm/s)."""
+"""Both series are averaged over at least this window before correlating: the
+reference's own noise, interpolated at every candidate lag, would otherwise make the
+correlation curve jagged at the sample spacing (a 10 Hz DVL at ±1 cm/s)."""
 
 
 def _smooth(t: FloatArray, v: FloatArray, width_s: float) -> FloatArray:
@@ -285,9 +285,14 @@ def estimate_lag(
             f"only {int(np.count_nonzero(keep))} measurement samples overlap the reference "
             f"within ±{reach:g} s (need {min_samples})"
         )
+    # Both series are smoothed over at least twice the coarser sample spacing: two 1 Hz
+    # series sampled at whole seconds otherwise correlate best wherever their samples
+    # line up (a comb of peaks a second apart); a symmetric average keeps the phase.
+    width = max(SMOOTH_S, 2.0 * float(max(np.median(np.diff(tm)), np.median(np.diff(tr)))))
+    vm = _smooth(tm, vm, width)
+    vr = _smooth(tr, vr, width)
     tk = tm[keep]
     vk = vm[keep]
-    tr, vr = tr, _smooth(tr, vr, SMOOTH_S)
     regress: tuple[FloatArray, FloatArray, FloatArray] | None = None
     if heading is not None:
         th, psi = _series("heading", heading[0], heading[1])

@@ -30,7 +30,7 @@ a ``VDR`` (set and drift) whenever the heading determines the current.
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
@@ -40,8 +40,8 @@ from calib.kalman import KfConfig
 from calib.models import check_model
 from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
+from drivers.nmea0183 import Gga, Rmc, Vhw, Vtg
 from drivers.nmea0183 import Heading as NmeaHeading
-from drivers.nmea0183 import Vhw
 from drivers.records import KNOT_MPS
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
@@ -198,11 +198,24 @@ class _Gnss(NamedTuple):
     variation_deg: float | None
 
 
-_Nav = _Speed | _Heading | _Gnss
+class _Fix(NamedTuple):
+    quality: int
+
+
+_Nav = _Speed | _Heading | _Gnss | _Fix
 
 
 def _nav_items(dec: Decoder, rec: object) -> Iterable[_Nav]:
     """The navigation content of one decoded record."""
+    if isinstance(rec, Rmc):
+        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, rec.variation_deg)
+        return
+    if isinstance(rec, Vtg):
+        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
+        return
+    if isinstance(rec, Gga):
+        yield _Fix(rec.quality)
+        return
     if isinstance(rec, NmeaHeading):
         if rec.heading_deg is None:
             return
@@ -253,6 +266,7 @@ class _Uut:
         self.t_status = -math.inf
         self.t_vdr = -math.inf
         self.heading_port: str | None = None
+        self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
 
 
 class Pipeline:
@@ -285,6 +299,7 @@ class Pipeline:
         self.startup_events: list[Event] = []
         self.headings: dict[str, _PortHeading] = {}
         self.variation: dict[str, float] = {}
+        self.fix_quality: dict[str, int] = {}
         self.uuts: dict[str, _Uut] = {}
         self._by_ref: dict[str, list[_Uut]] = {}
         cals = calibrations or {}
@@ -406,6 +421,8 @@ class Pipeline:
                 self._heading(t, port, item)
             elif isinstance(item, _Gnss):
                 self._gnss(t, port, item)
+            elif isinstance(item, _Fix):
+                self.fix_quality[port] = item.quality
             else:
                 self._reference(t, port, item)
                 if u is not None and item.field == "speed":
@@ -423,21 +440,46 @@ class Pipeline:
             u.cal.add_reference(t, v if ok else None, ok)
 
     def _gnss(self, t: float, port: str, g: _Gnss) -> None:
+        """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
             self.variation[port] = g.variation_deg
+        valid = g.valid and self.fix_quality.get(port, 1) > 0
         for u in self._by_ref.get(port, ()):
-            if u.s.reference_field != "gnss":
-                continue
+            if u.s.reference_field == "gnss":
+                u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
+                self._project(u)
+
+    def _project(self, u: _Uut, *, final: bool = False) -> None:
+        """Project queued GNSS samples on the hull once the heading covers their time.
+
+        Along the hull ``SOG·cos(COG − ψ)`` with the UUT's heading ψ interpolated at the
+        fix's time (a heading sentence usually follows the fix in the same second);
+        below ``min_sog_mps`` the course is meaningless and the sample is invalid.
+        """
+        while u.gnss:
+            t, sog, cog, valid = u.gnss[0]
+            ring = self._heading_ring(u.s)
+            if not final and ring is not None and not ring.covers(t) and self.now - t < 2.0:
+                return
+            u.gnss.popleft()
             along: float | None = None
-            ok = g.valid and g.sog_mps is not None and g.cog_true_deg is not None
-            if ok and g.sog_mps is not None and g.cog_true_deg is not None:
+            ok = valid and sog is not None and cog is not None
+            if ok and sog is not None and cog is not None:
                 psi = self._heading_at(u.s.port, t)
-                if psi is None or g.sog_mps < u.s.min_sog_mps:
+                if psi is None or sog < u.s.min_sog_mps:
                     ok = False
                 else:
-                    along = g.sog_mps * math.cos(math.radians(g.cog_true_deg - psi))
+                    along = sog * math.cos(math.radians(cog - psi))
                     ok = u.ref_jumps.accept(t, along)
             u.cal.add_reference(t, along if ok else None, ok)
+
+    def _heading_ring(self, s: UutSettings) -> SampleRing | None:
+        """The ring the UUT's heading comes from now (the first with data)."""
+        for port in self._heading_ports(s):
+            ph = self.headings.get(port)
+            if ph is not None and len(ph.ring):
+                return ph.ring
+        return None
 
     def _reading(
         self, u: _Uut, t: float, sp: _Speed, rec: object, *, fresh: bool, out: Output
@@ -487,6 +529,8 @@ class Pipeline:
 
     def _after(self, t: float, out: Output) -> None:
         for u in self.uuts.values():
+            if u.gnss:
+                self._project(u)
             u.cal.drain(self.now)
             snap = u.cal.take_snapshot(t)
             if snap is not None:
@@ -521,6 +565,7 @@ class Pipeline:
             items = [(rec, item) for rec in dec.flush() for item in _nav_items(dec, rec)]
             self._route(t, port, items, out)
         for u in self.uuts.values():
+            self._project(u, final=True)
             u.cal.drain(self.now, final=True)
         self._after(self.now, out)
         return out

@@ -106,27 +106,40 @@ def emitted_speed(
 class UutHealth:
     """A speed log's faults: stuck, or zero while the reference moves.
 
+    A reading is *unchanged* while it stays within half the log's resolution of the
+    value it had when it last moved (the resolution is learnt: the smallest non-zero
+    step between consecutive readings, at least :data:`QUANTUM_MPS` — a log that reads
+    in tenths of a knot steps by 0.05 m/s). The reference has *moved* when
+    its smoothed value (10 s time constant, so that waves and GNSS noise do not count)
+    has spanned ``ref_move_mps`` since then.
+
     Args:
-        stuck_s: a reading unchanged (beyond :data:`QUANTUM_MPS`) this long while the
-            reference moved by at least ``ref_move_mps`` is stuck, s.
+        stuck_s: a reading unchanged this long while the reference moved is stuck, s.
         zero_s: a reading at zero this long while the reference is above
             ``moving_mps`` is a dead log, s.
-        ref_move_mps: least change of the reference that proves motion, m/s.
+        ref_move_mps: least change of the smoothed reference that proves motion, m/s.
         moving_mps: reference speed above which the vessel moves, m/s.
     """
 
     __slots__ = (
         "_anchor",
+        "_last",
+        "_min_step",
         "_ref_hi",
         "_ref_lo",
+        "_ref_s",
         "_t_anchor",
+        "_t_ref",
         "_t_zero",
         "fault",
         "moving_mps",
         "ref_move_mps",
+        "resolution_mps",
         "stuck_s",
         "zero_s",
     )
+
+    SMOOTH_S = 10.0
 
     def __init__(
         self,
@@ -139,8 +152,13 @@ class UutHealth:
         self.zero_s = zero_s
         self.ref_move_mps = ref_move_mps
         self.moving_mps = moving_mps
+        self.resolution_mps = QUANTUM_MPS
+        self._last = math.nan
+        self._min_step = math.inf
         self._anchor = math.nan
         self._t_anchor = 0.0
+        self._ref_s = math.nan
+        self._t_ref = 0.0
         self._ref_lo = math.inf
         self._ref_hi = -math.inf
         self._t_zero: float | None = None
@@ -149,13 +167,24 @@ class UutHealth:
 
     def update(self, t: float, raw_mps: float, ref_mps: float | None) -> str:
         """Add one reading (and the reference at its time, if valid); return the fault."""
-        if not abs(raw_mps - self._anchor) <= QUANTUM_MPS:
+        d = abs(raw_mps - self._last)
+        if d > 1e-6:
+            self._min_step = min(self._min_step, d)
+            self.resolution_mps = max(QUANTUM_MPS, self._min_step)
+        self._last = raw_mps
+        if not abs(raw_mps - self._anchor) < 0.5 * self.resolution_mps:
             self._anchor = raw_mps
             self._t_anchor = t
             self._ref_lo, self._ref_hi = math.inf, -math.inf
         if ref_mps is not None:
-            self._ref_lo = min(self._ref_lo, ref_mps)
-            self._ref_hi = max(self._ref_hi, ref_mps)
+            if math.isnan(self._ref_s):
+                self._ref_s = ref_mps
+            else:
+                a = min(max(t - self._t_ref, 0.0) / self.SMOOTH_S, 1.0)
+                self._ref_s += a * (ref_mps - self._ref_s)
+            self._t_ref = t
+            self._ref_lo = min(self._ref_lo, self._ref_s)
+            self._ref_hi = max(self._ref_hi, self._ref_s)
         at_zero = abs(raw_mps) <= 2.0 * QUANTUM_MPS
         if not at_zero or (ref_mps is not None and ref_mps <= self.moving_mps):
             self._t_zero = None

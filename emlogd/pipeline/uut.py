@@ -50,7 +50,7 @@ import numpy as np
 
 from calib.errors import CalibrationError
 from calib.excitation import ExcitationWindow, Identifiability
-from calib.kalman import KfCalibrator
+from calib.kalman import Innovation, KfCalibrator
 from calib.lag import MAX_LAG_STD_RELAXED_S, MAX_LAG_STD_S, accept, estimate_lag
 from calib.models import CURRENT, FloatArray, Layout, Params, check_model, zero_params
 from emlogd.pipeline.align import SampleRing
@@ -73,16 +73,16 @@ information, and only a structural degeneracy (constant speed, too few heading
 sectors, a singular window) must stop it. Whether the result is good enough to apply
 is judged on the filter's covariance (``max_param_std``) and the validation window."""
 
+NUISANCE_REOPEN = 20
+"""Samples the current has learnt while every scale was held after which a scale
+becoming determined re-opens the current (what it learnt was conditional on the held
+scale)."""
+
 LAG_WINDOW_GROWTH = 4.0
 """A refused lag estimate lets the window grow up to this many times ``lag_window_s``."""
 
 LAG_MAX_RATE_HZ = 20.0
 """Reference samples per second the lag window is sized for (a 10 Hz DVL twice over)."""
-
-REOPEN_AFTER = 5
-"""Samples learnt with some parameter held after which that parameter becoming
-determined re-opens every parameter: what was learnt meanwhile was conditional on the
-held value (a scale learnt with the bias held at nominal absorbed the bias)."""
 
 VALIDATION_MIN_SAMPLES = 20
 """A candidate needs at least this many scored samples in its validation window."""
@@ -296,7 +296,8 @@ class UutCalibration:
         self.ident: Identifiability | None = None
         self.learn_set: frozenset[str] = frozenset()
         self.learnt_ever: set[str] = set()
-        self.cond_samples = 0
+        self.nuisance_samples = 0
+        self.current_reportable = False
         self.health = UutHealth(s.stuck_s, s.zero_s)
         self.learn_on = s.learn
         self.state: CalState = "frozen" if self.applied is not None else "uncalibrated"
@@ -329,6 +330,8 @@ class UutCalibration:
         """Offline use: receives every reference sample and reading as learning sees them."""
         self.record_only = False
         """With a recorder: only record the readings, learn nothing (reading captures)."""
+        self.tracer: Callable[[dict[str, object]], None] | None = None
+        """Offline use (``calibrate --trace``): receives one row per learnt-from reading."""
 
     # -- construction -------------------------------------------------------
 
@@ -468,8 +471,8 @@ class UutCalibration:
             self.counters.learnt += 1
             if isinstance(learn_set, frozenset):
                 self.learnt_ever |= learn_set
-                if not set(self.layout.params) <= learn_set:
-                    self.cond_samples += 1
+                if CURRENT in learn_set and not {"a", "m"} & learn_set:
+                    self.nuisance_samples += 1
             if len(self.nis) == self.nis.maxlen:
                 self.nis_sum -= self.nis[0]
             self.nis.append(res.raw.nis)
@@ -478,6 +481,10 @@ class UutCalibration:
         if valid and ref is not None and not fault:
             self._score(t, raw, ref, cs)
         self._set_state(t, bool(learnt), fault)
+        if self.tracer is not None:
+            self.tracer(
+                self._trace_row(t, raw, ref if valid else None, heading, res.raw, learn_set)
+            )
 
     def _lag_step(self, t: float, raw: float) -> None:
         lf = self.lag_finder
@@ -510,27 +517,34 @@ class UutCalibration:
     def _judge(self, t: float) -> None:
         self.n_since_eval = 0
         kf = self.s.kf
-        ident = self.window.evaluate(kf.r_raw_mps2 + kf.r_ref_mps2, std_factor=LEARN_STD_FACTOR)
+        sigma2 = kf.r_raw_mps2 + kf.r_ref_mps2
+        ident = self.window.evaluate(sigma2, std_factor=LEARN_STD_FACTOR)
         before = self.ident.determined if self.ident is not None else None
         self.ident = ident
+        if self.layout.current:
+            strict = self.window.evaluate(sigma2)
+            self.current_reportable = CURRENT in strict.determined
         learn = set(ident.determined)
         if self.layout.current:
             learn.add(CURRENT)
-        new = frozenset(learn)
-        gained = (new - self.learn_set) - {CURRENT}
-        if gained and self.cond_samples >= REOPEN_AFTER:
-            params = [p for p in self.layout.unknowns if p in new]
-            self.kf.reopen(params)
-            self._emit(
-                t,
-                "relearn",
-                {
-                    "why": f"{', '.join(sorted(gained))} now determined: learning {', '.join(params)} again"
-                },
-            )
-        if gained:
-            self.cond_samples = 0
-        self.learn_set = new
+            gained = {"a", "m"} & (learn - self.learn_set)
+            if gained and self.nuisance_samples >= NUISANCE_REOPEN:
+                # The current took the offset of a scale held at its prior: that offset
+                # was the scale's. Let the current learn again beside the scale.
+                self.kf.reopen([CURRENT])
+                self.nuisance_samples = 0
+                self._emit(
+                    t,
+                    "relearn",
+                    {
+                        "why": f"{', '.join(sorted(gained))} now determined: the current learns again"
+                    },
+                )
+        elif "b" in self.layout.params and "b" not in learn:
+            # Without current states nothing takes the offset the held bias leaves: a
+            # scale learnt then would absorb it. The scale learns with the bias only.
+            learn -= {"a", "m"}
+        self.learn_set = frozenset(learn)
         if before != ident.determined:
             self._emit(
                 t,
@@ -620,8 +634,17 @@ class UutCalibration:
         self._recheck(t)
 
     def ident_current(self) -> bool:
-        """The current is estimated and the recent headings determine it."""
-        return self.layout.current and self.ident is not None and CURRENT in self.ident.determined
+        """The current is determined: reported in the status, the VDR and a calibration.
+
+        The recent window must determine it by the strict rule (``max_std_current_mps``
+        itself, not the looser bound that lets the filter learn) and the filter's own
+        standard deviation of each component must be within that bound too.
+        """
+        if not (self.layout.current and self.current_reportable):
+            return False
+        std = self.kf.current_std_mps
+        limit = self.s.rule.max_std_current_mps
+        return std is not None and max(std) <= limit
 
     def _propose(self, t: float) -> None:
         """Freeze the estimate as a candidate when it is good and new enough."""
@@ -705,8 +728,6 @@ class UutCalibration:
         self.candidate = None
         self.counters.fallbacks += 1
         self.dirty = True
-        base = self.applied if self.applied is not None else zero_params(self.s.model)
-        self.kf.restart(base)
         self._emit(t, "fallback", detail)
 
     def _set_state(self, t: float, learnt: bool, fault: str) -> None:
@@ -752,6 +773,41 @@ class UutCalibration:
         if self.ident is not None and not self.learn_set - {CURRENT}:
             return self.ident.reason or "nothing determinable"
         return "no heading for the current" if self.layout.current else "waiting"
+
+    def _trace_row(
+        self,
+        t: float,
+        raw: float,
+        ref: float | None,
+        heading: float | None,
+        inn: Innovation | None,
+        learn_set: frozenset[str] | bool,
+    ) -> dict[str, object]:
+        kf = self.kf
+        est = kf.params.as_dict()
+        std = kf.param_std
+        cur = kf.current_mps
+        cur_std = kf.current_std_mps
+        row: dict[str, object] = {
+            "t": t,
+            "raw_mps": raw,
+            "ref_mps": ref,
+            "heading_deg": heading,
+            "emitted_mps": self.correct(raw),
+            "corrected_mps": kf.corrected(raw),
+        }
+        for name in ("a", "m", "b"):
+            row[name] = est.get(name)
+            row[f"std_{name}"] = std.get(name)
+        row["current_north_mps"] = None if cur is None else cur[0]
+        row["current_east_mps"] = None if cur is None else cur[1]
+        row["std_current_north_mps"] = None if cur_std is None else cur_std[0]
+        row["std_current_east_mps"] = None if cur_std is None else cur_std[1]
+        row["current_determined"] = self.ident_current()
+        row["nis"] = None if inn is None else inn.nis
+        row["state"] = self.state
+        row["learning"] = "+".join(sorted(learn_set)) if isinstance(learn_set, frozenset) else ""
+        return row
 
     # -- read-outs ----------------------------------------------------------
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from types import SimpleNamespace
 
@@ -345,3 +346,74 @@ class TestWaterFrame:
         hdg = with_checksum("HCHDG,100.0,2.0,E,3.0,W") + "\r\n"
         p.feed(kit.T0 + 1.0, "hdg", hdg.encode(), out)
         assert p._heading_at("log", kit.T0 + 1.0) == pytest.approx(99.0)
+
+
+class _Rec:
+    """Collects what a UUT learns from (the offline commands' recorder)."""
+
+    def __init__(self) -> None:
+        self.refs: list[tuple[float, float | None, bool, float | None]] = []
+        self.readings: list[tuple[float, float]] = []
+
+    def reference(
+        self, t: float, v_mps: float | None, valid: bool, heading_deg: float | None
+    ) -> None:
+        self.refs.append((t, v_mps, valid, heading_deg))
+
+    def reading(self, t: float, raw_mps: float) -> None:
+        self.readings.append((t, raw_mps))
+
+
+class TestGnssReference:
+    """SOG and COG from RMC on a multiplexed bus, projected on the hull with the heading."""
+
+    def _run(self, lines: list[tuple[float, str]], **kw: object) -> _Rec:
+        p = Pipeline(
+            [PortSettings("nmea", "nmea0183")],
+            [UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", **kw)],  # type: ignore[arg-type]
+        )
+        rec = _Rec()
+        p.uuts["nmea"].cal.recorder = rec
+        for t, s in lines:
+            p.feed(t, "nmea", (s + "\r\n").encode())
+        p.tick(lines[-1][0] + 10.0)
+        return rec
+
+    def test_projection_on_one_port(self) -> None:
+        """UUT, reference and heading on one port: along-hull SOG·cos(COG − ψ)."""
+        from datetime import UTC, datetime
+
+        from drivers.nmea0183 import encode_hdt, encode_rmc
+
+        lines: list[tuple[float, str]] = []
+        t0 = 1_750_000_000.0
+        for k in range(20):
+            t = t0 + k
+            psi = 10.0 * k
+            lines.append((t, encode_hdt(psi)))
+            lines.append((t + 0.1, encode_rmc(datetime.fromtimestamp(t, UTC), 3.0, psi + 30.0)))
+            lines.append((t + 0.2, encode_vhw(2.5, heading_true_deg=psi)))
+        rec = self._run(lines)
+        valid = [(t, v, h) for t, v, ok, h in rec.refs if ok]
+        assert len(valid) >= 18
+        for _t, v, _h in valid:
+            assert v == pytest.approx(3.0 * math.cos(math.radians(30.0)), abs=0.01)
+        assert len(rec.readings) == 20
+
+    def test_below_min_sog_or_void_fix_is_not_a_reference(self) -> None:
+        """A fix below min_sog_mps (course meaningless) or with status V teaches nothing."""
+        from datetime import UTC, datetime
+
+        from drivers.nmea0183 import encode_hdt, encode_rmc
+
+        t0 = 1_750_000_000.0
+        lines: list[tuple[float, str]] = []
+        for k in range(10):
+            t = t0 + k
+            lines.append((t, encode_hdt(0.0)))
+            fix = datetime.fromtimestamp(t, UTC)
+            slow = encode_rmc(fix, 0.3, 0.0)
+            void = encode_rmc(fix, 3.0, 0.0, active=False)
+            lines.append((t + 0.1, slow if k % 2 else void))
+        rec = self._run(lines, min_sog_mps=0.5)
+        assert rec.refs and not [r for r in rec.refs if r[2]]
