@@ -16,6 +16,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
+from datetime import date
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -349,6 +350,71 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- import
+
+
+def _date_arg(value: str) -> date:
+    try:
+        return date.fromisoformat(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, not {value!r}") from None
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    """Turn NMEA logs or CSV exports into a capture."""
+    from emlogd.offline import importer
+
+    if not args.port or not args.port.isidentifier():
+        raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
+    if args.format == "nmea":
+        for opt in ("map", "preset", "time_format", "heading_ref"):
+            if getattr(args, opt) is not None:
+                raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
+        report = importer.import_nmea(
+            args.files, args.out, port=args.port, day=args.date, progress=_progress
+        )
+    else:
+        if args.date is not None:
+            raise UsageError("--date applies to --format nmea only")
+        if len(args.files) != 1:
+            raise UsageError("--format csv imports one file at a time")
+        if args.preset is None and args.map is None:
+            raise UsageError("--format csv needs --map key=Column,... or --preset expedition")
+        mapping = dict(importer.EXPEDITION) if args.preset == "expedition" else {}
+        if args.map is not None:
+            mapping.update(importer.parse_map(args.map))
+        report = importer.import_csv(
+            args.files[0],
+            args.out,
+            mapping,
+            time_format=args.time_format or "ole",
+            heading_ref=args.heading_ref or "true",
+            port=args.port,
+            progress=_progress,
+        )
+    _progress_done()
+    if args.json:
+        sys.stdout.write(json.dumps(report.to_dict(), indent=2) + "\n")
+        return 0
+    span = report.t_end - report.t_start
+    sys.stdout.write(
+        f"{report.out}: {report.written} sentences on port {report.port} "
+        f"({span / 60.0:.1f} min) from {report.lines} {'lines' if args.format == 'nmea' else 'rows'}\n"
+    )
+    sys.stdout.write(
+        "written      " + ", ".join(f"{k} {v}" for k, v in sorted(report.sentences.items())) + "\n"
+    )
+    skipped = {k: v for k, v in report.skipped.items() if v}
+    sys.stdout.write(
+        "skipped      "
+        + (", ".join(f"{k} {v}" for k, v in sorted(skipped.items())) or "none")
+        + "\n"
+    )
+    for k, v in sorted(report.notes.items()):
+        sys.stdout.write(f"note         {k} {v}\n")
+    return 0
+
+
 # ---------------------------------------------------------------------------- offline
 
 
@@ -446,7 +512,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """Estimate an error model of one EMlog against a reference from captures."""
     settings = _settings(args)
     recs = _load(args.captures, settings, args)
-    res = calibrate(recs, settings, args.method, lag=args.lag)
+    res = calibrate(recs, settings, args.method, lag=args.lag, trace=args.trace)
     if args.save:
         save_params(args.save, res)
     if args.json:
@@ -855,14 +921,46 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(handler=cmd_simulate)
 
+    p = sub.add_parser(
+        "import",
+        help="turn NMEA logs or CSV exports into a capture",
+        description="Import logs without receive times into a capture v1 file on one port. "
+        "nmea: NMEA 0183 logs, timed by their RMC (else ZDA, else GGA + --date) fixes; "
+        "csv: one CSV export with a column map (or --preset expedition), written as VHW, "
+        "RMC and VDR sentences at the row times. Skipped lines are counted by reason.",
+    )
+    p.add_argument("files", nargs="+", metavar="FILE", help="input files, in time order")
+    p.add_argument("--format", choices=["nmea", "csv"], required=True, help="input format")
+    p.add_argument("--out", required=True, metavar="FILE.cap", help="capture to write (.gz ok)")
+    p.add_argument("--port", default="nmea", help="port name in the capture (default nmea)")
+    p.add_argument(
+        "--date", type=_date_arg, metavar="YYYY-MM-DD", help="nmea: UTC date for GGA-only logs"
+    )
+    p.add_argument(
+        "--map",
+        metavar="KEY=COL,...",
+        help="csv: columns for time, stw, heading, sog, cog (and lat, lon, set, drift, "
+        "variation); knots and degrees unless written Col[mps]",
+    )
+    p.add_argument("--preset", choices=["expedition"], help="csv: a known program's columns")
+    p.add_argument(
+        "--time-format", choices=["ole", "iso", "epoch"], help="csv: time column (default ole)"
+    )
+    p.add_argument(
+        "--heading-ref", choices=["true", "magnetic"], help="csv: the heading's reference (true)"
+    )
+    p.add_argument("--json", action="store_true", help="the import report as JSON")
+    p.set_defaults(handler=cmd_import)
+
     def pairing_args(p: argparse.ArgumentParser, required: bool = True) -> None:
         p.add_argument("--uut", required=required, metavar="PORT", help="EMlog port to calibrate")
         p.add_argument("--ref", required=required, metavar="PORT", help="reference port")
         p.add_argument(
             "--ref-field",
-            choices=["bottom", "water", "speed"],
+            choices=["bottom", "water", "speed", "gnss"],
             default="bottom" if required else None,
-            help="reference: DVL bottom track (default), DVL water track, or an EMlog's speed",
+            help="reference: DVL bottom track (default), DVL water track, an EMlog's speed, "
+            "or GNSS speed and course (RMC/VTG) projected on the hull with the heading",
         )
 
     def water_frame(p: argparse.ArgumentParser) -> None:
@@ -910,7 +1008,12 @@ def build_parser() -> argparse.ArgumentParser:
     pairing_args(p)
     p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
     p.add_argument("--method", choices=["ls", "kf"], default="ls")
-    p.add_argument("--save", metavar="PARAMS.yaml", help="write the parameters file")
+    p.add_argument("--save", metavar="PARAMS.yaml", help="write the calibration file")
+    p.add_argument(
+        "--trace",
+        metavar="FILE.csv",
+        help="with --method kf: one CSV row per sample (parameters, current, σ, NIS, state)",
+    )
     common_offline(p)
     p.set_defaults(handler=cmd_calibrate)
 

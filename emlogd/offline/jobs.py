@@ -293,15 +293,23 @@ def _concat(pairs: Sequence[Aligned], current: bool) -> tuple[FloatArray, ...]:
     return tuple(np.asarray(c, dtype=np.float64) for c in cat)
 
 
-def run_online(recs: Sequence[Recording], settings: UutSettings, lag_s: float) -> UutCalibration:
+def run_online(
+    recs: Sequence[Recording],
+    settings: UutSettings,
+    lag_s: float,
+    *,
+    trace: Callable[[dict[str, object]], None] | None = None,
+) -> UutCalibration:
     """The daemon's online calibration fed the recorded samples of each capture in order.
 
     The captures run back to back through one filter (the state carries over), the
-    reference, heading and readings merged in time order as they arrived.
+    reference, heading and readings merged in time order as they arrived. ``trace``
+    receives one row per learnt-from reading (``calibrate --trace``).
     """
     s = dataclasses.replace(settings, lag_s=lag_s, learn=True)
     heading = SampleRing(4096, 2.0, angular=True)
     cal = UutCalibration(s, None, lambda t: _heading(heading, t), lambda t, k, d: None)
+    cal.tracer = trace
     for r in recs:
         heading.clear()
         events = sorted(
@@ -333,12 +341,24 @@ def calibrate(
     method: Method,
     *,
     lag: float | None = None,
+    trace: str | Path | None = None,
 ) -> CalibrationResult:
     """Estimate the UUT's model (and current) from every capture together.
 
+    Args:
+        recs: the recordings.
+        settings: the UUT.
+        method: ``ls`` or ``kf``.
+        lag: the lag in s, or None to estimate it.
+        trace: ``kf`` only: write one CSV row per learnt-from reading here (time, raw,
+            reference, emitted and corrected speed, every parameter and the current
+            with their σ, NIS, state and the unknowns learning).
+
     Raises:
-        OfflineError: no aligned samples, or no heading for a current.
+        OfflineError: no aligned samples, or a trace asked of ``ls``.
     """
+    if trace is not None and method != "kf":
+        raise OfflineError("--trace follows the Kalman filter: use it with --method kf")
     if method not in ("ls", "kf"):
         raise OfflineError(f"method must be ls or kf, not {method!r}")
     lag_report = find_lag(recs, settings, lag)
@@ -362,7 +382,8 @@ def calibrate(
         cur, cur_std = fit.current_mps, fit.current_std_mps
         ident = fit.ident
     else:
-        cal = run_online(recs, settings, lag_report.lag_s)
+        with _TraceWriter(trace) as tracer:
+            cal = run_online(recs, settings, lag_report.lag_s, trace=tracer.row if trace else None)
         params = cal.kf.params
         ident = identifiability(
             layout,
@@ -396,6 +417,48 @@ def calibrate(
         nis_mean=nis_mean,
         nis_frac_inside=nis_frac,
     )
+
+
+TRACE_COLUMNS = (
+    "t", "raw_mps", "ref_mps", "heading_deg", "emitted_mps", "corrected_mps",
+    "a", "std_a", "m", "std_m", "b", "std_b",
+    "current_north_mps", "std_current_north_mps", "current_east_mps", "std_current_east_mps",
+    "current_determined", "nis", "state", "learning",
+)  # fmt: skip
+"""The columns of ``calibrate --trace`` (README)."""
+
+
+class _TraceWriter:
+    """A CSV file of trace rows (no-op without a path)."""
+
+    def __init__(self, path: str | Path | None) -> None:
+        self.path = path
+        self._f: Any = None
+        self._w: Any = None
+
+    def __enter__(self) -> _TraceWriter:
+        if self.path is not None:
+            import csv
+
+            self._f = open(self.path, "w", newline="", encoding="utf-8")
+            self._w = csv.writer(self._f)
+            self._w.writerow(TRACE_COLUMNS)
+        return self
+
+    def row(self, r: dict[str, object]) -> None:
+        self._w.writerow(["" if r.get(c) is None else _cell(r[c]) for c in TRACE_COLUMNS])
+
+    def __exit__(self, *exc: object) -> None:
+        if self._f is not None:
+            self._f.close()
+
+
+def _cell(x: object) -> object:
+    if isinstance(x, float):
+        return f"{x:.6g}" if math.isfinite(x) else ""
+    if isinstance(x, bool):
+        return int(x)
+    return x
 
 
 def _projection(cur: tuple[float, float] | None, heading_deg: FloatArray) -> FloatArray:
