@@ -19,17 +19,17 @@ from typing import Any, Literal
 
 import yaml
 
+from calib.kalman import KfConfig
 from drivers import protocol_names
 from drivers.errors import ConfigError
+from emlogd.pipeline.core import RefField, UutSettings
+from emlogd.pipeline.integrity import Envelope
 
 DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
-DEFAULT_MAX_LAG_S = 10.0
-"""Default lag search range and reference buffer depth, s."""
 DVL_PROTOCOLS = ("pd6", "pd13", "pd0", "pd4", "pd5", "nmea0183")
 """Protocols that can carry a DVL bottom track (nmea0183: Rowe $PRTI01)."""
 
 Role = Literal["uut", "reference", "aux"]
-RefField = Literal["bottom", "water", "speed"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,34 +53,59 @@ class PortConfig:
     devices replayed faster than real time). UUT ports never rest."""
 
 
+_UUT = UutSettings(port="", reference_port="")
+"""The pipeline's declared defaults: the config's defaults are read from here, never typed
+again (``tests/emlogd/test_config.py`` checks every key against it)."""
+_KF = KfConfig()
+_ENVELOPE = Envelope()
+
+
 @dataclass(frozen=True, slots=True)
 class UutConfig:
-    """Calibration of one EMlog (``calibration`` list)."""
+    """Calibration of one EMlog (``calibration`` list).
+
+    The fields with a :class:`~emlogd.pipeline.core.UutSettings` field of the same name
+    pass to it as they are (:func:`emlogd.settings.pipeline_from_config`); the others
+    are the filter's tuning and the envelope's speed range.
+    """
 
     uut: str
     reference: str
-    model: str = "EM3"
-    reference_field: RefField = "bottom"
-    uut_source: Literal["VHW", "VBW"] = "VHW"
-    lag_s: float | None = None
-    lag_window_s: float = 300.0
-    max_lag_s: float = DEFAULT_MAX_LAG_S
-    learn: bool = True
-    apply: bool = True
-    min_ref_speed_mps: float = 0.3
-    max_param_std: Mapping[str, float] = field(
-        default_factory=lambda: {"a": 0.01, "m": 0.02, "b": 0.03}
-    )
-    excitation_half_life_samples: float = 600.0
-    r_raw_mps: float = 0.0514
-    r_ref_mps: float = 0.01
-    q_params: float = 1e-7
-    p0: float = 0.25
-    persist_interval_s: float = 60.0
-    persist_min_change_sigma: float = 1.0
-    persist_min_change_abs: float = 1e-3
-    validation_s: float = 120.0
-    recheck_s: float = 300.0
+    model: str = _UUT.model
+    reference_field: RefField = _UUT.reference_field
+    uut_source: str = _UUT.uut_source
+    component: Literal["longitudinal", "magnitude"] = _UUT.component
+    current: bool = _UUT.current
+    heading: str = _UUT.heading
+    magnetic_variation_deg: float | None = _UUT.magnetic_variation_deg
+    lag_s: float | None = _UUT.lag_s
+    lag_window_s: float = _UUT.lag_window_s
+    max_lag_s: float = _UUT.max_lag_s
+    learn: bool = _UUT.learn
+    apply: bool = _UUT.apply
+    min_ref_speed_mps: float = _UUT.min_ref_speed_mps
+    min_sog_mps: float = _UUT.min_sog_mps
+    max_param_std: Mapping[str, float] = field(default_factory=lambda: dict(_UUT.max_param_std))
+    excitation_half_life_samples: float = _UUT.excitation_half_life_samples
+    r_raw_mps: float = math.sqrt(_KF.r_raw_mps2)
+    r_ref_mps: float | None = None
+    """None: the reference field's own noise (``REF_NOISE_MPS``)."""
+    q_params: float = _KF.q_params
+    p0: float = _KF.p0
+    current_psd_m2ps3: float = _KF.current_psd_m2ps3
+    persist_interval_s: float = _UUT.persist_interval_s
+    persist_min_change_sigma: float = _UUT.persist_min_change_sigma
+    persist_min_change_abs: float = _UUT.persist_min_change_abs
+    validation_s: float = _UUT.validation_s
+    recheck_s: float = _UUT.recheck_s
+    gate_nis: float = _UUT.gate_nis
+    relearn_gates: int = _UUT.relearn_gates
+    low_speed_mps: float = _UUT.low_speed_mps
+    max_speed_mps: float = _ENVELOPE.max_speed_mps
+    stuck_s: float = _UUT.stuck_s
+    zero_s: float = _UUT.zero_s
+    max_accel_mps2: float = _UUT.max_accel_mps2
+    max_turn_rate_dps: float = _UUT.max_turn_rate_dps
 
 
 @dataclass(frozen=True, slots=True)
@@ -294,30 +319,56 @@ PORT_SPEC: dict[str, tuple[str, Check]] = {
     "rest_s": ("rest_s", _num(0.0, 1.0)),
 }
 
+
+def _heading_source(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+    v = ctx.scalar(node, where)
+    if v == "auto" or (isinstance(v, str) and re.fullmatch(_NAME, v)):
+        return v
+    raise ctx.fail(node, where, f"expected auto or a port name, got {v!r}")
+
+
 UUT_SPEC: dict[str, tuple[str, Check]] = {
     "uut": ("uut", _str(_NAME, "a port name")),
     "reference": ("reference", _str(_NAME, "a port name")),
     "model": ("model", _enum("EM1", "EM2", "EM3", "EM4")),
-    "reference_field": ("reference_field", _enum("bottom", "water", "speed")),
+    "reference_field": ("reference_field", _enum("bottom", "water", "speed", "gnss")),
     "uut_source": ("uut_source", _enum("VHW", "VBW")),
+    "component": ("component", _enum("longitudinal", "magnitude")),
+    "current": ("current", _bool),
+    "heading": ("heading", _heading_source),
+    "magnetic_variation_deg": (
+        "magnetic_variation_deg",
+        _num(-180.0, 180.0, optional=True),
+    ),
     "lag": ("lag_s", _lag),
     "lag_window_s": ("lag_window_s", _num(10.0, 7200.0)),
     "max_lag_s": ("max_lag_s", _num(0.0, 30.0, lo_open=True)),
     "learn": ("learn", _bool),
     "apply": ("apply", _bool),
     "min_ref_speed_mps": ("min_ref_speed_mps", _num(0.0, 20.0)),
+    "min_sog_mps": ("min_sog_mps", _num(0.0, 20.0)),
     "max_param_std": ("max_param_std", _param_std),
     "excitation_half_life_samples": ("excitation_half_life_samples", _num(1.0, 86400.0)),
     "r_raw_mps": ("r_raw_mps", _num(0.0, 10.0, lo_open=True)),
-    "r_ref_mps": ("r_ref_mps", _num(0.0, 10.0, lo_open=True)),
+    "r_ref_mps": ("r_ref_mps", _num(0.0, 10.0, lo_open=True, optional=True)),
     "q_params": ("q_params", _num(0.0, 1.0)),
     "p0": ("p0", _num(0.0, 100.0, lo_open=True)),
+    "current_psd_m2ps3": ("current_psd_m2ps3", _num(0.0, 1.0)),
     "persist_interval_s": ("persist_interval_s", _num(0.0, 86400.0)),
     "persist_min_change_sigma": ("persist_min_change_sigma", _num(0.0, 100.0)),
     "persist_min_change_abs": ("persist_min_change_abs", _num(0.0, 10.0)),
     "validation_s": ("validation_s", _num(0.1, 3600.0)),
     "recheck_s": ("recheck_s", _num(1.0, 86400.0)),
+    "gate_nis": ("gate_nis", _num(1.0, 1e6)),
+    "relearn_gates": ("relearn_gates", _num(1, 100_000, integer=True)),
+    "low_speed_mps": ("low_speed_mps", _num(0.0, 5.0)),
+    "max_speed_mps": ("max_speed_mps", _num(0.0, 50.0, lo_open=True)),
+    "stuck_s": ("stuck_s", _num(1.0, 86400.0)),
+    "zero_s": ("zero_s", _num(1.0, 86400.0)),
+    "max_accel_mps2": ("max_accel_mps2", _num(0.0, 100.0, lo_open=True)),
+    "max_turn_rate_dps": ("max_turn_rate_dps", _num(0.0, 360.0, lo_open=True)),
 }
+"""The ``calibration`` keys (yaml key -> (attribute, check)); README's table lists them."""
 
 OUTPUT_SPEC: dict[str, tuple[str, Check]] = {
     "pty": ("pty", _opt_str()),
@@ -363,12 +414,17 @@ def _check_uut(
         )
     if by_name[uut].protocol != "nmea0183":
         raise ctx.fail(at["uut"], f"{where}.uut", f"port {uut!r} must speak nmea0183 (VHW/VBW)")
-    if uut == ref:
-        raise ctx.fail(at["reference"], f"{where}.reference", "the reference must be another port")
-    field_ = kw.get("reference_field", "bottom")
+    field_ = kw.get("reference_field", _UUT.reference_field)
     fat = at.get("reference_field", at["reference"])
+    if uut == ref and field_ != "gnss":
+        raise ctx.fail(
+            at["reference"],
+            f"{where}.reference",
+            "the reference must be another port (one multiplexed port may be both only "
+            "with reference_field: gnss)",
+        )
     rport = by_name[ref]
-    allowed_roles = ("reference", "uut") if field_ == "speed" else ("reference",)
+    allowed_roles = ("reference", "uut") if field_ in ("speed", "gnss") else ("reference",)
     if rport.role not in allowed_roles:
         raise ctx.fail(
             at["reference"],
@@ -387,13 +443,22 @@ def _check_uut(
             f"{where}.reference_field",
             f"water track (:WS) needs a pd6/pd13 reference, {ref!r} is {rport.protocol}",
         )
+    if field_ == "gnss" and rport.protocol != "nmea0183":
+        raise ctx.fail(
+            fat,
+            f"{where}.reference_field",
+            f"gnss needs an NMEA 0183 (RMC/VTG) reference, {ref!r} is {rport.protocol}",
+        )
+    heading = kw.get("heading", _UUT.heading)
+    if heading != "auto" and heading not in by_name:
+        raise ctx.fail(at["heading"], f"{where}.heading", f"no port named {heading!r}")
     if field_ == "bottom" and rport.protocol not in DVL_PROTOCOLS:
         raise ctx.fail(
             fat,
             f"{where}.reference_field",
             f"bottom track needs a DVL reference, {ref!r} is {rport.protocol}",
         )
-    max_lag = kw.get("max_lag_s", DEFAULT_MAX_LAG_S)
+    max_lag = kw.get("max_lag_s", _UUT.max_lag_s)
     if kw.get("lag_s") is not None and kw["lag_s"] > max_lag:
         raise ctx.fail(
             at["lag"],

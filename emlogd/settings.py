@@ -6,50 +6,55 @@ the pipeline's settings.
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Any
+
 from calib.excitation import ExcitationRule
 from calib.kalman import KfConfig
-from emlogd.config import Config
-from emlogd.pipeline.core import PortSettings, UutSettings
+from emlogd.config import Config, UutConfig
+from emlogd.pipeline.core import REF_NOISE_MPS, PortSettings, UutSettings
+from emlogd.pipeline.integrity import Envelope
 
 
 def pipeline_from_config(cfg: Config) -> tuple[list[PortSettings], list[UutSettings]]:
-    """The pipeline's port and UUT settings for ``cfg``."""
+    """The pipeline's port and UUT settings for ``cfg``.
+
+    A ``calibration`` key whose :class:`UutConfig` field has a :class:`UutSettings`
+    field of the same name passes as it is; the filter's tuning and the envelope's
+    speed range are built here, and the status sentence takes the ``outputs`` keys.
+    """
     ports = [
         PortSettings(p.name, p.protocol, p.checksum, p.max_length, p.stale_timeout_s)
         for p in cfg.ports
     ]
-    uuts = [
-        UutSettings(
-            port=u.uut,
-            model=u.model,
-            reference_port=u.reference,
-            ref_stale_s=cfg.port(u.reference).stale_timeout_s,
-            reference_field=u.reference_field,
-            lag_s=u.lag_s,
-            lag_window_s=u.lag_window_s,
-            max_lag_s=u.max_lag_s,
-            learn=u.learn,
-            apply=u.apply,
-            min_ref_speed_mps=u.min_ref_speed_mps,
-            max_param_std=dict(u.max_param_std),
-            excitation_half_life_samples=u.excitation_half_life_samples,
-            persist_interval_s=u.persist_interval_s,
-            persist_min_change_sigma=u.persist_min_change_sigma,
-            persist_min_change_abs=u.persist_min_change_abs,
-            validation_s=u.validation_s,
-            recheck_s=u.recheck_s,
-            kf=KfConfig(
-                r_raw_mps2=u.r_raw_mps**2,
-                r_ref_mps2=u.r_ref_mps**2,
-                p0=u.p0,
-                q_params=u.q_params,
-            ),
-            rule=ExcitationRule(),
-            uut_source=u.uut_source,
-            talker=cfg.outputs.talker,
-            maker=cfg.outputs.maker,
-            status_interval_s=cfg.outputs.status_interval_s,
-        )
-        for u in cfg.calibration
-    ]
-    return ports, uuts
+    return ports, [_uut(cfg, u) for u in cfg.calibration]
+
+
+_SAME = frozenset(f.name for f in dataclasses.fields(UutSettings)) & frozenset(
+    f.name for f in dataclasses.fields(UutConfig)
+)
+"""The config fields that pass to the pipeline unchanged."""
+
+
+def _uut(cfg: Config, u: UutConfig) -> UutSettings:
+    same: dict[str, Any] = {name: getattr(u, name) for name in _SAME}
+    same["max_param_std"] = dict(u.max_param_std)
+    r_ref = u.r_ref_mps if u.r_ref_mps is not None else REF_NOISE_MPS[u.reference_field]
+    return UutSettings(
+        port=u.uut,
+        reference_port=u.reference,
+        ref_stale_s=cfg.port(u.reference).stale_timeout_s,
+        kf_config=KfConfig(
+            r_raw_mps2=u.r_raw_mps**2,
+            r_ref_mps2=r_ref**2,
+            p0=u.p0,
+            q_params=u.q_params,
+            current_psd_m2ps3=u.current_psd_m2ps3,
+        ),
+        envelope=dataclasses.replace(Envelope(), max_speed_mps=u.max_speed_mps),
+        rule=ExcitationRule(),
+        talker=cfg.outputs.talker,
+        maker=cfg.outputs.maker,
+        status_interval_s=cfg.outputs.status_interval_s,
+        **same,
+    )

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 from calib.excitation import ExcitationRule
-from calib.kalman import KfConfig
+from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
 from calib.models import check_model
 from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
@@ -71,6 +71,19 @@ _ROLE_OF_SOURCE: dict[str, str] = {
 }
 _DVL_HEADING_SOURCES = frozenset({"PD6:BS", "PD6:WS", "PD0:BT", "PD4:BT", "PD5:BT"})
 _UUT_SENTENCES = ("VHW", "VBW")
+
+
+REF_NOISE_MPS: dict[str, float] = {
+    "bottom": math.sqrt(DEFAULT_R_REF_MPS2),
+    "water": math.sqrt(DEFAULT_R_REF_MPS2),
+    "speed": math.sqrt(DEFAULT_R_RAW_MPS2),
+    "gnss": 0.3,
+}
+"""Default 1σ noise of each kind of reference, m/s. A DVL's bottom or water track:
+0.01. Another EMlog: its own reading noise. GNSS: speed over ground projected on the
+hull is 1 Hz, filtered by the receiver, and projected with a heading a few degrees
+off and a course that wanders at low speed; 0.3 m/s is what the along-hull residual
+of real yacht logs shows (docs/REAL_DATA.md)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,7 +124,9 @@ class UutSettings:
     persist_interval_s: float = 60.0
     persist_min_change_sigma: float = 1.0
     persist_min_change_abs: float = 1e-3
-    kf: KfConfig = field(default_factory=KfConfig)
+    kf_config: KfConfig | None = None
+    """The filter's tuning; None: :data:`KfConfig`'s defaults with the reference noise
+    of the reference field (:data:`REF_NOISE_MPS`)."""
     rule: ExcitationRule = field(default_factory=ExcitationRule)
     uut_source: str = "VHW"
     talker: str = "VW"
@@ -130,6 +145,13 @@ class UutSettings:
 
     def __post_init__(self) -> None:
         check_model(self.model)
+
+    @property
+    def kf(self) -> KfConfig:
+        """The filter's tuning (see :attr:`kf_config`)."""
+        if self.kf_config is not None:
+            return self.kf_config
+        return KfConfig(r_ref_mps2=REF_NOISE_MPS[self.reference_field] ** 2)
 
 
 @dataclass(frozen=True, slots=True)
