@@ -321,3 +321,90 @@ def fit_current(
     x0[_A], x0[_M], x0[_B] = params.a_spm, params.m, params.b_mps
     x, _, _ = _solve(problem, x0, [_CN, _CE])
     return float(x[_CN]), float(x[_CE])
+
+
+@dataclass(frozen=True, slots=True)
+class Averaged:
+    """Block means of a series (:func:`block_average`)."""
+
+    t: FloatArray
+    raw: FloatArray
+    ref: FloatArray
+    heading_deg: FloatArray
+
+
+MIN_HEADING_COHERENCE = 0.9
+"""A block is kept when its mean heading vector is at least this long (1: a steady
+heading; 0.9: a turn of about 50° inside the block)."""
+
+
+def block_average(
+    t_s: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    ref_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    window_s: float,
+    *,
+    max_gap_s: float = 5.0,
+) -> Averaged:
+    """Means of consecutive ``window_s`` blocks, for a fit on a noisy reference.
+
+    Least squares of the reading on a reference with noise of its own underestimates
+    the scale (errors in the regressor: the slope shrinks by var(u)/(var(u) + σ²)).
+    A GNSS speed projected on the hull has σ ≈ 0.3 m/s against speed changes of about
+    1 m/s: 8 % off. Averaging over blocks much longer than the noise's correlation time
+    and shorter than the manoeuvres keeps the speed changes and divides the noise
+    variance by the samples in a block. The model is linear in the current's
+    direction cosines, so a block's heading is the direction of its mean heading
+    vector; a block turning too much to have one (:data:`MIN_HEADING_COHERENCE`), one
+    less than half full, or one spanning a gap longer than ``max_gap_s`` is dropped.
+
+    Args:
+        t_s: sample times, s, increasing.
+        raw_mps: readings, m/s.
+        ref_mps: reference, m/s.
+        heading_deg: headings (None: no current in the fit), degrees.
+        window_s: the block length, s (> 0).
+        max_gap_s: the longest gap inside a block, s.
+
+    Raises:
+        DataError: series of different lengths, times not increasing, a bad window.
+    """
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    raw = np.asarray(raw_mps, dtype=np.float64).reshape(-1)
+    ref = np.asarray(ref_mps, dtype=np.float64).reshape(-1)
+    hd = (
+        np.zeros_like(t)
+        if heading_deg is None
+        else np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+    )
+    if not (t.shape == raw.shape == ref.shape == hd.shape):
+        raise DataError("time, readings, reference and heading must have the same length")
+    if not (math.isfinite(window_s) and window_s > 0.0):
+        raise DataError(f"window_s must be > 0, not {window_s!r}")
+    if t.size > 1 and not np.all(np.diff(t) >= 0.0):
+        raise DataError("times must not decrease")
+    empty = np.empty(0)
+    if t.size == 0:
+        return Averaged(empty, empty, empty, empty)
+    spacing = float(np.median(np.diff(t))) if t.size > 1 else window_s
+    need = max(1, math.ceil(0.5 * window_s / max(spacing, 1e-9)))
+    gap_before = np.concatenate([[np.inf], np.diff(t)]) > max_gap_s
+    segment = np.cumsum(gap_before)
+    block = np.floor((t - t[0]) / window_s).astype(np.int64)
+    key = segment * (int(block.max()) + 1) + block
+    starts = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]]))
+    counts = np.diff(np.concatenate([starts, [t.size]]))
+    psi = np.radians(hd)
+
+    def mean(x: FloatArray) -> FloatArray:
+        return np.add.reduceat(x, starts) / counts
+
+    c, s = mean(np.cos(psi)), mean(np.sin(psi))
+    keep = (counts >= need) & (np.hypot(c, s) >= MIN_HEADING_COHERENCE)
+    return Averaged(
+        mean(t)[keep],
+        mean(raw)[keep],
+        mean(ref)[keep],
+        np.degrees(np.arctan2(s, c))[keep] % 360.0,
+    )

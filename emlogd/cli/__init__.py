@@ -480,7 +480,8 @@ def _calibration_text(res: CalibrationResult) -> str:
     s = res.settings
     out = [
         f"{res.method.upper()}-{res.params.model}{' + current' if s.current else ''}: "
-        f"{s.port} against {s.reference_port} ({s.reference_field}), {res.n_samples} samples",
+        f"{s.port} against {s.reference_port} ({s.reference_field}), {res.n_samples} samples"
+        + (f" (fit on {res.average_s:g}-s means)" if res.average_s > 0 else ""),
         f"lag          {lag_txt}",
         "parameters (± standard error):",
         params,
@@ -512,7 +513,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """Estimate an error model of one EMlog against a reference from captures."""
     settings = _settings(args)
     recs = _load(args.captures, settings, args)
-    res = calibrate(recs, settings, args.method, lag=args.lag, trace=args.trace)
+    if args.average is not None and args.method != "ls":
+        raise UsageError("--average applies to --method ls")
+    res = calibrate(
+        recs, settings, args.method, lag=args.lag, trace=args.trace, average_s=args.average
+    )
     if args.save:
         save_params(args.save, res)
     if args.json:
@@ -1013,6 +1018,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--trace",
         metavar="FILE.csv",
         help="with --method kf: one CSV row per sample (parameters, current, σ, NIS, state)",
+    )
+    p.add_argument(
+        "--average",
+        type=float,
+        metavar="SECONDS",
+        help="with --method ls: fit block means over SECONDS (default 20 for a gnss "
+        "reference, whose noise would shrink the scale; else 0: every sample)",
     )
     common_offline(p)
     p.set_defaults(handler=cmd_calibrate)

@@ -35,7 +35,7 @@ from calib.errors import CalibrationError
 from calib.excitation import Identifiability, identifiability
 from calib.kalman import KfConfig
 from calib.lag import MAX_LAG_STD_RELAXED_S, LagEstimate, accept, combine, estimate_lag
-from calib.lsq import fit_current, fit_ls
+from calib.lsq import block_average, fit_current, fit_ls
 from calib.metrics import improvement_pct, nis_stats, rmse
 from calib.models import CURRENT, FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
@@ -210,6 +210,8 @@ class CalibrationResult:
     ident: Identifiability
     nis_mean: float | None = None
     nis_frac_inside: float | None = None
+    average_s: float = 0.0
+    """``ls``: the block length the fit averaged over (0: every sample), s."""
 
     @property
     def improvement_pct(self) -> float:
@@ -259,6 +261,7 @@ class CalibrationResult:
             "reason": self.ident.reason,
             "condition_number": _fin(self.ident.cond_info),
             "n_samples": self.n_samples,
+            "average_s": self.average_s,
             "nis_mean": self.nis_mean,
             "nis_frac_inside": self.nis_frac_inside,
             "uut": s.port,
@@ -280,6 +283,28 @@ def _current_doc(
         "std_north_mps": None if std is None else _fin(std[0]),
         "std_east_mps": None if std is None else _fin(std[1]),
     }
+
+
+LS_AVERAGE_S: dict[str, float] = {"gnss": 20.0}
+"""Block length of the least-squares fit by reference field, s (others: every sample).
+GNSS speed projected on the hull has about 0.3 m/s of noise at 1 Hz; 20-s means divide
+its variance by about 20 and still follow a yacht's tacks and a boat's speed steps."""
+
+
+def _block_means(
+    pairs: Sequence[Aligned], current: bool, window_s: float
+) -> tuple[FloatArray, ...]:
+    """Each capture's usable samples averaged over ``window_s`` blocks, then joined."""
+    parts = []
+    for p in pairs:
+        m = p.usable(heading=current)
+        parts.append(
+            block_average(p.t[m], p.raw[m], p.ref[m], p.heading[m] if current else None, window_s)
+        )
+    return tuple(
+        np.concatenate([getattr(a, k) for a in parts]) if parts else np.empty(0)
+        for k in ("t", "raw", "ref", "heading_deg")
+    )
 
 
 def _concat(pairs: Sequence[Aligned], current: bool) -> tuple[FloatArray, ...]:
@@ -342,6 +367,7 @@ def calibrate(
     *,
     lag: float | None = None,
     trace: str | Path | None = None,
+    average_s: float | None = None,
 ) -> CalibrationResult:
     """Estimate the UUT's model (and current) from every capture together.
 
@@ -353,6 +379,9 @@ def calibrate(
         trace: ``kf`` only: write one CSV row per learnt-from reading here (time, raw,
             reference, emitted and corrected speed, every parameter and the current
             with their σ, NIS, state and the unknowns learning).
+        average_s: ``ls`` only: fit block means over this many seconds (a noisy
+            reference would otherwise shrink the scale: :func:`calib.lsq.block_average`);
+            None: :data:`LS_AVERAGE_S` of the reference field, 0: every sample.
 
     Raises:
         OfflineError: no aligned samples, or a trace asked of ``ls``.
@@ -374,9 +403,25 @@ def calibrate(
     kf = settings.kf
     hd = heading if settings.current else None
     nis_mean = nis_frac = None
+    window = 0.0
     if method == "ls":
+        window = LS_AVERAGE_S.get(settings.reference_field, 0.0) if average_s is None else average_s
+        fit_raw, fit_ref, fit_hd = raw, ref, hd
+        if window > 0.0:
+            _, fit_raw, fit_ref, fit_heading = _block_means(pairs, settings.current, window)
+            fit_hd = fit_heading if settings.current else None
+            if fit_raw.size < 3:
+                raise OfflineError(
+                    f"fewer than 3 blocks of {window:g} s with a steady heading: "
+                    "pass --average 0 to fit every sample"
+                )
         fit = fit_ls(
-            settings.model, ref, raw, heading_deg=hd, current=settings.current, rule=settings.rule
+            settings.model,
+            fit_ref,
+            fit_raw,
+            heading_deg=fit_hd,
+            current=settings.current,
+            rule=settings.rule,
         )
         params, stderr = fit.params, dict(fit.stderr)
         cur, cur_std = fit.current_mps, fit.current_std_mps
@@ -416,6 +461,7 @@ def calibrate(
         ident=ident,
         nis_mean=nis_mean,
         nis_frac_inside=nis_frac,
+        average_s=window,
     )
 
 

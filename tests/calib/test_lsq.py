@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from calib.errors import DataError, ModelError
-from calib.lsq import fit_current, fit_ls
+from calib.lsq import block_average, fit_current, fit_ls
 from calib.models import Params, forward_array
 from calib.synth import water_frame_segment
 
@@ -225,3 +225,43 @@ class TestInterface:
         """An unknown model raises ModelError."""
         with pytest.raises(ModelError):
             fit_ls("EM9", np.ones(5), np.ones(5))
+
+
+class TestBlockAverage:
+    """Block means: a noisy reference no longer shrinks the scale."""
+
+    def test_noisy_reference_scale_recovered(self) -> None:
+        """σ 0.3 m/s on the reference: per-sample LS is ~8 % low, 20-s means are not."""
+        rng = np.random.default_rng(7)
+        t = np.arange(0.0, 6 * 3600.0, 1.0)
+        u = 2.5 + np.sin(2 * np.pi * t / 400.0) * 1.2 + 0.3 * np.sin(2 * np.pi * t / 1700.0)
+        raw = 1.05 * u + 0.1 + rng.normal(0.0, 0.05, t.size)
+        ref = u + rng.normal(0.0, 0.3, t.size)
+        per_sample = fit_ls("EM3", ref, raw)
+        assert per_sample.params.m < 0.0  # the shrinkage the averaging exists for
+        avg = block_average(t, raw, ref, None, 20.0)
+        fit = fit_ls("EM3", avg.ref, avg.raw)
+        assert fit.params.m == pytest.approx(0.05, abs=0.01)
+        assert fit.params.b_mps == pytest.approx(0.1, abs=0.03)
+
+    def test_blocks_with_a_turn_gap_or_too_few_samples_are_dropped(self) -> None:
+        """A block turning through 180°, one across a gap, one nearly empty: gone."""
+        t = np.concatenate([np.arange(0.0, 40.0), np.arange(50.0, 60.0), [100.0]])
+        hd = np.where(t < 20.0, 90.0, 0.0)
+        hd[(t >= 20.0) & (t < 40.0)] = np.linspace(0.0, 180.0, 20)  # a U-turn
+        x = np.ones_like(t)
+        avg = block_average(t, x, 2 * x, hd, 20.0)
+        # kept: [0, 20) steady at 90° and [50, 60) (half of a block, after the gap);
+        # dropped: the U-turn [20, 40) and the lone sample at 100 s
+        assert avg.t.tolist() == pytest.approx([9.5, 54.5])
+        assert avg.heading_deg.tolist() == pytest.approx([90.0, 0.0])
+        assert avg.raw.tolist() == [1.0, 1.0] and avg.ref.tolist() == [2.0, 2.0]
+
+    def test_bad_input(self) -> None:
+        """Different lengths, a bad window or decreasing times are refused."""
+        with pytest.raises(DataError):
+            block_average([0.0, 1.0], [1.0], [1.0, 2.0], None, 10.0)
+        with pytest.raises(DataError):
+            block_average([0.0, 1.0], [1.0, 1.0], [1.0, 2.0], None, 0.0)
+        with pytest.raises(DataError):
+            block_average([1.0, 0.0], [1.0, 1.0], [1.0, 2.0], None, 10.0)
