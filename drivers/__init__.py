@@ -6,7 +6,7 @@ Protocol modules (pure: bytes in, frozen records out; no serial/os/time/threadin
 I/O modules: ``capture`` (capture v1 files), ``port`` (serial source through
 ``serial.serial_for_url``), ``vpty`` (virtual serial port), ``fake`` (fake device).
 
-The registry is explicit and lazy (STYLE.md rule 4): :data:`PROTOCOLS` maps a
+The registry is explicit and lazy: :data:`PROTOCOLS` maps a
 fixed name to ``(module, class)``; :func:`get_decoder` imports on demand.
 Third-party decoders may be added through the ``emlogd.drivers`` entry-point group.
 

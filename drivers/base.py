@@ -1,4 +1,4 @@
-"""The decoder contract every protocol module implements (STYLE.md rule 2 and 7).
+"""The decoder contract every protocol module implements (docs/ARCHITECTURE.md).
 
 A decoder turns bytes into frozen records: ``feed(chunk)`` accepts arbitrary chunk
 boundaries (one byte at a time gives the same records as the whole stream) and

@@ -1,4 +1,4 @@
-"""The error hierarchy shared by drivers and the application (STYLE.md rule 6).
+"""The error hierarchy shared by drivers and the application (docs/ARCHITECTURE.md, "Records and errors").
 
 Every error emlogd raises on purpose derives from :class:`EmlogdError`, so one
 ``except EmlogdError`` at the CLI boundary turns them into a one-line message.

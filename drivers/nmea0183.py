@@ -21,7 +21,7 @@ two-decimal rounding allows. VBW: the water pair is valid when *its own* status 
 ``A`` whatever the ground pair says (pynmea2's ``VBW.is_valid`` wants both).
 
 PRTI velocities are taken as the vessel's motion (Rowe's native sign, see
-PROTOCOLS.md §4; not verified for PRTI against GPS). PRTI01 is the instrument frame:
+docs/PROTOCOLS.md §4; not verified for PRTI against GPS). PRTI01 is the instrument frame:
 X is mapped to starboard and Y to forward, assuming the DVL is mounted with beam 3
 forward (Rowe's default); PRTI02 is the earth frame (East, North) and gives no
 ship-frame speed record.

@@ -1,6 +1,6 @@
 """Teledyne-RDI PD6 and PD13 ASCII output (which Rowe SeaPILOT emulates).
 
-An ensemble is a block of ``:XX,...`` lines (PROTOCOLS.md §5.1–5.2) in this order:
+An ensemble is a block of ``:XX,...`` lines (docs/PROTOCOLS.md §5.1–5.2) in this order:
 ``:SA :TS [:RA] [:WI :WS :WE :WD] :BI :BS :BE :BD [:HM]``. PD6 has no checksum, so
 every line is validated instead: its type, its field count, numeric syntax (spaces
 and a leading ``+`` allowed, PD13 pads with spaces), and the ``A``/``V`` status.

@@ -1,6 +1,6 @@
 """Teledyne-RDI PD0 binary ensembles (Rowe SeaPILOT emulates them).
 
-Layout (PROTOCOLS.md §5.3, little-endian): header ``7F 7F``, byte count (without
+Layout (docs/PROTOCOLS.md §5.3, little-endian): header ``7F 7F``, byte count (without
 the checksum), a spare byte, the number of data types and their offsets; then the
 data types, found through the offset table (unknown IDs are skipped, no fixed
 layout is assumed): fixed leader ``0x0000`` (coordinate frame in the EX byte, bits

@@ -1,4 +1,4 @@
-"""Teledyne-RDI PD4 and PD5 binary output (PROTOCOLS.md §5.4, Rowe PD4_5Codec).
+"""Teledyne-RDI PD4 and PD5 binary output (docs/PROTOCOLS.md §5.4).
 
 Layout (little-endian, 1-based TRDI byte numbers): ``0x7D``; structure ID (0 = PD4,
 1 = PD5); byte count without the checksum (45 for PD4, 86 for PD5); the system

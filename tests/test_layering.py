@@ -1,4 +1,4 @@
-"""Layering rules of STYLE.md, checked mechanically on the source tree."""
+"""Layering rules of docs/ARCHITECTURE.md, checked mechanically on the source tree."""
 
 from __future__ import annotations
 
@@ -88,7 +88,7 @@ class TestImportDirection:
 
 
 class TestConventions:
-    """Grep-level rules from STYLE.md."""
+    """Grep-level conventions (docs/ARCHITECTURE.md)."""
 
     def test_serial_opened_only_in_port_module(self) -> None:
         """Only drivers/io/port.py opens serial ports (always through serial_for_url)."""

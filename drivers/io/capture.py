@@ -1,4 +1,4 @@
-"""Capture v1 files: what serial ports received, with receive times (DESIGN.md).
+"""Capture v1 files: what serial ports received, with receive times (README, "Capture files").
 
 Text, like candump's log format but for serial ports::
 

@@ -1,4 +1,4 @@
-"""The error hierarchy (STYLE.md rule 6)."""
+"""The error hierarchy (docs/ARCHITECTURE.md, "Records and errors")."""
 
 from __future__ import annotations
 
