@@ -97,6 +97,7 @@ class UutConfig:
     persist_min_change_sigma: float = _UUT.persist_min_change_sigma
     persist_min_change_abs: float = _UUT.persist_min_change_abs
     validation_s: float = _UUT.validation_s
+    average_s: float | None = _UUT.average_s
     recheck_s: float = _UUT.recheck_s
     gate_nis: float = _UUT.gate_nis
     relearn_gates: int = _UUT.relearn_gates
@@ -358,6 +359,7 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
     "persist_min_change_sigma": ("persist_min_change_sigma", _num(0.0, 100.0)),
     "persist_min_change_abs": ("persist_min_change_abs", _num(0.0, 10.0)),
     "validation_s": ("validation_s", _num(0.1, 3600.0)),
+    "average_s": ("average_s", _num(0.0, 600.0, optional=True)),
     "recheck_s": ("recheck_s", _num(1.0, 86400.0)),
     "gate_nis": ("gate_nis", _num(1.0, 1e6)),
     "relearn_gates": ("relearn_gates", _num(1, 100_000, integer=True)),

@@ -51,7 +51,7 @@ from emlogd.offline.dataset import (
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import UutSettings
-from emlogd.pipeline.uut import UutCalibration
+from emlogd.pipeline.uut import AVERAGE_S, UutCalibration
 
 Method = Literal["ls", "kf"]
 
@@ -285,12 +285,6 @@ def _current_doc(
     }
 
 
-LS_AVERAGE_S: dict[str, float] = {"gnss": 20.0}
-"""Block length of the least-squares fit by reference field, s (others: every sample).
-GNSS speed projected on the hull has about 0.3 m/s of noise at 1 Hz; 20-s means divide
-its variance by about 20 and still follow a yacht's tacks and a boat's speed steps."""
-
-
 def _block_means(
     pairs: Sequence[Aligned], current: bool, window_s: float
 ) -> tuple[FloatArray, ...]:
@@ -381,7 +375,8 @@ def calibrate(
             with their σ, NIS, state and the unknowns learning).
         average_s: ``ls`` only: fit block means over this many seconds (a noisy
             reference would otherwise shrink the scale: :func:`calib.lsq.block_average`);
-            None: :data:`LS_AVERAGE_S` of the reference field, 0: every sample.
+            None: the settings' ``average_s`` (by default
+            :data:`emlogd.pipeline.uut.AVERAGE_S` of the reference field), 0: every sample.
 
     Raises:
         OfflineError: no aligned samples, or a trace asked of ``ls``.
@@ -405,7 +400,8 @@ def calibrate(
     nis_mean = nis_frac = None
     window = 0.0
     if method == "ls":
-        window = LS_AVERAGE_S.get(settings.reference_field, 0.0) if average_s is None else average_s
+        given = average_s if average_s is not None else settings.average_s
+        window = given if given is not None else AVERAGE_S.get(settings.reference_field, 0.0)
         fit_raw, fit_ref, fit_hd = raw, ref, hd
         if window > 0.0:
             _, fit_raw, fit_ref, fit_heading = _block_means(pairs, settings.current, window)
@@ -492,7 +488,12 @@ class _TraceWriter:
         return self
 
     def row(self, r: dict[str, object]) -> None:
-        self._w.writerow(["" if r.get(c) is None else _cell(r[c]) for c in TRACE_COLUMNS])
+        self._w.writerow(
+            [
+                "" if r.get(c) is None else f"{r[c]:.3f}" if c == "t" else _cell(r[c])
+                for c in TRACE_COLUMNS
+            ]
+        )
 
     def __exit__(self, *exc: object) -> None:
         if self._f is not None:

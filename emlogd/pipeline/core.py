@@ -141,6 +141,9 @@ class UutSettings:
     max_accel_mps2: float = 2.0
     max_turn_rate_dps: float = 45.0
     validation_s: float = 120.0
+    average_s: float | None = None
+    """Learn from block means this long, s; None: by reference field (20 s for GNSS,
+    every sample for a DVL or another log); 0: every sample."""
     recheck_s: float = 300.0
 
     def __post_init__(self) -> None:

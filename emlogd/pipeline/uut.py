@@ -107,6 +107,83 @@ class Recorder(Protocol):
         """One reading of the learnt sentence (fresh, in range)."""
 
 
+AVERAGE_S: dict[str, float] = {"gnss": 20.0}
+"""Learning from block means of this length by reference field, s (others: every
+sample). GNSS speed projected on the hull has about 0.3 m/s of noise correlated over
+seconds (the receiver's filter, the heading's swing); taken sample by sample it would
+make the filter far more certain of the current than the data allow, and a plain least
+squares would shrink the scale (errors in the regressor). 20-s means still follow a
+yacht's tacks and a boat's speed steps."""
+
+CURRENT_SIGNIFICANCE = 3.0
+"""A current is reported when each component's σ is within ``max_std_current_mps``, or
+within a third of the current's speed: a 1 m/s tidal stream known to ±0.1 m/s is a
+measurement; 0.1 m/s known to ±0.1 m/s is not."""
+
+MIN_HEADING_COHERENCE = 0.9
+"""A block is used when its mean heading vector is at least this long (a turn of
+about 50° inside the block at most)."""
+
+
+class BlockMeans:
+    """Consecutive blocks of learnt-from samples, averaged (:data:`AVERAGE_S`).
+
+    A block closes after ``window_s`` (samples that cannot be learnt from are left out);
+    it is dropped when the set of unknowns learning changes, a gap between its samples
+    exceeds 5 s, the heading comes or goes, or the heading turned too much
+    inside it (its mean heading vector shorter than :data:`MIN_HEADING_COHERENCE`).
+    """
+
+    def __init__(self, window_s: float) -> None:
+        self.window_s = window_s
+        self.clear()
+
+    def clear(self) -> None:
+        """Drop the block being collected."""
+        self.n = 0
+        self.t0 = self.t_last = 0.0
+        self.raw = self.ref = self.c = self.s = 0.0
+        self.learn: frozenset[str] = frozenset()
+        self.with_heading = False
+
+    def add(
+        self,
+        t: float,
+        raw: float,
+        ref: float,
+        cs: tuple[float, float] | None,
+        learn: frozenset[str],
+    ) -> tuple[float, float, tuple[float, float] | None, frozenset[str]] | None:
+        """Add a sample; the block's (raw, ref, (cos, sin), unknowns) when it closes."""
+        if self.n and (
+            learn != self.learn or t - self.t_last > 5.0 or (cs is not None) != self.with_heading
+        ):
+            self.clear()
+        if not self.n:
+            self.t0, self.learn, self.with_heading = t, learn, cs is not None
+        self.n += 1
+        self.t_last = t
+        self.raw += raw
+        self.ref += ref
+        if cs is not None:
+            self.c += cs[0]
+            self.s += cs[1]
+        if t - self.t0 < self.window_s:
+            return None
+        n, learn_set = self.n, self.learn
+        mean_cs: tuple[float, float] | None = None
+        if self.with_heading:
+            c, s = self.c / n, self.s / n
+            norm = math.hypot(c, s)
+            if norm < MIN_HEADING_COHERENCE:
+                self.clear()
+                return None
+            mean_cs = (c / norm, s / norm)
+        out = (self.raw / n, self.ref / n, mean_cs, learn_set)
+        self.clear()
+        return out
+
+
 @dataclass
 class Counters:
     """Why samples were not learnt from (or not emitted), by reason."""
@@ -332,6 +409,9 @@ class UutCalibration:
         """With a recorder: only record the readings, learn nothing (reading captures)."""
         self.tracer: Callable[[dict[str, object]], None] | None = None
         """Offline use (``calibrate --trace``): receives one row per learnt-from reading."""
+        average = s.average_s if s.average_s is not None else AVERAGE_S.get(s.reference_field, 0.0)
+        self.block = BlockMeans(average) if average > 0.0 else None
+        """Learning from block means (a noisy reference), or None: from every sample."""
 
     # -- construction -------------------------------------------------------
 
@@ -456,16 +536,41 @@ class UutCalibration:
             learn_set = self.learn_set
         if fault:
             self.counters.uut_fault += 1
+        block = self.block
         res = self.kf.update(
             raw,
             ref if valid else None,
             dt,
             heading_cs=cs,
-            learn=learn_set,
+            learn=False if block is not None else learn_set,
             max_nis=s.gate_nis,
         )
         self._gates(t, res.raw_gated, res.ref_gated, valid)
         learnt = res.learnt and learn_set is not False
+        if block is not None:
+            # Block means: each sample moves the speed state only; the unknowns learn
+            # from the means of a block (a noisy reference's errors are correlated
+            # over seconds, so single samples would overstate what is known).
+            closed = None
+            usable = not (res.raw_gated or res.ref_gated) and res.raw is not None
+            if usable and isinstance(learn_set, frozenset) and ref is not None:
+                closed = block.add(t, raw, ref, cs, learn_set)
+            learnt = False
+            if closed is not None:
+                b_raw, b_ref, b_cs, b_learn = closed
+                # the speed state followed the last sample; the block's mean speed is
+                # another quantity: the mean reference sets it afresh
+                self.kf.reacquire_speed()
+                res = self.kf.update(
+                    b_raw,
+                    b_ref,
+                    0.0,
+                    heading_cs=b_cs,
+                    learn=b_learn,
+                    max_nis=s.gate_nis,
+                )
+                learnt = res.learnt
+                learn_set = b_learn
         if learnt and res.raw is not None:
             self.n_learnt += 1
             self.counters.learnt += 1
@@ -480,7 +585,7 @@ class UutCalibration:
             self._envelope(t)
         if valid and ref is not None and not fault:
             self._score(t, raw, ref, cs)
-        self._set_state(t, bool(learnt), fault)
+        self._set_state(t, bool(learnt) or (block is not None and block.n > 0), fault)
         if self.tracer is not None:
             self.tracer(
                 self._trace_row(t, raw, ref if valid else None, heading, res.raw, learn_set)
@@ -638,13 +743,16 @@ class UutCalibration:
 
         The recent window must determine it by the strict rule (``max_std_current_mps``
         itself, not the looser bound that lets the filter learn) and the filter's own
-        standard deviation of each component must be within that bound too.
+        standard deviation of each component must be within that bound, or within a
+        third of the current's speed (:data:`CURRENT_SIGNIFICANCE`).
         """
         if not (self.layout.current and self.current_reportable):
             return False
-        std = self.kf.current_std_mps
-        limit = self.s.rule.max_std_current_mps
-        return std is not None and max(std) <= limit
+        std, cur = self.kf.current_std_mps, self.kf.current_mps
+        if std is None or cur is None:
+            return False
+        limit = max(self.s.rule.max_std_current_mps, math.hypot(*cur) / CURRENT_SIGNIFICANCE)
+        return max(std) <= limit
 
     def _propose(self, t: float) -> None:
         """Freeze the estimate as a candidate when it is good and new enough."""

@@ -217,3 +217,12 @@ def test_dump_round_trips_non_defaults(tmp_path: Path) -> None:
     assert cfg.calibration[0].lag_s == 3.2 and cfg.outputs.pty is None
     assert cfg.state_path == str(tmp_path / "s" / "state.yaml")
     assert parse_config(dump_config(cfg), cfg.path) == cfg
+
+
+def test_every_calibration_key_is_documented_in_the_example() -> None:
+    """examples/emlogd.yaml, the reference for the keys, shows every calibration key."""
+    from emlogd.config import UUT_SPEC
+
+    text = EXAMPLE.read_text()
+    missing = [k for k in UUT_SPEC if f"    {k}:" not in text and f"  - {k}:" not in text]
+    assert missing == []

@@ -57,6 +57,7 @@ OFF_DEFAULT: dict[str, tuple[str, object]] = {
     "persist_min_change_sigma": (3.0, "persist_min_change_sigma"),
     "persist_min_change_abs": (0.01, "persist_min_change_abs"),
     "validation_s": (33.0, "validation_s"),
+    "average_s": (5.0, "average_s"),
     "recheck_s": (44.0, "recheck_s"),
     "gate_nis": (9.0, "gate_nis"),
     "relearn_gates": (7, "relearn_gates"),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from pathlib import Path
 
 import pytest
@@ -111,6 +112,27 @@ class TestCalibrate:
 
 class TestFiles:
     """Calibration files and evaluate."""
+
+    def test_kf_trace(self, trial_files: dict[str, Path], tmp_path: Path) -> None:
+        """--trace writes one row per learnt-from reading: full-precision times, the
+        parameters ending at the result's, the current with its σ, and the state."""
+        import csv
+
+        from emlogd.offline.jobs import TRACE_COLUMNS
+
+        recs = load_captures([trial_files["figure-8"]], E1C)
+        path = tmp_path / "trace.csv"
+        res = calibrate(recs, E1C, "kf", lag=3.3, trace=path)
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        assert tuple(rows[0]) == TRACE_COLUMNS
+        t = [float(r["t"]) for r in rows]
+        assert len(rows) > 100 and all(b > a for a, b in itertools.pairwise(t))
+        assert float(rows[-1]["m"]) == pytest.approx(res.params.m, abs=1e-5)
+        assert {r["state"] for r in rows} >= {"learning"}
+        assert all(r["std_current_north_mps"] for r in rows[1:])
+        with pytest.raises(OfflineError, match="--method kf"):
+            calibrate(recs, E1C, "ls", lag=3.3, trace=path)
 
     def test_round_trip_and_evaluate(self, trial_files: dict[str, Path], tmp_path: Path) -> None:
         """--save writes a calibration file that evaluate applies to other captures."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
+import numpy as np
 import pytest
 
 from calib.models import Params
@@ -156,3 +157,68 @@ class TestFaults:
         rig = Rig(prior)
         assert rig.cal.correct(0.0) == 0.0
         assert rig.cal.correct(0.05) == pytest.approx(0.05)
+
+
+class TestBlockMeans:
+    """Learning from block means of a noisy reference (GNSS)."""
+
+    def test_blocks_close_after_the_window(self) -> None:
+        """A block closes after window_s with the means; its heading is the mean vector's."""
+        from emlogd.pipeline.uut import BlockMeans
+
+        b = BlockMeans(10.0)
+        learn = frozenset({"m", "b"})
+        out = None
+        for k in range(11):
+            ang = math.radians(80.0 if k % 2 else 100.0)
+            out = b.add(float(k), 2.0 + k, 1.0, (math.cos(ang), math.sin(ang)), learn)
+            if k < 10:
+                assert out is None
+        assert out is not None
+        raw, ref, cs, unknowns = out
+        assert raw == pytest.approx(7.0) and ref == 1.0 and unknowns == learn
+        assert cs is not None and math.degrees(math.atan2(cs[1], cs[0])) == pytest.approx(
+            90.0, abs=1.0
+        )
+        assert b.n == 0
+
+    def test_turns_gaps_and_changed_unknowns_drop_the_block(self) -> None:
+        """A U-turn inside the block, a 6-s gap or a new set of unknowns starts again."""
+        from emlogd.pipeline.uut import BlockMeans
+
+        learn = frozenset({"m", "b"})
+        b = BlockMeans(10.0)
+        for k in range(11):  # turning through 180° in 10 s
+            ang = math.radians(18.0 * k)
+            assert b.add(float(k), 1.0, 1.0, (math.cos(ang), math.sin(ang)), learn) is None
+        b = BlockMeans(10.0)
+        b.add(0.0, 1.0, 1.0, None, learn)
+        b.add(6.5, 1.0, 1.0, None, learn)  # gap: the block restarts at 6.5
+        assert b.t0 == 6.5 and b.n == 1
+        b.add(7.0, 1.0, 1.0, None, frozenset({"b"}))
+        assert b.t0 == 7.0 and b.n == 1
+
+    def test_noisy_gnss_reference_gives_the_sensors_scale(self) -> None:
+        """A reference with 0.3 m/s of noise: the scale is learnt from block means within
+        0.03 over two hours of speed changes, where sample-by-sample learning with the
+        same filter is pulled further (average_s: 0)."""
+        rng = np.random.default_rng(3)
+
+        def run(average_s: float | None) -> float:
+            s = UutSettings(
+                port="log", reference_port="gps", reference_field="gnss", lag_s=0.0,
+                average_s=average_s,
+            )  # fmt: skip
+            cal = UutCalibration(s, None, lambda t: None, lambda t, k, d: None)
+            noise = np.random.default_rng(5).normal(0.0, 0.3, 7200)
+            for k in range(7200):
+                t = float(k)
+                v = 2.5 + 1.2 * math.sin(2 * math.pi * t / 400.0)
+                cal.add_reference(t, v + float(noise[k]), True)
+                cal.add_reading(t, TRUE.forward(v) + float(rng.normal(0.0, 0.03)))
+                cal.drain(t)
+            return cal.kf.params.m
+
+        m_blocks = run(None)
+        assert m_blocks == pytest.approx(TRUE.m, abs=0.03)
+        assert abs(run(0.0) - TRUE.m) > abs(m_blocks - TRUE.m)
