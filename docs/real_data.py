@@ -106,13 +106,13 @@ def main(src: Path, out: Path) -> None:
     print("\n".join(rows_fit))
     print(
         "\n| recording | KF m after 10 min | KF b after 10 min | current reported | "
-        "KF |c| median / p95 / max (kn) | KF σ(c) median m/s | KF vs the log's own current "
+        "KF current speed median / p95 / max (kn) | KF σ(c) median m/s | KF vs the log's own current "
         "(10-min mean), median (kn) |\n|---|---|---|---|---|---|---|"
     )
     print("\n".join(rows_kf))
     print(
         f"\n| recording | {WINDOW_S / 60:.0f}-min windows (LS, 20-s means) with the current "
-        "determined | |c| median / max (kn) | vs the log's own current, median / max (kn) |"
+        "determined | current speed median / max (kn) | vs the log's own current, median / max (kn) |"
         "\n|---|---|---|---|"
     )
     print("\n".join(rows_cur))
