@@ -24,7 +24,6 @@ from drivers.errors import (
     ChecksumError,
     ConfigError,
     DeviceError,
-    DeviceTimeoutError,
     EmlogdError,
     FieldError,
     FrameError,
@@ -34,7 +33,7 @@ from drivers.errors import (
     UnknownProtocolError,
     UnknownSentenceError,
 )
-from drivers.records import Rejected, SpeedRecord, Stamped
+from drivers.records import Rejected, SpeedRecord
 
 PROTOCOLS: dict[str, tuple[str, str]] = {
     "nmea0183": ("drivers.nmea0183", "NmeaDecoder"),
@@ -99,7 +98,7 @@ def is_binary(name: str) -> bool:
 
 def record_types() -> tuple[type, ...]:
     """Every record dataclass: the common ones plus each protocol module's ``RECORDS``."""
-    types: list[type] = [SpeedRecord, Rejected, Stamped]
+    types: list[type] = [SpeedRecord, Rejected]
     seen: set[str] = set()
     for module_name, _ in PROTOCOLS.values():
         if module_name in seen:
@@ -117,7 +116,6 @@ __all__ = [
     "Decoder",
     "DecoderOptions",
     "DeviceError",
-    "DeviceTimeoutError",
     "EmlogdError",
     "ErrorPolicy",
     "FieldError",
@@ -126,7 +124,6 @@ __all__ = [
     "OutOfRangeError",
     "Rejected",
     "SpeedRecord",
-    "Stamped",
     "TooLongError",
     "UnknownProtocolError",
     "UnknownSentenceError",

@@ -122,9 +122,5 @@ class DeviceError(EmlogdError):
     """A serial device or pty could not be opened, read or written."""
 
 
-class DeviceTimeoutError(DeviceError, TimeoutError):
-    """A device stayed silent for longer than its stale timeout."""
-
-
 class ConfigError(EmlogdError, ValueError):
     """A configuration value is missing, unknown, of the wrong type, or out of range."""

@@ -6,9 +6,9 @@ Protocol modules define their own frozen, slotted record dataclasses (``Vhw``,
 - :class:`SpeedRecord`, the common speed record every protocol maps to, so the
   pipeline never cares which sensor produced a speed;
 - :class:`Rejected`, yielded for a rejected frame when a decoder runs with
-  ``errors="yield"``;
-- :class:`Stamped`, which wraps a record with the receive time stamped by the
-  transport (decoders never read a clock).
+  ``errors="yield"``.
+
+Decoders never read a clock: the receive time travels beside the records.
 
 Must not import: serial, os, time, threading (pure module).
 """
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Generic, Literal, TypeVar
+from typing import Literal
 
 from drivers.errors import RejectReason
 
@@ -83,21 +83,3 @@ class Rejected:
     reason: RejectReason
     detail: str
     raw: bytes
-
-
-R = TypeVar("R")
-
-
-@dataclass(frozen=True, slots=True)
-class Stamped(Generic[R]):
-    """A record with the time it was received, stamped by the transport.
-
-    Attributes:
-        t: receive time, seconds since the Unix epoch (the capture file's clock).
-        port: port name.
-        record: the decoded record.
-    """
-
-    t: float
-    port: str
-    record: R

@@ -51,12 +51,6 @@ def write_capture(tmp_path: Path) -> Callable[..., Path]:
 
 
 @pytest.fixture
-def make_capture(write_capture: Callable[..., Path]) -> Callable[..., Path]:
-    """The same as :func:`write_capture` (older name)."""
-    return write_capture
-
-
-@pytest.fixture
 def fake_device(tmp_path: Path) -> Iterator[Callable[..., FakeDevice]]:
     """Start fake devices: fake_device(capture, port, speed=None, loop=False, link=None).
 

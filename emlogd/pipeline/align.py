@@ -25,7 +25,7 @@ from collections import deque
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from calib.models import FloatArray
 
 DEFAULT_MAX_GAP_S = 1.0
 """Largest distance from a query to each bracketing sample, s (a 10 Hz DVL with a

@@ -22,7 +22,6 @@ class TestHierarchy:
             errors.OutOfRangeError,
             errors.UnknownProtocolError,
             errors.DeviceError,
-            errors.DeviceTimeoutError,
             errors.ConfigError,
         ],
     )
@@ -31,8 +30,7 @@ class TestHierarchy:
         assert issubclass(cls, errors.EmlogdError)
 
     def test_dual_inheritance(self) -> None:
-        """Timeouts are TimeoutErrors and config errors are ValueErrors."""
-        assert issubclass(errors.DeviceTimeoutError, TimeoutError)
+        """Config and capture-format errors are ValueErrors."""
         assert issubclass(errors.ConfigError, ValueError)
         assert issubclass(errors.CaptureFormatError, ValueError)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from datetime import UTC, datetime
 
-from drivers.records import SpeedRecord, Stamped
+from drivers.records import SpeedRecord
 from emlogd.jsonio import to_jsonable
 
 
@@ -24,5 +24,5 @@ class TestToJsonable:
     def test_nested_and_special_values(self) -> None:
         """Datetimes, bytes, tuples and non-finite floats are converted."""
         t = datetime(2025, 6, 1, 6, 0, tzinfo=UTC)
-        d = to_jsonable(Stamped(1.0, "p", {"when": t, "raw": b"\x01\xff", "v": (1, float("nan"))}))
+        d = to_jsonable({"record": {"when": t, "raw": b"\x01\xff", "v": (1, float("nan"))}})
         assert d["record"] == {"when": t.isoformat(), "raw": "01ff", "v": [1, None]}
