@@ -113,6 +113,27 @@ class TestCalibrate:
 class TestFiles:
     """Calibration files and evaluate."""
 
+    def test_saved_calibration_replays_frozen_with_its_lag(
+        self, trial_files: dict[str, Path], tmp_path: Path
+    ) -> None:
+        """A saved fit warm-starts a no-learn replay: its lag is used (no re-estimate)
+        and the corrected speed is scored against the reference."""
+        from emlogd.calfile import loads
+
+        recs = load_captures([trial_files["figure-8"], trial_files["circles"]], E1)
+        res = calibrate(recs, E1, "ls", lag=3.3)
+        path = tmp_path / "p.yaml"
+        save_params(path, res)
+        cals, _ = loads(path.read_text())
+        settings = dataclasses.replace(E1, learn=False)
+        transit = trial_files["transit"]
+        ports = [PortSettings(n, p) for n, p in CaptureReader(transit).ports.items()]
+        pipeline = Pipeline(ports, [settings], calibrations=cals)
+        out = replay(pipeline, [transit])
+        (u,) = [v for k, v in out.to_dict()["uuts"].items() if k == "emlog1"]  # type: ignore[union-attr]
+        assert u["state"] == "frozen" and u["lag_s"] == pytest.approx(3.3)
+        assert u["rmse_corrected"] < 0.5 * u["rmse_raw"]
+
     def test_kf_trace(self, trial_files: dict[str, Path], tmp_path: Path) -> None:
         """--trace writes one row per learnt-from reading: full-precision times, the
         parameters ending at the result's, the current with its σ, and the state."""
