@@ -900,20 +900,23 @@ def _deg(x: float | None, decimals: int = 1) -> str:
     return _fmt(0.0 if v >= 360.0 else v, decimals)
 
 
+def _dm(a: float, digits: int) -> str:
+    """Degrees ≥ 0 as (d)ddmm.mmmm, the minutes rounded first (59.99999 → next degree)."""
+    ten_thousandths = round(a * 600_000.0)
+    d, rest = divmod(ten_thousandths, 600_000)
+    return f"{d:0{digits}d}{rest / 10_000.0:07.4f}"
+
+
 def _lat(x: float | None) -> tuple[str, str]:
     if x is None or not math.isfinite(x):
         return "", ""
-    a = min(abs(x), 90.0)
-    d = int(a)
-    return f"{d:02d}{(a - d) * 60.0:07.4f}", "N" if x >= 0 else "S"
+    return _dm(min(abs(x), 90.0), 2), "N" if x >= 0 else "S"
 
 
 def _lon(x: float | None) -> tuple[str, str]:
     if x is None or not math.isfinite(x):
         return "", ""
-    a = min(abs(x), 180.0)
-    d = int(a)
-    return f"{d:03d}{(a - d) * 60.0:07.4f}", "E" if x >= 0 else "W"
+    return _dm(min(abs(x), 180.0), 3), "E" if x >= 0 else "W"
 
 
 def _hms(t: datetime | None) -> str:

@@ -121,6 +121,11 @@ class OutputConfig:
     talker: str = "VW"
     maker: str = "EML"
     status_interval_s: float = 1.0
+    speed: Literal["each", "fused", "both"] = "each"
+    """each: every log's corrected sentences; fused: one speed for the autopilot, the
+    inverse-variance weighted mean of every healthy log (``$PEMLF`` says which);
+    both: the two."""
+    fused_talker: str = "II"
 
 
 @dataclass(frozen=True, slots=True)
@@ -381,6 +386,8 @@ OUTPUT_SPEC: dict[str, tuple[str, Check]] = {
     "talker": ("talker", _str(r"[A-Z]{2}", "two uppercase letters")),
     "maker": ("maker", _str(r"[A-Z]{3}", "three uppercase letters")),
     "status_interval_s": ("status_interval_s", _num(0.0, 3600.0)),
+    "speed": ("speed", _enum("each", "fused", "both")),
+    "fused_talker": ("fused_talker", _str(r"[A-Z]{2}", "two uppercase letters")),
 }
 
 TOP_SPEC: dict[str, tuple[str, Check]] = {
@@ -545,6 +552,12 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         if base is not None and kw.get("pty") and not kw["pty"].startswith("/"):
             kw["pty"] = str(base / kw["pty"])
         outputs = OutputConfig(**kw)
+        if outputs.speed != "each" and "fused" in by_name:
+            raise ctx.fail(
+                top["outputs"][1],
+                "outputs.speed",
+                "a port called 'fused' clashes with the fused output: rename the port",
+            )
     rest = {
         TOP_SPEC[k][0]: TOP_SPEC[k][1](ctx, vn, k) for k, (_, vn) in top.items() if k in TOP_SPEC
     }

@@ -13,7 +13,15 @@ from calib.excitation import ExcitationRule
 from calib.kalman import KfConfig
 from emlogd.config import Config, UutConfig
 from emlogd.pipeline.core import REF_NOISE_MPS, PortSettings, UutSettings
+from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.integrity import Envelope
+
+
+def fusion_from_config(cfg: Config) -> FusionSettings | None:
+    """The fused output's settings, or None when each log's sentences go out alone."""
+    if cfg.outputs.speed == "each":
+        return None
+    return FusionSettings(only=cfg.outputs.speed == "fused", talker=cfg.outputs.fused_talker)
 
 
 def pipeline_from_config(cfg: Config) -> tuple[list[PortSettings], list[UutSettings]]:

@@ -694,7 +694,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from emlogd.offline.replay import replay
     from emlogd.pipeline.calibration import Calibration, checker
     from emlogd.pipeline.core import Output, Pipeline
-    from emlogd.settings import pipeline_from_config
+    from emlogd.settings import fusion_from_config, pipeline_from_config
 
     cfg = load_config(args.config)
     ports, uuts = pipeline_from_config(cfg)
@@ -706,7 +706,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         cals, report = store.load(check=checker(uuts))
         for line in report:
             sys.stderr.write(f"emlogd replay: {line}\n")
-    pipeline = Pipeline(ports, uuts, cals)
+    pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
 
     def persist(_: Output) -> None:
         if store is not None:

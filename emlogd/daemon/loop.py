@@ -34,7 +34,7 @@ from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_si
 from emlogd.daemon.statefile import StateStore
 from emlogd.pipeline.calibration import checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
-from emlogd.settings import pipeline_from_config
+from emlogd.settings import fusion_from_config, pipeline_from_config
 
 SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
@@ -151,7 +151,7 @@ class Daemon:
                 reset=cal.reset,
                 **cal.params.as_dict(),
             )
-        self.pipeline = Pipeline(ports, uuts, cals)
+        self.pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
         self._open_outputs()
         self.control = ControlServer(cfg.control_socket, self._control, self.sel)
         self._open_sources(cfg)
@@ -443,7 +443,7 @@ class Daemon:
         snapshots = {s.uut: s for s in self.pipeline.calibrations()}
         try:
             ports, uuts = pipeline_from_config(new)
-            pipeline = Pipeline(ports, uuts, snapshots)
+            pipeline = Pipeline(ports, uuts, snapshots, fusion=fusion_from_config(new))
         except (ConfigError, ValueError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return

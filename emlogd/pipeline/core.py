@@ -45,9 +45,11 @@ from drivers.nmea0183 import Heading as NmeaHeading
 from drivers.records import KNOT_MPS
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
+from emlogd.pipeline.fusion import Fusion, FusionSettings
 from emlogd.pipeline.integrity import Envelope, JumpFilter
 from emlogd.pipeline.sentences import (
     StatusFields,
+    encode_fused_status,
     encode_status,
     encode_vbw,
     encode_vdr,
@@ -71,6 +73,8 @@ _ROLE_OF_SOURCE: dict[str, str] = {
 }
 _DVL_HEADING_SOURCES = frozenset({"PD6:BS", "PD6:WS", "PD0:BT", "PD4:BT", "PD5:BT"})
 _UUT_SENTENCES = ("VHW", "VBW")
+FUSED_PORT = "fused"
+"""The port name of the fused speed's emits (a UUT may not be called this)."""
 
 
 REF_NOISE_MPS: dict[str, float] = {
@@ -310,6 +314,8 @@ class Pipeline:
         ports: Sequence[PortSettings],
         uuts: Sequence[UutSettings],
         calibrations: Mapping[str, Calibration] | None = None,
+        *,
+        fusion: FusionSettings | None = None,
     ) -> None:
         self.ports = {p.name: p for p in ports}
         self.decoders: dict[str, Decoder] = {
@@ -322,6 +328,8 @@ class Pipeline:
             for p in ports
         }
         self.startup_events: list[Event] = []
+        self.fusion = Fusion(fusion) if fusion is not None else None
+        self.t_fused_status = -math.inf
         self.headings: dict[str, _PortHeading] = {}
         self.variation: dict[str, float] = {}
         self.fix_quality: dict[str, int] = {}
@@ -329,6 +337,8 @@ class Pipeline:
         self._by_ref: dict[str, list[_Uut]] = {}
         cals = calibrations or {}
         for s in uuts:
+            if fusion is not None and s.port == FUSED_PORT:
+                raise ValueError(f"a UUT port may not be called {FUSED_PORT!r} with a fused output")
             if s.port not in self.ports or s.reference_port not in self.ports:
                 raise ValueError(f"UUT {s.port}: unknown port {s.port!r} or {s.reference_port!r}")
             if s.heading != "auto" and s.heading not in self.ports:
@@ -528,7 +538,10 @@ class Pipeline:
                 sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
             else:
                 sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
-            out.send(Emit(t, u.s.port, sentence))
+            if self.fusion is None or not self.fusion.s.only:
+                out.send(Emit(t, u.s.port, sentence))
+            if self.fusion is not None and sp.sentence == u.s.uut_source:
+                self._fuse(t, u, value, rec, out)
         if sp.sentence == u.s.uut_source:
             cal.add_reading(t, raw)
             cal.drain(self.now)
@@ -536,6 +549,20 @@ class Pipeline:
             u.t_status = t
             out.emits.append(Emit(t, u.s.port, encode_status(self._status_fields(u))))
             self._vdr(u, t, out)
+
+    def _fuse(self, t: float, u: _Uut, value: float, rec: object, out: Output) -> None:
+        """Send the fused speed (port ``fused``) when one is due."""
+        assert self.fusion is not None
+        fused = self.fusion.update(u.s.port, t, value, u.cal.output_std(value))
+        if fused is None:
+            return
+        hdg_t = rec.heading_true_deg if isinstance(rec, Vhw) else None
+        hdg_m = rec.heading_mag_deg if isinstance(rec, Vhw) else None
+        talker = self.fusion.s.talker
+        out.send(Emit(t, FUSED_PORT, encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)))
+        if t - self.t_fused_status >= u.s.status_interval_s:
+            self.t_fused_status = t
+            out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))
 
     def _vdr(self, u: _Uut, t: float, out: Output) -> None:
         cal = u.cal
@@ -655,9 +682,13 @@ class Pipeline:
 
     def status(self) -> dict[str, object]:
         """A JSON-ready status: per-port counters and per-UUT calibration state."""
+        last = self.fusion.last if self.fusion is not None else None
         return {
             "ports": self.port_status(),
             "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
+            "fused": None
+            if last is None
+            else {"speed_mps": last.speed_mps, "std_mps": last.std_mps, "sources": last.sources},
         }
 
     def _uut_status(self, u: _Uut) -> dict[str, object]:

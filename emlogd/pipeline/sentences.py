@@ -13,6 +13,13 @@ deviations (a and m clamped to ±9.9999, b to ±9.999, σ to two-digit exponents
 NIS mean (empty before learning), and the reference state
 (``V`` valid, ``L`` lost, ``S`` stale, ``W`` too slow, ``N`` none yet). Every
 sentence is checksummed and at most 82 characters with CR LF.
+
+The fused speed's status (``$P`` + maker + ``F``)::
+
+    $PEMLF,4.21,0.04,2,emlog2;emlog1*hh
+
+fields: the fused speed and its σ in knots, the number of logs that contributed and
+their names (heaviest weight first; names cut to fit 82 characters).
 """
 
 from __future__ import annotations
@@ -23,6 +30,8 @@ from dataclasses import dataclass, field
 
 from drivers import nmea0183
 from drivers.framing import with_checksum
+from drivers.records import KNOT_MPS
+from emlogd.pipeline.fusion import Fused
 
 MAX_SENTENCE = 82
 """NMEA 0183 limit in characters, CR LF included."""
@@ -91,6 +100,31 @@ def encode_status(f: StatusFields) -> str:
     if len(sentence) + 2 > MAX_SENTENCE:  # cannot happen with the widths above
         raise ValueError(f"status sentence too long: {sentence}")
     return sentence
+
+
+def encode_fused_status(fused: Fused, maker: str) -> str:
+    """The fused speed's status sentence (without CR LF).
+
+    Raises:
+        ValueError: a maker code that is not three uppercase letters.
+    """
+    if not (len(maker) == 3 and maker.isalpha() and maker.isupper()):
+        raise ValueError(f"maker code must be three uppercase letters, not {maker!r}")
+    kn = KNOT_MPS
+    head = [
+        f"P{maker}F",
+        _num(min(fused.speed_mps / kn, 999.99), ".2f"),
+        _num(min(fused.std_mps / kn, 99.99), ".2f"),
+        str(len(fused.sources)),
+    ]
+    names = ""
+    for name in fused.sources:
+        clean = "".join(c for c in name if c.isascii() and (c.isalnum() or c in "_-"))
+        trial = f"{names};{clean}" if names else clean
+        if len(with_checksum(",".join([*head, trial]))) + 2 > MAX_SENTENCE:
+            break
+        names = trial
+    return with_checksum(",".join([*head, names]))
 
 
 def encode_vhw(

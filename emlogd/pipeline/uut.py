@@ -453,6 +453,26 @@ class UutCalibration:
         out = emitted_speed(corrected, raw_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
         return out if math.isfinite(out) else None
 
+    def output_std(self, speed_mps: float) -> float:
+        """The standard deviation of a speed :meth:`correct` gave, m/s.
+
+        The reading's noise through the scale, plus the applied calibration's own σ at
+        that speed; raw passed through (no calibration yet) counts with 10 % + 0.1 m/s.
+        """
+        r_raw = self.s.kf.r_raw_mps2
+        p = self.applied if self.s.apply else None
+        if p is None:
+            return math.sqrt(r_raw + (0.1 * speed_mps) ** 2 + 0.01)
+        std = self.applied_std
+        u = abs(speed_mps)
+        gain = p.a_spm * 2.0 * u + 1.0 + p.m
+        var = r_raw / max(gain * gain, 0.25)
+        for name, x in (("a", u * u), ("m", u), ("b", 1.0)):
+            s = std.get(name)
+            if s is not None and math.isfinite(s):
+                var += (s * x) ** 2 / max(gain * gain, 0.25)
+        return math.sqrt(var)
+
     def in_range(self, raw_mps: float) -> bool:
         """A reading the sensor can give: finite, within ``[0, max_speed]`` (sternway aside)."""
         return math.isfinite(raw_mps) and -1.0 <= raw_mps <= self.s.envelope.max_speed_mps

@@ -212,3 +212,12 @@ class TestEncoders:
         """A mode indicator must be one letter."""
         with pytest.raises(ValueError, match="mode"):
             encode_rmc(self.T, 1.0, 0.0, mode="AA")
+
+
+def test_position_minutes_that_round_to_sixty_carry_into_the_degree() -> None:
+    """A longitude a hair under 2° is written 00200.0000, not the invalid 00160.0000."""
+    t = datetime(2026, 1, 1, tzinfo=UTC)
+    s = encode_rmc(t, 1.0, 0.0, lat_deg=45.99999999999, lon_deg=1.9999999999999964)
+    assert ",4600.0000,N,00200.0000,E," in s
+    r = NmeaDecoder("x").parse_frame(s.encode())
+    assert isinstance(r, Rmc) and r.lon_deg == pytest.approx(2.0)
