@@ -81,7 +81,8 @@ class Daemon:
         self.sel.register(self.rest_poll.fileno(), selectors.EVENT_READ, self._rest_ready)
         self.scratch = Output(deliver=self._deliver)
         self.rest_s: dict[str, float] = {}
-        self.sinks: list[Sink] = []
+        self.sinks: dict[tuple[object, ...], Sink] = {}
+        """The open outputs, keyed by the settings they were opened with."""
         self.control: ControlServer | None = None
         self.store: StateStore | None = None
         self.pipeline: Pipeline | None = None
@@ -152,18 +153,27 @@ class Daemon:
                 **cal.params.as_dict(),
             )
         self.pipeline = Pipeline(ports, uuts, cals)
-        self._open_outputs()
+        self._sync_outputs()
         self.control = ControlServer(cfg.control_socket, self._control, self.sel)
         self._open_sources(cfg)
 
     def _open_sources(self, cfg: Config) -> None:
+        """Open the ports of ``cfg`` that have no source yet."""
         for p in cfg.ports:
+            if p.name in self.sources:
+                continue
             src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
             src.open()
             self.sources[p.name] = src
             self.rest_s[p.name] = p.rest_s
             self._log_port_events(src.events())
         self._sync_registrations()
+
+    def _close_source(self, name: str) -> None:
+        self._unregister(name)
+        self.sources.pop(name).close()
+        self.resting.pop(name, None)
+        self.rest_s.pop(name, None)
 
     def _close_sources(self) -> None:
         for name, src in self.sources.items():
@@ -173,25 +183,46 @@ class Daemon:
         self.resting.clear()
         self.rest_s.clear()
 
-    def _open_outputs(self) -> None:
-        out = self.config.outputs
+    def _output_specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
+        """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
+        out = cfg.outputs
+        specs: dict[tuple[object, ...], Callable[[], Sink]] = {}
         if out.pty:
-            self.sinks.append(PtySink(out.pty, mode=out.pty_mode))
+            pty, mode = out.pty, out.pty_mode
+            specs[("pty", pty, mode)] = lambda: PtySink(pty, mode=mode)
         if out.tcp:
-            self.sinks.append(
-                TcpServerSink(
-                    out.tcp,
-                    selector=self.sel,
-                    on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
-                )
+            tcp = out.tcp
+            specs[("tcp", tcp)] = lambda: TcpServerSink(
+                tcp,
+                selector=self.sel,
+                on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
             )
         if out.udp:
-            self.sinks.append(UdpSink(out.udp))
+            udp = out.udp
+            specs[("udp", udp)] = lambda: UdpSink(udp)
         if out.stdout:
-            self.sinks.append(stdout_sink())
+            specs[("stdout",)] = stdout_sink
+        return specs
+
+    def _sync_outputs(self) -> tuple[list[str], list[str]]:
+        """Close the outputs the config no longer names, open the new ones; keep the rest.
+
+        Returns the names of the outputs (closed, opened).
+        """
+        specs = self._output_specs(self.config)
+        closed = [self.sinks[key].name for key in self.sinks if key not in specs]
+        for key in [k for k in self.sinks if k not in specs]:
+            with contextlib.suppress(OSError):
+                self.sinks.pop(key).close()
+        opened: list[str] = []
+        for key, make in specs.items():
+            if key not in self.sinks:
+                self.sinks[key] = sink = make()
+                opened.append(sink.name)
+        return closed, opened
 
     def _close_outputs(self) -> None:
-        for sink in self.sinks:
+        for sink in self.sinks.values():
             with contextlib.suppress(OSError):
                 sink.close()
         self.sinks.clear()
@@ -350,7 +381,7 @@ class Daemon:
     def _deliver(self, emits: list[Emit]) -> None:
         """Write sentences to every output sink (called by the pipeline as each is ready)."""
         data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
-        for sink in self.sinks:
+        for sink in self.sinks.values():
             sink.write(data)
 
     def _persist(self, *, final: bool = False) -> None:
@@ -383,7 +414,7 @@ class Daemon:
         assert self.pipeline is not None
         status = self.pipeline.status()
         sources = {name: src.counters_dict() for name, src in self.sources.items()}
-        sinks = {s.name: s.counters.as_dict() for s in self.sinks}
+        sinks = {s.name: s.counters.as_dict() for s in self.sinks.values()}
         self.log.info(
             "status",
             ports=status["ports"],
@@ -433,31 +464,62 @@ class Daemon:
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _reload(self) -> None:
+        """Apply a new config, touching only what changed (docs/DEPLOY.md, "Reload").
+
+        A port, an output or the control socket whose settings are equal is kept as
+        it is (same descriptor, same pty, same clients); a UUT whose settings are equal
+        keeps its calibration object (:meth:`Pipeline.adopt`). A config that does not
+        load, or whose pipeline cannot be built, changes nothing.
+        """
         try:
             new = load_config(self.config_path)
+            ports, uuts = pipeline_from_config(new)
         except (ConfigError, OSError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return
-        assert self.pipeline is not None
+        old_pipeline, old = self.pipeline, self.config
+        assert old_pipeline is not None
         self._persist()
-        snapshots = {s.uut: s for s in self.pipeline.calibrations()}
+        snapshots = {s.uut: s for s in old_pipeline.calibrations()}
         try:
-            ports, uuts = pipeline_from_config(new)
             pipeline = Pipeline(ports, uuts, snapshots)
         except (ConfigError, ValueError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return
-        self._close_sources()
-        self._close_outputs()
-        if self.control is not None:
-            self.control.close()
-        self.config = new
-        self.pipeline = pipeline
-        try:
-            self._open_outputs()
-            self.control = ControlServer(new.control_socket, self._control, self.sel)
-        except DeviceError as exc:
-            self.log.error("reload_outputs_failed", error=str(exc))
+        kept_uuts = pipeline.adopt(old_pipeline)
+        self.config, self.pipeline = new, pipeline
+        before = {p.name: p for p in old.ports}
+        after = {p.name: p for p in new.ports}
+        changed_ports = [n for n in self.sources if before.get(n) != after.get(n)]
+        for name in changed_ports:
+            self._close_source(name)
         self._open_sources(new)
-        self.log.info("reloaded", config=str(self.config_path))
+        try:
+            closed, opened = self._sync_outputs()
+        except DeviceError as exc:
+            closed, opened = [], []
+            self.log.error("reload_outputs_failed", error=str(exc))
+        if self.control is None or new.control_socket != old.control_socket:
+            if self.control is not None:
+                self.control.close()
+                self.control = None
+            try:
+                self.control = ControlServer(new.control_socket, self._control, self.sel)
+            except DeviceError as exc:
+                self.log.error("reload_control_failed", error=str(exc))
+        state_path = Path(new.state_path)
+        if self.state_override is None and self.store is not None and state_path != self.store.path:
+            self.log.warning(
+                "reload_state_file_ignored", path=str(state_path), kept=str(self.store.path)
+            )
+        self.log.info(
+            "reloaded",
+            config=str(self.config_path),
+            uuts_kept=kept_uuts,
+            uuts_restarted=[u for u in pipeline.uuts if u not in kept_uuts],
+            ports_reopened=[n for n in changed_ports if n in after],
+            ports_closed=[n for n in changed_ports if n not in after],
+            outputs_closed=closed,
+            outputs_opened=opened,
+        )
         self._notify_status()

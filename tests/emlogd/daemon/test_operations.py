@@ -1,0 +1,195 @@
+"""Operating the real daemon (a subprocess): reload, operator actions, one instance per
+state file, clients that misbehave, clocks that step. Fake devices on real ptys."""
+
+from __future__ import annotations
+
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+import serial
+
+from drivers.io.fake import FakeDevice
+from emlogd.daemon.control import request
+
+SPEED = 20.0
+
+CONFIG = f"""\
+ports:
+  - {{name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut, baud: 4800}}
+  - {{name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut, baud: 38400}}
+  - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, rest_s: 0}}
+calibration:
+  - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
+     excitation_half_life_samples: 120, persist_interval_s: 0.5,
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5,
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_interval_s: 0.2}}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+status_interval_s: 1
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Daemon:
+    """``emlogd run`` as a subprocess in ``work``; waits for its control socket."""
+
+    def __init__(
+        self,
+        work: Path,
+        *,
+        argv: list[str] | None = None,
+        env: dict[str, str] | None = None,
+        wait: bool = True,
+    ) -> None:
+        self.work = work
+        self.log_path = work / "daemon.log"
+        self.log = open(self.log_path, "ab")  # noqa: SIM115
+        cmd = argv or [sys.executable, "-m", "emlogd", "run", "--config", "emlogd.yaml"]
+        self.proc = subprocess.Popen(
+            cmd, stdout=self.log, stderr=subprocess.STDOUT, cwd=work, env=env
+        )
+        self.sock = work / "run" / "control.sock"
+        deadline = time.monotonic() + 20
+        while wait and not self._answers():
+            assert self.proc.poll() is None, self.log_path.read_text()
+            assert time.monotonic() < deadline, "the daemon did not start"
+            time.sleep(0.05)
+
+    def _answers(self) -> bool:
+        try:
+            return bool(request(self.sock, {"cmd": "status"}, timeout_s=1)["ok"])
+        except Exception:
+            return False
+
+    def ask(self, **req: object) -> dict[str, object]:
+        return request(self.sock, dict(req))
+
+    def uut(self, name: str) -> dict[str, object]:
+        st = self.ask(cmd="status")["status"]
+        assert isinstance(st, dict)
+        u = st["uuts"][name]
+        assert isinstance(u, dict)
+        return u
+
+    def events(self, name: str) -> int:
+        return self.log_path.read_text().count(f'"event": "{name}"')
+
+    def stop(self, sig: int = signal.SIGTERM) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        rc = self.proc.wait(20)
+        self.log.close()
+        return rc
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(20)
+        self.log.close()
+
+
+@pytest.fixture
+def work(tmp_path: Path) -> Path:
+    for sub in ("links", "out", "state", "run"):
+        (tmp_path / sub).mkdir()
+    (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
+    return tmp_path
+
+
+@pytest.fixture
+def devices(
+    work: Path, trial_files: dict[str, Path]
+) -> Iterator[Callable[[], dict[str, FakeDevice]]]:
+    """Start the three sensors of the figure-8 at SPEED (stopped at teardown)."""
+    started: list[FakeDevice] = []
+
+    def start() -> dict[str, FakeDevice]:
+        devs = {
+            p: FakeDevice(trial_files["figure-8"], p, work / "links" / p, speed=SPEED).start()
+            for p in ("emlog1", "emlog2", "dvl")
+        }
+        started.extend(devs.values())
+        return devs
+
+    yield start
+    for dev in started:
+        dev.stop()
+        dev.join(5)
+
+
+def _num(doc: dict[str, object], key: str) -> float:
+    v = doc[key]
+    assert isinstance(v, int | float), doc
+    return float(v)
+
+
+def _wait(cond: Callable[[], bool], what: str, timeout_s: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not cond():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.05)
+
+
+# -- 1. reload -----------------------------------------------------------------
+
+
+def test_reload_keeps_what_did_not_change(
+    work: Path, devices: Callable[[], dict[str, FakeDevice]]
+) -> None:
+    """SIGHUP changing one UUT keeps the pty (same link, an open pyserial reader reads on),
+    the TCP client, and the other UUT's learning state and operator freeze."""
+    devices()
+    d = Daemon(work)
+    link = work / "out" / "emlog0"
+    cfg = work / "emlogd.yaml"
+    tcp_port = int(cfg.read_text().split('tcp: "127.0.0.1:')[1].split('"')[0])
+    try:
+        target = link.readlink()
+        reader = serial.Serial(str(link), timeout=0.2)
+        client = socket.create_connection(("127.0.0.1", tcp_port), timeout=5)
+        _wait(lambda: _num(d.uut("emlog1"), "scored_samples") > 50, "emlog1 never scored")
+        assert d.ask(cmd="freeze", port="emlog1")["ok"]
+        before1, before2 = d.uut("emlog1"), d.uut("emlog2")
+        assert before1["learning_enabled"] is False and before2["learning_enabled"] is True
+        assert reader.read(200) and client.recv(200)
+        # emlog2's lag changes; nothing else does
+        cfg.write_text(cfg.read_text().replace(f"lag: {0.5 / SPEED:.4f}", "lag: 0.05"))
+        d.proc.send_signal(signal.SIGHUP)
+        _wait(lambda: d.events("reloaded") == 1, "no reload")
+        after1, after2 = d.uut("emlog1"), d.uut("emlog2")
+        assert after1["learning_enabled"] is False  # the operator's freeze survives
+        assert _num(after1, "scored_samples") >= _num(before1, "scored_samples")
+        assert after1["lag_s"] == before1["lag_s"]
+        assert after2["lag_s"] == 0.05
+        assert _num(after2, "scored_samples") < _num(before2, "scored_samples")
+        assert link.readlink() == target  # the same pty
+        reader.reset_input_buffer()
+        got = b""
+        while got.count(b"VHW") < 3:
+            chunk = reader.read(256)  # the reader that stayed open reads on, without error
+            assert chunk, "the pty went silent"
+            got += chunk
+        got = b""
+        while got.count(b"VHW") < 3:
+            chunk = client.recv(4096)  # and so does the TCP client
+            assert chunk, "the TCP client was dropped"
+            got += chunk
+        reader.close()
+        client.close()
+        assert d.stop() == 0
+    finally:
+        d.kill()
