@@ -15,6 +15,7 @@ state file that cannot be written is reported and the previous file stays intact
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import select
 import selectors
@@ -32,7 +33,7 @@ from emlogd.daemon.control import ControlServer
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
-from emlogd.pipeline.calibration import checker
+from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
 from emlogd.settings import pipeline_from_config
 
@@ -91,6 +92,8 @@ class Daemon:
         self.reload = False
         self.state_errors = 0
         self.persists = 0
+        self._written: list[Calibration] | None = None
+        """The records last written to the state file."""
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
@@ -384,17 +387,27 @@ class Daemon:
         for sink in self.sinks.values():
             sink.write(data)
 
-    def _persist(self, *, final: bool = False) -> None:
+    def _persist(self, *, final: bool = False, operator: bool = False) -> str | None:
+        """Write the calibrations; return None once they are on disk, else why not.
+
+        Coalesced: nothing is written when the file already holds the same records
+        (their time aside) — or, for an operator's command (``operator``), the same
+        calibrations (reset flags, parameters and σ, lag, model): a burst of
+        ``freeze`` or ``reset`` requests costs at most one fsync per actual change.
+        """
         assert self.pipeline is not None and self.store is not None
         snaps = self.pipeline.calibrations()
         if not snaps:
-            return
+            return None
+        if self._written is not None and _same(snaps, self._written, material=operator):
+            return None
         try:
             self.store.save({s.uut: s for s in snaps})
         except EmlogdError as exc:
             self.state_errors += 1
             self.log.error("state_write_failed", error=str(exc), final=final)
-            return
+            return str(exc)
+        self._written = snaps
         self.persists += 1
         self.log.info(
             "calibration_persisted",
@@ -402,6 +415,7 @@ class Daemon:
             final=final,
             path=str(self.store.path),
         )
+        return None
 
     def _log_port_events(self, events: list[PortEvent]) -> None:
         for ev in events:
@@ -447,9 +461,14 @@ class Daemon:
             }
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)
-            self._persist()
-            self.log.info("control_freeze", uuts=done)
-            return {"uuts": done, "learning": False}
+            err = self._persist(operator=True)
+            self.log.info("control_freeze", uuts=done, persisted=err is None)
+            if err is not None:
+                raise ValueError(
+                    f"learning stopped for {', '.join(done)}, but the calibration "
+                    f"was not saved: {err}"
+                )
+            return {"uuts": done, "learning": False, "persisted": True}
         if cmd == "learn":
             on = req.get("on", True)
             if not isinstance(on, bool):
@@ -459,8 +478,14 @@ class Daemon:
             return {"uuts": done, "learning": on}
         if cmd == "reset":
             done = self.pipeline.reset(p)
-            self.log.warning("control_reset", uuts=done)
-            return {"uuts": done}
+            err = self._persist(operator=True)
+            self.log.warning("control_reset", uuts=done, persisted=err is None)
+            if err is not None:
+                raise ValueError(
+                    f"{', '.join(done)} reset, but the state file was not written ({err}): "
+                    "the old calibration would load after a restart"
+                )
+            return {"uuts": done, "persisted": True}
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _reload(self) -> None:
@@ -523,3 +548,24 @@ class Daemon:
             outputs_opened=opened,
         )
         self._notify_status()
+
+
+def _same(a: list[Calibration], b: list[Calibration], *, material: bool) -> bool:
+    """Whether two sets of records are equal but for their time (``material``: and but
+    for what learning refines: covariance, current, NIS, sample count)."""
+    return [_key(c, material) for c in a] == [_key(c, material) for c in b]
+
+
+def _key(c: Calibration, material: bool) -> Calibration:
+    if not material:
+        return dataclasses.replace(c, t=0.0)
+    return dataclasses.replace(
+        c,
+        t=0.0,
+        covariance=(),
+        current_mps=None,
+        current_std_mps=None,
+        nis_mean=None,
+        n_samples=0,
+        unidentifiable=(),
+    )

@@ -16,6 +16,7 @@ import serial
 
 from drivers.io.fake import FakeDevice
 from emlogd.daemon.control import request
+from emlogd.daemon.statefile import StateStore
 
 SPEED = 20.0
 
@@ -190,6 +191,74 @@ def test_reload_keeps_what_did_not_change(
             got += chunk
         reader.close()
         client.close()
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+# -- 2. operator actions ---------------------------------------------------------
+
+
+def _seed(work: Path) -> None:
+    """A state file with a calibration for emlog1 (the daemon starts frozen on it)."""
+    from calib.models import Params
+    from emlogd.pipeline.calibration import Calibration
+
+    cal = Calibration("emlog1", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 0.165)
+    StateStore(work / "state" / "state.yaml").save({"emlog1": cal})
+
+
+def test_reset_is_on_disk_before_the_reply(work: Path) -> None:
+    """After a reset answered ok and a kill -9, the old calibration does not load again."""
+    _seed(work)
+    d = Daemon(work)
+    try:
+        assert d.uut("emlog1")["params"] == {"m": 0.05, "b": 0.1}
+        resp = d.ask(cmd="reset", port="emlog1")
+        assert resp["ok"] and resp["persisted"] is True
+    finally:
+        d.kill()  # SIGKILL: nothing more is written
+    states, _ = StateStore(work / "state" / "state.yaml").load()
+    assert states["emlog1"].reset
+    d2 = Daemon(work)
+    try:
+        u = d2.uut("emlog1")
+        assert u["params"] is None and u["state"] == "uncalibrated"
+        assert d2.stop() == 0
+    finally:
+        d2.kill()
+
+
+def test_a_freeze_or_reset_that_cannot_be_saved_answers_an_error(work: Path) -> None:
+    """The state file's directory is a regular file: freeze and reset reply ok false with
+    the reason, and the daemon runs on."""
+    cfg = work / "emlogd.yaml"
+    cfg.write_text(cfg.read_text().replace("state/state.yaml", "blocker/state.yaml"))
+    (work / "blocker").write_text("not a directory")
+    d = Daemon(work)
+    try:
+        for cmd in ("freeze", "reset"):
+            resp = d.ask(cmd=cmd)
+            assert resp["ok"] is False, resp
+            assert "not" in str(resp["error"]) and "blocker" in str(resp["error"]), resp
+        assert d.uut("emlog1")["learning_enabled"] is False  # the freeze itself applied
+        assert d.ask(cmd="status")["state_errors"] == 2
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+def test_repeated_operator_commands_do_not_storm_the_disk(work: Path) -> None:
+    """A hundred freezes, resets and learns in a row write the state file at most twice
+    (the reset and the first freeze): identical calibrations are not written again."""
+    _seed(work)
+    d = Daemon(work)
+    try:
+        for _ in range(100):
+            for req in ({"cmd": "freeze"}, {"cmd": "reset"}, {"cmd": "learn", "on": True}):
+                assert d.ask(**req)["ok"]
+        st = d.ask(cmd="status")
+        assert isinstance(st["persists"], int) and 1 <= st["persists"] <= 2, st["persists"]
         assert d.stop() == 0
     finally:
         d.kill()
