@@ -55,7 +55,9 @@ class ControlServer:
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             if self.path.is_socket():
-                self.path.unlink()
+                if _listening(self.path):
+                    raise DeviceError(f"control socket {self.path} is in use by another process")
+                self.path.unlink()  # stale: left by a process that died
             self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             self.sock.bind(str(self.path))
             self.path.chmod(mode)
@@ -132,6 +134,17 @@ class ControlServer:
         self.sock.close()
         with contextlib.suppress(OSError):
             self.path.unlink()
+
+
+def _listening(path: Path) -> bool:
+    """Whether a process accepts connections on the unix socket ``path``."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.settimeout(1.0)
+        try:
+            s.connect(str(path))
+        except OSError:
+            return False
+    return True
 
 
 def request(path: str | Path, req: dict[str, object], timeout_s: float = 5.0) -> dict[str, object]:

@@ -90,6 +90,8 @@ class Daemon:
         self.notifier = Notifier.from_env()
         self.stop = False
         self.reload = False
+        self.started = False
+        """Everything opened: a stop persists (a start that failed writes nothing)."""
         self.state_errors = 0
         self.persists = 0
         self._written: list[Calibration] | None = None
@@ -101,7 +103,27 @@ class Daemon:
     # -- lifecycle -------------------------------------------------------------
 
     def run(self) -> int:
-        """Run until SIGTERM/SIGINT; return the exit code."""
+        """Run until SIGTERM/SIGINT; return the exit code.
+
+        Raises:
+            StateLockedError: another instance runs on the same state file (nothing of
+                it is touched).
+        """
+        lock = self._state_store().lock()  # before any output or socket is created
+        if lock is None:
+            self.log.warning("state_lock_unavailable", path=str(self._state_store().lock_path))
+        try:
+            return self._run()
+        finally:
+            if lock is not None:
+                os.close(lock)
+
+    def _state_store(self) -> StateStore:
+        if self.store is None:
+            self.store = StateStore(self.state_override or Path(self.config.state_path))
+        return self.store
+
+    def _run(self) -> int:
         old = self._install_signals()
         try:
             self._start()
@@ -141,10 +163,10 @@ class Daemon:
 
     def _start(self) -> None:
         cfg = self.config
-        state_path = self.state_override or Path(cfg.state_path)
-        self.store = StateStore(state_path)
+        store = self._state_store()
+        state_path = store.path
         ports, uuts = pipeline_from_config(cfg)
-        cals, report = self.store.load(check=checker(uuts))
+        cals, report = store.load(check=checker(uuts))
         for line in report:
             self.log.warning("state_file", detail=line, path=str(state_path))
         for uut, cal in cals.items():
@@ -156,9 +178,11 @@ class Daemon:
                 **cal.params.as_dict(),
             )
         self.pipeline = Pipeline(ports, uuts, cals)
-        self._sync_outputs()
+        # the control socket first: it refuses to replace another live instance's
         self.control = ControlServer(cfg.control_socket, self._control, self.sel)
+        self._sync_outputs()
         self._open_sources(cfg)
+        self.started = True
 
     def _open_sources(self, cfg: Config) -> None:
         """Open the ports of ``cfg`` that have no source yet."""
@@ -232,7 +256,7 @@ class Daemon:
 
     def _shutdown(self) -> None:
         self.notifier.stopping()
-        if self.pipeline is not None:
+        if self.started:
             self._persist(final=True)
         self._close_sources()
         if self.control is not None:

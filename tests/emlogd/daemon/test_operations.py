@@ -19,6 +19,7 @@ from emlogd.daemon.control import request
 from emlogd.daemon.statefile import StateStore
 
 SPEED = 20.0
+RUN = [sys.executable, "-m", "emlogd", "run", "--config", "emlogd.yaml"]
 
 CONFIG = f"""\
 ports:
@@ -59,7 +60,7 @@ class Daemon:
         self.work = work
         self.log_path = work / "daemon.log"
         self.log = open(self.log_path, "ab")  # noqa: SIM115
-        cmd = argv or [sys.executable, "-m", "emlogd", "run", "--config", "emlogd.yaml"]
+        cmd = argv or RUN
         self.proc = subprocess.Popen(
             cmd, stdout=self.log, stderr=subprocess.STDOUT, cwd=work, env=env
         )
@@ -262,3 +263,48 @@ def test_repeated_operator_commands_do_not_storm_the_disk(work: Path) -> None:
         assert d.stop() == 0
     finally:
         d.kill()
+
+
+# -- 3. one instance -------------------------------------------------------------
+
+
+def test_a_second_instance_exits_and_leaves_the_first_alone(work: Path) -> None:
+    """A second daemon on the same config exits 1 with one line naming the first's pid;
+    one on another state file but the same control socket exits 1 too; the first keeps
+    its pty link and control socket."""
+    d = Daemon(work)
+    try:
+        link = work / "out" / "emlog0"
+        target = link.readlink()
+        second = subprocess.run(
+            RUN,
+            cwd=work,
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+        assert second.returncode == 1, second
+        assert second.stderr.count("\n") == 1 and f"pid {d.proc.pid}" in second.stderr, second
+        assert "state.yaml" in second.stderr
+        other = subprocess.run(
+            [*RUN, "--state", str(work / "state" / "other.yaml")],
+            cwd=work,
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+        assert other.returncode == 1 and "in use" in other.stderr, other
+        assert other.stderr.count("\n") == 1, other
+        assert not (work / "state" / "other.yaml").exists()  # a failed start writes nothing
+        assert link.readlink() == target and d.sock.is_socket()
+        assert d.ask(cmd="status")["ok"]
+        assert d.stop() == 0
+    finally:
+        d.kill()
+    # once the first has exited, the lock is free again (a stale lock file is no obstacle)
+    assert (work / "state" / "state.yaml.lock").exists()
+    d2 = Daemon(work)
+    try:
+        assert d2.stop() == 0
+    finally:
+        d2.kill()
