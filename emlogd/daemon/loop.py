@@ -29,7 +29,7 @@ from typing import Any
 from drivers.errors import ConfigError, DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
-from emlogd.daemon.control import ControlServer
+from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
@@ -64,11 +64,13 @@ class Daemon:
         *,
         state_path: str | Path | None = None,
         clock: Callable[[], float] = time.time,
+        monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
         self.config_path = Path(config_path)
         self.log = log
         self.state_override = Path(state_path) if state_path is not None else None
         self.clock = clock
+        self.monotonic = monotonic
         self.config: Config = load_config(self.config_path)
         self.sel = selectors.DefaultSelector()
         self.sources: dict[str, SerialSource] = {}
@@ -84,7 +86,8 @@ class Daemon:
         self.rest_s: dict[str, float] = {}
         self.sinks: dict[tuple[object, ...], Sink] = {}
         """The open outputs, keyed by the settings they were opened with."""
-        self.control: ControlServer | None = None
+        self.controls: dict[tuple[str, str], ControlServer] = {}
+        """The control socket and the read-only status socket, keyed by (kind, path)."""
         self.store: StateStore | None = None
         self.pipeline: Pipeline | None = None
         self.notifier = Notifier.from_env()
@@ -179,7 +182,7 @@ class Daemon:
             )
         self.pipeline = Pipeline(ports, uuts, cals)
         # the control socket first: it refuses to replace another live instance's
-        self.control = ControlServer(cfg.control_socket, self._control, self.sel)
+        self._sync_controls()
         self._sync_outputs()
         self._open_sources(cfg)
         self.started = True
@@ -210,6 +213,36 @@ class Daemon:
         self.resting.clear()
         self.rest_s.clear()
 
+    def _sync_controls(self) -> None:
+        """Open the control socket (and the read-only status socket) the config names,
+        keeping an open one whose path did not change.
+
+        Raises:
+            DeviceError: a socket cannot be created (the others are still synced).
+        """
+        want = {("control", self.config.control_socket)}
+        if self.config.status_socket:
+            want.add(("status", self.config.status_socket))
+        for key in [k for k in self.controls if k not in want]:
+            self.controls.pop(key).close()
+        failed: DeviceError | None = None
+        for kind, path in sorted(want - self.controls.keys()):
+            read_only = kind == "status"
+            try:
+                self.controls[(kind, path)] = ControlServer(
+                    path,
+                    self._control,
+                    self.sel,
+                    mode=0o666 if read_only else 0o660,
+                    commands=("status",) if read_only else COMMANDS,
+                    on_event=lambda k, d: self.log.warning(k, detail=d),
+                    monotonic=self.monotonic,
+                )
+            except DeviceError as exc:
+                failed = exc
+        if failed is not None:
+            raise failed
+
     def _output_specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
         """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
         out = cfg.outputs
@@ -223,10 +256,15 @@ class Daemon:
                 tcp,
                 selector=self.sel,
                 on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                monotonic=self.monotonic,
             )
         if out.udp:
             udp = out.udp
-            specs[("udp", udp)] = lambda: UdpSink(udp)
+            specs[("udp", udp)] = lambda: UdpSink(
+                udp,
+                on_event=lambda kind, detail: self.log.warning(kind, sink="udp", detail=detail),
+                monotonic=self.monotonic,
+            )
         if out.stdout:
             specs[("stdout",)] = stdout_sink
         return specs
@@ -259,9 +297,9 @@ class Daemon:
         if self.started:
             self._persist(final=True)
         self._close_sources()
-        if self.control is not None:
-            self.control.close()
-            self.control = None
+        for server in self.controls.values():
+            server.close()
+        self.controls.clear()
         self._close_outputs()
         with contextlib.suppress(KeyError, ValueError):
             self.sel.unregister(self._wake_r)
@@ -304,6 +342,10 @@ class Daemon:
                     self._log_port_events(events)
             if changed:
                 self._sync_registrations()
+            for server in self.controls.values():
+                server.housekeep()
+            for sink in self.sinks.values():
+                sink.housekeep()
             assert self.pipeline is not None
             self._handle(self.pipeline.tick(now, self.scratch))
             if now >= next_status:
@@ -452,7 +494,7 @@ class Daemon:
         assert self.pipeline is not None
         status = self.pipeline.status()
         sources = {name: src.counters_dict() for name, src in self.sources.items()}
-        sinks = {s.name: s.counters.as_dict() for s in self.sinks.values()}
+        sinks = self._outputs_status()
         self.log.info(
             "status",
             ports=status["ports"],
@@ -462,6 +504,10 @@ class Daemon:
             state_errors=self.state_errors,
         )
         self._notify_status()
+
+    def _outputs_status(self) -> dict[str, dict[str, object]]:
+        """Per output: its counters and ``state`` (``open``, or why not)."""
+        return {s.name: {**s.counters.as_dict(), "state": s.state} for s in self.sinks.values()}
 
     def _notify_status(self) -> None:
         if self.pipeline is not None:
@@ -479,6 +525,7 @@ class Daemon:
         if cmd == "status":
             return {
                 "status": self.pipeline.status(),
+                "outputs": self._outputs_status(),
                 "state_file": str(self.store.path) if self.store else None,
                 "state_errors": self.state_errors,
                 "persists": self.persists,
@@ -548,14 +595,10 @@ class Daemon:
         except DeviceError as exc:
             closed, opened = [], []
             self.log.error("reload_outputs_failed", error=str(exc))
-        if self.control is None or new.control_socket != old.control_socket:
-            if self.control is not None:
-                self.control.close()
-                self.control = None
-            try:
-                self.control = ControlServer(new.control_socket, self._control, self.sel)
-            except DeviceError as exc:
-                self.log.error("reload_control_failed", error=str(exc))
+        try:
+            self._sync_controls()
+        except DeviceError as exc:
+            self.log.error("reload_control_failed", error=str(exc))
         state_path = Path(new.state_path)
         if self.state_override is None and self.store is not None and state_path != self.store.path:
             self.log.warning(

@@ -308,3 +308,156 @@ def test_a_second_instance_exits_and_leaves_the_first_alone(work: Path) -> None:
         assert d2.stop() == 0
     finally:
         d2.kill()
+
+
+# -- 4. clients that misbehave ---------------------------------------------------
+
+
+def _exchange(path: Path, data: bytes) -> bytes:
+    """Send raw bytes, read until the daemon closes or a second passes quiet."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.connect(str(path))
+        s.settimeout(1.0)
+        s.sendall(data)
+        out = b""
+        try:
+            while chunk := s.recv(65536):
+                out += chunk
+                if out.count(b"\n") >= data.count(b"\n") and data.endswith(b"\n"):
+                    break
+        except TimeoutError:
+            pass
+    return out
+
+
+def test_no_request_knocks_the_daemon_over(work: Path) -> None:
+    """Every malformed request, whatever its JSON type or nesting, gets an error reply,
+    and the daemon answers a good request afterwards."""
+    d = Daemon(work)
+    bad = [
+        b'{"cmd":"status","port":[1]}',
+        b"[" * 3000,
+        b'{"a":' * 3000,
+        b'{"cmd":"status","port":{"x":1}}',
+        b'{"cmd":"learn","on":1}',
+        b'{"cmd":["status"]}',
+        b'{"cmd":"status","extra":true}',
+        b'{"cmd":null}',
+        b'"status"',
+        b"null",
+        b"1e999999",
+        b'{"cmd":"status","port":"\\ud800"}',
+        b"\xff\xfe\x00",
+        b"",
+    ]
+    try:
+        for line in bad:
+            answer = _exchange(d.sock, line + b"\n")
+            assert answer.count(b"\n") == 1 and b'"ok": false' in answer, (line[:40], answer)
+        tail = _exchange(d.sock, b"[" * 5000)  # no newline, over the line cap
+        assert b"request too long" in tail
+        assert d.proc.poll() is None
+        assert d.ask(cmd="status")["ok"]
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
+    """The 17th control client and the 33rd TCP client are refused politely while the
+    others are served; the status socket answers status and refuses freeze."""
+    cfg = work / "emlogd.yaml"
+    cfg.write_text(cfg.read_text() + "status_socket: run/status.sock\n")
+    tcp_port = int(cfg.read_text().split('tcp: "127.0.0.1:')[1].split('"')[0])
+    d = Daemon(work)
+    held: list[socket.socket] = []
+    try:
+        status_sock = work / "run" / "status.sock"
+        assert (status_sock.stat().st_mode & 0o777) == 0o666
+        assert request(status_sock, {"cmd": "status"})["ok"]
+        refused = request(status_sock, {"cmd": "freeze"})
+        assert refused["ok"] is False and "status" in str(refused["error"])
+        assert d.uut("emlog1")["learning_enabled"] is True
+        for _ in range(16):
+            s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            s.connect(str(d.sock))
+            held.append(s)
+        extra = _exchange(d.sock, b'{"cmd":"status"}\n')
+        assert b"too many clients" in extra
+        held[0].sendall(b'{"cmd":"status"}\n')  # a connected client is still served
+        held[0].settimeout(5)
+        assert b'"ok": true' in held[0].recv(65536)
+        tcp = [socket.create_connection(("127.0.0.1", tcp_port), timeout=5) for _ in range(40)]
+        held += tcp
+        closed = 0
+        for c in tcp[32:]:
+            try:
+                closed += c.recv(1) == b""
+            except ConnectionResetError:
+                closed += 1
+        assert closed == 8
+        for s in held[:16]:
+            s.close()
+        _wait(d._answers, "the control socket did not free its slots")
+        assert d.stop() == 0
+    finally:
+        for s in held:
+            s.close()
+        d.kill()
+
+
+def test_out_of_descriptors_the_daemon_pauses_accepting_and_recovers(work: Path) -> None:
+    """With its descriptor limit lowered under it (prlimit), TCP clients exhaust the
+    daemon's descriptors: accept fails with EMFILE, is reported rate-limited, no busy
+    loop kills it, and once the clients leave the control socket answers again."""
+    import resource
+
+    d = Daemon(work)
+    tcp_port = int((work / "emlogd.yaml").read_text().split("127.0.0.1:")[1].split('"')[0])
+    held: list[socket.socket] = []
+    try:
+        in_use = len(list(Path(f"/proc/{d.proc.pid}/fd").iterdir()))
+        resource.prlimit(d.proc.pid, resource.RLIMIT_NOFILE, (in_use + 4, in_use + 4))
+        for _ in range(20):  # connected or not: a paused listener's backlog fills up
+            s = socket.socket()
+            s.setblocking(False)
+            s.connect_ex(("127.0.0.1", tcp_port))
+            held.append(s)
+        time.sleep(1.5)  # many accept failures: pauses, not a busy loop
+        assert d.proc.poll() is None
+        for s in held:
+            s.close()
+        held = []
+        _wait(d._answers, "the control socket never came back")
+        log = d.log_path.read_text()
+        assert 1 <= log.count('"event": "accept_error"') <= 2  # reported, rate-limited
+        assert d.stop() == 0
+    finally:
+        for s in held:
+            s.close()
+        d.kill()
+
+
+def test_an_unbindable_tcp_output_is_a_status_not_a_failure(work: Path) -> None:
+    """The TCP output's port is taken at start: the daemon runs, reports it unbound, and
+    binds it in the background once the port is free."""
+    tcp_port = int((work / "emlogd.yaml").read_text().split("127.0.0.1:")[1].split('"')[0])
+    squatter = socket.socket()
+    squatter.bind(("127.0.0.1", tcp_port))
+    squatter.listen(1)
+    d = Daemon(work)
+    try:
+
+        def tcp_state() -> str:
+            outputs = d.ask(cmd="status")["outputs"]
+            assert isinstance(outputs, dict)
+            return str(outputs[f"tcp:127.0.0.1:{tcp_port}"]["state"])
+
+        assert tcp_state().startswith("unbound: ")
+        squatter.close()
+        _wait(lambda: tcp_state() == "open", "the TCP output was never bound")
+        socket.create_connection(("127.0.0.1", tcp_port), timeout=5).close()
+        assert d.stop() == 0
+    finally:
+        squatter.close()
+        d.kill()
