@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import os
 import select
 import selectors
@@ -54,7 +55,15 @@ class Daemon:
         config_path: the YAML config.
         log: a structlog-style logger (``log.info(event, **kw)``).
         state_path: override of the config's state file.
-        clock: the wall clock (receive times of the sources use their own).
+        clock: the wall clock, read once, at start: it anchors the data timeline.
+        monotonic: the clock of every schedule (housekeeping, watchdog, status,
+            rest, reconnects) and of the data timeline.
+
+    Data are stamped on a timeline that starts at the wall time of the start and
+    advances with the monotonic clock (:meth:`timeline`): a wall clock stepped
+    back or forward (NTP, GNSS time, an operator) moves no schedule, no staleness
+    and no persistence interval. Stamps that leave the process otherwise (the log's
+    timestamps, the state file's ``saved_at``) are wall time.
     """
 
     def __init__(
@@ -71,6 +80,7 @@ class Daemon:
         self.state_override = Path(state_path) if state_path is not None else None
         self.clock = clock
         self.monotonic = monotonic
+        self._epoch = clock() - monotonic()
         self.config: Config = load_config(self.config_path)
         self.sel = selectors.DefaultSelector()
         self.sources: dict[str, SerialSource] = {}
@@ -102,6 +112,10 @@ class Daemon:
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
+
+    def timeline(self) -> float:
+        """The data time: the wall time at start plus the monotonic time since, s."""
+        return self._epoch + self.monotonic()
 
     # -- lifecycle -------------------------------------------------------------
 
@@ -192,7 +206,14 @@ class Daemon:
         for p in cfg.ports:
             if p.name in self.sources:
                 continue
-            src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
+            src = SerialSource(
+                p.name,
+                p.url,
+                baudrate=p.baud,
+                stale_timeout_s=p.stale_timeout_s,
+                clock=self.timeline,
+                monotonic=self.monotonic,
+            )
             src.open()
             self.sources[p.name] = src
             self.rest_s[p.name] = p.rest_s
@@ -311,14 +332,14 @@ class Daemon:
 
     def _loop(self) -> None:
         cfg = self.config
-        next_status = self.clock() + cfg.status_interval_s
+        next_status = self.monotonic() + cfg.status_interval_s
         wd = self.notifier.watchdog_interval_s
-        next_watchdog = self.clock() + wd if wd else None
-        next_housekeeping = 0.0
+        next_watchdog = self.monotonic() + wd if wd else None
+        next_housekeeping = -math.inf
         while not self.stop:
             timeout = SELECT_TIMEOUT_S
             if self.resting:
-                timeout = min(timeout, max(min(self.resting.values()) - time.monotonic(), 0.0))
+                timeout = min(timeout, max(min(self.resting.values()) - self.monotonic(), 0.0))
             for key, _ in self.sel.select(timeout=timeout):
                 key.data()
                 if self._stopping():
@@ -330,7 +351,7 @@ class Daemon:
             if self.reload:
                 self.reload = False
                 self._reload()
-            now = self.clock()
+            now = self.monotonic()
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
@@ -347,7 +368,7 @@ class Daemon:
             for sink in self.sinks.values():
                 sink.housekeep()
             assert self.pipeline is not None
-            self._handle(self.pipeline.tick(now, self.scratch))
+            self._handle(self.pipeline.tick(self.timeline(), self.scratch))
             if now >= next_status:
                 next_status = now + self.config.status_interval_s
                 self._status_event()
@@ -404,7 +425,7 @@ class Daemon:
         ports never rest: their latency is the output's. ``rest_s: 0`` turns resting
         off.
         """
-        now = time.monotonic()
+        now = self.monotonic()
         for fd, _ in self.rest_poll.poll(0):
             name = self.rest_fds.get(fd)
             if name is not None:
@@ -424,7 +445,7 @@ class Daemon:
 
     def _wake_rested(self) -> None:
         """Read the ports whose rest is over, and arm them again."""
-        now = time.monotonic()
+        now = self.monotonic()
         due = [name for name, t in self.resting.items() if now >= t]
         for name in due:
             del self.resting[name]

@@ -3,6 +3,7 @@ state file, clients that misbehave, clocks that step. Fake devices on real ptys.
 
 from __future__ import annotations
 
+import os
 import signal
 import socket
 import subprocess
@@ -461,3 +462,51 @@ def test_an_unbindable_tcp_output_is_a_status_not_a_failure(work: Path) -> None:
     finally:
         squatter.close()
         d.kill()
+
+
+# -- 5. clocks -------------------------------------------------------------------
+
+_STEPPING_DAEMON = """
+import sys, time
+import structlog
+from emlogd.daemon.logsetup import configure_logging
+from emlogd.daemon.loop import Daemon
+
+t0 = time.monotonic()
+
+def wall() -> float:  # the wall clock steps back 120 s one second after start
+    return time.time() - (120.0 if time.monotonic() - t0 > 1.0 else 0.0)
+
+configure_logging("json")
+sys.exit(Daemon("emlogd.yaml", structlog.get_logger("emlogd"), clock=wall).run())
+"""
+
+
+def test_a_wall_clock_stepped_back_stops_no_schedule(work: Path) -> None:
+    """The wall clock steps back 120 s under the running daemon (an injected clock):
+    WATCHDOG=1 pings go on and the control socket answers."""
+    notify = work / "notify.sock"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
+        srv.bind(str(notify))
+        srv.settimeout(5)
+        env = {**os.environ, "NOTIFY_SOCKET": str(notify), "WATCHDOG_USEC": "200000"}
+        d = Daemon(work, argv=[sys.executable, "-c", _STEPPING_DAEMON], env=env)
+        try:
+            time.sleep(1.5)  # past the step
+            while True:  # what was sent before now
+                srv.settimeout(0.01)
+                try:
+                    srv.recv(4096)
+                except TimeoutError:
+                    break
+            srv.settimeout(5)
+            pings = 0
+            end = time.monotonic() + 2.0
+            while time.monotonic() < end:
+                if srv.recv(4096) == b"WATCHDOG=1":
+                    pings += 1
+            assert pings >= 5  # every 0.1 s: at least a quarter of them over 2 s
+            assert d.ask(cmd="status")["ok"]
+            assert d.stop() == 0
+        finally:
+            d.kill()
