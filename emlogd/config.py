@@ -114,6 +114,8 @@ class OutputConfig:
 
     pty: str | None = "/run/emlogd/emlog0"
     pty_mode: int = 0o660
+    pty_group: str | None = None
+    """The group of the pty (its readers, e.g. the autopilot's user); None: unchanged."""
     tcp: str | None = None
     udp: str | None = None
     stdout: bool = False
@@ -375,6 +377,7 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
 OUTPUT_SPEC: dict[str, tuple[str, Check]] = {
     "pty": ("pty", _opt_str()),
     "pty_mode": ("pty_mode", _num(0, 0o777, integer=True)),
+    "pty_group": ("pty_group", _opt_str()),
     "tcp": ("tcp", _hostport),
     "udp": ("udp", _hostport),
     "stdout": ("stdout", _bool),

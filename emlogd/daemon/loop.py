@@ -269,8 +269,8 @@ class Daemon:
         out = cfg.outputs
         specs: dict[tuple[object, ...], Callable[[], Sink]] = {}
         if out.pty:
-            pty, mode = out.pty, out.pty_mode
-            specs[("pty", pty, mode)] = lambda: PtySink(pty, mode=mode)
+            pty, mode, group = out.pty, out.pty_mode, out.pty_group
+            specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
         if out.tcp:
             tcp = out.tcp
             specs[("tcp", tcp)] = lambda: TcpServerSink(

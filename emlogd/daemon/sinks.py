@@ -372,13 +372,13 @@ class TcpServerSink:
 class PtySink:
     """Sentences on a virtual serial port published at a stable symlink."""
 
-    def __init__(self, link: str | Path, mode: int = 0o660) -> None:
+    def __init__(self, link: str | Path, mode: int = 0o660, group: str | None = None) -> None:
         from drivers.io.vpty import VirtualPort
 
         self.name = f"pty:{link}"
         self.counters = SinkCounters()
         self.state = "open"
-        self.port = VirtualPort(link, mode=mode)
+        self.port = VirtualPort(link, mode=mode, group=group)
 
     def housekeep(self) -> None:
         pass

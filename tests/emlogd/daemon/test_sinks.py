@@ -6,6 +6,7 @@ import io
 import selectors
 import socket
 import time
+from pathlib import Path
 
 import pytest
 
@@ -156,3 +157,22 @@ def test_stream_sink_counts_errors_instead_of_raising() -> None:
     buf.close()
     sink.write(LINE)
     assert sink.counters.errors == 1 and sink.counters.sentences == 1
+
+
+def test_the_pty_output_belongs_to_its_readers_group(tmp_path: Path) -> None:
+    """``pty_group``: the pty behind the link is in that group, with the given mode."""
+    import grp
+    import os
+    import stat
+
+    from emlogd.daemon.sinks import PtySink
+
+    groups = [g for g in grp.getgrall() if g.gr_gid != os.getegid()]
+    if os.geteuid() != 0 or not groups:
+        pytest.skip("needs root and a second group to hand the pty to")
+    sink = PtySink(tmp_path / "emlog0", mode=0o640, group=groups[0].gr_name)
+    try:
+        st = (tmp_path / "emlog0").stat()
+        assert st.st_gid == groups[0].gr_gid and stat.S_IMODE(st.st_mode) == 0o640
+    finally:
+        sink.close()
