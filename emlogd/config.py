@@ -115,6 +115,8 @@ class OutputConfig:
 
     pty: str | None = "/run/emlogd/emlog0"
     pty_mode: int = 0o660
+    pty_group: str | None = None
+    """The group of the pty (its readers, e.g. the autopilot's user); None: unchanged."""
     tcp: str | None = None
     udp: str | None = None
     stdout: bool = False
@@ -138,6 +140,8 @@ class Config:
     outputs: OutputConfig = field(default_factory=OutputConfig)
     state_path: str = "/var/lib/emlogd/state.yaml"
     control_socket: str = "/run/emlogd/control.sock"
+    status_socket: str | None = None
+    """A read-only socket (``status`` only, mode 0666), or None for none."""
     log_format: Literal["auto", "json", "console"] = "auto"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
     status_interval_s: float = 10.0
@@ -380,6 +384,7 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
 OUTPUT_SPEC: dict[str, tuple[str, Check]] = {
     "pty": ("pty", _opt_str()),
     "pty_mode": ("pty_mode", _num(0, 0o777, integer=True)),
+    "pty_group": ("pty_group", _opt_str()),
     "tcp": ("tcp", _hostport),
     "udp": ("udp", _hostport),
     "stdout": ("stdout", _bool),
@@ -393,6 +398,7 @@ OUTPUT_SPEC: dict[str, tuple[str, Check]] = {
 TOP_SPEC: dict[str, tuple[str, Check]] = {
     "state_file": ("state_path", _str()),
     "control_socket": ("control_socket", _str()),
+    "status_socket": ("status_socket", _opt_str()),
     "log_format": ("log_format", _enum("auto", "json", "console")),
     "log_level": ("log_level", _enum("debug", "info", "warning", "error")),
     "status_interval_s": ("status_interval_s", _num(0.5, 3600.0)),
@@ -561,8 +567,8 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
     rest = {
         TOP_SPEC[k][0]: TOP_SPEC[k][1](ctx, vn, k) for k, (_, vn) in top.items() if k in TOP_SPEC
     }
-    for key in ("state_path", "control_socket"):
-        if base is not None and key in rest and not rest[key].startswith("/"):
+    for key in ("state_path", "control_socket", "status_socket"):
+        if base is not None and rest.get(key) and not rest[key].startswith("/"):
             rest[key] = str(base / rest[key])
     return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
 

@@ -2,10 +2,18 @@
 
 Requests are one JSON object per line, ``{"cmd": "status"}``, ``{"cmd": "freeze"}``,
 ``{"cmd": "learn", "on": true}``, ``{"cmd": "reset", "port": "emlog1"}``; each gets
-one JSON line back, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``. The
-socket is created with mode 0660 (the daemon's group may control it). The server
-side is non-blocking and bounded (a client sending an endless line is dropped); the
-client side (:func:`request`) is what ``emlogd status|freeze|learn|reset`` use.
+one JSON line back, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``.
+
+No client can knock the server over: every line gets an answer whatever it holds
+(any JSON type or nesting, unknown keys, wrong types, invalid UTF-8); a line longer
+than :data:`MAX_REQUEST` or nested deeper than :data:`MAX_DEPTH` is refused before
+it is parsed (a long line also drops the client); at most :data:`MAX_CLIENTS` are
+connected (the next ones get an error line and are closed); a client silent for
+:data:`IDLE_S` is dropped; ``accept`` failing for lack of descriptors pauses the
+socket (:mod:`emlogd.daemon.listen`). A server may be read-only (``commands``:
+only ``status``), e.g. a status socket open to every local user next to the
+operators' control socket. The client side (:func:`request`) is what ``emlogd
+status|freeze|learn|reset`` use.
 """
 
 from __future__ import annotations
@@ -14,17 +22,81 @@ import contextlib
 import json
 import selectors
 import socket
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from drivers.errors import DeviceError
+from emlogd.daemon.listen import AcceptPause
 
 Handler = Callable[[dict[str, object]], dict[str, object]]
 
 MAX_REQUEST = 4096
 """Longest accepted request line, bytes."""
 
+MAX_DEPTH = 4
+"""Deepest accepted nesting of arrays and objects in a request."""
+
+MAX_CLIENTS = 16
+"""Most clients connected to one socket at a time."""
+
+IDLE_S = 30.0
+"""A client that sends nothing for this long is dropped (it holds a slot)."""
+
 COMMANDS = ("status", "freeze", "learn", "reset")
+
+FIELDS: dict[str, tuple[type, str]] = {
+    "cmd": (str, "a string"),
+    "port": (str, "a UUT name"),
+    "on": (bool, "true or false"),
+}
+"""The keys a request may have, with their type."""
+
+
+def nesting(line: bytes) -> int:
+    """The deepest nesting of ``[`` and ``{`` in a JSON text (brackets in strings ignored)."""
+    depth = deepest = 0
+    in_str = escaped = False
+    for c in line:
+        if in_str:
+            if escaped:
+                escaped = False
+            elif c == 0x5C:  # backslash
+                escaped = True
+            elif c == 0x22:  # quote
+                in_str = False
+        elif c == 0x22:
+            in_str = True
+        elif c in (0x5B, 0x7B):
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in (0x5D, 0x7D):
+            depth -= 1
+    return deepest
+
+
+def check_request(req: object, commands: Sequence[str] = COMMANDS) -> str:
+    """``""`` when ``req`` is a well-formed request, else why not (one line)."""
+    if not isinstance(req, dict):
+        return "not a JSON object"
+    for key, value in req.items():
+        if key not in FIELDS:
+            return f"unknown key {key!r}; valid: {', '.join(FIELDS)}"
+        kind, what = FIELDS[key]
+        if not isinstance(value, kind):
+            return f"{key!r} must be {what}"
+    if req.get("cmd") not in commands:
+        return f"unknown cmd; valid here: {', '.join(commands)}"
+    return ""
+
+
+class _Client:
+    __slots__ = ("buf", "seen", "sock")
+
+    def __init__(self, sock: socket.socket, now: float) -> None:
+        self.sock = sock
+        self.buf = bytearray()
+        self.seen = now
 
 
 class ControlServer:
@@ -36,9 +108,14 @@ class ControlServer:
         selector: the daemon's selector; the server registers its sockets there
             with a callable as data.
         mode: permission bits of the socket file.
+        commands: the commands this socket takes (``("status",)``: read-only).
+        on_event: called as ``on_event(kind, detail)`` for what is worth a log line.
+        monotonic: the clock of idle timeouts and pauses.
+
+    Call :meth:`housekeep` now and then (idle clients, the end of a pause).
 
     Raises:
-        DeviceError: the socket cannot be created.
+        DeviceError: the socket cannot be created, or another process listens on it.
     """
 
     def __init__(
@@ -47,34 +124,69 @@ class ControlServer:
         handler: Handler,
         selector: selectors.BaseSelector,
         mode: int = 0o660,
+        *,
+        commands: Sequence[str] = COMMANDS,
+        on_event: Callable[[str, str], None] | None = None,
+        monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
         self.path = Path(path)
         self.handler = handler
         self.selector = selector
-        self.clients: dict[socket.socket, bytearray] = {}
+        self.commands = tuple(commands)
+        self.on_event = on_event
+        self.monotonic = monotonic
+        self.clients: dict[socket.socket, _Client] = {}
+        self.refused = 0
+        self.pause = AcceptPause(lambda d: self._note("control_accept_error", d), monotonic)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             if self.path.is_socket():
-                self.path.unlink()
+                if _listening(self.path):
+                    raise DeviceError(f"control socket {self.path} is in use by another process")
+                self.path.unlink()  # stale: left by a process that died
             self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             self.sock.bind(str(self.path))
             self.path.chmod(mode)
-            self.sock.listen(4)
+            self.sock.listen(8)
             self.sock.setblocking(False)
         except OSError as exc:
             raise DeviceError(f"control socket {self.path}: {exc.strerror or exc}") from None
         selector.register(self.sock, selectors.EVENT_READ, self._accept)
+
+    def _note(self, kind: str, detail: str) -> None:
+        if self.on_event is not None:
+            self.on_event(kind, f"{self.path}: {detail}")
 
     def _accept(self) -> None:
         try:
             conn, _ = self.sock.accept()
         except (BlockingIOError, InterruptedError):
             return
-        except OSError:
+        except OSError as exc:
+            if self.pause.failed(exc):
+                with contextlib.suppress(KeyError, ValueError):
+                    self.selector.unregister(self.sock)
+            return
+        self.pause.accepted()
+        if len(self.clients) >= MAX_CLIENTS:
+            self.refused += 1
+            with contextlib.suppress(OSError):
+                conn.setblocking(False)
+                conn.send(_line({"ok": False, "error": "too many clients; try again"}))
+            conn.close()
             return
         conn.setblocking(False)
-        self.clients[conn] = bytearray()
+        self.clients[conn] = _Client(conn, self.monotonic())
         self.selector.register(conn, selectors.EVENT_READ, lambda c=conn: self._read(c))
+
+    def housekeep(self) -> None:
+        """Drop idle clients; listen again once an accept pause is over."""
+        now = self.monotonic()
+        for conn, client in list(self.clients.items()):
+            if now - client.seen > IDLE_S:
+                self._drop(conn)
+        if self.pause.resume_due():
+            self.selector.register(self.sock, selectors.EVENT_READ, self._accept)
 
     def _read(self, conn: socket.socket) -> None:
         try:
@@ -86,25 +198,30 @@ class ControlServer:
         if not data:
             self._drop(conn)
             return
-        buf = self.clients[conn]
+        client = self.clients[conn]
+        client.seen = self.monotonic()
+        buf = client.buf
         buf += data
-        while b"\n" in buf:
+        while b"\n" in buf and conn in self.clients:
             line, _, rest = bytes(buf).partition(b"\n")
             buf[:] = rest
             self._reply(conn, self._answer(line))
-        if len(buf) > MAX_REQUEST:
+        if len(buf) > MAX_REQUEST and conn in self.clients:
             self._reply(conn, {"ok": False, "error": "request too long"})
             self._drop(conn)
 
     def _answer(self, line: bytes) -> dict[str, object]:
+        if len(line) > MAX_REQUEST:
+            return {"ok": False, "error": "request too long"}
+        if nesting(line) > MAX_DEPTH:
+            return {"ok": False, "error": f"nested deeper than {MAX_DEPTH}"}
         try:
             req = json.loads(line)
-        except (ValueError, UnicodeDecodeError):
+        except (ValueError, UnicodeDecodeError, RecursionError):
             return {"ok": False, "error": "not a JSON object"}
-        if not isinstance(req, dict):
-            return {"ok": False, "error": "not a JSON object"}
-        if req.get("cmd") not in COMMANDS:
-            return {"ok": False, "error": f"unknown cmd; valid: {', '.join(COMMANDS)}"}
+        why = check_request(req, self.commands)
+        if why:
+            return {"ok": False, "error": why}
         try:
             return {"ok": True, **self.handler(req)}
         except (ValueError, KeyError) as exc:
@@ -112,7 +229,7 @@ class ControlServer:
 
     def _reply(self, conn: socket.socket, doc: dict[str, object]) -> None:
         try:
-            conn.send(json.dumps(doc, default=str).encode("utf-8") + b"\n")
+            conn.send(_line(doc))
         except OSError:
             self._drop(conn)
 
@@ -132,6 +249,21 @@ class ControlServer:
         self.sock.close()
         with contextlib.suppress(OSError):
             self.path.unlink()
+
+
+def _line(doc: dict[str, object]) -> bytes:
+    return json.dumps(doc, default=str).encode("utf-8") + b"\n"
+
+
+def _listening(path: Path) -> bool:
+    """Whether a process accepts connections on the unix socket ``path``."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.settimeout(1.0)
+        try:
+            s.connect(str(path))
+        except OSError:
+            return False
+    return True
 
 
 def request(path: str | Path, req: dict[str, object], timeout_s: float = 5.0) -> dict[str, object]:

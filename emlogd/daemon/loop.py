@@ -15,6 +15,8 @@ state file that cannot be written is reported and the previous file stays intact
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import math
 import os
 import select
 import selectors
@@ -28,11 +30,11 @@ from typing import Any
 from drivers.errors import ConfigError, DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
-from emlogd.daemon.control import ControlServer
+from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
-from emlogd.pipeline.calibration import checker
+from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
 from emlogd.settings import fusion_from_config, pipeline_from_config
 
@@ -53,7 +55,15 @@ class Daemon:
         config_path: the YAML config.
         log: a structlog-style logger (``log.info(event, **kw)``).
         state_path: override of the config's state file.
-        clock: the wall clock (receive times of the sources use their own).
+        clock: the wall clock, read once, at start: it anchors the data timeline.
+        monotonic: the clock of every schedule (housekeeping, watchdog, status,
+            rest, reconnects) and of the data timeline.
+
+    Data are stamped on a timeline that starts at the wall time of the start and
+    advances with the monotonic clock (:meth:`timeline`): a wall clock stepped
+    back or forward (NTP, GNSS time, an operator) moves no schedule, no staleness
+    and no persistence interval. Stamps that leave the process otherwise (the log's
+    timestamps, the state file's ``saved_at``) are wall time.
     """
 
     def __init__(
@@ -63,11 +73,14 @@ class Daemon:
         *,
         state_path: str | Path | None = None,
         clock: Callable[[], float] = time.time,
+        monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
         self.config_path = Path(config_path)
         self.log = log
         self.state_override = Path(state_path) if state_path is not None else None
         self.clock = clock
+        self.monotonic = monotonic
+        self._epoch = clock() - monotonic()
         self.config: Config = load_config(self.config_path)
         self.sel = selectors.DefaultSelector()
         self.sources: dict[str, SerialSource] = {}
@@ -81,23 +94,53 @@ class Daemon:
         self.sel.register(self.rest_poll.fileno(), selectors.EVENT_READ, self._rest_ready)
         self.scratch = Output(deliver=self._deliver)
         self.rest_s: dict[str, float] = {}
-        self.sinks: list[Sink] = []
-        self.control: ControlServer | None = None
+        self.sinks: dict[tuple[object, ...], Sink] = {}
+        """The open outputs, keyed by the settings they were opened with."""
+        self.controls: dict[tuple[str, str], ControlServer] = {}
+        """The control socket and the read-only status socket, keyed by (kind, path)."""
         self.store: StateStore | None = None
         self.pipeline: Pipeline | None = None
         self.notifier = Notifier.from_env()
         self.stop = False
         self.reload = False
+        self.started = False
+        """Everything opened: a stop persists (a start that failed writes nothing)."""
         self.state_errors = 0
         self.persists = 0
+        self._written: list[Calibration] | None = None
+        """The records last written to the state file."""
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
 
+    def timeline(self) -> float:
+        """The data time: the wall time at start plus the monotonic time since, s."""
+        return self._epoch + self.monotonic()
+
     # -- lifecycle -------------------------------------------------------------
 
     def run(self) -> int:
-        """Run until SIGTERM/SIGINT; return the exit code."""
+        """Run until SIGTERM/SIGINT; return the exit code.
+
+        Raises:
+            StateLockedError: another instance runs on the same state file (nothing of
+                it is touched).
+        """
+        lock = self._state_store().lock()  # before any output or socket is created
+        if lock is None:
+            self.log.warning("state_lock_unavailable", path=str(self._state_store().lock_path))
+        try:
+            return self._run()
+        finally:
+            if lock is not None:
+                os.close(lock)
+
+    def _state_store(self) -> StateStore:
+        if self.store is None:
+            self.store = StateStore(self.state_override or Path(self.config.state_path))
+        return self.store
+
+    def _run(self) -> int:
         old = self._install_signals()
         try:
             self._start()
@@ -137,10 +180,10 @@ class Daemon:
 
     def _start(self) -> None:
         cfg = self.config
-        state_path = self.state_override or Path(cfg.state_path)
-        self.store = StateStore(state_path)
+        store = self._state_store()
+        state_path = store.path
         ports, uuts = pipeline_from_config(cfg)
-        cals, report = self.store.load(check=checker(uuts))
+        cals, report = store.load(check=checker(uuts))
         for line in report:
             self.log.warning("state_file", detail=line, path=str(state_path))
         for uut, cal in cals.items():
@@ -152,18 +195,36 @@ class Daemon:
                 **cal.params.as_dict(),
             )
         self.pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
-        self._open_outputs()
-        self.control = ControlServer(cfg.control_socket, self._control, self.sel)
+        # the control socket first: it refuses to replace another live instance's
+        self._sync_controls()
+        self._sync_outputs()
         self._open_sources(cfg)
+        self.started = True
 
     def _open_sources(self, cfg: Config) -> None:
+        """Open the ports of ``cfg`` that have no source yet."""
         for p in cfg.ports:
-            src = SerialSource(p.name, p.url, baudrate=p.baud, stale_timeout_s=p.stale_timeout_s)
+            if p.name in self.sources:
+                continue
+            src = SerialSource(
+                p.name,
+                p.url,
+                baudrate=p.baud,
+                stale_timeout_s=p.stale_timeout_s,
+                clock=self.timeline,
+                monotonic=self.monotonic,
+            )
             src.open()
             self.sources[p.name] = src
             self.rest_s[p.name] = p.rest_s
             self._log_port_events(src.events())
         self._sync_registrations()
+
+    def _close_source(self, name: str) -> None:
+        self._unregister(name)
+        self.sources.pop(name).close()
+        self.resting.pop(name, None)
+        self.rest_s.pop(name, None)
 
     def _close_sources(self) -> None:
         for name, src in self.sources.items():
@@ -173,37 +234,93 @@ class Daemon:
         self.resting.clear()
         self.rest_s.clear()
 
-    def _open_outputs(self) -> None:
-        out = self.config.outputs
-        if out.pty:
-            self.sinks.append(PtySink(out.pty, mode=out.pty_mode))
-        if out.tcp:
-            self.sinks.append(
-                TcpServerSink(
-                    out.tcp,
-                    selector=self.sel,
-                    on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+    def _sync_controls(self) -> None:
+        """Open the control socket (and the read-only status socket) the config names,
+        keeping an open one whose path did not change.
+
+        Raises:
+            DeviceError: a socket cannot be created (the others are still synced).
+        """
+        want = {("control", self.config.control_socket)}
+        if self.config.status_socket:
+            want.add(("status", self.config.status_socket))
+        for key in [k for k in self.controls if k not in want]:
+            self.controls.pop(key).close()
+        failed: DeviceError | None = None
+        for kind, path in sorted(want - self.controls.keys()):
+            read_only = kind == "status"
+            try:
+                self.controls[(kind, path)] = ControlServer(
+                    path,
+                    self._control,
+                    self.sel,
+                    mode=0o666 if read_only else 0o660,
+                    commands=("status",) if read_only else COMMANDS,
+                    on_event=lambda k, d: self.log.warning(k, detail=d),
+                    monotonic=self.monotonic,
                 )
+            except DeviceError as exc:
+                failed = exc
+        if failed is not None:
+            raise failed
+
+    def _output_specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
+        """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
+        out = cfg.outputs
+        specs: dict[tuple[object, ...], Callable[[], Sink]] = {}
+        if out.pty:
+            pty, mode, group = out.pty, out.pty_mode, out.pty_group
+            specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
+        if out.tcp:
+            tcp = out.tcp
+            specs[("tcp", tcp)] = lambda: TcpServerSink(
+                tcp,
+                selector=self.sel,
+                on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                monotonic=self.monotonic,
             )
         if out.udp:
-            self.sinks.append(UdpSink(out.udp))
+            udp = out.udp
+            specs[("udp", udp)] = lambda: UdpSink(
+                udp,
+                on_event=lambda kind, detail: self.log.warning(kind, sink="udp", detail=detail),
+                monotonic=self.monotonic,
+            )
         if out.stdout:
-            self.sinks.append(stdout_sink())
+            specs[("stdout",)] = stdout_sink
+        return specs
+
+    def _sync_outputs(self) -> tuple[list[str], list[str]]:
+        """Close the outputs the config no longer names, open the new ones; keep the rest.
+
+        Returns the names of the outputs (closed, opened).
+        """
+        specs = self._output_specs(self.config)
+        closed = [self.sinks[key].name for key in self.sinks if key not in specs]
+        for key in [k for k in self.sinks if k not in specs]:
+            with contextlib.suppress(OSError):
+                self.sinks.pop(key).close()
+        opened: list[str] = []
+        for key, make in specs.items():
+            if key not in self.sinks:
+                self.sinks[key] = sink = make()
+                opened.append(sink.name)
+        return closed, opened
 
     def _close_outputs(self) -> None:
-        for sink in self.sinks:
+        for sink in self.sinks.values():
             with contextlib.suppress(OSError):
                 sink.close()
         self.sinks.clear()
 
     def _shutdown(self) -> None:
         self.notifier.stopping()
-        if self.pipeline is not None:
+        if self.started:
             self._persist(final=True)
         self._close_sources()
-        if self.control is not None:
-            self.control.close()
-            self.control = None
+        for server in self.controls.values():
+            server.close()
+        self.controls.clear()
         self._close_outputs()
         with contextlib.suppress(KeyError, ValueError):
             self.sel.unregister(self._wake_r)
@@ -215,14 +332,14 @@ class Daemon:
 
     def _loop(self) -> None:
         cfg = self.config
-        next_status = self.clock() + cfg.status_interval_s
+        next_status = self.monotonic() + cfg.status_interval_s
         wd = self.notifier.watchdog_interval_s
-        next_watchdog = self.clock() + wd if wd else None
-        next_housekeeping = 0.0
+        next_watchdog = self.monotonic() + wd if wd else None
+        next_housekeeping = -math.inf
         while not self.stop:
             timeout = SELECT_TIMEOUT_S
             if self.resting:
-                timeout = min(timeout, max(min(self.resting.values()) - time.monotonic(), 0.0))
+                timeout = min(timeout, max(min(self.resting.values()) - self.monotonic(), 0.0))
             for key, _ in self.sel.select(timeout=timeout):
                 key.data()
                 if self._stopping():
@@ -234,7 +351,7 @@ class Daemon:
             if self.reload:
                 self.reload = False
                 self._reload()
-            now = self.clock()
+            now = self.monotonic()
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
@@ -246,8 +363,12 @@ class Daemon:
                     self._log_port_events(events)
             if changed:
                 self._sync_registrations()
+            for server in self.controls.values():
+                server.housekeep()
+            for sink in self.sinks.values():
+                sink.housekeep()
             assert self.pipeline is not None
-            self._handle(self.pipeline.tick(now, self.scratch))
+            self._handle(self.pipeline.tick(self.timeline(), self.scratch))
             if now >= next_status:
                 next_status = now + self.config.status_interval_s
                 self._status_event()
@@ -304,7 +425,7 @@ class Daemon:
         ports never rest: their latency is the output's. ``rest_s: 0`` turns resting
         off.
         """
-        now = time.monotonic()
+        now = self.monotonic()
         for fd, _ in self.rest_poll.poll(0):
             name = self.rest_fds.get(fd)
             if name is not None:
@@ -324,7 +445,7 @@ class Daemon:
 
     def _wake_rested(self) -> None:
         """Read the ports whose rest is over, and arm them again."""
-        now = time.monotonic()
+        now = self.monotonic()
         due = [name for name, t in self.resting.items() if now >= t]
         for name in due:
             del self.resting[name]
@@ -350,20 +471,30 @@ class Daemon:
     def _deliver(self, emits: list[Emit]) -> None:
         """Write sentences to every output sink (called by the pipeline as each is ready)."""
         data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
-        for sink in self.sinks:
+        for sink in self.sinks.values():
             sink.write(data)
 
-    def _persist(self, *, final: bool = False) -> None:
+    def _persist(self, *, final: bool = False, operator: bool = False) -> str | None:
+        """Write the calibrations; return None once they are on disk, else why not.
+
+        Coalesced: nothing is written when the file already holds the same records
+        (their time aside) — or, for an operator's command (``operator``), the same
+        calibrations (reset flags, parameters and σ, lag, model): a burst of
+        ``freeze`` or ``reset`` requests costs at most one fsync per actual change.
+        """
         assert self.pipeline is not None and self.store is not None
         snaps = self.pipeline.calibrations()
         if not snaps:
-            return
+            return None
+        if self._written is not None and _same(snaps, self._written, material=operator):
+            return None
         try:
             self.store.save({s.uut: s for s in snaps})
         except EmlogdError as exc:
             self.state_errors += 1
             self.log.error("state_write_failed", error=str(exc), final=final)
-            return
+            return str(exc)
+        self._written = snaps
         self.persists += 1
         self.log.info(
             "calibration_persisted",
@@ -371,6 +502,7 @@ class Daemon:
             final=final,
             path=str(self.store.path),
         )
+        return None
 
     def _log_port_events(self, events: list[PortEvent]) -> None:
         for ev in events:
@@ -383,7 +515,7 @@ class Daemon:
         assert self.pipeline is not None
         status = self.pipeline.status()
         sources = {name: src.counters_dict() for name, src in self.sources.items()}
-        sinks = {s.name: s.counters.as_dict() for s in self.sinks}
+        sinks = self._outputs_status()
         self.log.info(
             "status",
             ports=status["ports"],
@@ -393,6 +525,10 @@ class Daemon:
             state_errors=self.state_errors,
         )
         self._notify_status()
+
+    def _outputs_status(self) -> dict[str, dict[str, object]]:
+        """Per output: its counters and ``state`` (``open``, or why not)."""
+        return {s.name: {**s.counters.as_dict(), "state": s.state} for s in self.sinks.values()}
 
     def _notify_status(self) -> None:
         if self.pipeline is not None:
@@ -410,15 +546,21 @@ class Daemon:
         if cmd == "status":
             return {
                 "status": self.pipeline.status(),
+                "outputs": self._outputs_status(),
                 "state_file": str(self.store.path) if self.store else None,
                 "state_errors": self.state_errors,
                 "persists": self.persists,
             }
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)
-            self._persist()
-            self.log.info("control_freeze", uuts=done)
-            return {"uuts": done, "learning": False}
+            err = self._persist(operator=True)
+            self.log.info("control_freeze", uuts=done, persisted=err is None)
+            if err is not None:
+                raise ValueError(
+                    f"learning stopped for {', '.join(done)}, but the calibration "
+                    f"was not saved: {err}"
+                )
+            return {"uuts": done, "learning": False, "persisted": True}
         if cmd == "learn":
             on = req.get("on", True)
             if not isinstance(on, bool):
@@ -428,36 +570,90 @@ class Daemon:
             return {"uuts": done, "learning": on}
         if cmd == "reset":
             done = self.pipeline.reset(p)
-            self.log.warning("control_reset", uuts=done)
-            return {"uuts": done}
+            err = self._persist(operator=True)
+            self.log.warning("control_reset", uuts=done, persisted=err is None)
+            if err is not None:
+                raise ValueError(
+                    f"{', '.join(done)} reset, but the state file was not written ({err}): "
+                    "the old calibration would load after a restart"
+                )
+            return {"uuts": done, "persisted": True}
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _reload(self) -> None:
+        """Apply a new config, touching only what changed (docs/DEPLOY.md, "Reload").
+
+        A port, an output or the control socket whose settings are equal is kept as
+        it is (same descriptor, same pty, same clients); a UUT whose settings are equal
+        keeps its calibration object (:meth:`Pipeline.adopt`). A config that does not
+        load, or whose pipeline cannot be built, changes nothing.
+        """
         try:
             new = load_config(self.config_path)
+            ports, uuts = pipeline_from_config(new)
         except (ConfigError, OSError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return
-        assert self.pipeline is not None
+        old_pipeline, old = self.pipeline, self.config
+        assert old_pipeline is not None
         self._persist()
-        snapshots = {s.uut: s for s in self.pipeline.calibrations()}
+        snapshots = {s.uut: s for s in old_pipeline.calibrations()}
         try:
-            ports, uuts = pipeline_from_config(new)
             pipeline = Pipeline(ports, uuts, snapshots, fusion=fusion_from_config(new))
         except (ConfigError, ValueError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return
-        self._close_sources()
-        self._close_outputs()
-        if self.control is not None:
-            self.control.close()
-        self.config = new
-        self.pipeline = pipeline
-        try:
-            self._open_outputs()
-            self.control = ControlServer(new.control_socket, self._control, self.sel)
-        except DeviceError as exc:
-            self.log.error("reload_outputs_failed", error=str(exc))
+        kept_uuts = pipeline.adopt(old_pipeline)
+        self.config, self.pipeline = new, pipeline
+        before = {p.name: p for p in old.ports}
+        after = {p.name: p for p in new.ports}
+        changed_ports = [n for n in self.sources if before.get(n) != after.get(n)]
+        for name in changed_ports:
+            self._close_source(name)
         self._open_sources(new)
-        self.log.info("reloaded", config=str(self.config_path))
+        try:
+            closed, opened = self._sync_outputs()
+        except DeviceError as exc:
+            closed, opened = [], []
+            self.log.error("reload_outputs_failed", error=str(exc))
+        try:
+            self._sync_controls()
+        except DeviceError as exc:
+            self.log.error("reload_control_failed", error=str(exc))
+        state_path = Path(new.state_path)
+        if self.state_override is None and self.store is not None and state_path != self.store.path:
+            self.log.warning(
+                "reload_state_file_ignored", path=str(state_path), kept=str(self.store.path)
+            )
+        self.log.info(
+            "reloaded",
+            config=str(self.config_path),
+            uuts_kept=kept_uuts,
+            uuts_restarted=[u for u in pipeline.uuts if u not in kept_uuts],
+            ports_reopened=[n for n in changed_ports if n in after],
+            ports_closed=[n for n in changed_ports if n not in after],
+            outputs_closed=closed,
+            outputs_opened=opened,
+        )
         self._notify_status()
+
+
+def _same(a: list[Calibration], b: list[Calibration], *, material: bool) -> bool:
+    """Whether two sets of records are equal but for their time (``material``: and but
+    for what learning refines: covariance, current, NIS, sample count)."""
+    return [_key(c, material) for c in a] == [_key(c, material) for c in b]
+
+
+def _key(c: Calibration, material: bool) -> Calibration:
+    if not material:
+        return dataclasses.replace(c, t=0.0)
+    return dataclasses.replace(
+        c,
+        t=0.0,
+        covariance=(),
+        current_mps=None,
+        current_std_mps=None,
+        nis_mean=None,
+        n_samples=0,
+        unidentifiable=(),
+    )

@@ -4,24 +4,59 @@ Every sink takes whole sentences (bytes ending in CR LF) and never blocks the
 daemon loop: writes are non-blocking, a TCP client that stops reading is dropped
 once its bounded backlog is full, UDP send errors are counted and skipped. Sinks
 that need the selector (the TCP server) expose their file descriptors.
+
+A network output never stops the daemon: a TCP address that cannot be bound (in
+use, not yet configured) or a UDP destination that does not resolve leaves the sink
+``unbound``/``unresolved`` (its :attr:`state`) and is retried from
+:meth:`housekeep` with a growing delay (:data:`RETRY_S`). Addresses are resolved
+once, never per sentence. The TCP server takes at most :data:`MAX_TCP_CLIENTS`
+(the next ones are closed at once) and pauses when ``accept`` runs out of
+descriptors (:mod:`emlogd.daemon.listen`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import math
 import os
 import selectors
 import socket
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO, Protocol
 
-from drivers.errors import ConfigError, DeviceError
+from drivers.errors import ConfigError
+from emlogd.daemon.listen import AcceptPause
 
 TCP_BACKLOG_BYTES = 64 * 1024
 """Largest unsent backlog per TCP client before it is dropped."""
+
+MAX_TCP_CLIENTS = 32
+"""Most clients of the TCP output at a time; the next ones are closed at once."""
+
+RETRY_S = (1.0, 2.0, 5.0, 10.0, 30.0)
+"""Delays between attempts to bind a TCP output or resolve a UDP destination."""
+
+
+class _Retry:
+    """When to try again: a growing delay, reset by a success."""
+
+    def __init__(self, monotonic: Callable[[], float]) -> None:
+        self.monotonic = monotonic
+        self.attempts = 0
+        self.next = -math.inf
+
+    def due(self) -> bool:
+        return self.monotonic() >= self.next
+
+    def failed(self) -> float:
+        delay = RETRY_S[min(self.attempts, len(RETRY_S) - 1)]
+        self.attempts += 1
+        self.next = self.monotonic() + delay
+        return delay
 
 
 @dataclass(slots=True)
@@ -50,9 +85,14 @@ class Sink(Protocol):
 
     name: str
     counters: SinkCounters
+    state: str
+    """``open``, or why not (``unbound: ...``, ``unresolved: ...``)."""
 
     def write(self, line: bytes) -> None:
         """Send one sentence (CR LF included); never blocks, never raises for I/O."""
+
+    def housekeep(self) -> None:
+        """Retry what failed (called from the daemon's housekeeping)."""
 
     def close(self) -> None:
         """Release the resources."""
@@ -85,6 +125,10 @@ class StreamSink:
     stream: BinaryIO
     close_stream: bool = False
     counters: SinkCounters = field(default_factory=SinkCounters)
+    state: str = "open"
+
+    def housekeep(self) -> None:
+        pass
 
     def write(self, line: bytes) -> None:
         try:
@@ -102,17 +146,50 @@ class StreamSink:
 
 
 class UdpSink:
-    """Sentences as UDP datagrams to one destination (broadcast allowed)."""
+    """Sentences as UDP datagrams to one destination (broadcast allowed).
 
-    def __init__(self, dest: str) -> None:
+    The destination is resolved once; one that does not resolve is retried from
+    :meth:`housekeep` (sentences meanwhile are counted as errors).
+    """
+
+    def __init__(
+        self,
+        dest: str,
+        *,
+        on_event: Callable[[str, str], None] | None = None,
+        monotonic: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.name = f"udp:{dest}"
         self.counters = SinkCounters()
-        self.addr = parse_hostport(dest, default_host="127.0.0.1")
+        self.host, self.port = parse_hostport(dest, default_host="127.0.0.1")
+        self.on_event = on_event
+        self.addr: tuple[str, int] | None = None
+        self.state = "unresolved"
+        self.retry = _Retry(monotonic)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         self.sock.setblocking(False)
+        self.housekeep()
+
+    def housekeep(self) -> None:
+        if self.addr is not None or not self.retry.due():
+            return
+        try:
+            info = socket.getaddrinfo(self.host, self.port, socket.AF_INET, socket.SOCK_DGRAM)
+            addr = info[0][4]
+            self.addr = (str(addr[0]), int(addr[1]))
+        except (OSError, IndexError) as exc:
+            delay = self.retry.failed()
+            self.state = f"unresolved: {exc}"
+            if self.on_event is not None:
+                self.on_event("output_unresolved", f"{self.name}: {exc}; retry in {delay:g} s")
+            return
+        self.state = "open"
 
     def write(self, line: bytes) -> None:
+        if self.addr is None:
+            self.counters.errors += 1
+            return
         try:
             self.sock.sendto(line, self.addr)
         except OSError:
@@ -141,10 +218,8 @@ class TcpServerSink:
     :meth:`on_readable` when it fires (accepts clients, and discards anything a
     client sends). Writes go straight to each client's socket; what the kernel
     does not take is kept up to :data:`TCP_BACKLOG_BYTES`, then the client is
-    dropped (a client that stops reading never blocks the loop).
-
-    Raises:
-        DeviceError: the address cannot be bound.
+    dropped (a client that stops reading never blocks the loop). An address that
+    cannot be bound leaves the sink ``unbound`` and is retried from :meth:`housekeep`.
     """
 
     def __init__(
@@ -153,48 +228,84 @@ class TcpServerSink:
         *,
         selector: selectors.BaseSelector | None = None,
         on_event: Callable[[str, str], None] | None = None,
+        monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
         self.name = f"tcp:{listen}"
         self.counters = SinkCounters()
-        host, port = parse_hostport(listen, allow_zero=True)
-        self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            self.server.bind((host, port))
-        except OSError as exc:
-            self.server.close()
-            raise DeviceError(f"TCP output {listen}: {exc.strerror or exc}") from None
-        self.server.listen(8)
-        self.server.setblocking(False)
+        self.host, self.port = parse_hostport(listen, allow_zero=True)
         self.clients: dict[int, _Client] = {}
         self.selector = selector
         self.on_event = on_event
-        if selector is not None:
-            selector.register(self.server, selectors.EVENT_READ, self._accept)
+        self.server: socket.socket | None = None
+        self.state = "unbound"
+        self.refused = 0
+        self.retry = _Retry(monotonic)
+        self.pause = AcceptPause(lambda d: self._note("accept_error", d), monotonic)
+        self._bind()
+
+    def _bind(self) -> None:
+        server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            server.bind((self.host, self.port))
+            server.listen(8)
+        except OSError as exc:
+            server.close()
+            self.retry.failed()
+            state = f"unbound: {exc.strerror or exc}"
+            if state != self.state:  # one line per new reason, not per retry
+                self._note("output_unbound", f"{self.name}: {state}; retrying in the background")
+            self.state = state
+            return
+        server.setblocking(False)
+        self.server = server
+        if self.state != "unbound":
+            self._note("output_bound", self.name)
+        self.state = "open"
+        if self.selector is not None:
+            self.selector.register(server, selectors.EVENT_READ, self._accept)
+
+    def housekeep(self) -> None:
+        """Bind again if unbound (when due); listen again once an accept pause is over."""
+        if self.server is None:
+            if self.retry.due():
+                self._bind()
+            return
+        if self.pause.resume_due() and self.selector is not None:
+            self.selector.register(self.server, selectors.EVENT_READ, self._accept)
 
     @property
     def address(self) -> tuple[str, int]:
         """The bound (host, port) (useful with port 0)."""
+        if self.server is None:
+            return self.host, self.port
         host, port = self.server.getsockname()[:2]
         return str(host), int(port)
 
     def fileno(self) -> int:
-        return self.server.fileno()
+        return self.server.fileno() if self.server is not None else -1
 
     def _note(self, kind: str, detail: str) -> None:
         if self.on_event is not None:
             self.on_event(kind, detail)
 
     def _accept(self) -> None:
-        while True:
+        while self.server is not None:
             try:
                 sock, addr = self.server.accept()
             except (BlockingIOError, InterruptedError):
                 return
             except OSError as exc:
                 self.counters.errors += 1
-                self._note("accept_error", str(exc))
+                if self.pause.failed(exc) and self.selector is not None:
+                    with contextlib.suppress(KeyError, ValueError):
+                        self.selector.unregister(self.server)
                 return
+            self.pause.accepted()
+            if len(self.clients) >= MAX_TCP_CLIENTS:
+                self.refused += 1
+                sock.close()
+                continue
             sock.setblocking(False)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             client = _Client(sock, addr)
@@ -251,21 +362,26 @@ class TcpServerSink:
     def close(self) -> None:
         for client in list(self.clients.values()):
             self._drop(client, "client_disconnected")
-        if self.selector is not None:
-            with contextlib.suppress(KeyError, ValueError):
-                self.selector.unregister(self.server)
-        self.server.close()
+        if self.server is not None:
+            if self.selector is not None:
+                with contextlib.suppress(KeyError, ValueError):
+                    self.selector.unregister(self.server)
+            self.server.close()
 
 
 class PtySink:
     """Sentences on a virtual serial port published at a stable symlink."""
 
-    def __init__(self, link: str | Path, mode: int = 0o660) -> None:
+    def __init__(self, link: str | Path, mode: int = 0o660, group: str | None = None) -> None:
         from drivers.io.vpty import VirtualPort
 
         self.name = f"pty:{link}"
         self.counters = SinkCounters()
-        self.port = VirtualPort(link, mode=mode)
+        self.state = "open"
+        self.port = VirtualPort(link, mode=mode, group=group)
+
+    def housekeep(self) -> None:
+        pass
 
     def write(self, line: bytes) -> None:
         try:

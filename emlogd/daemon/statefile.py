@@ -22,6 +22,7 @@ and the backup used; without a good one the daemon starts uncalibrated.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import re
 from collections.abc import Callable, Mapping
@@ -37,6 +38,10 @@ class StateWriteError(EmlogdError):
     """The state file could not be written; the previous file is intact."""
 
 
+class StateLockedError(EmlogdError):
+    """Another process holds the state file's lock."""
+
+
 class StateStore:
     """The state file and its backup.
 
@@ -47,6 +52,46 @@ class StateStore:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.backup = self.path.with_name(self.path.name + ".bak")
+
+    @property
+    def lock_path(self) -> Path:
+        """The lock file next to the state file."""
+        return self.path.with_name(self.path.name + ".lock")
+
+    def lock(self) -> int | None:
+        """Take the state file's lock for this process (released when it exits).
+
+        An exclusive ``flock`` on ``<file>.lock``, which then holds the pid. Returns
+        the lock's descriptor, or None when no lock file can be opened at all (a
+        read-only or missing directory: writes will fail and be reported anyway).
+
+        Raises:
+            StateLockedError: another process holds it (the message names its pid).
+        """
+        path = self.lock_path
+        with contextlib.suppress(OSError):
+            path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:
+            try:
+                fd = os.open(path, os.O_RDONLY)
+            except OSError:
+                return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            try:
+                holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
+            finally:
+                os.close(fd)
+            raise StateLockedError(
+                f"{self.path} is in use by another emlogd (pid {holder}; lock {path})"
+            ) from None
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
+        return fd
 
     def load(
         self, check: Callable[[Calibration], str] | None = None

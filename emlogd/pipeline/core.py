@@ -360,12 +360,59 @@ class Pipeline:
         self._pending_events: list[Event] = []
 
     def _new_cal(self, s: UutSettings, prior: Calibration | None) -> UutCalibration:
-        port = s.port
+        return UutCalibration(s, prior, *self._hooks(s.port))
+
+    def _hooks(
+        self, port: str
+    ) -> tuple[Callable[[float], float | None], Callable[[float, str, Mapping[str, object]], None]]:
+        """A UUT calibration's heading look-up and event sink, on this pipeline."""
 
         def event(t: float, kind: str, detail: Mapping[str, object]) -> None:
             self._pending_events.append(Event(t, port, kind, detail))
 
-        return UutCalibration(s, prior, lambda t: self._heading_at(port, t), event)
+        return (lambda t: self._heading_at(port, t)), event
+
+    def adopt(self, old: Pipeline) -> list[str]:
+        """Take over from ``old`` (a reload) whatever did not change; return the UUTs kept.
+
+        A port with equal settings keeps its decoder (counters, a partial line), its
+        heading ring and its staleness. A UUT with equal settings keeps its whole
+        calibration object: learning state, lag estimate, the operator's learning
+        switch, scores. A UUT whose settings changed starts from the calibration this
+        pipeline was built with, and keeps the operator's learning switch unless its
+        ``learn`` setting changed.
+        """
+        for name, p in self.ports.items():
+            if old.ports.get(name) != p:
+                continue
+            self.decoders[name] = old.decoders[name]
+            self.stale[name] = old.stale[name]
+            if name in old.headings:
+                self.headings[name] = old.headings[name]
+            if name in old.variation:
+                self.variation[name] = old.variation[name]
+            if name in old.fix_quality:
+                self.fix_quality[name] = old.fix_quality[name]
+            if name in old.last_rx:
+                self.last_rx[name] = old.last_rx[name]
+        kept: list[str] = []
+        for name, u in self.uuts.items():
+            o = old.uuts.get(name)
+            if o is None:
+                continue
+            if o.s == u.s:
+                o.cal.heading_at, o.cal._event = self._hooks(name)
+                self.uuts[name] = o
+                kept.append(name)
+            elif o.s.learn == u.s.learn:
+                u.cal.learn_on = o.cal.learn_on
+        self._by_ref = {}
+        for u in self.uuts.values():
+            self._by_ref.setdefault(u.s.reference_port, []).append(u)
+        if self.fusion is not None and old.fusion is not None:
+            self.fusion.latest = dict(old.fusion.latest)
+        self.now = max(self.now, old.now)
+        return kept
 
     # -- headings --------------------------------------------------------------
 

@@ -208,14 +208,15 @@ def test_dump_round_trips_non_defaults(tmp_path: Path) -> None:
     text = (
         BLOCK.replace("role: uut\n", "role: uut\n    checksum: optional\n    rate_hz: 2.5\n", 1)
         + "    lag: 3.2\n    learn: false\n    max_param_std: {m: 0.1}\n    q_params: 1.0e-9\n"
-        + "outputs: {pty: null, tcp: ':10110', udp: '10.0.0.255:10110', talker: II}\n"
-        + "log_format: json\nstate_file: s/state.yaml\n"
+        + "outputs: {pty: null, pty_group: nmea, tcp: ':10110', udp: '10.0.0.255:10110', talker: II}\n"
+        + "log_format: json\nstate_file: s/state.yaml\nstatus_socket: run/status.sock\n"
     )
     f = tmp_path / "c.yaml"
     f.write_text(text)
     cfg = load_config(f)
     assert cfg.calibration[0].lag_s == 3.2 and cfg.outputs.pty is None
     assert cfg.state_path == str(tmp_path / "s" / "state.yaml")
+    assert cfg.status_socket == str(tmp_path / "run" / "status.sock")
     assert parse_config(dump_config(cfg), cfg.path) == cfg
 
 

@@ -6,10 +6,11 @@ import io
 import selectors
 import socket
 import time
+from pathlib import Path
 
 import pytest
 
-from drivers.errors import ConfigError, DeviceError
+from drivers.errors import ConfigError
 from emlogd.daemon.sinks import (
     TCP_BACKLOG_BYTES,
     StreamSink,
@@ -102,14 +103,35 @@ def test_tcp_connect_disconnect_loop_leaks_nothing() -> None:
         sel.close()
 
 
-def test_tcp_bind_failure_is_a_device_error() -> None:
+def test_an_unbindable_tcp_output_is_retried_until_it_binds() -> None:
+    """An address in use leaves the sink unbound, writes are harmless, and a retry once
+    the address is free binds it (retries follow the sink's monotonic clock)."""
     sel = selectors.DefaultSelector()
     first = TcpServerSink("127.0.0.1:0", selector=sel)
+    now = [0.0]
+    notes: list[str] = []
+    second = TcpServerSink(
+        f"127.0.0.1:{first.address[1]}",
+        selector=sel,
+        on_event=lambda k, d: notes.append(k),
+        monotonic=lambda: now[0],
+    )
     try:
-        with pytest.raises(DeviceError, match="TCP output"):
-            TcpServerSink(f"127.0.0.1:{first.address[1]}")
-    finally:
+        assert second.state.startswith("unbound: ") and notes == ["output_unbound"]
+        second.write(LINE)
+        now[0] = 0.5
+        second.housekeep()  # not due yet
         first.close()
+        assert second.server is None
+        now[0] = 1.0
+        second.housekeep()
+        assert second.state == "open" and notes == ["output_unbound", "output_bound"]
+        c = socket.create_connection(second.address)
+        _pump(sel)
+        assert second.counters.clients == 1
+        c.close()
+    finally:
+        second.close()
         sel.close()
 
 
@@ -135,3 +157,22 @@ def test_stream_sink_counts_errors_instead_of_raising() -> None:
     buf.close()
     sink.write(LINE)
     assert sink.counters.errors == 1 and sink.counters.sentences == 1
+
+
+def test_the_pty_output_belongs_to_its_readers_group(tmp_path: Path) -> None:
+    """``pty_group``: the pty behind the link is in that group, with the given mode."""
+    import grp
+    import os
+    import stat
+
+    from emlogd.daemon.sinks import PtySink
+
+    groups = [g for g in grp.getgrall() if g.gr_gid != os.getegid()]
+    if os.geteuid() != 0 or not groups:
+        pytest.skip("needs root and a second group to hand the pty to")
+    sink = PtySink(tmp_path / "emlog0", mode=0o640, group=groups[0].gr_name)
+    try:
+        st = (tmp_path / "emlog0").stat()
+        assert st.st_gid == groups[0].gr_gid and stat.S_IMODE(st.st_mode) == 0o640
+    finally:
+        sink.close()
