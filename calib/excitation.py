@@ -82,6 +82,11 @@ class ExcitationRule:
         max_std_b_mps: largest standard deviation of a determined ``b``, m/s.
         max_std_current_mps: largest standard deviation of a determined current
             component, m/s.
+        max_scale_vif: largest factor by which estimating the current may multiply
+            the scale's variance (its variance inflation): above it the speed through
+            the water follows the heading, a scale error and a current leave the same
+            signature, and whatever the model leaves out (a curvature, a current that
+            changes) decides their split.
 
     Raises:
         ValueError: a threshold out of range.
@@ -96,6 +101,7 @@ class ExcitationRule:
     max_std_m: float = 0.02
     max_std_b_mps: float = 0.03
     max_std_current_mps: float = 0.05
+    max_scale_vif: float = 5.0
 
     def __post_init__(self) -> None:
         if self.min_samples_per_param < 1:
@@ -106,6 +112,8 @@ class ExcitationRule:
             raise ValueError(f"min_heading_sectors must be within 1..{N_SECTORS}")
         if not self.max_cond > 1.0:
             raise ValueError("max_cond must exceed 1")
+        if not self.max_scale_vif >= 1.0:
+            raise ValueError("max_scale_vif must be at least 1")
         for name in ("max_std_a_spm", "max_std_m", "max_std_b_mps", "max_std_current_mps"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be positive")
@@ -224,6 +232,21 @@ def _columns(unknowns: Sequence[str], offset: bool) -> list[int]:
     return sorted(cols)
 
 
+def _scale_inflation(info: FloatArray, scale: Sequence[str], offset: bool) -> float:
+    """By how much estimating the current multiplies the scale's variance (≥ 1)."""
+    alone = _columns(scale, offset)
+    with_current = _columns([*scale, CURRENT], offset)
+    a, _ = _stds(info, alone, 1.0)
+    b, _ = _stds(info, with_current, 1.0)
+    ratios = [
+        (b[c] / a[c]) ** 2 if math.isfinite(b[c]) and a[c] > 0.0 else math.inf
+        for k in scale
+        for c in _COL[k]
+        if math.isfinite(a[c])
+    ]
+    return max(ratios, default=1.0)
+
+
 def _stds(info: FloatArray, cols: list[int], sigma2: float) -> tuple[dict[int, float], float]:
     """Standard deviation of each column's unknown and the condition number."""
     sub = info[np.ix_(cols, cols)]
@@ -292,6 +315,17 @@ def judge(
                     "bias not separable from the current: heading covered "
                     f"{sectors if sectors is not None else 0} of {N_SECTORS} sectors"
                 )
+    if layout.current and CURRENT not in refused:
+        free_scale = [k for k in scale if k not in refused]
+        if free_scale:
+            inflation = _scale_inflation(stats.info, free_scale, "b" in unknowns)
+            if inflation > rule.max_scale_vif:
+                why = (
+                    "scale not separable from the current: the speed through the water "
+                    f"follows the heading (the current multiplies its variance by {inflation:.1f})"
+                )
+                for k in free_scale:
+                    refused[k] = why
     free = [u for u in unknowns if u not in refused]
     stds: dict[str, float] = {}
     cond = math.inf

@@ -68,6 +68,19 @@ class TestVerdicts:
         assert ident.identifiable and ident.unidentifiable == () and ident.reason == ""
         assert all(v.std is not None for v in ident.verdicts)
 
+    def test_speed_that_follows_the_heading_leaves_the_scale_to_the_current(self) -> None:
+        """A slalom whose speed dips at one heading: a scale error and a current look the
+        same, so with the current the scale is refused (and accepted without it)."""
+        t = np.arange(0.0, 1800.0, 0.5)
+        swing = 2.405 * np.sin(2 * np.pi * t / 90.0)
+        heading = np.degrees(0.7 + swing) % 360.0
+        u = 1.8 - 0.7 * np.cos(2 * np.pi * t / 90.0) ** 2
+        ident = identifiability(EM3C, u, 1.1 * u + 0.1, SIGMA2, heading_deg=heading)
+        assert ident.unidentifiable == ("m",)
+        assert "follows the heading" in ident.reason
+        plain = identifiability(Layout("EM3"), u, 1.1 * u + 0.1, SIGMA2)
+        assert plain.identifiable
+
     def test_circles_at_constant_speed_leave_the_scale_undetermined(self) -> None:
         """Circling at constant speed in a current: no scale, but bias and current."""
         s = _seg("circles", constant=True)
