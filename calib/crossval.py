@@ -11,7 +11,9 @@ out-of-sample: 5 segments × 4 other segments × 8 estimators = 160 evaluations
 Training: LS-EMx fits the finite (ref, raw) pairs of the segment
 (:func:`calib.lsq.fit_ls`); KF-EMx runs the whole segment through
 :class:`calib.kalman.KfCalibrator` (nan reference = outage) and freezes its final
-state, as the paper does. Evaluation applies the inverse model
+state, as the paper does, learning only the unknowns the segment determines (the
+identifiability judged as for least squares; the others stay at the ideal sensor).
+Evaluation applies the inverse model
 (:func:`calib.models.correct_array`).
 
 In the water frame (``current=True``, segments carrying headings) the estimators also
@@ -47,7 +49,15 @@ from calib.errors import DataError, ModelError
 from calib.kalman import KfConfig, run_kf
 from calib.lsq import fit_current, fit_ls
 from calib.metrics import improvement_pct
-from calib.models import FloatArray, ModelName, Params, check_model, correct_array, zero_params
+from calib.models import (
+    CURRENT,
+    FloatArray,
+    ModelName,
+    Params,
+    check_model,
+    correct_array,
+    zero_params,
+)
 
 EstimatorName = Literal[
     "LS-EM1", "LS-EM2", "LS-EM3", "LS-EM4", "KF-EM1", "KF-EM2", "KF-EM3", "KF-EM4"
@@ -141,9 +151,9 @@ class TrainedEstimator:
             (KF), by short name.
         current_mps: the current learnt on the training segment (north, east), m/s,
             None when not estimated or not determined.
-        identifiable: LS identifiability verdict (always None for KF).
-        unidentifiable: LS: the unknowns the segment does not determine.
-        cond_info: LS condition number of the information matrix (None for KF).
+        identifiable: the identifiability verdict on the training segment.
+        unidentifiable: the unknowns the segment does not determine (held).
+        cond_info: the condition number of the information matrix.
     """
 
     estimator: str
@@ -399,6 +409,18 @@ def train(
             fit.unidentifiable,
             fit.cond_info,
         )
+    # The filter learns only what the segment determines (judged as for least squares);
+    # the rest stays at the ideal sensor. With a current the current always learns: where
+    # it is not separable from the bias it takes their sum (the bias is held).
+    ok = _usable(seg, current)
+    ident = fit_ls(
+        model,
+        seg.ref[ok],
+        seg.raw[ok],
+        heading_deg=None if seg.heading is None or not current else seg.heading[ok],
+        current=current,
+    ).ident
+    learn = set(ident.determined) | ({CURRENT} if current else set())
     run = run_kf(
         model,
         seg.t,
@@ -408,9 +430,21 @@ def train(
         heading_deg=seg.heading if current else None,
         current=current,
         history=False,
+        learn=frozenset(learn),
     )
-    std: dict[str, float | None] = dict(run.param_std)
-    return TrainedEstimator(estimator, seg.name, run.params, std, run.current_mps, None, (), None)
+    std: dict[str, float | None] = {
+        k: (v if k in ident.determined else None) for k, v in run.param_std.items()
+    }
+    return TrainedEstimator(
+        estimator,
+        seg.name,
+        run.params,
+        std,
+        run.current_mps if CURRENT in ident.determined else None,
+        ident.identifiable,
+        ident.unidentifiable,
+        ident.cond_info,
+    )
 
 
 def _projected(params: Params, seg: _Arrays, ok: npt.NDArray[np.bool_]) -> FloatArray:

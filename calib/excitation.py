@@ -233,18 +233,21 @@ def _columns(unknowns: Sequence[str], offset: bool) -> list[int]:
 
 
 def _scale_inflation(info: FloatArray, scale: Sequence[str], offset: bool) -> float:
-    """By how much estimating the current multiplies the scale's variance (≥ 1)."""
-    alone = _columns(scale, offset)
-    with_current = _columns([*scale, CURRENT], offset)
-    a, _ = _stds(info, alone, 1.0)
-    b, _ = _stds(info, with_current, 1.0)
-    ratios = [
-        (b[c] / a[c]) ** 2 if math.isfinite(b[c]) and a[c] > 0.0 else math.inf
-        for k in scale
-        for c in _COL[k]
-        if math.isfinite(a[c])
-    ]
-    return max(ratios, default=1.0)
+    """By how much estimating the current multiplies a scale term's variance (≥ 1).
+
+    The largest over the scale terms together and each alone (EM4's ``a`` without
+    ``m`` is a scale too: if ``m`` is refused, ``a`` must not take its place).
+    """
+    worst = 1.0
+    for group in [list(scale)] + [[k] for k in scale] * (len(scale) > 1):
+        a, _ = _stds(info, _columns(group, offset), 1.0)
+        b, _ = _stds(info, _columns([*group, CURRENT], offset), 1.0)
+        for k in group:
+            for c in _COL[k]:
+                if math.isfinite(a[c]):
+                    ratio = (b[c] / a[c]) ** 2 if math.isfinite(b[c]) and a[c] > 0 else math.inf
+                    worst = max(worst, ratio)
+    return worst
 
 
 def _stds(info: FloatArray, cols: list[int], sigma2: float) -> tuple[dict[int, float], float]:

@@ -11,6 +11,7 @@ Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +71,7 @@ def run_kf(
     current: bool = False,
     history: bool = True,
     calibrator: KfCalibrator | None = None,
+    learn: bool | Collection[str] = True,
 ) -> KfRun:
     """Run KF-EMx over aligned arrays with the per-sample filter.
 
@@ -85,6 +87,8 @@ def run_kf(
         history: keep per-sample histories (False: only final values and
             innovations, faster for cross-validation).
         calibrator: continue an existing filter instead of a fresh one.
+        learn: the unknowns that may move (True: all; see :meth:`KfCalibrator.update`);
+            the others stay at their prior.
 
     Returns:
         The final estimate and the per-sample series.
@@ -125,7 +129,9 @@ def run_kf(
         zip(dts.tolist(), raw.tolist(), ref.tolist(), cos_h, sin_h, strict=True)
     ):
         cs = (c, s) if c == c else None  # nan: heading unknown
-        res = kf.update(zr if zr == zr else None, zv if zv == zv else None, dt, heading_cs=cs)
+        res = kf.update(
+            zr if zr == zr else None, zv if zv == zv else None, dt, heading_cs=cs, learn=learn
+        )
         if res.raw is not None:
             ys[k] = res.raw.y
             ss[k] = res.raw.S

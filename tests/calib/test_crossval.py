@@ -140,6 +140,23 @@ class TestWaterFrameCrossval:
         assert trained.current_mps == pytest.approx((0.25, -0.2), abs=0.03)
         assert json.loads(json.dumps(water.to_dict()))["trained"][0]["current"] is not None
 
+    def test_kf_learns_only_what_its_training_segment_determines(self) -> None:
+        """KF-EM3 trained on a straight run in a current holds the scale and the bias
+        (not separable there) instead of bending them, and is not worse than raw."""
+        truth = Params("EM3", m=0.09, b_mps=0.08)
+        segs = []
+        for kind, seed in (("transit", 1), ("figure-8", 2)):
+            s = water_frame_segment(
+                kind, 900.0, 1.0, truth, np.random.default_rng(seed), current_mps=(0.3, 0.2)
+            )
+            segs.append(Segment(kind, s.t_s, s.raw_mps, s.ref_mps, s.heading_deg))
+        res = cross_validate(segs, ["KF-EM3"], current=True)
+        trained = next(t for t in res.trained if t.train == "transit")
+        assert "b" in trained.unidentifiable and trained.params.b_mps == 0.0
+        assert trained.param_std["b"] is None
+        e = res.evaluation("KF-EM3", "transit", "figure-8")
+        assert e.rmse_cal_mps <= e.rmse_raw_mps
+
     def test_current_without_heading_is_an_error(self) -> None:
         """Segments without headings cannot be cross-validated with the current."""
         seg = simulate_segment("a", "figure-8", 300.0, 1.0, Params("EM3"), np.random.default_rng(1))
