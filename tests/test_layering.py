@@ -46,6 +46,18 @@ def _imports(path: Path) -> set[str]:
     return names
 
 
+def _modules(path: Path) -> set[str]:
+    """Full names of every module imported by ``path`` (absolute imports)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+    return names
+
+
 class TestImportDirection:
     """Imports go one way: emlogd -> drivers, calib."""
 
@@ -78,6 +90,40 @@ class TestImportDirection:
             pytest.fail(f"{path} is missing")
         bad = _imports(path) & FORBIDDEN_IN_PURE
         assert not bad, f"{path} imports {bad}"
+
+    @pytest.mark.parametrize(
+        "path", sorted((ROOT / "emlogd" / "pipeline").glob("*.py")), ids=lambda p: p.name
+    )
+    def test_the_pipeline_is_pure(self, path: Path) -> None:
+        """emlogd/pipeline/ has no I/O and no clock, and depends on no other application
+        folder: run, replay and the offline commands drive it with the data's own times."""
+        assert not (_imports(path) & FORBIDDEN_IN_PURE), path
+        for mod in _modules(path):
+            assert not mod.startswith(("emlogd.daemon", "emlogd.offline", "emlogd.cli")), mod
+            assert not mod.startswith("drivers.io"), mod
+
+    def test_folders_depend_one_way(self) -> None:
+        """daemon and offline never import each other or the CLI (the demo, which runs the
+        daemon, may use its control-socket client); only the CLI prints."""
+        rules = {
+            "daemon": ("emlogd.offline", "emlogd.cli"),
+            "offline": ("emlogd.daemon", "emlogd.cli"),
+        }
+        for folder, banned in rules.items():
+            for path in sorted((ROOT / "emlogd" / folder).glob("*.py")):
+                for mod in _modules(path):
+                    if path.name == "demo.py" and mod == "emlogd.daemon.control":
+                        continue
+                    assert not mod.startswith(banned), (path, mod)
+        for path in _sources("emlogd"):
+            if "cli" in path.parts:
+                continue
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            calls = [
+                n for n in ast.walk(tree)
+                if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "print"
+            ]  # fmt: skip
+            assert not calls, path
 
     def test_daemon_never_imports_matplotlib(self) -> None:
         """Plots are an optional extra: only the report module may import matplotlib."""
