@@ -64,7 +64,8 @@ def test_checksum_helpers() -> None:
     s = with_checksum("VWVHW,,T,,M,3.50,N,6.48,K")
     assert s.endswith("*" + format(nmea_checksum(s[1:-3].encode()), "02X"))
     assert split_nmea(s.encode()) == s[1:-3].encode()
-    assert split_nmea(s.lower().replace("vwvhw", "VWVHW").encode()) is not None
+    lower_hex = with_checksum("VWVHW,,T,,M,3.49,N,6.46,K")[:-1] + "e"  # "*5E" sent as "*5e"
+    assert split_nmea(lower_hex.encode()) == b"VWVHW,,T,,M,3.49,N,6.46,K"
     with pytest.raises(ChecksumError, match="computed"):
         split_nmea(s[:-1].encode() + b"0" if s[-1] != "0" else s[:-1].encode() + b"1")
     with pytest.raises(MissingChecksumError):
