@@ -86,10 +86,9 @@ def test_a_reader_that_never_reads_never_blocks_the_writer(tmp_path: Path) -> No
     with VirtualPort(tmp_path / "p", max_backlog=None) as vp:
         fd = _open(tmp_path / "p")
         try:
-            t0 = time.monotonic()
+            # the pty fills long before 20 000 sentences: a blocking writer hangs here
             for k in range(20_000):
                 vp.write(_sentence(k))
-            assert time.monotonic() - t0 < 30  # generous: only catches a blocked writer
             assert vp.dropped > 0 and vp.written > 0 and vp.flushes == 0
             got = _read(fd)
             assert got.startswith(_sentence(0))  # the oldest data: a stale backlog
