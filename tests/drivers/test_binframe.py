@@ -16,11 +16,14 @@ def _framer() -> BinaryFramer:
 
 
 def test_sum16() -> None:
+    """sum16 is the byte sum modulo 2**16: 0 for no bytes, and it wraps past 65535."""
     assert sum16(b"") == 0
     assert sum16(b"\xff" * 300) == (255 * 300) & 0xFFFF
 
 
 def test_frames_and_garbage_runs() -> None:
+    """Each run of garbage before or between frames is one framing error giving its byte count, and
+    the frames around it come out whole."""
     f = _framer()
     data = b"xx" + _frame(b"one") + b"yyy" + _frame(b"two")
     out = list(f.feed(data)) + list(f.flush())
@@ -32,6 +35,8 @@ def test_frames_and_garbage_runs() -> None:
 
 
 def test_corrupted_frame_is_one_checksum_error() -> None:
+    """A frame with one flipped payload bit is a single checksum error (its remains are absorbed,
+    not reported again) and the next frame still comes out."""
     bad = bytearray(_frame(b"corrupted payload"))
     bad[5] ^= 1
     f = _framer()
@@ -40,12 +45,16 @@ def test_corrupted_frame_is_one_checksum_error() -> None:
 
 
 def test_implausible_header_is_skipped() -> None:
+    """A header whose length byte is implausible is skipped and the good frame right behind it is
+    still found."""
     f = _framer()
     out = list(f.feed(b"\xaa\x55\x01" + _frame(b"z"))) + list(f.flush())
     assert out[-1] == _frame(b"z")[:-2]
 
 
 def test_buffer_bounded_when_a_length_never_completes() -> None:
+    """A header announcing a frame longer than the buffer bound never lets the buffer grow much past
+    MAX_BUFFER however many bytes follow."""
     f = BinaryFramer(b"\xaa\x55", lambda b: 60000, 3, "TEST")
     for _ in range(10):
         list(f.feed(b"\xaa\x55\x00" + b"\x00" * 10_000))

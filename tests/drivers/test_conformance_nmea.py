@@ -39,6 +39,8 @@ def _vector(sentence_prefix: str) -> dict[str, object]:
 
 
 def test_signalk_vhw_expectations() -> None:
+    """VHW vectors decode to Signal K's expected STW and headings, empty headings to None, and an
+    all-empty VHW gives an invalid speed record."""
     r = _one("$IIVHW,,T,,M,06.12,N,11.33,K*50")
     assert isinstance(r, Vhw)
     exp = _vector("$IIVHW,,T,,M,06.12")["expected_by_source"]
@@ -58,6 +60,8 @@ def test_signalk_vhw_expectations() -> None:
 
 
 def test_signalk_vlw_mtw_heading_expectations() -> None:
+    """VLW, MTW, HDG, HDT and HDM vectors decode to Signal K's expected distances, temperatures,
+    headings, deviation and variation (west negative), and empty fields to None."""
     r = _one("$IIVLW,10.1,N,3.2,N*7C")
     assert isinstance(r, Vlw) and (r.total_nm or 0) * NM_M == pytest.approx(18705.2, abs=1e-3)
     r = _one("$IIVLW,115.2,N,12.3,N*7A")
@@ -102,11 +106,14 @@ def test_signalk_vlw_mtw_heading_expectations() -> None:
 
 
 def test_bad_checksum_vector_is_rejected() -> None:
+    """Signal K's bad-checksum vector raises ChecksumError."""
     with pytest.raises(ChecksumError):
         _one("$GPROT,35.6,A*FF")
 
 
 def test_go_nmea_vbw_and_vhw() -> None:
+    """go-nmea's VBW vector gives a valid water pair on its own A status while the ground pair is V,
+    and its VHW vector gives all four fields."""
     r = _one("$VMVBW,-7.1,0.1,A,,,V,,V,,V*65")
     assert isinstance(r, Vbw)
     assert r.water_long_mps == pytest.approx(-7.1 * KNOT_MPS)
@@ -124,12 +131,15 @@ def test_go_nmea_vbw_and_vhw() -> None:
      and "error" in v["expected_by_source"] and v["sentence"].startswith(("$VMVBW", "$VWVHW"))],
 )  # fmt: skip
 def test_go_nmea_malformed_fields_are_bad_field(sentence: str) -> None:
+    """Each of go-nmea's malformed VBW/VHW vectors is rejected as bad_field."""
     dec = NmeaDecoder("x", errors="yield")
     (r,) = dec.decode_all((sentence + "\r\n").encode())
     assert isinstance(r, Rejected) and r.reason == "bad_field", r
 
 
 def test_marnav_style_vbw_pairs_and_the_minus_zero() -> None:
+    """marnav-style VBWs decode a water pair alone, a ground pair alone and -0 as 0.0 with the stern
+    ground pair valid, and a VHW with a heading but no speed has no STW."""
     r = _one("$IIVBW,1.0,-1.5,A,,,*2A")
     assert (
         isinstance(r, Vbw) and r.water_valid and r.water_trans_mps == pytest.approx(-1.5 * KNOT_MPS)
@@ -143,6 +153,9 @@ def test_marnav_style_vbw_pairs_and_the_minus_zero() -> None:
 
 
 def test_rowe_prti_vectors() -> None:
+    """Rowe's PRTI01/PRTI02 vectors (12 and 14 fields) decode time, sample, temperature, status,
+    subsystem and CEPO index with -99999 velocities as None, and a PRTI01 without bottom gives an
+    invalid speed record."""
     r = _one("$PRTI01,379550,1,1468,-99999,-99999,-99999,0,,,,,0004*09")
     assert isinstance(r, Prti)
     assert (r.start_time_s, r.sample, r.temperature_c) == (3795.5, 1, 14.68)
@@ -159,6 +172,8 @@ def test_rowe_prti_vectors() -> None:
 
 
 def test_gpsd_bundg_zeus_capture() -> None:
+    """gpsd's Bundg Zeus capture decodes to its known VHW, VLW, MTW and HDG counts with no checksum
+    reject and framing rejects only for its '#' comment lines."""
     out, dec = _decode("gpsd_bundg_zeus_9.log")
     kinds = Counter(type(r).__name__ for r in out)
     assert kinds["Vhw"] == 150 and kinds["Vlw"] == 150 and kinds["Mtw"] == 149
@@ -176,6 +191,8 @@ def test_gpsd_bundg_zeus_capture() -> None:
 
 
 def test_signalk_gofree_capture_with_garbage_inside() -> None:
+    """Signal K's GoFree capture gives its MTW, heading and VHW counts, rejects its garbled VLW and
+    92-character XDR lines, and a larger max_length admits some too-long lines."""
     out, dec = _decode("signalk_gofree-merrimac.log")
     kinds = Counter(type(r).__name__ for r in out)
     assert kinds["Mtw"] == 142
@@ -195,6 +212,8 @@ def test_signalk_gofree_capture_with_garbage_inside() -> None:
 
 
 def test_signalk_plaka_capture() -> None:
+    """Signal K's Plaka capture gives 938 speed-only VHW between 5.5 and 6.5 kn and 1875 HDT without
+    a checksum or field reject."""
     out, dec = _decode("signalk_plaka_first15000lines.log")
     vhw = [r for r in out if isinstance(r, Vhw)]
     assert len(vhw) == 938
@@ -206,6 +225,8 @@ def test_signalk_plaka_capture() -> None:
 
 
 def test_humminbird_mtw() -> None:
+    """gpsd's Humminbird capture gives 16 MTW near 18 °C, the first being gpsd's documented 17.9
+    °C."""
     out, _ = _decode("gpsd_humminbird-M37.log")
     mtw = [r for r in out if isinstance(r, Mtw)]
     assert len(mtw) == 16 and all(17.9 <= (r.temperature_c or 0) <= 18.1 for r in mtw)
@@ -213,6 +234,8 @@ def test_humminbird_mtw() -> None:
 
 
 def test_our_fast_path_agrees_with_pynmea2_on_every_real_vhw_and_vbw() -> None:
+    """Every VHW we decode from the three real captures (over 1000; they hold no VBW) has the
+    headings and speeds pynmea2 gives."""
     n = 0
     for name in (
         "gpsd_bundg_zeus_9.log",
@@ -241,6 +264,8 @@ def test_our_fast_path_agrees_with_pynmea2_on_every_real_vhw_and_vbw() -> None:
 
 
 def test_gpl_capture_in_place() -> None:
+    """The Hakefjord capture in ../shared gives 1883 each of VHW, VLW and MTW, magnetic heading
+    only, with no checksum reject (skipped when absent)."""
     path = SHARED / "vdrplayer_Hakefjord.txt"
     if not path.exists():
         pytest.skip("../shared/conformance is not present (GPL file, not copied)")
@@ -253,6 +278,9 @@ def test_gpl_capture_in_place() -> None:
 
 
 def test_lgpl_and_unchecked_vectors_in_place() -> None:
+    """The LGPL vectors in ../shared decode (a checksum-less 10-field VBW with all four pairs valid,
+    a full VHW), a VHW with an empty T flag decodes, and one with shifted fields raises
+    FieldError."""
     path = SHARED / "test_vectors_from_projects.jsonl"
     if not path.exists():
         pytest.skip("../shared/conformance is not present")

@@ -30,6 +30,9 @@ def _lines(**kw: object) -> bytes:
 
 
 def test_manual_pd13_example() -> None:
+    """The TRDI manual's PD13 example decodes to its attitude, timestamp, environment, beam ranges,
+    bottom track and no water track, and its speed record takes :BS as vessel motion with the
+    heading."""
     dec = PdAsciiDecoder("dvl", errors="yield")
     (e,) = dec.decode_all(EXAMPLE.read_bytes())
     assert isinstance(e, Pd6Ensemble)
@@ -62,6 +65,8 @@ def test_manual_pd13_example() -> None:
 
 
 def test_round_trip_and_water_track() -> None:
+    """An encoded PD6 ensemble with water track decodes to its bottom ship and earth velocities and
+    timestamp, and gives a PD6:BS then a PD6:WS stw record."""
     dec = PdAsciiDecoder("dvl")
     (e,) = dec.decode_all(_lines(water_ship_mps=(0.05, 1.4, 0.0)))
     assert isinstance(e, Pd6Ensemble)
@@ -78,6 +83,8 @@ def test_round_trip_and_water_track() -> None:
 
 
 def test_no_bottom_lock() -> None:
+    """An ensemble without bottom lock has no bottom velocities and gives an invalid speed
+    record."""
     dec = PdAsciiDecoder("dvl")
     (e,) = dec.decode_all(_lines(bottom_ship_mps=None, range_m=None))
     assert isinstance(e, Pd6Ensemble) and e.bottom_ship is None and e.bottom_earth is None
@@ -86,6 +93,8 @@ def test_no_bottom_lock() -> None:
 
 
 def test_a_bad_line_discards_the_block_and_is_counted_twice() -> None:
+    """A bad field discards its ensemble with a bad_field reject plus a framing reject for the torn
+    block, and the next ensemble still decodes."""
     block = _lines().replace(b":BS,+00100", b":BS,+0x100")
     dec = PdAsciiDecoder("dvl", errors="yield")
     out = dec.decode_all(block + _lines())
@@ -108,6 +117,8 @@ def test_a_bad_line_discards_the_block_and_is_counted_twice() -> None:
     ],
 )
 def test_line_validation(mangle: object, reason: str) -> None:
+    """A wrong field count, status letter, out-of-range heading, short timestamp or unknown line id
+    discards the ensemble with one reject of the matching reason."""
     dec = PdAsciiDecoder("dvl", errors="yield")
     out = dec.decode_all(mangle(_lines()))  # type: ignore[operator]
     assert not any(isinstance(r, Pd6Ensemble) for r in out)
@@ -115,6 +126,8 @@ def test_line_validation(mangle: object, reason: str) -> None:
 
 
 def test_missing_and_out_of_order_lines() -> None:
+    """A block missing its last line is one framing reject and the next ensemble decodes, lines out
+    of order give no ensemble, and a line outside an ensemble is a framing reject."""
     lines = _lines().split(b"\r\n")
     no_bd = b"\r\n".join(lines[:-2]) + b"\r\n"
     dec = PdAsciiDecoder("dvl", errors="yield")
@@ -130,6 +143,7 @@ def test_missing_and_out_of_order_lines() -> None:
 
 
 def test_pathfinder_health_line() -> None:
+    """A Pathfinder :HM line after an ensemble comes out as a PdHealth record holding its fields."""
     dec = PdAsciiDecoder("dvl")
     out = dec.decode_all(_lines() + b":HM,G,G,0000,0000,12.345,1.234,10.000\r\n")
     assert isinstance(out[0], Pd6Ensemble) and isinstance(out[1], PdHealth)
@@ -144,6 +158,8 @@ def test_pathfinder_health_line() -> None:
     cuts=st.lists(st.integers(0, 400), max_size=8),
 )
 def test_round_trip_any_chunking(t: float, l_: float, heading: float, cuts: list[int]) -> None:
+    """Any bottom velocity and heading survive encoding and decoding within the format's rounding
+    however the bytes are chunked."""
     data = _lines(bottom_ship_mps=(t, l_, 0.0), heading_deg=heading)
     dec = PdAsciiDecoder("dvl")
     out: list[object] = []
@@ -163,6 +179,8 @@ def test_round_trip_any_chunking(t: float, l_: float, heading: float, cuts: list
 @settings(max_examples=300, deadline=None)
 @given(pos=st.integers(0, 400), value=st.integers(0, 255))
 def test_a_corrupted_byte_never_yields_a_wrong_ensemble(pos: int, value: int) -> None:
+    """One changed byte never yields an ensemble with another timestamp unless the new byte is a
+    digit (PD6 has no checksum to catch that)."""
     data = bytearray(_lines())
     original = PdAsciiDecoder("dvl").decode_all(bytes(data))[0]
     pos %= len(data)
@@ -179,6 +197,7 @@ def test_a_corrupted_byte_never_yields_a_wrong_ensemble(pos: int, value: int) ->
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=2000))
 def test_random_bytes_never_raise(data: bytes) -> None:
+    """Arbitrary bytes after a colon never raise in skip mode."""
     PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
 
 
@@ -186,6 +205,7 @@ def test_random_bytes_never_raise(data: bytes) -> None:
 @settings(max_examples=100_000, deadline=None)
 @given(st.binary(max_size=2000))
 def test_fuzz_random_bytes(data: bytes) -> None:
+    """Arbitrary bytes after a colon never raise in skip mode (fuzz run)."""
     PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
 
 
@@ -193,6 +213,7 @@ def test_fuzz_random_bytes(data: bytes) -> None:
 @settings(max_examples=100_000, deadline=None)
 @given(pos=st.integers(0, 400), value=st.integers(0, 255))
 def test_fuzz_corrupted_byte(pos: int, value: int) -> None:
+    """One changed byte never yields a wrong ensemble (fuzz run)."""
     test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
 
 
@@ -234,6 +255,8 @@ def _pd6_lines(draw: st.DrawFn) -> tuple[str, list[str]]:
 @settings(max_examples=3000, deadline=None)
 @given(_pd6_lines())
 def test_fast_line_agrees_with_field_path(line_fields: tuple[str, list[str]]) -> None:
+    """Every line the one-line fast path accepts gives the field-by-field value, and every range
+    error it raises is the field-by-field error."""
     from drivers.errors import FrameError
     from drivers.rdi_ascii import _fast_line, _parse_fields
 
@@ -263,6 +286,7 @@ def test_fast_line_agrees_with_field_path(line_fields: tuple[str, list[str]]) ->
     ],
 )
 def test_fast_line_takes_the_plain_layouts(line: bytes) -> None:
+    """The line layouts DVLs send take the one-line fast path and give the field-by-field result."""
     from drivers.rdi_ascii import _fast_line, _parse_fields
 
     fast = _fast_line(line)
@@ -315,6 +339,8 @@ def _pd6_chunks(draw: st.DrawFn) -> bytes:
 @settings(max_examples=3000, deadline=None)
 @given(_pd6_chunks(), st.sampled_from([82, 50]))
 def test_whole_ensemble_fast_path_agrees_with_line_by_line(data: bytes, max_length: int) -> None:
+    """A chunk holding one ensemble, intact or damaged, gives the same records, rejects and counters
+    whole as line by line."""
     from drivers.base import DecoderOptions
 
     opts = DecoderOptions(max_length=max_length)
@@ -336,6 +362,8 @@ def test_whole_ensemble_fast_path_agrees_with_line_by_line(data: bytes, max_leng
     ],
 )
 def test_whole_ensemble_fast_path_takes_the_usual_layouts(kw: dict[str, object]) -> None:
+    """The ensembles encode_pd6 sends take the whole-ensemble fast path and give the line-by-line
+    record."""
     from drivers.rdi_ascii import _fast_ensemble
 
     data = _lines(**kw)

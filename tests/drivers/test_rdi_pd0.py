@@ -36,6 +36,8 @@ def _expected(name: str) -> list[dict[str, int]]:
 
 
 def test_ooi_auv_51_every_ensemble_matches_the_yml() -> None:
+    """All 51 ensembles of OOI's AUV file decode without a reject to the ensemble numbers, attitude,
+    raw bottom-track velocities and ranges of OOI's expected particles, in ship frame."""
     ens, dec = _ensembles("ooi_adcp_auv_51.pd0")
     expected = _expected("ooi_adcp_auv_51.yml")
     assert len(ens) == len(expected) == 51
@@ -56,6 +58,8 @@ def test_ooi_auv_51_every_ensemble_matches_the_yml() -> None:
 
 
 def test_ooi_auv_3_values_from_sources_md() -> None:
+    """OOI's 3-ensemble file decodes to the numbers, velocities, ranges, attitude, frequency, serial
+    number, cell count and data types SOURCES.md records."""
     ens, _ = _ensembles("ooi_adcp_auv_3.pd0")
     assert [e.ensemble_number for e in ens] == [14, 15, 16]
     assert [e.bt_velocity_mms for e in ens] == [
@@ -72,6 +76,8 @@ def test_ooi_auv_3_values_from_sources_md() -> None:
 
 
 def test_invalid_bottom_track_gives_an_invalid_speed_record() -> None:
+    """An earth-frame ensemble with invalid bottom track has no velocities, zero ranges and no lock,
+    and gives an invalid PD0:BT speed record."""
     ens, dec = _ensembles("ooi_NE051351.PD0")
     assert len(ens) == 1
     e = ens[0]
@@ -84,6 +90,8 @@ def test_invalid_bottom_track_gives_an_invalid_speed_record() -> None:
 
 
 def test_corrupted_ensemble_is_one_checksum_reject_and_the_rest_decodes() -> None:
+    """OOI's corrupted file gives ensembles 1 and 3 and exactly one checksum reject for ensemble
+    2."""
     dec = Pd0Decoder("dvl", errors="yield")
     out = dec.decode_all((DATA / "ooi_LB180210_3_corrupted.PD0").read_bytes())
     ens = [r for r in out if isinstance(r, Pd0Ensemble)]
@@ -95,6 +103,8 @@ def test_corrupted_ensemble_is_one_checksum_reject_and_the_rest_decodes() -> Non
 
 
 def test_raise_mode_loses_nothing_after_a_corrupted_ensemble() -> None:
+    """In raise mode the corrupted ensemble raises ChecksumError and ensembles 1 and 3 still come
+    out on the following feeds."""
     dec = Pd0Decoder("dvl", errors="raise")
     data = (DATA / "ooi_LB180210_3_corrupted.PD0").read_bytes()
     got: list[object] = []
@@ -115,6 +125,8 @@ def test_sign_convention_vessel_motion_is_minus_bottom_velocity() -> None:
 
 
 def test_garbage_between_ensembles_is_one_framing_reject_per_run() -> None:
+    """Garbage before and between ensembles is one framing reject per run and all three ensembles
+    decode."""
     data = (DATA / "ooi_adcp_auv_3.pd0").read_bytes()
     dec = Pd0Decoder("dvl", errors="skip")
     out = dec.decode_all(b"\x01\x02garbage" + data[:432] + b"x" * 500 + data[432:])
@@ -123,6 +135,8 @@ def test_garbage_between_ensembles_is_one_framing_reject_per_run() -> None:
 
 
 def test_buffer_stays_bounded_under_garbage() -> None:
+    """500 kB of garbage keeps at most a partial header buffered and is one framing reject, reported
+    when the run ends at flush."""
     dec = Pd0Decoder("dvl", errors="skip")
     for _ in range(50):
         list(dec.feed(b"\x00" * 10_000))
@@ -134,6 +148,8 @@ def test_buffer_stays_bounded_under_garbage() -> None:
 
 @pytest.mark.parametrize("frame", ["ship", "earth", "instrument"])
 def test_encoder_round_trip(frame: str) -> None:
+    """encode_pd0 in ship, earth or instrument frame decodes to its ensemble number, RTC, attitude,
+    ranges and bottom speed within mm rounding."""
     b = encode_pd0(
         ensemble_number=70000,
         timestamp=datetime(2025, 6, 12, 8, 1, 2, 340000, tzinfo=UTC),
@@ -157,6 +173,7 @@ def test_encoder_round_trip(frame: str) -> None:
 
 
 def test_encoder_without_bottom_lock() -> None:
+    """An ensemble encoded without bottom track decodes with no velocities and no bottom lock."""
     b = encode_pd0(ensemble_number=1, timestamp=datetime(2025, 1, 1, tzinfo=UTC), heading_deg=0.0)
     dec = Pd0Decoder("dvl")
     (e,) = dec.decode_all(b)
@@ -167,6 +184,7 @@ def test_encoder_without_bottom_lock() -> None:
 @settings(max_examples=200, deadline=None)
 @given(cuts=st.lists(st.integers(min_value=0, max_value=1296), max_size=20))
 def test_any_chunking_gives_the_same_records(cuts: list[int]) -> None:
+    """OOI's 3-ensemble file gives the same records however it is cut into chunks."""
     data = (DATA / "ooi_adcp_auv_3.pd0").read_bytes()
     whole = Pd0Decoder("dvl").decode_all(data)
     dec = Pd0Decoder("dvl")
@@ -194,6 +212,8 @@ def _flip_test(pos: int, xor: int) -> None:
 @settings(max_examples=300, deadline=None)
 @given(pos=st.integers(min_value=0, max_value=10_000), xor=st.integers(min_value=1, max_value=255))
 def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) -> None:
+    """A flipped byte anywhere in the file yields only original ensembles, and at least two of the
+    three."""
     _flip_test(pos, xor)
 
 
@@ -201,12 +221,15 @@ def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) ->
 @settings(max_examples=100_000, deadline=None)
 @given(pos=st.integers(min_value=0, max_value=10_000), xor=st.integers(min_value=1, max_value=255))
 def test_fuzz_flipped_bytes(pos: int, xor: int) -> None:
+    """A flipped byte anywhere in the file yields only original ensembles, at least two of three
+    (fuzz run)."""
     _flip_test(pos, xor)
 
 
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=3000))
 def test_random_bytes_never_raise_in_skip_mode(data: bytes) -> None:
+    """Arbitrary bytes after a PD0 header never raise in skip mode and yield only ensembles."""
     dec = Pd0Decoder("dvl", errors="skip")
     for r in dec.decode_all(b"\x7f\x7f" + data):
         assert isinstance(r, Pd0Ensemble)

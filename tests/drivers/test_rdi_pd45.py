@@ -13,6 +13,8 @@ from drivers.rdi_pd45 import Pd45Decoder, Pd45Ensemble, encode_pd45
 
 @pytest.mark.parametrize("pd5", [False, True])
 def test_round_trip_ship_frame(pd5: bool) -> None:
+    """A PD4 (47 bytes) or PD5 (88 bytes) ship-frame ensemble round-trips its velocities as vessel
+    motion (X transverse, Y longitudinal), ranges, temperature, PD5's heading and its source."""
     b = encode_pd45(
         pd5=pd5, bottom_ship_mps=(1.5, -0.25), range_m=20.0, heading_deg=30.0, temperature_c=12.34
     )
@@ -32,6 +34,8 @@ def test_round_trip_ship_frame(pd5: bool) -> None:
 
 
 def test_earth_frame_needs_a_heading() -> None:
+    """Earth-frame velocities give an invalid speed record from PD4 (no heading) and the ship-frame
+    speeds from PD5, rotated with its heading."""
     dec = Pd45Decoder("dvl")
     pd4 = dec.decode_all(encode_pd45(bottom_ship_mps=(1.0, 0.0), range_m=5, coord_frame="earth"))[0]
     (sp,) = dec.speed_records(pd4)
@@ -48,6 +52,7 @@ def test_earth_frame_needs_a_heading() -> None:
 
 
 def test_no_bottom_lock() -> None:
+    """An ensemble without bottom lock has no velocities and gives an invalid speed record."""
     dec = Pd45Decoder("dvl")
     (e,) = dec.decode_all(encode_pd45(bottom_ship_mps=None))
     assert isinstance(e, Pd45Ensemble)
@@ -57,6 +62,8 @@ def test_no_bottom_lock() -> None:
 
 
 def test_bad_checksum_and_resync() -> None:
+    """Leading junk, a corrupted frame and a stray header are rejected (one checksum, framing at
+    least once) and both good frames decode."""
     good = encode_pd45(bottom_ship_mps=(1.0, 0.0), range_m=5)
     bad = bytearray(good)
     bad[10] ^= 0xFF
@@ -68,6 +75,7 @@ def test_bad_checksum_and_resync() -> None:
 
 
 def test_wrong_length_for_the_structure_is_not_a_frame() -> None:
+    """A PD4 id carrying PD5's length is not decoded as a frame and is counted as rejected."""
     frame = bytearray(encode_pd45(bottom_ship_mps=(1.0, 0.0), range_m=5))
     struct.pack_into("<H", frame, 2, 86)  # PD4 id with the PD5 length
     dec = Pd45Decoder("dvl", errors="skip")
@@ -83,6 +91,8 @@ def test_wrong_length_for_the_structure_is_not_a_frame() -> None:
     cuts=st.lists(st.integers(0, 200), max_size=8),
 )
 def test_round_trip_and_chunking(fwd: float, stb: float, pd5: bool, cuts: list[int]) -> None:
+    """Two ensembles of any speed decode to two records however they are chunked, the longitudinal
+    speed exact to the mm."""
     data = encode_pd45(pd5=pd5, bottom_ship_mps=(fwd, stb), range_m=10) * 2
     dec = Pd45Decoder("dvl")
     out: list[object] = []
@@ -100,6 +110,7 @@ def test_round_trip_and_chunking(fwd: float, stb: float, pd5: bool, cuts: list[i
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=500))
 def test_random_bytes_never_raise(data: bytes) -> None:
+    """Arbitrary bytes after a PD4/PD5 header never raise in skip mode and yield only ensembles."""
     dec = Pd45Decoder("dvl", errors="skip")
     for r in dec.decode_all(b"\x7d" + data):
         assert isinstance(r, Pd45Ensemble)
@@ -109,6 +120,8 @@ def test_random_bytes_never_raise(data: bytes) -> None:
 @settings(max_examples=100_000, deadline=None)
 @given(st.binary(max_size=500))
 def test_fuzz_random_bytes(data: bytes) -> None:
+    """Arbitrary bytes after a PD4/PD5 header never raise in skip mode and yield only ensembles
+    (fuzz run)."""
     dec = Pd45Decoder("dvl", errors="skip")
     for r in dec.decode_all(b"\x7d" + data):
         assert isinstance(r, Pd45Ensemble)

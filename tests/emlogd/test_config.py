@@ -21,6 +21,8 @@ calibration:
 
 
 def test_example_config_loads() -> None:
+    """examples/emlogd.yaml loads with its three ports, two EM3 calibrations with automatic lag, the
+    pty path and mode, and the state path."""
     cfg = load_config(EXAMPLE)
     assert [p.name for p in cfg.ports] == ["emlog1", "emlog2", "dvl"]
     assert [(u.uut, u.model, u.lag_s) for u in cfg.calibration] == [
@@ -33,6 +35,8 @@ def test_example_config_loads() -> None:
 
 
 def test_defaults_and_relative_paths(tmp_path: Path) -> None:
+    """Device, pty and state paths resolve against the config file's directory, socket URLs are
+    kept, and checksum and baud default to required and 9600."""
     f = tmp_path / "c.yaml"
     f.write_text(
         "ports:\n  - {name: a, url: links/a, protocol: nmea0183, role: uut}\n"
@@ -114,11 +118,14 @@ INVALID: list[tuple[str, str, str]] = [
 
 
 def test_at_least_thirty_invalid_configs() -> None:
+    """The table of invalid configs keeps at least thirty cases."""
     assert len(INVALID) >= 30
 
 
 @pytest.mark.parametrize(("what", "text", "expected"), INVALID, ids=[c[0] for c in INVALID])
 def test_invalid_config_names_file_line_and_key(what: str, text: str, expected: str) -> None:
+    """Each invalid config raises a ConfigError that starts with file:line: and names the key and
+    its problem."""
     with pytest.raises(ConfigError) as exc:
         parse_config(text, "bad.yaml")
     msg = str(exc.value)
@@ -128,12 +135,14 @@ def test_invalid_config_names_file_line_and_key(what: str, text: str, expected: 
 
 
 def test_line_numbers_point_at_the_problem() -> None:
+    """An error in the second calibration entry gives the line of the offending key."""
     text = BASE + "  - uut: emlog1\n    reference: dvl\n    model: EM7\n"
     with pytest.raises(ConfigError, match=r"^bad.yaml:8: calibration\[1\].model"):
         parse_config(text, "bad.yaml")
 
 
 def test_unreadable_file(tmp_path: Path) -> None:
+    """A missing config file is a ConfigError saying it cannot be read."""
     with pytest.raises(ConfigError, match="cannot read"):
         load_config(tmp_path / "missing.yaml")
 

@@ -33,6 +33,8 @@ def _is_open(src: SerialSource) -> bool:
 
 
 def test_reads_a_real_pty_in_chunks(pty_pair: tuple[int, int, str]) -> None:
+    """200 sentences written to a real pty arrive intact in fewer than 200 chunks stamped with the
+    port and a time, after one connected event, and close drops the descriptor."""
     master, _, path = pty_pair
     src = SerialSource("emlog1", path, baudrate=4800)
     assert src.open()
@@ -48,6 +50,7 @@ def test_reads_a_real_pty_in_chunks(pty_pair: tuple[int, int, str]) -> None:
 
 
 def test_loop_url_without_file_descriptor() -> None:
+    """A loop:// URL, which has no file descriptor, opens and reads back what is written to it."""
     src = SerialSource("l", "loop://", baudrate=9600)
     assert src.open()
     assert src._ser is not None
@@ -57,6 +60,8 @@ def test_loop_url_without_file_descriptor() -> None:
 
 
 def test_missing_device_is_an_event_then_reconnects(tmp_path: Path) -> None:
+    """A device missing at start is a disconnected event rather than a crash, is not retried before
+    its backoff, and connects once it exists and the backoff has passed."""
     link = tmp_path / "emlog1"
     clock = [0.0]
     src = SerialSource("emlog1", str(link), backoff_s=(0.5, 1.0), monotonic=lambda: clock[0])
@@ -73,6 +78,8 @@ def test_missing_device_is_an_event_then_reconnects(tmp_path: Path) -> None:
 
 
 def test_unplug_and_replug_at_the_same_path(tmp_path: Path) -> None:
+    """An unplugged pty closes the source with one disconnected event, and a new pty at the same
+    path is reconnected (reconnects 1) and read."""
     link = tmp_path / "dvl"
     vp = VirtualPort(link)
     src = SerialSource("dvl", str(link), backoff_s=(0.01,))
@@ -102,6 +109,8 @@ def test_unplug_and_replug_at_the_same_path(tmp_path: Path) -> None:
 
 
 def test_stale_and_alive_events(pty_pair: tuple[int, int, str]) -> None:
+    """No data for stale_timeout_s gives one stale event, not repeated, and the next data an alive
+    event."""
     master, _, path = pty_pair
     clock = [100.0]
     src = SerialSource("p", path, stale_timeout_s=2.0, monotonic=lambda: clock[0])
@@ -120,6 +129,8 @@ def test_stale_and_alive_events(pty_pair: tuple[int, int, str]) -> None:
 
 
 def test_bad_url_scheme_is_a_device_error() -> None:
+    """An unknown URL scheme is a DeviceError and an empty backoff a ValueError, both at
+    construction."""
     with pytest.raises(DeviceError, match="invalid URL"):
         SerialSource("x", "nonsense://here")
     with pytest.raises(ValueError, match="backoff"):
@@ -166,9 +177,12 @@ def _rss() -> int:
 
 
 def test_replug_cycles_leak_no_descriptors(tmp_path: Path) -> None:
+    """Ten unplug/replug cycles each reconnect and read, and leak no file descriptor or memory."""
     _replug_cycles(tmp_path, 10)
 
 
 @pytest.mark.soak
 def test_hundred_replug_cycles(tmp_path: Path) -> None:
+    """A hundred unplug/replug cycles each reconnect and read, and leak no file descriptor or memory
+    (soak run)."""
     _replug_cycles(tmp_path, 100)

@@ -34,6 +34,8 @@ def _read(fd: int, timeout: float = 2.0) -> bytes:
 
 
 def test_symlink_mode_and_raw_bytes(tmp_path: Path) -> None:
+    """The link points at the pty with the requested mode, bytes pass raw (no CR/LF translation, no
+    echo), and closing removes the link."""
     link = tmp_path / "run" / "emlog0"
     with VirtualPort(link, mode=0o640) as vp:
         assert link.is_symlink() and str(link.readlink()) == vp.slave_path
@@ -50,6 +52,8 @@ def test_symlink_mode_and_raw_bytes(tmp_path: Path) -> None:
 
 
 def test_late_reader_sees_no_backlog(tmp_path: Path) -> None:
+    """Writes without a reader are dropped and counted, so a reader that opens or reopens later gets
+    only what was written after it opened."""
     link = tmp_path / "p"
     with VirtualPort(link) as vp:
         assert not vp.has_reader()
@@ -76,14 +80,15 @@ def _sentence(k: int) -> bytes:
 
 
 def test_a_reader_that_never_reads_never_blocks_the_writer(tmp_path: Path) -> None:
+    """Without a backlog limit, a reader that never reads makes writes drop instead of blocking and
+    is left the oldest data."""
     # without a backlog limit (kernel behaviour): the pty fills, further writes are dropped
     with VirtualPort(tmp_path / "p", max_backlog=None) as vp:
         fd = _open(tmp_path / "p")
         try:
-            t0 = time.monotonic()
+            # the pty fills long before 20 000 sentences: a blocking writer hangs here
             for k in range(20_000):
                 vp.write(_sentence(k))
-            assert time.monotonic() - t0 < 30  # generous: only catches a blocked writer
             assert vp.dropped > 0 and vp.written > 0 and vp.flushes == 0
             got = _read(fd)
             assert got.startswith(_sentence(0))  # the oldest data: a stale backlog
@@ -92,6 +97,8 @@ def test_a_reader_that_never_reads_never_blocks_the_writer(tmp_path: Path) -> No
 
 
 def test_a_stalled_reader_resumes_with_recent_data(tmp_path: Path) -> None:
+    """With a backlog limit every write is accepted in full (old data flushed), and a stalled reader
+    finds only recent sentences, the last one included."""
     with VirtualPort(tmp_path / "p", max_backlog=2048) as vp:
         fd = _open(tmp_path / "p")
         try:
@@ -110,6 +117,7 @@ def test_a_stalled_reader_resumes_with_recent_data(tmp_path: Path) -> None:
 
 
 def test_a_live_reader_loses_nothing(tmp_path: Path) -> None:
+    """A reader that keeps reading gets every byte in order and the backlog is never flushed."""
     with VirtualPort(tmp_path / "p") as vp:
         fd = _open(tmp_path / "p")
         expected = b"".join(_sentence(k) for k in range(3000))
@@ -127,12 +135,15 @@ def test_a_live_reader_loses_nothing(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("bad", [0, -1, 4096, 100_000])
 def test_max_backlog_range(tmp_path: Path, bad: int) -> None:
+    """A max_backlog outside 1..4095 is a ValueError and creates no link."""
     with pytest.raises(ValueError, match="max_backlog"):
         VirtualPort(tmp_path / "p", max_backlog=bad)
     assert not (tmp_path / "p").exists()
 
 
 def test_replaces_a_stale_link_and_refuses_a_file(tmp_path: Path) -> None:
+    """A dangling symlink at the path is replaced, and a regular file there is refused with
+    DeviceError and left intact."""
     link = tmp_path / "p"
     link.symlink_to("/dev/pts/does-not-exist")
     with VirtualPort(link) as vp:
@@ -145,6 +156,8 @@ def test_replaces_a_stale_link_and_refuses_a_file(tmp_path: Path) -> None:
 
 
 def test_close_keeps_a_link_that_is_no_longer_ours(tmp_path: Path) -> None:
+    """Closing a port whose path another port has taken over leaves the newer link, and close is
+    idempotent."""
     link = tmp_path / "p"
     first = VirtualPort(link)
     second = VirtualPort(link)  # a new daemon took the path over

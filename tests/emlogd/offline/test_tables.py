@@ -13,6 +13,8 @@ from emlogd.offline.tables import fmt, render, table2, table3
 
 
 def test_fmt_prints_dash_for_missing() -> None:
+    """fmt prints '-' for None, NaN and infinity, and otherwise the number in the given format
+    (three decimals by default)."""
     assert fmt(None) == "-"
     assert fmt(math.nan) == "-"
     assert fmt(math.inf) == "-"
@@ -21,6 +23,8 @@ def test_fmt_prints_dash_for_missing() -> None:
 
 
 def test_render_aligns_columns() -> None:
+    """render left-aligns the first column and right-aligns the others to their widest cell, and
+    refuses a row with the wrong number of cells."""
     text = render(["name", "x"], [["a", "1.0"], ["longer", "10.25"]])
     lines = text.splitlines()
     assert lines[0] == "name        x"
@@ -43,6 +47,9 @@ def _result() -> object:
 
 
 def test_table3_and_table2_layouts() -> None:
+    """Table III has the train/test header, one row per segment with the in-sample cell starred and
+    a raw RMSE line, and Table II names its pair and has one row per estimator with its
+    parameters."""
     res = _result()
     t3 = table3(res, "LS-EM3")  # type: ignore[arg-type]
     lines = t3.splitlines()
