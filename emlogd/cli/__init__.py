@@ -13,20 +13,26 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from collections.abc import Sequence
 
 from drivers import EmlogdError
 from emlogd import __version__
 from emlogd.cli import daemon, devices, offline
-from emlogd.cli.common import Handler, UsageError, progress_done
+from emlogd.cli.common import Handler, Parser, UsageError, progress_done
 
 __all__ = ["UsageError", "build_parser", "main"]
 
 
+def _one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line (a multi-line message joined with '; ')."""
+    return re.sub(r"\s*\n\s*", "; ", str(exc).strip())
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (exposed for tests and documentation)."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="emlogd",
         description="EMlog calibration daemon and offline tools.",
     )
@@ -59,18 +65,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         if args.debug:
             raise
-        sys.stderr.write(f"emlogd {args.command}: {exc}\n")
+        sys.stderr.write(f"emlogd {args.command}: {_one_line(exc)}\n")
         return 2
     except (EmlogdError, OSError) as exc:
         if args.debug:
             raise
         if isinstance(exc, BrokenPipeError):
             return 0
-        sys.stderr.write(f"emlogd {args.command}: error: {exc}\n")
+        sys.stderr.write(f"emlogd {args.command}: error: {_one_line(exc)}\n")
         return 1
     except KeyboardInterrupt:
         progress_done()
         return 130
+    except Exception as exc:  # a bug: still one line, the traceback with --debug
+        if args.debug:
+            raise
+        progress_done()
+        sys.stderr.write(
+            f"emlogd {args.command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+            "(--debug shows the traceback)\n"
+        )
+        return 1
     finally:
         try:
             sys.stdout.flush()

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NoReturn, TypeAlias
 
 from drivers import EmlogdError
 
@@ -14,6 +15,21 @@ Handler = Callable[[argparse.Namespace], int]
 
 class UsageError(EmlogdError):
     """A command line that parses but makes no sense (exit code 2)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr (exit code 2).
+
+    Sub-command parsers are of the same class (``add_subparsers`` uses the parent's).
+    """
+
+    def error(self, message: str) -> NoReturn:
+        """Print ``PROG: error: MESSAGE (PROG --help)`` and exit 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+Subparsers: TypeAlias = "argparse._SubParsersAction[Parser]"
+"""What ``add_subparsers`` returns; each command group adds its commands to it."""
 
 
 def is_tty(stream: Any) -> bool:
@@ -45,3 +61,14 @@ def config_path(args: argparse.Namespace) -> str:
     from emlogd.config import DEFAULT_PATH
 
     return str(getattr(args, "config", None) or DEFAULT_PATH)
+
+
+def positive_float(value: str) -> float:
+    """argparse type: a finite number greater than zero (a speed, a duration)."""
+    try:
+        x = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, not {value!r}") from None
+    if not (x > 0.0 and math.isfinite(x)):
+        raise argparse.ArgumentTypeError(f"must be a positive number, not {value!r}")
+    return x

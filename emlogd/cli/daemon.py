@@ -7,7 +7,7 @@ import json
 import sys
 
 from drivers import EmlogdError
-from emlogd.cli.common import UsageError, config_path
+from emlogd.cli.common import Subparsers, UsageError, config_path, positive_float
 from emlogd.offline.tables import fmt
 
 
@@ -92,7 +92,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_demo_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_demo_parser(sub: Subparsers) -> None:
     """The ``demo`` sub-command."""
     p = sub.add_parser(
         "demo",
@@ -101,12 +101,12 @@ def add_demo_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "devices on ptys, run the real daemon against them, read its corrected NMEA, show the "
         "calibration converging and the error before and after.",
     )
-    p.add_argument("--speed", type=float, default=10.0, help="replay speed (default 10x)")
+    p.add_argument("--speed", type=positive_float, default=10.0, help="replay speed (default 10x)")
     p.add_argument("--workdir", metavar="DIR", help="keep config, ptys, log and state here")
     p.set_defaults(handler=cmd_demo)
 
 
-def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_parsers(sub: Subparsers) -> None:
     """The ``run`` and ``check-config`` sub-commands."""
     p = sub.add_parser(
         "run",
@@ -122,7 +122,7 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     p.set_defaults(handler=cmd_check_config)
 
 
-def add_control_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_control_parsers(sub: Subparsers) -> None:
     """The ``status``, ``freeze``, ``reset`` and ``learn`` sub-commands."""
     for name, text in (
         ("status", "show the running daemon's calibration and ports"),

@@ -14,7 +14,7 @@ from typing import Any
 
 from drivers import DecoderOptions, make_decoder, protocol_names
 from drivers.base import Decoder
-from emlogd.cli.common import UsageError, progress, progress_done
+from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
 from emlogd.jsonio import to_jsonable
 
 _SNIFF_CHUNK = 4096
@@ -158,7 +158,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     """Capture live ports into a capture v1 file until Ctrl-C, SIGTERM or --duration."""
     import selectors
 
-    from drivers import is_binary
+    from drivers import DeviceError, is_binary
     from drivers.io.capture import CaptureWriter
     from drivers.io.port import SerialSource
 
@@ -172,7 +172,6 @@ def cmd_record(args: argparse.Namespace) -> int:
         nonlocal stop
         stop = True
 
-    old = signal.signal(signal.SIGTERM, _stop)
     sources = {
         name: SerialSource(name, url, baudrate=baud, stale_timeout_s=args.stale_timeout)
         for name, url, baud, _ in specs
@@ -184,10 +183,19 @@ def cmd_record(args: argparse.Namespace) -> int:
     registered: dict[str, int] = {}
     t_end = None if args.duration is None else time.monotonic() + args.duration
     last_t = 0.0
+    old = signal.signal(signal.SIGTERM, _stop)
     try:
-        with CaptureWriter(args.out, {n: p for n, _, _, p in specs}) as writer:
-            for src in sources.values():
-                src.open()
+        for name, src in sources.items():
+            if not src.open():
+                # a device missing at the start is a mistake on the command line, not an
+                # outage to ride out: fail before writing anything
+                why = "; ".join(ev.detail for ev in src.events()) or "cannot open"
+                raise DeviceError(f"port {name}: {why}")
+        try:
+            writer = CaptureWriter(args.out, {n: p for n, _, _, p in specs})
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+        with writer:
             while not stop and (t_end is None or time.monotonic() < t_end):
                 for name, src in sources.items():
                     fd = src.fileno()
@@ -271,7 +279,7 @@ def cmd_fake(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_parsers(sub: Subparsers) -> None:
     """The ``dump``, ``record`` and ``fake`` sub-commands."""
     p = sub.add_parser(
         "dump",
@@ -314,10 +322,10 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
         help="a port to record (repeat for several); protocol defaults to nmea0183",
     )
     p.add_argument("--out", required=True, metavar="FILE.cap", help="capture file to write")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
     p.add_argument(
         "--stale-timeout",
-        type=float,
+        type=positive_float,
         default=5.0,
         metavar="S",
         help="report a port silent for S seconds (default 5)",
@@ -334,7 +342,9 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     p.add_argument("--link", required=True, metavar="PATH", help="symlink to the pty slave")
     p.add_argument("--port", help="port of the capture to serve (needed if it has several)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--speed", type=float, default=1.0, metavar="X", help="X times real time")
+    g.add_argument(
+        "--speed", type=positive_float, default=1.0, metavar="X", help="X times real time"
+    )
     g.add_argument("--fast", action="store_true", help="as fast as the reader takes it")
     p.add_argument("--loop", action="store_true", help="start again at the end")
     p.set_defaults(handler=cmd_fake)

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from datetime import date
 from typing import Any
 
-from emlogd.cli.common import UsageError, progress, progress_done
+from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
     CalibrationResult,
@@ -481,7 +481,7 @@ def _common_offline(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
 
 
-def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_parsers(sub: Subparsers) -> None:
     """The ``simulate``, ``import``, ``calibrate``, ``evaluate``, ``crossval`` and ``report`` sub-commands."""
     p = sub.add_parser(
         "simulate",
@@ -607,7 +607,7 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     p.set_defaults(handler=cmd_report)
 
 
-def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_replay_parser(sub: Subparsers) -> None:
     """The ``replay`` sub-command."""
     p = sub.add_parser(
         "replay",
@@ -624,7 +624,7 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     g.add_argument("--learn", dest="learn", action="store_true", default=None, help="learn")
     g.add_argument("--no-learn", dest="learn", action="store_false", help="frozen parameters only")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--speed", type=float, metavar="X", help="pace at X times real time")
+    g.add_argument("--speed", type=positive_float, metavar="X", help="pace at X times real time")
     g.add_argument("--fast", action="store_true", help="as fast as possible (default)")
     p.add_argument("--out", metavar="FILE", help="write the corrected NMEA here")
     p.add_argument("--json", action="store_true", help="summary as one JSON document")

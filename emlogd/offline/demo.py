@@ -28,6 +28,7 @@ from importlib.resources import as_file, files
 from pathlib import Path
 from typing import TextIO
 
+from drivers.errors import EmlogdError
 from drivers.framing import split_nmea
 from drivers.io.fake import FakeDevice
 from emlogd.daemon.control import request
@@ -52,6 +53,10 @@ control_socket: run/control.sock
 log_format: json
 status_interval_s: 5
 """
+
+
+class DemoError(EmlogdError):
+    """The demo could not run to its end (the daemon did not start, died or hung)."""
 
 
 def _status_line(sentence: str) -> tuple[str, str] | None:
@@ -89,11 +94,12 @@ def run_demo(
         progress: called with each live line (tests).
 
     Raises:
-        RuntimeError: the daemon did not start or died.
+        DemoError: the daemon did not start, died or did not finish in time.
     """
     live = out.isatty() if live is None else live
     with tempfile.TemporaryDirectory(prefix="emlogd-demo-") as tmp:
-        work = Path(workdir) if workdir is not None else Path(tmp)
+        # absolute: the daemon runs in it, with the config named from outside it
+        work = Path(workdir).resolve() if workdir is not None else Path(tmp)
         for sub in ("links", "out", "state", "run"):
             (work / sub).mkdir(parents=True, exist_ok=True)
         cfg = work / "emlogd.yaml"
@@ -164,7 +170,7 @@ def _run(
     try:
         while time.monotonic() - t0 < timeout_s:
             if daemon.poll() is not None:
-                raise RuntimeError(
+                raise DemoError(
                     f"the daemon exited with {daemon.returncode}; see {work / 'daemon.log'}"
                 )
             if fd < 0:
@@ -202,7 +208,7 @@ def _run(
                 time.sleep(0.3)
                 break
         else:
-            raise RuntimeError(f"the demo did not finish within {timeout_s:.0f} s")
+            raise DemoError(f"the demo did not finish within {timeout_s:.0f} s")
         final = request(work / "run" / "control.sock", {"cmd": "status"})
     finally:
         if fd >= 0:

@@ -50,3 +50,33 @@ def test_bad_capture_names_file_and_line(
     assert main(["dump", str(bad2)]) == 1
     err = capsys.readouterr().err
     assert f"{bad2}:4:" in err and "backwards" in err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [[], ["calibrate"], ["dump", "x", "--protocol", "nope"], ["nope"], ["replay", "--fast"]],
+)
+def test_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    """A command line argparse refuses gives exit 2 and one line on stderr (no usage block)."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error:" in err and "--help" in err
+
+
+def test_unexpected_exception_is_one_line(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An exception no handler expected is one line with its type (exit 1); --debug raises it."""
+
+    def boom(args: object) -> int:
+        raise ValueError("first\nsecond")
+
+    monkeypatch.setattr("emlogd.cli.daemon.cmd_check_config", boom)
+    assert main(["check-config", "x.yaml"]) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        "emlogd check-config: internal error: ValueError: first; second "
+        "(--debug shows the traceback)\n"
+    )
+    with pytest.raises(ValueError):
+        main(["--debug", "check-config", "x.yaml"])

@@ -85,3 +85,26 @@ def test_fake_then_record_round_trip(tmp_path: Path, capsys: pytest.CaptureFixtu
     got = [r.payload.encode() for r in CaptureReader(out)]
     assert got == lines
     assert CaptureReader(out).ports == {"emlog1": "nmea0183"}
+
+
+@pytest.mark.parametrize("speed", ["0", "-2", "nan", "x"])
+def test_fake_rejects_a_speed_that_is_not_positive(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, speed: str
+) -> None:
+    """fake --speed 0, -2, nan or a word is a usage error: exit 2, one line, no traceback."""
+    assert main(["fake", "any.cap", "--link", str(tmp_path / "l"), "--speed", speed]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--speed" in err and "Traceback" not in err
+    assert not (tmp_path / "l").exists()
+
+
+def test_record_missing_device_is_one_line_exit_1(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """record on a device that does not exist fails at once (exit 1, one line) and writes no file."""
+    out = tmp_path / "rec.cap"
+    missing = tmp_path / "ttyNOPE"
+    assert main(["record", "--port", f"emlog1={missing}", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("emlogd record: error: port emlog1:")
+    assert str(missing) in err and not out.exists()

@@ -102,3 +102,13 @@ def test_replay_command(
     assert doc2["uuts"]["emlog1"]["state"] == "frozen"
     assert doc2["uuts"]["emlog1"]["params"] == u["params"]
     assert doc2["uuts"]["emlog1"]["rmse_corrected"] < doc2["uuts"]["emlog1"]["rmse_raw"]
+
+
+@pytest.mark.parametrize("speed", ["0", "-1"])
+def test_replay_rejects_a_speed_that_is_not_positive(
+    capsys: pytest.CaptureFixture[str], speed: str
+) -> None:
+    """replay --speed 0 or -1 is a usage error: exit 2, one line on stderr."""
+    assert main(["replay", "x.cap", "--config", "c.yaml", "--speed", speed]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--speed" in err and "Traceback" not in err
