@@ -151,12 +151,43 @@ def _lag_arg(value: str) -> float | None:
         raise argparse.ArgumentTypeError(f"expected auto or seconds, not {value!r}") from None
 
 
+STRICT_HELP = "fail at the first malformed capture record instead of counting and skipping it"
+
+
+def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
+    """One warning line on stderr per capture with malformed records skipped."""
+    for path, rep in skips.items():
+        n = rep.get("skipped", 0)
+        if not isinstance(n, int) or n == 0:
+            continue
+        first = rep.get("first")
+        where = ""
+        if isinstance(first, list) and first:
+            where = f" (first at line {first[0]['line']}: {first[0]['error']})"
+        sys.stderr.write(
+            f"emlogd {command}: warning: {path}: {n} malformed record"
+            f"{'s' if n != 1 else ''} skipped{where}; --strict fails instead\n"
+        )
+
+
+def _skips(recs: Sequence[Recording]) -> dict[str, dict[str, object]]:
+    return {r.path: r.skips for r in recs}
+
+
 def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace) -> list[Recording]:
-    """Read the captures; without ``--uut-source`` a UUT that sends no VHW is read from VBW."""
-    recs = load_captures(paths, settings, progress=progress)
+    """Read the captures; without ``--uut-source`` a UUT that sends no VHW is read from VBW.
+
+    Malformed records are skipped unless ``--strict`` (the command warns about them
+    once it has succeeded: a failure stays one line).
+    """
+    strict = bool(getattr(args, "strict", False))
+    recs = load_captures(paths, settings, progress=progress, strict=strict)
     if not getattr(args, "uut_source", None) and not any(r.raw.size for r in recs):
         recs = load_captures(
-            paths, dataclasses.replace(settings, uut_source="VBW"), progress=progress
+            paths,
+            dataclasses.replace(settings, uut_source="VBW"),
+            progress=progress,
+            strict=strict,
         )
     progress_done()
     return recs
@@ -224,11 +255,14 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if args.save:
         save_params(args.save, res)
     if args.json:
-        sys.stdout.write(json.dumps(res.to_dict(), indent=2) + "\n")
+        sys.stdout.write(
+            json.dumps({**res.to_dict(), "capture_skips": _skips(recs)}, indent=2) + "\n"
+        )
     else:
         sys.stdout.write(_calibration_text(res))
         if args.save:
             sys.stdout.write(f"saved        {args.save}\n")
+    _warn_skips(args.command, _skips(recs))
     return 0
 
 
@@ -258,8 +292,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             "ref": settings.reference_port,
             "current_states": settings.current,
             "captures": [r.to_dict() for r in rows],
+            "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        _warn_skips(args.command, _skips(recs))
         return 0
     sys.stdout.write(
         f"{cal.params.model} {cal.params.as_dict()} from {args.params}, "
@@ -280,6 +316,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ],
         )
     )
+    _warn_skips(args.command, _skips(recs))
     return 0
 
 
@@ -321,8 +358,10 @@ def cmd_crossval(args: argparse.Namespace) -> int:
             "ref": settings.reference_port,
             "current_states": settings.current,
             **result.to_dict(),
+            "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc) + "\n")
+        _warn_skips(args.command, _skips(recs))
         return 0
     names = [s.name for s in result.segments]
     train, test = _table2_pair(names, args.table2)
@@ -336,6 +375,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
         f"\n{result.n_out_of_sample} out-of-sample evaluations, lag {lag.lag_s:.2f} s, "
         f"{elapsed:.1f} s\n"
     )
+    _warn_skips(args.command, _skips(recs))
     return 0
 
 
@@ -349,6 +389,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     progress_done()
     for path in paths:
         sys.stdout.write(f"{path}\n")
+    _warn_skips(args.command, _skips(recs))
     return 0
 
 
@@ -389,6 +430,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             speed=None if args.fast or args.speed is None else args.speed,
             on_persist=persist,
             progress=progress,
+            strict=args.strict,
         )
     finally:
         progress_done()
@@ -397,6 +439,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if store is not None:
         persist(Output())
     doc = result.to_dict()
+    _warn_skips(args.command, result.capture_skips)
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         return 0
@@ -478,6 +521,7 @@ def _common_offline(p: argparse.ArgumentParser) -> None:
         metavar="auto|SECONDS",
         help="UUT latency (default auto: cross-correlation)",
     )
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
 
 
@@ -568,6 +612,7 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument(
         "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
     )
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
     p.set_defaults(handler=cmd_evaluate)
 
@@ -627,5 +672,6 @@ def add_replay_parser(sub: Subparsers) -> None:
     g.add_argument("--speed", type=positive_float, metavar="X", help="pace at X times real time")
     g.add_argument("--fast", action="store_true", help="as fast as possible (default)")
     p.add_argument("--out", metavar="FILE", help="write the corrected NMEA here")
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
     p.add_argument("--json", action="store_true", help="summary as one JSON document")
     p.set_defaults(handler=cmd_replay)
