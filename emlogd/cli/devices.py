@@ -248,28 +248,54 @@ def cmd_record(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------- fake
 
 
+def _fake_links(args: argparse.Namespace, ports: dict[str, str]) -> dict[str, str]:
+    """Port -> link from ``--link NAME=PATH`` (repeatable) or ``--link PATH [--port NAME]``."""
+    links: dict[str, str] = {}
+    plain: list[str] = []
+    for spec in args.link:
+        name, sep, path = spec.partition("=")
+        if sep and name in ports and path:
+            if name in links:
+                raise UsageError(f"--link {name}=...: port {name} given twice")
+            links[name] = path
+        else:
+            plain.append(spec)
+    if plain and (links or len(plain) > 1):
+        raise UsageError("several ports: give each as --link NAME=PATH")
+    if args.port is not None and not plain:
+        raise UsageError("--port goes with one --link PATH")
+    if plain:
+        if args.port is None:
+            if len(ports) != 1:
+                raise UsageError(
+                    f"{args.capture} has ports {', '.join(ports)}: choose one with --port "
+                    "(or serve several with --link NAME=PATH each)"
+                )
+            port = next(iter(ports))
+        elif args.port not in ports:
+            raise UsageError(f"{args.capture} has no port {args.port!r} (has {', '.join(ports)})")
+        else:
+            port = args.port
+        links[port] = plain[0]
+    return links
+
+
 def cmd_fake(args: argparse.Namespace) -> int:
-    """Serve one port of a capture on a pty symlink, like the real device would."""
+    """Serve ports of a capture on pty symlinks, like the real devices would, on one clock."""
     from drivers.io.capture import read_ports
-    from drivers.io.fake import FakeDevice
+    from drivers.io.fake import FakeCapture
 
     ports = read_ports(args.capture)
-    if args.port is None:
-        if len(ports) != 1:
-            raise UsageError(f"{args.capture} has ports {', '.join(ports)}: choose one with --port")
-        port = next(iter(ports))
-    elif args.port not in ports:
-        raise UsageError(f"{args.capture} has no port {args.port!r} (has {', '.join(ports)})")
-    else:
-        port = args.port
+    links = _fake_links(args, ports)
     speed = None if args.fast else args.speed
-    device = FakeDevice(args.capture, port, args.link, speed=speed, loop=args.loop)
+    device = FakeCapture(args.capture, links, speed=speed, loop=args.loop)
 
     def _stop(signum: int, frame: FrameType | None) -> None:
         device.stop()
 
     old = signal.signal(signal.SIGTERM, _stop)
-    sys.stderr.write(f"serving {port} from {args.capture} on {args.link}\n")
+    for port, link in links.items():
+        sys.stderr.write(f"serving {port} from {args.capture} on {link}\n")
     try:
         device.run()
     except KeyboardInterrupt:
@@ -334,17 +360,28 @@ def add_parsers(sub: Subparsers) -> None:
 
     p = sub.add_parser(
         "fake",
-        help="serve a capture's port on a pty symlink (fake serial device)",
-        description="Replay one port of a capture into a pseudo-terminal published at --link, "
-        "with the original timing, scaled (--speed X) or as fast as possible (--fast).",
+        help="serve a capture's ports on pty symlinks (fake serial devices)",
+        description="Replay ports of a capture into pseudo-terminals published at their "
+        "--link, with the original timing (all ports on one clock, keeping their offsets), "
+        "scaled (--speed X) or as fast as the readers take it (--fast). Serving starts when "
+        "every link has a reader.",
     )
     p.add_argument("capture", help="capture v1 file")
-    p.add_argument("--link", required=True, metavar="PATH", help="symlink to the pty slave")
-    p.add_argument("--port", help="port of the capture to serve (needed if it has several)")
+    p.add_argument(
+        "--link",
+        required=True,
+        action="append",
+        metavar="PATH|NAME=PATH",
+        help="symlink to the pty slave: PATH for one port (--port), NAME=PATH for port NAME "
+        "(repeat to serve several ports)",
+    )
+    p.add_argument(
+        "--port", help="with --link PATH: the port to serve (if the capture has several)"
+    )
     g = p.add_mutually_exclusive_group()
     g.add_argument(
         "--speed", type=positive_float, default=1.0, metavar="X", help="X times real time"
     )
     g.add_argument("--fast", action="store_true", help="as fast as the reader takes it")
-    p.add_argument("--loop", action="store_true", help="start again at the end")
+    p.add_argument("--loop", action="store_true", help="start the whole capture again at its end")
     p.set_defaults(handler=cmd_fake)

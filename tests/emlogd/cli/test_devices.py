@@ -108,3 +108,59 @@ def test_record_missing_device_is_one_line_exit_1(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("emlogd record: error: port emlog1:")
     assert str(missing) in err and not out.exists()
+
+
+def test_fake_ports_of_one_capture_keep_their_offsets(tmp_path: Path) -> None:
+    """`emlogd fake` serving two ports (looping) and `emlogd record` capturing them back keep
+    every record's offset from the capture (one clock for both ports, the loop included)
+    within 20 ms; the second port starts 0.55 s after the first."""
+    import statistics
+    import subprocess
+    import sys
+    import time
+
+    from drivers.io.capture import CaptureReader, CaptureWriter
+
+    src = tmp_path / "src.cap"
+    rows = [(1000.0 + 0.1 * k, "emlog1", b"$VWVHW,,T,,M,%d.00,N,,K*00" % k) for k in range(12)]
+    rows += [(1000.55 + 0.2 * k, "emlog2", b"$VMVHW,,T,,M,%d.00,N,,K*00" % k) for k in range(4)]
+    rows.sort()
+    with CaptureWriter(src, {"emlog1": "nmea0183", "emlog2": "nmea0183"}) as w:
+        for t, port, line in rows:
+            w.write_line(t, port, line)
+    span = rows[-1][0] - rows[0][0]
+    period = span + span / (len(rows) - 1)  # the loop starts one mean interval after the end
+    links = {p: tmp_path / "links" / p for p in ("emlog1", "emlog2")}
+    fake = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "fake", str(src), "--loop"]
+        + [f"--link={p}={link}" for p, link in links.items()],
+        stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 20
+        while not all(link.exists() for link in links.values()):
+            assert time.monotonic() < deadline and fake.poll() is None
+            time.sleep(0.02)
+        out = tmp_path / "rec.cap"
+        argv = ["record", "--out", str(out), "--duration", str(2.5 * period)]
+        argv += [f"--port={p}={link},baud=38400" for p, link in links.items()]
+        assert main(argv) == 0
+    finally:
+        fake.terminate()
+        fake.wait(10)
+    got = [(r.t, r.port, r.payload) for r in CaptureReader(out)]
+    expected = {
+        (port, line.decode()): [t - rows[0][0] + k * period for k in range(3)]
+        for t, port, line in rows
+    }
+    # each received record against its time in the capture (pass by pass), up to one shift
+    errors: list[float] = []
+    seen: dict[tuple[str, str], int] = {}
+    for t, port, payload in got:
+        k = seen.get((port, payload), 0)
+        seen[(port, payload)] = k + 1
+        errors.append(t - expected[(port, payload)][k])
+    assert min(seen.values()) >= 2, seen  # two whole passes at least, both ports
+    shift = statistics.median(errors)
+    worst = max(abs(e - shift) for e in errors)
+    assert worst <= 0.020, (worst, errors)
