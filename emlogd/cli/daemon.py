@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import Any
 
 from drivers import EmlogdError
 from emlogd.cli.common import Subparsers, UsageError, config_path, positive_float
@@ -46,6 +47,58 @@ def _socket_path(args: argparse.Namespace) -> str:
     return load_config(config_path(args)).control_socket
 
 
+def _status_text(resp: dict[str, Any]) -> str:
+    """The daemon's ``status`` answer as lines of text: one per UUT, one per port."""
+    status = resp.get("status") or {}
+    lines = []
+    for name, u in (status.get("uuts") or {}).items():
+        params = ", ".join(f"{k}={v:+.4f}" for k, v in (u.get("params") or {}).items())
+        std = u.get("param_std") or {}
+        if params and std:
+            params += " (σ " + ", ".join(f"{k} {v:.4f}" for k, v in std.items()) + ")"
+        line = (
+            f"{name}: {u.get('state')}, reference {u.get('reference')}, {u.get('model')} "
+            f"{params or '(no calibration)'}, lag {fmt(u.get('lag_s'), '.2f')} s, "
+            f"learning {'on' if u.get('learning_enabled') else 'off'}"
+        )
+        raw, cor = u.get("rmse_raw"), u.get("rmse_corrected")
+        if isinstance(raw, float) and isinstance(cor, float):
+            gain = f", {100.0 * (1.0 - cor / raw):.0f} % better" if raw > 0 else ""
+            line += (
+                f"; RMSE raw {raw:.3f} -> corrected {cor:.3f} m/s over "
+                f"{u.get('scored_samples', '?')} samples{gain}"
+            )
+        lines.append(line)
+    for name, p in (status.get("ports") or {}).items():
+        rejects = p.get("rejects") or {}
+        total = sum(rejects.values())
+        reasons = ", ".join(f"{k} {v}" for k, v in rejects.items() if v)
+        lines.append(
+            f"port {name}: {p.get('records')} records, {total} rejects"
+            f"{f' ({reasons})' if reasons else ''}{', STALE' if p.get('stale') else ''}"
+        )
+    if resp.get("state_file"):
+        errors = resp.get("state_errors")
+        lines.append(
+            f"state file {resp['state_file']}: {resp.get('persists', 0)} persists"
+            + (f", {errors} errors" if errors else "")
+        )
+    return "".join(line + "\n" for line in lines)
+
+
+def _change_text(command: str, resp: dict[str, Any]) -> str:
+    """The answer to ``freeze``, ``learn`` or ``reset`` as one line of text."""
+    uuts = resp.get("uuts")
+    names = ", ".join(str(u) for u in uuts) if isinstance(uuts, list) and uuts else ""
+    if not names:
+        return "no UUT changed\n"
+    if command == "freeze":
+        return f"{names}: frozen (learning off)\n"
+    if command == "learn":
+        return f"{names}: learning {'on' if resp.get('learning') else 'off'}\n"
+    return f"{names}: calibration forgotten (uncalibrated until learnt again)\n"
+
+
 def cmd_control(args: argparse.Namespace) -> int:
     """status / freeze / learn / reset through the daemon's control socket."""
     from emlogd.daemon.control import request
@@ -58,24 +111,12 @@ def cmd_control(args: argparse.Namespace) -> int:
     resp = request(_socket_path(args), req)
     if not resp.get("ok"):
         raise EmlogdError(f"the daemon refused: {resp.get('error')}")
-    if args.command == "status" and not args.json:
-        status = resp.get("status", {})
-        assert isinstance(status, dict)
-        for name, u in status.get("uuts", {}).items():
-            params = ", ".join(f"{k}={v:+.4f}" for k, v in (u.get("params") or {}).items())
-            sys.stdout.write(
-                f"{name}: {u['state']}, reference {u['reference']}, {u['model']} "
-                f"{params or '(no calibration)'}, lag {fmt(u.get('lag_s'), '.2f')} s, "
-                f"learning {'on' if u['learning_enabled'] else 'off'}\n"
-            )
-        for name, p in status.get("ports", {}).items():
-            rejects = sum(p["rejects"].values())
-            sys.stdout.write(
-                f"port {name}: {p['records']} records, {rejects} rejects"
-                f"{', STALE' if p['stale'] else ''}\n"
-            )
-        return 0
-    sys.stdout.write(json.dumps(resp, indent=2, default=str) + "\n")
+    if args.json:
+        sys.stdout.write(json.dumps(resp, indent=2, default=str) + "\n")
+    elif args.command == "status":
+        sys.stdout.write(_status_text(resp))
+    else:
+        sys.stdout.write(_change_text(args.command, resp))
     return 0
 
 
