@@ -129,7 +129,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     if not 1.0 <= args.speed <= 50.0:
         raise UsageError("--speed must be within 1..50")
-    run_demo(speed=args.speed, workdir=args.workdir)
+    run_demo(speed=args.speed, workdir=args.workdir, out=sys.stdout)
     return 0
 
 

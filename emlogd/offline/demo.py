@@ -112,7 +112,7 @@ def replay_improvements(capture: Path, work: Path) -> dict[str, float | None]:
 def run_demo(
     *,
     speed: float = 10.0,
-    out: TextIO = sys.stdout,
+    out: TextIO | None = None,
     live: bool | None = None,
     workdir: str | Path | None = None,
     python: str = sys.executable,
@@ -126,7 +126,7 @@ def run_demo(
 
     Args:
         speed: replay speed (multiple of real time).
-        out: where the text goes.
+        out: where the text goes (default: ``sys.stdout`` at the time of the call).
         live: redraw a progress line (default: when ``out`` is a terminal).
         workdir: directory for config, ptys, state (default: a temporary one).
         python: the interpreter that runs the daemon subprocess.
@@ -136,6 +136,7 @@ def run_demo(
     Raises:
         DemoError: the daemon did not start, died or did not finish in time.
     """
+    out = sys.stdout if out is None else out  # looked up now: the caller may have replaced it
     live = out.isatty() if live is None else live
     with tempfile.TemporaryDirectory(prefix="emlogd-demo-") as tmp:
         # absolute: the daemon runs in it, with the config named from outside it
@@ -290,8 +291,12 @@ def _run(
         "pace: the live figure matches it when the daemon got the data as recorded, over\n"
         f"real serial ports, at {speed:g}x.\n"
     )
-    out.write(f"\nfrozen calibration persisted to {work / 'state' / 'state.yaml'}")
-    out.write(" (a temporary directory: keep it with --workdir DIR)\n" if keep_note else "\n")
+    state = work / "state" / "state.yaml"
+    if state.exists():
+        out.write(f"\nfrozen calibration persisted to {state}")
+        out.write(" (a temporary directory: keep it with --workdir DIR)\n" if keep_note else "\n")
+    else:
+        out.write(f"\nno calibration persisted (no {state}; see {work / 'daemon.log'})\n")
     return uuts
 
 

@@ -29,10 +29,12 @@ def test_demo_with_a_relative_workdir(
 ) -> None:
     """demo --workdir with a relative path runs (the daemon runs inside it) and keeps its state."""
     monkeypatch.chdir(tmp_path)
-    assert main(["demo", "--workdir", "demo_wd", "--speed", "50"]) == 0
+    rc = main(["demo", "--workdir", "demo_wd", "--speed", "50"])
     captured = capsys.readouterr()
-    assert "better" in captured.out and captured.err == ""
-    assert (tmp_path / "demo_wd" / "state" / "state.yaml").exists()
+    assert rc == 0, captured.err
+    assert "better" in captured.out and "Traceback" not in captured.err, captured.err
+    assert (tmp_path / "demo_wd" / "daemon.log").exists()
+    assert (tmp_path / "demo_wd" / "state" / "state.yaml").exists(), captured.out
 
 
 @pytest.mark.parametrize("speed", ["0", "-2", "100"])
