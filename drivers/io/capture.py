@@ -16,7 +16,7 @@ and for a text chunk that cannot be stored verbatim (non-printable bytes, a line
 without terminator), it is ``hex:`` + the bytes in lowercase hex, given back exactly.
 
 The reader streams (constant memory, any file size) and names the file and line
-of anything malformed; a file whose name ends in ``.gz`` is read through gzip. The
+of anything malformed, or counts and skips malformed records (``errors="skip"``); a file whose name ends in ``.gz`` is read through gzip. The
 writer refuses unknown ports and times going backwards.
 """
 
@@ -25,11 +25,12 @@ from __future__ import annotations
 import binascii
 import gzip
 import math
+import zlib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import BinaryIO, TextIO
+from typing import BinaryIO, Literal, TextIO
 
 from drivers.errors import CaptureFormatError
 
@@ -70,12 +71,6 @@ def _open_binary(path: str) -> BinaryIO:
     return open(path, "rb")
 
 
-def _open_text(path: str) -> TextIO:
-    if path.endswith(".gz"):
-        return gzip.open(path, "rt", encoding="ascii", errors="strict", newline="")
-    return open(path, encoding="ascii", errors="strict", newline="")
-
-
 def _check_name(name: str) -> bool:
     return bool(name) and all(c in _NAME_OK for c in name)
 
@@ -84,28 +79,82 @@ def _printable(line: bytes) -> bool:
     return all(32 <= c < 127 for c in line)
 
 
+SKIP_REASONS = (
+    "non_ascii",
+    "bad_record",
+    "bad_time",
+    "unknown_port",
+    "missing_payload",
+    "bad_hex",
+    "time_backwards",
+    "late_header",
+    "truncated",
+)
+"""Why a record is skipped (``errors="skip"``): the keys of :attr:`CaptureReader.skipped`."""
+
+MAX_SKIPPED_LINES = 10
+"""How many skipped lines :attr:`CaptureReader.skipped_lines` keeps (the first ones)."""
+
+
+class _BadRecordError(Exception):
+    """A malformed record: the reason key and the message."""
+
+    def __init__(self, reason: str, message: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+        self.message = message
+
+
 class CaptureReader:
     """Stream the records of a capture file.
 
     The header (magic and port lines) is read when the reader is created;
     iterating reads the records lazily, from the start each time.
 
+    With ``errors="raise"`` (the default) the first malformed record raises; with
+    ``errors="skip"`` a record that cannot be parsed (not ASCII, no time, a bad time,
+    an unknown port, no payload, bad hex, a time going backwards, a port header after
+    the records) is counted by reason in :attr:`skipped`, its line and message kept in
+    :attr:`skipped_lines` (the first :data:`MAX_SKIPPED_LINES`), and reading goes on;
+    a gzip stream cut short ends the records (reason ``truncated``). A malformed
+    header always raises. Line numbers count ``\\n`` from 1, as editors and
+    ``sed -n`` do, in the decompressed text of a ``.gz`` file.
+
     Args:
         path: the capture file.
+        errors: ``"raise"`` or ``"skip"``.
 
     Raises:
         CaptureFormatError: (on creation or while iterating) naming file and line.
         OSError: the file cannot be opened.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, errors: Literal["raise", "skip"] = "raise") -> None:
+        if errors not in ("raise", "skip"):
+            raise ValueError(f"errors must be 'raise' or 'skip', not {errors!r}")
         self.path = str(path)
+        self.errors = errors
         self.ports: dict[str, str] = {}
+        self.skipped: dict[str, int] = {}
+        self.skipped_lines: list[tuple[int, str]] = []
         try:
             with _open_binary(self.path) as f:
                 self._read_header(f)
-        except (gzip.BadGzipFile, EOFError) as exc:
+        except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
             raise self._fail(1, f"not a readable gzip file: {exc}") from None
+
+    @property
+    def n_skipped(self) -> int:
+        """Records skipped by the last (or current) iteration."""
+        return sum(self.skipped.values())
+
+    def skip_report(self) -> dict[str, object]:
+        """``{"skipped": n, "reasons": {reason: n}, "first": [{"line", "error"}]}``."""
+        return {
+            "skipped": self.n_skipped,
+            "reasons": dict(self.skipped),
+            "first": [{"line": n, "error": msg} for n, msg in self.skipped_lines],
+        }
 
     def _fail(self, line: int, msg: str) -> CaptureFormatError:
         return CaptureFormatError(self.path, line, msg)
@@ -138,63 +187,91 @@ class CaptureReader:
             raise self._fail(n, f"port {name!r} declared twice")
         self.ports[name] = proto
 
+    def _skip(self, n: int, bad: _BadRecordError) -> None:
+        if self.errors == "raise":
+            raise self._fail(n, bad.message)
+        self.skipped[bad.reason] = self.skipped.get(bad.reason, 0) + 1
+        if len(self.skipped_lines) < MAX_SKIPPED_LINES:
+            self.skipped_lines.append((n, bad.message))
+
     def __iter__(self) -> Iterator[CaptureRecord]:
+        self.skipped = {}
+        self.skipped_lines = []
         last_t = -math.inf
         in_header = True
-        try:
-            with _open_text(self.path) as f:
-                for n, raw in enumerate(f, start=1):
-                    line = raw.rstrip("\r\n")
-                    if n == 1 or not line:
+        n = 0
+        with _open_binary(self.path) as f:
+            lines = iter(f)
+            while True:
+                try:
+                    raw = next(lines)
+                except StopIteration:
+                    return
+                except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
+                    self._skip(
+                        n + 1, _BadRecordError("truncated", f"the gzip stream ends early: {exc}")
+                    )
+                    return
+                n += 1
+                if n == 1:
+                    continue
+                try:
+                    line = raw.rstrip(b"\r\n").decode("ascii")
+                    if not line:
                         continue
                     if line.startswith("#"):
                         if not in_header and line[1:].split()[:1] == ["port"]:
-                            raise self._fail(n, "port header after the first record")
+                            raise _BadRecordError(
+                                "late_header", "port header after the first record"
+                            )
                         continue
                     in_header = False
                     rec = self._record(line, n)
                     if rec.t < last_t:
-                        raise self._fail(n, f"time goes backwards ({rec.t:.6f} < {last_t:.6f})")
-                    last_t = rec.t
-                    yield rec
-        except UnicodeDecodeError as exc:
-            raise self._fail(
-                self._line_of(exc), "non-ASCII bytes (payloads must be hex:)"
-            ) from None
-
-    def _line_of(self, exc: UnicodeDecodeError) -> int:
-        with open(self.path, "rb") as f:
-            head = f.read(exc.start + 1)
-        return head.count(b"\n") + 1
+                        raise _BadRecordError(
+                            "time_backwards",
+                            f"time goes backwards ({rec.t:.6f} < {last_t:.6f})",
+                        )
+                except UnicodeDecodeError:
+                    self._skip(
+                        n, _BadRecordError("non_ascii", "non-ASCII bytes (payloads must be hex:)")
+                    )
+                    continue
+                except _BadRecordError as bad:
+                    self._skip(n, bad)
+                    continue
+                last_t = rec.t
+                yield rec
 
     def _record(self, line: str, n: int) -> CaptureRecord:
         if not line.startswith("("):
-            raise self._fail(n, "record must start with '(EPOCH.SECONDS)'")
+            raise _BadRecordError("bad_record", "record must start with '(EPOCH.SECONDS)'")
         close = line.find(") ")
         if close < 0:
-            raise self._fail(n, "record must be '(EPOCH.SECONDS) PORT PAYLOAD'")
+            raise _BadRecordError("bad_record", "record must be '(EPOCH.SECONDS) PORT PAYLOAD'")
         try:
             t = float(line[1:close])
         except ValueError:
-            raise self._fail(n, f"bad time {line[1:close]!r}") from None
+            raise _BadRecordError("bad_time", f"bad time {line[1:close]!r}") from None
         if not math.isfinite(t):
-            raise self._fail(n, f"bad time {line[1:close]!r}")
+            raise _BadRecordError("bad_time", f"bad time {line[1:close]!r}")
         port, sep, payload = line[close + 2 :].partition(" ")
         if port not in self.ports:
-            raise self._fail(
-                n, f"unknown port {port!r} (declared: {', '.join(self.ports) or 'none'})"
+            raise _BadRecordError(
+                "unknown_port",
+                f"unknown port {port!r} (declared: {', '.join(self.ports) or 'none'})",
             )
         if not sep or not payload:
-            raise self._fail(n, "missing payload")
+            raise _BadRecordError("missing_payload", "missing payload")
         binary = payload.startswith(HEX_PREFIX)
         if binary:
             digits = payload[len(HEX_PREFIX) :]
             if not digits or len(digits) % 2:
-                raise self._fail(n, "hex payload must have an even number of digits")
+                raise _BadRecordError("bad_hex", "hex payload must have an even number of digits")
             try:
                 binascii.unhexlify(digits)
             except binascii.Error:
-                raise self._fail(n, "bad hex payload") from None
+                raise _BadRecordError("bad_hex", "bad hex payload") from None
         return CaptureRecord(t, port, payload, binary, n)
 
 

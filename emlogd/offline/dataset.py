@@ -85,6 +85,7 @@ class Recording:
         uut_counters: the UUT's own counters (out of range, backlog...).
         t_start: first record time, s (nan for an empty capture).
         t_end: last record time, s.
+        skips: the malformed records skipped (``CaptureReader.skip_report``).
     """
 
     path: str
@@ -100,6 +101,7 @@ class Recording:
     uut_counters: dict[str, int]
     t_start: float
     t_end: float
+    skips: dict[str, object] = dataclasses.field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -143,7 +145,11 @@ class _Collector:
 
 
 def record_capture(
-    path: str | Path, settings: UutSettings, *, progress: ProgressFn | None = None
+    path: str | Path,
+    settings: UutSettings,
+    *,
+    progress: ProgressFn | None = None,
+    strict: bool = False,
 ) -> Recording:
     """Stream one capture through the daemon's pipeline and record the UUT's inputs.
 
@@ -151,12 +157,14 @@ def record_capture(
         path: capture v1 file (``.cap`` or ``.cap.gz``).
         settings: the UUT (port, reference port and field, heading source...).
         progress: called now and then with the fraction of the file read.
+        strict: a malformed record raises instead of being counted and skipped.
 
     Raises:
         CaptureContentError: the capture lacks the UUT, reference or heading port.
-        CaptureFormatError: a malformed capture (names the line).
+        CaptureFormatError: a malformed header, or with ``strict`` a malformed record
+            (names the line).
     """
-    reader = CaptureReader(path)
+    reader = CaptureReader(path, errors="raise" if strict else "skip")
     needed = [settings.port, settings.reference_port]
     if settings.heading != "auto":
         needed.append(settings.heading)
@@ -203,11 +211,12 @@ def record_capture(
         uut_counters=cal.counters.as_dict(),
         t_start=t_first,
         t_end=t_last,
+        skips=reader.skip_report(),
     )
 
 
-def _record_job(args: tuple[str, UutSettings]) -> Recording:
-    return record_capture(args[0], args[1])
+def _record_job(args: tuple[str, UutSettings, bool]) -> Recording:
+    return record_capture(args[0], args[1], strict=args[2])
 
 
 def record_captures(
@@ -216,6 +225,7 @@ def record_captures(
     *,
     workers: int | None = None,
     progress: ProgressFn | None = None,
+    strict: bool = False,
 ) -> list[Recording]:
     """:func:`record_capture` for each capture, in parallel processes when there are several.
 
@@ -224,6 +234,7 @@ def record_captures(
         settings: the UUT.
         workers: processes (default: one per core, at most one per capture).
         progress: called after each capture with the fraction done.
+        strict: a malformed record raises instead of being counted and skipped.
     """
     n = len(paths)
     if workers is None:
@@ -231,13 +242,13 @@ def record_captures(
     if workers <= 1 or n <= 1:
         out = []
         for i, p in enumerate(paths):
-            out.append(record_capture(p, settings))
+            out.append(record_capture(p, settings, strict=strict))
             if progress is not None:
                 progress(f"read {Path(p).name}", (i + 1) / max(n, 1))
         return out
     with ProcessPoolExecutor(max_workers=workers) as pool:
         result: list[Recording] = []
-        for i, rec in enumerate(pool.map(_record_job, [(str(p), settings) for p in paths])):
+        for i, rec in enumerate(pool.map(_record_job, [(str(p), settings, strict) for p in paths])):
             result.append(rec)
             if progress is not None:
                 progress(f"read {Path(paths[i]).name}", (i + 1) / n)

@@ -6,7 +6,11 @@ daemon runs as a subprocess against them with a config written to a temporary
 directory; the demo reads the corrected NMEA from the daemon's output pty, shows
 the calibration converging from the status sentences, and ends with the error of
 the emitted speed against the DVL before and after calibration, as the daemon
-itself measured it (control socket ``status``).
+itself measured it (control socket ``status``), next to what ``emlogd replay`` (the
+same pipeline, offline, at the capture's own pace) gives on the same capture.
+
+The three ports are served by one :class:`~drivers.io.fake.FakeCapture`, on the
+capture's one clock, so the daemon receives them with their recorded offsets.
 
 Because the capture is replayed faster than real time, the sensor latencies the
 daemon sees shrink by the same factor: the demo config gives the daemon the
@@ -28,8 +32,9 @@ from importlib.resources import as_file, files
 from pathlib import Path
 from typing import TextIO
 
+from drivers.errors import EmlogdError
 from drivers.framing import split_nmea
-from drivers.io.fake import FakeDevice
+from drivers.io.fake import FakeCapture
 from emlogd.daemon.control import request
 
 DEMO_CAPTURE = "demo-figure8.cap.gz"
@@ -54,6 +59,10 @@ status_interval_s: 5
 """
 
 
+class DemoError(EmlogdError):
+    """The demo could not run to its end (the daemon did not start, died or hung)."""
+
+
 def _status_line(sentence: str) -> tuple[str, str] | None:
     try:
         body = split_nmea(sentence.encode("ascii"), required=True).decode("ascii")
@@ -67,10 +76,43 @@ def _status_line(sentence: str) -> tuple[str, str] | None:
     return f[1], f"{state} {params}".strip()
 
 
+def _config(speed: float) -> str:
+    """The demo's config with its times (lags, validation, recheck) divided by ``speed``."""
+    return CONFIG.format(
+        lag1=round(LATENCIES_S["emlog1"] / speed, 4),
+        lag2=round(LATENCIES_S["emlog2"] / speed, 4),
+        val=round(120.0 / speed, 3),
+        recheck=round(300.0 / speed, 2),
+    )
+
+
+def improvement_pct(u: dict[str, object]) -> float | None:
+    """``100·(1 − RMSE corrected / RMSE raw)`` of a UUT's status, None without both."""
+    e_raw, e_cor = u.get("rmse_raw"), u.get("rmse_corrected")
+    if isinstance(e_raw, float) and isinstance(e_cor, float) and e_raw > 0:
+        return 100.0 * (1.0 - e_cor / e_raw)
+    return None
+
+
+def replay_improvements(capture: Path, work: Path) -> dict[str, float | None]:
+    """The improvement per UUT of ``emlogd replay`` of ``capture`` with the demo's config at 1x."""
+    from emlogd.config import load_config
+    from emlogd.offline.replay import replay
+    from emlogd.pipeline.core import Pipeline
+    from emlogd.settings import pipeline_from_config
+
+    cfg = work / "replay.yaml"
+    cfg.write_text(_config(1.0), encoding="utf-8")
+    ports, uuts = pipeline_from_config(load_config(cfg))
+    doc = replay(Pipeline(ports, uuts), [capture]).to_dict()["uuts"]
+    assert isinstance(doc, dict)
+    return {name: improvement_pct(u) for name, u in doc.items()}
+
+
 def run_demo(
     *,
     speed: float = 10.0,
-    out: TextIO = sys.stdout,
+    out: TextIO | None = None,
     live: bool | None = None,
     workdir: str | Path | None = None,
     python: str = sys.executable,
@@ -79,9 +121,12 @@ def run_demo(
 ) -> dict[str, dict[str, object]]:
     """Run the demo; return the daemon's final per-UUT status.
 
+    Each UUT's status gains ``improvement_pct`` (the daemon's, live) and
+    ``replay_improvement_pct`` (``emlogd replay`` of the same capture).
+
     Args:
         speed: replay speed (multiple of real time).
-        out: where the text goes.
+        out: where the text goes (default: ``sys.stdout`` at the time of the call).
         live: redraw a progress line (default: when ``out`` is a terminal).
         workdir: directory for config, ptys, state (default: a temporary one).
         python: the interpreter that runs the daemon subprocess.
@@ -89,23 +134,17 @@ def run_demo(
         progress: called with each live line (tests).
 
     Raises:
-        RuntimeError: the daemon did not start or died.
+        DemoError: the daemon did not start, died or did not finish in time.
     """
+    out = sys.stdout if out is None else out  # looked up now: the caller may have replaced it
     live = out.isatty() if live is None else live
     with tempfile.TemporaryDirectory(prefix="emlogd-demo-") as tmp:
-        work = Path(workdir) if workdir is not None else Path(tmp)
+        # absolute: the daemon runs in it, with the config named from outside it
+        work = Path(workdir).resolve() if workdir is not None else Path(tmp)
         for sub in ("links", "out", "state", "run"):
             (work / sub).mkdir(parents=True, exist_ok=True)
         cfg = work / "emlogd.yaml"
-        cfg.write_text(
-            CONFIG.format(
-                lag1=round(LATENCIES_S["emlog1"] / speed, 4),
-                lag2=round(LATENCIES_S["emlog2"] / speed, 4),
-                val=round(120.0 / speed, 3),
-                recheck=round(300.0 / speed, 2),
-            ),
-            encoding="utf-8",
-        )
+        cfg.write_text(_config(speed), encoding="utf-8")
         with as_file(files("emlogd") / "data" / DEMO_CAPTURE) as capture:
             return _run(
                 work,
@@ -133,18 +172,15 @@ def _run(
     progress: Callable[[str], None] | None,
     keep_note: bool,
 ) -> dict[str, dict[str, object]]:
-    devices = [
-        FakeDevice(capture, port, work / "links" / port, speed=speed)
-        for port in ("emlog1", "emlog2", "dvl")
-    ]
+    ports = ("emlog1", "emlog2", "dvl")
+    device = FakeCapture(capture, {p: work / "links" / p for p in ports}, speed=speed)
     span = _span(capture)
     out.write(
         "emlogd demo: the daemon calibrating two EM logs against a DVL, live\n"
         f"  capture  {capture.name}: a simulated figure-8 ({span / 60:.1f} min, sensor faults "
-        f"included) served at {speed:g}x by 3 fake serial devices on ptys\n"
+        f"included) served at {speed:g}x by 3 fake serial devices on ptys, on one clock\n"
     )
-    for d in devices:
-        d.start()
+    device.start()
     log = open(work / "daemon.log", "wb")  # noqa: SIM115
     daemon = subprocess.Popen(
         [python, "-m", "emlogd", "run", "--config", str(cfg)],
@@ -164,7 +200,7 @@ def _run(
     try:
         while time.monotonic() - t0 < timeout_s:
             if daemon.poll() is not None:
-                raise RuntimeError(
+                raise DemoError(
                     f"the daemon exited with {daemon.returncode}; see {work / 'daemon.log'}"
                 )
             if fd < 0:
@@ -198,11 +234,11 @@ def _run(
                 if live:
                     out.write("\r" + line[:150] + "\x1b[K")
                     out.flush()
-            if all(d.finished.is_set() for d in devices):
+            if device.finished.is_set():
                 time.sleep(0.3)
                 break
         else:
-            raise RuntimeError(f"the demo did not finish within {timeout_s:.0f} s")
+            raise DemoError(f"the demo did not finish within {timeout_s:.0f} s")
         final = request(work / "run" / "control.sock", {"cmd": "status"})
     finally:
         if fd >= 0:
@@ -215,9 +251,8 @@ def _run(
                 daemon.kill()
                 daemon.wait()
         log.close()
-        for d in devices:
-            d.stop()
-            d.join(5)
+        device.stop()
+        device.join(5)
     if live:
         out.write("\r\x1b[K")
     st = final.get("status", {})
@@ -226,21 +261,42 @@ def _run(
         f"read from the output pty: {counts['VHW']} corrected VHW, {counts['VBW']} corrected VBW, "
         f"{counts['status']} status sentences (daemon exit code {daemon.returncode})\n\n"
     )
-    out.write("error of the emitted speed against the DVL bottom track (where both valid):\n")
+    replayed = replay_improvements(capture, work)
+    out.write(
+        "error of the emitted speed against the DVL bottom track (where both valid), and the\n"
+        "improvement emlogd replay (the same pipeline, offline, at the capture's pace) gives:\n"
+    )
     for name, u in sorted(uuts.items()):
-        e_raw, e_cor = u.get("rmse_raw"), u.get("rmse_corrected")
         params = u.get("params") or {}
         assert isinstance(params, dict)
         ptxt = ", ".join(f"{k}={v:+.4f}" for k, v in params.items())
-        if isinstance(e_raw, float) and isinstance(e_cor, float) and e_raw > 0:
+        gain, gain_replay = improvement_pct(u), replayed.get(name)
+        u["improvement_pct"], u["replay_improvement_pct"] = gain, gain_replay
+        if gain is not None:
+            e_raw, e_cor = u["rmse_raw"], u["rmse_corrected"]
+            assert isinstance(e_raw, float) and isinstance(e_cor, float)
+            rtxt = "-" if gain_replay is None else f"{gain_replay:.0f} %"
             out.write(
                 f"  {name}: raw {e_raw:.3f} m/s -> corrected {e_cor:.3f} m/s "
-                f"({100 * (1 - e_cor / e_raw):.0f} % better), {u.get('model')} {ptxt}\n"
+                f"({gain:.0f} % better; replay {rtxt}), {u.get('model')} {ptxt}\n"
             )
         else:
             out.write(f"  {name}: no calibration yet ({u.get('state')})\n")
-    out.write(f"\nfrozen calibration persisted to {work / 'state' / 'state.yaml'}")
-    out.write(" (a temporary directory: keep it with --workdir DIR)\n" if keep_note else "\n")
+    out.write(
+        "\nWhat this shows: the daemon learnt each EM log's scale and bias online from the DVL\n"
+        "while the capture played, and corrected every reading before learning from it, so\n"
+        "the error above is that of the speed an autopilot would have received (one step\n"
+        "ahead, calibrating from the start, not of a calibration fitted afterwards). The\n"
+        "replay figure is the same pipeline run offline over the same capture at its own\n"
+        "pace: the live figure matches it when the daemon got the data as recorded, over\n"
+        f"real serial ports, at {speed:g}x.\n"
+    )
+    state = work / "state" / "state.yaml"
+    if state.exists():
+        out.write(f"\nfrozen calibration persisted to {state}")
+        out.write(" (a temporary directory: keep it with --workdir DIR)\n" if keep_note else "\n")
+    else:
+        out.write(f"\nno calibration persisted (no {state}; see {work / 'daemon.log'})\n")
     return uuts
 
 

@@ -69,15 +69,19 @@ def load_captures(
     progress: ProgressFn | None = None,
     *,
     workers: int | None = None,
+    strict: bool = False,
 ) -> list[Recording]:
     """Read the UUT's inputs from each capture (in parallel when there are several).
+
+    Malformed records are counted and skipped (``Recording.skips``), or raise with
+    ``strict``.
 
     Raises:
         OfflineError: a capture lacks one of the ports.
         CaptureFormatError: a malformed capture (names file and line).
     """
     try:
-        return record_captures(paths, settings, workers=workers, progress=progress)
+        return record_captures(paths, settings, workers=workers, progress=progress, strict=strict)
     except CaptureContentError as exc:
         raise OfflineError(str(exc.args[0])) from None
 

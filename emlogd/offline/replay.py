@@ -39,6 +39,7 @@ class ReplayResult:
     unknown_ports: dict[str, int] = field(default_factory=dict)
     elapsed_s: float = 0.0
     span_s: float = 0.0
+    capture_skips: dict[str, dict[str, object]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, object]:
         """``{"uuts": {...}, "ports": {...}, ...}`` (README: ``replay --json``)."""
@@ -72,6 +73,7 @@ class ReplayResult:
             "events": dict(self.event_counts),
             "elapsed_s": round(self.elapsed_s, 3),
             "span_s": round(self.span_s, 3),
+            "capture_skips": dict(self.capture_skips),
         }
 
 
@@ -86,6 +88,7 @@ def replay(
     progress: ProgressFn | None = None,
     sleep: Callable[[float], None] = time.sleep,
     monotonic: Callable[[], float] = time.monotonic,
+    strict: bool = False,
 ) -> ReplayResult:
     """Feed every record of ``paths`` to ``pipeline``.
 
@@ -99,12 +102,15 @@ def replay(
         progress: called as (message, fraction of the current file).
         sleep: the sleep function (tests).
         monotonic: the clock used for pacing (tests).
+        strict: a malformed record raises; otherwise it is counted and skipped
+            (``capture_skips``: per capture, the count by reason and the first lines).
 
     Returns:
         Counters and the pipeline's final status.
 
     Raises:
-        CaptureFormatError: a malformed capture (names the file and line).
+        CaptureFormatError: a malformed capture header, or with ``strict`` any malformed
+            record (names the file and line).
     """
     started = time.perf_counter()
     result = ReplayResult(status={})
@@ -114,7 +120,7 @@ def replay(
     t_tick = -float("inf")
     out = Output()  # reused: delivered, then cleared, after every record
     for path in paths:
-        reader = CaptureReader(path)
+        reader = CaptureReader(path, errors="raise" if strict else "skip")
         size = max(Path(path).stat().st_size, 1)
         for rec in reader:
             if rec.port not in pipeline.decoders:
@@ -142,6 +148,7 @@ def replay(
             t_last = rec.t
             if progress is not None and result.records % 20_000 == 0:
                 progress(f"replay {Path(path).name}", min(rec.line * 60.0 / size, 1.0))
+        result.capture_skips[str(path)] = reader.skip_report()
     _deliver(pipeline.flush(), result, sink, on_persist, on_event)
     result.status = pipeline.status()
     result.elapsed_s = time.perf_counter() - started

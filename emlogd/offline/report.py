@@ -4,16 +4,19 @@ Needs the ``report`` extra (matplotlib); the daemon never imports this module.
 Figures written to the output directory:
 
 - ``speed_<capture>.png`` — raw, calibrated (frozen KF estimate) and reference
-  speed over a window of each capture;
+  speed over a window of each capture (the first :data:`WINDOW_S`, named on the plot);
 - ``convergence.png`` — the KF scale factor and bias with their ±3σ sleeve over
   the concatenated captures;
-- ``nis.png`` — NIS per sample, its running mean, and the χ²(1) 95 % bounds;
+- ``nis.png`` — NIS per sample, its running mean over :data:`NIS_WINDOW` samples with
+  the 95 % bounds of such a mean, and the χ²(1) 97.5 % quantile;
 - ``current.png`` — with current states, the estimated current (north, east) and
   its ±3σ sleeve over the concatenated captures;
 - ``trajectory.png`` — East/North track of every capture, integrated from the
   reference's along-hull speed and the heading (sideslip left out);
 - ``crossval.png`` — heat maps of the improvement of LS-EMx and KF-EMx trained on
-  each capture and tested on each other one.
+  each capture and tested on each other one, the number in every cell (≥ 8 pt).
+
+Legends sit outside the axes, so that they never hide data.
 """
 
 from __future__ import annotations
@@ -37,6 +40,12 @@ ProgressFn = Callable[[str, float], None]
 
 WINDOW_S = 600.0
 """Length of the speed-plot window, s (the start of each capture)."""
+
+NIS_WINDOW = 60
+"""Samples in the NIS plot's running mean."""
+
+_OUTSIDE = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "fontsize": 8}
+"""Legend placement: right of the axes, off the data."""
 
 
 def _pyplot() -> Any:
@@ -89,6 +98,7 @@ def report(
     written: list[Path] = []
     frame = " + current" if settings.current else ""
     title_pair = f"{settings.port} vs {settings.reference_port} ({settings.reference_field})"
+    lag_txt = f"lag {lag_report.lag_s:.2f} s ({lag_report.source})"
 
     # 1. speeds over a window at the start of each capture
     for r, p in zip(recs, pairs, strict=True):
@@ -97,15 +107,22 @@ def report(
             continue
         t0 = p.t[ok][0]
         sel = ok & (p.t - t0 <= WINDOW_S)
+        total = float(p.t[ok][-1] - t0)
+        shown = float(p.t[sel][-1] - t0)
+        window = (
+            f"the whole capture, {total:.0f} s"
+            if shown >= total
+            else f"window 0–{WINDOW_S:.0f} s of {total:.0f} s"
+        )
         fig, ax = plt.subplots(figsize=(10, 4))
         tt = p.t[sel] - t0
         ax.plot(tt, p.raw[sel], lw=0.8, label=f"{settings.port} raw")
         ax.plot(tt, correct_array(run.params, p.raw[sel]), lw=0.8, label=f"calibrated (KF-{model})")
         ax.plot(tt, p.ref[sel], lw=0.8, label=f"{settings.reference_port} reference")
-        ax.set_xlabel(f"time since start of capture (s; the first {WINDOW_S:.0f} s shown)")
-        ax.set_ylabel("longitudinal speed (m/s)")
-        ax.set_title(f"{r.name}: {title_pair}, lag {lag_report.lag_s:.2f} s")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+        ax.set_xlabel("time since start of capture (s)")
+        ax.set_ylabel(f"{settings.component} speed (m/s)")
+        ax.set_title(f"{r.name} ({window}): {title_pair}, {lag_txt}")
+        ax.legend(**_OUTSIDE)
         ax.grid(True, alpha=0.3)
         written.append(_save(fig, out / f"speed_{r.name}.png", plt))
     if progress is not None:
@@ -123,7 +140,7 @@ def report(
         ax.fill_between(tt, est - 3 * sd, est + 3 * sd, alpha=0.3, label="±3σ")
         ax.set_ylabel({"a": "a (s/m)", "m": "m (-)", "b": "b (m/s)"}[name])
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+        ax.legend(**_OUTSIDE)
         _robust_ylim(ax, est)
     axes[-1].set_xlabel("time since first sample (s, captures back to back)")
     axes[0].set_title(f"KF-{model}{frame} convergence: {title_pair}")
@@ -141,7 +158,7 @@ def report(
             ax.fill_between(tt, est - 3 * sd, est + 3 * sd, alpha=0.3, label="±3σ")
             ax.set_ylabel(f"{name} (m/s)")
             ax.grid(True, alpha=0.3)
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+            ax.legend(**_OUTSIDE)
             _robust_ylim(ax, est)
         axes[-1].set_xlabel("time since first sample (s, captures back to back)")
         axes[0].set_title(f"KF-{model} + current: the estimated current, {title_pair}")
@@ -154,18 +171,18 @@ def report(
     ok = np.isfinite(nis)
     fig, ax = plt.subplots(figsize=(10, 4))
     ax.semilogy(tt[ok], np.maximum(nis[ok], 1e-6), ".", ms=1.5, alpha=0.4, label="NIS")
-    win = 60
+    win = NIS_WINDOW
     if ok.sum() > win:
         running = np.convolve(nis[ok], np.ones(win) / win, mode="valid")
-        ax.semilogy(tt[ok][win - 1 :], running, lw=1.2, label=f"mean of {win}")
+        ax.semilogy(tt[ok][win - 1 :], running, lw=1.2, label=f"running mean, {win}-sample window")
         lo, hi = chi2_mean_bounds(win)
         ax.axhline(lo, color="k", ls=":", lw=0.8, label=f"95 % bounds of a {win}-mean")
         ax.axhline(hi, color="k", ls=":", lw=0.8)
     ax.axhline(chi2_1_quantile(0.975), color="r", ls="--", lw=0.8, label="χ²(1) 97.5 %")
-    ax.set_xlabel("time since first sample (s)")
+    ax.set_xlabel("time since first sample (s, captures back to back)")
     ax.set_ylabel("NIS (-)")
     ax.set_title(f"KF-{model}{frame} normalised innovation squared: {title_pair}")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    ax.legend(**_OUTSIDE)
     ax.grid(True, alpha=0.3)
     written.append(_save(fig, out / "nis.png", plt))
     if progress is not None:
@@ -187,7 +204,7 @@ def report(
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(f"Track over ground from {settings.reference_port} (each from its own start)")
     if drawn:
-        ax.legend(loc="best")
+        ax.legend(**_OUTSIDE)
     ax.grid(True, alpha=0.3)
     written.append(_save(fig, out / "trajectory.png", plt))
     if progress is not None:
@@ -221,30 +238,69 @@ def _track(r: Recording) -> tuple[Any, Any] | None:
     return np.cumsum(lon * np.sin(psi) * dt), np.cumsum(lon * np.cos(psi) * dt)
 
 
+def _cell_text(v: float) -> str:
+    """An improvement for a heat-map cell: at most 5 characters (-41014 → -41k)."""
+    if not math.isfinite(v):
+        return "n/a"
+    if abs(v) >= 999.5:
+        return f"{v / 1000.0:.0f}k" if abs(v) >= 9999.5 else f"{v / 1000.0:.1f}k"
+    return f"{v:.0f}"
+
+
 def _heatmaps(result: CrossValResult, path: Path, plt: Any) -> Path:
     names = [s.name for s in result.segments]
+    n = len(names)
     ests = list(result.estimators)
-    cols = 4
+    cols = min(4, len(ests))
     rows = math.ceil(len(ests) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.6 * rows), squeeze=False)
+    # a cell at least 0.5 in wide: five characters at 8 pt fit inside
+    side = max(3.2, 0.5 * n + 1.2)
+    fig, axes = plt.subplots(
+        rows,
+        cols,
+        figsize=(side * cols + 1.6, side * rows + 1.0),
+        squeeze=False,
+        sharex=True,
+        sharey=True,
+        layout="constrained",
+    )
+    cmap = plt.get_cmap("RdYlGn").with_extremes(bad="0.85")
     im = None
-    for ax, est in zip(axes.flat, ests, strict=False):
+    for k, (ax, est) in enumerate(zip(axes.flat, ests, strict=False)):
         m = np.array([[e.improvement_pct for e in row] for row in result.matrix(est)])
-        im = ax.imshow(np.clip(m, -100, 100), cmap="RdYlGn", vmin=-100, vmax=100)
-        ax.set_xticks(range(len(names)), names, rotation=45, ha="right", fontsize=7)
-        ax.set_yticks(range(len(names)), names, fontsize=7)
-        ax.set_title(est, fontsize=9)
-        for i in range(len(names)):
-            for j in range(len(names)):
-                if np.isfinite(m[i, j]):
-                    ax.text(j, i, f"{m[i, j]:.0f}", ha="center", va="center", fontsize=6)
-        ax.set_xlabel("test", fontsize=7)
-        ax.set_ylabel("train", fontsize=7)
+        im = ax.imshow(np.ma.masked_invalid(np.clip(m, -100, 100)), cmap=cmap, vmin=-100, vmax=100)
+        ax.set_title(est, fontsize=10)
+        for i in range(n):
+            for j in range(n):
+                v = float(m[i, j])
+                dark = math.isfinite(v) and abs(v) > 70
+                ax.text(
+                    j,
+                    i,
+                    _cell_text(v),
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color="white" if dark else "black",
+                    fontweight="bold" if i == j else "normal",
+                )
+        ax.set_xticks(range(n), names, rotation=45, ha="right", fontsize=8)
+        ax.set_yticks(range(n), names, fontsize=8)
+        ax.tick_params(labelbottom=k // cols == rows - 1 or k + cols >= len(ests))
+        ax.tick_params(labelleft=k % cols == 0)
+        if k % cols == 0:
+            ax.set_ylabel("trained on", fontsize=9)
+        if k // cols == rows - 1 or k + cols >= len(ests):
+            ax.set_xlabel("tested on", fontsize=9)
     for ax in list(axes.flat)[len(ests) :]:
         ax.axis("off")
     if im is not None:
-        fig.colorbar(im, ax=axes, shrink=0.6, label="RMSE improvement (%)")
-    fig.suptitle("Cross-validation: improvement over raw (train row × test column)")
+        fig.colorbar(im, ax=axes, shrink=0.7, label="RMSE improvement over raw (%, clipped ±100)")
+    fig.suptitle(
+        "Cross-validation: improvement over raw, % (row: trained on, column: tested on; "
+        "diagonal in bold: in sample; k = ×1000; n/a: not fitted)",
+        fontsize=10,
+    )
     return _save(fig, path, plt)
 
 

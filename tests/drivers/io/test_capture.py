@@ -149,3 +149,84 @@ def test_reader_only_raises_capture_format_errors(tmp_path: Path, content: bytes
 @given(st.binary(max_size=400))
 def test_fuzz_reader(tmp_path: Path, content: bytes) -> None:
     _read_any(tmp_path, content)
+
+
+def _long_capture_with_a_bad_byte(path: Path, bad_line: int, total: int) -> list[int]:
+    """A capture of ``total`` lines whose line ``bad_line`` holds a non-ASCII byte."""
+    lines = [MAGIC.encode(), b"# port a nmea0183"]
+    good: list[int] = []
+    for n in range(3, total + 1):
+        payload = b"$VWVHW,,T,,M,3.50,N,6.48,K*6A"
+        if n == bad_line:
+            payload = b"$VWVHW,,T,,M,3.\xb50,N,6.48,K*6A"
+        else:
+            good.append(n)
+        lines.append(b"(%.6f) a " % (n * 0.1) + payload)
+    data = b"\n".join(lines) + b"\n"
+    path.write_bytes(gzip.compress(data) if path.name.endswith(".gz") else data)
+    return good
+
+
+@pytest.mark.parametrize("name", ["long.cap", "long.cap.gz"])
+def test_non_ascii_byte_reported_at_its_own_line(tmp_path: Path, name: str) -> None:
+    """A non-ASCII byte deep in a file (plain or gzip) is reported at its line, 12299."""
+    path = tmp_path / name
+    good = _long_capture_with_a_bad_byte(path, 12299, 20_000)
+    with pytest.raises(CaptureFormatError) as exc:
+        list(CaptureReader(path))
+    assert exc.value.line == 12299 and "non-ASCII" in str(exc.value)
+    reader = CaptureReader(path, errors="skip")
+    assert [r.line for r in reader] == good
+    assert reader.skipped == {"non_ascii": 1}
+    assert reader.skipped_lines == [(12299, "non-ASCII bytes (payloads must be hex:)")]
+
+
+def test_skip_mode_counts_every_kind_of_bad_record(tmp_path: Path) -> None:
+    """errors="skip" keeps the good records and counts each bad one by reason, with its line."""
+    path = tmp_path / "mixed.cap"
+    path.write_bytes(
+        MAGIC.encode()
+        + b"\n# port a nmea0183\n"
+        + b"(1.0) a $A\n"  # 3 ok
+        + b"(1.1) a \n"  # 4 missing payload
+        + b"(x) a $B\n"  # 5 bad time
+        + b"(1.2) a caf\xc3\xa9\n"  # 6 non-ASCII
+        + b"(1.3) b $C\n"  # 7 unknown port
+        + b"(1.4) a hex:zz\n"  # 8 bad hex
+        + b"1.5 a $D\n"  # 9 no time
+        + b"(0.5) a $E\n"  # 10 backwards
+        + b"# port c pd0\n"  # 11 late header
+        + b"(2.0) a $F\n"  # 12 ok
+    )
+    reader = CaptureReader(path, errors="skip")
+    assert [(r.line, r.payload) for r in reader] == [(3, "$A"), (12, "$F")]
+    assert reader.skipped == {
+        "missing_payload": 1,
+        "bad_time": 1,
+        "non_ascii": 1,
+        "unknown_port": 1,
+        "bad_hex": 1,
+        "bad_record": 1,
+        "time_backwards": 1,
+        "late_header": 1,
+    }
+    assert [n for n, _ in reader.skipped_lines] == list(range(4, 12))
+    assert reader.skip_report()["skipped"] == 8
+    # iterating again starts the counts again
+    assert len(list(reader)) == 2 and reader.n_skipped == 8
+
+
+def test_truncated_gzip(tmp_path: Path) -> None:
+    """A gzip capture cut short raises, or in skip mode ends its records and counts it."""
+    plain = tmp_path / "p.cap"
+    with CaptureWriter(plain, {"a": "nmea0183"}) as w:
+        for k in range(20_000):
+            w.write_line(k * 0.01, "a", b"$VWVHW,,T,,M,3.50,N,6.48,K*6A")
+    whole = gzip.compress(plain.read_bytes())
+    cut = tmp_path / "cut.cap.gz"
+    cut.write_bytes(whole[: len(whole) // 2])
+    with pytest.raises(CaptureFormatError, match="gzip"):
+        list(CaptureReader(cut))
+    reader = CaptureReader(cut, errors="skip")
+    n = len(list(reader))
+    assert 0 < n < 20_000 and reader.skipped == {"truncated": 1}

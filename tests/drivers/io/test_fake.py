@@ -160,3 +160,38 @@ def test_a_reader_slow_to_open_still_gets_the_first_record(
         src.close()
         dev.stop()
         dev.join(5)
+
+
+def test_fake_capture_serves_several_ports(capture: Path, tmp_path: Path) -> None:
+    """One FakeCapture serves each port's bytes at its own link; unknown ports are refused."""
+    from drivers.io.fake import FakeCapture
+
+    with pytest.raises(ValueError, match="no port 'gps'"):
+        FakeCapture(capture, {"emlog1": tmp_path / "a", "gps": tmp_path / "b"})
+    assert not (tmp_path / "a").exists()
+    links = {"emlog1": tmp_path / "e", "dvl": tmp_path / "d"}
+    expected = {p: b"".join(r.data for r in CaptureReader(capture) if r.port == p) for p in links}
+    fds = {}
+    dev = FakeCapture(capture, links, speed=None).start()
+    try:
+        deadline = time.monotonic() + 10
+        while not all(link.exists() for link in links.values()):
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        fds = {
+            p: os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK) for p, link in links.items()
+        }
+        got = dict.fromkeys(links, b"")
+        while any(len(got[p]) < len(expected[p]) for p in links) and time.monotonic() < deadline:
+            for p, fd in fds.items():
+                try:
+                    got[p] += os.read(fd, 65536)
+                except BlockingIOError:
+                    time.sleep(0.002)
+        assert got == expected
+        assert dev.finished.wait(5) and dev.sent == {"emlog1": 300, "dvl": 300}
+    finally:
+        for fd in fds.values():
+            os.close(fd)
+        dev.stop()
+        dev.join(5)

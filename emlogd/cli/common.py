@@ -1,0 +1,74 @@
+"""What the command groups share: usage errors, progress on stderr, argument types."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+from typing import Any, NoReturn, TypeAlias
+
+from drivers import EmlogdError
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+class UsageError(EmlogdError):
+    """A command line that parses but makes no sense (exit code 2)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr (exit code 2).
+
+    Sub-command parsers are of the same class (``add_subparsers`` uses the parent's).
+    """
+
+    def error(self, message: str) -> NoReturn:
+        """Print ``PROG: error: MESSAGE (PROG --help)`` and exit 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+Subparsers: TypeAlias = "argparse._SubParsersAction[Parser]"
+"""What ``add_subparsers`` returns; each command group adds its commands to it."""
+
+
+def is_tty(stream: Any) -> bool:
+    """Whether ``stream`` is a terminal (False for anything without a working isatty)."""
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
+def progress(msg: str, fraction: float | None = None) -> None:
+    """Progress on stderr, only when stderr is a terminal."""
+    if not is_tty(sys.stderr):
+        return
+    pct = "" if fraction is None else f" {100.0 * fraction:5.1f} %"
+    sys.stderr.write(f"\r{msg}{pct}\x1b[K")
+    sys.stderr.flush()
+
+
+def progress_done() -> None:
+    """Clear the progress line."""
+    if is_tty(sys.stderr):
+        sys.stderr.write("\r\x1b[K")
+        sys.stderr.flush()
+
+
+def config_path(args: argparse.Namespace) -> str:
+    """``--config``, else the default config path."""
+    from emlogd.config import DEFAULT_PATH
+
+    return str(getattr(args, "config", None) or DEFAULT_PATH)
+
+
+def positive_float(value: str) -> float:
+    """argparse type: a finite number greater than zero (a speed, a duration)."""
+    try:
+        x = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, not {value!r}") from None
+    if not (x > 0.0 and math.isfinite(x)):
+        raise argparse.ArgumentTypeError(f"must be a positive number, not {value!r}")
+    return x

@@ -1,0 +1,181 @@
+"""Daemon commands: run, check-config, the control commands and demo."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from drivers import EmlogdError
+from emlogd.cli.common import Subparsers, UsageError, config_path, positive_float
+from emlogd.offline.tables import fmt
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """Run the daemon in the foreground (systemd runs it this way)."""
+    import structlog
+
+    from emlogd.config import load_config
+    from emlogd.daemon.logsetup import configure_logging
+    from emlogd.daemon.loop import Daemon
+
+    cfg = load_config(config_path(args))
+    configure_logging(cfg.log_format, cfg.log_level)
+    log = structlog.get_logger("emlogd")
+    return Daemon(cfg.path, log, state_path=args.state).run()
+
+
+def cmd_check_config(args: argparse.Namespace) -> int:
+    """Validate a config file without starting."""
+    from emlogd.config import load_config
+
+    cfg = load_config(args.file)
+    ports = ", ".join(f"{p.name} ({p.protocol}, {p.role})" for p in cfg.ports)
+    uuts = ", ".join(
+        f"{u.uut} {u.model} vs {u.reference} ({u.reference_field})" for u in cfg.calibration
+    )
+    sys.stdout.write(f"{args.file}: ok\n  ports: {ports}\n  calibration: {uuts or 'none'}\n")
+    return 0
+
+
+def _socket_path(args: argparse.Namespace) -> str:
+    if args.socket:
+        return str(args.socket)
+    from emlogd.config import load_config
+
+    return load_config(config_path(args)).control_socket
+
+
+def _status_text(resp: dict[str, Any]) -> str:
+    """The daemon's ``status`` answer as lines of text: one per UUT, one per port."""
+    status = resp.get("status") or {}
+    lines = []
+    for name, u in (status.get("uuts") or {}).items():
+        params = ", ".join(f"{k}={v:+.4f}" for k, v in (u.get("params") or {}).items())
+        std = u.get("param_std") or {}
+        if params and std:
+            params += " (σ " + ", ".join(f"{k} {v:.4f}" for k, v in std.items()) + ")"
+        line = (
+            f"{name}: {u.get('state')}, reference {u.get('reference')}, {u.get('model')} "
+            f"{params or '(no calibration)'}, lag {fmt(u.get('lag_s'), '.2f')} s, "
+            f"learning {'on' if u.get('learning_enabled') else 'off'}"
+        )
+        raw, cor = u.get("rmse_raw"), u.get("rmse_corrected")
+        if isinstance(raw, float) and isinstance(cor, float):
+            gain = f", {100.0 * (1.0 - cor / raw):.0f} % better" if raw > 0 else ""
+            line += (
+                f"; RMSE raw {raw:.3f} -> corrected {cor:.3f} m/s over "
+                f"{u.get('scored_samples', '?')} samples{gain}"
+            )
+        lines.append(line)
+    for name, p in (status.get("ports") or {}).items():
+        rejects = p.get("rejects") or {}
+        total = sum(rejects.values())
+        reasons = ", ".join(f"{k} {v}" for k, v in rejects.items() if v)
+        lines.append(
+            f"port {name}: {p.get('records')} records, {total} rejects"
+            f"{f' ({reasons})' if reasons else ''}{', STALE' if p.get('stale') else ''}"
+        )
+    if resp.get("state_file"):
+        errors = resp.get("state_errors")
+        lines.append(
+            f"state file {resp['state_file']}: {resp.get('persists', 0)} persists"
+            + (f", {errors} errors" if errors else "")
+        )
+    return "".join(line + "\n" for line in lines)
+
+
+def _change_text(command: str, resp: dict[str, Any]) -> str:
+    """The answer to ``freeze``, ``learn`` or ``reset`` as one line of text."""
+    uuts = resp.get("uuts")
+    names = ", ".join(str(u) for u in uuts) if isinstance(uuts, list) and uuts else ""
+    if not names:
+        return "no UUT changed\n"
+    if command == "freeze":
+        return f"{names}: frozen (learning off)\n"
+    if command == "learn":
+        return f"{names}: learning {'on' if resp.get('learning') else 'off'}\n"
+    return f"{names}: calibration forgotten (uncalibrated until learnt again)\n"
+
+
+def cmd_control(args: argparse.Namespace) -> int:
+    """status / freeze / learn / reset through the daemon's control socket."""
+    from emlogd.daemon.control import request
+
+    req: dict[str, object] = {"cmd": args.command}
+    if getattr(args, "uut", None):
+        req["port"] = args.uut
+    if args.command == "learn":
+        req["on"] = args.state == "on"
+    resp = request(_socket_path(args), req)
+    if not resp.get("ok"):
+        raise EmlogdError(f"the daemon refused: {resp.get('error')}")
+    if args.json:
+        sys.stdout.write(json.dumps(resp, indent=2, default=str) + "\n")
+    elif args.command == "status":
+        sys.stdout.write(_status_text(resp))
+    else:
+        sys.stdout.write(_change_text(args.command, resp))
+    return 0
+
+
+# ---------------------------------------------------------------------------- demo
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The real daemon calibrating the bundled example live (fake devices on ptys)."""
+    from emlogd.offline.demo import run_demo
+
+    if not 1.0 <= args.speed <= 50.0:
+        raise UsageError("--speed must be within 1..50")
+    run_demo(speed=args.speed, workdir=args.workdir, out=sys.stdout)
+    return 0
+
+
+def add_demo_parser(sub: Subparsers) -> None:
+    """The ``demo`` sub-command."""
+    p = sub.add_parser(
+        "demo",
+        help="the daemon calibrating the bundled example, live (about 40 s)",
+        description="Serve the bundled example (a simulated figure-8) from three fake serial "
+        "devices on ptys, run the real daemon against them, read its corrected NMEA, show the "
+        "calibration converging and the error before and after.",
+    )
+    p.add_argument("--speed", type=positive_float, default=10.0, help="replay speed (default 10x)")
+    p.add_argument("--workdir", metavar="DIR", help="keep config, ptys, log and state here")
+    p.set_defaults(handler=cmd_demo)
+
+
+def add_parsers(sub: Subparsers) -> None:
+    """The ``run`` and ``check-config`` sub-commands."""
+    p = sub.add_parser(
+        "run",
+        help="run the daemon (foreground; systemd Type=notify)",
+        description="Read the sensors, learn the calibration, emit corrected NMEA.",
+    )
+    p.add_argument("--config", metavar="FILE", help="config file (default /etc/emlogd/emlogd.yaml)")
+    p.add_argument("--state", metavar="FILE", help="override the config's state file")
+    p.set_defaults(handler=cmd_run)
+
+    p = sub.add_parser("check-config", help="validate a config file without starting")
+    p.add_argument("file", help="config file")
+    p.set_defaults(handler=cmd_check_config)
+
+
+def add_control_parsers(sub: Subparsers) -> None:
+    """The ``status``, ``freeze``, ``reset`` and ``learn`` sub-commands."""
+    for name, text in (
+        ("status", "show the running daemon's calibration and ports"),
+        ("freeze", "stop learning (all UUTs or --uut) and persist"),
+        ("reset", "forget the calibration (all UUTs or --uut)"),
+        ("learn", "switch learning on or off"),
+    ):
+        p = sub.add_parser(name, help=text, description=text + " (through the control socket).")
+        if name == "learn":
+            p.add_argument("state", choices=["on", "off"])
+        p.add_argument("--uut", metavar="PORT", help="one UUT only")
+        p.add_argument("--config", metavar="FILE", help="config file naming the control socket")
+        p.add_argument("--socket", metavar="PATH", help="control socket path")
+        p.add_argument("--json", action="store_true", help="raw JSON answer")
+        p.set_defaults(handler=cmd_control)

@@ -1,0 +1,677 @@
+"""Offline commands: simulate, import, calibrate, evaluate, crossval, report, replay."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from datetime import date
+from typing import Any
+
+from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
+from emlogd.offline.dataset import Recording
+from emlogd.offline.jobs import (
+    CalibrationResult,
+    calibrate,
+    crossval,
+    evaluate,
+    load_captures,
+    load_params,
+    save_params,
+)
+from emlogd.offline.tables import fmt, render, table2, table3
+from emlogd.pipeline.core import UutSettings
+
+# ---------------------------------------------------------------------------- simulate
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Write the simulated sea trial (five captures and truth.yaml)."""
+    from emlogd.offline.simulate import simulate
+
+    if not 0.0 < args.scale <= 10.0:
+        raise UsageError(f"--scale must be in (0, 10], not {args.scale}")
+    result = simulate(
+        args.outdir,
+        seed=args.seed,
+        scale=args.scale,
+        dvl_format=args.dvl_format,
+        progress=progress,
+    )
+    progress_done()
+    for tr, path in zip(result.trajectories, result.files, strict=True):
+        lines = sum(tr.lines.values())
+        raw = ", ".join(f"{k} {v:.3f}" for k, v in tr.rmse_raw_mps.items())
+        sys.stdout.write(
+            f"{path}: {tr.duration_s / 60.0:6.1f} min, {lines:8d} lines, raw RMSE m/s: {raw}\n"
+        )
+    sys.stdout.write(f"{result.truth_path}: truth ({result.elapsed_s:.1f} s)\n")
+    return 0
+
+
+# ---------------------------------------------------------------------------- import
+
+
+def _date_arg(value: str) -> date:
+    try:
+        return date.fromisoformat(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, not {value!r}") from None
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    """Turn NMEA logs or CSV exports into a capture."""
+    from emlogd.offline import importer
+
+    if not args.port or not args.port.isidentifier():
+        raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
+    if args.format == "nmea":
+        for opt in ("map", "preset", "time_format", "heading_ref"):
+            if getattr(args, opt) is not None:
+                raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
+        report = importer.import_nmea(
+            args.files, args.out, port=args.port, day=args.date, progress=progress
+        )
+    else:
+        if args.date is not None:
+            raise UsageError("--date applies to --format nmea only")
+        if len(args.files) != 1:
+            raise UsageError("--format csv imports one file at a time")
+        if args.preset is None and args.map is None:
+            raise UsageError("--format csv needs --map key=Column,... or --preset expedition")
+        mapping = dict(importer.EXPEDITION) if args.preset == "expedition" else {}
+        if args.map is not None:
+            mapping.update(importer.parse_map(args.map))
+        report = importer.import_csv(
+            args.files[0],
+            args.out,
+            mapping,
+            time_format=args.time_format or "ole",
+            heading_ref=args.heading_ref or "true",
+            port=args.port,
+            progress=progress,
+        )
+    progress_done()
+    if args.json:
+        sys.stdout.write(json.dumps(report.to_dict(), indent=2) + "\n")
+        return 0
+    span = report.t_end - report.t_start
+    sys.stdout.write(
+        f"{report.out}: {report.written} sentences on port {report.port} "
+        f"({span / 60.0:.1f} min) from {report.lines} {'lines' if args.format == 'nmea' else 'rows'}\n"
+    )
+    sys.stdout.write(
+        "written      " + ", ".join(f"{k} {v}" for k, v in sorted(report.sentences.items())) + "\n"
+    )
+    skipped = {k: v for k, v in report.skipped.items() if v}
+    sys.stdout.write(
+        "skipped      "
+        + (", ".join(f"{k} {v}" for k, v in sorted(skipped.items())) or "none")
+        + "\n"
+    )
+    for k, v in sorted(report.notes.items()):
+        sys.stdout.write(f"note         {k} {v}\n")
+    return 0
+
+
+# ---------------------------------------------------------------------------- offline
+
+
+def _settings(args: argparse.Namespace, **over: Any) -> UutSettings:
+    """The UUT of an offline job, as the daemon's settings (defaults from the declarations)."""
+    kw: dict[str, Any] = {
+        "port": args.uut,
+        "reference_port": args.ref,
+        "reference_field": args.ref_field or "bottom",
+        "uut_source": getattr(args, "uut_source", None) or "VHW",
+        "component": "magnitude" if getattr(args, "magnitude", False) else "longitudinal",
+        "current": bool(getattr(args, "current", False)),
+        "heading": getattr(args, "heading", None) or "auto",
+        "magnetic_variation_deg": getattr(args, "variation", None),
+    }
+    if getattr(args, "model", None):
+        kw["model"] = args.model
+    kw.update(over)
+    try:
+        return UutSettings(**kw)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _lag_arg(value: str) -> float | None:
+    if value == "auto":
+        return None
+    try:
+        return float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected auto or seconds, not {value!r}") from None
+
+
+STRICT_HELP = "fail at the first malformed capture record instead of counting and skipping it"
+
+
+def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
+    """One warning line on stderr per capture with malformed records skipped."""
+    for path, rep in skips.items():
+        n = rep.get("skipped", 0)
+        if not isinstance(n, int) or n == 0:
+            continue
+        first = rep.get("first")
+        where = ""
+        if isinstance(first, list) and first:
+            where = f" (first at line {first[0]['line']}: {first[0]['error']})"
+        sys.stderr.write(
+            f"emlogd {command}: warning: {path}: {n} malformed record"
+            f"{'s' if n != 1 else ''} skipped{where}; --strict fails instead\n"
+        )
+
+
+def _skips(recs: Sequence[Recording]) -> dict[str, dict[str, object]]:
+    return {r.path: r.skips for r in recs}
+
+
+def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace) -> list[Recording]:
+    """Read the captures; without ``--uut-source`` a UUT that sends no VHW is read from VBW.
+
+    Malformed records are skipped unless ``--strict`` (the command warns about them
+    once it has succeeded: a failure stays one line).
+    """
+    strict = bool(getattr(args, "strict", False))
+    recs = load_captures(paths, settings, progress=progress, strict=strict)
+    if not getattr(args, "uut_source", None) and not any(r.raw.size for r in recs):
+        recs = load_captures(
+            paths,
+            dataclasses.replace(settings, uut_source="VBW"),
+            progress=progress,
+            strict=strict,
+        )
+    progress_done()
+    return recs
+
+
+def _calibration_text(res: CalibrationResult) -> str:
+    se = res.stderr
+    held = set(res.ident.unidentifiable)
+    params = "\n".join(
+        f"  {k:<2} = {v:+.5f} ± {fmt(se.get(k), '.5f')}"
+        + ("   (not determined: held at its prior)" if k in held else "")
+        for k, v in res.params.as_dict().items()
+    )
+    lag = res.lag
+    lag_txt = f"{lag.lag_s:.2f} s ({lag.source}"
+    if lag.per_capture:
+        lag_txt += "; " + ", ".join(
+            f"{k} {e.lag_s:.2f}±{fmt(e.std_s, '.2f')} s r={e.peak_corr:.2f}"
+            for k, e in lag.per_capture.items()
+        )
+    lag_txt += ")"
+    if lag.note:
+        lag_txt += f"\n  warning: {lag.note}"
+    s = res.settings
+    out = [
+        f"{res.method.upper()}-{res.params.model}{' + current' if s.current else ''}: "
+        f"{s.port} against {s.reference_port} ({s.reference_field}), {res.n_samples} samples"
+        + (f" (fit on {res.average_s:g}-s means)" if res.average_s > 0 else ""),
+        f"lag          {lag_txt}",
+        "parameters (± standard error):",
+        params,
+    ]
+    if res.current_mps is not None:
+        cs = res.current_std_mps or (math.nan, math.nan)
+        out.append(
+            f"current      north {res.current_mps[0]:+.3f} ± {fmt(cs[0], '.3f')} m/s, "
+            f"east {res.current_mps[1]:+.3f} ± {fmt(cs[1], '.3f')} m/s"
+        )
+    elif s.current:
+        out.append("current      not determined")
+    out += [
+        f"identifiable {'yes' if res.identifiable else 'NO: ' + res.ident.reason}",
+        f"condition    {fmt(res.ident.cond_info, '.3g')}",
+        f"RMSE raw     {fmt(res.rmse_raw, '.4f')} m/s",
+        f"RMSE cal     {fmt(res.rmse_cal, '.4f')} m/s",
+        f"improvement  {fmt(res.improvement_pct, '.1f')} %",
+    ]
+    if res.nis_mean is not None:
+        out.append(
+            f"NIS          mean {fmt(res.nis_mean, '.2f')}, "
+            f"{fmt(100.0 * (res.nis_frac_inside or math.nan), '.1f')} % inside the 95 % bounds"
+        )
+    return "\n".join(out) + "\n"
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Estimate an error model of one EMlog against a reference from captures."""
+    settings = _settings(args)
+    recs = _load(args.captures, settings, args)
+    if args.average is not None and args.method != "ls":
+        raise UsageError("--average applies to --method ls")
+    res = calibrate(
+        recs, settings, args.method, lag=args.lag, trace=args.trace, average_s=args.average
+    )
+    if args.save:
+        save_params(args.save, res)
+    if args.json:
+        sys.stdout.write(
+            json.dumps({**res.to_dict(), "capture_skips": _skips(recs)}, indent=2) + "\n"
+        )
+    else:
+        sys.stdout.write(_calibration_text(res))
+        if args.save:
+            sys.stdout.write(f"saved        {args.save}\n")
+    _warn_skips(args.command, _skips(recs))
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """Apply a frozen calibration to captures: RMSE raw and calibrated per capture."""
+    cal, extra = load_params(args.params)
+    settings = _settings(
+        args,
+        port=args.uut or cal.uut,
+        reference_port=args.ref or cal.reference.get("port", "dvl"),
+        reference_field=args.ref_field or cal.reference.get("field", "bottom"),
+        model=cal.params.model,
+        current=bool(args.current or cal.current),
+        uut_source=args.uut_source or extra.get("uut_source") or "VHW",
+    )
+    lag_s = cal.lag_s if args.lag is None else args.lag
+    if lag_s is None:
+        raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
+    recs = _load(args.captures, settings, args)
+    rows = evaluate(recs, cal.params, settings, lag_s)
+    if args.json:
+        doc = {
+            "model": cal.params.model,
+            "params": cal.params.as_dict(),
+            "lag_s": lag_s,
+            "uut": settings.port,
+            "ref": settings.reference_port,
+            "current_states": settings.current,
+            "captures": [r.to_dict() for r in rows],
+            "capture_skips": _skips(recs),
+        }
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        _warn_skips(args.command, _skips(recs))
+        return 0
+    sys.stdout.write(
+        f"{cal.params.model} {cal.params.as_dict()} from {args.params}, "
+        f"{settings.port} against {settings.reference_port}, lag {lag_s:.2f} s\n"
+    )
+    sys.stdout.write(
+        render(
+            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %"],
+            [
+                [
+                    r.capture,
+                    str(r.n_samples),
+                    fmt(r.rmse_raw, ".4f"),
+                    fmt(r.rmse_cal, ".4f"),
+                    fmt(r.improvement_pct, ".1f"),
+                ]
+                for r in rows
+            ],
+        )
+    )
+    _warn_skips(args.command, _skips(recs))
+    return 0
+
+
+def _table2_pair(names: list[str], spec: str | None) -> tuple[str, str]:
+    if spec:
+        train, sep, test = spec.partition(",")
+        if not sep or train not in names or test not in names:
+            raise UsageError(f"--table2 TRAIN,TEST with names from {', '.join(names)}")
+        return train, test
+    fig = next((n for n in names if "figure" in n), names[0])
+    straight = next((n for n in names if "straight" in n and n != fig), None)
+    return fig, straight or next(n for n in names if n != fig)
+
+
+def cmd_crossval(args: argparse.Namespace) -> int:
+    """Cross-validate every estimator over the captures (the paper's Tables II and III)."""
+    settings = _settings(args)
+    recs = _load(args.captures, settings, args)
+    t0 = time.perf_counter()
+
+    def onprogress(done: int, total: int, what: str) -> None:
+        progress(f"crossval: {what}", done / total)
+
+    result, lag = crossval(recs, settings, lag=args.lag, workers=args.workers, progress=onprogress)
+    progress_done()
+    elapsed = time.perf_counter() - t0
+    if args.csv:
+        import csv
+
+        rows = result.csv_rows()
+        with open(args.csv, "w", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    if args.json:
+        doc = {
+            "lag": lag.as_dict(),
+            "uut": settings.port,
+            "ref": settings.reference_port,
+            "current_states": settings.current,
+            **result.to_dict(),
+            "capture_skips": _skips(recs),
+        }
+        sys.stdout.write(json.dumps(doc) + "\n")
+        _warn_skips(args.command, _skips(recs))
+        return 0
+    names = [s.name for s in result.segments]
+    train, test = _table2_pair(names, args.table2)
+    estimators = args.estimator or ["LS-EM3"]
+    for est in estimators:
+        if est not in result.estimators:
+            raise UsageError(f"--estimator {est}: choose from {', '.join(result.estimators)}")
+        sys.stdout.write(table3(result, est) + "\n")
+    sys.stdout.write(table2(result, train, test))
+    sys.stdout.write(
+        f"\n{result.n_out_of_sample} out-of-sample evaluations, lag {lag.lag_s:.2f} s, "
+        f"{elapsed:.1f} s\n"
+    )
+    _warn_skips(args.command, _skips(recs))
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """PNG figures like the paper's (needs the report extra)."""
+    from emlogd.offline.report import report
+
+    settings = _settings(args)
+    recs = _load(args.captures, settings, args)
+    paths = report(recs, settings, args.out, lag=args.lag, progress=progress)
+    progress_done()
+    for path in paths:
+        sys.stdout.write(f"{path}\n")
+    _warn_skips(args.command, _skips(recs))
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Run the daemon's pipeline over captures; write the corrected NMEA; print a summary."""
+    import dataclasses
+
+    from emlogd.config import load_config
+    from emlogd.daemon.statefile import StateStore
+    from emlogd.offline.replay import replay
+    from emlogd.pipeline.calibration import Calibration, checker
+    from emlogd.pipeline.core import Output, Pipeline
+    from emlogd.settings import fusion_from_config, pipeline_from_config
+
+    cfg = load_config(args.config)
+    ports, uuts = pipeline_from_config(cfg)
+    if args.learn is not None:
+        uuts = [dataclasses.replace(u, learn=args.learn) for u in uuts]
+    store = StateStore(args.state) if args.state else None
+    cals: dict[str, Calibration] = {}
+    if store is not None:
+        cals, report = store.load(check=checker(uuts))
+        for line in report:
+            sys.stderr.write(f"emlogd replay: {line}\n")
+    pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
+
+    def persist(_: Output) -> None:
+        if store is not None:
+            store.save({c.uut: c for c in pipeline.calibrations()})
+
+    to_stdout = args.out is None and not args.json
+    sink = open(args.out, "wb") if args.out else (sys.stdout.buffer if to_stdout else None)  # noqa: SIM115
+    try:
+        result = replay(
+            pipeline,
+            args.captures,
+            sink=sink,
+            speed=None if args.fast or args.speed is None else args.speed,
+            on_persist=persist,
+            progress=progress,
+            strict=args.strict,
+        )
+    finally:
+        progress_done()
+        if args.out and sink is not None:
+            sink.close()
+    if store is not None:
+        persist(Output())
+    doc = result.to_dict()
+    _warn_skips(args.command, result.capture_skips)
+    if args.json:
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        return 0
+    out = sys.stderr if to_stdout else sys.stdout
+    rows = []
+    uut_docs = doc["uuts"]
+    assert isinstance(uut_docs, dict)
+    for name, u in uut_docs.items():
+        params = u["params"] or {}
+        rows.append(
+            [
+                name,
+                u["state"],
+                ", ".join(f"{k}={v:+.4f}" for k, v in params.items()) or "-",
+                fmt(u["lag_s"], ".2f"),
+                fmt(u["rmse_raw"], ".4f"),
+                fmt(u["rmse_corrected"], ".4f"),
+                str(u["freezes"]),
+            ]
+        )
+    out.write(
+        render(
+            ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"],
+            rows,
+            left=3,
+        )
+    )
+    out.write(
+        f"{result.records} records in {result.elapsed_s:.1f} s "
+        f"({result.span_s / max(result.elapsed_s, 1e-9):.0f}x real time), "
+        f"{result.emitted} sentences emitted, {result.persisted} persists\n"
+    )
+    return 0
+
+
+def _pairing_args(p: argparse.ArgumentParser, required: bool = True) -> None:
+    p.add_argument("--uut", required=required, metavar="PORT", help="EMlog port to calibrate")
+    p.add_argument("--ref", required=required, metavar="PORT", help="reference port")
+    p.add_argument(
+        "--ref-field",
+        choices=["bottom", "water", "speed", "gnss"],
+        default="bottom" if required else None,
+        help="reference: DVL bottom track (default), DVL water track, an EMlog's speed, "
+        "or GNSS speed and course (RMC/VTG) projected on the hull with the heading",
+    )
+
+
+def _water_frame(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--current",
+        action="store_true",
+        help="estimate the sea current too (the water frame; needs a heading)",
+    )
+    p.add_argument(
+        "--heading",
+        metavar="auto|PORT",
+        help="heading source (default auto: the reference's, else the UUT's VHW, else any)",
+    )
+    p.add_argument(
+        "--variation",
+        type=float,
+        metavar="DEG",
+        help="magnetic variation, + east, for magnetic headings without one",
+    )
+
+
+def _common_offline(p: argparse.ArgumentParser) -> None:
+    _water_frame(p)
+    p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
+    p.add_argument(
+        "--magnitude",
+        action="store_true",
+        help="compare horizontal speed magnitudes instead of longitudinal speeds",
+    )
+    p.add_argument(
+        "--lag",
+        type=_lag_arg,
+        default=None,
+        metavar="auto|SECONDS",
+        help="UUT latency (default auto: cross-correlation)",
+    )
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
+
+
+def add_parsers(sub: Subparsers) -> None:
+    """The ``simulate``, ``import``, ``calibrate``, ``evaluate``, ``crossval`` and ``report`` sub-commands."""
+    p = sub.add_parser(
+        "simulate",
+        help="write a simulated sea trial (five captures and truth.yaml)",
+        description="Simulate the paper's sea trial: 1-transit, 2-figure8, 3-straight, "
+        "4-circles, 5-return as capture v1 files in OUTDIR, plus truth.yaml.",
+    )
+    p.add_argument("outdir", help="output directory (created if missing)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--scale", type=float, default=1.0, help="duration factor (0.1: 10 %% as long)")
+    p.add_argument(
+        "--dvl-format", choices=["pd6", "pd0"], default="pd6", help="DVL output (default pd6)"
+    )
+    p.set_defaults(handler=cmd_simulate)
+
+    p = sub.add_parser(
+        "import",
+        help="turn NMEA logs or CSV exports into a capture",
+        description="Import logs without receive times into a capture v1 file on one port. "
+        "nmea: NMEA 0183 logs, timed by their RMC (else ZDA, else GGA + --date) fixes; "
+        "csv: one CSV export with a column map (or --preset expedition), written as VHW, "
+        "RMC and VDR sentences at the row times. Skipped lines are counted by reason.",
+    )
+    p.add_argument("files", nargs="+", metavar="FILE", help="input files, in time order")
+    p.add_argument("--format", choices=["nmea", "csv"], required=True, help="input format")
+    p.add_argument("--out", required=True, metavar="FILE.cap", help="capture to write (.gz ok)")
+    p.add_argument("--port", default="nmea", help="port name in the capture (default nmea)")
+    p.add_argument(
+        "--date", type=_date_arg, metavar="YYYY-MM-DD", help="nmea: UTC date for GGA-only logs"
+    )
+    p.add_argument(
+        "--map",
+        metavar="KEY=COL,...",
+        help="csv: columns for time, stw, heading, sog, cog (and lat, lon, set, drift, "
+        "variation); knots and degrees unless written Col[mps]",
+    )
+    p.add_argument("--preset", choices=["expedition"], help="csv: a known program's columns")
+    p.add_argument(
+        "--time-format", choices=["ole", "iso", "epoch"], help="csv: time column (default ole)"
+    )
+    p.add_argument(
+        "--heading-ref", choices=["true", "magnetic"], help="csv: the heading's reference (true)"
+    )
+    p.add_argument("--json", action="store_true", help="the import report as JSON")
+    p.set_defaults(handler=cmd_import)
+
+    p = sub.add_parser(
+        "calibrate",
+        help="fit an error model of one EMlog against a reference",
+        description="Estimate the lag, fit EM1..EM4 by least squares or the Kalman filter, "
+        "print parameters ± standard errors, identifiability, RMSE raw and calibrated.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    _pairing_args(p)
+    p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
+    p.add_argument("--method", choices=["ls", "kf"], default="ls")
+    p.add_argument("--save", metavar="PARAMS.yaml", help="write the calibration file")
+    p.add_argument(
+        "--trace",
+        metavar="FILE.csv",
+        help="with --method kf: one CSV row per sample (parameters, current, σ, NIS, state)",
+    )
+    p.add_argument(
+        "--average",
+        type=float,
+        metavar="SECONDS",
+        help="with --method ls: fit block means over SECONDS (default 20 for a gnss "
+        "reference, whose noise would shrink the scale; else 0: every sample)",
+    )
+    _common_offline(p)
+    p.set_defaults(handler=cmd_calibrate)
+
+    p = sub.add_parser(
+        "evaluate",
+        help="apply frozen parameters to captures",
+        description="Apply a parameters file (calibrate --save) to captures: RMSE raw, "
+        "calibrated and the improvement per capture.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    p.add_argument("--params", required=True, metavar="PARAMS.yaml", help="parameters file")
+    _pairing_args(p, required=False)
+    _water_frame(p)
+    p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
+    p.add_argument(
+        "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
+    )
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
+    p.set_defaults(handler=cmd_evaluate)
+
+    p = sub.add_parser(
+        "crossval",
+        help="cross-validate every estimator over captures (Tables II and III)",
+        description="Train LS-EM1..4 and KF-EM1..4 on each capture, evaluate on every other; "
+        "print the paper's Table III layout (per estimator) and Table II layout (one pair).",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files (≥ 2)")
+    _pairing_args(p)
+    _common_offline(p)
+    p.add_argument("--csv", metavar="FILE", help="write every evaluation as CSV")
+    p.add_argument(
+        "--estimator",
+        action="append",
+        metavar="NAME",
+        help="Table III for this estimator (repeatable; default LS-EM3)",
+    )
+    p.add_argument(
+        "--table2", metavar="TRAIN,TEST", help="Table II pair (default figure-8, straight)"
+    )
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.set_defaults(handler=cmd_crossval)
+
+    p = sub.add_parser(
+        "report",
+        help="PNG figures like the paper's (extra: emlogd[report])",
+        description="Write figures to --out: speeds raw/calibrated/reference, KF convergence "
+        "sleeve (±3σ), NIS with χ² bounds, the track map, cross-validation heat maps.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    _pairing_args(p)
+    p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
+    _common_offline(p)
+    p.set_defaults(handler=cmd_report)
+
+
+def add_replay_parser(sub: Subparsers) -> None:
+    """The ``replay`` sub-command."""
+    p = sub.add_parser(
+        "replay",
+        help="run the daemon's pipeline over captures",
+        description="The same pipeline as the daemon, over captures in order (state carried "
+        "across files): corrected NMEA to --out (or stdout), then a summary.",
+    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
+    p.add_argument("--config", required=True, metavar="FILE", help="config file")
+    p.add_argument(
+        "--state", metavar="FILE", help="load frozen parameters from and persist to FILE"
+    )
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--learn", dest="learn", action="store_true", default=None, help="learn")
+    g.add_argument("--no-learn", dest="learn", action="store_false", help="frozen parameters only")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--speed", type=positive_float, metavar="X", help="pace at X times real time")
+    g.add_argument("--fast", action="store_true", help="as fast as possible (default)")
+    p.add_argument("--out", metavar="FILE", help="write the corrected NMEA here")
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    p.add_argument("--json", action="store_true", help="summary as one JSON document")
+    p.set_defaults(handler=cmd_replay)

@@ -1,0 +1,130 @@
+"""run, check-config and the control commands through main(argv)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from emlogd.cli import main
+
+
+def test_check_config(capsys: pytest.CaptureFixture[str]) -> None:
+    example = Path(__file__).resolve().parents[3] / "examples" / "emlogd.yaml"
+    assert main(["check-config", str(example)]) == 0
+    assert "ok" in capsys.readouterr().out
+
+
+def test_control_commands_without_daemon(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    assert main(["status", "--socket", str(tmp_path / "none.sock")]) == 1
+    assert "is emlogd running" in capsys.readouterr().err
+
+
+def test_demo_with_a_relative_workdir(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """demo --workdir with a relative path runs (the daemon runs inside it) and keeps its state."""
+    monkeypatch.chdir(tmp_path)
+    rc = main(["demo", "--workdir", "demo_wd", "--speed", "50"])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    assert "better" in captured.out and "Traceback" not in captured.err, captured.err
+    assert (tmp_path / "demo_wd" / "daemon.log").exists()
+    assert (tmp_path / "demo_wd" / "state" / "state.yaml").exists(), captured.out
+
+
+@pytest.mark.parametrize("speed", ["0", "-2", "100"])
+def test_demo_rejects_a_bad_speed(capsys: pytest.CaptureFixture[str], speed: str) -> None:
+    """demo --speed outside 1..50 is a usage error: exit 2, one line on stderr."""
+    assert main(["demo", "--speed", speed]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--speed" in err
+
+
+@pytest.fixture
+def control_socket(
+    tmp_path: Path, trial_files: dict[str, Path]
+) -> Iterator[tuple[Path, list[dict[str, object]]]]:
+    """A control socket answering as the daemon does, with a real pipeline's status after a
+    replay of the figure-8; yields its path and the requests it received."""
+    import selectors
+    import threading
+
+    from emlogd.config import load_config
+    from emlogd.daemon.control import ControlServer
+    from emlogd.offline.replay import replay
+    from emlogd.pipeline.core import Pipeline
+    from emlogd.settings import pipeline_from_config
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "ports:\n"
+        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: /dev/null, protocol: pd6, role: reference}\n"
+        "calibration:\n"
+        "  - {uut: emlog1, reference: dvl, lag: 3.3}\n"
+    )
+    pipeline = Pipeline(*pipeline_from_config(load_config(cfg)))
+    status = replay(pipeline, [trial_files["figure-8"]]).status
+    seen: list[dict[str, object]] = []
+
+    def handle(req: dict[str, object]) -> dict[str, object]:
+        seen.append(req)
+        if req.get("port") not in (None, "emlog1"):
+            raise ValueError(f"no UUT {req['port']!r}; UUTs: emlog1")
+        if req["cmd"] == "status":
+            return {"status": status, "state_file": "/var/lib/emlogd/state.yaml",
+                    "state_errors": 0, "persists": 3}  # fmt: skip
+        if req["cmd"] in ("freeze", "learn"):
+            return {"uuts": ["emlog1"], "learning": bool(req.get("on", False))}
+        return {"uuts": ["emlog1"]}
+
+    sel = selectors.DefaultSelector()
+    path = tmp_path / "control.sock"
+    server = ControlServer(path, handle, sel)
+    stop = threading.Event()
+
+    def serve() -> None:
+        while not stop.is_set():
+            for key, _ in sel.select(0.05):
+                key.data()
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    yield path, seen
+    stop.set()
+    thread.join(5)
+    server.close()
+
+
+def test_control_commands_print_text_unless_json(
+    capsys: pytest.CaptureFixture[str], control_socket: tuple[Path, list[dict[str, object]]]
+) -> None:
+    """status, freeze, learn and reset print readable lines (not JSON) unless --json."""
+    path, seen = control_socket
+    sock = ["--socket", str(path)]
+    assert main(["status", *sock]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert lines[0].startswith("emlog1: ") and "RMSE raw" in lines[0] and "% better" in lines[0]
+    assert any(line.startswith("port dvl: ") for line in lines)
+    assert lines[-1] == "state file /var/lib/emlogd/state.yaml: 3 persists"
+    assert "{" not in out and '"' not in out
+    assert main(["status", *sock, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["status"]["uuts"]["emlog1"]["model"] == "EM3"
+    for argv, text in (
+        (["freeze"], "emlog1: frozen (learning off)\n"),
+        (["learn", "on", "--uut", "emlog1"], "emlog1: learning on\n"),
+        (["learn", "off"], "emlog1: learning off\n"),
+        (["reset"], "emlog1: calibration forgotten (uncalibrated until learnt again)\n"),
+    ):
+        assert main([*argv, *sock]) == 0
+        assert capsys.readouterr().out == text
+    assert seen[-3] == {"cmd": "learn", "port": "emlog1", "on": True}
+    assert main(["freeze", "--uut", "emlog9", *sock]) == 1
+    err = capsys.readouterr().err
+    assert err == "emlogd freeze: error: the daemon refused: no UUT 'emlog9'; UUTs: emlog1\n"

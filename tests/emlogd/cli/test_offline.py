@@ -1,0 +1,175 @@
+"""The offline commands through main(argv): outputs, JSON keys, exit codes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from emlogd.cli import main
+
+
+def test_calibrate_evaluate_crossval(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    fig8, straight = str(trial_files["figure-8"]), str(trial_files["straight"])
+    params = tmp_path / "p.yaml"
+    rc = main(
+        [
+            "calibrate",
+            fig8,
+            "--uut",
+            "emlog1",
+            "--ref",
+            "dvl",
+            "--lag",
+            "3.3",
+            "--save",
+            str(params),
+            "--json",
+        ]
+    )
+    assert rc == 0
+    doc = json.loads(capsys.readouterr().out)
+    for key in ("model", "method", "params", "stderr", "lag_s", "rmse_raw", "rmse_cal",
+                "improvement_pct", "identifiable", "condition_number"):  # fmt: skip
+        assert key in doc
+    assert doc["improvement_pct"] > 60 and doc["identifiable"] is True
+    assert main(["evaluate", straight, "--params", str(params), "--json"]) == 0
+    ev = json.loads(capsys.readouterr().out)
+    assert ev["captures"][0]["improvement_pct"] > 50
+    assert main(["calibrate", straight, "--uut", "emlog1", "--ref", "dvl", "--lag", "3.3"]) == 0
+    assert "identifiable NO" in capsys.readouterr().out
+    csv_path = tmp_path / "cv.csv"
+    files = [str(p) for p in trial_files.values()]
+    assert main(["crossval", *files, "--uut", "emlog1", "--ref", "dvl", "--lag", "3.3",
+                 "--csv", str(csv_path), "--workers", "1"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "LS-EM3: calibrated RMSE" in out and "trained on 2-figure8, tested on 3-straight" in out
+    assert "160 out-of-sample evaluations" in out
+    assert len(csv_path.read_text().splitlines()) == 1 + 8 * 25
+
+
+def test_simulate_command(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["simulate", str(tmp_path / "sim"), "--scale", "0.01", "--seed", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "truth.yaml" in out and (tmp_path / "sim" / "2-figure8.cap").exists()
+    assert main(["simulate", str(tmp_path / "x"), "--scale", "0"]) == 2
+
+
+def test_replay_command(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "ports:\n"
+        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
+        "  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: /dev/null, protocol: pd6, role: reference}\n"
+        "calibration:\n"
+        "  - {uut: emlog1, reference: dvl, lag: 3.3, max_param_std: {m: 0.05, b: 0.08},"
+        " persist_interval_s: 1}\n"
+    )
+    out_nmea = tmp_path / "out.nmea"
+    state = tmp_path / "state.yaml"
+    files = [str(trial_files["transit"]), str(trial_files["figure-8"])]
+    rc = main(
+        [
+            "replay",
+            *files,
+            "--config",
+            str(cfg),
+            "--out",
+            str(out_nmea),
+            "--state",
+            str(state),
+            "--json",
+        ]
+    )
+    assert rc == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc) >= {"uuts", "ports"}
+    u = doc["uuts"]["emlog1"]
+    assert set(u) >= {"rmse_raw", "rmse_corrected", "params", "state", "freezes"}
+    assert doc["ports"]["dvl"]["rejects"]["checksum"] >= 0
+    assert state.exists() and out_nmea.stat().st_size > 0
+    # replaying without learning applies the frozen parameters from the state file at once
+    rc = main(["replay", str(trial_files["straight"]), "--config", str(cfg), "--state", str(state),
+               "--no-learn", "--json"])  # fmt: skip
+    assert rc == 0
+    doc2 = json.loads(capsys.readouterr().out)
+    assert doc2["uuts"]["emlog1"]["state"] == "frozen"
+    assert doc2["uuts"]["emlog1"]["params"] == u["params"]
+    assert doc2["uuts"]["emlog1"]["rmse_corrected"] < doc2["uuts"]["emlog1"]["rmse_raw"]
+
+
+@pytest.mark.parametrize("speed", ["0", "-1"])
+def test_replay_rejects_a_speed_that_is_not_positive(
+    capsys: pytest.CaptureFixture[str], speed: str
+) -> None:
+    """replay --speed 0 or -1 is a usage error: exit 2, one line on stderr."""
+    assert main(["replay", "x.cap", "--config", "c.yaml", "--speed", speed]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--speed" in err and "Traceback" not in err
+
+
+def _corrupt(src: Path, dst: Path) -> dict[int, bytes]:
+    """Copy a capture, spoiling three records: an empty payload, a bad time, a non-ASCII byte."""
+    lines = src.read_bytes().split(b"\n")
+    spoilt = {
+        1001: b"(1749716900.000000) emlog1 ",
+        2002: b"(17497169x0.000000) emlog1 $VWVHW,,T,,M,3.50,N,6.48,K*6A",
+        3003: lines[3002].replace(b",", b"\xb0", 1),
+    }
+    for n, line in spoilt.items():
+        lines[n - 1] = line
+    dst.write_bytes(b"\n".join(lines))
+    return spoilt
+
+
+def test_malformed_records_are_skipped_or_strict(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """replay, calibrate and evaluate count and skip bad records (with their lines); --strict fails."""
+    bad = tmp_path / "bad.cap"
+    _corrupt(trial_files["figure-8"], bad)
+    expected = {
+        "skipped": 3,
+        "reasons": {"missing_payload": 1, "bad_time": 1, "non_ascii": 1},
+        "first": [
+            {"line": 1001, "error": "missing payload"},
+            {"line": 2002, "error": "bad time '17497169x0.000000'"},
+            {"line": 3003, "error": "non-ASCII bytes (payloads must be hex:)"},
+        ],
+    }
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "ports:\n"
+        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: /dev/null, protocol: pd6, role: reference}\n"
+        "calibration:\n"
+        "  - {uut: emlog1, reference: dvl, lag: 3.3}\n"
+    )
+    assert main(["replay", str(bad), "--config", str(cfg), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["capture_skips"] == {str(bad): expected}
+    assert captured.err == (
+        f"emlogd replay: warning: {bad}: 3 malformed records skipped "
+        "(first at line 1001: missing payload); --strict fails instead\n"
+    )
+    params = tmp_path / "p.yaml"
+    pair = ["--uut", "emlog1", "--ref", "dvl", "--lag", "3.3"]
+    assert main(["calibrate", str(bad), *pair, "--save", str(params), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["capture_skips"] == {str(bad): expected}
+    assert main(["evaluate", str(bad), "--params", str(params), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["capture_skips"] == {str(bad): expected}
+    for argv in (
+        ["replay", str(bad), "--config", str(cfg), "--strict", "--json"],
+        ["calibrate", str(bad), *pair, "--strict"],
+        ["evaluate", str(bad), "--params", str(params), "--strict"],
+    ):
+        assert main(argv) == 1
+        captured = capsys.readouterr()
+        assert captured.err == f"emlogd {argv[0]}: error: {bad}:1001: missing payload\n"
+        assert captured.out == ""
