@@ -60,11 +60,6 @@ class LineFramer:
         self._buf = bytearray()
         self._discarding = False
 
-    @property
-    def idle(self) -> bool:
-        """Nothing buffered and nothing being discarded: the next byte starts afresh."""
-        return not self._buf and not self._discarding
-
     def feed(self, data: bytes) -> list[bytes | FrameError]:
         """Add bytes; return every complete frame (or framing error) they finish."""
         buf = self._buf

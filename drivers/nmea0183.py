@@ -32,7 +32,6 @@ Must not import: serial, os, time, threading (pure module).
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 from datetime import UTC, date, datetime, timedelta
 from typing import ClassVar
@@ -377,68 +376,6 @@ def parse_vbw(talker: str, f: list[str], raw: bytes) -> Vbw:
     )
 
 
-# The fast path of the two hot sentences: one compiled pattern accepts the plain
-# layouts (decimal numbers, the expected letters or nothing) and the values go
-# through the same range checks; anything else (or any failed check) takes the
-# field-by-field path above, which says exactly what is wrong.
-_N = rb"([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+))?"
-_FAST_VHW = re.compile(
-    rb"([A-Za-z0-9]{2})VHW," + _N + rb",T?," + _N + rb",M?," + _N + rb",N?," + _N + rb",K?"
-)
-_FAST_VBW = re.compile(
-    rb"([A-Za-z0-9]{2})VBW," + _N + rb"," + _N + rb",([AV]?)," + _N + rb"," + _N + rb",([AV]?)"
-)
-
-
-def _fast_sentence(body: bytes) -> Vhw | Vbw | None:
-    """VHW or VBW (6 fields) in one pattern; None to take the general path."""
-    kind = body[2:5]
-    if kind == b"VBW":
-        m = _FAST_VBW.fullmatch(body)
-        if m is None:
-            return None
-        talker, wl_, wt_, wv, gl_, gt_, gv = m.groups()
-        wl = None if wl_ is None else float(wl_) * KNOT_MPS
-        wt = None if wt_ is None else float(wt_) * KNOT_MPS
-        gl = None if gl_ is None else float(gl_) * KNOT_MPS
-        gt = None if gt_ is None else float(gt_) * KNOT_MPS
-        for x in (wl, wt, gl, gt):
-            if x is not None and abs(x) > MAX_SPEED_MPS:
-                return None
-        return Vbw(
-            talker.decode(),
-            wl,
-            wt,
-            wv == b"A" and wl is not None,
-            gl,
-            gt,
-            gv == b"A" and gl is not None,
-        )
-    if kind == b"VHW":
-        m = _FAST_VHW.fullmatch(body)
-        if m is None:
-            return None
-        talker, ht_, hm_, kn_, kmh_ = m.groups()
-        ht = None if ht_ is None else float(ht_)
-        hm = None if hm_ is None else float(hm_)
-        kn = None if kn_ is None else float(kn_)
-        kmh = None if kmh_ is None else float(kmh_)
-        if (ht is not None and not 0.0 <= ht <= 360.0) or (
-            hm is not None and not 0.0 <= hm <= 360.0
-        ):
-            return None
-        mps = kn * KNOT_MPS if kn is not None else (kmh * KMH_MPS if kmh is not None else None)
-        if mps is not None and abs(mps) > MAX_SPEED_MPS:
-            return None
-        disagree = (
-            kn_ is not None
-            and kmh_ is not None
-            and _units_disagree(kn, kmh, kn_.decode(), kmh_.decode())
-        )
-        return Vhw(talker.decode(), ht, hm, kn, kmh, mps, disagree)
-    return None
-
-
 def _pyn_num(value: object, name: str, raw: bytes) -> float | None:
     """A pynmea2 attribute that must be a number (Decimal/float) or None."""
     if value is None or value == "":
@@ -738,11 +675,7 @@ class NmeaDecoder(FramedDecoder):
             FrameError: a subclass naming the reject reason.
         """
         body = split_nmea(frame, required=self.options.checksum == "required")
-        if frame[:1] == b"$":
-            fast = _fast_sentence(body)
-            if fast is not None:
-                return fast
-        else:
+        if frame[:1] != b"$":
             raise UnknownSentenceError("encapsulated (!) sentences are not decoded", frame)
         try:
             text = body.decode("ascii")

@@ -125,23 +125,26 @@ class PdHealth:
 RECORDS = (Velocity, DistanceMadeGood, Pd6Ensemble, PdHealth)
 
 
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)")
+_INTEGER = re.compile(r"[+-]?[0-9]+")
+
+
 def _num(field: str, name: str, raw: bytes) -> float:
-    f = field.strip()
-    try:
-        x = float(f)
-    except ValueError:
-        raise FieldError(f"{name}: {field!r} is not a number", raw) from None
-    if not f or "_" in f or not math.isfinite(x):
+    """A decimal number, right-aligned with leading spaces or not (no exponent, no ``_``,
+    no ``nan``, no trailing blank: a digit lost to a blank would read as another number)."""
+    f = field.lstrip(" ")
+    if not _DECIMAL.fullmatch(f):
         raise FieldError(f"{name}: {field!r} is not a number", raw)
-    return x
+    return float(f)
 
 
 def _int(field: str, name: str, raw: bytes) -> int:
-    f = field.strip()
-    try:
-        return int(f)
-    except ValueError:
-        raise FieldError(f"{name}: {field!r} is not an integer", raw) from None
+    """A decimal integer, right-aligned with leading spaces or not (no ``_``, no trailing
+    blank)."""
+    f = field.lstrip(" ")
+    if not _INTEGER.fullmatch(f):
+        raise FieldError(f"{name}: {field!r} is not an integer", raw)
+    return int(f)
 
 
 def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | None:
@@ -196,45 +199,6 @@ def _environment(
     return stamp, sal, temp, depth, c, bit
 
 
-# The fast path: one compiled pattern per line type accepts the plain layouts every
-# DVL sends (decimal numbers, optional spaces and signs); a line it does not match
-# goes through the field-by-field path, which accepts the same and more, and says
-# exactly what is wrong. Both end in the same range checks (the *_of helpers).
-_I = rb" *([+-]?[0-9]+) *"
-_F = rb" *([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)) *"
-_FAST_VEL4 = re.compile(rb":(WI|BI)," + rb",".join([_I] * 4) + rb", *([AV]) *")
-_FAST_VEL3 = re.compile(rb":(WS|WE|BS|BE)," + rb",".join([_I] * 3) + rb", *([AV]) *")
-_FAST_DMG = re.compile(rb":(WD|BD)," + rb",".join([_F] * 5))
-_FAST_SA = re.compile(rb":SA," + rb",".join([_F] * 3))
-_FAST_TS = re.compile(
-    rb":TS, *([0-9]{14}) *," + rb",".join([_F] * 4) + rb"," + _I + rb"(?:, *([OWX]) *)?"
-)
-
-
-# A chunk holding exactly one whole ensemble of the usual layout (the daemon reads a
-# resting DVL once per ensemble) is matched by one pattern and assembled at once;
-# anything else (a partial or extra line, :RA, water lines other than all four, a
-# value failing a range check, a line over max_length) goes line by line.
-_ST = rb", *([AV]) *\r\n"
-
-
-def _vel_pattern(kind: bytes, n: int) -> bytes:
-    return b":" + kind + b"," + b",".join([_I] * n) + _ST
-
-
-def _dmg_pattern(kind: bytes) -> bytes:
-    return b":" + kind + b"," + b",".join([_F] * 5) + rb"\r\n"
-
-
-_FAST_ENSEMBLE = re.compile(
-    b":SA," + b",".join([_F] * 3) + rb"\r\n"
-    + b":TS, *([0-9]{14}) *," + b",".join([_F] * 4) + b"," + _I + rb"(?:, *[OWX] *)?\r\n"
-    + b"(?:" + _vel_pattern(b"WI", 4) + _vel_pattern(b"WS", 3) + _vel_pattern(b"WE", 3)
-    + _dmg_pattern(b"WD") + b")?"
-    + _vel_pattern(b"BI", 4) + _vel_pattern(b"BS", 3) + _vel_pattern(b"BE", 3) + _dmg_pattern(b"BD")
-)  # fmt: skip
-
-
 def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
     """The ensemble record of an assembled block (lines by type, values parsed)."""
     sa = lines["SA"]
@@ -268,72 +232,6 @@ def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
         bottom_earth=vel[5],
         bottom_dmg=bd if isinstance(bd, DistanceMadeGood) else None,
     )
-
-
-def _fast_ensemble(data: bytes, max_length: int) -> Pd6Ensemble | None:
-    """One whole usual-layout ensemble in one pattern; None to go line by line."""
-    m = _FAST_ENSEMBLE.fullmatch(data)
-    if m is None or any(len(x) + 2 > max_length for x in data.split(b"\r\n")):
-        return None
-    g = m.groups()
-    try:
-        sa = _attitude(float(g[0]), float(g[1]), float(g[2]), data)
-        ts = _environment(
-            g[3].decode(), float(g[4]), float(g[5]), float(g[6]), float(g[7]), int(g[8]), data
-        )
-        wi = ws = we = None
-        wd = None
-        if g[9] is not None:
-            wi = _velocity_of([int(x) for x in g[9:13]], g[13] == b"V", "WI", data)
-            ws = _velocity_of([int(x) for x in g[14:17]], g[17] == b"V", "WS", data)
-            we = _velocity_of([int(x) for x in g[18:21]], g[21] == b"V", "WE", data)
-            e, n, u, r, dt = (float(x) for x in g[22:27])
-            wd = _dmg_of(e, n, u, r, dt, "WD", data)
-        bi = _velocity_of([int(x) for x in g[27:31]], g[31] == b"V", "BI", data)
-        bs = _velocity_of([int(x) for x in g[32:35]], g[35] == b"V", "BS", data)
-        be = _velocity_of([int(x) for x in g[36:39]], g[39] == b"V", "BE", data)
-        e, n, u, r, dt = (float(x) for x in g[40:45])
-        bd = _dmg_of(e, n, u, r, dt, "BD", data)
-    except FrameError:
-        return None  # the line-by-line path says which line and why
-    return _ensemble(
-        {"SA": sa, "TS": ts, "WI": wi, "WS": ws, "WE": we, "WD": wd, "BI": bi, "BS": bs,
-         "BE": be, "BD": bd}
-    )  # fmt: skip
-
-
-def _fast_line(frame: bytes) -> tuple[str, object] | None:
-    """Parse a plain line with one pattern; None to fall back to :func:`_parse_fields`."""
-    kind = frame[1:3]
-    if kind[:1] in (b"W", b"B"):
-        if kind[1:] == b"D":
-            m = _FAST_DMG.fullmatch(frame)
-            if m is None:
-                return None
-            v, e1, n1, u1, r1, dt1 = m.groups()
-            k = v.decode()
-            return k, _dmg_of(float(e1), float(n1), float(u1), float(r1), float(dt1), k, frame)
-        m = (_FAST_VEL4 if kind[1:] == b"I" else _FAST_VEL3).fullmatch(frame)
-        if m is None:
-            return None
-        v, *values, st = m.groups()
-        k = v.decode()
-        return k, _velocity_of([int(x) for x in values], st == b"V", k, frame)
-    if kind == b"SA":
-        m = _FAST_SA.fullmatch(frame)
-        if m is None:
-            return None
-        p, r, h = m.groups()
-        return "SA", _attitude(float(p), float(r), float(h), frame)
-    if kind == b"TS":
-        m = _FAST_TS.fullmatch(frame)
-        if m is None:
-            return None
-        stamp, sal, temp, depth, c, bit, _leak = m.groups()
-        return "TS", _environment(
-            stamp.decode(), float(sal), float(temp), float(depth), float(c), int(bit), frame
-        )
-    return None
 
 
 def _parse_fields(frame: bytes) -> tuple[str, object]:
@@ -422,12 +320,6 @@ class PdAsciiDecoder(FramedDecoder):
     def feed(self, data: bytes) -> Iterator[object]:
         """Decode a chunk; yields complete ensembles (and rejects per the error policy)."""
         pending = self._pending
-        if not pending and self._block is None and self._lines.idle:
-            whole = _fast_ensemble(data, self.options.max_length)
-            if whole is not None:
-                self.counters.records += 1
-                yield whole
-                return
         pending.extend(self._framer.feed(data))
         while pending:
             item = pending.popleft()
@@ -495,7 +387,7 @@ class PdAsciiDecoder(FramedDecoder):
         Raises:
             FrameError: a subclass naming the reject reason.
         """
-        return _fast_line(frame) or _parse_fields(frame)
+        return _parse_fields(frame)
 
     def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
         """:BS → sog (source ``PD6:BS``), :WS → stw (``PD6:WS``); vessel-motion sign."""

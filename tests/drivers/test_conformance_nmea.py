@@ -233,7 +233,7 @@ def test_humminbird_mtw() -> None:
     assert mtw[0].temperature_c == 17.9  # the gpsd doc example, $INMTW,17.9,C*1B
 
 
-def test_our_fast_path_agrees_with_pynmea2_on_every_real_vhw_and_vbw() -> None:
+def test_our_decoder_agrees_with_pynmea2_on_every_real_vhw() -> None:
     """Every VHW we decode from the three real captures (over 1000; they hold no VBW) has the
     headings and speeds pynmea2 gives."""
     n = 0
