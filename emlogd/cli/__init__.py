@@ -327,7 +327,7 @@ def cmd_fake(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    """Write the simulated sea trial (five captures and truth.yaml)."""
+    """Write the simulated sea trial (five captures, truth.yaml and truth.csv.gz)."""
     from emlogd.offline.simulate import simulate
 
     if not 0.0 < args.scale <= 10.0:
@@ -337,6 +337,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         seed=args.seed,
         scale=args.scale,
         dvl_format=args.dvl_format,
+        current=args.current,
+        circles=args.circles,
         progress=_progress,
     )
     _progress_done()
@@ -348,6 +350,18 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         )
     sys.stdout.write(f"{result.truth_path}: truth ({result.elapsed_s:.1f} s)\n")
     return 0
+
+
+def _current_arg(value: str) -> tuple[float, float]:
+    """``N,E`` in m/s (simulate --current)."""
+    north, sep, east = value.partition(",")
+    try:
+        c = (float(north), float(east))
+    except ValueError:
+        c = (math.nan, math.nan)
+    if not sep or not all(math.isfinite(x) and abs(x) <= 3.0 for x in c):
+        raise argparse.ArgumentTypeError(f"expected N,E in m/s within ±3, not {value!r}")
+    return c
 
 
 # ---------------------------------------------------------------------------- import
@@ -914,15 +928,28 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "simulate",
-        help="write a simulated sea trial (five captures and truth.yaml)",
+        help="write a simulated sea trial (five captures and the truth)",
         description="Simulate the paper's sea trial: 1-transit, 2-figure8, 3-straight, "
-        "4-circles, 5-return as capture v1 files in OUTDIR, plus truth.yaml.",
+        "4-circles, 5-return as capture v1 files in OUTDIR (ports emlog1, emlog2, dvl, "
+        "gnss), plus truth.yaml and the truth per sample in truth.csv.gz.",
     )
     p.add_argument("outdir", help="output directory (created if missing)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--scale", type=float, default=1.0, help="duration factor (0.1: 10 %% as long)")
     p.add_argument(
         "--dvl-format", choices=["pd6", "pd0"], default="pd6", help="DVL output (default pd6)"
+    )
+    p.add_argument(
+        "--current",
+        type=_current_arg,
+        metavar="N,E",
+        help="a constant sea current, m/s north and east (default: a slowly varying one)",
+    )
+    p.add_argument(
+        "--circles",
+        choices=["steps", "constant"],
+        default="steps",
+        help="the circles at three throttle settings (default) or at one constant speed",
     )
     p.set_defaults(handler=cmd_simulate)
 
