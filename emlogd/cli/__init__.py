@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator, Sequence
 from datetime import date
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from drivers import DecoderOptions, EmlogdError, make_decoder, protocol_names
 from drivers.base import Decoder
@@ -37,6 +37,10 @@ from emlogd.offline.jobs import (
 )
 from emlogd.offline.tables import fmt, render, table2, table3
 from emlogd.pipeline.core import UutSettings
+
+if TYPE_CHECKING:
+    from calib.models import Params
+    from emlogd.offline.simulate import Truth, TruthScore
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -558,8 +562,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     lag_s = cal.lag_s if args.lag is None else args.lag
     if lag_s is None:
         raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
+    truth = _truth(args, [settings.port])
     recs = _load(args.captures, settings, args)
     rows = evaluate(recs, cal.params, settings, lag_s)
+    scores = [_score_rec(truth, settings.port, r, cal.params) for r in recs]
     if args.json:
         doc = {
             "model": cal.params.model,
@@ -568,7 +574,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             "uut": settings.port,
             "ref": settings.reference_port,
             "current_states": settings.current,
-            "captures": [r.to_dict() for r in rows],
+            "captures": [
+                r.to_dict() | {"truth": None if sc is None else sc.to_dict()}
+                for r, sc in zip(rows, scores, strict=True)
+            ],
         }
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         return 0
@@ -578,7 +587,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     )
     sys.stdout.write(
         render(
-            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %"],
+            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %"]
+            + (["truth: raw", "cal", "floor"] if truth is not None else []),
             [
                 [
                     r.capture,
@@ -586,12 +596,46 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                     fmt(r.rmse_raw, ".4f"),
                     fmt(r.rmse_cal, ".4f"),
                     fmt(r.improvement_pct, ".1f"),
+                    *_truth_cells(sc),
                 ]
-                for r in rows
+                for r, sc in zip(rows, scores, strict=True)
             ],
         )
     )
     return 0
+
+
+def _truth(args: argparse.Namespace, uuts: Sequence[str]) -> Truth | None:
+    """``--truth DIR``: the simulated trial's truth (checked to know ``uuts``), else None."""
+    if not getattr(args, "truth", None):
+        return None
+    from emlogd.offline.simulate import read_truth
+
+    truth = read_truth(args.truth)
+    for port in uuts:
+        truth.emlog(port)
+    return truth
+
+
+def _score_rec(truth: Truth | None, port: str, rec: Recording, params: Params) -> TruthScore | None:
+    """A capture's raw and calibrated readings scored against the truth (None without one)."""
+    if truth is None:
+        return None
+    from calib.models import correct_array
+    from emlogd.offline.simulate import score_truth
+
+    return score_truth(truth, port, rec.t_read, rec.raw, correct_array(params, rec.raw))
+
+
+def _truth_cells(score: TruthScore | None) -> list[str]:
+    """RMSE against the truth: raw, calibrated or corrected, the floor (m/s)."""
+    if score is None:
+        return []
+    return [
+        fmt(score.rmse_raw, ".4f"),
+        fmt(score.rmse_corrected, ".4f"),
+        fmt(score.rmse_floor, ".4f"),
+    ]
 
 
 def _table2_pair(names: list[str], spec: str | None) -> tuple[str, str]:
@@ -712,6 +756,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     cfg = load_config(args.config)
     ports, uuts = pipeline_from_config(cfg)
+    truth = _truth(args, [u.port for u in uuts])
     if args.learn is not None:
         uuts = [dataclasses.replace(u, learn=args.learn) for u in uuts]
     store = StateStore(args.state) if args.state else None
@@ -736,6 +781,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             speed=None if args.fast or args.speed is None else args.speed,
             on_persist=persist,
             progress=_progress,
+            truth=truth,
         )
     finally:
         _progress_done()
@@ -762,11 +808,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 fmt(u["rmse_raw"], ".4f"),
                 fmt(u["rmse_corrected"], ".4f"),
                 str(u["freezes"]),
+                *_truth_cells(result.truth.get(name)),
             ]
         )
     out.write(
         render(
-            ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"],
+            ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"]
+            + (["truth: raw", "corr.", "floor"] if truth is not None else []),
             rows,
             left=3,
         )
@@ -1071,6 +1119,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
     )
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
+    p.add_argument(
+        "--truth",
+        metavar="DIR",
+        help="a simulated trial's directory: score raw and calibrated speeds against its "
+        "true speed through water",
+    )
     p.set_defaults(handler=cmd_evaluate)
 
     p = sub.add_parser(
@@ -1140,6 +1194,12 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--fast", action="store_true", help="as fast as possible (default)")
     p.add_argument("--out", metavar="FILE", help="write the corrected NMEA here")
     p.add_argument("--json", action="store_true", help="summary as one JSON document")
+    p.add_argument(
+        "--truth",
+        metavar="DIR",
+        help="a simulated trial's directory: score the emitted speeds against its true "
+        "speed through water",
+    )
     p.set_defaults(handler=cmd_replay)
 
     for name, text in (
