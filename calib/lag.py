@@ -10,7 +10,9 @@ value is a quality figure in [−1, 1], and:
 - τ runs over a bounded grid ``[−max_lag_s, max_lag_s]`` with step ``step_s``
   (default: the finer of the two median sample intervals), and only measurement
   samples whose shifted time stays inside the reference for **every** τ are used,
-  so all candidates are scored on the same samples;
+  so all candidates are scored on the same samples; nor may it fall into a
+  reference outage (a gap longer than :data:`MAX_GAP_S` or :data:`GAP_SPACINGS`
+  spacings): the reference is never interpolated across one;
 - the grid peak is refined to sub-sample resolution by fitting a parabola through
   it and its two neighbours.
 
@@ -81,6 +83,11 @@ def _series(name: str, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[FloatArray, 
 
 PEAK_HALF_WIDTH_S = 1.0
 """Half-width of the neighbourhood of the grid peak fitted by a parabola, s."""
+
+MAX_GAP_S = 1.0
+GAP_SPACINGS = 3.0
+"""A reference gap longer than ``max(MAX_GAP_S, GAP_SPACINGS × its median spacing)``
+is an outage: the lag is never scored across one (a 10 Hz DVL: 1 s; 1 Hz GNSS: 3 s)."""
 
 MIN_LAG_CORRELATION = 0.6
 """An estimate with a weaker peak is not used: a straight run at constant speed
@@ -280,15 +287,20 @@ def estimate_lag(
     lags = np.arange(-n_half, n_half + 1, dtype=np.float64) * step_s
     reach = n_half * step_s
     keep = (tm - reach >= tr[0]) & (tm + reach <= tr[-1])
+    # Both series are smoothed over at least twice the coarser sample spacing: two 1 Hz
+    # series sampled at whole seconds otherwise correlate best wherever their samples
+    # line up (a comb of peaks a second apart); a symmetric average keeps the phase.
+    width = max(SMOOTH_S, 2.0 * float(max(np.median(np.diff(tm)), np.median(np.diff(tr)))))
+    # Never across a reference outage: a sample whose shifted time (or smoothing window)
+    # could fall into a gap is left out, so the series is scored segment by segment.
+    gap_s = max(MAX_GAP_S, GAP_SPACINGS * float(np.median(np.diff(tr))))
+    for i in np.flatnonzero(np.diff(tr) > gap_s).tolist():
+        keep &= (tm + reach + width <= tr[i]) | (tm - reach - width >= tr[i + 1])
     if int(np.count_nonzero(keep)) < min_samples:
         raise DataError(
             f"only {int(np.count_nonzero(keep))} measurement samples overlap the reference "
             f"within ±{reach:g} s (need {min_samples})"
         )
-    # Both series are smoothed over at least twice the coarser sample spacing: two 1 Hz
-    # series sampled at whole seconds otherwise correlate best wherever their samples
-    # line up (a comb of peaks a second apart); a symmetric average keeps the phase.
-    width = max(SMOOTH_S, 2.0 * float(max(np.median(np.diff(tm)), np.median(np.diff(tr)))))
     vm = _smooth(tm, vm, width)
     vr = _smooth(tr, vr, width)
     tk = tm[keep]

@@ -10,7 +10,7 @@ import sys
 import time
 from collections.abc import Sequence
 from datetime import date
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
 from emlogd.offline.dataset import Recording
@@ -26,11 +26,15 @@ from emlogd.offline.jobs import (
 from emlogd.offline.tables import fmt, render, table2, table3
 from emlogd.pipeline.core import UutSettings
 
+if TYPE_CHECKING:
+    from calib.models import Params
+    from emlogd.offline.simulate import Truth, TruthScore
+
 # ---------------------------------------------------------------------------- simulate
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    """Write the simulated sea trial (five captures and truth.yaml)."""
+    """Write the simulated sea trial (five captures, truth.yaml and truth.csv.gz)."""
     from emlogd.offline.simulate import simulate
 
     if not 0.0 < args.scale <= 10.0:
@@ -40,6 +44,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         seed=args.seed,
         scale=args.scale,
         dvl_format=args.dvl_format,
+        current=args.current,
+        circles=args.circles,
         progress=progress,
     )
     progress_done()
@@ -51,6 +57,51 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         )
     sys.stdout.write(f"{result.truth_path}: truth ({result.elapsed_s:.1f} s)\n")
     return 0
+
+
+def _current_arg(value: str) -> tuple[float, float]:
+    """``N,E`` in m/s (simulate --current)."""
+    north, sep, east = value.partition(",")
+    try:
+        c = (float(north), float(east))
+    except ValueError:
+        c = (math.nan, math.nan)
+    if not sep or not all(math.isfinite(x) and abs(x) <= 3.0 for x in c):
+        raise argparse.ArgumentTypeError(f"expected N,E in m/s within ±3, not {value!r}")
+    return c
+
+
+def _truth(args: argparse.Namespace, uuts: Sequence[str]) -> Truth | None:
+    """``--truth DIR``: the simulated trial's truth (checked to know ``uuts``), else None."""
+    if not getattr(args, "truth", None):
+        return None
+    from emlogd.offline.simulate import read_truth
+
+    truth = read_truth(args.truth)
+    for port in uuts:
+        truth.emlog(port)
+    return truth
+
+
+def _score_rec(truth: Truth | None, port: str, rec: Recording, params: Params) -> TruthScore | None:
+    """A capture's raw and calibrated readings scored against the truth (None without one)."""
+    if truth is None:
+        return None
+    from calib.models import correct_array
+    from emlogd.offline.simulate import score_truth
+
+    return score_truth(truth, port, rec.t_read, rec.raw, correct_array(params, rec.raw))
+
+
+def _truth_cells(score: TruthScore | None) -> list[str]:
+    """RMSE against the truth: raw, calibrated or corrected, the floor (m/s)."""
+    if score is None:
+        return []
+    return [
+        fmt(score.rmse_raw, ".4f"),
+        fmt(score.rmse_corrected, ".4f"),
+        fmt(score.rmse_floor, ".4f"),
+    ]
 
 
 # ---------------------------------------------------------------------------- import
@@ -281,8 +332,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     lag_s = cal.lag_s if args.lag is None else args.lag
     if lag_s is None:
         raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
+    truth = _truth(args, [settings.port])
     recs = _load(args.captures, settings, args)
     rows = evaluate(recs, cal.params, settings, lag_s)
+    scores = [_score_rec(truth, settings.port, r, cal.params) for r in recs]
     if args.json:
         doc = {
             "model": cal.params.model,
@@ -291,7 +344,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             "uut": settings.port,
             "ref": settings.reference_port,
             "current_states": settings.current,
-            "captures": [r.to_dict() for r in rows],
+            "captures": [
+                r.to_dict() | {"truth": None if sc is None else sc.to_dict()}
+                for r, sc in zip(rows, scores, strict=True)
+            ],
             "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
@@ -303,7 +359,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     )
     sys.stdout.write(
         render(
-            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %"],
+            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %"]
+            + (["truth: raw", "cal", "floor"] if truth is not None else []),
             [
                 [
                     r.capture,
@@ -311,8 +368,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                     fmt(r.rmse_raw, ".4f"),
                     fmt(r.rmse_cal, ".4f"),
                     fmt(r.improvement_pct, ".1f"),
+                    *_truth_cells(sc),
                 ]
-                for r in rows
+                for r, sc in zip(rows, scores, strict=True)
             ],
         )
     )
@@ -406,6 +464,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     cfg = load_config(args.config)
     ports, uuts = pipeline_from_config(cfg)
+    truth = _truth(args, [u.port for u in uuts])
     if args.learn is not None:
         uuts = [dataclasses.replace(u, learn=args.learn) for u in uuts]
     store = StateStore(args.state) if args.state else None
@@ -431,6 +490,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             on_persist=persist,
             progress=progress,
             strict=args.strict,
+            truth=truth,
         )
     finally:
         progress_done()
@@ -458,11 +518,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 fmt(u["rmse_raw"], ".4f"),
                 fmt(u["rmse_corrected"], ".4f"),
                 str(u["freezes"]),
+                *_truth_cells(result.truth.get(name)),
             ]
         )
     out.write(
         render(
-            ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"],
+            ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"]
+            + (["truth: raw", "corr.", "floor"] if truth is not None else []),
             rows,
             left=3,
         )
@@ -529,15 +591,28 @@ def add_parsers(sub: Subparsers) -> None:
     """The ``simulate``, ``import``, ``calibrate``, ``evaluate``, ``crossval`` and ``report`` sub-commands."""
     p = sub.add_parser(
         "simulate",
-        help="write a simulated sea trial (five captures and truth.yaml)",
+        help="write a simulated sea trial (five captures and the truth)",
         description="Simulate the paper's sea trial: 1-transit, 2-figure8, 3-straight, "
-        "4-circles, 5-return as capture v1 files in OUTDIR, plus truth.yaml.",
+        "4-circles, 5-return as capture v1 files in OUTDIR (ports emlog1, emlog2, dvl, "
+        "gnss), plus truth.yaml and the truth per sample in truth.csv.gz.",
     )
     p.add_argument("outdir", help="output directory (created if missing)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--scale", type=float, default=1.0, help="duration factor (0.1: 10 %% as long)")
     p.add_argument(
         "--dvl-format", choices=["pd6", "pd0"], default="pd6", help="DVL output (default pd6)"
+    )
+    p.add_argument(
+        "--current",
+        type=_current_arg,
+        metavar="N,E",
+        help="a constant sea current, m/s north and east (default: a slowly varying one)",
+    )
+    p.add_argument(
+        "--circles",
+        choices=["steps", "constant"],
+        default="steps",
+        help="the circles at three throttle settings (default) or at one constant speed",
     )
     p.set_defaults(handler=cmd_simulate)
 
@@ -614,6 +689,12 @@ def add_parsers(sub: Subparsers) -> None:
     )
     p.add_argument("--strict", action="store_true", help=STRICT_HELP)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
+    p.add_argument(
+        "--truth",
+        metavar="DIR",
+        help="a simulated trial's directory: score raw and calibrated speeds against its "
+        "true speed through water",
+    )
     p.set_defaults(handler=cmd_evaluate)
 
     p = sub.add_parser(
@@ -674,4 +755,10 @@ def add_replay_parser(sub: Subparsers) -> None:
     p.add_argument("--out", metavar="FILE", help="write the corrected NMEA here")
     p.add_argument("--strict", action="store_true", help=STRICT_HELP)
     p.add_argument("--json", action="store_true", help="summary as one JSON document")
+    p.add_argument(
+        "--truth",
+        metavar="DIR",
+        help="a simulated trial's directory: score the emitted speeds against its true "
+        "speed through water",
+    )
     p.set_defaults(handler=cmd_replay)

@@ -6,6 +6,12 @@ state carries across files), every record goes through the same
 sink, and the calibration can be loaded from and persisted to a state file. With
 ``speed`` the replay is paced at that multiple of real time, otherwise it runs as
 fast as it can.
+
+With the truth of a simulated trial (:func:`~emlogd.offline.simulate.read_truth`),
+every UUT reading that was emitted corrected is scored against the true speed
+through the water: the emitted sentence is decoded as a receiver would read it and
+paired with the raw reading it corrects (same receive time, the UUT's learnt
+sentence).
 """
 
 from __future__ import annotations
@@ -17,8 +23,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
+import numpy as np
+
+from drivers import make_decoder
+from drivers.base import Decoder
 from drivers.io.capture import CaptureReader
-from emlogd.pipeline.core import Event, Output, Pipeline
+from emlogd.offline.simulate import Truth, TruthScore, score_truth
+from emlogd.pipeline.core import Emit, Event, Output, Pipeline
 
 ProgressFn = Callable[[str, float], None]
 
@@ -40,6 +51,8 @@ class ReplayResult:
     elapsed_s: float = 0.0
     span_s: float = 0.0
     capture_skips: dict[str, dict[str, object]] = field(default_factory=dict)
+    truth: dict[str, TruthScore] = field(default_factory=dict)
+    """Per UUT, its emitted speeds scored against the truth (replay with ``truth``)."""
 
     def to_dict(self) -> dict[str, object]:
         """``{"uuts": {...}, "ports": {...}, ...}`` (README: ``replay --json``)."""
@@ -59,6 +72,7 @@ class ReplayResult:
                     "lag_s": u["lag_s"],
                     "nis_mean": u["nis_mean"],
                     "samples_learnt": u["samples_learnt"],
+                    "truth": self.truth[name].to_dict() if name in self.truth else None,
                 }
                 for name, u in uuts.items()
             },
@@ -86,6 +100,7 @@ def replay(
     on_persist: Callable[[Output], None] | None = None,
     on_event: Callable[[Event], None] | None = None,
     progress: ProgressFn | None = None,
+    truth: Truth | None = None,
     sleep: Callable[[float], None] = time.sleep,
     monotonic: Callable[[], float] = time.monotonic,
     strict: bool = False,
@@ -100,6 +115,8 @@ def replay(
         on_persist: called with each output that asks for a persist.
         on_event: called for each pipeline event.
         progress: called as (message, fraction of the current file).
+        truth: a simulated trial's truth: score each UUT's emitted speeds against it
+            (:attr:`ReplayResult.truth`).
         sleep: the sleep function (tests).
         monotonic: the clock used for pacing (tests).
         strict: a malformed record raises; otherwise it is counted and skipped
@@ -111,9 +128,15 @@ def replay(
     Raises:
         CaptureFormatError: a malformed capture header, or with ``strict`` any malformed
             record (names the file and line).
+        TruthError: with ``truth``, a UUT that is not one of the simulated EMlogs.
     """
     started = time.perf_counter()
     result = ReplayResult(status={})
+    scorer: _TruthScorer | None = None
+    if truth is not None:
+        for name in pipeline.uuts:
+            truth.emlog(name)  # a UUT the truth does not know fails now, not after the replay
+        scorer = _TruthScorer(pipeline)
     t_first: float | None = None
     t_last = 0.0
     pace0: tuple[float, float] | None = None
@@ -140,6 +163,8 @@ def replay(
                 t_tick = rec.t
                 pipeline.tick(rec.t, out)
             if out.emits or out.events or out.persist:
+                if scorer is not None:
+                    scorer.emitted(out.emits)
                 _deliver(out, result, sink, on_persist, on_event)
                 out.emits.clear()
                 out.events.clear()
@@ -149,8 +174,13 @@ def replay(
             if progress is not None and result.records % 20_000 == 0:
                 progress(f"replay {Path(path).name}", min(rec.line * 60.0 / size, 1.0))
         result.capture_skips[str(path)] = reader.skip_report()
-    _deliver(pipeline.flush(), result, sink, on_persist, on_event)
+    last = pipeline.flush()
+    if scorer is not None:
+        scorer.emitted(last.emits)
+    _deliver(last, result, sink, on_persist, on_event)
     result.status = pipeline.status()
+    if scorer is not None and truth is not None:
+        result.truth = scorer.scores(truth)
     result.elapsed_s = time.perf_counter() - started
     result.span_s = t_last - t_first if t_first is not None else 0.0
     return result
@@ -178,3 +208,57 @@ def _deliver(
         result.persisted += len(out.persist)
         if on_persist is not None:
             on_persist(out)
+
+
+class _Readings:
+    """A UUT's learnt readings as the pipeline takes them (a :class:`Recorder`)."""
+
+    def __init__(self) -> None:
+        self.t: list[float] = []
+        self.raw: list[float] = []
+
+    def reference(
+        self, t: float, v_mps: float | None, valid: bool, heading_deg: float | None
+    ) -> None:
+        """References are not scored."""
+
+    def reading(self, t: float, raw_mps: float) -> None:
+        self.t.append(t)
+        self.raw.append(raw_mps)
+
+
+class _TruthScorer:
+    """Pairs each UUT's emitted corrected speed with the raw reading it corrects."""
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        self.readings: dict[str, _Readings] = {}
+        self.source: dict[str, str] = {}
+        self.decoders: dict[str, Decoder] = {}
+        self.corrected: dict[str, dict[float, float]] = {}
+        for name, u in pipeline.uuts.items():
+            rec = _Readings()
+            u.cal.recorder = rec
+            self.readings[name] = rec
+            self.source[name] = u.s.uut_source
+            self.decoders[name] = make_decoder("nmea0183", name, errors="skip")
+            self.corrected[name] = {}
+
+    def emitted(self, emits: Sequence[Emit]) -> None:
+        """Decode the UUTs' corrected speed sentences as a receiver would."""
+        for e in emits:
+            dec = self.decoders.get(e.port)
+            if dec is None or e.sentence[3:6] != self.source[e.port]:
+                continue
+            for rec in dec.feed(e.sentence.encode("ascii") + b"\r\n"):
+                for sp in dec.speed_records(rec):
+                    if sp.source == self.source[e.port] and sp.longitudinal_mps is not None:
+                        self.corrected[e.port][e.t] = sp.longitudinal_mps
+
+    def scores(self, truth: Truth) -> dict[str, TruthScore]:
+        """Each UUT's readings that were emitted corrected, scored against the truth."""
+        out = {}
+        for name, rec in self.readings.items():
+            got = self.corrected[name]
+            cor = np.array([got.get(t, np.nan) for t in rec.t], dtype=np.float64)
+            out[name] = score_truth(truth, name, rec.t, rec.raw, cor)
+        return out

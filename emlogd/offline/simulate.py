@@ -9,7 +9,13 @@ samples three sensors the way the real ones report:
 - ``emlog2`` (Ben Marine Alize style): ``$VMVBW`` at 10 Hz and ``$VMVHW`` at 5 Hz,
   0.45 s latency, 38400 baud;
 - ``dvl`` (Rowe SeaPILOT): PD6 ensembles (or PD0 with ``dvl_format="pd0"``) at
-  10 Hz with bottom-lock losses, 115200 baud.
+  10 Hz with bottom-lock losses, 115200 baud; the heading is in its ``:SA`` line
+  (PD0: the variable leader);
+- ``gnss``: ``$GPRMC`` at 1 Hz on whole UTC seconds, 9600 baud; SOG and COG from the
+  ground velocity of 0.6 s earlier (the receiver's filter) plus 0.05 m/s of white
+  noise on each of east and north (so COG noise grows as 0.05/SOG rad at low speed).
+  It has no heading of its own: ``--ref gnss --ref-field gnss`` projects it with the
+  DVL's heading (the ``auto`` heading source).
 
 Physics (ship frame x forward, y starboard; heading ψ clockwise from north):
 speed through water = ground velocity − current, resolved in the body frame. The
@@ -25,12 +31,25 @@ Faults, at documented per-line rates (:data:`FAULT_RATES`): a corrupted characte
 dropped line. Receive times carry the serial transmission time plus up to 5 ms of
 scheduling jitter.
 
-Every file, the truth file included, is a pure function of (seed, scale,
-dvl_format): two runs give identical bytes.
+The current is slowly varying (at most 0.3 m/s) unless a constant one is given
+(``current``); the circles are flown at three throttle settings unless ``circles`` is
+``constant``. Neither option changes a random draw: the EMlogs' bytes are the same
+for any current. The GNSS draws from a random stream of its own and its faults are
+drawn after the other ports', so adding it left the EMlog and DVL bytes as they were.
+
+Next to the captures, ``truth.yaml`` (the sensors' true error models and latencies,
+per-trajectory figures) and ``truth.csv.gz`` (the truth per sample at 10 Hz: true
+speed through the water along the hull, heading, current, bottom lock), which
+:func:`read_truth` reads and :func:`score_truth` scores speeds against.
+
+Every file, the truth files included, is a pure function of the arguments: two runs
+give identical bytes.
 """
 
 from __future__ import annotations
 
+import gzip
+import io
 import math
 import time
 from collections.abc import Callable
@@ -43,15 +62,17 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from calib.models import Params, correct_array, forward_array
+from calib.models import Params, check_model, correct_array, forward_array
+from drivers.errors import EmlogdError
 from drivers.io.capture import CaptureWriter
-from drivers.nmea0183 import encode_vbw, encode_vhw
+from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
 from drivers.records import KNOT_MPS
 
 FloatArray = npt.NDArray[np.float64]
 Progress = Callable[[str, float], None]
 DvlFormat = Literal["pd6", "pd0"]
 TrajectoryKind = Literal["transit", "figure-8", "straight", "circles", "return"]
+CirclesMode = Literal["steps", "constant"]
 
 START_EPOCH_S = 1749715200.0
 """The trial starts 2025-06-12 08:00:00 UTC (any fixed time: files are reproducible)."""
@@ -125,6 +146,40 @@ DVL_BAUD = 115200
 DVL_NOISE_MPS = 0.01
 """DVL bottom-track noise per axis, m/s (1σ), before the 1 mm/s quantisation."""
 
+GNSS_PORT = "gnss"
+GNSS_BAUD = 9600
+GNSS_NOISE_MPS = 0.05
+"""GNSS velocity noise on each of east and north, m/s (1σ): SOG σ ≈ 0.05 m/s, COG σ ≈
+0.05/SOG rad."""
+GNSS_LAG_S = 0.6
+"""Age of the GNSS velocity at its fix time, s (the receiver's filter)."""
+GNSS_OUTPUT_DELAY_S = 0.1
+"""Time from the fix to the first byte of its RMC, s. With the 9600-baud transmission
+the reference reaches the receiver about 0.78 s behind the truth."""
+GNSS_ORIGIN_DEG = (43.1, 5.9)
+"""Latitude and longitude of every trajectory's start (positions in the RMC)."""
+EARTH_RADIUS_M = 6_371_000.0
+
+MAX_CURRENT_MPS = 3.0
+"""Largest current component :func:`simulate` accepts, m/s."""
+
+TRUTH_CSV = "truth.csv.gz"
+TRUTH_COLUMNS = (
+    "t",
+    "trajectory",
+    "stw_mps",
+    "heading_deg",
+    "current_n_mps",
+    "current_e_mps",
+    "bottom_lock",
+)
+"""Columns of the truth per sample: receive-clock time (epoch s), trajectory index
+(1–5), true speed through the water along the hull (m/s), heading (degrees true),
+sea current north and east (m/s), DVL bottom lock (0/1)."""
+TRUTH_STEP = 2
+"""Every second integration step goes to the truth CSV."""
+TRUTH_RATE_HZ = 1.0 / (DT_S * TRUTH_STEP)
+
 FAULT_RATES: dict[str, float] = {
     "corrupt": 2e-4,
     "truncate": 2e-4,
@@ -151,6 +206,7 @@ class TrajectoryTruth:
     faults: dict[str, int] = field(default_factory=dict)
     rmse_raw_mps: dict[str, float] = field(default_factory=dict)
     rmse_best_mps: dict[str, float] = field(default_factory=dict)
+    rmse_floor_mps: dict[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, object]:
         """Plain types for YAML."""
@@ -168,6 +224,7 @@ class TrajectoryTruth:
             "faults": dict(self.faults),
             "rmse_raw_mps": {k: round(v, 4) for k, v in self.rmse_raw_mps.items()},
             "rmse_best_mps": {k: round(v, 4) for k, v in self.rmse_best_mps.items()},
+            "rmse_floor_mps": {k: round(v, 4) for k, v in self.rmse_floor_mps.items()},
         }
 
 
@@ -245,13 +302,27 @@ def _steps(
     return np.asarray(values[np.searchsorted(times, t)], dtype=np.float64)
 
 
-def kinematics(spec: TrajectorySpec, duration_s: float, rng: np.random.Generator) -> Kinematics:
+def kinematics(
+    spec: TrajectorySpec,
+    duration_s: float,
+    rng: np.random.Generator,
+    *,
+    current: tuple[float, float] | None = None,
+    circles: CirclesMode = "steps",
+) -> Kinematics:
     """Integrate surge, heading and sideslip for one trajectory.
+
+    The random draws do not depend on ``current`` or ``circles``: the other options
+    and every sensor stream stay the same when only these change.
 
     Args:
         spec: the trajectory.
         duration_s: its (scaled) duration, s.
         rng: random generator.
+        current: a constant sea current (north, east), m/s; None: the slowly varying
+            current (a base vector plus tidal-like wander, at most 0.3 m/s).
+        circles: ``steps`` (the loops at three throttle settings) or ``constant`` (at
+            one commanded speed, the paper's recommendation for the current).
 
     Returns:
         The motion on a :data:`DT_S` grid.
@@ -273,6 +344,8 @@ def kinematics(spec: TrajectorySpec, duration_s: float, rng: np.random.Generator
         # full loops of ~2 min at three throttle settings
         rate = np.full(n, 2.0 * math.pi / 120.0)
         u_cmd = mean + _steps(t, rng, 240.0, np.array([-0.3, 0.0, 0.3]))
+        if circles == "constant":
+            u_cmd = np.full(n, mean)
     elif kind == "straight":
         rate = 0.002 * np.sin(2.0 * math.pi * t / 60.0 + ph[0])
         u_cmd = mean + 0.02 * np.sin(2.0 * math.pi * t / 120.0 + ph[1])
@@ -294,6 +367,9 @@ def kinematics(spec: TrajectorySpec, duration_s: float, rng: np.random.Generator
     wander = 0.08 * np.sin(2.0 * math.pi * t / 2400.0 + ph[2])
     turn = direction + 0.5 * np.sin(2.0 * math.pi * t / 3600.0 + ph[3])
     mag = np.clip(base + wander, 0.0, 0.3)
+    if current is not None:
+        c_n, c_e = current
+        return Kinematics(t, surge, sway, heading, np.full(n, c_e), np.full(n, c_n))
     return Kinematics(t, surge, sway, heading, mag * np.sin(turn), mag * np.cos(turn))
 
 
@@ -471,6 +547,53 @@ def _dvl_lines(
     return t_ens, f, valid
 
 
+def _gnss_lines(
+    k: Kinematics,
+    t0: float,
+    rng: np.random.Generator,
+    faults: _Faults,
+    out: list[_Line],
+) -> int:
+    """Emit the GNSS receiver's RMC sentences at 1 Hz; return how many fixes were made.
+
+    Fixes fall on whole UTC seconds. The velocity is the ground velocity of
+    :data:`GNSS_LAG_S` earlier (the receiver's filter) plus white noise of
+    :data:`GNSS_NOISE_MPS` on each of east and north: SOG is off by about that σ and
+    COG by about σ/SOG rad, which grows at low speed. The sentence leaves
+    :data:`GNSS_OUTPUT_DELAY_S` after the fix, at :data:`GNSS_BAUD`.
+    """
+    first = math.ceil(t0) - t0
+    t_fix = np.arange(first, k.t[-1], 1.0)
+    s, c = np.sin(k.heading), np.cos(k.heading)
+    ve = k.surge * s + k.sway * c + k.current_e
+    vn = k.surge * c - k.sway * s + k.current_n
+    at = t_fix - GNSS_LAG_S
+    ve_f = _interp(k, ve, at) + rng.normal(0.0, GNSS_NOISE_MPS, t_fix.size)
+    vn_f = _interp(k, vn, at) + rng.normal(0.0, GNSS_NOISE_MPS, t_fix.size)
+    sog = np.hypot(ve_f, vn_f)
+    cog = np.degrees(np.arctan2(ve_f, vn_f)) % 360.0
+    east, north = k.position()
+    lat = GNSS_ORIGIN_DEG[0] + np.degrees(_interp(k, north, at) / EARTH_RADIUS_M)
+    lon = GNSS_ORIGIN_DEG[1] + np.degrees(
+        _interp(k, east, at) / (EARTH_RADIUS_M * math.cos(math.radians(GNSS_ORIGIN_DEG[0])))
+    )
+    byte_s = 10.0 / GNSS_BAUD
+    jitter = rng.uniform(0.0, 0.005, t_fix.size)
+    for i, ti in enumerate(t_fix.tolist()):
+        line = encode_rmc(
+            datetime.fromtimestamp(round(t0 + ti), UTC),
+            float(sog[i]),
+            float(cog[i]),
+            lat_deg=float(lat[i]),
+            lon_deg=float(lon[i]),
+        )
+        wire = faults.text(line)
+        if wire is not None:
+            t_rx = t0 + ti + GNSS_OUTPUT_DELAY_S + len(wire) * byte_s + float(jitter[i])
+            out.append(_Line(t_rx, GNSS_PORT, wire, False))
+    return int(t_fix.size)
+
+
 def _rmse(a: FloatArray, b: FloatArray) -> float:
     d = a - b
     return float(math.sqrt(float(np.mean(d * d)))) if d.size else math.nan
@@ -494,27 +617,43 @@ def simulate(
     seed: int = 1,
     scale: float = 1.0,
     dvl_format: DvlFormat = "pd6",
+    current: tuple[float, float] | None = None,
+    circles: CirclesMode = "steps",
     progress: Progress | None = None,
 ) -> SimulationResult:
-    """Write the five trajectories and ``truth.yaml`` into ``outdir``.
+    """Write the five trajectories, ``truth.yaml`` and ``truth.csv.gz`` into ``outdir``.
 
     Args:
         outdir: output directory (created if missing; existing files are replaced).
-        seed: random seed; the output is a pure function of (seed, scale, dvl_format).
+        seed: random seed; the output is a pure function of the arguments.
         scale: duration factor (``0.1`` makes every trajectory 10 % as long).
         dvl_format: ``"pd6"`` (default) or ``"pd0"``.
+        current: a constant sea current (north, east), m/s, each within ±3 m/s; None
+            (default): the slowly varying current.
+        circles: ``steps`` (default: the circles at three throttle settings) or
+            ``constant`` (at one commanded speed).
         progress: called with (message, fraction done) after each trajectory.
 
     Returns:
         What was written.
 
     Raises:
-        ValueError: ``scale`` not in (0, 10] or an unknown ``dvl_format``.
+        ValueError: ``scale`` not in (0, 10], an unknown ``dvl_format`` or ``circles``,
+            or a current that is not finite or beyond ±3 m/s.
     """
     if not 0.0 < scale <= 10.0:
         raise ValueError(f"scale must be in (0, 10], not {scale}")
     if dvl_format not in ("pd6", "pd0"):
         raise ValueError(f"dvl_format must be 'pd6' or 'pd0', not {dvl_format!r}")
+    if circles not in ("steps", "constant"):
+        raise ValueError(f"circles must be 'steps' or 'constant', not {circles!r}")
+    if current is not None and not all(
+        math.isfinite(c) and abs(c) <= MAX_CURRENT_MPS for c in current
+    ):
+        raise ValueError(
+            f"current (north, east) must be finite and within ±{MAX_CURRENT_MPS:g} m/s, "
+            f"not {current}"
+        )
     started = time.perf_counter()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -523,16 +662,22 @@ def simulate(
     truths: list[TrajectoryTruth] = []
     files: list[Path] = []
     ports = {"emlog1": "nmea0183", "emlog2": "nmea0183", DVL_PORT: dvl_format}
+    ports[GNSS_PORT] = "nmea0183"
+    rows: list[FloatArray] = []
     for spec, child in zip(TRAJECTORIES, root.spawn(len(TRAJECTORIES)), strict=True):
         rng = np.random.default_rng(child)
+        # the GNSS draws from a stream of its own: the other ports' bytes do not move
+        gnss_rng = np.random.default_rng(child.spawn(1)[0])
         duration = spec.duration_min * 60.0 * scale
-        k = kinematics(spec, duration, rng)
+        k = kinematics(spec, duration, rng, current=current, circles=circles)
         lock = _bottom_lock(k.t, rng)
         faults = _Faults(np.random.default_rng(rng.integers(2**63)))
         lines: list[_Line] = []
         series = {e.port: _emlog_lines(e, k, t0, rng, faults, lines) for e in (EMLOG1, EMLOG2)}
         t_ref, v_ref, ok = _dvl_lines(k, lock, t0, rng, faults, lines, dvl_format)
+        _gnss_lines(k, t0, gnss_rng, faults, lines)  # last: earlier ports' faults stay put
         lines.sort(key=lambda ln: ln.t)
+        rows.append(_truth_rows(spec.index, k, lock, t0))
         path = out / spec.filename
         counts = dict.fromkeys(ports, 0)
         with CaptureWriter(path, ports) as writer:
@@ -565,11 +710,14 @@ def simulate(
             ref, usable = _ref_at(t_ref, v_ref, ok, t_s - e.latency_s)
             truth.rmse_raw_mps[e.port] = _rmse(raw[usable], ref[usable])
             truth.rmse_best_mps[e.port] = _rmse(correct_array(e.params, raw[usable]), ref[usable])
+            stw = _interp(k, k.surge, t_s - e.latency_s)
+            truth.rmse_floor_mps[e.port] = _rmse(correct_array(e.params, raw), stw)
         truths.append(truth)
         files.append(path)
         t0 += duration + GAP_S * scale
         if progress is not None:
             progress(f"simulate: {spec.filename}", spec.index / len(TRAJECTORIES))
+    _write_truth_csv(out / TRUTH_CSV, np.concatenate(rows))
     truth_path = out / "truth.yaml"
     doc = {
         "schema": 1,
@@ -577,6 +725,11 @@ def simulate(
         "seed": seed,
         "scale": scale,
         "dvl_format": dvl_format,
+        "current": "slowly varying"
+        if current is None
+        else {"north_mps": float(current[0]), "east_mps": float(current[1])},
+        "circles": circles,
+        "truth_csv": TRUTH_CSV,
         "latency_reference": "the DVL (no latency); EMlog latencies are relative to it",
         "fault_rates_per_line": dict(FAULT_RATES),
         "sensors": {
@@ -592,14 +745,26 @@ def simulate(
             }
             for e in (EMLOG1, EMLOG2)
         }
-        | {DVL_PORT: {"format": dvl_format, "noise_mps": DVL_NOISE_MPS, "baud": DVL_BAUD}},
+        | {DVL_PORT: {"format": dvl_format, "noise_mps": DVL_NOISE_MPS, "baud": DVL_BAUD}}
+        | {
+            GNSS_PORT: {
+                "sentence": "RMC",
+                "rate_hz": 1.0,
+                "noise_mps": GNSS_NOISE_MPS,
+                "latency_s": GNSS_LAG_S,
+                "output_delay_s": GNSS_OUTPUT_DELAY_S,
+                "baud": GNSS_BAUD,
+            }
+        },
         "trajectories": [t.as_dict() for t in truths],
     }
     truth_path.write_text(
         "# emlogd simulate truth: what the captures should let a calibration find.\n"
         "# rmse_raw_mps: raw reading vs DVL bottom track (longitudinal) at the true latency;\n"
         "# rmse_best_mps: the same after the true inverse model (the floor any calibration\n"
-        "# can reach: noise, quantisation and current in the reference remain).\n"
+        "# can reach against the DVL: noise, quantisation and current in the reference remain);\n"
+        "# rmse_floor_mps: the true inverse model against the true speed through water.\n"
+        f"# {TRUTH_CSV}: the truth per sample at {TRUTH_RATE_HZ:g} Hz (read_truth reads it).\n"
         + yaml.safe_dump(doc, sort_keys=False),
         encoding="utf-8",
     )
@@ -613,3 +778,191 @@ def _plain(data: bytes) -> bool:
     if not data.endswith(b"\r\n"):
         return False
     return all(32 <= c < 127 for c in data[:-2])
+
+
+# ------------------------------------------------------------------ the truth per sample
+
+
+def _truth_rows(index: int, k: Kinematics, lock: npt.NDArray[np.bool_], t0: float) -> FloatArray:
+    """One trajectory's rows of the truth CSV (:data:`TRUTH_COLUMNS`)."""
+    sl = slice(None, None, TRUTH_STEP)
+    return np.column_stack(
+        [
+            t0 + k.t[sl],
+            np.full(k.t[sl].size, float(index)),
+            k.surge[sl],
+            np.degrees(k.heading[sl]) % 360.0,
+            k.current_n[sl],
+            k.current_e[sl],
+            lock[sl].astype(np.float64),
+        ]
+    )
+
+
+def _write_truth_csv(path: Path, rows: FloatArray) -> None:
+    """Write the truth rows as gzip CSV, byte-identical for identical rows (no mtime)."""
+    text = io.StringIO()
+    text.write(",".join(TRUTH_COLUMNS) + "\n")
+    np.savetxt(text, rows, fmt=["%.3f", "%d", "%.4f", "%.3f", "%.4f", "%.4f", "%d"], delimiter=",")
+    with path.open("wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz:
+        gz.write(text.getvalue().encode("ascii"))
+
+
+class TruthError(EmlogdError):
+    """A truth directory cannot be read (the message names the file and why)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Truth:
+    """The truth of a simulated trial (``truth.csv.gz`` and ``truth.yaml``).
+
+    Arrays have one entry per truth sample (:data:`TRUTH_RATE_HZ`), in time order.
+
+    Attributes:
+        t: time, epoch s (the captures' receive clock).
+        trajectory: trajectory index, 1–5.
+        stw_mps: true speed through the water along the hull, m/s.
+        heading_deg: heading, degrees true.
+        current_n_mps: sea current north, m/s.
+        current_e_mps: sea current east, m/s.
+        bottom_lock: the DVL's bottom lock.
+        sensors: ``truth.yaml``'s ``sensors`` section (error models, latencies).
+    """
+
+    t: FloatArray
+    trajectory: npt.NDArray[np.int64]
+    stw_mps: FloatArray
+    heading_deg: FloatArray
+    current_n_mps: FloatArray
+    current_e_mps: FloatArray
+    bottom_lock: npt.NDArray[np.bool_]
+    sensors: dict[str, dict[str, object]]
+
+    def stw_at(self, t: npt.ArrayLike) -> FloatArray:
+        """True speed through the water at times ``t``; nan outside the trajectories.
+
+        Interpolated linearly between two samples of one trajectory, never across
+        the idle time between two trajectories.
+        """
+        q = np.asarray(t, dtype=np.float64)
+        n = self.t.size
+        if n < 2:
+            return np.full(q.shape, np.nan)
+        idx = np.clip(np.searchsorted(self.t, q), 1, n - 1)
+        inside = (q >= self.t[idx - 1]) & (q <= self.t[idx])
+        same = self.trajectory[idx] == self.trajectory[idx - 1]
+        v = np.interp(q, self.t, self.stw_mps)
+        return np.asarray(np.where(inside & same, v, np.nan), dtype=np.float64)
+
+    def emlog(self, port: str) -> tuple[Params, float]:
+        """A simulated EMlog's true error model and latency (s, behind the truth).
+
+        Raises:
+            TruthError: ``port`` is not a simulated EMlog.
+        """
+        spec = self.sensors.get(port)
+        if not isinstance(spec, dict) or "latency_s" not in spec or "m" not in spec:
+            emlogs = [p for p, v in self.sensors.items() if isinstance(v, dict) and "m" in v]
+            raise TruthError(f"the truth has no EMlog {port!r} (has {', '.join(emlogs)})")
+        params = Params(
+            check_model(str(spec.get("model", "EM4"))),
+            float(spec["a_spm"]),  # type: ignore[arg-type]
+            float(spec["m"]),  # type: ignore[arg-type]
+            float(spec["b_mps"]),  # type: ignore[arg-type]
+        )
+        return params, float(spec["latency_s"])  # type: ignore[arg-type]
+
+
+def read_truth(directory: str | Path) -> Truth:
+    """Read the truth that :func:`simulate` wrote into ``directory``.
+
+    Raises:
+        TruthError: a file is missing or malformed.
+    """
+    d = Path(directory)
+    csv_path, yaml_path = d / TRUTH_CSV, d / "truth.yaml"
+    for p in (csv_path, yaml_path):
+        if not p.is_file():
+            raise TruthError(f"{p}: no such file (emlogd simulate writes it)")
+    try:
+        doc = yaml.safe_load(yaml_path.read_text(encoding="utf-8"))
+        sensors = doc["sensors"]
+        if not isinstance(sensors, dict):
+            raise TypeError("sensors is not a mapping")
+    except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
+        raise TruthError(f"{yaml_path}: not a simulation truth ({exc})") from None
+    try:
+        with gzip.open(csv_path, "rt", encoding="ascii") as f:
+            header = f.readline().strip().split(",")
+            if tuple(header) != TRUTH_COLUMNS:
+                raise ValueError(f"columns {header}, expected {list(TRUTH_COLUMNS)}")
+            data = np.loadtxt(f, delimiter=",", ndmin=2)
+    except (OSError, EOFError, ValueError, UnicodeDecodeError) as exc:
+        raise TruthError(f"{csv_path}: {exc}") from None
+    if data.shape[1] != len(TRUTH_COLUMNS) or np.any(np.diff(data[:, 0]) <= 0.0):
+        raise TruthError(f"{csv_path}: expected {len(TRUTH_COLUMNS)} columns in time order")
+    return Truth(
+        t=data[:, 0].copy(),
+        trajectory=data[:, 1].astype(np.int64),
+        stw_mps=data[:, 2].copy(),
+        heading_deg=data[:, 3].copy(),
+        current_n_mps=data[:, 4].copy(),
+        current_e_mps=data[:, 5].copy(),
+        bottom_lock=data[:, 6] > 0.5,
+        sensors=sensors,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class TruthScore:
+    """A UUT's speeds scored against the true speed through the water.
+
+    Attributes:
+        n_samples: readings with a truth (and a corrected speed) scored.
+        rmse_raw: raw readings vs the truth, m/s.
+        rmse_corrected: the corrected speeds vs the truth, m/s.
+        rmse_floor: raw readings through the true inverse model vs the truth, m/s
+            (what a perfect calibration would reach: noise and quantisation remain).
+    """
+
+    n_samples: int
+    rmse_raw: float
+    rmse_corrected: float
+    rmse_floor: float
+
+    def to_dict(self) -> dict[str, object]:
+        """Stable JSON keys (README: ``evaluate --json`` and ``replay --json``)."""
+
+        def fin(x: float) -> float | None:
+            return round(x, 5) if math.isfinite(x) else None
+
+        return {
+            "n_samples": self.n_samples,
+            "rmse_raw": fin(self.rmse_raw),
+            "rmse_corrected": fin(self.rmse_corrected),
+            "rmse_floor": fin(self.rmse_floor),
+        }
+
+
+def score_truth(
+    truth: Truth, port: str, t: npt.ArrayLike, raw: npt.ArrayLike, corrected: npt.ArrayLike
+) -> TruthScore:
+    """Score a UUT's readings and their corrected speeds against the truth.
+
+    Each reading received at ``t`` is paired with the true speed through the water
+    at ``t`` minus the EMlog's true latency; samples without a truth there (idle time
+    between trajectories) or without a finite corrected speed are left out.
+
+    Raises:
+        TruthError: ``port`` is not a simulated EMlog.
+    """
+    params, latency = truth.emlog(port)
+    tt = np.asarray(t, dtype=np.float64)
+    r = np.asarray(raw, dtype=np.float64)
+    c = np.asarray(corrected, dtype=np.float64)
+    stw = truth.stw_at(tt - latency)
+    ok = np.isfinite(stw) & np.isfinite(r) & np.isfinite(c)
+    floor = correct_array(params, r[ok])
+    return TruthScore(
+        int(ok.sum()), _rmse(r[ok], stw[ok]), _rmse(c[ok], stw[ok]), _rmse(floor, stw[ok])
+    )

@@ -31,6 +31,21 @@ class TestEstimateLag:
         assert est.peak_corr > 0.95
         assert not est.at_bound
 
+    def test_reference_outage_is_not_interpolated_across(self) -> None:
+        """Samples that could meet a reference outage at any candidate lag are left out."""
+        t_ref = np.arange(0.0, 1200.0, 0.1)
+        lost = (t_ref > 500.0) & (t_ref < 560.0)  # a minute without bottom lock
+        t_ref, v_ref = t_ref[~lost], _speed(t_ref[~lost])
+        t_meas = np.arange(0.0, 1200.0, 1.0) + 0.37
+        v_meas = _speed(t_meas - 3.2)
+        est = estimate_lag(t_meas, v_meas, t_ref, v_ref, 10.0, step_s=0.1)
+        assert est.lag_s == pytest.approx(3.2, abs=0.05)
+        assert est.peak_corr > 0.999
+        margin = 10.0 + 2.0  # the lag reach and the smoothing width
+        inside = (t_meas - 10.0 >= 0.0) & (t_meas + 10.0 <= t_ref[-1])
+        near = (t_meas + margin > 500.0 - 0.05) & (t_meas - margin < 560.0)
+        assert est.n_samples == int(np.count_nonzero(inside & ~near))
+
     def test_sub_sample_refinement(self) -> None:
         """A lag between grid points is refined beyond the grid step (0.45 s on a 1 s grid)."""
         t = np.arange(0.0, 1200.0, 1.0)

@@ -20,7 +20,7 @@ def test_dump_json_summary(
     first = json.loads(lines[0])
     assert set(first) == {"t", "port", "record"} and "type" in first["record"]
     summary = json.loads(lines[-1])["summary"]
-    assert set(summary) == {"emlog1", "emlog2", "dvl"}
+    assert set(summary) == {"emlog1", "emlog2", "dvl", "gnss"}
     assert summary["dvl"]["protocol"] == "pd6" and summary["dvl"]["records"] > 0
 
 

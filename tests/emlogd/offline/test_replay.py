@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
+import json
 from pathlib import Path
 
 import pytest
 
+from emlogd.cli import main
 from emlogd.config import parse_config
 from emlogd.offline.replay import replay
+from emlogd.offline.simulate import SimulationResult, TruthError, read_truth, simulate
+from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
 
@@ -75,3 +80,88 @@ def test_paced_replay_sleeps_by_record_time(trial_files: dict[str, Path]) -> Non
         _pipeline(), [trial_files["straight"]], speed=100.0, sleep=sleep, monotonic=lambda: clock[0]
     )
     assert sum(slept) == pytest.approx(res.span_s / 100.0, rel=0.02)
+
+
+def test_truth_scores_emitted_speeds(trial: SimulationResult, trial_files: dict[str, Path]) -> None:
+    """With the truth, each UUT's emitted speeds are scored against the true speed through water."""
+    res = replay(_pipeline(), [trial_files["transit"]], truth=read_truth(trial.outdir))
+    uuts = res.to_dict()["uuts"]
+    for name in ("emlog1", "emlog2"):
+        t = uuts[name]["truth"]  # type: ignore[index]
+        assert set(t) == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor"}
+        assert 0 < t["n_samples"] <= trial.trajectories[0].lines[name]
+        assert t["rmse_floor"] == pytest.approx(trial.trajectories[0].rmse_floor_mps[name], rel=0.1)
+        assert t["rmse_corrected"] < 0.6 * t["rmse_raw"]
+    assert (
+        replay(_pipeline(), [trial_files["straight"]]).to_dict()["uuts"]["emlog1"]["truth"] is None
+    )  # type: ignore[index]
+
+
+def test_truth_pairs_each_emitted_speed_with_its_reading(tmp_path: Path) -> None:
+    """Frozen at the true error models, the emitted speeds score the floor: each emitted VHW
+    is paired with the reading it corrects (EMlog2 also emits VBW, which is not scored)."""
+    # no current: against a current-free DVL the recheck keeps the true calibrations applied
+    sim = simulate(tmp_path, seed=1, scale=0.1, current=(0.0, 0.0))
+    truth = read_truth(sim.outdir)
+    cfg = CFG.replace("lag: 3.3,", "lag: 3.3, model: EM4,").replace(
+        "lag: 0.5}", "lag: 0.5, model: EM4}"
+    )
+    ports, uuts = pipeline_from_config(parse_config(cfg))
+    uuts = [dataclasses.replace(u, learn=False) for u in uuts]
+    cals = {}
+    for name in ("emlog1", "emlog2"):
+        params, latency = truth.emlog(name)
+        cals[name] = Calibration(name, params, {"a": 0.001, "m": 0.001, "b": 0.001}, latency)
+    res = replay(Pipeline(ports, uuts, cals), [sim.files[1]], truth=truth)
+    for name, vhw_per_line in (("emlog1", 1.0), ("emlog2", 1.0 / 3.0)):
+        assert res.status["uuts"][name]["state"] == "frozen"  # type: ignore[index]
+        s = res.truth[name]
+        assert s.n_samples > 0.95 * sim.trajectories[1].lines[name] * vhw_per_line
+        assert s.n_samples < 1.05 * sim.trajectories[1].lines[name] * vhw_per_line
+        assert s.rmse_corrected == pytest.approx(s.rmse_floor, abs=0.001)
+        assert s.rmse_raw > 0.2
+
+
+def test_truth_refuses_an_unknown_uut(
+    trial: SimulationResult, trial_files: dict[str, Path]
+) -> None:
+    """A UUT that is not a simulated EMlog is refused before the replay starts."""
+    cfg = CFG.replace("name: emlog2,", "name: emlog3,").replace("uut: emlog2", "uut: emlog3")
+    with pytest.raises(TruthError, match="no EMlog 'emlog3'"):
+        replay(_pipeline(cfg), [trial_files["straight"]], truth=read_truth(trial.outdir))
+
+
+def test_truth_through_the_commands(
+    trial: SimulationResult,
+    trial_files: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """replay --truth and evaluate --truth add the truth scores to the JSON and the tables."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(CFG)
+    straight, fig8 = str(trial_files["straight"]), str(trial_files["figure-8"])
+    argv = ["replay", fig8, "--config", str(cfg), "--truth", str(trial.outdir), "--json"]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["uuts"]["emlog1"]["truth"]["n_samples"] > 0
+    assert main([*argv[:-1], "--out", str(tmp_path / "o.nmea")]) == 0
+    assert "truth: raw" in capsys.readouterr().out
+    params = tmp_path / "p.yaml"
+    cal = ["calibrate", fig8, "--uut", "emlog1", "--ref", "dvl", "--lag", "3.3"]
+    assert main([*cal, "--save", str(params)]) == 0
+    capsys.readouterr()
+    ev = ["evaluate", straight, fig8, "--params", str(params), "--json"]
+    assert main(ev) == 0
+    assert json.loads(capsys.readouterr().out)["captures"][0]["truth"] is None
+    assert main([*ev, "--truth", str(trial.outdir)]) == 0
+    rows = json.loads(capsys.readouterr().out)["captures"]
+    for row, tr in zip(rows, (trial.trajectories[2], trial.trajectories[1]), strict=True):
+        t = row["truth"]
+        assert t["n_samples"] == pytest.approx(tr.lines["emlog1"], rel=0.02)
+        assert t["rmse_floor"] == pytest.approx(tr.rmse_floor_mps["emlog1"], rel=0.05)
+        assert t["rmse_corrected"] < 0.5 * t["rmse_raw"]
+    assert main([*ev[:-1], "--truth", str(trial.outdir)]) == 0
+    assert "truth: raw" in capsys.readouterr().out
+    assert main([*ev, "--truth", str(tmp_path)]) == 1
+    assert "truth.csv.gz: no such file" in capsys.readouterr().err

@@ -2,13 +2,39 @@
 
 from __future__ import annotations
 
+import gzip
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
+from calib.models import correct_array
+from drivers import make_decoder
 from drivers.io.capture import CaptureReader
-from emlogd.offline.simulate import FAULT_RATES, TRAJECTORIES, SimulationResult, simulate
+from drivers.nmea0183 import Rmc
+from emlogd.cli import main
+from emlogd.offline.jobs import calibrate, evaluate, load_captures
+from emlogd.offline.simulate import (
+    DT_S,
+    FAULT_RATES,
+    GNSS_LAG_S,
+    START_EPOCH_S,
+    TRAJECTORIES,
+    TRUTH_RATE_HZ,
+    Kinematics,
+    SimulationResult,
+    TruthError,
+    _Faults,
+    _gnss_lines,
+    _Line,
+    kinematics,
+    read_truth,
+    score_truth,
+    simulate,
+)
+from emlogd.pipeline.core import UutSettings
 
 
 def test_files_and_truth(trial: SimulationResult) -> None:
@@ -32,7 +58,12 @@ def test_files_and_truth(trial: SimulationResult) -> None:
 
 def test_ports_rates_and_sentences(trial: SimulationResult) -> None:
     reader = CaptureReader(trial.files[1])
-    assert reader.ports == {"emlog1": "nmea0183", "emlog2": "nmea0183", "dvl": "pd6"}
+    assert reader.ports == {
+        "emlog1": "nmea0183",
+        "emlog2": "nmea0183",
+        "dvl": "pd6",
+        "gnss": "nmea0183",
+    }
     counts: dict[str, int] = {}
     kinds: set[str] = set()
     last = 0.0
@@ -43,10 +74,22 @@ def test_ports_rates_and_sentences(trial: SimulationResult) -> None:
         if not rec.binary:
             kinds.add(rec.payload[:6] if rec.port != "dvl" else rec.payload[:3])
     dur = trial.trajectories[1].duration_s
+    assert counts["gnss"] == pytest.approx(dur * 1.0, rel=0.05)  # RMC 1 Hz
     assert counts["emlog1"] == pytest.approx(dur * 1.0, rel=0.05)  # VHW 1 Hz
     assert counts["emlog2"] == pytest.approx(dur * 15.0, rel=0.05)  # VBW 10 Hz + VHW 5 Hz
     assert counts["dvl"] == pytest.approx(dur * 10 * 6, rel=0.05)  # 6 PD6 lines per ensemble
-    assert {"$VWVHW", "$VMVBW", "$VMVHW", ":SA", ":TS", ":BI", ":BS", ":BE", ":BD"} <= kinds
+    assert {
+        "$VWVHW",
+        "$VMVBW",
+        "$VMVHW",
+        "$GPRMC",
+        ":SA",
+        ":TS",
+        ":BI",
+        ":BS",
+        ":BE",
+        ":BD",
+    } <= kinds
 
 
 def test_raw_error_in_the_papers_range(trial: SimulationResult) -> None:
@@ -85,7 +128,209 @@ def test_pd0_variant(tmp_path: Path) -> None:
     assert all(rec.data[:2] == b"\x7f\x7f" for rec in dvl[:50] if len(rec.data) > 100)
 
 
-@pytest.mark.parametrize("kwargs", [{"scale": 0.0}, {"scale": 11.0}, {"dvl_format": "pd4"}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"scale": 0.0},
+        {"scale": 11.0},
+        {"dvl_format": "pd4"},
+        {"circles": "spiral"},
+        {"current": (0.2, math.nan)},
+        {"current": (3.5, 0.0)},
+    ],
+)
 def test_bad_arguments(tmp_path: Path, kwargs: dict[str, object]) -> None:
+    """Arguments outside their ranges are refused before anything is written."""
     with pytest.raises(ValueError):
         simulate(tmp_path, **kwargs)  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ current, circles, truth
+
+
+def test_given_current_moves_only_the_ground_referenced_ports(tmp_path: Path) -> None:
+    """--current sets a constant current in the truth; the EMlogs' bytes do not move, the DVL's and GNSS's do."""
+    base = simulate(tmp_path / "a", seed=4, scale=0.02)
+    tide = simulate(tmp_path / "b", seed=4, scale=0.02, current=(0.25, -0.1))
+    truth = read_truth(tide.outdir)
+    assert np.all(truth.current_n_mps == 0.25) and np.all(truth.current_e_mps == -0.1)
+    assert read_truth(base.outdir).current_n_mps.std() > 0.0
+    assert np.array_equal(read_truth(base.outdir).stw_mps, truth.stw_mps)
+    doc = yaml.safe_load(tide.truth_path.read_text())
+    assert doc["current"] == {"north_mps": 0.25, "east_mps": -0.1}
+    for pa, pb in zip(base.files, tide.files, strict=True):
+        by_port: dict[str, list[list[bytes]]] = {}
+        for path in (pa, pb):
+            for rec in CaptureReader(path):
+                by_port.setdefault(rec.port, [[], []])[path == pb].append(rec.data)
+        assert by_port["emlog1"][0] == by_port["emlog1"][1]
+        assert by_port["emlog2"][0] == by_port["emlog2"][1]
+        assert by_port["dvl"][0] != by_port["dvl"][1]
+        assert by_port["gnss"][0] != by_port["gnss"][1]
+
+
+def test_constant_speed_circles() -> None:
+    """circles="constant" flies the circles at one speed and draws the same random numbers."""
+    spec = TRAJECTORIES[3]
+    rng_s, rng_c = np.random.default_rng(3), np.random.default_rng(3)
+    steps = kinematics(spec, 1440.0, rng_s)
+    const = kinematics(spec, 1440.0, rng_c, circles="constant")
+    assert steps.surge.std() > 0.1
+    assert const.surge.std() < 1e-9
+    assert const.surge.mean() == pytest.approx(spec.mean_mps)
+    assert np.array_equal(steps.heading, const.heading)
+    assert rng_s.random() == rng_c.random()  # later draws (sensors, faults) do not move
+
+
+def test_truth_csv_matches_the_trial(trial: SimulationResult) -> None:
+    """truth.csv.gz holds every trajectory at TRUTH_RATE_HZ with the truth.yaml summary figures."""
+    truth = read_truth(trial.outdir)
+    with gzip.open(trial.outdir / "truth.csv.gz", "rt") as f:
+        assert f.readline().strip() == (
+            "t,trajectory,stw_mps,heading_deg,current_n_mps,current_e_mps,bottom_lock"
+        )
+    for i, tr in enumerate(trial.trajectories, start=1):
+        on = truth.trajectory == i
+        assert on.sum() == pytest.approx(tr.duration_s * TRUTH_RATE_HZ, abs=1)
+        assert truth.t[on][0] == pytest.approx(tr.t_start)
+        assert truth.stw_mps[on].mean() == pytest.approx(tr.mean_stw_mps, abs=2e-3)
+        assert truth.bottom_lock[on].mean() == pytest.approx(tr.bottom_lock_fraction, abs=0.01)
+        assert np.hypot(truth.current_n_mps[on], truth.current_e_mps[on]).max() == pytest.approx(
+            tr.max_current_mps, abs=1e-3
+        )
+    assert np.all((truth.heading_deg >= 0.0) & (truth.heading_deg < 360.0))
+
+
+def test_truth_is_interpolated_within_trajectories_only(trial: SimulationResult) -> None:
+    """stw_at interpolates inside a trajectory and gives nan in the idle time between two."""
+    truth = read_truth(trial.outdir)
+    t1 = truth.t[truth.trajectory == 1]
+    mid = 0.5 * (t1[10] + t1[11])
+    expected = 0.5 * (truth.stw_mps[10] + truth.stw_mps[11])
+    gap = t1[-1] + 10.0
+    got = truth.stw_at([mid, gap, truth.t[0] - 1.0, truth.t[-1] + 1.0])
+    assert got[0] == pytest.approx(expected)
+    assert np.isnan(got[1:]).all()
+
+
+def test_truth_scores_and_floor(trial: SimulationResult) -> None:
+    """The raw readings score their known raw error against the truth; the true inverse reaches the floor."""
+    truth = read_truth(trial.outdir)
+    reader = CaptureReader(trial.files[2])
+    dec = make_decoder("nmea0183", "emlog1", errors="skip")
+    t, raw = [], []
+    for rec in reader:
+        if rec.port == "emlog1":
+            for r in dec.feed(rec.data + b"\r\n"):
+                for sp in dec.speed_records(r):
+                    if sp.longitudinal_mps is not None:
+                        t.append(rec.t)
+                        raw.append(sp.longitudinal_mps)
+    params, latency = truth.emlog("emlog1")
+    assert latency == 3.2
+    floor = correct_array(params, np.array(raw))
+    s = score_truth(truth, "emlog1", t, raw, floor)
+    assert s.n_samples == len(t)
+    assert s.rmse_corrected == pytest.approx(s.rmse_floor)
+    assert s.rmse_floor == pytest.approx(trial.trajectories[2].rmse_floor_mps["emlog1"], rel=0.05)
+    assert 0.02 < s.rmse_floor < 0.035  # 0.03 m/s of noise through 1 + m = 1.17, quantised
+    assert s.rmse_raw > 0.3
+    assert s.to_dict().keys() == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor"}
+    with pytest.raises(TruthError, match="no EMlog 'dvl'"):
+        score_truth(truth, "dvl", t, raw, raw)
+
+
+def test_read_truth_errors(tmp_path: Path, trial: SimulationResult) -> None:
+    """A missing or malformed truth is one TruthError naming the file."""
+    with pytest.raises(TruthError, match=r"truth\.csv\.gz: no such file"):
+        read_truth(tmp_path)
+    (tmp_path / "truth.yaml").write_text(trial.truth_path.read_text())
+    with gzip.open(tmp_path / "truth.csv.gz", "wt") as f:
+        f.write("t,speed\n1,2\n")
+    with pytest.raises(TruthError, match="columns"):
+        read_truth(tmp_path)
+
+
+def test_simulate_command_current_and_circles(tmp_path: Path) -> None:
+    """simulate --current N,E --circles constant reaches the simulator; a bad --current is a usage error."""
+    out = tmp_path / "sim"
+    argv = [
+        "simulate",
+        str(out),
+        "--scale",
+        "0.01",
+        "--current",
+        "0.2,0.1",
+        "--circles",
+        "constant",
+    ]
+    assert main(argv) == 0
+    doc = yaml.safe_load((out / "truth.yaml").read_text())
+    assert doc["current"] == {"north_mps": 0.2, "east_mps": 0.1} and doc["circles"] == "constant"
+    for bad in ("0.2", "0.2,x", "5,0"):
+        assert main(["simulate", str(tmp_path / "x"), "--current", bad]) == 2
+    assert not (tmp_path / "x").exists()
+
+
+# ------------------------------------------------------------------ the GNSS receiver
+
+
+def _steady(speed: float, n_s: float = 3000.0, accel: float = 0.0) -> Kinematics:
+    t = np.arange(0.0, n_s, DT_S)
+    surge = speed + accel * t
+    zero = np.zeros_like(t)
+    return Kinematics(t, surge, zero, np.full_like(t, math.radians(30.0)), zero, zero)
+
+
+def _rmc(k: Kinematics, seed: int) -> list[tuple[float, Rmc]]:
+    lines: list[_Line] = []
+    faults = _Faults(np.random.default_rng(seed))
+    _gnss_lines(k, START_EPOCH_S, np.random.default_rng(seed), faults, lines)
+    dec = make_decoder("nmea0183", "gnss", errors="skip")
+    out = []
+    for ln in lines:
+        for r in dec.feed(ln.data):
+            if isinstance(r, Rmc):
+                out.append((ln.t - START_EPOCH_S, r))
+    return out
+
+
+def test_gnss_noise_grows_in_course_at_low_speed() -> None:
+    """GNSS SOG is off by about 0.05 m/s (1σ) at any speed; COG by about 0.05/SOG rad."""
+    for speed in (0.3, 2.0):
+        fixes = _rmc(_steady(speed), 5)
+        assert len(fixes) == pytest.approx(3000, abs=10)
+        sog = np.array([r.sog_mps for _, r in fixes])
+        cog = np.array([r.cog_true_deg for _, r in fixes])
+        assert sog.mean() == pytest.approx(speed, abs=0.01)
+        assert 0.04 < sog.std() < 0.06
+        cog_err = np.radians((cog - 30.0 + 180.0) % 360.0 - 180.0)
+        assert cog_err.std() == pytest.approx(0.05 / speed, rel=0.15)
+
+
+def test_gnss_velocity_lags_and_fixes_fall_on_whole_seconds(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Each fix is stamped on a whole UTC second and reports the velocity of GNSS_LAG_S earlier."""
+    monkeypatch.setattr("emlogd.offline.simulate.GNSS_NOISE_MPS", 0.0)
+    accel = 0.01
+    fixes = _rmc(_steady(1.0, n_s=300.0, accel=accel), 6)
+    t_fix = np.array([r.time_utc.timestamp() - START_EPOCH_S for _, r in fixes if r.time_utc])
+    assert len(t_fix) == len(fixes) and np.all(t_fix == np.round(t_fix))
+    t_rx = np.array([t for t, _ in fixes])
+    assert np.all((t_rx - t_fix > 0.1) & (t_rx - t_fix < 0.2))
+    sog = np.array([r.sog_mps for _, r in fixes])
+    age = np.mean((1.0 + accel * t_fix) - sog) / accel
+    assert age == pytest.approx(GNSS_LAG_S, abs=0.05)
+
+
+def test_trial_calibrates_against_its_gnss(trial_files: dict[str, Path]) -> None:
+    """The gnss port stands in for the DVL: --ref gnss --ref-field gnss with the current learns
+    a calibration that cuts EMlog1's error against the DVL on another trajectory by > 60 %."""
+    gnss = UutSettings(port="emlog1", reference_port="gnss", reference_field="gnss", current=True)
+    res = calibrate(load_captures([trial_files["transit"]], gnss), gnss, "ls")
+    assert res.identifiable or res.ident.unidentifiable == ("b",)
+    assert 1.5 < res.lag.lag_s < 3.0  # 3.2 s of EMlog1 less the GNSS's ~0.78 s
+    dvl = UutSettings(port="emlog1", reference_port="dvl")
+    (row,) = evaluate(load_captures([trial_files["figure-8"]], dvl), res.params, dvl, 3.3)
+    assert row.improvement_pct > 60.0
