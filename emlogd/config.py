@@ -75,7 +75,9 @@ class UutConfig:
     reference_field: RefField = _UUT.reference_field
     uut_source: str = _UUT.uut_source
     component: Literal["longitudinal", "magnitude"] = _UUT.component
-    current: bool = _UUT.current
+    current: bool | Literal["auto"] = "auto"
+    """auto: estimate the current wherever a heading is known to come (see
+    :func:`emlogd.settings.heading_expected`)."""
     heading: str = _UUT.heading
     magnetic_variation_deg: float | None = _UUT.magnetic_variation_deg
     lag_s: float | None = _UUT.lag_s
@@ -258,6 +260,13 @@ def _num(
     return check
 
 
+def _bool_or_auto(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+    v = ctx.scalar(node, where)
+    if v == "auto" or isinstance(v, bool):
+        return v
+    raise ctx.fail(node, where, f"expected auto, true or false, got {v!r}")
+
+
 def _lag(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
     v = ctx.scalar(node, where)
     if v == "auto":
@@ -344,7 +353,7 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
     "reference_field": ("reference_field", _enum("bottom", "water", "speed", "gnss")),
     "uut_source": ("uut_source", _enum("VHW", "VBW")),
     "component": ("component", _enum("longitudinal", "magnitude")),
-    "current": ("current", _bool),
+    "current": ("current", _bool_or_auto),
     "heading": ("heading", _heading_source),
     "magnetic_variation_deg": (
         "magnetic_variation_deg",

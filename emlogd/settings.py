@@ -44,8 +44,30 @@ _SAME = frozenset(f.name for f in dataclasses.fields(UutSettings)) & frozenset(
 """The config fields that pass to the pipeline unchanged."""
 
 
+HEADING_PROTOCOLS = frozenset({"pd6", "pd13", "pd0", "pd5"})
+"""DVL outputs that carry the heading with the bottom and water track."""
+
+
+def heading_expected(cfg: Config, u: UutConfig) -> bool:
+    """A heading is known to come for ``u``: a heading port is named, the reference is a
+    DVL output that carries one, or the reference is GNSS (which needs one anyway).
+
+    ``current: auto`` estimates the current exactly then: in the water frame the
+    calibration is the sensor's (without it a current ends up in the scale and bias);
+    without a heading the current cannot be observed at all.
+    """
+    if u.heading != "auto" or u.reference_field == "gnss":
+        return True
+    return (
+        u.reference_field in ("bottom", "water")
+        and cfg.port(u.reference).protocol in HEADING_PROTOCOLS
+    )
+
+
 def _uut(cfg: Config, u: UutConfig) -> UutSettings:
     same: dict[str, Any] = {name: getattr(u, name) for name in _SAME}
+    if u.current == "auto":
+        same["current"] = heading_expected(cfg, u)
     same["max_param_std"] = dict(u.max_param_std)
     r_ref = u.r_ref_mps if u.r_ref_mps is not None else REF_NOISE_MPS[u.reference_field]
     return UutSettings(

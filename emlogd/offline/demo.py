@@ -48,8 +48,10 @@ ports:
   - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, rest_s: 0}}
 calibration:
   - {{uut: emlog1, reference: dvl, model: EM3, lag: {lag1}, excitation_half_life_samples: 120,
+     current: false,
      max_param_std: {{m: 0.05, b: 0.08}}, validation_s: {val}, recheck_s: {recheck}}}
   - {{uut: emlog2, reference: dvl, model: EM3, lag: {lag2}, excitation_half_life_samples: 600,
+     current: false,
      validation_s: {val}, recheck_s: {recheck}}}
 outputs: {{pty: out/emlog0, status_interval_s: 0.5}}
 state_file: state/state.yaml

@@ -734,14 +734,18 @@ class UutCalibration:
         return corrected + proj - ref
 
     def _score(self, t: float, raw: float, ref: float, cs: tuple[float, float] | None) -> None:
-        current = self.kf.current_mps if self.ident_current() else None
+        # Validation and re-check compare speeds through the water: the reference minus
+        # the filter's current, whenever it estimates one (against the ground speed a
+        # correct calibration would lose to a raw reading whose error happens to offset
+        # the current). The status's water-frame score waits for a determined current.
+        current = self.kf.current_mps if self.layout.current else None
         proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
         e_raw = self._errors(raw, ref, proj, None)
         e_app = self._errors(raw, ref, proj, self.applied)
         out = self.correct(raw)
         if out is not None:
             self.score.add(raw - ref, out - ref)
-            if current is not None:
+            if current is not None and self.ident_current():
                 self.score_water.add(raw + proj - ref, out + proj - ref)
         e_prev = self._errors(raw, ref, proj, self.previous) if self.previous is not None else 0.0
         self.recheck.add(t, e_raw, e_app, e_prev)

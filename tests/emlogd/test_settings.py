@@ -116,7 +116,7 @@ def test_defaults_are_the_pipelines() -> None:
     _, (u,) = pipeline_from_config(parse_config(text))
     default = UutSettings(port="log", reference_port="dvl")
     for f in dataclasses.fields(UutSettings):
-        if f.name in ("talker", "maker", "status_interval_s", "kf_config"):
+        if f.name in ("talker", "maker", "status_interval_s", "kf_config", "current"):
             continue
         assert getattr(u, f.name) == getattr(default, f.name), f.name
     assert u.kf == default.kf
@@ -131,3 +131,28 @@ def test_gnss_reference_noise_default() -> None:
     _, (u,) = pipeline_from_config(parse_config(text))
     assert u.kf.r_ref_mps2 == pytest.approx(REF_NOISE_MPS["gnss"] ** 2)
     assert UutSettings(port="a", reference_port="b").kf.r_ref_mps2 == pytest.approx(0.01**2)
+
+
+@pytest.mark.parametrize(
+    ("protocol", "extra", "expected"),
+    [
+        ("pd6", "", True),
+        ("pd0", "", True),
+        ("pd4", "", False),
+        ("pd4", ", heading: hdg", True),
+        ("nmea0183", "", False),
+        ("pd6", ", current: false", False),
+        ("pd4", ", current: true", True),
+    ],
+)
+def test_current_auto_follows_the_heading(protocol: str, extra: str, expected: bool) -> None:
+    """current: auto estimates the current where a heading is known to come: a DVL output
+    that carries one (PD6, PD0), or a named heading port; not from PD4 or $PRTI01 alone."""
+    text = (
+        "ports:\n  - {name: log, url: /dev/log, protocol: nmea0183, role: uut}\n"
+        f"  - {{name: dvl, url: /dev/dvl, protocol: {protocol}, role: reference}}\n"
+        "  - {name: hdg, url: /dev/hdg, protocol: nmea0183, role: aux}\n"
+        f"calibration:\n  - {{uut: log, reference: dvl{extra}}}\n"
+    )
+    _, (u,) = pipeline_from_config(parse_config(text))
+    assert u.current is expected

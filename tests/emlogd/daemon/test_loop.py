@@ -33,9 +33,10 @@ ports:
   - {{name: junk, url: links/junk, protocol: nmea0183, role: aux}}
 calibration:
   - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
+     current: false,
      excitation_half_life_samples: 120, persist_interval_s: 0.5,
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
-  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5,
+  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5, current: false,
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
 outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_interval_s: 0.2}}
 state_file: state/state.yaml

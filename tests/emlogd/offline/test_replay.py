@@ -23,8 +23,8 @@ ports:
   - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}
   - {name: dvl, url: /dev/null, protocol: pd6, role: reference}
 calibration:
-  - {uut: emlog1, reference: dvl, lag: 3.3, max_param_std: {m: 0.05, b: 0.08}}
-  - {uut: emlog2, reference: dvl, lag: 0.5}
+  - {uut: emlog1, reference: dvl, lag: 3.3, max_param_std: {m: 0.05, b: 0.08}, current: false}
+  - {uut: emlog2, reference: dvl, lag: 0.5, current: false}
 """
 
 
@@ -61,7 +61,7 @@ def test_state_carries_across_files(trial_files: dict[str, Path]) -> None:
 
 
 def test_unknown_ports_are_counted(trial_files: dict[str, Path]) -> None:
-    cfg = CFG.replace("  - {uut: emlog2, reference: dvl, lag: 0.5}\n", "").replace(
+    cfg = CFG.replace("  - {uut: emlog2, reference: dvl, lag: 0.5, current: false}\n", "").replace(
         "  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n", ""
     )
     res = replay(_pipeline(cfg), [trial_files["straight"]])
@@ -104,7 +104,7 @@ def test_truth_pairs_each_emitted_speed_with_its_reading(tmp_path: Path) -> None
     sim = simulate(tmp_path, seed=1, scale=0.1, current=(0.0, 0.0))
     truth = read_truth(sim.outdir)
     cfg = CFG.replace("lag: 3.3,", "lag: 3.3, model: EM4,").replace(
-        "lag: 0.5}", "lag: 0.5, model: EM4}"
+        "lag: 0.5,", "lag: 0.5, model: EM4,"
     )
     ports, uuts = pipeline_from_config(parse_config(cfg))
     uuts = [dataclasses.replace(u, learn=False) for u in uuts]
