@@ -284,7 +284,8 @@ class CaptureWriter:
     """Write a capture v1 file (context manager).
 
     Args:
-        path: the file to create (replaced if it exists).
+        path: the file to create (replaced if it exists); a ``.gz`` name is written
+            gzip-compressed.
         ports: port name -> protocol, written as headers.
 
     Raises:
@@ -303,7 +304,11 @@ class CaptureWriter:
         self.path = str(path)
         self.ports = dict(ports)
         self._last_t = -math.inf
-        self._f: TextIO | None = open(self.path, "w", encoding="ascii", newline="\n")  # noqa: SIM115
+        self._f: TextIO | None = (
+            gzip.open(self.path, "wt", encoding="ascii", newline="\n")  # noqa: SIM115
+            if self.path.endswith(".gz")
+            else open(self.path, "w", encoding="ascii", newline="\n")  # noqa: SIM115
+        )
         self._f.write(MAGIC + "\n")
         for name, proto in self.ports.items():
             self._f.write(f"# port {name} {proto}\n")

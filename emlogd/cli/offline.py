@@ -451,6 +451,29 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+class _EmitCapture:
+    """``replay --out FILE.cap``: what the daemon emitted as a capture v1, one port per UUT
+    (and ``fused``), each sentence stamped with the receive time of the sample it corrects."""
+
+    def __init__(self, path: str, uuts: Sequence[str], pipeline: Any) -> None:
+        from drivers.io.capture import CaptureWriter
+
+        ports = dict.fromkeys(uuts, "nmea0183")
+        if pipeline.fusion is not None:
+            ports["fused"] = "nmea0183"
+        self.writer = CaptureWriter(path, ports)
+        self.writer.comment("emlogd replay: the sentences emitted, by UUT")
+        self.t = -math.inf
+
+    def write(self, emits: Sequence[Any]) -> None:
+        for e in emits:
+            self.t = max(self.t, e.t)  # sentences made later never go back in time
+            self.writer.write_line(self.t, e.port, e.sentence.encode("ascii"))
+
+    def close(self) -> None:
+        self.writer.close()
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     """Run the daemon's pipeline over captures; write the corrected NMEA; print a summary."""
     import dataclasses
@@ -480,12 +503,19 @@ def cmd_replay(args: argparse.Namespace) -> int:
             store.save({c.uut: c for c in pipeline.calibrations()})
 
     to_stdout = args.out is None and not args.json
-    sink = open(args.out, "wb") if args.out else (sys.stdout.buffer if to_stdout else None)  # noqa: SIM115
+    as_capture = bool(args.out) and args.out.endswith((".cap", ".cap.gz"))
+    capture = _EmitCapture(args.out, [u.port for u in uuts], pipeline) if as_capture else None
+    sink = (
+        open(args.out, "wb")  # noqa: SIM115
+        if args.out and not as_capture
+        else (sys.stdout.buffer if to_stdout else None)
+    )
     try:
         result = replay(
             pipeline,
             args.captures,
             sink=sink,
+            on_emit=capture.write if capture is not None else None,
             speed=None if args.fast or args.speed is None else args.speed,
             on_persist=persist,
             progress=progress,
@@ -496,6 +526,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         progress_done()
         if args.out and sink is not None:
             sink.close()
+        if capture is not None:
+            capture.close()
     if store is not None:
         persist(Output())
     doc = result.to_dict()
@@ -752,7 +784,12 @@ def add_replay_parser(sub: Subparsers) -> None:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--speed", type=positive_float, metavar="X", help="pace at X times real time")
     g.add_argument("--fast", action="store_true", help="as fast as possible (default)")
-    p.add_argument("--out", metavar="FILE", help="write the corrected NMEA here")
+    p.add_argument(
+        "--out",
+        metavar="FILE",
+        help="write the corrected NMEA here; a FILE.cap or FILE.cap.gz name writes a capture "
+        "v1 with one port per UUT, each sentence at the time of the sample it corrects",
+    )
     p.add_argument("--strict", action="store_true", help=STRICT_HELP)
     p.add_argument("--json", action="store_true", help="summary as one JSON document")
     p.add_argument(

@@ -96,6 +96,7 @@ def replay(
     paths: Sequence[str | Path],
     *,
     sink: BinaryIO | None = None,
+    on_emit: Callable[[list[Emit]], None] | None = None,
     speed: float | None = None,
     on_persist: Callable[[Output], None] | None = None,
     on_event: Callable[[Event], None] | None = None,
@@ -111,6 +112,7 @@ def replay(
         pipeline: the pipeline (built from the config, warm-started from a state).
         paths: capture v1 files, replayed in this order.
         sink: where the corrected sentences go (CR LF appended); None drops them.
+        on_emit: also called with every batch of emitted sentences (``--out FILE.cap``).
         speed: pace at this multiple of real time; None: as fast as possible.
         on_persist: called with each output that asks for a persist.
         on_event: called for each pipeline event.
@@ -165,7 +167,7 @@ def replay(
             if out.emits or out.events or out.persist:
                 if scorer is not None:
                     scorer.emitted(out.emits)
-                _deliver(out, result, sink, on_persist, on_event)
+                _deliver(out, result, sink, on_persist, on_event, on_emit)
                 out.emits.clear()
                 out.events.clear()
                 out.persist.clear()
@@ -177,7 +179,7 @@ def replay(
     last = pipeline.flush()
     if scorer is not None:
         scorer.emitted(last.emits)
-    _deliver(last, result, sink, on_persist, on_event)
+    _deliver(last, result, sink, on_persist, on_event, on_emit)
     result.status = pipeline.status()
     if scorer is not None and truth is not None:
         result.truth = scorer.scores(truth)
@@ -192,11 +194,14 @@ def _deliver(
     sink: BinaryIO | None,
     on_persist: Callable[[Output], None] | None,
     on_event: Callable[[Event], None] | None,
+    on_emit: Callable[[list[Emit]], None] | None = None,
 ) -> None:
     if out.emits:
         result.emitted += len(out.emits)
         if sink is not None:
             sink.write(b"".join(e.sentence.encode("ascii") + b"\r\n" for e in out.emits))
+        if on_emit is not None:
+            on_emit(out.emits)
     if out.events:
         result.events.extend(out.events)
         for ev in out.events:
