@@ -74,6 +74,9 @@ class UutConfig:
     model: str = _UUT.model
     reference_field: RefField = _UUT.reference_field
     uut_source: str = _UUT.uut_source
+    talker: str | None = None
+    """The talker of this log's corrected sentences; None: ``outputs.talker`` (two logs
+    with their own talkers are two sources to a chart plotter or Signal K)."""
     component: Literal["longitudinal", "magnitude"] = _UUT.component
     current: bool | Literal["auto"] = "auto"
     """auto: estimate the current wherever a heading is known to come (see
@@ -260,6 +263,13 @@ def _num(
     return check
 
 
+def _or_null(check: Check) -> Check:
+    def inner(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
+        return None if ctx.scalar(node, where) is None else check(ctx, node, where)
+
+    return inner
+
+
 def _bool_or_auto(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
     v = ctx.scalar(node, where)
     if v == "auto" or isinstance(v, bool):
@@ -352,6 +362,7 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
     "model": ("model", _enum("EM1", "EM2", "EM3", "EM4")),
     "reference_field": ("reference_field", _enum("bottom", "water", "speed", "gnss")),
     "uut_source": ("uut_source", _enum("VHW", "VBW")),
+    "talker": ("talker", _or_null(_str(r"[A-Z]{2}", "two uppercase letters"))),
     "component": ("component", _enum("longitudinal", "magnitude")),
     "current": ("current", _bool_or_auto),
     "heading": ("heading", _heading_source),

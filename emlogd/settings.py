@@ -65,7 +65,7 @@ def heading_expected(cfg: Config, u: UutConfig) -> bool:
 
 
 def _uut(cfg: Config, u: UutConfig) -> UutSettings:
-    same: dict[str, Any] = {name: getattr(u, name) for name in _SAME}
+    same: dict[str, Any] = {name: getattr(u, name) for name in _SAME - {"talker"}}
     if u.current == "auto":
         same["current"] = heading_expected(cfg, u)
     same["max_param_std"] = dict(u.max_param_std)
@@ -83,7 +83,7 @@ def _uut(cfg: Config, u: UutConfig) -> UutSettings:
         ),
         envelope=dataclasses.replace(Envelope(), max_speed_mps=u.max_speed_mps),
         rule=ExcitationRule(),
-        talker=cfg.outputs.talker,
+        talker=u.talker or cfg.outputs.talker,
         maker=cfg.outputs.maker,
         status_interval_s=cfg.outputs.status_interval_s,
         **same,

@@ -22,6 +22,14 @@ _LEVELS = {
 }
 
 
+_console = False
+
+
+def is_console() -> bool:
+    """Events are rendered for a person (a terminal): keep periodic ones to one line."""
+    return _console
+
+
 def configure_logging(
     fmt: LogFormat = "auto", level: str = "info", stream: TextIO | None = None
 ) -> None:
@@ -41,6 +49,8 @@ def configure_logging(
         raise ValueError(f"log level must be one of {', '.join(_LEVELS)}, not {level!r}")
     out = stream if stream is not None else sys.stdout
     console = fmt == "console" or (fmt == "auto" and out.isatty())
+    global _console
+    _console = console
     renderer: structlog.typing.Processor = (
         structlog.dev.ConsoleRenderer(colors=out.isatty())
         if console

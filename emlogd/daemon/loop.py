@@ -31,6 +31,7 @@ from drivers.errors import ConfigError, DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.daemon.control import COMMANDS, ControlServer
+from emlogd.daemon.logsetup import is_console
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
@@ -46,6 +47,21 @@ HOUSEKEEPING_S = 0.1
 
 _ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """How a resting port is registered: one readiness, then disarmed until re-armed."""
+
+
+def _status_line(status: dict[str, object]) -> dict[str, str]:
+    """Each UUT's state and calibration, each port's record count, in a few words."""
+    out: dict[str, str] = {}
+    uuts = status.get("uuts")
+    if isinstance(uuts, dict):
+        for name, u in uuts.items():
+            params = u.get("params") or {}
+            cal = " ".join(f"{k}={v:+.3f}" for k, v in params.items()) or "raw"
+            out[name] = f"{u.get('state')} {cal} ref {u.get('reference')}"
+    ports = status.get("ports")
+    if isinstance(ports, dict):
+        out["records"] = " ".join(f"{n}={p.get('records')}" for n, p in ports.items())
+    return out
 
 
 class Daemon:
@@ -514,6 +530,10 @@ class Daemon:
     def _status_event(self) -> None:
         assert self.pipeline is not None
         status = self.pipeline.status()
+        if is_console():
+            # a person reads a terminal: one line, the full figures are in `emlogd status`
+            self.log.info("status", **_status_line(status), state_errors=self.state_errors)
+            return
         sources = {name: src.counters_dict() for name, src in self.sources.items()}
         sinks = self._outputs_status()
         self.log.info(

@@ -126,17 +126,10 @@ class ImportReport:
 def _write(out: str | Path, port: str, records: list[tuple[float, str]], comment: str) -> None:
     """Write sorted records as a capture (``.gz`` names are gzip-compressed)."""
     records.sort(key=lambda r: r[0])
-    out = Path(out)
-    plain = out.with_name(out.name.removesuffix(".gz")) if out.name.endswith(".gz") else out
-    target = plain if plain == out else out.with_name(f".{plain.name}.import.tmp")
-    with CaptureWriter(target, {port: "nmea0183"}) as w:
+    with CaptureWriter(out, {port: "nmea0183"}) as w:
         w.comment(comment)
         for t, line in records:
             w.write_line(t, port, line.encode("ascii"))
-    if target != out:
-        with open(target, "rb") as src, gzip.open(out, "wb") as dst:
-            dst.write(src.read())
-        target.unlink()
 
 
 # ------------------------------------------------------------------ NMEA logs

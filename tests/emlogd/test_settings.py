@@ -35,6 +35,7 @@ OFF_DEFAULT: dict[str, tuple[str, object]] = {
     "model": ("EM2", "model"),
     "reference_field": ("gnss", "reference_field"),
     "uut_source": ("VBW", "uut_source"),
+    "talker": ("VD", "talker"),
     "component": ("magnitude", "component"),
     "current": (True, "current"),
     "heading": ("log", "heading"),

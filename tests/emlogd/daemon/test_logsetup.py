@@ -8,7 +8,8 @@ import json
 import pytest
 import structlog
 
-from emlogd.daemon.logsetup import configure_logging
+from emlogd.daemon.logsetup import configure_logging, is_console
+from emlogd.daemon.loop import _status_line
 
 
 class TestConfigureLogging:
@@ -38,6 +39,21 @@ class TestConfigureLogging:
         structlog.get_logger("t").info("hello", n=3)
         assert "hello" in buf.getvalue()
         assert not buf.getvalue().startswith("{")
+
+    def test_console_status_is_one_short_line(self) -> None:
+        """On a terminal the periodic status is a few words per UUT and port, not the dicts."""
+        buf = io.StringIO()
+        configure_logging("console", "info", buf)
+        assert is_console()
+        status = {
+            "uuts": {"emlog1": {"state": "frozen", "params": {"m": 0.1, "b": 0.05},
+                                "reference": "valid", "counters": {"learnt": 9} }},
+            "ports": {"emlog1": {"records": 12, "rejects": {"checksum": 0}}},
+        }  # fmt: skip
+        line = _status_line(status)
+        assert line == {"emlog1": "frozen m=+0.100 b=+0.050 ref valid", "records": "emlog1=12"}
+        configure_logging("json", "info", io.StringIO())
+        assert not is_console()
 
     @pytest.mark.parametrize(("fmt", "level"), [("xml", "info"), ("json", "loud")])
     def test_bad_values(self, fmt: str, level: str) -> None:
