@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,12 +27,12 @@ import numpy.typing as npt
 
 from calib.models import FloatArray
 from drivers.io.capture import CaptureReader
+from emlogd.offline import ProgressFn
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
 from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
 
 BoolArray = npt.NDArray[np.bool_]
 
-ProgressFn = Callable[[str, float], None]
 """``progress(message, fraction done)``."""
 
 

@@ -33,7 +33,7 @@ import csv
 import gzip
 import math
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
@@ -45,11 +45,11 @@ from drivers.framing import split_nmea
 from drivers.io.capture import CaptureWriter
 from drivers.nmea0183 import Gga, Rmc, Zda, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS
+from emlogd.offline import ProgressFn
 from emlogd.pipeline.sentences import encode_vdr
 
 TimeFormat = Literal["ole", "iso", "epoch"]
 HeadingRef = Literal["true", "magnetic"]
-ProgressFn = Callable[[str, float], None]
 
 OLE_EPOCH = datetime(1899, 12, 30, tzinfo=UTC)
 """Day 0 of OLE automation dates (Excel, Expedition)."""

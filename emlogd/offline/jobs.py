@@ -41,10 +41,10 @@ from calib.models import CURRENT, FloatArray, Layout, Params, check_model, corre
 from drivers.errors import EmlogdError
 from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.fileio import write_atomic
+from emlogd.offline import ProgressFn
 from emlogd.offline.dataset import (
     Aligned,
     CaptureContentError,
-    ProgressFn,
     Recording,
     record_captures,
 )

@@ -28,10 +28,9 @@ import numpy as np
 from drivers import make_decoder
 from drivers.base import Decoder
 from drivers.io.capture import CaptureReader
+from emlogd.offline import ProgressFn
 from emlogd.offline.simulate import Truth, TruthScore, score_truth
 from emlogd.pipeline.core import Emit, Event, Output, Pipeline
-
-ProgressFn = Callable[[str, float], None]
 
 TICK_S = 0.5
 """Record time between two stale checks (the daemon's loop ticks at a similar rate)."""

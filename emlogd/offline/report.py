@@ -22,7 +22,7 @@ Legends sit outside the axes, so that they never hide data.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,11 +32,10 @@ from calib.crossval import CrossValResult
 from calib.kalman import run_kf
 from calib.metrics import chi2_1_quantile, chi2_mean_bounds
 from calib.models import correct_array
+from emlogd.offline import ProgressFn
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import OfflineError, crossval, find_lag
 from emlogd.pipeline.core import UutSettings
-
-ProgressFn = Callable[[str, float], None]
 
 WINDOW_S = 600.0
 """Length of the speed-plot window, s (the start of each capture)."""

@@ -52,7 +52,6 @@ import gzip
 import io
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -62,14 +61,13 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from calib.models import Params, check_model, correct_array, forward_array
+from calib.models import FloatArray, Params, check_model, correct_array, forward_array
 from drivers.errors import EmlogdError
 from drivers.io.capture import CaptureWriter
 from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
 from drivers.records import KNOT_MPS
+from emlogd.offline import ProgressFn
 
-FloatArray = npt.NDArray[np.float64]
-Progress = Callable[[str, float], None]
 DvlFormat = Literal["pd6", "pd0"]
 TrajectoryKind = Literal["transit", "figure-8", "straight", "circles", "return"]
 CirclesMode = Literal["steps", "constant"]
@@ -619,7 +617,7 @@ def simulate(
     dvl_format: DvlFormat = "pd6",
     current: tuple[float, float] | None = None,
     circles: CirclesMode = "steps",
-    progress: Progress | None = None,
+    progress: ProgressFn | None = None,
 ) -> SimulationResult:
     """Write the five trajectories, ``truth.yaml`` and ``truth.csv.gz`` into ``outdir``.
 
