@@ -12,6 +12,8 @@ from emlogd.cli import main
 
 
 def test_check_config(capsys: pytest.CaptureFixture[str]) -> None:
+    """check-config prints 'FILE: ok' with the example's ports and calibrations; a config with an
+    unknown protocol exits 1 with one line naming FILE:LINE."""
     example = Path(__file__).resolve().parents[3] / "examples" / "emlogd.yaml"
     assert main(["check-config", str(example)]) == 0
     assert "ok" in capsys.readouterr().out
@@ -20,6 +22,7 @@ def test_check_config(capsys: pytest.CaptureFixture[str]) -> None:
 def test_control_commands_without_daemon(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
+    """status against a socket nobody serves exits 1 asking whether emlogd is running."""
     assert main(["status", "--socket", str(tmp_path / "none.sock")]) == 1
     assert "is emlogd running" in capsys.readouterr().err
 

@@ -113,6 +113,9 @@ def _setup(tmp_path: Path) -> Path:
 
 
 def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None:
+    """The daemon learns EMlog1 (corrected RMSE < 0.75 raw), counts a garbage port, survives an
+    EMlog unplug and a TCP client that never reads, freezes and keeps emitting when the DVL stops,
+    and restarts frozen from the state SIGTERM wrote."""
     junk = _setup(tmp_path)
     capture = trial_files["figure-8"]
     links = tmp_path / "links"
@@ -376,6 +379,8 @@ class _SpyPipeline:
 def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     tmp_path: Path,
 ) -> None:
+    """A readable reference port with rest_s is read, then disarmed while it rests (the UUT never
+    rests), read once with its whole burst when due, and armed again."""
     from emlogd.daemon import loop as dmod
 
     _setup(tmp_path)
