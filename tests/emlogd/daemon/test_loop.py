@@ -230,9 +230,12 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
         # no sensor exists: the daemon runs and says so
         st = request(tmp_path / "run" / "control.sock", {"cmd": "status"})["status"]
         assert isinstance(st, dict) and st["uuts"]["emlog1"]["state"] == "uncalibrated"
+        # WATCHDOG_USEC=1 s: a keep-alive every half second, whatever else is sent
         deadline = time.monotonic() + 5
-        while b"WATCHDOG=1" not in srv.recv(4096) and time.monotonic() < deadline:
-            pass
+        got = b""
+        while got != b"WATCHDOG=1":
+            assert time.monotonic() < deadline, "no WATCHDOG=1 within 5 s"
+            got = srv.recv(4096)
         # a good reload moves the control socket
         cfg.write_text(base.replace("run/control.sock", "run/control2.sock"))
         proc.send_signal(signal.SIGHUP)
