@@ -14,6 +14,8 @@ from drivers.io.capture import MAGIC, CaptureReader, CaptureWriter, read_ports
 
 
 def test_round_trip_text_and_binary(tmp_path: Path) -> None:
+    """Text lines, binary chunks, NUL bytes and hex:-looking lines read back exactly, with the port
+    headers, the comment and each record's line number, and a reader iterates twice."""
     path = tmp_path / "a.cap"
     with CaptureWriter(path, {"emlog1": "nmea0183", "dvl": "pd0"}) as w:
         w.comment("a test capture")
@@ -45,6 +47,7 @@ lines = st.binary(max_size=120)
 )
 @given(items=st.lists(st.tuples(st.booleans(), lines), max_size=30))
 def test_any_bytes_round_trip_exactly(tmp_path: Path, items: list[tuple[bool, bytes]]) -> None:
+    """Any bytes written as a line (CRLF added) or as a non-empty chunk read back byte for byte."""
     path = tmp_path / "p.cap"
     expected = []
     with CaptureWriter(path, {"p": "nmea0183"}) as w:
@@ -80,6 +83,8 @@ def test_any_bytes_round_trip_exactly(tmp_path: Path, items: list[tuple[bool, by
 def test_malformed_files_name_file_and_line(
     tmp_path: Path, content: str, line: int, message: str
 ) -> None:
+    """Each kind of malformed capture raises CaptureFormatError starting 'FILE:LINE: ' with its
+    reason and line number."""
     path = tmp_path / "bad.cap"
     path.write_bytes(content.encode("utf-8"))
     with pytest.raises(CaptureFormatError) as exc:
@@ -90,6 +95,8 @@ def test_malformed_files_name_file_and_line(
 
 
 def test_writer_refuses_bad_input(tmp_path: Path) -> None:
+    """CaptureWriter refuses an unknown protocol, a bad port name, time going backwards, an unknown
+    port, a two-line comment and a write after close."""
     with pytest.raises(ValueError, match="unknown protocol"):
         CaptureWriter(tmp_path / "x.cap", {"a": "nmea9"})
     with pytest.raises(ValueError, match="bad port name"):
@@ -107,6 +114,8 @@ def test_writer_refuses_bad_input(tmp_path: Path) -> None:
 
 
 def test_gzip_and_streaming(tmp_path: Path) -> None:
+    """A gzip capture of 50 000 records streams through the reader to its last record; a .gz file
+    that is not gzip is a CaptureFormatError."""
     plain = tmp_path / "big.cap"
     with CaptureWriter(plain, {"a": "nmea0183"}) as w:
         for k in range(50_000):
@@ -139,6 +148,8 @@ def _read_any(tmp_path: Path, content: bytes) -> None:
 )
 @given(st.binary(max_size=400))
 def test_reader_only_raises_capture_format_errors(tmp_path: Path, content: bytes) -> None:
+    """Random bytes after a valid header give records of the declared port or a CaptureFormatError
+    naming the file, never another exception."""
     _read_any(tmp_path, content)
 
 
@@ -148,6 +159,7 @@ def test_reader_only_raises_capture_format_errors(tmp_path: Path, content: bytes
 )
 @given(st.binary(max_size=400))
 def test_fuzz_reader(tmp_path: Path, content: bytes) -> None:
+    """The reader's only-CaptureFormatError property over 100 000 random inputs (fuzz marker)."""
     _read_any(tmp_path, content)
 
 

@@ -45,6 +45,8 @@ def capture(write_capture: Callable[..., Path]) -> Path:
 def test_reader_receives_the_ports_bytes(
     capture: Path, tmp_path: Path, speed: float | None
 ) -> None:
+    """A FakeDevice, paced or unpaced, delivers exactly its port's bytes in order, reports all 300
+    records sent and removes its link when stopped."""
     expected = b"".join(r.data for r in CaptureReader(capture) if r.port == "emlog1")
     dev = FakeDevice(capture, "emlog1", tmp_path / "emlog1", speed=speed).start()
     try:
@@ -58,6 +60,8 @@ def test_reader_receives_the_ports_bytes(
 
 
 def test_binary_port_and_loop(capture: Path, fake_device: Callable[..., FakeDevice]) -> None:
+    """A looping FakeDevice on a binary port sends the port's bytes again and again, never finishes
+    by itself, and removes its link once stopped."""
     once = b"".join(r.data for r in CaptureReader(capture) if r.port == "dvl")
     dev = fake_device(capture, "dvl", loop=True)
     got = _collect(dev.link, 2 * len(once) + 10)
@@ -74,6 +78,8 @@ def test_timing_is_honoured(
 ) -> None:
     # 1 s of capture at twice real time takes at least 0.5 s (only a lower bound is
     # asserted: a loaded machine may be slower, never faster)
+    """At speed 2 one second of capture takes at least half a second to arrive; unpaced, all 11
+    records arrive intact."""
     records = [(50.0 + 0.1 * k, "e", b"$VWVHW,%d*00" % k, False) for k in range(11)]
     cap = write_capture({"e": "nmea0183"}, records)
     expected = b"".join(b"$VWVHW,%d*00\r\n" % k for k in range(11))
@@ -90,6 +96,7 @@ def test_timing_is_honoured(
 
 
 def test_unknown_port_and_bad_speed(capture: Path, tmp_path: Path) -> None:
+    """FakeDevice refuses a port the capture does not declare and a speed of zero."""
     with pytest.raises(ValueError, match="no port"):
         FakeDevice(capture, "gps", tmp_path / "x")
     with pytest.raises(ValueError, match="speed"):
@@ -111,6 +118,8 @@ def _read_until(src: SerialSource, n: int, deadline: float) -> bytes:
 def test_serial_source_reads_a_fake_device_and_survives_its_restart(
     capture: Path, tmp_path: Path
 ) -> None:
+    """SerialSource reads a FakeDevice's exact bytes, notices the device going away, and reads its
+    replacement at the same path after exactly one reconnect."""
     link = tmp_path / "emlog1"
     expected = b"".join(r.data for r in CaptureReader(capture) if r.port == "emlog1")
     src = SerialSource("emlog1", str(link), backoff_s=(0.01,))

@@ -10,6 +10,7 @@ from emlogd.cli import build_parser, main
 
 
 def test_help_lists_the_commands(capsys: pytest.CaptureFixture[str]) -> None:
+    """--help exits 0 and names every subcommand; the parser's prog is 'emlogd'."""
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
     for cmd in (
@@ -21,6 +22,7 @@ def test_help_lists_the_commands(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
+    """No command, a missing required argument and a bad --protocol choice each exit 2."""
     assert main([]) == 2
     assert main(["calibrate"]) == 2
     assert main(["dump", "x", "--protocol", "nope"]) == 2
@@ -29,6 +31,7 @@ def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
 def test_missing_file_is_one_line_exit_1(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
+    """dump of a missing file exits 1 with one 'emlogd dump: error:' line and no traceback."""
     assert main(["dump", str(tmp_path / "none.cap")]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "emlogd dump: error:" in err and "Traceback" not in err
@@ -37,6 +40,8 @@ def test_missing_file_is_one_line_exit_1(
 def test_bad_capture_names_file_and_line(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
+    """A capture whose time goes backwards fails calibrate with one stderr line, and dump exits 1
+    naming FILE:4 and 'backwards'."""
     bad = tmp_path / "bad.cap"
     bad.write_text("# emlogd capture v1\n# port a nmea0183\n(1.0) a $X*00\n(0.5) a $Y*00\n")
     assert main(["calibrate", str(bad), "--uut", "a", "--ref", "a", "--ref-field", "speed"]) in (

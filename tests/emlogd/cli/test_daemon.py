@@ -11,15 +11,25 @@ import pytest
 from emlogd.cli import main
 
 
-def test_check_config(capsys: pytest.CaptureFixture[str]) -> None:
+def test_check_config(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """check-config prints 'FILE: ok' with the example's ports and calibrations; a config with an
+    unknown protocol exits 1 with one line naming FILE:LINE."""
     example = Path(__file__).resolve().parents[3] / "examples" / "emlogd.yaml"
     assert main(["check-config", str(example)]) == 0
-    assert "ok" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert out.startswith(f"{example}: ok\n")
+    assert "dvl (pd6, reference)" in out and "emlog1 EM3 vs dvl (bottom)" in out
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("ports:\n  - {name: a, url: /dev/null, protocol: pd9, role: uut}\n")
+    assert main(["check-config", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"emlogd check-config: error: {bad}:2: ")
 
 
 def test_control_commands_without_daemon(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
+    """status against a socket nobody serves exits 1 asking whether emlogd is running."""
     assert main(["status", "--socket", str(tmp_path / "none.sock")]) == 1
     assert "is emlogd running" in capsys.readouterr().err
 

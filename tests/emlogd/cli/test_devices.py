@@ -15,6 +15,8 @@ CONFORMANCE = Path(__file__).resolve().parents[3] / ".." / "shared" / "conforman
 def test_dump_json_summary(
     capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path]
 ) -> None:
+    """dump --json prints one {t, port, record} object per record and ends with a summary per port
+    (protocol, record count)."""
     assert main(["dump", str(trial_files["straight"]), "--json"]) == 0
     lines = capsys.readouterr().out.splitlines()
     first = json.loads(lines[0])
@@ -39,6 +41,8 @@ def test_dump_json_summary(
     ],
 )
 def test_dump_every_conformance_file(capsys: pytest.CaptureFixture[str], name: str) -> None:
+    """dump exits 0 on every public conformance file and its summary row names the file with at
+    least one decoded record."""
     path = CONFORMANCE / name
     if not path.exists():
         pytest.skip("../shared/conformance is not present")
@@ -46,8 +50,10 @@ def test_dump_every_conformance_file(capsys: pytest.CaptureFixture[str], name: s
     if "prti" in name:
         args += ["--checksum-optional"]
     assert main(args) == 0
-    out = capsys.readouterr().out
-    assert "records" in out.splitlines()[-2] or "rejected" in out
+    header, row = capsys.readouterr().out.splitlines()[-2:]
+    assert header.split()[:4] == ["port", "protocol", "records", "rejected"]
+    port, _protocol, records = row.split()[:3]
+    assert port == path.stem and int(records) > 0, row
 
 
 def test_fake_then_record_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

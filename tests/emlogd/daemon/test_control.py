@@ -52,6 +52,8 @@ def loop(tmp_path: Path) -> Iterator[_Loop]:
 
 
 def test_requests_get_one_json_answer_each(loop: _Loop, tmp_path: Path) -> None:
+    """The socket is created mode 0660 and each request gets one JSON answer with ok: true; the
+    handler sees the request as sent."""
     path = tmp_path / "run" / "control.sock"
     assert stat.S_IMODE(path.stat().st_mode) == 0o660
     assert request(path, {"cmd": "status"}) == {"ok": True, "echo": "status"}
@@ -60,6 +62,8 @@ def test_requests_get_one_json_answer_each(loop: _Loop, tmp_path: Path) -> None:
 
 
 def test_bad_requests_are_answered_not_fatal(loop: _Loop, tmp_path: Path) -> None:
+    """An unknown command, a handler error, a non-JSON line and a non-object line each get
+    ok: false, and the server keeps serving."""
     path = tmp_path / "run" / "control.sock"
     assert request(path, {"cmd": "explode"})["ok"] is False
     bad = request(path, {"cmd": "reset", "port": "nope"})
@@ -77,6 +81,8 @@ def test_bad_requests_are_answered_not_fatal(loop: _Loop, tmp_path: Path) -> Non
 
 
 def test_an_endless_line_drops_the_client(loop: _Loop, tmp_path: Path) -> None:
+    """A request longer than MAX_REQUEST without a newline is answered 'request too long' and the
+    connection closed; other clients are still served."""
     path = tmp_path / "run" / "control.sock"
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
         s.settimeout(5)
@@ -93,11 +99,13 @@ def test_an_endless_line_drops_the_client(loop: _Loop, tmp_path: Path) -> None:
 
 
 def test_request_without_daemon_is_a_clear_error(tmp_path: Path) -> None:
+    """request() to a missing socket raises DeviceError asking whether emlogd is running."""
     with pytest.raises(DeviceError, match="is emlogd running"):
         request(tmp_path / "missing.sock", {"cmd": "status"})
 
 
 def test_close_removes_the_socket(tmp_path: Path) -> None:
+    """Closing the control server removes its socket file."""
     lp = _Loop(tmp_path / "c.sock")
     lp.close()
     assert not (tmp_path / "c.sock").exists()

@@ -113,6 +113,9 @@ def _setup(tmp_path: Path) -> Path:
 
 
 def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None:
+    """The daemon learns EMlog1 (corrected RMSE < 0.75 raw), counts a garbage port, survives an
+    EMlog unplug and a TCP client that never reads, freezes and keeps emitting when the DVL stops,
+    and restarts frozen from the state SIGTERM wrote."""
     junk = _setup(tmp_path)
     capture = trial_files["figure-8"]
     links = tmp_path / "links"
@@ -227,9 +230,12 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
         # no sensor exists: the daemon runs and says so
         st = request(tmp_path / "run" / "control.sock", {"cmd": "status"})["status"]
         assert isinstance(st, dict) and st["uuts"]["emlog1"]["state"] == "uncalibrated"
+        # WATCHDOG_USEC=1 s: a keep-alive every half second, whatever else is sent
         deadline = time.monotonic() + 5
-        while b"WATCHDOG=1" not in srv.recv(4096) and time.monotonic() < deadline:
-            pass
+        got = b""
+        while got != b"WATCHDOG=1":
+            assert time.monotonic() < deadline, "no WATCHDOG=1 within 5 s"
+            got = srv.recv(4096)
         # a good reload moves the control socket
         cfg.write_text(base.replace("run/control.sock", "run/control2.sock"))
         proc.send_signal(signal.SIGHUP)
@@ -376,6 +382,8 @@ class _SpyPipeline:
 def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     tmp_path: Path,
 ) -> None:
+    """A readable reference port with rest_s is read, then disarmed while it rests (the UUT never
+    rests), read once with its whole burst when due, and armed again."""
     from emlogd.daemon import loop as dmod
 
     _setup(tmp_path)

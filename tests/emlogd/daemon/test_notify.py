@@ -15,6 +15,8 @@ def _recv(sock: socket.socket) -> str:
 
 
 def test_messages_reach_the_socket(tmp_path: Path) -> None:
+    """READY, STATUS (newlines flattened), WATCHDOG and STOPPING each arrive as one datagram, and
+    the watchdog interval is half of WATCHDOG_USEC."""
     path = tmp_path / "notify.sock"
     with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
         srv.bind(str(path))
@@ -31,6 +33,7 @@ def test_messages_reach_the_socket(tmp_path: Path) -> None:
 
 
 def test_abstract_namespace() -> None:
+    """A NOTIFY_SOCKET starting with '@' reaches the abstract-namespace socket."""
     name = f"emlogd-test-{os.getpid()}"
     with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
         srv.bind("\0" + name)
@@ -39,6 +42,8 @@ def test_abstract_namespace() -> None:
 
 
 def test_disabled_and_failing() -> None:
+    """Without NOTIFY_SOCKET the notifier is off and sends nothing; an unreachable socket makes
+    ready() false and counts one failure."""
     off = Notifier.from_env({})
     assert not off.enabled and not off.ready() and off.watchdog_interval_s is None
     gone = Notifier("/nonexistent/notify.sock")
@@ -46,8 +51,10 @@ def test_disabled_and_failing() -> None:
 
 
 def test_watchdog_for_another_pid_is_ignored() -> None:
-    n = Notifier.from_env({"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "1000", "WATCHDOG_PID": "1"})
-    assert n.watchdog_interval_s is None or os.getpid() == 1
+    """WATCHDOG_USEC meant for another process (WATCHDOG_PID not ours) leaves the watchdog off."""
+    other = str(os.getpid() + 1)
+    n = Notifier.from_env({"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "1000", "WATCHDOG_PID": other})
+    assert n.watchdog_interval_s is None
 
 
 def test_watchdog_for_our_pid_and_malformed_values() -> None:

@@ -35,6 +35,8 @@ def _pipeline(cfg: str = CFG) -> Pipeline:
 
 
 def test_replay_learns_and_emits(trial_files: dict[str, Path]) -> None:
+    """Replaying transit then figure-8 learns EMlog1 (corrected RMSE under half of raw), counts DVL
+    records and reject reasons, and emits VHW and $PEMLS lines, all counted in emitted."""
     p = _pipeline()
     sink = io.BytesIO()
     res = replay(p, [trial_files["transit"], trial_files["figure-8"]], sink=sink)
@@ -53,6 +55,8 @@ def test_replay_learns_and_emits(trial_files: dict[str, Path]) -> None:
 
 
 def test_state_carries_across_files(trial_files: dict[str, Path]) -> None:
+    """Two files replayed in one call leave the same UUT status as the same files replayed one after
+    the other into one pipeline."""
     both = _pipeline()
     replay(both, [trial_files["transit"], trial_files["return"]])
     split = _pipeline()
@@ -62,6 +66,7 @@ def test_state_carries_across_files(trial_files: dict[str, Path]) -> None:
 
 
 def test_unknown_ports_are_counted(trial_files: dict[str, Path]) -> None:
+    """Records of a port the config does not declare are counted under unknown_ports."""
     cfg = CFG.replace("  - {uut: emlog2, reference: dvl, lag: 0.5, current: false}\n", "").replace(
         "  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n", ""
     )
@@ -70,6 +75,7 @@ def test_unknown_ports_are_counted(trial_files: dict[str, Path]) -> None:
 
 
 def test_paced_replay_sleeps_by_record_time(trial_files: dict[str, Path]) -> None:
+    """At speed 100 the replay sleeps the capture's span divided by 100 (within 2 %)."""
     clock = [0.0]
     slept: list[float] = []
 

@@ -38,6 +38,8 @@ from emlogd.pipeline.core import UutSettings
 
 
 def test_files_and_truth(trial: SimulationResult) -> None:
+    """simulate writes the five trajectory captures and a truth.yaml with schema, scale, the EMlogs'
+    latencies and each trajectory's scaled duration, mean speed and current bound."""
     assert [p.name for p in trial.files] == [
         "1-transit.cap",
         "2-figure8.cap",
@@ -57,6 +59,8 @@ def test_files_and_truth(trial: SimulationResult) -> None:
 
 
 def test_ports_rates_and_sentences(trial: SimulationResult) -> None:
+    """The figure-8 capture declares the four ports, keeps time monotonic, and carries each sensor's
+    sentence types at their documented rates (within 5 %)."""
     reader = CaptureReader(trial.files[1])
     assert reader.ports == {
         "emlog1": "nmea0183",
@@ -93,6 +97,8 @@ def test_ports_rates_and_sentences(trial: SimulationResult) -> None:
 
 
 def test_raw_error_in_the_papers_range(trial: SimulationResult) -> None:
+    """The EMlogs' raw RMSE on the transit lies in the paper's ranges, and the best fit beats raw on
+    every trajectory."""
     transit = trial.trajectories[0]
     assert 0.4 <= transit.rmse_raw_mps["emlog1"] <= 0.7
     assert 0.2 <= transit.rmse_raw_mps["emlog2"] <= 0.45
@@ -102,6 +108,7 @@ def test_raw_error_in_the_papers_range(trial: SimulationResult) -> None:
 
 
 def test_faults_are_injected_and_counted(trial: SimulationResult) -> None:
+    """Every fault kind occurs at least once and at most five times its per-line rate (+ 20)."""
     total_lines = sum(sum(t.lines.values()) for t in trial.trajectories)
     total_faults = {k: sum(t.faults[k] for t in trial.trajectories) for k in FAULT_RATES}
     for kind, rate in FAULT_RATES.items():
@@ -110,6 +117,7 @@ def test_faults_are_injected_and_counted(trial: SimulationResult) -> None:
 
 
 def test_same_seed_same_bytes_other_seed_other_bytes(tmp_path: Path) -> None:
+    """The same seed gives byte-identical captures and truth; another seed other captures."""
     a = simulate(tmp_path / "a", seed=7, scale=0.02)
     b = simulate(tmp_path / "b", seed=7, scale=0.02)
     c = simulate(tmp_path / "c", seed=8, scale=0.02)
@@ -120,6 +128,8 @@ def test_same_seed_same_bytes_other_seed_other_bytes(tmp_path: Path) -> None:
 
 
 def test_pd0_variant(tmp_path: Path) -> None:
+    """dvl_format='pd0' declares the DVL port pd0 and writes binary records starting with the 0x7F7F
+    header."""
     r = simulate(tmp_path, seed=2, scale=0.02, dvl_format="pd0")
     reader = CaptureReader(r.files[0])
     assert reader.ports["dvl"] == "pd0"
