@@ -32,11 +32,13 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from calib.models import Params
 from drivers.io.fake import FakeDevice
 from drivers.io.vpty import VirtualPort
 from drivers.nmea0183 import encode_vhw
 from drivers.rdi_ascii import encode_pd6
-from emlogd.daemon.statefile import CalibrationState, StateStore
+from emlogd.daemon.statefile import StateStore
+from emlogd.pipeline.calibration import Calibration
 
 CONFIG = """\
 ports:
@@ -77,7 +79,7 @@ def _setup(work: Path) -> Path:
     cfg = work / "emlogd.yaml"
     cfg.write_text(CONFIG)
     StateStore(work / "state" / "state.yaml").save(
-        {"emlog1": CalibrationState("emlog1", "EM3", {"m": 0.1, "b": 0.05})}
+        {"emlog1": Calibration("emlog1", Params("EM3", m=0.1, b_mps=0.05), {}, None)}
     )
     return cfg
 
