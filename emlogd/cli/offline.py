@@ -247,9 +247,15 @@ def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace)
 def _calibration_text(res: CalibrationResult) -> str:
     se = res.stderr
     held = set(res.ident.unidentifiable)
+    # least squares holds an undetermined unknown at its prior; the filter may have
+    # learnt it where a window determined it, though the data as a whole do not
+    why = (
+        "not determined: held at its prior"
+        if res.method == "ls"
+        else "not determined by these data as a whole: learnt only where a window was"
+    )
     params = "\n".join(
-        f"  {k:<2} = {v:+.5f} ± {fmt(se.get(k), '.5f')}"
-        + ("   (not determined: held at its prior)" if k in held else "")
+        f"  {k:<2} = {v:+.5f} ± {fmt(se.get(k), '.5f')}" + (f"   ({why})" if k in held else "")
         for k, v in res.params.as_dict().items()
     )
     lag = res.lag

@@ -43,6 +43,37 @@ SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
 
 HOUSEKEEPING_S = 0.1
+
+REPEATING_EVENTS = frozenset(
+    {"reference", "stale", "alive", "state", "lag_retry", "identifiability"}
+)
+"""Events a flapping input repeats (bottom lock coming and going): logged at most once
+per :data:`EVENT_INTERVAL_S` per port, the next line saying how many were left out."""
+
+EVENT_INTERVAL_S = 10.0
+
+
+class EventLimiter:
+    """At most one log line per (port, kind) of :data:`REPEATING_EVENTS` per interval."""
+
+    def __init__(self, interval_s: float = EVENT_INTERVAL_S) -> None:
+        self.interval_s = interval_s
+        self.last: dict[tuple[str, str], float] = {}
+        self.dropped: dict[tuple[str, str], int] = {}
+
+    def allow(self, port: str, kind: str, now: float) -> int | None:
+        """None: leave this one out; else log it, with how many were left out before."""
+        if kind not in REPEATING_EVENTS:
+            return 0
+        key = (port, kind)
+        last = self.last.get(key)
+        if last is not None and now - last < self.interval_s:
+            self.dropped[key] = self.dropped.get(key, 0) + 1
+            return None
+        self.last[key] = now
+        return self.dropped.pop(key, 0)
+
+
 """Least time between two rounds of reconnects, stale checks, status and watchdog."""
 
 _ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
@@ -109,6 +140,7 @@ class Daemon:
         self.rest_fds: dict[int, str] = {}
         self.sel.register(self.rest_poll.fileno(), selectors.EVENT_READ, self._rest_ready)
         self.scratch = Output(deliver=self._deliver)
+        self.event_limiter = EventLimiter()
         self.rest_s: dict[str, float] = {}
         self.sinks: dict[tuple[object, ...], Sink] = {}
         """The open outputs, keyed by the settings they were opened with."""
@@ -478,7 +510,10 @@ class Daemon:
             self._deliver(out.emits)
             out.emits.clear()
         for ev in out.events:
-            self.log.info(ev.kind, port=ev.port, **dict(ev.detail))
+            suppressed = self.event_limiter.allow(ev.port, ev.kind, self.monotonic())
+            if suppressed is not None:
+                extra = {"suppressed": suppressed} if suppressed else {}
+                self.log.info(ev.kind, port=ev.port, **dict(ev.detail), **extra)
         out.events.clear()
         if out.persist:
             out.persist.clear()

@@ -496,3 +496,18 @@ def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
         if d.proc.poll() is None:
             d.proc.kill()
         vp.close()
+
+
+def test_repeating_events_are_rate_limited_per_port() -> None:
+    """A flapping reference logs one `reference` line per port per 10 s, the next saying how
+    many were left out; other events and other ports are not held back."""
+    from emlogd.daemon.loop import EventLimiter
+
+    lim = EventLimiter(10.0)
+    assert lim.allow("dvl", "reference", 0.0) == 0
+    assert lim.allow("dvl", "reference", 1.0) is None
+    assert lim.allow("dvl", "reference", 2.0) is None
+    assert lim.allow("gps", "reference", 2.0) == 0
+    assert lim.allow("dvl", "calibrated", 2.5) == 0
+    assert lim.allow("dvl", "calibrated", 2.6) == 0
+    assert lim.allow("dvl", "reference", 10.5) == 2
