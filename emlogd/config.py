@@ -77,6 +77,12 @@ class UutConfig:
     talker: str | None = None
     """The talker of this log's corrected sentences; None: ``outputs.talker`` (two logs
     with their own talkers are two sources to a chart plotter or Signal K)."""
+    pty: str | None = None
+    """This log's own output pty: its sentences go there instead of the shared outputs."""
+    tcp: str | None = None
+    """This log's own NMEA over TCP (``HOST:PORT``), instead of the shared outputs."""
+    udp: str | None = None
+    """This log's own UDP destination, instead of the shared outputs."""
     component: Literal["longitudinal", "magnitude"] = _UUT.component
     current: bool | Literal["auto"] = "auto"
     """auto: estimate the current wherever a heading is known to come (see
@@ -363,6 +369,9 @@ UUT_SPEC: dict[str, tuple[str, Check]] = {
     "reference_field": ("reference_field", _enum("bottom", "water", "speed", "gnss")),
     "uut_source": ("uut_source", _enum("VHW", "VBW")),
     "talker": ("talker", _or_null(_str(r"[A-Z]{2}", "two uppercase letters"))),
+    "pty": ("pty", _opt_str()),
+    "tcp": ("tcp", _hostport),
+    "udp": ("udp", _hostport),
     "component": ("component", _enum("longitudinal", "magnitude")),
     "current": ("current", _bool_or_auto),
     "heading": ("heading", _heading_source),
@@ -566,6 +575,8 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
     for i, node in enumerate(cal_nodes):
         where = f"calibration[{i}]"
         kw = _section(ctx, node, where, UUT_SPEC, ("uut", "reference"))
+        if base is not None and kw.get("pty") and not kw["pty"].startswith("/"):
+            kw["pty"] = str(base / kw["pty"])
         uut = _check_uut(ctx, kw, _values(ctx, node, where), where, by_name)
         if any(u.uut == uut.uut for u in uuts):
             raise ctx.fail(
@@ -578,6 +589,13 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         if base is not None and kw.get("pty") and not kw["pty"].startswith("/"):
             kw["pty"] = str(base / kw["pty"])
         outputs = OutputConfig(**kw)
+        ptys = [u.pty for u in uuts if u.pty]
+        if outputs.pty in ptys or len(set(ptys)) != len(ptys):
+            raise ctx.fail(
+                top["outputs"][1],
+                "outputs.pty",
+                "each output pty must be its own (a log's pty repeats another)",
+            )
         if outputs.speed != "each" and "fused" in by_name:
             raise ctx.fail(
                 top["outputs"][1],

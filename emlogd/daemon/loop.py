@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import math
 import os
 import select
@@ -143,6 +144,10 @@ class Daemon:
         self.event_limiter = EventLimiter()
         self.rest_s: dict[str, float] = {}
         self.sinks: dict[tuple[object, ...], Sink] = {}
+        self.routes: dict[str, list[Sink]] = {}
+        """The logs with outputs of their own, and those outputs."""
+        self.shared: list[Sink] = []
+        """The outputs of every other sentence."""
         """The open outputs, keyed by the settings they were opened with."""
         self.controls: dict[tuple[str, str], ControlServer] = {}
         """The control socket and the read-only status socket, keyed by (kind, path)."""
@@ -336,6 +341,27 @@ class Daemon:
             )
         if out.stdout:
             specs[("stdout",)] = stdout_sink
+        for u in cfg.calibration:  # a log's own outputs, keyed ("uut", name, ...)
+            name = u.uut
+            if u.pty:
+                specs[("uut", name, "pty", u.pty, out.pty_mode, out.pty_group)] = functools.partial(
+                    PtySink, u.pty, mode=out.pty_mode, group=out.pty_group
+                )
+            if u.tcp:
+                specs[("uut", name, "tcp", u.tcp)] = functools.partial(
+                    TcpServerSink,
+                    u.tcp,
+                    selector=self.sel,
+                    on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                    monotonic=self.monotonic,
+                )
+            if u.udp:
+                specs[("uut", name, "udp", u.udp)] = functools.partial(
+                    UdpSink,
+                    u.udp,
+                    on_event=lambda kind, detail: self.log.warning(kind, sink="udp", detail=detail),
+                    monotonic=self.monotonic,
+                )
         return specs
 
     def _sync_outputs(self) -> tuple[list[str], list[str]]:
@@ -353,6 +379,11 @@ class Daemon:
             if key not in self.sinks:
                 self.sinks[key] = sink = make()
                 opened.append(sink.name)
+        self.routes = {}
+        for key, sink in self.sinks.items():
+            if key[0] == "uut":
+                self.routes.setdefault(str(key[1]), []).append(sink)
+        self.shared = [s for k, s in self.sinks.items() if k[0] != "uut"]
         return closed, opened
 
     def _close_outputs(self) -> None:
@@ -520,10 +551,26 @@ class Daemon:
             self._persist()
 
     def _deliver(self, emits: list[Emit]) -> None:
-        """Write sentences to every output sink (called by the pipeline as each is ready)."""
-        data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
-        for sink in self.sinks.values():
-            sink.write(data)
+        """Write sentences to their outputs (called by the pipeline as each is ready): a
+        log with outputs of its own writes there, every other sentence to the shared ones."""
+        if not self.routes:
+            data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
+            for sink in self.shared:
+                sink.write(data)
+            return
+        shared: list[bytes] = []
+        for e in emits:
+            line = e.sentence.encode("ascii") + b"\r\n"
+            own = self.routes.get(e.port)
+            if own is None:
+                shared.append(line)
+            else:
+                for sink in own:
+                    sink.write(line)
+        if shared:
+            data = b"".join(shared)
+            for sink in self.shared:
+                sink.write(data)
 
     def _persist(self, *, final: bool = False, operator: bool = False) -> str | None:
         """Write the calibrations; return None once they are on disk, else why not.

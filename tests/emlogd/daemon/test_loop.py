@@ -6,6 +6,7 @@ simulator's divided by the replay speed.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import signal
@@ -511,3 +512,44 @@ def test_repeating_events_are_rate_limited_per_port() -> None:
     assert lim.allow("dvl", "calibrated", 2.5) == 0
     assert lim.allow("dvl", "calibrated", 2.6) == 0
     assert lim.allow("dvl", "reference", 10.5) == 2
+
+
+def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str, Path]) -> None:
+    """A log given its own pty and talker sends its sentences there only: the shared pty
+    carries the other log's, the log's own pty none but its own."""
+    junk = _setup(tmp_path)
+    cfg = tmp_path / "emlogd.yaml"
+    text = cfg.read_text()
+    assert "  - {uut: emlog2, reference: dvl," in text
+    cfg.write_text(
+        text.replace(
+            "  - {uut: emlog2, reference: dvl,",
+            "  - {uut: emlog2, reference: dvl, talker: VM, pty: out/emlog2,",
+        )
+    )
+    links = tmp_path / "links"
+    capture = trial_files["figure-8"]
+    devices = [
+        FakeDevice(capture, p, links / p, speed=SPEED).start() for p in ("emlog1", "emlog2", "dvl")
+    ]
+    garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
+    d = Daemon(tmp_path)
+    own = os.open(tmp_path / "out" / "emlog2", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+    got = b""
+    try:
+        end = time.monotonic() + 4.0
+        while time.monotonic() < end:
+            d.pump(0.2)
+            with contextlib.suppress(BlockingIOError, OSError):
+                got += os.read(own, 65536)
+    finally:
+        os.close(own)
+        assert d.stop() == 0
+        for dev in [*devices, garbage]:
+            dev.stop()
+    shared = [ln for ln in d.lines if ln.startswith(b"$")]
+    mine = [ln for ln in got.split(b"\r\n") if ln.startswith(b"$")]
+    assert any(ln.startswith(b"$VWVHW") for ln in shared)
+    assert not any(ln.startswith(b"$VM") or b",emlog2," in ln for ln in shared)
+    assert any(ln.startswith(b"$VMVHW") for ln in mine)
+    assert not any(ln.startswith(b"$VWVHW") or b",emlog1," in ln for ln in mine)
