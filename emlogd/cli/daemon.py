@@ -21,7 +21,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from emlogd.daemon.loop import Daemon
 
     cfg = load_config(config_path(args))
-    configure_logging(cfg.log_format, cfg.log_level)
+    # the corrected NMEA on stdout never shares it with the log: the log goes to stderr
+    configure_logging(cfg.log_format, cfg.log_level, sys.stderr if cfg.outputs.stdout else None)
     log = structlog.get_logger("emlogd")
     return Daemon(cfg.path, log, state_path=args.state).run()
 

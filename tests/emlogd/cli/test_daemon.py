@@ -138,3 +138,37 @@ def test_control_commands_print_text_unless_json(
     assert main(["freeze", "--uut", "emlog9", *sock]) == 1
     err = capsys.readouterr().err
     assert err == "emlogd freeze: error: the daemon refused: no UUT 'emlog9'; UUTs: emlog1\n"
+
+
+def test_run_with_stdout_output_logs_to_stderr(tmp_path: Path) -> None:
+    """With outputs.stdout the log goes to stderr, so stdout carries NMEA only."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "ports:\n  - {name: log, url: missing/log, protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: missing/dvl, protocol: pd6, role: reference}\n"
+        "calibration:\n  - {uut: log, reference: dvl}\n"
+        "outputs: {pty: null, stdout: true}\n"
+        "state_file: state.yaml\ncontrol_socket: control.sock\nlog_format: json\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "run", "--config", str(cfg)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        cwd=tmp_path,
+    )
+    try:
+        deadline = time.monotonic() + 20
+        while not (tmp_path / "control.sock").exists() and time.monotonic() < deadline:
+            assert proc.poll() is None
+            time.sleep(0.05)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0
+    assert b'"event": "ready"' in err
+    assert not [ln for ln in out.splitlines() if not ln.startswith(b"$")]
