@@ -390,15 +390,15 @@ def train(
     method, model = split_estimator(estimator)
     if current and seg.heading is None:
         raise DataError(f"segment {seg.name!r} has no heading: the current cannot be estimated")
+    ok = _usable(seg, current)
+    fit = fit_ls(
+        model,
+        seg.ref[ok],
+        seg.raw[ok],
+        heading_deg=None if seg.heading is None or not current else seg.heading[ok],
+        current=current,
+    )
     if method == "LS":
-        ok = _usable(seg, current)
-        fit = fit_ls(
-            model,
-            seg.ref[ok],
-            seg.raw[ok],
-            heading_deg=None if seg.heading is None or not current else seg.heading[ok],
-            current=current,
-        )
         return TrainedEstimator(
             estimator,
             seg.name,
@@ -409,17 +409,10 @@ def train(
             fit.unidentifiable,
             fit.cond_info,
         )
-    # The filter learns only what the segment determines (judged as for least squares);
+    # The filter learns only what the segment determines (the least-squares verdict);
     # the rest stays at the ideal sensor. With a current the current always learns: where
     # it is not separable from the bias it takes their sum (the bias is held).
-    ok = _usable(seg, current)
-    ident = fit_ls(
-        model,
-        seg.ref[ok],
-        seg.raw[ok],
-        heading_deg=None if seg.heading is None or not current else seg.heading[ok],
-        current=current,
-    ).ident
+    ident = fit.ident
     learn = set(ident.determined) | ({CURRENT} if current else set())
     run = run_kf(
         model,
