@@ -337,6 +337,9 @@ MIN_HEADING_COHERENCE = 0.9
 """A block is kept when its mean heading vector is at least this long (1: a steady
 heading; 0.9: a turn of about 50° inside the block)."""
 
+BLOCK_MAX_GAP_S = 5.0
+"""The longest gap between two samples of one block, s."""
+
 
 def block_average(
     t_s: npt.ArrayLike,
@@ -345,7 +348,7 @@ def block_average(
     heading_deg: npt.ArrayLike | None,
     window_s: float,
     *,
-    max_gap_s: float = 5.0,
+    max_gap_s: float = BLOCK_MAX_GAP_S,
 ) -> Averaged:
     """Means of consecutive ``window_s`` blocks, for a fit on a noisy reference.
 

@@ -52,6 +52,7 @@ from calib.errors import CalibrationError
 from calib.excitation import ExcitationWindow, Identifiability
 from calib.kalman import Innovation, KfCalibrator
 from calib.lag import MAX_LAG_STD_RELAXED_S, MAX_LAG_STD_S, accept, estimate_lag
+from calib.lsq import BLOCK_MAX_GAP_S, MIN_HEADING_COHERENCE
 from calib.models import CURRENT, FloatArray, Layout, Params, check_model, zero_params
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
@@ -120,13 +121,10 @@ CURRENT_SIGNIFICANCE = 3.0
 within a third of the current's speed: a 1 m/s tidal stream known to ±0.1 m/s is a
 measurement; 0.1 m/s known to ±0.1 m/s is not."""
 
-MIN_HEADING_COHERENCE = 0.9
-"""A block is used when its mean heading vector is at least this long (a turn of
-about 50° inside the block at most)."""
-
 
 class BlockMeans:
-    """Consecutive blocks of learnt-from samples, averaged (:data:`AVERAGE_S`).
+    """Consecutive blocks of learnt-from samples, averaged (:data:`AVERAGE_S`); the
+    streaming form of :func:`calib.lsq.block_average`, with its rules.
 
     A block closes after ``window_s`` (samples that cannot be learnt from are left out);
     it is dropped when the set of unknowns learning changes, a gap between its samples
@@ -156,7 +154,9 @@ class BlockMeans:
     ) -> tuple[float, float, tuple[float, float] | None, frozenset[str]] | None:
         """Add a sample; the block's (raw, ref, (cos, sin), unknowns) when it closes."""
         if self.n and (
-            learn != self.learn or t - self.t_last > 5.0 or (cs is not None) != self.with_heading
+            learn != self.learn
+            or t - self.t_last > BLOCK_MAX_GAP_S
+            or (cs is not None) != self.with_heading
         ):
             self.clear()
         if not self.n:
