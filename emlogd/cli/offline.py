@@ -29,6 +29,7 @@ from emlogd.pipeline.core import UutSettings
 if TYPE_CHECKING:
     from calib.models import Params
     from emlogd.offline.simulate import Truth, TruthScore
+    from emlogd.pipeline.core import Emit, Pipeline
 
 # ---------------------------------------------------------------------------- simulate
 
@@ -461,7 +462,7 @@ class _EmitCapture:
     """``replay --out FILE.cap``: what the daemon emitted as a capture v1, one port per UUT
     (and ``fused``), each sentence stamped with the receive time of the sample it corrects."""
 
-    def __init__(self, path: str, uuts: Sequence[str], pipeline: Any) -> None:
+    def __init__(self, path: str, uuts: Sequence[str], pipeline: Pipeline) -> None:
         from drivers.io.capture import CaptureWriter
 
         ports = dict.fromkeys(uuts, "nmea0183")
@@ -471,7 +472,7 @@ class _EmitCapture:
         self.writer.comment("emlogd replay: the sentences emitted, by UUT")
         self.t = -math.inf
 
-    def write(self, emits: Sequence[Any]) -> None:
+    def write(self, emits: Sequence[Emit]) -> None:
         for e in emits:
             self.t = max(self.t, e.t)  # sentences made later never go back in time
             self.writer.write_line(self.t, e.port, e.sentence.encode("ascii"))

@@ -579,16 +579,16 @@ class Pipeline:
             return
         value = cal.correct(raw)
         if value is not None:
+            hdg_t = rec.heading_true_deg if isinstance(rec, Vhw) else None
+            hdg_m = rec.heading_mag_deg if isinstance(rec, Vhw) else None
             if sp.sentence == "VHW":
-                hdg_t = rec.heading_true_deg if isinstance(rec, Vhw) else None
-                hdg_m = rec.heading_mag_deg if isinstance(rec, Vhw) else None
                 sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
             else:
                 sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
             if self.fusion is None or not self.fusion.s.only:
                 out.send(Emit(t, u.s.port, sentence))
             if self.fusion is not None and sp.sentence == u.s.uut_source:
-                self._fuse(t, u, value, rec, out)
+                self._fuse(t, u, value, hdg_t, hdg_m, out)
         if sp.sentence == u.s.uut_source:
             cal.add_reading(t, raw)
             cal.drain(self.now)
@@ -597,14 +597,20 @@ class Pipeline:
             out.emits.append(Emit(t, u.s.port, encode_status(self._status_fields(u))))
             self._vdr(u, t, out)
 
-    def _fuse(self, t: float, u: _Uut, value: float, rec: object, out: Output) -> None:
-        """Send the fused speed (port ``fused``) when one is due."""
+    def _fuse(
+        self,
+        t: float,
+        u: _Uut,
+        value: float,
+        hdg_t: float | None,
+        hdg_m: float | None,
+        out: Output,
+    ) -> None:
+        """Send the fused speed (port ``fused``, with the log's headings) when one is due."""
         assert self.fusion is not None
         fused = self.fusion.update(u.s.port, t, value, u.cal.output_std(value))
         if fused is None:
             return
-        hdg_t = rec.heading_true_deg if isinstance(rec, Vhw) else None
-        hdg_m = rec.heading_mag_deg if isinstance(rec, Vhw) else None
         talker = self.fusion.s.talker
         out.send(Emit(t, FUSED_PORT, encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)))
         if t - self.t_fused_status >= u.s.status_interval_s:
