@@ -73,11 +73,19 @@ while True:
 """
 
 
+REST_S: float | None = None
+"""``--rest-s``: the rest of the reference and aux ports (None: the config's default)."""
+
+
 def _setup(work: Path) -> Path:
     for sub in ("links", "out", "state", "run"):
         (work / sub).mkdir(parents=True, exist_ok=True)
     cfg = work / "emlogd.yaml"
-    cfg.write_text(CONFIG)
+    text = CONFIG
+    if REST_S is not None:  # --rest-s: the reference and aux ports' rest, s
+        text = text.replace("role: reference}", f"role: reference, rest_s: {REST_S}}}")
+        text = text.replace("role: aux}", f"role: aux, rest_s: {REST_S}}}")
+    cfg.write_text(text)
     StateStore(work / "state" / "state.yaml").save(
         {"emlog1": Calibration("emlog1", Params("EM3", m=0.1, b_mps=0.05), {}, None)}
     )
@@ -417,7 +425,14 @@ def main() -> None:
     ap.add_argument(
         "--flood", action="store_true", help="latency with a garbage flood on a 4th port"
     )
+    ap.add_argument(
+        "--rest-s",
+        type=float,
+        help="rest_s of the reference and aux ports (0: read as soon as readable)",
+    )
     args = ap.parse_args()
+    global REST_S
+    REST_S = args.rest_s
     trial = Path(args.trial) if args.trial else None
     if trial is None or len(list(trial.glob("[1-5]-*.cap"))) != 5:
         from emlogd.offline.simulate import simulate

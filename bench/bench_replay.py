@@ -95,16 +95,34 @@ def _decode_only(records: list[tuple[float, str, bytes]]) -> float:
     return time.perf_counter() - t0
 
 
+def _profile(records: list[tuple[float, str, bytes]]) -> None:
+    """cProfile of :func:`_pipeline` over one capture: the functions by cumulative time."""
+    import cProfile
+    import pstats
+
+    prof = cProfile.Profile()
+    prof.runcall(_pipeline, records)
+    pstats.Stats(prof).sort_stats("cumulative").print_stats(30)
+
+
 def main() -> None:
     """Generate (or reuse) the trial, time pipeline and anchor, print figures."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--outdir", help="existing or new trial directory")
     ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument(
+        "--profile",
+        action="store_true",
+        help="instead: profile the pipeline over the figure-8 and print where the time goes",
+    )
     args = ap.parse_args()
     outdir = Path(args.outdir or tempfile.mkdtemp(prefix="emlogd-bench-"))
     files = sorted(outdir.glob("[1-5]-*.cap"))
     if len(files) != 5:
         files = list(simulate(outdir, seed=1, scale=args.scale).files)
+    if args.profile:
+        _profile([(r.t, r.port, r.data) for r in CaptureReader(files[1])])
+        return
     records = [(r.t, r.port, r.data) for f in files for r in CaptureReader(f)]
     n_lines = sum(d.count(b"\n") for _, _, d in records)
     span = sum((lambda rs: rs[-1].t - rs[0].t)(list(CaptureReader(f))) for f in files)
