@@ -20,10 +20,12 @@ value is a quality figure in [−1, 1], and:
 sea current projected on the hull, ``c_N·cos ψ + c_E·sin ψ``, which swings with the
 heading and would pull a plain correlation peak towards whatever lag best lines the
 current's swing up with the speed log's. The score at each τ is then the *multiple*
-correlation of the measurement with ``[v_ref, cos ψ, sin ψ]`` (all at ``t − τ``,
-the heading interpolated through its cosine and sine, so across 0/360): the current
-is fitted at every candidate lag and cannot shift the peak. Without a heading the
-score is the plain Pearson coefficient (the same thing with one regressor).
+correlation of the measurement with ``v_ref`` and, over each block of
+:data:`CURRENT_BLOCK_S`, a level and a current that may drift linearly,
+``[1, cos ψ, sin ψ, t·cos ψ, t·sin ψ]`` (all at ``t − τ``, the heading interpolated
+through its cosine and sine, so across 0/360): the current is fitted at every
+candidate lag and cannot shift the peak, even while the tide turns. Without a heading
+the score is the plain Pearson coefficient (the same thing with one regressor).
 
 :func:`accept` is the one rule deciding whether an estimate is used, for the daemon
 and the offline commands alike.
@@ -152,19 +154,67 @@ def _pearson(a: FloatArray, b: FloatArray) -> float:
     return float(np.dot(a0, b0)) / den if den > 0.0 else 0.0
 
 
-def _multiple(y: FloatArray, ref: FloatArray, cos_h: FloatArray, sin_h: FloatArray) -> float:
-    """Multiple correlation of y with [ref, cos, sin], signed by the reference's coefficient."""
-    X = np.column_stack((ref, cos_h, sin_h, np.ones_like(ref)))
-    X = X - X.mean(axis=0)
-    X[:, 3] = 0.0
+CURRENT_BLOCK_S = 300.0
+"""In the water frame the current is fitted afresh over each block of this length, as a
+value and a rate of change: a current that drifts within the window (a tide turning, a
+change of area) fitted as one constant leaves a residual that follows the heading, and
+that pulls the peak (by +1 s on a simulated figure-8 under a slowly varying current)."""
+
+
+class _Blocks:
+    """The blocks of :data:`CURRENT_BLOCK_S` over the measurement times ``t``.
+
+    Attributes:
+        starts: start index of each block (a tail shorter than a block joins the last).
+        index: the block of each sample.
+        tau: each sample's time from its block's mean time, in blocks.
+    """
+
+    __slots__ = ("index", "starts", "tau")
+
+    def __init__(self, t: FloatArray, block_s: float) -> None:
+        n = max(int((t[-1] - t[0]) / block_s), 1)
+        self.starts = np.searchsorted(t, t[0] + block_s * np.arange(n, dtype=np.float64))
+        sizes = np.diff(np.append(self.starts, t.size))
+        self.index = np.repeat(np.arange(n), sizes)
+        self.tau = (t - (np.add.reduceat(t, self.starts) / sizes)[self.index]) / block_s
+
+    def residual(self, X: FloatArray, v: FloatArray) -> FloatArray:
+        """``v`` less its least-squares fit on the columns of ``X``, block by block.
+
+        Each block's normal matrix is pseudo-inverted: a block on one heading cannot
+        tell a current from a level, and then just loses both together.
+        """
+        XX = np.add.reduceat(X[:, :, None] * X[:, None, :], self.starts, axis=0)
+        Xv = np.add.reduceat(X * v[:, None], self.starts, axis=0)
+        coef = np.einsum("bkj,bj->bk", np.linalg.pinv(XX, rcond=1e-9), Xv)
+        return np.asarray(v - np.einsum("nk,nk->n", X, coef[self.index]), dtype=np.float64)
+
+
+def _multiple(
+    y: FloatArray, ref: FloatArray, cos_h: FloatArray, sin_h: FloatArray, blocks: _Blocks
+) -> float:
+    """Multiple correlation of y with ``ref`` and, per block, a level and a drifting current.
+
+    Per block the regressors are ``[1, cos ψ, sin ψ, τ·cos ψ, τ·sin ψ]`` (τ the time in
+    the block): they are projected out of y and ``ref``, the reference's one coefficient
+    follows from the residuals (Frisch–Waugh), and the score is ``sqrt(1 − RSS/TSS)``,
+    signed by that coefficient.
+    """
     y0 = y - y.mean()
     tss = float(y0 @ y0)
     if tss <= 0.0:
         return 0.0
-    coef = np.linalg.lstsq(X[:, :3], y0, rcond=None)[0]
-    fit = X[:, :3] @ coef
-    r2 = max(float(fit @ fit) / tss, 0.0)
-    return math.copysign(math.sqrt(min(r2, 1.0)), float(coef[0]))
+    tau = blocks.tau
+    X = np.stack((np.ones_like(ref), cos_h, sin_h, tau * cos_h, tau * sin_h), axis=1)
+    ey = blocks.residual(X, y)
+    er = blocks.residual(X, ref)
+    rr = float(er @ er)
+    if rr <= 0.0:
+        return 0.0
+    ry = float(er @ ey)
+    r2 = max(1.0 - (float(ey @ ey) - ry * ry / rr) / tss, 0.0)
+    return math.copysign(math.sqrt(min(r2, 1.0)), ry)
 
 
 SMOOTH_S = 0.5
@@ -200,6 +250,7 @@ def _curve(
     if regress is None:
         return np.array([_pearson(vk, np.interp(tk - lag, tr, vr)) for lag in lags])
     th, cos_h, sin_h = regress
+    blocks = _Blocks(tk, CURRENT_BLOCK_S)
     return np.array(
         [
             _multiple(
@@ -207,6 +258,7 @@ def _curve(
                 np.interp(tk - lag, tr, vr),
                 np.interp(tk - lag, th, cos_h),
                 np.interp(tk - lag, th, sin_h),
+                blocks,
             )
             for lag in lags
         ]
@@ -242,6 +294,13 @@ def _peak(
             if dof > 0:
                 std = math.sqrt(s_min / dof / A)
     return lag, peak, std, at_bound
+
+
+def _dof(t: FloatArray, water_frame: bool) -> int:
+    """Degrees of freedom of the fit at the peak: the samples less the unknowns."""
+    if not water_frame:
+        return t.size - 2
+    return t.size - 1 - 5 * max(int((t[-1] - t[0]) / CURRENT_BLOCK_S), 1)
 
 
 def estimate_lag(
@@ -315,15 +374,19 @@ def estimate_lag(
             tk, vk = tk[keep_h], vk[keep_h]
         rad = np.radians(psi)
         regress = (th, np.cos(rad), np.sin(rad))
-    n_reg = 4 if regress is not None else 2
     corr = _curve(tk, vk, tr, vr, regress, lags)
-    lag, peak, std, at_bound = _peak(lags, corr, step_s, tk.size - n_reg)
+    lag, peak, std, at_bound = _peak(lags, corr, step_s, _dof(tk, regress is not None))
     if not at_bound and tk.size >= 2 * min_samples:
         # The curvature's σ assumes white residuals; the two halves of the window
         # must also agree (a flat, jagged correlation peak does not repeat).
         half = tk.size // 2
         halves = [
-            _peak(lags, _curve(tk[sl], vk[sl], tr, vr, regress, lags), step_s, half - n_reg)
+            _peak(
+                lags,
+                _curve(tk[sl], vk[sl], tr, vr, regress, lags),
+                step_s,
+                _dof(tk[sl], regress is not None),
+            )
             for sl in (slice(0, half), slice(half, None))
         ]
         if any(h[3] for h in halves):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import calib.lag
 from calib.errors import DataError
 from calib.lag import LagEstimate, accept, combine, estimate_lag
 from calib.models import Params
@@ -113,6 +114,42 @@ class TestWaterFrameLag:
         assert water.lag_s == pytest.approx(3.2, abs=0.1)
         assert abs(plain.lag_s - 3.2) > 0.1 or accept(plain) != ""
         assert accept(water) == ""
+
+    def test_a_drifting_current_does_not_bias_the_lag(
+        self, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        """A current turning within the window is fitted per block: the lag stays within 0.1 s.
+
+        Fitted as one constant over the window, the same current pulls the peak off or
+        leaves it refused.
+        """
+        seg = water_frame_segment(
+            "figure-8",
+            1500.0,
+            10.0,
+            Params("EM3", m=0.09, b_mps=0.08),
+            np.random.default_rng(5),
+            current_mps=(0.0, 0.0),
+            sigma_raw_mps=0.03,
+        )
+        # The tide turns during the run: (−0.25, +0.15) m/s to (+0.15, −0.20) m/s.
+        f = (seg.t_s - seg.t_s[0]) / (seg.t_s[-1] - seg.t_s[0])
+        c_n, c_e = -0.25 + 0.40 * f, 0.15 - 0.35 * f
+        psi = np.radians(seg.heading_deg)
+        ref = seg.ref_mps + c_n * np.cos(psi) + c_e * np.sin(psi)
+        t_meas, v_meas = seg.t_s[::10] + 3.2, seg.raw_mps[::10]
+
+        def lag() -> LagEstimate:
+            return estimate_lag(
+                t_meas, v_meas, seg.t_s, ref, 10.0, step_s=0.1, heading=(seg.t_s, seg.heading_deg)
+            )
+
+        blocks = lag()
+        assert blocks.lag_s == pytest.approx(3.2, abs=0.1)
+        assert accept(blocks) == ""
+        monkeypatch.setattr(calib.lag, "CURRENT_BLOCK_S", 1e9)
+        constant = lag()
+        assert abs(constant.lag_s - 3.2) > 0.1 or accept(constant) != ""
 
     def test_standard_error_and_acceptance(self) -> None:
         """A broad peak has a large standard error and is refused; a bound peak is refused."""
