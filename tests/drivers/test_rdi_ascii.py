@@ -61,7 +61,7 @@ def test_manual_pd13_example() -> None:
         "PD6:BS",
         "sog",
     )
-    assert sp.heading_deg == 75.2
+    assert (sp.role, sp.heading_true_deg, sp.heading_mag_deg) == ("bottom", 75.2, None)
 
 
 def test_round_trip_and_water_track() -> None:
@@ -78,7 +78,7 @@ def test_round_trip_and_water_track() -> None:
     )
     assert e.timestamp == "25061208000123"
     sps = dec.speed_records(e)
-    assert [s.source for s in sps] == ["PD6:BS", "PD6:WS"]
+    assert [(s.source, s.role) for s in sps] == [("PD6:BS", "bottom"), ("PD6:WS", "water")]
     assert sps[1].kind == "stw" and sps[1].longitudinal_mps == 1.4
 
 
