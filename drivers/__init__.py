@@ -37,7 +37,7 @@ from drivers.errors import (
     UnknownProtocolError,
     UnknownSentenceError,
 )
-from drivers.records import Rejected, SpeedRecord
+from drivers.records import Rejected, SpeedRecord, SpeedRole
 
 if TYPE_CHECKING:
     from drivers.nmea0183 import NmeaDecoder
@@ -191,6 +191,7 @@ __all__ = [
     "OutOfRangeError",
     "Rejected",
     "SpeedRecord",
+    "SpeedRole",
     "TooLongError",
     "UnknownProtocolError",
     "UnknownSentenceError",
