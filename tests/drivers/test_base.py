@@ -210,9 +210,10 @@ def _union(cls: type[Decoder[Any]]) -> object:
     raise AssertionError(f"{cls.__name__} declares no record type")
 
 
-def _members(union: object) -> tuple[type, ...]:
+def _members(union: object) -> tuple[Any, ...]:
+    """The member types of a record union (a single record type is its own member)."""
     args = get_args(union)
-    return args if args else (union,)  # type: ignore[return-value]
+    return args if args else (union,)
 
 
 class TestRecordUnions:
