@@ -9,6 +9,9 @@ I/O modules: ``capture`` (capture v1 files), ``port`` (serial source through
 The registry is explicit and lazy: :data:`PROTOCOLS` maps a
 fixed name to ``(module, class)``; :func:`get_decoder` imports on demand.
 Third-party decoders may be added through the ``emlogd.drivers`` entry-point group.
+A built-in name given as a literal types the decoder precisely (``make_decoder("pd0")``
+is a :class:`~drivers.rdi_pd0.Pd0Decoder`, a ``Decoder[Pd0Record]``); any other name
+gives a ``Decoder[Any]``, whose records a consumer narrows with ``isinstance``.
 
 Must not import: calib, emlogd.
 """
@@ -17,6 +20,7 @@ from __future__ import annotations
 
 import importlib
 from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 from drivers.base import Decoder, DecoderOptions, ErrorPolicy
 from drivers.errors import (
@@ -33,7 +37,13 @@ from drivers.errors import (
     UnknownProtocolError,
     UnknownSentenceError,
 )
-from drivers.records import Rejected, SpeedRecord
+from drivers.records import Rejected, SpeedRecord, SpeedRole
+
+if TYPE_CHECKING:
+    from drivers.nmea0183 import NmeaDecoder
+    from drivers.rdi_ascii import PdAsciiDecoder
+    from drivers.rdi_pd0 import Pd0Decoder
+    from drivers.rdi_pd45 import Pd45Decoder
 
 PROTOCOLS: dict[str, tuple[str, str]] = {
     "nmea0183": ("drivers.nmea0183", "NmeaDecoder"),
@@ -61,7 +71,19 @@ def protocol_names() -> list[str]:
     return sorted(_all_protocols())
 
 
-def get_decoder(name: str) -> type[Decoder]:
+@overload
+def get_decoder(name: Literal["nmea0183"]) -> type[NmeaDecoder]: ...
+@overload
+def get_decoder(name: Literal["pd6", "pd13"]) -> type[PdAsciiDecoder]: ...
+@overload
+def get_decoder(name: Literal["pd0"]) -> type[Pd0Decoder]: ...
+@overload
+def get_decoder(name: Literal["pd4", "pd5"]) -> type[Pd45Decoder]: ...
+@overload
+def get_decoder(name: str) -> type[Decoder[Any]]: ...
+
+
+def get_decoder(name: str) -> type[Decoder[Any]]:
     """Return the decoder class registered under ``name``.
 
     Raises:
@@ -80,13 +102,55 @@ def get_decoder(name: str) -> type[Decoder]:
     return cls
 
 
+@overload
+def make_decoder(
+    name: Literal["nmea0183"],
+    port: str = "",
+    *,
+    errors: ErrorPolicy = "raise",
+    options: DecoderOptions | None = None,
+) -> NmeaDecoder: ...
+@overload
+def make_decoder(
+    name: Literal["pd6", "pd13"],
+    port: str = "",
+    *,
+    errors: ErrorPolicy = "raise",
+    options: DecoderOptions | None = None,
+) -> PdAsciiDecoder: ...
+@overload
+def make_decoder(
+    name: Literal["pd0"],
+    port: str = "",
+    *,
+    errors: ErrorPolicy = "raise",
+    options: DecoderOptions | None = None,
+) -> Pd0Decoder: ...
+@overload
+def make_decoder(
+    name: Literal["pd4", "pd5"],
+    port: str = "",
+    *,
+    errors: ErrorPolicy = "raise",
+    options: DecoderOptions | None = None,
+) -> Pd45Decoder: ...
+@overload
 def make_decoder(
     name: str,
     port: str = "",
     *,
     errors: ErrorPolicy = "raise",
     options: DecoderOptions | None = None,
-) -> Decoder:
+) -> Decoder[Any]: ...
+
+
+def make_decoder(
+    name: str,
+    port: str = "",
+    *,
+    errors: ErrorPolicy = "raise",
+    options: DecoderOptions | None = None,
+) -> Decoder[Any]:
     """Instantiate the decoder for protocol ``name`` (see :class:`Decoder`)."""
     return get_decoder(name)(port, errors=errors, options=options)
 
@@ -97,14 +161,17 @@ def is_binary(name: str) -> bool:
 
 
 def record_types() -> tuple[type, ...]:
-    """Every record dataclass: the common ones plus each protocol module's ``RECORDS``."""
+    """Every record dataclass: the common ones plus each protocol module's ``RECORDS``
+    (the members of its record union) and ``RECORD_PARTS`` (dataclasses nested in them)."""
     types: list[type] = [SpeedRecord, Rejected]
     seen: set[str] = set()
     for module_name, _ in PROTOCOLS.values():
         if module_name in seen:
             continue
         seen.add(module_name)
-        types.extend(getattr(importlib.import_module(module_name), "RECORDS", ()))
+        module = importlib.import_module(module_name)
+        types.extend(getattr(module, "RECORDS", ()))
+        types.extend(getattr(module, "RECORD_PARTS", ()))
     return tuple(types)
 
 
@@ -124,6 +191,7 @@ __all__ = [
     "OutOfRangeError",
     "Rejected",
     "SpeedRecord",
+    "SpeedRole",
     "TooLongError",
     "UnknownProtocolError",
     "UnknownSentenceError",

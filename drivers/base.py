@@ -3,7 +3,11 @@
 A decoder turns bytes into frozen records: ``feed(chunk)`` accepts arbitrary chunk
 boundaries (one byte at a time gives the same records as the whole stream) and
 yields every record completed by that chunk; ``parse_frame(frame)`` decodes one
-complete frame. Every rejected frame increments exactly one per-reason counter
+complete frame. :class:`Decoder` is generic in the protocol's record type ``R``: each
+protocol module names the union of its records (``NmeaRecord``, ``Pd6Record``,
+``Pd0Record``, ``Pd45Record``) and its decoder is a ``Decoder`` of it, so ``feed``
+yields ``R | Rejected``, ``parse_frame`` returns ``R`` and ``speed_records`` takes an
+``R``. Every rejected frame increments exactly one per-reason counter
 in :attr:`Decoder.counters`, whatever the error policy:
 
 - ``errors="raise"``: the :class:`~drivers.errors.FrameError` is raised from
@@ -21,10 +25,13 @@ from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import ClassVar, Literal, Protocol
+from typing import ClassVar, Generic, Literal, Protocol, TypeVar
 
 from drivers.errors import REJECT_REASONS, FrameError, RejectReason
 from drivers.records import Rejected, SpeedRecord
+
+R = TypeVar("R")
+"""A protocol's record type (the union of its record dataclasses)."""
 
 ErrorPolicy = Literal["raise", "yield", "skip"]
 ChecksumPolicy = Literal["required", "optional"]
@@ -79,8 +86,8 @@ class DecoderCounters:
         return {"records": self.records, "rejects": dict(self.rejects)}
 
 
-class Decoder(ABC):
-    """Base class of every protocol decoder.
+class Decoder(ABC, Generic[R]):
+    """Base class of every protocol decoder; ``R`` is the protocol's record type.
 
     Subclasses implement :meth:`_split` (framing: bytes to complete frames or
     framing errors) and :meth:`parse_frame` (one frame to one record), and
@@ -113,7 +120,7 @@ class Decoder(ABC):
         self.counters = DecoderCounters()
         self._pending: deque[bytes | FrameError] = deque()
 
-    def feed(self, data: bytes) -> Iterator[object]:
+    def feed(self, data: bytes) -> Iterator[R | Rejected]:
         """Decode a chunk of received bytes.
 
         Args:
@@ -142,12 +149,12 @@ class Decoder(ABC):
             self.counters.records += 1
             yield record
 
-    def flush(self) -> Iterator[object]:
+    def flush(self) -> Iterator[R | Rejected]:
         """End of stream: reject (and count) any incomplete frame still buffered."""
         self._pending.extend(self._flush())
         yield from self.feed(b"")
 
-    def decode_all(self, data: bytes) -> list[object]:
+    def decode_all(self, data: bytes) -> list[R | Rejected]:
         """Decode a whole byte string and flush: a convenience for files and tests."""
         out = list(self.feed(data))
         out.extend(self.flush())
@@ -169,14 +176,14 @@ class Decoder(ABC):
         return ()
 
     @abstractmethod
-    def parse_frame(self, frame: bytes) -> object:
+    def parse_frame(self, frame: bytes) -> R:
         """Decode one complete frame into one record.
 
         Raises:
             FrameError: (a subclass naming the reason) if the frame is invalid.
         """
 
-    def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
+    def speed_records(self, record: R) -> tuple[SpeedRecord, ...]:
         """Map a record of this protocol to zero or more common speed records."""
         return ()
 
@@ -191,7 +198,7 @@ class Framer(Protocol):
         """End of stream: the frames still completable and the errors for the rest."""
 
 
-class FramedDecoder(Decoder):
+class FramedDecoder(Decoder[R]):
     """A decoder whose framing is delegated to a framer object.
 
     Subclasses implement :meth:`_make_framer` (called once, after the options are

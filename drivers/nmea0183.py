@@ -32,9 +32,10 @@ Must not import: serial, os, time, threading (pure module).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, date, datetime, timedelta
-from typing import ClassVar
+from typing import ClassVar, TypeAlias, get_args
 
 import pynmea2
 
@@ -263,7 +264,11 @@ class Vdr:
     drift_mps: float | None
 
 
-RECORDS = (Vhw, Vbw, Vlw, Mtw, Heading, Prti, Rmc, Vtg, Gga, Zda, Vdr)
+NmeaRecord: TypeAlias = Vhw | Vbw | Vlw | Mtw | Heading | Prti | Rmc | Vtg | Gga | Zda | Vdr
+"""Every record :class:`NmeaDecoder` yields (besides :class:`~drivers.records.Rejected`)."""
+
+RECORDS: tuple[type[NmeaRecord], ...] = get_args(NmeaRecord)
+"""The members of :data:`NmeaRecord`, in its order."""
 
 
 # ------------------------------------------------------------------ field helpers
@@ -392,6 +397,13 @@ def _pyn_num(value: object, name: str, raw: bytes) -> float | None:
 
 
 def _with_pynmea2(sentence: str, text: str, raw: bytes) -> object:
+    """The pynmea2 message of ``text``.
+
+    pynmea2 ships no type information and builds its message attributes at run time
+    from each class's field table, so the callers read them with ``getattr`` (None
+    when the class lacks one) and check every value with :func:`_pyn_num`; the
+    records they return are typed.
+    """
     try:
         return pynmea2.parse(text, check=False)
     except pynmea2.ParseError as exc:
@@ -647,7 +659,7 @@ def parse_vdr(talker: str, f: list[str], raw: bytes) -> Vdr:
     return Vdr(talker, st, sm, drift)
 
 
-_GNSS_PARSERS = {
+_GNSS_PARSERS: dict[str, Callable[[str, list[str], bytes], Rmc | Vtg | Gga | Zda | Vdr]] = {
     "RMC": parse_rmc,
     "VTG": parse_vtg,
     "GGA": parse_gga,
@@ -659,7 +671,7 @@ _GNSS_PARSERS = {
 # ------------------------------------------------------------------ decoder
 
 
-class NmeaDecoder(FramedDecoder):
+class NmeaDecoder(FramedDecoder[NmeaRecord]):
     """NMEA 0183 decoder (see the module docstring)."""
 
     protocol: ClassVar[str] = "nmea0183"
@@ -668,7 +680,7 @@ class NmeaDecoder(FramedDecoder):
     def _make_framer(self) -> Framer:
         return LineFramer(b"$!", self.options.max_length)
 
-    def parse_frame(self, frame: bytes) -> object:
+    def parse_frame(self, frame: bytes) -> NmeaRecord:
         """Decode one sentence (without CR LF) into a record.
 
         Raises:
@@ -710,18 +722,22 @@ class NmeaDecoder(FramedDecoder):
             return parse_heading(kind, talker, fields, text_full, frame)
         raise UnknownSentenceError(f"sentence {kind} not decoded", frame)
 
-    def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
-        """VHW → stw; VBW → stw (water pair) and sog (ground pair, if sent); PRTI01 → sog."""
+    def speed_records(self, record: NmeaRecord) -> tuple[SpeedRecord, ...]:
+        """VHW → stw (both headings); VBW → stw (water pair) and sog (ground pair, if
+        sent); PRTI01 → sog (bottom track)."""
         port = self.port
         if isinstance(record, Vhw):
-            heading = (
-                record.heading_true_deg
-                if record.heading_true_deg is not None
-                else record.heading_mag_deg
-            )
             return (
                 SpeedRecord(
-                    port, "stw", record.stw_mps, None, record.stw_mps is not None, heading, "VHW"
+                    port,
+                    "stw",
+                    "speed",
+                    record.stw_mps,
+                    None,
+                    record.stw_mps is not None,
+                    record.heading_true_deg,
+                    record.heading_mag_deg,
+                    "VHW",
                 ),
             )
         if isinstance(record, Vbw):
@@ -729,9 +745,11 @@ class NmeaDecoder(FramedDecoder):
                 SpeedRecord(
                     port,
                     "stw",
+                    "speed",
                     record.water_long_mps,
                     record.water_trans_mps,
                     record.water_valid,
+                    None,
                     None,
                     "VBW",
                 )
@@ -741,9 +759,11 @@ class NmeaDecoder(FramedDecoder):
                     SpeedRecord(
                         port,
                         "sog",
+                        "ground",
                         record.ground_long_mps,
                         record.ground_trans_mps,
                         record.ground_valid,
+                        None,
                         None,
                         "VBW:G",
                     )
@@ -752,8 +772,14 @@ class NmeaDecoder(FramedDecoder):
         if isinstance(record, Prti) and record.sentence == "PRTI01":
             bt = record.bottom_mps
             if bt is None:
-                return (SpeedRecord(port, "sog", None, None, False, None, "PRTI01"),)
-            return (SpeedRecord(port, "sog", bt[1], bt[0], record.bottom_valid, None, "PRTI01"),)
+                return (
+                    SpeedRecord(port, "sog", "bottom", None, None, False, None, None, "PRTI01"),
+                )
+            return (
+                SpeedRecord(
+                    port, "sog", "bottom", bt[1], bt[0], record.bottom_valid, None, None, "PRTI01"
+                ),
+            )
         return ()
 
 

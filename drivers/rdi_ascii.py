@@ -30,12 +30,12 @@ import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from datetime import datetime
-from typing import ClassVar
+from typing import ClassVar, TypeAlias, get_args
 
 from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
-from drivers.records import SpeedRecord
+from drivers.records import Rejected, SpeedRecord
 
 INVALID = -32768
 """PD6/PD0 invalid-velocity marker, mm/s."""
@@ -122,7 +122,14 @@ class PdHealth:
     fields: tuple[str, ...]
 
 
-RECORDS = (Velocity, DistanceMadeGood, Pd6Ensemble, PdHealth)
+Pd6Record: TypeAlias = Pd6Ensemble | PdHealth
+"""Every record :class:`PdAsciiDecoder` yields (besides :class:`~drivers.records.Rejected`)."""
+
+RECORDS: tuple[type[Pd6Record], ...] = get_args(Pd6Record)
+"""The members of :data:`Pd6Record`, in its order."""
+
+RECORD_PARTS = (Velocity, DistanceMadeGood)
+"""The dataclasses nested in a :class:`Pd6Ensemble` (never yielded on their own)."""
 
 
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)")
@@ -287,7 +294,7 @@ class _Block:
     damaged: str = ""
 
 
-class PdAsciiDecoder(FramedDecoder):
+class PdAsciiDecoder(FramedDecoder[Pd6Record]):
     """PD6/PD13 decoder (registry names ``pd6`` and ``pd13``; see the module docstring)."""
 
     protocol: ClassVar[str] = "pd6"
@@ -303,8 +310,8 @@ class PdAsciiDecoder(FramedDecoder):
         self._block: _Block | None = None
         super().__init__(port, errors=errors, options=options)
 
-    # A line is a frame; parse_frame returns a line tuple, and the ensemble logic
-    # runs in feed() so that one ensemble record comes out per block.
+    # The framer's frame is a line; the ensemble logic runs in feed() so that one
+    # ensemble record comes out per block. parse_frame takes a whole block.
 
     def _make_framer(self) -> Framer:
         self._lines = LineFramer(b":", self.options.max_length)
@@ -317,7 +324,7 @@ class PdAsciiDecoder(FramedDecoder):
             self._block = None
         return out
 
-    def feed(self, data: bytes) -> Iterator[object]:
+    def feed(self, data: bytes) -> Iterator[Pd6Record | Rejected]:
         """Decode a chunk; yields complete ensembles (and rejects per the error policy)."""
         pending = self._pending
         pending.extend(self._framer.feed(data))
@@ -348,9 +355,9 @@ class PdAsciiDecoder(FramedDecoder):
         if self._block is not None and not self._block.damaged:
             self._block.damaged = why
 
-    def _assemble(self, kind: str, value: object, raw: bytes) -> object:
+    def _assemble(self, kind: str, value: object, raw: bytes) -> Pd6Record | FrameError | None:
         """Add a parsed line to the block: a finished record, a reject, or None."""
-        if kind == "HM":
+        if isinstance(value, PdHealth):  # the :HM line, a record of its own
             return value
         rank = _RANK[kind]
         block = self._block
@@ -377,9 +384,23 @@ class PdAsciiDecoder(FramedDecoder):
             return FrameError(f"ensemble discarded: no {', '.join(':' + m for m in missing)}", raw)
         return _ensemble(lines)
 
-    def parse_frame(self, frame: bytes) -> object:
-        """Decode one line: ``(kind, value)`` (ensembles come from :meth:`feed`)."""
-        return self.parse_line(frame)
+    def parse_frame(self, frame: bytes) -> Pd6Record:
+        """Decode one complete frame: a whole ensemble (its lines ``:SA`` … ``:BD``
+        separated by CR/LF) or one ``:HM`` line, into the one record :meth:`feed` would
+        yield for it. This decoder's buffered block and counters are left alone.
+
+        Raises:
+            FrameError: a subclass naming the reject reason of a bad line; ``framing``
+                for a bad block or anything but exactly one record.
+        """
+        alone = PdAsciiDecoder(self.port, errors="raise", options=self.options)
+        records = [*alone.feed(frame + b"\r\n"), *alone.flush()]
+        if len(records) != 1:
+            raise FrameError(f"{len(records)} records in the frame, expected one", frame)
+        record = records[0]
+        if isinstance(record, Rejected):  # cannot happen with errors="raise"
+            raise FrameError(record.detail, record.raw)
+        return record
 
     def parse_line(self, frame: bytes) -> tuple[str, object]:
         """Parse one ``:XX,...`` line into (type, value).
@@ -389,20 +410,21 @@ class PdAsciiDecoder(FramedDecoder):
         """
         return _parse_fields(frame)
 
-    def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
-        """:BS → sog (source ``PD6:BS``), :WS → stw (``PD6:WS``); vessel-motion sign."""
+    def speed_records(self, record: Pd6Record) -> tuple[SpeedRecord, ...]:
+        """:BS → sog (role ``bottom``, source ``PD6:BS``), :WS → stw (``water``,
+        ``PD6:WS``); vessel-motion sign; the :SA heading taken as true."""
         if not isinstance(record, Pd6Ensemble):
             return ()
         port, hdg = self.port, record.heading_deg
         bs = record.bottom_ship
         out = [
-            SpeedRecord(port, "sog", bs.b, bs.a, True, hdg, "PD6:BS")
+            SpeedRecord(port, "sog", "bottom", bs.b, bs.a, True, hdg, None, "PD6:BS")
             if bs is not None
-            else SpeedRecord(port, "sog", None, None, False, hdg, "PD6:BS")
+            else SpeedRecord(port, "sog", "bottom", None, None, False, hdg, None, "PD6:BS")
         ]
         ws = record.water_ship
         if ws is not None:
-            out.append(SpeedRecord(port, "stw", ws.b, ws.a, True, hdg, "PD6:WS"))
+            out.append(SpeedRecord(port, "stw", "water", ws.b, ws.a, True, hdg, None, "PD6:WS"))
         return tuple(out)
 
 

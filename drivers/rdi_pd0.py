@@ -28,7 +28,7 @@ import math
 import struct
 from dataclasses import dataclass
 from datetime import datetime
-from typing import ClassVar, Literal
+from typing import ClassVar, Literal, TypeAlias
 
 from drivers.base import FramedDecoder, Framer
 from drivers.binframe import BinaryFramer, sum16
@@ -97,7 +97,12 @@ class Pd0Ensemble:
         return v is not None and r is not None and None not in v[:3] and any(x > 0 for x in r)
 
 
-RECORDS = (Pd0Ensemble,)
+Pd0Record: TypeAlias = Pd0Ensemble
+"""Every record :class:`Pd0Decoder` yields (besides :class:`~drivers.records.Rejected`):
+one type, named like the other protocols' unions."""
+
+RECORDS: tuple[type[Pd0Record], ...] = (Pd0Ensemble,)
+"""The members of :data:`Pd0Record`."""
 
 
 def _length_of(buf: bytearray) -> int | None:
@@ -112,7 +117,7 @@ def _int16(v: int) -> int | None:
     return None if v == INVALID else v
 
 
-class Pd0Decoder(FramedDecoder):
+class Pd0Decoder(FramedDecoder[Pd0Record]):
     """PD0 decoder (see the module docstring)."""
 
     protocol: ClassVar[str] = "pd0"
@@ -121,7 +126,7 @@ class Pd0Decoder(FramedDecoder):
     def _make_framer(self) -> Framer:
         return BinaryFramer(HEADER, _length_of, 6, "PD0")
 
-    def parse_frame(self, frame: bytes) -> Pd0Ensemble:
+    def parse_frame(self, frame: bytes) -> Pd0Record:
         """Decode one checksum-verified ensemble (without its checksum).
 
         Raises:
@@ -192,21 +197,22 @@ class Pd0Decoder(FramedDecoder):
             data_types=tuple(ids),
         )
 
-    def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
-        """Bottom track → vessel speed over ground in the ship frame (source ``PD0:BT``)."""
-        if not isinstance(record, Pd0Ensemble) or record.bt_velocity_mms is None:
+    def speed_records(self, record: Pd0Record) -> tuple[SpeedRecord, ...]:
+        """Bottom track → vessel speed over ground in the ship frame (role ``bottom``,
+        source ``PD0:BT``), with the ensemble's heading taken as true."""
+        if record.bt_velocity_mms is None:
             return ()
         port, hdg = self.port, record.heading_deg
         v1, v2 = record.bt_velocity_mms[0], record.bt_velocity_mms[1]
         if not record.bottom_lock or v1 is None or v2 is None or record.coord_frame == "beam":
-            return (SpeedRecord(port, "sog", None, None, False, hdg, "PD0:BT"),)
+            return (SpeedRecord(port, "sog", "bottom", None, None, False, hdg, None, "PD0:BT"),)
         a, b = -v1 / 1000.0, -v2 / 1000.0  # vessel motion
         if record.coord_frame == "earth":
             psi = math.radians(hdg)
             lon = a * math.sin(psi) + b * math.cos(psi)
             tr = a * math.cos(psi) - b * math.sin(psi)
-            return (SpeedRecord(port, "sog", lon, tr, True, hdg, "PD0:BT"),)
-        return (SpeedRecord(port, "sog", b, a, True, hdg, "PD0:BT"),)
+            return (SpeedRecord(port, "sog", "bottom", lon, tr, True, hdg, None, "PD0:BT"),)
+        return (SpeedRecord(port, "sog", "bottom", b, a, True, hdg, None, "PD0:BT"),)
 
 
 # ------------------------------------------------------------------ encoder

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar, Literal, TypeAlias
 
 from drivers.base import FramedDecoder, Framer
 from drivers.binframe import BinaryFramer, sum16
@@ -91,7 +91,12 @@ class Pd45Ensemble:
         return v[0] is not None and v[1] is not None and any(r > 0 for r in self.bottom_range_cm)
 
 
-RECORDS = (Pd45Ensemble,)
+Pd45Record: TypeAlias = Pd45Ensemble
+"""Every record :class:`Pd45Decoder` yields (besides :class:`~drivers.records.Rejected`):
+one type, named like the other protocols' unions."""
+
+RECORDS: tuple[type[Pd45Record], ...] = (Pd45Ensemble,)
+"""The members of :data:`Pd45Record`."""
 
 
 def _length_of(buf: bytearray) -> int | None:
@@ -106,7 +111,7 @@ def _v(values: tuple[int, ...]) -> tuple[int | None, int | None, int | None, int
     return (a, b, c, d)
 
 
-class Pd45Decoder(FramedDecoder):
+class Pd45Decoder(FramedDecoder[Pd45Record]):
     """PD4/PD5 decoder (registry names ``pd4`` and ``pd5``; both formats are accepted)."""
 
     protocol: ClassVar[str] = "pd4"
@@ -115,7 +120,7 @@ class Pd45Decoder(FramedDecoder):
     def _make_framer(self) -> Framer:
         return BinaryFramer(HEADER, _length_of, 4, "PD4/PD5")
 
-    def parse_frame(self, frame: bytes) -> Pd45Ensemble:
+    def parse_frame(self, frame: bytes) -> Pd45Record:
         """Decode one checksum-verified PD4/PD5 frame (without the checksum).
 
         Raises:
@@ -154,10 +159,9 @@ class Pd45Decoder(FramedDecoder):
             water_dmg_dm=(g[9], g[10], g[11], g[12]),
         )
 
-    def speed_records(self, record: object) -> tuple[SpeedRecord, ...]:
-        """Bottom velocity → vessel speed over ground, ship frame (``PD4:BT``/``PD5:BT``)."""
-        if not isinstance(record, Pd45Ensemble):
-            return ()
+    def speed_records(self, record: Pd45Record) -> tuple[SpeedRecord, ...]:
+        """Bottom velocity → vessel speed over ground, ship frame (role ``bottom``, source
+        ``PD4:BT``/``PD5:BT``), with the PD5 heading taken as true."""
         src = f"{record.format}:BT"
         hdg = record.heading_deg
         x, y = record.bottom_mms[0], record.bottom_mms[1]
@@ -169,7 +173,7 @@ class Pd45Decoder(FramedDecoder):
             or frame == "beam"
             or (frame == "earth" and hdg is None)
         ):
-            return (SpeedRecord(self.port, "sog", None, None, False, hdg, src),)
+            return (SpeedRecord(self.port, "sog", "bottom", None, None, False, hdg, None, src),)
         a, b = x / 1000.0, y / 1000.0
         if frame == "earth" and hdg is not None:
             psi = math.radians(hdg)
@@ -177,14 +181,16 @@ class Pd45Decoder(FramedDecoder):
                 SpeedRecord(
                     self.port,
                     "sog",
+                    "bottom",
                     a * math.sin(psi) + b * math.cos(psi),
                     a * math.cos(psi) - b * math.sin(psi),
                     True,
                     hdg,
+                    None,
                     src,
                 ),
             )
-        return (SpeedRecord(self.port, "sog", b, a, True, hdg, src),)
+        return (SpeedRecord(self.port, "sog", "bottom", b, a, True, hdg, None, src),)
 
 
 def _mm(v: float | None) -> int:

@@ -24,6 +24,17 @@ from drivers.errors import RejectReason
 SpeedKind = Literal["stw", "sog"]
 """``stw``: through water (EMlog, DVL water track); ``sog``: over ground (DVL bottom track)."""
 
+SpeedRole = Literal["bottom", "water", "speed", "ground"]
+"""What instrument a speed record measures with, set by the driver (never looked up from
+:attr:`SpeedRecord.source`):
+
+- ``bottom``: a DVL's bottom track (PD6 ``:BS``, PD0/PD4/PD5 bottom track, Rowe PRTI01);
+- ``water``: a DVL's water-mass track (PD6 ``:WS``);
+- ``speed``: a speed log's reading through the water (VHW, the VBW water pair);
+- ``ground``: a speed log's ground pair (VBW), which the pipeline does not use.
+
+The first three are also the names of the reference fields of the configuration."""
+
 KNOT_MPS = 1852.0 / 3600.0
 """One international knot in m/s (exact)."""
 
@@ -38,6 +49,7 @@ class SpeedRecord:
     Attributes:
         port: name of the port that produced it.
         kind: ``"stw"`` through water or ``"sog"`` over ground.
+        role: what measured it (:data:`SpeedRole`).
         longitudinal_mps: forward speed, m/s, + = ahead. For VHW this is the
             speed through water as reported (the resultant on a two-axis log).
         transverse_mps: athwartships speed, m/s, + = to starboard; None if the
@@ -45,17 +57,22 @@ class SpeedRecord:
         valid: False when the sensor flagged the measurement as invalid
             (status V, -32768, no bottom lock). Invalid records are still
             passed on so that the pipeline can see a reference loss.
-        heading_deg: heading in degrees (true if known, else magnetic), None if unknown.
+        heading_true_deg: true heading sent with the speed, degrees, or None. A DVL's
+            heading is taken as true (the instrument applies its own variation setting).
+        heading_mag_deg: magnetic heading sent with the speed (VHW), degrees, or None.
         source: the sentence or block it came from, e.g. ``"VHW"``, ``"VBW"``,
-            ``"PD6:BS"``, ``"PD0:BT"``.
+            ``"PD6:BS"``, ``"PD0:BT"`` (for people and for matching a UUT's configured
+            sentence; routing uses :attr:`role`).
     """
 
     port: str
     kind: SpeedKind
+    role: SpeedRole
     longitudinal_mps: float | None
     transverse_mps: float | None
     valid: bool
-    heading_deg: float | None
+    heading_true_deg: float | None
+    heading_mag_deg: float | None
     source: str
 
     @property

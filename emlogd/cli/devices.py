@@ -64,7 +64,7 @@ def _dump_records(args: argparse.Namespace) -> Iterator[tuple[float | None, str,
     """Yield (receive time, port, record) for the dump command; fills ``args._decoders``."""
     path = Path(args.file)
     options = _decoder_options(args)
-    decoders: dict[str, tuple[str, Decoder]] = {}
+    decoders: dict[str, tuple[str, Decoder[Any]]] = {}
     args._decoders = decoders
     if _is_capture(path):
         from drivers.io.capture import CaptureReader

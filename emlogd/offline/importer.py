@@ -43,8 +43,8 @@ from drivers import make_decoder
 from drivers.errors import EmlogdError, FrameError
 from drivers.framing import split_nmea
 from drivers.io.capture import CaptureWriter
-from drivers.nmea0183 import Gga, Rmc, Zda, encode_rmc, encode_vhw
-from drivers.records import KNOT_MPS
+from drivers.nmea0183 import Gga, NmeaRecord, Rmc, Zda, encode_rmc, encode_vhw
+from drivers.records import KNOT_MPS, Rejected
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.sentences import encode_vdr
 
@@ -135,7 +135,7 @@ def _write(out: str | Path, port: str, records: list[tuple[float, str]], comment
 # ------------------------------------------------------------------ NMEA logs
 
 
-def _fix_time(rec: object, day: date | None) -> tuple[float | None, date | None]:
+def _fix_time(rec: NmeaRecord | Rejected, day: date | None) -> tuple[float | None, date | None]:
     """(epoch seconds of a fix, the date it implies) for an RMC, ZDA or GGA record."""
     if isinstance(rec, Rmc | Zda) and rec.time_utc is not None:
         return rec.time_utc.timestamp(), rec.time_utc.date()

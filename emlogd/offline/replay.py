@@ -26,8 +26,9 @@ from typing import BinaryIO
 import numpy as np
 
 from drivers import make_decoder
-from drivers.base import Decoder
 from drivers.io.capture import CaptureReader
+from drivers.nmea0183 import NmeaDecoder
+from drivers.records import Rejected
 from emlogd.offline import ProgressFn
 from emlogd.offline.simulate import Truth, TruthScore, score_truth
 from emlogd.pipeline.core import Emit, Event, Output, Pipeline
@@ -237,7 +238,7 @@ class _TruthScorer:
     def __init__(self, pipeline: Pipeline) -> None:
         self.readings: dict[str, _Readings] = {}
         self.source: dict[str, str] = {}
-        self.decoders: dict[str, Decoder] = {}
+        self.decoders: dict[str, NmeaDecoder] = {}
         self.corrected: dict[str, dict[float, float]] = {}
         for name, u in pipeline.uuts.items():
             rec = _Readings()
@@ -254,6 +255,8 @@ class _TruthScorer:
             if dec is None or e.sentence[3:6] != self.source[e.port]:
                 continue
             for rec in dec.feed(e.sentence.encode("ascii") + b"\r\n"):
+                if isinstance(rec, Rejected):
+                    continue
                 for sp in dec.speed_records(rec):
                     if sp.source == self.source[e.port] and sp.longitudinal_mps is not None:
                         self.corrected[e.port][e.t] = sp.longitudinal_mps

@@ -33,16 +33,16 @@ import math
 from collections import Counter, deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 from calib.excitation import ExcitationRule
 from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
 from calib.models import check_model
 from drivers import DecoderOptions, make_decoder
-from drivers.base import Decoder
-from drivers.nmea0183 import Gga, Rmc, Vhw, Vtg
+from drivers.base import Decoder, R
+from drivers.nmea0183 import Gga, Rmc, Vtg
 from drivers.nmea0183 import Heading as NmeaHeading
-from drivers.records import KNOT_MPS
+from drivers.records import KNOT_MPS, Rejected
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings
@@ -58,20 +58,11 @@ from emlogd.pipeline.sentences import (
 from emlogd.pipeline.uut import UutCalibration
 
 RefField = Literal["bottom", "water", "speed", "gnss"]
+"""A UUT's reference: the speed records of that role (:data:`drivers.records.SpeedRole`)
+on its reference port, or ``gnss``: the GNSS speed and course projected on the hull."""
 HeadingSource = str
 """``auto`` or a port name."""
 
-_ROLE_OF_SOURCE: dict[str, str] = {
-    "PD6:BS": "bottom",
-    "PD0:BT": "bottom",
-    "PD4:BT": "bottom",
-    "PD5:BT": "bottom",
-    "PRTI01": "bottom",
-    "PD6:WS": "water",
-    "VHW": "speed",
-    "VBW": "speed",
-}
-_DVL_HEADING_SOURCES = frozenset({"PD6:BS", "PD6:WS", "PD0:BT", "PD4:BT", "PD5:BT"})
 _UUT_SENTENCES = ("VHW", "VBW")
 FUSED_PORT = "fused"
 """The port name of the fused speed's emits (a UUT may not be called this)."""
@@ -207,11 +198,13 @@ class Output:
 
 
 class _Speed(NamedTuple):
-    field: str
+    field: RefField
     sentence: str
     longitudinal_mps: float | None
     transverse_mps: float | None
     valid: bool
+    heading_true_deg: float | None
+    heading_mag_deg: float | None
 
 
 class _Heading(NamedTuple):
@@ -234,8 +227,14 @@ class _Fix(NamedTuple):
 _Nav = _Speed | _Heading | _Gnss | _Fix
 
 
-def _nav_items(dec: Decoder, rec: object) -> Iterable[_Nav]:
-    """The navigation content of one decoded record."""
+def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
+    """The navigation content of one decoded record of ``dec``.
+
+    GNSS and heading sentences are told apart by type; every speed by its record's
+    typed role, and a heading sent with a speed (VHW, a DVL's) comes before it.
+    """
+    if isinstance(rec, Rejected):
+        return
     if isinstance(rec, Rmc):
         yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, rec.variation_deg)
         return
@@ -255,17 +254,14 @@ def _nav_items(dec: Decoder, rec: object) -> Iterable[_Nav]:
         var = rec.variation_deg
         yield _Heading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var)
         return
-    if isinstance(rec, Vhw) and (
-        rec.heading_true_deg is not None or rec.heading_mag_deg is not None
-    ):
-        yield _Heading(rec.heading_true_deg, rec.heading_mag_deg, None)
     for sp in dec.speed_records(rec):
-        field_ = _ROLE_OF_SOURCE.get(sp.source)
-        if field_ is None:
-            continue
-        if sp.source in _DVL_HEADING_SOURCES and sp.heading_deg is not None:
-            yield _Heading(sp.heading_deg, None, None)  # first: the speed's own heading
-        yield _Speed(field_, sp.source, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
+        role = sp.role
+        if role == "ground":
+            continue  # a log's ground pair (VBW) is no reference
+        ht, hm = sp.heading_true_deg, sp.heading_mag_deg
+        if ht is not None or hm is not None:
+            yield _Heading(ht, hm, None)
+        yield _Speed(role, sp.source, sp.longitudinal_mps, sp.transverse_mps, sp.valid, ht, hm)
 
 
 def _value(sp: _Speed, component: str) -> float | None:
@@ -318,7 +314,7 @@ class Pipeline:
         fusion: FusionSettings | None = None,
     ) -> None:
         self.ports = {p.name: p for p in ports}
-        self.decoders: dict[str, Decoder] = {
+        self.decoders: dict[str, Decoder[Any]] = {
             p.name: make_decoder(
                 p.protocol,
                 p.name,
@@ -486,19 +482,19 @@ class Pipeline:
         if self.stale[port]:
             self.stale[port] = False
             out.events.append(Event(t, port, "alive", {}))
-        items = [(rec, item) for rec in dec.feed(data) for item in _nav_items(dec, rec)]
+        items = [item for rec in dec.feed(data) for item in _nav_items(dec, rec)]
         self._route(t, port, items, out)
         self._after(t, out)
         return out
 
-    def _route(self, t: float, port: str, items: list[tuple[object, _Nav]], out: Output) -> None:
+    def _route(self, t: float, port: str, items: list[_Nav], out: Output) -> None:
         u = self.uuts.get(port)
         newest: Counter[str] = Counter()
         if u is not None:
             newest.update(
-                it.sentence for _, it in items if isinstance(it, _Speed) and it.field == "speed"
+                it.sentence for it in items if isinstance(it, _Speed) and it.field == "speed"
             )
-        for rec, item in items:
+        for item in items:
             if isinstance(item, _Heading):
                 self._heading(t, port, item)
             elif isinstance(item, _Gnss):
@@ -509,7 +505,7 @@ class Pipeline:
                 self._reference(t, port, item)
                 if u is not None and item.field == "speed":
                     newest[item.sentence] -= 1
-                    self._reading(u, t, item, rec, fresh=newest[item.sentence] == 0, out=out)
+                    self._reading(u, t, item, fresh=newest[item.sentence] == 0, out=out)
 
     def _reference(self, t: float, port: str, sp: _Speed) -> None:
         for u in self._by_ref.get(port, ()):
@@ -563,9 +559,7 @@ class Pipeline:
                 return ph.ring
         return None
 
-    def _reading(
-        self, u: _Uut, t: float, sp: _Speed, rec: object, *, fresh: bool, out: Output
-    ) -> None:
+    def _reading(self, u: _Uut, t: float, sp: _Speed, *, fresh: bool, out: Output) -> None:
         """Correct and emit a UUT reading at once, then queue it for learning."""
         cal = u.cal
         raw = _value(sp, u.s.component)
@@ -579,8 +573,7 @@ class Pipeline:
             return
         value = cal.correct(raw)
         if value is not None:
-            hdg_t = rec.heading_true_deg if isinstance(rec, Vhw) else None
-            hdg_m = rec.heading_mag_deg if isinstance(rec, Vhw) else None
+            hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.sentence == "VHW":
                 sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
             else:
@@ -667,7 +660,7 @@ class Pipeline:
         out = Output()
         for port, dec in self.decoders.items():
             t = self.last_rx.get(port, 0.0)
-            items = [(rec, item) for rec in dec.flush() for item in _nav_items(dec, rec)]
+            items = [item for rec in dec.flush() for item in _nav_items(dec, rec)]
             self._route(t, port, items, out)
         for u in self.uuts.values():
             self._project(u, final=True)

@@ -24,8 +24,8 @@ def _feed_all(data: bytes, **kw: object) -> tuple[list[object], NmeaDecoder]:
 
 def test_vhw_units_and_disagreement() -> None:
     """VHW speed is taken from knots, else km/h, a disagreeing knots/km/h pair is flagged with knots
-    kept, astern stays negative, and the speed record carries port, stw, VHW and the true
-    heading."""
+    kept, astern stays negative, and the speed record carries port, stw, role speed, VHW and the
+    true and magnetic headings apart."""
     r = _parse("VWVHW,,T,,M,3.50,N,6.48,K")
     assert (
         isinstance(r, Vhw) and r.stw_mps == pytest.approx(3.5 * KNOT_MPS) and not r.units_disagree
@@ -37,13 +37,15 @@ def test_vhw_units_and_disagreement() -> None:
     r = _parse("VWVHW,,T,,M,-1.2,N,-2.2,K")  # astern
     assert isinstance(r, Vhw) and r.stw_mps == pytest.approx(-1.2 * KNOT_MPS)
     (sp,) = NmeaDecoder("p").speed_records(_parse("VWVHW,10,T,12,M,2,N,3.7,K"))
-    assert (sp.port, sp.kind, sp.source, sp.heading_deg, sp.valid) == (
-        "p",
-        "stw",
-        "VHW",
-        10.0,
-        True,
-    )
+    assert (
+        sp.port,
+        sp.kind,
+        sp.role,
+        sp.source,
+        sp.heading_true_deg,
+        sp.heading_mag_deg,
+        sp.valid,
+    ) == ("p", "stw", "speed", "VHW", 10.0, 12.0, True)
 
 
 def test_vbw_water_pair_valid_even_when_ground_is_v() -> None:
@@ -55,9 +57,9 @@ def test_vbw_water_pair_valid_even_when_ground_is_v() -> None:
     assert len(sps) == 1 and sps[0].source == "VBW" and sps[0].valid
     assert sps[0].transverse_mps == pytest.approx(-0.3 * KNOT_MPS)
     both = NmeaDecoder("p").speed_records(_parse("VMVBW,2.0,0.1,V,2.1,0.2,A"))
-    assert [(s.source, s.kind, s.valid) for s in both] == [
-        ("VBW", "stw", False),
-        ("VBW:G", "sog", True),
+    assert [(s.source, s.kind, s.role, s.valid) for s in both] == [
+        ("VBW", "stw", "speed", False),
+        ("VBW:G", "sog", "ground", True),
     ]
 
 

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from drivers.errors import FrameError
 from drivers.rdi_ascii import Pd6Ensemble, PdAsciiDecoder, PdHealth, encode_pd6
 from drivers.records import Rejected
 
@@ -61,7 +62,7 @@ def test_manual_pd13_example() -> None:
         "PD6:BS",
         "sog",
     )
-    assert sp.heading_deg == 75.2
+    assert (sp.role, sp.heading_true_deg, sp.heading_mag_deg) == ("bottom", 75.2, None)
 
 
 def test_round_trip_and_water_track() -> None:
@@ -78,7 +79,7 @@ def test_round_trip_and_water_track() -> None:
     )
     assert e.timestamp == "25061208000123"
     sps = dec.speed_records(e)
-    assert [s.source for s in sps] == ["PD6:BS", "PD6:WS"]
+    assert [(s.source, s.role) for s in sps] == [("PD6:BS", "bottom"), ("PD6:WS", "water")]
     assert sps[1].kind == "stw" and sps[1].longitudinal_mps == 1.4
 
 
@@ -140,6 +141,26 @@ def test_missing_and_out_of_order_lines() -> None:
     dec = PdAsciiDecoder("dvl", errors="yield")
     dec.decode_all(b":BS,+00001,+00002,+00003,A\r\n")
     assert dec.counters.rejects["framing"] == 1  # a line outside an ensemble
+
+
+def test_parse_frame_takes_a_whole_block() -> None:
+    """parse_frame decodes a whole ensemble block (or an :HM line) into the record feed gives,
+    rejects a partial or double block, and leaves the decoder's own half block alone."""
+    block = EXAMPLE.read_bytes().rstrip(b"\r\n")
+    dec = PdAsciiDecoder("dvl", errors="raise")
+    fed = PdAsciiDecoder("dvl").decode_all(block + b"\r\n")
+    assert dec.parse_frame(block) == fed[0] and isinstance(fed[0], Pd6Ensemble)
+    assert dec.parse_frame(b":HM,1,2") == PdHealth(("1", "2"))
+    head, _, tail = _lines().partition(b":BS")
+    with pytest.raises(FrameError, match="no :BD"):
+        dec.parse_frame(head.rstrip(b"\r\n"))
+    with pytest.raises(FrameError, match="2 records"):
+        dec.parse_frame(block + b"\r\n" + block)
+    assert list(dec.feed(head)) == []
+    dec.parse_frame(block)
+    (done,) = dec.feed(b":BS" + tail)
+    assert isinstance(done, Pd6Ensemble) and done.heading_deg == 90.0
+    assert dec.counters.records == 1 and dec.counters.rejected == 0
 
 
 def test_pathfinder_health_line() -> None:

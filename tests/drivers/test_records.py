@@ -10,7 +10,7 @@ from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord
 
 
 def _speed(lon: float | None, tr: float | None) -> SpeedRecord:
-    return SpeedRecord("p", "stw", lon, tr, True, None, "VBW")
+    return SpeedRecord("p", "stw", "speed", lon, tr, True, None, None, "VBW")
 
 
 class TestSpeedRecord:

@@ -14,7 +14,7 @@ class TestToJsonable:
 
     def test_record_has_type_and_fields(self) -> None:
         """A dataclass becomes a dict with its class name under 'type'."""
-        rec = SpeedRecord("emlog1", "stw", 1.5, None, True, 10.0, "VHW")
+        rec = SpeedRecord("emlog1", "stw", "speed", 1.5, None, True, 10.0, None, "VHW")
         d = to_jsonable(rec)
         assert d["type"] == "SpeedRecord"
         assert d["longitudinal_mps"] == 1.5

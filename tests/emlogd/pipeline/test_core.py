@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from datetime import UTC, datetime
 from types import SimpleNamespace
 
 import pytest
@@ -417,3 +418,48 @@ class TestGnssReference:
             lines.append((t + 0.1, slow if k % 2 else void))
         rec = self._run(lines, min_sog_mps=0.5)
         assert rec.refs and not [r for r in rec.refs if r[2]]
+
+
+class TestNavigationItems:
+    """Decoded records become routing items by type and by the speed record's typed role."""
+
+    def test_roles_route_speeds_and_headings_travel_with_them(self) -> None:
+        """A speed goes to the reference field of its role (a VBW ground pair to none), and a
+        heading sent with a speed precedes it, true and magnetic apart."""
+        from drivers import make_decoder
+        from drivers.rdi_ascii import encode_pd6
+        from emlogd.pipeline.core import _Heading, _nav_items, _Speed
+
+        nmea = make_decoder("nmea0183", "n")
+        vhw = encode_vhw(2.0, heading_true_deg=10.0, heading_mag_deg=12.0)
+        vbw = with_checksum("VMVBW,2.0,0.1,A,2.1,0.2,A")
+        recs = nmea.decode_all(f"{vhw}\r\n{vbw}\r\n".encode())
+        items = [it for r in recs for it in _nav_items(nmea, r)]
+        assert [type(it).__name__ for it in items] == ["_Heading", "_Speed", "_Speed"]
+        assert items[0] == _Heading(10.0, 12.0, None)
+        assert isinstance(items[1], _Speed) and isinstance(items[2], _Speed)
+        assert (items[1].field, items[1].sentence, items[1].heading_mag_deg) == (
+            "speed",
+            "VHW",
+            12.0,
+        )
+        assert (items[2].field, items[2].sentence) == ("speed", "VBW")
+        pd6 = make_decoder("pd6", "d")
+        lines = encode_pd6(
+            timestamp=datetime(2026, 1, 1, tzinfo=UTC),
+            heading_deg=30.0,
+            bottom_ship_mps=(0.1, 2.0, 0.0),
+            range_m=9.0,
+            water_ship_mps=(0.0, 1.5, 0.0),
+        )
+        (ens,) = pd6.decode_all("".join(x + "\r\n" for x in lines).encode())
+        got = [
+            (type(it).__name__, it.field if isinstance(it, _Speed) else None)
+            for it in _nav_items(pd6, ens)
+        ]
+        assert got == [
+            ("_Heading", None),
+            ("_Speed", "bottom"),
+            ("_Heading", None),
+            ("_Speed", "water"),
+        ]
