@@ -63,7 +63,7 @@ class PortConfig:
 
     settings: PortSettings = group(PortSettings, required=True)
     url: str = key(
-        check=string(),
+        check=string(what="pyserial URL"),
         path=True,
         doc="Any pyserial URL: `/dev/ttyUSB0`, `socket://host:port`, ...; a relative path is "
         "the config file's directory's.",
@@ -205,13 +205,13 @@ class Config:
     state_path: str = key(
         "/var/lib/emlogd/state.yaml",
         name="state_file",
-        check=string(),
+        check=string(what="path"),
         path=True,
         doc="The persisted calibrations (written atomically, with a `.bak`).",
     )
     control_socket: str = key(
         "/run/emlogd/control.sock",
-        check=string(),
+        check=string(what="path"),
         path=True,
         doc="The control socket (`emlogd status`, `freeze`, `reset`, `learn`).",
     )
@@ -259,20 +259,17 @@ RENAMED: dict[str, str] = {
 """Keys of earlier versions, refused with their new names."""
 
 
-def heading_expected(reference_protocol: str, u: UutSettings | Mapping[str, Any]) -> bool:
-    """A heading is known to come for the UUT: a heading port is named, the reference is
-    a DVL output that carries one, or the reference is GNSS (which needs one anyway).
+def heading_expected(heading: str, reference_field: str, reference_protocol: str) -> bool:
+    """A heading is known to come for a UUT: a heading port is named, the reference is a
+    DVL output that carries one, or the reference is GNSS (which needs one anyway).
 
     ``current: auto`` estimates the current exactly then: in the water frame the
     calibration is the sensor's (without it a current ends up in the scale and bias);
     without a heading the current cannot be observed at all.
     """
-    get_ = u.get if isinstance(u, Mapping) else lambda k, d: getattr(u, k)
-    heading = get_("heading", _UUT.heading)
-    field_ = get_("reference_field", _UUT.reference_field)
-    if heading != "auto" or field_ == "gnss":
+    if heading != "auto" or reference_field == "gnss":
         return True
-    return field_ in ("bottom", "water") and reference_protocol in HEADING_PROTOCOLS
+    return reference_field in ("bottom", "water") and reference_protocol in HEADING_PROTOCOLS
 
 
 # ------------------------------------------------------------------ loading
@@ -362,13 +359,13 @@ def _section(
     return kw, {k: vn for k, (_, vn) in m.items()}
 
 
-def _build(cls: type, kw: Mapping[str, Any], **extra: Any) -> Any:
-    """``cls`` from checked values by key name, and by attribute path in ``extra``
-    (``settings__ref_stale_s``)."""
+def _build(
+    cls: type, kw: Mapping[str, Any], extra: Mapping[tuple[str, ...], Any] | None = None
+) -> Any:
+    """``cls`` from checked values by key name, and fields that are no keys by attribute
+    path in ``extra``."""
     attrs = {e.name: e.attrs for e in entries(cls)}
-    values = {attrs[k]: v for k, v in kw.items()}
-    values.update({tuple(a.split("__")): v for a, v in extra.items()})
-    return build(cls, values)
+    return build(cls, {**{attrs[k]: v for k, v in kw.items()}, **(extra or {})})
 
 
 def _check_uut(
@@ -519,21 +516,22 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
                 "a port called 'fused' clashes with the fused output: rename the port",
             )
     uuts: list[UutConfig] = []
-    for kw in cals:
+    for kw in cals:  # what a log takes from the rest of the config
         reference = by_name[kw["reference"]]
         if kw["current"] == "auto":
-            kw["current"] = heading_expected(reference.protocol, kw)
+            kw["current"] = heading_expected(
+                kw.get("heading", _UUT.heading),
+                kw.get("reference_field", _UUT.reference_field),
+                reference.protocol,
+            )
         if kw["talker"] is None:
             kw["talker"] = outputs.talker
-        uuts.append(
-            _build(
-                UutConfig,
-                kw,
-                settings__ref_stale_s=reference.settings.stale_timeout_s,
-                settings__maker=outputs.maker,
-                settings__status_sentence_interval_s=outputs.status_sentence_interval_s,
-            )
-        )
+        extra: dict[tuple[str, ...], Any] = {
+            ("settings", "ref_stale_s"): reference.settings.stale_timeout_s,
+            ("settings", "maker"): outputs.maker,
+            ("settings", "status_sentence_interval_s"): outputs.status_sentence_interval_s,
+        }
+        uuts.append(_build(UutConfig, kw, extra))
     rest = {
         top_keys[k].attrs[0]: ctx.value(vn, k, top_keys[k])
         for k, (_, vn) in top.items()
