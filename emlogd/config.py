@@ -34,11 +34,11 @@ from emlogd.pipeline.keys import (
     boolean,
     build,
     entries,
-    enum,
     get,
     group,
     hostport,
     key,
+    literal,
     number,
     opt_string,
     string,
@@ -51,6 +51,9 @@ HEADING_PROTOCOLS = frozenset({"pd6", "pd13", "pd0", "pd5"})
 """DVL outputs that carry the heading with the bottom and water track."""
 
 Role = Literal["uut", "reference", "aux"]
+Speed = Literal["each", "fused", "both"]
+LogFormat = Literal["auto", "json", "console"]
+LogLevel = Literal["debug", "info", "warning", "error"]
 
 _UUT = UutSettings(port="", reference_port="")
 """The pipeline's defaults, for the ``outputs`` keys that reach every UUT."""
@@ -69,7 +72,7 @@ class PortConfig:
         "the config file's directory's.",
     )
     role: Role = key(
-        check=enum("uut", "reference", "aux"),
+        check=literal(Role),
         doc="uut: an EMlog to calibrate; reference: a DVL, GNSS or EMlog reference; aux: "
         "headings only.",
     )
@@ -180,9 +183,9 @@ class OutputConfig:
         unit="s",
         doc="Each log's status sentence at most this often.",
     )
-    speed: Literal["each", "fused", "both"] = key(
+    speed: Speed = key(
         "each",
-        check=enum("each", "fused", "both"),
+        check=literal(Speed),
         doc="each: every log's corrected sentences; fused: one speed for the autopilot, the "
         "inverse-variance weighted mean of every healthy log (`$PEMLF` says which); both: "
         "the two.",
@@ -221,14 +224,12 @@ class Config:
         path=True,
         doc="A read-only socket (`status` only, mode 0666) for any local user; null: none.",
     )
-    log_format: Literal["auto", "json", "console"] = key(
+    log_format: LogFormat = key(
         "auto",
-        check=enum("auto", "json", "console"),
+        check=literal(LogFormat),
         doc="auto: json when the log does not go to a terminal.",
     )
-    log_level: Literal["debug", "info", "warning", "error"] = key(
-        "info", check=enum("debug", "info", "warning", "error"), doc="The least level logged."
-    )
+    log_level: LogLevel = key("info", check=literal(LogLevel), doc="The least level logged.")
     status_log_interval_s: float = key(
         10.0,
         check=number(0.5, 3600.0),

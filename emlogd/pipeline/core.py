@@ -38,7 +38,7 @@ from typing import Literal, NamedTuple
 
 from calib.excitation import ExcitationRule
 from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
-from calib.models import check_model
+from calib.models import MODEL_NAMES, PARAM_NAMES, check_model
 from drivers import DecoderOptions, make_decoder, protocol_names
 from drivers.base import Decoder
 from drivers.nmea0183 import Gga, Rmc, Vhw, Vtg
@@ -56,6 +56,7 @@ from emlogd.pipeline.keys import (
     group,
     key,
     lag,
+    literal,
     number,
     or_null,
     param_std,
@@ -73,6 +74,8 @@ from emlogd.pipeline.sentences import (
 from emlogd.pipeline.uut import UutCalibration
 
 RefField = Literal["bottom", "water", "speed", "gnss"]
+Checksum = Literal["required", "optional"]
+Component = Literal["longitudinal", "magnitude"]
 HeadingSource = str
 """``auto`` or a port name."""
 
@@ -106,8 +109,6 @@ of real yacht logs shows (docs/REAL_DATA.md)."""
 
 
 _KF = KfConfig()
-_STATUS_SENTENCE_INTERVAL_S = 1.0
-_REF_FIELDS = ("bottom", "water", "speed", "gnss")
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,9 +124,9 @@ class PortSettings:
         check=enum(*sorted(protocol_names())),
         doc="What the device speaks.",
     )
-    checksum: Literal["required", "optional"] = key(
+    checksum: Checksum = key(
         "required",
-        check=enum("required", "optional"),
+        check=literal(Checksum),
         doc="optional: NMEA sentences without `*hh` are accepted (a wrong one never is).",
     )
     max_length: int = key(
@@ -159,17 +160,17 @@ class UutSettings:
     )
     model: str = key(
         "EM3",
-        check=enum("EM1", "EM2", "EM3", "EM4"),
+        check=enum(*MODEL_NAMES),
         doc="The error model: EM1 (b), EM2 (m), EM3 (m, b), EM4 (a, m, b).",
     )
     reference_field: RefField = key(
         "bottom",
-        check=enum(*_REF_FIELDS),
+        check=literal(RefField),
         doc="bottom (DVL bottom track), water (DVL `:WS`), speed (another EMlog), gnss "
         "(RMC/VTG speed and course, projected on the hull).",
     )
     uut_source: str = key(
-        "VHW", check=enum("VHW", "VBW"), doc="The EMlog sentence calibrated and corrected."
+        "VHW", check=enum(*_UUT_SENTENCES), doc="The EMlog sentence calibrated and corrected."
     )
     talker: str = key(
         "VW",
@@ -177,9 +178,9 @@ class UutSettings:
         absent=None,
         doc="The talker of this log's corrected sentences; null: `outputs.talker`.",
     )
-    component: Literal["longitudinal", "magnitude"] = key(
+    component: Component = key(
         "longitudinal",
-        check=enum("longitudinal", "magnitude"),
+        check=literal(Component),
         doc="magnitude: the horizontal speed of both (EMlogs that measure it).",
     )
     current: bool = key(
@@ -239,7 +240,7 @@ class UutSettings:
     ref_stale_s: float = 5.0
     max_param_std: Mapping[str, float] = key(
         factory=lambda: {"a": 0.02, "m": 0.05, "b": 0.08},
-        check=param_std(("a", "m", "b"), 0.0, 10.0),
+        check=param_std(PARAM_NAMES["EM4"], 0.0, 10.0),
         doc="A calibration is a candidate once its parameters' σ are below these.",
     )
     excitation_half_life_samples: float = key(
@@ -294,7 +295,7 @@ class UutSettings:
     )
     rule: ExcitationRule = field(default_factory=ExcitationRule)
     maker: str = "EML"
-    status_sentence_interval_s: float = _STATUS_SENTENCE_INTERVAL_S
+    status_sentence_interval_s: float = 1.0
     gate_nis: float = key(
         25.0,
         check=number(1.0, 1e6),

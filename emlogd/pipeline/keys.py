@@ -19,7 +19,7 @@ import math
 import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, get_args
 
 
 class InvalidValueError(ValueError):
@@ -206,6 +206,11 @@ def enum(*choices: str) -> Check:
         return v
 
     return Check(fn, ", ".join(choices))
+
+
+def literal(tp: Any) -> Check:
+    """One of the values of the ``Literal`` type ``tp`` (the field's own type)."""
+    return enum(*get_args(tp))
 
 
 def _boolean(v: Any) -> Any:
