@@ -49,12 +49,12 @@ ports:
 calibration:
   - {uut: emlog1, reference: dvl, lag: 0.0}
   - {uut: emlog2, reference: dvl, lag: 0.0}
-outputs: {pty: out/emlog0, status_interval_s: 1}
+outputs: {pty: out/emlog0, status_sentence_interval_s: 1}
 state_file: state/state.yaml
 control_socket: run/control.sock
 log_format: json
 log_level: warning
-status_interval_s: 10
+status_log_interval_s: 10
 """
 
 FORWARDER = r"""

@@ -1,144 +1,200 @@
 """The daemon's YAML configuration, validated at load.
 
+Every key is declared once, as a dataclass field made with
+:func:`emlogd.pipeline.keys.key` (its default, check, unit and doc): the pipeline's
+keys on the pipeline's own settings (:class:`~emlogd.pipeline.core.PortSettings`,
+:class:`~emlogd.pipeline.core.UutSettings`,
+:class:`~emlogd.pipeline.integrity.Envelope`), the daemon's on the dataclasses here.
+Validation, :func:`dump_config` and :func:`key_table` (README's "Configuration
+reference") read those declarations, and the loaded config holds the pipeline's
+settings themselves, complete.
+
 Every error names the file, the line and the key, e.g.
 ``emlogd.yaml:14: calibration[0].model: 'EM5' is not one of EM1, EM2, EM3, EM4``.
 Unknown keys, duplicate keys, wrong types and bad values are all errors; relative
 paths (serial devices given as files, the state file, the pty link) are resolved
 against the config file's directory, so an example config works from anywhere.
-The full schema with defaults is documented in ``examples/emlogd.yaml``.
 """
 
 from __future__ import annotations
 
-import math
-import re
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import yaml
 
-from calib.kalman import KfConfig
-from drivers import protocol_names
 from drivers.errors import ConfigError
-from emlogd.pipeline.core import RefField, UutSettings
-from emlogd.pipeline.integrity import Envelope
+from emlogd.pipeline.core import PortSettings, UutSettings
+from emlogd.pipeline.fusion import FusionSettings
+from emlogd.pipeline.keys import (
+    Entry,
+    InvalidValueError,
+    boolean,
+    build,
+    entries,
+    get,
+    group,
+    hostport,
+    key,
+    literal,
+    number,
+    opt_string,
+    string,
+)
 
 DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
 DVL_PROTOCOLS = ("pd6", "pd13", "pd0", "pd4", "pd5", "nmea0183")
 """Protocols that can carry a DVL bottom track (nmea0183: Rowe $PRTI01)."""
+HEADING_PROTOCOLS = frozenset({"pd6", "pd13", "pd0", "pd5"})
+"""DVL outputs that carry the heading with the bottom and water track."""
 
 Role = Literal["uut", "reference", "aux"]
+Speed = Literal["each", "fused", "both"]
+LogFormat = Literal["auto", "json", "console"]
+LogLevel = Literal["debug", "info", "warning", "error"]
+
+_UUT = UutSettings(port="", reference_port="")
+"""The pipeline's defaults, for the ``outputs`` keys that reach every UUT."""
+_TALKER = r"[A-Z]{2}"
 
 
 @dataclass(frozen=True, slots=True)
 class PortConfig:
-    """One input port (``ports`` list)."""
+    """One input port (``ports`` list): the pipeline's settings and the device's."""
 
-    name: str
-    url: str
-    protocol: str
-    role: Role
-    baud: int = 9600
-    checksum: Literal["required", "optional"] = "required"
-    max_length: int = 82
-    rate_hz: float | None = None
-    stale_timeout_s: float = 5.0
-    rest_s: float = 0.02
-    """Reference and aux ports: once the port is readable, leave it alone this long,
-    then read it (a burst is one read, not a wake-up per line; what arrived is stamped
-    with that read, at most this late). Keep it well under the time the port takes to
-    fill the 4 KiB tty buffer and under the gap between bursts; 0 disables (and suits
-    devices replayed faster than real time). UUT ports never rest."""
+    settings: PortSettings = group(PortSettings, required=True)
+    url: str = key(
+        check=string(what="pyserial URL"),
+        path=True,
+        doc="Any pyserial URL: `/dev/ttyUSB0`, `socket://host:port`, ...; a relative path is "
+        "the config file's directory's.",
+    )
+    role: Role = key(
+        check=literal(Role),
+        doc="uut: an EMlog to calibrate; reference: a DVL, GNSS or EMlog reference; aux: "
+        "headings only.",
+    )
+    baud: int = key(9600, check=number(50, 4_000_000, integer=True), unit="bit/s", doc="Baud rate.")
+    rate_hz: float | None = key(
+        None,
+        check=number(0.0, 1000.0, lo_open=True, optional=True),
+        unit="Hz",
+        doc="The device's sentence rate, as documentation; null: unknown.",
+    )
+    rest_s: float = key(
+        0.02,
+        check=number(0.0, 1.0),
+        unit="s",
+        doc="Reference and aux ports: once readable, the port is left this long, then read "
+        "(an ensemble's lines in one read, stamped at that read). Keep it well under the "
+        "time the port takes to fill the 4 KiB tty buffer and under the gap between bursts; "
+        "0 disables. UUT ports never rest.",
+    )
+
+    @property
+    def name(self) -> str:
+        """The port's name."""
+        return self.settings.name
+
+    @property
+    def protocol(self) -> str:
+        """What the device speaks."""
+        return self.settings.protocol
 
 
-_UUT = UutSettings(port="", reference_port="")
-"""The pipeline's declared defaults: the config's defaults are read from here, never typed
-again (``tests/emlogd/test_config.py`` checks every key against it)."""
-_KF = KfConfig()
-_ENVELOPE = Envelope()
+@dataclass(frozen=True, slots=True)
+class UutOutputs:
+    """One log's own outputs (``calibration`` keys the daemon alone reads)."""
+
+    pty: str | None = key(
+        None,
+        check=opt_string("path"),
+        path=True,
+        doc="This log's own output pty: its sentences go there instead of the shared outputs.",
+    )
+    tcp: str | None = key(
+        None, check=hostport, doc="This log's own NMEA over TCP, instead of the shared outputs."
+    )
+    udp: str | None = key(
+        None, check=hostport, doc="This log's own UDP destination, instead of the shared outputs."
+    )
 
 
 @dataclass(frozen=True, slots=True)
 class UutConfig:
-    """Calibration of one EMlog (``calibration`` list).
+    """Calibration of one EMlog (``calibration`` list): the pipeline's settings, complete
+    (:func:`emlogd.settings.pipeline_from_config` passes them as they are), and the
+    log's own outputs."""
 
-    The fields with a :class:`~emlogd.pipeline.core.UutSettings` field of the same name
-    pass to it as they are (:func:`emlogd.settings.pipeline_from_config`); the others
-    are the filter's tuning and the envelope's speed range.
-    """
+    settings: UutSettings = group(UutSettings, required=True)
+    outputs: UutOutputs = group(UutOutputs)
 
-    uut: str
-    reference: str
-    model: str = _UUT.model
-    reference_field: RefField = _UUT.reference_field
-    uut_source: str = _UUT.uut_source
-    talker: str | None = None
-    """The talker of this log's corrected sentences; None: ``outputs.talker`` (two logs
-    with their own talkers are two sources to a chart plotter or Signal K)."""
-    pty: str | None = None
-    """This log's own output pty: its sentences go there instead of the shared outputs."""
-    tcp: str | None = None
-    """This log's own NMEA over TCP (``HOST:PORT``), instead of the shared outputs."""
-    udp: str | None = None
-    """This log's own UDP destination, instead of the shared outputs."""
-    component: Literal["longitudinal", "magnitude"] = _UUT.component
-    current: bool | Literal["auto"] = "auto"
-    """auto: estimate the current wherever a heading is known to come (see
-    :func:`emlogd.settings.heading_expected`)."""
-    heading: str = _UUT.heading
-    magnetic_variation_deg: float | None = _UUT.magnetic_variation_deg
-    lag_s: float | None = _UUT.lag_s
-    lag_window_s: float = _UUT.lag_window_s
-    max_lag_s: float = _UUT.max_lag_s
-    learn: bool = _UUT.learn
-    apply: bool = _UUT.apply
-    min_ref_speed_mps: float = _UUT.min_ref_speed_mps
-    min_sog_mps: float = _UUT.min_sog_mps
-    max_param_std: Mapping[str, float] = field(default_factory=lambda: dict(_UUT.max_param_std))
-    excitation_half_life_samples: float = _UUT.excitation_half_life_samples
-    r_raw_mps: float = math.sqrt(_KF.r_raw_mps2)
-    r_ref_mps: float | None = None
-    """None: the reference field's own noise (``REF_NOISE_MPS``)."""
-    q_params: float = _KF.q_params
-    p0: float = _KF.p0
-    current_psd_m2ps3: float = _KF.current_psd_m2ps3
-    persist_interval_s: float = _UUT.persist_interval_s
-    persist_min_change_sigma: float = _UUT.persist_min_change_sigma
-    persist_min_change_abs: float = _UUT.persist_min_change_abs
-    validation_s: float = _UUT.validation_s
-    average_s: float | None = _UUT.average_s
-    recheck_s: float = _UUT.recheck_s
-    gate_nis: float = _UUT.gate_nis
-    relearn_gates: int = _UUT.relearn_gates
-    low_speed_mps: float = _UUT.low_speed_mps
-    max_speed_mps: float = _ENVELOPE.max_speed_mps
-    stuck_s: float = _UUT.stuck_s
-    zero_s: float = _UUT.zero_s
-    max_accel_mps2: float = _UUT.max_accel_mps2
-    max_turn_rate_dps: float = _UUT.max_turn_rate_dps
+    @property
+    def uut(self) -> str:
+        """The EMlog's port."""
+        return self.settings.port
+
+    @property
+    def reference(self) -> str:
+        """The reference's port."""
+        return self.settings.reference_port
 
 
 @dataclass(frozen=True, slots=True)
 class OutputConfig:
     """Where the corrected NMEA goes (``outputs``)."""
 
-    pty: str | None = "/run/emlogd/emlog0"
-    pty_mode: int = 0o660
-    pty_group: str | None = None
-    """The group of the pty (its readers, e.g. the autopilot's user); None: unchanged."""
-    tcp: str | None = None
-    udp: str | None = None
-    stdout: bool = False
-    talker: str = "VW"
-    maker: str = "EML"
-    status_interval_s: float = 1.0
-    speed: Literal["each", "fused", "both"] = "each"
-    """each: every log's corrected sentences; fused: one speed for the autopilot, the
-    inverse-variance weighted mean of every healthy log (``$PEMLF`` says which);
-    both: the two."""
-    fused_talker: str = "II"
+    pty: str | None = key(
+        "/run/emlogd/emlog0",
+        check=opt_string("path"),
+        path=True,
+        doc="The pty the autopilot opens, published at this symlink; null: none.",
+    )
+    pty_mode: int = key(
+        0o660, check=number(0, 0o777, integer=True), text="0660", doc="The pty's file mode."
+    )
+    pty_group: str | None = key(
+        None,
+        check=opt_string("group"),
+        doc="The pty's group (its readers, e.g. the autopilot's user); null: unchanged.",
+    )
+    tcp: str | None = key(
+        None, check=hostport, doc="NMEA over TCP, e.g. `:10110` (several clients)."
+    )
+    udp: str | None = key(None, check=hostport, doc="NMEA over UDP, e.g. `192.168.1.255:10110`.")
+    stdout: bool = key(
+        False, check=boolean, doc="NMEA on stdout too (the log then goes to stderr)."
+    )
+    talker: str = key(
+        _UUT.talker,
+        check=string(_TALKER, "two uppercase letters"),
+        doc="The talker of the corrected sentences (a log's own `talker` overrides it).",
+    )
+    maker: str = key(
+        _UUT.maker,
+        check=string(r"[A-Z]{3}", "three uppercase letters"),
+        doc="The maker of the proprietary sentences (`$PEMLS` status, `$PEMLF` fused).",
+    )
+    status_sentence_interval_s: float = key(
+        _UUT.status_sentence_interval_s,
+        check=number(0.0, 3600.0),
+        unit="s",
+        doc="Each log's status sentence at most this often.",
+    )
+    speed: Speed = key(
+        "each",
+        check=literal(Speed),
+        doc="each: every log's corrected sentences; fused: one speed for the autopilot, the "
+        "inverse-variance weighted mean of every healthy log (`$PEMLF` says which); both: "
+        "the two.",
+    )
+    fused_talker: str = key(
+        FusionSettings().talker,
+        check=string(_TALKER, "two uppercase letters"),
+        doc="The talker of the fused speed's sentences.",
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,13 +205,37 @@ class Config:
     ports: tuple[PortConfig, ...]
     calibration: tuple[UutConfig, ...]
     outputs: OutputConfig = field(default_factory=OutputConfig)
-    state_path: str = "/var/lib/emlogd/state.yaml"
-    control_socket: str = "/run/emlogd/control.sock"
-    status_socket: str | None = None
-    """A read-only socket (``status`` only, mode 0666), or None for none."""
-    log_format: Literal["auto", "json", "console"] = "auto"
-    log_level: Literal["debug", "info", "warning", "error"] = "info"
-    status_interval_s: float = 10.0
+    state_path: str = key(
+        "/var/lib/emlogd/state.yaml",
+        name="state_file",
+        check=string(what="path"),
+        path=True,
+        doc="The persisted calibrations (written atomically, with a `.bak`).",
+    )
+    control_socket: str = key(
+        "/run/emlogd/control.sock",
+        check=string(what="path"),
+        path=True,
+        doc="The control socket (`emlogd status`, `freeze`, `reset`, `learn`).",
+    )
+    status_socket: str | None = key(
+        None,
+        check=opt_string("path"),
+        path=True,
+        doc="A read-only socket (`status` only, mode 0666) for any local user; null: none.",
+    )
+    log_format: LogFormat = key(
+        "auto",
+        check=literal(LogFormat),
+        doc="auto: json when the log does not go to a terminal.",
+    )
+    log_level: LogLevel = key("info", check=literal(LogLevel), doc="The least level logged.")
+    status_log_interval_s: float = key(
+        10.0,
+        check=number(0.5, 3600.0),
+        unit="s",
+        doc="The periodic `status` log event (per-port records, rejects by reason) this often.",
+    )
 
     def port(self, name: str) -> PortConfig:
         """The port called ``name``."""
@@ -163,6 +243,34 @@ class Config:
             if p.name == name:
                 return p
         raise KeyError(name)
+
+
+SECTIONS: tuple[tuple[str, type], ...] = (
+    ("ports[].", PortConfig),
+    ("calibration[].", UutConfig),
+    ("outputs.", OutputConfig),
+    ("", Config),
+)
+"""Each section's prefix in a key's full name, and its dataclass."""
+
+RENAMED: dict[str, str] = {
+    "status_interval_s": "status_log_interval_s",
+    "outputs.status_interval_s": "outputs.status_sentence_interval_s",
+}
+"""Keys of earlier versions, refused with their new names."""
+
+
+def heading_expected(heading: str, reference_field: str, reference_protocol: str) -> bool:
+    """A heading is known to come for a UUT: a heading port is named, the reference is a
+    DVL output that carries one, or the reference is GNSS (which needs one anyway).
+
+    ``current: auto`` estimates the current exactly then: in the water frame the
+    calibration is the sensor's (without it a current ends up in the scale and bias);
+    without a heading the current cannot be observed at all.
+    """
+    if heading != "auto" or reference_field == "gnss":
+        return True
+    return reference_field in ("bottom", "water") and reference_protocol in HEADING_PROTOCOLS
 
 
 # ------------------------------------------------------------------ loading
@@ -173,9 +281,10 @@ class _Loader(yaml.SafeLoader):
 
 
 class _Ctx:
-    def __init__(self, path: str, loader: _Loader) -> None:
+    def __init__(self, path: str, loader: _Loader, base: Path | None) -> None:
         self.path = path
         self.loader = loader
+        self.base = base
 
     def fail(self, node: yaml.Node | None, where: str, msg: str) -> ConfigError:
         line = node.start_mark.line + 1 if node is not None else 1
@@ -200,243 +309,64 @@ class _Ctx:
             raise self.fail(node, where, "expected a list")
         return list(node.value)
 
-    def scalar(self, node: yaml.Node, where: str) -> Any:
-        if not isinstance(node, yaml.ScalarNode):
+    def value(self, node: yaml.Node, where: str, e: Entry) -> Any:
+        """The checked value of key ``e`` at ``node``."""
+        sub: dict[str, tuple[yaml.Node, yaml.Node]] = {}
+        if e.key.check.mapping:
+            sub = self.mapping(node, where)
+        elif not isinstance(node, yaml.ScalarNode):
             raise self.fail(node, where, "expected a single value")
-        return self.loader.construct_object(node, deep=True)
-
-
-Check = Callable[[_Ctx, yaml.Node, str], Any]
-
-
-def _str(pattern: str | None = None, what: str = "") -> Check:
-    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-        v = ctx.scalar(node, where)
-        if not isinstance(v, str) or not v:
-            raise ctx.fail(node, where, f"expected a non-empty string, got {v!r}")
-        if pattern is not None and not re.fullmatch(pattern, v):
-            raise ctx.fail(node, where, f"{v!r} is not {what}")
+        try:
+            v = e.key.check(self.loader.construct_object(node, deep=True))
+        except InvalidValueError as exc:
+            if exc.sub is not None:
+                raise self.fail(sub[exc.sub][0], f"{where}.{exc.sub}", str(exc)) from None
+            raise self.fail(node, where, str(exc)) from None
+        if (
+            e.key.path
+            and self.base is not None
+            and isinstance(v, str)
+            and "://" not in v
+            and not v.startswith("/")
+        ):
+            v = str(self.base / v)
         return v
 
-    return check
 
-
-def _opt_str() -> Check:
-    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-        v = ctx.scalar(node, where)
-        if v is None:
-            return None
-        if not isinstance(v, str) or not v:
-            raise ctx.fail(node, where, f"expected a string or null, got {v!r}")
-        return v
-
-    return check
-
-
-def _enum(*choices: str) -> Check:
-    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-        v = ctx.scalar(node, where)
-        if v not in choices:
-            raise ctx.fail(node, where, f"{v!r} is not one of {', '.join(choices)}")
-        return v
-
-    return check
-
-
-def _bool(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-    v = ctx.scalar(node, where)
-    if not isinstance(v, bool):
-        raise ctx.fail(node, where, f"expected true or false, got {v!r}")
-    return v
-
-
-def _num(
-    lo: float, hi: float, *, integer: bool = False, lo_open: bool = False, optional: bool = False
-) -> Check:
-    def check(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-        v = ctx.scalar(node, where)
-        if v is None and optional:
-            return None
-        if isinstance(v, bool) or not isinstance(v, int | float):
-            raise ctx.fail(node, where, f"expected a number, got {v!r}")
-        if integer and not isinstance(v, int):
-            raise ctx.fail(node, where, f"expected an integer, got {v!r}")
-        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
-            bound = f"({lo}, {hi}]" if lo_open else f"[{lo}, {hi}]"
-            raise ctx.fail(node, where, f"{v!r} is out of range {bound}")
-        return v
-
-    return check
-
-
-def _or_null(check: Check) -> Check:
-    def inner(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-        return None if ctx.scalar(node, where) is None else check(ctx, node, where)
-
-    return inner
-
-
-def _bool_or_auto(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-    v = ctx.scalar(node, where)
-    if v == "auto" or isinstance(v, bool):
-        return v
-    raise ctx.fail(node, where, f"expected auto, true or false, got {v!r}")
-
-
-def _lag(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-    v = ctx.scalar(node, where)
-    if v == "auto":
-        return None
-    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 30.0:
-        raise ctx.fail(node, where, f"expected auto or seconds in [0, 30], got {v!r}")
-    return float(v)
-
-
-def _hostport(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-    v = ctx.scalar(node, where)
-    if v is None:
-        return None
-    text = str(v)
-    host, sep, port = text.rpartition(":")
-    if (
-        not re.fullmatch(r"[0-9]{1,5}", port)
-        or not 0 < int(port) < 65536
-        or (sep and not re.fullmatch(r"[\w.\-\[\]:]*", host))
-    ):
-        raise ctx.fail(node, where, f"{text!r} is not HOST:PORT (port 1..65535)")
-    return text
-
-
-def _param_std(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-    m = ctx.mapping(node, where)
-    out = {}
-    for key, (kn, vn) in m.items():
-        if key not in ("a", "m", "b"):
-            raise ctx.fail(kn, f"{where}.{key}", "unknown parameter (a, m or b)")
-        out[key] = _num(0.0, 10.0, lo_open=True)(ctx, vn, f"{where}.{key}")
-    return out
+def _known(ctx: _Ctx, kn: yaml.Node, where: str, full: str, valid: list[str]) -> None:
+    """Refuse a key that is not in ``valid`` (a renamed one with its new name)."""
+    if full in RENAMED:
+        raise ctx.fail(kn, where, f"renamed: use {RENAMED[full]}")
+    raise ctx.fail(kn, where, f"unknown key (valid: {', '.join(valid)})")
 
 
 def _section(
-    ctx: _Ctx,
-    node: yaml.Node,
-    where: str,
-    spec: Mapping[str, tuple[str, Check]],
-    required: tuple[str, ...] = (),
-) -> dict[str, Any]:
-    """Check a mapping against ``spec`` (yaml key -> (attribute, check))."""
+    ctx: _Ctx, node: yaml.Node, where: str, cls: type, prefix: str
+) -> tuple[dict[str, Any], dict[str, yaml.Node]]:
+    """Check a mapping against the keys ``cls`` declares: the values by key name (a key
+    absent whose config default is not the field's included) and the value nodes."""
     m = ctx.mapping(node, where)
-    for key, (kn, _) in m.items():
-        if key not in spec:
-            raise ctx.fail(
-                kn, f"{where}.{key}" if where else key, f"unknown key (valid: {', '.join(spec)})"
-            )
-    for key in required:
-        if key not in m:
-            raise ctx.fail(node, where, f"missing required key {key!r}")
-    return {
-        spec[k][0]: spec[k][1](ctx, vn, f"{where}.{k}" if where else k) for k, (_, vn) in m.items()
-    }
+    by_name = {e.name: e for e in entries(cls)}
+    for k, (kn, _) in m.items():
+        if k not in by_name:
+            _known(ctx, kn, f"{where}.{k}" if where else k, prefix + k, list(by_name))
+    for e in by_name.values():
+        if e.required and e.name not in m:
+            raise ctx.fail(node, where, f"missing required key {e.name!r}")
+    kw = {k: ctx.value(vn, f"{where}.{k}" if where else k, by_name[k]) for k, (_, vn) in m.items()}
+    for e in by_name.values():
+        if e.name not in kw and e.key.absent:
+            kw[e.name] = e.key.absent[0]
+    return kw, {k: vn for k, (_, vn) in m.items()}
 
 
-_NAME = r"[A-Za-z0-9_.\-]{1,32}"
-
-PORT_SPEC: dict[str, tuple[str, Check]] = {
-    "name": ("name", _str(_NAME, "a port name (letters, digits, _ . -; at most 32)")),
-    "url": ("url", _str()),
-    "protocol": ("protocol", _str()),
-    "role": ("role", _enum("uut", "reference", "aux")),
-    "baud": ("baud", _num(50, 4_000_000, integer=True)),
-    "checksum": ("checksum", _enum("required", "optional")),
-    "max_length": ("max_length", _num(8, 1024, integer=True)),
-    "rate_hz": ("rate_hz", _num(0.0, 1000.0, lo_open=True, optional=True)),
-    "stale_timeout_s": ("stale_timeout_s", _num(0.0, 3600.0, lo_open=True)),
-    "rest_s": ("rest_s", _num(0.0, 1.0)),
-}
-
-
-def _heading_source(ctx: _Ctx, node: yaml.Node, where: str) -> Any:
-    v = ctx.scalar(node, where)
-    if v == "auto" or (isinstance(v, str) and re.fullmatch(_NAME, v)):
-        return v
-    raise ctx.fail(node, where, f"expected auto or a port name, got {v!r}")
-
-
-UUT_SPEC: dict[str, tuple[str, Check]] = {
-    "uut": ("uut", _str(_NAME, "a port name")),
-    "reference": ("reference", _str(_NAME, "a port name")),
-    "model": ("model", _enum("EM1", "EM2", "EM3", "EM4")),
-    "reference_field": ("reference_field", _enum("bottom", "water", "speed", "gnss")),
-    "uut_source": ("uut_source", _enum("VHW", "VBW")),
-    "talker": ("talker", _or_null(_str(r"[A-Z]{2}", "two uppercase letters"))),
-    "pty": ("pty", _opt_str()),
-    "tcp": ("tcp", _hostport),
-    "udp": ("udp", _hostport),
-    "component": ("component", _enum("longitudinal", "magnitude")),
-    "current": ("current", _bool_or_auto),
-    "heading": ("heading", _heading_source),
-    "magnetic_variation_deg": (
-        "magnetic_variation_deg",
-        _num(-180.0, 180.0, optional=True),
-    ),
-    "lag": ("lag_s", _lag),
-    "lag_window_s": ("lag_window_s", _num(10.0, 7200.0)),
-    "max_lag_s": ("max_lag_s", _num(0.0, 30.0, lo_open=True)),
-    "learn": ("learn", _bool),
-    "apply": ("apply", _bool),
-    "min_ref_speed_mps": ("min_ref_speed_mps", _num(0.0, 20.0)),
-    "min_sog_mps": ("min_sog_mps", _num(0.0, 20.0)),
-    "max_param_std": ("max_param_std", _param_std),
-    "excitation_half_life_samples": ("excitation_half_life_samples", _num(1.0, 86400.0)),
-    "r_raw_mps": ("r_raw_mps", _num(0.0, 10.0, lo_open=True)),
-    "r_ref_mps": ("r_ref_mps", _num(0.0, 10.0, lo_open=True, optional=True)),
-    "q_params": ("q_params", _num(0.0, 1.0)),
-    "p0": ("p0", _num(0.0, 100.0, lo_open=True)),
-    "current_psd_m2ps3": ("current_psd_m2ps3", _num(0.0, 1.0)),
-    "persist_interval_s": ("persist_interval_s", _num(0.0, 86400.0)),
-    "persist_min_change_sigma": ("persist_min_change_sigma", _num(0.0, 100.0)),
-    "persist_min_change_abs": ("persist_min_change_abs", _num(0.0, 10.0)),
-    "validation_s": ("validation_s", _num(0.1, 3600.0)),
-    "average_s": ("average_s", _num(0.0, 600.0, optional=True)),
-    "recheck_s": ("recheck_s", _num(1.0, 86400.0)),
-    "gate_nis": ("gate_nis", _num(1.0, 1e6)),
-    "relearn_gates": ("relearn_gates", _num(1, 100_000, integer=True)),
-    "low_speed_mps": ("low_speed_mps", _num(0.0, 5.0)),
-    "max_speed_mps": ("max_speed_mps", _num(0.0, 50.0, lo_open=True)),
-    "stuck_s": ("stuck_s", _num(1.0, 86400.0)),
-    "zero_s": ("zero_s", _num(1.0, 86400.0)),
-    "max_accel_mps2": ("max_accel_mps2", _num(0.0, 100.0, lo_open=True)),
-    "max_turn_rate_dps": ("max_turn_rate_dps", _num(0.0, 360.0, lo_open=True)),
-}
-"""The ``calibration`` keys (yaml key -> (attribute, check)); README's table lists them."""
-
-OUTPUT_SPEC: dict[str, tuple[str, Check]] = {
-    "pty": ("pty", _opt_str()),
-    "pty_mode": ("pty_mode", _num(0, 0o777, integer=True)),
-    "pty_group": ("pty_group", _opt_str()),
-    "tcp": ("tcp", _hostport),
-    "udp": ("udp", _hostport),
-    "stdout": ("stdout", _bool),
-    "talker": ("talker", _str(r"[A-Z]{2}", "two uppercase letters")),
-    "maker": ("maker", _str(r"[A-Z]{3}", "three uppercase letters")),
-    "status_interval_s": ("status_interval_s", _num(0.0, 3600.0)),
-    "speed": ("speed", _enum("each", "fused", "both")),
-    "fused_talker": ("fused_talker", _str(r"[A-Z]{2}", "two uppercase letters")),
-}
-
-TOP_SPEC: dict[str, tuple[str, Check]] = {
-    "state_file": ("state_path", _str()),
-    "control_socket": ("control_socket", _str()),
-    "status_socket": ("status_socket", _opt_str()),
-    "log_format": ("log_format", _enum("auto", "json", "console")),
-    "log_level": ("log_level", _enum("debug", "info", "warning", "error")),
-    "status_interval_s": ("status_interval_s", _num(0.5, 3600.0)),
-}
-
-
-def _values(ctx: _Ctx, node: yaml.Node, where: str) -> dict[str, yaml.Node]:
-    """The value node of each key of a (checked) mapping, for precise line numbers."""
-    return {k: vn for k, (_, vn) in ctx.mapping(node, where).items()}
+def _build(
+    cls: type, kw: Mapping[str, Any], extra: Mapping[tuple[str, ...], Any] | None = None
+) -> Any:
+    """``cls`` from checked values by key name, and fields that are no keys by attribute
+    path in ``extra``."""
+    attrs = {e.name: e.attrs for e in entries(cls)}
+    return build(cls, {**{attrs[k]: v for k, v in kw.items()}, **(extra or {})})
 
 
 def _check_uut(
@@ -445,7 +375,7 @@ def _check_uut(
     at: Mapping[str, yaml.Node],
     where: str,
     by_name: Mapping[str, PortConfig],
-) -> UutConfig:
+) -> None:
     """Cross-check one ``calibration`` entry against the ports."""
     uut, ref = kw["uut"], kw["reference"]
     if uut not in by_name:
@@ -503,14 +433,13 @@ def _check_uut(
             f"bottom track needs a DVL reference, {ref!r} is {rport.protocol}",
         )
     max_lag = kw.get("max_lag_s", _UUT.max_lag_s)
-    if kw.get("lag_s") is not None and kw["lag_s"] > max_lag:
+    if kw.get("lag") is not None and kw["lag"] > max_lag:
         raise ctx.fail(
             at["lag"],
             f"{where}.lag",
-            f"{kw['lag_s']!r} s is beyond max_lag_s ({max_lag!r} s): the reference is "
+            f"{kw['lag']!r} s is beyond max_lag_s ({max_lag!r} s): the reference is "
             "buffered only that far back",
         )
-    return UutConfig(**kw)
 
 
 def load_config(path: str | Path) -> Config:
@@ -540,56 +469,41 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         ) from None
     finally:
         loader.dispose()
-    ctx = _Ctx(path, loader)
+    ctx = _Ctx(path, loader, base)
     if root is None:
         raise ConfigError(f"{path}:1: the config is empty")
     top = ctx.mapping(root, "")
-    known = {"ports", "calibration", "outputs", *TOP_SPEC}
-    for key, (kn, _) in top.items():
-        if key not in known:
-            raise ctx.fail(kn, key, f"unknown key (valid: {', '.join(sorted(known))})")
+    top_keys = {e.name: e for e in entries(Config)}
+    known = {"ports", "calibration", "outputs", *top_keys}
+    for k, (kn, _) in top.items():
+        if k not in known:
+            _known(ctx, kn, k, k, sorted(known))
     if "ports" not in top:
         raise ctx.fail(root, "", "missing required key 'ports'")
-    protocols = set(protocol_names())
     ports: list[PortConfig] = []
     for i, node in enumerate(ctx.sequence(top["ports"][1], "ports")):
         where = f"ports[{i}]"
-        kw = _section(ctx, node, where, PORT_SPEC, ("name", "url", "protocol", "role"))
-        at = _values(ctx, node, where)
-        if kw["protocol"] not in protocols:
-            raise ctx.fail(
-                at["protocol"],
-                f"{where}.protocol",
-                f"{kw['protocol']!r} is not one of {', '.join(sorted(protocols))}",
-            )
+        kw, at = _section(ctx, node, where, PortConfig, "ports[].")
         if any(p.name == kw["name"] for p in ports):
             raise ctx.fail(at["name"], f"{where}.name", f"duplicate port name {kw['name']!r}")
-        if base is not None and "://" not in kw["url"] and not kw["url"].startswith("/"):
-            kw["url"] = str(base / kw["url"])
-        ports.append(PortConfig(**kw))
+        ports.append(_build(PortConfig, kw))
     if not ports:
         raise ctx.fail(top["ports"][1], "ports", "at least one port is needed")
     by_name = {p.name: p for p in ports}
-    uuts: list[UutConfig] = []
+    cals: list[dict[str, Any]] = []
     cal_nodes = ctx.sequence(top["calibration"][1], "calibration") if "calibration" in top else []
     for i, node in enumerate(cal_nodes):
         where = f"calibration[{i}]"
-        kw = _section(ctx, node, where, UUT_SPEC, ("uut", "reference"))
-        if base is not None and kw.get("pty") and not kw["pty"].startswith("/"):
-            kw["pty"] = str(base / kw["pty"])
-        uut = _check_uut(ctx, kw, _values(ctx, node, where), where, by_name)
-        if any(u.uut == uut.uut for u in uuts):
-            raise ctx.fail(
-                _values(ctx, node, where)["uut"], f"{where}.uut", f"{uut.uut!r} is calibrated twice"
-            )
-        uuts.append(uut)
+        kw, at = _section(ctx, node, where, UutConfig, "calibration[].")
+        _check_uut(ctx, kw, at, where, by_name)
+        if any(c["uut"] == kw["uut"] for c in cals):
+            raise ctx.fail(at["uut"], f"{where}.uut", f"{kw['uut']!r} is calibrated twice")
+        cals.append(kw)
     outputs = OutputConfig()
     if "outputs" in top:
-        kw = _section(ctx, top["outputs"][1], "outputs", OUTPUT_SPEC)
-        if base is not None and kw.get("pty") and not kw["pty"].startswith("/"):
-            kw["pty"] = str(base / kw["pty"])
-        outputs = OutputConfig(**kw)
-        ptys = [u.pty for u in uuts if u.pty]
+        kw, _ = _section(ctx, top["outputs"][1], "outputs", OutputConfig, "outputs.")
+        outputs = _build(OutputConfig, kw)
+        ptys = [c["pty"] for c in cals if c.get("pty")]
         if outputs.pty in ptys or len(set(ptys)) != len(ptys):
             raise ctx.fail(
                 top["outputs"][1],
@@ -602,38 +516,91 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
                 "outputs.speed",
                 "a port called 'fused' clashes with the fused output: rename the port",
             )
+    uuts: list[UutConfig] = []
+    for kw in cals:  # what a log takes from the rest of the config
+        reference = by_name[kw["reference"]]
+        if kw["current"] == "auto":
+            kw["current"] = heading_expected(
+                kw.get("heading", _UUT.heading),
+                kw.get("reference_field", _UUT.reference_field),
+                reference.protocol,
+            )
+        if kw["talker"] is None:
+            kw["talker"] = outputs.talker
+        extra: dict[tuple[str, ...], Any] = {
+            ("settings", "ref_stale_s"): reference.settings.stale_timeout_s,
+            ("settings", "maker"): outputs.maker,
+            ("settings", "status_sentence_interval_s"): outputs.status_sentence_interval_s,
+        }
+        uuts.append(_build(UutConfig, kw, extra))
     rest = {
-        TOP_SPEC[k][0]: TOP_SPEC[k][1](ctx, vn, k) for k, (_, vn) in top.items() if k in TOP_SPEC
+        top_keys[k].attrs[0]: ctx.value(vn, k, top_keys[k])
+        for k, (_, vn) in top.items()
+        if k in top_keys
     }
-    for key in ("state_path", "control_socket", "status_socket"):
-        if base is not None and rest.get(key) and not rest[key].startswith("/"):
-            rest[key] = str(base / rest[key])
     return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
 
 
-def _dump_section(obj: Any, spec: Mapping[str, tuple[str, Check]]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, (attr, _) in spec.items():
-        value = getattr(obj, attr)
-        if attr == "lag_s" and value is None:
-            value = "auto"
-        elif isinstance(value, Mapping):
-            value = dict(value)
-        out[key] = value
-    return out
+# ------------------------------------------------------------------ dump and table
+
+
+def _shown(e: Entry, value: Any) -> Any:
+    if e.key.show is not None:
+        value = e.key.show(value)
+    return dict(value) if isinstance(value, Mapping) else value
+
+
+def _dump_section(obj: Any, cls: type) -> dict[str, Any]:
+    return {e.name: _shown(e, get(obj, e.attrs)) for e in entries(cls)}
 
 
 def dump_config(config: Config) -> str:
     """The effective configuration (every key, defaults filled in) as YAML.
 
-    Paths are written as loaded (already resolved), so
-    ``parse_config(dump_config(c), c.path) == c``.
+    Paths are written as loaded (already resolved), ``current: auto`` and a log's
+    ``talker`` as they were resolved, so ``parse_config(dump_config(c), c.path) == c``.
     """
     doc: dict[str, Any] = {
-        "ports": [_dump_section(p, PORT_SPEC) for p in config.ports],
-        "calibration": [_dump_section(u, UUT_SPEC) for u in config.calibration],
-        "outputs": _dump_section(config.outputs, OUTPUT_SPEC),
-        **_dump_section(config, TOP_SPEC),
+        "ports": [_dump_section(p, PortConfig) for p in config.ports],
+        "calibration": [_dump_section(u, UutConfig) for u in config.calibration],
+        "outputs": _dump_section(config.outputs, OutputConfig),
+        **_dump_section(config, Config),
     }
     name = " ".join(config.path.splitlines())
     return f"# emlogd effective configuration of {name}\n" + yaml.safe_dump(doc, sort_keys=False)
+
+
+def _cell(value: Any) -> str:
+    """A value as a config would write it."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k}: {_cell(v)}" for k, v in value.items()) + "}"
+    return str(value)
+
+
+def key_table() -> str:
+    """Every config key as a Markdown table (README's "Configuration reference")."""
+    rows = [
+        "| Key | Values | Default | Unit | Meaning |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for prefix, cls in SECTIONS:
+        for e in entries(cls):
+            shown = e.key.text or f"`{_cell(_shown(e, e.absent))}`"
+            default = "required" if e.required else shown
+            rows.append(
+                f"| `{prefix}{e.name}` | {e.key.check.text} | {default} | {e.key.unit} "
+                f"| {e.key.doc} |"
+            )
+    return "\n".join(rows) + "\n"
+
+
+if __name__ == "__main__":  # python -m emlogd.config: the table README's reference holds
+    import sys
+
+    sys.stdout.write(key_table())

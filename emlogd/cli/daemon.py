@@ -34,7 +34,8 @@ def cmd_check_config(args: argparse.Namespace) -> int:
     cfg = load_config(args.file)
     ports = ", ".join(f"{p.name} ({p.protocol}, {p.role})" for p in cfg.ports)
     uuts = ", ".join(
-        f"{u.uut} {u.model} vs {u.reference} ({u.reference_field})" for u in cfg.calibration
+        f"{u.port} {u.model} vs {u.reference_port} ({u.reference_field})"
+        for u in (c.settings for c in cfg.calibration)
     )
     sys.stdout.write(f"{args.file}: ok\n  ports: {ports}\n  calibration: {uuts or 'none'}\n")
     return 0

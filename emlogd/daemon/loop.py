@@ -263,7 +263,7 @@ class Daemon:
                 p.name,
                 p.url,
                 baudrate=p.baud,
-                stale_timeout_s=p.stale_timeout_s,
+                stale_timeout_s=p.settings.stale_timeout_s,
                 clock=self.timeline,
                 monotonic=self.monotonic,
             )
@@ -341,8 +341,8 @@ class Daemon:
             )
         if out.stdout:
             specs[("stdout",)] = stdout_sink
-        for u in cfg.calibration:  # a log's own outputs, keyed ("uut", name, ...)
-            name = u.uut
+        for c in cfg.calibration:  # a log's own outputs, keyed ("uut", name, ...)
+            name, u = c.uut, c.outputs
             if u.pty:
                 specs[("uut", name, "pty", u.pty, out.pty_mode, out.pty_group)] = functools.partial(
                     PtySink, u.pty, mode=out.pty_mode, group=out.pty_group
@@ -411,7 +411,7 @@ class Daemon:
 
     def _loop(self) -> None:
         cfg = self.config
-        next_status = self.monotonic() + cfg.status_interval_s
+        next_status = self.monotonic() + cfg.status_log_interval_s
         wd = self.notifier.watchdog_interval_s
         next_watchdog = self.monotonic() + wd if wd else None
         next_housekeeping = -math.inf
@@ -449,7 +449,7 @@ class Daemon:
             assert self.pipeline is not None
             self._handle(self.pipeline.tick(self.timeline(), self.scratch))
             if now >= next_status:
-                next_status = now + self.config.status_interval_s
+                next_status = now + self.config.status_log_interval_s
                 self._status_event()
             if next_watchdog is not None and now >= next_watchdog:
                 self.notifier.watchdog()

@@ -53,11 +53,11 @@ calibration:
   - {{uut: emlog2, reference: dvl, model: EM3, lag: {lag2}, excitation_half_life_samples: 600,
      current: false,
      validation_s: {val}, recheck_s: {recheck}}}
-outputs: {{pty: out/emlog0, status_interval_s: 0.5}}
+outputs: {{pty: out/emlog0, status_sentence_interval_s: 0.5}}
 state_file: state/state.yaml
 control_socket: run/control.sock
 log_format: json
-status_interval_s: 5
+status_log_interval_s: 5
 """
 
 

@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 from calib.models import Params
+from emlogd.pipeline.keys import key, number
 
 QUANTUM_MPS = 0.006
 """A change of a reading smaller than this is quantisation, not motion (0.01 kn is
@@ -52,7 +53,12 @@ class Envelope:
     max_abs_b_mps: float = 0.5
     max_abs_a_spm: float = 0.1
     max_current_mps: float = 3.0
-    max_speed_mps: float = 8.0
+    max_speed_mps: float = key(
+        8.0,
+        check=number(0.0, 50.0, lo_open=True),
+        unit="m/s",
+        doc="The sensor's range: a reading above it is refused, a corrected speed clamped.",
+    )
 
     def check(self, params: Params, current_mps: tuple[float, float] | None = None) -> str:
         """``""`` when the calibration is inside the envelope, else why not."""

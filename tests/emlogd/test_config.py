@@ -5,11 +5,24 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
 from drivers.errors import ConfigError
-from emlogd.config import dump_config, load_config, parse_config
+from emlogd.config import (
+    SECTIONS,
+    Config,
+    OutputConfig,
+    PortConfig,
+    UutConfig,
+    dump_config,
+    key_table,
+    load_config,
+    parse_config,
+)
+from emlogd.pipeline.keys import entries
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "emlogd.yaml"
+README = Path(__file__).resolve().parents[2] / "README.md"
 
 BASE = """\
 ports:
@@ -25,7 +38,7 @@ def test_example_config_loads() -> None:
     pty path and mode, and the state path."""
     cfg = load_config(EXAMPLE)
     assert [p.name for p in cfg.ports] == ["emlog1", "emlog2", "dvl"]
-    assert [(u.uut, u.model, u.lag_s) for u in cfg.calibration] == [
+    assert [(u.uut, u.settings.model, u.settings.lag_s) for u in cfg.calibration] == [
         ("emlog1", "EM3", None),
         ("emlog2", "EM3", None),
     ]
@@ -49,8 +62,8 @@ def test_defaults_and_relative_paths(tmp_path: Path) -> None:
     assert cfg.ports[1].url == "socket://h:1"
     assert cfg.outputs.pty == str(tmp_path / "out" / "emlog0")
     assert cfg.state_path == str(tmp_path / "state.yaml")
-    assert cfg.calibration[0].lag_s == 3.2
-    assert cfg.ports[0].checksum == "required" and cfg.ports[0].baud == 9600
+    assert cfg.calibration[0].settings.lag_s == 3.2
+    assert cfg.ports[0].settings.checksum == "required" and cfg.ports[0].baud == 9600
 
 
 INVALID: list[tuple[str, str, str]] = [
@@ -98,7 +111,11 @@ INVALID: list[tuple[str, str, str]] = [
     ("udp port", BASE + "outputs: {udp: 'host:70000'}\n", "outputs.udp"),
     ("unknown output key", BASE + "outputs: {serial: /dev/x}\n", "outputs.serial: unknown key"),
     ("log level", BASE + "log_level: loud\n", "log_level: 'loud'"),
-    ("status interval", BASE + "status_interval_s: 0\n", "status_interval_s"),
+    ("status log interval", BASE + "status_log_interval_s: 0\n", "status_log_interval_s: 0 is out of range"),
+    ("status sentence interval", BASE + "outputs: {status_sentence_interval_s: -1}\n", "outputs.status_sentence_interval_s: -1 is out of range"),
+    ("param std not a map", BASE.replace("reference: dvl}", "reference: dvl, max_param_std: 0.1}"), "calibration[0].max_param_std: expected a mapping"),
+    ("param std too large", BASE.replace("reference: dvl}", "reference: dvl, max_param_std: {m: 11}}"), "calibration[0].max_param_std.m: 11 is out of range"),
+    ("scalar given a list", BASE.replace("reference: dvl}", "reference: dvl, gate_nis: [1]}"), "calibration[0].gate_nis: expected a single value"),
     ("numeric key", BASE + "1: 2\n", "1: unknown key"),
     ("list key", BASE + "? [a, b]\n: 2\n", "keys must be strings"),
     ("negative lag", BASE.replace("reference: dvl}", "reference: dvl, lag: -1.5}"), "calibration[0].lag: expected auto or seconds in [0, 30]"),
@@ -198,7 +215,7 @@ def test_an_emlog_with_role_uut_may_be_the_speed_reference() -> None:
         BLOCK
         + "  - {uut: emlog2, reference: emlog1, reference_field: speed, lag: 0.4, max_lag_s: 2}\n"
     )
-    assert [(u.uut, u.reference, u.reference_field) for u in cfg.calibration] == [
+    assert [(u.uut, u.reference, u.settings.reference_field) for u in cfg.calibration] == [
         ("emlog1", "dvl", "bottom"),
         ("emlog2", "emlog1", "speed"),
     ]
@@ -223,16 +240,65 @@ def test_dump_round_trips_non_defaults(tmp_path: Path) -> None:
     f = tmp_path / "c.yaml"
     f.write_text(text)
     cfg = load_config(f)
-    assert cfg.calibration[0].lag_s == 3.2 and cfg.outputs.pty is None
+    assert cfg.calibration[0].settings.lag_s == 3.2 and cfg.outputs.pty is None
     assert cfg.state_path == str(tmp_path / "s" / "state.yaml")
     assert cfg.status_socket == str(tmp_path / "run" / "status.sock")
     assert parse_config(dump_config(cfg), cfg.path) == cfg
 
 
-def test_every_calibration_key_is_documented_in_the_example() -> None:
-    """examples/emlogd.yaml, the reference for the keys, shows every calibration key."""
-    from emlogd.config import UUT_SPEC
-
+def test_every_calibration_key_is_shown_in_the_example() -> None:
+    """examples/emlogd.yaml shows every calibration key."""
     text = EXAMPLE.read_text()
-    missing = [k for k in UUT_SPEC if f"    {k}:" not in text and f"  - {k}:" not in text]
+    names = [e.name for e in entries(UutConfig)]
+    missing = [k for k in names if f"    {k}:" not in text and f"  - {k}:" not in text]
     assert missing == []
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (
+            BASE + "status_interval_s: 10\n",
+            "bad.yaml:6: status_interval_s: renamed: use status_log_interval_s",
+        ),
+        (
+            BASE + "outputs:\n  status_interval_s: 1\n",
+            "bad.yaml:7: outputs.status_interval_s: renamed: use "
+            "outputs.status_sentence_interval_s",
+        ),
+    ],
+)
+def test_renamed_keys_name_the_new_key(text: str, expected: str) -> None:
+    """The two keys once both called status_interval_s are refused with a one-line error that
+    names the new key."""
+    with pytest.raises(ConfigError) as exc:
+        parse_config(text, "bad.yaml")
+    assert str(exc.value) == expected
+
+
+def test_readme_reference_is_the_key_table() -> None:
+    """README's "Configuration reference" is exactly key_table() (regenerate it with
+    ``python -m emlogd.config``)."""
+    text = README.read_text(encoding="utf-8")
+    begin, end = "<!-- key-table: begin -->\n", "<!-- key-table: end -->"
+    assert begin in text and end in text
+    table = text.split(begin, 1)[1].split(end, 1)[0]
+    assert table == key_table()
+
+
+def test_every_key_has_a_doc_and_a_check() -> None:
+    """Each key's declaration carries a sentence of doc and words for its values."""
+    for prefix, cls in SECTIONS:
+        for e in entries(cls):
+            assert e.key.doc.endswith(".") and e.key.check.text, prefix + e.name
+            assert "|" not in e.key.doc + e.key.check.text, prefix + e.name
+
+
+def test_dump_writes_every_key() -> None:
+    """The dump has each section's every key, in the declarations' order."""
+    dumped = yaml.safe_load(dump_config(load_config(EXAMPLE)))
+    top = [e.name for e in entries(Config)]
+    assert list(dumped) == ["ports", "calibration", "outputs", *top]
+    assert list(dumped["ports"][0]) == [e.name for e in entries(PortConfig)]
+    assert list(dumped["calibration"][1]) == [e.name for e in entries(UutConfig)]
+    assert list(dumped["outputs"]) == [e.name for e in entries(OutputConfig)]

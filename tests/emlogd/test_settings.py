@@ -1,16 +1,20 @@
-"""Config → pipeline settings."""
+"""Config → pipeline settings: every key declared once reaches the object that uses it."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
 
-from emlogd.config import UUT_SPEC, load_config, parse_config
-from emlogd.pipeline.core import REF_NOISE_MPS, UutSettings
-from emlogd.settings import pipeline_from_config
+from drivers.errors import ConfigError
+from emlogd.config import SECTIONS, Config, load_config, parse_config
+from emlogd.pipeline.core import REF_NOISE_MPS, Pipeline, UutSettings
+from emlogd.pipeline.keys import entries
+from emlogd.settings import fusion_from_config, pipeline_from_config
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "emlogd.yaml"
 
@@ -28,86 +32,178 @@ def test_pipeline_settings_from_the_example() -> None:
     assert u.kf.r_raw_mps2 == pytest.approx(0.0514**2)
     assert u.kf.q_params == 1e-7 and u.kf.p0 == 0.25
     assert u.talker == "VW" and u.maker == "EML"
+    assert u.ref_stale_s == 3 and u.status_sentence_interval_s == 1
 
 
-# every calibration key off its default: (yaml key, value, where it must arrive)
-OFF_DEFAULT: dict[str, tuple[str, object]] = {
-    "model": ("EM2", "model"),
-    "reference_field": ("gnss", "reference_field"),
-    "uut_source": ("VBW", "uut_source"),
-    "talker": ("VD", "talker"),
-    "component": ("magnitude", "component"),
-    "current": (True, "current"),
-    "heading": ("log", "heading"),
-    "magnetic_variation_deg": (-3.5, "magnetic_variation_deg"),
-    "lag": (2.5, "lag_s"),
-    "lag_window_s": (100.0, "lag_window_s"),
-    "max_lag_s": (5.0, "max_lag_s"),
-    "learn": (False, "learn"),
-    "apply": (False, "apply"),
-    "min_ref_speed_mps": (0.7, "min_ref_speed_mps"),
-    "min_sog_mps": (1.1, "min_sog_mps"),
-    "max_param_std": ({"a": 0.5, "m": 0.5, "b": 0.5}, "max_param_std"),
-    "excitation_half_life_samples": (99.0, "excitation_half_life_samples"),
-    "r_raw_mps": (0.2, "kf.r_raw_mps2"),
-    "r_ref_mps": (0.4, "kf.r_ref_mps2"),
-    "q_params": (1e-9, "kf.q_params"),
-    "p0": (0.5, "kf.p0"),
-    "current_psd_m2ps3": (1e-6, "kf.current_psd_m2ps3"),
-    "persist_interval_s": (7.0, "persist_interval_s"),
-    "persist_min_change_sigma": (3.0, "persist_min_change_sigma"),
-    "persist_min_change_abs": (0.01, "persist_min_change_abs"),
-    "validation_s": (33.0, "validation_s"),
-    "average_s": (5.0, "average_s"),
-    "recheck_s": (44.0, "recheck_s"),
-    "gate_nis": (9.0, "gate_nis"),
-    "relearn_gates": (7, "relearn_gates"),
-    "low_speed_mps": (0.5, "low_speed_mps"),
-    "max_speed_mps": (12.0, "envelope.max_speed_mps"),
-    "stuck_s": (30.0, "stuck_s"),
-    "zero_s": (20.0, "zero_s"),
-    "max_accel_mps2": (3.0, "max_accel_mps2"),
-    "max_turn_rate_dps": (20.0, "max_turn_rate_dps"),
+def test_the_pipeline_gets_the_configs_own_objects() -> None:
+    """No copying layer: the pipeline's settings are the objects the config holds."""
+    cfg = load_config(EXAMPLE)
+    ports, uuts = pipeline_from_config(cfg)
+    assert all(p is c.settings for p, c in zip(ports, cfg.ports, strict=True))
+    assert all(u is c.settings for u, c in zip(uuts, cfg.calibration, strict=True))
+
+
+# Every key of every section off its default: section -> key -> (value, where it must
+# arrive, what must be there). Where: a root (below) and an attribute path. The first
+# log ("log") sets every calibration key; the second ("log2") none, so that it shows the
+# outputs keys every log inherits.
+SAME = object()
+OFF_DEFAULT: dict[str, dict[str, tuple[Any, str, Any]]] = {
+    "ports[].": {
+        "name": ("log", "port.name", SAME),
+        "protocol": ("nmea0183", "port.protocol", SAME),
+        "checksum": ("optional", "port.checksum", SAME),
+        "max_length": (100, "port.max_length", SAME),
+        "stale_timeout_s": (7.0, "log.ref_stale_s", SAME),
+        "url": ("dev/log", "portcfg.url", "TMP/dev/log"),
+        "role": ("uut", "portcfg.role", SAME),
+        "baud": (4800, "portcfg.baud", SAME),
+        "rate_hz": (2.0, "portcfg.rate_hz", SAME),
+        "rest_s": (0.1, "portcfg.rest_s", SAME),
+    },
+    "calibration[].": {
+        "uut": ("log", "log.port", SAME),
+        "reference": ("log", "log.reference_port", SAME),
+        "model": ("EM2", "log.model", SAME),
+        "reference_field": ("gnss", "log.reference_field", SAME),
+        "uut_source": ("VBW", "log.uut_source", SAME),
+        "talker": ("VD", "log.talker", SAME),
+        "component": ("magnitude", "log.component", SAME),
+        "current": (False, "log.current", SAME),
+        "heading": ("log2", "log.heading", SAME),
+        "magnetic_variation_deg": (-3.5, "log.magnetic_variation_deg", SAME),
+        "lag": (2.5, "log.lag_s", SAME),
+        "lag_window_s": (100.0, "log.lag_window_s", SAME),
+        "max_lag_s": (5.0, "log.max_lag_s", SAME),
+        "learn": (False, "log.learn", SAME),
+        "apply": (False, "log.apply", SAME),
+        "min_ref_speed_mps": (0.7, "log.min_ref_speed_mps", SAME),
+        "min_sog_mps": (1.1, "log.min_sog_mps", SAME),
+        "max_param_std": ({"a": 0.5, "m": 0.5, "b": 0.5}, "log.max_param_std", SAME),
+        "excitation_half_life_samples": (99.0, "log.excitation_half_life_samples", SAME),
+        "r_raw_mps": (0.2, "log.kf.r_raw_mps2", 0.2**2),
+        "r_ref_mps": (0.4, "log.kf.r_ref_mps2", 0.4**2),
+        "q_params": (1e-9, "log.kf.q_params", SAME),
+        "p0": (0.5, "log.kf.p0", SAME),
+        "current_psd_m2ps3": (1e-6, "log.kf.current_psd_m2ps3", SAME),
+        "persist_interval_s": (7.0, "log.persist_interval_s", SAME),
+        "persist_min_change_sigma": (3.0, "log.persist_min_change_sigma", SAME),
+        "persist_min_change_abs": (0.01, "log.persist_min_change_abs", SAME),
+        "validation_s": (33.0, "log.validation_s", SAME),
+        "average_s": (5.0, "log.average_s", SAME),
+        "recheck_s": (44.0, "log.recheck_s", SAME),
+        "gate_nis": (9.0, "log.gate_nis", SAME),
+        "relearn_gates": (7, "log.relearn_gates", SAME),
+        "low_speed_mps": (0.5, "log.low_speed_mps", SAME),
+        "max_speed_mps": (12.0, "log.envelope.max_speed_mps", SAME),
+        "stuck_s": (30.0, "log.stuck_s", SAME),
+        "zero_s": (20.0, "log.zero_s", SAME),
+        "max_accel_mps2": (3.0, "log.max_accel_mps2", SAME),
+        "max_turn_rate_dps": (20.0, "log.max_turn_rate_dps", SAME),
+        "pty": ("out/log", "logcfg.outputs.pty", "TMP/out/log"),
+        "tcp": (":10111", "logcfg.outputs.tcp", SAME),
+        "udp": ("10.0.0.255:10111", "logcfg.outputs.udp", SAME),
+    },
+    "outputs.": {
+        "pty": ("out/all", "cfg.outputs.pty", "TMP/out/all"),
+        "pty_mode": (0o600, "cfg.outputs.pty_mode", SAME),
+        "pty_group": ("nmea", "cfg.outputs.pty_group", SAME),
+        "tcp": (":10110", "cfg.outputs.tcp", SAME),
+        "udp": ("10.0.0.255:10110", "cfg.outputs.udp", SAME),
+        "stdout": (True, "cfg.outputs.stdout", SAME),
+        "talker": ("II", "log2.talker", SAME),
+        "maker": ("ABC", "log2.maker", SAME),
+        "status_sentence_interval_s": (2.5, "log2.status_sentence_interval_s", SAME),
+        "speed": ("both", "fusion.only", False),
+        "fused_talker": ("VW", "fusion.talker", SAME),
+    },
+    "": {
+        "state_file": ("s/state.yaml", "cfg.state_path", "TMP/s/state.yaml"),
+        "control_socket": ("run/c.sock", "cfg.control_socket", "TMP/run/c.sock"),
+        "status_socket": ("run/s.sock", "cfg.status_socket", "TMP/run/s.sock"),
+        "log_format": ("json", "cfg.log_format", SAME),
+        "log_level": ("debug", "cfg.log_level", SAME),
+        "status_log_interval_s": (3.0, "cfg.status_log_interval_s", SAME),
+    },
 }
-SQUARED = {"kf.r_raw_mps2", "kf.r_ref_mps2"}
+FIRST = {"": "", "ports[].": "ports", "calibration[].": "calibration", "outputs.": "outputs"}
 
 
-def _get(obj: object, path: str) -> object:
-    for part in path.split("."):
-        obj = getattr(obj, part)
+def _document() -> dict[str, Any]:
+    """The config with every key off its default, as a YAML document."""
+    doc: dict[str, Any] = {k: v for k, (v, _, _) in OFF_DEFAULT[""].items()}
+    doc["ports"] = [
+        {k: v for k, (v, _, _) in OFF_DEFAULT["ports[]."].items()},
+        {"name": "log2", "url": "/dev/log2", "protocol": "nmea0183", "role": "uut"},
+    ]
+    doc["calibration"] = [
+        {k: v for k, (v, _, _) in OFF_DEFAULT["calibration[]."].items()},
+        {"uut": "log2", "reference": "log2", "reference_field": "gnss"},
+    ]
+    doc["outputs"] = {k: v for k, (v, _, _) in OFF_DEFAULT["outputs."].items()}
+    return doc
+
+
+def _roots(cfg: Config) -> dict[str, Any]:
+    """Where the keys arrive: the pipeline built from ``cfg``, and the config (the daemon's)."""
+    pipeline = Pipeline(*pipeline_from_config(cfg), fusion=fusion_from_config(cfg))
+    return {
+        "port": pipeline.ports["log"],
+        "log": pipeline.uuts["log"].s,
+        "log2": pipeline.uuts["log2"].s,
+        "fusion": pipeline.fusion.s if pipeline.fusion is not None else None,
+        "portcfg": cfg.ports[0],
+        "logcfg": cfg.calibration[0],
+        "cfg": cfg,
+    }
+
+
+def _at(roots: dict[str, Any], where: str) -> Any:
+    root, *attrs = where.split(".")
+    obj = roots[root]
+    for a in attrs:
+        obj = getattr(obj, a) if obj is not None else None
     return obj
 
 
-def test_every_calibration_key_reaches_the_pipeline(tmp_path: Path) -> None:
-    """Each calibration key, set off its default, arrives in the pipeline's settings."""
-    daemon_only = {"pty", "tcp", "udp"}  # a log's own outputs: the daemon's, not the pipeline's
-    assert set(OFF_DEFAULT) == set(UUT_SPEC) - {"uut", "reference"} - daemon_only, (
-        "a key has no case here"
-    )
-    default = UutSettings(port="", reference_port="")
-    lines = [
-        "ports:",
-        "  - {name: log, url: /dev/log, protocol: nmea0183, role: uut}",
-        "calibration:",
-        "  - uut: log",
-        "    reference: log",
-    ]
-    for key, (value, where) in OFF_DEFAULT.items():
-        before = _get(default, where)
-        expected = value**2 if where in SQUARED else value  # type: ignore[operator]
-        assert before != expected, f"{key}: the test value is the default"
-        lines.append(
-            f"    {key}: {yaml.safe_dump(value, default_flow_style=True).split(chr(10))[0]}"
-        )
+def _load(tmp_path: Path, doc: dict[str, Any]) -> Config:
     f = tmp_path / "c.yaml"
-    f.write_text("\n".join(lines) + "\n")
-    _, (u,) = pipeline_from_config(load_config(f))
-    for key, (value, where) in OFF_DEFAULT.items():
-        expected = value**2 if where in SQUARED else value  # type: ignore[operator]
-        got = _get(u, where)
-        assert got == pytest.approx(expected) if isinstance(expected, float) else got == expected, (
-            key
-        )
+    f.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return load_config(f)
+
+
+def test_the_table_has_every_key() -> None:
+    """Each declared key has a case in OFF_DEFAULT (a new key needs one)."""
+    declared = {(prefix, e.name) for prefix, cls in SECTIONS for e in entries(cls)}
+    cased = {(prefix, k) for prefix, keys in OFF_DEFAULT.items() for k in keys}
+    assert cased == declared
+
+
+def test_every_key_reaches_the_pipeline_or_the_daemon(tmp_path: Path) -> None:
+    """A config with every key off its default builds a pipeline in which each key's value
+    arrived where it is used; without the key the value there is another one."""
+    doc = _document()
+    roots = _roots(_load(tmp_path, doc))
+    for prefix, keys in OFF_DEFAULT.items():
+        for k, (value, where, expected) in keys.items():
+            want = value if expected is SAME else expected
+            if isinstance(want, str) and want.startswith("TMP/"):
+                want = str(tmp_path / want[4:])
+            got = _at(roots, where)
+            assert got == (pytest.approx(want) if isinstance(want, float) else want), prefix + k
+            required = {e.name for _, c in SECTIONS for e in entries(c) if e.required}
+            if k in required:
+                continue
+            without = copy.deepcopy(doc)
+            section = without if prefix == "" else without[FIRST[prefix]]
+            del (section[0] if isinstance(section, list) else section)[k]
+            try:
+                other = _at(_roots(_load(tmp_path, without)), where)
+            except ConfigError as exc:
+                # gnss is what lets a log be its own reference
+                assert k == "reference_field", (prefix + k, exc)
+                continue
+            assert other != want, f"{prefix}{k}: the test value is the default"
 
 
 def test_defaults_are_the_pipelines() -> None:
@@ -115,15 +211,11 @@ def test_defaults_are_the_pipelines() -> None:
     text = (
         "ports:\n  - {name: log, url: /dev/log, protocol: nmea0183, role: uut}\n"
         "  - {name: dvl, url: /dev/dvl, protocol: pd6, role: reference}\n"
-        "calibration:\n  - {uut: log, reference: dvl}\n"
+        "calibration:\n  - {uut: log, reference: dvl, current: false}\n"
     )
     _, (u,) = pipeline_from_config(parse_config(text))
-    default = UutSettings(port="log", reference_port="dvl")
-    for f in dataclasses.fields(UutSettings):
-        if f.name in ("talker", "maker", "status_interval_s", "kf_config", "current"):
-            continue
-        assert getattr(u, f.name) == getattr(default, f.name), f.name
-    assert u.kf == default.kf
+    assert u == UutSettings(port="log", reference_port="dvl")
+    assert u.kf == UutSettings(port="log", reference_port="dvl").kf
 
 
 def test_gnss_reference_noise_default() -> None:
@@ -135,6 +227,13 @@ def test_gnss_reference_noise_default() -> None:
     _, (u,) = pipeline_from_config(parse_config(text))
     assert u.kf.r_ref_mps2 == pytest.approx(REF_NOISE_MPS["gnss"] ** 2)
     assert UutSettings(port="a", reference_port="b").kf.r_ref_mps2 == pytest.approx(0.01**2)
+
+
+def test_settings_built_in_code_tune_the_filter() -> None:
+    """UutSettings made directly (the offline commands) give the filter their noises."""
+    s = UutSettings(port="a", reference_port="b", r_raw_mps=0.1, q_params=1e-6)
+    assert s.kf.r_raw_mps2 == pytest.approx(0.01) and s.kf.q_params == 1e-6
+    assert dataclasses.replace(s, p0=0.5).kf.p0 == 0.5
 
 
 @pytest.mark.parametrize(

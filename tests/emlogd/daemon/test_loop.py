@@ -39,11 +39,11 @@ calibration:
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
   - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5, current: false,
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
-outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_interval_s: 0.2}}
+outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_sentence_interval_s: 0.2}}
 state_file: state/state.yaml
 control_socket: run/control.sock
 log_format: json
-status_interval_s: 1
+status_log_interval_s: 1
 """
 
 
