@@ -24,7 +24,7 @@ from drivers import make_decoder
 from drivers.io.capture import CaptureReader
 from drivers.nmea0183 import Vdr
 from emlogd.offline.importer import EXPEDITION, import_csv, import_nmea
-from emlogd.offline.jobs import _concat, calibrate, load_captures
+from emlogd.offline.jobs import calibrate, concat_usable, load_captures
 from emlogd.pipeline.core import UutSettings
 
 KN = 0.514444
@@ -149,7 +149,7 @@ def current_row(name: str, cap: Path) -> str:
     """Least squares over windows: the current where the heading determines it."""
     s = settings(True)
     recs = load_captures([str(cap)], s)
-    t, raw, ref, hd = _concat([r.aligned(0.0) for r in recs], True)
+    t, raw, ref, hd = concat_usable([r.aligned(0.0) for r in recs], True)
     a = block_average(t, raw, ref, hd, 20.0)
     vdr = vdr_series(cap)
     found: list[tuple[float, float, float]] = []

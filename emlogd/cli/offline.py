@@ -178,15 +178,17 @@ def _settings(args: argparse.Namespace, **over: Any) -> UutSettings:
     kw: dict[str, Any] = {
         "port": args.uut,
         "reference_port": args.ref,
-        "reference_field": args.ref_field or "bottom",
-        "uut_source": getattr(args, "uut_source", None) or "VHW",
-        "component": "magnitude" if getattr(args, "magnitude", False) else "longitudinal",
         "current": bool(getattr(args, "current", False)),
-        "heading": getattr(args, "heading", None) or "auto",
-        "magnetic_variation_deg": getattr(args, "variation", None),
     }
-    if getattr(args, "model", None):
-        kw["model"] = args.model
+    given = {
+        "reference_field": args.ref_field,
+        "uut_source": getattr(args, "uut_source", None),
+        "component": "magnitude" if getattr(args, "magnitude", False) else None,
+        "heading": getattr(args, "heading", None),
+        "magnetic_variation_deg": getattr(args, "variation", None),
+        "model": getattr(args, "model", None),
+    }
+    kw.update({k: v for k, v in given.items() if v is not None})
     kw.update(over)
     try:
         return UutSettings(**kw)

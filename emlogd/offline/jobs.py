@@ -305,7 +305,11 @@ def _block_means(
     )
 
 
-def _concat(pairs: Sequence[Aligned], current: bool) -> tuple[FloatArray, ...]:
+def concat_usable(pairs: Sequence[Aligned], current: bool) -> tuple[FloatArray, ...]:
+    """``(t, raw, ref, heading)`` of every usable aligned sample of ``pairs``, in order.
+
+    Usable: a reading with a reference, and a heading too when ``current``.
+    """
     masks = [p.usable(heading=current) for p in pairs]
     cat = [
         np.concatenate([getattr(p, k)[m] for p, m in zip(pairs, masks, strict=True)])
@@ -391,7 +395,7 @@ def calibrate(
         raise OfflineError(f"method must be ls or kf, not {method!r}")
     lag_report = find_lag(recs, settings, lag)
     pairs = [r.aligned(lag_report.lag_s) for r in recs]
-    _t, raw, ref, heading = _concat(pairs, settings.current)
+    _t, raw, ref, heading = concat_usable(pairs, settings.current)
     if raw.size == 0:
         why = " and a heading" if settings.current else ""
         raise OfflineError(

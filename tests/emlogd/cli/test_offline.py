@@ -7,7 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from emlogd.cli import main
+from emlogd.cli import build_parser, main
+from emlogd.cli.offline import _settings
+from emlogd.pipeline.core import UutSettings
 
 
 def test_calibrate_evaluate_crossval(
@@ -181,3 +183,13 @@ def test_malformed_records_are_skipped_or_strict(
         captured = capsys.readouterr()
         assert captured.err == f"emlogd {argv[0]}: error: {bad}:1001: missing payload\n"
         assert captured.out == ""
+
+
+@pytest.mark.parametrize("command", ["calibrate", "evaluate", "crossval"])
+def test_an_offline_job_takes_the_declared_defaults(command: str) -> None:
+    """Options left out give exactly the pipeline's declared UUT settings (no second copy)."""
+    argv = [command, "x.cap", "--uut", "log", "--ref", "dvl"]
+    if command == "evaluate":
+        argv += ["--params", "p.json"]
+    args = build_parser().parse_args(argv)
+    assert _settings(args) == UutSettings(port="log", reference_port="dvl")
