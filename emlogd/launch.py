@@ -252,10 +252,8 @@ class DaemonProcess:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        if self.proc.poll() is None:
-            with contextlib.suppress(LaunchError):  # killed: the exit code tells
-                self.stop()
-        self._close()
+        with contextlib.suppress(LaunchError):  # killed: the exit code tells
+            self.stop()
 
 
 @contextlib.contextmanager
