@@ -250,20 +250,19 @@ def _watch(
 ) -> tuple[dict[str, int], dict[str, object]]:
     """Read the daemon's output pty until the capture has been served; the counts of
     sentences read and the daemon's final answer to a status request."""
-    fd = -1
     status: dict[str, str] = {}
     counts = {"VHW": 0, "VBW": 0, "status": 0}
     t0 = time.monotonic()
     last_draw = 0.0
     buf = b""
+    # the control socket answers: the daemon's outputs are open
+    fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
     try:
         while time.monotonic() - t0 < timeout_s:
             if not daemon.running:
                 raise DemoError(
                     f"the daemon exited with {daemon.returncode}; see {daemon.log_path}"
                 )
-            if fd < 0:
-                fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
             ready, _, _ = select.select([fd], [], [], 0.2)
             if ready:
                 with contextlib.suppress(BlockingIOError):
@@ -295,8 +294,7 @@ def _watch(
             raise DemoError(f"the demo did not finish within {timeout_s:.0f} s")
         return counts, daemon.ask(cmd="status")
     finally:
-        if fd >= 0:
-            os.close(fd)
+        os.close(fd)
 
 
 def _span(capture: Path) -> float:
