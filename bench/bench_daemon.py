@@ -21,23 +21,21 @@ from __future__ import annotations
 import argparse
 import os
 import select
-import signal
 import socket
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
 from calib.models import Params
-from drivers.io.fake import FakeDevice
 from drivers.io.vpty import VirtualPort
 from drivers.nmea0183 import encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from emlogd.daemon.statefile import StateStore
+from emlogd.launch import DaemonProcess, fake_sensors
 from emlogd.pipeline.calibration import Calibration
 
 CONFIG = """\
@@ -94,34 +92,32 @@ def _setup(work: Path) -> Path:
 
 def _start(
     work: Path, cfg: Path, launcher: list[str] | None = None
-) -> tuple[subprocess.Popen[bytes], float, socket.socket]:
-    """``emlogd run`` (or ``launcher`` + ``run ...``) until READY=1; the seconds it took."""
+) -> tuple[DaemonProcess, float, socket.socket]:
+    """``emlogd run`` (or ``launcher`` + ``run ...``) through :mod:`emlogd.launch`, its log
+    in ``work/daemon.log``, until READY=1 on its notify socket; the seconds it took."""
     notify = work / "notify.sock"
     srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     srv.bind(str(notify))
     srv.settimeout(30)
     t0 = time.perf_counter()
-    proc = subprocess.Popen(
-        [*(launcher or [sys.executable, "-m", "emlogd"]), "run", "--config", str(cfg)],
+    daemon = DaemonProcess(
+        cfg,
+        socket="run/control.sock",
+        log="daemon.log",
         cwd=work,
-        env={**os.environ, "NOTIFY_SOCKET": str(notify)},
-        stdout=subprocess.DEVNULL,
+        argv=[*launcher, "run", "--config", str(cfg)] if launcher else None,
+        env={"NOTIFY_SOCKET": str(notify)},
+        wait=False,  # READY=1 is what is timed; it comes before the socket answers
     )
     while srv.recv(4096) != b"READY=1":
         pass
-    return proc, time.perf_counter() - t0, srv
+    return daemon, time.perf_counter() - t0, srv
 
 
-def _stop(
-    proc: subprocess.Popen[bytes], srv: socket.socket, fakes: Sequence[FakeDevice] = ()
-) -> None:
-    """SIGTERM the daemon and wait for it; close the notify socket; stop fake devices."""
-    proc.send_signal(signal.SIGTERM)
-    proc.wait(20)
+def _stop(daemon: DaemonProcess, srv: socket.socket) -> None:
+    """SIGTERM the daemon and wait for it; close the notify socket."""
+    daemon.stop()
     srv.close()
-    for f in fakes:
-        f.stop()
-        f.join(5)
 
 
 def _open_reader(path: Path) -> int:
@@ -320,25 +316,22 @@ def bench_live(trial: Path, seconds: float) -> None:
         work = Path(tmp)
         cfg = _setup(work)
         capture = trial / "2-figure8.cap"
-        fakes = [
-            FakeDevice(capture, p, work / "links" / p, speed=1.0).start()
-            for p in ("emlog1", "emlog2", "dvl")
-        ]
-        proc, _, srv = _start(work, cfg)
-        try:
-            time.sleep(5.0)  # warm up: ports open, imports done
-            cpu0, _ = _proc_cpu_rss(proc.pid)
-            wake0 = _wakeups(proc.pid)
-            t0 = time.monotonic()
-            peak = 0
-            while time.monotonic() - t0 < seconds:
-                time.sleep(1.0)
-                peak = max(peak, _proc_cpu_rss(proc.pid)[1])
-            cpu1, rss = _proc_cpu_rss(proc.pid)
-            wall = time.monotonic() - t0
-            wakes = (_wakeups(proc.pid) - wake0) / wall
-        finally:
-            _stop(proc, srv, fakes)
+        with fake_sensors(capture, work / "links", ("emlog1", "emlog2", "dvl"), speed=1.0):
+            proc, _, srv = _start(work, cfg)
+            try:
+                time.sleep(5.0)  # warm up: ports open, imports done
+                cpu0, _ = _proc_cpu_rss(proc.pid)
+                wake0 = _wakeups(proc.pid)
+                t0 = time.monotonic()
+                peak = 0
+                while time.monotonic() - t0 < seconds:
+                    time.sleep(1.0)
+                    peak = max(peak, _proc_cpu_rss(proc.pid)[1])
+                cpu1, rss = _proc_cpu_rss(proc.pid)
+                wall = time.monotonic() - t0
+                wakes = (_wakeups(proc.pid) - wake0) / wall
+            finally:
+                _stop(proc, srv)
     print(f"live rates for {wall:.0f} s (1 Hz VHW + 10 Hz VBW + 5 Hz VHW + 10 Hz PD6):")
     print(f"  CPU {100 * (cpu1 - cpu0) / wall:.2f} % of one core (target <= 1 %)")
     floor = subprocess.run(

@@ -82,7 +82,7 @@ sys.exit(main(sys.argv[2:]))
 
 def main() -> None:
     """Run the timed daemon at live rates and print the CPU by step."""
-    from drivers.io.fake import FakeDevice
+    from emlogd.launch import fake_sensors
     from emlogd.offline.simulate import simulate
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -96,15 +96,13 @@ def main() -> None:
         work = Path(tmp)
         cfg = _setup(work)
         out = work / "costs.json"
-        fakes = [
-            FakeDevice(trial / "2-figure8.cap", p, work / "links" / p, speed=1.0).start()
-            for p in ("emlog1", "emlog2", "dvl")
-        ]
-        proc, _, srv = _start(work, cfg, [sys.executable, "-c", WRAPPER, str(out)])
-        try:
-            time.sleep(args.seconds)
-        finally:
-            _stop(proc, srv, fakes)
+        capture = trial / "2-figure8.cap"
+        with fake_sensors(capture, work / "links", ("emlog1", "emlog2", "dvl"), speed=1.0):
+            proc, _, srv = _start(work, cfg, [sys.executable, "-c", WRAPPER, str(out)])
+            try:
+                time.sleep(args.seconds)
+            finally:
+                _stop(proc, srv)
         data = json.loads(out.read_text())
     wall = data["wall_s"]
     print(f"live rates for {wall:.0f} s; CPU per call and share of one core by step:")

@@ -103,7 +103,7 @@ def _change_text(command: str, resp: dict[str, Any]) -> str:
 
 def cmd_control(args: argparse.Namespace) -> int:
     """status / freeze / learn / reset through the daemon's control socket."""
-    from emlogd.daemon.control import request
+    from emlogd.client import request
 
     req: dict[str, object] = {"cmd": args.command}
     if getattr(args, "uut", None):

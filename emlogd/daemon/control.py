@@ -12,8 +12,7 @@ connected (the next ones get an error line and are closed); a client silent for
 :data:`IDLE_S` is dropped; ``accept`` failing for lack of descriptors pauses the
 socket (:mod:`emlogd.daemon.listen`). A server may be read-only (``commands``:
 only ``status``), e.g. a status socket open to every local user next to the
-operators' control socket. The client side (:func:`request`) is what ``emlogd
-status|freeze|learn|reset`` use.
+operators' control socket. The client side is :func:`emlogd.client.request`.
 """
 
 from __future__ import annotations
@@ -264,33 +263,3 @@ def _listening(path: Path) -> bool:
         except OSError:
             return False
     return True
-
-
-def request(path: str | Path, req: dict[str, object], timeout_s: float = 5.0) -> dict[str, object]:
-    """Send one request and return the response.
-
-    Raises:
-        DeviceError: the daemon is not reachable or answered garbage.
-    """
-    try:
-        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            s.settimeout(timeout_s)
-            s.connect(str(path))
-            s.sendall(json.dumps(req).encode("utf-8") + b"\n")
-            buf = bytearray()
-            while b"\n" not in buf:
-                chunk = s.recv(65536)
-                if not chunk:
-                    break
-                buf += chunk
-    except OSError as exc:
-        raise DeviceError(
-            f"cannot reach the daemon at {path}: {exc.strerror or exc} (is emlogd running?)"
-        ) from None
-    try:
-        doc = json.loads(bytes(buf).partition(b"\n")[0])
-    except ValueError:
-        raise DeviceError(f"{path}: the daemon sent a malformed answer") from None
-    if not isinstance(doc, dict):
-        raise DeviceError(f"{path}: the daemon sent a malformed answer")
-    return doc

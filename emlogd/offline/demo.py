@@ -22,8 +22,6 @@ from __future__ import annotations
 import contextlib
 import os
 import select
-import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -35,7 +33,7 @@ from typing import TextIO
 from drivers.errors import EmlogdError
 from drivers.framing import split_nmea
 from drivers.io.fake import FakeCapture
-from emlogd.daemon.control import request
+from emlogd.launch import DaemonProcess, LaunchError, fake_sensors
 
 DEMO_CAPTURE = "demo-figure8.cap.gz"
 LATENCIES_S = {"emlog1": 3.2, "emlog2": 0.45}
@@ -175,93 +173,32 @@ def _run(
     keep_note: bool,
 ) -> dict[str, dict[str, object]]:
     ports = ("emlog1", "emlog2", "dvl")
-    device = FakeCapture(capture, {p: work / "links" / p for p in ports}, speed=speed)
     span = _span(capture)
     out.write(
         "emlogd demo: the daemon calibrating two EM logs against a DVL, live\n"
         f"  capture  {capture.name}: a simulated figure-8 ({span / 60:.1f} min, sensor faults "
         f"included) served at {speed:g}x by 3 fake serial devices on ptys, on one clock\n"
     )
-    device.start()
-    log = open(work / "daemon.log", "wb")  # noqa: SIM115
-    daemon = subprocess.Popen(
-        [python, "-m", "emlogd", "run", "--config", str(cfg)],
-        stdout=log,
-        stderr=subprocess.STDOUT,
-        cwd=work,
-    )
-    out.write(f"  daemon   emlogd run --config {cfg} (pid {daemon.pid})\n")
-    out.write(f"  output   corrected NMEA on {work / 'out' / 'emlog0'}\n\n")
-    out.flush()
-    fd = -1
-    status: dict[str, str] = {}
-    counts = {"VHW": 0, "VBW": 0, "status": 0}
-    t0 = time.monotonic()
-    last_draw = 0.0
-    buf = b""
-    try:
-        while time.monotonic() - t0 < timeout_s:
-            if daemon.poll() is not None:
-                raise DemoError(
-                    f"the daemon exited with {daemon.returncode}; see {work / 'daemon.log'}"
-                )
-            if fd < 0:
-                link = work / "out" / "emlog0"
-                if link.exists():
-                    fd = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
-                else:
-                    time.sleep(0.05)
-                    continue
-            ready, _, _ = select.select([fd], [], [], 0.2)
-            if ready:
-                with contextlib.suppress(BlockingIOError):
-                    buf += os.read(fd, 65536)
-                *lines, buf = buf.split(b"\n")
-                for raw in lines:
-                    s = raw.strip().decode("ascii", "replace")
-                    if s[3:6] in ("VHW", "VBW"):
-                        counts[s[3:6]] += 1
-                    parsed = _status_line(s)
-                    if parsed is not None:
-                        counts["status"] += 1
-                        status[parsed[0]] = parsed[1]
-            now = time.monotonic()
-            if now - last_draw > 0.5 and status:
-                last_draw = now
-                line = f"[{now - t0:5.1f} s] " + " | ".join(
-                    f"{k}: {v}" for k, v in sorted(status.items())
-                )
-                if progress is not None:
-                    progress(line)
-                if live:
-                    out.write("\r" + line[:150] + "\x1b[K")
-                    out.flush()
-            if device.finished.is_set():
-                time.sleep(0.3)
-                break
-        else:
-            raise DemoError(f"the demo did not finish within {timeout_s:.0f} s")
-        final = request(work / "run" / "control.sock", {"cmd": "status"})
-    finally:
-        if fd >= 0:
-            os.close(fd)
-        if daemon.poll() is None:
-            daemon.send_signal(signal.SIGTERM)
-            try:
-                daemon.wait(10)
-            except subprocess.TimeoutExpired:
-                daemon.kill()
-                daemon.wait()
-        log.close()
-        device.stop()
-        device.join(5)
+    with fake_sensors(capture, work / "links", ports, speed=speed) as device:
+        try:
+            daemon = DaemonProcess(
+                cfg, socket="run/control.sock", log="daemon.log", cwd=work, python=python
+            )
+        except LaunchError as exc:
+            raise DemoError(str(exc)) from None
+        with daemon:
+            out.write(f"  daemon   emlogd run --config {cfg} (pid {daemon.pid})\n")
+            out.write(f"  output   corrected NMEA on {work / 'out' / 'emlog0'}\n\n")
+            out.flush()
+            counts, final = _watch(work, daemon, device, out, live, timeout_s, progress)
+    rc = daemon.returncode
     if live:
         out.write("\r\x1b[K")
     st = final.get("status", {})
     uuts: dict[str, dict[str, object]] = st.get("uuts", {}) if isinstance(st, dict) else {}
     out.write(
         f"read from the output pty: {counts['VHW']} corrected VHW, {counts['VBW']} corrected VBW, "
-        f"{counts['status']} status sentences (daemon exit code {daemon.returncode})\n\n"
+        f"{counts['status']} status sentences (daemon exit code {rc})\n\n"
     )
     replayed = replay_improvements(capture, work)
     out.write(
@@ -300,6 +237,64 @@ def _run(
     else:
         out.write(f"\nno calibration persisted (no {state}; see {work / 'daemon.log'})\n")
     return uuts
+
+
+def _watch(
+    work: Path,
+    daemon: DaemonProcess,
+    device: FakeCapture,
+    out: TextIO,
+    live: bool,
+    timeout_s: float,
+    progress: Callable[[str], None] | None,
+) -> tuple[dict[str, int], dict[str, object]]:
+    """Read the daemon's output pty until the capture has been served; the counts of
+    sentences read and the daemon's final answer to a status request."""
+    status: dict[str, str] = {}
+    counts = {"VHW": 0, "VBW": 0, "status": 0}
+    t0 = time.monotonic()
+    last_draw = 0.0
+    buf = b""
+    # the control socket answers: the daemon's outputs are open
+    fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        while time.monotonic() - t0 < timeout_s:
+            if not daemon.running:
+                raise DemoError(
+                    f"the daemon exited with {daemon.returncode}; see {daemon.log_path}"
+                )
+            ready, _, _ = select.select([fd], [], [], 0.2)
+            if ready:
+                with contextlib.suppress(BlockingIOError):
+                    buf += os.read(fd, 65536)
+                *lines, buf = buf.split(b"\n")
+                for raw in lines:
+                    s = raw.strip().decode("ascii", "replace")
+                    if s[3:6] in ("VHW", "VBW"):
+                        counts[s[3:6]] += 1
+                    parsed = _status_line(s)
+                    if parsed is not None:
+                        counts["status"] += 1
+                        status[parsed[0]] = parsed[1]
+            now = time.monotonic()
+            if now - last_draw > 0.5 and status:
+                last_draw = now
+                line = f"[{now - t0:5.1f} s] " + " | ".join(
+                    f"{k}: {v}" for k, v in sorted(status.items())
+                )
+                if progress is not None:
+                    progress(line)
+                if live:
+                    out.write("\r" + line[:150] + "\x1b[K")
+                    out.flush()
+            if device.finished.is_set():
+                time.sleep(0.3)
+                break
+        else:
+            raise DemoError(f"the demo did not finish within {timeout_s:.0f} s")
+        return counts, daemon.ask(cmd="status")
+    finally:
+        os.close(fd)
 
 
 def _span(capture: Path) -> float:

@@ -142,10 +142,7 @@ def test_control_commands_print_text_unless_json(
 
 def test_run_with_stdout_output_logs_to_stderr(tmp_path: Path) -> None:
     """With outputs.stdout the log goes to stderr, so stdout carries NMEA only."""
-    import signal
-    import subprocess
-    import sys
-    import time
+    from emlogd.launch import DaemonProcess
 
     cfg = tmp_path / "c.yaml"
     cfg.write_text(
@@ -155,20 +152,10 @@ def test_run_with_stdout_output_logs_to_stderr(tmp_path: Path) -> None:
         "outputs: {pty: null, stdout: true}\n"
         "state_file: state.yaml\ncontrol_socket: control.sock\nlog_format: json\n"
     )
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "emlogd", "run", "--config", str(cfg)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        cwd=tmp_path,
-    )
-    try:
-        deadline = time.monotonic() + 20
-        while not (tmp_path / "control.sock").exists() and time.monotonic() < deadline:
-            assert proc.poll() is None
-            time.sleep(0.05)
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=20)
-    assert proc.returncode == 0
-    assert b'"event": "ready"' in err
+    with DaemonProcess(
+        cfg, socket="control.sock", log="stdout.txt", err_log="stderr.txt", cwd=tmp_path
+    ) as d:
+        assert d.stop() == 0
+    assert b'"event": "ready"' in (tmp_path / "stderr.txt").read_bytes()
+    out = (tmp_path / "stdout.txt").read_bytes()
     assert not [ln for ln in out.splitlines() if not ln.startswith(b"$")]

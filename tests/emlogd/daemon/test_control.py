@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from drivers.errors import DeviceError
-from emlogd.daemon.control import MAX_REQUEST, ControlServer, request
+from emlogd.client import request
+from emlogd.daemon.control import MAX_REQUEST, ControlServer
 
 
 class _Loop:
@@ -96,12 +96,6 @@ def test_an_endless_line_drops_the_client(loop: _Loop, tmp_path: Path) -> None:
             data += chunk
     assert b"request too long" in data
     assert request(path, {"cmd": "status"})["ok"] is True
-
-
-def test_request_without_daemon_is_a_clear_error(tmp_path: Path) -> None:
-    """request() to a missing socket raises DeviceError asking whether emlogd is running."""
-    with pytest.raises(DeviceError, match="is emlogd running"):
-        request(tmp_path / "missing.sock", {"cmd": "status"})
 
 
 def test_close_removes_the_socket(tmp_path: Path) -> None:

@@ -12,7 +12,6 @@ import select
 import signal
 import socket
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -20,10 +19,12 @@ import pytest
 
 from drivers.io.capture import CaptureWriter
 from drivers.io.fake import FakeDevice
-from emlogd.daemon.control import request
+from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
+from emlogd.launch import STOP_TIMEOUT_S, DaemonProcess, fake_sensors
 
 SPEED = 20.0
+PORTS = ("emlog1", "emlog2", "dvl")
 
 CONFIG = f"""\
 ports:
@@ -53,25 +54,19 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-class Daemon:
+class Daemon(DaemonProcess):
+    """``emlogd run`` in ``work`` (the harness), reading its output pty as it goes."""
+
     def __init__(self, work: Path) -> None:
-        self.work = work
-        self.log = open(work / "daemon.log", "ab")  # noqa: SIM115
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
-            cwd=work,
-        )
-        self.fd = -1
+        self.fd = -1  # before the harness starts: a failed start calls kill()
+        super().__init__("emlogd.yaml", socket="run/control.sock", log="daemon.log", cwd=work)
         self.buf = b""
         self.lines: list[bytes] = []
-        deadline = time.monotonic() + 20
-        while not (work / "out" / "emlog0").exists():
-            assert self.proc.poll() is None, (work / "daemon.log").read_text()
-            assert time.monotonic() < deadline, "the daemon did not start"
-            time.sleep(0.02)
-        self.fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        try:  # the control socket answers: the output pty exists
+            self.fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        except BaseException:
+            self.kill()
+            raise
 
     def pump(self, seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -85,21 +80,18 @@ class Daemon:
                 *done, self.buf = self.buf.split(b"\r\n")
                 self.lines.extend(done)
 
-    def status(self) -> dict[str, object]:
-        resp = request(self.work / "run" / "control.sock", {"cmd": "status"})
-        assert resp["ok"], resp
-        st = resp["status"]
-        assert isinstance(st, dict)
-        return st
-
-    def stop(self, sig: int = signal.SIGTERM) -> int:
+    def _close_pty(self) -> None:
         if self.fd >= 0:
             os.close(self.fd)
             self.fd = -1
-        self.proc.send_signal(sig)
-        rc = self.proc.wait(20)
-        self.log.close()
-        return rc
+
+    def stop(self, sig: int = signal.SIGTERM, timeout_s: float = STOP_TIMEOUT_S) -> int:
+        self._close_pty()
+        return super().stop(sig, timeout_s)
+
+    def kill(self) -> int:
+        self._close_pty()
+        return super().kill()
 
 
 def _setup(tmp_path: Path) -> Path:
@@ -120,10 +112,8 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
     junk = _setup(tmp_path)
     capture = trial_files["figure-8"]
     links = tmp_path / "links"
-    devices = {
-        p: FakeDevice(capture, p, links / p, speed=SPEED).start()
-        for p in ("emlog1", "emlog2", "dvl")
-    }
+    # one device per port: the test unplugs them one by one
+    devices = {p: FakeDevice(capture, p, links / p, speed=SPEED).start() for p in PORTS}
     garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
     d = Daemon(tmp_path)
     try:
@@ -140,7 +130,7 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         devices["emlog2"] = FakeDevice(capture, "emlog2", links / "emlog2", speed=SPEED).start()
         while not all(dev.finished.is_set() for dev in devices.values()):
             d.pump(0.5)
-            assert d.proc.poll() is None
+            assert d.running
         d.pump(0.5)
         st = d.status()
         uuts = st["uuts"]
@@ -175,8 +165,7 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         lazy.close()
         assert d.stop() == 0
     finally:
-        if d.proc.poll() is None:
-            d.proc.kill()
+        d.kill()
         for dev in [*devices.values(), garbage]:
             dev.stop()
             dev.join(5)
@@ -194,12 +183,9 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         assert isinstance(st3, dict)
         assert st3["emlog1"]["params"] == pytest.approx(frozen)
         assert st3["emlog1"]["state"] == "frozen"
-        resp = request(tmp_path / "run" / "control.sock", {"cmd": "learn", "on": False})
+        resp = d2.ask(cmd="learn", on=False)
         assert resp["ok"] and resp["learning"] is False
-        assert (
-            request(tmp_path / "run" / "control.sock", {"cmd": "reset", "port": "nope"})["ok"]
-            is False
-        )
+        assert d2.ask(cmd="reset", port="nope")["ok"] is False
     finally:
         assert d2.stop(signal.SIGINT) == 0
     assert not (tmp_path / "out" / "emlog0").exists()  # the pty link is removed on exit
@@ -216,21 +202,20 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
     srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     srv.bind(str(notify))
     srv.settimeout(20)
-    log = open(tmp_path / "daemon.log", "wb")  # noqa: SIM115
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "emlogd", "run", "--config", str(cfg)],
-        stdout=log,
-        stderr=subprocess.STDOUT,
+    d = DaemonProcess(
+        cfg,
+        socket="run/control.sock",
+        log="daemon.log",
         cwd=tmp_path,
-        env={**os.environ, "NOTIFY_SOCKET": str(notify), "WATCHDOG_USEC": "1000000"},
+        env={"NOTIFY_SOCKET": str(notify), "WATCHDOG_USEC": "1000000"},
     )
     try:
         messages = [srv.recv(4096).decode() for _ in range(2)]
         assert messages[0] == "READY=1"
         assert messages[1].startswith("STATUS=emlog1 uncalibrated")
         # no sensor exists: the daemon runs and says so
-        st = request(tmp_path / "run" / "control.sock", {"cmd": "status"})["status"]
-        assert isinstance(st, dict) and st["uuts"]["emlog1"]["state"] == "uncalibrated"
+        st = d.status()
+        assert st["uuts"]["emlog1"]["state"] == "uncalibrated"  # type: ignore[index]
         # WATCHDOG_USEC=1 s: a keep-alive every half second, whatever else is sent
         deadline = time.monotonic() + 5
         got = b""
@@ -239,7 +224,7 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
             got = srv.recv(4096)
         # a good reload moves the control socket
         cfg.write_text(base.replace("run/control.sock", "run/control2.sock"))
-        proc.send_signal(signal.SIGHUP)
+        d.send_signal(signal.SIGHUP)
         deadline = time.monotonic() + 10
         while not (tmp_path / "run" / "control2.sock").exists():
             assert time.monotonic() < deadline, (tmp_path / "daemon.log").read_text()
@@ -251,12 +236,11 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
                 "run/control.sock", "run/control2.sock"
             )
         )
-        proc.send_signal(signal.SIGHUP)
+        d.send_signal(signal.SIGHUP)
         time.sleep(1.0)
         assert request(tmp_path / "run" / "control2.sock", {"cmd": "status"})["ok"]
-        assert proc.poll() is None
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(20) == 0
+        assert d.running
+        assert d.stop() == 0
         rest = []
         srv.settimeout(1)
         try:
@@ -266,9 +250,7 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
             pass
         assert "STOPPING=1" in rest
     finally:
-        if proc.poll() is None:
-            proc.kill()
-        log.close()
+        d.kill()
         srv.close()
     text = (tmp_path / "daemon.log").read_text()
     assert '"event": "reloaded"' in text and '"event": "reload_failed"' in text
@@ -318,26 +300,15 @@ def test_state_directory_read_only_or_full(
                 os.close(fd)
         links = tmp_path / "links"
         capture = trial_files["figure-8"]
-        devices = [
-            FakeDevice(capture, p, links / p, speed=SPEED).start()
-            for p in ("emlog1", "emlog2", "dvl")
-        ]
-        d = Daemon(tmp_path)
-        try:
-            while not all(dev.finished.is_set() for dev in devices):
+        with fake_sensors(capture, links, PORTS, speed=SPEED) as fake, Daemon(tmp_path) as d:
+            while not fake.finished.is_set():
                 d.pump(0.5)
-                assert d.proc.poll() is None  # keeps running
-            resp = request(tmp_path / "run" / "control.sock", {"cmd": "status"})
+                assert d.running  # keeps running
+            resp = d.ask(cmd="status")
             assert (
                 resp["ok"] and isinstance(resp["state_errors"], int) and resp["state_errors"] >= 1
             )
             assert d.stop() == 0  # the final persist fails too: still a clean exit
-        finally:
-            if d.proc.poll() is None:
-                d.proc.kill()
-            for dev in devices:
-                dev.stop()
-                dev.join(5)
         assert store.path.read_bytes() == before  # never corrupted, never half-written
         assert "state_write_failed" in (tmp_path / "daemon.log").read_text()
     finally:
@@ -494,8 +465,7 @@ def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
         assert dvl_records() == 40
         assert d.stop() == 0
     finally:
-        if d.proc.poll() is None:
-            d.proc.kill()
+        d.kill()
         vp.close()
 
 
@@ -529,24 +499,22 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
     )
     links = tmp_path / "links"
     capture = trial_files["figure-8"]
-    devices = [
-        FakeDevice(capture, p, links / p, speed=SPEED).start() for p in ("emlog1", "emlog2", "dvl")
-    ]
-    garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
-    d = Daemon(tmp_path)
-    own = os.open(tmp_path / "out" / "emlog2", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
-    got = b""
-    try:
-        end = time.monotonic() + 4.0
-        while time.monotonic() < end:
-            d.pump(0.2)
-            with contextlib.suppress(BlockingIOError, OSError):
-                got += os.read(own, 65536)
-    finally:
-        os.close(own)
+    with (
+        fake_sensors(capture, links, PORTS, speed=SPEED),
+        fake_sensors(junk, links, ("junk",), speed=None, loop=True),
+        Daemon(tmp_path) as d,
+    ):
+        own = os.open(tmp_path / "out" / "emlog2", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        got = b""
+        try:
+            end = time.monotonic() + 4.0
+            while time.monotonic() < end:
+                d.pump(0.2)
+                with contextlib.suppress(BlockingIOError, OSError):
+                    got += os.read(own, 65536)
+        finally:
+            os.close(own)
         assert d.stop() == 0
-        for dev in [*devices, garbage]:
-            dev.stop()
     shared = [ln for ln in d.lines if ln.startswith(b"$")]
     mine = [ln for ln in got.split(b"\r\n") if ln.startswith(b"$")]
     assert any(ln.startswith(b"$VWVHW") for ln in shared)

@@ -15,9 +15,10 @@ from pathlib import Path
 import pytest
 import serial
 
-from drivers.io.fake import FakeDevice
-from emlogd.daemon.control import request
+from drivers.io.fake import FakeCapture
+from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
+from emlogd.launch import DaemonProcess, fake_sensors
 
 SPEED = 20.0
 RUN = [sys.executable, "-m", "emlogd", "run", "--config", "emlogd.yaml"]
@@ -47,8 +48,8 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-class Daemon:
-    """``emlogd run`` as a subprocess in ``work``; waits for its control socket."""
+class Daemon(DaemonProcess):
+    """``emlogd run`` as a subprocess in ``work`` (the harness), with what these tests read."""
 
     def __init__(
         self,
@@ -56,53 +57,25 @@ class Daemon:
         *,
         argv: list[str] | None = None,
         env: dict[str, str] | None = None,
-        wait: bool = True,
     ) -> None:
-        self.work = work
-        self.log_path = work / "daemon.log"
-        self.log = open(self.log_path, "ab")  # noqa: SIM115
-        cmd = argv or RUN
-        self.proc = subprocess.Popen(
-            cmd, stdout=self.log, stderr=subprocess.STDOUT, cwd=work, env=env
+        super().__init__(
+            "emlogd.yaml",
+            socket="run/control.sock",
+            log="daemon.log",
+            cwd=work,
+            argv=argv,
+            env=env,
         )
-        self.sock = work / "run" / "control.sock"
-        deadline = time.monotonic() + 20
-        while wait and not self._answers():
-            assert self.proc.poll() is None, self.log_path.read_text()
-            assert time.monotonic() < deadline, "the daemon did not start"
-            time.sleep(0.05)
-
-    def _answers(self) -> bool:
-        try:
-            return bool(request(self.sock, {"cmd": "status"}, timeout_s=1)["ok"])
-        except Exception:
-            return False
-
-    def ask(self, **req: object) -> dict[str, object]:
-        return request(self.sock, dict(req))
 
     def uut(self, name: str) -> dict[str, object]:
-        st = self.ask(cmd="status")["status"]
-        assert isinstance(st, dict)
-        u = st["uuts"][name]
+        uuts = self.status()["uuts"]
+        assert isinstance(uuts, dict)
+        u = uuts[name]
         assert isinstance(u, dict)
         return u
 
     def events(self, name: str) -> int:
         return self.log_path.read_text().count(f'"event": "{name}"')
-
-    def stop(self, sig: int = signal.SIGTERM) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-        rc = self.proc.wait(20)
-        self.log.close()
-        return rc
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait(20)
-        self.log.close()
 
 
 @pytest.fixture
@@ -114,24 +87,11 @@ def work(tmp_path: Path) -> Path:
 
 
 @pytest.fixture
-def devices(
-    work: Path, trial_files: dict[str, Path]
-) -> Iterator[Callable[[], dict[str, FakeDevice]]]:
-    """Start the three sensors of the figure-8 at SPEED (stopped at teardown)."""
-    started: list[FakeDevice] = []
-
-    def start() -> dict[str, FakeDevice]:
-        devs = {
-            p: FakeDevice(trial_files["figure-8"], p, work / "links" / p, speed=SPEED).start()
-            for p in ("emlog1", "emlog2", "dvl")
-        }
-        started.extend(devs.values())
-        return devs
-
-    yield start
-    for dev in started:
-        dev.stop()
-        dev.join(5)
+def sensors(work: Path, trial_files: dict[str, Path]) -> Iterator[FakeCapture]:
+    """The three sensors of the figure-8 served at SPEED on one clock (stopped at teardown)."""
+    ports = ("emlog1", "emlog2", "dvl")
+    with fake_sensors(trial_files["figure-8"], work / "links", ports, speed=SPEED) as fake:
+        yield fake
 
 
 def _num(doc: dict[str, object], key: str) -> float:
@@ -150,12 +110,10 @@ def _wait(cond: Callable[[], bool], what: str, timeout_s: float = 20.0) -> None:
 # -- 1. reload -----------------------------------------------------------------
 
 
-def test_reload_keeps_what_did_not_change(
-    work: Path, devices: Callable[[], dict[str, FakeDevice]]
-) -> None:
+@pytest.mark.usefixtures("sensors")
+def test_reload_keeps_what_did_not_change(work: Path) -> None:
     """SIGHUP changing one UUT keeps the pty (same link, an open pyserial reader reads on),
     the TCP client, and the other UUT's learning state and operator freeze."""
-    devices()
     d = Daemon(work)
     link = work / "out" / "emlog0"
     cfg = work / "emlogd.yaml"
@@ -171,7 +129,7 @@ def test_reload_keeps_what_did_not_change(
         assert reader.read(200) and client.recv(200)
         # emlog2's lag changes; nothing else does
         cfg.write_text(cfg.read_text().replace(f"lag: {0.5 / SPEED:.4f}", "lag: 0.05"))
-        d.proc.send_signal(signal.SIGHUP)
+        d.send_signal(signal.SIGHUP)
         _wait(lambda: d.events("reloaded") == 1, "no reload")
         after1, after2 = d.uut("emlog1"), d.uut("emlog2")
         assert after1["learning_enabled"] is False  # the operator's freeze survives
@@ -285,7 +243,7 @@ def test_a_second_instance_exits_and_leaves_the_first_alone(work: Path) -> None:
             timeout=30,
         )
         assert second.returncode == 1, second
-        assert second.stderr.count("\n") == 1 and f"pid {d.proc.pid}" in second.stderr, second
+        assert second.stderr.count("\n") == 1 and f"pid {d.pid}" in second.stderr, second
         assert "state.yaml" in second.stderr
         other = subprocess.run(
             [*RUN, "--state", str(work / "state" / "other.yaml")],
@@ -297,7 +255,7 @@ def test_a_second_instance_exits_and_leaves_the_first_alone(work: Path) -> None:
         assert other.returncode == 1 and "in use" in other.stderr, other
         assert other.stderr.count("\n") == 1, other
         assert not (work / "state" / "other.yaml").exists()  # a failed start writes nothing
-        assert link.readlink() == target and d.sock.is_socket()
+        assert link.readlink() == target and d.socket.is_socket()
         assert d.ask(cmd="status")["ok"]
         assert d.stop() == 0
     finally:
@@ -353,11 +311,11 @@ def test_no_request_knocks_the_daemon_over(work: Path) -> None:
     ]
     try:
         for line in bad:
-            answer = _exchange(d.sock, line + b"\n")
+            answer = _exchange(d.socket, line + b"\n")
             assert answer.count(b"\n") == 1 and b'"ok": false' in answer, (line[:40], answer)
-        tail = _exchange(d.sock, b"[" * 5000)  # no newline, over the line cap
+        tail = _exchange(d.socket, b"[" * 5000)  # no newline, over the line cap
         assert b"request too long" in tail
-        assert d.proc.poll() is None
+        assert d.running
         assert d.ask(cmd="status")["ok"]
         assert d.stop() == 0
     finally:
@@ -381,9 +339,9 @@ def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
         assert d.uut("emlog1")["learning_enabled"] is True
         for _ in range(16):
             s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-            s.connect(str(d.sock))
+            s.connect(str(d.socket))
             held.append(s)
-        extra = _exchange(d.sock, b'{"cmd":"status"}\n')
+        extra = _exchange(d.socket, b'{"cmd":"status"}\n')
         assert b"too many clients" in extra
         held[0].sendall(b'{"cmd":"status"}\n')  # a connected client is still served
         held[0].settimeout(5)
@@ -399,7 +357,7 @@ def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
         assert closed == 8
         for s in held[:16]:
             s.close()
-        _wait(d._answers, "the control socket did not free its slots")
+        _wait(d.answers, "the control socket did not free its slots")
         assert d.stop() == 0
     finally:
         for s in held:
@@ -417,19 +375,19 @@ def test_out_of_descriptors_the_daemon_pauses_accepting_and_recovers(work: Path)
     tcp_port = int((work / "emlogd.yaml").read_text().split("127.0.0.1:")[1].split('"')[0])
     held: list[socket.socket] = []
     try:
-        in_use = len(list(Path(f"/proc/{d.proc.pid}/fd").iterdir()))
-        resource.prlimit(d.proc.pid, resource.RLIMIT_NOFILE, (in_use + 4, in_use + 4))
+        in_use = len(list(Path(f"/proc/{d.pid}/fd").iterdir()))
+        resource.prlimit(d.pid, resource.RLIMIT_NOFILE, (in_use + 4, in_use + 4))
         for _ in range(20):  # connected or not: a paused listener's backlog fills up
             s = socket.socket()
             s.setblocking(False)
             s.connect_ex(("127.0.0.1", tcp_port))
             held.append(s)
         time.sleep(1.5)  # many accept failures: pauses, not a busy loop
-        assert d.proc.poll() is None
+        assert d.running
         for s in held:
             s.close()
         held = []
-        _wait(d._answers, "the control socket never came back")
+        _wait(d.answers, "the control socket never came back")
         log = d.log_path.read_text()
         assert 1 <= log.count('"event": "accept_error"') <= 2  # reported, rate-limited
         assert d.stop() == 0

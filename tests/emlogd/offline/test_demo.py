@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import io
+import threading
 from pathlib import Path
 
-from emlogd.offline.demo import run_demo
+import pytest
+
+from emlogd.offline.demo import DemoError, run_demo
 
 
 def test_demo_runs_improves_and_matches_replay(tmp_path: Path) -> None:
@@ -27,3 +30,12 @@ def test_demo_runs_improves_and_matches_replay(tmp_path: Path) -> None:
         assert abs(live - replayed) <= 5.0, (name, live, replayed)
         assert f"({live:.0f} % better; replay {replayed:.0f} %)" in text
     assert (tmp_path / "state" / "state.yaml").exists()
+
+
+def test_a_daemon_that_cannot_start_is_a_demo_error(tmp_path: Path) -> None:
+    """When the daemon exits at once (here its interpreter is /bin/false), the demo raises
+    DemoError naming the exit code and leaves no fake device behind."""
+    with pytest.raises(DemoError, match="exited with 1"):
+        run_demo(speed=25.0, out=io.StringIO(), workdir=tmp_path, python="/bin/false")
+    assert not any(t.name.startswith("fake-") for t in threading.enumerate())
+    assert not (tmp_path / "links" / "dvl").exists()

@@ -1,0 +1,45 @@
+"""The client side of the daemon's control socket: one JSON request, one JSON answer.
+
+``emlogd status|freeze|learn|reset``, the demo and :mod:`emlogd.launch` talk to a
+running daemon through :func:`request`; the server side is
+:mod:`emlogd.daemon.control`. The client needs nothing of the daemon but its socket's
+path, so the offline tools (the demo) reach it without importing the daemon.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+from pathlib import Path
+
+from drivers.errors import DeviceError
+
+
+def request(path: str | Path, req: dict[str, object], timeout_s: float = 5.0) -> dict[str, object]:
+    """Send one request and return the response.
+
+    Raises:
+        DeviceError: the daemon is not reachable or answered garbage.
+    """
+    try:
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(timeout_s)
+            s.connect(str(path))
+            s.sendall(json.dumps(req).encode("utf-8") + b"\n")
+            buf = bytearray()
+            while b"\n" not in buf:
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                buf += chunk
+    except OSError as exc:
+        raise DeviceError(
+            f"cannot reach the daemon at {path}: {exc.strerror or exc} (is emlogd running?)"
+        ) from None
+    try:
+        doc = json.loads(bytes(buf).partition(b"\n")[0])
+    except ValueError:
+        raise DeviceError(f"{path}: the daemon sent a malformed answer") from None
+    if not isinstance(doc, dict):
+        raise DeviceError(f"{path}: the daemon sent a malformed answer")
+    return doc
