@@ -6,7 +6,6 @@ import argparse
 import json
 import signal
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from types import FrameType
@@ -156,88 +155,32 @@ def _parse_port_spec(spec: str) -> tuple[str, str, int, str]:
 
 def cmd_record(args: argparse.Namespace) -> int:
     """Capture live ports into a capture v1 file until Ctrl-C, SIGTERM or --duration."""
-    import selectors
+    from drivers.io.record import PortSpec, record
 
-    from drivers import DeviceError, is_binary
-    from drivers.io.capture import CaptureWriter
-    from drivers.io.port import SerialSource
-
-    specs = [_parse_port_spec(s) for s in args.port]
-    names = [s[0] for s in specs]
-    if len(set(names)) != len(names):
-        raise UsageError("--port names must be unique")
+    specs = [PortSpec(*_parse_port_spec(s)) for s in args.port]
     stop = False
 
     def _stop(signum: int, frame: FrameType | None) -> None:
         nonlocal stop
         stop = True
 
-    sources = {
-        name: SerialSource(name, url, baudrate=baud, stale_timeout_s=args.stale_timeout)
-        for name, url, baud, _ in specs
-    }
-    binary = {name: is_binary(proto) for name, _, _, proto in specs}
-    partial: dict[str, bytearray] = {name: bytearray() for name in sources}
-    counts = dict.fromkeys(sources, 0)
-    sel = selectors.DefaultSelector()
-    registered: dict[str, int] = {}
-    t_end = None if args.duration is None else time.monotonic() + args.duration
-    last_t = 0.0
     old = signal.signal(signal.SIGTERM, _stop)
     try:
-        for name, src in sources.items():
-            if not src.open():
-                # a device missing at the start is a mistake on the command line, not an
-                # outage to ride out: fail before writing anything
-                why = "; ".join(ev.detail for ev in src.events()) or "cannot open"
-                raise DeviceError(f"port {name}: {why}")
-        try:
-            writer = CaptureWriter(args.out, {n: p for n, _, _, p in specs})
-        except ValueError as exc:
-            raise UsageError(str(exc)) from None
-        with writer:
-            while not stop and (t_end is None or time.monotonic() < t_end):
-                for name, src in sources.items():
-                    fd = src.fileno()
-                    if registered.get(name) != fd:
-                        if name in registered:
-                            sel.unregister(registered.pop(name))
-                        if fd is not None:
-                            sel.register(fd, selectors.EVENT_READ, name)
-                            registered[name] = fd
-                    for ev in src.poll() + src.events():
-                        sys.stderr.write(f"{ev.port}: {ev.kind} {ev.detail}\n")
-                try:
-                    ready = sel.select(timeout=0.2)
-                except KeyboardInterrupt:
-                    break
-                for key, _ in ready:
-                    name = key.data
-                    chunk = sources[name].read()
-                    if chunk is None:
-                        continue
-                    t = max(chunk.t, last_t)
-                    last_t = t
-                    if binary[name]:
-                        writer.write_chunk(t, name, chunk.data)
-                        counts[name] += 1
-                        continue
-                    buf = partial[name]
-                    buf += chunk.data
-                    *lines, rest = bytes(buf).split(b"\n")
-                    buf[:] = rest
-                    for line in lines:
-                        writer.write_line(t, name, line.rstrip(b"\r"))
-                        counts[name] += 1
-                progress("recording: " + ", ".join(f"{k}={v}" for k, v in counts.items()))
-            for name, buf in partial.items():
-                if buf:
-                    writer.write_chunk(max(time.time(), last_t), name, bytes(buf))
+        counts = record(
+            specs,
+            args.out,
+            duration_s=args.duration,
+            stale_timeout_s=args.stale_timeout,
+            should_stop=lambda: stop,
+            on_event=lambda ev: sys.stderr.write(f"{ev.port}: {ev.kind} {ev.detail}\n"),
+            on_progress=lambda c: progress(
+                "recording: " + ", ".join(f"{k}={v}" for k, v in c.items())
+            ),
+        )
+    except ValueError as exc:
+        raise UsageError(f"--port: {exc}") from None
     finally:
         progress_done()
-        for src in sources.values():
-            src.close()
-        sel.close()
         signal.signal(signal.SIGTERM, old)
     sys.stderr.write(
         f"wrote {args.out}: " + ", ".join(f"{k} {v} records" for k, v in counts.items()) + "\n"

@@ -1,0 +1,71 @@
+"""Recording live ports into a capture file (drivers.io.record), on real ptys."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from drivers import DeviceError
+from drivers.io.capture import CaptureReader
+from drivers.io.record import PortSpec, record
+
+
+def test_text_lines_and_binary_chunks_are_stored_with_receive_times(
+    pty_pair: tuple[int, int, str], tmp_path: Path
+) -> None:
+    """A text port's bytes become one record per line (split across writes), in time order."""
+    master, _slave, path = pty_pair
+    out = tmp_path / "rec.cap"
+    events: list[str] = []
+
+    def talk() -> None:
+        time.sleep(0.3)
+        os.write(master, b"$VWVHW,,T,,M,3.50,N,6.48,K*6A\r\n$VWVHW,,T,")
+        time.sleep(0.3)
+        os.write(master, b",M,3.60,N,6.67,K*6A\r\n")
+
+    writer = threading.Thread(target=talk)
+    writer.start()
+    counts = record(
+        [PortSpec("log", path, 4800, "nmea0183")],
+        out,
+        duration_s=1.5,
+        on_event=lambda ev: events.append(ev.kind),
+    )
+    writer.join()
+    assert counts == {"log": 2}
+    reader = CaptureReader(out)
+    recs = list(reader)
+    assert reader.ports == {"log": "nmea0183"}
+    assert [r.data for r in recs] == [
+        b"$VWVHW,,T,,M,3.50,N,6.48,K*6A\r\n",
+        b"$VWVHW,,T,,M,3.60,N,6.67,K*6A\r\n",
+    ]
+    assert recs[1].t - recs[0].t == pytest.approx(0.3, abs=0.2)
+    assert "connected" in events
+
+
+def test_a_missing_device_fails_before_writing(tmp_path: Path) -> None:
+    """A port that cannot be opened at the start raises and leaves no file."""
+    out = tmp_path / "rec.cap"
+    with pytest.raises(DeviceError, match="port log"):
+        record([PortSpec("log", str(tmp_path / "nothing"), 4800, "nmea0183")], out)
+    assert not out.exists()
+
+
+def test_should_stop_ends_the_recording(pty_pair: tuple[int, int, str], tmp_path: Path) -> None:
+    """should_stop is polled while waiting: the recording ends without any input."""
+    _master, _slave, path = pty_pair
+    t0 = time.monotonic()
+    deadline = t0 + 0.5
+    counts = record(
+        [PortSpec("log", path, 4800, "nmea0183")],
+        tmp_path / "rec.cap",
+        should_stop=lambda: time.monotonic() > deadline,
+    )
+    assert counts == {"log": 0}
+    assert time.monotonic() - t0 < 5.0
