@@ -187,6 +187,7 @@ def _settings(args: argparse.Namespace, **over: Any) -> UutSettings:
         "heading": getattr(args, "heading", None),
         "magnetic_variation_deg": getattr(args, "variation", None),
         "model": getattr(args, "model", None),
+        "r_raw_mps": getattr(args, "r_raw", None),
     }
     kw.update({k: v for k, v in given.items() if v is not None})
     kw.update(over)
@@ -710,6 +711,13 @@ def add_parsers(sub: Subparsers) -> None:
         metavar="SECONDS",
         help="with --method ls: fit block means over SECONDS (default 20 for a gnss "
         "reference, whose noise would shrink the scale; else 0: every sample)",
+    )
+    p.add_argument(
+        "--r-raw",
+        type=positive_float,
+        metavar="M/S",
+        help="the log's reading noise, 1σ (the config key r_raw_mps; default: the Airmar "
+        "spec's 0.1 kn); the filter's NIS is near 1 only with the log's true noise",
     )
     _common_offline(p)
     p.set_defaults(handler=cmd_calibrate)

@@ -193,3 +193,17 @@ def test_an_offline_job_takes_the_declared_defaults(command: str) -> None:
         argv += ["--params", "p.json"]
     args = build_parser().parse_args(argv)
     assert _settings(args) == UutSettings(port="log", reference_port="dvl")
+
+
+def test_r_raw_sets_the_filters_reading_noise(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path]
+) -> None:
+    """calibrate --method kf --r-raw SIGMA: the filter weighs the innovations with SIGMA, so a
+    reading noise 4 times the default's divides the NIS mean by more than 4."""
+    base = ["calibrate", str(trial_files["figure-8"]), "--uut", "emlog1", "--ref", "dvl"]
+    base += ["--lag", "3.3", "--method", "kf", "--current", "--json"]
+    nis = {}
+    for r_raw in (None, "0.2"):
+        assert main(base + (["--r-raw", r_raw] if r_raw else [])) == 0
+        nis[r_raw] = json.loads(capsys.readouterr().out)["nis_mean"]
+    assert nis["0.2"] < nis[None] / 4, nis
