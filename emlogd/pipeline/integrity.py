@@ -41,7 +41,9 @@ class Envelope:
 
     Attributes:
         max_abs_m: largest |m| (a log reading 50 % off is broken, not calibrated).
-        max_abs_b_mps: largest |b|, m/s.
+        max_abs_b_mps: largest |b|, m/s: where the scale is held (not determined), the
+            bias also takes the scale's error at the speeds seen, so the bound is the
+            scale's at a typical speed (0.5 at 2 m/s).
         max_abs_a_spm: largest |a|, s/m.
         max_current_mps: largest current magnitude, m/s.
         max_speed_mps: the sensor's range: a reading above it is refused, a corrected
@@ -50,7 +52,7 @@ class Envelope:
     """
 
     max_abs_m: float = 0.5
-    max_abs_b_mps: float = 0.5
+    max_abs_b_mps: float = 1.0
     max_abs_a_spm: float = 0.1
     max_current_mps: float = 3.0
     max_speed_mps: float = key(

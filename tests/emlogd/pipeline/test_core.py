@@ -294,6 +294,31 @@ class TestWaterFrame:
         vdr = [e.sentence for e in out.emits if e.sentence[3:6] == "VDR"]
         assert vdr and float(vdr[-1].split(",")[5]) == pytest.approx(0.30 / 0.514444, abs=0.08)
 
+    def test_a_large_offset_with_the_scale_held_is_applied(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """Circles at constant speed with a log reading 35 % high: the held scale's error goes
+        into the bias (about +0.75 m/s), which is within the envelope, applied, and takes
+        the emitted error below a tenth of raw's once validated."""
+        s = kit.make_stream(
+            segment(
+                "circles",
+                1800.0,
+                Params("EM3", m=0.35, b_mps=0.1),
+                current=(0.2, 0.1),
+                constant=True,
+            )
+        )
+        p = kit.pipeline(lag_s=0.0, current=True)
+        out = kit.run(p, s.items)
+        st = _status(p)
+        assert st["params"] is not None and st["params"]["m"] == 0.0  # type: ignore[index]
+        b_expected = 0.35 * float(s.series.u_water_mps.mean()) + 0.1
+        assert b_expected > 0.5
+        assert st["params"]["b"] == pytest.approx(b_expected, abs=0.05)  # type: ignore[index]
+        late = kit.T0 + 900.0
+        assert kit.rmse(s, kit.emitted(out), after=late) < 0.1 * kit.raw_rmse(s, after=late)
+
     def test_a_straight_run_holds_the_bias_and_lets_the_current_absorb_the_offset(
         self, kit: SimpleNamespace, segment: Segment
     ) -> None:
