@@ -132,15 +132,15 @@ RECORD_PARTS = (Velocity, DistanceMadeGood)
 """The dataclasses nested in a :class:`Pd6Ensemble` (never yielded on their own)."""
 
 
-_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)")
-_INTEGER = re.compile(r"[+-]?[0-9]+")
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)").fullmatch
+_INTEGER = re.compile(r"[+-]?[0-9]+").fullmatch
 
 
 def _num(field: str, name: str, raw: bytes) -> float:
     """A decimal number, right-aligned with leading spaces or not (no exponent, no ``_``,
     no ``nan``, no trailing blank: a digit lost to a blank would read as another number)."""
     f = field.lstrip(" ")
-    if not _DECIMAL.fullmatch(f):
+    if not _DECIMAL(f):
         raise FieldError(f"{name}: {field!r} is not a number", raw)
     return float(f)
 
@@ -149,9 +149,31 @@ def _int(field: str, name: str, raw: bytes) -> int:
     """A decimal integer, right-aligned with leading spaces or not (no ``_``, no trailing
     blank)."""
     f = field.lstrip(" ")
-    if not _INTEGER.fullmatch(f):
+    if not _INTEGER(f):
         raise FieldError(f"{name}: {field!r} is not an integer", raw)
     return int(f)
+
+
+def _nums(fields: list[str], kind: str, raw: bytes) -> list[float]:
+    """Every field by :func:`_num`, named ``:KIND field i`` when it is not a number."""
+    values: list[float] = []
+    for f in fields:
+        g = f.lstrip(" ")
+        if not _DECIMAL(g):
+            raise FieldError(f":{kind} field {len(values) + 1}: {f!r} is not a number", raw)
+        values.append(float(g))
+    return values
+
+
+def _ints(fields: list[str], kind: str, raw: bytes) -> list[int]:
+    """Every field by :func:`_int`, named ``:KIND field i`` when it is not an integer."""
+    values: list[int] = []
+    for f in fields:
+        g = f.lstrip(" ")
+        if not _INTEGER(g):
+            raise FieldError(f":{kind} field {len(values) + 1}: {f!r} is not an integer", raw)
+        values.append(int(g))
+    return values
 
 
 def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | None:
@@ -161,8 +183,7 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
     status = fields[n].strip()
     if status not in ("A", "V"):
         raise FieldError(f":{kind} status {status!r}, expected A or V", raw)
-    values = [_int(f, f":{kind} field {i + 1}", raw) for i, f in enumerate(fields[:n])]
-    return _velocity_of(values, status == "V", kind, raw)
+    return _velocity_of(_ints(fields[:n], kind, raw), status == "V", kind, raw)
 
 
 def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
@@ -180,7 +201,7 @@ def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Veloci
 def _dmg(fields: list[str], kind: str, raw: bytes) -> DistanceMadeGood:
     if len(fields) != 5:
         raise FieldError(f":{kind} has {len(fields)} fields, expected 5", raw)
-    e, n, u, r, dt = (_num(f, f":{kind} field {i + 1}", raw) for i, f in enumerate(fields))
+    e, n, u, r, dt = _nums(fields, kind, raw)
     return _dmg_of(e, n, u, r, dt, kind, raw)
 
 

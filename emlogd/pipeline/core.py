@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections import Counter, deque
+from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple
@@ -705,18 +705,20 @@ class Pipeline:
             self.stale[port] = False
             out.events.append(Event(t, port, "alive", {}))
         items = [item for rec in dec.feed(data) for item in _nav_items(dec, rec)]
-        self._route(t, port, items, out)
+        if items:
+            self._route(t, port, items, out)
         self._after(t, out)
         return out
 
     def _route(self, t: float, port: str, items: list[_Nav], out: Output) -> None:
         u = self.uuts.get(port)
-        newest: Counter[str] = Counter()
+        # a UUT reading is fresh when it is the chunk's last of its sentence
+        last: dict[str, int] = {}
         if u is not None:
-            newest.update(
-                it.sentence for it in items if isinstance(it, _Speed) and it.field == "speed"
-            )
-        for item in items:
+            for i, it in enumerate(items):
+                if isinstance(it, _Speed) and it.field == "speed":
+                    last[it.sentence] = i
+        for i, item in enumerate(items):
             if isinstance(item, _Heading):
                 self._heading(t, port, item)
             elif isinstance(item, _Gnss):
@@ -726,8 +728,7 @@ class Pipeline:
             else:
                 self._reference(t, port, item)
                 if u is not None and item.field == "speed":
-                    newest[item.sentence] -= 1
-                    self._reading(u, t, item, fresh=newest[item.sentence] == 0, out=out)
+                    self._reading(u, t, item, fresh=last[item.sentence] == i, out=out)
 
     def _reference(self, t: float, port: str, sp: _Speed) -> None:
         for u in self._by_ref.get(port, ()):
@@ -851,10 +852,13 @@ class Pipeline:
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
-            u.cal.drain(self.now)
-            snap = u.cal.take_snapshot(t)
-            if snap is not None:
-                out.persist.append(snap)
+            cal = u.cal
+            if cal.pending:
+                cal.drain(self.now)
+            if cal.dirty:
+                snap = cal.take_snapshot(t)
+                if snap is not None:
+                    out.persist.append(snap)
         if self._pending_events:
             out.events.extend(self._pending_events)
             self._pending_events.clear()

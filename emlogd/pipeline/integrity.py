@@ -65,7 +65,7 @@ class Envelope:
     def check(self, params: Params, current_mps: tuple[float, float] | None = None) -> str:
         """``""`` when the calibration is inside the envelope, else why not."""
         a, m, b = params.a_spm, params.m, params.b_mps
-        if not all(math.isfinite(x) for x in (a, m, b)):
+        if not (math.isfinite(a) and math.isfinite(m) and math.isfinite(b)):
             return "parameters not finite"
         if abs(m) > self.max_abs_m:
             return f"scale m={m:+.3f} outside ±{self.max_abs_m:g}"

@@ -412,6 +412,16 @@ class UutCalibration:
         average = s.average_s if s.average_s is not None else AVERAGE_S.get(s.reference_field, 0.0)
         self.block = BlockMeans(average) if average > 0.0 else None
         """Learning from block means (a noisy reference), or None: from every sample."""
+        env = s.envelope
+        self._wide = Envelope(
+            2.0 * env.max_abs_m,
+            2.0 * env.max_abs_b_mps,
+            2.0 * env.max_abs_a_spm,
+            2.0 * env.max_current_mps,
+            env.max_speed_mps,
+        )
+        """Twice the envelope: an estimate beyond it restarts the filter (:meth:`_envelope`)."""
+        self._param_names = frozenset(self.layout.params)
 
     # -- construction -------------------------------------------------------
 
@@ -711,15 +721,7 @@ class UutCalibration:
         persisted); an estimate at twice the limits, or one that cannot be inverted,
         is a filter captured by something the model does not explain.
         """
-        env = self.s.envelope
-        wide = Envelope(
-            2.0 * env.max_abs_m,
-            2.0 * env.max_abs_b_mps,
-            2.0 * env.max_abs_a_spm,
-            2.0 * env.max_current_mps,
-            env.max_speed_mps,
-        )
-        why = wide.check(self.kf.params, self.kf.current_mps)
+        why = self._wide.check(self.kf.params, self.kf.current_mps)
         if not why:
             return
         self.counters.envelope += 1
@@ -780,7 +782,7 @@ class UutCalibration:
 
     def _propose(self, t: float) -> None:
         """Freeze the estimate as a candidate when it is good and new enough."""
-        if not self.learnt_ever & set(self.layout.params) or self.lag_s is None:
+        if not self.learnt_ever & self._param_names or self.lag_s is None:
             return
         est = self.kf.params
         std = self.kf.param_std
