@@ -504,11 +504,17 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
         fake_sensors(junk, links, ("junk",), speed=None, loop=True),
         Daemon(tmp_path) as d,
     ):
-        own = os.open(tmp_path / "out" / "emlog2", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        link = tmp_path / "out" / "emlog2"
+        end = time.monotonic() + 20.0
+        while not link.exists() and time.monotonic() < end:
+            d.pump(0.1)
+        own = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
         got = b""
         try:
-            end = time.monotonic() + 4.0
-            while time.monotonic() < end:
+            # 4 s of both outputs, and on a loaded machine until the log's own pty has
+            # carried a few of its sentences (at most 20 s)
+            end, least = time.monotonic() + 20.0, time.monotonic() + 4.0
+            while time.monotonic() < end and (time.monotonic() < least or got.count(b"$VMVHW") < 3):
                 d.pump(0.2)
                 with contextlib.suppress(BlockingIOError, OSError):
                     got += os.read(own, 65536)
