@@ -238,6 +238,13 @@ def _smooth(t: FloatArray, v: FloatArray, width_s: float) -> FloatArray:
     return np.asarray((c[hi] - c[lo]) / (hi - lo), dtype=np.float64)
 
 
+COARSE_STEP_S = 0.5
+"""The lags are first scored this far apart, then at every step within
+``COARSE_STEP_S + PEAK_HALF_WIDTH_S`` of the best: the score is smooth at this scale
+(both series are averaged over at least :data:`SMOOTH_S`), and the water-frame score
+costs a fit per lag."""
+
+
 def _curve(
     tk: FloatArray,
     vk: FloatArray,
@@ -246,23 +253,41 @@ def _curve(
     regress: tuple[FloatArray, FloatArray, FloatArray] | None,
     lags: FloatArray,
 ) -> FloatArray:
-    """The correlation score at every candidate lag."""
+    """The correlation score at the candidate lags (−inf where not scored, see
+    :data:`COARSE_STEP_S`)."""
     if regress is None:
-        return np.array([_pearson(vk, np.interp(tk - lag, tr, vr)) for lag in lags])
-    th, cos_h, sin_h = regress
-    blocks = _Blocks(tk, CURRENT_BLOCK_S)
-    return np.array(
-        [
-            _multiple(
+
+        def score(lag: float) -> float:
+            return _pearson(vk, np.interp(tk - lag, tr, vr))
+
+    else:
+        th, cos_h, sin_h = regress
+        blocks = _Blocks(tk, CURRENT_BLOCK_S)
+
+        def score(lag: float) -> float:
+            return _multiple(
                 vk,
                 np.interp(tk - lag, tr, vr),
                 np.interp(tk - lag, th, cos_h),
                 np.interp(tk - lag, th, sin_h),
                 blocks,
             )
-            for lag in lags
-        ]
-    )
+
+    corr = np.full(lags.size, -np.inf)
+    step = float(lags[1] - lags[0]) if lags.size > 1 else 1.0
+    every = max(round(COARSE_STEP_S / step), 1)
+    coarse = sorted({*range(0, lags.size, every), lags.size - 1})
+    for i in coarse:
+        corr[i] = score(float(lags[i]))
+    reach = every + math.ceil(PEAK_HALF_WIDTH_S / step) + 1
+    filled: set[int] = set()
+    while (best := int(np.argmax(corr))) not in filled:
+        # around the best so far; again if the best moved near the edge of that
+        filled.add(best)
+        for i in range(max(best - reach, 0), min(best + reach, lags.size - 1) + 1):
+            if corr[i] == -np.inf:
+                corr[i] = score(float(lags[i]))
+    return corr
 
 
 def _peak(

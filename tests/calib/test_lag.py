@@ -151,6 +151,38 @@ class TestWaterFrameLag:
         constant = lag()
         assert abs(constant.lag_s - 3.2) > 0.1 or accept(constant) != ""
 
+    def test_the_coarse_search_finds_what_every_lag_finds(
+        self, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        """Scoring coarse lags first, then the steps around the best, gives the estimate of
+        scoring every step (the water-frame score is smooth at the coarse step)."""
+        seg = water_frame_segment(
+            "figure-8",
+            900.0,
+            10.0,
+            Params("EM3", m=0.09, b_mps=0.08),
+            np.random.default_rng(3),
+            current_mps=(-0.2, 0.15),
+            sigma_raw_mps=0.03,
+        )
+        t_meas, v_meas = seg.t_s[::10] + 1.7, seg.raw_mps[::10]
+
+        def lag() -> LagEstimate:
+            return estimate_lag(
+                t_meas,
+                v_meas,
+                seg.t_s,
+                seg.ref_mps,
+                8.0,
+                step_s=0.1,
+                heading=(seg.t_s, seg.heading_deg),
+            )
+
+        coarse = lag()
+        monkeypatch.setattr(calib.lag, "COARSE_STEP_S", 0.1)
+        assert lag() == coarse
+        assert coarse.lag_s == pytest.approx(1.7, abs=0.1)
+
     def test_standard_error_and_acceptance(self) -> None:
         """A broad peak has a large standard error and is refused; a bound peak is refused."""
         t = np.arange(0.0, 300.0, 1.0)
