@@ -312,6 +312,23 @@ class KfCalibrator:
                     P[i][j] = P[j][i] = 0.0
                 P[i][i] = var
 
+    def age_current(self, elapsed_s: float) -> None:
+        """The current's random walk over ``elapsed_s`` the filter did not run.
+
+        Each component's variance grows by ``current_psd_m2ps3 · elapsed_s``, up to its
+        prior (a current restored from hours ago is no longer known, and should not be
+        trusted as if it were). Nothing happens without current states.
+        """
+        lay = self.layout
+        if not lay.current or not elapsed_s > 0.0:
+            return
+        cfg = self.config
+        for i in (lay.n - 2, lay.n - 1):
+            var = self._P[i][i]
+            self._P[i][i] = max(
+                var, min(var + cfg.current_psd_m2ps3 * elapsed_s, cfg.current_p0_m2ps2)
+            )
+
     def reacquire_speed(self) -> None:
         """Forget the speed state: a wide prior variance, its correlations dropped.
 

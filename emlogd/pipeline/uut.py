@@ -383,6 +383,8 @@ class UutCalibration:
         )
         self.ref_state: RefState = "none"
         self.t_prev: float | None = None
+        self.t_restored = usable.t if usable is not None and usable.current else None
+        """When the restored calibration's current was last known (aged at the first reading)."""
         self.t_ref_last = -math.inf
         self.n_learnt = usable.n_samples if usable is not None else 0
         self.n_since_eval = 0
@@ -537,6 +539,9 @@ class UutCalibration:
         s = self.s
         dt = 0.0 if self.t_prev is None else max(t - self.t_prev, 0.0)
         self.t_prev = t
+        if self.t_restored is not None:
+            self.kf.age_current(t - self.t_restored)
+            self.t_restored = None
         self._lag_step(t, raw)
         lag = self.lag_s
         ref = self.ref.at(t - lag) if lag is not None else None

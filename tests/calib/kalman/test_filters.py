@@ -248,6 +248,21 @@ class TestIntegrityHooks:
         assert P[1][1] == cfg.p0 and P[1][0] == P[1][2] == 0.0
         assert kf.params.m != 0.0
 
+    def test_age_current_grows_the_current_variance_up_to_its_prior(self) -> None:
+        """age_current(s) adds the random walk over s to each current component, capped at
+        the prior; the parameters' variances are untouched."""
+        cfg = KfConfig()
+        P0 = np.diag([1.0, 1e-4, 1e-4, 1e-6, 1e-6])
+        kf = KfCalibrator("EM3", cfg, current=True, current0_mps=(0.2, -0.1), P0=P0)
+        kf.age_current(600.0)
+        P = kf.covariance()
+        assert P[3][3] == pytest.approx(1e-6 + cfg.current_psd_m2ps3 * 600.0)
+        assert P[4][4] == pytest.approx(1e-6 + cfg.current_psd_m2ps3 * 600.0)
+        assert P[1][1] == P[2][2] == 1e-4
+        kf.age_current(1e9)
+        assert kf.covariance()[3][3] == cfg.current_p0_m2ps2
+        assert kf.current_mps == (0.2, -0.1)
+
     def test_outage_freezes_parameters_and_carries_speed(self) -> None:
         """Without reference the parameters stay fixed and v follows the corrected raw reading."""
         cfg = KfConfig()

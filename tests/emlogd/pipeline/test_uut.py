@@ -222,3 +222,27 @@ class TestBlockMeans:
         m_blocks = run(None)
         assert m_blocks == pytest.approx(TRUE.m, abs=0.03)
         assert abs(run(0.0) - TRUE.m) > abs(m_blocks - TRUE.m)
+
+
+def test_a_restored_current_is_aged_by_the_time_the_daemon_was_down() -> None:
+    """A calibration saved an hour before the first reading: its current's variance grows by
+    the random walk over that hour before it is used (it is no longer known to 2 mm/s)."""
+    cur_std = (0.002, 0.002)
+    prior = Calibration(
+        "log",
+        TRUE,
+        {"m": 0.01, "b": 0.01},
+        0.0,
+        current=True,
+        current_mps=(0.1, 0.0),
+        current_std_mps=cur_std,
+        covariance=tuple(tuple(r) for r in np.diag([1.0, 1e-4, 1e-4, 4e-6, 4e-6]).tolist()),
+        t=-3600.0,
+    )
+    rig = Rig(prior, heading=90.0, current=True, learn=False)
+    std0 = rig.cal.kf.current_std_mps
+    assert std0 is not None and std0[0] < 0.01
+    rig.run(1.0)
+    std1 = rig.cal.kf.current_std_mps
+    psd = rig.cal.s.kf.current_psd_m2ps3
+    assert std1 is not None and std1[0] >= math.sqrt(psd * 3600.0) * 0.99
