@@ -165,7 +165,8 @@ class _Blocks:
     """The blocks of :data:`CURRENT_BLOCK_S` over the measurement times ``t``.
 
     Attributes:
-        starts: start index of each block (a tail shorter than a block joins the last).
+        starts: start index of each block holding samples (a tail shorter than a block
+            joins the last).
         index: the block of each sample.
         tau: each sample's time from its block's mean time, in blocks.
     """
@@ -174,9 +175,10 @@ class _Blocks:
 
     def __init__(self, t: FloatArray, block_s: float) -> None:
         n = max(int((t[-1] - t[0]) / block_s), 1)
-        self.starts = np.searchsorted(t, t[0] + block_s * np.arange(n, dtype=np.float64))
+        # a block with no sample (a gap in the series longer than a block) is dropped
+        self.starts = np.unique(np.searchsorted(t, t[0] + block_s * np.arange(n, dtype=np.float64)))
         sizes = np.diff(np.append(self.starts, t.size))
-        self.index = np.repeat(np.arange(n), sizes)
+        self.index = np.repeat(np.arange(self.starts.size), sizes)
         self.tau = (t - (np.add.reduceat(t, self.starts) / sizes)[self.index]) / block_s
 
     def residual(self, X: FloatArray, v: FloatArray) -> FloatArray:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -182,6 +184,33 @@ class TestWaterFrameLag:
         monkeypatch.setattr(calib.lag, "COARSE_STEP_S", 0.1)
         assert lag() == coarse
         assert coarse.lag_s == pytest.approx(1.7, abs=0.1)
+
+    def test_a_gap_longer_than_a_current_block(self) -> None:
+        """A reference outage longer than a current block leaves that block empty: it is
+        dropped (no division by an empty block), and the lag is still found."""
+        seg = water_frame_segment(
+            "figure-8",
+            1800.0,
+            10.0,
+            Params("EM3", m=0.09, b_mps=0.08),
+            np.random.default_rng(3),
+            current_mps=(-0.2, 0.15),
+            sigma_raw_mps=0.03,
+        )
+        out = (seg.t_s > 600.0) & (seg.t_s < 1300.0)
+        t_meas, v_meas = seg.t_s[::10] + 2.0, seg.raw_mps[::10]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            est = estimate_lag(
+                t_meas,
+                v_meas,
+                seg.t_s[~out],
+                seg.ref_mps[~out],
+                8.0,
+                step_s=0.1,
+                heading=(seg.t_s[~out], seg.heading_deg[~out]),
+            )
+        assert est.lag_s == pytest.approx(2.0, abs=0.3)
 
     def test_standard_error_and_acceptance(self) -> None:
         """A broad peak has a large standard error and is refused; a bound peak is refused."""
