@@ -27,10 +27,10 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from datetime import datetime
-from typing import ClassVar, TypeAlias, get_args
+from typing import ClassVar, TypeAlias, TypeVar, get_args
 
 from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
@@ -134,6 +134,7 @@ RECORD_PARTS = (Velocity, DistanceMadeGood)
 
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)").fullmatch
 _INTEGER = re.compile(r"[+-]?[0-9]+").fullmatch
+_N = TypeVar("_N", int, float)
 
 
 def _num(field: str, name: str, raw: bytes) -> float:
@@ -154,25 +155,22 @@ def _int(field: str, name: str, raw: bytes) -> int:
     return int(f)
 
 
-def _nums(fields: list[str], kind: str, raw: bytes) -> list[float]:
-    """Every field by :func:`_num`, named ``:KIND field i`` when it is not a number."""
-    values: list[float] = []
+def _each(
+    fields: list[str],
+    kind: str,
+    raw: bytes,
+    match: Callable[[str], object],
+    convert: Callable[[str], _N],
+    what: str,
+) -> list[_N]:
+    """Every field as :func:`_num` or :func:`_int` reads it (``match`` their pattern,
+    ``what`` "a number" or "an integer"), named ``:KIND field i`` only when it is bad."""
+    values: list[_N] = []
     for f in fields:
         g = f.lstrip(" ")
-        if not _DECIMAL(g):
-            raise FieldError(f":{kind} field {len(values) + 1}: {f!r} is not a number", raw)
-        values.append(float(g))
-    return values
-
-
-def _ints(fields: list[str], kind: str, raw: bytes) -> list[int]:
-    """Every field by :func:`_int`, named ``:KIND field i`` when it is not an integer."""
-    values: list[int] = []
-    for f in fields:
-        g = f.lstrip(" ")
-        if not _INTEGER(g):
-            raise FieldError(f":{kind} field {len(values) + 1}: {f!r} is not an integer", raw)
-        values.append(int(g))
+        if not match(g):
+            raise FieldError(f":{kind} field {len(values) + 1}: {f!r} is not {what}", raw)
+        values.append(convert(g))
     return values
 
 
@@ -183,7 +181,9 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
     status = fields[n].strip()
     if status not in ("A", "V"):
         raise FieldError(f":{kind} status {status!r}, expected A or V", raw)
-    return _velocity_of(_ints(fields[:n], kind, raw), status == "V", kind, raw)
+    return _velocity_of(
+        _each(fields[:n], kind, raw, _INTEGER, int, "an integer"), status == "V", kind, raw
+    )
 
 
 def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
@@ -201,7 +201,7 @@ def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Veloci
 def _dmg(fields: list[str], kind: str, raw: bytes) -> DistanceMadeGood:
     if len(fields) != 5:
         raise FieldError(f":{kind} has {len(fields)} fields, expected 5", raw)
-    e, n, u, r, dt = _nums(fields, kind, raw)
+    e, n, u, r, dt = _each(fields, kind, raw, _DECIMAL, float, "a number")
     return _dmg_of(e, n, u, r, dt, kind, raw)
 
 
