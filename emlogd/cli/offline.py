@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from datetime import date
 from typing import TYPE_CHECKING, Any
 
+from calib.models import MODEL_NAMES
 from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
@@ -591,6 +592,12 @@ def _pairing_args(p: argparse.ArgumentParser, required: bool = True) -> None:
     )
 
 
+def _model_arg(p: argparse.ArgumentParser) -> None:
+    """``--model``: the error model (default: the calibration's declared one)."""
+    default = next(f.default for f in dataclasses.fields(UutSettings) if f.name == "model")
+    p.add_argument("--model", choices=MODEL_NAMES, help=f"error model (default {default})")
+
+
 def _water_frame(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--current",
@@ -697,7 +704,7 @@ def add_parsers(sub: Subparsers) -> None:
     )
     p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
     _pairing_args(p)
-    p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
+    _model_arg(p)
     p.add_argument("--method", choices=["ls", "kf"], default="ls")
     p.add_argument("--save", metavar="PARAMS.yaml", help="write the calibration file")
     p.add_argument(
@@ -777,7 +784,7 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     _pairing_args(p)
-    p.add_argument("--model", choices=["EM1", "EM2", "EM3", "EM4"], default="EM3")
+    _model_arg(p)
     _common_offline(p)
     p.set_defaults(handler=cmd_report)
 
