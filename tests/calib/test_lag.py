@@ -11,12 +11,27 @@ import calib.lag
 from calib.errors import DataError
 from calib.lag import LagEstimate, accept, combine, estimate_lag
 from calib.models import Params
-from calib.synth import water_frame_segment
+from calib.synth import WaterFrameSeries, water_frame_segment
 
 
 def _speed(t: np.ndarray) -> np.ndarray:
     """A manoeuvring speed profile (m/s) rich enough to correlate."""
     return 1.5 + 0.6 * np.sin(2 * np.pi * t / 95.0) + 0.3 * np.sin(2 * np.pi * t / 37.0 + 1.0)
+
+
+def _segment(
+    kind: str, seconds: float, seed: int, current: tuple[float, float]
+) -> WaterFrameSeries:
+    """A 10 Hz water-frame segment of a log with m = 0.09, b = 0.08 m/s and 0.03 m/s of noise."""
+    return water_frame_segment(
+        kind,  # type: ignore[arg-type]
+        seconds,
+        10.0,
+        Params("EM3", m=0.09, b_mps=0.08),
+        np.random.default_rng(seed),
+        current_mps=current,
+        sigma_raw_mps=0.03,
+    )
 
 
 class TestEstimateLag:
@@ -93,15 +108,7 @@ class TestWaterFrameLag:
     @pytest.mark.parametrize("kind", ["figure-8", "circles"])
     def test_current_does_not_bias_the_lag(self, kind: str) -> None:
         """In 0.3 m/s of current the water-frame lag is within 0.1 s; the plain one misses or is refused."""
-        seg = water_frame_segment(
-            kind,  # type: ignore[arg-type]
-            900.0,
-            10.0,
-            Params("EM3", m=0.09, b_mps=0.08),
-            np.random.default_rng(2),
-            current_mps=(-0.3, 0.1),
-            sigma_raw_mps=0.03,
-        )
+        seg = _segment(kind, 900.0, 2, (-0.3, 0.1))
         t_meas, v_meas = seg.t_s[::10] + 3.2, seg.raw_mps[::10]
         plain = estimate_lag(t_meas, v_meas, seg.t_s, seg.ref_mps, 10.0, step_s=0.1)
         water = estimate_lag(
@@ -125,15 +132,7 @@ class TestWaterFrameLag:
         Fitted as one constant over the window, the same current pulls the peak off or
         leaves it refused.
         """
-        seg = water_frame_segment(
-            "figure-8",
-            1500.0,
-            10.0,
-            Params("EM3", m=0.09, b_mps=0.08),
-            np.random.default_rng(5),
-            current_mps=(0.0, 0.0),
-            sigma_raw_mps=0.03,
-        )
+        seg = _segment("figure-8", 1500.0, 5, (0.0, 0.0))
         # The tide turns during the run: (−0.25, +0.15) m/s to (+0.15, −0.20) m/s.
         f = (seg.t_s - seg.t_s[0]) / (seg.t_s[-1] - seg.t_s[0])
         c_n, c_e = -0.25 + 0.40 * f, 0.15 - 0.35 * f
@@ -158,15 +157,7 @@ class TestWaterFrameLag:
     ) -> None:
         """Scoring coarse lags first, then the steps around the best, gives the estimate of
         scoring every step (the water-frame score is smooth at the coarse step)."""
-        seg = water_frame_segment(
-            "figure-8",
-            900.0,
-            10.0,
-            Params("EM3", m=0.09, b_mps=0.08),
-            np.random.default_rng(3),
-            current_mps=(-0.2, 0.15),
-            sigma_raw_mps=0.03,
-        )
+        seg = _segment("figure-8", 900.0, 3, (-0.2, 0.15))
         t_meas, v_meas = seg.t_s[::10] + 1.7, seg.raw_mps[::10]
 
         def lag() -> LagEstimate:
@@ -188,15 +179,7 @@ class TestWaterFrameLag:
     def test_a_gap_longer_than_a_current_block(self) -> None:
         """A reference outage longer than a current block leaves that block empty: it is
         dropped (no division by an empty block), and the lag is still found."""
-        seg = water_frame_segment(
-            "figure-8",
-            1800.0,
-            10.0,
-            Params("EM3", m=0.09, b_mps=0.08),
-            np.random.default_rng(3),
-            current_mps=(-0.2, 0.15),
-            sigma_raw_mps=0.03,
-        )
+        seg = _segment("figure-8", 1800.0, 3, (-0.2, 0.15))
         out = (seg.t_s > 600.0) & (seg.t_s < 1300.0)
         t_meas, v_meas = seg.t_s[::10] + 2.0, seg.raw_mps[::10]
         with warnings.catch_warnings():
