@@ -159,28 +159,27 @@ for trial in ("default", "tidal"):
         e = json.loads((j / f"eval-{uut}-2-figure8-paper.json").read_text())["captures"]
         print("| raw | | " + " | ".join(f(r["truth"]["rmse_raw"]) for r in e) + f" | {f(pooled([r['truth'] for r in e], 'rmse_raw'))} | | |")
         print("| floor | | " + " | ".join(f(r["truth"]["rmse_floor"]) for r in e) + f" | {f(pooled([r['truth'] for r in e], 'rmse_floor'))} | | |")
-    print(f"\n### {trial}: the daemon's online KF (replay of the five captures in order), against the truth\n")
-    print("| UUT | raw | paper (no current) | water frame (current: true) | floor | scored samples paper / current |")
-    print("|---|---|---|---|---|---|")
-    rp = json.loads((j / "replay-paper.json").read_text())["uuts"]
-    rc = json.loads((j / "replay-current.json").read_text())["uuts"]
-    for uut in ("emlog1", "emlog2"):
-        a, b = rp[uut]["truth"], rc[uut]["truth"]
-        print(
-            f"| {uut} | {f(a['rmse_raw'])} | {f(a['rmse_corrected'])} | {f(b['rmse_corrected'])} "
-            f"| {f(a['rmse_floor'])} | {a['n_samples']} / {b['n_samples']} |"
-        )
-    print(f"\n### {trial}: from an empty state, automatic lag: straight, circles and return after the transit and the figure-8\n")
-    print("| UUT | raw | paper (no current) | water frame (current: true) | floor | lag paper / current (s) |")
-    print("|---|---|---|---|---|---|")
-    rp = json.loads((j / "replay-after-paper.json").read_text())["uuts"]
-    rc = json.loads((j / "replay-after-current.json").read_text())["uuts"]
-    for uut in ("emlog1", "emlog2"):
-        a, b = rp[uut]["truth"], rc[uut]["truth"]
-        print(
-            f"| {uut} | {f(a['rmse_raw'])} | {f(a['rmse_corrected'])} | {f(b['rmse_corrected'])} "
-            f"| {f(a['rmse_floor'])} | {lag_txt(rp[uut]['lag_s'])} / {lag_txt(rc[uut]['lag_s'])} |"
-        )
+    for title, prefix, last in (
+        ("the daemon's online KF (replay of the five captures in order), against the truth", "replay",
+         "scored samples paper / current"),
+        ("from an empty state, automatic lag: straight, circles and return after the transit and the figure-8",
+         "replay-after", "lag paper / current (s)"),
+    ):
+        print(f"\n### {trial}: {title}\n")
+        print(f"| UUT | raw | paper (no current) | water frame (current: true) | floor | {last} |")
+        print("|---|---|---|---|---|---|")
+        rp = json.loads((j / f"{prefix}-paper.json").read_text())["uuts"]
+        rc = json.loads((j / f"{prefix}-current.json").read_text())["uuts"]
+        for uut in ("emlog1", "emlog2"):
+            a, b = rp[uut]["truth"], rc[uut]["truth"]
+            tail = (
+                f"{a['n_samples']} / {b['n_samples']}" if prefix == "replay"
+                else f"{lag_txt(rp[uut]['lag_s'])} / {lag_txt(rc[uut]['lag_s'])}"
+            )
+            print(
+                f"| {uut} | {f(a['rmse_raw'])} | {f(a['rmse_corrected'])} | {f(b['rmse_corrected'])} "
+                f"| {f(a['rmse_floor'])} | {tail} |"
+            )
     for uut in ("emlog1", "emlog2"):
         for cur in ("paper", "current"):
             cv = json.loads((j / f"cv-{uut}-{cur}.json").read_text())
