@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import signal
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -153,35 +154,43 @@ def _parse_port_spec(spec: str) -> tuple[str, str, int, str]:
     return name, url, baud, proto
 
 
+@contextlib.contextmanager
+def _on_sigterm(action: Callable[[], object]) -> Iterator[None]:
+    """Within the block, SIGTERM calls ``action`` (to end the work cleanly)."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        action()
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 def cmd_record(args: argparse.Namespace) -> int:
     """Capture live ports into a capture v1 file until Ctrl-C, SIGTERM or --duration."""
     from drivers.io.record import PortSpec, record
 
     specs = [PortSpec(*_parse_port_spec(s)) for s in args.port]
-    stop = False
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        nonlocal stop
-        stop = True
-
-    old = signal.signal(signal.SIGTERM, _stop)
+    stopped: list[bool] = []
     try:
-        counts = record(
-            specs,
-            args.out,
-            duration_s=args.duration,
-            stale_timeout_s=args.stale_timeout,
-            should_stop=lambda: stop,
-            on_event=lambda ev: sys.stderr.write(f"{ev.port}: {ev.kind} {ev.detail}\n"),
-            on_progress=lambda c: progress(
-                "recording: " + ", ".join(f"{k}={v}" for k, v in c.items())
-            ),
-        )
+        with _on_sigterm(lambda: stopped.append(True)):
+            counts = record(
+                specs,
+                args.out,
+                duration_s=args.duration,
+                stale_timeout_s=args.stale_timeout,
+                should_stop=lambda: bool(stopped),
+                on_event=lambda ev: sys.stderr.write(f"{ev.port}: {ev.kind} {ev.detail}\n"),
+                on_progress=lambda c: progress(
+                    "recording: " + ", ".join(f"{k}={v}" for k, v in c.items())
+                ),
+            )
     except ValueError as exc:
         raise UsageError(f"--port: {exc}") from None
     finally:
         progress_done()
-        signal.signal(signal.SIGTERM, old)
     sys.stderr.write(
         f"wrote {args.out}: " + ", ".join(f"{k} {v} records" for k, v in counts.items()) + "\n"
     )
@@ -233,18 +242,13 @@ def cmd_fake(args: argparse.Namespace) -> int:
     speed = None if args.fast else args.speed
     device = FakeCapture(args.capture, links, speed=speed, loop=args.loop)
 
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        device.stop()
-
-    old = signal.signal(signal.SIGTERM, _stop)
     for port, link in links.items():
         sys.stderr.write(f"serving {port} from {args.capture} on {link}\n")
-    try:
-        device.run()
-    except KeyboardInterrupt:
-        device.stop()
-    finally:
-        signal.signal(signal.SIGTERM, old)
+    with _on_sigterm(device.stop):
+        try:
+            device.run()
+        except KeyboardInterrupt:
+            device.stop()
     return 0
 
 

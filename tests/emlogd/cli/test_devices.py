@@ -86,7 +86,8 @@ def test_fake_then_record_round_trip(tmp_path: Path, capsys: pytest.CaptureFixtu
         assert rc == 0
     finally:
         fake.terminate()
-        fake.wait(10)
+        rc_fake = fake.wait(10)
+    assert rc_fake == 0  # SIGTERM ends `emlogd fake` cleanly
     assert "wrote" in capsys.readouterr().err
     got = [r.payload.encode() for r in CaptureReader(out)]
     assert got == lines
