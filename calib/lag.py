@@ -327,7 +327,7 @@ def _dof(t: FloatArray, water_frame: bool) -> int:
     """Degrees of freedom of the fit at the peak: the samples less the unknowns."""
     if not water_frame:
         return t.size - 2
-    return t.size - 1 - 5 * max(int((t[-1] - t[0]) / CURRENT_BLOCK_S), 1)
+    return t.size - 1 - 5 * _Blocks(t, CURRENT_BLOCK_S).starts.size
 
 
 def estimate_lag(
