@@ -80,7 +80,9 @@ echo "== the automatic lag of EMlog1 on the figure-8, with the current states (d
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --current | sed -n 2p
 echo "== KF-EM3 on the figure-8 (default trial)"
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --method kf
-echo "== KF-EM3 with the current states and each log's true reading noise on the figure-8 (default trial)"
+echo "== KF-EM3 with the current states on the figure-8: the default reading noise, then each log's true one (default trial)"
+emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --lag 3.3 --method kf \
+  --current | grep NIS
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --lag 3.3 --method kf \
   --current --r-raw 0.03 | grep NIS
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog2 --ref dvl --lag 0.5 --method kf \
