@@ -240,8 +240,8 @@ def _scale_inflation(info: FloatArray, scale: Sequence[str], offset: bool) -> fl
     """
     worst = 1.0
     for group in [list(scale)] + [[k] for k in scale] * (len(scale) > 1):
-        a, _ = _stds(info, _columns(group, offset), 1.0)
-        b, _ = _stds(info, _columns([*group, CURRENT], offset), 1.0)
+        a = _stds(info, _columns(group, offset), 1.0)
+        b = _stds(info, _columns([*group, CURRENT], offset), 1.0)
         for k in group:
             for c in _COL[k]:
                 if math.isfinite(a[c]):
@@ -250,17 +250,25 @@ def _scale_inflation(info: FloatArray, scale: Sequence[str], offset: bool) -> fl
     return worst
 
 
-def _stds(info: FloatArray, cols: list[int], sigma2: float) -> tuple[dict[int, float], float]:
-    """Standard deviation of each column's unknown and the condition number."""
+def _stds(info: FloatArray, cols: list[int], sigma2: float) -> dict[int, float]:
+    """Standard deviation of each column's unknown (``inf`` for all when singular).
+
+    From one eigendecomposition of the information matrix scaled to a unit diagonal:
+    ``(M⁻¹)ᵢᵢ = Σₖ Vᵢₖ² / λₖ`` over that matrix's eigenpairs, divided by the scale².
+    """
     sub = info[np.ix_(cols, cols)]
     scale = np.sqrt(np.maximum(np.diag(sub), 1e-300))
-    norm = sub / np.outer(scale, scale)
-    eig = np.linalg.eigvalsh(norm)
+    eig, vec = np.linalg.eigh(sub / np.outer(scale, scale))
     if not float(eig[0]) > 1e-12 * max(float(eig[-1]), 1e-300):
-        return dict.fromkeys(cols, math.inf), math.inf
-    inv = np.linalg.inv(norm) / np.outer(scale, scale)
-    cond = float(np.linalg.cond(sub))
-    return {c: math.sqrt(max(float(inv[i, i]) * sigma2, 0.0)) for i, c in enumerate(cols)}, cond
+        return dict.fromkeys(cols, math.inf)
+    inv_diag = (vec * vec) @ (1.0 / eig) / (scale * scale)
+    return {c: math.sqrt(max(float(inv_diag[i]) * sigma2, 0.0)) for i, c in enumerate(cols)}
+
+
+def _cond(info: FloatArray, cols: list[int]) -> float:
+    """The condition number of the information matrix over some columns."""
+    eig = np.linalg.eigvalsh(info[np.ix_(cols, cols)])
+    return float(eig[-1] / eig[0]) if float(eig[0]) > 0.0 else math.inf
 
 
 def judge(
@@ -285,6 +293,19 @@ def judge(
 
     Returns:
         A verdict per unknown.
+    """
+    refused, offset = structural(layout, stats, rule)
+    return _information(layout, stats, sigma2_mps2, rule, std_factor, dict(refused), offset)
+
+
+def structural(
+    layout: Layout, stats: WindowStats, rule: ExcitationRule = DEFAULT_RULE
+) -> tuple[dict[str, str], bool]:
+    """Rules 1 and 2 and the scale's variance inflation: what no noise level changes.
+
+    Returns:
+        The unknowns refused, each with its reason, and whether a nuisance offset
+        takes the bias and the along-hull current together.
     """
     unknowns = layout.unknowns
     refused: dict[str, str] = {}
@@ -329,6 +350,20 @@ def judge(
                 )
                 for k in free_scale:
                     refused[k] = why
+    return refused, offset
+
+
+def _information(
+    layout: Layout,
+    stats: WindowStats,
+    sigma2_mps2: float,
+    rule: ExcitationRule,
+    std_factor: float,
+    refused: dict[str, str],
+    offset: bool,
+) -> Identifiability:
+    """Rules 3 and 4 on what :func:`structural` left (``refused`` is extended)."""
+    unknowns = layout.unknowns
     free = [u for u in unknowns if u not in refused]
     stds: dict[str, float] = {}
     cond = math.inf
@@ -340,12 +375,14 @@ def judge(
         free = []
     while free:
         cols = _columns(free, offset)
-        by_col, cond = _stds(stats.info, cols, sigma2_mps2)
+        by_col = _stds(stats.info, cols, sigma2_mps2)
         stds = {u: max(by_col[c] for c in _COL[u]) for u in free}
         ratios = {u: stds[u] / (rule.max_std(u) * std_factor) for u in free}
         worst = max(free, key=lambda u: ratios[u])
-        if ratios[worst] <= 1.0 and cond <= rule.max_cond:
-            break
+        if ratios[worst] <= 1.0:
+            cond = _cond(stats.info, cols)
+            if cond <= rule.max_cond:
+                break
         sd = stds[worst]
         refused[worst] = (
             f"{_LABEL[worst]} not determinable: weak excitation "
@@ -510,7 +547,7 @@ class ExcitationWindow:
         ValueError: a half-life that is not positive.
     """
 
-    __slots__ = ("_info", "_lam", "_r0", "_r1", "_r2", "_sectors", "layout", "rule")
+    __slots__ = ("_info", "_judged", "_lam", "_r0", "_r1", "_r2", "_sectors", "layout", "rule")
 
     def __init__(
         self,
@@ -526,6 +563,7 @@ class ExcitationWindow:
         self._info = [0.0] * 15
         self._r0 = self._r1 = self._r2 = 0.0
         self._sectors = [0.0] * N_SECTORS
+        self._judged: tuple[WindowStats, dict[str, str], bool] | None = None
 
     def add(self, u_mps: float, raw_mps: float, heading_deg: float | None = None) -> None:
         """Add one sample: operating-point speed through the water, reading, heading."""
@@ -550,12 +588,14 @@ class ExcitationWindow:
         self._r0 = lam * self._r0 + 1.0
         self._r1 = lam * self._r1 + raw_mps
         self._r2 = lam * self._r2 + raw_mps * raw_mps
+        self._judged = None
 
     def reset(self) -> None:
         """Forget every sample."""
         self._info = [0.0] * 15
         self._r0 = self._r1 = self._r2 = 0.0
         self._sectors = [0.0] * N_SECTORS
+        self._judged = None
 
     @property
     def n_effective(self) -> float:
@@ -586,8 +626,18 @@ class ExcitationWindow:
         return WindowStats(r0, M, mean, std, rms, sectors)
 
     def evaluate(self, sigma2_mps2: float, *, std_factor: float = 1.0) -> Identifiability:
-        """Judge the current window (:func:`judge`) with a nominal residual variance."""
-        return judge(self.layout, self.stats(), sigma2_mps2, self.rule, std_factor=std_factor)
+        """Judge the current window (:func:`judge`) with a nominal residual variance.
+
+        The window's figures and the structural verdicts are kept until the next
+        sample, so judging one window against two bounds builds them once.
+        """
+        if self._judged is None:
+            stats = self.stats()
+            self._judged = (stats, *structural(self.layout, stats, self.rule))
+        stats, refused, offset = self._judged
+        return _information(
+            self.layout, stats, sigma2_mps2, self.rule, std_factor, dict(refused), offset
+        )
 
 
 def qr_r(A: FloatArray) -> FloatArray:
