@@ -141,7 +141,7 @@ class KfCalibrator:
         ModelError: unknown model, params of another model, bad P0 or x0.
     """
 
-    __slots__ = ("_P", "_gains", "_x", "config", "layout")
+    __slots__ = ("_P", "_gains", "_params", "_x", "config", "layout")
 
     def __init__(
         self,
@@ -175,6 +175,7 @@ class KfCalibrator:
         self._x = x0
         self._P = to_lists(M)
         self._gains: dict[object, list[float]] = {}
+        self._params: tuple[tuple[float, ...], Params] | None = None
 
     # -- the per-sample path ------------------------------------------------
 
@@ -367,8 +368,11 @@ class KfCalibrator:
     @property
     def params(self) -> Params:
         """The current parameter estimate θ̂."""
-        p = len(self.layout.params)
-        return Params.from_theta(self.layout.model, self._x[1 : 1 + p])
+        theta = tuple(self._x[1 : 1 + len(self.layout.params)])
+        memo = self._params
+        if memo is None or memo[0] != theta:
+            memo = self._params = (theta, Params.from_theta(self.layout.model, theta))
+        return memo[1]
 
     @property
     def param_std(self) -> dict[str, float]:

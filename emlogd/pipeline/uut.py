@@ -789,11 +789,11 @@ class UutCalibration:
         """Freeze the estimate as a candidate when it is good and new enough."""
         if not self.learnt_ever & self._param_names or self.lag_s is None:
             return
-        est = self.kf.params
         std = self.kf.param_std
         for name in self.layout.params:
             if name in self.learnt_ever and std[name] > self.s.max_param_std.get(name, math.inf):
                 return
+        est = self.kf.params
         if self.s.envelope.check(est, self.kf.current_mps):
             return
         if self.applied is not None and not self._significant(self.applied, est, std):
@@ -801,11 +801,10 @@ class UutCalibration:
         self.candidate = _Candidate(est, t)
 
     def _significant(self, old: Params, new: Params, std: Mapping[str, float]) -> bool:
-        a, b = old.as_dict(), new.as_dict()
+        sigmas, floor = self.s.persist_min_change_sigma, self.s.persist_min_change_abs
         return any(
-            abs(b[k] - a[k])
-            > max(self.s.persist_min_change_sigma * std[k], self.s.persist_min_change_abs)
-            for k in a
+            abs(y - x) > max(sigmas * std[k], floor)
+            for k, x, y in zip(self.layout.params, old.theta, new.theta, strict=True)
         )
 
     def _decide(self, t: float, cand: _Candidate) -> None:
