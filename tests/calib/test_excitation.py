@@ -13,6 +13,7 @@ from calib.excitation import (
     ExcitationWindow,
     heading_sectors,
     identifiability,
+    judge,
     window_stats,
 )
 from calib.models import Layout, Params
@@ -175,6 +176,39 @@ class TestExcitationWindow:
             for u, r, h in zip(s.u_water_mps, s.raw_mps, s.heading_deg, strict=True):
                 win.add(float(u), float(r), float(h))
         assert set(win.evaluate(SIGMA2).unidentifiable) == {"m", "b", "current"}
+
+    def test_a_strict_bound_then_a_loose_one_judge_independently(self) -> None:
+        """Judging one window against two bounds, in either order, gives each bound's own
+        verdict (what the strict bound refuses does not carry over to the loose one)."""
+        s = _seg("figure-8", seconds=60.0)
+        win = ExcitationWindow(EM3C)
+        for u, r, h in zip(s.u_water_mps, s.raw_mps, s.heading_deg, strict=True):
+            win.add(float(u), float(r), float(h))
+        strict = judge(EM3C, win.stats(), SIGMA2).determined
+        loose = judge(EM3C, win.stats(), SIGMA2, std_factor=5.0).determined
+        assert strict != loose
+        assert (
+            win.evaluate(SIGMA2).determined,
+            win.evaluate(SIGMA2, std_factor=5.0).determined,
+        ) == (
+            strict,
+            loose,
+        )
+        assert win.evaluate(SIGMA2, std_factor=5.0).determined == loose
+        assert win.evaluate(SIGMA2).determined == strict
+
+    def test_a_judgement_follows_the_samples_added_since_the_last(self) -> None:
+        """The window is judged afresh after each sample: a figure-8 determines the
+        current, and the long straight after it takes that away."""
+        eight, straight = _seg("figure-8", seconds=600.0), _seg("straight", seconds=1800.0)
+        win = ExcitationWindow(EM3C, half_life_samples=120.0)
+        verdicts = []
+        for s in (eight, straight):
+            for u, r, h in zip(s.u_water_mps, s.raw_mps, s.heading_deg, strict=True):
+                win.add(float(u), float(r), float(h))
+            verdicts.append(set(win.evaluate(SIGMA2).determined))
+        assert "current" in verdicts[0]
+        assert verdicts[1] == set()
 
     def test_reset_and_bad_half_life(self) -> None:
         """reset() empties the window; a non-positive half-life raises ValueError."""
