@@ -235,6 +235,22 @@ class TestIntegrityHooks:
         assert kf.params == Params("EM3")
         assert kf.speed_mps == pytest.approx(2.0, abs=0.02)
 
+    def test_the_estimate_read_between_steps_is_the_state_of_each(self) -> None:
+        """params read after each step is the state's (θ of x), also when read twice
+        in one step and after a restart."""
+        cfg = KfConfig()
+        _t, _, raw, ref = _sim(50, 3, TRUTH["EM3"], cfg)
+        kf = KfCalibrator("EM3", cfg)
+        seen = []
+        for k in range(50):
+            kf.update(raw[k], ref[k], 1.0)
+            assert kf.params is kf.params
+            assert kf.params == Params.from_theta("EM3", kf.x[1:3])
+            seen.append(kf.params)
+        assert len(set(seen)) == 50
+        kf.restart(Params("EM3", m=0.01))
+        assert kf.params == Params("EM3", m=0.01)
+
     def test_reopen_restores_the_prior_variance(self) -> None:
         """reopen() sets an unknown's variance back to p0 and drops its correlations."""
         cfg = KfConfig()
