@@ -1,6 +1,8 @@
 """``emlogd run``: the daemon loop around the pipeline.
 
-One process, one thread, one ``selectors`` loop. The loop owns the file
+One process, one thread, one epoll loop: a readable port runs its callback
+straight from ``epoll.poll`` (the sockets of the control server and the TCP output
+sit in a ``selectors`` selector nested in it). The loop owns the file
 descriptors (serial sources, output sinks, control socket, a self-pipe for
 signals), the clock, sd_notify and the state file; everything else happens in
 :class:`~emlogd.pipeline.core.Pipeline`, the same object ``emlogd replay`` drives.
@@ -130,7 +132,14 @@ class Daemon:
         self.monotonic = monotonic
         self._epoch = clock() - monotonic()
         self.config: Config = load_config(self.config_path)
-        self.sel = selectors.DefaultSelector()
+        self.poll = select.epoll()
+        """What the loop waits on: the ports read as soon as readable, the resting
+        ports' epoll, the signal pipe and :attr:`sel`; each descriptor's callback is in
+        :attr:`calls` (a data wake-up runs one callback, no selector layer)."""
+        self.calls: dict[int, Callable[[], None]] = {}
+        self.sel = selectors.EpollSelector()
+        """The sockets (control, TCP output), registered by their servers; nested in
+        :attr:`poll`."""
         self.sources: dict[str, SerialSource] = {}
         self.registered: dict[str, int] = {}
         self.unselectable: list[str] = []
@@ -139,7 +148,8 @@ class Daemon:
         # without a call, and one modify() arms it again after its read
         self.rest_poll = select.epoll()
         self.rest_fds: dict[int, str] = {}
-        self.sel.register(self.rest_poll.fileno(), selectors.EVENT_READ, self._rest_ready)
+        self._watch(self.rest_poll.fileno(), self._rest_ready)
+        self._watch(self.sel.fileno(), self._serve)
         self.scratch = Output(deliver=self._deliver)
         self.event_limiter = EventLimiter()
         self.rest_s: dict[str, float] = {}
@@ -223,7 +233,7 @@ class Daemon:
             signal.SIGHUP: signal.signal(signal.SIGHUP, on_hup),
         }
         signal.set_wakeup_fd(self._wake_w, warn_on_full_buffer=False)
-        self.sel.register(self._wake_r, selectors.EVENT_READ, self._drain_wakeup)
+        self._watch(self._wake_r, self._drain_wakeup)
         return old
 
     def _drain_wakeup(self) -> None:
@@ -401,10 +411,9 @@ class Daemon:
             server.close()
         self.controls.clear()
         self._close_outputs()
-        with contextlib.suppress(KeyError, ValueError):
-            self.sel.unregister(self._wake_r)
         self.sel.close()
         self.rest_poll.close()
+        self.poll.close()
         self.log.info("stopped", persists=self.persists, state_errors=self.state_errors)
 
     # -- the loop ---------------------------------------------------------------
@@ -419,10 +428,7 @@ class Daemon:
             timeout = SELECT_TIMEOUT_S
             if self.resting:
                 timeout = min(timeout, max(min(self.resting.values()) - self.monotonic(), 0.0))
-            for key, _ in self.sel.select(timeout=timeout):
-                key.data()
-                if self._stopping():
-                    break
+            self._round(timeout)
             if self.resting:
                 self._wake_rested()
             for name in self.unselectable:
@@ -455,6 +461,25 @@ class Daemon:
                 self.notifier.watchdog()
                 next_watchdog = now + (wd or 1.0)
 
+    def _watch(self, fd: int, call: Callable[[], None]) -> None:
+        """Wait for ``fd`` to be readable in the loop, then call ``call``."""
+        self.poll.register(fd, select.EPOLLIN)
+        self.calls[fd] = call
+
+    def _round(self, timeout: float) -> None:
+        """Wait up to ``timeout`` s; run the callback of each descriptor that is readable."""
+        for fd, _ in self.poll.poll(timeout):
+            call = self.calls.get(fd)
+            if call is not None:
+                call()
+            if self._stopping():
+                break
+
+    def _serve(self) -> None:
+        """The sockets that are readable: control requests, TCP output clients."""
+        for key, _ in self.sel.select(0):
+            key.data()
+
     def _stopping(self) -> bool:
         return self.stop  # a call: mypy would take the loop's `not self.stop` as fixed
 
@@ -481,7 +506,7 @@ class Daemon:
             self.rest_poll.register(fd, _ONE_READ)
             self.rest_fds[fd] = name
         else:
-            self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._read(n))
+            self._watch(fd, functools.partial(self._read, name))
         self.registered[name] = fd
 
     def _unregister(self, name: str) -> None:
@@ -491,9 +516,9 @@ class Daemon:
         if self.rest_fds.pop(fd, None) is not None:
             with contextlib.suppress(OSError, ValueError):
                 self.rest_poll.unregister(fd)  # gone already if the descriptor was closed
-        else:
-            with contextlib.suppress(KeyError, ValueError):
-                self.sel.unregister(fd)
+        elif self.calls.pop(fd, None) is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self.poll.unregister(fd)  # gone already if the descriptor was closed
 
     def _rest_ready(self) -> None:
         """A reference or aux port became readable: read it ``rest_s`` later.

@@ -370,20 +370,16 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     d._sync_registrations()
     assert d.registered == {"dvl": r, "emlog1": r2} and d.rest_fds == {r: "dvl"}
 
-    def round_() -> None:  # one select round, as the loop runs it
-        for key, _ in d.sel.select(0):
-            key.data()
-
     for fd in (w, w2):
         os.write(fd, b"x")  # both readable, and stay so (the fake sources never drain)
-    round_()
+    d._round(0)  # one round of the loop's wait
     spy = d.pipeline
     assert [c[2] for c in spy.calls] == [b"$VWVHW\r\n"]  # type: ignore[attr-defined]
     assert d.resting.keys() == {"dvl"} and len(dvl.chunks) == 2  # the UUT never rests
     d._unregister("emlog1")  # only the DVL from here on
     del d.sources["emlog1"]
     assert d.registered == {"dvl": r}
-    assert d.sel.select(0) == []  # disarmed: no wake-up while it rests, though readable
+    assert d.poll.poll(0) == []  # disarmed: no wake-up while it rests, though readable
     assert d.unselectable == []  # nor read on every round as if it had no descriptor
     d._wake_rested()
     assert len(dvl.chunks) == 2  # not due yet: nothing read
@@ -394,7 +390,7 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
         b"$VWVHW\r\n",
         b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read, stamped when read
     ]
-    round_()
+    d._round(0)
     assert d.resting.keys() == {"dvl"}  # armed again: still readable, so resting again
     d._unregister("dvl")
     assert d.registered == {} and d.rest_fds == {}
@@ -402,6 +398,7 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
         os.close(fd)
     d.sel.close()
     d.rest_poll.close()
+    d.poll.close()
 
 
 def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
