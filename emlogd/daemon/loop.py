@@ -133,9 +133,10 @@ class Daemon:
         self._epoch = clock() - monotonic()
         self.config: Config = load_config(self.config_path)
         self.poll = select.epoll()
-        """What the loop waits on: the ports read as soon as readable, the resting
-        ports' epoll, the signal pipe and :attr:`sel`; each descriptor's callback is in
-        :attr:`calls` (a data wake-up runs one callback, no selector layer)."""
+        """What the loop waits on: the ports, the signal pipe and :attr:`sel`; each
+        descriptor's callback is in :attr:`calls` (a data wake-up runs one callback, no
+        selector layer). Resting ports are registered one-shot: readiness disarms a
+        port without a call, and one modify() arms it again after its read."""
         self.calls: dict[int, Callable[[], None]] = {}
         self.sel = selectors.EpollSelector()
         """The sockets (control, TCP output), registered by their servers; nested in
@@ -144,11 +145,8 @@ class Daemon:
         self.registered: dict[str, int] = {}
         self.unselectable: list[str] = []
         self.resting: dict[str, float] = {}
-        # resting ports wait in their own epoll, one-shot: readiness disarms a port
-        # without a call, and one modify() arms it again after its read
-        self.rest_poll = select.epoll()
         self.rest_fds: dict[int, str] = {}
-        self._watch(self.rest_poll.fileno(), self._rest_ready)
+        """The resting ports' descriptors (registered one-shot) and their names."""
         self._watch(self.sel.fileno(), self._serve)
         self.scratch = Output(deliver=self._deliver)
         self.event_limiter = EventLimiter()
@@ -412,7 +410,6 @@ class Daemon:
         self.controls.clear()
         self._close_outputs()
         self.sel.close()
-        self.rest_poll.close()
         self.poll.close()
         self.log.info("stopped", persists=self.persists, state_errors=self.state_errors)
 
@@ -503,7 +500,8 @@ class Daemon:
             return
         assert self.pipeline is not None
         if self.rest_s.get(name, 0.0) > 0.0 and name not in self.pipeline.uuts:
-            self.rest_poll.register(fd, _ONE_READ)
+            self.poll.register(fd, _ONE_READ)
+            self.calls[fd] = functools.partial(self._rest, name)
             self.rest_fds[fd] = name
         else:
             self._watch(fd, functools.partial(self._read, name))
@@ -513,14 +511,12 @@ class Daemon:
         fd = self.registered.pop(name, None)
         if fd is None:
             return
-        if self.rest_fds.pop(fd, None) is not None:
-            with contextlib.suppress(OSError, ValueError):
-                self.rest_poll.unregister(fd)  # gone already if the descriptor was closed
-        elif self.calls.pop(fd, None) is not None:
+        self.rest_fds.pop(fd, None)
+        if self.calls.pop(fd, None) is not None:
             with contextlib.suppress(OSError, ValueError):
                 self.poll.unregister(fd)  # gone already if the descriptor was closed
 
-    def _rest_ready(self) -> None:
+    def _rest(self, name: str) -> None:
         """A reference or aux port became readable: read it ``rest_s`` later.
 
         Until then its one-shot registration stays disarmed, so that a burst (the
@@ -529,11 +525,7 @@ class Daemon:
         ports never rest: their latency is the output's. ``rest_s: 0`` turns resting
         off.
         """
-        now = self.monotonic()
-        for fd, _ in self.rest_poll.poll(0):
-            name = self.rest_fds.get(fd)
-            if name is not None:
-                self.resting[name] = now + self.rest_s[name]
+        self.resting[name] = self.monotonic() + self.rest_s[name]
 
     def _read(self, name: str) -> None:
         """Read one port and feed the pipeline."""
@@ -558,7 +550,7 @@ class Daemon:
                 fd = self.registered.get(name)
                 if fd is not None and fd in self.rest_fds:
                     with contextlib.suppress(OSError):
-                        self.rest_poll.modify(fd, _ONE_READ)
+                        self.poll.modify(fd, _ONE_READ)
 
     def _handle(self, out: Output) -> None:
         """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""

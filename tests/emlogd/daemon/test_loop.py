@@ -397,7 +397,6 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
         os.close(fd)
     d.sel.close()
-    d.rest_poll.close()
     d.poll.close()
 
 
