@@ -537,7 +537,8 @@ class Daemon:
             self._sync_registrations()
             return
         assert self.pipeline is not None
-        self._handle(self.pipeline.feed(chunk.t, name, chunk.data, self.scratch))
+        t, data = chunk
+        self._handle(self.pipeline.feed(t, name, data, self.scratch))
 
     def _wake_rested(self) -> None:
         """Read the ports whose rest is over, and arm them again."""

@@ -329,13 +329,10 @@ class _Source:
     def fileno(self) -> int | None:
         return self.fd if self.fd >= 0 else None
 
-    def read(self) -> object:
-        from drivers.io.port import Chunk
-
+    def read(self) -> tuple[float, bytes] | None:
         if not self.chunks:
             return None
-        t, data = self.chunks.pop(0)
-        return Chunk(t, self.name, data)
+        return self.chunks.pop(0)
 
 
 class _SpyPipeline:
