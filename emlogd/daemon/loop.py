@@ -426,14 +426,14 @@ class Daemon:
             if self.resting:
                 timeout = min(timeout, max(min(self.resting.values()) - self.monotonic(), 0.0))
             self._round(timeout)
-            if self.resting:
-                self._wake_rested()
+            now = self.monotonic()
+            if self.resting and min(self.resting.values()) <= now:
+                self._wake_rested(now)
             for name in self.unselectable:
                 self._read(name)  # a source without a file descriptor (loop://)
             if self.reload:
                 self.reload = False
                 self._reload()
-            now = self.monotonic()
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
@@ -469,16 +469,13 @@ class Daemon:
             call = self.calls.get(fd)
             if call is not None:
                 call()
-            if self._stopping():
+            if self.stop:
                 break
 
     def _serve(self) -> None:
         """The sockets that are readable: control requests, TCP output clients."""
         for key, _ in self.sel.select(0):
             key.data()
-
-    def _stopping(self) -> bool:
-        return self.stop  # a call: mypy would take the loop's `not self.stop` as fixed
 
     def _sync_registrations(self) -> None:
         for name in self.sources:
@@ -538,11 +535,12 @@ class Daemon:
             return
         assert self.pipeline is not None
         t, data = chunk
-        self._handle(self.pipeline.feed(t, name, data, self.scratch))
+        out = self.pipeline.feed(t, name, data, self.scratch)
+        if out.emits or out.events or out.persist:  # most reads leave nothing to handle
+            self._handle(out)
 
-    def _wake_rested(self) -> None:
-        """Read the ports whose rest is over, and arm them again."""
-        now = self.monotonic()
+    def _wake_rested(self, now: float) -> None:
+        """Read the ports whose rest is over at ``now`` (monotonic), and arm them again."""
         due = [name for name, t in self.resting.items() if now >= t]
         for name in due:
             del self.resting[name]

@@ -378,10 +378,10 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     assert d.registered == {"dvl": r}
     assert d.poll.poll(0) == []  # disarmed: no wake-up while it rests, though readable
     assert d.unselectable == []  # nor read on every round as if it had no descriptor
-    d._wake_rested()
+    d._wake_rested(d.monotonic())
     assert len(dvl.chunks) == 2  # not due yet: nothing read
     d.resting["dvl"] = 0.0  # due
-    d._wake_rested()
+    d._wake_rested(d.monotonic())
     assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r}
     assert [c[2] for c in spy.calls] == [  # type: ignore[attr-defined]
         b"$VWVHW\r\n",
