@@ -39,7 +39,7 @@ from emlogd.cli import main
 T = time.thread_time_ns
 acc = collections.defaultdict(lambda: [0, 0])
 kinds = collections.defaultdict(lambda: [0, 0, 0, 0])  # wake-ups, wait, body, feed (ns)
-cur = {"did": [], "feed": 0, "wait": 0, "back": None}
+cur = {"did": [], "feed": 0, "wait": 0, "back": None, "port": "housekeeping"}
 t0 = [0, 0.0]
 
 def wrap(cls, meth, label, did=None):
@@ -49,16 +49,18 @@ def wrap(cls, meth, label, did=None):
     def w(*a, **k):
         if did is not None:
             cur["did"].append(did(a) if callable(did) else did)
+        lab = label(a) if callable(label) else label
         t = T()
         try:
             return f(*a, **k)
         finally:
             dt = T() - t
-            x = acc[label(a) if callable(label) else label]
+            x = acc[lab]
             x[0] += dt
             x[1] += 1
             if meth == "feed":
                 cur["feed"] += dt
+                cur["port"] = "housekeeping"
     setattr(cls, meth, w)
 
 class Wait:
@@ -98,9 +100,13 @@ wrap(D, "_deliver", "daemon write sentences to the outputs")
 wrap(dp.SerialSource, "read", "port read (os.read, stamp)")
 wrap(dp.SerialSource, "poll", "housekeeping: port poll")
 wrap(pp.Pipeline, "tick", "housekeeping: pipeline tick", "housekeeping")
-wrap(pp.Pipeline, "feed", "pipeline feed (decode, route, learn, emit)")
-wrap(pp.Pipeline, "_route", "pipeline route (correct, emit, queue)")
-wrap(pp.Pipeline, "_after", "pipeline after a chunk (learn, snapshot)")
+def feed_of(a):
+    cur["port"] = a[2]
+    return f"pipeline feed of {a[2]} (decode, route, learn)"
+
+wrap(pp.Pipeline, "feed", feed_of)
+wrap(pp.Pipeline, "_route", lambda a: f"  of which route of {a[2]} (correct, emit, queue)")
+wrap(pp.Pipeline, "_after", lambda a: f"  of which after a chunk of {cur['port']} (learn)")
 
 def loop(self, _run=D._loop):
     t0[0], t0[1] = T(), time.monotonic()
