@@ -104,13 +104,14 @@ def record(
                     chunk = sources[name].read()
                     if chunk is None:
                         continue
-                    last_t = t = max(chunk.t, last_t)
+                    t_read, data = chunk
+                    last_t = t = max(t_read, last_t)
                     if binary[name]:
-                        writer.write_chunk(t, name, chunk.data)
+                        writer.write_chunk(t, name, data)
                         counts[name] += 1
                         continue
                     buf = partial[name]
-                    buf += chunk.data
+                    buf += data
                     *lines, rest = bytes(buf).split(b"\n")
                     buf[:] = rest
                     for line in lines:

@@ -1,6 +1,8 @@
 """``emlogd run``: the daemon loop around the pipeline.
 
-One process, one thread, one ``selectors`` loop. The loop owns the file
+One process, one thread, one epoll loop: a readable port runs its callback
+straight from ``epoll.poll`` (the sockets of the control server and the TCP output
+sit in a ``selectors`` selector nested in it). The loop owns the file
 descriptors (serial sources, output sinks, control socket, a self-pipe for
 signals), the clock, sd_notify and the state file; everything else happens in
 :class:`~emlogd.pipeline.core.Pipeline`, the same object ``emlogd replay`` drives.
@@ -130,16 +132,22 @@ class Daemon:
         self.monotonic = monotonic
         self._epoch = clock() - monotonic()
         self.config: Config = load_config(self.config_path)
-        self.sel = selectors.DefaultSelector()
+        self.poll = select.epoll()
+        """What the loop waits on: the ports, the signal pipe and :attr:`sel`; each
+        descriptor's callback is in :attr:`calls` (a data wake-up runs one callback, no
+        selector layer). Resting ports are registered one-shot: readiness disarms a
+        port without a call, and one modify() arms it again after its read."""
+        self.calls: dict[int, Callable[[], None]] = {}
+        self.sel = selectors.EpollSelector()
+        """The sockets (control, TCP output), registered by their servers; nested in
+        :attr:`poll`."""
         self.sources: dict[str, SerialSource] = {}
         self.registered: dict[str, int] = {}
         self.unselectable: list[str] = []
         self.resting: dict[str, float] = {}
-        # resting ports wait in their own epoll, one-shot: readiness disarms a port
-        # without a call, and one modify() arms it again after its read
-        self.rest_poll = select.epoll()
         self.rest_fds: dict[int, str] = {}
-        self.sel.register(self.rest_poll.fileno(), selectors.EVENT_READ, self._rest_ready)
+        """The resting ports' descriptors (registered one-shot) and their names."""
+        self._watch(self.sel.fileno(), self._serve)
         self.scratch = Output(deliver=self._deliver)
         self.event_limiter = EventLimiter()
         self.rest_s: dict[str, float] = {}
@@ -223,7 +231,7 @@ class Daemon:
             signal.SIGHUP: signal.signal(signal.SIGHUP, on_hup),
         }
         signal.set_wakeup_fd(self._wake_w, warn_on_full_buffer=False)
-        self.sel.register(self._wake_r, selectors.EVENT_READ, self._drain_wakeup)
+        self._watch(self._wake_r, self._drain_wakeup)
         return old
 
     def _drain_wakeup(self) -> None:
@@ -401,10 +409,8 @@ class Daemon:
             server.close()
         self.controls.clear()
         self._close_outputs()
-        with contextlib.suppress(KeyError, ValueError):
-            self.sel.unregister(self._wake_r)
         self.sel.close()
-        self.rest_poll.close()
+        self.poll.close()
         self.log.info("stopped", persists=self.persists, state_errors=self.state_errors)
 
     # -- the loop ---------------------------------------------------------------
@@ -419,18 +425,15 @@ class Daemon:
             timeout = SELECT_TIMEOUT_S
             if self.resting:
                 timeout = min(timeout, max(min(self.resting.values()) - self.monotonic(), 0.0))
-            for key, _ in self.sel.select(timeout=timeout):
-                key.data()
-                if self._stopping():
-                    break
-            if self.resting:
-                self._wake_rested()
+            self._round(timeout)
+            now = self.monotonic()
+            if self.resting and min(self.resting.values()) <= now:
+                self._wake_rested(now)
             for name in self.unselectable:
                 self._read(name)  # a source without a file descriptor (loop://)
             if self.reload:
                 self.reload = False
                 self._reload()
-            now = self.monotonic()
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
@@ -455,8 +458,24 @@ class Daemon:
                 self.notifier.watchdog()
                 next_watchdog = now + (wd or 1.0)
 
-    def _stopping(self) -> bool:
-        return self.stop  # a call: mypy would take the loop's `not self.stop` as fixed
+    def _watch(self, fd: int, call: Callable[[], None]) -> None:
+        """Wait for ``fd`` to be readable in the loop, then call ``call``."""
+        self.poll.register(fd, select.EPOLLIN)
+        self.calls[fd] = call
+
+    def _round(self, timeout: float) -> None:
+        """Wait up to ``timeout`` s; run the callback of each descriptor that is readable."""
+        for fd, _ in self.poll.poll(timeout):
+            call = self.calls.get(fd)
+            if call is not None:
+                call()
+            if self.stop:
+                break
+
+    def _serve(self) -> None:
+        """The sockets that are readable: control requests, TCP output clients."""
+        for key, _ in self.sel.select(0):
+            key.data()
 
     def _sync_registrations(self) -> None:
         for name in self.sources:
@@ -478,24 +497,23 @@ class Daemon:
             return
         assert self.pipeline is not None
         if self.rest_s.get(name, 0.0) > 0.0 and name not in self.pipeline.uuts:
-            self.rest_poll.register(fd, _ONE_READ)
+            self.poll.register(fd, _ONE_READ)
+            self.calls[fd] = functools.partial(self._rest, name)
             self.rest_fds[fd] = name
         else:
-            self.sel.register(fd, selectors.EVENT_READ, lambda n=name: self._read(n))
+            self._watch(fd, functools.partial(self._read, name))
         self.registered[name] = fd
 
     def _unregister(self, name: str) -> None:
         fd = self.registered.pop(name, None)
         if fd is None:
             return
-        if self.rest_fds.pop(fd, None) is not None:
+        self.rest_fds.pop(fd, None)
+        if self.calls.pop(fd, None) is not None:
             with contextlib.suppress(OSError, ValueError):
-                self.rest_poll.unregister(fd)  # gone already if the descriptor was closed
-        else:
-            with contextlib.suppress(KeyError, ValueError):
-                self.sel.unregister(fd)
+                self.poll.unregister(fd)  # gone already if the descriptor was closed
 
-    def _rest_ready(self) -> None:
+    def _rest(self, name: str) -> None:
         """A reference or aux port became readable: read it ``rest_s`` later.
 
         Until then its one-shot registration stays disarmed, so that a burst (the
@@ -504,11 +522,7 @@ class Daemon:
         ports never rest: their latency is the output's. ``rest_s: 0`` turns resting
         off.
         """
-        now = self.monotonic()
-        for fd, _ in self.rest_poll.poll(0):
-            name = self.rest_fds.get(fd)
-            if name is not None:
-                self.resting[name] = now + self.rest_s[name]
+        self.resting[name] = self.monotonic() + self.rest_s[name]
 
     def _read(self, name: str) -> None:
         """Read one port and feed the pipeline."""
@@ -520,11 +534,13 @@ class Daemon:
             self._sync_registrations()
             return
         assert self.pipeline is not None
-        self._handle(self.pipeline.feed(chunk.t, name, chunk.data, self.scratch))
+        t, data = chunk
+        out = self.pipeline.feed(t, name, data, self.scratch)
+        if out.emits or out.events or out.persist:  # most reads leave nothing to handle
+            self._handle(out)
 
-    def _wake_rested(self) -> None:
-        """Read the ports whose rest is over, and arm them again."""
-        now = self.monotonic()
+    def _wake_rested(self, now: float) -> None:
+        """Read the ports whose rest is over at ``now`` (monotonic), and arm them again."""
         due = [name for name, t in self.resting.items() if now >= t]
         for name in due:
             del self.resting[name]
@@ -533,7 +549,7 @@ class Daemon:
                 fd = self.registered.get(name)
                 if fd is not None and fd in self.rest_fds:
                     with contextlib.suppress(OSError):
-                        self.rest_poll.modify(fd, _ONE_READ)
+                        self.poll.modify(fd, _ONE_READ)
 
     def _handle(self, out: Output) -> None:
         """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""

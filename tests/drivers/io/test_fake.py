@@ -111,7 +111,7 @@ def _read_until(src: SerialSource, n: int, deadline: float) -> bytes:
         if c is None:
             time.sleep(0.002)
             continue
-        got += c.data
+        got += c[1]
     return got
 
 

@@ -21,8 +21,9 @@ def _read_all(src: SerialSource, n: int, timeout: float = 5.0) -> bytes:
         if c is None:
             time.sleep(0.005)
             continue
-        assert c.port == src.name and c.t > 0
-        out += c.data
+        t, data = c
+        assert t > 0
+        out += data
     return out
 
 

@@ -329,13 +329,10 @@ class _Source:
     def fileno(self) -> int | None:
         return self.fd if self.fd >= 0 else None
 
-    def read(self) -> object:
-        from drivers.io.port import Chunk
-
+    def read(self) -> tuple[float, bytes] | None:
         if not self.chunks:
             return None
-        t, data = self.chunks.pop(0)
-        return Chunk(t, self.name, data)
+        return self.chunks.pop(0)
 
 
 class _SpyPipeline:
@@ -370,38 +367,34 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     d._sync_registrations()
     assert d.registered == {"dvl": r, "emlog1": r2} and d.rest_fds == {r: "dvl"}
 
-    def round_() -> None:  # one select round, as the loop runs it
-        for key, _ in d.sel.select(0):
-            key.data()
-
     for fd in (w, w2):
         os.write(fd, b"x")  # both readable, and stay so (the fake sources never drain)
-    round_()
+    d._round(0)  # one round of the loop's wait
     spy = d.pipeline
     assert [c[2] for c in spy.calls] == [b"$VWVHW\r\n"]  # type: ignore[attr-defined]
     assert d.resting.keys() == {"dvl"} and len(dvl.chunks) == 2  # the UUT never rests
     d._unregister("emlog1")  # only the DVL from here on
     del d.sources["emlog1"]
     assert d.registered == {"dvl": r}
-    assert d.sel.select(0) == []  # disarmed: no wake-up while it rests, though readable
+    assert d.poll.poll(0) == []  # disarmed: no wake-up while it rests, though readable
     assert d.unselectable == []  # nor read on every round as if it had no descriptor
-    d._wake_rested()
+    d._wake_rested(d.monotonic())
     assert len(dvl.chunks) == 2  # not due yet: nothing read
     d.resting["dvl"] = 0.0  # due
-    d._wake_rested()
+    d._wake_rested(d.monotonic())
     assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r}
     assert [c[2] for c in spy.calls] == [  # type: ignore[attr-defined]
         b"$VWVHW\r\n",
         b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read, stamped when read
     ]
-    round_()
+    d._round(0)
     assert d.resting.keys() == {"dvl"}  # armed again: still readable, so resting again
     d._unregister("dvl")
     assert d.registered == {} and d.rest_fds == {}
     for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
         os.close(fd)
     d.sel.close()
-    d.rest_poll.close()
+    d.poll.close()
 
 
 def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
