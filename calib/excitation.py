@@ -295,7 +295,7 @@ def judge(
         A verdict per unknown.
     """
     refused, offset = structural(layout, stats, rule)
-    return _information(layout, stats, sigma2_mps2, rule, std_factor, dict(refused), offset)
+    return _information(layout, stats, sigma2_mps2, rule, std_factor, refused, offset)
 
 
 def structural(
