@@ -535,9 +535,7 @@ class Daemon:
             return
         assert self.pipeline is not None
         t, data = chunk
-        out = self.pipeline.feed(t, name, data, self.scratch)
-        if out.emits or out.events or out.persist:  # most reads leave nothing to handle
-            self._handle(out)
+        self._handle(self.pipeline.feed(t, name, data, self.scratch))
 
     def _wake_rested(self, now: float) -> None:
         """Read the ports whose rest is over at ``now`` (monotonic), and arm them again."""
