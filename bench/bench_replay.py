@@ -33,6 +33,9 @@ from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import pipeline_from_config
 
 ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / "examples" / "emlogd.yaml"
+"""The config replayed by default (``--config``: another tree's own, to time that tree
+through ``PYTHONPATH`` with this script)."""
 
 
 def _anchor(records: list[tuple[float, str, bytes]]) -> float:
@@ -60,8 +63,10 @@ def _anchor(records: list[tuple[float, str, bytes]]) -> float:
     return time.perf_counter() - t0
 
 
-def _pipeline(records: list[tuple[float, str, bytes]]) -> tuple[float, Pipeline]:
-    cfg = load_config(ROOT / "examples" / "emlogd.yaml")
+def _pipeline(
+    records: list[tuple[float, str, bytes]], config: Path = CONFIG
+) -> tuple[float, Pipeline]:
+    cfg = load_config(config)
     ports, uuts = pipeline_from_config(cfg)
     p = Pipeline(ports, uuts)
     sink: list[bytes] = []
@@ -81,9 +86,9 @@ def _pipeline(records: list[tuple[float, str, bytes]]) -> tuple[float, Pipeline]
     return time.perf_counter() - t0, p
 
 
-def _decode_only(records: list[tuple[float, str, bytes]]) -> float:
+def _decode_only(records: list[tuple[float, str, bytes]], config: Path = CONFIG) -> float:
     """The decoders alone (framing, validation, records, speed records), same config."""
-    cfg = load_config(ROOT / "examples" / "emlogd.yaml")
+    cfg = load_config(config)
     ports, uuts = pipeline_from_config(cfg)
     decoders = Pipeline(ports, uuts).decoders
     t0 = time.perf_counter()
@@ -148,6 +153,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--outdir", help="existing or new trial directory")
     ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument("--config", type=Path, default=CONFIG, help="the config to replay")
     ap.add_argument(
         "--profile",
         action="store_true",
@@ -178,9 +184,9 @@ def main() -> None:
     best_p = best_a = best_d = float("inf")
     pipe = None
     for _ in range(3):
-        tp, pipe = _pipeline(records)
+        tp, pipe = _pipeline(records, args.config)
         ta = _anchor(records)
-        td = _decode_only(records)
+        td = _decode_only(records, args.config)
         best_p, best_a, best_d = min(best_p, tp), min(best_a, ta), min(best_d, td)
     assert pipe is not None
     print(
@@ -204,7 +210,7 @@ def main() -> None:
     t0 = time.perf_counter()
     subprocess.run(
         [sys.executable, "-m", "emlogd", "replay", *map(str, files), "--config",
-         str(ROOT / "examples" / "emlogd.yaml"), "--json"],
+         str(args.config), "--json"],
         check=True, stdout=subprocess.DEVNULL,
     )  # fmt: skip
     wall = time.perf_counter() - t0
