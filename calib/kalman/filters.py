@@ -119,6 +119,10 @@ class StepResult(NamedTuple):
 
 _INF = math.inf
 
+SPEED_UNKNOWN_VAR_M2PS2 = 100.0
+"""The speed state's variance when nothing is known of it (σ 10 m/s: any vessel's
+speed), so that the next measurement sets it: see :meth:`KfCalibrator.reacquire_speed`."""
+
 
 class KfCalibrator:
     """KF-EMx (optionally with current) online: one object per unit under test.
@@ -331,14 +335,14 @@ class KfCalibrator:
             )
 
     def reacquire_speed(self) -> None:
-        """Forget the speed state: a wide prior variance, its correlations dropped.
-
-        The next reference then sets the speed (after the state lost the reference).
-        """
+        """Forget the speed state: :data:`SPEED_UNKNOWN_VAR_M2PS2`, its correlations
+        dropped, so that the next measurement sets the speed (after the state lost the
+        reference, or at a start from saved parameters: the speed then is not the
+        speed when they were saved)."""
         P = self._P
         for j in range(self.layout.n):
             P[0][j] = P[j][0] = 0.0
-        P[0][0] = max(self.config.p0, 1.0)
+        P[0][0] = SPEED_UNKNOWN_VAR_M2PS2
 
     def restart(self, params: Params) -> None:
         """Start the parameters again from ``params`` with their prior variance.

@@ -358,6 +358,10 @@ class UutCalibration:
         self.applied_std: dict[str, float | None] = dict(usable.param_std) if usable else {}
         self.previous: Params | None = None
         self.kf = self._new_filter(usable)
+        # the vessel's speed now is unknown (a saved covariance holds the variance the
+        # speed had when saved): the first measurement sets it, and no reading is
+        # gated against a speed of zero
+        self.kf.reacquire_speed()
         self.lag_s: float | None = s.lag_s
         if self.lag_s is None and usable is not None and usable.lag_s is not None:
             self.lag_s = usable.lag_s

@@ -274,6 +274,45 @@ class TestControl:
         assert sum(st["dvl"]["rejects"].values()) > 0  # type: ignore[index]
 
 
+class TestRestart:
+    """A start from saved parameters, in a current."""
+
+    @staticmethod
+    def _saved() -> Calibration:
+        """The true parameters as a settled filter saves them: small variances
+        everywhere, the speed's too (speed, m, b, current north, current east)."""
+        cov = [[0.0] * 5 for _ in range(5)]
+        for i, var in enumerate((0.002, 1e-4, 1e-4, 4e-4, 4e-4)):
+            cov[i][i] = var
+        return Calibration(
+            "log",
+            TRUE,
+            {"m": 0.01, "b": 0.01},
+            0.0,
+            current=True,
+            covariance=tuple(tuple(r) for r in cov),
+        )
+
+    def test_a_restart_takes_the_speed_from_the_data_and_keeps_what_the_parameters_know(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """At a restart the speed is not the saved one: no reading is gated against it,
+        and the parameters keep the certainty they were saved with."""
+        p = Pipeline(
+            kit.PORTS,
+            [UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)],
+            {"log": self._saved()},
+        )
+        s = kit.make_stream(segment("straight", 120.0, TRUE, current=(0.2, -0.1)))
+        out = kit.run(p, s.items)
+        cal = p.uuts["log"].cal
+        assert cal.counters.gated_raw == 0 and cal.counters.relearn == 0
+        assert "relearn" not in {e.kind for e in out.events}
+        std = cal.kf.param_std
+        assert std["m"] is not None and std["m"] < 0.02
+        assert std["b"] is not None and std["b"] < 0.02
+
+
 class TestWaterFrame:
     """Headings, the current, and what a current does to a calibration."""
 
