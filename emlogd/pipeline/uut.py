@@ -79,6 +79,9 @@ NUISANCE_REOPEN = 20
 becoming determined re-opens the current (what it learnt was conditional on the held
 scale)."""
 
+_TRACK_CURRENT = frozenset({CURRENT})
+"""What learns while the operator has switched learning off (water frame only)."""
+
 LAG_WINDOW_GROWTH = 4.0
 """A refused lag estimate lets the window grow up to this many times ``lag_window_s``."""
 
@@ -571,8 +574,14 @@ class UutCalibration:
             if self.n_since_eval >= EVAL_EVERY or self.ident is None:
                 self._judge(t)
         learn_set: frozenset[str] | bool = False
-        if self.learn_on and valid and not fault and lag is not None and self.learn_set:
-            learn_set = self.learn_set
+        if valid and not fault and lag is not None and self.learn_set:
+            if self.learn_on:
+                learn_set = self.learn_set
+            elif self.layout.current:
+                # Learning off freezes the sensor's parameters, not the sea: the current
+                # keeps following a valid reference, so the output is still checked
+                # against the reference in the water frame.
+                learn_set = _TRACK_CURRENT
         if fault:
             self.counters.uut_fault += 1
         block = self.block
@@ -610,6 +619,8 @@ class UutCalibration:
                 )
                 learnt = res.learnt
                 learn_set = b_learn
+        if not self.learn_on:
+            learnt = False  # at most the current followed the reference
         if learnt and res.raw is not None:
             self.n_learnt += 1
             self.counters.learnt += 1
@@ -624,7 +635,9 @@ class UutCalibration:
             self._envelope(t)
         if valid and ref is not None and not fault:
             self._score(t, raw, ref, cs)
-        self._set_state(t, bool(learnt) or (block is not None and block.n > 0), fault)
+        self._set_state(
+            t, bool(learnt) or (self.learn_on and block is not None and block.n > 0), fault
+        )
         if self.tracer is not None:
             self.tracer(
                 self._trace_row(t, raw, ref if valid else None, heading, res.raw, learn_set)

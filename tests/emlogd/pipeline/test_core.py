@@ -275,7 +275,7 @@ class TestControl:
 
 
 class TestRestart:
-    """A start from saved parameters, in a current."""
+    """A start from saved parameters, and learning switched off, in a current."""
 
     @staticmethod
     def _saved() -> Calibration:
@@ -311,6 +311,25 @@ class TestRestart:
         std = cal.kf.param_std
         assert std["m"] is not None and std["m"] < 0.02
         assert std["b"] is not None and std["b"] < 0.02
+
+    def test_with_learning_off_the_current_still_follows_the_reference(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """Learning off freezes the sensor's parameters, not the sea: the current keeps
+        following the reference, and the output stays at the noise of the log."""
+        p = Pipeline(
+            kit.PORTS,
+            [UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True, learn=False)],
+            {"log": self._saved()},
+        )
+        s = kit.make_stream(segment("figure-8", 900.0, TRUE, current=(0.3, -0.2)))
+        out = kit.run(p, s.items)
+        st = _status(p)
+        assert st["state"] == "frozen" and st["params"] == TRUE.as_dict()
+        assert "fallback" not in {e.kind for e in out.events}
+        cur = p.uuts["log"].cal.kf.current_mps
+        assert cur is not None and cur == pytest.approx((0.3, -0.2), abs=0.05)
+        assert kit.rmse(s, kit.emitted(out), after=kit.T0 + 300.0) < 0.04
 
 
 class TestWaterFrame:
