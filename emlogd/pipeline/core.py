@@ -201,7 +201,8 @@ class UutSettings:
         unit="s",
         show=lambda v: "auto" if v is None else v,
         doc="The EMlog's lag behind the reference; auto: estimated by cross-correlation "
-        "over the first `lag_window_s`, then fixed.",
+        "from the first `lag_window_s` on (provisional within 0.3 s, refined by longer "
+        "windows), then fixed.",
     )
     lag_window_s: float = key(
         300.0,

@@ -248,10 +248,14 @@ class _Candidate:
 class LagFinder:
     """Bounded series of the UUT, its reference and heading for the one-off lag estimate.
 
-    The first estimate is made over ``window_s``; a refused one keeps the data and
-    waits for a window half as long again, up to :data:`LAG_WINDOW_GROWTH` times the
-    first (a broad correlation peak sharpens with more data); beyond that the older
-    half is dropped and the window slides.
+    The first estimate is made over ``window_s``; one that is not final keeps the data
+    and waits for a window half as long again, up to :data:`LAG_WINDOW_GROWTH` times
+    the first (a broad correlation peak sharpens with more data); beyond that the older
+    half is dropped and the window slides. An estimate within
+    :data:`calib.lag.MAX_LAG_STD_S` is final; one within the relaxed
+    :data:`calib.lag.MAX_LAG_STD_RELAXED_S` is provisional until the longest window
+    (learning starts with it: a lag off by a tenth of a second costs a calibration far
+    less than twenty minutes of raw output), and final there.
     """
 
     def __init__(self, window_s: float, max_lag_s: float, with_heading: bool) -> None:
@@ -272,8 +276,9 @@ class LagFinder:
         """Time the UUT series spans, s."""
         return self.uut.span()
 
-    def estimate(self) -> tuple[float | None, float, str]:
-        """``(lag, std, why)``: an accepted lag, or None and why (then the window grows)."""
+    def estimate(self) -> tuple[float | None, float, str, bool]:
+        """``(lag, std, why, final)``: an accepted lag, or None and why; the window grows
+        unless the estimate is final."""
         try:
             est = estimate_lag(
                 self.uut.times(),
@@ -290,16 +295,29 @@ class LagFinder:
             why = str(exc)
         else:
             grown = self.target_s >= LAG_WINDOW_GROWTH * self.window_s
-            why = accept(est, max_std_s=MAX_LAG_STD_RELAXED_S if grown else MAX_LAG_STD_S)
+            what = f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
+            if not accept(est, max_std_s=MAX_LAG_STD_S):
+                return est.lag_s, est.std_s, what, True
+            why = accept(est, max_std_s=MAX_LAG_STD_RELAXED_S)
+            if not why and grown:
+                return (
+                    est.lag_s,
+                    est.std_s,
+                    f"{what}, uncertain: the sharpest peak in the longest window",
+                    True,
+                )
             if not why:
-                note = ", uncertain: the sharpest peak in the longest window" if grown else ""
-                return est.lag_s, est.std_s, f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s{note}"
+                self._grow()
+                return est.lag_s, est.std_s, f"{what}, provisional until a sharper peak", False
+        self._grow()
+        return None, math.inf, why, False
+
+    def _grow(self) -> None:
         if self.target_s < LAG_WINDOW_GROWTH * self.window_s:
             self.target_s = min(1.5 * self.target_s, LAG_WINDOW_GROWTH * self.window_s)
         else:
             for q in (self.uut, self.ref, self.heading):
                 q.drop_older_half()
-        return None, math.inf, why
 
 
 class _Series:
@@ -650,15 +668,16 @@ class UutCalibration:
         lf.uut.append((t, raw))
         if not lf.ready():
             return
-        lag, std, why = lf.estimate()
+        lag, std, why, final = lf.estimate()
         if lag is None:
             self._emit(t, "lag_retry", {"why": why})
             return
-        if self.lag_s is None or abs(lag - self.lag_s) > max(0.2, 3.0 * std):
+        if self.lag_s is None or final or std < self.lag_std_s:
+            # each estimate comes from a longer window than the one in use
             self._emit(t, "lag_estimated", {"lag_s": round(lag, 3), "why": why})
-            self.lag_s = lag
-        self.lag_std_s = std
-        self.lag_finder = None
+            self.lag_s, self.lag_std_s = lag, std
+        if final:
+            self.lag_finder = None
 
     def _ref_state(self, t: float, ref: float | None) -> RefState:
         if self.lag_s is None and self.t_ref_last == -math.inf:

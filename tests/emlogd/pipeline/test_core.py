@@ -191,6 +191,24 @@ class TestLag:
         found = [e for e in out.events if e.kind == "lag_estimated"]
         assert found and found[0].detail["lag_s"] == pytest.approx(3.2, abs=0.1)
 
+    def test_a_broad_peak_is_used_at_once_and_refined_by_longer_windows(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """A lag within 0.3 s starts learning at once; longer windows replace it until the
+        longest, whose estimate is final."""
+        s = kit.make_stream(
+            segment("transit", 1000.0, TRUE, current=(0.2, -0.1), seed=3), lag_s=3.2
+        )
+        p = kit.pipeline(current=True, lag_window_s=200.0)
+        out = kit.run(p, s.items)
+        lags = [e for e in out.events if e.kind == "lag_estimated"]
+        assert len(lags) >= 2 and "provisional" in str(lags[0].detail["why"])
+        assert "provisional" not in str(lags[-1].detail["why"])
+        learning = [e.t for e in out.events if e.kind == "state" and e.detail["to"] == "learning"]
+        assert learning and learning[0] < lags[-1].t, "learning waited for the final lag"
+        assert p.uuts["log"].cal.lag_finder is None
+        assert _status(p)["lag_s"] == pytest.approx(3.2, abs=0.3)
+
     def test_a_reference_later_than_the_log_gives_a_negative_lag(
         self, kit: SimpleNamespace, segment: Segment
     ) -> None:
