@@ -655,7 +655,8 @@ def add_parsers(sub: Subparsers) -> None:
         "--current",
         type=_current_arg,
         metavar="N,E",
-        help="a constant sea current, m/s north and east (default: a slowly varying one)",
+        help="a constant sea current, m/s north and east (default: a slowly varying one; "
+        "a current to the south is written --current=-0.6,0.4)",
     )
     p.add_argument(
         "--circles",
