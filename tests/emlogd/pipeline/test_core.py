@@ -254,7 +254,6 @@ class TestControl:
         assert _status(p)["state"] == "frozen"
         (snap,) = p.calibrations()
         assert not snap.reset and snap.params.m == pytest.approx(0.15, abs=0.02)
-        warm = kit.pipeline(lag_s=0.0, learn=False)
         warm = Pipeline(kit.PORTS, [p.uuts["log"].s], {"log": snap})
         out = kit.run(warm, s2.items)
         assert _status(warm)["params"] == snap.params.as_dict()
