@@ -294,19 +294,14 @@ class LagFinder:
         except CalibrationError as exc:
             why = str(exc)
         else:
-            grown = self.target_s >= LAG_WINDOW_GROWTH * self.window_s
-            what = f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
-            if not accept(est, max_std_s=MAX_LAG_STD_S):
-                return est.lag_s, est.std_s, what, True
             why = accept(est, max_std_s=MAX_LAG_STD_RELAXED_S)
-            if not why and grown:
-                return (
-                    est.lag_s,
-                    est.std_s,
-                    f"{what}, uncertain: the sharpest peak in the longest window",
-                    True,
-                )
             if not why:
+                what = f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
+                if est.std_s <= MAX_LAG_STD_S:
+                    return est.lag_s, est.std_s, what, True
+                if self.target_s >= LAG_WINDOW_GROWTH * self.window_s:
+                    note = "uncertain: the sharpest peak in the longest window"
+                    return est.lag_s, est.std_s, f"{what}, {note}", True
                 self._grow()
                 return est.lag_s, est.std_s, f"{what}, provisional until a sharper peak", False
         self._grow()
@@ -379,10 +374,6 @@ class UutCalibration:
         self.applied_std: dict[str, float | None] = dict(usable.param_std) if usable else {}
         self.previous: Params | None = None
         self.kf = self._new_filter(usable)
-        # the vessel's speed now is unknown (a saved covariance holds the variance the
-        # speed had when saved): the first measurement sets it, and no reading is
-        # gated against a speed of zero
-        self.kf.reacquire_speed()
         self.lag_s: float | None = s.lag_s
         if self.lag_s is None and usable is not None and usable.lag_s is not None:
             self.lag_s = usable.lag_s
@@ -469,9 +460,14 @@ class UutCalibration:
             if self.layout.current:
                 diag[-2:] = s.kf.current_p0_m2ps2
             cov0 = np.diag(diag)
-        return KfCalibrator(
+        kf = KfCalibrator(
             s.model, s.kf, current=s.current, params0=params0, current0_mps=cur0, P0=cov0
         )
+        # the vessel's speed now is unknown (a saved covariance holds the variance the
+        # speed had when saved): the first measurement sets it, and no reading is
+        # gated against a speed of zero
+        kf.reacquire_speed()
+        return kf
 
     def _emit(self, t: float, kind: str, detail: Mapping[str, object]) -> None:
         self._event(t, kind, detail)
@@ -673,7 +669,7 @@ class UutCalibration:
             self._emit(t, "lag_retry", {"why": why})
             return
         if self.lag_s is None or final or std < self.lag_std_s:
-            # each estimate comes from a longer window than the one in use
+            # the first, a sharper one from a longer window, or the final one
             self._emit(t, "lag_estimated", {"lag_s": round(lag, 3), "why": why})
             self.lag_s, self.lag_std_s = lag, std
         if final:
