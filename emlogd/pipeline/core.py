@@ -43,7 +43,7 @@ from drivers import DecoderOptions, make_decoder, protocol_names
 from drivers.base import Decoder, R
 from drivers.nmea0183 import Gga, Rmc, Vtg
 from drivers.nmea0183 import Heading as NmeaHeading
-from drivers.records import KNOT_MPS, Rejected
+from drivers.records import KNOT_MPS, Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings
@@ -420,16 +420,6 @@ class Output:
             self.emits.clear()
 
 
-class _Speed(NamedTuple):
-    field: RefField
-    sentence: str
-    longitudinal_mps: float | None
-    transverse_mps: float | None
-    valid: bool
-    heading_true_deg: float | None
-    heading_mag_deg: float | None
-
-
 class _Heading(NamedTuple):
     true_deg: float | None
     magnetic_deg: float | None
@@ -447,7 +437,7 @@ class _Fix(NamedTuple):
     quality: int
 
 
-_Nav = _Speed | _Heading | _Gnss | _Fix
+_Nav = SpeedRecord | _Heading | _Gnss | _Fix
 
 
 def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
@@ -478,16 +468,15 @@ def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
         yield _Heading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var)
         return
     for sp in dec.speed_records(rec):
-        role = sp.role
-        if role == "ground":
+        if sp.role == "ground":
             continue  # a log's ground pair (VBW) is no reference
         ht, hm = sp.heading_true_deg, sp.heading_mag_deg
         if ht is not None or hm is not None:
             yield _Heading(ht, hm, None)
-        yield _Speed(role, sp.source, sp.longitudinal_mps, sp.transverse_mps, sp.valid, ht, hm)
+        yield sp
 
 
-def _value(sp: _Speed, component: str) -> float | None:
+def _value(sp: SpeedRecord, component: str) -> float | None:
     """The speed a UUT compares: along the hull, or the horizontal magnitude."""
     v = sp.longitudinal_mps
     if component == "magnitude" and v is not None:
@@ -717,8 +706,8 @@ class Pipeline:
         last: dict[str, int] = {}
         if u is not None:
             for i, it in enumerate(items):
-                if isinstance(it, _Speed) and it.field == "speed":
-                    last[it.sentence] = i
+                if isinstance(it, SpeedRecord) and it.role == "speed":
+                    last[it.source] = i
         for i, item in enumerate(items):
             if isinstance(item, _Heading):
                 self._heading(t, port, item)
@@ -728,12 +717,12 @@ class Pipeline:
                 self.fix_quality[port] = item.quality
             else:
                 self._reference(t, port, item)
-                if u is not None and item.field == "speed":
-                    self._reading(u, t, item, fresh=last[item.sentence] == i, out=out)
+                if u is not None and item.role == "speed":
+                    self._reading(u, t, item, fresh=last[item.source] == i, out=out)
 
-    def _reference(self, t: float, port: str, sp: _Speed) -> None:
+    def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
         for u in self._by_ref.get(port, ()):
-            if u.s.reference_field != sp.field:
+            if u.s.reference_field != sp.role:
                 continue
             v = _value(sp, u.s.component)
             ok = sp.valid and v is not None and math.isfinite(v)
@@ -783,7 +772,7 @@ class Pipeline:
                 return ph.ring
         return None
 
-    def _reading(self, u: _Uut, t: float, sp: _Speed, *, fresh: bool, out: Output) -> None:
+    def _reading(self, u: _Uut, t: float, sp: SpeedRecord, *, fresh: bool, out: Output) -> None:
         """Correct and emit a UUT reading at once, then queue it for learning."""
         cal = u.cal
         raw = _value(sp, u.s.component)
@@ -798,15 +787,15 @@ class Pipeline:
         value = cal.correct(raw)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
-            if sp.sentence == "VHW":
+            if sp.source == "VHW":
                 sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
             else:
                 sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
             if self.fusion is None or not self.fusion.s.only:
                 out.send(Emit(t, u.s.port, sentence))
-            if self.fusion is not None and sp.sentence == u.s.uut_source:
+            if self.fusion is not None and sp.source == u.s.uut_source:
                 self._fuse(t, u, value, hdg_t, hdg_m, out)
-        if sp.sentence == u.s.uut_source:
+        if sp.source == u.s.uut_source:
             cal.add_reading(t, raw)
             cal.drain(self.now)
         if t - u.t_status >= u.s.status_sentence_interval_s:

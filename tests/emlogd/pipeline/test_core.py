@@ -528,22 +528,23 @@ class TestNavigationItems:
         heading sent with a speed precedes it, true and magnetic apart."""
         from drivers import make_decoder
         from drivers.rdi_ascii import encode_pd6
-        from emlogd.pipeline.core import _Heading, _nav_items, _Speed
+        from drivers.records import SpeedRecord
+        from emlogd.pipeline.core import _Heading, _nav_items
 
         nmea = make_decoder("nmea0183", "n")
         vhw = encode_vhw(2.0, heading_true_deg=10.0, heading_mag_deg=12.0)
         vbw = with_checksum("VMVBW,2.0,0.1,A,2.1,0.2,A")
         recs = nmea.decode_all(f"{vhw}\r\n{vbw}\r\n".encode())
         items = [it for r in recs for it in _nav_items(nmea, r)]
-        assert [type(it).__name__ for it in items] == ["_Heading", "_Speed", "_Speed"]
+        assert [type(it).__name__ for it in items] == ["_Heading", "SpeedRecord", "SpeedRecord"]
         assert items[0] == _Heading(10.0, 12.0, None)
-        assert isinstance(items[1], _Speed) and isinstance(items[2], _Speed)
-        assert (items[1].field, items[1].sentence, items[1].heading_mag_deg) == (
+        assert isinstance(items[1], SpeedRecord) and isinstance(items[2], SpeedRecord)
+        assert (items[1].role, items[1].source, items[1].heading_mag_deg) == (
             "speed",
             "VHW",
             12.0,
         )
-        assert (items[2].field, items[2].sentence) == ("speed", "VBW")
+        assert (items[2].role, items[2].source) == ("speed", "VBW")
         pd6 = make_decoder("pd6", "d")
         lines = encode_pd6(
             timestamp=datetime(2026, 1, 1, tzinfo=UTC),
@@ -554,12 +555,12 @@ class TestNavigationItems:
         )
         (ens,) = pd6.decode_all("".join(x + "\r\n" for x in lines).encode())
         got = [
-            (type(it).__name__, it.field if isinstance(it, _Speed) else None)
+            (type(it).__name__, it.role if isinstance(it, SpeedRecord) else None)
             for it in _nav_items(pd6, ens)
         ]
         assert got == [
             ("_Heading", None),
-            ("_Speed", "bottom"),
+            ("SpeedRecord", "bottom"),
             ("_Heading", None),
-            ("_Speed", "water"),
+            ("SpeedRecord", "water"),
         ]
