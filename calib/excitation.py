@@ -353,6 +353,34 @@ def structural(
     return refused, offset
 
 
+class _Figures:
+    """The decompositions of one window's information matrix, kept while the window
+    is judged against different bounds (the same columns give the same figures)."""
+
+    __slots__ = ("_cond", "_stds", "info")
+
+    def __init__(self, info: FloatArray) -> None:
+        self.info = info
+        self._stds: dict[tuple[float, ...], dict[int, float]] = {}
+        self._cond: dict[tuple[int, ...], float] = {}
+
+    def stds(self, cols: list[int], sigma2: float) -> dict[int, float]:
+        """:func:`_stds` of these columns."""
+        key = (*cols, sigma2)
+        found = self._stds.get(key)
+        if found is None:
+            found = self._stds[key] = _stds(self.info, cols, sigma2)
+        return found
+
+    def cond(self, cols: list[int]) -> float:
+        """:func:`_cond` of these columns."""
+        key = tuple(cols)
+        found = self._cond.get(key)
+        if found is None:
+            found = self._cond[key] = _cond(self.info, cols)
+        return found
+
+
 def _information(
     layout: Layout,
     stats: WindowStats,
@@ -361,8 +389,10 @@ def _information(
     std_factor: float,
     refused: dict[str, str],
     offset: bool,
+    figures: _Figures | None = None,
 ) -> Identifiability:
     """Rules 3 and 4 on what :func:`structural` left (``refused`` is extended)."""
+    figures = _Figures(stats.info) if figures is None else figures
     unknowns = layout.unknowns
     free = [u for u in unknowns if u not in refused]
     stds: dict[str, float] = {}
@@ -375,12 +405,12 @@ def _information(
         free = []
     while free:
         cols = _columns(free, offset)
-        by_col = _stds(stats.info, cols, sigma2_mps2)
+        by_col = figures.stds(cols, sigma2_mps2)
         stds = {u: max(by_col[c] for c in _COL[u]) for u in free}
         ratios = {u: stds[u] / (rule.max_std(u) * std_factor) for u in free}
         worst = max(free, key=lambda u: ratios[u])
         if ratios[worst] <= 1.0:
-            cond = _cond(stats.info, cols)
+            cond = figures.cond(cols)
             if cond <= rule.max_cond:
                 break
         sd = stds[worst]
@@ -563,7 +593,7 @@ class ExcitationWindow:
         self._info = [0.0] * 15
         self._r0 = self._r1 = self._r2 = 0.0
         self._sectors = [0.0] * N_SECTORS
-        self._judged: tuple[WindowStats, dict[str, str], bool] | None = None
+        self._judged: tuple[WindowStats, dict[str, str], bool, _Figures] | None = None
 
     def add(self, u_mps: float, raw_mps: float, heading_deg: float | None = None) -> None:
         """Add one sample: operating-point speed through the water, reading, heading."""
@@ -628,15 +658,16 @@ class ExcitationWindow:
     def evaluate(self, sigma2_mps2: float, *, std_factor: float = 1.0) -> Identifiability:
         """Judge the current window (:func:`judge`) with a nominal residual variance.
 
-        The window's figures and the structural verdicts are kept until the next
-        sample, so judging one window against two bounds builds them once.
+        The window's figures, the structural verdicts and the decompositions are kept
+        until the next sample, so judging one window against two bounds builds them once.
         """
         if self._judged is None:
             stats = self.stats()
-            self._judged = (stats, *structural(self.layout, stats, self.rule))
-        stats, refused, offset = self._judged
+            refused, offset = structural(self.layout, stats, self.rule)
+            self._judged = (stats, refused, offset, _Figures(stats.info))
+        stats, refused, offset, figures = self._judged
         return _information(
-            self.layout, stats, sigma2_mps2, self.rule, std_factor, dict(refused), offset
+            self.layout, stats, sigma2_mps2, self.rule, std_factor, dict(refused), offset, figures
         )
 
 
