@@ -181,16 +181,17 @@ class _Blocks:
         self.index = np.repeat(np.arange(self.starts.size), sizes)
         self.tau = (t - (np.add.reduceat(t, self.starts) / sizes)[self.index]) / block_s
 
-    def residual(self, X: FloatArray, v: FloatArray) -> FloatArray:
-        """``v`` less its least-squares fit on the columns of ``X``, block by block.
+    def residual(self, X: FloatArray, V: FloatArray) -> FloatArray:
+        """Each column of ``V`` less its least-squares fit on the columns of ``X``, block
+        by block (one pseudo-inverse per block serves every column).
 
         Each block's normal matrix is pseudo-inverted: a block on one heading cannot
         tell a current from a level, and then just loses both together.
         """
         XX = np.add.reduceat(X[:, :, None] * X[:, None, :], self.starts, axis=0)
-        Xv = np.add.reduceat(X * v[:, None], self.starts, axis=0)
-        coef = np.einsum("bkj,bj->bk", np.linalg.pinv(XX, rcond=1e-9), Xv)
-        return np.asarray(v - np.einsum("nk,nk->n", X, coef[self.index]), dtype=np.float64)
+        XV = np.add.reduceat(X[:, :, None] * V[:, None, :], self.starts, axis=0)
+        coef = np.einsum("bkj,bjc->bkc", np.linalg.pinv(XX, rcond=1e-9), XV)
+        return np.asarray(V - np.einsum("nk,nkc->nc", X, coef[self.index]), dtype=np.float64)
 
 
 def _multiple(
@@ -209,8 +210,7 @@ def _multiple(
         return 0.0
     tau = blocks.tau
     X = np.stack((np.ones_like(ref), cos_h, sin_h, tau * cos_h, tau * sin_h), axis=1)
-    ey = blocks.residual(X, y)
-    er = blocks.residual(X, ref)
+    ey, er = blocks.residual(X, np.stack((y, ref), axis=1)).T
     rr = float(er @ er)
     if rr <= 0.0:
         return 0.0
