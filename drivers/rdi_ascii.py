@@ -132,8 +132,13 @@ RECORD_PARTS = (Velocity, DistanceMadeGood)
 """The dataclasses nested in a :class:`Pd6Ensemble` (never yielded on their own)."""
 
 
-_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)").fullmatch
-_INTEGER = re.compile(r"[+-]?[0-9]+").fullmatch
+_DECIMAL_RE = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)"
+_INTEGER_RE = r"[+-]?[0-9]+"
+_DECIMAL = re.compile(_DECIMAL_RE).fullmatch
+_INTEGER = re.compile(_INTEGER_RE).fullmatch
+# every field of a line at once, each as _num or _int reads it (leading blanks allowed)
+_DECIMALS = re.compile(f" *{_DECIMAL_RE}(?:, *{_DECIMAL_RE})*").fullmatch
+_INTEGERS = re.compile(f" *{_INTEGER_RE}(?:, *{_INTEGER_RE})*").fullmatch
 _N = TypeVar("_N", int, float)
 
 
@@ -144,6 +149,13 @@ def _num(field: str, name: str, raw: bytes) -> float:
     if not _DECIMAL(f):
         raise FieldError(f"{name}: {field!r} is not a number", raw)
     return float(f)
+
+
+def _nums(fields: list[str], name: str, raw: bytes) -> list[float]:
+    """:func:`_num` of every field, with one match for the line when all are good."""
+    if _DECIMALS(",".join(fields)):
+        return [float(f) for f in fields]
+    return [_num(f, name, raw) for f in fields]
 
 
 def _int(field: str, name: str, raw: bytes) -> int:
@@ -165,6 +177,8 @@ def _each(
 ) -> list[_N]:
     """Every field as :func:`_num` or :func:`_int` reads it (``match`` their pattern,
     ``what`` "a number" or "an integer"), named ``:KIND field i`` only when it is bad."""
+    if (_INTEGERS if match is _INTEGER else _DECIMALS)(",".join(fields)):
+        return [convert(f) for f in fields]  # one match for the line (int/float skip blanks)
     values: list[_N] = []
     for f in fields:
         g = f.lstrip(" ")
@@ -278,7 +292,7 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
     if kind == "SA":
         if len(fields) != 3:
             raise FieldError(f":SA has {len(fields)} fields, expected 3", frame)
-        pitch, roll, heading = (_num(f, ":SA", frame) for f in fields)
+        pitch, roll, heading = _nums(fields, ":SA", frame)
         return kind, _attitude(pitch, roll, heading, frame)
     if kind == "TS":
         if len(fields) not in (6, 7):
@@ -286,7 +300,7 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
         stamp = fields[0].strip()
         if len(stamp) != 14 or not stamp.isdigit():
             raise FieldError(f":TS time {stamp!r} is not YYMMDDHHmmsshh", frame)
-        sal, temp, depth, c = (_num(f, ":TS", frame) for f in fields[1:5])
+        sal, temp, depth, c = _nums(fields[1:5], ":TS", frame)
         bit = _int(fields[5], ":TS BIT", frame)
         env = _environment(stamp, sal, temp, depth, c, bit, frame)
         if len(fields) == 7 and fields[6].strip() not in ("O", "W", "X"):
@@ -295,7 +309,7 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
     if kind == "RA":
         if len(fields) != 5:
             raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
-        p, *r = (_num(f, ":RA", frame) for f in fields)
+        p, *r = _nums(fields, ":RA", frame)
         return kind, (p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0))
     if kind in ("WI", "BI"):
         return kind, _velocity(fields, 4, kind, frame)
