@@ -37,10 +37,28 @@ if TYPE_CHECKING:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Write the simulated sea trial (five captures, truth.yaml and truth.csv.gz)."""
-    from emlogd.offline.simulate import simulate
+    from calib.models import Params
+    from emlogd.offline.simulate import EMLOG1, EMLOG2, check_emlog, simulate
 
     if not 0.0 < args.scale <= 10.0:
         raise UsageError(f"--scale must be in (0, 10], not {args.scale}")
+    emlogs = {EMLOG1.port: EMLOG1, EMLOG2.port: EMLOG2}
+    for port, given in args.sensor or ():
+        e = emlogs[port]
+        p = e.params
+        e = dataclasses.replace(
+            e,
+            params=Params(
+                "EM4", given.get("a", p.a_spm), given.get("m", p.m), given.get("b", p.b_mps)
+            ),
+            latency_s=given.get("latency", e.latency_s),
+            noise_mps=given.get("noise", e.noise_mps),
+        )
+        try:
+            check_emlog(e)
+        except ValueError as exc:
+            raise UsageError(f"--sensor: {exc}") from None
+        emlogs[port] = e
     result = simulate(
         args.outdir,
         seed=args.seed,
@@ -48,6 +66,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         dvl_format=args.dvl_format,
         current=args.current,
         circles=args.circles,
+        emlogs=(emlogs[EMLOG1.port], emlogs[EMLOG2.port]),
         progress=progress,
     )
     progress_done()
@@ -71,6 +90,38 @@ def _current_arg(value: str) -> tuple[float, float]:
     if not sep or not all(math.isfinite(x) and abs(x) <= 3.0 for x in c):
         raise argparse.ArgumentTypeError(f"expected N,E in m/s within ±3, not {value!r}")
     return c
+
+
+SENSOR_KEYS = ("a", "m", "b", "latency", "noise")
+"""What ``simulate --sensor`` sets: the EM4 curvature a (s/m), scale m and bias b (m/s),
+the latency (s) and the white noise (m/s, 1σ)."""
+
+
+def _sensor_arg(value: str) -> tuple[str, dict[str, float]]:
+    """``PORT:KEY=V,...`` (simulate --sensor): the port and the values it sets."""
+    port, sep, rest = value.partition(":")
+    if not sep or port not in ("emlog1", "emlog2"):
+        raise argparse.ArgumentTypeError(
+            f"expected emlog1:KEY=V,... or emlog2:KEY=V,..., not {value!r}"
+        )
+    given: dict[str, float] = {}
+    for item in rest.split(","):
+        key, eq, text = item.partition("=")
+        key = key.strip()
+        if not eq or key not in SENSOR_KEYS:
+            raise argparse.ArgumentTypeError(
+                f"{item!r}: expected KEY=V with KEY one of {', '.join(SENSOR_KEYS)}"
+            )
+        if key in given:
+            raise argparse.ArgumentTypeError(f"{key} given twice in {value!r}")
+        try:
+            x = float(text)
+        except ValueError:
+            x = math.nan
+        if not math.isfinite(x):
+            raise argparse.ArgumentTypeError(f"{key}: {text!r} is not a number")
+        given[key] = x
+    return port, given
 
 
 def _truth(args: argparse.Namespace, uuts: Sequence[str]) -> Truth | None:
@@ -663,6 +714,15 @@ def add_parsers(sub: Subparsers) -> None:
         choices=["steps", "constant"],
         default="steps",
         help="the circles at three throttle settings (default) or at one constant speed",
+    )
+    p.add_argument(
+        "--sensor",
+        type=_sensor_arg,
+        action="append",
+        metavar="PORT:KEY=V,...",
+        help="another EMlog: PORT emlog1 or emlog2, KEY a (s/m), m, b (m/s) of its EM4 "
+        "error model, latency (s) or noise (m/s, 1σ); the values not given keep their "
+        "defaults (truth.yaml lists every sensor's); repeatable",
     )
     p.set_defaults(handler=cmd_simulate)
 

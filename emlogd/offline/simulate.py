@@ -139,6 +139,37 @@ class EmlogSpec:
 
 EMLOG1 = EmlogSpec("emlog1", Params("EM4", 0.03, 0.17, 0.12), 3.2, 0.03, 4800, "VW")
 EMLOG2 = EmlogSpec("emlog2", Params("EM4", -0.02, -0.11, -0.05), 0.45, 0.05, 38400, "VM")
+SENSOR_LIMITS = {
+    "a": (-0.2, 0.2),
+    "m": (-0.5, 0.5),
+    "b": (-1.0, 1.0),
+    "latency": (0.0, 8.0),
+    "noise": (0.0, 0.5),
+}
+"""The ranges :func:`check_emlog` accepts: curvature a (s/m), scale m, bias b (m/s),
+latency (s, within the default ``max_lag_s`` of 10 s with room for the lag search's
+reach) and white noise (m/s, 1σ); ``emlogd simulate --sensor`` names them so."""
+
+
+def check_emlog(e: EmlogSpec) -> None:
+    """Refuse an EMlog outside :data:`SENSOR_LIMITS`.
+
+    Raises:
+        ValueError: naming the value and its range.
+    """
+    values = {
+        "a": e.params.a_spm,
+        "m": e.params.m,
+        "b": e.params.b_mps,
+        "latency": e.latency_s,
+        "noise": e.noise_mps,
+    }
+    for name, x in values.items():
+        lo, hi = SENSOR_LIMITS[name]
+        if not (math.isfinite(x) and lo <= x <= hi):
+            raise ValueError(f"{e.port} {name} must be within [{lo:g}, {hi:g}], not {x!r}")
+
+
 DVL_PORT = "dvl"
 DVL_BAUD = 115200
 DVL_NOISE_MPS = 0.01
@@ -617,6 +648,7 @@ def simulate(
     dvl_format: DvlFormat = "pd6",
     current: tuple[float, float] | None = None,
     circles: CirclesMode = "steps",
+    emlogs: tuple[EmlogSpec, EmlogSpec] = (EMLOG1, EMLOG2),
     progress: ProgressFn | None = None,
 ) -> SimulationResult:
     """Write the five trajectories, ``truth.yaml`` and ``truth.csv.gz`` into ``outdir``.
@@ -630,6 +662,8 @@ def simulate(
             (default): the slowly varying current.
         circles: ``steps`` (default: the circles at three throttle settings) or
             ``constant`` (at one commanded speed).
+        emlogs: the two EMlogs (ports ``emlog1`` and ``emlog2``; default
+            :data:`EMLOG1` and :data:`EMLOG2`), see :func:`check_emlog`.
         progress: called with (message, fraction done) after each trajectory.
 
     Returns:
@@ -637,7 +671,8 @@ def simulate(
 
     Raises:
         ValueError: ``scale`` not in (0, 10], an unknown ``dvl_format`` or ``circles``,
-            or a current that is not finite or beyond ±3 m/s.
+            a current that is not finite or beyond ±3 m/s, or an EMlog outside the
+            ranges of :func:`check_emlog` or on another port.
     """
     if not 0.0 < scale <= 10.0:
         raise ValueError(f"scale must be in (0, 10], not {scale}")
@@ -652,6 +687,13 @@ def simulate(
             f"current (north, east) must be finite and within ±{MAX_CURRENT_MPS:g} m/s, "
             f"not {current}"
         )
+    if tuple(e.port for e in emlogs) != (EMLOG1.port, EMLOG2.port):
+        raise ValueError(
+            f"the EMlogs are ports {EMLOG1.port} and {EMLOG2.port}, in that order, "
+            f"not {[e.port for e in emlogs]}"
+        )
+    for e in emlogs:
+        check_emlog(e)
     started = time.perf_counter()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -671,7 +713,7 @@ def simulate(
         lock = _bottom_lock(k.t, rng)
         faults = _Faults(np.random.default_rng(rng.integers(2**63)))
         lines: list[_Line] = []
-        series = {e.port: _emlog_lines(e, k, t0, rng, faults, lines) for e in (EMLOG1, EMLOG2)}
+        series = {e.port: _emlog_lines(e, k, t0, rng, faults, lines) for e in emlogs}
         t_ref, v_ref, ok = _dvl_lines(k, lock, t0, rng, faults, lines, dvl_format)
         _gnss_lines(k, t0, gnss_rng, faults, lines)  # last: earlier ports' faults stay put
         lines.sort(key=lambda ln: ln.t)
@@ -703,7 +745,7 @@ def simulate(
             lines=counts,
             faults=dict(faults.counts),
         )
-        for e in (EMLOG1, EMLOG2):
+        for e in emlogs:
             t_s, raw = series[e.port]
             ref, usable = _ref_at(t_ref, v_ref, ok, t_s - e.latency_s)
             truth.rmse_raw_mps[e.port] = _rmse(raw[usable], ref[usable])
@@ -741,7 +783,7 @@ def simulate(
                 "baud": e.baud,
                 "talker": e.talker,
             }
-            for e in (EMLOG1, EMLOG2)
+            for e in emlogs
         }
         | {DVL_PORT: {"format": dvl_format, "noise_mps": DVL_NOISE_MPS, "baud": DVL_BAUD}}
         | {

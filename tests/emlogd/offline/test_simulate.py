@@ -18,6 +18,8 @@ from emlogd.cli import main
 from emlogd.offline.jobs import calibrate, evaluate, load_captures
 from emlogd.offline.simulate import (
     DT_S,
+    EMLOG1,
+    EMLOG2,
     FAULT_RATES,
     GNSS_LAG_S,
     START_EPOCH_S,
@@ -280,6 +282,80 @@ def test_simulate_command_current_and_circles(tmp_path: Path) -> None:
     for bad in ("0.2", "0.2,x", "5,0"):
         assert main(["simulate", str(tmp_path / "x"), "--current", bad]) == 2
     assert not (tmp_path / "x").exists()
+
+
+def _emlog_readings(path: Path, port: str) -> tuple[np.ndarray, np.ndarray]:
+    """A capture's readings of one EMlog: receive times and longitudinal speeds."""
+    dec = make_decoder("nmea0183", port, errors="skip")
+    t, raw = [], []
+    for rec in CaptureReader(path):
+        if rec.port == port:
+            for r in dec.feed(rec.data + b"\r\n"):
+                for sp in dec.speed_records(r):
+                    if sp.source == "VHW" and sp.longitudinal_mps is not None:
+                        t.append(rec.t)
+                        raw.append(sp.longitudinal_mps)
+    return np.array(t), np.array(raw)
+
+
+def test_simulate_command_sensor_sets_the_emlogs_error_model(tmp_path: Path) -> None:
+    """simulate --sensor gives an EMlog other parameters: truth.yaml records them and the
+    readings follow them (scale and bias fitted on the truth at the given latency)."""
+    out = tmp_path / "sim"
+    argv = ["simulate", str(out), "--seed", "5", "--scale", "0.05", "--current", "0,0"]
+    argv += ["--sensor", "emlog2:a=0,m=0.25,b=-0.3,latency=2.0,noise=0.01"]
+    assert main(argv) == 0
+    doc = yaml.safe_load((out / "truth.yaml").read_text())
+    e2 = doc["sensors"]["emlog2"]
+    assert (e2["a_spm"], e2["m"], e2["b_mps"], e2["latency_s"], e2["noise_mps"]) == (
+        0.0,
+        0.25,
+        -0.3,
+        2.0,
+        0.01,
+    )
+    e1 = doc["sensors"]["emlog1"]  # the other EMlog keeps its defaults
+    assert (e1["m"], e1["latency_s"]) == (EMLOG1.params.m, EMLOG1.latency_s)
+    truth = read_truth(out)
+    t, raw = _emlog_readings(out / TRAJECTORIES[1].filename, "emlog2")
+    stw = truth.stw_at(t - 2.0)
+    ok = np.isfinite(stw)
+    m1, b = np.polyfit(stw[ok], raw[ok], 1)
+    assert m1 - 1.0 == pytest.approx(0.25, abs=0.01)
+    assert b == pytest.approx(-0.3, abs=0.02)
+
+
+@pytest.mark.parametrize(
+    ("value", "why"),
+    [
+        ("emlog3:m=0.1", "expected emlog1:KEY=V"),
+        ("emlog2", "expected emlog1:KEY=V"),
+        ("emlog2:q=0.1", "KEY one of a, m, b, latency, noise"),
+        ("emlog2:m=x", "is not a number"),
+        ("emlog2:m=0.1,m=0.2", "given twice"),
+        ("emlog2:m=0.7", "emlog2 m must be within"),
+        ("emlog1:latency=-1", "emlog1 latency must be within"),
+    ],
+)
+def test_simulate_command_bad_sensor(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], value: str, why: str
+) -> None:
+    """A bad --sensor is a usage error naming what is wrong, and nothing is written."""
+    assert main(["simulate", str(tmp_path / "x"), "--scale", "0.01", "--sensor", value]) == 2
+    assert why in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_simulate_refuses_emlogs_on_other_ports_or_out_of_range(tmp_path: Path) -> None:
+    """simulate() takes the two EMlogs on their ports, each within SENSOR_LIMITS."""
+    import dataclasses
+
+    with pytest.raises(ValueError, match="ports emlog1 and emlog2"):
+        simulate(tmp_path, scale=0.01, emlogs=(EMLOG2, EMLOG1))
+    loud = dataclasses.replace(EMLOG2, noise_mps=0.9)
+    with pytest.raises(ValueError, match="emlog2 noise must be within"):
+        simulate(tmp_path, scale=0.01, emlogs=(EMLOG1, loud))
+    assert not any(tmp_path.iterdir())
 
 
 # ------------------------------------------------------------------ the GNSS receiver
