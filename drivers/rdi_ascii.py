@@ -172,13 +172,15 @@ def _each(
     kind: str,
     raw: bytes,
     match: Callable[[str], object],
+    match_all: Callable[[str], object],
     convert: Callable[[str], _N],
     what: str,
 ) -> list[_N]:
     """Every field as :func:`_num` or :func:`_int` reads it (``match`` their pattern,
-    ``what`` "a number" or "an integer"), named ``:KIND field i`` only when it is bad."""
-    if (_INTEGERS if match is _INTEGER else _DECIMALS)(",".join(fields)):
-        return [convert(f) for f in fields]  # one match for the line (int/float skip blanks)
+    ``match_all`` the same for every field of the line, ``what`` "a number" or "an
+    integer"), named ``:KIND field i`` only when it is bad."""
+    if match_all(",".join(fields)):
+        return [convert(f) for f in fields]  # int() and float() skip the leading blanks
     values: list[_N] = []
     for f in fields:
         g = f.lstrip(" ")
@@ -196,7 +198,10 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
     if status not in ("A", "V"):
         raise FieldError(f":{kind} status {status!r}, expected A or V", raw)
     return _velocity_of(
-        _each(fields[:n], kind, raw, _INTEGER, int, "an integer"), status == "V", kind, raw
+        _each(fields[:n], kind, raw, _INTEGER, _INTEGERS, int, "an integer"),
+        status == "V",
+        kind,
+        raw,
     )
 
 
@@ -215,7 +220,7 @@ def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Veloci
 def _dmg(fields: list[str], kind: str, raw: bytes) -> DistanceMadeGood:
     if len(fields) != 5:
         raise FieldError(f":{kind} has {len(fields)} fields, expected 5", raw)
-    e, n, u, r, dt = _each(fields, kind, raw, _DECIMAL, float, "a number")
+    e, n, u, r, dt = _each(fields, kind, raw, _DECIMAL, _DECIMALS, float, "a number")
     return _dmg_of(e, n, u, r, dt, kind, raw)
 
 
