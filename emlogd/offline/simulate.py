@@ -48,10 +48,12 @@ give identical bytes.
 
 from __future__ import annotations
 
+import dataclasses
 import gzip
 import io
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -151,23 +153,43 @@ latency (s, within the default ``max_lag_s`` of 10 s with room for the lag searc
 reach) and white noise (m/s, 1σ); ``emlogd simulate --sensor`` names them so."""
 
 
+def _sensor_values(e: EmlogSpec) -> dict[str, float]:
+    """The values :data:`SENSOR_LIMITS` names, of one EMlog."""
+    p = e.params
+    return {"a": p.a_spm, "m": p.m, "b": p.b_mps, "latency": e.latency_s, "noise": e.noise_mps}
+
+
 def check_emlog(e: EmlogSpec) -> None:
     """Refuse an EMlog outside :data:`SENSOR_LIMITS`.
 
     Raises:
         ValueError: naming the value and its range.
     """
-    values = {
-        "a": e.params.a_spm,
-        "m": e.params.m,
-        "b": e.params.b_mps,
-        "latency": e.latency_s,
-        "noise": e.noise_mps,
-    }
-    for name, x in values.items():
+    for name, x in _sensor_values(e).items():
         lo, hi = SENSOR_LIMITS[name]
         if not (math.isfinite(x) and lo <= x <= hi):
             raise ValueError(f"{e.port} {name} must be within [{lo:g}, {hi:g}], not {x!r}")
+
+
+def with_sensor(e: EmlogSpec, given: Mapping[str, float]) -> EmlogSpec:
+    """``e`` with some of the values :data:`SENSOR_LIMITS` names replaced (its EM4
+    error model, latency, noise), checked by :func:`check_emlog`.
+
+    Raises:
+        ValueError: a name :data:`SENSOR_LIMITS` does not know, or a value outside it.
+    """
+    for key in given:
+        if key not in SENSOR_LIMITS:
+            raise ValueError(f"{key!r}: expected KEY=V with KEY one of {', '.join(SENSOR_LIMITS)}")
+    v = _sensor_values(e) | dict(given)
+    new = dataclasses.replace(
+        e,
+        params=Params("EM4", v["a"], v["m"], v["b"]),
+        latency_s=v["latency"],
+        noise_mps=v["noise"],
+    )
+    check_emlog(new)
+    return new
 
 
 DVL_PORT = "dvl"
