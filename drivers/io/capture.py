@@ -25,6 +25,7 @@ from __future__ import annotations
 import binascii
 import gzip
 import math
+import re
 import zlib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -36,6 +37,10 @@ from drivers.errors import CaptureFormatError
 
 MAGIC = "# emlogd capture v1"
 HEX_PREFIX = "hex:"
+_HEX_B = HEX_PREFIX.encode("ascii")
+# a record as the writer writes it: (seconds with decimals) port printable-payload, and
+# the line's terminator (any other form is read by the field-by-field checks)
+_GOOD_RECORD = re.compile(rb"\(([0-9]{1,12}\.[0-9]{1,9})\) ([!-~]+) ([ -~]+)[\r\n]*").fullmatch
 _NAME_OK = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.")
 
 
@@ -195,53 +200,86 @@ class CaptureReader:
             self.skipped_lines.append((n, bad.message))
 
     def __iter__(self) -> Iterator[CaptureRecord]:
+        for t, port, payload, _, n in self._scan():
+            yield CaptureRecord(t, port, payload.decode("ascii"), payload[:4] == _HEX_B, n)
+
+    def received(self) -> Iterator[tuple[float, str, bytes, int]]:
+        """``(t, port, data, line)`` of every record: the records :meth:`__iter__` gives,
+        as the time, the port, the received bytes (:attr:`CaptureRecord.data`) and the
+        line, without building a :class:`CaptureRecord` (what the replay reads)."""
+        for t, port, _, data, n in self._scan():
+            yield t, port, data, n
+
+    def _scan(self) -> Iterator[tuple[float, str, bytes, bytes, int]]:
+        """``(t, port, payload, data, line)`` of every good record; the bad ones raise
+        or are skipped. A line of the form the writer writes is read by one pattern
+        match; any other line (a comment, an odd but valid record, a bad one) by the
+        checks of :meth:`_record`, which name what is wrong."""
         self.skipped = {}
         self.skipped_lines = []
+        ports = {name.encode("ascii"): name for name in self.ports}
+        good = _GOOD_RECORD
         last_t = -math.inf
         in_header = True
         n = 0
         with _open_binary(self.path) as f:
-            lines = iter(f)
-            while True:
-                try:
-                    raw = next(lines)
-                except StopIteration:
-                    return
-                except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
-                    self._skip(
-                        n + 1, _BadRecordError("truncated", f"the gzip stream ends early: {exc}")
-                    )
-                    return
-                n += 1
-                if n == 1:
-                    continue
-                try:
-                    line = raw.rstrip(b"\r\n").decode("ascii")
-                    if not line:
+            try:
+                for raw in f:
+                    n += 1
+                    m = good(raw)
+                    if m is not None:
+                        stamp, name, payload = m.groups()
+                        port = ports.get(name)
+                        t = float(stamp)
+                        if port is not None and t >= last_t:
+                            if payload[:4] != _HEX_B:
+                                in_header = False
+                                last_t = t
+                                yield t, port, payload, payload + b"\r\n", n
+                                continue
+                            try:
+                                data = binascii.unhexlify(payload[4:])
+                            except binascii.Error:
+                                data = b""
+                            if data:
+                                in_header = False
+                                last_t = t
+                                yield t, port, payload, data, n
+                                continue
+                    if n == 1:
                         continue
-                    if line.startswith("#"):
-                        if not in_header and line[1:].split()[:1] == ["port"]:
+                    try:
+                        line = raw.rstrip(b"\r\n").decode("ascii")
+                        if not line:
+                            continue
+                        if line.startswith("#"):
+                            if not in_header and line[1:].split()[:1] == ["port"]:
+                                raise _BadRecordError(
+                                    "late_header", "port header after the first record"
+                                )
+                            continue
+                        in_header = False
+                        rec = self._record(line, n)
+                        if rec.t < last_t:
                             raise _BadRecordError(
-                                "late_header", "port header after the first record"
+                                "time_backwards",
+                                f"time goes backwards ({rec.t:.6f} < {last_t:.6f})",
                             )
-                        continue
-                    in_header = False
-                    rec = self._record(line, n)
-                    if rec.t < last_t:
-                        raise _BadRecordError(
-                            "time_backwards",
-                            f"time goes backwards ({rec.t:.6f} < {last_t:.6f})",
+                    except UnicodeDecodeError:
+                        self._skip(
+                            n,
+                            _BadRecordError("non_ascii", "non-ASCII bytes (payloads must be hex:)"),
                         )
-                except UnicodeDecodeError:
-                    self._skip(
-                        n, _BadRecordError("non_ascii", "non-ASCII bytes (payloads must be hex:)")
-                    )
-                    continue
-                except _BadRecordError as bad:
-                    self._skip(n, bad)
-                    continue
-                last_t = rec.t
-                yield rec
+                        continue
+                    except _BadRecordError as bad:
+                        self._skip(n, bad)
+                        continue
+                    last_t = rec.t
+                    yield rec.t, rec.port, rec.payload.encode("ascii"), rec.data, n
+            except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
+                self._skip(
+                    n + 1, _BadRecordError("truncated", f"the gzip stream ends early: {exc}")
+                )
 
     def _record(self, line: str, n: int) -> CaptureRecord:
         if not line.startswith("("):

@@ -183,15 +183,15 @@ def record_capture(
     out = Output()
     size = max(Path(path).stat().st_size, 1)
     t_first = t_last = math.nan
-    for n, rec in enumerate(reader):
+    for n, (t, port, data, line) in enumerate(reader.received()):
         if n == 0:
-            t_first = rec.t
-        t_last = rec.t
-        pipeline.feed(rec.t, rec.port, rec.data, out)
+            t_first = t
+        t_last = t
+        pipeline.feed(t, port, data, out)
         out.emits.clear()
         out.events.clear()
         if progress is not None and n % 50_000 == 0:
-            progress(f"reading {Path(path).name}", min(rec.line * 60 / size, 1.0))
+            progress(f"reading {Path(path).name}", min(line * 60 / size, 1.0))
     pipeline.flush()
     ports_status = pipeline.port_status()
     return Recording(

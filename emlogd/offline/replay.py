@@ -147,23 +147,23 @@ def replay(
     for path in paths:
         reader = CaptureReader(path, errors="raise" if strict else "skip")
         size = max(Path(path).stat().st_size, 1)
-        for rec in reader:
-            if rec.port not in pipeline.decoders:
-                result.unknown_ports[rec.port] = result.unknown_ports.get(rec.port, 0) + 1
+        for t, port, data, line in reader.received():
+            if port not in pipeline.decoders:
+                result.unknown_ports[port] = result.unknown_ports.get(port, 0) + 1
                 continue
             if t_first is None:
-                t_first = rec.t
+                t_first = t
             if speed is not None:
                 if pace0 is None:
-                    pace0 = (rec.t, monotonic())
-                due = pace0[1] + (rec.t - pace0[0]) / speed
+                    pace0 = (t, monotonic())
+                due = pace0[1] + (t - pace0[0]) / speed
                 wait = due - monotonic()
                 if wait > 0.0:
                     sleep(wait)
-            pipeline.feed(rec.t, rec.port, rec.data, out)
-            if rec.t - t_tick >= TICK_S:
-                t_tick = rec.t
-                pipeline.tick(rec.t, out)
+            pipeline.feed(t, port, data, out)
+            if t - t_tick >= TICK_S:
+                t_tick = t
+                pipeline.tick(t, out)
             if out.emits or out.events or out.persist:
                 if scorer is not None:
                     scorer.emitted(out.emits)
@@ -172,9 +172,9 @@ def replay(
                 out.events.clear()
                 out.persist.clear()
             result.records += 1
-            t_last = rec.t
+            t_last = t
             if progress is not None and result.records % 20_000 == 0:
-                progress(f"replay {Path(path).name}", min(rec.line * 60.0 / size, 1.0))
+                progress(f"replay {Path(path).name}", min(line * 60.0 / size, 1.0))
         result.capture_skips[str(path)] = reader.skip_report()
     last = pipeline.flush()
     if scorer is not None:

@@ -242,3 +242,43 @@ def test_truncated_gzip(tmp_path: Path) -> None:
     reader = CaptureReader(cut, errors="skip")
     n = len(list(reader))
     assert 0 < n < 20_000 and reader.skipped == {"truncated": 1}
+
+
+def test_received_gives_what_iterating_gives(tmp_path: Path) -> None:
+    """received() yields each good record's time, port, bytes and line exactly as iterating
+    does, for the records the writer writes and for odd but valid ones, and skips the same
+    bad ones."""
+    path = tmp_path / "odd.cap"
+    path.write_bytes(
+        MAGIC.encode()
+        + b"\n# port a nmea0183\n# port d pd0\n"
+        + b"(1.000000) a $A\r\n"  # 4 as written, CR LF
+        + b"(1.1) d hex:7f7f00ff\n"  # 5 binary
+        + b"(1.2) a  $B with a leading blank\n"  # 6
+        + b"(2) a $C\n"  # 7 time without decimals
+        + b"(.5) a $D\n"  # 8 backwards, in a form the pattern does not read
+        + b"(2.5) a $E\r\r\n"  # 9
+        + b"(2.6) a tab\there\n"  # 10 a control character in the payload
+        + b"(2.7) d hex:\n"  # 11 empty hex
+        + b"(2.8) d hex:7f7\n"  # 12 odd hex
+        + b"(2.9) b $F\n"  # 13 unknown port
+        + b"(1.0) a $G\n"  # 14 backwards
+        + b"# a comment\n"  # 15
+        + b"(3.0) a $H"  # 16 no terminator
+    )
+    reader = CaptureReader(path, errors="skip")
+    received = list(reader.received())
+    skipped = dict(reader.skipped), list(reader.skipped_lines)
+    assert received == [(r.t, r.port, r.data, r.line) for r in reader]
+    assert (dict(reader.skipped), list(reader.skipped_lines)) == skipped
+    assert received == [
+        (1.0, "a", b"$A\r\n", 4),
+        (1.1, "d", b"\x7f\x7f\x00\xff", 5),
+        (1.2, "a", b" $B with a leading blank\r\n", 6),
+        (2.0, "a", b"$C\r\n", 7),
+        (2.5, "a", b"$E\r\n", 9),
+        (2.6, "a", b"tab\there\r\n", 10),
+        (3.0, "a", b"$H\r\n", 16),
+    ]
+    assert reader.skipped == {"time_backwards": 2, "bad_hex": 2, "unknown_port": 1}
+    assert [n for n, _ in reader.skipped_lines] == [8, 11, 12, 13, 14]
