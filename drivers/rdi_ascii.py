@@ -136,9 +136,6 @@ _DECIMAL_RE = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)"
 _INTEGER_RE = r"[+-]?[0-9]+"
 _DECIMAL = re.compile(_DECIMAL_RE).fullmatch
 _INTEGER = re.compile(_INTEGER_RE).fullmatch
-# every field of a line at once, each as _num or _int reads it (leading blanks allowed)
-_DECIMALS = re.compile(f" *{_DECIMAL_RE}(?:, *{_DECIMAL_RE})*").fullmatch
-_INTEGERS = re.compile(f" *{_INTEGER_RE}(?:, *{_INTEGER_RE})*").fullmatch
 _N = TypeVar("_N", int, float)
 
 
@@ -149,13 +146,6 @@ def _num(field: str, name: str, raw: bytes) -> float:
     if not _DECIMAL(f):
         raise FieldError(f"{name}: {field!r} is not a number", raw)
     return float(f)
-
-
-def _nums(fields: list[str], name: str, raw: bytes) -> list[float]:
-    """:func:`_num` of every field, with one match for the line when all are good."""
-    if _DECIMALS(",".join(fields)):
-        return [float(f) for f in fields]
-    return [_num(f, name, raw) for f in fields]
 
 
 def _int(field: str, name: str, raw: bytes) -> int:
@@ -172,15 +162,11 @@ def _each(
     kind: str,
     raw: bytes,
     match: Callable[[str], object],
-    match_all: Callable[[str], object],
     convert: Callable[[str], _N],
     what: str,
 ) -> list[_N]:
     """Every field as :func:`_num` or :func:`_int` reads it (``match`` their pattern,
-    ``match_all`` the same for every field of the line, ``what`` "a number" or "an
-    integer"), named ``:KIND field i`` only when it is bad."""
-    if match_all(",".join(fields)):
-        return [convert(f) for f in fields]  # int() and float() skip the leading blanks
+    ``what`` "a number" or "an integer"), a bad one named ``:KIND field i``."""
     values: list[_N] = []
     for f in fields:
         g = f.lstrip(" ")
@@ -198,7 +184,7 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
     if status not in ("A", "V"):
         raise FieldError(f":{kind} status {status!r}, expected A or V", raw)
     return _velocity_of(
-        _each(fields[:n], kind, raw, _INTEGER, _INTEGERS, int, "an integer"),
+        _each(fields[:n], kind, raw, _INTEGER, int, "an integer"),
         status == "V",
         kind,
         raw,
@@ -220,7 +206,7 @@ def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Veloci
 def _dmg(fields: list[str], kind: str, raw: bytes) -> DistanceMadeGood:
     if len(fields) != 5:
         raise FieldError(f":{kind} has {len(fields)} fields, expected 5", raw)
-    e, n, u, r, dt = _each(fields, kind, raw, _DECIMAL, _DECIMALS, float, "a number")
+    e, n, u, r, dt = _each(fields, kind, raw, _DECIMAL, float, "a number")
     return _dmg_of(e, n, u, r, dt, kind, raw)
 
 
@@ -281,6 +267,73 @@ def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
     )
 
 
+# One pattern per line type for a line whose every field is good, a group per value
+# (blanks as _num, _int and the status checks allow them); any other line goes through
+# the field-by-field checks of _parse_fields, which name what is wrong.
+_D = f" *({_DECIMAL_RE})"
+_I = f" *({_INTEGER_RE})"
+_STATUS = " *([AV]) *"
+_Groups: TypeAlias = tuple[str, ...]
+
+
+def _sa(g: _Groups, kind: str, raw: bytes) -> object:
+    return _attitude(float(g[0]), float(g[1]), float(g[2]), raw)
+
+
+def _ts(g: _Groups, kind: str, raw: bytes) -> object:
+    return _environment(g[0], float(g[1]), float(g[2]), float(g[3]), float(g[4]), int(g[5]), raw)
+
+
+def _ra(g: _Groups, kind: str, raw: bytes) -> object:
+    p, r1, r2, r3, r4 = map(float, g)
+    return p, (r1 / 10.0, r2 / 10.0, r3 / 10.0, r4 / 10.0)
+
+
+def _vel(g: _Groups, kind: str, raw: bytes) -> object:
+    return _velocity_of([int(v) for v in g[:-1]], g[-1] == "V", kind, raw)
+
+
+def _dmg_line(g: _Groups, kind: str, raw: bytes) -> object:
+    e, n, u, r, dt = map(float, g)
+    return _dmg_of(e, n, u, r, dt, kind, raw)
+
+
+def _pattern(*fields: str) -> Callable[[str], re.Match[str] | None]:
+    return re.compile(",".join(fields)).fullmatch
+
+
+_VEL3 = (_pattern(_I, _I, _I, _STATUS), _vel)
+_VEL4 = (_pattern(_I, _I, _I, _I, _STATUS), _vel)
+_DMG = (_pattern(_D, _D, _D, _D, _D), _dmg_line)
+_LINES: dict[str, tuple[Callable[[str], re.Match[str] | None], Callable[..., object]]] = {
+    "SA": (_pattern(_D, _D, _D), _sa),
+    "TS": (_pattern(" *([0-9]{14}) *", _D, _D, _D, _D, _I + "(?:, *[OWX] *)?"), _ts),
+    "RA": (_pattern(_D, _D, _D, _D, _D), _ra),
+    "WI": _VEL4,
+    "BI": _VEL4,
+    "WS": _VEL3,
+    "WE": _VEL3,
+    "BS": _VEL3,
+    "BE": _VEL3,
+    "WD": _DMG,
+    "BD": _DMG,
+}
+
+
+def _parse_line(frame: bytes) -> tuple[str, object]:
+    """What :meth:`PdAsciiDecoder.parse_line` does: a line whose fields are all good is
+    read by its type's pattern, any other by :func:`_parse_fields` (same values, same
+    errors)."""
+    try:
+        kind, _, rest = frame.decode("ascii")[1:].partition(",")
+    except UnicodeDecodeError:
+        return _parse_fields(frame)
+    fast = _LINES.get(kind)
+    if fast is not None and (m := fast[0](rest)) is not None:
+        return kind, fast[1](m.groups(), kind, frame)
+    return _parse_fields(frame)
+
+
 def _parse_fields(frame: bytes) -> tuple[str, object]:
     """The field-by-field path of :meth:`PdAsciiDecoder.parse_line` (every line, any layout)."""
     try:
@@ -297,7 +350,7 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
     if kind == "SA":
         if len(fields) != 3:
             raise FieldError(f":SA has {len(fields)} fields, expected 3", frame)
-        pitch, roll, heading = _nums(fields, ":SA", frame)
+        pitch, roll, heading = (_num(f, ":SA", frame) for f in fields)
         return kind, _attitude(pitch, roll, heading, frame)
     if kind == "TS":
         if len(fields) not in (6, 7):
@@ -305,7 +358,7 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
         stamp = fields[0].strip()
         if len(stamp) != 14 or not stamp.isdigit():
             raise FieldError(f":TS time {stamp!r} is not YYMMDDHHmmsshh", frame)
-        sal, temp, depth, c = _nums(fields[1:5], ":TS", frame)
+        sal, temp, depth, c = (_num(f, ":TS", frame) for f in fields[1:5])
         bit = _int(fields[5], ":TS BIT", frame)
         env = _environment(stamp, sal, temp, depth, c, bit, frame)
         if len(fields) == 7 and fields[6].strip() not in ("O", "W", "X"):
@@ -314,7 +367,7 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
     if kind == "RA":
         if len(fields) != 5:
             raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
-        p, *r = _nums(fields, ":RA", frame)
+        p, *r = (_num(f, ":RA", frame) for f in fields)
         return kind, (p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0))
     if kind in ("WI", "BI"):
         return kind, _velocity(fields, 4, kind, frame)
@@ -448,7 +501,7 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
         Raises:
             FrameError: a subclass naming the reject reason.
         """
-        return _parse_fields(frame)
+        return _parse_line(frame)
 
     def speed_records(self, record: Pd6Record) -> tuple[SpeedRecord, ...]:
         """:BS → sog (role ``bottom``, source ``PD6:BS``), :WS → stw (``water``,
