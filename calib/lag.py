@@ -167,19 +167,21 @@ class _Blocks:
     Attributes:
         starts: start index of each block holding samples (a tail shorter than a block
             joins the last).
-        index: the block of each sample.
+        spans: ``(start, end)`` indices of each block.
         tau: each sample's time from its block's mean time, in blocks.
     """
 
-    __slots__ = ("index", "starts", "tau")
+    __slots__ = ("spans", "starts", "tau")
 
     def __init__(self, t: FloatArray, block_s: float) -> None:
         n = max(int((t[-1] - t[0]) / block_s), 1)
         # a block with no sample (a gap in the series longer than a block) is dropped
         self.starts = np.unique(np.searchsorted(t, t[0] + block_s * np.arange(n, dtype=np.float64)))
-        sizes = np.diff(np.append(self.starts, t.size))
-        self.index = np.repeat(np.arange(self.starts.size), sizes)
-        self.tau = (t - (np.add.reduceat(t, self.starts) / sizes)[self.index]) / block_s
+        ends = np.append(self.starts[1:], t.size)
+        self.spans = list(zip(self.starts.tolist(), ends.tolist(), strict=True))
+        sizes = ends - self.starts
+        index = np.repeat(np.arange(self.starts.size), sizes)
+        self.tau = (t - (np.add.reduceat(t, self.starts) / sizes)[index]) / block_s
 
     def residual(self, X: FloatArray, V: FloatArray) -> FloatArray:
         """Each column of ``V`` less its least-squares fit on the columns of ``X``, block
@@ -188,10 +190,11 @@ class _Blocks:
         Each block's normal matrix is pseudo-inverted: a block on one heading cannot
         tell a current from a level, and then just loses both together.
         """
-        XX = np.add.reduceat(X[:, :, None] * X[:, None, :], self.starts, axis=0)
-        XV = np.add.reduceat(X[:, :, None] * V[:, None, :], self.starts, axis=0)
-        coef = np.einsum("bkj,bjc->bkc", np.linalg.pinv(XX, rcond=1e-9), XV)
-        return np.asarray(V - np.einsum("nk,nkc->nc", X, coef[self.index]), dtype=np.float64)
+        out = np.empty_like(V)
+        for s, e in self.spans:
+            Xb, Vb = X[s:e], V[s:e]
+            out[s:e] = Vb - Xb @ (np.linalg.pinv(Xb.T @ Xb, rcond=1e-9) @ (Xb.T @ Vb))
+        return out
 
 
 def _multiple(
