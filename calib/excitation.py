@@ -232,7 +232,7 @@ def _columns(unknowns: Sequence[str], offset: bool) -> list[int]:
     return sorted(cols)
 
 
-def _scale_inflation(info: FloatArray, scale: Sequence[str], offset: bool) -> float:
+def _scale_inflation(figures: _Figures, scale: Sequence[str], offset: bool) -> float:
     """By how much estimating the current multiplies a scale term's variance (≥ 1).
 
     The largest over the scale terms together and each alone (EM4's ``a`` without
@@ -240,8 +240,8 @@ def _scale_inflation(info: FloatArray, scale: Sequence[str], offset: bool) -> fl
     """
     worst = 1.0
     for group in [list(scale)] + [[k] for k in scale] * (len(scale) > 1):
-        a = _stds(info, _columns(group, offset), 1.0)
-        b = _stds(info, _columns([*group, CURRENT], offset), 1.0)
+        a = figures.stds(_columns(group, offset), 1.0)
+        b = figures.stds(_columns([*group, CURRENT], offset), 1.0)
         for k in group:
             for c in _COL[k]:
                 if math.isfinite(a[c]):
@@ -250,18 +250,29 @@ def _scale_inflation(info: FloatArray, scale: Sequence[str], offset: bool) -> fl
     return worst
 
 
-def _stds(info: FloatArray, cols: list[int], sigma2: float) -> dict[int, float]:
-    """Standard deviation of each column's unknown (``inf`` for all when singular).
+def _inv_diag(info: FloatArray, cols: list[int]) -> FloatArray | None:
+    """The diagonal of the inverse of the information matrix over ``cols`` (None when
+    singular).
 
-    From one eigendecomposition of the information matrix scaled to a unit diagonal:
-    ``(M⁻¹)ᵢᵢ = Σₖ Vᵢₖ² / λₖ`` over that matrix's eigenpairs, divided by the scale².
+    From one eigendecomposition of that matrix scaled to a unit diagonal:
+    ``(M⁻¹)ᵢᵢ = Σₖ Vᵢₖ² / λₖ`` over its eigenpairs, divided by the scale².
     """
     sub = info[np.ix_(cols, cols)]
     scale = np.sqrt(np.maximum(np.diag(sub), 1e-300))
     eig, vec = np.linalg.eigh(sub / np.outer(scale, scale))
     if not float(eig[0]) > 1e-12 * max(float(eig[-1]), 1e-300):
+        return None
+    return np.asarray((vec * vec) @ (1.0 / eig) / (scale * scale), dtype=np.float64)
+
+
+def _stds(info: FloatArray, cols: list[int], sigma2: float) -> dict[int, float]:
+    """Standard deviation of each column's unknown (``inf`` for all when singular)."""
+    return _scaled(cols, _inv_diag(info, cols), sigma2)
+
+
+def _scaled(cols: list[int], inv_diag: FloatArray | None, sigma2: float) -> dict[int, float]:
+    if inv_diag is None:
         return dict.fromkeys(cols, math.inf)
-    inv_diag = (vec * vec) @ (1.0 / eig) / (scale * scale)
     return {c: math.sqrt(max(float(inv_diag[i]) * sigma2, 0.0)) for i, c in enumerate(cols)}
 
 
@@ -299,9 +310,14 @@ def judge(
 
 
 def structural(
-    layout: Layout, stats: WindowStats, rule: ExcitationRule = DEFAULT_RULE
+    layout: Layout,
+    stats: WindowStats,
+    rule: ExcitationRule = DEFAULT_RULE,
+    figures: _Figures | None = None,
 ) -> tuple[dict[str, str], bool]:
-    """Rules 1 and 2 and the scale's variance inflation: what no noise level changes.
+    """Rules 1 and 2 and the scale's variance inflation: what no noise level changes
+    (``figures``: the decompositions of ``stats.info`` already made, kept for the next
+    rules).
 
     Returns:
         The unknowns refused, each with its reason, and whether a nuisance offset
@@ -342,7 +358,8 @@ def structural(
     if layout.current and CURRENT not in refused:
         free_scale = [k for k in scale if k not in refused]
         if free_scale:
-            inflation = _scale_inflation(stats.info, free_scale, "b" in unknowns)
+            figures = _Figures(stats.info) if figures is None else figures
+            inflation = _scale_inflation(figures, free_scale, "b" in unknowns)
             if inflation > rule.max_scale_vif:
                 why = (
                     "scale not separable from the current: the speed through the water "
@@ -357,20 +374,19 @@ class _Figures:
     """The decompositions of one window's information matrix, kept while the window
     is judged against different bounds (the same columns give the same figures)."""
 
-    __slots__ = ("_cond", "_stds", "info")
+    __slots__ = ("_cond", "_inv", "info")
 
     def __init__(self, info: FloatArray) -> None:
         self.info = info
-        self._stds: dict[tuple[float, ...], dict[int, float]] = {}
+        self._inv: dict[tuple[int, ...], FloatArray | None] = {}
         self._cond: dict[tuple[int, ...], float] = {}
 
     def stds(self, cols: list[int], sigma2: float) -> dict[int, float]:
         """:func:`_stds` of these columns."""
-        key = (*cols, sigma2)
-        found = self._stds.get(key)
-        if found is None:
-            found = self._stds[key] = _stds(self.info, cols, sigma2)
-        return found
+        key = tuple(cols)
+        if key not in self._inv:
+            self._inv[key] = _inv_diag(self.info, cols)
+        return _scaled(cols, self._inv[key], sigma2)
 
     def cond(self, cols: list[int]) -> float:
         """:func:`_cond` of these columns."""
@@ -663,8 +679,9 @@ class ExcitationWindow:
         """
         if self._judged is None:
             stats = self.stats()
-            refused, offset = structural(self.layout, stats, self.rule)
-            self._judged = (stats, refused, offset, _Figures(stats.info))
+            figures = _Figures(stats.info)
+            refused, offset = structural(self.layout, stats, self.rule, figures)
+            self._judged = (stats, refused, offset, figures)
         stats, refused, offset, figures = self._judged
         return _information(
             self.layout, stats, sigma2_mps2, self.rule, std_factor, dict(refused), offset, figures
