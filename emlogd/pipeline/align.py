@@ -20,7 +20,9 @@ Must not import: serial, os, time, threading, socket (pure module).
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections import deque
+from operator import itemgetter
 
 import numpy as np
 import numpy.typing as npt
@@ -30,6 +32,9 @@ from calib.models import FloatArray
 DEFAULT_MAX_GAP_S = 1.0
 """Largest distance from a query to each bracketing sample, s (a 10 Hz DVL with a
 dropped ensemble or two still interpolates; a real outage does not)."""
+
+
+_time = itemgetter(0)
 
 
 def wrap_deg(angle: float) -> float:
@@ -96,24 +101,24 @@ class SampleRing:
     def at(self, t: float) -> float | None:
         """The series at time ``t`` by the alignment rule, or None."""
         buf = self._buf
-        after: tuple[float, float, bool] | None = None
-        for i in range(len(buf) - 1, -1, -1):
-            s = buf[i]
-            if s[0] > t:
-                after = s
-                continue
-            if s[0] == t:
-                return s[1] if s[2] else None
-            if after is None or not (s[2] and after[2]):
-                return None
-            if t - s[0] > self.max_gap_s or after[0] - t > self.max_gap_s:
-                return None
-            w = (t - s[0]) / (after[0] - s[0])
-            if self.angular:
-                d = (after[1] - s[1] + 180.0) % 360.0 - 180.0
-                return wrap_deg(s[1] + w * d)
-            return s[1] + w * (after[1] - s[1])
-        return None
+        i = bisect_right(buf, t, key=_time)  # buf[i - 1] is the newest sample at or before t
+        if i == 0:
+            return None
+        s = buf[i - 1]
+        if s[0] == t:
+            return s[1] if s[2] else None
+        if i == len(buf):
+            return None
+        after = buf[i]
+        if not (s[2] and after[2]):
+            return None
+        if t - s[0] > self.max_gap_s or after[0] - t > self.max_gap_s:
+            return None
+        w = (t - s[0]) / (after[0] - s[0])
+        if self.angular:
+            d = (after[1] - s[1] + 180.0) % 360.0 - 180.0
+            return wrap_deg(s[1] + w * d)
+        return s[1] + w * (after[1] - s[1])
 
     def nearest(self, t: float, max_dist_s: float) -> float | None:
         """The value of the valid sample nearest ``t`` within ``max_dist_s``, or None."""

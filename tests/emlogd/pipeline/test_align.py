@@ -21,6 +21,20 @@ class TestSampleRing:
         assert ring.at(0.25) == pytest.approx(3.5)
         assert ring.at(0.3) == pytest.approx(4.0)
 
+    def test_a_sample_at_the_query_time_answers_alone_the_newest_first(self) -> None:
+        """A query at a sample's time gets that sample (the newest of equal times), at
+        the oldest and the newest sample too; before the oldest, nothing."""
+        ring = SampleRing(100, max_gap_s=0.5)
+        ring.add(0.0, 1.0)
+        ring.add(0.2, 2.0)
+        ring.add(0.2, 3.0)
+        ring.add(0.4, 4.0)
+        assert [ring.at(t) for t in (0.0, 0.2, 0.4)] == [1.0, 3.0, 4.0]
+        assert ring.at(0.3) == pytest.approx(3.5)
+        assert ring.at(-0.1) is None
+        ring.add(0.4, None, False)
+        assert ring.at(0.4) is None
+
     def test_never_past_the_newest_sample(self) -> None:
         """A query after the newest sample gets nothing (the caller waits), and covers() says so."""
         ring = SampleRing(100)
