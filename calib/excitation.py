@@ -265,12 +265,9 @@ def _inv_diag(info: FloatArray, cols: list[int]) -> FloatArray | None:
     return np.asarray((vec * vec) @ (1.0 / eig) / (scale * scale), dtype=np.float64)
 
 
-def _stds(info: FloatArray, cols: list[int], sigma2: float) -> dict[int, float]:
-    """Standard deviation of each column's unknown (``inf`` for all when singular)."""
-    return _scaled(cols, _inv_diag(info, cols), sigma2)
-
-
 def _scaled(cols: list[int], inv_diag: FloatArray | None, sigma2: float) -> dict[int, float]:
+    """Standard deviation of each column's unknown from :func:`_inv_diag` and the
+    residual variance (``inf`` for all when singular)."""
     if inv_diag is None:
         return dict.fromkeys(cols, math.inf)
     return {c: math.sqrt(max(float(inv_diag[i]) * sigma2, 0.0)) for i, c in enumerate(cols)}
@@ -305,8 +302,9 @@ def judge(
     Returns:
         A verdict per unknown.
     """
-    refused, offset = structural(layout, stats, rule)
-    return _information(layout, stats, sigma2_mps2, rule, std_factor, refused, offset)
+    figures = _Figures(stats.info)
+    refused, offset = structural(layout, stats, rule, figures)
+    return _information(layout, stats, sigma2_mps2, rule, std_factor, refused, offset, figures)
 
 
 def structural(
@@ -382,7 +380,7 @@ class _Figures:
         self._cond: dict[tuple[int, ...], float] = {}
 
     def stds(self, cols: list[int], sigma2: float) -> dict[int, float]:
-        """:func:`_stds` of these columns."""
+        """The standard deviations of these columns' unknowns (:func:`_scaled`)."""
         key = tuple(cols)
         if key not in self._inv:
             self._inv[key] = _inv_diag(self.info, cols)
@@ -405,10 +403,10 @@ def _information(
     std_factor: float,
     refused: dict[str, str],
     offset: bool,
-    figures: _Figures | None = None,
+    figures: _Figures,
 ) -> Identifiability:
-    """Rules 3 and 4 on what :func:`structural` left (``refused`` is extended)."""
-    figures = _Figures(stats.info) if figures is None else figures
+    """Rules 3 and 4 on what :func:`structural` left (``refused`` is extended), with the
+    window's decompositions kept in ``figures``."""
     unknowns = layout.unknowns
     free = [u for u in unknowns if u not in refused]
     stds: dict[str, float] = {}
