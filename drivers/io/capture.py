@@ -233,14 +233,12 @@ class CaptureReader:
                         t = float(stamp)
                         if port is not None and t >= last_t:
                             if payload[:4] != _HEX_B:
-                                in_header = False
-                                last_t = t
-                                yield t, port, payload, payload + b"\r\n", n
-                                continue
-                            try:
-                                data = binascii.unhexlify(payload[4:])
-                            except binascii.Error:
-                                data = b""
+                                data = payload + b"\r\n"
+                            else:
+                                try:
+                                    data = binascii.unhexlify(payload[4:])
+                                except binascii.Error:
+                                    data = b""  # named by _record's checks below
                             if data:
                                 in_header = False
                                 last_t = t
