@@ -225,22 +225,30 @@ def test_truth_is_interpolated_within_trajectories_only(trial: SimulationResult)
     assert np.isnan(got[1:]).all()
 
 
+def _emlog_readings(
+    path: Path, port: str, source: str | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """A capture's readings of one EMlog (of one sentence, or all): receive times and
+    longitudinal speeds."""
+    dec = make_decoder("nmea0183", port, errors="skip")
+    t, raw = [], []
+    for rt, rport, data, _ in CaptureReader(path).received():
+        if rport == port:
+            for r in dec.feed(data):
+                for sp in dec.speed_records(r):
+                    if source in (None, sp.source) and sp.longitudinal_mps is not None:
+                        t.append(rt)
+                        raw.append(sp.longitudinal_mps)
+    return np.array(t), np.array(raw)
+
+
 def test_truth_scores_and_floor(trial: SimulationResult) -> None:
     """The raw readings score their known raw error against the truth; the true inverse reaches the floor."""
     truth = read_truth(trial.outdir)
-    reader = CaptureReader(trial.files[2])
-    dec = make_decoder("nmea0183", "emlog1", errors="skip")
-    t, raw = [], []
-    for rec in reader:
-        if rec.port == "emlog1":
-            for r in dec.feed(rec.data + b"\r\n"):
-                for sp in dec.speed_records(r):
-                    if sp.longitudinal_mps is not None:
-                        t.append(rec.t)
-                        raw.append(sp.longitudinal_mps)
+    t, raw = _emlog_readings(trial.files[2], "emlog1")
     params, latency = truth.emlog("emlog1")
     assert latency == 3.2
-    floor = correct_array(params, np.array(raw))
+    floor = correct_array(params, raw)
     s = score_truth(truth, "emlog1", t, raw, floor)
     assert s.n_samples == len(t)
     assert s.rmse_corrected == pytest.approx(s.rmse_floor)
@@ -284,20 +292,6 @@ def test_simulate_command_current_and_circles(tmp_path: Path) -> None:
     assert not (tmp_path / "x").exists()
 
 
-def _emlog_readings(path: Path, port: str) -> tuple[np.ndarray, np.ndarray]:
-    """A capture's readings of one EMlog: receive times and longitudinal speeds."""
-    dec = make_decoder("nmea0183", port, errors="skip")
-    t, raw = [], []
-    for rec in CaptureReader(path):
-        if rec.port == port:
-            for r in dec.feed(rec.data + b"\r\n"):
-                for sp in dec.speed_records(r):
-                    if sp.source == "VHW" and sp.longitudinal_mps is not None:
-                        t.append(rec.t)
-                        raw.append(sp.longitudinal_mps)
-    return np.array(t), np.array(raw)
-
-
 def test_simulate_command_sensor_sets_the_emlogs_error_model(tmp_path: Path) -> None:
     """simulate --sensor gives an EMlog other parameters: truth.yaml records them and the
     readings follow them (scale and bias fitted on the truth at the given latency)."""
@@ -317,7 +311,7 @@ def test_simulate_command_sensor_sets_the_emlogs_error_model(tmp_path: Path) -> 
     e1 = doc["sensors"]["emlog1"]  # the other EMlog keeps its defaults
     assert (e1["m"], e1["latency_s"]) == (EMLOG1.params.m, EMLOG1.latency_s)
     truth = read_truth(out)
-    t, raw = _emlog_readings(out / TRAJECTORIES[1].filename, "emlog2")
+    t, raw = _emlog_readings(out / TRAJECTORIES[1].filename, "emlog2", "VHW")
     stw = truth.stw_at(t - 2.0)
     ok = np.isfinite(stw)
     m1, b = np.polyfit(stw[ok], raw[ok], 1)
