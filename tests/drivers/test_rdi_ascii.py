@@ -115,11 +115,15 @@ def test_a_bad_line_discards_the_block_and_is_counted_twice() -> None:
         ),
         (lambda b: b.replace(b":TS,25061208000123", b":TS,2506120800012"), "bad_field"),
         (lambda b: b.replace(b":BI", b":XX"), "unknown_sentence"),
+        (lambda b: b.replace(b":TS,25061208000123", b":TS,25136108000123"), "out_of_range"),
+        (lambda b: b.replace(b"+15.0,0000.0", b"+15.0,-010.0"), "out_of_range"),
+        (lambda b: b.replace(b":SA,+00.00,+00.00", b":SA,+95.00,+00.00"), "out_of_range"),
     ],
 )
 def test_line_validation(mangle: object, reason: str) -> None:
-    """A wrong field count, status letter, out-of-range heading, short timestamp or unknown line id
-    discards the ensemble with one reject of the matching reason."""
+    """A wrong field count, status letter, out-of-range heading, short timestamp, unknown line id,
+    impossible month, negative depth or pitch beyond 90° discards the ensemble with one reject of
+    the matching reason."""
     dec = PdAsciiDecoder("dvl", errors="yield")
     out = dec.decode_all(mangle(_lines()))  # type: ignore[operator]
     assert not any(isinstance(r, Pd6Ensemble) for r in out)

@@ -244,3 +244,24 @@ def test_a_corrupted_length_at_end_of_file_does_not_swallow_the_next_ensemble() 
     out = dec.decode_all(bytes(data))
     assert [e.ensemble_number for e in out if isinstance(e, Pd0Ensemble)] == [14, 16]
     assert dec.counters.rejected == 1
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"pitch_deg": 95.0},
+        {"roll_deg": -181.0},
+        {"temperature_c": 80.0},
+        {"salinity_ppt": 60},
+        {"sound_speed_mps": 1000},
+    ],
+)
+def test_an_out_of_range_leader_field_is_a_reject(bad: dict[str, float]) -> None:
+    """A PD0 ensemble whose pitch, roll, temperature, salinity or sound speed is outside its
+    physical range is an out_of_range reject, not a record; the same ensemble in range is read."""
+    base = {"ensemble_number": 1, "timestamp": datetime(2025, 1, 1, tzinfo=UTC)}
+    good = encode_pd0(heading_deg=10.0, **base)  # type: ignore[arg-type]
+    assert isinstance(Pd0Decoder("d").decode_all(good)[0], Pd0Ensemble)
+    dec = Pd0Decoder("d", errors="yield")
+    (out,) = dec.decode_all(encode_pd0(heading_deg=10.0, **base, **bad))  # type: ignore[arg-type]
+    assert isinstance(out, Rejected) and out.reason == "out_of_range"
