@@ -18,15 +18,24 @@ without terminator), it is ``hex:`` + the bytes in lowercase hex, given back exa
 The reader streams (constant memory, any file size) and names the file and line
 of anything malformed, or counts and skips malformed records (``errors="skip"``); a file whose name ends in ``.gz`` is read through gzip. The
 writer refuses unknown ports and times going backwards.
+
+Times are read tolerantly (:class:`CaptureReader`): records up to ``reorder_window_s``
+out of order (receive-time jitter between ports) are given back sorted; a record
+further back is skipped alone (``out_of_order``), and so is a record that jumps
+forward when the records after it do not follow it (a corrupted time: a forward
+outlier is judged by the records after it, so it never makes the rest of the file
+"go backwards").
 """
 
 from __future__ import annotations
 
 import binascii
 import gzip
+import heapq
 import math
 import re
 import zlib
+from collections import deque
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -91,14 +100,26 @@ SKIP_REASONS = (
     "unknown_port",
     "missing_payload",
     "bad_hex",
-    "time_backwards",
+    "out_of_order",
     "late_header",
     "truncated",
 )
 """Why a record is skipped (``errors="skip"``): the keys of :attr:`CaptureReader.skipped`."""
 
+CONFIRM_RECORDS = 3
+"""How many records after a forward jump in time may fail to follow it before it is judged
+a bad time (``out_of_order``); one that follows it makes the jump real."""
+
+REORDER_WINDOW_S = 0.2
+"""Default of ``reorder_window_s``: how far (s) a record may come before one it follows and
+still be put back in order (receive-time jitter of a busy machine is tens of ms)."""
+
 MAX_SKIPPED_LINES = 10
 """How many skipped lines :attr:`CaptureReader.skipped_lines` keeps (the first ones)."""
+
+
+_Scanned = tuple[float, str, bytes, bytes, int]
+"""A well-formed record as read: (t, port, payload, data, line)."""
 
 
 class _BadRecordError(Exception):
@@ -118,27 +139,50 @@ class CaptureReader:
 
     With ``errors="raise"`` (the default) the first malformed record raises; with
     ``errors="skip"`` a record that cannot be parsed (not ASCII, no time, a bad time,
-    an unknown port, no payload, bad hex, a time going backwards, a port header after
+    an unknown port, no payload, bad hex, a time out of order, a port header after
     the records) is counted by reason in :attr:`skipped`, its line and message kept in
     :attr:`skipped_lines` (the first :data:`MAX_SKIPPED_LINES`), and reading goes on;
     a gzip stream cut short ends the records (reason ``truncated``). A malformed
     header always raises. Line numbers count ``\\n`` from 1, as editors and
     ``sed -n`` do, in the decompressed text of a ``.gz`` file.
 
+    Times: records are held back ``reorder_window_s`` (of file time) and given back
+    sorted by time (equal times in file order), so jitter within the window costs
+    nothing; :attr:`reordered` counts the records that came back in another place. A
+    record older than one already given back is ``out_of_order``. A record more than
+    the window ahead of the newest time read is held until the next record: if that
+    one is more than the window before it, the jump was a corrupted time and the
+    record is ``out_of_order``; otherwise the jump is real (a pause in the capture). The
+    first record is judged the same way.
+    So one record with a wrong time, before or after, costs that record only.
+
     Args:
         path: the capture file.
         errors: ``"raise"`` or ``"skip"``.
+        reorder_window_s: the window (s, ≥ 0; 0: every record must follow the last).
 
     Raises:
         CaptureFormatError: (on creation or while iterating) naming file and line.
         OSError: the file cannot be opened.
     """
 
-    def __init__(self, path: str | Path, *, errors: Literal["raise", "skip"] = "raise") -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        errors: Literal["raise", "skip"] = "raise",
+        reorder_window_s: float = REORDER_WINDOW_S,
+    ) -> None:
         if errors not in ("raise", "skip"):
             raise ValueError(f"errors must be 'raise' or 'skip', not {errors!r}")
+        if not (math.isfinite(reorder_window_s) and reorder_window_s >= 0.0):
+            raise ValueError(f"reorder_window_s must be ≥ 0, not {reorder_window_s!r}")
         self.path = str(path)
         self.errors = errors
+        self.reorder_window_s = float(reorder_window_s)
+        self.reordered = 0
+        """Records the last (or current) iteration gave back in another place than the
+        file's (put in time order within the window)."""
         self.ports: dict[str, str] = {}
         self.skipped: dict[str, int] = {}
         self.skipped_lines: list[tuple[int, str]] = []
@@ -154,10 +198,12 @@ class CaptureReader:
         return sum(self.skipped.values())
 
     def skip_report(self) -> dict[str, object]:
-        """``{"skipped": n, "reasons": {reason: n}, "first": [{"line", "error"}]}``."""
+        """``{"skipped": n, "reasons": {reason: n}, "reordered": n, "first": [{"line",
+        "error"}]}``."""
         return {
             "skipped": self.n_skipped,
             "reasons": dict(self.skipped),
+            "reordered": self.reordered,
             "first": [{"line": n, "error": msg} for n, msg in self.skipped_lines],
         }
 
@@ -211,15 +257,97 @@ class CaptureReader:
             yield t, port, data, n
 
     def _scan(self) -> Iterator[tuple[float, str, bytes, bytes, int]]:
-        """``(t, port, payload, data, line)`` of every good record; the bad ones raise
-        or are skipped. A line of the form the writer writes is read by one pattern
-        match; any other line (a comment, an odd but valid record, a bad one) by the
-        checks of :meth:`_record`, which name what is wrong."""
+        """``(t, port, payload, data, line)`` of every good record, in time order (see the
+        class docstring); the bad ones raise or are skipped."""
         self.skipped = {}
         self.skipped_lines = []
+        self.reordered = 0
+        window = self.reorder_window_s
+        heap: list[tuple[float, int, _Scanned]] = []
+        push, pop = heapq.heappush, heapq.heappop
+        top = -math.inf  # newest time accepted
+        held: _Scanned | None = None  # a record that jumped forward, being judged
+        followers: list[_Scanned] = []  # the records after it that do not follow it
+        queue: deque[_Scanned] = deque()  # records to handle again after a judgement
+        last_line = 0  # line of the newest record given back (to count reordering)
+        src = self._parse()
+        while True:
+            if queue:
+                rec: _Scanned | None = queue.popleft()
+            else:
+                rec = next(src, None)
+            if rec is None:  # the end: a jump nothing contradicts stands
+                if held is None:
+                    break
+                if followers:
+                    self._jumped(held, followers[0])
+                else:
+                    top = held[0]
+                    push(heap, (top, held[4], held))
+                queue.extend(followers)
+                held, followers = None, []
+                continue
+            t = rec[0]
+            if held is not None:
+                if t >= held[0] - window:  # the jump is followed: real
+                    top = held[0]
+                    push(heap, (top, held[4], held))
+                    queue.extendleft(reversed([*followers, rec]))
+                    held, followers = None, []
+                    continue
+                followers.append(rec)
+                if len(followers) >= CONFIRM_RECORDS:  # nothing follows it: a bad time
+                    self._jumped(held, followers[0])
+                    queue.extendleft(reversed(followers))
+                    held, followers = None, []
+                continue
+            if t > top + window:  # a jump forward (or the first record): judge it
+                held = rec
+                continue
+            if t < top - window:
+                self._skip(
+                    rec[4],
+                    _BadRecordError(
+                        "out_of_order",
+                        f"time {t:.6f} more than {window:g} s before {top:.6f}",
+                    ),
+                )
+                continue
+            if t > top:
+                top = t
+            push(heap, (t, rec[4], rec))
+            while heap[0][0] < top - window:
+                item = pop(heap)[2]
+                if item[4] < last_line:
+                    self.reordered += 1
+                else:
+                    last_line = item[4]
+                yield item
+        while heap:
+            item = pop(heap)[2]
+            if item[4] < last_line:
+                self.reordered += 1
+            else:
+                last_line = item[4]
+            yield item
+
+    def _jumped(self, rec: _Scanned, after: _Scanned) -> None:
+        self._skip(
+            rec[4],
+            _BadRecordError(
+                "out_of_order",
+                f"time {rec[0]:.6f} jumps ahead of the records after it ({after[0]:.6f} "
+                f"on line {after[4]})",
+            ),
+        )
+
+    def _parse(self) -> Iterator[_Scanned]:
+        """``(t, port, payload, data, line)`` of every well-formed record in file order;
+        the bad ones raise or are skipped. A line of the form the writer writes is read
+        by one pattern match; any other line (a comment, an odd but valid record, a bad
+        one) by the checks of :meth:`_record`, which name what is wrong."""
         ports = {name.encode("ascii"): name for name in self.ports}
         good = _GOOD_RECORD
-        last_t = -math.inf
         in_header = True
         n = 0
         with _open_binary(self.path) as f:
@@ -231,7 +359,7 @@ class CaptureReader:
                         stamp, name, payload = m.groups()
                         port = ports.get(name)
                         t = float(stamp)
-                        if port is not None and t >= last_t:
+                        if port is not None:
                             if payload[:4] != _HEX_B:
                                 data = payload + b"\r\n"
                             else:
@@ -241,7 +369,6 @@ class CaptureReader:
                                     data = b""  # named by _record's checks below
                             if data:
                                 in_header = False
-                                last_t = t
                                 yield t, port, payload, data, n
                                 continue
                     if n == 1:
@@ -258,11 +385,6 @@ class CaptureReader:
                             continue
                         in_header = False
                         rec = self._record(line, n)
-                        if rec.t < last_t:
-                            raise _BadRecordError(
-                                "time_backwards",
-                                f"time goes backwards ({rec.t:.6f} < {last_t:.6f})",
-                            )
                     except UnicodeDecodeError:
                         self._skip(
                             n,
@@ -272,7 +394,6 @@ class CaptureReader:
                     except _BadRecordError as bad:
                         self._skip(n, bad)
                         continue
-                    last_t = rec.t
                     yield rec.t, rec.port, rec.payload.encode("ascii"), rec.data, n
             except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
                 self._skip(

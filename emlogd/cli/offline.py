@@ -13,6 +13,7 @@ from datetime import date
 from typing import TYPE_CHECKING, Any
 
 from calib.models import MODEL_NAMES
+from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
@@ -244,6 +245,33 @@ def _lag_arg(value: str) -> float | None:
 
 STRICT_HELP = "fail at the first malformed capture record instead of counting and skipping it"
 
+REORDER_HELP = (
+    "capture records up to S seconds out of time order are put back in order "
+    f"(default {REORDER_WINDOW_S:g}; 0: each must follow the last)"
+)
+
+
+def _window_arg(value: str) -> float:
+    try:
+        x = float(value)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and x >= 0.0):
+        raise argparse.ArgumentTypeError(f"expected seconds ≥ 0, not {value!r}")
+    return x
+
+
+def _capture_args(p: argparse.ArgumentParser) -> None:
+    """``--strict`` and ``--reorder-window``: how a command reads captures."""
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    p.add_argument(
+        "--reorder-window",
+        type=_window_arg,
+        default=REORDER_WINDOW_S,
+        metavar="S",
+        help=REORDER_HELP,
+    )
+
 
 def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
     """One warning line on stderr per capture with malformed records skipped."""
@@ -272,13 +300,15 @@ def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace)
     once it has succeeded: a failure stays one line).
     """
     strict = bool(getattr(args, "strict", False))
-    recs = load_captures(paths, settings, progress=progress, strict=strict)
+    window = float(getattr(args, "reorder_window", REORDER_WINDOW_S))
+    recs = load_captures(paths, settings, progress=progress, strict=strict, reorder_window_s=window)
     if not getattr(args, "uut_source", None) and not any(r.raw.size for r in recs):
         recs = load_captures(
             paths,
             dataclasses.replace(settings, uut_source="VBW"),
             progress=progress,
             strict=strict,
+            reorder_window_s=window,
         )
     progress_done()
     return recs
@@ -566,6 +596,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             on_persist=persist,
             progress=progress,
             strict=args.strict,
+            reorder_window_s=args.reorder_window,
             truth=truth,
         )
     finally:
@@ -667,7 +698,7 @@ def _common_offline(p: argparse.ArgumentParser) -> None:
         metavar="auto|SECONDS",
         help="UUT latency (default auto: cross-correlation)",
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
 
 
@@ -788,7 +819,7 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument(
         "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
     p.add_argument(
         "--truth",
@@ -859,7 +890,7 @@ def add_replay_parser(sub: Subparsers) -> None:
         help="write the corrected NMEA here; a FILE.cap or FILE.cap.gz name writes a capture "
         "v1 with one port per UUT, each sentence at the time of the sample it corrects",
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="summary as one JSON document")
     p.add_argument(
         "--truth",

@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.models import FloatArray
-from drivers.io.capture import CaptureReader
+from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
 from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
@@ -150,6 +150,7 @@ def record_capture(
     *,
     progress: ProgressFn | None = None,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> Recording:
     """Stream one capture through the daemon's pipeline and record the UUT's inputs.
 
@@ -158,13 +159,17 @@ def record_capture(
         settings: the UUT (port, reference port and field, heading source...).
         progress: called now and then with the fraction of the file read.
         strict: a malformed record raises instead of being counted and skipped.
+        reorder_window_s: records this far (s) out of time order are put back in order
+            (:class:`~drivers.io.capture.CaptureReader`).
 
     Raises:
         CaptureContentError: the capture lacks the UUT, reference or heading port.
         CaptureFormatError: a malformed header, or with ``strict`` a malformed record
             (names the line).
     """
-    reader = CaptureReader(path, errors="raise" if strict else "skip")
+    reader = CaptureReader(
+        path, errors="raise" if strict else "skip", reorder_window_s=reorder_window_s
+    )
     needed = [settings.port, settings.reference_port]
     if settings.heading != "auto":
         needed.append(settings.heading)
@@ -215,8 +220,8 @@ def record_capture(
     )
 
 
-def _record_job(args: tuple[str, UutSettings, bool]) -> Recording:
-    return record_capture(args[0], args[1], strict=args[2])
+def _record_job(args: tuple[str, UutSettings, bool, float]) -> Recording:
+    return record_capture(args[0], args[1], strict=args[2], reorder_window_s=args[3])
 
 
 def record_captures(
@@ -226,6 +231,7 @@ def record_captures(
     workers: int | None = None,
     progress: ProgressFn | None = None,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> list[Recording]:
     """:func:`record_capture` for each capture, in parallel processes when there are several.
 
@@ -235,6 +241,7 @@ def record_captures(
         workers: processes (default: one per core, at most one per capture).
         progress: called after each capture with the fraction done.
         strict: a malformed record raises instead of being counted and skipped.
+        reorder_window_s: as :func:`record_capture`'s.
     """
     n = len(paths)
     if workers is None:
@@ -242,13 +249,17 @@ def record_captures(
     if workers <= 1 or n <= 1:
         out = []
         for i, p in enumerate(paths):
-            out.append(record_capture(p, settings, strict=strict))
+            out.append(
+                record_capture(p, settings, strict=strict, reorder_window_s=reorder_window_s)
+            )
             if progress is not None:
                 progress(f"read {Path(p).name}", (i + 1) / max(n, 1))
         return out
     with ProcessPoolExecutor(max_workers=workers) as pool:
         result: list[Recording] = []
-        for i, rec in enumerate(pool.map(_record_job, [(str(p), settings, strict) for p in paths])):
+        for i, rec in enumerate(
+            pool.map(_record_job, [(str(p), settings, strict, reorder_window_s) for p in paths])
+        ):
             result.append(rec)
             if progress is not None:
                 progress(f"read {Path(paths[i]).name}", (i + 1) / n)

@@ -26,7 +26,7 @@ from typing import BinaryIO
 import numpy as np
 
 from drivers import make_decoder
-from drivers.io.capture import CaptureReader
+from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
 from drivers.nmea0183 import NmeaDecoder
 from drivers.records import Rejected
 from emlogd.offline import ProgressFn
@@ -105,6 +105,7 @@ def replay(
     sleep: Callable[[float], None] = time.sleep,
     monotonic: Callable[[], float] = time.monotonic,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> ReplayResult:
     """Feed every record of ``paths`` to ``pipeline``.
 
@@ -123,6 +124,8 @@ def replay(
         monotonic: the clock used for pacing (tests).
         strict: a malformed record raises; otherwise it is counted and skipped
             (``capture_skips``: per capture, the count by reason and the first lines).
+        reorder_window_s: records this far (s) out of time order are put back in order
+            (``capture_skips``' ``reordered``; :class:`~drivers.io.capture.CaptureReader`).
 
     Returns:
         Counters and the pipeline's final status.
@@ -145,7 +148,9 @@ def replay(
     t_tick = -float("inf")
     out = Output()  # reused: delivered, then cleared, after every record
     for path in paths:
-        reader = CaptureReader(path, errors="raise" if strict else "skip")
+        reader = CaptureReader(
+            path, errors="raise" if strict else "skip", reorder_window_s=reorder_window_s
+        )
         size = max(Path(path).stat().st_size, 1)
         for t, port, data, line in reader.received():
             if port not in pipeline.decoders:
