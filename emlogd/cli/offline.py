@@ -289,6 +289,27 @@ def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
         )
 
 
+def _warn_internal(command: str, where: str, report: dict[str, object]) -> None:
+    """One warning line when records failed unforeseen and were contained."""
+    n = report.get("count", 0)
+    first = report.get("first")
+    if not isinstance(n, int) or n == 0 or not isinstance(first, list) or not first:
+        return
+    f = first[0]
+    sys.stderr.write(
+        f"emlogd {command}: warning: {where}: {n} record{'s' if n != 1 else ''} failed "
+        f"and {'were' if n != 1 else 'was'} skipped (first on port {f['port']}: {f['error']}; "
+        f"data {f['data']!r})\n"
+    )
+
+
+def _warn_recs(command: str, recs: Sequence[Recording]) -> None:
+    """The warnings of the captures read: malformed records skipped, records that failed."""
+    _warn_skips(command, _skips(recs))
+    for r in recs:
+        _warn_internal(command, r.path, r.internal)
+
+
 def _skips(recs: Sequence[Recording]) -> dict[str, dict[str, object]]:
     return {r.path: r.skips for r in recs}
 
@@ -389,7 +410,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         sys.stdout.write(_calibration_text(res))
         if args.save:
             sys.stdout.write(f"saved        {args.save}\n")
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -427,7 +448,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
-        _warn_skips(args.command, _skips(recs))
+        _warn_recs(args.command, recs)
         return 0
     sys.stdout.write(
         f"{cal.params.model} {cal.params.as_dict()} from {args.params}, "
@@ -450,7 +471,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ],
         )
     )
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -495,7 +516,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
             "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc) + "\n")
-        _warn_skips(args.command, _skips(recs))
+        _warn_recs(args.command, recs)
         return 0
     names = [s.name for s in result.segments]
     train, test = _table2_pair(names, args.table2)
@@ -509,7 +530,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
         f"\n{result.n_out_of_sample} out-of-sample evaluations, lag {lag.lag_s:.2f} s, "
         f"{elapsed:.1f} s\n"
     )
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -523,7 +544,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     progress_done()
     for path in paths:
         sys.stdout.write(f"{path}\n")
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -609,6 +630,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         persist(Output())
     doc = result.to_dict()
     _warn_skips(args.command, result.capture_skips)
+    _warn_internal(args.command, "replay", result.internal)
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         return 0

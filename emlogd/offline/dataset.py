@@ -27,6 +27,7 @@ import numpy.typing as npt
 
 from calib.models import FloatArray
 from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
+from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
 from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
@@ -86,6 +87,9 @@ class Recording:
         t_start: first record time, s (nan for an empty capture).
         t_end: last record time, s.
         skips: the malformed records skipped (``CaptureReader.skip_report``).
+        internal: the records whose handling failed and was contained
+            (:meth:`~emlogd.contain.Containment.report`; also counted as ``internal``
+            rejects in :attr:`counters`).
     """
 
     path: str
@@ -102,6 +106,7 @@ class Recording:
     t_start: float
     t_end: float
     skips: dict[str, object] = dataclasses.field(default_factory=dict)
+    internal: dict[str, object] = dataclasses.field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -188,16 +193,23 @@ def record_capture(
     out = Output()
     size = max(Path(path).stat().st_size, 1)
     t_first = t_last = math.nan
+    contain = Containment()
     for n, (t, port, data, line) in enumerate(reader.received()):
         if n == 0:
             t_first = t
         t_last = t
-        pipeline.feed(t, port, data, out)
+        try:
+            pipeline.feed(t, port, data, out)
+        except Exception as exc:  # contained: one record is lost, not the capture
+            contain.failed(pipeline, port, data, exc, t)
         out.emits.clear()
         out.events.clear()
         if progress is not None and n % 50_000 == 0:
             progress(f"reading {Path(path).name}", min(line * 60 / size, 1.0))
-    pipeline.flush()
+    try:
+        pipeline.flush()
+    except Exception as exc:  # contained: the end of the capture, not the capture
+        contain.failed(pipeline, "", b"", exc, t_last)
     ports_status = pipeline.port_status()
     return Recording(
         path=str(path),
@@ -217,6 +229,7 @@ def record_capture(
         t_start=t_first,
         t_end=t_last,
         skips=reader.skip_report(),
+        internal=contain.report(),
     )
 
 

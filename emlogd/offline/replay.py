@@ -29,6 +29,7 @@ from drivers import make_decoder
 from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
 from drivers.nmea0183 import NmeaDecoder
 from drivers.records import Rejected
+from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
 from emlogd.offline.simulate import Truth, TruthScore, score_truth
 from emlogd.pipeline.core import Emit, Event, Output, Pipeline
@@ -53,6 +54,8 @@ class ReplayResult:
     capture_skips: dict[str, dict[str, object]] = field(default_factory=dict)
     truth: dict[str, TruthScore] = field(default_factory=dict)
     """Per UUT, its emitted speeds scored against the truth (replay with ``truth``)."""
+    internal: dict[str, object] = field(default_factory=dict)
+    """The records whose handling failed and was contained (:meth:`Containment.report`)."""
 
     def to_dict(self) -> dict[str, object]:
         """``{"uuts": {...}, "ports": {...}, ...}`` (README: ``replay --json``)."""
@@ -88,6 +91,7 @@ class ReplayResult:
             "elapsed_s": round(self.elapsed_s, 3),
             "span_s": round(self.span_s, 3),
             "capture_skips": dict(self.capture_skips),
+            "internal": dict(self.internal),
         }
 
 
@@ -124,6 +128,8 @@ def replay(
         monotonic: the clock used for pacing (tests).
         strict: a malformed record raises; otherwise it is counted and skipped
             (``capture_skips``: per capture, the count by reason and the first lines).
+            A record whose handling fails unforeseen is counted as an ``internal`` reject
+            of its port and kept in :attr:`ReplayResult.internal`; the replay goes on.
         reorder_window_s: records this far (s) out of time order are put back in order
             (``capture_skips``' ``reordered``; :class:`~drivers.io.capture.CaptureReader`).
 
@@ -147,6 +153,7 @@ def replay(
     pace0: tuple[float, float] | None = None
     t_tick = -float("inf")
     out = Output()  # reused: delivered, then cleared, after every record
+    contain = Containment()
     for path in paths:
         reader = CaptureReader(
             path, errors="raise" if strict else "skip", reorder_window_s=reorder_window_s
@@ -165,10 +172,13 @@ def replay(
                 wait = due - monotonic()
                 if wait > 0.0:
                     sleep(wait)
-            pipeline.feed(t, port, data, out)
-            if t - t_tick >= TICK_S:
-                t_tick = t
-                pipeline.tick(t, out)
+            try:
+                pipeline.feed(t, port, data, out)
+                if t - t_tick >= TICK_S:
+                    t_tick = t
+                    pipeline.tick(t, out)
+            except Exception as exc:  # contained: one record is lost, not the replay
+                contain.failed(pipeline, port, data, exc, t)
             if out.emits or out.events or out.persist:
                 if scorer is not None:
                     scorer.emitted(out.emits)
@@ -181,7 +191,12 @@ def replay(
             if progress is not None and result.records % 20_000 == 0:
                 progress(f"replay {Path(path).name}", min(line * 60.0 / size, 1.0))
         result.capture_skips[str(path)] = reader.skip_report()
-    last = pipeline.flush()
+    try:
+        last = pipeline.flush()
+    except Exception as exc:  # contained: the end of the input, not the replay
+        contain.failed(pipeline, "", b"", exc, t_last)
+        last = Output()
+    result.internal = contain.report()
     if scorer is not None:
         scorer.emitted(last.emits)
     _deliver(last, result, sink, on_persist, on_event, on_emit)

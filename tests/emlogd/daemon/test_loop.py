@@ -520,3 +520,71 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
     assert not any(ln.startswith(b"$VM") or b",emlog2," in ln for ln in shared)
     assert any(ln.startswith(b"$VMVHW") for ln in mine)
     assert not any(ln.startswith(b"$VWVHW") or b",emlog1," in ln for ln in mine)
+
+
+class _Log:
+    """The daemon's logger, keeping what it is given."""
+
+    def __init__(self) -> None:
+        self.lines: list[tuple[str, str, dict[str, object]]] = []
+
+    def info(self, event: str, **kw: object) -> None:
+        self.lines.append(("info", event, kw))
+
+    def warning(self, event: str, **kw: object) -> None:
+        self.lines.append(("warning", event, kw))
+
+
+def test_a_chunk_that_fails_in_the_pipeline_is_contained(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A chunk whose handling raises in the pipeline does not leave the loop: it is counted as an
+    internal reject of its port, logged once per 10 s per port and exception type (the next line
+    with how many were left out), the chunks after it are handled, and a failing tick is contained
+    the same way."""
+    from emlogd.daemon import loop as dmod
+    from emlogd.pipeline.core import Pipeline, PortSettings
+
+    _setup(tmp_path)
+    clock = [100.0]
+    log = _Log()
+    d = dmod.Daemon(tmp_path / "emlogd.yaml", log=log, monotonic=lambda: clock[0])
+    p = Pipeline([PortSettings("compass", "nmea0183")], [])
+    d.pipeline = p
+    real_route = p._route
+
+    def route(t: float, port: str, items: list[object], out: object) -> None:
+        if t in (1.0, 2.0, 3.0):
+            raise ValueError("math domain error")
+        real_route(t, port, items, out)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(p, "_route", route)
+    hdt = b"$HEHDT,10.0,T*1E\r\n"
+    for t in (1.0, 1.5, 2.0, 3.0):
+        d._feed(t, "compass", hdt)
+        clock[0] += 1.0
+    counters = p.decoders["compass"].counters
+    assert counters.rejects["internal"] == 3 and counters.records == 4
+    warned = [kw for level, ev, kw in log.lines if level == "warning" and ev == "internal"]
+    assert warned == [
+        {
+            "port": "compass",
+            "error": "ValueError: math domain error",
+            "data": "$HEHDT,10.0,T*1E\\r\\n",
+        }
+    ]
+    clock[0] += 10.0
+    d._feed(4.0, "compass", hdt)  # handled
+    monkeypatch.setattr(p, "tick", lambda t, out=None: 1 / 0)
+    d._tick()
+    d._tick()
+    warned = [kw for level, ev, kw in log.lines if level == "warning" and ev == "internal"]
+    assert [w["error"] for w in warned] == [
+        "ValueError: math domain error",
+        "ZeroDivisionError: division by zero",
+    ]
+    assert d.contain.count == 5 and counters.records == 5
+    d.sel.close()
+    d.poll.close()
+    for fd in (d._wake_r, d._wake_w):
+        os.close(fd)
