@@ -62,6 +62,9 @@ MAX_SATELLITES = 99
 MAX_FIX_QUALITY = 9
 """Largest GGA fix-quality indicator (0 no fix .. 8 simulator, 9 WAAS on some receivers)."""
 
+ZDA_YEARS = (1980, 2199)
+"""Years a ZDA date may name (GNSS time starts in 1980); outside is out_of_range."""
+
 UNITS_ROUNDING = 1.5
 """VHW knots/km/h: how many units of the coarser field's last decimal the pair may
 differ by (each is rounded to its own decimals) before it is refused."""
@@ -686,11 +689,12 @@ def parse_zda(talker: str, f: list[str], raw: bytes) -> Zda:
     tod = _time_of_day(f[0], raw)
     if not (f[1] and f[2] and f[3]):
         return Zda(talker, None)
+    year = _int(f[3], "ZDA year", raw)
+    if not ZDA_YEARS[0] <= year <= ZDA_YEARS[1]:
+        raise OutOfRangeError(f"ZDA year {year} outside {ZDA_YEARS[0]}..{ZDA_YEARS[1]}", raw)
     try:
-        day = date(
-            _int(f[3], "ZDA year", raw), _int(f[2], "ZDA month", raw), _int(f[1], "ZDA day", raw)
-        )
-    except ValueError:
+        day = date(year, _int(f[2], "ZDA month", raw), _int(f[1], "ZDA day", raw))
+    except (ValueError, OverflowError):
         raise OutOfRangeError("ZDA date out of range", raw) from None
     return Zda(talker, _at(day, tod))
 

@@ -96,6 +96,8 @@ def test_vbw_water_pair_valid_even_when_ground_is_v() -> None:
         ("GPGGA,120000,,,,,1,05,150,,M,,M,,", OutOfRangeError),
         ("PRTI01,100,2,9000,0,0,0,0,,,,,0000", OutOfRangeError),
         ("PRTI01,100,2,1500,0,0,0,-5,,,,,0000", OutOfRangeError),
+        ("GPZDA,000003.00,4294967296,01,2026,00,00", OutOfRangeError),
+        ("GPZDA,235960.50,31,12,9999,00,00", OutOfRangeError),
     ],
 )
 def test_field_errors(body: str, error: type[Exception]) -> None:
