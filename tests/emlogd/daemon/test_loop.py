@@ -588,3 +588,53 @@ def test_a_chunk_that_fails_in_the_pipeline_is_contained(
     d.poll.close()
     for fd in (d._wake_r, d._wake_w):
         os.close(fd)
+
+
+HOSTILE_HDG = b"$HCHDG,10.0,1e308,E,1e308,E*73"
+"""The red team's sentence: a valid checksum, a deviation and a variation whose sum overflows."""
+
+
+def test_the_hostile_hdg_sentence_is_counted_and_the_daemon_goes_on(
+    tmp_path: Path, trial_files: dict[str, Path]
+) -> None:
+    """`emlogd run` (a subprocess reading ptys) given the overflowing HDG sentence on an NMEA port,
+    again and again between good headings, counts each as an out_of_range reject of that port,
+    never exits, and keeps emitting the EMlog's VHW afterwards."""
+    from drivers.framing import split_nmea
+
+    split_nmea(HOSTILE_HDG, required=True)  # the checksum is valid
+    _setup(tmp_path)
+    junk = tmp_path / "hostile.cap"
+    with CaptureWriter(junk, {"junk": "nmea0183"}) as w:
+        for k in range(100):
+            w.write_line(1.0 + 0.1 * k, "junk", b"$HEHDT,10.0,T*1E")
+            w.write_line(1.05 + 0.1 * k, "junk", HOSTILE_HDG)
+    links = tmp_path / "links"
+    emlog = FakeDevice(trial_files["figure-8"], "emlog1", links / "emlog1", speed=SPEED).start()
+    hostile = FakeDevice(junk, "junk", links / "junk", speed=1.0, loop=True).start()
+    d = Daemon(tmp_path)
+    try:
+        deadline = time.monotonic() + 20
+        while True:
+            d.pump(0.5)
+            assert d.running
+            ports = d.status()["ports"]
+            assert isinstance(ports, dict)
+            if ports["junk"]["rejects"]["out_of_range"] >= 5:
+                break
+            assert time.monotonic() < deadline, ports["junk"]
+        assert ports["junk"]["records"] >= 5 and ports["junk"]["rejects"]["internal"] == 0
+        n_before = len([ln for ln in d.lines if ln[3:6] == b"VHW"])
+        d.pump(2.0)
+        assert d.running
+        assert len([ln for ln in d.lines if ln[3:6] == b"VHW"]) > n_before
+        ports = d.status()["ports"]
+        assert isinstance(ports, dict)
+        assert ports["junk"]["rejects"]["out_of_range"] >= 7
+        assert d.stop() == 0
+    finally:
+        d.kill()
+        for dev in (emlog, hostile):
+            dev.stop()
+            dev.join(5)
+    assert "internal error" not in (tmp_path / "daemon.log").read_text()
