@@ -471,6 +471,12 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
                 self._damage(f"line rejected ({exc.reason})")
                 yield from self._reject(exc)
                 continue
+            except Exception as exc:  # contained as in Decoder.feed: an internal reject
+                err = FrameError(f"{type(exc).__name__}: {exc}", item, reason="internal")
+                err.__cause__ = exc
+                self._damage("line rejected (internal)")
+                yield from self._reject(err)
+                continue
             done = self._assemble(kind, value, item)
             if done is None:
                 continue

@@ -317,3 +317,26 @@ def test_the_pattern_path_reads_the_good_lines() -> None:
 
     read = {name[:2] for name, good in _GOOD_LINES.items() if rdi_ascii._LINES[name[:2]][0](good)}
     assert read == set(rdi_ascii._LINES)
+
+
+def test_an_unforeseen_exception_is_an_internal_reject(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A line whose parsing fails with an exception that is no FrameError discards its ensemble
+    with an internal reject naming the exception, and the next ensemble still decodes."""
+    import drivers.rdi_ascii as pd6
+
+    real = pd6._parse_line
+    calls = [0]
+
+    def boom(frame: bytes) -> tuple[str, object]:
+        calls[0] += 1
+        if calls[0] == 3:
+            raise ZeroDivisionError("division by zero")
+        return real(frame)
+
+    monkeypatch.setattr(pd6, "_parse_line", boom)
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    out = dec.decode_all(_lines() + _lines())
+    assert sum(isinstance(r, Pd6Ensemble) for r in out) == 1
+    internal = [r for r in out if isinstance(r, Rejected) and r.reason == "internal"]
+    assert len(internal) == 1 and "ZeroDivisionError" in internal[0].detail
+    assert dec.counters.rejects["internal"] == 1
