@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import binascii
 import gzip
-import heapq
 import math
 import re
 import zlib
@@ -131,6 +130,89 @@ class _BadRecordError(Exception):
         self.message = message
 
 
+class _Order:
+    """The time order of :meth:`CaptureReader._scan` (see :class:`CaptureReader`): the
+    window of records not yet given back, the newest time accepted, and a forward jump
+    being judged by the records after it."""
+
+    def __init__(self, reader: CaptureReader, window: float) -> None:
+        self.reader = reader
+        self.window = window
+        self.buf: deque[_Scanned] = deque()
+        """The window: records by time, equal times in file order."""
+        self.top = -math.inf
+        """The newest time accepted."""
+        self.held: _Scanned | None = None
+        """A record that jumped forward, being judged."""
+        self.followers: list[_Scanned] = []
+        """The records after it that do not follow it."""
+
+    def push(self, rec: _Scanned) -> list[_Scanned]:
+        """Take one record; return the records it releases, in time order."""
+        out: list[_Scanned] = []
+        window, buf = self.window, self.buf
+        queue = deque([rec])
+        while queue:
+            rec = queue.popleft()
+            t = rec[0]
+            held = self.held
+            if held is not None:
+                if t >= held[0] - window:  # the jump is followed: real
+                    self.top = held[0] - window  # it is taken in order now
+                    queue.extendleft(reversed([held, *self.followers, rec]))
+                    self.held, self.followers = None, []
+                    continue
+                self.followers.append(rec)
+                if len(self.followers) >= CONFIRM_RECORDS:  # nothing follows it: a bad time
+                    self.reader._jumped(held, self.followers[0])
+                    queue.extendleft(reversed(self.followers))
+                    self.held, self.followers = None, []
+                continue
+            top = self.top
+            if t > top + window:  # a jump forward (or the first record): judge it
+                self.held = rec
+                continue
+            if t >= top:
+                self.top = t
+                buf.append(rec)
+                while buf[0][0] < t - window:
+                    out.append(buf.popleft())
+                continue
+            if t < top - window:
+                self.reader._skip(
+                    rec[4],
+                    _BadRecordError(
+                        "out_of_order", f"time {t:.6f} more than {window:g} s before {top:.6f}"
+                    ),
+                )
+                continue
+            i = len(buf)  # within the window: put it back in its place
+            while i and buf[i - 1][0] > t:
+                i -= 1
+            buf.insert(i, rec)
+            self.reader.reordered += 1
+        return out
+
+    def end(self) -> list[_Scanned]:
+        """The end of the records: judge a jump still held (it stands unless records after
+        it contradict it), then give back the window."""
+        out: list[_Scanned] = []
+        while self.held is not None:
+            held, followers = self.held, self.followers
+            self.held, self.followers = None, []
+            if followers:
+                self.reader._jumped(held, followers[0])
+                again = followers
+            else:
+                self.top = held[0] - self.window  # it is taken in order now
+                again = [held]
+            for rec in again:
+                out.extend(self.push(rec))
+        out.extend(self.buf)
+        self.buf.clear()
+        return out
+
+
 class CaptureReader:
     """Stream the records of a capture file.
 
@@ -181,8 +263,8 @@ class CaptureReader:
         self.errors = errors
         self.reorder_window_s = float(reorder_window_s)
         self.reordered = 0
-        """Records the last (or current) iteration gave back in another place than the
-        file's (put in time order within the window)."""
+        """Records the last (or current) iteration put back before records read earlier
+        (in time order, within the window)."""
         self.ports: dict[str, str] = {}
         self.skipped: dict[str, int] = {}
         self.skipped_lines: list[tuple[int, str]] = []
@@ -258,78 +340,27 @@ class CaptureReader:
 
     def _scan(self) -> Iterator[tuple[float, str, bytes, bytes, int]]:
         """``(t, port, payload, data, line)`` of every good record, in time order (see the
-        class docstring); the bad ones raise or are skipped."""
+        class docstring); the bad ones raise or are skipped. A record in order within the
+        window of the newest (nearly every one) is taken here; :class:`_Order` judges the
+        others."""
         self.skipped = {}
         self.skipped_lines = []
         self.reordered = 0
         window = self.reorder_window_s
-        heap: list[tuple[float, int, _Scanned]] = []
-        push, pop = heapq.heappush, heapq.heappop
-        top = -math.inf  # newest time accepted
-        held: _Scanned | None = None  # a record that jumped forward, being judged
-        followers: list[_Scanned] = []  # the records after it that do not follow it
-        queue: deque[_Scanned] = deque()  # records to handle again after a judgement
-        last_line = 0  # line of the newest record given back (to count reordering)
-        src = self._parse()
-        while True:
-            if queue:
-                rec: _Scanned | None = queue.popleft()
-            else:
-                rec = next(src, None)
-            if rec is None:  # the end: a jump nothing contradicts stands
-                if held is None:
-                    break
-                if followers:
-                    self._jumped(held, followers[0])
-                else:
-                    top = held[0]
-                    push(heap, (top, held[4], held))
-                queue.extend(followers)
-                held, followers = None, []
-                continue
+        order = _Order(self, window)
+        buf = order.buf
+        for rec in self._parse():
             t = rec[0]
-            if held is not None:
-                if t >= held[0] - window:  # the jump is followed: real
-                    top = held[0]
-                    push(heap, (top, held[4], held))
-                    queue.extendleft(reversed([*followers, rec]))
-                    held, followers = None, []
-                    continue
-                followers.append(rec)
-                if len(followers) >= CONFIRM_RECORDS:  # nothing follows it: a bad time
-                    self._jumped(held, followers[0])
-                    queue.extendleft(reversed(followers))
-                    held, followers = None, []
+            top = order.top
+            if top <= t <= top + window and order.held is None:
+                order.top = t
+                buf.append(rec)
+                limit = t - window
+                while buf[0][0] < limit:
+                    yield buf.popleft()
                 continue
-            if t > top + window:  # a jump forward (or the first record): judge it
-                held = rec
-                continue
-            if t < top - window:
-                self._skip(
-                    rec[4],
-                    _BadRecordError(
-                        "out_of_order",
-                        f"time {t:.6f} more than {window:g} s before {top:.6f}",
-                    ),
-                )
-                continue
-            if t > top:
-                top = t
-            push(heap, (t, rec[4], rec))
-            while heap[0][0] < top - window:
-                item = pop(heap)[2]
-                if item[4] < last_line:
-                    self.reordered += 1
-                else:
-                    last_line = item[4]
-                yield item
-        while heap:
-            item = pop(heap)[2]
-            if item[4] < last_line:
-                self.reordered += 1
-            else:
-                last_line = item[4]
-            yield item
+            yield from order.push(rec)
+        yield from order.end()
 
     def _jumped(self, rec: _Scanned, after: _Scanned) -> None:
         self._skip(
