@@ -174,6 +174,9 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         if heading > 36000:
             raise OutOfRangeError(f"heading {heading / 100} outside 0..360", frame)
         _leader_ranges(pitch / 100.0, roll / 100.0, temp / 100.0, sal, c, depth_dm / 10.0, frame)
+        _, mo, d, h, mi, sec, hs = rtc
+        if not (1 <= mo <= 12 and 1 <= d <= 31 and h < 24 and mi < 60 and sec < 60 and hs < 100):
+            raise OutOfRangeError(f"real-time clock {rtc} is no date and time", frame)
         bt_v = bt_r = None
         bt = blocks.get(BOTTOM_TRACK)
         if bt is not None:

@@ -265,3 +265,25 @@ def test_an_out_of_range_leader_field_is_a_reject(bad: dict[str, float]) -> None
     dec = Pd0Decoder("d", errors="yield")
     (out,) = dec.decode_all(encode_pd0(heading_deg=10.0, **base, **bad))  # type: ignore[arg-type]
     assert isinstance(out, Rejected) and out.reason == "out_of_range"
+
+
+def test_an_impossible_clock_is_a_reject() -> None:
+    """A PD0 ensemble whose variable leader's real-time clock names month 13 is an out_of_range
+    reject."""
+    import struct
+
+    from drivers.binframe import sum16
+
+    good = encode_pd0(
+        ensemble_number=1, timestamp=datetime(2025, 1, 1, tzinfo=UTC), heading_deg=10.0
+    )
+    body = bytearray(good[:-2])
+    n_types = body[5]
+    offsets = [struct.unpack_from("<H", body, 6 + 2 * i)[0] for i in range(n_types)]
+    (vl,) = [o for o in offsets if struct.unpack_from("<H", body, o)[0] == 0x0080]
+    assert body[vl + 5] == 1  # the month
+    body[vl + 5] = 13
+    bad = bytes(body) + (sum16(bytes(body)) & 0xFFFF).to_bytes(2, "little")
+    dec = Pd0Decoder("d", errors="yield")
+    (out,) = dec.decode_all(bad)
+    assert isinstance(out, Rejected) and out.reason == "out_of_range" and "clock" in out.detail
