@@ -256,3 +256,38 @@ def test_the_hostile_hdg_sentence_is_counted_by_replay_and_calibrate(
         assert main(["calibrate", str(cap), *pair]) == 0
         fits.append(json.loads(capsys.readouterr().out))
     assert fits[0]["params"] and fits[1]["params"] == fits[0]["params"]
+
+
+def test_reorder_window_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """`replay --reorder-window` sets how far records may be out of time order: by default ±50 ms
+    of jitter loses nothing (records put back in order, counted as reordered), with 0 the same
+    capture skips records as out_of_order; a negative window is a usage error."""
+    import random
+
+    from drivers.nmea0183 import encode_vhw
+
+    rng = random.Random(3)
+    lines = ["# emlogd capture v1", "# port emlog1 nmea0183", "# port log2 nmea0183"]
+    for k in range(400):
+        t = 1_700_000_000.0 + 0.05 * k + rng.uniform(-0.05, 0.05)
+        lines.append(f"({t:.6f}) {('emlog1', 'log2')[k % 2]} {encode_vhw(2.0)}")
+    cap = tmp_path / "jitter.cap"
+    cap.write_text("\n".join(lines) + "\n")
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "ports:\n"
+        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
+        "  - {name: log2, url: /dev/null, protocol: nmea0183, role: reference}\n"
+        "calibration:\n"
+        "  - {uut: emlog1, reference: log2, reference_field: speed, lag: 0}\n"
+    )
+    base = ["replay", str(cap), "--config", str(cfg), "--json", "--out", str(tmp_path / "o")]
+    assert main(base) == 0
+    skips = json.loads(capsys.readouterr().out)["capture_skips"][str(cap)]
+    assert skips["skipped"] == 0 and skips["reordered"] > 0
+    assert main([*base, "--reorder-window", "0"]) == 0
+    captured = capsys.readouterr()
+    skips = json.loads(captured.out)["capture_skips"][str(cap)]
+    assert skips["reasons"]["out_of_order"] > 0 and "--strict fails instead" in captured.err
+    assert main([*base, "--reorder-window", "-1"]) == 2
+    assert "expected seconds ≥ 0" in capsys.readouterr().err
