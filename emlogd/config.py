@@ -2,8 +2,8 @@
 
 Every key is declared once, as a dataclass field made with
 :func:`emlogd.pipeline.keys.key` (its default, check, unit and doc): the pipeline's
-keys on the pipeline's own settings (:class:`~emlogd.pipeline.core.PortSettings`,
-:class:`~emlogd.pipeline.core.UutSettings`,
+keys on the pipeline's own settings (:class:`~emlogd.pipeline.settings.PortSettings`,
+:class:`~emlogd.pipeline.settings.UutSettings`,
 :class:`~emlogd.pipeline.integrity.Envelope`), the daemon's on the dataclasses here.
 Validation, :func:`dump_config` and :func:`key_table` (README's "Configuration
 reference") read those declarations, and the loaded config holds the pipeline's
@@ -26,7 +26,6 @@ from typing import Any, Literal
 import yaml
 
 from drivers.errors import ConfigError
-from emlogd.pipeline.core import PortSettings, UutSettings
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
     Entry,
@@ -43,6 +42,7 @@ from emlogd.pipeline.keys import (
     opt_string,
     string,
 )
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
 DVL_PROTOCOLS = ("pd6", "pd13", "pd0", "pd4", "pd5", "nmea0183")

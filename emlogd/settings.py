@@ -7,8 +7,8 @@ see :mod:`emlogd.config`); these functions hand them over.
 from __future__ import annotations
 
 from emlogd.config import Config
-from emlogd.pipeline.core import PortSettings, UutSettings
 from emlogd.pipeline.fusion import FusionSettings
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 
 def fusion_from_config(cfg: Config) -> FusionSettings | None:

@@ -25,7 +25,7 @@ from emlogd.offline.jobs import (
     save_params,
 )
 from emlogd.offline.tables import fmt, render, table2, table3
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 if TYPE_CHECKING:
     from calib.models import Params

@@ -148,7 +148,6 @@ class Daemon:
         self.rest_fds: dict[int, str] = {}
         """The resting ports' descriptors (registered one-shot) and their names."""
         self._watch(self.sel.fileno(), self._serve)
-        self.scratch = Output(deliver=self._deliver)
         self.event_limiter = EventLimiter()
         self.rest_s: dict[str, float] = {}
         self.sinks: dict[tuple[object, ...], Sink] = {}
@@ -450,7 +449,7 @@ class Daemon:
             for sink in self.sinks.values():
                 sink.housekeep()
             assert self.pipeline is not None
-            self._handle(self.pipeline.tick(self.timeline(), self.scratch))
+            self._handle(self.pipeline.tick(self.timeline()))
             if now >= next_status:
                 next_status = now + self.config.status_log_interval_s
                 self._status_event()
@@ -535,7 +534,7 @@ class Daemon:
             return
         assert self.pipeline is not None
         t, data = chunk
-        self._handle(self.pipeline.feed(t, name, data, self.scratch))
+        self._handle(self.pipeline.feed(t, name, data))
 
     def _wake_rested(self, now: float) -> None:
         """Read the ports whose rest is over at ``now`` (monotonic), and arm them again."""
@@ -550,23 +549,21 @@ class Daemon:
                         self.poll.modify(fd, _ONE_READ)
 
     def _handle(self, out: Output) -> None:
-        """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""
+        """Deliver what a pipeline call returned: its sentences to the outputs, its
+        events to the log, and a persist when it asks for one."""
         if out.emits:
             self._deliver(out.emits)
-            out.emits.clear()
         for ev in out.events:
             suppressed = self.event_limiter.allow(ev.port, ev.kind, self.monotonic())
             if suppressed is not None:
                 extra = {"suppressed": suppressed} if suppressed else {}
                 self.log.info(ev.kind, port=ev.port, **dict(ev.detail), **extra)
-        out.events.clear()
         if out.persist:
-            out.persist.clear()
             self._persist()
 
     def _deliver(self, emits: list[Emit]) -> None:
-        """Write sentences to their outputs (called by the pipeline as each is ready): a
-        log with outputs of its own writes there, every other sentence to the shared ones."""
+        """Write sentences to their outputs: a log with outputs of its own writes there,
+        every other sentence to the shared ones."""
         if not self.routes:
             data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
             for sink in self.shared:

@@ -59,7 +59,7 @@ from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.integrity import Envelope, PairedWindow, UutHealth, emitted_speed
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.core import UutSettings
+    from emlogd.pipeline.settings import UutSettings
 
 RefState = Literal["valid", "lost", "stale", "slow", "none"]
 CalState = Literal["learning", "frozen", "uncalibrated", "fault"]
@@ -350,7 +350,7 @@ class UutCalibration:
     """The online calibration of one UUT (see the module docstring).
 
     Args:
-        s: the UUT's settings (:class:`emlogd.pipeline.core.UutSettings`).
+        s: the UUT's settings (:class:`emlogd.pipeline.settings.UutSettings`).
         prior: a checked calibration to start from (warm start), or None.
         heading_at: returns the UUT's heading in degrees (true) at a time, or None.
         event: called as ``event(t, kind, detail)`` for every state change worth a log line.

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -12,8 +11,9 @@ import yaml
 
 from drivers.errors import ConfigError
 from emlogd.config import SECTIONS, Config, load_config, parse_config
-from emlogd.pipeline.core import REF_NOISE_MPS, Pipeline, UutSettings
+from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.keys import entries
+from emlogd.pipeline.settings import REF_NOISE_MPS, UutSettings
 from emlogd.settings import fusion_from_config, pipeline_from_config
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "emlogd.yaml"
@@ -227,13 +227,6 @@ def test_gnss_reference_noise_default() -> None:
     _, (u,) = pipeline_from_config(parse_config(text))
     assert u.kf.r_ref_mps2 == pytest.approx(REF_NOISE_MPS["gnss"] ** 2)
     assert UutSettings(port="a", reference_port="b").kf.r_ref_mps2 == pytest.approx(0.01**2)
-
-
-def test_settings_built_in_code_tune_the_filter() -> None:
-    """UutSettings made directly (the offline commands) give the filter their noises."""
-    s = UutSettings(port="a", reference_port="b", r_raw_mps=0.1, q_params=1e-6)
-    assert s.kf.r_raw_mps2 == pytest.approx(0.01) and s.kf.q_params == 1e-6
-    assert dataclasses.replace(s, p0=0.5).kf.p0 == 0.5
 
 
 @pytest.mark.parametrize(

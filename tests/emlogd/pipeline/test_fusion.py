@@ -11,9 +11,10 @@ from drivers.framing import split_nmea
 from drivers.nmea0183 import encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.pipeline.calibration import Calibration
-from emlogd.pipeline.core import FUSED_PORT, Emit, Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import FUSED_PORT, Emit, Output, Pipeline
 from emlogd.pipeline.fusion import Fused, Fusion, FusionSettings
 from emlogd.pipeline.sentences import encode_fused_status
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 
 class TestFusion:
@@ -91,9 +92,9 @@ class TestPipeline:
         out = Output()
         t0 = 1_750_000_000.0
         for k in range(10):
-            p.feed(t0 + k, "a", (encode_vhw(2.0) + "\r\n").encode(), out)
+            out.add(p.feed(t0 + k, "a", (encode_vhw(2.0) + "\r\n").encode()))
             if k < 5:
-                p.feed(t0 + k + 0.5, "b", (encode_vhw(3.0) + "\r\n").encode(), out)
+                out.add(p.feed(t0 + k + 0.5, "b", (encode_vhw(3.0) + "\r\n").encode()))
         assert not [e for e in out.emits if e.port in ("a", "b") and e.sentence[3:6] == "VHW"]
         fused = _speeds(out.emits, FUSED_PORT)
         # both uncalibrated: σ² = r_raw + (0.1·v)² + 0.1², the slower log weighs more
@@ -108,15 +109,15 @@ class TestPipeline:
         p = _pipeline(calibrated="a")
         out = Output()
         t0 = 1_750_000_000.0
-        p.feed(t0, "a", (encode_vhw(2.0) + "\r\n").encode(), out)
-        p.feed(t0 + 0.1, "b", (encode_vhw(3.0) + "\r\n").encode(), out)
+        out.add(p.feed(t0, "a", (encode_vhw(2.0) + "\r\n").encode()))
+        out.add(p.feed(t0 + 0.1, "b", (encode_vhw(3.0) + "\r\n").encode()))
         assert _speeds(out.emits, FUSED_PORT)[-1] == pytest.approx(2.0, abs=0.1)
 
     def test_both_keeps_each_logs_sentences(self) -> None:
         """``speed: both`` sends the logs' corrected sentences and the fused one."""
         p = _pipeline(speed_only=False)
         out = Output()
-        p.feed(1_750_000_000.0, "a", (encode_vhw(2.0) + "\r\n").encode(), out)
+        out.add(p.feed(1_750_000_000.0, "a", (encode_vhw(2.0) + "\r\n").encode()))
         assert _speeds(out.emits, "a") and _speeds(out.emits, FUSED_PORT)
 
     def test_a_uut_called_fused_is_refused(self) -> None:
