@@ -40,7 +40,7 @@ from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_si
 from emlogd.daemon.statefile import StateStore
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
-from emlogd.settings import fusion_from_config, pipeline_from_config
+from emlogd.settings import build_pipeline, pipeline_from_config
 
 SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
@@ -242,8 +242,8 @@ class Daemon:
         cfg = self.config
         store = self._state_store()
         state_path = store.path
-        ports, uuts = pipeline_from_config(cfg)
-        cals, report = store.load(check=checker(uuts))
+        _, uuts = pipeline_from_config(cfg)
+        cals, others, report = store.load_state(check=checker(uuts))
         for line in report:
             self.log.warning("state_file", detail=line, path=str(state_path))
         for uut, cal in cals.items():
@@ -252,9 +252,10 @@ class Daemon:
                 uut=uut,
                 model=cal.params.model,
                 reset=cal.reset,
+                lag_s=cal.lag_s,
                 **cal.params.as_dict(),
             )
-        self.pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
+        self.pipeline = build_pipeline(cfg, cals, others)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
         self._sync_outputs()
@@ -595,15 +596,19 @@ class Daemon:
         snaps = self.pipeline.calibrations()
         if not snaps:
             return None
-        if self._written is not None and _same(snaps, self._written, material=operator):
+        others = self.pipeline.other_calibrations()
+        written = snaps + others
+        if self._written is not None and _same(written, self._written, material=operator):
             return None
         try:
-            self.store.save({s.uut: s for s in snaps})
+            aside = self.store.save({s.uut: s for s in snaps}, others)
         except EmlogdError as exc:
             self.state_errors += 1
             self.log.error("state_write_failed", error=str(exc), final=final)
             return str(exc)
-        self._written = snaps
+        if aside is not None:
+            self.log.warning("state_file_set_aside", path=str(aside), backup_kept=True)
+        self._written = written
         self.persists += 1
         self.log.info(
             "calibration_persisted",
@@ -682,15 +687,15 @@ class Daemon:
             self.log.info("control_learn", uuts=done, on=on)
             return {"uuts": done, "learning": on}
         if cmd == "reset":
-            done = self.pipeline.reset(p)
+            reset = self.pipeline.reset(p)
             err = self._persist(operator=True)
-            self.log.warning("control_reset", uuts=done, persisted=err is None)
+            self.log.warning("control_reset", uuts=reset, persisted=err is None)
             if err is not None:
                 raise ValueError(
-                    f"{', '.join(done)} reset, but the state file was not written ({err}): "
+                    f"{', '.join(reset)} reset, but the state file was not written ({err}): "
                     "the old calibration would load after a restart"
                 )
-            return {"uuts": done, "persisted": True}
+            return {"uuts": list(reset), "reset": reset, "persisted": True}
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _reload(self) -> None:
@@ -703,7 +708,6 @@ class Daemon:
         """
         try:
             new = load_config(self.config_path)
-            ports, uuts = pipeline_from_config(new)
         except (ConfigError, OSError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return
@@ -712,7 +716,7 @@ class Daemon:
         self._persist()
         snapshots = {s.uut: s for s in old_pipeline.calibrations()}
         try:
-            pipeline = Pipeline(ports, uuts, snapshots, fusion=fusion_from_config(new))
+            pipeline = build_pipeline(new, snapshots, old_pipeline.other_calibrations())
         except (ConfigError, ValueError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return

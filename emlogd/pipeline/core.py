@@ -163,6 +163,12 @@ def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
         yield sp
 
 
+def _keep_lag(cal: UutCalibration, lag_s: float) -> None:
+    """Give a new UUT calibration a lag known before (it estimates none)."""
+    cal.lag_s = lag_s
+    cal.lag_finder = None
+
+
 def _value(sp: SpeedRecord, component: str) -> float | None:
     """The speed a UUT compares: along the hull, or the horizontal magnitude."""
     v = sp.longitudinal_mps
@@ -201,7 +207,11 @@ class Pipeline:
         uuts: one entry per calibrated EMlog.
         calibrations: persisted calibrations by UUT port (warm start); each is checked
             first (:func:`emlogd.pipeline.calibration.check`) and ignored with an event
-            when it fails.
+            when it fails. One of another error model than the UUT's is kept aside
+            (:attr:`kept`) and the UUT starts from its own model's record in ``others``,
+            else uncalibrated; the lag is taken from either when the config fixes none.
+        fusion: the fused output's settings, or None.
+        others: the UUTs' calibrations of other error models (the state file's).
     """
 
     def __init__(
@@ -211,6 +221,7 @@ class Pipeline:
         calibrations: Mapping[str, Calibration] | None = None,
         *,
         fusion: FusionSettings | None = None,
+        others: Iterable[Calibration] = (),
     ) -> None:
         self.ports = {p.name: p for p in ports}
         self.decoders: dict[str, Decoder[Any]] = {
@@ -231,6 +242,11 @@ class Pipeline:
         self.uuts: dict[str, _Uut] = {}
         self._by_ref: dict[str, list[_Uut]] = {}
         cals = calibrations or {}
+        self.kept: dict[str, dict[str, Calibration]] = {}
+        """Per UUT, by model: its calibrations of the error models it is not using now
+        (restored when its config switches back to that model)."""
+        for c in others:
+            self.kept.setdefault(c.uut, {})[c.params.model] = c
         for s in uuts:
             if fusion is not None and s.port == FUSED_PORT:
                 raise ValueError(f"a UUT port may not be called {FUSED_PORT!r} with a fused output")
@@ -238,15 +254,32 @@ class Pipeline:
                 raise ValueError(f"UUT {s.port}: unknown port {s.port!r} or {s.reference_port!r}")
             if s.heading != "auto" and s.heading not in self.ports:
                 raise ValueError(f"UUT {s.port}: unknown heading port {s.heading!r}")
-            prior = cals.get(s.port)
+            latest = cals.get(s.port)
+            kept = self.kept.setdefault(s.port, {})
+            if latest is not None and latest.params.model == s.model:
+                prior: Calibration | None = latest
+                kept.pop(s.model, None)
+            else:
+                if latest is not None:  # another model's: kept for a switch back
+                    kept[latest.params.model] = latest
+                prior = kept.pop(s.model, None)  # this model's own, from before
             if prior is not None:
-                why = check(prior, s.envelope)
+                why = check(prior, s.envelope, s.max_lag_s)
                 if why:
                     self.startup_events.append(
                         Event(prior.t, s.port, "calibration_refused", {"why": why})
                     )
                     prior = None
             u = _Uut(s, self._new_cal(s, prior))
+            if u.cal.lag_s is None:  # the lag is the sensor's, whatever the model or a reset
+                for rec in (prior, latest):
+                    if (
+                        rec is not None
+                        and rec.lag_s is not None
+                        and not check(rec, s.envelope, s.max_lag_s)
+                    ):
+                        _keep_lag(u.cal, rec.lag_s)
+                        break
             self.uuts[s.port] = u
             self._by_ref.setdefault(s.reference_port, []).append(u)
         self.last_rx: dict[str, float] = {}
@@ -582,12 +615,29 @@ class Pipeline:
             self.uuts[p].cal.learn_on = on
         return ports
 
-    def reset(self, port: str | None = None) -> list[str]:
-        """Forget the calibration of one UUT or all (uncalibrated; the lag is kept)."""
+    def reset(self, port: str | None = None) -> dict[str, dict[str, object]]:
+        """Forget the calibration of one UUT or all: the one in use and those of its other
+        models; the lag and the operator's learning switch are kept.
+
+        Returns, per UUT reset, what it ``kept`` (``lag_s``, ``learning_enabled``) and
+        what it ``cleared`` (named).
+        """
         ports = [port] if port is not None else list(self.uuts)
+        done: dict[str, dict[str, object]] = {}
         for p in ports:
             u = self.uuts[p]
             old = u.cal
+            cleared = [
+                f"{u.s.model} calibration" if old.applied is not None else "no calibration applied",
+                "current estimate",
+                "learning state (filter, candidate, scores)",
+                *(f"{m} calibration (another model)" for m in sorted(self.kept.get(p, {}))),
+            ]
+            self.kept.pop(p, None)
+            done[p] = {
+                "kept": {"lag_s": old.lag_s, "learning_enabled": old.learn_on},
+                "cleared": cleared,
+            }
             fresh = self._new_cal(u.s, None)
             fresh.lag_s = old.lag_s
             fresh.lag_finder = old.lag_finder
@@ -596,11 +646,20 @@ class Pipeline:
             fresh.dirty = True
             fresh.t_persist = -math.inf
             u.cal = fresh
-        return ports
+        return done
 
     def calibrations(self) -> list[Calibration]:
         """The calibration of every UUT (a ``reset`` record when it has none): what is persisted."""
         return [u.cal.snapshot() for u in self.uuts.values()]
+
+    def other_calibrations(self) -> list[Calibration]:
+        """Every UUT's calibrations of the models it is not using: persisted beside."""
+        return [
+            c
+            for name, u in self.uuts.items()
+            for model, c in sorted(self.kept.get(name, {}).items())
+            if model != u.s.model
+        ]
 
     # -- status ---------------------------------------------------------------
 

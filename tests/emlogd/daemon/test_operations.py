@@ -224,6 +224,62 @@ def test_repeated_operator_commands_do_not_storm_the_disk(work: Path) -> None:
         d.kill()
 
 
+def test_each_model_keeps_its_calibration_across_reloads_and_restarts(work: Path) -> None:
+    """With the lag automatic: EM3 → EM4 → EM3 by reloads gets the EM3 calibration and the
+    lag back, and so does a restart after a stop in EM4; a reset replies what it kept and
+    cleared, and the lag survives it across a kill -9 and a restart."""
+    cfg = work / "emlogd.yaml"
+    text = cfg.read_text().replace(f"lag: {3.3 / SPEED:.4f}", "lag: auto")  # emlog1's
+    cfg.write_text(text)
+    em4 = text.replace("uut: emlog1, reference: dvl,", "uut: emlog1, reference: dvl, model: EM4,")
+    _seed(work)  # EM3 m = 0.05, b = 0.1, lag 0.165 s
+    em3_params = {"m": 0.05, "b": 0.1}
+
+    def seen(d: Daemon) -> tuple[object, object, object]:
+        u = d.uut("emlog1")
+        return u["model"], u["params"], u["lag_s"]
+
+    d = Daemon(work)
+    try:
+        assert seen(d) == ("EM3", em3_params, 0.165)
+        for n, (config, want) in enumerate(
+            [
+                (em4, ("EM4", None, 0.165)),
+                (text, ("EM3", em3_params, 0.165)),
+                (em4, ("EM4", None, 0.165)),
+            ],
+            start=1,
+        ):
+            cfg.write_text(config)
+            d.send_signal(signal.SIGHUP)
+            _wait(lambda n=n: d.events("reloaded") == n, f"no reload {n}")  # type: ignore[misc]
+            assert seen(d) == want, n
+        assert d.stop() == 0
+    finally:
+        d.kill()
+    states, others, report = StateStore(work / "state" / "state.yaml").load_state()
+    assert report == []
+    assert states["emlog1"].params.model == "EM4" and states["emlog1"].reset
+    assert [(c.params.model, c.params.as_dict()) for c in others] == [("EM3", em3_params)]
+    cfg.write_text(text)
+    d2 = Daemon(work)
+    try:
+        assert seen(d2) == ("EM3", em3_params, 0.165)
+        resp = d2.ask(cmd="reset", port="emlog1")
+        assert resp["ok"] and resp["persisted"] is True
+        assert resp["reset"]["emlog1"]["kept"] == {"lag_s": 0.165, "learning_enabled": True}  # type: ignore[index]
+        cleared = resp["reset"]["emlog1"]["cleared"]  # type: ignore[index]
+        assert "EM3 calibration" in cleared and "EM4 calibration (another model)" in cleared
+    finally:
+        d2.kill()  # SIGKILL: the reset was on disk before the reply
+    d3 = Daemon(work)
+    try:
+        assert seen(d3) == ("EM3", None, 0.165)
+        assert d3.stop() == 0
+    finally:
+        d3.kill()
+
+
 # -- 3. one instance -------------------------------------------------------------
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from datetime import UTC, datetime
@@ -261,7 +262,16 @@ class TestControl:
         out = kit.run(warm, s2.items)
         assert _status(warm)["params"] == snap.params.as_dict()
         assert _vhw(out)
-        assert p.reset() == ["log"]
+        assert p.reset() == {
+            "log": {
+                "kept": {"lag_s": 0.0, "learning_enabled": False},
+                "cleared": [
+                    "EM3 calibration",
+                    "current estimate",
+                    "learning state (filter, candidate, scores)",
+                ],
+            }
+        }
         assert _status(p)["state"] == "uncalibrated"
         (after,) = p.calibrations()
         assert after.reset and after.lag_s == 0.0
@@ -567,3 +577,57 @@ class TestNavigationItems:
             ("_Heading", None),
             ("SpeedRecord", "water"),
         ]
+
+
+class TestStateAcrossModelsAndResets:
+    """What a pipeline takes from a state: each error model its own calibration, the lag
+    whatever the model, and the lag after a reset."""
+
+    EM3 = Calibration("log", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 1.5)
+
+    def test_each_model_keeps_its_calibration_across_a_switch(self, kit: SimpleNamespace) -> None:
+        """EM3 → EM4 starts EM4 uncalibrated with EM3's lag and keeps EM3's record; back to
+        EM3, the EM3 calibration and its lag return and EM4's record is kept."""
+        s3 = UutSettings(port="log", reference_port="dvl")  # lag: auto
+        s4 = dataclasses.replace(s3, model="EM4")
+        p4 = Pipeline(kit.PORTS, [s4], {"log": self.EM3})
+        assert (_status(p4)["model"], _status(p4)["params"], _status(p4)["lag_s"]) == (
+            "EM4",
+            None,
+            1.5,
+        )
+        assert p4.other_calibrations() == [self.EM3]
+        p3 = Pipeline(
+            kit.PORTS,
+            [s3],
+            {c.uut: c for c in p4.calibrations()},
+            others=p4.other_calibrations(),
+        )
+        assert _status(p3)["params"] == {"m": 0.05, "b": 0.1} and _status(p3)["lag_s"] == 1.5
+        (em4,) = p3.other_calibrations()
+        assert em4.params.model == "EM4" and em4.reset and em4.lag_s == 1.5
+
+    def test_a_reset_keeps_the_lag_across_a_restart(self, kit: SimpleNamespace) -> None:
+        """A reset forgets every model's calibration, not the lag: its record carries the
+        lag, and a pipeline started from that record has it."""
+        s = UutSettings(port="log", reference_port="dvl")
+        em4 = Calibration("log", Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}, 1.5)
+        p = Pipeline(kit.PORTS, [s], {"log": self.EM3}, others=[em4])
+        reply = p.reset()
+        assert reply["log"]["kept"] == {"lag_s": 1.5, "learning_enabled": True}
+        assert "EM4 calibration (another model)" in reply["log"]["cleared"]  # type: ignore[operator]
+        (rec,) = p.calibrations()
+        assert rec.reset and rec.lag_s == 1.5 and p.other_calibrations() == []
+        again = Pipeline(kit.PORTS, [s], {"log": rec})
+        assert _status(again)["params"] is None and _status(again)["lag_s"] == 1.5
+
+    @pytest.mark.parametrize("lag", [-50.0, 10.5])
+    def test_a_lag_outside_the_bounds_is_refused_at_start(
+        self, kit: SimpleNamespace, lag: float
+    ) -> None:
+        """A state's lag outside [0, max_lag_s] refuses the record, with the reason."""
+        s = UutSettings(port="log", reference_port="dvl", max_lag_s=10.0)
+        p = Pipeline(kit.PORTS, [s], {"log": dataclasses.replace(self.EM3, lag_s=lag)})
+        (ev,) = [e for e in p.tick(kit.T0).events if e.kind == "calibration_refused"]
+        assert "outside [0, 10] s" in str(ev.detail["why"])
+        assert _status(p)["params"] is None and _status(p)["lag_s"] is None
