@@ -33,7 +33,7 @@ from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.core import UutSettings
+    from emlogd.pipeline.settings import UutSettings
     from emlogd.pipeline.learner import Offer
 
 VALIDATION_MIN_SAMPLES = 20
