@@ -33,8 +33,8 @@ from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.settings import UutSettings
     from emlogd.pipeline.learner import Offer
+    from emlogd.pipeline.settings import UutSettings
 
 VALIDATION_MIN_SAMPLES = 20
 """A candidate needs at least this many scored samples in its validation window."""
