@@ -46,8 +46,8 @@ from drivers.nmea0183 import Heading as NmeaHeading
 from drivers.records import KNOT_MPS, Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
-from emlogd.pipeline.fusion import Fusion, FusionSettings
-from emlogd.pipeline.integrity import Envelope, JumpFilter
+from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
+from emlogd.pipeline.integrity import Envelope, JumpFilter, ReadingCheck, ReadingLimits
 from emlogd.pipeline.keys import (
     NAME,
     bool_or_auto,
@@ -70,6 +70,7 @@ from emlogd.pipeline.sentences import (
     encode_vbw,
     encode_vdr,
     encode_vhw,
+    encode_vhw_void,
 )
 from emlogd.pipeline.uut import UutCalibration
 
@@ -299,6 +300,7 @@ class UutSettings:
         doc="This many gated samples in a row: the filter restarts from the last good state.",
     )
     envelope: Envelope = group(Envelope)
+    limits: ReadingLimits = group(ReadingLimits)
     low_speed_mps: float = key(
         0.25,
         check=number(0.0, 5.0),
@@ -504,6 +506,22 @@ class _Uut:
         self.t_vdr = -math.inf
         self.heading_port: str | None = None
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
+        self.checks: dict[str, ReadingCheck] = {}
+        """The plausibility of the readings, per sentence (VHW, VBW)."""
+        self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
+        """Readings neither emitted nor learnt, by reason (shown with the counters)."""
+
+    def plausible(self, t: float, source: str, raw: float) -> str:
+        """``""`` when the reading is plausible, else why not (counted)."""
+        chk = self.checks.get(source)
+        if chk is None:
+            chk = self.checks[source] = ReadingCheck(self.s.limits)
+        why = chk.check(t, raw)
+        if why:
+            self.implausible[f"implausible_{why}"] += 1
+        elif chk.reacquired:
+            return "reacquired"
+        return why
 
 
 class Pipeline:
@@ -618,7 +636,7 @@ class Pipeline:
         for u in self.uuts.values():
             self._by_ref.setdefault(u.s.reference_port, []).append(u)
         if self.fusion is not None and old.fusion is not None:
-            self.fusion.latest = dict(old.fusion.latest)
+            self.fusion.adopt(old.fusion)
         self.now = max(self.now, old.now)
         return kept
 
@@ -735,6 +753,8 @@ class Pipeline:
         if g.variation_deg is not None:
             self.variation[port] = g.variation_deg
         valid = g.valid and self.fix_quality.get(port, 1) > 0
+        if valid and g.sog_mps is not None and self.fusion is not None:
+            self.fusion.ground(t, g.sog_mps)
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
@@ -784,6 +804,11 @@ class Pipeline:
         if not fresh:
             cal.counters.backlog += 1
             return
+        why = u.plausible(t, sp.source, raw)
+        if why and self.fusion is not None and sp.source == u.s.uut_source:
+            self.fusion.refuse(u.s.port, t, why)
+        if why and why != "reacquired":
+            return
         value = cal.correct(raw)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
@@ -814,11 +839,19 @@ class Pipeline:
     ) -> None:
         """Send the fused speed (port ``fused``, with the log's headings) when one is due."""
         assert self.fusion is not None
-        fused = self.fusion.update(u.s.port, t, value, u.cal.output_std(value))
+        cal = u.cal
+        std = cal.output_std(value)
+        calibrated = cal.applied is not None and u.s.apply
+        cstd = consistency_std(std, u.s.r_raw_mps, value, calibrated)
+        fused = self.fusion.update(u.s.port, t, value, std, cstd_mps=cstd, calibrated=calibrated)
         if fused is None:
             return
         talker = self.fusion.s.talker
-        out.send(Emit(t, FUSED_PORT, encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)))
+        if fused.valid:
+            sentence = encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)
+        else:
+            sentence = encode_vhw_void(hdg_t, hdg_m, talker)
+        out.send(Emit(t, FUSED_PORT, sentence))
         if t - self.t_fused_status >= u.s.status_sentence_interval_s:
             self.t_fused_status = t
             out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))
@@ -950,7 +983,13 @@ class Pipeline:
             "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
             "fused": None
             if last is None
-            else {"speed_mps": last.speed_mps, "std_mps": last.std_mps, "sources": last.sources},
+            else {
+                "valid": last.valid,
+                "speed_mps": last.speed_mps if last.valid else None,
+                "std_mps": last.std_mps if last.valid else None,
+                "sources": last.sources,
+                "excluded": dict(last.excluded),
+            },
         }
 
     def _uut_status(self, u: _Uut) -> dict[str, object]:
@@ -986,7 +1025,7 @@ class Pipeline:
             "nis_mean": cal.nis_mean(),
             "samples_learnt": cal.n_learnt,
             "freezes": cal.freezes,
-            "counters": cal.counters.as_dict(),
+            "counters": {**cal.counters.as_dict(), **u.implausible},
             "scored_samples": cal.score.n,
             "rmse_raw": cal.score.rmse_raw,
             "rmse_corrected": cal.score.rmse_corrected,
