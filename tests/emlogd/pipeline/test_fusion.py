@@ -346,3 +346,59 @@ class TestPlausibility:
         counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
         assert counters["implausible_rate"] >= 6000 - 66
         assert len(rec.readings) <= 60 + 66
+
+
+class TestDisputeRules:
+    """The rules that decide a dispute, on the fusion alone (1 Hz, σ 0.05)."""
+
+    @staticmethod
+    def _feed(f: Fusion, t: float, va: float, vb: float, **kw: bool) -> Fused | None:
+        f.update("a", t, va, 0.05, calibrated=kw.get("a_cal", False))
+        return f.update("b", t + 0.5, vb, 0.05, calibrated=kw.get("b_cal", False))
+
+    def test_a_flat_log_loses(self) -> None:
+        """Log b stays at 3.00 while a moves, then a slows to 2.5: b (flat for 20 s) is
+        left out as stuck."""
+        f = Fusion(FusionSettings(min_interval_s=0.0))
+        fused = None
+        for k in range(60):
+            va = 3.0 + 0.02 * (k % 3) if k < 40 else 2.5 + 0.02 * (k % 3)
+            fused = self._feed(f, float(k), va, 3.0)
+        assert fused is not None and fused.sources == ("a",)
+        assert fused.excluded == (("b", "stuck"),)
+
+    def test_the_uncalibrated_log_loses(self) -> None:
+        """Two moving logs 0.5 m/s apart, a calibrated: b is left out as uncalibrated."""
+        f = Fusion(FusionSettings(min_interval_s=0.0))
+        fused = None
+        for k in range(30):
+            v = 2.8 + 0.02 * (k % 3)
+            fused = self._feed(f, float(k), v, v + 0.5, a_cal=True)
+        assert fused is not None and fused.sources == ("a",)
+        assert fused.excluded == (("b", "uncalibrated"),)
+
+    def test_the_minority_loses(self) -> None:
+        """Three logs, c 0.5 m/s off the two others: c is left out, a and b averaged."""
+        f = Fusion(FusionSettings(min_interval_s=0.0))
+        fused = None
+        for k in range(30):
+            v = 2.8 + 0.02 * (k % 3)
+            f.update("a", k, v, 0.05)
+            f.update("b", k + 0.3, v + 0.01, 0.05)
+            fused = f.update("c", k + 0.6, v + 0.5, 0.05)
+        assert fused is not None and sorted(fused.sources) == ["a", "b"]
+        assert fused.excluded == (("c", "minority"),)
+
+    def test_logs_that_agree_again_rejoin(self) -> None:
+        """A dispute ends after the logs agree for rejoin_s: both are averaged again."""
+        f = Fusion(FusionSettings(min_interval_s=0.0, rejoin_s=30.0))
+        for k in range(30):
+            w = 0.02 * (k % 3)
+            fused = self._feed(f, float(k), 2.8 + w, 3.5 + w)
+        assert fused is not None and not fused.valid
+        for k in range(30, 80):
+            w = 0.02 * (k % 3)
+            fused = self._feed(f, float(k), 2.8 + w, 2.8 + w)
+            if k < 55:  # smoothing, then 30 s of agreement
+                assert fused is not None and not fused.valid
+        assert fused is not None and fused.sources == ("a", "b")
