@@ -27,8 +27,14 @@ latest corrected speed of each *used* log heard within ``max_age_s``; its σ is
      other did not — the log whose own history is unchanged is followed;
   3. ``stuck``: one log's speed has not moved beyond the quantum for :data:`FLAT_S`
      and the other's has;
-  4. ``minority``: one log is in more disputes than the other (three logs or more);
-  5. ``uncalibrated``: one log has a validated calibration and the other none.
+  4. ``step``: like ``break``, one log *stepped* — a speed beyond :data:`STEP_SIGMA`
+     times its own recent scatter from its own short-term prediction (a plausible jump
+     all the same: 0.38 → 0.68 m/s at a slow speed) — and the other did not;
+  5. ``minority``: one log is in more disputes than the other (three logs or more);
+  6. ``uncalibrated``: one log has a validated calibration and the other none.
+
+  A step resets the smoothed differences of the log's pairs to the present one, so a
+  log that steps away from the others is in dispute from its first stepped sample.
 
   A dispute no rule decides makes the fused output *invalid*: a VHW without a speed
   and ``$PEMLF`` with status ``V`` and every disputed log excluded as ``disagree``.
@@ -62,6 +68,21 @@ BREAK_MARGIN_S = 5.0
 
 FLAT_S = 20.0
 """A log whose speed stays within the quantum this long is flat (stuck) in a dispute, s."""
+
+SELF_SMOOTH_S = 3.0
+"""Time constant of a log's short-term prediction of its own speed (its smoothed speed), s."""
+
+SCATTER_S = 60.0
+"""Time constant of a log's scatter about its own prediction (the RMS residual), s."""
+
+STEP_SIGMA = 4.0
+"""A speed this many times the log's scatter from its own prediction is a step."""
+
+STEP_FLOOR_MPS = 0.02
+"""The least scatter a step is measured against, m/s (a flat log's scatter is nought)."""
+
+STEP_WARMUP = 10
+"""Speeds a log needs before its steps are judged."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,7 +145,21 @@ def consistency_std(std_mps: float, r_raw_mps: float, speed_mps: float, calibrat
 
 
 class _Log:
-    __slots__ = ("anchor", "calibrated", "cstd", "std", "t", "t_anchor", "t_break", "v", "why")
+    __slots__ = (
+        "anchor",
+        "calibrated",
+        "cstd",
+        "level",
+        "n",
+        "scatter2",
+        "std",
+        "t",
+        "t_anchor",
+        "t_break",
+        "t_step",
+        "v",
+        "why",
+    )
 
     def __init__(self) -> None:
         self.t = -math.inf
@@ -136,6 +171,28 @@ class _Log:
         self.why = ""
         self.anchor = math.nan
         self.t_anchor = -math.inf
+        self.level = math.nan
+        self.scatter2 = 0.0
+        self.n = 0
+        self.t_step = -math.inf
+
+    def predict(self, t: float, v: float) -> bool:
+        """Add a speed to the log's own prediction; True when it is a step."""
+        if self.n == 0:
+            self.level, self.n = v, 1
+            return False
+        r = v - self.level
+        scatter = max(math.sqrt(self.scatter2), STEP_FLOOR_MPS)
+        dt = max(t - self.t, 0.0)
+        self.n += 1
+        if self.n > STEP_WARMUP and abs(r) > STEP_SIGMA * scatter:
+            self.level = v
+            self.t_step = t
+            return True
+        # a running mean until SCATTER_S worth of speeds, then forgetting
+        self.scatter2 += max(min(dt / SCATTER_S, 1.0), 1.0 / self.n) * (r * r - self.scatter2)
+        self.level += min(dt / SELF_SMOOTH_S, 1.0) * r
+        return False
 
 
 class _Dispute:
@@ -158,6 +215,7 @@ class Fusion:
         self.logs: dict[str, _Log] = {}
         self.pairs: dict[tuple[str, str], _Dispute] = {}
         self.sog: tuple[float, float] | None = None
+        self._stepped: set[str] = set()
         self.t_last = -math.inf
         self.last: Fused | None = None
 
@@ -192,6 +250,8 @@ class Fusion:
         """
         if math.isfinite(speed_mps) and math.isfinite(std_mps) and std_mps > 0.0:
             lg = self._log(port)
+            if lg.predict(t, speed_mps):
+                self._stepped.add(port)
             lg.t, lg.v, lg.std = t, speed_mps, std_mps
             lg.cstd = cstd_mps if cstd_mps is not None and cstd_mps > 0.0 else std_mps
             lg.calibrated = calibrated
@@ -258,6 +318,8 @@ class Fusion:
                 d = self.pairs.get((a, b))
                 if d is None:
                     d = self.pairs[(a, b)] = _Dispute(t, diff)
+                elif a in self._stepped or b in self._stepped:
+                    d.diff, d.t = diff, t
                 else:
                     k = min(max(t - d.t, 0.0) / PAIR_SMOOTH_S, 1.0)
                     d.diff += k * (diff - d.diff)
@@ -273,6 +335,7 @@ class Fusion:
                     elif t - d.t_agree >= s.rejoin_s:
                         d.t_onset = d.t_agree = None
                         d.loser, d.why = None, ""
+        self._stepped.clear()
 
     def _verdict(self, t: float, a: str, b: str, t_onset: float) -> tuple[str | None, str]:
         """Which of two disputing logs to leave out, and why (None: no rule decides)."""
@@ -285,12 +348,15 @@ class Fusion:
             if oa != ob:
                 return (a if oa else b), "gnss"
         since = t_onset - s.hold_s - BREAK_MARGIN_S
-        ba, bb = la.t_break >= since, lb.t_break >= since
+        ba, bb = since <= la.t_break <= t_onset, since <= lb.t_break <= t_onset
         if ba != bb:
             return (a if ba else b), "break"
         fa, fb = t - la.t_anchor >= FLAT_S, t - lb.t_anchor >= FLAT_S
         if fa != fb:
             return (a if fa else b), "stuck"
+        sa, sb = since <= la.t_step <= t_onset, since <= lb.t_step <= t_onset
+        if sa != sb:
+            return (a if sa else b), "step"
         na = sum(1 for k, d in self.pairs.items() if a in k and d.t_onset is not None)
         nb = sum(1 for k, d in self.pairs.items() if b in k and d.t_onset is not None)
         if na != nb:
