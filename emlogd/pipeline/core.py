@@ -47,6 +47,7 @@ from drivers.records import KNOT_MPS, Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
+from emlogd.pipeline.headingcheck import HeadingCheck
 from emlogd.pipeline.integrity import Envelope, JumpFilter, ReadingCheck, ReadingLimits
 from emlogd.pipeline.keys import (
     NAME,
@@ -101,6 +102,11 @@ of real yacht logs shows (docs/REAL_DATA.md)."""
 
 
 _KF = KfConfig()
+
+HEADING_CHECK_TOL_S = 1.5
+"""A GNSS fix is judged with the heading nearest its time within this, s (a heading
+sentence often follows the fix; a wrong heading is tens of degrees off, not a turn's
+1.5 s)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -508,6 +514,9 @@ class _Uut:
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
         self.checks: dict[str, ReadingCheck] = {}
         """The plausibility of the readings, per sentence (VHW, VBW)."""
+        self.heading_check = HeadingCheck(s.envelope.max_current_mps)
+        self.stw: tuple[float, float] | None = None
+        """The latest corrected speed through the water (time, m/s)."""
         self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
         """Readings neither emitted nor learnt, by reason (shown with the counters)."""
 
@@ -650,16 +659,20 @@ class Pipeline:
         return order
 
     def _heading_at(self, uut: str, t: float) -> float | None:
+        """The UUT's heading at ``t``, unless the course over ground says it is wrong."""
         u = self.uuts.get(uut)
-        if u is None:
+        if u is None or u.heading_check.suspect:
             return None
+        return self._raw_heading_at(u, t)
+
+    def _raw_heading_at(self, u: _Uut, t: float, tol_s: float = 0.6) -> float | None:
         for port in self._heading_ports(u.s):
             ph = self.headings.get(port)
             if ph is None:
                 continue
             h = ph.ring.at(t)
             if h is None:
-                h = ph.ring.nearest(t, 0.6)
+                h = ph.ring.nearest(t, tol_s)
             if h is not None:
                 if u.heading_port != port:
                     u.heading_port = port
@@ -755,10 +768,28 @@ class Pipeline:
         valid = g.valid and self.fix_quality.get(port, 1) > 0
         if valid and g.sog_mps is not None and self.fusion is not None:
             self.fusion.ground(t, g.sog_mps)
+        if valid and g.sog_mps is not None and g.cog_true_deg is not None:
+            for u in self.uuts.values():
+                self._check_heading(t, u, g.sog_mps, g.cog_true_deg)
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
                 self._project(u)
+
+    def _check_heading(self, t: float, u: _Uut, sog: float, cog: float) -> None:
+        """Judge the UUT's heading against a GNSS fix (an event when the verdict changes)."""
+        if u.stw is None or abs(t - u.stw[0]) > 2.0 or sog < u.s.min_sog_mps:
+            return
+        psi = self._raw_heading_at(u, t, HEADING_CHECK_TOL_S)
+        if psi is None:
+            return
+        hc = u.heading_check
+        was = hc.suspect
+        hc.add(t, psi, u.stw[1], sog, cog)
+        if hc.suspect != was:
+            detail = {"why": hc.reason()} if hc.suspect else {}
+            kind = "heading_suspect" if hc.suspect else "heading_consistent"
+            self._pending_events.append(Event(t, u.s.port, kind, detail))
 
     def _project(self, u: _Uut, *, final: bool = False) -> None:
         """Project queued GNSS samples on the hull once the heading covers their time.
@@ -810,6 +841,8 @@ class Pipeline:
         if why and why != "reacquired":
             return
         value = cal.correct(raw)
+        if value is not None and sp.source == u.s.uut_source:
+            u.stw = (t, value)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.source == "VHW":
@@ -1003,6 +1036,7 @@ class Pipeline:
             "reason": cal.reason,
             "reference": cal.ref_state,
             "heading_port": u.heading_port,
+            "heading_suspect": u.heading_check.reason(),
             "learning_enabled": cal.learn_on,
             "model": u.s.model,
             "params": cal.applied.as_dict() if cal.applied is not None else None,
