@@ -333,6 +333,11 @@ READING_REACQUIRE_S = 10.0
 before) this long is accepted, s: the log's earlier level was the wrong one, or the
 vessel really is elsewhere after a fault. A spike shorter than this never goes out."""
 
+ZERO_MPS = 2.0 * QUANTUM_MPS
+"""A reading this close to zero is a zero (a log's dropout value): a log back from
+zero is judged against its last accepted non-zero reading — the zero was the wrong
+level, or the vessel was at rest and no acceleration is known."""
+
 RATE_SLACK = 1.05
 """A log's readings are accepted at up to this many times its nominal rate (the jitter
 of receive times and the drift between its clock and ours)."""
@@ -396,6 +401,7 @@ class ReadingCheck:
         "_first_refused",
         "_intervals",
         "_last",
+        "_moving",
         "_pending",
         "_rate_dropped",
         "_t_rate",
@@ -408,6 +414,7 @@ class ReadingCheck:
     def __init__(self, limits: ReadingLimits) -> None:
         self.limits = limits
         self._last: tuple[float, float] | None = None
+        self._moving: tuple[float, float] | None = None
         self._first_refused: float | None = None
         self._pending: tuple[float, float, float] | None = None
         self._intervals: list[float] = []
@@ -466,6 +473,11 @@ class ReadingCheck:
         if abs(v - last[1]) <= READING_MARGIN_MPS + a * max(t_to - last[0], 0.0):
             self._accept(t, v)
             return ""
+        if abs(last[1]) <= ZERO_MPS:  # back from zero: against the last moving level
+            ref = self._moving
+            if ref is None or abs(v - ref[1]) <= READING_MARGIN_MPS + a * max(t - ref[0], 0.0):
+                self._accept(t, v)
+                return ""
         if self._first_refused is None:
             self._first_refused = t
         pend = self._pending
@@ -481,5 +493,7 @@ class ReadingCheck:
 
     def _accept(self, t: float, v: float) -> None:
         self._last = (t, v)
+        if abs(v) > ZERO_MPS:
+            self._moving = (t, v)
         self._first_refused = None
         self._pending = None

@@ -377,6 +377,20 @@ class TestPlausibility:
         assert counters["implausible_rate"] >= 6000 - 66
         assert len(rec.readings) <= 60 + 66
 
+    def test_a_log_back_from_zero_is_judged_against_its_last_moving_level(self) -> None:
+        """Dropouts to 0.00 are refused; a log that re-acquired zero (dead for 15 s) and
+        comes back at the speed it had is accepted at once, not after 10 s."""
+        p, _ = _one_log()
+        out = Output()
+        seq = [2.8] * 30 + [0.0] * 15 + [2.9] * 5
+        for k, v in enumerate(seq):
+            p.feed(T0 + k, "a", _vhw(v), out)
+        speeds = _speeds(out.emits, "a")
+        # 10 zeros refused, then zero re-acquired; 2.9 at once
+        assert speeds[-5:] == pytest.approx([2.9] * 5, abs=0.006)
+        counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
+        assert counters["implausible_accel"] == 10
+
 
 class TestDisputeRules:
     """The rules that decide a dispute, on the fusion alone (1 Hz, σ 0.05)."""
