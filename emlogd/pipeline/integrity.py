@@ -346,6 +346,15 @@ RATE_BURST = 2.0
 """Readings a log may send back to back above its rate (the token bucket's depth): one
 late reading followed by an early one is no babble."""
 
+BABBLE_DROPS = 3
+"""This many readings dropped for the rate within :data:`BABBLE_S` make a log *babbling*:
+then every reading it sends is dropped (a reading let through at the rate is as much
+garbage as the others), until none was dropped for :data:`BABBLE_S`. One dropped by a
+late reading's jitter is no babble."""
+
+BABBLE_S = 10.0
+"""The window of :data:`BABBLE_DROPS`, and how long a babbling log must keep its rate, s."""
+
 RATE_HISTORY = 32
 """The nominal interval is the median of this many intervals between consecutive
 readings with none dropped for the rate between them (a babble, held to the rate,
@@ -398,6 +407,7 @@ class ReadingCheck:
     """
 
     __slots__ = (
+        "_drops",
         "_first_refused",
         "_intervals",
         "_last",
@@ -421,6 +431,7 @@ class ReadingCheck:
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
         self._rate_dropped = False
+        self._drops: list[float] = []
         self.nominal_s: float | None = None
         """The log's nominal interval between readings, s (None until learnt)."""
         self.reacquired = False
@@ -436,7 +447,12 @@ class ReadingCheck:
     def check(self, t: float, v: float) -> str:
         """Judge one reading at receive time ``t``: ``""`` when plausible, else why not."""
         self.reacquired = False
+        drops = self._drops
         if not self._rate(t):
+            drops.append(t)
+        while drops and t - drops[0] > BABBLE_S:
+            del drops[0]
+        if drops and (drops[-1] == t or len(drops) >= BABBLE_DROPS):
             return "rate"
         return self._accel(t, v)
 
