@@ -12,6 +12,8 @@ latest corrected speed of each *used* log heard within ``max_age_s``; its σ is
   (:class:`~emlogd.pipeline.integrity.ReadingCheck`: a dropout to 0, a spike, a babble)
   or it re-acquired a new level, within ``hold_s`` — from its first implausible
   sample on, while another log is there;
+- ``stuck``: its speed has stayed within the quantum for :data:`FLAT_S` while another
+  log's moved;
 - it loses a *dispute*: two logs disagree when their speeds' difference, smoothed over
   :data:`PAIR_SMOOTH_S`, is beyond ``gate_chi2`` in units of their consistency σ (the
   output σ of a calibrated log; the reading's noise and :data:`UNCALIBRATED_SCALE_STD`
@@ -29,7 +31,8 @@ latest corrected speed of each *used* log heard within ``max_age_s``; its σ is
      and the other's has;
   4. ``step``: like ``break``, one log *stepped* — a speed beyond :data:`STEP_SIGMA`
      times its own recent scatter from its own short-term prediction (a plausible jump
-     all the same: 0.38 → 0.68 m/s at a slow speed) — and the other did not;
+     all the same: 0.38 → 0.68 m/s at a slow speed) — and the other did not (neither
+     being flat for :data:`STEP_GUARD_S`);
   5. ``minority``: one log is in more disputes than the other (three logs or more);
   6. ``uncalibrated``: one log has a validated calibration and the other none.
 
@@ -66,8 +69,13 @@ GNSS_MAX_AGE_S = 3.0
 BREAK_MARGIN_S = 5.0
 """A log's break counts against it in a dispute that began within ``hold_s`` + this, s."""
 
-FLAT_S = 20.0
-"""A log whose speed stays within the quantum this long is flat (stuck) in a dispute, s."""
+FLAT_S = 10.0
+"""A log whose speed stays within the quantum this long while another log's moves is
+stuck, s: left out of the fused speed (and the loser of a dispute)."""
+
+STEP_GUARD_S = 5.0
+"""A step decides no dispute when either log has been flat this long, s: a log stuck for
+less than :data:`FLAT_S` must not make the other's real change look like its fault."""
 
 SELF_SMOOTH_S = 3.0
 """Time constant of a log's short-term prediction of its own speed (its smoothed speed), s."""
@@ -282,6 +290,10 @@ class Fusion:
         if not live:
             return None
         out = {p: lg.why for p, lg in live.items() if t - lg.t_break < s.hold_s}
+        moving = [p for p, lg in live.items() if t - lg.t_anchor < FLAT_S]
+        for p, lg in live.items():
+            if p not in out and t - lg.t_anchor >= FLAT_S and any(q != p for q in moving):
+                out[p] = "stuck"
         cand = sorted(p for p in live if p not in out)
         if not cand:  # every log had a recent implausible reading: the plausible ones
             cand, out = sorted(live), {}
@@ -355,7 +367,8 @@ class Fusion:
         if fa != fb:
             return (a if fa else b), "stuck"
         sa, sb = since <= la.t_step <= t_onset, since <= lb.t_step <= t_onset
-        if sa != sb:
+        both_moving = max(t - la.t_anchor, t - lb.t_anchor) < STEP_GUARD_S
+        if sa != sb and both_moving:
             return (a if sa else b), "step"
         na = sum(1 for k, d in self.pairs.items() if a in k and d.t_onset is not None)
         nb = sum(1 for k, d in self.pairs.items() if b in k and d.t_onset is not None)

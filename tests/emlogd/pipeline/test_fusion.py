@@ -300,6 +300,32 @@ class TestArbitration:
         for t, v in after:  # log a's own reading, to the knots field's 0.01
             assert v is not None and abs(v - a_at[math.floor(t)]) < 0.006
 
+    def test_a_stuck_log_is_left_out(self) -> None:
+        """Log b freezes at its reading of t = 300.5 s while a keeps moving: b is left
+        out as stuck within 10 s, and every window holds to 1.05× a's raw RMSE."""
+        p = _pipeline()
+        rng = np.random.default_rng(5)
+        out = Output()
+        rows = []
+        frozen = None
+        for k in range(1200):
+            t = float(k)
+            va = float(_truth(np.array([t]))[0] + rng.normal(0.0, NOISE_MPS))
+            rows.append((t, round(va / KNOT_MPS, 2) * KNOT_MPS))
+            p.feed(T0 + t, "a", _vhw(va), out)
+            vb = float(_truth(np.array([t + 0.5]))[0] + rng.normal(0.0, NOISE_MPS))
+            if k >= 300:
+                frozen = vb if frozen is None else frozen
+                vb = frozen
+            p.feed(T0 + t + 0.5, "b", _vhw(vb), out)
+        fused = _fused(out.emits)
+        assert _window_check(fused, np.array(rows), 1200.0) == 0
+        stuck = [
+            e for e in out.emits if e.sentence.startswith("$PEMLF") and "b:stuck" in e.sentence
+        ]
+        assert stuck and stuck[0].t - T0 <= 311.0
+        assert _pemlf(out.emits)[-1][3:7] == ["1", "a", "A", "b:stuck"]
+
     def test_a_log_reading_zero_leaves_at_its_first_sample(self) -> None:
         """Log b drops to 0.00 at t = 300.5 s: the zero is not sent, the fused speed sent
         next (a's reading at 301 s) and its $PEMLF already leave b out; it never comes
@@ -407,8 +433,8 @@ class TestDisputeRules:
         return f.update("b", t + 0.5, vb, 0.05, calibrated=kw.get("b_cal", False))
 
     def test_a_flat_log_loses(self) -> None:
-        """Log b stays at 3.00 while a moves, then a slows to 2.5: b (flat for 20 s) is
-        left out as stuck."""
+        """Log b stays at 3.00 while a moves, then a slows to 2.5: b (flat for 10 s
+        while a moves) is left out as stuck."""
         f = Fusion(FusionSettings(min_interval_s=0.0))
         fused = None
         for k in range(60):
@@ -452,3 +478,17 @@ class TestDisputeRules:
             if k < 55:  # smoothing, then 30 s of agreement
                 assert fused is not None and not fused.valid
         assert fused is not None and fused.sources == ("a", "b")
+
+    def test_a_step_against_a_flat_log_decides_nothing(self) -> None:
+        """Log b has been flat for 6 s when a steps (the vessel's real change): a is not
+        blamed — the output is invalid until b, flat for 10 s, is left out as stuck."""
+        f = Fusion(FusionSettings(min_interval_s=0.0))
+        for k in range(60):
+            w = 0.02 * (k % 3)
+            self._feed(f, float(k), 2.8 + w, 2.8 + (w if k < 54 else 0.0))
+        fused = self._feed(f, 60.0, 3.6, 2.8)
+        assert fused is not None and not fused.valid
+        for k in range(61, 66):
+            fused = self._feed(f, float(k), 3.6 + 0.02 * (k % 3), 2.8)
+        assert fused is not None and fused.sources == ("a",)
+        assert fused.excluded == (("b", "stuck"),)
