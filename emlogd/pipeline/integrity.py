@@ -388,8 +388,9 @@ class ReadingLimits:
         None,
         check=number(0.0, 1000.0, lo_open=True, optional=True),
         unit="Hz",
-        doc="A log's readings beyond this rate are dropped (a babbling log); null: its nominal "
-        "rate learnt from the median interval (+5 %), at most 20 Hz.",
+        doc="A log's readings beyond this rate are dropped, and all of them while it exceeds "
+        "it (a babbling log); null: its nominal rate learnt from the median interval (+5 %), "
+        "at most 20 Hz.",
     )
 
 
