@@ -187,13 +187,39 @@ class OutputConfig:
         "each",
         check=literal(Speed),
         doc="each: every log's corrected sentences; fused: one speed for the autopilot, the "
-        "inverse-variance weighted mean of every healthy log (`$PEMLF` says which); both: "
-        "the two.",
+        "inverse-variance weighted mean of the healthy logs that agree, else invalid "
+        "(`$PEMLF` says which are used and why the others are not); both: the two.",
     )
     fused_talker: str = key(
         FusionSettings().talker,
         check=string(_TALKER, "two uppercase letters"),
         doc="The talker of the fused speed's sentences.",
+    )
+    fused_gate_chi2: float = key(
+        FusionSettings().gate_chi2,
+        check=number(1.0, 1000.0),
+        doc="Two logs whose smoothed difference, squared over their consistency variances, "
+        "exceeds this disagree and are never averaged (6.63: 1 % for one degree of freedom).",
+    )
+    fused_hold_s: float = key(
+        FusionSettings().hold_s,
+        check=number(0.0, 3600.0),
+        unit="s",
+        doc="A log with an implausible reading (spike, dropout, babble) stays out of the fused "
+        "speed this long.",
+    )
+    fused_rejoin_s: float = key(
+        FusionSettings().rejoin_s,
+        check=number(0.0, 3600.0),
+        unit="s",
+        doc="Two disagreeing logs are fused again after agreeing this long.",
+    )
+    fused_max_current_mps: float = key(
+        FusionSettings().max_current_mps,
+        check=number(0.0, 10.0),
+        unit="m/s",
+        doc="The largest current: between two disagreeing logs, one further than this (+0.9 "
+        "m/s of GNSS noise) from the speed over ground is left out.",
     )
 
 

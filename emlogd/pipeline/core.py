@@ -46,8 +46,9 @@ from drivers.nmea0183 import Heading as NmeaHeading
 from drivers.records import KNOT_MPS, Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
-from emlogd.pipeline.fusion import Fusion, FusionSettings
-from emlogd.pipeline.integrity import JumpFilter
+from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
+from emlogd.pipeline.headingcheck import HeadingCheck
+from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
 from emlogd.pipeline.sentences import (
     StatusFields,
     encode_fused_status,
@@ -55,12 +56,18 @@ from emlogd.pipeline.sentences import (
     encode_vbw,
     encode_vdr,
     encode_vhw,
+    encode_vhw_void,
 )
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.uut import UutCalibration
 
 FUSED_PORT = "fused"
 """The port name of the fused speed's emits (a UUT may not be called this)."""
+
+HEADING_CHECK_TOL_S = 1.5
+"""A GNSS fix is judged with the heading nearest its time within this, s (a heading
+sentence often follows the fix; a wrong heading is tens of degrees off, not a turn's
+1.5 s)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -197,6 +204,25 @@ class _Uut:
         self.t_vdr = -math.inf
         self.heading_port: str | None = None
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
+        self.checks: dict[str, ReadingCheck] = {}
+        """The plausibility of the readings, per sentence (VHW, VBW)."""
+        self.heading_check = HeadingCheck(s.envelope.max_current_mps)
+        self.stw: tuple[float, float] | None = None
+        """The latest corrected speed through the water (time, m/s)."""
+        self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
+        """Readings neither emitted nor learnt, by reason (shown with the counters)."""
+
+    def plausible(self, t: float, source: str, raw: float) -> str:
+        """``""`` when the reading is plausible, else why not (counted)."""
+        chk = self.checks.get(source)
+        if chk is None:
+            chk = self.checks[source] = ReadingCheck(self.s.limits)
+        why = chk.check(t, raw)
+        if why:
+            self.implausible[f"implausible_{why}"] += 1
+        elif chk.reacquired:
+            return "reacquired"
+        return why
 
 
 class Pipeline:
@@ -338,7 +364,7 @@ class Pipeline:
         for u in self.uuts.values():
             self._by_ref.setdefault(u.s.reference_port, []).append(u)
         if self.fusion is not None and old.fusion is not None:
-            self.fusion.latest = dict(old.fusion.latest)
+            self.fusion.adopt(old.fusion)
         self.now = max(self.now, old.now)
         return kept
 
@@ -352,16 +378,20 @@ class Pipeline:
         return order
 
     def _heading_at(self, uut: str, t: float) -> float | None:
+        """The UUT's heading at ``t``, unless the course over ground says it is wrong."""
         u = self.uuts.get(uut)
-        if u is None:
+        if u is None or u.heading_check.suspect:
             return None
+        return self._raw_heading_at(u, t)
+
+    def _raw_heading_at(self, u: _Uut, t: float, tol_s: float = 0.6) -> float | None:
         for port in self._heading_ports(u.s):
             ph = self.headings.get(port)
             if ph is None:
                 continue
             h = ph.ring.at(t)
             if h is None:
-                h = ph.ring.nearest(t, 0.6)
+                h = ph.ring.nearest(t, tol_s)
             if h is not None:
                 if u.heading_port != port:
                     u.heading_port = port
@@ -456,10 +486,30 @@ class Pipeline:
         if g.variation_deg is not None:
             self.variation[port] = g.variation_deg
         valid = g.valid and self.fix_quality.get(port, 1) > 0
+        if valid and g.sog_mps is not None and self.fusion is not None:
+            self.fusion.ground(t, g.sog_mps)
+        if valid and g.sog_mps is not None and g.cog_true_deg is not None:
+            for u in self.uuts.values():
+                self._check_heading(t, u, g.sog_mps, g.cog_true_deg)
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
                 self._project(u)
+
+    def _check_heading(self, t: float, u: _Uut, sog: float, cog: float) -> None:
+        """Judge the UUT's heading against a GNSS fix (an event when the verdict changes)."""
+        if u.stw is None or abs(t - u.stw[0]) > 2.0 or sog < u.s.min_sog_mps:
+            return
+        psi = self._raw_heading_at(u, t, HEADING_CHECK_TOL_S)
+        if psi is None:
+            return
+        hc = u.heading_check
+        was = hc.suspect
+        hc.add(t, psi, u.stw[1], sog, cog)
+        if hc.suspect != was:
+            detail = {"why": hc.reason()} if hc.suspect else {}
+            kind = "heading_suspect" if hc.suspect else "heading_consistent"
+            self._pending_events.append(Event(t, u.s.port, kind, detail))
 
     def _project(self, u: _Uut, *, final: bool = False) -> None:
         """Project queued GNSS samples on the hull once the heading covers their time.
@@ -505,7 +555,14 @@ class Pipeline:
         if not fresh:
             cal.counters.backlog += 1
             return
+        why = u.plausible(t, sp.source, raw)
+        if why and self.fusion is not None and sp.source == u.s.uut_source:
+            self.fusion.refuse(u.s.port, t, why)
+        if why and why != "reacquired":
+            return
         value = cal.correct(raw)
+        if value is not None and sp.source == u.s.uut_source:
+            u.stw = (t, value)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.source == "VHW":
@@ -535,11 +592,19 @@ class Pipeline:
     ) -> None:
         """Send the fused speed (port ``fused``, with the log's headings) when one is due."""
         assert self.fusion is not None
-        fused = self.fusion.update(u.s.port, t, value, u.cal.output_std(value))
+        cal = u.cal
+        std = cal.output_std(value)
+        calibrated = cal.applied is not None and u.s.apply
+        cstd = consistency_std(std, u.s.r_raw_mps, value, calibrated)
+        fused = self.fusion.update(u.s.port, t, value, std, cstd_mps=cstd, calibrated=calibrated)
         if fused is None:
             return
         talker = self.fusion.s.talker
-        out.emits.append(Emit(t, FUSED_PORT, encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)))
+        if fused.valid:
+            sentence = encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)
+        else:
+            sentence = encode_vhw_void(hdg_t, hdg_m, talker)
+        out.emits.append(Emit(t, FUSED_PORT, sentence))
         if t - self.t_fused_status >= u.s.status_sentence_interval_s:
             self.t_fused_status = t
             out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))
@@ -698,7 +763,13 @@ class Pipeline:
             "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
             "fused": None
             if last is None
-            else {"speed_mps": last.speed_mps, "std_mps": last.std_mps, "sources": last.sources},
+            else {
+                "valid": last.valid,
+                "speed_mps": last.speed_mps if last.valid else None,
+                "std_mps": last.std_mps if last.valid else None,
+                "sources": last.sources,
+                "excluded": dict(last.excluded),
+            },
         }
 
     def _uut_status(self, u: _Uut) -> dict[str, object]:
@@ -712,6 +783,7 @@ class Pipeline:
             "reason": cal.reason,
             "reference": cal.ref_state,
             "heading_port": u.heading_port,
+            "heading_suspect": u.heading_check.reason(),
             "learning_enabled": cal.learn_on,
             "model": u.s.model,
             "params": cal.applied.as_dict() if cal.applied is not None else None,
@@ -734,7 +806,7 @@ class Pipeline:
             "nis_mean": cal.nis_mean(),
             "samples_learnt": cal.n_learnt,
             "freezes": cal.freezes,
-            "counters": cal.counters.as_dict(),
+            "counters": {**cal.counters.as_dict(), **u.implausible},
             "scored_samples": cal.score.n,
             "rmse_raw": cal.score.rmse_raw,
             "rmse_corrected": cal.score.rmse_corrected,
