@@ -14,7 +14,7 @@ import pytest
 
 from calib.models import Params
 from emlogd.calfile import CalibrationFileError, dumps, loads
-from emlogd.daemon.statefile import StateStore, StateWriteError
+from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.integrity import Envelope
 
@@ -170,7 +170,7 @@ def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
         "import resource, signal, sys\n"
         "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
         "resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))\n"
-        "from emlogd.daemon.statefile import StateStore, StateWriteError\n"
+        "from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError\n"
         "from emlogd.pipeline.calibration import Calibration\n"
         "from calib.models import Params\n"
         f"s = StateStore({str(store.path)!r})\n"
@@ -293,3 +293,25 @@ def test_a_backup_that_is_the_same_file_leaves_no_temporary(tmp_path: Path) -> N
     store.save({"emlog1": _state()})
     assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
     assert store.load()[0]["emlog1"] == _state()
+
+
+def test_the_lock_is_taken_on_the_real_path(tmp_path: Path) -> None:
+    """Two stores reaching one state file, through a symlink to the file and through a
+    symlinked directory, share one lock: the second is refused with a message naming the
+    real path; another file is not."""
+    real_dir = tmp_path / "real"
+    real_dir.mkdir()
+    (tmp_path / "link.yaml").symlink_to(real_dir / "state.yaml")
+    (tmp_path / "dirlink").symlink_to(real_dir)
+    first = StateStore(real_dir / "state.yaml")
+    fd = first.lock()
+    assert fd is not None
+    try:
+        for other in (tmp_path / "link.yaml", tmp_path / "dirlink" / "state.yaml"):
+            with pytest.raises(StateLockedError, match=f"real path {real_dir}/state.yaml"):
+                StateStore(other).lock()
+        free = StateStore(real_dir / "other.yaml").lock()
+        assert free is not None
+        os.close(free)
+    finally:
+        os.close(fd)
