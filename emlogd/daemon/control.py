@@ -268,8 +268,8 @@ class ControlServer:
         except (ValueError, UnicodeDecodeError, RecursionError):
             return {"ok": False, "error": "not a JSON object"}
         why = check_request(req, self.commands)
-        if why:
-            return {"ok": False, "error": why}
+        if why or not isinstance(req, dict):
+            return {"ok": False, "error": why or "not a JSON object"}
         try:
             return {"ok": True, **self.handler(req)}
         except (ValueError, KeyError) as exc:
