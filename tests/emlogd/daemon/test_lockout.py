@@ -150,7 +150,8 @@ def test_a_tcp_client_that_does_not_read_is_evicted(work: Path, daemon: DaemonPr
     trickle = slow[1]  # slow[0] never reads
     trickle.setblocking(False)
     try:
-        deadline = time.monotonic() + 20.0
+        # well under the default stall time: tcp_stall_s reached the daemon's TCP output
+        deadline = time.monotonic() + STALL_S + 5.0
         received = 0
         while _tcp_counters(daemon, port)["stalled"] < 2:
             assert time.monotonic() < deadline, _tcp_counters(daemon, port)
