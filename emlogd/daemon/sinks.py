@@ -410,10 +410,11 @@ class TcpServerSink:
 
     def _eviction_candidate(self, now: float) -> _Client:
         """The client to close for a newcomer: the one stalled longest among those with
-        output pending, else the most recently connected."""
-        pending = [c for c in self.clients.values() if c.check(now) > 0]
-        if pending:
-            return min(pending, key=lambda c: (c.progress, c.connected))
+        output pending that took nothing since the last check (a reader with bytes in
+        flight took some), else the most recently connected."""
+        stalled = [c for c in self.clients.values() if c.check(now) > 0 and c.progress < now]
+        if stalled:
+            return min(stalled, key=lambda c: (c.progress, c.connected))
         return max(self.clients.values(), key=lambda c: c.connected)
 
     def on_readable(self) -> None:

@@ -213,6 +213,8 @@ def test_at_the_client_limit_a_newcomer_evicts_a_client() -> None:
         _pump(sel, 0.1)
         for _ in range(3000):
             sink.write(LINE)
+        _pump(sel, 0.1)
+        sink.housekeep()  # the stuck client's first check: what its buffer took
         clock.t += 1.0
         for _ in range(2):
             clock.t += 0.1
@@ -236,6 +238,47 @@ def test_at_the_client_limit_a_newcomer_evicts_a_client() -> None:
         sink.write(LINE)
         latest.settimeout(5)
         assert latest.recv(100) == LINE
+    finally:
+        for s in held:
+            s.close()
+        sink.close()
+        sel.close()
+
+
+def test_a_slow_reader_with_output_pending_is_not_taken_for_stalled() -> None:
+    """At the client limit a client with output pending that took some since the last
+    check keeps its slot: the most recently connected goes instead."""
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    sink = TcpServerSink(
+        "127.0.0.1:0",
+        selector=sel,
+        on_event=lambda k, d: notes.append((k, d)),
+        monotonic=clock,
+        limits=TcpLimits(max_clients=2, max_pending_bytes=1 << 24),
+    )
+    held: list[socket.socket] = []
+    try:
+        slow = _stuck_client(sink.address)
+        held.append(slow)
+        _pump(sel, 0.1)
+        for _ in range(3000):
+            sink.write(LINE)
+        _pump(sel, 0.1)
+        sink.housekeep()
+        clock.t += 1.0
+        latest = socket.create_connection(sink.address)
+        held.append(latest)
+        _pump(sel, 0.1)
+        slow.settimeout(5)
+        assert slow.recv(4096)  # it reads a little: the kernel sends it more
+        time.sleep(0.05)
+        clock.t += 0.1
+        held.append(socket.create_connection(sink.address))
+        _pump(sel, 0.1)
+        assert notes[-2] == ("client_evicted", str(latest.getsockname()))
+        assert sink.counters.evicted == 1 and sink.counters.clients == 2
     finally:
         for s in held:
             s.close()
