@@ -26,7 +26,6 @@ from typing import Any, Literal
 import yaml
 
 from drivers.errors import ConfigError
-from emlogd.daemon.sinks import MAX_TCP_CLIENTS, TCP_BACKLOG_BYTES, TCP_STALL_S, TcpLimits
 from emlogd.pipeline.core import PortSettings, UutSettings
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
@@ -168,19 +167,19 @@ class OutputConfig:
         "`:10110` listens on every interface.",
     )
     tcp_max_clients: int = key(
-        MAX_TCP_CLIENTS,
+        32,
         check=number(1, 1024, integer=True),
         doc="Most clients of a TCP output; a newcomer beyond it evicts the client stalled "
         "longest, else the most recently connected.",
     )
     tcp_max_pending_bytes: int = key(
-        TCP_BACKLOG_BYTES,
+        64 * 1024,
         check=number(1024, 64 * 1024 * 1024, integer=True),
         unit="bytes",
         doc="A TCP client with more output pending (unsent or unacknowledged) is closed.",
     )
     tcp_stall_s: float = key(
-        TCP_STALL_S,
+        10.0,
         check=number(0.0, 3600.0, lo_open=True),
         unit="s",
         doc="A TCP client that takes nothing this long while output is pending is closed.",
@@ -217,11 +216,6 @@ class OutputConfig:
         check=string(_TALKER, "two uppercase letters"),
         doc="The talker of the fused speed's sentences.",
     )
-
-    @property
-    def tcp_limits(self) -> TcpLimits:
-        """What a TCP output (shared or a log's own) lets a client hold."""
-        return TcpLimits(self.tcp_max_clients, self.tcp_max_pending_bytes, self.tcp_stall_s)
 
 
 @dataclass(frozen=True, slots=True)

@@ -36,7 +36,7 @@ from emlogd.config import Config, load_config
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import is_console
 from emlogd.daemon.notify import Notifier
-from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
+from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
@@ -332,7 +332,7 @@ class Daemon:
         if out.pty:
             pty, mode, group = out.pty, out.pty_mode, out.pty_group
             specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
-        limits = out.tcp_limits
+        limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
         if out.tcp:
             tcp = out.tcp
             specs[("tcp", tcp, limits)] = lambda: TcpServerSink(

@@ -83,7 +83,8 @@ class _Retry:
 
 @dataclass(frozen=True, slots=True)
 class TcpLimits:
-    """What a TCP output lets a client hold (the ``outputs.tcp_*`` keys)."""
+    """What a TCP output lets a client hold (the ``outputs.tcp_*`` keys, whose defaults
+    are these)."""
 
     max_clients: int = MAX_TCP_CLIENTS
     max_pending_bytes: int = TCP_BACKLOG_BYTES

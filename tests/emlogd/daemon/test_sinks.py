@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from drivers.errors import ConfigError
+from emlogd.config import OutputConfig
 from emlogd.daemon.sinks import (
     TCP_BACKLOG_BYTES,
     TCP_CHECK_S,
@@ -35,6 +36,12 @@ def test_parse_hostport() -> None:
     for bad in ("host:", "host:0", "host:70000", "a:b"):
         with pytest.raises(ConfigError, match="HOST:PORT"):
             parse_hostport(bad)
+
+
+def test_the_tcp_limits_default_to_the_config_keys_defaults() -> None:
+    """TcpLimits() (the sink's default) is what the outputs.tcp_* keys default to."""
+    out = OutputConfig()
+    assert TcpLimits() == TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
 
 
 def _pump(sel: selectors.BaseSelector, until: float = 0.3) -> None:
