@@ -126,6 +126,28 @@ def test_read_only_directory(tmp_path: Path) -> None:
     assert store.load() == ({"emlog1": _state(0.1)}, [])
 
 
+def test_the_lock_is_taken_on_the_real_path(tmp_path: Path) -> None:
+    """Two stores reaching one state file, through a symlink to the file and through a
+    symlinked directory, share one lock: the second is refused with a message naming the
+    real path; another file is not."""
+    real_dir = tmp_path / "real"
+    real_dir.mkdir()
+    (tmp_path / "link.yaml").symlink_to(real_dir / "state.yaml")
+    (tmp_path / "dirlink").symlink_to(real_dir)
+    first = StateStore(real_dir / "state.yaml")
+    fd = first.lock()
+    assert fd is not None
+    try:
+        for other in (tmp_path / "link.yaml", tmp_path / "dirlink" / "state.yaml"):
+            with pytest.raises(StateLockedError, match=f"real path {real_dir}/state.yaml"):
+                StateStore(other).lock()
+        free = StateStore(real_dir / "other.yaml").lock()
+        assert free is not None
+        os.close(free)
+    finally:
+        os.close(fd)
+
+
 def test_orphaned_temp_files_of_dead_writers_are_removed(tmp_path: Path) -> None:
     """Temp files of a killed writer go at the next save; a live writer's stay."""
     dead = int(Path("/proc/sys/kernel/pid_max").read_text()) + 1
@@ -293,25 +315,3 @@ def test_a_backup_that_is_the_same_file_leaves_no_temporary(tmp_path: Path) -> N
     store.save({"emlog1": _state()})
     assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
     assert store.load()[0]["emlog1"] == _state()
-
-
-def test_the_lock_is_taken_on_the_real_path(tmp_path: Path) -> None:
-    """Two stores reaching one state file, through a symlink to the file and through a
-    symlinked directory, share one lock: the second is refused with a message naming the
-    real path; another file is not."""
-    real_dir = tmp_path / "real"
-    real_dir.mkdir()
-    (tmp_path / "link.yaml").symlink_to(real_dir / "state.yaml")
-    (tmp_path / "dirlink").symlink_to(real_dir)
-    first = StateStore(real_dir / "state.yaml")
-    fd = first.lock()
-    assert fd is not None
-    try:
-        for other in (tmp_path / "link.yaml", tmp_path / "dirlink" / "state.yaml"):
-            with pytest.raises(StateLockedError, match=f"real path {real_dir}/state.yaml"):
-                StateStore(other).lock()
-        free = StateStore(real_dir / "other.yaml").lock()
-        assert free is not None
-        os.close(free)
-    finally:
-        os.close(fd)
