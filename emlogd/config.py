@@ -161,7 +161,28 @@ class OutputConfig:
         doc="The pty's group (its readers, e.g. the autopilot's user); null: unchanged.",
     )
     tcp: str | None = key(
-        None, check=hostport, doc="NMEA over TCP, e.g. `:10110` (several clients)."
+        None,
+        check=hostport,
+        doc="NMEA over TCP, e.g. `127.0.0.1:10110` (several clients); `0.0.0.0:10110` or "
+        "`:10110` listens on every interface.",
+    )
+    tcp_max_clients: int = key(
+        32,
+        check=number(1, 1024, integer=True),
+        doc="Most clients of a TCP output; a newcomer beyond it evicts the client stalled "
+        "longest, else the most recently connected.",
+    )
+    tcp_max_pending_bytes: int = key(
+        64 * 1024,
+        check=number(1024, 64 * 1024 * 1024, integer=True),
+        unit="bytes",
+        doc="A TCP client with more output pending (unsent or unacknowledged) is closed.",
+    )
+    tcp_stall_s: float = key(
+        10.0,
+        check=number(0.0, 3600.0, lo_open=True),
+        unit="s",
+        doc="A TCP client that takes nothing this long while output is pending is closed.",
     )
     udp: str | None = key(None, check=hostport, doc="NMEA over UDP, e.g. `192.168.1.255:10110`.")
     stdout: bool = key(
