@@ -11,9 +11,10 @@ that has taken nothing for :attr:`TcpLimits.stall_s` while output was pending
 (``client_stalled``); at the client limit a newcomer is let in and an existing
 client goes (``client_evicted``): the one that has been stalled longest, else the
 most recently connected (a burst of connections takes one slot over and over, never
-the long-standing readers'). The kernel acknowledges whatever fits in a client's
-receive buffer, read or not: a client that never reads is noticed once that buffer
-is full.
+the long-standing readers'). Such a close is a reset: what is queued for the client
+is discarded (a FIN would wait behind it, and so would the kernel's memory). The
+kernel acknowledges whatever fits in a client's receive buffer, read or not: a
+client that never reads is noticed once that buffer is full.
 
 A network output never stops the daemon: a TCP address that cannot be bound (in
 use, not yet configured) or a UDP destination that does not resolve leaves the sink
@@ -253,6 +254,10 @@ DROP_REASONS = {
 """Why the sink closes a client: the event logged, and its counter in :class:`SinkCounters`."""
 
 
+_RESET = struct.pack("ii", 1, 0)
+"""``SO_LINGER`` on, 0 s: ``close`` resets the connection and discards what is queued."""
+
+
 def _send_queue(sock: socket.socket) -> int:
     """Bytes in the kernel's send queue of ``sock`` (sent but not acknowledged, or not
     sent yet: ``SIOCOUTQ``); 0 when it cannot be read."""
@@ -439,9 +444,12 @@ class TcpServerSink:
             with contextlib.suppress(KeyError, ValueError):
                 self.selector.unregister(client.sock)
         self.clients.pop(fd, None)
+        reason = DROP_REASONS.get(why)
+        if reason is not None:  # reset: output queued for a client that does not take it
+            with contextlib.suppress(OSError):  # would hold the FIN, and kernel memory
+                client.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, _RESET)
         client.sock.close()
         self.counters.clients = len(self.clients)
-        reason = DROP_REASONS.get(why)
         if reason is not None:
             self.counters.dropped_clients += 1
             setattr(self.counters, reason, getattr(self.counters, reason) + 1)

@@ -6,9 +6,14 @@ sockets on 127.0.0.1, every wait bounded."""
 from __future__ import annotations
 
 import contextlib
+import fcntl
+import math
+import select
 import socket
+import struct
 import subprocess
 import sys
+import termios
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -134,33 +139,52 @@ def test_40_idle_tcp_clients_then_a_new_one_receives_within_3_s(
     assert daemon.stop() == 0
 
 
+def _held(s: socket.socket) -> int:
+    """Bytes waiting unread in ``s``'s receive buffer."""
+    return int(struct.unpack("i", fcntl.ioctl(s.fileno(), termios.FIONREAD, b"\0" * 4))[0])
+
+
 @pytest.mark.usefixtures("sensors")
 def test_a_tcp_client_that_does_not_read_is_evicted(work: Path, daemon: DaemonProcess) -> None:
-    """A client that never reads and one that reads a byte now and then are closed as
-    client_stalled about tcp_stall_s after their receive buffer filled; a reading client
-    keeps receiving all along."""
+    """A client that never reads and one that reads a byte now and then are reset as
+    client_stalled; the one that never reads within tcp_stall_s (+ 3 s, under the
+    default 10 s) of the last byte its full receive buffer took, however fast the output
+    filled it; a reading client keeps receiving all along."""
     port = _tcp_port(work)
     reader = socket.create_connection(("127.0.0.1", port), timeout=5)
     slow: list[socket.socket] = []
     for _ in range(2):
         s = socket.socket()
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # fills in well under 1 s
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # full after a few KiB
         s.connect(("127.0.0.1", port))
         slow.append(s)
-    trickle = slow[1]  # slow[0] never reads
+    never, trickle = slow
     trickle.setblocking(False)
+    reader.setblocking(False)
+    watch = select.poll()
+    watch.register(never, select.POLLRDHUP | select.POLLHUP | select.POLLERR)
     try:
-        # well under the default stall time: tcp_stall_s reached the daemon's TCP output
-        deadline = time.monotonic() + STALL_S + 5.0
-        received = 0
-        while _tcp_counters(daemon, port)["stalled"] < 2:
+        deadline = time.monotonic() + 60.0
+        received = held = 0
+        grew = reset = math.nan
+        while math.isnan(reset) or _tcp_counters(daemon, port)["stalled"] < 2:
             assert time.monotonic() < deadline, _tcp_counters(daemon, port)
             with contextlib.suppress(BlockingIOError, ConnectionError):
                 trickle.recv(1)
-            reader.settimeout(5)
-            received += len(reader.recv(65536))
-            time.sleep(0.2)
-        assert received > 0
+            with contextlib.suppress(BlockingIOError):
+                received += len(reader.recv(65536))
+            if math.isnan(reset):
+                if _held(never) > held:
+                    held, grew = _held(never), time.monotonic()
+                if watch.poll(0):
+                    reset = time.monotonic()
+            time.sleep(0.1)
+        assert held > 0 and received > 0
+        assert reset - grew < STALL_S + 3.0, (reset - grew, held)
+        never.settimeout(5)
+        with pytest.raises(ConnectionResetError):  # reset, once what it holds is read
+            while never.recv(1 << 20):
+                pass
         assert _first_sentence(reader, 3.0) < 3.0  # the reader is served on
         counters = _tcp_counters(daemon, port)
         assert counters["clients"] == 1 and counters["too_slow"] == 0, counters
