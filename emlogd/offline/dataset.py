@@ -30,7 +30,8 @@ from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
 from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
-from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -190,7 +191,6 @@ def record_capture(
     col = _Collector()
     cal.recorder = col
     cal.record_only = True
-    out = Output()
     size = max(Path(path).stat().st_size, 1)
     t_first = t_last = math.nan
     contain = Containment()
@@ -199,11 +199,9 @@ def record_capture(
             t_first = t
         t_last = t
         try:
-            pipeline.feed(t, port, data, out)
+            pipeline.feed(t, port, data)
         except Exception as exc:  # contained: one record is lost, not the capture
             contain.failed(pipeline, port, data, exc, t)
-        out.emits.clear()
-        out.events.clear()
         if progress is not None and n % 50_000 == 0:
             progress(f"reading {Path(path).name}", min(line * 60 / size, 1.0))
     try:

@@ -152,7 +152,6 @@ def replay(
     t_last = 0.0
     pace0: tuple[float, float] | None = None
     t_tick = -float("inf")
-    out = Output()  # reused: delivered, then cleared, after every record
     contain = Containment()
     for path in paths:
         reader = CaptureReader(
@@ -172,20 +171,25 @@ def replay(
                 wait = due - monotonic()
                 if wait > 0.0:
                     sleep(wait)
+            out: Output | None
             try:
-                pipeline.feed(t, port, data, out)
-                if t - t_tick >= TICK_S:
-                    t_tick = t
-                    pipeline.tick(t, out)
+                out = pipeline.feed(t, port, data)
             except Exception as exc:  # contained: one record is lost, not the replay
                 contain.failed(pipeline, port, data, exc, t)
-            if out.emits or out.events or out.persist:
+                out = None
+            if out is not None and (out.emits or out.events or out.persist):
                 if scorer is not None:
                     scorer.emitted(out.emits)
                 _deliver(out, result, sink, on_persist, on_event, on_emit)
-                out.emits.clear()
-                out.events.clear()
-                out.persist.clear()
+            if t - t_tick >= TICK_S:
+                t_tick = t
+                try:
+                    out = pipeline.tick(t)
+                except Exception as exc:  # contained like a record's
+                    contain.failed(pipeline, "", b"", exc, t)
+                    out = None
+                if out is not None and (out.events or out.persist):
+                    _deliver(out, result, sink, on_persist, on_event, on_emit)
             result.records += 1
             t_last = t
             if progress is not None and result.records % 20_000 == 0:

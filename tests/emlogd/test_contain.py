@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from emlogd.contain import MAX_KEPT, Containment
-from emlogd.pipeline.core import Pipeline, PortSettings
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings
 
 
 def test_a_failure_is_an_internal_reject_of_its_port_logged_at_most_once_per_interval() -> None:

@@ -341,11 +341,11 @@ class _SpyPipeline:
         self.decoders = {"emlog1": None, "dvl": None}
         self.calls: list[tuple[float, str, bytes]] = []
 
-    def feed(self, t: float, port: str, data: bytes, out: object = None) -> object:
+    def feed(self, t: float, port: str, data: bytes) -> object:
         from emlogd.pipeline.core import Output
 
         self.calls.append((t, port, data))
-        return out if out is not None else Output()
+        return Output()
 
 
 def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
@@ -543,7 +543,8 @@ def test_a_chunk_that_fails_in_the_pipeline_is_contained(
     with how many were left out), the chunks after it are handled, and a failing tick is contained
     the same way."""
     from emlogd.daemon import loop as dmod
-    from emlogd.pipeline.core import Pipeline, PortSettings
+    from emlogd.pipeline.core import Pipeline
+    from emlogd.pipeline.settings import PortSettings
 
     _setup(tmp_path)
     clock = [100.0]
@@ -575,7 +576,7 @@ def test_a_chunk_that_fails_in_the_pipeline_is_contained(
     ]
     clock[0] += 10.0
     d._feed(4.0, "compass", hdt)  # handled
-    monkeypatch.setattr(p, "tick", lambda t, out=None: 1 / 0)
+    monkeypatch.setattr(p, "tick", lambda t: 1 / 0)
     d._tick()
     d._tick()
     warned = [kw for level, ev, kw in log.lines if level == "warning" and ev == "internal"]

@@ -228,7 +228,7 @@ def test_a_record_that_fails_in_the_pipeline_costs_that_record_only(
     raises: it is counted as an internal reject of its port and kept in the report, every other
     record is handled, and the run ends normally."""
     from emlogd.offline.dataset import record_capture
-    from emlogd.pipeline.core import UutSettings
+    from emlogd.pipeline.settings import UutSettings
 
     cap = tmp_path / "small.cap"
     _small_capture(cap)

@@ -38,7 +38,7 @@ from drivers.rdi_pd0 import encode_pd0
 from drivers.rdi_pd45 import encode_pd45
 from drivers.records import Rejected
 from emlogd.config import parse_config
-from emlogd.pipeline.core import Output, Pipeline
+from emlogd.pipeline.core import Pipeline
 from emlogd.settings import fusion_from_config, pipeline_from_config
 
 CONFIG = """\
@@ -168,7 +168,6 @@ def _run(ops: list[tuple[str, str, int, str, bytes, float]]) -> None:
     check = NmeaDecoder("check", errors="yield")
     t = T0.timestamp()
     t_tick = -math.inf
-    out = Output()
     emitted: list[str] = []
     for k, (port, how, index, value, noise, dt) in enumerate(ops):
         data = _valid(port, k)
@@ -184,14 +183,10 @@ def _run(ops: list[tuple[str, str, int, str, bytes, float]]) -> None:
         elif how == "random":
             data = noise
         t += dt
-        pipeline.feed(t, port, data, out)
+        emitted.extend(e.sentence for e in pipeline.feed(t, port, data).emits)
         if t - t_tick >= 0.5:
             t_tick = t
-            pipeline.tick(t, out)
-        emitted.extend(e.sentence for e in out.emits)
-        out.emits.clear()
-        out.events.clear()
-        out.persist.clear()
+            emitted.extend(e.sentence for e in pipeline.tick(t).emits)
     emitted.extend(e.sentence for e in pipeline.flush().emits)
     pipeline.status()
     for s in emitted:
