@@ -72,6 +72,7 @@ from emlogd.pipeline.sentences import (
     encode_vhw,
 )
 from emlogd.pipeline.uut import UutCalibration
+from emlogd.pipeline.variation import HeadingCheck, model_variation
 
 RefField = Literal["bottom", "water", "speed", "gnss"]
 """A UUT's reference: the speed records of that role (:data:`drivers.records.SpeedRole`)
@@ -431,6 +432,9 @@ class _Gnss(NamedTuple):
     cog_true_deg: float | None
     valid: bool
     variation_deg: float | None
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    fix_t: float | None = None
 
 
 class _Fix(NamedTuple):
@@ -449,7 +453,16 @@ def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
     if isinstance(rec, Rejected):
         return
     if isinstance(rec, Rmc):
-        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, rec.variation_deg)
+        fix_t = None if rec.time_utc is None else rec.time_utc.timestamp()
+        yield _Gnss(
+            rec.sog_mps,
+            rec.cog_true_deg,
+            rec.valid,
+            rec.variation_deg,
+            rec.lat_deg,
+            rec.lon_deg,
+            fix_t,
+        )
         return
     if isinstance(rec, Vtg):
         yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
@@ -504,6 +517,8 @@ class _Uut:
         self.t_vdr = -math.inf
         self.heading_port: str | None = None
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
+        self.heading_check = HeadingCheck()
+        self.heading_refused = 0
 
 
 class Pipeline:
@@ -540,6 +555,7 @@ class Pipeline:
         self.t_fused_status = -math.inf
         self.headings: dict[str, _PortHeading] = {}
         self.variation: dict[str, float] = {}
+        self.model_var: float | None = None
         self.fix_quality: dict[str, int] = {}
         self.uuts: dict[str, _Uut] = {}
         self._by_ref: dict[str, list[_Uut]] = {}
@@ -603,6 +619,7 @@ class Pipeline:
                 self.fix_quality[name] = old.fix_quality[name]
             if name in old.last_rx:
                 self.last_rx[name] = old.last_rx[name]
+        self.model_var = old.model_var
         kept: list[str] = []
         for name, u in self.uuts.items():
             o = old.uuts.get(name)
@@ -671,14 +688,23 @@ class Pipeline:
         return max(rates) if rates else 45.0
 
     def _variation(self, port: str) -> float | None:
+        return self.variation_source(port)[0]
+
+    def variation_source(self, port: str) -> tuple[float | None, str | None]:
+        """The variation for magnetic headings of ``port`` and where it comes from: the
+        log (HDG/RMC of that port, else of any port), the configuration
+        (``magnetic_variation_deg``), the model (IGRF at the last GNSS position and
+        date, :mod:`emlogd.pipeline.variation`); (None, None) without any."""
         if port in self.variation:
-            return self.variation[port]
+            return self.variation[port], "log"
         for v in self.variation.values():
-            return v
+            return v, "log"
         for u in self.uuts.values():
             if u.s.magnetic_variation_deg is not None:
-                return u.s.magnetic_variation_deg
-        return None
+                return u.s.magnetic_variation_deg, "config"
+        if self.model_var is not None:
+            return self.model_var, "model"
+        return None, None
 
     # -- input ----------------------------------------------------------------
 
@@ -734,6 +760,10 @@ class Pipeline:
         """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
             self.variation[port] = g.variation_deg
+        if g.lat_deg is not None and g.lon_deg is not None and g.valid:
+            mv = model_variation(g.lat_deg, g.lon_deg, t if g.fix_t is None else g.fix_t)
+            if mv is not None:
+                self.model_var = mv
         valid = g.valid and self.fix_quality.get(port, 1) > 0
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
@@ -760,8 +790,13 @@ class Pipeline:
                 if psi is None or sog < u.s.min_sog_mps:
                     ok = False
                 else:
-                    along = sog * math.cos(math.radians(cog - psi))
-                    ok = u.ref_jumps.accept(t, along)
+                    u.heading_check.add(t, psi, sog, cog)
+                    if u.heading_check.flagged():
+                        u.heading_refused += 1  # a wrong heading projects nothing
+                        ok = False
+                    else:
+                        along = sog * math.cos(math.radians(cog - psi))
+                        ok = u.ref_jumps.accept(t, along)
             u.cal.add_reference(t, along if ok else None, ok)
 
     def _heading_ring(self, s: UutSettings) -> SampleRing | None:
@@ -964,6 +999,7 @@ class Pipeline:
             "reason": cal.reason,
             "reference": cal.ref_state,
             "heading_port": u.heading_port,
+            "heading": self._heading_status(u),
             "learning_enabled": cal.learn_on,
             "model": u.s.model,
             "params": cal.applied.as_dict() if cal.applied is not None else None,
@@ -990,6 +1026,21 @@ class Pipeline:
             "scored_samples": cal.score.n,
             "rmse_raw": cal.score.rmse_raw,
             "rmse_corrected": cal.score.rmse_corrected,
+        }
+
+    def _heading_status(self, u: _Uut) -> dict[str, object]:
+        """The heading's port, the variation used and from where, the magnetic headings
+        refused for want of one, and the heading-against-course check."""
+        port = u.heading_port
+        var, source = self.variation_source(port if port is not None else u.s.reference_port)
+        refused = sum(ph.refused_magnetic for ph in self.headings.values())
+        return {
+            "port": port,
+            "variation_deg": None if var is None else round(var, 2),
+            "variation_source": source,
+            "refused_magnetic": refused,
+            "check": u.heading_check.as_dict(),
+            "refused_by_check": u.heading_refused,
         }
 
     def summary(self) -> str:
