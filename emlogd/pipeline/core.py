@@ -504,6 +504,7 @@ class _PortHeading:
         self.ring = SampleRing(1024, 2.0, angular=True)
         self.jumps = JumpFilter(max_turn_rate_dps, 5.0, angular=True)
         self.refused_magnetic = 0
+        self.magnetic = 0
 
 
 class _Uut:
@@ -678,6 +679,7 @@ class Pipeline:
                 ph.refused_magnetic += 1
                 return
             true = wrap_deg(h.magnetic_deg + var)
+            ph.magnetic += 1
         if true is None or not math.isfinite(true):
             return
         if ph.jumps.accept(t, true):
@@ -999,7 +1001,7 @@ class Pipeline:
             "reason": cal.reason,
             "reference": cal.ref_state,
             "heading_port": u.heading_port,
-            "heading": self._heading_status(u),
+            "heading": self.heading_status(u.s.port),
             "learning_enabled": cal.learn_on,
             "model": u.s.model,
             "params": cal.applied.as_dict() if cal.applied is not None else None,
@@ -1028,11 +1030,16 @@ class Pipeline:
             "rmse_corrected": cal.score.rmse_corrected,
         }
 
-    def _heading_status(self, u: _Uut) -> dict[str, object]:
-        """The heading's port, the variation used and from where, the magnetic headings
-        refused for want of one, and the heading-against-course check."""
+    def heading_status(self, uut: str) -> dict[str, object]:
+        """A UUT's heading: its port, the variation used and from where (``log``,
+        ``config``, ``model``), the magnetic headings refused for want of one, the
+        heading-against-course check and the GNSS fixes it refused."""
+        u = self.uuts[uut]
         port = u.heading_port
         var, source = self.variation_source(port if port is not None else u.s.reference_port)
+        ph = self.headings.get(port) if port is not None else None
+        if ph is None or not ph.magnetic:
+            var = source = None  # a true heading: no variation used
         refused = sum(ph.refused_magnetic for ph in self.headings.values())
         return {
             "port": port,
