@@ -135,6 +135,33 @@ class TestNmea:
         times = [r[0] - t.timestamp() for r in _records(tmp_path / "o.cap")]
         assert times == pytest.approx([0.0, 2 / 3, 4 / 3, 2.0])
 
+    def test_a_gap_between_fixes_times_nothing(self, tmp_path: Path) -> None:
+        """Fixes more than MAX_FIX_GAP_S apart (a logger paused): the sentences between
+        them are counted, not spread over the gap; the later fix times what follows."""
+        from emlogd.offline.importer import MAX_FIX_GAP_S
+
+        t = datetime(2026, 1, 1, 12, tzinfo=UTC)
+        late = t + timedelta(seconds=MAX_FIX_GAP_S + 1.0)
+        lines = [encode_rmc(t, 1.0, 0.0), encode_vhw(1.0), encode_vhw(1.1)]
+        lines += [encode_rmc(late, 1.0, 0.0), encode_vhw(1.2)]
+        lines += [encode_rmc(late + timedelta(seconds=1), 1.0, 0.0)]
+        src = tmp_path / "log.nmea"
+        src.write_text("\n".join(lines) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.skipped == {"fix_gap": 2}
+        times = [r[0] - t.timestamp() for r in _records(tmp_path / "o.cap")]
+        gap = MAX_FIX_GAP_S + 1.0
+        assert times == pytest.approx([0.0, gap, gap + 0.5, gap + 1.0])
+
+    def test_gzip_input(self, tmp_path: Path) -> None:
+        """A gzip-compressed log is read as the plain one."""
+        import gzip
+
+        src = tmp_path / "irene.nmea.gz"
+        src.write_bytes(gzip.compress(IRENE.encode()))
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 10
+
     def test_imported_capture_decodes_to_the_values_written(self, tmp_path: Path) -> None:
         """The capture replays through the NMEA decoder to the log's own values."""
         src = tmp_path / "irene.nmea"
