@@ -998,7 +998,7 @@ class Pipeline:
         cur_std = kf.current_std_mps
         return {
             "state": cal.state,
-            "reason": cal.reason,
+            "reason": self._heading_reason(u) or cal.reason,
             "reference": cal.ref_state,
             "heading_port": u.heading_port,
             "heading": self.heading_status(u.s.port),
@@ -1029,6 +1029,26 @@ class Pipeline:
             "rmse_raw": cal.score.rmse_raw,
             "rmse_corrected": cal.score.rmse_corrected,
         }
+
+    def _heading_reason(self, u: _Uut) -> str | None:
+        """Why a GNSS reference projects nothing, when the heading is the cause: none, a
+        magnetic one without a variation, or one the course check flagged."""
+        if u.s.reference_field != "gnss" or u.cal.ref_state == "valid":
+            return None
+        check = u.heading_check
+        if check.flagged():
+            return f"heading {check.offset_deg():+.1f}° off the course over ground: not used"
+        if u.heading_port is not None:
+            return None
+        refused = sum(ph.refused_magnetic for ph in self.headings.values())
+        if refused:
+            return (
+                f"heading magnetic without a variation ({refused} refused): "
+                "set magnetic_variation_deg or give GNSS positions"
+            )
+        return (
+            "no heading for the GNSS reference" if u.gnss or u.cal.t_ref_last > -math.inf else None
+        )
 
     def heading_status(self, uut: str) -> dict[str, object]:
         """A UUT's heading: its port, the variation used and from where (``log``,

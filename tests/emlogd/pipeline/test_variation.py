@@ -121,6 +121,39 @@ class TestRouting:
         assert p.variation_source("nmea") == (3.0, "log")
 
 
+class TestStatusReason:
+    """The daemon's status names the heading when it is why the GNSS reference is not valid."""
+
+    def _run(self, heading: str, position: bool) -> str:
+        p = _pipeline()
+        for k in range(30):
+            t = T0 + k
+            if heading:
+                _feed(p, t, with_checksum(heading))
+            pos = {"lat_deg": 46.2, "lon_deg": 6.2} if position else {}
+            _feed(p, t + 0.1, encode_rmc(datetime.fromtimestamp(t, UTC), 3.0, 90.0, **pos))  # type: ignore[arg-type]
+            _feed(p, t + 0.2, encode_vhw(2.9, talker="II"))
+        p.tick(T0 + 31.0)
+        reason = p.status()["uuts"]["nmea"]["reason"]  # type: ignore[index]
+        assert isinstance(reason, str)
+        return reason
+
+    def test_magnetic_without_variation_is_named(self) -> None:
+        """GNSS every second, HDG magnetic, no variation anywhere: the reason says so
+        (not "reference silent") and how to give one."""
+        reason = self._run("IIHDG,90.0,,,,", position=False)
+        assert reason.startswith("heading magnetic without a variation (30 refused)")
+        assert "magnetic_variation_deg" in reason
+
+    def test_no_heading_is_named(self) -> None:
+        """GNSS every second and no heading at all: the reason names the heading."""
+        assert self._run("", position=False) == "no heading for the GNSS reference"
+
+    def test_with_a_position_the_model_serves(self) -> None:
+        """The same with positions in the RMC: the heading is used, no heading reason."""
+        assert "heading" not in self._run("IIHDG,90.0,,,,", position=True)
+
+
 def _sail(
     heading_error_deg: float, n: int = 600, current: tuple[float, float] = (0.3, -0.2)
 ) -> list[tuple[float, float, float, float]]:
