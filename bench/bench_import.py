@@ -80,11 +80,13 @@ CHILD = (
 def run(args: list[str]) -> tuple[float, float]:
     """(wall s, peak RSS MB) of ``emlogd import ARGS`` in a fresh child process."""
     t0 = time.perf_counter()
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    root = str(Path(__file__).resolve().parent.parent)
+    env = {**os.environ, "PYTHONPATH": root}
     done = subprocess.run(
         [sys.executable, "-c", CHILD, "import", *args],
         check=True,
         env=env,
+        cwd=root,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,

@@ -211,8 +211,13 @@ def cmd_import(args: argparse.Namespace) -> int:
         sys.stdout.write(f"note         {k} {v}\n")
     if report.preset is not None:
         sys.stdout.write(f"preset       {report.preset}\n")
-    if report.variation is not None:
-        sys.stdout.write(f"heading      magnetic, variation from {report.variation}\n")
+    if report.variation == "none":
+        sys.stdout.write(
+            "heading      magnetic, and no variation nor position: give --variation DEG "
+            "(here or to calibrate)\n"
+        )
+    elif report.variation is not None:
+        sys.stdout.write(f"heading      magnetic, variation from the {report.variation}\n")
     return 0
 
 

@@ -10,8 +10,8 @@ every line must be a complete sentence with a valid checksum (checked as the
 decoders do); the rest is counted by reason. Time comes from the fixes: the UTC date
 and time of RMC, else ZDA, else GGA's time of day with a date given by ``--date`` (or
 learnt from an earlier RMC/ZDA of the log). A fix whose time does not increase is no
-time source. The sentences between two fixes are spread evenly, in their order, over
-the interval up to the next fix. Sentences before the first fix and after the last
+time source, nor is one outside :data:`YEARS`. The sentences between two fixes are
+spread evenly, in their order, over the interval up to the next fix. Sentences before the first fix and after the last
 have no time and are counted (``before_first_fix``, ``after_last_fix``): times are
 never extrapolated past the last fix. Two fixes more than :data:`MAX_FIX_GAP_S` apart
 (a logger paused, files joined) leave the sentences between them without a time
@@ -33,19 +33,27 @@ kept local time. Positions are decimal degrees or ``ddmm.mmmmN``/``dddmm.mmmmE``
 
 Every cell is checked against the range a boat can produce (:data:`LIMITS`); a bad
 or impossible cell is counted in ``cells`` by column and reason and is not used —
-the rest of its row still is.
+the rest of its row still is. A row that gives no sentence is counted in ``skipped``:
+``no_time`` (empty), ``bad_time`` (unreadable), ``time_out_of_range`` (outside
+:data:`YEARS`), ``time_going_back``, ``no_new_value`` (every cell empty or a repeat),
+``bad_cell`` (its new cells all bad), ``incomplete`` (a new cell whose sample lacks
+its other cells: a heading without any speed within ``carry_s``).
 
 **Only cells actually written become samples.** The cells form three samples: the
-water (``stw``, ``heading``), the fix (``sog``, ``cog``, ``lat``, ``lon``) and the
-logging software's current (``set``, ``drift``). A row makes a new sample of a group
-only when one of the group's cells is written with a value that differs from the
-last one written: an empty cell is no update, and a cell written equal to the
-previous value is the export carrying the last value forward (Expedition writes
-every column on every row at its own rate — in the Valencia log 52 % of the ``Sog``
-cells repeat the previous row while ``Bsp``, to 0.001 kn, repeats in under 1 % —
-so a repeat is the program's, not the instrument's). The repeats are counted in
-``notes`` (``water_repeat``, ``fix_repeat``, ``current_repeat``): the file's own
-evidence of its update rates. A sample takes the group's other cells as last
+water (``stw``, ``heading``), the fix's velocity (``sog``, ``cog``; the position and
+the variation go with it without making one) and the logging software's current
+(``set``, ``drift``). An empty cell is no update. A row makes a new sample of a group
+when one of the group's cells is written with a value that differs from the last one
+written. A cell written equal to the previous value is either the export carrying
+the last value forward (Expedition writes every column on every row: in the Valencia
+log half the ``Sog`` and ``iSet`` cells repeat the row before, ``Bsp`` to 0.001 kn
+under 1 %) or the instrument reading the same again; the file tells them apart by its
+own update rate: the group's period is the median interval between its changes (the
+last :data:`PERIOD_WINDOW`), and a repeat is a new sample only when it comes at least
+:data:`REPEAT_PERIOD_FRACTION` of a period after the group's last sample — a
+carried-forward cell comes sooner. The repeats are counted in ``notes``
+(``water_repeat``, ``fix_repeat``, ``current_repeat``; those taken as samples
+``…_repeat_kept``): the file's evidence. A sample takes the group's other cells as last
 written, for at most ``carry_s`` seconds. Each sample becomes one sentence at its
 row's time: RMC for a fix (speed and course over ground, the position when mapped,
 the variation when known), VHW for the water (speed and heading, true or magnetic),
@@ -107,7 +115,9 @@ MAX_DRIFT_KN = 15.0
 """A current above this is not the sea's (the strongest tidal races run near 10 kn), kn."""
 
 YEARS = (1980, 2100)
-"""A row time outside these years is a misread time (GPS-era logs only)."""
+"""A row or fix time outside these years is a misread time (GPS-era logs only)."""
+_YEAR_LO = datetime(YEARS[0], 1, 1, tzinfo=UTC).timestamp()
+_YEAR_HI = datetime(YEARS[1], 1, 1, tzinfo=UTC).timestamp()
 
 LIMITS: dict[str, tuple[float, float]] = {
     "stw": (0.0, MAX_SPEED_KN * KNOT_MPS),
@@ -394,6 +404,9 @@ class _Spreader:
 
     def add(self, text: str, t_fix: float | None) -> None:
         r = self.report
+        if t_fix is not None and not _YEAR_LO <= t_fix < _YEAR_HI:
+            r.notes["fix_time_out_of_range"] += 1
+            t_fix = None
         if t_fix is not None and self.fix is not None and t_fix <= self.fix:
             r.notes["fix_time_not_increasing"] += 1
             t_fix = None
@@ -766,8 +779,6 @@ def _csv_rows(
     last: dict[str, tuple[float, float]] = {}  # key → (time written, value)
     groups = {name: _Group(keys) for name, keys in GROUPS.items()}
     t_prev = -math.inf
-    year_lo = datetime(YEARS[0], 1, 1, tzinfo=UTC).timestamp()
-    year_hi = datetime(YEARS[1], 1, 1, tzinfo=UTC).timestamp()
     for row in csv.reader(lines, delimiter=delim):
         if not row or not any(c.strip() for c in row):
             continue
@@ -788,7 +799,7 @@ def _csv_rows(
         if not math.isfinite(t):
             report.skipped["bad_time"] += 1
             continue
-        if not year_lo <= t < year_hi:
+        if not _YEAR_LO <= t < _YEAR_HI:
             report.skipped["time_out_of_range"] += 1
             continue
         if t < t_prev:

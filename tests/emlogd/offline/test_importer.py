@@ -153,6 +153,19 @@ class TestNmea:
         gap = MAX_FIX_GAP_S + 1.0
         assert times == pytest.approx([0.0, gap, gap + 0.5, gap + 1.0])
 
+    def test_a_fix_outside_the_years_times_nothing(self, tmp_path: Path) -> None:
+        """A ZDA dated 2150 between fixes of 2026 is noted and kept as a sentence, and the
+        log goes on being timed by the good fixes."""
+        t = datetime(2026, 1, 1, 12, tzinfo=UTC)
+        lines = [encode_rmc(t, 1.0, 0.0), encode_zda(t.replace(year=2150))]
+        lines += [encode_rmc(t + timedelta(seconds=2), 1.0, 0.0)]
+        src = tmp_path / "log.nmea"
+        src.write_text("\n".join(lines) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.notes == {"fix_time_out_of_range": 1} and rep.written == 3
+        times = [r[0] - t.timestamp() for r in _records(tmp_path / "o.cap")]
+        assert times == pytest.approx([0.0, 1.0, 2.0])
+
     def test_gzip_input(self, tmp_path: Path) -> None:
         """A gzip-compressed log is read as the plain one."""
         import gzip
@@ -235,6 +248,23 @@ class TestCsv:
         assert rep.sentences == {"VHW": 3, "RMC": 2, "VDR": 1}
         assert rep.notes == {"fix_repeat": 2, "current_repeat": 3, "water_repeat": 1}
         assert rep.skipped == {"no_new_value": 1}
+
+    def test_a_repeat_a_full_period_later_is_a_sample(self, tmp_path: Path) -> None:
+        """Rows every second, the fix updated every 2 s (carried forward between): a
+        repeat 1 s after a sample is the carry, one 2 s after it (when the next update
+        was due) is the instrument reading the same again."""
+        t0 = 1_750_000_000
+        sog = [3.0 + 0.1 * (k // 2) for k in range(30)]
+        sog[20] = sog[21] = sog[19]  # the update due at k=20 brings the same value
+        rows = [f"{t0 + k},5.0,{v:.1f},90" for k, v in enumerate(sog)]
+        src = _csv(tmp_path, rows, header="T,S,SOG,COG")
+        rep = import_csv(src, tmp_path / "o.cap", parse_map("time=T,stw=S,sog=SOG,cog=COG"))
+        assert rep.sentences["RMC"] == 15
+        assert rep.notes["fix_repeat_kept"] == 1 and rep.notes["fix_repeat"] == 15
+        dec = make_decoder("nmea0183", "nmea")
+        times = [r.t - t0 for r in CaptureReader(tmp_path / "o.cap")
+                 for x in dec.feed(r.data) if isinstance(x, Rmc)]  # fmt: skip
+        assert times == [0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28]
 
     def test_carry_is_bounded(self, tmp_path: Path) -> None:
         """A group's other cell older than carry_s is not used: a heading alone, 30 s after
