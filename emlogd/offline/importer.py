@@ -25,8 +25,10 @@ present in the header — and ``Name?`` when it may be absent; speeds in knots u
 written ``Name[mps]``), or a preset chosen by the header (:data:`PRESETS`). The
 delimiter (comma, tab, semicolon, bar) and the header line are found in the file:
 the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds the
-mapped columns, so a banner before it is passed over (and counted). Times are OLE
-dates (days since 1899-12-30: Excel, Expedition), ISO 8601, epoch seconds, or a
+mapped columns, so a banner before it is passed over (and counted). Column names
+match in any case; with a delimiter other than the comma, a comma in a number is a
+decimal comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
+8601, epoch seconds, or a
 ``strptime`` pattern; with a ``date`` column, date and time are joined with a space
 before parsing. Times without a zone are UTC unless ``--utc-offset`` says the logger
 kept local time. Positions are decimal degrees or ``ddmm.mmmmN``/``dddmm.mmmmE``.
@@ -218,7 +220,7 @@ EXPEDITION: dict[str, str] = {
     "sog": "Sog?",
     "cog": "Cog?",
     "lat": "Lat?",
-    "lon": "Lon?",
+    "lon": "Lon|Long?",
     "set": "iSet|Set?",
     "drift": "iDrift|Drift?",
 }
@@ -554,13 +556,18 @@ def _spec(spec: str) -> tuple[list[tuple[str, float]], bool]:
 def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, _Col], list[str]]:
     """Map keys to header columns; (columns found, required columns missing)."""
     stripped = [h.strip() for h in header]
+    folded = [h.casefold() for h in stripped]
     cols: dict[str, _Col] = {}
     missing: list[str] = []
     for key, spec in mapping.items():
         names, optional = _spec(spec)
         for name, factor in names:
-            if name in stripped:
-                cols[key] = _Col(key, stripped.index(name), factor if key in SPEEDS else 1.0)
+            # the exact name, else the name in any case (BSP, bsp, Bsp)
+            at = stripped.index(name) if name in stripped else None
+            if at is None and name.casefold() in folded:
+                at = folded.index(name.casefold())
+            if at is not None:
+                cols[key] = _Col(key, at, factor if key in SPEEDS else 1.0)
                 break
         else:
             if not optional:
@@ -790,6 +797,8 @@ def _csv_rows(
         if not stamp:
             report.skipped["no_time"] += 1
             continue
+        if fmt in ("ole", "epoch", "auto") and delim != ",":
+            stamp = stamp.replace(",", ".")  # a decimal comma
         if fmt == "auto":
             fmt = _guess_time_format(stamp) or "auto"
         try:
@@ -830,7 +839,9 @@ def _cell(row: list[str], index: int) -> str:
 
 
 def _value(cell: str, c: _Col, report: ImportReport) -> float | None:
-    """A cell's value in SI units, or None (counted) when it is no number or out of range."""
+    """A cell's value in SI units, or None (counted) when it is no number or out of range.
+    A comma in a cell is a decimal comma (the delimiter is then not a comma)."""
+    cell = cell.replace(",", ".")
     try:
         x = _position(cell, c.key) if c.key in ("lat", "lon") else float(cell) * c.factor
     except (ValueError, IndexError):

@@ -440,6 +440,8 @@ class _Gnss(NamedTuple):
 
 class _Fix(NamedTuple):
     quality: int
+    lat_deg: float | None = None
+    lon_deg: float | None = None
 
 
 _Nav = SpeedRecord | _Heading | _Gnss | _Fix
@@ -469,7 +471,7 @@ def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
         yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
         return
     if isinstance(rec, Gga):
-        yield _Fix(rec.quality)
+        yield _Fix(rec.quality, rec.lat_deg, rec.lon_deg)
         return
     if isinstance(rec, NmeaHeading):
         if rec.heading_deg is None:
@@ -744,6 +746,8 @@ class Pipeline:
                 self._gnss(t, port, item)
             elif isinstance(item, _Fix):
                 self.fix_quality[port] = item.quality
+                if item.quality > 0:
+                    self._position(t, item.lat_deg, item.lon_deg)
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
@@ -759,14 +763,19 @@ class Pipeline:
                 ok = False
             u.cal.add_reference(t, v if ok else None, ok)
 
+    def _position(self, t: float, lat: float | None, lon: float | None) -> None:
+        """A GNSS position (RMC, GGA) at ``t``: the model's variation there and then."""
+        if lat is not None and lon is not None:
+            mv = model_variation(lat, lon, t)
+            if mv is not None:
+                self.model_var = mv
+
     def _gnss(self, t: float, port: str, g: _Gnss) -> None:
         """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
             self.variation[port] = g.variation_deg
-        if g.lat_deg is not None and g.lon_deg is not None and g.valid:
-            mv = model_variation(g.lat_deg, g.lon_deg, t if g.fix_t is None else g.fix_t)
-            if mv is not None:
-                self.model_var = mv
+        if g.valid:
+            self._position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
         valid = g.valid and self.fix_quality.get(port, 1) > 0
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":

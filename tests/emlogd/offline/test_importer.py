@@ -344,6 +344,20 @@ class TestCsv:
         rep = import_csv(b, tmp_path / "b.cap")
         assert rep.preset == "expedition" and rep.sentences == {"VHW": 1}
 
+    def test_semicolons_decimal_commas_and_any_case(self, tmp_path: Path) -> None:
+        """A European spreadsheet's Expedition export: semicolons, decimal commas, the
+        column names in capitals."""
+        src = tmp_path / "log.csv"
+        ole = str(OLE_2005).replace(".", ",")
+        src.write_text(f"UTC;BSP;HDG;SOG;COG\n{ole};3,25;90,5;3,4;95,0\n")
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.preset == "expedition" and rep.cells == {}
+        assert rep.t_start == datetime(2005, 6, 13, 12, tzinfo=UTC).timestamp()
+        dec = make_decoder("nmea0183", "nmea")
+        recs = [x for r in CaptureReader(tmp_path / "o.cap") for x in dec.feed(r.data)]
+        (vhw,) = [x for x in recs if isinstance(x, Vhw)]
+        assert vhw.stw_knots == 3.25 and vhw.heading_true_deg == 90.5
+
     def test_logger_tsv_banner_date_time_local_and_ddmm(self, tmp_path: Path) -> None:
         """A tab-separated logger export: a banner before the header, Date and Time
         columns in local time, ddmm.mmmmN positions, a magnetic heading (its variation

@@ -9,7 +9,7 @@ from datetime import UTC, datetime
 import pytest
 
 from drivers.framing import with_checksum
-from drivers.nmea0183 import encode_hdt, encode_rmc, encode_vhw
+from drivers.nmea0183 import encode_gga, encode_hdt, encode_rmc, encode_vhw
 from emlogd.pipeline.core import Pipeline, PortSettings, UutSettings
 from emlogd.pipeline.variation import (
     MAX_HEADING_OFFSET_DEG,
@@ -108,6 +108,19 @@ class TestRouting:
         assert h["variation_source"] == "model"
         assert h["variation_deg"] == pytest.approx(var, abs=0.01)
         assert h["refused_magnetic"] == 1
+
+    def test_a_gga_position_serves_too(self) -> None:
+        """GGA (a position with a fix, no date: the receive time's date) gives the model
+        its position when the RMC has none."""
+        p = _pipeline()
+        t = datetime.fromtimestamp(T0, UTC)
+        _feed(p, T0, encode_gga(t, 46.2, 6.2))
+        _feed(p, T0 + 0.5, encode_rmc(t, 3.0, 100.0))
+        _feed(p, T0 + 1.0, with_checksum("IIHDG,100.0,,,,"))
+        assert p.variation_source("nmea")[1] == "model"
+        var = model_variation(46.2, 6.2, T0)
+        assert var is not None
+        assert p._heading_at("nmea", T0 + 1.0) == pytest.approx(100.0 + var, abs=0.01)
 
     def test_the_log_and_the_configuration_come_before_the_model(self) -> None:
         """A configured variation beats the model; a variation in the log beats both."""
