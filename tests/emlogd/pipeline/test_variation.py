@@ -27,10 +27,11 @@ def _epoch(year: float) -> float:
     return start + (year - y) * (datetime(y + 1, 1, 1, tzinfo=UTC).timestamp() - start)
 
 
-# The test values published with the World Magnetic Model (NOAA NCEI / BGS technical
-# reports WMM2010 and WMM2015, table "test values", height 0 km); the BGS online
-# calculator gives the same figures. IGRF and WMM are separate fits of the same field:
-# they agree within a few tenths of a degree at these points.
+# The declination test values published with the World Magnetic Model (the NOAA NCEI /
+# BGS technical reports "The US/UK World Magnetic Model for 2010-2015" and "for
+# 2015-2020", their tables of test values: date, height 0 km, latitude, longitude 240°
+# written here as -120°). IGRF and WMM are separate fits of the same field: they agree
+# within a few tenths of a degree at these points.
 PUBLISHED: list[tuple[float, float, float, float]] = [
     (2010.0, 80.0, 0.0, -6.13),
     (2010.0, 0.0, 120.0, 0.97),
