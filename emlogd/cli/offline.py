@@ -211,6 +211,17 @@ def cmd_import(args: argparse.Namespace) -> int:
         sys.stdout.write(f"note         {k} {v}\n")
     if report.preset is not None:
         sys.stdout.write(f"preset       {report.preset}\n")
+    check = report.heading_check
+    if check is not None and isinstance(check.get("offset_deg"), float):
+        sys.stdout.write(
+            f"heading      {check['offset_deg']:+.1f}° from the course on straight legs"
+            + (
+                f" — more than leeway explains ({check['max_offset_deg']}°): is it "
+                "magnetic (--heading-ref magnetic), or the compass wrong?\n"
+                if check.get("flagged")
+                else "\n"
+            )
+        )
     if report.variation == "none":
         sys.stdout.write(
             "heading      magnetic, and no variation nor position: give --variation DEG "

@@ -64,7 +64,9 @@ the variation it carries is known when the VHW's magnetic heading arrives.
 
 The variation for a magnetic heading: a ``variation`` column, else ``--variation
 DEG``; without either the RMC has none, and calibration takes the IGRF model's at
-the fix's position and date (:mod:`emlogd.pipeline.variation`).
+the fix's position and date (:mod:`emlogd.pipeline.variation`). The import runs the
+heading-against-course check of that module on the rows (``heading_check``), so a
+magnetic heading imported as true, or a wrong compass, shows at once.
 """
 
 from __future__ import annotations
@@ -74,7 +76,7 @@ import gzip
 import io
 import math
 from collections import Counter, deque
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
@@ -88,6 +90,7 @@ from drivers.nmea0183 import Gga, NmeaRecord, Rmc, Zda, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS, Rejected
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.sentences import encode_vdr
+from emlogd.pipeline.variation import HeadingCheck, model_variation
 
 HeadingRef = Literal["true", "magnetic"]
 
@@ -279,8 +282,12 @@ class ImportReport:
         sentences: sentences written, by type.
         preset: the CSV preset used (None with a plain map or NMEA).
         heading_ref: the CSV heading's reference.
+        heading_check: the CSV heading against the course over ground (the check of
+            :mod:`emlogd.pipeline.variation`, ``HeadingCheck.as_dict``), None without
+            heading and course.
         variation: where a CSV magnetic heading's variation comes from (``column``,
-            ``option``, ``model`` at calibration), None for a true heading.
+            ``option``, ``model`` at calibration from the positions, ``none``: give
+            ``--variation``), None for a true heading.
         t_start: first record time, s since the epoch (nan when none).
         t_end: last record time, s.
     """
@@ -297,6 +304,7 @@ class ImportReport:
     preset: str | None = None
     heading_ref: str | None = None
     variation: str | None = None
+    heading_check: dict[str, object] | None = None
     t_start: float = math.nan
     t_end: float = math.nan
 
@@ -315,6 +323,7 @@ class ImportReport:
             "preset": self.preset,
             "heading_ref": self.heading_ref,
             "variation": self.variation,
+            "heading_check": self.heading_check,
             "t_start": None if math.isnan(self.t_start) else self.t_start,
             "t_end": None if math.isnan(self.t_end) else self.t_end,
             "span_s": None if math.isnan(self.t_start) else round(self.t_end - self.t_start, 3),
@@ -329,6 +338,7 @@ class _Out:
         self.tmp = self.path.with_name(self.path.name + ".part" + _gz(self.path))
         self.port = port
         self.report = report
+        self.check = HeadingCheck()
         try:
             self.w = CaptureWriter(self.tmp, {port: "nmea0183"})
             self.w.comment(comment.encode("ascii", "replace").decode("ascii"))
@@ -728,6 +738,8 @@ def import_csv(
             _csv_rows(
                 rows, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s, sink
             )
+            if sink.check.n:
+                report.heading_check = sink.check.as_dict()
             if report.written == 0:
                 raise ImportFormatError(
                     f"{path}: no row with a time and a speed through the water "
@@ -854,6 +866,32 @@ def _value(cell: str, c: _Col, report: ImportReport) -> float | None:
     return x % 360.0 if c.key in ANGLES else x
 
 
+def _check(
+    sink: _Out,
+    t: float,
+    get: Callable[[str], float | None],
+    href: HeadingRef,
+    variation_deg: float | None,
+    sog: float,
+    cog: float,
+) -> None:
+    """Feed a fix and the heading at its row to the heading-against-course check (a
+    magnetic heading made true with the column's, the option's or the model's variation)."""
+    hdg = get("heading")
+    if hdg is None:
+        return
+    if href == "magnetic":
+        var = get("variation")
+        var = var if var is not None else variation_deg
+        lat, lon = get("lat"), get("lon")
+        if var is None and lat is not None and lon is not None:
+            var = model_variation(lat, lon, t)
+        if var is None:
+            return
+        hdg = (hdg + var) % 360.0
+    sink.check.add(t, hdg, sog, cog)
+
+
 def _row_sentences(
     t: float,
     new: set[str],
@@ -896,6 +934,7 @@ def _row_sentences(
                     variation_deg=var if var is not None else variation_deg,
                     talker="GP",
                 )
+                _check(sink, t, get, href, variation_deg, sog, cog)
         elif group == "water":
             stw = get("stw")
             if stw is not None:

@@ -406,6 +406,27 @@ class TestCsv:
         rmc = [x for r in CaptureReader(tmp_path / "o.cap") for x in dec.feed(r.data)]
         assert [x.variation_deg for x in rmc if isinstance(x, Rmc)] == [-3.5, -3.5]
 
+    @pytest.mark.parametrize(("error", "flagged"), [(0.0, False), (20.0, True)])
+    def test_the_heading_is_checked_against_the_course(
+        self, tmp_path: Path, error: float, flagged: bool
+    ) -> None:
+        """The import runs the heading-against-course check: a heading 20° off the course
+        (a magnetic one taken as true where the variation is 20°) is flagged, with the
+        offset; a good one is not."""
+        t0 = 1_750_000_000
+        rows = []
+        for k in range(900):
+            psi = (k // 60) * 135.0 % 360.0
+            sog = 5.0 + 0.3 * math.sin(k / 7.0)  # a new fix every row
+            rows.append(f"{t0 + k},5.0,{(psi - error) % 360.0:.1f},{sog:.2f},{psi:.1f}")
+        src = _csv(tmp_path, rows, header="T,S,H,SOG,COG")
+        rep = import_csv(
+            src, tmp_path / "o.cap", parse_map("time=T,stw=S,heading=H,sog=SOG,cog=COG")
+        )
+        check = rep.heading_check
+        assert check is not None and check["flagged"] is flagged
+        assert check["offset_deg"] == pytest.approx(error, abs=0.5)
+
     def test_a_failed_import_leaves_no_capture(self, tmp_path: Path) -> None:
         """An import that finds nothing to write leaves neither the capture nor a part file."""
         src = _csv(tmp_path, [",3.0,90,3,90,0,0"])
