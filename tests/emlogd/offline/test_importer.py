@@ -12,6 +12,8 @@ from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from drivers import make_decoder
 from drivers.framing import with_checksum
@@ -565,3 +567,35 @@ class TestRealLogs:
         res = calibrate(load_captures([str(cap)], s), s, "ls", lag=0.0)
         assert abs(res.params.m) < 0.03
         assert res.rmse_cal <= res.rmse_raw
+
+
+_CELLS = st.one_of(
+    st.sampled_from(["", "nan", "inf", "-inf", "1e308", "-1e308", "-", "4540.8145N", "91S"]),
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.text(alphabet=st.characters(blacklist_categories=("Cs",)), max_size=8),
+)
+
+
+@given(st.lists(st.lists(_CELLS, min_size=0, max_size=10), min_size=1, max_size=12))
+@settings(max_examples=60, deadline=None)
+def test_any_cells_are_counted_never_a_crash(
+    tmp_path_factory: pytest.TempPathFactory, rows: list[list[str]]
+) -> None:
+    """Whatever the cells of an Expedition-shaped export hold, the import writes a capture
+    or says in one ImportFormatError why not; every row is accounted for."""
+    import csv as csv_module
+
+    d = tmp_path_factory.mktemp("fuzz")
+    src = d / "log.csv"
+    with open(src, "w", newline="", encoding="utf-8") as f:
+        w = csv_module.writer(f)
+        w.writerow(["Utc", "Bsp", "Hdg", "Sog", "Cog", "Lat", "Lon", "iSet", "iDrift", "Extra"])
+        for k, row in enumerate(rows):
+            w.writerow([f"{OLE_2005 + k / 86400.0}", *row])
+    try:
+        rep = import_csv(src, d / "o.cap")
+    except ImportFormatError:
+        assert not (d / "o.cap").exists()
+        return
+    assert rep.lines == len(rows) and rep.written > 0
+    assert rep.lines >= sum(rep.skipped.values())
