@@ -11,7 +11,10 @@ Routing (per port, the decoders' common navigation records):
   speed and course projected on the hull with the heading) goes, through a glitch
   filter (:class:`~emlogd.pipeline.integrity.JumpFilter`), to every UUT that
   calibrates against that port and field;
-- a **heading** (true, or magnetic with a known variation) goes to its port's ring;
+- a **heading** (true, or magnetic with a variation: the log's, the configured one,
+  else the IGRF model's at the last GNSS position, :mod:`emlogd.pipeline.variation`)
+  goes to its port's ring; a GNSS reference is projected only with a heading the
+  course check has not flagged;
   each UUT reads its heading from the port it is configured for, or (``auto``) from
   its reference's port, else its own VHW heading, else any port with a heading;
 - a UUT's **reading** is corrected and emitted at once (the per-UUT
