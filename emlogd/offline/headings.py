@@ -23,7 +23,7 @@ import numpy as np
 
 from emlogd.offline.dataset import Recording
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 
 def needs_heading(settings: UutSettings) -> bool:

@@ -90,7 +90,7 @@ from drivers.nmea0183 import Gga, NmeaRecord, Rmc, Zda, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS, Rejected
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.sentences import encode_vdr
-from emlogd.pipeline.variation import HeadingCheck, model_variation
+from emlogd.pipeline.variation import CourseOffsetCheck, model_variation
 
 HeadingRef = Literal["true", "magnetic"]
 
@@ -283,7 +283,7 @@ class ImportReport:
         preset: the CSV preset used (None with a plain map or NMEA).
         heading_ref: the CSV heading's reference.
         heading_check: the CSV heading against the course over ground (the check of
-            :mod:`emlogd.pipeline.variation`, ``HeadingCheck.as_dict``), None without
+            :mod:`emlogd.pipeline.variation`, ``CourseOffsetCheck.as_dict``), None without
             heading and course.
         variation: where a CSV magnetic heading's variation comes from (``column``,
             ``option``, ``model`` at calibration from the positions, ``none``: give
@@ -338,7 +338,7 @@ class _Out:
         self.tmp = self.path.with_name(self.path.name + ".part" + _gz(self.path))
         self.port = port
         self.report = report
-        self.check = HeadingCheck()
+        self.check = CourseOffsetCheck()
         try:
             self.w = CaptureWriter(self.tmp, {port: "nmea0183"})
             self.w.comment(comment.encode("ascii", "replace").decode("ascii"))

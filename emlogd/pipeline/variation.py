@@ -108,7 +108,7 @@ def _cached(i_lat: int, i_lon: int, day: int) -> float:
 
 
 @dataclass
-class HeadingCheck:
+class CourseOffsetCheck:
     """The heading-against-course check (module docstring), fed sample by sample.
 
     Attributes:

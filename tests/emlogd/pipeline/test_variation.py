@@ -13,7 +13,7 @@ from drivers.nmea0183 import encode_gga, encode_hdt, encode_rmc, encode_vhw
 from emlogd.pipeline.core import Pipeline, PortSettings, UutSettings
 from emlogd.pipeline.variation import (
     MAX_HEADING_OFFSET_DEG,
-    HeadingCheck,
+    CourseOffsetCheck,
     decimal_year,
     model_variation,
 )
@@ -188,12 +188,12 @@ def _sail(
     return out
 
 
-class TestHeadingCheck:
+class TestCourseOffsetCheck:
     """The heading's offset from the course through the water, current taken out."""
 
     def test_a_good_heading_in_a_current_is_not_flagged(self) -> None:
         """True heading, 0.36 m/s current, ±4° leeway: offset near 0, not flagged."""
-        c = HeadingCheck()
+        c = CourseOffsetCheck()
         for t, h, sog, cog in _sail(0.0):
             c.add(t, h, sog, cog)
         d = c.offset_deg()
@@ -204,7 +204,7 @@ class TestHeadingCheck:
     def test_a_wrong_heading_is_flagged_with_its_offset(self, error: float) -> None:
         """A heading 20° (a magnetic heading taken as true, a bad compass) off the water's
         course is flagged, and the offset is measured."""
-        c = HeadingCheck()
+        c = CourseOffsetCheck()
         for t, h, sog, cog in _sail(error):
             c.add(t, h, sog, cog)
         d = c.offset_deg()
@@ -213,7 +213,7 @@ class TestHeadingCheck:
 
     def test_one_leg_decides_nothing(self) -> None:
         """On one heading current and offset are one unknown: undecided."""
-        c = HeadingCheck()
+        c = CourseOffsetCheck()
         for t, h, sog, cog in _sail(20.0, n=60):
             for j in range(5):
                 c.add(t + j * 60.0, h, sog, cog)
