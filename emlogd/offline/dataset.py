@@ -91,6 +91,8 @@ class Recording:
         internal: the records whose handling failed and was contained
             (:meth:`~emlogd.contain.Containment.report`; also counted as ``internal``
             rejects in :attr:`counters`).
+        heading_info: the pipeline's heading status at the end (``Pipeline.heading_status``:
+            port, variation and its source, refused magnetic headings, the check).
     """
 
     path: str
@@ -108,6 +110,7 @@ class Recording:
     t_end: float
     skips: dict[str, object] = dataclasses.field(default_factory=dict)
     internal: dict[str, object] = dataclasses.field(default_factory=dict)
+    heading_info: dict[str, object] = dataclasses.field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -228,6 +231,7 @@ def record_capture(
         t_end=t_last,
         skips=reader.skip_report(),
         internal=contain.report(),
+        heading_info=pipeline.heading_status(settings.port),
     )
 
 
