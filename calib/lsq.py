@@ -18,7 +18,12 @@ window does not determine is held at its prior (the given prior parameters, else
 the ideal sensor; zero current) and reported as unidentifiable. When the current is
 not separable from the bias a nuisance offset takes their sum, so a scale can still
 be learnt from speed changes. Standard errors are ``√diag(σ̂²·(JᵀWJ)⁻¹)`` over the
-estimated unknowns with ``σ̂² = Σwₖrₖ² / (Σwₖ/N̄·(N − p))``.
+estimated unknowns with ``σ̂² = κ·Σwₖrₖ² / (Σwₖ/N̄·(N − p))``, where κ is the residuals'
+correlation factor (:func:`calib.metrics.correlation_factor`, 1 for white residuals):
+residuals correlated over seconds or minutes hold κ times fewer independent samples.
+The identifiability verdicts use σ̂² without κ (the excitation rule's thresholds are
+set on the white-noise figure: whether the manoeuvres separate the unknowns, not how
+precisely this log's residuals let them be known).
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -41,6 +46,7 @@ from calib.excitation import (
     judge,
     window_stats,
 )
+from calib.metrics import correlation_factor
 from calib.models import CURRENT, FloatArray, Layout, ModelName, Params, check_model
 
 _A, _M, _B, _CN, _CE, _D = range(6)
@@ -63,6 +69,9 @@ class LsFit:
         rmse_mps: RMS of the fit residuals ``raw − f_θ(u)``, m/s (weighted RMS with weights).
         n_samples: number of samples N.
         ident: the verdict on every unknown (see :mod:`calib.excitation`).
+        correlation: samples per independent sample of the residuals
+            (:func:`calib.metrics.correlation_factor`); the standard errors are those
+            of ``n_samples / correlation`` independent samples.
     """
 
     layout: Layout
@@ -73,6 +82,7 @@ class LsFit:
     rmse_mps: float
     n_samples: int
     ident: Identifiability
+    correlation: float = 1.0
 
     @property
     def model(self) -> ModelName:
@@ -248,11 +258,12 @@ def fit_ls(
         free.append(_D)
     x, rss, info = _solve(problem, x0, free)
     dof = max(n - len(free), 1)
+    factor = correlation_factor(problem.residual_jacobian(x)[0])
     sigma2 = rss / (w_mean * dof)
     std = np.full(6, math.nan)
     if free and n > len(free):
         try:
-            cov = sigma2 * w_mean * np.linalg.inv(info)
+            cov = factor * sigma2 * w_mean * np.linalg.inv(info)
             std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
         except np.linalg.LinAlgError:
             std[free] = math.inf
@@ -277,6 +288,7 @@ def fit_ls(
         rmse_mps=math.sqrt(rss / (w_mean * n)),
         n_samples=n,
         ident=ident,
+        correlation=factor,
     )
 
 

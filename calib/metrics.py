@@ -2,6 +2,15 @@
 
 - RMSE of reference minus corrected speed (eq. (28)) and the improvement over raw,
   ``100·(1 − RMSE_cal/RMSE_raw)`` %, as in the paper's Tables II and III;
+- the RMSE in the water frame (:func:`water_rmse`): the reference minus the current
+  *of each sample's time* projected on the hull, against the raw or corrected
+  reading — the one definition ``calibrate``, ``evaluate``, ``crossval`` and the trace
+  use (a current taken at its final value over a whole log would score the raw reading
+  against a current it never saw);
+- the correlation of residuals (:func:`correlation_factor`): how many times fewer
+  independent samples a series holds than samples, for standard errors that do not
+  take correlated residuals (GNSS errors over seconds, a sailing log's tack-dependent
+  error over minutes) for independent ones;
 - NIS statistics (eqs. (29)–(31)): for a consistent filter with a scalar
   measurement each NISₖ is χ²(1), so its mean is 1 and 95 % of the samples fall
   inside the two-sided 95 % χ²(1) bounds [0.00098, 5.024]. The filter is declared
@@ -22,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
+from calib.models import FloatArray
 
 
 def rmse(ref_mps: npt.ArrayLike, est_mps: npt.ArrayLike) -> float:
@@ -46,6 +56,100 @@ def rmse(ref_mps: npt.ArrayLike, est_mps: npt.ArrayLike) -> float:
     if d.size == 0:
         raise DataError("no finite sample pair for the RMSE")
     return math.sqrt(float(np.dot(d, d)) / d.size)
+
+
+def water_target(
+    ref_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    current_mps: npt.ArrayLike | None,
+) -> FloatArray:
+    """The speed through the water along the hull the reference implies, m/s.
+
+    ``ref − c_N·cos ψ − c_E·sin ψ`` with the current of each sample's time.
+
+    Args:
+        ref_mps: reference speeds along the hull (over the ground), m/s, shape (N,).
+        heading_deg: headings, degrees, shape (N,) (None: no current).
+        current_mps: the current (north, east) per sample, shape (N, 2), or one
+            (north, east) pair for every sample; None: no current (the reference as is).
+            A nan current (not determined at that time) leaves that sample's reference
+            as it is.
+
+    Raises:
+        DataError: shapes that do not match.
+    """
+    ref = np.asarray(ref_mps, dtype=np.float64).reshape(-1)
+    if current_mps is None or heading_deg is None:
+        return ref.copy()
+    hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+    cur = np.asarray(current_mps, dtype=np.float64)
+    if cur.shape == (2,):
+        cur = np.broadcast_to(cur, (ref.size, 2))
+    if hd.shape != ref.shape or cur.shape != (ref.size, 2):
+        raise DataError(
+            f"reference {ref.shape}, heading {hd.shape} and current {cur.shape} do not match"
+        )
+    psi = np.radians(hd)
+    proj = cur[:, 0] * np.cos(psi) + cur[:, 1] * np.sin(psi)
+    return np.asarray(np.where(np.isfinite(proj), ref - proj, ref), dtype=np.float64)
+
+
+def water_rmse(
+    ref_mps: npt.ArrayLike,
+    est_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None = None,
+    current_mps: npt.ArrayLike | None = None,
+) -> float:
+    """RMSE of a reading (raw or corrected) against the water speed of :func:`water_target`.
+
+    Args:
+        ref_mps: reference speeds along the hull, m/s, shape (N,).
+        est_mps: the raw or corrected readings, m/s, shape (N,).
+        heading_deg: headings, degrees (None: no current).
+        current_mps: per-sample (N, 2) or one (north, east) current, m/s; None: none.
+
+    Raises:
+        DataError: shapes that differ, or no finite pair.
+    """
+    return rmse(water_target(ref_mps, heading_deg, current_mps), est_mps)
+
+
+MAX_CORRELATION_FACTOR = 100.0
+"""The largest :func:`correlation_factor` (a series with fewer than 1 % of its samples
+independent says nothing more precise than that)."""
+
+
+def correlation_factor(residuals: npt.ArrayLike) -> float:
+    """How many samples of a series make one independent sample: ``N / N_eff``.
+
+    ``1 + 2·Σ ρₖ`` over the lags k ≥ 1 of the residuals' autocorrelation, summed
+    while it stays positive (Geyer's initial positive sequence) and up to N/4 lags:
+    the variance of a mean, or of a least-squares estimate, of residuals correlated
+    this way is this many times what independent residuals would give. 1 for white
+    residuals; at least 1, at most :data:`MAX_CORRELATION_FACTOR`. Nan entries are
+    dropped; fewer than 8 finite samples: 1 (too few to tell).
+
+    Args:
+        residuals: the residuals in time order, shape (N,).
+    """
+    r = np.asarray(residuals, dtype=np.float64).reshape(-1)
+    r = r[np.isfinite(r)]
+    n = r.size
+    if n < 8:
+        return 1.0
+    r = r - float(np.mean(r))
+    var = float(np.dot(r, r))
+    if var <= 0.0:
+        return 1.0
+    m = 1 << (2 * n - 1).bit_length()
+    f = np.fft.rfft(r, m)
+    acf = np.fft.irfft(f * np.conj(f), m)[: n // 4 + 1] / var
+    total = 1.0
+    for rho in acf[1:]:
+        if not rho > 0.0:
+            break
+        total += 2.0 * float(rho)
+    return float(min(max(total, 1.0), MAX_CORRELATION_FACTOR))
 
 
 def improvement_pct(rmse_raw_mps: float, rmse_cal_mps: float) -> float:

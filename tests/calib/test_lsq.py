@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -265,3 +267,20 @@ class TestBlockAverage:
             block_average([0.0, 1.0], [1.0, 1.0], [1.0, 2.0], None, 0.0)
         with pytest.raises(DataError):
             block_average([1.0, 0.0], [1.0, 1.0], [1.0, 2.0], None, 10.0)
+
+
+def test_stderr_counts_correlated_residuals_as_fewer_samples() -> None:
+    """AR(1) residuals (ρ 0.9) inflate the standard errors by about √19 over white ones."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    ref = 2.0 + np.sin(np.arange(n) / 40.0)
+    white = 0.05 * rng.standard_normal(n)
+    ar = np.zeros(n)
+    for k in range(1, n):
+        ar[k] = 0.9 * ar[k - 1] + math.sqrt(1 - 0.81) * 0.05 * rng.standard_normal()
+    fw = fit_ls("EM3", ref, 1.05 * ref + 0.1 + white)
+    fa = fit_ls("EM3", ref, 1.05 * ref + 0.1 + ar)
+    assert fw.correlation < 1.3
+    assert fa.correlation > 8.0
+    assert fa.stderr["m"] is not None and fw.stderr["m"] is not None
+    assert fa.stderr["m"] > 3.0 * fw.stderr["m"]

@@ -8,7 +8,16 @@ import numpy as np
 import pytest
 
 from calib.errors import DataError
-from calib.metrics import chi2_1_quantile, chi2_mean_bounds, improvement_pct, nis_stats, rmse
+from calib.metrics import (
+    chi2_1_quantile,
+    chi2_mean_bounds,
+    correlation_factor,
+    improvement_pct,
+    nis_stats,
+    rmse,
+    water_rmse,
+    water_target,
+)
 
 
 class TestRmse:
@@ -75,3 +84,37 @@ class TestNis:
             nis_stats([np.nan])
         with pytest.raises(DataError):
             nis_stats([1.0], confidence=1.5)
+
+
+class TestWaterFrameAndCorrelation:
+    """One water-frame RMSE and the residuals' correlation factor."""
+
+    def test_water_rmse_uses_each_samples_current(self) -> None:
+        """A current that turns is taken off sample by sample; its final value would not do."""
+        n = 200
+        hd = np.zeros(n)
+        cur = np.column_stack([np.linspace(0.0, 1.0, n), np.zeros(n)])
+        water = np.full(n, 3.0)
+        ref = water + cur[:, 0]
+        assert water_rmse(ref, water, hd, cur) == pytest.approx(0.0, abs=1e-12)
+        assert water_rmse(ref, water, hd, cur[-1]) > 0.5
+        assert water_rmse(ref, water) == pytest.approx(rmse(ref, water))
+
+    def test_water_target_leaves_undetermined_samples(self) -> None:
+        """A nan current (not determined then) leaves that sample's reference as it is."""
+        cur = np.array([[0.5, 0.0], [np.nan, np.nan]])
+        out = water_target([2.0, 2.0], [0.0, 0.0], cur)
+        assert out.tolist() == [1.5, 2.0]
+        with pytest.raises(DataError):
+            water_target([2.0, 2.0], [0.0], cur)
+
+    @pytest.mark.parametrize("rho", [0.0, 0.5, 0.9])
+    def test_correlation_factor_of_ar1(self, rho: float) -> None:
+        """AR(1) residuals: (1 + ρ)/(1 − ρ) within 25 %; white: about 1."""
+        rng = np.random.default_rng(7)
+        e = np.zeros(20000)
+        for k in range(1, e.size):
+            e[k] = rho * e[k - 1] + rng.standard_normal()
+        expected = (1 + rho) / (1 - rho)
+        assert correlation_factor(e) == pytest.approx(expected, rel=0.25)
+        assert correlation_factor([1.0, 2.0]) == 1.0

@@ -42,7 +42,7 @@ class TestAgainstTheReference:
     @pytest.mark.parametrize("model", ["EM1", "EM2", "EM3", "EM4"])
     def test_matches_numpy_with_outages_and_current(self, model: str, current: bool) -> None:
         """State, covariance and NIS equal predict/update in numpy to 1e-9, outages included."""
-        cfg = KfConfig()
+        cfg = KfConfig(adaptive=False)
         t, _, raw, ref = _sim(300, 11, TRUTH[model], cfg)
         heading = np.radians(np.arange(300) * 3.0)
         kf = KfCalibrator(model, cfg, current=current, v0_mps=1.0)
@@ -136,10 +136,47 @@ class TestPaperFilters:
         """With R 100× too small the NIS test flags the filter as inconsistent."""
         cfg = KfConfig()
         t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
-        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / 100.0)
+        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / 100.0, adaptive=False)
         stats = nis_stats(run_kf("EM3", t, raw, ref, bad).nis, skip=50)
         assert not stats.consistent
         assert stats.mean > 5.0 and stats.frac_inside < 0.8
+
+    @pytest.mark.parametrize("factor", [100.0, 0.01])
+    def test_adaptive_noise_scale_restores_nis(self, factor: float) -> None:
+        """R 100× too small or too large: the adaptive filter scales it back, NIS mean 0.8–1.2."""
+        cfg = KfConfig()
+        t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
+        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / factor, r_ref_mps2=cfg.r_ref_mps2 / factor)
+        kf = KfCalibrator("EM3", bad)
+        stats = nis_stats(run_kf("EM3", t, raw, ref, calibrator=kf).nis, skip=1000)
+        assert 0.8 <= stats.mean <= 1.2
+        assert kf.noise_scale == pytest.approx(factor, rel=0.3)
+
+    def test_correlated_readings_count_as_fewer_samples(self) -> None:
+        """AR(1) reading errors (ρ 0.9): σ(m) grows toward the truth's spread, white: unchanged."""
+        rng = np.random.default_rng(3)
+        n = 3000
+        t = np.arange(n, dtype=np.float64)
+        v = 2.0 + np.sin(t / 60.0)
+        truth = TRUTH["EM3"]
+        e = np.zeros(n)
+        for k in range(1, n):
+            e[k] = 0.9 * e[k - 1] + math.sqrt(1 - 0.81) * 0.05 * rng.standard_normal()
+        raw = forward_array(truth, v) + e
+        ref = v + 0.01 * rng.standard_normal(n)
+        stds = {}
+        for adaptive in (False, True):
+            kf = KfCalibrator("EM3", KfConfig(adaptive=adaptive))
+            run_kf("EM3", t, raw, ref, calibrator=kf, history=False)
+            stds[adaptive] = kf.param_std["m"]
+            if adaptive:
+                assert kf.correlation > 5.0
+        assert stds[True] > 1.3 * stds[False]
+        white = KfCalibrator("EM3", KfConfig())
+        run_kf(
+            "EM3", t, forward_array(truth, v) + 0.05 * rng.standard_normal(n), ref, calibrator=white
+        )
+        assert white.correlation < 1.3
 
 
 class TestWaterFrame:
