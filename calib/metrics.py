@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
-from calib.models import FloatArray
+from calib.models import FloatArray, Params, zero_params
 
 
 def rmse(ref_mps: npt.ArrayLike, est_mps: npt.ArrayLike) -> float:
@@ -112,6 +112,87 @@ def water_rmse(
         DataError: shapes that differ, or no finite pair.
     """
     return rmse(water_target(ref_mps, heading_deg, current_mps), est_mps)
+
+
+CURRENT_WINDOW_S = 1800.0
+"""The window over which :func:`water_scores` takes the current as constant, s: long
+enough for the heading to cover the sectors that tell a current from a bias (a yacht
+tacks, a survey turns), short against a tide (a tidal current turns in hours)."""
+
+
+def water_scores(
+    t_s: npt.ArrayLike,
+    ref_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    corrected_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    params: Params,
+    *,
+    window_s: float = CURRENT_WINDOW_S,
+    min_heading_sectors: int = 3,
+) -> tuple[float, float]:
+    """RMSE of the raw and of the corrected reading in the water frame: the one definition.
+
+    Without headings: against the reference. With them, each reading against the
+    reference minus the current of its time, projected on the hull: the current that
+    best explains each ``window_s`` window (:func:`calib.lsq.fit_current`) for that
+    reading's own calibration — the ideal sensor for the raw reading, ``params`` for
+    the corrected one — so the raw RMSE of a series is the same whatever method
+    calibrated it, and a current that turns over hours is followed. A window whose
+    heading covers fewer than ``min_heading_sectors`` 45° sectors takes the whole
+    series' current; without one either, that window is scored against the reference.
+
+    Args:
+        t_s: sample times, s, shape (N,), non-decreasing.
+        ref_mps: reference along the hull (over the ground), m/s.
+        raw_mps: raw readings, m/s.
+        corrected_mps: the readings corrected with ``params``, m/s.
+        heading_deg: headings, degrees (None: no current).
+        params: the calibration that corrected them.
+        window_s: the window, s (> 0).
+        min_heading_sectors: sectors a window needs to determine its current.
+
+    Returns:
+        ``(rmse_raw, rmse_corrected)``, m/s.
+
+    Raises:
+        DataError: shapes that differ, or no finite pair.
+    """
+    from calib.excitation import ExcitationRule
+    from calib.lsq import fit_current  # calib.lsq imports this module
+
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    ref = np.asarray(ref_mps, dtype=np.float64).reshape(-1)
+    raw = np.asarray(raw_mps, dtype=np.float64).reshape(-1)
+    cor = np.asarray(corrected_mps, dtype=np.float64).reshape(-1)
+    if not t.shape == ref.shape == raw.shape == cor.shape:
+        raise DataError("time, reference, raw and corrected must have the same length")
+    if heading_deg is None:
+        return rmse(ref, raw), rmse(ref, cor)
+    hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+    if hd.shape != t.shape:
+        raise DataError("the heading must be as long as the speeds")
+    if not (math.isfinite(window_s) and window_s > 0.0):
+        raise DataError(f"window_s must be > 0, not {window_s!r}")
+    rule = ExcitationRule(min_heading_sectors=min_heading_sectors)
+    ok = np.isfinite(t) & np.isfinite(ref) & np.isfinite(raw) & np.isfinite(hd)
+    out = []
+    for p, est in ((zero_params(params.model), raw), (params, cor)):
+        cur = np.full((t.size, 2), math.nan)
+        good = ok & np.isfinite(est)
+        if good.any():
+            whole = fit_current(p, ref[good], raw[good], hd[good], rule=rule)
+            t0 = float(t[good][0])
+            win = np.floor((t - t0) / window_s)
+            for w in np.unique(win[good]):
+                sel = good & (win == w)
+                c = fit_current(p, ref[sel], raw[sel], hd[sel], rule=rule) or whole
+                if c is not None:
+                    cur[sel] = c
+        out.append(
+            water_rmse(ref[good], est[good], hd[good], cur[good]) if good.any() else math.nan
+        )
+    return out[0], out[1]
 
 
 MAX_CORRELATION_FACTOR = 100.0

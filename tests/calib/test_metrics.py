@@ -16,8 +16,10 @@ from calib.metrics import (
     nis_stats,
     rmse,
     water_rmse,
+    water_scores,
     water_target,
 )
+from calib.models import Params, correct_array, forward_array
 
 
 class TestRmse:
@@ -118,3 +120,24 @@ class TestWaterFrameAndCorrelation:
         expected = (1 + rho) / (1 - rho)
         assert correlation_factor(e) == pytest.approx(expected, rel=0.25)
         assert correlation_factor([1.0, 2.0]) == 1.0
+
+    def test_water_scores_follow_a_turning_current(self) -> None:
+        """A current turning over hours: the windows follow it (corrected error ≈ 0) while the
+        raw reading's score does not depend on the calibration given."""
+        n = 4 * 3600
+        t = np.arange(n, dtype=np.float64)
+        hd = (t * 2.0) % 360.0  # circling: every window determines its current
+        water = 3.0 + 0.5 * np.sin(t / 300.0)
+        c_n = np.linspace(-0.5, 0.5, n)
+        psi = np.radians(hd)
+        ref = water + c_n * np.cos(psi)
+        truth = Params("EM3", m=0.05, b_mps=0.1)
+        raw = forward_array(truth, water)
+        cor = correct_array(truth, raw)
+        r_raw, r_cal = water_scores(t, ref, raw, cor, hd, truth)
+        assert r_cal < 0.03
+        r_raw2, _ = water_scores(t, ref, raw, raw, hd, Params("EM3"))
+        assert r_raw == pytest.approx(r_raw2)
+        _, r_const = water_scores(t, ref, raw, cor, hd, truth, window_s=1e9)
+        assert r_const > 5.0 * r_cal
+        assert water_scores(t, ref, raw, cor, None, truth) == (rmse(ref, raw), rmse(ref, cor))
