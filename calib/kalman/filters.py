@@ -7,8 +7,24 @@ The paper's KF-EMx (eqs. (22)–(24), extended to EM4)::
     raw = H_k·x + η        H_k = [1, h(v_op)] = [1, 1] | [1, v] | [1, v, 1] | [1, v², v, 1]
 
 ``v`` is the speed through the water along the hull and ``h`` the design row of
-:mod:`calib.models`: the pseudo-linear operating point ``v_op`` is the reference
-speed, so the filter stays linear. Beyond the paper:
+:mod:`calib.models`: the pseudo-linear operating point ``v_op`` is a measured speed, so
+the filter stays linear. The paper takes the reference; here (``fused_operating_point``)
+it is the reference (minus the projected current) and the corrected reading weighted by
+their variances: ``v_op = w·v̂ + (1 − w)·v_raw`` with v̂ the speed state just updated
+with the reference (variance P_vv), v_raw the corrected reading and
+``w = σ²_raw/f'² / (σ²_raw/f'² + P_vv)``. Either speed alone carries its own noise into
+the regressor of a scale whose innovation holds that same noise (errors in variables):
+with the reference, the scale is pulled down by about ``σ²_ref / (var(u) + σ²_ref)`` —
+with GNSS at 0.3 m/s and a boat holding its speed within 0.3 m/s, by a half, the bias
+taking the difference. The variance-weighted speed is the one whose error is
+uncorrelated with the raw innovation ``raw − f(v̂)`` (the two terms cancel), so the
+scale is learnt without that pull whichever sensor is the noisier. That holds when v̂ is
+the reference's speed alone: the speed state re-acquired before the update (learning
+from block means, :meth:`KfCalibrator.reacquire_speed` for each block). A speed state
+with a memory of earlier samples has an error the filter's P_vv does not describe
+sample by sample, and the weighting over-corrects (a simulated DVL and EMlog at 1 Hz:
+the scale 0.4 off), so there the paper's reference operating point is kept: with a DVL
+its noise is too small to pull the scale. Beyond the paper:
 
 - **The reference is a measurement too**: ``ref = v + ε`` (H = [1, 0…]) updates the
   speed state; the reference update comes first, then the raw one. The raw
@@ -89,6 +105,18 @@ ADAPT_START = 10
 """The noise scale's first steps average over the samples so far plus this many (a
 running mean that settles in tens of samples, then a memory of ``adapt_samples``)."""
 
+SPEED_UNKNOWN_VAR_M2PS2 = 100.0
+"""The speed state's variance when nothing is known of it (σ 10 m/s: any vessel's
+speed), so that the next measurement sets it: see :meth:`KfCalibrator.reacquire_speed`."""
+
+FRESH_SPEED_VAR_M2PS2 = 0.5 * SPEED_UNKNOWN_VAR_M2PS2
+"""A speed state this uncertain before the reference update has been re-acquired: the
+update leaves it the reference's speed alone (the fused operating point's condition)."""
+
+MIN_SLOPE2 = 0.25
+"""The smallest squared slope ``f'(v)²`` the fused operating point divides the reading's
+noise by (a sensor's slope is 1 ± 0.5 inside the envelope)."""
+
 RHO_MAX = 0.95
 """The largest lag-one correlation taken: a raw update counts as at least 1/39 of a
 sample."""
@@ -108,6 +136,9 @@ class KfConfig:
         current_p0_m2ps2: initial variance of each current component, (m/s)².
         current_psd_m2ps3: spectral density of the current random walk, (m/s)²/s
             (1.7e-5: a standard deviation of 0.1 m/s per 10 minutes, tidal change).
+        fused_operating_point: the raw row's operating point is the noise-weighted
+            speed of the reference and the corrected reading (module docstring), not the
+            reference alone (the paper's).
         adaptive: scale the noises to the innovations and count correlated raw
             updates as fewer samples (the module docstring, "Honest noise").
         adapt_samples: N_λ, the memory of the noise scale and of the correlation, in
@@ -125,6 +156,7 @@ class KfConfig:
     accel_psd_m2ps3: float = 0.01
     current_p0_m2ps2: float = 0.25
     current_psd_m2ps3: float = 1.7e-5
+    fused_operating_point: bool = True
     adaptive: bool = True
     adapt_samples: float = 60.0
 
@@ -160,10 +192,6 @@ class StepResult(NamedTuple):
 
 
 _INF = math.inf
-
-SPEED_UNKNOWN_VAR_M2PS2 = 100.0
-"""The speed state's variance when nothing is known of it (σ 10 m/s: any vessel's
-speed), so that the next measurement sets it: see :meth:`KfCalibrator.reacquire_speed`."""
 
 
 class KfCalibrator:
@@ -320,6 +348,8 @@ class KfCalibrator:
         ref_gated = False
         gains = self.gains(learn) if use_ref else self.gains(False)
         v_op = math.nan
+        # the speed state knows nothing but what this reference will tell it
+        fresh = P[0][0] >= FRESH_SPEED_VAR_M2PS2
         if use_ref and ref_mps is not None:
             h_ref = [0.0] * n
             h_ref[0] = 1.0
@@ -333,6 +363,8 @@ class KfCalibrator:
                 v_op = ref_mps
                 if lay.current and heading_cs is not None:
                     v_op -= x[-2] * heading_cs[0] + x[-1] * heading_cs[1]
+                if raw_mps is not None and fresh and self.config.fused_operating_point:
+                    v_op = self._fused(raw_mps)
             else:
                 ref_gated = True
                 gains = self.gains(False)
@@ -362,6 +394,20 @@ class KfCalibrator:
         if learnt and learning and self.config.adaptive:
             self._adapt(y, s)
         return StepResult(Innovation(y, s, y * y / s), inn_ref, not applied, ref_gated, learnt)
+
+    def _fused(self, raw_mps: float) -> float:
+        """The speed through the water from the speed state (just updated with the
+        reference) and the corrected reading, weighted by their variances: the operating
+        point the raw innovation is orthogonal to."""
+        v = self._x[0]
+        v_raw = self.corrected(raw_mps)
+        if not math.isfinite(v_raw):
+            return v
+        a, m, _ = self._amb()
+        slope = 1.0 + m + 2.0 * a * v
+        var_raw = self.noise_scale * self.config.r_raw_mps2 / max(slope * slope, MIN_SLOPE2)
+        w = var_raw / (var_raw + self._P[0][0])
+        return w * v + (1.0 - w) * v_raw
 
     @property
     def correlation(self) -> float:

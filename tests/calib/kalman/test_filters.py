@@ -11,6 +11,7 @@ from calib.errors import DataError, ModelError
 from calib.kalman import KalmanModel, KfCalibrator, KfConfig, make_state, predict, run_kf, update
 from calib.metrics import nis_stats
 from calib.models import Params, design_row, forward_array
+from calib.lsq import block_average
 from calib.synth import water_frame_segment
 
 
@@ -42,7 +43,7 @@ class TestAgainstTheReference:
     @pytest.mark.parametrize("model", ["EM1", "EM2", "EM3", "EM4"])
     def test_matches_numpy_with_outages_and_current(self, model: str, current: bool) -> None:
         """State, covariance and NIS equal predict/update in numpy to 1e-9, outages included."""
-        cfg = KfConfig(adaptive=False)
+        cfg = KfConfig(adaptive=False, fused_operating_point=False)
         t, _, raw, ref = _sim(300, 11, TRUTH[model], cfg)
         heading = np.radians(np.arange(300) * 3.0)
         kf = KfCalibrator(model, cfg, current=current, v0_mps=1.0)
@@ -373,3 +374,37 @@ class TestIntegrityHooks:
             KfConfig(r_raw_mps2=0.0)
         with pytest.raises(ValueError, match="current_psd_m2ps3"):
             KfConfig(current_psd_m2ps3=-1.0)
+
+
+class TestOperatingPoint:
+    """Errors in variables: a noisy reference must not pull the scale down."""
+
+    @staticmethod
+    def _blocks(fused: bool) -> KfCalibrator:
+        truth = Params("EM3", m=0.02, b_mps=0.1)
+        rng = np.random.default_rng(4)
+        s = water_frame_segment(
+            "transit", 6 * 3600, 1.0, truth, rng, current_mps=(0.2, 0.1), sigma_ref_mps=0.3
+        )
+        a = block_average(s.t_s, s.raw_mps, s.ref_mps, s.heading_deg, 20.0)
+        cfg = KfConfig(r_ref_mps2=0.3**2, fused_operating_point=fused)
+        kf = KfCalibrator("EM3", cfg, current=True)
+        for k in range(a.t.size):
+            kf.predict(20.0)
+            kf.reacquire_speed()
+            psi = math.radians(float(a.heading_deg[k]))
+            kf.update(
+                float(a.raw[k]), float(a.ref[k]), 0.0, heading_cs=(math.cos(psi), math.sin(psi))
+            )
+        return kf
+
+    def test_block_means_of_a_noisy_reference_learn_the_true_scale(self) -> None:
+        """GNSS-like 0.3 m/s reference, a transit at nearly constant speed, 20-s block means:
+        the noise-weighted operating point finds m and b within 2σ of the truth; the
+        reference's own (the paper's) pulls m down by more than 0.07 and b up."""
+        fused = self._blocks(True)
+        std = fused.param_std
+        assert abs(fused.params.m - 0.02) < 2.0 * std["m"] + 0.005
+        assert abs(fused.params.b_mps - 0.1) < 2.0 * std["b"] + 0.01
+        paper = self._blocks(False)
+        assert paper.params.m < 0.02 - 0.07 and paper.params.b_mps > 0.25
