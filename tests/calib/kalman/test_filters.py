@@ -9,9 +9,9 @@ import pytest
 
 from calib.errors import DataError, ModelError
 from calib.kalman import KalmanModel, KfCalibrator, KfConfig, make_state, predict, run_kf, update
+from calib.lsq import block_average
 from calib.metrics import nis_stats
 from calib.models import Params, design_row, forward_array
-from calib.lsq import block_average
 from calib.synth import water_frame_segment
 
 
