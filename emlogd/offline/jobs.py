@@ -36,7 +36,7 @@ from calib.excitation import Identifiability, identifiability
 from calib.kalman import KfConfig
 from calib.lag import MAX_LAG_STD_RELAXED_S, LagEstimate, accept, combine, estimate_lag
 from calib.lsq import block_average, fit_ls
-from calib.metrics import improvement_pct, nis_stats, water_scores
+from calib.metrics import CURRENT_WINDOW_S, improvement_pct, nis_stats, water_scores
 from calib.models import FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
 from emlogd.calfile import CalibrationFileError, dumps, loads
@@ -430,9 +430,9 @@ def calibrate(
     if method == "ls":
         given = average_s if average_s is not None else settings.average_s
         window = given if given is not None else AVERAGE_S.get(settings.reference_field, 0.0)
-        fit_raw, fit_ref, fit_hd = raw, ref, hd
+        fit_t, fit_raw, fit_ref, fit_hd = t, raw, ref, hd
         if window > 0.0:
-            _, fit_raw, fit_ref, fit_heading = _block_means(pairs, settings.current, window)
+            fit_t, fit_raw, fit_ref, fit_heading = _block_means(pairs, settings.current, window)
             fit_hd = fit_heading if settings.current else None
             if fit_raw.size < 3:
                 raise OfflineError(
@@ -446,6 +446,12 @@ def calibrate(
             heading_deg=fit_hd,
             current=settings.current,
             rule=settings.rule,
+            # block means, as the filter learns from them: the correction at the
+            # variance-weighted speed (a noisy reference would pull the scale down)
+            # and a current per CURRENT_WINDOW_S (one over hours of tide would bias both)
+            noise_ratio=kf.r_ref_mps2 / kf.r_raw_mps2 if window > 0.0 else None,
+            t_s=fit_t,
+            current_block_s=CURRENT_WINDOW_S if window > 0.0 else None,
         )
         params, stderr = fit.params, dict(fit.stderr)
         cur, cur_std = fit.current_mps, fit.current_std_mps
