@@ -49,9 +49,9 @@ its noise is too small to pull the scale. Beyond the paper:
   are what the sensors promise, not what a window of data holds (block means of a
   GNSS speed, a log quantised to 0.1 kn, a yacht's leeway, a lake's current that
   does not move or a bay's that turns). A noise scale λ multiplies both R and the
-  current's random walk (the level of everything the filter does not know, in the
-  proportions configured; the speed's random walk follows the vessel and is not
-  scaled): after the k-th learnt-from raw update ``ln λ += (NIS − 1)/N``,
+  current's random walk (the level of what the filter does not know of the sea and the
+  sensors, in the proportions configured; the speed's random walk follows the vessel
+  and the parameters' is the paper's tuning, neither scaled): after the k-th learnt-from raw update ``ln λ += (NIS − 1)/N``,
   N = min(k + :data:`ADAPT_START`, N_λ) (N_λ = ``adapt_samples``; the NIS capped at :data:`ADAPT_NIS_CAP`), a stochastic
   approximation of E[NIS] = 1, λ within [:data:`NOISE_SCALE_MIN`,
   :data:`NOISE_SCALE_MAX`]. Residuals correlated from one sample to the next (GNSS
@@ -60,6 +60,12 @@ its noise is too small to pull the scale. Beyond the paper:
   (an average over N_λ samples, within [0, :data:`RHO_MAX`]) makes each raw update count
   as ``(1 − ρ)/(1 + ρ)`` of a sample (the AR(1) variance factor of a mean; the
   kernel's ``deweight``), so that P, the σ reported, says what the data determine.
+  Both adapt on updates whose speed state was re-acquired for them (learning from
+  block means: a GNSS reference), where the configured noises describe single samples
+  and not the blocks. Learning sample by sample (a DVL) keeps the configured noises:
+  there the speed state carries the samples' memory and the noises are the tuning of
+  how fast it learns (scaled to a simulated EMlog's innovations, the water-frame replay
+  of docs/REPRODUCTION.md scored 0.18–0.25 m/s against 0.108 with the configured ones).
 - **Gating**: an update whose NIS exceeds ``max_nis`` is not applied and reported
   as gated (integrity monitoring decides what a run of them means).
 - **Reference outage** (no reference, or no heading with a current): predict, then
@@ -272,7 +278,7 @@ class KfCalibrator:
     # -- the per-sample path ------------------------------------------------
 
     def predict(self, dt_s: float) -> None:
-        """Time update over ``dt_s`` seconds (Φ = I): add the process noises.
+        """Time update over ``dt_s`` seconds (Φ = I): add the process noises (the current's × λ).
 
         Raises:
             DataError: a negative or non-finite time step.
@@ -391,7 +397,7 @@ class KfCalibrator:
             self.correlation if learning else 1.0,
         )
         learnt = use_ref and not ref_gated and applied
-        if learnt and learning and self.config.adaptive:
+        if learnt and learning and fresh and self.config.adaptive:
             self._adapt(y, s)
         return StepResult(Innovation(y, s, y * y / s), inn_ref, not applied, ref_gated, learnt)
 

@@ -144,14 +144,24 @@ class TestPaperFilters:
 
     @pytest.mark.parametrize("factor", [100.0, 0.01])
     def test_adaptive_noise_scale_restores_nis(self, factor: float) -> None:
-        """R 100× too small or too large: the adaptive filter scales it back, NIS mean 0.8–1.2."""
+        """Block updates (speed re-acquired each time) with R 100× too small or too large:
+        the adaptive filter scales it back, NIS mean 0.8–1.2."""
         cfg = KfConfig()
-        t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
+        _t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
         bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / factor, r_ref_mps2=cfg.r_ref_mps2 / factor)
         kf = KfCalibrator("EM3", bad)
-        stats = nis_stats(run_kf("EM3", t, raw, ref, calibrator=kf).nis, skip=1000)
+        nis = _blocks(kf, raw, ref)
+        stats = nis_stats(np.array(nis), skip=1000)
         assert 0.8 <= stats.mean <= 1.2
         assert kf.noise_scale == pytest.approx(factor, rel=0.3)
+
+    def test_sample_by_sample_keeps_the_configured_noises(self) -> None:
+        """Learning sample by sample (a DVL), the filter is the configured one: λ stays 1."""
+        cfg = KfConfig()
+        t, _, raw, ref = _sim(2000, 15, TRUTH["EM3"], cfg)
+        kf = KfCalibrator("EM3", KfConfig(r_raw_mps2=cfg.r_raw_mps2 / 100.0))
+        run_kf("EM3", t, raw, ref, calibrator=kf, history=False)
+        assert kf.noise_scale == 1.0 and kf.correlation == 1.0
 
     def test_correlated_readings_count_as_fewer_samples(self) -> None:
         """AR(1) reading errors (ρ 0.9): σ(m) grows toward the truth's spread, white: unchanged."""
@@ -168,16 +178,30 @@ class TestPaperFilters:
         stds = {}
         for adaptive in (False, True):
             kf = KfCalibrator("EM3", KfConfig(adaptive=adaptive))
-            run_kf("EM3", t, raw, ref, calibrator=kf, history=False)
+            _blocks(kf, raw, ref)
             stds[adaptive] = kf.param_std["m"]
             if adaptive:
                 assert kf.correlation > 5.0
         assert stds[True] > 1.3 * stds[False]
         white = KfCalibrator("EM3", KfConfig())
-        run_kf(
-            "EM3", t, forward_array(truth, v) + 0.05 * rng.standard_normal(n), ref, calibrator=white
-        )
+        _blocks(white, forward_array(truth, v) + 0.05 * rng.standard_normal(n), ref)
         assert white.correlation < 1.3
+
+
+def _blocks(kf: KfCalibrator, raw: np.ndarray, ref: np.ndarray) -> list[float]:
+    """Feed each (raw, ref) pair as a block mean does: the speed re-acquired first.
+
+    Returns:
+        The NIS of each learnt raw update.
+    """
+    nis = []
+    for zr, zv in zip(raw.tolist(), ref.tolist(), strict=True):
+        kf.predict(1.0)
+        kf.reacquire_speed()
+        res = kf.update(zr, zv, 0.0)
+        if res.raw is not None and res.learnt:
+            nis.append(res.raw.nis)
+    return nis
 
 
 class TestWaterFrame:
