@@ -28,7 +28,7 @@ from calib.models import Params
 from calib.synth import water_frame_segment
 from emlogd.offline.importer import EXPEDITION, import_csv, import_nmea
 from emlogd.offline.jobs import calibrate, load_captures
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 KN = 0.514444
 VARIATION_DEG = {"leman": 1.5, "trieste": 3.0}

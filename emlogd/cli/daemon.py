@@ -98,7 +98,25 @@ def _change_text(command: str, resp: dict[str, Any]) -> str:
         return f"{names}: frozen (learning off)\n"
     if command == "learn":
         return f"{names}: learning {'on' if resp.get('learning') else 'off'}\n"
-    return f"{names}: calibration forgotten (uncalibrated until learnt again)\n"
+    reset = resp.get("reset")
+    if not isinstance(reset, dict):
+        return f"{names}: calibration forgotten (uncalibrated until learnt again)\n"
+    return "".join(f"{name}: {_reset_text(r)}\n" for name, r in reset.items())
+
+
+def _reset_text(r: Any) -> str:
+    """What a reset of one UUT cleared and kept, in a few words."""
+    cleared = r.get("cleared") if isinstance(r, dict) else None
+    kept = r.get("kept") if isinstance(r, dict) else None
+    parts = []
+    if isinstance(cleared, list) and cleared:
+        parts.append("cleared " + ", ".join(str(c) for c in cleared))
+    if isinstance(kept, dict):
+        lag = kept.get("lag_s")
+        lag_text = f"lag {lag:.3f} s" if isinstance(lag, int | float) else "lag not known yet"
+        on = "on" if kept.get("learning_enabled") else "off"
+        parts.append(f"kept {lag_text}, learning {on}")
+    return "; ".join(parts) or "calibration forgotten"
 
 
 def cmd_control(args: argparse.Namespace) -> int:

@@ -25,7 +25,7 @@ from emlogd.offline.jobs import (
     save_params,
 )
 from emlogd.offline.tables import fmt, render, table2, table3
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 if TYPE_CHECKING:
     from calib.models import Params
@@ -527,31 +527,32 @@ class _EmitCapture:
 
 def cmd_replay(args: argparse.Namespace) -> int:
     """Run the daemon's pipeline over captures; write the corrected NMEA; print a summary."""
-    import dataclasses
-
     from emlogd.config import load_config
     from emlogd.daemon.statefile import StateStore
     from emlogd.offline.replay import replay
     from emlogd.pipeline.calibration import Calibration, checker
-    from emlogd.pipeline.core import Output, Pipeline
-    from emlogd.settings import fusion_from_config, pipeline_from_config
+    from emlogd.pipeline.core import Output
+    from emlogd.settings import build_pipeline, pipeline_from_config
 
     cfg = load_config(args.config)
-    ports, uuts = pipeline_from_config(cfg)
+    _, uuts = pipeline_from_config(cfg)
     truth = _truth(args, [u.port for u in uuts])
-    if args.learn is not None:
-        uuts = [dataclasses.replace(u, learn=args.learn) for u in uuts]
     store = StateStore(args.state) if args.state else None
     cals: dict[str, Calibration] = {}
+    others: list[Calibration] = []
     if store is not None:
-        cals, report = store.load(check=checker(uuts))
+        cals, others, report = store.load_state(check=checker(uuts))
         for line in report:
             sys.stderr.write(f"emlogd replay: {line}\n")
-    pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
+    pipeline = build_pipeline(cfg, cals, others, learn=args.learn)
 
     def persist(_: Output) -> None:
         if store is not None:
-            store.save({c.uut: c for c in pipeline.calibrations()})
+            aside = store.save(
+                {c.uut: c for c in pipeline.calibrations()}, pipeline.other_calibrations()
+            )
+            if aside is not None:
+                sys.stderr.write(f"emlogd replay: the refused state file is kept as {aside}\n")
 
     to_stdout = args.out is None and not args.json
     as_capture = bool(args.out) and args.out.endswith((".cap", ".cap.gz"))

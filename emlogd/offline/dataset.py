@@ -29,7 +29,8 @@ from calib.models import FloatArray
 from drivers.io.capture import CaptureReader
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
-from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -180,16 +181,13 @@ def record_capture(
     col = _Collector()
     cal.recorder = col
     cal.record_only = True
-    out = Output()
     size = max(Path(path).stat().st_size, 1)
     t_first = t_last = math.nan
     for n, (t, port, data, line) in enumerate(reader.received()):
         if n == 0:
             t_first = t
         t_last = t
-        pipeline.feed(t, port, data, out)
-        out.emits.clear()
-        out.events.clear()
+        pipeline.feed(t, port, data)
         if progress is not None and n % 50_000 == 0:
             progress(f"reading {Path(path).name}", min(line * 60 / size, 1.0))
     pipeline.flush()

@@ -1,7 +1,7 @@
 """Offline calibration on captures: calibrate, evaluate, cross-validate.
 
 A job names one UUT and its reference with the daemon's own settings
-(:class:`~emlogd.pipeline.core.UutSettings`: model, reference port and field,
+(:class:`~emlogd.pipeline.settings.UutSettings`: model, reference port and field,
 current states, heading source...), reads the captures as the daemon would
 (:mod:`emlogd.offline.dataset`), finds the lag with :mod:`calib.lag`'s one rule, and
 fits:
@@ -50,7 +50,7 @@ from emlogd.offline.dataset import (
 )
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import AVERAGE_S, UutCalibration
 
 Method = Literal["ls", "kf"]

@@ -143,7 +143,6 @@ def replay(
     t_last = 0.0
     pace0: tuple[float, float] | None = None
     t_tick = -float("inf")
-    out = Output()  # reused: delivered, then cleared, after every record
     for path in paths:
         reader = CaptureReader(path, errors="raise" if strict else "skip")
         size = max(Path(path).stat().st_size, 1)
@@ -160,17 +159,16 @@ def replay(
                 wait = due - monotonic()
                 if wait > 0.0:
                     sleep(wait)
-            pipeline.feed(t, port, data, out)
-            if t - t_tick >= TICK_S:
-                t_tick = t
-                pipeline.tick(t, out)
+            out = pipeline.feed(t, port, data)
             if out.emits or out.events or out.persist:
                 if scorer is not None:
                     scorer.emitted(out.emits)
                 _deliver(out, result, sink, on_persist, on_event, on_emit)
-                out.emits.clear()
-                out.events.clear()
-                out.persist.clear()
+            if t - t_tick >= TICK_S:
+                t_tick = t
+                out = pipeline.tick(t)
+                if out.events or out.persist:
+                    _deliver(out, result, sink, on_persist, on_event, on_emit)
             result.records += 1
             t_last = t
             if progress is not None and result.records % 20_000 == 0:

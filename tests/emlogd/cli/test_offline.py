@@ -9,7 +9,7 @@ import pytest
 
 from emlogd.cli import build_parser, main
 from emlogd.cli.offline import _settings
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 
 def test_calibrate_evaluate_crossval(

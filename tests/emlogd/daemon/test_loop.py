@@ -341,11 +341,11 @@ class _SpyPipeline:
         self.decoders = {"emlog1": None, "dvl": None}
         self.calls: list[tuple[float, str, bytes]] = []
 
-    def feed(self, t: float, port: str, data: bytes, out: object = None) -> object:
+    def feed(self, t: float, port: str, data: bytes) -> object:
         from emlogd.pipeline.core import Output
 
         self.calls.append((t, port, data))
-        return out if out is not None else Output()
+        return Output()
 
 
 def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(

@@ -289,7 +289,7 @@ class TestRealLogs:
         few percent (the instrument was calibrated), the current a few cm/s, and the
         corrected speed is better than raw."""
         from emlogd.offline.jobs import calibrate, load_captures
-        from emlogd.pipeline.core import UutSettings
+        from emlogd.pipeline.settings import UutSettings
 
         cap = tmp_path / "v.cap.gz"
         import_csv(REAL / "expedition-valencia.csv", cap, dict(EXPEDITION))
@@ -305,7 +305,7 @@ class TestRealLogs:
         within 3 % and a corrected speed no worse than raw — the noisy GNSS reference
         does not shrink the scale (a per-sample fit says −8 %)."""
         from emlogd.offline.jobs import calibrate, load_captures
-        from emlogd.pipeline.core import UutSettings
+        from emlogd.pipeline.settings import UutSettings
 
         cap = tmp_path / "i.cap.gz"
         import_nmea([REAL / "irene-2014-06-27-leman.nmea"], cap)
