@@ -19,9 +19,10 @@ Evaluation applies the inverse model
 In the water frame (``current=True``, segments carrying headings) the estimators also
 estimate the sea current. The current is the sea's, not the sensor's: a frozen
 calibration is scored on a test segment against the reference minus the current
-that segment shows (:func:`calib.lsq.fit_current`, fitted for the raw reading and
-for the corrected one alike); where the test segment's heading covers too few
-sectors to tell the current from a bias, against the reference itself.
+that segment shows (:func:`calib.metrics.water_scores`, the definition every command
+uses: the current of each window, fitted for the raw reading and for the corrected one
+alike); where the test segment's heading covers too few sectors to tell the current
+from a bias, against the reference itself.
 
 Per training segment, :meth:`CrossValResult.overall` pools the test segments
 sample-weighted (the RMSE over their concatenation), excluding the training
@@ -47,8 +48,8 @@ import numpy.typing as npt
 
 from calib.errors import DataError, ModelError
 from calib.kalman import KfConfig, run_kf
-from calib.lsq import fit_current, fit_ls
-from calib.metrics import improvement_pct
+from calib.lsq import fit_ls
+from calib.metrics import improvement_pct, water_scores
 from calib.models import (
     CURRENT,
     FloatArray,
@@ -56,7 +57,6 @@ from calib.models import (
     Params,
     check_model,
     correct_array,
-    zero_params,
 )
 
 EstimatorName = Literal[
@@ -440,18 +440,6 @@ def train(
     )
 
 
-def _projected(params: Params, seg: _Arrays, ok: npt.NDArray[np.bool_]) -> FloatArray:
-    """The current the segment shows for ``params``, projected on the hull (0 if unknown)."""
-    if seg.heading is None:
-        return np.zeros(int(np.count_nonzero(ok)))
-    hd = seg.heading[ok]
-    cur = fit_current(params, seg.ref[ok], seg.raw[ok], hd)
-    if cur is None:
-        return np.zeros(hd.size)
-    rad = np.radians(hd)
-    return np.asarray(cur[0] * np.cos(rad) + cur[1] * np.sin(rad), dtype=np.float64)
-
-
 def evaluate(trained: TrainedEstimator, seg: _Arrays, *, current: bool = False) -> Evaluation:
     """Apply frozen parameters to a validated segment.
 
@@ -469,15 +457,10 @@ def evaluate(trained: TrainedEstimator, seg: _Arrays, *, current: bool = False) 
     if n == 0:
         r_raw = r_cal = math.nan
     else:
-        ref = seg.ref[ok]
-        c_raw = c_cal = np.zeros(n)
-        if current:
-            c_raw = _projected(zero_params(trained.params.model), seg, ok)
-            c_cal = _projected(trained.params, seg, ok)
-        d_raw = ref - c_raw - seg.raw[ok]
-        d_cal = ref - c_cal - cal[ok]
-        r_raw = math.sqrt(float(np.dot(d_raw, d_raw)) / n)
-        r_cal = math.sqrt(float(np.dot(d_cal, d_cal)) / n)
+        hd = seg.heading[ok] if current and seg.heading is not None else None
+        r_raw, r_cal = water_scores(
+            seg.t[ok], seg.ref[ok], seg.raw[ok], cal[ok], hd, trained.params
+        )
     return Evaluation(
         estimator=trained.estimator,
         train=trained.train,

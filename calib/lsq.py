@@ -18,7 +18,12 @@ window does not determine is held at its prior (the given prior parameters, else
 the ideal sensor; zero current) and reported as unidentifiable. When the current is
 not separable from the bias a nuisance offset takes their sum, so a scale can still
 be learnt from speed changes. Standard errors are ``√diag(σ̂²·(JᵀWJ)⁻¹)`` over the
-estimated unknowns with ``σ̂² = Σwₖrₖ² / (Σwₖ/N̄·(N − p))``.
+estimated unknowns with ``σ̂² = κ·Σwₖrₖ² / (Σwₖ/N̄·(N − p))``, where κ is the residuals'
+correlation factor (:func:`calib.metrics.correlation_factor`, 1 for white residuals):
+residuals correlated over seconds or minutes hold κ times fewer independent samples.
+The identifiability verdicts use σ̂² without κ (the excitation rule's thresholds are
+set on the white-noise figure: whether the manoeuvres separate the unknowns, not how
+precisely this log's residuals let them be known).
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -41,6 +46,7 @@ from calib.excitation import (
     judge,
     window_stats,
 )
+from calib.metrics import correlation_factor
 from calib.models import CURRENT, FloatArray, Layout, ModelName, Params, check_model
 
 _A, _M, _B, _CN, _CE, _D = range(6)
@@ -63,6 +69,11 @@ class LsFit:
         rmse_mps: RMS of the fit residuals ``raw − f_θ(u)``, m/s (weighted RMS with weights).
         n_samples: number of samples N.
         ident: the verdict on every unknown (see :mod:`calib.excitation`).
+        correlation: samples per independent sample of the residuals
+            (:func:`calib.metrics.correlation_factor`); the standard errors are those
+            of ``n_samples / correlation`` independent samples.
+        current_blocks: with ``current_block_s``, each block's (start time s, north,
+            east) current, m/s (empty: one current throughout).
     """
 
     layout: Layout
@@ -73,6 +84,8 @@ class LsFit:
     rmse_mps: float
     n_samples: int
     ident: Identifiability
+    correlation: float = 1.0
+    current_blocks: tuple[tuple[float, float, float], ...] = ()
 
     @property
     def model(self) -> ModelName:
@@ -134,21 +147,61 @@ class _Problem:
         cos_h: FloatArray,
         sin_h: FloatArray,
         sqrt_w: FloatArray | None,
+        block: npt.NDArray[np.int64] | None = None,
+        w_ref: float = 1.0,
     ) -> None:
         self.ref, self.raw, self.cos_h, self.sin_h, self.sqrt_w = ref, raw, cos_h, sin_h, sqrt_w
+        self.w_ref = w_ref
+        """The reference's weight in the operating point (1: the paper's, :func:`fit_ls`)."""
+        self.block = block
+        """Each sample's current block (0 … K−1), or None: one current throughout."""
+        self.n_blocks = 1 if block is None or block.size == 0 else int(block.max()) + 1
+
+    def current_at(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The current (north, east) at each sample: block 0's plus its block's offset."""
+        cn = np.full(self.ref.size, x[_CN])
+        ce = np.full(self.ref.size, x[_CE])
+        if self.block is not None and self.n_blocks > 1:
+            dn = np.concatenate([[0.0], x[_D + 1 :: 2]])
+            de = np.concatenate([[0.0], x[_D + 2 :: 2]])
+            cn = cn + dn[self.block]
+            ce = ce + de[self.block]
+        return cn, ce
 
     def u(self, x: FloatArray) -> FloatArray:
         """Speed through the water at the unknowns ``x``."""
-        return np.asarray(self.ref - x[_CN] * self.cos_h - x[_CE] * self.sin_h, dtype=np.float64)
+        cn, ce = self.current_at(x)
+        return np.asarray(self.ref - cn * self.cos_h - ce * self.sin_h, dtype=np.float64)
+
+    def operating_point(self, x: FloatArray, u: FloatArray) -> FloatArray:
+        """Where the correction ``a·v² + m·v + b`` is evaluated: ``u`` itself (``w_ref``
+        1), else ``w_ref·u + (1 − w_ref)·`` the readings corrected at ``x``."""
+        if self.w_ref >= 1.0:
+            return u
+        a, slope, off = x[_A], 1.0 + x[_M], self.raw - x[_B] - x[_D]
+        if abs(a) < 1e-12:
+            corr = off / slope
+        else:
+            disc = np.maximum(slope * slope + 4.0 * a * off, 0.0)
+            corr = 2.0 * off / (slope + np.sqrt(disc))
+        return np.asarray(
+            np.where(np.isfinite(corr), self.w_ref * u + (1.0 - self.w_ref) * corr, u),
+            dtype=np.float64,
+        )
 
     def residual_jacobian(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         u = self.u(x)
-        pred = (x[_A] * u + 1.0 + x[_M]) * u + x[_B] + x[_D]
+        v = self.operating_point(x, u)
+        pred = u + (x[_A] * v + x[_M]) * v + x[_B] + x[_D]
         r = self.raw - pred
-        slope = 2.0 * x[_A] * u + 1.0 + x[_M]
-        J = np.column_stack(
-            (u * u, u, np.ones_like(u), -slope * self.cos_h, -slope * self.sin_h, np.ones_like(u))
-        )
+        slope = 1.0 + self.w_ref * (2.0 * x[_A] * v + x[_M])
+        cols = [v * v, v, np.ones_like(u), -slope * self.cos_h, -slope * self.sin_h]
+        cols.append(np.ones_like(u))
+        if self.block is not None:
+            for j in range(1, self.n_blocks):
+                inside = self.block == j
+                cols += [np.where(inside, cols[_CN], 0.0), np.where(inside, cols[_CE], 0.0)]
+        J = np.column_stack(cols)
         if self.sqrt_w is not None:
             r = r * self.sqrt_w
             J = J * self.sqrt_w[:, None]
@@ -184,6 +237,9 @@ def fit_ls(
     current: bool = False,
     prior: Params | None = None,
     rule: ExcitationRule = DEFAULT_RULE,
+    t_s: npt.ArrayLike | None = None,
+    current_block_s: float | None = None,
+    noise_ratio: float | None = None,
 ) -> LsFit:
     """LS-EMx: fit one error model (and the current) to aligned series.
 
@@ -199,9 +255,25 @@ def fit_ls(
         prior: value of any parameter the data do not determine (default the ideal
             sensor).
         rule: identifiability thresholds.
+        t_s: sample times, s, shape (N,), non-decreasing (needed with ``current_block_s``).
+        current_block_s: with ``current``, a current of its own for each block of this
+            many seconds (None: one current throughout). A current that turns with the
+            tide over hours, fitted as one, leaves its change to the scale and the bias;
+            piecewise, each block's current comes from that block's headings. A block
+            whose heading covers fewer than ``rule.min_heading_sectors`` sectors cannot
+            tell its current from the bias: it joins the block before it (the first
+            block, the one after).
+
+        noise_ratio: the reference's noise variance over the reading's, σ²_ref/σ²_raw
+            (None: the paper's fit, the correction evaluated at the reference's speed).
+            Given, the correction is evaluated at the variance-weighted speed
+            ``v = w·u + (1 − w)·f⁻¹(raw)``, ``w = 1/(1 + noise_ratio·f'²)``, as the
+            Kalman filter does with block means (:mod:`calib.kalman.filters`): the
+            reference's noise no longer pulls the scale down (errors in variables).
 
     Returns:
-        The fit; never raises on poor excitation (see ``ident``).
+        The fit; never raises on poor excitation (see ``ident``). With blocks,
+        ``current_mps`` is their sample-weighted mean and ``current_blocks`` each one.
 
     Raises:
         ModelError: unknown model, prior of another model.
@@ -222,11 +294,23 @@ def fit_ls(
     if prior is not None and prior.model != name:
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
     psi = np.radians(hd) if hd is not None else np.zeros(n)
-    problem = _Problem(ref, raw, np.cos(psi), np.sin(psi), None if w is None else np.sqrt(w))
-    x0 = np.zeros(6)
+    block = None
+    if current and current_block_s is not None and hd is not None:
+        block = current_blocks(t_s, hd, current_block_s, rule.min_heading_sectors)
+    w_ref = 1.0
+    if noise_ratio is not None:
+        if not (math.isfinite(noise_ratio) and noise_ratio >= 0.0):
+            raise DataError(f"noise_ratio must be finite and non-negative, not {noise_ratio!r}")
+        slope0 = 1.0 + (prior.m if prior is not None else 0.0)
+        w_ref = 1.0 / (1.0 + noise_ratio * slope0 * slope0)
+    problem = _Problem(
+        ref, raw, np.cos(psi), np.sin(psi), None if w is None else np.sqrt(w), block, w_ref
+    )
+    k = problem.n_blocks
+    x0 = np.zeros(6 + 2 * (k - 1))
     if prior is not None:
         x0[_A], x0[_M], x0[_B] = prior.a_spm, prior.m, prior.b_mps
-    index = {"a": [_A], "m": [_M], "b": [_B], CURRENT: [_CN, _CE]}
+    index = {"a": [_A], "m": [_M], "b": [_B], CURRENT: [_CN, _CE, *range(_D + 1, x0.size)]}
     w_mean = 1.0 if w is None else float(np.sum(w)) / n
     ident = judge(layout, window_stats(ref, raw, hd, w), 0.0, rule)
     x, rss, info = x0, math.nan, np.zeros((0, 0))
@@ -248,12 +332,15 @@ def fit_ls(
         free.append(_D)
     x, rss, info = _solve(problem, x0, free)
     dof = max(n - len(free), 1)
+    factor = correlation_factor(problem.residual_jacobian(x)[0])
     sigma2 = rss / (w_mean * dof)
-    std = np.full(6, math.nan)
+    std = np.full(x0.size, math.nan)
+    cov_full = np.full((x0.size, x0.size), math.nan)
     if free and n > len(free):
         try:
-            cov = sigma2 * w_mean * np.linalg.inv(info)
+            cov = factor * sigma2 * w_mean * np.linalg.inv(info)
             std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+            cov_full[np.ix_(free, free)] = cov
         except np.linalg.LinAlgError:
             std[free] = math.inf
     params = Params.from_theta(
@@ -265,9 +352,23 @@ def fit_ls(
         for p in layout.params
     }
     cur = cur_std = None
+    blocks: tuple[tuple[float, float, float], ...] = ()
     if current and CURRENT in determined:
         cur = (float(x[_CN]), float(x[_CE]))
         cur_std = (float(std[_CN]), float(std[_CE]))
+        if k > 1 and block is not None:
+            cn, ce = problem.current_at(x)
+            share = np.bincount(block, minlength=k) / n
+            g = np.zeros((2, x0.size))
+            g[0, _CN] = g[1, _CE] = 1.0
+            g[0, _D + 1 :: 2] = share[1:]
+            g[1, _D + 2 :: 2] = share[1:]
+            var = np.einsum("ij,jk,ik->i", g, np.nan_to_num(cov_full, nan=0.0), g)
+            cur = (float(np.mean(cn)), float(np.mean(ce)))
+            cur_std = (math.sqrt(max(var[0], 0.0)), math.sqrt(max(var[1], 0.0)))
+            t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+            first = np.flatnonzero(np.concatenate([[True], block[1:] != block[:-1]]))
+            blocks = tuple((float(t[i]), float(cn[i]), float(ce[i])) for i in first)
     return LsFit(
         layout=layout,
         params=params,
@@ -277,7 +378,58 @@ def fit_ls(
         rmse_mps=math.sqrt(rss / (w_mean * n)),
         n_samples=n,
         ident=ident,
+        correlation=factor,
+        current_blocks=blocks,
     )
+
+
+def current_blocks(
+    t_s: npt.ArrayLike | None,
+    heading_deg: FloatArray,
+    block_s: float,
+    min_sectors: int,
+) -> npt.NDArray[np.int64]:
+    """Each sample's current block for :func:`fit_ls` (0 … K−1, in time order).
+
+    Blocks of ``block_s`` from the first sample; one whose heading covers fewer than
+    ``min_sectors`` 45° sectors joins the block before it (the first, the one after).
+
+    Raises:
+        DataError: no times, times of another length or decreasing, a bad block length.
+    """
+    if t_s is None:
+        raise DataError("a current per block needs the sample times")
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    if t.shape != heading_deg.shape or not np.all(np.isfinite(t)):
+        raise DataError("times must be finite and as long as the speeds")
+    if t.size > 1 and not np.all(np.diff(t) >= 0.0):
+        raise DataError("times must not decrease")
+    if not (math.isfinite(block_s) and block_s > 0.0):
+        raise DataError(f"current_block_s must be > 0, not {block_s!r}")
+    if t.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    raw_id = np.floor((t - t[0]) / block_s).astype(np.int64)
+    ids = np.unique(raw_id)
+    good = [heading_sectors(heading_deg[raw_id == i]) >= min_sectors for i in ids]
+    merged: dict[int, int] = {}
+    last_good: int | None = None
+    pending: list[int] = []
+    for i, ok in zip(ids.tolist(), good, strict=True):
+        if ok:
+            last_good = i
+            merged[i] = i
+            for p in pending:
+                merged[p] = i
+            pending = []
+        elif last_good is None:
+            pending.append(i)
+        else:
+            merged[i] = last_good
+    for p in pending:  # no block determines a current: one current throughout
+        merged[p] = int(ids[0])
+    target = np.array([merged[i] for i in raw_id.tolist()], dtype=np.int64)
+    _, dense = np.unique(target, return_inverse=True)
+    return np.asarray(dense.reshape(-1), dtype=np.int64)
 
 
 def fit_current(

@@ -2,6 +2,15 @@
 
 - RMSE of reference minus corrected speed (eq. (28)) and the improvement over raw,
   ``100·(1 − RMSE_cal/RMSE_raw)`` %, as in the paper's Tables II and III;
+- the RMSE in the water frame (:func:`water_rmse`): the reference minus the current
+  *of each sample's time* projected on the hull, against the raw or corrected
+  reading — the one definition ``calibrate``, ``evaluate``, ``crossval`` and the trace
+  use (a current taken at its final value over a whole log would score the raw reading
+  against a current it never saw);
+- the correlation of residuals (:func:`correlation_factor`): how many times fewer
+  independent samples a series holds than samples, for standard errors that do not
+  take correlated residuals (GNSS errors over seconds, a sailing log's tack-dependent
+  error over minutes) for independent ones;
 - NIS statistics (eqs. (29)–(31)): for a consistent filter with a scalar
   measurement each NISₖ is χ²(1), so its mean is 1 and 95 % of the samples fall
   inside the two-sided 95 % χ²(1) bounds [0.00098, 5.024]. The filter is declared
@@ -22,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
+from calib.models import FloatArray, Params, zero_params
 
 
 def rmse(ref_mps: npt.ArrayLike, est_mps: npt.ArrayLike) -> float:
@@ -46,6 +56,181 @@ def rmse(ref_mps: npt.ArrayLike, est_mps: npt.ArrayLike) -> float:
     if d.size == 0:
         raise DataError("no finite sample pair for the RMSE")
     return math.sqrt(float(np.dot(d, d)) / d.size)
+
+
+def water_target(
+    ref_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    current_mps: npt.ArrayLike | None,
+) -> FloatArray:
+    """The speed through the water along the hull the reference implies, m/s.
+
+    ``ref − c_N·cos ψ − c_E·sin ψ`` with the current of each sample's time.
+
+    Args:
+        ref_mps: reference speeds along the hull (over the ground), m/s, shape (N,).
+        heading_deg: headings, degrees, shape (N,) (None: no current).
+        current_mps: the current (north, east) per sample, shape (N, 2), or one
+            (north, east) pair for every sample; None: no current (the reference as is).
+            A nan current (not determined at that time) leaves that sample's reference
+            as it is.
+
+    Raises:
+        DataError: shapes that do not match.
+    """
+    ref = np.asarray(ref_mps, dtype=np.float64).reshape(-1)
+    if current_mps is None or heading_deg is None:
+        return ref.copy()
+    hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+    cur = np.asarray(current_mps, dtype=np.float64)
+    if cur.shape == (2,):
+        cur = np.broadcast_to(cur, (ref.size, 2))
+    if hd.shape != ref.shape or cur.shape != (ref.size, 2):
+        raise DataError(
+            f"reference {ref.shape}, heading {hd.shape} and current {cur.shape} do not match"
+        )
+    psi = np.radians(hd)
+    proj = cur[:, 0] * np.cos(psi) + cur[:, 1] * np.sin(psi)
+    return np.asarray(np.where(np.isfinite(proj), ref - proj, ref), dtype=np.float64)
+
+
+def water_rmse(
+    ref_mps: npt.ArrayLike,
+    est_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None = None,
+    current_mps: npt.ArrayLike | None = None,
+) -> float:
+    """RMSE of a reading (raw or corrected) against the water speed of :func:`water_target`.
+
+    Args:
+        ref_mps: reference speeds along the hull, m/s, shape (N,).
+        est_mps: the raw or corrected readings, m/s, shape (N,).
+        heading_deg: headings, degrees (None: no current).
+        current_mps: per-sample (N, 2) or one (north, east) current, m/s; None: none.
+
+    Raises:
+        DataError: shapes that differ, or no finite pair.
+    """
+    return rmse(water_target(ref_mps, heading_deg, current_mps), est_mps)
+
+
+CURRENT_WINDOW_S = 1800.0
+"""The window over which :func:`water_scores` takes the current as constant, s: long
+enough for the heading to cover the sectors that tell a current from a bias (a yacht
+tacks, a survey turns), short against a tide (a tidal current turns in hours)."""
+
+
+def water_scores(
+    t_s: npt.ArrayLike,
+    ref_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    corrected_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    params: Params,
+    *,
+    window_s: float = CURRENT_WINDOW_S,
+    min_heading_sectors: int = 3,
+) -> tuple[float, float]:
+    """RMSE of the raw and of the corrected reading in the water frame: the one definition.
+
+    Without headings: against the reference. With them, each reading against the
+    reference minus the current of its time, projected on the hull: the current that
+    best explains each ``window_s`` window (:func:`calib.lsq.fit_current`) for that
+    reading's own calibration — the ideal sensor for the raw reading, ``params`` for
+    the corrected one — so the raw RMSE of a series is the same whatever method
+    calibrated it, and a current that turns over hours is followed. A window whose
+    heading covers fewer than ``min_heading_sectors`` 45° sectors takes the whole
+    series' current; without one either, that window is scored against the reference.
+
+    Args:
+        t_s: sample times, s, shape (N,), non-decreasing.
+        ref_mps: reference along the hull (over the ground), m/s.
+        raw_mps: raw readings, m/s.
+        corrected_mps: the readings corrected with ``params``, m/s.
+        heading_deg: headings, degrees (None: no current).
+        params: the calibration that corrected them.
+        window_s: the window, s (> 0).
+        min_heading_sectors: sectors a window needs to determine its current.
+
+    Returns:
+        ``(rmse_raw, rmse_corrected)``, m/s.
+
+    Raises:
+        DataError: shapes that differ, or no finite pair.
+    """
+    from calib.excitation import ExcitationRule
+    from calib.lsq import fit_current  # calib.lsq imports this module
+
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    ref = np.asarray(ref_mps, dtype=np.float64).reshape(-1)
+    raw = np.asarray(raw_mps, dtype=np.float64).reshape(-1)
+    cor = np.asarray(corrected_mps, dtype=np.float64).reshape(-1)
+    if not t.shape == ref.shape == raw.shape == cor.shape:
+        raise DataError("time, reference, raw and corrected must have the same length")
+    if heading_deg is None:
+        return rmse(ref, raw), rmse(ref, cor)
+    hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+    if hd.shape != t.shape:
+        raise DataError("the heading must be as long as the speeds")
+    if not (math.isfinite(window_s) and window_s > 0.0):
+        raise DataError(f"window_s must be > 0, not {window_s!r}")
+    rule = ExcitationRule(min_heading_sectors=min_heading_sectors)
+    ok = np.isfinite(t) & np.isfinite(ref) & np.isfinite(raw) & np.isfinite(hd)
+    out = []
+    for p, est in ((zero_params(params.model), raw), (params, cor)):
+        cur = np.full((t.size, 2), math.nan)
+        good = ok & np.isfinite(est)
+        if good.any():
+            whole = fit_current(p, ref[good], raw[good], hd[good], rule=rule)
+            t0 = float(t[good][0])
+            win = np.floor((t - t0) / window_s)
+            for w in np.unique(win[good]):
+                sel = good & (win == w)
+                c = fit_current(p, ref[sel], raw[sel], hd[sel], rule=rule) or whole
+                if c is not None:
+                    cur[sel] = c
+        out.append(
+            water_rmse(ref[good], est[good], hd[good], cur[good]) if good.any() else math.nan
+        )
+    return out[0], out[1]
+
+
+MAX_CORRELATION_FACTOR = 100.0
+"""The largest :func:`correlation_factor` (a series with fewer than 1 % of its samples
+independent says nothing more precise than that)."""
+
+
+def correlation_factor(residuals: npt.ArrayLike) -> float:
+    """How many samples of a series make one independent sample: ``N / N_eff``.
+
+    ``1 + 2·Σ ρₖ`` over the lags k ≥ 1 of the residuals' autocorrelation, summed
+    while it stays positive (Geyer's initial positive sequence) and up to N/4 lags:
+    the variance of a mean, or of a least-squares estimate, of residuals correlated
+    this way is this many times what independent residuals would give. 1 for white
+    residuals; at least 1, at most :data:`MAX_CORRELATION_FACTOR`. Nan entries are
+    dropped; fewer than 8 finite samples: 1 (too few to tell).
+
+    Args:
+        residuals: the residuals in time order, shape (N,).
+    """
+    r = np.asarray(residuals, dtype=np.float64).reshape(-1)
+    r = r[np.isfinite(r)]
+    n = r.size
+    if n < 8:
+        return 1.0
+    r = r - float(np.mean(r))
+    var = float(np.dot(r, r))
+    if var <= 0.0:
+        return 1.0
+    m = 1 << (2 * n - 1).bit_length()
+    f = np.fft.rfft(r, m)
+    acf = np.fft.irfft(f * np.conj(f), m)[: n // 4 + 1] / var
+    total = 1.0
+    for rho in acf[1:]:
+        if not rho > 0.0:
+            break
+        total += 2.0 * float(rho)
+    return float(min(max(total, 1.0), MAX_CORRELATION_FACTOR))
 
 
 def improvement_pct(rmse_raw_mps: float, rmse_cal_mps: float) -> float:

@@ -7,8 +7,24 @@ The paper's KF-EMx (eqs. (22)–(24), extended to EM4)::
     raw = H_k·x + η        H_k = [1, h(v_op)] = [1, 1] | [1, v] | [1, v, 1] | [1, v², v, 1]
 
 ``v`` is the speed through the water along the hull and ``h`` the design row of
-:mod:`calib.models`: the pseudo-linear operating point ``v_op`` is the reference
-speed, so the filter stays linear. Beyond the paper:
+:mod:`calib.models`: the pseudo-linear operating point ``v_op`` is a measured speed, so
+the filter stays linear. The paper takes the reference; here (``fused_operating_point``)
+it is the reference (minus the projected current) and the corrected reading weighted by
+their variances: ``v_op = w·v̂ + (1 − w)·v_raw`` with v̂ the speed state just updated
+with the reference (variance P_vv), v_raw the corrected reading and
+``w = σ²_raw/f'² / (σ²_raw/f'² + P_vv)``. Either speed alone carries its own noise into
+the regressor of a scale whose innovation holds that same noise (errors in variables):
+with the reference, the scale is pulled down by about ``σ²_ref / (var(u) + σ²_ref)`` —
+with GNSS at 0.3 m/s and a boat holding its speed within 0.3 m/s, by a half, the bias
+taking the difference. The variance-weighted speed is the one whose error is
+uncorrelated with the raw innovation ``raw − f(v̂)`` (the two terms cancel), so the
+scale is learnt without that pull whichever sensor is the noisier. That holds when v̂ is
+the reference's speed alone: the speed state re-acquired before the update (learning
+from block means, :meth:`KfCalibrator.reacquire_speed` for each block). A speed state
+with a memory of earlier samples has an error the filter's P_vv does not describe
+sample by sample, and the weighting over-corrects (a simulated DVL and EMlog at 1 Hz:
+the scale 0.4 off), so there the paper's reference operating point is kept: with a DVL
+its noise is too small to pull the scale. Beyond the paper:
 
 - **The reference is a measurement too**: ``ref = v + ε`` (H = [1, 0…]) updates the
   speed state; the reference update comes first, then the raw one. The raw
@@ -29,6 +45,27 @@ speed, so the filter stays linear. Beyond the paper:
   (``learn``); the others are held at their value (the prior: the last good
   calibration, else nominal) and taken as known for that sample
   (:mod:`calib.kalman.kernels`). The speed state always moves.
+- **Honest noise** (``adaptive=True``): the measurement noises the filter is given
+  are what the sensors promise, not what a window of data holds (block means of a
+  GNSS speed, a log quantised to 0.1 kn, a yacht's leeway, a lake's current that
+  does not move or a bay's that turns). A noise scale λ multiplies both R and the
+  current's random walk (the level of what the filter does not know of the sea and the
+  sensors, in the proportions configured; the speed's random walk follows the vessel
+  and the parameters' is the paper's tuning, neither scaled): after the k-th learnt-from raw update ``ln λ += (NIS − 1)/N``,
+  N = min(k + :data:`ADAPT_START`, N_λ) (N_λ = ``adapt_samples``; the NIS capped at :data:`ADAPT_NIS_CAP`), a stochastic
+  approximation of E[NIS] = 1, λ within [:data:`NOISE_SCALE_MIN`,
+  :data:`NOISE_SCALE_MAX`]. Residuals correlated from one sample to the next (GNSS
+  errors over seconds, a tack's log error over minutes) hold fewer independent
+  samples than samples: the lag-one correlation ρ of the normalised raw innovations
+  (an average over N_λ samples, within [0, :data:`RHO_MAX`]) makes each raw update count
+  as ``(1 − ρ)/(1 + ρ)`` of a sample (the AR(1) variance factor of a mean; the
+  kernel's ``deweight``), so that P, the σ reported, says what the data determine.
+  Both adapt on updates whose speed state was re-acquired for them (learning from
+  block means: a GNSS reference), where the configured noises describe single samples
+  and not the blocks. Learning sample by sample (a DVL) keeps the configured noises:
+  there the speed state carries the samples' memory and the noises are the tuning of
+  how fast it learns (scaled to a simulated EMlog's innovations, the water-frame replay
+  of docs/REPRODUCTION.md scored 0.18–0.25 m/s against 0.108 with the configured ones).
 - **Gating**: an update whose NIS exceeds ``max_nis`` is not applied and reported
   as gated (integrity monitoring decides what a run of them means).
 - **Reference outage** (no reference, or no heading with a current): predict, then
@@ -60,6 +97,36 @@ DEFAULT_R_RAW_MPS2 = 0.0514**2
 DEFAULT_R_REF_MPS2 = 0.01**2
 """DVL bottom-track variance (Rowe SeaPILOT ±0.25 % ≈ 0.005 m/s at 2 m/s, doubled)."""
 
+NOISE_SCALE_MIN = 0.01
+"""The smallest noise scale λ: σ a tenth of what the sensors promise."""
+
+NOISE_SCALE_MAX = 100.0
+"""The largest noise scale λ: σ ten times what the sensors promise."""
+
+ADAPT_NIS_CAP = 25.0
+"""A NIS counts at most this much in the noise scale's update (one outlier moves λ by at
+most ``exp(24/N_λ)``)."""
+
+ADAPT_START = 10
+"""The noise scale's first steps average over the samples so far plus this many (a
+running mean that settles in tens of samples, then a memory of ``adapt_samples``)."""
+
+SPEED_UNKNOWN_VAR_M2PS2 = 100.0
+"""The speed state's variance when nothing is known of it (σ 10 m/s: any vessel's
+speed), so that the next measurement sets it: see :meth:`KfCalibrator.reacquire_speed`."""
+
+FRESH_SPEED_VAR_M2PS2 = 0.5 * SPEED_UNKNOWN_VAR_M2PS2
+"""A speed state this uncertain before the reference update has been re-acquired: the
+update leaves it the reference's speed alone (the fused operating point's condition)."""
+
+MIN_SLOPE2 = 0.25
+"""The smallest squared slope ``f'(v)²`` the fused operating point divides the reading's
+noise by (a sensor's slope is 1 ± 0.5 inside the envelope)."""
+
+RHO_MAX = 0.95
+"""The largest lag-one correlation taken: a raw update counts as at least 1/39 of a
+sample."""
+
 
 @dataclass(frozen=True, slots=True)
 class KfConfig:
@@ -75,6 +142,14 @@ class KfConfig:
         current_p0_m2ps2: initial variance of each current component, (m/s)².
         current_psd_m2ps3: spectral density of the current random walk, (m/s)²/s
             (1.7e-5: a standard deviation of 0.1 m/s per 10 minutes, tidal change).
+        fused_operating_point: the raw row's operating point is the noise-weighted
+            speed of the reference and the corrected reading (module docstring), not the
+            reference alone (the paper's).
+        adaptive: scale the noises to the innovations and count correlated raw
+            updates as fewer samples (the module docstring, "Honest noise").
+        adapt_samples: N_λ, the memory of the noise scale and of the correlation, in
+            learnt-from samples (60: 20 minutes of 20-s block means, a minute of
+            samples at 1 Hz).
 
     Raises:
         ValueError: a variance that is not positive (process noises may be 0).
@@ -87,8 +162,13 @@ class KfConfig:
     accel_psd_m2ps3: float = 0.01
     current_p0_m2ps2: float = 0.25
     current_psd_m2ps3: float = 1.7e-5
+    fused_operating_point: bool = True
+    adaptive: bool = True
+    adapt_samples: float = 60.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.adapt_samples) and self.adapt_samples >= 1.0):
+            raise ValueError(f"adapt_samples must be at least 1, got {self.adapt_samples!r}")
         for name in ("r_raw_mps2", "r_ref_mps2", "p0", "current_p0_m2ps2"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
@@ -119,10 +199,6 @@ class StepResult(NamedTuple):
 
 _INF = math.inf
 
-SPEED_UNKNOWN_VAR_M2PS2 = 100.0
-"""The speed state's variance when nothing is known of it (σ 10 m/s: any vessel's
-speed), so that the next measurement sets it: see :meth:`KfCalibrator.reacquire_speed`."""
-
 
 class KfCalibrator:
     """KF-EMx (optionally with current) online: one object per unit under test.
@@ -145,7 +221,19 @@ class KfCalibrator:
         ModelError: unknown model, params of another model, bad P0 or x0.
     """
 
-    __slots__ = ("_P", "_gains", "_params", "_x", "config", "layout")
+    __slots__ = (
+        "_P",
+        "_c0",
+        "_c1",
+        "_gains",
+        "_n_adapt",
+        "_nu_prev",
+        "_params",
+        "_x",
+        "config",
+        "layout",
+        "noise_scale",
+    )
 
     def __init__(
         self,
@@ -180,11 +268,17 @@ class KfCalibrator:
         self._P = to_lists(M)
         self._gains: dict[object, list[float]] = {}
         self._params: tuple[tuple[float, ...], Params] | None = None
+        self.noise_scale = 1.0
+        """λ: the factor on both measurement noises (1 without ``config.adaptive``)."""
+        self._c0 = 1.0
+        self._c1 = 0.0
+        self._nu_prev = math.nan
+        self._n_adapt = 0
 
     # -- the per-sample path ------------------------------------------------
 
     def predict(self, dt_s: float) -> None:
-        """Time update over ``dt_s`` seconds (Φ = I): add the process noises.
+        """Time update over ``dt_s`` seconds (Φ = I): add the process noises (the current's × λ).
 
         Raises:
             DataError: a negative or non-finite time step.
@@ -198,7 +292,7 @@ class KfCalibrator:
         for i in range(1, 1 + p):
             P[i][i] += cfg.q_params
         if self.layout.current:
-            dq = cfg.current_psd_m2ps3 * dt_s
+            dq = self.noise_scale * cfg.current_psd_m2ps3 * dt_s
             P[1 + p][1 + p] += dq
             P[2 + p][2 + p] += dq
 
@@ -260,19 +354,23 @@ class KfCalibrator:
         ref_gated = False
         gains = self.gains(learn) if use_ref else self.gains(False)
         v_op = math.nan
+        # the speed state knows nothing but what this reference will tell it
+        fresh = P[0][0] >= FRESH_SPEED_VAR_M2PS2
         if use_ref and ref_mps is not None:
             h_ref = [0.0] * n
             h_ref[0] = 1.0
             if lay.current and heading_cs is not None:
                 h_ref[-2], h_ref[-1] = heading_cs
             y, s, applied = scalar_update(
-                x, P, h_ref, ref_mps, self.config.r_ref_mps2, gains, max_nis
+                x, P, h_ref, ref_mps, self.noise_scale * self.config.r_ref_mps2, gains, max_nis
             )
             inn_ref = Innovation(y, s, y * y / s)
             if applied:
                 v_op = ref_mps
                 if lay.current and heading_cs is not None:
                     v_op -= x[-2] * heading_cs[0] + x[-1] * heading_cs[1]
+                if raw_mps is not None and fresh and self.config.fused_operating_point:
+                    v_op = self._fused(raw_mps)
             else:
                 ref_gated = True
                 gains = self.gains(False)
@@ -287,9 +385,56 @@ class KfCalibrator:
         h_raw = [0.0] * n
         h_raw[0] = 1.0
         h_raw[1 : 1 + len(lay.params)] = design_row(lay.model, v_op)
-        y, s, applied = scalar_update(x, P, h_raw, raw_mps, self.config.r_raw_mps2, gains, max_nis)
+        learning = use_ref and not ref_gated and any(gains[1:])
+        y, s, applied = scalar_update(
+            x,
+            P,
+            h_raw,
+            raw_mps,
+            self.noise_scale * self.config.r_raw_mps2,
+            gains,
+            max_nis,
+            self.correlation if learning else 1.0,
+        )
         learnt = use_ref and not ref_gated and applied
+        if learnt and learning and fresh and self.config.adaptive:
+            self._adapt(y, s)
         return StepResult(Innovation(y, s, y * y / s), inn_ref, not applied, ref_gated, learnt)
+
+    def _fused(self, raw_mps: float) -> float:
+        """The speed through the water from the speed state (just updated with the
+        reference) and the corrected reading, weighted by their variances: the operating
+        point the raw innovation is orthogonal to."""
+        v = self._x[0]
+        v_raw = self.corrected(raw_mps)
+        if not math.isfinite(v_raw):
+            return v
+        a, m, _ = self._amb()
+        slope = 1.0 + m + 2.0 * a * v
+        var_raw = self.noise_scale * self.config.r_raw_mps2 / max(slope * slope, MIN_SLOPE2)
+        w = var_raw / (var_raw + self._P[0][0])
+        return w * v + (1.0 - w) * v_raw
+
+    @property
+    def correlation(self) -> float:
+        """Samples per independent sample of the raw innovations, ``(1 + ρ)/(1 − ρ)``."""
+        if not self.config.adaptive:
+            return 1.0
+        rho = min(max(self._c1 / self._c0, 0.0), RHO_MAX) if self._c0 > 0.0 else 0.0
+        return (1.0 + rho) / (1.0 - rho)
+
+    def _adapt(self, y: float, s: float) -> None:
+        """The noise scale and the innovations' correlation after one learnt raw update."""
+        nis = y * y / s
+        self._n_adapt += 1
+        a = 1.0 / min(self._n_adapt + ADAPT_START, self.config.adapt_samples)
+        lam = self.noise_scale * math.exp(a * (min(nis, ADAPT_NIS_CAP) - 1.0))
+        self.noise_scale = min(max(lam, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
+        nu = y / math.sqrt(s)
+        self._c0 += a * (nu * nu - self._c0)
+        if self._nu_prev == self._nu_prev:
+            self._c1 += a * (nu * self._nu_prev - self._c1)
+        self._nu_prev = nu
 
     def corrected(self, raw_mps: float) -> float:
         """The raw reading corrected with the current parameters (inverse model), m/s."""

@@ -21,7 +21,11 @@ the optimal gain and, for a rank-one H, expanded as::
 
 Diagonal entries are floored at :data:`P_FLOOR` to keep P positive under rounding.
 A measurement whose normalised innovation squared ``y²/S`` exceeds ``max_nis`` is
-not applied (the caller counts it as gated).
+not applied (the caller counts it as gated). A measurement correlated with its
+neighbours holds less than one sample's information: with ``deweight`` f ≥ 1 it is
+applied with the innovation variance ``f·S`` (the gain is K/f and P shrinks by 1/f of
+what an independent sample would take off), while the returned S and the gate are the
+sample's own.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -45,6 +49,7 @@ def scalar_update(
     r: float,
     gains: Sequence[float],
     max_nis: float,
+    deweight: float = 1.0,
 ) -> tuple[float, float, bool]:
     """One scalar measurement update in place (see the module docstring).
 
@@ -56,6 +61,8 @@ def scalar_update(
         r: its noise variance (> 0).
         gains: 1.0 for a state that may move, 0.0 for a held (known) state.
         max_nis: gate: the update is skipped when ``y²/S`` exceeds it (``inf``: never).
+        deweight: samples per independent sample (≥ 1): the update is made with the
+            innovation variance ``deweight·S``.
 
     Returns:
         ``(y, S, applied)``: the innovation, its variance, and whether it was applied.
@@ -79,13 +86,14 @@ def scalar_update(
         s += hj * u[j]
     if y * y > max_nis * s:
         return y, s, False
-    inv_s = 1.0 / s
+    s_use = s * deweight if deweight > 1.0 else s
+    inv_s = 1.0 / s_use
     k = [ui * inv_s * g for ui, g in zip(u, gains, strict=True)]
     for i in range(n):
         ki = k[i]
         x[i] += ki * y
         row = P[i]
-        ui_s = u[i] - s * ki
+        ui_s = u[i] - s_use * ki
         for j in range(i, n):
             v = row[j] - ki * u[j] - k[j] * ui_s
             row[j] = v

@@ -424,7 +424,7 @@ def _calibration_text(res: CalibrationResult) -> str:
         out.append("current      not determined")
     out += [_heading_text(h) for h in res.heading.values()]
     out += [
-        f"identifiable {'yes' if res.identifiable else 'NO: ' + res.ident.reason}",
+        f"identifiable {'yes' if res.identifiable else 'NO: ' + res.reason}",
         f"condition    {fmt(res.ident.cond_info, '.3g')}",
         f"RMSE raw     {fmt(res.rmse_raw, '.4f')} m/s",
         f"RMSE cal     {fmt(res.rmse_cal, '.4f')} m/s",
@@ -434,6 +434,11 @@ def _calibration_text(res: CalibrationResult) -> str:
         out.append(
             f"NIS          mean {fmt(res.nis_mean, '.2f')}, "
             f"{fmt(100.0 * (res.nis_frac_inside or math.nan), '.1f')} % inside the 95 % bounds"
+            + (
+                f", the noises × {res.noise_scale:.3g} of those configured"
+                if res.noise_scale is not None
+                else ""
+            )
         )
     return "\n".join(out) + "\n"
 

@@ -35,9 +35,9 @@ from calib.errors import CalibrationError
 from calib.excitation import Identifiability, identifiability
 from calib.kalman import KfConfig
 from calib.lag import MAX_LAG_STD_RELAXED_S, LagEstimate, accept, combine, estimate_lag
-from calib.lsq import block_average, fit_current, fit_ls
-from calib.metrics import improvement_pct, nis_stats, rmse
-from calib.models import CURRENT, FloatArray, Layout, Params, check_model, correct_array
+from calib.lsq import block_average, fit_ls
+from calib.metrics import CURRENT_WINDOW_S, improvement_pct, nis_stats, water_scores
+from calib.models import FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
 from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.calfile import CalibrationFileError, dumps, loads
@@ -207,6 +207,10 @@ def _fin(x: float | None) -> float | None:
     return x if x is not None and math.isfinite(x) else None
 
 
+WORSE_THAN_RAW = "the calibrated speed is further from the water speed than the raw reading"
+"""The reason given when a calibration's RMSE exceeds the raw reading's."""
+
+
 @dataclass(frozen=True, slots=True)
 class CalibrationResult:
     """What ``emlogd calibrate`` found (JSON keys: :meth:`to_dict`)."""
@@ -230,6 +234,8 @@ class CalibrationResult:
     heading: dict[str, dict[str, object]] = field(default_factory=dict)
     """Per capture, the heading used (``Pipeline.heading_status``) when the reference or
     the model needs one."""
+    noise_scale: float | None = None
+    """``kf``: the factor the filter found on the configured noises (1: as configured)."""
 
     @property
     def improvement_pct(self) -> float:
@@ -237,9 +243,22 @@ class CalibrationResult:
         return improvement_pct(self.rmse_raw, self.rmse_cal)
 
     @property
+    def worse_than_raw(self) -> bool:
+        """The corrected reading is further from the water speed than the raw one."""
+        return self.rmse_cal > self.rmse_raw
+
+    @property
     def identifiable(self) -> bool:
-        """Every unknown is determined."""
-        return self.ident.identifiable
+        """Every unknown is determined and the calibration is no worse than raw."""
+        return self.ident.identifiable and not self.worse_than_raw
+
+    @property
+    def reason(self) -> str:
+        """Why the result is not identifiable (empty when it is)."""
+        why = [self.ident.reason] if self.ident.reason else []
+        if self.worse_than_raw:
+            why.append(WORSE_THAN_RAW)
+        return "; ".join(why)
 
     def calibration(self) -> Calibration:
         """The result as a calibration record (what ``--save`` writes)."""
@@ -273,15 +292,16 @@ class CalibrationResult:
             "rmse_raw": _fin(self.rmse_raw),
             "rmse_cal": _fin(self.rmse_cal),
             "improvement_pct": _fin(self.improvement_pct),
-            "identifiable": self.ident.identifiable,
+            "identifiable": self.identifiable,
             "unidentifiable": list(self.ident.unidentifiable),
             "verdicts": {v.unknown: v.reason for v in self.ident.verdicts if not v.determined},
-            "reason": self.ident.reason,
+            "reason": self.reason,
             "condition_number": _fin(self.ident.cond_info),
             "n_samples": self.n_samples,
             "average_s": self.average_s,
             "nis_mean": self.nis_mean,
             "nis_frac_inside": self.nis_frac_inside,
+            "noise_scale": self.noise_scale,
             "uut": s.port,
             "ref": s.reference_port,
             "ref_field": s.reference_field,
@@ -413,20 +433,20 @@ def calibrate(
         raise OfflineError(refusal)
     lag_report = find_lag(recs, settings, lag)
     pairs = [r.aligned(lag_report.lag_s) for r in recs]
-    _t, raw, ref, heading = concat_usable(pairs, settings.current)
+    t, raw, ref, heading = concat_usable(pairs, settings.current)
     if raw.size == 0:
         raise OfflineError(why_no_sample(recs, settings, lag_report.lag_s))
     layout = Layout(check_model(settings.model), settings.current)
     kf = settings.kf
     hd = heading if settings.current else None
-    nis_mean = nis_frac = None
+    nis_mean = nis_frac = noise_scale = None
     window = 0.0
     if method == "ls":
         given = average_s if average_s is not None else settings.average_s
         window = given if given is not None else AVERAGE_S.get(settings.reference_field, 0.0)
-        fit_raw, fit_ref, fit_hd = raw, ref, hd
+        fit_t, fit_raw, fit_ref, fit_hd = t, raw, ref, hd
         if window > 0.0:
-            _, fit_raw, fit_ref, fit_heading = _block_means(pairs, settings.current, window)
+            fit_t, fit_raw, fit_ref, fit_heading = _block_means(pairs, settings.current, window)
             fit_hd = fit_heading if settings.current else None
             if fit_raw.size < 3:
                 raise OfflineError(
@@ -440,6 +460,12 @@ def calibrate(
             heading_deg=fit_hd,
             current=settings.current,
             rule=settings.rule,
+            # block means, as the filter learns from them: the correction at the
+            # variance-weighted speed (a noisy reference would pull the scale down)
+            # and a current per CURRENT_WINDOW_S (one over hours of tide would bias both)
+            noise_ratio=kf.r_ref_mps2 / kf.r_raw_mps2 if window > 0.0 else None,
+            t_s=fit_t,
+            current_block_s=CURRENT_WINDOW_S if window > 0.0 else None,
         )
         params, stderr = fit.params, dict(fit.stderr)
         cur, cur_std = fit.current_mps, fit.current_std_mps
@@ -457,13 +483,16 @@ def calibrate(
             rule=settings.rule,
         )
         stderr = {k: (v if k in ident.determined else None) for k, v in cal.kf.param_std.items()}
-        cur = cal.kf.current_mps if CURRENT in ident.determined else None
+        # the current is reported as the filter reports it (status, VDR, the trace's
+        # current_determined): only when determined at the end of the run
+        cur = cal.kf.current_mps if cal.ident_current() else None
         cur_std = cal.kf.current_std_mps if cur is not None else None
+        noise_scale = cal.kf.noise_scale
         if cal.nis:
             stats = nis_stats(np.array(cal.nis, dtype=np.float64))
             nis_mean, nis_frac = stats.mean, stats.frac_inside
     corrected = correct_array(params, raw)
-    target = ref - _projection(cur, heading) if cur is not None else ref
+    rmse_raw, rmse_cal = water_scores(t, ref, raw, corrected, hd, params)
     return CalibrationResult(
         captures=tuple(r.path for r in recs),
         settings=settings,
@@ -474,13 +503,14 @@ def calibrate(
         current_std_mps=cur_std,
         lag=lag_report,
         n_samples=int(raw.size),
-        rmse_raw=rmse(target, raw),
-        rmse_cal=rmse(target, corrected),
+        rmse_raw=rmse_raw,
+        rmse_cal=rmse_cal,
         ident=ident,
         nis_mean=nis_mean,
         nis_frac_inside=nis_frac,
         average_s=window,
         heading={r.path: r.heading_info for r in recs} if needs_heading(settings) else {},
+        noise_scale=noise_scale,
     )
 
 
@@ -607,9 +637,9 @@ def evaluate(
 ) -> list[EvaluationRow]:
     """RMSE raw and calibrated per capture, with frozen ``params``.
 
-    With current states the comparison is in the water frame: each capture's own
-    current (:func:`calib.lsq.fit_current`, for the raw reading and the corrected one
-    alike) is taken off the reference where its heading determines it.
+    With current states the comparison is in the water frame
+    (:func:`calib.metrics.water_scores`: the current of each window of the capture, for
+    the raw reading and the corrected one alike).
     """
     rows = []
     for r in recs:
@@ -620,14 +650,9 @@ def evaluate(
             continue
         raw, ref = pair.raw[ok], pair.ref[ok]
         cal = correct_array(params, raw)
-        target_raw = target_cal = ref
-        if settings.current:
-            hd = pair.heading[ok]
-            target_raw = ref - _projection(fit_current(Params(params.model), ref, raw, hd), hd)
-            target_cal = ref - _projection(fit_current(params, ref, raw, hd), hd)
-        rows.append(
-            EvaluationRow(r.path, int(raw.size), rmse(target_raw, raw), rmse(target_cal, cal))
-        )
+        hd = pair.heading[ok] if settings.current else None
+        rmse_raw, rmse_cal = water_scores(pair.t[ok], ref, raw, cal, hd, params)
+        rows.append(EvaluationRow(r.path, int(raw.size), rmse_raw, rmse_cal))
     return rows
 
 

@@ -8,7 +8,18 @@ import numpy as np
 import pytest
 
 from calib.errors import DataError
-from calib.metrics import chi2_1_quantile, chi2_mean_bounds, improvement_pct, nis_stats, rmse
+from calib.metrics import (
+    chi2_1_quantile,
+    chi2_mean_bounds,
+    correlation_factor,
+    improvement_pct,
+    nis_stats,
+    rmse,
+    water_rmse,
+    water_scores,
+    water_target,
+)
+from calib.models import Params, correct_array, forward_array
 
 
 class TestRmse:
@@ -75,3 +86,58 @@ class TestNis:
             nis_stats([np.nan])
         with pytest.raises(DataError):
             nis_stats([1.0], confidence=1.5)
+
+
+class TestWaterFrameAndCorrelation:
+    """One water-frame RMSE and the residuals' correlation factor."""
+
+    def test_water_rmse_uses_each_samples_current(self) -> None:
+        """A current that turns is taken off sample by sample; its final value would not do."""
+        n = 200
+        hd = np.zeros(n)
+        cur = np.column_stack([np.linspace(0.0, 1.0, n), np.zeros(n)])
+        water = np.full(n, 3.0)
+        ref = water + cur[:, 0]
+        assert water_rmse(ref, water, hd, cur) == pytest.approx(0.0, abs=1e-12)
+        assert water_rmse(ref, water, hd, cur[-1]) > 0.5
+        assert water_rmse(ref, water) == pytest.approx(rmse(ref, water))
+
+    def test_water_target_leaves_undetermined_samples(self) -> None:
+        """A nan current (not determined then) leaves that sample's reference as it is."""
+        cur = np.array([[0.5, 0.0], [np.nan, np.nan]])
+        out = water_target([2.0, 2.0], [0.0, 0.0], cur)
+        assert out.tolist() == [1.5, 2.0]
+        with pytest.raises(DataError):
+            water_target([2.0, 2.0], [0.0], cur)
+
+    @pytest.mark.parametrize("rho", [0.0, 0.5, 0.9])
+    def test_correlation_factor_of_ar1(self, rho: float) -> None:
+        """AR(1) residuals: (1 + ρ)/(1 − ρ) within 25 %; white: about 1."""
+        rng = np.random.default_rng(7)
+        e = np.zeros(20000)
+        for k in range(1, e.size):
+            e[k] = rho * e[k - 1] + rng.standard_normal()
+        expected = (1 + rho) / (1 - rho)
+        assert correlation_factor(e) == pytest.approx(expected, rel=0.25)
+        assert correlation_factor([1.0, 2.0]) == 1.0
+
+    def test_water_scores_follow_a_turning_current(self) -> None:
+        """A current turning over hours: the windows follow it (corrected error ≈ 0) while the
+        raw reading's score does not depend on the calibration given."""
+        n = 4 * 3600
+        t = np.arange(n, dtype=np.float64)
+        hd = (t * 2.0) % 360.0  # circling: every window determines its current
+        water = 3.0 + 0.5 * np.sin(t / 300.0)
+        c_n = np.linspace(-0.5, 0.5, n)
+        psi = np.radians(hd)
+        ref = water + c_n * np.cos(psi)
+        truth = Params("EM3", m=0.05, b_mps=0.1)
+        raw = forward_array(truth, water)
+        cor = correct_array(truth, raw)
+        r_raw, r_cal = water_scores(t, ref, raw, cor, hd, truth)
+        assert r_cal < 0.03
+        r_raw2, _ = water_scores(t, ref, raw, raw, hd, Params("EM3"))
+        assert r_raw == pytest.approx(r_raw2)
+        _, r_const = water_scores(t, ref, raw, cor, hd, truth, window_s=1e9)
+        assert r_const > 5.0 * r_cal
+        assert water_scores(t, ref, raw, cor, None, truth) == (rmse(ref, raw), rmse(ref, cor))

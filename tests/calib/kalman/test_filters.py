@@ -9,6 +9,7 @@ import pytest
 
 from calib.errors import DataError, ModelError
 from calib.kalman import KalmanModel, KfCalibrator, KfConfig, make_state, predict, run_kf, update
+from calib.lsq import block_average
 from calib.metrics import nis_stats
 from calib.models import Params, design_row, forward_array
 from calib.synth import water_frame_segment
@@ -42,7 +43,7 @@ class TestAgainstTheReference:
     @pytest.mark.parametrize("model", ["EM1", "EM2", "EM3", "EM4"])
     def test_matches_numpy_with_outages_and_current(self, model: str, current: bool) -> None:
         """State, covariance and NIS equal predict/update in numpy to 1e-9, outages included."""
-        cfg = KfConfig()
+        cfg = KfConfig(adaptive=False, fused_operating_point=False)
         t, _, raw, ref = _sim(300, 11, TRUTH[model], cfg)
         heading = np.radians(np.arange(300) * 3.0)
         kf = KfCalibrator(model, cfg, current=current, v0_mps=1.0)
@@ -136,10 +137,71 @@ class TestPaperFilters:
         """With R 100× too small the NIS test flags the filter as inconsistent."""
         cfg = KfConfig()
         t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
-        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / 100.0)
+        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / 100.0, adaptive=False)
         stats = nis_stats(run_kf("EM3", t, raw, ref, bad).nis, skip=50)
         assert not stats.consistent
         assert stats.mean > 5.0 and stats.frac_inside < 0.8
+
+    @pytest.mark.parametrize("factor", [100.0, 0.01])
+    def test_adaptive_noise_scale_restores_nis(self, factor: float) -> None:
+        """Block updates (speed re-acquired each time) with R 100× too small or too large:
+        the adaptive filter scales it back, NIS mean 0.8–1.2."""
+        cfg = KfConfig()
+        _t, _, raw, ref = _sim(4000, 15, TRUTH["EM3"], cfg)
+        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 / factor, r_ref_mps2=cfg.r_ref_mps2 / factor)
+        kf = KfCalibrator("EM3", bad)
+        nis = _blocks(kf, raw, ref)
+        stats = nis_stats(np.array(nis), skip=1000)
+        assert 0.8 <= stats.mean <= 1.2
+        assert kf.noise_scale == pytest.approx(factor, rel=0.3)
+
+    def test_sample_by_sample_keeps_the_configured_noises(self) -> None:
+        """Learning sample by sample (a DVL), the filter is the configured one: λ stays 1."""
+        cfg = KfConfig()
+        t, _, raw, ref = _sim(2000, 15, TRUTH["EM3"], cfg)
+        kf = KfCalibrator("EM3", KfConfig(r_raw_mps2=cfg.r_raw_mps2 / 100.0))
+        run_kf("EM3", t, raw, ref, calibrator=kf, history=False)
+        assert kf.noise_scale == 1.0 and kf.correlation == 1.0
+
+    def test_correlated_readings_count_as_fewer_samples(self) -> None:
+        """AR(1) reading errors (ρ 0.9): σ(m) grows toward the truth's spread, white: unchanged."""
+        rng = np.random.default_rng(3)
+        n = 3000
+        t = np.arange(n, dtype=np.float64)
+        v = 2.0 + np.sin(t / 60.0)
+        truth = TRUTH["EM3"]
+        e = np.zeros(n)
+        for k in range(1, n):
+            e[k] = 0.9 * e[k - 1] + math.sqrt(1 - 0.81) * 0.05 * rng.standard_normal()
+        raw = forward_array(truth, v) + e
+        ref = v + 0.01 * rng.standard_normal(n)
+        stds = {}
+        for adaptive in (False, True):
+            kf = KfCalibrator("EM3", KfConfig(adaptive=adaptive))
+            _blocks(kf, raw, ref)
+            stds[adaptive] = kf.param_std["m"]
+            if adaptive:
+                assert kf.correlation > 5.0
+        assert stds[True] > 1.3 * stds[False]
+        white = KfCalibrator("EM3", KfConfig())
+        _blocks(white, forward_array(truth, v) + 0.05 * rng.standard_normal(n), ref)
+        assert white.correlation < 1.3
+
+
+def _blocks(kf: KfCalibrator, raw: np.ndarray, ref: np.ndarray) -> list[float]:
+    """Feed each (raw, ref) pair as a block mean does: the speed re-acquired first.
+
+    Returns:
+        The NIS of each learnt raw update.
+    """
+    nis = []
+    for zr, zv in zip(raw.tolist(), ref.tolist(), strict=True):
+        kf.predict(1.0)
+        kf.reacquire_speed()
+        res = kf.update(zr, zv, 0.0)
+        if res.raw is not None and res.learnt:
+            nis.append(res.raw.nis)
+    return nis
 
 
 class TestWaterFrame:
@@ -336,3 +398,37 @@ class TestIntegrityHooks:
             KfConfig(r_raw_mps2=0.0)
         with pytest.raises(ValueError, match="current_psd_m2ps3"):
             KfConfig(current_psd_m2ps3=-1.0)
+
+
+class TestOperatingPoint:
+    """Errors in variables: a noisy reference must not pull the scale down."""
+
+    @staticmethod
+    def _blocks(fused: bool) -> KfCalibrator:
+        truth = Params("EM3", m=0.02, b_mps=0.1)
+        rng = np.random.default_rng(4)
+        s = water_frame_segment(
+            "transit", 6 * 3600, 1.0, truth, rng, current_mps=(0.2, 0.1), sigma_ref_mps=0.3
+        )
+        a = block_average(s.t_s, s.raw_mps, s.ref_mps, s.heading_deg, 20.0)
+        cfg = KfConfig(r_ref_mps2=0.3**2, fused_operating_point=fused)
+        kf = KfCalibrator("EM3", cfg, current=True)
+        for k in range(a.t.size):
+            kf.predict(20.0)
+            kf.reacquire_speed()
+            psi = math.radians(float(a.heading_deg[k]))
+            kf.update(
+                float(a.raw[k]), float(a.ref[k]), 0.0, heading_cs=(math.cos(psi), math.sin(psi))
+            )
+        return kf
+
+    def test_block_means_of_a_noisy_reference_learn_the_true_scale(self) -> None:
+        """GNSS-like 0.3 m/s reference, a transit at nearly constant speed, 20-s block means:
+        the noise-weighted operating point finds m and b within 2σ of the truth; the
+        reference's own (the paper's) pulls m down by more than 0.07 and b up."""
+        fused = self._blocks(True)
+        std = fused.param_std
+        assert abs(fused.params.m - 0.02) < 2.0 * std["m"] + 0.005
+        assert abs(fused.params.b_mps - 0.1) < 2.0 * std["b"] + 0.01
+        paper = self._blocks(False)
+        assert paper.params.m < 0.02 - 0.07 and paper.params.b_mps > 0.25

@@ -200,13 +200,16 @@ def test_r_raw_sets_the_filters_reading_noise(
     capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path]
 ) -> None:
     """calibrate --method kf --r-raw SIGMA: the filter weighs the innovations with SIGMA, so a
-    reading noise 4 times the default's divides the NIS mean by more than 4."""
+    reading noise 4 times the default's divides the NIS mean by more than 4 (sample by
+    sample against a DVL the configured noises are kept: the noise scale is 1)."""
     base = ["calibrate", str(trial_files["figure-8"]), "--uut", "emlog1", "--ref", "dvl"]
     base += ["--lag", "3.3", "--method", "kf", "--current", "--json"]
     nis = {}
     for r_raw in (None, "0.2"):
         assert main(base + (["--r-raw", r_raw] if r_raw else [])) == 0
-        nis[r_raw] = json.loads(capsys.readouterr().out)["nis_mean"]
+        doc = json.loads(capsys.readouterr().out)
+        nis[r_raw] = doc["nis_mean"]
+        assert doc["noise_scale"] == pytest.approx(1.0, abs=0.05)  # one step per re-acquisition
     assert nis["0.2"] < nis[None] / 4, nis
 
 

@@ -11,6 +11,7 @@ import pytest
 from calib.models import Params
 from drivers.io.capture import CaptureReader
 from emlogd.offline.jobs import (
+    WORSE_THAN_RAW,
     OfflineError,
     calibrate,
     crossval,
@@ -80,6 +81,33 @@ class TestCalibrate:
         assert d["current"] is not None
         assert set(d["current"]) == {"north_mps", "east_mps", "std_north_mps", "std_east_mps"}  # type: ignore[arg-type]
         assert d["identifiable"] is (d["unidentifiable"] == [])
+
+    def test_one_rmse_definition_for_both_methods(
+        self, trial_files: dict[str, Path], tmp_path: Path
+    ) -> None:
+        """With the current, LS and KF report the same raw RMSE (the water frame does not
+        depend on the method), and the KF reports a current exactly when its trace's last
+        row says it is determined."""
+        recs = load_captures([trial_files["circles"]], E1C)
+        trace = tmp_path / "t.csv"
+        ls = calibrate(recs, E1C, "ls", lag=3.3)
+        kf = calibrate(recs, E1C, "kf", lag=3.3, trace=trace)
+        assert kf.rmse_raw == pytest.approx(ls.rmse_raw, rel=1e-12)
+        last = trace.read_text().splitlines()[-1].split(",")
+        header = trace.read_text().splitlines()[0].split(",")
+        determined = last[header.index("current_determined")] == "1"
+        assert (kf.current_mps is not None) is determined
+        assert kf.noise_scale is not None and ls.noise_scale is None
+
+    def test_worse_than_raw_is_not_identifiable(self, trial_files: dict[str, Path]) -> None:
+        """A calibration whose RMSE exceeds the raw one is not called identifiable, and says why."""
+        recs = load_captures([trial_files["figure-8"]], E1)
+        res = calibrate(recs, E1, "ls", lag=3.3)
+        assert res.identifiable and res.reason == ""
+        worse = dataclasses.replace(res, rmse_cal=2.0 * res.rmse_raw)
+        assert worse.ident.identifiable and not worse.identifiable
+        assert worse.reason == WORSE_THAN_RAW
+        assert worse.to_dict()["identifiable"] is False
 
     def test_straight_run_holds_the_scale(self, trial_files: dict[str, Path]) -> None:
         """The straight run determines no scale: unidentifiable, held at the ideal sensor's."""
