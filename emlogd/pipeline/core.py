@@ -34,22 +34,28 @@ a ``VDR`` (set and drift) whenever the heading determines the current.
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
 
 from drivers import DecoderOptions, make_decoder
-from drivers.base import Decoder, R
-from drivers.nmea0183 import Gga, Rmc, Vtg
-from drivers.nmea0183 import Heading as NmeaHeading
-from drivers.records import KNOT_MPS, Rejected, SpeedRecord
-from emlogd.pipeline.align import SampleRing, wrap_deg
+from drivers.base import Decoder
+from drivers.records import KNOT_MPS, SpeedRecord
+from emlogd.pipeline import status as st
+from emlogd.pipeline.align import wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings
-from emlogd.pipeline.integrity import JumpFilter
+from emlogd.pipeline.routing import (
+    Headings,
+    Nav,
+    NavFix,
+    NavGnss,
+    NavHeading,
+    UutRoute,
+    nav_items,
+    speed_of,
+)
 from emlogd.pipeline.sentences import (
-    StatusFields,
     encode_fused_status,
     encode_status,
     encode_vbw,
@@ -57,6 +63,7 @@ from emlogd.pipeline.sentences import (
     encode_vhw,
 )
 from emlogd.pipeline.settings import PortSettings, UutSettings
+from emlogd.pipeline.staleness import Liveness
 from emlogd.pipeline.uut import UutCalibration
 
 FUSED_PORT = "fused"
@@ -107,96 +114,10 @@ class Output:
         self.persist.extend(other.persist)
 
 
-class _Heading(NamedTuple):
-    true_deg: float | None
-    magnetic_deg: float | None
-    variation_deg: float | None
-
-
-class _Gnss(NamedTuple):
-    sog_mps: float | None
-    cog_true_deg: float | None
-    valid: bool
-    variation_deg: float | None
-
-
-class _Fix(NamedTuple):
-    quality: int
-
-
-_Nav = SpeedRecord | _Heading | _Gnss | _Fix
-
-
-def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
-    """The navigation content of one decoded record of ``dec``.
-
-    GNSS and heading sentences are told apart by type; every speed by its record's
-    typed role, and a heading sent with a speed (VHW, a DVL's) comes before it.
-    """
-    if isinstance(rec, Rejected):
-        return
-    if isinstance(rec, Rmc):
-        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, rec.variation_deg)
-        return
-    if isinstance(rec, Vtg):
-        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
-        return
-    if isinstance(rec, Gga):
-        yield _Fix(rec.quality)
-        return
-    if isinstance(rec, NmeaHeading):
-        if rec.heading_deg is None:
-            return
-        if rec.true:
-            yield _Heading(rec.heading_deg, None, None)
-            return
-        mag = rec.heading_deg + (rec.deviation_deg or 0.0)
-        var = rec.variation_deg
-        yield _Heading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var)
-        return
-    for sp in dec.speed_records(rec):
-        if sp.role == "ground":
-            continue  # a log's ground pair (VBW) is no reference
-        ht, hm = sp.heading_true_deg, sp.heading_mag_deg
-        if ht is not None or hm is not None:
-            yield _Heading(ht, hm, None)
-        yield sp
-
-
 def _keep_lag(cal: UutCalibration, lag_s: float) -> None:
     """Give a new UUT calibration a lag known before (it estimates none)."""
     cal.lag_s = lag_s
     cal.lag_finder = None
-
-
-def _value(sp: SpeedRecord, component: str) -> float | None:
-    """The speed a UUT compares: along the hull, or the horizontal magnitude."""
-    v = sp.longitudinal_mps
-    if component == "magnitude" and v is not None:
-        return math.hypot(v, sp.transverse_mps or 0.0)
-    return v
-
-
-class _PortHeading:
-    """The true-heading ring of one port, with its glitch filter and variation."""
-
-    def __init__(self, max_turn_rate_dps: float) -> None:
-        self.ring = SampleRing(1024, 2.0, angular=True)
-        self.jumps = JumpFilter(max_turn_rate_dps, 5.0, angular=True)
-        self.refused_magnetic = 0
-
-
-class _Uut:
-    """One UUT's calibration plus its routing state."""
-
-    def __init__(self, s: UutSettings, cal: UutCalibration) -> None:
-        self.s = s
-        self.cal = cal
-        self.ref_jumps = JumpFilter(s.max_accel_mps2, 0.3)
-        self.t_status = -math.inf
-        self.t_vdr = -math.inf
-        self.heading_port: str | None = None
-        self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
 
 
 class Pipeline:
@@ -236,11 +157,9 @@ class Pipeline:
         self.startup_events: list[Event] = []
         self.fusion = Fusion(fusion) if fusion is not None else None
         self.t_fused_status = -math.inf
-        self.headings: dict[str, _PortHeading] = {}
-        self.variation: dict[str, float] = {}
-        self.fix_quality: dict[str, int] = {}
-        self.uuts: dict[str, _Uut] = {}
-        self._by_ref: dict[str, list[_Uut]] = {}
+        self.headings = Headings(list(self.ports), uuts)
+        self.uuts: dict[str, UutRoute] = {}
+        self._by_ref: dict[str, list[UutRoute]] = {}
         cals = calibrations or {}
         self.kept: dict[str, dict[str, Calibration]] = {}
         """Per UUT, by model: its calibrations of the error models it is not using now
@@ -270,7 +189,7 @@ class Pipeline:
                         Event(prior.t, s.port, "calibration_refused", {"why": why})
                     )
                     prior = None
-            u = _Uut(s, self._new_cal(s, prior))
+            u = UutRoute(s, self._new_cal(s, prior))
             if u.cal.lag_s is None:  # the lag is the sensor's, whatever the model or a reset
                 for rec in (prior, latest):
                     if (
@@ -282,8 +201,7 @@ class Pipeline:
                         break
             self.uuts[s.port] = u
             self._by_ref.setdefault(s.reference_port, []).append(u)
-        self.last_rx: dict[str, float] = {}
-        self.stale: dict[str, bool] = dict.fromkeys(self.ports, False)
+        self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
 
@@ -314,15 +232,8 @@ class Pipeline:
             if old.ports.get(name) != p:
                 continue
             self.decoders[name] = old.decoders[name]
-            self.stale[name] = old.stale[name]
-            if name in old.headings:
-                self.headings[name] = old.headings[name]
-            if name in old.variation:
-                self.variation[name] = old.variation[name]
-            if name in old.fix_quality:
-                self.fix_quality[name] = old.fix_quality[name]
-            if name in old.last_rx:
-                self.last_rx[name] = old.last_rx[name]
+            self.liveness.adopt(old.liveness, [name])
+            self.headings.adopt(old.headings, name)
         kept: list[str] = []
         for name, u in self.uuts.items():
             o = old.uuts.get(name)
@@ -344,61 +255,16 @@ class Pipeline:
 
     # -- headings --------------------------------------------------------------
 
-    def _heading_ports(self, s: UutSettings) -> list[str]:
-        if s.heading != "auto":
-            return [s.heading]
-        order = [s.reference_port, s.port]
-        order += [p for p in self.ports if p not in order]
-        return order
-
     def _heading_at(self, uut: str, t: float) -> float | None:
+        """The UUT's true heading at ``t`` (noting the port it came from), or None."""
         u = self.uuts.get(uut)
         if u is None:
             return None
-        for port in self._heading_ports(u.s):
-            ph = self.headings.get(port)
-            if ph is None:
-                continue
-            h = ph.ring.at(t)
-            if h is None:
-                h = ph.ring.nearest(t, 0.6)
-            if h is not None:
-                if u.heading_port != port:
-                    u.heading_port = port
-                return h
-        return None
-
-    def _heading(self, t: float, port: str, h: _Heading) -> None:
-        ph = self.headings.get(port)
-        if ph is None:
-            ph = self.headings[port] = _PortHeading(self._turn_rate(port))
-        if h.variation_deg is not None:
-            self.variation[port] = h.variation_deg
-        true = h.true_deg
-        if true is None and h.magnetic_deg is not None:
-            var = self._variation(port)
-            if var is None:
-                ph.refused_magnetic += 1
-                return
-            true = wrap_deg(h.magnetic_deg + var)
-        if true is None or not math.isfinite(true):
-            return
-        if ph.jumps.accept(t, true):
-            ph.ring.add(t, wrap_deg(true))
-
-    def _turn_rate(self, port: str) -> float:
-        rates = [u.s.max_turn_rate_dps for u in self.uuts.values()]
-        return max(rates) if rates else 45.0
-
-    def _variation(self, port: str) -> float | None:
-        if port in self.variation:
-            return self.variation[port]
-        for v in self.variation.values():
-            return v
-        for u in self.uuts.values():
-            if u.s.magnetic_variation_deg is not None:
-                return u.s.magnetic_variation_deg
-        return None
+        found = self.headings.at(u.s, t)
+        if found is None:
+            return None
+        u.heading_port = found[1]
+        return found[0]
 
     # -- input ----------------------------------------------------------------
 
@@ -409,19 +275,17 @@ class Pipeline:
         dec = self.decoders.get(port)
         if dec is None:
             return out
-        self.last_rx[port] = t
         if t > self.now:
             self.now = t
-        if self.stale[port]:
-            self.stale[port] = False
+        if self.liveness.heard(port, t):
             out.events.append(Event(t, port, "alive", {}))
-        items = [item for rec in dec.feed(data) for item in _nav_items(dec, rec)]
+        items = [item for rec in dec.feed(data) for item in nav_items(dec, rec)]
         if items:
             self._route(t, port, items, out)
         self._after(t, out)
         return out
 
-    def _route(self, t: float, port: str, items: list[_Nav], out: Output) -> None:
+    def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
         u = self.uuts.get(port)
         # a UUT reading is fresh when it is the chunk's last of its sentence
         last: dict[str, int] = {}
@@ -430,12 +294,12 @@ class Pipeline:
                 if isinstance(it, SpeedRecord) and it.role == "speed":
                     last[it.source] = i
         for i, item in enumerate(items):
-            if isinstance(item, _Heading):
-                self._heading(t, port, item)
-            elif isinstance(item, _Gnss):
+            if isinstance(item, NavHeading):
+                self.headings.add(t, port, item)
+            elif isinstance(item, NavGnss):
                 self._gnss(t, port, item)
-            elif isinstance(item, _Fix):
-                self.fix_quality[port] = item.quality
+            elif isinstance(item, NavFix):
+                self.headings.fix_quality[port] = item.quality
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
@@ -445,58 +309,29 @@ class Pipeline:
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field != sp.role:
                 continue
-            v = _value(sp, u.s.component)
-            ok = sp.valid and v is not None and math.isfinite(v)
-            if ok and v is not None and not u.ref_jumps.accept(t, v):
-                ok = False
-            u.cal.add_reference(t, v if ok else None, ok)
+            u.reference(t, speed_of(sp, u.s.component), sp.valid)
 
-    def _gnss(self, t: float, port: str, g: _Gnss) -> None:
+    def _gnss(self, t: float, port: str, g: NavGnss) -> None:
         """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
-            self.variation[port] = g.variation_deg
-        valid = g.valid and self.fix_quality.get(port, 1) > 0
+            self.headings.variation[port] = g.variation_deg
+        valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
                 self._project(u)
 
-    def _project(self, u: _Uut, *, final: bool = False) -> None:
-        """Project queued GNSS samples on the hull once the heading covers their time.
+    def _project(self, u: UutRoute, *, final: bool = False) -> None:
+        """Project the UUT's queued GNSS fixes (:meth:`UutRoute.project`)."""
+        port = u.s.port
+        u.project(
+            self.headings.ring(u.s), lambda t: self._heading_at(port, t), self.now, final=final
+        )
 
-        Along the hull ``SOG·cos(COG − ψ)`` with the UUT's heading ψ interpolated at the
-        fix's time (a heading sentence usually follows the fix in the same second);
-        below ``min_sog_mps`` the course is meaningless and the sample is invalid.
-        """
-        while u.gnss:
-            t, sog, cog, valid = u.gnss[0]
-            ring = self._heading_ring(u.s)
-            if not final and ring is not None and not ring.covers(t) and self.now - t < 2.0:
-                return
-            u.gnss.popleft()
-            along: float | None = None
-            ok = valid and sog is not None and cog is not None
-            if ok and sog is not None and cog is not None:
-                psi = self._heading_at(u.s.port, t)
-                if psi is None or sog < u.s.min_sog_mps:
-                    ok = False
-                else:
-                    along = sog * math.cos(math.radians(cog - psi))
-                    ok = u.ref_jumps.accept(t, along)
-            u.cal.add_reference(t, along if ok else None, ok)
-
-    def _heading_ring(self, s: UutSettings) -> SampleRing | None:
-        """The ring the UUT's heading comes from now (the first with data)."""
-        for port in self._heading_ports(s):
-            ph = self.headings.get(port)
-            if ph is not None and len(ph.ring):
-                return ph.ring
-        return None
-
-    def _reading(self, u: _Uut, t: float, sp: SpeedRecord, *, fresh: bool, out: Output) -> None:
-        """Correct and emit a UUT reading at once, then queue it for learning."""
+    def _reading(self, u: UutRoute, t: float, sp: SpeedRecord, *, fresh: bool, out: Output) -> None:
+        """Correct a UUT reading and emit its sentence, then queue it for learning."""
         cal = u.cal
-        raw = _value(sp, u.s.component)
+        raw = speed_of(sp, u.s.component)
         if not sp.valid or raw is None:
             return
         if not cal.in_range(raw):
@@ -521,13 +356,13 @@ class Pipeline:
             cal.drain(self.now)
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
-            out.emits.append(Emit(t, u.s.port, encode_status(self._status_fields(u))))
+            out.emits.append(Emit(t, u.s.port, encode_status(st.status_fields(u))))
             self._vdr(u, t, out)
 
     def _fuse(
         self,
         t: float,
-        u: _Uut,
+        u: UutRoute,
         value: float,
         hdg_t: float | None,
         hdg_m: float | None,
@@ -544,7 +379,7 @@ class Pipeline:
             self.t_fused_status = t
             out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))
 
-    def _vdr(self, u: _Uut, t: float, out: Output) -> None:
+    def _vdr(self, u: UutRoute, t: float, out: Output) -> None:
         cal = u.cal
         if not cal.ident_current():
             return
@@ -553,7 +388,7 @@ class Pipeline:
             return
         drift = math.hypot(cur[0], cur[1])
         set_true = wrap_deg(math.degrees(math.atan2(cur[1], cur[0])))
-        var = self._variation(u.s.reference_port)
+        var = self.headings.variation_of(u.s.reference_port)
         set_mag = None if var is None else wrap_deg(set_true - var)
         out.emits.append(
             Emit(t, u.s.port, encode_vdr(set_true, set_mag, drift / KNOT_MPS, u.s.talker))
@@ -585,11 +420,8 @@ class Pipeline:
             self.startup_events.clear()
         if t > self.now:
             self.now = t
-        for name, p in self.ports.items():
-            last = self.last_rx.get(name)
-            if last is not None and not self.stale[name] and t - last > p.stale_timeout_s:
-                self.stale[name] = True
-                out.events.append(Event(t, name, "stale", {"silent_s": round(t - last, 3)}))
+        for name, silent_s in self.liveness.check(t):
+            out.events.append(Event(t, name, "stale", {"silent_s": round(silent_s, 3)}))
         self._after(t, out)
         return out
 
@@ -597,8 +429,8 @@ class Pipeline:
         """End of input (replay): flush every decoder and learn from every queued reading."""
         out = Output()
         for port, dec in self.decoders.items():
-            t = self.last_rx.get(port, 0.0)
-            items = [item for rec in dec.flush() for item in _nav_items(dec, rec)]
+            t = self.liveness.last.get(port, 0.0)
+            items = [item for rec in dec.flush() for item in nav_items(dec, rec)]
             self._route(t, port, items, out)
         for u in self.uuts.values():
             self._project(u, final=True)
@@ -663,91 +495,18 @@ class Pipeline:
 
     # -- status ---------------------------------------------------------------
 
-    def _status_fields(self, u: _Uut) -> StatusFields:
-        cal = u.cal
-        p = cal.applied
-        return StatusFields(
-            port=u.s.port,
-            maker=u.s.maker,
-            state=cal.state,
-            model=u.s.model,
-            params=p.as_dict() if p is not None else {},
-            std={k: v for k, v in cal.applied_std.items() if v is not None}
-            if p is not None
-            else {},
-            nis_mean=cal.nis_mean(),
-            ref_state=cal.ref_state,
-        )
-
     def port_status(self) -> dict[str, dict[str, object]]:
         """Per port: decoded records, rejects by reason, staleness, last receive time."""
-        return {
-            name: {
-                **dec.counters.as_dict(),
-                "stale": self.stale[name],
-                "last_rx": self.last_rx.get(name),
-            }
-            for name, dec in self.decoders.items()
-        }
+        return st.port_status(self.decoders, self.liveness)
 
     def status(self) -> dict[str, object]:
         """A JSON-ready status: per-port counters and per-UUT calibration state."""
-        last = self.fusion.last if self.fusion is not None else None
         return {
             "ports": self.port_status(),
-            "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
-            "fused": None
-            if last is None
-            else {"speed_mps": last.speed_mps, "std_mps": last.std_mps, "sources": last.sources},
-        }
-
-    def _uut_status(self, u: _Uut) -> dict[str, object]:
-        cal = u.cal
-        kf = cal.kf
-        ident = cal.ident
-        cur = kf.current_mps
-        cur_std = kf.current_std_mps
-        return {
-            "state": cal.state,
-            "reason": cal.reason,
-            "reference": cal.ref_state,
-            "heading_port": u.heading_port,
-            "learning_enabled": cal.learn_on,
-            "model": u.s.model,
-            "params": cal.applied.as_dict() if cal.applied is not None else None,
-            "param_std": dict(cal.applied_std) if cal.applied is not None else None,
-            "estimate": kf.params.as_dict(),
-            "estimate_std": kf.param_std,
-            "current": None
-            if cur is None or cur_std is None
-            else {
-                "north_mps": cur[0],
-                "east_mps": cur[1],
-                "std_north_mps": cur_std[0],
-                "std_east_mps": cur_std[1],
-                "determined": cal.ident_current(),
-            },
-            "lag_s": cal.lag_s,
-            "determined": list(ident.determined) if ident is not None else [],
-            "unidentifiable": list(ident.unidentifiable) if ident is not None else [],
-            "identifiability": ident.reason if ident is not None else "",
-            "nis_mean": cal.nis_mean(),
-            "samples_learnt": cal.n_learnt,
-            "freezes": cal.freezes,
-            "counters": cal.counters.as_dict(),
-            "scored_samples": cal.score.n,
-            "rmse_raw": cal.score.rmse_raw,
-            "rmse_corrected": cal.score.rmse_corrected,
+            "uuts": {name: st.uut_status(u) for name, u in self.uuts.items()},
+            "fused": st.fused_status(self.fusion.last if self.fusion is not None else None),
         }
 
     def summary(self) -> str:
         """One line for sd_notify STATUS=."""
-        parts = []
-        for name, u in self.uuts.items():
-            cal = u.cal
-            if cal.applied is not None:
-                pv = " ".join(f"{k}={v:+.3f}" for k, v in cal.applied.as_dict().items())
-                parts.append(f"{name} {cal.state} {u.s.model} {pv} ref {cal.ref_state}")
-            else:
-                parts.append(f"{name} {cal.state} ref {cal.ref_state}")
-        return "; ".join(parts)
+        return st.summary(self.uuts)
