@@ -153,9 +153,10 @@ class Headings:
         order += [p for p in self.ports if p not in order]
         return order
 
-    def at(self, s: UutSettings, t: float) -> tuple[float, str] | None:
-        """The UUT's true heading at ``t`` and the port it came from, or None."""
-        for port in self.order(s):
+    def at(self, order: Sequence[str], t: float) -> tuple[float, str] | None:
+        """The true heading at ``t`` on the first port of ``order`` (:meth:`order`) that
+        has one, and that port; or None."""
+        for port in order:
             ph = self.rings.get(port)
             if ph is None:
                 continue
@@ -166,9 +167,9 @@ class Headings:
                 return h, port
         return None
 
-    def ring(self, s: UutSettings) -> SampleRing | None:
-        """The ring the UUT's heading comes from now (the first with data)."""
-        for port in self.order(s):
+    def ring(self, order: Sequence[str]) -> SampleRing | None:
+        """The ring a UUT's heading comes from now: the first of ``order`` with data."""
+        for port in order:
             ph = self.rings.get(port)
             if ph is not None and len(ph.ring):
                 return ph.ring
@@ -215,9 +216,11 @@ class Headings:
 class UutRoute:
     """One UUT's calibration plus its routing state."""
 
-    def __init__(self, s: UutSettings, cal: UutCalibration) -> None:
+    def __init__(self, s: UutSettings, cal: UutCalibration, heading_order: list[str]) -> None:
         self.s = s
         self.cal = cal
+        self.heading_order = heading_order
+        """The ports the UUT's heading is looked for on (:meth:`Headings.order`)."""
         self.ref_jumps = JumpFilter(s.max_accel_mps2, REFERENCE_JUMP_WINDOW_S)
         self.t_status = -math.inf
         self.heading_port: str | None = None
