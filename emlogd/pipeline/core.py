@@ -44,7 +44,7 @@ from drivers.records import KNOT_MPS, SpeedRecord
 from emlogd.pipeline import status as st
 from emlogd.pipeline.align import wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
-from emlogd.pipeline.fusion import Fusion, FusionSettings
+from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
 from emlogd.pipeline.routing import (
     Headings,
     Nav,
@@ -61,13 +61,19 @@ from emlogd.pipeline.sentences import (
     encode_vbw,
     encode_vdr,
     encode_vhw,
+    encode_vhw_void,
 )
 from emlogd.pipeline.settings import PortSettings, UutSettings
-from emlogd.pipeline.staleness import Liveness
+from emlogd.pipeline.staleness import HEADING_NEAREST_S, Liveness
 from emlogd.pipeline.uut import UutCalibration
 
 FUSED_PORT = "fused"
 """The port name of the fused speed's emits (a UUT may not be called this)."""
+
+HEADING_CHECK_TOL_S = 1.5
+"""A GNSS fix is judged with the heading nearest its time within this, s (a heading
+sentence often follows the fix; a wrong heading is tens of degrees off, not a turn's
+1.5 s)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -256,18 +262,24 @@ class Pipeline:
         for u in self.uuts.values():
             self._by_ref.setdefault(u.s.reference_port, []).append(u)
         if self.fusion is not None and old.fusion is not None:
-            self.fusion.latest = dict(old.fusion.latest)
+            self.fusion.adopt(old.fusion)
         self.now = max(self.now, old.now)
         return kept
 
     # -- headings --------------------------------------------------------------
 
     def _heading_at(self, uut: str, t: float) -> float | None:
-        """The UUT's true heading at ``t`` (noting the port it came from), or None."""
+        """The UUT's true heading at ``t``, unless the course over ground says it is wrong."""
         u = self.uuts.get(uut)
-        if u is None:
+        if u is None or u.heading_check.suspect:
             return None
-        found = self.headings.at(u.heading_order, t)
+        return self._raw_heading_at(u, t)
+
+    def _raw_heading_at(
+        self, u: UutRoute, t: float, tol_s: float = HEADING_NEAREST_S
+    ) -> float | None:
+        """The UUT's true heading at ``t`` (noting the port it came from), or None."""
+        found = self.headings.at(u.heading_order, t, tol_s)
         if found is None:
             return None
         u.heading_port = found[1]
@@ -323,10 +335,30 @@ class Pipeline:
         if g.variation_deg is not None:
             self.headings.variation[port] = g.variation_deg
         valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
+        if valid and g.sog_mps is not None and self.fusion is not None:
+            self.fusion.ground(t, g.sog_mps)
+        if valid and g.sog_mps is not None and g.cog_true_deg is not None:
+            for u in self.uuts.values():
+                self._check_heading(t, u, g.sog_mps, g.cog_true_deg)
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
                 self._project(u)
+
+    def _check_heading(self, t: float, u: UutRoute, sog: float, cog: float) -> None:
+        """Judge the UUT's heading against a GNSS fix (an event when the verdict changes)."""
+        if u.stw is None or abs(t - u.stw[0]) > 2.0 or sog < u.s.min_sog_mps:
+            return
+        psi = self._raw_heading_at(u, t, HEADING_CHECK_TOL_S)
+        if psi is None:
+            return
+        hc = u.heading_check
+        was = hc.suspect
+        hc.add(t, psi, u.stw[1], sog, cog)
+        if hc.suspect != was:
+            detail = {"why": hc.reason()} if hc.suspect else {}
+            kind = "heading_suspect" if hc.suspect else "heading_consistent"
+            self._pending_events.append(Event(t, u.s.port, kind, detail))
 
     def _project(self, u: UutRoute, *, final: bool = False) -> None:
         """Project the UUT's queued GNSS fixes (:meth:`UutRoute.project`)."""
@@ -350,7 +382,14 @@ class Pipeline:
         if not fresh:
             cal.counters.backlog += 1
             return
+        why = u.plausible(t, sp.source, raw)
+        if why and self.fusion is not None and sp.source == u.s.uut_source:
+            self.fusion.refuse(u.s.port, t, why)
+        if why and why != "reacquired":
+            return
         value = cal.correct(raw)
+        if value is not None and sp.source == u.s.uut_source:
+            u.stw = (t, value)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.source == "VHW":
@@ -380,11 +419,19 @@ class Pipeline:
     ) -> None:
         """Send the fused speed (port ``fused``, with the log's headings) when one is due."""
         assert self.fusion is not None
-        fused = self.fusion.update(u.s.port, t, value, u.cal.output_std(value))
+        cal = u.cal
+        std = cal.output_std(value)
+        calibrated = cal.applied is not None and u.s.apply
+        cstd = consistency_std(std, u.s.r_raw_mps, value, calibrated)
+        fused = self.fusion.update(u.s.port, t, value, std, cstd_mps=cstd, calibrated=calibrated)
         if fused is None:
             return
         talker = self.fusion.s.talker
-        out.emits.append(Emit(t, FUSED_PORT, encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)))
+        if fused.valid:
+            sentence = encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)
+        else:
+            sentence = encode_vhw_void(hdg_t, hdg_m, talker)
+        out.emits.append(Emit(t, FUSED_PORT, sentence))
         if t - self.t_fused_status >= u.s.status_sentence_interval_s:
             self.t_fused_status = t
             out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))

@@ -24,7 +24,8 @@ from drivers.nmea0183 import Gga, Rmc, Vtg
 from drivers.nmea0183 import Heading as NmeaHeading
 from drivers.records import Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
-from emlogd.pipeline.integrity import JumpFilter
+from emlogd.pipeline.headingcheck import HeadingCheck
+from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.staleness import GNSS_HEADING_WAIT_S, HEADING_MAX_GAP_S, HEADING_NEAREST_S
 from emlogd.pipeline.uut import UutCalibration
@@ -153,16 +154,19 @@ class Headings:
         order += [p for p in self.ports if p not in order]
         return order
 
-    def at(self, order: Sequence[str], t: float) -> tuple[float, str] | None:
+    def at(
+        self, order: Sequence[str], t: float, nearest_s: float = HEADING_NEAREST_S
+    ) -> tuple[float, str] | None:
         """The true heading at ``t`` on the first port of ``order`` (:meth:`order`) that
-        has one, and that port; or None."""
+        has one, and that port; or None. Outside an interpolation a sample within
+        ``nearest_s`` of ``t`` is used as it is."""
         for port in order:
             ph = self.rings.get(port)
             if ph is None:
                 continue
             h = ph.ring.at(t)
             if h is None:
-                h = ph.ring.nearest(t, HEADING_NEAREST_S)
+                h = ph.ring.nearest(t, nearest_s)
             if h is not None:
                 return h, port
         return None
@@ -225,6 +229,25 @@ class UutRoute:
         self.t_status = -math.inf
         self.heading_port: str | None = None
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=GNSS_QUEUE)
+        self.checks: dict[str, ReadingCheck] = {}
+        """The plausibility of the readings, per sentence (VHW, VBW)."""
+        self.heading_check = HeadingCheck(s.envelope.max_current_mps)
+        self.stw: tuple[float, float] | None = None
+        """The latest corrected speed through the water (time, m/s)."""
+        self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
+        """Readings neither emitted nor learnt, by reason (shown with the counters)."""
+
+    def plausible(self, t: float, source: str, raw: float) -> str:
+        """``""`` when the reading is plausible, else why not (counted)."""
+        chk = self.checks.get(source)
+        if chk is None:
+            chk = self.checks[source] = ReadingCheck(self.s.limits)
+        why = chk.check(t, raw)
+        if why:
+            self.implausible[f"implausible_{why}"] += 1
+        elif chk.reacquired:
+            return "reacquired"
+        return why
 
     def reference(self, t: float, v: float | None, valid: bool) -> None:
         """A reference sample along the hull: through the glitch filter to the UUT."""

@@ -52,7 +52,13 @@ def fused_status(last: Fused | None) -> dict[str, object] | None:
     """The fused speed last sent, or None."""
     if last is None:
         return None
-    return {"speed_mps": last.speed_mps, "std_mps": last.std_mps, "sources": last.sources}
+    return {
+        "valid": last.valid,
+        "speed_mps": last.speed_mps if last.valid else None,
+        "std_mps": last.std_mps if last.valid else None,
+        "sources": last.sources,
+        "excluded": dict(last.excluded),
+    }
 
 
 def uut_status(u: UutRoute) -> dict[str, object]:
@@ -67,6 +73,7 @@ def uut_status(u: UutRoute) -> dict[str, object]:
         "reason": cal.reason,
         "reference": cal.ref_state,
         "heading_port": u.heading_port,
+        "heading_suspect": u.heading_check.reason(),
         "learning_enabled": cal.learn_on,
         "model": u.s.model,
         "params": cal.applied.as_dict() if cal.applied is not None else None,
@@ -89,7 +96,7 @@ def uut_status(u: UutRoute) -> dict[str, object]:
         "nis_mean": cal.nis_mean(),
         "samples_learnt": cal.n_learnt,
         "freezes": cal.freezes,
-        "counters": cal.counters.as_dict(),
+        "counters": {**cal.counters.as_dict(), **u.implausible},
         "scored_samples": cal.score.n,
         "rmse_raw": cal.score.rmse_raw,
         "rmse_corrected": cal.score.rmse_corrected,

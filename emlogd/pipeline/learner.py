@@ -1,0 +1,669 @@
+"""The learner of one UUT: lag, alignment, identifiability, the filter, block means.
+
+What a UUT's readings teach, and nothing about what is applied (that is
+:mod:`emlogd.pipeline.supervisor`'s). :class:`Learner` pairs each reading with the
+reference and the heading at ``t − lag`` (:mod:`emlogd.pipeline.align`) and, per sample:
+
+1. the lag: configured, restored with the calibration, or estimated once over
+   ``lag_window_s`` (:mod:`calib.lag`, with the current modelled when there is one);
+2. the reference's state: valid, lost, stale, too slow, or none yet;
+3. which unknowns the recent data determine (:class:`calib.excitation.ExcitationWindow`):
+   only those learn; the others are held at their prior (the applied calibration,
+   else nominal). With current states the current always learns — as a nuisance
+   absorbing bias and along-hull current together when they cannot be told apart;
+4. the filter step (:class:`calib.kalman.KfCalibrator`) with an NIS gate: a gated
+   sample teaches nothing; a run of gated readings re-opens the parameters (the
+   sensor changed), a run of gated references re-acquires the speed;
+5. an estimate far outside the envelope restarts the filter from the prior.
+
+Its only output to the supervisor is an :class:`Offer`: the estimate and its standard
+deviations, once every learnt unknown is within ``max_param_std`` and the estimate is
+inside the envelope. Nothing here reads a clock or does I/O; times are receive times.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from calib.errors import CalibrationError
+from calib.excitation import ExcitationWindow, Identifiability
+from calib.kalman import Innovation, KfCalibrator, StepResult
+from calib.lag import MAX_LAG_STD_RELAXED_S, MAX_LAG_STD_S, accept, estimate_lag
+from calib.lsq import BLOCK_MAX_GAP_S, MIN_HEADING_COHERENCE
+from calib.models import CURRENT, FloatArray, Layout, Params, zero_params
+from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.counters import Counters
+from emlogd.pipeline.integrity import Envelope
+
+if TYPE_CHECKING:
+    from emlogd.pipeline.settings import UutSettings
+
+RefState = Literal["valid", "lost", "stale", "slow", "none"]
+
+EVAL_EVERY = 10
+"""Identifiability is re-judged every this many samples with a valid reference."""
+
+LEARN_STD_FACTOR = 5.0
+"""Online, an unknown may learn while the window's own information gives it a standard
+deviation up to this many times its ``max_std``: the filter's covariance weighs weak
+information, and only a structural degeneracy (constant speed, too few heading
+sectors, a singular window) must stop it. Whether the result is good enough to apply
+is judged on the filter's covariance (``max_param_std``) and the validation window."""
+
+NUISANCE_REOPEN = 20
+"""Samples the current has learnt while every scale was held after which a scale
+becoming determined re-opens the current (what it learnt was conditional on the held
+scale)."""
+
+_TRACK_CURRENT = frozenset({CURRENT})
+"""What learns while the operator has switched learning off (water frame only)."""
+
+LAG_WINDOW_GROWTH = 4.0
+"""A refused lag estimate lets the window grow up to this many times ``lag_window_s``."""
+
+LAG_MAX_RATE_HZ = 20.0
+"""Reference samples per second the lag window is sized for (a 10 Hz DVL twice over)."""
+
+
+AVERAGE_S: dict[str, float] = {"gnss": 20.0}
+"""Learning from block means of this length by reference field, s (others: every
+sample). GNSS speed projected on the hull has about 0.3 m/s of noise correlated over
+seconds (the receiver's filter, the heading's swing); taken sample by sample it would
+make the filter far more certain of the current than the data allow, and a plain least
+squares would shrink the scale (errors in the regressor). 20-s means still follow a
+yacht's tacks and a boat's speed steps."""
+
+CURRENT_SIGNIFICANCE = 3.0
+"""A current is reported when each component's σ is within ``max_std_current_mps``, or
+within a third of the current's speed: a 1 m/s tidal stream known to ±0.1 m/s is a
+measurement; 0.1 m/s known to ±0.1 m/s is not."""
+
+
+class BlockMeans:
+    """Consecutive blocks of learnt-from samples, averaged (:data:`AVERAGE_S`); the
+    streaming form of :func:`calib.lsq.block_average`, with its rules.
+
+    A block closes after ``window_s`` (samples that cannot be learnt from are left out);
+    it is dropped when the set of unknowns learning changes, a gap between its samples
+    exceeds 5 s, the heading comes or goes, or the heading turned too much
+    inside it (its mean heading vector shorter than :data:`MIN_HEADING_COHERENCE`).
+    """
+
+    def __init__(self, window_s: float) -> None:
+        self.window_s = window_s
+        self.clear()
+
+    def clear(self) -> None:
+        """Drop the block being collected."""
+        self.n = 0
+        self.t0 = self.t_last = 0.0
+        self.raw = self.ref = self.c = self.s = 0.0
+        self.learn: frozenset[str] = frozenset()
+        self.with_heading = False
+
+    def add(
+        self,
+        t: float,
+        raw: float,
+        ref: float,
+        cs: tuple[float, float] | None,
+        learn: frozenset[str],
+    ) -> tuple[float, float, tuple[float, float] | None, frozenset[str]] | None:
+        """Add a sample; the block's (raw, ref, (cos, sin), unknowns) when it closes."""
+        if self.n and (
+            learn != self.learn
+            or t - self.t_last > BLOCK_MAX_GAP_S
+            or (cs is not None) != self.with_heading
+        ):
+            self.clear()
+        if not self.n:
+            self.t0, self.learn, self.with_heading = t, learn, cs is not None
+        self.n += 1
+        self.t_last = t
+        self.raw += raw
+        self.ref += ref
+        if cs is not None:
+            self.c += cs[0]
+            self.s += cs[1]
+        if t - self.t0 < self.window_s:
+            return None
+        n, learn_set = self.n, self.learn
+        mean_cs: tuple[float, float] | None = None
+        if self.with_heading:
+            c, s = self.c / n, self.s / n
+            norm = math.hypot(c, s)
+            if norm < MIN_HEADING_COHERENCE:
+                self.clear()
+                return None
+            mean_cs = (c / norm, s / norm)
+        out = (self.raw / n, self.ref / n, mean_cs, learn_set)
+        self.clear()
+        return out
+
+
+class LagFinder:
+    """Bounded series of the UUT, its reference and heading for the one-off lag estimate.
+
+    The first estimate is made over ``window_s``; one that is not final keeps the data
+    and waits for a window half as long again, up to :data:`LAG_WINDOW_GROWTH` times
+    the first (a broad correlation peak sharpens with more data); beyond that the older
+    half is dropped and the window slides. An estimate within
+    :data:`calib.lag.MAX_LAG_STD_S` is final; one within the relaxed
+    :data:`calib.lag.MAX_LAG_STD_RELAXED_S` is provisional until the longest window
+    (learning starts with it: a lag off by a tenth of a second costs a calibration far
+    less than twenty minutes of raw output), and final there.
+    """
+
+    def __init__(self, window_s: float, max_lag_s: float, with_heading: bool) -> None:
+        self.window_s = window_s
+        self.target_s = window_s
+        self.max_lag_s = max_lag_s
+        self.with_heading = with_heading
+        cap = int((LAG_WINDOW_GROWTH * window_s + 2 * max_lag_s) * LAG_MAX_RATE_HZ) + 64
+        self.uut = _Series(cap)
+        self.ref = _Series(cap)
+        self.heading = _Series(cap)
+
+    def ready(self) -> bool:
+        """The UUT series spans the current target window."""
+        return self.uut.span() >= self.target_s
+
+    def span(self) -> float:
+        """Time the UUT series spans, s."""
+        return self.uut.span()
+
+    def estimate(self) -> tuple[float | None, float, str, bool]:
+        """``(lag, std, why, final)``: an accepted lag, or None and why; the window grows
+        unless the estimate is final."""
+        try:
+            est = estimate_lag(
+                self.uut.times(),
+                self.uut.values(),
+                self.ref.times(),
+                self.ref.values(),
+                self.max_lag_s,
+                step_s=0.1,
+                heading=(self.heading.times(), self.heading.values())
+                if self.with_heading
+                else None,
+            )
+        except CalibrationError as exc:
+            why = str(exc)
+        else:
+            why = accept(est, max_std_s=MAX_LAG_STD_RELAXED_S)
+            if not why:
+                what = f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
+                if est.std_s <= MAX_LAG_STD_S:
+                    return est.lag_s, est.std_s, what, True
+                if self.target_s >= LAG_WINDOW_GROWTH * self.window_s:
+                    note = "uncertain: the sharpest peak in the longest window"
+                    return est.lag_s, est.std_s, f"{what}, {note}", True
+                self._grow()
+                return est.lag_s, est.std_s, f"{what}, provisional until a sharper peak", False
+        self._grow()
+        return None, math.inf, why, False
+
+    def _grow(self) -> None:
+        if self.target_s < LAG_WINDOW_GROWTH * self.window_s:
+            self.target_s = min(1.5 * self.target_s, LAG_WINDOW_GROWTH * self.window_s)
+        else:
+            for q in (self.uut, self.ref, self.heading):
+                q.drop_older_half()
+
+
+class _Series:
+    """Two bounded deques of floats (times and values): lean fixed memory."""
+
+    __slots__ = ("t", "v")
+
+    def __init__(self, cap: int) -> None:
+        self.t: deque[float] = deque(maxlen=cap)
+        self.v: deque[float] = deque(maxlen=cap)
+
+    def append(self, item: tuple[float, float]) -> None:
+        self.t.append(item[0])
+        self.v.append(item[1])
+
+    def span(self) -> float:
+        return self.t[-1] - self.t[0] if self.t else 0.0
+
+    def times(self) -> FloatArray:
+        return np.fromiter(self.t, dtype=np.float64, count=len(self.t))
+
+    def values(self) -> FloatArray:
+        return np.fromiter(self.v, dtype=np.float64, count=len(self.v))
+
+    def drop_older_half(self) -> None:
+        for _ in range(len(self.t) // 2):
+            self.t.popleft()
+            self.v.popleft()
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True, slots=True)
+class Offer:
+    """The learner's estimate, offered to the supervisor as a candidate calibration."""
+
+    params: Params
+    param_std: Mapping[str, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Aligned:
+    """One reading with the reference and heading at ``t − lag`` (None when unknown)."""
+
+    t: float
+    raw: float
+    dt: float
+    ref: float | None
+    heading: float | None
+    cs: tuple[float, float] | None
+    """The heading's (cos, sin), or None."""
+    ref_state: RefState
+
+
+@dataclass(frozen=True, slots=True)
+class Learnt:
+    """What one filter step did with a reading."""
+
+    valid: bool
+    """The reference (and heading, with current states) was usable for this reading."""
+    learnt: bool
+    """The unknowns learnt from this reading (or from the block it closed)."""
+    collecting: bool
+    """A block of means is being collected (learning, though nothing learnt yet)."""
+    learn_set: frozenset[str] | bool
+    innovation: Innovation | None
+
+
+class Learner:
+    """The filter of one UUT and everything that decides what it learns (module docstring).
+
+    Args:
+        s: the UUT's settings.
+        prior: a checked, usable calibration to start the filter from, or None.
+        emit: called as ``emit(t, kind, detail)`` for every event worth a log line.
+    """
+
+    def __init__(
+        self,
+        s: UutSettings,
+        layout: Layout,
+        prior: Calibration | None,
+        emit: Callable[[float, str, Mapping[str, object]], None],
+        counters: Counters,
+    ) -> None:
+        self.s = s
+        self.layout = layout
+        self._emit = emit
+        self.counters = counters
+        self.kf = self._new_filter(prior)
+        self.lag_s: float | None = s.lag_s
+        if self.lag_s is None and prior is not None and prior.lag_s is not None:
+            self.lag_s = prior.lag_s
+        self.lag_std_s = math.inf
+        self.lag_finder = (
+            LagFinder(s.lag_window_s, s.max_lag_s, s.current) if self.lag_s is None else None
+        )
+        self.ref = SampleRing(int((s.max_lag_s + 5.0) * 50) + 64)
+        self.window = ExcitationWindow(
+            self.layout, max(s.excitation_half_life_samples, 1.0), s.rule
+        )
+        self.ident: Identifiability | None = None
+        self.learn_set: frozenset[str] = frozenset()
+        self.learnt_ever: set[str] = set()
+        self.nuisance_samples = 0
+        self.current_reportable = False
+        self.learn_on = s.learn
+        self.ref_state: RefState = "none"
+        self.t_prev: float | None = None
+        self.t_restored = prior.t if prior is not None and prior.current else None
+        """When the restored calibration's current was last known (aged at the first reading)."""
+        self.t_ref_last = -math.inf
+        self.n_learnt = prior.n_samples if prior is not None else 0
+        self.n_since_eval = 0
+        self.nis: deque[float] = deque(maxlen=300)
+        self.nis_sum = 0.0
+        self.gated_run_raw = 0
+        self.gated_run_ref = 0
+        average = s.average_s if s.average_s is not None else AVERAGE_S.get(s.reference_field, 0.0)
+        self.block = BlockMeans(average) if average > 0.0 else None
+        """Learning from block means (a noisy reference), or None: from every sample."""
+        env = s.envelope
+        self._wide = Envelope(
+            2.0 * env.max_abs_m,
+            2.0 * env.max_abs_b_mps,
+            2.0 * env.max_abs_a_spm,
+            2.0 * env.max_current_mps,
+            env.max_speed_mps,
+        )
+        """Twice the envelope: an estimate beyond it restarts the filter (:meth:`_envelope`)."""
+        self._param_names = frozenset(self.layout.params)
+
+    def _new_filter(self, prior: Calibration | None) -> KfCalibrator:
+        s = self.s
+        params0 = prior.params if prior is not None else None
+        cur0 = prior.current_mps if prior is not None and prior.current else None
+        cov0 = None
+        if prior is not None and prior.covariance and prior.layout == self.layout:
+            cov0 = np.array(prior.covariance, dtype=np.float64)
+        elif prior is not None:
+            n = self.layout.n
+            diag = np.full(n, s.kf.p0)
+            for i, name in enumerate(self.layout.params):
+                sd = prior.param_std.get(name)
+                if sd is not None and math.isfinite(sd) and sd > 0.0:
+                    diag[1 + i] = max(sd * sd, 1e-12)
+            if self.layout.current:
+                diag[-2:] = s.kf.current_p0_m2ps2
+            cov0 = np.diag(diag)
+        kf = KfCalibrator(
+            s.model, s.kf, current=s.current, params0=params0, current0_mps=cur0, P0=cov0
+        )
+        # the vessel's speed now is unknown (a saved covariance holds the variance the
+        # speed had when saved): the first measurement sets it, and no reading is
+        # gated against a speed of zero
+        kf.reacquire_speed()
+        return kf
+
+    # -- inputs -------------------------------------------------------------
+
+    def add_reference(
+        self,
+        t: float,
+        v_mps: float | None,
+        valid: bool,
+        heading_at: Callable[[float], float | None],
+    ) -> bool:
+        """One reference sample along the hull; False when the ring refused it."""
+        if not self.ref.add(t, v_mps, valid):
+            return False
+        self.t_ref_last = t
+        lf = self.lag_finder
+        if lf is not None and valid and v_mps is not None and math.isfinite(v_mps):
+            lf.ref.append((t, v_mps))
+            if lf.with_heading:
+                h = heading_at(t)
+                if h is not None:
+                    lf.heading.append((t, h))
+        return True
+
+    # -- one reading ----------------------------------------------------------
+
+    def align(self, t: float, raw: float, heading_at: Callable[[float], float | None]) -> Aligned:
+        """Steps 1–2: the lag, then the reference and heading at ``t − lag`` and their state."""
+        dt = 0.0 if self.t_prev is None else max(t - self.t_prev, 0.0)
+        self.t_prev = t
+        if self.t_restored is not None:
+            self.kf.age_current(t - self.t_restored)
+            self.t_restored = None
+        self._lag_step(t, raw)
+        lag = self.lag_s
+        ref = self.ref.at(t - lag) if lag is not None else None
+        heading = heading_at(t - lag) if lag is not None else None
+        ref_state = self._ref_state(t, ref)
+        if ref_state != self.ref_state:
+            self._emit(t, "reference", {"from": self.ref_state, "to": ref_state})
+            self.ref_state = ref_state
+        cs: tuple[float, float] | None = None
+        if heading is not None:
+            psi = math.radians(heading)
+            cs = (math.cos(psi), math.sin(psi))
+        return Aligned(t, raw, dt, ref, heading, cs, ref_state)
+
+    def step(self, a: Aligned, fault: str, prior: Params | None) -> Learnt:
+        """Steps 3–5 for one aligned reading.
+
+        Args:
+            a: the reading, aligned.
+            fault: the UUT's health fault (``""`` when healthy): a faulty log teaches nothing.
+            prior: the applied calibration (the filter restarts from it), or None.
+        """
+        valid = self._usable(a)
+        self._excitation(a, valid)
+        learn_set = self._learn_set(valid, fault)
+        if fault:
+            self.counters.uut_fault += 1
+        block = self.block
+        res = self.kf.update(
+            a.raw,
+            a.ref if valid else None,
+            a.dt,
+            heading_cs=a.cs,
+            learn=False if block is not None else learn_set,
+            max_nis=self.s.gate_nis,
+        )
+        self._gates(a.t, res.raw_gated, res.ref_gated, valid)
+        learnt = res.learnt and learn_set is not False
+        if block is not None:
+            usable = not (res.raw_gated or res.ref_gated) and res.raw is not None
+            learnt = False
+            closed = self._block_step(block, a, learn_set, usable)
+            if closed is not None:
+                learn_set, res = closed
+                learnt = res.learnt
+        if not self.learn_on:
+            learnt = False  # at most the current followed the reference
+        if learnt and res.raw is not None:
+            self._account(learn_set, res.raw.nis)
+            self._envelope(a.t, prior)
+        collecting = self.learn_on and block is not None and block.n > 0
+        return Learnt(valid, bool(learnt), collecting, learn_set, res.raw)
+
+    def _usable(self, a: Aligned) -> bool:
+        valid = a.ref_state == "valid" and a.ref is not None
+        if valid and self.layout.current and a.cs is None:
+            self.counters.no_heading += 1
+            valid = False
+        return valid
+
+    def _excitation(self, a: Aligned, valid: bool) -> None:
+        """Feed the identifiability window (speed through water by the current estimate)."""
+        if not valid or a.ref is None:
+            return
+        current, cs = self.kf.current_mps, a.cs
+        proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
+        self.window.add(a.ref - proj, a.raw, a.heading)
+        self.n_since_eval += 1
+        if self.n_since_eval >= EVAL_EVERY or self.ident is None:
+            self._judge(a.t)
+
+    def _learn_set(self, valid: bool, fault: str) -> frozenset[str] | bool:
+        if not (valid and not fault and self.lag_s is not None and self.learn_set):
+            return False
+        if self.learn_on:
+            return self.learn_set
+        if self.layout.current:
+            # Learning off freezes the sensor's parameters, not the sea: the current
+            # keeps following a valid reference, so the output is still checked
+            # against the reference in the water frame.
+            return _TRACK_CURRENT
+        return False
+
+    def _block_step(
+        self, block: BlockMeans, a: Aligned, learn_set: frozenset[str] | bool, usable: bool
+    ) -> tuple[frozenset[str], StepResult] | None:
+        """Block means: each sample moves the speed state only; the unknowns learn from
+        the means of a block (a noisy reference's errors are correlated over seconds, so
+        single samples would overstate what is known). The block's step, when one closed."""
+        if not usable or not isinstance(learn_set, frozenset) or a.ref is None:
+            return None
+        closed = block.add(a.t, a.raw, a.ref, a.cs, learn_set)
+        if closed is None:
+            return None
+        b_raw, b_ref, b_cs, b_learn = closed
+        # the speed state followed the last sample; the block's mean speed is another
+        # quantity: the mean reference sets it afresh
+        self.kf.reacquire_speed()
+        res = self.kf.update(
+            b_raw, b_ref, 0.0, heading_cs=b_cs, learn=b_learn, max_nis=self.s.gate_nis
+        )
+        return b_learn, res
+
+    def _account(self, learn_set: frozenset[str] | bool, nis: float) -> None:
+        self.n_learnt += 1
+        self.counters.learnt += 1
+        if isinstance(learn_set, frozenset):
+            self.learnt_ever |= learn_set
+            if CURRENT in learn_set and not {"a", "m"} & learn_set:
+                self.nuisance_samples += 1
+        if len(self.nis) == self.nis.maxlen:
+            self.nis_sum -= self.nis[0]
+        self.nis.append(nis)
+        self.nis_sum += nis
+
+    def _lag_step(self, t: float, raw: float) -> None:
+        lf = self.lag_finder
+        if lf is None:
+            return
+        lf.uut.append((t, raw))
+        if not lf.ready():
+            return
+        lag, std, why, final = lf.estimate()
+        if lag is None:
+            self._emit(t, "lag_retry", {"why": why})
+            return
+        if self.lag_s is None or final or std < self.lag_std_s:
+            # the first, a sharper one from a longer window, or the final one
+            self._emit(t, "lag_estimated", {"lag_s": round(lag, 3), "why": why})
+            self.lag_s, self.lag_std_s = lag, std
+        if final:
+            self.lag_finder = None
+
+    def _ref_state(self, t: float, ref: float | None) -> RefState:
+        if self.lag_s is None and self.t_ref_last == -math.inf:
+            return "none"
+        if t - self.t_ref_last > self.s.ref_stale_s:
+            return "stale"
+        if ref is None:
+            return "lost" if self.lag_s is not None else "none"
+        if abs(ref) < self.s.min_ref_speed_mps:
+            return "slow"
+        return "valid"
+
+    def _judge(self, t: float) -> None:
+        self.n_since_eval = 0
+        kf = self.s.kf
+        sigma2 = kf.r_raw_mps2 + kf.r_ref_mps2
+        ident = self.window.evaluate(sigma2, std_factor=LEARN_STD_FACTOR)
+        before = self.ident.determined if self.ident is not None else None
+        self.ident = ident
+        if self.layout.current:
+            strict = self.window.evaluate(sigma2)
+            self.current_reportable = CURRENT in strict.determined
+        learn = set(ident.determined)
+        if self.layout.current:
+            learn.add(CURRENT)
+            gained = {"a", "m"} & (learn - self.learn_set)
+            if gained and self.nuisance_samples >= NUISANCE_REOPEN:
+                # The current took the offset of a scale held at its prior: that offset
+                # was the scale's. Let the current learn again beside the scale.
+                self.kf.reopen([CURRENT])
+                self.nuisance_samples = 0
+                self._emit(
+                    t,
+                    "relearn",
+                    {
+                        "why": f"{', '.join(sorted(gained))} now determined: the current learns again"
+                    },
+                )
+        elif "b" in self.layout.params and "b" not in learn:
+            # Without current states nothing takes the offset the held bias leaves: a
+            # scale learnt then would absorb it. The scale learns with the bias only.
+            learn -= {"a", "m"}
+        self.learn_set = frozenset(learn)
+        if before != ident.determined:
+            self._emit(
+                t,
+                "identifiability",
+                {"determined": list(ident.determined), "why": ident.reason},
+            )
+
+    def _gates(self, t: float, raw_gated: bool, ref_gated: bool, valid: bool) -> None:
+        s = self.s
+        if ref_gated:
+            self.counters.gated_ref += 1
+            self.gated_run_ref += 1
+            if self.gated_run_ref >= s.relearn_gates:
+                # The speed state lost the reference (after a long outage, or a real
+                # jump the state could not follow): re-acquire it from the reference.
+                self.kf.reacquire_speed()
+                self.counters.reacquire += 1
+                self.gated_run_ref = 0
+                self._emit(t, "reacquire", {"why": "reference gated repeatedly"})
+        elif valid:
+            self.gated_run_ref = 0
+        if raw_gated:
+            self.counters.gated_raw += 1
+            self.gated_run_raw += 1
+            if self.gated_run_raw >= s.relearn_gates:
+                # The readings no longer fit the calibration while the log is healthy:
+                # the sensor changed. Learn its parameters again from the data.
+                self.kf.reopen(self.layout.params)
+                self.counters.relearn += 1
+                self.gated_run_raw = 0
+                self._emit(t, "relearn", {"why": "readings gated repeatedly"})
+        else:
+            self.gated_run_raw = 0
+
+    def _envelope(self, t: float, prior: Params | None) -> None:
+        """Restart the parameters when the estimate has run far outside the envelope.
+
+        A learning transient may leave the envelope (nothing outside it is applied or
+        persisted); an estimate at twice the limits, or one that cannot be inverted,
+        is a filter captured by something the model does not explain.
+        """
+        why = self._wide.check(self.kf.params, self.kf.current_mps)
+        if not why:
+            return
+        self.counters.envelope += 1
+        base = prior if prior is not None else zero_params(self.s.model)
+        self.kf.restart(base)
+        self._emit(t, "envelope", {"why": why, "restart_from": base.as_dict()})
+
+    def ident_current(self) -> bool:
+        """The current is determined: reported in the status, the VDR and a calibration.
+
+        The recent window must determine it by the strict rule (``max_std_current_mps``
+        itself, not the looser bound that lets the filter learn) and the filter's own
+        standard deviation of each component must be within that bound, or within a
+        third of the current's speed (:data:`CURRENT_SIGNIFICANCE`).
+        """
+        if not (self.layout.current and self.current_reportable):
+            return False
+        std, cur = self.kf.current_std_mps, self.kf.current_mps
+        if std is None or cur is None:
+            return False
+        limit = max(self.s.rule.max_std_current_mps, math.hypot(*cur) / CURRENT_SIGNIFICANCE)
+        return max(std) <= limit
+
+    def offer(self) -> Offer | None:
+        """The estimate as a candidate, when it is learnt, certain and inside the envelope."""
+        if not self.learnt_ever & self._param_names or self.lag_s is None:
+            return None
+        std = self.kf.param_std
+        for name in self.layout.params:
+            if name in self.learnt_ever and std[name] > self.s.max_param_std.get(name, math.inf):
+                return None
+        est = self.kf.params
+        if self.s.envelope.check(est, self.kf.current_mps):
+            return None
+        return Offer(est, std)
+
+    @property
+    def param_std(self) -> Mapping[str, float]:
+        """The filter's standard deviation of each parameter now."""
+        return self.kf.param_std
+
+    def nis_mean(self) -> float | None:
+        """Running NIS mean over the last 300 learnt samples."""
+        return self.nis_sum / len(self.nis) if self.nis else None
