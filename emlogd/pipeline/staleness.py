@@ -8,7 +8,8 @@ An input is *stale* when more than its timeout has passed since it was last hear
   pipeline owns one; its status reports it and the daemon logs its ``stale`` and
   ``alive`` events (the serial sources run no silence detection of their own);
 - a **reference**: its port's ``stale_timeout_s`` again (the config hands it to the UUT
-  as ``ref_stale_s``): a UUT learns nothing from a reference silent that long;
+  as ``ref_stale_s``): the learner (:mod:`emlogd.pipeline.learner`) judges it with
+  :func:`silent` and learns nothing from a reference silent that long;
 - a **heading**: a port's heading at a time is interpolated between the samples
   around it when neither is further than :data:`HEADING_MAX_GAP_S` from that time,
   else taken from a sample within :data:`HEADING_NEAREST_S`, else there is none; a
