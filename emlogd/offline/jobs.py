@@ -48,6 +48,7 @@ from emlogd.offline.dataset import (
     Recording,
     record_captures,
 )
+from emlogd.offline.headings import heading_refusal, needs_heading, why_no_sample
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.settings import UutSettings
@@ -216,6 +217,9 @@ class CalibrationResult:
     nis_frac_inside: float | None = None
     average_s: float = 0.0
     """``ls``: the block length the fit averaged over (0: every sample), s."""
+    heading: dict[str, dict[str, object]] = field(default_factory=dict)
+    """Per capture, the heading used (``Pipeline.heading_status``) when the reference or
+    the model needs one."""
 
     @property
     def improvement_pct(self) -> float:
@@ -273,6 +277,7 @@ class CalibrationResult:
             "ref_field": s.reference_field,
             "current_states": s.current,
             "captures": list(self.captures),
+            "heading": self.heading,
         }
 
 
@@ -393,15 +398,14 @@ def calibrate(
         raise OfflineError("--trace follows the Kalman filter: use it with --method kf")
     if method not in ("ls", "kf"):
         raise OfflineError(f"method must be ls or kf, not {method!r}")
+    refusal = heading_refusal(recs, settings)
+    if refusal is not None:
+        raise OfflineError(refusal)
     lag_report = find_lag(recs, settings, lag)
     pairs = [r.aligned(lag_report.lag_s) for r in recs]
     _t, raw, ref, heading = concat_usable(pairs, settings.current)
     if raw.size == 0:
-        why = " and a heading" if settings.current else ""
-        raise OfflineError(
-            f"no {settings.port} sample has a valid {settings.reference_port} reference{why} "
-            f"at lag {lag_report.lag_s:.2f} s"
-        )
+        raise OfflineError(why_no_sample(recs, settings, lag_report.lag_s))
     layout = Layout(check_model(settings.model), settings.current)
     kf = settings.kf
     hd = heading if settings.current else None
@@ -466,6 +470,7 @@ def calibrate(
         nis_mean=nis_mean,
         nis_frac_inside=nis_frac,
         average_s=window,
+        heading={r.path: r.heading_info for r in recs} if needs_heading(settings) else {},
     )
 
 

@@ -11,7 +11,10 @@ Routing (per port, the decoders' common navigation records):
   speed and course projected on the hull with the heading) goes, through a glitch
   filter (:class:`~emlogd.pipeline.integrity.JumpFilter`), to every UUT that
   calibrates against that port and field;
-- a **heading** (true, or magnetic with a known variation) goes to its port's ring;
+- a **heading** (true, or magnetic with a variation: the log's, the configured one,
+  else the IGRF model's at the last GNSS position, :mod:`emlogd.pipeline.variation`)
+  goes to its port's ring; a GNSS reference is projected only with a heading the
+  course check has not flagged;
   each UUT reads its heading from the port it is configured for, or (``auto``) from
   its reference's port, else its own VHW heading, else any port with a heading;
 - a UUT's **reading** is corrected with the calibration in use and its sentence made
@@ -246,6 +249,7 @@ class Pipeline:
             self.decoders[name] = old.decoders[name]
             self.liveness.adopt(old.liveness, [name])
             self.headings.adopt(old.headings, name)
+        self.headings.model_var = old.headings.model_var
         kept: list[str] = []
         for name, u in self.uuts.items():
             o = old.uuts.get(name)
@@ -319,6 +323,8 @@ class Pipeline:
                 self._gnss(t, port, item)
             elif isinstance(item, NavFix):
                 self.headings.fix_quality[port] = item.quality
+                if item.quality > 0:
+                    self.headings.position(t, item.lat_deg, item.lon_deg)
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
@@ -334,6 +340,8 @@ class Pipeline:
         """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
             self.headings.variation[port] = g.variation_deg
+        if g.valid:
+            self.headings.position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
         valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
         if valid and g.sog_mps is not None and self.fusion is not None:
             self.fusion.ground(t, g.sog_mps)
@@ -560,9 +568,18 @@ class Pipeline:
         """A JSON-ready status: per-port counters and per-UUT calibration state."""
         return {
             "ports": self.port_status(),
-            "uuts": {name: st.uut_status(u) for name, u in self.uuts.items()},
+            "uuts": {name: st.uut_status(u, self.headings) for name, u in self.uuts.items()},
             "fused": st.fused_status(self.fusion.last if self.fusion is not None else None),
         }
+
+    def variation_source(self, port: str) -> tuple[float | None, str | None]:
+        """The variation for magnetic headings of ``port`` and where it comes from
+        (:meth:`Headings.variation_source`)."""
+        return self.headings.variation_source(port)
+
+    def heading_status(self, uut: str) -> dict[str, object]:
+        """A UUT's heading (:func:`emlogd.pipeline.status.heading_status`)."""
+        return st.heading_status(self.uuts[uut], self.headings)
 
     def summary(self) -> str:
         """One line for sd_notify STATUS=."""

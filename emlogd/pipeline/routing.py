@@ -29,6 +29,7 @@ from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.staleness import GNSS_HEADING_WAIT_S, HEADING_MAX_GAP_S, HEADING_NEAREST_S
 from emlogd.pipeline.uut import UutCalibration
+from emlogd.pipeline.variation import CourseOffsetCheck, model_variation
 
 HEADING_RING = 1024
 """Heading samples kept per port (100 s at 10 Hz)."""
@@ -55,18 +56,24 @@ class NavHeading(NamedTuple):
 
 
 class NavGnss(NamedTuple):
-    """A GNSS speed over ground and course (RMC, VTG)."""
+    """A GNSS speed over ground and course (RMC, VTG), with the position and the fix's
+    own time when the sentence carries them."""
 
     sog_mps: float | None
     cog_true_deg: float | None
     valid: bool
     variation_deg: float | None
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    fix_t: float | None = None
 
 
 class NavFix(NamedTuple):
-    """A GNSS fix quality (GGA): 0 is no fix."""
+    """A GNSS fix quality (GGA): 0 is no fix; and its position."""
 
     quality: int
+    lat_deg: float | None = None
+    lon_deg: float | None = None
 
 
 Nav = SpeedRecord | NavHeading | NavGnss | NavFix
@@ -81,13 +88,22 @@ def nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[Nav]:
     if isinstance(rec, Rejected):
         return
     if isinstance(rec, Rmc):
-        yield NavGnss(rec.sog_mps, rec.cog_true_deg, rec.valid, rec.variation_deg)
+        fix_t = None if rec.time_utc is None else rec.time_utc.timestamp()
+        yield NavGnss(
+            rec.sog_mps,
+            rec.cog_true_deg,
+            rec.valid,
+            rec.variation_deg,
+            rec.lat_deg,
+            rec.lon_deg,
+            fix_t,
+        )
         return
     if isinstance(rec, Vtg):
         yield NavGnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
         return
     if isinstance(rec, Gga):
-        yield NavFix(rec.quality)
+        yield NavFix(rec.quality, rec.lat_deg, rec.lon_deg)
         return
     if isinstance(rec, NmeaHeading):
         if rec.heading_deg is None:
@@ -123,6 +139,8 @@ class PortHeading:
         self.ring = SampleRing(HEADING_RING, HEADING_MAX_GAP_S, angular=True)
         self.jumps = JumpFilter(max_turn_rate_dps, HEADING_JUMP_WINDOW_S, angular=True)
         self.refused_magnetic = 0
+        self.magnetic = 0
+        """Magnetic headings made true with a variation."""
 
 
 class Headings:
@@ -139,6 +157,8 @@ class Headings:
         self.variation: dict[str, float] = {}
         """The variation each port sent last (HDG, RMC), ° east."""
         self.fix_quality: dict[str, int] = {}
+        self.model_var: float | None = None
+        """The IGRF model's variation at the last GNSS position and date, ° east."""
         rates = [u.max_turn_rate_dps for u in uuts]
         self.turn_rate_dps = max(rates) if rates else DEFAULT_TURN_RATE_DPS
         self.configured_variation = next(
@@ -193,19 +213,37 @@ class Headings:
                 ph.refused_magnetic += 1
                 return
             true = wrap_deg(h.magnetic_deg + var)
+            ph.magnetic += 1
         if true is None or not math.isfinite(true):
             return
         if ph.jumps.accept(t, true):
             ph.ring.add(t, wrap_deg(true))
 
     def variation_of(self, port: str) -> float | None:
-        """The variation for ``port``'s magnetic values: its own, else any port's, else
-        the config's, else None."""
+        """The variation for ``port``'s magnetic values (:meth:`variation_source`)."""
+        return self.variation_source(port)[0]
+
+    def variation_source(self, port: str) -> tuple[float | None, str | None]:
+        """The variation for magnetic headings of ``port`` and where it comes from: the
+        log (HDG/RMC of that port, else of any port), the configuration
+        (``magnetic_variation_deg``), the model (IGRF at the last GNSS position and
+        date, :mod:`emlogd.pipeline.variation`); (None, None) without any."""
         if port in self.variation:
-            return self.variation[port]
+            return self.variation[port], "log"
         for v in self.variation.values():
-            return v
-        return self.configured_variation
+            return v, "log"
+        if self.configured_variation is not None:
+            return self.configured_variation, "config"
+        if self.model_var is not None:
+            return self.model_var, "model"
+        return None, None
+
+    def position(self, t: float, lat: float | None, lon: float | None) -> None:
+        """A GNSS position (RMC, GGA) at ``t``: the model's variation there and then."""
+        if lat is not None and lon is not None:
+            mv = model_variation(lat, lon, t)
+            if mv is not None:
+                self.model_var = mv
 
     def adopt(self, old: Headings, port: str) -> None:
         """Take over ``port``'s headings, variation and fix quality from ``old``."""
@@ -229,6 +267,10 @@ class UutRoute:
         self.t_status = -math.inf
         self.heading_port: str | None = None
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=GNSS_QUEUE)
+        self.course_check = CourseOffsetCheck()
+        """The heading's offset from the course through the water (variation module)."""
+        self.course_refused = 0
+        """GNSS fixes not projected because the course check flagged the heading."""
         self.checks: dict[str, ReadingCheck] = {}
         """The plausibility of the readings, per sentence (VHW, VBW)."""
         self.heading_check = HeadingCheck(s.envelope.max_current_mps)
@@ -288,6 +330,11 @@ class UutRoute:
                 if psi is None or sog < self.s.min_sog_mps:
                     ok = False
                 else:
-                    along = sog * math.cos(math.radians(cog - psi))
-                    ok = self.ref_jumps.accept(t, along)
+                    self.course_check.add(t, psi, sog, cog)
+                    if self.course_check.flagged():
+                        self.course_refused += 1  # a wrong heading projects nothing
+                        ok = False
+                    else:
+                        along = sog * math.cos(math.radians(cog - psi))
+                        ok = self.ref_jumps.accept(t, along)
             self.cal.add_reference(t, along if ok else None, ok)

@@ -152,7 +152,8 @@ class UutSettings:
         None,
         check=number(-180.0, 180.0, optional=True),
         unit="°",
-        doc="East positive; for magnetic headings when no HDG/RMC carries one.",
+        doc="East positive; for magnetic headings when no HDG/RMC carries one (without it: "
+        "the IGRF model at the GNSS position).",
     )
     lag_s: float | None = key(
         None,

@@ -8,12 +8,13 @@ staleness (:class:`~emlogd.pipeline.staleness.Liveness`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
 from drivers.base import Decoder
 from emlogd.pipeline.fusion import Fused
-from emlogd.pipeline.routing import UutRoute
+from emlogd.pipeline.routing import Headings, UutRoute
 from emlogd.pipeline.sentences import StatusFields
 from emlogd.pipeline.staleness import Liveness
 
@@ -61,7 +62,52 @@ def fused_status(last: Fused | None) -> dict[str, object] | None:
     }
 
 
-def uut_status(u: UutRoute) -> dict[str, object]:
+def heading_reason(u: UutRoute, headings: Headings) -> str | None:
+    """Why a GNSS reference projects nothing, when the heading is the cause: none, a
+    magnetic one without a variation, or one the course check flagged."""
+    if u.s.reference_field != "gnss" or u.cal.ref_state == "valid":
+        return None
+    if u.heading_check.suspect:
+        return u.heading_check.reason()
+    check = u.course_check
+    if check.flagged():
+        return f"heading {check.offset_deg():+.1f}° off the course over ground: not used"
+    if u.heading_port is not None:
+        return None
+    refused = sum(ph.refused_magnetic for ph in headings.rings.values())
+    if refused:
+        return (
+            f"heading magnetic without a variation ({refused} refused): "
+            "set magnetic_variation_deg or give GNSS positions"
+        )
+    return (
+        "no heading for the GNSS reference"
+        if u.gnss or u.cal.learner.t_ref_last > -math.inf
+        else None
+    )
+
+
+def heading_status(u: UutRoute, headings: Headings) -> dict[str, object]:
+    """A UUT's heading: its port, the variation used and from where (``log``,
+    ``config``, ``model``), the magnetic headings refused for want of one, the
+    heading-against-course check and the GNSS fixes it refused."""
+    port = u.heading_port
+    var, source = headings.variation_source(port if port is not None else u.s.reference_port)
+    ph = headings.rings.get(port) if port is not None else None
+    if ph is None or not ph.magnetic:
+        var = source = None  # a true heading: no variation used
+    refused = sum(p.refused_magnetic for p in headings.rings.values())
+    return {
+        "port": port,
+        "variation_deg": None if var is None else round(var, 2),
+        "variation_source": source,
+        "refused_magnetic": refused,
+        "check": u.course_check.as_dict(),
+        "refused_by_check": u.course_refused,
+    }
+
+
+def uut_status(u: UutRoute, headings: Headings) -> dict[str, object]:
     """A UUT's JSON-ready status (README: the ``emlogd status --json`` keys)."""
     cal = u.cal
     kf = cal.kf
@@ -70,9 +116,10 @@ def uut_status(u: UutRoute) -> dict[str, object]:
     cur_std = kf.current_std_mps
     return {
         "state": cal.state,
-        "reason": cal.reason,
+        "reason": heading_reason(u, headings) or cal.reason,
         "reference": cal.ref_state,
         "heading_port": u.heading_port,
+        "heading": heading_status(u, headings),
         "heading_suspect": u.heading_check.reason(),
         "learning_enabled": cal.learn_on,
         "model": u.s.model,

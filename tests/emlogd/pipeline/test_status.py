@@ -33,7 +33,7 @@ def test_a_uut_shows_its_calibration_and_the_status_sentence_its_known_sigmas() 
     leave out the undetermined ones; the summary is one line per UUT."""
     p = _pipeline()
     u = p.uuts["log"]
-    doc = uut_status(u)
+    doc = uut_status(u, p.headings)
     assert doc["params"] == {"m": 0.05, "b": 0.1} and doc["lag_s"] == 1.5
     assert doc["state"] == "frozen" and doc["model"] == "EM3"
     fields = status_fields(u)
