@@ -276,7 +276,7 @@ class Daemon:
                 p.name,
                 p.url,
                 baudrate=p.baud,
-                stale_timeout_s=p.settings.stale_timeout_s,
+                stale_timeout_s=math.inf,  # staleness is the pipeline's (its events)
                 clock=self.timeline,
                 monotonic=self.monotonic,
             )
@@ -590,7 +590,8 @@ class Daemon:
             suppressed = self.event_limiter.allow(ev.port, ev.kind, self.monotonic())
             if suppressed is not None:
                 extra = {"suppressed": suppressed} if suppressed else {}
-                self.log.info(ev.kind, port=ev.port, **dict(ev.detail), **extra)
+                level = self.log.warning if ev.kind == "stale" else self.log.info
+                level(ev.kind, port=ev.port, **dict(ev.detail), **extra)
         if out.persist:
             self._persist()
 
@@ -664,7 +665,7 @@ class Daemon:
             # a person reads a terminal: one line, the full figures are in `emlogd status`
             self.log.info("status", **_status_line(status), state_errors=self.state_errors)
             return
-        sources = {name: src.counters_dict() for name, src in self.sources.items()}
+        sources = {name: _source_status(src) for name, src in self.sources.items()}
         sinks = self._outputs_status()
         self.log.info(
             "status",
@@ -785,6 +786,12 @@ class Daemon:
             outputs_opened=opened,
         )
         self._notify_status()
+
+
+def _source_status(src: SerialSource) -> dict[str, object]:
+    """A source's figures without its own staleness, which the daemon does not run: a
+    port's staleness is the pipeline's (``ports`` in the status)."""
+    return {k: v for k, v in src.counters_dict().items() if k != "stale"}
 
 
 def _same(a: list[Calibration], b: list[Calibration], *, material: bool) -> bool:

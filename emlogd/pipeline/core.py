@@ -37,23 +37,28 @@ a ``VDR`` (set and drift) whenever the heading determines the current.
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from dataclasses import dataclass
+from typing import Any
 
 from drivers import DecoderOptions, make_decoder
-from drivers.base import Decoder, R
-from drivers.nmea0183 import Gga, Rmc, Vtg
-from drivers.nmea0183 import Heading as NmeaHeading
-from drivers.records import KNOT_MPS, Rejected, SpeedRecord
-from emlogd.pipeline.align import SampleRing, wrap_deg
+from drivers.base import Decoder
+from drivers.records import KNOT_MPS, SpeedRecord
+from emlogd.pipeline import status as st
+from emlogd.pipeline.align import wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
-from emlogd.pipeline.headingcheck import HeadingCheck
-from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
+from emlogd.pipeline.routing import (
+    Headings,
+    Nav,
+    NavFix,
+    NavGnss,
+    NavHeading,
+    UutRoute,
+    nav_items,
+    speed_of,
+)
 from emlogd.pipeline.sentences import (
-    StatusFields,
     encode_fused_status,
     encode_status,
     encode_vbw,
@@ -62,8 +67,8 @@ from emlogd.pipeline.sentences import (
     encode_vhw_void,
 )
 from emlogd.pipeline.settings import PortSettings, UutSettings
+from emlogd.pipeline.staleness import HEADING_NEAREST_S, Liveness
 from emlogd.pipeline.uut import UutCalibration
-from emlogd.pipeline.variation import CourseOffsetCheck, model_variation
 
 FUSED_PORT = "fused"
 """The port name of the fused speed's emits (a UUT may not be called this)."""
@@ -99,17 +104,23 @@ class Event:
     detail: Mapping[str, object]
 
 
-@dataclass(slots=True)
 class Output:
     """What one :meth:`Pipeline.feed`, :meth:`Pipeline.tick` or :meth:`Pipeline.flush`
     call produced, returned to the caller, which delivers it: the sentences in the order
     they were made (corrected speeds, status, VDR, fused speed), the events, and the
     calibrations to persist. Each call returns a new one; the pipeline keeps no
-    reference to it and calls nothing of the caller's."""
+    reference to it and calls nothing of the caller's.
 
-    emits: list[Emit] = field(default_factory=list)
-    events: list[Event] = field(default_factory=list)
-    persist: list[Calibration] = field(default_factory=list)
+    A plain class (one is made per record): half the construction time of a dataclass
+    with list factories.
+    """
+
+    __slots__ = ("emits", "events", "persist")
+
+    def __init__(self) -> None:
+        self.emits: list[Emit] = []
+        self.events: list[Event] = []
+        self.persist: list[Calibration] = []
 
     def add(self, other: Output) -> None:
         """Append another call's output after this one's (a caller collecting several)."""
@@ -118,134 +129,10 @@ class Output:
         self.persist.extend(other.persist)
 
 
-class _Heading(NamedTuple):
-    true_deg: float | None
-    magnetic_deg: float | None
-    variation_deg: float | None
-
-
-class _Gnss(NamedTuple):
-    sog_mps: float | None
-    cog_true_deg: float | None
-    valid: bool
-    variation_deg: float | None
-    lat_deg: float | None = None
-    lon_deg: float | None = None
-    fix_t: float | None = None
-
-
-class _Fix(NamedTuple):
-    quality: int
-    lat_deg: float | None = None
-    lon_deg: float | None = None
-
-
-_Nav = SpeedRecord | _Heading | _Gnss | _Fix
-
-
-def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
-    """The navigation content of one decoded record of ``dec``.
-
-    GNSS and heading sentences are told apart by type; every speed by its record's
-    typed role, and a heading sent with a speed (VHW, a DVL's) comes before it.
-    """
-    if isinstance(rec, Rejected):
-        return
-    if isinstance(rec, Rmc):
-        fix_t = None if rec.time_utc is None else rec.time_utc.timestamp()
-        yield _Gnss(
-            rec.sog_mps,
-            rec.cog_true_deg,
-            rec.valid,
-            rec.variation_deg,
-            rec.lat_deg,
-            rec.lon_deg,
-            fix_t,
-        )
-        return
-    if isinstance(rec, Vtg):
-        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
-        return
-    if isinstance(rec, Gga):
-        yield _Fix(rec.quality, rec.lat_deg, rec.lon_deg)
-        return
-    if isinstance(rec, NmeaHeading):
-        if rec.heading_deg is None:
-            return
-        if rec.true:
-            yield _Heading(rec.heading_deg, None, None)
-            return
-        mag = rec.heading_deg + (rec.deviation_deg or 0.0)
-        var = rec.variation_deg
-        yield _Heading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var)
-        return
-    for sp in dec.speed_records(rec):
-        if sp.role == "ground":
-            continue  # a log's ground pair (VBW) is no reference
-        ht, hm = sp.heading_true_deg, sp.heading_mag_deg
-        if ht is not None or hm is not None:
-            yield _Heading(ht, hm, None)
-        yield sp
-
-
 def _keep_lag(cal: UutCalibration, lag_s: float) -> None:
     """Give a new UUT calibration a lag known before (it estimates none)."""
     cal.lag_s = lag_s
     cal.lag_finder = None
-
-
-def _value(sp: SpeedRecord, component: str) -> float | None:
-    """The speed a UUT compares: along the hull, or the horizontal magnitude."""
-    v = sp.longitudinal_mps
-    if component == "magnitude" and v is not None:
-        return math.hypot(v, sp.transverse_mps or 0.0)
-    return v
-
-
-class _PortHeading:
-    """The true-heading ring of one port, with its glitch filter and variation."""
-
-    def __init__(self, max_turn_rate_dps: float) -> None:
-        self.ring = SampleRing(1024, 2.0, angular=True)
-        self.jumps = JumpFilter(max_turn_rate_dps, 5.0, angular=True)
-        self.refused_magnetic = 0
-        self.magnetic = 0
-
-
-class _Uut:
-    """One UUT's calibration plus its routing state."""
-
-    def __init__(self, s: UutSettings, cal: UutCalibration) -> None:
-        self.s = s
-        self.cal = cal
-        self.ref_jumps = JumpFilter(s.max_accel_mps2, 0.3)
-        self.t_status = -math.inf
-        self.t_vdr = -math.inf
-        self.heading_port: str | None = None
-        self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
-        self.course_check = CourseOffsetCheck()
-        """The heading's offset from the course through the water (variation module)."""
-        self.course_refused = 0
-        """GNSS fixes not projected because the course check flagged the heading."""
-        self.checks: dict[str, ReadingCheck] = {}
-        """The plausibility of the readings, per sentence (VHW, VBW)."""
-        self.heading_check = HeadingCheck(s.envelope.max_current_mps)
-        self.stw: tuple[float, float] | None = None
-        """The latest corrected speed through the water (time, m/s)."""
-        self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
-        """Readings neither emitted nor learnt, by reason (shown with the counters)."""
-
-    def plausible(self, t: float, source: str, raw: float) -> str:
-        """``""`` when the reading is plausible, else why not (counted)."""
-        chk = self.checks.get(source)
-        if chk is None:
-            chk = self.checks[source] = ReadingCheck(self.s.limits)
-        why = chk.check(t, raw)
-        if why:
-            self.implausible[f"implausible_{why}"] += 1
-        elif chk.reacquired:
-            return "reacquired"
-        return why
 
 
 class Pipeline:
@@ -285,12 +172,9 @@ class Pipeline:
         self.startup_events: list[Event] = []
         self.fusion = Fusion(fusion) if fusion is not None else None
         self.t_fused_status = -math.inf
-        self.headings: dict[str, _PortHeading] = {}
-        self.variation: dict[str, float] = {}
-        self.model_var: float | None = None
-        self.fix_quality: dict[str, int] = {}
-        self.uuts: dict[str, _Uut] = {}
-        self._by_ref: dict[str, list[_Uut]] = {}
+        self.headings = Headings(list(self.ports), uuts)
+        self.uuts: dict[str, UutRoute] = {}
+        self._by_ref: dict[str, list[UutRoute]] = {}
         cals = calibrations or {}
         self.kept: dict[str, dict[str, Calibration]] = {}
         """Per UUT, by model: its calibrations of the error models it is not using now
@@ -320,7 +204,7 @@ class Pipeline:
                         Event(prior.t, s.port, "calibration_refused", {"why": why})
                     )
                     prior = None
-            u = _Uut(s, self._new_cal(s, prior))
+            u = UutRoute(s, self._new_cal(s, prior), self.headings.order(s))
             if u.cal.lag_s is None:  # the lag is the sensor's, whatever the model or a reset
                 for rec in (prior, latest):
                     if (
@@ -332,8 +216,7 @@ class Pipeline:
                         break
             self.uuts[s.port] = u
             self._by_ref.setdefault(s.reference_port, []).append(u)
-        self.last_rx: dict[str, float] = {}
-        self.stale: dict[str, bool] = dict.fromkeys(self.ports, False)
+        self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
 
@@ -364,16 +247,9 @@ class Pipeline:
             if old.ports.get(name) != p:
                 continue
             self.decoders[name] = old.decoders[name]
-            self.stale[name] = old.stale[name]
-            if name in old.headings:
-                self.headings[name] = old.headings[name]
-            if name in old.variation:
-                self.variation[name] = old.variation[name]
-            if name in old.fix_quality:
-                self.fix_quality[name] = old.fix_quality[name]
-            if name in old.last_rx:
-                self.last_rx[name] = old.last_rx[name]
-        self.model_var = old.model_var
+            self.liveness.adopt(old.liveness, [name])
+            self.headings.adopt(old.headings, name)
+        self.headings.model_var = old.headings.model_var
         kept: list[str] = []
         for name, u in self.uuts.items():
             o = old.uuts.get(name)
@@ -381,6 +257,7 @@ class Pipeline:
                 continue
             if o.s == u.s:
                 o.cal.heading_at, o.cal._event = self._hooks(name)
+                o.heading_order = self.headings.order(o.s)  # this config's ports
                 self.uuts[name] = o
                 kept.append(name)
             elif o.s.learn == u.s.learn:
@@ -395,75 +272,22 @@ class Pipeline:
 
     # -- headings --------------------------------------------------------------
 
-    def _heading_ports(self, s: UutSettings) -> list[str]:
-        if s.heading != "auto":
-            return [s.heading]
-        order = [s.reference_port, s.port]
-        order += [p for p in self.ports if p not in order]
-        return order
-
     def _heading_at(self, uut: str, t: float) -> float | None:
-        """The UUT's heading at ``t``, unless the course over ground says it is wrong."""
+        """The UUT's true heading at ``t``, unless the course over ground says it is wrong."""
         u = self.uuts.get(uut)
         if u is None or u.heading_check.suspect:
             return None
         return self._raw_heading_at(u, t)
 
-    def _raw_heading_at(self, u: _Uut, t: float, tol_s: float = 0.6) -> float | None:
-        for port in self._heading_ports(u.s):
-            ph = self.headings.get(port)
-            if ph is None:
-                continue
-            h = ph.ring.at(t)
-            if h is None:
-                h = ph.ring.nearest(t, tol_s)
-            if h is not None:
-                if u.heading_port != port:
-                    u.heading_port = port
-                return h
-        return None
-
-    def _heading(self, t: float, port: str, h: _Heading) -> None:
-        ph = self.headings.get(port)
-        if ph is None:
-            ph = self.headings[port] = _PortHeading(self._turn_rate(port))
-        if h.variation_deg is not None:
-            self.variation[port] = h.variation_deg
-        true = h.true_deg
-        if true is None and h.magnetic_deg is not None:
-            var = self._variation(port)
-            if var is None:
-                ph.refused_magnetic += 1
-                return
-            true = wrap_deg(h.magnetic_deg + var)
-            ph.magnetic += 1
-        if true is None or not math.isfinite(true):
-            return
-        if ph.jumps.accept(t, true):
-            ph.ring.add(t, wrap_deg(true))
-
-    def _turn_rate(self, port: str) -> float:
-        rates = [u.s.max_turn_rate_dps for u in self.uuts.values()]
-        return max(rates) if rates else 45.0
-
-    def _variation(self, port: str) -> float | None:
-        return self.variation_source(port)[0]
-
-    def variation_source(self, port: str) -> tuple[float | None, str | None]:
-        """The variation for magnetic headings of ``port`` and where it comes from: the
-        log (HDG/RMC of that port, else of any port), the configuration
-        (``magnetic_variation_deg``), the model (IGRF at the last GNSS position and
-        date, :mod:`emlogd.pipeline.variation`); (None, None) without any."""
-        if port in self.variation:
-            return self.variation[port], "log"
-        for v in self.variation.values():
-            return v, "log"
-        for u in self.uuts.values():
-            if u.s.magnetic_variation_deg is not None:
-                return u.s.magnetic_variation_deg, "config"
-        if self.model_var is not None:
-            return self.model_var, "model"
-        return None, None
+    def _raw_heading_at(
+        self, u: UutRoute, t: float, tol_s: float = HEADING_NEAREST_S
+    ) -> float | None:
+        """The UUT's true heading at ``t`` (noting the port it came from), or None."""
+        found = self.headings.at(u.heading_order, t, tol_s)
+        if found is None:
+            return None
+        u.heading_port = found[1]
+        return found[0]
 
     # -- input ----------------------------------------------------------------
 
@@ -474,19 +298,17 @@ class Pipeline:
         dec = self.decoders.get(port)
         if dec is None:
             return out
-        self.last_rx[port] = t
         if t > self.now:
             self.now = t
-        if self.stale[port]:
-            self.stale[port] = False
+        if self.liveness.heard(port, t):
             out.events.append(Event(t, port, "alive", {}))
-        items = [item for rec in dec.feed(data) for item in _nav_items(dec, rec)]
+        items = [item for rec in dec.feed(data) for item in nav_items(dec, rec)]
         if items:
             self._route(t, port, items, out)
         self._after(t, out)
         return out
 
-    def _route(self, t: float, port: str, items: list[_Nav], out: Output) -> None:
+    def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
         u = self.uuts.get(port)
         # a UUT reading is fresh when it is the chunk's last of its sentence
         last: dict[str, int] = {}
@@ -495,14 +317,14 @@ class Pipeline:
                 if isinstance(it, SpeedRecord) and it.role == "speed":
                     last[it.source] = i
         for i, item in enumerate(items):
-            if isinstance(item, _Heading):
-                self._heading(t, port, item)
-            elif isinstance(item, _Gnss):
+            if isinstance(item, NavHeading):
+                self.headings.add(t, port, item)
+            elif isinstance(item, NavGnss):
                 self._gnss(t, port, item)
-            elif isinstance(item, _Fix):
-                self.fix_quality[port] = item.quality
+            elif isinstance(item, NavFix):
+                self.headings.fix_quality[port] = item.quality
                 if item.quality > 0:
-                    self._position(t, item.lat_deg, item.lon_deg)
+                    self.headings.position(t, item.lat_deg, item.lon_deg)
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
@@ -512,26 +334,15 @@ class Pipeline:
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field != sp.role:
                 continue
-            v = _value(sp, u.s.component)
-            ok = sp.valid and v is not None and math.isfinite(v)
-            if ok and v is not None and not u.ref_jumps.accept(t, v):
-                ok = False
-            u.cal.add_reference(t, v if ok else None, ok)
+            u.reference(t, speed_of(sp, u.s.component), sp.valid)
 
-    def _position(self, t: float, lat: float | None, lon: float | None) -> None:
-        """A GNSS position (RMC, GGA) at ``t``: the model's variation there and then."""
-        if lat is not None and lon is not None:
-            mv = model_variation(lat, lon, t)
-            if mv is not None:
-                self.model_var = mv
-
-    def _gnss(self, t: float, port: str, g: _Gnss) -> None:
+    def _gnss(self, t: float, port: str, g: NavGnss) -> None:
         """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
-            self.variation[port] = g.variation_deg
+            self.headings.variation[port] = g.variation_deg
         if g.valid:
-            self._position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
-        valid = g.valid and self.fix_quality.get(port, 1) > 0
+            self.headings.position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
+        valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
         if valid and g.sog_mps is not None and self.fusion is not None:
             self.fusion.ground(t, g.sog_mps)
         if valid and g.sog_mps is not None and g.cog_true_deg is not None:
@@ -542,7 +353,7 @@ class Pipeline:
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
                 self._project(u)
 
-    def _check_heading(self, t: float, u: _Uut, sog: float, cog: float) -> None:
+    def _check_heading(self, t: float, u: UutRoute, sog: float, cog: float) -> None:
         """Judge the UUT's heading against a GNSS fix (an event when the verdict changes)."""
         if u.stw is None or abs(t - u.stw[0]) > 2.0 or sog < u.s.min_sog_mps:
             return
@@ -557,47 +368,20 @@ class Pipeline:
             kind = "heading_suspect" if hc.suspect else "heading_consistent"
             self._pending_events.append(Event(t, u.s.port, kind, detail))
 
-    def _project(self, u: _Uut, *, final: bool = False) -> None:
-        """Project queued GNSS samples on the hull once the heading covers their time.
+    def _project(self, u: UutRoute, *, final: bool = False) -> None:
+        """Project the UUT's queued GNSS fixes (:meth:`UutRoute.project`)."""
+        port = u.s.port
+        u.project(
+            self.headings.ring(u.heading_order),
+            lambda t: self._heading_at(port, t),
+            self.now,
+            final=final,
+        )
 
-        Along the hull ``SOG·cos(COG − ψ)`` with the UUT's heading ψ interpolated at the
-        fix's time (a heading sentence usually follows the fix in the same second);
-        below ``min_sog_mps`` the course is meaningless and the sample is invalid.
-        """
-        while u.gnss:
-            t, sog, cog, valid = u.gnss[0]
-            ring = self._heading_ring(u.s)
-            if not final and ring is not None and not ring.covers(t) and self.now - t < 2.0:
-                return
-            u.gnss.popleft()
-            along: float | None = None
-            ok = valid and sog is not None and cog is not None
-            if ok and sog is not None and cog is not None:
-                psi = self._heading_at(u.s.port, t)
-                if psi is None or sog < u.s.min_sog_mps:
-                    ok = False
-                else:
-                    u.course_check.add(t, psi, sog, cog)
-                    if u.course_check.flagged():
-                        u.course_refused += 1  # a wrong heading projects nothing
-                        ok = False
-                    else:
-                        along = sog * math.cos(math.radians(cog - psi))
-                        ok = u.ref_jumps.accept(t, along)
-            u.cal.add_reference(t, along if ok else None, ok)
-
-    def _heading_ring(self, s: UutSettings) -> SampleRing | None:
-        """The ring the UUT's heading comes from now (the first with data)."""
-        for port in self._heading_ports(s):
-            ph = self.headings.get(port)
-            if ph is not None and len(ph.ring):
-                return ph.ring
-        return None
-
-    def _reading(self, u: _Uut, t: float, sp: SpeedRecord, *, fresh: bool, out: Output) -> None:
-        """Correct and emit a UUT reading at once, then queue it for learning."""
+    def _reading(self, u: UutRoute, t: float, sp: SpeedRecord, *, fresh: bool, out: Output) -> None:
+        """Correct a UUT reading and emit its sentence, then queue it for learning."""
         cal = u.cal
-        raw = _value(sp, u.s.component)
+        raw = speed_of(sp, u.s.component)
         if not sp.valid or raw is None:
             return
         if not cal.in_range(raw):
@@ -629,13 +413,13 @@ class Pipeline:
             cal.drain(self.now)
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
-            out.emits.append(Emit(t, u.s.port, encode_status(self._status_fields(u))))
+            out.emits.append(Emit(t, u.s.port, encode_status(st.status_fields(u))))
             self._vdr(u, t, out)
 
     def _fuse(
         self,
         t: float,
-        u: _Uut,
+        u: UutRoute,
         value: float,
         hdg_t: float | None,
         hdg_m: float | None,
@@ -660,7 +444,7 @@ class Pipeline:
             self.t_fused_status = t
             out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))
 
-    def _vdr(self, u: _Uut, t: float, out: Output) -> None:
+    def _vdr(self, u: UutRoute, t: float, out: Output) -> None:
         cal = u.cal
         if not cal.ident_current():
             return
@@ -669,7 +453,7 @@ class Pipeline:
             return
         drift = math.hypot(cur[0], cur[1])
         set_true = wrap_deg(math.degrees(math.atan2(cur[1], cur[0])))
-        var = self._variation(u.s.reference_port)
+        var = self.headings.variation_of(u.s.reference_port)
         set_mag = None if var is None else wrap_deg(set_true - var)
         out.emits.append(
             Emit(t, u.s.port, encode_vdr(set_true, set_mag, drift / KNOT_MPS, u.s.talker))
@@ -701,11 +485,8 @@ class Pipeline:
             self.startup_events.clear()
         if t > self.now:
             self.now = t
-        for name, p in self.ports.items():
-            last = self.last_rx.get(name)
-            if last is not None and not self.stale[name] and t - last > p.stale_timeout_s:
-                self.stale[name] = True
-                out.events.append(Event(t, name, "stale", {"silent_s": round(t - last, 3)}))
+        for name, silent_s in self.liveness.check(t):
+            out.events.append(Event(t, name, "stale", {"silent_s": round(silent_s, 3)}))
         self._after(t, out)
         return out
 
@@ -713,8 +494,8 @@ class Pipeline:
         """End of input (replay): flush every decoder and learn from every queued reading."""
         out = Output()
         for port, dec in self.decoders.items():
-            t = self.last_rx.get(port, 0.0)
-            items = [item for rec in dec.flush() for item in _nav_items(dec, rec)]
+            t = self.liveness.last.get(port, 0.0)
+            items = [item for rec in dec.flush() for item in nav_items(dec, rec)]
             self._route(t, port, items, out)
         for u in self.uuts.values():
             self._project(u, final=True)
@@ -779,143 +560,27 @@ class Pipeline:
 
     # -- status ---------------------------------------------------------------
 
-    def _status_fields(self, u: _Uut) -> StatusFields:
-        cal = u.cal
-        p = cal.applied
-        return StatusFields(
-            port=u.s.port,
-            maker=u.s.maker,
-            state=cal.state,
-            model=u.s.model,
-            params=p.as_dict() if p is not None else {},
-            std={k: v for k, v in cal.applied_std.items() if v is not None}
-            if p is not None
-            else {},
-            nis_mean=cal.nis_mean(),
-            ref_state=cal.ref_state,
-        )
-
     def port_status(self) -> dict[str, dict[str, object]]:
         """Per port: decoded records, rejects by reason, staleness, last receive time."""
-        return {
-            name: {
-                **dec.counters.as_dict(),
-                "stale": self.stale[name],
-                "last_rx": self.last_rx.get(name),
-            }
-            for name, dec in self.decoders.items()
-        }
+        return st.port_status(self.decoders, self.liveness)
 
     def status(self) -> dict[str, object]:
         """A JSON-ready status: per-port counters and per-UUT calibration state."""
-        last = self.fusion.last if self.fusion is not None else None
         return {
             "ports": self.port_status(),
-            "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
-            "fused": None
-            if last is None
-            else {
-                "valid": last.valid,
-                "speed_mps": last.speed_mps if last.valid else None,
-                "std_mps": last.std_mps if last.valid else None,
-                "sources": last.sources,
-                "excluded": dict(last.excluded),
-            },
+            "uuts": {name: st.uut_status(u, self.headings) for name, u in self.uuts.items()},
+            "fused": st.fused_status(self.fusion.last if self.fusion is not None else None),
         }
 
-    def _uut_status(self, u: _Uut) -> dict[str, object]:
-        cal = u.cal
-        kf = cal.kf
-        ident = cal.ident
-        cur = kf.current_mps
-        cur_std = kf.current_std_mps
-        return {
-            "state": cal.state,
-            "reason": self._heading_reason(u) or cal.reason,
-            "reference": cal.ref_state,
-            "heading_port": u.heading_port,
-            "heading": self.heading_status(u.s.port),
-            "heading_suspect": u.heading_check.reason(),
-            "learning_enabled": cal.learn_on,
-            "model": u.s.model,
-            "params": cal.applied.as_dict() if cal.applied is not None else None,
-            "param_std": dict(cal.applied_std) if cal.applied is not None else None,
-            "estimate": kf.params.as_dict(),
-            "estimate_std": kf.param_std,
-            "current": None
-            if cur is None or cur_std is None
-            else {
-                "north_mps": cur[0],
-                "east_mps": cur[1],
-                "std_north_mps": cur_std[0],
-                "std_east_mps": cur_std[1],
-                "determined": cal.ident_current(),
-            },
-            "lag_s": cal.lag_s,
-            "determined": list(ident.determined) if ident is not None else [],
-            "unidentifiable": list(ident.unidentifiable) if ident is not None else [],
-            "identifiability": ident.reason if ident is not None else "",
-            "nis_mean": cal.nis_mean(),
-            "samples_learnt": cal.n_learnt,
-            "freezes": cal.freezes,
-            "counters": {**cal.counters.as_dict(), **u.implausible},
-            "scored_samples": cal.score.n,
-            "rmse_raw": cal.score.rmse_raw,
-            "rmse_corrected": cal.score.rmse_corrected,
-        }
-
-    def _heading_reason(self, u: _Uut) -> str | None:
-        """Why a GNSS reference projects nothing, when the heading is the cause: none, a
-        magnetic one without a variation, or one the course check flagged."""
-        if u.s.reference_field != "gnss" or u.cal.ref_state == "valid":
-            return None
-        if u.heading_check.suspect:
-            return u.heading_check.reason()
-        check = u.course_check
-        if check.flagged():
-            return f"heading {check.offset_deg():+.1f}° off the course over ground: not used"
-        if u.heading_port is not None:
-            return None
-        refused = sum(ph.refused_magnetic for ph in self.headings.values())
-        if refused:
-            return (
-                f"heading magnetic without a variation ({refused} refused): "
-                "set magnetic_variation_deg or give GNSS positions"
-            )
-        return (
-            "no heading for the GNSS reference"
-            if u.gnss or u.cal.learner.t_ref_last > -math.inf
-            else None
-        )
+    def variation_source(self, port: str) -> tuple[float | None, str | None]:
+        """The variation for magnetic headings of ``port`` and where it comes from
+        (:meth:`Headings.variation_source`)."""
+        return self.headings.variation_source(port)
 
     def heading_status(self, uut: str) -> dict[str, object]:
-        """A UUT's heading: its port, the variation used and from where (``log``,
-        ``config``, ``model``), the magnetic headings refused for want of one, the
-        heading-against-course check and the GNSS fixes it refused."""
-        u = self.uuts[uut]
-        port = u.heading_port
-        var, source = self.variation_source(port if port is not None else u.s.reference_port)
-        ph = self.headings.get(port) if port is not None else None
-        if ph is None or not ph.magnetic:
-            var = source = None  # a true heading: no variation used
-        refused = sum(ph.refused_magnetic for ph in self.headings.values())
-        return {
-            "port": port,
-            "variation_deg": None if var is None else round(var, 2),
-            "variation_source": source,
-            "refused_magnetic": refused,
-            "check": u.course_check.as_dict(),
-            "refused_by_check": u.course_refused,
-        }
+        """A UUT's heading (:func:`emlogd.pipeline.status.heading_status`)."""
+        return st.heading_status(self.uuts[uut], self.headings)
 
     def summary(self) -> str:
         """One line for sd_notify STATUS=."""
-        parts = []
-        for name, u in self.uuts.items():
-            cal = u.cal
-            if cal.applied is not None:
-                pv = " ".join(f"{k}={v:+.3f}" for k, v in cal.applied.as_dict().items())
-                parts.append(f"{name} {cal.state} {u.s.model} {pv} ref {cal.ref_state}")
-            else:
-                parts.append(f"{name} {cal.state} ref {cal.ref_state}")
-        return "; ".join(parts)
+        return st.summary(self.uuts)

@@ -41,6 +41,7 @@ from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.integrity import Envelope
+from emlogd.pipeline.staleness import silent
 
 if TYPE_CHECKING:
     from emlogd.pipeline.settings import UutSettings
@@ -542,7 +543,7 @@ class Learner:
     def _ref_state(self, t: float, ref: float | None) -> RefState:
         if self.lag_s is None and self.t_ref_last == -math.inf:
             return "none"
-        if t - self.t_ref_last > self.s.ref_stale_s:
+        if silent(self.t_ref_last, t, self.s.ref_stale_s):
             return "stale"
         if ref is None:
             return "lost" if self.lag_s is not None else "none"

@@ -261,3 +261,25 @@ def test_current_auto_follows_the_heading(protocol: str, extra: str, expected: b
     )
     _, (u,) = pipeline_from_config(parse_config(text))
     assert u.current is expected
+
+
+def test_one_builder_for_run_reload_and_replay() -> None:
+    """build_pipeline gives the config's pipeline started from a state: the calibration
+    of each UUT's model (another model's kept aside), replay's learning switch, and the
+    fused output as the config asks."""
+    from calib.models import Params
+    from emlogd.pipeline.calibration import Calibration
+    from emlogd.settings import build_pipeline
+
+    cfg = load_config(EXAMPLE)
+    em3 = Calibration("emlog1", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 3.2)
+    em4 = Calibration("emlog1", Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}, 3.0)
+    p = build_pipeline(cfg, {"emlog1": em4}, [em3], learn=False)
+    status = p.status()["uuts"]
+    assert isinstance(status, dict)
+    assert status["emlog1"]["params"] == {"m": 0.05, "b": 0.1}
+    assert status["emlog1"]["lag_s"] == 3.2
+    assert [c.params.model for c in p.other_calibrations()] == ["EM4"]
+    assert all(not u.cal.learn_on for u in p.uuts.values())
+    assert (p.fusion is None) == (cfg.outputs.speed == "each")
+    assert list(p.decoders) == [port.name for port in cfg.ports]

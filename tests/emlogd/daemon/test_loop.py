@@ -159,6 +159,8 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         assert isinstance(st2, dict)
         assert st2["emlog1"]["state"] == "frozen" and st2["emlog1"]["params"] == frozen
         assert st2["emlog1"]["reference"] in ("stale", "lost")
+        ports2 = d.status()["ports"]
+        assert isinstance(ports2, dict) and ports2["dvl"]["stale"] is True  # silent > 1 s
         n_before = len([ln for ln in d.lines if ln[3:6] == b"VHW"])
         d.pump(1.0)
         assert len([ln for ln in d.lines if ln[3:6] == b"VHW"]) > n_before
@@ -176,6 +178,10 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
     log = (tmp_path / "daemon.log").read_text()
     assert '"event": "ready"' in log and '"event": "stopped"' in log
     assert "port_disconnected" in log and log.count("port_connected") >= 4
+    # a silent port is reported by the pipeline's staleness alone, once
+    assert '"event": "port_stale"' not in log
+    stale_dvl = [ln for ln in log.splitlines() if '"event": "stale"' in ln and '"dvl"' in ln]
+    assert len(stale_dvl) == 1, stale_dvl
     d2 = Daemon(tmp_path)
     try:
         d2.pump(0.5)

@@ -15,7 +15,7 @@ from drivers.io.capture import CaptureWriter
 from drivers.nmea0183 import encode_hdt, encode_rmc, encode_vhw
 from emlogd.offline.importer import import_nmea
 from emlogd.offline.jobs import OfflineError, calibrate, load_captures
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.variation import model_variation
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "real"

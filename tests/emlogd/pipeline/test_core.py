@@ -456,7 +456,7 @@ class TestWaterFrame:
         )
         out = Output()
         out.add(p.feed(kit.T0, "hdg", (with_checksum("HCHDM,100.0,M") + "\r\n").encode()))
-        assert p.headings["hdg"].refused_magnetic == 1
+        assert p.headings.rings["hdg"].refused_magnetic == 1
         hdg = with_checksum("HCHDG,100.0,2.0,E,3.0,W") + "\r\n"
         out.add(p.feed(kit.T0 + 1.0, "hdg", hdg.encode()))
         assert p._heading_at("log", kit.T0 + 1.0) == pytest.approx(99.0)
@@ -495,7 +495,6 @@ class TestGnssReference:
 
     def test_projection_on_one_port(self) -> None:
         """UUT, reference and heading on one port: along-hull SOG·cos(COG − ψ)."""
-        from datetime import UTC, datetime
 
         from drivers.nmea0183 import encode_hdt, encode_rmc
 
@@ -516,7 +515,6 @@ class TestGnssReference:
 
     def test_below_min_sog_or_void_fix_is_not_a_reference(self) -> None:
         """A fix below min_sog_mps (course meaningless) or with status V teaches nothing."""
-        from datetime import UTC, datetime
 
         from drivers.nmea0183 import encode_hdt, encode_rmc
 
@@ -531,52 +529,6 @@ class TestGnssReference:
             lines.append((t + 0.1, slow if k % 2 else void))
         rec = self._run(lines, min_sog_mps=0.5)
         assert rec.refs and not [r for r in rec.refs if r[2]]
-
-
-class TestNavigationItems:
-    """Decoded records become routing items by type and by the speed record's typed role."""
-
-    def test_roles_route_speeds_and_headings_travel_with_them(self) -> None:
-        """A speed goes to the reference field of its role (a VBW ground pair to none), and a
-        heading sent with a speed precedes it, true and magnetic apart."""
-        from drivers import make_decoder
-        from drivers.rdi_ascii import encode_pd6
-        from drivers.records import SpeedRecord
-        from emlogd.pipeline.core import _Heading, _nav_items
-
-        nmea = make_decoder("nmea0183", "n")
-        vhw = encode_vhw(2.0, heading_true_deg=10.0, heading_mag_deg=12.0)
-        vbw = with_checksum("VMVBW,2.0,0.1,A,2.1,0.2,A")
-        recs = nmea.decode_all(f"{vhw}\r\n{vbw}\r\n".encode())
-        items = [it for r in recs for it in _nav_items(nmea, r)]
-        assert [type(it).__name__ for it in items] == ["_Heading", "SpeedRecord", "SpeedRecord"]
-        assert items[0] == _Heading(10.0, 12.0, None)
-        assert isinstance(items[1], SpeedRecord) and isinstance(items[2], SpeedRecord)
-        assert (items[1].role, items[1].source, items[1].heading_mag_deg) == (
-            "speed",
-            "VHW",
-            12.0,
-        )
-        assert (items[2].role, items[2].source) == ("speed", "VBW")
-        pd6 = make_decoder("pd6", "d")
-        lines = encode_pd6(
-            timestamp=datetime(2026, 1, 1, tzinfo=UTC),
-            heading_deg=30.0,
-            bottom_ship_mps=(0.1, 2.0, 0.0),
-            range_m=9.0,
-            water_ship_mps=(0.0, 1.5, 0.0),
-        )
-        (ens,) = pd6.decode_all("".join(x + "\r\n" for x in lines).encode())
-        got = [
-            (type(it).__name__, it.role if isinstance(it, SpeedRecord) else None)
-            for it in _nav_items(pd6, ens)
-        ]
-        assert got == [
-            ("_Heading", None),
-            ("SpeedRecord", "bottom"),
-            ("_Heading", None),
-            ("SpeedRecord", "water"),
-        ]
 
 
 class TestStateAcrossModelsAndResets:

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from drivers.nmea0183 import encode_hdt, encode_rmc, encode_vhw
-from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Output, Pipeline
 from emlogd.pipeline.headingcheck import WINDOW_S, HeadingCheck
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 T0 = 1_750_000_000.0
 

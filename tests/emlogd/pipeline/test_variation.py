@@ -10,7 +10,8 @@ import pytest
 
 from drivers.framing import with_checksum
 from drivers.nmea0183 import encode_gga, encode_hdt, encode_rmc, encode_vhw
-from emlogd.pipeline.core import Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.variation import (
     MAX_HEADING_OFFSET_DEG,
     CourseOffsetCheck,

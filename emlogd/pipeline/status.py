@@ -1,0 +1,163 @@
+"""The pipeline's status, assembled from its parts: what ``emlogd status`` shows, what the
+daemon logs and hands to sd_notify, and the fields of the ``$PEMLS`` sentence.
+
+Everything here reads and nothing changes: the UUTs' routing state
+(:class:`~emlogd.pipeline.routing.UutRoute`), the decoders' counters and the ports'
+staleness (:class:`~emlogd.pipeline.staleness.Liveness`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from drivers.base import Decoder
+from emlogd.pipeline.fusion import Fused
+from emlogd.pipeline.routing import Headings, UutRoute
+from emlogd.pipeline.sentences import StatusFields
+from emlogd.pipeline.staleness import Liveness
+
+
+def status_fields(u: UutRoute) -> StatusFields:
+    """The fields of a UUT's ``$PEMLS`` status sentence."""
+    cal = u.cal
+    p = cal.applied
+    return StatusFields(
+        port=u.s.port,
+        maker=u.s.maker,
+        state=cal.state,
+        model=u.s.model,
+        params=p.as_dict() if p is not None else {},
+        std={k: v for k, v in cal.applied_std.items() if v is not None} if p is not None else {},
+        nis_mean=cal.nis_mean(),
+        ref_state=cal.ref_state,
+    )
+
+
+def port_status(
+    decoders: Mapping[str, Decoder[Any]], liveness: Liveness
+) -> dict[str, dict[str, object]]:
+    """Per port: decoded records, rejects by reason, staleness, last receive time."""
+    return {
+        name: {
+            **dec.counters.as_dict(),
+            "stale": liveness.stale[name],
+            "last_rx": liveness.last.get(name),
+        }
+        for name, dec in decoders.items()
+    }
+
+
+def fused_status(last: Fused | None) -> dict[str, object] | None:
+    """The fused speed last sent, or None."""
+    if last is None:
+        return None
+    return {
+        "valid": last.valid,
+        "speed_mps": last.speed_mps if last.valid else None,
+        "std_mps": last.std_mps if last.valid else None,
+        "sources": last.sources,
+        "excluded": dict(last.excluded),
+    }
+
+
+def heading_reason(u: UutRoute, headings: Headings) -> str | None:
+    """Why a GNSS reference projects nothing, when the heading is the cause: none, a
+    magnetic one without a variation, or one the course check flagged."""
+    if u.s.reference_field != "gnss" or u.cal.ref_state == "valid":
+        return None
+    if u.heading_check.suspect:
+        return u.heading_check.reason()
+    check = u.course_check
+    if check.flagged():
+        return f"heading {check.offset_deg():+.1f}° off the course over ground: not used"
+    if u.heading_port is not None:
+        return None
+    refused = sum(ph.refused_magnetic for ph in headings.rings.values())
+    if refused:
+        return (
+            f"heading magnetic without a variation ({refused} refused): "
+            "set magnetic_variation_deg or give GNSS positions"
+        )
+    return (
+        "no heading for the GNSS reference"
+        if u.gnss or u.cal.learner.t_ref_last > -math.inf
+        else None
+    )
+
+
+def heading_status(u: UutRoute, headings: Headings) -> dict[str, object]:
+    """A UUT's heading: its port, the variation used and from where (``log``,
+    ``config``, ``model``), the magnetic headings refused for want of one, the
+    heading-against-course check and the GNSS fixes it refused."""
+    port = u.heading_port
+    var, source = headings.variation_source(port if port is not None else u.s.reference_port)
+    ph = headings.rings.get(port) if port is not None else None
+    if ph is None or not ph.magnetic:
+        var = source = None  # a true heading: no variation used
+    refused = sum(p.refused_magnetic for p in headings.rings.values())
+    return {
+        "port": port,
+        "variation_deg": None if var is None else round(var, 2),
+        "variation_source": source,
+        "refused_magnetic": refused,
+        "check": u.course_check.as_dict(),
+        "refused_by_check": u.course_refused,
+    }
+
+
+def uut_status(u: UutRoute, headings: Headings) -> dict[str, object]:
+    """A UUT's JSON-ready status (README: the ``emlogd status --json`` keys)."""
+    cal = u.cal
+    kf = cal.kf
+    ident = cal.ident
+    cur = kf.current_mps
+    cur_std = kf.current_std_mps
+    return {
+        "state": cal.state,
+        "reason": heading_reason(u, headings) or cal.reason,
+        "reference": cal.ref_state,
+        "heading_port": u.heading_port,
+        "heading": heading_status(u, headings),
+        "heading_suspect": u.heading_check.reason(),
+        "learning_enabled": cal.learn_on,
+        "model": u.s.model,
+        "params": cal.applied.as_dict() if cal.applied is not None else None,
+        "param_std": dict(cal.applied_std) if cal.applied is not None else None,
+        "estimate": kf.params.as_dict(),
+        "estimate_std": kf.param_std,
+        "current": None
+        if cur is None or cur_std is None
+        else {
+            "north_mps": cur[0],
+            "east_mps": cur[1],
+            "std_north_mps": cur_std[0],
+            "std_east_mps": cur_std[1],
+            "determined": cal.ident_current(),
+        },
+        "lag_s": cal.lag_s,
+        "determined": list(ident.determined) if ident is not None else [],
+        "unidentifiable": list(ident.unidentifiable) if ident is not None else [],
+        "identifiability": ident.reason if ident is not None else "",
+        "nis_mean": cal.nis_mean(),
+        "samples_learnt": cal.n_learnt,
+        "freezes": cal.freezes,
+        "counters": {**cal.counters.as_dict(), **u.implausible},
+        "scored_samples": cal.score.n,
+        "rmse_raw": cal.score.rmse_raw,
+        "rmse_corrected": cal.score.rmse_corrected,
+    }
+
+
+def summary(uuts: Mapping[str, UutRoute]) -> str:
+    """One line for sd_notify STATUS=: each UUT's state, calibration and reference."""
+    parts = []
+    for name, u in uuts.items():
+        cal = u.cal
+        if cal.applied is not None:
+            pv = " ".join(f"{k}={v:+.3f}" for k, v in cal.applied.as_dict().items())
+            parts.append(f"{name} {cal.state} {u.s.model} {pv} ref {cal.ref_state}")
+        else:
+            parts.append(f"{name} {cal.state} ref {cal.ref_state}")
+    return "; ".join(parts)

@@ -1,0 +1,41 @@
+"""The status assembled from the pipeline's parts."""
+
+from __future__ import annotations
+
+from calib.models import Params
+from drivers.nmea0183 import encode_vhw
+from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
+from emlogd.pipeline.status import port_status, status_fields, summary, uut_status
+
+PORTS = [PortSettings("log", "nmea0183", stale_timeout_s=2.0), PortSettings("dvl", "pd6")]
+CAL = Calibration("log", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": None}, 1.5)
+
+
+def _pipeline() -> Pipeline:
+    return Pipeline(PORTS, [UutSettings(port="log", reference_port="dvl")], {"log": CAL})
+
+
+def test_ports_show_counters_staleness_and_last_data() -> None:
+    """Per port: the decoder's counters, whether it is stale, when it was last heard."""
+    p = _pipeline()
+    p.feed(100.0, "log", (encode_vhw(2.0) + "\r\n").encode())
+    p.tick(103.0)
+    ports = port_status(p.decoders, p.liveness)
+    assert ports["log"]["records"] == 1 and ports["log"]["stale"] is True
+    assert ports["log"]["last_rx"] == 100.0
+    assert ports["dvl"]["stale"] is False and ports["dvl"]["last_rx"] is None
+
+
+def test_a_uut_shows_its_calibration_and_the_status_sentence_its_known_sigmas() -> None:
+    """The UUT's status holds the applied calibration and lag; the status sentence's σ
+    leave out the undetermined ones; the summary is one line per UUT."""
+    p = _pipeline()
+    u = p.uuts["log"]
+    doc = uut_status(u, p.headings)
+    assert doc["params"] == {"m": 0.05, "b": 0.1} and doc["lag_s"] == 1.5
+    assert doc["state"] == "frozen" and doc["model"] == "EM3"
+    fields = status_fields(u)
+    assert fields.std == {"m": 0.01} and fields.params == {"m": 0.05, "b": 0.1}
+    assert summary(p.uuts) == "log frozen EM3 m=+0.050 b=+0.100 ref none"
