@@ -181,7 +181,7 @@ class _PortHeading:
     """The true-heading ring of one port, with its glitch filter and variation."""
 
     def __init__(self, max_turn_rate_dps: float) -> None:
-        self.ring = SampleRing(1024, 2.0, angular=True)
+        self.ring = SampleRing(1024, 2.0, angular=True, cadence=True)
         self.jumps = JumpFilter(max_turn_rate_dps, 5.0, angular=True)
         self.refused_magnetic = 0
 

@@ -6,10 +6,12 @@ import dataclasses
 import itertools
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from calib.models import Params
 from drivers.io.capture import CaptureReader
+from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
     OfflineError,
     calibrate,
@@ -35,7 +37,7 @@ class TestLag:
         """EMlog1's 3.2 s (+0.1 s of 4800-baud transmission) within 0.3 s, with the current modelled."""
         recs = load_captures([trial_files["figure-8"], trial_files["circles"]], E1C)
         lag = find_lag(recs, E1C, None)
-        assert lag.source in ("auto", "uncertain")
+        assert lag.source == "auto", lag.note
         assert lag.lag_s == pytest.approx(3.3, abs=0.3)
         assert set(lag.per_capture) == {"2-figure8", "4-circles"}
 
@@ -43,7 +45,9 @@ class TestLag:
         """A given lag is used as is; a non-finite one is an error."""
         recs = load_captures([trial_files["straight"]], E1)
         assert find_lag(recs, E1, 3.2).source == "given"
-        assert find_lag(recs, E1, None).source in ("fallback", "uncertain", "auto")
+        found = find_lag(recs, E1, None)
+        assert found.source in ("fallback", "auto")
+        assert found.lag_s >= 0.0
         with pytest.raises(OfflineError, match="finite"):
             find_lag(recs, E1, float("nan"))
 
@@ -109,6 +113,50 @@ class TestCalibrate:
         est = pipeline.status()["uuts"]["emlog1"]["estimate"]  # type: ignore[index]
         for k, v in res.params.as_dict().items():
             assert est[k] == pytest.approx(v, abs=1e-9)  # type: ignore[index]
+
+
+def _recording(dt_ref: float, heading: float) -> Recording:
+    """A UUT read at 1 Hz for 10 min against a reference every ``dt_ref`` s."""
+    t_read = np.arange(0.5, 600.0, 1.0)
+    t_ref = np.arange(0.0, 600.0, dt_ref)
+    return Recording(
+        path="x.cap",
+        uut="log",
+        ports={"log": "nmea0183"},
+        t_read=t_read,
+        raw=np.full(t_read.size, 3.0),
+        t_ref=t_ref,
+        v_ref=np.full(t_ref.size, 3.0),
+        ok_ref=np.ones(t_ref.size, dtype=bool),
+        heading=np.full(t_ref.size, heading),
+        counters={},
+        uut_counters={},
+        t_start=0.0,
+        t_end=600.0,
+    )
+
+
+class TestNothingAligns:
+    """When no reading pairs with a reference, the error names the cause with its figures."""
+
+    @pytest.mark.parametrize(
+        ("dt_ref", "heading", "cause"),
+        [
+            (60.0, 10.0, "too sparse — 10 valid samples, one every 60.0 s"),
+            (2.0, np.nan, "none a heading"),
+        ],
+    )
+    def test_the_cause_is_named(self, dt_ref: float, heading: float, cause: str) -> None:
+        """A reference slower than the alignment's cap; readings with a reference and no heading."""
+        s = UutSettings(port="log", reference_port="log", reference_field="gnss", current=True)
+        with pytest.raises(OfflineError, match=cause):
+            calibrate([_recording(dt_ref, heading)], s, "ls", lag=0.0)
+
+    def test_a_reference_every_5_s_aligns(self) -> None:
+        """0.2 Hz is within reach: every reading inside the recording pairs."""
+        s = UutSettings(port="log", reference_port="log", reference_field="gnss", current=False)
+        res = calibrate([_recording(5.0, 10.0)], s, "ls", lag=0.0, average_s=0.0)
+        assert res.n_samples >= 590
 
 
 class TestFiles:
