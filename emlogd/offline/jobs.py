@@ -309,7 +309,13 @@ def nothing_aligns(recs: Sequence[Recording], pairs: Sequence[Aligned], s: UutSe
     if n_read == 0:
         return f"{head}: the captures hold no {s.port} reading"
     if n_ref == 0:
-        return f"{head}: the captures hold no valid {s.reference_field} reference sample"
+        why = f"{head}: the captures hold no valid {s.reference_field} reference sample"
+        if s.reference_field == "gnss":
+            why += (
+                " (GNSS speed is projected on the hull with the heading: a magnetic heading "
+                "needs a variation, --variation DEG or HDG/RMC in the log)"
+            )
+        return why
     dts = np.concatenate([np.diff(r.t_ref[r.ok_ref]) for r in recs])
     dts = dts[dts > 0.0]
     median = float(np.median(dts)) if dts.size else math.inf

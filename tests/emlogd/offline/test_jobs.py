@@ -115,7 +115,7 @@ class TestCalibrate:
             assert est[k] == pytest.approx(v, abs=1e-9)  # type: ignore[index]
 
 
-def _recording(dt_ref: float, heading: float) -> Recording:
+def _recording(dt_ref: float, heading: float, valid: bool = True) -> Recording:
     """A UUT read at 1 Hz for 10 min against a reference every ``dt_ref`` s."""
     t_read = np.arange(0.5, 600.0, 1.0)
     t_ref = np.arange(0.0, 600.0, dt_ref)
@@ -127,7 +127,7 @@ def _recording(dt_ref: float, heading: float) -> Recording:
         raw=np.full(t_read.size, 3.0),
         t_ref=t_ref,
         v_ref=np.full(t_ref.size, 3.0),
-        ok_ref=np.ones(t_ref.size, dtype=bool),
+        ok_ref=np.full(t_ref.size, valid),
         heading=np.full(t_ref.size, heading),
         counters={},
         uut_counters={},
@@ -140,17 +140,21 @@ class TestNothingAligns:
     """When no reading pairs with a reference, the error names the cause with its figures."""
 
     @pytest.mark.parametrize(
-        ("dt_ref", "heading", "cause"),
+        ("dt_ref", "heading", "valid", "cause"),
         [
-            (60.0, 10.0, "too sparse — 10 valid samples, one every 60.0 s"),
-            (2.0, np.nan, "none a heading"),
+            (60.0, 10.0, True, "too sparse — 10 valid samples, one every 60.0 s"),
+            (2.0, np.nan, True, "none a heading"),
+            (2.0, np.nan, False, "no valid gnss reference sample .* needs a variation"),
         ],
     )
-    def test_the_cause_is_named(self, dt_ref: float, heading: float, cause: str) -> None:
-        """A reference slower than the alignment's cap; readings with a reference and no heading."""
+    def test_the_cause_is_named(
+        self, dt_ref: float, heading: float, valid: bool, cause: str
+    ) -> None:
+        """A reference slower than the alignment's cap; readings with a reference and no
+        heading; GNSS never projected (a magnetic heading without a variation)."""
         s = UutSettings(port="log", reference_port="log", reference_field="gnss", current=True)
         with pytest.raises(OfflineError, match=cause):
-            calibrate([_recording(dt_ref, heading)], s, "ls", lag=0.0)
+            calibrate([_recording(dt_ref, heading, valid)], s, "ls", lag=0.0)
 
     def test_a_reference_every_5_s_aligns(self) -> None:
         """0.2 Hz is within reach: every reading inside the recording pairs."""
