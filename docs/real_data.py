@@ -381,7 +381,7 @@ def _f(x: object, spec: str) -> str:
 
 def _params(doc: dict[str, Any] | None, why: str | None) -> str:
     if doc is None:
-        return f"fails: {why}" if why else "—"
+        return "fails (below)" if why else "—"
     se = doc.get("stderr", {})
     return " ".join(f"{k} {v:+.3f}±{_f(se.get(k), '.3f')}" for k, v in doc["params"].items())
 
@@ -403,7 +403,7 @@ def markdown(rows: list[Row]) -> str:
     for r in rows:
         imp = r.imported
         if imp is None:
-            out.append(f"| {r.name} | {r.kind} | fails: {r.errors.get('import')} | — | — | — | — |")
+            out.append(f"| {r.name} | {r.kind} | fails (below) | — | — | — | — |")
             continue
         skipped = ", ".join(f"{k} {v}" for k, v in sorted(imp.get("skipped", {}).items()) if v)
         med = r.scores["median_speed"] if r.scores else math.nan
@@ -438,7 +438,7 @@ def markdown(rows: list[Row]) -> str:
             )
         nis = _f(r.kf.get("nis_mean") if r.kf else None, ".2f")
         state = "—"
-        score = f"fails: {r.errors.get('replay') or r.errors.get('scores')}"
+        score = "fails (below)"
         worst = "—"
         if r.replay is not None:
             u = r.replay["uuts"]["nmea"]
@@ -448,6 +448,10 @@ def markdown(rows: list[Row]) -> str:
             score = f"{s['rmse_emitted']:.3f} / {s['rmse_raw']:.3f} ({s['n']:.0f} samples)"
             worst = _f(s["worst_5min_ratio"], ".3f")
         out.append(f"| {r.name} | {cur} | {versus} | {nis} | {state} | {score} | {worst} |")
+    failed = [(r.name, step, why) for r in rows for step, why in r.errors.items()]
+    if failed:
+        out += ["", "What failed:", ""]
+        out += [f"- {name}, {step}: {why}" for name, step, why in failed]
     return "\n".join(out)
 
 
