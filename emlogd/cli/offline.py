@@ -495,8 +495,13 @@ def cmd_report(args: argparse.Namespace) -> int:
 
     settings = _settings(args)
     recs = _load(args.captures, settings, args)
-    paths = report(recs, settings, args.out, lag=args.lag, progress=progress)
+    notes: list[str] = []
+    paths = report(
+        recs, settings, args.out, lag=args.lag, progress=progress, on_lag_note=notes.append
+    )
     progress_done()
+    for note in notes:
+        _warn_lag(args.command, note)
     for path in paths:
         sys.stdout.write(f"{path}\n")
     _warn_skips(args.command, _skips(recs))
