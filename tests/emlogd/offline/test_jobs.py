@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +13,9 @@ import pytest
 
 from calib.models import Params
 from drivers.io.capture import CaptureReader
+from drivers.nmea0183 import encode_rmc, encode_vhw
 from emlogd.offline.dataset import Recording
+from emlogd.offline.importer import import_nmea
 from emlogd.offline.jobs import (
     OfflineError,
     calibrate,
@@ -259,3 +263,37 @@ def test_crossval_is_160_evaluations(trial_files: dict[str, Path]) -> None:
     assert figure8.unidentifiable == ()
     with pytest.raises(OfflineError, match="two captures"):
         crossval(recs[:1], E1)
+
+
+class TestSparseReference:
+    """A log whose GNSS comes every 2 s with times of 10-s resolution (the log kept aside
+    that paired 0 of 2209 samples with the fixed 1-s gap) imports and calibrates."""
+
+    def test_rmc_every_2_s_with_10_s_times_calibrates(self, tmp_path: Path) -> None:
+        """Import spreads the sentences between fixes; the cadence gap pairs them."""
+        t0 = datetime(2024, 7, 1, 12, 0, 0, tzinfo=UTC)
+        lines: list[str] = []
+        n = 1800
+        for k in range(n):
+            psi = (k * 0.4) % 360.0  # a slow turn: every heading sector
+            water = 3.0 + 1.0 * math.sin(2 * math.pi * k / 600.0)
+            cur_n, cur_e = 0.2, -0.1
+            vn = water * math.cos(math.radians(psi)) + cur_n
+            ve = water * math.sin(math.radians(psi)) + cur_e
+            raw = 1.05 * water + 0.05
+            lines.append(encode_vhw(raw, heading_true_deg=psi, talker="II"))
+            if k % 2 == 0:
+                stamp = t0 + timedelta(seconds=10 * (k // 10))
+                cog = math.degrees(math.atan2(ve, vn)) % 360.0
+                lines.append(encode_rmc(stamp, math.hypot(vn, ve), cog))
+        log = tmp_path / "sparse.nmea"
+        log.write_text("\r\n".join(lines) + "\r\n", encoding="ascii")
+        cap = tmp_path / "sparse.cap.gz"
+        import_nmea([log], cap)
+        s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+        recs = load_captures([str(cap)], s)
+        assert np.median(np.diff(recs[0].t_ref)) == pytest.approx(2.0, abs=0.3)
+        res = calibrate(recs, s, "ls")
+        assert res.n_samples > 0.8 * n
+        assert res.lag.source in ("fallback", "auto") and res.lag.lag_s >= 0.0
+        assert res.params.m == pytest.approx(0.05, abs=0.03)
