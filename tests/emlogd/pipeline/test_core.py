@@ -235,8 +235,11 @@ class TestLag:
         assert not [e for e in out.events if e.kind == "lag_estimated"]
         retry = [e for e in out.events if e.kind == "lag_retry"]
         assert retry and "negative" in str(retry[0].detail["why"])
-        assert p.uuts["log"].cal.lag_s == LAG_FALLBACK_S
+        cal = p.uuts["log"].cal
+        assert cal.lag_s == LAG_FALLBACK_S
         assert _status(p)["samples_learnt"] > 100
+        assert "lag not measured (negative lag" in str(_status(p)["reason"])
+        assert cal.snapshot().lag_s is None, "a fallback lag is saved"
 
     def test_the_lag_is_restored_with_its_calibration(
         self, kit: SimpleNamespace, segment: Segment
