@@ -21,7 +21,15 @@ def fusion_from_config(cfg: Config) -> FusionSettings | None:
     """The fused output's settings, or None when each log's sentences go out alone."""
     if cfg.outputs.speed == "each":
         return None
-    return FusionSettings(only=cfg.outputs.speed == "fused", talker=cfg.outputs.fused_talker)
+    o = cfg.outputs
+    return FusionSettings(
+        only=o.speed == "fused",
+        talker=o.fused_talker,
+        gate_chi2=o.fused_gate_chi2,
+        hold_s=o.fused_hold_s,
+        rejoin_s=o.fused_rejoin_s,
+        max_current_mps=o.fused_max_current_mps,
+    )
 
 
 def pipeline_from_config(cfg: Config) -> tuple[list[PortSettings], list[UutSettings]]:

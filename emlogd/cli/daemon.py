@@ -50,7 +50,8 @@ def _socket_path(args: argparse.Namespace) -> str:
 
 
 def _status_text(resp: dict[str, Any]) -> str:
-    """The daemon's ``status`` answer as lines of text: one per UUT, one per port."""
+    """The daemon's ``status`` answer as lines of text: one per UUT (and its heading), one
+    per port."""
     status = resp.get("status") or {}
     lines = []
     for name, u in (status.get("uuts") or {}).items():
@@ -71,6 +72,9 @@ def _status_text(resp: dict[str, Any]) -> str:
                 f"{u.get('scored_samples', '?')} samples{gain}"
             )
         lines.append(line)
+        heading = u.get("heading")
+        if isinstance(heading, dict):
+            lines.append(f"  {_heading_line(heading)}; {u.get('reason') or 'learning'}")
     for name, p in (status.get("ports") or {}).items():
         rejects = p.get("rejects") or {}
         total = sum(rejects.values())
@@ -86,6 +90,23 @@ def _status_text(resp: dict[str, Any]) -> str:
             + (f", {errors} errors" if errors else "")
         )
     return "".join(line + "\n" for line in lines)
+
+
+def _heading_line(h: dict[str, Any]) -> str:
+    """A UUT's heading: its port, the variation and its source, refusals, the check."""
+    text = f"heading from {h.get('port') or 'no port yet'}"
+    var = h.get("variation_deg")
+    if isinstance(var, float | int):
+        text += f", variation {var:+.2f}° ({h.get('variation_source')})"
+    if h.get("refused_magnetic"):
+        text += f", {h['refused_magnetic']} magnetic headings refused (no variation)"
+    check = h.get("check") or {}
+    off = check.get("offset_deg")
+    if isinstance(off, float | int):
+        text += f", {off:+.1f}° from the course" + (
+            " — FLAGGED, not used" if check.get("flagged") else ""
+        )
+    return text
 
 
 def _change_text(command: str, resp: dict[str, Any]) -> str:

@@ -151,6 +151,12 @@ def _date_arg(value: str) -> date:
         raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, not {value!r}") from None
 
 
+def _import_presets() -> list[str]:
+    from emlogd.offline.importer import PRESETS
+
+    return list(PRESETS)
+
+
 def cmd_import(args: argparse.Namespace) -> int:
     """Turn NMEA logs or CSV exports into a capture."""
     from emlogd.offline import importer
@@ -158,7 +164,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     if not args.port or not args.port.isidentifier():
         raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
     if args.format == "nmea":
-        for opt in ("map", "preset", "time_format", "heading_ref"):
+        for opt in ("map", "preset", "time_format", "heading_ref", "utc_offset", "variation"):
             if getattr(args, opt) is not None:
                 raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
         report = importer.import_nmea(
@@ -169,17 +175,15 @@ def cmd_import(args: argparse.Namespace) -> int:
             raise UsageError("--date applies to --format nmea only")
         if len(args.files) != 1:
             raise UsageError("--format csv imports one file at a time")
-        if args.preset is None and args.map is None:
-            raise UsageError("--format csv needs --map key=Column,... or --preset expedition")
-        mapping = dict(importer.EXPEDITION) if args.preset == "expedition" else {}
-        if args.map is not None:
-            mapping.update(importer.parse_map(args.map))
         report = importer.import_csv(
             args.files[0],
             args.out,
-            mapping,
-            time_format=args.time_format or "ole",
-            heading_ref=args.heading_ref or "true",
+            importer.parse_map(args.map) if args.map is not None else None,
+            preset=args.preset,
+            time_format=args.time_format,
+            heading_ref=args.heading_ref,
+            utc_offset_h=args.utc_offset,
+            variation_deg=args.variation,
             port=args.port,
             progress=progress,
         )
@@ -201,8 +205,30 @@ def cmd_import(args: argparse.Namespace) -> int:
         + (", ".join(f"{k} {v}" for k, v in sorted(skipped.items())) or "none")
         + "\n"
     )
+    for k, v in sorted(report.cells.items()):
+        sys.stdout.write(f"cell skipped {k} {v}\n")
     for k, v in sorted(report.notes.items()):
         sys.stdout.write(f"note         {k} {v}\n")
+    if report.preset is not None:
+        sys.stdout.write(f"preset       {report.preset}\n")
+    check = report.heading_check
+    if check is not None and isinstance(check.get("offset_deg"), float):
+        sys.stdout.write(
+            f"heading      {check['offset_deg']:+.1f}° from the course on straight legs"
+            + (
+                f" — more than leeway explains ({check['max_offset_deg']}°): is it "
+                "magnetic (--heading-ref magnetic), or the compass wrong?\n"
+                if check.get("flagged")
+                else "\n"
+            )
+        )
+    if report.variation == "none":
+        sys.stdout.write(
+            "heading      magnetic, and no variation nor position: give --variation DEG "
+            "(here or to calibrate)\n"
+        )
+    elif report.variation is not None:
+        sys.stdout.write(f"heading      magnetic, variation from the {report.variation}\n")
     return 0
 
 
@@ -284,6 +310,26 @@ def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace)
     return recs
 
 
+def _heading_text(h: dict[str, object]) -> str:
+    """One line: the heading's variation and where it came from, and the course check."""
+    var, source = h.get("variation_deg"), h.get("variation_source")
+    text = "heading      " + (
+        f"variation {var:+.2f}° ({source})" if isinstance(var, float) else "true (no variation)"
+    )
+    check = h.get("check")
+    if isinstance(check, dict):
+        off = check.get("offset_deg")
+        text += (
+            f", {off:+.1f}° from the course on straight legs"
+            if isinstance(off, float)
+            else ", offset from the course not decided (too few straight legs or sectors)"
+        )
+    refused = h.get("refused_magnetic")
+    if isinstance(refused, int) and refused:
+        text += f", {refused} magnetic headings refused (no variation yet)"
+    return text
+
+
 def _calibration_text(res: CalibrationResult) -> str:
     se = res.stderr
     held = set(res.ident.unidentifiable)
@@ -323,6 +369,7 @@ def _calibration_text(res: CalibrationResult) -> str:
         )
     elif s.current:
         out.append("current      not determined")
+    out += [_heading_text(h) for h in res.heading.values()]
     out += [
         f"identifiable {'yes' if res.identifiable else 'NO: ' + res.ident.reason}",
         f"condition    {fmt(res.ident.cond_info, '.3g')}",
@@ -740,15 +787,37 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument(
         "--map",
         metavar="KEY=COL,...",
-        help="csv: columns for time, stw, heading, sog, cog (and lat, lon, set, drift, "
-        "variation); knots and degrees unless written Col[mps]",
-    )
-    p.add_argument("--preset", choices=["expedition"], help="csv: a known program's columns")
-    p.add_argument(
-        "--time-format", choices=["ole", "iso", "epoch"], help="csv: time column (default ole)"
+        help="csv: columns for time, stw (and date, heading, sog, cog, lat, lon, set, drift, "
+        "variation); A|B: the first present, Col?: optional; knots unless written Col[mps]",
     )
     p.add_argument(
-        "--heading-ref", choices=["true", "magnetic"], help="csv: the heading's reference (true)"
+        "--preset",
+        choices=["auto", *_import_presets()],
+        help="csv: a known export's columns (default without --map: auto, chosen by the header)",
+    )
+    p.add_argument(
+        "--time-format",
+        metavar="ole|iso|epoch|PATTERN",
+        help="csv: the time column (a strptime PATTERN for date + ' ' + time with a date "
+        "column); default: the preset's, else told by the first time",
+    )
+    p.add_argument(
+        "--heading-ref",
+        choices=["true", "magnetic"],
+        help="csv: the heading's reference (default: the preset's, else true)",
+    )
+    p.add_argument(
+        "--utc-offset",
+        type=float,
+        metavar="HOURS",
+        help="csv: the logger's clock minus UTC (times are taken as UTC without it)",
+    )
+    p.add_argument(
+        "--variation",
+        type=float,
+        metavar="DEG",
+        help="csv: magnetic variation, + east, when no column gives one (else the IGRF "
+        "model at the fixes' positions, at calibration)",
     )
     p.add_argument("--json", action="store_true", help="the import report as JSON")
     p.set_defaults(handler=cmd_import)

@@ -36,7 +36,7 @@ from emlogd.config import Config, load_config
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import is_console
 from emlogd.daemon.notify import Notifier
-from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
+from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
@@ -332,13 +332,15 @@ class Daemon:
         if out.pty:
             pty, mode, group = out.pty, out.pty_mode, out.pty_group
             specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
+        limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
         if out.tcp:
             tcp = out.tcp
-            specs[("tcp", tcp)] = lambda: TcpServerSink(
+            specs[("tcp", tcp, limits)] = lambda: TcpServerSink(
                 tcp,
                 selector=self.sel,
                 on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
                 monotonic=self.monotonic,
+                limits=limits,
             )
         if out.udp:
             udp = out.udp
@@ -356,12 +358,13 @@ class Daemon:
                     PtySink, u.pty, mode=out.pty_mode, group=out.pty_group
                 )
             if u.tcp:
-                specs[("uut", name, "tcp", u.tcp)] = functools.partial(
+                specs[("uut", name, "tcp", u.tcp, limits)] = functools.partial(
                     TcpServerSink,
                     u.tcp,
                     selector=self.sel,
                     on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
                     monotonic=self.monotonic,
+                    limits=limits,
                 )
             if u.udp:
                 specs[("uut", name, "udp", u.udp)] = functools.partial(

@@ -65,14 +65,22 @@ class StateStore:
         """The check of the last :meth:`load`: a current file it refuses is no backup."""
 
     @property
+    def real_path(self) -> Path:
+        """The state file with every symlink resolved (of the file and its directories)."""
+        return Path(os.path.realpath(self.path))
+
+    @property
     def lock_path(self) -> Path:
-        """The lock file next to the state file."""
-        return self.path.with_name(self.path.name + ".lock")
+        """The lock file next to the state file's real path: two instances reaching one
+        file through different names (a symlink, a symlinked directory) share one lock."""
+        real = self.real_path
+        return real.with_name(real.name + ".lock")
 
     def lock(self) -> int | None:
         """Take the state file's lock for this process (released when it exits).
 
-        An exclusive ``flock`` on ``<file>.lock``, which then holds the pid. Returns
+        An exclusive ``flock`` on ``<file>.lock`` next to the file's real path
+        (:attr:`lock_path`), which then holds the pid. Returns
         the lock's descriptor, or None when no lock file can be opened at all (a
         read-only or missing directory: writes will fail and be reported anyway).
 
@@ -96,8 +104,10 @@ class StateStore:
                 holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
             finally:
                 os.close(fd)
+            real = self.real_path
+            via = f" (real path {real})" if real != self.path.absolute() else ""
             raise StateLockedError(
-                f"{self.path} is in use by another emlogd (pid {holder}; lock {path})"
+                f"{self.path}{via} is in use by another emlogd (pid {holder}; lock {path})"
             ) from None
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)

@@ -87,6 +87,8 @@ class Recording:
         t_start: first record time, s (nan for an empty capture).
         t_end: last record time, s.
         skips: the malformed records skipped (``CaptureReader.skip_report``).
+        heading_info: the pipeline's heading status at the end (``Pipeline.heading_status``:
+            port, variation and its source, refused magnetic headings, the check).
     """
 
     path: str
@@ -103,6 +105,7 @@ class Recording:
     t_start: float
     t_end: float
     skips: dict[str, object] = dataclasses.field(default_factory=dict)
+    heading_info: dict[str, object] = dataclasses.field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -213,6 +216,7 @@ def record_capture(
         t_start=t_first,
         t_end=t_last,
         skips=reader.skip_report(),
+        heading_info=pipeline.heading_status(settings.port),
     )
 
 

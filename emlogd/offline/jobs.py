@@ -48,7 +48,8 @@ from emlogd.offline.dataset import (
     Recording,
     record_captures,
 )
-from emlogd.pipeline.align import MAX_GAP_CAP_S, SampleRing
+from emlogd.offline.headings import heading_refusal, needs_heading, why_no_sample
+from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import AVERAGE_S, UutCalibration
@@ -210,6 +211,9 @@ class CalibrationResult:
     nis_frac_inside: float | None = None
     average_s: float = 0.0
     """``ls``: the block length the fit averaged over (0: every sample), s."""
+    heading: dict[str, dict[str, object]] = field(default_factory=dict)
+    """Per capture, the heading used (``Pipeline.heading_status``) when the reference or
+    the model needs one."""
 
     @property
     def improvement_pct(self) -> float:
@@ -267,6 +271,7 @@ class CalibrationResult:
             "ref_field": s.reference_field,
             "current_states": s.current,
             "captures": list(self.captures),
+            "heading": self.heading,
         }
 
 
@@ -296,41 +301,6 @@ def _block_means(
     return tuple(
         np.concatenate([getattr(a, k) for a in parts]) if parts else np.empty(0)
         for k in ("t", "raw", "ref", "heading_deg")
-    )
-
-
-def nothing_aligns(recs: Sequence[Recording], pairs: Sequence[Aligned], s: UutSettings) -> str:
-    """Why no reading has a reference (and a heading) to pair with, with the figures."""
-    n_read = sum(r.t_read.size for r in recs)
-    n_ref = sum(int(np.count_nonzero(r.ok_ref)) for r in recs)
-    head = f"no {s.port} sample has a valid {s.reference_port} reference"
-    head += " and a heading" if s.current else ""
-    head += f" at lag {pairs[0].lag_s:.2f} s" if pairs else ""
-    if n_read == 0:
-        return f"{head}: the captures hold no {s.port} reading"
-    if n_ref == 0:
-        why = f"{head}: the captures hold no valid {s.reference_field} reference sample"
-        if s.reference_field == "gnss":
-            why += (
-                " (GNSS speed is projected on the hull with the heading: a magnetic heading "
-                "needs a variation, --variation DEG or HDG/RMC in the log)"
-            )
-        return why
-    dts = np.concatenate([np.diff(r.t_ref[r.ok_ref]) for r in recs])
-    dts = dts[dts > 0.0]
-    median = float(np.median(dts)) if dts.size else math.inf
-    with_ref = sum(int(np.count_nonzero(np.isfinite(p.ref))) for p in pairs)
-    if with_ref == 0:
-        return (
-            f"{head}: the reference is too sparse — {n_ref} valid samples, one every "
-            f"{median:.1f} s (median); the alignment bridges at most {MAX_GAP_CAP_S:g} s "
-            f"between a reading and each reference sample ({n_read} readings)"
-        )
-    n_hd = sum(int(np.count_nonzero(np.isfinite(r.heading))) for r in recs)
-    return (
-        f"{head}: {with_ref} of {n_read} readings have a reference but none a heading "
-        f"({n_hd} reference samples carry one): a magnetic heading needs a variation "
-        "(--variation, or HDG/RMC in the log)"
     )
 
 
@@ -422,11 +392,14 @@ def calibrate(
         raise OfflineError("--trace follows the Kalman filter: use it with --method kf")
     if method not in ("ls", "kf"):
         raise OfflineError(f"method must be ls or kf, not {method!r}")
+    refusal = heading_refusal(recs, settings)
+    if refusal is not None:
+        raise OfflineError(refusal)
     lag_report = find_lag(recs, settings, lag)
     pairs = [r.aligned(lag_report.lag_s) for r in recs]
     _t, raw, ref, heading = concat_usable(pairs, settings.current)
     if raw.size == 0:
-        raise OfflineError(nothing_aligns(recs, pairs, settings))
+        raise OfflineError(why_no_sample(recs, settings, lag_report.lag_s))
     layout = Layout(check_model(settings.model), settings.current)
     kf = settings.kf
     hd = heading if settings.current else None
@@ -491,6 +464,7 @@ def calibrate(
         nis_mean=nis_mean,
         nis_frac_inside=nis_frac,
         average_s=window,
+        heading={r.path: r.heading_info for r in recs} if needs_heading(settings) else {},
     )
 
 

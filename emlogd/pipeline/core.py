@@ -11,7 +11,10 @@ Routing (per port, the decoders' common navigation records):
   speed and course projected on the hull with the heading) goes, through a glitch
   filter (:class:`~emlogd.pipeline.integrity.JumpFilter`), to every UUT that
   calibrates against that port and field;
-- a **heading** (true, or magnetic with a known variation) goes to its port's ring;
+- a **heading** (true, or magnetic with a variation: the log's, the configured one,
+  else the IGRF model's at the last GNSS position, :mod:`emlogd.pipeline.variation`)
+  goes to its port's ring; a GNSS reference is projected only with a heading the
+  course check has not flagged;
   each UUT reads its heading from the port it is configured for, or (``auto``) from
   its reference's port, else its own VHW heading, else any port with a heading;
 - a UUT's **reading** is corrected with the calibration in use and its sentence made
@@ -46,8 +49,9 @@ from drivers.nmea0183 import Heading as NmeaHeading
 from drivers.records import KNOT_MPS, Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
-from emlogd.pipeline.fusion import Fusion, FusionSettings
-from emlogd.pipeline.integrity import JumpFilter
+from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
+from emlogd.pipeline.headingcheck import HeadingCheck
+from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
 from emlogd.pipeline.sentences import (
     StatusFields,
     encode_fused_status,
@@ -55,12 +59,19 @@ from emlogd.pipeline.sentences import (
     encode_vbw,
     encode_vdr,
     encode_vhw,
+    encode_vhw_void,
 )
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.uut import UutCalibration
+from emlogd.pipeline.variation import CourseOffsetCheck, model_variation
 
 FUSED_PORT = "fused"
 """The port name of the fused speed's emits (a UUT may not be called this)."""
+
+HEADING_CHECK_TOL_S = 1.5
+"""A GNSS fix is judged with the heading nearest its time within this, s (a heading
+sentence often follows the fix; a wrong heading is tens of degrees off, not a turn's
+1.5 s)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,10 +129,15 @@ class _Gnss(NamedTuple):
     cog_true_deg: float | None
     valid: bool
     variation_deg: float | None
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    fix_t: float | None = None
 
 
 class _Fix(NamedTuple):
     quality: int
+    lat_deg: float | None = None
+    lon_deg: float | None = None
 
 
 _Nav = SpeedRecord | _Heading | _Gnss | _Fix
@@ -136,13 +152,22 @@ def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
     if isinstance(rec, Rejected):
         return
     if isinstance(rec, Rmc):
-        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, rec.variation_deg)
+        fix_t = None if rec.time_utc is None else rec.time_utc.timestamp()
+        yield _Gnss(
+            rec.sog_mps,
+            rec.cog_true_deg,
+            rec.valid,
+            rec.variation_deg,
+            rec.lat_deg,
+            rec.lon_deg,
+            fix_t,
+        )
         return
     if isinstance(rec, Vtg):
         yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
         return
     if isinstance(rec, Gga):
-        yield _Fix(rec.quality)
+        yield _Fix(rec.quality, rec.lat_deg, rec.lon_deg)
         return
     if isinstance(rec, NmeaHeading):
         if rec.heading_deg is None:
@@ -184,6 +209,7 @@ class _PortHeading:
         self.ring = SampleRing(1024, 2.0, angular=True, cadence=True)
         self.jumps = JumpFilter(max_turn_rate_dps, 5.0, angular=True)
         self.refused_magnetic = 0
+        self.magnetic = 0
 
 
 class _Uut:
@@ -197,6 +223,29 @@ class _Uut:
         self.t_vdr = -math.inf
         self.heading_port: str | None = None
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
+        self.course_check = CourseOffsetCheck()
+        """The heading's offset from the course through the water (variation module)."""
+        self.course_refused = 0
+        """GNSS fixes not projected because the course check flagged the heading."""
+        self.checks: dict[str, ReadingCheck] = {}
+        """The plausibility of the readings, per sentence (VHW, VBW)."""
+        self.heading_check = HeadingCheck(s.envelope.max_current_mps)
+        self.stw: tuple[float, float] | None = None
+        """The latest corrected speed through the water (time, m/s)."""
+        self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
+        """Readings neither emitted nor learnt, by reason (shown with the counters)."""
+
+    def plausible(self, t: float, source: str, raw: float) -> str:
+        """``""`` when the reading is plausible, else why not (counted)."""
+        chk = self.checks.get(source)
+        if chk is None:
+            chk = self.checks[source] = ReadingCheck(self.s.limits)
+        why = chk.check(t, raw)
+        if why:
+            self.implausible[f"implausible_{why}"] += 1
+        elif chk.reacquired:
+            return "reacquired"
+        return why
 
 
 class Pipeline:
@@ -238,6 +287,7 @@ class Pipeline:
         self.t_fused_status = -math.inf
         self.headings: dict[str, _PortHeading] = {}
         self.variation: dict[str, float] = {}
+        self.model_var: float | None = None
         self.fix_quality: dict[str, int] = {}
         self.uuts: dict[str, _Uut] = {}
         self._by_ref: dict[str, list[_Uut]] = {}
@@ -323,6 +373,7 @@ class Pipeline:
                 self.fix_quality[name] = old.fix_quality[name]
             if name in old.last_rx:
                 self.last_rx[name] = old.last_rx[name]
+        self.model_var = old.model_var
         kept: list[str] = []
         for name, u in self.uuts.items():
             o = old.uuts.get(name)
@@ -338,7 +389,7 @@ class Pipeline:
         for u in self.uuts.values():
             self._by_ref.setdefault(u.s.reference_port, []).append(u)
         if self.fusion is not None and old.fusion is not None:
-            self.fusion.latest = dict(old.fusion.latest)
+            self.fusion.adopt(old.fusion)
         self.now = max(self.now, old.now)
         return kept
 
@@ -352,16 +403,20 @@ class Pipeline:
         return order
 
     def _heading_at(self, uut: str, t: float) -> float | None:
+        """The UUT's heading at ``t``, unless the course over ground says it is wrong."""
         u = self.uuts.get(uut)
-        if u is None:
+        if u is None or u.heading_check.suspect:
             return None
+        return self._raw_heading_at(u, t)
+
+    def _raw_heading_at(self, u: _Uut, t: float, tol_s: float = 0.6) -> float | None:
         for port in self._heading_ports(u.s):
             ph = self.headings.get(port)
             if ph is None:
                 continue
             h = ph.ring.at(t)
             if h is None:
-                h = ph.ring.nearest(t, 0.6)
+                h = ph.ring.nearest(t, tol_s)
             if h is not None:
                 if u.heading_port != port:
                     u.heading_port = port
@@ -381,6 +436,7 @@ class Pipeline:
                 ph.refused_magnetic += 1
                 return
             true = wrap_deg(h.magnetic_deg + var)
+            ph.magnetic += 1
         if true is None or not math.isfinite(true):
             return
         if ph.jumps.accept(t, true):
@@ -391,14 +447,23 @@ class Pipeline:
         return max(rates) if rates else 45.0
 
     def _variation(self, port: str) -> float | None:
+        return self.variation_source(port)[0]
+
+    def variation_source(self, port: str) -> tuple[float | None, str | None]:
+        """The variation for magnetic headings of ``port`` and where it comes from: the
+        log (HDG/RMC of that port, else of any port), the configuration
+        (``magnetic_variation_deg``), the model (IGRF at the last GNSS position and
+        date, :mod:`emlogd.pipeline.variation`); (None, None) without any."""
         if port in self.variation:
-            return self.variation[port]
+            return self.variation[port], "log"
         for v in self.variation.values():
-            return v
+            return v, "log"
         for u in self.uuts.values():
             if u.s.magnetic_variation_deg is not None:
-                return u.s.magnetic_variation_deg
-        return None
+                return u.s.magnetic_variation_deg, "config"
+        if self.model_var is not None:
+            return self.model_var, "model"
+        return None, None
 
     # -- input ----------------------------------------------------------------
 
@@ -436,6 +501,8 @@ class Pipeline:
                 self._gnss(t, port, item)
             elif isinstance(item, _Fix):
                 self.fix_quality[port] = item.quality
+                if item.quality > 0:
+                    self._position(t, item.lat_deg, item.lon_deg)
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
@@ -451,15 +518,44 @@ class Pipeline:
                 ok = False
             u.cal.add_reference(t, v if ok else None, ok)
 
+    def _position(self, t: float, lat: float | None, lon: float | None) -> None:
+        """A GNSS position (RMC, GGA) at ``t``: the model's variation there and then."""
+        if lat is not None and lon is not None:
+            mv = model_variation(lat, lon, t)
+            if mv is not None:
+                self.model_var = mv
+
     def _gnss(self, t: float, port: str, g: _Gnss) -> None:
         """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
             self.variation[port] = g.variation_deg
+        if g.valid:
+            self._position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
         valid = g.valid and self.fix_quality.get(port, 1) > 0
+        if valid and g.sog_mps is not None and self.fusion is not None:
+            self.fusion.ground(t, g.sog_mps)
+        if valid and g.sog_mps is not None and g.cog_true_deg is not None:
+            for u in self.uuts.values():
+                self._check_heading(t, u, g.sog_mps, g.cog_true_deg)
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
                 self._project(u)
+
+    def _check_heading(self, t: float, u: _Uut, sog: float, cog: float) -> None:
+        """Judge the UUT's heading against a GNSS fix (an event when the verdict changes)."""
+        if u.stw is None or abs(t - u.stw[0]) > 2.0 or sog < u.s.min_sog_mps:
+            return
+        psi = self._raw_heading_at(u, t, HEADING_CHECK_TOL_S)
+        if psi is None:
+            return
+        hc = u.heading_check
+        was = hc.suspect
+        hc.add(t, psi, u.stw[1], sog, cog)
+        if hc.suspect != was:
+            detail = {"why": hc.reason()} if hc.suspect else {}
+            kind = "heading_suspect" if hc.suspect else "heading_consistent"
+            self._pending_events.append(Event(t, u.s.port, kind, detail))
 
     def _project(self, u: _Uut, *, final: bool = False) -> None:
         """Project queued GNSS samples on the hull once the heading covers their time.
@@ -481,8 +577,13 @@ class Pipeline:
                 if psi is None or sog < u.s.min_sog_mps:
                     ok = False
                 else:
-                    along = sog * math.cos(math.radians(cog - psi))
-                    ok = u.ref_jumps.accept(t, along)
+                    u.course_check.add(t, psi, sog, cog)
+                    if u.course_check.flagged():
+                        u.course_refused += 1  # a wrong heading projects nothing
+                        ok = False
+                    else:
+                        along = sog * math.cos(math.radians(cog - psi))
+                        ok = u.ref_jumps.accept(t, along)
             u.cal.add_reference(t, along if ok else None, ok)
 
     def _heading_ring(self, s: UutSettings) -> SampleRing | None:
@@ -505,7 +606,14 @@ class Pipeline:
         if not fresh:
             cal.counters.backlog += 1
             return
+        why = u.plausible(t, sp.source, raw)
+        if why and self.fusion is not None and sp.source == u.s.uut_source:
+            self.fusion.refuse(u.s.port, t, why)
+        if why and why != "reacquired":
+            return
         value = cal.correct(raw)
+        if value is not None and sp.source == u.s.uut_source:
+            u.stw = (t, value)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.source == "VHW":
@@ -535,11 +643,19 @@ class Pipeline:
     ) -> None:
         """Send the fused speed (port ``fused``, with the log's headings) when one is due."""
         assert self.fusion is not None
-        fused = self.fusion.update(u.s.port, t, value, u.cal.output_std(value))
+        cal = u.cal
+        std = cal.output_std(value)
+        calibrated = cal.applied is not None and u.s.apply
+        cstd = consistency_std(std, u.s.r_raw_mps, value, calibrated)
+        fused = self.fusion.update(u.s.port, t, value, std, cstd_mps=cstd, calibrated=calibrated)
         if fused is None:
             return
         talker = self.fusion.s.talker
-        out.emits.append(Emit(t, FUSED_PORT, encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)))
+        if fused.valid:
+            sentence = encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)
+        else:
+            sentence = encode_vhw_void(hdg_t, hdg_m, talker)
+        out.emits.append(Emit(t, FUSED_PORT, sentence))
         if t - self.t_fused_status >= u.s.status_sentence_interval_s:
             self.t_fused_status = t
             out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))
@@ -698,7 +814,13 @@ class Pipeline:
             "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
             "fused": None
             if last is None
-            else {"speed_mps": last.speed_mps, "std_mps": last.std_mps, "sources": last.sources},
+            else {
+                "valid": last.valid,
+                "speed_mps": last.speed_mps if last.valid else None,
+                "std_mps": last.std_mps if last.valid else None,
+                "sources": last.sources,
+                "excluded": dict(last.excluded),
+            },
         }
 
     def _uut_status(self, u: _Uut) -> dict[str, object]:
@@ -709,9 +831,11 @@ class Pipeline:
         cur_std = kf.current_std_mps
         return {
             "state": cal.state,
-            "reason": cal.reason,
+            "reason": self._heading_reason(u) or cal.reason,
             "reference": cal.ref_state,
             "heading_port": u.heading_port,
+            "heading": self.heading_status(u.s.port),
+            "heading_suspect": u.heading_check.reason(),
             "learning_enabled": cal.learn_on,
             "model": u.s.model,
             "params": cal.applied.as_dict() if cal.applied is not None else None,
@@ -734,10 +858,54 @@ class Pipeline:
             "nis_mean": cal.nis_mean(),
             "samples_learnt": cal.n_learnt,
             "freezes": cal.freezes,
-            "counters": cal.counters.as_dict(),
+            "counters": {**cal.counters.as_dict(), **u.implausible},
             "scored_samples": cal.score.n,
             "rmse_raw": cal.score.rmse_raw,
             "rmse_corrected": cal.score.rmse_corrected,
+        }
+
+    def _heading_reason(self, u: _Uut) -> str | None:
+        """Why a GNSS reference projects nothing, when the heading is the cause: none, a
+        magnetic one without a variation, or one the course check flagged."""
+        if u.s.reference_field != "gnss" or u.cal.ref_state == "valid":
+            return None
+        if u.heading_check.suspect:
+            return u.heading_check.reason()
+        check = u.course_check
+        if check.flagged():
+            return f"heading {check.offset_deg():+.1f}° off the course over ground: not used"
+        if u.heading_port is not None:
+            return None
+        refused = sum(ph.refused_magnetic for ph in self.headings.values())
+        if refused:
+            return (
+                f"heading magnetic without a variation ({refused} refused): "
+                "set magnetic_variation_deg or give GNSS positions"
+            )
+        return (
+            "no heading for the GNSS reference"
+            if u.gnss or u.cal.learner.t_ref_last > -math.inf
+            else None
+        )
+
+    def heading_status(self, uut: str) -> dict[str, object]:
+        """A UUT's heading: its port, the variation used and from where (``log``,
+        ``config``, ``model``), the magnetic headings refused for want of one, the
+        heading-against-course check and the GNSS fixes it refused."""
+        u = self.uuts[uut]
+        port = u.heading_port
+        var, source = self.variation_source(port if port is not None else u.s.reference_port)
+        ph = self.headings.get(port) if port is not None else None
+        if ph is None or not ph.magnetic:
+            var = source = None  # a true heading: no variation used
+        refused = sum(ph.refused_magnetic for ph in self.headings.values())
+        return {
+            "port": port,
+            "variation_deg": None if var is None else round(var, 2),
+            "variation_source": source,
+            "refused_magnetic": refused,
+            "check": u.course_check.as_dict(),
+            "refused_by_check": u.course_refused,
         }
 
     def summary(self) -> str:

@@ -18,7 +18,7 @@ from calib.excitation import ExcitationRule
 from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
 from calib.models import MODEL_NAMES, PARAM_NAMES, check_model
 from drivers import protocol_names
-from emlogd.pipeline.integrity import Envelope
+from emlogd.pipeline.integrity import Envelope, ReadingLimits
 from emlogd.pipeline.keys import (
     NAME,
     bool_or_auto,
@@ -152,7 +152,8 @@ class UutSettings:
         None,
         check=number(-180.0, 180.0, optional=True),
         unit="°",
-        doc="East positive; for magnetic headings when no HDG/RMC carries one.",
+        doc="East positive; for magnetic headings when no HDG/RMC carries one (without it: "
+        "the IGRF model at the GNSS position).",
     )
     lag_s: float | None = key(
         None,
@@ -259,6 +260,7 @@ class UutSettings:
         doc="This many gated samples in a row: the filter restarts from the last good state.",
     )
     envelope: Envelope = group(Envelope)
+    limits: ReadingLimits = group(ReadingLimits)
     low_speed_mps: float = key(
         0.25,
         check=number(0.0, 5.0),

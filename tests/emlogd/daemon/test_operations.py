@@ -379,8 +379,9 @@ def test_no_request_knocks_the_daemon_over(work: Path) -> None:
 
 
 def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
-    """The 17th control client and the 33rd TCP client are refused politely while the
-    others are served; the status socket answers status and refuses freeze."""
+    """The 17th control client is served and closes the one that waited longest (told so),
+    the 33rd TCP client evicts the latest before it; the status socket answers status and
+    refuses freeze."""
     cfg = work / "emlogd.yaml"
     cfg.write_text(cfg.read_text() + "status_socket: run/status.sock\n")
     tcp_port = int(cfg.read_text().split('tcp: "127.0.0.1:')[1].split('"')[0])
@@ -397,15 +398,17 @@ def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
             s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             s.connect(str(d.socket))
             held.append(s)
-        extra = _exchange(d.socket, b'{"cmd":"status"}\n')
-        assert b"too many clients" in extra
-        held[0].sendall(b'{"cmd":"status"}\n')  # a connected client is still served
-        held[0].settimeout(5)
-        assert b'"ok": true' in held[0].recv(65536)
+        held[1].sendall(b'{"cmd":"status"}\n')  # a connected client is served
+        held[1].settimeout(5)
+        assert b'"ok": true' in held[1].recv(65536)
+        extra = _exchange(d.socket, b'{"cmd":"status"}\n')  # the 17th is served too
+        assert b'"ok": true' in extra
+        held[0].settimeout(5)  # the one waiting longest made room for it
+        assert b"too many clients" in held[0].recv(65536)
         tcp = [socket.create_connection(("127.0.0.1", tcp_port), timeout=5) for _ in range(40)]
         held += tcp
         closed = 0
-        for c in tcp[32:]:
+        for c in tcp[31:39]:  # each newcomer past 32 evicted the latest before it
             try:
                 closed += c.recv(1) == b""
             except ConnectionResetError:

@@ -15,7 +15,7 @@ import pytest
 
 from calib.models import Params
 from emlogd.calfile import CalibrationFileError, dumps, loads
-from emlogd.daemon.statefile import StateStore, StateWriteError
+from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.integrity import Envelope
 
@@ -127,6 +127,28 @@ def test_read_only_directory(tmp_path: Path) -> None:
     assert store.load() == ({"emlog1": _state(0.1)}, [])
 
 
+def test_the_lock_is_taken_on_the_real_path(tmp_path: Path) -> None:
+    """Two stores reaching one state file, through a symlink to the file and through a
+    symlinked directory, share one lock: the second is refused with a message naming the
+    real path; another file is not."""
+    real_dir = tmp_path / "real"
+    real_dir.mkdir()
+    (tmp_path / "link.yaml").symlink_to(real_dir / "state.yaml")
+    (tmp_path / "dirlink").symlink_to(real_dir)
+    first = StateStore(real_dir / "state.yaml")
+    fd = first.lock()
+    assert fd is not None
+    try:
+        for other in (tmp_path / "link.yaml", tmp_path / "dirlink" / "state.yaml"):
+            with pytest.raises(StateLockedError, match=f"real path {real_dir}/state.yaml"):
+                StateStore(other).lock()
+        free = StateStore(real_dir / "other.yaml").lock()
+        assert free is not None
+        os.close(free)
+    finally:
+        os.close(fd)
+
+
 def test_orphaned_temp_files_of_dead_writers_are_removed(tmp_path: Path) -> None:
     """Temp files of a killed writer go at the next save; a live writer's stay."""
     dead = int(Path("/proc/sys/kernel/pid_max").read_text()) + 1
@@ -171,7 +193,7 @@ def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
         "import resource, signal, sys\n"
         "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
         "resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))\n"
-        "from emlogd.daemon.statefile import StateStore, StateWriteError\n"
+        "from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError\n"
         "from emlogd.pipeline.calibration import Calibration\n"
         "from calib.models import Params\n"
         f"s = StateStore({str(store.path)!r})\n"
