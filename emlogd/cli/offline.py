@@ -13,6 +13,7 @@ from datetime import date
 from typing import TYPE_CHECKING, Any
 
 from calib.models import MODEL_NAMES
+from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
@@ -270,6 +271,33 @@ def _lag_arg(value: str) -> float | None:
 
 STRICT_HELP = "fail at the first malformed capture record instead of counting and skipping it"
 
+REORDER_HELP = (
+    "capture records up to S seconds out of time order are put back in order "
+    f"(default {REORDER_WINDOW_S:g}; 0: each must follow the last)"
+)
+
+
+def _window_arg(value: str) -> float:
+    try:
+        x = float(value)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and x >= 0.0):
+        raise argparse.ArgumentTypeError(f"expected seconds ≥ 0, not {value!r}")
+    return x
+
+
+def _capture_args(p: argparse.ArgumentParser) -> None:
+    """``--strict`` and ``--reorder-window``: how a command reads captures."""
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    p.add_argument(
+        "--reorder-window",
+        type=_window_arg,
+        default=REORDER_WINDOW_S,
+        metavar="S",
+        help=REORDER_HELP,
+    )
+
 
 def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
     """One warning line on stderr per capture with malformed records skipped."""
@@ -287,6 +315,27 @@ def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
         )
 
 
+def _warn_internal(command: str, where: str, report: dict[str, object]) -> None:
+    """One warning line when records failed unforeseen and were contained."""
+    n = report.get("count", 0)
+    first = report.get("first")
+    if not isinstance(n, int) or n == 0 or not isinstance(first, list) or not first:
+        return
+    f = first[0]
+    sys.stderr.write(
+        f"emlogd {command}: warning: {where}: {n} record{'s' if n != 1 else ''} failed "
+        f"and {'were' if n != 1 else 'was'} skipped (first on port {f['port']}: {f['error']}; "
+        f"data {f['data']!r})\n"
+    )
+
+
+def _warn_recs(command: str, recs: Sequence[Recording]) -> None:
+    """The warnings of the captures read: malformed records skipped, records that failed."""
+    _warn_skips(command, _skips(recs))
+    for r in recs:
+        _warn_internal(command, r.path, r.internal)
+
+
 def _skips(recs: Sequence[Recording]) -> dict[str, dict[str, object]]:
     return {r.path: r.skips for r in recs}
 
@@ -298,13 +347,15 @@ def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace)
     once it has succeeded: a failure stays one line).
     """
     strict = bool(getattr(args, "strict", False))
-    recs = load_captures(paths, settings, progress=progress, strict=strict)
+    window = float(getattr(args, "reorder_window", REORDER_WINDOW_S))
+    recs = load_captures(paths, settings, progress=progress, strict=strict, reorder_window_s=window)
     if not getattr(args, "uut_source", None) and not any(r.raw.size for r in recs):
         recs = load_captures(
             paths,
             dataclasses.replace(settings, uut_source="VBW"),
             progress=progress,
             strict=strict,
+            reorder_window_s=window,
         )
     progress_done()
     return recs
@@ -411,7 +462,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         sys.stdout.write(_calibration_text(res))
         if args.save:
             sys.stdout.write(f"saved        {args.save}\n")
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -449,7 +500,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
-        _warn_skips(args.command, _skips(recs))
+        _warn_recs(args.command, recs)
         return 0
     sys.stdout.write(
         f"{cal.params.model} {cal.params.as_dict()} from {args.params}, "
@@ -472,7 +523,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ],
         )
     )
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -518,7 +569,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
             "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc) + "\n")
-        _warn_skips(args.command, _skips(recs))
+        _warn_recs(args.command, recs)
         return 0
     names = [s.name for s in result.segments]
     train, test = _table2_pair(names, args.table2)
@@ -532,7 +583,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
         f"\n{result.n_out_of_sample} out-of-sample evaluations, lag {lag.lag_s:.2f} s, "
         f"{elapsed:.1f} s\n"
     )
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -551,7 +602,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         _warn_lag(args.command, note)
     for path in paths:
         sys.stdout.write(f"{path}\n")
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -625,6 +676,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             on_persist=persist,
             progress=progress,
             strict=args.strict,
+            reorder_window_s=args.reorder_window,
             truth=truth,
         )
     finally:
@@ -637,6 +689,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         persist(Output())
     doc = result.to_dict()
     _warn_skips(args.command, result.capture_skips)
+    _warn_internal(args.command, "replay", result.internal)
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         return 0
@@ -726,7 +779,7 @@ def _common_offline(p: argparse.ArgumentParser) -> None:
         metavar="auto|SECONDS",
         help="UUT latency (default auto: cross-correlation)",
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
 
 
@@ -869,7 +922,7 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument(
         "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
     p.add_argument(
         "--truth",
@@ -940,7 +993,7 @@ def add_replay_parser(sub: Subparsers) -> None:
         help="write the corrected NMEA here; a FILE.cap or FILE.cap.gz name writes a capture "
         "v1 with one port per UUT, each sentence at the time of the sample it corrects",
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="summary as one JSON document")
     p.add_argument(
         "--truth",

@@ -11,7 +11,10 @@ Signals: SIGTERM/SIGINT persist the good calibrations, close everything and exit
 0; SIGHUP reloads the config (a bad new config is logged and the old one kept).
 A sensor missing at start is a status, not a crash: its source retries with
 backoff and is opened when it appears. Bad input is counted by the decoders; a
-state file that cannot be written is reported and the previous file stays intact.
+failure while the pipeline handles one chunk is contained (:mod:`emlogd.contain`:
+counted as an ``internal`` reject of the port, logged at most once per 10 s per port
+and exception type) and the loop goes on: no input stops the daemon. A state file that
+cannot be written is reported and the previous file stays intact.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from typing import Any
 from drivers.errors import ConfigError, DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
+from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import is_console
 from emlogd.daemon.notify import Notifier
@@ -149,6 +153,7 @@ class Daemon:
         """The resting ports' descriptors (registered one-shot) and their names."""
         self._watch(self.sel.fileno(), self._serve)
         self.event_limiter = EventLimiter()
+        self.contain = Containment()
         self.rest_s: dict[str, float] = {}
         self.sinks: dict[tuple[object, ...], Sink] = {}
         self.routes: dict[str, list[Sink]] = {}
@@ -452,8 +457,7 @@ class Daemon:
                 server.housekeep()
             for sink in self.sinks.values():
                 sink.housekeep()
-            assert self.pipeline is not None
-            self._handle(self.pipeline.tick(self.timeline()))
+            self._tick()
             if now >= next_status:
                 next_status = now + self.config.status_log_interval_s
                 self._status_event()
@@ -536,9 +540,34 @@ class Daemon:
         if chunk is None:
             self._sync_registrations()
             return
-        assert self.pipeline is not None
         t, data = chunk
-        self._handle(self.pipeline.feed(t, name, data))
+        self._feed(t, name, data)
+
+    def _feed(self, t: float, name: str, data: bytes) -> None:
+        """Run the pipeline on one chunk of ``name``; a failure costs that chunk only."""
+        assert self.pipeline is not None
+        try:
+            out = self.pipeline.feed(t, name, data)
+        except Exception as exc:  # contained: no input stops the daemon
+            self._contained(name, data, exc)
+            return
+        self._handle(out)
+
+    def _tick(self) -> None:
+        """Advance the pipeline without data; a failure is contained like a chunk's."""
+        assert self.pipeline is not None
+        try:
+            out = self.pipeline.tick(self.timeline())
+        except Exception as exc:
+            self._contained("", b"", exc)
+            return
+        self._handle(out)
+
+    def _contained(self, name: str, data: bytes, exc: Exception) -> None:
+        failure = self.contain.failed(self.pipeline, name, data, exc, self.monotonic())
+        if failure is not None:
+            extra = {"suppressed": failure.suppressed} if failure.suppressed else {}
+            self.log.warning("internal", port=name, error=failure.error, data=failure.data, **extra)
 
     def _wake_rested(self, now: float) -> None:
         """Read the ports whose rest is over at ``now`` (monotonic), and arm them again."""

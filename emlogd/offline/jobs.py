@@ -39,6 +39,7 @@ from calib.lsq import block_average, fit_current, fit_ls
 from calib.metrics import improvement_pct, nis_stats, rmse
 from calib.models import CURRENT, FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
+from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.fileio import write_atomic
 from emlogd.offline import ProgressFn
@@ -71,18 +72,27 @@ def load_captures(
     *,
     workers: int | None = None,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> list[Recording]:
     """Read the UUT's inputs from each capture (in parallel when there are several).
 
     Malformed records are counted and skipped (``Recording.skips``), or raise with
-    ``strict``.
+    ``strict``; records up to ``reorder_window_s`` out of time order are put back in
+    order.
 
     Raises:
         OfflineError: a capture lacks one of the ports.
         CaptureFormatError: a malformed capture (names file and line).
     """
     try:
-        return record_captures(paths, settings, workers=workers, progress=progress, strict=strict)
+        return record_captures(
+            paths,
+            settings,
+            workers=workers,
+            progress=progress,
+            strict=strict,
+            reorder_window_s=reorder_window_s,
+        )
     except CaptureContentError as exc:
         raise OfflineError(str(exc.args[0])) from None
 
