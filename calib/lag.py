@@ -28,7 +28,18 @@ candidate lag and cannot shift the peak, even while the tide turns. Without a he
 the score is the plain Pearson coefficient (the same thing with one regressor).
 
 :func:`accept` is the one rule deciding whether an estimate is used, for the daemon
-and the offline commands alike.
+and the offline commands alike: a lag is never negative, never beyond the search bound
+``max_lag_s``, and never uncertain (σ over :data:`MAX_LAG_STD_S`). Without an accepted
+estimate every user falls back to :data:`LAG_FALLBACK_S` and says so.
+
+**Whose lag.** With receive times (``emlogd record``, the daemon) the lag is the speed
+log's latency behind the reference as they reached the computer. Where the times come
+from the log itself (imported NMEA logs and CSV exports, timed by their GNSS fixes;
+receive times quantised by 1-s fixes) the lag is the *log's*: how much later the log
+wrote the speed than the fix it put beside it — the bus and the logger as much as the
+sensor. Fix times of whole seconds make that correlation peak about a second wide
+(σ of 0.3–1 s, peaks between −3 and +4 s on real logs), so it is refused, and the
+fallback pairs each reading with the reference the log wrote next to it.
 
 Sign convention: a positive lag means the measurement is late,
 ``v_meas(t) ≈ v_ref(t − lag)``; align by evaluating the reference at ``t − lag``.
@@ -95,28 +106,43 @@ MIN_LAG_CORRELATION = 0.6
 """An estimate with a weaker peak is not used: a straight run at constant speed
 correlates at ~0.4 wherever the lag is."""
 
-MAX_LAG_STD_S = 0.05
-"""An estimate less certain than this is not used at first: a broad peak (slow speed
-changes) places the lag anywhere within it."""
+MAX_LAG_STD_S = 0.1
+"""An estimate less certain than this is not used: a broad peak (slow speed changes,
+whole-second fix times) places the lag anywhere within it. Within it, the misalignment
+costs at most 0.1 s × the vessel's acceleration (2 cm/s at 0.2 m/s², below a speed
+log's noise); the estimates refused on real logs without receive times have σ of
+0.3–1 s."""
 
-MAX_LAG_STD_RELAXED_S = 0.3
-"""When no window gives a sharper peak, an estimate this certain is used and reported
-as uncertain: a latency off by a few tenths of a second costs a calibration far less
-than no calibration at all (or a lag of 0)."""
+LAG_FALLBACK_S = 0.0
+"""The lag used while none is accepted, s: each reading paired with the reference of
+the same time. Where times come from the log (imported logs) that is the pairing the
+log made; with receive times it is the smallest latency there is (a speed log is
+never ahead of its reference), and the alignment's cadence-sized gap
+(:mod:`emlogd.pipeline.align`) still pairs readings with a reference a sample or two
+away. A calibration learnt on it is checked against raw like any other."""
 
 
 def accept(
-    est: LagEstimate, min_corr: float = MIN_LAG_CORRELATION, max_std_s: float = MAX_LAG_STD_S
+    est: LagEstimate,
+    min_corr: float = MIN_LAG_CORRELATION,
+    max_std_s: float = MAX_LAG_STD_S,
+    max_lag_s: float = math.inf,
 ) -> str:
     """The lag acceptance rule: ``""`` when the estimate may be used, else why not.
 
-    An estimate is used when the peak is not at the search bound, its correlation is
-    at least ``min_corr`` and its standard error at most ``max_std_s``. Negative lags
-    are accepted (a reference may report later than the speed log, e.g. a GNSS
-    receiver's filtered velocity).
+    An estimate is used when the peak is not at the search bound, the lag is neither
+    negative nor beyond ``max_lag_s``, its correlation is at least ``min_corr`` and
+    its standard error at most ``max_std_s``. A negative lag would put the speed log
+    ahead of the reference: it is an artefact (a reference whose own filter lags, log
+    times quantised by whole-second fixes), and aligning on it would pair readings
+    with a reference from their future.
     """
     if est.at_bound:
         return f"correlation peak at the search bound ({est.lag_s:+.2f} s, r={est.peak_corr:.2f})"
+    if est.lag_s < 0.0:
+        return f"negative lag ({est.lag_s:+.2f} s): a speed log is never ahead of its reference"
+    if est.lag_s > max_lag_s:
+        return f"lag {est.lag_s:+.2f} s beyond max_lag_s {max_lag_s:g} s"
     if not est.peak_corr >= min_corr:
         return f"no clear correlation peak (r={est.peak_corr:.2f} < {min_corr})"
     if not est.std_s <= max_std_s:

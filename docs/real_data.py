@@ -1,188 +1,517 @@
-"""The figures of docs/REAL_DATA.md, from the three public recordings.
+"""The real-recording regression suite: docs/REAL_DATA.md's table, from a folder of logs.
 
-Usage: ``python docs/real_data.py DIR [OUTDIR]`` where DIR holds
-``expedition-valencia.csv``, ``irene-2014-06-27-leman.nmea`` and
-``irene-2014-06-29-leman.nmea`` (sources in docs/REAL_DATA.md). Each is imported
-(``emlogd import``), calibrated against GNSS with both methods, with and without the
-current, and the Kalman filter's trace summarised; where the log holds the logging
-software's own current (Expedition's set and drift, imported as VDR) emlogd's current
-is compared with it. Prints Markdown tables.
+Usage: ``python docs/real_data.py DIR [--out OUTDIR] [--only NAME ...] [--json]``.
+
+Every file of DIR that is a log is recognised by its content (:func:`kind`: an NMEA
+0183 log, an Expedition CSV, a logger's TSV with a banner, or another CSV with an ISO
+time column — the broken-heading kind among them) and run through emlogd's own
+commands, exactly as a user would:
+
+1. ``emlogd import`` (``--format nmea``; CSV and TSV by the importer's header
+   detection, else the Expedition preset or the generic column map);
+2. ``emlogd calibrate --uut nmea --ref nmea --ref-field gnss --current`` with
+   ``--method ls`` and ``--method kf`` (lag auto);
+3. ``emlogd replay`` with ``examples/emlogd-gnss.yaml`` (lag auto), writing the
+   corrected sentences to a capture.
+
+One table row per recording: the import's counts by reason; LS and KF parameters ± σ
+and the effective scale at the median speed (corrected / raw) next to the folder's
+own independent fit (``DIR/reference_fit.py``, when the folder has one: its ``k``);
+the LS current against the log's own set and drift (VDR, where the log has one); the
+KF's NIS mean; and the replay's emitted speed against the GNSS water speed: its RMSE
+next to raw's, and the worst ratio emitted / raw over 5-minute windows.
+
+**The GNSS water speed** is the GNSS speed along the hull (SOG·cos(COG − ψ), as the
+pipeline projects it) less the current, fitted by least squares over each
+:data:`CURRENT_WINDOW_S` window on 20-s means as ``along = α + k·raw + c·(cos ψ,
+sin ψ)``: α and k free, so the same current serves any affine correction of the raw
+reading, and neither series is favoured. A window whose headings cannot separate the
+current (fewer than three 45° sectors) takes the recording's.
+
+A step that fails is shown in the table with its reason (a recording the importer
+cannot read yet, one whose heading cannot be used) and the rest go on. Progress lines
+go to stderr. ``--json`` prints the rows as JSON instead of Markdown; with ``--out``
+they are also written to ``OUTDIR/rows.json``.
 """
 
 from __future__ import annotations
 
-import csv
+import argparse
+import json
 import math
+import subprocess
 import sys
 import tempfile
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from calib.lsq import block_average, fit_ls
-from drivers import make_decoder
-from drivers.io.capture import CaptureReader
-from drivers.nmea0183 import Vdr
-from emlogd.offline.importer import EXPEDITION, import_csv, import_nmea
-from emlogd.offline.jobs import calibrate, concat_usable, load_captures
-from emlogd.pipeline.settings import UutSettings
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from calib.lsq import block_average  # noqa: E402
+from calib.models import FloatArray, Params  # noqa: E402
+from drivers import make_decoder  # noqa: E402
+from drivers.io.capture import CaptureReader  # noqa: E402
+from drivers.nmea0183 import Vdr, Vhw  # noqa: E402
+from emlogd.offline.dataset import record_capture  # noqa: E402
+from emlogd.pipeline.settings import UutSettings  # noqa: E402
 
 KN = 0.514444
-FILES = {
-    "valencia": "expedition-valencia.csv",
-    "irene 06-27": "irene-2014-06-27-leman.nmea",
-    "irene 06-29": "irene-2014-06-29-leman.nmea",
-}
-WINDOW_S = 1800.0
+"""One knot, m/s."""
+
+CONFIG = ROOT / "examples" / "emlogd-gnss.yaml"
+"""The replay's config: one port ``nmea`` (what ``emlogd import`` writes), GNSS reference."""
+
+CURRENT_WINDOW_S = 1800.0
+"""The GNSS water speed's current is fitted over windows this long, s (a tide turns in
+hours; a sailing yacht's tacks give the headings within half an hour)."""
+
+SCORE_WINDOW_S = 300.0
+"""The worst emitted/raw ratio is taken over windows this long, s."""
+
+MIN_WINDOW_SAMPLES = 60
+"""A score window with fewer paired samples is not judged."""
+
+MIN_SECTORS = 3
+"""A current window needs headings in at least this many 45° sectors."""
+
+KINDS = ("nmea", "expedition-csv", "logger-tsv", "csv")
 
 
-def settings(current: bool) -> UutSettings:
-    """The UUT on the one multiplexed port, GNSS as the reference."""
-    return UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=current)
+def kind(path: Path) -> str | None:
+    """What a file is, from its first lines: one of :data:`KINDS`, or None (not a log)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8192).decode("latin-1", errors="replace")
+    except OSError:
+        return None
+    lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
+    if not lines:
+        return None
+    if sum(ln[:1] in "$!" for ln in lines[:50]) >= min(len(lines[:50]), 5) // 2 + 1:
+        return "nmea"
+    for ln in lines[:20]:
+        if "\t" in ln and ln.count("\t") >= 3:
+            return "logger-tsv"
+        cells = [c.strip().strip('"').lower() for c in ln.split(",")]
+        if "utc" in cells and "bsp" in cells:
+            return "expedition-csv"
+        if len(cells) >= 4 and "time" in cells:
+            return "csv"
+    return None
 
 
-def vdr_series(cap: Path) -> np.ndarray:
-    """(t, north, east) m/s of the VDR sentences in a capture."""
-    dec = make_decoder("nmea0183", "nmea", errors="skip")
-    out = []
+def emlogd(args: list[str], timeout_s: float = 1800.0) -> tuple[int, str, str]:
+    """Run ``python -m emlogd ARGS`` with this tree on the path: (exit code, stdout, stderr)."""
+    env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}
+    p = subprocess.run(
+        [sys.executable, "-m", "emlogd", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=timeout_s,
+        check=False,
+    )
+    return p.returncode, p.stdout, p.stderr
+
+
+def _last_line(text: str) -> str:
+    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
+    return lines[-1] if lines else ""
+
+
+@dataclass
+class Row:
+    """One recording's results (None: the step did not run or failed)."""
+
+    name: str
+    kind: str
+    imported: dict[str, Any] | None = None
+    ls: dict[str, Any] | None = None
+    kf: dict[str, Any] | None = None
+    replay: dict[str, Any] | None = None
+    scores: dict[str, float] | None = None
+    ref_k: float | None = None
+    log_current: tuple[float, float] | None = None
+    errors: dict[str, str] = field(default_factory=dict)
+
+
+def run_import(path: Path, what: str, cap: Path) -> tuple[dict[str, Any] | None, str]:
+    """``emlogd import`` by the file's kind: the report, or None and why."""
+    attempts: list[list[str]]
+    if what == "nmea":
+        attempts = [["--format", "nmea"]]
+    elif what == "expedition-csv":
+        attempts = [["--format", "csv"], ["--format", "csv", "--preset", "expedition"]]
+    elif what == "logger-tsv":
+        attempts = [["--format", "csv"]]
+    else:
+        generic = "time=time,stw=speed,heading=hdg,sog=sog,cog=cog"
+        attempts = [
+            ["--format", "csv"],
+            ["--format", "csv", "--map", generic, "--time-format", "iso"],
+        ]
+    why = ""
+    for extra in attempts:
+        rc, out, err = emlogd(["import", str(path), *extra, "--out", str(cap), "--json"])
+        if rc == 0:
+            doc: dict[str, Any] = json.loads(out)
+            doc["options"] = " ".join(extra)
+            return doc, ""
+        why = _last_line(err) or f"exit {rc}"
+    return None, why
+
+
+def run_calibrate(cap: Path, method: str) -> tuple[dict[str, Any] | None, str]:
+    """``emlogd calibrate`` against GNSS with the current: the JSON, or None and why."""
+    rc, out, err = emlogd(
+        [
+            "calibrate",
+            str(cap),
+            "--uut",
+            "nmea",
+            "--ref",
+            "nmea",
+            "--ref-field",
+            "gnss",
+            "--current",
+            "--method",
+            method,
+            "--json",
+        ]
+    )
+    if rc != 0:
+        return None, _last_line(err) or f"exit {rc}"
+    doc: dict[str, Any] = json.loads(out)
+    doc["warning"] = "\n".join(ln for ln in err.splitlines() if "warning" in ln)
+    return doc, ""
+
+
+def run_replay(cap: Path, out: Path) -> tuple[dict[str, Any] | None, str]:
+    """``emlogd replay`` with the GNSS config: the JSON summary, or None and why."""
+    rc, stdout, err = emlogd(
+        ["replay", str(cap), "--config", str(CONFIG), "--out", str(out), "--json"]
+    )
+    if rc != 0:
+        return None, _last_line(err) or f"exit {rc}"
+    doc: dict[str, Any] = json.loads(stdout)
+    return doc, ""
+
+
+def vhw_speeds(cap: Path, port: str | None = None) -> tuple[FloatArray, FloatArray]:
+    """(t, speed m/s) of every VHW with a speed in a capture (one port, or any)."""
+    dec = make_decoder("nmea0183", "x", errors="skip")
+    t: list[float] = []
+    v: list[float] = []
+    for r in CaptureReader(cap):
+        if port is not None and r.port != port:
+            continue
+        for x in dec.feed(r.data):
+            if isinstance(x, Vhw) and x.stw_mps is not None:
+                t.append(r.t)
+                v.append(x.stw_mps)
+    return np.asarray(t, dtype=np.float64), np.asarray(v, dtype=np.float64)
+
+
+def log_current(cap: Path) -> tuple[float, float] | None:
+    """The mean of the log's own current (VDR: set towards, drift), north and east m/s."""
+    dec = make_decoder("nmea0183", "x", errors="skip")
+    n: list[float] = []
+    e: list[float] = []
     for r in CaptureReader(cap):
         for x in dec.feed(r.data):
             if isinstance(x, Vdr) and x.set_true_deg is not None and x.drift_mps is not None:
                 a = math.radians(x.set_true_deg)
-                out.append((r.t, x.drift_mps * math.cos(a), x.drift_mps * math.sin(a)))
-    return np.array(out).reshape(-1, 3)
+                n.append(x.drift_mps * math.cos(a))
+                e.append(x.drift_mps * math.sin(a))
+    if not n:
+        return None
+    return float(np.mean(n)), float(np.mean(e))
 
 
-def window_mean(v: np.ndarray, t: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
-    """The mean of v's north and east over ``t ± half``."""
-    cs = np.vstack([np.zeros((1, 2)), np.cumsum(v[:, 1:], axis=0)])
-    i0 = np.searchsorted(v[:, 0], t - half)
-    i1 = np.maximum(np.searchsorted(v[:, 0], t + half), i0 + 1)
-    i1 = np.minimum(i1, len(v))
-    n = np.maximum(i1 - i0, 1)
-    m = (cs[i1] - cs[i0]) / n[:, None]
-    return m[:, 0], m[:, 1]
+def _sectors(heading_deg: FloatArray) -> int:
+    return int(np.unique(np.floor(np.mod(heading_deg, 360.0) / 45.0)).size)
 
 
-def main(src: Path, out: Path) -> None:
-    """Import, calibrate and summarise every recording."""
-    rows_import, rows_fit, rows_kf, rows_cur = [], [], [], []
-    for name, fname in FILES.items():
-        cap = out / (fname.rsplit(".", 1)[0] + ".cap.gz")
-        if fname.endswith(".csv"):
-            rep = import_csv(src / fname, cap, dict(EXPEDITION))
-        else:
-            rep = import_nmea([src / fname], cap)
-        skipped = ", ".join(f"{k} {v}" for k, v in sorted(rep.skipped.items())) or "none"
-        rows_import.append(
-            f"| {name} | {rep.lines} | {rep.written} | {skipped} | "
-            f"{(rep.t_end - rep.t_start) / 60:.0f} min |"
-        )
-        for current in (False, True):
-            s = settings(current)
-            recs = load_captures([str(cap)], s)
-            for method in ("ls", "kf"):
-                trace = out / f"{cap.stem}.{method}.{int(current)}.csv" if method == "kf" else None
-                res = calibrate(recs, s, method, lag=0.0, trace=trace)
-                cur = (
-                    f"{math.hypot(*res.current_mps) / KN:.2f} kn"
-                    if res.current_mps is not None
-                    else ("not determined" if current else "—")
-                )
-                rows_fit.append(
-                    f"| {name} | {method} | {'yes' if current else 'no'} | "
-                    f"{res.params.m:+.3f} | {res.params.b_mps:+.3f} | {cur} | "
-                    f"{res.rmse_raw:.3f} | {res.rmse_cal:.3f} |"
-                )
-                if trace is not None and current:
-                    rows_kf.append(kf_row(name, trace, vdr_series(cap)))
-        rows_cur.append(current_row(name, cap))
-    print("| recording | lines/rows | sentences written | skipped | span |\n|---|---|---|---|---|")
-    print("\n".join(rows_import))
-    print(
-        "\n| recording | method | current | m | b m/s | current | RMSE raw m/s | RMSE cal m/s |"
-        "\n|---|---|---|---|---|---|---|---|"
-    )
-    print("\n".join(rows_fit))
-    print(
-        "\n| recording | KF m after 10 min | KF b after 10 min | current reported | "
-        "KF current speed median / p95 / max (kn) | KF σ(c) median m/s | KF vs the log's own current "
-        "(10-min mean), median (kn) |\n|---|---|---|---|---|---|---|"
-    )
-    print("\n".join(rows_kf))
-    print(
-        f"\n| recording | {WINDOW_S / 60:.0f}-min windows (LS, 20-s means) with the current "
-        "determined | current speed median / max (kn) | vs the log's own current, median / max (kn) |"
-        "\n|---|---|---|---|"
-    )
-    print("\n".join(rows_cur))
+def _current_fit(raw: FloatArray, along: FloatArray, hd: FloatArray) -> tuple[float, float] | None:
+    """``along = α + k·raw + c_N cos ψ + c_E sin ψ``: (c_N, c_E), or None (too few sectors)."""
+    if raw.size < 10 or _sectors(hd) < MIN_SECTORS:
+        return None
+    psi = np.radians(hd)
+    design = np.stack((np.ones_like(raw), raw, np.cos(psi), np.sin(psi)), axis=1)
+    sol, *_ = np.linalg.lstsq(design, along, rcond=None)
+    return float(sol[2]), float(sol[3])
 
 
-def kf_row(name: str, trace: Path, vdr: np.ndarray) -> str:
-    """The scale band and the current over a KF trace (after its first 10 minutes)."""
-    with open(trace, newline="") as f:
-        rows = list(csv.DictReader(f))
-    t = np.array([float(r["t"]) for r in rows])
-    late = t - t[0] >= 600.0
-
-    def col(k: str) -> np.ndarray:
-        return np.array([float(r[k]) if r[k] else math.nan for r in rows])
-
-    m, b = col("m")[late], col("b")[late]
-    c = np.hypot(col("current_north_mps"), col("current_east_mps"))[late] / KN
-    sd = np.maximum(col("std_current_north_mps"), col("std_current_east_mps"))[late]
-    det = np.array([r["current_determined"] == "1" for r in rows])[late]
-    versus = "—"
-    if len(vdr):
-        en, ee = window_mean(vdr, t[late], 300.0)
-        cn, ce = col("current_north_mps")[late], col("current_east_mps")[late]
-        versus = f"{np.nanmedian(np.hypot(cn - en, ce - ee)) / KN:.2f}"
-    return (
-        f"| {name} | {np.nanmin(m):+.3f} … {np.nanmax(m):+.3f} | "
-        f"{np.nanmin(b):+.3f} … {np.nanmax(b):+.3f} | {100 * det.mean():.0f} % of samples | "
-        f"{np.nanmedian(c):.2f} / {np.nanpercentile(c, 95):.2f} / {np.nanmax(c):.2f} | "
-        f"{np.nanmedian(sd):.3f} | {versus} |"
-    )
-
-
-def current_row(name: str, cap: Path) -> str:
-    """Least squares over windows: the current where the heading determines it."""
-    s = settings(True)
-    recs = load_captures([str(cap)], s)
-    t, raw, ref, hd = concat_usable([r.aligned(0.0) for r in recs], True)
-    a = block_average(t, raw, ref, hd, 20.0)
-    vdr = vdr_series(cap)
-    found: list[tuple[float, float, float]] = []
-    n_windows = 0
-    for t0 in np.arange(a.t[0], a.t[-1] - WINDOW_S + 1.0, WINDOW_S / 2):
-        sel = (a.t >= t0) & (a.t < t0 + WINDOW_S)
-        if sel.sum() < 10:
+def water_scores(cap: Path, emitted_cap: Path) -> dict[str, float]:
+    """Raw and emitted speed against the GNSS water speed (module docstring)."""
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    rec = record_capture(cap, s)
+    al = rec.aligned(0.0)
+    ok = al.usable(heading=True)
+    t, raw, along, hd = al.t[ok], al.raw[ok], al.ref[ok], al.heading[ok]
+    if t.size < MIN_WINDOW_SAMPLES:
+        raise ValueError(f"{t.size} readings pair with a GNSS reference and a heading")
+    # emitted speeds: each sentence of the replay's capture at the time of its sample
+    te, ve = vhw_speeds(emitted_cap)
+    idx = np.clip(np.searchsorted(te, t), 0, max(te.size - 1, 0))
+    have = te.size > 0
+    emitted = np.where(have & (np.abs(te[idx] - t) < 1e-6), ve[idx], np.nan) if have else t * np.nan
+    # the current, window by window on 20-s means, else the recording's
+    a = block_average(t, raw, along, hd, 20.0)
+    whole = _current_fit(a.raw, a.ref, a.heading_deg) or (0.0, 0.0)
+    cn = np.full(t.size, whole[0])
+    ce = np.full(t.size, whole[1])
+    for t0 in np.arange(t[0], t[-1], CURRENT_WINDOW_S):
+        sel = (a.t >= t0) & (a.t < t0 + CURRENT_WINDOW_S)
+        c = _current_fit(a.raw[sel], a.ref[sel], a.heading_deg[sel])
+        if c is not None:
+            into = (t >= t0) & (t < t0 + CURRENT_WINDOW_S)
+            cn[into], ce[into] = c
+    psi = np.radians(hd)
+    water = along - cn * np.cos(psi) - ce * np.sin(psi)
+    both = np.isfinite(emitted)
+    err_raw = (raw - water)[both]
+    err_em = (emitted - water)[both]
+    tb = t[both]
+    worst = math.nan
+    for t0 in np.arange(tb[0], tb[-1], SCORE_WINDOW_S) if tb.size else []:
+        sel = (tb >= t0) & (tb < t0 + SCORE_WINDOW_S)
+        if np.count_nonzero(sel) < MIN_WINDOW_SAMPLES:
             continue
-        n_windows += 1
-        fit = fit_ls("EM3", a.ref[sel], a.raw[sel], heading_deg=a.heading_deg[sel], current=True)
-        if fit.current_mps is not None:
-            found.append((t0 + WINDOW_S / 2, *fit.current_mps))
-    if not found:
-        return f"| {name} | 0 of {n_windows} | — | — |"
-    f_ = np.array(found)
-    speed = np.hypot(f_[:, 1], f_[:, 2]) / KN
-    versus = "— (no current in the log)"
-    if len(vdr):
-        en, ee = window_mean(vdr, f_[:, 0], WINDOW_S / 2)
-        d = np.hypot(f_[:, 1] - en, f_[:, 2] - ee) / KN
-        versus = f"{np.median(d):.2f} / {np.max(d):.2f}"
-    return (
-        f"| {name} | {len(found)} of {n_windows} | {np.median(speed):.2f} / {speed.max():.2f} | "
-        f"{versus} |"
+        r = math.sqrt(float(np.mean(err_raw[sel] ** 2)))
+        e = math.sqrt(float(np.mean(err_em[sel] ** 2)))
+        if r > 0.0:
+            worst = e / r if not math.isfinite(worst) else max(worst, e / r)
+    return {
+        "n": float(np.count_nonzero(both)),
+        "rmse_raw": math.sqrt(float(np.mean(err_raw**2))) if err_raw.size else math.nan,
+        "rmse_emitted": math.sqrt(float(np.mean(err_em**2))) if err_em.size else math.nan,
+        "worst_5min_ratio": worst,
+        "median_speed": float(np.median(raw)),
+    }
+
+
+def reference_k(src: Path, path: Path) -> float | None:
+    """The folder's own independent fit of the scale (``DIR/reference_fit.py FILE``), if any."""
+    script = src / "reference_fit.py"
+    if not script.is_file():
+        return None
+    p = subprocess.run(
+        [sys.executable, str(script), str(path)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
     )
+    try:
+        doc = json.loads(p.stdout.strip().splitlines()[-1])
+        k = doc["fit"]["k"]
+    except (IndexError, KeyError, TypeError, ValueError):
+        return None
+    return float(k) if isinstance(k, int | float) else None
+
+
+def effective_scale(doc: dict[str, Any] | None, speed_mps: float) -> float | None:
+    """Corrected / raw at ``speed_mps`` for a calibrate result."""
+    if doc is None or not math.isfinite(speed_mps) or speed_mps <= 0.0:
+        return None
+    p = doc["params"]
+    params = Params(doc["model"], m=p.get("m", 0.0), b_mps=p.get("b", 0.0), a_spm=p.get("a", 0.0))
+    return params.correct(speed_mps) / speed_mps
+
+
+def say(msg: str) -> None:
+    """A progress line on stderr."""
+    sys.stderr.write(f"real_data: {msg}\n")
+    sys.stderr.flush()
+
+
+def run(src: Path, out: Path, only: list[str]) -> list[Row]:
+    """Every recording of ``src``, each step in turn (module docstring)."""
+    rows: list[Row] = []
+    files = sorted(p for p in src.iterdir() if p.is_file())
+    for path in files:
+        what = kind(path)
+        if what is None or path.suffix == ".py" or path.name.endswith(".md"):
+            continue
+        name = path.name.rsplit(".", 1)[0]
+        if only and not any(o in name for o in only):
+            continue
+        row = Row(name, what)
+        rows.append(row)
+        t0 = time.monotonic()
+        cap = out / f"{name}.cap.gz"
+        say(f"{name}: import ({what})")
+        row.imported, why = run_import(path, what, cap)
+        if row.imported is None:
+            row.errors["import"] = why
+            say(f"{name}: import failed: {why}")
+            continue
+        row.log_current = log_current(cap)
+        row.ref_k = reference_k(src, path)
+        for method in ("ls", "kf"):
+            say(f"{name}: calibrate --method {method}")
+            doc, why = run_calibrate(cap, method)
+            setattr(row, method, doc)
+            if doc is None:
+                row.errors[method] = why
+        say(f"{name}: replay")
+        emitted = out / f"{name}.emitted.cap.gz"
+        row.replay, why = run_replay(cap, emitted)
+        if row.replay is None:
+            row.errors["replay"] = why
+        else:
+            try:
+                row.scores = water_scores(cap, emitted)
+            except ValueError as exc:
+                row.errors["scores"] = str(exc)
+        say(f"{name}: done in {time.monotonic() - t0:.0f} s")
+    return rows
+
+
+def _f(x: object, spec: str) -> str:
+    return format(x, spec) if isinstance(x, int | float) and math.isfinite(x) else "—"
+
+
+def _params(doc: dict[str, Any] | None, why: str | None) -> str:
+    if doc is None:
+        return "fails (below)" if why else "—"
+    se = doc.get("stderr", {})
+    return " ".join(f"{k} {v:+.3f}±{_f(se.get(k), '.3f')}" for k, v in doc["params"].items())
+
+
+def _current(doc: dict[str, Any] | None) -> tuple[float, float] | None:
+    c = doc.get("current") if doc is not None else None
+    if not isinstance(c, dict) or c.get("north_mps") is None:
+        return None
+    return float(c["north_mps"]), float(c["east_mps"])
+
+
+def markdown(rows: list[Row]) -> str:
+    """The two tables: what each step found, and the replay's scores."""
+    out = [
+        "| recording | kind | import: lines → sentences, skipped | LS (20-s means) | KF | "
+        "scale at the median speed LS / KF / independent | lag LS / replay |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        imp = r.imported
+        if imp is None:
+            out.append(f"| {r.name} | {r.kind} | fails (below) | — | — | — | — |")
+            continue
+        skipped = ", ".join(f"{k} {v}" for k, v in sorted(imp.get("skipped", {}).items()) if v)
+        med = r.scores["median_speed"] if r.scores else math.nan
+        k_ls, k_kf = effective_scale(r.ls, med), effective_scale(r.kf, med)
+        lag_ls = r.ls["lag"]["source"] if r.ls else "—"
+        lag_rp = "—"
+        if r.replay is not None:
+            lag_rp = _f(r.replay["uuts"]["nmea"]["lag_s"], ".2f") + " s"
+        out.append(
+            f"| {r.name} | {r.kind} | {imp.get('lines')} → {imp.get('written')}, "
+            f"{skipped or 'none'} | {_params(r.ls, r.errors.get('ls'))} | "
+            f"{_params(r.kf, r.errors.get('kf'))} | {_f(k_ls, '.3f')} / {_f(k_kf, '.3f')} / "
+            f"{_f(r.ref_k, '.3f')} | {lag_ls} / {lag_rp} |"
+        )
+    out += [
+        "",
+        "| recording | LS current (kn) | vs the log's own (kn) | KF NIS mean | replay state | "
+        "emitted / raw RMSE vs GNSS water speed (m/s) | worst 5-min ratio |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if r.imported is None:
+            continue
+        c = _current(r.ls)
+        cur = f"{math.hypot(*c) / KN:.2f}" if c else "not determined"
+        versus = "— (none in the log)"
+        if r.log_current is not None:
+            versus = (
+                f"{math.hypot(c[0] - r.log_current[0], c[1] - r.log_current[1]) / KN:.2f}"
+                if c
+                else "—"
+            )
+        nis = _f(r.kf.get("nis_mean") if r.kf else None, ".2f")
+        state = "—"
+        score = "fails (below)"
+        worst = "—"
+        if r.replay is not None:
+            u = r.replay["uuts"]["nmea"]
+            state = f"{u['state']}, {'applied' if u['params'] else 'raw'}"
+        if r.scores is not None:
+            s = r.scores
+            score = f"{s['rmse_emitted']:.3f} / {s['rmse_raw']:.3f} ({s['n']:.0f} samples)"
+            worst = _f(s["worst_5min_ratio"], ".3f")
+        out.append(f"| {r.name} | {cur} | {versus} | {nis} | {state} | {score} | {worst} |")
+    failed = [(r.name, step, why) for r in rows for step, why in r.errors.items()]
+    if failed:
+        out += ["", "What failed:", ""]
+        out += [f"- {name}, {step}: {why}" for name, step, why in failed]
+    return "\n".join(out)
+
+
+def as_json(rows: list[Row]) -> str:
+    """The rows as one JSON document (what the tests read)."""
+
+    def clean(x: Any) -> Any:
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, list | tuple):
+            return [clean(v) for v in x]
+        return x
+
+    docs = []
+    for r in rows:
+        med = r.scores["median_speed"] if r.scores else math.nan
+        docs.append(
+            clean(
+                {
+                    "name": r.name,
+                    "kind": r.kind,
+                    "import": r.imported,
+                    "ls": r.ls,
+                    "kf": r.kf,
+                    "replay": r.replay["uuts"]["nmea"] if r.replay else None,
+                    "scores": r.scores,
+                    "scale_ls": effective_scale(r.ls, med),
+                    "scale_kf": effective_scale(r.kf, med),
+                    "reference_k": r.ref_k,
+                    "log_current": r.log_current,
+                    "errors": r.errors,
+                }
+            )
+        )
+    return json.dumps(docs, indent=1)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse the command line, run, print."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("dir", type=Path, help="the folder of recordings")
+    ap.add_argument("--out", type=Path, help="keep the captures here (default: a temporary folder)")
+    ap.add_argument(
+        "--only", nargs="*", default=[], help="recordings whose name contains one of these"
+    )
+    ap.add_argument("--json", action="store_true", help="the rows as JSON")
+    args = ap.parse_args(argv)
+    if not args.dir.is_dir():
+        ap.error(f"{args.dir}: not a folder")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = args.out or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        rows = run(args.dir, out, args.only)
+        if args.out is not None:
+            (out / "rows.json").write_text(as_json(rows) + "\n", encoding="utf-8")
+    sys.stdout.write((as_json(rows) if args.json else markdown(rows)) + "\n")
+    return 0
 
 
 if __name__ == "__main__":
-    if len(sys.argv) not in (2, 3):
-        sys.exit(__doc__)
-    if len(sys.argv) == 3:
-        Path(sys.argv[2]).mkdir(parents=True, exist_ok=True)
-        main(Path(sys.argv[1]), Path(sys.argv[2]))
-    else:
-        with tempfile.TemporaryDirectory() as d:
-            main(Path(sys.argv[1]), Path(d))
+    sys.exit(main())

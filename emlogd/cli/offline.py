@@ -403,8 +403,6 @@ def _calibration_text(res: CalibrationResult) -> str:
             for k, e in lag.per_capture.items()
         )
     lag_txt += ")"
-    if lag.note:
-        lag_txt += f"\n  warning: {lag.note}"
     s = res.settings
     out = [
         f"{res.method.upper()}-{res.params.model}{' + current' if s.current else ''}: "
@@ -443,6 +441,12 @@ def _calibration_text(res: CalibrationResult) -> str:
     return "\n".join(out) + "\n"
 
 
+def _warn_lag(command: str, note: str) -> None:
+    """The lag fallback's note, once, on stderr (the lag line on stdout says ``fallback``)."""
+    if note:
+        sys.stderr.write(f"emlogd {command}: warning: {note}\n")
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Estimate an error model of one EMlog against a reference from captures."""
     settings = _settings(args)
@@ -452,6 +456,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     res = calibrate(
         recs, settings, args.method, lag=args.lag, trace=args.trace, average_s=args.average
     )
+    _warn_lag(args.command, res.lag.note)
     if args.save:
         save_params(args.save, res)
     if args.json:
@@ -549,6 +554,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
 
     result, lag = crossval(recs, settings, lag=args.lag, workers=args.workers, progress=onprogress)
     progress_done()
+    _warn_lag(args.command, lag.note)
     elapsed = time.perf_counter() - t0
     if args.csv:
         import csv
@@ -592,8 +598,13 @@ def cmd_report(args: argparse.Namespace) -> int:
 
     settings = _settings(args)
     recs = _load(args.captures, settings, args)
-    paths = report(recs, settings, args.out, lag=args.lag, progress=progress)
+    notes: list[str] = []
+    paths = report(
+        recs, settings, args.out, lag=args.lag, progress=progress, on_lag_note=notes.append
+    )
     progress_done()
+    for note in notes:
+        _warn_lag(args.command, note)
     for path in paths:
         sys.stdout.write(f"{path}\n")
     _warn_recs(args.command, recs)

@@ -121,11 +121,14 @@ class Recording:
         return name
 
     def aligned(self, lag_s: float, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Aligned:
-        """Readings paired with the reference and heading at ``t − lag`` (the alignment rule)."""
+        """Readings paired with the reference and heading at ``t − lag`` (the alignment
+        rule, the gap from the reference's cadence as the daemon's)."""
         q = self.t_read - lag_s
-        ref = interpolate(self.t_ref, self.v_ref, self.ok_ref, q, max_gap_s)
+        ref = interpolate(self.t_ref, self.v_ref, self.ok_ref, q, max_gap_s, cadence=True)
         hd_ok = np.isfinite(self.heading)
-        heading = interpolate(self.t_ref, self.heading, hd_ok, q, max_gap_s, angular=True)
+        heading = interpolate(
+            self.t_ref, self.heading, hd_ok, q, max_gap_s, angular=True, cadence=True
+        )
         return Aligned(self.t_read, self.raw, ref, heading, float(lag_s))
 
 

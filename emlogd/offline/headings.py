@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from emlogd.offline.dataset import Recording
-from emlogd.pipeline.align import DEFAULT_MAX_GAP_S
+from emlogd.pipeline.align import MAX_GAP_CAP_S
 from emlogd.pipeline.settings import UutSettings
 
 
@@ -76,10 +76,10 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
         return f"{head}: the reference field {field!r} has no valid sample{hint}"
     gaps = np.concatenate([np.diff(v) for v in valid if v.size > 1] or [np.zeros(0)])
     spacing = float(np.median(gaps)) if gaps.size else float("inf")
-    if spacing > DEFAULT_MAX_GAP_S:
+    if spacing > MAX_GAP_CAP_S:
         return (
             f"{head} at lag {lag_s:.2f} s: the reference is too sparse — {n} valid samples, "
-            f"{spacing:.1f} s apart (median), and a reading pairs only with a reference "
-            f"within {DEFAULT_MAX_GAP_S:g} s"
+            f"{spacing:.1f} s apart (median), and the alignment bridges at most "
+            f"{MAX_GAP_CAP_S:g} s between a reading and each reference sample"
         )
     return f"{head} at lag {lag_s:.2f} s ({n} valid references, none near a reading)"

@@ -34,7 +34,13 @@ from calib.crossval import ESTIMATORS, CrossValResult, Segment, cross_validate
 from calib.errors import CalibrationError
 from calib.excitation import Identifiability, identifiability
 from calib.kalman import KfConfig
-from calib.lag import MAX_LAG_STD_RELAXED_S, LagEstimate, accept, combine, estimate_lag
+from calib.lag import (
+    LAG_FALLBACK_S,
+    LagEstimate,
+    accept,
+    combine,
+    estimate_lag,
+)
 from calib.lsq import block_average, fit_ls
 from calib.metrics import CURRENT_WINDOW_S, improvement_pct, nis_stats, water_scores
 from calib.models import FloatArray, Layout, Params, check_model, correct_array
@@ -103,18 +109,18 @@ class LagReport:
 
     Attributes:
         lag_s: the UUT latency applied, s (positive: the UUT reports late).
-        source: ``auto`` (estimated and accepted), ``uncertain`` (no estimate is sharp
-            enough to be accepted; the most certain one within
-            :data:`calib.lag.MAX_LAG_STD_RELAXED_S` is used and ``note`` says so),
-            ``given``, or ``fallback`` (no usable estimate: 0 s, ``note`` says why).
+        source: ``auto`` (estimated and accepted by :func:`calib.lag.accept`),
+            ``given``, or ``fallback`` (no accepted estimate: an uncertain, negative or
+            bound one is never used; :data:`calib.lag.LAG_FALLBACK_S`, ``note`` says why).
         per_capture: capture name -> estimate (auto and fallback).
         note: why the fallback was used.
     """
 
     lag_s: float
-    source: Literal["auto", "uncertain", "given", "fallback"]
+    source: Literal["auto", "given", "fallback"]
     per_capture: dict[str, LagEstimate] = field(default_factory=dict)
     note: str = ""
+    max_lag_s: float = math.inf
 
     def as_dict(self) -> dict[str, object]:
         """Plain types."""
@@ -128,7 +134,7 @@ class LagReport:
                     "std_s": _fin(e.std_s),
                     "peak_corr": e.peak_corr,
                     "at_bound": e.at_bound,
-                    "accepted": not accept(e),
+                    "accepted": not accept(e, max_lag_s=self.max_lag_s),
                 }
                 for k, e in self.per_capture.items()
             },
@@ -146,7 +152,9 @@ def find_lag(
 
     Each capture's estimate uses the heading (the current modelled) when the UUT has
     current states; the accepted ones (:func:`calib.lag.accept`) are combined by
-    :func:`calib.lag.combine`. Without any, the lag is 0 s and ``source`` is ``fallback``.
+    :func:`calib.lag.combine`. Without any, the lag is :data:`calib.lag.LAG_FALLBACK_S`,
+    ``source`` is ``fallback`` and ``note`` says why (the commands print it once on
+    stderr).
 
     Raises:
         OfflineError: ``lag`` is not finite.
@@ -172,27 +180,19 @@ def find_lag(
             )
         except CalibrationError:
             continue
-    good = [e for e in per.values() if not accept(e)]
+    good = [e for e in per.values() if not accept(e, max_lag_s=max_lag_s)]
     if not good:
-        usable = [e for e in per.values() if not accept(e, max_std_s=MAX_LAG_STD_RELAXED_S)]
-        if usable:
-            best = min(usable, key=lambda e: e.std_s)
-            return LagReport(
-                best.lag_s,
-                "uncertain",
-                per,
-                f"no capture gives a lag to ±0.05 s; the most certain estimate is used "
-                f"({best.lag_s:.2f} ± {best.std_s:.2f} s): prefer --lag SECONDS when known",
-            )
+        why = "; ".join(f"{k}: {accept(e, max_lag_s=max_lag_s)}" for k, e in per.items())
         return LagReport(
-            0.0,
+            LAG_FALLBACK_S,
             "fallback",
             per,
-            f"no capture gives a usable lag estimate within ±{max_lag_s:g} s "
-            f"(a clear correlation peak, σ ≤ {MAX_LAG_STD_RELAXED_S:g} s): lag 0 s used; "
-            "pass --lag SECONDS",
+            f"lag not measured ({why or 'no capture has enough overlap to estimate it'}): "
+            f"{LAG_FALLBACK_S:g} s used, each reading paired with the reference of its time; "
+            "pass --lag SECONDS when known",
+            max_lag_s,
         )
-    return LagReport(combine(good), "auto", per)
+    return LagReport(combine(good), "auto", per, max_lag_s=max_lag_s)
 
 
 def _increasing(t: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -369,7 +369,7 @@ def run_online(
     receives one row per learnt-from reading (``calibrate --trace``).
     """
     s = dataclasses.replace(settings, lag_s=lag_s, learn=True)
-    heading = SampleRing(4096, 2.0, angular=True)
+    heading = SampleRing(4096, 2.0, angular=True, cadence=True)
     cal = UutCalibration(s, None, lambda t: _heading(heading, t), lambda t, k, d: None)
     cal.tracer = trace
     for r in recs:

@@ -22,7 +22,7 @@ Legends sit outside the axes, so that they never hide data.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -66,8 +66,12 @@ def report(
     lag: float | None = None,
     progress: ProgressFn | None = None,
     workers: int | None = None,
+    on_lag_note: Callable[[str], None] | None = None,
 ) -> list[Path]:
     """Write the figures; return their paths.
+
+    ``on_lag_note`` receives the lag's fallback note, when the lag was not measured
+    (the command prints it once on stderr).
 
     Raises:
         OfflineError: matplotlib missing, or no aligned data.
@@ -77,6 +81,8 @@ def report(
     out.mkdir(parents=True, exist_ok=True)
     model = settings.model
     lag_report = find_lag(recs, settings, lag)
+    if lag_report.note and on_lag_note is not None:
+        on_lag_note(lag_report.note)
     pairs = [r.aligned(lag_report.lag_s) for r in recs]
     masks = [p.usable(heading=settings.current) for p in pairs]
     if not any(m.any() for m in masks):

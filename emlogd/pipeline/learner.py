@@ -4,8 +4,10 @@ What a UUT's readings teach, and nothing about what is applied (that is
 :mod:`emlogd.pipeline.supervisor`'s). :class:`Learner` pairs each reading with the
 reference and the heading at ``t − lag`` (:mod:`emlogd.pipeline.align`) and, per sample:
 
-1. the lag: configured, restored with the calibration, or estimated once over
+1. the lag: configured, restored with the calibration, or estimated over
    ``lag_window_s`` (:mod:`calib.lag`, with the current modelled when there is one);
+   until an estimate is accepted, learning runs on :data:`calib.lag.LAG_FALLBACK_S`
+   and :attr:`Learner.lag_note` says so (the status reason shows it);
 2. the reference's state: valid, lost, stale, too slow, or none yet;
 3. which unknowns the recent data determine (:class:`calib.excitation.ExcitationWindow`):
    only those learn; the others are held at their prior (the applied calibration,
@@ -34,7 +36,7 @@ import numpy as np
 from calib.errors import CalibrationError
 from calib.excitation import ExcitationWindow, Identifiability
 from calib.kalman import Innovation, KfCalibrator, StepResult
-from calib.lag import MAX_LAG_STD_RELAXED_S, MAX_LAG_STD_S, accept, estimate_lag
+from calib.lag import LAG_FALLBACK_S, accept, estimate_lag
 from calib.lsq import BLOCK_MAX_GAP_S, MIN_HEADING_COHERENCE
 from calib.models import CURRENT, FloatArray, Layout, Params, zero_params
 from emlogd.pipeline.align import SampleRing
@@ -152,14 +154,13 @@ class BlockMeans:
 class LagFinder:
     """Bounded series of the UUT, its reference and heading for the one-off lag estimate.
 
-    The first estimate is made over ``window_s``; one that is not final keeps the data
-    and waits for a window half as long again, up to :data:`LAG_WINDOW_GROWTH` times
-    the first (a broad correlation peak sharpens with more data); beyond that the older
-    half is dropped and the window slides. An estimate within
-    :data:`calib.lag.MAX_LAG_STD_S` is final; one within the relaxed
-    :data:`calib.lag.MAX_LAG_STD_RELAXED_S` is provisional until the longest window
-    (learning starts with it: a lag off by a tenth of a second costs a calibration far
-    less than twenty minutes of raw output), and final there.
+    The first estimate is made over ``window_s``; a refused one keeps the data and
+    waits for a window half as long again, up to :data:`LAG_WINDOW_GROWTH` times the
+    first (a broad correlation peak sharpens with more data); beyond that the older
+    half is dropped and the window slides. Only an estimate :func:`calib.lag.accept`
+    takes (never negative, within ``max_lag_s``, σ within
+    :data:`calib.lag.MAX_LAG_STD_S`) is used, and it is final; until then the UUT
+    learns on :data:`calib.lag.LAG_FALLBACK_S`.
     """
 
     def __init__(self, window_s: float, max_lag_s: float, with_heading: bool) -> None:
@@ -180,9 +181,8 @@ class LagFinder:
         """Time the UUT series spans, s."""
         return self.uut.span()
 
-    def estimate(self) -> tuple[float | None, float, str, bool]:
-        """``(lag, std, why, final)``: an accepted lag, or None and why; the window grows
-        unless the estimate is final."""
+    def estimate(self) -> tuple[float | None, float, str]:
+        """``(lag, std, why)``: an accepted lag, or None and why (the window grows)."""
         try:
             est = estimate_lag(
                 self.uut.times(),
@@ -198,18 +198,11 @@ class LagFinder:
         except CalibrationError as exc:
             why = str(exc)
         else:
-            why = accept(est, max_std_s=MAX_LAG_STD_RELAXED_S)
+            why = accept(est, max_lag_s=self.max_lag_s)
             if not why:
-                what = f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
-                if est.std_s <= MAX_LAG_STD_S:
-                    return est.lag_s, est.std_s, what, True
-                if self.target_s >= LAG_WINDOW_GROWTH * self.window_s:
-                    note = "uncertain: the sharpest peak in the longest window"
-                    return est.lag_s, est.std_s, f"{what}, {note}", True
-                self._grow()
-                return est.lag_s, est.std_s, f"{what}, provisional until a sharper peak", False
+                return est.lag_s, est.std_s, f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
         self._grow()
-        return None, math.inf, why, False
+        return None, math.inf, why
 
     def _grow(self) -> None:
         if self.target_s < LAG_WINDOW_GROWTH * self.window_s:
@@ -312,10 +305,12 @@ class Learner:
         if self.lag_s is None and prior is not None and prior.lag_s is not None:
             self.lag_s = prior.lag_s
         self.lag_std_s = math.inf
+        self.lag_note = ""
+        """Why the lag in use is the fallback (shown in the status reason), or empty."""
         self.lag_finder = (
             LagFinder(s.lag_window_s, s.max_lag_s, s.current) if self.lag_s is None else None
         )
-        self.ref = SampleRing(int((s.max_lag_s + 5.0) * 50) + 64)
+        self.ref = SampleRing(int((s.max_lag_s + 5.0) * 50) + 64, cadence=True)
         self.window = ExcitationWindow(
             self.layout, max(s.excitation_half_life_samples, 1.0), s.rule
         )
@@ -529,21 +524,24 @@ class Learner:
         lf.uut.append((t, raw))
         if not lf.ready():
             return
-        lag, std, why, final = lf.estimate()
+        lag, std, why = lf.estimate()
         if lag is None:
             self._emit(t, "lag_retry", {"why": why})
+            if self.lag_s is None:
+                self.lag_s = LAG_FALLBACK_S
+                self._emit(t, "lag_fallback", {"lag_s": LAG_FALLBACK_S, "why": why})
+            self.lag_note = f"lag not measured ({why}): {LAG_FALLBACK_S:g} s used"
             return
-        if self.lag_s is None or final or std < self.lag_std_s:
-            # the first, a sharper one from a longer window, or the final one
-            self._emit(t, "lag_estimated", {"lag_s": round(lag, 3), "why": why})
-            self.lag_s, self.lag_std_s = lag, std
-        if final:
-            self.lag_finder = None
+        self._emit(t, "lag_estimated", {"lag_s": round(lag, 3), "why": why})
+        self.lag_s, self.lag_std_s = lag, std
+        self.lag_note = ""
+        self.lag_finder = None
 
     def _ref_state(self, t: float, ref: float | None) -> RefState:
         if self.lag_s is None and self.t_ref_last == -math.inf:
             return "none"
-        if silent(self.t_ref_last, t, self.s.ref_stale_s):
+        if silent(self.t_ref_last, t, max(self.s.ref_stale_s, self.ref.gap_s)):
+            # a reference slower than ref_stale_s is stale only past its own cadence
             return "stale"
         if ref is None:
             return "lost" if self.lag_s is not None else "none"

@@ -136,7 +136,7 @@ class PortHeading:
     """The true-heading ring of one port, with its glitch filter."""
 
     def __init__(self, max_turn_rate_dps: float) -> None:
-        self.ring = SampleRing(HEADING_RING, HEADING_MAX_GAP_S, angular=True)
+        self.ring = SampleRing(HEADING_RING, HEADING_MAX_GAP_S, angular=True, cadence=True)
         self.jumps = JumpFilter(max_turn_rate_dps, HEADING_JUMP_WINDOW_S, angular=True)
         self.refused_magnetic = 0
         self.magnetic = 0

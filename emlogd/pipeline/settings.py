@@ -162,8 +162,8 @@ class UutSettings:
         unit="s",
         show=lambda v: "auto" if v is None else v,
         doc="The EMlog's lag behind the reference; auto: estimated by cross-correlation "
-        "from the first `lag_window_s` on (provisional within 0.3 s, refined by longer "
-        "windows), then fixed.",
+        "from the first `lag_window_s` on, used once accepted (never negative, σ ≤ 0.1 s), "
+        "then fixed; until then 0 s, said in the status reason.",
     )
     lag_window_s: float = key(
         300.0,

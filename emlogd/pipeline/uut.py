@@ -302,7 +302,7 @@ class UutCalibration:
             if lag is not None and not final:
                 target = t - lag
                 waiting = not ring.covers(target)
-                if waiting and now - target <= ring.max_gap_s + 1.0:
+                if waiting and now - target <= ring.gap_s + 1.0:
                     return
             self.pending.popleft()
             self.learn(t, raw)
@@ -354,6 +354,8 @@ class UutCalibration:
             self.reason = self._why_not_learning()
         if self.note:
             self.reason = f"{self.reason}; {self.note}"
+        if self.learner.lag_note:
+            self.reason = f"{self.reason}; {self.learner.lag_note}"
         if new != self.state:
             self._emit(t, "state", {"from": self.state, "to": new, "why": self.reason})
             if self.state == "learning" and new == "frozen":
@@ -437,7 +439,8 @@ class UutCalibration:
             uut=self.s.port,
             params=self.applied if self.applied is not None else zero_params(self.s.model),
             param_std=dict(self.applied_std) if self.applied is not None else {},
-            lag_s=self.lag_s,
+            # a fallback lag is not saved: a restart measures it again
+            lag_s=self.lag_s if self.lag_finder is None else None,
             current=self.layout.current,
             current_mps=cur,
             current_std_mps=cur_std,

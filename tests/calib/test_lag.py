@@ -206,6 +206,15 @@ class TestWaterFrameLag:
         bound = estimate_lag(t, _speed(t - 8.0), t, _speed(t), 3.0)
         assert "bound" in accept(bound)
 
+    def test_a_negative_or_too_long_lag_is_never_accepted(self) -> None:
+        """A sharp peak at a negative lag, or beyond max_lag_s, is refused with the reason."""
+        sharp = LagEstimate(-0.5, 0.99, 0.1, 1000, False, 0.01)
+        assert "negative" in accept(sharp)
+        assert accept(LagEstimate(0.0, 0.99, 0.1, 1000, False, 0.01)) == ""
+        late = LagEstimate(4.0, 0.99, 0.1, 1000, False, 0.01)
+        assert accept(late, max_lag_s=5.0) == ""
+        assert "max_lag_s" in accept(late, max_lag_s=3.0)
+
     def test_combine_is_a_weighted_median(self) -> None:
         """combine() leans on the sharp estimates and ignores one outlier."""
         e = [

@@ -56,6 +56,19 @@ def test_calibrate_evaluate_crossval(
     assert len(csv_path.read_text().splitlines()) == 1 + 8 * 25
 
 
+def test_a_lag_not_measured_is_said_once_on_stderr(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path]
+) -> None:
+    """calibrate without --lag on a run the lag search cannot read (the straight): 0 s
+    is used, the lag line says fallback, and stderr says why, once."""
+    straight = str(trial_files["straight"])
+    assert main(["calibrate", straight, "--uut", "emlog1", "--ref", "dvl"]) == 0
+    out, err = capsys.readouterr()
+    assert "lag          0.00 s (fallback" in out
+    assert err.count("emlogd calibrate: warning: lag not measured") == 1
+    assert "warning" not in out
+
+
 def test_simulate_command(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """simulate writes the trial captures and names truth.yaml; --scale 0 exits 2."""
     assert main(["simulate", str(tmp_path / "sim"), "--scale", "0.01", "--seed", "3"]) == 0

@@ -7,7 +7,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from emlogd.pipeline.align import SampleRing, interpolate, wrap_deg
+from emlogd.pipeline.align import (
+    DEFAULT_MAX_GAP_S,
+    GAP_INTERVALS,
+    MAX_GAP_CAP_S,
+    SampleRing,
+    cadence_gap,
+    interpolate,
+    wrap_deg,
+)
 
 
 class TestSampleRing:
@@ -82,16 +90,65 @@ class TestSampleRing:
         assert wrap_deg(-10.0) == 350.0 and wrap_deg(720.0) == 0.0
 
 
+class TestCadence:
+    """The gap follows the series' own rate (references from 10 Hz to 0.2 Hz)."""
+
+    @pytest.mark.parametrize("rate_hz", [10.0, 1.0, 0.5, 0.2])
+    def test_a_reference_at_any_rate_aligns_midway(self, rate_hz: float) -> None:
+        """Midway between two samples of a reference at 0.2–10 Hz a query gets the
+        interpolation; with the fixed 1 s gap a reference slower than 0.5 Hz gets nothing."""
+        dt = 1.0 / rate_hz
+        t = np.arange(50) * dt
+        v = 1.0 + 0.01 * np.arange(50)
+        ok = np.ones(50, dtype=bool)
+        q = t[-10:-1] + dt / 2
+        got = interpolate(t, v, ok, q, DEFAULT_MAX_GAP_S, cadence=True)
+        assert np.allclose(got, np.interp(q, t, v))
+        fixed = interpolate(t, v, ok, q, DEFAULT_MAX_GAP_S)
+        assert np.all(np.isfinite(fixed)) == (dt / 2 <= DEFAULT_MAX_GAP_S)
+
+    def test_the_gap_is_a_few_intervals_floored_and_capped(self) -> None:
+        """GAP_INTERVALS median intervals, at least the floor, at most MAX_GAP_CAP_S;
+        a dropped sample is bridged, an outage of five intervals is not."""
+        assert cadence_gap(0.1, DEFAULT_MAX_GAP_S) == DEFAULT_MAX_GAP_S
+        assert cadence_gap(2.0, DEFAULT_MAX_GAP_S) == pytest.approx(GAP_INTERVALS * 2.0)
+        assert cadence_gap(60.0, DEFAULT_MAX_GAP_S) == MAX_GAP_CAP_S
+        ring = SampleRing(100, cadence=True)
+        for k in range(20):
+            ring.add(2.0 * k, 1.0)
+        assert ring.gap_s == pytest.approx(5.0)
+        ring.add(42.0, 2.0)  # one sample (t = 40) missing: 4 s between brackets
+        assert ring.at(41.0) == pytest.approx(1.75)
+        ring.add(54.0, 3.0)  # five missing: 12 s
+        assert ring.at(48.0) is None
+
+    def test_repeated_times_stand_by_the_newest(self) -> None:
+        """Several samples at one time: the newest brackets the queries on both sides,
+        and repeated times do not shrink the cadence."""
+        ring = SampleRing(100, cadence=True)
+        for k in range(10):
+            ring.add(float(k), 1.0)
+            ring.add(float(k), 2.0 + k)
+        assert ring.gap_s == pytest.approx(GAP_INTERVALS)
+        assert ring.at(3.5) == pytest.approx(0.5 * (5.0 + 6.0))
+        assert ring.at(4.0) == 6.0
+
+
 class TestInterpolateArrays:
     """The vectorised form of the rule equals the ring, query by query."""
 
     @settings(max_examples=200, deadline=None)
     @given(
-        steps=st.lists(st.floats(0.0, 0.8), min_size=2, max_size=40),
+        steps=st.lists(
+            st.one_of(st.floats(0.0, 0.8), st.just(0.0), st.floats(0.8, 8.0)),
+            min_size=2,
+            max_size=40,
+        ),
         values=st.lists(st.floats(0.0, 359.9), min_size=40, max_size=40),
         valid=st.lists(st.booleans(), min_size=40, max_size=40),
         queries=st.lists(st.floats(-1.0, 30.0), min_size=1, max_size=20),
         angular=st.booleans(),
+        cadence=st.booleans(),
     )
     def test_same_answers_as_the_ring(
         self,
@@ -100,15 +157,17 @@ class TestInterpolateArrays:
         valid: list[bool],
         queries: list[float],
         angular: bool,
+        cadence: bool,
     ) -> None:
-        """interpolate() gives SampleRing.at() for every query (nan for None)."""
+        """interpolate() gives SampleRing.at() for every query (nan for None), with
+        repeated times, and with the gap fixed or from the cadence."""
         t = np.cumsum(steps)
         v = np.array(values[: t.size])
         ok = np.array(valid[: t.size])
-        ring = SampleRing(100, max_gap_s=0.5, angular=angular)
+        ring = SampleRing(100, max_gap_s=0.5, angular=angular, cadence=cadence)
         for ti, vi, oi in zip(t, v, ok, strict=True):
             ring.add(float(ti), float(vi), bool(oi))
-        arr = interpolate(t, v, ok, np.array(queries), 0.5, angular=angular)
+        arr = interpolate(t, v, ok, np.array(queries), 0.5, angular=angular, cadence=cadence)
         for q, got in zip(queries, arr, strict=True):
             want = ring.at(q)
             if want is None:

@@ -1,0 +1,136 @@
+"""The real-recording regression suite (docs/real_data.py) on the shared real recordings.
+
+Skipped when the folder is absent. The default run recognises every file's kind and
+checks the alignment on the sparsest NMEA log (a fast check); the whole suite — import,
+LS and KF calibration, replay, and the scores against the GNSS water speed, per
+recording — runs with ``pytest -m real`` (minutes per recording).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from emlogd.offline.dataset import record_capture
+from emlogd.offline.importer import import_nmea
+from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
+from emlogd.pipeline.settings import UutSettings
+
+ROOT = Path(__file__).resolve().parents[2]
+REAL = ROOT.parent / "shared" / "real"
+
+pytestmark = pytest.mark.skipif(not REAL.is_dir(), reason=f"no real recordings at {REAL}")
+
+
+def _script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("real_data", ROOT / "docs" / "real_data.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["real_data"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+KINDS = {
+    "astra-race-2017-07-08-trieste.tsv": "logger-tsv",
+    "dasht-2016-05-07-trieste.nmea": "nmea",
+    "expedition-valencia.csv": "expedition-csv",
+    "irene-2007-11-03-leman.nmea": "nmea",
+    "irene-2008-07-11-leman.nmea": "nmea",
+    "irene-2013-09-22-leman.nmea": "nmea",
+    "irene-2014-06-27-leman.nmea": "nmea",
+    "irene-2014-06-29-leman.nmea": "nmea",
+    "psaros33-2014-08-22-leman.nmea": "nmea",
+    "regatta-analyser-2024-07-18-estonia.csv": "csv",
+}
+
+
+def test_every_file_is_recognised_by_its_content() -> None:
+    """Each recording's kind comes from its first lines; the licences, notes and the
+    reference script are no logs."""
+    rd = _script()
+    found = {p.name: rd.kind(p) for p in sorted(REAL.iterdir()) if p.is_file()}
+    logs = {k: v for k, v in found.items() if v is not None and not k.endswith(".py")}
+    assert logs == {k: v for k, v in KINDS.items() if k in found}
+    assert found.get("LICENSE-anemomind") is None
+
+
+def test_a_reference_slower_than_1_hz_aligns(tmp_path: Path) -> None:
+    """Irene 2007 (RMC at 0.8 Hz, fixes 1.25 s apart; its magnetic heading given the
+    lake's variation): the cadence-sized gap pairs 94 % of the readings with a GNSS
+    reference, the fixed 1 s gap only 73 %."""
+    src = REAL / "irene-2007-11-03-leman.nmea"
+    if not src.is_file():
+        pytest.skip("irene-2007-11-03-leman.nmea absent")
+    cap = tmp_path / "irene2007.cap.gz"
+    import_nmea([src], cap)
+    s = UutSettings(
+        port="nmea", reference_port="nmea", reference_field="gnss", magnetic_variation_deg=1.0
+    )
+    rec = record_capture(cap, s)
+    assert np.isfinite(rec.aligned(0.0).ref).mean() > 0.9
+    fixed = interpolate(rec.t_ref, rec.v_ref, rec.ok_ref, rec.t_read, DEFAULT_MAX_GAP_S)
+    assert np.isfinite(fixed).mean() < 0.8
+
+
+# What every recording must give, chosen on some and checked on the others (see
+# docs/REAL_DATA.md): each imports; LS and KF calibrate; the replay never emits worse
+# than raw against the GNSS water speed over the whole log (WORSE_TOLERANCE) nor over
+# any 5-minute window (WINDOW_TOLERANCE); the LS scale at the median speed is within
+# SCALE_TOLERANCE of the folder's independent fit. A recording that cannot do one of
+# these yet is listed with the reason.
+WORSE_TOLERANCE = 1.01
+WINDOW_TOLERANCE = 1.10
+SCALE_TOLERANCE = 0.03
+BROKEN_HEADING = {"regatta-analyser-2024-07-18-estonia"}
+"""Its heading is wrong (median 29° from the course): calibrate refuses it and the
+replay applies nothing."""
+
+_WORSE_WINDOW = "the replay emits worse than raw over some 5-min window"
+KNOWN: dict[str, str] = {
+    "astra-race-2017-07-08-trieste": _WORSE_WINDOW,
+    "dasht-2016-05-07-trieste": "the replay emits worse than raw over the whole log",
+    "expedition-valencia": _WORSE_WINDOW,
+    "irene-2008-07-11-leman": _WORSE_WINDOW,
+    "irene-2013-09-22-leman": "the LS scale at its low median speed is 0.037 off the independent fit",
+    "irene-2014-06-29-leman": _WORSE_WINDOW,
+    "psaros33-2014-08-22-leman": _WORSE_WINDOW,
+}
+"""What does not hold yet on this tree, by recording (docs/REAL_DATA.md): strict xfails,
+so a recording that starts passing fails here until it is taken off the list."""
+
+
+@pytest.mark.real
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN[n])) if n in KNOWN else n
+        for n in sorted(f.rsplit(".", 1)[0] for f in KINDS)
+    ],
+)
+def test_the_whole_suite_per_recording(name: str, tmp_path: Path) -> None:
+    """import → calibrate (LS, KF) → replay → scores, as ``docs/real_data.py`` runs them."""
+    rd = _script()
+    rows = rd.run(REAL, tmp_path, [name])
+    assert len(rows) == 1
+    row = rows[0]
+    assert row.imported is not None, row.errors
+    if name in BROKEN_HEADING:
+        assert row.ls is None and "heading disagrees with the course" in row.errors["ls"]
+        assert row.replay is not None and row.replay["uuts"]["nmea"]["params"] is None
+        return
+    assert row.ls is not None and row.kf is not None, row.errors
+    assert row.replay is not None and row.scores is not None, row.errors
+    s = row.scores
+    assert s["rmse_emitted"] <= WORSE_TOLERANCE * s["rmse_raw"]
+    assert not s["worst_5min_ratio"] > WINDOW_TOLERANCE
+    if name not in BROKEN_HEADING and row.ref_k is not None:
+        k = rd.effective_scale(row.ls, s["median_speed"])
+        assert k is not None and math.isfinite(k)
+        assert abs(k - row.ref_k) < SCALE_TOLERANCE
