@@ -34,6 +34,7 @@ from drivers.errors import EmlogdError
 from drivers.framing import split_nmea
 from drivers.io.fake import FakeCapture
 from emlogd.launch import DaemonProcess, LaunchError, fake_sensors
+from emlogd.pipeline.integrity import DEFAULT_MAX_RATE_HZ, ReadingLimits
 
 DEMO_CAPTURE = "demo-figure8.cap.gz"
 LATENCIES_S = {"emlog1": 3.2, "emlog2": 0.45}
@@ -46,10 +47,10 @@ ports:
   - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, rest_s: 0}}
 calibration:
   - {{uut: emlog1, reference: dvl, model: EM3, lag: {lag1}, excitation_half_life_samples: 120,
-     current: false,
+     current: false, max_reading_accel_mps2: {accel}, max_rate_hz: {rate},
      max_param_std: {{m: 0.05, b: 0.08}}, validation_s: {val}, recheck_s: {recheck}}}
   - {{uut: emlog2, reference: dvl, model: EM3, lag: {lag2}, excitation_half_life_samples: 600,
-     current: false,
+     current: false, max_reading_accel_mps2: {accel}, max_rate_hz: {rate},
      validation_s: {val}, recheck_s: {recheck}}}
 outputs: {{pty: out/emlog0, status_sentence_interval_s: 0.5}}
 state_file: state/state.yaml
@@ -77,8 +78,12 @@ def _status_line(sentence: str) -> tuple[str, str] | None:
 
 
 def _config(speed: float) -> str:
-    """The demo's config with its times (lags, validation, recheck) divided by ``speed``."""
+    """The demo's config with its times (lags, validation, recheck) divided by ``speed``,
+    and the readings' plausible acceleration and rate scaled to the faster clock (a
+    reading's acceleration grows with ``speed²``, its rate with ``speed``)."""
     return CONFIG.format(
+        accel=round(ReadingLimits().max_reading_accel_mps2 * speed * speed, 3),
+        rate=round(DEFAULT_MAX_RATE_HZ * speed, 3),
         lag1=round(LATENCIES_S["emlog1"] / speed, 4),
         lag2=round(LATENCIES_S["emlog2"] / speed, 4),
         val=round(120.0 / speed, 3),

@@ -379,14 +379,15 @@ class ReadingLimits:
 
     max_reading_accel_mps2: float = key(
         1.0,
-        check=number(0.0, 100.0, lo_open=True),
+        check=number(0.0, 10_000.0, lo_open=True),
         unit="m/s²",
         doc="A log's reading that needs more acceleration than this since its last accepted "
-        "one is neither emitted nor learnt (a spike, a dropout to 0).",
+        "one is neither emitted nor learnt (a spike, a dropout to 0). A replay at k times "
+        "real time (`fake --speed k`) needs k² times this.",
     )
     max_rate_hz: float | None = key(
         None,
-        check=number(0.0, 1000.0, lo_open=True, optional=True),
+        check=number(0.0, 10_000.0, lo_open=True, optional=True),
         unit="Hz",
         doc="A log's readings beyond this rate are dropped, and all of them while it exceeds "
         "it (a babbling log); null: its nominal rate learnt from the median interval (+5 %), "
