@@ -638,7 +638,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     """Run the daemon's pipeline over captures; write the corrected NMEA; print a summary."""
     from emlogd.config import load_config
     from emlogd.daemon.statefile import StateStore
-    from emlogd.offline.replay import replay
+    from emlogd.offline.replay import replay, unmatched_ports
     from emlogd.pipeline.calibration import Calibration, checker
     from emlogd.pipeline.core import Output
     from emlogd.settings import build_pipeline, pipeline_from_config
@@ -654,6 +654,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
         for line in report:
             sys.stderr.write(f"emlogd replay: {line}\n")
     pipeline = build_pipeline(cfg, cals, others, learn=args.learn)
+    for path, missing in unmatched_ports(pipeline, args.captures).items():
+        sys.stderr.write(
+            f"emlogd replay: warning: {path}: port{'s' if len(missing) != 1 else ''} "
+            f"{', '.join(missing)} not in {args.config}: {'their' if len(missing) != 1 else 'its'} "
+            "records are skipped\n"
+        )
 
     def persist(_: Output) -> None:
         if store is not None:
@@ -727,7 +733,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     out.write(
         f"{result.records} records in {result.elapsed_s:.1f} s "
         f"({result.span_s / max(result.elapsed_s, 1e-9):.0f}x real time), "
-        f"{result.emitted} sentences emitted, {result.persisted} persists\n"
+        f"{result.emitted} sentences emitted"
+        + (f", {result.persisted} persists to {args.state}" if store is not None else "")
+        + "\n"
     )
     return 0
 

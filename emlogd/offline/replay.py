@@ -25,8 +25,8 @@ from typing import BinaryIO
 
 import numpy as np
 
-from drivers import make_decoder
-from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
+from drivers import EmlogdError, make_decoder
+from drivers.io.capture import REORDER_WINDOW_S, CaptureReader, read_ports
 from drivers.nmea0183 import NmeaDecoder
 from drivers.records import Rejected
 from emlogd.contain import Containment
@@ -36,6 +36,34 @@ from emlogd.pipeline.core import Emit, Event, Output, Pipeline
 
 TICK_S = 0.5
 """Record time between two stale checks (the daemon's loop ticks at a similar rate)."""
+
+
+class NoMatchingPortError(EmlogdError):
+    """A capture none of whose ports the config declares: replaying it would do nothing."""
+
+
+def unmatched_ports(pipeline: Pipeline, paths: Sequence[str | Path]) -> dict[str, list[str]]:
+    """Per capture, the ports its header declares that the pipeline has no decoder for
+    (captures whose ports all match are left out).
+
+    Raises:
+        NoMatchingPortError: a capture none of whose ports is configured (names the
+            capture's ports and the configured ones).
+        CaptureFormatError: a malformed capture header.
+    """
+    out: dict[str, list[str]] = {}
+    for path in paths:
+        ports = list(read_ports(path))
+        missing = [p for p in ports if p not in pipeline.decoders]
+        if ports and len(missing) == len(ports):
+            raise NoMatchingPortError(
+                f"{path}: none of its ports ({', '.join(ports)}) is in the config "
+                f"(configured: {', '.join(pipeline.decoders) or 'none'}); replaying it "
+                "would do nothing: declare them under ports"
+            )
+        if missing:
+            out[str(path)] = missing
+    return out
 
 
 @dataclass(slots=True)
@@ -140,7 +168,10 @@ def replay(
         CaptureFormatError: a malformed capture header, or with ``strict`` any malformed
             record (names the file and line).
         TruthError: with ``truth``, a UUT that is not one of the simulated EMlogs.
+        NoMatchingPortError: a capture none of whose ports is configured (checked
+            before anything is fed; :func:`unmatched_ports`).
     """
+    unmatched_ports(pipeline, paths)
     started = time.perf_counter()
     result = ReplayResult(status={})
     scorer: _TruthScorer | None = None
