@@ -72,3 +72,44 @@ def positive_float(value: str) -> float:
     if not (x > 0.0 and math.isfinite(x)):
         raise argparse.ArgumentTypeError(f"must be a positive number, not {value!r}")
     return x
+
+
+def key_arg(cls: type, field: str, *, allow_auto: bool = True) -> Callable[[str], Any]:
+    """argparse type: a value checked like the config key ``field`` of the settings
+    dataclass ``cls`` (the key's own declared check and bounds, so an option and its
+    key accept the same values); ``allow_auto`` false refuses ``auto`` where a key takes it.
+
+    The text is read as an integer, else a number, else kept (``auto``); a value the
+    key's check refuses is an argparse error (exit 2) naming the key's range.
+    """
+    import dataclasses
+
+    from emlogd.pipeline.keys import InvalidValueError, Key
+
+    f = next((f for f in dataclasses.fields(cls) if f.name == field), None)
+    if f is None or "key" not in f.metadata:
+        raise ValueError(f"{cls.__name__}.{field} is not a config key")
+    k: Key = f.metadata["key"]
+    name = k.name or field
+
+    def convert(text: str) -> Any:
+        value: Any = text
+        for conv in (int, float):
+            try:
+                value = conv(text)
+                break
+            except ValueError:
+                continue
+        if value == "auto" and not allow_auto:
+            raise argparse.ArgumentTypeError(f"expected a number, not {text!r}")
+        try:
+            return k.check(value)
+        except InvalidValueError as exc:
+            raise argparse.ArgumentTypeError(
+                f"{exc} (the config key {name}: {k.check.text}"
+                + (f" {k.unit}" if k.unit else "")
+                + ")"
+            ) from None
+
+    convert.__name__ = name  # argparse names the type in its messages
+    return convert

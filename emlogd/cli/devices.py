@@ -14,8 +14,16 @@ from typing import Any
 
 from drivers import DecoderOptions, make_decoder, protocol_names
 from drivers.base import Decoder
-from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
+from emlogd.cli.common import (
+    Subparsers,
+    UsageError,
+    key_arg,
+    positive_float,
+    progress,
+    progress_done,
+)
 from emlogd.jsonio import to_jsonable
+from emlogd.pipeline.settings import PortSettings
 
 _SNIFF_CHUNK = 4096
 
@@ -275,7 +283,7 @@ def add_parsers(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--max-length",
-        type=int,
+        type=key_arg(PortSettings, "max_length"),
         metavar="N",
         help="longest accepted text line incl. CR LF (default 82, the NMEA limit)",
     )

@@ -14,7 +14,14 @@ from typing import TYPE_CHECKING, Any
 
 from calib.models import MODEL_NAMES
 from drivers.io.capture import REORDER_WINDOW_S
-from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
+from emlogd.cli.common import (
+    Subparsers,
+    UsageError,
+    key_arg,
+    positive_float,
+    progress,
+    progress_done,
+)
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
     CalibrationResult,
@@ -152,6 +159,23 @@ def _date_arg(value: str) -> date:
         raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, not {value!r}") from None
 
 
+MAX_UTC_OFFSET_H = 14.0
+"""The largest clock offset from UTC a logger can have (the time zones span −12 to +14 h)."""
+
+
+def _utc_offset_arg(value: str) -> float:
+    """import --utc-offset: hours within ±:data:`MAX_UTC_OFFSET_H`."""
+    try:
+        x = float(value)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and abs(x) <= MAX_UTC_OFFSET_H):
+        raise argparse.ArgumentTypeError(
+            f"expected hours in [-{MAX_UTC_OFFSET_H:g}, {MAX_UTC_OFFSET_H:g}], not {value!r}"
+        )
+    return x
+
+
 def _import_presets() -> list[str]:
     from emlogd.offline.importer import PRESETS
 
@@ -260,15 +284,6 @@ def _settings(args: argparse.Namespace, **over: Any) -> UutSettings:
         raise UsageError(str(exc)) from None
 
 
-def _lag_arg(value: str) -> float | None:
-    if value == "auto":
-        return None
-    try:
-        return float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected auto or seconds, not {value!r}") from None
-
-
 STRICT_HELP = "fail at the first malformed capture record instead of counting and skipping it"
 
 REORDER_HELP = (
@@ -285,6 +300,17 @@ def _window_arg(value: str) -> float:
     if not (math.isfinite(x) and x >= 0.0):
         raise argparse.ArgumentTypeError(f"expected seconds ≥ 0, not {value!r}")
     return x
+
+
+def _workers_arg(value: str) -> int:
+    """crossval --workers: a whole number of processes, at least one."""
+    try:
+        n = int(value)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, not {value!r}")
+    return n
 
 
 def _capture_args(p: argparse.ArgumentParser) -> None:
@@ -771,7 +797,7 @@ def _water_frame(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--variation",
-        type=float,
+        type=key_arg(UutSettings, "magnetic_variation_deg"),
         metavar="DEG",
         help="magnetic variation, + east, for magnetic headings without one",
     )
@@ -787,7 +813,7 @@ def _common_offline(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--lag",
-        type=_lag_arg,
+        type=key_arg(UutSettings, "lag_s"),
         default=None,
         metavar="auto|SECONDS",
         help="UUT latency (default auto: cross-correlation)",
@@ -807,7 +833,12 @@ def add_parsers(sub: Subparsers) -> None:
     )
     p.add_argument("outdir", help="output directory (created if missing)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    p.add_argument("--scale", type=float, default=1.0, help="duration factor (0.1: 10 %% as long)")
+    p.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        help="duration factor in (0, 10] (default 1; 0.1: 10 %% as long)",
+    )
     p.add_argument(
         "--dvl-format", choices=["pd6", "pd0"], default="pd6", help="DVL output (default pd6)"
     )
@@ -874,13 +905,13 @@ def add_parsers(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--utc-offset",
-        type=float,
+        type=_utc_offset_arg,
         metavar="HOURS",
         help="csv: the logger's clock minus UTC (times are taken as UTC without it)",
     )
     p.add_argument(
         "--variation",
-        type=float,
+        type=key_arg(UutSettings, "magnetic_variation_deg"),
         metavar="DEG",
         help="csv: magnetic variation, + east, when no column gives one (else the IGRF "
         "model at the fixes' positions, at calibration)",
@@ -906,14 +937,14 @@ def add_parsers(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--average",
-        type=float,
+        type=_window_arg,
         metavar="SECONDS",
         help="with --method ls: fit block means over SECONDS (default 20 for a gnss "
         "reference, whose noise would shrink the scale; else 0: every sample)",
     )
     p.add_argument(
         "--r-raw",
-        type=positive_float,
+        type=key_arg(UutSettings, "r_raw_mps"),
         metavar="M/S",
         help="the log's reading noise, 1σ (the config key r_raw_mps; default: the Airmar "
         "spec's 0.1 kn); the filter's NIS is near 1 only with the log's true noise",
@@ -933,7 +964,11 @@ def add_parsers(sub: Subparsers) -> None:
     _water_frame(p)
     p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
     p.add_argument(
-        "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
+        "--lag",
+        type=key_arg(UutSettings, "lag_s", allow_auto=False),
+        default=None,
+        metavar="SECONDS",
+        help="override the saved lag (default: the file's; [0, 30] like the config key lag)",
     )
     _capture_args(p)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
@@ -964,7 +999,13 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument(
         "--table2", metavar="TRAIN,TEST", help="Table II pair (default figure-8, straight)"
     )
-    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.add_argument(
+        "--workers",
+        type=_workers_arg,
+        default=None,
+        metavar="N",
+        help="processes, at least 1 (default: all cores)",
+    )
     p.set_defaults(handler=cmd_crossval)
 
     p = sub.add_parser(

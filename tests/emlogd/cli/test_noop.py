@@ -50,3 +50,41 @@ def test_replay_names_the_ports_not_configured_and_says_no_persists_without_stat
     out, err = capsys.readouterr()
     assert err.count("warning") == 1 and "port log9 not in" in err
     assert "persists" not in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--lag", "-3"], "--lag"),
+        (["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--lag", "100"], "--lag"),
+        (["crossval", "x.cap", "y.cap", "--uut", "e", "--ref", "d", "--lag", "31"], "--lag"),
+        (["report", "x.cap", "--out", "o", "--uut", "e", "--ref", "d", "--lag", "-0.1"], "--lag"),
+        (["evaluate", "x.cap", "--params", "p.yaml", "--lag", "-3"], "--lag"),
+        (["evaluate", "x.cap", "--params", "p.yaml", "--lag", "auto"], "--lag"),
+        (["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--r-raw", "0"], "--r-raw"),
+        (["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--variation", "200"], "--variation"),
+        (["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--average", "-1"], "--average"),
+        (["crossval", "x.cap", "y.cap", "--uut", "e", "--ref", "d", "--workers", "0"], "--workers"),
+        (
+            ["import", "x.csv", "--format", "csv", "--out", "o.cap", "--utc-offset", "25"],
+            "--utc-offset",
+        ),
+        (["dump", "x.nmea", "--max-length", "5"], "--max-length"),
+    ],
+)
+def test_a_numeric_option_out_of_its_keys_range_exits_2(
+    capsys: pytest.CaptureFixture[str], argv: list[str], named: str
+) -> None:
+    """An option out of the range its config key declares is a usage error before any
+    file is read: exit 2, one line naming the option."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err and ": error: " in err
+
+
+def test_the_lag_option_takes_the_bounds_of_the_lag_key(capsys: pytest.CaptureFixture[str]) -> None:
+    """--lag's message gives the key's range as the key declares it (not retyped)."""
+    from emlogd.pipeline.keys import lag
+
+    assert main(["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--lag", "-3"]) == 2
+    assert f"the config key lag: {lag.text} s" in capsys.readouterr().err
