@@ -44,6 +44,8 @@ class FakeCapture:
             :meth:`stop`; closing at once would hang up the readers before they have
             read the last bytes.
         sleep: the sleep function (tests).
+        on_end: called once when the capture has been served to its end (not with
+            ``loop``, nor when stopped before), before lingering: the caller can say so.
 
     Raises:
         ValueError: no ports, a port the capture lacks, or a non-positive speed.
@@ -62,8 +64,10 @@ class FakeCapture:
         settle_s: float = 0.05,
         linger: bool = True,
         sleep: Callable[[float], None] = time.sleep,
+        on_end: Callable[[], None] | None = None,
     ) -> None:
         self.reader = CaptureReader(capture)
+        self.on_end = on_end
         if not links:
             raise ValueError("no port to serve")
         for port in links:
@@ -128,6 +132,8 @@ class FakeCapture:
                     break
                 offset += span + (span / (n - 1) if n > 1 else 1.0)
             self.finished.set()
+            if self.on_end is not None and not self._stop.is_set():
+                self.on_end()
             while self.linger and not self._stop.is_set():
                 for vp in self.vports.values():
                     vp.has_reader()  # drains anything the reader writes back

@@ -65,7 +65,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         if args.debug:
             raise
-        sys.stderr.write(f"emlogd {args.command}: {_one_line(exc)}\n")
+        sys.stderr.write(f"emlogd {args.command}: error: {_one_line(exc)}\n")
         return 2
     except (EmlogdError, OSError) as exc:
         if args.debug:

@@ -218,6 +218,10 @@ def _fake_links(args: argparse.Namespace, ports: dict[str, str]) -> dict[str, st
             if name in links:
                 raise UsageError(f"--link {name}=...: port {name} given twice")
             links[name] = path
+        elif sep and path and "/" not in name:  # NAME=PATH naming a port the capture lacks
+            raise UsageError(
+                f"--link {spec}: {args.capture} has no port {name!r} (has {', '.join(ports)})"
+            )
         else:
             plain.append(spec)
     if plain and (links or len(plain) > 1):
@@ -248,10 +252,19 @@ def cmd_fake(args: argparse.Namespace) -> int:
     ports = read_ports(args.capture)
     links = _fake_links(args, ports)
     speed = None if args.fast else args.speed
-    device = FakeCapture(args.capture, links, speed=speed, loop=args.loop)
+
+    def ended() -> None:
+        sys.stderr.write(
+            f"emlogd fake: {args.capture} has ended ({device.sent_records} records sent); "
+            "the links stay open, silent, until Ctrl-C or SIGTERM\n"
+        )
+        sys.stderr.flush()
+
+    device = FakeCapture(args.capture, links, speed=speed, loop=args.loop, on_end=ended)
 
     for port, link in links.items():
-        sys.stderr.write(f"serving {port} from {args.capture} on {link}\n")
+        sys.stderr.write(f"emlogd fake: serving {port} from {args.capture} on {link}\n")
+    sys.stderr.flush()
     with _on_sigterm(device.stop):
         try:
             device.run()

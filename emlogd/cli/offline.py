@@ -25,6 +25,7 @@ from emlogd.cli.common import (
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
     CalibrationResult,
+    OfflineError,
     calibrate,
     crossval,
     evaluate,
@@ -476,25 +477,48 @@ def _warn_lag(command: str, note: str) -> None:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Estimate an error model of one EMlog against a reference from captures."""
     settings = _settings(args)
-    recs = _load(args.captures, settings, args)
     if args.average is not None and args.method != "ls":
         raise UsageError("--average applies to --method ls")
+    if args.trace is not None and args.method != "kf":
+        raise UsageError("--trace follows the Kalman filter: use it with --method kf")
+    for opt, path in (("--save", args.save), ("--trace", args.trace)):
+        if path:
+            _check_writable(opt, path)
+    recs = _load(args.captures, settings, args)
     res = calibrate(
         recs, settings, args.method, lag=args.lag, trace=args.trace, average_s=args.average
     )
     _warn_lag(args.command, res.lag.note)
-    if args.save:
-        save_params(args.save, res)
     if args.json:
         sys.stdout.write(
             json.dumps({**res.to_dict(), "capture_skips": _skips(recs)}, indent=2) + "\n"
         )
     else:
         sys.stdout.write(_calibration_text(res))
-        if args.save:
-            sys.stdout.write(f"saved        {args.save}\n")
     _warn_recs(args.command, recs)
+    if args.save:
+        try:
+            save_params(args.save, res)
+        except OSError as exc:  # the fit is printed above: only the file is lost
+            raise OSError(
+                f"cannot write {args.save}: {exc.strerror or exc} (the fit is printed above)"
+            ) from None
+        if not args.json:
+            sys.stdout.write(f"saved        {args.save}\n")
     return 0
+
+
+def _check_writable(option: str, path: str) -> None:
+    """Fail before the work when ``path``'s directory does not exist or is not writable
+    (a runtime error naming the option and the path, exit 1)."""
+    import os
+    from pathlib import Path
+
+    parent = Path(path).parent
+    if not parent.is_dir():
+        raise OfflineError(f"{option} {path}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise OfflineError(f"{option} {path}: the directory {parent} is not writable")
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import IO
 
 import pytest
 
@@ -18,6 +19,20 @@ _CFG = (
     "  - {uut: emlog1, reference: dvl}\n"
 )
 _VHW = b"$VWVHW,,T,,M,6.0,N,11.1,K*54"
+
+
+def _readline(stream: IO[str], deadline: float) -> str:
+    """One line of a subprocess's pipe, or "" when none arrives by ``deadline``."""
+    import selectors
+    import time
+
+    sel = selectors.DefaultSelector()
+    sel.register(stream, selectors.EVENT_READ)
+    try:
+        wait = deadline - time.monotonic()
+        return stream.readline() if wait > 0 and sel.select(wait) else ""
+    finally:
+        sel.close()
 
 
 def test_replay_of_a_capture_with_no_configured_port_exits_1(
@@ -88,3 +103,75 @@ def test_the_lag_option_takes_the_bounds_of_the_lag_key(capsys: pytest.CaptureFi
 
     assert main(["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--lag", "-3"]) == 2
     assert f"the config key lag: {lag.text} s" in capsys.readouterr().err
+
+
+def test_one_error_format_for_usage_and_runtime_errors(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A usage error found by a command (simulate --scale 0) and a runtime error read the
+    same: ``emlogd CMD: error: …``; --trace without --method kf is a usage error (exit 2)."""
+    assert main(["simulate", str(tmp_path / "x"), "--scale", "0"]) == 2
+    assert capsys.readouterr().err.startswith("emlogd simulate: error: --scale")
+    argv = ["calibrate", "x.cap", "--uut", "e", "--ref", "d", "--trace", "t.csv"]
+    assert main(argv) == 2
+    assert capsys.readouterr().err.startswith("emlogd calibrate: error: --trace")
+
+
+def test_save_into_a_missing_directory_fails_before_the_fit_and_names_the_path(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """calibrate --save DIR/p.yaml with DIR missing: exit 1 naming that path (no internal
+    temporary file), before the captures are read."""
+    target = tmp_path / "missing" / "p.yaml"
+    argv = ["calibrate", str(trial_files["figure-8"]), "--uut", "emlog1", "--ref", "dvl"]
+    assert main([*argv, "--lag", "3.3", "--save", str(target)]) == 1
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1
+    assert f"--save {target}:" in err and ".tmp" not in err
+
+
+def test_fake_link_to_a_port_the_capture_lacks_names_the_captures_ports(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, write_capture: Callable[..., Path]
+) -> None:
+    """fake --link emlog3=PATH on a capture of emlog1 and dvl: exit 2 naming both."""
+    cap = write_capture({"emlog1": "nmea0183", "dvl": "pd6"}, [(0.0, "emlog1", _VHW, False)])
+    assert main(["fake", str(cap), "--link", f"emlog3={tmp_path / 'l'}"]) == 2
+    err = capsys.readouterr().err
+    assert "no port 'emlog3'" in err and "emlog1, dvl" in err
+
+
+def test_fake_says_when_the_capture_has_ended(
+    tmp_path: Path, write_capture: Callable[..., Path]
+) -> None:
+    """emlogd fake (a subprocess) says on stderr that the capture has ended, while it
+    keeps the link open."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    cap = write_capture(
+        {"emlog1": "nmea0183"}, [(k * 0.01, "emlog1", _VHW, False) for k in range(5)]
+    )
+    link = tmp_path / "links" / "emlog1"
+    root = Path(__file__).resolve().parents[3]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    argv = [sys.executable, "-m", "emlogd", "fake", str(cap), "--link", str(link), "--fast"]
+    fake = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True, env=env)
+    fd = -1
+    try:
+        deadline = time.monotonic() + 20
+        while not link.exists():
+            assert time.monotonic() < deadline and fake.poll() is None
+            time.sleep(0.02)
+        fd = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        assert fake.stderr is not None
+        lines = [_readline(fake.stderr, deadline=time.monotonic() + 10) for _ in range(2)]
+        assert "serving emlog1" in lines[0]
+        assert "has ended (5 records sent)" in lines[1]
+        assert fake.poll() is None  # still serving the link
+    finally:
+        fake.terminate()
+        fake.wait(10)
+        if fd >= 0:
+            os.close(fd)
