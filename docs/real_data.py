@@ -39,9 +39,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,18 +108,48 @@ def kind(path: Path) -> str | None:
     return None
 
 
+PROGRESS_LINE = re.compile(r"emlogd [a-z-]+: \[ *\d+\.\d s\] ")
+"""A progress line of an emlogd command (passed on to this script's stderr as it comes)."""
+
+
 def emlogd(args: list[str], timeout_s: float = 1800.0) -> tuple[int, str, str]:
-    """Run ``python -m emlogd ARGS`` with this tree on the path: (exit code, stdout, stderr)."""
+    """Run ``python -m emlogd ARGS`` with this tree on the path: (exit code, stdout, stderr).
+
+    The command's progress lines are passed on to stderr as they arrive (they are not
+    part of the returned stderr); the command is killed after ``timeout_s``.
+    """
     env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}
-    p = subprocess.run(
-        [sys.executable, "-m", "emlogd", *args],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=timeout_s,
-        check=False,
-    )
-    return p.returncode, p.stdout, p.stderr
+    with tempfile.TemporaryFile("w+", encoding="utf-8") as out:
+        p = subprocess.Popen(
+            [sys.executable, "-m", "emlogd", *args],
+            stdout=out,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        fired = threading.Event()
+
+        def kill() -> None:
+            fired.set()
+            p.kill()
+
+        timer = threading.Timer(timeout_s, kill)
+        timer.start()
+        err: list[str] = []
+        try:
+            assert p.stderr is not None
+            for line in p.stderr:
+                if PROGRESS_LINE.match(line):
+                    say(f"  {line.rstrip()}")
+                else:
+                    err.append(line)
+            code = p.wait()
+        finally:
+            timer.cancel()
+        if fired.is_set():
+            raise subprocess.TimeoutExpired(p.args, timeout_s)
+        out.seek(0)
+        return code, out.read(), "".join(err)
 
 
 def _last_line(text: str) -> str:
@@ -326,9 +358,12 @@ def effective_scale(doc: dict[str, Any] | None, speed_mps: float) -> float | Non
     return params.correct(speed_mps) / speed_mps
 
 
+_STARTED = time.monotonic()
+
+
 def say(msg: str) -> None:
-    """A progress line on stderr."""
-    sys.stderr.write(f"real_data: {msg}\n")
+    """A progress line on stderr, with the time since the script started (flushed)."""
+    sys.stderr.write(f"real_data: [{time.monotonic() - _STARTED:6.1f} s] {msg}\n")
     sys.stderr.flush()
 
 

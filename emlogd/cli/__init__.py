@@ -12,6 +12,7 @@ holds what they share.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import sys
@@ -20,7 +21,7 @@ from collections.abc import Sequence
 from drivers import EmlogdError
 from emlogd import __version__
 from emlogd.cli import daemon, devices, offline
-from emlogd.cli.common import Handler, Parser, UsageError, progress_done
+from emlogd.cli.common import Handler, Parser, UsageError, progress_done, progress_start
 
 __all__ = ["UsageError", "build_parser", "main"]
 
@@ -60,6 +61,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse: --help (0) or usage error (2)
         return int(exc.code) if isinstance(exc.code, int) else 2
     handler: Handler = args.handler
+    progress_start(args.command)
+    with contextlib.suppress(AttributeError, ValueError):  # a replaced stdout (tests)
+        # piped, each line goes out as it is written (a reader sees the work as it happens)
+        sys.stdout.reconfigure(line_buffering=True)  # type: ignore[union-attr]
     try:
         return handler(args)
     except UsageError as exc:

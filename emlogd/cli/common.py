@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import time
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any, NoReturn, TypeAlias
 
 from drivers import EmlogdError
@@ -40,17 +42,61 @@ def is_tty(stream: Any) -> bool:
         return False
 
 
+PROGRESS_QUIET_S = 2.0
+"""Piped progress starts only once a command has run this long (a quick command stays
+silent on stderr)."""
+
+PROGRESS_EVERY_S = 1.0
+"""Piped progress: at most one line per this many seconds for the same message (a new
+message, or the end of one, is always written)."""
+
+
+@dataclass(slots=True)
+class _Progress:
+    """Where the progress of the running command stands (one command per process)."""
+
+    command: str = "emlogd"
+    started: float = field(default_factory=time.monotonic)
+    last_msg: str = ""
+    last_t: float = -math.inf
+
+
+_state = _Progress()
+
+
+def progress_start(command: str) -> None:
+    """A command starts: piped progress lines are prefixed with it and timed from now."""
+    global _state
+    _state = _Progress(command=f"emlogd {command}")
+
+
 def progress(msg: str, fraction: float | None = None) -> None:
-    """Progress on stderr, only when stderr is a terminal."""
-    if not is_tty(sys.stderr):
-        return
+    """Progress on stderr as the work happens.
+
+    On a terminal: one line rewritten in place. Piped: once the command has run
+    :data:`PROGRESS_QUIET_S`, a line per new message and at most one per
+    :data:`PROGRESS_EVERY_S` otherwise (and at 100 %), ``emlogd CMD: [ELAPSED s] MSG PCT``,
+    flushed as written.
+    """
     pct = "" if fraction is None else f" {100.0 * fraction:5.1f} %"
-    sys.stderr.write(f"\r{msg}{pct}\x1b[K")
+    if is_tty(sys.stderr):
+        sys.stderr.write(f"\r{msg}{pct}\x1b[K")
+        sys.stderr.flush()
+        return
+    now = time.monotonic()
+    elapsed = now - _state.started
+    if elapsed < PROGRESS_QUIET_S:
+        return
+    done = fraction is not None and fraction >= 1.0
+    if msg == _state.last_msg and not done and now - _state.last_t < PROGRESS_EVERY_S:
+        return
+    _state.last_msg, _state.last_t = msg, now
+    sys.stderr.write(f"{_state.command}: [{elapsed:6.1f} s] {msg}{pct}\n")
     sys.stderr.flush()
 
 
 def progress_done() -> None:
-    """Clear the progress line."""
+    """Clear the progress line (on a terminal; piped lines stay)."""
     if is_tty(sys.stderr):
         sys.stderr.write("\r\x1b[K")
         sys.stderr.flush()

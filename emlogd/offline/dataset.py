@@ -18,7 +18,7 @@ import dataclasses
 import math
 import os
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -274,11 +274,15 @@ def record_captures(
                 progress(f"read {Path(p).name}", (i + 1) / max(n, 1))
         return out
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        result: list[Recording] = []
-        for i, rec in enumerate(
-            pool.map(_record_job, [(str(p), settings, strict, reorder_window_s) for p in paths])
-        ):
-            result.append(rec)
+        futures = {
+            pool.submit(_record_job, (str(p), settings, strict, reorder_window_s)): i
+            for i, p in enumerate(paths)
+        }
+        done: dict[int, Recording] = {}
+        # said as each capture is read (not in the order given: the first may be the longest)
+        for fut in as_completed(futures):
+            i = futures[fut]
+            done[i] = fut.result()
             if progress is not None:
-                progress(f"read {Path(paths[i]).name}", (i + 1) / n)
-        return result
+                progress(f"read {Path(paths[i]).name}", len(done) / n)
+        return [done[i] for i in range(n)]

@@ -175,3 +175,32 @@ def test_fake_says_when_the_capture_has_ended(
         fake.wait(10)
         if fd >= 0:
             os.close(fd)
+
+
+def test_progress_lines_arrive_while_the_work_runs_when_piped(tmp_path: Path) -> None:
+    """simulate with stderr a pipe: timestamped progress lines (``emlogd simulate:
+    [ELAPSED s] …``) arrive one by one while it runs, not all at its end."""
+    import os
+    import re
+    import subprocess
+    import sys
+    import time
+
+    root = Path(__file__).resolve().parents[3]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    argv = [sys.executable, "-m", "emlogd", "simulate", str(tmp_path / "s"), "--scale", "0.4"]
+    proc = subprocess.Popen(
+        argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env
+    )
+    assert proc.stderr is not None
+    arrivals: list[tuple[float, str]] = []
+    for line in proc.stderr:
+        arrivals.append((time.monotonic(), line))
+    assert proc.wait(60) == 0
+    t_end = time.monotonic()
+    lines = [line for _, line in arrivals]
+    assert len(lines) >= 3
+    assert all(re.match(r"emlogd simulate: \[ *\d+\.\d s\] simulate: ", x) for x in lines)
+    times = [t for t, _ in arrivals]
+    assert times[-1] - times[0] > 0.3  # spread over the work, not one burst
+    assert t_end - times[0] > 0.3  # the first arrived well before the end
