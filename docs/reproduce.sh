@@ -12,8 +12,13 @@ scale="${SCALE:-1}"           # the page uses full scale; SCALE=0.1 for a quick 
 names=(1-transit 2-figure8 3-straight 4-circles 5-return)
 declare -A lag=([emlog1]=3.3 [emlog2]=0.5)   # the true latencies plus the serial transmission
 
+# progress: every stage line says the time since the start; once the first trial is done
+# the script says when it expects the second trial to end (it does the same work)
+SECONDS=0
+stage() { printf '== [%d:%02d] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
 for trial in default tidal; do
   dir="$out/$trial"
+  stage "$trial: simulating the trial (scale $scale)"
   if [ "$trial" = default ]; then
     time emlogd simulate "$dir" --seed 1 --scale "$scale"
   else
@@ -24,7 +29,7 @@ for trial in default tidal; do
   json="$dir/json"
   mkdir -p "$json"
 
-  echo "== $trial: cross-validation against the DVL (the paper's tables)"
+  stage "$trial: cross-validation against the DVL (the paper's tables)"
   for cur in paper current; do
     flag=(); [ "$cur" = current ] && flag=(--current)
     time emlogd crossval "${caps[@]}" --uut emlog1 --ref dvl --lag 3.3 "${flag[@]}" --json \
@@ -35,7 +40,7 @@ for trial in default tidal; do
   emlogd crossval "${caps[@]}" --uut emlog1 --ref emlog2 --ref-field speed --json \
     > "$json/cv-emlog1-emlog2.json"
 
-  echo "== $trial: LS-EM3 trained on each trajectory, scored against the truth on every one"
+  stage "$trial: LS-EM3 trained on each trajectory, scored against the truth on every one"
   for uut in emlog1 emlog2; do
     for train in "${names[@]}"; do
       for cur in paper current; do
@@ -49,7 +54,7 @@ for trial in default tidal; do
     done
   done
 
-  echo "== $trial: the daemon's online calibration (replay), scored against the truth"
+  stage "$trial: the daemon's online calibration (replay), scored against the truth"
   for cur in paper current; do
     c=false; [ "$cur" = current ] && c=true
     cat > "$dir/replay-$cur.yaml" <<EOF
@@ -72,15 +77,20 @@ EOF
     emlogd replay "${caps[@]:2:3}" --config "$dir/replay-auto-$cur.yaml" \
       --state "$dir/state-$cur.yaml" --truth "$dir" --json > "$json/replay-after-$cur.json"
   done
+  if [ "$trial" = default ]; then
+    per=$SECONDS
+    stage "default trial done in $((per / 60)) min $((per % 60)) s; the tidal trial takes" \
+      "about as long: done about $((2 * per / 60 + 1)) min from the start, then the checks"
+  fi
 done
 
-echo "== identifiability of the straight run (default trial)"
+stage "identifiability of the straight run (default trial)"
 emlogd calibrate "$out/default/3-straight.cap" --uut emlog1 --ref dvl --lag 3.3
-echo "== the automatic lag of EMlog1 on the figure-8, with the current states (default trial)"
+stage "the automatic lag of EMlog1 on the figure-8, with the current states (default trial)"
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --current | sed -n 2p
-echo "== KF-EM3 on the figure-8 (default trial)"
+stage "KF-EM3 on the figure-8 (default trial)"
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --method kf
-echo "== KF-EM3 with the current states on the figure-8: the default reading noise, then each log's true one (default trial)"
+stage "KF-EM3 with the current states on the figure-8: the default reading noise, then each log's true one (default trial)"
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --lag 3.3 --method kf \
   --current | grep NIS
 emlogd calibrate "$out/default/2-figure8.cap" --uut emlog1 --ref dvl --lag 3.3 --method kf \
@@ -91,7 +101,7 @@ default_caps=()
 for n in "${names[@]}"; do default_caps+=("$out/default/$n.cap"); done
 emlogd report "${default_caps[@]}" --uut emlog1 --ref dvl --out "$out/figures"
 
-echo "== tables (markdown)"
+stage "tables (markdown)"
 "$python" - "$out" <<'EOF'
 import json, math, sys
 from pathlib import Path
