@@ -199,7 +199,13 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument("--state", metavar="FILE", help="override the config's state file")
     p.set_defaults(handler=cmd_run)
 
-    p = sub.add_parser("check-config", help="validate a config file without starting")
+    p = sub.add_parser(
+        "check-config",
+        help="validate a config file without starting",
+        description="Load and check a config file as `emlogd run` would (every key, its "
+        "range and the ports each calibration names) without opening a device; print the "
+        "config with every default filled in, or each problem with its file, line and key.",
+    )
     p.add_argument("file", help="config file")
     p.set_defaults(handler=cmd_check_config)
 
@@ -214,7 +220,11 @@ def add_control_parsers(sub: Subparsers) -> None:
     ):
         p = sub.add_parser(name, help=text, description=text + " (through the control socket).")
         if name == "learn":
-            p.add_argument("state", choices=["on", "off"])
+            p.add_argument(
+                "state",
+                choices=["on", "off"],
+                help="on: learn from the incoming data; off: keep the current parameters",
+            )
         p.add_argument("--uut", metavar="PORT", help="one UUT only")
         p.add_argument("--config", metavar="FILE", help="config file naming the control socket")
         p.add_argument("--socket", metavar="PATH", help="control socket path")

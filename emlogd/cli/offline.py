@@ -557,8 +557,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         _warn_recs(args.command, recs)
         return 0
+    values = ", ".join(f"{k} = {v:+.5f}" for k, v in cal.params.as_dict().items())
     sys.stdout.write(
-        f"{cal.params.model} {cal.params.as_dict()} from {args.params}, "
+        f"{cal.params.model} ({values}) from {args.params}, "
         f"{settings.port} against {settings.reference_port}, lag {lag_s:.2f} s\n"
     )
     sys.stdout.write(
@@ -791,8 +792,18 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def _pairing_args(p: argparse.ArgumentParser, required: bool = True) -> None:
-    p.add_argument("--uut", required=required, metavar="PORT", help="EMlog port to calibrate")
-    p.add_argument("--ref", required=required, metavar="PORT", help="reference port")
+    p.add_argument(
+        "--uut",
+        required=required,
+        metavar="PORT",
+        help="the EMlog's port" + ("" if required else " (default: the parameters file's)"),
+    )
+    p.add_argument(
+        "--ref",
+        required=required,
+        metavar="PORT",
+        help="the reference's port" + ("" if required else " (default: the parameters file's)"),
+    )
     p.add_argument(
         "--ref-field",
         choices=["bottom", "water", "speed", "gnss"],
@@ -827,7 +838,7 @@ def _water_frame(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _common_offline(p: argparse.ArgumentParser) -> None:
+def _common_offline(p: argparse.ArgumentParser, json_doc: bool = True) -> None:
     _water_frame(p)
     p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
     p.add_argument(
@@ -843,7 +854,8 @@ def _common_offline(p: argparse.ArgumentParser) -> None:
         help="UUT latency (default auto: cross-correlation)",
     )
     _capture_args(p)
-    p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
+    if json_doc:
+        p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
 
 
 def add_parsers(sub: Subparsers) -> None:
@@ -952,7 +964,13 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture v1 files")
     _pairing_args(p)
     _model_arg(p)
-    p.add_argument("--method", choices=["ls", "kf"], default="ls")
+    p.add_argument(
+        "--method",
+        choices=["ls", "kf"],
+        default="ls",
+        help="ls: least squares over all samples (default); kf: the daemon's Kalman filter, "
+        "sample by sample",
+    )
     p.add_argument("--save", metavar="PARAMS.yaml", help="write the calibration file")
     p.add_argument(
         "--trace",
@@ -1042,7 +1060,7 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     _pairing_args(p)
     _model_arg(p)
-    _common_offline(p)
+    _common_offline(p, json_doc=False)  # the figures are the output: their paths on stdout
     p.set_defaults(handler=cmd_report)
 
 
@@ -1060,8 +1078,19 @@ def add_replay_parser(sub: Subparsers) -> None:
         "--state", metavar="FILE", help="load frozen parameters from and persist to FILE"
     )
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--learn", dest="learn", action="store_true", default=None, help="learn")
-    g.add_argument("--no-learn", dest="learn", action="store_false", help="frozen parameters only")
+    g.add_argument(
+        "--learn",
+        dest="learn",
+        action="store_true",
+        default=None,
+        help="learn from the captures (default: each calibration's learn key)",
+    )
+    g.add_argument(
+        "--no-learn",
+        dest="learn",
+        action="store_false",
+        help="do not learn: apply only the parameters loaded with --state",
+    )
     g = p.add_mutually_exclusive_group()
     g.add_argument("--speed", type=positive_float, metavar="X", help="pace at X times real time")
     g.add_argument("--fast", action="store_true", help="as fast as possible (default)")

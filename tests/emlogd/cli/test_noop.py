@@ -204,3 +204,39 @@ def test_progress_lines_arrive_while_the_work_runs_when_piped(tmp_path: Path) ->
     times = [t for t, _ in arrivals]
     assert times[-1] - times[0] > 0.3  # spread over the work, not one burst
     assert t_end - times[0] > 0.3  # the first arrived well before the end
+
+
+def _help(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    assert main([*argv, "--help"]) == 0
+    return capsys.readouterr().out
+
+
+def test_help_gaps_are_closed(capsys: pytest.CaptureFixture[str]) -> None:
+    """check-config has a description; --method, learn's state, replay --learn and
+    simulate --scale say what they do and their default; evaluate --uut does not say
+    "to calibrate"; report has no --json it would ignore."""
+    assert "without opening a device" in _help(["check-config"], capsys)
+    text = " ".join(_help(["calibrate"], capsys).split())
+    assert "least squares over all samples (default)" in text
+    assert "learn from the incoming data" in _help(["learn"], capsys)
+    assert "default: each calibration's learn key" in " ".join(_help(["replay"], capsys).split())
+    assert "(default 1;" in _help(["simulate"], capsys)
+    evaluate = " ".join(_help(["evaluate"], capsys).split())
+    assert "to calibrate" not in evaluate and "default: the parameters file's" in evaluate
+    assert "--json" not in _help(["report"], capsys)
+
+
+def test_evaluate_prints_the_parameters_not_a_python_dict(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """evaluate's first line gives the parameters as ``m = +…, b = +…``, no ``{'m': …}``."""
+    import re
+
+    params = tmp_path / "p.yaml"
+    fig8 = str(trial_files["figure-8"])
+    pair = ["--uut", "emlog1", "--ref", "dvl", "--lag", "3.3"]
+    assert main(["calibrate", fig8, *pair, "--save", str(params)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", fig8, "--params", str(params)]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert "{'" not in first and re.search(r"\(m = [+-]\d\.\d{5}, b = [+-]\d", first)
