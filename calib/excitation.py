@@ -333,7 +333,7 @@ def structural(
     elif scale and stats.speed_std_mps < rule.min_speed_std_mps:
         why = (
             "scale not determinable: speed through water nearly constant "
-            f"(σ {stats.speed_std_mps:.2f} m/s)"
+            f"(spread {stats.speed_std_mps:.2f} m/s)"
         )
         for k in scale:
             refused[k] = why
@@ -430,7 +430,7 @@ def _information(
         sd = stds[worst]
         refused[worst] = (
             f"{_LABEL[worst]} not determinable: weak excitation "
-            f"(σ {sd:.3g} > {rule.max_std(worst) * std_factor:g}{_UNIT[worst]})"
+            f"(standard error {sd:.3g} > {rule.max_std(worst) * std_factor:g}{_UNIT[worst]})"
             if math.isfinite(sd) and ratios[worst] > 1.0
             else f"{_LABEL[worst]} not determinable: information matrix singular"
             if not math.isfinite(sd)

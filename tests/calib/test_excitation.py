@@ -88,7 +88,7 @@ class TestVerdicts:
         ident = identifiability(EM3C, s.u_water_mps, s.raw_mps, SIGMA2, heading_deg=s.heading_deg)
         assert ident.unidentifiable == ("m",)
         assert ident.verdict("m").reason.startswith(
-            "scale not determinable: speed through water nearly constant (σ 0.05 m/s)"
+            "scale not determinable: speed through water nearly constant (spread 0.05 m/s)"
         )
         assert ident.verdict("b").determined and ident.verdict("current").determined
 
