@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
+import re
 import signal
 import sys
 from collections.abc import Callable, Iterator
@@ -14,6 +16,7 @@ from typing import Any
 
 from drivers import DecoderOptions, make_decoder, protocol_names
 from drivers.base import Decoder
+from drivers.records import Rejected
 from emlogd.cli.common import (
     Subparsers,
     UsageError,
@@ -23,7 +26,7 @@ from emlogd.cli.common import (
     progress_done,
 )
 from emlogd.jsonio import to_jsonable
-from emlogd.pipeline.settings import PortSettings
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 _SNIFF_CHUNK = 4096
 
@@ -99,6 +102,15 @@ def _dump_records(args: argparse.Namespace) -> Iterator[tuple[float | None, str,
             yield None, name, out
 
 
+def _own_sentence(rec: object, kinds: dict[str, str]) -> str | None:
+    """``PEMLS``/``PEMLF`` (with the maker given) when ``rec`` is one of emlogd's own
+    proprietary sentences that the NMEA decoder left undecoded, else None."""
+    if not isinstance(rec, Rejected) or rec.reason != "unknown_sentence" or rec.raw[:1] != b"$":
+        return None
+    address = rec.raw[1:].partition(b",")[0].decode("ascii", "replace")
+    return address if address in kinds else None
+
+
 def _format_record(rec: object) -> str:
     d = to_jsonable(rec)
     kind = d.pop("type", type(rec).__name__) if isinstance(d, dict) else type(rec).__name__
@@ -111,22 +123,46 @@ def _format_record(rec: object) -> str:
 def cmd_dump(args: argparse.Namespace) -> int:
     """Decode a capture or a raw log of one protocol; print records and counters."""
     out = sys.stdout
+    own_kinds = {f"P{args.maker}S": "EmlogdStatus", f"P{args.maker}F": "EmlogdFused"}
+    own: dict[str, dict[str, int]] = {}
     for t, port, rec in _dump_records(args):
+        kind = _own_sentence(rec, own_kinds)
+        if kind is not None:  # emlogd's own status or fused sentence: known, not a reject
+            assert isinstance(rec, Rejected)
+            counts = own.setdefault(port, {})
+            counts[kind] = counts.get(kind, 0) + 1
+            body = rec.raw.decode("ascii", "replace").partition("*")[0]
+            rec = {"type": own_kinds[kind], "sentence": kind, "fields": body.split(",")[1:]}
         if args.json:
             line = {"t": t, "port": port, "record": to_jsonable(rec)}
             out.write(json.dumps(line, separators=(",", ":")) + "\n")
         else:
             ts = "-" if t is None else f"{t:.6f}"
             out.write(f"{ts} {port} {_format_record(rec)}\n")
-    summary = {
-        name: {"protocol": proto, **dec.counters.as_dict()}
-        for name, (proto, dec) in args._decoders.items()
-    }
+    summary: dict[str, dict[str, Any]] = {}
+    for name, (proto, dec) in args._decoders.items():
+        counters = dec.counters.as_dict()
+        mine = own.get(name, {})
+        if mine:
+            rejects = dict(counters["rejects"])
+            rejects["unknown_sentence"] -= sum(mine.values())
+            counters = {**counters, "rejects": rejects, "emlogd": mine}
+        summary[name] = {"protocol": proto, **counters}
     if args.json:
         out.write(json.dumps({"summary": summary}, separators=(",", ":")) + "\n")
     else:
         out.write(_summary_table(summary))
     return 0
+
+
+_DEFAULT_MAKER = next(f.default for f in dataclasses.fields(UutSettings) if f.name == "maker")
+
+
+def _maker_arg(value: str) -> str:
+    """dump --maker: three uppercase letters (like the outputs key maker)."""
+    if not re.fullmatch(r"[A-Z]{3}", value):
+        raise argparse.ArgumentTypeError(f"expected three uppercase letters, not {value!r}")
+    return value
 
 
 def _summary_table(summary: dict[str, dict[str, Any]]) -> str:
@@ -136,6 +172,11 @@ def _summary_table(summary: dict[str, dict[str, Any]]) -> str:
         total = sum(rejects.values())
         reasons = ", ".join(f"{k}={v}" for k, v in rejects.items() if v) or "-"
         lines.append(f"{name:<12} {s['protocol']:<9} {s['records']:>8} {total:>8}  {reasons}")
+        mine = s.get("emlogd")
+        if mine:
+            lines.append(
+                f"{'':<12} emlogd's own: " + ", ".join(f"${k} {v}" for k, v in mine.items())
+            )
     return "\n".join(lines) + "\n"
 
 
@@ -293,6 +334,14 @@ def add_parsers(sub: Subparsers) -> None:
         "--checksum-optional",
         action="store_true",
         help="accept NMEA sentences without *hh (a wrong checksum is still rejected)",
+    )
+    p.add_argument(
+        "--maker",
+        default=_DEFAULT_MAKER,
+        type=_maker_arg,
+        metavar="XXX",
+        help=f"emlogd's proprietary maker code: $P+XXX+S (status) and $P+XXX+F (fused) "
+        f"are shown as emlogd's own, not rejects (default {_DEFAULT_MAKER}, the outputs key maker)",
     )
     p.add_argument(
         "--max-length",

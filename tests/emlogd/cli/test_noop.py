@@ -240,3 +240,25 @@ def test_evaluate_prints_the_parameters_not_a_python_dict(
     assert main(["evaluate", fig8, "--params", str(params)]) == 0
     first = capsys.readouterr().out.splitlines()[0]
     assert "{'" not in first and re.search(r"\(m = [+-]\d\.\d{5}, b = [+-]\d", first)
+
+
+def test_dump_knows_emlogds_own_sentences(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """dump of emlogd's output shows $PEMLS and $PEMLF as emlogd's own (fields listed),
+    not as unknown sentences; another proprietary sentence is still a reject."""
+    import json
+
+    from drivers.framing import with_checksum
+
+    body = ["VWVHW,,T,,M,6.00,N,11.11,K", "PEMLS,emlog1,L,EM3,,+0.1712,+0.120,,,,1.02,V",
+            "PEMLF,4.21,0.04,1,emlog2,A,", "PXYZA,1,2"]  # fmt: skip
+    log = tmp_path / "out.nmea"
+    log.write_text("".join(with_checksum(b) + "\r\n" for b in body))
+    assert main(["dump", str(log), "--json"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    kinds = [x["record"]["type"] for x in lines[:-1]]
+    assert kinds == ["Vhw", "EmlogdStatus", "EmlogdFused", "Rejected"]
+    summary = lines[-1]["summary"]["out"]
+    assert summary["emlogd"] == {"PEMLS": 1, "PEMLF": 1}
+    assert summary["rejects"]["unknown_sentence"] == 1
