@@ -262,3 +262,15 @@ def test_dump_knows_emlogds_own_sentences(
     summary = lines[-1]["summary"]["out"]
     assert summary["emlogd"] == {"PEMLS": 1, "PEMLF": 1}
     assert summary["rejects"]["unknown_sentence"] == 1
+
+
+def test_crossval_says_a_lag_fallback_once_on_stderr(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path]
+) -> None:
+    """crossval without --lag on runs the lag search cannot read: 0 s is used and stderr
+    says so once, like calibrate."""
+    caps = [str(trial_files["straight"]), str(trial_files["return"])]
+    assert main(["crossval", *caps, "--uut", "emlog1", "--ref", "dvl", "--workers", "1"]) == 0
+    out, err = capsys.readouterr()
+    assert "lag 0.00 s" in out
+    assert err.count("emlogd crossval: warning: lag not measured") == 1
