@@ -10,6 +10,7 @@ import sys
 import time
 from collections.abc import Sequence
 from datetime import date
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from calib.models import MODEL_NAMES
@@ -46,7 +47,7 @@ if TYPE_CHECKING:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Write the simulated sea trial (five captures, truth.yaml and truth.csv.gz)."""
-    from emlogd.offline.simulate import EMLOG1, EMLOG2, simulate, with_sensor
+    from emlogd.offline.simulate import EMLOG1, EMLOG2, TrajectoryTruth, simulate, with_sensor
 
     if not 0.0 < args.scale <= 10.0:
         raise UsageError(f"--scale must be in (0, 10], not {args.scale}")
@@ -56,6 +57,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             emlogs[port] = with_sensor(emlogs[port], given)
         except ValueError as exc:
             raise UsageError(f"--sensor: {exc}") from None
+
+    def written(tr: TrajectoryTruth, path: Path) -> None:
+        progress_done()
+        lines = sum(tr.lines.values())
+        raw = ", ".join(f"{k} {v:.3f}" for k, v in tr.rmse_raw_mps.items())
+        sys.stdout.write(
+            f"{path}: {tr.duration_s / 60.0:6.1f} min, {lines:8d} lines, raw RMSE m/s: {raw}\n"
+        )
+
     result = simulate(
         args.outdir,
         seed=args.seed,
@@ -65,14 +75,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         circles=args.circles,
         emlogs=(emlogs[EMLOG1.port], emlogs[EMLOG2.port]),
         progress=progress,
+        on_written=written,
     )
     progress_done()
-    for tr, path in zip(result.trajectories, result.files, strict=True):
-        lines = sum(tr.lines.values())
-        raw = ", ".join(f"{k} {v:.3f}" for k, v in tr.rmse_raw_mps.items())
-        sys.stdout.write(
-            f"{path}: {tr.duration_s / 60.0:6.1f} min, {lines:8d} lines, raw RMSE m/s: {raw}\n"
-        )
     sys.stdout.write(f"{result.truth_path}: truth ({result.elapsed_s:.1f} s)\n")
     return 0
 
@@ -512,7 +517,6 @@ def _check_writable(option: str, path: str) -> None:
     """Fail before the work when ``path``'s directory does not exist or is not writable
     (a runtime error naming the option and the path, exit 1)."""
     import os
-    from pathlib import Path
 
     parent = Path(path).parent
     if not parent.is_dir():

@@ -53,7 +53,7 @@ import gzip
 import io
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -672,6 +672,7 @@ def simulate(
     circles: CirclesMode = "steps",
     emlogs: tuple[EmlogSpec, EmlogSpec] = (EMLOG1, EMLOG2),
     progress: ProgressFn | None = None,
+    on_written: Callable[[TrajectoryTruth, Path], None] | None = None,
 ) -> SimulationResult:
     """Write the five trajectories, ``truth.yaml`` and ``truth.csv.gz`` into ``outdir``.
 
@@ -687,6 +688,8 @@ def simulate(
         emlogs: the two EMlogs (ports ``emlog1`` and ``emlog2``; default
             :data:`EMLOG1` and :data:`EMLOG2`), see :func:`check_emlog`.
         progress: called with (message, fraction done) after each trajectory.
+        on_written: called with each trajectory's truth and capture as it is written
+            (a caller can report each file as it comes).
 
     Returns:
         What was written.
@@ -777,6 +780,8 @@ def simulate(
         truths.append(truth)
         files.append(path)
         t0 += duration + GAP_S * scale
+        if on_written is not None:
+            on_written(truth, path)
         if progress is not None:
             progress(f"simulate: {spec.filename}", spec.index / len(TRAJECTORIES))
     _write_truth_csv(out / TRUTH_CSV, np.concatenate(rows))

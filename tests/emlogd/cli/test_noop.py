@@ -274,3 +274,26 @@ def test_crossval_says_a_lag_fallback_once_on_stderr(
     out, err = capsys.readouterr()
     assert "lag 0.00 s" in out
     assert err.count("emlogd crossval: warning: lag not measured") == 1
+
+
+def test_piped_simulate_writes_each_file_as_it_is_written(tmp_path: Path) -> None:
+    """simulate with stdout a pipe: each capture's line arrives when that file is
+    written (stdout line-buffered), the first well before the end."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    root = Path(__file__).resolve().parents[3]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    argv = [sys.executable, "-m", "emlogd", "simulate", str(tmp_path / "s"), "--scale", "0.4"]
+    proc = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env
+    )
+    assert proc.stdout is not None
+    arrivals = [(time.monotonic(), line) for line in proc.stdout]
+    assert proc.wait(60) == 0
+    t_end = time.monotonic()
+    assert len(arrivals) == 6 and "1-transit.cap" in arrivals[0][1]
+    assert arrivals[4][0] - arrivals[0][0] > 0.3  # the five files, one by one
+    assert t_end - arrivals[0][0] > 0.3
