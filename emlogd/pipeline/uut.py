@@ -38,7 +38,7 @@ from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.integrity import PairedWindow, UutHealth
-from emlogd.pipeline.learner import AVERAGE_S, BlockMeans, LagFinder, Learner, RefState
+from emlogd.pipeline.learner import AVERAGE_S, Aligned, BlockMeans, LagFinder, Learner, RefState
 from emlogd.pipeline.supervisor import Supervisor, _Candidate
 
 if TYPE_CHECKING:
@@ -104,9 +104,11 @@ class UutCalibration:
             self.counters,
         )
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
-        self.state: CalState = "frozen" if self.applied is not None else "uncalibrated"
+        self.state: CalState = "uncalibrated"
         self.reason = (
-            "" if self.applied is not None else "no calibration yet: raw readings pass through"
+            "restored calibration awaiting validation: raw readings pass through"
+            if usable is not None
+            else "no calibration yet: raw readings pass through"
         )
         self.freezes = 0
         self.t_persist = -math.inf
@@ -313,18 +315,37 @@ class UutCalibration:
         """Align, check the log's health, learn, supervise: one reading."""
         lr, sup = self.learner, self.sup
         a = lr.align(t, raw, self._heading)
-        fault = sup.health.update(t, raw, a.ref if a.ref_state == "valid" else None)
-        step = lr.step(a, fault, sup.applied)
-        if step.valid and a.ref is not None and not fault:
-            current = lr.kf.current_mps if self.layout.current else None
-            cs = a.cs
-            proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
-            water = current is not None and lr.ident_current()
-            sup.observe(t, raw, a.ref, proj, water, lr)
+        sup.reading(t, a.ref_state not in ("none", "stale"))
+        ref_ok = a.ref if a.ref_state == "valid" else None
+        fault = sup.health.update(t, raw, ref_ok, a.heading)
+        gate = fault
+        if fault:
+            self.counters.uut_fault += 1
+        elif sup.health.stalled(raw, ref_ok):
+            self.counters.uut_stalled += 1
+            gate = "uut_stalled"
+        step = lr.step(a, gate, sup.applied)
+        if step.valid and a.ref is not None and not gate:
+            self._supervise(a)
         self._set_state(t, step.learnt or step.collecting, fault)
         if self.tracer is not None:
             ref = a.ref if step.valid else None
             self.tracer(self._trace_row(t, raw, ref, a.heading, step.innovation, step.learn_set))
+
+    def _supervise(self, a: Aligned) -> None:
+        """The supervisor's verdicts on one reading; a change it saw re-opens the learner."""
+        assert a.ref is not None
+        lr, sup = self.learner, self.sup
+        current = lr.kf.current_mps if self.layout.current else None
+        cs = a.cs
+        proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
+        water = current is not None and lr.ident_current()
+        sup.observe(a.t, a.raw, a.ref, cs, lr, proj=proj, water=water)
+        if sup.reopen:
+            sup.reopen = False
+            lr.kf.reopen(self.layout.params)
+            self.counters.relearn += 1
+            self._emit(a.t, "relearn", {"why": "the supervisor saw the readings change"})
 
     def ident_current(self) -> bool:
         """The current is determined (:meth:`Learner.ident_current`)."""
@@ -430,19 +451,21 @@ class UutCalibration:
         return self.snapshot(t)
 
     def snapshot(self, t: float | None = None) -> Calibration:
-        """The applied calibration as a record (``reset`` when there is none)."""
+        """The calibration to persist: the applied one, else the last good one (withdrawn
+        for cause, it re-validates after a restart); ``reset`` when there is none."""
+        kept = self.sup.kept
         cur = self.kf.current_mps if self.ident_current() else None
         cur_std = self.kf.current_std_mps if cur is not None else None
         return Calibration(
             uut=self.s.port,
-            params=self.applied if self.applied is not None else zero_params(self.s.model),
-            param_std=dict(self.applied_std) if self.applied is not None else {},
+            params=kept if kept is not None else zero_params(self.s.model),
+            param_std=dict(self.sup.kept_std) if kept is not None else {},
             lag_s=self.lag_s,
             current=self.layout.current,
             current_mps=cur,
             current_std_mps=cur_std,
             covariance=tuple(tuple(row) for row in self.kf.covariance())
-            if self.applied is not None
+            if kept is not None
             else (),
             method="online",
             t=t if t is not None else (self.t_prev or 0.0),
@@ -450,5 +473,5 @@ class UutCalibration:
             reference={"port": self.s.reference_port, "field": self.s.reference_field},
             unidentifiable=self.ident.unidentifiable if self.ident is not None else (),
             nis_mean=self.nis_mean(),
-            reset=self.applied is None,
+            reset=kept is None,
         )
