@@ -7,11 +7,13 @@ reading's time, the heading and the learner's offer (through :class:`CandidateSo
 (None: the raw reading passes through), the *previous* one, the *last good* one and a
 candidate under validation.
 
-**Its own evidence** (:class:`FitWindow`): in the water frame, every calibration it
-judges (raw included) gets its own current, fitted by least squares on the heading's
-(cos, sin) over the judging window; a calibration is scored by what that current
-cannot explain. A current therefore cannot make a bad calibration look good: it would
-make raw look as good. Without current states the reference is the judge as it is.
+**Its own evidence** (:class:`SeaMemory`): in the water frame every calibration it
+judges gets its own current, fitted by least squares on the heading's (cos, sin) from
+its own errors over the last :data:`CURRENT_HALF_LIFE_S`; a calibration is scored by
+what that current cannot explain, and raw is scored in the sea as the applied
+calibration sees it (its own current would take its offset on every straight leg). A
+current therefore cannot make a bad calibration look good. Without current states the
+reference is the judge as it is.
 
 Rules (the constants are this module's):
 
@@ -24,7 +26,7 @@ Rules (the constants are this module's):
   :data:`VALIDATION_MIN_SAMPLES`); it is applied only if it beats the raw reading and
   is within :data:`CANDIDATE_FACTOR` / :data:`CANDIDATE_MARGIN_MPS` of the applied one.
 - **Re-check**: the applied calibration is scored against raw over a forgetting
-  window of ``recheck_s``; once worse than raw (:data:`WORSE_FACTOR`,
+  window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
   else to raw pass-through.
 - **Change detection**: a two-sided CUSUM on the applied calibration's innovations
@@ -38,8 +40,8 @@ Rules (the constants are this module's):
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again.
-- **Restored** (state file, warm start): validated like a new candidate before it is
-  applied, raw passing through meanwhile; when no reference has been heard
+- **Restored** (state file, warm start): validated before it is applied (over
+  :data:`RESTORE_VALIDATION_S`, not worse than raw), raw passing through meanwhile; when no reference has been heard
   :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
   status) and validated in place once a reference arrives.
 """

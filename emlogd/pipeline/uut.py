@@ -9,8 +9,9 @@ It joins two parts with a narrow boundary:
 - the **learner** (:class:`emlogd.pipeline.learner.Learner`): the lag, alignment,
   identifiability, the filter and block means — what the readings teach;
 - the **supervisor** (:class:`emlogd.pipeline.supervisor.Supervisor`): what is
-  applied — validation, re-check, fallback, the applied and previous calibrations,
-  the log's health. It sees readings, references, headings and the learner's offer.
+  applied — validation, re-check, change detection, fallback, the applied, previous
+  and last good calibrations, the log's health. It sees readings, references,
+  headings and the learner's offer.
 
 **Emitting** (:meth:`UutCalibration.correct`) uses only the *applied* calibration:
 the last one that beat the raw reading on data it had not learnt from, else the raw
@@ -19,9 +20,9 @@ latency is the decoder's. **Learning** (:meth:`UutCalibration.learn`): a reading
 in a short queue until its reference has arrived, then is aligned, checked for the
 log's health, learnt from, and scored by the supervisor.
 
-Errors are scored in the water frame when the UUT has current states: a calibration's
-corrected speed plus the estimated current projected on the hull, against the
-reference over the ground.
+The supervisor's verdicts rest on its own evidence (each calibration's own current,
+fitted from its own errors), never on the learner's current; the learner's current
+only feeds the status's water-frame score and the VDR sentence.
 """
 
 from __future__ import annotations
