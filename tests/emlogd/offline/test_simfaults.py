@@ -1,4 +1,4 @@
-"""The supervisor against simulated faults, scored against the truth per 5-min window.
+"""Simulated faults and the per-window truth score, and the supervisor against them.
 
 The fast tests pin the fault injection and the window score; the trials (``soak``: a
 simulated trial and a replay each, tens of seconds) hold the acceptance: over every
