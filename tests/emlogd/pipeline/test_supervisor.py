@@ -1,63 +1,85 @@
-"""The supervisor's own evidence: per-calibration currents, the change detector."""
+"""The supervisor on its own: what it applies before, without and after a reference."""
 
 from __future__ import annotations
 
-import math
+from collections.abc import Mapping
 
-import pytest
+from calib.models import Layout, Params, check_model
+from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.counters import Counters
+from emlogd.pipeline.learner import Offer
+from emlogd.pipeline.supervisor import RESTORE_WAIT_S, Supervisor
 
-from calib.models import Params
-from emlogd.pipeline.supervisor import CUSUM_H, Cusum, FitWindow, SeaMemory
-
-
-def _cs(deg: float) -> tuple[float, float]:
-    return math.cos(math.radians(deg)), math.sin(math.radians(deg))
-
-
-def test_a_current_is_fitted_away_and_an_offset_is_not_in_a_turn() -> None:
-    """Over a full turn, a current leaves no residual; a sensor's offset stays whole."""
-    w = FitWindow(2, water=True)
-    for k in range(360):
-        h = _cs(float(k))
-        current_err = -(0.3 * h[0] + 0.1 * h[1])  # p(raw) − ref for a perfect sensor
-        w.add(float(k), h, (current_err, current_err + 0.2))
-    assert w.rmse(0) == pytest.approx(0.0, abs=0.005)
-    assert w.rmse(1) == pytest.approx(0.2, abs=0.005)
-    assert w.current(0) == pytest.approx((0.3, 0.1), abs=1e-3)
+RESTORED = Params("EM3", m=0.1, b_mps=0.05)
 
 
-def test_without_current_states_the_window_fits_the_mean() -> None:
-    """Paper frame: the prediction is the window's mean error."""
-    w = FitWindow(1, water=False)
-    for k in range(50):
-        w.add(float(k), None, (0.1 + (0.01 if k % 2 else -0.01),))
-    assert w.predict(0, None) == pytest.approx(0.1, abs=1e-3)
-    assert w.rmse(0) == pytest.approx(0.01, abs=1e-3)
+class _NoOffer:
+    """A learner with nothing to offer."""
+
+    def offer(self) -> Offer | None:
+        return None
+
+    @property
+    def param_std(self) -> Mapping[str, float]:
+        return {"m": 0.01, "b": 0.01}
 
 
-def test_sea_memory_fits_each_calibrations_own_current() -> None:
-    """The same samples give raw and a calibration different currents (their offsets
-    differ along the hull); on a full turn each is the sea's."""
-    mem = SeaMemory()
-    p = Params("EM3", m=0.1, b_mps=0.0)
-    for k in range(360):
-        u = 2.0
-        h = _cs(float(k))
-        ref = u + 0.2 * h[0]
-        mem.add(float(k), p.forward(u), ref, h)
-    b_cal = mem.current(p, 360.0)
-    b_raw = mem.current(None, 360.0)
-    assert b_cal == pytest.approx((-0.2, 0.0), abs=0.01)
-    assert b_raw == pytest.approx((-0.2, 0.0), abs=0.05)  # its offset leaks little
+def _applied(sup: Supervisor) -> Params | None:
+    """The applied calibration now (a call: what a step changes is not narrowed away)."""
+    return sup.applied
 
 
-def test_the_cusum_ignores_one_glitch_and_alarms_on_a_step() -> None:
-    """One 50σ sample is clipped; a run of 10σ samples alarms within three."""
-    c = Cusum()
-    assert not c.add(50.0, 1.0, 0.0)
-    for _ in range(5):
-        c.add(0.0, 0.0, 0.0)
-    assert c.hi == 0.0
-    alarms = [c.add(10.0, 0.5, 0.1) for _ in range(3)]
-    assert alarms == [False, False, True]
-    assert c.ss_app > c.ss_raw and c.hi > CUSUM_H
+def _sup(restored: Params | None = RESTORED) -> tuple[Supervisor, list[str]]:
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0)
+    kinds: list[str] = []
+    sup = Supervisor(
+        s,
+        Layout(check_model(s.model), s.current),
+        restored,
+        {"m": 0.01, "b": 0.01},
+        lambda t, k, d: kinds.append(k),
+        Counters(),
+    )
+    return sup, kinds
+
+
+def test_a_restored_calibration_waits_for_its_validation() -> None:
+    """Raw passes through; the calibration is the candidate and the last good one."""
+    sup, _ = _sup()
+    assert _applied(sup) is None and sup.correct(2.0) == 2.0
+    assert sup.candidate is not None and sup.candidate.kind == "restored"
+    assert sup.kept == RESTORED and "awaiting validation" in sup.note
+
+
+def test_without_a_reference_it_is_applied_unverified() -> None:
+    """No reference heard RESTORE_WAIT_S after the first reading: applied, unverified."""
+    sup, kinds = _sup()
+    sup.reading(0.0, False)
+    sup.reading(RESTORE_WAIT_S - 1.0, False)
+    assert _applied(sup) is None
+    sup.reading(RESTORE_WAIT_S, False)
+    assert _applied(sup) == RESTORED and sup.unverified and "unverified" in sup.note
+    assert kinds == ["calibration_unverified"]
+
+
+def test_a_reference_heard_keeps_it_waiting() -> None:
+    """Once a reference has been heard, the restored calibration must validate first."""
+    sup, _ = _sup()
+    sup.reading(0.0, True)
+    sup.reading(10.0 * RESTORE_WAIT_S, False)
+    assert _applied(sup) is None
+
+
+def test_a_validated_restored_calibration_is_applied() -> None:
+    """Scored against a reference the calibration explains, it is applied."""
+    sup, kinds = _sup()
+    for k in range(40):
+        u = 1.5 + 0.02 * k
+        sup.observe(float(k), RESTORED.forward(u), u, None, _NoOffer())
+    assert _applied(sup) == RESTORED and "calibrated" in kinds
+
+
+def test_nothing_restored_is_a_reset() -> None:
+    """Without a calibration there is nothing to keep."""
+    sup, _ = _sup(None)
+    assert sup.kept is None and sup.candidate is None and sup.note == ""
