@@ -350,7 +350,7 @@ import resource, sys
 from pathlib import Path
 from drivers.io.capture import CaptureReader
 from emlogd.config import load_config
-from emlogd.pipeline.core import Output, Pipeline
+from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
 def rss():
     for line in Path("/proc/self/status").read_text().splitlines():
@@ -363,7 +363,6 @@ span = 0.0
 t_last = 0.0
 hour = None
 offset = 0.0
-out = Output()
 n = 0
 while span < 24 * 3600:
     first = None
@@ -372,11 +371,10 @@ while span < 24 * 3600:
             t = r.t + offset
             if first is None:
                 first = t
-            p.feed(t, r.port, r.data, out)
+            p.feed(t, r.port, r.data)
             n += 1
             if n % 2000 == 0:
-                p.tick(t, out)
-            out.emits.clear(); out.events.clear(); out.persist.clear()
+                p.tick(t)
             t_last = t
     span += t_last - first
     offset = t_last + 1.0 - (first - offset)

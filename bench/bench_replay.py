@@ -29,7 +29,7 @@ from drivers.io.capture import CaptureReader
 from emlogd.config import load_config
 from emlogd.offline.replay import TICK_S
 from emlogd.offline.simulate import simulate
-from emlogd.pipeline.core import Output, Pipeline
+from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,18 +71,14 @@ def _pipeline(
     p = Pipeline(ports, uuts)
     sink: list[bytes] = []
     t0 = time.perf_counter()
-    out = Output()
     t_tick = -1e18
     for t, port, data in records:
-        p.feed(t, port, data, out)
-        if t - t_tick >= TICK_S:  # as emlogd.offline.replay does
-            t_tick = t
-            p.tick(t, out)
+        out = p.feed(t, port, data)
         if out.emits:
             sink.append(b"".join(e.sentence.encode() + b"\r\n" for e in out.emits))
-            out.emits.clear()
-        out.events.clear()
-        out.persist.clear()
+        if t - t_tick >= TICK_S:  # as emlogd.offline.replay does
+            t_tick = t
+            p.tick(t)
     return time.perf_counter() - t0, p
 
 

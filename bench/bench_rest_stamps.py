@@ -20,7 +20,7 @@ from pathlib import Path
 from drivers.io.capture import CaptureReader
 from emlogd.config import load_config
 from emlogd.offline.simulate import simulate
-from emlogd.pipeline.core import Output, Pipeline
+from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,12 +57,8 @@ def main() -> None:
         ports, uuts = pipeline_from_config(cfg)
         uuts = [dataclasses.replace(u, lag_s=LAGS_S[u.port]) for u in uuts]
         pipe = Pipeline(ports, uuts)
-        out = Output()
         for t, port, data in _rested(records, rest):
-            pipe.feed(t, port, data, out)
-            out.emits.clear()
-            out.events.clear()
-            out.persist.clear()
+            pipe.feed(t, port, data)
         status = pipe.status()["uuts"]
         assert isinstance(status, dict)
         cells = []

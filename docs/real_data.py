@@ -25,7 +25,7 @@ from drivers.io.capture import CaptureReader
 from drivers.nmea0183 import Vdr
 from emlogd.offline.importer import EXPEDITION, import_csv, import_nmea
 from emlogd.offline.jobs import calibrate, concat_usable, load_captures
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 KN = 0.514444
 FILES = {

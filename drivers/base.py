@@ -16,6 +16,10 @@ in :attr:`Decoder.counters`, whatever the error policy:
 - ``errors="yield"``: a :class:`~drivers.records.Rejected` record is yielded;
 - ``errors="skip"``: the frame is dropped (but counted). The daemon runs this way.
 
+A frame whose decoding fails with any other exception (a bug, or a library's
+surprise) is contained the same way: it becomes a :class:`~drivers.errors.FrameError`
+of reason ``internal`` naming the exception, and the frames after it are decoded.
+
 Must not import: serial, os, time, threading (pure module).
 """
 
@@ -145,6 +149,11 @@ class Decoder(ABC, Generic[R]):
                 if not exc.raw:
                     exc.raw = item[:256]
                 yield from self._reject(exc)
+                continue
+            except Exception as exc:  # contained: one frame is lost, not the stream
+                err = FrameError(f"{type(exc).__name__}: {exc}", item, reason="internal")
+                err.__cause__ = exc
+                yield from self._reject(err)
                 continue
             self.counters.records += 1
             yield record

@@ -19,8 +19,13 @@ RejectReason = Literal[
     "unknown_sentence",
     "bad_field",
     "out_of_range",
+    "internal",
 ]
-"""Why a frame was rejected. Every rejection increments exactly one counter."""
+"""Why a frame was rejected. Every rejection increments exactly one counter.
+
+``internal``: handling the frame failed in a way no check foresaw (an exception that is
+no :class:`FrameError`, in the decoder or in the pipeline after it): the frame is
+dropped, counted and logged, and the run goes on."""
 
 REJECT_REASONS: tuple[RejectReason, ...] = (
     "checksum",
@@ -30,6 +35,7 @@ REJECT_REASONS: tuple[RejectReason, ...] = (
     "unknown_sentence",
     "bad_field",
     "out_of_range",
+    "internal",
 )
 
 

@@ -15,9 +15,12 @@ missing one unless the port is configured ``checksum: optional``). Then:
 - Rowe ``$PRTI01``/``$PRTI02`` (pynmea2 has no class for them) are parsed here,
   12- and 14-field forms.
 
-Units out: m/s, degrees, nautical miles, °C. VHW speed is taken from knots, else
-from km/h; ``units_disagree`` flags a knots/km/h pair that differs by more than the
-two-decimal rounding allows. VBW: the water pair is valid when *its own* status is
+Units out: m/s, degrees, nautical miles, °C. Every field is range-checked before it
+goes into a record (docs/PROTOCOLS.md lists each range): a value outside is an
+``out_of_range`` reject, never a record. Directions come out in [0, 360) (a sent 360
+reads as 0), deviations and variations within ±180°. VHW speed is taken from knots,
+else from km/h; a knots/km/h pair that differs by more than the fields' rounding
+allows is refused (``out_of_range``: the sender contradicts itself). VBW: the water pair is valid when *its own* status is
 ``A`` whatever the ground pair says (pynmea2's ``VBW.is_valid`` wants both).
 
 PRTI velocities are taken as the vessel's motion (Rowe's native sign, see
@@ -42,10 +45,32 @@ import pynmea2
 from drivers.base import FramedDecoder, Framer
 from drivers.errors import FieldError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer, split_nmea, with_checksum
-from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord
+from drivers.records import KMH_MPS, KNOT_MPS, MAX_DEPTH_M, WATER_TEMP_RANGE_C, SpeedRecord
 
 MAX_SPEED_MPS = 40.0
 """Largest plausible speed of a survey vehicle (~78 kn); beyond is out_of_range."""
+
+MAX_OFFSET_DEG = 180.0
+"""Largest magnitude of a deviation or variation (HDG, RMC); beyond is out_of_range."""
+
+MAX_HDOP = 99.9
+"""Largest horizontal dilution of precision a GGA field can hold (``99.9``)."""
+
+MAX_SATELLITES = 99
+"""Largest satellite count a GGA field can hold (two digits)."""
+
+MAX_FIX_QUALITY = 9
+"""Largest GGA fix-quality indicator (0 no fix .. 8 simulator, 9 WAAS on some receivers)."""
+
+ZDA_YEARS = (1980, 2199)
+"""Years a ZDA date may name (GNSS time starts in 1980); outside is out_of_range."""
+
+UNITS_ROUNDING = 1.5
+"""VHW knots/km/h: how many units of the coarser field's last decimal the pair may
+differ by (each is rounded to its own decimals) before it is refused."""
+
+UNITS_RELATIVE = 0.01
+"""VHW knots/km/h: relative difference allowed on top of :data:`UNITS_ROUNDING`."""
 
 PRTI_INVALID = -99999
 """Rowe's invalid-velocity marker in $PRTI sentences (mm/s)."""
@@ -66,7 +91,6 @@ class Vhw:
         stw_kmh: speed through water as sent in km/h, or None.
         stw_mps: speed through water in m/s (from knots, else km/h), or None when
             both are empty (the record then gives an invalid speed record).
-        units_disagree: knots and km/h both present and inconsistent.
     """
 
     talker: str
@@ -75,7 +99,6 @@ class Vhw:
     stw_knots: float | None
     stw_kmh: float | None
     stw_mps: float | None
-    units_disagree: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -294,8 +317,25 @@ def _flag(field: str, allowed: str, name: str, raw: bytes) -> str:
 
 
 def _heading(x: float | None, name: str, raw: bytes) -> float | None:
-    if x is not None and not 0.0 <= x <= 360.0:
+    """A direction: within 0..360 as sent, returned in [0, 360) (360 reads as 0)."""
+    if x is None:
+        return None
+    if not 0.0 <= x <= 360.0:
         raise OutOfRangeError(f"{name} {x} outside 0..360", raw)
+    return 0.0 if x == 360.0 else x
+
+
+def _offset(x: float | None, name: str, raw: bytes) -> float | None:
+    """A deviation or variation: within ±:data:`MAX_OFFSET_DEG`."""
+    if x is not None and not -MAX_OFFSET_DEG <= x <= MAX_OFFSET_DEG:
+        raise OutOfRangeError(f"{name} {x} beyond ±{MAX_OFFSET_DEG:g}", raw)
+    return x
+
+
+def _temperature(x: float | None, name: str, raw: bytes) -> float | None:
+    lo, hi = WATER_TEMP_RANGE_C
+    if x is not None and not lo <= x <= hi:
+        raise OutOfRangeError(f"{name} {x} °C outside {lo:g}..{hi:g}", raw)
     return x
 
 
@@ -332,16 +372,18 @@ def parse_vhw(talker: str, f: list[str], raw: bytes) -> Vhw:
     _flag(f[7], "K", "VHW field 8", raw)
     mps = kn * KNOT_MPS if kn is not None else (kmh * KMH_MPS if kmh is not None else None)
     _speed(mps, "STW", raw)
-    return Vhw(talker, ht, hm, kn, kmh, mps, _units_disagree(kn, kmh, f[4], f[6]))
+    if kn is not None and kmh is not None:
+        _speed(kmh * KMH_MPS, "STW km/h", raw)
+        if _units_disagree(kn, kmh, f[4], f[6]):
+            raise OutOfRangeError(f"VHW speed {kn} kn and {kmh} km/h disagree", raw)
+    return Vhw(talker, ht, hm, kn, kmh, mps)
 
 
-def _units_disagree(kn: float | None, kmh: float | None, kn_field: str, kmh_field: str) -> bool:
-    """Knots and km/h both sent and further apart than their rounding allows."""
-    if kn is None or kmh is None:
-        return False
-    # each field is rounded to its own decimals: allow one unit of the coarser one
+def _units_disagree(kn: float, kmh: float, kn_field: str, kmh_field: str) -> bool:
+    """Knots and km/h further apart than their rounding allows."""
+    # each field is rounded to its own decimals: allow a unit and a half of the coarser one
     decimals = min(_decimals(kn_field), _decimals(kmh_field))
-    tol_kmh = 1.5 * 10.0**-decimals * 1.852 + 0.01 * abs(kmh)
+    tol_kmh = UNITS_ROUNDING * 10.0**-decimals * 1.852 + UNITS_RELATIVE * abs(kmh)
     return abs(kn * 1.852 - kmh) > tol_kmh
 
 
@@ -439,9 +481,7 @@ def parse_mtw(talker: str, f: list[str], text: str, raw: bytes) -> Mtw:
     _flag(f[1], "C", "MTW unit", raw)
     msg = _with_pynmea2("MTW", text, raw)
     temp = _pyn_num(getattr(msg, "temperature", None), "MTW temperature", raw)
-    if temp is not None and not -5.0 <= temp <= 60.0:
-        raise OutOfRangeError(f"water temperature {temp} °C outside -5..60", raw)
-    return Mtw(talker, temp)
+    return Mtw(talker, _temperature(temp, "water temperature", raw))
 
 
 def _signed(value: float | None, direction: str, name: str, raw: bytes) -> float | None:
@@ -471,8 +511,8 @@ def parse_heading(kind: str, talker: str, f: list[str], text: str, raw: bytes) -
         kind,
         heading,
         False,
-        _signed(dev, f[2], "HDG deviation direction", raw),
-        _signed(var, f[4], "HDG variation direction", raw),
+        _offset(_signed(dev, f[2], "HDG deviation direction", raw), "HDG deviation", raw),
+        _offset(_signed(var, f[4], "HDG variation direction", raw), "HDG variation", raw),
     )
 
 
@@ -510,6 +550,12 @@ def parse_prti(sentence: str, f: list[str], raw: bytes) -> Prti:
     wm = [_mm(f[i], f"water velocity {i - 6}", raw) for i in (7, 8, 9)]
     wdepth = _int(f[10], "water depth", raw) / 1000.0 if f[10] else None
     status = _int(f[11], "status", raw, 16) if f[11] else 0
+    if start < 0.0 or sample < 0 or status < 0:
+        raise OutOfRangeError(f"{sentence} start time, sample or status negative", raw)
+    _temperature(temp, f"{sentence} temperature", raw)
+    for d, name in ((depth, "bottom depth"), (wdepth, "water depth")):
+        if d is not None and not 0.0 <= d <= MAX_DEPTH_M:
+            raise OutOfRangeError(f"{sentence} {name} {d} m outside 0..{MAX_DEPTH_M:g}", raw)
     bottom = _vec3(bt)
     water = _vec3(wm)
     for vec, name in ((bottom, "bottom"), (water, "water")):
@@ -590,9 +636,11 @@ def parse_rmc(talker: str, f: list[str], raw: bytes) -> Rmc:
         raise OutOfRangeError(f"RMC speed {sog:.2f} m/s is negative", raw)
     cog = _heading(_num(f[7], "RMC course", raw), "RMC course", raw)
     day = _date(f[8], raw)
-    var = _signed(_num(f[9], "RMC variation", raw), f[10], "RMC variation direction", raw)
-    if var is not None and abs(var) > 180.0:
-        raise OutOfRangeError(f"RMC variation {var} beyond ±180", raw)
+    var = _offset(
+        _signed(_num(f[9], "RMC variation", raw), f[10], "RMC variation direction", raw),
+        "RMC variation",
+        raw,
+    )
     return Rmc(talker, _at(day, tod), tod, active, lat, lon, sog, cog, var, _mode(f, 11, raw))
 
 
@@ -625,6 +673,12 @@ def parse_gga(talker: str, f: list[str], raw: bytes) -> Gga:
     quality = _int(f[5], "GGA fix quality", raw) if f[5] else 0
     sats = _int(f[6], "GGA satellites", raw) if f[6] else None
     hdop = _num(f[7], "GGA HDOP", raw)
+    if not 0 <= quality <= MAX_FIX_QUALITY:
+        raise OutOfRangeError(f"GGA fix quality {quality} outside 0..{MAX_FIX_QUALITY}", raw)
+    if sats is not None and not 0 <= sats <= MAX_SATELLITES:
+        raise OutOfRangeError(f"GGA satellites {sats} outside 0..{MAX_SATELLITES}", raw)
+    if hdop is not None and not 0.0 <= hdop <= MAX_HDOP:
+        raise OutOfRangeError(f"GGA HDOP {hdop} outside 0..{MAX_HDOP:g}", raw)
     return Gga(talker, tod, lat, lon, quality, sats, hdop)
 
 
@@ -635,11 +689,12 @@ def parse_zda(talker: str, f: list[str], raw: bytes) -> Zda:
     tod = _time_of_day(f[0], raw)
     if not (f[1] and f[2] and f[3]):
         return Zda(talker, None)
+    year = _int(f[3], "ZDA year", raw)
+    if not ZDA_YEARS[0] <= year <= ZDA_YEARS[1]:
+        raise OutOfRangeError(f"ZDA year {year} outside {ZDA_YEARS[0]}..{ZDA_YEARS[1]}", raw)
     try:
-        day = date(
-            _int(f[3], "ZDA year", raw), _int(f[2], "ZDA month", raw), _int(f[1], "ZDA day", raw)
-        )
-    except ValueError:
+        day = date(year, _int(f[2], "ZDA month", raw), _int(f[1], "ZDA day", raw))
+    except (ValueError, OverflowError):
         raise OutOfRangeError("ZDA date out of range", raw) from None
     return Zda(talker, _at(day, tod))
 

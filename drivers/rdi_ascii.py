@@ -35,7 +35,16 @@ from typing import ClassVar, TypeAlias, TypeVar, get_args
 from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
-from drivers.records import Rejected, SpeedRecord
+from drivers.records import (
+    MAX_DEPTH_M,
+    MAX_PITCH_DEG,
+    MAX_ROLL_DEG,
+    SALINITY_RANGE_PPT,
+    SOUND_SPEED_RANGE_MPS,
+    WATER_TEMP_RANGE_C,
+    Rejected,
+    SpeedRecord,
+)
 
 INVALID = -32768
 """PD6/PD0 invalid-velocity marker, mm/s."""
@@ -219,17 +228,44 @@ def _dmg_of(
 
 
 def _attitude(pitch: float, roll: float, heading: float, raw: bytes) -> tuple[float, float, float]:
-    if not (-90 <= pitch <= 90 and -180 <= roll <= 180 and 0 <= heading <= 360):
+    """Pitch, roll and heading within range; a heading of 360 reads as 0."""
+    if not (
+        -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
+        and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
+        and 0 <= heading <= 360
+    ):
         raise OutOfRangeError(f":SA attitude {pitch}, {roll}, {heading} out of range", raw)
-    return pitch, roll, heading
+    return pitch, roll, 0.0 if heading == 360 else heading
 
 
 def _environment(
     stamp: str, sal: float, temp: float, depth: float, c: float, bit: int, raw: bytes
 ) -> tuple[str, float, float, float, float, int]:
-    if not (0 <= sal <= 50 and -5 <= temp <= 60 and 1300 <= c <= 1700):
-        raise OutOfRangeError(f":TS environment {sal}, {temp}, {c} out of range", raw)
+    if not (
+        SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
+        and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
+        and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
+        and 0 <= depth <= MAX_DEPTH_M
+    ):
+        raise OutOfRangeError(f":TS environment {sal}, {temp}, {depth}, {c} out of range", raw)
+    if not _stamp_ok(stamp):
+        raise OutOfRangeError(f":TS time {stamp!r} is no date and time", raw)
     return stamp, sal, temp, depth, c, bit
+
+
+def _stamp_ok(stamp: str) -> bool:
+    """``YYMMDDHHmmsshh`` names a real month, day, hour, minute and second."""
+    mo, d, h, mi, sec = (int(stamp[i : i + 2]) for i in (2, 4, 6, 8, 10))
+    return 1 <= mo <= 12 and 1 <= d <= 31 and h < 24 and mi < 60 and sec < 60
+
+
+def _ranges(
+    p: float, r: list[float], raw: bytes
+) -> tuple[float, tuple[float, float, float, float]]:
+    """:RA pressure (kPa) and four beam ranges (dm → m), none negative."""
+    if p < 0 or min(r) < 0 or max(r) / 10.0 > MAX_DEPTH_M:
+        raise OutOfRangeError(f":RA pressure {p} or ranges {r} out of range", raw)
+    return p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0)
 
 
 def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
@@ -285,8 +321,8 @@ def _ts(g: _Groups, kind: str, raw: bytes) -> object:
 
 
 def _ra(g: _Groups, kind: str, raw: bytes) -> object:
-    p, r1, r2, r3, r4 = map(float, g)
-    return p, (r1 / 10.0, r2 / 10.0, r3 / 10.0, r4 / 10.0)
+    p, *r = map(float, g)
+    return _ranges(p, r, raw)
 
 
 def _vel(g: _Groups, kind: str, raw: bytes) -> object:
@@ -368,7 +404,7 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
         if len(fields) != 5:
             raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
         p, *r = (_num(f, ":RA", frame) for f in fields)
-        return kind, (p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0))
+        return kind, _ranges(p, r, frame)
     if kind in ("WI", "BI"):
         return kind, _velocity(fields, 4, kind, frame)
     if kind in ("WS", "WE", "BS", "BE"):
@@ -434,6 +470,12 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
                     exc.raw = item[:256]
                 self._damage(f"line rejected ({exc.reason})")
                 yield from self._reject(exc)
+                continue
+            except Exception as exc:  # contained as in Decoder.feed: an internal reject
+                err = FrameError(f"{type(exc).__name__}: {exc}", item, reason="internal")
+                err.__cause__ = exc
+                self._damage("line rejected (internal)")
+                yield from self._reject(err)
                 continue
             done = self._assemble(kind, value, item)
             if done is None:

@@ -33,7 +33,15 @@ from typing import ClassVar, Literal, TypeAlias
 from drivers.base import FramedDecoder, Framer
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
-from drivers.records import SpeedRecord
+from drivers.records import (
+    MAX_DEPTH_M,
+    MAX_PITCH_DEG,
+    MAX_ROLL_DEG,
+    SALINITY_RANGE_PPT,
+    SOUND_SPEED_RANGE_MPS,
+    WATER_TEMP_RANGE_C,
+    SpeedRecord,
+)
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
 FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
@@ -165,6 +173,10 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         )
         if heading > 36000:
             raise OutOfRangeError(f"heading {heading / 100} outside 0..360", frame)
+        _leader_ranges(pitch / 100.0, roll / 100.0, temp / 100.0, sal, c, depth_dm / 10.0, frame)
+        _, mo, d, h, mi, sec, hs = rtc
+        if not (1 <= mo <= 12 and 1 <= d <= 31 and h < 24 and mi < 60 and sec < 60 and hs < 100):
+            raise OutOfRangeError(f"real-time clock {rtc} is no date and time", frame)
         bt_v = bt_r = None
         bt = blocks.get(BOTTOM_TRACK)
         if bt is not None:
@@ -185,7 +197,7 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
             n_cells=n_cells,
             frequency_khz=FREQUENCIES_KHZ[config & 7],
             serial_number=serial,
-            heading_deg=heading / 100.0,
+            heading_deg=0.0 if heading == 36000 else heading / 100.0,
             pitch_deg=pitch / 100.0,
             roll_deg=roll / 100.0,
             temperature_c=temp / 100.0,
@@ -213,6 +225,25 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
             tr = a * math.cos(psi) - b * math.sin(psi)
             return (SpeedRecord(port, "sog", "bottom", lon, tr, True, hdg, None, "PD0:BT"),)
         return (SpeedRecord(port, "sog", "bottom", b, a, True, hdg, None, "PD0:BT"),)
+
+
+def _leader_ranges(
+    pitch: float, roll: float, temp: float, sal: float, c: float, depth: float, raw: bytes
+) -> None:
+    """The variable leader's attitude and environment within their physical ranges."""
+    if not (
+        -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
+        and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
+        and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
+        and SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
+        and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
+        and depth <= MAX_DEPTH_M
+    ):
+        raise OutOfRangeError(
+            f"pitch {pitch}, roll {roll}, temperature {temp}, salinity {sal}, "
+            f"sound speed {c} or depth {depth} out of range",
+            raw,
+        )
 
 
 # ------------------------------------------------------------------ encoder

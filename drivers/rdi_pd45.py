@@ -29,8 +29,16 @@ from typing import ClassVar, Literal, TypeAlias
 
 from drivers.base import FramedDecoder, Framer
 from drivers.binframe import BinaryFramer, sum16
-from drivers.errors import FieldError
-from drivers.records import SpeedRecord
+from drivers.errors import FieldError, OutOfRangeError
+from drivers.records import (
+    MAX_DEPTH_M,
+    MAX_PITCH_DEG,
+    MAX_ROLL_DEG,
+    SALINITY_RANGE_PPT,
+    SOUND_SPEED_RANGE_MPS,
+    WATER_TEMP_RANGE_C,
+    SpeedRecord,
+)
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
 FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
@@ -131,6 +139,21 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
             raise FieldError(f"structure {sid} with {len(frame)} bytes", frame)
         f = _PD4.unpack_from(frame, 0)
         config = f[3]
+        h, m, sec, hundredths = f[20:24]
+        c, temp = float(f[25]), f[26] / 100.0
+        if not (
+            h < 24
+            and m < 60
+            and sec < 60
+            and hundredths < 100
+            and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
+            and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
+        ):
+            raise OutOfRangeError(
+                f"first ping {h}:{m}:{sec}.{hundredths}, sound speed {c} or temperature {temp} "
+                "out of range",
+                frame,
+            )
         common = {
             "format": "PD5" if sid == 1 else "PD4",
             "coord_frame": FRAMES[(config >> 6) & 3],
@@ -142,19 +165,32 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
             "water_status": f[19],
             "first_ping": (f[20], f[21], f[22], f[23]),
             "bit": f[24],
-            "sound_speed_mps": float(f[25]),
-            "temperature_c": f[26] / 100.0,
+            "sound_speed_mps": c,
+            "temperature_c": temp,
         }
         if sid == 0:
             return Pd45Ensemble(**common)
         g = _PD5_EXTRA.unpack_from(frame, _PD4.size)
+        sal, depth, pitch, roll, hdg = float(g[0]), g[1] / 10.0, g[2] / 100.0, g[3] / 100.0, g[4]
+        if not (
+            SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
+            and depth <= MAX_DEPTH_M
+            and -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
+            and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
+            and hdg <= 36000
+        ):
+            raise OutOfRangeError(
+                f"PD5 salinity {sal}, depth {depth}, pitch {pitch}, roll {roll} or heading "
+                f"{hdg / 100} out of range",
+                frame,
+            )
         return Pd45Ensemble(
             **common,
-            salinity_ppt=float(g[0]),
-            depth_m=g[1] / 10.0,
-            pitch_deg=g[2] / 100.0,
-            roll_deg=g[3] / 100.0,
-            heading_deg=g[4] / 100.0,
+            salinity_ppt=sal,
+            depth_m=depth,
+            pitch_deg=pitch,
+            roll_deg=roll,
+            heading_deg=0.0 if hdg == 36000 else hdg / 100.0,
             bottom_dmg_dm=(g[5], g[6], g[7], g[8]),
             water_dmg_dm=(g[9], g[10], g[11], g[12]),
         )

@@ -41,6 +41,27 @@ KNOT_MPS = 1852.0 / 3600.0
 KMH_MPS = 1000.0 / 3600.0
 """One km/h in m/s (exact)."""
 
+# Physical ranges the decoders check every field against (docs/PROTOCOLS.md, "Field
+# ranges"): a value outside is an ``out_of_range`` reject, never a record.
+
+WATER_TEMP_RANGE_C = (-5.0, 60.0)
+"""Plausible water (or instrument) temperature, °C."""
+
+SALINITY_RANGE_PPT = (0.0, 50.0)
+"""Plausible salinity, ppt."""
+
+SOUND_SPEED_RANGE_MPS = (1300.0, 1700.0)
+"""Plausible speed of sound in water, m/s."""
+
+MAX_PITCH_DEG = 90.0
+"""Largest pitch magnitude, degrees."""
+
+MAX_ROLL_DEG = 180.0
+"""Largest roll magnitude, degrees."""
+
+MAX_DEPTH_M = 12_000.0
+"""Deepest instrument or bottom depth, m (the deepest ocean is ~11 km)."""
+
 
 @dataclass(frozen=True, slots=True)
 class SpeedRecord:

@@ -24,6 +24,9 @@ YAML, under a kind and a schema version, one entry per UUT, each a
         unidentifiable: []
         nis_mean: 1.01
         extra: {}             # producer's notes (offline: captures, RMSE)
+    others:                   # the daemon's state only: each UUT's other error models
+      emlog1:
+        EM4: {...}            # an entry as above, kept for a switch back to EM4
     end: true                 # last key: a truncated file is detected
 
 Parsing is strict (:class:`CalibrationFileError` names the key); whether a record may
@@ -33,7 +36,7 @@ be *used* is :func:`emlogd.pipeline.calibration.check`, applied by whoever loads
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
 from typing import Any
 
@@ -83,16 +86,27 @@ def to_dict(cal: Calibration, extra: Mapping[str, Any] | None = None) -> dict[st
 
 
 def dumps(
-    cals: Mapping[str, Calibration], extra: Mapping[str, Mapping[str, Any]] | None = None
+    cals: Mapping[str, Calibration],
+    extra: Mapping[str, Mapping[str, Any]] | None = None,
+    others: Iterable[Calibration] = (),
 ) -> str:
-    """The file's text (the end marker comes last, so a truncated file is detected)."""
-    doc = {
+    """The file's text (the end marker comes last, so a truncated file is detected).
+
+    ``others``: calibrations of the UUTs' other error models (the daemon's state), under
+    ``others`` by UUT and model; the section is left out when there are none.
+    """
+    doc: dict[str, Any] = {
         "kind": KIND,
         "schema": SCHEMA,
         "saved_at": datetime.now(UTC).isoformat(timespec="seconds"),
         "uuts": {uut: to_dict(c, (extra or {}).get(uut)) for uut, c in cals.items()},
-        "end": True,
     }
+    by_uut: dict[str, dict[str, Any]] = {}
+    for c in others:
+        by_uut.setdefault(c.uut, {})[c.params.model] = to_dict(c)
+    if by_uut:
+        doc["others"] = by_uut
+    doc["end"] = True
     return "# emlogd calibration (do not edit while the daemon runs)\n" + yaml.safe_dump(
         doc, sort_keys=False
     )
@@ -189,6 +203,25 @@ def loads(text: str) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]]]
     Raises:
         CalibrationFileError: not YAML, wrong kind or schema, truncated, malformed.
     """
+    cals, extras, _ = _parse(text)
+    return cals, extras
+
+
+def loads_state(text: str) -> tuple[dict[str, Calibration], list[Calibration]]:
+    """Parse a state file's text: the records in use by UUT, and the UUTs' records of
+    their other error models (``others``).
+
+    Raises:
+        CalibrationFileError: as :func:`loads`; also an ``others`` entry whose model is
+            not the one it is filed under.
+    """
+    cals, _, others = _parse(text)
+    return cals, others
+
+
+def _parse(
+    text: str,
+) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]], list[Calibration]]:
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -206,4 +239,18 @@ def loads(text: str) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]]]
     extras: dict[str, dict[str, Any]] = {}
     for k, v in uuts.items():
         cals[str(k)], extras[str(k)] = from_dict(str(k), v)
-    return cals, extras
+    others: list[Calibration] = []
+    kept = doc.get("others") or {}
+    if not isinstance(kept, dict):
+        raise CalibrationFileError("others: expected a mapping of UUTs")
+    for uut, models in kept.items():
+        if not isinstance(models, dict):
+            raise CalibrationFileError(f"others.{uut}: expected a mapping of models")
+        for model, entry in models.items():
+            cal, _ = from_dict(str(uut), entry)
+            if cal.params.model != model:
+                raise CalibrationFileError(
+                    f"others.{uut}.{model}: holds a {cal.params.model} calibration"
+                )
+            others.append(cal)
+    return cals, extras, others

@@ -2,8 +2,8 @@
 
 Every key is declared once, as a dataclass field made with
 :func:`emlogd.pipeline.keys.key` (its default, check, unit and doc): the pipeline's
-keys on the pipeline's own settings (:class:`~emlogd.pipeline.core.PortSettings`,
-:class:`~emlogd.pipeline.core.UutSettings`,
+keys on the pipeline's own settings (:class:`~emlogd.pipeline.settings.PortSettings`,
+:class:`~emlogd.pipeline.settings.UutSettings`,
 :class:`~emlogd.pipeline.integrity.Envelope`), the daemon's on the dataclasses here.
 Validation, :func:`dump_config` and :func:`key_table` (README's "Configuration
 reference") read those declarations, and the loaded config holds the pipeline's
@@ -26,7 +26,6 @@ from typing import Any, Literal
 import yaml
 
 from drivers.errors import ConfigError
-from emlogd.pipeline.core import PortSettings, UutSettings
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
     Entry,
@@ -43,6 +42,7 @@ from emlogd.pipeline.keys import (
     opt_string,
     string,
 )
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
 DVL_PROTOCOLS = ("pd6", "pd13", "pd0", "pd4", "pd5", "nmea0183")
@@ -161,7 +161,28 @@ class OutputConfig:
         doc="The pty's group (its readers, e.g. the autopilot's user); null: unchanged.",
     )
     tcp: str | None = key(
-        None, check=hostport, doc="NMEA over TCP, e.g. `:10110` (several clients)."
+        None,
+        check=hostport,
+        doc="NMEA over TCP, e.g. `127.0.0.1:10110` (several clients); `0.0.0.0:10110` or "
+        "`:10110` listens on every interface.",
+    )
+    tcp_max_clients: int = key(
+        32,
+        check=number(1, 1024, integer=True),
+        doc="Most clients of a TCP output; a newcomer beyond it evicts the client stalled "
+        "longest, else the most recently connected.",
+    )
+    tcp_max_pending_bytes: int = key(
+        64 * 1024,
+        check=number(1024, 64 * 1024 * 1024, integer=True),
+        unit="bytes",
+        doc="A TCP client with more output pending (unsent or unacknowledged) is closed.",
+    )
+    tcp_stall_s: float = key(
+        10.0,
+        check=number(0.0, 3600.0, lo_open=True),
+        unit="s",
+        doc="A TCP client that takes nothing this long while output is pending is closed.",
     )
     udp: str | None = key(None, check=hostport, doc="NMEA over UDP, e.g. `192.168.1.255:10110`.")
     stdout: bool = key(
@@ -187,13 +208,39 @@ class OutputConfig:
         "each",
         check=literal(Speed),
         doc="each: every log's corrected sentences; fused: one speed for the autopilot, the "
-        "inverse-variance weighted mean of every healthy log (`$PEMLF` says which); both: "
-        "the two.",
+        "inverse-variance weighted mean of the healthy logs that agree, else invalid "
+        "(`$PEMLF` says which are used and why the others are not); both: the two.",
     )
     fused_talker: str = key(
         FusionSettings().talker,
         check=string(_TALKER, "two uppercase letters"),
         doc="The talker of the fused speed's sentences.",
+    )
+    fused_gate_chi2: float = key(
+        FusionSettings().gate_chi2,
+        check=number(1.0, 1000.0),
+        doc="Two logs whose smoothed difference, squared over their consistency variances, "
+        "exceeds this disagree and are never averaged (6.63: 1 % for one degree of freedom).",
+    )
+    fused_hold_s: float = key(
+        FusionSettings().hold_s,
+        check=number(0.0, 3600.0),
+        unit="s",
+        doc="A log with an implausible reading (spike, dropout, babble) stays out of the fused "
+        "speed this long.",
+    )
+    fused_rejoin_s: float = key(
+        FusionSettings().rejoin_s,
+        check=number(0.0, 3600.0),
+        unit="s",
+        doc="Two disagreeing logs are fused again after agreeing this long.",
+    )
+    fused_max_current_mps: float = key(
+        FusionSettings().max_current_mps,
+        check=number(0.0, 10.0),
+        unit="m/s",
+        doc="The largest current: between two disagreeing logs, one further than this (+0.9 "
+        "m/s of GNSS noise) from the speed over ground is left out.",
     )
 
 

@@ -140,6 +140,32 @@ class TestImportDirection:
                 banned = ("emlogd.daemon", "emlogd.offline", "emlogd.cli")
                 assert not _within(mod, banned), (path, mod)
 
+    def test_the_pipelines_modules_import_one_way(self) -> None:
+        """No import cycle among the modules of emlogd/pipeline (imports for type checking
+        only count too): the settings live apart from the classes that read them."""
+        folder = ROOT / "emlogd" / "pipeline"
+        graph = {
+            f"emlogd.pipeline.{path.stem}": {
+                mod for mod in _modules(path) if _within(mod, ("emlogd.pipeline",))
+            }
+            for path in sorted(folder.glob("*.py"))
+            if path.name != "__init__.py"
+        }
+        assert graph["emlogd.pipeline.core"]  # the graph is read (core imports its parts)
+        done: set[str] = set()
+
+        def visit(mod: str, path: tuple[str, ...]) -> None:
+            if mod in path:
+                raise AssertionError(f"import cycle: {' -> '.join((*path, mod))}")
+            if mod in done:
+                return
+            for dep in sorted(graph.get(mod, ())):
+                visit(dep, (*path, mod))
+            done.add(mod)
+
+        for mod in sorted(graph):
+            visit(mod, ())
+
     def test_daemon_never_imports_matplotlib(self) -> None:
         """Plots are an optional extra: only the report module may import matplotlib."""
         for path in _sources("emlogd"):

@@ -18,6 +18,13 @@ without terminator), it is ``hex:`` + the bytes in lowercase hex, given back exa
 The reader streams (constant memory, any file size) and names the file and line
 of anything malformed, or counts and skips malformed records (``errors="skip"``); a file whose name ends in ``.gz`` is read through gzip. The
 writer refuses unknown ports and times going backwards.
+
+Times are read tolerantly (:class:`CaptureReader`): records up to ``reorder_window_s``
+out of order (receive-time jitter between ports) are given back sorted; a record
+further back is skipped alone (``out_of_order``), and so is a record that jumps
+forward when the records after it do not follow it (a corrupted time: a forward
+outlier is judged by the records after it, so it never makes the rest of the file
+"go backwards").
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import gzip
 import math
 import re
 import zlib
+from collections import deque
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -91,14 +99,26 @@ SKIP_REASONS = (
     "unknown_port",
     "missing_payload",
     "bad_hex",
-    "time_backwards",
+    "out_of_order",
     "late_header",
     "truncated",
 )
 """Why a record is skipped (``errors="skip"``): the keys of :attr:`CaptureReader.skipped`."""
 
+CONFIRM_RECORDS = 3
+"""How many records after a forward jump in time may fail to follow it before it is judged
+a bad time (``out_of_order``); one that follows it makes the jump real."""
+
+REORDER_WINDOW_S = 0.2
+"""Default of ``reorder_window_s``: how far (s) a record may come before one it follows and
+still be put back in order (receive-time jitter of a busy machine is tens of ms)."""
+
 MAX_SKIPPED_LINES = 10
 """How many skipped lines :attr:`CaptureReader.skipped_lines` keeps (the first ones)."""
+
+
+_Scanned = tuple[float, str, bytes, bytes, int]
+"""A well-formed record as read: (t, port, payload, data, line)."""
 
 
 class _BadRecordError(Exception):
@@ -110,6 +130,89 @@ class _BadRecordError(Exception):
         self.message = message
 
 
+class _Order:
+    """The time order of :meth:`CaptureReader._scan` (see :class:`CaptureReader`): the
+    window of records not yet given back, the newest time accepted, and a forward jump
+    being judged by the records after it."""
+
+    def __init__(self, reader: CaptureReader, window: float) -> None:
+        self.reader = reader
+        self.window = window
+        self.buf: deque[_Scanned] = deque()
+        """The window: records by time, equal times in file order."""
+        self.top = -math.inf
+        """The newest time accepted."""
+        self.held: _Scanned | None = None
+        """A record that jumped forward, being judged."""
+        self.followers: list[_Scanned] = []
+        """The records after it that do not follow it."""
+
+    def push(self, rec: _Scanned) -> list[_Scanned]:
+        """Take one record; return the records it releases, in time order."""
+        out: list[_Scanned] = []
+        window, buf = self.window, self.buf
+        queue = deque([rec])
+        while queue:
+            rec = queue.popleft()
+            t = rec[0]
+            held = self.held
+            if held is not None:
+                if t >= held[0] - window:  # the jump is followed: real
+                    self.top = held[0] - window  # it is taken in order now
+                    queue.extendleft(reversed([held, *self.followers, rec]))
+                    self.held, self.followers = None, []
+                    continue
+                self.followers.append(rec)
+                if len(self.followers) >= CONFIRM_RECORDS:  # nothing follows it: a bad time
+                    self.reader._jumped(held, self.followers[0])
+                    queue.extendleft(reversed(self.followers))
+                    self.held, self.followers = None, []
+                continue
+            top = self.top
+            if t > top + window:  # a jump forward (or the first record): judge it
+                self.held = rec
+                continue
+            if t >= top:
+                self.top = t
+                buf.append(rec)
+                while buf[0][0] < t - window:
+                    out.append(buf.popleft())
+                continue
+            if t < top - window:
+                self.reader._skip(
+                    rec[4],
+                    _BadRecordError(
+                        "out_of_order", f"time {t:.6f} more than {window:g} s before {top:.6f}"
+                    ),
+                )
+                continue
+            i = len(buf)  # within the window: put it back in its place
+            while i and buf[i - 1][0] > t:
+                i -= 1
+            buf.insert(i, rec)
+            self.reader.reordered += 1
+        return out
+
+    def end(self) -> list[_Scanned]:
+        """The end of the records: judge a jump still held (it stands unless records after
+        it contradict it), then give back the window."""
+        out: list[_Scanned] = []
+        while self.held is not None:
+            held, followers = self.held, self.followers
+            self.held, self.followers = None, []
+            if followers:
+                self.reader._jumped(held, followers[0])
+                again = followers
+            else:
+                self.top = held[0] - self.window  # it is taken in order now
+                again = [held]
+            for rec in again:
+                out.extend(self.push(rec))
+        out.extend(self.buf)
+        self.buf.clear()
+        return out
+
+
 class CaptureReader:
     """Stream the records of a capture file.
 
@@ -118,27 +221,50 @@ class CaptureReader:
 
     With ``errors="raise"`` (the default) the first malformed record raises; with
     ``errors="skip"`` a record that cannot be parsed (not ASCII, no time, a bad time,
-    an unknown port, no payload, bad hex, a time going backwards, a port header after
+    an unknown port, no payload, bad hex, a time out of order, a port header after
     the records) is counted by reason in :attr:`skipped`, its line and message kept in
     :attr:`skipped_lines` (the first :data:`MAX_SKIPPED_LINES`), and reading goes on;
     a gzip stream cut short ends the records (reason ``truncated``). A malformed
     header always raises. Line numbers count ``\\n`` from 1, as editors and
     ``sed -n`` do, in the decompressed text of a ``.gz`` file.
 
+    Times: records are held back ``reorder_window_s`` (of file time) and given back
+    sorted by time (equal times in file order), so jitter within the window costs
+    nothing; :attr:`reordered` counts the records that came back in another place. A
+    record older than one already given back is ``out_of_order``. A record more than
+    the window ahead of the newest time read is held until the next record: if that
+    one is more than the window before it, the jump was a corrupted time and the
+    record is ``out_of_order``; otherwise the jump is real (a pause in the capture). The
+    first record is judged the same way.
+    So one record with a wrong time, before or after, costs that record only.
+
     Args:
         path: the capture file.
         errors: ``"raise"`` or ``"skip"``.
+        reorder_window_s: the window (s, ≥ 0; 0: every record must follow the last).
 
     Raises:
         CaptureFormatError: (on creation or while iterating) naming file and line.
         OSError: the file cannot be opened.
     """
 
-    def __init__(self, path: str | Path, *, errors: Literal["raise", "skip"] = "raise") -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        errors: Literal["raise", "skip"] = "raise",
+        reorder_window_s: float = REORDER_WINDOW_S,
+    ) -> None:
         if errors not in ("raise", "skip"):
             raise ValueError(f"errors must be 'raise' or 'skip', not {errors!r}")
+        if not (math.isfinite(reorder_window_s) and reorder_window_s >= 0.0):
+            raise ValueError(f"reorder_window_s must be ≥ 0, not {reorder_window_s!r}")
         self.path = str(path)
         self.errors = errors
+        self.reorder_window_s = float(reorder_window_s)
+        self.reordered = 0
+        """Records the last (or current) iteration put back before records read earlier
+        (in time order, within the window)."""
         self.ports: dict[str, str] = {}
         self.skipped: dict[str, int] = {}
         self.skipped_lines: list[tuple[int, str]] = []
@@ -154,10 +280,12 @@ class CaptureReader:
         return sum(self.skipped.values())
 
     def skip_report(self) -> dict[str, object]:
-        """``{"skipped": n, "reasons": {reason: n}, "first": [{"line", "error"}]}``."""
+        """``{"skipped": n, "reasons": {reason: n}, "reordered": n, "first": [{"line",
+        "error"}]}``."""
         return {
             "skipped": self.n_skipped,
             "reasons": dict(self.skipped),
+            "reordered": self.reordered,
             "first": [{"line": n, "error": msg} for n, msg in self.skipped_lines],
         }
 
@@ -211,15 +339,46 @@ class CaptureReader:
             yield t, port, data, n
 
     def _scan(self) -> Iterator[tuple[float, str, bytes, bytes, int]]:
-        """``(t, port, payload, data, line)`` of every good record; the bad ones raise
-        or are skipped. A line of the form the writer writes is read by one pattern
-        match; any other line (a comment, an odd but valid record, a bad one) by the
-        checks of :meth:`_record`, which name what is wrong."""
+        """``(t, port, payload, data, line)`` of every good record, in time order (see the
+        class docstring); the bad ones raise or are skipped. A record in order within the
+        window of the newest (nearly every one) is taken here; :class:`_Order` judges the
+        others."""
         self.skipped = {}
         self.skipped_lines = []
+        self.reordered = 0
+        window = self.reorder_window_s
+        order = _Order(self, window)
+        buf = order.buf
+        for rec in self._parse():
+            t = rec[0]
+            top = order.top
+            if top <= t <= top + window and order.held is None:
+                order.top = t
+                buf.append(rec)
+                limit = t - window
+                while buf[0][0] < limit:
+                    yield buf.popleft()
+                continue
+            yield from order.push(rec)
+        yield from order.end()
+
+    def _jumped(self, rec: _Scanned, after: _Scanned) -> None:
+        self._skip(
+            rec[4],
+            _BadRecordError(
+                "out_of_order",
+                f"time {rec[0]:.6f} jumps ahead of the records after it ({after[0]:.6f} "
+                f"on line {after[4]})",
+            ),
+        )
+
+    def _parse(self) -> Iterator[_Scanned]:
+        """``(t, port, payload, data, line)`` of every well-formed record in file order;
+        the bad ones raise or are skipped. A line of the form the writer writes is read
+        by one pattern match; any other line (a comment, an odd but valid record, a bad
+        one) by the checks of :meth:`_record`, which name what is wrong."""
         ports = {name.encode("ascii"): name for name in self.ports}
         good = _GOOD_RECORD
-        last_t = -math.inf
         in_header = True
         n = 0
         with _open_binary(self.path) as f:
@@ -231,7 +390,7 @@ class CaptureReader:
                         stamp, name, payload = m.groups()
                         port = ports.get(name)
                         t = float(stamp)
-                        if port is not None and t >= last_t:
+                        if port is not None:
                             if payload[:4] != _HEX_B:
                                 data = payload + b"\r\n"
                             else:
@@ -241,7 +400,6 @@ class CaptureReader:
                                     data = b""  # named by _record's checks below
                             if data:
                                 in_header = False
-                                last_t = t
                                 yield t, port, payload, data, n
                                 continue
                     if n == 1:
@@ -258,11 +416,6 @@ class CaptureReader:
                             continue
                         in_header = False
                         rec = self._record(line, n)
-                        if rec.t < last_t:
-                            raise _BadRecordError(
-                                "time_backwards",
-                                f"time goes backwards ({rec.t:.6f} < {last_t:.6f})",
-                            )
                     except UnicodeDecodeError:
                         self._skip(
                             n,
@@ -272,7 +425,6 @@ class CaptureReader:
                     except _BadRecordError as bad:
                         self._skip(n, bad)
                         continue
-                    last_t = rec.t
                     yield rec.t, rec.port, rec.payload.encode("ascii"), rec.data, n
             except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
                 self._skip(

@@ -50,7 +50,8 @@ def _socket_path(args: argparse.Namespace) -> str:
 
 
 def _status_text(resp: dict[str, Any]) -> str:
-    """The daemon's ``status`` answer as lines of text: one per UUT, one per port."""
+    """The daemon's ``status`` answer as lines of text: one per UUT (and its heading), one
+    per port."""
     status = resp.get("status") or {}
     lines = []
     for name, u in (status.get("uuts") or {}).items():
@@ -71,6 +72,9 @@ def _status_text(resp: dict[str, Any]) -> str:
                 f"{u.get('scored_samples', '?')} samples{gain}"
             )
         lines.append(line)
+        heading = u.get("heading")
+        if isinstance(heading, dict):
+            lines.append(f"  {_heading_line(heading)}; {u.get('reason') or 'learning'}")
     for name, p in (status.get("ports") or {}).items():
         rejects = p.get("rejects") or {}
         total = sum(rejects.values())
@@ -88,6 +92,23 @@ def _status_text(resp: dict[str, Any]) -> str:
     return "".join(line + "\n" for line in lines)
 
 
+def _heading_line(h: dict[str, Any]) -> str:
+    """A UUT's heading: its port, the variation and its source, refusals, the check."""
+    text = f"heading from {h.get('port') or 'no port yet'}"
+    var = h.get("variation_deg")
+    if isinstance(var, float | int):
+        text += f", variation {var:+.2f}° ({h.get('variation_source')})"
+    if h.get("refused_magnetic"):
+        text += f", {h['refused_magnetic']} magnetic headings refused (no variation)"
+    check = h.get("check") or {}
+    off = check.get("offset_deg")
+    if isinstance(off, float | int):
+        text += f", {off:+.1f}° from the course" + (
+            " — FLAGGED, not used" if check.get("flagged") else ""
+        )
+    return text
+
+
 def _change_text(command: str, resp: dict[str, Any]) -> str:
     """The answer to ``freeze``, ``learn`` or ``reset`` as one line of text."""
     uuts = resp.get("uuts")
@@ -98,7 +119,25 @@ def _change_text(command: str, resp: dict[str, Any]) -> str:
         return f"{names}: frozen (learning off)\n"
     if command == "learn":
         return f"{names}: learning {'on' if resp.get('learning') else 'off'}\n"
-    return f"{names}: calibration forgotten (uncalibrated until learnt again)\n"
+    reset = resp.get("reset")
+    if not isinstance(reset, dict):
+        return f"{names}: calibration forgotten (uncalibrated until learnt again)\n"
+    return "".join(f"{name}: {_reset_text(r)}\n" for name, r in reset.items())
+
+
+def _reset_text(r: Any) -> str:
+    """What a reset of one UUT cleared and kept, in a few words."""
+    cleared = r.get("cleared") if isinstance(r, dict) else None
+    kept = r.get("kept") if isinstance(r, dict) else None
+    parts = []
+    if isinstance(cleared, list) and cleared:
+        parts.append("cleared " + ", ".join(str(c) for c in cleared))
+    if isinstance(kept, dict):
+        lag = kept.get("lag_s")
+        lag_text = f"lag {lag:.3f} s" if isinstance(lag, int | float) else "lag not known yet"
+        on = "on" if kept.get("learning_enabled") else "off"
+        parts.append(f"kept {lag_text}, learning {on}")
+    return "; ".join(parts) or "calibration forgotten"
 
 
 def cmd_control(args: argparse.Namespace) -> int:

@@ -13,6 +13,7 @@ from datetime import date
 from typing import TYPE_CHECKING, Any
 
 from calib.models import MODEL_NAMES
+from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.cli.common import Subparsers, UsageError, positive_float, progress, progress_done
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import (
@@ -25,7 +26,7 @@ from emlogd.offline.jobs import (
     save_params,
 )
 from emlogd.offline.tables import fmt, render, table2, table3
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 if TYPE_CHECKING:
     from calib.models import Params
@@ -151,6 +152,12 @@ def _date_arg(value: str) -> date:
         raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, not {value!r}") from None
 
 
+def _import_presets() -> list[str]:
+    from emlogd.offline.importer import PRESETS
+
+    return list(PRESETS)
+
+
 def cmd_import(args: argparse.Namespace) -> int:
     """Turn NMEA logs or CSV exports into a capture."""
     from emlogd.offline import importer
@@ -158,7 +165,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     if not args.port or not args.port.isidentifier():
         raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
     if args.format == "nmea":
-        for opt in ("map", "preset", "time_format", "heading_ref"):
+        for opt in ("map", "preset", "time_format", "heading_ref", "utc_offset", "variation"):
             if getattr(args, opt) is not None:
                 raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
         report = importer.import_nmea(
@@ -169,17 +176,15 @@ def cmd_import(args: argparse.Namespace) -> int:
             raise UsageError("--date applies to --format nmea only")
         if len(args.files) != 1:
             raise UsageError("--format csv imports one file at a time")
-        if args.preset is None and args.map is None:
-            raise UsageError("--format csv needs --map key=Column,... or --preset expedition")
-        mapping = dict(importer.EXPEDITION) if args.preset == "expedition" else {}
-        if args.map is not None:
-            mapping.update(importer.parse_map(args.map))
         report = importer.import_csv(
             args.files[0],
             args.out,
-            mapping,
-            time_format=args.time_format or "ole",
-            heading_ref=args.heading_ref or "true",
+            importer.parse_map(args.map) if args.map is not None else None,
+            preset=args.preset,
+            time_format=args.time_format,
+            heading_ref=args.heading_ref,
+            utc_offset_h=args.utc_offset,
+            variation_deg=args.variation,
             port=args.port,
             progress=progress,
         )
@@ -201,8 +206,30 @@ def cmd_import(args: argparse.Namespace) -> int:
         + (", ".join(f"{k} {v}" for k, v in sorted(skipped.items())) or "none")
         + "\n"
     )
+    for k, v in sorted(report.cells.items()):
+        sys.stdout.write(f"cell skipped {k} {v}\n")
     for k, v in sorted(report.notes.items()):
         sys.stdout.write(f"note         {k} {v}\n")
+    if report.preset is not None:
+        sys.stdout.write(f"preset       {report.preset}\n")
+    check = report.heading_check
+    if check is not None and isinstance(check.get("offset_deg"), float):
+        sys.stdout.write(
+            f"heading      {check['offset_deg']:+.1f}° from the course on straight legs"
+            + (
+                f" — more than leeway explains ({check['max_offset_deg']}°): is it "
+                "magnetic (--heading-ref magnetic), or the compass wrong?\n"
+                if check.get("flagged")
+                else "\n"
+            )
+        )
+    if report.variation == "none":
+        sys.stdout.write(
+            "heading      magnetic, and no variation nor position: give --variation DEG "
+            "(here or to calibrate)\n"
+        )
+    elif report.variation is not None:
+        sys.stdout.write(f"heading      magnetic, variation from the {report.variation}\n")
     return 0
 
 
@@ -244,6 +271,33 @@ def _lag_arg(value: str) -> float | None:
 
 STRICT_HELP = "fail at the first malformed capture record instead of counting and skipping it"
 
+REORDER_HELP = (
+    "capture records up to S seconds out of time order are put back in order "
+    f"(default {REORDER_WINDOW_S:g}; 0: each must follow the last)"
+)
+
+
+def _window_arg(value: str) -> float:
+    try:
+        x = float(value)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and x >= 0.0):
+        raise argparse.ArgumentTypeError(f"expected seconds ≥ 0, not {value!r}")
+    return x
+
+
+def _capture_args(p: argparse.ArgumentParser) -> None:
+    """``--strict`` and ``--reorder-window``: how a command reads captures."""
+    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    p.add_argument(
+        "--reorder-window",
+        type=_window_arg,
+        default=REORDER_WINDOW_S,
+        metavar="S",
+        help=REORDER_HELP,
+    )
+
 
 def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
     """One warning line on stderr per capture with malformed records skipped."""
@@ -261,6 +315,27 @@ def _warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
         )
 
 
+def _warn_internal(command: str, where: str, report: dict[str, object]) -> None:
+    """One warning line when records failed unforeseen and were contained."""
+    n = report.get("count", 0)
+    first = report.get("first")
+    if not isinstance(n, int) or n == 0 or not isinstance(first, list) or not first:
+        return
+    f = first[0]
+    sys.stderr.write(
+        f"emlogd {command}: warning: {where}: {n} record{'s' if n != 1 else ''} failed "
+        f"and {'were' if n != 1 else 'was'} skipped (first on port {f['port']}: {f['error']}; "
+        f"data {f['data']!r})\n"
+    )
+
+
+def _warn_recs(command: str, recs: Sequence[Recording]) -> None:
+    """The warnings of the captures read: malformed records skipped, records that failed."""
+    _warn_skips(command, _skips(recs))
+    for r in recs:
+        _warn_internal(command, r.path, r.internal)
+
+
 def _skips(recs: Sequence[Recording]) -> dict[str, dict[str, object]]:
     return {r.path: r.skips for r in recs}
 
@@ -272,16 +347,38 @@ def _load(paths: Sequence[str], settings: UutSettings, args: argparse.Namespace)
     once it has succeeded: a failure stays one line).
     """
     strict = bool(getattr(args, "strict", False))
-    recs = load_captures(paths, settings, progress=progress, strict=strict)
+    window = float(getattr(args, "reorder_window", REORDER_WINDOW_S))
+    recs = load_captures(paths, settings, progress=progress, strict=strict, reorder_window_s=window)
     if not getattr(args, "uut_source", None) and not any(r.raw.size for r in recs):
         recs = load_captures(
             paths,
             dataclasses.replace(settings, uut_source="VBW"),
             progress=progress,
             strict=strict,
+            reorder_window_s=window,
         )
     progress_done()
     return recs
+
+
+def _heading_text(h: dict[str, object]) -> str:
+    """One line: the heading's variation and where it came from, and the course check."""
+    var, source = h.get("variation_deg"), h.get("variation_source")
+    text = "heading      " + (
+        f"variation {var:+.2f}° ({source})" if isinstance(var, float) else "true (no variation)"
+    )
+    check = h.get("check")
+    if isinstance(check, dict):
+        off = check.get("offset_deg")
+        text += (
+            f", {off:+.1f}° from the course on straight legs"
+            if isinstance(off, float)
+            else ", offset from the course not decided (too few straight legs or sectors)"
+        )
+    refused = h.get("refused_magnetic")
+    if isinstance(refused, int) and refused:
+        text += f", {refused} magnetic headings refused (no variation yet)"
+    return text
 
 
 def _calibration_text(res: CalibrationResult) -> str:
@@ -325,6 +422,7 @@ def _calibration_text(res: CalibrationResult) -> str:
         )
     elif s.current:
         out.append("current      not determined")
+    out += [_heading_text(h) for h in res.heading.values()]
     out += [
         f"identifiable {'yes' if res.identifiable else 'NO: ' + res.ident.reason}",
         f"condition    {fmt(res.ident.cond_info, '.3g')}",
@@ -359,7 +457,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         sys.stdout.write(_calibration_text(res))
         if args.save:
             sys.stdout.write(f"saved        {args.save}\n")
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -397,7 +495,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
-        _warn_skips(args.command, _skips(recs))
+        _warn_recs(args.command, recs)
         return 0
     sys.stdout.write(
         f"{cal.params.model} {cal.params.as_dict()} from {args.params}, "
@@ -420,7 +518,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             ],
         )
     )
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -465,7 +563,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
             "capture_skips": _skips(recs),
         }
         sys.stdout.write(json.dumps(doc) + "\n")
-        _warn_skips(args.command, _skips(recs))
+        _warn_recs(args.command, recs)
         return 0
     names = [s.name for s in result.segments]
     train, test = _table2_pair(names, args.table2)
@@ -479,7 +577,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
         f"\n{result.n_out_of_sample} out-of-sample evaluations, lag {lag.lag_s:.2f} s, "
         f"{elapsed:.1f} s\n"
     )
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -493,7 +591,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     progress_done()
     for path in paths:
         sys.stdout.write(f"{path}\n")
-    _warn_skips(args.command, _skips(recs))
+    _warn_recs(args.command, recs)
     return 0
 
 
@@ -522,31 +620,32 @@ class _EmitCapture:
 
 def cmd_replay(args: argparse.Namespace) -> int:
     """Run the daemon's pipeline over captures; write the corrected NMEA; print a summary."""
-    import dataclasses
-
     from emlogd.config import load_config
     from emlogd.daemon.statefile import StateStore
     from emlogd.offline.replay import replay
     from emlogd.pipeline.calibration import Calibration, checker
-    from emlogd.pipeline.core import Output, Pipeline
-    from emlogd.settings import fusion_from_config, pipeline_from_config
+    from emlogd.pipeline.core import Output
+    from emlogd.settings import build_pipeline, pipeline_from_config
 
     cfg = load_config(args.config)
-    ports, uuts = pipeline_from_config(cfg)
+    _, uuts = pipeline_from_config(cfg)
     truth = _truth(args, [u.port for u in uuts])
-    if args.learn is not None:
-        uuts = [dataclasses.replace(u, learn=args.learn) for u in uuts]
     store = StateStore(args.state) if args.state else None
     cals: dict[str, Calibration] = {}
+    others: list[Calibration] = []
     if store is not None:
-        cals, report = store.load(check=checker(uuts))
+        cals, others, report = store.load_state(check=checker(uuts))
         for line in report:
             sys.stderr.write(f"emlogd replay: {line}\n")
-    pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
+    pipeline = build_pipeline(cfg, cals, others, learn=args.learn)
 
     def persist(_: Output) -> None:
         if store is not None:
-            store.save({c.uut: c for c in pipeline.calibrations()})
+            aside = store.save(
+                {c.uut: c for c in pipeline.calibrations()}, pipeline.other_calibrations()
+            )
+            if aside is not None:
+                sys.stderr.write(f"emlogd replay: the refused state file is kept as {aside}\n")
 
     to_stdout = args.out is None and not args.json
     as_capture = bool(args.out) and args.out.endswith((".cap", ".cap.gz"))
@@ -566,6 +665,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             on_persist=persist,
             progress=progress,
             strict=args.strict,
+            reorder_window_s=args.reorder_window,
             truth=truth,
         )
     finally:
@@ -578,6 +678,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         persist(Output())
     doc = result.to_dict()
     _warn_skips(args.command, result.capture_skips)
+    _warn_internal(args.command, "replay", result.internal)
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         return 0
@@ -667,7 +768,7 @@ def _common_offline(p: argparse.ArgumentParser) -> None:
         metavar="auto|SECONDS",
         help="UUT latency (default auto: cross-correlation)",
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
 
 
@@ -728,15 +829,37 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument(
         "--map",
         metavar="KEY=COL,...",
-        help="csv: columns for time, stw, heading, sog, cog (and lat, lon, set, drift, "
-        "variation); knots and degrees unless written Col[mps]",
-    )
-    p.add_argument("--preset", choices=["expedition"], help="csv: a known program's columns")
-    p.add_argument(
-        "--time-format", choices=["ole", "iso", "epoch"], help="csv: time column (default ole)"
+        help="csv: columns for time, stw (and date, heading, sog, cog, lat, lon, set, drift, "
+        "variation); A|B: the first present, Col?: optional; knots unless written Col[mps]",
     )
     p.add_argument(
-        "--heading-ref", choices=["true", "magnetic"], help="csv: the heading's reference (true)"
+        "--preset",
+        choices=["auto", *_import_presets()],
+        help="csv: a known export's columns (default without --map: auto, chosen by the header)",
+    )
+    p.add_argument(
+        "--time-format",
+        metavar="ole|iso|epoch|PATTERN",
+        help="csv: the time column (a strptime PATTERN for date + ' ' + time with a date "
+        "column); default: the preset's, else told by the first time",
+    )
+    p.add_argument(
+        "--heading-ref",
+        choices=["true", "magnetic"],
+        help="csv: the heading's reference (default: the preset's, else true)",
+    )
+    p.add_argument(
+        "--utc-offset",
+        type=float,
+        metavar="HOURS",
+        help="csv: the logger's clock minus UTC (times are taken as UTC without it)",
+    )
+    p.add_argument(
+        "--variation",
+        type=float,
+        metavar="DEG",
+        help="csv: magnetic variation, + east, when no column gives one (else the IGRF "
+        "model at the fixes' positions, at calibration)",
     )
     p.add_argument("--json", action="store_true", help="the import report as JSON")
     p.set_defaults(handler=cmd_import)
@@ -788,7 +911,7 @@ def add_parsers(sub: Subparsers) -> None:
     p.add_argument(
         "--lag", type=float, default=None, metavar="SECONDS", help="override the saved lag"
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="one JSON document (README keys)")
     p.add_argument(
         "--truth",
@@ -859,7 +982,7 @@ def add_replay_parser(sub: Subparsers) -> None:
         help="write the corrected NMEA here; a FILE.cap or FILE.cap.gz name writes a capture "
         "v1 with one port per UUT, each sentence at the time of the sample it corrects",
     )
-    p.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    _capture_args(p)
     p.add_argument("--json", action="store_true", help="summary as one JSON document")
     p.add_argument(
         "--truth",

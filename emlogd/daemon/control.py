@@ -5,14 +5,18 @@ Requests are one JSON object per line, ``{"cmd": "status"}``, ``{"cmd": "freeze"
 one JSON line back, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``.
 
 No client can knock the server over: every line gets an answer whatever it holds
-(any JSON type or nesting, unknown keys, wrong types, invalid UTF-8); a line longer
-than :data:`MAX_REQUEST` or nested deeper than :data:`MAX_DEPTH` is refused before
-it is parsed (a long line also drops the client); at most :data:`MAX_CLIENTS` are
-connected (the next ones get an error line and are closed); a client silent for
-:data:`IDLE_S` is dropped; ``accept`` failing for lack of descriptors pauses the
-socket (:mod:`emlogd.daemon.listen`). A server may be read-only (``commands``:
-only ``status``), e.g. a status socket open to every local user next to the
-operators' control socket. The client side is :func:`emlogd.client.request`.
+(any JSON type or nesting, unknown or duplicate keys, wrong types, invalid UTF-8); a
+line longer than :data:`MAX_REQUEST` or nested deeper than :data:`MAX_DEPTH` is
+refused before it is parsed (a long line also drops the client); ``accept`` failing
+for lack of descriptors pauses the socket (:mod:`emlogd.daemon.listen`).
+
+No client can lock the operators out either: a request must be complete within
+:data:`REQUEST_S` of its first byte (a client dripping bytes gets an error line and
+is closed), a client that completes no request for :data:`IDLE_S` is closed, and at
+:data:`MAX_CLIENTS` a newcomer is served and the client that has waited longest
+since it connected or last completed a request is closed with an error line. A server may be read-only (``commands``: only ``status``), e.g. a
+status socket open to every local user next to the operators' control socket. The
+client side is :func:`emlogd.client.request`.
 """
 
 from __future__ import annotations
@@ -37,10 +41,15 @@ MAX_DEPTH = 4
 """Deepest accepted nesting of arrays and objects in a request."""
 
 MAX_CLIENTS = 16
-"""Most clients connected to one socket at a time."""
+"""Most clients connected to one socket at a time; a newcomer beyond it closes the
+client that completed no request for the longest time."""
+
+REQUEST_S = 5.0
+"""A request must be complete (its newline received) this long after its first byte,
+or the client gets an error line and is closed."""
 
 IDLE_S = 30.0
-"""A client that sends nothing for this long is dropped (it holds a slot)."""
+"""A client that completes no request for this long is closed (it holds a slot)."""
 
 COMMANDS = ("status", "freeze", "learn", "reset")
 
@@ -74,6 +83,30 @@ def nesting(line: bytes) -> int:
     return deepest
 
 
+class DuplicateKeyError(ValueError):
+    """A JSON object names a key twice."""
+
+
+def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
+    """``object_pairs_hook`` refusing duplicate keys (``json`` keeps the last one)."""
+    doc: dict[str, object] = {}
+    for k, v in pairs:
+        if k in doc:
+            raise DuplicateKeyError(f"duplicate key {k!r}")
+        doc[k] = v
+    return doc
+
+
+def parse_request(line: bytes) -> object:
+    """The JSON value of a request line, objects with unique keys.
+
+    Raises:
+        DuplicateKeyError: an object names a key twice.
+        ValueError: not JSON (or not UTF-8).
+    """
+    return json.loads(line, object_pairs_hook=_unique_keys)
+
+
 def check_request(req: object, commands: Sequence[str] = COMMANDS) -> str:
     """``""`` when ``req`` is a well-formed request, else why not (one line)."""
     if not isinstance(req, dict):
@@ -90,12 +123,15 @@ def check_request(req: object, commands: Sequence[str] = COMMANDS) -> str:
 
 
 class _Client:
-    __slots__ = ("buf", "seen", "sock")
+    __slots__ = ("buf", "seen", "sock", "started")
 
     def __init__(self, sock: socket.socket, now: float) -> None:
         self.sock = sock
         self.buf = bytearray()
         self.seen = now
+        """When it connected or last completed a request."""
+        self.started: float | None = None
+        """When the first byte of its unfinished request came (None: none unfinished)."""
 
 
 class ControlServer:
@@ -135,7 +171,10 @@ class ControlServer:
         self.on_event = on_event
         self.monotonic = monotonic
         self.clients: dict[socket.socket, _Client] = {}
-        self.refused = 0
+        self.evicted = 0
+        """Clients closed to make room for a newcomer."""
+        self.timed_out = 0
+        """Clients closed for a request not complete within :data:`REQUEST_S`."""
         self.pause = AcceptPause(lambda d: self._note("control_accept_error", d), monotonic)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -167,22 +206,26 @@ class ControlServer:
                     self.selector.unregister(self.sock)
             return
         self.pause.accepted()
-        if len(self.clients) >= MAX_CLIENTS:
-            self.refused += 1
-            with contextlib.suppress(OSError):
-                conn.setblocking(False)
-                conn.send(_line({"ok": False, "error": "too many clients; try again"}))
-            conn.close()
-            return
+        while self.clients and len(self.clients) >= MAX_CLIENTS:
+            oldest = min(self.clients, key=lambda c: self.clients[c].seen)
+            self.evicted += 1
+            self._reply(oldest, {"ok": False, "error": "too many clients: closed for a newcomer"})
+            self._drop(oldest)
         conn.setblocking(False)
         self.clients[conn] = _Client(conn, self.monotonic())
         self.selector.register(conn, selectors.EVENT_READ, lambda c=conn: self._read(c))
 
     def housekeep(self) -> None:
-        """Drop idle clients; listen again once an accept pause is over."""
+        """Close the clients past a deadline; listen again once an accept pause is over."""
         now = self.monotonic()
         for conn, client in list(self.clients.items()):
-            if now - client.seen > IDLE_S:
+            if client.started is not None and now - client.started > REQUEST_S:
+                self.timed_out += 1
+                self._reply(
+                    conn, {"ok": False, "error": f"request not complete within {REQUEST_S:g} s"}
+                )
+                self._drop(conn)
+            elif now - client.seen > IDLE_S:
                 self._drop(conn)
         if self.pause.resume_due():
             self.selector.register(self.sock, selectors.EVENT_READ, self._accept)
@@ -198,13 +241,17 @@ class ControlServer:
             self._drop(conn)
             return
         client = self.clients[conn]
-        client.seen = self.monotonic()
+        now = self.monotonic()
         buf = client.buf
         buf += data
         while b"\n" in buf and conn in self.clients:
             line, _, rest = bytes(buf).partition(b"\n")
             buf[:] = rest
+            client.seen = now
+            client.started = None
             self._reply(conn, self._answer(line))
+        if buf and client.started is None:
+            client.started = now
         if len(buf) > MAX_REQUEST and conn in self.clients:
             self._reply(conn, {"ok": False, "error": "request too long"})
             self._drop(conn)
@@ -215,12 +262,14 @@ class ControlServer:
         if nesting(line) > MAX_DEPTH:
             return {"ok": False, "error": f"nested deeper than {MAX_DEPTH}"}
         try:
-            req = json.loads(line)
+            req = parse_request(line)
+        except DuplicateKeyError as exc:
+            return {"ok": False, "error": str(exc)}
         except (ValueError, UnicodeDecodeError, RecursionError):
             return {"ok": False, "error": "not a JSON object"}
         why = check_request(req, self.commands)
-        if why:
-            return {"ok": False, "error": why}
+        if why or not isinstance(req, dict):
+            return {"ok": False, "error": why or "not a JSON object"}
         try:
             return {"ok": True, **self.handler(req)}
         except (ValueError, KeyError) as exc:

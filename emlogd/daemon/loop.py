@@ -11,7 +11,10 @@ Signals: SIGTERM/SIGINT persist the good calibrations, close everything and exit
 0; SIGHUP reloads the config (a bad new config is logged and the old one kept).
 A sensor missing at start is a status, not a crash: its source retries with
 backoff and is opened when it appears. Bad input is counted by the decoders; a
-state file that cannot be written is reported and the previous file stays intact.
+failure while the pipeline handles one chunk is contained (:mod:`emlogd.contain`:
+counted as an ``internal`` reject of the port, logged at most once per 10 s per port
+and exception type) and the loop goes on: no input stops the daemon. A state file that
+cannot be written is reported and the previous file stays intact.
 """
 
 from __future__ import annotations
@@ -33,14 +36,15 @@ from typing import Any
 from drivers.errors import ConfigError, DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
+from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import is_console
 from emlogd.daemon.notify import Notifier
-from emlogd.daemon.sinks import PtySink, Sink, TcpServerSink, UdpSink, stdout_sink
+from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
 from emlogd.daemon.statefile import StateStore
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Emit, Output, Pipeline
-from emlogd.settings import fusion_from_config, pipeline_from_config
+from emlogd.settings import build_pipeline, pipeline_from_config
 
 SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
@@ -148,8 +152,8 @@ class Daemon:
         self.rest_fds: dict[int, str] = {}
         """The resting ports' descriptors (registered one-shot) and their names."""
         self._watch(self.sel.fileno(), self._serve)
-        self.scratch = Output(deliver=self._deliver)
         self.event_limiter = EventLimiter()
+        self.contain = Containment()
         self.rest_s: dict[str, float] = {}
         self.sinks: dict[tuple[object, ...], Sink] = {}
         self.routes: dict[str, list[Sink]] = {}
@@ -243,8 +247,8 @@ class Daemon:
         cfg = self.config
         store = self._state_store()
         state_path = store.path
-        ports, uuts = pipeline_from_config(cfg)
-        cals, report = store.load(check=checker(uuts))
+        _, uuts = pipeline_from_config(cfg)
+        cals, others, report = store.load_state(check=checker(uuts))
         for line in report:
             self.log.warning("state_file", detail=line, path=str(state_path))
         for uut, cal in cals.items():
@@ -253,9 +257,10 @@ class Daemon:
                 uut=uut,
                 model=cal.params.model,
                 reset=cal.reset,
+                lag_s=cal.lag_s,
                 **cal.params.as_dict(),
             )
-        self.pipeline = Pipeline(ports, uuts, cals, fusion=fusion_from_config(cfg))
+        self.pipeline = build_pipeline(cfg, cals, others)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
         self._sync_outputs()
@@ -332,13 +337,15 @@ class Daemon:
         if out.pty:
             pty, mode, group = out.pty, out.pty_mode, out.pty_group
             specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
+        limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
         if out.tcp:
             tcp = out.tcp
-            specs[("tcp", tcp)] = lambda: TcpServerSink(
+            specs[("tcp", tcp, limits)] = lambda: TcpServerSink(
                 tcp,
                 selector=self.sel,
                 on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
                 monotonic=self.monotonic,
+                limits=limits,
             )
         if out.udp:
             udp = out.udp
@@ -356,12 +363,13 @@ class Daemon:
                     PtySink, u.pty, mode=out.pty_mode, group=out.pty_group
                 )
             if u.tcp:
-                specs[("uut", name, "tcp", u.tcp)] = functools.partial(
+                specs[("uut", name, "tcp", u.tcp, limits)] = functools.partial(
                     TcpServerSink,
                     u.tcp,
                     selector=self.sel,
                     on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
                     monotonic=self.monotonic,
+                    limits=limits,
                 )
             if u.udp:
                 specs[("uut", name, "udp", u.udp)] = functools.partial(
@@ -449,8 +457,7 @@ class Daemon:
                 server.housekeep()
             for sink in self.sinks.values():
                 sink.housekeep()
-            assert self.pipeline is not None
-            self._handle(self.pipeline.tick(self.timeline(), self.scratch))
+            self._tick()
             if now >= next_status:
                 next_status = now + self.config.status_log_interval_s
                 self._status_event()
@@ -533,9 +540,34 @@ class Daemon:
         if chunk is None:
             self._sync_registrations()
             return
-        assert self.pipeline is not None
         t, data = chunk
-        self._handle(self.pipeline.feed(t, name, data, self.scratch))
+        self._feed(t, name, data)
+
+    def _feed(self, t: float, name: str, data: bytes) -> None:
+        """Run the pipeline on one chunk of ``name``; a failure costs that chunk only."""
+        assert self.pipeline is not None
+        try:
+            out = self.pipeline.feed(t, name, data)
+        except Exception as exc:  # contained: no input stops the daemon
+            self._contained(name, data, exc)
+            return
+        self._handle(out)
+
+    def _tick(self) -> None:
+        """Advance the pipeline without data; a failure is contained like a chunk's."""
+        assert self.pipeline is not None
+        try:
+            out = self.pipeline.tick(self.timeline())
+        except Exception as exc:
+            self._contained("", b"", exc)
+            return
+        self._handle(out)
+
+    def _contained(self, name: str, data: bytes, exc: Exception) -> None:
+        failure = self.contain.failed(self.pipeline, name, data, exc, self.monotonic())
+        if failure is not None:
+            extra = {"suppressed": failure.suppressed} if failure.suppressed else {}
+            self.log.warning("internal", port=name, error=failure.error, data=failure.data, **extra)
 
     def _wake_rested(self, now: float) -> None:
         """Read the ports whose rest is over at ``now`` (monotonic), and arm them again."""
@@ -550,23 +582,21 @@ class Daemon:
                         self.poll.modify(fd, _ONE_READ)
 
     def _handle(self, out: Output) -> None:
-        """Deliver an output (emits to the sinks, events to the log, persist) and clear it."""
+        """Deliver what a pipeline call returned: its sentences to the outputs, its
+        events to the log, and a persist when it asks for one."""
         if out.emits:
             self._deliver(out.emits)
-            out.emits.clear()
         for ev in out.events:
             suppressed = self.event_limiter.allow(ev.port, ev.kind, self.monotonic())
             if suppressed is not None:
                 extra = {"suppressed": suppressed} if suppressed else {}
                 self.log.info(ev.kind, port=ev.port, **dict(ev.detail), **extra)
-        out.events.clear()
         if out.persist:
-            out.persist.clear()
             self._persist()
 
     def _deliver(self, emits: list[Emit]) -> None:
-        """Write sentences to their outputs (called by the pipeline as each is ready): a
-        log with outputs of its own writes there, every other sentence to the shared ones."""
+        """Write sentences to their outputs: a log with outputs of its own writes there,
+        every other sentence to the shared ones."""
         if not self.routes:
             data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
             for sink in self.shared:
@@ -598,15 +628,19 @@ class Daemon:
         snaps = self.pipeline.calibrations()
         if not snaps:
             return None
-        if self._written is not None and _same(snaps, self._written, material=operator):
+        others = self.pipeline.other_calibrations()
+        written = snaps + others
+        if self._written is not None and _same(written, self._written, material=operator):
             return None
         try:
-            self.store.save({s.uut: s for s in snaps})
+            aside = self.store.save({s.uut: s for s in snaps}, others)
         except EmlogdError as exc:
             self.state_errors += 1
             self.log.error("state_write_failed", error=str(exc), final=final)
             return str(exc)
-        self._written = snaps
+        if aside is not None:
+            self.log.warning("state_file_set_aside", path=str(aside), backup_kept=True)
+        self._written = written
         self.persists += 1
         self.log.info(
             "calibration_persisted",
@@ -685,15 +719,15 @@ class Daemon:
             self.log.info("control_learn", uuts=done, on=on)
             return {"uuts": done, "learning": on}
         if cmd == "reset":
-            done = self.pipeline.reset(p)
+            reset = self.pipeline.reset(p)
             err = self._persist(operator=True)
-            self.log.warning("control_reset", uuts=done, persisted=err is None)
+            self.log.warning("control_reset", uuts=reset, persisted=err is None)
             if err is not None:
                 raise ValueError(
-                    f"{', '.join(done)} reset, but the state file was not written ({err}): "
+                    f"{', '.join(reset)} reset, but the state file was not written ({err}): "
                     "the old calibration would load after a restart"
                 )
-            return {"uuts": done, "persisted": True}
+            return {"uuts": list(reset), "reset": reset, "persisted": True}
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _reload(self) -> None:
@@ -706,7 +740,6 @@ class Daemon:
         """
         try:
             new = load_config(self.config_path)
-            ports, uuts = pipeline_from_config(new)
         except (ConfigError, OSError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return
@@ -715,7 +748,7 @@ class Daemon:
         self._persist()
         snapshots = {s.uut: s for s in old_pipeline.calibrations()}
         try:
-            pipeline = Pipeline(ports, uuts, snapshots, fusion=fusion_from_config(new))
+            pipeline = build_pipeline(new, snapshots, old_pipeline.other_calibrations())
         except (ConfigError, ValueError) as exc:
             self.log.error("reload_failed", error=str(exc), kept="previous config")
             return

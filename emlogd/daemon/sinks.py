@@ -1,16 +1,26 @@
 """Output sinks for the corrected NMEA: pty, TCP server, UDP, stdout, file.
 
 Every sink takes whole sentences (bytes ending in CR LF) and never blocks the
-daemon loop: writes are non-blocking, a TCP client that stops reading is dropped
-once its bounded backlog is full, UDP send errors are counted and skipped. Sinks
-that need the selector (the TCP server) expose their file descriptors.
+daemon loop: writes are non-blocking, UDP send errors are counted and skipped.
+Sinks that need the selector (the TCP server) expose their file descriptors.
+
+No TCP client holds the output hostage (:class:`TcpServerSink`, limits in
+:class:`TcpLimits`): a client whose pending output (the daemon's backlog plus the
+kernel's send queue) exceeds a bound is closed (``client_too_slow``), and so is one
+that has taken nothing for :attr:`TcpLimits.stall_s` while output was pending
+(``client_stalled``); at the client limit a newcomer is let in and an existing
+client goes (``client_evicted``): the one that has been stalled longest, else the
+most recently connected (a burst of connections takes one slot over and over, never
+the long-standing readers'). Such a close is a reset: what is queued for the client
+is discarded (a FIN would wait behind it, and so would the kernel's memory). The
+kernel acknowledges whatever fits in a client's receive buffer, read or not: a
+client that never reads is noticed once that buffer is full.
 
 A network output never stops the daemon: a TCP address that cannot be bound (in
 use, not yet configured) or a UDP destination that does not resolve leaves the sink
 ``unbound``/``unresolved`` (its :attr:`state`) and is retried from
 :meth:`housekeep` with a growing delay (:data:`RETRY_S`). Addresses are resolved
-once, never per sentence. The TCP server takes at most :data:`MAX_TCP_CLIENTS`
-(the next ones are closed at once) and pauses when ``accept`` runs out of
+once, never per sentence. The TCP server pauses when ``accept`` runs out of
 descriptors (:mod:`emlogd.daemon.listen`).
 """
 
@@ -18,10 +28,13 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import math
 import os
 import selectors
 import socket
+import struct
+import termios
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -32,10 +45,20 @@ from drivers.errors import ConfigError
 from emlogd.daemon.listen import AcceptPause
 
 TCP_BACKLOG_BYTES = 64 * 1024
-"""Largest unsent backlog per TCP client before it is dropped."""
+"""Default largest pending output per TCP client (the daemon's backlog plus the
+kernel's send queue) before it is closed (``outputs.tcp_max_pending_bytes``)."""
 
 MAX_TCP_CLIENTS = 32
-"""Most clients of the TCP output at a time; the next ones are closed at once."""
+"""Default most clients of a TCP output at a time (``outputs.tcp_max_clients``); a
+newcomer beyond it evicts one."""
+
+TCP_STALL_S = 10.0
+"""Default time a TCP client may take nothing while output is pending before it is
+closed (``outputs.tcp_stall_s``)."""
+
+TCP_CHECK_S = 0.25
+"""How often :meth:`TcpServerSink.housekeep` reads each client's send queue (one
+``ioctl`` per client): the resolution of the stall time."""
 
 RETRY_S = (1.0, 2.0, 5.0, 10.0, 30.0)
 """Delays between attempts to bind a TCP output or resolve a UDP destination."""
@@ -59,15 +82,33 @@ class _Retry:
         return delay
 
 
+@dataclass(frozen=True, slots=True)
+class TcpLimits:
+    """What a TCP output lets a client hold (the ``outputs.tcp_*`` keys, whose defaults
+    are these)."""
+
+    max_clients: int = MAX_TCP_CLIENTS
+    max_pending_bytes: int = TCP_BACKLOG_BYTES
+    stall_s: float = TCP_STALL_S
+
+
 @dataclass(slots=True)
 class SinkCounters:
-    """Per-sink figures for the status event."""
+    """Per-sink figures for the status event.
+
+    ``dropped_clients`` counts the clients the sink closed, whatever the reason; the
+    reasons apart: ``too_slow`` (pending output over the bound), ``stalled`` (nothing
+    taken for the stall time), ``evicted`` (made room for a newcomer at the limit).
+    """
 
     sentences: int = 0
     bytes: int = 0
     errors: int = 0
     dropped_clients: int = 0
     clients: int = 0
+    too_slow: int = 0
+    stalled: int = 0
+    evicted: int = 0
 
     def as_dict(self) -> dict[str, int]:
         """Plain types."""
@@ -77,6 +118,9 @@ class SinkCounters:
             "errors": self.errors,
             "dropped_clients": self.dropped_clients,
             "clients": self.clients,
+            "too_slow": self.too_slow,
+            "stalled": self.stalled,
+            "evicted": self.evicted,
         }
 
 
@@ -202,24 +246,66 @@ class UdpSink:
         self.sock.close()
 
 
-class _Client:
-    __slots__ = ("addr", "backlog", "sock")
+DROP_REASONS = {
+    "client_too_slow": "too_slow",
+    "client_stalled": "stalled",
+    "client_evicted": "evicted",
+}
+"""Why the sink closes a client: the event logged, and its counter in :class:`SinkCounters`."""
 
-    def __init__(self, sock: socket.socket, addr: object) -> None:
+
+_RESET = struct.pack("ii", 1, 0)
+"""``SO_LINGER`` on, 0 s: ``close`` resets the connection and discards what is queued."""
+
+
+def _send_queue(sock: socket.socket) -> int:
+    """Bytes in the kernel's send queue of ``sock`` (sent but not acknowledged, or not
+    sent yet: ``SIOCOUTQ``); 0 when it cannot be read."""
+    try:
+        raw = fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0\0\0\0")
+    except OSError:
+        return 0
+    return int(struct.unpack("i", raw)[0])
+
+
+class _Client:
+    __slots__ = ("addr", "backlog", "connected", "delivered", "progress", "queued", "sock")
+
+    def __init__(self, sock: socket.socket, addr: object, now: float) -> None:
         self.sock = sock
         self.addr = addr
         self.backlog = bytearray()
+        self.connected = now
+        self.queued = 0
+        """Bytes handed to the kernel so far."""
+        self.delivered = 0
+        """Bytes the client's end acknowledged so far (as of the last check)."""
+        self.progress = now
+        """When the client last took something, or had nothing pending."""
+
+    def check(self, now: float) -> int:
+        """Read the send queue: note progress; return the pending bytes."""
+        queue = _send_queue(self.sock)
+        delivered = self.queued - queue
+        pending = queue + len(self.backlog)
+        if delivered > self.delivered or pending == 0:
+            self.progress = now
+        self.delivered = max(delivered, self.delivered)
+        return pending
 
 
 class TcpServerSink:
-    """NMEA over TCP: several clients, each with a bounded backlog.
+    """NMEA over TCP: several clients, none of which can lock the others out.
 
     Register :meth:`fileno` for reading in the daemon's selector and call
     :meth:`on_readable` when it fires (accepts clients, and discards anything a
     client sends). Writes go straight to each client's socket; what the kernel
-    does not take is kept up to :data:`TCP_BACKLOG_BYTES`, then the client is
-    dropped (a client that stops reading never blocks the loop). An address that
-    cannot be bound leaves the sink ``unbound`` and is retried from :meth:`housekeep`.
+    does not take waits in a per-client backlog. :meth:`housekeep` closes a client
+    whose pending output exceeds :attr:`TcpLimits.max_pending_bytes` or that has
+    taken nothing for :attr:`TcpLimits.stall_s` while output was pending; at
+    :attr:`TcpLimits.max_clients` a newcomer evicts a client (the module's
+    docstring). An address that cannot be bound leaves the sink ``unbound`` and is
+    retried from :meth:`housekeep`.
     """
 
     def __init__(
@@ -229,6 +315,7 @@ class TcpServerSink:
         selector: selectors.BaseSelector | None = None,
         on_event: Callable[[str, str], None] | None = None,
         monotonic: Callable[[], float] = time.monotonic,
+        limits: TcpLimits = TcpLimits(),
     ) -> None:
         self.name = f"tcp:{listen}"
         self.counters = SinkCounters()
@@ -236,11 +323,13 @@ class TcpServerSink:
         self.clients: dict[int, _Client] = {}
         self.selector = selector
         self.on_event = on_event
+        self.monotonic = monotonic
+        self.limits = limits
         self.server: socket.socket | None = None
         self.state = "unbound"
-        self.refused = 0
         self.retry = _Retry(monotonic)
         self.pause = AcceptPause(lambda d: self._note("accept_error", d), monotonic)
+        self._next_check = -math.inf
         self._bind()
 
     def _bind(self) -> None:
@@ -266,13 +355,24 @@ class TcpServerSink:
             self.selector.register(server, selectors.EVENT_READ, self._accept)
 
     def housekeep(self) -> None:
-        """Bind again if unbound (when due); listen again once an accept pause is over."""
+        """Bind again if unbound (when due); listen again once an accept pause is over;
+        close the clients that are too slow or stalled (every :data:`TCP_CHECK_S`)."""
         if self.server is None:
             if self.retry.due():
                 self._bind()
             return
         if self.pause.resume_due() and self.selector is not None:
             self.selector.register(self.server, selectors.EVENT_READ, self._accept)
+        now = self.monotonic()
+        if now < self._next_check:
+            return
+        self._next_check = now + TCP_CHECK_S
+        for client in list(self.clients.values()):
+            pending = client.check(now)
+            if pending > self.limits.max_pending_bytes:
+                self._drop(client, "client_too_slow")
+            elif now - client.progress > self.limits.stall_s:
+                self._drop(client, "client_stalled")
 
     @property
     def address(self) -> tuple[str, int]:
@@ -302,18 +402,26 @@ class TcpServerSink:
                         self.selector.unregister(self.server)
                 return
             self.pause.accepted()
-            if len(self.clients) >= MAX_TCP_CLIENTS:
-                self.refused += 1
-                sock.close()
-                continue
+            now = self.monotonic()
+            while self.clients and len(self.clients) >= self.limits.max_clients:
+                self._drop(self._eviction_candidate(now), "client_evicted")
             sock.setblocking(False)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            client = _Client(sock, addr)
+            client = _Client(sock, addr, now)
             self.clients[sock.fileno()] = client
             self.counters.clients = len(self.clients)
             if self.selector is not None:
                 self.selector.register(sock, selectors.EVENT_READ, lambda c=client: self._drain(c))
             self._note("client_connected", str(addr))
+
+    def _eviction_candidate(self, now: float) -> _Client:
+        """The client to close for a newcomer: the one stalled longest among those with
+        output pending that took nothing since the last check (a reader with bytes in
+        flight took some), else the most recently connected."""
+        stalled = [c for c in self.clients.values() if c.check(now) > 0 and c.progress < now]
+        if stalled:
+            return min(stalled, key=lambda c: (c.progress, c.connected))
+        return max(self.clients.values(), key=lambda c: c.connected)
 
     def on_readable(self) -> None:
         """Accept pending clients (when used without a selector)."""
@@ -336,10 +444,15 @@ class TcpServerSink:
             with contextlib.suppress(KeyError, ValueError):
                 self.selector.unregister(client.sock)
         self.clients.pop(fd, None)
+        reason = DROP_REASONS.get(why)
+        if reason is not None:  # reset: output queued for a client that does not take it
+            with contextlib.suppress(OSError):  # would hold the FIN, and kernel memory
+                client.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, _RESET)
         client.sock.close()
         self.counters.clients = len(self.clients)
-        if why != "client_disconnected":
+        if reason is not None:
             self.counters.dropped_clients += 1
+            setattr(self.counters, reason, getattr(self.counters, reason) + 1)
         self._note(why, str(client.addr))
 
     def write(self, line: bytes) -> None:
@@ -355,8 +468,9 @@ class TcpServerSink:
                 self._drop(client, "client_disconnected")
                 continue
             self.counters.bytes += sent
+            client.queued += sent
             del buf[:sent]
-            if len(buf) > TCP_BACKLOG_BYTES:
+            if len(buf) > self.limits.max_pending_bytes:
                 self._drop(client, "client_too_slow")
 
     def close(self) -> None:

@@ -15,8 +15,15 @@ A kill -9 at any point leaves the previous or the new file, never a torn one.
 A write that fails (disk full, read-only, permissions) raises
 :class:`StateWriteError` and leaves the previous file untouched. On load a file
 that cannot be parsed, or whose records the caller's check refuses (parameters
-outside the envelope, a covariance that is not positive-definite...), is reported
-and the backup used; without a good one the daemon starts uncalibrated.
+outside the envelope, a lag outside ``[0, max_lag_s]``, a covariance that is not
+positive-definite...), is reported and the backup used; without a good one the
+daemon starts uncalibrated. Such a file never becomes the backup: the next write
+moves it aside to ``<file>.refused`` (kept for a person to look at) and leaves the
+backup as it is.
+
+Besides the calibration in use, each UUT keeps its last calibration of every other
+error model (``others``, :func:`emlogd.calfile.loads_state`): a config that switches
+a UUT from EM3 to EM4 and back finds its EM3 calibration again, after a restart too.
 """
 
 from __future__ import annotations
@@ -25,11 +32,11 @@ import contextlib
 import fcntl
 import os
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from drivers.errors import EmlogdError
-from emlogd.calfile import CalibrationFileError, dumps, loads
+from emlogd.calfile import CalibrationFileError, dumps, loads_state
 from emlogd.fileio import fsync_dir, write_synced
 from emlogd.pipeline.calibration import Calibration
 
@@ -52,16 +59,28 @@ class StateStore:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.backup = self.path.with_name(self.path.name + ".bak")
+        self.refused = self.path.with_name(self.path.name + ".refused")
+        """Where a damaged or refused state file is moved by the next write."""
+        self._check: Callable[[Calibration], str] | None = None
+        """The check of the last :meth:`load`: a current file it refuses is no backup."""
+
+    @property
+    def real_path(self) -> Path:
+        """The state file with every symlink resolved (of the file and its directories)."""
+        return Path(os.path.realpath(self.path))
 
     @property
     def lock_path(self) -> Path:
-        """The lock file next to the state file."""
-        return self.path.with_name(self.path.name + ".lock")
+        """The lock file next to the state file's real path: two instances reaching one
+        file through different names (a symlink, a symlinked directory) share one lock."""
+        real = self.real_path
+        return real.with_name(real.name + ".lock")
 
     def lock(self) -> int | None:
         """Take the state file's lock for this process (released when it exits).
 
-        An exclusive ``flock`` on ``<file>.lock``, which then holds the pid. Returns
+        An exclusive ``flock`` on ``<file>.lock`` next to the file's real path
+        (:attr:`lock_path`), which then holds the pid. Returns
         the lock's descriptor, or None when no lock file can be opened at all (a
         read-only or missing directory: writes will fail and be reported anyway).
 
@@ -85,8 +104,10 @@ class StateStore:
                 holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
             finally:
                 os.close(fd)
+            real = self.real_path
+            via = f" (real path {real})" if real != self.path.absolute() else ""
             raise StateLockedError(
-                f"{self.path} is in use by another emlogd (pid {holder}; lock {path})"
+                f"{self.path}{via} is in use by another emlogd (pid {holder}; lock {path})"
             ) from None
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
@@ -96,11 +117,22 @@ class StateStore:
     def load(
         self, check: Callable[[Calibration], str] | None = None
     ) -> tuple[dict[str, Calibration], list[str]]:
-        """Load the calibrations; returns (records, report lines about problems met).
+        """Load the calibrations in use; returns (records, report lines about problems
+        met). See :meth:`load_state`."""
+        states, _, report = self.load_state(check)
+        return states, report
+
+    def load_state(
+        self, check: Callable[[Calibration], str] | None = None
+    ) -> tuple[dict[str, Calibration], list[Calibration], list[str]]:
+        """Load the calibrations in use by UUT, the UUTs' calibrations of their other
+        models, and report lines about problems met.
 
         A missing file gives no record and no report; a damaged one — or one with a
         record ``check`` refuses (it returns why) — is reported and the backup tried.
+        ``check`` is kept: the next :meth:`save` judges the current file with it.
         """
+        self._check = check
         report: list[str] = []
         for candidate in (self.path, self.backup):
             try:
@@ -110,43 +142,41 @@ class StateStore:
                     report.append(f"{candidate} is missing")
                     continue
                 if candidate == self.path:
-                    return {}, report
+                    return {}, [], report
                 continue
             except (OSError, UnicodeDecodeError) as exc:
                 report.append(f"{candidate} cannot be read: {exc}")
                 continue
-            try:
-                states, _ = loads(text)
-            except CalibrationFileError as exc:
-                report.append(f"{candidate} is damaged: {exc}")
+            why = _refusal(text, check)
+            if why:
+                report.append(f"{candidate} is {why}")
                 continue
-            refused = [
-                f"{uut}: {why}"
-                for uut, cal in states.items()
-                if check is not None and (why := check(cal))
-            ]
-            if refused:
-                report.append(f"{candidate} is refused: {'; '.join(refused)}")
-                continue
+            states, others = loads_state(text)
             if candidate == self.backup:
                 report.append(f"using the backup {candidate}")
-            return states, report
+            return states, others, report
         report.append("no usable state file: starting uncalibrated")
-        return {}, report
+        return {}, [], report
 
-    def save(self, states: Mapping[str, Calibration]) -> None:
-        """Write atomically, keeping the previous good file as ``.bak``.
+    def save(
+        self, states: Mapping[str, Calibration], others: Iterable[Calibration] = ()
+    ) -> Path | None:
+        """Write atomically, keeping the previous good file as ``.bak``; ``others``: the
+        UUTs' calibrations of their other error models.
+
+        Returns where a current file that is damaged, or that the last :meth:`load`'s
+        check refuses, was moved aside (:attr:`refused`), or None.
 
         Raises:
             StateWriteError: the write failed; the previous file is intact.
         """
-        data = dumps(states).encode("utf-8")
+        data = dumps(states, others=others).encode("utf-8")
         d = self.path.parent
         tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
         try:
             d.mkdir(parents=True, exist_ok=True)
             write_synced(tmp, data)
-            self._backup_current()
+            aside = self._backup_current()
             tmp.replace(self.path)
             fsync_dir(self.path.parent)
         except OSError as exc:
@@ -154,6 +184,7 @@ class StateStore:
                 tmp.unlink()
             raise StateWriteError(f"cannot write {self.path}: {exc.strerror or exc}") from None
         self._remove_orphans()
+        return aside
 
     def _remove_orphans(self) -> None:
         """Delete temporary files left by a writer that was killed (its pid is gone)."""
@@ -168,21 +199,22 @@ class StateStore:
                 with contextlib.suppress(OSError):
                     entry.unlink()
 
-    def _backup_current(self) -> None:
-        """Make the current file, if valid, the backup; a damaged one is left out.
+    def _backup_current(self) -> Path | None:
+        """Make the current file, if good, the backup; move a damaged or refused one
+        aside to :attr:`refused` (the backup stays); return where, or None.
 
         The backup is a hard link, or a copy where the file system has none (vfat).
         """
         try:
             text = self.path.read_text(encoding="utf-8")
         except FileNotFoundError:
-            return
+            return None
         except (OSError, UnicodeDecodeError):
-            return
-        try:
-            loads(text)
-        except CalibrationFileError:
-            return  # never back up a damaged file over a good backup
+            text = None
+        if text is None or _refusal(text, self._check):
+            # never back up a damaged or refused file over a good backup
+            self.path.replace(self.refused)
+            return self.refused
         link = self.path.with_name(f".{self.path.name}.bak.{os.getpid()}.tmp")
         with contextlib.suppress(FileNotFoundError):
             link.unlink()
@@ -195,6 +227,24 @@ class StateStore:
         # between linking the backup and replacing the file, both are one inode
         with contextlib.suppress(FileNotFoundError):
             link.unlink()
+        return None
+
+
+def _refusal(text: str, check: Callable[[Calibration], str] | None) -> str:
+    """``""`` when a state file's text is good, else what is wrong with it (``damaged:
+    …`` or ``refused: …``, every record — in use and of other models — checked)."""
+    try:
+        states, others = loads_state(text)
+    except CalibrationFileError as exc:
+        return f"damaged: {exc}"
+    if check is None:
+        return ""
+    refused = [
+        f"{cal.uut}{'' if cal is states.get(cal.uut) else ' ' + cal.params.model}: {why}"
+        for cal in (*states.values(), *others)
+        if (why := check(cal))
+    ]
+    return f"refused: {'; '.join(refused)}" if refused else ""
 
 
 def _alive(pid: int) -> bool:

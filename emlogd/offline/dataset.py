@@ -26,10 +26,12 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.models import FloatArray
-from drivers.io.capture import CaptureReader
+from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
+from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
-from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -86,6 +88,11 @@ class Recording:
         t_start: first record time, s (nan for an empty capture).
         t_end: last record time, s.
         skips: the malformed records skipped (``CaptureReader.skip_report``).
+        internal: the records whose handling failed and was contained
+            (:meth:`~emlogd.contain.Containment.report`; also counted as ``internal``
+            rejects in :attr:`counters`).
+        heading_info: the pipeline's heading status at the end (``Pipeline.heading_status``:
+            port, variation and its source, refused magnetic headings, the check).
     """
 
     path: str
@@ -102,6 +109,8 @@ class Recording:
     t_start: float
     t_end: float
     skips: dict[str, object] = dataclasses.field(default_factory=dict)
+    internal: dict[str, object] = dataclasses.field(default_factory=dict)
+    heading_info: dict[str, object] = dataclasses.field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -150,6 +159,7 @@ def record_capture(
     *,
     progress: ProgressFn | None = None,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> Recording:
     """Stream one capture through the daemon's pipeline and record the UUT's inputs.
 
@@ -158,13 +168,17 @@ def record_capture(
         settings: the UUT (port, reference port and field, heading source...).
         progress: called now and then with the fraction of the file read.
         strict: a malformed record raises instead of being counted and skipped.
+        reorder_window_s: records this far (s) out of time order are put back in order
+            (:class:`~drivers.io.capture.CaptureReader`).
 
     Raises:
         CaptureContentError: the capture lacks the UUT, reference or heading port.
         CaptureFormatError: a malformed header, or with ``strict`` a malformed record
             (names the line).
     """
-    reader = CaptureReader(path, errors="raise" if strict else "skip")
+    reader = CaptureReader(
+        path, errors="raise" if strict else "skip", reorder_window_s=reorder_window_s
+    )
     needed = [settings.port, settings.reference_port]
     if settings.heading != "auto":
         needed.append(settings.heading)
@@ -180,19 +194,23 @@ def record_capture(
     col = _Collector()
     cal.recorder = col
     cal.record_only = True
-    out = Output()
     size = max(Path(path).stat().st_size, 1)
     t_first = t_last = math.nan
+    contain = Containment()
     for n, (t, port, data, line) in enumerate(reader.received()):
         if n == 0:
             t_first = t
         t_last = t
-        pipeline.feed(t, port, data, out)
-        out.emits.clear()
-        out.events.clear()
+        try:
+            pipeline.feed(t, port, data)
+        except Exception as exc:  # contained: one record is lost, not the capture
+            contain.failed(pipeline, port, data, exc, t)
         if progress is not None and n % 50_000 == 0:
             progress(f"reading {Path(path).name}", min(line * 60 / size, 1.0))
-    pipeline.flush()
+    try:
+        pipeline.flush()
+    except Exception as exc:  # contained: the end of the capture, not the capture
+        contain.failed(pipeline, "", b"", exc, t_last)
     ports_status = pipeline.port_status()
     return Recording(
         path=str(path),
@@ -212,11 +230,13 @@ def record_capture(
         t_start=t_first,
         t_end=t_last,
         skips=reader.skip_report(),
+        internal=contain.report(),
+        heading_info=pipeline.heading_status(settings.port),
     )
 
 
-def _record_job(args: tuple[str, UutSettings, bool]) -> Recording:
-    return record_capture(args[0], args[1], strict=args[2])
+def _record_job(args: tuple[str, UutSettings, bool, float]) -> Recording:
+    return record_capture(args[0], args[1], strict=args[2], reorder_window_s=args[3])
 
 
 def record_captures(
@@ -226,6 +246,7 @@ def record_captures(
     workers: int | None = None,
     progress: ProgressFn | None = None,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> list[Recording]:
     """:func:`record_capture` for each capture, in parallel processes when there are several.
 
@@ -235,6 +256,7 @@ def record_captures(
         workers: processes (default: one per core, at most one per capture).
         progress: called after each capture with the fraction done.
         strict: a malformed record raises instead of being counted and skipped.
+        reorder_window_s: as :func:`record_capture`'s.
     """
     n = len(paths)
     if workers is None:
@@ -242,13 +264,17 @@ def record_captures(
     if workers <= 1 or n <= 1:
         out = []
         for i, p in enumerate(paths):
-            out.append(record_capture(p, settings, strict=strict))
+            out.append(
+                record_capture(p, settings, strict=strict, reorder_window_s=reorder_window_s)
+            )
             if progress is not None:
                 progress(f"read {Path(p).name}", (i + 1) / max(n, 1))
         return out
     with ProcessPoolExecutor(max_workers=workers) as pool:
         result: list[Recording] = []
-        for i, rec in enumerate(pool.map(_record_job, [(str(p), settings, strict) for p in paths])):
+        for i, rec in enumerate(
+            pool.map(_record_job, [(str(p), settings, strict, reorder_window_s) for p in paths])
+        ):
             result.append(rec)
             if progress is not None:
                 progress(f"read {Path(paths[i]).name}", (i + 1) / n)

@@ -1,7 +1,7 @@
 """Offline calibration on captures: calibrate, evaluate, cross-validate.
 
 A job names one UUT and its reference with the daemon's own settings
-(:class:`~emlogd.pipeline.core.UutSettings`: model, reference port and field,
+(:class:`~emlogd.pipeline.settings.UutSettings`: model, reference port and field,
 current states, heading source...), reads the captures as the daemon would
 (:mod:`emlogd.offline.dataset`), finds the lag with :mod:`calib.lag`'s one rule, and
 fits:
@@ -39,6 +39,7 @@ from calib.lsq import block_average, fit_current, fit_ls
 from calib.metrics import improvement_pct, nis_stats, rmse
 from calib.models import CURRENT, FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
+from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.fileio import write_atomic
 from emlogd.offline import ProgressFn
@@ -48,9 +49,10 @@ from emlogd.offline.dataset import (
     Recording,
     record_captures,
 )
+from emlogd.offline.headings import heading_refusal, needs_heading, why_no_sample
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import AVERAGE_S, UutCalibration
 
 Method = Literal["ls", "kf"]
@@ -70,18 +72,27 @@ def load_captures(
     *,
     workers: int | None = None,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> list[Recording]:
     """Read the UUT's inputs from each capture (in parallel when there are several).
 
     Malformed records are counted and skipped (``Recording.skips``), or raise with
-    ``strict``.
+    ``strict``; records up to ``reorder_window_s`` out of time order are put back in
+    order.
 
     Raises:
         OfflineError: a capture lacks one of the ports.
         CaptureFormatError: a malformed capture (names file and line).
     """
     try:
-        return record_captures(paths, settings, workers=workers, progress=progress, strict=strict)
+        return record_captures(
+            paths,
+            settings,
+            workers=workers,
+            progress=progress,
+            strict=strict,
+            reorder_window_s=reorder_window_s,
+        )
     except CaptureContentError as exc:
         raise OfflineError(str(exc.args[0])) from None
 
@@ -216,6 +227,9 @@ class CalibrationResult:
     nis_frac_inside: float | None = None
     average_s: float = 0.0
     """``ls``: the block length the fit averaged over (0: every sample), s."""
+    heading: dict[str, dict[str, object]] = field(default_factory=dict)
+    """Per capture, the heading used (``Pipeline.heading_status``) when the reference or
+    the model needs one."""
 
     @property
     def improvement_pct(self) -> float:
@@ -273,6 +287,7 @@ class CalibrationResult:
             "ref_field": s.reference_field,
             "current_states": s.current,
             "captures": list(self.captures),
+            "heading": self.heading,
         }
 
 
@@ -393,15 +408,14 @@ def calibrate(
         raise OfflineError("--trace follows the Kalman filter: use it with --method kf")
     if method not in ("ls", "kf"):
         raise OfflineError(f"method must be ls or kf, not {method!r}")
+    refusal = heading_refusal(recs, settings)
+    if refusal is not None:
+        raise OfflineError(refusal)
     lag_report = find_lag(recs, settings, lag)
     pairs = [r.aligned(lag_report.lag_s) for r in recs]
     _t, raw, ref, heading = concat_usable(pairs, settings.current)
     if raw.size == 0:
-        why = " and a heading" if settings.current else ""
-        raise OfflineError(
-            f"no {settings.port} sample has a valid {settings.reference_port} reference{why} "
-            f"at lag {lag_report.lag_s:.2f} s"
-        )
+        raise OfflineError(why_no_sample(recs, settings, lag_report.lag_s))
     layout = Layout(check_model(settings.model), settings.current)
     kf = settings.kf
     hd = heading if settings.current else None
@@ -466,6 +480,7 @@ def calibrate(
         nis_mean=nis_mean,
         nis_frac_inside=nis_frac,
         average_s=window,
+        heading={r.path: r.heading_info for r in recs} if needs_heading(settings) else {},
     )
 
 

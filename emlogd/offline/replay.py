@@ -27,9 +27,10 @@ import numpy as np
 
 from calib.models import FloatArray
 from drivers import make_decoder
-from drivers.io.capture import CaptureReader
+from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
 from drivers.nmea0183 import NmeaDecoder
 from drivers.records import Rejected
+from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
 from emlogd.offline.simfaults import WindowScore, score_windows
 from emlogd.offline.simulate import Truth, TruthScore, score_truth
@@ -57,6 +58,8 @@ class ReplayResult:
     """Per UUT, its emitted speeds scored against the truth (replay with ``truth``)."""
     truth_windows: dict[str, list[WindowScore]] = field(default_factory=dict)
     """Per UUT, the same per window of :data:`~emlogd.offline.simfaults.WINDOW_S`."""
+    internal: dict[str, object] = field(default_factory=dict)
+    """The records whose handling failed and was contained (:meth:`Containment.report`)."""
 
     def to_dict(self) -> dict[str, object]:
         """``{"uuts": {...}, "ports": {...}, ...}`` (README: ``replay --json``)."""
@@ -92,6 +95,7 @@ class ReplayResult:
             "elapsed_s": round(self.elapsed_s, 3),
             "span_s": round(self.span_s, 3),
             "capture_skips": dict(self.capture_skips),
+            "internal": dict(self.internal),
         }
 
 
@@ -109,6 +113,7 @@ def replay(
     sleep: Callable[[float], None] = time.sleep,
     monotonic: Callable[[], float] = time.monotonic,
     strict: bool = False,
+    reorder_window_s: float = REORDER_WINDOW_S,
 ) -> ReplayResult:
     """Feed every record of ``paths`` to ``pipeline``.
 
@@ -127,6 +132,10 @@ def replay(
         monotonic: the clock used for pacing (tests).
         strict: a malformed record raises; otherwise it is counted and skipped
             (``capture_skips``: per capture, the count by reason and the first lines).
+            A record whose handling fails unforeseen is counted as an ``internal`` reject
+            of its port and kept in :attr:`ReplayResult.internal`; the replay goes on.
+        reorder_window_s: records this far (s) out of time order are put back in order
+            (``capture_skips``' ``reordered``; :class:`~drivers.io.capture.CaptureReader`).
 
     Returns:
         Counters and the pipeline's final status.
@@ -147,9 +156,11 @@ def replay(
     t_last = 0.0
     pace0: tuple[float, float] | None = None
     t_tick = -float("inf")
-    out = Output()  # reused: delivered, then cleared, after every record
+    contain = Containment()
     for path in paths:
-        reader = CaptureReader(path, errors="raise" if strict else "skip")
+        reader = CaptureReader(
+            path, errors="raise" if strict else "skip", reorder_window_s=reorder_window_s
+        )
         size = max(Path(path).stat().st_size, 1)
         for t, port, data, line in reader.received():
             if port not in pipeline.decoders:
@@ -164,23 +175,36 @@ def replay(
                 wait = due - monotonic()
                 if wait > 0.0:
                     sleep(wait)
-            pipeline.feed(t, port, data, out)
-            if t - t_tick >= TICK_S:
-                t_tick = t
-                pipeline.tick(t, out)
-            if out.emits or out.events or out.persist:
+            out: Output | None
+            try:
+                out = pipeline.feed(t, port, data)
+            except Exception as exc:  # contained: one record is lost, not the replay
+                contain.failed(pipeline, port, data, exc, t)
+                out = None
+            if out is not None and (out.emits or out.events or out.persist):
                 if scorer is not None:
                     scorer.emitted(out.emits)
                 _deliver(out, result, sink, on_persist, on_event, on_emit)
-                out.emits.clear()
-                out.events.clear()
-                out.persist.clear()
+            if t - t_tick >= TICK_S:
+                t_tick = t
+                try:
+                    out = pipeline.tick(t)
+                except Exception as exc:  # contained like a record's
+                    contain.failed(pipeline, "", b"", exc, t)
+                    out = None
+                if out is not None and (out.events or out.persist):
+                    _deliver(out, result, sink, on_persist, on_event, on_emit)
             result.records += 1
             t_last = t
             if progress is not None and result.records % 20_000 == 0:
                 progress(f"replay {Path(path).name}", min(line * 60.0 / size, 1.0))
         result.capture_skips[str(path)] = reader.skip_report()
-    last = pipeline.flush()
+    try:
+        last = pipeline.flush()
+    except Exception as exc:  # contained: the end of the input, not the replay
+        contain.failed(pipeline, "", b"", exc, t_last)
+        last = Output()
+    result.internal = contain.report()
     if scorer is not None:
         scorer.emitted(last.emits)
     _deliver(last, result, sink, on_persist, on_event, on_emit)

@@ -35,7 +35,7 @@ from calib.models import correct_array
 from emlogd.offline import ProgressFn
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import OfflineError, crossval, find_lag
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 WINDOW_S = 600.0
 """Length of the speed-plot window, s (the start of each capture)."""

@@ -31,6 +31,9 @@ Method = Literal["online", "kf", "ls"]
 MAX_VARIANCE = 1e4
 """A covariance entry above this (in the state's units squared) is not a calibration."""
 
+MAX_ABS_LAG_S = 60.0
+"""Without a UUT's settings (a file checked alone), a lag beyond ±this is no latency."""
+
 
 @dataclass(frozen=True, slots=True)
 class Calibration:
@@ -77,21 +80,23 @@ class Calibration:
         return Layout(self.params.model, self.current)
 
 
-def check(cal: Calibration, envelope: Envelope) -> str:
+def check(cal: Calibration, envelope: Envelope, max_lag_s: float | None = None) -> str:
     """``""`` when the calibration may be used, else why not (one line).
 
-    Checks: parameters inside ``envelope``; the current (if any) within it; a finite
-    lag within ±60 s; a covariance, when present, of the layout's shape, finite,
-    symmetric and positive-definite with no variance above :data:`MAX_VARIANCE`;
-    standard deviations finite and non-negative.
+    Checks: a finite lag within ``[0, max_lag_s]`` (the UUT's ``max_lag_s``; without
+    it within ±:data:`MAX_ABS_LAG_S`) — for a reset record too, which keeps the lag;
+    parameters inside ``envelope``; the current (if any) within it; a covariance, when
+    present, of the layout's shape, finite, symmetric and positive-definite with no
+    variance above :data:`MAX_VARIANCE`; standard deviations finite and non-negative.
     """
+    why = check_lag(cal.lag_s, max_lag_s)
+    if why:
+        return why
     if cal.reset:
         return ""
     why = envelope.check(cal.params, cal.current_mps)
     if why:
         return why
-    if cal.lag_s is not None and not (math.isfinite(cal.lag_s) and abs(cal.lag_s) <= 60.0):
-        return f"lag {cal.lag_s!r} s is not a latency"
     for name, sd in cal.param_std.items():
         if sd is not None and not (math.isfinite(sd) and sd >= 0.0):
             return f"standard deviation of {name} is {sd!r}"
@@ -106,6 +111,20 @@ def check(cal: Calibration, envelope: Envelope) -> str:
     return ""
 
 
+def check_lag(lag_s: float | None, max_lag_s: float | None) -> str:
+    """``""`` when ``lag_s`` (None: unknown) may be a UUT's lag, else why not: a finite
+    lag in ``[0, max_lag_s]``, or within ±:data:`MAX_ABS_LAG_S` without a bound."""
+    if lag_s is None:
+        return ""
+    if max_lag_s is None:
+        if not (math.isfinite(lag_s) and abs(lag_s) <= MAX_ABS_LAG_S):
+            return f"lag {lag_s!r} s is not a latency"
+        return ""
+    if not (math.isfinite(lag_s) and 0.0 <= lag_s <= max_lag_s):
+        return f"lag {lag_s!r} s is outside [0, {max_lag_s:g}] s (max_lag_s)"
+    return ""
+
+
 class HasEnvelope(Protocol):
     """A UUT's settings as far as loading a calibration is concerned."""
 
@@ -117,13 +136,18 @@ class HasEnvelope(Protocol):
     def envelope(self) -> Envelope:
         """Its physical envelope."""
 
+    @property
+    def max_lag_s(self) -> float:
+        """Its longest lag, s."""
+
 
 def checker(uuts: Iterable[HasEnvelope]) -> Callable[[Calibration], str]:
-    """The check of a loaded calibration against its UUT's envelope (a default one for a
-    UUT the config does not have)."""
-    envelopes = {u.port: u.envelope for u in uuts}
+    """The check of a loaded calibration against its UUT's envelope and lag bounds (a
+    default envelope and ±:data:`MAX_ABS_LAG_S` for a UUT the config does not have)."""
+    limits = {u.port: (u.envelope, u.max_lag_s) for u in uuts}
 
     def check_one(cal: Calibration) -> str:
-        return check(cal, envelopes.get(cal.uut, Envelope()))
+        envelope, max_lag_s = limits.get(cal.uut, (Envelope(), None))
+        return check(cal, envelope, max_lag_s)
 
     return check_one

@@ -11,12 +11,19 @@ Routing (per port, the decoders' common navigation records):
   speed and course projected on the hull with the heading) goes, through a glitch
   filter (:class:`~emlogd.pipeline.integrity.JumpFilter`), to every UUT that
   calibrates against that port and field;
-- a **heading** (true, or magnetic with a known variation) goes to its port's ring;
+- a **heading** (true, or magnetic with a variation: the log's, the configured one,
+  else the IGRF model's at the last GNSS position, :mod:`emlogd.pipeline.variation`)
+  goes to its port's ring; a GNSS reference is projected only with a heading the
+  course check has not flagged;
   each UUT reads its heading from the port it is configured for, or (``auto``) from
   its reference's port, else its own VHW heading, else any port with a heading;
-- a UUT's **reading** is corrected and emitted at once (the per-UUT
-  :class:`~emlogd.pipeline.uut.UutCalibration` decides how), then queued for
-  learning against the reference at ``t − lag``.
+- a UUT's **reading** is corrected with the calibration in use and its sentence made
+  (the per-UUT :class:`~emlogd.pipeline.uut.UutCalibration` decides how), then queued
+  for learning against the reference at ``t − lag``.
+
+``feed``, ``tick`` and ``flush`` return everything they made as an :class:`Output`
+(sentences in order, events, calibrations to persist); the caller delivers it. The
+pipeline calls nothing of the caller's.
 
 A read that brings several readings of one sentence (a USB-serial stall released
 as a burst) carries one receive time for all: only the newest is fresh; the older
@@ -29,40 +36,22 @@ a ``VDR`` (set and drift) whenever the heading determines the current.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, NamedTuple
+from typing import Any, NamedTuple
 
-from calib.excitation import ExcitationRule
-from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
-from calib.models import MODEL_NAMES, PARAM_NAMES, check_model
-from drivers import DecoderOptions, make_decoder, protocol_names
+from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder, R
 from drivers.nmea0183 import Gga, Rmc, Vtg
 from drivers.nmea0183 import Heading as NmeaHeading
 from drivers.records import KNOT_MPS, Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
-from emlogd.pipeline.fusion import Fusion, FusionSettings
-from emlogd.pipeline.integrity import Envelope, JumpFilter
-from emlogd.pipeline.keys import (
-    NAME,
-    bool_or_auto,
-    boolean,
-    enum,
-    group,
-    key,
-    lag,
-    literal,
-    number,
-    or_null,
-    param_std,
-    port_or_auto,
-    string,
-)
+from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
+from emlogd.pipeline.headingcheck import HeadingCheck
+from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
 from emlogd.pipeline.sentences import (
     StatusFields,
     encode_fused_status,
@@ -70,309 +59,19 @@ from emlogd.pipeline.sentences import (
     encode_vbw,
     encode_vdr,
     encode_vhw,
+    encode_vhw_void,
 )
+from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.uut import UutCalibration
+from emlogd.pipeline.variation import CourseOffsetCheck, model_variation
 
-RefField = Literal["bottom", "water", "speed", "gnss"]
-"""A UUT's reference: the speed records of that role (:data:`drivers.records.SpeedRole`)
-on its reference port, or ``gnss``: the GNSS speed and course projected on the hull."""
-Checksum = Literal["required", "optional"]
-Component = Literal["longitudinal", "magnitude"]
-HeadingSource = str
-"""``auto`` or a port name."""
-
-_UUT_SENTENCES = ("VHW", "VBW")
 FUSED_PORT = "fused"
 """The port name of the fused speed's emits (a UUT may not be called this)."""
 
-
-REF_NOISE_MPS: dict[str, float] = {
-    "bottom": math.sqrt(DEFAULT_R_REF_MPS2),
-    "water": math.sqrt(DEFAULT_R_REF_MPS2),
-    "speed": math.sqrt(DEFAULT_R_RAW_MPS2),
-    "gnss": 0.3,
-}
-"""Default 1σ noise of each kind of reference, m/s. A DVL's bottom or water track:
-0.01. Another EMlog: its own reading noise. GNSS: speed over ground projected on the
-hull is 1 Hz, filtered by the receiver, and projected with a heading a few degrees
-off and a course that wanders at low speed; 0.3 m/s is what the along-hull residual
-of real yacht logs shows (docs/REAL_DATA.md)."""
-
-
-_KF = KfConfig()
-
-
-@dataclass(frozen=True, slots=True)
-class PortSettings:
-    """What the pipeline needs to know about one input port (the ``ports`` keys that
-    are the pipeline's; the device's are :class:`emlogd.config.PortConfig`'s)."""
-
-    name: str = key(
-        check=string(NAME, "a port name (letters, digits, _ . -; at most 32)"),
-        doc="The port's name, used by `calibration` and in the logs.",
-    )
-    protocol: str = key(
-        check=enum(*sorted(protocol_names())),
-        doc="What the device speaks.",
-    )
-    checksum: Checksum = key(
-        "required",
-        check=literal(Checksum),
-        doc="optional: NMEA sentences without `*hh` are accepted (a wrong one never is).",
-    )
-    max_length: int = key(
-        82,
-        check=number(8, 1024, integer=True),
-        unit="characters",
-        doc="The longest line accepted; raise for devices that send longer lines.",
-    )
-    stale_timeout_s: float = key(
-        5.0,
-        check=number(0.0, 3600.0, lo_open=True),
-        unit="s",
-        doc="Silent this long, the port is stale (a stale reference is not learnt from).",
-    )
-
-
-@dataclass(frozen=True, slots=True)
-class UutSettings:
-    """Calibration of one UUT (the ``calibration`` section of the config).
-
-    The fields made with :func:`~emlogd.pipeline.keys.key` are the ``calibration``
-    keys; the others the config loader fills from elsewhere (the reference port's
-    ``stale_timeout_s``, the ``outputs`` section).
-    """
-
-    port: str = key(name="uut", check=string(NAME, "a port name"), doc="The EMlog's port.")
-    reference_port: str = key(
-        name="reference",
-        check=string(NAME, "a port name"),
-        doc="The reference's port: a DVL, another EMlog, or a GNSS receiver.",
-    )
-    model: str = key(
-        "EM3",
-        check=enum(*MODEL_NAMES),
-        doc="The error model: EM1 (b), EM2 (m), EM3 (m, b), EM4 (a, m, b).",
-    )
-    reference_field: RefField = key(
-        "bottom",
-        check=literal(RefField),
-        doc="bottom (DVL bottom track), water (DVL `:WS`), speed (another EMlog), gnss "
-        "(RMC/VTG speed and course, projected on the hull).",
-    )
-    uut_source: str = key(
-        "VHW", check=enum(*_UUT_SENTENCES), doc="The EMlog sentence calibrated and corrected."
-    )
-    talker: str = key(
-        "VW",
-        check=or_null(string(r"[A-Z]{2}", "two uppercase letters")),
-        absent=None,
-        doc="The talker of this log's corrected sentences; null: `outputs.talker`.",
-    )
-    component: Component = key(
-        "longitudinal",
-        check=literal(Component),
-        doc="magnitude: the horizontal speed of both (EMlogs that measure it).",
-    )
-    current: bool = key(
-        False,
-        check=bool_or_auto,
-        absent="auto",
-        doc="Estimate the sea current (north, east) too: the water frame. auto: wherever a "
-        "heading is known to come (a DVL that sends one, GNSS, or a heading port named); "
-        "false: the calibration against the ground speed.",
-    )
-    heading: HeadingSource = key(
-        "auto",
-        check=port_or_auto(),
-        doc="The heading's port; auto: the reference's heading, else the UUT's VHW, else any "
-        "port with HDT/HDG.",
-    )
-    magnetic_variation_deg: float | None = key(
-        None,
-        check=number(-180.0, 180.0, optional=True),
-        unit="°",
-        doc="East positive; for magnetic headings when no HDG/RMC carries one.",
-    )
-    lag_s: float | None = key(
-        None,
-        name="lag",
-        check=lag,
-        unit="s",
-        show=lambda v: "auto" if v is None else v,
-        doc="The EMlog's lag behind the reference; auto: estimated by cross-correlation "
-        "from the first `lag_window_s` on (provisional within 0.3 s, refined by longer "
-        "windows), then fixed.",
-    )
-    lag_window_s: float = key(
-        300.0,
-        check=number(10.0, 7200.0),
-        unit="s",
-        doc="Data collected before the lag is estimated.",
-    )
-    max_lag_s: float = key(
-        10.0,
-        check=number(0.0, 30.0, lo_open=True),
-        unit="s",
-        doc="The longest lag: the reference is buffered this far back.",
-    )
-    learn: bool = key(True, check=boolean, doc="Learn at start (the control socket may switch it).")
-    apply: bool = key(
-        True, check=boolean, doc="false: the status sentence only, no corrected speed."
-    )
-    min_ref_speed_mps: float = key(
-        0.3, check=number(0.0, 20.0), unit="m/s", doc="No learning below this reference speed."
-    )
-    min_sog_mps: float = key(
-        0.5,
-        check=number(0.0, 20.0),
-        unit="m/s",
-        doc="gnss: below this speed over ground the course is meaningless, no learning.",
-    )
-    ref_stale_s: float = 5.0
-    max_param_std: Mapping[str, float] = key(
-        factory=lambda: {"a": 0.02, "m": 0.05, "b": 0.08},
-        check=param_std(PARAM_NAMES["EM4"], 0.0, 10.0),
-        doc="A calibration is a candidate once its parameters' σ are below these.",
-    )
-    excitation_half_life_samples: float = key(
-        600.0,
-        check=number(1.0, 86400.0),
-        unit="samples",
-        doc="Half-life of the excitation rule's memory of recent speeds.",
-    )
-    r_raw_mps: float = key(
-        math.sqrt(_KF.r_raw_mps2),
-        check=number(0.0, 10.0, lo_open=True),
-        unit="m/s",
-        doc="The EMlog's 1σ noise (0.1 kn, the DX900+ specification).",
-    )
-    r_ref_mps: float | None = key(
-        None,
-        check=number(0.0, 10.0, lo_open=True, optional=True),
-        unit="m/s",
-        doc="The reference's 1σ noise; null: by reference field (0.01 for a DVL or its water "
-        "track, the EMlog's own for another log, 0.3 for GNSS).",
-    )
-    q_params: float = key(
-        _KF.q_params,
-        check=number(0.0, 1.0),
-        doc="Random walk of the parameters per sample (the paper's Q).",
-    )
-    p0: float = key(
-        _KF.p0, check=number(0.0, 100.0, lo_open=True), doc="Initial variance (the paper's P0)."
-    )
-    current_psd_m2ps3: float = key(
-        _KF.current_psd_m2ps3,
-        check=number(0.0, 1.0),
-        unit="m²/s³",
-        doc="How fast the current may change (random walk).",
-    )
-    persist_interval_s: float = key(
-        60.0,
-        check=number(0.0, 86400.0),
-        unit="s",
-        doc="The calibration in use is persisted at most this often.",
-    )
-    persist_min_change_sigma: float = key(
-        1.0,
-        check=number(0.0, 100.0),
-        unit="σ",
-        doc="A change smaller than this many σ is not persisted.",
-    )
-    persist_min_change_abs: float = key(
-        1e-3,
-        check=number(0.0, 10.0),
-        doc="Nor is a change smaller than this in every parameter.",
-    )
-    rule: ExcitationRule = field(default_factory=ExcitationRule)
-    maker: str = "EML"
-    status_sentence_interval_s: float = 1.0
-    gate_nis: float = key(
-        25.0,
-        check=number(1.0, 1e6),
-        doc="A sample whose innovation is beyond this NIS is not learnt.",
-    )
-    relearn_gates: int = key(
-        30,
-        check=number(1, 100_000, integer=True),
-        doc="This many gated samples in a row: the filter restarts from the last good state.",
-    )
-    envelope: Envelope = group(Envelope)
-    low_speed_mps: float = key(
-        0.25,
-        check=number(0.0, 5.0),
-        unit="m/s",
-        doc="Below this the correction fades to the raw reading.",
-    )
-    stuck_s: float = key(
-        60.0,
-        check=number(1.0, 86400.0),
-        unit="s",
-        doc="A reading that does not change this long while the reference moves: stuck.",
-    )
-    zero_s: float = key(
-        10.0,
-        check=number(1.0, 86400.0),
-        unit="s",
-        doc="A zero reading this long while the reference moves: a fault.",
-    )
-    max_accel_mps2: float = key(
-        2.0,
-        check=number(0.0, 100.0, lo_open=True),
-        unit="m/s²",
-        doc="A reference jump needing more than this is a glitch.",
-    )
-    max_turn_rate_dps: float = key(
-        45.0,
-        check=number(0.0, 360.0, lo_open=True),
-        unit="°/s",
-        doc="A heading jump needing more than this is a glitch.",
-    )
-    validation_s: float = key(
-        120.0,
-        check=number(0.1, 3600.0),
-        unit="s",
-        doc="A new calibration must beat the one in use this long before it is applied.",
-    )
-    average_s: float | None = key(
-        None,
-        check=number(0.0, 600.0, optional=True),
-        unit="s",
-        doc="Learn from block means this long; null: 20 s for gnss, else every sample; 0: "
-        "every sample (a noisy reference's errors are correlated).",
-    )
-    recheck_s: float = key(
-        300.0,
-        check=number(1.0, 86400.0),
-        unit="s",
-        doc="The calibration in use is checked against the raw reading this often.",
-    )
-    _kf: KfConfig = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        check_model(self.model)
-        r_ref = (
-            self.r_ref_mps if self.r_ref_mps is not None else REF_NOISE_MPS[self.reference_field]
-        )
-        object.__setattr__(
-            self,
-            "_kf",
-            dataclasses.replace(
-                _KF,
-                r_raw_mps2=self.r_raw_mps**2,
-                r_ref_mps2=r_ref**2,
-                q_params=self.q_params,
-                p0=self.p0,
-                current_psd_m2ps3=self.current_psd_m2ps3,
-            ),
-        )
-
-    @property
-    def kf(self) -> KfConfig:
-        """The filter's tuning: :class:`KfConfig`'s defaults with the noises, ``q_params``,
-        ``p0`` and ``current_psd_m2ps3`` of these settings."""
-        return self._kf
+HEADING_CHECK_TOL_S = 1.5
+"""A GNSS fix is judged with the heading nearest its time within this, s (a heading
+sentence often follows the fix; a wrong heading is tens of degrees off, not a turn's
+1.5 s)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -402,22 +101,21 @@ class Event:
 
 @dataclass(slots=True)
 class Output:
-    """What one :meth:`Pipeline.feed` or :meth:`Pipeline.tick` call produced."""
+    """What one :meth:`Pipeline.feed`, :meth:`Pipeline.tick` or :meth:`Pipeline.flush`
+    call produced, returned to the caller, which delivers it: the sentences in the order
+    they were made (corrected speeds, status, VDR, fused speed), the events, and the
+    calibrations to persist. Each call returns a new one; the pipeline keeps no
+    reference to it and calls nothing of the caller's."""
 
     emits: list[Emit] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
     persist: list[Calibration] = field(default_factory=list)
-    deliver: Callable[[list[Emit]], None] | None = None
-    """Live use: takes each corrected sentence as soon as it is ready (the latency
-    path); the emits are cleared after. None (replay, tests): the emits stay in
-    :attr:`emits` for the caller."""
 
-    def send(self, emit: Emit) -> None:
-        """Add an emit, handing it to :attr:`deliver` at once when that is set."""
-        self.emits.append(emit)
-        if self.deliver is not None:
-            self.deliver(self.emits)
-            self.emits.clear()
+    def add(self, other: Output) -> None:
+        """Append another call's output after this one's (a caller collecting several)."""
+        self.emits.extend(other.emits)
+        self.events.extend(other.events)
+        self.persist.extend(other.persist)
 
 
 class _Heading(NamedTuple):
@@ -431,10 +129,15 @@ class _Gnss(NamedTuple):
     cog_true_deg: float | None
     valid: bool
     variation_deg: float | None
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    fix_t: float | None = None
 
 
 class _Fix(NamedTuple):
     quality: int
+    lat_deg: float | None = None
+    lon_deg: float | None = None
 
 
 _Nav = SpeedRecord | _Heading | _Gnss | _Fix
@@ -449,13 +152,22 @@ def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
     if isinstance(rec, Rejected):
         return
     if isinstance(rec, Rmc):
-        yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, rec.variation_deg)
+        fix_t = None if rec.time_utc is None else rec.time_utc.timestamp()
+        yield _Gnss(
+            rec.sog_mps,
+            rec.cog_true_deg,
+            rec.valid,
+            rec.variation_deg,
+            rec.lat_deg,
+            rec.lon_deg,
+            fix_t,
+        )
         return
     if isinstance(rec, Vtg):
         yield _Gnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
         return
     if isinstance(rec, Gga):
-        yield _Fix(rec.quality)
+        yield _Fix(rec.quality, rec.lat_deg, rec.lon_deg)
         return
     if isinstance(rec, NmeaHeading):
         if rec.heading_deg is None:
@@ -476,6 +188,12 @@ def _nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[_Nav]:
         yield sp
 
 
+def _keep_lag(cal: UutCalibration, lag_s: float) -> None:
+    """Give a new UUT calibration a lag known before (it estimates none)."""
+    cal.lag_s = lag_s
+    cal.lag_finder = None
+
+
 def _value(sp: SpeedRecord, component: str) -> float | None:
     """The speed a UUT compares: along the hull, or the horizontal magnitude."""
     v = sp.longitudinal_mps
@@ -491,6 +209,7 @@ class _PortHeading:
         self.ring = SampleRing(1024, 2.0, angular=True)
         self.jumps = JumpFilter(max_turn_rate_dps, 5.0, angular=True)
         self.refused_magnetic = 0
+        self.magnetic = 0
 
 
 class _Uut:
@@ -504,6 +223,29 @@ class _Uut:
         self.t_vdr = -math.inf
         self.heading_port: str | None = None
         self.gnss: deque[tuple[float, float | None, float | None, bool]] = deque(maxlen=256)
+        self.course_check = CourseOffsetCheck()
+        """The heading's offset from the course through the water (variation module)."""
+        self.course_refused = 0
+        """GNSS fixes not projected because the course check flagged the heading."""
+        self.checks: dict[str, ReadingCheck] = {}
+        """The plausibility of the readings, per sentence (VHW, VBW)."""
+        self.heading_check = HeadingCheck(s.envelope.max_current_mps)
+        self.stw: tuple[float, float] | None = None
+        """The latest corrected speed through the water (time, m/s)."""
+        self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
+        """Readings neither emitted nor learnt, by reason (shown with the counters)."""
+
+    def plausible(self, t: float, source: str, raw: float) -> str:
+        """``""`` when the reading is plausible, else why not (counted)."""
+        chk = self.checks.get(source)
+        if chk is None:
+            chk = self.checks[source] = ReadingCheck(self.s.limits)
+        why = chk.check(t, raw)
+        if why:
+            self.implausible[f"implausible_{why}"] += 1
+        elif chk.reacquired:
+            return "reacquired"
+        return why
 
 
 class Pipeline:
@@ -514,7 +256,11 @@ class Pipeline:
         uuts: one entry per calibrated EMlog.
         calibrations: persisted calibrations by UUT port (warm start); each is checked
             first (:func:`emlogd.pipeline.calibration.check`) and ignored with an event
-            when it fails.
+            when it fails. One of another error model than the UUT's is kept aside
+            (:attr:`kept`) and the UUT starts from its own model's record in ``others``,
+            else uncalibrated; the lag is taken from either when the config fixes none.
+        fusion: the fused output's settings, or None.
+        others: the UUTs' calibrations of other error models (the state file's).
     """
 
     def __init__(
@@ -524,6 +270,7 @@ class Pipeline:
         calibrations: Mapping[str, Calibration] | None = None,
         *,
         fusion: FusionSettings | None = None,
+        others: Iterable[Calibration] = (),
     ) -> None:
         self.ports = {p.name: p for p in ports}
         self.decoders: dict[str, Decoder[Any]] = {
@@ -540,10 +287,16 @@ class Pipeline:
         self.t_fused_status = -math.inf
         self.headings: dict[str, _PortHeading] = {}
         self.variation: dict[str, float] = {}
+        self.model_var: float | None = None
         self.fix_quality: dict[str, int] = {}
         self.uuts: dict[str, _Uut] = {}
         self._by_ref: dict[str, list[_Uut]] = {}
         cals = calibrations or {}
+        self.kept: dict[str, dict[str, Calibration]] = {}
+        """Per UUT, by model: its calibrations of the error models it is not using now
+        (restored when its config switches back to that model)."""
+        for c in others:
+            self.kept.setdefault(c.uut, {})[c.params.model] = c
         for s in uuts:
             if fusion is not None and s.port == FUSED_PORT:
                 raise ValueError(f"a UUT port may not be called {FUSED_PORT!r} with a fused output")
@@ -551,15 +304,32 @@ class Pipeline:
                 raise ValueError(f"UUT {s.port}: unknown port {s.port!r} or {s.reference_port!r}")
             if s.heading != "auto" and s.heading not in self.ports:
                 raise ValueError(f"UUT {s.port}: unknown heading port {s.heading!r}")
-            prior = cals.get(s.port)
+            latest = cals.get(s.port)
+            kept = self.kept.setdefault(s.port, {})
+            if latest is not None and latest.params.model == s.model:
+                prior: Calibration | None = latest
+                kept.pop(s.model, None)
+            else:
+                if latest is not None:  # another model's: kept for a switch back
+                    kept[latest.params.model] = latest
+                prior = kept.pop(s.model, None)  # this model's own, from before
             if prior is not None:
-                why = check(prior, s.envelope)
+                why = check(prior, s.envelope, s.max_lag_s)
                 if why:
                     self.startup_events.append(
                         Event(prior.t, s.port, "calibration_refused", {"why": why})
                     )
                     prior = None
             u = _Uut(s, self._new_cal(s, prior))
+            if u.cal.lag_s is None:  # the lag is the sensor's, whatever the model or a reset
+                for rec in (prior, latest):
+                    if (
+                        rec is not None
+                        and rec.lag_s is not None
+                        and not check(rec, s.envelope, s.max_lag_s)
+                    ):
+                        _keep_lag(u.cal, rec.lag_s)
+                        break
             self.uuts[s.port] = u
             self._by_ref.setdefault(s.reference_port, []).append(u)
         self.last_rx: dict[str, float] = {}
@@ -603,6 +373,7 @@ class Pipeline:
                 self.fix_quality[name] = old.fix_quality[name]
             if name in old.last_rx:
                 self.last_rx[name] = old.last_rx[name]
+        self.model_var = old.model_var
         kept: list[str] = []
         for name, u in self.uuts.items():
             o = old.uuts.get(name)
@@ -618,7 +389,7 @@ class Pipeline:
         for u in self.uuts.values():
             self._by_ref.setdefault(u.s.reference_port, []).append(u)
         if self.fusion is not None and old.fusion is not None:
-            self.fusion.latest = dict(old.fusion.latest)
+            self.fusion.adopt(old.fusion)
         self.now = max(self.now, old.now)
         return kept
 
@@ -632,16 +403,20 @@ class Pipeline:
         return order
 
     def _heading_at(self, uut: str, t: float) -> float | None:
+        """The UUT's heading at ``t``, unless the course over ground says it is wrong."""
         u = self.uuts.get(uut)
-        if u is None:
+        if u is None or u.heading_check.suspect:
             return None
+        return self._raw_heading_at(u, t)
+
+    def _raw_heading_at(self, u: _Uut, t: float, tol_s: float = 0.6) -> float | None:
         for port in self._heading_ports(u.s):
             ph = self.headings.get(port)
             if ph is None:
                 continue
             h = ph.ring.at(t)
             if h is None:
-                h = ph.ring.nearest(t, 0.6)
+                h = ph.ring.nearest(t, tol_s)
             if h is not None:
                 if u.heading_port != port:
                     u.heading_port = port
@@ -661,6 +436,7 @@ class Pipeline:
                 ph.refused_magnetic += 1
                 return
             true = wrap_deg(h.magnetic_deg + var)
+            ph.magnetic += 1
         if true is None or not math.isfinite(true):
             return
         if ph.jumps.accept(t, true):
@@ -671,20 +447,30 @@ class Pipeline:
         return max(rates) if rates else 45.0
 
     def _variation(self, port: str) -> float | None:
+        return self.variation_source(port)[0]
+
+    def variation_source(self, port: str) -> tuple[float | None, str | None]:
+        """The variation for magnetic headings of ``port`` and where it comes from: the
+        log (HDG/RMC of that port, else of any port), the configuration
+        (``magnetic_variation_deg``), the model (IGRF at the last GNSS position and
+        date, :mod:`emlogd.pipeline.variation`); (None, None) without any."""
         if port in self.variation:
-            return self.variation[port]
+            return self.variation[port], "log"
         for v in self.variation.values():
-            return v
+            return v, "log"
         for u in self.uuts.values():
             if u.s.magnetic_variation_deg is not None:
-                return u.s.magnetic_variation_deg
-        return None
+                return u.s.magnetic_variation_deg, "config"
+        if self.model_var is not None:
+            return self.model_var, "model"
+        return None, None
 
     # -- input ----------------------------------------------------------------
 
-    def feed(self, t: float, port: str, data: bytes, out: Output | None = None) -> Output:
-        """Decode received bytes of ``port`` stamped ``t`` and run the pipeline on them."""
-        out = out if out is not None else Output()
+    def feed(self, t: float, port: str, data: bytes) -> Output:
+        """Decode received bytes of ``port`` stamped ``t`` and run the pipeline on them;
+        return what that emitted."""
+        out = Output()
         dec = self.decoders.get(port)
         if dec is None:
             return out
@@ -715,6 +501,8 @@ class Pipeline:
                 self._gnss(t, port, item)
             elif isinstance(item, _Fix):
                 self.fix_quality[port] = item.quality
+                if item.quality > 0:
+                    self._position(t, item.lat_deg, item.lon_deg)
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
@@ -730,15 +518,44 @@ class Pipeline:
                 ok = False
             u.cal.add_reference(t, v if ok else None, ok)
 
+    def _position(self, t: float, lat: float | None, lon: float | None) -> None:
+        """A GNSS position (RMC, GGA) at ``t``: the model's variation there and then."""
+        if lat is not None and lon is not None:
+            mv = model_variation(lat, lon, t)
+            if mv is not None:
+                self.model_var = mv
+
     def _gnss(self, t: float, port: str, g: _Gnss) -> None:
         """A GNSS speed and course: queued until the heading at its time is known."""
         if g.variation_deg is not None:
             self.variation[port] = g.variation_deg
+        if g.valid:
+            self._position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
         valid = g.valid and self.fix_quality.get(port, 1) > 0
+        if valid and g.sog_mps is not None and self.fusion is not None:
+            self.fusion.ground(t, g.sog_mps)
+        if valid and g.sog_mps is not None and g.cog_true_deg is not None:
+            for u in self.uuts.values():
+                self._check_heading(t, u, g.sog_mps, g.cog_true_deg)
         for u in self._by_ref.get(port, ()):
             if u.s.reference_field == "gnss":
                 u.gnss.append((t, g.sog_mps, g.cog_true_deg, valid))
                 self._project(u)
+
+    def _check_heading(self, t: float, u: _Uut, sog: float, cog: float) -> None:
+        """Judge the UUT's heading against a GNSS fix (an event when the verdict changes)."""
+        if u.stw is None or abs(t - u.stw[0]) > 2.0 or sog < u.s.min_sog_mps:
+            return
+        psi = self._raw_heading_at(u, t, HEADING_CHECK_TOL_S)
+        if psi is None:
+            return
+        hc = u.heading_check
+        was = hc.suspect
+        hc.add(t, psi, u.stw[1], sog, cog)
+        if hc.suspect != was:
+            detail = {"why": hc.reason()} if hc.suspect else {}
+            kind = "heading_suspect" if hc.suspect else "heading_consistent"
+            self._pending_events.append(Event(t, u.s.port, kind, detail))
 
     def _project(self, u: _Uut, *, final: bool = False) -> None:
         """Project queued GNSS samples on the hull once the heading covers their time.
@@ -760,8 +577,13 @@ class Pipeline:
                 if psi is None or sog < u.s.min_sog_mps:
                     ok = False
                 else:
-                    along = sog * math.cos(math.radians(cog - psi))
-                    ok = u.ref_jumps.accept(t, along)
+                    u.course_check.add(t, psi, sog, cog)
+                    if u.course_check.flagged():
+                        u.course_refused += 1  # a wrong heading projects nothing
+                        ok = False
+                    else:
+                        along = sog * math.cos(math.radians(cog - psi))
+                        ok = u.ref_jumps.accept(t, along)
             u.cal.add_reference(t, along if ok else None, ok)
 
     def _heading_ring(self, s: UutSettings) -> SampleRing | None:
@@ -784,7 +606,14 @@ class Pipeline:
         if not fresh:
             cal.counters.backlog += 1
             return
+        why = u.plausible(t, sp.source, raw)
+        if why and self.fusion is not None and sp.source == u.s.uut_source:
+            self.fusion.refuse(u.s.port, t, why)
+        if why and why != "reacquired":
+            return
         value = cal.correct(raw)
+        if value is not None and sp.source == u.s.uut_source:
+            u.stw = (t, value)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.source == "VHW":
@@ -792,7 +621,7 @@ class Pipeline:
             else:
                 sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
             if self.fusion is None or not self.fusion.s.only:
-                out.send(Emit(t, u.s.port, sentence))
+                out.emits.append(Emit(t, u.s.port, sentence))
             if self.fusion is not None and sp.source == u.s.uut_source:
                 self._fuse(t, u, value, hdg_t, hdg_m, out)
         if sp.source == u.s.uut_source:
@@ -814,11 +643,19 @@ class Pipeline:
     ) -> None:
         """Send the fused speed (port ``fused``, with the log's headings) when one is due."""
         assert self.fusion is not None
-        fused = self.fusion.update(u.s.port, t, value, u.cal.output_std(value))
+        cal = u.cal
+        std = cal.output_std(value)
+        calibrated = cal.applied is not None and u.s.apply
+        cstd = consistency_std(std, u.s.r_raw_mps, value, calibrated)
+        fused = self.fusion.update(u.s.port, t, value, std, cstd_mps=cstd, calibrated=calibrated)
         if fused is None:
             return
         talker = self.fusion.s.talker
-        out.send(Emit(t, FUSED_PORT, encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)))
+        if fused.valid:
+            sentence = encode_vhw(fused.speed_mps, hdg_t, hdg_m, talker)
+        else:
+            sentence = encode_vhw_void(hdg_t, hdg_m, talker)
+        out.emits.append(Emit(t, FUSED_PORT, sentence))
         if t - self.t_fused_status >= u.s.status_sentence_interval_s:
             self.t_fused_status = t
             out.emits.append(Emit(t, FUSED_PORT, encode_fused_status(fused, u.s.maker)))
@@ -855,9 +692,10 @@ class Pipeline:
 
     # -- time -----------------------------------------------------------------
 
-    def tick(self, t: float, out: Output | None = None) -> Output:
-        """Advance to time ``t`` without data: stale detection, queued learning."""
-        out = out if out is not None else Output()
+    def tick(self, t: float) -> Output:
+        """Advance to time ``t`` without data: stale detection, queued learning; return
+        what that emitted."""
+        out = Output()
         if self.startup_events:
             out.events.extend(self.startup_events)
             self.startup_events.clear()
@@ -893,12 +731,29 @@ class Pipeline:
             self.uuts[p].cal.learn_on = on
         return ports
 
-    def reset(self, port: str | None = None) -> list[str]:
-        """Forget the calibration of one UUT or all (uncalibrated; the lag is kept)."""
+    def reset(self, port: str | None = None) -> dict[str, dict[str, object]]:
+        """Forget the calibration of one UUT or all: the one in use and those of its other
+        models; the lag and the operator's learning switch are kept.
+
+        Returns, per UUT reset, what it ``kept`` (``lag_s``, ``learning_enabled``) and
+        what it ``cleared`` (named).
+        """
         ports = [port] if port is not None else list(self.uuts)
+        done: dict[str, dict[str, object]] = {}
         for p in ports:
             u = self.uuts[p]
             old = u.cal
+            cleared = [
+                f"{u.s.model} calibration" if old.applied is not None else "no calibration applied",
+                "current estimate",
+                "learning state (filter, candidate, scores)",
+                *(f"{m} calibration (another model)" for m in sorted(self.kept.get(p, {}))),
+            ]
+            self.kept.pop(p, None)
+            done[p] = {
+                "kept": {"lag_s": old.lag_s, "learning_enabled": old.learn_on},
+                "cleared": cleared,
+            }
             fresh = self._new_cal(u.s, None)
             fresh.lag_s = old.lag_s
             fresh.lag_finder = old.lag_finder
@@ -907,11 +762,20 @@ class Pipeline:
             fresh.dirty = True
             fresh.t_persist = -math.inf
             u.cal = fresh
-        return ports
+        return done
 
     def calibrations(self) -> list[Calibration]:
         """The calibration of every UUT (a ``reset`` record when it has none): what is persisted."""
         return [u.cal.snapshot() for u in self.uuts.values()]
+
+    def other_calibrations(self) -> list[Calibration]:
+        """Every UUT's calibrations of the models it is not using: persisted beside."""
+        return [
+            c
+            for name, u in self.uuts.items()
+            for model, c in sorted(self.kept.get(name, {}).items())
+            if model != u.s.model
+        ]
 
     # -- status ---------------------------------------------------------------
 
@@ -950,7 +814,13 @@ class Pipeline:
             "uuts": {name: self._uut_status(u) for name, u in self.uuts.items()},
             "fused": None
             if last is None
-            else {"speed_mps": last.speed_mps, "std_mps": last.std_mps, "sources": last.sources},
+            else {
+                "valid": last.valid,
+                "speed_mps": last.speed_mps if last.valid else None,
+                "std_mps": last.std_mps if last.valid else None,
+                "sources": last.sources,
+                "excluded": dict(last.excluded),
+            },
         }
 
     def _uut_status(self, u: _Uut) -> dict[str, object]:
@@ -961,9 +831,11 @@ class Pipeline:
         cur_std = kf.current_std_mps
         return {
             "state": cal.state,
-            "reason": cal.reason,
+            "reason": self._heading_reason(u) or cal.reason,
             "reference": cal.ref_state,
             "heading_port": u.heading_port,
+            "heading": self.heading_status(u.s.port),
+            "heading_suspect": u.heading_check.reason(),
             "learning_enabled": cal.learn_on,
             "model": u.s.model,
             "params": cal.applied.as_dict() if cal.applied is not None else None,
@@ -986,10 +858,54 @@ class Pipeline:
             "nis_mean": cal.nis_mean(),
             "samples_learnt": cal.n_learnt,
             "freezes": cal.freezes,
-            "counters": cal.counters.as_dict(),
+            "counters": {**cal.counters.as_dict(), **u.implausible},
             "scored_samples": cal.score.n,
             "rmse_raw": cal.score.rmse_raw,
             "rmse_corrected": cal.score.rmse_corrected,
+        }
+
+    def _heading_reason(self, u: _Uut) -> str | None:
+        """Why a GNSS reference projects nothing, when the heading is the cause: none, a
+        magnetic one without a variation, or one the course check flagged."""
+        if u.s.reference_field != "gnss" or u.cal.ref_state == "valid":
+            return None
+        if u.heading_check.suspect:
+            return u.heading_check.reason()
+        check = u.course_check
+        if check.flagged():
+            return f"heading {check.offset_deg():+.1f}° off the course over ground: not used"
+        if u.heading_port is not None:
+            return None
+        refused = sum(ph.refused_magnetic for ph in self.headings.values())
+        if refused:
+            return (
+                f"heading magnetic without a variation ({refused} refused): "
+                "set magnetic_variation_deg or give GNSS positions"
+            )
+        return (
+            "no heading for the GNSS reference"
+            if u.gnss or u.cal.learner.t_ref_last > -math.inf
+            else None
+        )
+
+    def heading_status(self, uut: str) -> dict[str, object]:
+        """A UUT's heading: its port, the variation used and from where (``log``,
+        ``config``, ``model``), the magnetic headings refused for want of one, the
+        heading-against-course check and the GNSS fixes it refused."""
+        u = self.uuts[uut]
+        port = u.heading_port
+        var, source = self.variation_source(port if port is not None else u.s.reference_port)
+        ph = self.headings.get(port) if port is not None else None
+        if ph is None or not ph.magnetic:
+            var = source = None  # a true heading: no variation used
+        refused = sum(ph.refused_magnetic for ph in self.headings.values())
+        return {
+            "port": port,
+            "variation_deg": None if var is None else round(var, 2),
+            "variation_source": source,
+            "refused_magnetic": refused,
+            "check": u.course_check.as_dict(),
+            "refused_by_check": u.course_refused,
         }
 
     def summary(self) -> str:

@@ -1,12 +1,46 @@
-"""One speed through the water for the autopilot, from every healthy EMlog.
+"""One speed through the water for the autopilot, from the logs that agree — never a
+silent average of logs that do not.
 
 Each UUT's corrected speed comes with its standard deviation (:meth:`UutCalibration.
 output_std`): the reading's noise through the calibration's scale, plus what the
 calibration's own σ contributes at that speed; a log still uncalibrated counts with a
 generous 10 % + 0.1 m/s. The fused speed is the inverse-variance weighted mean of the
-latest corrected speed of each log heard within ``max_age_s``, so a log that falls
-silent (a fault silences its output) drops out at once and the others carry on, and a
-calibrated log outweighs an uncalibrated one. The fused σ is ``1/√(Σ 1/σᵢ²)``.
+latest corrected speed of each *used* log heard within ``max_age_s``; its σ is
+``1/√(Σ 1/σᵢ²)``. A log is left out, with a reason (:attr:`Fused.excluded`), when:
+
+- ``accel``, ``rate``, ``reacquired``: one of its readings was implausible
+  (:class:`~emlogd.pipeline.integrity.ReadingCheck`: a dropout to 0, a spike, a babble)
+  or it re-acquired a new level, within ``hold_s`` — from its first implausible
+  sample on, while another log is there;
+- ``stuck``: its speed has stayed within the quantum for :data:`FLAT_S` while another
+  log's moved;
+- it loses a *dispute*: two logs disagree when their speeds' difference, smoothed over
+  :data:`PAIR_SMOOTH_S`, is beyond ``gate_chi2`` in units of their consistency σ (the
+  output σ of a calibrated log; the reading's noise and :data:`UNCALIBRATED_SCALE_STD`
+  of the speed for an uncalibrated one — no 0.1 m/s floor, which would hide a log
+  reading 1.8× at a slow speed). The dispute lasts until they agree for ``rejoin_s``.
+  It is decided once, by the first rule that tells the two apart:
+
+  1. ``gnss``: a GNSS speed over ground heard within :data:`GNSS_MAX_AGE_S` lies
+     within ``max_current_mps`` (+ 3 × :data:`GNSS_SOG_STD_MPS`) of one log and not
+     of the other;
+  2. ``break``: one log had an implausible reading or re-acquired a level shortly
+     before the dispute began (within ``hold_s`` + :data:`BREAK_MARGIN_S`) and the
+     other did not — the log whose own history is unchanged is followed;
+  3. ``stuck``: one log's speed has not moved beyond the quantum for :data:`FLAT_S`
+     and the other's has;
+  4. ``step``: like ``break``, one log *stepped* — a speed beyond :data:`STEP_SIGMA`
+     times its own recent scatter from its own short-term prediction (a plausible jump
+     all the same: 0.38 → 0.68 m/s at a slow speed) — and the other did not (neither
+     being flat for :data:`STEP_GUARD_S`);
+  5. ``minority``: one log is in more disputes than the other (three logs or more);
+  6. ``uncalibrated``: one log has a validated calibration and the other none.
+
+  A step resets the smoothed differences of the log's pairs to the present one, so a
+  log that steps away from the others is in dispute from its first stepped sample.
+
+  A dispute no rule decides makes the fused output *invalid*: a VHW without a speed
+  and ``$PEMLF`` with status ``V`` and every disputed log excluded as ``disagree``.
 
 No I/O, no clock: times come with the data.
 """
@@ -16,10 +50,52 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from emlogd.pipeline.integrity import QUANTUM_MPS
+
+UNCALIBRATED_SCALE_STD = 0.1
+"""The consistency σ of an uncalibrated log's speed, as a fraction of it (with the
+reading's noise): two healthy logs of the same kind agree within a few per cent."""
+
+PAIR_SMOOTH_S = 5.0
+"""Time constant of the smoothed difference between two logs, s: the readings' noise
+averages out (a few per cent of its variance stays), a persistent difference does not."""
+
+GNSS_SOG_STD_MPS = 0.3
+"""1σ noise of a GNSS speed over ground at a reading's time, m/s."""
+
+GNSS_MAX_AGE_S = 3.0
+"""A GNSS speed over ground arbitrates this long after it was heard, s."""
+
+BREAK_MARGIN_S = 5.0
+"""A log's break counts against it in a dispute that began within ``hold_s`` + this, s."""
+
+FLAT_S = 10.0
+"""A log whose speed stays within the quantum this long while another log's moves is
+stuck, s: left out of the fused speed (and the loser of a dispute)."""
+
+STEP_GUARD_S = 5.0
+"""A step decides no dispute when either log has been flat this long, s: a log stuck for
+less than :data:`FLAT_S` must not make the other's real change look like its fault."""
+
+SELF_SMOOTH_S = 3.0
+"""Time constant of a log's short-term prediction of its own speed (its smoothed speed), s."""
+
+SCATTER_S = 60.0
+"""Time constant of a log's scatter about its own prediction (the RMS residual), s."""
+
+STEP_SIGMA = 4.0
+"""A speed this many times the log's scatter from its own prediction is a step."""
+
+STEP_FLOOR_MPS = 0.02
+"""The least scatter a step is measured against, m/s (a flat log's scatter is nought)."""
+
+STEP_WARMUP = 10
+"""Speeds a log needs before its steps are judged."""
+
 
 @dataclass(frozen=True, slots=True)
 class FusionSettings:
-    """The fused output (``outputs.fused`` in the config).
+    """The fused output (``outputs.fused`` and ``outputs.fused_*`` in the config).
 
     Attributes:
         only: send the fused speed instead of each log's corrected sentences (the
@@ -27,12 +103,23 @@ class FusionSettings:
         talker: talker ID of the fused VHW.
         max_age_s: a log's latest speed counts this long, s.
         min_interval_s: at most one fused sentence this often, s.
+        gate_chi2: two logs whose smoothed difference, squared over the sum of their
+            consistency variances, exceeds this disagree (6.63: 1 % for one degree of
+            freedom).
+        hold_s: a log with an implausible reading stays out this long, s.
+        rejoin_s: two disputing logs agree again after agreeing this long, s.
+        max_current_mps: the largest current: a log further than this (and the GNSS
+            noise) from the speed over ground loses a dispute, m/s.
     """
 
     only: bool = True
     talker: str = "II"
     max_age_s: float = 2.0
     min_interval_s: float = 0.1
+    gate_chi2: float = 6.63
+    hold_s: float = 10.0
+    rejoin_s: float = 30.0
+    max_current_mps: float = 1.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,29 +127,144 @@ class Fused:
     """A fused speed.
 
     Attributes:
-        speed_mps: the weighted mean, m/s.
-        std_mps: its standard deviation, m/s.
-        sources: the logs that contributed, by weight (heaviest first).
+        speed_mps: the weighted mean, m/s (nan when invalid).
+        std_mps: its standard deviation, m/s (nan when invalid).
+        sources: the logs used, by weight (heaviest first); empty: invalid.
+        excluded: the logs heard but left out, each with its reason.
     """
 
     speed_mps: float
     std_mps: float
     sources: tuple[str, ...]
+    excluded: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def valid(self) -> bool:
+        """A speed was fused (some log is used)."""
+        return bool(self.sources)
+
+
+def consistency_std(std_mps: float, r_raw_mps: float, speed_mps: float, calibrated: bool) -> float:
+    """The σ a log's speed is checked for consistency with: its output σ when calibrated,
+    else the reading's noise and :data:`UNCALIBRATED_SCALE_STD` of the speed, m/s."""
+    if calibrated:
+        return std_mps
+    return math.hypot(r_raw_mps, UNCALIBRATED_SCALE_STD * speed_mps)
+
+
+class _Log:
+    __slots__ = (
+        "anchor",
+        "calibrated",
+        "cstd",
+        "level",
+        "n",
+        "scatter2",
+        "std",
+        "t",
+        "t_anchor",
+        "t_break",
+        "t_step",
+        "v",
+        "why",
+    )
+
+    def __init__(self) -> None:
+        self.t = -math.inf
+        self.v = math.nan
+        self.std = math.nan
+        self.cstd = math.nan
+        self.calibrated = False
+        self.t_break = -math.inf
+        self.why = ""
+        self.anchor = math.nan
+        self.t_anchor = -math.inf
+        self.level = math.nan
+        self.scatter2 = 0.0
+        self.n = 0
+        self.t_step = -math.inf
+
+    def predict(self, t: float, v: float) -> bool:
+        """Add a speed to the log's own prediction; True when it is a step."""
+        if self.n == 0:
+            self.level, self.n = v, 1
+            return False
+        r = v - self.level
+        scatter = max(math.sqrt(self.scatter2), STEP_FLOOR_MPS)
+        dt = max(t - self.t, 0.0)
+        self.n += 1
+        if self.n > STEP_WARMUP and abs(r) > STEP_SIGMA * scatter:
+            self.level = v
+            self.t_step = t
+            return True
+        # a running mean until SCATTER_S worth of speeds, then forgetting
+        self.scatter2 += max(min(dt / SCATTER_S, 1.0), 1.0 / self.n) * (r * r - self.scatter2)
+        self.level += min(dt / SELF_SMOOTH_S, 1.0) * r
+        return False
+
+
+class _Dispute:
+    __slots__ = ("diff", "loser", "t", "t_agree", "t_onset", "why")
+
+    def __init__(self, t: float, diff: float) -> None:
+        self.t = t
+        self.diff = diff
+        self.t_onset: float | None = None
+        self.t_agree: float | None = None
+        self.loser: str | None = None
+        self.why = ""
 
 
 class Fusion:
-    """The latest corrected speed of each log and their weighted mean."""
+    """The latest corrected speed of each log, their disputes, and the fused speed."""
 
     def __init__(self, settings: FusionSettings) -> None:
         self.s = settings
-        self.latest: dict[str, tuple[float, float, float]] = {}
+        self.logs: dict[str, _Log] = {}
+        self.pairs: dict[tuple[str, str], _Dispute] = {}
+        self.sog: tuple[float, float] | None = None
+        self._stepped: set[str] = set()
         self.t_last = -math.inf
         self.last: Fused | None = None
 
-    def update(self, port: str, t: float, speed_mps: float, std_mps: float) -> Fused | None:
-        """Record a log's corrected speed; the fused speed when one is due, else None."""
+    @property
+    def latest(self) -> dict[str, tuple[float, float, float]]:
+        """Each log's latest (time, speed, σ)."""
+        return {p: (lg.t, lg.v, lg.std) for p, lg in self.logs.items() if lg.t > -math.inf}
+
+    def adopt(self, old: Fusion) -> None:
+        """Take over the logs, disputes and speed over ground of ``old`` (a reload)."""
+        self.logs, self.pairs, self.sog = old.logs, old.pairs, old.sog
+
+    def _log(self, port: str) -> _Log:
+        lg = self.logs.get(port)
+        if lg is None:
+            lg = self.logs[port] = _Log()
+        return lg
+
+    def update(
+        self,
+        port: str,
+        t: float,
+        speed_mps: float,
+        std_mps: float,
+        *,
+        cstd_mps: float | None = None,
+        calibrated: bool = False,
+    ) -> Fused | None:
+        """Record a log's corrected speed; the fused speed when one is due, else None.
+
+        ``cstd_mps`` is its consistency σ (:func:`consistency_std`; default ``std_mps``).
+        """
         if math.isfinite(speed_mps) and math.isfinite(std_mps) and std_mps > 0.0:
-            self.latest[port] = (t, speed_mps, std_mps)
+            lg = self._log(port)
+            if lg.predict(t, speed_mps):
+                self._stepped.add(port)
+            lg.t, lg.v, lg.std = t, speed_mps, std_mps
+            lg.cstd = cstd_mps if cstd_mps is not None and cstd_mps > 0.0 else std_mps
+            lg.calibrated = calibrated
+            if not abs(speed_mps - lg.anchor) <= QUANTUM_MPS:
+                lg.anchor, lg.t_anchor = speed_mps, t
         if t - self.t_last < self.s.min_interval_s:
             return None
         fused = self.fuse(t)
@@ -71,16 +273,107 @@ class Fusion:
             self.last = fused
         return fused
 
+    def refuse(self, port: str, t: float, why: str) -> None:
+        """A log's reading was implausible (or re-acquired a level): out for ``hold_s``."""
+        lg = self._log(port)
+        lg.t_break, lg.why = t, why
+
+    def ground(self, t: float, sog_mps: float) -> None:
+        """A valid GNSS speed over ground."""
+        if math.isfinite(sog_mps):
+            self.sog = (t, sog_mps)
+
     def fuse(self, t: float) -> Fused | None:
-        """The weighted mean of the speeds heard within ``max_age_s`` of ``t``."""
-        live = [
-            (1.0 / (std * std), v, port)
-            for port, (t0, v, std) in self.latest.items()
-            if 0.0 <= t - t0 <= self.s.max_age_s
-        ]
+        """The fused speed at ``t`` from the logs heard within ``max_age_s``."""
+        s = self.s
+        live = {p: lg for p, lg in self.logs.items() if 0.0 <= t - lg.t <= s.max_age_s}
         if not live:
             return None
-        w = sum(x[0] for x in live)
-        speed = sum(wi * v for wi, v, _ in live) / w
-        order = tuple(p for _, _, p in sorted(live, key=lambda x: -x[0]))
-        return Fused(speed, 1.0 / math.sqrt(w), order)
+        out = {p: lg.why for p, lg in live.items() if t - lg.t_break < s.hold_s}
+        moving = [p for p, lg in live.items() if t - lg.t_anchor < FLAT_S]
+        for p, lg in live.items():
+            if p not in out and t - lg.t_anchor >= FLAT_S and any(q != p for q in moving):
+                out[p] = "stuck"
+        cand = sorted(p for p in live if p not in out)
+        if not cand:  # every log had a recent implausible reading: the plausible ones
+            cand, out = sorted(live), {}
+        self._disputes(t, live, cand)
+        losers: dict[str, str] = {}
+        undecided: set[str] = set()
+        for (a, b), d in self.pairs.items():
+            if d.t_onset is None or a not in cand or b not in cand:
+                continue
+            if d.loser is None:
+                d.loser, d.why = self._verdict(t, a, b, d.t_onset)
+            if d.loser is None:
+                undecided.update((a, b))
+            else:
+                losers[d.loser] = d.why
+        if undecided:
+            excluded = {**out, **dict.fromkeys(undecided, "disagree"), **losers}
+            return Fused(math.nan, math.nan, (), tuple(sorted(excluded.items())))
+        used = [(1.0 / (live[p].std ** 2), live[p].v, p) for p in cand if p not in losers]
+        w = sum(x[0] for x in used)
+        speed = sum(wi * v for wi, v, _ in used) / w
+        order = tuple(p for _, _, p in sorted(used, key=lambda x: -x[0]))
+        return Fused(speed, 1.0 / math.sqrt(w), order, tuple(sorted({**out, **losers}.items())))
+
+    def _disputes(self, t: float, live: dict[str, _Log], cand: list[str]) -> None:
+        """Update each candidate pair's smoothed difference and dispute state."""
+        s = self.s
+        for key in [k for k in self.pairs if k[0] not in live or k[1] not in live]:
+            del self.pairs[key]
+        for i, a in enumerate(cand):
+            for b in cand[i + 1 :]:
+                la, lb = live[a], live[b]
+                diff = la.v - lb.v
+                d = self.pairs.get((a, b))
+                if d is None:
+                    d = self.pairs[(a, b)] = _Dispute(t, diff)
+                elif a in self._stepped or b in self._stepped:
+                    d.diff, d.t = diff, t
+                else:
+                    k = min(max(t - d.t, 0.0) / PAIR_SMOOTH_S, 1.0)
+                    d.diff += k * (diff - d.diff)
+                    d.t = t
+                z2 = d.diff**2 / (la.cstd**2 + lb.cstd**2)
+                if z2 > s.gate_chi2:
+                    if d.t_onset is None:
+                        d.t_onset, d.loser, d.why = t, None, ""
+                    d.t_agree = None
+                elif d.t_onset is not None:
+                    if d.t_agree is None:
+                        d.t_agree = t
+                    elif t - d.t_agree >= s.rejoin_s:
+                        d.t_onset = d.t_agree = None
+                        d.loser, d.why = None, ""
+        self._stepped.clear()
+
+    def _verdict(self, t: float, a: str, b: str, t_onset: float) -> tuple[str | None, str]:
+        """Which of two disputing logs to leave out, and why (None: no rule decides)."""
+        s = self.s
+        la, lb = self.logs[a], self.logs[b]
+        sog = self.sog
+        if sog is not None and 0.0 <= t - sog[0] <= GNSS_MAX_AGE_S:
+            bound = s.max_current_mps + 3.0 * GNSS_SOG_STD_MPS
+            oa, ob = abs(la.v - sog[1]) > bound, abs(lb.v - sog[1]) > bound
+            if oa != ob:
+                return (a if oa else b), "gnss"
+        since = t_onset - s.hold_s - BREAK_MARGIN_S
+        ba, bb = since <= la.t_break <= t_onset, since <= lb.t_break <= t_onset
+        if ba != bb:
+            return (a if ba else b), "break"
+        fa, fb = t - la.t_anchor >= FLAT_S, t - lb.t_anchor >= FLAT_S
+        if fa != fb:
+            return (a if fa else b), "stuck"
+        sa, sb = since <= la.t_step <= t_onset, since <= lb.t_step <= t_onset
+        both_moving = max(t - la.t_anchor, t - lb.t_anchor) < STEP_GUARD_S
+        if sa != sb and both_moving:
+            return (a if sa else b), "step"
+        na = sum(1 for k, d in self.pairs.items() if a in k and d.t_onset is not None)
+        nb = sum(1 for k, d in self.pairs.items() if b in k and d.t_onset is not None)
+        if na != nb:
+            return (a if na > nb else b), "minority"
+        if la.calibrated != lb.calibrated:
+            return (b if la.calibrated else a), "uncalibrated"
+        return None, ""

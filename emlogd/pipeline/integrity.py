@@ -19,7 +19,10 @@ pieces, each with a reason a person understands (the per-UUT supervisor in
 - :class:`PairedWindow` — the RMS errors of the raw reading, the applied calibration
   and the previous one against the reference, over one forgetting window of the
   same samples: the figures behind "never worse than raw";
-- :func:`emitted_speed` — the policy at low and out-of-range speeds.
+- :func:`emitted_speed` — the policy at low and out-of-range speeds;
+- :class:`ReadingCheck` — a log's reading at the output: one that implies an
+  acceleration no vessel makes since the log's last accepted reading, or that arrives
+  faster than the log's own rate (a babbling log), is neither emitted nor learnt.
 
 Must not import: serial, os, time, threading, socket (pure module).
 """
@@ -409,3 +412,195 @@ class PairedWindow:
         self._t = None
         self._ss = [0.0, 0.0, 0.0]
         self._n = 0.0
+
+
+READING_MARGIN_MPS = 0.3
+"""A change of a log's reading always allowed between two readings, m/s: the reading's
+noise (0.05 m/s) and the surge of a hull in waves, which a log at 1 Hz or faster sees."""
+
+READING_REACQUIRE_S = 10.0
+"""An implausible new level that stays continuous (each reading plausible from the one
+before) this long is accepted, s: the log's earlier level was the wrong one, or the
+vessel really is elsewhere after a fault. A spike shorter than this never goes out."""
+
+ZERO_MPS = 2.0 * QUANTUM_MPS
+"""A reading this close to zero is a zero (a log's dropout value): a log back from
+zero is judged against its last accepted non-zero reading — the zero was the wrong
+level, or the vessel was at rest and no acceleration is known."""
+
+RATE_SLACK = 1.05
+"""A log's readings are accepted at up to this many times its nominal rate (the jitter
+of receive times and the drift between its clock and ours)."""
+
+RATE_BURST = 2.0
+"""Readings a log may send back to back above its rate (the token bucket's depth): one
+late reading followed by an early one is no babble."""
+
+BABBLE_DROPS = 3
+"""This many readings dropped for the rate within :data:`BABBLE_S` make a log *babbling*:
+then every reading it sends is dropped (a reading let through at the rate is as much
+garbage as the others), until none was dropped for :data:`BABBLE_S`. One dropped by a
+late reading's jitter is no babble."""
+
+BABBLE_S = 10.0
+"""The window of :data:`BABBLE_DROPS`, and how long a babbling log must keep its rate, s."""
+
+RATE_HISTORY = 32
+"""The nominal interval is the median of this many intervals between consecutive
+readings with none dropped for the rate between them (a babble, held to the rate,
+must not teach a shorter interval)."""
+
+RATE_MIN_INTERVALS = 8
+"""Intervals needed before the nominal rate is used (until then ``max_rate_hz`` alone)."""
+
+
+@dataclass(frozen=True, slots=True)
+class ReadingLimits:
+    """What a speed log's reading may do (``calibration`` keys, per log).
+
+    Attributes:
+        max_reading_accel_mps2: the largest acceleration of the vessel, m/s²: a reading
+            that would need more since the log's last accepted reading (beyond
+            :data:`READING_MARGIN_MPS`) is implausible.
+        max_rate_hz: the most readings a log sends per second; null: its nominal rate,
+            learnt from its accepted readings (the median interval), bounded by
+            :data:`DEFAULT_MAX_RATE_HZ`.
+    """
+
+    max_reading_accel_mps2: float = key(
+        1.0,
+        check=number(0.0, 100.0, lo_open=True),
+        unit="m/s²",
+        doc="A log's reading that needs more acceleration than this since its last accepted "
+        "one is neither emitted nor learnt (a spike, a dropout to 0).",
+    )
+    max_rate_hz: float | None = key(
+        None,
+        check=number(0.0, 1000.0, lo_open=True, optional=True),
+        unit="Hz",
+        doc="A log's readings beyond this rate are dropped, and all of them while it exceeds "
+        "it (a babbling log); null: its nominal rate learnt from the median interval (+5 %), "
+        "at most 20 Hz.",
+    )
+
+
+DEFAULT_MAX_RATE_HZ = 20.0
+"""Without ``max_rate_hz``: the rate no speed log's readings exceed (the nominal rate
+is learnt below it; a log that babbles from its first sentence is held to this)."""
+
+
+class ReadingCheck:
+    """The plausibility of one log's readings (one sentence type), in time order.
+
+    :meth:`check` says why a reading must not go out (``"rate"``, ``"accel"``) or ``""``;
+    :attr:`reacquired` is set when the last accepted reading re-acquired a new level
+    (a discontinuity the fusion weighs against the log).
+    """
+
+    __slots__ = (
+        "_drops",
+        "_first_refused",
+        "_intervals",
+        "_last",
+        "_moving",
+        "_pending",
+        "_rate_dropped",
+        "_t_rate",
+        "_tokens",
+        "limits",
+        "nominal_s",
+        "reacquired",
+    )
+
+    def __init__(self, limits: ReadingLimits) -> None:
+        self.limits = limits
+        self._last: tuple[float, float] | None = None
+        self._moving: tuple[float, float] | None = None
+        self._first_refused: float | None = None
+        self._pending: tuple[float, float, float] | None = None
+        self._intervals: list[float] = []
+        self._t_rate: float | None = None
+        self._tokens = RATE_BURST
+        self._rate_dropped = False
+        self._drops: list[float] = []
+        self.nominal_s: float | None = None
+        """The log's nominal interval between readings, s (None until learnt)."""
+        self.reacquired = False
+
+    def max_rate_hz(self) -> float:
+        """The rate readings are accepted at now, Hz."""
+        if self.limits.max_rate_hz is not None:
+            return self.limits.max_rate_hz
+        if self.nominal_s is None:
+            return DEFAULT_MAX_RATE_HZ
+        return min(RATE_SLACK / self.nominal_s, DEFAULT_MAX_RATE_HZ)
+
+    def check(self, t: float, v: float) -> str:
+        """Judge one reading at receive time ``t``: ``""`` when plausible, else why not."""
+        self.reacquired = False
+        drops = self._drops
+        if not self._rate(t):
+            drops.append(t)
+        while drops and t - drops[0] > BABBLE_S:
+            del drops[0]
+        if drops and (drops[-1] == t or len(drops) >= BABBLE_DROPS):
+            return "rate"
+        return self._accel(t, v)
+
+    def _rate(self, t: float) -> bool:
+        prev = self._t_rate
+        if prev is not None:
+            dt = max(t - prev, 0.0)
+            self._tokens = min(self._tokens + dt * self.max_rate_hz(), RATE_BURST)
+        self._t_rate = t
+        if self._tokens < 1.0:
+            self._rate_dropped = True
+            return False
+        self._tokens -= 1.0
+        dropped, self._rate_dropped = self._rate_dropped, False
+        if prev is not None and t > prev and not dropped and self.limits.max_rate_hz is None:
+            iv = self._intervals
+            iv.append(t - prev)
+            if len(iv) > RATE_HISTORY:
+                del iv[0]
+            if len(iv) >= RATE_MIN_INTERVALS:
+                self.nominal_s = sorted(iv)[len(iv) // 2]
+        return True
+
+    def _accel(self, t: float, v: float) -> str:
+        last = self._last
+        if last is None:
+            self._last = (t, v)
+            return ""
+        # the time the vessel had to change since the last accepted reading: up to the
+        # first implausible one (readings kept coming, so the speed is known to be
+        # continuous from there; a new level must then be re-acquired)
+        t_to = t if self._first_refused is None else self._first_refused
+        a = self.limits.max_reading_accel_mps2
+        if abs(v - last[1]) <= READING_MARGIN_MPS + a * max(t_to - last[0], 0.0):
+            self._accept(t, v)
+            return ""
+        if abs(last[1]) <= ZERO_MPS:  # back from zero: against the last moving level
+            ref = self._moving
+            if ref is None or abs(v - ref[1]) <= READING_MARGIN_MPS + a * max(t - ref[0], 0.0):
+                self._accept(t, v)
+                return ""
+        if self._first_refused is None:
+            self._first_refused = t
+        pend = self._pending
+        if pend is not None and abs(v - pend[2]) <= READING_MARGIN_MPS + a * max(t - pend[1], 0.0):
+            if t - pend[0] >= READING_REACQUIRE_S:
+                self._accept(t, v)
+                self.reacquired = True
+                return ""
+            self._pending = (pend[0], t, v)
+        else:
+            self._pending = (t, t, v)
+        return "accel"
+
+    def _accept(self, t: float, v: float) -> None:
+        self._last = (t, v)
+        if abs(v) > ZERO_MPS:
+            self._moving = (t, v)
+        self._first_refused = None
+        self._pending = None

@@ -43,7 +43,7 @@ from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.integrity import Envelope
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.core import UutSettings
+    from emlogd.pipeline.settings import UutSettings
 
 RefState = Literal["valid", "lost", "stale", "slow", "none"]
 

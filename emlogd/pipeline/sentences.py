@@ -16,10 +16,13 @@ sentence is checksummed and at most 82 characters with CR LF.
 
 The fused speed's status (``$P`` + maker + ``F``)::
 
-    $PEMLF,4.21,0.04,2,emlog2;emlog1*hh
+    $PEMLF,4.21,0.04,1,emlog2,A,emlog1:break*hh
 
-fields: the fused speed and its σ in knots, the number of logs that contributed and
-their names (heaviest weight first; names cut to fit 82 characters).
+fields: the fused speed and its σ in knots (empty when invalid), the number of logs
+used and their names (heaviest weight first), the status (``A`` valid, ``V`` invalid:
+logs disagree and nothing tells which is right), and the logs left out with their
+reasons (``name:reason`` joined by ``;``; see :mod:`emlogd.pipeline.fusion`). Names are
+cut to fit 82 characters, the used ones first.
 """
 
 from __future__ import annotations
@@ -117,14 +120,45 @@ def encode_fused_status(fused: Fused, maker: str) -> str:
         _num(min(fused.std_mps / kn, 99.99), ".2f"),
         str(len(fused.sources)),
     ]
+    status = "A" if fused.valid else "V"
+
+    def fits(names: str, excluded: str) -> bool:
+        return len(with_checksum(",".join([*head, names, status, excluded]))) + 2 <= MAX_SENTENCE
+
     names = ""
     for name in fused.sources:
-        clean = "".join(c for c in name if c.isascii() and (c.isalnum() or c in "_-"))
-        trial = f"{names};{clean}" if names else clean
-        if len(with_checksum(",".join([*head, trial]))) + 2 > MAX_SENTENCE:
+        trial = f"{names};{_clean(name)}" if names else _clean(name)
+        if not fits(trial, ""):
             break
         names = trial
-    return with_checksum(",".join([*head, names]))
+    excluded = ""
+    for name, why in fused.excluded:
+        item = f"{_clean(name)}:{_clean(why)}"
+        trial = f"{excluded};{item}" if excluded else item
+        if not fits(names, trial):
+            break
+        excluded = trial
+    return with_checksum(",".join([*head, names, status, excluded]))
+
+
+def _clean(name: str) -> str:
+    return "".join(c for c in name if c.isascii() and (c.isalnum() or c in "_-"))
+
+
+def encode_vhw_void(
+    heading_true_deg: float | None = None,
+    heading_mag_deg: float | None = None,
+    talker: str = "II",
+) -> str:
+    """A VHW without a speed (VHW has no status field: an empty speed is invalid),
+    headings passed through."""
+
+    def deg(x: float | None) -> str:
+        if x is None or not math.isfinite(x):
+            return ""
+        return f"{min(max(x % 360.0, 0.0), 359.9):.1f}"
+
+    return with_checksum(f"{talker}VHW,{deg(heading_true_deg)},T,{deg(heading_mag_deg)},M,,N,,K")
 
 
 def encode_vhw(

@@ -59,8 +59,8 @@ from emlogd.pipeline.evidence import Cusum, FitWindow, SeaMemory
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.core import UutSettings
     from emlogd.pipeline.learner import Offer
+    from emlogd.pipeline.settings import UutSettings
 
 VALIDATION_MIN_SAMPLES = 20
 """A candidate needs at least this many scored samples in its validation window."""

@@ -43,7 +43,7 @@ from emlogd.pipeline.learner import AVERAGE_S, Aligned, BlockMeans, LagFinder, L
 from emlogd.pipeline.supervisor import Supervisor, _Candidate
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.core import UutSettings
+    from emlogd.pipeline.settings import UutSettings
 
 __all__ = [
     "AVERAGE_S",
@@ -74,7 +74,7 @@ class UutCalibration:
     """The online calibration of one UUT (see the module docstring).
 
     Args:
-        s: the UUT's settings (:class:`emlogd.pipeline.core.UutSettings`).
+        s: the UUT's settings (:class:`emlogd.pipeline.settings.UutSettings`).
         prior: a checked calibration to start from (warm start), or None.
         heading_at: returns the UUT's heading in degrees (true) at a time, or None.
         event: called as ``event(t, kind, detail)`` for every state change worth a log line.

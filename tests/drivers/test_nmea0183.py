@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from drivers.base import DecoderOptions
 from drivers.errors import ChecksumError, FieldError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import with_checksum
-from drivers.nmea0183 import NmeaDecoder, Vbw, Vhw, encode_vbw, encode_vhw
+from drivers.nmea0183 import Heading, NmeaDecoder, Vbw, Vhw, encode_vbw, encode_vhw
 from drivers.records import KMH_MPS, KNOT_MPS, Rejected
 
 
@@ -23,17 +23,19 @@ def _feed_all(data: bytes, **kw: object) -> tuple[list[object], NmeaDecoder]:
 
 
 def test_vhw_units_and_disagreement() -> None:
-    """VHW speed is taken from knots, else km/h, a disagreeing knots/km/h pair is flagged with knots
-    kept, astern stays negative, and the speed record carries port, stw, role speed, VHW and the
+    """VHW speed is taken from knots, else km/h, a knots/km/h pair that disagrees beyond rounding
+    is refused as out of range (5 kn vs 50 km/h, 3.5 kn vs 9 km/h) while one within rounding is
+    read, astern stays negative, and the speed record carries port, stw, role speed, VHW and the
     true and magnetic headings apart."""
     r = _parse("VWVHW,,T,,M,3.50,N,6.48,K")
-    assert (
-        isinstance(r, Vhw) and r.stw_mps == pytest.approx(3.5 * KNOT_MPS) and not r.units_disagree
-    )
+    assert isinstance(r, Vhw) and r.stw_mps == pytest.approx(3.5 * KNOT_MPS)
     r = _parse("VWVHW,,T,,M,,N,6.48,K")
     assert isinstance(r, Vhw) and r.stw_mps == pytest.approx(6.48 * KMH_MPS)
-    r = _parse("VWVHW,,T,,M,3.50,N,9.00,K")
-    assert isinstance(r, Vhw) and r.units_disagree and r.stw_mps == pytest.approx(3.5 * KNOT_MPS)
+    r = _parse("VWVHW,,T,,M,5,N,9,K")  # 9.26 km/h sent with no decimals: within rounding
+    assert isinstance(r, Vhw) and r.stw_mps == pytest.approx(5 * KNOT_MPS)
+    for body in ("VWVHW,,T,,M,3.50,N,9.00,K", "VWVHW,,T,,M,5.0,N,50.0,K"):
+        with pytest.raises(OutOfRangeError, match="disagree"):
+            _parse(body)
     r = _parse("VWVHW,,T,,M,-1.2,N,-2.2,K")  # astern
     assert isinstance(r, Vhw) and r.stw_mps == pytest.approx(-1.2 * KNOT_MPS)
     (sp,) = NmeaDecoder("p").speed_records(_parse("VWVHW,10,T,12,M,2,N,3.7,K"))
@@ -83,6 +85,19 @@ def test_vbw_water_pair_valid_even_when_ground_is_v() -> None:
         ("VW,1", FieldError),
         ("VWVHW", FieldError),
         ("PRTI01,1,2,x,0,0,0,0,,,,,0000", FieldError),
+        ("HCHDG,10.0,1e308,E,1e308,E", OutOfRangeError),
+        ("HCHDG,10.0,180.1,E,,", OutOfRangeError),
+        ("HCHDG,10.0,,,181,W", OutOfRangeError),
+        ("HCHDG,-0.1,,,,", OutOfRangeError),
+        ("HEHDT,360.1,T", OutOfRangeError),
+        ("VWVDR,,T,,M,-1,N", OutOfRangeError),
+        ("GPRMC,120000,A,,,,,1.0,,010125,180.5,E,A", OutOfRangeError),
+        ("GPGGA,120000,,,,,12,05,1.0,,M,,M,,", OutOfRangeError),
+        ("GPGGA,120000,,,,,1,05,150,,M,,M,,", OutOfRangeError),
+        ("PRTI01,100,2,9000,0,0,0,0,,,,,0000", OutOfRangeError),
+        ("PRTI01,100,2,1500,0,0,0,-5,,,,,0000", OutOfRangeError),
+        ("GPZDA,000003.00,4294967296,01,2026,00,00", OutOfRangeError),
+        ("GPZDA,235960.50,31,12,9999,00,00", OutOfRangeError),
     ],
 )
 def test_field_errors(body: str, error: type[Exception]) -> None:
@@ -90,6 +105,34 @@ def test_field_errors(body: str, error: type[Exception]) -> None:
     error."""
     with pytest.raises(error):
         _parse(body)
+
+
+def test_ranges_at_their_limits_are_read() -> None:
+    """Deviation and variation of exactly ±180 are read, and a heading sent as 360 is read as 0
+    (directions come out in [0, 360))."""
+    r = _parse("HCHDG,360.0,180.0,W,180.0,E")
+    assert isinstance(r, Heading)
+    assert (r.heading_deg, r.deviation_deg, r.variation_deg) == (0.0, -180.0, 180.0)
+    r = _parse("VWVHW,360.0,T,359.9,M,3.50,N,6.48,K")
+    assert isinstance(r, Vhw) and (r.heading_true_deg, r.heading_mag_deg) == (0.0, 359.9)
+
+
+def test_an_unforeseen_exception_is_an_internal_reject(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A frame whose parsing fails with an exception that is no FrameError is counted as an
+    internal reject naming the exception, and the next frame of the chunk is still decoded."""
+    import drivers.nmea0183 as nmea
+
+    def boom(*args: object) -> object:
+        raise ValueError("math domain error")
+
+    monkeypatch.setattr(nmea, "parse_vhw", boom)
+    data = (with_checksum("VWVHW,,T,,M,3.5,N,,K") + "\r\n").encode()
+    data += (with_checksum("VMVBW,1,2,A,,,V") + "\r\n").encode()
+    out, dec = _feed_all(data)
+    assert isinstance(out[0], Rejected) and out[0].reason == "internal"
+    assert "ValueError: math domain error" in out[0].detail
+    assert isinstance(out[1], Vbw)
+    assert dec.counters.rejects["internal"] == 1 and dec.counters.records == 1
 
 
 def test_checksum_policies_and_counters() -> None:
@@ -182,7 +225,6 @@ def test_vhw_round_trip(stw: float, ht: float | None, hm: float | None) -> None:
     r = NmeaDecoder("x").parse_frame(s.encode())
     assert isinstance(r, Vhw)
     assert r.stw_mps == pytest.approx(stw, abs=0.006)
-    assert not r.units_disagree
 
 
 @settings(max_examples=300, deadline=None)

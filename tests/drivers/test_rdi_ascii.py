@@ -115,11 +115,15 @@ def test_a_bad_line_discards_the_block_and_is_counted_twice() -> None:
         ),
         (lambda b: b.replace(b":TS,25061208000123", b":TS,2506120800012"), "bad_field"),
         (lambda b: b.replace(b":BI", b":XX"), "unknown_sentence"),
+        (lambda b: b.replace(b":TS,25061208000123", b":TS,25136108000123"), "out_of_range"),
+        (lambda b: b.replace(b"+15.0,0000.0", b"+15.0,-010.0"), "out_of_range"),
+        (lambda b: b.replace(b":SA,+00.00,+00.00", b":SA,+95.00,+00.00"), "out_of_range"),
     ],
 )
 def test_line_validation(mangle: object, reason: str) -> None:
-    """A wrong field count, status letter, out-of-range heading, short timestamp or unknown line id
-    discards the ensemble with one reject of the matching reason."""
+    """A wrong field count, status letter, out-of-range heading, short timestamp, unknown line id,
+    impossible month, negative depth or pitch beyond 90° discards the ensemble with one reject of
+    the matching reason."""
     dec = PdAsciiDecoder("dvl", errors="yield")
     out = dec.decode_all(mangle(_lines()))  # type: ignore[operator]
     assert not any(isinstance(r, Pd6Ensemble) for r in out)
@@ -313,3 +317,26 @@ def test_the_pattern_path_reads_the_good_lines() -> None:
 
     read = {name[:2] for name, good in _GOOD_LINES.items() if rdi_ascii._LINES[name[:2]][0](good)}
     assert read == set(rdi_ascii._LINES)
+
+
+def test_an_unforeseen_exception_is_an_internal_reject(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A line whose parsing fails with an exception that is no FrameError discards its ensemble
+    with an internal reject naming the exception, and the next ensemble still decodes."""
+    import drivers.rdi_ascii as pd6
+
+    real = pd6._parse_line
+    calls = [0]
+
+    def boom(frame: bytes) -> tuple[str, object]:
+        calls[0] += 1
+        if calls[0] == 3:
+            raise ZeroDivisionError("division by zero")
+        return real(frame)
+
+    monkeypatch.setattr(pd6, "_parse_line", boom)
+    dec = PdAsciiDecoder("dvl", errors="yield")
+    out = dec.decode_all(_lines() + _lines())
+    assert sum(isinstance(r, Pd6Ensemble) for r in out) == 1
+    internal = [r for r in out if isinstance(r, Rejected) and r.reason == "internal"]
+    assert len(internal) == 1 and "ZeroDivisionError" in internal[0].detail
+    assert dec.counters.rejects["internal"] == 1

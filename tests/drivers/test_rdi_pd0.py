@@ -244,3 +244,46 @@ def test_a_corrupted_length_at_end_of_file_does_not_swallow_the_next_ensemble() 
     out = dec.decode_all(bytes(data))
     assert [e.ensemble_number for e in out if isinstance(e, Pd0Ensemble)] == [14, 16]
     assert dec.counters.rejected == 1
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"pitch_deg": 95.0},
+        {"roll_deg": -181.0},
+        {"temperature_c": 80.0},
+        {"salinity_ppt": 60},
+        {"sound_speed_mps": 1000},
+    ],
+)
+def test_an_out_of_range_leader_field_is_a_reject(bad: dict[str, float]) -> None:
+    """A PD0 ensemble whose pitch, roll, temperature, salinity or sound speed is outside its
+    physical range is an out_of_range reject, not a record; the same ensemble in range is read."""
+    base = {"ensemble_number": 1, "timestamp": datetime(2025, 1, 1, tzinfo=UTC)}
+    good = encode_pd0(heading_deg=10.0, **base)  # type: ignore[arg-type]
+    assert isinstance(Pd0Decoder("d").decode_all(good)[0], Pd0Ensemble)
+    dec = Pd0Decoder("d", errors="yield")
+    (out,) = dec.decode_all(encode_pd0(heading_deg=10.0, **base, **bad))  # type: ignore[arg-type]
+    assert isinstance(out, Rejected) and out.reason == "out_of_range"
+
+
+def test_an_impossible_clock_is_a_reject() -> None:
+    """A PD0 ensemble whose variable leader's real-time clock names month 13 is an out_of_range
+    reject."""
+    import struct
+
+    from drivers.binframe import sum16
+
+    good = encode_pd0(
+        ensemble_number=1, timestamp=datetime(2025, 1, 1, tzinfo=UTC), heading_deg=10.0
+    )
+    body = bytearray(good[:-2])
+    n_types = body[5]
+    offsets = [struct.unpack_from("<H", body, 6 + 2 * i)[0] for i in range(n_types)]
+    (vl,) = [o for o in offsets if struct.unpack_from("<H", body, o)[0] == 0x0080]
+    assert body[vl + 5] == 1  # the month
+    body[vl + 5] = 13
+    bad = bytes(body) + (sum16(bytes(body)) & 0xFFFF).to_bytes(2, "little")
+    dec = Pd0Decoder("d", errors="yield")
+    (out,) = dec.decode_all(bad)
+    assert isinstance(out, Rejected) and out.reason == "out_of_range" and "clock" in out.detail

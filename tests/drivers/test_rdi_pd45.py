@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivers.rdi_pd45 import Pd45Decoder, Pd45Ensemble, encode_pd45
+from drivers.records import Rejected
 
 
 @pytest.mark.parametrize("pd5", [False, True])
@@ -125,3 +126,22 @@ def test_fuzz_random_bytes(data: bytes) -> None:
     dec = Pd45Decoder("dvl", errors="skip")
     for r in dec.decode_all(b"\x7d" + data):
         assert isinstance(r, Pd45Ensemble)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"pitch_deg": 95.0},
+        {"roll_deg": -181.0},
+        {"temperature_c": 80.0},
+        {"sound_speed_mps": 1000},
+        {"first_ping": (25, 0, 0, 0)},
+    ],
+)
+def test_an_out_of_range_field_is_a_reject(bad: dict[str, object]) -> None:
+    """A PD5 ensemble whose attitude, temperature, sound speed or first-ping time is outside its
+    range is an out_of_range reject, not a record; the same ensemble in range is read."""
+    assert isinstance(Pd45Decoder("d").decode_all(encode_pd45(pd5=True))[0], Pd45Ensemble)
+    dec = Pd45Decoder("d", errors="yield")
+    (out,) = dec.decode_all(encode_pd45(pd5=True, **bad))  # type: ignore[arg-type]
+    assert isinstance(out, Rejected) and out.reason == "out_of_range"

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -12,8 +11,9 @@ import yaml
 
 from drivers.errors import ConfigError
 from emlogd.config import SECTIONS, Config, load_config, parse_config
-from emlogd.pipeline.core import REF_NOISE_MPS, Pipeline, UutSettings
+from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.keys import entries
+from emlogd.pipeline.settings import REF_NOISE_MPS, UutSettings
 from emlogd.settings import fusion_from_config, pipeline_from_config
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "emlogd.yaml"
@@ -100,6 +100,8 @@ OFF_DEFAULT: dict[str, dict[str, tuple[Any, str, Any]]] = {
         "zero_s": (20.0, "log.zero_s", SAME),
         "max_accel_mps2": (3.0, "log.max_accel_mps2", SAME),
         "max_turn_rate_dps": (20.0, "log.max_turn_rate_dps", SAME),
+        "max_reading_accel_mps2": (0.5, "log.limits.max_reading_accel_mps2", SAME),
+        "max_rate_hz": (5.0, "log.limits.max_rate_hz", SAME),
         "pty": ("out/log", "logcfg.outputs.pty", "TMP/out/log"),
         "tcp": (":10111", "logcfg.outputs.tcp", SAME),
         "udp": ("10.0.0.255:10111", "logcfg.outputs.udp", SAME),
@@ -109,6 +111,9 @@ OFF_DEFAULT: dict[str, dict[str, tuple[Any, str, Any]]] = {
         "pty_mode": (0o600, "cfg.outputs.pty_mode", SAME),
         "pty_group": ("nmea", "cfg.outputs.pty_group", SAME),
         "tcp": (":10110", "cfg.outputs.tcp", SAME),
+        "tcp_max_clients": (5, "cfg.outputs.tcp_max_clients", SAME),
+        "tcp_max_pending_bytes": (4096, "cfg.outputs.tcp_max_pending_bytes", SAME),
+        "tcp_stall_s": (2.5, "cfg.outputs.tcp_stall_s", SAME),
         "udp": ("10.0.0.255:10110", "cfg.outputs.udp", SAME),
         "stdout": (True, "cfg.outputs.stdout", SAME),
         "talker": ("II", "log2.talker", SAME),
@@ -116,6 +121,10 @@ OFF_DEFAULT: dict[str, dict[str, tuple[Any, str, Any]]] = {
         "status_sentence_interval_s": (2.5, "log2.status_sentence_interval_s", SAME),
         "speed": ("both", "fusion.only", False),
         "fused_talker": ("VW", "fusion.talker", SAME),
+        "fused_gate_chi2": (9.0, "fusion.gate_chi2", SAME),
+        "fused_hold_s": (5.0, "fusion.hold_s", SAME),
+        "fused_rejoin_s": (60.0, "fusion.rejoin_s", SAME),
+        "fused_max_current_mps": (2.5, "fusion.max_current_mps", SAME),
     },
     "": {
         "state_file": ("s/state.yaml", "cfg.state_path", "TMP/s/state.yaml"),
@@ -227,13 +236,6 @@ def test_gnss_reference_noise_default() -> None:
     _, (u,) = pipeline_from_config(parse_config(text))
     assert u.kf.r_ref_mps2 == pytest.approx(REF_NOISE_MPS["gnss"] ** 2)
     assert UutSettings(port="a", reference_port="b").kf.r_ref_mps2 == pytest.approx(0.01**2)
-
-
-def test_settings_built_in_code_tune_the_filter() -> None:
-    """UutSettings made directly (the offline commands) give the filter their noises."""
-    s = UutSettings(port="a", reference_port="b", r_raw_mps=0.1, q_params=1e-6)
-    assert s.kf.r_raw_mps2 == pytest.approx(0.01) and s.kf.q_params == 1e-6
-    assert dataclasses.replace(s, p0=0.5).kf.p0 == 0.5
 
 
 @pytest.mark.parametrize(

@@ -70,7 +70,8 @@ def test_any_bytes_round_trip_exactly(tmp_path: Path, items: list[tuple[bool, by
         (MAGIC + "\n# port a nmea0183\n(1.0) b $X\n", 3, "unknown port 'b'"),
         (MAGIC + "\n# port a nmea0183\n(x) a $X\n", 3, "bad time"),
         (MAGIC + "\n# port a nmea0183\n(inf) a $X\n", 3, "bad time"),
-        (MAGIC + "\n# port a nmea0183\n(2.0) a $X\n(1.0) a $Y\n", 4, "backwards"),
+        (MAGIC + "\n# port a nmea0183\n(2.0) a $X\n(1.0) a $Y\n", 3, "jumps ahead"),
+        (MAGIC + "\n# port a nmea0183\n(1.0) a $X\n(1.1) a $Y\n(0.5) a $Z\n", 5, "before"),
         (MAGIC + "\n# port a nmea0183\n(1.0) a hex:abc\n", 3, "even number"),
         (MAGIC + "\n# port a nmea0183\n(1.0) a hex:zz\n", 3, "bad hex"),
         (MAGIC + "\n# port a nmea0183\n(1.0)\n", 3, "must be '(EPOCH.SECONDS) PORT PAYLOAD'"),
@@ -219,10 +220,10 @@ def test_skip_mode_counts_every_kind_of_bad_record(tmp_path: Path) -> None:
         "unknown_port": 1,
         "bad_hex": 1,
         "bad_record": 1,
-        "time_backwards": 1,
+        "out_of_order": 1,
         "late_header": 1,
     }
-    assert [n for n, _ in reader.skipped_lines] == list(range(4, 12))
+    assert sorted(n for n, _ in reader.skipped_lines) == list(range(4, 12))
     assert reader.skip_report()["skipped"] == 8
     # iterating again starts the counts again
     assert len(list(reader)) == 2 and reader.n_skipped == 8
@@ -280,5 +281,85 @@ def test_received_gives_what_iterating_gives(tmp_path: Path) -> None:
         (2.6, "a", b"tab\there\r\n", 10),
         (3.0, "a", b"$H\r\n", 16),
     ]
-    assert reader.skipped == {"time_backwards": 2, "bad_hex": 2, "unknown_port": 1}
-    assert [n for n, _ in reader.skipped_lines] == [8, 11, 12, 13, 14]
+    assert reader.skipped == {"out_of_order": 2, "bad_hex": 2, "unknown_port": 1}
+    assert sorted(n for n, _ in reader.skipped_lines) == [8, 11, 12, 13, 14]
+
+
+T0 = 1748757600.0
+
+
+def _timed_capture(path: Path, times: list[float]) -> None:
+    """A capture whose record k is ``$Kk`` on port a or b (alternately) at ``times[k]``,
+    written as the writer writes (six decimals), whatever the order of the times."""
+    lines = [MAGIC, "# port a nmea0183", "# port b nmea0183"]
+    lines += [f"({t:.6f}) {'ab'[k % 2]} $K{k}" for k, t in enumerate(times)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _read(path: Path, **kw: object) -> tuple[list[int], CaptureReader]:
+    reader = CaptureReader(path, errors="skip", **kw)  # type: ignore[arg-type]
+    return [int(r.payload[2:]) for r in reader], reader
+
+
+@pytest.mark.parametrize("digit", range(10))
+@pytest.mark.parametrize("step", [1, -1])
+def test_a_flipped_digit_in_one_time_loses_that_record_only(
+    tmp_path: Path, digit: int, step: int
+) -> None:
+    """One record whose time has a digit of its whole seconds flipped (forward or backward, by
+    1 s to 10^9 s; in the middle, near the start and as the first record) is the only record
+    skipped, as out_of_order, and every other comes back in order (a first record set back in
+    time contradicts nothing and is kept, first)."""
+    times = [T0 + 0.1 * k for k in range(600)]
+    for bad in (300, 1, 0):
+        stamp = f"{times[bad]:.6f}"
+        pos = 9 - digit  # the digit worth 10^digit seconds
+        flipped = stamp[:pos] + str((int(stamp[pos]) + step) % 10) + stamp[pos + 1 :]
+        wrong = list(times)
+        wrong[bad] = float(flipped)
+        path = tmp_path / f"flip{bad}.cap"
+        _timed_capture(path, wrong)
+        got, reader = _read(path)
+        if bad == 0 and float(flipped) < times[0]:
+            assert got == list(range(600)) and reader.n_skipped == 0
+            continue
+        assert got == [k for k in range(600) if k != bad], (bad, flipped)
+        assert reader.skipped == {"out_of_order": 1}
+
+
+def test_jitter_within_the_window_is_reordered_not_dropped(tmp_path: Path) -> None:
+    """±50 ms of uniform jitter on 3000 records 20 ms apart loses nothing: every record comes back,
+    sorted by time, and the reordered count says how many moved; with a window of 0 the same file
+    skips records as out_of_order."""
+    rng = __import__("random").Random(7)
+    times = [T0 + 0.02 * k + rng.uniform(-0.05, 0.05) for k in range(3000)]
+    path = tmp_path / "jitter.cap"
+    _timed_capture(path, times)
+    got, reader = _read(path)
+    assert sorted(got) == list(range(3000)) and reader.n_skipped == 0
+    assert [times[k] for k in got] == sorted(times)
+    moved = sum(1 for i, k in enumerate(got) if k != i)
+    assert reader.reordered > 0 and reader.skip_report()["reordered"] == reader.reordered
+    assert moved >= reader.reordered
+    got0, reader0 = _read(path, reorder_window_s=0.0)
+    assert reader0.skipped["out_of_order"] > 0 and len(got0) == 3000 - reader0.n_skipped
+
+
+def test_a_real_pause_is_not_an_outlier(tmp_path: Path) -> None:
+    """A forward jump that the records after it follow (the capture paused 600 s) is kept: nothing
+    is skipped. A record more than the window back is skipped alone."""
+    times = [T0 + 0.1 * k for k in range(50)] + [T0 + 600 + 0.1 * k for k in range(50)]
+    times[70] = times[69] - 0.5
+    path = tmp_path / "pause.cap"
+    _timed_capture(path, times)
+    got, reader = _read(path)
+    assert got == [k for k in range(100) if k != 70] and reader.skipped == {"out_of_order": 1}
+
+
+def test_reorder_window_must_be_a_non_negative_number(tmp_path: Path) -> None:
+    """A negative or non-finite window is refused."""
+    path = tmp_path / "w.cap"
+    _timed_capture(path, [T0])
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="reorder_window_s"):
+            CaptureReader(path, reorder_window_s=bad)

@@ -40,8 +40,8 @@ def test_missing_file_is_one_line_exit_1(
 def test_bad_capture_names_file_and_line(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    """A capture whose time goes backwards fails calibrate with one stderr line, and dump exits 1
-    naming FILE:4 and 'backwards'."""
+    """A capture whose time goes backwards beyond the reorder window fails calibrate with one
+    stderr line, and dump exits 1 naming FILE:5 and the time out of order."""
     bad = tmp_path / "bad.cap"
     bad.write_text("# emlogd capture v1\n# port a nmea0183\n(1.0) a $X*00\n(0.5) a $Y*00\n")
     assert main(["calibrate", str(bad), "--uut", "a", "--ref", "a", "--ref-field", "speed"]) in (
@@ -51,10 +51,12 @@ def test_bad_capture_names_file_and_line(
     err = capsys.readouterr().err
     assert err.count("\n") == 1
     bad2 = tmp_path / "bad2.cap"
-    bad2.write_text("# emlogd capture v1\n# port a nmea0183\n(1.0) a $X*00\n(0.5) a $Y*00\n")
+    bad2.write_text(
+        "# emlogd capture v1\n# port a nmea0183\n(1.0) a $X*00\n(1.1) a $Z*00\n(0.5) a $Y*00\n"
+    )
     assert main(["dump", str(bad2)]) == 1
     err = capsys.readouterr().err
-    assert f"{bad2}:4:" in err and "backwards" in err
+    assert f"{bad2}:5:" in err and "0.500000 more than 0.2 s before 1.100000" in err
 
 
 @pytest.mark.parametrize(

@@ -91,6 +91,16 @@ def control_socket(
                     "state_errors": 0, "persists": 3}  # fmt: skip
         if req["cmd"] in ("freeze", "learn"):
             return {"uuts": ["emlog1"], "learning": bool(req.get("on", False))}
+        if req["cmd"] == "reset":
+            return {
+                "uuts": ["emlog1"],
+                "reset": {
+                    "emlog1": {
+                        "kept": {"lag_s": 3.2, "learning_enabled": True},
+                        "cleared": ["EM3 calibration", "current estimate"],
+                    }
+                },
+            }
         return {"uuts": ["emlog1"]}
 
     sel = selectors.DefaultSelector()
@@ -130,7 +140,10 @@ def test_control_commands_print_text_unless_json(
         (["freeze"], "emlog1: frozen (learning off)\n"),
         (["learn", "on", "--uut", "emlog1"], "emlog1: learning on\n"),
         (["learn", "off"], "emlog1: learning off\n"),
-        (["reset"], "emlog1: calibration forgotten (uncalibrated until learnt again)\n"),
+        (
+            ["reset"],
+            "emlog1: cleared EM3 calibration, current estimate; kept lag 3.200 s, learning on\n",
+        ),
     ):
         assert main([*argv, *sock]) == 0
         assert capsys.readouterr().out == text

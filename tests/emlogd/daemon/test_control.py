@@ -6,13 +6,14 @@ import selectors
 import socket
 import stat
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from emlogd.client import request
-from emlogd.daemon.control import MAX_REQUEST, ControlServer
+from emlogd.daemon.control import MAX_CLIENTS, MAX_REQUEST, REQUEST_S, ControlServer
 
 
 class _Loop:
@@ -103,3 +104,116 @@ def test_close_removes_the_socket(tmp_path: Path) -> None:
     lp = _Loop(tmp_path / "c.sock")
     lp.close()
     assert not (tmp_path / "c.sock").exists()
+
+
+def test_duplicate_keys_are_refused(loop: _Loop, tmp_path: Path) -> None:
+    """A request naming a key twice (JSON's last-one-wins would make it a reset) is refused
+    with an error naming the key, and never reaches the handler."""
+    path = tmp_path / "run" / "control.sock"
+    for line, key in (
+        (b'{"cmd":"status","cmd":"reset"}\n', "cmd"),
+        (b'{"cmd":"reset","port":"emlog1","port":"nope"}\n', "port"),
+    ):
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(5)
+            s.connect(str(path))
+            s.sendall(line)
+            data = s.recv(4096)
+        assert data == b'{"ok": false, "error": "duplicate key \'' + key.encode() + b"'\"}\n"
+    assert loop.seen == []
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class _Sync:
+    """A control server on a clock the test moves, served from the test's thread."""
+
+    def __init__(self, path: Path) -> None:
+        self.clock = _Clock()
+        self.sel = selectors.DefaultSelector()
+        self.server = ControlServer(
+            path, lambda req: {"echo": req["cmd"]}, self.sel, monotonic=self.clock
+        )
+
+    def pump(self, s: float = 0.05) -> None:
+        end = time.monotonic() + s
+        while time.monotonic() < end:
+            for key, _ in self.sel.select(timeout=0.01):
+                key.data()
+
+
+@pytest.fixture
+def sync(tmp_path: Path) -> Iterator[_Sync]:
+    srv = _Sync(tmp_path / "s.sock")
+    yield srv
+    srv.server.close()
+    srv.sel.close()
+
+
+def _connect(path: Path) -> socket.socket:
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.settimeout(5)
+    s.connect(str(path))
+    return s
+
+
+def _rest(s: socket.socket) -> bytes:
+    """What the server sent until it closed the connection."""
+    data = b""
+    while chunk := s.recv(4096):
+        data += chunk
+    return data
+
+
+def test_a_request_dripped_byte_by_byte_times_out(sync: _Sync, tmp_path: Path) -> None:
+    """A client sending a byte a second is served no longer than REQUEST_S after its first
+    byte: then an error line and the connection closed, though it never went quiet."""
+    path = tmp_path / "s.sock"
+    drip = _connect(path)
+    sync.pump()
+    sent = 0
+    while sync.clock.t <= REQUEST_S:
+        drip.sendall(b'{"cmd": "status"}'[sent % 10 : sent % 10 + 1])
+        sent += 1
+        sync.pump(0.02)
+        sync.server.housekeep()
+        assert len(sync.server.clients) == 1, sync.clock.t
+        sync.clock.t += 1.0
+    sync.pump(0.02)
+    sync.server.housekeep()
+    assert not sync.server.clients and sync.server.timed_out == 1
+    assert _rest(drip) == b'{"ok": false, "error": "request not complete within 5 s"}\n'
+    drip.close()
+
+
+def test_at_the_client_limit_a_newcomer_is_served(sync: _Sync, tmp_path: Path) -> None:
+    """With MAX_CLIENTS clients holding unfinished requests, a newcomer's status is answered
+    at once and the client waiting longest is closed with an error line; a client that just
+    completed a request outlives older unfinished ones."""
+    path = tmp_path / "s.sock"
+    held = []
+    for _ in range(MAX_CLIENTS):
+        s = _connect(path)
+        held.append(s)
+        sync.pump(0.02)
+        s.sendall(b'{"cmd"')
+        sync.pump(0.02)
+        sync.clock.t += 0.1
+    held[0].sendall(b': "status"}\n')  # the oldest completes its request: now the newest
+    sync.pump(0.02)
+    assert held[0].recv(4096) == b'{"ok": true, "echo": "status"}\n'
+    sync.clock.t += 0.1
+    newcomer = _connect(path)
+    newcomer.sendall(b'{"cmd": "status"}\n')
+    sync.pump(0.05)
+    assert newcomer.recv(4096) == b'{"ok": true, "echo": "status"}\n'
+    assert sync.server.evicted == 1 and len(sync.server.clients) == MAX_CLIENTS
+    assert b"too many clients" in _rest(held[1])
+    for s in [*held, newcomer]:
+        s.close()

@@ -343,11 +343,11 @@ class _SpyPipeline:
         self.decoders = {"emlog1": None, "dvl": None}
         self.calls: list[tuple[float, str, bytes]] = []
 
-    def feed(self, t: float, port: str, data: bytes, out: object = None) -> object:
+    def feed(self, t: float, port: str, data: bytes) -> object:
         from emlogd.pipeline.core import Output
 
         self.calls.append((t, port, data))
-        return out if out is not None else Output()
+        return Output()
 
 
 def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
@@ -522,3 +522,122 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
     assert not any(ln.startswith(b"$VM") or b",emlog2," in ln for ln in shared)
     assert any(ln.startswith(b"$VMVHW") for ln in mine)
     assert not any(ln.startswith(b"$VWVHW") or b",emlog1," in ln for ln in mine)
+
+
+class _Log:
+    """The daemon's logger, keeping what it is given."""
+
+    def __init__(self) -> None:
+        self.lines: list[tuple[str, str, dict[str, object]]] = []
+
+    def info(self, event: str, **kw: object) -> None:
+        self.lines.append(("info", event, kw))
+
+    def warning(self, event: str, **kw: object) -> None:
+        self.lines.append(("warning", event, kw))
+
+
+def test_a_chunk_that_fails_in_the_pipeline_is_contained(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A chunk whose handling raises in the pipeline does not leave the loop: it is counted as an
+    internal reject of its port, logged once per 10 s per port and exception type (the next line
+    with how many were left out), the chunks after it are handled, and a failing tick is contained
+    the same way."""
+    from emlogd.daemon import loop as dmod
+    from emlogd.pipeline.core import Pipeline
+    from emlogd.pipeline.settings import PortSettings
+
+    _setup(tmp_path)
+    clock = [100.0]
+    log = _Log()
+    d = dmod.Daemon(tmp_path / "emlogd.yaml", log=log, monotonic=lambda: clock[0])
+    p = Pipeline([PortSettings("compass", "nmea0183")], [])
+    d.pipeline = p
+    real_route = p._route
+
+    def route(t: float, port: str, items: list[object], out: object) -> None:
+        if t in (1.0, 2.0, 3.0):
+            raise ValueError("math domain error")
+        real_route(t, port, items, out)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(p, "_route", route)
+    hdt = b"$HEHDT,10.0,T*1E\r\n"
+    for t in (1.0, 1.5, 2.0, 3.0):
+        d._feed(t, "compass", hdt)
+        clock[0] += 1.0
+    counters = p.decoders["compass"].counters
+    assert counters.rejects["internal"] == 3 and counters.records == 4
+    warned = [kw for level, ev, kw in log.lines if level == "warning" and ev == "internal"]
+    assert warned == [
+        {
+            "port": "compass",
+            "error": "ValueError: math domain error",
+            "data": "$HEHDT,10.0,T*1E\\r\\n",
+        }
+    ]
+    clock[0] += 10.0
+    d._feed(4.0, "compass", hdt)  # handled
+    monkeypatch.setattr(p, "tick", lambda t: 1 / 0)
+    d._tick()
+    d._tick()
+    warned = [kw for level, ev, kw in log.lines if level == "warning" and ev == "internal"]
+    assert [w["error"] for w in warned] == [
+        "ValueError: math domain error",
+        "ZeroDivisionError: division by zero",
+    ]
+    assert d.contain.count == 5 and counters.records == 5
+    d.sel.close()
+    d.poll.close()
+    for fd in (d._wake_r, d._wake_w):
+        os.close(fd)
+
+
+HOSTILE_HDG = b"$HCHDG,10.0,1e308,E,1e308,E*73"
+"""The red team's sentence: a valid checksum, a deviation and a variation whose sum overflows."""
+
+
+def test_the_hostile_hdg_sentence_is_counted_and_the_daemon_goes_on(
+    tmp_path: Path, trial_files: dict[str, Path]
+) -> None:
+    """`emlogd run` (a subprocess reading ptys) given the overflowing HDG sentence on an NMEA port,
+    again and again between good headings, counts each as an out_of_range reject of that port,
+    never exits, and keeps emitting the EMlog's VHW afterwards."""
+    from drivers.framing import split_nmea
+
+    split_nmea(HOSTILE_HDG, required=True)  # the checksum is valid
+    _setup(tmp_path)
+    junk = tmp_path / "hostile.cap"
+    with CaptureWriter(junk, {"junk": "nmea0183"}) as w:
+        for k in range(100):
+            w.write_line(1.0 + 0.1 * k, "junk", b"$HEHDT,10.0,T*1E")
+            w.write_line(1.05 + 0.1 * k, "junk", HOSTILE_HDG)
+    links = tmp_path / "links"
+    emlog = FakeDevice(trial_files["figure-8"], "emlog1", links / "emlog1", speed=SPEED).start()
+    hostile = FakeDevice(junk, "junk", links / "junk", speed=1.0, loop=True).start()
+    d = Daemon(tmp_path)
+    try:
+        deadline = time.monotonic() + 20
+        while True:
+            d.pump(0.5)
+            assert d.running
+            ports = d.status()["ports"]
+            assert isinstance(ports, dict)
+            if ports["junk"]["rejects"]["out_of_range"] >= 5:
+                break
+            assert time.monotonic() < deadline, ports["junk"]
+        assert ports["junk"]["records"] >= 5 and ports["junk"]["rejects"]["internal"] == 0
+        n_before = len([ln for ln in d.lines if ln[3:6] == b"VHW"])
+        d.pump(2.0)
+        assert d.running
+        assert len([ln for ln in d.lines if ln[3:6] == b"VHW"]) > n_before
+        ports = d.status()["ports"]
+        assert isinstance(ports, dict)
+        assert ports["junk"]["rejects"]["out_of_range"] >= 7
+        assert d.stop() == 0
+    finally:
+        d.kill()
+        for dev in (emlog, hostile):
+            dev.stop()
+            dev.join(5)
+    assert "internal error" not in (tmp_path / "daemon.log").read_text()

@@ -224,6 +224,62 @@ def test_repeated_operator_commands_do_not_storm_the_disk(work: Path) -> None:
         d.kill()
 
 
+def test_each_model_keeps_its_calibration_across_reloads_and_restarts(work: Path) -> None:
+    """With the lag automatic: EM3 → EM4 → EM3 by reloads gets the EM3 calibration and the
+    lag back, and so does a restart after a stop in EM4; a reset replies what it kept and
+    cleared, and the lag survives it across a kill -9 and a restart."""
+    cfg = work / "emlogd.yaml"
+    text = cfg.read_text().replace(f"lag: {3.3 / SPEED:.4f}", "lag: auto")  # emlog1's
+    cfg.write_text(text)
+    em4 = text.replace("uut: emlog1, reference: dvl,", "uut: emlog1, reference: dvl, model: EM4,")
+    _seed(work)  # EM3 m = 0.05, b = 0.1, lag 0.165 s
+    em3_params = {"m": 0.05, "b": 0.1}
+
+    def seen(d: Daemon) -> tuple[object, object, object]:
+        u = d.uut("emlog1")
+        return u["model"], u["params"], u["lag_s"]
+
+    d = Daemon(work)
+    try:
+        assert seen(d) == ("EM3", em3_params, 0.165)
+        for n, (config, want) in enumerate(
+            [
+                (em4, ("EM4", None, 0.165)),
+                (text, ("EM3", em3_params, 0.165)),
+                (em4, ("EM4", None, 0.165)),
+            ],
+            start=1,
+        ):
+            cfg.write_text(config)
+            d.send_signal(signal.SIGHUP)
+            _wait(lambda n=n: d.events("reloaded") == n, f"no reload {n}")  # type: ignore[misc]
+            assert seen(d) == want, n
+        assert d.stop() == 0
+    finally:
+        d.kill()
+    states, others, report = StateStore(work / "state" / "state.yaml").load_state()
+    assert report == []
+    assert states["emlog1"].params.model == "EM4" and states["emlog1"].reset
+    assert [(c.params.model, c.params.as_dict()) for c in others] == [("EM3", em3_params)]
+    cfg.write_text(text)
+    d2 = Daemon(work)
+    try:
+        assert seen(d2) == ("EM3", em3_params, 0.165)
+        resp = d2.ask(cmd="reset", port="emlog1")
+        assert resp["ok"] and resp["persisted"] is True
+        assert resp["reset"]["emlog1"]["kept"] == {"lag_s": 0.165, "learning_enabled": True}  # type: ignore[index]
+        cleared = resp["reset"]["emlog1"]["cleared"]  # type: ignore[index]
+        assert "EM3 calibration" in cleared and "EM4 calibration (another model)" in cleared
+    finally:
+        d2.kill()  # SIGKILL: the reset was on disk before the reply
+    d3 = Daemon(work)
+    try:
+        assert seen(d3) == ("EM3", None, 0.165)
+        assert d3.stop() == 0
+    finally:
+        d3.kill()
+
+
 # -- 3. one instance -------------------------------------------------------------
 
 
@@ -323,8 +379,9 @@ def test_no_request_knocks_the_daemon_over(work: Path) -> None:
 
 
 def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
-    """The 17th control client and the 33rd TCP client are refused politely while the
-    others are served; the status socket answers status and refuses freeze."""
+    """The 17th control client is served and closes the one that waited longest (told so),
+    the 33rd TCP client evicts the latest before it; the status socket answers status and
+    refuses freeze."""
     cfg = work / "emlogd.yaml"
     cfg.write_text(cfg.read_text() + "status_socket: run/status.sock\n")
     tcp_port = int(cfg.read_text().split('tcp: "127.0.0.1:')[1].split('"')[0])
@@ -341,15 +398,17 @@ def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
             s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             s.connect(str(d.socket))
             held.append(s)
-        extra = _exchange(d.socket, b'{"cmd":"status"}\n')
-        assert b"too many clients" in extra
-        held[0].sendall(b'{"cmd":"status"}\n')  # a connected client is still served
-        held[0].settimeout(5)
-        assert b'"ok": true' in held[0].recv(65536)
+        held[1].sendall(b'{"cmd":"status"}\n')  # a connected client is served
+        held[1].settimeout(5)
+        assert b'"ok": true' in held[1].recv(65536)
+        extra = _exchange(d.socket, b'{"cmd":"status"}\n')  # the 17th is served too
+        assert b'"ok": true' in extra
+        held[0].settimeout(5)  # the one waiting longest made room for it
+        assert b"too many clients" in held[0].recv(65536)
         tcp = [socket.create_connection(("127.0.0.1", tcp_port), timeout=5) for _ in range(40)]
         held += tcp
         closed = 0
-        for c in tcp[32:]:
+        for c in tcp[31:39]:  # each newcomer past 32 evicted the latest before it
             try:
                 closed += c.recv(1) == b""
             except ConnectionResetError:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
 import selectors
 import socket
@@ -11,9 +12,12 @@ from pathlib import Path
 import pytest
 
 from drivers.errors import ConfigError
+from emlogd.config import OutputConfig
 from emlogd.daemon.sinks import (
     TCP_BACKLOG_BYTES,
+    TCP_CHECK_S,
     StreamSink,
+    TcpLimits,
     TcpServerSink,
     UdpSink,
     parse_hostport,
@@ -32,6 +36,12 @@ def test_parse_hostport() -> None:
     for bad in ("host:", "host:0", "host:70000", "a:b"):
         with pytest.raises(ConfigError, match="HOST:PORT"):
             parse_hostport(bad)
+
+
+def test_the_tcp_limits_default_to_the_config_keys_defaults() -> None:
+    """TcpLimits() (the sink's default) is what the outputs.tcp_* keys default to."""
+    out = OutputConfig()
+    assert TcpLimits() == TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
 
 
 def _pump(sel: selectors.BaseSelector, until: float = 0.3) -> None:
@@ -86,6 +96,203 @@ def test_tcp_clients_receive_and_a_stuck_client_is_dropped() -> None:
         _pump(sel)
         assert sink.counters.clients == 0
     finally:
+        sink.close()
+        sel.close()
+
+
+class _Clock:
+    """A monotonic clock the test moves."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def _stuck_client(address: tuple[str, int]) -> socket.socket:
+    """A client that never reads, with a small receive buffer (full after a few KiB)."""
+    s = socket.socket()
+    s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    s.connect(address)
+    return s
+
+
+def _read_all(s: socket.socket) -> int:
+    s.setblocking(False)
+    n = 0
+    with contextlib.suppress(BlockingIOError):
+        while chunk := s.recv(1 << 20):
+            n += len(chunk)
+    return n
+
+
+def test_a_tcp_client_that_takes_nothing_is_closed_after_the_stall_time() -> None:
+    """A client with output pending that takes nothing for stall_s is reset as
+    client_stalled (counted with its reason), a reading client stays; before stall_s
+    nothing happens."""
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    limits = TcpLimits(max_pending_bytes=1 << 24, stall_s=2.0)
+    sink = TcpServerSink(
+        "127.0.0.1:0",
+        selector=sel,
+        on_event=lambda k, d: notes.append((k, d)),
+        monotonic=clock,
+        limits=limits,
+    )
+    try:
+        good = socket.create_connection(sink.address)
+        stuck = _stuck_client(sink.address)
+        _pump(sel)
+        for _ in range(4000):  # 124 KB: far more than the stuck client's window
+            sink.write(LINE)
+        _pump(sel, 0.1)
+        _read_all(good)
+        while clock.t < limits.stall_s:
+            sink.housekeep()
+            _read_all(good)
+            assert sink.counters.clients == 2, clock.t
+            clock.t += TCP_CHECK_S
+        clock.t += TCP_CHECK_S
+        sink.housekeep()
+        assert sink.counters.clients == 1
+        assert sink.counters.stalled == 1 and sink.counters.dropped_clients == 1
+        assert ("client_stalled", str(stuck.getsockname())) in notes
+        stuck.settimeout(5)  # reset, not a FIN queued behind output it will never take
+        with pytest.raises(ConnectionResetError):
+            while stuck.recv(1 << 20):
+                pass
+        sink.write(LINE)
+        good.settimeout(5)
+        assert good.recv(100) == LINE
+        good.close()
+        stuck.close()
+    finally:
+        sink.close()
+        sel.close()
+
+
+def test_a_tcp_client_is_closed_when_the_kernel_holds_too_much_for_it() -> None:
+    """Pending output counts the kernel's send queue, not only the daemon's backlog: a
+    client whose queue exceeds max_pending_bytes is closed as client_too_slow at the next
+    check, though every write went to the kernel."""
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    sink = TcpServerSink(
+        "127.0.0.1:0",
+        selector=sel,
+        on_event=lambda k, d: notes.append((k, d)),
+        monotonic=clock,
+        limits=TcpLimits(max_pending_bytes=8192),
+    )
+    try:
+        stuck = _stuck_client(sink.address)
+        _pump(sel)
+        for _ in range(600):  # 19 KB
+            sink.write(LINE)
+        (client,) = sink.clients.values()
+        assert len(client.backlog) <= 8192  # the kernel took it: write() alone would keep it
+        sink.housekeep()
+        assert sink.counters.too_slow == 1 and sink.counters.clients == 0
+        assert ("client_too_slow", str(stuck.getsockname())) in notes
+        stuck.close()
+    finally:
+        sink.close()
+        sel.close()
+
+
+def test_at_the_client_limit_a_newcomer_evicts_a_client() -> None:
+    """At max_clients a newcomer gets in and receives: the client with output stalled
+    longest goes first; among clients that keep up, the most recently connected."""
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    sink = TcpServerSink(
+        "127.0.0.1:0",
+        selector=sel,
+        on_event=lambda k, d: notes.append((k, d)),
+        monotonic=clock,
+        limits=TcpLimits(max_clients=3, max_pending_bytes=1 << 24),
+    )
+    held: list[socket.socket] = []
+    try:
+        stuck = _stuck_client(sink.address)
+        held.append(stuck)
+        _pump(sel, 0.1)
+        for _ in range(3000):
+            sink.write(LINE)
+        _pump(sel, 0.1)
+        sink.housekeep()  # the stuck client's first check: what its buffer took
+        clock.t += 1.0
+        for _ in range(2):
+            clock.t += 0.1
+            held.append(socket.create_connection(sink.address))
+            _pump(sel, 0.1)
+        assert sink.counters.clients == 3
+        clock.t += 0.1
+        newcomer = socket.create_connection(sink.address)
+        held.append(newcomer)
+        _pump(sel, 0.1)
+        assert sink.counters.clients == 3 and sink.counters.evicted == 1
+        assert notes[-2] == ("client_evicted", str(stuck.getsockname()))
+        _read_all(held[1])
+        _read_all(held[2])
+        clock.t += 0.1
+        latest = socket.create_connection(sink.address)
+        held.append(latest)
+        _pump(sel, 0.1)
+        assert sink.counters.evicted == 2
+        assert notes[-2] == ("client_evicted", str(newcomer.getsockname()))
+        sink.write(LINE)
+        latest.settimeout(5)
+        assert latest.recv(100) == LINE
+    finally:
+        for s in held:
+            s.close()
+        sink.close()
+        sel.close()
+
+
+def test_a_slow_reader_with_output_pending_is_not_taken_for_stalled() -> None:
+    """At the client limit a client with output pending that took some since the last
+    check keeps its slot: the most recently connected goes instead."""
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    sink = TcpServerSink(
+        "127.0.0.1:0",
+        selector=sel,
+        on_event=lambda k, d: notes.append((k, d)),
+        monotonic=clock,
+        limits=TcpLimits(max_clients=2, max_pending_bytes=1 << 24),
+    )
+    held: list[socket.socket] = []
+    try:
+        slow = _stuck_client(sink.address)
+        held.append(slow)
+        _pump(sel, 0.1)
+        for _ in range(3000):
+            sink.write(LINE)
+        _pump(sel, 0.1)
+        sink.housekeep()
+        clock.t += 1.0
+        latest = socket.create_connection(sink.address)
+        held.append(latest)
+        _pump(sel, 0.1)
+        slow.settimeout(5)
+        assert slow.recv(4096)  # it reads a little: the kernel sends it more
+        time.sleep(0.05)
+        clock.t += 0.1
+        held.append(socket.create_connection(sink.address))
+        _pump(sel, 0.1)
+        assert notes[-2] == ("client_evicted", str(latest.getsockname()))
+        assert sink.counters.evicted == 1 and sink.counters.clients == 2
+    finally:
+        for s in held:
+            s.close()
         sink.close()
         sel.close()
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import signal
@@ -14,7 +15,7 @@ import pytest
 
 from calib.models import Params
 from emlogd.calfile import CalibrationFileError, dumps, loads
-from emlogd.daemon.statefile import StateStore, StateWriteError
+from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.integrity import Envelope
 
@@ -126,6 +127,28 @@ def test_read_only_directory(tmp_path: Path) -> None:
     assert store.load() == ({"emlog1": _state(0.1)}, [])
 
 
+def test_the_lock_is_taken_on_the_real_path(tmp_path: Path) -> None:
+    """Two stores reaching one state file, through a symlink to the file and through a
+    symlinked directory, share one lock: the second is refused with a message naming the
+    real path; another file is not."""
+    real_dir = tmp_path / "real"
+    real_dir.mkdir()
+    (tmp_path / "link.yaml").symlink_to(real_dir / "state.yaml")
+    (tmp_path / "dirlink").symlink_to(real_dir)
+    first = StateStore(real_dir / "state.yaml")
+    fd = first.lock()
+    assert fd is not None
+    try:
+        for other in (tmp_path / "link.yaml", tmp_path / "dirlink" / "state.yaml"):
+            with pytest.raises(StateLockedError, match=f"real path {real_dir}/state.yaml"):
+                StateStore(other).lock()
+        free = StateStore(real_dir / "other.yaml").lock()
+        assert free is not None
+        os.close(free)
+    finally:
+        os.close(fd)
+
+
 def test_orphaned_temp_files_of_dead_writers_are_removed(tmp_path: Path) -> None:
     """Temp files of a killed writer go at the next save; a live writer's stay."""
     dead = int(Path("/proc/sys/kernel/pid_max").read_text()) + 1
@@ -170,7 +193,7 @@ def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
         "import resource, signal, sys\n"
         "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
         "resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))\n"
-        "from emlogd.daemon.statefile import StateStore, StateWriteError\n"
+        "from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError\n"
         "from emlogd.pipeline.calibration import Calibration\n"
         "from calib.models import Params\n"
         f"s = StateStore({str(store.path)!r})\n"
@@ -293,3 +316,93 @@ def test_a_backup_that_is_the_same_file_leaves_no_temporary(tmp_path: Path) -> N
     store.save({"emlog1": _state()})
     assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
     assert store.load()[0]["emlog1"] == _state()
+
+
+# -- the rules a state file obeys at load and save --------------------------------
+
+
+def _check(max_lag_s: float = 10.0) -> object:
+    return lambda c: check(c, Envelope(), max_lag_s)
+
+
+@pytest.mark.parametrize(
+    "poison",
+    [
+        lambda t: t.replace("m: 0.2", "m: -2.0"),
+        lambda t: t.replace("lag_s: 3.2", "lag_s: -50.0"),
+        lambda t: t[: len(t) // 2],
+    ],
+    ids=["m=-2", "lag=-50", "torn"],
+)
+def test_a_refused_file_never_becomes_the_backup(tmp_path: Path, poison: object) -> None:
+    """A refused (or damaged) state file is moved aside to .refused at the next save; the
+    good .bak stays as it was, and the new file is written."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    store.save({"emlog1": _state(0.2)})
+    good_backup = store.backup.read_bytes()
+    bad = poison(store.path.read_text())  # type: ignore[operator]
+    store.path.write_text(bad)
+    states, report = store.load(check=_check())  # type: ignore[arg-type]
+    assert states["emlog1"].params.m == 0.1 and "using the backup" in report[-1]
+    assert store.save({"emlog1": _state(0.3)}) == store.refused
+    assert store.backup.read_bytes() == good_backup
+    assert store.refused.read_text() == bad
+    assert parse_state(store.path.read_text())["emlog1"].params.m == 0.3
+    # the file written is good: the next save backs it up as usual
+    assert store.save({"emlog1": _state(0.4)}) is None
+    assert parse_state(store.backup.read_text())["emlog1"].params.m == 0.3
+
+
+def test_a_refused_file_is_set_aside_even_without_a_backup(tmp_path: Path) -> None:
+    """With no backup at all, a refused file is still kept aside and no .bak is made of it."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    store.path.write_text(store.path.read_text().replace("m: 0.1", "m: -2.0"))
+    states, report = store.load(check=_check())  # type: ignore[arg-type]
+    assert states == {} and "refused" in report[0]
+    assert store.save({"emlog1": _state(0.2)}) == store.refused
+    assert not store.backup.exists()
+    assert "m: -2.0" in store.refused.read_text()
+
+
+@pytest.mark.parametrize(
+    ("lag", "max_lag", "why"),
+    [
+        (-50.0, 10.0, "lag -50.0 s is outside [0, 10] s (max_lag_s)"),
+        (-0.1, 10.0, "lag -0.1 s is outside [0, 10] s (max_lag_s)"),
+        (12.0, 10.0, "lag 12.0 s is outside [0, 10] s (max_lag_s)"),
+        (25.0, 30.0, ""),
+        (0.0, 10.0, ""),
+    ],
+)
+def test_the_lag_obeys_the_configs_bounds(
+    tmp_path: Path, lag: float, max_lag: float, why: str
+) -> None:
+    """A state's lag outside [0, max_lag_s] refuses the file with the reason; a reset
+    record's lag too (a reset keeps the lag)."""
+    store = StateStore(tmp_path / "state.yaml")
+    for reset in (False, True):
+        cal = dataclasses.replace(_state(), lag_s=lag, reset=reset)
+        store.path.unlink(missing_ok=True)
+        store.save({"emlog1": cal})
+        states, report = store.load(check=_check(max_lag))  # type: ignore[arg-type]
+        if why:
+            assert states == {} and report[0].endswith(f"is refused: emlog1: {why}"), report
+        else:
+            assert states["emlog1"].lag_s == lag and report == []
+
+
+def test_other_models_round_trip_and_are_checked(tmp_path: Path) -> None:
+    """The UUTs' calibrations of their other models are saved beside the ones in use, load
+    back equal, and are checked like them (an absurd one refuses the file)."""
+    store = StateStore(tmp_path / "state.yaml")
+    em4 = Calibration("emlog1", Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}, 2.5)
+    store.save({"emlog1": _state()}, [em4])
+    states, others, report = store.load_state(check=_check())  # type: ignore[arg-type]
+    assert states == {"emlog1": _state()} and others == [em4] and report == []
+    assert parse_state(store.path.read_text()) == {"emlog1": _state()}  # the file's reader
+    bad = dataclasses.replace(em4, lag_s=-50.0)
+    store.save({"emlog1": _state()}, [bad])
+    states, others, report = store.load_state(check=_check())  # type: ignore[arg-type]
+    assert "emlog1 EM4: lag -50.0 s is outside" in report[0]

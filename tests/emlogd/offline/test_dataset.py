@@ -10,7 +10,7 @@ import pytest
 from drivers.io.capture import CaptureWriter
 from drivers.nmea0183 import encode_vhw
 from emlogd.offline.dataset import CaptureContentError, record_capture, record_captures
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 E1 = UutSettings(port="emlog1", reference_port="dvl")
 

@@ -21,7 +21,8 @@ from emlogd.offline.jobs import (
     save_params,
 )
 from emlogd.offline.replay import replay
-from emlogd.pipeline.core import Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 E1 = UutSettings(port="emlog1", reference_port="dvl")
 E1C = dataclasses.replace(E1, current=True)

@@ -201,3 +201,60 @@ def test_out_capture_holds_each_uuts_sentences(
     stamps = {r.t for r in recs if r.port == "emlog1" and r.payload[3:6] == "VHW"}
     assert len(vhw) > 100
     assert len(stamps & {round(t, 6) for t in read_times}) > 0.9 * len(stamps)
+
+
+def _small_capture(path: Path) -> None:
+    """60 s of an EMlog's VHW at 1 Hz and a PD6 DVL at 2 Hz."""
+    from datetime import UTC, datetime
+
+    from drivers.io.capture import CaptureWriter
+    from drivers.nmea0183 import encode_vhw
+    from drivers.rdi_ascii import encode_pd6
+
+    with CaptureWriter(path, {"emlog1": "nmea0183", "dvl": "pd6"}) as w:
+        for k in range(120):
+            t = 1_700_000_000.0 + 0.5 * k
+            for line in encode_pd6(
+                timestamp=datetime.fromtimestamp(t, UTC), heading_deg=10.0,
+                bottom_ship_mps=(0.0, 2.0, 0.0), range_m=20.0,
+            ):  # fmt: skip
+                w.write_line(t, "dvl", line.encode())
+            if k % 2:
+                w.write_line(t + 0.01, "emlog1", encode_vhw(2.1, heading_mag_deg=10.0).encode())
+
+
+def test_a_record_that_fails_in_the_pipeline_costs_that_record_only(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """replay and the offline commands' reading (record_capture) contain a record whose handling
+    raises: it is counted as an internal reject of its port and kept in the report, every other
+    record is handled, and the run ends normally."""
+    from emlogd.offline.dataset import record_capture
+    from emlogd.pipeline.settings import UutSettings
+
+    cap = tmp_path / "small.cap"
+    _small_capture(cap)
+    real = Pipeline._route
+    bad_times = {1_700_000_000.0 + 0.5 * k + 0.01 for k in (11, 31, 51)}
+
+    def route(self: Pipeline, t: float, port: str, items: list[object], out: object) -> None:
+        if t in bad_times:
+            raise ValueError("math domain error")
+        real(self, t, port, items, out)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Pipeline, "_route", route)
+    cfg = CFG.replace("  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n", "")
+    cfg = cfg.replace("  - {uut: emlog2, reference: dvl, lag: 0.5, current: false}\n", "")
+    res = replay(_pipeline(cfg), [cap])
+    doc = res.to_dict()
+    assert res.records == 120 * 6 + 60 and res.internal["count"] == 3
+    first = res.internal["first"]
+    assert isinstance(first, list) and first[0]["error"] == "ValueError: math domain error"
+    assert first[0]["port"] == "emlog1" and first[0]["data"].startswith("$VWVHW")
+    ports = doc["ports"]
+    assert isinstance(ports, dict)
+    assert ports["emlog1"]["rejects"]["internal"] == 3 and ports["emlog1"]["records"] == 60
+    assert doc["internal"] == res.internal
+    rec = record_capture(cap, UutSettings("emlog1", reference_port="dvl", lag_s=0.0))
+    assert rec.internal["count"] == 3 and rec.counters["emlog1"]["rejects"]["internal"] == 3  # type: ignore[index]
+    assert rec.raw.size == 60 - 3

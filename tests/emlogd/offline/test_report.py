@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from emlogd.offline.jobs import load_captures
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 pytest.importorskip("matplotlib")
 

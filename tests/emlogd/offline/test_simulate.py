@@ -36,7 +36,7 @@ from emlogd.offline.simulate import (
     score_truth,
     simulate,
 )
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 
 
 def test_files_and_truth(trial: SimulationResult) -> None:

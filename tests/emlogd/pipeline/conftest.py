@@ -21,7 +21,8 @@ from calib.models import Params
 from calib.synth import WaterFrameSeries, water_frame_segment
 from drivers.nmea0183 import encode_vhw
 from drivers.rdi_ascii import encode_pd6
-from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Output, Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 T0 = 1_750_000_000.0
 PORTS = [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")]
@@ -91,8 +92,8 @@ def run(p: Pipeline, items: Iterable[Item], out: Output | None = None) -> Output
     """Feed items in order, ticking after each (as replay does)."""
     out = out if out is not None else Output()
     for t, port, data in items:
-        p.feed(t, port, data, out)
-        p.tick(t, out)
+        out.add(p.feed(t, port, data))
+        out.add(p.tick(t))
     return out
 
 

@@ -8,8 +8,8 @@ import pytest
 
 from calib.models import Params
 from emlogd.pipeline.calibration import Calibration, check, checker
-from emlogd.pipeline.core import UutSettings
 from emlogd.pipeline.integrity import Envelope
+from emlogd.pipeline.settings import UutSettings
 
 GOOD = Calibration(
     "emlog1",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from datetime import UTC, datetime
@@ -14,7 +15,8 @@ from calib.synth import WaterFrameSeries
 from drivers.framing import split_nmea, with_checksum
 from drivers.nmea0183 import encode_vhw
 from emlogd.pipeline.calibration import Calibration
-from emlogd.pipeline.core import Emit, Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.core import Output, Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 TRUE = Params("EM3", m=0.15, b_mps=0.1)
 Segment = Callable[..., WaterFrameSeries]
@@ -48,29 +50,29 @@ class TestEmitting:
         assert statuses and all(x.split(",")[2] == "U" for x in statuses)
         assert _status(p)["reason"] == "learning switched off"
 
-    def test_each_sentence_is_delivered_before_the_filter_learns_from_its_sample(
+    def test_feed_returns_the_reading_corrected_before_the_filter_learns_from_it(
         self, kit: SimpleNamespace, segment: Segment
     ) -> None:
-        """A corrected sentence reaches deliver() before the filter learns from its sample."""
+        """feed() returns, as a new value each call, the reading corrected with the
+        calibration in use before the call; the filter learns from it in the same call."""
         s = kit.make_stream(segment("figure-8", 300.0, TRUE))
         p = kit.pipeline(lag_s=0.0)
         kit.run(p, s.items[: len(s.items) // 2])
         cal = p.uuts["log"].cal
-        seen: list[tuple[int, int]] = []
-
-        def deliver(emits: list[Emit]) -> None:
-            assert [e.sentence[3:6] for e in emits] == ["VHW"]
-            seen.append((cal.n_learnt, len(cal.pending)))
-
-        out = Output(deliver=deliver)
+        outs: list[Output] = []
         for t, port, data in s.items[len(s.items) // 2 :]:
             before = cal.n_learnt
-            p.feed(t, port, data, out)
-            if port == "log":
-                assert seen[-1][0] == before  # delivered before the update...
-                assert cal.n_learnt == before + 1  # ...then learnt from
-            out.emits.clear()
-        assert len(seen) > 100
+            raw_kn = float(data.decode().split(",")[5]) if port == "log" else None
+            want = None if raw_kn is None else cal.correct(raw_kn * 0.514444)
+            out = p.feed(t, port, data)
+            outs.append(out)
+            if want is not None:
+                assert [f[5] for f in _vhw(out)] == [encode_vhw(want).split(",")[5]]
+                assert cal.n_learnt == before + 1  # learnt from in the same call
+            else:
+                assert _vhw(out) == []
+        assert len({id(o) for o in outs}) == len(outs)
+        assert sum(1 for o in outs if _vhw(o)) > 100
 
     def test_every_sentence_fits_and_checksums(
         self, kit: SimpleNamespace, segment: Segment
@@ -90,7 +92,7 @@ class TestEmitting:
             (encode_vhw(1.0 + k * 0.1, talker="VW") + "\r\n").encode() for k in range(20)
         )
         out = Output()
-        p.feed(kit.T0, "log", burst, out)
+        out.add(p.feed(kit.T0, "log", burst))
         assert len(_vhw(out)) == 1 and float(_vhw(out)[0][5]) == pytest.approx(
             2.9 / 0.514444, abs=0.01
         )
@@ -101,7 +103,9 @@ class TestEmitting:
         p = kit.pipeline(lag_s=0.0, learn=False)
         out = Output()
         for kn in (77.7, -3.0):
-            p.feed(kit.T0, "log", (encode_vhw(kn * 0.514444, talker="VW") + "\r\n").encode(), out)
+            out.add(
+                p.feed(kit.T0, "log", (encode_vhw(kn * 0.514444, talker="VW") + "\r\n").encode())
+            )
         assert _vhw(out) == []
         assert _status(p)["counters"]["out_of_range"] == 2  # type: ignore[index]
 
@@ -258,7 +262,16 @@ class TestControl:
         out = kit.run(warm, s2.items)
         assert _status(warm)["params"] == snap.params.as_dict()
         assert _vhw(out)
-        assert p.reset() == ["log"]
+        assert p.reset() == {
+            "log": {
+                "kept": {"lag_s": 0.0, "learning_enabled": False},
+                "cleared": [
+                    "EM3 calibration",
+                    "current estimate",
+                    "learning state (filter, candidate, scores)",
+                ],
+            }
+        }
         assert _status(p)["state"] == "uncalibrated"
         (after,) = p.calibrations()
         assert after.reset and after.lag_s == 0.0
@@ -283,9 +296,9 @@ class TestControl:
             b":BS,abc\r\n",
             b"\n" * 5000,
         ):
-            p.feed(kit.T0, "log", data, out)
-            p.feed(kit.T0, "dvl", data, out)
-        p.feed(kit.T0, "unknown-port", b"$junk\r\n", out)
+            out.add(p.feed(kit.T0, "log", data))
+            out.add(p.feed(kit.T0, "dvl", data))
+        out.add(p.feed(kit.T0, "unknown-port", b"$junk\r\n"))
         st = p.status()["ports"]
         assert sum(st["log"]["rejects"].values()) > 0  # type: ignore[index]
         assert sum(st["dvl"]["rejects"].values()) > 0  # type: ignore[index]
@@ -442,10 +455,10 @@ class TestWaterFrame:
             [UutSettings(port="log", reference_port="dvl", heading="hdg", current=True, lag_s=0.0)],
         )
         out = Output()
-        p.feed(kit.T0, "hdg", (with_checksum("HCHDM,100.0,M") + "\r\n").encode(), out)
+        out.add(p.feed(kit.T0, "hdg", (with_checksum("HCHDM,100.0,M") + "\r\n").encode()))
         assert p.headings["hdg"].refused_magnetic == 1
         hdg = with_checksum("HCHDG,100.0,2.0,E,3.0,W") + "\r\n"
-        p.feed(kit.T0 + 1.0, "hdg", hdg.encode(), out)
+        out.add(p.feed(kit.T0 + 1.0, "hdg", hdg.encode()))
         assert p._heading_at("log", kit.T0 + 1.0) == pytest.approx(99.0)
 
 
@@ -564,3 +577,58 @@ class TestNavigationItems:
             ("_Heading", None),
             ("SpeedRecord", "water"),
         ]
+
+
+class TestStateAcrossModelsAndResets:
+    """What a pipeline takes from a state: each error model its own calibration, the lag
+    whatever the model, and the lag after a reset."""
+
+    EM3 = Calibration("log", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 1.5)
+
+    def test_each_model_keeps_its_calibration_across_a_switch(self, kit: SimpleNamespace) -> None:
+        """EM3 → EM4 starts EM4 uncalibrated with EM3's lag and keeps EM3's record; back to
+        EM3, the EM3 calibration and its lag return and EM4's record is kept."""
+        s3 = UutSettings(port="log", reference_port="dvl")  # lag: auto
+        s4 = dataclasses.replace(s3, model="EM4")
+        p4 = Pipeline(kit.PORTS, [s4], {"log": self.EM3})
+        assert (_status(p4)["model"], _status(p4)["params"], _status(p4)["lag_s"]) == (
+            "EM4",
+            None,
+            1.5,
+        )
+        assert p4.other_calibrations() == [self.EM3]
+        p3 = Pipeline(
+            kit.PORTS,
+            [s3],
+            {c.uut: c for c in p4.calibrations()},
+            others=p4.other_calibrations(),
+        )
+        # restored, the EM3 calibration re-earns trust: the filter starts from it
+        assert _status(p3)["estimate"] == {"m": 0.05, "b": 0.1} and _status(p3)["lag_s"] == 1.5
+        (em4,) = p3.other_calibrations()
+        assert em4.params.model == "EM4" and em4.reset and em4.lag_s == 1.5
+
+    def test_a_reset_keeps_the_lag_across_a_restart(self, kit: SimpleNamespace) -> None:
+        """A reset forgets every model's calibration, not the lag: its record carries the
+        lag, and a pipeline started from that record has it."""
+        s = UutSettings(port="log", reference_port="dvl")
+        em4 = Calibration("log", Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}, 1.5)
+        p = Pipeline(kit.PORTS, [s], {"log": self.EM3}, others=[em4])
+        reply = p.reset()
+        assert reply["log"]["kept"] == {"lag_s": 1.5, "learning_enabled": True}
+        assert "EM4 calibration (another model)" in reply["log"]["cleared"]  # type: ignore[operator]
+        (rec,) = p.calibrations()
+        assert rec.reset and rec.lag_s == 1.5 and p.other_calibrations() == []
+        again = Pipeline(kit.PORTS, [s], {"log": rec})
+        assert _status(again)["params"] is None and _status(again)["lag_s"] == 1.5
+
+    @pytest.mark.parametrize("lag", [-50.0, 10.5])
+    def test_a_lag_outside_the_bounds_is_refused_at_start(
+        self, kit: SimpleNamespace, lag: float
+    ) -> None:
+        """A state's lag outside [0, max_lag_s] refuses the record, with the reason."""
+        s = UutSettings(port="log", reference_port="dvl", max_lag_s=10.0)
+        p = Pipeline(kit.PORTS, [s], {"log": dataclasses.replace(self.EM3, lag_s=lag)})
+        (ev,) = [e for e in p.tick(kit.T0).events if e.kind == "calibration_refused"]
+        assert "outside [0, 10] s" in str(ev.detail["why"])
+        assert _status(p)["params"] is None and _status(p)["lag_s"] is None

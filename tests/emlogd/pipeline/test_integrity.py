@@ -15,6 +15,8 @@ from emlogd.pipeline.integrity import (
     Envelope,
     JumpFilter,
     PairedWindow,
+    ReadingCheck,
+    ReadingLimits,
     UutHealth,
     emitted_speed,
 )
@@ -190,3 +192,34 @@ class TestPairedWindow:
         assert prev == pytest.approx(math.sqrt(1.0 / 1.5))
         w.reset()
         assert math.isnan(w.rmse()[0]) and w.n_effective == 0.0
+
+
+class TestReadingCheck:
+    """A log's readings: its rate and the vessel's acceleration."""
+
+    def test_a_configured_rate_holds_and_a_log_beyond_it_is_dropped_whole(self) -> None:
+        """max_rate_hz 5: a 4-Hz log passes whole; a 10-Hz log loses its third reading
+        beyond the rate within 10 s and then everything, until it keeps the rate."""
+        chk = ReadingCheck(ReadingLimits(max_rate_hz=5.0))
+        assert all(chk.check(k / 4.0, 2.8) == "" for k in range(200))
+        fast = [chk.check(50.0 + k / 10.0, 2.8) for k in range(100)]
+        assert fast[:2] == ["", ""] and fast[-50:] == ["rate"] * 50
+        assert chk.check(70.1, 2.8) == "" and chk.nominal_s is None
+
+    def test_the_nominal_rate_is_learnt(self) -> None:
+        """Without max_rate_hz the median interval of the accepted readings is learnt."""
+        chk = ReadingCheck(ReadingLimits())
+        for k in range(40):
+            chk.check(k * 0.5, 2.8)
+        assert chk.nominal_s == pytest.approx(0.5)
+        assert chk.max_rate_hz() == pytest.approx(2.1)
+
+    def test_acceleration(self) -> None:
+        """1 m/s² and 0.3 m/s of margin: 2.8 → 4.0 in 1 s is refused, → 4.0 in 1 s after
+        2 s of silence is not; the refusal's allowance is frozen at its first reading."""
+        chk = ReadingCheck(ReadingLimits(max_reading_accel_mps2=1.0))
+        assert chk.check(0.0, 2.8) == ""
+        assert chk.check(1.0, 4.2) == "accel"
+        assert chk.check(5.0, 4.2) == "accel"  # readings kept coming: not 0.3 + 5 m/s
+        assert chk.check(6.0, 2.9) == ""
+        assert chk.check(8.0, 4.2) == ""  # 2 s of silence: 0.3 + 2 m/s

@@ -7,7 +7,6 @@ from dataclasses import dataclass
 
 import pytest
 
-from emlogd.pipeline.core import UutSettings
 from emlogd.pipeline.keys import (
     InvalidValueError,
     build,
@@ -21,6 +20,7 @@ from emlogd.pipeline.keys import (
     param_std,
     string,
 )
+from emlogd.pipeline.settings import UutSettings
 
 
 @dataclass(frozen=True, slots=True)

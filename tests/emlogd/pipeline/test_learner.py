@@ -7,9 +7,9 @@ import math
 import pytest
 
 from calib.models import Layout, Params, check_model
-from emlogd.pipeline.core import UutSettings
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.learner import Learner
+from emlogd.pipeline.settings import UutSettings
 
 
 def _learner() -> tuple[Learner, list[str]]:

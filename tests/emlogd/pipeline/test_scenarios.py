@@ -158,7 +158,7 @@ def test_a_reading_beyond_the_range_or_negative_is_refused(kit: SimpleNamespace)
     p: Pipeline = kit.pipeline(lag_s=0.0)
     out = Output()
     for k, kn in enumerate((77.7, -77.7, -2.0, 3.0)):
-        p.feed(kit.T0 + k, "log", (encode_vhw(kn * 0.514444) + "\r\n").encode(), out)
+        out.add(p.feed(kit.T0 + k, "log", (encode_vhw(kn * 0.514444) + "\r\n").encode()))
     speeds = kit.emitted(out)
     assert [round(v / 0.514444, 2) for _, v in speeds] == [3.0]
     assert p.status()["uuts"]["log"]["counters"]["out_of_range"] == 3  # type: ignore[index]

@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from calib.models import Layout, Params, check_model
-from emlogd.pipeline.core import UutSettings
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.learner import Offer
+from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.supervisor import RESTORE_WAIT_S, Supervisor
 
 RESTORED = Params("EM3", m=0.1, b_mps=0.05)

@@ -10,7 +10,7 @@ import pytest
 
 from calib.models import Params
 from emlogd.pipeline.calibration import Calibration
-from emlogd.pipeline.core import UutSettings
+from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import UutCalibration
 
 TRUE = Params("EM3", m=0.15, b_mps=0.1)

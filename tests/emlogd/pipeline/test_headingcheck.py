@@ -1,0 +1,75 @@
+"""A heading the course over ground contradicts for minutes is flagged and not used."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from drivers.nmea0183 import encode_hdt, encode_rmc, encode_vhw
+from emlogd.pipeline.core import Output, Pipeline, PortSettings, UutSettings
+from emlogd.pipeline.headingcheck import WINDOW_S, HeadingCheck
+
+T0 = 1_750_000_000.0
+
+
+def _run(offset_deg: float, duration_s: float = 600.0) -> tuple[Pipeline, Output]:
+    """A log at 2.8 m/s through the water turning slowly (3°/s for a minute, then
+    straight, by turns), a 0.3 m/s current to the north-east, GNSS at 1 Hz, and a
+    heading sent ``offset_deg`` off the true one."""
+    p = Pipeline(
+        [PortSettings("log", "nmea0183"), PortSettings("gps", "nmea0183")],
+        [UutSettings(port="log", reference_port="gps", reference_field="gnss", heading="gps")],
+    )
+    rng = np.random.default_rng(11)
+    out = Output()
+    psi = 0.0
+    cn, ce = 0.3 * math.cos(math.pi / 4), 0.3 * math.sin(math.pi / 4)
+    for k in range(int(duration_s)):
+        t = float(k)
+        psi = (psi + (3.0 if (k // 60) % 2 == 0 else 0.0)) % 360.0
+        stw = 2.8 + rng.normal(0.0, 0.05)
+        vn = stw * math.cos(math.radians(psi)) + cn + rng.normal(0.0, 0.1)
+        ve = stw * math.sin(math.radians(psi)) + ce + rng.normal(0.0, 0.1)
+        sog = math.hypot(vn, ve)
+        cog = math.degrees(math.atan2(ve, vn)) % 360.0
+        out.add(p.feed(T0 + t, "log", (encode_vhw(stw) + "\r\n").encode()))
+        gps = encode_rmc(None, sog, cog) + "\r\n" + encode_hdt((psi + offset_deg) % 360.0)
+        out.add(p.feed(T0 + t + 0.2, "gps", (gps + "\r\n").encode()))
+    return p, out
+
+
+def test_a_heading_180_degrees_wrong_is_flagged_and_not_used() -> None:
+    """Within the judging window the heading is flagged in the status and an event; the
+    UUT's heading is then not used (none for the water frame)."""
+    p, out = _run(180.0)
+    st = p.status()["uuts"]["log"]  # type: ignore[index]
+    assert "course over ground" in st["heading_suspect"]
+    flagged = [e for e in out.events if e.kind == "heading_suspect"]
+    assert flagged and flagged[0].t - T0 <= WINDOW_S + 5.0
+    assert p._heading_at("log", T0 + 590.0) is None
+
+
+@pytest.mark.parametrize("offset_deg", [0.0, 5.0])
+def test_a_right_heading_is_used(offset_deg: float) -> None:
+    """A true heading, or one 5° off (leeway, a compass's error): never flagged."""
+    p, out = _run(offset_deg)
+    assert p.status()["uuts"]["log"]["heading_suspect"] == ""  # type: ignore[index]
+    assert not [e for e in out.events if e.kind == "heading_suspect"]
+    assert p._heading_at("log", T0 + 590.0) is not None
+
+
+def test_the_check_needs_a_speed_and_recovers() -> None:
+    """Below 0.5 m/s through the water nothing is judged; a flagged heading that agrees
+    again over a window is used again."""
+    hc = HeadingCheck(3.0)
+    for k in range(200):
+        hc.add(float(k), 0.0, 0.3, 0.3, 180.0)
+    assert hc.reason() == ""
+    for k in range(200, 400):
+        hc.add(float(k), 0.0, 2.8, 2.8, 180.0)
+    assert "5.6 m/s" in hc.reason()
+    for k in range(400, 600):
+        hc.add(float(k), 180.0, 2.8, 2.8, 180.0)
+    assert hc.reason() == ""
