@@ -173,7 +173,7 @@ def test_reset_is_on_disk_before_the_reply(work: Path) -> None:
     _seed(work)
     d = Daemon(work)
     try:
-        assert d.uut("emlog1")["params"] == {"m": 0.05, "b": 0.1}
+        assert d.uut("emlog1")["estimate"] == {"m": 0.05, "b": 0.1}  # restored, re-earning trust
         resp = d.ask(cmd="reset", port="emlog1")
         assert resp["ok"] and resp["persisted"] is True
     finally:
