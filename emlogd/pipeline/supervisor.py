@@ -96,7 +96,7 @@ readings at one speed has almost no spread)."""
 
 RESTORE_VALIDATION_S = 20.0
 """A restored or withdrawn calibration (validated before) re-validates over this long,
-s, against ``validation_s`` for a new one: raw passes through meanwhile, and it need
+s (or ``validation_s`` when that is shorter), against ``validation_s`` for a new one: raw passes through meanwhile, and it need
 only not be worse than raw (:data:`WORSE_FACTOR`). The change detector and the
 re-check watch it from then on."""
 
@@ -329,7 +329,9 @@ class Supervisor:
             cand.applied += e_app * e_app
             cand.cand += e_c * e_c
             cand.n += 1
-            span = self.s.validation_s if cand.kind == "new" else RESTORE_VALIDATION_S
+            span = self.s.validation_s
+            if cand.kind != "new":
+                span = min(RESTORE_VALIDATION_S, span)
             if t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES:
                 self._decide(t, cand, source)
         else:
