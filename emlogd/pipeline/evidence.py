@@ -40,8 +40,10 @@ a current and an offset cannot be told apart), short enough to follow a tide."""
 CURRENT_MEMORY_S = 3.0 * CURRENT_HALF_LIFE_S
 """The samples kept for those fits, s (older ones weigh less than 1/8)."""
 
-MEMORY_RATE_HZ = 20.0
-"""Readings per second the memory is sized for (a 10 Hz log twice over)."""
+MEMORY_INTERVAL_S = 0.5
+"""The memory keeps at most one sample this often, s: a current fitted over half an
+hour needs no more (a 10 Hz log would otherwise make each fit 20 times dearer for the
+same answer: its samples' errors are correlated over seconds)."""
 
 CUSUM_K = 1.5
 """The CUSUM's allowance, in innovation standard deviations per sample: a bias of the
@@ -60,13 +62,17 @@ class SeaMemory:
     from which any calibration's own current is fitted (:meth:`current`)."""
 
     def __init__(self) -> None:
-        cap = int(CURRENT_MEMORY_S * MEMORY_RATE_HZ) + 64
+        cap = int(CURRENT_MEMORY_S / MEMORY_INTERVAL_S) + 64
         self.data = np.zeros((5, cap), dtype=np.float64)
         self.i = 0
         self.n = 0
+        self.t_last = -math.inf
 
     def add(self, t: float, raw: float, ref: float, cs: tuple[float, float]) -> None:
-        """One sample."""
+        """One sample (kept when :data:`MEMORY_INTERVAL_S` after the last one kept)."""
+        if t - self.t_last < MEMORY_INTERVAL_S:
+            return
+        self.t_last = t
         cap = self.data.shape[1]
         self.data[:, self.i] = (t, raw, ref, cs[0], cs[1])
         self.i = (self.i + 1) % cap
