@@ -25,12 +25,14 @@ from typing import BinaryIO
 
 import numpy as np
 
+from calib.models import FloatArray
 from drivers import EmlogdError, make_decoder
 from drivers.io.capture import REORDER_WINDOW_S, CaptureReader, read_ports
 from drivers.nmea0183 import NmeaDecoder
 from drivers.records import Rejected
 from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
+from emlogd.offline.simfaults import WindowScore, score_windows
 from emlogd.offline.simulate import Truth, TruthScore, score_truth
 from emlogd.pipeline.core import Emit, Event, Output, Pipeline
 
@@ -82,6 +84,8 @@ class ReplayResult:
     capture_skips: dict[str, dict[str, object]] = field(default_factory=dict)
     truth: dict[str, TruthScore] = field(default_factory=dict)
     """Per UUT, its emitted speeds scored against the truth (replay with ``truth``)."""
+    truth_windows: dict[str, list[WindowScore]] = field(default_factory=dict)
+    """Per UUT, the same per window of :data:`~emlogd.offline.simfaults.WINDOW_S`."""
     internal: dict[str, object] = field(default_factory=dict)
     """The records whose handling failed and was contained (:meth:`Containment.report`)."""
 
@@ -238,6 +242,7 @@ def replay(
     result.status = pipeline.status()
     if scorer is not None and truth is not None:
         result.truth = scorer.scores(truth)
+        result.truth_windows = scorer.windows(truth)
     result.elapsed_s = time.perf_counter() - started
     result.span_s = t_last - t_first if t_first is not None else 0.0
     return result
@@ -315,6 +320,17 @@ class _TruthScorer:
                 for sp in dec.speed_records(rec):
                     if sp.source == self.source[e.port] and sp.longitudinal_mps is not None:
                         self.corrected[e.port][e.t] = sp.longitudinal_mps
+
+    def _corrected(self, name: str) -> FloatArray:
+        got = self.corrected[name]
+        return np.array([got.get(t, np.nan) for t in self.readings[name].t], dtype=np.float64)
+
+    def windows(self, truth: Truth) -> dict[str, list[WindowScore]]:
+        """Each UUT's emitted speeds scored against the truth per window."""
+        return {
+            name: score_windows(truth, name, rec.t, rec.raw, self._corrected(name))
+            for name, rec in self.readings.items()
+        }
 
     def scores(self, truth: Truth) -> dict[str, TruthScore]:
         """Each UUT's readings that were emitted corrected, scored against the truth."""

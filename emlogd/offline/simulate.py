@@ -69,6 +69,7 @@ from drivers.io.capture import CaptureWriter
 from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.offline import ProgressFn
+from emlogd.offline.simfaults import SensorFault, SwitchingCurrent
 
 DvlFormat = Literal["pd6", "pd0"]
 TrajectoryKind = Literal["transit", "figure-8", "straight", "circles", "return"]
@@ -137,6 +138,8 @@ class EmlogSpec:
     noise_mps: float
     baud: int
     talker: str
+    fault: SensorFault | None = None
+    """A fault injected into the readings (:mod:`emlogd.offline.simfaults`)."""
 
 
 EMLOG1 = EmlogSpec("emlog1", Params("EM4", 0.03, 0.17, 0.12), 3.2, 0.03, 4800, "VW")
@@ -515,6 +518,8 @@ def _emlog_lines(
     t_vhw = np.arange(phase + emlog.latency_s, k.t[-1], period_vhw)
     true_u = _interp(k, k.surge, t_vhw - emlog.latency_s)
     raw = forward_array(p, true_u) + rng.normal(0.0, emlog.noise_mps, t_vhw.size)
+    if emlog.fault is not None:
+        raw = emlog.fault.apply(t0 - START_EPOCH_S + t_vhw - emlog.latency_s, raw, round(t0))
     # the sentence carries two decimals of knots: the receiver sees the quantised value
     raw = np.round(raw / KNOT_MPS, 2) * KNOT_MPS
     byte_s = 10.0 / emlog.baud
@@ -529,6 +534,10 @@ def _emlog_lines(
         u = _interp(k, k.surge, t_vbw - emlog.latency_s)
         w = _interp(k, k.sway, t_vbw - emlog.latency_s)
         long_ = forward_array(p, u) + rng.normal(0.0, emlog.noise_mps, t_vbw.size)
+        if emlog.fault is not None:
+            long_ = emlog.fault.apply(
+                t0 - START_EPOCH_S + t_vbw - emlog.latency_s, long_, round(t0) + 1
+            )
         trans = (1.0 + p.m) * w + rng.normal(0.0, emlog.noise_mps, t_vbw.size)
         jit = rng.uniform(0.0, 0.005, t_vbw.size)
         for ti, li, tr, ji in zip(
@@ -672,6 +681,7 @@ def simulate(
     circles: CirclesMode = "steps",
     emlogs: tuple[EmlogSpec, EmlogSpec] = (EMLOG1, EMLOG2),
     progress: ProgressFn | None = None,
+    current_switch: SwitchingCurrent | None = None,
     on_written: Callable[[TrajectoryTruth, Path], None] | None = None,
 ) -> SimulationResult:
     """Write the five trajectories, ``truth.yaml`` and ``truth.csv.gz`` into ``outdir``.
@@ -688,6 +698,8 @@ def simulate(
         emlogs: the two EMlogs (ports ``emlog1`` and ``emlog2``; default
             :data:`EMLOG1` and :data:`EMLOG2`), see :func:`check_emlog`.
         progress: called with (message, fraction done) after each trajectory.
+        current_switch: a current jumping between zero and a vector (replaces
+            ``current``; :mod:`emlogd.offline.simfaults`).
         on_written: called with each trajectory's truth and capture as it is written
             (a caller can report each file as it comes).
 
@@ -735,6 +747,9 @@ def simulate(
         gnss_rng = np.random.default_rng(child.spawn(1)[0])
         duration = spec.duration_min * 60.0 * scale
         k = kinematics(spec, duration, rng, current=current, circles=circles)
+        if current_switch is not None:
+            c_n, c_e = current_switch.at(t0 - START_EPOCH_S + k.t)
+            k = dataclasses.replace(k, current_n=c_n, current_e=c_e)
         lock = _bottom_lock(k.t, rng)
         faults = _Faults(np.random.default_rng(rng.integers(2**63)))
         lines: list[_Line] = []

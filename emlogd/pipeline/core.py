@@ -525,7 +525,7 @@ class Pipeline:
             u = self.uuts[p]
             old = u.cal
             cleared = [
-                f"{u.s.model} calibration" if old.applied is not None else "no calibration applied",
+                f"{u.s.model} calibration" if old.sup.kept is not None else "no calibration kept",
                 "current estimate",
                 "learning state (filter, candidate, scores)",
                 *(f"{m} calibration (another model)" for m in sorted(self.kept.get(p, {}))),

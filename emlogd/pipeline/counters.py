@@ -27,6 +27,10 @@ class Counters:
     candidates_rejected: int = 0
     candidates_applied: int = 0
     fallbacks: int = 0
+    changes: int = 0
+    """The applied calibration withdrawn by change detection."""
+    uut_stalled: int = 0
+    """Readings far below the speed the reference implies (a stalled wheel): not learnt."""
 
     def as_dict(self) -> dict[str, int]:
         """Plain types."""

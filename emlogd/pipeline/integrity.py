@@ -8,8 +8,10 @@ pieces, each with a reason a person understands (the per-UUT supervisor in
   speed. A calibration outside it is never applied, persisted or loaded; a reading
   outside the sensor's range is refused; a corrected speed is clamped to it;
 - :class:`UutHealth` — the speed log's own faults: a reading *stuck* (no change
-  beyond quantisation for ``stuck_s`` while the reference moves) or *zero* while the
-  reference says the vessel moves;
+  beyond quantisation for ``stuck_s`` while the reference moves, or block means that
+  stay within a fraction of the reference's swing however noisy each reading is),
+  *zero* while the reference says the vessel moves, or *stalled* (far below the
+  reference at speed: gated from its first sample);
 - :class:`JumpFilter` — a reference or heading sample that would need a physically
   impossible acceleration or turn rate since the last accepted one is a glitch; a
   new level held for ``confirm_s`` is accepted (after an outage the vessel may
@@ -28,6 +30,7 @@ Must not import: serial, os, time, threading, socket (pure module).
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 from calib.models import Params
@@ -36,6 +39,27 @@ from emlogd.pipeline.keys import key, number
 QUANTUM_MPS = 0.006
 """A change of a reading smaller than this is quantisation, not motion (0.01 kn is
 0.005 m/s: the two-decimal knots field of VHW/VBW)."""
+
+STUCK_BLOCK_S = 10.0
+"""The variance rule of :class:`UutHealth` compares means over blocks this long, s."""
+
+STUCK_SPREAD_RATIO = 0.25
+"""A reading whose block means span less than this fraction of the span of the
+reference's block means over ``stuck_s`` is stuck (a working log follows the reference
+with a gain of at least 0.5: the envelope's scale), however noisy each reading is."""
+
+STUCK_MAX_TURN_DEG = 15.0
+"""The variance rule needs the heading steady within this over ``stuck_s``, °: in a
+turn the current's projection moves the reference while the speed through the water
+stays put."""
+
+STALL_FRACTION = 0.5
+"""A reading below this fraction of the reference speed is stalled (a paddle wheel that
+stopped turning): neither learnt from nor validated, from its first sample. A following
+current faster than the water speed also gives it; such samples are then only skipped."""
+
+STALL_MIN_REF_MPS = 0.5
+"""The stall rule applies while the reference is at least this fast, m/s."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,6 +158,8 @@ class UutHealth:
 
     __slots__ = (
         "_anchor",
+        "_blk",
+        "_blocks",
         "_last",
         "_min_step",
         "_ref_hi",
@@ -142,6 +168,7 @@ class UutHealth:
         "_t_anchor",
         "_t_ref",
         "_t_zero",
+        "_var_stuck",
         "fault",
         "moving_mps",
         "ref_move_mps",
@@ -173,11 +200,21 @@ class UutHealth:
         self._ref_lo = math.inf
         self._ref_hi = -math.inf
         self._t_zero: float | None = None
+        self._blk = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        """The block being summed: start time, n, Σ raw, n with a reference, Σ reference,
+        n with a heading, Σ cos, Σ sin."""
+        self._blocks: deque[tuple[float, float, float]] = deque(
+            maxlen=max(2, math.ceil(stuck_s / STUCK_BLOCK_S))
+        )
+        self._var_stuck = False
         self.fault = ""
         """The current fault: ``""``, ``"uut_stuck"`` or ``"uut_zero"``."""
 
-    def update(self, t: float, raw_mps: float, ref_mps: float | None) -> str:
-        """Add one reading (and the reference at its time, if valid); return the fault."""
+    def update(
+        self, t: float, raw_mps: float, ref_mps: float | None, heading_deg: float | None = None
+    ) -> str:
+        """Add one reading (and the reference and heading at its time, if valid); return
+        the fault."""
         d = abs(raw_mps - self._last)
         if d > 1e-6:
             self._min_step = min(self._min_step, d)
@@ -196,6 +233,7 @@ class UutHealth:
             self._t_ref = t
             self._ref_lo = min(self._ref_lo, self._ref_s)
             self._ref_hi = max(self._ref_hi, self._ref_s)
+        self._variance(t, raw_mps, ref_mps, heading_deg)
         at_zero = abs(raw_mps) <= 2.0 * QUANTUM_MPS
         if not at_zero or (ref_mps is not None and ref_mps <= self.moving_mps):
             self._t_zero = None
@@ -205,13 +243,65 @@ class UutHealth:
             self.fault = "uut_zero"
         elif (
             t - self._t_anchor >= self.stuck_s and self._ref_hi - self._ref_lo >= self.ref_move_mps
-        ):
+        ) or self._var_stuck:
             self.fault = "uut_stuck"
         elif self.fault == "uut_stuck" and t > self._t_anchor:
             pass  # unchanged since the fault was declared: it stands until the reading moves
         else:
             self.fault = ""
         return self.fault
+
+    def _variance(
+        self, t: float, raw_mps: float, ref_mps: float | None, heading_deg: float | None
+    ) -> None:
+        """The variance rule: block means of the reading against the reference's."""
+        b = self._blk
+        if b[1] and t - b[0] >= STUCK_BLOCK_S:
+            if b[3] >= 0.5 * b[1]:
+                hdg = math.degrees(math.atan2(b[7], b[6])) if b[5] >= 0.5 * b[1] else math.nan
+                self._blocks.append((b[2] / b[1], b[4] / b[3], hdg))
+            else:
+                self._blocks.clear()  # a stuck log must be seen against a moving reference
+            b[:] = [t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+            self._var_stuck = self._judge_spread()
+        if not b[1]:
+            b[0] = t
+        b[1] += 1.0
+        b[2] += raw_mps
+        if ref_mps is not None:
+            b[3] += 1.0
+            b[4] += ref_mps
+        if heading_deg is not None:
+            psi = math.radians(heading_deg)
+            b[5] += 1.0
+            b[6] += math.cos(psi)
+            b[7] += math.sin(psi)
+
+    def _judge_spread(self) -> bool:
+        blocks = self._blocks
+        if len(blocks) < (blocks.maxlen or 0):
+            return False
+        h0 = blocks[0][2]
+        for _, _, h in blocks:
+            if math.isnan(h) != math.isnan(h0):
+                return False
+            if not math.isnan(h) and abs((h - h0 + 180.0) % 360.0 - 180.0) > STUCK_MAX_TURN_DEG:
+                return False
+        raws = [r for r, _, _ in blocks]
+        refs = [v for _, v, _ in blocks]
+        ref_span = max(refs) - min(refs)
+        return ref_span >= self.ref_move_mps and max(raws) - min(raws) < (
+            STUCK_SPREAD_RATIO * ref_span
+        )
+
+    @staticmethod
+    def stalled(raw_mps: float, ref_mps: float | None) -> bool:
+        """A reading far below the reference at speed (:data:`STALL_FRACTION`)."""
+        return (
+            ref_mps is not None
+            and ref_mps >= STALL_MIN_REF_MPS
+            and raw_mps < STALL_FRACTION * ref_mps
+        )
 
 
 class JumpFilter:

@@ -416,19 +416,17 @@ class Learner:
             cs = (math.cos(psi), math.sin(psi))
         return Aligned(t, raw, dt, ref, heading, cs, ref_state)
 
-    def step(self, a: Aligned, fault: str, prior: Params | None) -> Learnt:
+    def step(self, a: Aligned, gate: str, prior: Params | None) -> Learnt:
         """Steps 3–5 for one aligned reading.
 
         Args:
             a: the reading, aligned.
-            fault: the UUT's health fault (``""`` when healthy): a faulty log teaches nothing.
+            gate: why the reading must not teach (the log's fault, a stall), or ``""``.
             prior: the applied calibration (the filter restarts from it), or None.
         """
         valid = self._usable(a)
         self._excitation(a, valid)
-        learn_set = self._learn_set(valid, fault)
-        if fault:
-            self.counters.uut_fault += 1
+        learn_set = self._learn_set(valid, gate)
         block = self.block
         res = self.kf.update(
             a.raw,

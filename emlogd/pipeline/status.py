@@ -125,6 +125,9 @@ def uut_status(u: UutRoute, headings: Headings) -> dict[str, object]:
         "model": u.s.model,
         "params": cal.applied.as_dict() if cal.applied is not None else None,
         "param_std": dict(cal.applied_std) if cal.applied is not None else None,
+        # the calibration kept for this model: the applied one, else the last good one
+        # (restored and awaiting validation, or withdrawn for cause and re-validating)
+        "kept": cal.sup.kept.as_dict() if cal.sup.kept is not None else None,
         "estimate": kf.params.as_dict(),
         "estimate_std": kf.param_std,
         "current": None

@@ -2,10 +2,20 @@
 
 The learner (:mod:`emlogd.pipeline.learner`) only *offers* candidates; the supervisor
 alone decides what reaches the autopilot. It sees the reading, the reference at the
-reading's time, the heading and the learner's offer — through :class:`CandidateSource`,
-never the learner's state — and keeps three calibrations: the *applied* one (None:
-the raw reading passes through), the *previous* good one, and the candidate under
-validation.
+reading's time, the heading and the learner's offer (through :class:`CandidateSource`)
+— never the learner's current or its covariance. It keeps the *applied* calibration
+(None: the raw reading passes through), the *previous* one, the *last good* one and a
+candidate under validation.
+
+**Its own evidence** (:class:`~emlogd.pipeline.evidence.SeaMemory`): in the water frame every calibration it
+judges gets its own current, fitted by least squares on the heading's (cos, sin) from
+its own errors over the last :data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`; a calibration is scored by
+what that current cannot explain, and raw is scored in the sea as the applied
+calibration sees it (its own current would take its offset on every straight leg). A
+current therefore cannot make a bad calibration look good. Without current states the
+reference is the judge as it is.
+
+Rules (the constants are this module's):
 
 - **Emitting** (:meth:`Supervisor.correct`) uses only the applied calibration, never
   waits for the reference, and is silent while the log has a fault
@@ -13,12 +23,27 @@ validation.
 - **Validation**: an offer different enough from the applied calibration
   (``persist_min_change_sigma`` / ``persist_min_change_abs``) becomes a candidate,
   frozen and scored over the next ``validation_s`` (at least
-  :data:`VALIDATION_MIN_SAMPLES`); it is applied only if it beats both the raw reading
-  and the applied calibration there.
-- **Re-check**: the applied calibration is scored against raw over a forgetting window
-  of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than
-  raw (:data:`WORSE_FACTOR`, :data:`WORSE_MARGIN_MPS`) it falls back to the previous
-  good one if that beats raw, else to raw pass-through, and says so.
+  :data:`VALIDATION_MIN_SAMPLES`); it is applied only if it beats the raw reading and
+  is within :data:`CANDIDATE_FACTOR` / :data:`CANDIDATE_MARGIN_MPS` of the applied one.
+- **Re-check**: the applied calibration is scored against raw over a forgetting
+  window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
+  :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
+  else to raw pass-through.
+- **Change detection**: a two-sided CUSUM
+  (:class:`~emlogd.pipeline.evidence.Cusum`) on the applied calibration's innovations
+  (its error minus the error its own current predicts, over the window's spread
+  widened by the current's uncertainty at the heading) alarms within a few samples of
+  a step of the sensor or the sea. On an alarm the calibration's errors and raw's
+  over the alarm's run, against the current as it stood, decide: worse than raw, it
+  is withdrawn and the learner learns the parameters again; else the sea changed, and
+  the detector's current starts afresh.
+- **Withdrawn for cause** (re-check or change detection): the calibration stays the
+  *last good* one (persisted, not a reset) and is the next candidate: re-applied once
+  it validates again.
+- **Restored** (state file, warm start): validated before it is applied (over
+  :data:`RESTORE_VALIDATION_S`, not worse than raw), raw passing through meanwhile; when no reference has been heard
+  :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
+  status) and validated in place once a reference arrives.
 """
 
 from __future__ import annotations
@@ -26,10 +51,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
+from emlogd.pipeline.evidence import CUSUM_H, Cusum, FitWindow, SeaMemory
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
 
 if TYPE_CHECKING:
@@ -51,6 +77,39 @@ CANDIDATE_MARGIN_MPS = 0.002
 """A candidate replaces the applied calibration when it beats raw and its RMSE is within
 the applied one's × 1.02 + 2 mm/s."""
 
+CURRENT_REFRESH_S = 20.0
+"""Each calibration's current is fitted again this often, s (and when one is made)."""
+
+CUSUM_HALF_LIFE_S = 60.0
+"""The change detector's own window, s: short, so that its current follows the sea's
+(a current that turns over minutes would otherwise leave a bias in the innovations)."""
+
+CUSUM_MIN_SAMPLES = 10.0
+"""The CUSUM runs once its window holds this many (forgotten) samples of the applied
+calibration (its own current and spread are known). While a CUSUM run builds up, its
+samples stay out of the window: a change is not absorbed by the baseline it is judged
+against."""
+
+CUSUM_SIGMA_FLOOR_MPS = 0.02
+"""The innovation's standard deviation is at least this, m/s (a window of quantised
+readings at one speed has almost no spread)."""
+
+CUSUM_BASELINE_FRACTION = 0.5
+"""While the CUSUM is past this fraction of its threshold, its samples stay out of the
+detector's baseline (a change is not absorbed by what it is judged against)."""
+
+RESTORE_VALIDATION_S = 20.0
+"""A restored or withdrawn calibration (validated before) re-validates over this long,
+s (or ``validation_s`` when that is shorter), against ``validation_s`` for a new one: raw passes through meanwhile, and it need
+only not be worse than raw (:data:`WORSE_FACTOR`). The change detector and the
+re-check watch it from then on."""
+
+RESTORE_WAIT_S = 10.0
+"""A restored calibration is applied unverified when no reference has been heard this
+long after the first reading, s."""
+
+CandidateKind = Literal["new", "restored", "revalidate", "verify"]
+
 
 class CandidateSource(Protocol):
     """What the supervisor may ask of the learner: an offer, and its uncertainty now."""
@@ -67,10 +126,15 @@ class CandidateSource(Protocol):
 class _Candidate:
     params: Params
     t0: float
+    kind: CandidateKind = "new"
+    std: Mapping[str, float | None] | None = None
+    """Its standard deviations (a restored or withdrawn one keeps its own)."""
     raw: float = 0.0
     cand: float = 0.0
     applied: float = 0.0
     n: int = 0
+    beta: tuple[float, float] | None = None
+    """Its own current (see :meth:`SeaMemory.current`), once fitted."""
 
 
 class Supervisor:
@@ -79,8 +143,8 @@ class Supervisor:
     Args:
         s: the UUT's settings.
         layout: the UUT's model layout.
-        applied: the restored calibration to apply from the start, or None.
-        applied_std: its standard deviations.
+        restored: the restored calibration (re-earns trust before it is applied), or None.
+        restored_std: its standard deviations.
         emit: called as ``emit(t, kind, detail)`` for every decision worth a log line.
         counters: the UUT's counters (shared with its learner).
     """
@@ -89,8 +153,8 @@ class Supervisor:
         self,
         s: UutSettings,
         layout: Layout,
-        applied: Params | None,
-        applied_std: Mapping[str, float | None],
+        restored: Params | None,
+        restored_std: Mapping[str, float | None],
         emit: Callable[[float, str, Mapping[str, object]], None],
         counters: Counters,
     ) -> None:
@@ -98,18 +162,52 @@ class Supervisor:
         self.layout = layout
         self._emit = emit
         self.counters = counters
-        self.applied: Params | None = applied
-        self.applied_std: dict[str, float | None] = dict(applied_std)
+        self.water = layout.current
+        self.applied: Params | None = None
+        self.applied_std: dict[str, float | None] = {}
         self.previous: Params | None = None
-        self.candidate: _Candidate | None = None
+        self.last_good: Params | None = restored
+        """The calibration last applied for good reason: kept (and persisted) when it is
+        withdrawn for cause, until another is applied."""
+        self.last_good_std: dict[str, float | None] = dict(restored_std)
+        self.candidate: _Candidate | None = (
+            _Candidate(restored, math.nan, "restored", dict(restored_std))
+            if restored is not None
+            else None
+        )
+        self.unverified = False
+        """The applied calibration is a restored one no reference has confirmed yet."""
+        self.t_first: float | None = None
+        self.heard_reference = False
         self.recheck = PairedWindow(s.recheck_s)
+        self.memory = SeaMemory()
+        self._beta: dict[str, tuple[float, float]] = {}
+        self._t_beta = -math.inf
+        self.cusum = Cusum()
+        self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
+        self.reopen = False
+        """Change detected: the learner should learn the parameters again (taken by the owner)."""
         self.health = UutHealth(s.stuck_s, s.zero_s)
         self.score = Score()
         self.score_water = Score()
         self.dirty = False
         """The applied calibration changed since it was last handed out for persisting."""
-        self.note = ""
+        self.note = (
+            "restored calibration awaiting validation: raw readings pass through"
+            if restored is not None
+            else ""
+        )
         """The last supervision decision worth showing with the state (a fallback)."""
+
+    @property
+    def kept(self) -> Params | None:
+        """What a snapshot persists: the applied calibration, else the last good one."""
+        return self.applied if self.applied is not None else self.last_good
+
+    @property
+    def kept_std(self) -> dict[str, float | None]:
+        """Its standard deviations."""
+        return self.applied_std if self.applied is not None else self.last_good_std
 
     # -- emitting -------------------------------------------------------------
 
@@ -147,60 +245,195 @@ class Supervisor:
 
     # -- supervision ----------------------------------------------------------
 
+    def reading(self, t: float, reference_heard: bool) -> None:
+        """Every reading learnt from: a restored calibration waits for a reference.
+
+        Args:
+            t: the reading's time, s.
+            reference_heard: the reference is reporting (valid or not, slow or lost).
+        """
+        if self.t_first is None:
+            self.t_first = t
+        if reference_heard:
+            self.heard_reference = True
+            return
+        cand = self.candidate
+        if (
+            cand is not None
+            and cand.kind == "restored"
+            and not self.heard_reference
+            and t - self.t_first >= RESTORE_WAIT_S
+        ):
+            self.candidate = _Candidate(cand.params, math.nan, "verify", cand.std)
+            self._apply(t, cand.params, cand.std or {})
+            self.unverified = True
+            self.note = "restored calibration unverified: no reference"
+            self._emit(t, "calibration_unverified", {"params": cand.params.as_dict()})
+
     @staticmethod
-    def _error(raw: float, ref: float, proj: float, p: Params | None) -> float:
+    def _error(raw: float, ref: float, p: Params | None) -> float:
         corrected = raw if p is None else p.correct(raw)
-        return corrected + proj - ref
+        return corrected - ref
 
     def observe(
         self,
         t: float,
         raw: float,
         ref: float,
-        proj: float,
-        water: bool,
+        cs: tuple[float, float] | None,
         source: CandidateSource,
+        *,
+        proj: float = 0.0,
+        water: bool = False,
     ) -> None:
-        """Score one reading with a valid reference; validate, re-check, propose.
+        """Score one reading with a valid reference; detect, validate, re-check, propose.
 
         Args:
             t: the reading's time, s.
             raw: the reading, m/s.
             ref: the reference along the hull at the reading's time, m/s.
-            proj: the current projected on the hull, m/s (0 without one).
-            water: the current is determined (the water-frame status score counts).
+            cs: the heading's (cos, sin) at that time, or None.
             source: the learner, for its offer.
+            proj: the learner's current on the hull, m/s: the status's water-frame score
+                only (never a verdict).
+            water: the learner's current is determined (that score counts).
         """
-        e_raw = self._error(raw, ref, proj, None)
-        e_app = self._error(raw, ref, proj, self.applied)
+        d_raw = self._error(raw, ref, None)
+        d_app = self._error(raw, ref, self.applied)
         out = self.correct(raw)
         if out is not None:
             self.score.add(raw - ref, out - ref)
             if water:
                 self.score_water.add(raw + proj - ref, out + proj - ref)
-        e_prev = self._error(raw, ref, proj, self.previous) if self.previous is not None else 0.0
+        if self._detect(t, cs, d_app, d_raw):
+            d_app = d_raw
+        if self.water and cs is not None:
+            if t - self._t_beta >= CURRENT_REFRESH_S:
+                self._refit(t)
+            hc = cs
+        else:
+            hc = (0.0, 0.0)
+        # raw is judged in the sea as the applied calibration sees it (else its own
+        # current would take its offset on every straight leg and raw would look right)
+        e_raw = self._residual(d_raw, "applied" if self.applied is not None else "raw", hc)
+        e_app = self._residual(d_app, "applied" if self.applied is not None else "raw", hc)
+        e_prev = 0.0
+        if self.previous is not None:
+            e_prev = self._residual(self._error(raw, ref, self.previous), "previous", hc)
         self.recheck.add(t, e_raw, e_app, e_prev)
         cand = self.candidate
         if cand is not None:
+            if cand.n == 0:
+                cand.t0 = t
+            if cand.beta is None and self.water:
+                cand.beta = self.memory.current(cand.params, t)
+            beta = cand.beta or (0.0, 0.0)
+            e_c = self._error(raw, ref, cand.params) - (beta[0] * hc[0] + beta[1] * hc[1])
             cand.raw += e_raw * e_raw
             cand.applied += e_app * e_app
-            e_c = self._error(raw, ref, proj, cand.params)
             cand.cand += e_c * e_c
             cand.n += 1
-            if t - cand.t0 >= self.s.validation_s and cand.n >= VALIDATION_MIN_SAMPLES:
+            span = self.s.validation_s
+            if cand.kind != "new":
+                span = min(RESTORE_VALIDATION_S, span)
+            if t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES:
                 self._decide(t, cand, source)
         else:
             self._propose(t, source)
+        if self.water and cs is not None:
+            self.memory.add(t, raw, ref, cs)
         self._recheck(t)
+
+    def _refit(self, t: float) -> None:
+        """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
+        mem = self.memory
+        self._beta = {"raw": mem.current(None, t)}
+        if self.applied is not None:
+            self._beta["applied"] = mem.current(self.applied, t)
+        if self.previous is not None:
+            self._beta["previous"] = mem.current(self.previous, t)
+        cand = self.candidate
+        if cand is not None and cand.n:
+            cand.beta = mem.current(cand.params, t)
+        self._t_beta = t
+
+    def _residual(self, d: float, slot: str, hc: tuple[float, float]) -> float:
+        b = self._beta.get(slot)
+        return d if b is None else d - (b[0] * hc[0] + b[1] * hc[1])
+
+    def _detect(self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float) -> bool:
+        """Change detection on the applied calibration; True when it was withdrawn.
+
+        The innovation is the applied calibration's error minus what its own current
+        (:data:`CUSUM_HALF_LIFE_S`) predicts. On an alarm, the applied calibration and
+        raw are compared over the alarm's run against that same current (the sea as the
+        applied calibration saw it before the change): the calibration is withdrawn when
+        its errors are the larger — a sensor that changed. Otherwise the sea changed
+        (both moved alike): the detector's current starts afresh.
+        """
+        if self.applied is None:
+            return False
+        w = self.detector
+        if w.n < CUSUM_MIN_SAMPLES:
+            w.add(t, cs, (e_app,))
+            return False
+        sigma = max(w.rmse(0), CUSUM_SIGMA_FLOOR_MPS) * math.sqrt(1.0 + w.leverage(cs))
+        pred = w.predict(0, cs)
+        nu = e_app - pred
+        cu = self.cusum
+        alarm = cu.add(nu / sigma, nu, e_raw - pred)
+        if max(cu.hi, cu.lo) < CUSUM_BASELINE_FRACTION * CUSUM_H:
+            # the baseline learns only while no change is building up (a run past a
+            # fraction of the threshold); excluding every sample that moves the CUSUM at
+            # all would truncate the noise, shrink the spread and end in false alarms
+            w.add(t, cs, (e_app,))
+        if not alarm:
+            return False
+        n_app, n_raw = cu.ss_app, cu.ss_raw
+        if n_app <= n_raw:
+            self._reset_detector()
+            return False
+        detail = {
+            "params": self.applied.as_dict(),
+            "innovation_mps": round(nu, 4),
+            "sigma_mps": round(sigma, 4),
+            "ss_applied": round(n_app, 4),
+            "ss_raw": round(n_raw, 4),
+        }
+        self._withdraw(
+            t, "the readings changed and the calibration fits them worse than raw", detail
+        )
+        self.memory = SeaMemory()  # what it held was the sensor before the change
+        self._beta = {}
+        self.reopen = True
+        self.counters.changes += 1
+        return True
+
+    def _withdraw(self, t: float, why: str, detail: dict[str, object]) -> None:
+        """To raw for cause: the applied calibration stays the last good one and is the
+        next candidate (re-applied once it validates again)."""
+        p = self.applied
+        assert p is not None
+        std = dict(self.applied_std)
+        self.applied = None
+        self.applied_std = {}
+        self.unverified = False
+        self.previous = None
+        self.recheck.reset()
+        self._reset_detector()
+        self.candidate = _Candidate(p, math.nan, "revalidate", std)
+        self.note = f"fell back to raw: {why}"
+        self.counters.fallbacks += 1
+        self.dirty = True
+        self._emit(t, "fallback", detail | {"to": "raw", "why": why})
 
     def _propose(self, t: float, source: CandidateSource) -> None:
         """Freeze the learner's offer as a candidate when it is new enough."""
         offer = source.offer()
         if offer is None:
             return
-        if self.applied is not None and not self._significant(
-            self.applied, offer.params, offer.param_std
-        ):
+        base = self.applied if self.applied is not None else None
+        if base is not None and not self._significant(base, offer.params, offer.param_std):
             return
         self.candidate = _Candidate(offer.params, t)
 
@@ -222,27 +455,63 @@ class Supervisor:
             "rmse_candidate": round(r_cand, 4),
             "rmse_applied": round(r_app, 4),
             "samples": n,
+            "kind": cand.kind,
         }
-        if r_cand < r_raw and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS:
-            if self.applied is None:
-                self._emit(t, "calibrated", detail)
+        if cand.kind == "new":
+            good = r_cand < r_raw and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+        else:
+            # validated before: it need only not be worse than raw (where the data cannot
+            # tell a sensor's error from the current, raw and it tie)
+            good = not r_cand > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
+        if cand.kind == "verify":
+            if good:
+                self.unverified = False
+                self.note = ""
+                self._emit(t, "calibration_verified", detail)
             else:
-                self._emit(t, "calibration_updated", detail)
+                self.applied = None
+                self.applied_std = {}
+                self.unverified = False
+                self.recheck.reset()
+                self._reset_detector()
+                self.note = "fell back to raw: the restored calibration failed its validation"
+                self.counters.candidates_rejected += 1
+                self.counters.fallbacks += 1
+                self.dirty = True
+                self._emit(t, "candidate_rejected", detail)
+            return
+        if good:
+            self._emit(t, "calibrated" if self.applied is None else "calibration_updated", detail)
             self.previous = self.applied
             self.note = ""
-            self.applied = cand.params
-            self.applied_std = dict(source.param_std)
-            self.recheck.reset()
+            std = cand.std if cand.std is not None else dict(source.param_std)
+            self._apply(t, cand.params, std)
             self.counters.candidates_applied += 1
-            self.dirty = True
         else:
+            if cand.kind == "restored":
+                self.note = "the restored calibration failed its validation: raw passes through"
             self.counters.candidates_rejected += 1
             self._emit(t, "candidate_rejected", detail)
 
+    def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
+        self.applied = p
+        self.applied_std = dict(std)
+        self.last_good = p
+        self.last_good_std = dict(std)
+        self.recheck.reset()
+        self._reset_detector()
+        self.dirty = True
+
+    def _reset_detector(self) -> None:
+        self._t_beta = -math.inf  # the calibrations changed: their currents are fitted anew
+        self.cusum.reset()
+        self.detector.reset()
+
     def _recheck(self, t: float) -> None:
-        if self.applied is None or self.recheck.n_effective < RECHECK_MIN_SAMPLES:
+        w = self.recheck
+        if self.applied is None or w.n_effective < RECHECK_MIN_SAMPLES:
             return
-        r_raw, r_app, r_prev = self.recheck.rmse()
+        r_raw, r_app, r_prev = w.rmse()
         if not r_app > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS:
             return
         detail: dict[str, object] = {
@@ -253,21 +522,21 @@ class Supervisor:
         prev = self.previous
         if prev is not None and r_prev < r_raw:
             self.applied = prev
+            self.previous = None
+            self.recheck.reset()
+            self._reset_detector()
+            self.candidate = None
             self.note = (
                 f"fell back to the previous calibration: the applied one was worse than raw "
                 f"over {self.s.recheck_s:g} s ({r_app:.3f} vs {r_raw:.3f} m/s)"
             )
-            detail["to"] = "previous"
-        else:
-            self.applied = None
-            self.note = (
-                f"fell back to raw: the calibration was worse than raw over "
-                f"{self.s.recheck_s:g} s ({r_app:.3f} vs {r_raw:.3f} m/s)"
-            )
-            detail["to"] = "raw"
-        self.previous = None
-        self.recheck.reset()
-        self.candidate = None
-        self.counters.fallbacks += 1
-        self.dirty = True
-        self._emit(t, "fallback", detail)
+            self.counters.fallbacks += 1
+            self.dirty = True
+            self._emit(t, "fallback", detail | {"to": "previous"})
+            return
+        self._withdraw(
+            t,
+            f"the calibration was worse than raw over {self.s.recheck_s:g} s "
+            f"({r_app:.3f} vs {r_raw:.3f} m/s)",
+            detail,
+        )

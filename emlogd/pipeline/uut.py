@@ -9,8 +9,9 @@ It joins two parts with a narrow boundary:
 - the **learner** (:class:`emlogd.pipeline.learner.Learner`): the lag, alignment,
   identifiability, the filter and block means — what the readings teach;
 - the **supervisor** (:class:`emlogd.pipeline.supervisor.Supervisor`): what is
-  applied — validation, re-check, fallback, the applied and previous calibrations,
-  the log's health. It sees readings, references, headings and the learner's offer.
+  applied — validation, re-check, change detection, fallback, the applied, previous
+  and last good calibrations, the log's health. It sees readings, references,
+  headings and the learner's offer.
 
 **Emitting** (:meth:`UutCalibration.correct`) uses only the *applied* calibration:
 the last one that beat the raw reading on data it had not learnt from, else the raw
@@ -19,9 +20,9 @@ latency is the decoder's. **Learning** (:meth:`UutCalibration.learn`): a reading
 in a short queue until its reference has arrived, then is aligned, checked for the
 log's health, learnt from, and scored by the supervisor.
 
-Errors are scored in the water frame when the UUT has current states: a calibration's
-corrected speed plus the estimated current projected on the hull, against the
-reference over the ground.
+The supervisor's verdicts rest on its own evidence (each calibration's own current,
+fitted from its own errors), never on the learner's current; the learner's current
+only feeds the status's water-frame score and the VDR sentence.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.integrity import PairedWindow, UutHealth
-from emlogd.pipeline.learner import AVERAGE_S, BlockMeans, LagFinder, Learner, RefState
+from emlogd.pipeline.learner import AVERAGE_S, Aligned, BlockMeans, LagFinder, Learner, RefState
 from emlogd.pipeline.supervisor import Supervisor, _Candidate
 
 if TYPE_CHECKING:
@@ -104,9 +105,11 @@ class UutCalibration:
             self.counters,
         )
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
-        self.state: CalState = "frozen" if self.applied is not None else "uncalibrated"
+        self.state: CalState = "uncalibrated"
         self.reason = (
-            "" if self.applied is not None else "no calibration yet: raw readings pass through"
+            "restored calibration awaiting validation: raw readings pass through"
+            if usable is not None
+            else "no calibration yet: raw readings pass through"
         )
         self.freezes = 0
         self.t_persist = -math.inf
@@ -313,18 +316,37 @@ class UutCalibration:
         """Align, check the log's health, learn, supervise: one reading."""
         lr, sup = self.learner, self.sup
         a = lr.align(t, raw, self._heading)
-        fault = sup.health.update(t, raw, a.ref if a.ref_state == "valid" else None)
-        step = lr.step(a, fault, sup.applied)
-        if step.valid and a.ref is not None and not fault:
-            current = lr.kf.current_mps if self.layout.current else None
-            cs = a.cs
-            proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
-            water = current is not None and lr.ident_current()
-            sup.observe(t, raw, a.ref, proj, water, lr)
+        sup.reading(t, a.ref_state not in ("none", "stale"))
+        ref_ok = a.ref if a.ref_state == "valid" else None
+        fault = sup.health.update(t, raw, ref_ok, a.heading)
+        gate = fault
+        if fault:
+            self.counters.uut_fault += 1
+        elif sup.health.stalled(raw, ref_ok):
+            self.counters.uut_stalled += 1
+            gate = "uut_stalled"
+        step = lr.step(a, gate, sup.applied)
+        if step.valid and a.ref is not None and not gate:
+            self._supervise(a)
         self._set_state(t, step.learnt or step.collecting, fault)
         if self.tracer is not None:
             ref = a.ref if step.valid else None
             self.tracer(self._trace_row(t, raw, ref, a.heading, step.innovation, step.learn_set))
+
+    def _supervise(self, a: Aligned) -> None:
+        """The supervisor's verdicts on one reading; a change it saw re-opens the learner."""
+        assert a.ref is not None
+        lr, sup = self.learner, self.sup
+        current = lr.kf.current_mps if self.layout.current else None
+        cs = a.cs
+        proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
+        water = current is not None and lr.ident_current()
+        sup.observe(a.t, a.raw, a.ref, cs, lr, proj=proj, water=water)
+        if sup.reopen:
+            sup.reopen = False
+            lr.kf.reopen(self.layout.params)
+            self.counters.relearn += 1
+            self._emit(a.t, "relearn", {"why": "the supervisor saw the readings change"})
 
     def ident_current(self) -> bool:
         """The current is determined (:meth:`Learner.ident_current`)."""
@@ -432,20 +454,22 @@ class UutCalibration:
         return self.snapshot(t)
 
     def snapshot(self, t: float | None = None) -> Calibration:
-        """The applied calibration as a record (``reset`` when there is none)."""
+        """The calibration to persist: the applied one, else the last good one (withdrawn
+        for cause, it re-validates after a restart); ``reset`` when there is none."""
+        kept = self.sup.kept
         cur = self.kf.current_mps if self.ident_current() else None
         cur_std = self.kf.current_std_mps if cur is not None else None
         return Calibration(
             uut=self.s.port,
-            params=self.applied if self.applied is not None else zero_params(self.s.model),
-            param_std=dict(self.applied_std) if self.applied is not None else {},
+            params=kept if kept is not None else zero_params(self.s.model),
+            param_std=dict(self.sup.kept_std) if kept is not None else {},
             # a fallback lag is not saved: a restart measures it again
             lag_s=self.lag_s if self.lag_finder is None else None,
             current=self.layout.current,
             current_mps=cur,
             current_std_mps=cur_std,
             covariance=tuple(tuple(row) for row in self.kf.covariance())
-            if self.applied is not None
+            if kept is not None
             else (),
             method="online",
             t=t if t is not None else (self.t_prev or 0.0),
@@ -453,5 +477,5 @@ class UutCalibration:
             reference={"port": self.s.reference_port, "field": self.s.reference_field},
             unidentifiable=self.ident.unidentifiable if self.ident is not None else (),
             nis_mean=self.nis_mean(),
-            reset=self.applied is None,
+            reset=kept is None,
         )

@@ -173,7 +173,7 @@ def test_reset_is_on_disk_before_the_reply(work: Path) -> None:
     _seed(work)
     d = Daemon(work)
     try:
-        assert d.uut("emlog1")["params"] == {"m": 0.05, "b": 0.1}
+        assert d.uut("emlog1")["estimate"] == {"m": 0.05, "b": 0.1}  # restored, re-earning trust
         resp = d.ask(cmd="reset", port="emlog1")
         assert resp["ok"] and resp["persisted"] is True
     finally:
@@ -236,8 +236,9 @@ def test_each_model_keeps_its_calibration_across_reloads_and_restarts(work: Path
     em3_params = {"m": 0.05, "b": 0.1}
 
     def seen(d: Daemon) -> tuple[object, object, object]:
+        # the calibration kept for the model (a restored one is applied once validated)
         u = d.uut("emlog1")
-        return u["model"], u["params"], u["lag_s"]
+        return u["model"], u["kept"], u["lag_s"]
 
     d = Daemon(work)
     try:

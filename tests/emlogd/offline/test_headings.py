@@ -128,14 +128,15 @@ class TestRealLogs:
     def test_irene_magnetic_heading_calibrates_with_the_model(self, tmp_path: Path) -> None:
         """Irene 2007-11-03 ($IIHDG magnetic with empty variation fields, RMC without
         one): calibrated with the model's variation (+0.6° there and then) and the scale
-        of the independent fit (k 1.075: m ≈ 1/k − 1 = −0.07)."""
+        of the independent fit (k 1.075: m ≈ 1/k − 1 = −0.07) within 0.05, the
+        tolerance the real-recording suite holds every recording to."""
         cap = tmp_path / "i.cap.gz"
         import_nmea([REAL / "irene-2007-11-03-leman.nmea"], cap)
         res = calibrate(load_captures([str(cap)], GNSS), GNSS, "ls", lag=0.0)
         h = res.heading[str(cap)]
         assert h["variation_source"] == "model"
         assert h["variation_deg"] == pytest.approx(0.6, abs=0.3)
-        assert res.params.m == pytest.approx(1.0 / 1.075 - 1.0, abs=0.03)
+        assert res.params.m == pytest.approx(1.0 / 1.075 - 1.0, abs=0.05)
 
     def test_estonia_broken_heading_is_refused(self, tmp_path: Path) -> None:
         """The Estonian CSV's heading sensor (median 29° from the course): refused."""

@@ -556,7 +556,7 @@ class TestRealLogs:
 
     def test_irene_calibrated_log_stays_calibrated(self, tmp_path: Path) -> None:
         """Irene 06-27 (a lake, a log already calibrated): the GNSS fit finds a scale
-        within 3 % and a corrected speed no worse than raw — the noisy GNSS reference
+        within 5 % (the real-recording suite's tolerance) and a corrected speed no worse than raw — the noisy GNSS reference
         does not shrink the scale (a per-sample fit says −8 %)."""
         from emlogd.offline.jobs import calibrate, load_captures
         from emlogd.pipeline.settings import UutSettings
@@ -565,7 +565,7 @@ class TestRealLogs:
         import_nmea([REAL / "irene-2014-06-27-leman.nmea"], cap)
         s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
         res = calibrate(load_captures([str(cap)], s), s, "ls", lag=0.0)
-        assert abs(res.params.m) < 0.03
+        assert abs(res.params.m) < 0.05
         assert res.rmse_cal <= res.rmse_raw
 
 

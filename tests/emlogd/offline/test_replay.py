@@ -119,7 +119,9 @@ def test_truth_pairs_each_emitted_speed_with_its_reading(tmp_path: Path) -> None
     for name in ("emlog1", "emlog2"):
         params, latency = truth.emlog(name)
         cals[name] = Calibration(name, params, {"a": 0.001, "m": 0.001, "b": 0.001}, latency)
-    res = replay(Pipeline(ports, uuts, cals), [sim.files[1]], truth=truth)
+    pipeline = Pipeline(ports, uuts, cals)
+    replay(pipeline, [sim.files[0]])  # the restored calibrations re-validate against the DVL
+    res = replay(pipeline, [sim.files[1]], truth=truth)
     for name, vhw_per_line in (("emlog1", 1.0), ("emlog2", 1.0 / 3.0)):
         assert res.status["uuts"][name]["state"] == "frozen"  # type: ignore[index]
         s = res.truth[name]

@@ -406,11 +406,16 @@ def test_gnss_velocity_lags_and_fixes_fall_on_whole_seconds(
 
 def test_trial_calibrates_against_its_gnss(trial_files: dict[str, Path]) -> None:
     """The gnss port stands in for the DVL: --ref gnss --ref-field gnss with the current learns
-    a calibration that cuts EMlog1's error against the DVL on another trajectory by > 60 %."""
+    a calibration that cuts EMlog1's error against the DVL on another trajectory by > 60 %.
+    The lag search finds EMlog1's lag behind the GNSS (3.2 s less the GNSS's ~0.78 s), too
+    uncertain against 1 Hz fixes to be used on its own; given, it serves."""
     gnss = UutSettings(port="emlog1", reference_port="gnss", reference_field="gnss", current=True)
-    res = calibrate(load_captures([trial_files["transit"]], gnss), gnss, "ls")
+    recs = load_captures([trial_files["transit"]], gnss)
+    found = calibrate(recs, gnss, "ls").lag
+    assert 1.5 < found.per_capture["1-transit"].lag_s < 3.0
+    assert found.source == "fallback" and found.lag_s == 0.0
+    res = calibrate(recs, gnss, "ls", lag=2.4)
     assert res.identifiable or res.ident.unidentifiable == ("b",)
-    assert 1.5 < res.lag.lag_s < 3.0  # 3.2 s of EMlog1 less the GNSS's ~0.78 s
     dvl = UutSettings(port="emlog1", reference_port="dvl")
     (row,) = evaluate(load_captures([trial_files["figure-8"]], dvl), res.params, dvl, 3.3)
     assert row.improvement_pct > 60.0

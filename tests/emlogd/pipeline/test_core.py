@@ -568,7 +568,8 @@ class TestStateAcrossModelsAndResets:
             {c.uut: c for c in p4.calibrations()},
             others=p4.other_calibrations(),
         )
-        assert _status(p3)["params"] == {"m": 0.05, "b": 0.1} and _status(p3)["lag_s"] == 1.5
+        # restored, the EM3 calibration re-earns trust: the filter starts from it
+        assert _status(p3)["estimate"] == {"m": 0.05, "b": 0.1} and _status(p3)["lag_s"] == 1.5
         (em4,) = p3.other_calibrations()
         assert em4.params.model == "EM4" and em4.reset and em4.lag_s == 1.5
 

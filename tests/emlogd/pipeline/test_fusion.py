@@ -17,6 +17,7 @@ from emlogd.pipeline.core import FUSED_PORT, Emit, Output, Pipeline
 from emlogd.pipeline.fusion import Fused, Fusion, FusionSettings
 from emlogd.pipeline.sentences import encode_fused_status
 from emlogd.pipeline.settings import PortSettings, UutSettings
+from emlogd.pipeline.supervisor import RESTORE_WAIT_S
 
 
 class TestFusion:
@@ -108,10 +109,15 @@ class TestPipeline:
         assert p.status()["fused"]["sources"] == ("a",)  # type: ignore[index]
 
     def test_a_calibrated_log_outweighs_an_uncalibrated_one(self) -> None:
-        """Log a has a calibration (σ from its noise), b none (10 % + 0.1 m/s)."""
+        """Log a has a calibration (σ from its noise), b none (10 % + 0.1 m/s). (Restored
+        without a reference, it is applied unverified RESTORE_WAIT_S after the first reading.)"""
         p = _pipeline(calibrated="a")
         out = Output()
         t0 = 1_750_000_000.0
+        for k in range(3 * int(RESTORE_WAIT_S)):
+            v = 2.0 + 0.02 * (k % 2)  # live: one flat for FLAT_S is left out as stuck
+            out.add(p.feed(t0 + k, "a", (encode_vhw(v) + "\r\n").encode()))
+        t0 += 3 * RESTORE_WAIT_S
         out.add(p.feed(t0, "a", (encode_vhw(2.0) + "\r\n").encode()))
         out.add(p.feed(t0 + 0.1, "b", (encode_vhw(3.0) + "\r\n").encode()))
         assert _speeds(out.emits, FUSED_PORT)[-1] == pytest.approx(2.0, abs=0.1)

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from calib.models import Params
 from emlogd.pipeline.integrity import (
+    STUCK_BLOCK_S,
     Envelope,
     JumpFilter,
     PairedWindow,
@@ -93,12 +95,44 @@ class TestUutHealth:
     """Stuck and dead logs."""
 
     def test_a_stuck_log_while_the_reference_moves(self) -> None:
-        """An unchanged reading for stuck_s while the reference moves is a fault; motion clears it."""
+        """An unchanged reading for stuck_s while the reference moves is a fault; a reading
+        that follows the reference again for a block clears it."""
         h = UutHealth(stuck_s=30.0)
         for k in range(40):
             fault = h.update(float(k), 2.0, 1.5 + 0.02 * k)
         assert fault == "uut_stuck"
-        assert h.update(41.0, 2.1, 2.3) == ""
+        for k in range(40, 40 + int(STUCK_BLOCK_S) + 2):
+            fault = h.update(float(k), 0.5 + 0.04 * k, 1.5 + 0.02 * k)
+        assert fault == ""
+
+    def test_a_noisy_stuck_log_is_stuck_by_its_spread(self) -> None:
+        """3.0 ± 0.03 m/s (every reading moves) while the reference climbs 0.8 m/s: stuck;
+        the same noise on a reading that follows the reference is not."""
+        rng = np.random.default_rng(1)
+        stuck, good = UutHealth(stuck_s=60.0), UutHealth(stuck_s=60.0)
+        for k in range(80):
+            ref = 1.5 + 0.01 * k
+            f_stuck = stuck.update(float(k), 3.0 + float(rng.normal(0.0, 0.03)), ref)
+            f_good = good.update(float(k), 1.1 * ref + float(rng.normal(0.0, 0.03)), ref)
+        assert f_stuck == "uut_stuck" and f_good == ""
+
+    def test_the_spread_rule_waits_for_a_steady_heading(self) -> None:
+        """In a turn the reference moves with the current's projection while the speed
+        through the water stays: a steady reading is not stuck there."""
+        rng = np.random.default_rng(2)
+        turning, steady = UutHealth(stuck_s=60.0), UutHealth(stuck_s=60.0)
+        for k in range(80):
+            raw, ref = 3.0 + float(rng.normal(0.0, 0.03)), 1.5 + 0.01 * k
+            f_turning = turning.update(float(k), raw, ref, heading_deg=3.0 * k)
+            f_steady = steady.update(float(k), raw, ref, heading_deg=90.0)
+        assert f_turning == "" and f_steady == "uut_stuck"
+
+    def test_a_stalled_wheel(self) -> None:
+        """Below half the reference at speed: stalled; at rest or following: not."""
+        assert UutHealth.stalled(0.2, 0.6)
+        assert not UutHealth.stalled(0.2, 0.3)
+        assert not UutHealth.stalled(0.5, 0.6)
+        assert not UutHealth.stalled(0.2, None)
 
     def test_constant_speed_and_reference_is_no_fault(self) -> None:
         """A steady log on a steady reference is not stuck."""

@@ -80,13 +80,15 @@ class TestHeadings:
         assert h.at(h.order(_uut()), 10.5) == (pytest.approx(80.0), "log")
 
     def test_a_heading_beyond_the_gap_is_not_used(self) -> None:
-        """A time further than HEADING_MAX_GAP_S from a bracketing sample is not
-        interpolated, and has no heading unless a sample is within HEADING_NEAREST_S."""
+        """A heading arriving every second bridges HEADING_MAX_GAP_S (its cadence's gap is
+        shorter): a time further than that from a bracketing sample is not interpolated,
+        and has no heading unless a sample is within HEADING_NEAREST_S."""
         h = Headings(["hdg"], [_uut(heading="hdg")])
-        h.add(10.0, "hdg", NavHeading(90.0, None, None))
+        for k in range(11):
+            h.add(float(k), "hdg", NavHeading(90.0, None, None))
         h.add(15.0, "hdg", NavHeading(95.0, None, None))
         assert h.at(["hdg"], 10.5) == (pytest.approx(90.0), "hdg")
-        assert h.at(["hdg"], 12.5) is None
+        assert h.at(["hdg"], 12.7) is None  # 2.7 s from 10 s: beyond 2.5 intervals of 1 s
         h.add(16.0, "hdg", NavHeading(96.0, None, None))
         assert h.at(["hdg"], 15.5) == (pytest.approx(95.5), "hdg")
 

@@ -8,6 +8,7 @@ from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.status import port_status, status_fields, summary, uut_status
+from emlogd.pipeline.supervisor import RESTORE_WAIT_S
 
 PORTS = [PortSettings("log", "nmea0183", stale_timeout_s=2.0), PortSettings("dvl", "pd6")]
 CAL = Calibration("log", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": None}, 1.5)
@@ -29,13 +30,19 @@ def test_ports_show_counters_staleness_and_last_data() -> None:
 
 
 def test_a_uut_shows_its_calibration_and_the_status_sentence_its_known_sigmas() -> None:
-    """The UUT's status holds the applied calibration and lag; the status sentence's σ
-    leave out the undetermined ones; the summary is one line per UUT."""
+    """The UUT's status holds the calibration kept, applied once it is trusted (a
+    restored one with no reference: after RESTORE_WAIT_S, unverified), and the lag; the
+    status sentence's σ leave out the undetermined ones; the summary is one line per UUT."""
     p = _pipeline()
     u = p.uuts["log"]
     doc = uut_status(u, p.headings)
+    assert doc["params"] is None and doc["kept"] == {"m": 0.05, "b": 0.1}
+    for k in range(int(RESTORE_WAIT_S) + 2):
+        p.feed(100.0 + k, "log", (encode_vhw(2.0) + "\r\n").encode())
+    doc = uut_status(u, p.headings)
+    assert "unverified" in str(doc["reason"])
     assert doc["params"] == {"m": 0.05, "b": 0.1} and doc["lag_s"] == 1.5
     assert doc["state"] == "frozen" and doc["model"] == "EM3"
     fields = status_fields(u)
     assert fields.std == {"m": 0.01} and fields.params == {"m": 0.05, "b": 0.1}
-    assert summary(p.uuts) == "log frozen EM3 m=+0.050 b=+0.100 ref none"
+    assert summary(p.uuts) == "log frozen EM3 m=+0.050 b=+0.100 ref stale"

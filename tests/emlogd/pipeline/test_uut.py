@@ -52,6 +52,11 @@ class Rig:
         return [k for _, k, _ in self.events]
 
 
+def _applied(rig: Rig) -> Params | None:
+    """The applied calibration now (a call: what a run changes is not narrowed away)."""
+    return rig.cal.applied
+
+
 class TestValidation:
     """A calibration is applied only after beating raw on data it did not learn from."""
 
@@ -88,6 +93,8 @@ class TestRecheck:
         """After a sensor swap the old calibration loses to raw: fall back, and say so."""
         prior = Calibration("log", TRUE, {"m": 0.01, "b": 0.01}, 0.0)
         rig = Rig(prior, recheck_s=60.0, learn=False)
+        rig.run(40)
+        assert _applied(rig) == TRUE  # the restored calibration re-validated
         outs = rig.run(120, raw=lambda t, v: v)  # the new log reads the truth itself
         assert "fallback" in rig.kinds()
         assert rig.cal.applied is None and rig.cal.state == "uncalibrated"
@@ -95,16 +102,19 @@ class TestRecheck:
         late = [o for o in outs[-20:] if o is not None]
         assert late and all(o == pytest.approx(_speed(100.0), abs=1.0) for o in late)
 
-    def test_fallback_to_the_previous_calibration(self) -> None:
-        """A newer calibration gone bad gives way to the previous good one when that beats raw."""
+    def test_a_withdrawn_calibration_is_kept_as_the_last_good_one(self) -> None:
+        """Withdrawn for cause, a calibration is persisted (not a reset) and is the next
+        candidate; the snapshot of a UUT that never had one is a reset."""
         prior = Calibration("log", TRUE, {"m": 0.01, "b": 0.01}, 0.0)
-        rig = Rig(prior, recheck_s=60.0, learn=False)
-        rig.cal.previous = TRUE
-        rig.cal.applied = Params("EM3", m=-0.3, b_mps=0.1)
-        rig.run(150)
-        assert "fallback" in rig.kinds()
-        assert rig.cal.applied == TRUE
-        assert "previous calibration" in rig.cal.reason
+        rig = Rig(prior, learn=False)
+        rig.run(40)
+        rig.run(10, raw=lambda t, v: v)
+        assert rig.cal.applied is None
+        snap = rig.cal.snapshot()
+        assert not snap.reset and snap.params == TRUE
+        cand = rig.cal.candidate
+        assert cand is not None and cand.params == TRUE and cand.kind == "revalidate"
+        assert Rig().cal.snapshot().reset
 
 
 class TestWaterFrame:
@@ -246,3 +256,102 @@ def test_a_restored_current_is_aged_by_the_time_the_daemon_was_down() -> None:
     std1 = rig.cal.kf.current_std_mps
     psd = rig.cal.s.kf.current_psd_m2ps3
     assert std1 is not None and std1[0] >= math.sqrt(psd * 3600.0) * 0.99
+
+
+def _prior(p: Params = TRUE) -> Calibration:
+    return Calibration("log", p, {"m": 0.01, "b": 0.01}, 0.0)
+
+
+class TestChangeDetection:
+    """A sensor that changes loses its calibration within seconds; a sea that changes does not."""
+
+    def test_a_gain_step_is_withdrawn_within_seconds(self) -> None:
+        """A 35 % gain step: the calibration goes back to raw within 5 s, and learning reopens."""
+        rig = Rig(_prior())
+        rig.run(60)
+        assert rig.cal.applied == TRUE
+        t_step = rig.t
+        rig.run(20, raw=lambda t, v: 0.65 * TRUE.forward(v))
+        falls = [t for t, k, _ in rig.events if k == "fallback"]
+        assert falls and falls[0] - t_step <= 5.0
+        assert rig.cal.counters.changes == 1
+        assert "relearn" in [k for t, k, _ in rig.events if t >= t_step]
+        assert rig.cal.applied is None or rig.cal.applied != TRUE
+
+    def test_a_current_that_jumps_does_not_withdraw_a_good_calibration(self) -> None:
+        """A 0.3 m/s head current at once: the calibration still beats raw, and stays.
+
+        (A jump that raw's own error happens to cancel is not told from a sensor change
+        at one heading: that one withdraws to raw, which is safe.)"""
+        rig = Rig(_prior(), heading=0.0, current=True)
+        rig.run(120)
+        assert rig.cal.applied == TRUE
+        t_jump = rig.t
+        rig.run(60, ref=lambda t, v: v - 0.3)
+        assert not [t for t, k, _ in rig.events if k == "fallback" and t >= t_jump]
+        assert rig.cal.applied == TRUE
+
+
+class TestRestored:
+    """A restored calibration re-earns trust before it is applied."""
+
+    def test_a_good_one_is_applied_after_its_validation_raw_meanwhile(self) -> None:
+        """Raw passes through until the restored calibration has validated, then it applies."""
+        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
+
+        rig = Rig(_prior())
+        outs = rig.run(RESTORE_VALIDATION_S - 5.0)
+        readings = [TRUE.forward(_speed(float(t))) for t in range(1, len(outs) + 1)]
+        assert outs == pytest.approx(readings)
+        assert rig.cal.applied is None and "awaiting validation" in rig.cal.reason
+        rig.run(20)
+        assert rig.cal.applied == TRUE
+
+    def test_a_poisoned_state_inside_the_envelope_is_never_applied(self) -> None:
+        """m = -0.5, b = +1.0 (inside the envelope): rejected against the reference."""
+        bad = Params("EM3", m=-0.5, b_mps=1.0)
+        rig = Rig(_prior(bad), learn=False)
+        outs = rig.run(120)
+        assert rig.cal.applied != bad
+        assert "candidate_rejected" in rig.kinds()
+        truth = [_speed(float(t)) for t in range(1, len(outs) + 1)]
+        raw = [TRUE.forward(v) for v in truth]
+        assert all(o == pytest.approx(r) for o, r in zip(outs, raw, strict=True))
+
+    def test_without_a_reference_it_is_applied_unverified(self) -> None:
+        """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""
+        from emlogd.pipeline.supervisor import RESTORE_WAIT_S
+
+        rig = Rig(_prior())
+        for i in range(int(RESTORE_WAIT_S) + 5):
+            t = float(i + 1)
+            rig.cal.add_reading(t, TRUE.forward(_speed(t)))
+            rig.cal.drain(t)
+        assert rig.cal.applied == TRUE
+        assert "unverified" in rig.cal.reason
+        assert "calibration_unverified" in rig.kinds()
+
+
+class TestStuckAndStalled:
+    """A log that does not follow the reference is not learnt from."""
+
+    def test_a_noisy_stuck_log_is_detected_by_its_spread(self) -> None:
+        """3.0 ± 0.03 m/s while the reference swings by a metre per second: stuck."""
+        rig = Rig()
+        rig.run(100)
+        noise = np.random.default_rng(3)
+        outs = rig.run(90, raw=lambda t, v: 3.0 + float(noise.normal(0.0, 0.03)))
+        assert rig.cal.state == "fault" and "stuck" in rig.cal.reason
+        assert outs[-1] is None and rig.cal.counters.uut_fault > 0
+
+    def test_a_stalled_wheel_is_gated_from_its_first_sample(self) -> None:
+        """Readings of 0-0.2 m/s while the reference shows 1-2 m/s: none is learnt or validated."""
+        rig = Rig()
+        rig.run(100)
+        before = rig.cal.kf.params
+        learnt, scored = rig.cal.counters.learnt, rig.cal.score.n
+        wheel = np.random.default_rng(5)
+        rig.run(8, raw=lambda t, v: float(wheel.uniform(0.0, 0.2)))
+        assert rig.cal.counters.uut_stalled == 8
+        assert rig.cal.counters.learnt == learnt and rig.cal.score.n == scored
+        assert rig.cal.kf.params.m == pytest.approx(before.m, abs=1e-9)

@@ -1,0 +1,219 @@
+"""The supervisor's own evidence: each calibration's current, and the change detector.
+
+:mod:`emlogd.pipeline.supervisor` judges calibrations with these, never with the
+learner's current:
+
+- :class:`SeaMemory` — the last :data:`CURRENT_MEMORY_S` of scored samples, from which
+  any calibration's own current is fitted (long memory: the current determined in the
+  last turns carries through a straight leg);
+- :class:`FitWindow` — squared errors of several calibrations, each after its own
+  current (or mean error without current states) over a forgetting window, with the
+  prediction and its leverage for a new sample;
+- :class:`Cusum` — a two-sided CUSUM of normalised innovations, with the evidence an
+  alarm is judged on.
+
+Must not import: serial, os, time, threading, socket (pure module).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.models import Params, correct_array
+
+FIT_CURRENT_PRIOR_MPS = 0.5
+FIT_NOISE_MPS = 0.05
+"""The current fit's prior: each component within about 0.5 m/s, against a sample's
+error of about 0.05 m/s. It makes the fit's ridge, (0.05/0.5)² of one sample: a
+component the headings seen do not determine stays near zero, and its uncertainty
+widens the change detector's allowance when a turn reveals it."""
+
+CURRENT_HALF_LIFE_S = 600.0
+"""The half-life of the samples each calibration's own current is fitted on, s: long
+enough to carry the current determined in the last turns through a straight leg (where
+a current and an offset cannot be told apart), short enough to follow a tide."""
+
+CURRENT_MEMORY_S = 3.0 * CURRENT_HALF_LIFE_S
+"""The samples kept for those fits, s (older ones weigh less than 1/8)."""
+
+MEMORY_INTERVAL_S = 0.5
+"""The memory keeps at most one sample this often, s: a current fitted over half an
+hour needs no more (a 10 Hz log would otherwise make each fit 20 times dearer for the
+same answer: its samples' errors are correlated over seconds)."""
+
+CUSUM_K = 1.5
+"""The CUSUM's allowance, in innovation standard deviations per sample: a bias of the
+innovation below it (a current the fit has not caught up with) never accumulates."""
+
+CUSUM_H = 12.0
+"""The CUSUM's alarm threshold, in innovation standard deviations: with
+:data:`CUSUM_CLIP` a single outlier cannot reach it; a 10σ step does in three samples."""
+
+CUSUM_CLIP = 7.0
+"""A normalised innovation counts at most this much (one glitch is not a change)."""
+
+
+class SeaMemory:
+    """The last :data:`CURRENT_MEMORY_S` of scored samples (reading, reference, heading),
+    from which any calibration's own current is fitted (:meth:`current`)."""
+
+    def __init__(self) -> None:
+        cap = int(CURRENT_MEMORY_S / MEMORY_INTERVAL_S) + 64
+        self.data = np.zeros((5, cap), dtype=np.float64)
+        self.i = 0
+        self.n = 0
+        self.t_last = -math.inf
+
+    def add(self, t: float, raw: float, ref: float, cs: tuple[float, float]) -> None:
+        """One sample (kept when :data:`MEMORY_INTERVAL_S` after the last one kept)."""
+        if t - self.t_last < MEMORY_INTERVAL_S:
+            return
+        self.t_last = t
+        cap = self.data.shape[1]
+        self.data[:, self.i] = (t, raw, ref, cs[0], cs[1])
+        self.i = (self.i + 1) % cap
+        self.n = min(self.n + 1, cap)
+
+    def current(self, p: Params | None, now: float) -> tuple[float, float]:
+        """The β with ``p(raw) − ref ≈ β·(cos ψ, sin ψ)`` (β is minus the current)."""
+        if not self.n:
+            return 0.0, 0.0
+        t, raw, ref, c, s = self.data[:, : self.n] if self.n < self.data.shape[1] else self.data
+        w = np.exp2(-(now - t) / CURRENT_HALF_LIFE_S) * (now - t <= CURRENT_MEMORY_S)
+        d = (raw if p is None else correct_array(p, raw)) - ref
+        ok = np.isfinite(d)
+        w, d, c, s = w[ok], d[ok], c[ok], s[ok]
+        r = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
+        wc, ws = w * c, w * s
+        a11 = float(wc @ c) + r
+        a12 = float(wc @ s)
+        a22 = float(ws @ s) + r
+        b1, b2 = float(wc @ d), float(ws @ d)
+        det = a11 * a22 - a12 * a12
+        if det <= 0.0:
+            return 0.0, 0.0
+        return (a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det
+
+
+@dataclass
+class FitWindow:
+    """Squared errors of several calibrations, each after its own best current.
+
+    For calibration k and sample i, the error is ``d = p_k(raw) − ref``; in the water
+    frame the window fits ``d ≈ −c·(cos ψ, sin ψ)`` for each k by ridge least squares
+    (:data:`FIT_CURRENT_PRIOR_MPS`) and keeps the residual. Fixed memory: one 2×2 Gram matrix
+    shared by all, and per calibration two cross-products and a sum of squares, all
+    forgotten with ``half_life_s`` (None: kept).
+    """
+
+    k: int
+    water: bool
+    half_life_s: float | None = None
+
+    def __post_init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Empty the window."""
+        self.t: float | None = None
+        self.n = 0.0
+        self.a = [0.0, 0.0, 0.0]
+        self.b = [[0.0, 0.0] for _ in range(self.k)]
+        self.ss = [0.0] * self.k
+
+    def add(self, t: float, cs: tuple[float, float] | None, errors: Sequence[float]) -> None:
+        """One sample's errors (one per calibration) at time ``t``."""
+        if self.half_life_s is not None and self.t is not None and t > self.t:
+            lam = 0.5 ** ((t - self.t) / self.half_life_s)
+            self.n *= lam
+            self.a = [x * lam for x in self.a]
+            for bk in self.b:
+                bk[0] *= lam
+                bk[1] *= lam
+            self.ss = [x * lam for x in self.ss]
+        self.t = t if self.t is None else max(t, self.t)
+        self.n += 1.0
+        c, s = self._h(cs)
+        self.a[0] += c * c
+        self.a[1] += c * s
+        self.a[2] += s * s
+        for i, d in enumerate(errors):
+            self.b[i][0] += c * d
+            self.b[i][1] += s * d
+            self.ss[i] += d * d
+
+    def _h(self, cs: tuple[float, float] | None) -> tuple[float, float]:
+        """The regressors: the heading's (cos, sin) in the water frame, else a constant
+        (without current states the window fits each calibration's mean error)."""
+        return cs if cs is not None and self.water else (1.0, 0.0)
+
+    def _solve(self, i: int) -> tuple[float, float]:
+        r = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
+        a11, a12, a22 = self.a[0] + r, self.a[1], self.a[2] + r
+        det = a11 * a22 - a12 * a12
+        if det <= 0.0:
+            return 0.0, 0.0
+        b1, b2 = self.b[i]
+        return (a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det
+
+    def rmse(self, i: int) -> float:
+        """Calibration i's RMS error after its own current, m/s (nan when empty)."""
+        if self.n <= 0.0:
+            return math.nan
+        x1, x2 = self._solve(i)
+        b1, b2 = self.b[i]
+        return math.sqrt(max(self.ss[i] - (x1 * b1 + x2 * b2), 0.0) / self.n)
+
+    def predict(self, i: int, cs: tuple[float, float] | None) -> float:
+        """Calibration i's error its current (or mean error) predicts at a heading, m/s."""
+        x1, x2 = self._solve(i)
+        c, s = self._h(cs)
+        return x1 * c + x2 * s
+
+    def leverage(self, cs: tuple[float, float] | None) -> float:
+        """``hᵀ(A + ridge)⁻¹h`` at a heading: how much of a new sample's error the
+        current's uncertainty there may explain, in units of the sample variance."""
+        r = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
+        a11, a12, a22 = self.a[0] + r, self.a[1], self.a[2] + r
+        det = a11 * a22 - a12 * a12
+        if det <= 0.0:
+            return 0.0
+        c, s = self._h(cs)
+        return (a22 * c * c - 2.0 * a12 * c * s + a11 * s * s) / det
+
+    def current(self, i: int) -> tuple[float, float]:
+        """Calibration i's fitted current (north, east), m/s."""
+        x1, x2 = self._solve(i)
+        return -x1, -x2
+
+
+class Cusum:
+    """A two-sided CUSUM of normalised innovations (:data:`CUSUM_K`, :data:`CUSUM_H`),
+    with the squared errors of the applied calibration and of raw over its current run
+    (since it last stood at zero): the evidence an alarm is judged on."""
+
+    __slots__ = ("hi", "lo", "ss_app", "ss_raw")
+
+    def __init__(self) -> None:
+        self.hi = self.lo = 0.0
+        self.ss_app = self.ss_raw = 0.0
+
+    def add(self, z: float, e_app: float, e_raw: float) -> bool:
+        """Add one normalised innovation and both errors; True on an alarm."""
+        if self.hi == 0.0 and self.lo == 0.0:
+            self.ss_app = self.ss_raw = 0.0
+        z = min(max(z, -CUSUM_CLIP), CUSUM_CLIP)
+        self.hi = max(0.0, self.hi + z - CUSUM_K)
+        self.lo = max(0.0, self.lo - z - CUSUM_K)
+        self.ss_app += e_app * e_app
+        self.ss_raw += e_raw * e_raw
+        return self.hi > CUSUM_H or self.lo > CUSUM_H
+
+    def reset(self) -> None:
+        """Start again (the applied calibration changed)."""
+        self.hi = self.lo = 0.0
+        self.ss_app = self.ss_raw = 0.0

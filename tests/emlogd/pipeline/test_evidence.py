@@ -1,0 +1,63 @@
+"""The supervisor's own evidence: per-calibration currents, the change detector."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from calib.models import Params
+from emlogd.pipeline.evidence import CUSUM_H, Cusum, FitWindow, SeaMemory
+
+
+def _cs(deg: float) -> tuple[float, float]:
+    return math.cos(math.radians(deg)), math.sin(math.radians(deg))
+
+
+def test_a_current_is_fitted_away_and_an_offset_is_not_in_a_turn() -> None:
+    """Over a full turn, a current leaves no residual; a sensor's offset stays whole."""
+    w = FitWindow(2, water=True)
+    for k in range(360):
+        h = _cs(float(k))
+        current_err = -(0.3 * h[0] + 0.1 * h[1])  # p(raw) − ref for a perfect sensor
+        w.add(float(k), h, (current_err, current_err + 0.2))
+    assert w.rmse(0) == pytest.approx(0.0, abs=0.005)
+    assert w.rmse(1) == pytest.approx(0.2, abs=0.005)
+    assert w.current(0) == pytest.approx((0.3, 0.1), abs=1e-3)
+
+
+def test_without_current_states_the_window_fits_the_mean() -> None:
+    """Paper frame: the prediction is the window's mean error."""
+    w = FitWindow(1, water=False)
+    for k in range(50):
+        w.add(float(k), None, (0.1 + (0.01 if k % 2 else -0.01),))
+    assert w.predict(0, None) == pytest.approx(0.1, abs=1e-3)
+    assert w.rmse(0) == pytest.approx(0.01, abs=1e-3)
+
+
+def test_sea_memory_fits_each_calibrations_own_current() -> None:
+    """The same samples give raw and a calibration different currents (their offsets
+    differ along the hull); on a full turn each is the sea's."""
+    mem = SeaMemory()
+    p = Params("EM3", m=0.1, b_mps=0.0)
+    for k in range(360):
+        u = 2.0
+        h = _cs(float(k))
+        ref = u + 0.2 * h[0]
+        mem.add(float(k), p.forward(u), ref, h)
+    b_cal = mem.current(p, 360.0)
+    b_raw = mem.current(None, 360.0)
+    assert b_cal == pytest.approx((-0.2, 0.0), abs=0.01)
+    assert b_raw == pytest.approx((-0.2, 0.0), abs=0.05)  # its offset leaks little
+
+
+def test_the_cusum_ignores_one_glitch_and_alarms_on_a_step() -> None:
+    """One 50σ sample is clipped; a run of 10σ samples alarms within three."""
+    c = Cusum()
+    assert not c.add(50.0, 1.0, 0.0)
+    for _ in range(5):
+        c.add(0.0, 0.0, 0.0)
+    assert c.hi == 0.0
+    alarms = [c.add(10.0, 0.5, 0.1) for _ in range(3)]
+    assert alarms == [False, False, True]
+    assert c.ss_app > c.ss_raw and c.hi > CUSUM_H

@@ -1,0 +1,51 @@
+"""The learner: alignment, and what it offers the supervisor."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from calib.models import Layout, Params, check_model
+from emlogd.pipeline.counters import Counters
+from emlogd.pipeline.learner import Learner
+from emlogd.pipeline.settings import UutSettings
+
+
+def _learner() -> tuple[Learner, list[str]]:
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0)
+    kinds: list[str] = []
+    lr = Learner(
+        s,
+        Layout(check_model(s.model), s.current),
+        None,
+        lambda t, k, d: kinds.append(k),
+        Counters(),
+    )
+    return lr, kinds
+
+
+def test_nothing_is_offered_before_anything_is_learnt() -> None:
+    """A fresh learner has no candidate for the supervisor."""
+    lr, _ = _learner()
+    assert lr.offer() is None
+
+
+def test_an_offer_once_the_scale_and_bias_are_learnt() -> None:
+    """Readings of a log 15 % high on a varying reference: an offer near the truth."""
+    lr, kinds = _learner()
+    true = Params("EM3", m=0.15, b_mps=0.1)
+    offers = []
+    for i in range(3000):
+        t = i * 0.1
+        v = 1.6 + 0.5 * math.sin(2 * math.pi * t / 60.0)
+        lr.add_reference(t, v, True, lambda _t: None)
+        if i % 10 == 0 and i:
+            a = lr.align(t, true.forward(v), lambda _t: None)
+            assert a.ref_state == "valid" and a.ref is not None
+            lr.step(a, "", None)
+            offer = lr.offer()
+            if offer is not None:
+                offers.append(offer)
+    assert offers and offers[-1].params.m == pytest.approx(0.15, abs=0.02)
+    assert "reference" in kinds

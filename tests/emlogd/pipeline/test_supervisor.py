@@ -1,0 +1,85 @@
+"""The supervisor on its own: what it applies before, without and after a reference."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from calib.models import Layout, Params, check_model
+from emlogd.pipeline.counters import Counters
+from emlogd.pipeline.learner import Offer
+from emlogd.pipeline.settings import UutSettings
+from emlogd.pipeline.supervisor import RESTORE_WAIT_S, Supervisor
+
+RESTORED = Params("EM3", m=0.1, b_mps=0.05)
+
+
+class _NoOffer:
+    """A learner with nothing to offer."""
+
+    def offer(self) -> Offer | None:
+        return None
+
+    @property
+    def param_std(self) -> Mapping[str, float]:
+        return {"m": 0.01, "b": 0.01}
+
+
+def _applied(sup: Supervisor) -> Params | None:
+    """The applied calibration now (a call: what a step changes is not narrowed away)."""
+    return sup.applied
+
+
+def _sup(restored: Params | None = RESTORED) -> tuple[Supervisor, list[str]]:
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0)
+    kinds: list[str] = []
+    sup = Supervisor(
+        s,
+        Layout(check_model(s.model), s.current),
+        restored,
+        {"m": 0.01, "b": 0.01},
+        lambda t, k, d: kinds.append(k),
+        Counters(),
+    )
+    return sup, kinds
+
+
+def test_a_restored_calibration_waits_for_its_validation() -> None:
+    """Raw passes through; the calibration is the candidate and the last good one."""
+    sup, _ = _sup()
+    assert _applied(sup) is None and sup.correct(2.0) == 2.0
+    assert sup.candidate is not None and sup.candidate.kind == "restored"
+    assert sup.kept == RESTORED and "awaiting validation" in sup.note
+
+
+def test_without_a_reference_it_is_applied_unverified() -> None:
+    """No reference heard RESTORE_WAIT_S after the first reading: applied, unverified."""
+    sup, kinds = _sup()
+    sup.reading(0.0, False)
+    sup.reading(RESTORE_WAIT_S - 1.0, False)
+    assert _applied(sup) is None
+    sup.reading(RESTORE_WAIT_S, False)
+    assert _applied(sup) == RESTORED and sup.unverified and "unverified" in sup.note
+    assert kinds == ["calibration_unverified"]
+
+
+def test_a_reference_heard_keeps_it_waiting() -> None:
+    """Once a reference has been heard, the restored calibration must validate first."""
+    sup, _ = _sup()
+    sup.reading(0.0, True)
+    sup.reading(10.0 * RESTORE_WAIT_S, False)
+    assert _applied(sup) is None
+
+
+def test_a_validated_restored_calibration_is_applied() -> None:
+    """Scored against a reference the calibration explains, it is applied."""
+    sup, kinds = _sup()
+    for k in range(40):
+        u = 1.5 + 0.02 * k
+        sup.observe(float(k), RESTORED.forward(u), u, None, _NoOffer())
+    assert _applied(sup) == RESTORED and "calibrated" in kinds
+
+
+def test_nothing_restored_is_a_reset() -> None:
+    """Without a calibration there is nothing to keep."""
+    sup, _ = _sup(None)
+    assert sup.kept is None and sup.candidate is None and sup.note == ""
