@@ -277,7 +277,8 @@ def test_one_builder_for_run_reload_and_replay() -> None:
     p = build_pipeline(cfg, {"emlog1": em4}, [em3], learn=False)
     status = p.status()["uuts"]
     assert isinstance(status, dict)
-    assert status["emlog1"]["params"] == {"m": 0.05, "b": 0.1}
+    # the model's own calibration is the one kept (applied once it re-validates)
+    assert status["emlog1"]["kept"] == {"m": 0.05, "b": 0.1}
     assert status["emlog1"]["lag_s"] == 3.2
     assert [c.params.model for c in p.other_calibrations()] == ["EM4"]
     assert all(not u.cal.learn_on for u in p.uuts.values())
