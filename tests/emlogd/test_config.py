@@ -343,3 +343,26 @@ def test_two_speeds_under_one_talker_on_one_output_are_refused(
         load_config(f)
     msg = str(info.value)
     assert clash in msg and "outputs.speed" in msg and "own talker and output" in msg
+
+
+def test_the_local_recipe_config_is_the_example_at_ten_times_real_time(tmp_path: Path) -> None:
+    """examples/emlogd-local.yaml (the fake-device recipe, `fake --speed 10`): each log's
+    lag is the simulator's latency / 10, its windows and timers the defaults / 10, a
+    reading's acceleration limit the default x 10², its rate ceiling 20 Hz x 10, and the
+    two logs' speeds under their own talkers on their own outputs."""
+    from emlogd.offline.demo import LATENCIES_S
+    from emlogd.pipeline.integrity import DEFAULT_MAX_RATE_HZ
+
+    k = 10.0
+    local = yaml.safe_load(dump_config(load_config(EXAMPLE.with_name("emlogd-local.yaml"))))
+    plain = tmp_path / "c.yaml"
+    plain.write_text(BLOCK)
+    (default,) = yaml.safe_load(dump_config(load_config(plain)))["calibration"]
+    for c in local["calibration"]:
+        assert c["lag"] == pytest.approx(LATENCIES_S[c["uut"]] / k)
+        for name in ("lag_window_s", "validation_s", "recheck_s", "stuck_s", "zero_s"):
+            assert c[name] == pytest.approx(default[name] / k), name
+        accel = default["max_reading_accel_mps2"] * k * k
+        assert c["max_reading_accel_mps2"] == pytest.approx(accel)
+        assert c["max_rate_hz"] == pytest.approx(DEFAULT_MAX_RATE_HZ * k)
+    assert {c["talker"] for c in local["calibration"]} == {"VW", "VM"}
