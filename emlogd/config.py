@@ -207,7 +207,8 @@ class OutputConfig:
     speed: Speed = key(
         "each",
         check=literal(Speed),
-        doc="each: every log's corrected sentences; fused: one speed for the autopilot, the "
+        doc="each: every log's corrected sentences (two logs under one talker on one output "
+        "are refused: give each its own `talker` or output); fused: one speed for the autopilot, the "
         "inverse-variance weighted mean of the healthy logs that agree, else invalid "
         "(`$PEMLF` says which are used and why the others are not); both: the two.",
     )
