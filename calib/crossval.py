@@ -57,6 +57,7 @@ from calib.models import (
     Params,
     check_model,
     correct_array,
+    zero_params,
 )
 
 EstimatorName = Literal[
@@ -129,7 +130,9 @@ class SegmentInfo:
         n_samples: finite (raw, ref) pairs.
         duration_s: last minus first time, s.
         mean_speed_mps: mean reference speed, m/s.
-        rmse_raw_mps: RMSE of the raw readings against the reference, m/s.
+        rmse_raw_mps: RMSE of the raw readings (:func:`calib.metrics.water_scores`: in
+            the water frame with ``current``), m/s — the raw RMSE of every cell tested
+            on this segment.
     """
 
     name: str
@@ -358,15 +361,18 @@ def _usable(seg: _Arrays, current: bool) -> npt.NDArray[np.bool_]:
     return ok
 
 
-def _info(seg: _Arrays) -> SegmentInfo:
-    ok = np.isfinite(seg.raw) & np.isfinite(seg.ref)
-    d = seg.ref[ok] - seg.raw[ok]
+def _info(seg: _Arrays, current: bool) -> SegmentInfo:
+    ok = _usable(seg, current)
+    hd = seg.heading[ok] if current and seg.heading is not None else None
+    raw = seg.raw[ok]
+    # the raw RMSE of the cells (:func:`evaluate`): the same samples, the same frame
+    r_raw, _ = water_scores(seg.t[ok], seg.ref[ok], raw, raw, hd, zero_params("EM3"))
     return SegmentInfo(
         name=seg.name,
         n_samples=int(np.count_nonzero(ok)),
         duration_s=float(seg.t[-1] - seg.t[0]),
         mean_speed_mps=float(np.mean(seg.ref[ok])),
-        rmse_raw_mps=math.sqrt(float(np.mean(d * d))),
+        rmse_raw_mps=r_raw,
     )
 
 
@@ -558,4 +564,4 @@ def cross_validate(
                     progress(done, total, f"{est} on {names[i]}")
     trained = tuple(results[job][0] for job in jobs)
     evaluations = tuple(e for job in jobs for e in results[job][1])
-    return CrossValResult(tuple(_info(s) for s in segs), ests, trained, evaluations)
+    return CrossValResult(tuple(_info(s, current) for s in segs), ests, trained, evaluations)

@@ -64,7 +64,7 @@ ports:
   - {name: dvl, url: /dev/null, protocol: pd6, role: reference}
 calibration:
   - {uut: emlog1, reference: dvl, lag: 3.3, current: $c}
-  - {uut: emlog2, reference: dvl, lag: 0.5, current: $c}
+  - {uut: emlog2, reference: dvl, lag: 0.5, current: $c, talker: VM}
 EOF
     time emlogd replay "${caps[@]}" --config "$dir/replay-$cur.yaml" --truth "$dir" --json \
       > "$json/replay-$cur.json"

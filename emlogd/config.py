@@ -18,7 +18,7 @@ against the config file's directory, so an example config works from anywhere.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -207,7 +207,8 @@ class OutputConfig:
     speed: Speed = key(
         "each",
         check=literal(Speed),
-        doc="each: every log's corrected sentences; fused: one speed for the autopilot, the "
+        doc="each: every log's corrected sentences (two logs under one talker on one output "
+        "are refused: give each its own `talker` or output); fused: one speed for the autopilot, the "
         "inverse-variance weighted mean of the healthy logs that agree, else invalid "
         "(`$PEMLF` says which are used and why the others are not); both: the two.",
     )
@@ -580,12 +581,60 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
             ("settings", "status_sentence_interval_s"): outputs.status_sentence_interval_s,
         }
         uuts.append(_build(UutConfig, kw, extra))
+    _check_one_speed_per_talker(ctx, top["outputs"][1] if "outputs" in top else None, uuts, outputs)
     rest = {
         top_keys[k].attrs[0]: ctx.value(vn, k, top_keys[k])
         for k, (_, vn) in top.items()
         if k in top_keys
     }
     return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
+
+
+def _check_one_speed_per_talker(
+    ctx: _Ctx, node: yaml.Node | None, uuts: Sequence[UutConfig], outputs: OutputConfig
+) -> None:
+    """Refuse two logs' speeds under one talker on one output: an autopilot reading
+    `$VWVHW` from two logs cannot tell them apart.
+
+    A log with outputs of its own writes only there; every other log's corrected
+    sentences (``speed`` each or both) go to the shared outputs; with ``speed: fused``
+    only the fused speed is emitted.
+    """
+    seen: dict[tuple[str, str], str] = {}
+    for dest, talker, who in _speed_routes(uuts, outputs):
+        other = seen.setdefault((dest, talker), who)
+        if other != who:
+            raise ctx.fail(
+                node,
+                "outputs.speed",
+                f"{other} and {who} both send talker {talker!r} to {dest}: an autopilot "
+                "cannot tell the two speeds apart; give each log its own talker and output "
+                "(calibration[].talker and .pty/.tcp/.udp) or set outputs.speed: fused",
+            )
+
+
+def _speed_routes(uuts: Sequence[UutConfig], outputs: OutputConfig) -> list[tuple[str, str, str]]:
+    """(output, talker, which log) for every log's corrected speed the config emits."""
+    routes = []
+    shared = [
+        f"{kind} {dest}"
+        for kind, dest in (("pty", outputs.pty), ("tcp", outputs.tcp), ("udp", outputs.udp))
+        if dest
+    ] + (["stdout"] if outputs.stdout else [])
+    if outputs.speed != "fused":
+        for c in uuts:
+            own = [
+                f"{kind} {dest}"
+                for kind, dest in (
+                    ("pty", c.outputs.pty),
+                    ("tcp", c.outputs.tcp),
+                    ("udp", c.outputs.udp),
+                )
+                if dest
+            ]
+            for dest in own or shared or ["the shared outputs (replay --out)"]:
+                routes.append((dest, c.settings.talker, f"log {c.uut!r}"))
+    return routes
 
 
 # ------------------------------------------------------------------ dump and table

@@ -50,6 +50,7 @@ calibration:
      current: false, max_reading_accel_mps2: {accel}, max_rate_hz: {rate},
      max_param_std: {{m: 0.05, b: 0.08}}, validation_s: {val}, recheck_s: {recheck}}}
   - {{uut: emlog2, reference: dvl, model: EM3, lag: {lag2}, excitation_half_life_samples: 600,
+     talker: VM,
      current: false, max_reading_accel_mps2: {accel}, max_rate_hz: {rate},
      validation_s: {val}, recheck_s: {recheck}}}
 outputs: {{pty: out/emlog0, status_sentence_interval_s: 0.5}}

@@ -213,7 +213,8 @@ def test_an_emlog_with_role_uut_may_be_the_speed_reference() -> None:
     """EMlog2 calibrated against EMlog1 (reference_field speed) is a valid setup."""
     cfg = parse_config(
         BLOCK
-        + "  - {uut: emlog2, reference: emlog1, reference_field: speed, lag: 0.4, max_lag_s: 2}\n"
+        + "  - {uut: emlog2, reference: emlog1, reference_field: speed, lag: 0.4, max_lag_s: 2,\n"
+        "     talker: VM}\n"
     )
     assert [(u.uut, u.reference, u.settings.reference_field) for u in cfg.calibration] == [
         ("emlog1", "dvl", "bottom"),
@@ -302,3 +303,66 @@ def test_dump_writes_every_key() -> None:
     assert list(dumped["ports"][0]) == [e.name for e in entries(PortConfig)]
     assert list(dumped["calibration"][1]) == [e.name for e in entries(UutConfig)]
     assert list(dumped["outputs"]) == [e.name for e in entries(OutputConfig)]
+
+
+TWO_LOGS = """\
+ports:
+  - {name: e1, url: /dev/e1, protocol: nmea0183, role: uut}
+  - {name: e2, url: /dev/e2, protocol: nmea0183, role: uut}
+  - {name: dvl, url: /dev/dvl, protocol: pd6, role: reference}
+calibration:
+  - {uut: e1, reference: dvl}
+  - {uut: e2, reference: dvl%s}
+outputs: {pty: /run/emlogd/emlog0%s}
+"""
+
+
+@pytest.mark.parametrize(
+    ("log2", "outputs", "clash"),
+    [
+        ("", "", "log 'e1' and log 'e2' both send talker 'VW' to pty /run/emlogd/emlog0"),
+        (", talker: VM", "", None),
+        (", pty: /run/emlogd/e2", "", None),
+        ("", ", speed: fused", None),
+        (", tcp: ':10111'", ", speed: both", None),
+        (", udp: '10.0.0.255:10110'", ", udp: '10.0.0.255:10110'", "to udp 10.0.0.255:10110"),
+    ],
+)
+def test_two_speeds_under_one_talker_on_one_output_are_refused(
+    tmp_path: Path, log2: str, outputs: str, clash: str | None
+) -> None:
+    """Two logs' corrected sentences under one talker on one output are refused, naming
+    both and the way out; distinct talkers, a log's own output, or the fused speed alone
+    load."""
+    f = tmp_path / "c.yaml"
+    f.write_text(TWO_LOGS % (log2, outputs))
+    if clash is None:
+        load_config(f)
+        return
+    with pytest.raises(ConfigError) as info:
+        load_config(f)
+    msg = str(info.value)
+    assert clash in msg and "outputs.speed" in msg and "own talker and output" in msg
+
+
+def test_the_local_recipe_config_is_the_example_at_ten_times_real_time(tmp_path: Path) -> None:
+    """examples/emlogd-local.yaml (the fake-device recipe, `fake --speed 10`): each log's
+    lag is the simulator's latency / 10, its windows and timers the defaults / 10, a
+    reading's acceleration limit the default x 10², its rate ceiling 20 Hz x 10, and the
+    two logs' speeds under their own talkers on their own outputs."""
+    from emlogd.offline.demo import LATENCIES_S
+    from emlogd.pipeline.integrity import DEFAULT_MAX_RATE_HZ
+
+    k = 10.0
+    local = yaml.safe_load(dump_config(load_config(EXAMPLE.with_name("emlogd-local.yaml"))))
+    plain = tmp_path / "c.yaml"
+    plain.write_text(BLOCK)
+    (default,) = yaml.safe_load(dump_config(load_config(plain)))["calibration"]
+    for c in local["calibration"]:
+        assert c["lag"] == pytest.approx(LATENCIES_S[c["uut"]] / k)
+        for name in ("lag_window_s", "validation_s", "recheck_s", "stuck_s", "zero_s"):
+            assert c[name] == pytest.approx(default[name] / k), name
+        accel = default["max_reading_accel_mps2"] * k * k
+        assert c["max_reading_accel_mps2"] == pytest.approx(accel)
+        assert c["max_rate_hz"] == pytest.approx(DEFAULT_MAX_RATE_HZ * k)
+    assert {c["talker"] for c in local["calibration"]} == {"VW", "VM"}

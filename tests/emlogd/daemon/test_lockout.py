@@ -36,7 +36,7 @@ ports:
   - {name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, rest_s: 0}
 calibration:
   - {uut: emlog1, reference: dvl, lag: 0.165}
-  - {uut: emlog2, reference: dvl, lag: 0.025}
+  - {uut: emlog2, reference: dvl, lag: 0.025, talker: VM}
 outputs:
   pty: out/emlog0
   tcp: "127.0.0.1:{tcp}"

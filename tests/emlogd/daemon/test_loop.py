@@ -39,7 +39,7 @@ calibration:
      excitation_half_life_samples: 120, persist_interval_s: 0.5,
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
   - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5, current: false,
-     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}, talker: VM}}
 outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_sentence_interval_s: 0.2}}
 state_file: state/state.yaml
 control_socket: run/control.sock
@@ -495,7 +495,7 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
     cfg.write_text(
         text.replace(
             "  - {uut: emlog2, reference: dvl,",
-            "  - {uut: emlog2, reference: dvl, talker: VM, pty: out/emlog2,",
+            "  - {uut: emlog2, reference: dvl, pty: out/emlog2,",
         )
     )
     links = tmp_path / "links"

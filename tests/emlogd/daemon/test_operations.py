@@ -33,7 +33,7 @@ calibration:
      excitation_half_life_samples: 120, persist_interval_s: 0.5,
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
   - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5,
-     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}, talker: VM}}
 outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_sentence_interval_s: 0.2}}
 state_file: state/state.yaml
 control_socket: run/control.sock

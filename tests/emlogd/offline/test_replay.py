@@ -25,7 +25,7 @@ ports:
   - {name: dvl, url: /dev/null, protocol: pd6, role: reference}
 calibration:
   - {uut: emlog1, reference: dvl, lag: 3.3, max_param_std: {m: 0.05, b: 0.08}, current: false}
-  - {uut: emlog2, reference: dvl, lag: 0.5, current: false}
+  - {uut: emlog2, reference: dvl, lag: 0.5, current: false, talker: VM}
 """
 
 
@@ -67,9 +67,9 @@ def test_state_carries_across_files(trial_files: dict[str, Path]) -> None:
 
 def test_unknown_ports_are_counted(trial_files: dict[str, Path]) -> None:
     """Records of a port the config does not declare are counted under unknown_ports."""
-    cfg = CFG.replace("  - {uut: emlog2, reference: dvl, lag: 0.5, current: false}\n", "").replace(
-        "  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n", ""
-    )
+    cfg = CFG.replace(
+        "  - {uut: emlog2, reference: dvl, lag: 0.5, current: false, talker: VM}\n", ""
+    ).replace("  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n", "")
     res = replay(_pipeline(cfg), [trial_files["straight"]])
     assert res.unknown_ports.get("emlog2", 0) > 0
 
@@ -244,7 +244,9 @@ def test_a_record_that_fails_in_the_pipeline_costs_that_record_only(
 
     monkeypatch.setattr(Pipeline, "_route", route)
     cfg = CFG.replace("  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n", "")
-    cfg = cfg.replace("  - {uut: emlog2, reference: dvl, lag: 0.5, current: false}\n", "")
+    cfg = cfg.replace(
+        "  - {uut: emlog2, reference: dvl, lag: 0.5, current: false, talker: VM}\n", ""
+    )
     res = replay(_pipeline(cfg), [cap])
     doc = res.to_dict()
     assert res.records == 120 * 6 + 60 and res.internal["count"] == 3

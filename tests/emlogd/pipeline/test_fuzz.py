@@ -53,8 +53,9 @@ ports:
   - {name: compass, url: /dev/null, protocol: nmea0183, role: aux}
 calibration:
   - {uut: emlog1, reference: dvl, lag: 0.5, current: auto, validation_s: 5, recheck_s: 10}
-  - {uut: emlog2, reference: dvl0, uut_source: VBW, lag: auto, lag_window_s: 20}
-  - {uut: emlog3, reference: gps, reference_field: gnss, heading: compass, lag: 0.2}
+  - {uut: emlog2, reference: dvl0, uut_source: VBW, lag: auto, lag_window_s: 20, talker: VM}
+  - {uut: emlog3, reference: gps, reference_field: gnss, heading: compass, lag: 0.2,
+     talker: VD}
 outputs: {speed: both}
 """
 
