@@ -593,13 +593,19 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
 def _check_one_speed_per_talker(
     ctx: _Ctx, node: yaml.Node | None, uuts: Sequence[UutConfig], outputs: OutputConfig
 ) -> None:
-    """Refuse two logs' speeds under one talker on one output: an autopilot reading
-    `$VWVHW` from two logs cannot tell them apart.
+    """Refuse two logs' speeds under one talker on one declared output: an autopilot
+    reading `$VWVHW` from two logs cannot tell them apart (a config without an
+    ``outputs`` section, written for replay, is not checked).
 
     A log with outputs of its own writes only there; every other log's corrected
     sentences (``speed`` each or both) go to the shared outputs; with ``speed: fused``
     only the fused speed is emitted.
     """
+    if node is None:
+        # no outputs declared (a config for replay and the offline commands): nothing
+        # reaches an autopilot through the default output unless it is run as a daemon,
+        # and configs written for replay keep working
+        return
     seen: dict[tuple[str, str], str] = {}
     for dest, talker, who in _speed_routes(uuts, outputs):
         other = seen.setdefault((dest, talker), who)

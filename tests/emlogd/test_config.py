@@ -366,3 +366,15 @@ def test_the_local_recipe_config_is_the_example_at_ten_times_real_time(tmp_path:
         assert c["max_reading_accel_mps2"] == pytest.approx(accel)
         assert c["max_rate_hz"] == pytest.approx(DEFAULT_MAX_RATE_HZ * k)
     assert {c["talker"] for c in local["calibration"]} == {"VW", "VM"}
+
+
+def test_two_logs_under_one_talker_without_declared_outputs_load(tmp_path: Path) -> None:
+    """A config with no outputs section (written for replay and the offline commands)
+    is not refused for its two logs' shared talker; the same with the outputs declared is."""
+    f = tmp_path / "c.yaml"
+    text = TWO_LOGS % ("", "")
+    f.write_text(text.split("outputs:", 1)[0])
+    assert len(load_config(f).calibration) == 2
+    f.write_text(text)
+    with pytest.raises(ConfigError):
+        load_config(f)
