@@ -162,6 +162,42 @@ def water_scores(
     Raises:
         DataError: shapes that differ, or no finite pair.
     """
+    targets = water_targets(
+        t_s,
+        ref_mps,
+        raw_mps,
+        corrected_mps,
+        heading_deg,
+        params,
+        window_s=window_s,
+        min_heading_sectors=min_heading_sectors,
+    )
+    if heading_deg is None:
+        return rmse(*targets[0]), rmse(*targets[1])
+    out = [rmse(target, est) if np.isfinite(target).any() else math.nan for target, est in targets]
+    return out[0], out[1]
+
+
+def water_targets(
+    t_s: npt.ArrayLike,
+    ref_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    corrected_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    params: Params,
+    *,
+    window_s: float = CURRENT_WINDOW_S,
+    min_heading_sectors: int = 3,
+) -> tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]:
+    """The water speed each reading is scored against, as :func:`water_scores` defines it.
+
+    Returns:
+        ``((target_raw, raw), (target_corrected, corrected))``: per sample, the target
+        (nan where a sample is not scored) beside the reading, m/s.
+
+    Raises:
+        DataError: as :func:`water_scores`.
+    """
     from calib.excitation import ExcitationRule
     from calib.lsq import fit_current  # calib.lsq imports this module
 
@@ -172,7 +208,7 @@ def water_scores(
     if not t.shape == ref.shape == raw.shape == cor.shape:
         raise DataError("time, reference, raw and corrected must have the same length")
     if heading_deg is None:
-        return rmse(ref, raw), rmse(ref, cor)
+        return (ref, raw), (ref, cor)
     hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
     if hd.shape != t.shape:
         raise DataError("the heading must be as long as the speeds")
@@ -193,10 +229,41 @@ def water_scores(
                 c = fit_current(p, ref[sel], raw[sel], hd[sel], rule=rule) or whole
                 if c is not None:
                     cur[sel] = c
-        out.append(
-            water_rmse(ref[good], est[good], hd[good], cur[good]) if good.any() else math.nan
-        )
+        target = np.full(t.size, math.nan)
+        if good.any():
+            target[good] = water_target(ref[good], hd[good], cur[good])
+        out.append((target, est))
     return out[0], out[1]
+
+
+def water_imo(
+    t_s: npt.ArrayLike,
+    ref_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    corrected_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    params: Params,
+    *,
+    window_s: float = CURRENT_WINDOW_S,
+    min_heading_sectors: int = 3,
+) -> tuple[ImoVerdict, ImoVerdict]:
+    """The IMO verdict (:func:`imo_verdict`) of the raw and the corrected reading against
+    the same water speed :func:`water_scores` scores them against.
+
+    Raises:
+        DataError: as :func:`water_scores`.
+    """
+    (t_raw, raw), (t_cor, cor) = water_targets(
+        t_s,
+        ref_mps,
+        raw_mps,
+        corrected_mps,
+        heading_deg,
+        params,
+        window_s=window_s,
+        min_heading_sectors=min_heading_sectors,
+    )
+    return imo_verdict(t_raw, raw), imo_verdict(t_cor, cor)
 
 
 KNOT_MPS = 1852.0 / 3600.0

@@ -18,6 +18,7 @@ from calib.metrics import (
     improvement_pct,
     nis_stats,
     rmse,
+    water_imo,
     water_rmse,
     water_scores,
     water_target,
@@ -144,6 +145,17 @@ class TestWaterFrameAndCorrelation:
         _, r_const = water_scores(t, ref, raw, cor, hd, truth, window_s=1e9)
         assert r_const > 5.0 * r_cal
         assert water_scores(t, ref, raw, cor, None, truth) == (rmse(ref, raw), rmse(ref, cor))
+        # the IMO verdict scores against the same water speed: the corrected reading meets
+        # it, the raw one (5 % scale) does not; against the reference (the current left
+        # in) the corrected one would not either
+        v_raw, v_cor = water_imo(t, ref, raw, cor, hd, truth)
+        assert v_cor.meets and v_cor.fraction > 0.99 and v_cor.n == n
+        assert not v_raw.meets
+        assert not imo_verdict(ref, cor).meets
+        assert water_imo(t, ref, raw, cor, None, truth) == (
+            imo_verdict(ref, raw),
+            imo_verdict(ref, cor),
+        )
 
 
 class TestImoVerdict:
