@@ -11,6 +11,10 @@
   independent samples a series holds than samples, for standard errors that do not
   take correlated residuals (GNSS errors over seconds, a sailing log's tack-dependent
   error over minutes) for independent ones;
+- the IMO accuracy verdict (:func:`imo_verdict`): IMO resolution A.824(19), as amended
+  by MSC.96(72), asks a speed log's error not to exceed 2 % of the ship's speed or
+  0.2 kn, whichever is greater; the fraction of samples within that bound and whether
+  the log meets it (at least :data:`IMO_MEETS_FRACTION` of them within);
 - NIS statistics (eqs. (29)–(31)): for a consistent filter with a scalar
   measurement each NISₖ is χ²(1), so its mean is 1 and 95 % of the samples fall
   inside the two-sided 95 % χ²(1) bounds [0.00098, 5.024]. The filter is declared
@@ -158,6 +162,42 @@ def water_scores(
     Raises:
         DataError: shapes that differ, or no finite pair.
     """
+    targets = water_targets(
+        t_s,
+        ref_mps,
+        raw_mps,
+        corrected_mps,
+        heading_deg,
+        params,
+        window_s=window_s,
+        min_heading_sectors=min_heading_sectors,
+    )
+    if heading_deg is None:
+        return rmse(*targets[0]), rmse(*targets[1])
+    out = [rmse(target, est) if np.isfinite(target).any() else math.nan for target, est in targets]
+    return out[0], out[1]
+
+
+def water_targets(
+    t_s: npt.ArrayLike,
+    ref_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    corrected_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    params: Params,
+    *,
+    window_s: float = CURRENT_WINDOW_S,
+    min_heading_sectors: int = 3,
+) -> tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]:
+    """The water speed each reading is scored against, as :func:`water_scores` defines it.
+
+    Returns:
+        ``((target_raw, raw), (target_corrected, corrected))``: per sample, the target
+        (nan where a sample is not scored) beside the reading, m/s.
+
+    Raises:
+        DataError: as :func:`water_scores`.
+    """
     from calib.excitation import ExcitationRule
     from calib.lsq import fit_current  # calib.lsq imports this module
 
@@ -168,7 +208,7 @@ def water_scores(
     if not t.shape == ref.shape == raw.shape == cor.shape:
         raise DataError("time, reference, raw and corrected must have the same length")
     if heading_deg is None:
-        return rmse(ref, raw), rmse(ref, cor)
+        return (ref, raw), (ref, cor)
     hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
     if hd.shape != t.shape:
         raise DataError("the heading must be as long as the speeds")
@@ -189,10 +229,130 @@ def water_scores(
                 c = fit_current(p, ref[sel], raw[sel], hd[sel], rule=rule) or whole
                 if c is not None:
                     cur[sel] = c
-        out.append(
-            water_rmse(ref[good], est[good], hd[good], cur[good]) if good.any() else math.nan
-        )
+        target = np.full(t.size, math.nan)
+        if good.any():
+            target[good] = water_target(ref[good], hd[good], cur[good])
+        out.append((target, est))
     return out[0], out[1]
+
+
+def water_imo(
+    t_s: npt.ArrayLike,
+    ref_mps: npt.ArrayLike,
+    raw_mps: npt.ArrayLike,
+    corrected_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike | None,
+    params: Params,
+    *,
+    window_s: float = CURRENT_WINDOW_S,
+    min_heading_sectors: int = 3,
+) -> tuple[ImoVerdict, ImoVerdict]:
+    """The IMO verdict (:func:`imo_verdict`) of the raw and the corrected reading against
+    the same water speed :func:`water_scores` scores them against.
+
+    Raises:
+        DataError: as :func:`water_scores`.
+    """
+    (t_raw, raw), (t_cor, cor) = water_targets(
+        t_s,
+        ref_mps,
+        raw_mps,
+        corrected_mps,
+        heading_deg,
+        params,
+        window_s=window_s,
+        min_heading_sectors=min_heading_sectors,
+    )
+    return imo_verdict(t_raw, raw), imo_verdict(t_cor, cor)
+
+
+KNOT_MPS = 1852.0 / 3600.0
+"""One knot in m/s."""
+
+IMO_SPEED_FRACTION = 0.02
+"""IMO A.824(19) (MSC.96(72)): the error may reach this fraction of the ship's speed..."""
+
+IMO_MIN_ERROR_MPS = 0.2 * KNOT_MPS
+"""...or 0.2 kn, whichever is greater (the two meet at 10 kn)."""
+
+IMO_MEETS_FRACTION = 0.95
+"""A log meets the bound when at least this fraction of its samples are within it. The
+resolution states a bound, not a statistic; a recorded series always holds a few
+samples taken in a turn, at a reference outage's edge or through a wave, so "every
+sample" would fail a log for one outlier. 95 % is the confidence level IMO's
+navigation-equipment standards state accuracies at (e.g. the GNSS receivers'
+position accuracy), and it is what a log whose error is normally distributed with a
+standard deviation of half the bound achieves (95.4 % within two standard
+deviations)."""
+
+IMO_BOUND_RTOL = 1e-9
+"""Relative slack on the bound, so that an error of exactly 2 % or 0.2 kn (computed
+through m/s in floating point) counts as within it, as the resolution's "not exceed"
+says."""
+
+
+@dataclass(frozen=True, slots=True)
+class ImoVerdict:
+    """The IMO A.824(19) verdict over a series of samples."""
+
+    n: int
+    """Samples with a finite reference and reading."""
+    within: int
+    """Of those, the samples whose error does not exceed the bound."""
+    meets: bool
+    """At least :data:`IMO_MEETS_FRACTION` of ``n`` within (False when ``n`` is 0)."""
+
+    @property
+    def fraction(self) -> float:
+        """The fraction of samples within the bound (nan without samples)."""
+        return self.within / self.n if self.n else math.nan
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-ready: ``n``, ``within``, ``fraction`` (None without samples), ``meets``."""
+        return {
+            "n": self.n,
+            "within": self.within,
+            "fraction": self.fraction if self.n else None,
+            "meets": self.meets,
+        }
+
+
+def imo_bound_mps(speed_mps: npt.ArrayLike) -> FloatArray:
+    """The largest error IMO A.824(19) allows at each speed: ``max(2 % · |v|, 0.2 kn)``, m/s."""
+    v = np.abs(np.asarray(speed_mps, dtype=np.float64))
+    return np.maximum(IMO_SPEED_FRACTION * v, IMO_MIN_ERROR_MPS)
+
+
+def imo_verdict(
+    ref_mps: npt.ArrayLike,
+    est_mps: npt.ArrayLike,
+    *,
+    meets_fraction: float = IMO_MEETS_FRACTION,
+) -> ImoVerdict:
+    """How many samples meet IMO A.824(19)'s accuracy bound, and whether the log does.
+
+    The ship's speed of the bound is the reference's (the speed the log should read);
+    samples where either is nan are left out.
+
+    Args:
+        ref_mps: the reference (or true) speeds, m/s, shape (N,).
+        est_mps: the raw or corrected readings, m/s, shape (N,).
+        meets_fraction: the fraction of samples that must be within the bound.
+
+    Raises:
+        DataError: different shapes, or ``meets_fraction`` outside [0, 1].
+    """
+    ref = np.asarray(ref_mps, dtype=np.float64).reshape(-1)
+    est = np.asarray(est_mps, dtype=np.float64).reshape(-1)
+    if ref.shape != est.shape:
+        raise DataError(f"shapes differ: {ref.shape} and {est.shape}")
+    if not 0.0 <= meets_fraction <= 1.0:
+        raise DataError(f"meets_fraction must be within [0, 1], not {meets_fraction!r}")
+    ok = np.isfinite(ref) & np.isfinite(est)
+    err = np.abs(est[ok] - ref[ok])
+    within = int(np.count_nonzero(err <= imo_bound_mps(ref[ok]) * (1.0 + IMO_BOUND_RTOL)))
+    n = int(ok.sum())
+    return ImoVerdict(n=n, within=within, meets=n > 0 and within >= meets_fraction * n)
 
 
 MAX_CORRELATION_FACTOR = 100.0

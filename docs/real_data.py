@@ -19,7 +19,9 @@ and the effective scale at the median speed (corrected / raw) next to the folder
 own independent fit (``DIR/reference_fit.py``, when the folder has one: its ``k``);
 the LS current against the log's own set and drift (VDR, where the log has one); the
 KF's NIS mean; and the replay's emitted speed against the GNSS water speed: its RMSE
-next to raw's, and the worst ratio emitted / raw over 5-minute windows.
+next to raw's, the worst ratio emitted / raw over 5-minute windows, and the IMO
+A.824(19) verdict of each (``calib.metrics.imo_verdict``: the fraction of samples within
+2 % of the speed or 0.2 kn, whichever is greater; meets at 95 %).
 
 **The GNSS water speed** is the GNSS speed along the hull (SOG·cos(COG − ψ), as the
 pipeline projects it) less the current, fitted by least squares over each
@@ -56,6 +58,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from calib.lsq import block_average  # noqa: E402
+from calib.metrics import imo_verdict  # noqa: E402
 from calib.models import FloatArray, Params  # noqa: E402
 from drivers import make_decoder  # noqa: E402
 from drivers.io.capture import CaptureReader  # noqa: E402
@@ -320,8 +323,14 @@ def water_scores(cap: Path, emitted_cap: Path) -> dict[str, float]:
         e = math.sqrt(float(np.mean(err_em[sel] ** 2)))
         if r > 0.0:
             worst = e / r if not math.isfinite(worst) else max(worst, e / r)
+    imo_raw = imo_verdict(water[both], raw[both])
+    imo_em = imo_verdict(water[both], emitted[both])
     return {
         "n": float(np.count_nonzero(both)),
+        "imo_raw_fraction": imo_raw.fraction,
+        "imo_raw_meets": float(imo_raw.meets),
+        "imo_emitted_fraction": imo_em.fraction,
+        "imo_emitted_meets": float(imo_em.meets),
         "rmse_raw": math.sqrt(float(np.mean(err_raw**2))) if err_raw.size else math.nan,
         "rmse_emitted": math.sqrt(float(np.mean(err_em**2))) if err_em.size else math.nan,
         "worst_5min_ratio": worst,
@@ -428,6 +437,14 @@ def _current(doc: dict[str, Any] | None) -> tuple[float, float] | None:
     return float(c["north_mps"]), float(c["east_mps"])
 
 
+def _imo(scores: dict[str, float], which: str) -> str:
+    """The IMO A.824(19) verdict of ``which`` (``raw``, ``emitted``): ``97 % meets``."""
+    frac = scores.get(f"imo_{which}_fraction", math.nan)
+    if not math.isfinite(frac):
+        return "—"
+    return f"{100.0 * frac:.0f} % {'meets' if scores.get(f'imo_{which}_meets') else 'fails'}"
+
+
 def markdown(rows: list[Row]) -> str:
     """The two tables: what each step found, and the replay's scores."""
     out = [
@@ -456,8 +473,9 @@ def markdown(rows: list[Row]) -> str:
     out += [
         "",
         "| recording | LS current (kn) | vs the log's own (kn) | KF NIS mean | replay state | "
-        "emitted / raw RMSE vs GNSS water speed (m/s) | worst 5-min ratio |",
-        "|---|---|---|---|---|---|---|",
+        "emitted / raw RMSE vs GNSS water speed (m/s) | worst 5-min ratio | "
+        "IMO A.824 emitted / raw |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         if r.imported is None:
@@ -475,6 +493,7 @@ def markdown(rows: list[Row]) -> str:
         state = "—"
         score = "fails (below)"
         worst = "—"
+        imo = "—"
         if r.replay is not None:
             u = r.replay["uuts"]["nmea"]
             state = f"{u['state']}, {'applied' if u['params'] else 'raw'}"
@@ -482,7 +501,8 @@ def markdown(rows: list[Row]) -> str:
             s = r.scores
             score = f"{s['rmse_emitted']:.3f} / {s['rmse_raw']:.3f} ({s['n']:.0f} samples)"
             worst = _f(s["worst_5min_ratio"], ".3f")
-        out.append(f"| {r.name} | {cur} | {versus} | {nis} | {state} | {score} | {worst} |")
+            imo = f"{_imo(s, 'emitted')} / {_imo(s, 'raw')}"
+        out.append(f"| {r.name} | {cur} | {versus} | {nis} | {state} | {score} | {worst} | {imo} |")
     failed = [(r.name, step, why) for r in rows for step, why in r.errors.items()]
     if failed:
         out += ["", "What failed:", ""]

@@ -123,6 +123,15 @@ def pct(x):
     return "–" if x is None else f"{x:.0f}%"
 
 
+def imo(rows, which):
+    # the IMO A.824(19) verdict pooled over rows (calib.metrics.imo_verdict per capture):
+    # the fraction of samples within max(2 % of the speed, 0.2 kn); meets at >= 95 %
+    v = [r["imo"][which] for r in rows if r.get("imo")]
+    n = sum(x["n"] for x in v)
+    if not n:
+        return "–"
+    frac = sum(x["within"] for x in v) / n
+    return f"{100 * frac:.0f} % {'meets' if frac >= 0.95 else 'fails'}"
 def pooled(rows, key):
     n = sum(r["n_samples"] for r in rows)
     return math.sqrt(sum(r["n_samples"] * r[key] ** 2 for r in rows) / n) if n else math.nan
@@ -135,8 +144,8 @@ for trial in ("default", "tidal"):
     import yaml
 
     doc = yaml.safe_load(truth.read_text())
-    print("| trajectory | duration | mean STW | max current | bottom lock | raw vs truth EMlog1 / EMlog2 | floor EMlog1 / EMlog2 |")
-    print("|---|---|---|---|---|---|---|")
+    print("| trajectory | duration | mean STW | max current | bottom lock | raw vs truth EMlog1 / EMlog2 | floor EMlog1 / EMlog2 | IMO raw EMlog1 / EMlog2 |")
+    print("|---|---|---|---|---|---|---|---|")
     ev = json.loads((j / "eval-emlog1-2-figure8-paper.json").read_text())["captures"]
     ev2 = json.loads((j / "eval-emlog2-2-figure8-paper.json").read_text())["captures"]
     for t, a, b in zip(doc["trajectories"], ev, ev2):
@@ -144,12 +153,13 @@ for trial in ("default", "tidal"):
             f"| {t['file'][:-4]} | {t['duration_s'] / 60:.0f} min | {t['mean_stw_mps']:.2f} m/s "
             f"| {t['max_current_mps']:.2f} m/s | {100 * t['bottom_lock_fraction']:.0f} % "
             f"| {f(a['truth']['rmse_raw'])} / {f(b['truth']['rmse_raw'])} "
-            f"| {f(a['truth']['rmse_floor'])} / {f(b['truth']['rmse_floor'])} |"
+            f"| {f(a['truth']['rmse_floor'])} / {f(b['truth']['rmse_floor'])} "
+            f"| {imo([a['truth']], 'raw')} / {imo([b['truth']], 'raw')} |"
         )
     for uut in ("emlog1", "emlog2"):
         print(f"\n### {trial}: {uut}, LS-EM3 trained on one trajectory, RMSE against the truth (m/s)\n")
-        print("| trained on | method | " + " | ".join(short[n] for n in names) + " | out-of-sample pooled | m, b | current N, E |")
-        print("|---|---|" + "---|" * (len(names) + 3))
+        print("| trained on | method | " + " | ".join(short[n] for n in names) + " | out-of-sample pooled | IMO out-of-sample | m, b | current N, E |")
+        print("|---|---|" + "---|" * (len(names) + 4))
         for train in names:
             for cur in ("paper", "current"):
                 e = json.loads((j / f"eval-{uut}-{train}-{cur}.json").read_text())
@@ -166,11 +176,12 @@ for trial in ("default", "tidal"):
                 held = "" if c["identifiable"] else " (not identifiable)"
                 print(
                     f"| {short[train]} | {label}{held} | " + " | ".join(cells)
-                    + f" | {f(pooled(oos, 'rmse_corrected'))} | {p['m']:+.3f}, {p['b']:+.3f} | {cur_txt} |"
+                    + f" | {f(pooled(oos, 'rmse_corrected'))} | {imo(oos, 'corrected')}"
+                    + f" | {p['m']:+.3f}, {p['b']:+.3f} | {cur_txt} |"
                 )
         e = json.loads((j / f"eval-{uut}-2-figure8-paper.json").read_text())["captures"]
-        print("| raw | | " + " | ".join(f(r["truth"]["rmse_raw"]) for r in e) + f" | {f(pooled([r['truth'] for r in e], 'rmse_raw'))} | | |")
-        print("| floor | | " + " | ".join(f(r["truth"]["rmse_floor"]) for r in e) + f" | {f(pooled([r['truth'] for r in e], 'rmse_floor'))} | | |")
+        print("| raw | | " + " | ".join(f(r["truth"]["rmse_raw"]) for r in e) + f" | {f(pooled([r['truth'] for r in e], 'rmse_raw'))} | {imo([r['truth'] for r in e], 'raw')} | | |")
+        print("| floor | | " + " | ".join(f(r["truth"]["rmse_floor"]) for r in e) + f" | {f(pooled([r['truth'] for r in e], 'rmse_floor'))} | | | |")
     for title, prefix, last in (
         ("the daemon's online KF (replay of the five captures in order), against the truth", "replay",
          "scored samples paper / current"),
@@ -178,8 +189,8 @@ for trial in ("default", "tidal"):
          "replay-after", "lag paper / current (s)"),
     ):
         print(f"\n### {trial}: {title}\n")
-        print(f"| UUT | raw | paper (no current) | water frame (current: true) | floor | {last} |")
-        print("|---|---|---|---|---|---|")
+        print(f"| UUT | raw | paper (no current) | water frame (current: true) | floor | IMO raw / paper / water frame | {last} |")
+        print("|---|---|---|---|---|---|---|")
         rp = json.loads((j / f"{prefix}-paper.json").read_text())["uuts"]
         rc = json.loads((j / f"{prefix}-current.json").read_text())["uuts"]
         for uut in ("emlog1", "emlog2"):
@@ -190,7 +201,8 @@ for trial in ("default", "tidal"):
             )
             print(
                 f"| {uut} | {f(a['rmse_raw'])} | {f(a['rmse_corrected'])} | {f(b['rmse_corrected'])} "
-                f"| {f(a['rmse_floor'])} | {tail} |"
+                f"| {f(a['rmse_floor'])} "
+                f"| {imo([a], 'raw')} / {imo([a], 'corrected')} / {imo([b], 'corrected')} | {tail} |"
             )
     for uut in ("emlog1", "emlog2"):
         for cur in ("paper", "current"):

@@ -102,6 +102,8 @@ class SerialSource:
         self._last_data: float | None = None
         self._stale = False
         self._ever_connected = False
+        self.why_closed: str | None = "not opened yet"
+        """Why the port is not open (None: it is)."""
         self.bytes = 0
         self.chunks = 0
         self.reconnects = 0
@@ -140,6 +142,7 @@ class SerialSource:
         """Figures for the status event."""
         return {
             "open": self.is_open,
+            "why_closed": None if self.is_open else self.why_closed,
             "bytes": self.bytes,
             "chunks": self.chunks,
             "reconnects": self.reconnects,
@@ -162,6 +165,7 @@ class SerialSource:
             self._schedule(f"cannot open {self.url}: {exc}")
             return False
         self._ser = ser
+        self.why_closed = None
         # A plain POSIX port (device, pty) is read with one os.read on its
         # non-blocking descriptor: pyserial's read adds an ioctl and a select per call.
         # Other URL handlers (spy://, socket://, loop://) keep pyserial's read.
@@ -176,6 +180,7 @@ class SerialSource:
         return True
 
     def _schedule(self, why: str) -> None:
+        self.why_closed = why
         delay = self.backoff_s[min(self._attempt, len(self.backoff_s) - 1)]
         first = self._next_try is None and self._attempt == 0
         self._attempt += 1

@@ -50,8 +50,10 @@ def _socket_path(args: argparse.Namespace) -> str:
 
 
 def _status_text(resp: dict[str, Any]) -> str:
-    """The daemon's ``status`` answer as lines of text: one per UUT (and its heading), one
-    per port."""
+    """The daemon's ``status`` answer as lines of text: per UUT its state and why, its
+    calibration, what it holds and why, its inputs' freshness, its heading and its error
+    against the reference; per port whether it is open, stale or not
+    open (and why), with its counts."""
     status = resp.get("status") or {}
     lines = []
     for name, u in (status.get("uuts") or {}).items():
@@ -59,8 +61,10 @@ def _status_text(resp: dict[str, Any]) -> str:
         std = u.get("param_std") or {}
         if params and std:
             params += " (σ " + ", ".join(f"{k} {v:.4f}" for k, v in std.items()) + ")"
+        reason = u.get("reason")
         line = (
-            f"{name}: {u.get('state')}, reference {u.get('reference')}, {u.get('model')} "
+            f"{name}: {u.get('state')}{f' ({reason})' if reason else ''}, "
+            f"reference {u.get('reference')}, {u.get('model')} "
             f"{params or '(no calibration)'}, lag {fmt(u.get('lag_s'), '.2f')} s, "
             f"learning {'on' if u.get('learning_enabled') else 'off'}"
         )
@@ -72,16 +76,26 @@ def _status_text(resp: dict[str, Any]) -> str:
                 f"{u.get('scored_samples', '?')} samples{gain}"
             )
         lines.append(line)
+        held = u.get("unidentifiable") or []
+        if held:
+            why = u.get("identifiability") or "not determinable from the data so far"
+            lines.append(f"  holding {', '.join(str(h) for h in held)}: {why}")
+        inputs = u.get("inputs")
+        if isinstance(inputs, dict) and inputs:
+            lines.append(f"  inputs: {_inputs_line(inputs)}")
         heading = u.get("heading")
         if isinstance(heading, dict):
-            lines.append(f"  {_heading_line(heading)}; {u.get('reason') or 'learning'}")
+            lines.append(f"  {_heading_line(heading)}")
     for name, p in (status.get("ports") or {}).items():
         rejects = p.get("rejects") or {}
         total = sum(rejects.values())
         reasons = ", ".join(f"{k} {v}" for k, v in rejects.items() if v)
+        state = p.get("state") or ("stale" if p.get("stale") else "")
+        if state == "not open":
+            state += f" ({p.get('why_closed') or 'unknown reason'})"
         lines.append(
-            f"port {name}: {p.get('records')} records, {total} rejects"
-            f"{f' ({reasons})' if reasons else ''}{', STALE' if p.get('stale') else ''}"
+            f"port {name}: {f'{state}, ' if state else ''}{p.get('records')} records, "
+            f"{total} rejects{f' ({reasons})' if reasons else ''}"
         )
     if resp.get("state_file"):
         errors = resp.get("state_errors")
@@ -90,6 +104,27 @@ def _status_text(resp: dict[str, Any]) -> str:
             + (f", {errors} errors" if errors else "")
         )
     return "".join(line + "\n" for line in lines)
+
+
+def _inputs_line(inputs: dict[str, Any]) -> str:
+    """The freshness of a UUT's reading, reference and heading as the UUT sees them."""
+    parts = []
+    for role in ("reading", "reference", "heading"):
+        i = inputs.get(role)
+        if not isinstance(i, dict):
+            continue
+        if i.get("port") is None:
+            parts.append(f"{role} no port yet")
+            continue
+        age = i.get("age_s")
+        text = f"{role} {i['port']} " + ("never heard" if age is None else f"{age:.1f} s ago")
+        if i.get("stale"):
+            text += " STALE"
+        used = i.get("used_age_s")
+        if role == "reference" and isinstance(used, int | float):
+            text += f" (last used {used:.1f} s ago)"
+        parts.append(text)
+    return ", ".join(parts)
 
 
 def _heading_line(h: dict[str, Any]) -> str:
@@ -116,13 +151,25 @@ def _change_text(command: str, resp: dict[str, Any]) -> str:
     if not names:
         return "no UUT changed\n"
     if command == "freeze":
-        return f"{names}: frozen (learning off)\n"
+        states = resp.get("states")
+        if not isinstance(states, dict):
+            return f"{names}: learning off\n"
+        return "".join(f"{n}: {_freeze_text(states.get(n))}\n" for n in uuts or [])
     if command == "learn":
         return f"{names}: learning {'on' if resp.get('learning') else 'off'}\n"
     reset = resp.get("reset")
     if not isinstance(reset, dict):
         return f"{names}: calibration forgotten (uncalibrated until learnt again)\n"
     return "".join(f"{name}: {_reset_text(r)}\n" for name, r in reset.items())
+
+
+def _freeze_text(state: object) -> str:
+    """What a UUT is left doing by ``freeze``, from the state it is left in."""
+    if state == "frozen":
+        return "frozen (learning off, the calibration applied)"
+    if state == "uncalibrated":
+        return "learning off; no calibration to apply (raw readings pass through)"
+    return f"learning off; {state}"
 
 
 def _reset_text(r: Any) -> str:

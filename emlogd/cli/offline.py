@@ -13,6 +13,7 @@ from datetime import date
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from calib.metrics import ImoVerdict
 from calib.models import MODEL_NAMES
 from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.cli.common import (
@@ -144,14 +145,23 @@ def _score_rec(truth: Truth | None, port: str, rec: Recording, params: Params) -
     return score_truth(truth, port, rec.t_read, rec.raw, correct_array(params, rec.raw))
 
 
+def imo_cell(v: ImoVerdict | None) -> str:
+    """An IMO A.824(19) verdict in a few characters: ``97.5 % meets``, ``61.0 % fails``."""
+    if v is None or v.n == 0:
+        return "-"
+    return f"{100.0 * v.fraction:.1f} % {'meets' if v.meets else 'fails'}"
+
+
 def _truth_cells(score: TruthScore | None) -> list[str]:
-    """RMSE against the truth: raw, calibrated or corrected, the floor (m/s)."""
+    """Against the truth: RMSE raw, calibrated or corrected, the floor (m/s); IMO raw, cal."""
     if score is None:
         return []
     return [
         fmt(score.rmse_raw, ".4f"),
         fmt(score.rmse_corrected, ".4f"),
         fmt(score.rmse_floor, ".4f"),
+        imo_cell(score.imo_raw),
+        imo_cell(score.imo_corrected),
     ]
 
 
@@ -459,6 +469,8 @@ def _calibration_text(res: CalibrationResult) -> str:
         f"RMSE raw     {fmt(res.rmse_raw, '.4f')} m/s",
         f"RMSE cal     {fmt(res.rmse_cal, '.4f')} m/s",
         f"improvement  {fmt(res.improvement_pct, '.1f')} %",
+        f"IMO A.824    raw {imo_cell(res.imo_raw)}, cal {imo_cell(res.imo_cal)} "
+        "(within max(2 % of the speed, 0.2 kn); meets: ≥ 95 % of the samples)",
     ]
     if res.nis_mean is not None:
         out.append(
@@ -568,8 +580,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     )
     sys.stdout.write(
         render(
-            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %"]
-            + (["truth: raw", "cal", "floor"] if truth is not None else []),
+            ["capture", "samples", "RMSE raw", "RMSE cal", "improv. %", "IMO raw", "IMO cal"]
+            + (["truth: raw", "cal", "floor", "IMO raw", "IMO cal"] if truth is not None else []),
             [
                 [
                     r.capture,
@@ -577,6 +589,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                     fmt(r.rmse_raw, ".4f"),
                     fmt(r.rmse_cal, ".4f"),
                     fmt(r.improvement_pct, ".1f"),
+                    imo_cell(r.imo_raw),
+                    imo_cell(r.imo_cal),
                     *_truth_cells(sc),
                 ]
                 for r, sc in zip(rows, scores, strict=True)
@@ -780,7 +794,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
     out.write(
         render(
             ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"]
-            + (["truth: raw", "corr.", "floor"] if truth is not None else []),
+            + (
+                ["truth: raw", "corr.", "floor", "IMO raw", "IMO corr."]
+                if truth is not None
+                else []
+            ),
             rows,
             left=3,
         )

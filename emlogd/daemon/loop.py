@@ -677,6 +677,30 @@ class Daemon:
         )
         self._notify_status()
 
+    def _status(self, uut: str | None) -> dict[str, object]:
+        """The pipeline's status with each port's ``open`` (and ``why_closed``) from its
+        source and ``state``: ``not open``, ``stale`` or ``open``; a port not open is stale
+        (no data can come). With ``uut``: that UUT and the ports it reads only."""
+        assert self.pipeline is not None
+        status = self.pipeline.status()
+        ports = status["ports"]
+        assert isinstance(ports, dict)
+        for name, port in ports.items():
+            src = self.sources.get(name)
+            opened = src is not None and src.is_open
+            port["open"] = opened
+            port["why_closed"] = None if opened else (src.why_closed if src else "no source")
+            port["stale"] = bool(port.get("stale")) or not opened
+            port["state"] = "not open" if not opened else "stale" if port["stale"] else "open"
+        if uut is not None:
+            route = self.pipeline.uuts[uut]
+            mine = {route.s.port, route.s.reference_port, route.heading_port}
+            uuts = status["uuts"]
+            assert isinstance(uuts, dict)
+            status["uuts"] = {uut: uuts[uut]}
+            status["ports"] = {n: v for n, v in ports.items() if n in mine}
+        return status
+
     def _outputs_status(self) -> dict[str, dict[str, object]]:
         """Per output: its counters and ``state`` (``open``, or why not)."""
         return {s.name: {**s.counters.as_dict(), "state": s.state} for s in self.sinks.values()}
@@ -696,7 +720,7 @@ class Daemon:
         p = port if isinstance(port, str) else None
         if cmd == "status":
             return {
-                "status": self.pipeline.status(),
+                "status": self._status(p),
                 "outputs": self._outputs_status(),
                 "state_file": str(self.store.path) if self.store else None,
                 "state_errors": self.state_errors,
@@ -711,7 +735,8 @@ class Daemon:
                     f"learning stopped for {', '.join(done)}, but the calibration "
                     f"was not saved: {err}"
                 )
-            return {"uuts": done, "learning": False, "persisted": True}
+            states = {n: self.pipeline.uuts[n].cal.state for n in done}
+            return {"uuts": done, "learning": False, "persisted": True, "states": states}
         if cmd == "learn":
             on = req.get("on", True)
             if not isinstance(on, bool):

@@ -42,7 +42,14 @@ from calib.lag import (
     estimate_lag,
 )
 from calib.lsq import block_average, fit_ls
-from calib.metrics import CURRENT_WINDOW_S, improvement_pct, nis_stats, water_scores
+from calib.metrics import (
+    CURRENT_WINDOW_S,
+    ImoVerdict,
+    improvement_pct,
+    nis_stats,
+    water_imo,
+    water_scores,
+)
 from calib.models import FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
 from drivers.io.capture import REORDER_WINDOW_S
@@ -236,6 +243,10 @@ class CalibrationResult:
     the model needs one."""
     noise_scale: float | None = None
     """``kf``: the factor the filter found on the configured noises (1: as configured)."""
+    imo_raw: ImoVerdict | None = None
+    """The IMO A.824(19) verdict of the raw reading (:func:`calib.metrics.water_imo`)."""
+    imo_cal: ImoVerdict | None = None
+    """The IMO A.824(19) verdict of the calibrated reading."""
 
     @property
     def improvement_pct(self) -> float:
@@ -292,6 +303,7 @@ class CalibrationResult:
             "rmse_raw": _fin(self.rmse_raw),
             "rmse_cal": _fin(self.rmse_cal),
             "improvement_pct": _fin(self.improvement_pct),
+            "imo": imo_doc(self.imo_raw, self.imo_cal),
             "identifiable": self.identifiable,
             "unidentifiable": list(self.ident.unidentifiable),
             "verdicts": {v.unknown: v.reason for v in self.ident.verdicts if not v.determined},
@@ -309,6 +321,14 @@ class CalibrationResult:
             "captures": list(self.captures),
             "heading": self.heading,
         }
+
+
+def imo_doc(raw: ImoVerdict | None, cal: ImoVerdict | None) -> dict[str, object] | None:
+    """The IMO A.824(19) verdicts as JSON: ``{"raw": {...}, "cal": {...}}`` with each
+    :meth:`calib.metrics.ImoVerdict.as_dict` (None when not scored)."""
+    if raw is None or cal is None:
+        return None
+    return {"raw": raw.as_dict(), "cal": cal.as_dict()}
 
 
 def _current_doc(
@@ -493,6 +513,7 @@ def calibrate(
             nis_mean, nis_frac = stats.mean, stats.frac_inside
     corrected = correct_array(params, raw)
     rmse_raw, rmse_cal = water_scores(t, ref, raw, corrected, hd, params)
+    imo_raw, imo_cal = water_imo(t, ref, raw, corrected, hd, params)
     return CalibrationResult(
         captures=tuple(r.path for r in recs),
         settings=settings,
@@ -511,6 +532,8 @@ def calibrate(
         average_s=window,
         heading={r.path: r.heading_info for r in recs} if needs_heading(settings) else {},
         noise_scale=noise_scale,
+        imo_raw=imo_raw,
+        imo_cal=imo_cal,
     )
 
 
@@ -615,6 +638,10 @@ class EvaluationRow:
     n_samples: int
     rmse_raw: float
     rmse_cal: float
+    imo_raw: ImoVerdict | None = None
+    """The IMO A.824(19) verdict of the raw reading (None: no sample)."""
+    imo_cal: ImoVerdict | None = None
+    """The IMO A.824(19) verdict of the calibrated reading."""
 
     @property
     def improvement_pct(self) -> float:
@@ -629,13 +656,15 @@ class EvaluationRow:
             "rmse_raw": _fin(self.rmse_raw),
             "rmse_cal": _fin(self.rmse_cal),
             "improvement_pct": _fin(self.improvement_pct),
+            "imo": imo_doc(self.imo_raw, self.imo_cal),
         }
 
 
 def evaluate(
     recs: Sequence[Recording], params: Params, settings: UutSettings, lag_s: float
 ) -> list[EvaluationRow]:
-    """RMSE raw and calibrated per capture, with frozen ``params``.
+    """RMSE raw and calibrated per capture, with frozen ``params``, and the IMO
+    A.824(19) verdicts against the same water speed.
 
     With current states the comparison is in the water frame
     (:func:`calib.metrics.water_scores`: the current of each window of the capture, for
@@ -652,7 +681,8 @@ def evaluate(
         cal = correct_array(params, raw)
         hd = pair.heading[ok] if settings.current else None
         rmse_raw, rmse_cal = water_scores(pair.t[ok], ref, raw, cal, hd, params)
-        rows.append(EvaluationRow(r.path, int(raw.size), rmse_raw, rmse_cal))
+        imo_raw, imo_cal = water_imo(pair.t[ok], ref, raw, cal, hd, params)
+        rows.append(EvaluationRow(r.path, int(raw.size), rmse_raw, rmse_cal, imo_raw, imo_cal))
     return rows
 
 

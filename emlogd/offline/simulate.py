@@ -63,6 +63,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from calib.metrics import ImoVerdict, imo_verdict
 from calib.models import FloatArray, Params, check_model, correct_array, forward_array
 from drivers.errors import EmlogdError
 from drivers.io.capture import CaptureWriter
@@ -1011,6 +1012,10 @@ class TruthScore:
     rmse_raw: float
     rmse_corrected: float
     rmse_floor: float
+    imo_raw: ImoVerdict | None = None
+    """The raw readings' IMO A.824(19) verdict against the truth."""
+    imo_corrected: ImoVerdict | None = None
+    """The corrected speeds' IMO A.824(19) verdict against the truth."""
 
     def to_dict(self) -> dict[str, object]:
         """Stable JSON keys (README: ``evaluate --json`` and ``replay --json``)."""
@@ -1023,6 +1028,9 @@ class TruthScore:
             "rmse_raw": fin(self.rmse_raw),
             "rmse_corrected": fin(self.rmse_corrected),
             "rmse_floor": fin(self.rmse_floor),
+            "imo": None
+            if self.imo_raw is None or self.imo_corrected is None
+            else {"raw": self.imo_raw.as_dict(), "corrected": self.imo_corrected.as_dict()},
         }
 
 
@@ -1046,5 +1054,10 @@ def score_truth(
     ok = np.isfinite(stw) & np.isfinite(r) & np.isfinite(c)
     floor = correct_array(params, r[ok])
     return TruthScore(
-        int(ok.sum()), _rmse(r[ok], stw[ok]), _rmse(c[ok], stw[ok]), _rmse(floor, stw[ok])
+        int(ok.sum()),
+        _rmse(r[ok], stw[ok]),
+        _rmse(c[ok], stw[ok]),
+        _rmse(floor, stw[ok]),
+        imo_verdict(stw[ok], r[ok]),
+        imo_verdict(stw[ok], c[ok]),
     )

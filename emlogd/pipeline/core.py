@@ -568,7 +568,10 @@ class Pipeline:
         """A JSON-ready status: per-port counters and per-UUT calibration state."""
         return {
             "ports": self.port_status(),
-            "uuts": {name: st.uut_status(u, self.headings) for name, u in self.uuts.items()},
+            "uuts": {
+                name: st.uut_status(u, self.headings, self.liveness, self.now)
+                for name, u in self.uuts.items()
+            },
             "fused": st.fused_status(self.fusion.last if self.fusion is not None else None),
         }
 

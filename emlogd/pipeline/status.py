@@ -16,7 +16,7 @@ from drivers.base import Decoder
 from emlogd.pipeline.fusion import Fused
 from emlogd.pipeline.routing import Headings, UutRoute
 from emlogd.pipeline.sentences import StatusFields
-from emlogd.pipeline.staleness import Liveness
+from emlogd.pipeline.staleness import Liveness, silent
 
 
 def status_fields(u: UutRoute) -> StatusFields:
@@ -107,8 +107,57 @@ def heading_status(u: UutRoute, headings: Headings) -> dict[str, object]:
     }
 
 
-def uut_status(u: UutRoute, headings: Headings) -> dict[str, object]:
-    """A UUT's JSON-ready status (README: the ``emlogd status --json`` keys)."""
+def _age(last: float | None, now: float) -> float | None:
+    if last is None or not math.isfinite(last) or not math.isfinite(now):
+        return None
+    return round(max(now - last, 0.0), 1)
+
+
+def reference_state(u: UutRoute, now: float) -> str:
+    """The reference's state as the log sees it at ``now``: the learner's (set when a
+    reading is aligned), but ``stale`` once no reference has reached the log for its stale
+    time — with the log's own readings stopped too, nothing else would say so."""
+    learner = u.cal.learner
+    state: str = learner.ref_state
+    if state in ("none", "stale"):
+        return state
+    gap = max(learner.s.ref_stale_s, learner.ref.gap_s)
+    return "stale" if silent(learner.t_ref_last, now, gap) else state
+
+
+def input_freshness(
+    u: UutRoute, liveness: Liveness | None, now: float
+) -> dict[str, dict[str, object]]:
+    """How fresh the log's inputs are at ``now``: for its reading, its reference and its
+    heading, the port, the seconds since the port was last heard (None: never) and
+    whether it is stale; for the reference also the seconds since one reached the log."""
+    ports = {
+        "reading": u.s.port,
+        "reference": u.s.reference_port,
+        "heading": u.heading_port,
+    }
+    out: dict[str, dict[str, object]] = {}
+    for role, port in ports.items():
+        last = liveness.last.get(port) if liveness is not None and port is not None else None
+        out[role] = {
+            "port": port,
+            "age_s": _age(last, now),
+            "stale": bool(liveness.stale.get(port, False))
+            if liveness is not None and port is not None
+            else False,
+        }
+    out["reference"]["used_age_s"] = _age(u.cal.learner.t_ref_last, now)
+    return out
+
+
+def uut_status(
+    u: UutRoute,
+    headings: Headings,
+    liveness: Liveness | None = None,
+    now: float = math.nan,
+) -> dict[str, object]:
+    """A UUT's JSON-ready status (README: the ``emlogd status --json`` keys) at ``now``
+    (the pipeline's latest time; nan: the reference's state as the learner left it)."""
     cal = u.cal
     kf = cal.kf
     ident = cal.ident
@@ -117,7 +166,8 @@ def uut_status(u: UutRoute, headings: Headings) -> dict[str, object]:
     return {
         "state": cal.state,
         "reason": heading_reason(u, headings) or cal.reason,
-        "reference": cal.ref_state,
+        "reference": reference_state(u, now) if math.isfinite(now) else cal.ref_state,
+        "inputs": input_freshness(u, liveness, now),
         "heading_port": u.heading_port,
         "heading": heading_status(u, headings),
         "heading_suspect": u.heading_check.reason(),

@@ -9,12 +9,16 @@ import pytest
 
 from calib.errors import DataError
 from calib.metrics import (
+    IMO_MIN_ERROR_MPS,
     chi2_1_quantile,
     chi2_mean_bounds,
     correlation_factor,
+    imo_bound_mps,
+    imo_verdict,
     improvement_pct,
     nis_stats,
     rmse,
+    water_imo,
     water_rmse,
     water_scores,
     water_target,
@@ -141,3 +145,80 @@ class TestWaterFrameAndCorrelation:
         _, r_const = water_scores(t, ref, raw, cor, hd, truth, window_s=1e9)
         assert r_const > 5.0 * r_cal
         assert water_scores(t, ref, raw, cor, None, truth) == (rmse(ref, raw), rmse(ref, cor))
+        # the IMO verdict scores against the same water speed: the corrected reading meets
+        # it, the raw one (5 % scale) does not; against the reference (the current left
+        # in) the corrected one would not either
+        v_raw, v_cor = water_imo(t, ref, raw, cor, hd, truth)
+        assert v_cor.meets and v_cor.fraction > 0.99 and v_cor.n == n
+        assert not v_raw.meets
+        assert not imo_verdict(ref, cor).meets
+        assert water_imo(t, ref, raw, cor, None, truth) == (
+            imo_verdict(ref, raw),
+            imo_verdict(ref, cor),
+        )
+
+
+class TestImoVerdict:
+    """IMO A.824(19): error ≤ max(2 % of the speed, 0.2 kn); meets with ≥ 95 % within."""
+
+    KN = 1852.0 / 3600.0
+
+    def test_bound_crosses_over_at_10_kn(self) -> None:
+        """0.2 kn below 10 kn, 2 % above, both 0.2 kn at 10 kn."""
+        kn = self.KN
+        bound = imo_bound_mps(np.array([0.0, 5.0, 10.0, 20.0]) * kn) / kn
+        assert bound == pytest.approx([0.2, 0.2, 0.2, 0.4])
+
+    @pytest.mark.parametrize("speed_kn", [4.0, 10.0, 20.0])
+    def test_at_inside_and_outside_the_bound(self, speed_kn: float) -> None:
+        """An error of exactly the bound is within; 1 % less is within; 1 % more is not."""
+        kn = self.KN
+        b_kn = max(0.02 * speed_kn, 0.2)
+        ref = np.full(3, speed_kn * kn)
+        for factor, inside in ((1.0, True), (0.99, True), (1.01, False)):
+            for sign in (1.0, -1.0):
+                est = ref + sign * factor * b_kn * kn
+                v = imo_verdict(ref, est)
+                assert v.n == 3
+                assert v.within == (3 if inside else 0), (speed_kn, factor, sign)
+                assert v.meets is inside
+
+    def test_exactly_at_the_bound_is_within(self) -> None:
+        """Errors equal to the bound to the last bit: 0.2 kn at rest, 2 % of 50 m/s."""
+        assert imo_verdict([0.0], [IMO_MIN_ERROR_MPS]).meets
+        assert imo_verdict([50.0], [49.0]).meets
+        assert not imo_verdict([50.0], [48.99]).meets
+
+    def test_at_20_kn_0_3_kn_is_within_but_not_at_5_kn(self) -> None:
+        """The bound scales with the speed above 10 kn only."""
+        kn = self.KN
+        assert imo_verdict([20.0 * kn], [20.3 * kn]).meets
+        assert not imo_verdict([5.0 * kn], [5.3 * kn]).meets
+
+    def test_meets_needs_95_percent(self) -> None:
+        """19 of 20 within meets (95 %); 18 of 20 does not; nan pairs are left out."""
+        kn = self.KN
+        ref = np.full(22, 8.0 * kn)
+        est = ref.copy()
+        est[0] += 1.0 * kn
+        est[20] = math.nan
+        ref[21] = math.nan
+        v = imo_verdict(ref, est)
+        assert (v.n, v.within, v.meets) == (20, 19, True)
+        assert v.fraction == pytest.approx(0.95)
+        est[1] -= 1.0 * kn
+        v = imo_verdict(ref, est)
+        assert (v.within, v.meets) == (18, False)
+        assert v.as_dict() == {"n": 20, "within": 18, "fraction": 0.9, "meets": False}
+
+    def test_no_samples_does_not_meet(self) -> None:
+        """Without a finite pair: n 0, fraction None in JSON, not met."""
+        v = imo_verdict([math.nan], [1.0])
+        assert (v.n, v.meets, v.as_dict()["fraction"]) == (0, False, None)
+
+    def test_bad_input_raises_data_error(self) -> None:
+        """Different shapes or a fraction outside [0, 1]."""
+        with pytest.raises(DataError):
+            imo_verdict([1.0, 2.0], [1.0])
+        with pytest.raises(DataError):
+            imo_verdict([1.0], [1.0], meets_fraction=1.5)

@@ -134,3 +134,33 @@ def test_the_whole_suite_per_recording(name: str, tmp_path: Path) -> None:
         k = rd.effective_scale(row.ls, s["median_speed"])
         assert k is not None and math.isfinite(k)
         assert abs(k - row.ref_k) < SCALE_TOLERANCE
+
+
+def test_the_replay_table_has_the_imo_verdict() -> None:
+    """The scores table gives the IMO A.824(19) verdict, emitted and raw, from the scores'
+    fractions (a recording without scores shows a dash)."""
+    rd = _script()
+    scores = {
+        "n": 100.0,
+        "rmse_raw": 0.2,
+        "rmse_emitted": 0.1,
+        "worst_5min_ratio": 0.9,
+        "median_speed": 2.0,
+        "imo_raw_fraction": 0.6,
+        "imo_raw_meets": 0.0,
+        "imo_emitted_fraction": 0.96,
+        "imo_emitted_meets": 1.0,
+    }
+    rows = [
+        rd.Row("a", "nmea", imported={"lines": 1, "written": 1}, scores=scores),
+        rd.Row("b", "nmea", imported={"lines": 1, "written": 1}),
+    ]
+    text = rd.markdown(rows)
+    assert "| IMO A.824 emitted / raw |" in text
+    lines = text.splitlines()
+    assert next(ln for ln in lines if ln.startswith("| a |") and "samples" in ln).endswith(
+        "| 96 % meets / 60 % fails |"
+    )
+    assert next(ln for ln in lines if ln.startswith("| b |") and "fails (below)" in ln).endswith(
+        "| — |"
+    )

@@ -89,7 +89,9 @@ def control_socket(
         if req["cmd"] == "status":
             return {"status": status, "state_file": "/var/lib/emlogd/state.yaml",
                     "state_errors": 0, "persists": 3}  # fmt: skip
-        if req["cmd"] in ("freeze", "learn"):
+        if req["cmd"] == "freeze":
+            return {"uuts": ["emlog1"], "learning": False, "states": {"emlog1": "frozen"}}
+        if req["cmd"] == "learn":
             return {"uuts": ["emlog1"], "learning": bool(req.get("on", False))}
         if req["cmd"] == "reset":
             return {
@@ -137,7 +139,7 @@ def test_control_commands_print_text_unless_json(
     assert main(["status", *sock, "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["status"]["uuts"]["emlog1"]["model"] == "EM3"
     for argv, text in (
-        (["freeze"], "emlog1: frozen (learning off)\n"),
+        (["freeze"], "emlog1: frozen (learning off, the calibration applied)\n"),
         (["learn", "on", "--uut", "emlog1"], "emlog1: learning on\n"),
         (["learn", "off"], "emlog1: learning off\n"),
         (
@@ -172,3 +174,48 @@ def test_run_with_stdout_output_logs_to_stderr(tmp_path: Path) -> None:
     assert b'"event": "ready"' in (tmp_path / "stderr.txt").read_bytes()
     out = (tmp_path / "stdout.txt").read_bytes()
     assert not [ln for ln in out.splitlines() if not ln.startswith(b"$")]
+
+
+def test_status_of_a_daemon_whose_devices_are_missing(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """The real daemon with no device behind its ports: status says why each log is
+    uncalibrated and that every port is not open (and why), never a quiet healthy count;
+    ``--uut`` leaves the other log and its port out of the text and the JSON; ``freeze`` of
+    an uncalibrated log says there is no calibration to apply."""
+    from emlogd.launch import DaemonProcess
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "ports:\n  - {name: log, url: missing/log, protocol: nmea0183, role: uut}\n"
+        "  - {name: log2, url: missing/log2, protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: missing/dvl, protocol: pd6, role: reference}\n"
+        "calibration:\n  - {uut: log, reference: dvl}\n  - {uut: log2, reference: dvl, talker: VM}\n"
+        "outputs: {pty: null}\n"
+        "state_file: state.yaml\ncontrol_socket: control.sock\nlog_format: json\n"
+    )
+    sock = ["--socket", str(tmp_path / "control.sock")]
+    with DaemonProcess(
+        cfg, socket="control.sock", log="out.txt", err_log="err.txt", cwd=tmp_path
+    ) as d:
+        assert main(["status", *sock]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        assert main(["status", "--uut", "log", *sock]) == 0
+        one = capsys.readouterr().out
+        assert main(["status", "--uut", "log", "--json", *sock]) == 0
+        doc = json.loads(capsys.readouterr().out)["status"]
+        assert main(["freeze", "--uut", "log", *sock]) == 0
+        frozen = capsys.readouterr().out
+        assert d.stop() == 0
+    log_line = next(line for line in lines if line.startswith("log: "))
+    assert log_line.startswith("log: uncalibrated (") and "reference none" in log_line
+    for port in ("log", "log2", "dvl"):
+        line = next(line for line in lines if line.startswith(f"port {port}: "))
+        assert line.startswith(f"port {port}: not open (cannot open "), line
+        assert f"missing/{port}" in line and "No such file" in line, line
+    assert "log2" not in one and "port log: not open" in one and "port dvl: not open" in one
+    assert set(doc["uuts"]) == {"log"} and set(doc["ports"]) == {"log", "dvl"}
+    dvl = doc["ports"]["dvl"]
+    assert (dvl["open"], dvl["stale"], dvl["state"]) == (False, True, "not open")
+    assert "reading" in doc["uuts"]["log"]["inputs"]
+    assert frozen == "log: learning off; no calibration to apply (raw readings pass through)\n"

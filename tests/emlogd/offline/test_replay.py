@@ -95,7 +95,7 @@ def test_truth_scores_emitted_speeds(trial: SimulationResult, trial_files: dict[
     uuts = res.to_dict()["uuts"]
     for name in ("emlog1", "emlog2"):
         t = uuts[name]["truth"]  # type: ignore[index]
-        assert set(t) == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor"}
+        assert set(t) == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor", "imo"}
         assert 0 < t["n_samples"] <= trial.trajectories[0].lines[name]
         assert t["rmse_floor"] == pytest.approx(trial.trajectories[0].rmse_floor_mps[name], rel=0.1)
         assert t["rmse_corrected"] < 0.6 * t["rmse_raw"]

@@ -255,7 +255,7 @@ def test_truth_scores_and_floor(trial: SimulationResult) -> None:
     assert s.rmse_floor == pytest.approx(trial.trajectories[2].rmse_floor_mps["emlog1"], rel=0.05)
     assert 0.02 < s.rmse_floor < 0.035  # 0.03 m/s of noise through 1 + m = 1.17, quantised
     assert s.rmse_raw > 0.3
-    assert s.to_dict().keys() == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor"}
+    assert s.to_dict().keys() == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor", "imo"}
     with pytest.raises(TruthError, match="no EMlog 'dvl'"):
         score_truth(truth, "dvl", t, raw, raw)
 

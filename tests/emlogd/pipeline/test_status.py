@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from types import SimpleNamespace
+
+import pytest
+
 from calib.models import Params
+from calib.synth import WaterFrameSeries
 from drivers.nmea0183 import encode_vhw
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
@@ -46,3 +52,29 @@ def test_a_uut_shows_its_calibration_and_the_status_sentence_its_known_sigmas() 
     fields = status_fields(u)
     assert fields.std == {"m": 0.01} and fields.params == {"m": 0.05, "b": 0.1}
     assert summary(p.uuts) == "log frozen EM3 m=+0.050 b=+0.100 ref stale"
+
+
+def test_after_the_devices_stop_the_reference_reads_stale_and_the_inputs_say_how_old(
+    kit: SimpleNamespace, segment: Callable[..., WaterFrameSeries]
+) -> None:
+    """While data flows the log's reference is valid and its inputs fresh; once every
+    device stops (only ticks), the log's reference reads stale — not ``valid`` beside a
+    stale port — and each input says how long it has been silent."""
+    s = kit.make_stream(segment("figure-8", 30.0, Params("EM3")))
+    p = kit.pipeline(lag_s=0.0)
+    kit.run(p, s.items)
+    live = p.status()["uuts"]
+    assert isinstance(live, dict)
+    assert live["log"]["reference"] == "valid"
+    assert live["log"]["inputs"]["reference"]["stale"] is False
+    t_end = s.items[-1][0]
+    p.tick(t_end + 60.0)
+    doc = p.status()["uuts"]
+    assert isinstance(doc, dict)
+    log = doc["log"]
+    assert log["reference"] == "stale"
+    inputs = log["inputs"]
+    assert inputs["reference"]["port"] == "dvl" and inputs["reference"]["stale"] is True
+    assert inputs["reference"]["age_s"] == pytest.approx(60.0, abs=0.2)
+    assert inputs["reference"]["used_age_s"] >= 60.0
+    assert inputs["reading"]["port"] == "log" and inputs["reading"]["stale"] is True
