@@ -132,10 +132,6 @@ class _Candidate:
     raw: float = 0.0
     cand: float = 0.0
     applied: float = 0.0
-    ground_raw: float = 0.0
-    ground_cand: float = 0.0
-    """Squared errors against the reference as it is (no current taken out), for raw and
-    for the candidate: the same unknown current in both."""
     n: int = 0
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`SeaMemory.current`), once fitted."""
@@ -332,10 +328,7 @@ class Supervisor:
             if cand.beta is None and self.water:
                 cand.beta = self.memory.current(cand.params, t)
             beta = cand.beta or (0.0, 0.0)
-            d_c = self._error(raw, ref, cand.params)
-            e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
-            cand.ground_raw += d_raw * d_raw
-            cand.ground_cand += d_c * d_c
+            e_c = self._error(raw, ref, cand.params) - (beta[0] * hc[0] + beta[1] * hc[1])
             cand.raw += e_raw * e_raw
             cand.applied += e_app * e_app
             cand.cand += e_c * e_c
@@ -470,23 +463,6 @@ class Supervisor:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
             good = not r_cand > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
-        if not good and cand.kind != "new" and cand.ground_cand < cand.ground_raw:
-            # Validated before, and nearer the reference than raw under the same current,
-            # yet worse once each is given a current of its own: the window cannot tell
-            # the current from an offset (a straight leg, where raw's own current takes
-            # raw's offset). Not evidence against it: it is applied (or stays applied)
-            # and verified again in place, with the change detector and the re-check on.
-            detail["ambiguous"] = True
-            if cand.kind != "verify":
-                self._emit(t, "calibration_unverified", detail)
-                self._apply(t, cand.params, cand.std or {})
-                self.unverified = True
-                self.note = (
-                    "calibration applied unverified: the data cannot yet tell the current "
-                    "from an offset"
-                )
-            self.candidate = _Candidate(cand.params, math.nan, "verify", cand.std)
-            return
         if cand.kind == "verify":
             if good:
                 self.unverified = False
