@@ -41,7 +41,9 @@ Rules (the constants are this module's):
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again.
 - **Restored** (state file, warm start): validated before it is applied (over
-  :data:`RESTORE_VALIDATION_S`, not worse than raw), raw passing through meanwhile; when no reference has been heard
+  :data:`RESTORE_VALIDATION_S`, not worse than raw; in the sea it was saved in, when it
+  was saved with a current :data:`RESTORE_SEA_MAX_AGE_S` or less before), raw passing
+  through meanwhile; when no reference has been heard
   :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
   status) and validated in place once a reference arrives.
 """
@@ -104,6 +106,14 @@ s (or ``validation_s`` when that is shorter), against ``validation_s`` for a new
 only not be worse than raw (:data:`WORSE_FACTOR`). The change detector and the
 re-check watch it from then on."""
 
+RESTORE_SEA_MAX_AGE_S = 3600.0
+"""A restored calibration saved with a determined current is re-validated in the sea it
+was saved in (raw and it against the reference less that current) when it was saved at
+most this long before the first reading, s; older, each is given a current of its own
+like any candidate. On a straight leg a current of raw's own takes raw's offset, so
+only a known sea can tell a good restored calibration from raw there; within an hour a
+tidal current changes by a fraction of itself."""
+
 RESTORE_WAIT_S = 10.0
 """A restored calibration is applied unverified when no reference has been heard this
 long after the first reading, s."""
@@ -132,6 +142,11 @@ class _Candidate:
     raw: float = 0.0
     cand: float = 0.0
     applied: float = 0.0
+    sea_raw: float = 0.0
+    sea_cand: float = 0.0
+    """Squared errors of raw and of it against the reference less the saved current (a
+    restored calibration saved with one, :data:`RESTORE_SEA_MAX_AGE_S`)."""
+    n_sea: int = 0
     n: int = 0
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`SeaMemory.current`), once fitted."""
@@ -147,6 +162,7 @@ class Supervisor:
         restored_std: its standard deviations.
         emit: called as ``emit(t, kind, detail)`` for every decision worth a log line.
         counters: the UUT's counters (shared with its learner).
+        restored_sea: the restored calibration's saved current and its time, if any.
     """
 
     def __init__(
@@ -157,8 +173,12 @@ class Supervisor:
         restored_std: Mapping[str, float | None],
         emit: Callable[[float, str, Mapping[str, object]], None],
         counters: Counters,
+        restored_sea: tuple[float, float, float] | None = None,
     ) -> None:
         self.s = s
+        self.restored_sea = restored_sea
+        """The restored calibration's saved current (north, east, m/s) and when it was
+        saved (s), or None: the sea it re-validates in (:data:`RESTORE_SEA_MAX_AGE_S`)."""
         self.layout = layout
         self._emit = emit
         self.counters = counters
@@ -254,6 +274,9 @@ class Supervisor:
         """
         if self.t_first is None:
             self.t_first = t
+            sea = self.restored_sea
+            if sea is not None and not 0.0 <= t - sea[2] <= RESTORE_SEA_MAX_AGE_S:
+                self.restored_sea = None
         if reference_heard:
             self.heard_reference = True
             return
@@ -329,6 +352,13 @@ class Supervisor:
                 cand.beta = self.memory.current(cand.params, t)
             beta = cand.beta or (0.0, 0.0)
             e_c = self._error(raw, ref, cand.params) - (beta[0] * hc[0] + beta[1] * hc[1])
+            sea = self.restored_sea
+            if cand.kind == "restored" and sea is not None and cs is not None:
+                c_h = sea[0] * cs[0] + sea[1] * cs[1]
+                d_c = self._error(raw, ref, cand.params)
+                cand.sea_raw += (d_raw + c_h) ** 2
+                cand.sea_cand += (d_c + c_h) ** 2
+                cand.n_sea += 1
             cand.raw += e_raw * e_raw
             cand.applied += e_app * e_app
             cand.cand += e_c * e_c
@@ -459,6 +489,12 @@ class Supervisor:
         }
         if cand.kind == "new":
             good = r_cand < r_raw and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+        elif cand.kind == "restored" and cand.n_sea == n:
+            # in the sea it was saved in: raw and it against the same current
+            s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
+            detail["rmse_raw_saved_sea"] = round(s_raw, 4)
+            detail["rmse_candidate_saved_sea"] = round(s_cand, 4)
+            good = not s_cand > s_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
         else:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)

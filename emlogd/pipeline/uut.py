@@ -103,6 +103,11 @@ class UutCalibration:
             usable.param_std if usable is not None else {},
             self._emit,
             self.counters,
+            restored_sea=(
+                (*usable.current_mps, usable.t)
+                if usable is not None and usable.current and usable.current_mps is not None
+                else None
+            ),
         )
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
         self.state: CalState = "uncalibrated"

@@ -318,6 +318,33 @@ class TestRestored:
         raw = [TRUE.forward(v) for v in truth]
         assert all(o == pytest.approx(r) for o, r in zip(outs, raw, strict=True))
 
+    def test_on_a_straight_leg_it_is_judged_in_the_sea_it_was_saved_in(self) -> None:
+        """A log reading 15 % low, restored with the current it was saved with (0.3 m/s
+        on the bow), on a straight leg at constant speed in that current: against the
+        reference as it is, raw's error happens to offset the current and raw wins; in
+        the saved sea the calibration is the better and it is applied. A poisoned one
+        (m = -0.5, b = +1) is still refused in the same sea."""
+        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
+
+        low = Params("EM3", m=-0.15, b_mps=0.1)
+        rng = np.random.default_rng(7)
+
+        def rig_for(p: Params) -> Rig:
+            prior = Calibration(
+                "log", p, {"m": 0.01, "b": 0.01}, 0.0, current=True, current_mps=(-0.3, 0.0)
+            )
+            rig = Rig(prior, heading=0.0, current=True, learn=False)
+            rig.run(
+                RESTORE_VALIDATION_S + 30.0,
+                raw=lambda t, v: low.forward(2.0) + float(rng.normal(0.0, 0.05)),
+                ref=lambda t, v: 2.0 - 0.3,
+            )
+            return rig
+
+        assert _applied(rig_for(low)) == low
+        bad = Params("EM3", m=-0.5, b_mps=1.0)
+        assert _applied(rig_for(bad)) is None
+
     def test_without_a_reference_it_is_applied_unverified(self) -> None:
         """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""
         from emlogd.pipeline.supervisor import RESTORE_WAIT_S
