@@ -75,6 +75,15 @@ def _status_text(resp: dict[str, Any]) -> str:
                 f"; RMSE raw {raw:.3f} -> corrected {cor:.3f} m/s over "
                 f"{u.get('scored_samples', '?')} samples{gain}"
             )
+        imo = u.get("imo")
+        if isinstance(imo, dict) and isinstance(imo.get("raw"), dict) and imo["raw"].get("n"):
+            cells = []
+            for key in ("raw", "corrected"):
+                v = imo[key]
+                cells.append(
+                    f"{key} {100.0 * float(v['fraction']):.1f} % {'meets' if v['meets'] else 'fails'}"
+                )
+            line += "; IMO A.824 (within 2 % or 0.2 kn) " + ", ".join(cells)
         lines.append(line)
         held = u.get("unidentifiable") or []
         if held:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from calib.metrics import IMO_BOUND_RTOL, IMO_MEETS_FRACTION, ImoVerdict, imo_bound_mps
+
 
 @dataclass
 class Counters:
@@ -39,17 +41,35 @@ class Counters:
 
 @dataclass(slots=True)
 class Score:
-    """Running sums of squared errors against the reference (replay's RMSE figures)."""
+    """Running sums of squared errors against the reference (replay's RMSE figures), and
+    the samples within the IMO A.824(19) bound (:func:`calib.metrics.imo_bound_mps`)."""
 
     n: int = 0
     ss_raw: float = 0.0
     ss_cor: float = 0.0
+    imo_n: int = 0
+    imo_raw: int = 0
+    imo_cor: int = 0
 
-    def add(self, err_raw: float, err_cor: float) -> None:
-        """One sample's errors (reading − reference), m/s."""
+    def add(self, err_raw: float, err_cor: float, ref_mps: float | None = None) -> None:
+        """One sample's errors (reading − reference), m/s; with the reference's speed the
+        sample counts towards the IMO verdict too."""
         self.n += 1
         self.ss_raw += err_raw * err_raw
         self.ss_cor += err_cor * err_cor
+        if ref_mps is not None and math.isfinite(ref_mps):
+            bound = float(imo_bound_mps(ref_mps)) * (1.0 + IMO_BOUND_RTOL)
+            self.imo_n += 1
+            self.imo_raw += abs(err_raw) <= bound
+            self.imo_cor += abs(err_cor) <= bound
+
+    def imo(self) -> tuple[ImoVerdict, ImoVerdict]:
+        """The IMO verdicts of the raw and of the emitted readings so far."""
+        n = self.imo_n
+        return (
+            ImoVerdict(n, self.imo_raw, bool(n) and self.imo_raw >= IMO_MEETS_FRACTION * n),
+            ImoVerdict(n, self.imo_cor, bool(n) and self.imo_cor >= IMO_MEETS_FRACTION * n),
+        )
 
     @property
     def rmse_raw(self) -> float | None:

@@ -200,6 +200,8 @@ def uut_status(
         "scored_samples": cal.score.n,
         "rmse_raw": cal.score.rmse_raw,
         "rmse_corrected": cal.score.rmse_corrected,
+        # IMO A.824(19) against the reference as the status's RMSE: raw and emitted
+        "imo": dict(zip(("raw", "corrected"), (v.as_dict() for v in cal.score.imo()), strict=True)),
     }
 
 

@@ -325,7 +325,7 @@ class Supervisor:
         d_app = self._error(raw, ref, self.applied)
         out = self.correct(raw)
         if out is not None:
-            self.score.add(raw - ref, out - ref)
+            self.score.add(raw - ref, out - ref, ref)
             if water:
                 self.score_water.add(raw + proj - ref, out + proj - ref)
         if self._detect(t, cs, d_app, d_raw):

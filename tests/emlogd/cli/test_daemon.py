@@ -219,3 +219,28 @@ def test_status_of_a_daemon_whose_devices_are_missing(
     assert (dvl["open"], dvl["stale"], dvl["state"]) == (False, True, "not open")
     assert "reading" in doc["uuts"]["log"]["inputs"]
     assert frozen == "log: learning off; no calibration to apply (raw readings pass through)\n"
+
+
+def test_status_text_shows_the_imo_verdict_raw_and_corrected() -> None:
+    """The status line of a log carries the IMO A.824 verdict of its raw and emitted
+    readings against the reference once it has scored samples (the status JSON's imo)."""
+    from emlogd.cli.daemon import _status_text
+    from emlogd.pipeline.counters import Score
+
+    score = Score()
+    for _ in range(20):
+        score.add(0.3, 0.02, 3.0)
+    raw, cor = score.imo()
+    u = {
+        "state": "frozen",
+        "reference": "valid",
+        "model": "EM3",
+        "rmse_raw": 0.3,
+        "rmse_corrected": 0.02,
+        "scored_samples": 20,
+        "imo": {"raw": raw.as_dict(), "corrected": cor.as_dict()},
+    }
+    text = _status_text({"status": {"uuts": {"log": u}, "ports": {}}})
+    assert "IMO A.824 (within 2 % or 0.2 kn) raw 0.0 % fails, corrected 100.0 % meets" in text
+    u["imo"] = {"raw": Score().imo()[0].as_dict(), "corrected": Score().imo()[1].as_dict()}
+    assert "IMO" not in _status_text({"status": {"uuts": {"log": u}, "ports": {}}})
