@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from drivers import EmlogdError
@@ -44,9 +45,19 @@ def cmd_check_config(args: argparse.Namespace) -> int:
 def _socket_path(args: argparse.Namespace) -> str:
     if args.socket:
         return str(args.socket)
-    from emlogd.config import load_config
+    from drivers.errors import ConfigError
+    from emlogd.config import DEFAULT_PATH, load_config
 
-    return load_config(config_path(args)).control_socket
+    path = config_path(args)
+    try:
+        return load_config(path).control_socket
+    except ConfigError as exc:
+        if getattr(args, "config", None) or Path(path).exists():
+            raise
+        raise ConfigError(
+            f"{exc}; name the daemon's config with --config FILE or its control socket "
+            f"with --socket PATH (the default config is {DEFAULT_PATH})"
+        ) from None
 
 
 def _status_text(resp: dict[str, Any]) -> str:

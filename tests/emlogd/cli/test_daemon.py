@@ -244,3 +244,18 @@ def test_status_text_shows_the_imo_verdict_raw_and_corrected() -> None:
     assert "IMO A.824 (within 2 % or 0.2 kn) raw 0.0 % fails, corrected 100.0 % meets" in text
     u["imo"] = {"raw": Score().imo()[0].as_dict(), "corrected": Score().imo()[1].as_dict()}
     assert "IMO" not in _status_text({"status": {"uuts": {"log": u}, "ports": {}}})
+
+
+def test_status_without_a_daemon_or_config_names_the_options(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """`emlogd status` with neither --config nor --socket, and no default config: one
+    error line that says how to name the daemon (--config or --socket)."""
+    from emlogd.cli import main
+    from emlogd.config import DEFAULT_PATH
+
+    if Path(DEFAULT_PATH).exists():
+        pytest.skip(f"{DEFAULT_PATH} exists on this machine")
+    assert main(["status"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--config FILE" in err and "--socket PATH" in err
