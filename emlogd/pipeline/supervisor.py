@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING, Literal, Protocol
 
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
-from emlogd.pipeline.evidence import CUSUM_H, Cusum, FitWindow, SeaMemory
+from emlogd.pipeline.evidence import Cusum, FitWindow, SeaMemory
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
 
 if TYPE_CHECKING:
@@ -95,10 +95,6 @@ against."""
 CUSUM_SIGMA_FLOOR_MPS = 0.02
 """The innovation's standard deviation is at least this, m/s (a window of quantised
 readings at one speed has almost no spread)."""
-
-CUSUM_BASELINE_FRACTION = 0.5
-"""While the CUSUM is past this fraction of its threshold, its samples stay out of the
-detector's baseline (a change is not absorbed by what it is judged against)."""
 
 RESTORE_VALIDATION_S = 20.0
 """A restored or withdrawn calibration (validated before) re-validates over this long,
@@ -412,11 +408,8 @@ class Supervisor:
         nu = e_app - pred
         cu = self.cusum
         alarm = cu.add(nu / sigma, nu, e_raw - pred)
-        if max(cu.hi, cu.lo) < CUSUM_BASELINE_FRACTION * CUSUM_H:
-            # the baseline learns only while no change is building up (a run past a
-            # fraction of the threshold); excluding every sample that moves the CUSUM at
-            # all would truncate the noise, shrink the spread and end in false alarms
-            w.add(t, cs, (e_app,))
+        if cu.hi == 0.0 and cu.lo == 0.0:
+            w.add(t, cs, (e_app,))  # the baseline learns only while nothing is building up
         if not alarm:
             return False
         n_app, n_raw = cu.ss_app, cu.ss_raw
