@@ -213,8 +213,8 @@ class TestBlockMeans:
         reason="the supervisor's change detector withdraws the applied calibration on this "
         "noisy reference (its baseline leaves out every sample that moves the CUSUM, which "
         "narrows the spread) and the relearnt scale drifts to m 0.22; a baseline that keeps "
-        "more samples cures it here but keeps worse calibrations applied on real logs "
-        "(worst 5-min window 1.92 against 1.14 raw-relative, docs/REAL_DATA.md)",
+        "more samples cures it here but kept worse calibrations applied on the real "
+        "recordings (worst 5-min window 1.92 times raw's against 1.14)",
     )
     def test_noisy_gnss_reference_gives_the_sensors_scale(self) -> None:
         """A reference with 0.3 m/s of noise: the scale is learnt from block means within
