@@ -19,7 +19,6 @@ from calib.twoaxis import (
     leeway_deg,
     water_velocity,
 )
-from calib.twoaxis_kf import kf_two_axis
 
 CURRENT_NE = (0.15, -0.1)
 TRUTH = TwoAxisParams(Params("EM3", m=-0.11, b_mps=-0.05), math.radians(3.0), -0.09, 0.04)
@@ -164,20 +163,3 @@ class TestLeastSquares:
         params = d["params"]
         assert isinstance(params, dict)
         assert set(params) == {"m", "b", "misalign_deg", "m_t", "b_t"}
-
-
-class TestKalman:
-    def test_kf_recovers_three_degrees_on_figure8(self) -> None:
-        """The filter, sample by sample: α within 0.3°, the current shared."""
-        d = _trial("figure-8", TRUTH, seed=10)
-        fit = kf_two_axis("EM3", d["t"], d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
-        assert fit.method == "KF"
-        assert fit.misalign_deg == pytest.approx(3.0, abs=0.3)
-        assert fit.misalign_std_deg is not None and fit.misalign_std_deg < 0.3
-        assert fit.current_mps == pytest.approx(CURRENT_NE, abs=0.02)
-
-    def test_kf_holds_misalignment_on_straight_run(self) -> None:
-        d = {k: v[::5] for k, v in _trial("straight", TRUTH, seed=11).items()}
-        fit = kf_two_axis("EM3", d["t"], d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
-        assert ALPHA in fit.ident.unidentifiable
-        assert fit.misalign_deg == 0.0
