@@ -495,6 +495,7 @@ def judge_two_axis(
     info_of: _Problem | None = None,
     x: FloatArray | None = None,
     rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
+    outside: dict[str, str] | None = None,
 ) -> TwoAxisIdent:
     """The two-axis identifiability rule on one window (module docstring, rules 1–5).
 
@@ -510,10 +511,12 @@ def judge_two_axis(
             rules 1–4 only).
         x: the point at which rule 5 takes the Jacobian.
         rule: the thresholds.
+        outside: unknowns refused beforehand, with the reason (an estimate outside
+            the envelope, :data:`ENVELOPE`).
     """
     unknowns = unknowns_of(model, current)
     base = rule.base
-    refused: dict[str, str] = {}
+    refused: dict[str, str] = dict(outside or {})
     std_raw = _spread(raw_l_mps)
     std_u, std_w = _spread(u_mps), _spread(w_mps)
     rms_raw = float(np.sqrt(np.mean(raw_l_mps * raw_l_mps))) if raw_l_mps.size else 0.0
@@ -531,12 +534,12 @@ def judge_two_axis(
         for k in scale:
             refused[k] = why
     sectors = heading_sectors(heading_deg) if heading_deg.size else 0
-    offset = not current
+    offset = False
     if current and sectors < base.min_heading_sectors:
         refused[CURRENT] = (
             f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
         )
-    if CURRENT in refused or not current:
+    if CURRENT in refused:
         offset = True
         for k, label in (("b", "bias"), (B_T, "transverse bias")):
             if k in unknowns:
@@ -720,6 +723,39 @@ def _params_of(model: ModelName, x: FloatArray, tie: bool) -> TwoAxisParams:
     return TwoAxisParams(lon, alpha, float(x[_M] if tie else x[_MT]), float(x[_BT]))
 
 
+ENVELOPE: dict[str, float] = {"a": 0.1, "m": 0.5, "b": 1.0, M_T: 0.5, B_T: 1.0}
+"""The largest magnitude of each parameter a two-axis fit may report (the one-axis
+envelope's |a| ≤ 0.1 s/m, |m| ≤ 0.5, |b| ≤ 1 m/s, the same for the transverse scale
+and bias; α: :data:`MAX_MISALIGN_DEG`). An estimate beyond it — a transverse gain
+driven to zero where a current the model cannot follow leaves that axis nothing
+to explain — is refused with the reason and the rest fitted again."""
+
+
+def _outside(x: FloatArray, determined: Sequence[str]) -> dict[str, str]:
+    """The determined unknown furthest beyond the envelope (relative to its bound),
+    with the reason; empty when every one lies inside. One at a time: a curvature
+    and a scale that trade against each other leave the scale inside once the
+    curvature is held."""
+    worst, ratio = "", 1.0
+    for k in determined:
+        if k == ALPHA or k in ENVELOPE:
+            bound = math.radians(MAX_MISALIGN_DEG) if k == ALPHA else ENVELOPE[k]
+            r = abs(float(x[_PARAM_INDEX[k]])) / bound
+            if r > ratio:
+                worst, ratio = k, r
+    if not worst:
+        return {}
+    if worst == ALPHA:
+        return {
+            ALPHA: f"misalignment outside the envelope ({math.degrees(float(x[_AL])):.1f}°, "
+            f"at most ±{MAX_MISALIGN_DEG:g}°)"
+        }
+    return {
+        worst: f"{_LABEL[worst]} outside the envelope ({float(x[_PARAM_INDEX[worst]]):.3g}"
+        f"{_UNIT[worst]}, at most ±{ENVELOPE[worst]:g}{_UNIT[worst]})"
+    }
+
+
 def _ties(model: ModelName, ident: TwoAxisIdent) -> bool:
     """Whether the held transverse scale follows the longitudinal one."""
     return TIE_HELD_SCALE and "m" in PARAM_NAMES[model] and M_T in ident.unidentifiable
@@ -744,7 +780,7 @@ def _prepare(
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
     block = None
     if current and current_block_s is not None:
-        block = current_blocks(t_s, s.hd, current_block_s, rule.base.min_heading_sectors)
+        block = current_blocks(t_s, s.hd, current_block_s, 0)
     return name, s, _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), block)
 
 
@@ -778,7 +814,10 @@ def fit_two_axis(
         rule: the identifiability thresholds.
         t_s: sample times, s (needed with ``current_block_s``).
         current_block_s: a current of its own per block of this many seconds
-            (:func:`calib.lsq.current_blocks`); None: one current throughout.
+            (None: one current throughout). No block joins another: the transverse
+            axis sees the current across the hull on any heading, and the along-hull
+            part of a straight block's current is told from the bias (shared by
+            every block) by the blocks that turn.
 
     Returns:
         The fit; never raises on poor excitation (see ``ident``).
@@ -804,7 +843,8 @@ def fit_two_axis(
     u, w = problem.water(x0)
     ident = judge_two_axis(name, u, w, s.raw_l, s.hd, current=current, rule=rule)
     x = x0
-    for _ in range(len(ident.verdicts) + 2):
+    outside: dict[str, str] = {}
+    for _ in range(2 * len(ident.verdicts) + 2):
         problem.tie = _ties(name, ident)
         free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
         x = _solve(problem, x0, free)
@@ -818,15 +858,56 @@ def fit_two_axis(
         )
         u, w = problem.water(x)
         new = judge_two_axis(
-            name, u, w, s.raw_l, s.hd, current=current, info_of=problem, x=x, rule=rule
+            name,
+            u,
+            w,
+            s.raw_l,
+            s.hd,
+            current=current,
+            info_of=problem,
+            x=x,
+            rule=rule,
+            outside=outside,
         )
         done = new.determined == ident.determined
         ident = new
         if done:
+            beyond = _outside(x, ident.determined)
+            if not beyond:
+                break
+            outside |= beyond
+            ident = judge_two_axis(
+                name,
+                u,
+                w,
+                s.raw_l,
+                s.hd,
+                current=current,
+                info_of=problem,
+                x=x,
+                rule=rule,
+                outside=outside,
+            )
+    for _ in range(len(ident.verdicts) + 1):  # each pass refuses one more, or ends
+        problem.tie = _ties(name, ident)
+        free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
+        x = _solve(problem, x0, free)
+        beyond = _outside(x, ident.determined)
+        if not beyond:
             break
-    problem.tie = _ties(name, ident)
-    free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
-    x = _solve(problem, x0, free)
+        outside |= beyond
+        ident = judge_two_axis(
+            name,
+            u,
+            w,
+            s.raw_l,
+            s.hd,
+            current=current,
+            info_of=problem,
+            x=x,
+            rule=rule,
+            outside=outside,
+        )
     rl, rt = problem.residuals(x)
     factor = max(correlation_factor(rl), correlation_factor(rt))
     std = np.full(x.size, math.nan)
@@ -979,3 +1060,33 @@ def model_state(
         _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg),
         ident,
     )
+
+
+def fit_current_two_axis(
+    params: TwoAxisParams,
+    ref_fwd_mps: npt.ArrayLike,
+    ref_stb_mps: npt.ArrayLike,
+    raw_l_mps: npt.ArrayLike,
+    raw_t_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike,
+    *,
+    rule: ExcitationRule = DEFAULT_RULE,
+) -> tuple[float, float] | None:
+    """The current that best explains a segment on both axes with the sensor's
+    parameters frozen (what scoring a calibration on another segment needs, as
+    :func:`calib.lsq.fit_current` on one axis).
+
+    Returns:
+        (north, east) in m/s, or None when the heading covers fewer than
+        ``rule.min_heading_sectors`` sectors.
+
+    Raises:
+        DataError: bad series.
+    """
+    s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
+    if heading_sectors(s.hd) < rule.min_heading_sectors:
+        return None
+    problem = _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), None)
+    x0 = _x0(params, _N_FIXED)
+    x = _solve(problem, x0, [_CN, _CE])
+    return float(x[_CN]), float(x[_CE])

@@ -15,6 +15,7 @@ from calib.twoaxis import (
     M_T,
     TwoAxisFit,
     TwoAxisParams,
+    fit_current_two_axis,
     fit_two_axis,
     leeway_deg,
     water_velocity,
@@ -163,3 +164,32 @@ class TestLeastSquares:
         params = d["params"]
         assert isinstance(params, dict)
         assert set(params) == {"m", "b", "misalign_deg", "m_t", "b_t"}
+
+
+def test_fit_current_with_frozen_params() -> None:
+    """The true parameters frozen: the current of the segment; a straight run: None."""
+    d = _trial("circles", TRUTH, seed=12)
+    cur = fit_current_two_axis(TRUTH, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
+    assert cur == pytest.approx(CURRENT_NE, abs=0.005)
+    s = _trial("straight", TRUTH, seed=12)
+    assert fit_current_two_axis(TRUTH, s["gf"], s["gs"], s["rl"], s["rt"], s["hd"]) is None
+
+
+def test_dead_transverse_axis_refused_by_envelope() -> None:
+    """A transverse axis that reads nothing would take a gain of zero (m_t = −1): the
+    transverse scale is refused as outside the envelope and held."""
+    d = _trial("figure-8", TRUTH, seed=13)
+    fit = fit_two_axis("EM3", d["gf"], d["gs"], d["rl"], np.zeros_like(d["rt"]), d["hd"])
+    assert M_T in fit.ident.unidentifiable
+    assert "transverse scale outside the envelope" in fit.ident.reason
+    assert fit.params.m_t == fit.params.longitudinal.m
+
+
+def test_water_frame_reference_determines_both_biases() -> None:
+    """A reference already in the water frame (no current unknown): both biases learnt."""
+    d = _trial("figure-8", TRUTH, seed=14)
+    u, w = water_velocity(d["gf"], d["gs"], d["hd"], CURRENT_NE)
+    fit = fit_two_axis("EM3", u, w, d["rl"], d["rt"], d["hd"], current=False)
+    assert fit.identifiable, fit.ident.reason
+    assert fit.params.b_t_mps == pytest.approx(0.04, abs=0.01)
+    assert fit.params.longitudinal.b_mps == pytest.approx(-0.05, abs=0.02)
