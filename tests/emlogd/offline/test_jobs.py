@@ -224,7 +224,7 @@ class TestFiles:
         parameters ending at the result's, the current with its σ, and the state."""
         import csv
 
-        from emlogd.offline.jobs import TRACE_COLUMNS
+        from emlogd.offline.online import TRACE_COLUMNS
 
         recs = load_captures([trial_files["figure-8"]], E1C)
         path = tmp_path / "trace.csv"
