@@ -82,7 +82,6 @@ from calib.excitation import (
     Verdict,
     heading_sectors,
 )
-from calib.lsq import current_blocks
 from calib.metrics import correlation_factor
 from calib.models import (
     CURRENT,
@@ -378,12 +377,13 @@ class _Problem:
         raw_l: FloatArray,
         raw_t: FloatArray,
         psi: FloatArray,
-        block: npt.NDArray[np.int64] | None,
+        basis: FloatArray | None,
     ) -> None:
         self.gf, self.gs, self.raw_l, self.raw_t = gf, gs, raw_l, raw_t
         self.cos_h, self.sin_h = np.cos(psi), np.sin(psi)
-        self.block = block
-        self.n_blocks = 1 if block is None or block.size == 0 else int(block.max()) + 1
+        self.basis = basis
+        """Each sample's weight on each current node, shape (N, K) (None: one current)."""
+        self.n_blocks = 1 if basis is None else int(basis.shape[1])
         self.scale = np.ones(2)
         """Each axis's weight, 1/σ (longitudinal, transverse)."""
         self.tie = False
@@ -397,12 +397,11 @@ class _Problem:
         return _N_FIXED + 2 * (self.n_blocks - 1)
 
     def current_at(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        cn = np.full(self.gf.size, x[_CN])
-        ce = np.full(self.gf.size, x[_CE])
-        if self.block is not None and self.n_blocks > 1:
-            cn = cn + np.concatenate([[0.0], x[_N_FIXED::2]])[self.block]
-            ce = ce + np.concatenate([[0.0], x[_N_FIXED + 1 :: 2]])[self.block]
-        return cn, ce
+        if self.basis is None:
+            return np.full(self.gf.size, x[_CN]), np.full(self.gf.size, x[_CE])
+        cn = self.basis @ np.concatenate([[x[_CN]], x[_N_FIXED::2]])
+        ce = self.basis @ np.concatenate([[x[_CE]], x[_N_FIXED + 1 :: 2]])
+        return np.asarray(cn, dtype=np.float64), np.asarray(ce, dtype=np.float64)
 
     def water(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         cn, ce = self.current_at(x)
@@ -429,7 +428,7 @@ class _Problem:
         gain_t = self.gain_t(x)
         c_pa = self.cos_h * ca - self.sin_h * sa  # cos(ψ + α)
         s_pa = self.sin_h * ca + self.cos_h * sa  # sin(ψ + α)
-        zero, one = np.zeros(n), np.ones(n)
+        one = np.ones(n)
         jl = np.zeros((n, self.size()))
         jt = np.zeros((n, self.size()))
         jl[:, _A], jl[:, _M], jl[:, _B], jl[:, _DL] = us * us, us, one, one
@@ -438,13 +437,13 @@ class _Problem:
         jt[:, _M if self.tie else _MT], jt[:, _BT], jt[:, _DT] = ws, one, one
         jt[:, _AL] = -gain_t * us
         jt[:, _CN], jt[:, _CE] = gain_t * s_pa, -gain_t * c_pa
-        if self.block is not None:
-            for j in range(1, self.n_blocks):
-                inside = self.block == j
-                k = _N_FIXED + 2 * (j - 1)
-                for col, src in ((k, _CN), (k + 1, _CE)):
-                    jl[:, col] = np.where(inside, jl[:, src], zero)
-                    jt[:, col] = np.where(inside, jt[:, src], zero)
+        if self.basis is not None:
+            base = (jl[:, _CN].copy(), jl[:, _CE].copy(), jt[:, _CN].copy(), jt[:, _CE].copy())
+            for k in range(self.n_blocks):
+                phi = self.basis[:, k]
+                cols = (_CN, _CE) if k == 0 else (_N_FIXED + 2 * (k - 1), _N_FIXED + 2 * k - 1)
+                jl[:, cols[0]], jl[:, cols[1]] = phi * base[0], phi * base[1]
+                jt[:, cols[0]], jt[:, cols[1]] = phi * base[2], phi * base[3]
         return np.vstack([jl * self.scale[0], jt * self.scale[1]])
 
     def weighted(self, x: FloatArray) -> FloatArray:
@@ -771,17 +770,44 @@ def _prepare(
     prior: TwoAxisParams | None,
     current: bool,
     t_s: npt.ArrayLike | None,
-    current_block_s: float | None,
-    rule: TwoAxisRule,
+    current_knot_s: float | None,
 ) -> tuple[ModelName, _Series, _Problem]:
     name = check_model(model)
     s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
     if prior is not None and prior.model != name:
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
-    block = None
-    if current and current_block_s is not None:
-        block = current_blocks(t_s, s.hd, current_block_s, 0)
-    return name, s, _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), block)
+    basis = None
+    if current and current_knot_s is not None:
+        basis = current_basis(t_s, s.gf.size, current_knot_s)
+    return name, s, _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
+
+
+def current_basis(t_s: npt.ArrayLike | None, n: int, knot_s: float) -> FloatArray | None:
+    """The hat functions of a current linear between knots ``knot_s`` apart from the
+    first sample: shape (N, K), each row summing to 1 (None: the samples span less
+    than one interval, one current).
+
+    Raises:
+        DataError: no times, times of another length, not finite or decreasing, a bad
+            interval.
+    """
+    if t_s is None:
+        raise DataError("a current that changes needs the sample times")
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    if t.size != n or not np.all(np.isfinite(t)):
+        raise DataError("times must be finite and as long as the speeds")
+    if n > 1 and not np.all(np.diff(t) >= 0.0):
+        raise DataError("times must not decrease")
+    if not (math.isfinite(knot_s) and knot_s > 0.0):
+        raise DataError(f"the current's knot interval must be > 0, not {knot_s!r}")
+    span = float(t[-1] - t[0]) if n else 0.0
+    if span < knot_s:
+        return None
+    k = math.ceil(span / knot_s) + 1
+    knots = t[0] + knot_s * np.arange(k)
+    return np.asarray(
+        np.maximum(0.0, 1.0 - np.abs(t[:, None] - knots[None, :]) / knot_s), dtype=np.float64
+    )
 
 
 def fit_two_axis(
@@ -796,7 +822,7 @@ def fit_two_axis(
     prior: TwoAxisParams | None = None,
     rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
     t_s: npt.ArrayLike | None = None,
-    current_block_s: float | None = None,
+    current_knot_s: float | None = None,
 ) -> TwoAxisFit:
     """Least squares of the two-axis model on aligned series (module docstring).
 
@@ -812,12 +838,16 @@ def fit_two_axis(
         prior: the value of an unknown the data do not determine (default the ideal
             sensor, aligned).
         rule: the identifiability thresholds.
-        t_s: sample times, s (needed with ``current_block_s``).
-        current_block_s: a current of its own per block of this many seconds
-            (None: one current throughout). No block joins another: the transverse
-            axis sees the current across the hull on any heading, and the along-hull
-            part of a straight block's current is told from the bias (shared by
-            every block) by the blocks that turn.
+        t_s: sample times, s (needed with ``current_knot_s``).
+        current_knot_s: the current changes linearly between knots this many
+            seconds apart (:func:`current_basis`; None: one current throughout). A
+            current that turns with the tide, taken as constant, leaves its change
+            on both axes; taken as constant per block, its steps between blocks
+            take the misalignment's signature where the speed steps too (circles
+            at three throttle settings). The transverse axis sees the current
+            across the hull on any heading, and the along-hull part of a straight
+            leg's current is told from the bias (one for all the knots) by the
+            turns.
 
     Returns:
         The fit; never raises on poor excitation (see ``ident``).
@@ -836,8 +866,7 @@ def fit_two_axis(
         prior,
         current,
         t_s,
-        current_block_s,
-        rule,
+        current_knot_s,
     )
     x0 = _x0(prior, problem.size())
     u, w = problem.water(x0)
@@ -936,8 +965,9 @@ def fit_two_axis(
         cur = (float(np.mean(cn)), float(np.mean(ce)))
         g = np.zeros((2, x.size))
         g[0, _CN] = g[1, _CE] = 1.0
-        if problem.block is not None and problem.n_blocks > 1:
-            share = np.bincount(problem.block, minlength=problem.n_blocks) / s.gf.size
+        if problem.basis is not None:
+            share = problem.basis.mean(axis=0)
+            g[0, _CN] = g[1, _CE] = share[0]
             g[0, _N_FIXED::2] = share[1:]
             g[1, _N_FIXED + 1 :: 2] = share[1:]
         var = np.einsum("ij,jk,ik->i", g, cov_full, g)
@@ -1070,23 +1100,40 @@ def fit_current_two_axis(
     raw_t_mps: npt.ArrayLike,
     heading_deg: npt.ArrayLike,
     *,
-    rule: ExcitationRule = DEFAULT_RULE,
-) -> tuple[float, float] | None:
+    t_s: npt.ArrayLike | None = None,
+    current_knot_s: float | None = None,
+) -> FloatArray:
     """The current that best explains a segment on both axes with the sensor's
     parameters frozen (what scoring a calibration on another segment needs, as
-    :func:`calib.lsq.fit_current` on one axis).
+    :func:`calib.lsq.fit_current` on one axis). With both axes and the parameters
+    frozen the current is determined on any heading; on a steady heading it takes
+    each axis's remaining offset, for the raw reading (the ideal sensor's
+    parameters) and for a calibration alike, so neither is judged on an offset a
+    current could explain.
+
+    Args:
+        params: the frozen parameters.
+        ref_fwd_mps: ground speed forward, m/s.
+        ref_stb_mps: ground speed to starboard, m/s.
+        raw_l_mps: longitudinal readings, m/s.
+        raw_t_mps: transverse readings, m/s.
+        heading_deg: headings, degrees.
+        t_s: sample times, s (needed with ``current_knot_s``).
+        current_knot_s: the current linear between knots this far apart
+            (:func:`current_basis`; None: one current).
 
     Returns:
-        (north, east) in m/s, or None when the heading covers fewer than
-        ``rule.min_heading_sectors`` sectors.
+        The current (north, east) at each sample, m/s, shape (N, 2).
 
     Raises:
-        DataError: bad series.
+        DataError: bad series or times.
     """
     s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
-    if heading_sectors(s.hd) < rule.min_heading_sectors:
-        return None
-    problem = _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), None)
-    x0 = _x0(params, _N_FIXED)
-    x = _solve(problem, x0, [_CN, _CE])
-    return float(x[_CN]), float(x[_CE])
+    basis = None
+    if current_knot_s is not None:
+        basis = current_basis(t_s, s.gf.size, current_knot_s)
+    problem = _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
+    x0 = _x0(params, problem.size())
+    x = _solve(problem, x0, _index(CURRENT, problem.n_blocks))
+    cn, ce = problem.current_at(x)
+    return np.column_stack([cn, ce])

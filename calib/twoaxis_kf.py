@@ -69,6 +69,7 @@ def kf_two_axis(
     prior: TwoAxisParams | None = None,
     rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
     noise_mps: tuple[float, float] | None = None,
+    current_knot_s: float | None = None,
 ) -> TwoAxisFit:
     """The two-axis model learnt sample by sample (module docstring).
 
@@ -85,6 +86,9 @@ def kf_two_axis(
         rule: the identifiability thresholds.
         noise_mps: each axis's measurement noise (1σ), m/s (None: the residuals of
             the least-squares fit on the same series).
+        current_knot_s: the least-squares fit that gives the verdicts and the noise
+            takes a current linear between knots this far apart
+            (:func:`calib.twoaxis.fit_two_axis`); the filter's own current wanders.
 
     Returns:
         The filter's final state as a fit (``method`` ``"KF"``).
@@ -103,6 +107,8 @@ def kf_two_axis(
         current=current,
         prior=prior,
         rule=rule,
+        t_s=t_s,
+        current_knot_s=current_knot_s,
     )
     st = model_state(model, ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg, ls.ident)
     t = np.asarray(t_s, dtype=np.float64).reshape(-1)

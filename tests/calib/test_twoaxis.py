@@ -15,6 +15,7 @@ from calib.twoaxis import (
     M_T,
     TwoAxisFit,
     TwoAxisParams,
+    current_basis,
     fit_current_two_axis,
     fit_two_axis,
     leeway_deg,
@@ -167,12 +168,23 @@ class TestLeastSquares:
 
 
 def test_fit_current_with_frozen_params() -> None:
-    """The true parameters frozen: the current of the segment; a straight run: None."""
-    d = _trial("circles", TRUTH, seed=12)
-    cur = fit_current_two_axis(TRUTH, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
-    assert cur == pytest.approx(CURRENT_NE, abs=0.005)
-    s = _trial("straight", TRUTH, seed=12)
-    assert fit_current_two_axis(TRUTH, s["gf"], s["gs"], s["rl"], s["rt"], s["hd"]) is None
+    """The true parameters frozen: the current of the segment, on a straight run too
+    (both axes see it); linear between knots it follows a current that turns."""
+    for kind in ("circles", "straight"):
+        d = _trial(kind, TRUTH, seed=12)
+        cur = fit_current_two_axis(TRUTH, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
+        assert cur.shape == (d["t"].size, 2)
+        assert cur[0] == pytest.approx(CURRENT_NE, abs=0.005)
+    d = _trial("figure-8", TRUTH, seed=12)
+    turn = 0.1 * np.sin(2.0 * math.pi * d["t"] / d["t"][-1])  # north current grows, falls
+    psi = np.radians(d["hd"])
+    gf = d["gf"] + turn * np.cos(psi)
+    gs = d["gs"] - turn * np.sin(psi)
+    cur = fit_current_two_axis(
+        TRUTH, gf, gs, d["rl"], d["rt"], d["hd"], t_s=d["t"], current_knot_s=120.0
+    )
+    assert np.max(np.abs(cur[:, 0] - (CURRENT_NE[0] + turn))) < 0.02
+    assert current_basis(d["t"][:10], 10, 300.0) is None
 
 
 def test_dead_transverse_axis_refused_by_envelope() -> None:
