@@ -5,15 +5,12 @@ CR/LF, the 82-character limit with a per-port leniency) and so is the checksum
 check (:func:`~drivers.framing.split_nmea`: a wrong checksum is always rejected, a
 missing one unless the port is configured ``checksum: optional``). Then:
 
-- VHW and VBW, the hot path (1–10 Hz per log), are split and converted here
-  directly: every numeric field is checked (``float`` syntax, finite, no ``x`` passed
-  on as a string), every flag field must hold its letter or be empty. The tests
-  check this path against pynmea2's field mapping on every VHW/VBW of the
-  conformance corpus.
-- VLW, MTW, HDT, HDG and HDM go through ``pynmea2.parse`` and then the same
-  type checks (pynmea2 returns the raw string for a field it cannot convert).
-- Rowe ``$PRTI01``/``$PRTI02`` (pynmea2 has no class for them) are parsed here,
-  12- and 14-field forms.
+every sentence (VHW, VBW, VLW, MTW, HDT, HDG, HDM, RMC, VTG, GGA, ZDA, VDR and Rowe
+``$PRTI01``/``$PRTI02`` in their 12- and 14-field forms) is split and converted by
+:mod:`drivers.nmea0183.parsing` under one set of field rules: a number has ``float``
+syntax with no blank or underscore and is finite, an integer is digits, a flag field
+holds its letter or is empty. The tests check the decoded fields against pynmea2's
+field mapping on every VHW, VLW, MTW, HDT, HDM and HDG of the real captures.
 
 Units out: m/s, degrees, nautical miles, °C. Every field is range-checked before it
 goes into a record (docs/PROTOCOLS.md lists each range): a value outside is an

@@ -12,6 +12,7 @@ from drivers.errors import FieldError, UnknownSentenceError
 from drivers.framing import LineFramer, split_nmea
 from drivers.nmea0183.parsing import (
     GNSS_PARSERS,
+    HEADING_FIELDS,
     parse_heading,
     parse_mtw,
     parse_prti,
@@ -65,13 +66,12 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
         gnss = GNSS_PARSERS.get(kind)
         if gnss is not None:
             return gnss(talker, fields, frame)
-        if kind in ("VLW", "MTW", "HDT", "HDG", "HDM"):
-            text_full = f"${text}"
-            if kind == "VLW":
-                return parse_vlw(talker, fields, text_full, frame)
-            if kind == "MTW":
-                return parse_mtw(talker, fields, text_full, frame)
-            return parse_heading(kind, talker, fields, text_full, frame)
+        if kind == "VLW":
+            return parse_vlw(talker, fields, frame)
+        if kind == "MTW":
+            return parse_mtw(talker, fields, frame)
+        if kind in HEADING_FIELDS:
+            return parse_heading(kind, talker, fields, frame)
         raise UnknownSentenceError(f"sentence {kind} not decoded", frame)
 
     def speed_records(self, record: NmeaRecord) -> tuple[SpeedRecord, ...]:

@@ -13,8 +13,6 @@ import math
 from collections.abc import Callable
 from datetime import UTC, date, datetime, timedelta
 
-import pynmea2
-
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.nmea0183.records import Gga, Heading, Mtw, Prti, Rmc, Vbw, Vdr, Vhw, Vlw, Vtg, Zda
 from drivers.records import KMH_MPS, KNOT_MPS, MAX_DEPTH_M, WATER_TEMP_RANGE_C
@@ -177,65 +175,41 @@ def parse_vbw(talker: str, f: list[str], raw: bytes) -> Vbw:
     )
 
 
-def _pyn_num(value: object, name: str, raw: bytes) -> float | None:
-    """A pynmea2 attribute that must be a number (Decimal/float) or None."""
-    if value is None or value == "":
-        return None
-    if isinstance(value, str):
-        return _num(value, name, raw)
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise FieldError(f"{name}: {value!r} is not a number", raw) from None
-    if not math.isfinite(x):
-        raise FieldError(f"{name}: {value!r} is not finite", raw)
-    return x
-
-
-def _with_pynmea2(sentence: str, text: str, raw: bytes) -> object:
-    """The pynmea2 message of ``text``.
-
-    pynmea2 ships no type information and builds its message attributes at run time
-    from each class's field table, so the callers read them with ``getattr`` (None
-    when the class lacks one) and check every value with :func:`_pyn_num`; the
-    records they return are typed.
-    """
-    try:
-        return pynmea2.parse(text, check=False)
-    except pynmea2.ParseError as exc:
-        raise FieldError(f"{sentence}: {exc.args[0] if exc.args else exc}", raw) from None
-
-
-def parse_vlw(talker: str, f: list[str], text: str, raw: bytes) -> Vlw:
-    """VLW through pynmea2 (4- or 8-field form)."""
+def parse_vlw(talker: str, f: list[str], raw: bytes) -> Vlw:
+    """VLW: total and trip distance through the water, N (4 fields); NMEA 3 adds the
+    ground pair (8 fields)."""
     if len(f) not in (4, 8):
         raise FieldError(f"VLW has {len(f)} fields, expected 4 or 8", raw)
     for i in range(1, len(f), 2):
         _flag(f[i], "N", f"VLW field {i + 1}", raw)
-    msg = _with_pynmea2("VLW", text, raw)
-    total = _pyn_num(getattr(msg, "trip_distance", None), "VLW total", raw)
-    trip = _pyn_num(getattr(msg, "trip_distance_reset", None), "VLW trip", raw)
-    gtot = _num(f[4], "VLW ground total", raw) if len(f) == 8 else None
-    gtrip = _num(f[6], "VLW ground trip", raw) if len(f) == 8 else None
+    total = _num(f[0], "VLW total", raw)
+    trip = _num(f[2], "VLW trip", raw)
+    ground_total = _num(f[4], "VLW ground total", raw) if len(f) == 8 else None
+    ground_trip = _num(f[6], "VLW ground trip", raw) if len(f) == 8 else None
     for x, name in (
         (total, "total"),
         (trip, "trip"),
-        (gtot, "ground total"),
-        (gtrip, "ground trip"),
+        (ground_total, "ground total"),
+        (ground_trip, "ground trip"),
     ):
         if x is not None and x < 0:
             raise OutOfRangeError(f"VLW {name} distance {x} < 0", raw)
-    return Vlw(talker, total, trip, gtot, gtrip)
+    return Vlw(
+        talker=talker,
+        total_nm=total,
+        trip_nm=trip,
+        ground_total_nm=ground_total,
+        ground_trip_nm=ground_trip,
+    )
 
 
-def parse_mtw(talker: str, f: list[str], text: str, raw: bytes) -> Mtw:
-    """MTW through pynmea2."""
+def parse_mtw(talker: str, f: list[str], raw: bytes) -> Mtw:
+    """MTW: temperature, C (2 fields)."""
     if len(f) != 2:
         raise FieldError(f"MTW has {len(f)} fields, expected 2", raw)
     _flag(f[1], "C", "MTW unit", raw)
-    msg = _with_pynmea2("MTW", text, raw)
-    temp = _pyn_num(getattr(msg, "temperature", None), "MTW temperature", raw)
-    return Mtw(talker, _temperature(temp, "water temperature", raw))
+    temp = _num(f[0], "MTW temperature", raw)
+    return Mtw(talker=talker, temperature_c=_temperature(temp, "water temperature", raw))
 
 
 def _signed(value: float | None, direction: str, name: str, raw: bytes) -> float | None:
@@ -245,28 +219,29 @@ def _signed(value: float | None, direction: str, name: str, raw: bytes) -> float
     return -value if direction == "W" else value
 
 
-def parse_heading(kind: str, talker: str, f: list[str], text: str, raw: bytes) -> Heading:
-    """HDT / HDM / HDG through pynmea2."""
-    expected = {"HDT": 2, "HDM": 2, "HDG": 5}[kind]
+HEADING_FIELDS = {"HDT": 2, "HDM": 2, "HDG": 5}
+"""The heading sentences and how many fields follow their address."""
+
+
+def parse_heading(kind: str, talker: str, f: list[str], raw: bytes) -> Heading:
+    """HDT (heading, T), HDM (heading, M) or HDG (sensor heading, deviation, E/W,
+    variation, E/W)."""
+    expected = HEADING_FIELDS[kind]
     if len(f) != expected:
         raise FieldError(f"{kind} has {len(f)} fields, expected {expected}", raw)
-    msg = _with_pynmea2(kind, text, raw)
-    heading = _heading(_pyn_num(getattr(msg, "heading", None), f"{kind} heading", raw), kind, raw)
-    if kind == "HDT":
-        _flag(f[1], "T", "HDT flag", raw)
-        return Heading(talker, kind, heading, True)
-    if kind == "HDM":
-        _flag(f[1], "M", "HDM flag", raw)
-        return Heading(talker, kind, heading, False)
-    dev = _pyn_num(getattr(msg, "deviation", None), "HDG deviation", raw)
-    var = _pyn_num(getattr(msg, "variation", None), "HDG variation", raw)
+    heading = _heading(_num(f[0], f"{kind} heading", raw), kind, raw)
+    if kind != "HDG":
+        _flag(f[1], "T" if kind == "HDT" else "M", f"{kind} flag", raw)
+        return Heading(talker=talker, sentence=kind, heading_deg=heading, true=kind == "HDT")
+    dev = _signed(_num(f[1], "HDG deviation", raw), f[2], "HDG deviation direction", raw)
+    var = _signed(_num(f[3], "HDG variation", raw), f[4], "HDG variation direction", raw)
     return Heading(
-        talker,
-        kind,
-        heading,
-        False,
-        _offset(_signed(dev, f[2], "HDG deviation direction", raw), "HDG deviation", raw),
-        _offset(_signed(var, f[4], "HDG variation direction", raw), "HDG variation", raw),
+        talker=talker,
+        sentence=kind,
+        heading_deg=heading,
+        true=False,
+        deviation_deg=_offset(dev, "HDG deviation", raw),
+        variation_deg=_offset(var, "HDG variation", raw),
     )
 
 

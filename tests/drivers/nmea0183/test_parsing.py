@@ -14,9 +14,11 @@ from drivers.errors import FieldError, OutOfRangeError
 from drivers.framing import with_checksum
 from drivers.nmea0183 import (
     Heading,
+    Mtw,
     NmeaDecoder,
     Rmc,
     Vhw,
+    Vlw,
 )
 from drivers.records import KNOT_MPS
 
@@ -83,3 +85,47 @@ class TestRejects:
         """Each malformed sentence raises the error that names its fault."""
         with pytest.raises(error):
             _parse(body)
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "VWVLW,12 .5,N,3.0,N",
+        "VWVLW,12.5,N,3_0,N",
+        "IIMTW, 17.9,C",
+        "HEHDT,1_80.0,T",
+        "HCHDM,nan,M",
+        "HCHDG,100.0,,,1 .3,E",
+        "HCHDG,100.0,2.0,W,inf,E",
+    ],
+)
+def test_distances_temperatures_and_headings_follow_the_number_rule(body: str) -> None:
+    """A VLW, MTW or HDx number with a blank, an underscore, or no finite value is a bad field,
+    as in VHW and VBW (Python's float would read the first two)."""
+    with pytest.raises(FieldError, match="is not a number"):
+        _parse(body)
+
+
+def test_distances_temperatures_and_headings_are_read() -> None:
+    """VLW's four distances, MTW's temperature, HDT's true and HDM's magnetic heading and HDG's
+    deviation and variation with their E/W sign are read from their fields."""
+    r = _parse("VWVLW,1109.4,N,54.6,N,1110.0,N,55.1,N")
+    assert isinstance(r, Vlw)
+    assert (r.total_nm, r.trip_nm, r.ground_total_nm, r.ground_trip_nm) == (
+        1109.4,
+        54.6,
+        1110.0,
+        55.1,
+    )
+    r = _parse("VWVLW,,N,54.6,N")
+    assert isinstance(r, Vlw) and (r.total_nm, r.trip_nm, r.ground_total_nm) == (None, 54.6, None)
+    r = _parse("IIMTW,-1.5,C")
+    assert isinstance(r, Mtw) and r.temperature_c == -1.5
+    r = _parse("HEHDT,359.9,T")
+    assert isinstance(r, Heading) and r.true and r.heading_deg == 359.9
+    r = _parse("HCHDM,12.0,M")
+    assert isinstance(r, Heading) and not r.true and r.heading_deg == 12.0
+    r = _parse("HCHDG,100.0,2.0,W,3.5,E")
+    assert isinstance(r, Heading) and (r.deviation_deg, r.variation_deg) == (-2.0, 3.5)
+    with pytest.raises(OutOfRangeError):
+        _parse("VWVLW,-1.0,N,54.6,N")
