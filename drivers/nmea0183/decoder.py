@@ -81,55 +81,49 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
         if isinstance(record, Vhw):
             return (
                 SpeedRecord(
-                    port,
-                    "stw",
-                    "speed",
-                    record.stw_mps,
-                    None,
-                    record.stw_mps is not None,
-                    record.heading_true_deg,
-                    record.heading_mag_deg,
-                    "VHW",
+                    port=port,
+                    kind="stw",
+                    role="speed",
+                    longitudinal_mps=record.stw_mps,
+                    valid=record.stw_mps is not None,
+                    heading_true_deg=record.heading_true_deg,
+                    heading_mag_deg=record.heading_mag_deg,
+                    source="VHW",
                 ),
             )
         if isinstance(record, Vbw):
-            out = [
-                SpeedRecord(
-                    port,
-                    "stw",
-                    "speed",
-                    record.water_long_mps,
-                    record.water_trans_mps,
-                    record.water_valid,
-                    None,
-                    None,
-                    "VBW",
-                )
-            ]
-            if record.ground_long_mps is not None or record.ground_valid:
-                out.append(
-                    SpeedRecord(
-                        port,
-                        "sog",
-                        "ground",
-                        record.ground_long_mps,
-                        record.ground_trans_mps,
-                        record.ground_valid,
-                        None,
-                        None,
-                        "VBW:G",
-                    )
-                )
-            return tuple(out)
+            water = SpeedRecord(
+                port=port,
+                kind="stw",
+                role="speed",
+                longitudinal_mps=record.water_long_mps,
+                transverse_mps=record.water_trans_mps,
+                valid=record.water_valid,
+                source="VBW",
+            )
+            if record.ground_long_mps is None and not record.ground_valid:
+                return (water,)
+            ground = SpeedRecord(
+                port=port,
+                kind="sog",
+                role="ground",
+                longitudinal_mps=record.ground_long_mps,
+                transverse_mps=record.ground_trans_mps,
+                valid=record.ground_valid,
+                source="VBW:G",
+            )
+            return (water, ground)
         if isinstance(record, Prti) and record.sentence == "PRTI01":
             bt = record.bottom_mps
-            if bt is None:
-                return (
-                    SpeedRecord(port, "sog", "bottom", None, None, False, None, None, "PRTI01"),
-                )
             return (
                 SpeedRecord(
-                    port, "sog", "bottom", bt[1], bt[0], record.bottom_valid, None, None, "PRTI01"
+                    port=port,
+                    kind="sog",
+                    role="bottom",
+                    longitudinal_mps=None if bt is None else bt[1],
+                    transverse_mps=None if bt is None else bt[0],
+                    valid=record.bottom_valid,
+                    source="PRTI01",
                 ),
             )
         return ()

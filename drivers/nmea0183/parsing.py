@@ -128,7 +128,14 @@ def parse_vhw(talker: str, f: list[str], raw: bytes) -> Vhw:
         _speed(kmh * KMH_MPS, "STW km/h", raw)
         if _units_disagree(kn, kmh, f[4], f[6]):
             raise OutOfRangeError(f"VHW speed {kn} kn and {kmh} km/h disagree", raw)
-    return Vhw(talker, ht, hm, kn, kmh, mps)
+    return Vhw(
+        talker=talker,
+        heading_true_deg=ht,
+        heading_mag_deg=hm,
+        stw_knots=kn,
+        stw_kmh=kmh,
+        stw_mps=mps,
+    )
 
 
 def _units_disagree(kn: float, kmh: float, kn_field: str, kmh_field: str) -> bool:
@@ -155,23 +162,31 @@ def parse_vbw(talker: str, f: list[str], raw: bytes) -> Vbw:
     gt = _speed(_kn(_num(f[4], "ground transverse", raw)), "ground transverse", raw)
     gv = _status(f[5], "ground status", raw)
     if len(f) == 6:
-        return Vbw(talker, wl, wt, wv and wl is not None, gl, gt, gv and gl is not None)
+        return Vbw(
+            talker=talker,
+            water_long_mps=wl,
+            water_trans_mps=wt,
+            water_valid=wv and wl is not None,
+            ground_long_mps=gl,
+            ground_trans_mps=gt,
+            ground_valid=gv and gl is not None,
+        )
     sw = _speed(_kn(_num(f[6], "stern water", raw)), "stern water", raw)
     swv = _status(f[7], "stern water status", raw)
     sg = _speed(_kn(_num(f[8], "stern ground", raw)), "stern ground", raw)
     sgv = _status(f[9], "stern ground status", raw)
     return Vbw(
-        talker,
-        wl,
-        wt,
-        wv and wl is not None,
-        gl,
-        gt,
-        gv and gl is not None,
-        sw,
-        swv and sw is not None,
-        sg,
-        sgv and sg is not None,
+        talker=talker,
+        water_long_mps=wl,
+        water_trans_mps=wt,
+        water_valid=wv and wl is not None,
+        ground_long_mps=gl,
+        ground_trans_mps=gt,
+        ground_valid=gv and gl is not None,
+        stern_water_mps=sw,
+        stern_water_valid=swv and sw is not None,
+        stern_ground_mps=sg,
+        stern_ground_valid=sgv and sg is not None,
     )
 
 
@@ -293,7 +308,19 @@ def parse_prti(sentence: str, f: list[str], raw: bytes) -> Prti:
                 _speed(v, f"{sentence} {name} velocity", raw)
     sub = f[12] if len(f) == 14 else None
     cepo = _int(f[13], "CEPO index", raw) if len(f) == 14 and f[13] else None
-    return Prti(sentence, start, sample, temp, bottom, depth, water, wdepth, status, sub, cepo)
+    return Prti(
+        sentence=sentence,
+        start_time_s=start,
+        sample=sample,
+        temperature_c=temp,
+        bottom_mps=bottom,
+        bottom_depth_m=depth,
+        water_mps=water,
+        water_depth_m=wdepth,
+        status=status,
+        subsystem=sub,
+        cepo_index=cepo,
+    )
 
 
 def _time_of_day(field: str, raw: bytes) -> float | None:
@@ -370,7 +397,18 @@ def parse_rmc(talker: str, f: list[str], raw: bytes) -> Rmc:
         "RMC variation",
         raw,
     )
-    return Rmc(talker, _at(day, tod), tod, active, lat, lon, sog, cog, var, _mode(f, 11, raw))
+    return Rmc(
+        talker=talker,
+        time_utc=_at(day, tod),
+        time_of_day_s=tod,
+        status_active=active,
+        lat_deg=lat,
+        lon_deg=lon,
+        sog_mps=sog,
+        cog_true_deg=cog,
+        variation_deg=var,
+        mode=_mode(f, 11, raw),
+    )
 
 
 def parse_vtg(talker: str, f: list[str], raw: bytes) -> Vtg:
@@ -389,7 +427,9 @@ def parse_vtg(talker: str, f: list[str], raw: bytes) -> Vtg:
     sog = _speed(sog, "VTG speed", raw)
     if sog is not None and sog < 0.0:
         raise OutOfRangeError(f"VTG speed {sog:.2f} m/s is negative", raw)
-    return Vtg(talker, cog_t, cog_m, sog, _mode(f, 8, raw))
+    return Vtg(
+        talker=talker, cog_true_deg=cog_t, cog_mag_deg=cog_m, sog_mps=sog, mode=_mode(f, 8, raw)
+    )
 
 
 def parse_gga(talker: str, f: list[str], raw: bytes) -> Gga:
@@ -408,7 +448,15 @@ def parse_gga(talker: str, f: list[str], raw: bytes) -> Gga:
         raise OutOfRangeError(f"GGA satellites {sats} outside 0..{MAX_SATELLITES}", raw)
     if hdop is not None and not 0.0 <= hdop <= MAX_HDOP:
         raise OutOfRangeError(f"GGA HDOP {hdop} outside 0..{MAX_HDOP:g}", raw)
-    return Gga(talker, tod, lat, lon, quality, sats, hdop)
+    return Gga(
+        talker=talker,
+        time_of_day_s=tod,
+        lat_deg=lat,
+        lon_deg=lon,
+        quality=quality,
+        satellites=sats,
+        hdop=hdop,
+    )
 
 
 def parse_zda(talker: str, f: list[str], raw: bytes) -> Zda:
@@ -417,7 +465,7 @@ def parse_zda(talker: str, f: list[str], raw: bytes) -> Zda:
         raise FieldError(f"ZDA has {len(f)} fields, expected 6", raw)
     tod = _time_of_day(f[0], raw)
     if not (f[1] and f[2] and f[3]):
-        return Zda(talker, None)
+        return Zda(talker=talker, time_utc=None)
     year = _int(f[3], "ZDA year", raw)
     if not ZDA_YEARS[0] <= year <= ZDA_YEARS[1]:
         raise OutOfRangeError(f"ZDA year {year} outside {ZDA_YEARS[0]}..{ZDA_YEARS[1]}", raw)
@@ -425,7 +473,7 @@ def parse_zda(talker: str, f: list[str], raw: bytes) -> Zda:
         day = date(year, _int(f[2], "ZDA month", raw), _int(f[1], "ZDA day", raw))
     except (ValueError, OverflowError):
         raise OutOfRangeError("ZDA date out of range", raw) from None
-    return Zda(talker, _at(day, tod))
+    return Zda(talker=talker, time_utc=_at(day, tod))
 
 
 def parse_vdr(talker: str, f: list[str], raw: bytes) -> Vdr:
@@ -440,7 +488,7 @@ def parse_vdr(talker: str, f: list[str], raw: bytes) -> Vdr:
     _flag(f[5], "N", "VDR field 6", raw)
     if drift is not None and drift < 0.0:
         raise OutOfRangeError(f"VDR drift {drift:.2f} m/s is negative", raw)
-    return Vdr(talker, st, sm, drift)
+    return Vdr(talker=talker, set_true_deg=st, set_mag_deg=sm, drift_mps=drift)
 
 
 GNSS_PARSERS: dict[str, Callable[[str, list[str], bytes], Rmc | Vtg | Gga | Zda | Vdr]] = {

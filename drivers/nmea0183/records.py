@@ -12,7 +12,7 @@ from datetime import datetime
 from typing import TypeAlias, get_args
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Vhw:
     """VHW — water speed and heading.
 
@@ -34,7 +34,7 @@ class Vhw:
     stw_mps: float | None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Vbw:
     """VBW — dual ground/water speed (6- or 10-field form), m/s, + ahead / + starboard."""
 
@@ -51,7 +51,7 @@ class Vbw:
     stern_ground_valid: bool = False
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Vlw:
     """VLW — distances in nautical miles (ground pair: NMEA 3 8-field form)."""
 
@@ -62,7 +62,7 @@ class Vlw:
     ground_trip_nm: float | None = None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Mtw:
     """MTW — water temperature in °C (None when the field is empty)."""
 
@@ -70,7 +70,7 @@ class Mtw:
     temperature_c: float | None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Heading:
     """HDT, HDG or HDM.
 
@@ -91,7 +91,7 @@ class Heading:
     variation_deg: float | None = None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Prti:
     """Rowe $PRTI01 (instrument frame) or $PRTI02 (earth frame).
 
@@ -132,7 +132,7 @@ GNSS_INVALID_MODES = frozenset("NEMS")
 reckoning), manual input, simulator."""
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Rmc:
     """RMC — recommended minimum GNSS data.
 
@@ -171,7 +171,7 @@ class Rmc:
         )
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Vtg:
     """VTG — course and speed over ground (m/s, degrees)."""
 
@@ -189,7 +189,7 @@ class Vtg:
         )
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Gga:
     """GGA — fix data: time of day, position and fix quality (0 = no fix)."""
 
@@ -202,7 +202,7 @@ class Gga:
     hdop: float | None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Zda:
     """ZDA — UTC date and time (aware), or None when a field is empty."""
 
@@ -210,7 +210,7 @@ class Zda:
     time_utc: datetime | None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Vdr:
     """VDR — set and drift of the current (set: the direction it flows towards)."""
 

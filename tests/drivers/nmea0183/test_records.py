@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 from datetime import UTC, datetime
 
 import pytest
 
 from drivers.framing import with_checksum
-from drivers.nmea0183 import Gga, NmeaDecoder, Rmc, Vdr, Vtg, Zda
+from drivers.nmea0183 import RECORDS, Gga, NmeaDecoder, Rmc, Vdr, Vtg, Zda
 from drivers.records import KMH_MPS, KNOT_MPS
 
 
@@ -66,3 +67,9 @@ class TestValidity:
         assert isinstance(r, Vdr)
         assert (r.set_true_deg, r.set_mag_deg) == (199.6, 198.0)
         assert r.drift_mps == pytest.approx(0.07 * KNOT_MPS)
+
+
+@pytest.mark.parametrize("cls", RECORDS, ids=lambda c: c.__name__)
+def test_every_record_is_built_by_keyword(cls: type) -> None:
+    """Each NMEA record type takes its fields by keyword only."""
+    assert all(f.kw_only for f in dataclasses.fields(cls))
