@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from drivers.base import FramedDecoder, Framer
+from drivers.base import FramedDecoder, Framer, Use
 from drivers.errors import FieldError, UnknownSentenceError
 from drivers.framing import LineFramer, split_nmea
 from drivers.nmea0183.parsing import (
@@ -29,6 +29,9 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
 
     protocol: ClassVar[str] = "nmea0183"
     binary: ClassVar[bool] = False
+    uses: ClassVar[frozenset[Use]] = frozenset({"uut", "speed", "gnss", "bottom"})
+    """VHW/VBW: a UUT or an EMlog reference; RMC/VTG: GNSS; Rowe $PRTI01: bottom track."""
+    heading: ClassVar[bool] = False
 
     def _make_framer(self) -> Framer:
         return LineFramer(b"$!", self.options.max_length)
