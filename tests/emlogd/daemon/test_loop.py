@@ -474,7 +474,7 @@ def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
 def test_repeating_events_are_rate_limited_per_port() -> None:
     """A flapping reference logs one `reference` line per port per 10 s, the next saying how
     many were left out; other events and other ports are not held back."""
-    from emlogd.daemon.loop import EventLimiter
+    from emlogd.daemon.logsetup import EventLimiter
 
     lim = EventLimiter(10.0)
     assert lim.allow("dvl", "reference", 0.0) == 0
