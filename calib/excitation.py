@@ -46,7 +46,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -56,6 +55,9 @@ from calib.models import CURRENT, FloatArray, Layout
 
 N_SECTORS = 8
 """Heading sectors of 45° used to judge how much of the compass a window covers."""
+
+SECTOR_DEG = 360.0 / N_SECTORS
+"""The width of one heading sector, degrees."""
 
 SECTOR_MIN_FRACTION = 0.03
 """A sector counts as covered when it holds at least this fraction of the window."""
@@ -302,25 +304,39 @@ def judge(
     Returns:
         A verdict per unknown.
     """
-    figures = _Figures(stats.info)
-    refused, offset = structural(layout, stats, rule, figures)
-    return _information(layout, stats, sigma2_mps2, rule, std_factor, refused, offset, figures)
+    return _information(_structure(layout, stats, rule), sigma2_mps2, std_factor)
 
 
 def structural(
-    layout: Layout,
-    stats: WindowStats,
-    rule: ExcitationRule = DEFAULT_RULE,
-    figures: _Figures | None = None,
+    layout: Layout, stats: WindowStats, rule: ExcitationRule = DEFAULT_RULE
 ) -> tuple[dict[str, str], bool]:
-    """Rules 1 and 2 and the scale's variance inflation: what no noise level changes
-    (``figures``: the decompositions of ``stats.info`` already made, kept for the next
-    rules).
+    """Rules 1 and 2 and the scale's variance inflation: what no noise level changes.
 
     Returns:
         The unknowns refused, each with its reason, and whether a nuisance offset
         takes the bias and the along-hull current together.
     """
+    s = _structure(layout, stats, rule)
+    return s.refused, s.offset
+
+
+@dataclass(frozen=True, slots=True)
+class _Structure:
+    """A window after the structural rules, as the information rules take it: what they
+    refused and whether an offset takes the bias and the along-hull current, with the
+    window's decompositions (:class:`_Figures`) kept for the next rules."""
+
+    layout: Layout
+    stats: WindowStats
+    rule: ExcitationRule
+    refused: dict[str, str]
+    offset: bool
+    figures: _Figures
+
+
+def _structure(layout: Layout, stats: WindowStats, rule: ExcitationRule) -> _Structure:
+    """:func:`structural`'s verdicts with the decompositions they made."""
+    figures = _Figures(stats.info)
     unknowns = layout.unknowns
     refused: dict[str, str] = {}
     scale = [k for k in ("a", "m") if k in unknowns]
@@ -356,7 +372,6 @@ def structural(
     if layout.current and CURRENT not in refused:
         free_scale = [k for k in scale if k not in refused]
         if free_scale:
-            figures = _Figures(stats.info) if figures is None else figures
             inflation = _scale_inflation(figures, free_scale, "b" in unknowns)
             if inflation > rule.max_scale_vif:
                 why = (
@@ -365,7 +380,7 @@ def structural(
                 )
                 for k in free_scale:
                     refused[k] = why
-    return refused, offset
+    return _Structure(layout, stats, rule, refused, offset, figures)
 
 
 class _Figures:
@@ -395,18 +410,11 @@ class _Figures:
         return found
 
 
-def _information(
-    layout: Layout,
-    stats: WindowStats,
-    sigma2_mps2: float,
-    rule: ExcitationRule,
-    std_factor: float,
-    refused: dict[str, str],
-    offset: bool,
-    figures: _Figures,
-) -> Identifiability:
-    """Rules 3 and 4 on what :func:`structural` left (``refused`` is extended), with the
-    window's decompositions kept in ``figures``."""
+def _information(s: _Structure, sigma2_mps2: float, std_factor: float) -> Identifiability:
+    """Rules 3 and 4 on what the structural rules left (``s`` is left as it is: one
+    window may be judged against several bounds)."""
+    layout, stats, rule, figures, offset = s.layout, s.stats, s.rule, s.figures, s.offset
+    refused = dict(s.refused)
     unknowns = layout.unknowns
     free = [u for u in unknowns if u not in refused]
     stds: dict[str, float] = {}
@@ -468,10 +476,17 @@ def heading_sectors(heading_deg: npt.ArrayLike, weights: npt.ArrayLike | None = 
     w = np.ones_like(h) if weights is None else np.asarray(weights, dtype=np.float64)
     if h.size == 0:
         return 0
-    idx = (np.floor(np.mod(h, 360.0) / (360.0 / N_SECTORS)).astype(int)) % N_SECTORS
-    hist = np.bincount(idx, weights=w, minlength=N_SECTORS)
-    total = float(np.sum(hist))
-    return int(np.count_nonzero(hist >= SECTOR_MIN_FRACTION * total)) if total > 0.0 else 0
+    idx = (np.floor(np.mod(h, 360.0) / SECTOR_DEG).astype(int)) % N_SECTORS
+    return _covered(np.bincount(idx, weights=w, minlength=N_SECTORS).astype(np.float64)) or 0
+
+
+def _covered(weights: FloatArray) -> int | None:
+    """How many sectors hold at least :data:`SECTOR_MIN_FRACTION` of the weight of all
+    (``weights``: one per sector); None when they hold none."""
+    total = float(np.sum(weights))
+    if not total > 0.0:
+        return None
+    return int(np.count_nonzero(weights >= SECTOR_MIN_FRACTION * total))
 
 
 def design5(u_mps: npt.ArrayLike, heading_deg: npt.ArrayLike | None) -> FloatArray:
@@ -607,7 +622,7 @@ class ExcitationWindow:
         self._info = [0.0] * 15
         self._r0 = self._r1 = self._r2 = 0.0
         self._sectors = [0.0] * N_SECTORS
-        self._judged: tuple[WindowStats, dict[str, str], bool, _Figures] | None = None
+        self._judged: _Structure | None = None
 
     def add(self, u_mps: float, raw_mps: float, heading_deg: float | None = None) -> None:
         """Add one sample: operating-point speed through the water, reading, heading."""
@@ -620,7 +635,7 @@ class ExcitationWindow:
             sec = self._sectors
             for i in range(N_SECTORS):
                 sec[i] *= lam
-            sec[int((heading_deg % 360.0) // (360.0 / N_SECTORS)) % N_SECTORS] += 1.0
+            sec[int((heading_deg % 360.0) // SECTOR_DEG) % N_SECTORS] += 1.0
         col = (u_mps * u_mps, u_mps, 1.0, c, s)
         info = self._info
         k = 0
@@ -661,13 +676,7 @@ class ExcitationWindow:
             rms = math.sqrt(max(self._r2 / r0, 0.0))
         else:
             mean = std = rms = 0.0
-        total = sum(self._sectors)
-        sectors = (
-            sum(1 for w in self._sectors if w >= SECTOR_MIN_FRACTION * total)
-            if total > 0.0
-            else None
-        )
-        return WindowStats(r0, M, mean, std, rms, sectors)
+        return WindowStats(r0, M, mean, std, rms, _covered(np.array(self._sectors)))
 
     def evaluate(self, sigma2_mps2: float, *, std_factor: float = 1.0) -> Identifiability:
         """Judge the current window (:func:`judge`) with a nominal residual variance.
@@ -676,16 +685,5 @@ class ExcitationWindow:
         until the next sample, so judging one window against two bounds builds them once.
         """
         if self._judged is None:
-            stats = self.stats()
-            figures = _Figures(stats.info)
-            refused, offset = structural(self.layout, stats, self.rule, figures)
-            self._judged = (stats, refused, offset, figures)
-        stats, refused, offset, figures = self._judged
-        return _information(
-            self.layout, stats, sigma2_mps2, self.rule, std_factor, dict(refused), offset, figures
-        )
-
-
-def qr_r(A: FloatArray) -> FloatArray:
-    """The R factor of the QR factorisation of A, shape (min(N, p), p) (Q is never formed)."""
-    return cast(FloatArray, np.linalg.qr(A, mode="r"))
+            self._judged = _structure(self.layout, self.stats(), self.rule)
+        return _information(self._judged, sigma2_mps2, std_factor)
