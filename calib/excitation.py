@@ -267,20 +267,6 @@ def _inv_diag(info: FloatArray, cols: list[int]) -> FloatArray | None:
     return np.asarray((vec * vec) @ (1.0 / eig) / (scale * scale), dtype=np.float64)
 
 
-def _scaled(cols: list[int], inv_diag: FloatArray | None, sigma2: float) -> dict[int, float]:
-    """Standard deviation of each column's unknown from :func:`_inv_diag` and the
-    residual variance (``inf`` for all when singular)."""
-    if inv_diag is None:
-        return dict.fromkeys(cols, math.inf)
-    return {c: math.sqrt(max(float(inv_diag[i]) * sigma2, 0.0)) for i, c in enumerate(cols)}
-
-
-def _cond(info: FloatArray, cols: list[int]) -> float:
-    """The condition number of the information matrix over some columns."""
-    eig = np.linalg.eigvalsh(info[np.ix_(cols, cols)])
-    return float(eig[-1] / eig[0]) if float(eig[0]) > 0.0 else math.inf
-
-
 def judge(
     layout: Layout,
     stats: WindowStats,
@@ -310,21 +296,17 @@ def judge(
 def structural(
     layout: Layout, stats: WindowStats, rule: ExcitationRule = DEFAULT_RULE
 ) -> tuple[dict[str, str], bool]:
-    """Rules 1 and 2 and the scale's variance inflation: what no noise level changes.
-
-    Returns:
-        The unknowns refused, each with its reason, and whether a nuisance offset
-        takes the bias and the along-hull current together.
-    """
+    """Rules 1 and 2 and the scale's variance inflation, what no noise level changes: the
+    unknowns refused, each with its reason, and whether a nuisance offset takes the bias
+    and the along-hull current together."""
     s = _structure(layout, stats, rule)
     return s.refused, s.offset
 
 
 @dataclass(frozen=True, slots=True)
 class _Structure:
-    """A window after the structural rules, as the information rules take it: what they
-    refused and whether an offset takes the bias and the along-hull current, with the
-    window's decompositions (:class:`_Figures`) kept for the next rules."""
+    """A window after the structural rules: what they refused, whether an offset takes
+    bias and current, and the decompositions kept for the information rules."""
 
     layout: Layout
     stats: WindowStats
@@ -337,9 +319,20 @@ class _Structure:
 def _structure(layout: Layout, stats: WindowStats, rule: ExcitationRule) -> _Structure:
     """:func:`structural`'s verdicts with the decompositions they made."""
     figures = _Figures(stats.info)
-    unknowns = layout.unknowns
+    refused = _speed_rule(layout, stats, rule)
+    offset = False
+    if layout.current:
+        offset = _heading_rule(layout, stats, rule, refused)
+        if not offset:
+            _inflation_rule(layout, figures, rule, refused)
+    return _Structure(layout, stats, rule, refused, offset, figures)
+
+
+def _speed_rule(layout: Layout, stats: WindowStats, rule: ExcitationRule) -> dict[str, str]:
+    """Rule 1: the scale terms refused when the speed through the water does not vary
+    (EM2: when it is too low), each with its reason."""
     refused: dict[str, str] = {}
-    scale = [k for k in ("a", "m") if k in unknowns]
+    scale = [k for k in ("a", "m") if k in layout.unknowns]
     if layout.model == "EM2":
         if stats.speed_rms_mps < rule.min_speed_rms_mps:
             refused["m"] = (
@@ -353,34 +346,47 @@ def _structure(layout: Layout, stats: WindowStats, rule: ExcitationRule) -> _Str
         )
         for k in scale:
             refused[k] = why
-    offset = False
-    if layout.current:
-        sectors = stats.heading_sectors
-        if sectors is None:
-            refused[CURRENT] = "current not determinable: no heading"
-        elif sectors < rule.min_heading_sectors:
-            refused[CURRENT] = (
-                f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
-            )
-        if CURRENT in refused:
-            offset = True
-            if "b" in unknowns:
-                refused["b"] = (
-                    "bias not separable from the current: heading covered "
-                    f"{sectors if sectors is not None else 0} of {N_SECTORS} sectors"
-                )
-    if layout.current and CURRENT not in refused:
-        free_scale = [k for k in scale if k not in refused]
-        if free_scale:
-            inflation = _scale_inflation(figures, free_scale, "b" in unknowns)
-            if inflation > rule.max_scale_vif:
-                why = (
-                    "scale not separable from the current: the speed through the water "
-                    f"follows the heading (the current multiplies its variance by {inflation:.1f})"
-                )
-                for k in free_scale:
-                    refused[k] = why
-    return _Structure(layout, stats, rule, refused, offset, figures)
+    return refused
+
+
+def _heading_rule(
+    layout: Layout, stats: WindowStats, rule: ExcitationRule, refused: dict[str, str]
+) -> bool:
+    """Rule 2: the current (and the bias with it) refused when the heading covers too few
+    sectors; whether an offset then takes the two (``refused`` is extended)."""
+    sectors = stats.heading_sectors
+    if sectors is None:
+        refused[CURRENT] = "current not determinable: no heading"
+    elif sectors < rule.min_heading_sectors:
+        refused[CURRENT] = (
+            f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
+        )
+    if CURRENT not in refused:
+        return False
+    if "b" in layout.unknowns:
+        refused["b"] = (
+            "bias not separable from the current: heading covered "
+            f"{sectors if sectors is not None else 0} of {N_SECTORS} sectors"
+        )
+    return True
+
+
+def _inflation_rule(
+    layout: Layout, figures: _Figures, rule: ExcitationRule, refused: dict[str, str]
+) -> None:
+    """The scale terms left refused when estimating the current inflates their variance
+    beyond ``rule.max_scale_vif`` (``refused`` is extended)."""
+    free_scale = [k for k in ("a", "m") if k in layout.unknowns and k not in refused]
+    if not free_scale:
+        return
+    inflation = _scale_inflation(figures, free_scale, "b" in layout.unknowns)
+    if inflation > rule.max_scale_vif:
+        why = (
+            "scale not separable from the current: the speed through the water "
+            f"follows the heading (the current multiplies its variance by {inflation:.1f})"
+        )
+        for k in free_scale:
+            refused[k] = why
 
 
 class _Figures:
@@ -395,18 +401,24 @@ class _Figures:
         self._cond: dict[tuple[int, ...], float] = {}
 
     def stds(self, cols: list[int], sigma2: float) -> dict[int, float]:
-        """The standard deviations of these columns' unknowns (:func:`_scaled`)."""
+        """The standard deviation of each column's unknown from :func:`_inv_diag` and the
+        residual variance ``sigma2`` (``inf`` for all when singular)."""
         key = tuple(cols)
         if key not in self._inv:
             self._inv[key] = _inv_diag(self.info, cols)
-        return _scaled(cols, self._inv[key], sigma2)
+        inv_diag = self._inv[key]
+        if inv_diag is None:
+            return dict.fromkeys(cols, math.inf)
+        return {c: math.sqrt(max(float(inv_diag[i]) * sigma2, 0.0)) for i, c in enumerate(cols)}
 
     def cond(self, cols: list[int]) -> float:
-        """:func:`_cond` of these columns."""
+        """The condition number of the information matrix over these columns."""
         key = tuple(cols)
         found = self._cond.get(key)
         if found is None:
-            found = self._cond[key] = _cond(self.info, cols)
+            eig = np.linalg.eigvalsh(self.info[np.ix_(cols, cols)])
+            found = float(eig[-1] / eig[0]) if float(eig[0]) > 0.0 else math.inf
+            self._cond[key] = found
         return found
 
 
@@ -619,6 +631,10 @@ class ExcitationWindow:
         self.layout = layout
         self._lam = 0.5 ** (1.0 / half_life_samples) if math.isfinite(half_life_samples) else 1.0
         self.rule = rule
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every sample."""
         self._info = [0.0] * 15
         self._r0 = self._r1 = self._r2 = 0.0
         self._sectors = [0.0] * N_SECTORS
@@ -647,13 +663,6 @@ class ExcitationWindow:
         self._r0 = lam * self._r0 + 1.0
         self._r1 = lam * self._r1 + raw_mps
         self._r2 = lam * self._r2 + raw_mps * raw_mps
-        self._judged = None
-
-    def reset(self) -> None:
-        """Forget every sample."""
-        self._info = [0.0] * 15
-        self._r0 = self._r1 = self._r2 = 0.0
-        self._sectors = [0.0] * N_SECTORS
         self._judged = None
 
     @property
