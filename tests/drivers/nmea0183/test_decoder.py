@@ -11,6 +11,7 @@ from drivers.errors import ChecksumError, FieldError, OutOfRangeError, UnknownSe
 from drivers.framing import with_checksum
 from drivers.nmea0183 import Heading, NmeaDecoder, NmeaRecord, Vbw, Vhw, encode_vbw, encode_vhw
 from drivers.records import KMH_MPS, KNOT_MPS, Rejected
+from tests.profiles import by_profile
 
 
 def _parse(body: str) -> NmeaRecord:
@@ -234,19 +235,12 @@ def _flip(pos: int, value: int) -> None:
         assert isinstance(r, Rejected) or r == original
 
 
-@settings(max_examples=500, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(500), deadline=None)
 @given(pos=st.integers(0, 200), value=st.integers(0, 255))
 def test_a_corrupted_sentence_never_yields_a_wrong_record(pos: int, value: int) -> None:
     """A VBW with any one byte changed is rejected or decodes to the original record, never to a
     different one."""
-    _flip(pos, value)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(pos=st.integers(0, 200), value=st.integers(0, 255))
-def test_fuzz_corrupted_sentences(pos: int, value: int) -> None:
-    """A VBW with any one byte changed never decodes to a different record (fuzz run)."""
     _flip(pos, value)
 
 
@@ -256,19 +250,12 @@ def _random(data: bytes) -> None:
         assert not isinstance(r, Rejected)
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=2000))
 def test_random_bytes_never_raise(data: bytes) -> None:
     """Arbitrary bytes never raise in skip mode and yield no Rejected record (rejects are only
     counted)."""
-    _random(data)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(st.binary(max_size=2000))
-def test_fuzz_random_bytes(data: bytes) -> None:
-    """Arbitrary bytes never raise in skip mode and yield no Rejected record (fuzz run)."""
     _random(data)
 
 
