@@ -15,21 +15,19 @@ import drivers
 from drivers.base import Decoder, DecoderOptions
 from drivers.errors import FieldError, FrameError
 from drivers.framing import LineFramer, with_checksum
-from drivers.nmea0183 import (
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
-    encode_rmc,
-    encode_vbw,
-    encode_vhw,
-    encode_vtg,
-    encode_zda,
-)
+from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from drivers.rdi_pd0 import CoordFrame, encode_pd0
 from drivers.rdi_pd45 import encode_pd45
 from drivers.records import Rejected, SpeedRecord, SpeedRole
+from tests.nmea_encoders import (
+    encode_gga,
+    encode_hdg,
+    encode_hdm,
+    encode_hdt,
+    encode_vtg,
+    encode_zda,
+)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -20,19 +20,7 @@ from hypothesis import strategies as st
 
 from drivers.binframe import sum16
 from drivers.framing import with_checksum
-from drivers.nmea0183 import (
-    NmeaDecoder,
-    Vhw,
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
-    encode_rmc,
-    encode_vbw,
-    encode_vhw,
-    encode_vtg,
-    encode_zda,
-)
+from drivers.nmea0183 import NmeaDecoder, Vhw, encode_rmc, encode_vbw, encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from drivers.rdi_pd0 import encode_pd0
 from drivers.rdi_pd45 import encode_pd45
@@ -40,6 +28,14 @@ from drivers.records import Rejected
 from emlogd.config import parse_config
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import fusion_from_config, pipeline_from_config
+from tests.nmea_encoders import (
+    encode_gga,
+    encode_hdg,
+    encode_hdm,
+    encode_hdt,
+    encode_vtg,
+    encode_zda,
+)
 from tests.profiles import by_profile
 
 CONFIG = """\
