@@ -592,14 +592,33 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
             return ()
         port, hdg = self.port, record.heading_deg
         bs = record.bottom_ship
+        lon, tr = (None, None) if bs is None else (bs.b, bs.a)
         out = [
-            SpeedRecord(port, "sog", "bottom", bs.b, bs.a, True, hdg, None, "PD6:BS")
-            if bs is not None
-            else SpeedRecord(port, "sog", "bottom", None, None, False, hdg, None, "PD6:BS")
+            SpeedRecord(
+                port=port,
+                kind="sog",
+                role="bottom",
+                longitudinal_mps=lon,
+                transverse_mps=tr,
+                valid=bs is not None,
+                heading_true_deg=hdg,
+                source="PD6:BS",
+            )
         ]
         ws = record.water_ship
         if ws is not None:
-            out.append(SpeedRecord(port, "stw", "water", ws.b, ws.a, True, hdg, None, "PD6:WS"))
+            out.append(
+                SpeedRecord(
+                    port=port,
+                    kind="stw",
+                    role="water",
+                    longitudinal_mps=ws.b,
+                    transverse_mps=ws.a,
+                    valid=True,
+                    heading_true_deg=hdg,
+                    source="PD6:WS",
+                )
+            )
         return tuple(out)
 
 

@@ -18,7 +18,7 @@ from calib.excitation import (
     window_stats,
 )
 from calib.models import Layout, Params
-from calib.synth import water_frame_segment
+from tests.synth import water_frame_segment
 
 SIGMA2 = 0.05**2
 EM3C = Layout("EM3", current=True)

@@ -10,7 +10,7 @@ import pytest
 from calib.errors import DataError, ModelError
 from calib.lsq import Averaged, block_average, current_blocks, fit_current, fit_ls
 from calib.models import Params, forward_array
-from calib.synth import water_frame_segment
+from tests.synth import water_frame_segment
 
 
 def _varying(n: int = 600, seed: int = 1) -> tuple[np.ndarray, np.random.Generator]:

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from drivers.errors import ChecksumError, FrameError, MissingChecksumError, TooLongError
 from drivers.framing import LineFramer, nmea_checksum, split_nmea, with_checksum
+from tests.profiles import by_profile
 
 
 def _feed(framer: LineFramer, data: bytes) -> list[bytes | FrameError]:
@@ -99,11 +100,13 @@ def test_chunking_never_changes_the_frames(lines: list[str], cuts: list[int]) ->
 
 
 @pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
+@settings(max_examples=by_profile(300), deadline=None)
 @given(data=st.binary(max_size=600), cuts=st.lists(st.integers(0, 600), max_size=10))
-def test_fuzz_framer_chunking(data: bytes, cuts: list[int]) -> None:
+def test_any_chunking_of_arbitrary_bytes_gives_the_same_frames(
+    data: bytes, cuts: list[int]
+) -> None:
     """Any split of arbitrary bytes into chunks gives the same frames and reject reasons as the
-    bytes fed whole (fuzz run)."""
+    bytes fed whole."""
     whole = _feed(LineFramer(b"$!", 82), data)
     f = LineFramer(b"$!", 82)
     out: list[bytes | FrameError] = []

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from drivers.errors import FrameError
 from drivers.rdi_ascii import Pd6Ensemble, PdAsciiDecoder, PdHealth, encode_pd6
 from drivers.records import Rejected
+from tests.profiles import by_profile
 
 EXAMPLE = (
     Path(__file__).resolve().parents[1] / "data" / "dvl" / "trdi_pathfinder_guide_pd13_example.txt"
@@ -201,7 +202,8 @@ def test_round_trip_any_chunking(t: float, l_: float, heading: float, cuts: list
     )
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(pos=st.integers(0, 400), value=st.integers(0, 255))
 def test_a_corrupted_byte_never_yields_a_wrong_ensemble(pos: int, value: int) -> None:
     """One changed byte never yields an ensemble whose time or bottom-track speed (what the
@@ -230,27 +232,12 @@ def test_every_position_corrupted_by_a_structural_byte(value: int) -> None:
         test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=2000))
 def test_random_bytes_never_raise(data: bytes) -> None:
     """Arbitrary bytes after a colon never raise in skip mode."""
     PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(st.binary(max_size=2000))
-def test_fuzz_random_bytes(data: bytes) -> None:
-    """Arbitrary bytes after a colon never raise in skip mode (fuzz run)."""
-    PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(pos=st.integers(0, 400), value=st.integers(0, 255))
-def test_fuzz_corrupted_byte(pos: int, value: int) -> None:
-    """One changed byte never yields a wrong ensemble (fuzz run)."""
-    test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
 
 
 # Every line type, as a good line and with each field in turn replaced by each value

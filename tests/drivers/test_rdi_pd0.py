@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from drivers.errors import ChecksumError
 from drivers.rdi_pd0 import Pd0Decoder, Pd0Ensemble, encode_pd0
 from drivers.records import Rejected
+from tests.profiles import by_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "dvl"
 
@@ -209,20 +210,12 @@ def _flip_test(pos: int, xor: int) -> None:
     assert len(out) >= 2
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(pos=st.integers(min_value=0, max_value=10_000), xor=st.integers(min_value=1, max_value=255))
 def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) -> None:
     """A flipped byte anywhere in the file yields only original ensembles, and at least two of the
     three."""
-    _flip_test(pos, xor)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(pos=st.integers(min_value=0, max_value=10_000), xor=st.integers(min_value=1, max_value=255))
-def test_fuzz_flipped_bytes(pos: int, xor: int) -> None:
-    """A flipped byte anywhere in the file yields only original ensembles, at least two of three
-    (fuzz run)."""
     _flip_test(pos, xor)
 
 

@@ -13,12 +13,12 @@ import pytest
 from calib.estimate import Estimate
 from calib.lag import LAG_FALLBACK_S, MAX_LAG_STD_S
 from calib.models import Params
-from calib.synth import WaterFrameSeries
 from drivers.framing import split_nmea, with_checksum
 from drivers.nmea0183 import encode_vhw
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
+from tests.synth import WaterFrameSeries
 
 TRUE = Params("EM3", m=0.15, b_mps=0.1)
 Segment = Callable[..., WaterFrameSeries]
