@@ -219,7 +219,8 @@ def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) ->
     _flip_test(pos, xor)
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=3000))
 def test_random_bytes_never_raise_in_skip_mode(data: bytes) -> None:
     """Arbitrary bytes after a PD0 header never raise in skip mode and yield only ensembles."""
