@@ -409,7 +409,7 @@ def train(
             estimator,
             seg.name,
             fit.params,
-            fit.stderr,
+            dict(fit.param_std),
             fit.current_mps,
             fit.identifiable,
             fit.unidentifiable,

@@ -172,9 +172,9 @@ def synthetic() -> None:
                 f"{pm(paper.params.b_mps, paper.param_std['b'])} | "
                 f"{pm(kf.params.m, kf.param_std['m'])} | "
                 f"{pm(kf.params.b_mps, kf.param_std['b'])} | "
-                f"{pm(one.params.m, one.stderr['m'])} | {pm(one.params.b_mps, one.stderr['b'])} | "
-                f"{pm(blocks.params.m, blocks.stderr['m'])} | "
-                f"{pm(blocks.params.b_mps, blocks.stderr['b'])} |",
+                f"{pm(one.params.m, one.param_std['m'])} | {pm(one.params.b_mps, one.param_std['b'])} | "
+                f"{pm(blocks.params.m, blocks.param_std['m'])} | "
+                f"{pm(blocks.params.b_mps, blocks.param_std['b'])} |",
                 flush=True,
             )
 

@@ -217,14 +217,46 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         port, hdg = self.port, record.heading_deg
         v1, v2 = record.bt_velocity_mms[0], record.bt_velocity_mms[1]
         if not record.bottom_lock or v1 is None or v2 is None or record.coord_frame == "beam":
-            return (SpeedRecord(port, "sog", "bottom", None, None, False, hdg, None, "PD0:BT"),)
+            return (
+                SpeedRecord(
+                    port=port,
+                    kind="sog",
+                    role="bottom",
+                    longitudinal_mps=None,
+                    valid=False,
+                    heading_true_deg=hdg,
+                    source="PD0:BT",
+                ),
+            )
         a, b = -v1 / 1000.0, -v2 / 1000.0  # vessel motion
         if record.coord_frame == "earth":
             psi = math.radians(hdg)
             lon = a * math.sin(psi) + b * math.cos(psi)
             tr = a * math.cos(psi) - b * math.sin(psi)
-            return (SpeedRecord(port, "sog", "bottom", lon, tr, True, hdg, None, "PD0:BT"),)
-        return (SpeedRecord(port, "sog", "bottom", b, a, True, hdg, None, "PD0:BT"),)
+            return (
+                SpeedRecord(
+                    port=port,
+                    kind="sog",
+                    role="bottom",
+                    longitudinal_mps=lon,
+                    transverse_mps=tr,
+                    valid=True,
+                    heading_true_deg=hdg,
+                    source="PD0:BT",
+                ),
+            )
+        return (
+            SpeedRecord(
+                port=port,
+                kind="sog",
+                role="bottom",
+                longitudinal_mps=b,
+                transverse_mps=a,
+                valid=True,
+                heading_true_deg=hdg,
+                source="PD0:BT",
+            ),
+        )
 
 
 def _leader_ranges(

@@ -209,24 +209,44 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
             or frame == "beam"
             or (frame == "earth" and hdg is None)
         ):
-            return (SpeedRecord(self.port, "sog", "bottom", None, None, False, hdg, None, src),)
+            return (
+                SpeedRecord(
+                    port=self.port,
+                    kind="sog",
+                    role="bottom",
+                    longitudinal_mps=None,
+                    valid=False,
+                    heading_true_deg=hdg,
+                    source=src,
+                ),
+            )
         a, b = x / 1000.0, y / 1000.0
         if frame == "earth" and hdg is not None:
             psi = math.radians(hdg)
             return (
                 SpeedRecord(
-                    self.port,
-                    "sog",
-                    "bottom",
-                    a * math.sin(psi) + b * math.cos(psi),
-                    a * math.cos(psi) - b * math.sin(psi),
-                    True,
-                    hdg,
-                    None,
-                    src,
+                    port=self.port,
+                    kind="sog",
+                    role="bottom",
+                    longitudinal_mps=a * math.sin(psi) + b * math.cos(psi),
+                    transverse_mps=a * math.cos(psi) - b * math.sin(psi),
+                    valid=True,
+                    heading_true_deg=hdg,
+                    source=src,
                 ),
             )
-        return (SpeedRecord(self.port, "sog", "bottom", b, a, True, hdg, None, src),)
+        return (
+            SpeedRecord(
+                port=self.port,
+                kind="sog",
+                role="bottom",
+                longitudinal_mps=b,
+                transverse_mps=a,
+                valid=True,
+                heading_true_deg=hdg,
+                source=src,
+            ),
+        )
 
 
 def _mm(v: float | None) -> int:

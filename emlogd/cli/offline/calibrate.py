@@ -50,7 +50,7 @@ def _heading_text(h: dict[str, object]) -> str:
 
 
 def _calibration_text(res: CalibrationResult) -> str:
-    se = res.stderr
+    se = res.param_std
     held = set(res.ident.unidentifiable)
     # least squares holds an undetermined unknown at its prior; the filter may have
     # learnt it where a window determined it, though the data as a whole do not

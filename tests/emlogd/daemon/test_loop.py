@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from calib.estimate import Estimate
 from drivers.io.capture import CaptureWriter
 from drivers.io.fake import FakeDevice
 from emlogd.client import request
@@ -240,7 +241,7 @@ def test_state_directory_read_only_or_full(
         from calib.models import Params
         from emlogd.pipeline.calibration import Calibration
 
-        store.save({"emlog1": Calibration("emlog1", Params("EM3"), {}, None)})
+        store.save({"emlog1": Calibration("emlog1", Estimate(Params("EM3"), {}), None)})
         before = store.path.read_bytes()
         if fault == "read-only":
             subprocess.run(["mount", "-o", "remount,ro", str(state_dir)], check=True)

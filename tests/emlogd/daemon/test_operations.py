@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 import serial
 
+from calib.estimate import Estimate
 from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
 from tests.emlogd.daemon.harness import SPEED, Daemon, tcp_port, wait
@@ -102,7 +103,9 @@ def _seed(work: Path) -> None:
     from calib.models import Params
     from emlogd.pipeline.calibration import Calibration
 
-    cal = Calibration("emlog1", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 0.165)
+    cal = Calibration(
+        "emlog1", Estimate(Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}), 0.165
+    )
     StateStore(work / "state" / "state.yaml").save({"emlog1": cal})
 
 

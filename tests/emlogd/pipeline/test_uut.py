@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import numpy as np
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.settings import UutSettings
@@ -91,7 +92,7 @@ class TestRecheck:
 
     def test_fallback_to_raw_when_the_sensor_changes(self) -> None:
         """After a sensor swap the old calibration loses to raw: fall back, and say so."""
-        prior = Calibration("log", TRUE, {"m": 0.01, "b": 0.01}, 0.0)
+        prior = Calibration("log", Estimate(TRUE, {"m": 0.01, "b": 0.01}), 0.0)
         rig = Rig(prior, recheck_s=60.0, learn=False)
         rig.run(40)
         assert _applied(rig) == TRUE  # the restored calibration re-validated
@@ -105,7 +106,7 @@ class TestRecheck:
     def test_a_withdrawn_calibration_is_kept_as_the_last_good_one(self) -> None:
         """Withdrawn for cause, a calibration is persisted (not a reset) and is the next
         candidate; the snapshot of a UUT that never had one is a reset."""
-        prior = Calibration("log", TRUE, {"m": 0.01, "b": 0.01}, 0.0)
+        prior = Calibration("log", Estimate(TRUE, {"m": 0.01, "b": 0.01}), 0.0)
         rig = Rig(prior, learn=False)
         rig.run(40)
         rig.run(10, raw=lambda t, v: v)
@@ -163,7 +164,7 @@ class TestFaults:
 
     def test_low_speed_output_never_goes_negative(self) -> None:
         """At rest with a positive bias the corrected speed is never negative."""
-        prior = Calibration("log", Params("EM3", b_mps=0.17), {"b": 0.01}, 0.0)
+        prior = Calibration("log", Estimate(Params("EM3", b_mps=0.17), {"b": 0.01}), 0.0)
         rig = Rig(prior)
         assert rig.cal.correct(0.0) == 0.0
         assert rig.cal.correct(0.05) == pytest.approx(0.05)
@@ -248,12 +249,9 @@ def test_a_restored_current_is_aged_by_the_time_the_daemon_was_down() -> None:
     cur_std = (0.002, 0.002)
     prior = Calibration(
         "log",
-        TRUE,
-        {"m": 0.01, "b": 0.01},
+        Estimate(TRUE, {"m": 0.01, "b": 0.01}, current_mps=(0.1, 0.0), current_std_mps=cur_std),
         0.0,
         current=True,
-        current_mps=(0.1, 0.0),
-        current_std_mps=cur_std,
         covariance=tuple(tuple(r) for r in np.diag([1.0, 1e-4, 1e-4, 4e-6, 4e-6]).tolist()),
         t=-3600.0,
     )
@@ -267,7 +265,7 @@ def test_a_restored_current_is_aged_by_the_time_the_daemon_was_down() -> None:
 
 
 def _prior(p: Params = TRUE) -> Calibration:
-    return Calibration("log", p, {"m": 0.01, "b": 0.01}, 0.0)
+    return Calibration("log", Estimate(p, {"m": 0.01, "b": 0.01}), 0.0)
 
 
 class TestChangeDetection:
@@ -339,7 +337,10 @@ class TestRestored:
 
         def rig_for(p: Params) -> Rig:
             prior = Calibration(
-                "log", p, {"m": 0.01, "b": 0.01}, 0.0, current=True, current_mps=(-0.3, 0.0)
+                "log",
+                Estimate(p, {"m": 0.01, "b": 0.01}, current_mps=(-0.3, 0.0)),
+                0.0,
+                current=True,
             )
             rig = Rig(prior, heading=0.0, current=True, learn=False)
             rig.run(
