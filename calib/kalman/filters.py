@@ -340,6 +340,7 @@ class KfCalibrator:
         heading_cs: tuple[float, float] | None = None,
         learn: bool | Collection[str] = True,
         max_nis: float = _INF,
+        scaled: bool = True,
     ) -> StepResult:
         """One sample: predict over ``dt_s``, then the reference, then the raw update.
 
@@ -353,6 +354,9 @@ class KfCalibrator:
             learn: which unknowns may move (True: all, False: none; the speed state
                 always moves).
             max_nis: NIS gate for both updates (``inf``: no gate).
+            scaled: the measurement noises are the configured ones times the noise
+                scale λ (False: the configured ones, what a single sample holds when λ
+                was adapted to block means: the samples between blocks).
 
         Returns:
             The innovations and what was applied.
@@ -363,6 +367,7 @@ class KfCalibrator:
         self.predict(dt_s)
         lay = self.layout
         x, P = self._x, self._P
+        lam = self.noise_scale if scaled else 1.0
         n = lay.n
         use_ref = ref_mps is not None and (not lay.current or heading_cs is not None)
         inn_ref: Innovation | None = None
@@ -377,7 +382,7 @@ class KfCalibrator:
             if lay.current and heading_cs is not None:
                 h_ref[-2], h_ref[-1] = heading_cs
             y, s, applied = scalar_update(
-                x, P, h_ref, ref_mps, self.noise_scale * self.config.r_ref_mps2, gains, max_nis
+                x, P, h_ref, ref_mps, lam * self.config.r_ref_mps2, gains, max_nis
             )
             inn_ref = Innovation(y, s, y * y / s)
             if applied:
@@ -406,7 +411,7 @@ class KfCalibrator:
             P,
             h_raw,
             raw_mps,
-            self.noise_scale * self.config.r_raw_mps2,
+            lam * self.config.r_raw_mps2,
             gains,
             max_nis,
             self.correlation if learning else 1.0,

@@ -168,6 +168,19 @@ class TestPaperFilters:
         nis = _blocks(kf, raw[180:], ref[180:])
         assert 0.8 <= float(np.mean(nis)) <= 1.2
 
+    def test_a_sample_between_blocks_has_the_configured_noises(self) -> None:
+        """λ adapted to block means (0.01) does not shrink a single sample's noise: with
+        ``scaled=False`` the innovation variance holds the configured R, so a reading
+        0.3 m/s off a GNSS sample (its own noise) is not gated at NIS 25."""
+        cfg = KfConfig(r_ref_mps2=0.3**2)
+        for scaled, gated in ((True, True), (False, False)):
+            kf = KfCalibrator("EM3", cfg, v0_mps=2.0)
+            kf.noise_scale = 0.01
+            kf.update(2.0, 2.0, 1.0, learn=False, scaled=scaled)
+            res = kf.update(2.3, 2.0, 1.0, learn=False, max_nis=25.0, scaled=scaled)
+            assert res.raw is not None and res.raw_gated == gated
+            assert (cfg.r_raw_mps2 < res.raw.S) == (not scaled)
+
     def test_sample_by_sample_keeps_the_configured_noises(self) -> None:
         """Learning sample by sample (a DVL), the filter is the configured one: λ stays 1."""
         cfg = KfConfig()

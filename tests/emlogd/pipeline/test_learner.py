@@ -103,3 +103,28 @@ def test_readings_the_logs_health_refuses_never_relearn() -> None:
             lr.step(lr.align(t, 0.2 if gate else 6.0, lambda _t: None), gate, None)
         assert lr.counters.relearn - relearnt == relearns
         assert (lr.param_std["m"] > 0.4) == bool(relearns) and lr.param_std["m"] >= std
+
+
+def test_learning_from_blocks_a_change_is_measured_on_the_next_block() -> None:
+    """Against GNSS (20-s block means) the change is the next block's innovation beyond
+    its variance: a log that now reads 35 % high re-opens the scale; one that reads as
+    before leaves it as it was."""
+    stds = {}
+    for gain in (1.0, 1.35):
+        s = UutSettings(port="log", reference_port="gps", reference_field="gnss", lag_s=0.0)
+        lr = Learner(s, Layout(check_model(s.model), s.current), None, lambda t, k, d: None,
+                     Counters())  # fmt: skip
+        true = Params("EM3", m=0.05, b_mps=0.0)
+        for i in range(2400):
+            t = float(i)
+            v = 2.5 + 1.0 * math.sin(2 * math.pi * t / 300.0)
+            if i == 2370:
+                before = lr.param_std["m"]
+                lr.reopen_for_change()
+                assert lr.change_pending
+            raw = true.forward(v) * (gain if i >= 2370 else 1.0)
+            lr.add_reference(t, v, True, lambda _t: None)
+            lr.step(lr.align(t, raw, lambda _t: None), "", None)
+        assert not lr.change_pending and before < 0.02
+        stds[gain] = lr.param_std["m"]
+    assert stds[1.0] < 0.02 and stds[1.35] > 0.2
