@@ -209,18 +209,13 @@ class TestBlockMeans:
         b.add(7.0, 1.0, 1.0, None, frozenset({"b"}))
         assert b.t0 == 7.0 and b.n == 1
 
-    @pytest.mark.xfail(
-        strict=True,
-        reason="the supervisor's change detector withdraws the applied calibration on this "
-        "noisy reference (its baseline leaves out every sample that moves the CUSUM, which "
-        "narrows the spread) and the relearnt scale drifts to m 0.22; a baseline that keeps "
-        "more samples cures it here but kept worse calibrations applied on the real "
-        "recordings (worst 5-min window 1.92 times raw's against 1.14)",
-    )
     def test_noisy_gnss_reference_gives_the_sensors_scale(self) -> None:
         """A reference with 0.3 m/s of noise: the scale is learnt from block means within
         0.03 over two hours of speed changes, where sample-by-sample learning with the
-        same filter is pulled further (average_s: 0)."""
+        same filter is pulled further (average_s: 0). The supervisor's change detector
+        withdraws the applied calibration on this reference's noise; the learner then
+        widens its parameters by the change its own innovations show, not back to the
+        prior, so the scale does not drift."""
         rng = np.random.default_rng(3)
 
         def run(average_s: float | None) -> float:
