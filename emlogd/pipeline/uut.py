@@ -109,6 +109,7 @@ class UutCalibration:
                 if usable is not None and usable.current and usable.current_mps is not None
                 else None
             ),
+            restored_sea_std=usable.current_std_mps if usable is not None else None,
         )
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
         self.state: CalState = "uncalibrated"

@@ -349,6 +349,31 @@ class TestRestored:
         bad = Params("EM3", m=-0.5, b_mps=1.0)
         assert _applied(rig_for(bad)) is None
 
+    def test_on_a_straight_leg_with_no_saved_sea_it_keeps_its_verdict(self) -> None:
+        """No current saved, a straight leg at 3 m/s in 0.4 m/s of current on the stern:
+        raw's error (+0.55) happens to offset the current, so against the reference raw
+        wins, and a current fitted to the window takes either one's offset. The restored
+        calibration implies a current of 0.4 m/s, one the sea can have: applied. A poisoned
+        one (m = -0.5, b = +1) implies 1.7 m/s: refused."""
+        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
+
+        rng = np.random.default_rng(11)
+
+        def rig_for(p: Params) -> Rig:
+            rig = Rig(_prior(p), heading=0.0, current=True, learn=False)
+            rig.run(
+                RESTORE_VALIDATION_S + 30.0,
+                raw=lambda t, v: TRUE.forward(3.0) + float(rng.normal(0.0, 0.05)),
+                ref=lambda t, v: 3.0 + 0.4,
+            )
+            return rig
+
+        good = rig_for(TRUE)
+        assert _applied(good) == TRUE
+        (detail,) = [d for _, k, d in good.events if k == "calibrated"]
+        assert detail["implied_current_mps"] == pytest.approx(-0.4, abs=0.03)
+        assert _applied(rig_for(Params("EM3", m=-0.5, b_mps=1.0))) is None
+
     def test_without_a_reference_it_is_applied_unverified(self) -> None:
         """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""
         from emlogd.pipeline.supervisor import RESTORE_WAIT_S
