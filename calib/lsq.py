@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
+from calib.estimate import Estimate, Estimated
 from calib.excitation import (
     DEFAULT_RULE,
     ExcitationRule,
@@ -47,7 +48,7 @@ from calib.excitation import (
     window_stats,
 )
 from calib.metrics import correlation_factor
-from calib.models import CURRENT, FloatArray, Layout, ModelName, Params, check_model
+from calib.models import CURRENT, FloatArray, Layout, Params, check_model
 
 _A, _M, _B, _CN, _CE, _D = range(6)
 """Indices of the full unknown vector ``[a, m, b, c_N, c_E, offset]``."""
@@ -56,16 +57,14 @@ _MAX_ITER = 30
 
 
 @dataclass(frozen=True, slots=True)
-class LsFit:
+class LsFit(Estimated):
     """Result of one least-squares calibration.
 
     Attributes:
         layout: the model and whether a current was estimated.
-        params: θ̂; an unknown the data do not determine is at its prior.
-        stderr: standard error of each parameter by short name (None: not determined).
-        current_mps: the current (north, east), m/s; None when not estimated or not
-            determined.
-        current_std_mps: its standard errors, m/s.
+        estimate: θ̂ (an unknown the data do not determine at its prior), the standard
+            error of each parameter (None: not determined) and the current with its
+            standard errors (None when not estimated or not determined).
         rmse_mps: RMS of the fit residuals ``raw − f_θ(u)``, m/s (weighted RMS with weights).
         n_samples: number of samples N.
         ident: the verdict on every unknown (see :mod:`calib.excitation`).
@@ -77,20 +76,12 @@ class LsFit:
     """
 
     layout: Layout
-    params: Params
-    stderr: dict[str, float | None]
-    current_mps: tuple[float, float] | None
-    current_std_mps: tuple[float, float] | None
+    estimate: Estimate
     rmse_mps: float
     n_samples: int
     ident: Identifiability
     correlation: float = 1.0
     current_blocks: tuple[tuple[float, float, float], ...] = ()
-
-    @property
-    def model(self) -> ModelName:
-        """The error model."""
-        return self.layout.model
 
     @property
     def identifiable(self) -> bool:
@@ -371,10 +362,7 @@ def fit_ls(
             blocks = tuple((float(t[i]), float(cn[i]), float(ce[i])) for i in first)
     return LsFit(
         layout=layout,
-        params=params,
-        stderr=stderr,
-        current_mps=cur,
-        current_std_mps=cur_std,
+        estimate=Estimate(params, stderr, cur, cur_std),
         rmse_mps=math.sqrt(rss / (w_mean * n)),
         n_samples=n,
         ident=ident,

@@ -31,6 +31,7 @@ import numpy as np
 
 from calib.crossval import ESTIMATORS, CrossValResult, Segment, cross_validate
 from calib.errors import CalibrationError
+from calib.estimate import Estimate, Estimated
 from calib.excitation import Identifiability, identifiability
 from calib.kalman import KfConfig
 from calib.lag import (
@@ -219,16 +220,14 @@ WORSE_THAN_RAW = "the calibrated speed is further from the water speed than the 
 
 
 @dataclass(frozen=True, slots=True)
-class CalibrationResult:
-    """What ``emlogd calibrate`` found (JSON keys: :meth:`to_dict`)."""
+class CalibrationResult(Estimated):
+    """What ``emlogd calibrate`` found (JSON keys: :meth:`to_dict`): the estimate (the
+    standard errors its ``param_std``) and how it was found and scored."""
 
     captures: tuple[str, ...]
     settings: UutSettings
     method: Method
-    params: Params
-    stderr: dict[str, float | None]
-    current_mps: tuple[float, float] | None
-    current_std_mps: tuple[float, float] | None
+    estimate: Estimate
     lag: LagReport
     n_samples: int
     rmse_raw: float
@@ -276,12 +275,9 @@ class CalibrationResult:
         s = self.settings
         return Calibration(
             uut=s.port,
-            params=self.params,
-            param_std=dict(self.stderr),
+            estimate=self.estimate,
             lag_s=self.lag.lag_s,
             current=s.current,
-            current_mps=self.current_mps,
-            current_std_mps=self.current_std_mps,
             method=self.method,
             n_samples=self.n_samples,
             reference={"port": s.reference_port, "field": s.reference_field},
@@ -296,7 +292,7 @@ class CalibrationResult:
             "model": self.params.model,
             "method": self.method,
             "params": self.params.as_dict(),
-            "stderr": {k: _fin(v) for k, v in self.stderr.items()},
+            "stderr": {k: _fin(v) for k, v in self.param_std.items()},
             "current": _current_doc(self.current_mps, self.current_std_mps),
             "lag_s": self.lag.lag_s,
             "lag": self.lag.as_dict(),
@@ -414,8 +410,7 @@ def calibrate(
             t_s=fit_t,
             current_block_s=CURRENT_WINDOW_S if window > 0.0 else None,
         )
-        params, stderr = fit.params, dict(fit.stderr)
-        cur, cur_std = fit.current_mps, fit.current_std_mps
+        estimate = fit.estimate
         ident = fit.ident
     else:
         with TraceWriter(trace) as tracer:
@@ -434,10 +429,12 @@ def calibrate(
         # current_determined): only when determined at the end of the run
         cur = cal.kf.current_mps if cal.ident_current() else None
         cur_std = cal.kf.current_std_mps if cur is not None else None
+        estimate = Estimate(params, stderr, cur, cur_std)
         noise_scale = cal.kf.noise_scale
         if cal.nis:
             stats = nis_stats(np.array(cal.nis, dtype=np.float64))
             nis_mean, nis_frac = stats.mean, stats.frac_inside
+    params = estimate.params
     corrected = correct_array(params, raw)
     rmse_raw, rmse_cal = water_scores(t, ref, raw, corrected, hd, params)
     imo_raw, imo_cal = water_imo(t, ref, raw, corrected, hd, params)
@@ -445,10 +442,7 @@ def calibrate(
         captures=tuple(r.path for r in recs),
         settings=settings,
         method=method,
-        params=params,
-        stderr=stderr,
-        current_mps=cur,
-        current_std_mps=cur_std,
+        estimate=estimate,
         lag=lag_report,
         n_samples=int(raw.size),
         rmse_raw=rmse_raw,

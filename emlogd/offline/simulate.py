@@ -236,26 +236,7 @@ def simulate(
             a current that is not finite or beyond ±3 m/s, or an EMlog outside the
             ranges of :func:`check_emlog` or on another port.
     """
-    if not 0.0 < scale <= 10.0:
-        raise ValueError(f"scale must be in (0, 10], not {scale}")
-    if dvl_format not in ("pd6", "pd0"):
-        raise ValueError(f"dvl_format must be 'pd6' or 'pd0', not {dvl_format!r}")
-    if circles not in ("steps", "constant"):
-        raise ValueError(f"circles must be 'steps' or 'constant', not {circles!r}")
-    if current is not None and not all(
-        math.isfinite(c) and abs(c) <= MAX_CURRENT_MPS for c in current
-    ):
-        raise ValueError(
-            f"current (north, east) must be finite and within ±{MAX_CURRENT_MPS:g} m/s, "
-            f"not {current}"
-        )
-    if tuple(e.port for e in emlogs) != (EMLOG1.port, EMLOG2.port):
-        raise ValueError(
-            f"the EMlogs are ports {EMLOG1.port} and {EMLOG2.port}, in that order, "
-            f"not {[e.port for e in emlogs]}"
-        )
-    for e in emlogs:
-        check_emlog(e)
+    _check_arguments(scale, dvl_format, circles, current, emlogs)
     started = time.perf_counter()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -381,6 +362,36 @@ def simulate(
     return SimulationResult(
         out, tuple(files), truth_path, tuple(truths), time.perf_counter() - started
     )
+
+
+def _check_arguments(
+    scale: float,
+    dvl_format: str,
+    circles: str,
+    current: tuple[float, float] | None,
+    emlogs: tuple[EmlogSpec, EmlogSpec],
+) -> None:
+    """Refuse what :func:`simulate` refuses (its ``Raises``), naming the argument."""
+    if not 0.0 < scale <= 10.0:
+        raise ValueError(f"scale must be in (0, 10], not {scale}")
+    if dvl_format not in ("pd6", "pd0"):
+        raise ValueError(f"dvl_format must be 'pd6' or 'pd0', not {dvl_format!r}")
+    if circles not in ("steps", "constant"):
+        raise ValueError(f"circles must be 'steps' or 'constant', not {circles!r}")
+    if current is not None and not all(
+        math.isfinite(c) and abs(c) <= MAX_CURRENT_MPS for c in current
+    ):
+        raise ValueError(
+            f"current (north, east) must be finite and within ±{MAX_CURRENT_MPS:g} m/s, "
+            f"not {current}"
+        )
+    if tuple(e.port for e in emlogs) != (EMLOG1.port, EMLOG2.port):
+        raise ValueError(
+            f"the EMlogs are ports {EMLOG1.port} and {EMLOG2.port}, in that order, "
+            f"not {[e.port for e in emlogs]}"
+        )
+    for e in emlogs:
+        check_emlog(e)
 
 
 def _plain(data: bytes) -> bool:

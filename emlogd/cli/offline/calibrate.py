@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import sys
+from typing import get_args
 
 from emlogd.cli.common import Subparsers, UsageError, key_arg
 from emlogd.cli.offline import twoaxis
@@ -25,7 +26,7 @@ from emlogd.cli.offline.shared import (
     warn_lag,
     warn_recs,
 )
-from emlogd.offline.jobs import CalibrationResult, calibrate, save_params
+from emlogd.offline.jobs import CalibrationResult, Method, calibrate, save_params
 from emlogd.offline.tables import fmt
 from emlogd.pipeline.settings import UutSettings
 
@@ -51,7 +52,7 @@ def _heading_text(h: dict[str, object]) -> str:
 
 
 def _calibration_text(res: CalibrationResult) -> str:
-    se = res.stderr
+    se = res.param_std
     held = set(res.ident.unidentifiable)
     # least squares holds an undetermined unknown at its prior; the filter may have
     # learnt it where a window determined it, though the data as a whole do not
@@ -161,7 +162,7 @@ def add_parser(sub: Subparsers) -> None:
     model_arg(p)
     p.add_argument(
         "--method",
-        choices=["ls", "kf"],
+        choices=get_args(Method),
         default="ls",
         help="ls: least squares over all samples (default); kf: the daemon's Kalman filter, "
         "sample by sample",

@@ -7,10 +7,15 @@ import json
 import math
 import sys
 from datetime import date
+from typing import TYPE_CHECKING, get_args
 
 from emlogd.cli.common import Subparsers, UsageError, key_arg, progress, progress_done
 from emlogd.cli.offline.args import json_arg
+from emlogd.offline.importer import HeadingRef
 from emlogd.pipeline.settings import UutSettings
+
+if TYPE_CHECKING:
+    from emlogd.offline.importer import ImportReport
 
 
 def _date_arg(value: str) -> date:
@@ -45,77 +50,90 @@ def _import_presets() -> list[str]:
 
 def cmd_import(args: argparse.Namespace) -> int:
     """Turn NMEA logs or CSV exports into a capture."""
-    from emlogd.offline import importer
-
     if not args.port or not args.port.isidentifier():
         raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
-    if args.format == "nmea":
-        for opt in ("map", "preset", "time_format", "heading_ref", "utc_offset", "variation"):
-            if getattr(args, opt) is not None:
-                raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
-        report = importer.import_nmea(
-            args.files, args.out, port=args.port, day=args.date, progress=progress
-        )
-    else:
-        if args.date is not None:
-            raise UsageError("--date applies to --format nmea only")
-        if len(args.files) != 1:
-            raise UsageError("--format csv imports one file at a time")
-        report = importer.import_csv(
-            args.files[0],
-            args.out,
-            importer.parse_map(args.map) if args.map is not None else None,
-            preset=args.preset,
-            time_format=args.time_format,
-            heading_ref=args.heading_ref,
-            utc_offset_h=args.utc_offset,
-            variation_deg=args.variation,
-            port=args.port,
-            progress=progress,
-        )
+    report = _import_nmea(args) if args.format == "nmea" else _import_csv(args)
     progress_done()
     if args.json:
         sys.stdout.write(json.dumps(report.to_dict(), indent=2) + "\n")
-        return 0
+    else:
+        sys.stdout.write(_report_text(report, "lines" if args.format == "nmea" else "rows"))
+    return 0
+
+
+def _import_nmea(args: argparse.Namespace) -> ImportReport:
+    """``--format nmea``: the csv options refused, the logs imported."""
+    from emlogd.offline import importer
+
+    for opt in ("map", "preset", "time_format", "heading_ref", "utc_offset", "variation"):
+        if getattr(args, opt) is not None:
+            raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
+    return importer.import_nmea(
+        args.files, args.out, port=args.port, day=args.date, progress=progress
+    )
+
+
+def _import_csv(args: argparse.Namespace) -> ImportReport:
+    """``--format csv``: one file, ``--date`` refused, the export imported."""
+    from emlogd.offline import importer
+
+    if args.date is not None:
+        raise UsageError("--date applies to --format nmea only")
+    if len(args.files) != 1:
+        raise UsageError("--format csv imports one file at a time")
+    return importer.import_csv(
+        args.files[0],
+        args.out,
+        importer.parse_map(args.map) if args.map is not None else None,
+        preset=args.preset,
+        time_format=args.time_format,
+        heading_ref=args.heading_ref,
+        utc_offset_h=args.utc_offset,
+        variation_deg=args.variation,
+        port=args.port,
+        progress=progress,
+    )
+
+
+def _report_text(report: ImportReport, read: str) -> str:
+    """The import report as text (``read``: what the input counts, lines or rows)."""
     span = report.t_end - report.t_start
-    sys.stdout.write(
-        f"{report.out}: {report.written} sentences on port {report.port} "
-        f"({span / 60.0:.1f} min) from {report.lines} {'lines' if args.format == 'nmea' else 'rows'}\n"
-    )
-    sys.stdout.write(
-        "written      " + ", ".join(f"{k} {v}" for k, v in sorted(report.sentences.items())) + "\n"
-    )
     skipped = {k: v for k, v in report.skipped.items() if v}
-    sys.stdout.write(
-        "skipped      "
-        + (", ".join(f"{k} {v}" for k, v in sorted(skipped.items())) or "none")
-        + "\n"
-    )
-    for k, v in sorted(report.cells.items()):
-        sys.stdout.write(f"cell skipped {k} {v}\n")
-    for k, v in sorted(report.notes.items()):
-        sys.stdout.write(f"note         {k} {v}\n")
+    out = [
+        f"{report.out}: {report.written} sentences on port {report.port} "
+        f"({span / 60.0:.1f} min) from {report.lines} {read}",
+        "written      " + ", ".join(f"{k} {v}" for k, v in sorted(report.sentences.items())),
+        "skipped      " + (", ".join(f"{k} {v}" for k, v in sorted(skipped.items())) or "none"),
+    ]
+    out += [f"cell skipped {k} {v}" for k, v in sorted(report.cells.items())]
+    out += [f"note         {k} {v}" for k, v in sorted(report.notes.items())]
     if report.preset is not None:
-        sys.stdout.write(f"preset       {report.preset}\n")
+        out.append(f"preset       {report.preset}")
+    return "".join(line + "\n" for line in out + _heading_lines(report))
+
+
+def _heading_lines(report: ImportReport) -> list[str]:
+    """What the report says of the heading: its offset from the course, its variation."""
+    out = []
     check = report.heading_check
     if check is not None and isinstance(check.get("offset_deg"), float):
-        sys.stdout.write(
+        out.append(
             f"heading      {check['offset_deg']:+.1f}° from the course on straight legs"
             + (
                 f" — more than leeway explains ({check['max_offset_deg']}°): is it "
-                "magnetic (--heading-ref magnetic), or the compass wrong?\n"
+                "magnetic (--heading-ref magnetic), or the compass wrong?"
                 if check.get("flagged")
-                else "\n"
+                else ""
             )
         )
     if report.variation == "none":
-        sys.stdout.write(
+        out.append(
             "heading      magnetic, and no variation nor position: give --variation DEG "
-            "(here or to calibrate)\n"
+            "(here or to calibrate)"
         )
     elif report.variation is not None:
-        sys.stdout.write(f"heading      magnetic, variation from the {report.variation}\n")
-    return 0
+        out.append(f"heading      magnetic, variation from the {report.variation}")
+    return out
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -154,7 +172,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--heading-ref",
-        choices=["true", "magnetic"],
+        choices=get_args(HeadingRef),
         help="csv: the heading's reference (default: the preset's, else true)",
     )
     p.add_argument(

@@ -6,9 +6,11 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, get_args
 
 from emlogd.cli.common import Subparsers, UsageError, progress, progress_done
+from emlogd.offline.simkinematics import CirclesMode
+from emlogd.offline.simsensors import DvlFormat
 
 if TYPE_CHECKING:
     from emlogd.offline.simulate import TrajectoryTruth
@@ -109,7 +111,7 @@ def add_parser(sub: Subparsers) -> None:
         help="duration factor in (0, 10] (default 1; 0.1: 10 %% as long)",
     )
     p.add_argument(
-        "--dvl-format", choices=["pd6", "pd0"], default="pd6", help="DVL output (default pd6)"
+        "--dvl-format", choices=get_args(DvlFormat), default="pd6", help="DVL output (default pd6)"
     )
     p.add_argument(
         "--current",
@@ -120,7 +122,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--circles",
-        choices=["steps", "constant"],
+        choices=get_args(CirclesMode),
         default="steps",
         help="the circles at three throttle settings (default) or at one constant speed",
     )

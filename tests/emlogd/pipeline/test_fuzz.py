@@ -20,19 +20,7 @@ from hypothesis import strategies as st
 
 from drivers.binframe import sum16
 from drivers.framing import with_checksum
-from drivers.nmea0183 import (
-    NmeaDecoder,
-    Vhw,
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
-    encode_rmc,
-    encode_vbw,
-    encode_vhw,
-    encode_vtg,
-    encode_zda,
-)
+from drivers.nmea0183 import NmeaDecoder, Vhw, encode_rmc, encode_vbw, encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from drivers.rdi_pd0 import encode_pd0
 from drivers.rdi_pd45 import encode_pd45
@@ -40,6 +28,15 @@ from drivers.records import Rejected
 from emlogd.config import parse_config
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import fusion_from_config, pipeline_from_config
+from tests.nmea_encoders import (
+    encode_gga,
+    encode_hdg,
+    encode_hdm,
+    encode_hdt,
+    encode_vtg,
+    encode_zda,
+)
+from tests.profiles import by_profile
 
 CONFIG = """\
 ports:
@@ -206,31 +203,19 @@ def _warm() -> list[tuple[str, str, int, str, bytes, float]]:
     return [(PORTS[k % len(PORTS)], "valid", 0, "", b"\0", 0.05) for k in range(300)]
 
 
+@pytest.mark.fuzz
 @settings(
-    max_examples=25,
+    max_examples=by_profile(25, 3000),
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
-@given(ops=st.lists(op, min_size=1, max_size=120))
+@given(ops=st.lists(op, min_size=1, max_size=by_profile(120, 600)))
 def test_hostile_input_never_escapes_the_pipeline(
     ops: list[tuple[str, str, int, str, bytes, float]],
 ) -> None:
     """Random and mutated sentences of every protocol, after a valid warm-up, go through the
-    whole pipeline without an exception, and whatever it emits decodes as valid NMEA."""
-    _run(_warm() + ops)
-
-
-@pytest.mark.fuzz
-@settings(
-    max_examples=3000,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-)
-@given(ops=st.lists(op, min_size=1, max_size=600))
-def test_fuzz_hostile_input_never_escapes_the_pipeline(
-    ops: list[tuple[str, str, int, str, bytes, float]],
-) -> None:
-    """The long profile of the test above (3000 examples, up to 600 records each)."""
+    whole pipeline without an exception, and whatever it emits decodes as valid NMEA (25
+    examples of up to 120 records; 3000 of up to 600 in the long profile)."""
     _run(_warm() + ops)
 
 
