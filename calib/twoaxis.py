@@ -522,38 +522,83 @@ def judge_two_axis(
             the envelope, :data:`ENVELOPE`).
     """
     unknowns = unknowns_of(model, current)
-    base = rule.base
     refused: dict[str, str] = dict(outside or {})
-    std_raw = _spread(raw_l_mps)
     std_u, std_w = _spread(u_mps), _spread(w_mps)
-    rms_raw = float(np.sqrt(np.mean(raw_l_mps * raw_l_mps))) if raw_l_mps.size else 0.0
-    scale: list[str] = [k for k in ("a", "m") if k in unknowns]
+    _scale_rule(model, unknowns, raw_l_mps, rule.base, refused)
+    sectors = heading_sectors(heading_deg) if heading_deg.size else 0
+    offset = _current_rule(current, sectors, unknowns, rule.base, refused)
+    _misalign_rules(std_u, std_w, rule, refused)
+    free = [k for k in unknowns if k not in refused]
+    n = int(u_mps.size)
+    stds: dict[str, float] = {}
+    n_blocks = info_of.n_blocks if info_of is not None else 1
+    n_cols = len(_free_indices(free, offset, n_blocks))
+    if free and 2 * n < rule.base.min_samples_per_param * n_cols:
+        why = f"too few samples ({2 * n} < {rule.base.min_samples_per_param * n_cols})"
+        for k in free:
+            refused[k] = why
+        free = []
+    if info_of is not None and x is not None and free:
+        stds, offset = _information(info_of.jacobian(x), free, offset, n_blocks, rule, refused)
+    verdicts = tuple(
+        Verdict(k, False, refused[k], None) if k in refused else Verdict(k, True, "", stds.get(k))
+        for k in unknowns
+    )
+    return TwoAxisIdent(model, current, verdicts, offset, std_u, std_w, sectors, n)
+
+
+def _scale_rule(
+    model: ModelName,
+    unknowns: Sequence[str],
+    raw_l: FloatArray,
+    base: ExcitationRule,
+    refused: dict[str, str],
+) -> None:
+    """Rule 1: the longitudinal scale needs the speed to vary (EM2: its RMS)."""
+    scale = [k for k in ("a", "m") if k in unknowns]
     if model == "EM2":
-        if rms_raw < base.min_speed_rms_mps:
+        rms = float(np.sqrt(np.mean(raw_l * raw_l))) if raw_l.size else 0.0
+        if rms < base.min_speed_rms_mps:
             refused["m"] = (
-                f"scale not determinable: speed through water too low (rms {rms_raw:.2f} m/s)"
+                f"scale not determinable: speed through water too low (rms {rms:.2f} m/s)"
             )
-    elif scale and std_raw < base.min_speed_std_mps:
+        return
+    spread = _spread(raw_l)
+    if scale and spread < base.min_speed_std_mps:
         why = (
-            "scale not determinable: speed through water nearly constant "
-            f"(spread {std_raw:.2f} m/s)"
+            f"scale not determinable: speed through water nearly constant (spread {spread:.2f} m/s)"
         )
         for k in scale:
             refused[k] = why
-    sectors = heading_sectors(heading_deg) if heading_deg.size else 0
-    offset = False
+
+
+def _current_rule(
+    current: bool,
+    sectors: int,
+    unknowns: Sequence[str],
+    base: ExcitationRule,
+    refused: dict[str, str],
+) -> bool:
+    """Rule 2: the current needs the heading's sectors; refused (or refused before),
+    both biases go with it. Returns whether a nuisance offset per axis is fitted."""
     if current and sectors < base.min_heading_sectors:
         refused[CURRENT] = (
             f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
         )
-    if CURRENT in refused:
-        offset = True
-        for k, label in (("b", "bias"), (B_T, "transverse bias")):
-            if k in unknowns:
-                refused[k] = (
-                    f"{label} not separable from the current: heading covered "
-                    f"{sectors} of {N_SECTORS} sectors"
-                )
+    if CURRENT not in refused:
+        return False
+    for k, label in (("b", "bias"), (B_T, "transverse bias")):
+        if k in unknowns:
+            refused[k] = (
+                f"{label} not separable from the current: heading covered "
+                f"{sectors} of {N_SECTORS} sectors"
+            )
+    return True
+
+
+def _misalign_rules(std_u: float, std_w: float, rule: TwoAxisRule, refused: dict[str, str]) -> None:
+    """Rules 3 and 4: the misalignment needs the forward speed to vary, the
+    transverse scale the sway; without the transverse scale, no misalignment."""
     if std_u < rule.min_speed_std_misalign_mps:
         refused[ALPHA] = (
             "misalignment not separable from the transverse bias and the current: "
@@ -566,57 +611,64 @@ def judge_two_axis(
         )
     if M_T in refused and ALPHA not in refused:
         refused[ALPHA] = _ALPHA_WITH_SCALE
-    free = [k for k in unknowns if k not in refused]
-    n = int(u_mps.size)
+
+
+def _information(
+    jac: FloatArray,
+    free: list[str],
+    offset: bool,
+    n_blocks: int,
+    rule: TwoAxisRule,
+    refused: dict[str, str],
+) -> tuple[dict[str, float], bool]:
+    """Rule 5 on the ``free`` unknowns (refusing into ``refused``): each one's σ from
+    the information matrix under its bound, the worst refused and the rest judged
+    again. Returns the σ of those left and whether a nuisance offset is fitted."""
     stds: dict[str, float] = {}
-    n_blocks = info_of.n_blocks if info_of is not None else 1
-    n_cols = len(_free_indices(free, offset, n_blocks))
-    if free and 2 * n < base.min_samples_per_param * n_cols:
-        why = f"too few samples ({2 * n} < {base.min_samples_per_param * n_cols})"
-        for k in free:
-            refused[k] = why
-        free = []
-    if info_of is not None and x is not None and free:
-        jac = info_of.jacobian(x)
-        while free:
-            cols = _free_indices(free, offset, n_blocks)
-            info = jac[:, cols].T @ jac[:, cols]
-            try:
-                cov = np.linalg.inv(info)
-                diag = np.sqrt(np.maximum(np.diag(cov), 0.0))
-            except np.linalg.LinAlgError:
-                diag = np.full(len(cols), math.inf)
-            where = {c: i for i, c in enumerate(cols)}
-            stds = {k: max(float(diag[where[i]]) for i in _index(k, n_blocks)) for k in free}
-            ratios = {k: stds[k] / rule.max_std(k) for k in free}
-            worst = max(free, key=lambda k: ratios[k])
-            if ratios[worst] <= 1.0:
-                break
-            sd = stds[worst]
-            shown = math.degrees(sd) if worst == ALPHA else sd
-            bound = rule.max_std(worst)
-            bound = math.degrees(bound) if worst == ALPHA else bound
-            refused[worst] = (
-                f"{_LABEL[worst]} not determinable: weak excitation "
-                f"(standard error {shown:.3g} > {bound:g}{_UNIT[worst]})"
-                if math.isfinite(sd)
-                else f"{_LABEL[worst]} not determinable: information matrix singular"
-            )
-            free.remove(worst)
-            if worst == M_T and ALPHA in free:
-                free.remove(ALPHA)
-                refused[ALPHA] = _ALPHA_WITH_SCALE
-            if worst == CURRENT:
-                offset = True
-                for k in ("b", B_T):
-                    if k in free:
-                        free.remove(k)
-                        refused[k] = refused[CURRENT].replace("current", _LABEL[k], 1)
-    verdicts = tuple(
-        Verdict(k, False, refused[k], None) if k in refused else Verdict(k, True, "", stds.get(k))
-        for k in unknowns
+    while free:
+        stds = _stds(jac, free, offset, n_blocks)
+        ratios = {k: stds[k] / rule.max_std(k) for k in free}
+        worst = max(free, key=lambda k: ratios[k])
+        if ratios[worst] <= 1.0:
+            break
+        refused[worst] = _weak(worst, stds[worst], rule)
+        free.remove(worst)
+        if worst == M_T and ALPHA in free:
+            free.remove(ALPHA)
+            refused[ALPHA] = _ALPHA_WITH_SCALE
+        if worst == CURRENT:
+            offset = True
+            for k in ("b", B_T):
+                if k in free:
+                    free.remove(k)
+                    refused[k] = refused[CURRENT].replace("current", _LABEL[k], 1)
+    return stds, offset
+
+
+def _stds(jac: FloatArray, free: list[str], offset: bool, n_blocks: int) -> dict[str, float]:
+    """Each free unknown's σ from the information matrix (the larger component's for
+    the current)."""
+    cols = _free_indices(free, offset, n_blocks)
+    info = jac[:, cols].T @ jac[:, cols]
+    try:
+        diag = np.sqrt(np.maximum(np.diag(np.linalg.inv(info)), 0.0))
+    except np.linalg.LinAlgError:
+        diag = np.full(len(cols), math.inf)
+    where = {c: i for i, c in enumerate(cols)}
+    return {k: max(float(diag[where[i]]) for i in _index(k, n_blocks)) for k in free}
+
+
+def _weak(unknown: str, sd: float, rule: TwoAxisRule) -> str:
+    """The reason an unknown's σ refuses it."""
+    if not math.isfinite(sd):
+        return f"{_LABEL[unknown]} not determinable: information matrix singular"
+    bound = rule.max_std(unknown)
+    if unknown == ALPHA:
+        sd, bound = math.degrees(sd), math.degrees(bound)
+    return (
+        f"{_LABEL[unknown]} not determinable: weak excitation "
+        f"(standard error {sd:.3g} > {bound:g}{_UNIT[unknown]})"
     )
-    return TwoAxisIdent(model, current, verdicts, offset, std_u, std_w, sectors, n)
 
 
 @dataclass(frozen=True, slots=True)
@@ -795,10 +847,18 @@ def _prepare(
     return name, s, _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
 
 
+MIN_KNOT_SHARE = 0.05
+"""A knot whose samples weigh less than this share of the best-supported knot's is
+left out (the time between two captures, a capture's last seconds): its current would
+rest on a handful of samples. The samples near it take their neighbours' knots, each
+row of the basis summing to 1 again."""
+
+
 def current_basis(t_s: npt.ArrayLike | None, n: int, knot_s: float) -> FloatArray | None:
     """The hat functions of a current linear between knots ``knot_s`` apart from the
     first sample: shape (N, K), each row summing to 1 (None: the samples span less
-    than one interval, one current).
+    than one interval, one current). Knots without the samples to carry them are left
+    out (:data:`MIN_KNOT_SHARE`).
 
     Raises:
         DataError: no times, times of another length, not finite or decreasing, a bad
@@ -818,9 +878,14 @@ def current_basis(t_s: npt.ArrayLike | None, n: int, knot_s: float) -> FloatArra
         return None
     k = math.ceil(span / knot_s) + 1
     knots = t[0] + knot_s * np.arange(k)
-    return np.asarray(
-        np.maximum(0.0, 1.0 - np.abs(t[:, None] - knots[None, :]) / knot_s), dtype=np.float64
-    )
+    basis = np.maximum(0.0, 1.0 - np.abs(t[:, None] - knots[None, :]) / knot_s)
+    weight = basis.sum(axis=0)
+    keep = weight >= MIN_KNOT_SHARE * float(np.max(weight))
+    basis = basis[:, keep]
+    total = basis.sum(axis=1, keepdims=True)
+    if basis.shape[1] <= 1 or not np.all(total > 0.0):
+        return None
+    return np.asarray(basis / total, dtype=np.float64)
 
 
 def fit_two_axis(

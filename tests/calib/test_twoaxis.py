@@ -207,3 +207,14 @@ def test_water_frame_reference_determines_both_biases() -> None:
     assert fit.identifiable, fit.ident.reason
     assert fit.params.b_t_mps == pytest.approx(0.04, abs=0.01)
     assert fit.params.longitudinal.b_mps == pytest.approx(-0.05, abs=0.02)
+
+
+def test_current_basis_leaves_out_knots_without_samples() -> None:
+    """Two captures an hour apart: the knots in between carry no sample and are left
+    out, each row still sums to 1 (a fit on both captures is not singular)."""
+    t = np.concatenate([np.arange(0.0, 1200.0, 1.0), np.arange(4800.0, 6000.0, 1.0)])
+    basis = current_basis(t, t.size, 300.0)
+    assert basis is not None
+    assert basis.shape[1] == 10  # 5 knots over each capture's 1200 s, none between
+    np.testing.assert_allclose(basis.sum(axis=1), 1.0)
+    assert np.all(basis.sum(axis=0) > 0.05 * basis.sum(axis=0).max())
