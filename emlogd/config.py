@@ -5,9 +5,9 @@ Every key is declared once, as a dataclass field made with
 keys on the pipeline's own settings (:class:`~emlogd.pipeline.settings.PortSettings`,
 :class:`~emlogd.pipeline.settings.UutSettings`,
 :class:`~emlogd.pipeline.integrity.Envelope`), the daemon's on the dataclasses here.
-Validation, :func:`dump_config` and :func:`key_table` (README's "Configuration
-reference") read those declarations, and the loaded config holds the pipeline's
-settings themselves, complete.
+Validation, :func:`emlogd.configdump.dump_config` and
+:func:`emlogd.configdump.key_table` (README's "Configuration reference") read those
+declarations, and the loaded config holds the pipeline's settings themselves, complete.
 
 Every error names the file, the line and the key, e.g.
 ``emlogd.yaml:14: calibration[0].model: 'EM5' is not one of EM1, EM2, EM3, EM4``.
@@ -34,7 +34,6 @@ from emlogd.pipeline.keys import (
     boolean,
     build,
     entries,
-    get,
     group,
     hostport,
     key,
@@ -637,68 +636,3 @@ def _speed_routes(uuts: Sequence[UutConfig], outputs: OutputConfig) -> list[tupl
             for dest in own or shared or ["the shared outputs (replay --out)"]:
                 routes.append((dest, c.settings.talker, f"log {c.uut!r}"))
     return routes
-
-
-# ------------------------------------------------------------------ dump and table
-
-
-def _shown(e: Entry, value: Any) -> Any:
-    if e.key.show is not None:
-        value = e.key.show(value)
-    return dict(value) if isinstance(value, Mapping) else value
-
-
-def _dump_section(obj: Any, cls: type) -> dict[str, Any]:
-    return {e.name: _shown(e, get(obj, e.attrs)) for e in entries(cls)}
-
-
-def dump_config(config: Config) -> str:
-    """The effective configuration (every key, defaults filled in) as YAML.
-
-    Paths are written as loaded (already resolved), ``current: auto`` and a log's
-    ``talker`` as they were resolved, so ``parse_config(dump_config(c), c.path) == c``.
-    """
-    doc: dict[str, Any] = {
-        "ports": [_dump_section(p, PortConfig) for p in config.ports],
-        "calibration": [_dump_section(u, UutConfig) for u in config.calibration],
-        "outputs": _dump_section(config.outputs, OutputConfig),
-        **_dump_section(config, Config),
-    }
-    name = " ".join(config.path.splitlines())
-    return f"# emlogd effective configuration of {name}\n" + yaml.safe_dump(doc, sort_keys=False)
-
-
-def _cell(value: Any) -> str:
-    """A value as a config would write it."""
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return f"{value:g}"
-    if isinstance(value, Mapping):
-        return "{" + ", ".join(f"{k}: {_cell(v)}" for k, v in value.items()) + "}"
-    return str(value)
-
-
-def key_table() -> str:
-    """Every config key as a Markdown table (README's "Configuration reference")."""
-    rows = [
-        "| Key | Values | Default | Unit | Meaning |",
-        "| --- | --- | --- | --- | --- |",
-    ]
-    for prefix, cls in SECTIONS:
-        for e in entries(cls):
-            shown = e.key.text or f"`{_cell(_shown(e, e.absent))}`"
-            default = "required" if e.required else shown
-            rows.append(
-                f"| `{prefix}{e.name}` | {e.key.check.text} | {default} | {e.key.unit} "
-                f"| {e.key.doc} |"
-            )
-    return "\n".join(rows) + "\n"
-
-
-if __name__ == "__main__":  # python -m emlogd.config: the table README's reference holds
-    import sys
-
-    sys.stdout.write(key_table())

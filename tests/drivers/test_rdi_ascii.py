@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from drivers.errors import FrameError
 from drivers.rdi_ascii import Pd6Ensemble, PdAsciiDecoder, PdHealth, encode_pd6
 from drivers.records import Rejected
+from tests.chunks import feed_in_chunks
 from tests.profiles import by_profile
 
 EXAMPLE = (
@@ -188,13 +189,7 @@ def test_round_trip_any_chunking(t: float, l_: float, heading: float, cuts: list
     however the bytes are chunked."""
     data = _lines(bottom_ship_mps=(t, l_, 0.0), heading_deg=heading)
     dec = PdAsciiDecoder("dvl")
-    out: list[object] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(dec.feed(data[prev:c]))
-        prev = c
-    out.extend(dec.feed(data[prev:]))
-    out.extend(dec.flush())
+    out = feed_in_chunks(dec, data, cuts)
     (e,) = out
     assert isinstance(e, Pd6Ensemble) and e.bottom_ship is not None
     assert e.bottom_ship.a == pytest.approx(t, abs=6e-4) and e.bottom_ship.b == pytest.approx(

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from drivers.errors import ChecksumError
 from drivers.rdi_pd0 import Pd0Decoder, Pd0Ensemble, encode_pd0
 from drivers.records import Rejected
+from tests.chunks import feed_in_chunks
 from tests.profiles import by_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "dvl"
@@ -189,13 +190,7 @@ def test_any_chunking_gives_the_same_records(cuts: list[int]) -> None:
     data = (DATA / "ooi_adcp_auv_3.pd0").read_bytes()
     whole = Pd0Decoder("dvl").decode_all(data)
     dec = Pd0Decoder("dvl")
-    out: list[object] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(dec.feed(data[prev:c]))
-        prev = c
-    out.extend(dec.feed(data[prev:]))
-    out.extend(dec.flush())
+    out = feed_in_chunks(dec, data, cuts)
     assert out == whole
 
 
@@ -219,7 +214,8 @@ def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) ->
     _flip_test(pos, xor)
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=3000))
 def test_random_bytes_never_raise_in_skip_mode(data: bytes) -> None:
     """Arbitrary bytes after a PD0 header never raise in skip mode and yield only ensembles."""

@@ -132,7 +132,9 @@ def add_parser(sub: Subparsers) -> None:
         action="append",
         metavar="PORT:KEY=V,...",
         help="another EMlog: PORT emlog1 or emlog2, KEY a (s/m), m, b (m/s) of its EM4 "
-        "error model, latency (s) or noise (m/s, 1σ); the values not given keep their "
+        "error model, latency (s), noise (m/s, 1σ), misalign (degrees, + the sensor's "
+        "forward axis to starboard), mt, bt (m/s) the transverse scale and bias of "
+        "emlog2's VBW (mt: m unless given); the values not given keep their "
         "defaults (truth.yaml lists every sensor's); repeatable",
     )
     p.set_defaults(handler=cmd_simulate)
