@@ -61,21 +61,7 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
             raise UnknownSentenceError(f"proprietary sentence {address} not decoded", frame)
         if len(address) != 5 or not address.isalnum():
             raise FieldError(f"bad address field {address[:16]!r}", frame)
-        talker, kind = address[:2], address[2:]
-        if kind == "VHW":
-            return parse_vhw(talker, fields, frame)
-        if kind == "VBW":
-            return parse_vbw(talker, fields, frame)
-        gnss = GNSS_PARSERS.get(kind)
-        if gnss is not None:
-            return gnss(talker, fields, frame)
-        if kind == "VLW":
-            return parse_vlw(talker, fields, frame)
-        if kind == "MTW":
-            return parse_mtw(talker, fields, frame)
-        if kind in HEADING_FIELDS:
-            return parse_heading(kind, talker, fields, frame)
-        raise UnknownSentenceError(f"sentence {kind} not decoded", frame)
+        return _parse_talker_sentence(address[:2], address[2:], fields, frame)
 
     def speed_records(self, record: NmeaRecord) -> tuple[SpeedRecord, ...]:
         """VHW → stw (both headings); VBW → stw (water pair) and sog (ground pair, if
@@ -130,3 +116,26 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
                 ),
             )
         return ()
+
+
+def _parse_talker_sentence(talker: str, kind: str, fields: list[str], frame: bytes) -> NmeaRecord:
+    """A talker sentence's fields by its formatter (``VHW``, ``RMC``...).
+
+    Raises:
+        FrameError: a subclass naming the reject reason (``unknown_sentence`` for a
+            formatter not decoded).
+    """
+    if kind == "VHW":
+        return parse_vhw(talker, fields, frame)
+    if kind == "VBW":
+        return parse_vbw(talker, fields, frame)
+    gnss = GNSS_PARSERS.get(kind)
+    if gnss is not None:
+        return gnss(talker, fields, frame)
+    if kind == "VLW":
+        return parse_vlw(talker, fields, frame)
+    if kind == "MTW":
+        return parse_mtw(talker, fields, frame)
+    if kind in HEADING_FIELDS:
+        return parse_heading(kind, talker, fields, frame)
+    raise UnknownSentenceError(f"sentence {kind} not decoded", frame)
