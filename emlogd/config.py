@@ -523,15 +523,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
             _known(ctx, kn, k, k, sorted(known))
     if "ports" not in top:
         raise ctx.fail(root, "", "missing required key 'ports'")
-    ports: list[PortConfig] = []
-    for i, node in enumerate(ctx.sequence(top["ports"][1], "ports")):
-        where = f"ports[{i}]"
-        kw, at = _section(ctx, node, where, PortConfig, "ports[].")
-        if any(p.name == kw["name"] for p in ports):
-            raise ctx.fail(at["name"], f"{where}.name", f"duplicate port name {kw['name']!r}")
-        ports.append(_build(PortConfig, kw))
-    if not ports:
-        raise ctx.fail(top["ports"][1], "ports", "at least one port is needed")
+    ports = _parse_ports(ctx, top["ports"][1])
     by_name = {p.name: p for p in ports}
     cals: list[dict[str, Any]] = []
     cal_nodes = ctx.sequence(top["calibration"][1], "calibration") if "calibration" in top else []
@@ -542,23 +534,11 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         if any(c["uut"] == kw["uut"] for c in cals):
             raise ctx.fail(at["uut"], f"{where}.uut", f"{kw['uut']!r} is calibrated twice")
         cals.append(kw)
-    outputs = OutputConfig()
-    if "outputs" in top:
-        kw, _ = _section(ctx, top["outputs"][1], "outputs", OutputConfig, "outputs.")
-        outputs = _build(OutputConfig, kw)
-        ptys = [c["pty"] for c in cals if c.get("pty")]
-        if outputs.pty in ptys or len(set(ptys)) != len(ptys):
-            raise ctx.fail(
-                top["outputs"][1],
-                "outputs.pty",
-                "each output pty must be its own (a log's pty repeats another)",
-            )
-        if outputs.speed != "each" and "fused" in by_name:
-            raise ctx.fail(
-                top["outputs"][1],
-                "outputs.speed",
-                "a port called 'fused' clashes with the fused output: rename the port",
-            )
+    outputs = (
+        _parse_outputs(ctx, top["outputs"][1], cals, by_name)
+        if "outputs" in top
+        else OutputConfig()
+    )
     uuts: list[UutConfig] = []
     for kw in cals:  # what a log takes from the rest of the config
         reference = by_name[kw["reference"]]
@@ -583,6 +563,41 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         if k in top_keys
     }
     return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
+
+
+def _parse_ports(ctx: _Ctx, node: yaml.Node) -> list[PortConfig]:
+    """The ``ports`` section: at least one, each name once."""
+    ports: list[PortConfig] = []
+    for i, item in enumerate(ctx.sequence(node, "ports")):
+        where = f"ports[{i}]"
+        kw, at = _section(ctx, item, where, PortConfig, "ports[].")
+        if any(p.name == kw["name"] for p in ports):
+            raise ctx.fail(at["name"], f"{where}.name", f"duplicate port name {kw['name']!r}")
+        ports.append(_build(PortConfig, kw))
+    if not ports:
+        raise ctx.fail(node, "ports", "at least one port is needed")
+    return ports
+
+
+def _parse_outputs(
+    ctx: _Ctx, node: yaml.Node, cals: Sequence[Mapping[str, Any]], by_name: Mapping[str, Any]
+) -> OutputConfig:
+    """The ``outputs`` section: its pty none of the logs' own, no port named ``fused``
+    beside a fused output."""
+    kw, _ = _section(ctx, node, "outputs", OutputConfig, "outputs.")
+    outputs: OutputConfig = _build(OutputConfig, kw)
+    ptys = [c["pty"] for c in cals if c.get("pty")]
+    if outputs.pty in ptys or len(set(ptys)) != len(ptys):
+        raise ctx.fail(
+            node, "outputs.pty", "each output pty must be its own (a log's pty repeats another)"
+        )
+    if outputs.speed != "each" and "fused" in by_name:
+        raise ctx.fail(
+            node,
+            "outputs.speed",
+            "a port called 'fused' clashes with the fused output: rename the port",
+        )
+    return outputs
 
 
 def _check_one_speed_per_talker(

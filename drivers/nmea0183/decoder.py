@@ -61,7 +61,7 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
             raise UnknownSentenceError(f"proprietary sentence {address} not decoded", frame)
         if len(address) != 5 or not address.isalnum():
             raise FieldError(f"bad address field {address[:16]!r}", frame)
-        return _parse_talker_sentence(address[:2], address[2:], fields, frame)
+        return _parse_kind(address[:2], address[2:], fields, frame)
 
     def speed_records(self, record: NmeaRecord) -> tuple[SpeedRecord, ...]:
         """VHW → stw (both headings); VBW → stw (water pair) and sog (ground pair, if
@@ -118,12 +118,11 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
         return ()
 
 
-def _parse_talker_sentence(talker: str, kind: str, fields: list[str], frame: bytes) -> NmeaRecord:
-    """A talker sentence's fields by its formatter (``VHW``, ``RMC``...).
+def _parse_kind(talker: str, kind: str, fields: list[str], frame: bytes) -> NmeaRecord:
+    """A standard sentence's fields by its type (the speeds' first, the common case).
 
     Raises:
-        FrameError: a subclass naming the reject reason (``unknown_sentence`` for a
-            formatter not decoded).
+        FrameError: a subclass naming the reject reason (a type not decoded too).
     """
     if kind == "VHW":
         return parse_vhw(talker, fields, frame)
