@@ -1,7 +1,8 @@
 """One estimate of an error model, the value every calibration result carries.
 
 Least squares (:class:`calib.lsq.LsFit`), the filter run over a series
-(:class:`calib.kalman.batch.KfRun`), the offline result
+(:class:`calib.kalman.batch.KfRun`), an estimator trained in cross-validation
+(:class:`calib.crossval.TrainedEstimator`), the offline result
 (``emlogd.offline.jobs.CalibrationResult``) and the calibration record
 (``emlogd.pipeline.calibration.Calibration``) each hold one :class:`Estimate` as their
 ``estimate`` and read its fields through :class:`Estimated`: the parameters, their

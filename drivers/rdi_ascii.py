@@ -32,22 +32,20 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, TypeAlias, TypeVar, get_args
 
-from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer
+from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer, Use
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
 from drivers.records import (
     MAX_DEPTH_M,
     MAX_PITCH_DEG,
     MAX_ROLL_DEG,
+    RDI_INVALID,
     SALINITY_RANGE_PPT,
     SOUND_SPEED_RANGE_MPS,
     WATER_TEMP_RANGE_C,
     Rejected,
     SpeedRecord,
 )
-
-INVALID = -32768
-"""PD6/PD0 invalid-velocity marker, mm/s."""
 
 ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
 """Line types of one ensemble, in transmission order."""
@@ -202,13 +200,13 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
 
 def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
     for v in values:
-        if not INVALID <= v <= 32767:
+        if not RDI_INVALID <= v <= 32767:
             raise OutOfRangeError(f":{kind} velocity {v} mm/s outside int16", raw)
-    if void or INVALID in values[:3]:
+    if void or RDI_INVALID in values[:3]:
         return None
     err = None
     if len(values) == 4:
-        err = None if values[3] == INVALID else values[3] / 1000.0
+        err = None if values[3] == RDI_INVALID else values[3] / 1000.0
     return Velocity(values[0] / 1000.0, values[1] / 1000.0, values[2] / 1000.0, err)
 
 
@@ -468,6 +466,10 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
 
     protocol: ClassVar[str] = "pd6"
     binary: ClassVar[bool] = False
+    uses: ClassVar[frozenset[Use]] = frozenset({"bottom", "water"})
+    """:BS bottom track, :WS water-mass track."""
+    heading: ClassVar[bool] = True
+    """:SA."""
 
     def __init__(
         self,
@@ -627,7 +629,7 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
 
 def _mm(v: float | None) -> str:
     if v is None:
-        return f"{INVALID:+06d}"
+        return f"{RDI_INVALID:+06d}"
     if not math.isfinite(v):
         raise ValueError(f"cannot encode a non-finite velocity {v!r}")
     return f"{max(min(round(v * 1000.0), 32767), -32767):+06d}"

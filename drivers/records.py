@@ -59,6 +59,10 @@ MAX_PITCH_DEG = 90.0
 MAX_ROLL_DEG = 180.0
 """Largest roll magnitude, degrees."""
 
+RDI_INVALID = -32768
+"""Teledyne RDI's bad-value marker in a 16-bit velocity or error velocity (mm/s): PD0,
+PD4/PD5 and PD6 alike."""
+
 MAX_DEPTH_M = 12_000.0
 """Deepest instrument or bottom depth, m (the deepest ocean is ~11 km)."""
 

@@ -31,15 +31,9 @@ Must not import: serial, os, time, threading (pure module).
 
 from drivers.nmea0183.decoder import NmeaDecoder
 from drivers.nmea0183.encoders import (
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
     encode_rmc,
     encode_vbw,
     encode_vhw,
-    encode_vtg,
-    encode_zda,
 )
 from drivers.nmea0183.parsing import (
     MAX_FIX_QUALITY,
@@ -105,15 +99,9 @@ __all__ = [
     "Vlw",
     "Vtg",
     "Zda",
-    "encode_gga",
-    "encode_hdg",
-    "encode_hdm",
-    "encode_hdt",
     "encode_rmc",
     "encode_vbw",
     "encode_vhw",
-    "encode_vtg",
-    "encode_zda",
     "parse_gga",
     "parse_heading",
     "parse_mtw",

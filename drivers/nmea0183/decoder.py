@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from drivers.base import FramedDecoder, Framer
+from drivers.base import FramedDecoder, Framer, Use
 from drivers.errors import FieldError, UnknownSentenceError
 from drivers.framing import LineFramer, split_nmea
 from drivers.nmea0183.parsing import (
@@ -29,6 +29,9 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
 
     protocol: ClassVar[str] = "nmea0183"
     binary: ClassVar[bool] = False
+    uses: ClassVar[frozenset[Use]] = frozenset({"uut", "speed", "gnss", "bottom"})
+    """VHW/VBW: a UUT or an EMlog reference; RMC/VTG: GNSS; Rowe $PRTI01: bottom track."""
+    heading: ClassVar[bool] = False
 
     def _make_framer(self) -> Framer:
         return LineFramer(b"$!", self.options.max_length)
@@ -58,21 +61,7 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
             raise UnknownSentenceError(f"proprietary sentence {address} not decoded", frame)
         if len(address) != 5 or not address.isalnum():
             raise FieldError(f"bad address field {address[:16]!r}", frame)
-        talker, kind = address[:2], address[2:]
-        if kind == "VHW":
-            return parse_vhw(talker, fields, frame)
-        if kind == "VBW":
-            return parse_vbw(talker, fields, frame)
-        gnss = GNSS_PARSERS.get(kind)
-        if gnss is not None:
-            return gnss(talker, fields, frame)
-        if kind == "VLW":
-            return parse_vlw(talker, fields, frame)
-        if kind == "MTW":
-            return parse_mtw(talker, fields, frame)
-        if kind in HEADING_FIELDS:
-            return parse_heading(kind, talker, fields, frame)
-        raise UnknownSentenceError(f"sentence {kind} not decoded", frame)
+        return _parse_kind(address[:2], address[2:], fields, frame)
 
     def speed_records(self, record: NmeaRecord) -> tuple[SpeedRecord, ...]:
         """VHW → stw (both headings); VBW → stw (water pair) and sog (ground pair, if
@@ -127,3 +116,25 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
                 ),
             )
         return ()
+
+
+def _parse_kind(talker: str, kind: str, fields: list[str], frame: bytes) -> NmeaRecord:
+    """A standard sentence's fields by its type (the speeds' first, the common case).
+
+    Raises:
+        FrameError: a subclass naming the reject reason (a type not decoded too).
+    """
+    if kind == "VHW":
+        return parse_vhw(talker, fields, frame)
+    if kind == "VBW":
+        return parse_vbw(talker, fields, frame)
+    gnss = GNSS_PARSERS.get(kind)
+    if gnss is not None:
+        return gnss(talker, fields, frame)
+    if kind == "VLW":
+        return parse_vlw(talker, fields, frame)
+    if kind == "MTW":
+        return parse_mtw(talker, fields, frame)
+    if kind in HEADING_FIELDS:
+        return parse_heading(kind, talker, fields, frame)
+    raise UnknownSentenceError(f"sentence {kind} not decoded", frame)

@@ -315,24 +315,30 @@ class Daemon:
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
-            changed = False  # a port opened or lost: its descriptor changed
-            for src in self.sources.values():
-                events = src.poll()
-                if events:
-                    changed = True
-                    self._log_port_events(events)
-            if changed:
-                self._sync_registrations()
-            for server in self.controls.values():
-                server.housekeep()
-            self.outputs.housekeep()
-            self._tick()
+            self._housekeep()
             if now >= next_status:
                 next_status = now + self.config.status_log_interval_s
                 self._status_event()
             if next_watchdog is not None and now >= next_watchdog:
                 self.notifier.watchdog()
                 next_watchdog = now + (wd or 1.0)
+
+    def _housekeep(self) -> None:
+        """Every :data:`HOUSEKEEPING_S`: the ports' events (a port opened or lost selected
+        again on its new descriptor), the control servers' and outputs' upkeep, the
+        pipeline's tick."""
+        changed = False  # a port opened or lost: its descriptor changed
+        for src in self.sources.values():
+            events = src.poll()
+            if events:
+                changed = True
+                self._log_port_events(events)
+        if changed:
+            self._sync_registrations()
+        for server in self.controls.values():
+            server.housekeep()
+        self.outputs.housekeep()
+        self._tick()
 
     def _watch(self, fd: int, call: Callable[[], None]) -> None:
         """Wait for ``fd`` to be readable in the loop, then call ``call``."""

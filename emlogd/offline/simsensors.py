@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.models import FloatArray, Params, forward_array
+from calib.twoaxis import TwoAxisParams
 from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.offline.simfaults import SensorFault
@@ -44,6 +45,24 @@ class EmlogSpec:
     talker: str
     fault: SensorFault | None = None
     """A fault injected into the readings (:mod:`emlogd.offline.simfaults`)."""
+    misalign_deg: float = 0.0
+    """The sensor's forward axis from the bow, degrees (> 0: to starboard): it reads
+    ``u·cos α + w·sin α`` forward and ``−u·sin α + w·cos α`` athwart
+    (:class:`calib.twoaxis.TwoAxisParams`)."""
+    m_t: float | None = None
+    """The transverse scale error (None: the longitudinal ``m``)."""
+    b_t_mps: float = 0.0
+    """The transverse bias, m/s."""
+
+    @property
+    def two_axis(self) -> TwoAxisParams:
+        """The sensor's two-axis model (the longitudinal its EM4 parameters)."""
+        return TwoAxisParams(
+            self.params,
+            math.radians(self.misalign_deg),
+            self.params.m if self.m_t is None else self.m_t,
+            self.b_t_mps,
+        )
 
 
 EMLOG1 = EmlogSpec("emlog1", Params("EM4", 0.03, 0.17, 0.12), 3.2, 0.03, 4800, "VW")
@@ -54,16 +73,30 @@ SENSOR_LIMITS = {
     "b": (-1.0, 1.0),
     "latency": (0.0, 8.0),
     "noise": (0.0, 0.5),
+    "misalign": (-10.0, 10.0),
+    "mt": (-0.5, 0.5),
+    "bt": (-1.0, 1.0),
 }
 """The ranges :func:`check_emlog` accepts: curvature a (s/m), scale m, bias b (m/s),
 latency (s, within the default ``max_lag_s`` of 10 s with room for the lag search's
-reach) and white noise (m/s, 1σ); ``emlogd simulate --sensor`` names them so."""
+reach), white noise (m/s, 1σ), the misalignment (degrees, > 0: the sensor's forward
+axis to starboard of the bow), the transverse scale and bias (m/s); ``emlogd
+simulate --sensor`` names them so."""
 
 
 def _sensor_values(e: EmlogSpec) -> dict[str, float]:
     """The values :data:`SENSOR_LIMITS` names, of one EMlog."""
     p = e.params
-    return {"a": p.a_spm, "m": p.m, "b": p.b_mps, "latency": e.latency_s, "noise": e.noise_mps}
+    return {
+        "a": p.a_spm,
+        "m": p.m,
+        "b": p.b_mps,
+        "latency": e.latency_s,
+        "noise": e.noise_mps,
+        "misalign": e.misalign_deg,
+        "mt": p.m if e.m_t is None else e.m_t,
+        "bt": e.b_t_mps,
+    }
 
 
 def check_emlog(e: EmlogSpec) -> None:
@@ -80,7 +113,8 @@ def check_emlog(e: EmlogSpec) -> None:
 
 def with_sensor(e: EmlogSpec, given: Mapping[str, float]) -> EmlogSpec:
     """``e`` with some of the values :data:`SENSOR_LIMITS` names replaced (its EM4
-    error model, latency, noise), checked by :func:`check_emlog`.
+    error model, latency, noise, misalignment, transverse scale and bias), checked by
+    :func:`check_emlog`. The transverse scale follows ``m`` unless given.
 
     Raises:
         ValueError: a name :data:`SENSOR_LIMITS` does not know, or a value outside it.
@@ -94,6 +128,9 @@ def with_sensor(e: EmlogSpec, given: Mapping[str, float]) -> EmlogSpec:
         params=Params("EM4", v["a"], v["m"], v["b"]),
         latency_s=v["latency"],
         noise_mps=v["noise"],
+        misalign_deg=v["misalign"],
+        m_t=v["mt"] if ("mt" in given or e.m_t is not None) else None,
+        b_t_mps=v["bt"],
     )
     check_emlog(new)
     return new
@@ -222,6 +259,10 @@ def emlog_lines(
     phase = float(rng.uniform(0.0, period_vhw))
     t_vhw = np.arange(phase + emlog.latency_s, k.t[-1], period_vhw)
     true_u = interp(k, k.surge, t_vhw - emlog.latency_s)
+    if emlog.misalign_deg:  # the forward axis of a turned sensor
+        alpha = math.radians(emlog.misalign_deg)
+        true_w = interp(k, k.sway, t_vhw - emlog.latency_s)
+        true_u = true_u * math.cos(alpha) + true_w * math.sin(alpha)
     raw = forward_array(p, true_u) + rng.normal(0.0, emlog.noise_mps, t_vhw.size)
     if emlog.fault is not None:
         raw = emlog.fault.apply(t0 - START_EPOCH_S + t_vhw - emlog.latency_s, raw, round(t0))
@@ -238,12 +279,21 @@ def emlog_lines(
         t_vbw = np.arange(phase + 0.05 + emlog.latency_s, k.t[-1], 0.1)
         u = interp(k, k.surge, t_vbw - emlog.latency_s)
         w = interp(k, k.sway, t_vbw - emlog.latency_s)
+        if emlog.misalign_deg:  # the sensor's own axes
+            alpha = math.radians(emlog.misalign_deg)
+            u, w = (
+                u * math.cos(alpha) + w * math.sin(alpha),
+                -u * math.sin(alpha) + w * math.cos(alpha),
+            )
         long_ = forward_array(p, u) + rng.normal(0.0, emlog.noise_mps, t_vbw.size)
         if emlog.fault is not None:
             long_ = emlog.fault.apply(
                 t0 - START_EPOCH_S + t_vbw - emlog.latency_s, long_, round(t0) + 1
             )
-        trans = (1.0 + p.m) * w + rng.normal(0.0, emlog.noise_mps, t_vbw.size)
+        gain_t = 1.0 + (p.m if emlog.m_t is None else emlog.m_t)
+        trans = gain_t * w + rng.normal(0.0, emlog.noise_mps, t_vbw.size)
+        if emlog.b_t_mps:
+            trans = trans + emlog.b_t_mps
         jit = rng.uniform(0.0, 0.005, t_vbw.size)
         for ti, li, tr, ji in zip(
             t_vbw.tolist(), long_.tolist(), trans.tolist(), jit.tolist(), strict=True

@@ -16,6 +16,7 @@ import yaml
 
 from calib.metrics import ImoVerdict, imo_verdict
 from calib.models import FloatArray, Params, check_model, correct_array
+from calib.twoaxis import TwoAxisParams
 from drivers.errors import EmlogdError
 from emlogd.offline.simkinematics import DT_S, Kinematics
 
@@ -28,10 +29,14 @@ TRUTH_COLUMNS = (
     "current_n_mps",
     "current_e_mps",
     "bottom_lock",
+    "stw_trans_mps",
 )
 """Columns of the truth per sample: receive-clock time (epoch s), trajectory index
 (1–5), true speed through the water along the hull (m/s), heading (degrees true),
-sea current north and east (m/s), DVL bottom lock (0/1)."""
+sea current north and east (m/s), DVL bottom lock (0/1), true speed through the
+water athwart the hull (m/s, + starboard: the sway of turns)."""
+TRUTH_COLUMNS_ONE_AXIS = TRUTH_COLUMNS[:-1]
+"""The columns of a truth written before the athwart speed was (read as such)."""
 TRUTH_STEP = 2
 """Every second integration step goes to the truth CSV."""
 TRUTH_RATE_HZ = 1.0 / (DT_S * TRUTH_STEP)
@@ -105,6 +110,7 @@ def truth_rows(index: int, k: Kinematics, lock: npt.NDArray[np.bool_], t0: float
             k.current_n[sl],
             k.current_e[sl],
             lock[sl].astype(np.float64),
+            k.sway[sl],
         ]
     )
 
@@ -113,7 +119,9 @@ def write_truth_csv(path: Path, rows: FloatArray) -> None:
     """Write the truth rows as gzip CSV, byte-identical for identical rows (no mtime)."""
     text = io.StringIO()
     text.write(",".join(TRUTH_COLUMNS) + "\n")
-    np.savetxt(text, rows, fmt=["%.3f", "%d", "%.4f", "%.3f", "%.4f", "%.4f", "%d"], delimiter=",")
+    np.savetxt(
+        text, rows, fmt=["%.3f", "%d", "%.4f", "%.3f", "%.4f", "%.4f", "%d", "%.4f"], delimiter=","
+    )
     with path.open("wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz:
         gz.write(text.getvalue().encode("ascii"))
 
@@ -137,6 +145,8 @@ class Truth:
         current_e_mps: sea current east, m/s.
         bottom_lock: the DVL's bottom lock.
         sensors: ``truth.yaml``'s ``sensors`` section (error models, latencies).
+        stw_trans_mps: true speed through the water athwart the hull, m/s (None: a
+            truth written without it).
     """
 
     t: FloatArray
@@ -147,6 +157,7 @@ class Truth:
     current_e_mps: FloatArray
     bottom_lock: npt.NDArray[np.bool_]
     sensors: dict[str, dict[str, object]]
+    stw_trans_mps: FloatArray | None = None
 
     def stw_at(self, t: npt.ArrayLike) -> FloatArray:
         """True speed through the water at times ``t``; nan outside the trajectories.
@@ -163,6 +174,35 @@ class Truth:
         same = self.trajectory[idx] == self.trajectory[idx - 1]
         v = np.interp(q, self.t, self.stw_mps)
         return np.asarray(np.where(inside & same, v, np.nan), dtype=np.float64)
+
+    def trans_at(self, t: npt.ArrayLike) -> FloatArray:
+        """True athwart speed through the water at times ``t``, as :meth:`stw_at`.
+
+        Raises:
+            TruthError: the truth has no athwart speed.
+        """
+        if self.stw_trans_mps is None:
+            raise TruthError("the truth has no athwart speed (simulate it again)")
+        q = np.asarray(t, dtype=np.float64)
+        ok = np.isfinite(self.stw_at(q))
+        v = np.interp(q, self.t, self.stw_trans_mps)
+        return np.asarray(np.where(ok, v, np.nan), dtype=np.float64)
+
+    def two_axis(self, port: str) -> TwoAxisParams:
+        """A simulated EMlog's true two-axis model (misalignment 0 and the transverse
+        scale the longitudinal one in a truth written without them).
+
+        Raises:
+            TruthError: ``port`` is not a simulated EMlog.
+        """
+        params, _ = self.emlog(port)
+        spec = self.sensors[port]
+        return TwoAxisParams(
+            params,
+            math.radians(float(spec.get("misalign_deg", 0.0))),  # type: ignore[arg-type]
+            float(spec.get("m_t", params.m)),  # type: ignore[arg-type]
+            float(spec.get("b_t_mps", 0.0)),  # type: ignore[arg-type]
+        )
 
     def emlog(self, port: str) -> tuple[Params, float]:
         """A simulated EMlog's true error model and latency (s, behind the truth).
@@ -204,13 +244,13 @@ def read_truth(directory: str | Path) -> Truth:
     try:
         with gzip.open(csv_path, "rt", encoding="ascii") as f:
             header = f.readline().strip().split(",")
-            if tuple(header) != TRUTH_COLUMNS:
+            if tuple(header) not in (TRUTH_COLUMNS, TRUTH_COLUMNS_ONE_AXIS):
                 raise ValueError(f"columns {header}, expected {list(TRUTH_COLUMNS)}")
             data = np.loadtxt(f, delimiter=",", ndmin=2)
     except (OSError, EOFError, ValueError, UnicodeDecodeError) as exc:
         raise TruthError(f"{csv_path}: {exc}") from None
-    if data.shape[1] != len(TRUTH_COLUMNS) or np.any(np.diff(data[:, 0]) <= 0.0):
-        raise TruthError(f"{csv_path}: expected {len(TRUTH_COLUMNS)} columns in time order")
+    if data.shape[1] != len(header) or np.any(np.diff(data[:, 0]) <= 0.0):
+        raise TruthError(f"{csv_path}: expected {len(header)} columns in time order")
     return Truth(
         t=data[:, 0].copy(),
         trajectory=data[:, 1].astype(np.int64),
@@ -220,6 +260,7 @@ def read_truth(directory: str | Path) -> Truth:
         current_e_mps=data[:, 5].copy(),
         bottom_lock=data[:, 6] > 0.5,
         sensors=sensors,
+        stw_trans_mps=data[:, 7].copy() if data.shape[1] > 7 else None,
     )
 
 

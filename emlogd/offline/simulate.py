@@ -21,7 +21,13 @@ Physics (ship frame x forward, y starboard; heading ψ clockwise from north):
 speed through water = ground velocity − current, resolved in the body frame. The
 EMlogs see the surge speed through the water through their error model
 ``raw = a·u² + (1+m)·u + b`` plus white noise, delayed by their latency and
-quantised to 0.01 kn by the two-decimal NMEA field. The DVL bottom track sees the
+quantised to 0.01 kn by the two-decimal NMEA field. ``emlog2``'s VBW carries the
+athwart speed too, ``(1 + m_t)·w + b_t`` (the transverse scale ``m_t`` is ``m``
+unless given); a sensor turned by a misalignment α (``--sensor
+emlog2:misalign=DEG``) reads the water's velocity on its own axes,
+``u·cos α + w·sin α`` forward (VHW and VBW) and ``−u·sin α + w·cos α`` athwart
+(:class:`calib.twoaxis.TwoAxisParams`). With no misalignment and no transverse error
+given the bytes are those of a trial without them. The DVL bottom track sees the
 ground velocity in the ship frame, i.e. surge and sway *plus the current* — the
 contamination the paper discusses — with millimetre noise and no latency (it is
 the time reference: the truth latencies are relative to it).
@@ -39,7 +45,7 @@ drawn after the other ports', so adding it left the EMlog and DVL bytes as they 
 
 Next to the captures, ``truth.yaml`` (the sensors' true error models and latencies,
 per-trajectory figures) and ``truth.csv.gz`` (the truth per sample at 10 Hz: true
-speed through the water along the hull, heading, current, bottom lock), which
+speed through the water along and athwart the hull, heading, current, bottom lock), which
 :func:`read_truth` reads and :func:`score_truth` scores speeds against.
 
 Every file, the truth files included, is a pure function of the arguments: two runs
@@ -324,6 +330,9 @@ def simulate(
                 "noise_mps": e.noise_mps,
                 "baud": e.baud,
                 "talker": e.talker,
+                "misalign_deg": e.misalign_deg,
+                "m_t": e.two_axis.m_t,
+                "b_t_mps": e.b_t_mps,
             }
             for e in emlogs
         }

@@ -109,6 +109,7 @@ class UutCalibration:
                 if usable is not None and usable.current and usable.current_mps is not None
                 else None
             ),
+            restored_sea_std=usable.current_std_mps if usable is not None else None,
         )
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
         self.state: CalState = "uncalibrated"
@@ -350,7 +351,7 @@ class UutCalibration:
         sup.observe(a.t, a.raw, a.ref, cs, lr, proj=proj, water=water)
         if sup.reopen:
             sup.reopen = False
-            lr.kf.reopen(self.layout.params)
+            lr.reopen_for_change()
             self.counters.relearn += 1
             self._emit(a.t, "relearn", {"why": "the supervisor saw the readings change"})
 

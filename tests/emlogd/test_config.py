@@ -218,6 +218,32 @@ def test_an_emlog_with_role_uut_may_be_the_speed_reference() -> None:
     ]
 
 
+@pytest.mark.parametrize(
+    ("protocol", "field", "current"),
+    [
+        ("pd6", "bottom", True),
+        ("pd13", "water", True),
+        ("pd0", "bottom", True),
+        ("pd5", "bottom", True),
+        ("pd4", "bottom", False),
+        ("nmea0183", "bottom", False),
+        ("nmea0183", "speed", False),
+        ("nmea0183", "gnss", True),
+    ],
+)
+def test_current_auto_follows_whether_the_reference_carries_a_heading(
+    protocol: str, field: str, current: bool
+) -> None:
+    """With no heading port, ``current: auto`` estimates the current when the reference's
+    protocol carries the heading with its track (PD6/PD13, PD0, PD5: not PD4, not Rowe PRTI01
+    nor an EMlog) or the reference is GNSS."""
+    text = BASE.replace("protocol: pd6", f"protocol: {protocol}").replace(
+        "reference: dvl}", f"reference: dvl, reference_field: {field}}}"
+    )
+    (uut,) = parse_config(text).calibration
+    assert uut.settings.current is current
+
+
 def test_dump_round_trips_non_defaults(tmp_path: Path) -> None:
     """Every non-default value survives dump and reload (lag in seconds, nulls, maps)."""
     text = (

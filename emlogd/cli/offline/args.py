@@ -6,12 +6,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-from typing import Any
+from typing import Any, get_args
 
 from calib.models import MODEL_NAMES
 from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.cli.common import UsageError, key_arg
-from emlogd.pipeline.settings import UutSettings
+from emlogd.pipeline.settings import RefField, UutSentence, UutSettings
 
 STRICT_HELP = "fail at the first malformed capture record instead of counting and skipping it"
 
@@ -83,7 +83,7 @@ def capture_args(p: argparse.ArgumentParser) -> None:
 
 def uut_source_arg(p: argparse.ArgumentParser) -> None:
     """``--uut-source``: the sentence the UUT's speed is read from."""
-    p.add_argument("--uut-source", choices=["VHW", "VBW"], help="UUT sentence (default VHW)")
+    p.add_argument("--uut-source", choices=get_args(UutSentence), help="UUT sentence (default VHW)")
 
 
 def lag_arg(p: argparse.ArgumentParser, *, auto: bool = True) -> None:
@@ -133,7 +133,7 @@ def pairing_args(p: argparse.ArgumentParser, required: bool = True) -> None:
     )
     p.add_argument(
         "--ref-field",
-        choices=["bottom", "water", "speed", "gnss"],
+        choices=get_args(RefField),
         default="bottom" if required else None,
         help="reference: DVL bottom track (default), DVL water track, an EMlog's speed, "
         "or GNSS speed and course (RMC/VTG) projected on the hull with the heading",

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import sys
+from typing import get_args
 
 from emlogd.cli.common import Subparsers, UsageError, key_arg
 from emlogd.cli.offline.args import (
@@ -24,7 +25,7 @@ from emlogd.cli.offline.shared import (
     warn_lag,
     warn_recs,
 )
-from emlogd.offline.jobs import CalibrationResult, calibrate, save_params
+from emlogd.offline.jobs import CalibrationResult, Method, calibrate, save_params
 from emlogd.offline.tables import fmt
 from emlogd.pipeline.settings import UutSettings
 
@@ -158,7 +159,7 @@ def add_parser(sub: Subparsers) -> None:
     model_arg(p)
     p.add_argument(
         "--method",
-        choices=["ls", "kf"],
+        choices=get_args(Method),
         default="ls",
         help="ls: least squares over all samples (default); kf: the daemon's Kalman filter, "
         "sample by sample",

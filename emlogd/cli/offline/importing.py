@@ -7,10 +7,11 @@ import json
 import math
 import sys
 from datetime import date
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, get_args
 
 from emlogd.cli.common import Subparsers, UsageError, key_arg, progress, progress_done
 from emlogd.cli.offline.args import json_arg
+from emlogd.offline.importer import HeadingRef
 from emlogd.pipeline.settings import UutSettings
 
 if TYPE_CHECKING:
@@ -171,7 +172,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--heading-ref",
-        choices=["true", "magnetic"],
+        choices=get_args(HeadingRef),
         help="csv: the heading's reference (default: the preset's, else true)",
     )
     p.add_argument(

@@ -6,9 +6,11 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, get_args
 
 from emlogd.cli.common import Subparsers, UsageError, progress, progress_done
+from emlogd.offline.simkinematics import CirclesMode
+from emlogd.offline.simsensors import DvlFormat
 
 if TYPE_CHECKING:
     from emlogd.offline.simulate import TrajectoryTruth
@@ -109,7 +111,7 @@ def add_parser(sub: Subparsers) -> None:
         help="duration factor in (0, 10] (default 1; 0.1: 10 %% as long)",
     )
     p.add_argument(
-        "--dvl-format", choices=["pd6", "pd0"], default="pd6", help="DVL output (default pd6)"
+        "--dvl-format", choices=get_args(DvlFormat), default="pd6", help="DVL output (default pd6)"
     )
     p.add_argument(
         "--current",
@@ -120,7 +122,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--circles",
-        choices=["steps", "constant"],
+        choices=get_args(CirclesMode),
         default="steps",
         help="the circles at three throttle settings (default) or at one constant speed",
     )
@@ -130,7 +132,9 @@ def add_parser(sub: Subparsers) -> None:
         action="append",
         metavar="PORT:KEY=V,...",
         help="another EMlog: PORT emlog1 or emlog2, KEY a (s/m), m, b (m/s) of its EM4 "
-        "error model, latency (s) or noise (m/s, 1σ); the values not given keep their "
+        "error model, latency (s), noise (m/s, 1σ), misalign (degrees, + the sensor's "
+        "forward axis to starboard), mt, bt (m/s) the transverse scale and bias of "
+        "emlog2's VBW (mt: m unless given); the values not given keep their "
         "defaults (truth.yaml lists every sensor's); repeatable",
     )
     p.set_defaults(handler=cmd_simulate)

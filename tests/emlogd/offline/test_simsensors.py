@@ -11,7 +11,15 @@ import pytest
 from drivers import make_decoder
 from drivers.nmea0183 import Rmc
 from emlogd.offline.simkinematics import DT_S, START_EPOCH_S, Kinematics
-from emlogd.offline.simsensors import FAULT_RATES, GNSS_LAG_S, Faults, Line, gnss_lines
+from emlogd.offline.simsensors import (
+    EMLOG2,
+    FAULT_RATES,
+    GNSS_LAG_S,
+    Faults,
+    Line,
+    gnss_lines,
+    with_sensor,
+)
 
 
 def _steady(speed: float, n_s: float = 3000.0, accel: float = 0.0) -> Kinematics:
@@ -89,3 +97,15 @@ def test_a_sentence_and_an_ensemble_take_the_same_faults(monkeypatch: pytest.Mon
             assert j >= 2 and b[j] == raw[j] ^ 0x5A
     assert text.counts == binary.counts
     assert all(n > 150 for n in text.counts.values()), text.counts
+
+
+def test_with_sensor_two_axis_keys() -> None:
+    """misalign, mt and bt set emlog2's two-axis model; mt follows m unless given; a
+    misalignment beyond its range is refused."""
+    s = with_sensor(EMLOG2, {"misalign": 3.0, "bt": 0.04})
+    assert s.two_axis.misalign_deg == pytest.approx(3.0)
+    assert s.two_axis.m_t == EMLOG2.params.m and s.two_axis.b_t_mps == 0.04
+    assert with_sensor(s, {"m": 0.1}).two_axis.m_t == pytest.approx(0.1)
+    assert with_sensor(s, {"mt": -0.2, "m": 0.1}).two_axis.m_t == pytest.approx(-0.2)
+    with pytest.raises(ValueError, match="misalign"):
+        with_sensor(EMLOG2, {"misalign": 30.0})

@@ -17,7 +17,7 @@ def test_truth_csv_matches_the_trial(trial: SimulationResult) -> None:
     truth = read_truth(trial.outdir)
     with gzip.open(trial.outdir / "truth.csv.gz", "rt") as f:
         assert f.readline().strip() == (
-            "t,trajectory,stw_mps,heading_deg,current_n_mps,current_e_mps,bottom_lock"
+            "t,trajectory,stw_mps,heading_deg,current_n_mps,current_e_mps,bottom_lock,stw_trans_mps"
         )
     for i, tr in enumerate(trial.trajectories, start=1):
         on = truth.trajectory == i

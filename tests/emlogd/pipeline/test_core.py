@@ -511,7 +511,8 @@ class TestGnssReference:
     def test_projection_on_one_port(self) -> None:
         """UUT, reference and heading on one port: along-hull SOG·cos(COG − ψ)."""
 
-        from drivers.nmea0183 import encode_hdt, encode_rmc
+        from drivers.nmea0183 import encode_rmc
+        from tests.nmea_encoders import encode_hdt
 
         lines: list[tuple[float, str]] = []
         t0 = 1_750_000_000.0
@@ -531,7 +532,8 @@ class TestGnssReference:
     def test_below_min_sog_or_void_fix_is_not_a_reference(self) -> None:
         """A fix below min_sog_mps (course meaningless) or with status V teaches nothing."""
 
-        from drivers.nmea0183 import encode_hdt, encode_rmc
+        from drivers.nmea0183 import encode_rmc
+        from tests.nmea_encoders import encode_hdt
 
         t0 = 1_750_000_000.0
         lines: list[tuple[float, str]] = []

@@ -209,18 +209,13 @@ class TestBlockMeans:
         b.add(7.0, 1.0, 1.0, None, frozenset({"b"}))
         assert b.t0 == 7.0 and b.n == 1
 
-    @pytest.mark.xfail(
-        strict=True,
-        reason="the supervisor's change detector withdraws the applied calibration on this "
-        "noisy reference (its baseline leaves out every sample that moves the CUSUM, which "
-        "narrows the spread) and the relearnt scale drifts to m 0.22; a baseline that keeps "
-        "more samples cures it here but kept worse calibrations applied on the real "
-        "recordings (worst 5-min window 1.92 times raw's against 1.14)",
-    )
     def test_noisy_gnss_reference_gives_the_sensors_scale(self) -> None:
         """A reference with 0.3 m/s of noise: the scale is learnt from block means within
         0.03 over two hours of speed changes, where sample-by-sample learning with the
-        same filter is pulled further (average_s: 0)."""
+        same filter is pulled further (average_s: 0). The supervisor's change detector
+        withdraws the applied calibration on this reference's noise; the learner then
+        widens its parameters by the change its own innovations show, not back to the
+        prior, so the scale does not drift."""
         rng = np.random.default_rng(3)
 
         def run(average_s: float | None) -> float:
@@ -353,6 +348,31 @@ class TestRestored:
         assert _applied(rig_for(low)) == low
         bad = Params("EM3", m=-0.5, b_mps=1.0)
         assert _applied(rig_for(bad)) is None
+
+    def test_on_a_straight_leg_with_no_saved_sea_it_keeps_its_verdict(self) -> None:
+        """No current saved, a straight leg at 3 m/s in 0.4 m/s of current on the stern:
+        raw's error (+0.55) happens to offset the current, so against the reference raw
+        wins, and a current fitted to the window takes either one's offset. The restored
+        calibration implies a current of 0.4 m/s, one the sea can have: applied. A poisoned
+        one (m = -0.5, b = +1) implies 1.7 m/s: refused."""
+        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
+
+        rng = np.random.default_rng(11)
+
+        def rig_for(p: Params) -> Rig:
+            rig = Rig(_prior(p), heading=0.0, current=True, learn=False)
+            rig.run(
+                RESTORE_VALIDATION_S + 30.0,
+                raw=lambda t, v: TRUE.forward(3.0) + float(rng.normal(0.0, 0.05)),
+                ref=lambda t, v: 3.0 + 0.4,
+            )
+            return rig
+
+        good = rig_for(TRUE)
+        assert _applied(good) == TRUE
+        (detail,) = [d for _, k, d in good.events if k == "calibrated"]
+        assert detail["implied_current_mps"] == pytest.approx(-0.4, abs=0.03)
+        assert _applied(rig_for(Params("EM3", m=-0.5, b_mps=1.0))) is None
 
     def test_without_a_reference_it_is_applied_unverified(self) -> None:
         """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""
