@@ -39,11 +39,14 @@ Rules (the constants are this module's):
   the detector's current starts afresh.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again.
+  it validates again (in a turn, :data:`RESTORE_MIN_HEADING_SPREAD`, raw and it each
+  after a current fitted to the window).
 - **Restored** (state file, warm start): validated before it is applied (over
-  :data:`RESTORE_VALIDATION_S`, not worse than raw; in the sea it was saved in, when it
-  was saved with a current :data:`RESTORE_SEA_MAX_AGE_S` or less before), raw passing
-  through meanwhile; when no reference has been heard
+  :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
+  the window; on a straight leg it keeps the verdict that made it unless, in the sea it
+  was saved in and against raw, the current its errors imply is one the sea cannot
+  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; when no reference
+  has been heard
   :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
   status) and validated in place once a reference arrives.
 """
