@@ -30,13 +30,14 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, Literal, TypeAlias
 
-from drivers.base import FramedDecoder, Framer
+from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import (
     MAX_DEPTH_M,
     MAX_PITCH_DEG,
     MAX_ROLL_DEG,
+    RDI_INVALID,
     SALINITY_RANGE_PPT,
     SOUND_SPEED_RANGE_MPS,
     WATER_TEMP_RANGE_C,
@@ -47,7 +48,6 @@ CoordFrame = Literal["beam", "instrument", "ship", "earth"]
 FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
 
 HEADER = b"\x7f\x7f"
-INVALID = -32768
 MAX_ENSEMBLE = 16384
 """Largest plausible ensemble in bytes (header sanity check while resynchronising)."""
 
@@ -122,7 +122,7 @@ def _length_of(buf: bytearray) -> int | None:
 
 
 def _int16(v: int) -> int | None:
-    return None if v == INVALID else v
+    return None if v == RDI_INVALID else v
 
 
 class Pd0Decoder(FramedDecoder[Pd0Record]):
@@ -130,6 +130,9 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
 
     protocol: ClassVar[str] = "pd0"
     binary: ClassVar[bool] = True
+    uses: ClassVar[frozenset[Use]] = frozenset({"bottom"})
+    heading: ClassVar[bool] = True
+    """The variable leader's heading."""
 
     def _make_framer(self) -> Framer:
         return BinaryFramer(HEADER, _length_of, 6, "PD0")
@@ -217,14 +220,46 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         port, hdg = self.port, record.heading_deg
         v1, v2 = record.bt_velocity_mms[0], record.bt_velocity_mms[1]
         if not record.bottom_lock or v1 is None or v2 is None or record.coord_frame == "beam":
-            return (SpeedRecord(port, "sog", "bottom", None, None, False, hdg, None, "PD0:BT"),)
+            return (
+                SpeedRecord(
+                    port=port,
+                    kind="sog",
+                    role="bottom",
+                    longitudinal_mps=None,
+                    valid=False,
+                    heading_true_deg=hdg,
+                    source="PD0:BT",
+                ),
+            )
         a, b = -v1 / 1000.0, -v2 / 1000.0  # vessel motion
         if record.coord_frame == "earth":
             psi = math.radians(hdg)
             lon = a * math.sin(psi) + b * math.cos(psi)
             tr = a * math.cos(psi) - b * math.sin(psi)
-            return (SpeedRecord(port, "sog", "bottom", lon, tr, True, hdg, None, "PD0:BT"),)
-        return (SpeedRecord(port, "sog", "bottom", b, a, True, hdg, None, "PD0:BT"),)
+            return (
+                SpeedRecord(
+                    port=port,
+                    kind="sog",
+                    role="bottom",
+                    longitudinal_mps=lon,
+                    transverse_mps=tr,
+                    valid=True,
+                    heading_true_deg=hdg,
+                    source="PD0:BT",
+                ),
+            )
+        return (
+            SpeedRecord(
+                port=port,
+                kind="sog",
+                role="bottom",
+                longitudinal_mps=b,
+                transverse_mps=a,
+                valid=True,
+                heading_true_deg=hdg,
+                source="PD0:BT",
+            ),
+        )
 
 
 def _leader_ranges(
@@ -251,7 +286,7 @@ def _leader_ranges(
 
 def _mm(v: float | None) -> int:
     if v is None:
-        return INVALID
+        return RDI_INVALID
     if not math.isfinite(v):
         raise ValueError(f"cannot encode a non-finite velocity {v!r}")
     return max(min(round(v * 1000.0), 32767), -32767)
@@ -284,7 +319,7 @@ def encode_pd0(
         ValueError: non-finite values.
     """
     if bottom_ship_mps is None:
-        v = (INVALID, INVALID, INVALID, INVALID)
+        v = (RDI_INVALID, RDI_INVALID, RDI_INVALID, RDI_INVALID)
         rng = 0
     else:
         fwd, stb = bottom_ship_mps

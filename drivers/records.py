@@ -59,13 +59,19 @@ MAX_PITCH_DEG = 90.0
 MAX_ROLL_DEG = 180.0
 """Largest roll magnitude, degrees."""
 
+RDI_INVALID = -32768
+"""Teledyne RDI's bad-value marker in a 16-bit velocity or error velocity (mm/s): PD0,
+PD4/PD5 and PD6 alike."""
+
 MAX_DEPTH_M = 12_000.0
 """Deepest instrument or bottom depth, m (the deepest ocean is ~11 km)."""
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SpeedRecord:
     """One vessel speed measurement in the ship frame, SI units, vessel-motion sign.
+
+    Built by keyword only (nine fields, four of them floats or None).
 
     Attributes:
         port: name of the port that produced it.
@@ -74,13 +80,15 @@ class SpeedRecord:
         longitudinal_mps: forward speed, m/s, + = ahead. For VHW this is the
             speed through water as reported (the resultant on a two-axis log).
         transverse_mps: athwartships speed, m/s, + = to starboard; None if the
-            sensor does not measure it.
+            sensor does not measure it (the default).
         valid: False when the sensor flagged the measurement as invalid
             (status V, -32768, no bottom lock). Invalid records are still
             passed on so that the pipeline can see a reference loss.
         heading_true_deg: true heading sent with the speed, degrees, or None. A DVL's
             heading is taken as true (the instrument applies its own variation setting).
-        heading_mag_deg: magnetic heading sent with the speed (VHW), degrees, or None.
+            None by default.
+        heading_mag_deg: magnetic heading sent with the speed (VHW), degrees, or None
+            (the default).
         source: the sentence or block it came from, e.g. ``"VHW"``, ``"VBW"``,
             ``"PD6:BS"``, ``"PD0:BT"`` (for people and for matching a UUT's configured
             sentence; routing uses :attr:`role`).
@@ -90,10 +98,10 @@ class SpeedRecord:
     kind: SpeedKind
     role: SpeedRole
     longitudinal_mps: float | None
-    transverse_mps: float | None
+    transverse_mps: float | None = None
     valid: bool
-    heading_true_deg: float | None
-    heading_mag_deg: float | None
+    heading_true_deg: float | None = None
+    heading_mag_deg: float | None = None
     source: str
 
     @property

@@ -18,6 +18,7 @@ from calib.excitation import ExcitationRule
 from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
 from calib.models import MODEL_NAMES, PARAM_NAMES, check_model
 from drivers import protocol_names
+from drivers.base import LINE_BUFFER_CAP, NMEA_MAX_LENGTH, SHORTEST_LINE_LIMIT
 from emlogd.pipeline.integrity import Envelope, ReadingLimits
 from emlogd.pipeline.keys import (
     NAME,
@@ -43,7 +44,8 @@ Component = Literal["longitudinal", "magnitude"]
 HeadingSource = str
 """``auto`` or a port name."""
 
-_UUT_SENTENCES = ("VHW", "VBW")
+UutSentence = Literal["VHW", "VBW"]
+"""The NMEA sentences an EMlog's reading is calibrated and corrected in."""
 
 
 REF_NOISE_MPS: dict[str, float] = {
@@ -81,8 +83,8 @@ class PortSettings:
         doc="optional: NMEA sentences without `*hh` are accepted (a wrong one never is).",
     )
     max_length: int = key(
-        82,
-        check=number(8, 1024, integer=True),
+        NMEA_MAX_LENGTH,
+        check=number(SHORTEST_LINE_LIMIT, LINE_BUFFER_CAP, integer=True),
         unit="characters",
         doc="The longest line accepted; raise for devices that send longer lines.",
     )
@@ -120,8 +122,8 @@ class UutSettings:
         doc="bottom (DVL bottom track), water (DVL `:WS`), speed (another EMlog), gnss "
         "(RMC/VTG speed and course, projected on the hull).",
     )
-    uut_source: str = key(
-        "VHW", check=enum(*_UUT_SENTENCES), doc="The EMlog sentence calibrated and corrected."
+    uut_source: UutSentence = key(
+        "VHW", check=literal(UutSentence), doc="The EMlog sentence calibrated and corrected."
     )
     talker: str = key(
         "VW",

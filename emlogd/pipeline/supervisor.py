@@ -55,9 +55,18 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, Protocol
 
+import numpy as np
+import numpy.typing as npt
+
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
-from emlogd.pipeline.evidence import Cusum, FitWindow, SeaMemory
+from emlogd.pipeline.evidence import (
+    FIT_CURRENT_PRIOR_MPS,
+    FIT_NOISE_MPS,
+    Cusum,
+    FitWindow,
+    SeaMemory,
+)
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
 
 if TYPE_CHECKING:
@@ -110,11 +119,38 @@ like any candidate. On a straight leg a current of raw's own takes raw's offset,
 only a known sea can tell a good restored calibration from raw there; within an hour a
 tidal current changes by a fraction of itself."""
 
+RESTORE_MIN_HEADING_SPREAD = 0.1
+"""A restored calibration's validation window tells a current from an offset when its
+headings spread this much (one minus the mean resultant length of the heading's unit
+vector: 0 on a straight leg, 0.1 for headings spread evenly over about 90°); then each
+calibration is judged after a current of its own fitted to that window. On a narrower
+window a current and an offset look alike, and the judgement falls back on the sea (see
+:data:`RESTORE_SEA_SIGMAS`)."""
+
+RESTORE_SEA_SIGMAS = 3.0
+"""Where the validation window cannot tell a current from an offset, a restored
+calibration keeps the verdict that made it (it was validated before it was saved) unless
+its errors imply a current that the sea cannot have: its mean error against the
+reference less the saved current is beyond this many standard deviations of that current
+(its saved uncertainty grown by the learner's random walk over the time since it was
+saved), and never beyond the learner's prior standard deviation of a current component
+(``sqrt(current_p0_m2ps2)``, the whole allowance when no current was saved)."""
+
 RESTORE_WAIT_S = 10.0
 """A restored calibration is applied unverified when no reference has been heard this
 long after the first reading, s."""
 
 CandidateKind = Literal["new", "restored", "revalidate", "verify"]
+
+
+def _rms_after_current(
+    d: npt.NDArray[np.float64], c: npt.NDArray[np.float64], s: npt.NDArray[np.float64]
+) -> float:
+    """RMS of errors after a current fitted to them (``d ≈ β·(cos ψ, sin ψ)``), m/s."""
+    x = np.column_stack((c, s))
+    ridge = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
+    beta = np.linalg.solve(x.T @ x + ridge * np.eye(2), x.T @ d)
+    return float(np.sqrt(np.mean((d - x @ beta) ** 2)))
 
 
 class CandidateSource(Protocol):
@@ -144,6 +180,9 @@ class _Candidate:
     restored calibration saved with one, :data:`RESTORE_SEA_MAX_AGE_S`)."""
     n_sea: int = 0
     n: int = 0
+    samples: list[tuple[float, float, float, float]] | None = None
+    """A restored one's validation samples: raw's and its error against the reference,
+    and the heading's (cos, sin): judged at the end (:meth:`Supervisor._judge_restored`)."""
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`SeaMemory.current`), once fitted."""
 
@@ -159,6 +198,7 @@ class Supervisor:
         emit: called as ``emit(t, kind, detail)`` for every decision worth a log line.
         counters: the UUT's counters (shared with its learner).
         restored_sea: the restored calibration's saved current and its time, if any.
+        restored_sea_std: that current's standard deviations, if any.
     """
 
     def __init__(
@@ -170,11 +210,14 @@ class Supervisor:
         emit: Callable[[float, str, Mapping[str, object]], None],
         counters: Counters,
         restored_sea: tuple[float, float, float] | None = None,
+        restored_sea_std: tuple[float, float] | None = None,
     ) -> None:
         self.s = s
         self.restored_sea = restored_sea
         """The restored calibration's saved current (north, east, m/s) and when it was
         saved (s), or None: the sea it re-validates in (:data:`RESTORE_SEA_MAX_AGE_S`)."""
+        self.restored_sea_std = restored_sea_std
+        """That current's saved standard deviations (north, east, m/s), if any."""
         self.layout = layout
         self._emit = emit
         self.counters = counters
@@ -319,56 +362,95 @@ class Supervisor:
         """
         d_raw = self._error(raw, ref, None)
         d_app = self._error(raw, ref, self.applied)
-        out = self.correct(raw)
-        if out is not None:
-            self.score.add(raw - ref, out - ref, ref)
-            if water:
-                self.score_water.add(raw + proj - ref, out + proj - ref)
+        self._score_output(raw, ref, proj, water)
         if self._detect(t, cs, d_app, d_raw):
             d_app = d_raw
-        if self.water and cs is not None:
-            if t - self._t_beta >= CURRENT_REFRESH_S:
-                self._refit(t)
-            hc = cs
-        else:
-            hc = (0.0, 0.0)
+        hc = self._heading_regressor(t, cs)
         # raw is judged in the sea as the applied calibration sees it (else its own
         # current would take its offset on every straight leg and raw would look right)
-        e_raw = self._residual(d_raw, "applied" if self.applied is not None else "raw", hc)
-        e_app = self._residual(d_app, "applied" if self.applied is not None else "raw", hc)
+        sea = "applied" if self.applied is not None else "raw"
+        e_raw = self._residual(d_raw, sea, hc)
+        e_app = self._residual(d_app, sea, hc)
         e_prev = 0.0
         if self.previous is not None:
             e_prev = self._residual(self._error(raw, ref, self.previous), "previous", hc)
         self.recheck.add(t, e_raw, e_app, e_prev)
         cand = self.candidate
         if cand is not None:
-            if cand.n == 0:
-                cand.t0 = t
-            if cand.beta is None and self.water:
-                cand.beta = self.memory.current(cand.params, t)
-            beta = cand.beta or (0.0, 0.0)
-            e_c = self._error(raw, ref, cand.params) - (beta[0] * hc[0] + beta[1] * hc[1])
-            sea = self.restored_sea
-            if cand.kind == "restored" and sea is not None and cs is not None:
-                c_h = sea[0] * cs[0] + sea[1] * cs[1]
-                d_c = self._error(raw, ref, cand.params)
-                cand.sea_raw += (d_raw + c_h) ** 2
-                cand.sea_cand += (d_c + c_h) ** 2
-                cand.n_sea += 1
-            cand.raw += e_raw * e_raw
-            cand.applied += e_app * e_app
-            cand.cand += e_c * e_c
-            cand.n += 1
-            span = self.s.validation_s
-            if cand.kind != "new":
-                span = min(RESTORE_VALIDATION_S, span)
-            if t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES:
+            self._validate(t, cand, raw, ref, cs, hc, (d_raw, e_raw, e_app))
+            if self._validated(t, cand):
                 self._decide(t, cand, source)
         else:
             self._propose(t, source)
         if self.water and cs is not None:
             self.memory.add(t, raw, ref, cs)
         self._recheck(t)
+
+    def _score_output(self, raw: float, ref: float, proj: float, water: bool) -> None:
+        """The status's scores of what was emitted (against the reference, and in the
+        learner's water frame while its current is determined): never a verdict."""
+        out = self.correct(raw)
+        if out is None:
+            return
+        self.score.add(raw - ref, out - ref, ref)
+        if water:
+            self.score_water.add(raw + proj - ref, out + proj - ref)
+
+    def _heading_regressor(self, t: float, cs: tuple[float, float] | None) -> tuple[float, float]:
+        """The heading's (cos, sin) the currents act through (zero without current
+        states); each calibration's current is fitted again when due."""
+        if not (self.water and cs is not None):
+            return 0.0, 0.0
+        if t - self._t_beta >= CURRENT_REFRESH_S:
+            self._refit(t)
+        return cs
+
+    def _validate(
+        self,
+        t: float,
+        cand: _Candidate,
+        raw: float,
+        ref: float,
+        cs: tuple[float, float] | None,
+        hc: tuple[float, float],
+        errors: tuple[float, float, float],
+    ) -> None:
+        """Score the candidate under validation, raw and the applied one on one reading.
+
+        ``errors`` are raw's error against the reference, and raw's and the applied
+        calibration's residuals after their current.
+        """
+        d_raw, e_raw, e_app = errors
+        if cand.n == 0:
+            cand.t0 = t
+        if cand.beta is None and self.water:
+            cand.beta = self.memory.current(cand.params, t)
+        beta = cand.beta or (0.0, 0.0)
+        d_c = self._error(raw, ref, cand.params)
+        e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
+        sea = self.restored_sea
+        if cand.kind == "restored" and cs is not None:
+            if sea is not None:
+                c_h = sea[0] * cs[0] + sea[1] * cs[1]
+                cand.sea_raw += (d_raw + c_h) ** 2
+                cand.sea_cand += (d_c + c_h) ** 2
+                cand.n_sea += 1
+            if self.water:
+                if cand.samples is None:
+                    cand.samples = []
+                cand.samples.append((d_raw, d_c, cs[0], cs[1]))
+        cand.raw += e_raw * e_raw
+        cand.applied += e_app * e_app
+        cand.cand += e_c * e_c
+        cand.n += 1
+
+    def _validated(self, t: float, cand: _Candidate) -> bool:
+        """The candidate's validation window is complete (``validation_s``, or
+        :data:`RESTORE_VALIDATION_S` for one validated before)."""
+        span = self.s.validation_s
+        if cand.kind != "new":
+            span = min(RESTORE_VALIDATION_S, span)
+        return t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES
 
     def _refit(self, t: float) -> None:
         """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
@@ -482,12 +564,10 @@ class Supervisor:
         }
         if cand.kind == "new":
             good = r_cand < r_raw and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+        elif cand.kind == "restored" and cand.samples is not None and len(cand.samples) == n:
+            good = self._judge_restored(cand, detail)
         elif cand.kind == "restored" and cand.n_sea == n:
-            # in the sea it was saved in: raw and it against the same current
-            s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
-            detail["rmse_raw_saved_sea"] = round(s_raw, 4)
-            detail["rmse_candidate_saved_sea"] = round(s_cand, 4)
-            good = not s_cand > s_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
+            good = self._judge_saved_sea(cand, detail)
         else:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
@@ -521,6 +601,57 @@ class Supervisor:
                 self.note = "the restored calibration failed its validation: raw passes through"
             self.counters.candidates_rejected += 1
             self._emit(t, "candidate_rejected", detail)
+
+    @staticmethod
+    def _worse(r: float, r_raw: float) -> bool:
+        return r > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
+
+    def _judge_saved_sea(self, cand: _Candidate, detail: dict[str, object]) -> bool:
+        """Raw and it against the reference less the saved current: not worse than raw."""
+        n = cand.n
+        s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
+        detail["rmse_raw_saved_sea"] = round(s_raw, 4)
+        detail["rmse_candidate_saved_sea"] = round(s_cand, 4)
+        return not self._worse(s_cand, s_raw)
+
+    def _judge_restored(self, cand: _Candidate, detail: dict[str, object]) -> bool:
+        """A restored calibration in the water frame, on its validation window.
+
+        Where the window's headings tell a current from an offset
+        (:data:`RESTORE_MIN_HEADING_SPREAD`), raw and it are each judged after a current
+        of their own fitted to the window. Elsewhere (a straight leg) it is applied when
+        it is not worse than raw in the saved sea, or when the current its errors imply
+        is one the sea can have (:data:`RESTORE_SEA_SIGMAS`); a state file that implies an
+        impossible current is refused.
+        """
+        assert cand.samples is not None
+        a = np.asarray(cand.samples, dtype=np.float64)
+        d_raw, d_c, c, s = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+        spread = 1.0 - math.hypot(float(np.mean(c)), float(np.mean(s)))
+        detail["heading_spread"] = round(spread, 3)
+        if spread >= RESTORE_MIN_HEADING_SPREAD:
+            r_raw = _rms_after_current(d_raw, c, s)
+            r_cand = _rms_after_current(d_c, c, s)
+            detail["rmse_raw_own_current"] = round(r_raw, 4)
+            detail["rmse_candidate_own_current"] = round(r_cand, 4)
+            return not self._worse(r_cand, r_raw)
+        if cand.n_sea == cand.n and self._judge_saved_sea(cand, detail):
+            return True
+        kf = self.s.kf
+        allowance = math.sqrt(kf.current_p0_m2ps2)
+        centre = (0.0, 0.0)
+        sea = self.restored_sea
+        if sea is not None:
+            centre = (sea[0], sea[1])
+            sd = self.restored_sea_std or (0.0, 0.0)
+            age = max((self.t_first or sea[2]) - sea[2], 0.0)
+            var = max(sd[0], sd[1]) ** 2 + kf.current_psd_m2ps3 * age
+            allowance = min(RESTORE_SEA_SIGMAS * math.sqrt(var), allowance)
+        # its mean error were the sea the centre: the current it implies, less the centre
+        implied = float(np.mean(d_c + centre[0] * c + centre[1] * s))
+        detail["implied_current_mps"] = round(implied, 4)
+        detail["current_allowance_mps"] = round(allowance, 4)
+        return abs(implied) <= allowance
 
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
         self.applied = p

@@ -12,7 +12,7 @@ from calib.kalman import KalmanModel, KfCalibrator, KfConfig, make_state, predic
 from calib.lsq import block_average
 from calib.metrics import nis_stats
 from calib.models import Params, design_row, forward_array
-from calib.synth import water_frame_segment
+from tests.synth import water_frame_segment
 
 
 def _sim(

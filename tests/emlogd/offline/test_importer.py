@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from drivers import make_decoder
 from drivers.framing import with_checksum
 from drivers.io.capture import CaptureReader
-from drivers.nmea0183 import Rmc, Vdr, Vhw, encode_gga, encode_rmc, encode_vhw, encode_zda
+from drivers.nmea0183 import Rmc, Vdr, Vhw, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.cli import main
 from emlogd.offline.importer import (
@@ -28,6 +28,7 @@ from emlogd.offline.importer import (
     import_nmea,
     parse_map,
 )
+from tests.nmea_encoders import encode_gga, encode_zda
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "real"
 

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import numpy as np
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.settings import UutSettings
@@ -91,7 +92,7 @@ class TestRecheck:
 
     def test_fallback_to_raw_when_the_sensor_changes(self) -> None:
         """After a sensor swap the old calibration loses to raw: fall back, and say so."""
-        prior = Calibration("log", TRUE, {"m": 0.01, "b": 0.01}, 0.0)
+        prior = Calibration("log", Estimate(TRUE, {"m": 0.01, "b": 0.01}), 0.0)
         rig = Rig(prior, recheck_s=60.0, learn=False)
         rig.run(40)
         assert _applied(rig) == TRUE  # the restored calibration re-validated
@@ -105,7 +106,7 @@ class TestRecheck:
     def test_a_withdrawn_calibration_is_kept_as_the_last_good_one(self) -> None:
         """Withdrawn for cause, a calibration is persisted (not a reset) and is the next
         candidate; the snapshot of a UUT that never had one is a reset."""
-        prior = Calibration("log", TRUE, {"m": 0.01, "b": 0.01}, 0.0)
+        prior = Calibration("log", Estimate(TRUE, {"m": 0.01, "b": 0.01}), 0.0)
         rig = Rig(prior, learn=False)
         rig.run(40)
         rig.run(10, raw=lambda t, v: v)
@@ -163,7 +164,7 @@ class TestFaults:
 
     def test_low_speed_output_never_goes_negative(self) -> None:
         """At rest with a positive bias the corrected speed is never negative."""
-        prior = Calibration("log", Params("EM3", b_mps=0.17), {"b": 0.01}, 0.0)
+        prior = Calibration("log", Estimate(Params("EM3", b_mps=0.17), {"b": 0.01}), 0.0)
         rig = Rig(prior)
         assert rig.cal.correct(0.0) == 0.0
         assert rig.cal.correct(0.05) == pytest.approx(0.05)
@@ -243,12 +244,9 @@ def test_a_restored_current_is_aged_by_the_time_the_daemon_was_down() -> None:
     cur_std = (0.002, 0.002)
     prior = Calibration(
         "log",
-        TRUE,
-        {"m": 0.01, "b": 0.01},
+        Estimate(TRUE, {"m": 0.01, "b": 0.01}, current_mps=(0.1, 0.0), current_std_mps=cur_std),
         0.0,
         current=True,
-        current_mps=(0.1, 0.0),
-        current_std_mps=cur_std,
         covariance=tuple(tuple(r) for r in np.diag([1.0, 1e-4, 1e-4, 4e-6, 4e-6]).tolist()),
         t=-3600.0,
     )
@@ -262,7 +260,7 @@ def test_a_restored_current_is_aged_by_the_time_the_daemon_was_down() -> None:
 
 
 def _prior(p: Params = TRUE) -> Calibration:
-    return Calibration("log", p, {"m": 0.01, "b": 0.01}, 0.0)
+    return Calibration("log", Estimate(p, {"m": 0.01, "b": 0.01}), 0.0)
 
 
 class TestChangeDetection:
@@ -334,7 +332,10 @@ class TestRestored:
 
         def rig_for(p: Params) -> Rig:
             prior = Calibration(
-                "log", p, {"m": 0.01, "b": 0.01}, 0.0, current=True, current_mps=(-0.3, 0.0)
+                "log",
+                Estimate(p, {"m": 0.01, "b": 0.01}, current_mps=(-0.3, 0.0)),
+                0.0,
+                current=True,
             )
             rig = Rig(prior, heading=0.0, current=True, learn=False)
             rig.run(
@@ -347,6 +348,31 @@ class TestRestored:
         assert _applied(rig_for(low)) == low
         bad = Params("EM3", m=-0.5, b_mps=1.0)
         assert _applied(rig_for(bad)) is None
+
+    def test_on_a_straight_leg_with_no_saved_sea_it_keeps_its_verdict(self) -> None:
+        """No current saved, a straight leg at 3 m/s in 0.4 m/s of current on the stern:
+        raw's error (+0.55) happens to offset the current, so against the reference raw
+        wins, and a current fitted to the window takes either one's offset. The restored
+        calibration implies a current of 0.4 m/s, one the sea can have: applied. A poisoned
+        one (m = -0.5, b = +1) implies 1.7 m/s: refused."""
+        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
+
+        rng = np.random.default_rng(11)
+
+        def rig_for(p: Params) -> Rig:
+            rig = Rig(_prior(p), heading=0.0, current=True, learn=False)
+            rig.run(
+                RESTORE_VALIDATION_S + 30.0,
+                raw=lambda t, v: TRUE.forward(3.0) + float(rng.normal(0.0, 0.05)),
+                ref=lambda t, v: 3.0 + 0.4,
+            )
+            return rig
+
+        good = rig_for(TRUE)
+        assert _applied(good) == TRUE
+        (detail,) = [d for _, k, d in good.events if k == "calibrated"]
+        assert detail["implied_current_mps"] == pytest.approx(-0.4, abs=0.03)
+        assert _applied(rig_for(Params("EM3", m=-0.5, b_mps=1.0))) is None
 
     def test_without_a_reference_it_is_applied_unverified(self) -> None:
         """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""
