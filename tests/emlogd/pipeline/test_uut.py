@@ -386,12 +386,14 @@ class TestRestored:
         def applied_after(saved_t: float) -> Params | None:
             prior = Calibration(
                 "log",
-                TRUE,
-                {"m": 0.01, "b": 0.01},
+                Estimate(
+                    TRUE,
+                    {"m": 0.01, "b": 0.01},
+                    current_mps=(0.0, 0.0),
+                    current_std_mps=(0.05, 0.05),
+                ),
                 0.0,
                 current=True,
-                current_mps=(0.0, 0.0),
-                current_std_mps=(0.05, 0.05),
                 t=saved_t,
             )
             rig = Rig(prior, heading=0.0, current=True, learn=False)
