@@ -45,13 +45,18 @@ factors (:func:`calib.metrics.correlation_factor`), as :mod:`calib.lsq` does.
    — the transverse bias and the current across the hull again. A straight run
    at one throttle setting refuses it, with the reason;
 4. the **transverse scale** needs the transverse speed through the water (the sway
-   of turns) to vary by ``min_transverse_std_mps``;
+   of turns) to vary by ``min_transverse_std_mps``; without it the misalignment is
+   refused too: its athwart signature is ``(1 + m_t)·sin α·u``, so a transverse
+   scale held where the log's differs by Δm would put ``Δm·α`` into α (a 3°
+   misalignment of a log whose axes' scales differ by 0.11, learnt on a transit:
+   3.41°);
 5. enough samples (``min_samples_per_param`` per unknown), then the information:
    the standard deviation of each remaining unknown from the information matrix
    must be under its bound; the worst offender is refused and the rest judged
-   again. In steady circles the sway is proportional to the surge, so the
-   transverse scale and the misalignment leave the same signature: the scale is
-   held (its σ is the larger against its bound) and α still learnt.
+   again (a transverse scale refused so takes the misalignment with it). In
+   steady circles and on transits the sway follows the surge: only the
+   figure-8's alternating turns, whose sway swings without the surge, determine
+   the transverse scale and with it the misalignment.
 
 An unknown refused is held at its prior (the given parameters, else the ideal
 sensor; zero current) and its σ is not reported.
@@ -107,11 +112,8 @@ TRANSVERSE_NAMES: tuple[str, ...] = (ALPHA, M_T, B_T)
 TIE_HELD_SCALE = True
 """A transverse scale the data do not determine follows the longitudinal scale (one
 coil's field drives both electrode pairs of an EM sensor, so their gains move
-together), rather than the prior's. Where the sway only follows the surge (steady
-circles) the transverse signature of the misalignment is ``(1 + m_t)·sin α·u``: with
-the transverse scale held at the ideal sensor's, α would take the whole of
-``m_t·α`` (0.3° of a 3° misalignment at ``m_t`` = 0.1); held at the longitudinal
-one, only the difference between the two axes' scales."""
+together), rather than the prior's: the athwart speed is then corrected by the
+gain the forward axis shows."""
 
 MAX_MISALIGN_DEG = 20.0
 """The largest misalignment a two-axis calibration may hold, degrees (a sensor turned
@@ -304,6 +306,12 @@ _A, _M, _B, _AL, _MT, _BT, _CN, _CE, _DL, _DT = range(10)
 _N_FIXED = 10
 _PARAM_INDEX = {"a": _A, "m": _M, "b": _B, ALPHA: _AL, M_T: _MT, B_T: _BT}
 _MAX_ITER = 30
+
+
+_ALPHA_WITH_SCALE = (
+    "misalignment not separable from the transverse scale: its athwart signature is "
+    "(1 + m_t)·sin α times the forward speed, and the transverse scale is not determined"
+)
 
 
 def unknowns_of(model: ModelName, current: bool) -> tuple[str, ...]:
@@ -556,6 +564,8 @@ def judge_two_axis(
             "transverse scale not determinable: transverse speed through water "
             f"nearly constant (spread {std_w:.3f} m/s)"
         )
+    if M_T in refused and ALPHA not in refused:
+        refused[ALPHA] = _ALPHA_WITH_SCALE
     free = [k for k in unknowns if k not in refused]
     n = int(u_mps.size)
     stds: dict[str, float] = {}
@@ -593,6 +603,9 @@ def judge_two_axis(
                 else f"{_LABEL[worst]} not determinable: information matrix singular"
             )
             free.remove(worst)
+            if worst == M_T and ALPHA in free:
+                free.remove(ALPHA)
+                refused[ALPHA] = _ALPHA_WITH_SCALE
             if worst == CURRENT:
                 offset = True
                 for k in ("b", B_T):

@@ -45,6 +45,7 @@ from drivers.records import (
     WATER_TEMP_RANGE_C,
     Rejected,
     SpeedRecord,
+    bottom_track,
 )
 
 ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
@@ -594,19 +595,7 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
             return ()
         port, hdg = self.port, record.heading_deg
         bs = record.bottom_ship
-        lon, tr = (None, None) if bs is None else (bs.b, bs.a)
-        out = [
-            SpeedRecord(
-                port=port,
-                kind="sog",
-                role="bottom",
-                longitudinal_mps=lon,
-                transverse_mps=tr,
-                valid=bs is not None,
-                heading_true_deg=hdg,
-                source="PD6:BS",
-            )
-        ]
+        out = [bottom_track(port, None if bs is None else (bs.b, bs.a), hdg, "PD6:BS")]
         ws = record.water_ship
         if ws is not None:
             out.append(

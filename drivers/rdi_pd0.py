@@ -42,6 +42,9 @@ from drivers.records import (
     SOUND_SPEED_RANGE_MPS,
     WATER_TEMP_RANGE_C,
     SpeedRecord,
+    bottom_track,
+    rdi_mms,
+    ship_frame,
 )
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
@@ -217,49 +220,18 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         source ``PD0:BT``), with the ensemble's heading taken as true."""
         if record.bt_velocity_mms is None:
             return ()
-        port, hdg = self.port, record.heading_deg
         v1, v2 = record.bt_velocity_mms[0], record.bt_velocity_mms[1]
-        if not record.bottom_lock or v1 is None or v2 is None or record.coord_frame == "beam":
-            return (
-                SpeedRecord(
-                    port=port,
-                    kind="sog",
-                    role="bottom",
-                    longitudinal_mps=None,
-                    valid=False,
-                    heading_true_deg=hdg,
-                    source="PD0:BT",
-                ),
-            )
-        a, b = -v1 / 1000.0, -v2 / 1000.0  # vessel motion
-        if record.coord_frame == "earth":
-            psi = math.radians(hdg)
-            lon = a * math.sin(psi) + b * math.cos(psi)
-            tr = a * math.cos(psi) - b * math.sin(psi)
-            return (
-                SpeedRecord(
-                    port=port,
-                    kind="sog",
-                    role="bottom",
-                    longitudinal_mps=lon,
-                    transverse_mps=tr,
-                    valid=True,
-                    heading_true_deg=hdg,
-                    source="PD0:BT",
-                ),
-            )
-        return (
-            SpeedRecord(
-                port=port,
-                kind="sog",
-                role="bottom",
-                longitudinal_mps=b,
-                transverse_mps=a,
-                valid=True,
-                heading_true_deg=hdg,
-                source="PD0:BT",
-            ),
-        )
+        ship = None
+        if (
+            record.bottom_lock
+            and v1 is not None
+            and v2 is not None
+            and record.coord_frame != "beam"
+        ):
+            earth = record.coord_frame == "earth"
+            # vessel motion: the opposite of the bottom's
+            ship = ship_frame(-v1 / 1000.0, -v2 / 1000.0, record.heading_deg if earth else None)
+        return (bottom_track(self.port, ship, record.heading_deg, "PD0:BT"),)
 
 
 def _leader_ranges(
@@ -282,14 +254,6 @@ def _leader_ranges(
 
 
 # ------------------------------------------------------------------ encoder
-
-
-def _mm(v: float | None) -> int:
-    if v is None:
-        return RDI_INVALID
-    if not math.isfinite(v):
-        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
-    return max(min(round(v * 1000.0), 32767), -32767)
 
 
 def encode_pd0(
@@ -327,9 +291,9 @@ def encode_pd0(
             psi = math.radians(heading_deg)
             e = fwd * math.sin(psi) + stb * math.cos(psi)
             n = fwd * math.cos(psi) - stb * math.sin(psi)
-            v = (_mm(-e), _mm(-n), 0, 0)
+            v = (rdi_mms(-e), rdi_mms(-n), 0, 0)
         else:
-            v = (_mm(-stb), _mm(-fwd), 0, 0)
+            v = (rdi_mms(-stb), rdi_mms(-fwd), 0, 0)
         rng = max(round((range_m or 0.0) * 100.0), 1)
     ex = FRAMES.index(coord_frame) << 3
     fixed = bytearray(59)

@@ -39,6 +39,9 @@ from drivers.records import (
     SOUND_SPEED_RANGE_MPS,
     WATER_TEMP_RANGE_C,
     SpeedRecord,
+    bottom_track,
+    rdi_mms,
+    ship_frame,
 )
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
@@ -205,51 +208,12 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
         hdg = record.heading_deg
         x, y = record.bottom_mms[0], record.bottom_mms[1]
         frame = record.coord_frame
-        if (
-            not record.bottom_lock
-            or x is None
-            or y is None
-            or frame == "beam"
-            or (frame == "earth" and hdg is None)
-        ):
-            return (
-                SpeedRecord(
-                    port=self.port,
-                    kind="sog",
-                    role="bottom",
-                    longitudinal_mps=None,
-                    valid=False,
-                    heading_true_deg=hdg,
-                    source=src,
-                ),
-            )
-        a, b = x / 1000.0, y / 1000.0
-        if frame == "earth" and hdg is not None:
-            psi = math.radians(hdg)
-            return (
-                SpeedRecord(
-                    port=self.port,
-                    kind="sog",
-                    role="bottom",
-                    longitudinal_mps=a * math.sin(psi) + b * math.cos(psi),
-                    transverse_mps=a * math.cos(psi) - b * math.sin(psi),
-                    valid=True,
-                    heading_true_deg=hdg,
-                    source=src,
-                ),
-            )
-        return (
-            SpeedRecord(
-                port=self.port,
-                kind="sog",
-                role="bottom",
-                longitudinal_mps=b,
-                transverse_mps=a,
-                valid=True,
-                heading_true_deg=hdg,
-                source=src,
-            ),
-        )
+        earth = frame == "earth"
+        ship = None
+        usable = record.bottom_lock and frame != "beam" and (hdg is not None or not earth)
+        if usable and x is not None and y is not None:
+            ship = ship_frame(x / 1000.0, y / 1000.0, hdg if earth else None)
+        return (bottom_track(self.port, ship, hdg, src),)
 
 
 class Pd5Decoder(Pd45Decoder):
@@ -257,14 +221,6 @@ class Pd5Decoder(Pd45Decoder):
 
     protocol: ClassVar[str] = "pd5"
     heading: ClassVar[bool] = True
-
-
-def _mm(v: float | None) -> int:
-    if v is None:
-        return RDI_INVALID
-    if not math.isfinite(v):
-        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
-    return max(min(round(v * 1000.0), 32767), -32767)
 
 
 def encode_pd45(
@@ -296,10 +252,10 @@ def encode_pd45(
         fwd, stb = bottom_ship_mps
         if coord_frame == "earth":
             psi = math.radians(heading_deg)
-            vx = _mm(fwd * math.sin(psi) + stb * math.cos(psi))
-            vy = _mm(fwd * math.cos(psi) - stb * math.sin(psi))
+            vx = rdi_mms(fwd * math.sin(psi) + stb * math.cos(psi))
+            vy = rdi_mms(fwd * math.cos(psi) - stb * math.sin(psi))
         else:
-            vx, vy = _mm(stb), _mm(fwd)
+            vx, vy = rdi_mms(stb), rdi_mms(fwd)
         rng = max(min(round((range_m or 0.0) * 100.0), 65535), 1)
     sid = 1 if pd5 else 0
     body = bytearray(

@@ -114,6 +114,48 @@ class SpeedRecord:
         return math.hypot(self.longitudinal_mps, self.transverse_mps)
 
 
+def rdi_mms(v: float | None) -> int:
+    """A velocity in m/s as RDI's 16-bit mm/s (clamped to ±32767), :data:`RDI_INVALID`
+    for None: what the PD0 and PD4/PD5 encoders write.
+
+    Raises:
+        ValueError: a non-finite value.
+    """
+    if v is None:
+        return RDI_INVALID
+    if not math.isfinite(v):
+        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
+    return max(min(round(v * 1000.0), 32767), -32767)
+
+
+def ship_frame(a: float, b: float, heading_deg: float | None) -> tuple[float, float]:
+    """A DVL's horizontal velocity (m/s) as (longitudinal, transverse) in the ship frame:
+    ``(a, b)`` is (east, north) when a heading is given (earth coordinates, rotated by
+    it), else (starboard, forward)."""
+    if heading_deg is None:
+        return b, a
+    psi = math.radians(heading_deg)
+    return a * math.sin(psi) + b * math.cos(psi), a * math.cos(psi) - b * math.sin(psi)
+
+
+def bottom_track(
+    port: str, ship: tuple[float, float] | None, heading_deg: float | None, source: str
+) -> SpeedRecord:
+    """A DVL's bottom track as a speed record (``sog``, role ``bottom``): ``ship`` is
+    (longitudinal, transverse) in m/s, None when the instrument gives no valid track;
+    the instrument's heading is taken as true."""
+    return SpeedRecord(
+        port=port,
+        kind="sog",
+        role="bottom",
+        longitudinal_mps=None if ship is None else ship[0],
+        transverse_mps=None if ship is None else ship[1],
+        valid=ship is not None,
+        heading_true_deg=heading_deg,
+        source=source,
+    )
+
+
 @dataclass(frozen=True, slots=True)
 class Rejected:
     """A rejected frame, yielded only when a decoder runs with ``errors="yield"``.

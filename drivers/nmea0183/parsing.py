@@ -161,20 +161,13 @@ def parse_vbw(talker: str, f: list[str], raw: bytes) -> Vbw:
     gl = _speed(_kn(_num(f[3], "ground longitudinal", raw)), "ground longitudinal", raw)
     gt = _speed(_kn(_num(f[4], "ground transverse", raw)), "ground transverse", raw)
     gv = _status(f[5], "ground status", raw)
-    if len(f) == 6:
-        return Vbw(
-            talker=talker,
-            water_long_mps=wl,
-            water_trans_mps=wt,
-            water_valid=wv and wl is not None,
-            ground_long_mps=gl,
-            ground_trans_mps=gt,
-            ground_valid=gv and gl is not None,
-        )
-    sw = _speed(_kn(_num(f[6], "stern water", raw)), "stern water", raw)
-    swv = _status(f[7], "stern water status", raw)
-    sg = _speed(_kn(_num(f[8], "stern ground", raw)), "stern ground", raw)
-    sgv = _status(f[9], "stern ground status", raw)
+    sw = sg = None
+    swv = sgv = False
+    if len(f) == 10:
+        sw = _speed(_kn(_num(f[6], "stern water", raw)), "stern water", raw)
+        swv = _status(f[7], "stern water status", raw) and sw is not None
+        sg = _speed(_kn(_num(f[8], "stern ground", raw)), "stern ground", raw)
+        sgv = _status(f[9], "stern ground status", raw) and sg is not None
     return Vbw(
         talker=talker,
         water_long_mps=wl,
@@ -184,9 +177,9 @@ def parse_vbw(talker: str, f: list[str], raw: bytes) -> Vbw:
         ground_trans_mps=gt,
         ground_valid=gv and gl is not None,
         stern_water_mps=sw,
-        stern_water_valid=swv and sw is not None,
+        stern_water_valid=swv,
         stern_ground_mps=sg,
-        stern_ground_valid=sgv and sg is not None,
+        stern_ground_valid=sgv,
     )
 
 

@@ -45,6 +45,7 @@ from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
 from drivers.records import KNOT_MPS, SpeedRecord
 from emlogd.pipeline import status as st
+from emlogd.pipeline import twoaxis
 from emlogd.pipeline.align import wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
@@ -377,6 +378,10 @@ class Pipeline:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.source == "VHW":
                 sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
+            elif sp.transverse_mps is not None and twoaxis.configured(u.s):
+                sentence = encode_vbw(
+                    *twoaxis.hull_frame(u.s, value, sp.transverse_mps), u.s.talker
+                )
             else:
                 sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
             if self.fusion is None or not self.fusion.s.only:

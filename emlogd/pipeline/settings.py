@@ -100,6 +100,11 @@ class PortSettings:
 class UutSettings:
     """Calibration of one UUT (the ``calibration`` section of the config).
 
+    ``misalign_deg``, ``transverse_scale`` and ``transverse_bias_mps`` are a two-axis
+    log's frozen installation figures (:class:`calib.twoaxis.TwoAxisParams`, learnt
+    offline by ``emlogd calibrate --axes 2``), applied to its VBW
+    (:mod:`emlogd.pipeline.twoaxis`).
+
     The fields made with :func:`~emlogd.pipeline.keys.key` are the ``calibration``
     keys; the others the config loader fills from elsewhere (the reference port's
     ``stale_timeout_s``, the ``outputs`` section).
@@ -130,6 +135,25 @@ class UutSettings:
         check=or_null(string(r"[A-Z]{2}", "two uppercase letters")),
         absent=None,
         doc="The talker of this log's corrected sentences; null: `outputs.talker`.",
+    )
+    misalign_deg: float = key(
+        0.0,
+        check=number(-20.0, 20.0),
+        unit="°",
+        doc="VBW: the log's forward axis from the bow (+ to starboard), from `emlogd "
+        "calibrate --axes 2`; the corrected VBW turns both axes back by it.",
+    )
+    transverse_scale: float = key(
+        0.0,
+        check=number(-0.5, 0.5),
+        doc="VBW: the athwart axis's scale error m_t (`calibrate --axes 2`): the corrected "
+        "athwart speed is (reading − `transverse_bias_mps`)/(1 + m_t).",
+    )
+    transverse_bias_mps: float = key(
+        0.0,
+        check=number(-1.0, 1.0),
+        unit="m/s",
+        doc="VBW: the athwart axis's bias (`calibrate --axes 2`).",
     )
     component: Component = key(
         "longitudinal",

@@ -39,11 +39,14 @@ Rules (the constants are this module's):
   the detector's current starts afresh.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again.
+  it validates again (in a turn, :data:`RESTORE_MIN_HEADING_SPREAD`, raw and it each
+  after a current fitted to the window).
 - **Restored** (state file, warm start): validated before it is applied (over
-  :data:`RESTORE_VALIDATION_S`, not worse than raw; in the sea it was saved in, when it
-  was saved with a current :data:`RESTORE_SEA_MAX_AGE_S` or less before), raw passing
-  through meanwhile; when no reference has been heard
+  :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
+  the window; on a straight leg it keeps the verdict that made it unless, in the sea it
+  was saved in and against raw, the current its errors imply is one the sea cannot
+  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; when no reference
+  has been heard
   :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
   status) and validated in place once a reference arrives.
 """
@@ -120,12 +123,13 @@ only a known sea can tell a good restored calibration from raw there; within an 
 tidal current changes by a fraction of itself."""
 
 RESTORE_MIN_HEADING_SPREAD = 0.1
-"""A restored calibration's validation window tells a current from an offset when its
-headings spread this much (one minus the mean resultant length of the heading's unit
-vector: 0 on a straight leg, 0.1 for headings spread evenly over about 90°); then each
-calibration is judged after a current of its own fitted to that window. On a narrower
-window a current and an offset look alike, and the judgement falls back on the sea (see
-:data:`RESTORE_SEA_SIGMAS`)."""
+"""A restored or withdrawn calibration's validation window tells a current from an
+offset when its headings spread this much (one minus the mean resultant length of the
+heading's unit vector: 0 on a straight leg, 0.1 for headings spread evenly over about
+90°); then raw and it are each judged after a current of their own fitted to that
+window. On a narrower window a current and an offset look alike: a restored one falls
+back on the sea (see :data:`RESTORE_SEA_SIGMAS`), a withdrawn one on the currents of the
+supervisor's memory."""
 
 RESTORE_SEA_SIGMAS = 3.0
 """Where the validation window cannot tell a current from an offset, a restored
@@ -181,7 +185,7 @@ class _Candidate:
     n_sea: int = 0
     n: int = 0
     samples: list[tuple[float, float, float, float]] | None = None
-    """A restored one's validation samples: raw's and its error against the reference,
+    """A restored or withdrawn one's validation samples (in the water frame): raw's and its error against the reference,
     and the heading's (cos, sin): judged at the end (:meth:`Supervisor._judge_restored`)."""
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`SeaMemory.current`), once fitted."""
@@ -429,16 +433,15 @@ class Supervisor:
         d_c = self._error(raw, ref, cand.params)
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
         sea = self.restored_sea
-        if cand.kind == "restored" and cs is not None:
-            if sea is not None:
-                c_h = sea[0] * cs[0] + sea[1] * cs[1]
-                cand.sea_raw += (d_raw + c_h) ** 2
-                cand.sea_cand += (d_c + c_h) ** 2
-                cand.n_sea += 1
-            if self.water:
-                if cand.samples is None:
-                    cand.samples = []
-                cand.samples.append((d_raw, d_c, cs[0], cs[1]))
+        if cand.kind == "restored" and cs is not None and sea is not None:
+            c_h = sea[0] * cs[0] + sea[1] * cs[1]
+            cand.sea_raw += (d_raw + c_h) ** 2
+            cand.sea_cand += (d_c + c_h) ** 2
+            cand.n_sea += 1
+        if cand.kind in ("restored", "revalidate") and self.water and cs is not None:
+            if cand.samples is None:
+                cand.samples = []
+            cand.samples.append((d_raw, d_c, cs[0], cs[1]))
         cand.raw += e_raw * e_raw
         cand.applied += e_app * e_app
         cand.cand += e_c * e_c
@@ -568,6 +571,13 @@ class Supervisor:
             good = self._judge_restored(cand, detail)
         elif cand.kind == "restored" and cand.n_sea == n:
             good = self._judge_saved_sea(cand, detail)
+        elif (
+            cand.kind == "revalidate"
+            and cand.samples is not None
+            and len(cand.samples) == n
+            and (verdict := self._judge_own_currents(cand, detail)) is not None
+        ):
+            good = verdict
         else:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
@@ -614,6 +624,24 @@ class Supervisor:
         detail["rmse_candidate_saved_sea"] = round(s_cand, 4)
         return not self._worse(s_cand, s_raw)
 
+    def _judge_own_currents(self, cand: _Candidate, detail: dict[str, object]) -> bool | None:
+        """A calibration validated before, on a window whose headings tell a current from
+        an offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
+        current of their own fitted to the window; not worse than raw. None on a
+        narrower window."""
+        assert cand.samples is not None
+        a = np.asarray(cand.samples, dtype=np.float64)
+        d_raw, d_c, c, s = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+        spread = 1.0 - math.hypot(float(np.mean(c)), float(np.mean(s)))
+        detail["heading_spread"] = round(spread, 3)
+        if spread < RESTORE_MIN_HEADING_SPREAD:
+            return None
+        r_raw = _rms_after_current(d_raw, c, s)
+        r_cand = _rms_after_current(d_c, c, s)
+        detail["rmse_raw_own_current"] = round(r_raw, 4)
+        detail["rmse_candidate_own_current"] = round(r_cand, 4)
+        return not self._worse(r_cand, r_raw)
+
     def _judge_restored(self, cand: _Candidate, detail: dict[str, object]) -> bool:
         """A restored calibration in the water frame, on its validation window.
 
@@ -624,17 +652,12 @@ class Supervisor:
         is one the sea can have (:data:`RESTORE_SEA_SIGMAS`); a state file that implies an
         impossible current is refused.
         """
+        verdict = self._judge_own_currents(cand, detail)
+        if verdict is not None:
+            return verdict
         assert cand.samples is not None
         a = np.asarray(cand.samples, dtype=np.float64)
-        d_raw, d_c, c, s = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
-        spread = 1.0 - math.hypot(float(np.mean(c)), float(np.mean(s)))
-        detail["heading_spread"] = round(spread, 3)
-        if spread >= RESTORE_MIN_HEADING_SPREAD:
-            r_raw = _rms_after_current(d_raw, c, s)
-            r_cand = _rms_after_current(d_c, c, s)
-            detail["rmse_raw_own_current"] = round(r_raw, 4)
-            detail["rmse_candidate_own_current"] = round(r_cand, 4)
-            return not self._worse(r_cand, r_raw)
+        d_c, c, s = a[:, 1], a[:, 2], a[:, 3]
         if cand.n_sea == cand.n and self._judge_saved_sea(cand, detail):
             return True
         kf = self.s.kf

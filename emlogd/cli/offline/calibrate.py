@@ -9,6 +9,7 @@ import sys
 from typing import get_args
 
 from emlogd.cli.common import Subparsers, UsageError, key_arg
+from emlogd.cli.offline import twoaxis
 from emlogd.cli.offline.args import (
     captures_arg,
     common_offline,
@@ -114,6 +115,8 @@ def _calibration_text(res: CalibrationResult) -> str:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Estimate an error model of one EMlog against a reference from captures."""
+    if args.axes == 2:
+        return twoaxis.cmd_calibrate(args)
     settings = uut_settings(args)
     if args.average is not None and args.method != "ls":
         raise UsageError("--average applies to --method ls")
@@ -185,4 +188,5 @@ def add_parser(sub: Subparsers) -> None:
         "spec's 0.1 kn); the filter's NIS is near 1 only with the log's true noise",
     )
     common_offline(p)
+    twoaxis.axes_arg(p)
     p.set_defaults(handler=cmd_calibrate)

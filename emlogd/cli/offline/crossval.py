@@ -8,6 +8,7 @@ import sys
 import time
 
 from emlogd.cli.common import Subparsers, UsageError, progress, progress_done
+from emlogd.cli.offline import twoaxis
 from emlogd.cli.offline.args import captures_arg, common_offline, pairing_args, uut_settings
 from emlogd.cli.offline.shared import capture_skips, load, warn_lag, warn_recs
 from emlogd.offline.jobs import crossval
@@ -38,6 +39,8 @@ def _workers_arg(value: str) -> int:
 
 def cmd_crossval(args: argparse.Namespace) -> int:
     """Cross-validate every estimator over the captures (the paper's Tables II and III)."""
+    if args.axes == 2:
+        return twoaxis.cmd_crossval(args)
     settings = uut_settings(args)
     recs = load(args.captures, settings, args)
     t0 = time.perf_counter()
@@ -113,4 +116,5 @@ def add_parser(sub: Subparsers) -> None:
         metavar="N",
         help="processes, at least 1 (default: all cores)",
     )
+    twoaxis.axes_arg(p)
     p.set_defaults(handler=cmd_crossval)

@@ -7,6 +7,7 @@ import json
 import sys
 
 from emlogd.cli.common import Subparsers, UsageError
+from emlogd.cli.offline import twoaxis
 from emlogd.cli.offline.args import (
     capture_args,
     captures_arg,
@@ -33,6 +34,8 @@ from emlogd.offline.tables import fmt, render
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     """Apply a frozen calibration to captures: RMSE raw and calibrated per capture."""
+    if args.axes == 2:
+        return twoaxis.cmd_evaluate(args)
     cal, extra = load_params(args.params)
     settings = uut_settings(
         args,
@@ -112,4 +115,5 @@ def add_parser(sub: Subparsers) -> None:
     capture_args(p)
     json_arg(p)
     truth_arg(p, "raw and calibrated speeds")
+    twoaxis.axes_arg(p)
     p.set_defaults(handler=cmd_evaluate)

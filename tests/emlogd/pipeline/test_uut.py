@@ -374,6 +374,69 @@ class TestRestored:
         assert detail["implied_current_mps"] == pytest.approx(-0.4, abs=0.03)
         assert _applied(rig_for(Params("EM3", m=-0.5, b_mps=1.0))) is None
 
+    def test_on_a_straight_leg_a_saved_sea_is_trusted_as_its_age_allows(self) -> None:
+        """Saved with no current (±0.05 m/s), a straight leg at 2 m/s in 0.24 m/s of
+        current on the stern, where raw's error (+0.4) nearly offsets it: in the saved sea
+        raw wins. Saved 300 s before, the sea may have moved by 3σ = 0.26 m/s (the saved
+        uncertainty and the learner's random walk): applied. Saved just now: refused."""
+        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
+
+        rng = np.random.default_rng(13)
+
+        def applied_after(saved_t: float) -> Params | None:
+            prior = Calibration(
+                "log",
+                Estimate(
+                    TRUE,
+                    {"m": 0.01, "b": 0.01},
+                    current_mps=(0.0, 0.0),
+                    current_std_mps=(0.05, 0.05),
+                ),
+                0.0,
+                current=True,
+                t=saved_t,
+            )
+            rig = Rig(prior, heading=0.0, current=True, learn=False)
+            rig.run(
+                RESTORE_VALIDATION_S + 30.0,
+                raw=lambda t, v: TRUE.forward(2.0) + float(rng.normal(0.0, 0.03)),
+                ref=lambda t, v: 2.0 + 0.24,
+            )
+            return _applied(rig)
+
+        assert applied_after(-300.0) == TRUE
+        assert applied_after(0.0) is None
+
+    def test_a_withdrawn_one_revalidates_in_a_turn_after_currents_of_its_own(self) -> None:
+        """Headings swinging ±60° in 0.5 m/s of current from the north, where raw's error
+        (+0.34 m/s) and the current nearly cancel against the reference. A calibration
+        withdrawn with the supervisor's memory emptied (as the change detector does)
+        re-validates: raw and it are judged after currents of their own fitted to the
+        window, and it is applied again."""
+        from emlogd.pipeline.evidence import SeaMemory
+        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
+
+        def psi(t: float) -> float:
+            return 60.0 * math.sin(2.0 * math.pi * t / 40.0)
+
+        def ref(t: float, v: float) -> float:
+            return v + 0.5 * math.cos(math.radians(psi(t)))
+
+        rig = Rig(_prior(), heading=0.0, current=True, learn=False)
+        rig.cal.heading_at = psi
+        rig.run(RESTORE_VALIDATION_S + 10.0, ref=ref)
+        assert _applied(rig) == TRUE
+        sup = rig.cal.sup
+        sup._withdraw(rig.t, "test", {})
+        sup.memory = SeaMemory()
+        assert _applied(rig) is None
+        rig.run(RESTORE_VALIDATION_S + 5.0, ref=ref)
+        assert _applied(rig) == TRUE
+        (detail,) = [d for _, k, d in rig.events if d.get("kind") == "revalidate"]
+        assert float(str(detail["heading_spread"])) >= 0.1
+        own = float(str(detail["rmse_candidate_own_current"]))
+        assert own < float(str(detail["rmse_raw_own_current"]))
+
     def test_without_a_reference_it_is_applied_unverified(self) -> None:
         """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""
         from emlogd.pipeline.supervisor import RESTORE_WAIT_S
