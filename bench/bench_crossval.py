@@ -1,7 +1,7 @@
 """Benchmark: full cross-validation of the 221-minute trial (8 estimators).
 
 Synthetic segments with the paper's durations (125/27/15/24/30 min), generated
-here (:func:`calib.synth.paper_trial`), for a 1 Hz UUT (EMlog1, 13 260 samples)
+here (:func:`tests.synth.paper_trial`), for a 1 Hz UUT (EMlog1, 13 260 samples)
 and a 10 Hz UUT (132 600 samples): 5 × 4 × 8 = 160 out-of-sample evaluations.
 Target (issue 3): ≤ 10 s for the 1 Hz trial. Prints figures only.
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from calib.crossval import cross_validate
 from calib.models import Params
-from calib.synth import paper_trial
+from tests.synth import paper_trial
 
 
 def main() -> None:

@@ -30,6 +30,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+from calib.estimate import Estimate
 from calib.models import Params
 from drivers.io.vpty import VirtualPort
 from drivers.nmea0183 import encode_vhw
@@ -85,7 +86,7 @@ def _setup(work: Path) -> Path:
         text = text.replace("role: aux}", f"role: aux, rest_s: {REST_S}}}")
     cfg.write_text(text)
     StateStore(work / "state" / "state.yaml").save(
-        {"emlog1": Calibration("emlog1", Params("EM3", m=0.1, b_mps=0.05), {}, None)}
+        {"emlog1": Calibration("emlog1", Estimate(Params("EM3", m=0.1, b_mps=0.05), {}), None)}
     )
     return cfg
 

@@ -33,6 +33,7 @@ WRAPPER = r"""
 import atexit, collections, json, sys, time
 import drivers.io.port as dp
 import emlogd.daemon.loop as dm
+import emlogd.daemon.outputs as do
 import emlogd.pipeline.core as pp
 from emlogd.cli import main
 
@@ -96,7 +97,7 @@ wrap(D, "_read", lambda a: f"daemon read of {a[1]} (feed included)", lambda a: f
 wrap(D, "_rest_ready", "daemon resting port readable", "rest")
 wrap(D, "_rest", "daemon resting port readable", "rest")
 wrap(D, "_handle", "daemon deliver an output")
-wrap(D, "_deliver", "daemon write sentences to the outputs")
+wrap(do.Outputs, "deliver", "daemon write sentences to the outputs")
 wrap(dp.SerialSource, "read", "port read (os.read, stamp)")
 wrap(dp.SerialSource, "poll", "housekeeping: port poll")
 wrap(pp.Pipeline, "tick", "housekeeping: pipeline tick", "housekeeping")

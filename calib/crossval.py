@@ -47,6 +47,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError, ModelError
+from calib.estimate import Estimate, Estimated
 from calib.kalman import KfConfig, run_kf
 from calib.lsq import fit_ls
 from calib.metrics import improvement_pct, water_scores
@@ -143,17 +144,16 @@ class SegmentInfo:
 
 
 @dataclass(frozen=True, slots=True)
-class TrainedEstimator:
+class TrainedEstimator(Estimated):
     """Parameters one estimator learnt on one segment (then frozen).
 
     Attributes:
         estimator: e.g. ``"LS-EM3"``.
         train: training segment name.
-        params: the frozen parameters.
-        param_std: their standard errors (LS; None where not determined) or σ from P
-            (KF), by short name.
-        current_mps: the current learnt on the training segment (north, east), m/s,
-            None when not estimated or not determined.
+        estimate: the frozen parameters with their standard errors (LS; None where not
+            determined) or σ from P (KF), by short name, and the current learnt on the
+            training segment (north, east), m/s, None when not estimated or not
+            determined.
         identifiable: the identifiability verdict on the training segment.
         unidentifiable: the unknowns the segment does not determine (held).
         cond_info: the condition number of the information matrix.
@@ -161,9 +161,7 @@ class TrainedEstimator:
 
     estimator: str
     train: str
-    params: Params
-    param_std: dict[str, float | None]
-    current_mps: tuple[float, float] | None
+    estimate: Estimate
     identifiable: bool | None
     unidentifiable: tuple[str, ...]
     cond_info: float | None
@@ -408,9 +406,7 @@ def train(
         return TrainedEstimator(
             estimator,
             seg.name,
-            fit.params,
-            fit.stderr,
-            fit.current_mps,
+            fit.estimate,
             fit.identifiable,
             fit.unidentifiable,
             fit.cond_info,
@@ -434,12 +430,16 @@ def train(
     std: dict[str, float | None] = {
         k: (v if k in ident.determined else None) for k, v in run.param_std.items()
     }
+    determined = CURRENT in ident.determined
     return TrainedEstimator(
         estimator,
         seg.name,
-        run.params,
-        std,
-        run.current_mps if CURRENT in ident.determined else None,
+        Estimate(
+            run.params,
+            std,
+            run.current_mps if determined else None,
+            run.current_std_mps if determined else None,
+        ),
         ident.identifiable,
         ident.unidentifiable,
         ident.cond_info,

@@ -46,7 +46,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -56,6 +55,9 @@ from calib.models import CURRENT, FloatArray, Layout
 
 N_SECTORS = 8
 """Heading sectors of 45° used to judge how much of the compass a window covers."""
+
+SECTOR_DEG = 360.0 / N_SECTORS
+"""The width of one heading sector, degrees."""
 
 SECTOR_MIN_FRACTION = 0.03
 """A sector counts as covered when it holds at least this fraction of the window."""
@@ -265,20 +267,6 @@ def _inv_diag(info: FloatArray, cols: list[int]) -> FloatArray | None:
     return np.asarray((vec * vec) @ (1.0 / eig) / (scale * scale), dtype=np.float64)
 
 
-def _scaled(cols: list[int], inv_diag: FloatArray | None, sigma2: float) -> dict[int, float]:
-    """Standard deviation of each column's unknown from :func:`_inv_diag` and the
-    residual variance (``inf`` for all when singular)."""
-    if inv_diag is None:
-        return dict.fromkeys(cols, math.inf)
-    return {c: math.sqrt(max(float(inv_diag[i]) * sigma2, 0.0)) for i, c in enumerate(cols)}
-
-
-def _cond(info: FloatArray, cols: list[int]) -> float:
-    """The condition number of the information matrix over some columns."""
-    eig = np.linalg.eigvalsh(info[np.ix_(cols, cols)])
-    return float(eig[-1] / eig[0]) if float(eig[0]) > 0.0 else math.inf
-
-
 def judge(
     layout: Layout,
     stats: WindowStats,
@@ -302,28 +290,49 @@ def judge(
     Returns:
         A verdict per unknown.
     """
-    figures = _Figures(stats.info)
-    refused, offset = structural(layout, stats, rule, figures)
-    return _information(layout, stats, sigma2_mps2, rule, std_factor, refused, offset, figures)
+    return _information(_structure(layout, stats, rule), sigma2_mps2, std_factor)
 
 
 def structural(
-    layout: Layout,
-    stats: WindowStats,
-    rule: ExcitationRule = DEFAULT_RULE,
-    figures: _Figures | None = None,
+    layout: Layout, stats: WindowStats, rule: ExcitationRule = DEFAULT_RULE
 ) -> tuple[dict[str, str], bool]:
-    """Rules 1 and 2 and the scale's variance inflation: what no noise level changes
-    (``figures``: the decompositions of ``stats.info`` already made, kept for the next
-    rules).
+    """Rules 1 and 2 and the scale's variance inflation, what no noise level changes: the
+    unknowns refused, each with its reason, and whether a nuisance offset takes the bias
+    and the along-hull current together."""
+    s = _structure(layout, stats, rule)
+    return s.refused, s.offset
 
-    Returns:
-        The unknowns refused, each with its reason, and whether a nuisance offset
-        takes the bias and the along-hull current together.
-    """
-    unknowns = layout.unknowns
+
+@dataclass(frozen=True, slots=True)
+class _Structure:
+    """A window after the structural rules: what they refused, whether an offset takes
+    bias and current, and the decompositions kept for the information rules."""
+
+    layout: Layout
+    stats: WindowStats
+    rule: ExcitationRule
+    refused: dict[str, str]
+    offset: bool
+    figures: _Figures
+
+
+def _structure(layout: Layout, stats: WindowStats, rule: ExcitationRule) -> _Structure:
+    """:func:`structural`'s verdicts with the decompositions they made."""
+    figures = _Figures(stats.info)
+    refused = _speed_rule(layout, stats, rule)
+    offset = False
+    if layout.current:
+        offset = _heading_rule(layout, stats, rule, refused)
+        if not offset:
+            _inflation_rule(layout, figures, rule, refused)
+    return _Structure(layout, stats, rule, refused, offset, figures)
+
+
+def _speed_rule(layout: Layout, stats: WindowStats, rule: ExcitationRule) -> dict[str, str]:
+    """Rule 1: the scale terms refused when the speed through the water does not vary
+    (EM2: when it is too low), each with its reason."""
     refused: dict[str, str] = {}
-    scale = [k for k in ("a", "m") if k in unknowns]
+    scale = [k for k in ("a", "m") if k in layout.unknowns]
     if layout.model == "EM2":
         if stats.speed_rms_mps < rule.min_speed_rms_mps:
             refused["m"] = (
@@ -337,35 +346,47 @@ def structural(
         )
         for k in scale:
             refused[k] = why
-    offset = False
-    if layout.current:
-        sectors = stats.heading_sectors
-        if sectors is None:
-            refused[CURRENT] = "current not determinable: no heading"
-        elif sectors < rule.min_heading_sectors:
-            refused[CURRENT] = (
-                f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
-            )
-        if CURRENT in refused:
-            offset = True
-            if "b" in unknowns:
-                refused["b"] = (
-                    "bias not separable from the current: heading covered "
-                    f"{sectors if sectors is not None else 0} of {N_SECTORS} sectors"
-                )
-    if layout.current and CURRENT not in refused:
-        free_scale = [k for k in scale if k not in refused]
-        if free_scale:
-            figures = _Figures(stats.info) if figures is None else figures
-            inflation = _scale_inflation(figures, free_scale, "b" in unknowns)
-            if inflation > rule.max_scale_vif:
-                why = (
-                    "scale not separable from the current: the speed through the water "
-                    f"follows the heading (the current multiplies its variance by {inflation:.1f})"
-                )
-                for k in free_scale:
-                    refused[k] = why
-    return refused, offset
+    return refused
+
+
+def _heading_rule(
+    layout: Layout, stats: WindowStats, rule: ExcitationRule, refused: dict[str, str]
+) -> bool:
+    """Rule 2: the current (and the bias with it) refused when the heading covers too few
+    sectors; whether an offset then takes the two (``refused`` is extended)."""
+    sectors = stats.heading_sectors
+    if sectors is None:
+        refused[CURRENT] = "current not determinable: no heading"
+    elif sectors < rule.min_heading_sectors:
+        refused[CURRENT] = (
+            f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
+        )
+    if CURRENT not in refused:
+        return False
+    if "b" in layout.unknowns:
+        refused["b"] = (
+            "bias not separable from the current: heading covered "
+            f"{sectors if sectors is not None else 0} of {N_SECTORS} sectors"
+        )
+    return True
+
+
+def _inflation_rule(
+    layout: Layout, figures: _Figures, rule: ExcitationRule, refused: dict[str, str]
+) -> None:
+    """The scale terms left refused when estimating the current inflates their variance
+    beyond ``rule.max_scale_vif`` (``refused`` is extended)."""
+    free_scale = [k for k in ("a", "m") if k in layout.unknowns and k not in refused]
+    if not free_scale:
+        return
+    inflation = _scale_inflation(figures, free_scale, "b" in layout.unknowns)
+    if inflation > rule.max_scale_vif:
+        why = (
+            "scale not separable from the current: the speed through the water "
+            f"follows the heading (the current multiplies its variance by {inflation:.1f})"
+        )
+        for k in free_scale:
+            refused[k] = why
 
 
 class _Figures:
@@ -380,33 +401,32 @@ class _Figures:
         self._cond: dict[tuple[int, ...], float] = {}
 
     def stds(self, cols: list[int], sigma2: float) -> dict[int, float]:
-        """The standard deviations of these columns' unknowns (:func:`_scaled`)."""
+        """The standard deviation of each column's unknown from :func:`_inv_diag` and the
+        residual variance ``sigma2`` (``inf`` for all when singular)."""
         key = tuple(cols)
         if key not in self._inv:
             self._inv[key] = _inv_diag(self.info, cols)
-        return _scaled(cols, self._inv[key], sigma2)
+        inv_diag = self._inv[key]
+        if inv_diag is None:
+            return dict.fromkeys(cols, math.inf)
+        return {c: math.sqrt(max(float(inv_diag[i]) * sigma2, 0.0)) for i, c in enumerate(cols)}
 
     def cond(self, cols: list[int]) -> float:
-        """:func:`_cond` of these columns."""
+        """The condition number of the information matrix over these columns."""
         key = tuple(cols)
         found = self._cond.get(key)
         if found is None:
-            found = self._cond[key] = _cond(self.info, cols)
+            eig = np.linalg.eigvalsh(self.info[np.ix_(cols, cols)])
+            found = float(eig[-1] / eig[0]) if float(eig[0]) > 0.0 else math.inf
+            self._cond[key] = found
         return found
 
 
-def _information(
-    layout: Layout,
-    stats: WindowStats,
-    sigma2_mps2: float,
-    rule: ExcitationRule,
-    std_factor: float,
-    refused: dict[str, str],
-    offset: bool,
-    figures: _Figures,
-) -> Identifiability:
-    """Rules 3 and 4 on what :func:`structural` left (``refused`` is extended), with the
-    window's decompositions kept in ``figures``."""
+def _information(s: _Structure, sigma2_mps2: float, std_factor: float) -> Identifiability:
+    """Rules 3 and 4 on what the structural rules left (``s`` is left as it is: one
+    window may be judged against several bounds)."""
+    layout, stats, rule, figures, offset = s.layout, s.stats, s.rule, s.figures, s.offset
+    refused = dict(s.refused)
     unknowns = layout.unknowns
     free = [u for u in unknowns if u not in refused]
     stds: dict[str, float] = {}
@@ -468,10 +488,17 @@ def heading_sectors(heading_deg: npt.ArrayLike, weights: npt.ArrayLike | None = 
     w = np.ones_like(h) if weights is None else np.asarray(weights, dtype=np.float64)
     if h.size == 0:
         return 0
-    idx = (np.floor(np.mod(h, 360.0) / (360.0 / N_SECTORS)).astype(int)) % N_SECTORS
-    hist = np.bincount(idx, weights=w, minlength=N_SECTORS)
-    total = float(np.sum(hist))
-    return int(np.count_nonzero(hist >= SECTOR_MIN_FRACTION * total)) if total > 0.0 else 0
+    idx = (np.floor(np.mod(h, 360.0) / SECTOR_DEG).astype(int)) % N_SECTORS
+    return _covered(np.bincount(idx, weights=w, minlength=N_SECTORS).astype(np.float64)) or 0
+
+
+def _covered(weights: FloatArray) -> int | None:
+    """How many sectors hold at least :data:`SECTOR_MIN_FRACTION` of the weight of all
+    (``weights``: one per sector); None when they hold none."""
+    total = float(np.sum(weights))
+    if not total > 0.0:
+        return None
+    return int(np.count_nonzero(weights >= SECTOR_MIN_FRACTION * total))
 
 
 def design5(u_mps: npt.ArrayLike, heading_deg: npt.ArrayLike | None) -> FloatArray:
@@ -604,10 +631,14 @@ class ExcitationWindow:
         self.layout = layout
         self._lam = 0.5 ** (1.0 / half_life_samples) if math.isfinite(half_life_samples) else 1.0
         self.rule = rule
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every sample."""
         self._info = [0.0] * 15
         self._r0 = self._r1 = self._r2 = 0.0
         self._sectors = [0.0] * N_SECTORS
-        self._judged: tuple[WindowStats, dict[str, str], bool, _Figures] | None = None
+        self._judged: _Structure | None = None
 
     def add(self, u_mps: float, raw_mps: float, heading_deg: float | None = None) -> None:
         """Add one sample: operating-point speed through the water, reading, heading."""
@@ -620,7 +651,7 @@ class ExcitationWindow:
             sec = self._sectors
             for i in range(N_SECTORS):
                 sec[i] *= lam
-            sec[int((heading_deg % 360.0) // (360.0 / N_SECTORS)) % N_SECTORS] += 1.0
+            sec[int((heading_deg % 360.0) // SECTOR_DEG) % N_SECTORS] += 1.0
         col = (u_mps * u_mps, u_mps, 1.0, c, s)
         info = self._info
         k = 0
@@ -632,13 +663,6 @@ class ExcitationWindow:
         self._r0 = lam * self._r0 + 1.0
         self._r1 = lam * self._r1 + raw_mps
         self._r2 = lam * self._r2 + raw_mps * raw_mps
-        self._judged = None
-
-    def reset(self) -> None:
-        """Forget every sample."""
-        self._info = [0.0] * 15
-        self._r0 = self._r1 = self._r2 = 0.0
-        self._sectors = [0.0] * N_SECTORS
         self._judged = None
 
     @property
@@ -661,13 +685,7 @@ class ExcitationWindow:
             rms = math.sqrt(max(self._r2 / r0, 0.0))
         else:
             mean = std = rms = 0.0
-        total = sum(self._sectors)
-        sectors = (
-            sum(1 for w in self._sectors if w >= SECTOR_MIN_FRACTION * total)
-            if total > 0.0
-            else None
-        )
-        return WindowStats(r0, M, mean, std, rms, sectors)
+        return WindowStats(r0, M, mean, std, rms, _covered(np.array(self._sectors)))
 
     def evaluate(self, sigma2_mps2: float, *, std_factor: float = 1.0) -> Identifiability:
         """Judge the current window (:func:`judge`) with a nominal residual variance.
@@ -676,16 +694,5 @@ class ExcitationWindow:
         until the next sample, so judging one window against two bounds builds them once.
         """
         if self._judged is None:
-            stats = self.stats()
-            figures = _Figures(stats.info)
-            refused, offset = structural(self.layout, stats, self.rule, figures)
-            self._judged = (stats, refused, offset, figures)
-        stats, refused, offset, figures = self._judged
-        return _information(
-            self.layout, stats, sigma2_mps2, self.rule, std_factor, dict(refused), offset, figures
-        )
-
-
-def qr_r(A: FloatArray) -> FloatArray:
-    """The R factor of the QR factorisation of A, shape (min(N, p), p) (Q is never formed)."""
-    return cast(FloatArray, np.linalg.qr(A, mode="r"))
+            self._judged = _structure(self.layout, self.stats(), self.rule)
+        return _information(self._judged, sigma2_mps2, std_factor)

@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
+from calib.estimate import Estimate, Estimated
 from calib.excitation import (
     DEFAULT_RULE,
     ExcitationRule,
@@ -47,7 +48,7 @@ from calib.excitation import (
     window_stats,
 )
 from calib.metrics import correlation_factor
-from calib.models import CURRENT, FloatArray, Layout, ModelName, Params, check_model
+from calib.models import CURRENT, FloatArray, Layout, Params, check_model
 
 _A, _M, _B, _CN, _CE, _D = range(6)
 """Indices of the full unknown vector ``[a, m, b, c_N, c_E, offset]``."""
@@ -56,16 +57,14 @@ _MAX_ITER = 30
 
 
 @dataclass(frozen=True, slots=True)
-class LsFit:
+class LsFit(Estimated):
     """Result of one least-squares calibration.
 
     Attributes:
         layout: the model and whether a current was estimated.
-        params: θ̂; an unknown the data do not determine is at its prior.
-        stderr: standard error of each parameter by short name (None: not determined).
-        current_mps: the current (north, east), m/s; None when not estimated or not
-            determined.
-        current_std_mps: its standard errors, m/s.
+        estimate: θ̂ (an unknown the data do not determine at its prior), the standard
+            error of each parameter (None: not determined) and the current with its
+            standard errors (None when not estimated or not determined).
         rmse_mps: RMS of the fit residuals ``raw − f_θ(u)``, m/s (weighted RMS with weights).
         n_samples: number of samples N.
         ident: the verdict on every unknown (see :mod:`calib.excitation`).
@@ -77,20 +76,12 @@ class LsFit:
     """
 
     layout: Layout
-    params: Params
-    stderr: dict[str, float | None]
-    current_mps: tuple[float, float] | None
-    current_std_mps: tuple[float, float] | None
+    estimate: Estimate
     rmse_mps: float
     n_samples: int
     ident: Identifiability
     correlation: float = 1.0
     current_blocks: tuple[tuple[float, float, float], ...] = ()
-
-    @property
-    def model(self) -> ModelName:
-        """The error model."""
-        return self.layout.model
 
     @property
     def identifiable(self) -> bool:
@@ -284,25 +275,14 @@ def fit_ls(
     n = ref.size
     w = check_weights(weights, n)
     layout = Layout(name, current)
-    hd: FloatArray | None = None
-    if heading_deg is not None:
-        hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
-        if hd.shape != ref.shape or not np.all(np.isfinite(hd)):
-            raise DataError("heading must be finite and as long as the speeds")
-    if current and hd is None:
-        raise DataError("a fit with the current needs the heading")
+    hd = _checked_heading(heading_deg, n, current)
     if prior is not None and prior.model != name:
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
     psi = np.radians(hd) if hd is not None else np.zeros(n)
     block = None
     if current and current_block_s is not None and hd is not None:
         block = current_blocks(t_s, hd, current_block_s, rule.min_heading_sectors)
-    w_ref = 1.0
-    if noise_ratio is not None:
-        if not (math.isfinite(noise_ratio) and noise_ratio >= 0.0):
-            raise DataError(f"noise_ratio must be finite and non-negative, not {noise_ratio!r}")
-        slope0 = 1.0 + (prior.m if prior is not None else 0.0)
-        w_ref = 1.0 / (1.0 + noise_ratio * slope0 * slope0)
+    w_ref = _reference_weight(noise_ratio, prior)
     problem = _Problem(
         ref, raw, np.cos(psi), np.sin(psi), None if w is None else np.sqrt(w), block, w_ref
     )
@@ -315,9 +295,7 @@ def fit_ls(
     ident = judge(layout, window_stats(ref, raw, hd, w), 0.0, rule)
     x, rss, info = x0, math.nan, np.zeros((0, 0))
     for _ in range(len(layout.unknowns) + 1):
-        free = sorted(i for u in ident.determined for i in index[u])
-        if ident.nuisance_offset and "b" not in ident.determined:
-            free.append(_D)
+        free = _free(ident, index)
         x, rss, info = _solve(problem, x0, free)
         dof = max(n - len(free), 1)
         sigma2 = rss / (w_mean * dof)
@@ -327,9 +305,7 @@ def fit_ls(
             ident = new
             break
         ident = new
-    free = sorted(i for u in ident.determined for i in index[u])
-    if ident.nuisance_offset and "b" not in ident.determined:
-        free.append(_D)
+    free = _free(ident, index)
     x, rss, info = _solve(problem, x0, free)
     dof = max(n - len(free), 1)
     factor = correlation_factor(problem.residual_jacobian(x)[0])
@@ -357,30 +333,80 @@ def fit_ls(
         cur = (float(x[_CN]), float(x[_CE]))
         cur_std = (float(std[_CN]), float(std[_CE]))
         if k > 1 and block is not None:
-            cn, ce = problem.current_at(x)
-            share = np.bincount(block, minlength=k) / n
-            g = np.zeros((2, x0.size))
-            g[0, _CN] = g[1, _CE] = 1.0
-            g[0, _D + 1 :: 2] = share[1:]
-            g[1, _D + 2 :: 2] = share[1:]
-            var = np.einsum("ij,jk,ik->i", g, np.nan_to_num(cov_full, nan=0.0), g)
-            cur = (float(np.mean(cn)), float(np.mean(ce)))
-            cur_std = (math.sqrt(max(var[0], 0.0)), math.sqrt(max(var[1], 0.0)))
-            t = np.asarray(t_s, dtype=np.float64).reshape(-1)
-            first = np.flatnonzero(np.concatenate([[True], block[1:] != block[:-1]]))
-            blocks = tuple((float(t[i]), float(cn[i]), float(ce[i])) for i in first)
+            cur, cur_std, blocks = _block_currents(problem, x, cov_full, block, t_s)
     return LsFit(
         layout=layout,
-        params=params,
-        stderr=stderr,
-        current_mps=cur,
-        current_std_mps=cur_std,
+        estimate=Estimate(params, stderr, cur, cur_std),
         rmse_mps=math.sqrt(rss / (w_mean * n)),
         n_samples=n,
         ident=ident,
         correlation=factor,
         current_blocks=blocks,
     )
+
+
+def _checked_heading(heading_deg: npt.ArrayLike | None, n: int, current: bool) -> FloatArray | None:
+    """:func:`fit_ls`'s heading as an array of ``n`` finite values (None without one).
+
+    Raises:
+        DataError: not finite or not as long as the speeds, or none with ``current``.
+    """
+    hd: FloatArray | None = None
+    if heading_deg is not None:
+        hd = np.asarray(heading_deg, dtype=np.float64).reshape(-1)
+        if hd.shape != (n,) or not np.all(np.isfinite(hd)):
+            raise DataError("heading must be finite and as long as the speeds")
+    if current and hd is None:
+        raise DataError("a fit with the current needs the heading")
+    return hd
+
+
+def _reference_weight(noise_ratio: float | None, prior: Params | None) -> float:
+    """The reference's weight in the operating point (1: the reference's speed alone;
+    see :func:`fit_ls`'s ``noise_ratio``).
+
+    Raises:
+        DataError: a noise ratio that is negative or not finite.
+    """
+    if noise_ratio is None:
+        return 1.0
+    if not (math.isfinite(noise_ratio) and noise_ratio >= 0.0):
+        raise DataError(f"noise_ratio must be finite and non-negative, not {noise_ratio!r}")
+    slope0 = 1.0 + (prior.m if prior is not None else 0.0)
+    return 1.0 / (1.0 + noise_ratio * slope0 * slope0)
+
+
+def _free(ident: Identifiability, index: dict[str, list[int]]) -> list[int]:
+    """The columns of the unknowns ``ident`` determines, and the nuisance offset's when
+    it takes the bias."""
+    free = sorted(i for u in ident.determined for i in index[u])
+    if ident.nuisance_offset and "b" not in ident.determined:
+        free.append(_D)
+    return free
+
+
+def _block_currents(
+    problem: _Problem,
+    x: FloatArray,
+    cov_full: FloatArray,
+    block: npt.NDArray[np.int64],
+    t_s: npt.ArrayLike | None,
+) -> tuple[tuple[float, float], tuple[float, float], tuple[tuple[float, float, float], ...]]:
+    """With a current per block: their sample-weighted mean and its standard deviation,
+    and each block's (start time s, north, east) current, m/s."""
+    k, n = problem.n_blocks, block.size
+    cn, ce = problem.current_at(x)
+    share = np.bincount(block, minlength=k) / n
+    g = np.zeros((2, x.size))
+    g[0, _CN] = g[1, _CE] = 1.0
+    g[0, _D + 1 :: 2] = share[1:]
+    g[1, _D + 2 :: 2] = share[1:]
+    var = np.einsum("ij,jk,ik->i", g, np.nan_to_num(cov_full, nan=0.0), g)
+    cur = (float(np.mean(cn)), float(np.mean(ce)))
+    cur_std = (math.sqrt(max(var[0], 0.0)), math.sqrt(max(var[1], 0.0)))
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    first = np.flatnonzero(np.concatenate([[True], block[1:] != block[:-1]]))
+    return cur, cur_std, tuple((float(t[i]), float(cn[i]), float(ce[i])) for i in first)
 
 
 def current_blocks(

@@ -1,6 +1,6 @@
 """The figures of docs/KF_VS_LS.md: the Kalman filter against least squares.
 
-Usage: ``python docs/kf_vs_ls.py DIR`` where DIR holds the public recordings of
+Usage, from the repository root: ``PYTHONPATH=. python docs/kf_vs_ls.py DIR`` where DIR holds the public recordings of
 docs/REAL_DATA.md (the NMEA logs, ``expedition-valencia.csv`` and
 ``regatta-analyser-2024-07-18-estonia.csv``; the ones missing are skipped). Each is
 imported, calibrated against GNSS in the water frame (EM3 with the current) by least
@@ -25,10 +25,10 @@ import numpy as np
 from calib.kalman import KfCalibrator, KfConfig
 from calib.lsq import block_average, fit_ls
 from calib.models import Params
-from calib.synth import water_frame_segment
 from emlogd.offline.importer import EXPEDITION, import_csv, import_nmea
 from emlogd.offline.jobs import calibrate, load_captures
 from emlogd.pipeline.settings import UutSettings
+from tests.synth import water_frame_segment
 
 KN = 0.514444
 VARIATION_DEG = {"leman": 1.5, "trieste": 3.0}
@@ -172,9 +172,9 @@ def synthetic() -> None:
                 f"{pm(paper.params.b_mps, paper.param_std['b'])} | "
                 f"{pm(kf.params.m, kf.param_std['m'])} | "
                 f"{pm(kf.params.b_mps, kf.param_std['b'])} | "
-                f"{pm(one.params.m, one.stderr['m'])} | {pm(one.params.b_mps, one.stderr['b'])} | "
-                f"{pm(blocks.params.m, blocks.stderr['m'])} | "
-                f"{pm(blocks.params.b_mps, blocks.stderr['b'])} |",
+                f"{pm(one.params.m, one.param_std['m'])} | {pm(one.params.b_mps, one.param_std['b'])} | "
+                f"{pm(blocks.params.m, blocks.param_std['m'])} | "
+                f"{pm(blocks.params.b_mps, blocks.param_std['b'])} |",
                 flush=True,
             )
 

@@ -22,7 +22,7 @@ import importlib
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Literal, overload
 
-from drivers.base import Decoder, DecoderOptions, ErrorPolicy
+from drivers.base import Decoder, DecoderOptions, ErrorPolicy, Use
 from drivers.errors import (
     CaptureFormatError,
     ChecksumError,
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from drivers.nmea0183 import NmeaDecoder
     from drivers.rdi_ascii import PdAsciiDecoder
     from drivers.rdi_pd0 import Pd0Decoder
-    from drivers.rdi_pd45 import Pd45Decoder
+    from drivers.rdi_pd45 import Pd5Decoder, Pd45Decoder
 
 PROTOCOLS: dict[str, tuple[str, str]] = {
     "nmea0183": ("drivers.nmea0183", "NmeaDecoder"),
@@ -51,7 +51,7 @@ PROTOCOLS: dict[str, tuple[str, str]] = {
     "pd13": ("drivers.rdi_ascii", "PdAsciiDecoder"),
     "pd0": ("drivers.rdi_pd0", "Pd0Decoder"),
     "pd4": ("drivers.rdi_pd45", "Pd45Decoder"),
-    "pd5": ("drivers.rdi_pd45", "Pd45Decoder"),
+    "pd5": ("drivers.rdi_pd45", "Pd5Decoder"),
 }
 """Protocol name -> (module, class). Names are fixed strings, never class names."""
 
@@ -71,6 +71,12 @@ def protocol_names() -> list[str]:
     return sorted(_all_protocols())
 
 
+def protocols_for(use: Use) -> list[str]:
+    """Names of the protocols whose decoder can serve ``use`` (:attr:`Decoder.uses`), the
+    built-in ones first in :data:`PROTOCOLS`' order."""
+    return [name for name in _all_protocols() if use in get_decoder(name).uses]
+
+
 @overload
 def get_decoder(name: Literal["nmea0183"]) -> type[NmeaDecoder]: ...
 @overload
@@ -78,7 +84,9 @@ def get_decoder(name: Literal["pd6", "pd13"]) -> type[PdAsciiDecoder]: ...
 @overload
 def get_decoder(name: Literal["pd0"]) -> type[Pd0Decoder]: ...
 @overload
-def get_decoder(name: Literal["pd4", "pd5"]) -> type[Pd45Decoder]: ...
+def get_decoder(name: Literal["pd4"]) -> type[Pd45Decoder]: ...
+@overload
+def get_decoder(name: Literal["pd5"]) -> type[Pd5Decoder]: ...
 @overload
 def get_decoder(name: str) -> type[Decoder[Any]]: ...
 
@@ -128,12 +136,20 @@ def make_decoder(
 ) -> Pd0Decoder: ...
 @overload
 def make_decoder(
-    name: Literal["pd4", "pd5"],
+    name: Literal["pd4"],
     port: str = "",
     *,
     errors: ErrorPolicy = "raise",
     options: DecoderOptions | None = None,
 ) -> Pd45Decoder: ...
+@overload
+def make_decoder(
+    name: Literal["pd5"],
+    port: str = "",
+    *,
+    errors: ErrorPolicy = "raise",
+    options: DecoderOptions | None = None,
+) -> Pd5Decoder: ...
 @overload
 def make_decoder(
     name: str,
@@ -195,9 +211,11 @@ __all__ = [
     "TooLongError",
     "UnknownProtocolError",
     "UnknownSentenceError",
+    "Use",
     "get_decoder",
     "is_binary",
     "make_decoder",
     "protocol_names",
+    "protocols_for",
     "record_types",
 ]

@@ -40,11 +40,24 @@ R = TypeVar("R")
 ErrorPolicy = Literal["raise", "yield", "skip"]
 ChecksumPolicy = Literal["required", "optional"]
 
+Use = Literal["uut", "bottom", "water", "speed", "gnss"]
+"""What a port's data can be to a calibration (:attr:`Decoder.uses`):
+
+- ``uut``: an EMlog's reading to calibrate and correct (VHW/VBW);
+- ``bottom``, ``water``: a DVL's bottom or water-mass track as the reference;
+- ``speed``: an EMlog's reading as the reference;
+- ``gnss``: GNSS speed and course over ground (RMC/VTG) as the reference.
+
+The last four are the values of a calibration's ``reference_field``."""
+
 NMEA_MAX_LENGTH = 82
 """NMEA 0183 limit: characters including ``$`` and CR LF."""
 
 LINE_BUFFER_CAP = 1024
 """Hard cap on a buffered text line in bytes, whatever the leniency: bounds memory."""
+
+SHORTEST_LINE_LIMIT = 8
+"""The lowest line limit a port may set (:attr:`DecoderOptions.max_length`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,9 +78,10 @@ class DecoderOptions:
     def __post_init__(self) -> None:
         if self.checksum not in ("required", "optional"):
             raise ValueError(f"checksum must be 'required' or 'optional', not {self.checksum!r}")
-        if not 8 <= self.max_length <= LINE_BUFFER_CAP:
+        if not SHORTEST_LINE_LIMIT <= self.max_length <= LINE_BUFFER_CAP:
             raise ValueError(
-                f"max_length must be within 8..{LINE_BUFFER_CAP}, not {self.max_length}"
+                f"max_length must be within {SHORTEST_LINE_LIMIT}..{LINE_BUFFER_CAP}, "
+                f"not {self.max_length}"
             )
 
 
@@ -108,6 +122,14 @@ class Decoder(ABC, Generic[R]):
 
     binary: ClassVar[bool]
     """True for binary protocols (stored as ``hex:`` chunks in a capture)."""
+
+    uses: ClassVar[frozenset[Use]] = frozenset()
+    """What a port speaking the protocol can be to a calibration (:data:`Use`); none
+    unless the decoder says so."""
+
+    heading: ClassVar[bool] = False
+    """The protocol's bottom and water track carry the instrument's heading (taken as
+    true), so a UUT referenced to it has a heading without a heading port."""
 
     def __init__(
         self,

@@ -14,7 +14,7 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 
 from drivers.errors import ChecksumError, FrameError
 
@@ -96,19 +96,7 @@ class BinaryFramer:
                 yield from self._skip(1)
                 continue
             if len(buf) < n + 2:
-                if final:
-                    if not self._absorb:
-                        yield from self._end_garbage()
-                        yield FrameError(
-                            f"{self._name} frame truncated at end of stream "
-                            f"({len(buf)} of {n + 2} bytes)",
-                            bytes(buf[:64]),
-                        )
-                    del buf[:1]
-                    self._absorb = True
-                    continue
-                if len(buf) > MAX_BUFFER:
-                    yield from self._skip(1)
+                if (yield from self._incomplete(n, final)):
                     continue
                 return
             frame = bytes(buf[:n])
@@ -126,6 +114,27 @@ class BinaryFramer:
             self._absorb = False
             del buf[: n + 2]
             yield frame
+
+    def _incomplete(self, n: int, final: bool) -> Generator[FrameError, None, bool]:
+        """A header whose frame of ``n`` bytes (and its checksum) is not all in: at the
+        end of the stream reported and passed (a corrupted length), in a buffer past
+        :data:`MAX_BUFFER` passed as garbage; whether the search goes on (else the frame
+        waits for more bytes)."""
+        buf = self._buf
+        if final:
+            if not self._absorb:
+                yield from self._end_garbage()
+                yield FrameError(
+                    f"{self._name} frame truncated at end of stream ({len(buf)} of {n + 2} bytes)",
+                    bytes(buf[:64]),
+                )
+            del buf[:1]
+            self._absorb = True
+            return True
+        if len(buf) > MAX_BUFFER:
+            yield from self._skip(1)
+            return True
+        return False
 
     def flush(self) -> Iterator[bytes | FrameError]:
         """End of stream: complete what can be, report what never became a frame."""

@@ -71,29 +71,44 @@ class LineFramer:
                 if len(frame) + 2 <= self._max_length:
                     return [frame]
         out: list[bytes | FrameError] = []
+        if self._discarding:
+            data = self._resume(data)
         if not data:
             return out
-        if self._discarding:
-            cut = _first_terminator(data)
-            if cut < 0:
-                return out
-            self._discarding = False
-            data = data[cut + 1 :]
-            if not data:
-                return out
         if b"\n" not in data and b"\r" not in data:
-            if len(buf) + len(data) > self._cap:
-                out.append(
-                    TooLongError(
-                        f"line longer than {self._cap} bytes without a terminator",
-                        bytes(buf[:64]) + data[:64],
-                    )
+            self._hold(data, out)
+        else:
+            self._split(data, out)
+        return out
+
+    def _resume(self, data: bytes) -> bytes:
+        """While an over-long line is discarded: what follows its terminator (nothing
+        while none has come)."""
+        cut = _first_terminator(data)
+        if cut < 0:
+            return b""
+        self._discarding = False
+        return data[cut + 1 :]
+
+    def _hold(self, data: bytes, out: list[bytes | FrameError]) -> None:
+        """Bytes without a terminator: kept for the line they begin, or the line refused
+        as too long (and discarded up to its terminator)."""
+        buf = self._buf
+        if len(buf) + len(data) > self._cap:
+            out.append(
+                TooLongError(
+                    f"line longer than {self._cap} bytes without a terminator",
+                    bytes(buf[:64]) + data[:64],
                 )
-                buf.clear()
-                self._discarding = True
-                return out
-            buf += data
-            return out
+            )
+            buf.clear()
+            self._discarding = True
+            return
+        buf += data
+
+    def _split(self, data: bytes, out: list[bytes | FrameError]) -> None:
+        """Bytes with a terminator: every line they finish framed, the rest kept."""
+        buf = self._buf
         whole = bytes(buf) + data if buf else data
         buf.clear()
         lines = whole.splitlines()  # bytes: splits on CR, LF and CR LF only
@@ -101,17 +116,15 @@ class LineFramer:
         for line in lines:
             if line:
                 self._line(line, out)
-        if rest:
-            if len(rest) > self._cap:
-                out.append(
-                    TooLongError(
-                        f"line longer than {self._cap} bytes without a terminator", rest[:128]
-                    )
-                )
-                self._discarding = True
-            else:
-                buf += rest
-        return out
+        if not rest:
+            return
+        if len(rest) > self._cap:
+            out.append(
+                TooLongError(f"line longer than {self._cap} bytes without a terminator", rest[:128])
+            )
+            self._discarding = True
+        else:
+            buf += rest
 
     def flush(self) -> list[FrameError]:
         """Report an unterminated line left in the buffer, and clear it."""

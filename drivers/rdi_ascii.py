@@ -32,22 +32,21 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, TypeAlias, TypeVar, get_args
 
-from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer
+from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer, Use
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
 from drivers.records import (
     MAX_DEPTH_M,
     MAX_PITCH_DEG,
     MAX_ROLL_DEG,
+    RDI_INVALID,
     SALINITY_RANGE_PPT,
     SOUND_SPEED_RANGE_MPS,
     WATER_TEMP_RANGE_C,
     Rejected,
     SpeedRecord,
+    bottom_track,
 )
-
-INVALID = -32768
-"""PD6/PD0 invalid-velocity marker, mm/s."""
 
 ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
 """Line types of one ensemble, in transmission order."""
@@ -202,13 +201,13 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
 
 def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
     for v in values:
-        if not INVALID <= v <= 32767:
+        if not RDI_INVALID <= v <= 32767:
             raise OutOfRangeError(f":{kind} velocity {v} mm/s outside int16", raw)
-    if void or INVALID in values[:3]:
+    if void or RDI_INVALID in values[:3]:
         return None
     err = None
     if len(values) == 4:
-        err = None if values[3] == INVALID else values[3] / 1000.0
+        err = None if values[3] == RDI_INVALID else values[3] / 1000.0
     return Velocity(values[0] / 1000.0, values[1] / 1000.0, values[2] / 1000.0, err)
 
 
@@ -382,38 +381,78 @@ def _parse_fields(frame: bytes) -> tuple[str, object]:
     kind = kind.strip()
     if not sep:
         raise FieldError(f"line {text[:8]!r} has no fields", frame)
-    fields = rest.split(",")
-    if kind == "SA":
-        if len(fields) != 3:
-            raise FieldError(f":SA has {len(fields)} fields, expected 3", frame)
-        pitch, roll, heading = (_num(f, ":SA", frame) for f in fields)
-        return kind, _attitude(pitch, roll, heading, frame)
-    if kind == "TS":
-        if len(fields) not in (6, 7):
-            raise FieldError(f":TS has {len(fields)} fields, expected 6 or 7", frame)
-        stamp = fields[0].strip()
-        if len(stamp) != 14 or not stamp.isdigit():
-            raise FieldError(f":TS time {stamp!r} is not YYMMDDHHmmsshh", frame)
-        sal, temp, depth, c = (_num(f, ":TS", frame) for f in fields[1:5])
-        bit = _int(fields[5], ":TS BIT", frame)
-        env = _environment(stamp, sal, temp, depth, c, bit, frame)
-        if len(fields) == 7 and fields[6].strip() not in ("O", "W", "X"):
-            raise FieldError(f":TS leak flag {fields[6]!r}, expected O, W or X", frame)
-        return kind, env
-    if kind == "RA":
-        if len(fields) != 5:
-            raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
-        p, *r = (_num(f, ":RA", frame) for f in fields)
-        return kind, _ranges(p, r, frame)
-    if kind in ("WI", "BI"):
-        return kind, _velocity(fields, 4, kind, frame)
-    if kind in ("WS", "WE", "BS", "BE"):
-        return kind, _velocity(fields, 3, kind, frame)
-    if kind in ("WD", "BD"):
-        return kind, _dmg(fields, kind, frame)
-    if kind == "HM":
-        return kind, PdHealth(tuple(f.strip() for f in fields))
-    raise UnknownSentenceError(f"line type :{kind[:4]} not decoded", frame)
+    parse = _FIELDS.get(kind)
+    if parse is None:
+        raise UnknownSentenceError(f"line type :{kind[:4]} not decoded", frame)
+    return kind, parse(kind, rest.split(","), frame)
+
+
+def _sa_fields(kind: str, fields: list[str], frame: bytes) -> object:
+    """``:SA``: pitch, roll, heading."""
+    if len(fields) != 3:
+        raise FieldError(f":SA has {len(fields)} fields, expected 3", frame)
+    pitch, roll, heading = (_num(f, ":SA", frame) for f in fields)
+    return _attitude(pitch, roll, heading, frame)
+
+
+def _ts_fields(kind: str, fields: list[str], frame: bytes) -> object:
+    """``:TS``: time, salinity, temperature, depth, sound speed, BIT (and a leak flag)."""
+    if len(fields) not in (6, 7):
+        raise FieldError(f":TS has {len(fields)} fields, expected 6 or 7", frame)
+    stamp = fields[0].strip()
+    if len(stamp) != 14 or not stamp.isdigit():
+        raise FieldError(f":TS time {stamp!r} is not YYMMDDHHmmsshh", frame)
+    sal, temp, depth, c = (_num(f, ":TS", frame) for f in fields[1:5])
+    bit = _int(fields[5], ":TS BIT", frame)
+    env = _environment(stamp, sal, temp, depth, c, bit, frame)
+    if len(fields) == 7 and fields[6].strip() not in ("O", "W", "X"):
+        raise FieldError(f":TS leak flag {fields[6]!r}, expected O, W or X", frame)
+    return env
+
+
+def _ra_fields(kind: str, fields: list[str], frame: bytes) -> object:
+    """``:RA``: pressure and the four beams' ranges."""
+    if len(fields) != 5:
+        raise FieldError(f":RA has {len(fields)} fields, expected 5", frame)
+    p, *r = (_num(f, ":RA", frame) for f in fields)
+    return _ranges(p, r, frame)
+
+
+def _instrument_fields(kind: str, fields: list[str], frame: bytes) -> object:
+    """``:WI``/``:BI``: velocities in the instrument frame (four with the error)."""
+    return _velocity(fields, 4, kind, frame)
+
+
+def _frame_fields(kind: str, fields: list[str], frame: bytes) -> object:
+    """``:WS``/``:WE``/``:BS``/``:BE``: three velocities in the ship or earth frame."""
+    return _velocity(fields, 3, kind, frame)
+
+
+def _dmg_fields(kind: str, fields: list[str], frame: bytes) -> object:
+    """``:WD``/``:BD``: the distance made good."""
+    return _dmg(fields, kind, frame)
+
+
+def _health_fields(kind: str, fields: list[str], frame: bytes) -> object:
+    """``:HM``: the health fields as they are."""
+    return PdHealth(tuple(f.strip() for f in fields))
+
+
+_FIELDS: dict[str, Callable[[str, list[str], bytes], object]] = {
+    "SA": _sa_fields,
+    "TS": _ts_fields,
+    "RA": _ra_fields,
+    "WI": _instrument_fields,
+    "BI": _instrument_fields,
+    "WS": _frame_fields,
+    "WE": _frame_fields,
+    "BS": _frame_fields,
+    "BE": _frame_fields,
+    "WD": _dmg_fields,
+    "BD": _dmg_fields,
+    "HM": _health_fields,
+}
+"""The field-by-field parser of each line type."""
 
 
 @dataclass(slots=True)
@@ -428,6 +467,10 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
 
     protocol: ClassVar[str] = "pd6"
     binary: ClassVar[bool] = False
+    uses: ClassVar[frozenset[Use]] = frozenset({"bottom", "water"})
+    """:BS bottom track, :WS water-mass track."""
+    heading: ClassVar[bool] = True
+    """:SA."""
 
     def __init__(
         self,
@@ -552,14 +595,21 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
             return ()
         port, hdg = self.port, record.heading_deg
         bs = record.bottom_ship
-        out = [
-            SpeedRecord(port, "sog", "bottom", bs.b, bs.a, True, hdg, None, "PD6:BS")
-            if bs is not None
-            else SpeedRecord(port, "sog", "bottom", None, None, False, hdg, None, "PD6:BS")
-        ]
+        out = [bottom_track(port, None if bs is None else (bs.b, bs.a), hdg, "PD6:BS")]
         ws = record.water_ship
         if ws is not None:
-            out.append(SpeedRecord(port, "stw", "water", ws.b, ws.a, True, hdg, None, "PD6:WS"))
+            out.append(
+                SpeedRecord(
+                    port=port,
+                    kind="stw",
+                    role="water",
+                    longitudinal_mps=ws.b,
+                    transverse_mps=ws.a,
+                    valid=True,
+                    heading_true_deg=hdg,
+                    source="PD6:WS",
+                )
+            )
         return tuple(out)
 
 
@@ -568,7 +618,7 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
 
 def _mm(v: float | None) -> str:
     if v is None:
-        return f"{INVALID:+06d}"
+        return f"{RDI_INVALID:+06d}"
     if not math.isfinite(v):
         raise ValueError(f"cannot encode a non-finite velocity {v!r}")
     return f"{max(min(round(v * 1000.0), 32767), -32767):+06d}"

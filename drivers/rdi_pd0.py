@@ -30,24 +30,27 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, Literal, TypeAlias
 
-from drivers.base import FramedDecoder, Framer
+from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import (
     MAX_DEPTH_M,
     MAX_PITCH_DEG,
     MAX_ROLL_DEG,
+    RDI_INVALID,
     SALINITY_RANGE_PPT,
     SOUND_SPEED_RANGE_MPS,
     WATER_TEMP_RANGE_C,
     SpeedRecord,
+    bottom_track,
+    rdi_mms,
+    ship_frame,
 )
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
 FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
 
 HEADER = b"\x7f\x7f"
-INVALID = -32768
 MAX_ENSEMBLE = 16384
 """Largest plausible ensemble in bytes (header sanity check while resynchronising)."""
 
@@ -122,7 +125,7 @@ def _length_of(buf: bytearray) -> int | None:
 
 
 def _int16(v: int) -> int | None:
-    return None if v == INVALID else v
+    return None if v == RDI_INVALID else v
 
 
 class Pd0Decoder(FramedDecoder[Pd0Record]):
@@ -130,6 +133,9 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
 
     protocol: ClassVar[str] = "pd0"
     binary: ClassVar[bool] = True
+    uses: ClassVar[frozenset[Use]] = frozenset({"bottom"})
+    heading: ClassVar[bool] = True
+    """The variable leader's heading."""
 
     def _make_framer(self) -> Framer:
         return BinaryFramer(HEADER, _length_of, 6, "PD0")
@@ -214,17 +220,18 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         source ``PD0:BT``), with the ensemble's heading taken as true."""
         if record.bt_velocity_mms is None:
             return ()
-        port, hdg = self.port, record.heading_deg
         v1, v2 = record.bt_velocity_mms[0], record.bt_velocity_mms[1]
-        if not record.bottom_lock or v1 is None or v2 is None or record.coord_frame == "beam":
-            return (SpeedRecord(port, "sog", "bottom", None, None, False, hdg, None, "PD0:BT"),)
-        a, b = -v1 / 1000.0, -v2 / 1000.0  # vessel motion
-        if record.coord_frame == "earth":
-            psi = math.radians(hdg)
-            lon = a * math.sin(psi) + b * math.cos(psi)
-            tr = a * math.cos(psi) - b * math.sin(psi)
-            return (SpeedRecord(port, "sog", "bottom", lon, tr, True, hdg, None, "PD0:BT"),)
-        return (SpeedRecord(port, "sog", "bottom", b, a, True, hdg, None, "PD0:BT"),)
+        ship = None
+        if (
+            record.bottom_lock
+            and v1 is not None
+            and v2 is not None
+            and record.coord_frame != "beam"
+        ):
+            earth = record.coord_frame == "earth"
+            # vessel motion: the opposite of the bottom's
+            ship = ship_frame(-v1 / 1000.0, -v2 / 1000.0, record.heading_deg if earth else None)
+        return (bottom_track(self.port, ship, record.heading_deg, "PD0:BT"),)
 
 
 def _leader_ranges(
@@ -247,14 +254,6 @@ def _leader_ranges(
 
 
 # ------------------------------------------------------------------ encoder
-
-
-def _mm(v: float | None) -> int:
-    if v is None:
-        return INVALID
-    if not math.isfinite(v):
-        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
-    return max(min(round(v * 1000.0), 32767), -32767)
 
 
 def encode_pd0(
@@ -284,7 +283,7 @@ def encode_pd0(
         ValueError: non-finite values.
     """
     if bottom_ship_mps is None:
-        v = (INVALID, INVALID, INVALID, INVALID)
+        v = (RDI_INVALID, RDI_INVALID, RDI_INVALID, RDI_INVALID)
         rng = 0
     else:
         fwd, stb = bottom_ship_mps
@@ -292,9 +291,9 @@ def encode_pd0(
             psi = math.radians(heading_deg)
             e = fwd * math.sin(psi) + stb * math.cos(psi)
             n = fwd * math.cos(psi) - stb * math.sin(psi)
-            v = (_mm(-e), _mm(-n), 0, 0)
+            v = (rdi_mms(-e), rdi_mms(-n), 0, 0)
         else:
-            v = (_mm(-stb), _mm(-fwd), 0, 0)
+            v = (rdi_mms(-stb), rdi_mms(-fwd), 0, 0)
         rng = max(round((range_m or 0.0) * 100.0), 1)
     ex = FRAMES.index(coord_frame) << 3
     fixed = bytearray(59)

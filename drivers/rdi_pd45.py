@@ -27,23 +27,26 @@ import struct
 from dataclasses import dataclass
 from typing import ClassVar, Literal, TypeAlias
 
-from drivers.base import FramedDecoder, Framer
+from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import (
     MAX_DEPTH_M,
     MAX_PITCH_DEG,
     MAX_ROLL_DEG,
+    RDI_INVALID,
     SALINITY_RANGE_PPT,
     SOUND_SPEED_RANGE_MPS,
     WATER_TEMP_RANGE_C,
     SpeedRecord,
+    bottom_track,
+    rdi_mms,
+    ship_frame,
 )
 
 CoordFrame = Literal["beam", "instrument", "ship", "earth"]
 FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
 HEADER = b"\x7d"
-INVALID = -32768
 LENGTHS = {0: 45, 1: 86}
 """Structure ID -> byte count without the checksum."""
 
@@ -115,15 +118,18 @@ def _length_of(buf: bytearray) -> int | None:
 
 
 def _v(values: tuple[int, ...]) -> tuple[int | None, int | None, int | None, int | None]:
-    a, b, c, d = (None if x == INVALID else x for x in values)
+    a, b, c, d = (None if x == RDI_INVALID else x for x in values)
     return (a, b, c, d)
 
 
 class Pd45Decoder(FramedDecoder[Pd45Record]):
-    """PD4/PD5 decoder (registry names ``pd4`` and ``pd5``; both formats are accepted)."""
+    """PD4/PD5 decoder (registry name ``pd4``; both formats are accepted). PD4 carries no
+    heading: :class:`Pd5Decoder` is the port configured ``pd5``."""
 
     protocol: ClassVar[str] = "pd4"
     binary: ClassVar[bool] = True
+    uses: ClassVar[frozenset[Use]] = frozenset({"bottom"})
+    heading: ClassVar[bool] = False
 
     def _make_framer(self) -> Framer:
         return BinaryFramer(HEADER, _length_of, 4, "PD4/PD5")
@@ -202,39 +208,19 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
         hdg = record.heading_deg
         x, y = record.bottom_mms[0], record.bottom_mms[1]
         frame = record.coord_frame
-        if (
-            not record.bottom_lock
-            or x is None
-            or y is None
-            or frame == "beam"
-            or (frame == "earth" and hdg is None)
-        ):
-            return (SpeedRecord(self.port, "sog", "bottom", None, None, False, hdg, None, src),)
-        a, b = x / 1000.0, y / 1000.0
-        if frame == "earth" and hdg is not None:
-            psi = math.radians(hdg)
-            return (
-                SpeedRecord(
-                    self.port,
-                    "sog",
-                    "bottom",
-                    a * math.sin(psi) + b * math.cos(psi),
-                    a * math.cos(psi) - b * math.sin(psi),
-                    True,
-                    hdg,
-                    None,
-                    src,
-                ),
-            )
-        return (SpeedRecord(self.port, "sog", "bottom", b, a, True, hdg, None, src),)
+        earth = frame == "earth"
+        ship = None
+        usable = record.bottom_lock and frame != "beam" and (hdg is not None or not earth)
+        if usable and x is not None and y is not None:
+            ship = ship_frame(x / 1000.0, y / 1000.0, hdg if earth else None)
+        return (bottom_track(self.port, ship, hdg, src),)
 
 
-def _mm(v: float | None) -> int:
-    if v is None:
-        return INVALID
-    if not math.isfinite(v):
-        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
-    return max(min(round(v * 1000.0), 32767), -32767)
+class Pd5Decoder(Pd45Decoder):
+    """The decoder of a port configured ``pd5``: the same frames, with the heading."""
+
+    protocol: ClassVar[str] = "pd5"
+    heading: ClassVar[bool] = True
 
 
 def encode_pd45(
@@ -260,16 +246,16 @@ def encode_pd45(
         ValueError: non-finite values.
     """
     if bottom_ship_mps is None:
-        vx = vy = INVALID
+        vx = vy = RDI_INVALID
         rng = 0
     else:
         fwd, stb = bottom_ship_mps
         if coord_frame == "earth":
             psi = math.radians(heading_deg)
-            vx = _mm(fwd * math.sin(psi) + stb * math.cos(psi))
-            vy = _mm(fwd * math.cos(psi) - stb * math.sin(psi))
+            vx = rdi_mms(fwd * math.sin(psi) + stb * math.cos(psi))
+            vy = rdi_mms(fwd * math.cos(psi) - stb * math.sin(psi))
         else:
-            vx, vy = _mm(stb), _mm(fwd)
+            vx, vy = rdi_mms(stb), rdi_mms(fwd)
         rng = max(min(round((range_m or 0.0) * 100.0), 65535), 1)
     sid = 1 if pd5 else 0
     body = bytearray(
@@ -280,17 +266,17 @@ def encode_pd45(
             FRAMES.index(coord_frame) << 6,
             vx,
             vy,
-            0 if vx != INVALID else INVALID,
-            0 if vx != INVALID else INVALID,
+            0 if vx != RDI_INVALID else RDI_INVALID,
+            0 if vx != RDI_INVALID else RDI_INVALID,
             rng,
             rng,
             rng,
             rng,
             0,
-            INVALID,
-            INVALID,
-            INVALID,
-            INVALID,
+            RDI_INVALID,
+            RDI_INVALID,
+            RDI_INVALID,
+            RDI_INVALID,
             0,
             0,
             0,

@@ -59,13 +59,19 @@ MAX_PITCH_DEG = 90.0
 MAX_ROLL_DEG = 180.0
 """Largest roll magnitude, degrees."""
 
+RDI_INVALID = -32768
+"""Teledyne RDI's bad-value marker in a 16-bit velocity or error velocity (mm/s): PD0,
+PD4/PD5 and PD6 alike."""
+
 MAX_DEPTH_M = 12_000.0
 """Deepest instrument or bottom depth, m (the deepest ocean is ~11 km)."""
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SpeedRecord:
     """One vessel speed measurement in the ship frame, SI units, vessel-motion sign.
+
+    Built by keyword only (nine fields, four of them floats or None).
 
     Attributes:
         port: name of the port that produced it.
@@ -74,13 +80,15 @@ class SpeedRecord:
         longitudinal_mps: forward speed, m/s, + = ahead. For VHW this is the
             speed through water as reported (the resultant on a two-axis log).
         transverse_mps: athwartships speed, m/s, + = to starboard; None if the
-            sensor does not measure it.
+            sensor does not measure it (the default).
         valid: False when the sensor flagged the measurement as invalid
             (status V, -32768, no bottom lock). Invalid records are still
             passed on so that the pipeline can see a reference loss.
         heading_true_deg: true heading sent with the speed, degrees, or None. A DVL's
             heading is taken as true (the instrument applies its own variation setting).
-        heading_mag_deg: magnetic heading sent with the speed (VHW), degrees, or None.
+            None by default.
+        heading_mag_deg: magnetic heading sent with the speed (VHW), degrees, or None
+            (the default).
         source: the sentence or block it came from, e.g. ``"VHW"``, ``"VBW"``,
             ``"PD6:BS"``, ``"PD0:BT"`` (for people and for matching a UUT's configured
             sentence; routing uses :attr:`role`).
@@ -90,10 +98,10 @@ class SpeedRecord:
     kind: SpeedKind
     role: SpeedRole
     longitudinal_mps: float | None
-    transverse_mps: float | None
+    transverse_mps: float | None = None
     valid: bool
-    heading_true_deg: float | None
-    heading_mag_deg: float | None
+    heading_true_deg: float | None = None
+    heading_mag_deg: float | None = None
     source: str
 
     @property
@@ -104,6 +112,48 @@ class SpeedRecord:
         if self.transverse_mps is None:
             return abs(self.longitudinal_mps)
         return math.hypot(self.longitudinal_mps, self.transverse_mps)
+
+
+def rdi_mms(v: float | None) -> int:
+    """A velocity in m/s as RDI's 16-bit mm/s (clamped to ±32767), :data:`RDI_INVALID`
+    for None: what the PD0 and PD4/PD5 encoders write.
+
+    Raises:
+        ValueError: a non-finite value.
+    """
+    if v is None:
+        return RDI_INVALID
+    if not math.isfinite(v):
+        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
+    return max(min(round(v * 1000.0), 32767), -32767)
+
+
+def ship_frame(a: float, b: float, heading_deg: float | None) -> tuple[float, float]:
+    """A DVL's horizontal velocity (m/s) as (longitudinal, transverse) in the ship frame:
+    ``(a, b)`` is (east, north) when a heading is given (earth coordinates, rotated by
+    it), else (starboard, forward)."""
+    if heading_deg is None:
+        return b, a
+    psi = math.radians(heading_deg)
+    return a * math.sin(psi) + b * math.cos(psi), a * math.cos(psi) - b * math.sin(psi)
+
+
+def bottom_track(
+    port: str, ship: tuple[float, float] | None, heading_deg: float | None, source: str
+) -> SpeedRecord:
+    """A DVL's bottom track as a speed record (``sog``, role ``bottom``): ``ship`` is
+    (longitudinal, transverse) in m/s, None when the instrument gives no valid track;
+    the instrument's heading is taken as true."""
+    return SpeedRecord(
+        port=port,
+        kind="sog",
+        role="bottom",
+        longitudinal_mps=None if ship is None else ship[0],
+        transverse_mps=None if ship is None else ship[1],
+        valid=ship is not None,
+        heading_true_deg=heading_deg,
+        source=source,
+    )
 
 
 @dataclass(frozen=True, slots=True)

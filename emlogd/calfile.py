@@ -43,6 +43,7 @@ from typing import Any
 import yaml
 
 from calib.errors import CalibrationError
+from calib.estimate import Estimate
 from calib.models import MODEL_NAMES, PARAM_NAMES, Params
 from drivers.errors import EmlogdError
 from emlogd.pipeline.calibration import Calibration
@@ -177,14 +178,14 @@ def from_dict(uut: str, d: Any) -> tuple[Calibration, dict[str, Any]]:
     extra = d.get("extra") or {}
     if not isinstance(extra, dict):
         raise CalibrationFileError(f"{w}.extra: expected a mapping")
+    lag_s = _num(d.get("lag_s"), f"{w}.lag_s", allow_none=True)
+    current_mps = _pair(d.get("current_mps"), f"{w}.current_mps")
+    current_std_mps = _pair(d.get("current_std_mps"), f"{w}.current_std_mps")
     cal = Calibration(
         uut=uut,
-        params=params,
-        param_std=std,
-        lag_s=_num(d.get("lag_s"), f"{w}.lag_s", allow_none=True),
+        estimate=Estimate(params, std, current_mps, current_std_mps),
+        lag_s=lag_s,
         current=bool(d.get("current", False)),
-        current_mps=_pair(d.get("current_mps"), f"{w}.current_mps"),
-        current_std_mps=_pair(d.get("current_std_mps"), f"{w}.current_std_mps"),
         covariance=cov,
         method=method,
         t=_req(d.get("t", 0.0), f"{w}.t"),

@@ -5,9 +5,9 @@ Every key is declared once, as a dataclass field made with
 keys on the pipeline's own settings (:class:`~emlogd.pipeline.settings.PortSettings`,
 :class:`~emlogd.pipeline.settings.UutSettings`,
 :class:`~emlogd.pipeline.integrity.Envelope`), the daemon's on the dataclasses here.
-Validation, :func:`dump_config` and :func:`key_table` (README's "Configuration
-reference") read those declarations, and the loaded config holds the pipeline's
-settings themselves, complete.
+Validation, :func:`emlogd.configdump.dump_config` and
+:func:`emlogd.configdump.key_table` (README's "Configuration reference") read those
+declarations, and the loaded config holds the pipeline's settings themselves, complete.
 
 Every error names the file, the line and the key, e.g.
 ``emlogd.yaml:14: calibration[0].model: 'EM5' is not one of EM1, EM2, EM3, EM4``.
@@ -25,6 +25,7 @@ from typing import Any, Literal
 
 import yaml
 
+from drivers import Use, get_decoder, protocols_for
 from drivers.errors import ConfigError
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
@@ -33,7 +34,6 @@ from emlogd.pipeline.keys import (
     boolean,
     build,
     entries,
-    get,
     group,
     hostport,
     key,
@@ -42,13 +42,9 @@ from emlogd.pipeline.keys import (
     opt_string,
     string,
 )
-from emlogd.pipeline.settings import PortSettings, UutSettings
+from emlogd.pipeline.settings import PortSettings, RefField, UutSettings
 
 DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
-DVL_PROTOCOLS = ("pd6", "pd13", "pd0", "pd4", "pd5", "nmea0183")
-"""Protocols that can carry a DVL bottom track (nmea0183: Rowe $PRTI01)."""
-HEADING_PROTOCOLS = frozenset({"pd6", "pd13", "pd0", "pd5"})
-"""DVL outputs that carry the heading with the bottom and water track."""
 
 Role = Literal["uut", "reference", "aux"]
 Speed = Literal["each", "fused", "both"]
@@ -318,7 +314,7 @@ def heading_expected(heading: str, reference_field: str, reference_protocol: str
     """
     if heading != "auto" or reference_field == "gnss":
         return True
-    return reference_field in ("bottom", "water") and reference_protocol in HEADING_PROTOCOLS
+    return reference_field in ("bottom", "water") and get_decoder(reference_protocol).heading
 
 
 # ------------------------------------------------------------------ loading
@@ -417,6 +413,21 @@ def _build(
     return build(cls, {**{attrs[k]: v for k, v in kw.items()}, **(extra or {})})
 
 
+def _either(use: Use) -> str:
+    """The protocols that can serve ``use``, for a message: ``pd6/pd13``."""
+    return "/".join(protocols_for(use))
+
+
+def _needs(field_: RefField) -> str:
+    """What a reference field needs, for the message refusing a reference port."""
+    return {
+        "bottom": "bottom track needs a DVL",
+        "water": f"water track (:WS) needs a {_either('water')}",
+        "speed": f"speed needs an EMlog ({_either('speed')})",
+        "gnss": "gnss needs an NMEA 0183 (RMC/VTG)",
+    }[field_]
+
+
 def _check_uut(
     ctx: _Ctx,
     kw: dict[str, Any],
@@ -434,8 +445,10 @@ def _check_uut(
         raise ctx.fail(
             at["uut"], f"{where}.uut", f"port {uut!r} has role {by_name[uut].role}, not uut"
         )
-    if by_name[uut].protocol != "nmea0183":
-        raise ctx.fail(at["uut"], f"{where}.uut", f"port {uut!r} must speak nmea0183 (VHW/VBW)")
+    if by_name[uut].protocol not in protocols_for("uut"):
+        raise ctx.fail(
+            at["uut"], f"{where}.uut", f"port {uut!r} must speak {_either('uut')} (VHW/VBW)"
+        )
     field_ = kw.get("reference_field", _UUT.reference_field)
     fat = at.get("reference_field", at["reference"])
     if uut == ref and field_ != "gnss":
@@ -453,33 +466,15 @@ def _check_uut(
             f"{where}.reference",
             f"port {ref!r} has role {rport.role}, not {' or '.join(allowed_roles)}",
         )
-    if field_ == "speed" and rport.protocol != "nmea0183":
+    if rport.protocol not in protocols_for(field_):
         raise ctx.fail(
             fat,
             f"{where}.reference_field",
-            f"speed needs an EMlog (nmea0183) reference, {ref!r} is {rport.protocol}",
-        )
-    if field_ == "water" and rport.protocol not in ("pd6", "pd13"):
-        raise ctx.fail(
-            fat,
-            f"{where}.reference_field",
-            f"water track (:WS) needs a pd6/pd13 reference, {ref!r} is {rport.protocol}",
-        )
-    if field_ == "gnss" and rport.protocol != "nmea0183":
-        raise ctx.fail(
-            fat,
-            f"{where}.reference_field",
-            f"gnss needs an NMEA 0183 (RMC/VTG) reference, {ref!r} is {rport.protocol}",
+            f"{_needs(field_)} reference, {ref!r} is {rport.protocol}",
         )
     heading = kw.get("heading", _UUT.heading)
     if heading != "auto" and heading not in by_name:
         raise ctx.fail(at["heading"], f"{where}.heading", f"no port named {heading!r}")
-    if field_ == "bottom" and rport.protocol not in DVL_PROTOCOLS:
-        raise ctx.fail(
-            fat,
-            f"{where}.reference_field",
-            f"bottom track needs a DVL reference, {ref!r} is {rport.protocol}",
-        )
     max_lag = kw.get("max_lag_s", _UUT.max_lag_s)
     if kw.get("lag") is not None and kw["lag"] > max_lag:
         raise ctx.fail(
@@ -528,15 +523,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
             _known(ctx, kn, k, k, sorted(known))
     if "ports" not in top:
         raise ctx.fail(root, "", "missing required key 'ports'")
-    ports: list[PortConfig] = []
-    for i, node in enumerate(ctx.sequence(top["ports"][1], "ports")):
-        where = f"ports[{i}]"
-        kw, at = _section(ctx, node, where, PortConfig, "ports[].")
-        if any(p.name == kw["name"] for p in ports):
-            raise ctx.fail(at["name"], f"{where}.name", f"duplicate port name {kw['name']!r}")
-        ports.append(_build(PortConfig, kw))
-    if not ports:
-        raise ctx.fail(top["ports"][1], "ports", "at least one port is needed")
+    ports = _parse_ports(ctx, top["ports"][1])
     by_name = {p.name: p for p in ports}
     cals: list[dict[str, Any]] = []
     cal_nodes = ctx.sequence(top["calibration"][1], "calibration") if "calibration" in top else []
@@ -547,23 +534,11 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         if any(c["uut"] == kw["uut"] for c in cals):
             raise ctx.fail(at["uut"], f"{where}.uut", f"{kw['uut']!r} is calibrated twice")
         cals.append(kw)
-    outputs = OutputConfig()
-    if "outputs" in top:
-        kw, _ = _section(ctx, top["outputs"][1], "outputs", OutputConfig, "outputs.")
-        outputs = _build(OutputConfig, kw)
-        ptys = [c["pty"] for c in cals if c.get("pty")]
-        if outputs.pty in ptys or len(set(ptys)) != len(ptys):
-            raise ctx.fail(
-                top["outputs"][1],
-                "outputs.pty",
-                "each output pty must be its own (a log's pty repeats another)",
-            )
-        if outputs.speed != "each" and "fused" in by_name:
-            raise ctx.fail(
-                top["outputs"][1],
-                "outputs.speed",
-                "a port called 'fused' clashes with the fused output: rename the port",
-            )
+    outputs = (
+        _parse_outputs(ctx, top["outputs"][1], cals, by_name)
+        if "outputs" in top
+        else OutputConfig()
+    )
     uuts: list[UutConfig] = []
     for kw in cals:  # what a log takes from the rest of the config
         reference = by_name[kw["reference"]]
@@ -588,6 +563,41 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         if k in top_keys
     }
     return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
+
+
+def _parse_ports(ctx: _Ctx, node: yaml.Node) -> list[PortConfig]:
+    """The ``ports`` section: at least one, each name once."""
+    ports: list[PortConfig] = []
+    for i, item in enumerate(ctx.sequence(node, "ports")):
+        where = f"ports[{i}]"
+        kw, at = _section(ctx, item, where, PortConfig, "ports[].")
+        if any(p.name == kw["name"] for p in ports):
+            raise ctx.fail(at["name"], f"{where}.name", f"duplicate port name {kw['name']!r}")
+        ports.append(_build(PortConfig, kw))
+    if not ports:
+        raise ctx.fail(node, "ports", "at least one port is needed")
+    return ports
+
+
+def _parse_outputs(
+    ctx: _Ctx, node: yaml.Node, cals: Sequence[Mapping[str, Any]], by_name: Mapping[str, Any]
+) -> OutputConfig:
+    """The ``outputs`` section: its pty none of the logs' own, no port named ``fused``
+    beside a fused output."""
+    kw, _ = _section(ctx, node, "outputs", OutputConfig, "outputs.")
+    outputs: OutputConfig = _build(OutputConfig, kw)
+    ptys = [c["pty"] for c in cals if c.get("pty")]
+    if outputs.pty in ptys or len(set(ptys)) != len(ptys):
+        raise ctx.fail(
+            node, "outputs.pty", "each output pty must be its own (a log's pty repeats another)"
+        )
+    if outputs.speed != "each" and "fused" in by_name:
+        raise ctx.fail(
+            node,
+            "outputs.speed",
+            "a port called 'fused' clashes with the fused output: rename the port",
+        )
+    return outputs
 
 
 def _check_one_speed_per_talker(
@@ -641,68 +651,3 @@ def _speed_routes(uuts: Sequence[UutConfig], outputs: OutputConfig) -> list[tupl
             for dest in own or shared or ["the shared outputs (replay --out)"]:
                 routes.append((dest, c.settings.talker, f"log {c.uut!r}"))
     return routes
-
-
-# ------------------------------------------------------------------ dump and table
-
-
-def _shown(e: Entry, value: Any) -> Any:
-    if e.key.show is not None:
-        value = e.key.show(value)
-    return dict(value) if isinstance(value, Mapping) else value
-
-
-def _dump_section(obj: Any, cls: type) -> dict[str, Any]:
-    return {e.name: _shown(e, get(obj, e.attrs)) for e in entries(cls)}
-
-
-def dump_config(config: Config) -> str:
-    """The effective configuration (every key, defaults filled in) as YAML.
-
-    Paths are written as loaded (already resolved), ``current: auto`` and a log's
-    ``talker`` as they were resolved, so ``parse_config(dump_config(c), c.path) == c``.
-    """
-    doc: dict[str, Any] = {
-        "ports": [_dump_section(p, PortConfig) for p in config.ports],
-        "calibration": [_dump_section(u, UutConfig) for u in config.calibration],
-        "outputs": _dump_section(config.outputs, OutputConfig),
-        **_dump_section(config, Config),
-    }
-    name = " ".join(config.path.splitlines())
-    return f"# emlogd effective configuration of {name}\n" + yaml.safe_dump(doc, sort_keys=False)
-
-
-def _cell(value: Any) -> str:
-    """A value as a config would write it."""
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return f"{value:g}"
-    if isinstance(value, Mapping):
-        return "{" + ", ".join(f"{k}: {_cell(v)}" for k, v in value.items()) + "}"
-    return str(value)
-
-
-def key_table() -> str:
-    """Every config key as a Markdown table (README's "Configuration reference")."""
-    rows = [
-        "| Key | Values | Default | Unit | Meaning |",
-        "| --- | --- | --- | --- | --- |",
-    ]
-    for prefix, cls in SECTIONS:
-        for e in entries(cls):
-            shown = e.key.text or f"`{_cell(_shown(e, e.absent))}`"
-            default = "required" if e.required else shown
-            rows.append(
-                f"| `{prefix}{e.name}` | {e.key.check.text} | {default} | {e.key.unit} "
-                f"| {e.key.doc} |"
-            )
-    return "\n".join(rows) + "\n"
-
-
-if __name__ == "__main__":  # python -m emlogd.config: the table README's reference holds
-    import sys
-
-    sys.stdout.write(key_table())

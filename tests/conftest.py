@@ -1,4 +1,5 @@
-"""Shared fixtures: real pseudo-terminals, capture files on disk, fake devices."""
+"""Shared fixtures: real pseudo-terminals, capture files on disk, fake devices; the
+hypothesis profile of the run (:mod:`tests.profiles`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,17 @@ import pytest
 
 from drivers.io.capture import CaptureWriter
 from drivers.io.fake import FakeDevice
+from tests import profiles
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Load the run's hypothesis profile (before any test module is imported), unless
+    ``--hypothesis-profile`` names one."""
+    from hypothesis import settings
+
+    if config.getoption("hypothesis_profile", None):
+        return
+    settings.load_profile(profiles.choose(config.getoption("markexpr", ""), os.environ))
 
 
 @pytest.fixture

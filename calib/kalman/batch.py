@@ -18,20 +18,19 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
+from calib.estimate import Estimate, Estimated
 from calib.kalman.filters import KfCalibrator, KfConfig
-from calib.models import FloatArray, ModelName, Params
+from calib.models import FloatArray
 
 
 @dataclass(frozen=True, eq=False)
-class KfRun:
+class KfRun(Estimated):
     """Result of running KF-EMx over a recorded series.
 
     Attributes:
-        model: the error model.
-        params: final parameter estimate (what cross-validation freezes).
-        param_std: final standard deviations of θ̂ by short name.
-        current_mps: final current (north, east) in m/s, None without current states.
-        current_std_mps: its standard deviations, m/s.
+        estimate: the final estimate (what cross-validation freezes): θ̂ and its
+            standard deviations, the current (north, east) in m/s and its standard
+            deviations (None without current states).
         covariance: final P, shape (n, n).
         speed_mps: speed state after each sample, shape (N,) (empty without history).
         theta: parameter estimate after each sample, shape (N, p) (empty without history).
@@ -44,11 +43,7 @@ class KfRun:
         nis: NIS per sample, shape (N,) (nan where no raw reading or no reference).
     """
 
-    model: ModelName
-    params: Params
-    param_std: dict[str, float]
-    current_mps: tuple[float, float] | None
-    current_std_mps: tuple[float, float] | None
+    estimate: Estimate
     covariance: FloatArray
     speed_mps: FloatArray
     theta: FloatArray
@@ -155,11 +150,7 @@ def run_kf(
         cur = cur_std = np.empty((0, 2))
         speed = np.empty(0)
     return KfRun(
-        model=lay.model,
-        params=kf.params,
-        param_std=kf.param_std,
-        current_mps=kf.current_mps,
-        current_std_mps=kf.current_std_mps,
+        estimate=Estimate(kf.params, kf.param_std, kf.current_mps, kf.current_std_mps),
         covariance=np.array(kf.covariance()),
         speed_mps=speed,
         theta=theta,

@@ -51,9 +51,14 @@ its noise is too small to pull the scale. Beyond the paper:
   does not move or a bay's that turns). A noise scale λ multiplies both R and the
   current's random walk (the level of what the filter does not know of the sea and the
   sensors, in the proportions configured; the speed's random walk follows the vessel
-  and the parameters' is the paper's tuning, neither scaled): after the k-th learnt-from raw update ``ln λ += (NIS − 1)/N``,
-  N = min(k + :data:`ADAPT_START`, N_λ) (N_λ = ``adapt_samples``; the NIS capped at :data:`ADAPT_NIS_CAP`), a stochastic
-  approximation of E[NIS] = 1, λ within [:data:`NOISE_SCALE_MIN`,
+  and the parameters' is the paper's tuning, neither scaled): after the k-th learnt-from
+  raw update ``ln λ += f·(ln NIS − E[ln χ²(1)])/N``, N = min(k + :data:`ADAPT_START`,
+  N_λ) (N_λ = ``adapt_samples``; the NIS within [:data:`ADAPT_NIS_MIN`,
+  :data:`ADAPT_NIS_CAP`]), f = λ(R_raw + R_ref)/S the share of the innovation variance
+  the scaled noises make: a running mean of the log NIS, so λ comes within N_λ updates
+  to the level the innovations hold from any start (the data's own R, covariance
+  matching in the logarithm), and samples whose S is mostly the state's uncertainty
+  (the parameters just re-opened) barely move it; λ within [:data:`NOISE_SCALE_MIN`,
   :data:`NOISE_SCALE_MAX`]. Residuals correlated from one sample to the next (GNSS
   errors over seconds, a tack's log error over minutes) hold fewer independent
   samples than samples: the lag-one correlation ρ of the normalised raw innovations
@@ -97,15 +102,25 @@ DEFAULT_R_RAW_MPS2 = 0.0514**2
 DEFAULT_R_REF_MPS2 = 0.01**2
 """DVL bottom-track variance (Rowe SeaPILOT ±0.25 % ≈ 0.005 m/s at 2 m/s, doubled)."""
 
-NOISE_SCALE_MIN = 0.01
-"""The smallest noise scale λ: σ a tenth of what the sensors promise."""
+NOISE_SCALE_MIN = 0.0025
+"""The smallest noise scale λ: σ a twentieth of what the sensors promise. With the
+default noises (a log's 0.1 kn, GNSS's 0.3 m/s) a block innovation's noise
+``√(λ·(R_raw + R_ref))`` is then 0.015 m/s: the quantisation error of a 0.1-kn reading
+that repeats through a block (0.1 kn/√12), which no averaging removes."""
 
 NOISE_SCALE_MAX = 100.0
 """The largest noise scale λ: σ ten times what the sensors promise."""
 
 ADAPT_NIS_CAP = 25.0
 """A NIS counts at most this much in the noise scale's update (one outlier moves λ by at
-most ``exp(24/N_λ)``)."""
+most ``exp(4.5/N_λ)``)."""
+
+ADAPT_NIS_MIN = 1e-6
+"""A NIS counts at least this much in the noise scale's update (its logarithm: an
+innovation of exactly zero, a quantised reading's, would pull λ to its floor at once)."""
+
+MEAN_LOG_CHI2_1 = -1.2703628454614782
+"""E[ln x] for x ~ χ²(1) (ψ(1/2) + ln 2): the mean log NIS of a consistent filter."""
 
 ADAPT_START = 10
 """The noise scale's first steps average over the samples so far plus this many (a
@@ -325,6 +340,7 @@ class KfCalibrator:
         heading_cs: tuple[float, float] | None = None,
         learn: bool | Collection[str] = True,
         max_nis: float = _INF,
+        scaled: bool = True,
     ) -> StepResult:
         """One sample: predict over ``dt_s``, then the reference, then the raw update.
 
@@ -338,6 +354,9 @@ class KfCalibrator:
             learn: which unknowns may move (True: all, False: none; the speed state
                 always moves).
             max_nis: NIS gate for both updates (``inf``: no gate).
+            scaled: the measurement noises are the configured ones times the noise
+                scale λ (False: the configured ones, what a single sample holds when λ
+                was adapted to block means: the samples between blocks).
 
         Returns:
             The innovations and what was applied.
@@ -348,6 +367,7 @@ class KfCalibrator:
         self.predict(dt_s)
         lay = self.layout
         x, P = self._x, self._P
+        lam = self.noise_scale if scaled else 1.0
         n = lay.n
         use_ref = ref_mps is not None and (not lay.current or heading_cs is not None)
         inn_ref: Innovation | None = None
@@ -362,7 +382,7 @@ class KfCalibrator:
             if lay.current and heading_cs is not None:
                 h_ref[-2], h_ref[-1] = heading_cs
             y, s, applied = scalar_update(
-                x, P, h_ref, ref_mps, self.noise_scale * self.config.r_ref_mps2, gains, max_nis
+                x, P, h_ref, ref_mps, lam * self.config.r_ref_mps2, gains, max_nis
             )
             inn_ref = Innovation(y, s, y * y / s)
             if applied:
@@ -391,7 +411,7 @@ class KfCalibrator:
             P,
             h_raw,
             raw_mps,
-            self.noise_scale * self.config.r_raw_mps2,
+            lam * self.config.r_raw_mps2,
             gains,
             max_nis,
             self.correlation if learning else 1.0,
@@ -424,11 +444,23 @@ class KfCalibrator:
         return (1.0 + rho) / (1.0 - rho)
 
     def _adapt(self, y: float, s: float) -> None:
-        """The noise scale and the innovations' correlation after one learnt raw update."""
-        nis = y * y / s
+        """The noise scale and the innovations' correlation after one learnt raw update.
+
+        ``ln λ`` moves by the running mean of ``ln NIS − E[ln χ²(1)]`` (for Gaussian
+        innovations whose noise is ``λ_true`` times the configured one, its mean is
+        ``ln(λ_true/λ)`` where the noises make all of S), weighted by the share of S the
+        noises make. λ thus reaches the level the innovations hold in about
+        ``adapt_samples`` updates from any start and in both directions (a step of
+        ``NIS − 1`` is at least −1 in the logarithm, so a λ far too large would come
+        down over hundreds of updates), and one outlier moves it by its logarithm only.
+        """
+        nis = min(max(y * y / s, ADAPT_NIS_MIN), ADAPT_NIS_CAP)
         self._n_adapt += 1
         a = 1.0 / min(self._n_adapt + ADAPT_START, self.config.adapt_samples)
-        lam = self.noise_scale * math.exp(a * (min(nis, ADAPT_NIS_CAP) - 1.0))
+        # the share of S the scaled noises make: the rest is the state's uncertainty,
+        # which λ does not move (just after the parameters were re-opened, nearly all)
+        share = min(self.noise_scale * (self.config.r_raw_mps2 + self.config.r_ref_mps2) / s, 1.0)
+        lam = self.noise_scale * math.exp(a * share * (math.log(nis) - MEAN_LOG_CHI2_1))
         self.noise_scale = min(max(lam, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
         nu = y / math.sqrt(s)
         self._c0 += a * (nu * nu - self._c0)
@@ -461,6 +493,22 @@ class KfCalibrator:
                 for j in range(lay.n):
                     P[i][j] = P[j][i] = 0.0
                 P[i][i] = var
+
+    def widen(self, added: dict[str, float]) -> None:
+        """Add variance to some unknowns, each up to its prior (a change of known size).
+
+        Args:
+            added: the variance to add by unknown's name (parameter units²; the
+                current's m²/s²); the values and the cross-covariances are kept.
+        """
+        lay = self.layout
+        P = self._P
+        for name, var in added.items():
+            if not (math.isfinite(var) and var > 0.0):
+                continue
+            prior = self.config.current_p0_m2ps2 if name == CURRENT else self.config.p0
+            for i in lay.indices(name):
+                P[i][i] = max(P[i][i], min(P[i][i] + var, prior))
 
     def age_current(self, elapsed_s: float) -> None:
         """The current's random walk over ``elapsed_s`` the filter did not run.

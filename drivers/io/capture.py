@@ -78,6 +78,14 @@ class CaptureRecord:
         return self.payload.encode("ascii") + b"\r\n"
 
 
+def _unhex(payload: bytes) -> bytes:
+    """A ``hex:`` payload's bytes (none when it is not hex)."""
+    try:
+        return binascii.unhexlify(payload[4:])
+    except binascii.Error:
+        return b""
+
+
 def _open_binary(path: str) -> BinaryIO:
     if path.endswith(".gz"):
         return gzip.open(path, "rb")  # type: ignore[return-value]
@@ -389,47 +397,42 @@ class CaptureReader:
                     if m is not None:
                         stamp, name, payload = m.groups()
                         port = ports.get(name)
-                        t = float(stamp)
                         if port is not None:
-                            if payload[:4] != _HEX_B:
-                                data = payload + b"\r\n"
-                            else:
-                                try:
-                                    data = binascii.unhexlify(payload[4:])
-                                except binascii.Error:
-                                    data = b""  # named by _record's checks below
-                            if data:
+                            data = payload + b"\r\n" if payload[:4] != _HEX_B else _unhex(payload)
+                            if data:  # else named by _record's checks below
                                 in_header = False
-                                yield t, port, payload, data, n
+                                yield float(stamp), port, payload, data, n
                                 continue
                     if n == 1:
                         continue
-                    try:
-                        line = raw.rstrip(b"\r\n").decode("ascii")
-                        if not line:
-                            continue
-                        if line.startswith("#"):
-                            if not in_header and line[1:].split()[:1] == ["port"]:
-                                raise _BadRecordError(
-                                    "late_header", "port header after the first record"
-                                )
-                            continue
-                        in_header = False
-                        rec = self._record(line, n)
-                    except UnicodeDecodeError:
-                        self._skip(
-                            n,
-                            _BadRecordError("non_ascii", "non-ASCII bytes (payloads must be hex:)"),
-                        )
-                        continue
-                    except _BadRecordError as bad:
-                        self._skip(n, bad)
-                        continue
-                    yield rec.t, rec.port, rec.payload.encode("ascii"), rec.data, n
+                    in_header, rec = self._other(raw, n, in_header)
+                    if rec is not None:
+                        yield rec.t, rec.port, rec.payload.encode("ascii"), rec.data, n
             except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
                 self._skip(
                     n + 1, _BadRecordError("truncated", f"the gzip stream ends early: {exc}")
                 )
+
+    def _other(self, raw: bytes, n: int, in_header: bool) -> tuple[bool, CaptureRecord | None]:
+        """A line the writer's pattern does not match: a comment (a port header only
+        before the first record), a blank line, or a record read by :meth:`_record`
+        (skipped, or raising, when bad). Returns whether the header goes on, and the
+        record."""
+        try:
+            line = raw.rstrip(b"\r\n").decode("ascii")
+            if not line:
+                return in_header, None
+            if line.startswith("#"):
+                if not in_header and line[1:].split()[:1] == ["port"]:
+                    raise _BadRecordError("late_header", "port header after the first record")
+                return in_header, None
+            in_header = False
+            return False, self._record(line, n)
+        except UnicodeDecodeError:
+            self._skip(n, _BadRecordError("non_ascii", "non-ASCII bytes (payloads must be hex:)"))
+        except _BadRecordError as bad:
+            self._skip(n, bad)
+        return in_header, None
 
     def _record(self, line: str, n: int) -> CaptureRecord:
         if not line.startswith("("):

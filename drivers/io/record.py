@@ -69,13 +69,8 @@ def record(
         s.name: SerialSource(s.name, s.url, baudrate=s.baud, stale_timeout_s=stale_timeout_s)
         for s in specs
     }
-    binary = {s.name: is_binary(s.protocol) for s in specs}
-    partial = {name: bytearray() for name in sources}
-    counts = dict.fromkeys(sources, 0)
-    sel = selectors.DefaultSelector()
-    registered: dict[str, int] = {}
+    rec = _Recording(sources, {s.name: is_binary(s.protocol) for s in specs}, on_event)
     t_end = None if duration_s is None else time.monotonic() + duration_s
-    last_t = 0.0
     try:
         for name, src in sources.items():
             if not src.open():
@@ -85,44 +80,76 @@ def record(
                 raise DeviceError(f"port {name}: {why}")
         with CaptureWriter(out, {s.name: s.protocol for s in specs}) as writer:
             while not should_stop() and (t_end is None or time.monotonic() < t_end):
-                for name, src in sources.items():
-                    fd = src.fileno()
-                    if registered.get(name) != fd:
-                        if name in registered:
-                            sel.unregister(registered.pop(name))
-                        if fd is not None:
-                            sel.register(fd, selectors.EVENT_READ, name)
-                            registered[name] = fd
-                    for ev in src.poll() + src.events():
-                        on_event(ev)
+                rec.watch()
                 try:
-                    ready = sel.select(timeout=SELECT_TIMEOUT_S)
+                    ready = rec.sel.select(timeout=SELECT_TIMEOUT_S)
                 except KeyboardInterrupt:
                     break
                 for key, _ in ready:
-                    name = key.data
-                    chunk = sources[name].read()
-                    if chunk is None:
-                        continue
-                    t_read, data = chunk
-                    last_t = t = max(t_read, last_t)
-                    if binary[name]:
-                        writer.write_chunk(t, name, data)
-                        counts[name] += 1
-                        continue
-                    buf = partial[name]
-                    buf += data
-                    *lines, rest = bytes(buf).split(b"\n")
-                    buf[:] = rest
-                    for line in lines:
-                        writer.write_line(t, name, line.rstrip(b"\r"))
-                        counts[name] += 1
-                on_progress(counts)
-            for name, buf in partial.items():
-                if buf:
-                    writer.write_chunk(max(time.time(), last_t), name, bytes(buf))
+                    rec.read(key.data, writer)
+                on_progress(rec.counts)
+            rec.finish(writer)
     finally:
         for src in sources.values():
             src.close()
-        sel.close()
-    return counts
+        rec.sel.close()
+    return rec.counts
+
+
+class _Recording:
+    """The ports being recorded: which are watched for input, each text port's partial
+    line, the records written per port, the last time written."""
+
+    def __init__(
+        self,
+        sources: dict[str, SerialSource],
+        binary: dict[str, bool],
+        on_event: Callable[[PortEvent], object],
+    ) -> None:
+        self.sources = sources
+        self.binary = binary
+        self.on_event = on_event
+        self.partial = {name: bytearray() for name in sources}
+        self.counts = dict.fromkeys(sources, 0)
+        self.sel = selectors.DefaultSelector()
+        self.registered: dict[str, int] = {}
+        self.last_t = 0.0
+
+    def watch(self) -> None:
+        """Watch each port's current descriptor (a reopened port has a new one) and hand
+        on its events."""
+        for name, src in self.sources.items():
+            fd = src.fileno()
+            if self.registered.get(name) != fd:
+                if name in self.registered:
+                    self.sel.unregister(self.registered.pop(name))
+                if fd is not None:
+                    self.sel.register(fd, selectors.EVENT_READ, name)
+                    self.registered[name] = fd
+            for ev in src.poll() + src.events():
+                self.on_event(ev)
+
+    def read(self, name: str, writer: CaptureWriter) -> None:
+        """What a ready port has, written: a binary chunk as it came, text as lines."""
+        chunk = self.sources[name].read()
+        if chunk is None:
+            return
+        t_read, data = chunk
+        self.last_t = t = max(t_read, self.last_t)
+        if self.binary[name]:
+            writer.write_chunk(t, name, data)
+            self.counts[name] += 1
+            return
+        buf = self.partial[name]
+        buf += data
+        *lines, rest = bytes(buf).split(b"\n")
+        buf[:] = rest
+        for line in lines:
+            writer.write_line(t, name, line.rstrip(b"\r"))
+            self.counts[name] += 1
+
+    def finish(self, writer: CaptureWriter) -> None:
+        """Each text port's unterminated line written as a chunk."""
+        for name, buf in self.partial.items():
+            if buf:
+                writer.write_chunk(max(time.time(), self.last_t), name, bytes(buf))

@@ -15,7 +15,7 @@ from types import FrameType
 from typing import Any
 
 from drivers import DecoderOptions, make_decoder, protocol_names
-from drivers.base import Decoder
+from drivers.base import NMEA_MAX_LENGTH, Decoder
 from drivers.records import Rejected
 from emlogd.cli.common import (
     Subparsers,
@@ -347,7 +347,7 @@ def add_parsers(sub: Subparsers) -> None:
         "--max-length",
         type=key_arg(PortSettings, "max_length"),
         metavar="N",
-        help="longest accepted text line incl. CR LF (default 82, the NMEA limit)",
+        help=f"longest accepted text line incl. CR LF (default {NMEA_MAX_LENGTH}, the NMEA limit)",
     )
     p.set_defaults(handler=cmd_dump)
 

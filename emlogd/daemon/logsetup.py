@@ -1,4 +1,5 @@
-"""structlog configuration: JSON lines when the stream is not a terminal, console otherwise.
+"""structlog configuration: JSON lines when the stream is not a terminal, console otherwise;
+the daemon's limit on repeated events and its one-line status for a terminal.
 
 Library modules only call ``structlog.get_logger(__name__)``; the CLI calls
 :func:`configure_logging` once. The stdlib root logger is never configured.
@@ -68,3 +69,49 @@ def configure_logging(
         logger_factory=structlog.PrintLoggerFactory(out),
         cache_logger_on_first_use=False,
     )
+
+
+REPEATING_EVENTS = frozenset(
+    {"reference", "stale", "alive", "state", "lag_retry", "identifiability"}
+)
+"""Events a flapping input repeats (bottom lock coming and going): logged at most once
+per :data:`EVENT_INTERVAL_S` per port, the next line saying how many were left out."""
+
+EVENT_INTERVAL_S = 10.0
+"""The least time between two lines of one repeating event of one port, s."""
+
+
+class EventLimiter:
+    """At most one log line per (port, kind) of :data:`REPEATING_EVENTS` per interval."""
+
+    def __init__(self, interval_s: float = EVENT_INTERVAL_S) -> None:
+        self.interval_s = interval_s
+        self.last: dict[tuple[str, str], float] = {}
+        self.dropped: dict[tuple[str, str], int] = {}
+
+    def allow(self, port: str, kind: str, now: float) -> int | None:
+        """None: leave this one out; else log it, with how many were left out before."""
+        if kind not in REPEATING_EVENTS:
+            return 0
+        key = (port, kind)
+        last = self.last.get(key)
+        if last is not None and now - last < self.interval_s:
+            self.dropped[key] = self.dropped.get(key, 0) + 1
+            return None
+        self.last[key] = now
+        return self.dropped.pop(key, 0)
+
+
+def status_line(status: dict[str, object]) -> dict[str, str]:
+    """Each UUT's state and calibration, each port's record count, in a few words."""
+    out: dict[str, str] = {}
+    uuts = status.get("uuts")
+    if isinstance(uuts, dict):
+        for name, u in uuts.items():
+            params = u.get("params") or {}
+            cal = " ".join(f"{k}={v:+.3f}" for k, v in params.items()) or "raw"
+            out[name] = f"{u.get('state')} {cal} ref {u.get('reference')}"
+    ports = status.get("ports")
+    if isinstance(ports, dict):
+        out["records"] = " ".join(f"{n}={p.get('records')}" for n, p in ports.items())
+    return out

@@ -20,7 +20,6 @@ cannot be written is reported and the previous file stays intact.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import functools
 import math
 import os
@@ -38,68 +37,22 @@ from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
-from emlogd.daemon.logsetup import is_console
+from emlogd.daemon.logsetup import EventLimiter, is_console, status_line
 from emlogd.daemon.notify import Notifier
-from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
-from emlogd.daemon.statefile import StateStore
+from emlogd.daemon.outputs import Outputs
+from emlogd.daemon.statefile import StateStore, same_records
 from emlogd.pipeline.calibration import Calibration, checker
-from emlogd.pipeline.core import Emit, Output, Pipeline
+from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import build_pipeline, pipeline_from_config
 
 SELECT_TIMEOUT_S = 0.2
 """Longest wait of the loop: bounds the reaction to stale ports and the watchdog."""
 
 HOUSEKEEPING_S = 0.1
-
-REPEATING_EVENTS = frozenset(
-    {"reference", "stale", "alive", "state", "lag_retry", "identifiability"}
-)
-"""Events a flapping input repeats (bottom lock coming and going): logged at most once
-per :data:`EVENT_INTERVAL_S` per port, the next line saying how many were left out."""
-
-EVENT_INTERVAL_S = 10.0
-
-
-class EventLimiter:
-    """At most one log line per (port, kind) of :data:`REPEATING_EVENTS` per interval."""
-
-    def __init__(self, interval_s: float = EVENT_INTERVAL_S) -> None:
-        self.interval_s = interval_s
-        self.last: dict[tuple[str, str], float] = {}
-        self.dropped: dict[tuple[str, str], int] = {}
-
-    def allow(self, port: str, kind: str, now: float) -> int | None:
-        """None: leave this one out; else log it, with how many were left out before."""
-        if kind not in REPEATING_EVENTS:
-            return 0
-        key = (port, kind)
-        last = self.last.get(key)
-        if last is not None and now - last < self.interval_s:
-            self.dropped[key] = self.dropped.get(key, 0) + 1
-            return None
-        self.last[key] = now
-        return self.dropped.pop(key, 0)
-
-
 """Least time between two rounds of reconnects, stale checks, status and watchdog."""
 
 _ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """How a resting port is registered: one readiness, then disarmed until re-armed."""
-
-
-def _status_line(status: dict[str, object]) -> dict[str, str]:
-    """Each UUT's state and calibration, each port's record count, in a few words."""
-    out: dict[str, str] = {}
-    uuts = status.get("uuts")
-    if isinstance(uuts, dict):
-        for name, u in uuts.items():
-            params = u.get("params") or {}
-            cal = " ".join(f"{k}={v:+.3f}" for k, v in params.items()) or "raw"
-            out[name] = f"{u.get('state')} {cal} ref {u.get('reference')}"
-    ports = status.get("ports")
-    if isinstance(ports, dict):
-        out["records"] = " ".join(f"{n}={p.get('records')}" for n, p in ports.items())
-    return out
 
 
 class Daemon:
@@ -155,12 +108,7 @@ class Daemon:
         self.event_limiter = EventLimiter()
         self.contain = Containment()
         self.rest_s: dict[str, float] = {}
-        self.sinks: dict[tuple[object, ...], Sink] = {}
-        self.routes: dict[str, list[Sink]] = {}
-        """The logs with outputs of their own, and those outputs."""
-        self.shared: list[Sink] = []
-        """The outputs of every other sentence."""
-        """The open outputs, keyed by the settings they were opened with."""
+        self.outputs = Outputs(self.sel, log, monotonic)
         self.controls: dict[tuple[str, str], ControlServer] = {}
         """The control socket and the read-only status socket, keyed by (kind, path)."""
         self.store: StateStore | None = None
@@ -263,7 +211,7 @@ class Daemon:
         self.pipeline = build_pipeline(cfg, cals, others)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
-        self._sync_outputs()
+        self.outputs.sync(cfg)
         self._open_sources(cfg)
         self.started = True
 
@@ -330,84 +278,6 @@ class Daemon:
         if failed is not None:
             raise failed
 
-    def _output_specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
-        """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
-        out = cfg.outputs
-        specs: dict[tuple[object, ...], Callable[[], Sink]] = {}
-        if out.pty:
-            pty, mode, group = out.pty, out.pty_mode, out.pty_group
-            specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
-        limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
-        if out.tcp:
-            tcp = out.tcp
-            specs[("tcp", tcp, limits)] = lambda: TcpServerSink(
-                tcp,
-                selector=self.sel,
-                on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
-                monotonic=self.monotonic,
-                limits=limits,
-            )
-        if out.udp:
-            udp = out.udp
-            specs[("udp", udp)] = lambda: UdpSink(
-                udp,
-                on_event=lambda kind, detail: self.log.warning(kind, sink="udp", detail=detail),
-                monotonic=self.monotonic,
-            )
-        if out.stdout:
-            specs[("stdout",)] = stdout_sink
-        for c in cfg.calibration:  # a log's own outputs, keyed ("uut", name, ...)
-            name, u = c.uut, c.outputs
-            if u.pty:
-                specs[("uut", name, "pty", u.pty, out.pty_mode, out.pty_group)] = functools.partial(
-                    PtySink, u.pty, mode=out.pty_mode, group=out.pty_group
-                )
-            if u.tcp:
-                specs[("uut", name, "tcp", u.tcp, limits)] = functools.partial(
-                    TcpServerSink,
-                    u.tcp,
-                    selector=self.sel,
-                    on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
-                    monotonic=self.monotonic,
-                    limits=limits,
-                )
-            if u.udp:
-                specs[("uut", name, "udp", u.udp)] = functools.partial(
-                    UdpSink,
-                    u.udp,
-                    on_event=lambda kind, detail: self.log.warning(kind, sink="udp", detail=detail),
-                    monotonic=self.monotonic,
-                )
-        return specs
-
-    def _sync_outputs(self) -> tuple[list[str], list[str]]:
-        """Close the outputs the config no longer names, open the new ones; keep the rest.
-
-        Returns the names of the outputs (closed, opened).
-        """
-        specs = self._output_specs(self.config)
-        closed = [self.sinks[key].name for key in self.sinks if key not in specs]
-        for key in [k for k in self.sinks if k not in specs]:
-            with contextlib.suppress(OSError):
-                self.sinks.pop(key).close()
-        opened: list[str] = []
-        for key, make in specs.items():
-            if key not in self.sinks:
-                self.sinks[key] = sink = make()
-                opened.append(sink.name)
-        self.routes = {}
-        for key, sink in self.sinks.items():
-            if key[0] == "uut":
-                self.routes.setdefault(str(key[1]), []).append(sink)
-        self.shared = [s for k, s in self.sinks.items() if k[0] != "uut"]
-        return closed, opened
-
-    def _close_outputs(self) -> None:
-        for sink in self.sinks.values():
-            with contextlib.suppress(OSError):
-                sink.close()
-        self.sinks.clear()
-
     def _shutdown(self) -> None:
         self.notifier.stopping()
         if self.started:
@@ -416,7 +286,7 @@ class Daemon:
         for server in self.controls.values():
             server.close()
         self.controls.clear()
-        self._close_outputs()
+        self.outputs.close()
         self.sel.close()
         self.poll.close()
         self.log.info("stopped", persists=self.persists, state_errors=self.state_errors)
@@ -445,25 +315,30 @@ class Daemon:
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
-            changed = False  # a port opened or lost: its descriptor changed
-            for src in self.sources.values():
-                events = src.poll()
-                if events:
-                    changed = True
-                    self._log_port_events(events)
-            if changed:
-                self._sync_registrations()
-            for server in self.controls.values():
-                server.housekeep()
-            for sink in self.sinks.values():
-                sink.housekeep()
-            self._tick()
+            self._housekeep()
             if now >= next_status:
                 next_status = now + self.config.status_log_interval_s
                 self._status_event()
             if next_watchdog is not None and now >= next_watchdog:
                 self.notifier.watchdog()
                 next_watchdog = now + (wd or 1.0)
+
+    def _housekeep(self) -> None:
+        """Every :data:`HOUSEKEEPING_S`: the ports' events (a port opened or lost selected
+        again on its new descriptor), the control servers' and outputs' upkeep, the
+        pipeline's tick."""
+        changed = False  # a port opened or lost: its descriptor changed
+        for src in self.sources.values():
+            events = src.poll()
+            if events:
+                changed = True
+                self._log_port_events(events)
+        if changed:
+            self._sync_registrations()
+        for server in self.controls.values():
+            server.housekeep()
+        self.outputs.housekeep()
+        self._tick()
 
     def _watch(self, fd: int, call: Callable[[], None]) -> None:
         """Wait for ``fd`` to be readable in the loop, then call ``call``."""
@@ -585,7 +460,7 @@ class Daemon:
         """Deliver what a pipeline call returned: its sentences to the outputs, its
         events to the log, and a persist when it asks for one."""
         if out.emits:
-            self._deliver(out.emits)
+            self.outputs.deliver(out.emits)
         for ev in out.events:
             suppressed = self.event_limiter.allow(ev.port, ev.kind, self.monotonic())
             if suppressed is not None:
@@ -594,28 +469,6 @@ class Daemon:
                 level(ev.kind, port=ev.port, **dict(ev.detail), **extra)
         if out.persist:
             self._persist()
-
-    def _deliver(self, emits: list[Emit]) -> None:
-        """Write sentences to their outputs: a log with outputs of its own writes there,
-        every other sentence to the shared ones."""
-        if not self.routes:
-            data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
-            for sink in self.shared:
-                sink.write(data)
-            return
-        shared: list[bytes] = []
-        for e in emits:
-            line = e.sentence.encode("ascii") + b"\r\n"
-            own = self.routes.get(e.port)
-            if own is None:
-                shared.append(line)
-            else:
-                for sink in own:
-                    sink.write(line)
-        if shared:
-            data = b"".join(shared)
-            for sink in self.shared:
-                sink.write(data)
 
     def _persist(self, *, final: bool = False, operator: bool = False) -> str | None:
         """Write the calibrations; return None once they are on disk, else why not.
@@ -631,7 +484,7 @@ class Daemon:
             return None
         others = self.pipeline.other_calibrations()
         written = snaps + others
-        if self._written is not None and _same(written, self._written, material=operator):
+        if self._written is not None and same_records(written, self._written, material=operator):
             return None
         try:
             aside = self.store.save({s.uut: s for s in snaps}, others)
@@ -663,10 +516,10 @@ class Daemon:
         status = self.pipeline.status()
         if is_console():
             # a person reads a terminal: one line, the full figures are in `emlogd status`
-            self.log.info("status", **_status_line(status), state_errors=self.state_errors)
+            self.log.info("status", **status_line(status), state_errors=self.state_errors)
             return
         sources = {name: _source_status(src) for name, src in self.sources.items()}
-        sinks = self._outputs_status()
+        sinks = self.outputs.status()
         self.log.info(
             "status",
             ports=status["ports"],
@@ -701,10 +554,6 @@ class Daemon:
             status["ports"] = {n: v for n, v in ports.items() if n in mine}
         return status
 
-    def _outputs_status(self) -> dict[str, dict[str, object]]:
-        """Per output: its counters and ``state`` (``open``, or why not)."""
-        return {s.name: {**s.counters.as_dict(), "state": s.state} for s in self.sinks.values()}
-
     def _notify_status(self) -> None:
         if self.pipeline is not None:
             self.notifier.status(self.pipeline.summary()[:200])
@@ -721,7 +570,7 @@ class Daemon:
         if cmd == "status":
             return {
                 "status": self._status(p),
-                "outputs": self._outputs_status(),
+                "outputs": self.outputs.status(),
                 "state_file": str(self.store.path) if self.store else None,
                 "state_errors": self.state_errors,
                 "persists": self.persists,
@@ -787,7 +636,7 @@ class Daemon:
             self._close_source(name)
         self._open_sources(new)
         try:
-            closed, opened = self._sync_outputs()
+            closed, opened = self.outputs.sync(new)
         except DeviceError as exc:
             closed, opened = [], []
             self.log.error("reload_outputs_failed", error=str(exc))
@@ -817,24 +666,3 @@ def _source_status(src: SerialSource) -> dict[str, object]:
     """A source's figures without its own staleness, which the daemon does not run: a
     port's staleness is the pipeline's (``ports`` in the status)."""
     return {k: v for k, v in src.counters_dict().items() if k != "stale"}
-
-
-def _same(a: list[Calibration], b: list[Calibration], *, material: bool) -> bool:
-    """Whether two sets of records are equal but for their time (``material``: and but
-    for what learning refines: covariance, current, NIS, sample count)."""
-    return [_key(c, material) for c in a] == [_key(c, material) for c in b]
-
-
-def _key(c: Calibration, material: bool) -> Calibration:
-    if not material:
-        return dataclasses.replace(c, t=0.0)
-    return dataclasses.replace(
-        c,
-        t=0.0,
-        covariance=(),
-        current_mps=None,
-        current_std_mps=None,
-        nis_mean=None,
-        n_samples=0,
-        unidentifiable=(),
-    )

@@ -29,6 +29,7 @@ a UUT from EM3 to EM4 and back finds its EM3 calibration again, after a restart 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import fcntl
 import os
 import re
@@ -256,3 +257,23 @@ def _alive(pid: int) -> bool:
     except (PermissionError, OverflowError, ValueError):
         return True
     return True
+
+
+def same_records(a: list[Calibration], b: list[Calibration], *, material: bool) -> bool:
+    """Whether two sets of records are equal but for their time (``material``: and but
+    for what learning refines: covariance, current, NIS, sample count)."""
+    return [_record_key(c, material) for c in a] == [_record_key(c, material) for c in b]
+
+
+def _record_key(c: Calibration, material: bool) -> Calibration:
+    if not material:
+        return dataclasses.replace(c, t=0.0)
+    return dataclasses.replace(
+        c,
+        t=0.0,
+        covariance=(),
+        estimate=dataclasses.replace(c.estimate, current_mps=None, current_std_mps=None),
+        nis_mean=None,
+        n_samples=0,
+        unidentifiable=(),
+    )

@@ -9,7 +9,9 @@ lag (:meth:`Recording.aligned`) applies the one alignment rule of
 :mod:`emlogd.pipeline.align` to the whole recording at once.
 
 :func:`record_captures` decodes several captures in parallel processes (the decoding
-is the cost; the results are small arrays).
+is the cost; the results are small arrays). :func:`concat_usable` and
+:func:`block_means` join the usable aligned samples of several captures, each sample or
+averaged over blocks, for the offline fits.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from calib.lsq import block_average
 from calib.models import FloatArray
 from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
 from emlogd.contain import Containment
@@ -34,8 +37,6 @@ from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
 
 BoolArray = npt.NDArray[np.bool_]
-
-"""``progress(message, fraction done)``."""
 
 
 class CaptureContentError(KeyError):
@@ -286,3 +287,32 @@ def record_captures(
             if progress is not None:
                 progress(f"read {Path(paths[i]).name}", len(done) / n)
         return [done[i] for i in range(n)]
+
+
+def block_means(pairs: Sequence[Aligned], current: bool, window_s: float) -> tuple[FloatArray, ...]:
+    """Each capture's usable samples averaged over ``window_s`` blocks, then joined."""
+    parts = []
+    for p in pairs:
+        m = p.usable(heading=current)
+        parts.append(
+            block_average(p.t[m], p.raw[m], p.ref[m], p.heading[m] if current else None, window_s)
+        )
+    return tuple(
+        np.concatenate([getattr(a, k) for a in parts]) if parts else np.empty(0)
+        for k in ("t", "raw", "ref", "heading_deg")
+    )
+
+
+def concat_usable(pairs: Sequence[Aligned], current: bool) -> tuple[FloatArray, ...]:
+    """``(t, raw, ref, heading)`` of every usable aligned sample of ``pairs``, in order.
+
+    Usable: a reading with a reference, and a heading too when ``current``.
+    """
+    masks = [p.usable(heading=current) for p in pairs]
+    cat = [
+        np.concatenate([getattr(p, k)[m] for p, m in zip(pairs, masks, strict=True)])
+        if pairs
+        else np.empty(0)
+        for k in ("t", "raw", "ref", "heading")
+    ]
+    return tuple(np.asarray(c, dtype=np.float64) for c in cat)

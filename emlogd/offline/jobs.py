@@ -8,7 +8,7 @@ fits:
 
 - ``ls``: batch least squares over every aligned sample (:func:`calib.lsq.fit_ls`,
   with the current when asked), estimating only what the data determine;
-- ``kf``: the daemon's own online calibration (:class:`~emlogd.pipeline.uut.UutCalibration`)
+- ``kf``: the daemon's own online calibration (:mod:`emlogd.offline.online`)
   fed the recorded samples in order — so ``emlogd calibrate --method kf`` and
   ``emlogd replay`` give the same estimate for the same lag.
 
@@ -20,7 +20,6 @@ the stable JSON views documented in the README; ``--save`` writes a calibration 
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -32,6 +31,7 @@ import numpy as np
 
 from calib.crossval import ESTIMATORS, CrossValResult, Segment, cross_validate
 from calib.errors import CalibrationError
+from calib.estimate import Estimate, Estimated
 from calib.excitation import Identifiability, identifiability
 from calib.kalman import KfConfig
 from calib.lag import (
@@ -41,7 +41,7 @@ from calib.lag import (
     combine,
     estimate_lag,
 )
-from calib.lsq import block_average, fit_ls
+from calib.lsq import fit_ls
 from calib.metrics import (
     CURRENT_WINDOW_S,
     ImoVerdict,
@@ -57,16 +57,17 @@ from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.fileio import write_atomic
 from emlogd.offline import ProgressFn
 from emlogd.offline.dataset import (
-    Aligned,
     CaptureContentError,
     Recording,
+    block_means,
+    concat_usable,
     record_captures,
 )
 from emlogd.offline.headings import heading_refusal, needs_heading, why_no_sample
-from emlogd.pipeline.align import SampleRing
+from emlogd.offline.online import TraceWriter, run_online
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.settings import UutSettings
-from emlogd.pipeline.uut import AVERAGE_S, UutCalibration
+from emlogd.pipeline.uut import AVERAGE_S
 
 Method = Literal["ls", "kf"]
 
@@ -219,16 +220,14 @@ WORSE_THAN_RAW = "the calibrated speed is further from the water speed than the 
 
 
 @dataclass(frozen=True, slots=True)
-class CalibrationResult:
-    """What ``emlogd calibrate`` found (JSON keys: :meth:`to_dict`)."""
+class CalibrationResult(Estimated):
+    """What ``emlogd calibrate`` found (JSON keys: :meth:`to_dict`): the estimate (the
+    standard errors its ``param_std``) and how it was found and scored."""
 
     captures: tuple[str, ...]
     settings: UutSettings
     method: Method
-    params: Params
-    stderr: dict[str, float | None]
-    current_mps: tuple[float, float] | None
-    current_std_mps: tuple[float, float] | None
+    estimate: Estimate
     lag: LagReport
     n_samples: int
     rmse_raw: float
@@ -276,12 +275,9 @@ class CalibrationResult:
         s = self.settings
         return Calibration(
             uut=s.port,
-            params=self.params,
-            param_std=dict(self.stderr),
+            estimate=self.estimate,
             lag_s=self.lag.lag_s,
             current=s.current,
-            current_mps=self.current_mps,
-            current_std_mps=self.current_std_mps,
             method=self.method,
             n_samples=self.n_samples,
             reference={"port": s.reference_port, "field": s.reference_field},
@@ -296,7 +292,7 @@ class CalibrationResult:
             "model": self.params.model,
             "method": self.method,
             "params": self.params.as_dict(),
-            "stderr": {k: _fin(v) for k, v in self.stderr.items()},
+            "stderr": {k: _fin(v) for k, v in self.param_std.items()},
             "current": _current_doc(self.current_mps, self.current_std_mps),
             "lag_s": self.lag.lag_s,
             "lag": self.lag.as_dict(),
@@ -342,79 +338,6 @@ def _current_doc(
         "std_north_mps": None if std is None else _fin(std[0]),
         "std_east_mps": None if std is None else _fin(std[1]),
     }
-
-
-def _block_means(
-    pairs: Sequence[Aligned], current: bool, window_s: float
-) -> tuple[FloatArray, ...]:
-    """Each capture's usable samples averaged over ``window_s`` blocks, then joined."""
-    parts = []
-    for p in pairs:
-        m = p.usable(heading=current)
-        parts.append(
-            block_average(p.t[m], p.raw[m], p.ref[m], p.heading[m] if current else None, window_s)
-        )
-    return tuple(
-        np.concatenate([getattr(a, k) for a in parts]) if parts else np.empty(0)
-        for k in ("t", "raw", "ref", "heading_deg")
-    )
-
-
-def concat_usable(pairs: Sequence[Aligned], current: bool) -> tuple[FloatArray, ...]:
-    """``(t, raw, ref, heading)`` of every usable aligned sample of ``pairs``, in order.
-
-    Usable: a reading with a reference, and a heading too when ``current``.
-    """
-    masks = [p.usable(heading=current) for p in pairs]
-    cat = [
-        np.concatenate([getattr(p, k)[m] for p, m in zip(pairs, masks, strict=True)])
-        if pairs
-        else np.empty(0)
-        for k in ("t", "raw", "ref", "heading")
-    ]
-    return tuple(np.asarray(c, dtype=np.float64) for c in cat)
-
-
-def run_online(
-    recs: Sequence[Recording],
-    settings: UutSettings,
-    lag_s: float,
-    *,
-    trace: Callable[[dict[str, object]], None] | None = None,
-) -> UutCalibration:
-    """The daemon's online calibration fed the recorded samples of each capture in order.
-
-    The captures run back to back through one filter (the state carries over), the
-    reference, heading and readings merged in time order as they arrived. ``trace``
-    receives one row per learnt-from reading (``calibrate --trace``).
-    """
-    s = dataclasses.replace(settings, lag_s=lag_s, learn=True)
-    heading = SampleRing(4096, 2.0, angular=True, cadence=True)
-    cal = UutCalibration(s, None, lambda t: _heading(heading, t), lambda t, k, d: None)
-    cal.tracer = trace
-    for r in recs:
-        heading.clear()
-        events = sorted(
-            [(float(t), 0, i) for i, t in enumerate(r.t_ref)]
-            + [(float(t), 1, i) for i, t in enumerate(r.t_read)]
-        )
-        for t, kind, i in events:
-            if kind == 0:
-                h = float(r.heading[i])
-                heading.add(t, h if math.isfinite(h) else None, math.isfinite(h))
-                ok = bool(r.ok_ref[i])
-                v = float(r.v_ref[i])
-                cal.add_reference(t, v if ok else None, ok)
-            else:
-                cal.add_reading(t, float(r.raw[i]))
-            cal.drain(t)
-        cal.drain(r.t_end if math.isfinite(r.t_end) else 0.0, final=True)
-    return cal
-
-
-def _heading(ring: SampleRing, t: float) -> float | None:
-    h = ring.at(t)
-    return ring.nearest(t, 0.6) if h is None else h
 
 
 def calibrate(
@@ -466,7 +389,7 @@ def calibrate(
         window = given if given is not None else AVERAGE_S.get(settings.reference_field, 0.0)
         fit_t, fit_raw, fit_ref, fit_hd = t, raw, ref, hd
         if window > 0.0:
-            fit_t, fit_raw, fit_ref, fit_heading = _block_means(pairs, settings.current, window)
+            fit_t, fit_raw, fit_ref, fit_heading = block_means(pairs, settings.current, window)
             fit_hd = fit_heading if settings.current else None
             if fit_raw.size < 3:
                 raise OfflineError(
@@ -487,11 +410,10 @@ def calibrate(
             t_s=fit_t,
             current_block_s=CURRENT_WINDOW_S if window > 0.0 else None,
         )
-        params, stderr = fit.params, dict(fit.stderr)
-        cur, cur_std = fit.current_mps, fit.current_std_mps
+        estimate = fit.estimate
         ident = fit.ident
     else:
-        with _TraceWriter(trace) as tracer:
+        with TraceWriter(trace) as tracer:
             cal = run_online(recs, settings, lag_report.lag_s, trace=tracer.row if trace else None)
         params = cal.kf.params
         ident = identifiability(
@@ -507,10 +429,12 @@ def calibrate(
         # current_determined): only when determined at the end of the run
         cur = cal.kf.current_mps if cal.ident_current() else None
         cur_std = cal.kf.current_std_mps if cur is not None else None
+        estimate = Estimate(params, stderr, cur, cur_std)
         noise_scale = cal.kf.noise_scale
         if cal.nis:
             stats = nis_stats(np.array(cal.nis, dtype=np.float64))
             nis_mean, nis_frac = stats.mean, stats.frac_inside
+    params = estimate.params
     corrected = correct_array(params, raw)
     rmse_raw, rmse_cal = water_scores(t, ref, raw, corrected, hd, params)
     imo_raw, imo_cal = water_imo(t, ref, raw, corrected, hd, params)
@@ -518,10 +442,7 @@ def calibrate(
         captures=tuple(r.path for r in recs),
         settings=settings,
         method=method,
-        params=params,
-        stderr=stderr,
-        current_mps=cur,
-        current_std_mps=cur_std,
+        estimate=estimate,
         lag=lag_report,
         n_samples=int(raw.size),
         rmse_raw=rmse_raw,
@@ -535,53 +456,6 @@ def calibrate(
         imo_raw=imo_raw,
         imo_cal=imo_cal,
     )
-
-
-TRACE_COLUMNS = (
-    "t", "raw_mps", "ref_mps", "heading_deg", "emitted_mps", "corrected_mps",
-    "a", "std_a", "m", "std_m", "b", "std_b",
-    "current_north_mps", "std_current_north_mps", "current_east_mps", "std_current_east_mps",
-    "current_determined", "nis", "state", "learning",
-)  # fmt: skip
-"""The columns of ``calibrate --trace`` (README)."""
-
-
-class _TraceWriter:
-    """A CSV file of trace rows (no-op without a path)."""
-
-    def __init__(self, path: str | Path | None) -> None:
-        self.path = path
-        self._f: Any = None
-        self._w: Any = None
-
-    def __enter__(self) -> _TraceWriter:
-        if self.path is not None:
-            import csv
-
-            self._f = open(self.path, "w", newline="", encoding="utf-8")
-            self._w = csv.writer(self._f)
-            self._w.writerow(TRACE_COLUMNS)
-        return self
-
-    def row(self, r: dict[str, object]) -> None:
-        self._w.writerow(
-            [
-                "" if r.get(c) is None else f"{r[c]:.3f}" if c == "t" else _cell(r[c])
-                for c in TRACE_COLUMNS
-            ]
-        )
-
-    def __exit__(self, *exc: object) -> None:
-        if self._f is not None:
-            self._f.close()
-
-
-def _cell(x: object) -> object:
-    if isinstance(x, float):
-        return f"{x:.6g}" if math.isfinite(x) else ""
-    if isinstance(x, bool):
-        return int(x)
-    return x
 
 
 def _projection(cur: tuple[float, float] | None, heading_deg: FloatArray) -> FloatArray:

@@ -183,69 +183,110 @@ def replay(
         for name in pipeline.uuts:
             truth.emlog(name)  # a UUT the truth does not know fails now, not after the replay
         scorer = _TruthScorer(pipeline)
-    t_first: float | None = None
-    t_last = 0.0
-    pace0: tuple[float, float] | None = None
-    t_tick = -float("inf")
-    contain = Containment()
+    run = _Run(
+        pipeline, result, sink, on_persist, on_event, on_emit, scorer, speed, sleep, monotonic
+    )
     for path in paths:
         reader = CaptureReader(
             path, errors="raise" if strict else "skip", reorder_window_s=reorder_window_s
         )
-        size = max(Path(path).stat().st_size, 1)
-        for t, port, data, line in reader.received():
-            if port not in pipeline.decoders:
-                result.unknown_ports[port] = result.unknown_ports.get(port, 0) + 1
-                continue
-            if t_first is None:
-                t_first = t
-            if speed is not None:
-                if pace0 is None:
-                    pace0 = (t, monotonic())
-                due = pace0[1] + (t - pace0[0]) / speed
-                wait = due - monotonic()
-                if wait > 0.0:
-                    sleep(wait)
-            out: Output | None
-            try:
-                out = pipeline.feed(t, port, data)
-            except Exception as exc:  # contained: one record is lost, not the replay
-                contain.failed(pipeline, port, data, exc, t)
-                out = None
-            if out is not None and (out.emits or out.events or out.persist):
-                if scorer is not None:
-                    scorer.emitted(out.emits)
-                _deliver(out, result, sink, on_persist, on_event, on_emit)
-            if t - t_tick >= TICK_S:
-                t_tick = t
-                try:
-                    out = pipeline.tick(t)
-                except Exception as exc:  # contained like a record's
-                    contain.failed(pipeline, "", b"", exc, t)
-                    out = None
-                if out is not None and (out.events or out.persist):
-                    _deliver(out, result, sink, on_persist, on_event, on_emit)
-            result.records += 1
-            t_last = t
-            if progress is not None and result.records % 20_000 == 0:
-                progress(f"replay {Path(path).name}", min(line * 60.0 / size, 1.0))
-        result.capture_skips[str(path)] = reader.skip_report()
-    try:
-        last = pipeline.flush()
-    except Exception as exc:  # contained: the end of the input, not the replay
-        contain.failed(pipeline, "", b"", exc, t_last)
-        last = Output()
-    result.internal = contain.report()
-    if scorer is not None:
-        scorer.emitted(last.emits)
-    _deliver(last, result, sink, on_persist, on_event, on_emit)
-    result.status = pipeline.status()
+        run.file(Path(path), reader, progress)
+    run.finish()
     if scorer is not None and truth is not None:
         result.truth = scorer.scores(truth)
         result.truth_windows = scorer.windows(truth)
     result.elapsed_s = time.perf_counter() - started
-    result.span_s = t_last - t_first if t_first is not None else 0.0
+    result.span_s = run.t_last - run.t_first if run.t_first is not None else 0.0
     return result
+
+
+@dataclass(slots=True)
+class _Run:
+    """One replay under way: the records of each file in turn through the pipeline (paced
+    with ``speed``), what they make delivered, a record's failure contained."""
+
+    pipeline: Pipeline
+    result: ReplayResult
+    sink: BinaryIO | None
+    on_persist: Callable[[Output], None] | None
+    on_event: Callable[[Event], None] | None
+    on_emit: Callable[[list[Emit]], None] | None
+    scorer: _TruthScorer | None
+    speed: float | None
+    sleep: Callable[[float], None]
+    monotonic: Callable[[], float]
+    t_first: float | None = None
+    t_last: float = 0.0
+    pace0: tuple[float, float] | None = None
+    """The first record's time and the clock's then (pacing)."""
+    t_tick: float = -float("inf")
+    contain: Containment = field(default_factory=Containment)
+
+    def file(self, path: Path, reader: CaptureReader, progress: ProgressFn | None) -> None:
+        """Every record of one capture, in time order."""
+        result, decoders = self.result, self.pipeline.decoders
+        size = max(path.stat().st_size, 1)
+        for t, port, data, line in reader.received():
+            if port not in decoders:
+                result.unknown_ports[port] = result.unknown_ports.get(port, 0) + 1
+                continue
+            if self.t_first is None:
+                self.t_first = t
+            if self.speed is not None:
+                self._pace(t, self.speed)
+            self._feed(t, port, data)
+            if t - self.t_tick >= TICK_S:
+                self.t_tick = t
+                self._tick(t)
+            result.records += 1
+            self.t_last = t
+            if progress is not None and result.records % 20_000 == 0:
+                progress(f"replay {path.name}", min(line * 60.0 / size, 1.0))
+        result.capture_skips[str(path)] = reader.skip_report()
+
+    def _pace(self, t: float, speed: float) -> None:
+        """Wait until record time ``t`` is due at ``speed`` times real time."""
+        if self.pace0 is None:
+            self.pace0 = (t, self.monotonic())
+        wait = self.pace0[1] + (t - self.pace0[0]) / speed - self.monotonic()
+        if wait > 0.0:
+            self.sleep(wait)
+
+    def _feed(self, t: float, port: str, data: bytes) -> None:
+        try:
+            out = self.pipeline.feed(t, port, data)
+        except Exception as exc:  # contained: one record is lost, not the replay
+            self.contain.failed(self.pipeline, port, data, exc, t)
+            return
+        if out.emits or out.events or out.persist:
+            if self.scorer is not None:
+                self.scorer.emitted(out.emits)
+            self._deliver(out)
+
+    def _tick(self, t: float) -> None:
+        try:
+            out = self.pipeline.tick(t)
+        except Exception as exc:  # contained like a record's
+            self.contain.failed(self.pipeline, "", b"", exc, t)
+            return
+        if out.events or out.persist:
+            self._deliver(out)
+
+    def finish(self) -> None:
+        """The pipeline flushed (a failure contained), the result's status and failures."""
+        try:
+            last = self.pipeline.flush()
+        except Exception as exc:  # contained: the end of the input, not the replay
+            self.contain.failed(self.pipeline, "", b"", exc, self.t_last)
+            last = Output()
+        self.result.internal = self.contain.report()
+        if self.scorer is not None:
+            self.scorer.emitted(last.emits)
+        self._deliver(last)
+        self.result.status = self.pipeline.status()
+
+    def _deliver(self, out: Output) -> None:
+        _deliver(out, self.result, self.sink, self.on_persist, self.on_event, self.on_emit)
 
 
 def _deliver(

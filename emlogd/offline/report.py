@@ -23,17 +23,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from calib.crossval import CrossValResult
-from calib.kalman import run_kf
+from calib.kalman import KfRun, run_kf
 from calib.metrics import chi2_1_quantile, chi2_mean_bounds
-from calib.models import correct_array
+from calib.models import FloatArray, correct_array
 from emlogd.offline import ProgressFn
-from emlogd.offline.dataset import Recording
+from emlogd.offline.dataset import Aligned, BoolArray, Recording
 from emlogd.offline.jobs import OfflineError, crossval, find_lag
 from emlogd.pipeline.settings import UutSettings
 
@@ -79,7 +80,6 @@ def report(
     plt = _pyplot()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    model = settings.model
     lag_report = find_lag(recs, settings, lag)
     if lag_report.note and on_lag_note is not None:
         on_lag_note(lag_report.note)
@@ -87,12 +87,12 @@ def report(
     masks = [p.usable(heading=settings.current) for p in pairs]
     if not any(m.any() for m in masks):
         raise OfflineError("no aligned samples: nothing to plot")
-    t = np.concatenate([p.t[m] for p, m in zip(pairs, masks, strict=True)])
-    raw = np.concatenate([p.raw[m] for p, m in zip(pairs, masks, strict=True)])
-    ref = np.concatenate([p.ref[m] for p, m in zip(pairs, masks, strict=True)])
-    heading = np.concatenate([p.heading[m] for p, m in zip(pairs, masks, strict=True)])
+    t, raw, ref, heading = (
+        np.concatenate([getattr(p, k)[m] for p, m in zip(pairs, masks, strict=True)])
+        for k in ("t", "raw", "ref", "heading")
+    )
     run = run_kf(
-        model,
+        settings.model,
         t,
         raw,
         ref,
@@ -100,16 +100,58 @@ def report(
         heading_deg=heading if settings.current else None,
         current=settings.current,
     )
+    fig = _Plots(
+        plt, out, settings, run, t - t[0], f"lag {lag_report.lag_s:.2f} s ({lag_report.source})"
+    )
+    steps: list[tuple[str, float, Callable[[], list[Path]]]] = [
+        ("speed plots", 0.2, lambda: fig.speeds(recs, pairs)),
+        ("convergence", 0.35, fig.convergence),
+        ("current", 0.45, fig.current),
+        ("NIS", 0.55, fig.nis),
+        ("trajectory", 0.65, lambda: fig.trajectory(recs)),
+        ("cross-validation", 1.0, lambda: fig.crossval(recs, lag_report.lag_s, workers)),
+    ]
     written: list[Path] = []
-    frame = " + current" if settings.current else ""
-    title_pair = f"{settings.port} vs {settings.reference_port} ({settings.reference_field})"
-    lag_txt = f"lag {lag_report.lag_s:.2f} s ({lag_report.source})"
+    for what, done, step in steps:
+        written += step()
+        if progress is not None:
+            progress(f"report: {what}", done)
+    return written
 
-    # 1. speeds over a window at the start of each capture
-    for r, p in zip(recs, pairs, strict=True):
-        ok = p.usable()
-        if not ok.any():
-            continue
+
+@dataclass(frozen=True, slots=True)
+class _Plots:
+    """The figures of one report: the filter's run over the concatenated captures and
+    the words every title shares."""
+
+    plt: Any
+    out: Path
+    settings: UutSettings
+    run: KfRun
+    tt: FloatArray
+    """Time since the first sample, s (the captures back to back)."""
+    lag_txt: str
+
+    @property
+    def title_pair(self) -> str:
+        s = self.settings
+        return f"{s.port} vs {s.reference_port} ({s.reference_field})"
+
+    @property
+    def frame(self) -> str:
+        return " + current" if self.settings.current else ""
+
+    def speeds(self, recs: Sequence[Recording], pairs: Sequence[Aligned]) -> list[Path]:
+        """1. The speeds over a window at the start of each capture."""
+        written = []
+        for r, p in zip(recs, pairs, strict=True):
+            ok = p.usable()
+            if ok.any():
+                written.append(self._speed(r.name, p, ok))
+        return written
+
+    def _speed(self, name: str, p: Aligned, ok: BoolArray) -> Path:
+        s, plt = self.settings, self.plt
         t0 = p.t[ok][0]
         sel = ok & (p.t - t0 <= WINDOW_S)
         total = float(p.t[ok][-1] - t0)
@@ -121,107 +163,108 @@ def report(
         )
         fig, ax = plt.subplots(figsize=(10, 4))
         tt = p.t[sel] - t0
-        ax.plot(tt, p.raw[sel], lw=0.8, label=f"{settings.port} raw")
-        ax.plot(tt, correct_array(run.params, p.raw[sel]), lw=0.8, label=f"calibrated (KF-{model})")
-        ax.plot(tt, p.ref[sel], lw=0.8, label=f"{settings.reference_port} reference")
+        ax.plot(tt, p.raw[sel], lw=0.8, label=f"{s.port} raw")
+        calibrated = correct_array(self.run.params, p.raw[sel])
+        ax.plot(tt, calibrated, lw=0.8, label=f"calibrated (KF-{s.model})")
+        ax.plot(tt, p.ref[sel], lw=0.8, label=f"{s.reference_port} reference")
         ax.set_xlabel("time since start of capture (s)")
-        ax.set_ylabel(f"{settings.component} speed (m/s)")
-        ax.set_title(f"{r.name} ({window}): {title_pair}, {lag_txt}")
+        ax.set_ylabel(f"{s.component} speed (m/s)")
+        ax.set_title(f"{name} ({window}): {self.title_pair}, {self.lag_txt}")
         ax.legend(**_OUTSIDE)
         ax.grid(True, alpha=0.3)
-        written.append(_save(fig, out / f"speed_{r.name}.png", plt))
-    if progress is not None:
-        progress("report: speed plots", 0.2)
+        return _save(fig, self.out / f"speed_{name}.png", plt)
 
-    # 2. convergence sleeve
-    names = list(run.params.as_dict())
-    fig, axes = plt.subplots(len(names), 1, figsize=(10, 2.6 * len(names)), sharex=True)
-    axes = np.atleast_1d(axes)
-    tt = t - t[0]
-    for i, (ax, name) in enumerate(zip(axes, names, strict=True)):
-        est = run.theta[:, i]
-        sd = run.theta_std[:, i]
-        ax.plot(tt, est, lw=0.9, label=f"{name} estimate")
-        ax.fill_between(tt, est - 3 * sd, est + 3 * sd, alpha=0.3, label="±3σ")
-        ax.set_ylabel({"a": "a (s/m)", "m": "m (-)", "b": "b (m/s)"}[name])
+    def convergence(self) -> list[Path]:
+        """2. The convergence sleeve of every parameter."""
+        names = list(self.run.params.as_dict())
+        fig, axes = self.plt.subplots(len(names), 1, figsize=(10, 2.6 * len(names)), sharex=True)
+        axes = np.atleast_1d(axes)
+        labels = {"a": "a (s/m)", "m": "m (-)", "b": "b (m/s)"}
+        for i, (ax, name) in enumerate(zip(axes, names, strict=True)):
+            est = self.run.theta[:, i]
+            self._sleeve(ax, est, self.run.theta_std[:, i], f"{name} estimate", labels[name])
+        axes[-1].set_xlabel("time since first sample (s, captures back to back)")
+        axes[0].set_title(f"KF-{self.settings.model}{self.frame} convergence: {self.title_pair}")
+        return [_save(fig, self.out / "convergence.png", self.plt)]
+
+    def current(self) -> list[Path]:
+        """3. The current over time (with current states)."""
+        run = self.run
+        if not (self.settings.current and run.current.size):
+            return []
+        fig, axes = self.plt.subplots(2, 1, figsize=(10, 5.2), sharex=True)
+        for i, (ax, name) in enumerate(zip(axes, ("north", "east"), strict=True)):
+            est = run.current[:, i]
+            self._sleeve(ax, est, run.current_std[:, i], f"current {name}", f"{name} (m/s)")
+        axes[-1].set_xlabel("time since first sample (s, captures back to back)")
+        axes[0].set_title(
+            f"KF-{self.settings.model} + current: the estimated current, {self.title_pair}"
+        )
+        return [_save(fig, self.out / "current.png", self.plt)]
+
+    def _sleeve(self, ax: Any, est: FloatArray, sd: FloatArray, label: str, ylabel: str) -> None:
+        """An estimate over time with its ±3σ sleeve."""
+        ax.plot(self.tt, est, lw=0.9, label=label)
+        ax.fill_between(self.tt, est - 3 * sd, est + 3 * sd, alpha=0.3, label="±3σ")
+        ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)
         ax.legend(**_OUTSIDE)
         _robust_ylim(ax, est)
-    axes[-1].set_xlabel("time since first sample (s, captures back to back)")
-    axes[0].set_title(f"KF-{model}{frame} convergence: {title_pair}")
-    written.append(_save(fig, out / "convergence.png", plt))
-    if progress is not None:
-        progress("report: convergence", 0.35)
 
-    # 3. the current over time
-    if settings.current and run.current.size:
-        fig, axes = plt.subplots(2, 1, figsize=(10, 5.2), sharex=True)
-        for i, (ax, name) in enumerate(zip(axes, ("north", "east"), strict=True)):
-            est = run.current[:, i]
-            sd = run.current_std[:, i]
-            ax.plot(tt, est, lw=0.9, label=f"current {name}")
-            ax.fill_between(tt, est - 3 * sd, est + 3 * sd, alpha=0.3, label="±3σ")
-            ax.set_ylabel(f"{name} (m/s)")
-            ax.grid(True, alpha=0.3)
-            ax.legend(**_OUTSIDE)
-            _robust_ylim(ax, est)
-        axes[-1].set_xlabel("time since first sample (s, captures back to back)")
-        axes[0].set_title(f"KF-{model} + current: the estimated current, {title_pair}")
-        written.append(_save(fig, out / "current.png", plt))
-    if progress is not None:
-        progress("report: current", 0.45)
-
-    # 4. NIS
-    nis = run.nis
-    ok = np.isfinite(nis)
-    fig, ax = plt.subplots(figsize=(10, 4))
-    ax.semilogy(tt[ok], np.maximum(nis[ok], 1e-6), ".", ms=1.5, alpha=0.4, label="NIS")
-    win = NIS_WINDOW
-    if ok.sum() > win:
-        running = np.convolve(nis[ok], np.ones(win) / win, mode="valid")
-        ax.semilogy(tt[ok][win - 1 :], running, lw=1.2, label=f"running mean, {win}-sample window")
-        lo, hi = chi2_mean_bounds(win)
-        ax.axhline(lo, color="k", ls=":", lw=0.8, label=f"95 % bounds of a {win}-mean")
-        ax.axhline(hi, color="k", ls=":", lw=0.8)
-    ax.axhline(chi2_1_quantile(0.975), color="r", ls="--", lw=0.8, label="χ²(1) 97.5 %")
-    ax.set_xlabel("time since first sample (s, captures back to back)")
-    ax.set_ylabel("NIS (-)")
-    ax.set_title(f"KF-{model}{frame} normalised innovation squared: {title_pair}")
-    ax.legend(**_OUTSIDE)
-    ax.grid(True, alpha=0.3)
-    written.append(_save(fig, out / "nis.png", plt))
-    if progress is not None:
-        progress("report: NIS", 0.55)
-
-    # 5. trajectory map
-    fig, ax = plt.subplots(figsize=(7, 7))
-    drawn = False
-    for r in recs:
-        track = _track(r)
-        if track is None:
-            continue
-        e, n = track
-        ax.plot(e, n, lw=0.8, label=r.name)
-        ax.plot(e[:1], n[:1], "ko", ms=3)
-        drawn = True
-    ax.set_xlabel("East (m)")
-    ax.set_ylabel("North (m)")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(f"Track over ground from {settings.reference_port} (each from its own start)")
-    if drawn:
+    def nis(self) -> list[Path]:
+        """4. The NIS per sample, its running mean and their bounds."""
+        nis, tt = self.run.nis, self.tt
+        ok = np.isfinite(nis)
+        fig, ax = self.plt.subplots(figsize=(10, 4))
+        ax.semilogy(tt[ok], np.maximum(nis[ok], 1e-6), ".", ms=1.5, alpha=0.4, label="NIS")
+        win = NIS_WINDOW
+        if ok.sum() > win:
+            running = np.convolve(nis[ok], np.ones(win) / win, mode="valid")
+            ax.semilogy(
+                tt[ok][win - 1 :], running, lw=1.2, label=f"running mean, {win}-sample window"
+            )
+            lo, hi = chi2_mean_bounds(win)
+            ax.axhline(lo, color="k", ls=":", lw=0.8, label=f"95 % bounds of a {win}-mean")
+            ax.axhline(hi, color="k", ls=":", lw=0.8)
+        ax.axhline(chi2_1_quantile(0.975), color="r", ls="--", lw=0.8, label="χ²(1) 97.5 %")
+        ax.set_xlabel("time since first sample (s, captures back to back)")
+        ax.set_ylabel("NIS (-)")
+        ax.set_title(
+            f"KF-{self.settings.model}{self.frame} normalised innovation squared: {self.title_pair}"
+        )
         ax.legend(**_OUTSIDE)
-    ax.grid(True, alpha=0.3)
-    written.append(_save(fig, out / "trajectory.png", plt))
-    if progress is not None:
-        progress("report: trajectory", 0.65)
+        ax.grid(True, alpha=0.3)
+        return [_save(fig, self.out / "nis.png", self.plt)]
 
-    # 6. cross-validation heat maps
-    if len(recs) >= 2:
-        result, _ = crossval(recs, settings, lag=lag_report.lag_s, workers=workers)
-        written.append(_heatmaps(result, out / "crossval.png", plt))
-    if progress is not None:
-        progress("report: cross-validation", 1.0)
-    return written
+    def trajectory(self, recs: Sequence[Recording]) -> list[Path]:
+        """5. The track over ground of every capture."""
+        fig, ax = self.plt.subplots(figsize=(7, 7))
+        drawn = False
+        for r in recs:
+            track = _track(r)
+            if track is None:
+                continue
+            e, n = track
+            ax.plot(e, n, lw=0.8, label=r.name)
+            ax.plot(e[:1], n[:1], "ko", ms=3)
+            drawn = True
+        ax.set_xlabel("East (m)")
+        ax.set_ylabel("North (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_title(
+            f"Track over ground from {self.settings.reference_port} (each from its own start)"
+        )
+        if drawn:
+            ax.legend(**_OUTSIDE)
+        ax.grid(True, alpha=0.3)
+        return [_save(fig, self.out / "trajectory.png", self.plt)]
+
+    def crossval(self, recs: Sequence[Recording], lag_s: float, workers: int | None) -> list[Path]:
+        """6. The cross-validation heat maps (with two captures or more)."""
+        if len(recs) < 2:
+            return []
+        result, _ = crossval(recs, self.settings, lag=lag_s, workers=workers)
+        return [_heatmaps(result, self.out / "crossval.png", self.plt)]
 
 
 def _robust_ylim(ax: Any, est: Any) -> None:

@@ -21,7 +21,13 @@ Physics (ship frame x forward, y starboard; heading ψ clockwise from north):
 speed through water = ground velocity − current, resolved in the body frame. The
 EMlogs see the surge speed through the water through their error model
 ``raw = a·u² + (1+m)·u + b`` plus white noise, delayed by their latency and
-quantised to 0.01 kn by the two-decimal NMEA field. The DVL bottom track sees the
+quantised to 0.01 kn by the two-decimal NMEA field. ``emlog2``'s VBW carries the
+athwart speed too, ``(1 + m_t)·w + b_t`` (the transverse scale ``m_t`` is ``m``
+unless given); a sensor turned by a misalignment α (``--sensor
+emlog2:misalign=DEG``) reads the water's velocity on its own axes,
+``u·cos α + w·sin α`` forward (VHW and VBW) and ``−u·sin α + w·cos α`` athwart
+(:class:`calib.twoaxis.TwoAxisParams`). With no misalignment and no transverse error
+given the bytes are those of a trial without them. The DVL bottom track sees the
 ground velocity in the ship frame, i.e. surge and sway *plus the current* — the
 contamination the paper discusses — with millimetre noise and no latency (it is
 the time reference: the truth latencies are relative to it).
@@ -39,248 +45,136 @@ drawn after the other ports', so adding it left the EMlog and DVL bytes as they 
 
 Next to the captures, ``truth.yaml`` (the sensors' true error models and latencies,
 per-trajectory figures) and ``truth.csv.gz`` (the truth per sample at 10 Hz: true
-speed through the water along the hull, heading, current, bottom lock), which
+speed through the water along and athwart the hull, heading, current, bottom lock), which
 :func:`read_truth` reads and :func:`score_truth` scores speeds against.
 
 Every file, the truth files included, is a pure function of the arguments: two runs
 give identical bytes.
+
+The motion is in :mod:`emlogd.offline.simkinematics`, the sensors and their faults in
+:mod:`emlogd.offline.simsensors`, the truth files and the scoring in
+:mod:`emlogd.offline.simtruth`; this module writes the trial and exports their names.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import gzip
-import io
 import math
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 import yaml
 
-from calib.metrics import ImoVerdict, imo_verdict
-from calib.models import FloatArray, Params, check_model, correct_array, forward_array
-from drivers.errors import EmlogdError
+from calib.models import FloatArray, correct_array
 from drivers.io.capture import CaptureWriter
-from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
-from drivers.records import KNOT_MPS
 from emlogd.offline import ProgressFn
-from emlogd.offline.simfaults import SensorFault, SwitchingCurrent
-
-DvlFormat = Literal["pd6", "pd0"]
-TrajectoryKind = Literal["transit", "figure-8", "straight", "circles", "return"]
-CirclesMode = Literal["steps", "constant"]
-
-START_EPOCH_S = 1749715200.0
-"""The trial starts 2025-06-12 08:00:00 UTC (any fixed time: files are reproducible)."""
-
-GAP_S = 300.0
-"""Idle time between two trajectories, s (scaled with ``scale``)."""
-
-DT_S = 0.05
-"""Integration step of the kinematics, s."""
-
-FIGURE8_SWING_RAD = 2.404825557695773
-"""Heading swing of the figure-8, the first zero of the Bessel function J0."""
-
-
-@dataclass(frozen=True, slots=True)
-class TrajectorySpec:
-    """One trajectory of the trial (paper section IV-B).
-
-    Attributes:
-        index: 1-based order in the trial (and the file name prefix).
-        kind: trajectory type.
-        duration_min: duration at ``scale = 1``, minutes.
-        mean_mps: target mean speed through the water, m/s.
-    """
-
-    index: int
-    kind: TrajectoryKind
-    duration_min: float
-    mean_mps: float
-
-    @property
-    def filename(self) -> str:
-        """The capture file name, e.g. ``2-figure8.cap``."""
-        return f"{self.index}-{self.kind.replace('-', '')}.cap"
-
-
-TRAJECTORIES: tuple[TrajectorySpec, ...] = (
-    TrajectorySpec(1, "transit", 125.0, 1.95),
-    TrajectorySpec(2, "figure-8", 27.0, 1.48),
-    TrajectorySpec(3, "straight", 15.0, 1.59),
-    TrajectorySpec(4, "circles", 24.0, 1.85),
-    TrajectorySpec(5, "return", 30.0, 1.37),
+from emlogd.offline.simfaults import SwitchingCurrent
+from emlogd.offline.simkinematics import (
+    DT_S,
+    FIGURE8_SWING_RAD,
+    GAP_S,
+    START_EPOCH_S,
+    TRAJECTORIES,
+    CirclesMode,
+    Kinematics,
+    TrajectoryKind,
+    TrajectorySpec,
+    interp,
+    kinematics,
+)
+from emlogd.offline.simsensors import (
+    DVL_BAUD,
+    DVL_NOISE_MPS,
+    DVL_PORT,
+    EARTH_RADIUS_M,
+    EMLOG1,
+    EMLOG2,
+    FAULT_RATES,
+    GNSS_BAUD,
+    GNSS_LAG_S,
+    GNSS_NOISE_MPS,
+    GNSS_ORIGIN_DEG,
+    GNSS_OUTPUT_DELAY_S,
+    GNSS_PORT,
+    SENSOR_LIMITS,
+    DvlFormat,
+    EmlogSpec,
+    Faults,
+    Line,
+    bottom_lock,
+    check_emlog,
+    dvl_lines,
+    emlog_lines,
+    gnss_lines,
+    with_sensor,
+)
+from emlogd.offline.simtruth import (
+    TRUTH_COLUMNS,
+    TRUTH_CSV,
+    TRUTH_RATE_HZ,
+    TRUTH_STEP,
+    TrajectoryTruth,
+    Truth,
+    TruthError,
+    TruthScore,
+    read_truth,
+    ref_at,
+    rmse,
+    score_truth,
+    truth_rows,
+    write_truth_csv,
 )
 
+__all__ = [
+    "DT_S",
+    "DVL_BAUD",
+    "DVL_NOISE_MPS",
+    "DVL_PORT",
+    "EARTH_RADIUS_M",
+    "EMLOG1",
+    "EMLOG2",
+    "FAULT_RATES",
+    "FIGURE8_SWING_RAD",
+    "GAP_S",
+    "GNSS_BAUD",
+    "GNSS_LAG_S",
+    "GNSS_NOISE_MPS",
+    "GNSS_ORIGIN_DEG",
+    "GNSS_OUTPUT_DELAY_S",
+    "GNSS_PORT",
+    "MAX_CURRENT_MPS",
+    "SENSOR_LIMITS",
+    "START_EPOCH_S",
+    "TRAJECTORIES",
+    "TRUTH_COLUMNS",
+    "TRUTH_CSV",
+    "TRUTH_RATE_HZ",
+    "TRUTH_STEP",
+    "CirclesMode",
+    "DvlFormat",
+    "EmlogSpec",
+    "Kinematics",
+    "SimulationResult",
+    "TrajectoryKind",
+    "TrajectorySpec",
+    "TrajectoryTruth",
+    "Truth",
+    "TruthError",
+    "TruthScore",
+    "check_emlog",
+    "kinematics",
+    "read_truth",
+    "score_truth",
+    "simulate",
+    "with_sensor",
+]
 
-@dataclass(frozen=True, slots=True)
-class EmlogSpec:
-    """A simulated EMlog.
-
-    Attributes:
-        port: capture port name.
-        params: the true error model (measured = f(true)).
-        latency_s: delay of the reading behind the truth, s.
-        noise_mps: white noise on each reading, m/s (1σ).
-        baud: serial rate, bit/s (sets the transmission delay).
-        talker: NMEA talker ID.
-    """
-
-    port: str
-    params: Params
-    latency_s: float
-    noise_mps: float
-    baud: int
-    talker: str
-    fault: SensorFault | None = None
-    """A fault injected into the readings (:mod:`emlogd.offline.simfaults`)."""
-
-
-EMLOG1 = EmlogSpec("emlog1", Params("EM4", 0.03, 0.17, 0.12), 3.2, 0.03, 4800, "VW")
-EMLOG2 = EmlogSpec("emlog2", Params("EM4", -0.02, -0.11, -0.05), 0.45, 0.05, 38400, "VM")
-SENSOR_LIMITS = {
-    "a": (-0.2, 0.2),
-    "m": (-0.5, 0.5),
-    "b": (-1.0, 1.0),
-    "latency": (0.0, 8.0),
-    "noise": (0.0, 0.5),
-}
-"""The ranges :func:`check_emlog` accepts: curvature a (s/m), scale m, bias b (m/s),
-latency (s, within the default ``max_lag_s`` of 10 s with room for the lag search's
-reach) and white noise (m/s, 1σ); ``emlogd simulate --sensor`` names them so."""
-
-
-def _sensor_values(e: EmlogSpec) -> dict[str, float]:
-    """The values :data:`SENSOR_LIMITS` names, of one EMlog."""
-    p = e.params
-    return {"a": p.a_spm, "m": p.m, "b": p.b_mps, "latency": e.latency_s, "noise": e.noise_mps}
-
-
-def check_emlog(e: EmlogSpec) -> None:
-    """Refuse an EMlog outside :data:`SENSOR_LIMITS`.
-
-    Raises:
-        ValueError: naming the value and its range.
-    """
-    for name, x in _sensor_values(e).items():
-        lo, hi = SENSOR_LIMITS[name]
-        if not (math.isfinite(x) and lo <= x <= hi):
-            raise ValueError(f"{e.port} {name} must be within [{lo:g}, {hi:g}], not {x!r}")
-
-
-def with_sensor(e: EmlogSpec, given: Mapping[str, float]) -> EmlogSpec:
-    """``e`` with some of the values :data:`SENSOR_LIMITS` names replaced (its EM4
-    error model, latency, noise), checked by :func:`check_emlog`.
-
-    Raises:
-        ValueError: a name :data:`SENSOR_LIMITS` does not know, or a value outside it.
-    """
-    for key in given:
-        if key not in SENSOR_LIMITS:
-            raise ValueError(f"{key!r}: expected KEY=V with KEY one of {', '.join(SENSOR_LIMITS)}")
-    v = _sensor_values(e) | dict(given)
-    new = dataclasses.replace(
-        e,
-        params=Params("EM4", v["a"], v["m"], v["b"]),
-        latency_s=v["latency"],
-        noise_mps=v["noise"],
-    )
-    check_emlog(new)
-    return new
-
-
-DVL_PORT = "dvl"
-DVL_BAUD = 115200
-DVL_NOISE_MPS = 0.01
-"""DVL bottom-track noise per axis, m/s (1σ), before the 1 mm/s quantisation."""
-
-GNSS_PORT = "gnss"
-GNSS_BAUD = 9600
-GNSS_NOISE_MPS = 0.05
-"""GNSS velocity noise on each of east and north, m/s (1σ): SOG σ ≈ 0.05 m/s, COG σ ≈
-0.05/SOG rad."""
-GNSS_LAG_S = 0.6
-"""Age of the GNSS velocity at its fix time, s (the receiver's filter)."""
-GNSS_OUTPUT_DELAY_S = 0.1
-"""Time from the fix to the first byte of its RMC, s. With the 9600-baud transmission
-the reference reaches the receiver about 0.78 s behind the truth."""
-GNSS_ORIGIN_DEG = (43.1, 5.9)
-"""Latitude and longitude of every trajectory's start (positions in the RMC)."""
-EARTH_RADIUS_M = 6_371_000.0
 
 MAX_CURRENT_MPS = 3.0
 """Largest current component :func:`simulate` accepts, m/s."""
-
-TRUTH_CSV = "truth.csv.gz"
-TRUTH_COLUMNS = (
-    "t",
-    "trajectory",
-    "stw_mps",
-    "heading_deg",
-    "current_n_mps",
-    "current_e_mps",
-    "bottom_lock",
-)
-"""Columns of the truth per sample: receive-clock time (epoch s), trajectory index
-(1–5), true speed through the water along the hull (m/s), heading (degrees true),
-sea current north and east (m/s), DVL bottom lock (0/1)."""
-TRUTH_STEP = 2
-"""Every second integration step goes to the truth CSV."""
-TRUTH_RATE_HZ = 1.0 / (DT_S * TRUTH_STEP)
-
-FAULT_RATES: dict[str, float] = {
-    "corrupt": 2e-4,
-    "truncate": 2e-4,
-    "noise_burst": 1e-4,
-    "dropout": 5e-4,
-}
-"""Per-line (per-ensemble for PD0) fault probabilities."""
-
-
-@dataclass(slots=True)
-class TrajectoryTruth:
-    """What really happened during one trajectory (written to truth.yaml)."""
-
-    name: str
-    file: str
-    t_start: float
-    duration_s: float
-    mean_stw_mps: float
-    std_stw_mps: float
-    mean_sog_mps: float
-    max_current_mps: float
-    bottom_lock_fraction: float
-    lines: dict[str, int] = field(default_factory=dict)
-    faults: dict[str, int] = field(default_factory=dict)
-    rmse_raw_mps: dict[str, float] = field(default_factory=dict)
-    rmse_best_mps: dict[str, float] = field(default_factory=dict)
-    rmse_floor_mps: dict[str, float] = field(default_factory=dict)
-
-    def as_dict(self) -> dict[str, object]:
-        """Plain types for YAML."""
-        return {
-            "name": self.name,
-            "file": self.file,
-            "t_start": self.t_start,
-            "duration_s": round(self.duration_s, 3),
-            "mean_stw_mps": round(self.mean_stw_mps, 4),
-            "std_stw_mps": round(self.std_stw_mps, 4),
-            "mean_sog_mps": round(self.mean_sog_mps, 4),
-            "max_current_mps": round(self.max_current_mps, 4),
-            "bottom_lock_fraction": round(self.bottom_lock_fraction, 4),
-            "lines": dict(self.lines),
-            "faults": dict(self.faults),
-            "rmse_raw_mps": {k: round(v, 4) for k, v in self.rmse_raw_mps.items()},
-            "rmse_best_mps": {k: round(v, 4) for k, v in self.rmse_best_mps.items()},
-            "rmse_floor_mps": {k: round(v, 4) for k, v in self.rmse_floor_mps.items()},
-        }
 
 
 @dataclass(frozen=True, slots=True)
@@ -300,376 +194,6 @@ class SimulationResult:
     truth_path: Path
     trajectories: tuple[TrajectoryTruth, ...]
     elapsed_s: float
-
-
-# ------------------------------------------------------------------ kinematics
-
-
-@dataclass(frozen=True, slots=True)
-class Kinematics:
-    """The vessel's motion on the integration grid (all arrays shape (N,))."""
-
-    t: FloatArray
-    """Time since the trajectory start, s."""
-    surge: FloatArray
-    """Speed through the water along the hull, m/s."""
-    sway: FloatArray
-    """Speed through the water to starboard, m/s."""
-    heading: FloatArray
-    """Heading, rad clockwise from north."""
-    current_e: FloatArray
-    current_n: FloatArray
-    """Sea current, m/s east and north."""
-
-    def ground_ship(self) -> tuple[FloatArray, FloatArray]:
-        """Velocity over ground in the ship frame (forward, starboard), m/s."""
-        s, c = np.sin(self.heading), np.cos(self.heading)
-        fwd = self.surge + self.current_e * s + self.current_n * c
-        stb = self.sway + self.current_e * c - self.current_n * s
-        return fwd, stb
-
-    def position(self) -> tuple[FloatArray, FloatArray]:
-        """East and north position over ground, m, from the start."""
-        s, c = np.sin(self.heading), np.cos(self.heading)
-        ve = self.surge * s + self.sway * c + self.current_e
-        vn = self.surge * c - self.sway * s + self.current_n
-        return np.cumsum(ve) * DT_S, np.cumsum(vn) * DT_S
-
-
-def _lowpass(x: FloatArray, tau_s: float) -> FloatArray:
-    """First-order lag (the hull's response to a throttle or rudder command)."""
-    alpha = DT_S / (tau_s + DT_S)
-    out = np.empty_like(x)
-    acc = float(x[0])
-    for i, xi in enumerate(x.tolist()):
-        acc += alpha * (xi - acc)
-        out[i] = acc
-    return out
-
-
-def _steps(
-    t: FloatArray, rng: np.random.Generator, period_s: float, levels: FloatArray
-) -> FloatArray:
-    """A piecewise-constant command changing level every ~period_s."""
-    n_changes = max(1, int(t[-1] / period_s) + 2)
-    times = np.cumsum(rng.uniform(0.6, 1.4, n_changes) * period_s)
-    values = rng.choice(levels, n_changes + 1)
-    return np.asarray(values[np.searchsorted(times, t)], dtype=np.float64)
-
-
-def kinematics(
-    spec: TrajectorySpec,
-    duration_s: float,
-    rng: np.random.Generator,
-    *,
-    current: tuple[float, float] | None = None,
-    circles: CirclesMode = "steps",
-) -> Kinematics:
-    """Integrate surge, heading and sideslip for one trajectory.
-
-    The random draws do not depend on ``current`` or ``circles``: the other options
-    and every sensor stream stay the same when only these change.
-
-    Args:
-        spec: the trajectory.
-        duration_s: its (scaled) duration, s.
-        rng: random generator.
-        current: a constant sea current (north, east), m/s; None: the slowly varying
-            current (a base vector plus tidal-like wander, at most 0.3 m/s).
-        circles: ``steps`` (the loops at three throttle settings) or ``constant`` (at
-            one commanded speed, the paper's recommendation for the current).
-
-    Returns:
-        The motion on a :data:`DT_S` grid.
-    """
-    n = max(2, round(duration_s / DT_S))
-    t = np.arange(n, dtype=np.float64) * DT_S
-    mean = spec.mean_mps
-    ph = rng.uniform(0.0, 2.0 * math.pi, 4)
-    kind = spec.kind
-    if kind == "figure-8":
-        # ~90 s cycle: a loop to port then one to starboard; speed dips in each turn.
-        # Heading psi = c + A sin(wt) with A = 2.405 rad, the first zero of J0: the
-        # mean of the unit heading vector over a cycle is J0(A) = 0, so the eight
-        # closes on itself instead of creeping along the course.
-        omega = 2.0 * math.pi / 90.0
-        rate = FIGURE8_SWING_RAD * omega * np.cos(omega * t + ph[0])
-        u_cmd = mean + 0.35 - 0.7 * np.cos(omega * t + ph[0]) ** 2
-    elif kind == "circles":
-        # full loops of ~2 min at three throttle settings
-        rate = np.full(n, 2.0 * math.pi / 120.0)
-        u_cmd = mean + _steps(t, rng, 240.0, np.array([-0.3, 0.0, 0.3]))
-        if circles == "constant":
-            u_cmd = np.full(n, mean)
-    elif kind == "straight":
-        rate = 0.002 * np.sin(2.0 * math.pi * t / 60.0 + ph[0])
-        u_cmd = mean + 0.02 * np.sin(2.0 * math.pi * t / 120.0 + ph[1])
-    else:  # transit and return: course changes and throttle changes
-        rate = _steps(t, rng, 480.0, np.array([0.0, 0.0, 0.0, -0.02, 0.02]))
-        rate = np.where(_steps(t, rng, 45.0, np.array([0.0, 1.0])) > 0.0, rate, 0.0)
-        levels = np.array([-0.45, -0.25, 0.0, 0.25, 0.45]) * (1.0 if kind == "transit" else 0.8)
-        u_cmd = (
-            mean + _steps(t, rng, 300.0, levels) + 0.08 * np.sin(2.0 * math.pi * t / 97.0 + ph[1])
-        )
-    surge = _lowpass(np.maximum(u_cmd, 0.2), 5.0)
-    surge *= mean / float(np.mean(surge))  # hit the paper's mean speed
-    rate = _lowpass(rate, 3.0)
-    heading = np.mod(rng.uniform(0.0, 2.0 * math.pi) + np.cumsum(rate) * DT_S, 2.0 * math.pi)
-    sway = -0.6 * rate * surge  # sideslip in turns: the stern swings out
-    # A slowly varying current: a base vector plus tidal-like wander, |c| <= 0.3 m/s.
-    base = rng.uniform(0.08, 0.2)
-    direction = rng.uniform(0.0, 2.0 * math.pi)
-    wander = 0.08 * np.sin(2.0 * math.pi * t / 2400.0 + ph[2])
-    turn = direction + 0.5 * np.sin(2.0 * math.pi * t / 3600.0 + ph[3])
-    mag = np.clip(base + wander, 0.0, 0.3)
-    if current is not None:
-        c_n, c_e = current
-        return Kinematics(t, surge, sway, heading, np.full(n, c_e), np.full(n, c_n))
-    return Kinematics(t, surge, sway, heading, mag * np.sin(turn), mag * np.cos(turn))
-
-
-def _bottom_lock(t: FloatArray, rng: np.random.Generator) -> npt.NDArray[np.bool_]:
-    """Bottom lock as a two-state Markov chain (mean 10 min locked, 25 s lost)."""
-    lock = np.ones(t.size, dtype=bool)
-    now = float(rng.exponential(600.0))
-    while now < t[-1]:
-        lost = float(rng.uniform(8.0, 45.0))
-        lock[(t >= now) & (t < now + lost)] = False
-        now += lost + float(rng.exponential(600.0))
-    return lock
-
-
-# ------------------------------------------------------------------ sensors
-
-
-@dataclass(slots=True)
-class _Line:
-    t: float
-    port: str
-    data: bytes
-    binary: bool
-
-
-@dataclass(slots=True)
-class _Faults:
-    rng: np.random.Generator
-    counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FAULT_RATES, 0))
-
-    def text(self, line: str) -> bytes | None:
-        """Apply at most one fault to a text line; None means dropped. Returns the wire bytes."""
-        u = float(self.rng.random())
-        raw = line.encode("ascii")
-        edge = 0.0
-        for kind, p in FAULT_RATES.items():
-            edge += p
-            if u >= edge:
-                continue
-            self.counts[kind] += 1
-            if kind == "dropout":
-                return None
-            if kind == "corrupt":
-                i = int(self.rng.integers(1, max(2, len(raw) - 3)))
-                b = bytearray(raw)
-                b[i] = ord("#") if b[i] != ord("#") else ord("%")
-                return bytes(b) + b"\r\n"
-            if kind == "truncate":
-                return raw[: int(self.rng.integers(1, len(raw)))] + b"\r\n"
-            noise = bytes(self.rng.integers(0, 256, int(self.rng.integers(3, 40)), dtype=np.uint8))
-            return noise + raw + b"\r\n"
-        return raw + b"\r\n"
-
-    def binary(self, chunk: bytes) -> bytes | None:
-        """Apply at most one fault to a binary ensemble."""
-        u = float(self.rng.random())
-        edge = 0.0
-        for kind, p in FAULT_RATES.items():
-            edge += p
-            if u >= edge:
-                continue
-            self.counts[kind] += 1
-            if kind == "dropout":
-                return None
-            b = bytearray(chunk)
-            if kind == "corrupt":
-                b[int(self.rng.integers(2, len(b)))] ^= 0x5A
-                return bytes(b)
-            if kind == "truncate":
-                return bytes(b[: int(self.rng.integers(1, len(b)))])
-            noise = bytes(self.rng.integers(0, 256, int(self.rng.integers(3, 40)), dtype=np.uint8))
-            return noise + bytes(b)
-        return chunk
-
-
-def _interp(k: Kinematics, x: FloatArray, at: FloatArray) -> FloatArray:
-    return np.asarray(np.interp(at, k.t, x), dtype=np.float64)
-
-
-def _emlog_lines(
-    emlog: EmlogSpec,
-    k: Kinematics,
-    t0: float,
-    rng: np.random.Generator,
-    faults: _Faults,
-    out: list[_Line],
-) -> tuple[FloatArray, FloatArray]:
-    """Emit an EMlog's sentences; return (sample times, raw readings in m/s) of its STW series."""
-    p = emlog.params
-    period_vhw = 1.0 if emlog.port == "emlog1" else 0.2
-    phase = float(rng.uniform(0.0, period_vhw))
-    t_vhw = np.arange(phase + emlog.latency_s, k.t[-1], period_vhw)
-    true_u = _interp(k, k.surge, t_vhw - emlog.latency_s)
-    raw = forward_array(p, true_u) + rng.normal(0.0, emlog.noise_mps, t_vhw.size)
-    if emlog.fault is not None:
-        raw = emlog.fault.apply(t0 - START_EPOCH_S + t_vhw - emlog.latency_s, raw, round(t0))
-    # the sentence carries two decimals of knots: the receiver sees the quantised value
-    raw = np.round(raw / KNOT_MPS, 2) * KNOT_MPS
-    byte_s = 10.0 / emlog.baud
-    jitter = rng.uniform(0.0, 0.005, t_vhw.size)
-    for ti, vi, ji in zip(t_vhw.tolist(), raw.tolist(), jitter.tolist(), strict=True):
-        line = encode_vhw(vi, talker=emlog.talker)
-        wire = faults.text(line)
-        if wire is not None:
-            out.append(_Line(t0 + ti + len(wire) * byte_s + ji, emlog.port, wire, False))
-    if emlog.port == "emlog2":
-        t_vbw = np.arange(phase + 0.05 + emlog.latency_s, k.t[-1], 0.1)
-        u = _interp(k, k.surge, t_vbw - emlog.latency_s)
-        w = _interp(k, k.sway, t_vbw - emlog.latency_s)
-        long_ = forward_array(p, u) + rng.normal(0.0, emlog.noise_mps, t_vbw.size)
-        if emlog.fault is not None:
-            long_ = emlog.fault.apply(
-                t0 - START_EPOCH_S + t_vbw - emlog.latency_s, long_, round(t0) + 1
-            )
-        trans = (1.0 + p.m) * w + rng.normal(0.0, emlog.noise_mps, t_vbw.size)
-        jit = rng.uniform(0.0, 0.005, t_vbw.size)
-        for ti, li, tr, ji in zip(
-            t_vbw.tolist(), long_.tolist(), trans.tolist(), jit.tolist(), strict=True
-        ):
-            line = encode_vbw(li, tr, talker=emlog.talker)
-            wire = faults.text(line)
-            if wire is not None:
-                out.append(_Line(t0 + ti + len(wire) * byte_s + ji, emlog.port, wire, False))
-    return t_vhw, raw
-
-
-def _dvl_lines(
-    k: Kinematics,
-    lock: npt.NDArray[np.bool_],
-    t0: float,
-    rng: np.random.Generator,
-    faults: _Faults,
-    out: list[_Line],
-    dvl_format: DvlFormat,
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
-    """Emit the DVL ensembles; return (times, measured longitudinal m/s, valid)."""
-    from drivers.rdi_ascii import encode_pd6
-
-    if dvl_format == "pd0":
-        from drivers.rdi_pd0 import encode_pd0
-    t_ens = np.arange(float(rng.uniform(0.0, 0.1)), k.t[-1], 0.1)
-    fwd, stb = k.ground_ship()
-    f = np.round(_interp(k, fwd, t_ens) + rng.normal(0.0, DVL_NOISE_MPS, t_ens.size), 3)
-    s = np.round(_interp(k, stb, t_ens) + rng.normal(0.0, DVL_NOISE_MPS, t_ens.size), 3)
-    heading = np.degrees(np.interp(t_ens, k.t, np.unwrap(k.heading))) % 360.0
-    valid = np.interp(t_ens, k.t, lock.astype(np.float64)) > 0.5
-    depth = 25.0 + 10.0 * np.sin(2.0 * math.pi * (t0 + t_ens) / 1800.0)
-    byte_s = 10.0 / DVL_BAUD
-    jitter = rng.uniform(0.0, 0.005, t_ens.size)
-    for i, ti in enumerate(t_ens.tolist()):
-        stamp = datetime.fromtimestamp(t0 + ti, UTC)
-        ok = bool(valid[i])
-        vel = (float(f[i]), float(s[i])) if ok else None
-        rng_m = float(depth[i]) if ok else None
-        t_rx = t0 + ti + float(jitter[i])
-        if dvl_format == "pd0":
-            chunk = encode_pd0(
-                ensemble_number=i + 1,
-                timestamp=stamp,
-                heading_deg=float(heading[i]),
-                bottom_ship_mps=vel,
-                range_m=rng_m,
-            )
-            wire = faults.binary(chunk)
-            if wire is not None:
-                out.append(_Line(t_rx + len(wire) * byte_s, DVL_PORT, wire, True))
-            continue
-        lines = encode_pd6(
-            timestamp=stamp,
-            heading_deg=float(heading[i]),
-            bottom_ship_mps=None if vel is None else (vel[1], vel[0], 0.0),
-            range_m=rng_m,
-        )
-        sent = 0
-        for line in lines:
-            wire = faults.text(line)
-            if wire is None:
-                continue
-            sent += len(wire)
-            out.append(_Line(t_rx + sent * byte_s, DVL_PORT, wire, False))
-    return t_ens, f, valid
-
-
-def _gnss_lines(
-    k: Kinematics,
-    t0: float,
-    rng: np.random.Generator,
-    faults: _Faults,
-    out: list[_Line],
-) -> int:
-    """Emit the GNSS receiver's RMC sentences at 1 Hz; return how many fixes were made.
-
-    Fixes fall on whole UTC seconds. The velocity is the ground velocity of
-    :data:`GNSS_LAG_S` earlier (the receiver's filter) plus white noise of
-    :data:`GNSS_NOISE_MPS` on each of east and north: SOG is off by about that σ and
-    COG by about σ/SOG rad, which grows at low speed. The sentence leaves
-    :data:`GNSS_OUTPUT_DELAY_S` after the fix, at :data:`GNSS_BAUD`.
-    """
-    first = math.ceil(t0) - t0
-    t_fix = np.arange(first, k.t[-1], 1.0)
-    s, c = np.sin(k.heading), np.cos(k.heading)
-    ve = k.surge * s + k.sway * c + k.current_e
-    vn = k.surge * c - k.sway * s + k.current_n
-    at = t_fix - GNSS_LAG_S
-    ve_f = _interp(k, ve, at) + rng.normal(0.0, GNSS_NOISE_MPS, t_fix.size)
-    vn_f = _interp(k, vn, at) + rng.normal(0.0, GNSS_NOISE_MPS, t_fix.size)
-    sog = np.hypot(ve_f, vn_f)
-    cog = np.degrees(np.arctan2(ve_f, vn_f)) % 360.0
-    east, north = k.position()
-    lat = GNSS_ORIGIN_DEG[0] + np.degrees(_interp(k, north, at) / EARTH_RADIUS_M)
-    lon = GNSS_ORIGIN_DEG[1] + np.degrees(
-        _interp(k, east, at) / (EARTH_RADIUS_M * math.cos(math.radians(GNSS_ORIGIN_DEG[0])))
-    )
-    byte_s = 10.0 / GNSS_BAUD
-    jitter = rng.uniform(0.0, 0.005, t_fix.size)
-    for i, ti in enumerate(t_fix.tolist()):
-        line = encode_rmc(
-            datetime.fromtimestamp(round(t0 + ti), UTC),
-            float(sog[i]),
-            float(cog[i]),
-            lat_deg=float(lat[i]),
-            lon_deg=float(lon[i]),
-        )
-        wire = faults.text(line)
-        if wire is not None:
-            t_rx = t0 + ti + GNSS_OUTPUT_DELAY_S + len(wire) * byte_s + float(jitter[i])
-            out.append(_Line(t_rx, GNSS_PORT, wire, False))
-    return int(t_fix.size)
-
-
-def _rmse(a: FloatArray, b: FloatArray) -> float:
-    d = a - b
-    return float(math.sqrt(float(np.mean(d * d)))) if d.size else math.nan
-
-
-def _ref_at(
-    t_ref: FloatArray, v_ref: FloatArray, ok: npt.NDArray[np.bool_], t: FloatArray
-) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-    """Reference interpolated at ``t``; usable where both neighbours are valid."""
-    idx = np.clip(np.searchsorted(t_ref, t), 1, t_ref.size - 1)
-    usable = ok[idx] & ok[idx - 1] & (t >= t_ref[0]) & (t <= t_ref[-1])
-    return np.asarray(np.interp(t, t_ref, v_ref), dtype=np.float64), usable
-
-
-# ------------------------------------------------------------------ the trial
 
 
 def simulate(
@@ -712,26 +236,7 @@ def simulate(
             a current that is not finite or beyond ±3 m/s, or an EMlog outside the
             ranges of :func:`check_emlog` or on another port.
     """
-    if not 0.0 < scale <= 10.0:
-        raise ValueError(f"scale must be in (0, 10], not {scale}")
-    if dvl_format not in ("pd6", "pd0"):
-        raise ValueError(f"dvl_format must be 'pd6' or 'pd0', not {dvl_format!r}")
-    if circles not in ("steps", "constant"):
-        raise ValueError(f"circles must be 'steps' or 'constant', not {circles!r}")
-    if current is not None and not all(
-        math.isfinite(c) and abs(c) <= MAX_CURRENT_MPS for c in current
-    ):
-        raise ValueError(
-            f"current (north, east) must be finite and within ±{MAX_CURRENT_MPS:g} m/s, "
-            f"not {current}"
-        )
-    if tuple(e.port for e in emlogs) != (EMLOG1.port, EMLOG2.port):
-        raise ValueError(
-            f"the EMlogs are ports {EMLOG1.port} and {EMLOG2.port}, in that order, "
-            f"not {[e.port for e in emlogs]}"
-        )
-    for e in emlogs:
-        check_emlog(e)
+    _check_arguments(scale, dvl_format, circles, current, emlogs)
     started = time.perf_counter()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -751,14 +256,14 @@ def simulate(
         if current_switch is not None:
             c_n, c_e = current_switch.at(t0 - START_EPOCH_S + k.t)
             k = dataclasses.replace(k, current_n=c_n, current_e=c_e)
-        lock = _bottom_lock(k.t, rng)
-        faults = _Faults(np.random.default_rng(rng.integers(2**63)))
-        lines: list[_Line] = []
-        series = {e.port: _emlog_lines(e, k, t0, rng, faults, lines) for e in emlogs}
-        t_ref, v_ref, ok = _dvl_lines(k, lock, t0, rng, faults, lines, dvl_format)
-        _gnss_lines(k, t0, gnss_rng, faults, lines)  # last: earlier ports' faults stay put
+        lock = bottom_lock(k.t, rng)
+        faults = Faults(np.random.default_rng(rng.integers(2**63)))
+        lines: list[Line] = []
+        series = {e.port: emlog_lines(e, k, t0, rng, faults, lines) for e in emlogs}
+        t_ref, v_ref, ok = dvl_lines(k, lock, t0, rng, faults, lines, dvl_format)
+        gnss_lines(k, t0, gnss_rng, faults, lines)  # last: earlier ports' faults stay put
         lines.sort(key=lambda ln: ln.t)
-        rows.append(_truth_rows(spec.index, k, lock, t0))
+        rows.append(truth_rows(spec.index, k, lock, t0))
         path = out / spec.filename
         counts = dict.fromkeys(ports, 0)
         with CaptureWriter(path, ports) as writer:
@@ -788,11 +293,11 @@ def simulate(
         )
         for e in emlogs:
             t_s, raw = series[e.port]
-            ref, usable = _ref_at(t_ref, v_ref, ok, t_s - e.latency_s)
-            truth.rmse_raw_mps[e.port] = _rmse(raw[usable], ref[usable])
-            truth.rmse_best_mps[e.port] = _rmse(correct_array(e.params, raw[usable]), ref[usable])
-            stw = _interp(k, k.surge, t_s - e.latency_s)
-            truth.rmse_floor_mps[e.port] = _rmse(correct_array(e.params, raw), stw)
+            ref, usable = ref_at(t_ref, v_ref, ok, t_s - e.latency_s)
+            truth.rmse_raw_mps[e.port] = rmse(raw[usable], ref[usable])
+            truth.rmse_best_mps[e.port] = rmse(correct_array(e.params, raw[usable]), ref[usable])
+            stw = interp(k, k.surge, t_s - e.latency_s)
+            truth.rmse_floor_mps[e.port] = rmse(correct_array(e.params, raw), stw)
         truths.append(truth)
         files.append(path)
         t0 += duration + GAP_S * scale
@@ -800,7 +305,7 @@ def simulate(
             on_written(truth, path)
         if progress is not None:
             progress(f"simulate: {spec.filename}", spec.index / len(TRAJECTORIES))
-    _write_truth_csv(out / TRUTH_CSV, np.concatenate(rows))
+    write_truth_csv(out / TRUTH_CSV, np.concatenate(rows))
     truth_path = out / "truth.yaml"
     doc = {
         "schema": 1,
@@ -825,6 +330,9 @@ def simulate(
                 "noise_mps": e.noise_mps,
                 "baud": e.baud,
                 "talker": e.talker,
+                "misalign_deg": e.misalign_deg,
+                "m_t": e.two_axis.m_t,
+                "b_t_mps": e.b_t_mps,
             }
             for e in emlogs
         }
@@ -856,208 +364,38 @@ def simulate(
     )
 
 
+def _check_arguments(
+    scale: float,
+    dvl_format: str,
+    circles: str,
+    current: tuple[float, float] | None,
+    emlogs: tuple[EmlogSpec, EmlogSpec],
+) -> None:
+    """Refuse what :func:`simulate` refuses (its ``Raises``), naming the argument."""
+    if not 0.0 < scale <= 10.0:
+        raise ValueError(f"scale must be in (0, 10], not {scale}")
+    if dvl_format not in ("pd6", "pd0"):
+        raise ValueError(f"dvl_format must be 'pd6' or 'pd0', not {dvl_format!r}")
+    if circles not in ("steps", "constant"):
+        raise ValueError(f"circles must be 'steps' or 'constant', not {circles!r}")
+    if current is not None and not all(
+        math.isfinite(c) and abs(c) <= MAX_CURRENT_MPS for c in current
+    ):
+        raise ValueError(
+            f"current (north, east) must be finite and within ±{MAX_CURRENT_MPS:g} m/s, "
+            f"not {current}"
+        )
+    if tuple(e.port for e in emlogs) != (EMLOG1.port, EMLOG2.port):
+        raise ValueError(
+            f"the EMlogs are ports {EMLOG1.port} and {EMLOG2.port}, in that order, "
+            f"not {[e.port for e in emlogs]}"
+        )
+    for e in emlogs:
+        check_emlog(e)
+
+
 def _plain(data: bytes) -> bool:
     """A wire line that a capture can store as text: printable ASCII ending in CR LF."""
     if not data.endswith(b"\r\n"):
         return False
     return all(32 <= c < 127 for c in data[:-2])
-
-
-# ------------------------------------------------------------------ the truth per sample
-
-
-def _truth_rows(index: int, k: Kinematics, lock: npt.NDArray[np.bool_], t0: float) -> FloatArray:
-    """One trajectory's rows of the truth CSV (:data:`TRUTH_COLUMNS`)."""
-    sl = slice(None, None, TRUTH_STEP)
-    return np.column_stack(
-        [
-            t0 + k.t[sl],
-            np.full(k.t[sl].size, float(index)),
-            k.surge[sl],
-            np.degrees(k.heading[sl]) % 360.0,
-            k.current_n[sl],
-            k.current_e[sl],
-            lock[sl].astype(np.float64),
-        ]
-    )
-
-
-def _write_truth_csv(path: Path, rows: FloatArray) -> None:
-    """Write the truth rows as gzip CSV, byte-identical for identical rows (no mtime)."""
-    text = io.StringIO()
-    text.write(",".join(TRUTH_COLUMNS) + "\n")
-    np.savetxt(text, rows, fmt=["%.3f", "%d", "%.4f", "%.3f", "%.4f", "%.4f", "%d"], delimiter=",")
-    with path.open("wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz:
-        gz.write(text.getvalue().encode("ascii"))
-
-
-class TruthError(EmlogdError):
-    """A truth directory cannot be read (the message names the file and why)."""
-
-
-@dataclass(frozen=True, eq=False)
-class Truth:
-    """The truth of a simulated trial (``truth.csv.gz`` and ``truth.yaml``).
-
-    Arrays have one entry per truth sample (:data:`TRUTH_RATE_HZ`), in time order.
-
-    Attributes:
-        t: time, epoch s (the captures' receive clock).
-        trajectory: trajectory index, 1–5.
-        stw_mps: true speed through the water along the hull, m/s.
-        heading_deg: heading, degrees true.
-        current_n_mps: sea current north, m/s.
-        current_e_mps: sea current east, m/s.
-        bottom_lock: the DVL's bottom lock.
-        sensors: ``truth.yaml``'s ``sensors`` section (error models, latencies).
-    """
-
-    t: FloatArray
-    trajectory: npt.NDArray[np.int64]
-    stw_mps: FloatArray
-    heading_deg: FloatArray
-    current_n_mps: FloatArray
-    current_e_mps: FloatArray
-    bottom_lock: npt.NDArray[np.bool_]
-    sensors: dict[str, dict[str, object]]
-
-    def stw_at(self, t: npt.ArrayLike) -> FloatArray:
-        """True speed through the water at times ``t``; nan outside the trajectories.
-
-        Interpolated linearly between two samples of one trajectory, never across
-        the idle time between two trajectories.
-        """
-        q = np.asarray(t, dtype=np.float64)
-        n = self.t.size
-        if n < 2:
-            return np.full(q.shape, np.nan)
-        idx = np.clip(np.searchsorted(self.t, q), 1, n - 1)
-        inside = (q >= self.t[idx - 1]) & (q <= self.t[idx])
-        same = self.trajectory[idx] == self.trajectory[idx - 1]
-        v = np.interp(q, self.t, self.stw_mps)
-        return np.asarray(np.where(inside & same, v, np.nan), dtype=np.float64)
-
-    def emlog(self, port: str) -> tuple[Params, float]:
-        """A simulated EMlog's true error model and latency (s, behind the truth).
-
-        Raises:
-            TruthError: ``port`` is not a simulated EMlog.
-        """
-        spec = self.sensors.get(port)
-        if not isinstance(spec, dict) or "latency_s" not in spec or "m" not in spec:
-            emlogs = [p for p, v in self.sensors.items() if isinstance(v, dict) and "m" in v]
-            raise TruthError(f"the truth has no EMlog {port!r} (has {', '.join(emlogs)})")
-        params = Params(
-            check_model(str(spec.get("model", "EM4"))),
-            float(spec["a_spm"]),  # type: ignore[arg-type]
-            float(spec["m"]),  # type: ignore[arg-type]
-            float(spec["b_mps"]),  # type: ignore[arg-type]
-        )
-        return params, float(spec["latency_s"])  # type: ignore[arg-type]
-
-
-def read_truth(directory: str | Path) -> Truth:
-    """Read the truth that :func:`simulate` wrote into ``directory``.
-
-    Raises:
-        TruthError: a file is missing or malformed.
-    """
-    d = Path(directory)
-    csv_path, yaml_path = d / TRUTH_CSV, d / "truth.yaml"
-    for p in (csv_path, yaml_path):
-        if not p.is_file():
-            raise TruthError(f"{p}: no such file (emlogd simulate writes it)")
-    try:
-        doc = yaml.safe_load(yaml_path.read_text(encoding="utf-8"))
-        sensors = doc["sensors"]
-        if not isinstance(sensors, dict):
-            raise TypeError("sensors is not a mapping")
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
-        raise TruthError(f"{yaml_path}: not a simulation truth ({exc})") from None
-    try:
-        with gzip.open(csv_path, "rt", encoding="ascii") as f:
-            header = f.readline().strip().split(",")
-            if tuple(header) != TRUTH_COLUMNS:
-                raise ValueError(f"columns {header}, expected {list(TRUTH_COLUMNS)}")
-            data = np.loadtxt(f, delimiter=",", ndmin=2)
-    except (OSError, EOFError, ValueError, UnicodeDecodeError) as exc:
-        raise TruthError(f"{csv_path}: {exc}") from None
-    if data.shape[1] != len(TRUTH_COLUMNS) or np.any(np.diff(data[:, 0]) <= 0.0):
-        raise TruthError(f"{csv_path}: expected {len(TRUTH_COLUMNS)} columns in time order")
-    return Truth(
-        t=data[:, 0].copy(),
-        trajectory=data[:, 1].astype(np.int64),
-        stw_mps=data[:, 2].copy(),
-        heading_deg=data[:, 3].copy(),
-        current_n_mps=data[:, 4].copy(),
-        current_e_mps=data[:, 5].copy(),
-        bottom_lock=data[:, 6] > 0.5,
-        sensors=sensors,
-    )
-
-
-@dataclass(frozen=True, slots=True)
-class TruthScore:
-    """A UUT's speeds scored against the true speed through the water.
-
-    Attributes:
-        n_samples: readings with a truth (and a corrected speed) scored.
-        rmse_raw: raw readings vs the truth, m/s.
-        rmse_corrected: the corrected speeds vs the truth, m/s.
-        rmse_floor: raw readings through the true inverse model vs the truth, m/s
-            (what a perfect calibration would reach: noise and quantisation remain).
-    """
-
-    n_samples: int
-    rmse_raw: float
-    rmse_corrected: float
-    rmse_floor: float
-    imo_raw: ImoVerdict | None = None
-    """The raw readings' IMO A.824(19) verdict against the truth."""
-    imo_corrected: ImoVerdict | None = None
-    """The corrected speeds' IMO A.824(19) verdict against the truth."""
-
-    def to_dict(self) -> dict[str, object]:
-        """Stable JSON keys (README: ``evaluate --json`` and ``replay --json``)."""
-
-        def fin(x: float) -> float | None:
-            return round(x, 5) if math.isfinite(x) else None
-
-        return {
-            "n_samples": self.n_samples,
-            "rmse_raw": fin(self.rmse_raw),
-            "rmse_corrected": fin(self.rmse_corrected),
-            "rmse_floor": fin(self.rmse_floor),
-            "imo": None
-            if self.imo_raw is None or self.imo_corrected is None
-            else {"raw": self.imo_raw.as_dict(), "corrected": self.imo_corrected.as_dict()},
-        }
-
-
-def score_truth(
-    truth: Truth, port: str, t: npt.ArrayLike, raw: npt.ArrayLike, corrected: npt.ArrayLike
-) -> TruthScore:
-    """Score a UUT's readings and their corrected speeds against the truth.
-
-    Each reading received at ``t`` is paired with the true speed through the water
-    at ``t`` minus the EMlog's true latency; samples without a truth there (idle time
-    between trajectories) or without a finite corrected speed are left out.
-
-    Raises:
-        TruthError: ``port`` is not a simulated EMlog.
-    """
-    params, latency = truth.emlog(port)
-    tt = np.asarray(t, dtype=np.float64)
-    r = np.asarray(raw, dtype=np.float64)
-    c = np.asarray(corrected, dtype=np.float64)
-    stw = truth.stw_at(tt - latency)
-    ok = np.isfinite(stw) & np.isfinite(r) & np.isfinite(c)
-    floor = correct_array(params, r[ok])
-    return TruthScore(
-        int(ok.sum()),
-        _rmse(r[ok], stw[ok]),
-        _rmse(c[ok], stw[ok]),
-        _rmse(floor, stw[ok]),
-        imo_verdict(stw[ok], r[ok]),
-        imo_verdict(stw[ok], c[ok]),
-    )

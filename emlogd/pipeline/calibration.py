@@ -21,8 +21,9 @@ from typing import Literal, Protocol
 import numpy as np
 
 from calib.errors import ModelError
+from calib.estimate import Estimate, Estimated
 from calib.kalman import check_covariance
-from calib.models import Layout, Params
+from calib.models import Layout
 from emlogd.pipeline.integrity import Envelope
 
 Method = Literal["online", "kf", "ls"]
@@ -36,17 +37,16 @@ MAX_ABS_LAG_S = 60.0
 
 
 @dataclass(frozen=True, slots=True)
-class Calibration:
+class Calibration(Estimated):
     """A calibration of one UUT.
 
     Attributes:
         uut: the UUT port name.
-        params: the error model's parameters (the model is ``params.model``).
-        param_std: their standard deviations by short name (None: not determined).
+        estimate: the error model's parameters (the model is ``params.model``), their
+            standard deviations by short name (None: not determined), and the current
+            (north, east) at ``t`` with its standard deviations, m/s, when determined.
         lag_s: the UUT's latency behind its reference, s (None: unknown).
         current: whether the calibration was estimated with the current states.
-        current_mps: the current (north, east) at ``t``, m/s, when determined.
-        current_std_mps: its standard deviations, m/s.
         covariance: the filter's covariance over :attr:`Layout.states` (online and kf),
             for a warm start; empty when there is none (ls).
         method: ``online``, ``kf`` or ``ls``.
@@ -59,12 +59,9 @@ class Calibration:
     """
 
     uut: str
-    params: Params
-    param_std: Mapping[str, float | None]
+    estimate: Estimate
     lag_s: float | None
     current: bool = False
-    current_mps: tuple[float, float] | None = None
-    current_std_mps: tuple[float, float] | None = None
     covariance: tuple[tuple[float, ...], ...] = ()
     method: Method = "online"
     t: float = 0.0

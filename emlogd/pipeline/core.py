@@ -45,6 +45,7 @@ from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
 from drivers.records import KNOT_MPS, SpeedRecord
 from emlogd.pipeline import status as st
+from emlogd.pipeline import twoaxis
 from emlogd.pipeline.align import wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
@@ -189,21 +190,7 @@ class Pipeline:
             if s.heading != "auto" and s.heading not in self.ports:
                 raise ValueError(f"UUT {s.port}: unknown heading port {s.heading!r}")
             latest = cals.get(s.port)
-            kept = self.kept.setdefault(s.port, {})
-            if latest is not None and latest.params.model == s.model:
-                prior: Calibration | None = latest
-                kept.pop(s.model, None)
-            else:
-                if latest is not None:  # another model's: kept for a switch back
-                    kept[latest.params.model] = latest
-                prior = kept.pop(s.model, None)  # this model's own, from before
-            if prior is not None:
-                why = check(prior, s.envelope, s.max_lag_s)
-                if why:
-                    self.startup_events.append(
-                        Event(prior.t, s.port, "calibration_refused", {"why": why})
-                    )
-                    prior = None
+            prior = self._prior(s, latest)
             u = UutRoute(s, self._new_cal(s, prior), self.headings.order(s))
             if u.cal.lag_s is None:  # the lag is the sensor's, whatever the model or a reset
                 for rec in (prior, latest):
@@ -382,18 +369,7 @@ class Pipeline:
         """Correct a UUT reading and emit its sentence, then queue it for learning."""
         cal = u.cal
         raw = speed_of(sp, u.s.component)
-        if not sp.valid or raw is None:
-            return
-        if not cal.in_range(raw):
-            cal.counters.out_of_range += 1
-            return
-        if not fresh:
-            cal.counters.backlog += 1
-            return
-        why = u.plausible(t, sp.source, raw)
-        if why and self.fusion is not None and sp.source == u.s.uut_source:
-            self.fusion.refuse(u.s.port, t, why)
-        if why and why != "reacquired":
+        if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh):
             return
         value = cal.correct(raw)
         if value is not None and sp.source == u.s.uut_source:
@@ -402,6 +378,10 @@ class Pipeline:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             if sp.source == "VHW":
                 sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
+            elif sp.transverse_mps is not None and twoaxis.configured(u.s):
+                sentence = encode_vbw(
+                    *twoaxis.hull_frame(u.s, value, sp.transverse_mps), u.s.talker
+                )
             else:
                 sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
             if self.fusion is None or not self.fusion.s.only:
@@ -415,6 +395,43 @@ class Pipeline:
             u.t_status = t
             out.emits.append(Emit(t, u.s.port, encode_status(st.status_fields(u))))
             self._vdr(u, t, out)
+
+    def _prior(self, s: UutSettings, latest: Calibration | None) -> Calibration | None:
+        """The calibration a UUT starts from: its latest when of its model, else its own
+        model's from before (another model's latest kept for a switch back); one the
+        UUT's checks refuse is left out with a ``calibration_refused`` event."""
+        kept = self.kept.setdefault(s.port, {})
+        if latest is not None and latest.params.model == s.model:
+            prior: Calibration | None = latest
+            kept.pop(s.model, None)
+        else:
+            if latest is not None:  # another model's: kept for a switch back
+                kept[latest.params.model] = latest
+            prior = kept.pop(s.model, None)  # this model's own, from before
+        if prior is not None:
+            why = check(prior, s.envelope, s.max_lag_s)
+            if why:
+                self.startup_events.append(
+                    Event(prior.t, s.port, "calibration_refused", {"why": why})
+                )
+                return None
+        return prior
+
+    def _admit(self, u: UutRoute, t: float, source: str, raw: float, fresh: bool) -> bool:
+        """Whether a UUT's reading is corrected and emitted: in the log's range, not a
+        backlog's, plausible (an implausible one is refused to the fusion too); the ones
+        left out are counted by why."""
+        cal = u.cal
+        if not cal.in_range(raw):
+            cal.counters.out_of_range += 1
+            return False
+        if not fresh:
+            cal.counters.backlog += 1
+            return False
+        why = u.plausible(t, source, raw)
+        if why and self.fusion is not None and source == u.s.uut_source:
+            self.fusion.refuse(u.s.port, t, why)
+        return not why or why == "reacquired"
 
     def _fuse(
         self,

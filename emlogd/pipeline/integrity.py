@@ -46,7 +46,11 @@ STUCK_BLOCK_S = 10.0
 STUCK_SPREAD_RATIO = 0.25
 """A reading whose block means span less than this fraction of the span of the
 reference's block means over ``stuck_s`` is stuck (a working log follows the reference
-with a gain of at least 0.5: the envelope's scale), however noisy each reading is."""
+with a gain of at least 0.5: the envelope's scale), however noisy each reading is. The
+reading's span is taken one resolution wider than it is: a log that reads in tenths of a
+knot and repeats its reading can hide a change of up to one step in its block means (a
+yacht holding 5.8 kn reads 5.8 and 5.9 while the GNSS speed's 10-s means span 0.33 m/s
+of noise), so a span of one step is no evidence of a stuck log."""
 
 STUCK_MAX_TURN_DEG = 15.0
 """The variance rule needs the heading steady within this over ``stuck_s``, °: in a
@@ -151,7 +155,9 @@ class UutHealth:
     Args:
         stuck_s: a reading unchanged this long while the reference moved is stuck, s.
         zero_s: a reading at zero this long while the reference is above
-            ``moving_mps`` is a dead log, s.
+            ``moving_mps`` is a dead log, s. The fault lapses once no reference has
+            shown the vessel moving for as long (a log at rest reads zero, and a GNSS
+            speed below its minimum gives no reference at all).
         ref_move_mps: least change of the smoothed reference that proves motion, m/s.
         moving_mps: reference speed above which the vessel moves, m/s.
     """
@@ -166,6 +172,7 @@ class UutHealth:
         "_ref_lo",
         "_ref_s",
         "_t_anchor",
+        "_t_moving",
         "_t_ref",
         "_t_zero",
         "_var_stuck",
@@ -200,6 +207,7 @@ class UutHealth:
         self._ref_lo = math.inf
         self._ref_hi = -math.inf
         self._t_zero: float | None = None
+        self._t_moving = -math.inf
         self._blk = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
         """The block being summed: start time, n, Σ raw, n with a reference, Σ reference,
         n with a heading, Σ cos, Σ sin."""
@@ -235,7 +243,14 @@ class UutHealth:
             self._ref_hi = max(self._ref_hi, self._ref_s)
         self._variance(t, raw_mps, ref_mps, heading_deg)
         at_zero = abs(raw_mps) <= 2.0 * QUANTUM_MPS
-        if not at_zero or (ref_mps is not None and ref_mps <= self.moving_mps):
+        if ref_mps is not None and ref_mps > self.moving_mps:
+            self._t_moving = t
+        if (
+            not at_zero
+            or (ref_mps is not None and ref_mps <= self.moving_mps)
+            or t - self._t_moving > self.zero_s
+        ):
+            # a zero reading is evidence only while a reference shows the vessel moving
             self._t_zero = None
         elif ref_mps is not None and self._t_zero is None:
             self._t_zero = t
@@ -290,7 +305,7 @@ class UutHealth:
         raws = [r for r, _, _ in blocks]
         refs = [v for _, v, _ in blocks]
         ref_span = max(refs) - min(refs)
-        return ref_span >= self.ref_move_mps and max(raws) - min(raws) < (
+        return ref_span >= self.ref_move_mps and max(raws) - min(raws) + self.resolution_mps < (
             STUCK_SPREAD_RATIO * ref_span
         )
 

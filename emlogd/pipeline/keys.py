@@ -4,7 +4,7 @@ A config key is a dataclass field made with :func:`key`: its default is the fiel
 and its check, unit and doc travel in the field's metadata. A field made with
 :func:`group` is a dataclass whose keys appear, flat, in the same config section (the
 envelope's ``max_speed_mps`` is a ``calibration`` key). The YAML loader
-(:mod:`emlogd.config`), its ``dump_config``, the README's table and the pipeline
+(:mod:`emlogd.config`), its dump and the README's table (:mod:`emlogd.configdump`) and the pipeline
 all read these declarations; this module is pure (no YAML, no I/O), so the pipeline's
 own settings carry them.
 

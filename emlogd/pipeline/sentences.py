@@ -32,12 +32,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from drivers import nmea0183
+from drivers.base import NMEA_MAX_LENGTH
 from drivers.framing import with_checksum
 from drivers.records import KNOT_MPS
 from emlogd.pipeline.fusion import Fused
-
-MAX_SENTENCE = 82
-"""NMEA 0183 limit in characters, CR LF included."""
 
 STATE_CODES = {"learning": "L", "frozen": "F", "uncalibrated": "U"}
 REF_CODES = {"valid": "V", "lost": "L", "stale": "S", "slow": "W", "none": "N"}
@@ -100,7 +98,7 @@ def encode_status(f: StatusFields) -> str:
         REF_CODES.get(f.ref_state, "N"),
     ]
     sentence = with_checksum(",".join(fields))
-    if len(sentence) + 2 > MAX_SENTENCE:  # cannot happen with the widths above
+    if len(sentence) + 2 > NMEA_MAX_LENGTH:  # cannot happen with the widths above
         raise ValueError(f"status sentence too long: {sentence}")
     return sentence
 
@@ -123,7 +121,7 @@ def encode_fused_status(fused: Fused, maker: str) -> str:
     status = "A" if fused.valid else "V"
 
     def fits(names: str, excluded: str) -> bool:
-        return len(with_checksum(",".join([*head, names, status, excluded]))) + 2 <= MAX_SENTENCE
+        return len(with_checksum(",".join([*head, names, status, excluded]))) + 2 <= NMEA_MAX_LENGTH
 
     names = ""
     for name in fused.sources:

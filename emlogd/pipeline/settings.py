@@ -18,6 +18,7 @@ from calib.excitation import ExcitationRule
 from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
 from calib.models import MODEL_NAMES, PARAM_NAMES, check_model
 from drivers import protocol_names
+from drivers.base import LINE_BUFFER_CAP, NMEA_MAX_LENGTH, SHORTEST_LINE_LIMIT
 from emlogd.pipeline.integrity import Envelope, ReadingLimits
 from emlogd.pipeline.keys import (
     NAME,
@@ -43,7 +44,8 @@ Component = Literal["longitudinal", "magnitude"]
 HeadingSource = str
 """``auto`` or a port name."""
 
-_UUT_SENTENCES = ("VHW", "VBW")
+UutSentence = Literal["VHW", "VBW"]
+"""The NMEA sentences an EMlog's reading is calibrated and corrected in."""
 
 
 REF_NOISE_MPS: dict[str, float] = {
@@ -81,8 +83,8 @@ class PortSettings:
         doc="optional: NMEA sentences without `*hh` are accepted (a wrong one never is).",
     )
     max_length: int = key(
-        82,
-        check=number(8, 1024, integer=True),
+        NMEA_MAX_LENGTH,
+        check=number(SHORTEST_LINE_LIMIT, LINE_BUFFER_CAP, integer=True),
         unit="characters",
         doc="The longest line accepted; raise for devices that send longer lines.",
     )
@@ -97,6 +99,11 @@ class PortSettings:
 @dataclass(frozen=True, slots=True)
 class UutSettings:
     """Calibration of one UUT (the ``calibration`` section of the config).
+
+    ``misalign_deg``, ``transverse_scale`` and ``transverse_bias_mps`` are a two-axis
+    log's frozen installation figures (:class:`calib.twoaxis.TwoAxisParams`, learnt
+    offline by ``emlogd calibrate --axes 2``), applied to its VBW
+    (:mod:`emlogd.pipeline.twoaxis`).
 
     The fields made with :func:`~emlogd.pipeline.keys.key` are the ``calibration``
     keys; the others the config loader fills from elsewhere (the reference port's
@@ -120,14 +127,33 @@ class UutSettings:
         doc="bottom (DVL bottom track), water (DVL `:WS`), speed (another EMlog), gnss "
         "(RMC/VTG speed and course, projected on the hull).",
     )
-    uut_source: str = key(
-        "VHW", check=enum(*_UUT_SENTENCES), doc="The EMlog sentence calibrated and corrected."
+    uut_source: UutSentence = key(
+        "VHW", check=literal(UutSentence), doc="The EMlog sentence calibrated and corrected."
     )
     talker: str = key(
         "VW",
         check=or_null(string(r"[A-Z]{2}", "two uppercase letters")),
         absent=None,
         doc="The talker of this log's corrected sentences; null: `outputs.talker`.",
+    )
+    misalign_deg: float = key(
+        0.0,
+        check=number(-20.0, 20.0),
+        unit="°",
+        doc="VBW: the log's forward axis from the bow (+ to starboard), from `emlogd "
+        "calibrate --axes 2`; the corrected VBW turns both axes back by it.",
+    )
+    transverse_scale: float = key(
+        0.0,
+        check=number(-0.5, 0.5),
+        doc="VBW: the athwart axis's scale error m_t (`calibrate --axes 2`): the corrected "
+        "athwart speed is (reading − `transverse_bias_mps`)/(1 + m_t).",
+    )
+    transverse_bias_mps: float = key(
+        0.0,
+        check=number(-1.0, 1.0),
+        unit="m/s",
+        doc="VBW: the athwart axis's bias (`calibrate --axes 2`).",
     )
     component: Component = key(
         "longitudinal",

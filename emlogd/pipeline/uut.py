@@ -32,6 +32,7 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Literal, Protocol
 
+from calib.estimate import Estimate
 from calib.excitation import Identifiability
 from calib.kalman import Innovation, KfCalibrator
 from calib.models import CURRENT, Layout, Params, check_model, zero_params
@@ -350,7 +351,7 @@ class UutCalibration:
         sup.observe(a.t, a.raw, a.ref, cs, lr, proj=proj, water=water)
         if sup.reopen:
             sup.reopen = False
-            lr.kf.reopen(self.layout.params)
+            lr.reopen_for_change()
             self.counters.relearn += 1
             self._emit(a.t, "relearn", {"why": "the supervisor saw the readings change"})
 
@@ -467,13 +468,15 @@ class UutCalibration:
         cur_std = self.kf.current_std_mps if cur is not None else None
         return Calibration(
             uut=self.s.port,
-            params=kept if kept is not None else zero_params(self.s.model),
-            param_std=dict(self.sup.kept_std) if kept is not None else {},
+            estimate=Estimate(
+                kept if kept is not None else zero_params(self.s.model),
+                dict(self.sup.kept_std) if kept is not None else {},
+                cur,
+                cur_std,
+            ),
             # a fallback lag is not saved: a restart measures it again
             lag_s=self.lag_s if self.lag_finder is None else None,
             current=self.layout.current,
-            current_mps=cur,
-            current_std_mps=cur_std,
             covariance=tuple(tuple(row) for row in self.kf.covariance())
             if kept is not None
             else (),

@@ -10,7 +10,7 @@ import pytest
 from calib.crossval import ESTIMATORS, Segment, cross_validate, split_estimator
 from calib.errors import DataError, ModelError
 from calib.models import Params
-from calib.synth import simulate_segment, water_frame_segment
+from tests.synth import simulate_segment, water_frame_segment
 
 TRUTH = Params("EM3", m=0.08, b_mps=0.1)
 KINDS = ("transit", "figure-8", "straight", "circles", "return")

@@ -14,10 +14,11 @@ from calib.excitation import (
     heading_sectors,
     identifiability,
     judge,
+    structural,
     window_stats,
 )
 from calib.models import Layout, Params
-from calib.synth import water_frame_segment
+from tests.synth import water_frame_segment
 
 SIGMA2 = 0.05**2
 EM3C = Layout("EM3", current=True)
@@ -150,6 +151,34 @@ class TestHeadingSectors:
         """A full circle covers all eight sectors; a stray sample does not count."""
         assert heading_sectors(np.arange(0.0, 360.0, 1.0)) == 8
         assert heading_sectors(np.r_[np.full(500, 90.0), 270.0]) == 1
+
+    @pytest.mark.parametrize("span", [10.0, 100.0, 200.0, 360.0])
+    def test_the_window_counts_sectors_as_the_batch_does(self, span: float) -> None:
+        """ExcitationWindow without forgetting counts the sectors of its headings as
+        heading_sectors does (a sector with under 3 % of the samples not counted); a
+        window without a heading has no count."""
+        hd = np.random.default_rng(int(span)).uniform(0.0, span, 200)
+        hd = np.r_[hd, np.full(4, (span + 50.0) % 360.0)]  # a stray sector, under 3 %
+        w = ExcitationWindow(EM3C)
+        for h in hd:
+            w.add(2.0, 2.0, float(h))
+        assert w.stats().heading_sectors == heading_sectors(hd)
+        assert ExcitationWindow(EM3C).stats().heading_sectors is None
+
+
+class TestStructural:
+    """The rules no noise level changes, on their own."""
+
+    def test_structural_refuses_what_judge_refuses_for_any_noise(self) -> None:
+        """On a straight run at one speed, structural refuses the scale (speed constant),
+        and the current and bias together (one sector), as judge does at any noise."""
+        s = _seg("straight", constant=True, seconds=600.0, seed=3)
+        stats = window_stats(s.u_water_mps, s.raw_mps, s.heading_deg)
+        refused, offset = structural(EM3C, stats)
+        assert set(refused) == {"m", "b", "current"} and offset
+        for sigma2 in (1e-6, SIGMA2, 1.0):
+            ident = judge(EM3C, stats, sigma2)
+            assert {v.unknown: v.reason for v in ident.verdicts if not v.determined} == refused
 
 
 class TestExcitationWindow:

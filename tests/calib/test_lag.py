@@ -11,7 +11,7 @@ import calib.lag
 from calib.errors import DataError
 from calib.lag import LagEstimate, accept, combine, estimate_lag
 from calib.models import Params
-from calib.synth import WaterFrameSeries, water_frame_segment
+from tests.synth import WaterFrameSeries, water_frame_segment
 
 
 def _speed(t: np.ndarray) -> np.ndarray:

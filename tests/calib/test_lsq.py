@@ -10,7 +10,7 @@ import pytest
 from calib.errors import DataError, ModelError
 from calib.lsq import Averaged, block_average, current_blocks, fit_current, fit_ls
 from calib.models import Params, forward_array
-from calib.synth import water_frame_segment
+from tests.synth import water_frame_segment
 
 
 def _varying(n: int = 600, seed: int = 1) -> tuple[np.ndarray, np.random.Generator]:
@@ -40,7 +40,7 @@ class TestRecovery:
         raw = forward_array(truth, v) + rng.normal(0.0, 0.05, v.size)
         fit = fit_ls("EM4", v, raw)
         for name, true in truth.as_dict().items():
-            se = fit.stderr[name]
+            se = fit.param_std[name]
             assert se is not None and abs(fit.params.as_dict()[name] - true) < 3.0 * se
         assert abs(fit.params.a_spm - 0.03) < 0.005
 
@@ -70,7 +70,7 @@ class TestRecovery:
         r = raw - v - H @ np.array(fit.params.theta)
         cov = (r @ r) / (v.size - 2) * np.linalg.inv(H.T @ H)
         np.testing.assert_allclose(
-            [fit.stderr["m"], fit.stderr["b"]], np.sqrt(np.diag(cov)), rtol=1e-8
+            [fit.param_std["m"], fit.param_std["b"]], np.sqrt(np.diag(cov)), rtol=1e-8
         )
         assert fit.cond_info == pytest.approx(np.linalg.cond(H.T @ H), rel=1e-6)
 
@@ -94,7 +94,7 @@ class TestWeights:
         a, b = fit_ls("EM3", v, raw), fit_ls("EM3", v, raw, np.full(v.size, 7.0))
         np.testing.assert_allclose(a.params.theta, b.params.theta, rtol=1e-10)
         for k in ("m", "b"):
-            assert a.stderr[k] == pytest.approx(b.stderr[k], rel=1e-9)
+            assert a.param_std[k] == pytest.approx(b.param_std[k], rel=1e-9)
 
     def test_bad_weights(self) -> None:
         """Negative or wrongly shaped weights raise DataError."""
@@ -116,7 +116,7 @@ class TestIdentifiability:
         fit = fit_ls("EM3", v, raw)
         assert fit.unidentifiable == ("m",) and not fit.identifiable
         assert "speed through water nearly constant" in fit.reason
-        assert fit.params.m == 0.0 and fit.stderr["m"] is None
+        assert fit.params.m == 0.0 and fit.param_std["m"] is None
         assert fit.params.forward(2.0) == pytest.approx(float(np.mean(raw)), abs=1e-9)
 
     def test_a_given_prior_is_where_an_undetermined_unknown_stays(self) -> None:
@@ -282,8 +282,8 @@ def test_stderr_counts_correlated_residuals_as_fewer_samples() -> None:
     fa = fit_ls("EM3", ref, 1.05 * ref + 0.1 + ar)
     assert fw.correlation < 1.3
     assert fa.correlation > 8.0
-    assert fa.stderr["m"] is not None and fw.stderr["m"] is not None
-    assert fa.stderr["m"] > 3.0 * fw.stderr["m"]
+    assert fa.param_std["m"] is not None and fw.param_std["m"] is not None
+    assert fa.param_std["m"] > 3.0 * fw.param_std["m"]
 
 
 class TestTidalCurrent:

@@ -15,21 +15,19 @@ import drivers
 from drivers.base import Decoder, DecoderOptions
 from drivers.errors import FieldError, FrameError
 from drivers.framing import LineFramer, with_checksum
-from drivers.nmea0183 import (
+from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
+from drivers.rdi_ascii import encode_pd6
+from drivers.rdi_pd0 import CoordFrame, encode_pd0
+from drivers.rdi_pd45 import encode_pd45
+from drivers.records import Rejected, SpeedRecord, SpeedRole
+from tests.nmea_encoders import (
     encode_gga,
     encode_hdg,
     encode_hdm,
     encode_hdt,
-    encode_rmc,
-    encode_vbw,
-    encode_vhw,
     encode_vtg,
     encode_zda,
 )
-from drivers.rdi_ascii import encode_pd6
-from drivers.rdi_pd0 import encode_pd0
-from drivers.rdi_pd45 import encode_pd45
-from drivers.records import Rejected, SpeedRecord, SpeedRole
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -98,7 +96,7 @@ class TestErrorPolicies:
     def test_bad_policy_rejected(self) -> None:
         """An unknown error policy is a ValueError."""
         with pytest.raises(ValueError, match="errors"):
-            _Digits("p", errors="ignore")  # type: ignore[arg-type]
+            _Digits("p", errors="ignore")
 
 
 class TestOptions:
@@ -162,6 +160,9 @@ def _pd6_samples() -> list[bytes]:
     return [(DATA / "dvl" / "trdi_pathfinder_guide_pd13_example.txt").read_bytes(), text]
 
 
+FRAMES: tuple[CoordFrame, ...] = ("ship", "earth", "instrument", "beam")
+
+
 def _pd0_samples() -> list[bytes]:
     """The PD0 files of tests/data (one corrupted) and encoded ensembles in each frame."""
     files = [p.read_bytes() for p in sorted((DATA / "dvl").glob("*.[pP][dD]0"))]
@@ -174,7 +175,7 @@ def _pd0_samples() -> list[bytes]:
             range_m=10.0,
             coord_frame=frame,
         )
-        for i, frame in enumerate(("ship", "earth", "instrument", "beam"))
+        for i, frame in enumerate(FRAMES)
     )
     return [*files, enc + b"\x7f\x7f\x00garbage"]
 
@@ -260,6 +261,17 @@ class TestRecordUnions:
         for name in drivers.PROTOCOLS:
             assert set(_members(_union(drivers.get_decoder(name)))) <= listed
         assert {Rejected, SpeedRecord} <= listed
+
+    def test_what_each_protocol_can_serve(self) -> None:
+        """The decoders say what a port can be to a calibration: only NMEA 0183 a UUT, an
+        EMlog or a GNSS reference; a water track only PD6/PD13; a bottom track every DVL
+        protocol and Rowe's PRTI01; and which DVL outputs carry the heading (not PD4)."""
+        assert drivers.protocols_for("uut") == ["nmea0183"]
+        assert drivers.protocols_for("speed") == drivers.protocols_for("gnss") == ["nmea0183"]
+        assert drivers.protocols_for("water") == ["pd6", "pd13"]
+        assert drivers.protocols_for("bottom") == list(drivers.PROTOCOLS)
+        heading = {n for n in drivers.PROTOCOLS if drivers.get_decoder(n).heading}
+        assert heading == {"pd6", "pd13", "pd0", "pd5"}
 
     def test_literal_overloads_match_the_registry(self) -> None:
         """get_decoder's and make_decoder's typed overloads name the class PROTOCOLS registers."""

@@ -263,6 +263,47 @@ def test_our_decoder_agrees_with_pynmea2_on_every_real_vhw() -> None:
     assert n > 1000
 
 
+def _signed(value: object, direction: str) -> float | None:
+    if value is None:
+        return None
+    return -float(value) if direction == "W" else float(value)  # type: ignore[arg-type]
+
+
+def test_our_decoder_agrees_with_pynmea2_on_every_real_vlw_mtw_and_heading() -> None:
+    """Every VLW, MTW, HDT, HDM and HDG we decode from the real captures has the distances,
+    temperatures, headings and signed deviation and variation pynmea2 gives."""
+    seen: Counter[str] = Counter()
+    for name in sorted(p.name for p in DATA.glob("*.log")):
+        for line in (DATA / name).read_text(errors="replace").splitlines():
+            line = line.strip()
+            if not line.startswith("$") or line[3:6] not in ("VLW", "MTW", "HDT", "HDM", "HDG"):
+                continue
+            try:
+                ours = _one(line)
+            except Exception:
+                continue
+            theirs = pynmea2.parse(line, check=True)
+            seen[line[3:6]] += 1
+            if isinstance(ours, Vlw):
+                pairs = [
+                    (ours.total_nm, theirs.trip_distance),
+                    (ours.trip_nm, theirs.trip_distance_reset),
+                ]
+            elif isinstance(ours, Mtw):
+                pairs = [(ours.temperature_c, theirs.temperature)]
+            else:
+                assert isinstance(ours, Heading)
+                pairs = [(ours.heading_deg, theirs.heading)]
+                if line[3:6] == "HDG":
+                    pairs += [
+                        (ours.deviation_deg, _signed(theirs.deviation, theirs.dev_dir)),
+                        (ours.variation_deg, _signed(theirs.variation, theirs.var_dir)),
+                    ]
+            for a, b in pairs:
+                assert (a is None and b is None) or a == pytest.approx(float(b)), line
+    assert set(seen) == {"VLW", "MTW", "HDT", "HDM", "HDG"} and sum(seen.values()) > 1000, seen
+
+
 def test_gpl_capture_in_place() -> None:
     """The Hakefjord capture in ../shared gives 1883 each of VHW, VLW and MTW, magnetic heading
     only, with no checksum reject (skipped when absent)."""

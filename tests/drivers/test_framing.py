@@ -8,6 +8,8 @@ from hypothesis import strategies as st
 
 from drivers.errors import ChecksumError, FrameError, MissingChecksumError, TooLongError
 from drivers.framing import LineFramer, nmea_checksum, split_nmea, with_checksum
+from tests.chunks import feed_in_chunks
+from tests.profiles import by_profile
 
 
 def _feed(framer: LineFramer, data: bytes) -> list[bytes | FrameError]:
@@ -86,33 +88,23 @@ def test_chunking_never_changes_the_frames(lines: list[str], cuts: list[int]) ->
     data = b"".join(b"$" + ln.encode() + b"\r\n" for ln in lines)
     whole = _feed(LineFramer(b"$", 82), data)
     f = LineFramer(b"$", 82)
-    out: list[bytes | FrameError] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(f.feed(data[prev:c]))
-        prev = c
-    out.extend(f.feed(data[prev:]))
-    out.extend(f.flush())
+    out = feed_in_chunks(f, data, cuts)
     assert [o if isinstance(o, bytes) else (type(o), o.raw) for o in out] == [
         o if isinstance(o, bytes) else (type(o), o.raw) for o in whole
     ]
 
 
 @pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
+@settings(max_examples=by_profile(300), deadline=None)
 @given(data=st.binary(max_size=600), cuts=st.lists(st.integers(0, 600), max_size=10))
-def test_fuzz_framer_chunking(data: bytes, cuts: list[int]) -> None:
+def test_any_chunking_of_arbitrary_bytes_gives_the_same_frames(
+    data: bytes, cuts: list[int]
+) -> None:
     """Any split of arbitrary bytes into chunks gives the same frames and reject reasons as the
-    bytes fed whole (fuzz run)."""
+    bytes fed whole."""
     whole = _feed(LineFramer(b"$!", 82), data)
     f = LineFramer(b"$!", 82)
-    out: list[bytes | FrameError] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(f.feed(data[prev:c]))
-        prev = c
-    out.extend(f.feed(data[prev:]))
-    out.extend(f.flush())
+    out = feed_in_chunks(f, data, cuts)
     assert [o if isinstance(o, bytes) else o.reason for o in out] == [
         o if isinstance(o, bytes) else o.reason for o in whole
     ]

@@ -12,6 +12,8 @@ from hypothesis import strategies as st
 from drivers.errors import FrameError
 from drivers.rdi_ascii import Pd6Ensemble, PdAsciiDecoder, PdHealth, encode_pd6
 from drivers.records import Rejected
+from tests.chunks import feed_in_chunks
+from tests.profiles import by_profile
 
 EXAMPLE = (
     Path(__file__).resolve().parents[1] / "data" / "dvl" / "trdi_pathfinder_guide_pd13_example.txt"
@@ -187,13 +189,7 @@ def test_round_trip_any_chunking(t: float, l_: float, heading: float, cuts: list
     however the bytes are chunked."""
     data = _lines(bottom_ship_mps=(t, l_, 0.0), heading_deg=heading)
     dec = PdAsciiDecoder("dvl")
-    out: list[object] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(dec.feed(data[prev:c]))
-        prev = c
-    out.extend(dec.feed(data[prev:]))
-    out.extend(dec.flush())
+    out = feed_in_chunks(dec, data, cuts)
     (e,) = out
     assert isinstance(e, Pd6Ensemble) and e.bottom_ship is not None
     assert e.bottom_ship.a == pytest.approx(t, abs=6e-4) and e.bottom_ship.b == pytest.approx(
@@ -201,7 +197,8 @@ def test_round_trip_any_chunking(t: float, l_: float, heading: float, cuts: list
     )
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(pos=st.integers(0, 400), value=st.integers(0, 255))
 def test_a_corrupted_byte_never_yields_a_wrong_ensemble(pos: int, value: int) -> None:
     """One changed byte never yields an ensemble whose time or bottom-track speed (what the
@@ -230,27 +227,12 @@ def test_every_position_corrupted_by_a_structural_byte(value: int) -> None:
         test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=2000))
 def test_random_bytes_never_raise(data: bytes) -> None:
     """Arbitrary bytes after a colon never raise in skip mode."""
     PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(st.binary(max_size=2000))
-def test_fuzz_random_bytes(data: bytes) -> None:
-    """Arbitrary bytes after a colon never raise in skip mode (fuzz run)."""
-    PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(pos=st.integers(0, 400), value=st.integers(0, 255))
-def test_fuzz_corrupted_byte(pos: int, value: int) -> None:
-    """One changed byte never yields a wrong ensemble (fuzz run)."""
-    test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
 
 
 # Every line type, as a good line and with each field in turn replaced by each value

@@ -13,6 +13,8 @@ from hypothesis import strategies as st
 from drivers.errors import ChecksumError
 from drivers.rdi_pd0 import Pd0Decoder, Pd0Ensemble, encode_pd0
 from drivers.records import Rejected
+from tests.chunks import feed_in_chunks
+from tests.profiles import by_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "dvl"
 
@@ -188,13 +190,7 @@ def test_any_chunking_gives_the_same_records(cuts: list[int]) -> None:
     data = (DATA / "ooi_adcp_auv_3.pd0").read_bytes()
     whole = Pd0Decoder("dvl").decode_all(data)
     dec = Pd0Decoder("dvl")
-    out: list[object] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(dec.feed(data[prev:c]))
-        prev = c
-    out.extend(dec.feed(data[prev:]))
-    out.extend(dec.flush())
+    out = feed_in_chunks(dec, data, cuts)
     assert out == whole
 
 
@@ -209,7 +205,8 @@ def _flip_test(pos: int, xor: int) -> None:
     assert len(out) >= 2
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(pos=st.integers(min_value=0, max_value=10_000), xor=st.integers(min_value=1, max_value=255))
 def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) -> None:
     """A flipped byte anywhere in the file yields only original ensembles, and at least two of the
@@ -218,15 +215,7 @@ def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) ->
 
 
 @pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(pos=st.integers(min_value=0, max_value=10_000), xor=st.integers(min_value=1, max_value=255))
-def test_fuzz_flipped_bytes(pos: int, xor: int) -> None:
-    """A flipped byte anywhere in the file yields only original ensembles, at least two of three
-    (fuzz run)."""
-    _flip_test(pos, xor)
-
-
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=3000))
 def test_random_bytes_never_raise_in_skip_mode(data: bytes) -> None:
     """Arbitrary bytes after a PD0 header never raise in skip mode and yield only ensembles."""

@@ -10,6 +10,8 @@ from hypothesis import strategies as st
 
 from drivers.rdi_pd45 import Pd45Decoder, Pd45Ensemble, encode_pd45
 from drivers.records import Rejected
+from tests.chunks import feed_in_chunks
+from tests.profiles import by_profile
 
 
 @pytest.mark.parametrize("pd5", [False, True])
@@ -96,33 +98,17 @@ def test_round_trip_and_chunking(fwd: float, stb: float, pd5: bool, cuts: list[i
     speed exact to the mm."""
     data = encode_pd45(pd5=pd5, bottom_ship_mps=(fwd, stb), range_m=10) * 2
     dec = Pd45Decoder("dvl")
-    out: list[object] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(dec.feed(data[prev:c]))
-        prev = c
-    out.extend(dec.feed(data[prev:]))
-    out.extend(dec.flush())
+    out = feed_in_chunks(dec, data, cuts)
     assert len(out) == 2
     (sp,) = dec.speed_records(out[0])
     assert sp.longitudinal_mps == pytest.approx(round(fwd * 1000) / 1000, abs=1e-9)
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=500))
 def test_random_bytes_never_raise(data: bytes) -> None:
     """Arbitrary bytes after a PD4/PD5 header never raise in skip mode and yield only ensembles."""
-    dec = Pd45Decoder("dvl", errors="skip")
-    for r in dec.decode_all(b"\x7d" + data):
-        assert isinstance(r, Pd45Ensemble)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(st.binary(max_size=500))
-def test_fuzz_random_bytes(data: bytes) -> None:
-    """Arbitrary bytes after a PD4/PD5 header never raise in skip mode and yield only ensembles
-    (fuzz run)."""
     dec = Pd45Decoder("dvl", errors="skip")
     for r in dec.decode_all(b"\x7d" + data):
         assert isinstance(r, Pd45Ensemble)

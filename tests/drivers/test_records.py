@@ -10,11 +10,29 @@ from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord
 
 
 def _speed(lon: float | None, tr: float | None) -> SpeedRecord:
-    return SpeedRecord("p", "stw", "speed", lon, tr, True, None, None, "VBW")
+    return SpeedRecord(
+        port="p",
+        kind="stw",
+        role="speed",
+        longitudinal_mps=lon,
+        transverse_mps=tr,
+        valid=True,
+        source="VBW",
+    )
 
 
 class TestSpeedRecord:
     """The common speed record."""
+
+    def test_built_by_keyword_only(self) -> None:
+        """A speed record (nine fields) is built by keyword: positional arguments are refused,
+        and the transverse speed and both headings default to None."""
+        with pytest.raises(TypeError):
+            SpeedRecord("p", "stw", "speed", 1.0, None, True, None, None, "VHW")  # type: ignore[call-arg]
+        rec = SpeedRecord(
+            port="p", kind="stw", role="speed", longitudinal_mps=1.0, valid=True, source="VHW"
+        )
+        assert (rec.transverse_mps, rec.heading_true_deg, rec.heading_mag_deg) == (None,) * 3
 
     def test_magnitude_uses_both_axes(self) -> None:
         """speed_mps is the horizontal magnitude when the transverse axis is known."""

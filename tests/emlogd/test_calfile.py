@@ -4,18 +4,21 @@ from __future__ import annotations
 
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.pipeline.calibration import Calibration
 
 FULL = Calibration(
+    estimate=Estimate(
+        Params("EM4", 0.01, -0.1, 0.05),
+        {"a": 0.001, "m": None, "b": 0.003},
+        current_mps=(-0.09, 0.07),
+        current_std_mps=(0.004, 0.005),
+    ),
     uut="emlog2",
-    params=Params("EM4", 0.01, -0.1, 0.05),
-    param_std={"a": 0.001, "m": None, "b": 0.003},
     lag_s=0.45,
     current=True,
-    current_mps=(-0.09, 0.07),
-    current_std_mps=(0.004, 0.005),
     covariance=tuple(tuple(1e-4 if i == j else 0.0 for j in range(6)) for i in range(6)),
     method="kf",
     t=1.75e9,
@@ -37,7 +40,7 @@ class TestRoundTrip:
 
     def test_a_reset_record(self) -> None:
         """A reset UUT is a record too (so a reset survives a restart)."""
-        reset = Calibration("emlog1", Params("EM3"), {}, 3.2, reset=True)
+        reset = Calibration("emlog1", Estimate(Params("EM3"), {}), 3.2, reset=True)
         assert loads(dumps({"emlog1": reset}))[0]["emlog1"].reset
 
 

@@ -10,15 +10,11 @@ import yaml
 from drivers.errors import ConfigError
 from emlogd.config import (
     SECTIONS,
-    Config,
-    OutputConfig,
-    PortConfig,
     UutConfig,
-    dump_config,
-    key_table,
     load_config,
     parse_config,
 )
+from emlogd.configdump import dump_config
 from emlogd.pipeline.keys import entries
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "emlogd.yaml"
@@ -222,12 +218,30 @@ def test_an_emlog_with_role_uut_may_be_the_speed_reference() -> None:
     ]
 
 
-def test_dump_round_trips_the_example() -> None:
-    """The dumped effective config loads back to an equal Config."""
-    cfg = load_config(EXAMPLE)
-    text = dump_config(cfg)
-    assert "lag: auto" in text
-    assert parse_config(text, cfg.path) == cfg
+@pytest.mark.parametrize(
+    ("protocol", "field", "current"),
+    [
+        ("pd6", "bottom", True),
+        ("pd13", "water", True),
+        ("pd0", "bottom", True),
+        ("pd5", "bottom", True),
+        ("pd4", "bottom", False),
+        ("nmea0183", "bottom", False),
+        ("nmea0183", "speed", False),
+        ("nmea0183", "gnss", True),
+    ],
+)
+def test_current_auto_follows_whether_the_reference_carries_a_heading(
+    protocol: str, field: str, current: bool
+) -> None:
+    """With no heading port, ``current: auto`` estimates the current when the reference's
+    protocol carries the heading with its track (PD6/PD13, PD0, PD5: not PD4, not Rowe PRTI01
+    nor an EMlog) or the reference is GNSS."""
+    text = BASE.replace("protocol: pd6", f"protocol: {protocol}").replace(
+        "reference: dvl}", f"reference: dvl, reference_field: {field}}}"
+    )
+    (uut,) = parse_config(text).calibration
+    assert uut.settings.current is current
 
 
 def test_dump_round_trips_non_defaults(tmp_path: Path) -> None:
@@ -277,32 +291,12 @@ def test_renamed_keys_name_the_new_key(text: str, expected: str) -> None:
     assert str(exc.value) == expected
 
 
-def test_readme_reference_is_the_key_table() -> None:
-    """README's "Configuration reference" is exactly key_table() (regenerate it with
-    ``python -m emlogd.config``)."""
-    text = README.read_text(encoding="utf-8")
-    begin, end = "<!-- key-table: begin -->\n", "<!-- key-table: end -->"
-    assert begin in text and end in text
-    table = text.split(begin, 1)[1].split(end, 1)[0]
-    assert table == key_table()
-
-
 def test_every_key_has_a_doc_and_a_check() -> None:
     """Each key's declaration carries a sentence of doc and words for its values."""
     for prefix, cls in SECTIONS:
         for e in entries(cls):
             assert e.key.doc.endswith(".") and e.key.check.text, prefix + e.name
             assert "|" not in e.key.doc + e.key.check.text, prefix + e.name
-
-
-def test_dump_writes_every_key() -> None:
-    """The dump has each section's every key, in the declarations' order."""
-    dumped = yaml.safe_load(dump_config(load_config(EXAMPLE)))
-    top = [e.name for e in entries(Config)]
-    assert list(dumped) == ["ports", "calibration", "outputs", *top]
-    assert list(dumped["ports"][0]) == [e.name for e in entries(PortConfig)]
-    assert list(dumped["calibration"][1]) == [e.name for e in entries(UutConfig)]
-    assert list(dumped["outputs"]) == [e.name for e in entries(OutputConfig)]
 
 
 TWO_LOGS = """\

@@ -14,7 +14,15 @@ class TestToJsonable:
 
     def test_record_has_type_and_fields(self) -> None:
         """A dataclass becomes a dict with its class name under 'type'."""
-        rec = SpeedRecord("emlog1", "stw", "speed", 1.5, None, True, 10.0, None, "VHW")
+        rec = SpeedRecord(
+            port="emlog1",
+            kind="stw",
+            role="speed",
+            longitudinal_mps=1.5,
+            valid=True,
+            heading_true_deg=10.0,
+            source="VHW",
+        )
         d = to_jsonable(rec)
         assert d["type"] == "SpeedRecord"
         assert d["longitudinal_mps"] == 1.5

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 import yaml
 
+from calib.estimate import Estimate
 from drivers.errors import ConfigError
 from emlogd.config import SECTIONS, Config, load_config, parse_config
 from emlogd.pipeline.core import Pipeline
@@ -272,8 +273,10 @@ def test_one_builder_for_run_reload_and_replay() -> None:
     from emlogd.settings import build_pipeline
 
     cfg = load_config(EXAMPLE)
-    em3 = Calibration("emlog1", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 3.2)
-    em4 = Calibration("emlog1", Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}, 3.0)
+    em3 = Calibration(
+        "emlog1", Estimate(Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}), 3.2
+    )
+    em4 = Calibration("emlog1", Estimate(Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}), 3.0)
     p = build_pipeline(cfg, {"emlog1": em4}, [em3], learn=False)
     status = p.status()["uuts"]
     assert isinstance(status, dict)

@@ -12,7 +12,7 @@ from calib.kalman import KalmanModel, KfCalibrator, KfConfig, make_state, predic
 from calib.lsq import block_average
 from calib.metrics import nis_stats
 from calib.models import Params, design_row, forward_array
-from calib.synth import water_frame_segment
+from tests.synth import water_frame_segment
 
 
 def _sim(
@@ -154,6 +154,32 @@ class TestPaperFilters:
         stats = nis_stats(np.array(nis), skip=1000)
         assert 0.8 <= stats.mean <= 1.2
         assert kf.noise_scale == pytest.approx(factor, rel=0.3)
+
+    def test_the_noise_scale_comes_down_within_its_memory(self) -> None:
+        """Noises promised 100 times larger than the blocks hold (a GNSS speed's 20-s
+        means): λ is within 40 % of 0.01 after three memories of block updates (180),
+        and the NIS of the next 1000 has mean 0.8–1.2."""
+        cfg = KfConfig()
+        _t, _, raw, ref = _sim(1200, 15, TRUTH["EM3"], cfg)
+        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 * 100.0, r_ref_mps2=cfg.r_ref_mps2 * 100.0)
+        kf = KfCalibrator("EM3", bad)
+        _blocks(kf, raw[:180], ref[:180])
+        assert kf.noise_scale == pytest.approx(0.01, rel=0.4)
+        nis = _blocks(kf, raw[180:], ref[180:])
+        assert 0.8 <= float(np.mean(nis)) <= 1.2
+
+    def test_a_sample_between_blocks_has_the_configured_noises(self) -> None:
+        """λ adapted to block means (0.01) does not shrink a single sample's noise: with
+        ``scaled=False`` the innovation variance holds the configured R, so a reading
+        0.3 m/s off a GNSS sample (its own noise) is not gated at NIS 25."""
+        cfg = KfConfig(r_ref_mps2=0.3**2)
+        for scaled, gated in ((True, True), (False, False)):
+            kf = KfCalibrator("EM3", cfg, v0_mps=2.0)
+            kf.noise_scale = 0.01
+            kf.update(2.0, 2.0, 1.0, learn=False, scaled=scaled)
+            res = kf.update(2.3, 2.0, 1.0, learn=False, max_nis=25.0, scaled=scaled)
+            assert res.raw is not None and res.raw_gated == gated
+            assert (cfg.r_raw_mps2 < res.raw.S) == (not scaled)
 
     def test_sample_by_sample_keeps_the_configured_noises(self) -> None:
         """Learning sample by sample (a DVL), the filter is the configured one: λ stays 1."""

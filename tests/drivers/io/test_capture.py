@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from drivers.errors import CaptureFormatError
 from drivers.io.capture import MAGIC, CaptureReader, CaptureWriter, read_ports
+from tests.profiles import by_profile
 
 
 def test_round_trip_text_and_binary(tmp_path: Path) -> None:
@@ -144,23 +145,16 @@ def _read_any(tmp_path: Path, content: bytes) -> None:
         assert str(exc).startswith(f"{path}:")
 
 
+@pytest.mark.fuzz
 @settings(
-    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=by_profile(300),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(st.binary(max_size=400))
 def test_reader_only_raises_capture_format_errors(tmp_path: Path, content: bytes) -> None:
     """Random bytes after a valid header give records of the declared port or a CaptureFormatError
     naming the file, never another exception."""
-    _read_any(tmp_path, content)
-
-
-@pytest.mark.fuzz
-@settings(
-    max_examples=100_000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
-)
-@given(st.binary(max_size=400))
-def test_fuzz_reader(tmp_path: Path, content: bytes) -> None:
-    """The reader's only-CaptureFormatError property over 100 000 random inputs (fuzz marker)."""
     _read_any(tmp_path, content)
 
 

@@ -15,17 +15,16 @@ import subprocess
 import sys
 import termios
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from drivers.io.fake import FakeCapture
 from emlogd.client import request
 from emlogd.daemon.control import MAX_CLIENTS, REQUEST_S
-from emlogd.launch import DaemonProcess, fake_sensors
+from emlogd.launch import DaemonProcess
+from tests.emlogd.daemon.harness import Daemon, free_port, tcp_port
 
-SPEED = 20.0
 STALL_S = 1.0
 """``outputs.tcp_stall_s`` of these tests (the default is 10 s)."""
 
@@ -46,45 +45,16 @@ state_file: state/state.yaml
 control_socket: run/control.sock
 log_format: json
 status_log_interval_s: 1
-"""
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-@pytest.fixture
-def work(tmp_path: Path) -> Path:
-    for sub in ("links", "out", "state", "run"):
-        (tmp_path / sub).mkdir()
-    port = _free_port()
-    text = CONFIG.replace("{tcp}", str(port)).replace("{stall}", f"{STALL_S:g}")
-    (tmp_path / "emlogd.yaml").write_text(text)
-    (tmp_path / "tcp_port").write_text(str(port))
-    return tmp_path
-
-
-@pytest.fixture
-def sensors(work: Path, trial_files: dict[str, Path]) -> Iterator[FakeCapture]:
-    """The three sensors of the figure-8 served at SPEED (stopped at teardown)."""
-    ports = ("emlog1", "emlog2", "dvl")
-    with fake_sensors(trial_files["figure-8"], work / "links", ports, speed=SPEED) as fake:
-        yield fake
+""".replace("{stall}", f"{STALL_S:g}")
 
 
 @pytest.fixture
 def daemon(work: Path) -> Iterator[DaemonProcess]:
-    d = DaemonProcess("emlogd.yaml", socket="run/control.sock", log="daemon.log", cwd=work)
+    d = Daemon(work)
     try:
         yield d
     finally:
         d.kill()
-
-
-def _tcp_port(work: Path) -> int:
-    return int((work / "tcp_port").read_text())
 
 
 def _tcp_counters(d: DaemonProcess, port: int) -> dict[str, int]:
@@ -93,13 +63,6 @@ def _tcp_counters(d: DaemonProcess, port: int) -> dict[str, int]:
     doc = outputs[f"tcp:127.0.0.1:{port}"]
     assert isinstance(doc, dict)
     return {k: v for k, v in doc.items() if isinstance(v, int)}
-
-
-def _wait(cond: Callable[[], bool], what: str, timeout_s: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        assert time.monotonic() < deadline, what
-        time.sleep(0.05)
 
 
 def _first_sentence(s: socket.socket, timeout_s: float) -> float:
@@ -122,7 +85,7 @@ def test_40_idle_tcp_clients_then_a_new_one_receives_within_3_s(
     """40 clients connect and never read; a new client then gets sentences within 3 s: each
     newcomer past the 32-client limit evicted a client (counted as evicted), none was
     refused."""
-    port = _tcp_port(work)
+    port = tcp_port(work)
     idle = [socket.create_connection(("127.0.0.1", port), timeout=5) for _ in range(40)]
     try:
         fresh = socket.create_connection(("127.0.0.1", port), timeout=5)
@@ -150,7 +113,7 @@ def test_a_tcp_client_that_does_not_read_is_evicted(work: Path, daemon: DaemonPr
     client_stalled; the one that never reads within tcp_stall_s (+ 3 s, under the
     default 10 s) of the last byte its full receive buffer took, however fast the output
     filled it; a reading client keeps receiving all along."""
-    port = _tcp_port(work)
+    port = tcp_port(work)
     reader = socket.create_connection(("127.0.0.1", port), timeout=5)
     slow: list[socket.socket] = []
     for _ in range(2):
@@ -283,7 +246,7 @@ def test_a_second_instance_through_a_symlinked_state_file_refuses_to_start(
     other = (
         text.replace("run/control.sock", "run/other.sock")
         .replace("out/emlog0", "out/other0")
-        .replace(f"127.0.0.1:{_tcp_port(work)}", f"127.0.0.1:{_free_port()}")
+        .replace(f"127.0.0.1:{tcp_port(work)}", f"127.0.0.1:{free_port()}")
         .replace("state/state.yaml", "elsewhere.yaml")
     )
     (work / "other.yaml").write_text(other)

@@ -8,8 +8,7 @@ import json
 import pytest
 import structlog
 
-from emlogd.daemon.logsetup import configure_logging, is_console
-from emlogd.daemon.loop import _status_line
+from emlogd.daemon.logsetup import configure_logging, is_console, status_line
 
 
 class TestConfigureLogging:
@@ -50,7 +49,7 @@ class TestConfigureLogging:
                                 "reference": "valid", "counters": {"learnt": 9} }},
             "ports": {"emlog1": {"records": 12, "rejects": {"checksum": 0}}},
         }  # fmt: skip
-        line = _status_line(status)
+        line = status_line(status)
         assert line == {"emlog1": "frozen m=+0.100 b=+0.050 ref valid", "records": "emlog1=12"}
         configure_logging("json", "info", io.StringIO())
         assert not is_console()

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import select
 import signal
 import socket
 import subprocess
@@ -17,14 +16,13 @@ from pathlib import Path
 
 import pytest
 
+from calib.estimate import Estimate
 from drivers.io.capture import CaptureWriter
 from drivers.io.fake import FakeDevice
 from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
-from emlogd.launch import STOP_TIMEOUT_S, DaemonProcess, fake_sensors
-
-SPEED = 20.0
-PORTS = ("emlog1", "emlog2", "dvl")
+from emlogd.launch import DaemonProcess, fake_sensors
+from tests.emlogd.daemon.harness import PORTS, SPEED, Daemon, free_port, make_work, tcp_port
 
 CONFIG = f"""\
 ports:
@@ -48,56 +46,10 @@ status_log_interval_s: 1
 """
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-class Daemon(DaemonProcess):
-    """``emlogd run`` in ``work`` (the harness), reading its output pty as it goes."""
-
-    def __init__(self, work: Path) -> None:
-        self.fd = -1  # before the harness starts: a failed start calls kill()
-        super().__init__("emlogd.yaml", socket="run/control.sock", log="daemon.log", cwd=work)
-        self.buf = b""
-        self.lines: list[bytes] = []
-        try:  # the control socket answers: the output pty exists
-            self.fd = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
-        except BaseException:
-            self.kill()
-            raise
-
-    def pump(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            r, _, _ = select.select([self.fd], [], [], 0.05)
-            if r:
-                try:
-                    self.buf += os.read(self.fd, 65536)
-                except (BlockingIOError, OSError):
-                    continue
-                *done, self.buf = self.buf.split(b"\r\n")
-                self.lines.extend(done)
-
-    def _close_pty(self) -> None:
-        if self.fd >= 0:
-            os.close(self.fd)
-            self.fd = -1
-
-    def stop(self, sig: int = signal.SIGTERM, timeout_s: float = STOP_TIMEOUT_S) -> int:
-        self._close_pty()
-        return super().stop(sig, timeout_s)
-
-    def kill(self) -> int:
-        self._close_pty()
-        return super().kill()
-
-
 def _setup(tmp_path: Path) -> Path:
-    for sub in ("links", "out", "state", "run"):
-        (tmp_path / sub).mkdir()
-    (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
+    """``tmp_path`` a work directory (:func:`make_work`) and a capture of garbage for the
+    ``junk`` port; returns the capture."""
+    make_work(tmp_path, CONFIG)
     junk = tmp_path / "junk.cap"
     with CaptureWriter(junk, {"junk": "nmea0183"}) as w:
         for k in range(3000):
@@ -115,12 +67,10 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
     # one device per port: the test unplugs them one by one
     devices = {p: FakeDevice(capture, p, links / p, speed=SPEED).start() for p in PORTS}
     garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
-    d = Daemon(tmp_path)
+    d = Daemon(tmp_path, pty=True)
     try:
         # a TCP client that connects and never reads must not stall the pty output
-        cfg = (tmp_path / "emlogd.yaml").read_text()
-        tcp_port = int(cfg.split('tcp: "127.0.0.1:')[1].split('"')[0])
-        lazy = socket.create_connection(("127.0.0.1", tcp_port))
+        lazy = socket.create_connection(("127.0.0.1", tcp_port(tmp_path)))
         lazy.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1024)
         d.pump(6.0)
         # unplug and replug EMlog2 at the same path
@@ -182,7 +132,7 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
     assert '"event": "port_stale"' not in log
     stale_dvl = [ln for ln in log.splitlines() if '"event": "stale"' in ln and '"dvl"' in ln]
     assert len(stale_dvl) == 1, stale_dvl
-    d2 = Daemon(tmp_path)
+    d2 = Daemon(tmp_path, pty=True)
     try:
         d2.pump(0.5)
         st3 = d2.status()["uuts"]
@@ -201,11 +151,8 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
 
 def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
     """READY=1 over a real notify socket, sensors absent at start, SIGHUP good and bad."""
-    for sub in ("links", "out", "state", "run"):
-        (tmp_path / sub).mkdir()
-    cfg = tmp_path / "emlogd.yaml"
-    base = CONFIG.replace("{tcp}", str(_free_port()))
-    cfg.write_text(base)
+    cfg = make_work(tmp_path, CONFIG) / "emlogd.yaml"
+    base = cfg.read_text()
     notify = tmp_path / "notify.sock"
     srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     srv.bind(str(notify))
@@ -275,6 +222,7 @@ def _can_mount(where: Path) -> bool:
     return r.returncode == 0
 
 
+@pytest.mark.root
 @pytest.mark.parametrize("fault", ["read-only", "full"])
 def test_state_directory_read_only_or_full(
     tmp_path: Path, trial_files: dict[str, Path], fault: str
@@ -288,12 +236,12 @@ def test_state_directory_read_only_or_full(
     try:
         for sub in ("links", "out", "run"):
             (tmp_path / sub).mkdir()
-        (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
+        (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(free_port())))
         store = StateStore(state_dir / "state.yaml")
         from calib.models import Params
         from emlogd.pipeline.calibration import Calibration
 
-        store.save({"emlog1": Calibration("emlog1", Params("EM3"), {}, None)})
+        store.save({"emlog1": Calibration("emlog1", Estimate(Params("EM3"), {}), None)})
         before = store.path.read_bytes()
         if fault == "read-only":
             subprocess.run(["mount", "-o", "remount,ro", str(state_dir)], check=True)
@@ -308,7 +256,10 @@ def test_state_directory_read_only_or_full(
                 os.close(fd)
         links = tmp_path / "links"
         capture = trial_files["figure-8"]
-        with fake_sensors(capture, links, PORTS, speed=SPEED) as fake, Daemon(tmp_path) as d:
+        with (
+            fake_sensors(capture, links, PORTS, speed=SPEED) as fake,
+            Daemon(tmp_path, pty=True) as d,
+        ):
             while not fake.finished.is_set():
                 d.pump(0.5)
                 assert d.running  # keeps running
@@ -442,7 +393,7 @@ def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
         return int(st["dvl"]["records"])
 
     vp = VirtualPort(link)
-    d = Daemon(tmp_path)
+    d = Daemon(tmp_path, pty=True)
     try:
         deadline = time.monotonic() + 10
         while "port_connected" not in (tmp_path / "daemon.log").read_text():
@@ -473,7 +424,7 @@ def test_a_resting_reference_port_is_replugged_and_every_ensemble_counted(
 def test_repeating_events_are_rate_limited_per_port() -> None:
     """A flapping reference logs one `reference` line per port per 10 s, the next saying how
     many were left out; other events and other ports are not held back."""
-    from emlogd.daemon.loop import EventLimiter
+    from emlogd.daemon.logsetup import EventLimiter
 
     lim = EventLimiter(10.0)
     assert lim.allow("dvl", "reference", 0.0) == 0
@@ -503,7 +454,7 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
     with (
         fake_sensors(capture, links, PORTS, speed=SPEED),
         fake_sensors(junk, links, ("junk",), speed=None, loop=True),
-        Daemon(tmp_path) as d,
+        Daemon(tmp_path, pty=True) as d,
     ):
         link = tmp_path / "out" / "emlog2"
         end = time.monotonic() + 20.0
@@ -621,7 +572,7 @@ def test_the_hostile_hdg_sentence_is_counted_and_the_daemon_goes_on(
     links = tmp_path / "links"
     emlog = FakeDevice(trial_files["figure-8"], "emlog1", links / "emlog1", speed=SPEED).start()
     hostile = FakeDevice(junk, "junk", links / "junk", speed=1.0, loop=True).start()
-    d = Daemon(tmp_path)
+    d = Daemon(tmp_path, pty=True)
     try:
         deadline = time.monotonic() + 20
         while True:

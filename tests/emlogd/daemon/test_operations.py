@@ -9,18 +9,16 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 import serial
 
-from drivers.io.fake import FakeCapture
+from calib.estimate import Estimate
 from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
-from emlogd.launch import DaemonProcess, fake_sensors
+from tests.emlogd.daemon.harness import SPEED, Daemon, tcp_port, wait
 
-SPEED = 20.0
 RUN = [sys.executable, "-m", "emlogd", "run", "--config", "emlogd.yaml"]
 
 CONFIG = f"""\
@@ -42,69 +40,10 @@ status_log_interval_s: 1
 """
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-class Daemon(DaemonProcess):
-    """``emlogd run`` as a subprocess in ``work`` (the harness), with what these tests read."""
-
-    def __init__(
-        self,
-        work: Path,
-        *,
-        argv: list[str] | None = None,
-        env: dict[str, str] | None = None,
-    ) -> None:
-        super().__init__(
-            "emlogd.yaml",
-            socket="run/control.sock",
-            log="daemon.log",
-            cwd=work,
-            argv=argv,
-            env=env,
-        )
-
-    def uut(self, name: str) -> dict[str, object]:
-        uuts = self.status()["uuts"]
-        assert isinstance(uuts, dict)
-        u = uuts[name]
-        assert isinstance(u, dict)
-        return u
-
-    def events(self, name: str) -> int:
-        return self.log_path.read_text().count(f'"event": "{name}"')
-
-
-@pytest.fixture
-def work(tmp_path: Path) -> Path:
-    for sub in ("links", "out", "state", "run"):
-        (tmp_path / sub).mkdir()
-    (tmp_path / "emlogd.yaml").write_text(CONFIG.replace("{tcp}", str(_free_port())))
-    return tmp_path
-
-
-@pytest.fixture
-def sensors(work: Path, trial_files: dict[str, Path]) -> Iterator[FakeCapture]:
-    """The three sensors of the figure-8 served at SPEED on one clock (stopped at teardown)."""
-    ports = ("emlog1", "emlog2", "dvl")
-    with fake_sensors(trial_files["figure-8"], work / "links", ports, speed=SPEED) as fake:
-        yield fake
-
-
 def _num(doc: dict[str, object], key: str) -> float:
     v = doc[key]
     assert isinstance(v, int | float), doc
     return float(v)
-
-
-def _wait(cond: Callable[[], bool], what: str, timeout_s: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        assert time.monotonic() < deadline, what
-        time.sleep(0.05)
 
 
 # -- 1. reload -----------------------------------------------------------------
@@ -117,12 +56,12 @@ def test_reload_keeps_what_did_not_change(work: Path) -> None:
     d = Daemon(work)
     link = work / "out" / "emlog0"
     cfg = work / "emlogd.yaml"
-    tcp_port = int(cfg.read_text().split('tcp: "127.0.0.1:')[1].split('"')[0])
+    port = tcp_port(work)
     try:
         target = link.readlink()
         reader = serial.Serial(str(link), timeout=0.2)
-        client = socket.create_connection(("127.0.0.1", tcp_port), timeout=5)
-        _wait(lambda: _num(d.uut("emlog1"), "scored_samples") > 50, "emlog1 never scored")
+        client = socket.create_connection(("127.0.0.1", port), timeout=5)
+        wait(lambda: _num(d.uut("emlog1"), "scored_samples") > 50, "emlog1 never scored")
         assert d.ask(cmd="freeze", port="emlog1")["ok"]
         before1, before2 = d.uut("emlog1"), d.uut("emlog2")
         assert before1["learning_enabled"] is False and before2["learning_enabled"] is True
@@ -130,7 +69,7 @@ def test_reload_keeps_what_did_not_change(work: Path) -> None:
         # emlog2's lag changes; nothing else does
         cfg.write_text(cfg.read_text().replace(f"lag: {0.5 / SPEED:.4f}", "lag: 0.05"))
         d.send_signal(signal.SIGHUP)
-        _wait(lambda: d.events("reloaded") == 1, "no reload")
+        wait(lambda: d.events("reloaded") == 1, "no reload")
         after1, after2 = d.uut("emlog1"), d.uut("emlog2")
         assert after1["learning_enabled"] is False  # the operator's freeze survives
         assert _num(after1, "scored_samples") >= _num(before1, "scored_samples")
@@ -164,7 +103,9 @@ def _seed(work: Path) -> None:
     from calib.models import Params
     from emlogd.pipeline.calibration import Calibration
 
-    cal = Calibration("emlog1", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 0.165)
+    cal = Calibration(
+        "emlog1", Estimate(Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}), 0.165
+    )
     StateStore(work / "state" / "state.yaml").save({"emlog1": cal})
 
 
@@ -253,7 +194,7 @@ def test_each_model_keeps_its_calibration_across_reloads_and_restarts(work: Path
         ):
             cfg.write_text(config)
             d.send_signal(signal.SIGHUP)
-            _wait(lambda n=n: d.events("reloaded") == n, f"no reload {n}")  # type: ignore[misc]
+            wait(lambda n=n: d.events("reloaded") == n, f"no reload {n}")  # type: ignore[misc]
             assert seen(d) == want, n
         assert d.stop() == 0
     finally:
@@ -385,7 +326,7 @@ def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
     refuses freeze."""
     cfg = work / "emlogd.yaml"
     cfg.write_text(cfg.read_text() + "status_socket: run/status.sock\n")
-    tcp_port = int(cfg.read_text().split('tcp: "127.0.0.1:')[1].split('"')[0])
+    port = tcp_port(work)
     d = Daemon(work)
     held: list[socket.socket] = []
     try:
@@ -406,7 +347,7 @@ def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
         assert b'"ok": true' in extra
         held[0].settimeout(5)  # the one waiting longest made room for it
         assert b"too many clients" in held[0].recv(65536)
-        tcp = [socket.create_connection(("127.0.0.1", tcp_port), timeout=5) for _ in range(40)]
+        tcp = [socket.create_connection(("127.0.0.1", port), timeout=5) for _ in range(40)]
         held += tcp
         closed = 0
         for c in tcp[31:39]:  # each newcomer past 32 evicted the latest before it
@@ -417,7 +358,7 @@ def test_client_caps_and_a_read_only_status_socket(work: Path) -> None:
         assert closed == 8
         for s in held[:16]:
             s.close()
-        _wait(d.answers, "the control socket did not free its slots")
+        wait(d.answers, "the control socket did not free its slots")
         assert d.stop() == 0
     finally:
         for s in held:
@@ -432,7 +373,7 @@ def test_out_of_descriptors_the_daemon_pauses_accepting_and_recovers(work: Path)
     import resource
 
     d = Daemon(work)
-    tcp_port = int((work / "emlogd.yaml").read_text().split("127.0.0.1:")[1].split('"')[0])
+    port = tcp_port(work)
     held: list[socket.socket] = []
     try:
         in_use = len(list(Path(f"/proc/{d.pid}/fd").iterdir()))
@@ -440,14 +381,14 @@ def test_out_of_descriptors_the_daemon_pauses_accepting_and_recovers(work: Path)
         for _ in range(20):  # connected or not: a paused listener's backlog fills up
             s = socket.socket()
             s.setblocking(False)
-            s.connect_ex(("127.0.0.1", tcp_port))
+            s.connect_ex(("127.0.0.1", port))
             held.append(s)
         time.sleep(1.5)  # many accept failures: pauses, not a busy loop
         assert d.running
         for s in held:
             s.close()
         held = []
-        _wait(d.answers, "the control socket never came back")
+        wait(d.answers, "the control socket never came back")
         log = d.log_path.read_text()
         assert 1 <= log.count('"event": "accept_error"') <= 2  # reported, rate-limited
         assert d.stop() == 0
@@ -460,9 +401,9 @@ def test_out_of_descriptors_the_daemon_pauses_accepting_and_recovers(work: Path)
 def test_an_unbindable_tcp_output_is_a_status_not_a_failure(work: Path) -> None:
     """The TCP output's port is taken at start: the daemon runs, reports it unbound, and
     binds it in the background once the port is free."""
-    tcp_port = int((work / "emlogd.yaml").read_text().split("127.0.0.1:")[1].split('"')[0])
+    port = tcp_port(work)
     squatter = socket.socket()
-    squatter.bind(("127.0.0.1", tcp_port))
+    squatter.bind(("127.0.0.1", port))
     squatter.listen(1)
     d = Daemon(work)
     try:
@@ -470,12 +411,12 @@ def test_an_unbindable_tcp_output_is_a_status_not_a_failure(work: Path) -> None:
         def tcp_state() -> str:
             outputs = d.ask(cmd="status")["outputs"]
             assert isinstance(outputs, dict)
-            return str(outputs[f"tcp:127.0.0.1:{tcp_port}"]["state"])
+            return str(outputs[f"tcp:127.0.0.1:{port}"]["state"])
 
         assert tcp_state().startswith("unbound: ")
         squatter.close()
-        _wait(lambda: tcp_state() == "open", "the TCP output was never bound")
-        socket.create_connection(("127.0.0.1", tcp_port), timeout=5).close()
+        wait(lambda: tcp_state() == "open", "the TCP output was never bound")
+        socket.create_connection(("127.0.0.1", port), timeout=5).close()
         assert d.stop() == 0
     finally:
         squatter.close()

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError
@@ -22,9 +23,8 @@ from emlogd.pipeline.integrity import Envelope
 
 def _state(m: float = 0.1, n: int = 100) -> Calibration:
     return Calibration(
+        estimate=Estimate(Params("EM3", m=m, b_mps=0.05), {"m": 0.001, "b": 0.002}),
         uut="emlog1",
-        params=Params("EM3", m=m, b_mps=0.05),
-        param_std={"m": 0.001, "b": 0.002},
         lag_s=3.2,
         covariance=((1e-4, 0.0, 0.0), (0.0, 1e-6, -1e-7), (0.0, -1e-7, 4e-6)),
         t=1.75e9,
@@ -195,10 +195,11 @@ def test_full_filesystem_simulated_with_a_tiny_limit(tmp_path: Path) -> None:
         "resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))\n"
         "from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError\n"
         "from emlogd.pipeline.calibration import Calibration\n"
+        "from calib.estimate import Estimate\n"
         "from calib.models import Params\n"
         f"s = StateStore({str(store.path)!r})\n"
         "try:\n"
-        "    s.save({'emlog1': Calibration('emlog1', Params('EM3', m=0.5), {}, None)})\n"
+        "    s.save({'emlog1': Calibration('emlog1', Estimate(Params('EM3', m=0.5), {}), None)})\n"
         "except StateWriteError as e:\n"
         "    print('refused', e); sys.exit(0)\n"
         "sys.exit(3)\n"
@@ -219,7 +220,9 @@ def test_dump_marks_the_end() -> None:
 
 def test_non_finite_values_are_written_as_null(tmp_path: Path) -> None:
     """A nan NIS and an undetermined σ are written as null and read back as None."""
-    s = Calibration("u", Params("EM3", m=0.1), {"m": None, "b": 0.01}, None, nis_mean=math.nan)
+    s = Calibration(
+        "u", Estimate(Params("EM3", m=0.1), {"m": None, "b": 0.01}), None, nis_mean=math.nan
+    )
     store = StateStore(tmp_path / "s.yaml")
     store.save({"u": s})
     loaded = store.load()[0]["u"]
@@ -257,6 +260,7 @@ def test_a_poisoned_file_is_refused_and_the_backup_used(tmp_path: Path, poison: 
 
 KILLER = """
 import sys
+from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.daemon.statefile import StateStore
 from emlogd.pipeline.calibration import Calibration
@@ -264,7 +268,7 @@ store = StateStore(sys.argv[1])
 i = 0
 while True:
     i += 1
-    store.save({"emlog1": Calibration("emlog1", Params("EM3", m=i * 1e-6), {}, None,
+    store.save({"emlog1": Calibration("emlog1", Estimate(Params("EM3", m=i * 1e-6), {}), None,
                                       n_samples=i)})
 """
 
@@ -397,7 +401,7 @@ def test_other_models_round_trip_and_are_checked(tmp_path: Path) -> None:
     """The UUTs' calibrations of their other models are saved beside the ones in use, load
     back equal, and are checked like them (an absurd one refuses the file)."""
     store = StateStore(tmp_path / "state.yaml")
-    em4 = Calibration("emlog1", Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}, 2.5)
+    em4 = Calibration("emlog1", Estimate(Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}), 2.5)
     store.save({"emlog1": _state()}, [em4])
     states, others, report = store.load_state(check=_check())  # type: ignore[arg-type]
     assert states == {"emlog1": _state()} and others == [em4] and report == []

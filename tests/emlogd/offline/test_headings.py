@@ -12,11 +12,12 @@ import pytest
 
 from drivers.framing import with_checksum
 from drivers.io.capture import CaptureWriter
-from drivers.nmea0183 import encode_hdt, encode_rmc, encode_vhw
+from drivers.nmea0183 import encode_rmc, encode_vhw
 from emlogd.offline.importer import import_nmea
 from emlogd.offline.jobs import OfflineError, calibrate, load_captures
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.variation import model_variation
+from tests.nmea_encoders import encode_hdt
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "real"
 T0 = datetime(2014, 8, 22, 16, 0, tzinfo=UTC).timestamp()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -218,27 +217,6 @@ class TestFiles:
         (u,) = [v for k, v in out.to_dict()["uuts"].items() if k == "emlog1"]  # type: ignore[union-attr]
         assert u["state"] == "frozen" and u["lag_s"] == pytest.approx(3.3)
         assert u["rmse_corrected"] < 0.5 * u["rmse_raw"]
-
-    def test_kf_trace(self, trial_files: dict[str, Path], tmp_path: Path) -> None:
-        """--trace writes one row per learnt-from reading: full-precision times, the
-        parameters ending at the result's, the current with its σ, and the state."""
-        import csv
-
-        from emlogd.offline.jobs import TRACE_COLUMNS
-
-        recs = load_captures([trial_files["figure-8"]], E1C)
-        path = tmp_path / "trace.csv"
-        res = calibrate(recs, E1C, "kf", lag=3.3, trace=path)
-        with open(path, newline="") as f:
-            rows = list(csv.DictReader(f))
-        assert tuple(rows[0]) == TRACE_COLUMNS
-        t = [float(r["t"]) for r in rows]
-        assert len(rows) > 100 and all(b > a for a, b in itertools.pairwise(t))
-        assert float(rows[-1]["m"]) == pytest.approx(res.params.m, abs=1e-5)
-        assert {r["state"] for r in rows} >= {"learning"}
-        assert all(r["std_current_north_mps"] for r in rows[1:])
-        with pytest.raises(OfflineError, match="--method kf"):
-            calibrate(recs, E1C, "ls", lag=3.3, trace=path)
 
     def test_round_trip_and_evaluate(self, trial_files: dict[str, Path], tmp_path: Path) -> None:
         """--save writes a calibration file that evaluate applies to other captures."""

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from calib.estimate import Estimate
 from emlogd.cli import main
 from emlogd.config import parse_config
 from emlogd.offline.replay import replay
@@ -118,7 +119,9 @@ def test_truth_pairs_each_emitted_speed_with_its_reading(tmp_path: Path) -> None
     cals = {}
     for name in ("emlog1", "emlog2"):
         params, latency = truth.emlog(name)
-        cals[name] = Calibration(name, params, {"a": 0.001, "m": 0.001, "b": 0.001}, latency)
+        cals[name] = Calibration(
+            name, Estimate(params, {"a": 0.001, "m": 0.001, "b": 0.001}), latency
+        )
     pipeline = Pipeline(ports, uuts, cals)
     replay(pipeline, [sim.files[0]])  # the restored calibrations re-validate against the DVL
     res = replay(pipeline, [sim.files[1]], truth=truth)

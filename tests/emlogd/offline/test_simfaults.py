@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.config import parse_config
 from emlogd.offline.replay import replay
@@ -120,7 +121,7 @@ def _worst(
     ports, uuts = pipeline_from_config(parse_config(CFG))
     cals = {}
     if prior is not None:
-        cals["emlog1"] = Calibration("emlog1", prior, {"m": 0.01, "b": 0.01}, 3.3)
+        cals["emlog1"] = Calibration("emlog1", Estimate(prior, {"m": 0.01, "b": 0.01}), 3.3)
     res = replay(Pipeline(ports, uuts, cals), list(sim.files), truth=read_truth(sim.outdir))
     return max(w.ratio for w in res.truth_windows["emlog1"])
 

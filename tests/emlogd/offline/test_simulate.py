@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gzip
 import math
 from pathlib import Path
 
@@ -13,25 +12,15 @@ import yaml
 from calib.models import correct_array
 from drivers import make_decoder
 from drivers.io.capture import CaptureReader
-from drivers.nmea0183 import Rmc
 from emlogd.cli import main
 from emlogd.offline.jobs import calibrate, evaluate, load_captures
 from emlogd.offline.simulate import (
-    DT_S,
     EMLOG1,
     EMLOG2,
     FAULT_RATES,
-    GNSS_LAG_S,
-    START_EPOCH_S,
     TRAJECTORIES,
-    TRUTH_RATE_HZ,
-    Kinematics,
     SimulationResult,
     TruthError,
-    _Faults,
-    _gnss_lines,
-    _Line,
-    kinematics,
     read_truth,
     score_truth,
     simulate,
@@ -181,50 +170,6 @@ def test_given_current_moves_only_the_ground_referenced_ports(tmp_path: Path) ->
         assert by_port["gnss"][0] != by_port["gnss"][1]
 
 
-def test_constant_speed_circles() -> None:
-    """circles="constant" flies the circles at one speed and draws the same random numbers."""
-    spec = TRAJECTORIES[3]
-    rng_s, rng_c = np.random.default_rng(3), np.random.default_rng(3)
-    steps = kinematics(spec, 1440.0, rng_s)
-    const = kinematics(spec, 1440.0, rng_c, circles="constant")
-    assert steps.surge.std() > 0.1
-    assert const.surge.std() < 1e-9
-    assert const.surge.mean() == pytest.approx(spec.mean_mps)
-    assert np.array_equal(steps.heading, const.heading)
-    assert rng_s.random() == rng_c.random()  # later draws (sensors, faults) do not move
-
-
-def test_truth_csv_matches_the_trial(trial: SimulationResult) -> None:
-    """truth.csv.gz holds every trajectory at TRUTH_RATE_HZ with the truth.yaml summary figures."""
-    truth = read_truth(trial.outdir)
-    with gzip.open(trial.outdir / "truth.csv.gz", "rt") as f:
-        assert f.readline().strip() == (
-            "t,trajectory,stw_mps,heading_deg,current_n_mps,current_e_mps,bottom_lock"
-        )
-    for i, tr in enumerate(trial.trajectories, start=1):
-        on = truth.trajectory == i
-        assert on.sum() == pytest.approx(tr.duration_s * TRUTH_RATE_HZ, abs=1)
-        assert truth.t[on][0] == pytest.approx(tr.t_start)
-        assert truth.stw_mps[on].mean() == pytest.approx(tr.mean_stw_mps, abs=2e-3)
-        assert truth.bottom_lock[on].mean() == pytest.approx(tr.bottom_lock_fraction, abs=0.01)
-        assert np.hypot(truth.current_n_mps[on], truth.current_e_mps[on]).max() == pytest.approx(
-            tr.max_current_mps, abs=1e-3
-        )
-    assert np.all((truth.heading_deg >= 0.0) & (truth.heading_deg < 360.0))
-
-
-def test_truth_is_interpolated_within_trajectories_only(trial: SimulationResult) -> None:
-    """stw_at interpolates inside a trajectory and gives nan in the idle time between two."""
-    truth = read_truth(trial.outdir)
-    t1 = truth.t[truth.trajectory == 1]
-    mid = 0.5 * (t1[10] + t1[11])
-    expected = 0.5 * (truth.stw_mps[10] + truth.stw_mps[11])
-    gap = t1[-1] + 10.0
-    got = truth.stw_at([mid, gap, truth.t[0] - 1.0, truth.t[-1] + 1.0])
-    assert got[0] == pytest.approx(expected)
-    assert np.isnan(got[1:]).all()
-
-
 def _emlog_readings(
     path: Path, port: str, source: str | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -258,17 +203,6 @@ def test_truth_scores_and_floor(trial: SimulationResult) -> None:
     assert s.to_dict().keys() == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor", "imo"}
     with pytest.raises(TruthError, match="no EMlog 'dvl'"):
         score_truth(truth, "dvl", t, raw, raw)
-
-
-def test_read_truth_errors(tmp_path: Path, trial: SimulationResult) -> None:
-    """A missing or malformed truth is one TruthError naming the file."""
-    with pytest.raises(TruthError, match=r"truth\.csv\.gz: no such file"):
-        read_truth(tmp_path)
-    (tmp_path / "truth.yaml").write_text(trial.truth_path.read_text())
-    with gzip.open(tmp_path / "truth.csv.gz", "wt") as f:
-        f.write("t,speed\n1,2\n")
-    with pytest.raises(TruthError, match="columns"):
-        read_truth(tmp_path)
 
 
 def test_simulate_command_current_and_circles(tmp_path: Path) -> None:
@@ -350,58 +284,6 @@ def test_simulate_refuses_emlogs_on_other_ports_or_out_of_range(tmp_path: Path) 
     with pytest.raises(ValueError, match="emlog2 noise must be within"):
         simulate(tmp_path, scale=0.01, emlogs=(EMLOG1, loud))
     assert not any(tmp_path.iterdir())
-
-
-# ------------------------------------------------------------------ the GNSS receiver
-
-
-def _steady(speed: float, n_s: float = 3000.0, accel: float = 0.0) -> Kinematics:
-    t = np.arange(0.0, n_s, DT_S)
-    surge = speed + accel * t
-    zero = np.zeros_like(t)
-    return Kinematics(t, surge, zero, np.full_like(t, math.radians(30.0)), zero, zero)
-
-
-def _rmc(k: Kinematics, seed: int) -> list[tuple[float, Rmc]]:
-    lines: list[_Line] = []
-    faults = _Faults(np.random.default_rng(seed))
-    _gnss_lines(k, START_EPOCH_S, np.random.default_rng(seed), faults, lines)
-    dec = make_decoder("nmea0183", "gnss", errors="skip")
-    out = []
-    for ln in lines:
-        for r in dec.feed(ln.data):
-            if isinstance(r, Rmc):
-                out.append((ln.t - START_EPOCH_S, r))
-    return out
-
-
-def test_gnss_noise_grows_in_course_at_low_speed() -> None:
-    """GNSS SOG is off by about 0.05 m/s (1σ) at any speed; COG by about 0.05/SOG rad."""
-    for speed in (0.3, 2.0):
-        fixes = _rmc(_steady(speed), 5)
-        assert len(fixes) == pytest.approx(3000, abs=10)
-        sog = np.array([r.sog_mps for _, r in fixes])
-        cog = np.array([r.cog_true_deg for _, r in fixes])
-        assert sog.mean() == pytest.approx(speed, abs=0.01)
-        assert 0.04 < sog.std() < 0.06
-        cog_err = np.radians((cog - 30.0 + 180.0) % 360.0 - 180.0)
-        assert cog_err.std() == pytest.approx(0.05 / speed, rel=0.15)
-
-
-def test_gnss_velocity_lags_and_fixes_fall_on_whole_seconds(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    """Each fix is stamped on a whole UTC second and reports the velocity of GNSS_LAG_S earlier."""
-    monkeypatch.setattr("emlogd.offline.simulate.GNSS_NOISE_MPS", 0.0)
-    accel = 0.01
-    fixes = _rmc(_steady(1.0, n_s=300.0, accel=accel), 6)
-    t_fix = np.array([r.time_utc.timestamp() - START_EPOCH_S for _, r in fixes if r.time_utc])
-    assert len(t_fix) == len(fixes) and np.all(t_fix == np.round(t_fix))
-    t_rx = np.array([t for t, _ in fixes])
-    assert np.all((t_rx - t_fix > 0.1) & (t_rx - t_fix < 0.2))
-    sog = np.array([r.sog_mps for _, r in fixes])
-    age = np.mean((1.0 + accel * t_fix) - sog) / accel
-    assert age == pytest.approx(GNSS_LAG_S, abs=0.05)
 
 
 def test_trial_calibrates_against_its_gnss(trial_files: dict[str, Path]) -> None:

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 from calib.models import Params
-from calib.synth import WaterFrameSeries, water_frame_segment
 from drivers.nmea0183 import encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
+from tests.synth import WaterFrameSeries, water_frame_segment
 
 T0 = 1_750_000_000.0
 PORTS = [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")]
@@ -59,7 +59,7 @@ def make_stream(
     """PD6 at the series' rate and VHW every ``uut_period_s``, late by ``lag_s``.
 
     Args:
-        series: the truth at 10 Hz (``calib.synth.water_frame_segment``).
+        series: the truth at 10 Hz (``tests.synth.water_frame_segment``).
         lag_s: the speed log's latency, s.
         uut_period_s: interval between VHW sentences, s.
         t0: epoch of the first sample.

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Any
 
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.pipeline.calibration import Calibration, check, checker
 from emlogd.pipeline.integrity import Envelope
@@ -13,8 +16,7 @@ from emlogd.pipeline.settings import UutSettings
 
 GOOD = Calibration(
     "emlog1",
-    Params("EM3", m=0.05, b_mps=0.1),
-    {"m": 0.01, "b": 0.02},
+    Estimate(Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.02}),
     3.2,
     covariance=((1.0, 0.0, 0.0), (0.0, 1e-4, 0.0), (0.0, 0.0, 1e-4)),
 )
@@ -22,8 +24,11 @@ GOOD = Calibration(
 
 def _with(**kw: object) -> Calibration:
     values = {f: getattr(GOOD, f) for f in GOOD.__dataclass_fields__}
+    fields = ("params", "param_std", "current_mps", "current_std_mps")
+    estimate: dict[str, Any] = {k: kw.pop(k) for k in fields if k in kw}
+    values["estimate"] = dataclasses.replace(GOOD.estimate, **estimate)
     values.update(kw)
-    return Calibration(**values)  # type: ignore[arg-type]
+    return Calibration(**values)
 
 
 class TestCheck:

@@ -10,14 +10,15 @@ from types import SimpleNamespace
 
 import pytest
 
+from calib.estimate import Estimate
 from calib.lag import LAG_FALLBACK_S, MAX_LAG_STD_S
 from calib.models import Params
-from calib.synth import WaterFrameSeries
 from drivers.framing import split_nmea, with_checksum
 from drivers.nmea0183 import encode_vhw
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
+from tests.synth import WaterFrameSeries
 
 TRUE = Params("EM3", m=0.15, b_mps=0.1)
 Segment = Callable[..., WaterFrameSeries]
@@ -245,7 +246,9 @@ class TestLag:
         self, kit: SimpleNamespace, segment: Segment
     ) -> None:
         """A warm start takes the lag from the calibration: no re-estimation window."""
-        prior = Calibration("log", Params("EM3", m=0.15, b_mps=0.1), {"m": 0.01, "b": 0.01}, 1.5)
+        prior = Calibration(
+            "log", Estimate(Params("EM3", m=0.15, b_mps=0.1), {"m": 0.01, "b": 0.01}), 1.5
+        )
         p = Pipeline(
             kit.PORTS,
             [UutSettings(port="log", reference_port="dvl", lag_window_s=300.0)],
@@ -293,7 +296,7 @@ class TestControl:
         self, kit: SimpleNamespace
     ) -> None:
         """A persisted m = −2 is not applied: the pipeline starts uncalibrated and says why."""
-        bad = Calibration("log", Params("EM3", m=-0.9), {}, 0.0)
+        bad = Calibration("log", Estimate(Params("EM3", m=-0.9), {}), 0.0)
         p = Pipeline(kit.PORTS, [UutSettings(port="log", reference_port="dvl")], {"log": bad})
         out = p.tick(kit.T0)
         assert [e.kind for e in out.events] == ["calibration_refused"]
@@ -329,8 +332,7 @@ class TestRestart:
             cov[i][i] = var
         return Calibration(
             "log",
-            TRUE,
-            {"m": 0.01, "b": 0.01},
+            Estimate(TRUE, {"m": 0.01, "b": 0.01}),
             0.0,
             current=True,
             covariance=tuple(tuple(r) for r in cov),
@@ -509,7 +511,8 @@ class TestGnssReference:
     def test_projection_on_one_port(self) -> None:
         """UUT, reference and heading on one port: along-hull SOG·cos(COG − ψ)."""
 
-        from drivers.nmea0183 import encode_hdt, encode_rmc
+        from drivers.nmea0183 import encode_rmc
+        from tests.nmea_encoders import encode_hdt
 
         lines: list[tuple[float, str]] = []
         t0 = 1_750_000_000.0
@@ -529,7 +532,8 @@ class TestGnssReference:
     def test_below_min_sog_or_void_fix_is_not_a_reference(self) -> None:
         """A fix below min_sog_mps (course meaningless) or with status V teaches nothing."""
 
-        from drivers.nmea0183 import encode_hdt, encode_rmc
+        from drivers.nmea0183 import encode_rmc
+        from tests.nmea_encoders import encode_hdt
 
         t0 = 1_750_000_000.0
         lines: list[tuple[float, str]] = []
@@ -548,7 +552,9 @@ class TestStateAcrossModelsAndResets:
     """What a pipeline takes from a state: each error model its own calibration, the lag
     whatever the model, and the lag after a reset."""
 
-    EM3 = Calibration("log", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}, 1.5)
+    EM3 = Calibration(
+        "log", Estimate(Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": 0.01}), 1.5
+    )
 
     def test_each_model_keeps_its_calibration_across_a_switch(self, kit: SimpleNamespace) -> None:
         """EM3 → EM4 starts EM4 uncalibrated with EM3's lag and keeps EM3's record; back to
@@ -577,7 +583,7 @@ class TestStateAcrossModelsAndResets:
         """A reset forgets every model's calibration, not the lag: its record carries the
         lag, and a pipeline started from that record has it."""
         s = UutSettings(port="log", reference_port="dvl")
-        em4 = Calibration("log", Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}, 1.5)
+        em4 = Calibration("log", Estimate(Params("EM4", a_spm=0.01, m=0.05, b_mps=0.1), {}), 1.5)
         p = Pipeline(kit.PORTS, [s], {"log": self.EM3}, others=[em4])
         reply = p.reset()
         assert reply["log"]["kept"] == {"lag_s": 1.5, "learning_enabled": True}

@@ -8,6 +8,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from drivers.framing import split_nmea
 from drivers.nmea0183 import encode_rmc, encode_vhw
@@ -67,7 +68,9 @@ class TestStatusSentence:
 def _pipeline(speed_only: bool = True, calibrated: str | None = None) -> Pipeline:
     cals = {}
     if calibrated is not None:
-        cals[calibrated] = Calibration(calibrated, Params("EM3", m=0.0, b_mps=0.0), {}, None)
+        cals[calibrated] = Calibration(
+            calibrated, Estimate(Params("EM3", m=0.0, b_mps=0.0), {}), None
+        )
     return Pipeline(
         [PortSettings("a", "nmea0183"), PortSettings("b", "nmea0183"), PortSettings("dvl", "pd6")],
         [

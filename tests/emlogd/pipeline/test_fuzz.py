@@ -20,19 +20,7 @@ from hypothesis import strategies as st
 
 from drivers.binframe import sum16
 from drivers.framing import with_checksum
-from drivers.nmea0183 import (
-    NmeaDecoder,
-    Vhw,
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
-    encode_rmc,
-    encode_vbw,
-    encode_vhw,
-    encode_vtg,
-    encode_zda,
-)
+from drivers.nmea0183 import NmeaDecoder, Vhw, encode_rmc, encode_vbw, encode_vhw
 from drivers.rdi_ascii import encode_pd6
 from drivers.rdi_pd0 import encode_pd0
 from drivers.rdi_pd45 import encode_pd45
@@ -40,6 +28,15 @@ from drivers.records import Rejected
 from emlogd.config import parse_config
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import fusion_from_config, pipeline_from_config
+from tests.nmea_encoders import (
+    encode_gga,
+    encode_hdg,
+    encode_hdm,
+    encode_hdt,
+    encode_vtg,
+    encode_zda,
+)
+from tests.profiles import by_profile
 
 CONFIG = """\
 ports:
@@ -163,6 +160,32 @@ op = st.tuples(
 )
 
 
+def _spoilt(data: bytes, how: str, index: int, value: str, noise: bytes) -> bytes:
+    """A valid record spoilt as ``how`` says: a hostile value in one field or two (the
+    second chosen by the noise), a bit flipped, cut short, or replaced by the noise."""
+    if how == "field":
+        return _hostile_field(data, index, value)
+    if how == "fields":
+        return _hostile_field(data, index, value, noise[0])
+    if how == "flip":
+        i = index % len(data)
+        return data[:i] + bytes([data[i] ^ (1 + noise[0] % 255)]) + data[i + 1 :]
+    if how == "cut":
+        return data[: index % len(data)]
+    if how == "random":
+        return noise
+    return data
+
+
+def _check_sentence(check: NmeaDecoder, s: str) -> None:
+    """An emitted sentence decodes without a reject, its speed finite."""
+    recs = check.decode_all((s + "\r\n").encode("ascii"))
+    assert recs and not any(isinstance(r, Rejected) for r in recs), s
+    for r in recs:
+        if isinstance(r, Vhw) and r.stw_mps is not None:
+            assert math.isfinite(r.stw_mps), s
+
+
 def _run(ops: list[tuple[str, str, int, str, bytes, float]]) -> None:
     cfg = parse_config(CONFIG)
     pipeline = Pipeline(*pipeline_from_config(cfg), fusion=fusion_from_config(cfg))
@@ -171,18 +194,7 @@ def _run(ops: list[tuple[str, str, int, str, bytes, float]]) -> None:
     t_tick = -math.inf
     emitted: list[str] = []
     for k, (port, how, index, value, noise, dt) in enumerate(ops):
-        data = _valid(port, k)
-        if how == "field":
-            data = _hostile_field(data, index, value)
-        elif how == "fields":  # two fields, the second chosen by the noise
-            data = _hostile_field(data, index, value, noise[0])
-        elif how == "flip":
-            i = index % len(data)
-            data = data[:i] + bytes([data[i] ^ (1 + noise[0] % 255)]) + data[i + 1 :]
-        elif how == "cut":
-            data = data[: index % len(data)]
-        elif how == "random":
-            data = noise
+        data = _spoilt(_valid(port, k), how, index, value, noise)
         t += dt
         emitted.extend(e.sentence for e in pipeline.feed(t, port, data).emits)
         if t - t_tick >= 0.5:
@@ -192,11 +204,7 @@ def _run(ops: list[tuple[str, str, int, str, bytes, float]]) -> None:
     pipeline.status()
     for s in emitted:
         if not s.startswith("$PEML"):  # the status and fused sentences are proprietary
-            recs = check.decode_all((s + "\r\n").encode("ascii"))
-            assert recs and not any(isinstance(r, Rejected) for r in recs), s
-            for r in recs:
-                if isinstance(r, Vhw) and r.stw_mps is not None:
-                    assert math.isfinite(r.stw_mps), s
+            _check_sentence(check, s)
     for name in PORTS:
         assert pipeline.decoders[name].counters.rejects["internal"] == 0, name
 
@@ -206,31 +214,19 @@ def _warm() -> list[tuple[str, str, int, str, bytes, float]]:
     return [(PORTS[k % len(PORTS)], "valid", 0, "", b"\0", 0.05) for k in range(300)]
 
 
+@pytest.mark.fuzz
 @settings(
-    max_examples=25,
+    max_examples=by_profile(25, 3000),
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
-@given(ops=st.lists(op, min_size=1, max_size=120))
+@given(ops=st.lists(op, min_size=1, max_size=by_profile(120, 600)))
 def test_hostile_input_never_escapes_the_pipeline(
     ops: list[tuple[str, str, int, str, bytes, float]],
 ) -> None:
     """Random and mutated sentences of every protocol, after a valid warm-up, go through the
-    whole pipeline without an exception, and whatever it emits decodes as valid NMEA."""
-    _run(_warm() + ops)
-
-
-@pytest.mark.fuzz
-@settings(
-    max_examples=3000,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-)
-@given(ops=st.lists(op, min_size=1, max_size=600))
-def test_fuzz_hostile_input_never_escapes_the_pipeline(
-    ops: list[tuple[str, str, int, str, bytes, float]],
-) -> None:
-    """The long profile of the test above (3000 examples, up to 600 records each)."""
+    whole pipeline without an exception, and whatever it emits decodes as valid NMEA (25
+    examples of up to 120 records; 3000 of up to 600 in the long profile)."""
     _run(_warm() + ops)
 
 

@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from drivers.nmea0183 import encode_hdt, encode_rmc, encode_vhw
+from drivers.nmea0183 import encode_rmc, encode_vhw
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.pipeline.headingcheck import WINDOW_S, HeadingCheck
 from emlogd.pipeline.settings import PortSettings, UutSettings
+from tests.nmea_encoders import encode_hdt
 
 T0 = 1_750_000_000.0
 

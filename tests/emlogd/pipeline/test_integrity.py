@@ -116,6 +116,20 @@ class TestUutHealth:
             f_good = good.update(float(k), 1.1 * ref + float(rng.normal(0.0, 0.03)), ref)
         assert f_stuck == "uut_stuck" and f_good == ""
 
+    def test_a_log_holding_one_step_of_its_resolution_is_not_stuck(self) -> None:
+        """A 0.1-kn log on a steady yacht reads 5.8 and 5.9 kn (its 10-s means span one
+        step, 0.051 m/s) while the GNSS speed's 10-s means wander 0.33 m/s with its noise
+        (Irene 2014-06-27): a span of one step is no evidence of a stuck log."""
+        step = 0.1 * 0.514444
+        h = UutHealth(stuck_s=60.0)
+        refs = [3.20, 3.16, 3.08, 2.98, 3.31, 3.10, 3.15]
+        fault = ""
+        for k in range(70):
+            raw = 58 * step if (k // 7) % 3 else 59 * step
+            fault = h.update(float(k), raw, refs[k // 10], heading_deg=215.0) or fault
+        assert h.resolution_mps == pytest.approx(step)
+        assert fault == ""
+
     def test_the_spread_rule_waits_for_a_steady_heading(self) -> None:
         """In a turn the reference moves with the current's projection while the speed
         through the water stays: a steady reading is not stuck there."""
@@ -150,6 +164,19 @@ class TestUutHealth:
         h2 = UutHealth(zero_s=10.0)
         for k in range(20):
             fault = h2.update(float(k), 0.0, 0.1)  # the vessel is at rest: no fault
+        assert fault == ""
+
+    def test_a_zero_fault_lapses_without_a_reference_showing_motion(self) -> None:
+        """Zero at 0.7 m/s for 10 s is a fault, which stands through a short loss of the
+        reference; moored (no GNSS speed, the log at zero) it lapses after zero_s."""
+        h = UutHealth(zero_s=10.0)
+        for k in range(12):
+            fault = h.update(float(k), 0.0, 0.7)
+        assert fault == "uut_zero"
+        assert h.update(15.0, 0.0, None) == "uut_zero"
+        assert h.update(22.0, 0.0, None) == ""
+        for k in range(23, 40):
+            fault = h.update(float(k), 0.0, None)
         assert fault == ""
 
 

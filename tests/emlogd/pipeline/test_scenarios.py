@@ -16,11 +16,11 @@ from types import SimpleNamespace
 import pytest
 
 from calib.models import Params
-from calib.synth import WaterFrameSeries
 from drivers.nmea0183 import encode_vhw
 from emlogd.pipeline.calibration import check
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.pipeline.integrity import Envelope
+from tests.synth import WaterFrameSeries
 
 TRUE = Params("EM3", m=0.10, b_mps=0.10)
 NOISE_MPS = 0.01

@@ -7,17 +7,18 @@ from types import SimpleNamespace
 
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
-from calib.synth import WaterFrameSeries
 from drivers.nmea0183 import encode_vhw
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.status import port_status, status_fields, summary, uut_status
 from emlogd.pipeline.supervisor import RESTORE_WAIT_S
+from tests.synth import WaterFrameSeries
 
 PORTS = [PortSettings("log", "nmea0183", stale_timeout_s=2.0), PortSettings("dvl", "pd6")]
-CAL = Calibration("log", Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": None}, 1.5)
+CAL = Calibration("log", Estimate(Params("EM3", m=0.05, b_mps=0.1), {"m": 0.01, "b": None}), 1.5)
 
 
 def _pipeline() -> Pipeline:

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import math
 from datetime import UTC, datetime
+from typing import Any
 
 import pytest
 
 from drivers.framing import with_checksum
-from drivers.nmea0183 import encode_gga, encode_hdt, encode_rmc, encode_vhw
+from drivers.nmea0183 import encode_rmc, encode_vhw
 from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.variation import (
@@ -18,6 +19,7 @@ from emlogd.pipeline.variation import (
     decimal_year,
     model_variation,
 )
+from tests.nmea_encoders import encode_gga, encode_hdt
 
 T0 = datetime(2014, 6, 27, 13, 0, tzinfo=UTC).timestamp()
 
@@ -76,14 +78,10 @@ class TestModel:
         )
 
 
-def _pipeline(**kw: object) -> Pipeline:
+def _pipeline(**kw: Any) -> Pipeline:
     return Pipeline(
         [PortSettings("nmea", "nmea0183")],
-        [
-            UutSettings(  # type: ignore[arg-type]
-                port="nmea", reference_port="nmea", reference_field="gnss", lag_s=0.0, **kw
-            )
-        ],
+        [UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", lag_s=0.0, **kw)],
     )
 
 
@@ -209,7 +207,7 @@ class TestCourseOffsetCheck:
         for t, h, sog, cog in _sail(error):
             c.add(t, h, sog, cog)
         d = c.offset_deg()
-        assert d == pytest.approx(error, abs=2.0)
+        assert d is not None and d == pytest.approx(error, abs=2.0)
         assert abs(d) > MAX_HEADING_OFFSET_DEG and c.flagged()
 
     def test_one_leg_decides_nothing(self) -> None:

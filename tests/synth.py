@@ -1,4 +1,5 @@
-"""Synthetic speed data for tests, benchmarks and demonstrations.
+"""Synthetic speed data for the tests, the benchmarks and docs/kf_vs_ls.py (not part of
+the installed package: import it as ``tests.synth`` from the repository root).
 
 Generates a true speed through the water for the five trajectory types of the
 paper (section IV-B: transit, figure-8, straight, circles, return; their mean
@@ -6,7 +7,7 @@ speeds), applies an error model (:mod:`calib.models`) plus white noise to make a
 raw EMlog series, and adds white noise to make a reference. Everything is
 seeded through an explicit ``numpy.random.Generator``.
 
-Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
+Imports calib, numpy and the stdlib only (no drivers, no emlogd, no I/O).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ import pytest
 
 from calib.errors import DataError
 from calib.models import Params
-from calib.synth import (
+from tests.synth import (
     PAPER_TRIAL,
     heading_profile,
     paper_trial,

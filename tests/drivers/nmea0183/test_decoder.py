@@ -1,4 +1,4 @@
-"""NMEA 0183 decoder and encoders: units, validity rules, rejects, properties."""
+"""NMEA 0183 decoder: VHW/VBW units and validity, rejects, checksum and length policies, streams."""
 
 from __future__ import annotations
 
@@ -9,17 +9,18 @@ from hypothesis import strategies as st
 from drivers.base import DecoderOptions
 from drivers.errors import ChecksumError, FieldError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import with_checksum
-from drivers.nmea0183 import Heading, NmeaDecoder, Vbw, Vhw, encode_vbw, encode_vhw
+from drivers.nmea0183 import Heading, NmeaDecoder, NmeaRecord, Vbw, Vhw, encode_vbw, encode_vhw
 from drivers.records import KMH_MPS, KNOT_MPS, Rejected
+from tests.profiles import by_profile
 
 
-def _parse(body: str) -> object:
+def _parse(body: str) -> NmeaRecord:
     return NmeaDecoder("x").parse_frame(with_checksum(body).encode())
 
 
 def _feed_all(data: bytes, **kw: object) -> tuple[list[object], NmeaDecoder]:
     dec = NmeaDecoder("x", errors="yield", **kw)  # type: ignore[arg-type]
-    return dec.decode_all(data), dec
+    return list(dec.decode_all(data)), dec
 
 
 def test_vhw_units_and_disagreement() -> None:
@@ -120,7 +121,7 @@ def test_ranges_at_their_limits_are_read() -> None:
 def test_an_unforeseen_exception_is_an_internal_reject(monkeypatch: pytest.MonkeyPatch) -> None:
     """A frame whose parsing fails with an exception that is no FrameError is counted as an
     internal reject naming the exception, and the next frame of the chunk is still decoded."""
-    import drivers.nmea0183 as nmea
+    import drivers.nmea0183.decoder as nmea
 
     def boom(*args: object) -> object:
         raise ValueError("math domain error")
@@ -188,58 +189,6 @@ def test_ais_is_an_unknown_sentence() -> None:
     assert out[0].reason == "unknown_sentence"
 
 
-def test_encoders() -> None:
-    """encode_vhw wraps headings into 0..360, keeps knots and km/h consistent, never prints -0.00
-    and refuses NaN or a lowercase talker, and encode_vbw with a ground pair decodes with both pairs
-    valid."""
-    s = encode_vhw(2.0, heading_true_deg=361.0, heading_mag_deg=-1.0)
-    r = NmeaDecoder("x").parse_frame(s.encode())
-    assert isinstance(r, Vhw)
-    assert r.heading_true_deg == 1.0 and r.heading_mag_deg == 359.0
-    assert r.stw_kmh == pytest.approx(r.stw_knots * 1.852, abs=0.01)  # type: ignore[operator]
-    assert encode_vhw(-0.0001).split(",")[5] == "0.00"  # never "-0.00"
-    with pytest.raises(ValueError):
-        encode_vhw(float("nan"))
-    with pytest.raises(ValueError):
-        encode_vhw(1.0, talker="vw")
-    v = NmeaDecoder("x").parse_frame(
-        encode_vbw(1.0, -0.5, ground_long_mps=1.1, ground_trans_mps=0.0, ground_valid=True).encode()
-    )
-    assert isinstance(v, Vbw) and v.ground_valid and v.water_valid
-
-
-speeds = st.floats(min_value=-20.0, max_value=20.0, allow_nan=False)
-
-
-@settings(max_examples=300, deadline=None)
-@given(
-    stw=speeds,
-    ht=st.one_of(st.none(), st.floats(0, 359.9)),
-    hm=st.one_of(st.none(), st.floats(0, 359.9)),
-)
-def test_vhw_round_trip(stw: float, ht: float | None, hm: float | None) -> None:
-    """Any VHW encoded from a speed within ±20 m/s and optional headings fits 82 characters and
-    decodes to that speed within rounding, its units agreeing."""
-    s = encode_vhw(stw, heading_true_deg=ht, heading_mag_deg=hm)
-    assert len(s) + 2 <= 82
-    r = NmeaDecoder("x").parse_frame(s.encode())
-    assert isinstance(r, Vhw)
-    assert r.stw_mps == pytest.approx(stw, abs=0.006)
-
-
-@settings(max_examples=300, deadline=None)
-@given(lon=speeds, tr=speeds)
-def test_vbw_round_trip(lon: float, tr: float) -> None:
-    """Any VBW water pair within ±20 m/s fits 82 characters and decodes as valid to the same speeds
-    within rounding."""
-    s = encode_vbw(lon, tr)
-    assert len(s) + 2 <= 82
-    r = NmeaDecoder("x").parse_frame(s.encode())
-    assert isinstance(r, Vbw) and r.water_valid
-    assert r.water_long_mps == pytest.approx(lon, abs=0.006)
-    assert r.water_trans_mps == pytest.approx(tr, abs=0.006)
-
-
 STREAM = (
     encode_vhw(2.0) + "\r\n" + encode_vbw(1.0, 0.1) + "\n" + "$GPGGA,bad\r\n"
     + encode_vhw(2.5, heading_true_deg=90) + "\r" + "junk$VWVHW,1,2\r\n" + encode_vbw(0.5, 0.0) + "\r\n"
@@ -286,19 +235,12 @@ def _flip(pos: int, value: int) -> None:
         assert isinstance(r, Rejected) or r == original
 
 
-@settings(max_examples=500, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(500), deadline=None)
 @given(pos=st.integers(0, 200), value=st.integers(0, 255))
 def test_a_corrupted_sentence_never_yields_a_wrong_record(pos: int, value: int) -> None:
     """A VBW with any one byte changed is rejected or decodes to the original record, never to a
     different one."""
-    _flip(pos, value)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(pos=st.integers(0, 200), value=st.integers(0, 255))
-def test_fuzz_corrupted_sentences(pos: int, value: int) -> None:
-    """A VBW with any one byte changed never decodes to a different record (fuzz run)."""
     _flip(pos, value)
 
 
@@ -308,19 +250,12 @@ def _random(data: bytes) -> None:
         assert not isinstance(r, Rejected)
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(300), deadline=None)
 @given(st.binary(max_size=2000))
 def test_random_bytes_never_raise(data: bytes) -> None:
     """Arbitrary bytes never raise in skip mode and yield no Rejected record (rejects are only
     counted)."""
-    _random(data)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=100_000, deadline=None)
-@given(st.binary(max_size=2000))
-def test_fuzz_random_bytes(data: bytes) -> None:
-    """Arbitrary bytes never raise in skip mode and yield no Rejected record (fuzz run)."""
     _random(data)
 
 

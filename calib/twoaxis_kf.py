@@ -1,0 +1,187 @@
+"""The two-axis model (:mod:`calib.twoaxis`) learnt by an extended Kalman filter.
+
+The state holds the unknowns the window determines — the same verdicts as least
+squares (:func:`calib.twoaxis.judge_two_axis` on the series), the others held at the
+prior (a held transverse scale following the longitudinal one,
+:data:`calib.twoaxis.TIE_HELD_SCALE`). The sensor's parameters are nearly constant
+(:data:`KF_PARAM_Q_PER_S`), the current a random walk (:data:`KF_CURRENT_PSD_M2PS3`).
+Each sample's two readings are one vector measurement; the reference's ground
+velocity and the heading are taken as known (a DVL's millimetre noise is far below
+the log's), and the measurement rows are the model's Jacobian at the state before
+the update (extended filter). σ come from the final covariance.
+
+Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from calib.errors import DataError
+from calib.models import PARAM_NAMES, FloatArray
+from calib.twoaxis import (
+    ALPHA,
+    B_T,
+    DEFAULT_TWO_AXIS_RULE,
+    M_T,
+    ModelState,
+    TwoAxisFit,
+    TwoAxisParams,
+    TwoAxisRule,
+    fit_two_axis,
+    model_state,
+)
+
+KF_PARAM_Q_PER_S = 1e-10
+"""Random walk of the sensor's parameters in the two-axis filter, per second (in the
+unit² of each: the parameters change over weeks)."""
+KF_CURRENT_PSD_M2PS3 = 1e-6
+"""Spectral density of the current's random walk in the two-axis filter, m²/s³ (the
+current changes over minutes: about 0.03 m/s in 15 min)."""
+KF_P0 = {"a": 0.05**2, "m": 0.3**2, "b": 0.5**2, ALPHA: math.radians(10.0) ** 2}
+"""The initial variance of each unknown in the two-axis filter (the others
+:data:`KF_P0_OTHER`): about the physical envelope's half-width, so the prior does not
+pull the estimate."""
+KF_P0_OTHER = 0.5**2
+KF_PASSES = 2
+"""Passes over the series: the second starts from the first's final state with the
+initial covariance again, so its Jacobians are taken near the answer from its first
+sample. A single pass from the ideal sensor linearises its first minutes about a
+wrong misalignment and current, and the nearly constant parameters keep that (a 3°
+misalignment on a figure-8: 2.3°, six of its σ off)."""
+MIN_NOISE_MPS = 1e-3
+"""The least measurement noise the filter takes for an axis, m/s."""
+
+
+def kf_two_axis(
+    model: str,
+    t_s: npt.ArrayLike,
+    ref_fwd_mps: npt.ArrayLike,
+    ref_stb_mps: npt.ArrayLike,
+    raw_l_mps: npt.ArrayLike,
+    raw_t_mps: npt.ArrayLike,
+    heading_deg: npt.ArrayLike,
+    *,
+    current: bool = True,
+    prior: TwoAxisParams | None = None,
+    rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
+    noise_mps: tuple[float, float] | None = None,
+    current_knot_s: float | None = None,
+) -> TwoAxisFit:
+    """The two-axis model learnt sample by sample (module docstring).
+
+    Args:
+        model: the longitudinal model.
+        t_s: sample times, s, non-decreasing.
+        ref_fwd_mps: ground speed forward, m/s.
+        ref_stb_mps: ground speed to starboard, m/s.
+        raw_l_mps: longitudinal readings, m/s.
+        raw_t_mps: transverse readings, m/s.
+        heading_deg: headings, degrees.
+        current: estimate the current.
+        prior: the initial state and the value of held unknowns.
+        rule: the identifiability thresholds.
+        noise_mps: each axis's measurement noise (1σ), m/s (None: the residuals of
+            the least-squares fit on the same series).
+        current_knot_s: the least-squares fit that gives the verdicts and the noise
+            takes a current linear between knots this far apart
+            (:func:`calib.twoaxis.fit_two_axis`); the filter's own current wanders.
+
+    Returns:
+        The filter's final state as a fit (``method`` ``"KF"``).
+
+    Raises:
+        ModelError: unknown model.
+        DataError: bad series or times.
+    """
+    ls = fit_two_axis(
+        model,
+        ref_fwd_mps,
+        ref_stb_mps,
+        raw_l_mps,
+        raw_t_mps,
+        heading_deg,
+        current=current,
+        prior=prior,
+        rule=rule,
+        t_s=t_s,
+        current_knot_s=current_knot_s,
+    )
+    st = model_state(model, ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg, ls.ident)
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    n = st.n
+    if t.size != n or not np.all(np.isfinite(t)):
+        raise DataError("times must be finite and as long as the speeds")
+    if n > 1 and not np.all(np.diff(t) >= 0.0):
+        raise DataError("times must not decrease")
+    sig = noise_mps if noise_mps is not None else (ls.rmse_l_mps, ls.rmse_t_mps)
+    r = np.diag([max(sig[0], MIN_NOISE_MPS) ** 2, max(sig[1], MIN_NOISE_MPS) ** 2])
+    x = st.x0(prior)
+    for _ in range(KF_PASSES):
+        x, p, res, cur = _run(st, t, x, r)
+    std = np.full(x.size, math.nan)
+    std[st.free] = np.sqrt(np.maximum(np.diag(p), 0.0))
+    params = st.params(x)
+    determined = set(ls.ident.determined)
+    stderr: dict[str, float | None] = {
+        pn: (float(std[st.index(pn)]) if pn in determined else None)
+        for pn in PARAM_NAMES[params.model]
+    }
+    stderr["misalign_deg"] = (
+        math.degrees(float(std[st.index(ALPHA)])) if ALPHA in determined else None
+    )
+    stderr[M_T] = float(std[st.index(M_T)]) if M_T in determined else None
+    stderr[B_T] = float(std[st.index(B_T)]) if B_T in determined else None
+    has_current = current and "current" in determined
+    cn, ce = st.current(x)
+    cs = st.current_std(std)
+    rl, rt = res[:, 0], res[:, 1]
+    return TwoAxisFit(
+        params=params,
+        stderr=stderr,
+        current_mps=(cn, ce) if has_current else None,
+        current_std_mps=cs if has_current else None,
+        rmse_l_mps=math.sqrt(float(rl @ rl) / n),
+        rmse_t_mps=math.sqrt(float(rt @ rt) / n),
+        n_samples=n,
+        ident=ls.ident,
+        correlation=1.0,
+        method="KF",
+        current_series=cur if has_current else None,
+    )
+
+
+def _run(
+    st: ModelState, t: FloatArray, x0: FloatArray, r: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """One pass of the filter from ``x0`` with the initial covariance
+    (:data:`KF_P0`): the final state, its covariance over ``st.free``, each sample's
+    innovation (N, 2) and current (N, 2)."""
+    x = x0.copy()
+    free = st.free
+    k = len(free)
+    p = np.diag([KF_P0.get(st.name_of(i), KF_P0_OTHER) for i in free])
+    q_rate = np.array(
+        [KF_CURRENT_PSD_M2PS3 if st.is_current(i) else KF_PARAM_Q_PER_S for i in free]
+    )
+    eye = np.eye(k)
+    n = st.n
+    res = np.empty((n, 2))
+    cur = np.empty((n, 2))
+    for j in range(n):
+        if j and k:
+            p[np.diag_indices(k)] += q_rate * float(t[j] - t[j - 1])
+        innov, h = st.step(x, j)
+        res[j] = innov
+        if k:
+            hf = h[:, free]
+            s_mat = hf @ p @ hf.T + r
+            gain = np.linalg.solve(s_mat, hf @ p).T
+            x[free] += gain @ innov
+            ikh = eye - gain @ hf
+            p = ikh @ p @ ikh.T + gain @ r @ gain.T
+        cur[j] = st.current(x)
+    return x, p, res, cur

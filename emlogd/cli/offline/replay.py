@@ -1,0 +1,193 @@
+"""``emlogd replay``: the daemon's pipeline over captures."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from emlogd.cli.common import Subparsers, positive_float, progress, progress_done
+from emlogd.cli.offline.args import capture_args, captures_arg, json_arg, truth_arg
+from emlogd.cli.offline.shared import truth_cells, truth_of, warn_internal, warn_skips
+from emlogd.offline.tables import fmt, render
+
+if TYPE_CHECKING:
+    from emlogd.pipeline.core import Emit, Pipeline
+
+
+class _EmitCapture:
+    """``replay --out FILE.cap``: what the daemon emitted as a capture v1, one port per UUT
+    (and ``fused``), each sentence stamped with the receive time of the sample it corrects."""
+
+    def __init__(self, path: str, uuts: Sequence[str], pipeline: Pipeline) -> None:
+        from drivers.io.capture import CaptureWriter
+
+        ports = dict.fromkeys(uuts, "nmea0183")
+        if pipeline.fusion is not None:
+            ports["fused"] = "nmea0183"
+        self.writer = CaptureWriter(path, ports)
+        self.writer.comment("emlogd replay: the sentences emitted, by UUT")
+        self.t = -math.inf
+
+    def write(self, emits: Sequence[Emit]) -> None:
+        for e in emits:
+            self.t = max(self.t, e.t)  # sentences made later never go back in time
+            self.writer.write_line(self.t, e.port, e.sentence.encode("ascii"))
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Run the daemon's pipeline over captures; write the corrected NMEA; print a summary."""
+    from emlogd.config import load_config
+    from emlogd.daemon.statefile import StateStore
+    from emlogd.offline.replay import replay, unmatched_ports
+    from emlogd.pipeline.calibration import Calibration, checker
+    from emlogd.pipeline.core import Output
+    from emlogd.settings import build_pipeline, pipeline_from_config
+
+    cfg = load_config(args.config)
+    _, uuts = pipeline_from_config(cfg)
+    truth = truth_of(args, [u.port for u in uuts])
+    store = StateStore(args.state) if args.state else None
+    cals: dict[str, Calibration] = {}
+    others: list[Calibration] = []
+    if store is not None:
+        cals, others, report = store.load_state(check=checker(uuts))
+        for line in report:
+            sys.stderr.write(f"emlogd replay: {line}\n")
+    pipeline = build_pipeline(cfg, cals, others, learn=args.learn)
+    for path, missing in unmatched_ports(pipeline, args.captures).items():
+        sys.stderr.write(
+            f"emlogd replay: warning: {path}: port{'s' if len(missing) != 1 else ''} "
+            f"{', '.join(missing)} not in {args.config}: {'their' if len(missing) != 1 else 'its'} "
+            "records are skipped\n"
+        )
+
+    def persist(_: Output) -> None:
+        if store is not None:
+            aside = store.save(
+                {c.uut: c for c in pipeline.calibrations()}, pipeline.other_calibrations()
+            )
+            if aside is not None:
+                sys.stderr.write(f"emlogd replay: the refused state file is kept as {aside}\n")
+
+    to_stdout = args.out is None and not args.json
+    as_capture = bool(args.out) and args.out.endswith((".cap", ".cap.gz"))
+    capture = _EmitCapture(args.out, [u.port for u in uuts], pipeline) if as_capture else None
+    sink = (
+        open(args.out, "wb")  # noqa: SIM115
+        if args.out and not as_capture
+        else (sys.stdout.buffer if to_stdout else None)
+    )
+    try:
+        result = replay(
+            pipeline,
+            args.captures,
+            sink=sink,
+            on_emit=capture.write if capture is not None else None,
+            speed=None if args.fast or args.speed is None else args.speed,
+            on_persist=persist,
+            progress=progress,
+            strict=args.strict,
+            reorder_window_s=args.reorder_window,
+            truth=truth,
+        )
+    finally:
+        progress_done()
+        if args.out and sink is not None:
+            sink.close()
+        if capture is not None:
+            capture.close()
+    if store is not None:
+        persist(Output())
+    doc = result.to_dict()
+    warn_skips(args.command, result.capture_skips)
+    warn_internal(args.command, "replay", result.internal)
+    if args.json:
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        return 0
+    out = sys.stderr if to_stdout else sys.stdout
+    rows = []
+    uut_docs = doc["uuts"]
+    assert isinstance(uut_docs, dict)
+    for name, u in uut_docs.items():
+        params = u["params"] or {}
+        rows.append(
+            [
+                name,
+                u["state"],
+                ", ".join(f"{k}={v:+.4f}" for k, v in params.items()) or "-",
+                fmt(u["lag_s"], ".2f"),
+                fmt(u["rmse_raw"], ".4f"),
+                fmt(u["rmse_corrected"], ".4f"),
+                str(u["freezes"]),
+                *truth_cells(result.truth.get(name)),
+            ]
+        )
+    out.write(
+        render(
+            ["uut", "state", "parameters", "lag s", "RMSE raw", "RMSE corr.", "freezes"]
+            + (
+                ["truth: raw", "corr.", "floor", "IMO raw", "IMO corr."]
+                if truth is not None
+                else []
+            ),
+            rows,
+            left=3,
+        )
+    )
+    out.write(
+        f"{result.records} records in {result.elapsed_s:.1f} s "
+        f"({result.span_s / max(result.elapsed_s, 1e-9):.0f}x real time), "
+        f"{result.emitted} sentences emitted"
+        + (f", {result.persisted} persists to {args.state}" if store is not None else "")
+        + "\n"
+    )
+    return 0
+
+
+def add_parser(sub: Subparsers) -> None:
+    """The ``replay`` sub-command."""
+    p = sub.add_parser(
+        "replay",
+        help="run the daemon's pipeline over captures",
+        description="The same pipeline as the daemon, over captures in order (state carried "
+        "across files): corrected NMEA to --out (or stdout), then a summary.",
+    )
+    captures_arg(p)
+    p.add_argument("--config", required=True, metavar="FILE", help="config file")
+    p.add_argument(
+        "--state", metavar="FILE", help="load frozen parameters from and persist to FILE"
+    )
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--learn",
+        dest="learn",
+        action="store_true",
+        default=None,
+        help="learn from the captures (default: each calibration's learn key)",
+    )
+    g.add_argument(
+        "--no-learn",
+        dest="learn",
+        action="store_false",
+        help="do not learn: apply only the parameters loaded with --state",
+    )
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--speed", type=positive_float, metavar="X", help="pace at X times real time")
+    g.add_argument("--fast", action="store_true", help="as fast as possible (default)")
+    p.add_argument(
+        "--out",
+        metavar="FILE",
+        help="write the corrected NMEA here; a FILE.cap or FILE.cap.gz name writes a capture "
+        "v1 with one port per UUT, each sentence at the time of the sample it corrects",
+    )
+    capture_args(p)
+    json_arg(p, "summary as one JSON document")
+    truth_arg(p, "the emitted speeds")
+    p.set_defaults(handler=cmd_replay)

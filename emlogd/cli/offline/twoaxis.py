@@ -1,0 +1,199 @@
+"""``--axes 2`` of ``calibrate``, ``evaluate`` and ``crossval``: both axes of a log
+sending VBW, against a DVL's two-axis bottom track (:mod:`emlogd.offline.twoaxis`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Literal
+
+from emlogd.cli.common import UsageError
+from emlogd.cli.offline.args import uut_settings
+from emlogd.cli.offline.shared import check_writable, load, warn_lag
+from emlogd.offline.jobs import OfflineError, find_lag
+from emlogd.offline.simtruth import read_truth
+from emlogd.offline.tables import fmt, render
+from emlogd.offline.twoaxis import (
+    AxisScores,
+    TwoAxisRecording,
+    TwoAxisResult,
+    calibrate_two_axis,
+    crossval_two_axis,
+    evaluate_two_axis,
+    load_two_axis,
+    record_two_axis,
+    save_two_axis,
+    truth_scores,
+)
+
+AXES_HELP = (
+    "2: both axes of a log sending VBW against the DVL's bottom track (--ref-field "
+    "bottom): the misalignment, the transverse scale and bias, RMSE per axis"
+)
+
+
+def axes_arg(p: argparse.ArgumentParser) -> None:
+    """``--axes 1|2`` (default 1)."""
+    p.add_argument("--axes", type=int, choices=[1, 2], default=1, help=AXES_HELP)
+
+
+def _records(args: argparse.Namespace, uut: str, ref: str) -> list[TwoAxisRecording]:
+    field = getattr(args, "ref_field", None) or "bottom"
+    if field != "bottom":
+        raise UsageError("--axes 2 needs the DVL's bottom track: --ref-field bottom")
+    return [record_two_axis(p, uut, ref) for p in args.captures]
+
+
+def _lag(args: argparse.Namespace) -> tuple[float, str]:
+    """The lag: given, else measured on the longitudinal axis as one-axis ``calibrate``
+    does (:func:`emlogd.offline.jobs.find_lag`)."""
+    settings = uut_settings(args, uut_source="VBW", current=True)
+    if args.lag is not None:
+        return float(args.lag), "given"
+    report = find_lag(load(args.captures, settings, args), settings, None)
+    warn_lag(args.command, report.note)
+    return report.lag_s, report.source
+
+
+def _scores_row(name: str, s: AxisScores) -> list[str]:
+    return [
+        name,
+        str(s.n_samples),
+        fmt(s.rmse_l_raw, ".4f"),
+        fmt(s.rmse_l_cal, ".4f"),
+        fmt(s.rmse_t_raw, ".4f"),
+        fmt(s.rmse_t_cal, ".4f"),
+        fmt(s.leeway_rms_deg, ".2f"),
+    ]
+
+
+SCORE_HEADER = ["capture", "N", "fwd raw", "fwd cal", "athw raw", "athw cal", "leeway°"]
+
+
+def _text(res: TwoAxisResult) -> str:
+    f = res.fit
+    se = f.stderr
+    held = set(f.ident.unidentifiable)
+    names = {"misalign_deg": "alpha"}
+    lines = [
+        f"{f.method}-{f.params.model} two axes + current: {res.uut} against "
+        f"{res.reference} (bottom), {f.n_samples} samples",
+        f"lag          {res.lag_s:.2f} s ({res.lag_source})",
+        "parameters (± standard error):",
+    ]
+    for k, v in f.params.as_dict().items():
+        unit = "°" if k == "misalign_deg" else ""
+        note = "   (not determined: held)" if names.get(k, k) in held else ""
+        lines.append(f"  {k:<12} = {v:+.5f}{unit} ± {fmt(se.get(k), '.5f')}{note}")
+    if f.current_mps is not None:
+        lines.append(
+            f"current      north {f.current_mps[0]:+.3f}, east {f.current_mps[1]:+.3f} m/s (mean)"
+        )
+    lines.append(f"identifiable {'yes' if f.identifiable else 'NO: ' + f.ident.reason}")
+    lines.append(f"RMSE fit     forward {f.rmse_l_mps:.4f}, athwart {f.rmse_t_mps:.4f} m/s")
+    lines.append(render(SCORE_HEADER, [_scores_row("all", res.scores)]))
+    return "\n".join(lines) + "\n"
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """``calibrate --axes 2``."""
+    if args.average is not None or args.trace is not None:
+        raise UsageError("--average and --trace are one-axis options")
+    if args.save:
+        check_writable("--save", args.save)
+    lag_s, source = _lag(args)
+    recs = _records(args, args.uut, args.ref)
+    model = getattr(args, "model", None) or "EM3"
+    method: Literal["ls", "kf"] = "kf" if args.method == "kf" else "ls"
+    res = calibrate_two_axis(recs, model, method, lag_s, lag_source=source, reference=args.ref)
+    if args.json:
+        sys.stdout.write(json.dumps(res.to_dict(), indent=2) + "\n")
+    else:
+        sys.stdout.write(_text(res))
+    if args.save:
+        save_two_axis(args.save, res)
+        if not args.json:
+            sys.stdout.write(f"saved        {args.save}\n")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """``evaluate --axes 2``: a two-axis calibration file applied to captures."""
+    params, doc = load_two_axis(args.params)
+    uut = args.uut or str(doc.get("uut", ""))
+    ref = args.ref or str(doc.get("reference", "dvl"))
+    lag = args.lag if args.lag is not None else doc.get("lag_s")
+    if not isinstance(lag, (int, float)):
+        raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
+    recs = _records(args, uut, ref)
+    rows = evaluate_two_axis(recs, params, float(lag))
+    truth = read_truth(args.truth) if args.truth else None
+    scored = [truth_scores(r, params, truth, float(lag)) for r in recs] if truth else []
+    if args.json:
+        out = []
+        for i, r in enumerate(rows):
+            d = r.to_dict()
+            if scored:
+                d["truth"] = scored[i].to_dict()
+            out.append(d)
+        sys.stdout.write(json.dumps({"axes": 2, "rows": out}, indent=2) + "\n")
+        return 0
+    sys.stdout.write(
+        f"two axes: misalignment {params.misalign_deg:+.3f}°, transverse scale "
+        f"{params.m_t:+.4f}, bias {params.b_t_mps:+.4f} m/s, lag {float(lag):.2f} s\n"
+    )
+    sys.stdout.write(render(SCORE_HEADER, [_scores_row(r.capture, r.scores) for r in rows]))
+    if scored:
+        sys.stdout.write("\nagainst the truth (RMSE m/s: raw, calibrated, floor)\n")
+        sys.stdout.write(
+            render(
+                ["capture", "fwd raw", "fwd cal", "fwd floor", "athw raw", "athw cal", "floor"],
+                [
+                    [
+                        r.name,
+                        fmt(s.rmse_l_raw, ".4f"),
+                        fmt(s.rmse_l_cal, ".4f"),
+                        fmt(s.rmse_l_floor, ".4f"),
+                        fmt(s.rmse_t_raw, ".4f"),
+                        fmt(s.rmse_t_cal, ".4f"),
+                        fmt(s.rmse_t_floor, ".4f"),
+                    ]
+                    for r, s in zip(recs, scored, strict=True)
+                ],
+            )
+        )
+    return 0
+
+
+def cmd_crossval(args: argparse.Namespace) -> int:
+    """``crossval --axes 2``: least squares trained on each capture, scored on every other."""
+    lag_s, _ = _lag(args)
+    recs = _records(args, args.uut, args.ref)
+    model = getattr(args, "model", None) or "EM3"
+    try:
+        rows = crossval_two_axis(recs, model, lag_s)
+    except OfflineError as exc:
+        raise UsageError(str(exc)) from None
+    if args.json:
+        sys.stdout.write(
+            json.dumps({"axes": 2, "lag_s": lag_s, "rows": [r.to_dict() for r in rows]}, indent=2)
+            + "\n"
+        )
+        return 0
+    sys.stdout.write(
+        render(
+            ["train", "test", "alpha°", "±", *SCORE_HEADER[2:]],
+            [
+                [
+                    r.train,
+                    r.test,
+                    fmt(r.misalign_deg, "+.3f"),
+                    fmt(r.misalign_std_deg, ".3f"),
+                    *_scores_row(r.test, r.scores)[2:],
+                ]
+                for r in rows
+            ],
+        )
+    )
+    return 0

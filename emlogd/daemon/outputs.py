@@ -1,0 +1,152 @@
+"""The daemon's outputs: the sinks the config names, and where each sentence goes.
+
+A reload keeps an output whose settings are equal as it is (same pty, same clients):
+outputs are keyed by the settings they were opened with. A log given outputs of its own
+(``calibration[].outputs``) writes its sentences there only; every other sentence goes
+to the shared outputs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import selectors
+from collections.abc import Callable
+from typing import Any
+
+from emlogd.config import Config
+from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
+from emlogd.pipeline.core import Emit
+
+
+class Outputs:
+    """The open outputs of the daemon.
+
+    Args:
+        selector: where a TCP output registers its listening and client sockets.
+        log: a structlog-style logger (``log.info(event, **kw)``).
+        monotonic: the clock of the sinks' schedules (stalls, error lines).
+    """
+
+    def __init__(
+        self, selector: selectors.BaseSelector, log: Any, monotonic: Callable[[], float]
+    ) -> None:
+        self.sel = selector
+        self.log = log
+        self.monotonic = monotonic
+        self.sinks: dict[tuple[object, ...], Sink] = {}
+        """The open outputs, keyed by the settings they were opened with."""
+        self.routes: dict[str, list[Sink]] = {}
+        """The logs with outputs of their own, and those outputs."""
+        self.shared: list[Sink] = []
+        """The outputs of every other sentence."""
+
+    def specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
+        """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
+        out = cfg.outputs
+        specs: dict[tuple[object, ...], Callable[[], Sink]] = {}
+        if out.pty:
+            pty, mode, group = out.pty, out.pty_mode, out.pty_group
+            specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
+        limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
+        if out.tcp:
+            tcp = out.tcp
+            specs[("tcp", tcp, limits)] = lambda: TcpServerSink(
+                tcp,
+                selector=self.sel,
+                on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                monotonic=self.monotonic,
+                limits=limits,
+            )
+        if out.udp:
+            udp = out.udp
+            specs[("udp", udp)] = lambda: UdpSink(
+                udp,
+                on_event=lambda kind, detail: self.log.warning(kind, sink="udp", detail=detail),
+                monotonic=self.monotonic,
+            )
+        if out.stdout:
+            specs[("stdout",)] = stdout_sink
+        for c in cfg.calibration:  # a log's own outputs, keyed ("uut", name, ...)
+            name, u = c.uut, c.outputs
+            if u.pty:
+                specs[("uut", name, "pty", u.pty, out.pty_mode, out.pty_group)] = functools.partial(
+                    PtySink, u.pty, mode=out.pty_mode, group=out.pty_group
+                )
+            if u.tcp:
+                specs[("uut", name, "tcp", u.tcp, limits)] = functools.partial(
+                    TcpServerSink,
+                    u.tcp,
+                    selector=self.sel,
+                    on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                    monotonic=self.monotonic,
+                    limits=limits,
+                )
+            if u.udp:
+                specs[("uut", name, "udp", u.udp)] = functools.partial(
+                    UdpSink,
+                    u.udp,
+                    on_event=lambda kind, detail: self.log.warning(kind, sink="udp", detail=detail),
+                    monotonic=self.monotonic,
+                )
+        return specs
+
+    def sync(self, cfg: Config) -> tuple[list[str], list[str]]:
+        """Close the outputs ``cfg`` no longer names, open the new ones; keep the rest.
+
+        Returns the names of the outputs (closed, opened).
+        """
+        specs = self.specs(cfg)
+        closed = [self.sinks[key].name for key in self.sinks if key not in specs]
+        for key in [k for k in self.sinks if k not in specs]:
+            with contextlib.suppress(OSError):
+                self.sinks.pop(key).close()
+        opened: list[str] = []
+        for key, make in specs.items():
+            if key not in self.sinks:
+                self.sinks[key] = sink = make()
+                opened.append(sink.name)
+        self.routes = {}
+        for key, sink in self.sinks.items():
+            if key[0] == "uut":
+                self.routes.setdefault(str(key[1]), []).append(sink)
+        self.shared = [s for k, s in self.sinks.items() if k[0] != "uut"]
+        return closed, opened
+
+    def close(self) -> None:
+        """Close every output."""
+        for sink in self.sinks.values():
+            with contextlib.suppress(OSError):
+                sink.close()
+        self.sinks.clear()
+
+    def housekeep(self) -> None:
+        """Each output's periodic work: retries, and a TCP output's checks of its clients."""
+        for sink in self.sinks.values():
+            sink.housekeep()
+
+    def deliver(self, emits: list[Emit]) -> None:
+        """Write sentences to their outputs: a log with outputs of its own writes there,
+        every other sentence to the shared ones."""
+        if not self.routes:
+            data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
+            for sink in self.shared:
+                sink.write(data)
+            return
+        shared: list[bytes] = []
+        for e in emits:
+            line = e.sentence.encode("ascii") + b"\r\n"
+            own = self.routes.get(e.port)
+            if own is None:
+                shared.append(line)
+            else:
+                for sink in own:
+                    sink.write(line)
+        if shared:
+            data = b"".join(shared)
+            for sink in self.shared:
+                sink.write(data)
+
+    def status(self) -> dict[str, dict[str, object]]:
+        """Per output: its counters and ``state`` (``open``, or why not)."""
+        return {s.name: {**s.counters.as_dict(), "state": s.state} for s in self.sinks.values()}

@@ -1,0 +1,330 @@
+"""CSV/TSV exports: the column maps and presets, the header, and each cell read into SI
+units within the range a boat can produce (:mod:`emlogd.offline.importer` writes the rows).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Literal
+
+from drivers.records import KNOT_MPS
+from emlogd.offline.importbase import ImportFormatError, ImportReport
+
+HeadingRef = Literal["true", "magnetic"]
+"""A heading column's reference."""
+
+OLE_EPOCH = datetime(1899, 12, 30, tzinfo=UTC)
+"""Day 0 of OLE automation dates (Excel, Expedition)."""
+
+HEADER_SCAN_LINES = 50
+"""The header must be among the first this many lines (a banner before it)."""
+
+DELIMITERS = (",", "\t", ";", "|")
+"""The delimiters the header is tried with."""
+
+MAX_SPEED_KN = 80.0
+"""A speed through the water or over the ground above this is not a boat's, kn."""
+
+MAX_DRIFT_KN = 15.0
+"""A current above this is not the sea's (the strongest tidal races run near 10 kn), kn."""
+
+LIMITS: dict[str, tuple[float, float]] = {
+    "stw": (0.0, MAX_SPEED_KN * KNOT_MPS),
+    "sog": (0.0, MAX_SPEED_KN * KNOT_MPS),
+    "heading": (-360.0, 360.0),
+    "cog": (-360.0, 360.0),
+    "set": (-360.0, 360.0),
+    "drift": (0.0, MAX_DRIFT_KN * KNOT_MPS),
+    "lat": (-90.0, 90.0),
+    "lon": (-180.0, 180.0),
+    "variation": (-90.0, 90.0),
+}
+"""Each column's plausible range after unit conversion (m/s, degrees; angles wrapped
+after the check)."""
+
+ANGLES = ("heading", "cog", "set")
+SPEEDS = ("stw", "sog", "drift")
+CSV_KEYS = (
+    "time",
+    "date",
+    "stw",
+    "heading",
+    "sog",
+    "cog",
+    "lat",
+    "lon",
+    "set",
+    "drift",
+    "variation",
+)
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A known export: its columns, how it keeps time, its heading's reference.
+
+    Attributes:
+        name: the ``--preset`` name.
+        columns: the column map (``A|B`` alternatives, ``?`` optional).
+        time_format: ``ole``, ``iso``, ``epoch`` or a ``strptime`` pattern.
+        heading_ref: the heading's reference.
+        local_time: whether the times are the logger's local clock (then
+            ``--utc-offset`` is needed, and its absence is noted).
+        doc: one line for people.
+    """
+
+    name: str
+    columns: Mapping[str, str]
+    time_format: str
+    heading_ref: HeadingRef
+    local_time: bool
+    doc: str
+
+
+EXPEDITION: dict[str, str] = {
+    "time": "Utc",
+    "stw": "Bsp",
+    "heading": "Hdg",
+    "sog": "Sog?",
+    "cog": "Cog?",
+    "lat": "Lat?",
+    "lon": "Lon|Long?",
+    "set": "iSet|Set?",
+    "drift": "iDrift|Drift?",
+}
+"""Expedition's columns (its ``Hdg`` is a true heading; times are OLE dates). Its exports
+name the current ``iSet``/``iDrift`` or ``Set``/``Drift``, or leave it out."""
+
+LOGGER_TSV: dict[str, str] = {
+    "date": "Date",
+    "time": "Time",
+    "stw": "Boatspeed",
+    "heading": "Heading",
+    "sog": "Ext_SOG?",
+    "cog": "Ext_COG?",
+    "lat": "Latitudine?",
+    "lon": "Longitudine?",
+    "set": "SET?",
+    "drift": "DRIFT?",
+}
+"""An Italian race logger's tab-separated export (``Date`` dd/mm/yy, ``Time`` of its
+clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions)."""
+
+PRESETS: dict[str, Preset] = {
+    "expedition": Preset(
+        "expedition", EXPEDITION, "ole", "true", False, "Expedition CSV (Utc, Bsp, Hdg...)"
+    ),
+    "logger-tsv": Preset(
+        "logger-tsv",
+        LOGGER_TSV,
+        "%d/%m/%y %H:%M:%S",
+        "magnetic",
+        True,
+        "race logger TSV (Date, Time, Boatspeed, Heading, Ext_SOG...)",
+    ),
+}
+"""The presets, tried in this order against the header when none is named."""
+
+MapChoice = tuple[Preset | None, Mapping[str, str]]
+"""A preset (None for a plain map) and the column map it gives with the user's."""
+
+
+def parse_map(spec: str) -> dict[str, str]:
+    """``key=Column,key=Column`` → a dict; keys among :data:`CSV_KEYS`.
+
+    Raises:
+        ImportFormatError: a malformed item or an unknown key.
+    """
+    out: dict[str, str] = {}
+    for item in filter(None, (x.strip() for x in spec.split(","))):
+        key, sep, col = item.partition("=")
+        if not sep or not col:
+            raise ImportFormatError(f"--map item {item!r} is not key=Column")
+        if key not in CSV_KEYS:
+            raise ImportFormatError(f"--map key {key!r} is not one of {', '.join(CSV_KEYS)}")
+        out[key] = col
+    return out
+
+
+@dataclass(frozen=True)
+class Col:
+    """A mapped column: its index and the factor to SI."""
+
+    key: str
+    index: int
+    factor: float
+
+
+def _spec(spec: str) -> tuple[list[tuple[str, float]], bool]:
+    """``A[mps]|B?`` → ([(name, factor to m/s)...], optional)."""
+    optional = spec.endswith("?")
+    names: list[tuple[str, float]] = []
+    for alt in (spec[:-1] if optional else spec).split("|"):
+        alt = alt.strip()
+        if alt.endswith("[mps]"):
+            names.append((alt[:-5], 1.0))
+        elif alt.endswith("[kn]"):
+            names.append((alt[:-4], KNOT_MPS))
+        else:
+            names.append((alt, KNOT_MPS))
+    return names, optional
+
+
+def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, Col], list[str]]:
+    """Map keys to header columns; (columns found, required columns missing)."""
+    stripped = [h.strip() for h in header]
+    folded = [h.casefold() for h in stripped]
+    cols: dict[str, Col] = {}
+    missing: list[str] = []
+    for key, spec in mapping.items():
+        names, optional = _spec(spec)
+        for name, factor in names:
+            # the exact name, else the name in any case (BSP, bsp, Bsp)
+            at = stripped.index(name) if name in stripped else None
+            if at is None and name.casefold() in folded:
+                at = folded.index(name.casefold())
+            if at is not None:
+                cols[key] = Col(key, at, factor if key in SPEEDS else 1.0)
+                break
+        else:
+            if not optional:
+                missing.append(" or ".join(repr(n) for n, _ in names) + f" for {key}")
+    return cols, missing
+
+
+def _split(line: str, delimiter: str) -> list[str]:
+    return next(csv.reader([line], delimiter=delimiter), [])
+
+
+def find_header(
+    lines: list[str], maps: Sequence[MapChoice]
+) -> tuple[int, str, Preset | None, dict[str, Col]] | None:
+    """(header line index, delimiter, preset, columns) of the first line that holds a
+    map's required columns."""
+    for i, line in enumerate(lines):
+        for delim in DELIMITERS:
+            if delim not in line:
+                continue
+            header = _split(line, delim)
+            for preset, mapping in maps:
+                cols, missing = _resolve(mapping, header)
+                if not missing:
+                    return i, delim, preset, cols
+    return None
+
+
+def parse_time(value: str, fmt: str) -> float:
+    """One time cell (or date + space + time) → epoch seconds, naive times as UTC."""
+    if fmt == "ole":
+        return (OLE_EPOCH + timedelta(days=float(value))).timestamp()
+    if fmt == "epoch":
+        return float(value)
+    t = datetime.fromisoformat(value) if fmt == "iso" else datetime.strptime(value, fmt)
+    return (t if t.tzinfo else t.replace(tzinfo=UTC)).timestamp()
+
+
+def guess_time_format(value: str) -> str | None:
+    """``auto``: epoch seconds, an OLE date or ISO 8601, told by the first time cell."""
+    try:
+        x = float(value)
+    except ValueError:
+        try:
+            datetime.fromisoformat(value)
+        except ValueError:
+            return None
+        return "iso"
+    if 1e8 < x < 1e10:
+        return "epoch"
+    if 20_000.0 < x < 80_000.0:
+        return "ole"
+    return None
+
+
+def _position(cell: str, key: str) -> float:
+    """Decimal degrees, or ``ddmm.mmmm`` / ``dddmm.mmmm`` with a hemisphere letter."""
+    hemi = cell[-1].upper()
+    if hemi in "NSEW":
+        if (key == "lat") != (hemi in "NS"):
+            raise ValueError(f"hemisphere {hemi} in a {key} cell")
+        v = float(cell[:-1].strip())
+        if not math.isfinite(v) or v < 0.0:
+            raise ValueError(cell)
+        deg = math.floor(v / 100.0)
+        minutes = v - 100.0 * deg
+        if minutes >= 60.0:
+            raise ValueError(f"{minutes} minutes")
+        x = deg + minutes / 60.0
+        return -x if hemi in "SW" else x
+    return float(cell)
+
+
+def reasons(c: Counter[str]) -> str:
+    return ", ".join(f"{k} {v}" for k, v in c.most_common(4))
+
+
+def no_header(path: str | Path, head: list[str], candidates: Sequence[MapChoice]) -> str:
+    """Why no line is a header: the columns each map lacks, against the likeliest line."""
+    line = max(head, key=lambda s: max(s.count(d) for d in DELIMITERS))
+    delim = max(DELIMITERS, key=line.count)
+    header = _split(line, delim)
+    whys = []
+    for p, m in candidates:
+        _, missing = _resolve(m, header)
+        whys.append(f"{p.name if p else 'the map'} lacks {', '.join(missing)}")
+    cols = ", ".join(h.strip() for h in header[:12])
+    return f"{path}: no header with the mapped columns ({'; '.join(whys)}); the file has {cols}"
+
+
+def cell(row: list[str], index: int) -> str:
+    return row[index].strip() if index < len(row) else ""
+
+
+def cell_value(cell: str, c: Col, report: ImportReport) -> float | None:
+    """A cell's value in SI units, or None (counted) when it is no number or out of range.
+    A comma in a cell is a decimal comma (the delimiter is then not a comma)."""
+    cell = cell.replace(",", ".")
+    try:
+        x = _position(cell, c.key) if c.key in ("lat", "lon") else float(cell) * c.factor
+    except (ValueError, IndexError):
+        report.cells[f"{c.key}: not_a_number"] += 1
+        return None
+    lo, hi = LIMITS[c.key]
+    if not (math.isfinite(x) and lo <= x <= hi):
+        report.cells[f"{c.key}: out_of_range"] += 1
+        return None
+    return x % 360.0 if c.key in ANGLES else x
+
+
+def candidate_maps(mapping: Mapping[str, str] | None, preset: str | None) -> list[MapChoice]:
+    """The column maps a header is tried against: each preset's for ``auto`` (the default
+    without a map), the named preset's, or the plain map; the user's columns added to,
+    and overriding, a preset's.
+
+    Raises:
+        ImportFormatError: an unknown preset, or a map without ``time`` or ``stw``.
+    """
+    given = dict(mapping or {})
+    if preset is None and not given:
+        preset = "auto"
+    if preset not in (None, "auto") and preset not in PRESETS:
+        raise ImportFormatError(f"no preset {preset!r} (presets: {', '.join(PRESETS)})")
+    candidates: list[MapChoice]
+    if preset == "auto":
+        candidates = [(p, {**p.columns, **given}) for p in PRESETS.values()]
+    elif preset is not None:
+        candidates = [(PRESETS[preset], {**PRESETS[preset].columns, **given})]
+    else:
+        candidates = [(None, given)]
+    for _, m in candidates:
+        for key in ("time", "stw"):
+            if key not in m:
+                raise ImportFormatError(
+                    f"the column map needs {key}= (has {', '.join(m) or 'none'})"
+                )
+    return candidates

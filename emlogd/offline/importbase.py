@@ -1,0 +1,157 @@
+"""What both imports share (:mod:`emlogd.offline.importer`): the report, the error, the
+capture being written, the input opened through gzip, and the years a time may name."""
+
+from __future__ import annotations
+
+import gzip
+import io
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TextIO
+
+from drivers.errors import EmlogdError
+from drivers.io.capture import CaptureWriter
+from emlogd.pipeline.variation import CourseOffsetCheck
+
+YEARS = (1980, 2100)
+"""A row or fix time outside these years is a misread time (GPS-era logs only)."""
+_YEAR_LO = datetime(YEARS[0], 1, 1, tzinfo=UTC).timestamp()
+_YEAR_HI = datetime(YEARS[1], 1, 1, tzinfo=UTC).timestamp()
+
+
+def within_years(t: float) -> bool:
+    """Whether epoch seconds ``t`` fall within :data:`YEARS`."""
+    return _YEAR_LO <= t < _YEAR_HI
+
+
+class ImportFormatError(EmlogdError):
+    """An import cannot run (a bad map, no time source, an unreadable file)."""
+
+
+@dataclass
+class ImportReport:
+    """What an import did.
+
+    Attributes:
+        files: the input files.
+        out: the capture written.
+        port: its port name.
+        lines: input lines (NMEA) or data rows (CSV) read.
+        written: sentences written.
+        skipped: lines or rows that gave no sentence, by reason.
+        cells: CSV cells not used, by ``column: reason``.
+        notes: what was met but did not cost a line (a fix whose time does not
+            increase; a carried-forward cell; banner lines; an assumed time zone).
+        sentences: sentences written, by type.
+        preset: the CSV preset used (None with a plain map or NMEA).
+        heading_ref: the CSV heading's reference.
+        heading_check: the CSV heading against the course over ground (the check of
+            :mod:`emlogd.pipeline.variation`, ``CourseOffsetCheck.as_dict``), None without
+            heading and course.
+        variation: where a CSV magnetic heading's variation comes from (``column``,
+            ``option``, ``model`` at calibration from the positions, ``none``: give
+            ``--variation``), None for a true heading.
+        t_start: first record time, s since the epoch (nan when none).
+        t_end: last record time, s.
+    """
+
+    files: list[str]
+    out: str
+    port: str
+    lines: int = 0
+    written: int = 0
+    skipped: Counter[str] = field(default_factory=Counter)
+    cells: Counter[str] = field(default_factory=Counter)
+    notes: Counter[str] = field(default_factory=Counter)
+    sentences: Counter[str] = field(default_factory=Counter)
+    preset: str | None = None
+    heading_ref: str | None = None
+    variation: str | None = None
+    heading_check: dict[str, object] | None = None
+    t_start: float = math.nan
+    t_end: float = math.nan
+
+    def to_dict(self) -> dict[str, object]:
+        """Plain types (``import --json``)."""
+        return {
+            "files": self.files,
+            "out": self.out,
+            "port": self.port,
+            "lines": self.lines,
+            "written": self.written,
+            "skipped": dict(sorted(self.skipped.items())),
+            "cells": dict(sorted(self.cells.items())),
+            "notes": dict(sorted(self.notes.items())),
+            "sentences": dict(sorted(self.sentences.items())),
+            "preset": self.preset,
+            "heading_ref": self.heading_ref,
+            "variation": self.variation,
+            "heading_check": self.heading_check,
+            "t_start": None if math.isnan(self.t_start) else self.t_start,
+            "t_end": None if math.isnan(self.t_end) else self.t_end,
+            "span_s": None if math.isnan(self.t_start) else round(self.t_end - self.t_start, 3),
+        }
+
+
+class CaptureSink:
+    """The capture being written: a temporary file renamed into place on success."""
+
+    def __init__(self, out: str | Path, port: str, comment: str, report: ImportReport) -> None:
+        self.path = Path(out)
+        self.tmp = self.path.with_name(self.path.name + ".part" + _gz(self.path))
+        self.port = port
+        self.report = report
+        self.check = CourseOffsetCheck()
+        try:
+            self.w = CaptureWriter(self.tmp, {port: "nmea0183"})
+            self.w.comment(comment.encode("ascii", "replace").decode("ascii"))
+        except OSError as exc:
+            raise ImportFormatError(f"{out}: cannot write: {exc.strerror or exc}") from None
+
+    def write(self, t: float, line: str) -> None:
+        self.w.write_line(t, self.port, line.encode("ascii"))
+        r = self.report
+        r.written += 1
+        r.sentences[sentence_kind(line)] += 1
+        if r.written == 1:
+            r.t_start = t
+        r.t_end = t
+
+    def commit(self) -> None:
+        self.w.close()
+        self.tmp.replace(self.path)
+
+    def abort(self) -> None:
+        self.w.close()
+        self.tmp.unlink(missing_ok=True)
+
+
+def _gz(path: Path) -> str:
+    return ".gz" if path.name.endswith(".gz") else ""
+
+
+def count(counter: Counter[str], key: str, n: int) -> None:
+    """Add ``n`` to a counter's ``key`` (no zero entries)."""
+    if n:
+        counter[key] += n
+
+
+def sentence_kind(line: str) -> str:
+    """The sentence type (``RMC``, ``VHW``; a proprietary one by its address)."""
+    address = line[1:].split(",", 1)[0]
+    return address if address.startswith("P") else address[2:]
+
+
+def open_text(path: str | Path) -> TextIO:
+    """A text stream of a file, through gzip when it starts with gzip's magic."""
+    try:
+        raw = open(path, "rb")  # noqa: SIM115
+    except OSError as exc:
+        raise ImportFormatError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if raw.peek(2)[:2] == b"\x1f\x8b":
+        raw.close()
+        return gzip.open(path, "rt", encoding="utf-8-sig", errors="replace")
+    return io.TextIOWrapper(raw, encoding="utf-8-sig", errors="replace")

@@ -1,0 +1,45 @@
+"""`emlogd evaluate` (and the calibration it applies) through main(argv): the IMO verdict."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from emlogd.cli import main
+from emlogd.offline.simulate import SimulationResult
+
+
+def test_the_imo_verdict_in_calibrate_and_evaluate(
+    capsys: pytest.CaptureFixture[str], trial: SimulationResult, tmp_path: Path
+) -> None:
+    """calibrate and evaluate report the IMO A.824(19) verdict raw and calibrated, in JSON
+    and text, from calib.metrics.water_imo; evaluate --truth adds it against the truth."""
+    fig8 = str(trial.files[1])
+    params = tmp_path / "p.yaml"
+    argv = ["calibrate", fig8, "--uut", "emlog1", "--ref", "dvl", "--lag", "3.3"]
+    assert main([*argv, "--save", str(params), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    imo = doc["imo"]
+    assert set(imo) == {"raw", "cal"}
+    for v in imo.values():
+        assert set(v) == {"n", "within", "fraction", "meets"}
+        assert v["n"] == doc["n_samples"] and v["fraction"] == v["within"] / v["n"]
+    assert imo["cal"]["fraction"] > imo["raw"]["fraction"]
+    assert main(argv) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("IMO A.824"))
+    cal_pct = (
+        f"{100.0 * imo['cal']['fraction']:.1f} % {'meets' if imo['cal']['meets'] else 'fails'}"
+    )
+    assert f"cal {cal_pct}" in line
+    ev = ["evaluate", fig8, "--params", str(params), "--truth", str(trial.outdir)]
+    assert main([*ev, "--json"]) == 0
+    cap = json.loads(capsys.readouterr().out)["captures"][0]
+    assert set(cap["imo"]) == {"raw", "cal"} and cap["imo"]["cal"]["n"] == cap["n_samples"]
+    truth = cap["truth"]["imo"]
+    assert set(truth) == {"raw", "corrected"}
+    assert truth["corrected"]["fraction"] > truth["raw"]["fraction"]
+    assert main(ev) == 0
+    out = capsys.readouterr().out
+    assert out.count("IMO raw") == 2 and out.count("IMO cal") == 2

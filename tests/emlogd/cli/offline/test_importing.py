@@ -1,0 +1,38 @@
+"""`emlogd import` through main(argv): the options each input format takes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from emlogd.cli import main
+
+
+def test_a_utc_offset_beyond_the_time_zones_is_a_usage_error(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """--utc-offset takes hours within ±14 (the time zones' span): 15 exits 2 naming the
+    range, 14 is taken (and the command goes on to the missing file: exit 1)."""
+    argv = ["import", str(tmp_path / "x.csv"), "--format", "csv", "--out", str(tmp_path / "o.cap")]
+    assert main([*argv, "--utc-offset", "15"]) == 2
+    assert "expected hours in [-14, 14]" in capsys.readouterr().err
+    assert main([*argv, "--utc-offset", "14"]) == 1
+
+
+@pytest.mark.parametrize(
+    ("fmt", "option", "message"),
+    [
+        ("nmea", ["--map", "time=T,stw=S"], "--map applies to --format csv only"),
+        ("nmea", ["--utc-offset", "1"], "--utc-offset applies to --format csv only"),
+        ("csv", ["--date", "2024-06-01"], "--date applies to --format nmea only"),
+    ],
+)
+def test_an_option_of_the_other_format_is_refused(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, fmt: str, option: list[str], message: str
+) -> None:
+    """An option of the other input format is a usage error (exit 2) that names it, before
+    any file is read."""
+    argv = ["import", str(tmp_path / "missing"), "--format", fmt, "--out", str(tmp_path / "o")]
+    assert main([*argv, *option]) == 2
+    assert message in capsys.readouterr().err

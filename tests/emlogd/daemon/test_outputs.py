@@ -1,0 +1,93 @@
+"""The daemon's outputs: opened from the config, kept across a sync when their settings
+are equal, and each sentence routed to its log's own outputs or the shared ones."""
+
+from __future__ import annotations
+
+import selectors
+import socket
+from collections.abc import Iterator
+
+import pytest
+
+from emlogd.config import Config, parse_config
+from emlogd.daemon.outputs import Outputs
+from emlogd.pipeline.core import Emit
+
+
+class _Log:
+    def info(self, event: str, **kw: object) -> None:
+        pass
+
+    warning = info
+
+
+def _receiver() -> socket.socket:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    s.settimeout(2.0)
+    return s
+
+
+def _config(shared: int, own: int | None) -> Config:
+    own_key = f", udp: '127.0.0.1:{own}'" if own is not None else ""
+    return parse_config(
+        "ports:\n"
+        "  - {name: emlog1, url: 'loop://', protocol: nmea0183, role: uut}\n"
+        "  - {name: emlog2, url: 'loop://', protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: 'loop://', protocol: pd6, role: reference}\n"
+        "calibration:\n"
+        "  - {uut: emlog1, reference: dvl}\n"
+        f"  - {{uut: emlog2, reference: dvl, talker: VM{own_key}}}\n"
+        f"outputs: {{pty: null, udp: '127.0.0.1:{shared}'}}\n"
+    )
+
+
+@pytest.fixture
+def receivers() -> Iterator[tuple[socket.socket, socket.socket]]:
+    shared, own = _receiver(), _receiver()
+    yield shared, own
+    shared.close()
+    own.close()
+
+
+def test_a_log_with_its_own_output_writes_there_only(
+    receivers: tuple[socket.socket, socket.socket],
+) -> None:
+    """emlog2's sentences go to its own UDP destination alone; emlog1's to the shared one."""
+    shared, own = receivers
+    outputs = Outputs(selectors.DefaultSelector(), _Log(), lambda: 0.0)
+    cfg = _config(shared.getsockname()[1], own.getsockname()[1])
+    try:
+        closed, opened = outputs.sync(cfg)
+        assert closed == [] and len(opened) == 2
+        outputs.deliver([Emit(1.0, "emlog1", "$VWVHW,a"), Emit(1.0, "emlog2", "$VMVHW,b")])
+        assert shared.recv(4096) == b"$VWVHW,a\r\n"
+        assert own.recv(4096) == b"$VMVHW,b\r\n"
+        shared.settimeout(0.1)
+        with pytest.raises(TimeoutError):
+            shared.recv(4096)  # emlog2's sentence did not reach the shared output
+        assert set(outputs.status()) == set(opened)
+        assert all(doc["state"] == "open" for doc in outputs.status().values())
+    finally:
+        outputs.close()
+
+
+def test_a_sync_keeps_equal_outputs_and_closes_the_others(
+    receivers: tuple[socket.socket, socket.socket],
+) -> None:
+    """Syncing to a config without emlog2's own output closes that one, keeps the shared
+    output as the same object, and sends emlog2's sentences to the shared one again."""
+    shared, own = receivers
+    outputs = Outputs(selectors.DefaultSelector(), _Log(), lambda: 0.0)
+    port = shared.getsockname()[1]
+    try:
+        outputs.sync(_config(port, own.getsockname()[1]))
+        kept = outputs.shared[0]
+        closed, opened = outputs.sync(_config(port, None))
+        assert closed == [f"udp:127.0.0.1:{own.getsockname()[1]}"] and opened == []
+        assert outputs.shared == [kept] and outputs.routes == {}
+        outputs.deliver([Emit(1.0, "emlog2", "$VMVHW,b")])
+        assert shared.recv(4096) == b"$VMVHW,b\r\n"
+    finally:
+        outputs.close()
+    assert outputs.sinks == {}

@@ -1,0 +1,85 @@
+"""CSV column maps and presets: the maps a header is tried against, the header found past a
+banner, each cell read into SI units within a boat's range, the time format told."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import pytest
+
+from drivers.records import KNOT_MPS
+from emlogd.offline.csvmaps import (
+    EXPEDITION,
+    LOGGER_TSV,
+    PRESETS,
+    Col,
+    candidate_maps,
+    cell_value,
+    find_header,
+    guess_time_format,
+    parse_map,
+)
+from emlogd.offline.importbase import ImportFormatError, ImportReport
+
+
+@pytest.mark.parametrize(
+    ("spec", "match"),
+    [("time=Utc,bogus=X", "bogus"), ("time", "key=Column"), ("time=", "key=Column")],
+)
+def test_bad_map(spec: str, match: str) -> None:
+    """A malformed map names the item at fault."""
+    with pytest.raises(ImportFormatError, match=match):
+        parse_map(spec)
+
+
+def test_candidate_maps() -> None:
+    """Without a map every preset is tried in order; a map alone is tried as it is; the
+    user's columns override a named preset's; an unknown preset or a map without stw is
+    refused."""
+    assert [p.name for p, _ in candidate_maps(None, None) if p] == list(PRESETS)
+    assert candidate_maps({"time": "T", "stw": "S"}, None) == [(None, {"time": "T", "stw": "S"})]
+    ((preset, m),) = candidate_maps({"stw": "Speed"}, "expedition")
+    assert preset is PRESETS["expedition"] and m == {**EXPEDITION, "stw": "Speed"}
+    with pytest.raises(ImportFormatError, match="no preset 'nope'"):
+        candidate_maps(None, "nope")
+    with pytest.raises(ImportFormatError, match="needs stw="):
+        candidate_maps({"time": "T"}, None)
+
+
+def test_the_header_is_found_past_a_banner_with_its_delimiter() -> None:
+    """The header is the first line holding a map's required columns, with the delimiter
+    it is written with, its columns matched in any case."""
+    lines = ["Logger v2 export", "started 10:00", "DATE\tTIME\tBOATSPEED\tHEADING", "1\t2\t3\t4"]
+    found = find_header(lines, candidate_maps(None, None))
+    assert found is not None
+    index, delim, preset, cols = found
+    assert (index, delim, preset) == (2, "\t", PRESETS["logger-tsv"])
+    assert {k: c.index for k, c in cols.items()} == {"date": 0, "time": 1, "stw": 2, "heading": 3}
+    assert set(cols) <= set(LOGGER_TSV)
+    assert find_header(["a,b,c"], candidate_maps(None, None)) is None
+
+
+def test_cells_in_si_units_within_a_boats_range() -> None:
+    """Speeds in knots become m/s, angles wrap into [0, 360), ddmm.mmmm positions become
+    degrees; a cell beyond a boat's range or no number is counted by column and reason."""
+    report = ImportReport([], "", "p")
+    stw = Col("stw", 0, KNOT_MPS)
+    assert cell_value("10", stw, report) == pytest.approx(10 * KNOT_MPS)
+    assert cell_value("-10", Col("heading", 0, 1.0), report) == 350.0
+    assert cell_value("4530.0000S", Col("lat", 0, 1.0), report) == pytest.approx(-45.5)
+    assert cell_value("3,5", stw, report) == pytest.approx(3.5 * KNOT_MPS)  # a decimal comma
+    assert cell_value("81", stw, report) is None
+    assert cell_value("fast", stw, report) is None
+    assert cell_value("4530.0000E", Col("lat", 0, 1.0), report) is None
+    assert report.cells == Counter(
+        {"stw: out_of_range": 1, "stw: not_a_number": 1, "lat: not_a_number": 1}
+    )
+
+
+@pytest.mark.parametrize(
+    ("cell", "fmt"),
+    [("1700000000", "epoch"), ("38353.5", "ole"), ("2005-01-01T12:00:00", "iso"), ("12", None)],
+)
+def test_the_time_format_is_told_by_the_first_cell(cell: str, fmt: str | None) -> None:
+    """Epoch seconds, an OLE date or ISO 8601 are told apart; anything else is not guessed."""
+    assert guess_time_format(cell) == fmt

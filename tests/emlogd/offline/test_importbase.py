@@ -1,0 +1,57 @@
+"""What both imports share: the years a time may name, the capture written under a
+temporary name and moved into place only on success, gzip input, the report's plain form."""
+
+from __future__ import annotations
+
+import gzip
+from datetime import UTC, datetime
+from pathlib import Path
+
+from emlogd.offline.importbase import (
+    CaptureSink,
+    ImportReport,
+    open_text,
+    sentence_kind,
+    within_years,
+)
+
+
+def _t(year: int) -> float:
+    return datetime(year, 1, 1, tzinfo=UTC).timestamp()
+
+
+def test_years() -> None:
+    """1980 up to (not including) 2100 are GPS-era times; anything else is a misread time."""
+    assert within_years(_t(1980)) and within_years(_t(2099))
+    assert not within_years(_t(1979)) and not within_years(_t(2100))
+
+
+def test_the_capture_appears_only_on_commit(tmp_path: Path) -> None:
+    """The sink writes next to the capture's name and moves it there on commit; an abort
+    leaves nothing; the report counts what was written, by sentence type, and its span."""
+    report = ImportReport(["in"], str(tmp_path / "o.cap"), "nmea")
+    sink = CaptureSink(tmp_path / "o.cap", "nmea", "test", report)
+    sink.write(100.0, "$IIVHW,,T,,M,1.0,N,,K*00")
+    sink.write(101.5, "$PRTI01,1*00")
+    assert not (tmp_path / "o.cap").exists()
+    sink.commit()
+    assert (tmp_path / "o.cap").exists() and list(tmp_path.iterdir()) == [tmp_path / "o.cap"]
+    d = report.to_dict()
+    assert (d["written"], d["sentences"], d["span_s"]) == (2, {"PRTI01": 1, "VHW": 1}, 1.5)
+    aborted = CaptureSink(tmp_path / "p.cap", "nmea", "test", ImportReport([], "", "nmea"))
+    aborted.write(1.0, "$IIVHW,,T,,M,1.0,N,,K*00")
+    aborted.abort()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.cap"]
+
+
+def test_gzip_input_is_told_by_its_magic(tmp_path: Path) -> None:
+    """A file starting with gzip's magic is read through gzip whatever its name."""
+    (tmp_path / "a.log").write_bytes(gzip.compress(b"$GPRMC\n"))
+    (tmp_path / "b.log").write_bytes(b"$GPVTG\n")
+    with open_text(tmp_path / "a.log") as a, open_text(tmp_path / "b.log") as b:
+        assert (a.read(), b.read()) == ("$GPRMC\n", "$GPVTG\n")
+
+
+def test_sentence_kind() -> None:
+    """A sentence's type without its talker; a proprietary one by its address."""
+    assert sentence_kind("$IIVHW,1") == "VHW" and sentence_kind("$PRTI01,1") == "PRTI01"
