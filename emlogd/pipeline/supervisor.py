@@ -39,8 +39,7 @@ Rules (the constants are this module's):
   the detector's current starts afresh.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again (in a turn, :data:`RESTORE_MIN_HEADING_SPREAD`, raw and it each
-  after a current fitted to the window).
+  it validates again.
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -123,13 +122,12 @@ only a known sea can tell a good restored calibration from raw there; within an 
 tidal current changes by a fraction of itself."""
 
 RESTORE_MIN_HEADING_SPREAD = 0.1
-"""A restored or withdrawn calibration's validation window tells a current from an
-offset when its headings spread this much (one minus the mean resultant length of the
-heading's unit vector: 0 on a straight leg, 0.1 for headings spread evenly over about
-90°); then raw and it are each judged after a current of their own fitted to that
-window. On a narrower window a current and an offset look alike: a restored one falls
-back on the sea (see :data:`RESTORE_SEA_SIGMAS`), a withdrawn one on the currents of the
-supervisor's memory."""
+"""A restored calibration's validation window tells a current from an offset when its
+headings spread this much (one minus the mean resultant length of the heading's unit
+vector: 0 on a straight leg, 0.1 for headings spread evenly over about 90°); then raw
+and it are each judged after a current of their own fitted to that window. On a
+narrower window a current and an offset look alike, and it falls back on the sea (see
+:data:`RESTORE_SEA_SIGMAS`)."""
 
 RESTORE_SEA_SIGMAS = 3.0
 """Where the validation window cannot tell a current from an offset, a restored
@@ -185,7 +183,7 @@ class _Candidate:
     n_sea: int = 0
     n: int = 0
     samples: list[tuple[float, float, float, float]] | None = None
-    """A restored or withdrawn one's validation samples (in the water frame): raw's and its error against the reference,
+    """A restored one's validation samples (in the water frame): raw's and its error against the reference,
     and the heading's (cos, sin): judged at the end (:meth:`Supervisor._judge_restored`)."""
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`SeaMemory.current`), once fitted."""
@@ -438,7 +436,7 @@ class Supervisor:
             cand.sea_raw += (d_raw + c_h) ** 2
             cand.sea_cand += (d_c + c_h) ** 2
             cand.n_sea += 1
-        if cand.kind in ("restored", "revalidate") and self.water and cs is not None:
+        if cand.kind == "restored" and self.water and cs is not None:
             if cand.samples is None:
                 cand.samples = []
             cand.samples.append((d_raw, d_c, cs[0], cs[1]))
@@ -571,13 +569,6 @@ class Supervisor:
             good = self._judge_restored(cand, detail)
         elif cand.kind == "restored" and cand.n_sea == n:
             good = self._judge_saved_sea(cand, detail)
-        elif (
-            cand.kind == "revalidate"
-            and cand.samples is not None
-            and len(cand.samples) == n
-            and (verdict := self._judge_own_currents(cand, detail)) is not None
-        ):
-            good = verdict
         else:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
@@ -625,8 +616,8 @@ class Supervisor:
         return not self._worse(s_cand, s_raw)
 
     def _judge_own_currents(self, cand: _Candidate, detail: dict[str, object]) -> bool | None:
-        """A calibration validated before, on a window whose headings tell a current from
-        an offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
+        """A restored calibration, on a window whose headings tell a current from an
+        offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
         current of their own fitted to the window; not worse than raw. None on a
         narrower window."""
         assert cand.samples is not None
