@@ -93,16 +93,10 @@ BROKEN_HEADING = {"regatta-analyser-2024-07-18-estonia"}
 """Its heading is wrong (median 29° from the course): calibrate refuses it and the
 replay applies nothing."""
 
-_WORSE_WINDOW = "the replay emits worse than raw over some 5-min window"
 KNOWN: dict[str, str] = {
-    "astra-race-2017-07-08-trieste": "the replay emits worse than raw over the whole log "
-    "(by 2.6 %) and over some 5-min window",
-    "dasht-2016-05-07-trieste": "the replay emits worse than raw over the whole log (by 1.8 %) "
-    "and over some 5-min window",
+    "astra-race-2017-07-08-trieste": "the replay emits 1.14 times raw's RMSE over a 5-min window",
     "irene-2013-09-22-leman": "the LS scale at its low median speed is 0.038 off the "
-    "independent fit, and the replay emits worse than raw over some 5-min window",
-    "irene-2014-06-29-leman": _WORSE_WINDOW,
-    "psaros33-2014-08-22-leman": _WORSE_WINDOW,
+    "independent fit, and the replay emits 1.13 times raw's RMSE over a 5-min window",
 }
 """What does not hold yet on this tree, by recording (docs/REAL_DATA.md): strict xfails,
 so a recording that starts passing fails here until it is taken off the list."""
@@ -159,12 +153,14 @@ def test_the_whole_suite_per_recording(name: str, tmp_path_factory: pytest.TempP
 NIS_RANGE = (0.7, 1.5)
 KF_SCALE_TOLERANCE = 0.05
 KNOWN_KF: dict[str, str] = {
-    "astra-race-2017-07-08-trieste": "KF NIS mean 0.37",
-    "dasht-2016-05-07-trieste": "the KF scale at the median speed is 0.056 off the LS one",
-    "expedition-valencia": "KF NIS mean 1.67",
-    "irene-2007-11-03-leman": "KF NIS mean 0.62",
-    "irene-2013-09-22-leman": "the KF scale at the median speed is 0.091 off the LS one",
-    "irene-2014-06-29-leman": "KF NIS mean 1.67",
+    "astra-race-2017-07-08-trieste": "KF NIS mean 0.23",
+    "dasht-2016-05-07-trieste": "KF NIS mean 0.69",
+    "irene-2007-11-03-leman": "KF NIS mean 0.34",
+    "irene-2013-09-22-leman": "KF NIS mean 0.14, and the KF scale at the median speed is "
+    "0.112 off the LS one",
+    "irene-2014-06-27-leman": "KF NIS mean 0.42",
+    "psaros33-2014-08-22-leman": "KF NIS mean 0.69, and the KF scale at the median speed is "
+    "0.081 off the LS one",
 }
 """What does not hold yet of the filter, by recording: strict xfails."""
 
