@@ -70,15 +70,6 @@ scale)."""
 _TRACK_CURRENT = frozenset({CURRENT})
 """What learns while the operator has switched learning off (water frame only)."""
 
-CHANGE_WINDOW_S = 10.0
-"""A change of the readings is measured over the learner's raw innovations of this last
-span, s: the supervisor's change detector alarms within a few samples of a step (3 on a
-35 % gain step), and at 1 Hz ten samples hold the new level against the reference's noise."""
-
-CHANGE_MIN_SAMPLES = 3
-"""Fewer raw innovations than this in :data:`CHANGE_WINDOW_S`: the change cannot be
-measured, and the parameters re-open to their prior."""
-
 
 AVERAGE_S: dict[str, float] = {"gnss": 20.0}
 """Learning from block means of this length by reference field, s (others: every
@@ -182,11 +173,6 @@ class Learner:
         self.nis_sum = 0.0
         self.gated_run_raw = 0
         self.gated_run_ref = 0
-        self.change_pending = False
-        """A change was seen while learning from block means: the next block measures it."""
-        self.recent: deque[tuple[float, float, float]] = deque()
-        """(time, raw innovation, speed) of the last :data:`CHANGE_WINDOW_S` of readings
-        with a valid reference: what a change of the readings is measured on."""
         average = s.average_s if s.average_s is not None else AVERAGE_S.get(s.reference_field, 0.0)
         self.block = BlockMeans(average) if average > 0.0 else None
         """Learning from block means (a noisy reference), or None: from every sample."""
@@ -295,8 +281,6 @@ class Learner:
             scaled=block is None,
         )
         self._gates(a.t, res.raw_gated, res.ref_gated, valid, gate)
-        if valid and res.raw is not None and a.ref is not None and not gate:
-            self._recent(a.t, res.raw.y, a.ref)
         learnt = res.learnt and learn_set is not False
         if block is not None:
             usable = not (res.raw_gated or res.ref_gated) and res.raw is not None
@@ -305,10 +289,6 @@ class Learner:
             if closed is not None:
                 learn_set, res = closed
                 learnt = res.learnt
-                if self.change_pending and res.raw is not None:
-                    self.change_pending = False
-                    excess = res.raw.y * res.raw.y - res.raw.S
-                    self._widen(math.sqrt(max(excess, 0.0)), abs(self.kf.speed_mps))
         if not self.learn_on:
             learnt = False  # at most the current followed the reference
         if learnt and res.raw is not None:
@@ -448,48 +428,6 @@ class Learner:
                 "identifiability",
                 {"determined": list(ident.determined), "why": ident.reason},
             )
-
-    def _recent(self, t: float, y: float, v: float) -> None:
-        q = self.recent
-        q.append((t, y, v))
-        while q and t - q[0][0] > CHANGE_WINDOW_S:
-            q.popleft()
-
-    def reopen_for_change(self) -> None:
-        """The readings changed (the supervisor's detector): re-open the parameters by
-        the size of the change the learner's own innovations show.
-
-        The change ``δ`` is what a changed sensor would have to explain, against this
-        learner's estimate and current (which fitted the readings before), at the speed
-        ``v``: each parameter's variance grows by that change alone (``δ²`` for the
-        bias, ``(δ/v)²`` for the scale, ``(δ/v²)²`` for the quadratic term), up to its
-        prior. Learning from block means (a noisy reference), ``δ²`` is the squared
-        innovation of the first block collected after the change beyond its variance S
-        (the filter's own expectation, its noises scaled to the data): a 35 % gain step
-        at 2.5 m/s re-opens the scale to σ 0.3 or more, an alarm the reference's noise
-        raised leaves the parameters as they were, where a re-open to the prior (σ 0.5)
-        threw away hours of learning on every alarm the sea or the reference raised. Learning sample by sample (a DVL),
-        ``δ`` is the mean raw innovation over :data:`CHANGE_WINDOW_S`; without enough
-        of them the parameters re-open to their prior.
-        """
-        if self.block is not None:
-            # the block being collected holds readings from before the change
-            self.block.clear()
-            self.change_pending = True
-            return
-        q = self.recent
-        if len(q) < CHANGE_MIN_SAMPLES:
-            self.kf.reopen(self.layout.params)
-            return
-        self._widen(abs(sum(y for _, y, _ in q) / len(q)), sum(abs(x) for _, _, x in q) / len(q))
-        q.clear()
-
-    def _widen(self, delta: float, v: float) -> None:
-        """Each parameter's variance grows by what a change ``delta`` (m/s) at ``v``
-        (m/s) would take of it alone."""
-        v = max(v, self.s.min_ref_speed_mps)
-        per = {"b": delta * delta, "m": (delta / v) ** 2, "a": (delta / (v * v)) ** 2}
-        self.kf.widen({name: per[name] for name in self.layout.params})
 
     def _gates(self, t: float, raw_gated: bool, ref_gated: bool, valid: bool, fault: str) -> None:
         s = self.s
