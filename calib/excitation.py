@@ -151,6 +151,34 @@ class Verdict:
     std: float | None
 
 
+class Verdicts:
+    """What a window's verdicts tell, for the classes that hold them in ``verdicts``
+    (:class:`Identifiability`, :class:`calib.twoaxis.TwoAxisIdent`)."""
+
+    __slots__ = ()
+    verdicts: tuple[Verdict, ...]
+
+    @property
+    def determined(self) -> tuple[str, ...]:
+        """The unknowns the window determines."""
+        return tuple(v.unknown for v in self.verdicts if v.determined)
+
+    @property
+    def unidentifiable(self) -> tuple[str, ...]:
+        """The unknowns it does not determine (empty when all are)."""
+        return tuple(v.unknown for v in self.verdicts if not v.determined)
+
+    @property
+    def reason(self) -> str:
+        """Every refusal in words, each once, ``"; "``-separated (empty when all are
+        determined)."""
+        seen: list[str] = []
+        for v in self.verdicts:
+            if not v.determined and v.reason not in seen:
+                seen.append(v.reason)
+        return "; ".join(seen)
+
+
 @dataclass(frozen=True, slots=True)
 class WindowStats:
     """What a window holds, for :func:`judge`.
@@ -173,7 +201,7 @@ class WindowStats:
 
 
 @dataclass(frozen=True, slots=True)
-class Identifiability:
+class Identifiability(Verdicts):
     """The verdict on every unknown of one window.
 
     Attributes:
@@ -192,28 +220,9 @@ class Identifiability:
     nuisance_offset: bool
 
     @property
-    def determined(self) -> tuple[str, ...]:
-        """The unknowns the window determines."""
-        return tuple(v.unknown for v in self.verdicts if v.determined)
-
-    @property
-    def unidentifiable(self) -> tuple[str, ...]:
-        """The unknowns it does not determine (empty when all are)."""
-        return tuple(v.unknown for v in self.verdicts if not v.determined)
-
-    @property
     def identifiable(self) -> bool:
         """Every unknown is determined."""
         return not self.unidentifiable
-
-    @property
-    def reason(self) -> str:
-        """Every refusal in words, ``"; "``-separated (empty when identifiable)."""
-        seen: list[str] = []
-        for v in self.verdicts:
-            if not v.determined and v.reason not in seen:
-                seen.append(v.reason)
-        return "; ".join(seen)
 
     def verdict(self, unknown: str) -> Verdict:
         """The verdict on one unknown.

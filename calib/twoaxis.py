@@ -340,6 +340,22 @@ def fit_two_axis(
     ident = judge_two_axis(name, u, w, s.raw_l, s.hd, current=current, rule=rule)
     x = x0
     outside: dict[str, str] = {}
+
+    def rejudge(u: FloatArray, w: FloatArray, x: FloatArray) -> TwoAxisIdent:
+        """Rules 1–5 at ``x``, the unknowns found ``outside`` the envelope refused."""
+        return judge_two_axis(
+            name,
+            u,
+            w,
+            s.raw_l,
+            s.hd,
+            current=current,
+            info_of=problem,
+            x=x,
+            rule=rule,
+            outside=outside,
+        )
+
     for _ in range(2 * len(ident.verdicts) + 2):
         problem.tie = _ties(name, ident)
         free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
@@ -353,18 +369,7 @@ def fit_two_axis(
             ]
         )
         u, w = problem.water(x)
-        new = judge_two_axis(
-            name,
-            u,
-            w,
-            s.raw_l,
-            s.hd,
-            current=current,
-            info_of=problem,
-            x=x,
-            rule=rule,
-            outside=outside,
-        )
+        new = rejudge(u, w, x)
         done = new.determined == ident.determined
         ident = new
         if done:
@@ -372,18 +377,7 @@ def fit_two_axis(
             if not beyond:
                 break
             outside |= beyond
-            ident = judge_two_axis(
-                name,
-                u,
-                w,
-                s.raw_l,
-                s.hd,
-                current=current,
-                info_of=problem,
-                x=x,
-                rule=rule,
-                outside=outside,
-            )
+            ident = rejudge(u, w, x)
     for _ in range(len(ident.verdicts) + 1):  # each pass refuses one more, or ends
         problem.tie = _ties(name, ident)
         free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
@@ -392,18 +386,7 @@ def fit_two_axis(
         if not beyond:
             break
         outside |= beyond
-        ident = judge_two_axis(
-            name,
-            u,
-            w,
-            s.raw_l,
-            s.hd,
-            current=current,
-            info_of=problem,
-            x=x,
-            rule=rule,
-            outside=outside,
-        )
+        ident = rejudge(u, w, x)
     rl, rt = problem.residuals(x)
     factor = max(correlation_factor(rl), correlation_factor(rt))
     std = np.full(x.size, math.nan)

@@ -49,6 +49,7 @@ from calib.excitation import (
     N_SECTORS,
     ExcitationRule,
     Verdict,
+    Verdicts,
     heading_sectors,
 )
 from calib.models import CURRENT, PARAM_NAMES, FloatArray, ModelName
@@ -140,7 +141,7 @@ def unknowns_of(model: ModelName, current: bool) -> tuple[str, ...]:
 
 
 @dataclass(frozen=True, slots=True)
-class TwoAxisIdent:
+class TwoAxisIdent(Verdicts):
     """The verdict on every unknown of a two-axis window.
 
     Attributes:
@@ -162,25 +163,6 @@ class TwoAxisIdent:
     transverse_std_mps: float
     heading_sectors: int
     n_samples: int
-
-    @property
-    def determined(self) -> tuple[str, ...]:
-        """The unknowns the window determines."""
-        return tuple(v.unknown for v in self.verdicts if v.determined)
-
-    @property
-    def unidentifiable(self) -> tuple[str, ...]:
-        """The unknowns it does not determine."""
-        return tuple(v.unknown for v in self.verdicts if not v.determined)
-
-    @property
-    def reason(self) -> str:
-        """Why some unknowns are not determined, each reason once (empty when all are)."""
-        seen: list[str] = []
-        for v in self.verdicts:
-            if not v.determined and v.reason not in seen:
-                seen.append(v.reason)
-        return "; ".join(seen)
 
     def verdict(self, unknown: str) -> Verdict:
         """The verdict on one unknown.
