@@ -215,25 +215,19 @@ def _check(
 
 
 def _prepare(
-    model: str,
-    ref_fwd_mps: npt.ArrayLike,
-    ref_stb_mps: npt.ArrayLike,
-    raw_l_mps: npt.ArrayLike,
-    raw_t_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
+    name: ModelName,
+    s: _Series,
     prior: TwoAxisParams | None,
     current: bool,
     t_s: npt.ArrayLike | None,
     current_knot_s: float | None,
-) -> tuple[ModelName, _Series, _Problem]:
-    name = check_model(model)
-    s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
+) -> _Problem:
     if prior is not None and prior.model != name:
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
     basis = None
     if current and current_knot_s is not None:
         basis = current_basis(t_s, s.gf.size, current_knot_s)
-    return name, s, _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
+    return _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
 
 
 MIN_KNOT_SHARE = 0.05
@@ -323,18 +317,9 @@ def fit_two_axis(
         ModelError: unknown model.
         DataError: bad series, a prior of another model.
     """
-    name, s, problem = _prepare(
-        model,
-        ref_fwd_mps,
-        ref_stb_mps,
-        raw_l_mps,
-        raw_t_mps,
-        heading_deg,
-        prior,
-        current,
-        t_s,
-        current_knot_s,
-    )
+    name = check_model(model)
+    s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
+    problem = _prepare(name, s, prior, current, t_s, current_knot_s)
     x0 = _x0(prior, problem.size())
     u, w = problem.water(x0)
     ident = judge_two_axis(name, u, w, s.raw_l, s.hd, current=current, rule=rule)
