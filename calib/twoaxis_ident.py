@@ -48,8 +48,6 @@ from calib.excitation import (
     DEFAULT_RULE,
     N_SECTORS,
     ExcitationRule,
-    Verdict,
-    Verdicts,
     heading_sectors,
 )
 from calib.models import CURRENT, PARAM_NAMES, FloatArray, ModelName
@@ -66,6 +64,7 @@ from calib.twoaxis_model import (
     _index,
     _Problem,
 )
+from calib.verdicts import Verdict, Verdicts
 
 
 @dataclass(frozen=True, slots=True)
