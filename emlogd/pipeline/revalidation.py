@@ -2,10 +2,10 @@
 
 :class:`_Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
 over a candidate's validation window. A calibration validated before (restored from
-the state file, or withdrawn for cause and re-validated) need only not be worse than
-raw (:func:`worse`); in the water frame, where a current and an offset look alike on a
-straight leg, it is judged after a current of its own where the window's headings
-spread (:func:`judge_own_currents`), else in the sea it was saved in
+the state file, or withdrawn for cause) need only not be worse than raw
+(:func:`worse`). A restored one in the water frame, where a current and an offset look
+alike on a straight leg, is judged after a current of its own where the window's
+headings spread (:func:`judge_own_currents`), else in the sea it was saved in
 (:func:`judge_saved_sea`) or by the current its errors imply (:func:`judge_restored`).
 No I/O, no clock.
 """
@@ -31,13 +31,12 @@ WORSE_MARGIN_MPS = 0.005
 """The applied calibration is worse than raw when its RMSE exceeds raw's × 1.05 + 5 mm/s."""
 
 RESTORE_MIN_HEADING_SPREAD = 0.1
-"""A restored or withdrawn calibration's validation window tells a current from an
-offset when its headings spread this much (one minus the mean resultant length of the
-heading's unit vector: 0 on a straight leg, 0.1 for headings spread evenly over about
-90°); then raw and it are each judged after a current of their own fitted to that
-window. On a narrower window a current and an offset look alike: a restored one falls
-back on the sea (see :data:`RESTORE_SEA_SIGMAS`), a withdrawn one on the currents of the
-supervisor's memory."""
+"""A restored calibration's validation window tells a current from an offset when its
+headings spread this much (one minus the mean resultant length of the heading's unit
+vector: 0 on a straight leg, 0.1 for headings spread evenly over about 90°); then raw
+and it are each judged after a current of their own fitted to that window. On a
+narrower window a current and an offset look alike, and it falls back on the sea (see
+:data:`RESTORE_SEA_SIGMAS`)."""
 
 RESTORE_SEA_SIGMAS = 3.0
 """Where the validation window cannot tell a current from an offset, a restored
@@ -79,7 +78,7 @@ class _Candidate:
     n_sea: int = 0
     n: int = 0
     samples: list[tuple[float, float, float, float]] | None = None
-    """A restored or withdrawn one's validation samples (in the water frame): raw's and its error against the reference,
+    """A restored one's validation samples (in the water frame): raw's and its error against the reference,
     and the heading's (cos, sin): judged at the end (:func:`judge_restored`)."""
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`emlogd.pipeline.evidence.SeaMemory.current`), once fitted."""
@@ -100,8 +99,8 @@ def judge_saved_sea(cand: _Candidate, detail: dict[str, object]) -> bool:
 
 
 def judge_own_currents(cand: _Candidate, detail: dict[str, object]) -> bool | None:
-    """A calibration validated before, on a window whose headings tell a current from
-    an offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
+    """A restored calibration, on a window whose headings tell a current from an
+    offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
     current of their own fitted to the window; not worse than raw. None on a
     narrower window."""
     assert cand.samples is not None

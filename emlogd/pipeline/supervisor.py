@@ -40,8 +40,7 @@ Rules (the constants are this module's and
   the detector's current starts afresh.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again (in a turn, :data:`RESTORE_MIN_HEADING_SPREAD`, raw and it each
-  after a current fitted to the window).
+  it validates again.
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -73,7 +72,6 @@ from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
 from emlogd.pipeline.revalidation import _Candidate as _Candidate
 from emlogd.pipeline.revalidation import (
-    judge_own_currents,
     judge_restored,
     judge_saved_sea,
     worse,
@@ -388,7 +386,7 @@ class Supervisor:
             cand.sea_raw += (d_raw + c_h) ** 2
             cand.sea_cand += (d_c + c_h) ** 2
             cand.n_sea += 1
-        if cand.kind in ("restored", "revalidate") and self.water and cs is not None:
+        if cand.kind == "restored" and self.water and cs is not None:
             if cand.samples is None:
                 cand.samples = []
             cand.samples.append((d_raw, d_c, cs[0], cs[1]))
@@ -528,13 +526,6 @@ class Supervisor:
             )
         elif cand.kind == "restored" and cand.n_sea == n:
             good = judge_saved_sea(cand, detail)
-        elif (
-            cand.kind == "revalidate"
-            and cand.samples is not None
-            and len(cand.samples) == n
-            and (verdict := judge_own_currents(cand, detail)) is not None
-        ):
-            good = verdict
         else:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)

@@ -423,36 +423,6 @@ class TestRestored:
         assert applied_after(-300.0) == TRUE
         assert applied_after(0.0) is None
 
-    def test_a_withdrawn_one_revalidates_in_a_turn_after_currents_of_its_own(self) -> None:
-        """Headings swinging ±60° in 0.5 m/s of current from the north, where raw's error
-        (+0.34 m/s) and the current nearly cancel against the reference. A calibration
-        withdrawn with the supervisor's memory emptied (as the change detector does)
-        re-validates: raw and it are judged after currents of their own fitted to the
-        window, and it is applied again."""
-        from emlogd.pipeline.evidence import SeaMemory
-        from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
-
-        def psi(t: float) -> float:
-            return 60.0 * math.sin(2.0 * math.pi * t / 40.0)
-
-        def ref(t: float, v: float) -> float:
-            return v + 0.5 * math.cos(math.radians(psi(t)))
-
-        rig = Rig(_prior(), heading=0.0, current=True, learn=False)
-        rig.cal.heading_at = psi
-        rig.run(RESTORE_VALIDATION_S + 10.0, ref=ref)
-        assert _applied(rig) == TRUE
-        sup = rig.cal.sup
-        sup._withdraw(rig.t, "test", {})
-        sup.memory = SeaMemory()
-        assert _applied(rig) is None
-        rig.run(RESTORE_VALIDATION_S + 5.0, ref=ref)
-        assert _applied(rig) == TRUE
-        (detail,) = [d for _, k, d in rig.events if d.get("kind") == "revalidate"]
-        assert float(str(detail["heading_spread"])) >= 0.1
-        own = float(str(detail["rmse_candidate_own_current"]))
-        assert own < float(str(detail["rmse_raw_own_current"]))
-
     def test_without_a_reference_it_is_applied_unverified(self) -> None:
         """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""
         from emlogd.pipeline.supervisor import RESTORE_WAIT_S
