@@ -71,6 +71,16 @@ _TRACK_CURRENT = frozenset({CURRENT})
 """What learns while the operator has switched learning off (water frame only)."""
 
 
+CHANGE_WINDOW_S = 10.0
+"""A change of the readings is measured over the learner's raw innovations of this last
+span, s: the supervisor's change detector alarms within a few samples of a step (3 on a
+35 % gain step), and at 1 Hz ten samples hold the new level against the reference's noise."""
+
+CHANGE_MIN_SAMPLES = 3
+"""Fewer raw innovations than this in :data:`CHANGE_WINDOW_S`: the change cannot be
+measured, and the parameters re-open to their prior."""
+
+
 AVERAGE_S: dict[str, float] = {"gnss": 20.0}
 """Learning from block means of this length by reference field, s (others: every
 sample). GNSS speed projected on the hull has about 0.3 m/s of noise correlated over
@@ -173,6 +183,9 @@ class Learner:
         self.nis_sum = 0.0
         self.gated_run_raw = 0
         self.gated_run_ref = 0
+        self.recent: deque[tuple[float, float, float]] = deque()
+        """(time, raw innovation, speed) of the last :data:`CHANGE_WINDOW_S` of readings
+        with a valid reference: what a change of the readings is measured on."""
         average = s.average_s if s.average_s is not None else AVERAGE_S.get(s.reference_field, 0.0)
         self.block = BlockMeans(average) if average > 0.0 else None
         """Learning from block means (a noisy reference), or None: from every sample."""
@@ -281,6 +294,8 @@ class Learner:
             scaled=block is None,
         )
         self._gates(a.t, res.raw_gated, res.ref_gated, valid, gate)
+        if valid and res.raw is not None and a.ref is not None and not gate:
+            self._recent(a.t, res.raw.y, a.ref)
         learnt = res.learnt and learn_set is not False
         if block is not None:
             usable = not (res.raw_gated or res.ref_gated) and res.raw is not None
@@ -428,6 +443,47 @@ class Learner:
                 "identifiability",
                 {"determined": list(ident.determined), "why": ident.reason},
             )
+
+    def _recent(self, t: float, y: float, v: float) -> None:
+        q = self.recent
+        q.append((t, y, v))
+        while q and t - q[0][0] > CHANGE_WINDOW_S:
+            q.popleft()
+
+    def reopen_for_change(self) -> None:
+        """The readings changed (the supervisor's detector withdrew the calibration):
+        re-open the parameters by the size of the change, as far as the readings
+        measure it.
+
+        Learning sample by sample (a DVL), the change ``δ`` is the mean raw innovation
+        over :data:`CHANGE_WINDOW_S` against this learner's estimate and current (which
+        fitted the readings before): what a changed sensor would have to explain at the
+        speed ``v``. Each parameter's variance grows by that change alone (``δ²`` for the
+        bias, ``(δ/v)²`` for the scale, ``(δ/v²)²`` for the quadratic term), up to its
+        prior: a 35 % gain step at 2 m/s re-opens the scale to σ 0.3, an alarm the sea
+        raised leaves hours of learning as they were. Without enough innovations, or
+        learning from block means (a noisy reference: a block's innovation is one draw
+        of a noise of 0.3 m/s correlated over tens of seconds, no measure of a change),
+        the parameters re-open to their prior: the next offer rests on readings after
+        the change, not on a calibration the noise let through again within minutes of
+        its withdrawal.
+        """
+        if self.block is not None:
+            self.kf.reopen(self.layout.params)
+            return
+        q = self.recent
+        if len(q) < CHANGE_MIN_SAMPLES:
+            self.kf.reopen(self.layout.params)
+            return
+        self._widen(abs(sum(y for _, y, _ in q) / len(q)), sum(abs(x) for _, _, x in q) / len(q))
+        q.clear()
+
+    def _widen(self, delta: float, v: float) -> None:
+        """Each parameter's variance grows by what a change ``delta`` (m/s) at ``v``
+        (m/s) would take of it alone."""
+        v = max(v, self.s.min_ref_speed_mps)
+        per = {"b": delta * delta, "m": (delta / v) ** 2, "a": (delta / (v * v)) ** 2}
+        self.kf.widen({name: per[name] for name in self.layout.params})
 
     def _gates(self, t: float, raw_gated: bool, ref_gated: bool, valid: bool, fault: str) -> None:
         s = self.s

@@ -351,7 +351,7 @@ class UutCalibration:
         sup.observe(a.t, a.raw, a.ref, cs, lr, proj=proj, water=water)
         if sup.reopen:
             sup.reopen = False
-            lr.kf.reopen(self.layout.params)
+            lr.reopen_for_change()
             self.counters.relearn += 1
             self._emit(a.t, "relearn", {"why": "the supervisor saw the readings change"})
 

@@ -64,6 +64,33 @@ def _learnt() -> Learner:
     return lr
 
 
+def test_a_change_reopens_the_parameters_by_its_own_size() -> None:
+    """The supervisor saw the readings change: a shift of 0.6 m/s at 2 m/s in the
+    learner's own innovations widens m by about 0.3 and b by 0.6; a shift of 0.01 m/s
+    (the reference's noise raised the alarm) leaves them nearly as they were."""
+    big, small = _learnt(), _learnt()
+    before = dict(big.param_std)
+    assert before["m"] < 0.05 and before["b"] < 0.08
+    for lr, shift in ((big, 0.6), (small, 0.01)):
+        lr.recent.clear()
+        for k in range(10):
+            lr.recent.append((300.0 + k, shift + (0.05 if k % 2 else -0.05), 2.0))
+        lr.reopen_for_change()
+    assert big.param_std["m"] == pytest.approx(0.3, abs=0.02)
+    assert big.param_std["b"] == pytest.approx(0.5, abs=0.01)  # at most its prior
+    assert small.param_std["m"] < before["m"] + 0.01
+    assert small.param_std["b"] < before["b"] + 0.02
+    assert not small.recent
+
+
+def test_without_recent_innovations_a_change_reopens_to_the_prior() -> None:
+    """No innovations to measure the change on: the parameters' σ go back to the prior."""
+    lr = _learnt()
+    lr.recent.clear()
+    lr.reopen_for_change()
+    assert lr.param_std["m"] == pytest.approx(0.5) and lr.param_std["b"] == pytest.approx(0.5)
+
+
 def test_readings_the_logs_health_refuses_never_relearn() -> None:
     """A stalled log's readings are gated, but a run of them is no changed sensor: the
     parameters are not re-opened (a healthy log's run of gated readings is)."""
@@ -76,3 +103,24 @@ def test_readings_the_logs_health_refuses_never_relearn() -> None:
             lr.step(lr.align(t, 0.2 if gate else 6.0, lambda _t: None), gate, None)
         assert lr.counters.relearn - relearnt == relearns
         assert (lr.param_std["m"] > 0.4) == bool(relearns) and lr.param_std["m"] >= std
+
+
+def test_learning_from_blocks_a_change_reopens_to_the_prior() -> None:
+    """Against GNSS (20-s block means) a block's innovation is one draw of the reference's
+    correlated noise, no measure of a change: a change the supervisor saw re-opens the
+    parameters to their prior (σ² = ``p0``) whatever the size of the change."""
+    s = UutSettings(port="log", reference_port="gps", reference_field="gnss", lag_s=0.0)
+    lr = Learner(s, Layout(check_model(s.model), s.current), None, lambda t, k, d: None,
+                 Counters())  # fmt: skip
+    true = Params("EM3", m=0.05, b_mps=0.0)
+    for i in range(2400):
+        t = float(i)
+        v = 2.5 + 1.0 * math.sin(2 * math.pi * t / 300.0)
+        if i == 2370:
+            assert lr.param_std["m"] < 0.02
+            lr.reopen_for_change()
+            assert lr.param_std["m"] == pytest.approx(math.sqrt(s.p0))
+            assert lr.param_std["b"] == pytest.approx(math.sqrt(s.p0))
+        raw = true.forward(v) * (1.01 if i >= 2370 else 1.0)
+        lr.add_reference(t, v, True, lambda _t: None)
+        lr.step(lr.align(t, raw, lambda _t: None), "", None)
