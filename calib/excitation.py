@@ -52,6 +52,8 @@ import numpy.typing as npt
 
 from calib.errors import DataError
 from calib.models import CURRENT, FloatArray, Layout
+from calib.verdicts import Verdict as Verdict
+from calib.verdicts import Verdicts as Verdicts
 
 N_SECTORS = 8
 """Heading sectors of 45° used to judge how much of the compass a window covers."""
@@ -134,24 +136,6 @@ DEFAULT_RULE = ExcitationRule()
 
 
 @dataclass(frozen=True, slots=True)
-class Verdict:
-    """Whether one unknown is determined by a window, and why not.
-
-    Attributes:
-        unknown: ``"a"``, ``"m"``, ``"b"`` or ``"current"``.
-        determined: the data determine it.
-        reason: why not, in words a person understands (empty when determined).
-        std: its standard deviation from the information matrix (the larger
-            component for the current), in its unit; None when not determined.
-    """
-
-    unknown: str
-    determined: bool
-    reason: str
-    std: float | None
-
-
-@dataclass(frozen=True, slots=True)
 class WindowStats:
     """What a window holds, for :func:`judge`.
 
@@ -173,7 +157,7 @@ class WindowStats:
 
 
 @dataclass(frozen=True, slots=True)
-class Identifiability:
+class Identifiability(Verdicts):
     """The verdict on every unknown of one window.
 
     Attributes:
@@ -192,28 +176,9 @@ class Identifiability:
     nuisance_offset: bool
 
     @property
-    def determined(self) -> tuple[str, ...]:
-        """The unknowns the window determines."""
-        return tuple(v.unknown for v in self.verdicts if v.determined)
-
-    @property
-    def unidentifiable(self) -> tuple[str, ...]:
-        """The unknowns it does not determine (empty when all are)."""
-        return tuple(v.unknown for v in self.verdicts if not v.determined)
-
-    @property
     def identifiable(self) -> bool:
         """Every unknown is determined."""
         return not self.unidentifiable
-
-    @property
-    def reason(self) -> str:
-        """Every refusal in words, ``"; "``-separated (empty when identifiable)."""
-        seen: list[str] = []
-        for v in self.verdicts:
-            if not v.determined and v.reason not in seen:
-                seen.append(v.reason)
-        return "; ".join(seen)
 
     def verdict(self, unknown: str) -> Verdict:
         """The verdict on one unknown.

@@ -1,65 +1,15 @@
-"""The two-axis error model: a log that reports the forward and the athwart speed.
+"""The two-axis model learnt by least squares: a log that reports the forward and the
+athwart speed, its misalignment, transverse scale and bias, and the sea current.
 
-A dual-axis EMlog (an Airmar DX900+, a Ben Marine Alize sending ``$--VBW``) measures
-the water's velocity along two axes of its own. Mounted a little off the keel line,
-its axes are turned by the **misalignment** α from the hull's (α > 0: the sensor's
-forward axis points to starboard of the bow). In the hull frame (x forward, y to
-starboard) the speed through the water is ``(u, w)`` (surge, sway); the sensor sees
-
-    u_s =  u·cos α + w·sin α        (along its own forward axis)
-    w_s = −u·sin α + w·cos α        (along its own starboard axis)
-
-and reads
-
-    raw_L = a·u_s² + (1 + m)·u_s + b      (the longitudinal: EM1–EM4 of calib.models)
-    raw_T = (1 + m_t)·w_s + b_t            (the transverse: a scale and a bias)
-
-A misalignment of 3° at 3 m/s puts ``−sin α·u`` = 0.16 m/s of phantom leeway on the
-transverse axis and takes ``1 − cos α`` = 0.14 % off the forward one.
-
-**The water frame.** A ground-referenced reference (a DVL's bottom track, or GNSS
-velocity turned into the hull frame with the heading ψ) gives the ground velocity
-``(g_f, g_s)`` forward and to starboard. With the sea current ``c = (c_N, c_E)``
-shared by both axes (the same two states projected onto each)
-
-    u = g_f − c_N·cos ψ − c_E·sin ψ
-    w = g_s + c_N·sin ψ − c_E·cos ψ
+The model, its water frame and the state layout are :mod:`calib.twoaxis_model`'s; the
+identifiability rule is :mod:`calib.twoaxis_ident`'s. Both are re-exported here, the
+one module the callers import.
 
 **Least squares** (:func:`fit_two_axis`): Gauss–Newton on both axes' residuals
 stacked, each axis weighted by the inverse of its residual variance (estimated from
 a first fit), over the unknowns the data determine. Standard errors are
 ``√diag((JᵀWJ)⁻¹)`` inflated by the larger of the two axes' residual correlation
 factors (:func:`calib.metrics.correlation_factor`), as :mod:`calib.lsq` does.
-
-**Identifiability** (:func:`judge_two_axis`), in order, in the words of
-:mod:`calib.excitation` where the longitudinal rules are the same:
-
-1. the longitudinal scale (``m``, and ``a`` for EM4) needs the speed through the
-   water to vary (EM2: its RMS), as on one axis;
-2. the current needs the heading to cover ``min_heading_sectors`` 45° sectors;
-   without it the current, the longitudinal bias and the **transverse bias** are
-   refused: on a steady heading each axis's bias and the current projected on it are
-   one unknown, and a nuisance offset per axis takes their sum;
-3. the **misalignment** needs the speed through the water to vary: its signature on
-   the transverse axis is ``−(1 + m_t)·sin α·u``, which at constant u is a constant
-   — the transverse bias and the current across the hull again. A straight run
-   at one throttle setting refuses it, with the reason;
-4. the **transverse scale** needs the transverse speed through the water (the sway
-   of turns) to vary by ``min_transverse_std_mps``; without it the misalignment is
-   refused too: its athwart signature is ``(1 + m_t)·sin α·u``, so a transverse
-   scale held where the log's differs by Δm would put ``Δm·α`` into α (a 3°
-   misalignment of a log whose axes' scales differ by 0.11, learnt on a transit:
-   3.41°);
-5. enough samples (``min_samples_per_param`` per unknown), then the information:
-   the standard deviation of each remaining unknown from the information matrix
-   must be under its bound; the worst offender is refused and the rest judged
-   again (a transverse scale refused so takes the misalignment with it). In
-   steady circles and on transits the sway follows the surge: only the
-   figure-8's alternating turns, whose sway swings without the surge, determine
-   the transverse scale and with it the misalignment.
-
-An unknown refused is held at its prior (the given parameters, else the ideal
-sensor; zero current) and its σ is not reported.
 
 **Kalman filter** (:func:`kf_two_axis`): the same unknowns as states (the current a
 random walk, the sensor's parameters nearly constant), the two readings a vector
@@ -73,390 +23,79 @@ Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
-from calib.errors import DataError, ModelError
-from calib.excitation import (
-    DEFAULT_RULE,
-    N_SECTORS,
-    ExcitationRule,
-    Verdict,
-    heading_sectors,
-)
+from calib.errors import DataError
 from calib.metrics import correlation_factor
-from calib.models import (
-    CURRENT,
-    PARAM_NAMES,
-    FloatArray,
-    ModelName,
-    Params,
-    check_model,
-    correct_array,
-    forward_array,
+from calib.models import CURRENT, PARAM_NAMES, FloatArray, ModelName, check_model
+from calib.twoaxis_ident import (
+    DEFAULT_TWO_AXIS_RULE,
+    ENVELOPE,
+    TwoAxisIdent,
+    TwoAxisRule,
+    _outside,
+    _ties,
+    judge_two_axis,
+    unknowns_of,
+)
+from calib.twoaxis_model import (
+    _A,
+    _AL,
+    _B,
+    _BT,
+    _CE,
+    _CN,
+    _DL,
+    _DT,
+    _M,
+    _MT,
+    _N_FIXED,
+    _PARAM_INDEX,
+    ALPHA,
+    B_T,
+    M_T,
+    MAX_MISALIGN_DEG,
+    TIE_HELD_SCALE,
+    TRANSVERSE_NAMES,
+    TwoAxisParams,
+    _free_indices,
+    _index,
+    _params_of,
+    _Problem,
+    _x0,
+    leeway_deg,
+    water_velocity,
 )
 
-ALPHA = "alpha"
-"""The unknown name of the misalignment."""
-M_T = "m_t"
-"""The unknown name of the transverse scale error."""
-B_T = "b_t"
-"""The unknown name of the transverse bias."""
+__all__ = [
+    "ALPHA",
+    "B_T",
+    "DEFAULT_TWO_AXIS_RULE",
+    "ENVELOPE",
+    "MAX_MISALIGN_DEG",
+    "MIN_KNOT_SHARE",
+    "M_T",
+    "TIE_HELD_SCALE",
+    "TRANSVERSE_NAMES",
+    "ModelState",
+    "TwoAxisFit",
+    "TwoAxisIdent",
+    "TwoAxisParams",
+    "TwoAxisRule",
+    "current_basis",
+    "fit_current_two_axis",
+    "fit_two_axis",
+    "judge_two_axis",
+    "leeway_deg",
+    "model_state",
+    "unknowns_of",
+    "water_velocity",
+]
 
-TRANSVERSE_NAMES: tuple[str, ...] = (ALPHA, M_T, B_T)
-"""The two-axis model's unknowns beyond the longitudinal model's, in their order."""
-
-TIE_HELD_SCALE = True
-"""A transverse scale the data do not determine follows the longitudinal scale (one
-coil's field drives both electrode pairs of an EM sensor, so their gains move
-together), rather than the prior's: the athwart speed is then corrected by the
-gain the forward axis shows."""
-
-MAX_MISALIGN_DEG = 20.0
-"""The largest misalignment a two-axis calibration may hold, degrees (a sensor turned
-further is mounted wrongly, not misaligned)."""
-
-
-@dataclass(frozen=True, slots=True)
-class TwoAxisParams:
-    """The parameters of a two-axis log.
-
-    Attributes:
-        longitudinal: the forward axis's error model (EM1–EM4) on the sensor's axis.
-        misalign_rad: α, the sensor's forward axis from the bow, rad (> 0: to starboard).
-        m_t: the transverse scale error, dimensionless.
-        b_t_mps: the transverse bias, m/s.
-
-    Raises:
-        ModelError: a non-finite value, or a misalignment beyond :data:`MAX_MISALIGN_DEG`.
-    """
-
-    longitudinal: Params
-    misalign_rad: float = 0.0
-    m_t: float = 0.0
-    b_t_mps: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("misalign_rad", "m_t", "b_t_mps"):
-            if not math.isfinite(getattr(self, name)):
-                raise ModelError(f"two-axis parameter {name} is not finite")
-        if abs(self.misalign_rad) > math.radians(MAX_MISALIGN_DEG):
-            raise ModelError(
-                f"misalignment {math.degrees(self.misalign_rad):.1f}° beyond ±{MAX_MISALIGN_DEG:g}°"
-            )
-
-    @property
-    def model(self) -> ModelName:
-        """The longitudinal error model."""
-        return self.longitudinal.model
-
-    @property
-    def misalign_deg(self) -> float:
-        """α in degrees."""
-        return math.degrees(self.misalign_rad)
-
-    def as_dict(self) -> dict[str, float]:
-        """The longitudinal parameters by short name, then ``misalign_deg``, ``m_t``, ``b_t``."""
-        return self.longitudinal.as_dict() | {
-            "misalign_deg": self.misalign_deg,
-            M_T: self.m_t,
-            B_T: self.b_t_mps,
-        }
-
-    def forward(self, u_mps: npt.ArrayLike, w_mps: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
-        """What the log reads for the speed through the water (u forward, w to starboard).
-
-        Returns:
-            (longitudinal, transverse) readings, m/s, noise-free.
-        """
-        u = np.asarray(u_mps, dtype=np.float64)
-        w = np.asarray(w_mps, dtype=np.float64)
-        ca, sa = math.cos(self.misalign_rad), math.sin(self.misalign_rad)
-        us = u * ca + w * sa
-        ws = -u * sa + w * ca
-        return forward_array(self.longitudinal, us), np.asarray(
-            (1.0 + self.m_t) * ws + self.b_t_mps, dtype=np.float64
-        )
-
-    def correct(
-        self, raw_l_mps: npt.ArrayLike, raw_t_mps: npt.ArrayLike
-    ) -> tuple[FloatArray, FloatArray]:
-        """The speed through the water in the hull frame for two readings: each axis's
-        inverse (the longitudinal one that of :mod:`calib.models`), then the sensor's
-        axes turned back by α.
-
-        Returns:
-            (forward, starboard) speeds through the water, m/s (``nan`` where an axis
-            cannot be inverted: a gain ``1 + m ≤ 0``).
-        """
-        us = correct_array(self.longitudinal, raw_l_mps)
-        gain = 1.0 + self.m_t
-        raw_t = np.asarray(raw_t_mps, dtype=np.float64)
-        ws = (raw_t - self.b_t_mps) / gain if gain > 0.0 else np.full_like(raw_t, np.nan)
-        ca, sa = math.cos(self.misalign_rad), math.sin(self.misalign_rad)
-        return (
-            np.asarray(us * ca - ws * sa, dtype=np.float64),
-            np.asarray(us * sa + ws * ca, dtype=np.float64),
-        )
-
-
-def leeway_deg(u_mps: npt.ArrayLike, w_mps: npt.ArrayLike) -> FloatArray:
-    """The leeway (drift) angle of the speed through the water, degrees: the angle
-    from the bow to the water's velocity over the hull, positive when the hull moves
-    to starboard of its heading (``atan2(w, u)``)."""
-    return np.asarray(
-        np.degrees(np.arctan2(np.asarray(w_mps, float), np.asarray(u_mps, float))),
-        dtype=np.float64,
-    )
-
-
-def water_velocity(
-    ref_fwd_mps: npt.ArrayLike,
-    ref_stb_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
-    current_mps: tuple[float, float] | FloatArray | None,
-) -> tuple[FloatArray, FloatArray]:
-    """The speed through the water in the hull frame a ground reference implies:
-    ``(g_f − c_N·cos ψ − c_E·sin ψ, g_s + c_N·sin ψ − c_E·cos ψ)``.
-
-    Args:
-        ref_fwd_mps: ground speed forward, m/s, shape (N,).
-        ref_stb_mps: ground speed to starboard, m/s, shape (N,).
-        heading_deg: headings, degrees, shape (N,).
-        current_mps: (north, east) for every sample, or shape (N, 2); None: no current.
-    """
-    gf = np.asarray(ref_fwd_mps, dtype=np.float64)
-    gs = np.asarray(ref_stb_mps, dtype=np.float64)
-    if current_mps is None:
-        return gf, gs
-    c = np.asarray(current_mps, dtype=np.float64)
-    cn, ce = (c[..., 0], c[..., 1])
-    psi = np.radians(np.asarray(heading_deg, dtype=np.float64))
-    cp, sp = np.cos(psi), np.sin(psi)
-    return (
-        np.asarray(gf - cn * cp - ce * sp, dtype=np.float64),
-        np.asarray(gs + cn * sp - ce * cp, dtype=np.float64),
-    )
-
-
-@dataclass(frozen=True, slots=True)
-class TwoAxisRule:
-    """The thresholds of the two-axis identifiability rule (module docstring).
-
-    Attributes:
-        base: the one-axis rule: the longitudinal's thresholds, the heading sectors
-            the current needs, the samples per unknown, the bounds of the
-            longitudinal parameters and of the current.
-        min_speed_std_misalign_mps: least spread of the speed through the water
-            (forward) for the misalignment, m/s.
-        min_transverse_std_mps: least spread of the transverse speed through the
-            water for the transverse scale, m/s.
-        max_std_misalign_deg: largest standard deviation of a determined α, degrees.
-        max_std_m_t: largest standard deviation of a determined transverse scale.
-        max_std_b_t_mps: largest standard deviation of a determined transverse bias, m/s.
-
-    Raises:
-        ValueError: a threshold out of range.
-    """
-
-    base: ExcitationRule = DEFAULT_RULE
-    min_speed_std_misalign_mps: float = 0.1
-    min_transverse_std_mps: float = 0.03
-    max_std_misalign_deg: float = 0.15
-    max_std_m_t: float = 0.05
-    max_std_b_t_mps: float = 0.03
-
-    def __post_init__(self) -> None:
-        if not (self.min_speed_std_misalign_mps >= 0.0 and self.min_transverse_std_mps >= 0.0):
-            raise ValueError("speed thresholds must be non-negative")
-        for name in ("max_std_misalign_deg", "max_std_m_t", "max_std_b_t_mps"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name} must be positive")
-
-    def max_std(self, unknown: str) -> float:
-        """The largest standard deviation of a determined unknown, in the unit its
-        estimate is held in (α in rad)."""
-        if unknown == ALPHA:
-            return math.radians(self.max_std_misalign_deg)
-        if unknown == M_T:
-            return self.max_std_m_t
-        if unknown == B_T:
-            return self.max_std_b_t_mps
-        return self.base.max_std(unknown)
-
-
-DEFAULT_TWO_AXIS_RULE = TwoAxisRule()
-
-_LABEL = {
-    "a": "curvature",
-    "m": "scale",
-    "b": "bias",
-    ALPHA: "misalignment",
-    M_T: "transverse scale",
-    B_T: "transverse bias",
-    CURRENT: "current",
-}
-_UNIT = {"a": " s/m", "m": "", "b": " m/s", ALPHA: "°", M_T: "", B_T: " m/s", CURRENT: " m/s"}
-
-# indices of the full unknown vector
-_A, _M, _B, _AL, _MT, _BT, _CN, _CE, _DL, _DT = range(10)
-_N_FIXED = 10
-_PARAM_INDEX = {"a": _A, "m": _M, "b": _B, ALPHA: _AL, M_T: _MT, B_T: _BT}
 _MAX_ITER = 30
-
-
-_ALPHA_WITH_SCALE = (
-    "misalignment not separable from the transverse scale: its athwart signature is "
-    "(1 + m_t)·sin α times the forward speed, and the transverse scale is not determined"
-)
-
-
-def unknowns_of(model: ModelName, current: bool) -> tuple[str, ...]:
-    """The unknowns of a two-axis calibration: the longitudinal parameters, α, the
-    transverse scale and bias, then the current."""
-    return (*PARAM_NAMES[model], *TRANSVERSE_NAMES, *((CURRENT,) if current else ()))
-
-
-@dataclass(frozen=True, slots=True)
-class TwoAxisIdent:
-    """The verdict on every unknown of a two-axis window.
-
-    Attributes:
-        model: the longitudinal model.
-        current: whether a current is estimated.
-        verdicts: one per unknown, in :func:`unknowns_of` order.
-        nuisance_offset: an offset per axis took the biases and the current together.
-        speed_std_mps: spread of the forward speed through the water, m/s.
-        transverse_std_mps: spread of the transverse speed through the water, m/s.
-        heading_sectors: 45° sectors covered.
-        n_samples: samples per axis.
-    """
-
-    model: ModelName
-    current: bool
-    verdicts: tuple[Verdict, ...]
-    nuisance_offset: bool
-    speed_std_mps: float
-    transverse_std_mps: float
-    heading_sectors: int
-    n_samples: int
-
-    @property
-    def determined(self) -> tuple[str, ...]:
-        """The unknowns the window determines."""
-        return tuple(v.unknown for v in self.verdicts if v.determined)
-
-    @property
-    def unidentifiable(self) -> tuple[str, ...]:
-        """The unknowns it does not determine."""
-        return tuple(v.unknown for v in self.verdicts if not v.determined)
-
-    @property
-    def reason(self) -> str:
-        """Why some unknowns are not determined, each reason once (empty when all are)."""
-        seen: list[str] = []
-        for v in self.verdicts:
-            if not v.determined and v.reason not in seen:
-                seen.append(v.reason)
-        return "; ".join(seen)
-
-    def verdict(self, unknown: str) -> Verdict:
-        """The verdict on one unknown.
-
-        Raises:
-            ModelError: not an unknown of this window.
-        """
-        for v in self.verdicts:
-            if v.unknown == unknown:
-                return v
-        raise ModelError(f"{unknown!r} is not an unknown of this two-axis window")
-
-
-class _Problem:
-    """The data of one two-axis fit, and its residuals and Jacobian at a point."""
-
-    def __init__(
-        self,
-        gf: FloatArray,
-        gs: FloatArray,
-        raw_l: FloatArray,
-        raw_t: FloatArray,
-        psi: FloatArray,
-        basis: FloatArray | None,
-    ) -> None:
-        self.gf, self.gs, self.raw_l, self.raw_t = gf, gs, raw_l, raw_t
-        self.cos_h, self.sin_h = np.cos(psi), np.sin(psi)
-        self.basis = basis
-        """Each sample's weight on each current node, shape (N, K) (None: one current)."""
-        self.n_blocks = 1 if basis is None else int(basis.shape[1])
-        self.scale = np.ones(2)
-        """Each axis's weight, 1/σ (longitudinal, transverse)."""
-        self.tie = False
-        """The transverse scale is held at the longitudinal one (:data:`TIE_HELD_SCALE`)."""
-
-    def gain_t(self, x: FloatArray) -> float:
-        """The transverse gain ``1 + m_t`` (``1 + m`` when tied)."""
-        return 1.0 + float(x[_M] if self.tie else x[_MT])
-
-    def size(self) -> int:
-        return _N_FIXED + 2 * (self.n_blocks - 1)
-
-    def current_at(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        if self.basis is None:
-            return np.full(self.gf.size, x[_CN]), np.full(self.gf.size, x[_CE])
-        cn = self.basis @ np.concatenate([[x[_CN]], x[_N_FIXED::2]])
-        ce = self.basis @ np.concatenate([[x[_CE]], x[_N_FIXED + 1 :: 2]])
-        return np.asarray(cn, dtype=np.float64), np.asarray(ce, dtype=np.float64)
-
-    def water(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        cn, ce = self.current_at(x)
-        u = self.gf - cn * self.cos_h - ce * self.sin_h
-        w = self.gs + cn * self.sin_h - ce * self.cos_h
-        return np.asarray(u, dtype=np.float64), np.asarray(w, dtype=np.float64)
-
-    def residuals(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Unweighted residuals (longitudinal, transverse)."""
-        u, w = self.water(x)
-        ca, sa = math.cos(x[_AL]), math.sin(x[_AL])
-        us, ws = u * ca + w * sa, -u * sa + w * ca
-        pl = (x[_A] * us + 1.0 + x[_M]) * us + x[_B] + x[_DL]
-        pt = self.gain_t(x) * ws + x[_BT] + x[_DT]
-        return self.raw_l - pl, self.raw_t - pt
-
-    def jacobian(self, x: FloatArray) -> FloatArray:
-        """∂(prediction)/∂x, both axes stacked, weighted, shape (2N, K)."""
-        u, w = self.water(x)
-        n = u.size
-        ca, sa = math.cos(x[_AL]), math.sin(x[_AL])
-        us, ws = u * ca + w * sa, -u * sa + w * ca
-        slope = 2.0 * x[_A] * us + 1.0 + x[_M]
-        gain_t = self.gain_t(x)
-        c_pa = self.cos_h * ca - self.sin_h * sa  # cos(ψ + α)
-        s_pa = self.sin_h * ca + self.cos_h * sa  # sin(ψ + α)
-        one = np.ones(n)
-        jl = np.zeros((n, self.size()))
-        jt = np.zeros((n, self.size()))
-        jl[:, _A], jl[:, _M], jl[:, _B], jl[:, _DL] = us * us, us, one, one
-        jl[:, _AL] = slope * ws
-        jl[:, _CN], jl[:, _CE] = -slope * c_pa, -slope * s_pa
-        jt[:, _M if self.tie else _MT], jt[:, _BT], jt[:, _DT] = ws, one, one
-        jt[:, _AL] = -gain_t * us
-        jt[:, _CN], jt[:, _CE] = gain_t * s_pa, -gain_t * c_pa
-        if self.basis is not None:
-            base = (jl[:, _CN].copy(), jl[:, _CE].copy(), jt[:, _CN].copy(), jt[:, _CE].copy())
-            for k in range(self.n_blocks):
-                phi = self.basis[:, k]
-                cols = (_CN, _CE) if k == 0 else (_N_FIXED + 2 * (k - 1), _N_FIXED + 2 * k - 1)
-                jl[:, cols[0]], jl[:, cols[1]] = phi * base[0], phi * base[1]
-                jt[:, cols[0]], jt[:, cols[1]] = phi * base[2], phi * base[3]
-        return np.vstack([jl * self.scale[0], jt * self.scale[1]])
-
-    def weighted(self, x: FloatArray) -> FloatArray:
-        rl, rt = self.residuals(x)
-        return np.concatenate([rl * self.scale[0], rt * self.scale[1]])
 
 
 def _solve(problem: _Problem, x0: FloatArray, free: list[int]) -> FloatArray:
@@ -472,203 +111,6 @@ def _solve(problem: _Problem, x0: FloatArray, free: list[int]) -> FloatArray:
         if float(np.max(np.abs(step))) < 1e-12 * (1.0 + float(np.max(np.abs(x[free])))):
             break
     return x
-
-
-def _index(unknown: str, n_blocks: int) -> list[int]:
-    if unknown == CURRENT:
-        return [_CN, _CE, *range(_N_FIXED, _N_FIXED + 2 * (n_blocks - 1))]
-    return [_PARAM_INDEX[unknown]]
-
-
-def _free_indices(determined: Sequence[str], offset: bool, n_blocks: int) -> list[int]:
-    free = sorted(i for u in determined for i in _index(u, n_blocks))
-    if offset:
-        free += [_DL, _DT]
-    return sorted(set(free))
-
-
-def _spread(x: FloatArray) -> float:
-    return float(np.std(x)) if x.size else 0.0
-
-
-def judge_two_axis(
-    model: ModelName,
-    u_mps: FloatArray,
-    w_mps: FloatArray,
-    raw_l_mps: FloatArray,
-    heading_deg: FloatArray,
-    *,
-    current: bool,
-    info_of: _Problem | None = None,
-    x: FloatArray | None = None,
-    rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
-    outside: dict[str, str] | None = None,
-) -> TwoAxisIdent:
-    """The two-axis identifiability rule on one window (module docstring, rules 1–5).
-
-    Args:
-        model: the longitudinal model.
-        u_mps: forward speed through the water (at the current estimate), m/s.
-        w_mps: transverse speed through the water, m/s.
-        raw_l_mps: the longitudinal readings (the spread of rule 1 is theirs, as on
-            one axis), m/s.
-        heading_deg: headings, degrees.
-        current: whether the current is an unknown.
-        info_of: the weighted problem whose information matrix rule 5 reads (None:
-            rules 1–4 only).
-        x: the point at which rule 5 takes the Jacobian.
-        rule: the thresholds.
-        outside: unknowns refused beforehand, with the reason (an estimate outside
-            the envelope, :data:`ENVELOPE`).
-    """
-    unknowns = unknowns_of(model, current)
-    refused: dict[str, str] = dict(outside or {})
-    std_u, std_w = _spread(u_mps), _spread(w_mps)
-    _scale_rule(model, unknowns, raw_l_mps, rule.base, refused)
-    sectors = heading_sectors(heading_deg) if heading_deg.size else 0
-    offset = _current_rule(current, sectors, unknowns, rule.base, refused)
-    _misalign_rules(std_u, std_w, rule, refused)
-    free = [k for k in unknowns if k not in refused]
-    n = int(u_mps.size)
-    stds: dict[str, float] = {}
-    n_blocks = info_of.n_blocks if info_of is not None else 1
-    n_cols = len(_free_indices(free, offset, n_blocks))
-    if free and 2 * n < rule.base.min_samples_per_param * n_cols:
-        why = f"too few samples ({2 * n} < {rule.base.min_samples_per_param * n_cols})"
-        for k in free:
-            refused[k] = why
-        free = []
-    if info_of is not None and x is not None and free:
-        stds, offset = _information(info_of.jacobian(x), free, offset, n_blocks, rule, refused)
-    verdicts = tuple(
-        Verdict(k, False, refused[k], None) if k in refused else Verdict(k, True, "", stds.get(k))
-        for k in unknowns
-    )
-    return TwoAxisIdent(model, current, verdicts, offset, std_u, std_w, sectors, n)
-
-
-def _scale_rule(
-    model: ModelName,
-    unknowns: Sequence[str],
-    raw_l: FloatArray,
-    base: ExcitationRule,
-    refused: dict[str, str],
-) -> None:
-    """Rule 1: the longitudinal scale needs the speed to vary (EM2: its RMS)."""
-    scale = [k for k in ("a", "m") if k in unknowns]
-    if model == "EM2":
-        rms = float(np.sqrt(np.mean(raw_l * raw_l))) if raw_l.size else 0.0
-        if rms < base.min_speed_rms_mps:
-            refused["m"] = (
-                f"scale not determinable: speed through water too low (rms {rms:.2f} m/s)"
-            )
-        return
-    spread = _spread(raw_l)
-    if scale and spread < base.min_speed_std_mps:
-        why = (
-            f"scale not determinable: speed through water nearly constant (spread {spread:.2f} m/s)"
-        )
-        for k in scale:
-            refused[k] = why
-
-
-def _current_rule(
-    current: bool,
-    sectors: int,
-    unknowns: Sequence[str],
-    base: ExcitationRule,
-    refused: dict[str, str],
-) -> bool:
-    """Rule 2: the current needs the heading's sectors; refused (or refused before),
-    both biases go with it. Returns whether a nuisance offset per axis is fitted."""
-    if current and sectors < base.min_heading_sectors:
-        refused[CURRENT] = (
-            f"current not separable from bias: heading covered {sectors} of {N_SECTORS} sectors"
-        )
-    if CURRENT not in refused:
-        return False
-    for k, label in (("b", "bias"), (B_T, "transverse bias")):
-        if k in unknowns:
-            refused[k] = (
-                f"{label} not separable from the current: heading covered "
-                f"{sectors} of {N_SECTORS} sectors"
-            )
-    return True
-
-
-def _misalign_rules(std_u: float, std_w: float, rule: TwoAxisRule, refused: dict[str, str]) -> None:
-    """Rules 3 and 4: the misalignment needs the forward speed to vary, the
-    transverse scale the sway; without the transverse scale, no misalignment."""
-    if std_u < rule.min_speed_std_misalign_mps:
-        refused[ALPHA] = (
-            "misalignment not separable from the transverse bias and the current: "
-            f"speed through water nearly constant (spread {std_u:.2f} m/s)"
-        )
-    if std_w < rule.min_transverse_std_mps:
-        refused[M_T] = (
-            "transverse scale not determinable: transverse speed through water "
-            f"nearly constant (spread {std_w:.3f} m/s)"
-        )
-    if M_T in refused and ALPHA not in refused:
-        refused[ALPHA] = _ALPHA_WITH_SCALE
-
-
-def _information(
-    jac: FloatArray,
-    free: list[str],
-    offset: bool,
-    n_blocks: int,
-    rule: TwoAxisRule,
-    refused: dict[str, str],
-) -> tuple[dict[str, float], bool]:
-    """Rule 5 on the ``free`` unknowns (refusing into ``refused``): each one's σ from
-    the information matrix under its bound, the worst refused and the rest judged
-    again. Returns the σ of those left and whether a nuisance offset is fitted."""
-    stds: dict[str, float] = {}
-    while free:
-        stds = _stds(jac, free, offset, n_blocks)
-        ratios = {k: stds[k] / rule.max_std(k) for k in free}
-        worst = max(free, key=lambda k: ratios[k])
-        if ratios[worst] <= 1.0:
-            break
-        refused[worst] = _weak(worst, stds[worst], rule)
-        free.remove(worst)
-        if worst == M_T and ALPHA in free:
-            free.remove(ALPHA)
-            refused[ALPHA] = _ALPHA_WITH_SCALE
-        if worst == CURRENT:
-            offset = True
-            for k in ("b", B_T):
-                if k in free:
-                    free.remove(k)
-                    refused[k] = refused[CURRENT].replace("current", _LABEL[k], 1)
-    return stds, offset
-
-
-def _stds(jac: FloatArray, free: list[str], offset: bool, n_blocks: int) -> dict[str, float]:
-    """Each free unknown's σ from the information matrix (the larger component's for
-    the current)."""
-    cols = _free_indices(free, offset, n_blocks)
-    info = jac[:, cols].T @ jac[:, cols]
-    try:
-        diag = np.sqrt(np.maximum(np.diag(np.linalg.inv(info)), 0.0))
-    except np.linalg.LinAlgError:
-        diag = np.full(len(cols), math.inf)
-    where = {c: i for i, c in enumerate(cols)}
-    return {k: max(float(diag[where[i]]) for i in _index(k, n_blocks)) for k in free}
-
-
-def _weak(unknown: str, sd: float, rule: TwoAxisRule) -> str:
-    """The reason an unknown's σ refuses it."""
-    if not math.isfinite(sd):
-        return f"{_LABEL[unknown]} not determinable: information matrix singular"
-    bound = rule.max_std(unknown)
-    if unknown == ALPHA:
-        sd, bound = math.degrees(sd), math.degrees(bound)
-    return (
-        f"{_LABEL[unknown]} not determinable: weak excitation "
-        f"(standard error {sd:.3g} > {bound:g}{_UNIT[unknown]})"
-    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -772,79 +214,20 @@ def _check(
     return _Series(*arrays)
 
 
-def _x0(prior: TwoAxisParams | None, size: int) -> FloatArray:
-    x0 = np.zeros(size)
-    if prior is not None:
-        p = prior.longitudinal
-        x0[_A], x0[_M], x0[_B] = p.a_spm, p.m, p.b_mps
-        x0[_AL], x0[_MT], x0[_BT] = prior.misalign_rad, prior.m_t, prior.b_t_mps
-    return x0
-
-
-def _params_of(model: ModelName, x: FloatArray, tie: bool) -> TwoAxisParams:
-    lon = Params.from_theta(model, [float(x[_PARAM_INDEX[p]]) for p in PARAM_NAMES[model]])
-    alpha = float(np.clip(x[_AL], -math.radians(MAX_MISALIGN_DEG), math.radians(MAX_MISALIGN_DEG)))
-    return TwoAxisParams(lon, alpha, float(x[_M] if tie else x[_MT]), float(x[_BT]))
-
-
-ENVELOPE: dict[str, float] = {"a": 0.1, "m": 0.5, "b": 1.0, M_T: 0.5, B_T: 1.0}
-"""The largest magnitude of each parameter a two-axis fit may report (the one-axis
-envelope's |a| ≤ 0.1 s/m, |m| ≤ 0.5, |b| ≤ 1 m/s, the same for the transverse scale
-and bias; α: :data:`MAX_MISALIGN_DEG`). An estimate beyond it — a transverse gain
-driven to zero where a current the model cannot follow leaves that axis nothing
-to explain — is refused with the reason and the rest fitted again."""
-
-
-def _outside(x: FloatArray, determined: Sequence[str]) -> dict[str, str]:
-    """The determined unknown furthest beyond the envelope (relative to its bound),
-    with the reason; empty when every one lies inside. One at a time: a curvature
-    and a scale that trade against each other leave the scale inside once the
-    curvature is held."""
-    worst, ratio = "", 1.0
-    for k in determined:
-        if k == ALPHA or k in ENVELOPE:
-            bound = math.radians(MAX_MISALIGN_DEG) if k == ALPHA else ENVELOPE[k]
-            r = abs(float(x[_PARAM_INDEX[k]])) / bound
-            if r > ratio:
-                worst, ratio = k, r
-    if not worst:
-        return {}
-    if worst == ALPHA:
-        return {
-            ALPHA: f"misalignment outside the envelope ({math.degrees(float(x[_AL])):.1f}°, "
-            f"at most ±{MAX_MISALIGN_DEG:g}°)"
-        }
-    return {
-        worst: f"{_LABEL[worst]} outside the envelope ({float(x[_PARAM_INDEX[worst]]):.3g}"
-        f"{_UNIT[worst]}, at most ±{ENVELOPE[worst]:g}{_UNIT[worst]})"
-    }
-
-
-def _ties(model: ModelName, ident: TwoAxisIdent) -> bool:
-    """Whether the held transverse scale follows the longitudinal one."""
-    return TIE_HELD_SCALE and "m" in PARAM_NAMES[model] and M_T in ident.unidentifiable
-
-
 def _prepare(
-    model: str,
-    ref_fwd_mps: npt.ArrayLike,
-    ref_stb_mps: npt.ArrayLike,
-    raw_l_mps: npt.ArrayLike,
-    raw_t_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
+    name: ModelName,
+    s: _Series,
     prior: TwoAxisParams | None,
     current: bool,
     t_s: npt.ArrayLike | None,
     current_knot_s: float | None,
-) -> tuple[ModelName, _Series, _Problem]:
-    name = check_model(model)
-    s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
+) -> _Problem:
     if prior is not None and prior.model != name:
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
     basis = None
     if current and current_knot_s is not None:
         basis = current_basis(t_s, s.gf.size, current_knot_s)
-    return name, s, _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
+    return _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
 
 
 MIN_KNOT_SHARE = 0.05
@@ -934,23 +317,30 @@ def fit_two_axis(
         ModelError: unknown model.
         DataError: bad series, a prior of another model.
     """
-    name, s, problem = _prepare(
-        model,
-        ref_fwd_mps,
-        ref_stb_mps,
-        raw_l_mps,
-        raw_t_mps,
-        heading_deg,
-        prior,
-        current,
-        t_s,
-        current_knot_s,
-    )
+    name = check_model(model)
+    s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
+    problem = _prepare(name, s, prior, current, t_s, current_knot_s)
     x0 = _x0(prior, problem.size())
     u, w = problem.water(x0)
     ident = judge_two_axis(name, u, w, s.raw_l, s.hd, current=current, rule=rule)
     x = x0
     outside: dict[str, str] = {}
+
+    def rejudge(u: FloatArray, w: FloatArray, x: FloatArray) -> TwoAxisIdent:
+        """Rules 1–5 at ``x``, the unknowns found ``outside`` the envelope refused."""
+        return judge_two_axis(
+            name,
+            u,
+            w,
+            s.raw_l,
+            s.hd,
+            current=current,
+            info_of=problem,
+            x=x,
+            rule=rule,
+            outside=outside,
+        )
+
     for _ in range(2 * len(ident.verdicts) + 2):
         problem.tie = _ties(name, ident)
         free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
@@ -964,18 +354,7 @@ def fit_two_axis(
             ]
         )
         u, w = problem.water(x)
-        new = judge_two_axis(
-            name,
-            u,
-            w,
-            s.raw_l,
-            s.hd,
-            current=current,
-            info_of=problem,
-            x=x,
-            rule=rule,
-            outside=outside,
-        )
+        new = rejudge(u, w, x)
         done = new.determined == ident.determined
         ident = new
         if done:
@@ -983,18 +362,7 @@ def fit_two_axis(
             if not beyond:
                 break
             outside |= beyond
-            ident = judge_two_axis(
-                name,
-                u,
-                w,
-                s.raw_l,
-                s.hd,
-                current=current,
-                info_of=problem,
-                x=x,
-                rule=rule,
-                outside=outside,
-            )
+            ident = rejudge(u, w, x)
     for _ in range(len(ident.verdicts) + 1):  # each pass refuses one more, or ends
         problem.tie = _ties(name, ident)
         free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
@@ -1003,18 +371,7 @@ def fit_two_axis(
         if not beyond:
             break
         outside |= beyond
-        ident = judge_two_axis(
-            name,
-            u,
-            w,
-            s.raw_l,
-            s.hd,
-            current=current,
-            info_of=problem,
-            x=x,
-            rule=rule,
-            outside=outside,
-        )
+        ident = rejudge(u, w, x)
     rl, rt = problem.residuals(x)
     factor = max(correlation_factor(rl), correlation_factor(rt))
     std = np.full(x.size, math.nan)

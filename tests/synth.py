@@ -4,7 +4,8 @@ the installed package: import it as ``tests.synth`` from the repository root).
 Generates a true speed through the water for the five trajectory types of the
 paper (section IV-B: transit, figure-8, straight, circles, return; their mean
 speeds), applies an error model (:mod:`calib.models`) plus white noise to make a
-raw EMlog series, and adds white noise to make a reference. Everything is
+raw EMlog series, and adds white noise to make a reference. For a log reporting both
+axes, :func:`two_axis_trial` flies one manoeuvre with a DVL and a two-axis log. Everything is
 seeded through an explicit ``numpy.random.Generator``.
 
 Imports calib, numpy and the stdlib only (no drivers, no emlogd, no I/O).
@@ -21,6 +22,7 @@ import numpy as np
 from calib.crossval import Segment
 from calib.errors import DataError
 from calib.models import FloatArray, Params, forward_array
+from calib.twoaxis import TwoAxisParams
 
 TrajectoryKind = Literal["transit", "figure-8", "straight", "circles", "return"]
 
@@ -234,3 +236,45 @@ def water_frame_segment(
     ref = ground + rng.normal(0.0, sigma_ref_mps, n)
     raw = forward_array(params, u) + rng.normal(0.0, sigma_raw_mps, n)
     return WaterFrameSeries(t, u, psi, cur, ref, raw)
+
+
+TWO_AXIS_CURRENT_NE = (0.15, -0.1)
+TWO_AXIS_TRUTH = TwoAxisParams(Params("EM3", m=-0.11, b_mps=-0.05), math.radians(3.0), -0.09, 0.04)
+"""A sensor turned 3° to starboard, the transverse scale 2 % off the longitudinal one."""
+
+
+def two_axis_trial(
+    kind: str, truth: TwoAxisParams, seed: int, n: int = 16200, dt: float = 0.1
+) -> dict[str, np.ndarray]:
+    """27 min at 10 Hz of one manoeuvre, as the simulator flies it: heading, surge,
+    sway (−0.6·rate·surge in turns), a constant current, a DVL and a two-axis log
+    with 0.05 m/s of noise on each axis."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    ph = rng.uniform(0.0, 2.0 * math.pi)
+    if kind == "figure-8":
+        om = 2.0 * math.pi / 90.0
+        rate = 2.405 * om * np.cos(om * t + ph)
+        u = 1.83 - 0.7 * np.cos(om * t + ph) ** 2
+    elif kind == "circles":
+        rate = np.full(n, 2.0 * math.pi / 120.0)
+        u = 1.85 + 0.3 * np.sign(np.sin(2.0 * math.pi * t / 240.0 + ph))
+    else:
+        rate = 0.002 * np.sin(2.0 * math.pi * t / 60.0 + ph)
+        u = 1.59 + 0.02 * np.sin(2.0 * math.pi * t / 120.0)
+    psi = rng.uniform(0.0, 2.0 * math.pi) + np.cumsum(rate) * dt
+    w = -0.6 * rate * u
+    cn, ce = TWO_AXIS_CURRENT_NE
+    gf = u + cn * np.cos(psi) + ce * np.sin(psi)
+    gs = w - cn * np.sin(psi) + ce * np.cos(psi)
+    rl, rt = truth.forward(u, w)
+    return {
+        "t": t,
+        "u": u,
+        "w": w,
+        "hd": np.degrees(psi) % 360.0,
+        "gf": gf + rng.normal(0.0, 0.01, n),
+        "gs": gs + rng.normal(0.0, 0.01, n),
+        "rl": rl + rng.normal(0.0, 0.05, n),
+        "rt": rt + rng.normal(0.0, 0.05, n),
+    }

@@ -282,3 +282,71 @@ class TestTestsMirrorTree:
             if not test.exists():
                 missing.append(str(test.relative_to(ROOT)))
         assert not missing, f"missing test files: {missing}"
+
+
+MAX_MODULE_LINES = 700
+"""No module of the packages is longer: past it, a module is split along what it holds."""
+
+DUPLICATE_WINDOW = 6
+"""Consecutive significant lines that may not appear twice in :data:`NO_DUPLICATES`."""
+
+NO_DUPLICATES = (
+    "calib/twoaxis.py",
+    "calib/twoaxis_model.py",
+    "calib/twoaxis_ident.py",
+    "calib/twoaxis_kf.py",
+    "calib/verdicts.py",
+    "calib/excitation.py",
+    "emlogd/offline/twoaxis.py",
+    "emlogd/pipeline/twoaxis.py",
+    "emlogd/pipeline/learner.py",
+    "emlogd/pipeline/learnbuffers.py",
+    "emlogd/pipeline/supervisor.py",
+    "emlogd/pipeline/revalidation.py",
+)
+"""The modules checked for repeated blocks (the two-axis code and the modules split
+from the learner and the supervisor)."""
+
+
+def _significant_lines(path: Path) -> list[tuple[int, str]]:
+    """Stripped lines, without blank lines, imports and function signatures (functions
+    taking the same series spell out the same parameters: that is their interface)."""
+    text = path.read_text(encoding="utf-8")
+    skip: set[int] = set()
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            skip.update(range(node.lineno, (node.end_lineno or node.lineno) + 1))
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            skip.update(range(node.lineno, node.body[0].lineno))
+    return [
+        (i, line.strip())
+        for i, line in enumerate(text.splitlines(), 1)
+        if line.strip() and i not in skip
+    ]
+
+
+class TestModuleSize:
+    """Modules stay small enough to read, and blocks are written once."""
+
+    def test_no_module_over_the_limit(self) -> None:
+        sizes = {
+            str(p.relative_to(ROOT)): len(p.read_text(encoding="utf-8").splitlines())
+            for package in PACKAGES
+            for p in _sources(package)
+        }
+        long = {path: n for path, n in sizes.items() if n > MAX_MODULE_LINES}
+        assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+    def test_no_repeated_blocks(self) -> None:
+        seen: dict[tuple[str, ...], str] = {}
+        repeated = []
+        for rel in NO_DUPLICATES:
+            lines = _significant_lines(ROOT / rel)
+            for k in range(len(lines) - DUPLICATE_WINDOW + 1):
+                block = tuple(s for _, s in lines[k : k + DUPLICATE_WINDOW])
+                where = f"{rel}:{lines[k][0]}"
+                if block in seen:
+                    repeated.append(f"{where} repeats {seen[block]}")
+                else:
+                    seen[block] = where
+        assert not repeated, "\n".join(repeated)

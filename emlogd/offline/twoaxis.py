@@ -136,6 +136,11 @@ class TwoAxisAligned:
     def __len__(self) -> int:
         return int(self.t.size)
 
+    def series(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``(ref_fwd, ref_stb, raw_l, raw_t, heading)``: the series
+        :func:`calib.twoaxis.fit_two_axis` and its kin take, in their order."""
+        return self.ref_fwd, self.ref_stb, self.raw_l, self.raw_t, self.heading
+
 
 def record_two_axis(path: str | Path, uut: str, reference: str) -> TwoAxisRecording:
     """Decode one capture: the log's VBW water pair and the DVL's bottom track.
@@ -276,11 +281,7 @@ def score(params: TwoAxisParams, a: TwoAxisAligned) -> AxisScores:
     for p in (ideal, params):
         cur = fit_current_two_axis(
             p,
-            a.ref_fwd,
-            a.ref_stb,
-            a.raw_l,
-            a.raw_t,
-            a.heading,
+            *a.series(),
             t_s=a.t,
             current_knot_s=CURRENT_KNOT_S,
         )
@@ -350,11 +351,7 @@ def calibrate_two_axis(
     if method == "ls":
         fit = fit_two_axis(
             name,
-            a.ref_fwd,
-            a.ref_stb,
-            a.raw_l,
-            a.raw_t,
-            a.heading,
+            *a.series(),
             t_s=a.t,
             current_knot_s=CURRENT_KNOT_S,
         )
@@ -362,11 +359,7 @@ def calibrate_two_axis(
         fit = kf_two_axis(
             name,
             a.t,
-            a.ref_fwd,
-            a.ref_stb,
-            a.raw_l,
-            a.raw_t,
-            a.heading,
+            *a.series(),
             current_knot_s=CURRENT_KNOT_S,
         )
     scores = score(fit.params, a)
@@ -439,11 +432,7 @@ def crossval_two_axis(recs: Sequence[TwoAxisRecording], model: str, lag_s: float
             continue
         fit = fit_two_axis(
             name,
-            tr.ref_fwd,
-            tr.ref_stb,
-            tr.raw_l,
-            tr.raw_t,
-            tr.heading,
+            *tr.series(),
             t_s=tr.t,
             current_knot_s=CURRENT_KNOT_S,
         )

@@ -15,7 +15,8 @@ calibration sees it (its own current would take its offset on every straight leg
 current therefore cannot make a bad calibration look good. Without current states the
 reference is the judge as it is.
 
-Rules (the constants are this module's):
+Rules (the constants are this module's and
+:mod:`emlogd.pipeline.revalidation`'s, re-exported here):
 
 - **Emitting** (:meth:`Supervisor.correct`) uses only the applied calibration, never
   waits for the reference, and is silent while the log has a fault
@@ -54,22 +55,27 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Protocol
-
-import numpy as np
-import numpy.typing as npt
+from typing import TYPE_CHECKING, Protocol
 
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.evidence import (
-    FIT_CURRENT_PRIOR_MPS,
-    FIT_NOISE_MPS,
     Cusum,
     FitWindow,
     SeaMemory,
 )
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
+from emlogd.pipeline.revalidation import RESTORE_MIN_HEADING_SPREAD as RESTORE_MIN_HEADING_SPREAD
+from emlogd.pipeline.revalidation import RESTORE_SEA_SIGMAS as RESTORE_SEA_SIGMAS
+from emlogd.pipeline.revalidation import WORSE_FACTOR as WORSE_FACTOR
+from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
+from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
+from emlogd.pipeline.revalidation import _Candidate as _Candidate
+from emlogd.pipeline.revalidation import (
+    judge_restored,
+    judge_saved_sea,
+    worse,
+)
 
 if TYPE_CHECKING:
     from emlogd.pipeline.learner import Offer
@@ -80,10 +86,6 @@ VALIDATION_MIN_SAMPLES = 20
 
 RECHECK_MIN_SAMPLES = 60.0
 """The applied calibration is judged once its re-check window holds this many."""
-
-WORSE_FACTOR = 1.05
-WORSE_MARGIN_MPS = 0.005
-"""The applied calibration is worse than raw when its RMSE exceeds raw's × 1.05 + 5 mm/s."""
 
 CANDIDATE_FACTOR = 1.02
 CANDIDATE_MARGIN_MPS = 0.002
@@ -121,38 +123,9 @@ like any candidate. On a straight leg a current of raw's own takes raw's offset,
 only a known sea can tell a good restored calibration from raw there; within an hour a
 tidal current changes by a fraction of itself."""
 
-RESTORE_MIN_HEADING_SPREAD = 0.1
-"""A restored calibration's validation window tells a current from an offset when its
-headings spread this much (one minus the mean resultant length of the heading's unit
-vector: 0 on a straight leg, 0.1 for headings spread evenly over about 90°); then raw
-and it are each judged after a current of their own fitted to that window. On a
-narrower window a current and an offset look alike, and it falls back on the sea (see
-:data:`RESTORE_SEA_SIGMAS`)."""
-
-RESTORE_SEA_SIGMAS = 3.0
-"""Where the validation window cannot tell a current from an offset, a restored
-calibration keeps the verdict that made it (it was validated before it was saved) unless
-its errors imply a current that the sea cannot have: its mean error against the
-reference less the saved current is beyond this many standard deviations of that current
-(its saved uncertainty grown by the learner's random walk over the time since it was
-saved), and never beyond the learner's prior standard deviation of a current component
-(``sqrt(current_p0_m2ps2)``, the whole allowance when no current was saved)."""
-
 RESTORE_WAIT_S = 10.0
 """A restored calibration is applied unverified when no reference has been heard this
 long after the first reading, s."""
-
-CandidateKind = Literal["new", "restored", "revalidate", "verify"]
-
-
-def _rms_after_current(
-    d: npt.NDArray[np.float64], c: npt.NDArray[np.float64], s: npt.NDArray[np.float64]
-) -> float:
-    """RMS of errors after a current fitted to them (``d ≈ β·(cos ψ, sin ψ)``), m/s."""
-    x = np.column_stack((c, s))
-    ridge = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
-    beta = np.linalg.solve(x.T @ x + ridge * np.eye(2), x.T @ d)
-    return float(np.sqrt(np.mean((d - x @ beta) ** 2)))
 
 
 class CandidateSource(Protocol):
@@ -164,29 +137,6 @@ class CandidateSource(Protocol):
     @property
     def param_std(self) -> Mapping[str, float]:
         """The standard deviation of each parameter now."""
-
-
-@dataclass
-class _Candidate:
-    params: Params
-    t0: float
-    kind: CandidateKind = "new"
-    std: Mapping[str, float | None] | None = None
-    """Its standard deviations (a restored or withdrawn one keeps its own)."""
-    raw: float = 0.0
-    cand: float = 0.0
-    applied: float = 0.0
-    sea_raw: float = 0.0
-    sea_cand: float = 0.0
-    """Squared errors of raw and of it against the reference less the saved current (a
-    restored calibration saved with one, :data:`RESTORE_SEA_MAX_AGE_S`)."""
-    n_sea: int = 0
-    n: int = 0
-    samples: list[tuple[float, float, float, float]] | None = None
-    """A restored one's validation samples (in the water frame): raw's and its error against the reference,
-    and the heading's (cos, sin): judged at the end (:meth:`Supervisor._judge_restored`)."""
-    beta: tuple[float, float] | None = None
-    """Its own current (see :meth:`SeaMemory.current`), once fitted."""
 
 
 class Supervisor:
@@ -566,13 +516,20 @@ class Supervisor:
         if cand.kind == "new":
             good = r_cand < r_raw and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
         elif cand.kind == "restored" and cand.samples is not None and len(cand.samples) == n:
-            good = self._judge_restored(cand, detail)
+            good = judge_restored(
+                cand,
+                detail,
+                self.s.kf,
+                self.restored_sea,
+                self.restored_sea_std,
+                self.t_first,
+            )
         elif cand.kind == "restored" and cand.n_sea == n:
-            good = self._judge_saved_sea(cand, detail)
+            good = judge_saved_sea(cand, detail)
         else:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
-            good = not r_cand > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
+            good = not worse(r_cand, r_raw)
         if cand.kind == "verify":
             if good:
                 self.unverified = False
@@ -603,70 +560,6 @@ class Supervisor:
             self.counters.candidates_rejected += 1
             self._emit(t, "candidate_rejected", detail)
 
-    @staticmethod
-    def _worse(r: float, r_raw: float) -> bool:
-        return r > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
-
-    def _judge_saved_sea(self, cand: _Candidate, detail: dict[str, object]) -> bool:
-        """Raw and it against the reference less the saved current: not worse than raw."""
-        n = cand.n
-        s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
-        detail["rmse_raw_saved_sea"] = round(s_raw, 4)
-        detail["rmse_candidate_saved_sea"] = round(s_cand, 4)
-        return not self._worse(s_cand, s_raw)
-
-    def _judge_own_currents(self, cand: _Candidate, detail: dict[str, object]) -> bool | None:
-        """A restored calibration, on a window whose headings tell a current from an
-        offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
-        current of their own fitted to the window; not worse than raw. None on a
-        narrower window."""
-        assert cand.samples is not None
-        a = np.asarray(cand.samples, dtype=np.float64)
-        d_raw, d_c, c, s = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
-        spread = 1.0 - math.hypot(float(np.mean(c)), float(np.mean(s)))
-        detail["heading_spread"] = round(spread, 3)
-        if spread < RESTORE_MIN_HEADING_SPREAD:
-            return None
-        r_raw = _rms_after_current(d_raw, c, s)
-        r_cand = _rms_after_current(d_c, c, s)
-        detail["rmse_raw_own_current"] = round(r_raw, 4)
-        detail["rmse_candidate_own_current"] = round(r_cand, 4)
-        return not self._worse(r_cand, r_raw)
-
-    def _judge_restored(self, cand: _Candidate, detail: dict[str, object]) -> bool:
-        """A restored calibration in the water frame, on its validation window.
-
-        Where the window's headings tell a current from an offset
-        (:data:`RESTORE_MIN_HEADING_SPREAD`), raw and it are each judged after a current
-        of their own fitted to the window. Elsewhere (a straight leg) it is applied when
-        it is not worse than raw in the saved sea, or when the current its errors imply
-        is one the sea can have (:data:`RESTORE_SEA_SIGMAS`); a state file that implies an
-        impossible current is refused.
-        """
-        verdict = self._judge_own_currents(cand, detail)
-        if verdict is not None:
-            return verdict
-        assert cand.samples is not None
-        a = np.asarray(cand.samples, dtype=np.float64)
-        d_c, c, s = a[:, 1], a[:, 2], a[:, 3]
-        if cand.n_sea == cand.n and self._judge_saved_sea(cand, detail):
-            return True
-        kf = self.s.kf
-        allowance = math.sqrt(kf.current_p0_m2ps2)
-        centre = (0.0, 0.0)
-        sea = self.restored_sea
-        if sea is not None:
-            centre = (sea[0], sea[1])
-            sd = self.restored_sea_std or (0.0, 0.0)
-            age = max((self.t_first or sea[2]) - sea[2], 0.0)
-            var = max(sd[0], sd[1]) ** 2 + kf.current_psd_m2ps3 * age
-            allowance = min(RESTORE_SEA_SIGMAS * math.sqrt(var), allowance)
-        # its mean error were the sea the centre: the current it implies, less the centre
-        implied = float(np.mean(d_c + centre[0] * c + centre[1] * s))
-        detail["implied_current_mps"] = round(implied, 4)
-        detail["current_allowance_mps"] = round(allowance, 4)
-        return abs(implied) <= allowance
-
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
         self.applied = p
         self.applied_std = dict(std)
@@ -686,7 +579,7 @@ class Supervisor:
         if self.applied is None or w.n_effective < RECHECK_MIN_SAMPLES:
             return
         r_raw, r_app, r_prev = w.rmse()
-        if not r_app > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS:
+        if not worse(r_app, r_raw):
             return
         detail: dict[str, object] = {
             "rmse_applied": round(r_app, 4),

@@ -18,101 +18,29 @@ from calib.twoaxis import (
     current_basis,
     fit_current_two_axis,
     fit_two_axis,
-    leeway_deg,
     water_velocity,
 )
-
-CURRENT_NE = (0.15, -0.1)
-TRUTH = TwoAxisParams(Params("EM3", m=-0.11, b_mps=-0.05), math.radians(3.0), -0.09, 0.04)
-"""A sensor turned 3° to starboard, the transverse scale 2 % off the longitudinal one."""
-
-
-def _trial(
-    kind: str, truth: TwoAxisParams, seed: int, n: int = 16200, dt: float = 0.1
-) -> dict[str, np.ndarray]:
-    """27 min at 10 Hz of one manoeuvre, as the simulator flies it: heading, surge,
-    sway (−0.6·rate·surge in turns), a constant current, a DVL and a two-axis log
-    with 0.05 m/s of noise on each axis."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * dt
-    ph = rng.uniform(0.0, 2.0 * math.pi)
-    if kind == "figure-8":
-        om = 2.0 * math.pi / 90.0
-        rate = 2.405 * om * np.cos(om * t + ph)
-        u = 1.83 - 0.7 * np.cos(om * t + ph) ** 2
-    elif kind == "circles":
-        rate = np.full(n, 2.0 * math.pi / 120.0)
-        u = 1.85 + 0.3 * np.sign(np.sin(2.0 * math.pi * t / 240.0 + ph))
-    else:
-        rate = 0.002 * np.sin(2.0 * math.pi * t / 60.0 + ph)
-        u = 1.59 + 0.02 * np.sin(2.0 * math.pi * t / 120.0)
-    psi = rng.uniform(0.0, 2.0 * math.pi) + np.cumsum(rate) * dt
-    w = -0.6 * rate * u
-    cn, ce = CURRENT_NE
-    gf = u + cn * np.cos(psi) + ce * np.sin(psi)
-    gs = w - cn * np.sin(psi) + ce * np.cos(psi)
-    rl, rt = truth.forward(u, w)
-    return {
-        "t": t,
-        "u": u,
-        "w": w,
-        "hd": np.degrees(psi) % 360.0,
-        "gf": gf + rng.normal(0.0, 0.01, n),
-        "gs": gs + rng.normal(0.0, 0.01, n),
-        "rl": rl + rng.normal(0.0, 0.05, n),
-        "rt": rt + rng.normal(0.0, 0.05, n),
-    }
+from tests.synth import TWO_AXIS_CURRENT_NE, TWO_AXIS_TRUTH, two_axis_trial
 
 
 def _fit(d: dict[str, np.ndarray], model: str = "EM3") -> TwoAxisFit:
     return fit_two_axis(model, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
 
 
-class TestModel:
-    def test_correct_inverts_forward(self) -> None:
-        """Correcting the modelled readings gives back the water velocity, EM4 too."""
-        p = TwoAxisParams(Params("EM4", 0.02, -0.1, 0.05), math.radians(-4.0), 0.07, -0.03)
-        u = np.linspace(0.3, 5.0, 50)
-        w = np.linspace(-0.4, 0.4, 50)
-        cu, cw = p.correct(*p.forward(u, w))
-        np.testing.assert_allclose(cu, u, atol=1e-12)
-        np.testing.assert_allclose(cw, w, atol=1e-12)
-
-    def test_misalignment_leaks_forward_speed_to_port(self) -> None:
-        """3° to starboard at 3 m/s: −0.157 m/s on the transverse axis (phantom leeway)."""
-        p = TwoAxisParams(Params("EM1"), math.radians(3.0))
-        lon, tr = p.forward(np.array([3.0]), np.array([0.0]))
-        assert tr[0] == pytest.approx(-3.0 * math.sin(math.radians(3.0)))
-        assert lon[0] == pytest.approx(3.0 * math.cos(math.radians(3.0)))
-
-    def test_misalignment_beyond_envelope_refused(self) -> None:
-        with pytest.raises(ModelError, match="misalignment"):
-            TwoAxisParams(Params("EM1"), math.radians(25.0))
-        with pytest.raises(ModelError, match="not finite"):
-            TwoAxisParams(Params("EM1"), 0.0, math.nan)
-
-    def test_water_velocity_and_leeway(self) -> None:
-        """The current projected on each hull axis: heading east, a north current is to port."""
-        u, w = water_velocity([2.0], [0.0], [90.0], (0.5, 0.0))
-        assert u[0] == pytest.approx(2.0)
-        assert w[0] == pytest.approx(0.5)
-        assert leeway_deg(np.array([1.0]), np.array([1.0]))[0] == pytest.approx(45.0)
-
-
 class TestLeastSquares:
     @pytest.mark.parametrize("seed", [3, 15, 16])
     def test_three_degrees_recovered_on_figure8(self, seed: int) -> None:
         """α = 3° within 0.3° on the figure-8; the current shared by both axes."""
-        fit = _fit(_trial("figure-8", TRUTH, seed=seed))
+        fit = _fit(two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=seed))
         assert ALPHA in fit.ident.determined, fit.ident.reason
         assert fit.misalign_deg == pytest.approx(3.0, abs=0.3)
         assert fit.misalign_std_deg is not None and fit.misalign_std_deg < 0.15
-        assert fit.current_mps == pytest.approx(CURRENT_NE, abs=0.01)
+        assert fit.current_mps == pytest.approx(TWO_AXIS_CURRENT_NE, abs=0.01)
         assert fit.params.b_t_mps == pytest.approx(0.04, abs=0.01)
 
     def test_figure8_determines_transverse_scale(self) -> None:
         """The figure-8's alternating turns swing the sway: the transverse scale is learnt."""
-        fit = _fit(_trial("figure-8", TRUTH, seed=4))
+        fit = _fit(two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=4))
         assert M_T in fit.ident.determined
         assert fit.params.m_t == pytest.approx(-0.09, abs=0.05)
 
@@ -120,7 +48,7 @@ class TestLeastSquares:
         """In steady circles the sway follows the surge: the transverse scale is not
         determined, held at the longitudinal one, and α is refused with it (its
         signature is (1 + m_t)·sin α·u)."""
-        fit = _fit(_trial("circles", TRUTH, seed=5))
+        fit = _fit(two_axis_trial("circles", TWO_AXIS_TRUTH, seed=5))
         assert M_T in fit.ident.unidentifiable and ALPHA in fit.ident.unidentifiable
         assert "misalignment not separable from the transverse scale" in fit.ident.reason
         assert fit.params.m_t == fit.params.longitudinal.m
@@ -129,14 +57,16 @@ class TestLeastSquares:
     @pytest.mark.parametrize("seed", [6, 17, 18])
     def test_zero_misalignment_within_sigma(self, seed: int) -> None:
         """An aligned sensor on the figure-8: α estimated as 0 within 2σ."""
-        aligned = TwoAxisParams(TRUTH.longitudinal, 0.0, TRUTH.m_t, TRUTH.b_t_mps)
-        fit = _fit(_trial("figure-8", aligned, seed=seed))
+        aligned = TwoAxisParams(
+            TWO_AXIS_TRUTH.longitudinal, 0.0, TWO_AXIS_TRUTH.m_t, TWO_AXIS_TRUTH.b_t_mps
+        )
+        fit = _fit(two_axis_trial("figure-8", aligned, seed=seed))
         assert fit.misalign_std_deg is not None
         assert abs(fit.misalign_deg) < 2.0 * fit.misalign_std_deg
 
     def test_straight_run_refuses_misalignment(self) -> None:
         """A straight run: α, the transverse bias and the current refused, with reasons."""
-        fit = _fit(_trial("straight", TRUTH, seed=7))
+        fit = _fit(two_axis_trial("straight", TWO_AXIS_TRUTH, seed=7))
         for k in (ALPHA, B_T, CURRENT):
             assert k in fit.ident.unidentifiable
         assert fit.misalign_std_deg is None
@@ -147,7 +77,7 @@ class TestLeastSquares:
     def test_prior_held_on_straight_run(self) -> None:
         """A refused α is held at the prior's."""
         prior = TwoAxisParams(Params("EM3", m=-0.1), math.radians(2.0))
-        d = _trial("straight", TRUTH, seed=8)
+        d = two_axis_trial("straight", TWO_AXIS_TRUTH, seed=8)
         fit = fit_two_axis("EM3", d["gf"], d["gs"], d["rl"], d["rt"], d["hd"], prior=prior)
         assert fit.misalign_deg == pytest.approx(2.0)
 
@@ -160,7 +90,7 @@ class TestLeastSquares:
             fit_two_axis("EM9", [1.0], [0.0], [1.0], [0.0], [0.0])
 
     def test_to_dict_carries_misalignment(self) -> None:
-        fit = _fit(_trial("figure-8", TRUTH, seed=9))
+        fit = _fit(two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=9))
         d = fit.to_dict()
         assert d["misalign_deg"] == fit.misalign_deg
         assert d["misalign_std_deg"] == fit.misalign_std_deg
@@ -173,26 +103,26 @@ def test_fit_current_with_frozen_params() -> None:
     """The true parameters frozen: the current of the segment, on a straight run too
     (both axes see it); linear between knots it follows a current that turns."""
     for kind in ("circles", "straight"):
-        d = _trial(kind, TRUTH, seed=12)
-        cur = fit_current_two_axis(TRUTH, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
+        d = two_axis_trial(kind, TWO_AXIS_TRUTH, seed=12)
+        cur = fit_current_two_axis(TWO_AXIS_TRUTH, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
         assert cur.shape == (d["t"].size, 2)
-        assert cur[0] == pytest.approx(CURRENT_NE, abs=0.005)
-    d = _trial("figure-8", TRUTH, seed=12)
+        assert cur[0] == pytest.approx(TWO_AXIS_CURRENT_NE, abs=0.005)
+    d = two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=12)
     turn = 0.1 * np.sin(2.0 * math.pi * d["t"] / d["t"][-1])  # north current grows, falls
     psi = np.radians(d["hd"])
     gf = d["gf"] + turn * np.cos(psi)
     gs = d["gs"] - turn * np.sin(psi)
     cur = fit_current_two_axis(
-        TRUTH, gf, gs, d["rl"], d["rt"], d["hd"], t_s=d["t"], current_knot_s=120.0
+        TWO_AXIS_TRUTH, gf, gs, d["rl"], d["rt"], d["hd"], t_s=d["t"], current_knot_s=120.0
     )
-    assert np.max(np.abs(cur[:, 0] - (CURRENT_NE[0] + turn))) < 0.02
+    assert np.max(np.abs(cur[:, 0] - (TWO_AXIS_CURRENT_NE[0] + turn))) < 0.02
     assert current_basis(d["t"][:10], 10, 300.0) is None
 
 
 def test_dead_transverse_axis_refused_by_envelope() -> None:
     """A transverse axis that reads nothing would take a gain of zero (m_t = −1): the
     transverse scale is refused as outside the envelope and held."""
-    d = _trial("figure-8", TRUTH, seed=13)
+    d = two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=13)
     fit = fit_two_axis("EM3", d["gf"], d["gs"], d["rl"], np.zeros_like(d["rt"]), d["hd"])
     assert M_T in fit.ident.unidentifiable
     assert "transverse scale outside the envelope" in fit.ident.reason
@@ -201,8 +131,8 @@ def test_dead_transverse_axis_refused_by_envelope() -> None:
 
 def test_water_frame_reference_determines_both_biases() -> None:
     """A reference already in the water frame (no current unknown): both biases learnt."""
-    d = _trial("figure-8", TRUTH, seed=14)
-    u, w = water_velocity(d["gf"], d["gs"], d["hd"], CURRENT_NE)
+    d = two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=14)
+    u, w = water_velocity(d["gf"], d["gs"], d["hd"], TWO_AXIS_CURRENT_NE)
     fit = fit_two_axis("EM3", u, w, d["rl"], d["rt"], d["hd"], current=False)
     assert fit.identifiable, fit.ident.reason
     assert fit.params.b_t_mps == pytest.approx(0.04, abs=0.01)

@@ -1,0 +1,158 @@
+"""A calibration's validation window, and the verdicts on one validated before.
+
+:class:`_Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
+over a candidate's validation window. A calibration validated before (restored from
+the state file, or withdrawn for cause) need only not be worse than raw
+(:func:`worse`). A restored one in the water frame, where a current and an offset look
+alike on a straight leg, is judged after a current of its own where the window's
+headings spread (:func:`judge_own_currents`), else in the sea it was saved in
+(:func:`judge_saved_sea`) or by the current its errors imply (:func:`judge_restored`).
+No I/O, no clock.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from calib.kalman import KfConfig
+from calib.models import Params
+from emlogd.pipeline.evidence import FIT_CURRENT_PRIOR_MPS, FIT_NOISE_MPS
+
+CandidateKind = Literal["new", "restored", "revalidate", "verify"]
+
+WORSE_FACTOR = 1.05
+WORSE_MARGIN_MPS = 0.005
+"""The applied calibration is worse than raw when its RMSE exceeds raw's × 1.05 + 5 mm/s."""
+
+RESTORE_MIN_HEADING_SPREAD = 0.1
+"""A restored calibration's validation window tells a current from an offset when its
+headings spread this much (one minus the mean resultant length of the heading's unit
+vector: 0 on a straight leg, 0.1 for headings spread evenly over about 90°); then raw
+and it are each judged after a current of their own fitted to that window. On a
+narrower window a current and an offset look alike, and it falls back on the sea (see
+:data:`RESTORE_SEA_SIGMAS`)."""
+
+RESTORE_SEA_SIGMAS = 3.0
+"""Where the validation window cannot tell a current from an offset, a restored
+calibration keeps the verdict that made it (it was validated before it was saved) unless
+its errors imply a current that the sea cannot have: its mean error against the
+reference less the saved current is beyond this many standard deviations of that current
+(its saved uncertainty grown by the learner's random walk over the time since it was
+saved), and never beyond the learner's prior standard deviation of a current component
+(``sqrt(current_p0_m2ps2)``, the whole allowance when no current was saved)."""
+
+
+def _rms_after_current(
+    d: npt.NDArray[np.float64], c: npt.NDArray[np.float64], s: npt.NDArray[np.float64]
+) -> float:
+    """RMS of errors after a current fitted to them (``d ≈ β·(cos ψ, sin ψ)``), m/s."""
+    x = np.column_stack((c, s))
+    ridge = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
+    beta = np.linalg.solve(x.T @ x + ridge * np.eye(2), x.T @ d)
+    return float(np.sqrt(np.mean((d - x @ beta) ** 2)))
+
+
+@dataclass
+class _Candidate:
+    """A calibration under validation: what it is, since when, and its scores so far
+    (sums of squared errors of raw, of it and of the applied one over ``n`` samples)."""
+
+    params: Params
+    t0: float
+    kind: CandidateKind = "new"
+    std: Mapping[str, float | None] | None = None
+    """Its standard deviations (a restored or withdrawn one keeps its own)."""
+    raw: float = 0.0
+    cand: float = 0.0
+    applied: float = 0.0
+    sea_raw: float = 0.0
+    sea_cand: float = 0.0
+    """Squared errors of raw and of it against the reference less the saved current (a
+    restored calibration saved with one, :data:`emlogd.pipeline.supervisor.RESTORE_SEA_MAX_AGE_S`)."""
+    n_sea: int = 0
+    n: int = 0
+    samples: list[tuple[float, float, float, float]] | None = None
+    """A restored one's validation samples (in the water frame): raw's and its error against the reference,
+    and the heading's (cos, sin): judged at the end (:func:`judge_restored`)."""
+    beta: tuple[float, float] | None = None
+    """Its own current (see :meth:`emlogd.pipeline.evidence.SeaMemory.current`), once fitted."""
+
+
+def worse(r: float, r_raw: float) -> bool:
+    """An RMSE ``r`` is worse than raw's (:data:`WORSE_FACTOR`, :data:`WORSE_MARGIN_MPS`)."""
+    return r > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
+
+
+def judge_saved_sea(cand: _Candidate, detail: dict[str, object]) -> bool:
+    """Raw and it against the reference less the saved current: not worse than raw."""
+    n = cand.n
+    s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
+    detail["rmse_raw_saved_sea"] = round(s_raw, 4)
+    detail["rmse_candidate_saved_sea"] = round(s_cand, 4)
+    return not worse(s_cand, s_raw)
+
+
+def judge_own_currents(cand: _Candidate, detail: dict[str, object]) -> bool | None:
+    """A restored calibration, on a window whose headings tell a current from an
+    offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
+    current of their own fitted to the window; not worse than raw. None on a
+    narrower window."""
+    assert cand.samples is not None
+    a = np.asarray(cand.samples, dtype=np.float64)
+    d_raw, d_c, c, s = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+    spread = 1.0 - math.hypot(float(np.mean(c)), float(np.mean(s)))
+    detail["heading_spread"] = round(spread, 3)
+    if spread < RESTORE_MIN_HEADING_SPREAD:
+        return None
+    r_raw = _rms_after_current(d_raw, c, s)
+    r_cand = _rms_after_current(d_c, c, s)
+    detail["rmse_raw_own_current"] = round(r_raw, 4)
+    detail["rmse_candidate_own_current"] = round(r_cand, 4)
+    return not worse(r_cand, r_raw)
+
+
+def judge_restored(
+    cand: _Candidate,
+    detail: dict[str, object],
+    kf: KfConfig,
+    restored_sea: tuple[float, float, float] | None,
+    restored_sea_std: tuple[float, float] | None,
+    t_first: float | None,
+) -> bool:
+    """A restored calibration in the water frame, on its validation window.
+
+    Where the window's headings tell a current from an offset
+    (:data:`RESTORE_MIN_HEADING_SPREAD`), raw and it are each judged after a current
+    of their own fitted to the window. Elsewhere (a straight leg) it is applied when
+    it is not worse than raw in the saved sea, or when the current its errors imply
+    is one the sea can have (:data:`RESTORE_SEA_SIGMAS`); a state file that implies an
+    impossible current is refused.
+    """
+    verdict = judge_own_currents(cand, detail)
+    if verdict is not None:
+        return verdict
+    assert cand.samples is not None
+    a = np.asarray(cand.samples, dtype=np.float64)
+    d_c, c, s = a[:, 1], a[:, 2], a[:, 3]
+    if cand.n_sea == cand.n and judge_saved_sea(cand, detail):
+        return True
+    allowance = math.sqrt(kf.current_p0_m2ps2)
+    centre = (0.0, 0.0)
+    sea = restored_sea
+    if sea is not None:
+        centre = (sea[0], sea[1])
+        sd = restored_sea_std or (0.0, 0.0)
+        age = max((t_first or sea[2]) - sea[2], 0.0)
+        var = max(sd[0], sd[1]) ** 2 + kf.current_psd_m2ps3 * age
+        allowance = min(RESTORE_SEA_SIGMAS * math.sqrt(var), allowance)
+    # its mean error were the sea the centre: the current it implies, less the centre
+    implied = float(np.mean(d_c + centre[0] * c + centre[1] * s))
+    detail["implied_current_mps"] = round(implied, 4)
+    detail["current_allowance_mps"] = round(allowance, 4)
+    return abs(implied) <= allowance

@@ -1,0 +1,77 @@
+"""The two-axis identifiability rule on windows built to pass or fail each rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.errors import ModelError
+from calib.models import CURRENT
+from calib.twoaxis_ident import TwoAxisRule, judge_two_axis, unknowns_of
+from calib.twoaxis_model import ALPHA, B_T, M_T
+
+N = 600
+
+
+def _window(
+    speed_spread: float, sway_spread: float, headings: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Surge, sway, the longitudinal readings (the surge) and the headings."""
+    phase = np.linspace(0.0, 6.0 * np.pi, N)
+    u = 2.5 + speed_spread * np.sqrt(2.0) * np.sin(phase)
+    w = sway_spread * np.sqrt(2.0) * np.sin(2.0 * phase)
+    return u, w, u.copy(), headings
+
+
+def test_unknowns_in_their_order() -> None:
+    assert unknowns_of("EM3", True) == ("m", "b", ALPHA, M_T, B_T, CURRENT)
+    assert unknowns_of("EM1", False) == ("b", ALPHA, M_T, B_T)
+
+
+def test_figure8_like_window_determines_everything() -> None:
+    """Speed and sway vary, the heading turns through every sector: rules 1–4 pass."""
+    u, w, raw, hd = _window(0.5, 0.2, np.linspace(0.0, 720.0, N) % 360.0)
+    ident = judge_two_axis("EM3", u, w, raw, hd, current=True)
+    assert ident.unidentifiable == ()
+    assert ident.reason == ""
+    assert not ident.nuisance_offset
+    assert ident.heading_sectors == 8
+
+
+def test_straight_run_refuses_current_biases_and_misalignment() -> None:
+    """One heading at one speed: the current takes both biases with it (a nuisance
+    offset per axis), the misalignment and the scale are refused with their reasons."""
+    u, w, raw, hd = _window(0.0, 0.0, np.full(N, 45.0))
+    ident = judge_two_axis("EM3", u, w, raw, hd, current=True)
+    assert set(ident.unidentifiable) == {"m", "b", ALPHA, M_T, B_T, CURRENT}
+    assert ident.nuisance_offset
+    assert "heading covered 1 of 8 sectors" in ident.verdict(CURRENT).reason
+    assert "transverse bias not separable" in ident.verdict(B_T).reason
+    assert "misalignment not separable" in ident.verdict(ALPHA).reason
+
+
+def test_misalignment_follows_the_transverse_scale() -> None:
+    """The speed varies but the sway does not: the transverse scale is refused and
+    the misalignment with it (rule 4), the rest determined."""
+    u, w, raw, hd = _window(0.5, 0.0, np.linspace(0.0, 720.0, N) % 360.0)
+    ident = judge_two_axis("EM3", u, w, raw, hd, current=True)
+    assert ident.unidentifiable == (ALPHA, M_T)
+    assert "transverse scale is not determined" in ident.verdict(ALPHA).reason
+
+
+def test_too_few_samples_refuses_all() -> None:
+    """Twenty samples cannot carry six unknowns and their offsets."""
+    u, w, raw, hd = _window(0.5, 0.2, np.linspace(0.0, 720.0, N) % 360.0)
+    ident = judge_two_axis("EM3", u[::30], w[::30], raw[::30], hd[::30], current=True)
+    assert ident.determined == ()
+    assert "too few samples" in ident.reason
+
+
+def test_rule_thresholds_checked() -> None:
+    with pytest.raises(ValueError, match="non-negative"):
+        TwoAxisRule(min_transverse_std_mps=-0.1)
+    with pytest.raises(ValueError, match="max_std_m_t"):
+        TwoAxisRule(max_std_m_t=0.0)
+    u, w, raw, hd = _window(0.5, 0.2, np.linspace(0.0, 720.0, N) % 360.0)
+    with pytest.raises(ModelError, match="not an unknown"):
+        judge_two_axis("EM3", u, w, raw, hd, current=False).verdict(CURRENT)

@@ -1,0 +1,91 @@
+"""The verdicts on a calibration validated before (restored or withdrawn), on
+validation windows built to pass or fail each rule; the supervisor's use of them is
+pinned in test_supervisor and test_uut."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from calib.kalman import KfConfig
+from calib.models import Params
+from emlogd.pipeline.revalidation import (
+    RESTORE_SEA_SIGMAS,
+    WORSE_FACTOR,
+    WORSE_MARGIN_MPS,
+    _Candidate,
+    judge_own_currents,
+    judge_restored,
+    judge_saved_sea,
+    worse,
+)
+
+N = 200
+CURRENT = (0.3, -0.2)
+
+
+def _candidate(headings_deg: np.ndarray, offset_cand: float, offset_raw: float) -> _Candidate:
+    """A restored candidate whose errors are a current (north, east) seen through the
+    heading, plus an offset of its own and of raw's, with a little noise."""
+    rng = np.random.default_rng(3)
+    c, s = np.cos(np.radians(headings_deg)), np.sin(np.radians(headings_deg))
+    sea = -(CURRENT[0] * c + CURRENT[1] * s)
+    d_raw = sea + offset_raw + rng.normal(0.0, 0.01, c.size)
+    d_c = sea + offset_cand + rng.normal(0.0, 0.01, c.size)
+    cand = _Candidate(Params("EM3"), 0.0, "restored")
+    cand.samples = [
+        (float(a), float(b), float(x), float(y))
+        for a, b, x, y in zip(d_raw, d_c, c, s, strict=True)
+    ]
+    cand.n = c.size
+    return cand
+
+
+def test_worse_is_the_factor_and_the_margin() -> None:
+    edge = 0.1 * WORSE_FACTOR + WORSE_MARGIN_MPS
+    assert not worse(edge, 0.1)
+    assert worse(edge + 1e-9, 0.1)
+
+
+def test_in_a_turn_each_is_judged_after_its_own_current() -> None:
+    """Headings over 180°: the current is taken out of both, and the offsets decide."""
+    hd = np.linspace(0.0, 180.0, N)
+    detail: dict[str, object] = {}
+    assert judge_own_currents(_candidate(hd, 0.0, 0.2), detail) is True
+    assert float(detail["rmse_candidate_own_current"]) < 0.02  # type: ignore[arg-type]
+    assert judge_own_currents(_candidate(hd, 0.2, 0.0), {}) is False
+
+
+def test_on_a_straight_leg_own_currents_cannot_tell() -> None:
+    detail: dict[str, object] = {}
+    assert judge_own_currents(_candidate(np.full(N, 30.0), 0.0, 0.2), detail) is None
+    assert detail["heading_spread"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_saved_sea_compares_the_squared_errors() -> None:
+    cand = _candidate(np.full(N, 30.0), 0.0, 0.0)
+    cand.n, cand.sea_raw, cand.sea_cand = 4, 4 * 0.1**2, 4 * 0.1**2
+    assert judge_saved_sea(cand, {})
+    cand.sea_cand = 4 * 0.2**2
+    assert not judge_saved_sea(cand, {})
+
+
+def test_a_straight_leg_implying_an_impossible_current_is_refused() -> None:
+    """Straight leg, no saved sea scores: the current its mean error implies (less the
+    saved current) must lie within RESTORE_SEA_SIGMAS of the saved one's σ."""
+    hd = np.full(N, 0.0)
+    kf = KfConfig()
+    saved = (CURRENT[0], CURRENT[1], 0.0)
+    std = (0.02, 0.02)
+    allowance = RESTORE_SEA_SIGMAS * 0.02
+    assert judge_restored(_candidate(hd, 0.5 * allowance, 0.0), {}, kf, saved, std, 0.0)
+    detail: dict[str, object] = {}
+    assert not judge_restored(_candidate(hd, 2.0 * allowance, 0.0), detail, kf, saved, std, 0.0)
+    assert detail["current_allowance_mps"] == pytest.approx(round(allowance, 4))
+    # no saved sea: the whole prior allowance of a current component
+    prior = math.sqrt(kf.current_p0_m2ps2)
+    for share, ok in ((0.9, True), (1.1, False)):
+        cand = _candidate(hd, share * prior + CURRENT[0], 0.0)
+        assert judge_restored(cand, {}, kf, None, None, None) is ok
