@@ -237,32 +237,15 @@ def water_targets(
 
 
 def water_imo(
-    t_s: npt.ArrayLike,
-    ref_mps: npt.ArrayLike,
-    raw_mps: npt.ArrayLike,
-    corrected_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike | None,
-    params: Params,
-    *,
-    window_s: float = CURRENT_WINDOW_S,
-    min_heading_sectors: int = 3,
+    targets: tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]],
 ) -> tuple[ImoVerdict, ImoVerdict]:
     """The IMO verdict (:func:`imo_verdict`) of the raw and the corrected reading against
     the same water speed :func:`water_scores` scores them against.
 
-    Raises:
-        DataError: as :func:`water_scores`.
+    Args:
+        targets: what :func:`water_targets` returns for the readings.
     """
-    (t_raw, raw), (t_cor, cor) = water_targets(
-        t_s,
-        ref_mps,
-        raw_mps,
-        corrected_mps,
-        heading_deg,
-        params,
-        window_s=window_s,
-        min_heading_sectors=min_heading_sectors,
-    )
+    (t_raw, raw), (t_cor, cor) = targets
     return imo_verdict(t_raw, raw), imo_verdict(t_cor, cor)
 
 

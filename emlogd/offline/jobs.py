@@ -49,6 +49,7 @@ from calib.metrics import (
     nis_stats,
     water_imo,
     water_scores,
+    water_targets,
 )
 from calib.models import FloatArray, Layout, Params, check_model, correct_array
 from drivers.errors import EmlogdError
@@ -437,7 +438,7 @@ def calibrate(
     params = estimate.params
     corrected = correct_array(params, raw)
     rmse_raw, rmse_cal = water_scores(t, ref, raw, corrected, hd, params)
-    imo_raw, imo_cal = water_imo(t, ref, raw, corrected, hd, params)
+    imo_raw, imo_cal = water_imo(water_targets(t, ref, raw, corrected, hd, params))
     return CalibrationResult(
         captures=tuple(r.path for r in recs),
         settings=settings,
@@ -555,7 +556,7 @@ def evaluate(
         cal = correct_array(params, raw)
         hd = pair.heading[ok] if settings.current else None
         rmse_raw, rmse_cal = water_scores(pair.t[ok], ref, raw, cal, hd, params)
-        imo_raw, imo_cal = water_imo(pair.t[ok], ref, raw, cal, hd, params)
+        imo_raw, imo_cal = water_imo(water_targets(pair.t[ok], ref, raw, cal, hd, params))
         rows.append(EvaluationRow(r.path, int(raw.size), rmse_raw, rmse_cal, imo_raw, imo_cal))
     return rows
 

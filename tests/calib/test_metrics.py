@@ -22,6 +22,7 @@ from calib.metrics import (
     water_rmse,
     water_scores,
     water_target,
+    water_targets,
 )
 from calib.models import Params, correct_array, forward_array
 
@@ -148,11 +149,11 @@ class TestWaterFrameAndCorrelation:
         # the IMO verdict scores against the same water speed: the corrected reading meets
         # it, the raw one (5 % scale) does not; against the reference (the current left
         # in) the corrected one would not either
-        v_raw, v_cor = water_imo(t, ref, raw, cor, hd, truth)
+        v_raw, v_cor = water_imo(water_targets(t, ref, raw, cor, hd, truth))
         assert v_cor.meets and v_cor.fraction > 0.99 and v_cor.n == n
         assert not v_raw.meets
         assert not imo_verdict(ref, cor).meets
-        assert water_imo(t, ref, raw, cor, None, truth) == (
+        assert water_imo(water_targets(t, ref, raw, cor, None, truth)) == (
             imo_verdict(ref, raw),
             imo_verdict(ref, cor),
         )
