@@ -9,7 +9,7 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, get_args
 
 RejectReason = Literal[
     "checksum",
@@ -27,16 +27,8 @@ RejectReason = Literal[
 no :class:`FrameError`, in the decoder or in the pipeline after it): the frame is
 dropped, counted and logged, and the run goes on."""
 
-REJECT_REASONS: tuple[RejectReason, ...] = (
-    "checksum",
-    "missing_checksum",
-    "framing",
-    "too_long",
-    "unknown_sentence",
-    "bad_field",
-    "out_of_range",
-    "internal",
-)
+REJECT_REASONS: tuple[RejectReason, ...] = get_args(RejectReason)
+"""Every :data:`RejectReason`, in its order (one counter each)."""
 
 
 class EmlogdError(Exception):
