@@ -293,13 +293,6 @@ def encode_pd45(
             round(pitch_deg * 100.0),
             round(roll_deg * 100.0),
             round((heading_deg % 360.0) * 100.0) % 36000,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
+            *(0,) * 8,
         )
     return bytes(body) + struct.pack("<H", sum16(body))
