@@ -110,6 +110,24 @@ class _Clock:
         return self.t
 
 
+def _server(
+    limits: TcpLimits,
+) -> tuple[TcpServerSink, selectors.BaseSelector, _Clock, list[tuple[str, str]]]:
+    """A TCP server sink on a free port with ``limits``, the clock it reads (moved by the
+    test) and the events it reported."""
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    sink = TcpServerSink(
+        "127.0.0.1:0",
+        selector=sel,
+        on_event=lambda k, d: notes.append((k, d)),
+        monotonic=clock,
+        limits=limits,
+    )
+    return sink, sel, clock, notes
+
+
 def _stuck_client(address: tuple[str, int]) -> socket.socket:
     """A client that never reads, with a small receive buffer (full after a few KiB)."""
     s = socket.socket()
@@ -131,17 +149,8 @@ def test_a_tcp_client_that_takes_nothing_is_closed_after_the_stall_time() -> Non
     """A client with output pending that takes nothing for stall_s is reset as
     client_stalled (counted with its reason), a reading client stays; before stall_s
     nothing happens."""
-    sel = selectors.DefaultSelector()
-    clock = _Clock()
-    notes: list[tuple[str, str]] = []
     limits = TcpLimits(max_pending_bytes=1 << 24, stall_s=2.0)
-    sink = TcpServerSink(
-        "127.0.0.1:0",
-        selector=sel,
-        on_event=lambda k, d: notes.append((k, d)),
-        monotonic=clock,
-        limits=limits,
-    )
+    sink, sel, clock, notes = _server(limits)
     try:
         good = socket.create_connection(sink.address)
         stuck = _stuck_client(sink.address)
@@ -178,16 +187,7 @@ def test_a_tcp_client_is_closed_when_the_kernel_holds_too_much_for_it() -> None:
     """Pending output counts the kernel's send queue, not only the daemon's backlog: a
     client whose queue exceeds max_pending_bytes is closed as client_too_slow at the next
     check, though every write went to the kernel."""
-    sel = selectors.DefaultSelector()
-    clock = _Clock()
-    notes: list[tuple[str, str]] = []
-    sink = TcpServerSink(
-        "127.0.0.1:0",
-        selector=sel,
-        on_event=lambda k, d: notes.append((k, d)),
-        monotonic=clock,
-        limits=TcpLimits(max_pending_bytes=8192),
-    )
+    sink, sel, _clock, notes = _server(TcpLimits(max_pending_bytes=8192))
     try:
         stuck = _stuck_client(sink.address)
         _pump(sel)
@@ -207,16 +207,7 @@ def test_a_tcp_client_is_closed_when_the_kernel_holds_too_much_for_it() -> None:
 def test_at_the_client_limit_a_newcomer_evicts_a_client() -> None:
     """At max_clients a newcomer gets in and receives: the client with output stalled
     longest goes first; among clients that keep up, the most recently connected."""
-    sel = selectors.DefaultSelector()
-    clock = _Clock()
-    notes: list[tuple[str, str]] = []
-    sink = TcpServerSink(
-        "127.0.0.1:0",
-        selector=sel,
-        on_event=lambda k, d: notes.append((k, d)),
-        monotonic=clock,
-        limits=TcpLimits(max_clients=3, max_pending_bytes=1 << 24),
-    )
+    sink, sel, clock, notes = _server(TcpLimits(max_clients=3, max_pending_bytes=1 << 24))
     held: list[socket.socket] = []
     try:
         stuck = _stuck_client(sink.address)
@@ -259,16 +250,7 @@ def test_at_the_client_limit_a_newcomer_evicts_a_client() -> None:
 def test_a_slow_reader_with_output_pending_is_not_taken_for_stalled() -> None:
     """At the client limit a client with output pending that took some since the last
     check keeps its slot: the most recently connected goes instead."""
-    sel = selectors.DefaultSelector()
-    clock = _Clock()
-    notes: list[tuple[str, str]] = []
-    sink = TcpServerSink(
-        "127.0.0.1:0",
-        selector=sel,
-        on_event=lambda k, d: notes.append((k, d)),
-        monotonic=clock,
-        limits=TcpLimits(max_clients=2, max_pending_bytes=1 << 24),
-    )
+    sink, sel, clock, notes = _server(TcpLimits(max_clients=2, max_pending_bytes=1 << 24))
     held: list[socket.socket] = []
     try:
         slow = _stuck_client(sink.address)
