@@ -6,24 +6,23 @@ import pytest
 
 from drivers import errors
 
+FRAME_ERRORS: tuple[type[errors.FrameError], ...] = (
+    errors.FrameError,
+    errors.ChecksumError,
+    errors.MissingChecksumError,
+    errors.TooLongError,
+    errors.UnknownSentenceError,
+    errors.FieldError,
+    errors.OutOfRangeError,
+)
+"""The frame error classes (each names a reject reason)."""
+
 
 class TestHierarchy:
     """Every public error is an EmlogdError with the documented extra bases."""
 
     @pytest.mark.parametrize(
-        "cls",
-        [
-            errors.FrameError,
-            errors.ChecksumError,
-            errors.MissingChecksumError,
-            errors.TooLongError,
-            errors.UnknownSentenceError,
-            errors.FieldError,
-            errors.OutOfRangeError,
-            errors.UnknownProtocolError,
-            errors.DeviceError,
-            errors.ConfigError,
-        ],
+        "cls", [*FRAME_ERRORS, errors.UnknownProtocolError, errors.DeviceError, errors.ConfigError]
     )
     def test_catching_emlogd_error_covers_it(self, cls: type[Exception]) -> None:
         """``except EmlogdError`` catches every public error class."""
@@ -36,15 +35,7 @@ class TestHierarchy:
 
     def test_reasons_map_to_counters(self) -> None:
         """Each frame error class names one of the documented reject reasons."""
-        for cls in (
-            errors.FrameError,
-            errors.ChecksumError,
-            errors.MissingChecksumError,
-            errors.TooLongError,
-            errors.UnknownSentenceError,
-            errors.FieldError,
-            errors.OutOfRangeError,
-        ):
+        for cls in FRAME_ERRORS:
             assert cls("x").reason in errors.REJECT_REASONS
 
     def test_capture_error_names_file_and_line(self) -> None:
