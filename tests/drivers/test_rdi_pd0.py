@@ -14,6 +14,7 @@ from drivers.errors import ChecksumError
 from drivers.rdi_pd0 import Pd0Decoder, Pd0Ensemble, encode_pd0
 from drivers.records import Rejected
 from tests.chunks import feed_in_chunks
+from tests.drivers.rdi_cases import OUT_OF_RANGE_LEADER
 from tests.profiles import by_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "dvl"
@@ -235,16 +236,7 @@ def test_a_corrupted_length_at_end_of_file_does_not_swallow_the_next_ensemble() 
     assert dec.counters.rejected == 1
 
 
-@pytest.mark.parametrize(
-    "bad",
-    [
-        {"pitch_deg": 95.0},
-        {"roll_deg": -181.0},
-        {"temperature_c": 80.0},
-        {"salinity_ppt": 60},
-        {"sound_speed_mps": 1000},
-    ],
-)
+@pytest.mark.parametrize("bad", [*OUT_OF_RANGE_LEADER, {"salinity_ppt": 60}])
 def test_an_out_of_range_leader_field_is_a_reject(bad: dict[str, float]) -> None:
     """A PD0 ensemble whose pitch, roll, temperature, salinity or sound speed is outside its
     physical range is an out_of_range reject, not a record; the same ensemble in range is read."""

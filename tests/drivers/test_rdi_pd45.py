@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from drivers.rdi_pd45 import Pd45Decoder, Pd45Ensemble, encode_pd45
 from drivers.records import Rejected
 from tests.chunks import feed_in_chunks
+from tests.drivers.rdi_cases import OUT_OF_RANGE_LEADER
 from tests.profiles import by_profile
 
 
@@ -114,16 +115,7 @@ def test_random_bytes_never_raise(data: bytes) -> None:
         assert isinstance(r, Pd45Ensemble)
 
 
-@pytest.mark.parametrize(
-    "bad",
-    [
-        {"pitch_deg": 95.0},
-        {"roll_deg": -181.0},
-        {"temperature_c": 80.0},
-        {"sound_speed_mps": 1000},
-        {"first_ping": (25, 0, 0, 0)},
-    ],
-)
+@pytest.mark.parametrize("bad", [*OUT_OF_RANGE_LEADER, {"first_ping": (25, 0, 0, 0)}])
 def test_an_out_of_range_field_is_a_reject(bad: dict[str, object]) -> None:
     """A PD5 ensemble whose attitude, temperature, sound speed or first-ping time is outside its
     range is an out_of_range reject, not a record; the same ensemble in range is read."""

@@ -1,0 +1,11 @@
+"""Test inputs the RDI PD0 and PD4/PD5 decoders' tests share."""
+
+from __future__ import annotations
+
+OUT_OF_RANGE_LEADER: tuple[dict[str, float], ...] = (
+    {"pitch_deg": 95.0},
+    {"roll_deg": -181.0},
+    {"temperature_c": 80.0},
+    {"sound_speed_mps": 1000},
+)
+"""Encoder keywords, each outside its physical range, that PD0 and PD5 both carry."""
