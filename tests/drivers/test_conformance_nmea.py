@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pynmea2
 import pytest
@@ -233,33 +235,40 @@ def test_humminbird_mtw() -> None:
     assert mtw[0].temperature_c == 17.9  # the gpsd doc example, $INMTW,17.9,C*1B
 
 
-def test_our_decoder_agrees_with_pynmea2_on_every_real_vhw() -> None:
-    """Every VHW we decode from the three real captures (over 1000; they hold no VBW) has the
-    headings and speeds pynmea2 gives."""
-    n = 0
-    for name in (
-        "gpsd_bundg_zeus_9.log",
-        "signalk_gofree-merrimac.log",
-        "signalk_plaka_first15000lines.log",
-    ):
+def _both_parse(names: Iterable[str], kinds: tuple[str, ...]) -> Iterator[tuple[str, Any, Any]]:
+    """Each line of the captures ``names`` (under DATA) with a sentence of ``kinds`` that we
+    decode into a record: the line, our record and pynmea2's parse of it."""
+    for name in names:
         for line in (DATA / name).read_text(errors="replace").splitlines():
             line = line.strip()
-            if not line.startswith("$") or line[3:6] not in ("VHW", "VBW"):
+            if not line.startswith("$") or line[3:6] not in kinds:
                 continue
             try:
                 ours = _one(line)
             except Exception:
                 continue
-            theirs = pynmea2.parse(line, check=True)
-            n += 1
-            if isinstance(ours, Vhw):
-                for a, b in (
-                    (ours.heading_true_deg, theirs.heading_true),
-                    (ours.heading_mag_deg, theirs.heading_magnetic),
-                    (ours.stw_knots, theirs.water_speed_knots),
-                    (ours.stw_kmh, theirs.water_speed_km),
-                ):
-                    assert (a is None and b is None) or a == pytest.approx(float(b))
+            yield line, ours, pynmea2.parse(line, check=True)
+
+
+def test_our_decoder_agrees_with_pynmea2_on_every_real_vhw() -> None:
+    """Every VHW we decode from the three real captures (over 1000; they hold no VBW) has the
+    headings and speeds pynmea2 gives."""
+    n = 0
+    names = (
+        "gpsd_bundg_zeus_9.log",
+        "signalk_gofree-merrimac.log",
+        "signalk_plaka_first15000lines.log",
+    )
+    for _, ours, theirs in _both_parse(names, ("VHW", "VBW")):
+        n += 1
+        if isinstance(ours, Vhw):
+            for a, b in (
+                (ours.heading_true_deg, theirs.heading_true),
+                (ours.heading_mag_deg, theirs.heading_magnetic),
+                (ours.stw_knots, theirs.water_speed_knots),
+                (ours.stw_kmh, theirs.water_speed_km),
+            ):
+                assert (a is None and b is None) or a == pytest.approx(float(b))
     assert n > 1000
 
 
@@ -273,34 +282,26 @@ def test_our_decoder_agrees_with_pynmea2_on_every_real_vlw_mtw_and_heading() -> 
     """Every VLW, MTW, HDT, HDM and HDG we decode from the real captures has the distances,
     temperatures, headings and signed deviation and variation pynmea2 gives."""
     seen: Counter[str] = Counter()
-    for name in sorted(p.name for p in DATA.glob("*.log")):
-        for line in (DATA / name).read_text(errors="replace").splitlines():
-            line = line.strip()
-            if not line.startswith("$") or line[3:6] not in ("VLW", "MTW", "HDT", "HDM", "HDG"):
-                continue
-            try:
-                ours = _one(line)
-            except Exception:
-                continue
-            theirs = pynmea2.parse(line, check=True)
-            seen[line[3:6]] += 1
-            if isinstance(ours, Vlw):
-                pairs = [
-                    (ours.total_nm, theirs.trip_distance),
-                    (ours.trip_nm, theirs.trip_distance_reset),
+    names = sorted(p.name for p in DATA.glob("*.log"))
+    for line, ours, theirs in _both_parse(names, ("VLW", "MTW", "HDT", "HDM", "HDG")):
+        seen[line[3:6]] += 1
+        if isinstance(ours, Vlw):
+            pairs = [
+                (ours.total_nm, theirs.trip_distance),
+                (ours.trip_nm, theirs.trip_distance_reset),
+            ]
+        elif isinstance(ours, Mtw):
+            pairs = [(ours.temperature_c, theirs.temperature)]
+        else:
+            assert isinstance(ours, Heading)
+            pairs = [(ours.heading_deg, theirs.heading)]
+            if line[3:6] == "HDG":
+                pairs += [
+                    (ours.deviation_deg, _signed(theirs.deviation, theirs.dev_dir)),
+                    (ours.variation_deg, _signed(theirs.variation, theirs.var_dir)),
                 ]
-            elif isinstance(ours, Mtw):
-                pairs = [(ours.temperature_c, theirs.temperature)]
-            else:
-                assert isinstance(ours, Heading)
-                pairs = [(ours.heading_deg, theirs.heading)]
-                if line[3:6] == "HDG":
-                    pairs += [
-                        (ours.deviation_deg, _signed(theirs.deviation, theirs.dev_dir)),
-                        (ours.variation_deg, _signed(theirs.variation, theirs.var_dir)),
-                    ]
-            for a, b in pairs:
-                assert (a is None and b is None) or a == pytest.approx(float(b)), line
+        for a, b in pairs:
+            assert (a is None and b is None) or a == pytest.approx(float(b)), line
     assert set(seen) == {"VLW", "MTW", "HDT", "HDM", "HDG"} and sum(seen.values()) > 1000, seen
 
 
