@@ -57,7 +57,7 @@ def test_demo_rejects_a_bad_speed(capsys: pytest.CaptureFixture[str], speed: str
 
 @pytest.fixture
 def control_socket(
-    tmp_path: Path, trial_files: dict[str, Path]
+    tmp_path: Path, two_port_config: Path, trial_files: dict[str, Path]
 ) -> Iterator[tuple[Path, list[dict[str, object]]]]:
     """A control socket answering as the daemon does, with a real pipeline's status after a
     replay of the figure-8; yields its path and the requests it received."""
@@ -70,15 +70,7 @@ def control_socket(
     from emlogd.pipeline.core import Pipeline
     from emlogd.settings import pipeline_from_config
 
-    cfg = tmp_path / "c.yaml"
-    cfg.write_text(
-        "ports:\n"
-        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
-        "  - {name: dvl, url: /dev/null, protocol: pd6, role: reference}\n"
-        "calibration:\n"
-        "  - {uut: emlog1, reference: dvl, lag: 3.3}\n"
-    )
-    pipeline = Pipeline(*pipeline_from_config(load_config(cfg)))
+    pipeline = Pipeline(*pipeline_from_config(load_config(two_port_config)))
     status = replay(pipeline, [trial_files["figure-8"]]).status
     seen: list[dict[str, object]] = []
 

@@ -25,7 +25,10 @@ def _corrupt(src: Path, dst: Path) -> dict[int, bytes]:
 
 
 def test_malformed_records_are_skipped_or_strict(
-    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+    capsys: pytest.CaptureFixture[str],
+    trial_files: dict[str, Path],
+    tmp_path: Path,
+    two_port_config: Path,
 ) -> None:
     """replay, calibrate and evaluate count and skip bad records (with their lines); --strict fails."""
     bad = tmp_path / "bad.cap"
@@ -40,14 +43,7 @@ def test_malformed_records_are_skipped_or_strict(
             {"line": 3003, "error": "non-ASCII bytes (payloads must be hex:)"},
         ],
     }
-    cfg = tmp_path / "c.yaml"
-    cfg.write_text(
-        "ports:\n"
-        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
-        "  - {name: dvl, url: /dev/null, protocol: pd6, role: reference}\n"
-        "calibration:\n"
-        "  - {uut: emlog1, reference: dvl, lag: 3.3}\n"
-    )
+    cfg = two_port_config
     assert main(["replay", str(bad), "--config", str(cfg), "--json"]) == 0
     captured = capsys.readouterr()
     assert json.loads(captured.out)["capture_skips"] == {str(bad): expected}
