@@ -309,10 +309,10 @@ class TestTidalCurrent:
         the reference's speed as regressor put m 0.9 off and b 1.6 off; a current per
         30 min and the variance-weighted speed recover m, b within 0.01 / 0.02."""
         a, truth = self._blocks("circles", 1.0)
-        one = fit_ls("EM3", a.ref, a.raw, heading_deg=a.heading_deg, current=True)
+        one = fit_ls(truth.model, a.ref, a.raw, heading_deg=a.heading_deg, current=True)
         assert one.params.m < truth.m - 0.5 and one.params.b_mps > truth.b_mps + 1.0
         fit = fit_ls(
-            "EM3",
+            truth.model,
             a.ref,
             a.raw,
             heading_deg=a.heading_deg,
