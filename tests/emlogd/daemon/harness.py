@@ -20,6 +20,16 @@ SPEED = 20.0
 PORTS = ("emlog1", "emlog2", "dvl")
 """The sensors of the configs here: two EMlogs and a DVL (PD6)."""
 
+OUTPUTS = """\
+outputs: {pty: out/emlog0, tcp: "127.0.0.1:{tcp}", status_sentence_interval_s: 0.2}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+status_log_interval_s: 1
+"""
+"""The outputs, state, control socket and logging of the configs here (``{tcp}``: see
+:func:`make_work`)."""
+
 
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that nothing listens on now."""

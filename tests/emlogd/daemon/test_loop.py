@@ -22,7 +22,15 @@ from drivers.io.fake import FakeDevice
 from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
 from emlogd.launch import DaemonProcess, fake_sensors
-from tests.emlogd.daemon.harness import PORTS, SPEED, Daemon, free_port, make_work, tcp_port
+from tests.emlogd.daemon.harness import (
+    OUTPUTS,
+    PORTS,
+    SPEED,
+    Daemon,
+    free_port,
+    make_work,
+    tcp_port,
+)
 
 CONFIG = f"""\
 ports:
@@ -38,12 +46,7 @@ calibration:
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
   - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5, current: false,
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}, talker: VM}}
-outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_sentence_interval_s: 0.2}}
-state_file: state/state.yaml
-control_socket: run/control.sock
-log_format: json
-status_log_interval_s: 1
-"""
+{OUTPUTS}"""
 
 
 def _setup(tmp_path: Path) -> Path:

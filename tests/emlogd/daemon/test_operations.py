@@ -17,7 +17,7 @@ import serial
 from calib.estimate import Estimate
 from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
-from tests.emlogd.daemon.harness import SPEED, Daemon, tcp_port, wait
+from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, tcp_port, wait
 
 RUN = [sys.executable, "-m", "emlogd", "run", "--config", "emlogd.yaml"]
 
@@ -32,12 +32,7 @@ calibration:
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
   - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5,
      validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}, talker: VM}}
-outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{{tcp}}", status_sentence_interval_s: 0.2}}
-state_file: state/state.yaml
-control_socket: run/control.sock
-log_format: json
-status_log_interval_s: 1
-"""
+{OUTPUTS}"""
 
 
 def _num(doc: dict[str, object], key: str) -> float:
