@@ -291,7 +291,7 @@ DUPLICATE_WINDOW = 6
 """Consecutive significant lines that may not appear twice in the files of
 :data:`NO_DUPLICATES`."""
 
-NO_DUPLICATES = ("calib", "drivers", "emlogd", "bench", "docs")
+NO_DUPLICATES = ("calib", "drivers", "emlogd", "bench", "docs", "tests")
 """The folders whose .py files (all of them, together) are checked for repeated blocks."""
 
 
