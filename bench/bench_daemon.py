@@ -47,7 +47,7 @@ ports:
   - {name: junk, url: links/junk, protocol: nmea0183, role: aux}
 calibration:
   - {uut: emlog1, reference: dvl, lag: 0.0}
-  - {uut: emlog2, reference: dvl, lag: 0.0}
+  - {uut: emlog2, reference: dvl, lag: 0.0, talker: VM, pty: out/emlog2}
 outputs: {pty: out/emlog0, status_sentence_interval_s: 1}
 state_file: state/state.yaml
 control_socket: run/control.sock
