@@ -91,6 +91,9 @@ def _setup(work: Path) -> Path:
     return cfg
 
 
+READY_TIMEOUT_S = 30.0  # the longest wait for READY=1 before the bench gives up
+
+
 def _start(
     work: Path, cfg: Path, launcher: list[str] | None = None
 ) -> tuple[DaemonProcess, float, socket.socket]:
@@ -99,7 +102,7 @@ def _start(
     notify = work / "notify.sock"
     srv = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     srv.bind(str(notify))
-    srv.settimeout(30)
+    srv.settimeout(0.2)  # short waits, so a daemon that exits is noticed at once
     t0 = time.perf_counter()
     daemon = DaemonProcess(
         cfg,
@@ -110,9 +113,17 @@ def _start(
         env={"NOTIFY_SOCKET": str(notify)},
         wait=False,  # READY=1 is what is timed; it comes before the socket answers
     )
-    while srv.recv(4096) != b"READY=1":
-        pass
-    return daemon, time.perf_counter() - t0, srv
+    while True:
+        try:
+            if srv.recv(4096) == b"READY=1":
+                return daemon, time.perf_counter() - t0, srv
+        except TimeoutError:
+            pass
+        if not daemon.running or time.perf_counter() - t0 > READY_TIMEOUT_S:
+            daemon.stop()
+            srv.close()
+            why = "exited" if not daemon.running else f"no READY=1 in {READY_TIMEOUT_S:.0f} s"
+            raise SystemExit(f"bench_daemon: the daemon {why}:\n{daemon.tail()}")
 
 
 def _stop(daemon: DaemonProcess, srv: socket.socket) -> None:
