@@ -341,6 +341,7 @@ class KfCalibrator:
         learn: bool | Collection[str] = True,
         max_nis: float = _INF,
         scaled: bool = True,
+        adapt: bool = True,
     ) -> StepResult:
         """One sample: predict over ``dt_s``, then the reference, then the raw update.
 
@@ -357,6 +358,9 @@ class KfCalibrator:
             scaled: the measurement noises are the configured ones times the noise
                 scale λ (False: the configured ones, what a single sample holds when λ
                 was adapted to block means: the samples between blocks).
+            adapt: with ``config.adaptive``, a learnt update whose speed state was
+                re-acquired for it adapts the noise scale and the correlation (False:
+                they stay, as learning sample by sample keeps the configured noises).
 
         Returns:
             The innovations and what was applied.
@@ -417,7 +421,7 @@ class KfCalibrator:
             self.correlation if learning else 1.0,
         )
         learnt = use_ref and not ref_gated and applied
-        if learnt and learning and fresh and self.config.adaptive:
+        if learnt and learning and fresh and adapt and self.config.adaptive:
             self._adapt(y, s)
         return StepResult(Innovation(y, s, y * y / s), inn_ref, not applied, ref_gated, learnt)
 
@@ -526,6 +530,27 @@ class KfCalibrator:
             self._P[i][i] = max(
                 var, min(var + cfg.current_psd_m2ps3 * elapsed_s, cfg.current_p0_m2ps2)
             )
+
+    def copy(self) -> KfCalibrator:
+        """An independent copy of the filter: its state, covariance, noise scale and the
+        innovations' correlation (a shadow whose covariance answers "what would the
+        filter know had it forgotten …", :meth:`follow`)."""
+        other = KfCalibrator.__new__(KfCalibrator)
+        other.layout, other.config = self.layout, self.config
+        other._P = [list(row) for row in self._P]
+        other._gains, other._params = {}, None
+        other._x = list(self._x)
+        other.follow(self)
+        return other
+
+    def follow(self, other: KfCalibrator) -> None:
+        """Take ``other``'s state mean, noise scale and correlation, keeping this
+        filter's own covariance: the next update then uses the same measurement rows
+        and noises as ``other``'s, and only what is known of the state differs."""
+        self._x = list(other._x)
+        self.noise_scale = other.noise_scale
+        self._c0, self._c1 = other._c0, other._c1
+        self._nu_prev, self._n_adapt = other._nu_prev, other._n_adapt
 
     def reacquire_speed(self) -> None:
         """Forget the speed state: :data:`SPEED_UNKNOWN_VAR_M2PS2`, its correlations

@@ -80,6 +80,14 @@ CHANGE_MIN_SAMPLES = 3
 """Fewer raw innovations than this in :data:`CHANGE_WINDOW_S`: the change cannot be
 measured, and the parameters re-open to their prior."""
 
+CHANGE_BLOCKS = 6
+"""Learning from block means, a change is measured on the raw innovations of at most
+this many last blocks (two minutes of 20-s means): a step inside them shows in the
+mean of the blocks since it."""
+
+CHANGE_BLOCKS_S = 300.0
+"""Blocks older than this, s, do not measure a change (a sparse reference's blocks)."""
+
 
 AVERAGE_S: dict[str, float] = {"gnss": 20.0}
 """Learning from block means of this length by reference field, s (others: every
@@ -184,6 +192,14 @@ class Learner:
         self.gated_run_raw = 0
         self.gated_run_ref = 0
         self.recent: deque[tuple[float, float, float]] = deque()
+        self.recent_blocks: deque[tuple[float, float, float, float]] = deque(maxlen=CHANGE_BLOCKS)
+        """(time, raw innovation, its variance S, speed) of the last learnt blocks: what a
+        change is measured on when learning from block means."""
+        self.shadow: KfCalibrator | None = None
+        """After a change, learning from block means: the filter with its parameters
+        re-opened to their prior at the change, learning from the same blocks (none of
+        the knowledge from before it). An offer waits until it determines them again,
+        and the learner then goes on from it (:meth:`offer`)."""
         """(time, raw innovation, speed) of the last :data:`CHANGE_WINDOW_S` of readings
         with a valid reference: what a change of the readings is measured on."""
         average = s.average_s if s.average_s is not None else AVERAGE_S.get(s.reference_field, 0.0)
@@ -281,6 +297,8 @@ class Learner:
         """
         valid = self._usable(a)
         self._excitation(a, valid)
+        if self.shadow is not None:
+            self.shadow.predict(a.dt)
         learn_set = self._learn_set(valid, gate)
         block = self.block
         res = self.kf.update(
@@ -292,6 +310,8 @@ class Learner:
             max_nis=self.s.gate_nis,
             # between blocks a sample is a sample: the noise scale describes block means
             scaled=block is None,
+            # sample by sample (a DVL) the configured noises are the tuning: kept
+            adapt=False,
         )
         self._gates(a.t, res.raw_gated, res.ref_gated, valid, gate)
         if valid and res.raw is not None and a.ref is not None and not gate:
@@ -357,9 +377,22 @@ class Learner:
         # the speed state followed the last sample; the block's mean speed is another
         # quantity: the mean reference sets it afresh
         self.kf.reacquire_speed()
+        shadow = self.shadow
+        if shadow is not None:
+            # the same blocks: only what it knew at the change differs
+            shadow.reacquire_speed()
+            shadow.update(
+                b_raw, b_ref, 0.0, heading_cs=b_cs, learn=b_learn, max_nis=self.s.gate_nis
+            )
         res = self.kf.update(
             b_raw, b_ref, 0.0, heading_cs=b_cs, learn=b_learn, max_nis=self.s.gate_nis
         )
+        if res.raw is not None and (res.learnt or res.raw_gated):
+            # a gated block measures a change too: it is what did not fit
+            q = self.recent_blocks
+            q.append((a.t, res.raw.y, res.raw.S, abs(b_ref)))
+            while q and a.t - q[0][0] > CHANGE_BLOCKS_S:
+                q.popleft()
         return b_learn, res
 
     def _account(self, learn_set: frozenset[str] | bool, nis: float) -> None:
@@ -461,15 +494,24 @@ class Learner:
         speed ``v``. Each parameter's variance grows by that change alone (``δ²`` for the
         bias, ``(δ/v)²`` for the scale, ``(δ/v²)²`` for the quadratic term), up to its
         prior: a 35 % gain step at 2 m/s re-opens the scale to σ 0.3, an alarm the sea
-        raised leaves hours of learning as they were. Without enough innovations, or
-        learning from block means (a noisy reference: a block's innovation is one draw
-        of a noise of 0.3 m/s correlated over tens of seconds, no measure of a change),
-        the parameters re-open to their prior: the next offer rests on readings after
-        the change, not on a calibration the noise let through again within minutes of
-        its withdrawal.
+        raised leaves hours of learning as they were. Without enough innovations the
+        parameters re-open to their prior.
+
+        Learning from block means (a noisy reference: a block's innovation is one draw
+        of a noise of 0.3 m/s correlated over tens of seconds), the change is the
+        largest mean raw innovation over the last ``k`` blocks (``k`` = 1 …
+        :data:`CHANGE_BLOCKS`, a step inside them shows in the blocks since it), its
+        square taken with the variance of that mean added (``δ_k² + S̄/k``): the noise
+        can hide a change that large. The filter widens by that much, so its σ and NIS
+        still say what the readings before the change taught (an alarm the sea raised
+        on a 20-s mean is common); and a shadow filter re-opened to the prior
+        (:attr:`shadow`) learns from the same blocks and holds the offer until readings
+        after the change determine the parameters again, so that a calibration the
+        noise let through is not offered again within minutes of its withdrawal; the
+        learner then goes on from the shadow (what the readings after the change say).
         """
         if self.block is not None:
-            self.kf.reopen(self.layout.params)
+            self._reopen_blocks()
             return
         q = self.recent
         if len(q) < CHANGE_MIN_SAMPLES:
@@ -477,6 +519,26 @@ class Learner:
             return
         self._widen(abs(sum(y for _, y, _ in q) / len(q)), sum(abs(x) for _, _, x in q) / len(q))
         q.clear()
+
+    def _reopen_blocks(self) -> None:
+        """:meth:`reopen_for_change` when learning from block means."""
+        # a change while a shadow learns: the readings since the first say most
+        shadow = (self.shadow if self.shadow is not None else self.kf).copy()
+        shadow.reopen(self.layout.params)
+        self.shadow = shadow
+        q = list(self.recent_blocks)
+        self.recent_blocks.clear()
+        if not q:
+            self.kf.reopen(self.layout.params)
+            return
+        worst, v_worst = 0.0, 0.0
+        for k in range(1, len(q) + 1):
+            last = q[-k:]
+            mean = sum(y for _, y, _, _ in last) / k
+            var = mean * mean + sum(s for _, _, s, _ in last) / (k * k)
+            if var > worst:
+                worst, v_worst = var, sum(v for _, _, _, v in last) / k
+        self._widen(math.sqrt(worst), v_worst)
 
     def _widen(self, delta: float, v: float) -> None:
         """Each parameter's variance grows by what a change ``delta`` (m/s) at ``v``
@@ -509,6 +571,7 @@ class Learner:
                 # The readings no longer fit the calibration while the log is healthy:
                 # the sensor changed. Learn its parameters again from the data.
                 self.kf.reopen(self.layout.params)
+                self.shadow = None
                 self.counters.relearn += 1
                 self.gated_run_raw = 0
                 self._emit(t, "relearn", {"why": "readings gated repeatedly"})
@@ -528,6 +591,7 @@ class Learner:
         self.counters.envelope += 1
         base = prior if prior is not None else zero_params(self.s.model)
         self.kf.restart(base)
+        self.shadow = None
         self._emit(t, "envelope", {"why": why, "restart_from": base.as_dict()})
 
     def ident_current(self) -> bool:
@@ -550,9 +614,18 @@ class Learner:
         """The estimate as a candidate, when it is learnt, certain and inside the envelope."""
         if not self.learnt_ever & self._param_names or self.lag_s is None:
             return None
+        limits = self.s.max_param_std
+        if self.shadow is not None:
+            after = self.shadow.param_std
+            for name in self.layout.params:
+                if name in self.learnt_ever and after[name] > limits.get(name, math.inf):
+                    return None
+            # the readings since the change determine the parameters: learning goes on
+            # from what they say (a change the sea raised: about what was known)
+            self.kf, self.shadow = self.shadow, None
         std = self.kf.param_std
         for name in self.layout.params:
-            if name in self.learnt_ever and std[name] > self.s.max_param_std.get(name, math.inf):
+            if name in self.learnt_ever and std[name] > limits.get(name, math.inf):
                 return None
         est = self.kf.params
         if self.s.envelope.check(est, self.kf.current_mps):

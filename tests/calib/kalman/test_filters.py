@@ -104,8 +104,10 @@ class TestPaperFilters:
         t, _, raw, ref = _sim(3600, 12, truth, cfg)
         run = run_kf("EM3", t, raw, ref, cfg)
         for name, true in truth.as_dict().items():
-            assert abs(run.params.as_dict()[name] - true) <= 2.0 * run.param_std[name]
-        assert run.param_std["m"] < 0.01
+            std = run.param_std[name]
+            assert std is not None and abs(run.params.as_dict()[name] - true) <= 2.0 * std
+        std_m = run.param_std["m"]
+        assert std_m is not None and std_m < 0.01
 
     def test_kf_em4_tracks_curvature(self) -> None:
         """KF-EM4 recovers a quadratic coefficient within 3σ."""
@@ -114,7 +116,8 @@ class TestPaperFilters:
         t, _, raw, ref = _sim(3600, 13, truth, cfg)
         run = run_kf("EM4", t, raw, ref, cfg)
         for name, true in truth.as_dict().items():
-            assert abs(run.params.as_dict()[name] - true) <= 3.0 * run.param_std[name]
+            std = run.param_std[name]
+            assert std is not None and abs(run.params.as_dict()[name] - true) <= 3.0 * std
 
     def test_constant_speed_sigma_stays_large(self) -> None:
         """At constant speed m and b stay uncertain (σ > 0.1) though m·v + b is learnt."""
@@ -167,6 +170,32 @@ class TestPaperFilters:
         assert kf.noise_scale == pytest.approx(0.01, rel=0.4)
         nis = _blocks(kf, raw[180:], ref[180:])
         assert 0.8 <= float(np.mean(nis)) <= 1.2
+
+    def test_an_update_told_not_to_adapt_keeps_the_noise_scale(self) -> None:
+        """``adapt=False`` (learning sample by sample): λ and the correlation stay."""
+        cfg = KfConfig()
+        kf = KfCalibrator("EM3", KfConfig(r_raw_mps2=cfg.r_raw_mps2 * 30.0))
+        for k in range(20):
+            kf.predict(1.0)
+            kf.reacquire_speed()
+            kf.update(2.0 + 0.01 * k, 2.0, 0.0, adapt=False)
+        assert kf.noise_scale == 1.0 and kf.correlation == 1.0
+
+    def test_a_copy_follows_the_state_and_keeps_its_own_covariance(self) -> None:
+        """``copy`` is independent; ``follow`` takes the other's mean and noise scale and
+        keeps its own P: a copy re-opened to the prior stays wider after the same update."""
+        kf = KfCalibrator("EM3", KfConfig(), v0_mps=2.0)
+        for k in range(200):
+            kf.update(2.0 + 0.5 * math.sin(k / 10.0), 2.0 + 0.5 * math.sin(k / 10.0), 1.0)
+        shadow = kf.copy()
+        shadow.reopen(["m", "b"])
+        assert kf.param_std["m"] < 0.1 and shadow.param_std["m"] == pytest.approx(0.5)
+        kf.noise_scale = 0.5
+        kf.update(2.4, 2.3, 1.0)
+        shadow.follow(kf)
+        assert shadow.x == kf.x and shadow.noise_scale == 0.5
+        shadow.update(2.4, 2.3, 1.0)
+        assert shadow.param_std["m"] > kf.param_std["m"]
 
     def test_a_sample_between_blocks_has_the_configured_noises(self) -> None:
         """λ adapted to block means (0.01) does not shrink a single sample's noise: with

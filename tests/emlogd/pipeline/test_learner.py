@@ -105,22 +105,55 @@ def test_readings_the_logs_health_refuses_never_relearn() -> None:
         assert (lr.param_std["m"] > 0.4) == bool(relearns) and lr.param_std["m"] >= std
 
 
-def test_learning_from_blocks_a_change_reopens_to_the_prior() -> None:
-    """Against GNSS (20-s block means) a block's innovation is one draw of the reference's
-    correlated noise, no measure of a change: a change the supervisor saw re-opens the
-    parameters to their prior (σ² = ``p0``) whatever the size of the change."""
+def _gnss_learner() -> Learner:
     s = UutSettings(port="log", reference_port="gps", reference_field="gnss", lag_s=0.0)
-    lr = Learner(s, Layout(check_model(s.model), s.current), None, lambda t, k, d: None,
-                 Counters())  # fmt: skip
+    return Learner(s, Layout(check_model(s.model), s.current), None, lambda t, k, d: None,
+                   Counters())  # fmt: skip
+
+
+def _feed_blocks(lr: Learner, t0: int, t1: int, gain: float) -> None:
     true = Params("EM3", m=0.05, b_mps=0.0)
-    for i in range(2400):
+    for i in range(t0, t1):
         t = float(i)
         v = 2.5 + 1.0 * math.sin(2 * math.pi * t / 300.0)
-        if i == 2370:
-            assert lr.param_std["m"] < 0.02
-            lr.reopen_for_change()
-            assert lr.param_std["m"] == pytest.approx(math.sqrt(s.p0))
-            assert lr.param_std["b"] == pytest.approx(math.sqrt(s.p0))
-        raw = true.forward(v) * (1.01 if i >= 2370 else 1.0)
         lr.add_reference(t, v, True, lambda _t: None)
-        lr.step(lr.align(t, raw, lambda _t: None), "", None)
+        lr.step(lr.align(t, true.forward(v) * gain, lambda _t: None), "", None)
+
+
+def test_learning_from_blocks_an_alarm_without_a_change_keeps_what_was_learnt() -> None:
+    """Against GNSS (20-s block means) the supervisor's alarm re-opens the parameters by the
+    largest mean block innovation of the last blocks: readings that did not change leave
+    the filter's σ near what it was (hours of learning kept, its NIS honest), while the
+    offer waits for a shadow re-opened to the prior (σ² = ``p0``) to be determined again
+    by readings after the alarm."""
+    lr = _gnss_learner()
+    _feed_blocks(lr, 0, 2370, 1.0)
+    std0 = lr.param_std["m"]
+    assert std0 < 0.02 and lr.offer() is not None
+    lr.reopen_for_change()
+    shadow = lr.shadow
+    assert shadow is not None
+    assert shadow.param_std["m"] == pytest.approx(math.sqrt(lr.s.p0))
+    assert shadow.param_std["b"] == pytest.approx(math.sqrt(lr.s.p0))
+    assert std0 <= lr.param_std["m"] < 0.03
+    assert lr.offer() is None
+    _feed_blocks(lr, 2370, 2410, 1.0)
+    assert lr.offer() is None  # two blocks do not determine scale and bias again
+    _feed_blocks(lr, 2410, 3000, 1.0)
+    offer = lr.offer()
+    assert offer is not None
+    assert lr.shadow is None  # the readings since the alarm determine the parameters
+    assert offer.params.m == pytest.approx(0.05, abs=0.005)
+
+
+def test_learning_from_blocks_a_real_change_reopens_by_its_size() -> None:
+    """A 30 % gain step the blocks since it show re-opens the scale by about its size
+    ((δ/v)², δ the mean innovation of those blocks), and the filter learns the new scale."""
+    lr = _gnss_learner()
+    _feed_blocks(lr, 0, 2300, 1.0)
+    _feed_blocks(lr, 2300, 2370, 1.3)
+    lr.reopen_for_change()
+    assert lr.param_std["m"] > 0.15
+    _feed_blocks(lr, 2370, 3600, 1.3)
+    assert lr.kf.params.m == pytest.approx(1.3 * 1.05 - 1.0, abs=0.02)
+    assert lr.offer() is not None
