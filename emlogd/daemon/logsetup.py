@@ -3,6 +3,11 @@ the daemon's limit on repeated events and its one-line status for a terminal.
 
 Library modules only call ``structlog.get_logger(__name__)``; the CLI calls
 :func:`configure_logging` once. The stdlib root logger is never configured.
+
+Writing a log line never raises: a stream whose reader went away (a pipe closed,
+journald stopped: ``EPIPE``) or that fails otherwise costs that line, counted by
+:func:`lost_lines`, never the daemon (a ``BrokenPipeError`` out of a log call ended
+``emlogd run`` with exit code 0, which systemd's ``Restart=on-failure`` does not restart).
 """
 
 from __future__ import annotations
@@ -24,6 +29,37 @@ _LEVELS = {
 
 
 _console = False
+_lost = 0
+
+
+def lost_lines() -> int:
+    """Log lines this process could not write (the stream failed)."""
+    return _lost
+
+
+class SafePrintLogger(structlog.PrintLogger):
+    """A :class:`structlog.PrintLogger` whose writes never raise: a failed write is
+    counted (:func:`lost_lines`) and the line dropped."""
+
+    def msg(self, message: str) -> None:
+        global _lost
+        try:
+            super().msg(message)
+        except (OSError, ValueError):  # EPIPE, EIO, ENOSPC; ValueError: the stream closed
+            _lost += 1
+
+    log = debug = info = warn = warning = msg
+    fatal = failure = err = error = critical = exception = msg
+
+
+class SafePrintLoggerFactory:
+    """Makes :class:`SafePrintLogger` instances on one stream."""
+
+    def __init__(self, file: TextIO) -> None:
+        self._file = file
+
+    def __call__(self, *args: object) -> SafePrintLogger:
+        return SafePrintLogger(self._file)
 
 
 def is_console() -> bool:
@@ -66,7 +102,7 @@ def configure_logging(
             renderer,
         ],
         wrapper_class=structlog.make_filtering_bound_logger(_LEVELS[level]),
-        logger_factory=structlog.PrintLoggerFactory(out),
+        logger_factory=SafePrintLoggerFactory(out),
         cache_logger_on_first_use=False,
     )
 

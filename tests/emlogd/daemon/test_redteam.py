@@ -12,17 +12,21 @@ import functools
 import json
 import os
 import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from calib.estimate import Estimate
 from calib.models import Params
-from drivers.errors import ConfigError
+from drivers.errors import ConfigError, DeviceError
 from emlogd.calfile import CalibrationFileError, dumps, loads_state
+from emlogd.client import request
 from emlogd.config import MAX_CONFIG_BYTES, load_config, parse_config
 from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
+from emlogd.launch import STOP_TIMEOUT_S
 from emlogd.pipeline.calibration import Calibration
 from tests.emlogd.daemon.harness import OUTPUTS, Daemon, make_work, wait
 
@@ -242,3 +246,47 @@ def test_the_state_bound_holds_a_full_state_file() -> None:
     all four models."""
     cals = {f"u{k}": dataclasses.replace(_cal(), uut=f"u{k}") for k in range(8)}
     assert len(dumps(cals).encode()) * 4 < MAX_STATE_BYTES
+
+
+def test_the_log_reader_gone_costs_log_lines_not_the_daemon(tmp_path: Path) -> None:
+    """The daemon's stdout and stderr a pipe whose reader closes (journald stopped,
+    ``emlogd run | tee`` killed): it runs on, answers, counts the lines it could not write
+    (``log_lines_lost``) and stops with 0 on SIGTERM. A ``BrokenPipeError`` out of the
+    next log line ended it with exit code 0, which systemd does not restart."""
+    work = _work(tmp_path)
+    r, w = os.pipe()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
+        stdout=w,
+        stderr=w,
+        cwd=work,
+    )
+    os.close(w)
+    sock = work / "run" / "control.sock"
+    try:
+        wait(functools.partial(_answers, sock), "the control socket")
+        os.close(r)
+        r = -1
+        wait(lambda: _lost(sock) >= 3, "three status lines lost", 10.0)  # one a second
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(STOP_TIMEOUT_S) == 0
+    finally:
+        if r >= 0:
+            os.close(r)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def _answers(sock: Path) -> bool:
+    try:
+        return request(sock, {"cmd": "status"}, timeout_s=1.0).get("ok") is True
+    except DeviceError:
+        return False
+
+
+def _lost(sock: Path) -> int:
+    n = request(sock, {"cmd": "status"}, timeout_s=1.0).get("log_lines_lost")
+    assert isinstance(n, int)
+    return n
