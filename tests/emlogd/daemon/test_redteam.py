@@ -7,13 +7,16 @@ input never loses the frozen calibration."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import fcntl
 import functools
 import json
 import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -26,9 +29,9 @@ from emlogd.client import request
 from emlogd.config import MAX_CONFIG_BYTES, load_config, parse_config
 from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
-from emlogd.launch import STOP_TIMEOUT_S
+from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from emlogd.pipeline.calibration import Calibration
-from tests.emlogd.daemon.harness import OUTPUTS, Daemon, make_work, wait
+from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, make_work, wait
 
 CONFIG = f"""\
 ports:
@@ -38,6 +41,9 @@ calibration:
   - {{uut: emlog1, reference: dvl, lag: 0.165}}
 {OUTPUTS}"""
 """One EMlog and a DVL; no sensor needs to be there (the daemon starts without them)."""
+
+F_SETPIPE_SZ = 1031
+"""fcntl command setting a pipe's capacity (Linux; not in Python 3.11's fcntl)."""
 
 HOSTILE_YAML = {
     "a date that does not exist": "2001-02-30",
@@ -290,3 +296,60 @@ def _lost(sock: Path) -> int:
     n = request(sock, {"cmd": "status"}, timeout_s=1.0).get("log_lines_lost")
     assert isinstance(n, int)
     return n
+
+
+def _drain(fd: int) -> bytes:
+    """What the non-blocking ``fd`` holds now."""
+    data = b""
+    with contextlib.suppress(BlockingIOError):
+        while chunk := os.read(fd, 65536):
+            data += chunk
+    return data
+
+
+def _sentences(sock: Path) -> dict[str, tuple[int, int]]:
+    """(sentences, errors) of each output."""
+    outputs = request(sock, {"cmd": "status"}, timeout_s=1.0)["outputs"]
+    assert isinstance(outputs, dict)
+    return {k: (v["sentences"], v["errors"]) for k, v in outputs.items()}
+
+
+def test_a_stdout_reader_that_stops_reading_costs_its_sentences_only(
+    tmp_path: Path, trial_files: dict[str, Path]
+) -> None:
+    """``outputs.stdout`` into a pipe (one page) that nobody reads: once it is full the
+    stdout sentences are dropped and counted as errors, and the pty output and the
+    control socket go on. The blocking write hung the whole daemon within seconds."""
+    work = make_work(tmp_path, CONFIG.replace("outputs: {", "outputs: {stdout: true, "))
+    r, w = os.pipe()
+    fcntl.fcntl(w, F_SETPIPE_SZ, 4096)  # one page: full from its first sentence on
+    sock = work / "run" / "control.sock"
+    with (
+        fake_sensors(trial_files["figure-8"], work / "links", ("emlog1", "dvl"), speed=SPEED),
+        open(work / "daemon.log", "wb") as log,
+    ):
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
+            stdout=w,
+            stderr=log,
+            cwd=work,
+        )
+        os.close(w)
+        try:
+            wait(functools.partial(_answers, sock), "the control socket")
+            reader = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+            try:
+                wait(lambda: _sentences(sock)["stdout"][1] > 0, "stdout full", 30.0)
+                _drain(reader)
+                time.sleep(2.0)
+                assert _drain(reader).count(b"\r\n") >= 10  # the pty goes on
+            finally:
+                os.close(reader)
+            assert _answers(sock)
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(STOP_TIMEOUT_S) == 0
+        finally:
+            os.close(r)
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
