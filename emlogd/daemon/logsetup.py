@@ -13,6 +13,7 @@ journald stopped: ``EPIPE``) or that fails otherwise costs that line, counted by
 from __future__ import annotations
 
 import logging
+import math
 import sys
 from typing import Literal, TextIO
 
@@ -117,24 +118,57 @@ EVENT_INTERVAL_S = 10.0
 """The least time between two lines of one repeating event of one port, s."""
 
 
-class EventLimiter:
-    """At most one log line per (port, kind) of :data:`REPEATING_EVENTS` per interval."""
+CLIENT_EVENTS = frozenset(
+    {
+        "client_connected",
+        "client_disconnected",
+        "client_evicted",
+        "client_stalled",
+        "client_too_slow",
+    }
+)
+"""What a TCP output logs of its clients, each line with the peer's address: a client
+connecting and closing in a loop would repeat them without end (and a journal that
+rate-limits the service would then drop the daemon's other lines too)."""
 
-    def __init__(self, interval_s: float = EVENT_INTERVAL_S) -> None:
+CLIENT_EVENT_BURST = 20
+"""Most lines of one client event of one TCP output per :data:`EVENT_INTERVAL_S`."""
+
+
+class EventLimiter:
+    """At most ``burst`` log lines per (port, kind) of ``kinds`` per interval.
+
+    Args:
+        interval_s: the interval.
+        kinds: the events limited (others always pass).
+        burst: lines let through per interval and key.
+    """
+
+    def __init__(
+        self,
+        interval_s: float = EVENT_INTERVAL_S,
+        kinds: frozenset[str] = REPEATING_EVENTS,
+        burst: int = 1,
+    ) -> None:
         self.interval_s = interval_s
-        self.last: dict[tuple[str, str], float] = {}
+        self.kinds = kinds
+        self.burst = burst
+        self.window: dict[tuple[str, str], tuple[float, int]] = {}
+        """Per key: when its interval began, and the lines let through in it."""
         self.dropped: dict[tuple[str, str], int] = {}
 
     def allow(self, port: str, kind: str, now: float) -> int | None:
         """None: leave this one out; else log it, with how many were left out before."""
-        if kind not in REPEATING_EVENTS:
+        if kind not in self.kinds:
             return 0
         key = (port, kind)
-        last = self.last.get(key)
-        if last is not None and now - last < self.interval_s:
+        start, n = self.window.get(key, (-math.inf, 0))
+        if now - start >= self.interval_s:
+            start, n = now, 0
+        if n >= self.burst:
             self.dropped[key] = self.dropped.get(key, 0) + 1
             return None
-        self.last[key] = now
+        self.window[key] = (start, n + 1)
         return self.dropped.pop(key, 0)
 
 

@@ -14,6 +14,7 @@ import functools
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -27,11 +28,12 @@ from drivers.errors import ConfigError, DeviceError
 from emlogd.calfile import CalibrationFileError, dumps, loads_state
 from emlogd.client import request
 from emlogd.config import MAX_CONFIG_BYTES, load_config, parse_config
+from emlogd.daemon.logsetup import CLIENT_EVENT_BURST
 from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from emlogd.pipeline.calibration import Calibration
-from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, make_work, wait
+from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, make_work, tcp_port, wait
 
 CONFIG = f"""\
 ports:
@@ -353,3 +355,22 @@ def test_a_stdout_reader_that_stops_reading_costs_its_sentences_only(
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
+
+
+def test_a_tcp_connect_loop_costs_a_bounded_number_of_log_lines(tmp_path: Path) -> None:
+    """200 TCP clients connecting and closing in a loop: at most ``CLIENT_EVENT_BURST``
+    lines of each client event per interval (each of the 400 was a line: a journal that
+    rate-limits the service then drops the daemon's other lines too); the daemon answers."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        for _ in range(200):
+            socket.create_connection(("127.0.0.1", tcp_port(work))).close()
+            time.sleep(0.002)  # within the listen backlog: no SYN dropped and retried
+        wait(lambda: d.events("client_disconnected") >= CLIENT_EVENT_BURST, "disconnects", 10.0)
+        assert d.answers()
+        assert d.events("client_connected") == CLIENT_EVENT_BURST
+        assert d.events("client_disconnected") == CLIENT_EVENT_BURST
+        assert d.stop() == 0
+    finally:
+        d.kill()
