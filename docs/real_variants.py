@@ -13,7 +13,8 @@ a midnight crossed by GGA times of day; Expedition exports with other column set
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
 ``;`` with decimal commas, quoted cells, a byte-order mark) and Expedition's own sparse
 log (``!Boat`` header, channel numbers, ``channel,value`` pairs); the logger's TSV
-without its banner, with its local time given by ``--utc-offset``, with rows every 5 s;
+without its banner, with its local time given by ``--utc-offset``, with rows every 5 s,
+under its other firmware's column names after a banner of settings;
 and a strong tidal current (:func:`tide`) added to the GNSS of an NMEA log and of an
 Expedition export: the water-frame calibration should not move.
 
@@ -571,6 +572,41 @@ def _no_banner(text: str) -> str:
     return "".join(lines[h:])
 
 
+LOGGER_NAMES = {"Boatspeed": "BS", "Heading": "HDG", "Ext_SOG": "SOG", "Ext_COG": "COG"}
+LOGGER_NAMES |= {"Latitudine": "Lat", "Longitudine": "Lon", "SET": "Set", "DRIFT": "Drift"}
+"""The logger's other firmware's column names."""
+
+SETTINGS_LINES = 48
+"""The other firmware's banner: this many lines of settings before the header."""
+
+
+def _logger_firmware(text: str) -> str:
+    """The logger's other firmware: its own column names, a banner of settings (section
+    rulers, ``NAME:<TAB>value`` lines, tables with tabs and commas) before the header,
+    and ``-`` for the current in the first hundred rows."""
+    lines = text.splitlines()
+    h = next(i for i, ln in enumerate(lines) if ln.count("\t") >= 3)
+    header = [LOGGER_NAMES.get(c, c) for c in lines[h].split("\t")]
+    banner = ["-------- DAMPING --------"]
+    banner += [f"CH{k}:\t0.{600 + k}" for k in range(SETTINGS_LINES // 2)]
+    banner += ["-------- CALIBRATION --------"]
+    banner += [
+        f"POINT {k}: {k}.0\t GAIN: 1.{k:03d}\tCURVE:\t0.0,0.0,0.0"
+        for k in range(SETTINGS_LINES // 2)
+    ]
+    banner += ["-------- LOG --------"]
+    sd = [header.index("Set"), header.index("Drift")]
+    rows = []
+    for n, ln in enumerate(lines[h + 1 :]):
+        cells = ln.split("\t")
+        if n < 100:
+            for i in sd:
+                if i < len(cells):
+                    cells[i] = "-"
+        rows.append("\t".join(cells))
+    return "\r\n".join([*lines[:h], *banner, "\t".join(header), *rows]) + "\r\n"
+
+
 def _thin_rows(period_s: float) -> Callable[[str], str]:
     """A TSV's rows kept only ``period_s`` apart (by their Time column)."""
 
@@ -705,6 +741,12 @@ VARIANTS: tuple[Variant, ...] = (
         lambda text: text,
         "the logger's local time given as --utc-offset 2",
         lambda _text: ["--utc-offset", "2"],
+    ),
+    Variant(
+        "logger-firmware",
+        "logger-tsv",
+        _logger_firmware,
+        "the logger's other firmware: BS/HDG/SOG/COG names, a settings banner, '-' cells",
     ),
     Variant("rows-0.2hz", "logger-tsv", _thin_rows(5.0), "the logger's rows every 5 s"),
 )

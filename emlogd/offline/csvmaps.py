@@ -28,8 +28,12 @@ FILETIME_TICK_S = 1e-7
 FILETIME_EPOCH_S = -11_644_473_600.0
 """FILETIME's day 0 (1601-01-01) in epoch seconds."""
 
-HEADER_SCAN_LINES = 50
-"""The header must be among the first this many lines (a banner before it)."""
+HEADER_SCAN_LINES = 200
+"""The header must be among the first this many lines (a banner before it: a logger
+may write its settings, damping and calibration tables first)."""
+
+NO_VALUE = frozenset({"-", "--", "---"})
+"""Cells that say "no value" (a logger's dash before its estimate is known): empty."""
 
 DELIMITERS = (",", "\t", ";", "|")
 """The delimiters the header is tried with."""
@@ -112,17 +116,18 @@ name the current ``iSet``/``iDrift`` or ``Set``/``Drift``, or leave it out."""
 LOGGER_TSV: dict[str, str] = {
     "date": "Date",
     "time": "Time",
-    "stw": "Boatspeed",
-    "heading": "Heading",
-    "sog": "Ext_SOG?",
-    "cog": "Ext_COG?",
-    "lat": "Latitudine?",
-    "lon": "Longitudine?",
+    "stw": "Boatspeed|BS",
+    "heading": "Heading|HDG",
+    "sog": "Ext_SOG|SOG?",
+    "cog": "Ext_COG|COG?",
+    "lat": "Latitudine|Lat?",
+    "lon": "Longitudine|Lon?",
     "set": "SET?",
     "drift": "DRIFT?",
 }
 """An Italian race logger's tab-separated export (``Date`` dd/mm/yy, ``Time`` of its
-clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions)."""
+clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions), under the names of both its
+firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
 
 PRESETS: dict[str, Preset] = {
     "expedition": Preset(
@@ -295,7 +300,9 @@ def no_header(path: str | Path, head: list[str], candidates: Sequence[MapChoice]
 
 
 def cell(row: list[str], index: int) -> str:
-    return row[index].strip() if index < len(row) else ""
+    """A row's cell, stripped; empty when absent or a :data:`NO_VALUE` dash."""
+    text = row[index].strip() if index < len(row) else ""
+    return "" if text in NO_VALUE else text
 
 
 def cell_value(cell: str, c: Col, report: ImportReport) -> float | None:
