@@ -244,16 +244,31 @@ def parse_time(value: str, fmt: str) -> float:
     return (t if t.tzinfo else t.replace(tzinfo=UTC)).timestamp()
 
 
+DATE_TIME_PATTERNS = (
+    "%d/%m/%Y %H:%M:%S",
+    "%d/%m/%Y %H:%M:%S.%f",
+    "%d/%m/%y %H:%M:%S",
+    "%d/%m/%y %H:%M:%S.%f",
+    "%d.%m.%Y %H:%M:%S",
+    "%d.%m.%Y %H:%M:%S.%f",
+    "%Y/%m/%d %H:%M:%S",
+    "%Y/%m/%d %H:%M:%S.%f",
+)
+"""The date-and-time cells ``auto`` recognises besides ISO 8601, tried in this order on
+the first time cell: day first, as European loggers and spreadsheets write it (a
+month-first file needs ``--time-format``)."""
+
+
 def guess_time_format(value: str) -> str | None:
-    """``auto``: epoch seconds, an OLE date, Windows FILETIME ticks (100 ns since 1601) or
-    ISO 8601, told by the first time cell."""
+    """``auto``: epoch seconds, an OLE date, Windows FILETIME ticks (100 ns since 1601),
+    ISO 8601 or one of :data:`DATE_TIME_PATTERNS`, told by the first time cell."""
     try:
         x = float(value)
     except ValueError:
         try:
             datetime.fromisoformat(value)
         except ValueError:
-            return None
+            return _date_time_pattern(value)
         return "iso"
     if 1e8 < x < 1e10:
         return "epoch"
@@ -261,6 +276,17 @@ def guess_time_format(value: str) -> str | None:
         return "filetime"
     if 20_000.0 < x < 80_000.0:
         return "ole"
+    return None
+
+
+def _date_time_pattern(value: str) -> str | None:
+    """The first of :data:`DATE_TIME_PATTERNS` that reads ``value``, or None."""
+    for pattern in DATE_TIME_PATTERNS:
+        try:
+            datetime.strptime(value, pattern)
+        except ValueError:
+            continue
+        return pattern
     return None
 
 
