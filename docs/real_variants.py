@@ -24,7 +24,8 @@ row set beside the unperturbed recording's: the effective scale at the unperturb
 median speed (LS and KF, and their change), the replay's emitted/raw RMSE against
 the GNSS water speed and its worst 5-min ratio. :func:`verdict` names what moved: a
 step that failed, a scale more than :data:`MAX_SCALE_SHIFT` from the unperturbed run,
-a replay worse than raw over the log.
+a replay worse than raw over the log, a 5-min window worse than both the unperturbed
+run's and :data:`WINDOW_TOLERANCE` by more than :data:`WINDOW_SLACK`.
 """
 
 from __future__ import annotations
@@ -68,6 +69,14 @@ TIDE_PERIOD_S = 44_712.0
 WORSE_THAN_RAW = 1.01
 """A replay whose emitted RMSE over the log exceeds raw's by this factor is worse than
 raw (below it, the sentences' rounding to 0.01 kn)."""
+
+WINDOW_TOLERANCE = 1.10
+"""A 5-min window of the replay up to this times raw's RMSE is within the suite's
+tolerance (docs/REAL_DATA.md)."""
+
+WINDOW_SLACK = 0.05
+"""A variant's worst 5-min window is flagged when it exceeds both
+:data:`WINDOW_TOLERANCE` and the unperturbed run's worst by more than this."""
 
 GAP_S = 300.0
 """The gap variant removes this many seconds of the log's middle."""
@@ -825,6 +834,10 @@ def verdict(row: dict[str, Any], base: dict[str, Any]) -> str:
     s = row.get("scores")
     if s and s["rmse_emitted"] > WORSE_THAN_RAW * s["rmse_raw"]:
         why.append(f"replay worse than raw ({s['rmse_emitted']:.3f} > {s['rmse_raw']:.3f})")
+    worst = (s or {}).get("worst_5min_ratio")
+    was = (base.get("scores") or {}).get("worst_5min_ratio")
+    if isinstance(worst, float) and worst > max(WINDOW_TOLERANCE, was or 0.0) + WINDOW_SLACK:
+        why.append(f"a 5-min window {worst:.2f} times raw's RMSE (unperturbed {_f(was, '.2f')})")
     return "; ".join(why) or "ok"
 
 
