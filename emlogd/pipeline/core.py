@@ -69,6 +69,7 @@ from emlogd.pipeline.sentences import (
 )
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.staleness import HEADING_NEAREST_S, Liveness
+from emlogd.pipeline.twoaxis_learn import TwoAxisLearner, encode_two_axis_status
 from emlogd.pipeline.uut import UutCalibration
 
 FUSED_PORT = "fused"
@@ -175,6 +176,8 @@ class Pipeline:
         self.t_fused_status = -math.inf
         self.headings = Headings(list(self.ports), uuts)
         self.uuts: dict[str, UutRoute] = {}
+        self.two_axis: dict[str, TwoAxisLearner] = {}
+        """The UUTs that learn two axes (``axes: 2``), by port."""
         self._by_ref: dict[str, list[UutRoute]] = {}
         cals = calibrations or {}
         self.kept: dict[str, dict[str, Calibration]] = {}
@@ -202,6 +205,8 @@ class Pipeline:
                         _keep_lag(u.cal, rec.lag_s)
                         break
             self.uuts[s.port] = u
+            if s.axes == 2:
+                self.two_axis[s.port] = TwoAxisLearner(s, self._hooks(s.port)[1])
             self._by_ref.setdefault(s.reference_port, []).append(u)
         self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
@@ -246,6 +251,9 @@ class Pipeline:
                 o.cal.heading_at, o.cal._event = self._hooks(name)
                 o.heading_order = self.headings.order(o.s)  # this config's ports
                 self.uuts[name] = o
+                if name in old.two_axis and name in self.two_axis:
+                    self.two_axis[name] = old.two_axis[name]
+                    self.two_axis[name].sup._event = self.two_axis[name]._event = o.cal._event
                 kept.append(name)
             elif o.s.learn == u.s.learn:
                 u.cal.learn_on = o.cal.learn_on
@@ -322,6 +330,9 @@ class Pipeline:
             if u.s.reference_field != sp.role:
                 continue
             u.reference(t, speed_of(sp, u.s.component), sp.valid)
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None:
+                ax.reference(t, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
 
     def _gnss(self, t: float, port: str, g: NavGnss) -> None:
         """A GNSS speed and course: queued until the heading at its time is known."""
@@ -376,14 +387,7 @@ class Pipeline:
             u.stw = (t, value)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
-            if sp.source == "VHW":
-                sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
-            elif sp.transverse_mps is not None and twoaxis.configured(u.s):
-                sentence = encode_vbw(
-                    *twoaxis.hull_frame(u.s, value, sp.transverse_mps), u.s.talker
-                )
-            else:
-                sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
+            sentence = self._sentence(u, t, sp, value)
             if self.fusion is None or not self.fusion.s.only:
                 out.emits.append(Emit(t, u.s.port, sentence))
             if self.fusion is not None and sp.source == u.s.uut_source:
@@ -394,7 +398,29 @@ class Pipeline:
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
             out.emits.append(Emit(t, u.s.port, encode_status(st.status_fields(u))))
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None:
+                out.emits.append(Emit(t, u.s.port, encode_two_axis_status(u.s.port, u.s.maker, ax)))
             self._vdr(u, t, out)
+
+    def _sentence(self, u: UutRoute, t: float, sp: SpeedRecord, value: float) -> str:
+        """A reading's corrected sentence: VHW; VBW with the learnt two-axis figures
+        (the reading then learnt from, ``axes: 2``), else the configured ones, else
+        the athwart speed as read."""
+        if sp.source == "VHW":
+            return encode_vhw(value, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
+        trans = sp.transverse_mps
+        ax = self.two_axis.get(u.s.port)
+        if ax is not None and trans is not None:
+            hull = ax.correct(value, trans)
+            if sp.longitudinal_mps is not None:
+                ax.reading(t, value, sp.longitudinal_mps, trans)
+                ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on)
+            if hull is not None:
+                return encode_vbw(*hull, u.s.talker)
+        if trans is not None and twoaxis.configured(u.s):
+            return encode_vbw(*twoaxis.hull_frame(u.s, value, trans), u.s.talker)
+        return encode_vbw(value, trans, u.s.talker)
 
     def _prior(self, s: UutSettings, latest: Calibration | None) -> Calibration | None:
         """The calibration a UUT starts from: its latest when of its model, else its own
@@ -517,6 +543,9 @@ class Pipeline:
         for u in self.uuts.values():
             self._project(u, final=True)
             u.cal.drain(self.now, final=True)
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None:
+                ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on, final=True)
         self._after(self.now, out)
         return out
 
@@ -560,6 +589,9 @@ class Pipeline:
             fresh.dirty = True
             fresh.t_persist = -math.inf
             u.cal = fresh
+            if p in self.two_axis:
+                self.two_axis[p] = TwoAxisLearner(u.s, self._hooks(p)[1])
+                cleared.append("two-axis figures")
         return done
 
     def calibrations(self) -> list[Calibration]:
@@ -587,6 +619,7 @@ class Pipeline:
             "ports": self.port_status(),
             "uuts": {
                 name: st.uut_status(u, self.headings, self.liveness, self.now)
+                | ({"two_axis": self.two_axis[name].status()} if name in self.two_axis else {})
                 for name, u in self.uuts.items()
             },
             "fused": st.fused_status(self.fusion.last if self.fusion is not None else None),
