@@ -36,6 +36,7 @@ a ``VDR`` (set and drift) whenever the heading determines the current.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -70,6 +71,7 @@ from emlogd.pipeline.sentences import (
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.staleness import HEADING_NEAREST_S, Liveness
 from emlogd.pipeline.twoaxis_learn import TwoAxisLearner, encode_two_axis_status
+from emlogd.pipeline.twoaxis_sup import Figures
 from emlogd.pipeline.uut import UutCalibration
 
 FUSED_PORT = "fused"
@@ -206,11 +208,20 @@ class Pipeline:
                         break
             self.uuts[s.port] = u
             if s.axes == 2:
-                self.two_axis[s.port] = TwoAxisLearner(s, self._hooks(s.port)[1])
+                self.two_axis[s.port] = self._two_axis(s, latest)
             self._by_ref.setdefault(s.reference_port, []).append(u)
         self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
+
+    def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
+        """A two-axis learner; the saved figures of a record its checks accept restored
+        (they validate again before they are applied)."""
+        ax = TwoAxisLearner(s, self._hooks(s.port)[1])
+        saved = latest.two_axis if latest is not None else None
+        if latest is not None and saved is not None and not check(latest, s.envelope, s.max_lag_s):
+            ax.sup.restore(Figures.from_dict(saved))
+        return ax
 
     def _new_cal(self, s: UutSettings, prior: Calibration | None) -> UutCalibration:
         return UutCalibration(s, prior, *self._hooks(s.port))
@@ -509,10 +520,13 @@ class Pipeline:
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None and ax.sup.changed:
+                ax.sup.changed, cal.dirty = False, True
             if cal.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
-                    out.persist.append(snap)
+                    out.persist.append(self._with_two_axis(snap))
         if self._pending_events:
             out.events.extend(self._pending_events)
             self._pending_events.clear()
@@ -596,7 +610,14 @@ class Pipeline:
 
     def calibrations(self) -> list[Calibration]:
         """The calibration of every UUT (a ``reset`` record when it has none): what is persisted."""
-        return [u.cal.snapshot() for u in self.uuts.values()]
+        return [self._with_two_axis(u.cal.snapshot()) for u in self.uuts.values()]
+
+    def _with_two_axis(self, snap: Calibration) -> Calibration:
+        """A UUT's record with its last good two-axis figures (``axes: 2``)."""
+        ax = self.two_axis.get(snap.uut)
+        if ax is None or ax.sup.kept is None:
+            return snap
+        return dataclasses.replace(snap, two_axis=ax.sup.kept.as_dict())
 
     def other_calibrations(self) -> list[Calibration]:
         """Every UUT's calibrations of the models it is not using: persisted beside."""

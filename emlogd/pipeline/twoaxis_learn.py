@@ -302,12 +302,12 @@ def encode_two_axis_status(port: str, maker: str, learner: TwoAxisLearner) -> st
 
     fields: UUT port (at most 8 characters), state (``A`` figures applied, ``V`` an
     estimate validating, ``L`` learning), α in degrees and its σ, ``m_t``, ``b_t`` in
-    m/s (the applied figures, else the latest estimate; empty before one), the leeway
+    m/s (the applied figures, else those validating, else the latest estimate; empty before one), the leeway
     angle of the last corrected VBW in degrees (empty before one), and ``R`` when the
     latest window refused α (the reason is in the status). At most 82 characters.
     """
     st = learner.status()
-    f = learner.sup.applied or learner.estimate
+    f = learner.sup.applied or learner.sup.candidate or learner.estimate
 
     def num(x: float | None, spec: str, limit: float) -> str:
         if x is None or not math.isfinite(x):

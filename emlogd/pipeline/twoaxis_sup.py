@@ -84,6 +84,20 @@ class Figures:
             or abs(other.b_t_mps - self.b_t_mps) > k * other.b_t_std_mps
         )
 
+    @classmethod
+    def from_dict(cls, d: Mapping[str, float]) -> Figures:
+        """Figures from :meth:`as_dict`'s keys (a state file's), learnt at no known
+        time: any block validates them."""
+        return cls(
+            d["misalign_deg"],
+            d["misalign_std_deg"],
+            d["m_t"],
+            d["m_t_std"],
+            d["b_t_mps"],
+            d["b_t_std_mps"],
+            -math.inf,
+        )
+
     def as_dict(self) -> dict[str, float]:
         """JSON keys (README: the ``two_axis`` block of ``emlogd status --json``)."""
         return {
@@ -143,12 +157,15 @@ class TwoAxisSupervisor:
         self._recheck: list[Block] = []
         self.note = ""
         """The last decision, in words."""
+        self.changed = False
+        """The last good figures changed since the caller last persisted them."""
         self.last_scores: dict[str, float] = {}
         """The athwart RMSE of the last judgement, m/s (``raw``, ``candidate``,
         ``applied``)."""
 
     def restore(self, figures: Figures) -> None:
-        """Figures from the state file: a candidate that validates like a new offer."""
+        """Figures from the state file: the last good ones, a candidate that
+        validates like a new offer before it is applied."""
         self.kept = figures
         self.offer(figures)
 
@@ -195,6 +212,7 @@ class TwoAxisSupervisor:
             self._event(t, "two_axis_rejected", detail | {"why": self.note})
             return
         self.applied = self.kept = cand
+        self.changed = True
         self._recheck = []
         self.note = ""
         self._event(t, "two_axis_applied", detail)

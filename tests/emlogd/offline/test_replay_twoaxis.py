@@ -10,6 +10,7 @@ import json
 import pytest
 
 from emlogd.cli import main
+from emlogd.daemon.statefile import StateStore
 from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
 
 CFG = """\
@@ -34,11 +35,13 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     cfg.write_text(CFG)
     caps = [str(trial.files[1]), str(trial.files[3])]
     argv = ["replay", *caps, "--config", str(cfg), "--truth", str(out), "--json"]
+    argv += ["--state", str(out / "state.yaml")]
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         assert main([*argv, "--out", str(out / "out.nmea")]) == 0
     doc = json.loads(buf.getvalue())
     assert isinstance(doc, dict)
+    doc["saved"] = StateStore(out / "state.yaml").load()[0]
     return doc
 
 
@@ -60,3 +63,14 @@ def test_two_axis_learnt_applied_and_scored(replayed: dict[str, object]) -> None
     assert on["rmse_l_corrected"] <= on["rmse_l_one_axis"] + 0.002
     assert set(scores["by_trajectory"]) == {"2", "4"}
     assert "two_axis" not in uuts["emlog1"] and "two_axis_truth" not in uuts["emlog1"]
+
+
+def test_the_validated_figures_are_persisted(replayed: dict[str, object]) -> None:
+    """The state file holds the figures applied, with their σ; a one-axis UUT's record
+    has none."""
+    saved = replayed["saved"]
+    assert isinstance(saved, dict)
+    uuts = replayed["uuts"]
+    assert isinstance(uuts, dict)
+    assert saved["emlog2"].two_axis == pytest.approx(uuts["emlog2"]["two_axis"]["applied"])
+    assert saved["emlog1"].two_axis is None
