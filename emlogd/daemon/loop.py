@@ -615,8 +615,8 @@ class Daemon:
         """
         try:
             new = load_config(self.config_path)
-        except (ConfigError, OSError) as exc:
-            self.log.error("reload_failed", error=str(exc), kept="previous config")
+        except Exception as exc:  # contained: no config file stops the daemon
+            self.log.error("reload_failed", error=_why(exc), kept="previous config")
             return
         old_pipeline, old = self.pipeline, self.config
         assert old_pipeline is not None
@@ -624,8 +624,8 @@ class Daemon:
         snapshots = {s.uut: s for s in old_pipeline.calibrations()}
         try:
             pipeline = build_pipeline(new, snapshots, old_pipeline.other_calibrations())
-        except (ConfigError, ValueError) as exc:
-            self.log.error("reload_failed", error=str(exc), kept="previous config")
+        except Exception as exc:  # contained, as above
+            self.log.error("reload_failed", error=_why(exc), kept="previous config")
             return
         kept_uuts = pipeline.adopt(old_pipeline)
         self.config, self.pipeline = new, pipeline
@@ -660,6 +660,11 @@ class Daemon:
             outputs_opened=opened,
         )
         self._notify_status()
+
+
+def _why(exc: Exception) -> str:
+    """A config error's message; any other failure with its type (no check foresaw it)."""
+    return str(exc) if isinstance(exc, (ConfigError, OSError)) else f"{type(exc).__name__}: {exc}"
 
 
 def _source_status(src: SerialSource) -> dict[str, object]:

@@ -22,6 +22,12 @@ HeadingRef = Literal["true", "magnetic"]
 OLE_EPOCH = datetime(1899, 12, 30, tzinfo=UTC)
 """Day 0 of OLE automation dates (Excel, Expedition)."""
 
+FILETIME_TICK_S = 1e-7
+"""A Windows FILETIME tick (Expedition's ``!log=v3`` times), s."""
+
+FILETIME_EPOCH_S = -11_644_473_600.0
+"""FILETIME's day 0 (1601-01-01) in epoch seconds."""
+
 HEADER_SCAN_LINES = 50
 """The header must be among the first this many lines (a banner before it)."""
 
@@ -72,7 +78,8 @@ class Preset:
     Attributes:
         name: the ``--preset`` name.
         columns: the column map (``A|B`` alternatives, ``?`` optional).
-        time_format: ``ole``, ``iso``, ``epoch`` or a ``strptime`` pattern.
+        time_format: ``ole``, ``iso``, ``epoch``, ``filetime``, ``auto`` (told by the
+            first time cell) or a ``strptime`` pattern.
         heading_ref: the heading's reference.
         local_time: whether the times are the logger's local clock (then
             ``--utc-offset`` is needed, and its absence is noted).
@@ -98,7 +105,8 @@ EXPEDITION: dict[str, str] = {
     "set": "iSet|Set?",
     "drift": "iDrift|Drift?",
 }
-"""Expedition's columns (its ``Hdg`` is a true heading; times are OLE dates). Its exports
+"""Expedition's columns (its ``Hdg`` is a true heading; times are OLE dates, or FILETIME
+ticks in its ``!log=v3`` logs). Its exports
 name the current ``iSet``/``iDrift`` or ``Set``/``Drift``, or leave it out."""
 
 LOGGER_TSV: dict[str, str] = {
@@ -118,7 +126,7 @@ clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions)."""
 
 PRESETS: dict[str, Preset] = {
     "expedition": Preset(
-        "expedition", EXPEDITION, "ole", "true", False, "Expedition CSV (Utc, Bsp, Hdg...)"
+        "expedition", EXPEDITION, "auto", "true", False, "Expedition CSV (Utc, Bsp, Hdg...)"
     ),
     "logger-tsv": Preset(
         "logger-tsv",
@@ -223,6 +231,8 @@ def parse_time(value: str, fmt: str) -> float:
     """One time cell (or date + space + time) → epoch seconds, naive times as UTC."""
     if fmt == "ole":
         return (OLE_EPOCH + timedelta(days=float(value))).timestamp()
+    if fmt == "filetime":
+        return int(value) * FILETIME_TICK_S + FILETIME_EPOCH_S
     if fmt == "epoch":
         return float(value)
     t = datetime.fromisoformat(value) if fmt == "iso" else datetime.strptime(value, fmt)
@@ -230,7 +240,8 @@ def parse_time(value: str, fmt: str) -> float:
 
 
 def guess_time_format(value: str) -> str | None:
-    """``auto``: epoch seconds, an OLE date or ISO 8601, told by the first time cell."""
+    """``auto``: epoch seconds, an OLE date, Windows FILETIME ticks (100 ns since 1601) or
+    ISO 8601, told by the first time cell."""
     try:
         x = float(value)
     except ValueError:
@@ -241,6 +252,8 @@ def guess_time_format(value: str) -> str | None:
         return "iso"
     if 1e8 < x < 1e10:
         return "epoch"
+    if 1e17 < x < 1e18 and value.isdigit():
+        return "filetime"
     if 20_000.0 < x < 80_000.0:
         return "ole"
     return None
