@@ -23,6 +23,8 @@ YAML, under a kind and a schema version, one entry per UUT, each a
         reference: {port: dvl, field: bottom}
         unidentifiable: []
         nis_mean: 1.01
+        two_axis: {misalign_deg: 3.1, misalign_std_deg: 0.14, m_t: -0.08, m_t_std: 0.005,
+                   b_t_mps: 0.04, b_t_std_mps: 0.004}   # axes: 2 only: the validated figures
         extra: {}             # producer's notes (offline: captures, RMSE)
     others:                   # the daemon's state only: each UUT's other error models
       emlog1:
@@ -47,7 +49,7 @@ from calib.estimate import Estimate
 from calib.models import MODEL_NAMES, PARAM_NAMES, Params
 from drivers.errors import EmlogdError
 from emlogd.config import YAML_FAILURES
-from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.calibration import TWO_AXIS_KEYS, Calibration
 
 KIND = "emlogd-calibration"
 SCHEMA = 2
@@ -66,7 +68,8 @@ def _ne(pair: tuple[float, float] | None) -> dict[str, float | None] | None:
 
 
 def to_dict(cal: Calibration, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """One entry as plain types."""
+    """One entry as plain types (``two_axis`` only when the record has the figures)."""
+    two = {} if cal.two_axis is None else {"two_axis": {k: _f(v) for k, v in cal.two_axis.items()}}
     return {
         "model": cal.params.model,
         "method": cal.method,
@@ -83,6 +86,7 @@ def to_dict(cal: Calibration, extra: Mapping[str, Any] | None = None) -> dict[st
         "reference": dict(cal.reference),
         "unidentifiable": list(cal.unidentifiable),
         "nis_mean": _f(cal.nis_mean),
+        **two,
         "extra": dict(extra or {}),
     }
 
@@ -213,8 +217,19 @@ def from_dict(uut: str, d: Any) -> tuple[Calibration, dict[str, Any]]:
         unidentifiable=tuple(unid),
         nis_mean=_num(d.get("nis_mean"), f"{w}.nis_mean", allow_none=True),
         reset=bool(d.get("reset", False)),
+        two_axis=_two_axis(d.get("two_axis"), f"{w}.two_axis"),
     )
     return cal, extra
+
+
+def _two_axis(v: Any, where: str) -> dict[str, float] | None:
+    """A record's two-axis figures: finite numbers by name (their bounds are
+    :func:`emlogd.pipeline.calibration.check`'s)."""
+    if v is None:
+        return None
+    if not isinstance(v, dict) or sorted(v) != sorted(TWO_AXIS_KEYS):
+        raise CalibrationFileError(f"{where}: expected {', '.join(TWO_AXIS_KEYS)}")
+    return {k: _req(v[k], f"{where}.{k}") for k in TWO_AXIS_KEYS}
 
 
 def loads(text: str) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]]]:
