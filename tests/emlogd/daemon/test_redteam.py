@@ -103,13 +103,19 @@ def test_a_hostile_yaml_value_in_a_state_file_is_damage(value: str) -> None:
         ("  m: 0.1\n", "  m: " + "9" * 400 + "\n", "finite number"),
         ("    - - 0.0001\n", "    - - 0.0001\n      - 0.0\n", "square"),
         ("  m: 0.1\n", "  m: 0.1\n      1: 0.0\n", "params"),
+        ("    extra: {}\n", "    extra: {}\n    two_axis: {1: 0.0}\n", "two_axis"),
     ],
-    ids=["an integer past a float", "a ragged covariance", "a number for a parameter name"],
+    ids=[
+        "an integer past a float",
+        "a ragged covariance",
+        "a number for a parameter name",
+        "a number for a two-axis name",
+    ],
 )
 def test_a_state_record_of_the_wrong_shape_is_damage(old: str, new: str, why: str) -> None:
     """An integer no float holds (OverflowError), a covariance row longer than the others
-    (numpy's ValueError in the check), a parameter named by a number (TypeError when
-    sorted): each a ``CalibrationFileError`` naming what is wrong."""
+    (numpy's ValueError in the check), a parameter or a two-axis figure named by a number
+    (TypeError when sorted): each a ``CalibrationFileError`` naming what is wrong."""
     text = dumps({"emlog1": _cal()})
     assert old in text
     with pytest.raises(CalibrationFileError, match=why):
