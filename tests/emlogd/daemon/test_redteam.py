@@ -103,7 +103,7 @@ def test_a_hostile_yaml_value_in_a_state_file_is_damage(value: str) -> None:
         ("  m: 0.1\n", "  m: " + "9" * 400 + "\n", "finite number"),
         ("    - - 0.0001\n", "    - - 0.0001\n      - 0.0\n", "square"),
         ("  m: 0.1\n", "  m: 0.1\n      1: 0.0\n", "params"),
-        ("    extra: {}\n", "    extra: {}\n    two_axis: {1: 0.0}\n", "two_axis"),
+        ("    extra: {}\n", "    extra: {}\n    two_axis: {1: 0.0, m_t: 0.0}\n", "two_axis"),
     ],
     ids=[
         "an integer past a float",
