@@ -380,3 +380,38 @@ def test_a_tcp_connect_loop_costs_a_bounded_number_of_log_lines(tmp_path: Path) 
         assert d.stop() == 0
     finally:
         d.kill()
+
+
+FULL_DISK = """\
+import resource, runpy, sys
+resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))
+sys.argv = ["emlogd", "run", "--config", "emlogd.yaml"]
+runpy.run_module("emlogd", run_name="__main__")
+"""
+"""``emlogd run`` whose files cannot grow past ``limit`` bytes (``EFBIG``, as a full disk
+gives ``ENOSPC``; Python ignores the SIGXFSZ that comes with it)."""
+
+
+def test_a_full_disk_for_the_log_and_the_state_without_root(tmp_path: Path) -> None:
+    """No file of the daemon may pass 400 bytes (RLIMIT_FSIZE: a full disk without root or
+    a tmpfs): the log stops growing and the state file cannot be written. The daemon runs
+    on and answers; a ``reset`` says the state was not written; the status counts
+    ``state_errors`` and ``log_lines_lost``; the state file is byte-identical and SIGTERM
+    exits 0. The log's ``EFBIG`` ended the daemon before log writes were contained."""
+    work = _work(tmp_path)
+    store = StateStore(work / "state" / "state.yaml")
+    store.save({"emlog1": _cal()})
+    saved = store.path.read_bytes()
+    assert len(saved) > 400
+    argv = [sys.executable, "-c", FULL_DISK.format(limit=400)]
+    d = Daemon(work, argv=argv, env={"PYTHONPATH": os.pathsep.join(sys.path)})
+    try:
+        answer = d.ask(cmd="reset", port="emlog1")
+        assert answer.get("ok") is False and "not written" in str(answer.get("error")), answer
+        resp = d.ask(cmd="status")
+        assert resp["state_errors"] == 1
+        wait(lambda: _lost(d.socket) > 0, "log lines lost", 10.0)
+        assert store.path.read_bytes() == saved
+        assert d.stop() == 0
+    finally:
+        d.kill()
