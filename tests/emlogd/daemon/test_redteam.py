@@ -28,6 +28,7 @@ from drivers.errors import ConfigError, DeviceError
 from emlogd.calfile import CalibrationFileError, dumps, loads_state
 from emlogd.client import request
 from emlogd.config import MAX_CONFIG_BYTES, load_config, parse_config
+from emlogd.daemon.control import MAX_PIPELINED
 from emlogd.daemon.logsetup import CLIENT_EVENT_BURST
 from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
@@ -412,6 +413,30 @@ def test_a_full_disk_for_the_log_and_the_state_without_root(tmp_path: Path) -> N
         assert resp["state_errors"] == 1
         wait(lambda: _lost(d.socket) > 0, "log lines lost", 10.0)
         assert store.path.read_bytes() == saved
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+def test_pipelined_status_requests_cannot_hold_the_loop(tmp_path: Path) -> None:
+    """240 ``status`` requests in one write (any local user can, on the status socket):
+    at most ``MAX_PIPELINED`` answers, then an error line and the close, the daemon
+    answering on. All 240 were answered from one read, about a millisecond each, the
+    loop — and the logs' corrected sentences — held meanwhile (265 ms measured)."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(5.0)
+            s.connect(str(d.socket))
+            s.sendall(b'{"cmd":"status"}\n' * 240)
+            data = b""
+            while chunk := s.recv(1 << 16):
+                data += chunk
+        lines = [json.loads(x) for x in data.splitlines()]
+        assert [x["ok"] for x in lines] == [True] * MAX_PIPELINED + [False], lines[-1]
+        assert "requests at once" in lines[-1]["error"]
+        assert d.answers()
         assert d.stop() == 0
     finally:
         d.kill()
