@@ -440,3 +440,40 @@ def test_pipelined_status_requests_cannot_hold_the_loop(tmp_path: Path) -> None:
         assert d.stop() == 0
     finally:
         d.kill()
+
+
+def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: Path) -> None:
+    """The EMlog on ``socket://`` to a port whose listen queue is full (a SYN dropped, as
+    by a host that is off): the daemon answers every status request at once for 3 s, the
+    port ``connecting``. pyserial's connect waited up to 5 s in the daemon's one thread
+    at each retry (5.01 s measured), every output with it."""
+    ls = socket.socket()
+    ls.bind(("127.0.0.1", 0))
+    ls.listen(0)
+    port = int(ls.getsockname()[1])
+    fill = [socket.socket() for _ in range(3)]
+    for s in fill:
+        s.setblocking(False)
+        s.connect_ex(("127.0.0.1", port))
+    work = make_work(
+        tmp_path, CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
+    )
+    try:
+        d = Daemon(work)
+        try:
+            worst = 0.0
+            end = time.monotonic() + 3.0
+            while time.monotonic() < end:
+                t0 = time.monotonic()
+                state = d.status()["ports"]
+                worst = max(worst, time.monotonic() - t0)
+                time.sleep(0.05)
+            assert worst < 1.0, worst
+            assert isinstance(state, dict)
+            assert "connecting" in str(state["emlog1"]["why_closed"]), state["emlog1"]
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for s in [*fill, ls]:
+            s.close()
