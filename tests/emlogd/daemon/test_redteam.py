@@ -34,7 +34,7 @@ from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from emlogd.pipeline.calibration import Calibration
-from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, make_work, tcp_port, wait
+from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, free_port, make_work, tcp_port, wait
 
 CONFIG = f"""\
 ports:
@@ -477,3 +477,28 @@ def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: P
     finally:
         for s in [*fill, ls]:
             s.close()
+
+
+def test_a_reload_whose_pty_cannot_be_published_still_opens_the_other_outputs(
+    tmp_path: Path,
+) -> None:
+    """SIGHUP into a config whose pty path cannot be published (under a file) and that adds
+    a UDP output after it: ``reload_outputs_failed`` for the pty, and the UDP output open
+    all the same. The pty's failure left every output after it closed until the next
+    reload."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        cfg = work / "emlogd.yaml"
+        tcp = f'tcp: "127.0.0.1:{tcp_port(work)}"'
+        udp = f"127.0.0.1:{free_port()}"
+        text = cfg.read_text().replace("pty: out/emlog0", "pty: emlogd.yaml/emlog0")
+        cfg.write_text(text.replace(tcp, f'{tcp}, udp: "{udp}"'))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reload_outputs_failed") == 1, "reload_outputs_failed", 10.0)
+        outputs = d.ask(cmd="status")["outputs"]
+        assert isinstance(outputs, dict)
+        assert sorted(outputs) == [f"tcp:127.0.0.1:{tcp_port(work)}", f"udp:{udp}"], outputs
+        assert d.stop() == 0
+    finally:
+        d.kill()
