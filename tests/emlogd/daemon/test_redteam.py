@@ -35,6 +35,7 @@ from emlogd.fileio import read_text_bounded
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from emlogd.pipeline.calibration import Calibration
 from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, free_port, make_work, tcp_port, wait
+from tests.sockets import unanswered_port
 
 CONFIG = f"""\
 ports:
@@ -447,18 +448,10 @@ def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: P
     by a host that is off): the daemon answers every status request at once for 3 s, the
     port ``connecting``. pyserial's connect waited up to 5 s in the daemon's one thread
     at each retry (5.01 s measured), every output with it."""
-    ls = socket.socket()
-    ls.bind(("127.0.0.1", 0))
-    ls.listen(0)
-    port = int(ls.getsockname()[1])
-    fill = [socket.socket() for _ in range(3)]
-    for s in fill:
-        s.setblocking(False)
-        s.connect_ex(("127.0.0.1", port))
-    work = make_work(
-        tmp_path, CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
-    )
-    try:
+    with unanswered_port() as port:
+        work = make_work(
+            tmp_path, CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
+        )
         d = Daemon(work)
         try:
             worst = 0.0
@@ -474,9 +467,6 @@ def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: P
             assert d.stop() == 0
         finally:
             d.kill()
-    finally:
-        for s in [*fill, ls]:
-            s.close()
 
 
 def test_a_reload_whose_pty_cannot_be_published_still_opens_the_other_outputs(
