@@ -129,6 +129,21 @@ LOGGER_TSV: dict[str, str] = {
 clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions), under the names of both its
 firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
 
+GENERIC: dict[str, str] = {
+    "time": "time|timestamp|datetime|date_time|utc",
+    "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water",
+    "heading": "hdg|heading|heading_true?",
+    "sog": "sog|speed_over_ground?",
+    "cog": "cog|course_over_ground?",
+    "lat": "lat|latitude?",
+    "lon": "lon|lng|long|longitude?",
+    "set": "set|current_set?",
+    "drift": "drift|current_drift?",
+}
+"""A plain table of the usual short names (a processed log, a spreadsheet): one time
+column (told by its first cell), the speed through the water in knots (``speed`` is
+taken for it: a table that names its speed over ground ``sog``), a true heading."""
+
 PRESETS: dict[str, Preset] = {
     "expedition": Preset(
         "expedition", EXPEDITION, "auto", "true", False, "Expedition CSV (Utc, Bsp, Hdg...)"
@@ -140,6 +155,9 @@ PRESETS: dict[str, Preset] = {
         "magnetic",
         True,
         "race logger TSV (Date, Time, Boatspeed, Heading, Ext_SOG...)",
+    ),
+    "generic": Preset(
+        "generic", GENERIC, "auto", "true", False, "a plain table (time, stw|speed, hdg, sog...)"
     ),
 }
 """The presets, tried in this order against the header when none is named."""

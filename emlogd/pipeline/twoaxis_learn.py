@@ -66,6 +66,12 @@ CURRENT_KNOT_S = 300.0
 """The fit's current is linear between knots this far apart, s (as ``calibrate --axes
 2``: a figure-8 covers every heading in 90 s, a circle in 120 s)."""
 
+NO_TWO_AXIS_REFERENCE = (
+    "no reference speed athwart the hull at the readings' time (a DVL's bottom track "
+    "gives both axes; GNSS and a one-axis log do not)"
+)
+"""Why nothing is learnt while no reading has been paired with a two-axis reference."""
+
 _Pending = tuple[float, float, float, float]
 
 
@@ -277,11 +283,14 @@ class TwoAxisLearner:
             else "learning"
         )
         span = self.blocks[-1][0] - self.blocks[0][0] if self.blocks else 0.0
+        refused = self.refused
+        if not self.blocks and self.counts["no_reference"]:
+            refused = NO_TWO_AXIS_REFERENCE
         return {
             "state": state,
             "applied": sup.applied.as_dict() if sup.applied is not None else None,
             "estimate": self.estimate.as_dict() if self.estimate is not None else None,
-            "refused": self.refused or None,
+            "refused": refused or None,
             "note": sup.note or None,
             "leeway_deg": self.leeway_deg,
             "window_s": round(span, 1),

@@ -128,3 +128,25 @@ class TestLoggerFirmware:
         assert rep.sentences["VHW"] == 4 and rep.sentences["VDR"] == 2
         assert rep.sentences["RMC"] == 1  # the fix repeats: one sample
         assert rep.t_start == datetime(2026, 5, 6, 10, 0, tzinfo=UTC).timestamp()
+
+
+class TestGenericTable:
+    def test_a_plain_table_is_read_by_its_short_names(self, tmp_path: Path) -> None:
+        """A processed log with the usual short names (``time`` in ISO with a zone,
+        ``speed`` through the water, ``hdg``, ``sog``, ``cog``, ``lat``, ``lng``) is read
+        without a map; columns it does not name are left alone."""
+        src = tmp_path / "table.csv"
+        rows = [
+            f"2024-07-18 11:14:5{k}+00:00,59.05,22.78,8.{k},334.0,31{k}.0,90.0,7.{k}"
+            for k in range(3)
+        ]
+        src.write_text("time,lat,lng,sog,cog,hdg,awa,speed\n" + "\n".join(rows) + "\n")
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.preset == "generic" and rep.cells == {}
+        assert rep.sentences["VHW"] == 3 and rep.sentences["RMC"] == 3
+        assert rep.t_start == datetime(2024, 7, 18, 11, 14, 50, tzinfo=UTC).timestamp()
+        vhw = [x for _, x in _decoded(tmp_path / "o.cap") if isinstance(x, Vhw)]
+        assert [v.stw_knots for v in vhw] == [7.0, 7.1, 7.2]
+        assert [v.heading_true_deg for v in vhw] == [310.0, 311.0, 312.0]
+        rmc = [x for _, x in _decoded(tmp_path / "o.cap") if isinstance(x, Rmc)]
+        assert rmc[0].lon_deg == pytest.approx(22.78)

@@ -12,7 +12,11 @@ import pytest
 from calib.models import Params
 from calib.twoaxis import TwoAxisParams
 from emlogd.pipeline.settings import UutSettings
-from emlogd.pipeline.twoaxis_learn import TwoAxisLearner, encode_two_axis_status
+from emlogd.pipeline.twoaxis_learn import (
+    NO_TWO_AXIS_REFERENCE,
+    TwoAxisLearner,
+    encode_two_axis_status,
+)
 from tests.synth import TWO_AXIS_TRUTH, two_axis_trial
 
 SETTINGS = UutSettings(
@@ -103,3 +107,17 @@ def test_aligned_sensor_gives_zero_within_its_sigma() -> None:
     est = lr.estimate
     assert est is not None
     assert abs(est.misalign_deg) <= 2.0 * est.misalign_std_deg
+
+
+def test_a_reference_without_an_athwart_speed_is_said() -> None:
+    """A reference that gives no athwart speed (GNSS, a one-axis log): nothing learnt,
+    the status says why."""
+    lr = TwoAxisLearner(SETTINGS, lambda t, k, det: None)
+    for k in range(50):
+        t = 0.1 * k
+        lr.reference(t, 2.0, None, True)
+        lr.reading(t, 2.0, 2.0, 0.1)
+        lr.drain(t, 0.0, lambda _: 90.0, True)
+    st = lr.status()
+    assert st["refused"] == NO_TWO_AXIS_REFERENCE and st["window_s"] == 0.0
+    assert lr.counts["no_reference"] > 40
