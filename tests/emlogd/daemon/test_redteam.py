@@ -492,3 +492,29 @@ def test_a_reload_whose_pty_cannot_be_published_still_opens_the_other_outputs(
         assert d.stop() == 0
     finally:
         d.kill()
+
+
+def test_a_reload_to_an_unusable_control_socket_keeps_the_running_one(tmp_path: Path) -> None:
+    """SIGHUP into a config whose control socket cannot be created (under a file): the
+    running socket answers on (``reload_control_failed``; it was closed first, leaving
+    the operators no socket at all); a reload to a usable path then moves it there."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        cfg = work / "emlogd.yaml"
+        good = cfg.read_text()
+        cfg.write_text(
+            good.replace("control_socket: run/control.sock", "control_socket: emlogd.yaml/c")
+        )
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reload_control_failed") == 1, "reload_control_failed", 10.0)
+        assert d.answers()
+        cfg.write_text(good.replace("control_socket: run/control.sock", "control_socket: run/c2"))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reloaded") == 2, "the second reload", 10.0)
+        assert not d.socket.exists()
+        assert _answers(work / "run" / "c2")
+        d.socket = work / "run" / "c2"
+        assert d.stop() == 0
+    finally:
+        d.kill()
