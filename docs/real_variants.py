@@ -1,7 +1,7 @@
 """The perturbation suite: each real recording rewritten as a held-out log of its kind
 plausibly differs, and run through the same commands as docs/real_data.py.
 
-Usage: ``python docs/real_variants.py DIR [--only NAME ...] [--variant V ...] [--json]``.
+Usage: ``python docs/real_variants.py DIR [--only NAME ...] [--variant V ...] [--out DIR] [--json]``.
 
 A variant is a pure function of the source file's text (:data:`VARIANTS`): the GNSS
 thinned to 0.5 and 0.2 Hz, fix times of 1-s and 10-s resolution; a magnetic heading
