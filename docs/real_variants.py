@@ -297,6 +297,13 @@ def _rmc_course_empty_slow(f: list[str]) -> list[str]:
     return f
 
 
+def _prefixed(text: str) -> str:
+    """A receive time (ms since the log's start) and a tag before each sentence, as
+    some loggers write them."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    return nl.join(f"{100 * i};N;{ln}" for i, ln in enumerate(text.splitlines())) + nl
+
+
 def _no_checksums(text: str) -> str:
     return re.sub(r"\*[0-9A-Fa-f]{2}(?=\r?$)", "", text, flags=re.MULTILINE)
 
@@ -699,6 +706,7 @@ VARIANTS: tuple[Variant, ...] = (
         "other talkers, VLW, nonsense MWV, proprietary lines",
     ),
     Variant("no-checksum", "nmea", _no_checksums, "sentences without checksums"),
+    Variant("prefixed", "nmea", _prefixed, "a receive time and a tag before each sentence"),
     Variant("crlf", "nmea", _line_endings("\r\n"), "CRLF line endings"),
     Variant("lf", "nmea", _line_endings("\n"), "LF line endings"),
     Variant("truncated", "nmea", _truncated, "a truncated last line and a line cut by a reset"),

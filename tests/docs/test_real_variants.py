@@ -97,6 +97,7 @@ _EXCERPTS: dict[str, ImportReport] = {}
 
 SAME_SENTENCES = [
     ("nmea", "no-checksum"),
+    ("nmea", "prefixed"),
     ("nmea", "crlf"),
     ("nmea", "lf"),
     ("nmea", "other-sentences"),
