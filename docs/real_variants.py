@@ -782,7 +782,6 @@ def import_options(kind: str, extra: list[str]) -> list[list[str]]:
 def run_one(src: Path, text: str, variant: Variant | None, out: Path) -> dict[str, Any]:
     """Import, calibrate (LS, KF) and replay one variant (None: the unperturbed file)."""
     rd = _real_data()
-    what = rd.kind(src)
     tag = f"{src.stem}.{variant.name if variant else 'base'}"
     path = out / f"{tag}{src.suffix}"
     data = variant.make(text) if variant else text
@@ -790,6 +789,10 @@ def run_one(src: Path, text: str, variant: Variant | None, out: Path) -> dict[st
         data.encode("utf-8") if "\ufeff" in data[:1] else data.encode("latin-1", errors="replace")
     )
     row: dict[str, Any] = {"name": src.stem, "variant": variant.name if variant else "base"}
+    what = rd.kind(path)  # the variant's own kind, as docs/real_data.py would tell it
+    if what is None:
+        row["errors"] = {"kind": "docs/real_data.py does not recognise the file as a log"}
+        return row
     cap = out / f"{tag}.cap.gz"
     extra = variant.options(text) if variant else []
     doc: dict[str, Any] | None = None

@@ -95,6 +95,18 @@ _EXCERPTS: dict[str, ImportReport] = {}
 """Each kind's unperturbed excerpt imported once."""
 
 
+@pytest.mark.parametrize(("kind", "name"), sorted(VARIANTS))
+def test_every_variant_is_told_by_its_content(kind: str, name: str, tmp_path: Path) -> None:
+    """docs/real_data.py tells each variant's kind as its recording's (a BOM, another
+    delimiter, a prefix before each sentence, a long banner, Expedition's sparse log)."""
+    text = _text(kind)
+    v = VARIANTS[(kind, name)]
+    src = tmp_path / f"variant{Path(SOURCES[kind]).suffix}"
+    out = v.make(text)
+    src.write_bytes(out.encode("utf-8") if out[:1] == "\ufeff" else out.encode("latin-1"))
+    assert rv._real_data().kind(src) == kind
+
+
 SAME_SENTENCES = [
     ("nmea", "no-checksum"),
     ("nmea", "prefixed"),
