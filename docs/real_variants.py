@@ -859,9 +859,9 @@ def _f(x: object, spec: str) -> str:
 def markdown(rows: list[dict[str, Any]]) -> str:
     """One line per variant: scales (LS / KF), replay RMSE and worst window, verdict."""
     out = [
-        "| recording | variant | import: lines → sentences | scale LS / KF | "
+        "| recording | variant | import: lines → sentences | scale LS / KF | replay at the end | "
         "emitted / raw RMSE (m/s) | worst 5-min | verdict |",
-        "|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     bases = {r["name"]: r for r in rows if r["variant"] == "base"}
     for r in rows:
@@ -873,9 +873,11 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         s = r.get("scores") or {}
         rmse = f"{_f(s.get('rmse_emitted'), '.3f')} / {_f(s.get('rmse_raw'), '.3f')}"
         v = "(reference)" if r is base else verdict(r, base)
+        rep = r.get("replay")
+        end = "—" if rep is None else "applied" if rep.get("params") else "raw"
         out.append(
             f"| {r['name']} | {r['variant']} | {imported} | {_f(ls, '.3f')} / {_f(kf, '.3f')} | "
-            f"{rmse} | {_f(s.get('worst_5min_ratio'), '.3f')} | {v} |"
+            f"{end} | {rmse} | {_f(s.get('worst_5min_ratio'), '.3f')} | {v} |"
         )
     return "\n".join(out)
 
