@@ -227,7 +227,7 @@ def _two_axis(v: Any, where: str) -> dict[str, float] | None:
     :func:`emlogd.pipeline.calibration.check`'s)."""
     if v is None:
         return None
-    if not isinstance(v, dict) or sorted(v) != sorted(TWO_AXIS_KEYS):
+    if not isinstance(v, dict) or set(v) != set(TWO_AXIS_KEYS):
         raise CalibrationFileError(f"{where}: expected {', '.join(TWO_AXIS_KEYS)}")
     return {k: _req(v[k], f"{where}.{k}") for k in TWO_AXIS_KEYS}
 

@@ -37,7 +37,7 @@ from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
-from emlogd.daemon.logsetup import EventLimiter, is_console, status_line
+from emlogd.daemon.logsetup import EventLimiter, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import Outputs
 from emlogd.daemon.statefile import StateStore, same_records
@@ -574,6 +574,7 @@ class Daemon:
                 "state_file": str(self.store.path) if self.store else None,
                 "state_errors": self.state_errors,
                 "persists": self.persists,
+                "log_lines_lost": lost_lines(),
             }
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)

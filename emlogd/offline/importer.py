@@ -33,9 +33,10 @@ the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds 
 mapped columns, so a banner before it is passed over (and counted). Column names
 match in any case; with a delimiter other than the comma, a comma in a number is a
 decimal comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
-8601, epoch seconds, or a
-``strptime`` pattern; with a ``date`` column, date and time are joined with a space
-before parsing. Times without a zone are UTC unless ``--utc-offset`` says the logger
+8601, epoch seconds, Windows FILETIME ticks, a day-first date and time
+(:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each of these told by the first
+time cell), or a ``strptime`` pattern; with a ``date`` column, date and time are
+joined with a space before parsing. Times without a zone are UTC unless ``--utc-offset`` says the logger
 kept local time. Positions are decimal degrees or ``ddmm.mmmmN``/``dddmm.mmmmE``.
 Expedition's own sparse log (a ``!Boat`` line of names, a ``!boat`` line of channel
 numbers, rows of ``channel,value`` pairs) is told by its header and read as the rows

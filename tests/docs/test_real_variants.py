@@ -110,6 +110,7 @@ SAME_SENTENCES = [
     ("expedition-csv", "sparse-log"),
     ("logger-tsv", "no-banner"),
     ("logger-tsv", "utc-offset"),
+    ("logger-tsv", "logger-firmware"),
 ]
 """Variants that change only the format: the import writes the same sentences."""
 
@@ -121,7 +122,8 @@ def test_a_change_of_format_imports_the_same_sentences(
     """Line endings, checksums, talkers and extra sentences, column names, order,
     delimiters, quotes, a BOM, Expedition's sparse log, a banner: the same samples."""
     base, rep, _ = _variant(kind, name, tmp_path)
-    keep = ("RMC", "VHW", "VDR", "HDG")
+    # the other logger firmware writes '-' for its current at first: fewer VDR
+    keep = ("RMC", "VHW", "HDG") if name == "logger-firmware" else ("RMC", "VHW", "VDR", "HDG")
     assert {k: rep.sentences[k] for k in keep} == {k: base.sentences[k] for k in keep}
     assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start)
     if name == "utc-offset":

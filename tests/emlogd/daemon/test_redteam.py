@@ -7,24 +7,34 @@ input never loses the frozen calibration."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import fcntl
 import functools
 import json
 import os
 import signal
+import socket
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from calib.estimate import Estimate
 from calib.models import Params
-from drivers.errors import ConfigError
+from drivers.errors import ConfigError, DeviceError
 from emlogd.calfile import CalibrationFileError, dumps, loads_state
+from emlogd.client import request
 from emlogd.config import MAX_CONFIG_BYTES, load_config, parse_config
+from emlogd.daemon.control import MAX_PIPELINED
+from emlogd.daemon.logsetup import CLIENT_EVENT_BURST
 from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
+from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from emlogd.pipeline.calibration import Calibration
-from tests.emlogd.daemon.harness import OUTPUTS, Daemon, make_work, wait
+from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, make_work, tcp_port, wait
 
 CONFIG = f"""\
 ports:
@@ -34,6 +44,9 @@ calibration:
   - {{uut: emlog1, reference: dvl, lag: 0.165}}
 {OUTPUTS}"""
 """One EMlog and a DVL; no sensor needs to be there (the daemon starts without them)."""
+
+F_SETPIPE_SZ = 1031
+"""fcntl command setting a pipe's capacity (Linux; not in Python 3.11's fcntl)."""
 
 HOSTILE_YAML = {
     "a date that does not exist": "2001-02-30",
@@ -91,13 +104,19 @@ def test_a_hostile_yaml_value_in_a_state_file_is_damage(value: str) -> None:
         ("  m: 0.1\n", "  m: " + "9" * 400 + "\n", "finite number"),
         ("    - - 0.0001\n", "    - - 0.0001\n      - 0.0\n", "square"),
         ("  m: 0.1\n", "  m: 0.1\n      1: 0.0\n", "params"),
+        ("    extra: {}\n", "    extra: {}\n    two_axis: {1: 0.0, m_t: 0.0}\n", "two_axis"),
     ],
-    ids=["an integer past a float", "a ragged covariance", "a number for a parameter name"],
+    ids=[
+        "an integer past a float",
+        "a ragged covariance",
+        "a number for a parameter name",
+        "a number for a two-axis name",
+    ],
 )
 def test_a_state_record_of_the_wrong_shape_is_damage(old: str, new: str, why: str) -> None:
     """An integer no float holds (OverflowError), a covariance row longer than the others
-    (numpy's ValueError in the check), a parameter named by a number (TypeError when
-    sorted): each a ``CalibrationFileError`` naming what is wrong."""
+    (numpy's ValueError in the check), a parameter or a two-axis figure named by a number
+    (TypeError when sorted): each a ``CalibrationFileError`` naming what is wrong."""
     text = dumps({"emlog1": _cal()})
     assert old in text
     with pytest.raises(CalibrationFileError, match=why):
@@ -242,3 +261,219 @@ def test_the_state_bound_holds_a_full_state_file() -> None:
     all four models."""
     cals = {f"u{k}": dataclasses.replace(_cal(), uut=f"u{k}") for k in range(8)}
     assert len(dumps(cals).encode()) * 4 < MAX_STATE_BYTES
+
+
+def test_the_log_reader_gone_costs_log_lines_not_the_daemon(tmp_path: Path) -> None:
+    """The daemon's stdout and stderr a pipe whose reader closes (journald stopped,
+    ``emlogd run | tee`` killed): it runs on, answers, counts the lines it could not write
+    (``log_lines_lost``) and stops with 0 on SIGTERM. A ``BrokenPipeError`` out of the
+    next log line ended it with exit code 0, which systemd does not restart."""
+    work = _work(tmp_path)
+    r, w = os.pipe()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
+        stdout=w,
+        stderr=w,
+        cwd=work,
+    )
+    os.close(w)
+    sock = work / "run" / "control.sock"
+    try:
+        wait(functools.partial(_answers, sock), "the control socket")
+        os.close(r)
+        r = -1
+        wait(lambda: _lost(sock) >= 3, "three status lines lost", 10.0)  # one a second
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(STOP_TIMEOUT_S) == 0
+    finally:
+        if r >= 0:
+            os.close(r)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def _answers(sock: Path) -> bool:
+    try:
+        return request(sock, {"cmd": "status"}, timeout_s=1.0).get("ok") is True
+    except DeviceError:
+        return False
+
+
+def _lost(sock: Path) -> int:
+    n = request(sock, {"cmd": "status"}, timeout_s=1.0).get("log_lines_lost")
+    assert isinstance(n, int)
+    return n
+
+
+def _drain(fd: int) -> bytes:
+    """What the non-blocking ``fd`` holds now."""
+    data = b""
+    with contextlib.suppress(BlockingIOError):
+        while chunk := os.read(fd, 65536):
+            data += chunk
+    return data
+
+
+def _sentences(sock: Path) -> dict[str, tuple[int, int]]:
+    """(sentences, errors) of each output."""
+    outputs = request(sock, {"cmd": "status"}, timeout_s=1.0)["outputs"]
+    assert isinstance(outputs, dict)
+    return {k: (v["sentences"], v["errors"]) for k, v in outputs.items()}
+
+
+def test_a_stdout_reader_that_stops_reading_costs_its_sentences_only(
+    tmp_path: Path, trial_files: dict[str, Path]
+) -> None:
+    """``outputs.stdout`` into a pipe (one page) that nobody reads: once it is full the
+    stdout sentences are dropped and counted as errors, and the pty output and the
+    control socket go on. The blocking write hung the whole daemon within seconds."""
+    work = make_work(tmp_path, CONFIG.replace("outputs: {", "outputs: {stdout: true, "))
+    r, w = os.pipe()
+    fcntl.fcntl(w, F_SETPIPE_SZ, 4096)  # one page: full from its first sentence on
+    sock = work / "run" / "control.sock"
+    with (
+        fake_sensors(trial_files["figure-8"], work / "links", ("emlog1", "dvl"), speed=SPEED),
+        open(work / "daemon.log", "wb") as log,
+    ):
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
+            stdout=w,
+            stderr=log,
+            cwd=work,
+        )
+        os.close(w)
+        try:
+            wait(functools.partial(_answers, sock), "the control socket")
+            reader = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+            try:
+                wait(lambda: _sentences(sock)["stdout"][1] > 0, "stdout full", 30.0)
+                _drain(reader)
+                time.sleep(2.0)
+                assert _drain(reader).count(b"\r\n") >= 10  # the pty goes on
+            finally:
+                os.close(reader)
+            assert _answers(sock)
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(STOP_TIMEOUT_S) == 0
+        finally:
+            os.close(r)
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+
+
+def test_a_tcp_connect_loop_costs_a_bounded_number_of_log_lines(tmp_path: Path) -> None:
+    """200 TCP clients connecting and closing in a loop: at most ``CLIENT_EVENT_BURST``
+    lines of each client event per interval (each of the 400 was a line: a journal that
+    rate-limits the service then drops the daemon's other lines too); the daemon answers."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        for _ in range(200):
+            socket.create_connection(("127.0.0.1", tcp_port(work))).close()
+            time.sleep(0.002)  # within the listen backlog: no SYN dropped and retried
+        wait(lambda: d.events("client_disconnected") >= CLIENT_EVENT_BURST, "disconnects", 10.0)
+        assert d.answers()
+        assert d.events("client_connected") == CLIENT_EVENT_BURST
+        assert d.events("client_disconnected") == CLIENT_EVENT_BURST
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+FULL_DISK = """\
+import resource, runpy, sys
+resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))
+sys.argv = ["emlogd", "run", "--config", "emlogd.yaml"]
+runpy.run_module("emlogd", run_name="__main__")
+"""
+"""``emlogd run`` whose files cannot grow past ``limit`` bytes (``EFBIG``, as a full disk
+gives ``ENOSPC``; Python ignores the SIGXFSZ that comes with it)."""
+
+
+def test_a_full_disk_for_the_log_and_the_state_without_root(tmp_path: Path) -> None:
+    """No file of the daemon may pass 400 bytes (RLIMIT_FSIZE: a full disk without root or
+    a tmpfs): the log stops growing and the state file cannot be written. The daemon runs
+    on and answers; a ``reset`` says the state was not written; the status counts
+    ``state_errors`` and ``log_lines_lost``; the state file is byte-identical and SIGTERM
+    exits 0. The log's ``EFBIG`` ended the daemon before log writes were contained."""
+    work = _work(tmp_path)
+    store = StateStore(work / "state" / "state.yaml")
+    store.save({"emlog1": _cal()})
+    saved = store.path.read_bytes()
+    assert len(saved) > 400
+    argv = [sys.executable, "-c", FULL_DISK.format(limit=400)]
+    d = Daemon(work, argv=argv, env={"PYTHONPATH": os.pathsep.join(sys.path)})
+    try:
+        answer = d.ask(cmd="reset", port="emlog1")
+        assert answer.get("ok") is False and "not written" in str(answer.get("error")), answer
+        resp = d.ask(cmd="status")
+        assert resp["state_errors"] == 1
+        wait(lambda: _lost(d.socket) > 0, "log lines lost", 10.0)
+        assert store.path.read_bytes() == saved
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+def test_pipelined_status_requests_cannot_hold_the_loop(tmp_path: Path) -> None:
+    """240 ``status`` requests in one write (any local user can, on the status socket):
+    at most ``MAX_PIPELINED`` answers, then an error line and the close, the daemon
+    answering on. All 240 were answered from one read, about a millisecond each, the
+    loop — and the logs' corrected sentences — held meanwhile (265 ms measured)."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(5.0)
+            s.connect(str(d.socket))
+            s.sendall(b'{"cmd":"status"}\n' * 240)
+            data = b""
+            while chunk := s.recv(1 << 16):
+                data += chunk
+        lines = [json.loads(x) for x in data.splitlines()]
+        assert [x["ok"] for x in lines] == [True] * MAX_PIPELINED + [False], lines[-1]
+        assert "requests at once" in lines[-1]["error"]
+        assert d.answers()
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: Path) -> None:
+    """The EMlog on ``socket://`` to a port whose listen queue is full (a SYN dropped, as
+    by a host that is off): the daemon answers every status request at once for 3 s, the
+    port ``connecting``. pyserial's connect waited up to 5 s in the daemon's one thread
+    at each retry (5.01 s measured), every output with it."""
+    ls = socket.socket()
+    ls.bind(("127.0.0.1", 0))
+    ls.listen(0)
+    port = int(ls.getsockname()[1])
+    fill = [socket.socket() for _ in range(3)]
+    for s in fill:
+        s.setblocking(False)
+        s.connect_ex(("127.0.0.1", port))
+    work = make_work(
+        tmp_path, CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
+    )
+    try:
+        d = Daemon(work)
+        try:
+            worst = 0.0
+            end = time.monotonic() + 3.0
+            while time.monotonic() < end:
+                t0 = time.monotonic()
+                state = d.status()["ports"]
+                worst = max(worst, time.monotonic() - t0)
+                time.sleep(0.05)
+            assert worst < 1.0, worst
+            assert isinstance(state, dict)
+            assert "connecting" in str(state["emlog1"]["why_closed"]), state["emlog1"]
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for s in [*fill, ls]:
+            s.close()
