@@ -87,12 +87,19 @@ MIN_SECTORS = 3
 
 KINDS = ("nmea", "expedition-csv", "logger-tsv", "csv")
 
+KIND_SCAN_LINES = 200
+"""A table's header is looked for among this many first lines (a logger may write its
+settings first)."""
+
+KIND_SCAN_BYTES = 65536
+"""The bytes read to tell a file's kind."""
+
 
 def kind(path: Path) -> str | None:
     """What a file is, from its first lines: one of :data:`KINDS`, or None (not a log)."""
     try:
         with open(path, "rb") as f:
-            head = f.read(8192).decode("latin-1", errors="replace")
+            head = f.read(KIND_SCAN_BYTES).decode("latin-1", errors="replace")
     except OSError:
         return None
     lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
@@ -100,12 +107,14 @@ def kind(path: Path) -> str | None:
         return None
     if sum(ln[:1] in "$!" for ln in lines[:50]) >= min(len(lines[:50]), 5) // 2 + 1:
         return "nmea"
-    for ln in lines[:20]:
+    for ln in lines[:KIND_SCAN_LINES]:
         if "\t" in ln and ln.count("\t") >= 3:
             return "logger-tsv"
         cells = [c.strip().strip('"').lower() for c in ln.split(",")]
         if "utc" in cells and "bsp" in cells:
             return "expedition-csv"
+        if cells[:1] == ["!boat"]:
+            return "expedition-csv"  # Expedition's own sparse log
         if len(cells) >= 4 and "time" in cells:
             return "csv"
     return None

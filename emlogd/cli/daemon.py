@@ -96,16 +96,7 @@ def _status_text(resp: dict[str, Any]) -> str:
                 )
             line += "; IMO A.824 (within 2 % or 0.2 kn) " + ", ".join(cells)
         lines.append(line)
-        held = u.get("unidentifiable") or []
-        if held:
-            why = u.get("identifiability") or "not determinable from the data so far"
-            lines.append(f"  holding {', '.join(str(h) for h in held)}: {why}")
-        inputs = u.get("inputs")
-        if isinstance(inputs, dict) and inputs:
-            lines.append(f"  inputs: {_inputs_line(inputs)}")
-        heading = u.get("heading")
-        if isinstance(heading, dict):
-            lines.append(f"  {_heading_line(heading)}")
+        lines += _detail_lines(u)
     for name, p in (status.get("ports") or {}).items():
         rejects = p.get("rejects") or {}
         total = sum(rejects.values())
@@ -124,6 +115,47 @@ def _status_text(resp: dict[str, Any]) -> str:
             + (f", {errors} errors" if errors else "")
         )
     return "".join(line + "\n" for line in lines)
+
+
+def _detail_lines(u: dict[str, Any]) -> list[str]:
+    """The indented lines under a UUT: what it holds and why, its inputs, its heading,
+    its two-axis figures."""
+    lines = []
+    held = u.get("unidentifiable") or []
+    if held:
+        why = u.get("identifiability") or "not determinable from the data so far"
+        lines.append(f"  holding {', '.join(str(h) for h in held)}: {why}")
+    inputs = u.get("inputs")
+    if isinstance(inputs, dict) and inputs:
+        lines.append(f"  inputs: {_inputs_line(inputs)}")
+    heading = u.get("heading")
+    if isinstance(heading, dict):
+        lines.append(f"  {_heading_line(heading)}")
+    two = u.get("two_axis")
+    if isinstance(two, dict):
+        lines.append(f"  {_two_axis_line(two)}")
+    return lines
+
+
+def _two_axis_line(two: dict[str, Any]) -> str:
+    """A two-axis log's learnt figures (``axes: 2``): applied, validating or learning, α
+    ± σ with m_t and b_t, the leeway angle, and why the latest window refused α."""
+    fig = two.get("applied") or two.get("estimate")
+    text = f"two axes: {two.get('state')}"
+    if isinstance(fig, dict):
+        text += (
+            f", misalignment {fig['misalign_deg']:+.2f} ± {fig['misalign_std_deg']:.2f}°, "
+            f"m_t {fig['m_t']:+.4f} ± {fig['m_t_std']:.4f}, "
+            f"b_t {fig['b_t_mps']:+.3f} ± {fig['b_t_std_mps']:.3f} m/s"
+        )
+    lee = two.get("leeway_deg")
+    if isinstance(lee, float):
+        text += f", leeway {lee:+.1f}°"
+    if two.get("refused"):
+        text += f"; latest window: misalignment refused: {two['refused']}"
+    if two.get("note"):
+        text += f"; {two['note']}"
+    return text
 
 
 def _inputs_line(inputs: dict[str, Any]) -> str:

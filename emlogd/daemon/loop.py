@@ -37,7 +37,7 @@ from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
-from emlogd.daemon.logsetup import EventLimiter, is_console, status_line
+from emlogd.daemon.logsetup import EventLimiter, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import Outputs
 from emlogd.daemon.statefile import StateStore, same_records
@@ -574,6 +574,7 @@ class Daemon:
                 "state_file": str(self.store.path) if self.store else None,
                 "state_errors": self.state_errors,
                 "persists": self.persists,
+                "log_lines_lost": lost_lines(),
             }
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)
@@ -615,8 +616,8 @@ class Daemon:
         """
         try:
             new = load_config(self.config_path)
-        except (ConfigError, OSError) as exc:
-            self.log.error("reload_failed", error=str(exc), kept="previous config")
+        except Exception as exc:  # contained: no config file stops the daemon
+            self.log.error("reload_failed", error=_why(exc), kept="previous config")
             return
         old_pipeline, old = self.pipeline, self.config
         assert old_pipeline is not None
@@ -624,8 +625,8 @@ class Daemon:
         snapshots = {s.uut: s for s in old_pipeline.calibrations()}
         try:
             pipeline = build_pipeline(new, snapshots, old_pipeline.other_calibrations())
-        except (ConfigError, ValueError) as exc:
-            self.log.error("reload_failed", error=str(exc), kept="previous config")
+        except Exception as exc:  # contained, as above
+            self.log.error("reload_failed", error=_why(exc), kept="previous config")
             return
         kept_uuts = pipeline.adopt(old_pipeline)
         self.config, self.pipeline = new, pipeline
@@ -660,6 +661,11 @@ class Daemon:
             outputs_opened=opened,
         )
         self._notify_status()
+
+
+def _why(exc: Exception) -> str:
+    """A config error's message; any other failure with its type (no check foresaw it)."""
+    return str(exc) if isinstance(exc, (ConfigError, OSError)) else f"{type(exc).__name__}: {exc}"
 
 
 def _source_status(src: SerialSource) -> dict[str, object]:

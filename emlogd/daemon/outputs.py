@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from emlogd.config import Config
+from emlogd.daemon.logsetup import CLIENT_EVENT_BURST, CLIENT_EVENTS, EventLimiter
 from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
 from emlogd.pipeline.core import Emit
 
@@ -40,6 +41,17 @@ class Outputs:
         """The logs with outputs of their own, and those outputs."""
         self.shared: list[Sink] = []
         """The outputs of every other sentence."""
+        self.client_events = EventLimiter(kinds=CLIENT_EVENTS, burst=CLIENT_EVENT_BURST)
+        """The TCP outputs' lines about their clients, limited per output and event."""
+
+    def _client_event(self, address: str, kind: str, peer: str) -> None:
+        """A TCP output's event about one client: logged within :data:`CLIENT_EVENT_BURST`
+        lines per output and event per interval (the next line says how many were left out;
+        the output's counters count every client)."""
+        suppressed = self.client_events.allow(address, kind, self.monotonic())
+        if suppressed is not None:
+            extra = {"suppressed": suppressed} if suppressed else {}
+            self.log.info(kind, sink="tcp", peer=peer, **extra)
 
     def specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
         """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
@@ -54,7 +66,7 @@ class Outputs:
             specs[("tcp", tcp, limits)] = lambda: TcpServerSink(
                 tcp,
                 selector=self.sel,
-                on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                on_event=functools.partial(self._client_event, tcp),
                 monotonic=self.monotonic,
                 limits=limits,
             )
@@ -78,7 +90,7 @@ class Outputs:
                     TcpServerSink,
                     u.tcp,
                     selector=self.sel,
-                    on_event=lambda kind, detail: self.log.info(kind, sink="tcp", peer=detail),
+                    on_event=functools.partial(self._client_event, tcp),
                     monotonic=self.monotonic,
                     limits=limits,
                 )
