@@ -211,6 +211,8 @@ KNOWN: dict[tuple[str, str], str] = {
     ("expedition-csv", "sog-0.2hz"): "a 5-min window of the replay 1.20 times raw's RMSE",
     ("expedition-csv", "tide"): "a 5-min window of the replay 1.23 times raw's RMSE",
     ("logger-tsv", "rows-0.2hz"): "a 5-min window of the replay 1.50 times raw's RMSE",
+    ("nmea", "tide"): "the KF's scale at the median speed moves 0.09 (1.048 against 0.960), "
+    "and the replay ends in a fault",
 }
 """What does not hold yet, by (kind, variant): strict xfails."""
 
