@@ -14,8 +14,8 @@ factors (:func:`calib.metrics.correlation_factor`), as :mod:`calib.lsq` does.
 **Kalman filter** (:func:`kf_two_axis`): the same unknowns as states (the current a
 random walk, the sensor's parameters nearly constant), the two readings a vector
 measurement with the reference's ground velocity taken as known (a DVL's millimetre
-noise), extended about the state; the unknowns the window refuses are held at their
-prior as in least squares.
+noise), linearised about the least-squares fit and then about its own previous pass;
+the unknowns the window refuses are held at their prior as in least squares.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -144,6 +144,9 @@ class TwoAxisFit:
     method: str = "LS"
     current_series: FloatArray | None = field(default=None, compare=False)
     """The current at each sample, shape (N, 2) (None: not determined)."""
+    trace: FloatArray | None = field(default=None, compare=False)
+    """The filter's α (rad), transverse scale and bias at each sample, then their σ,
+    shape (N, 6) (nan: held; None: least squares)."""
 
     @property
     def misalign_deg(self) -> float:
@@ -471,6 +474,12 @@ class ModelState:
     def current(x: FloatArray) -> tuple[float, float]:
         """The current (north, east) of a state, m/s."""
         return float(x[_CN]), float(x[_CE])
+
+    @staticmethod
+    def with_current(x: FloatArray, cn: float, ce: float) -> FloatArray:
+        """``x`` with its current (north, east) set, m/s (in place; returned)."""
+        x[_CN], x[_CE] = cn, ce
+        return x
 
     @staticmethod
     def current_std(std: FloatArray) -> tuple[float, float]:

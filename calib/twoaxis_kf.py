@@ -7,8 +7,17 @@ prior (a held transverse scale following the longitudinal one,
 (:data:`KF_PARAM_Q_PER_S`), the current a random walk (:data:`KF_CURRENT_PSD_M2PS3`).
 Each sample's two readings are one vector measurement; the reference's ground
 velocity and the heading are taken as known (a DVL's millimetre noise is far below
-the log's), and the measurement rows are the model's Jacobian at the state before
-the update (extended filter). σ come from the final covariance.
+the log's). The measurement is linearised about a **nominal** (the least-squares
+fit of the same series, then the filter's own previous pass): its parameters and
+its current at each sample, not the state being updated. Linearised about the
+state itself (an extended filter), the first minutes — before the turns have told
+the misalignment from the current — take the Jacobians at a wrong α and current,
+the covariance shrinks along the wrong directions and the nearly constant
+parameters keep the error: on the figure-8 of ``emlogd simulate --scale 0.5``
+(seeds 1–6, an aligned sensor) the extended filter's α was 0.8–2.3° off on four
+seeds of six (4 to 17 of its σ), the linearised one within 0.1° of least squares
+on every seed. σ come from the final
+covariance.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -47,11 +56,12 @@ KF_P0 = {"a": 0.05**2, "m": 0.3**2, "b": 0.5**2, ALPHA: math.radians(10.0) ** 2}
 pull the estimate."""
 KF_P0_OTHER = 0.5**2
 KF_PASSES = 2
-"""Passes over the series: the second starts from the first's final state with the
-initial covariance again, so its Jacobians are taken near the answer from its first
-sample. A single pass from the ideal sensor linearises its first minutes about a
-wrong misalignment and current, and the nearly constant parameters keep that (a 3°
-misalignment on a figure-8: 2.3°, six of its σ off)."""
+"""Passes over the series: the first linearised about the least-squares fit, each
+next one about the previous pass's parameters and filtered current, starting again
+from the initial covariance (:func:`_run`)."""
+TRACE_NAMES = (ALPHA, M_T, B_T)
+"""The unknowns whose filtered value and σ at each sample the fit's ``trace`` holds,
+in its columns (α in rad), then their σ."""
 MIN_NOISE_MPS = 1e-3
 """The least measurement noise the filter takes for an axis, m/s."""
 
@@ -82,7 +92,8 @@ def kf_two_axis(
         raw_t_mps: transverse readings, m/s.
         heading_deg: headings, degrees.
         current: estimate the current.
-        prior: the initial state and the value of held unknowns.
+        prior: the value of the unknowns the window does not determine (the
+            least-squares fit, the first nominal, holds them there too).
         rule: the identifiability thresholds.
         noise_mps: each axis's measurement noise (1σ), m/s (None: the residuals of
             the least-squares fit on the same series).
@@ -119,9 +130,11 @@ def kf_two_axis(
         raise DataError("times must not decrease")
     sig = noise_mps if noise_mps is not None else (ls.rmse_l_mps, ls.rmse_t_mps)
     r = np.diag([max(sig[0], MIN_NOISE_MPS) ** 2, max(sig[1], MIN_NOISE_MPS) ** 2])
-    x = st.x0(prior)
+    x = st.x0(ls.params)
+    cur = np.zeros((n, 2)) if ls.current_series is None else ls.current_series
+    trace = np.full((n, 2 * len(TRACE_NAMES)), math.nan)
     for _ in range(KF_PASSES):
-        x, p, res, cur = _run(st, t, x, r)
+        x, p, res, cur = _run(st, t, x, cur, r, trace)
     std = np.full(x.size, math.nan)
     std[st.free] = np.sqrt(np.maximum(np.diag(p), 0.0))
     params = st.params(x)
@@ -151,16 +164,26 @@ def kf_two_axis(
         correlation=1.0,
         method="KF",
         current_series=cur if has_current else None,
+        trace=trace,
     )
 
 
 def _run(
-    st: ModelState, t: FloatArray, x0: FloatArray, r: FloatArray
+    st: ModelState,
+    t: FloatArray,
+    x_nom: FloatArray,
+    cur_nom: FloatArray,
+    r: FloatArray,
+    trace: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """One pass of the filter from ``x0`` with the initial covariance
-    (:data:`KF_P0`): the final state, its covariance over ``st.free``, each sample's
-    innovation (N, 2) and current (N, 2)."""
-    x = x0.copy()
+    """One pass of the filter linearised about a nominal (:data:`KF_PASSES`): the
+    parameters ``x_nom`` and the current ``cur_nom`` (N, 2) at each sample. It starts
+    from the nominal's parameters with the initial covariance (:data:`KF_P0`) and
+    returns the final state, its covariance over ``st.free``, each sample's
+    innovation (N, 2) and filtered current (N, 2); ``trace`` (N, 6) takes each
+    sample's :data:`TRACE_NAMES` and their σ (nan: held)."""
+    x = x_nom.copy()
+    x = st.with_current(x, float(cur_nom[0, 0]), float(cur_nom[0, 1])) if st.n else x
     free = st.free
     k = len(free)
     p = np.diag([KF_P0.get(st.name_of(i), KF_P0_OTHER) for i in free])
@@ -171,17 +194,26 @@ def _run(
     n = st.n
     res = np.empty((n, 2))
     cur = np.empty((n, 2))
+    nom = x_nom.copy()
+    traced = [
+        (c, i, free.index(i)) for c, u in enumerate(TRACE_NAMES) if (i := st.index(u)) in free
+    ]
     for j in range(n):
         if j and k:
             p[np.diag_indices(k)] += q_rate * float(t[j] - t[j - 1])
-        innov, h = st.step(x, j)
+        nom = st.with_current(nom, float(cur_nom[j, 0]), float(cur_nom[j, 1]))
+        innov, h = st.step(nom, j)
+        hf = h[:, free]
+        innov = innov - hf @ (x[free] - nom[free])
         res[j] = innov
         if k:
-            hf = h[:, free]
             s_mat = hf @ p @ hf.T + r
             gain = np.linalg.solve(s_mat, hf @ p).T
             x[free] += gain @ innov
             ikh = eye - gain @ hf
             p = ikh @ p @ ikh.T + gain @ r @ gain.T
         cur[j] = st.current(x)
+        for c, i, f in traced:
+            trace[j, c] = x[i]
+            trace[j, len(TRACE_NAMES) + c] = math.sqrt(max(float(p[f, f]), 0.0))
     return x, p, res, cur
