@@ -37,9 +37,9 @@ SOURCES = {
 }
 """The recording each kind's variants are built from."""
 
-EXCERPT_LINES = {"nmea": 6000, "expedition-csv": 1500, "logger-tsv": 1500}
+EXCERPT_LINES = {"nmea": 3000, "expedition-csv": 800, "logger-tsv": 800}
 """The default run's variants are built from this many first lines of each kind's log
-(10 to 50 minutes)."""
+(5 to 30 minutes of log)."""
 
 
 def _suite() -> ModuleType:
