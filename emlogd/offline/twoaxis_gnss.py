@@ -173,14 +173,16 @@ def record_two_axis_gnss(
     cog, psi = np.radians(f[:, 2]), np.radians(psi_deg)
     ve, vn = f[:, 1] * np.sin(cog), f[:, 1] * np.cos(cog)
     return TwoAxisRecording(
-        str(path),
-        uut,
-        r[:, 0],
-        r[:, 1],
-        r[:, 2],
-        f[:, 0],
-        vn * np.cos(psi) + ve * np.sin(psi),
-        -vn * np.sin(psi) + ve * np.cos(psi),
-        psi_deg,
-        {p: {str(k): v for k, v in d.counters.rejects.items()} for p, d in decoders.items()},
+        path=str(path),
+        uut=uut,
+        t_read=r[:, 0],
+        raw_l=r[:, 1],
+        raw_t=r[:, 2],
+        t_ref=f[:, 0],
+        ref_fwd=vn * np.cos(psi) + ve * np.sin(psi),
+        ref_stb=-vn * np.sin(psi) + ve * np.cos(psi),
+        heading=psi_deg,
+        rejects={
+            p: {str(k): v for k, v in d.counters.rejects.items()} for p, d in decoders.items()
+        },
     )
