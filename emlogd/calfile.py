@@ -23,6 +23,8 @@ YAML, under a kind and a schema version, one entry per UUT, each a
         reference: {port: dvl, field: bottom}
         unidentifiable: []
         nis_mean: 1.01
+        two_axis: {misalign_deg: 3.1, misalign_std_deg: 0.14, m_t: -0.08, m_t_std: 0.005,
+                   b_t_mps: 0.04, b_t_std_mps: 0.004}   # axes: 2 only: the validated figures
         extra: {}             # producer's notes (offline: captures, RMSE)
     others:                   # the daemon's state only: each UUT's other error models
       emlog1:
@@ -46,7 +48,8 @@ from calib.errors import CalibrationError
 from calib.estimate import Estimate
 from calib.models import MODEL_NAMES, PARAM_NAMES, Params
 from drivers.errors import EmlogdError
-from emlogd.pipeline.calibration import Calibration
+from emlogd.configyaml import YAML_FAILURES, yaml_depth_error
+from emlogd.pipeline.calibration import TWO_AXIS_KEYS, Calibration
 
 KIND = "emlogd-calibration"
 SCHEMA = 2
@@ -65,7 +68,8 @@ def _ne(pair: tuple[float, float] | None) -> dict[str, float | None] | None:
 
 
 def to_dict(cal: Calibration, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """One entry as plain types."""
+    """One entry as plain types (``two_axis`` only when the record has the figures)."""
+    two = {} if cal.two_axis is None else {"two_axis": {k: _f(v) for k, v in cal.two_axis.items()}}
     return {
         "model": cal.params.model,
         "method": cal.method,
@@ -82,6 +86,7 @@ def to_dict(cal: Calibration, extra: Mapping[str, Any] | None = None) -> dict[st
         "reference": dict(cal.reference),
         "unidentifiable": list(cal.unidentifiable),
         "nis_mean": _f(cal.nis_mean),
+        **two,
         "extra": dict(extra or {}),
     }
 
@@ -116,15 +121,27 @@ def dumps(
 def _num(v: Any, where: str, *, allow_none: bool = False) -> float | None:
     if v is None and allow_none:
         return None
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise CalibrationFileError(f"{where}: expected a finite number, got {v!r}")
-    return float(v)
+    return _req(v, where)
 
 
 def _req(v: Any, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise CalibrationFileError(f"{where}: expected a finite number, got {v!r}")
-    return float(v)
+    x = _finite(v)
+    if x is None:
+        shown = repr(v) if not isinstance(v, int) or abs(v) < 10**20 else "a huge integer"
+        raise CalibrationFileError(f"{where}: expected a finite number, got {shown}")
+    return x
+
+
+def _finite(v: Any) -> float | None:
+    """``v`` as a finite float, or None (not a number, a bool, inf, nan, or an integer
+    too large for a float)."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return None
+    try:
+        x = float(v)
+    except OverflowError:
+        return None
+    return x if math.isfinite(x) else None
 
 
 def _pair(v: Any, where: str) -> tuple[float, float] | None:
@@ -133,6 +150,15 @@ def _pair(v: Any, where: str) -> tuple[float, float] | None:
     if not isinstance(v, dict):
         raise CalibrationFileError(f"{where}: expected {{north, east}}")
     return (_req(v.get("north"), f"{where}.north"), _req(v.get("east"), f"{where}.east"))
+
+
+def _covariance(v: Any, where: str) -> tuple[tuple[float, ...], ...]:
+    """A square matrix of finite numbers (``[]``: none)."""
+    if not isinstance(v, list) or not all(isinstance(r, list) for r in v):
+        raise CalibrationFileError(f"{where}: expected a list of rows")
+    if any(len(row) != len(v) for row in v):
+        raise CalibrationFileError(f"{where}: expected a square matrix")
+    return tuple(tuple(_req(x, where) for x in row) for row in v)
 
 
 def from_dict(uut: str, d: Any) -> tuple[Calibration, dict[str, Any]]:
@@ -149,7 +175,7 @@ def from_dict(uut: str, d: Any) -> tuple[Calibration, dict[str, Any]]:
         raise CalibrationFileError(f"{w}.model: {model!r} is not one of {', '.join(MODEL_NAMES)}")
     names = PARAM_NAMES[model]
     values = d.get("params")
-    if not isinstance(values, dict) or sorted(values) != sorted(names):
+    if not isinstance(values, dict) or set(values) != set(names):
         raise CalibrationFileError(f"{w}.params: {model} has {', '.join(names)}")
     try:
         params = Params.from_theta(model, [_req(values[n], f"{w}.params.{n}") for n in names])
@@ -162,10 +188,7 @@ def from_dict(uut: str, d: Any) -> tuple[Calibration, dict[str, Any]]:
     method = d.get("method", "online")
     if method not in ("online", "kf", "ls"):
         raise CalibrationFileError(f"{w}.method: {method!r} is not online, kf or ls")
-    cov_raw = d.get("covariance") or []
-    if not isinstance(cov_raw, list) or not all(isinstance(r, list) for r in cov_raw):
-        raise CalibrationFileError(f"{w}.covariance: expected a list of rows")
-    cov = tuple(tuple(_req(x, f"{w}.covariance") for x in row) for row in cov_raw)
+    cov = _covariance(d.get("covariance") or [], f"{w}.covariance")
     n = d.get("n_samples", 0)
     if isinstance(n, bool) or not isinstance(n, int) or n < 0:
         raise CalibrationFileError(f"{w}.n_samples: expected a count, got {n!r}")
@@ -194,8 +217,19 @@ def from_dict(uut: str, d: Any) -> tuple[Calibration, dict[str, Any]]:
         unidentifiable=tuple(unid),
         nis_mean=_num(d.get("nis_mean"), f"{w}.nis_mean", allow_none=True),
         reset=bool(d.get("reset", False)),
+        two_axis=_two_axis(d.get("two_axis"), f"{w}.two_axis"),
     )
     return cal, extra
+
+
+def _two_axis(v: Any, where: str) -> dict[str, float] | None:
+    """A record's two-axis figures: finite numbers by name (their bounds are
+    :func:`emlogd.pipeline.calibration.check`'s)."""
+    if v is None:
+        return None
+    if not isinstance(v, dict) or set(v) != set(TWO_AXIS_KEYS):
+        raise CalibrationFileError(f"{where}: expected {', '.join(TWO_AXIS_KEYS)}")
+    return {k: _req(v[k], f"{where}.{k}") for k in TWO_AXIS_KEYS}
 
 
 def loads(text: str) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]]]:
@@ -220,13 +254,23 @@ def loads_state(text: str) -> tuple[dict[str, Calibration], list[Calibration]]:
     return cals, others
 
 
+def _load_yaml(text: str) -> Any:
+    """The YAML document of ``text``, whatever the loader raised made a
+    :class:`CalibrationFileError` (nesting past :data:`emlogd.configyaml.MAX_YAML_DEPTH`
+    refused unparsed)."""
+    deep = yaml_depth_error(text)
+    if deep:
+        raise CalibrationFileError(f"not valid YAML ({deep})")
+    try:
+        return yaml.safe_load(text)
+    except YAML_FAILURES as exc:
+        raise CalibrationFileError(f"not valid YAML ({exc.__class__.__name__})") from None
+
+
 def _parse(
     text: str,
 ) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]], list[Calibration]]:
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise CalibrationFileError(f"not valid YAML ({exc.__class__.__name__})") from None
+    doc = _load_yaml(text)
     if not isinstance(doc, dict) or doc.get("kind") != KIND:
         raise CalibrationFileError("not an emlogd calibration file")
     if doc.get("schema") != SCHEMA:

@@ -27,6 +27,8 @@ import yaml
 
 from drivers import Use, get_decoder, protocols_for
 from drivers.errors import ConfigError
+from emlogd.configyaml import YAML_FAILURES, yaml_depth_error, yaml_why
+from emlogd.fileio import read_text_bounded
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
     Entry,
@@ -45,6 +47,11 @@ from emlogd.pipeline.keys import (
 from emlogd.pipeline.settings import PortSettings, RefField, UutSettings
 
 DEFAULT_PATH = "/etc/emlogd/emlogd.yaml"
+
+MAX_CONFIG_BYTES = 256 * 1024
+"""Longest config file read, bytes (the example vehicle's is under 5 KiB). A longer
+one, or anything not a regular file (a FIFO would block the read), is refused
+unparsed: the pure-Python YAML parser takes seconds per 100 KiB of a hostile file."""
 
 Role = Literal["uut", "reference", "aux"]
 Speed = Literal["each", "fused", "both"]
@@ -361,7 +368,11 @@ class _Ctx:
         elif not isinstance(node, yaml.ScalarNode):
             raise self.fail(node, where, "expected a single value")
         try:
-            v = e.key.check(self.loader.construct_object(node, deep=True))
+            raw = self.loader.construct_object(node, deep=True)
+        except YAML_FAILURES as exc:
+            raise self.fail(node, where, f"not a valid value ({yaml_why(exc)})") from None
+        try:
+            v = e.key.check(raw)
         except InvalidValueError as exc:
             if exc.sub is not None:
                 raise self.fail(sub[exc.sub][0], f"{where}.{exc.sub}", str(exc)) from None
@@ -493,7 +504,7 @@ def load_config(path: str | Path) -> Config:
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_text_bounded(p, MAX_CONFIG_BYTES)
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: cannot read the config: {exc}") from None
     return parse_config(text, str(p), base=p.resolve().parent)
@@ -501,14 +512,17 @@ def load_config(path: str | Path) -> Config:
 
 def parse_config(text: str, path: str = "<config>", *, base: Path | None = None) -> Config:
     """Validate config text (see :func:`load_config`)."""
+    deep = yaml_depth_error(text)
+    if deep:
+        raise ConfigError(f"{path}:1: not valid YAML: {deep}")
     loader = _Loader(text)
     try:
         root = loader.get_single_node()
-    except yaml.YAMLError as exc:
+    except YAML_FAILURES as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else 1
         raise ConfigError(
-            f"{path}:{line}: not valid YAML: {getattr(exc, 'problem', exc)}"
+            f"{path}:{line}: not valid YAML: {getattr(exc, 'problem', None) or yaml_why(exc)}"
         ) from None
     finally:
         loader.dispose()

@@ -1,15 +1,23 @@
-"""Durable file writes: the one atomic-write routine of the project.
+"""Durable file writes: the one atomic-write routine of the project; and the bounded
+read of a file that may be anything.
 
 :func:`write_atomic` writes a temporary file in the same directory, fsyncs it,
 renames it over the target (atomic on POSIX) and fsyncs the directory, so a crash
 leaves the old file or the new one, never a torn one. The daemon's state file and
 ``emlogd calibrate --save`` both write through it.
+
+:func:`read_text_bounded` reads the config and the state file: whatever is found at
+their path — a FIFO (whose ``open`` would wait for a writer for ever), a device, a
+directory, a file of a gigabyte — is refused with an :class:`OSError` at once, without
+blocking and without reading more than the bound.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import stat
 from pathlib import Path
 
 
@@ -58,3 +66,33 @@ def write_atomic(path: Path, data: bytes, mode: int = 0o640) -> None:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def read_text_bounded(path: str | Path, max_bytes: int) -> str:
+    """The UTF-8 text of the regular file ``path``, at most ``max_bytes`` long.
+
+    Opened non-blocking, so a FIFO or a device at ``path`` costs no wait; at most
+    ``max_bytes + 1`` bytes are read.
+
+    Raises:
+        OSError: it cannot be opened or read, is not a regular file (``EINVAL``), or is
+            longer than ``max_bytes`` (``EFBIG``); the message says which.
+        UnicodeDecodeError: it is not UTF-8.
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(errno.EINVAL, "not a regular file", str(path))
+        chunks: list[bytes] = []
+        size = 0
+        while size <= max_bytes:
+            chunk = os.read(fd, max_bytes + 1 - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > max_bytes:
+            raise OSError(errno.EFBIG, f"longer than {max_bytes} bytes", str(path))
+    finally:
+        os.close(fd)
+    return b"".join(chunks).decode("utf-8")

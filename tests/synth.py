@@ -241,6 +241,17 @@ def water_frame_segment(
 TWO_AXIS_CURRENT_NE = (0.15, -0.1)
 TWO_AXIS_TRUTH = TwoAxisParams(Params("EM3", m=-0.11, b_mps=-0.05), math.radians(3.0), -0.09, 0.04)
 """A sensor turned 3° to starboard, the transverse scale 2 % off the longitudinal one."""
+TWO_AXIS_FIGURES: dict[str, float] = {
+    "misalign_deg": 3.0,
+    "misalign_std_deg": 0.1,
+    "m_t": -0.08,
+    "m_t_std": 0.005,
+    "b_t_mps": 0.04,
+    "b_t_std_mps": 0.004,
+}
+"""A state file's two-axis figures (:attr:`emlogd.pipeline.calibration.Calibration.two_axis`)
+of a log turned 3° to starboard, its transverse scale −0.08 and bias 0.04 m/s (``emlogd
+simulate --sensor emlog2:misalign=3,mt=-0.08,bt=0.04``)."""
 
 
 def two_axis_trial(

@@ -15,17 +15,27 @@ opens serial ports. A :class:`SerialSource`:
 Events are queued and drained with :meth:`events`. The daemon registers
 :meth:`fileno` in its selector (sources without a file descriptor, like
 ``loop://``, are read each loop turn).
+
+A ``socket://host:port`` input is connected without blocking (pyserial's own open
+waits up to 5 s for the connect, and then drains whatever the peer has sent for as
+long as more keeps coming): :meth:`open` starts the connect and each :meth:`poll`
+looks whether it is done, for at most :data:`CONNECT_TIMEOUT_S`; the connected socket
+is then read like a device, with one ``os.read``. (A host name is resolved by the
+system's resolver, which may wait; an address costs nothing.)
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import select
+import socket
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
+from urllib.parse import urlsplit
 
 import serial
 
@@ -33,6 +43,12 @@ from drivers.errors import DeviceError
 
 EMPTY_READS_LOST = 50
 """Consecutive empty reads of a raw descriptor after which the port counts as lost."""
+
+CONNECT_TIMEOUT_S = 5.0
+"""Longest a ``socket://`` input's connect may take; then it failed, and is retried."""
+
+CONNECT_POLL_S = 0.05
+"""How often a ``socket://`` connect in progress is looked at, s."""
 
 EventKind = Literal["connected", "disconnected", "stale", "alive", "error"]
 
@@ -42,6 +58,22 @@ Chunk = tuple[float, bytes]
 A plain tuple: the daemon builds one per wake-up, and at live rates a read took
 29–34 µs of CPU with a frozen dataclass, 22–23 µs without (``bench/bench_wake_costs.py``,
 docs/BENCHMARKS.md)."""
+
+
+class _TcpStream:
+    """A connected ``socket://`` input: what :class:`SerialSource` needs of a port."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def read(self, size: int) -> bytes:
+        return self.sock.recv(size)
+
+    def close(self) -> None:
+        self.sock.close()
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,7 +125,12 @@ class SerialSource:
         self.backoff_s = tuple(backoff_s)
         self.clock = clock
         self.monotonic = monotonic
-        self._ser: serial.SerialBase | None = None
+        self._ser: serial.SerialBase | _TcpStream | None = None
+        self._tcp: tuple[str, int] | None = _tcp_address(url)
+        """A ``socket://`` URL's host and port (connected here, without blocking)."""
+        self._connecting: tuple[socket.socket, float, bool] | None = None
+        """A connect in progress: its socket, its deadline, and whether it is the first
+        attempt (its failure is then the ``disconnected`` event)."""
         self._raw_fd: int | None = None
         self._empty = 0
         self._events: list[PortEvent] = []
@@ -156,6 +193,8 @@ class SerialSource:
         """Try to open the port now; on failure schedule a retry. Returns success."""
         if self._ser is not None:
             return True
+        if self._tcp is not None:
+            return self._open_tcp(*self._tcp)
         try:
             ser = serial.serial_for_url(
                 self.url, baudrate=self.baudrate, timeout=0, do_not_open=True
@@ -165,11 +204,53 @@ class SerialSource:
             self._schedule(f"cannot open {self.url}: {exc}")
             return False
         self._ser = ser
-        self.why_closed = None
         # A plain POSIX port (device, pty) is read with one os.read on its
         # non-blocking descriptor: pyserial's read adds an ioctl and a select per call.
-        # Other URL handlers (spy://, socket://, loop://) keep pyserial's read.
-        self._raw_fd = self.fileno() if type(ser).__module__ == "serial.serialposix" else None
+        # Other URL handlers (spy://, loop://) keep pyserial's read.
+        self._connected(self.fileno() if type(ser).__module__ == "serial.serialposix" else None)
+        return True
+
+    def _open_tcp(self, host: str, port: int) -> bool:
+        """Start or look at the non-blocking connect of a ``socket://`` input."""
+        now = self.monotonic()
+        if self._connecting is None:
+            first = self._next_try is None and self._attempt == 0
+            try:
+                family, kind, proto, _, addr = socket.getaddrinfo(
+                    host, port, type=socket.SOCK_STREAM
+                )[0]
+                sock = socket.socket(family, kind, proto)
+            except OSError as exc:
+                self._schedule(f"cannot open {self.url}: {exc}")
+                return False
+            sock.setblocking(False)
+            err = sock.connect_ex(addr)
+            if err not in (0, errno.EINPROGRESS):
+                sock.close()
+                self._schedule(f"cannot open {self.url}: {os.strerror(err)}")
+                return False
+            self._connecting = (sock, now + CONNECT_TIMEOUT_S, first)
+            self.why_closed = f"connecting to {host}:{port}"
+        sock, deadline, first = self._connecting
+        _, done, _ = select.select([], [sock], [], 0)
+        if not done and now < deadline:
+            self._next_try = now + CONNECT_POLL_S
+            return False
+        self._connecting = None
+        err = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR) if done else errno.ETIMEDOUT
+        if err:
+            sock.close()
+            if first:
+                self._next_try = None
+            self._schedule(f"cannot open {self.url}: {os.strerror(err)}")
+            return False
+        self._ser = _TcpStream(sock)
+        self._connected(sock.fileno())
+        return True
+
+    def _connected(self, raw_fd: int | None) -> None:
+        self.why_closed = None
+        self._raw_fd = raw_fd
         if self._ever_connected:
             self.reconnects += 1
         self._ever_connected = True
@@ -177,7 +258,6 @@ class SerialSource:
         self._next_try = None
         self._last_data = self.monotonic()
         self._event("connected", self.url)
-        return True
 
     def _schedule(self, why: str) -> None:
         self.why_closed = why
@@ -205,6 +285,9 @@ class SerialSource:
     def close(self) -> None:
         """Close the port and stop retrying."""
         self._close_port()
+        if self._connecting is not None:
+            self._connecting[0].close()
+            self._connecting = None
         self._next_try = None
 
     def fileno(self) -> int | None:
@@ -271,3 +354,18 @@ class SerialSource:
             self._stale = True
             self._event("stale", f"no data for {now - self._last_data:.1f} s")
         return self.events()
+
+
+def _tcp_address(url: str) -> tuple[str, int] | None:
+    """The host and port of a ``socket://host:port`` URL, else None (pyserial checks the
+    URL itself: :meth:`SerialSource._check_url`)."""
+    if not url.startswith("socket://"):
+        return None
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError:
+        return None
+    if parts.hostname is None or port is None:
+        return None
+    return parts.hostname, port

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from drivers import EmlogdError
-from emlogd.cli.common import Subparsers, UsageError, config_path, positive_float
+from emlogd.cli.common import Subparsers, UsageError, config_path, positive_float, two_axis_line
 from emlogd.offline.tables import fmt
 
 
@@ -96,16 +96,7 @@ def _status_text(resp: dict[str, Any]) -> str:
                 )
             line += "; IMO A.824 (within 2 % or 0.2 kn) " + ", ".join(cells)
         lines.append(line)
-        held = u.get("unidentifiable") or []
-        if held:
-            why = u.get("identifiability") or "not determinable from the data so far"
-            lines.append(f"  holding {', '.join(str(h) for h in held)}: {why}")
-        inputs = u.get("inputs")
-        if isinstance(inputs, dict) and inputs:
-            lines.append(f"  inputs: {_inputs_line(inputs)}")
-        heading = u.get("heading")
-        if isinstance(heading, dict):
-            lines.append(f"  {_heading_line(heading)}")
+        lines += _detail_lines(u)
     for name, p in (status.get("ports") or {}).items():
         rejects = p.get("rejects") or {}
         total = sum(rejects.values())
@@ -124,6 +115,26 @@ def _status_text(resp: dict[str, Any]) -> str:
             + (f", {errors} errors" if errors else "")
         )
     return "".join(line + "\n" for line in lines)
+
+
+def _detail_lines(u: dict[str, Any]) -> list[str]:
+    """The indented lines under a UUT: what it holds and why, its inputs, its heading,
+    its two-axis figures."""
+    lines = []
+    held = u.get("unidentifiable") or []
+    if held:
+        why = u.get("identifiability") or "not determinable from the data so far"
+        lines.append(f"  holding {', '.join(str(h) for h in held)}: {why}")
+    inputs = u.get("inputs")
+    if isinstance(inputs, dict) and inputs:
+        lines.append(f"  inputs: {_inputs_line(inputs)}")
+    heading = u.get("heading")
+    if isinstance(heading, dict):
+        lines.append(f"  {_heading_line(heading)}")
+    two = u.get("two_axis")
+    if isinstance(two, dict):
+        lines.append(f"  {two_axis_line(two)}")
+    return lines
 
 
 def _inputs_line(inputs: dict[str, Any]) -> str:

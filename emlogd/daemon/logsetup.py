@@ -3,11 +3,17 @@ the daemon's limit on repeated events and its one-line status for a terminal.
 
 Library modules only call ``structlog.get_logger(__name__)``; the CLI calls
 :func:`configure_logging` once. The stdlib root logger is never configured.
+
+Writing a log line never raises: a stream whose reader went away (a pipe closed,
+journald stopped: ``EPIPE``) or that fails otherwise costs that line, counted by
+:func:`lost_lines`, never the daemon (a ``BrokenPipeError`` out of a log call ended
+``emlogd run`` with exit code 0, which systemd's ``Restart=on-failure`` does not restart).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import sys
 from typing import Literal, TextIO
 
@@ -24,6 +30,37 @@ _LEVELS = {
 
 
 _console = False
+_lost = 0
+
+
+def lost_lines() -> int:
+    """Log lines this process could not write (the stream failed)."""
+    return _lost
+
+
+class SafePrintLogger(structlog.PrintLogger):
+    """A :class:`structlog.PrintLogger` whose writes never raise: a failed write is
+    counted (:func:`lost_lines`) and the line dropped."""
+
+    def msg(self, message: str) -> None:
+        global _lost
+        try:
+            super().msg(message)
+        except (OSError, ValueError):  # EPIPE, EIO, ENOSPC; ValueError: the stream closed
+            _lost += 1
+
+    log = debug = info = warn = warning = msg
+    fatal = failure = err = error = critical = exception = msg
+
+
+class SafePrintLoggerFactory:
+    """Makes :class:`SafePrintLogger` instances on one stream."""
+
+    def __init__(self, file: TextIO) -> None:
+        self._file = file
+
+    def __call__(self, *args: object) -> SafePrintLogger:
+        return SafePrintLogger(self._file)
 
 
 def is_console() -> bool:
@@ -66,7 +103,7 @@ def configure_logging(
             renderer,
         ],
         wrapper_class=structlog.make_filtering_bound_logger(_LEVELS[level]),
-        logger_factory=structlog.PrintLoggerFactory(out),
+        logger_factory=SafePrintLoggerFactory(out),
         cache_logger_on_first_use=False,
     )
 
@@ -81,24 +118,57 @@ EVENT_INTERVAL_S = 10.0
 """The least time between two lines of one repeating event of one port, s."""
 
 
-class EventLimiter:
-    """At most one log line per (port, kind) of :data:`REPEATING_EVENTS` per interval."""
+CLIENT_EVENTS = frozenset(
+    {
+        "client_connected",
+        "client_disconnected",
+        "client_evicted",
+        "client_stalled",
+        "client_too_slow",
+    }
+)
+"""What a TCP output logs of its clients, each line with the peer's address: a client
+connecting and closing in a loop would repeat them without end (and a journal that
+rate-limits the service would then drop the daemon's other lines too)."""
 
-    def __init__(self, interval_s: float = EVENT_INTERVAL_S) -> None:
+CLIENT_EVENT_BURST = 20
+"""Most lines of one client event of one TCP output per :data:`EVENT_INTERVAL_S`."""
+
+
+class EventLimiter:
+    """At most ``burst`` log lines per (port, kind) of ``kinds`` per interval.
+
+    Args:
+        interval_s: the interval.
+        kinds: the events limited (others always pass).
+        burst: lines let through per interval and key.
+    """
+
+    def __init__(
+        self,
+        interval_s: float = EVENT_INTERVAL_S,
+        kinds: frozenset[str] = REPEATING_EVENTS,
+        burst: int = 1,
+    ) -> None:
         self.interval_s = interval_s
-        self.last: dict[tuple[str, str], float] = {}
+        self.kinds = kinds
+        self.burst = burst
+        self.window: dict[tuple[str, str], tuple[float, int]] = {}
+        """Per key: when its interval began, and the lines let through in it."""
         self.dropped: dict[tuple[str, str], int] = {}
 
     def allow(self, port: str, kind: str, now: float) -> int | None:
         """None: leave this one out; else log it, with how many were left out before."""
-        if kind not in REPEATING_EVENTS:
+        if kind not in self.kinds:
             return 0
         key = (port, kind)
-        last = self.last.get(key)
-        if last is not None and now - last < self.interval_s:
+        start, n = self.window.get(key, (-math.inf, 0))
+        if now - start >= self.interval_s:
+            start, n = now, 0
+        if n >= self.burst:
             self.dropped[key] = self.dropped.get(key, 0) + 1
             return None
-        self.last[key] = now
+        self.window[key] = (start, n + 1)
         return self.dropped.pop(key, 0)
 
 

@@ -37,7 +37,7 @@ from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
-from emlogd.daemon.logsetup import EventLimiter, is_console, status_line
+from emlogd.daemon.logsetup import EventLimiter, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import Outputs
 from emlogd.daemon.statefile import StateStore, same_records
@@ -252,15 +252,17 @@ class Daemon:
         """Open the control socket (and the read-only status socket) the config names,
         keeping an open one whose path did not change.
 
+        A socket of a kind whose new one cannot be created is kept at its old path (a
+        reload naming an unusable path left the daemon with no control socket at all).
+
         Raises:
             DeviceError: a socket cannot be created (the others are still synced).
         """
         want = {("control", self.config.control_socket)}
         if self.config.status_socket:
             want.add(("status", self.config.status_socket))
-        for key in [k for k in self.controls if k not in want]:
-            self.controls.pop(key).close()
         failed: DeviceError | None = None
+        failed_kinds: set[str] = set()
         for kind, path in sorted(want - self.controls.keys()):
             read_only = kind == "status"
             try:
@@ -275,6 +277,9 @@ class Daemon:
                 )
             except DeviceError as exc:
                 failed = exc
+                failed_kinds.add(kind)
+        for key in [k for k in self.controls if k not in want and k[0] not in failed_kinds]:
+            self.controls.pop(key).close()
         if failed is not None:
             raise failed
 
@@ -574,6 +579,7 @@ class Daemon:
                 "state_file": str(self.store.path) if self.store else None,
                 "state_errors": self.state_errors,
                 "persists": self.persists,
+                "log_lines_lost": lost_lines(),
             }
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)
@@ -615,8 +621,8 @@ class Daemon:
         """
         try:
             new = load_config(self.config_path)
-        except (ConfigError, OSError) as exc:
-            self.log.error("reload_failed", error=str(exc), kept="previous config")
+        except Exception as exc:  # contained: no config file stops the daemon
+            self.log.error("reload_failed", error=_why(exc), kept="previous config")
             return
         old_pipeline, old = self.pipeline, self.config
         assert old_pipeline is not None
@@ -624,8 +630,8 @@ class Daemon:
         snapshots = {s.uut: s for s in old_pipeline.calibrations()}
         try:
             pipeline = build_pipeline(new, snapshots, old_pipeline.other_calibrations())
-        except (ConfigError, ValueError) as exc:
-            self.log.error("reload_failed", error=str(exc), kept="previous config")
+        except Exception as exc:  # contained, as above
+            self.log.error("reload_failed", error=_why(exc), kept="previous config")
             return
         kept_uuts = pipeline.adopt(old_pipeline)
         self.config, self.pipeline = new, pipeline
@@ -660,6 +666,11 @@ class Daemon:
             outputs_opened=opened,
         )
         self._notify_status()
+
+
+def _why(exc: Exception) -> str:
+    """A config error's message; any other failure with its type (no check foresaw it)."""
+    return str(exc) if isinstance(exc, (ConfigError, OSError)) else f"{type(exc).__name__}: {exc}"
 
 
 def _source_status(src: SerialSource) -> dict[str, object]:

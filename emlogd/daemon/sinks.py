@@ -31,6 +31,7 @@ import errno
 import fcntl
 import math
 import os
+import select
 import selectors
 import socket
 import struct
@@ -163,18 +164,38 @@ def parse_hostport(
 
 @dataclass
 class StreamSink:
-    """Sentences to a binary stream (stdout or a file), flushed per sentence."""
+    """Sentences to a binary stream (stdout or a file), flushed per sentence.
+
+    The stream stays blocking (its descriptor is shared with whoever handed it over),
+    so a sentence is written only when the descriptor polls writable: into a pipe or a
+    terminal whose reader does not keep up, a sentence that does not fit is dropped and
+    counted as an error instead of blocking the daemon (a stalled ``emlogd run |
+    reader`` hung every output and the control socket). A sentence is far under
+    ``PIPE_BUF``, and a writable pipe has room for one.
+    """
 
     name: str
     stream: BinaryIO
     close_stream: bool = False
     counters: SinkCounters = field(default_factory=SinkCounters)
     state: str = "open"
+    _ready: select.poll | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        try:
+            fd = self.stream.fileno()
+        except (OSError, ValueError):  # in memory: always ready
+            return
+        self._ready = select.poll()
+        self._ready.register(fd, select.POLLOUT)
 
     def housekeep(self) -> None:
         pass
 
     def write(self, line: bytes) -> None:
+        if self._ready is not None and not self._ready.poll(0):
+            self.counters.errors += 1  # the reader does not keep up: dropped, not waited for
+            return
         try:
             self.stream.write(line)
             self.stream.flush()

@@ -14,7 +14,7 @@ crash-safe:
 A kill -9 at any point leaves the previous or the new file, never a torn one.
 A write that fails (disk full, read-only, permissions) raises
 :class:`StateWriteError` and leaves the previous file untouched. On load a file
-that cannot be parsed, or whose records the caller's check refuses (parameters
+that cannot be parsed (or is no regular file, or longer than :data:`MAX_STATE_BYTES`), or whose records the caller's check refuses (parameters
 outside the envelope, a lag outside ``[0, max_lag_s]``, a covariance that is not
 positive-definite...), is reported and the backup used; without a good one the
 daemon starts uncalibrated. Such a file never becomes the backup: the next write
@@ -38,8 +38,13 @@ from pathlib import Path
 
 from drivers.errors import EmlogdError
 from emlogd.calfile import CalibrationFileError, dumps, loads_state
-from emlogd.fileio import fsync_dir, write_synced
+from emlogd.fileio import fsync_dir, read_text_bounded, write_synced
 from emlogd.pipeline.calibration import Calibration
+
+MAX_STATE_BYTES = 256 * 1024
+"""Longest state file read, bytes (a UUT's records of four error models take a few
+KiB). A longer file, or one that is not a regular file (a FIFO would block the read
+for ever, a directory), is damaged: reported unparsed, and the backup used."""
 
 
 class StateWriteError(EmlogdError):
@@ -137,7 +142,7 @@ class StateStore:
         report: list[str] = []
         for candidate in (self.path, self.backup):
             try:
-                text = candidate.read_text(encoding="utf-8")
+                text = read_text_bounded(candidate, MAX_STATE_BYTES)
             except FileNotFoundError:
                 if candidate == self.path and self.backup.exists():
                     report.append(f"{candidate} is missing")
@@ -207,7 +212,7 @@ class StateStore:
         The backup is a hard link, or a copy where the file system has none (vfat).
         """
         try:
-            text = self.path.read_text(encoding="utf-8")
+            text = read_text_bounded(self.path, MAX_STATE_BYTES)
         except FileNotFoundError:
             return None
         except (OSError, UnicodeDecodeError):

@@ -22,8 +22,18 @@ HeadingRef = Literal["true", "magnetic"]
 OLE_EPOCH = datetime(1899, 12, 30, tzinfo=UTC)
 """Day 0 of OLE automation dates (Excel, Expedition)."""
 
-HEADER_SCAN_LINES = 50
-"""The header must be among the first this many lines (a banner before it)."""
+FILETIME_TICK_S = 1e-7
+"""A Windows FILETIME tick (Expedition's ``!log=v3`` times), s."""
+
+FILETIME_EPOCH_S = -11_644_473_600.0
+"""FILETIME's day 0 (1601-01-01) in epoch seconds."""
+
+HEADER_SCAN_LINES = 200
+"""The header must be among the first this many lines (a banner before it: a logger
+may write its settings, damping and calibration tables first)."""
+
+NO_VALUE = frozenset({"-", "--", "---"})
+"""Cells that say "no value" (a logger's dash before its estimate is known): empty."""
 
 DELIMITERS = (",", "\t", ";", "|")
 """The delimiters the header is tried with."""
@@ -72,7 +82,8 @@ class Preset:
     Attributes:
         name: the ``--preset`` name.
         columns: the column map (``A|B`` alternatives, ``?`` optional).
-        time_format: ``ole``, ``iso``, ``epoch`` or a ``strptime`` pattern.
+        time_format: ``ole``, ``iso``, ``epoch``, ``filetime``, ``auto`` (told by the
+            first time cell) or a ``strptime`` pattern.
         heading_ref: the heading's reference.
         local_time: whether the times are the logger's local clock (then
             ``--utc-offset`` is needed, and its absence is noted).
@@ -98,27 +109,44 @@ EXPEDITION: dict[str, str] = {
     "set": "iSet|Set?",
     "drift": "iDrift|Drift?",
 }
-"""Expedition's columns (its ``Hdg`` is a true heading; times are OLE dates). Its exports
+"""Expedition's columns (its ``Hdg`` is a true heading; times are OLE dates, or FILETIME
+ticks in its ``!log=v3`` logs). Its exports
 name the current ``iSet``/``iDrift`` or ``Set``/``Drift``, or leave it out."""
 
 LOGGER_TSV: dict[str, str] = {
     "date": "Date",
     "time": "Time",
-    "stw": "Boatspeed",
-    "heading": "Heading",
-    "sog": "Ext_SOG?",
-    "cog": "Ext_COG?",
-    "lat": "Latitudine?",
-    "lon": "Longitudine?",
+    "stw": "Boatspeed|BS",
+    "heading": "Heading|HDG",
+    "sog": "Ext_SOG|SOG?",
+    "cog": "Ext_COG|COG?",
+    "lat": "Latitudine|Lat?",
+    "lon": "Longitudine|Lon?",
     "set": "SET?",
     "drift": "DRIFT?",
 }
 """An Italian race logger's tab-separated export (``Date`` dd/mm/yy, ``Time`` of its
-clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions)."""
+clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions), under the names of both its
+firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
+
+GENERIC: dict[str, str] = {
+    "time": "time|timestamp|datetime|date_time|utc",
+    "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water",
+    "heading": "hdg|heading|heading_true?",
+    "sog": "sog|speed_over_ground?",
+    "cog": "cog|course_over_ground?",
+    "lat": "lat|latitude?",
+    "lon": "lon|lng|long|longitude?",
+    "set": "set|current_set?",
+    "drift": "drift|current_drift?",
+}
+"""A plain table of the usual short names (a processed log, a spreadsheet): one time
+column (told by its first cell), the speed through the water in knots (``speed`` is
+taken for it: a table that names its speed over ground ``sog``), a true heading."""
 
 PRESETS: dict[str, Preset] = {
     "expedition": Preset(
-        "expedition", EXPEDITION, "ole", "true", False, "Expedition CSV (Utc, Bsp, Hdg...)"
+        "expedition", EXPEDITION, "auto", "true", False, "Expedition CSV (Utc, Bsp, Hdg...)"
     ),
     "logger-tsv": Preset(
         "logger-tsv",
@@ -127,6 +155,9 @@ PRESETS: dict[str, Preset] = {
         "magnetic",
         True,
         "race logger TSV (Date, Time, Boatspeed, Heading, Ext_SOG...)",
+    ),
+    "generic": Preset(
+        "generic", GENERIC, "auto", "true", False, "a plain table (time, stw|speed, hdg, sog...)"
     ),
 }
 """The presets, tried in this order against the header when none is named."""
@@ -223,26 +254,57 @@ def parse_time(value: str, fmt: str) -> float:
     """One time cell (or date + space + time) → epoch seconds, naive times as UTC."""
     if fmt == "ole":
         return (OLE_EPOCH + timedelta(days=float(value))).timestamp()
+    if fmt == "filetime":
+        return int(value) * FILETIME_TICK_S + FILETIME_EPOCH_S
     if fmt == "epoch":
         return float(value)
     t = datetime.fromisoformat(value) if fmt == "iso" else datetime.strptime(value, fmt)
     return (t if t.tzinfo else t.replace(tzinfo=UTC)).timestamp()
 
 
+DATE_TIME_PATTERNS = (
+    "%d/%m/%Y %H:%M:%S",
+    "%d/%m/%Y %H:%M:%S.%f",
+    "%d/%m/%y %H:%M:%S",
+    "%d/%m/%y %H:%M:%S.%f",
+    "%d.%m.%Y %H:%M:%S",
+    "%d.%m.%Y %H:%M:%S.%f",
+    "%Y/%m/%d %H:%M:%S",
+    "%Y/%m/%d %H:%M:%S.%f",
+)
+"""The date-and-time cells ``auto`` recognises besides ISO 8601, tried in this order on
+the first time cell: day first, as European loggers and spreadsheets write it (a
+month-first file needs ``--time-format``)."""
+
+
 def guess_time_format(value: str) -> str | None:
-    """``auto``: epoch seconds, an OLE date or ISO 8601, told by the first time cell."""
+    """``auto``: epoch seconds, an OLE date, Windows FILETIME ticks (100 ns since 1601),
+    ISO 8601 or one of :data:`DATE_TIME_PATTERNS`, told by the first time cell."""
     try:
         x = float(value)
     except ValueError:
         try:
             datetime.fromisoformat(value)
         except ValueError:
-            return None
+            return _date_time_pattern(value)
         return "iso"
     if 1e8 < x < 1e10:
         return "epoch"
+    if 1e17 < x < 1e18 and value.isdigit():
+        return "filetime"
     if 20_000.0 < x < 80_000.0:
         return "ole"
+    return None
+
+
+def _date_time_pattern(value: str) -> str | None:
+    """The first of :data:`DATE_TIME_PATTERNS` that reads ``value``, or None."""
+    for pattern in DATE_TIME_PATTERNS:
+        try:
+            datetime.strptime(value, pattern)
+        except ValueError:
+            continue
+        return pattern
     return None
 
 
@@ -282,7 +344,9 @@ def no_header(path: str | Path, head: list[str], candidates: Sequence[MapChoice]
 
 
 def cell(row: list[str], index: int) -> str:
-    return row[index].strip() if index < len(row) else ""
+    """A row's cell, stripped; empty when absent or a :data:`NO_VALUE` dash."""
+    text = row[index].strip() if index < len(row) else ""
+    return "" if text in NO_VALUE else text
 
 
 def cell_value(cell: str, c: Col, report: ImportReport) -> float | None:

@@ -1,5 +1,6 @@
 """What both imports share (:mod:`emlogd.offline.importer`): the report, the error, the
-capture being written, the input opened through gzip, and the years a time may name."""
+capture being written, the input opened through gzip, the years a time may name, and
+the check of an NMEA log's lines (:class:`SentenceCheck`)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TextIO
 
-from drivers.errors import EmlogdError
+from drivers.errors import EmlogdError, FrameError
+from drivers.framing import nmea_checksum, split_nmea
 from drivers.io.capture import CaptureWriter
 from emlogd.pipeline.variation import CourseOffsetCheck
 
@@ -155,3 +157,65 @@ def open_text(path: str | Path) -> TextIO:
         raw.close()
         return gzip.open(path, "rt", encoding="utf-8-sig", errors="replace")
     return io.TextIOWrapper(raw, encoding="utf-8-sig", errors="replace")
+
+
+def not_a_sentence(text: str) -> str | None:
+    """Why a log line is no complete NMEA sentence with a valid checksum (checked as the
+    decoders do), or None when it is one."""
+    if not text:
+        return "empty"
+    if text[0] not in "$!" or not text.isascii():
+        return "not_nmea"
+    try:
+        split_nmea(text.encode("ascii"), required=True)
+    except FrameError as exc:
+        return exc.reason
+    return None
+
+
+class SentenceCheck:
+    """Whether the log is written without checksums: a line without one is taken (its
+    checksum added) while the log's sentences so far are more often without than with
+    one; in a log with checksums it is a cut line (``missing_checksum``)."""
+
+    def __init__(self, report: ImportReport) -> None:
+        self.report = report
+        self.with_ = 0
+        self.without = 0
+
+    def line(self, text: str) -> tuple[str | None, str | None]:
+        """(the sentence to write, or None; why the line is skipped, or None). A line
+        with something before its sentence (a logger's receive time, a channel tag) is
+        read from its first ``$`` or ``!`` (counted as ``line_prefix``)."""
+        start = _sentence_start(text)
+        if start > 0:
+            self.report.notes["line_prefix"] += 1
+            text = text[start:]
+        reason = not_a_sentence(text)
+        if reason is None:
+            self.with_ += 1
+            return text, None
+        if reason != "missing_checksum" or not well_formed(text):
+            return None, reason
+        self.without += 1
+        if self.without <= self.with_:
+            return None, reason
+        self.report.notes["checksum_added"] += 1
+        body = text[1:]
+        return f"{text[0]}{body}*{nmea_checksum(body.encode('ascii')):02X}", None
+
+
+def _sentence_start(text: str) -> int:
+    """Where a line's sentence starts: 0 when it starts the line, the first ``$`` or
+    ``!`` followed by a well-formed address when something comes before it, else 0."""
+    if text[:1] in ("$", "!"):
+        return 0
+    for i, ch in enumerate(text):
+        if ch in "$!" and well_formed(text[i:]):
+            return i
+    return 0
+
+
+def well_formed(text: str) -> bool:
+    """A sentence's address (``$`` or ``!`` and five letters or digits) and a comma."""
+    return len(text) > 7 and text[1:6].isalnum() and text[6] == ","

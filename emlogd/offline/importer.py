@@ -7,9 +7,17 @@ there only when the import succeeds.
 
 **NMEA 0183 logs without receive times** (a chart plotter's or a logger's file):
 every line must be a complete sentence with a valid checksum (checked as the
-decoders do); the rest is counted by reason. Time comes from the fixes: the UTC date
-and time of RMC, else ZDA, else GGA's time of day with a date given by ``--date`` (or
-learnt from an earlier RMC/ZDA of the log). A fix whose time does not increase is no
+decoders do); the rest is counted by reason. A log written without checksums (more
+of its sentences so far without one than with one) has each well-formed sentence
+taken with its checksum added (``checksum_added`` in ``notes``); in a log with
+checksums a line without one is a cut line (``missing_checksum``). A line with
+something before its sentence (a logger's receive time, a tag) is read from its
+first ``$`` or ``!`` that starts a well-formed address (``line_prefix`` in
+``notes``); the fixes still time it. Time comes from
+the fixes: the UTC date and time of RMC, else ZDA, else GGA's time of day with a date
+given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a GGA time of day
+:data:`DAY_ROLLOVER_S` or more before the last fix is the next day's (midnight passed).
+A fix whose time does not increase is no
 time source, nor is one outside :data:`YEARS`. The sentences between two fixes are
 spread evenly, in their order, over the interval up to the next fix. Sentences before the first fix and after the last
 have no time and are counted (``before_first_fix``, ``after_last_fix``): times are
@@ -28,10 +36,15 @@ the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds 
 mapped columns, so a banner before it is passed over (and counted). Column names
 match in any case; with a delimiter other than the comma, a comma in a number is a
 decimal comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
-8601, epoch seconds, or a
-``strptime`` pattern; with a ``date`` column, date and time are joined with a space
-before parsing. Times without a zone are UTC unless ``--utc-offset`` says the logger
+8601, epoch seconds, Windows FILETIME ticks, a day-first date and time
+(:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each of these told by the first
+time cell), or a ``strptime`` pattern; with a ``date`` column, date and time are
+joined with a space before parsing. Times without a zone are UTC unless ``--utc-offset`` says the logger
 kept local time. Positions are decimal degrees or ``ddmm.mmmmN``/``dddmm.mmmmE``.
+Expedition's own sparse log (a ``!Boat`` line of names, a ``!boat`` line of channel
+numbers, rows of ``channel,value`` pairs) is told by its header and read as the rows
+of its flat export (:mod:`emlogd.offline.importer_sparse`); its times are OLE dates or
+Windows FILETIME ticks.
 
 Every cell is checked against the range a boat can produce (:data:`LIMITS`); a bad
 or impossible cell is counted in ``cells`` by column and reason and is not used —
@@ -82,7 +95,6 @@ from typing import TextIO
 
 from drivers import make_decoder
 from drivers.errors import FrameError
-from drivers.framing import split_nmea
 from drivers.nmea0183 import Gga, NmeaDecoder, NmeaRecord, Rmc, Zda, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS, Rejected
 from emlogd.offline import ProgressFn
@@ -111,10 +123,12 @@ from emlogd.offline.importbase import (
     CaptureSink,
     ImportFormatError,
     ImportReport,
+    SentenceCheck,
     count,
     open_text,
     within_years,
 )
+from emlogd.offline.importer_sparse import SparseLog
 from emlogd.pipeline.sentences import encode_vdr
 from emlogd.pipeline.variation import model_variation
 
@@ -148,13 +162,25 @@ MAX_PENDING_LINES = 100_000
 # ------------------------------------------------------------------ NMEA logs
 
 
-def _fix_time(rec: NmeaRecord | Rejected, day: date | None) -> tuple[float | None, date | None]:
-    """(epoch seconds of a fix, the date it implies) for an RMC, ZDA or GGA record."""
+DAY_ROLLOVER_S = 43_200.0
+"""NMEA: a GGA time of day this much (or more) before the last fix is the next day's
+(midnight passed in a log without a date in its fixes), s."""
+
+
+def _fix_time(
+    rec: NmeaRecord | Rejected, day: date | None, last: float | None = None
+) -> tuple[float | None, date | None]:
+    """(epoch seconds of a fix, the date it implies) for an RMC, ZDA or GGA record; a
+    GGA time of day :data:`DAY_ROLLOVER_S` before the ``last`` fix moves to the next day."""
     if isinstance(rec, Rmc | Zda) and rec.time_utc is not None:
         return rec.time_utc.timestamp(), rec.time_utc.date()
     if isinstance(rec, Gga) and rec.time_of_day_s is not None and day is not None:
         base = datetime(day.year, day.month, day.day, tzinfo=UTC)
-        return (base + timedelta(seconds=rec.time_of_day_s)).timestamp(), day
+        t = (base + timedelta(seconds=rec.time_of_day_s)).timestamp()
+        if last is not None and last - t >= DAY_ROLLOVER_S:
+            day = day + timedelta(days=1)
+            t += 86_400.0
+        return t, day
     return None, day
 
 
@@ -208,31 +234,18 @@ class _Spreader:
         count(self.report.skipped, "after_last_fix", len(self.pending) - 1 + self.overflow)
 
 
-def _not_a_sentence(text: str) -> str | None:
-    """Why a log line is no complete NMEA sentence with a valid checksum (checked as the
-    decoders do), or None when it is one."""
-    if not text:
-        return "empty"
-    if text[0] not in "$!" or not text.isascii():
-        return "not_nmea"
-    try:
-        split_nmea(text.encode("ascii"), required=True)
-    except FrameError as exc:
-        return exc.reason
-    return None
-
-
 def _sentence_fix(
-    decoder: NmeaDecoder, text: str, day: date | None
+    decoder: NmeaDecoder, text: str, day: date | None, last: float | None
 ) -> tuple[float | None, date | None]:
-    """(the time the sentence fixes, or None; the date known after it)."""
+    """(the time the sentence fixes, or None; the date known after it), ``last`` the
+    time of the fix before."""
     fix: float | None = None
     try:
         decoded = decoder.decode_all((text + "\r\n").encode("ascii"))
     except FrameError:
         decoded = []  # a sentence the decoders do not parse is still kept
     for rec in decoded:
-        fix, day = _fix_time(rec, day)
+        fix, day = _fix_time(rec, day, last)
     return fix, day
 
 
@@ -260,19 +273,19 @@ def import_nmea(
     decoder = make_decoder("nmea0183", port, errors="raise")
     sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
     spread = _Spreader(sink, report)
+    checks = SentenceCheck(report)
     current_day = day
     try:
         for i, path in enumerate(paths):
             with open_text(path) as f:
                 for raw in f:
                     report.lines += 1
-                    text = raw.strip()
-                    reason = _not_a_sentence(text)
-                    if reason is not None:
-                        report.skipped[reason] += 1
+                    line, reason = checks.line(raw.strip())
+                    if line is None:
+                        report.skipped[reason or "empty"] += 1
                         continue
-                    fix, current_day = _sentence_fix(decoder, text, current_day)
-                    spread.add(text, fix)
+                    fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
+                    spread.add(line, fix)
             if progress is not None:
                 progress(f"import {Path(path).name}", (i + 1) / len(paths))
         spread.finish()
@@ -411,7 +424,8 @@ def import_csv(
     report = ImportReport([str(path)], str(out), port)
     with open_text(path) as f:
         head = _read_head(f, path)
-        found = find_header(head, candidates)
+        sparse = SparseLog.detect(head)
+        found = find_header([sparse.header] if sparse else head, candidates)
         if found is None:
             raise ImportFormatError(no_header(path, head, candidates))
         h_index, delim, chosen, cols = found
@@ -421,7 +435,12 @@ def import_csv(
         sink = CaptureSink(out, port, f"emlogd import --format csv: {path}", report)
         run = _CsvRun(sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s)
         try:
-            _csv_rows(_chain(head[h_index + 1 :], f), run)
+            if sparse is not None:
+                report.notes["expedition_sparse_log"] += 1
+                rows = sparse.dense(_chain(head[sparse.first_row :], f), report)
+            else:
+                rows = _chain(head[h_index + 1 :], f)
+            _csv_rows(rows, run)
             _finish_csv(path, run)
         except BaseException:
             sink.abort()

@@ -32,6 +32,7 @@ from drivers.nmea0183 import NmeaDecoder
 from drivers.records import Rejected
 from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
+from emlogd.offline.replay_twoaxis import AthwartScorer
 from emlogd.offline.simfaults import WindowScore, score_windows
 from emlogd.offline.simulate import Truth, TruthScore, score_truth
 from emlogd.pipeline.core import Emit, Event, Output, Pipeline
@@ -86,6 +87,9 @@ class ReplayResult:
     """Per UUT, its emitted speeds scored against the truth (replay with ``truth``)."""
     truth_windows: dict[str, list[WindowScore]] = field(default_factory=dict)
     """Per UUT, the same per window of :data:`~emlogd.offline.simfaults.WINDOW_S`."""
+    two_axis_truth: dict[str, dict[str, object]] = field(default_factory=dict)
+    """Per UUT that learns two axes, its VBW scored on both axes against the truth
+    (:class:`~emlogd.offline.replay_twoaxis.AthwartScorer`)."""
     internal: dict[str, object] = field(default_factory=dict)
     """The records whose handling failed and was contained (:meth:`Containment.report`)."""
 
@@ -108,6 +112,12 @@ class ReplayResult:
                     "nis_mean": u["nis_mean"],
                     "samples_learnt": u["samples_learnt"],
                     "truth": self.truth[name].to_dict() if name in self.truth else None,
+                    **({"two_axis": u["two_axis"]} if "two_axis" in u else {}),
+                    **(
+                        {"two_axis_truth": self.two_axis_truth[name]}
+                        if name in self.two_axis_truth
+                        else {}
+                    ),
                 }
                 for name, u in uuts.items()
             },
@@ -195,6 +205,8 @@ def replay(
     if scorer is not None and truth is not None:
         result.truth = scorer.scores(truth)
         result.truth_windows = scorer.windows(truth)
+        if scorer.athwart is not None:
+            result.two_axis_truth = scorer.athwart.scores(truth)
     result.elapsed_s = time.perf_counter() - started
     result.span_s = run.t_last - run.t_first if run.t_first is not None else 0.0
     return result
@@ -348,9 +360,12 @@ class _TruthScorer:
             self.source[name] = u.s.uut_source
             self.decoders[name] = make_decoder("nmea0183", name, errors="skip")
             self.corrected[name] = {}
+        self.athwart = AthwartScorer(pipeline) if pipeline.two_axis else None
 
     def emitted(self, emits: Sequence[Emit]) -> None:
         """Decode the UUTs' corrected speed sentences as a receiver would."""
+        if self.athwart is not None:
+            self.athwart.emitted(emits)
         for e in emits:
             dec = self.decoders.get(e.port)
             if dec is None or e.sentence[3:6] != self.source[e.port]:

@@ -24,6 +24,7 @@ from calib.errors import ModelError
 from calib.estimate import Estimate, Estimated
 from calib.kalman import check_covariance
 from calib.models import Layout
+from calib.twoaxis import ENVELOPE, MAX_MISALIGN_DEG
 from emlogd.pipeline.integrity import Envelope
 
 Method = Literal["online", "kf", "ls"]
@@ -56,6 +57,9 @@ class Calibration(Estimated):
         unidentifiable: the unknowns the data did not determine (held at their prior).
         nis_mean: running NIS mean (online, kf).
         reset: the UUT was reset by the operator: no calibration (params are nominal).
+        two_axis: a two-axis log's figures learnt online (``axes: 2``) and validated:
+            ``misalign_deg``, ``m_t``, ``b_t_mps`` and their σ (``misalign_std_deg``,
+            ``m_t_std``, ``b_t_std_mps``); None: none.
     """
 
     uut: str
@@ -70,6 +74,7 @@ class Calibration(Estimated):
     unidentifiable: tuple[str, ...] = ()
     nis_mean: float | None = None
     reset: bool = False
+    two_axis: Mapping[str, float] | None = None
 
     @property
     def layout(self) -> Layout:
@@ -86,7 +91,7 @@ def check(cal: Calibration, envelope: Envelope, max_lag_s: float | None = None) 
     present, of the layout's shape, finite, symmetric and positive-definite with no
     variance above :data:`MAX_VARIANCE`; standard deviations finite and non-negative.
     """
-    why = check_lag(cal.lag_s, max_lag_s)
+    why = check_lag(cal.lag_s, max_lag_s) or check_two_axis(cal.two_axis)
     if why:
         return why
     if cal.reset:
@@ -105,6 +110,30 @@ def check(cal: Calibration, envelope: Envelope, max_lag_s: float | None = None) 
             return str(exc)
         if float(np.max(np.abs(np.asarray(cal.covariance)))) > MAX_VARIANCE:
             return "covariance magnitudes are not a calibration's"
+    return ""
+
+
+TWO_AXIS_KEYS = ("misalign_deg", "misalign_std_deg", "m_t", "m_t_std", "b_t_mps", "b_t_std_mps")
+"""The figures of a record's ``two_axis``."""
+
+
+def check_two_axis(fig: Mapping[str, float] | None) -> str:
+    """``""`` when a record's two-axis figures (None: none) may be used, else why not:
+    every figure of :data:`TWO_AXIS_KEYS` finite, |α| ≤
+    :data:`calib.twoaxis.MAX_MISALIGN_DEG`, the transverse scale and bias within the
+    two-axis envelope (:data:`calib.twoaxis.ENVELOPE`: 0.5 and 1 m/s), σ non-negative."""
+    if fig is None:
+        return ""
+    if sorted(fig) != sorted(TWO_AXIS_KEYS):
+        return f"two-axis figures must be {', '.join(TWO_AXIS_KEYS)}"
+    for k in TWO_AXIS_KEYS:
+        v = fig[k]
+        if not math.isfinite(v) or ("std" in k and v < 0.0):
+            return f"two-axis {k} is {v!r}"
+    bounds = {"misalign_deg": MAX_MISALIGN_DEG, "m_t": ENVELOPE["m_t"], "b_t_mps": ENVELOPE["b_t"]}
+    for k, bound in bounds.items():
+        if abs(fig[k]) > bound:
+            return f"two-axis {k} {fig[k]:+.3g} outside ±{bound:g}"
     return ""
 
 

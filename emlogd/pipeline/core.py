@@ -36,6 +36,7 @@ a ``VDR`` (set and drift) whenever the heading determines the current.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -69,6 +70,8 @@ from emlogd.pipeline.sentences import (
 )
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.staleness import HEADING_NEAREST_S, Liveness
+from emlogd.pipeline.twoaxis_learn import TwoAxisLearner, encode_two_axis_status
+from emlogd.pipeline.twoaxis_sup import Figures
 from emlogd.pipeline.uut import UutCalibration
 
 FUSED_PORT = "fused"
@@ -175,6 +178,8 @@ class Pipeline:
         self.t_fused_status = -math.inf
         self.headings = Headings(list(self.ports), uuts)
         self.uuts: dict[str, UutRoute] = {}
+        self.two_axis: dict[str, TwoAxisLearner] = {}
+        """The UUTs that learn two axes (``axes: 2``), by port."""
         self._by_ref: dict[str, list[UutRoute]] = {}
         cals = calibrations or {}
         self.kept: dict[str, dict[str, Calibration]] = {}
@@ -202,10 +207,21 @@ class Pipeline:
                         _keep_lag(u.cal, rec.lag_s)
                         break
             self.uuts[s.port] = u
+            if s.axes == 2:
+                self.two_axis[s.port] = self._two_axis(s, latest)
             self._by_ref.setdefault(s.reference_port, []).append(u)
         self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
+
+    def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
+        """A two-axis learner; the saved figures of a record its checks accept restored
+        (they validate again before they are applied)."""
+        ax = TwoAxisLearner(s, self._hooks(s.port)[1])
+        saved = latest.two_axis if latest is not None else None
+        if latest is not None and saved is not None and not check(latest, s.envelope, s.max_lag_s):
+            ax.sup.restore(Figures.from_dict(saved))
+        return ax
 
     def _new_cal(self, s: UutSettings, prior: Calibration | None) -> UutCalibration:
         return UutCalibration(s, prior, *self._hooks(s.port))
@@ -246,6 +262,9 @@ class Pipeline:
                 o.cal.heading_at, o.cal._event = self._hooks(name)
                 o.heading_order = self.headings.order(o.s)  # this config's ports
                 self.uuts[name] = o
+                if name in old.two_axis and name in self.two_axis:
+                    self.two_axis[name] = old.two_axis[name]
+                    self.two_axis[name].sup._event = self.two_axis[name]._event = o.cal._event
                 kept.append(name)
             elif o.s.learn == u.s.learn:
                 u.cal.learn_on = o.cal.learn_on
@@ -322,6 +341,9 @@ class Pipeline:
             if u.s.reference_field != sp.role:
                 continue
             u.reference(t, speed_of(sp, u.s.component), sp.valid)
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None:
+                ax.reference(t, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
 
     def _gnss(self, t: float, port: str, g: NavGnss) -> None:
         """A GNSS speed and course: queued until the heading at its time is known."""
@@ -376,14 +398,7 @@ class Pipeline:
             u.stw = (t, value)
         if value is not None:
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
-            if sp.source == "VHW":
-                sentence = encode_vhw(value, hdg_t, hdg_m, u.s.talker)
-            elif sp.transverse_mps is not None and twoaxis.configured(u.s):
-                sentence = encode_vbw(
-                    *twoaxis.hull_frame(u.s, value, sp.transverse_mps), u.s.talker
-                )
-            else:
-                sentence = encode_vbw(value, sp.transverse_mps, u.s.talker)
+            sentence = self._sentence(u, t, sp, value)
             if self.fusion is None or not self.fusion.s.only:
                 out.emits.append(Emit(t, u.s.port, sentence))
             if self.fusion is not None and sp.source == u.s.uut_source:
@@ -394,7 +409,29 @@ class Pipeline:
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
             out.emits.append(Emit(t, u.s.port, encode_status(st.status_fields(u))))
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None:
+                out.emits.append(Emit(t, u.s.port, encode_two_axis_status(u.s.port, u.s.maker, ax)))
             self._vdr(u, t, out)
+
+    def _sentence(self, u: UutRoute, t: float, sp: SpeedRecord, value: float) -> str:
+        """A reading's corrected sentence: VHW; VBW with the learnt two-axis figures
+        (the reading then learnt from, ``axes: 2``), else the configured ones, else
+        the athwart speed as read."""
+        if sp.source == "VHW":
+            return encode_vhw(value, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
+        trans = sp.transverse_mps
+        ax = self.two_axis.get(u.s.port)
+        if ax is not None and trans is not None:
+            hull = ax.correct(value, trans)
+            if sp.longitudinal_mps is not None:
+                ax.reading(t, value, sp.longitudinal_mps, trans)
+                ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on)
+            if hull is not None:
+                return encode_vbw(*hull, u.s.talker)
+        if trans is not None and twoaxis.configured(u.s):
+            return encode_vbw(*twoaxis.hull_frame(u.s, value, trans), u.s.talker)
+        return encode_vbw(value, trans, u.s.talker)
 
     def _prior(self, s: UutSettings, latest: Calibration | None) -> Calibration | None:
         """The calibration a UUT starts from: its latest when of its model, else its own
@@ -483,10 +520,13 @@ class Pipeline:
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None and ax.sup.changed:
+                ax.sup.changed, cal.dirty = False, True
             if cal.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
-                    out.persist.append(snap)
+                    out.persist.append(self._with_two_axis(snap))
         if self._pending_events:
             out.events.extend(self._pending_events)
             self._pending_events.clear()
@@ -517,6 +557,9 @@ class Pipeline:
         for u in self.uuts.values():
             self._project(u, final=True)
             u.cal.drain(self.now, final=True)
+            ax = self.two_axis.get(u.s.port)
+            if ax is not None:
+                ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on, final=True)
         self._after(self.now, out)
         return out
 
@@ -560,11 +603,21 @@ class Pipeline:
             fresh.dirty = True
             fresh.t_persist = -math.inf
             u.cal = fresh
+            if p in self.two_axis:
+                self.two_axis[p] = TwoAxisLearner(u.s, self._hooks(p)[1])
+                cleared.append("two-axis figures")
         return done
 
     def calibrations(self) -> list[Calibration]:
         """The calibration of every UUT (a ``reset`` record when it has none): what is persisted."""
-        return [u.cal.snapshot() for u in self.uuts.values()]
+        return [self._with_two_axis(u.cal.snapshot()) for u in self.uuts.values()]
+
+    def _with_two_axis(self, snap: Calibration) -> Calibration:
+        """A UUT's record with its last good two-axis figures (``axes: 2``)."""
+        ax = self.two_axis.get(snap.uut)
+        if ax is None or ax.sup.kept is None:
+            return snap
+        return dataclasses.replace(snap, two_axis=ax.sup.kept.as_dict())
 
     def other_calibrations(self) -> list[Calibration]:
         """Every UUT's calibrations of the models it is not using: persisted beside."""
@@ -587,6 +640,7 @@ class Pipeline:
             "ports": self.port_status(),
             "uuts": {
                 name: st.uut_status(u, self.headings, self.liveness, self.now)
+                | ({"two_axis": self.two_axis[name].status()} if name in self.two_axis else {})
                 for name, u in self.uuts.items()
             },
             "fused": st.fused_status(self.fusion.last if self.fusion is not None else None),

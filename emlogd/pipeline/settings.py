@@ -155,6 +155,14 @@ class UutSettings:
         unit="m/s",
         doc="VBW: the athwart axis's bias (`calibrate --axes 2`).",
     )
+    axes: int = key(
+        1,
+        check=number(1, 2, integer=True),
+        doc="2: learn the VBW's misalignment, transverse scale and bias online against a "
+        "two-axis reference (a DVL's bottom track) and apply them to the corrected VBW once "
+        "its athwart speed beats the raw one (`emlogd.pipeline.twoaxis_learn`); 1: the "
+        "longitudinal axis only.",
+    )
     component: Component = key(
         "longitudinal",
         check=literal(Component),

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.pipeline.calibration import Calibration
+from tests.synth import TWO_AXIS_FIGURES
 
 FULL = Calibration(
     estimate=Estimate(
@@ -69,3 +72,20 @@ class TestStrictParsing:
         assert bad != text
         with pytest.raises(CalibrationFileError, match=match):
             loads(bad)
+
+
+FIGURES = TWO_AXIS_FIGURES
+
+
+def test_two_axis_figures_round_trip_and_are_absent_otherwise() -> None:
+    """A record with two-axis figures keeps them through the file; one without has no
+    ``two_axis`` key (a one-axis file is as before); a figure missing or not a number
+    is an error naming the key."""
+    two = dataclasses.replace(FULL, two_axis=FIGURES)
+    text = dumps({"emlog2": two})
+    assert loads(text)[0]["emlog2"] == two
+    assert "two_axis" not in dumps({"emlog2": FULL})
+    with pytest.raises(CalibrationFileError, match="two_axis"):
+        loads(text.replace("    b_t_std_mps: 0.004\n", ""))
+    with pytest.raises(CalibrationFileError, match=r"two_axis\.m_t"):
+        loads(text.replace("m_t: -0.08", "m_t: .nan"))

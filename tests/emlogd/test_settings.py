@@ -72,6 +72,7 @@ OFF_DEFAULT: dict[str, dict[str, tuple[Any, str, Any]]] = {
         "misalign_deg": (2.5, "log.misalign_deg", SAME),
         "transverse_scale": (0.05, "log.transverse_scale", SAME),
         "transverse_bias_mps": (0.1, "log.transverse_bias_mps", SAME),
+        "axes": (2, "log.axes", SAME),
         "component": ("magnitude", "log.component", SAME),
         "current": (False, "log.current", SAME),
         "heading": ("log2", "log.heading", SAME),

@@ -251,3 +251,27 @@ def test_status_without_a_daemon_or_config_names_the_options(
     assert main(["status"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--config FILE" in err and "--socket PATH" in err
+
+
+def test_status_text_shows_the_two_axis_figures_and_the_refusal() -> None:
+    """``axes: 2``: a line under the UUT with the figures applied (α ± σ, m_t, b_t), the
+    leeway, and why the latest window refused α."""
+    from emlogd.cli.daemon import _status_text
+
+    fig = {
+        "misalign_deg": 3.05,
+        "misalign_std_deg": 0.12,
+        "m_t": -0.081,
+        "m_t_std": 0.004,
+        "b_t_mps": 0.041,
+        "b_t_std_mps": 0.003,
+    }
+    two = {"state": "applied", "applied": fig, "estimate": None, "leeway_deg": -1.25}
+    two["refused"] = "misalignment not separable: speed through water nearly constant"
+    u = {"state": "frozen", "reference": "valid", "model": "EM3", "two_axis": two}
+    text = _status_text({"status": {"uuts": {"log": u}, "ports": {}}})
+    assert (
+        "  two axes: applied, misalignment +3.05 ± 0.12°, m_t -0.0810 ± 0.0040, "
+        "b_t +0.041 ± 0.003 m/s, leeway -1.2°; latest window: misalignment refused: "
+        "misalignment not separable: speed through water nearly constant\n"
+    ) in text

@@ -177,27 +177,61 @@ def test_fake_says_when_the_capture_has_ended(
             os.close(fd)
 
 
-def test_progress_lines_arrive_while_the_work_runs_when_piped(tmp_path: Path) -> None:
-    """simulate with stderr a pipe: timestamped progress lines (``emlogd simulate:
-    [ELAPSED s] …``) arrive one by one while it runs, not all at its end."""
+Arrival = tuple[float, str]
+"""When a line of a subprocess's pipe arrived (``time.monotonic()``), and the line."""
+
+
+@pytest.fixture(scope="module")
+def piped_simulate(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[list[Arrival], list[Arrival], float]:
+    """``emlogd simulate --scale 0.4`` with stdout and stderr both pipes, run once for the
+    tests below: the stdout lines, the stderr lines as they arrived, and when it ended."""
     import os
-    import re
+    import selectors
     import subprocess
     import sys
     import time
 
     root = Path(__file__).resolve().parents[3]
     env = {**os.environ, "PYTHONPATH": str(root)}
-    argv = [sys.executable, "-m", "emlogd", "simulate", str(tmp_path / "s"), "--scale", "0.4"]
-    proc = subprocess.Popen(
-        argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env
-    )
-    assert proc.stderr is not None
-    arrivals: list[tuple[float, str]] = []
-    for line in proc.stderr:
-        arrivals.append((time.monotonic(), line))
+    out_dir = tmp_path_factory.mktemp("piped") / "s"
+    argv = [sys.executable, "-m", "emlogd", "simulate", str(out_dir), "--scale", "0.4"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    assert proc.stdout is not None and proc.stderr is not None
+    arrivals: dict[int, list[Arrival]] = {}
+    pending: dict[int, bytes] = {}
+    sel = selectors.DefaultSelector()
+    for stream in (proc.stdout, proc.stderr):
+        fd = stream.fileno()
+        arrivals[fd], pending[fd] = [], b""
+        sel.register(fd, selectors.EVENT_READ)
+    deadline = time.monotonic() + 60
+    while sel.get_map():
+        assert time.monotonic() < deadline, "simulate did not end within 60 s"
+        for key, _ in sel.select(timeout=1.0):
+            fd = int(key.fd)
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                sel.unregister(fd)
+                continue
+            now = time.monotonic()
+            *lines, pending[fd] = (pending[fd] + chunk).split(b"\n")
+            arrivals[fd].extend((now, ln.decode() + "\n") for ln in lines)
+    sel.close()
     assert proc.wait(60) == 0
     t_end = time.monotonic()
+    return arrivals[proc.stdout.fileno()], arrivals[proc.stderr.fileno()], t_end
+
+
+def test_progress_lines_arrive_while_the_work_runs_when_piped(
+    piped_simulate: tuple[list[Arrival], list[Arrival], float],
+) -> None:
+    """simulate with stderr a pipe: timestamped progress lines (``emlogd simulate:
+    [ELAPSED s] …``) arrive one by one while it runs, not all at its end."""
+    import re
+
+    _, arrivals, t_end = piped_simulate
     lines = [line for _, line in arrivals]
     assert len(lines) >= 3
     assert all(re.match(r"emlogd simulate: \[ *\d+\.\d s\] simulate: ", x) for x in lines)
@@ -276,24 +310,12 @@ def test_crossval_says_a_lag_fallback_once_on_stderr(
     assert err.count("emlogd crossval: warning: lag not measured") == 1
 
 
-def test_piped_simulate_writes_each_file_as_it_is_written(tmp_path: Path) -> None:
+def test_piped_simulate_writes_each_file_as_it_is_written(
+    piped_simulate: tuple[list[Arrival], list[Arrival], float],
+) -> None:
     """simulate with stdout a pipe: each capture's line arrives when that file is
     written (stdout line-buffered), the first well before the end."""
-    import os
-    import subprocess
-    import sys
-    import time
-
-    root = Path(__file__).resolve().parents[3]
-    env = {**os.environ, "PYTHONPATH": str(root)}
-    argv = [sys.executable, "-m", "emlogd", "simulate", str(tmp_path / "s"), "--scale", "0.4"]
-    proc = subprocess.Popen(
-        argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env
-    )
-    assert proc.stdout is not None
-    arrivals = [(time.monotonic(), line) for line in proc.stdout]
-    assert proc.wait(60) == 0
-    t_end = time.monotonic()
+    arrivals, _, t_end = piped_simulate
     assert len(arrivals) == 6 and "1-transit.cap" in arrivals[0][1]
     assert arrivals[4][0] - arrivals[0][0] > 0.3  # the five files, one by one
     assert t_end - arrivals[0][0] > 0.3

@@ -19,6 +19,7 @@ from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.integrity import Envelope
+from tests.synth import TWO_AXIS_FIGURES as FIGURES
 
 
 def _state(m: float = 0.1, n: int = 100) -> Calibration:
@@ -410,3 +411,19 @@ def test_other_models_round_trip_and_are_checked(tmp_path: Path) -> None:
     store.save({"emlog1": _state()}, [bad])
     states, others, report = store.load_state(check=_check())  # type: ignore[arg-type]
     assert "emlog1 EM4: lag -50.0 s is outside" in report[0]
+
+
+def test_refused_two_axis_figures_never_become_the_backup(tmp_path: Path) -> None:
+    """A state file whose two-axis misalignment is beyond 20° is refused: the backup's
+    figures are loaded, and the next save sets the refused file aside, the good
+    backup kept."""
+    fig = FIGURES
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": dataclasses.replace(_state(0.1), two_axis=fig)})
+    store.save({"emlog1": dataclasses.replace(_state(0.2), two_axis=fig)})
+    good_backup = store.backup.read_bytes()
+    store.path.write_text(store.path.read_text().replace("misalign_deg: 3.0", "misalign_deg: 25.0"))
+    states, report = store.load(check=lambda c: check(c, Envelope()))
+    assert states["emlog1"].two_axis == fig and "using the backup" in report[-1]
+    assert store.save({"emlog1": _state(0.3)}) == store.refused
+    assert store.backup.read_bytes() == good_backup

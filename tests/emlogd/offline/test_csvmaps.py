@@ -78,8 +78,19 @@ def test_cells_in_si_units_within_a_boats_range() -> None:
 
 @pytest.mark.parametrize(
     ("cell", "fmt"),
-    [("1700000000", "epoch"), ("38353.5", "ole"), ("2005-01-01T12:00:00", "iso"), ("12", None)],
+    [
+        ("1700000000", "epoch"),
+        ("38353.5", "ole"),
+        ("2005-01-01T12:00:00", "iso"),
+        ("12", None),
+        ("13/06/2005 09:19:33", "%d/%m/%Y %H:%M:%S"),
+        ("13/06/05 09:19:33.25", "%d/%m/%y %H:%M:%S.%f"),
+        ("13.06.2005 09:19:33", "%d.%m.%Y %H:%M:%S"),
+        ("2005/06/13 09:19:33", "%Y/%m/%d %H:%M:%S"),
+        ("06/13/2005 09:19:33", None),
+    ],
 )
 def test_the_time_format_is_told_by_the_first_cell(cell: str, fmt: str | None) -> None:
-    """Epoch seconds, an OLE date or ISO 8601 are told apart; anything else is not guessed."""
+    """Epoch seconds, an OLE date, ISO 8601 or a day-first date and time are told apart;
+    anything else (a month-first date past the 12th) is not guessed."""
     assert guess_time_format(cell) == fmt

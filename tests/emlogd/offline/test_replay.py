@@ -57,11 +57,12 @@ def test_replay_learns_and_emits(trial_files: dict[str, Path]) -> None:
 
 def test_state_carries_across_files(trial_files: dict[str, Path]) -> None:
     """Two files replayed in one call leave the same UUT status as the same files replayed one after
-    the other into one pipeline."""
+    the other into one pipeline (the figure-8 teaches EMlog1 a calibration the return carries)."""
     both = _pipeline()
-    replay(both, [trial_files["transit"], trial_files["return"]])
+    replay(both, [trial_files["figure-8"], trial_files["return"]])
     split = _pipeline()
-    replay(split, [trial_files["transit"]])
+    first = replay(split, [trial_files["figure-8"]]).to_dict()["uuts"]
+    assert first["emlog1"]["params"] is not None  # type: ignore[index]
     replay(split, [trial_files["return"]])
     assert both.status()["uuts"] == split.status()["uuts"]
 
@@ -100,9 +101,8 @@ def test_truth_scores_emitted_speeds(trial: SimulationResult, trial_files: dict[
         assert 0 < t["n_samples"] <= trial.trajectories[0].lines[name]
         assert t["rmse_floor"] == pytest.approx(trial.trajectories[0].rmse_floor_mps[name], rel=0.1)
         assert t["rmse_corrected"] < 0.6 * t["rmse_raw"]
-    assert (
-        replay(_pipeline(), [trial_files["straight"]]).to_dict()["uuts"]["emlog1"]["truth"] is None
-    )  # type: ignore[index]
+    plain = replay(_pipeline(), [trial_files["straight"]]).to_dict()["uuts"]
+    assert plain["emlog1"]["truth"] is None  # type: ignore[index]
 
 
 def test_truth_pairs_each_emitted_speed_with_its_reading(tmp_path: Path) -> None:

@@ -68,3 +68,30 @@ class TestCheck:
         )
         assert "bias" in checker([tight])(GOOD)
         assert checker([])(GOOD) == ""
+
+
+def test_two_axis_figures_are_checked() -> None:
+    """A record's two-axis figures: |α| ≤ 20°, |m_t| ≤ 0.5, |b_t| ≤ 1 m/s, σ ≥ 0, all six,
+    finite — checked whatever else the record holds (a reset one too)."""
+    good = {
+        "misalign_deg": -4.0,
+        "misalign_std_deg": 0.1,
+        "m_t": 0.2,
+        "m_t_std": 0.01,
+        "b_t_mps": -0.3,
+        "b_t_std_mps": 0.01,
+    }
+    base = Calibration("log", Estimate(Params("EM3"), {}), 0.5, two_axis=good)
+    assert check(base, Envelope()) == ""
+    for key, value, why in (
+        ("misalign_deg", 25.0, "misalign_deg +25 outside ±20"),
+        ("m_t", -0.7, "m_t -0.7 outside ±0.5"),
+        ("b_t_mps", 1.5, "b_t_mps +1.5 outside ±1"),
+        ("m_t_std", -0.1, "m_t_std is -0.1"),
+        ("misalign_deg", math.inf, "misalign_deg is inf"),
+    ):
+        bad = dataclasses.replace(base, two_axis=good | {key: value})
+        assert why in check(bad, Envelope())
+        assert why in check(dataclasses.replace(bad, reset=True), Envelope())
+    fewer = {k: v for k, v in good.items() if k != "b_t_std_mps"}
+    assert "must be" in check(dataclasses.replace(base, two_axis=fewer), Envelope())

@@ -1,0 +1,930 @@
+"""The perturbation suite: each real recording rewritten as a held-out log of its kind
+plausibly differs, and run through the same commands as docs/real_data.py.
+
+Usage: ``python docs/real_variants.py DIR [--only NAME ...] [--variant V ...] [--out DIR] [--json]``.
+
+A variant is a pure function of the source file's text (:data:`VARIANTS`): the GNSS
+thinned to 0.5 and 0.2 Hz, fix times of 1-s and 10-s resolution; a magnetic heading
+without any variation in the log (HDG with empty variation fields, HDM, VHW magnetic
+only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, RMC
+without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
+lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
+a midnight crossed by GGA times of day; Expedition exports with other column sets
+(``Set``/``Drift``, no current, upper-case names, another order, extra columns,
+``;`` with decimal commas, quoted cells, a byte-order mark) and Expedition's own sparse
+log (``!Boat`` header, channel numbers, ``channel,value`` pairs); the logger's TSV
+without its banner, with its local time given by ``--utc-offset``, with rows every 5 s,
+under its other firmware's column names after a banner of settings;
+and a strong tidal current (:func:`tide`) added to the GNSS of an NMEA log and of an
+Expedition export: the water-frame calibration should not move.
+
+Each variant is imported, calibrated (LS and KF, ``--ref-field gnss --current``, no
+``--variation``) and replayed (``examples/emlogd-gnss.yaml``, ``lag: auto``), and its
+row set beside the unperturbed recording's: the effective scale at the unperturbed
+median speed (LS and KF, and their change), the replay's emitted/raw RMSE against
+the GNSS water speed and its worst 5-min ratio. :func:`verdict` names what moved: a
+step that failed, a scale more than :data:`MAX_SCALE_SHIFT` from the unperturbed run,
+a replay worse than raw over the log, a 5-min window worse than both the unperturbed
+run's and :data:`WINDOW_TOLERANCE` by more than :data:`WINDOW_SLACK`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import re
+import sys
+import tempfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from functools import reduce
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _real_data() -> ModuleType:
+    """docs/real_data.py as a module (its functions run each step)."""
+    here = str(ROOT / "docs")
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    return importlib.import_module("real_data")
+
+
+MAX_SCALE_SHIFT = 0.05
+"""A variant whose effective scale at the median speed moves more than this from the
+unperturbed run's has changed the result materially."""
+
+TIDE_KN = 1.5
+"""The ``tide`` variants' current along its major axis, kn (a strong tidal bay)."""
+
+TIDE_PERIOD_S = 44_712.0
+"""The ``tide`` variants' period: the semi-diurnal M2 tide's 12.42 h, s."""
+
+WORSE_THAN_RAW = 1.01
+"""A replay whose emitted RMSE over the log exceeds raw's by this factor is worse than
+raw (below it, the sentences' rounding to 0.01 kn)."""
+
+WINDOW_TOLERANCE = 1.10
+"""A 5-min window of the replay up to this times raw's RMSE is within the suite's
+tolerance (docs/REAL_DATA.md)."""
+
+WINDOW_SLACK = 0.05
+"""A variant's worst 5-min window is flagged when it exceeds both
+:data:`WINDOW_TOLERANCE` and the unperturbed run's worst by more than this."""
+
+GAP_S = 300.0
+"""The gap variant removes this many seconds of the log's middle."""
+
+# ------------------------------------------------------------------ NMEA helpers
+
+SENTENCE = re.compile(r"^([$!])([^*\r\n]*)(?:\*([0-9A-Fa-f]{2}))?\s*$")
+
+
+def checksum(body: str) -> str:
+    """The XOR checksum of a sentence's body (between ``$`` and ``*``), two hex digits."""
+    return f"{reduce(lambda a, c: a ^ ord(c), body, 0):02X}"
+
+
+def sentence(body: str, lead: str = "$") -> str:
+    """A complete sentence from its body."""
+    return f"{lead}{body}*{checksum(body)}"
+
+
+def fields(line: str) -> list[str] | None:
+    """A sentence's fields (address first), or None for a line that is no sentence."""
+    m = SENTENCE.match(line)
+    return m.group(2).split(",") if m else None
+
+
+def kind_of(f: list[str]) -> str:
+    return f[0][2:] if len(f[0]) >= 5 else f[0]
+
+
+def _rmc_time(f: list[str]) -> datetime | None:
+    """An RMC's UTC time, or None."""
+    try:
+        hh, mm, ss = int(f[1][0:2]), int(f[1][2:4]), float(f[1][4:])
+        dd, mo, yy = int(f[9][0:2]), int(f[9][2:4]), int(f[9][4:6])
+    except (ValueError, IndexError):
+        return None
+    base = datetime(2000 + yy if yy < 80 else 1900 + yy, mo, dd, hh, mm, tzinfo=UTC)
+    return base + timedelta(seconds=ss)
+
+
+def _hhmmss(t: datetime, decimals: int) -> str:
+    s = t.second + t.microsecond / 1e6
+    sec = f"{s:0{3 + decimals}.{decimals}f}" if decimals else f"{int(s):02d}"
+    return f"{t.hour:02d}{t.minute:02d}{sec}"
+
+
+def _map_nmea(text: str, fn: Callable[[list[str]], list[str] | None]) -> str:
+    """Each sentence through ``fn`` (its fields → new fields, or None to drop it); other
+    lines kept. The line ending of the source is kept."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    out: list[str] = []
+    for line in text.splitlines():
+        f = fields(line)
+        if f is None:
+            out.append(line)
+            continue
+        g = fn(f)
+        if g is not None:
+            out.append(sentence(",".join(g), line[0]))
+    return nl.join(out) + nl
+
+
+def _thin_gnss(period_s: float) -> Callable[[str], str]:
+    """GNSS sentences (RMC, GGA, VTG, GLL, ZDA) kept only at fixes ``period_s`` apart."""
+
+    def apply(text: str) -> str:
+        state = {"kept": -math.inf, "on": True}
+
+        def fn(f: list[str]) -> list[str] | None:
+            k = kind_of(f)
+            if k == "RMC":
+                t = _rmc_time(f)
+                if t is not None:
+                    x = t.timestamp()
+                    state["on"] = x >= state["kept"] + period_s - 1e-3
+                    if state["on"]:
+                        state["kept"] = x
+            if k in ("RMC", "GGA", "VTG", "GLL", "ZDA"):
+                return f if state["on"] else None
+            return f
+
+        return _map_nmea(text, fn)
+
+    return apply
+
+
+def _coarse_times(resolution_s: float) -> Callable[[str], str]:
+    """RMC (and GGA, GLL, ZDA) times floored to ``resolution_s``."""
+
+    def fn(f: list[str]) -> list[str]:
+        k = kind_of(f)
+        idx = {"RMC": 1, "GGA": 1, "GLL": 5, "ZDA": 1}.get(k)
+        if idx is None or idx >= len(f) or len(f[idx]) < 6:
+            return f
+        try:
+            secs = int(f[idx][0:2]) * 3600 + int(f[idx][2:4]) * 60 + float(f[idx][4:])
+        except ValueError:
+            return f
+        secs = math.floor(secs / resolution_s) * resolution_s
+        g = list(f)
+        g[idx] = f"{int(secs // 3600):02d}{int(secs % 3600 // 60):02d}{int(secs % 60):02d}"
+        return g
+
+    return lambda text: _map_nmea(text, fn)
+
+
+def _no_variation(f: list[str]) -> list[str]:
+    """Every variation field emptied (HDG's deviation and variation, RMC's)."""
+    k, g = kind_of(f), list(f)
+    if k == "HDG":
+        g[2:6] = ["", "", "", ""][: len(g[2:6])]
+    elif k == "RMC" and len(g) > 11:
+        g[10], g[11] = "", ""
+    return g
+
+
+def _hdm(f: list[str]) -> list[str] | None:
+    """HDG → HDM (the magnetic heading alone); other variations emptied."""
+    if kind_of(f) == "HDG":
+        return [f[0][:2] + "HDM", f[1], "M"]
+    return _no_variation(f)
+
+
+def _vhw_magnetic_only(f: list[str]) -> list[str] | None:
+    """No heading sentence; VHW's true heading emptied; no variation anywhere."""
+    k = kind_of(f)
+    if k in ("HDG", "HDT", "HDM"):
+        return None
+    if k == "VHW" and len(f) > 2:
+        g = list(f)
+        g[1], g[2] = "", ""
+        return _no_variation(g)
+    return _no_variation(f)
+
+
+def _rmc_to(kinds: tuple[str, ...]) -> Callable[[list[str]], list[str] | None]:
+    """RMC replaced by the named sentences (GGA, VTG, GLL, ZDA) of the same fix."""
+
+    def fn(f: list[str]) -> list[str] | None:
+        if kind_of(f) in ("GGA", "VTG", "GLL", "ZDA"):
+            return None  # the log's own: the variant's replace them
+        if kind_of(f) != "RMC" or len(f) < 10:
+            return f
+        t = _rmc_time(f)
+        if t is None or f[2] != "A":
+            return None
+        hms = _hhmmss(t, 2)
+        talker = f[0][:2]
+        out: list[list[str]] = []
+        for k in kinds:
+            if k == "GGA":
+                out.append([talker + "GGA", hms, *f[3:7], "1", "08", "1.0", "10.0", "M"] + [""] * 4)
+            elif k == "VTG":
+                kmh = f"{float(f[7] or 0) * 1.852:.1f}" if f[7] else ""
+                out.append([talker + "VTG", f[8], "T", "", "M", f[7], "N", kmh, "K", "A"])
+            elif k == "GLL":
+                out.append([talker + "GLL", *f[3:7], hms, "A", "A"])
+            elif k == "ZDA":
+                out.append(
+                    [talker + "ZDA", hms, f"{t.day:02d}", f"{t.month:02d}", f"{t.year}", "", ""]
+                )
+        # several sentences from one: joined with a marker split by _expand
+        return ["\x00".join(",".join(x) for x in out)]
+
+    return fn
+
+
+def _expand(text: str) -> str:
+    """Sentences the maps joined with NUL written one per line with their checksums."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    out: list[str] = []
+    for line in text.splitlines():
+        if "\x00" not in line:
+            out.append(line)
+            continue
+        body = line[1 : line.index("*")]
+        out.extend(sentence(part) for part in body.split("\x00"))
+    return nl.join(out) + nl
+
+
+def _other_sentences(text: str) -> str:
+    """Other talkers (GP for the fix, HC for the compass, VW for the log), VLW, nonsense
+    MWV and proprietary lines between the sentences."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    out: list[str] = []
+    for i, line in enumerate(text.splitlines()):
+        f = fields(line)
+        if f is not None and len(f[0]) == 5:
+            k = kind_of(f)
+            talker = {"RMC": "GP", "GGA": "GP", "VTG": "GP", "HDG": "HC", "HDM": "HC"}
+            talker |= {"HDT": "HE", "VHW": "VW"}
+            if k in talker:
+                f = [talker[k] + k, *f[1:]]
+            line = sentence(",".join(f), line[0])
+        out.append(line)
+        if i % 7 == 3:
+            out.append(sentence("VWVLW,1554.2,N,12.3,N"))
+        if i % 11 == 5:
+            out.append(sentence("WIMWV,999,R,-5.0,N,V"))
+            out.append(sentence("WIMWV,,,,,"))
+        if i % 13 == 6:
+            out.append(sentence("PGRME,15.0,M,45.0,M,25.0,M"))
+            out.append("$PSRT,GARBAGE LINE WITHOUT CHECKSUM")
+    return nl.join(out) + nl
+
+
+def _rmc_course_empty_slow(f: list[str]) -> list[str]:
+    """RMC's course left empty below 1 kn (receivers drop it at low speed)."""
+    if kind_of(f) == "RMC" and len(f) > 8:
+        try:
+            slow = float(f[7]) < 1.0
+        except ValueError:
+            slow = True
+        if slow:
+            g = list(f)
+            g[8] = ""
+            return g
+    return f
+
+
+def _prefixed(text: str) -> str:
+    """A receive time (ms since the log's start) and a tag before each sentence, as
+    some loggers write them."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    return nl.join(f"{100 * i};N;{ln}" for i, ln in enumerate(text.splitlines())) + nl
+
+
+def _no_checksums(text: str) -> str:
+    return re.sub(r"\*[0-9A-Fa-f]{2}(?=\r?$)", "", text, flags=re.MULTILINE)
+
+
+def _line_endings(nl: str) -> Callable[[str], str]:
+    return lambda text: nl.join(text.splitlines()) + nl
+
+
+def _truncated(text: str) -> str:
+    """The last line cut halfway (a logger switched off), and one line in the middle
+    cut and run into the next (a reset)."""
+    lines = text.splitlines(keepends=True)
+    mid = len(lines) // 2
+    lines[mid] = lines[mid][: len(lines[mid]) // 2]
+    last = lines[-1].rstrip("\r\n")
+    lines[-1] = last[: len(last) // 2]
+    return "".join(lines)
+
+
+def _fix_seconds(text: str) -> Iterator[tuple[int, float]]:
+    """(line index, epoch seconds) of each RMC fix."""
+    for i, line in enumerate(text.splitlines()):
+        f = fields(line)
+        if f is not None and kind_of(f) == "RMC":
+            t = _rmc_time(f)
+            if t is not None:
+                yield i, t.timestamp()
+
+
+def _gap(text: str) -> str:
+    """:data:`GAP_S` of the log's middle removed (a logger paused)."""
+    fixes = list(_fix_seconds(text))
+    if len(fixes) < 10:
+        return text
+    t_mid = (fixes[0][1] + fixes[-1][1]) / 2.0
+    i0 = next(i for i, t in fixes if t >= t_mid)
+    i1 = next((i for i, t in fixes if t >= t_mid + GAP_S), fixes[-1][0])
+    lines = text.splitlines(keepends=True)
+    return "".join(lines[:i0] + lines[i1:])
+
+
+def _shift_to_midnight(text: str) -> tuple[str, datetime]:
+    """RMC times and dates shifted so that midnight falls halfway between the first fix
+    and the last; (the text, the first fix's new date)."""
+    fixes = [t for _, t in _fix_seconds(text)]
+    if not fixes:
+        return text, datetime(2000, 1, 1, tzinfo=UTC)
+    t0 = datetime.fromtimestamp(fixes[0], UTC)
+    midnight = datetime(t0.year, t0.month, t0.day, tzinfo=UTC) + timedelta(days=1)
+    shift = midnight - t0 - timedelta(seconds=(fixes[-1] - fixes[0]) / 2.0)
+
+    def fn(f: list[str]) -> list[str] | None:
+        k = kind_of(f)
+        if k in ("GGA", "GLL", "ZDA"):
+            return None
+        if k != "RMC":
+            return f
+        t = _rmc_time(f)
+        if t is None:
+            return f
+        t = t + shift
+        g = list(f)
+        g[1] = _hhmmss(t, 2)
+        g[9] = f"{t.day:02d}{t.month:02d}{t.year % 100:02d}"
+        return g
+
+    return _map_nmea(text, fn), t0 + shift
+
+
+def _midnight_gga(text: str) -> str:
+    """The log across midnight with GGA + VTG fixes only (times of day, no date)."""
+    shifted, _ = _shift_to_midnight(text)
+    return _expand(_map_nmea(shifted, _rmc_to(("GGA", "VTG"))))
+
+
+def midnight_date(text: str) -> str:
+    """The UTC date of :func:`_midnight_gga`'s first fix (its ``--date``)."""
+    return _shift_to_midnight(text)[1].date().isoformat()
+
+
+def first_date(text: str) -> str:
+    """The UTC date of the log's first RMC (``--date`` for a GGA-only variant)."""
+    first = next(_fix_seconds(text), None)
+    t = datetime.fromtimestamp(first[1], UTC) if first else datetime(2000, 1, 1, tzinfo=UTC)
+    return t.date().isoformat()
+
+
+def tide(t: float) -> tuple[float, float]:
+    """The tidal current the ``tide`` variants add, (north, east) in knots at epoch
+    seconds ``t``: a semi-diurnal ellipse of :data:`TIDE_KN` along north and a third
+    of it across, turning over :data:`TIDE_PERIOD_S`."""
+    w = 2.0 * math.pi * t / TIDE_PERIOD_S
+    return TIDE_KN * math.cos(w), TIDE_KN / 3.0 * math.sin(w)
+
+
+def add_current(sog_kn: float, cog_deg: float, t: float) -> tuple[float, float]:
+    """A ground velocity (knots, degrees) with :func:`tide`'s current added."""
+    cn, ce = tide(t)
+    a = math.radians(cog_deg)
+    vn, ve = sog_kn * math.cos(a) + cn, sog_kn * math.sin(a) + ce
+    return math.hypot(vn, ve), math.degrees(math.atan2(ve, vn)) % 360.0
+
+
+def _tidal_rmc(f: list[str]) -> list[str]:
+    """RMC's speed and course over ground with :func:`tide`'s current added."""
+    if kind_of(f) != "RMC" or len(f) < 9:
+        return f
+    t = _rmc_time(f)
+    try:
+        sog, cog = float(f[7]), float(f[8])
+    except ValueError:
+        return f
+    if t is None:
+        return f
+    v, c = add_current(sog, cog, t.timestamp())
+    g = list(f)
+    g[7], g[8] = f"{v:.2f}", f"{c:.1f}"
+    return g
+
+
+# ------------------------------------------------------------------ CSV helpers
+
+
+def _table(text: str, delim: str) -> tuple[list[str], list[str], list[list[str]]]:
+    """(banner lines, header, rows) of a delimited text whose header is the first line
+    with the delimiter at least three times."""
+    lines = text.lstrip("\ufeff").splitlines()
+    h = next(i for i, ln in enumerate(lines) if ln.count(delim) >= 3)
+    header = lines[h].split(delim)
+    rows = [ln.split(delim) for ln in lines[h + 1 :] if ln.strip()]
+    return lines[:h], header, rows
+
+
+def _write(banner: list[str], header: list[str], rows: list[list[str]], delim: str) -> str:
+    return "\n".join([*banner, delim.join(header), *(delim.join(r) for r in rows)]) + "\n"
+
+
+Columns = Callable[[list[str], list[list[str]]], tuple[list[str], list[list[str]]]]
+"""A rewrite of a table: (header, rows) → (header, rows)."""
+
+
+def _columns(fn: Columns) -> Callable[[str], str]:
+    """A CSV variant from a function of (header, rows)."""
+
+    def apply(text: str) -> str:
+        banner, header, rows = _table(text, ",")
+        header, rows = fn(header, rows)
+        return _write(banner, header, rows, ",")
+
+    return apply
+
+
+def _rename(names: dict[str, str]) -> Callable[[str], str]:
+    return _columns(lambda h, rows: ([names.get(c, c) for c in h], rows))
+
+
+def _drop(names: set[str]) -> Callable[[str], str]:
+    def fn(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+        keep = [i for i, c in enumerate(h) if c not in names]
+        return [h[i] for i in keep], [[r[i] if i < len(r) else "" for i in keep] for r in rows]
+
+    return _columns(fn)
+
+
+def _reverse(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    n = len(h)
+    return h[::-1], [(r + [""] * (n - len(r)))[:n][::-1] for r in rows]
+
+
+def _extra(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    extra = ["Vmg", "TargBsp", "Polar%", "Mark Lat", "Notes"]
+    return h + extra, [[*r, "1.0", "6.5", "93", "39.4", "tack"] for r in rows]
+
+
+def _sparse_gnss(period_s: float) -> Callable[[str], str]:
+    """Expedition rows whose Sog/Cog (and Lat/Lon) cells are written only every
+    ``period_s`` (a slower GNSS): the other rows leave them empty."""
+
+    def fn(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+        idx = [h.index(c) for c in ("Sog", "Cog", "Lat", "Lon") if c in h]
+        t_kept = -math.inf
+        for r in rows:
+            try:
+                t = float(r[h.index("Utc")]) * 86400.0
+            except (ValueError, IndexError):
+                continue
+            if t >= t_kept + period_s - 0.05:
+                t_kept = t
+                continue
+            for i in idx:
+                if i < len(r):
+                    r[i] = ""
+        return h, rows
+
+    return _columns(fn)
+
+
+def _tidal_cells(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """Sog and Cog cells with :func:`tide`'s current added (rows whose cells are empty
+    keep them empty)."""
+    ti, si, ci = h.index("Utc"), h.index("Sog"), h.index("Cog")
+    for r in rows:
+        try:
+            t = (float(r[ti]) - 25569.0) * 86400.0
+            sog, cog = float(r[si]), float(r[ci])
+        except (ValueError, IndexError):
+            continue
+        v, c = add_current(sog, cog, t)
+        r[si], r[ci] = f"{v:.2f}", f"{c:.1f}"
+    return h, rows
+
+
+def _semicolon(text: str) -> str:
+    """``;`` delimiter and decimal commas (a European spreadsheet's export)."""
+    banner, header, rows = _table(text, ",")
+    rows = [[c.replace(".", ",") for c in r] for r in rows]
+    return _write(banner, header, rows, ";")
+
+
+def _quoted(text: str) -> str:
+    banner, header, rows = _table(text, ",")
+    q = [[f'"{c}"' for c in r] for r in [header, *rows]]
+    return _write(banner, q[0], q[1:], ",")
+
+
+def _bom_crlf(text: str) -> str:
+    return "\ufeff" + "\r\n".join(text.splitlines()) + "\r\n"
+
+
+EXPEDITION_CHANNELS = {
+    "Utc": 0,
+    "Bsp": 1,
+    "Awa": 2,
+    "Aws": 3,
+    "Twa": 4,
+    "Tws": 5,
+    "Twd": 6,
+    "Leeway": 10,
+    "iSet": 11,
+    "iDrift": 12,
+    "Hdg": 13,
+    "Depth": 17,
+    "Heel": 18,
+    "Lat": 48,
+    "Lon": 49,
+    "Cog": 50,
+    "Sog": 51,
+}
+"""Expedition's channel numbers of the columns the sparse variant writes."""
+
+SPARSE_NAMES = {"Bsp": "BSP", "Hdg": "HDG", "Cog": "COG", "Sog": "SOG", "iSet": "Set"}
+SPARSE_NAMES |= {"iDrift": "Drift", "Awa": "AWA", "Aws": "AWS", "Twa": "TWA", "Tws": "TWS"}
+SPARSE_NAMES |= {"Twd": "TWD"}
+
+
+def _expedition_log(text: str) -> str:
+    """Expedition's own sparse log: a ``!Boat`` line of names, a ``!boat`` line of
+    channel numbers, a version line, then rows ``boat,utc,channel,value,...`` holding
+    only the written cells."""
+    _, header, rows = _table(text, ",")
+    have = [c for c in header if c in EXPEDITION_CHANNELS]
+    names = ",".join(SPARSE_NAMES.get(c, c) for c in have)
+    numbers = ",".join(str(EXPEDITION_CHANNELS[c]) for c in have)
+    out = [f"!Boat,{names}", f"!boat,{numbers}", "!v10.5.3"]
+    ti = header.index("Utc")
+    for r in rows:
+        pairs = [
+            f"{EXPEDITION_CHANNELS[c]},{r[i]}"
+            for i, c in enumerate(header)
+            if c in EXPEDITION_CHANNELS and c != "Utc" and i < len(r) and r[i] != ""
+        ]
+        out.append(",".join(["0", r[ti], *pairs]))
+    return "\r\n".join(out) + "\r\n"
+
+
+# ------------------------------------------------------------------ TSV helpers
+
+
+def _no_banner(text: str) -> str:
+    lines = text.splitlines(keepends=True)
+    h = next(i for i, ln in enumerate(lines) if ln.count("\t") >= 3)
+    return "".join(lines[h:])
+
+
+LOGGER_NAMES = {"Boatspeed": "BS", "Heading": "HDG", "Ext_SOG": "SOG", "Ext_COG": "COG"}
+LOGGER_NAMES |= {"Latitudine": "Lat", "Longitudine": "Lon", "SET": "Set", "DRIFT": "Drift"}
+"""The logger's other firmware's column names."""
+
+SETTINGS_LINES = 48
+"""The other firmware's banner: this many lines of settings before the header."""
+
+
+def _logger_firmware(text: str) -> str:
+    """The logger's other firmware: its own column names, a banner of settings (section
+    rulers, ``NAME:<TAB>value`` lines, tables with tabs and commas) before the header,
+    and ``-`` for the current in the first hundred rows."""
+    lines = text.splitlines()
+    h = next(i for i, ln in enumerate(lines) if ln.count("\t") >= 3)
+    header = [LOGGER_NAMES.get(c, c) for c in lines[h].split("\t")]
+    banner = ["-------- DAMPING --------"]
+    banner += [f"CH{k}:\t0.{600 + k}" for k in range(SETTINGS_LINES // 2)]
+    banner += ["-------- CALIBRATION --------"]
+    banner += [
+        f"POINT {k}: {k}.0\t GAIN: 1.{k:03d}\tCURVE:\t0.0,0.0,0.0"
+        for k in range(SETTINGS_LINES // 2)
+    ]
+    banner += ["-------- LOG --------"]
+    sd = [header.index("Set"), header.index("Drift")]
+    rows = []
+    for n, ln in enumerate(lines[h + 1 :]):
+        cells = ln.split("\t")
+        if n < 100:
+            for i in sd:
+                if i < len(cells):
+                    cells[i] = "-"
+        rows.append("\t".join(cells))
+    return "\r\n".join([*lines[:h], *banner, "\t".join(header), *rows]) + "\r\n"
+
+
+def _thin_rows(period_s: float) -> Callable[[str], str]:
+    """A TSV's rows kept only ``period_s`` apart (by their Time column)."""
+
+    def apply(text: str) -> str:
+        lines = text.splitlines(keepends=True)
+        h = next(i for i, ln in enumerate(lines) if ln.count("\t") >= 3)
+        ti = lines[h].split("\t").index("Time")
+        kept, t_kept = lines[: h + 1], -math.inf
+        for ln in lines[h + 1 :]:
+            cells = ln.split("\t")
+            try:
+                hh, mm, ss = (int(x) for x in cells[ti].split(":"))
+            except (ValueError, IndexError):
+                continue
+            t = hh * 3600 + mm * 60 + ss
+            t = t if t >= t_kept else t + 86400
+            if t >= t_kept + period_s:
+                kept.append(ln)
+                t_kept = t
+        return "".join(kept)
+
+    return apply
+
+
+# ------------------------------------------------------------------ the variants
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One perturbation: the kind of log it applies to, the rewrite, what it tests, and
+    any import options it needs (a function of the source text)."""
+
+    name: str
+    kind: str
+    make: Callable[[str], str]
+    tests: str
+    options: Callable[[str], list[str]] = lambda _text: []
+
+
+def _nm(fn: Callable[[list[str]], list[str] | None]) -> Callable[[str], str]:
+    return lambda text: _expand(_map_nmea(text, fn))
+
+
+VARIANTS: tuple[Variant, ...] = (
+    Variant(
+        "gnss-0.5hz",
+        "nmea",
+        _thin_gnss(2.0),
+        "a GNSS at 0.5 Hz: alignment at the reference's cadence",
+    ),
+    Variant("gnss-0.2hz", "nmea", _thin_gnss(5.0), "a GNSS at 0.2 Hz"),
+    Variant(
+        "fix-1s", "nmea", _coarse_times(1.0), "fix times of 1-s resolution (repeated at > 1 Hz)"
+    ),
+    Variant("fix-10s", "nmea", _coarse_times(10.0), "fix times of 10-s resolution"),
+    Variant(
+        "hdg-no-var",
+        "nmea",
+        _nm(_no_variation),
+        "HDG and RMC with empty variation: the IGRF model's",
+    ),
+    Variant("hdm", "nmea", _nm(_hdm), "HDM, a magnetic heading alone"),
+    Variant("vhw-mag", "nmea", _nm(_vhw_magnetic_only), "VHW's magnetic heading the only heading"),
+    Variant(
+        "gga-vtg",
+        "nmea",
+        _nm(_rmc_to(("GGA", "VTG"))),
+        "GGA + VTG instead of RMC, the date given by --date",
+        lambda text: ["--date", first_date(text)],
+    ),
+    Variant(
+        "zda-gll-vtg", "nmea", _nm(_rmc_to(("ZDA", "GLL", "VTG"))), "ZDA + GLL + VTG instead of RMC"
+    ),
+    Variant(
+        "rmc-slow-no-course", "nmea", _nm(_rmc_course_empty_slow), "RMC without a course below 1 kn"
+    ),
+    Variant(
+        "other-sentences",
+        "nmea",
+        _other_sentences,
+        "other talkers, VLW, nonsense MWV, proprietary lines",
+    ),
+    Variant("no-checksum", "nmea", _no_checksums, "sentences without checksums"),
+    Variant("prefixed", "nmea", _prefixed, "a receive time and a tag before each sentence"),
+    Variant("crlf", "nmea", _line_endings("\r\n"), "CRLF line endings"),
+    Variant("lf", "nmea", _line_endings("\n"), "LF line endings"),
+    Variant("truncated", "nmea", _truncated, "a truncated last line and a line cut by a reset"),
+    Variant("gap", "nmea", _gap, "a gap of minutes"),
+    Variant(
+        "midnight-gga",
+        "nmea",
+        _midnight_gga,
+        "midnight crossed with GGA times of day and no ZDA",
+        lambda text: ["--date", midnight_date(text)],
+    ),
+    Variant("tide", "nmea", _nm(_tidal_rmc), "a 1.5-kn tidal current turning over 12.42 h"),
+    Variant(
+        "set-drift",
+        "expedition-csv",
+        _rename({"iSet": "Set", "iDrift": "Drift"}),
+        "Set/Drift for iSet/iDrift",
+    ),
+    Variant("no-current", "expedition-csv", _drop({"iSet", "iDrift"}), "no current columns"),
+    Variant(
+        "upper-case",
+        "expedition-csv",
+        _rename({"Bsp": "BSP", "Hdg": "HDG", "Sog": "SOG", "Cog": "COG", "Utc": "UTC"}),
+        "Expedition 10+'s upper-case names",
+    ),
+    Variant("reordered", "expedition-csv", _columns(_reverse), "another column order"),
+    Variant("extra-columns", "expedition-csv", _columns(_extra), "extra columns"),
+    Variant("semicolon", "expedition-csv", _semicolon, "';' delimiter and decimal commas"),
+    Variant("quoted", "expedition-csv", _quoted, "every cell quoted"),
+    Variant("bom-crlf", "expedition-csv", _bom_crlf, "a byte-order mark and CRLF"),
+    Variant(
+        "sog-0.5hz",
+        "expedition-csv",
+        _sparse_gnss(2.0),
+        "Sog/Cog written every 2 s (a 0.5 Hz GNSS)",
+    ),
+    Variant("sog-0.2hz", "expedition-csv", _sparse_gnss(5.0), "Sog/Cog written every 5 s"),
+    Variant("tide", "expedition-csv", _columns(_tidal_cells), "a 1.5-kn tidal current"),
+    Variant(
+        "sparse-log",
+        "expedition-csv",
+        _expedition_log,
+        "Expedition's own sparse log (channel, value pairs)",
+    ),
+    Variant("no-banner", "logger-tsv", _no_banner, "the logger's TSV without its banner"),
+    Variant(
+        "utc-offset",
+        "logger-tsv",
+        lambda text: text,
+        "the logger's local time given as --utc-offset 2",
+        lambda _text: ["--utc-offset", "2"],
+    ),
+    Variant(
+        "logger-firmware",
+        "logger-tsv",
+        _logger_firmware,
+        "the logger's other firmware: BS/HDG/SOG/COG names, a settings banner, '-' cells",
+    ),
+    Variant("rows-0.2hz", "logger-tsv", _thin_rows(5.0), "the logger's rows every 5 s"),
+)
+"""Every variant (module docstring), by the kind of log it rewrites."""
+
+
+# ------------------------------------------------------------------ running
+
+
+def import_options(kind: str, extra: list[str]) -> list[list[str]]:
+    """The import attempts of real_data.run_import, with the variant's options."""
+    base = {"nmea": [["--format", "nmea"]], "expedition-csv": [["--format", "csv"]]}
+    return [a + extra for a in base.get(kind, [["--format", "csv"]])]
+
+
+def run_one(src: Path, text: str, variant: Variant | None, out: Path) -> dict[str, Any]:
+    """Import, calibrate (LS, KF) and replay one variant (None: the unperturbed file)."""
+    rd = _real_data()
+    tag = f"{src.stem}.{variant.name if variant else 'base'}"
+    path = out / f"{tag}{src.suffix}"
+    data = variant.make(text) if variant else text
+    path.write_bytes(
+        data.encode("utf-8") if "\ufeff" in data[:1] else data.encode("latin-1", errors="replace")
+    )
+    row: dict[str, Any] = {"name": src.stem, "variant": variant.name if variant else "base"}
+    what = rd.kind(path)  # the variant's own kind, as docs/real_data.py would tell it
+    if what is None:
+        row["errors"] = {"kind": "docs/real_data.py does not recognise the file as a log"}
+        return row
+    cap = out / f"{tag}.cap.gz"
+    extra = variant.options(text) if variant else []
+    doc: dict[str, Any] | None = None
+    why = ""
+    for opts in import_options(what or "", extra):
+        rc, stdout, err = rd.emlogd(["import", str(path), *opts, "--out", str(cap), "--json"])
+        if rc == 0:
+            doc = json.loads(stdout)
+            break
+        why = rd._last_line(err) or f"exit {rc}"
+    row["import"] = doc
+    if doc is None:
+        row["errors"] = {"import": why}
+        return row
+    row["errors"] = {}
+    for method in ("ls", "kf"):
+        res, why = rd.run_calibrate(cap, method)
+        row[method] = res
+        if res is None:
+            row["errors"][method] = why
+    emitted = out / f"{tag}.emitted.cap.gz"
+    rep, why = rd.run_replay(cap, emitted)
+    row["replay"] = rep["uuts"]["nmea"] if rep else None
+    if rep is None:
+        row["errors"]["replay"] = why
+    else:
+        try:
+            row["scores"] = rd.water_scores(cap, emitted)
+        except ValueError as exc:
+            row["errors"]["scores"] = str(exc)
+    return row
+
+
+def scales(row: dict[str, Any], speed: float) -> tuple[float | None, float | None]:
+    """(LS, KF) effective scale at ``speed``."""
+    rd = _real_data()
+    return rd.effective_scale(row.get("ls"), speed), rd.effective_scale(row.get("kf"), speed)
+
+
+def verdict(row: dict[str, Any], base: dict[str, Any]) -> str:
+    """What moved against the unperturbed run: ``ok`` or the reasons."""
+    why: list[str] = []
+    for step, msg in row.get("errors", {}).items():
+        if step not in base.get("errors", {}):
+            why.append(f"{step} fails: {msg}")
+    speed = (base.get("scores") or {}).get("median_speed", math.nan)
+    for label, a, b in zip(("LS", "KF"), scales(row, speed), scales(base, speed), strict=True):
+        if a is not None and b is not None and abs(a - b) > MAX_SCALE_SHIFT:
+            why.append(f"{label} scale {a:.3f} against {b:.3f}")
+    s = row.get("scores")
+    if s and s["rmse_emitted"] > WORSE_THAN_RAW * s["rmse_raw"]:
+        why.append(f"replay worse than raw ({s['rmse_emitted']:.3f} > {s['rmse_raw']:.3f})")
+    worst = (s or {}).get("worst_5min_ratio")
+    was = (base.get("scores") or {}).get("worst_5min_ratio")
+    if isinstance(worst, float) and worst > max(WINDOW_TOLERANCE, was or 0.0) + WINDOW_SLACK:
+        why.append(f"a 5-min window {worst:.2f} times raw's RMSE (unperturbed {_f(was, '.2f')})")
+    return "; ".join(why) or "ok"
+
+
+def _f(x: object, spec: str) -> str:
+    return format(x, spec) if isinstance(x, int | float) and math.isfinite(x) else "—"
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    """One line per variant: scales (LS / KF), replay RMSE and worst window, verdict."""
+    out = [
+        "| recording | variant | import: lines → sentences | scale LS / KF | replay at the end | "
+        "emitted / raw RMSE (m/s) | worst 5-min | verdict |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    bases = {r["name"]: r for r in rows if r["variant"] == "base"}
+    for r in rows:
+        base = bases.get(r["name"], r)
+        speed = (base.get("scores") or {}).get("median_speed", math.nan)
+        ls, kf = scales(r, speed)
+        imp = r.get("import")
+        imported = f"{imp['lines']} → {imp['written']}" if imp else "fails"
+        s = r.get("scores") or {}
+        rmse = f"{_f(s.get('rmse_emitted'), '.3f')} / {_f(s.get('rmse_raw'), '.3f')}"
+        v = "(reference)" if r is base else verdict(r, base)
+        rep = r.get("replay")
+        end = "—" if rep is None else "applied" if rep.get("params") else "raw"
+        out.append(
+            f"| {r['name']} | {r['variant']} | {imported} | {_f(ls, '.3f')} / {_f(kf, '.3f')} | "
+            f"{end} | {rmse} | {_f(s.get('worst_5min_ratio'), '.3f')} | {v} |"
+        )
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse the command line, run every (recording, variant), print the table."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("dir", type=Path, help="the folder of recordings")
+    ap.add_argument(
+        "--only", nargs="*", default=[], help="recordings whose name contains one of these"
+    )
+    ap.add_argument("--variant", nargs="*", default=[], help="only these variants")
+    ap.add_argument("--out", type=Path, help="keep the files here (default: a temporary folder)")
+    ap.add_argument("--json", action="store_true", help="the rows as JSON")
+    args = ap.parse_args(argv)
+    rd = _real_data()
+    rows: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = args.out or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        for src in sorted(p for p in args.dir.iterdir() if p.is_file()):
+            what = rd.kind(src)
+            if (
+                what is None
+                or src.suffix == ".py"
+                or (args.only and not any(o in src.stem for o in args.only))
+            ):
+                continue
+            chosen = [
+                v
+                for v in VARIANTS
+                if v.kind == what and (not args.variant or v.name in args.variant)
+            ]
+            if not chosen:
+                continue
+            text = src.read_bytes().decode("latin-1")
+            for v in [None, *chosen]:
+                rd.say(f"{src.stem}: {v.name if v else 'base'}")
+                row = run_one(src, text, v, out)
+                rows.append(row)
+                if args.out is not None:
+                    (out / "variants.json").write_text(json.dumps(rows, default=str) + "\n")
+    sys.stdout.write(
+        (json.dumps(rows, indent=1, default=str) if args.json else markdown(rows)) + "\n"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

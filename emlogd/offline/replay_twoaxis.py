@@ -1,0 +1,111 @@
+"""``emlogd replay --truth`` on a log that learns two axes (``axes: 2``): its corrected
+VBW scored on both axes against a simulated trial's truth.
+
+Every VBW reading of such a log is recorded with the forward speed the one-axis
+calibration gave it (what a replay with ``axes: 1`` emits) and whether learnt
+two-axis figures were applied; the VBW it emitted is decoded as a receiver would read
+it. Each is scored against the truth's speed through the water along and athwart the
+hull at the reading's time less the sensor's true latency; the floor is the reading
+corrected with the true parameters (:meth:`calib.twoaxis.TwoAxisParams.correct`), as
+``evaluate --axes 2 --truth`` scores it. Scores are given over the whole replay, over
+the readings emitted with the figures applied, and per trajectory of the trial.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from calib.models import FloatArray
+from drivers import make_decoder
+from drivers.nmea0183 import NmeaDecoder
+from drivers.records import Rejected
+from emlogd.offline.simtruth import Truth
+from emlogd.pipeline.core import Emit, Pipeline
+
+
+def _rms(x: FloatArray) -> float | None:
+    x = x[np.isfinite(x)]
+    return round(math.sqrt(float(np.mean(x * x))), 5) if x.size else None
+
+
+class AthwartScorer:
+    """Records the two-axis logs' VBW readings and emitted VBW, and scores them."""
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        self.rows: dict[str, list[tuple[float, float, float, float, bool]]] = {}
+        self.decoders: dict[str, NmeaDecoder] = {}
+        self.emitted_vbw: dict[str, dict[float, tuple[float, float]]] = {}
+        for name, ax in pipeline.two_axis.items():
+            rows: list[tuple[float, float, float, float, bool]] = []
+            self.rows[name] = rows
+            ax.tap = lambda t, v, rl, rt, on, rows=rows: rows.append((t, v, rl, rt, on))
+            self.decoders[name] = make_decoder("nmea0183", name, errors="skip")
+            self.emitted_vbw[name] = {}
+
+    def emitted(self, emits: Sequence[Emit]) -> None:
+        """Decode the two-axis logs' corrected VBW as a receiver would."""
+        for e in emits:
+            dec = self.decoders.get(e.port)
+            if dec is None or e.sentence[3:6] != "VBW":
+                continue
+            for rec in dec.feed(e.sentence.encode("ascii") + b"\r\n"):
+                if isinstance(rec, Rejected):
+                    continue
+                for sp in dec.speed_records(rec):
+                    if sp.kind == "stw" and sp.longitudinal_mps is not None:
+                        tr = sp.transverse_mps if sp.transverse_mps is not None else math.nan
+                        self.emitted_vbw[e.port][e.t] = (sp.longitudinal_mps, tr)
+
+    def scores(self, truth: Truth) -> dict[str, dict[str, object]]:
+        """Per two-axis log: RMSE athwart (raw, corrected, floor) and forward (the
+        one-axis calibration's, the emitted, floor), m/s, over all its readings, over
+        those emitted with the figures applied, and per trajectory.
+
+        Raises:
+            TruthError: a log the truth does not know, or a truth without athwart speeds.
+        """
+        return {name: self._score(name, truth) for name in self.rows}
+
+    def _score(self, name: str, truth: Truth) -> dict[str, object]:
+        rows = self.rows[name]
+        a = np.asarray([r[:4] for r in rows], dtype=np.float64).reshape(-1, 4)
+        on = np.asarray([r[4] for r in rows], dtype=bool)
+        got = self.emitted_vbw[name]
+        em = np.asarray([got.get(r[0], (math.nan, math.nan)) for r in rows], dtype=np.float64)
+        em = em.reshape(-1, 2)
+        true_params = truth.two_axis(name)
+        _, latency = truth.emlog(name)
+        q = a[:, 0] - latency
+        u, w = truth.stw_at(q), truth.trans_at(q)
+        fu, fw = true_params.correct(a[:, 2], a[:, 3])
+        err = {
+            "t_raw": a[:, 3] - w,
+            "t_corrected": em[:, 1] - w,
+            "t_floor": fw - w,
+            "l_one_axis": a[:, 1] - u,
+            "l_corrected": em[:, 0] - u,
+            "l_floor": fu - u,
+        }
+        idx = np.clip(np.searchsorted(truth.t, q), 0, max(truth.t.size - 1, 0))
+        traj = truth.trajectory[idx] if truth.t.size else np.zeros(q.size, dtype=np.int64)
+
+        def block(sel: npt.NDArray[np.bool_]) -> dict[str, object]:
+            out: dict[str, object] = {"n_samples": int(np.count_nonzero(sel & np.isfinite(w)))}
+            for k, e in err.items():
+                out[f"rmse_{k}"] = _rms(e[sel])
+            return out
+
+        everything = np.ones(q.size, dtype=bool)
+        return {
+            **block(everything),
+            "applied": block(on),
+            "by_trajectory": {
+                str(int(k)): block(traj == k)
+                | {"applied_share": round(float(np.mean(on[traj == k])), 3)}
+                for k in np.unique(traj)
+            },
+        }

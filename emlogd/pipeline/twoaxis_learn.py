@@ -1,0 +1,341 @@
+"""A two-axis log's misalignment, transverse scale and bias learnt online (``axes: 2``).
+
+A log that sends VBW (forward and athwart speed through the water) against a reference
+with both horizontal axes (a DVL's bottom track: PD6 ``:BS``, PD0, PD4/PD5) learns the
+installation figures of :mod:`calib.twoaxis`: the misalignment α, the transverse
+scale ``m_t`` and bias ``b_t``. The one-axis learner keeps the forward axis; this one
+shares its lag (the UUT's, once known) and its heading.
+
+- Each VBW reading is paired with the reference's ground velocity forward and to
+  starboard and the heading at ``t − lag`` (the alignment rule of
+  :mod:`emlogd.pipeline.align`), and the pairs are averaged into block means of
+  :data:`BLOCK_S` (the sway of a turn changes over tens of seconds; the DVL's and the
+  log's 10 Hz noise averages out).
+- The last :data:`WINDOW_S` of block means is kept (fixed memory) and fitted by the
+  offline command's least squares (:func:`calib.twoaxis.fit_two_axis`, the current
+  shared by both axes and linear between knots :data:`CURRENT_KNOT_S` apart) every
+  :data:`FIT_EVERY_S`, once the window spans :data:`MIN_FIT_S`. The same
+  identifiability rule decides (:mod:`calib.twoaxis_ident`): α is refused where the
+  data cannot separate it — a straight run (the forward speed nearly constant), sway
+  that follows the surge (the transverse scale not determined) — with the reason. A
+  window whose cheap rules (spreads, heading sectors) already refuse α is not fitted.
+- An estimate that determines α, ``m_t`` and ``b_t`` is offered to the two-axis
+  supervisor (:mod:`emlogd.pipeline.twoaxis_sup`), which applies it to the VBW only
+  once its athwart speed is not worse than raw; a refusal keeps what was learnt.
+
+A fit of a full window costs about 0.2 s of CPU with one BLAS thread (on a loaded
+machine a multi-threaded BLAS took seconds: ``OPENBLAS_NUM_THREADS=1`` suits the
+daemon); whoever feeds the pipeline reads nothing meanwhile.
+
+No I/O, no clock: times come with the data.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.errors import CalibrationError
+from calib.models import check_model
+from calib.twoaxis import (
+    ALPHA,
+    B_T,
+    M_T,
+    TwoAxisFit,
+    fit_two_axis,
+    judge_two_axis,
+)
+from drivers.framing import with_checksum
+from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.settings import UutSettings
+from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor
+
+BLOCK_S = 1.0
+"""The block means the window holds, s (a 27-minute figure-8 in 1-s blocks gives the
+offline command's α, 3.25 ± 0.14° for 3°, in a fifth of a second of CPU)."""
+WINDOW_S = 1800.0
+"""The window fitted, s: the longest manoeuvre that determines α (a figure-8 of
+27 minutes; half of it leaves α's σ above the rule's 0.15°) and no longer (memory and
+the fit's CPU grow with it)."""
+FIT_EVERY_S = 120.0
+"""Block time between two fits, s: a manoeuvre that fills the window is fitted whole
+at least once before it slides out."""
+MIN_FIT_S = 600.0
+"""The window's least span before its first fit, s."""
+CURRENT_KNOT_S = 300.0
+"""The fit's current is linear between knots this far apart, s (as ``calibrate --axes
+2``: a figure-8 covers every heading in 90 s, a circle in 120 s)."""
+
+NO_TWO_AXIS_REFERENCE = (
+    "no reference speed athwart the hull at the readings' time (a DVL's bottom track "
+    "gives both axes; GNSS and a one-axis log do not)"
+)
+"""Why nothing is learnt while no reading has been paired with a two-axis reference."""
+
+_Pending = tuple[float, float, float, float]
+
+
+@dataclass(slots=True)
+class _Acc:
+    """Sums of one block: t, forward (one-axis corrected), raw forward, raw athwart,
+    ground forward, ground starboard, cos ψ, sin ψ."""
+
+    t0: float
+    n: int = 0
+    sums: tuple[float, ...] = (0.0,) * 8
+
+    def add(self, row: tuple[float, ...]) -> None:
+        self.sums = tuple(a + b for a, b in zip(self.sums, row, strict=True))
+        self.n += 1
+
+    def mean(self) -> tuple[float, ...]:
+        m = [x / self.n for x in self.sums]
+        hd = math.degrees(math.atan2(m[7], m[6])) % 360.0
+        return (*m[:6], hd)
+
+
+class TwoAxisLearner:
+    """The online two-axis calibration of one UUT (module docstring).
+
+    Args:
+        s: the UUT's settings.
+        event: called as ``event(t, kind, detail)`` for what is worth a log line.
+    """
+
+    def __init__(
+        self, s: UutSettings, event: Callable[[float, str, Mapping[str, object]], None]
+    ) -> None:
+        self.s = s
+        self._event = event
+        cap = int((s.max_lag_s + 5.0) * 20) + 16
+        self.fwd = SampleRing(cap, cadence=True)
+        self.stb = SampleRing(cap, cadence=True)
+        self.pending: deque[_Pending] = deque(maxlen=cap)
+        self.blocks: deque[tuple[float, ...]] = deque(maxlen=int(WINDOW_S / BLOCK_S))
+        """Block means: t, forward corrected, raw forward, raw athwart, ground forward,
+        ground starboard, heading."""
+        self._acc: _Acc | None = None
+        self.sup = TwoAxisSupervisor(s.validation_s, s.recheck_s, event)
+        self.estimate: Figures | None = None
+        """The latest estimate that determined α, m_t and b_t."""
+        self.refused = "no two-axis window fitted yet"
+        """Why the latest window did not determine α ("" when it did)."""
+        self.fits = 0
+        self.fit_failures = 0
+        self.t_fit = -math.inf
+        self.leeway_deg: float | None = None
+        """The leeway angle of the last corrected VBW, degrees (+ the hull moving to
+        starboard of its heading); None before one."""
+        self.counts = {"no_lag": 0, "no_reference": 0, "no_heading": 0}
+        """Readings not learnt from, by why."""
+        self.tap: Callable[[float, float, float, float, bool], None] | None = None
+        """Offline use (``replay --truth``): receives every VBW reading as ``(t, forward
+        corrected by the one-axis calibration, raw forward, raw athwart, figures
+        applied)``."""
+
+    # -- inputs -------------------------------------------------------------
+
+    def reference(self, t: float, fwd: float | None, stb: float | None, valid: bool) -> None:
+        """One sample of the reference's ground velocity in the ship frame, m/s."""
+        ok = valid and fwd is not None and stb is not None
+        self.fwd.add(t, fwd if ok else None, ok)
+        self.stb.add(t, stb if ok else None, ok)
+
+    def reading(self, t: float, forward_mps: float, raw_l: float, raw_t: float) -> None:
+        """One VBW reading: ``forward_mps`` corrected by the one-axis calibration, the
+        raw forward and athwart readings."""
+        self.pending.append((t, forward_mps, raw_l, raw_t))
+        if self.tap is not None:
+            self.tap(t, forward_mps, raw_l, raw_t, self.sup.applied is not None and self.s.apply)
+
+    def correct(self, forward_mps: float, athwart_mps: float) -> tuple[float, float] | None:
+        """The VBW's hull-frame speeds with the applied figures (None: none applied)."""
+        f = self.sup.applied
+        if f is None or not self.s.apply:
+            return None
+        u, w = f.hull_frame(forward_mps, athwart_mps)
+        self.leeway_deg = math.degrees(math.atan2(w, u)) if u or w else 0.0
+        return u, w
+
+    # -- learning -----------------------------------------------------------
+
+    def drain(
+        self,
+        now: float,
+        lag_s: float | None,
+        heading_at: Callable[[float], float | None],
+        learn: bool,
+        *,
+        final: bool = False,
+    ) -> None:
+        """Pair every queued reading whose reference has arrived (or never will) and
+        learn from the blocks it closes; ``final``: end of input, fit what is left."""
+        while self.pending:
+            t = self.pending[0][0]
+            if lag_s is None:
+                self.pending.popleft()
+                self.counts["no_lag"] += 1
+                continue
+            target = t - lag_s
+            if not final and not self.fwd.covers(target) and now - target <= self.fwd.gap_s + 1.0:
+                break
+            _, fwd_c, raw_l, raw_t = self.pending.popleft()
+            gf, gs = self.fwd.at(target), self.stb.at(target)
+            if gf is None or gs is None:
+                self.counts["no_reference"] += 1
+                continue
+            hd = heading_at(target)
+            if hd is None:
+                self.counts["no_heading"] += 1
+                continue
+            psi = math.radians(hd)
+            self._add(t, (t, fwd_c, raw_l, raw_t, gf, gs, math.cos(psi), math.sin(psi)), learn)
+        if final:
+            self._close(learn)
+            if learn and self.blocks and self.t_fit < self.blocks[-1][0]:
+                self._fit()
+
+    def _add(self, t: float, row: tuple[float, ...], learn: bool) -> None:
+        acc = self._acc
+        if acc is not None and t - acc.t0 >= BLOCK_S:
+            self._close(learn)
+            acc = None
+        if acc is None:
+            acc = self._acc = _Acc(t)
+        acc.add(row)
+
+    def _close(self, learn: bool) -> None:
+        acc, self._acc = self._acc, None
+        if acc is None or acc.n == 0:
+            return
+        b = acc.mean()
+        self.blocks.append(b)
+        block: Block = (b[0], b[1], b[3], b[5], b[6])
+        self.sup.observe(block)
+        span = b[0] - self.blocks[0][0]
+        if learn and span >= MIN_FIT_S and b[0] - self.t_fit >= FIT_EVERY_S:
+            self._fit()
+
+    def _fit(self) -> None:
+        a = np.asarray(self.blocks, dtype=np.float64)
+        t, raw_l, raw_t, gf, gs, hd = a[:, 0], a[:, 2], a[:, 3], a[:, 4], a[:, 5], a[:, 6]
+        self.t_fit = float(t[-1])
+        model = check_model(self.s.model)
+        cheap = judge_two_axis(model, gf, gs, raw_l, hd, current=self.s.current)
+        if ALPHA in cheap.unidentifiable:
+            self._refuse(float(t[-1]), cheap.verdict(ALPHA).reason)
+            return
+        try:
+            fit = fit_two_axis(
+                model,
+                gf,
+                gs,
+                raw_l,
+                raw_t,
+                hd,
+                current=self.s.current,
+                t_s=t,
+                current_knot_s=CURRENT_KNOT_S,
+            )
+        except (CalibrationError, np.linalg.LinAlgError, ValueError) as exc:
+            self.fit_failures += 1
+            self._refuse(float(t[-1]), f"two-axis fit failed: {exc}")
+            return
+        self.fits += 1
+        self._take(fit, float(t[-1]))
+
+    def _take(self, fit: TwoAxisFit, t: float) -> None:
+        need = (ALPHA, M_T, B_T)
+        if any(k in fit.ident.unidentifiable for k in need):
+            self._refuse(t, fit.ident.verdict(ALPHA).reason or fit.ident.reason)
+            return
+        std = fit.stderr
+        p = fit.params
+        sa, sm, sb = std.get("misalign_deg"), std.get(M_T), std.get(B_T)
+        if sa is None or sm is None or sb is None:
+            self._refuse(t, "two-axis fit gave no standard errors")
+            return
+        self.estimate = Figures(p.misalign_deg, sa, p.m_t, sm, p.b_t_mps, sb, t)
+        if self.refused:
+            self._event(
+                t,
+                "two_axis_learnt",
+                {"misalign_deg": round(p.misalign_deg, 3), "misalign_std_deg": round(sa, 3)},
+            )
+        self.refused = ""
+        self.sup.offer(self.estimate)
+
+    def _refuse(self, t: float, why: str) -> None:
+        if why != self.refused:
+            self._event(t, "two_axis_refused", {"why": why})
+        self.refused = why
+
+    # -- read-outs ----------------------------------------------------------
+
+    def status(self) -> dict[str, object]:
+        """The ``two_axis`` block of a UUT's status (README: ``emlogd status --json``)."""
+        sup = self.sup
+        state = (
+            "applied"
+            if sup.applied is not None
+            else "validating"
+            if sup.candidate is not None
+            else "learning"
+        )
+        span = self.blocks[-1][0] - self.blocks[0][0] if self.blocks else 0.0
+        refused = self.refused
+        if not self.blocks and self.counts["no_reference"]:
+            refused = NO_TWO_AXIS_REFERENCE
+        return {
+            "state": state,
+            "applied": sup.applied.as_dict() if sup.applied is not None else None,
+            "estimate": self.estimate.as_dict() if self.estimate is not None else None,
+            "refused": refused or None,
+            "note": sup.note or None,
+            "leeway_deg": self.leeway_deg,
+            "window_s": round(span, 1),
+            "fits": self.fits,
+            "fit_failures": self.fit_failures,
+            "rmse_t": {k: (None if math.isnan(v) else v) for k, v in sup.last_scores.items()},
+            "not_learnt": dict(self.counts),
+        }
+
+
+_STATE_CODES = {"applied": "A", "validating": "V", "learning": "L"}
+
+
+def encode_two_axis_status(port: str, maker: str, learner: TwoAxisLearner) -> str:
+    """The two-axis status sentence (without CR LF)::
+
+        $PEMLT,emlog2,A,+3.24,1.4e-01,-0.0870,+0.045,+1.2,*hh
+
+    fields: UUT port (at most 8 characters), state (``A`` figures applied, ``V`` an
+    estimate validating, ``L`` learning), α in degrees and its σ, ``m_t``, ``b_t`` in
+    m/s (the applied figures, else those validating, else the latest estimate; empty before one), the leeway
+    angle of the last corrected VBW in degrees (empty before one), and ``R`` when the
+    latest window refused α (the reason is in the status). At most 82 characters.
+    """
+    st = learner.status()
+    f = learner.sup.applied or learner.sup.candidate or learner.estimate
+
+    def num(x: float | None, spec: str, limit: float) -> str:
+        if x is None or not math.isfinite(x):
+            return ""
+        return format(max(min(x, limit), -limit), spec)
+
+    fields = [
+        f"P{maker}T",
+        "".join(c for c in port if c.isascii() and (c.isalnum() or c in "_-"))[:8],
+        _STATE_CODES[str(st["state"])],
+        num(f.misalign_deg if f else None, "+.2f", 99.99),
+        num(f.misalign_std_deg if f else None, ".1e", 9.9e9),
+        num(f.m_t if f else None, "+.4f", 9.9999),
+        num(f.b_t_mps if f else None, "+.3f", 9.999),
+        num(learner.leeway_deg, "+.1f", 180.0),
+        "R" if learner.refused else "",
+    ]
+    return with_checksum(",".join(fields))

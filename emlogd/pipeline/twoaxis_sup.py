@@ -1,0 +1,234 @@
+"""What a two-axis log's VBW is corrected with, and why: the learnt installation figures
+(misalignment α, transverse scale and bias) validated against the raw athwart reading.
+
+The figures the learner offers (:mod:`emlogd.pipeline.twoaxis_learn`) are applied only
+after they are not worse than the raw athwart reading over ``validation_s`` of block
+means learnt after the offer (and not worse than the figures in use), and the applied
+ones are rechecked against raw every ``recheck_s``; worse than raw, they are withdrawn
+and the athwart speed passes through raw while they (the last good ones) or another
+offer validate again. The rule
+"worse" is the one-axis supervisor's (:func:`emlogd.pipeline.revalidation.worse`).
+
+Each side is judged in the water frame with a current of its own: the athwart error
+(the corrected or raw athwart speed less the reference's ground speed to starboard)
+less the best current across the hull over the window, ``c_N·sin ψ − c_E·cos ψ``
+(least squares, minimum norm: on a steady heading it takes each side's offset, so
+there the figures and raw score alike and neither is judged on an offset a current
+could explain). The forward axis is left to the one-axis calibration.
+
+No I/O, no clock.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from emlogd.pipeline.revalidation import worse
+
+OFFER_MIN_CHANGE_SIGMA = 1.0
+"""A new estimate is validated against the figures in use only when one of α, m_t, b_t
+moved by more than this many of its σ (else the figures in use stay, without churn)."""
+
+Block = tuple[float, float, float, float, float]
+"""One block mean as judged: (t s, forward corrected by the one-axis calibration m/s,
+raw athwart m/s, the reference's ground speed to starboard m/s, heading degrees)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Figures:
+    """A two-axis log's installation figures learnt online, with their σ.
+
+    Attributes:
+        misalign_deg: α, the sensor's forward axis from the bow, degrees (+ starboard).
+        misalign_std_deg: its σ, degrees.
+        m_t: the transverse scale error.
+        m_t_std: its σ.
+        b_t_mps: the transverse bias, m/s.
+        b_t_std_mps: its σ, m/s.
+        t: the time of the last block of the window they were learnt on, s.
+    """
+
+    misalign_deg: float
+    misalign_std_deg: float
+    m_t: float
+    m_t_std: float
+    b_t_mps: float
+    b_t_std_mps: float
+    t: float
+
+    def hull_frame(self, forward_mps: float, athwart_mps: float) -> tuple[float, float]:
+        """The speed through the water along and athwart the hull, m/s.
+
+        ``forward_mps`` is the forward reading corrected by the one-axis calibration,
+        which is learnt against the hull's forward speed: it reads ``u + w·tan α``
+        (the sensor's ``cos α`` is in its scale). With the athwart reading on the
+        sensor's axis ``w_s = (athwart − b_t)/(1 + m_t) = w·cos α − u·sin α``:
+        ``u = v·cos²α − w_s·sin α`` and ``w = cos α·(w_s + v·sin α)``.
+        """
+        ws = (athwart_mps - self.b_t_mps) / (1.0 + self.m_t)
+        a = math.radians(self.misalign_deg)
+        ca, sa = math.cos(a), math.sin(a)
+        return forward_mps * ca * ca - ws * sa, ca * (ws + forward_mps * sa)
+
+    def moved(self, other: Figures) -> bool:
+        """Whether ``other`` differs from these by more than
+        :data:`OFFER_MIN_CHANGE_SIGMA` of its σ in any figure."""
+        k = OFFER_MIN_CHANGE_SIGMA
+        return (
+            abs(other.misalign_deg - self.misalign_deg) > k * other.misalign_std_deg
+            or abs(other.m_t - self.m_t) > k * other.m_t_std
+            or abs(other.b_t_mps - self.b_t_mps) > k * other.b_t_std_mps
+        )
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, float]) -> Figures:
+        """Figures from :meth:`as_dict`'s keys (a state file's), learnt at no known
+        time: any block validates them."""
+        return cls(
+            d["misalign_deg"],
+            d["misalign_std_deg"],
+            d["m_t"],
+            d["m_t_std"],
+            d["b_t_mps"],
+            d["b_t_std_mps"],
+            -math.inf,
+        )
+
+    def as_dict(self) -> dict[str, float]:
+        """JSON keys (README: the ``two_axis`` block of ``emlogd status --json``)."""
+        return {
+            "misalign_deg": self.misalign_deg,
+            "misalign_std_deg": self.misalign_std_deg,
+            "m_t": self.m_t,
+            "m_t_std": self.m_t_std,
+            "b_t_mps": self.b_t_mps,
+            "b_t_std_mps": self.b_t_std_mps,
+        }
+
+
+def athwart_rmse(blocks: list[Block], figures: Figures | None) -> float:
+    """RMS of the athwart error of ``blocks`` corrected with ``figures`` (None: raw)
+    after a current of its own across the hull (module docstring), m/s."""
+    a = np.asarray(blocks, dtype=np.float64).reshape(-1, 5)
+    if a.shape[0] == 0:
+        return math.nan
+    fwd, raw_t, gs, psi = a[:, 1], a[:, 2], a[:, 3], np.radians(a[:, 4])
+    if figures is None:
+        w = raw_t
+    else:
+        ws = (raw_t - figures.b_t_mps) / (1.0 + figures.m_t)
+        al = math.radians(figures.misalign_deg)
+        w = math.cos(al) * (ws + fwd * math.sin(al))
+    e = w - gs
+    design = np.column_stack([np.sin(psi), -np.cos(psi)])
+    coef = np.linalg.lstsq(design, e, rcond=None)[0]
+    r = e - design @ coef
+    return math.sqrt(float(r @ r) / r.size)
+
+
+class TwoAxisSupervisor:
+    """The figures applied to a two-axis log's VBW (module docstring).
+
+    Args:
+        validation_s: a candidate's validation window, s (the UUT's ``validation_s``).
+        recheck_s: the applied figures' recheck window, s (the UUT's ``recheck_s``).
+        event: called as ``event(t, kind, detail)`` for every decision.
+    """
+
+    def __init__(
+        self,
+        validation_s: float,
+        recheck_s: float,
+        event: Callable[[float, str, Mapping[str, object]], None],
+    ) -> None:
+        self.validation_s = validation_s
+        self.recheck_s = recheck_s
+        self._event = event
+        self.applied: Figures | None = None
+        """The figures the VBW is corrected with (None: raw athwart passes through)."""
+        self.kept: Figures | None = None
+        """The last figures that validated (applied, or withdrawn for cause)."""
+        self.candidate: Figures | None = None
+        self._cand_blocks: list[Block] = []
+        self._recheck: list[Block] = []
+        self.note = ""
+        """The last decision, in words."""
+        self.changed = False
+        """The last good figures changed since the caller last persisted them."""
+        self.last_scores: dict[str, float] = {}
+        """The athwart RMSE of the last judgement, m/s (``raw``, ``candidate``,
+        ``applied``)."""
+
+    def restore(self, figures: Figures) -> None:
+        """Figures from the state file: the last good ones, a candidate that
+        validates like a new offer before it is applied."""
+        self.kept = figures
+        self.offer(figures)
+
+    def offer(self, figures: Figures) -> None:
+        """A new estimate from the learner: validated unless it is the figures in use
+        within their σ (:meth:`Figures.moved`)."""
+        current = self.candidate or self.applied
+        if current is not None and not current.moved(figures):
+            return
+        self.candidate = figures
+        self._cand_blocks = []
+
+    def observe(self, block: Block) -> None:
+        """One block mean learnt from: the candidate's validation, the applied
+        figures' recheck."""
+        t = block[0]
+        if self.candidate is not None and t > self.candidate.t:
+            self._cand_blocks.append(block)
+            if t - self._cand_blocks[0][0] >= self.validation_s:
+                self._judge_candidate(t)
+        if self.applied is not None:
+            self._recheck.append(block)
+            if t - self._recheck[0][0] >= self.recheck_s:
+                self._judge_applied(t)
+
+    def _judge_candidate(self, t: float) -> None:
+        cand = self.candidate
+        assert cand is not None
+        blocks, self._cand_blocks, self.candidate = self._cand_blocks, [], None
+        r_raw, r_cand = athwart_rmse(blocks, None), athwart_rmse(blocks, cand)
+        r_app = athwart_rmse(blocks, self.applied) if self.applied is not None else math.nan
+        self.last_scores = {"raw": r_raw, "candidate": r_cand, "applied": r_app}
+        detail: dict[str, object] = {
+            "misalign_deg": round(cand.misalign_deg, 3),
+            "rmse_t_raw": round(r_raw, 4),
+            "rmse_t_candidate": round(r_cand, 4),
+        }
+        if worse(r_cand, r_raw):
+            self.note = "two-axis figures rejected: athwart worse than raw"
+            self._event(t, "two_axis_rejected", detail | {"why": self.note})
+            return
+        if self.applied is not None and worse(r_cand, r_app):
+            self.note = "two-axis figures rejected: athwart worse than the figures in use"
+            self._event(t, "two_axis_rejected", detail | {"why": self.note})
+            return
+        self.applied = self.kept = cand
+        self.changed = True
+        self._recheck = []
+        self.note = ""
+        self._event(t, "two_axis_applied", detail)
+
+    def _judge_applied(self, t: float) -> None:
+        app = self.applied
+        assert app is not None
+        blocks, self._recheck = self._recheck, []
+        r_raw, r_app = athwart_rmse(blocks, None), athwart_rmse(blocks, app)
+        self.last_scores = {"raw": r_raw, "applied": r_app}
+        if worse(r_app, r_raw):
+            self.applied = None
+            self.candidate, self._cand_blocks = app, []  # the last good, re-validated
+            self.note = "two-axis figures withdrawn: athwart worse than raw"
+            self._event(
+                t,
+                "two_axis_withdrawn",
+                {"rmse_t_raw": round(r_raw, 4), "rmse_t_applied": round(r_app, 4)},
+            )

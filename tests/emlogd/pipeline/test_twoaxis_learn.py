@@ -1,0 +1,152 @@
+"""The two-axis figures learnt online (``axes: 2``): misalignment, transverse scale and
+bias from a VBW log against a DVL's two axes, refused where the data cannot separate
+them, and applied only once the athwart speed is not worse than raw."""
+
+from __future__ import annotations
+
+import math
+
+import pynmea2
+import pytest
+
+from calib.estimate import Estimate
+from calib.models import Params
+from calib.twoaxis import TwoAxisParams
+from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
+from emlogd.pipeline.twoaxis_learn import (
+    NO_TWO_AXIS_REFERENCE,
+    TwoAxisLearner,
+    encode_two_axis_status,
+)
+from emlogd.pipeline.twoaxis_sup import Figures
+from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_trial
+
+SETTINGS = UutSettings(
+    port="log", reference_port="dvl", uut_source="VBW", axes=2, current=True, validation_s=30.0
+)
+ALIGNED = TwoAxisParams(Params("EM3", m=-0.11, b_mps=-0.05), 0.0, -0.09, 0.04)
+
+
+Events = list[tuple[float, str, dict[str, object]]]
+
+
+def _learn(
+    kind: str, truth: TwoAxisParams, seed: int, n: int = 16200
+) -> tuple[TwoAxisLearner, Events]:
+    """A learner fed one synthetic manoeuvre at 10 Hz (lag 0, the heading exact), the
+    forward reading as a one-axis calibration learnt against the hull reads it."""
+    d = two_axis_trial(kind, truth, seed, n=n)
+    events: Events = []
+    lr = TwoAxisLearner(SETTINGS, lambda t, k, det: events.append((t, k, dict(det))))
+    heading = dict(zip(d["t"].tolist(), d["hd"].tolist(), strict=True))
+    fwd = d["u"] + d["w"] * math.tan(truth.misalign_rad)
+    rows = zip(
+        d["t"].tolist(),
+        d["gf"].tolist(),
+        d["gs"].tolist(),
+        fwd.tolist(),
+        d["rl"].tolist(),
+        d["rt"].tolist(),
+        strict=True,
+    )
+    for t, gf, gs, v, rl, rt in rows:
+        lr.reference(t, gf, gs, True)
+        lr.reading(t, v, rl, rt)
+        lr.drain(t, 0.0, heading.get, True)
+    lr.drain(float(d["t"][-1]), 0.0, heading.get, True, final=True)
+    return lr, events
+
+
+@pytest.fixture(scope="module")
+def figure8() -> tuple[TwoAxisLearner, Events]:
+    return _learn("figure-8", TWO_AXIS_TRUTH, 3)
+
+
+def test_figure8_learns_and_applies(figure8: tuple[TwoAxisLearner, Events]) -> None:
+    """On a figure-8 the window determines α (3°) within 0.3°, m_t and b_t near the
+    truth; the figures validate against raw and correct the VBW; the status and the
+    $PEMLT sentence (read by pynmea2) carry them."""
+    lr, events = figure8
+    est = lr.estimate
+    assert est is not None
+    assert est.misalign_deg == pytest.approx(3.0, abs=0.3)
+    assert 0.0 < est.misalign_std_deg <= 0.15
+    assert est.m_t == pytest.approx(TWO_AXIS_TRUTH.m_t, abs=0.02)
+    assert est.b_t_mps == pytest.approx(TWO_AXIS_TRUTH.b_t_mps, abs=0.02)
+    kinds = [k for _, k, _ in events]
+    assert "two_axis_applied" in kinds
+    assert kinds.index("two_axis_learnt") < kinds.index("two_axis_applied")
+    st = lr.status()
+    assert st["state"] == "applied" and st["refused"] is None
+    applied = lr.sup.applied
+    assert applied is not None
+    u, w = 2.0, 0.3
+    a = math.radians(3.0)
+    raw_t = (1.0 + TWO_AXIS_TRUTH.m_t) * (
+        w * math.cos(a) - u * math.sin(a)
+    ) + TWO_AXIS_TRUTH.b_t_mps
+    out = lr.correct(u + w * math.tan(a), raw_t)
+    assert out is not None
+    assert out == pytest.approx((u, w), abs=0.02)
+    msg = pynmea2.parse(encode_two_axis_status("log", "EML", lr), check=True)
+    assert msg.data[:4] == ["T", "log", "A", f"{applied.misalign_deg:+.2f}"]
+
+
+def test_straight_run_refuses_alpha() -> None:
+    """A straight run at one speed: α refused with the reason (the forward speed nearly
+    constant), nothing offered or applied, the VBW left as read."""
+    lr, events = _learn("straight", TWO_AXIS_TRUTH, 4, n=7000)
+    assert lr.estimate is None and lr.sup.applied is None
+    assert "speed through water nearly constant" in lr.refused
+    assert lr.correct(2.0, 0.1) is None
+    assert [k for _, k, _ in events] == ["two_axis_refused"]
+    assert encode_two_axis_status("log", "EML", lr).split(",")[-1].startswith("R*")
+
+
+def test_aligned_sensor_gives_zero_within_its_sigma() -> None:
+    """A sensor on the keel line: α within two of its σ of 0."""
+    lr, _ = _learn("figure-8", ALIGNED, 5)
+    est = lr.estimate
+    assert est is not None
+    assert abs(est.misalign_deg) <= 2.0 * est.misalign_std_deg
+
+
+def test_a_reference_without_an_athwart_speed_is_said() -> None:
+    """A reference that gives no athwart speed (GNSS, a one-axis log): nothing learnt,
+    the status says why."""
+    lr = TwoAxisLearner(SETTINGS, lambda t, k, det: None)
+    for k in range(50):
+        t = 0.1 * k
+        lr.reference(t, 2.0, None, True)
+        lr.reading(t, 2.0, 2.0, 0.1)
+        lr.drain(t, 0.0, lambda _: 90.0, True)
+    st = lr.status()
+    assert st["refused"] == NO_TWO_AXIS_REFERENCE and st["window_s"] == 0.0
+    assert lr.counts["no_reference"] > 40
+
+
+def _pipeline(fig: dict[str, float]) -> Pipeline:
+    """A pipeline with a log learning two axes, started from a record with ``fig``."""
+    s = UutSettings(port="log", reference_port="dvl", uut_source="VBW", axes=2)
+    rec = Calibration("log", Estimate(Params("EM3"), {}), 0.5, reset=True, two_axis=fig)
+    return Pipeline(
+        [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")], [s], {"log": rec}
+    )
+
+
+def test_saved_figures_are_restored_checked_and_reset() -> None:
+    """Saved figures come back as a candidate that validates again (not applied yet);
+    figures the record's check refuses (α beyond 20°) are not restored; a reset clears
+    them and says so, and the record persisted then has none."""
+    p = _pipeline(TWO_AXIS_FIGURES)
+    two = p.status()["uuts"]["log"]["two_axis"]  # type: ignore[index]
+    assert two["state"] == "validating" and two["applied"] is None
+    assert p.two_axis["log"].sup.kept == Figures.from_dict(TWO_AXIS_FIGURES)
+    assert p.calibrations()[0].two_axis == TWO_AXIS_FIGURES
+    done = p.reset("log")
+    assert "two-axis figures" in done["log"]["cleared"]  # type: ignore[operator]
+    assert p.two_axis["log"].sup.candidate is None and p.calibrations()[0].two_axis is None
+    refused = _pipeline(TWO_AXIS_FIGURES | {"misalign_deg": 25.0})
+    assert refused.two_axis["log"].sup.candidate is None
