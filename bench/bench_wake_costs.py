@@ -9,7 +9,8 @@ at real speed (1 Hz VHW, 10 Hz VBW + 5 Hz VHW, 10 Hz PD6), then prints two table
    kernel's wake-up and the return into Python), in ``Pipeline.feed``, and in the
    daemon's own Python around it (the rest of the time until the next wait).
 2. Per timed call: the calls, the CPU per call and the share of one core (nested
-   steps are counted in their callers too).
+   steps are counted in their callers too; learning one UUT reading, and its
+   alignment, filter step and supervision, wherever it is called from).
 
 The timing adds a few µs to each wake-up; compare trees with the same script
 (``PYTHONPATH`` at each tree: the wrapper finds the wait of either loop). Prints
@@ -35,6 +36,9 @@ import drivers.io.port as dp
 import emlogd.daemon.loop as dm
 import emlogd.daemon.outputs as do
 import emlogd.pipeline.core as pp
+import emlogd.pipeline.learner as pl
+import emlogd.pipeline.supervisor as ps
+import emlogd.pipeline.uut as pu
 from emlogd.cli import main
 
 T = time.thread_time_ns
@@ -108,6 +112,11 @@ def feed_of(a):
 wrap(pp.Pipeline, "feed", feed_of)
 wrap(pp.Pipeline, "_route", lambda a: f"  of which route of {a[2]} (correct, emit, queue)")
 wrap(pp.Pipeline, "_after", lambda a: f"  of which after a chunk of {cur['port']} (learn)")
+wrap(pp.Pipeline, "_reference", "  of which a reference sample (glitch filter, alignment)")
+wrap(pu.UutCalibration, "learn", "    learn one reading (align, health, filter, supervise)")
+wrap(pl.Learner, "align", "      of which align it with the reference")
+wrap(pl.Learner, "step", "      of which the filter and identifiability (step)")
+wrap(ps.Supervisor, "observe", "      of which the supervisor's verdicts (observe)")
 
 def loop(self, _run=D._loop):
     t0[0], t0[1] = T(), time.monotonic()

@@ -144,6 +144,9 @@ class TwoAxisFit:
     method: str = "LS"
     current_series: FloatArray | None = field(default=None, compare=False)
     """The current at each sample, shape (N, 2) (None: not determined)."""
+    trace: FloatArray | None = field(default=None, compare=False)
+    """The filter's α (rad), transverse scale and bias at each sample, then their σ,
+    shape (N, 6) (nan: held; None: least squares)."""
 
     @property
     def misalign_deg(self) -> float:

@@ -14,7 +14,8 @@
    — the transverse bias and the current across the hull again. A straight run
    at one throttle setting refuses it, with the reason;
 4. the **transverse scale** needs the transverse speed through the water (the sway
-   of turns) to vary by ``min_transverse_std_mps``; without it the misalignment is
+   of turns) to vary apart from the forward speed by ``min_transverse_std_mps``
+   (:func:`sway_apart_from_surge`); without it the misalignment is
    refused too: its athwart signature is ``(1 + m_t)·sin α·u``, so a transverse
    scale held where the log's differs by Δm would put ``Δm·α`` into α (a 3°
    misalignment of a log whose axes' scales differ by 0.11, learnt on a transit:
@@ -25,7 +26,13 @@
    again (a transverse scale refused so takes the misalignment with it). In
    steady circles and on transits the sway follows the surge: only the
    figure-8's alternating turns, whose sway swings without the surge, determine
-   the transverse scale and with it the misalignment.
+   the transverse scale and with it the misalignment. Circles one way cannot,
+   at any speed: on those of ``emlogd simulate --scale 0.5 --seed 1`` (3°/s to
+   starboard at three throttle settings) ``w = −0.0315·u`` and the rest spreads
+   less than 0.1 mm/s; with the transverse scale free, the athwart axis's
+   information gives α a σ of 128° (its correlation with ``m_t`` −1.0000, the
+   normalised information's condition 2.5·10⁸). Circles both ways flip the sign
+   of ``k`` and determine both.
 
 An unknown refused is held at its prior (the given parameters, else the ideal
 sensor; zero current) and its σ is not reported.
@@ -78,7 +85,9 @@ class TwoAxisRule:
         min_speed_std_misalign_mps: least spread of the speed through the water
             (forward) for the misalignment, m/s.
         min_transverse_std_mps: least spread of the transverse speed through the
-            water for the transverse scale, m/s.
+            water apart from the forward speed (what a straight line in the
+            forward speed leaves, :func:`sway_apart_from_surge`) for the
+            transverse scale, m/s.
         max_std_misalign_deg: largest standard deviation of a determined α, degrees.
         max_std_m_t: largest standard deviation of a determined transverse scale.
         max_std_b_t_mps: largest standard deviation of a determined transverse bias, m/s.
@@ -215,7 +224,7 @@ def judge_two_axis(
     _scale_rule(model, unknowns, raw_l_mps, rule.base, refused)
     sectors = heading_sectors(heading_deg) if heading_deg.size else 0
     offset = _current_rule(current, sectors, unknowns, rule.base, refused)
-    _misalign_rules(std_u, std_w, rule, refused)
+    _misalign_rules(u_mps, w_mps, std_u, rule, refused)
     free = [k for k in unknowns if k not in refused]
     n = int(u_mps.size)
     stds: dict[str, float] = {}
@@ -284,18 +293,39 @@ def _current_rule(
     return True
 
 
-def _misalign_rules(std_u: float, std_w: float, rule: TwoAxisRule, refused: dict[str, str]) -> None:
+def sway_apart_from_surge(u_mps: FloatArray, w_mps: FloatArray) -> tuple[float, float, float]:
+    """The sway as a straight line in the surge, ``w ≈ c + k·u``, and the spread of
+    what the line leaves: ``(c, k, spread)`` in m/s, 1, m/s. The transverse scale and
+    the misalignment are told apart by this rest: where the sway follows the surge
+    (steady circles one way, ``w = −0.6·rate·u`` in the simulator), the athwart
+    reading ``(1 + m_t)·(w − sin α·u) + b_t`` is ``(1 + m_t)·(k − sin α)·u`` plus a
+    constant, one slope for two unknowns."""
+    n = int(u_mps.size)
+    if n < 3:
+        return 0.0, 0.0, 0.0
+    design = np.column_stack([np.ones(n), u_mps])
+    coef, *_ = np.linalg.lstsq(design, w_mps, rcond=None)
+    rest = w_mps - design @ coef
+    return float(coef[0]), float(coef[1]), float(np.std(rest))
+
+
+def _misalign_rules(
+    u: FloatArray, w: FloatArray, std_u: float, rule: TwoAxisRule, refused: dict[str, str]
+) -> None:
     """Rules 3 and 4: the misalignment needs the forward speed to vary, the
-    transverse scale the sway; without the transverse scale, no misalignment."""
+    transverse scale the sway apart from the surge; without the transverse scale, no
+    misalignment."""
     if std_u < rule.min_speed_std_misalign_mps:
         refused[ALPHA] = (
             "misalignment not separable from the transverse bias and the current: "
             f"speed through water nearly constant (spread {std_u:.2f} m/s)"
         )
-    if std_w < rule.min_transverse_std_mps:
+    c, k, rest = sway_apart_from_surge(u, w)
+    if rest < rule.min_transverse_std_mps:
         refused[M_T] = (
-            "transverse scale not determinable: transverse speed through water "
-            f"nearly constant (spread {std_w:.3f} m/s)"
+            "transverse scale not determinable: the sway follows the surge "
+            f"(w = {c:+.3f} {k:+.4f}·u m/s, the rest spreads {rest:.3f} m/s), so the "
+            "athwart reading gives one slope (1 + m_t)·(w/u − sin α)"
         )
     if M_T in refused and ALPHA not in refused:
         refused[ALPHA] = _ALPHA_WITH_SCALE

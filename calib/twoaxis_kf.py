@@ -59,6 +59,9 @@ KF_PASSES = 2
 """Passes over the series: the first linearised about the least-squares fit, each
 next one about the previous pass's parameters and filtered current, starting again
 from the initial covariance (:func:`_run`)."""
+TRACE_NAMES = (ALPHA, M_T, B_T)
+"""The unknowns whose filtered value and σ at each sample the fit's ``trace`` holds,
+in its columns (α in rad), then their σ."""
 MIN_NOISE_MPS = 1e-3
 """The least measurement noise the filter takes for an axis, m/s."""
 
@@ -129,8 +132,9 @@ def kf_two_axis(
     r = np.diag([max(sig[0], MIN_NOISE_MPS) ** 2, max(sig[1], MIN_NOISE_MPS) ** 2])
     x = st.x0(ls.params)
     cur = np.zeros((n, 2)) if ls.current_series is None else ls.current_series
+    trace = np.full((n, 2 * len(TRACE_NAMES)), math.nan)
     for _ in range(KF_PASSES):
-        x, p, res, cur = _run(st, t, x, cur, r)
+        x, p, res, cur = _run(st, t, x, cur, r, trace)
     std = np.full(x.size, math.nan)
     std[st.free] = np.sqrt(np.maximum(np.diag(p), 0.0))
     params = st.params(x)
@@ -160,6 +164,7 @@ def kf_two_axis(
         correlation=1.0,
         method="KF",
         current_series=cur if has_current else None,
+        trace=trace,
     )
 
 
@@ -169,12 +174,14 @@ def _run(
     x_nom: FloatArray,
     cur_nom: FloatArray,
     r: FloatArray,
+    trace: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """One pass of the filter linearised about a nominal (:data:`KF_PASSES`): the
     parameters ``x_nom`` and the current ``cur_nom`` (N, 2) at each sample. It starts
     from the nominal's parameters with the initial covariance (:data:`KF_P0`) and
     returns the final state, its covariance over ``st.free``, each sample's
-    innovation (N, 2) and filtered current (N, 2)."""
+    innovation (N, 2) and filtered current (N, 2); ``trace`` (N, 6) takes each
+    sample's :data:`TRACE_NAMES` and their σ (nan: held)."""
     x = x_nom.copy()
     x = st.with_current(x, float(cur_nom[0, 0]), float(cur_nom[0, 1])) if st.n else x
     free = st.free
@@ -188,6 +195,9 @@ def _run(
     res = np.empty((n, 2))
     cur = np.empty((n, 2))
     nom = x_nom.copy()
+    traced = [
+        (c, i, free.index(i)) for c, u in enumerate(TRACE_NAMES) if (i := st.index(u)) in free
+    ]
     for j in range(n):
         if j and k:
             p[np.diag_indices(k)] += q_rate * float(t[j] - t[j - 1])
@@ -203,4 +213,7 @@ def _run(
             ikh = eye - gain @ hf
             p = ikh @ p @ ikh.T + gain @ r @ gain.T
         cur[j] = st.current(x)
+        for c, i, f in traced:
+            trace[j, c] = x[i]
+            trace[j, len(TRACE_NAMES) + c] = math.sqrt(max(float(p[f, f]), 0.0))
     return x, p, res, cur

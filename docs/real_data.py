@@ -95,26 +95,39 @@ KIND_SCAN_BYTES = 65536
 """The bytes read to tell a file's kind."""
 
 
+SENTENCE_IN_LINE = re.compile(r"[$!][A-Z0-9]{5},")
+"""An NMEA sentence's start anywhere in a line (a logger may write a time before it)."""
+
+TABLE_DELIMITERS = (",", ";", "\t", "|")
+"""A table line's delimiter is the one of these it holds most."""
+
+BOM = b"\xef\xbb\xbf"
+"""UTF-8's byte-order mark, which a spreadsheet may write first."""
+
+
 def kind(path: Path) -> str | None:
     """What a file is, from its first lines: one of :data:`KINDS`, or None (not a log)."""
     try:
         with open(path, "rb") as f:
-            head = f.read(KIND_SCAN_BYTES).decode("latin-1", errors="replace")
+            raw = f.read(KIND_SCAN_BYTES)
     except OSError:
         return None
+    head = raw.removeprefix(BOM).decode("latin-1", errors="replace")
     lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
     if not lines:
         return None
-    if sum(ln[:1] in "$!" for ln in lines[:50]) >= min(len(lines[:50]), 5) // 2 + 1:
+    if (
+        sum(bool(SENTENCE_IN_LINE.search(ln)) for ln in lines[:50])
+        >= min(len(lines[:50]), 5) // 2 + 1
+    ):
         return "nmea"
     for ln in lines[:KIND_SCAN_LINES]:
-        if "\t" in ln and ln.count("\t") >= 3:
+        delim = max(TABLE_DELIMITERS, key=ln.count)
+        cells = [c.strip().strip('"').lower() for c in ln.split(delim)]
+        if ("utc" in cells and "bsp" in cells) or cells[:1] == ["!boat"]:
+            return "expedition-csv"  # its export, or its own sparse log
+        if delim == "\t" and ln.count("\t") >= 3:
             return "logger-tsv"
-        cells = [c.strip().strip('"').lower() for c in ln.split(",")]
-        if "utc" in cells and "bsp" in cells:
-            return "expedition-csv"
-        if cells[:1] == ["!boat"]:
-            return "expedition-csv"  # Expedition's own sparse log
         if len(cells) >= 4 and "time" in cells:
             return "csv"
     return None

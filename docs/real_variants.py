@@ -1,7 +1,7 @@
 """The perturbation suite: each real recording rewritten as a held-out log of its kind
 plausibly differs, and run through the same commands as docs/real_data.py.
 
-Usage: ``python docs/real_variants.py DIR [--only NAME ...] [--variant V ...] [--json]``.
+Usage: ``python docs/real_variants.py DIR [--only NAME ...] [--variant V ...] [--out DIR] [--json]``.
 
 A variant is a pure function of the source file's text (:data:`VARIANTS`): the GNSS
 thinned to 0.5 and 0.2 Hz, fix times of 1-s and 10-s resolution; a magnetic heading
@@ -295,6 +295,13 @@ def _rmc_course_empty_slow(f: list[str]) -> list[str]:
             g[8] = ""
             return g
     return f
+
+
+def _prefixed(text: str) -> str:
+    """A receive time (ms since the log's start) and a tag before each sentence, as
+    some loggers write them."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    return nl.join(f"{100 * i};N;{ln}" for i, ln in enumerate(text.splitlines())) + nl
 
 
 def _no_checksums(text: str) -> str:
@@ -699,6 +706,7 @@ VARIANTS: tuple[Variant, ...] = (
         "other talkers, VLW, nonsense MWV, proprietary lines",
     ),
     Variant("no-checksum", "nmea", _no_checksums, "sentences without checksums"),
+    Variant("prefixed", "nmea", _prefixed, "a receive time and a tag before each sentence"),
     Variant("crlf", "nmea", _line_endings("\r\n"), "CRLF line endings"),
     Variant("lf", "nmea", _line_endings("\n"), "LF line endings"),
     Variant("truncated", "nmea", _truncated, "a truncated last line and a line cut by a reset"),
@@ -774,7 +782,6 @@ def import_options(kind: str, extra: list[str]) -> list[list[str]]:
 def run_one(src: Path, text: str, variant: Variant | None, out: Path) -> dict[str, Any]:
     """Import, calibrate (LS, KF) and replay one variant (None: the unperturbed file)."""
     rd = _real_data()
-    what = rd.kind(src)
     tag = f"{src.stem}.{variant.name if variant else 'base'}"
     path = out / f"{tag}{src.suffix}"
     data = variant.make(text) if variant else text
@@ -782,6 +789,10 @@ def run_one(src: Path, text: str, variant: Variant | None, out: Path) -> dict[st
         data.encode("utf-8") if "\ufeff" in data[:1] else data.encode("latin-1", errors="replace")
     )
     row: dict[str, Any] = {"name": src.stem, "variant": variant.name if variant else "base"}
+    what = rd.kind(path)  # the variant's own kind, as docs/real_data.py would tell it
+    if what is None:
+        row["errors"] = {"kind": "docs/real_data.py does not recognise the file as a log"}
+        return row
     cap = out / f"{tag}.cap.gz"
     extra = variant.options(text) if variant else []
     doc: dict[str, Any] | None = None
@@ -848,9 +859,9 @@ def _f(x: object, spec: str) -> str:
 def markdown(rows: list[dict[str, Any]]) -> str:
     """One line per variant: scales (LS / KF), replay RMSE and worst window, verdict."""
     out = [
-        "| recording | variant | import: lines → sentences | scale LS / KF | "
+        "| recording | variant | import: lines → sentences | scale LS / KF | replay at the end | "
         "emitted / raw RMSE (m/s) | worst 5-min | verdict |",
-        "|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     bases = {r["name"]: r for r in rows if r["variant"] == "base"}
     for r in rows:
@@ -862,9 +873,13 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         s = r.get("scores") or {}
         rmse = f"{_f(s.get('rmse_emitted'), '.3f')} / {_f(s.get('rmse_raw'), '.3f')}"
         v = "(reference)" if r is base else verdict(r, base)
+        rep = r.get("replay")
+        end = "—" if rep is None else "applied" if rep.get("params") else "raw"
+        if rep is not None and rep.get("state") == "fault":
+            end += " (fault)"
         out.append(
             f"| {r['name']} | {r['variant']} | {imported} | {_f(ls, '.3f')} / {_f(kf, '.3f')} | "
-            f"{rmse} | {_f(s.get('worst_5min_ratio'), '.3f')} | {v} |"
+            f"{end} | {rmse} | {_f(s.get('worst_5min_ratio'), '.3f')} | {v} |"
         )
     return "\n".join(out)
 

@@ -19,6 +19,7 @@ Must not import: calib, emlogd.
 from __future__ import annotations
 
 import importlib
+from functools import cache
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Literal, overload
 
@@ -58,11 +59,25 @@ PROTOCOLS: dict[str, tuple[str, str]] = {
 ENTRY_POINT_GROUP = "emlogd.drivers"
 
 
-def _all_protocols() -> dict[str, tuple[str, str]]:
-    found = dict(PROTOCOLS)
+@cache
+def _entry_point_protocols() -> tuple[tuple[str, str, str], ...]:
+    """The ``(name, module, class)`` of every entry point in :data:`ENTRY_POINT_GROUP`.
+
+    Read once per process: scanning the installed distributions' metadata costs
+    milliseconds, and a config load asks for the protocols dozens of times (a package
+    installed while the process runs is seen by the next process).
+    """
+    found = []
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         module, _, cls = ep.value.partition(":")
-        found.setdefault(ep.name, (module, cls))
+        found.append((ep.name, module, cls))
+    return tuple(found)
+
+
+def _all_protocols() -> dict[str, tuple[str, str]]:
+    found = dict(PROTOCOLS)
+    for name, module, cls in _entry_point_protocols():
+        found.setdefault(name, (module, cls))
     return found
 
 

@@ -48,7 +48,7 @@ from calib.errors import CalibrationError
 from calib.estimate import Estimate
 from calib.models import MODEL_NAMES, PARAM_NAMES, Params
 from drivers.errors import EmlogdError
-from emlogd.config import YAML_FAILURES
+from emlogd.configyaml import YAML_FAILURES, yaml_depth_error
 from emlogd.pipeline.calibration import TWO_AXIS_KEYS, Calibration
 
 KIND = "emlogd-calibration"
@@ -254,13 +254,23 @@ def loads_state(text: str) -> tuple[dict[str, Calibration], list[Calibration]]:
     return cals, others
 
 
+def _load_yaml(text: str) -> Any:
+    """The YAML document of ``text``, whatever the loader raised made a
+    :class:`CalibrationFileError` (nesting past :data:`emlogd.configyaml.MAX_YAML_DEPTH`
+    refused unparsed)."""
+    deep = yaml_depth_error(text)
+    if deep:
+        raise CalibrationFileError(f"not valid YAML ({deep})")
+    try:
+        return yaml.safe_load(text)
+    except YAML_FAILURES as exc:
+        raise CalibrationFileError(f"not valid YAML ({exc.__class__.__name__})") from None
+
+
 def _parse(
     text: str,
 ) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]], list[Calibration]]:
-    try:
-        doc = yaml.safe_load(text)
-    except YAML_FAILURES as exc:
-        raise CalibrationFileError(f"not valid YAML ({exc.__class__.__name__})") from None
+    doc = _load_yaml(text)
     if not isinstance(doc, dict) or doc.get("kind") != KIND:
         raise CalibrationFileError("not an emlogd calibration file")
     if doc.get("schema") != SCHEMA:

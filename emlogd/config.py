@@ -27,6 +27,7 @@ import yaml
 
 from drivers import Use, get_decoder, protocols_for
 from drivers.errors import ConfigError
+from emlogd.configyaml import YAML_FAILURES, yaml_depth_error, yaml_why
 from emlogd.fileio import read_text_bounded
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
@@ -51,21 +52,6 @@ MAX_CONFIG_BYTES = 256 * 1024
 """Longest config file read, bytes (the example vehicle's is under 5 KiB). A longer
 one, or anything not a regular file (a FIFO would block the read), is refused
 unparsed: the pure-Python YAML parser takes seconds per 100 KiB of a hostile file."""
-
-YAML_FAILURES: tuple[type[Exception], ...] = (
-    yaml.YAMLError,
-    ValueError,
-    TypeError,
-    KeyError,
-    AttributeError,
-    OverflowError,
-    RecursionError,
-)
-"""What PyYAML's safe loading raises on hostile text: besides ``YAMLError``, its
-constructors' ``ValueError`` (a date ``2001-02-30``, ``!!int 0x``, an integer of more
-than 4300 digits), ``AttributeError`` (``!!timestamp x``), ``KeyError`` (``!!bool x``),
-and ``RecursionError`` for nesting deeper than the interpreter's stack (``[[[…]]]``).
-The config and the state file turn each into their own error, naming the file."""
 
 Role = Literal["uut", "reference", "aux"]
 Speed = Literal["each", "fused", "both"]
@@ -384,7 +370,7 @@ class _Ctx:
         try:
             raw = self.loader.construct_object(node, deep=True)
         except YAML_FAILURES as exc:
-            raise self.fail(node, where, f"not a valid value ({_yaml_why(exc)})") from None
+            raise self.fail(node, where, f"not a valid value ({yaml_why(exc)})") from None
         try:
             v = e.key.check(raw)
         except InvalidValueError as exc:
@@ -510,13 +496,6 @@ def _check_uut(
         )
 
 
-def _yaml_why(exc: Exception) -> str:
-    """One line on a YAML failure: a RecursionError's is the nesting."""
-    if isinstance(exc, RecursionError):
-        return "nested too deep"
-    return " ".join(str(exc).split())[:200] or type(exc).__name__
-
-
 def load_config(path: str | Path) -> Config:
     """Load and validate a config file.
 
@@ -533,6 +512,9 @@ def load_config(path: str | Path) -> Config:
 
 def parse_config(text: str, path: str = "<config>", *, base: Path | None = None) -> Config:
     """Validate config text (see :func:`load_config`)."""
+    deep = yaml_depth_error(text)
+    if deep:
+        raise ConfigError(f"{path}:1: not valid YAML: {deep}")
     loader = _Loader(text)
     try:
         root = loader.get_single_node()
@@ -540,7 +522,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else 1
         raise ConfigError(
-            f"{path}:{line}: not valid YAML: {getattr(exc, 'problem', None) or _yaml_why(exc)}"
+            f"{path}:{line}: not valid YAML: {getattr(exc, 'problem', None) or yaml_why(exc)}"
         ) from None
     finally:
         loader.dispose()

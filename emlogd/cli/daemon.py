@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from drivers import EmlogdError
-from emlogd.cli.common import Subparsers, UsageError, config_path, positive_float
+from emlogd.cli.common import Subparsers, UsageError, config_path, positive_float, two_axis_line
 from emlogd.offline.tables import fmt
 
 
@@ -133,29 +133,8 @@ def _detail_lines(u: dict[str, Any]) -> list[str]:
         lines.append(f"  {_heading_line(heading)}")
     two = u.get("two_axis")
     if isinstance(two, dict):
-        lines.append(f"  {_two_axis_line(two)}")
+        lines.append(f"  {two_axis_line(two)}")
     return lines
-
-
-def _two_axis_line(two: dict[str, Any]) -> str:
-    """A two-axis log's learnt figures (``axes: 2``): applied, validating or learning, α
-    ± σ with m_t and b_t, the leeway angle, and why the latest window refused α."""
-    fig = two.get("applied") or two.get("estimate")
-    text = f"two axes: {two.get('state')}"
-    if isinstance(fig, dict):
-        text += (
-            f", misalignment {fig['misalign_deg']:+.2f} ± {fig['misalign_std_deg']:.2f}°, "
-            f"m_t {fig['m_t']:+.4f} ± {fig['m_t_std']:.4f}, "
-            f"b_t {fig['b_t_mps']:+.3f} ± {fig['b_t_std_mps']:.3f} m/s"
-        )
-    lee = two.get("leeway_deg")
-    if isinstance(lee, float):
-        text += f", leeway {lee:+.1f}°"
-    if two.get("refused"):
-        text += f"; latest window: misalignment refused: {two['refused']}"
-    if two.get("note"):
-        text += f"; {two['note']}"
-    return text
 
 
 def _inputs_line(inputs: dict[str, Any]) -> str:

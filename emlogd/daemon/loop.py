@@ -252,15 +252,17 @@ class Daemon:
         """Open the control socket (and the read-only status socket) the config names,
         keeping an open one whose path did not change.
 
+        A socket of a kind whose new one cannot be created is kept at its old path (a
+        reload naming an unusable path left the daemon with no control socket at all).
+
         Raises:
             DeviceError: a socket cannot be created (the others are still synced).
         """
         want = {("control", self.config.control_socket)}
         if self.config.status_socket:
             want.add(("status", self.config.status_socket))
-        for key in [k for k in self.controls if k not in want]:
-            self.controls.pop(key).close()
         failed: DeviceError | None = None
+        failed_kinds: set[str] = set()
         for kind, path in sorted(want - self.controls.keys()):
             read_only = kind == "status"
             try:
@@ -275,6 +277,9 @@ class Daemon:
                 )
             except DeviceError as exc:
                 failed = exc
+                failed_kinds.add(kind)
+        for key in [k for k in self.controls if k not in want and k[0] not in failed_kinds]:
+            self.controls.pop(key).close()
         if failed is not None:
             raise failed
 

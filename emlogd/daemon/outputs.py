@@ -14,6 +14,7 @@ import selectors
 from collections.abc import Callable
 from typing import Any
 
+from drivers.errors import DeviceError
 from emlogd.config import Config
 from emlogd.daemon.logsetup import CLIENT_EVENT_BURST, CLIENT_EVENTS, EventLimiter
 from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
@@ -106,7 +107,13 @@ class Outputs:
     def sync(self, cfg: Config) -> tuple[list[str], list[str]]:
         """Close the outputs ``cfg`` no longer names, open the new ones; keep the rest.
 
-        Returns the names of the outputs (closed, opened).
+        Returns the names of the outputs (closed, opened). An output that cannot be
+        opened costs itself: the others are opened and routed all the same (one that
+        failed made every output after it in the config stay closed), then the first
+        failure is raised.
+
+        Raises:
+            DeviceError: an output could not be opened (the rest are in place).
         """
         specs = self.specs(cfg)
         closed = [self.sinks[key].name for key in self.sinks if key not in specs]
@@ -114,15 +121,24 @@ class Outputs:
             with contextlib.suppress(OSError):
                 self.sinks.pop(key).close()
         opened: list[str] = []
+        failed: DeviceError | None = None
         for key, make in specs.items():
             if key not in self.sinks:
-                self.sinks[key] = sink = make()
+                try:
+                    self.sinks[key] = sink = make()
+                except (DeviceError, OSError) as exc:
+                    failed = failed or (
+                        exc if isinstance(exc, DeviceError) else DeviceError(f"{key}: {exc}")
+                    )
+                    continue
                 opened.append(sink.name)
         self.routes = {}
         for key, sink in self.sinks.items():
             if key[0] == "uut":
                 self.routes.setdefault(str(key[1]), []).append(sink)
         self.shared = [s for k, s in self.sinks.items() if k[0] != "uut"]
+        if failed is not None:
+            raise failed
         return closed, opened
 
     def close(self) -> None:

@@ -184,7 +184,13 @@ class SentenceCheck:
         self.without = 0
 
     def line(self, text: str) -> tuple[str | None, str | None]:
-        """(the sentence to write, or None; why the line is skipped, or None)."""
+        """(the sentence to write, or None; why the line is skipped, or None). A line
+        with something before its sentence (a logger's receive time, a channel tag) is
+        read from its first ``$`` or ``!`` (counted as ``line_prefix``)."""
+        start = _sentence_start(text)
+        if start > 0:
+            self.report.notes["line_prefix"] += 1
+            text = text[start:]
         reason = not_a_sentence(text)
         if reason is None:
             self.with_ += 1
@@ -197,6 +203,17 @@ class SentenceCheck:
         self.report.notes["checksum_added"] += 1
         body = text[1:]
         return f"{text[0]}{body}*{nmea_checksum(body.encode('ascii')):02X}", None
+
+
+def _sentence_start(text: str) -> int:
+    """Where a line's sentence starts: 0 when it starts the line, the first ``$`` or
+    ``!`` followed by a well-formed address when something comes before it, else 0."""
+    if text[:1] in ("$", "!"):
+        return 0
+    for i, ch in enumerate(text):
+        if ch in "$!" and well_formed(text[i:]):
+            return i
+    return 0
 
 
 def well_formed(text: str) -> bool:

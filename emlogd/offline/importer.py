@@ -10,7 +10,10 @@ every line must be a complete sentence with a valid checksum (checked as the
 decoders do); the rest is counted by reason. A log written without checksums (more
 of its sentences so far without one than with one) has each well-formed sentence
 taken with its checksum added (``checksum_added`` in ``notes``); in a log with
-checksums a line without one is a cut line (``missing_checksum``). Time comes from
+checksums a line without one is a cut line (``missing_checksum``). A line with
+something before its sentence (a logger's receive time, a tag) is read from its
+first ``$`` or ``!`` that starts a well-formed address (``line_prefix`` in
+``notes``); the fixes still time it. Time comes from
 the fixes: the UTC date and time of RMC, else ZDA, else GGA's time of day with a date
 given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a GGA time of day
 :data:`DAY_ROLLOVER_S` or more before the last fix is the next day's (midnight passed).

@@ -30,8 +30,7 @@ Must not import: serial, os, time, threading, socket (pure module).
 from __future__ import annotations
 
 import math
-import statistics
-from bisect import bisect_right
+from bisect import bisect_left, bisect_right, insort
 from collections import deque
 from operator import itemgetter
 
@@ -98,6 +97,68 @@ def cadence_gaps(t_s: npt.ArrayLike, floor_s: float) -> FloatArray:
     return out
 
 
+class MedianWindow:
+    """The newest ``size`` values of a series and their order, for its median in O(size).
+
+    Kept sorted as values come and go (a binary search and one list move each), so
+    the median is read without sorting the window on every value.
+    :meth:`median` equals :func:`statistics.median` of the window and :meth:`upper`
+    ``sorted(window)[len // 2]``, exactly.
+
+    Args:
+        size: values kept (the oldest is forgotten when a new one comes).
+
+    Raises:
+        ValueError: a size below 1.
+    """
+
+    __slots__ = ("_order", "_window")
+
+    def __init__(self, size: int) -> None:
+        if size < 1:
+            raise ValueError("size must be at least 1")
+        self._window: deque[float] = deque(maxlen=size)
+        self._order: list[float] = []
+
+    def __len__(self) -> int:
+        return len(self._window)
+
+    def append(self, value: float) -> None:
+        """Add a value (not NaN), forgetting the oldest when the window is full."""
+        window = self._window
+        order = self._order
+        if len(window) == window.maxlen:
+            del order[bisect_left(order, window[0])]
+        window.append(value)
+        insort(order, value)
+
+    def clear(self) -> None:
+        """Forget every value."""
+        self._window.clear()
+        self._order.clear()
+
+    def median(self) -> float:
+        """The median (the mean of the two middle values for an even count).
+
+        Raises:
+            IndexError: the window is empty.
+        """
+        order = self._order
+        n = len(order)
+        i = n // 2
+        if not n:
+            raise IndexError("median of an empty window")
+        return order[i] if n % 2 else (order[i - 1] + order[i]) / 2
+
+    def upper(self) -> float:
+        """The upper median (the larger middle value for an even count).
+
+        Raises:
+            IndexError: the window is empty.
+        """
+        return self._order[len(self._order) // 2]
+
+
 _time = itemgetter(0)
 
 
@@ -136,7 +197,7 @@ class SampleRing:
         if not max_gap_s > 0.0:
             raise ValueError("max_gap_s must be positive")
         self._buf: deque[tuple[float, float, bool, float]] = deque(maxlen=capacity)
-        self._dts: deque[float] = deque(maxlen=CADENCE_INTERVALS)
+        self._dts = MedianWindow(CADENCE_INTERVALS)
         self.max_gap_s = max_gap_s
         self.angular = angular
         self.cadence = cadence
@@ -156,7 +217,7 @@ class SampleRing:
             if self.cadence:
                 if dt > 0.0:
                     self._dts.append(dt)
-                gap = buf[-1][3] if dt == 0.0 else cadence_gap(statistics.median(self._dts), gap)
+                gap = buf[-1][3] if dt == 0.0 else cadence_gap(self._dts.median(), gap)
         ok = valid and value is not None and math.isfinite(value)
         buf.append((t, value if ok and value is not None else math.nan, ok, gap))
         return True

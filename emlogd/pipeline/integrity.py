@@ -34,6 +34,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from calib.models import Params
+from emlogd.pipeline.align import MedianWindow
 from emlogd.pipeline.keys import key, number
 
 QUANTUM_MPS = 0.006
@@ -534,7 +535,7 @@ class ReadingCheck:
         self._moving: tuple[float, float] | None = None
         self._first_refused: float | None = None
         self._pending: tuple[float, float, float] | None = None
-        self._intervals: list[float] = []
+        self._intervals = MedianWindow(RATE_HISTORY)
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
         self._rate_dropped = False
@@ -577,10 +578,8 @@ class ReadingCheck:
         if prev is not None and t > prev and not dropped and self.limits.max_rate_hz is None:
             iv = self._intervals
             iv.append(t - prev)
-            if len(iv) > RATE_HISTORY:
-                del iv[0]
             if len(iv) >= RATE_MIN_INTERVALS:
-                self.nominal_s = sorted(iv)[len(iv) // 2]
+                self.nominal_s = iv.upper()
         return True
 
     def _accel(self, t: float, v: float) -> str:

@@ -23,6 +23,10 @@ shares its lag (the UUT's, once known) and its heading.
   supervisor (:mod:`emlogd.pipeline.twoaxis_sup`), which applies it to the VBW only
   once its athwart speed is not worse than raw; a refusal keeps what was learnt.
 
+A fit of a full window costs about 0.2 s of CPU with one BLAS thread (on a loaded
+machine a multi-threaded BLAS took seconds: ``OPENBLAS_NUM_THREADS=1`` suits the
+daemon); whoever feeds the pipeline reads nothing meanwhile.
+
 No I/O, no clock: times come with the data.
 """
 

@@ -7,7 +7,7 @@ import pytest
 
 from calib.errors import ModelError
 from calib.models import CURRENT
-from calib.twoaxis_ident import TwoAxisRule, judge_two_axis, unknowns_of
+from calib.twoaxis_ident import TwoAxisRule, judge_two_axis, sway_apart_from_surge, unknowns_of
 from calib.twoaxis_model import ALPHA, B_T, M_T
 
 N = 600
@@ -26,6 +26,22 @@ def _window(
 def test_unknowns_in_their_order() -> None:
     assert unknowns_of("EM3", True) == ("m", "b", ALPHA, M_T, B_T, CURRENT)
     assert unknowns_of("EM1", False) == ("b", ALPHA, M_T, B_T)
+
+
+def test_sway_that_follows_the_surge_refuses_the_transverse_scale() -> None:
+    """Circles one way: the sway spreads (0.07 m/s, past the 0.03 bound) but as a
+    straight line in the surge, so the athwart reading gives one slope: the
+    transverse scale and the misalignment are refused, the line in the reason."""
+    u, _, raw, hd = _window(0.5, 0.0, np.linspace(0.0, 720.0, N) % 360.0)
+    w = 0.02 - 0.1 * u
+    assert np.std(w) > 0.03
+    c, k, rest = sway_apart_from_surge(u, w)
+    assert c == pytest.approx(0.02) and k == pytest.approx(-0.1) and rest < 1e-12
+    ident = judge_two_axis("EM3", u, w, raw, hd, current=True)
+    assert M_T in ident.unidentifiable and ALPHA in ident.unidentifiable
+    assert "the sway follows the surge (w = +0.020 -0.1000·u m/s" in ident.reason
+    swung = w + 0.05 * np.sign(np.sin(np.linspace(0.0, 12.0 * np.pi, N)))
+    assert M_T in judge_two_axis("EM3", u, swung, raw, hd, current=True).determined
 
 
 def test_figure8_like_window_determines_everything() -> None:

@@ -262,6 +262,29 @@ class TestRecordUnions:
             assert set(_members(_union(drivers.get_decoder(name)))) <= listed
         assert {Rejected, SpeedRecord} <= listed
 
+    def test_entry_points_are_read_once_per_process(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        """The installed entry points are scanned once, however often the protocols are
+        asked for (a config load asks dozens of times), and a plug-in's protocol is listed."""
+        calls: list[str] = []
+
+        class _Ep:
+            name = "plugin"
+            value = "drivers.nmea0183:NmeaDecoder"
+
+        def fake_entry_points(*, group: str) -> list[_Ep]:
+            calls.append(group)
+            return [_Ep()]
+
+        monkeypatch.setattr(drivers, "entry_points", fake_entry_points)
+        drivers._entry_point_protocols.cache_clear()
+        try:
+            for _ in range(5):
+                assert "plugin" in drivers.protocol_names()
+            assert drivers.get_decoder("plugin") is drivers.get_decoder("nmea0183")
+            assert calls == [drivers.ENTRY_POINT_GROUP]
+        finally:
+            drivers._entry_point_protocols.cache_clear()
+
     def test_what_each_protocol_can_serve(self) -> None:
         """The decoders say what a port can be to a calibration: only NMEA 0183 a UUT, an
         EMlog or a GNSS reference; a water track only PD6/PD13; a bottom track every DVL

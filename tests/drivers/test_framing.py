@@ -110,7 +110,8 @@ def test_any_chunking_of_arbitrary_bytes_gives_the_same_frames(
     ]
 
 
-@settings(max_examples=2000, deadline=None)
+@pytest.mark.fuzz
+@settings(max_examples=by_profile(500), deadline=None)
 @given(st.lists(st.sampled_from([b"$", b"!", b" ", b"\t", b"A", b",", b"*", b"\r", b"\x00"]),
                 max_size=90).map(b"".join))  # fmt: skip
 def test_one_line_fast_path_equals_byte_by_byte(line: bytes) -> None:

@@ -9,7 +9,7 @@ import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from emlogd.cli.common import Subparsers, positive_float, progress, progress_done
+from emlogd.cli.common import Subparsers, positive_float, progress, progress_done, two_axis_line
 from emlogd.cli.offline.args import capture_args, captures_arg, json_arg, truth_arg
 from emlogd.cli.offline.shared import truth_cells, truth_of, warn_internal, warn_skips
 from emlogd.offline.tables import fmt, render
@@ -141,6 +141,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             left=3,
         )
     )
+    out.write("".join(_two_axis_lines(uut_docs)))
     out.write(
         f"{result.records} records in {result.elapsed_s:.1f} s "
         f"({result.span_s / max(result.elapsed_s, 1e-9):.0f}x real time), "
@@ -149,6 +150,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
         + "\n"
     )
     return 0
+
+
+def _two_axis_lines(uuts: dict[str, dict[str, object]]) -> list[str]:
+    """A line per UUT that learns two axes (``axes: 2``): its figures."""
+    found = ((name, u.get("two_axis")) for name, u in uuts.items())
+    return [f"{name} {two_axis_line(two)}\n" for name, two in found if isinstance(two, dict)]
 
 
 def add_parser(sub: Subparsers) -> None:

@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from emlogd.cli.common import Subparsers, progress, progress_done
+from emlogd.cli.common import Subparsers, UsageError, progress, progress_done
+from emlogd.cli.offline import twoaxis
 from emlogd.cli.offline.args import (
     captures_arg,
     common_offline,
+    json_arg,
     model_arg,
     pairing_args,
     uut_settings,
@@ -18,6 +20,10 @@ from emlogd.cli.offline.shared import load, warn_lag, warn_recs
 
 def cmd_report(args: argparse.Namespace) -> int:
     """PNG figures like the paper's (needs the report extra)."""
+    if args.axes == 2:
+        return twoaxis.cmd_report(args)
+    if args.json:
+        raise UsageError("--json is for --axes 2 (one axis: the figures' paths on stdout)")
     from emlogd.offline.report import report
 
     settings = uut_settings(args)
@@ -48,4 +54,6 @@ def add_parser(sub: Subparsers) -> None:
     pairing_args(p)
     model_arg(p)
     common_offline(p, json_doc=False)  # the figures are the output: their paths on stdout
+    json_arg(p, help="with --axes 2: the calibrations, the scores and the figures' paths as JSON")
+    twoaxis.axes_arg(p)
     p.set_defaults(handler=cmd_report)

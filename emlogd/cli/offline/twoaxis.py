@@ -1,5 +1,6 @@
-"""``--axes 2`` of ``calibrate``, ``evaluate`` and ``crossval``: both axes of a log
-sending VBW, against a DVL's two-axis bottom track (:mod:`emlogd.offline.twoaxis`)."""
+"""``--axes 2`` of ``calibrate``, ``evaluate``, ``crossval`` and ``report``: both axes
+of a log sending VBW, against a DVL's two-axis bottom track
+(:mod:`emlogd.offline.twoaxis`)."""
 
 from __future__ import annotations
 
@@ -69,6 +70,48 @@ def _scores_row(name: str, s: AxisScores) -> list[str]:
 
 
 SCORE_HEADER = ["capture", "N", "fwd raw", "fwd cal", "athw raw", "athw cal", "leeway°"]
+
+
+def _summary(res: TwoAxisResult) -> list[str]:
+    """α ± σ (or why it is held), the transverse parameters and the RMSE per axis."""
+    f = res.fit
+    se = f.stderr
+    alpha = (
+        f"{f.misalign_deg:+.3f} ± {fmt(f.misalign_std_deg, '.3f')}°"
+        if f.misalign_std_deg is not None
+        else f"{f.misalign_deg:+.3f}° (held: {f.ident.verdict('alpha').reason})"
+    )
+    return [
+        f"{f.method}-{f.params.model} misalignment {alpha}",
+        f"  transverse scale m_t {f.params.m_t:+.4f} ± {fmt(se.get('m_t'), '.4f')}, "
+        f"bias b_t {f.params.b_t_mps:+.4f} ± {fmt(se.get('b_t'), '.4f')} m/s",
+        f"  RMSE forward {res.scores.rmse_l_raw:.4f} raw, {res.scores.rmse_l_cal:.4f} "
+        f"corrected; athwart {res.scores.rmse_t_raw:.4f} raw, {res.scores.rmse_t_cal:.4f} "
+        "corrected (m/s, water frame)",
+    ]
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """``report --axes 2``: the figures' paths, then α ± σ, m_t, b_t and the RMSE per
+    axis of least squares and the filter (:mod:`emlogd.offline.twoaxis_report`)."""
+    from emlogd.offline.twoaxis_report import report_two_axis
+
+    lag_s, source = _lag(args)
+    recs = _records(args, args.uut, args.ref)
+    model = getattr(args, "model", None) or "EM3"
+    rep = report_two_axis(recs, model, lag_s, args.out, lag_source=source, reference=args.ref)
+    if args.json:
+        sys.stdout.write(json.dumps(rep.to_dict(), indent=2) + "\n")
+        return 0
+    lines = [str(p) for p in rep.figures]
+    lines.append(
+        f"two axes: {rep.ls.uut} against {rep.ls.reference} (bottom), lag "
+        f"{rep.ls.lag_s:.2f} s ({rep.ls.lag_source}), {rep.ls.fit.n_samples} samples"
+    )
+    lines += _summary(rep.ls) + _summary(rep.kf)
+    sys.stdout.write("\n".join(lines) + "\n")
+    sys.stdout.write(render(SCORE_HEADER, [_scores_row(r.capture, r.scores) for r in rep.rows]))
+    return 0
 
 
 def _text(res: TwoAxisResult) -> str:

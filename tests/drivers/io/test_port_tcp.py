@@ -10,6 +10,7 @@ from collections.abc import Iterator
 import pytest
 
 from drivers.io.port import CONNECT_TIMEOUT_S, SerialSource
+from tests.sockets import unanswered_port
 
 LINE = b"$VWVHW,,T,,M,5.0,N,9.26,K*55\r\n"
 
@@ -24,19 +25,9 @@ class _Clock:
 
 @pytest.fixture
 def blackhole() -> Iterator[int]:
-    """A port whose listen queue is full: a SYN to it is dropped, a connect waits."""
-    ls = socket.socket()
-    ls.bind(("127.0.0.1", 0))
-    ls.listen(0)
-    port = int(ls.getsockname()[1])
-    fill = [socket.socket() for _ in range(3)]
-    for s in fill:
-        s.setblocking(False)
-        s.connect_ex(("127.0.0.1", port))
-    time.sleep(0.1)
-    yield port
-    for s in [*fill, ls]:
-        s.close()
+    """A port that does not answer (:func:`tests.sockets.unanswered_port`)."""
+    with unanswered_port() as port:
+        yield port
 
 
 def _until(cond: object, src: SerialSource, clock: _Clock, timeout_s: float = 5.0) -> None:

@@ -30,6 +30,7 @@ from tests.emlogd.daemon.harness import (
     free_port,
     make_work,
     tcp_port,
+    wait,
 )
 
 CONFIG = f"""\
@@ -195,7 +196,8 @@ def test_notify_missing_sensors_and_reload(tmp_path: Path) -> None:
             )
         )
         d.send_signal(signal.SIGHUP)
-        time.sleep(1.0)
+        log = tmp_path / "daemon.log"
+        wait(lambda: '"event": "reload_failed"' in log.read_text(), "no reload_failed", 10.0)
         assert request(tmp_path / "run" / "control2.sock", {"cmd": "status"})["ok"]
         assert d.running
         assert d.stop() == 0

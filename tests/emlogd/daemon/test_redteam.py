@@ -34,7 +34,8 @@ from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from emlogd.pipeline.calibration import Calibration
-from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, make_work, tcp_port, wait
+from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, free_port, make_work, tcp_port, wait
+from tests.sockets import unanswered_port
 
 CONFIG = f"""\
 ports:
@@ -447,18 +448,10 @@ def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: P
     by a host that is off): the daemon answers every status request at once for 3 s, the
     port ``connecting``. pyserial's connect waited up to 5 s in the daemon's one thread
     at each retry (5.01 s measured), every output with it."""
-    ls = socket.socket()
-    ls.bind(("127.0.0.1", 0))
-    ls.listen(0)
-    port = int(ls.getsockname()[1])
-    fill = [socket.socket() for _ in range(3)]
-    for s in fill:
-        s.setblocking(False)
-        s.connect_ex(("127.0.0.1", port))
-    work = make_work(
-        tmp_path, CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
-    )
-    try:
+    with unanswered_port() as port:
+        work = make_work(
+            tmp_path, CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
+        )
         d = Daemon(work)
         try:
             worst = 0.0
@@ -474,6 +467,54 @@ def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: P
             assert d.stop() == 0
         finally:
             d.kill()
+
+
+def test_a_reload_whose_pty_cannot_be_published_still_opens_the_other_outputs(
+    tmp_path: Path,
+) -> None:
+    """SIGHUP into a config whose pty path cannot be published (under a file) and that adds
+    a UDP output after it: ``reload_outputs_failed`` for the pty, and the UDP output open
+    all the same. The pty's failure left every output after it closed until the next
+    reload."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        cfg = work / "emlogd.yaml"
+        tcp = f'tcp: "127.0.0.1:{tcp_port(work)}"'
+        udp = f"127.0.0.1:{free_port()}"
+        text = cfg.read_text().replace("pty: out/emlog0", "pty: emlogd.yaml/emlog0")
+        cfg.write_text(text.replace(tcp, f'{tcp}, udp: "{udp}"'))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reload_outputs_failed") == 1, "reload_outputs_failed", 10.0)
+        outputs = d.ask(cmd="status")["outputs"]
+        assert isinstance(outputs, dict)
+        assert sorted(outputs) == [f"tcp:127.0.0.1:{tcp_port(work)}", f"udp:{udp}"], outputs
+        assert d.stop() == 0
     finally:
-        for s in [*fill, ls]:
-            s.close()
+        d.kill()
+
+
+def test_a_reload_to_an_unusable_control_socket_keeps_the_running_one(tmp_path: Path) -> None:
+    """SIGHUP into a config whose control socket cannot be created (under a file): the
+    running socket answers on (``reload_control_failed``; it was closed first, leaving
+    the operators no socket at all); a reload to a usable path then moves it there."""
+    work = _work(tmp_path)
+    d = Daemon(work)
+    try:
+        cfg = work / "emlogd.yaml"
+        good = cfg.read_text()
+        cfg.write_text(
+            good.replace("control_socket: run/control.sock", "control_socket: emlogd.yaml/c")
+        )
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reload_control_failed") == 1, "reload_control_failed", 10.0)
+        assert d.answers()
+        cfg.write_text(good.replace("control_socket: run/control.sock", "control_socket: run/c2"))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reloaded") == 2, "the second reload", 10.0)
+        assert not d.socket.exists()
+        assert _answers(work / "run" / "c2")
+        d.socket = work / "run" / "c2"
+        assert d.stop() == 0
+    finally:
+        d.kill()

@@ -65,6 +65,27 @@ class TestChecksums:
         assert rep.skipped == {"missing_checksum": 1} and rep.written == 1
 
 
+class TestPrefixes:
+    def test_a_receive_time_before_each_sentence_is_passed_over(self, tmp_path: Path) -> None:
+        """A logger that writes its own time (or a tag) before each sentence: the
+        sentence is read from its ``$``; the fixes time the log as without it."""
+        t1 = T + timedelta(seconds=1)
+        lines = [encode_rmc(T, 2.0, 90.0), encode_vhw(1.9), encode_rmc(t1, 2.0, 90.0)]
+        src = tmp_path / "log.nmea"
+        stamps = ["2026-05-06T10:00:00.120Z ", "1778061600.5;N;", "[nmea0] "]
+        src.write_text("\n".join(p + x for p, x in zip(stamps, lines, strict=True)) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 3 and rep.notes["line_prefix"] == 3 and rep.skipped == {}
+        assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
+
+    def test_text_with_a_dollar_is_no_sentence(self, tmp_path: Path) -> None:
+        """A dollar amount in a text line starts no sentence."""
+        src = tmp_path / "log.nmea"
+        src.write_text(f"paid $12, thanks\n{encode_rmc(T, 1.0, 0.0)}\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.skipped == {"not_nmea": 1} and "line_prefix" not in rep.notes
+
+
 class TestMidnight:
     def test_gga_times_of_day_roll_over_to_the_next_day(self, tmp_path: Path) -> None:
         """GGA fixes across midnight with the first day's --date: after 23:59:59 comes

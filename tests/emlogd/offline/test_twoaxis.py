@@ -12,6 +12,7 @@ from emlogd.offline.simtruth import read_truth
 from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
 from emlogd.offline.twoaxis import (
     TwoAxisRecording,
+    TwoAxisResult,
     calibrate_two_axis,
     crossval_two_axis,
     evaluate_two_axis,
@@ -34,13 +35,23 @@ def misaligned(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
     return simulate(tmp_path_factory.mktemp("twoaxis"), seed=2, scale=0.2, emlogs=(EMLOG1, sensor))
 
 
-def _recs(trial: SimulationResult) -> dict[str, TwoAxisRecording]:
-    return {p.name.split(".")[0]: record_two_axis(p, "emlog2", "dvl") for p in trial.files}
+@pytest.fixture(scope="module")
+def recs(misaligned: SimulationResult) -> dict[str, TwoAxisRecording]:
+    """Every capture decoded once, by name."""
+    return {p.name.split(".")[0]: record_two_axis(p, "emlog2", "dvl") for p in misaligned.files}
 
 
-def test_record_reads_both_axes(misaligned: SimulationResult) -> None:
+@pytest.fixture(scope="module")
+def figure8(recs: dict[str, TwoAxisRecording]) -> TwoAxisResult:
+    """Least squares on the figure-8, fitted once."""
+    return calibrate_two_axis([recs["2-figure8"]], "EM3", "ls", LAG_S)
+
+
+def test_record_reads_both_axes(
+    misaligned: SimulationResult, recs: dict[str, TwoAxisRecording]
+) -> None:
     """Both axes of the log's VBW and of the DVL's bottom track, and its heading."""
-    rec = record_two_axis(misaligned.files[1], "emlog2", "dvl")
+    rec = recs["2-figure8"]
     assert rec.t_read.size > 2000 and rec.raw_t.size == rec.t_read.size
     assert rec.ref_stb.size == rec.t_ref.size
     a = rec.aligned(LAG_S)
@@ -51,11 +62,12 @@ def test_record_reads_both_axes(misaligned: SimulationResult) -> None:
         record_two_axis(misaligned.files[1], "emlog1", "dvl")
 
 
-def test_figure8_determines_misalignment(misaligned: SimulationResult) -> None:
+def test_figure8_determines_misalignment(
+    misaligned: SimulationResult, recs: dict[str, TwoAxisRecording], figure8: TwoAxisResult
+) -> None:
     """Trained on the figure-8: α within 0.3° of 3°, the corrected athwart speed within
     1.1× of its floor on every trajectory and the forward one too."""
-    recs = _recs(misaligned)
-    res = calibrate_two_axis([recs["2-figure8"]], "EM3", "ls", LAG_S)
+    res = figure8
     assert res.fit.misalign_deg == pytest.approx(3.0, abs=0.3)
     assert res.fit.misalign_std_deg is not None
     doc = res.to_dict()
@@ -67,19 +79,19 @@ def test_figure8_determines_misalignment(misaligned: SimulationResult) -> None:
         assert s.rmse_t_cal < s.rmse_t_raw, name
 
 
-def test_straight_run_refuses_misalignment(misaligned: SimulationResult) -> None:
-    rec = record_two_axis(misaligned.files[2], "emlog2", "dvl")
-    res = calibrate_two_axis([rec], "EM3", "ls", LAG_S)
+def test_straight_run_refuses_misalignment(recs: dict[str, TwoAxisRecording]) -> None:
+    res = calibrate_two_axis([recs["3-straight"]], "EM3", "ls", LAG_S)
     assert "alpha" in res.fit.ident.unidentifiable
     assert "misalignment not separable from the transverse bias" in res.fit.ident.reason
     assert res.fit.to_dict()["misalign_std_deg"] is None
 
 
-def test_save_load_and_evaluate(misaligned: SimulationResult, tmp_path: Path) -> None:
+def test_save_load_and_evaluate(
+    recs: dict[str, TwoAxisRecording], figure8: TwoAxisResult, tmp_path: Path
+) -> None:
     """The saved calibration reads back and scores each capture on both axes; a
     misalignment beyond the envelope is refused at load."""
-    recs = _recs(misaligned)
-    res = calibrate_two_axis([recs["2-figure8"]], "EM3", "ls", LAG_S)
+    res = figure8
     path = tmp_path / "two.yaml"
     save_two_axis(path, res)
     params, doc = load_two_axis(path)
@@ -102,8 +114,7 @@ def test_save_load_and_evaluate(misaligned: SimulationResult, tmp_path: Path) ->
         load_two_axis(path)
 
 
-def test_crossval_rows(misaligned: SimulationResult) -> None:
-    recs = _recs(misaligned)
+def test_crossval_rows(recs: dict[str, TwoAxisRecording]) -> None:
     rows = crossval_two_axis([recs["2-figure8"], recs["3-straight"]], "EM3", LAG_S)
     assert [(r.train, r.test) for r in rows] == [
         ("2-figure8", "3-straight"),

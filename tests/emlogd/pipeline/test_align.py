@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import statistics
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -11,6 +13,7 @@ from emlogd.pipeline.align import (
     DEFAULT_MAX_GAP_S,
     GAP_INTERVALS,
     MAX_GAP_CAP_S,
+    MedianWindow,
     SampleRing,
     cadence_gap,
     interpolate,
@@ -174,3 +177,40 @@ class TestInterpolateArrays:
                 assert np.isnan(got)
             else:
                 assert got == pytest.approx(want, abs=1e-9)
+
+
+class TestMedianWindow:
+    """The sorted window gives the medians a sort of the newest values gives, exactly."""
+
+    @given(
+        st.lists(
+            st.floats(min_value=0.0, max_value=1e6, exclude_min=True) | st.sampled_from([0.1, 1.0]),
+            min_size=1,
+            max_size=120,
+        ),
+        st.integers(min_value=1, max_value=40),
+    )
+    @settings(max_examples=200, deadline=None)
+    def test_medians_equal_a_sort_of_the_window(self, values: list[float], size: int) -> None:
+        """After each value: median() is statistics.median and upper() sorted()[n // 2]
+        of the newest ``size`` values (repeated values included), bit for bit."""
+        win = MedianWindow(size)
+        for k, v in enumerate(values):
+            win.append(v)
+            newest = values[max(0, k + 1 - size) : k + 1]
+            assert len(win) == len(newest)
+            assert win.median() == statistics.median(newest)
+            assert win.upper() == sorted(newest)[len(newest) // 2]
+
+    def test_clear_and_bad_size(self) -> None:
+        """clear() forgets every value; an empty window has no median; a size below 1 is refused."""
+        win = MedianWindow(3)
+        for v in (5.0, 1.0, 3.0, 2.0):
+            win.append(v)
+        assert win.median() == 2.0 and win.upper() == 2.0
+        win.clear()
+        assert len(win) == 0
+        with pytest.raises(IndexError):
+            win.median()
+        with pytest.raises(ValueError):
+            MedianWindow(0)

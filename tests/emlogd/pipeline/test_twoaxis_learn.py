@@ -9,15 +9,19 @@ import math
 import pynmea2
 import pytest
 
+from calib.estimate import Estimate
 from calib.models import Params
 from calib.twoaxis import TwoAxisParams
-from emlogd.pipeline.settings import UutSettings
+from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.twoaxis_learn import (
     NO_TWO_AXIS_REFERENCE,
     TwoAxisLearner,
     encode_two_axis_status,
 )
-from tests.synth import TWO_AXIS_TRUTH, two_axis_trial
+from emlogd.pipeline.twoaxis_sup import Figures
+from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_trial
 
 SETTINGS = UutSettings(
     port="log", reference_port="dvl", uut_source="VBW", axes=2, current=True, validation_s=30.0
@@ -121,3 +125,28 @@ def test_a_reference_without_an_athwart_speed_is_said() -> None:
     st = lr.status()
     assert st["refused"] == NO_TWO_AXIS_REFERENCE and st["window_s"] == 0.0
     assert lr.counts["no_reference"] > 40
+
+
+def _pipeline(fig: dict[str, float]) -> Pipeline:
+    """A pipeline with a log learning two axes, started from a record with ``fig``."""
+    s = UutSettings(port="log", reference_port="dvl", uut_source="VBW", axes=2)
+    rec = Calibration("log", Estimate(Params("EM3"), {}), 0.5, reset=True, two_axis=fig)
+    return Pipeline(
+        [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")], [s], {"log": rec}
+    )
+
+
+def test_saved_figures_are_restored_checked_and_reset() -> None:
+    """Saved figures come back as a candidate that validates again (not applied yet);
+    figures the record's check refuses (α beyond 20°) are not restored; a reset clears
+    them and says so, and the record persisted then has none."""
+    p = _pipeline(TWO_AXIS_FIGURES)
+    two = p.status()["uuts"]["log"]["two_axis"]  # type: ignore[index]
+    assert two["state"] == "validating" and two["applied"] is None
+    assert p.two_axis["log"].sup.kept == Figures.from_dict(TWO_AXIS_FIGURES)
+    assert p.calibrations()[0].two_axis == TWO_AXIS_FIGURES
+    done = p.reset("log")
+    assert "two-axis figures" in done["log"]["cleared"]  # type: ignore[operator]
+    assert p.two_axis["log"].sup.candidate is None and p.calibrations()[0].two_axis is None
+    refused = _pipeline(TWO_AXIS_FIGURES | {"misalign_deg": 25.0})
+    assert refused.two_axis["log"].sup.candidate is None

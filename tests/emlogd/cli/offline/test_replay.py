@@ -154,3 +154,16 @@ def test_reorder_window_option(capsys: pytest.CaptureFixture[str], tmp_path: Pat
     assert skips["reasons"]["out_of_order"] > 0 and "--strict fails instead" in captured.err
     assert main([*base, "--reorder-window", "-1"]) == 2
     assert "expected seconds ≥ 0" in capsys.readouterr().err
+
+
+def test_the_summary_has_a_two_axis_line_per_two_axis_uut() -> None:
+    """``axes: 2``: a line with the UUT's two-axis state and why α is refused; none for a
+    one-axis UUT."""
+    from emlogd.cli.offline.replay import _two_axis_lines
+
+    two = {"state": "learning", "refused": "misalignment not determinable"}
+    lines = _two_axis_lines({"emlog1": {"state": "frozen"}, "emlog2": {"two_axis": two}})
+    assert lines == [
+        "emlog2 two axes: learning; latest window: misalignment refused: "
+        "misalignment not determinable\n"
+    ]
