@@ -875,6 +875,8 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         v = "(reference)" if r is base else verdict(r, base)
         rep = r.get("replay")
         end = "—" if rep is None else "applied" if rep.get("params") else "raw"
+        if rep is not None and rep.get("state") == "fault":
+            end += " (fault)"
         out.append(
             f"| {r['name']} | {r['variant']} | {imported} | {_f(ls, '.3f')} / {_f(kf, '.3f')} | "
             f"{end} | {rmse} | {_f(s.get('worst_5min_ratio'), '.3f')} | {v} |"

@@ -37,9 +37,9 @@ SOURCES = {
 }
 """The recording each kind's variants are built from."""
 
-EXCERPT_LINES = {"nmea": 6000, "expedition-csv": 1500, "logger-tsv": 1500}
+EXCERPT_LINES = {"nmea": 3000, "expedition-csv": 800, "logger-tsv": 800}
 """The default run's variants are built from this many first lines of each kind's log
-(10 to 50 minutes)."""
+(5 to 30 minutes of log)."""
 
 
 def _suite() -> ModuleType:
@@ -211,6 +211,8 @@ KNOWN: dict[tuple[str, str], str] = {
     ("expedition-csv", "sog-0.2hz"): "a 5-min window of the replay 1.20 times raw's RMSE",
     ("expedition-csv", "tide"): "a 5-min window of the replay 1.23 times raw's RMSE",
     ("logger-tsv", "rows-0.2hz"): "a 5-min window of the replay 1.50 times raw's RMSE",
+    ("nmea", "tide"): "the KF's scale at the median speed moves 0.09 (1.048 against 0.960), "
+    "and the replay ends in a fault",
 }
 """What does not hold yet, by (kind, variant): strict xfails."""
 

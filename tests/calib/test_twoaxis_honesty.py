@@ -1,0 +1,55 @@
+"""The two-axis misalignment's error over many simulated figure-8s: a bias, or noise
+its σ states (``pytest -m soak -s``; docs/REPRODUCTION.md quotes the figures it prints)."""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import pytest
+
+from calib.models import Params
+from calib.twoaxis import TwoAxisParams, TwoAxisRule, fit_two_axis
+from emlogd.offline.simkinematics import TRAJECTORIES, interp, kinematics
+
+KNOT_MPS = 1852.0 / 3600.0
+RULE = TwoAxisRule(max_std_misalign_deg=2.0)
+"""α's σ bound loosened so that half-length figure-8s report it."""
+TRUTH = TwoAxisParams(Params("EM4", -0.02, -0.11, -0.05), 0.0, -0.08, 0.04)
+"""The simulator's emlog2 (EM4), aligned, its transverse axis 8 % low and 0.04 m/s off."""
+
+
+def _error(seed: int, scale: float = 0.5) -> tuple[float, float]:
+    """α − truth and α's σ, degrees, of LS-EM3 on one figure-8 of the simulator's
+    motion: the log's 0.05 m/s noise on each axis and VBW's 0.01 kn, the DVL's
+    0.01 m/s and 1 mm/s, the current linear between knots 300 s apart."""
+    rng = np.random.default_rng(seed)
+    spec = TRAJECTORIES[1]
+    k = kinematics(spec, spec.duration_min * 60.0 * scale, rng)
+    t = np.arange(1.0, k.t[-1], 0.1)
+    rl, rt = TRUTH.forward(interp(k, k.surge, t), interp(k, k.sway, t))
+    rl = np.round((rl + rng.normal(0.0, 0.05, t.size)) / KNOT_MPS, 2) * KNOT_MPS
+    rt = np.round((rt + rng.normal(0.0, 0.05, t.size)) / KNOT_MPS, 2) * KNOT_MPS
+    fwd, stb = k.ground_ship()
+    gf = np.round(interp(k, fwd, t) + rng.normal(0.0, 0.01, t.size), 3)
+    gs = np.round(interp(k, stb, t) + rng.normal(0.0, 0.01, t.size), 3)
+    hd = np.degrees(np.interp(t, k.t, np.unwrap(k.heading))) % 360.0
+    fit = fit_two_axis("EM3", gf, gs, rl, rt, hd, t_s=t, current_knot_s=300.0, rule=RULE)
+    assert fit.misalign_std_deg is not None
+    return fit.misalign_deg, fit.misalign_std_deg
+
+
+@pytest.mark.soak
+def test_misalignment_error_is_noise_its_sigma_states() -> None:
+    """100 half-length figure-8s (seeds 300–399): the mean error within three of its
+    standard errors of 0, the RMS of error/σ within [0.85, 1.2]."""
+    runs = np.array([_error(seed) for seed in range(300, 400)])
+    err, sd = runs[:, 0], runs[:, 1]
+    se = float(np.std(err, ddof=1)) / math.sqrt(err.size)
+    sys.stdout.write(
+        f"mean {np.mean(err):+.3f} ± {se:.3f}°, scatter {np.std(err, ddof=1):.3f}°, "
+        f"mean σ {np.mean(sd):.3f}°, RMS of error/σ {np.sqrt(np.mean((err / sd) ** 2)):.2f}\n"
+    )
+    assert abs(float(np.mean(err))) < 3.0 * se
+    assert 0.85 <= float(np.sqrt(np.mean((err / sd) ** 2))) <= 1.2
