@@ -80,6 +80,7 @@ def one(tree: Path, samples: int) -> dict[str, float]:
     out = subprocess.run(
         [sys.executable, "-c", CHILD, str(tree), str(samples)],
         env=env,
+        cwd=tree,  # ``-c`` puts the working directory first on the path
         check=True,
         capture_output=True,
         text=True,

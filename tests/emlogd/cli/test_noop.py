@@ -248,7 +248,7 @@ def _help(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
 def test_help_gaps_are_closed(capsys: pytest.CaptureFixture[str]) -> None:
     """check-config has a description; --method, learn's state, replay --learn and
     simulate --scale say what they do and their default; evaluate --uut does not say
-    "to calibrate"; report has no --json it would ignore."""
+    "to calibrate"; report's --json says it is for two axes only."""
     assert "without opening a device" in _help(["check-config"], capsys)
     text = " ".join(_help(["calibrate"], capsys).split())
     assert "least squares over all samples (default)" in text
@@ -257,7 +257,7 @@ def test_help_gaps_are_closed(capsys: pytest.CaptureFixture[str]) -> None:
     assert "(default 1;" in _help(["simulate"], capsys)
     evaluate = " ".join(_help(["evaluate"], capsys).split())
     assert "to calibrate" not in evaluate and "default: the parameters file's" in evaluate
-    assert "--json" not in _help(["report"], capsys)
+    assert "with --axes 2: the calibrations" in " ".join(_help(["report"], capsys).split())
 
 
 def test_evaluate_prints_the_parameters_not_a_python_dict(
