@@ -193,27 +193,47 @@ class FitWindow:
 
 class Cusum:
     """A two-sided CUSUM of normalised innovations (:data:`CUSUM_K`, :data:`CUSUM_H`),
-    with the squared errors of the applied calibration and of raw over its current run
-    (since it last stood at zero): the evidence an alarm is judged on."""
+    with the squared errors of the applied calibration and of raw over each side's run
+    (since that side last stood at zero): the evidence an alarm is judged on is the run
+    of the side that alarmed. A step is judged on the samples after it, not on the
+    other side's run of noise before it, over which raw's own offset would count
+    against raw and a step of the sensor read as a change of the sea."""
 
-    __slots__ = ("hi", "lo", "ss_app", "ss_raw")
+    __slots__ = ("_ss", "hi", "lo", "ss_app", "ss_raw")
 
     def __init__(self) -> None:
         self.hi = self.lo = 0.0
         self.ss_app = self.ss_raw = 0.0
+        self._ss = [0.0, 0.0, 0.0, 0.0]
+        """The squared errors of the applied calibration and of raw over the high
+        side's run, then over the low side's."""
 
     def add(self, z: float, e_app: float, e_raw: float) -> bool:
-        """Add one normalised innovation and both errors; True on an alarm."""
-        if self.hi == 0.0 and self.lo == 0.0:
-            self.ss_app = self.ss_raw = 0.0
+        """Add one normalised innovation and both errors; True on an alarm.
+
+        :attr:`ss_app` and :attr:`ss_raw` are then the squared errors over the run of the
+        side further from zero (the one that alarmed)."""
+        ss = self._ss
+        if self.hi == 0.0:
+            ss[0] = ss[1] = 0.0
+        if self.lo == 0.0:
+            ss[2] = ss[3] = 0.0
         z = min(max(z, -CUSUM_CLIP), CUSUM_CLIP)
         self.hi = max(0.0, self.hi + z - CUSUM_K)
         self.lo = max(0.0, self.lo - z - CUSUM_K)
-        self.ss_app += e_app * e_app
-        self.ss_raw += e_raw * e_raw
+        a2, r2 = e_app * e_app, e_raw * e_raw
+        if self.hi > 0.0:
+            ss[0] += a2
+            ss[1] += r2
+        if self.lo > 0.0:
+            ss[2] += a2
+            ss[3] += r2
+        side = 0 if self.hi >= self.lo else 2
+        self.ss_app, self.ss_raw = ss[side], ss[side + 1]
         return self.hi > CUSUM_H or self.lo > CUSUM_H
 
     def reset(self) -> None:
         """Start again (the applied calibration changed)."""
         self.hi = self.lo = 0.0
         self.ss_app = self.ss_raw = 0.0
+        self._ss = [0.0, 0.0, 0.0, 0.0]

@@ -61,3 +61,15 @@ def test_the_cusum_ignores_one_glitch_and_alarms_on_a_step() -> None:
     alarms = [c.add(10.0, 0.5, 0.1) for _ in range(3)]
     assert alarms == [False, False, True]
     assert c.ss_app > c.ss_raw and c.hi > CUSUM_H
+
+
+def test_an_alarm_is_judged_on_the_run_of_its_own_side() -> None:
+    """A step down after a run of noise on the high side: the evidence is the low side's
+    run alone, not raw's offset over the noise before the step."""
+    c = Cusum()
+    for _ in range(10):  # noise builds the high side slowly; raw is off by 0.4 there
+        assert not c.add(2.0, 0.0, 0.4)
+    assert c.hi > 0.0
+    alarms = [c.add(-10.0, 0.5, 0.3) for _ in range(3)]
+    assert alarms == [False, False, True] and c.hi == 0.0
+    assert c.ss_app == pytest.approx(3 * 0.25) and c.ss_raw == pytest.approx(3 * 0.09)
