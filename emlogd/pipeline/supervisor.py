@@ -35,7 +35,7 @@ Rules (the constants are this module's and
   (its error minus the error its own current predicts, over the window's spread
   widened by the current's uncertainty at the heading) alarms within a few samples of
   a step of the sensor or the sea. On an alarm the calibration's errors and raw's
-  over the alarm's run, against the current as it stood, decide: worse than raw, it
+  over the run of the side that alarmed, against the current as it stood, decide: worse than raw, it
   is withdrawn and the learner learns the parameters again; else the sea changed, and
   the detector's current starts afresh.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
