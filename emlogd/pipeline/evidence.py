@@ -18,6 +18,7 @@ Must not import: serial, os, time, threading, socket (pure module).
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -55,6 +56,99 @@ CUSUM_H = 12.0
 
 CUSUM_CLIP = 7.0
 """A normalised innovation counts at most this much (one glitch is not a change)."""
+
+
+STEP_BEFORE_S = 5.0
+"""The course of the corrected reading and of the reference before a CUSUM run is their
+slope over this long, s (:func:`steps`)."""
+
+STEP_SIGMAS = 4.0
+"""On an alarm that withdraws the calibration, the log jumped (the sensor changed, the
+sea did not) when, where the innovation jumped, the corrected reading's change is
+larger than the reference's and more than this many times its own sample-to-sample
+scatter; the calibration then re-validates in the sea as it stood before the change.
+A jump within the log's scatter tells nothing, and the calibration re-validates as any
+withdrawn one."""
+
+STEP_MAX_GAP_S = 5.0
+"""Consecutive samples further apart than this, s, do not count in the scatter."""
+
+STEP_RUN_MAX = 1200
+"""A CUSUM run keeps at most this many samples for :func:`steps` (two minutes at 10 Hz)."""
+
+
+def steps(seq: Sequence[tuple[float, float, float]], first: int) -> tuple[float, float]:
+    """Which series jumped where the innovation did, m/s: over the samples (time,
+    corrected reading, reference) from ``first`` on (a CUSUM run; those before it, its
+    course), the change of the corrected reading and of the reference between the two
+    consecutive samples across which their difference changed most, each less its own
+    slope over the samples before (the vessel's acceleration moves both alike).
+
+    A sensor that changes moves the reading and leaves the reference; a current that
+    changes, or a reference that jumps, moves the reference and leaves the reading.
+    Zero for both when no sample of the run has one before it.
+    """
+    first = max(first, 1)
+    if len(seq) <= first:
+        return 0.0, 0.0
+    a = np.asarray(seq, dtype=np.float64)
+    t, corr, ref = a[:, 0], a[:, 1], a[:, 2]
+    k = first + int(np.argmax(np.abs(np.diff(corr - ref)[first - 1 :])))
+    dt = t[k] - t[k - 1]
+    slope = [0.0, 0.0]
+    if first >= 3 and t[first - 1] > t[0]:
+        slope = [float(np.polyfit(t[:first], x[:first], 1)[0]) for x in (corr, ref)]
+    return (
+        float(corr[k] - corr[k - 1] - slope[0] * dt),
+        float(ref[k] - ref[k - 1] - slope[1] * dt),
+    )
+
+
+class Course:
+    """The applied calibration's corrected readings and references, the last
+    :data:`STEP_BEFORE_S` before a CUSUM run and the run's, and the reading's
+    sample-to-sample scatter (forgotten with ``half_life_s``): which series jumped at
+    an alarm (:func:`steps`, :meth:`log_jumped`)."""
+
+    def __init__(self, half_life_s: float) -> None:
+        self.half_life_s = half_life_s
+        self.series: deque[tuple[float, float, float]] = deque()
+        self.run_start = 0
+        self.jitter = 0.0
+        """The mean square of the corrected reading's change from one sample to the
+        next, m²/s²: its noise and the vessel's motion."""
+
+    def add(self, t: float, corr: float, ref: float, quiet: bool) -> None:
+        """One sample; ``quiet``: the CUSUM stands at zero (no run)."""
+        q = self.series
+        if q:
+            gap = t - q[-1][0]
+            if 0.0 < gap <= STEP_MAX_GAP_S:
+                lam = 0.5 ** (gap / self.half_life_s)
+                d = corr - q[-1][1]
+                self.jitter = lam * self.jitter + (1.0 - lam) * d * d
+        q.append((t, corr, ref))
+        if quiet:
+            while q and q[0][0] < t - STEP_BEFORE_S:
+                q.popleft()
+            self.run_start = len(q)
+        elif len(q) - self.run_start > STEP_RUN_MAX:
+            q.popleft()
+            self.run_start = max(self.run_start - 1, 0)
+
+    def steps(self) -> tuple[float, float]:
+        """The reading's and the reference's jump in the current run (:func:`steps`)."""
+        return steps(self.series, self.run_start)
+
+    def log_jumped(self, step_log: float, step_ref: float) -> bool:
+        """The reading jumped more than the reference and beyond its own scatter
+        (:data:`STEP_SIGMAS`)."""
+        return abs(step_log) > abs(step_ref) and step_log**2 > STEP_SIGMAS**2 * self.jitter
+
+    def reset(self) -> None:
+        """Forget the samples (the scatter is the log's and stays)."""
+        self.series.clear()
+        self.run_start = 0
 
 
 class SeaMemory:
@@ -184,6 +278,10 @@ class FitWindow:
             return 0.0
         c, s = self._h(cs)
         return (a22 * c * c - 2.0 * a12 * c * s + a11 * s * s) / det
+
+    def beta(self, i: int) -> tuple[float, float]:
+        """Calibration i's fitted β, ``error ≈ β·(cos ψ, sin ψ)`` (minus its current)."""
+        return self._solve(i)
 
     def current(self, i: int) -> tuple[float, float]:
         """Calibration i's fitted current (north, east), m/s."""
