@@ -37,7 +37,11 @@ Rules (the constants are this module's and
   a step of the sensor or the sea. On an alarm the calibration's errors and raw's
   over the run of the side that alarmed, against the current as it stood, decide: worse than raw, it
   is withdrawn and the learner learns the parameters again; else the sea changed, and
-  the detector's current starts afresh.
+  the detector's current starts afresh. When, where the innovation jumped, the log
+  jumped beyond its own scatter and the reference did not
+  (:class:`~emlogd.pipeline.evidence.Course`), the sensor changed and the sea is as it
+  was: the withdrawn calibration re-validates, raw and it alike, in the current the
+  detector had before the jump.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again.
@@ -45,7 +49,9 @@ Rules (the constants are this module's and
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
   was saved in and against raw, the current its errors imply is one the sea cannot
-  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; when no reference
+  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; saved with its sea
+  and raw worse than it there over its first :data:`RESTORE_EARLY_SAMPLES`, it is
+  applied then and validated in place (withdrawn when that fails); when no reference
   has been heard
   :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
   status) and validated in place once a reference arrives.
