@@ -297,7 +297,7 @@ class Cusum:
     other side's run of noise before it, over which raw's own offset would count
     against raw and a step of the sensor read as a change of the sea."""
 
-    __slots__ = ("_ss", "hi", "lo", "ss_app", "ss_raw")
+    __slots__ = ("_ss", "hi", "lo", "run_app", "run_raw", "ss_app", "ss_raw")
 
     def __init__(self) -> None:
         self.hi = self.lo = 0.0
@@ -305,6 +305,8 @@ class Cusum:
         self._ss = [0.0, 0.0, 0.0, 0.0]
         """The squared errors of the applied calibration and of raw over the high
         side's run, then over the low side's."""
+        self.run_app = self.run_raw = 0.0
+        """The same over the whole run (since both sides last stood at zero)."""
 
     def add(self, z: float, e_app: float, e_raw: float) -> bool:
         """Add one normalised innovation and both errors; True on an alarm.
@@ -312,6 +314,8 @@ class Cusum:
         :attr:`ss_app` and :attr:`ss_raw` are then the squared errors over the run of the
         side further from zero (the one that alarmed)."""
         ss = self._ss
+        if self.hi == 0.0 and self.lo == 0.0:
+            self.run_app = self.run_raw = 0.0
         if self.hi == 0.0:
             ss[0] = ss[1] = 0.0
         if self.lo == 0.0:
@@ -320,6 +324,8 @@ class Cusum:
         self.hi = max(0.0, self.hi + z - CUSUM_K)
         self.lo = max(0.0, self.lo - z - CUSUM_K)
         a2, r2 = e_app * e_app, e_raw * e_raw
+        self.run_app += a2
+        self.run_raw += r2
         if self.hi > 0.0:
             ss[0] += a2
             ss[1] += r2
@@ -335,3 +341,4 @@ class Cusum:
         self.hi = self.lo = 0.0
         self.ss_app = self.ss_raw = 0.0
         self._ss = [0.0, 0.0, 0.0, 0.0]
+        self.run_app = self.run_raw = 0.0

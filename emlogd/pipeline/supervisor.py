@@ -490,7 +490,11 @@ class Supervisor:
             w.add(t, cs, (e_app,))  # the baseline learns only while nothing is building up
         if not alarm:
             return False
-        n_app, n_raw = cu.ss_app, cu.ss_raw
+        step_log, step_ref = self.course.steps()
+        jumped = self.course.log_jumped(step_log, step_ref)
+        # a log that jumped is judged on the run of the side that alarmed (after the
+        # step); otherwise on the whole run, noise included
+        n_app, n_raw = (cu.ss_app, cu.ss_raw) if jumped else (cu.run_app, cu.run_raw)
         if n_app <= n_raw:
             self._reset_detector()
             return False
@@ -501,8 +505,6 @@ class Supervisor:
             "ss_applied": round(n_app, 4),
             "ss_raw": round(n_raw, 4),
         }
-        step_log, step_ref = self.course.steps()
-        jumped = self.course.log_jumped(step_log, step_ref)
         detail["step_log_mps"] = round(step_log, 4)
         detail["step_reference_mps"] = round(step_ref, 4)
         beta = w.beta(0) if self.water and jumped else None

@@ -73,6 +73,8 @@ def test_an_alarm_is_judged_on_the_run_of_its_own_side() -> None:
     alarms = [c.add(-10.0, 0.5, 0.3) for _ in range(3)]
     assert alarms == [False, False, True] and c.hi == 0.0
     assert c.ss_app == pytest.approx(3 * 0.25) and c.ss_raw == pytest.approx(3 * 0.09)
+    # the whole run, noise included (what an alarm without a jump of the log is judged on)
+    assert c.run_app == pytest.approx(3 * 0.25) and c.run_raw == pytest.approx(1.6 + 0.27)
 
 
 def test_steps_tell_which_series_jumped() -> None:
