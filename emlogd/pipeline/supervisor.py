@@ -35,13 +35,14 @@ Rules (the constants are this module's and
   (its error minus the error its own current predicts, over the window's spread
   widened by the current's uncertainty at the heading) alarms within a few samples of
   a step of the sensor or the sea. On an alarm the calibration's errors and raw's
-  over the run of the side that alarmed, against the current as it stood, decide: worse than raw, it
+  over the alarm's run, against the current as it stood, decide: worse than raw, it
   is withdrawn and the learner learns the parameters again; else the sea changed, and
   the detector's current starts afresh. When, where the innovation jumped, the log
   jumped beyond its own scatter and the reference did not
   (:class:`~emlogd.pipeline.evidence.Course`), the sensor changed and the sea is as it
-  was: the withdrawn calibration re-validates, raw and it alike, in the current the
-  detector had before the jump.
+  was: the alarm is judged on the run of the side that alarmed alone, and the
+  withdrawn calibration re-validates, raw and it alike, in the current the detector
+  had before the jump.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again.
