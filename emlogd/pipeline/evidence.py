@@ -18,6 +18,7 @@ Must not import: serial, os, time, threading, socket (pure module).
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -55,6 +56,99 @@ CUSUM_H = 12.0
 
 CUSUM_CLIP = 7.0
 """A normalised innovation counts at most this much (one glitch is not a change)."""
+
+
+STEP_BEFORE_S = 5.0
+"""The course of the corrected reading and of the reference before a CUSUM run is their
+slope over this long, s (:func:`steps`)."""
+
+STEP_SIGMAS = 4.0
+"""On an alarm that withdraws the calibration, the log jumped (the sensor changed, the
+sea did not) when, where the innovation jumped, the corrected reading's change is
+larger than the reference's and more than this many times its own sample-to-sample
+scatter; the calibration then re-validates in the sea as it stood before the change.
+A jump within the log's scatter tells nothing, and the calibration re-validates as any
+withdrawn one."""
+
+STEP_MAX_GAP_S = 5.0
+"""Consecutive samples further apart than this, s, do not count in the scatter."""
+
+STEP_RUN_MAX = 1200
+"""A CUSUM run keeps at most this many samples for :func:`steps` (two minutes at 10 Hz)."""
+
+
+def steps(seq: Sequence[tuple[float, float, float]], first: int) -> tuple[float, float]:
+    """Which series jumped where the innovation did, m/s: over the samples (time,
+    corrected reading, reference) from ``first`` on (a CUSUM run; those before it, its
+    course), the change of the corrected reading and of the reference between the two
+    consecutive samples across which their difference changed most, each less its own
+    slope over the samples before (the vessel's acceleration moves both alike).
+
+    A sensor that changes moves the reading and leaves the reference; a current that
+    changes, or a reference that jumps, moves the reference and leaves the reading.
+    Zero for both when no sample of the run has one before it.
+    """
+    first = max(first, 1)
+    if len(seq) <= first:
+        return 0.0, 0.0
+    a = np.asarray(seq, dtype=np.float64)
+    t, corr, ref = a[:, 0], a[:, 1], a[:, 2]
+    k = first + int(np.argmax(np.abs(np.diff(corr - ref)[first - 1 :])))
+    dt = t[k] - t[k - 1]
+    slope = [0.0, 0.0]
+    if first >= 3 and t[first - 1] > t[0]:
+        slope = [float(np.polyfit(t[:first], x[:first], 1)[0]) for x in (corr, ref)]
+    return (
+        float(corr[k] - corr[k - 1] - slope[0] * dt),
+        float(ref[k] - ref[k - 1] - slope[1] * dt),
+    )
+
+
+class Course:
+    """The applied calibration's corrected readings and references, the last
+    :data:`STEP_BEFORE_S` before a CUSUM run and the run's, and the reading's
+    sample-to-sample scatter (forgotten with ``half_life_s``): which series jumped at
+    an alarm (:func:`steps`, :meth:`log_jumped`)."""
+
+    def __init__(self, half_life_s: float) -> None:
+        self.half_life_s = half_life_s
+        self.series: deque[tuple[float, float, float]] = deque()
+        self.run_start = 0
+        self.jitter = 0.0
+        """The mean square of the corrected reading's change from one sample to the
+        next, m²/s²: its noise and the vessel's motion."""
+
+    def add(self, t: float, corr: float, ref: float, quiet: bool) -> None:
+        """One sample; ``quiet``: the CUSUM stands at zero (no run)."""
+        q = self.series
+        if q:
+            gap = t - q[-1][0]
+            if 0.0 < gap <= STEP_MAX_GAP_S:
+                lam = 0.5 ** (gap / self.half_life_s)
+                d = corr - q[-1][1]
+                self.jitter = lam * self.jitter + (1.0 - lam) * d * d
+        q.append((t, corr, ref))
+        if quiet:
+            while q and q[0][0] < t - STEP_BEFORE_S:
+                q.popleft()
+            self.run_start = len(q)
+        elif len(q) - self.run_start > STEP_RUN_MAX:
+            q.popleft()
+            self.run_start = max(self.run_start - 1, 0)
+
+    def steps(self) -> tuple[float, float]:
+        """The reading's and the reference's jump in the current run (:func:`steps`)."""
+        return steps(self.series, self.run_start)
+
+    def log_jumped(self, step_log: float, step_ref: float) -> bool:
+        """The reading jumped more than the reference and beyond its own scatter
+        (:data:`STEP_SIGMAS`)."""
+        return abs(step_log) > abs(step_ref) and step_log**2 > STEP_SIGMAS**2 * self.jitter
+
+    def reset(self) -> None:
+        """Forget the samples (the scatter is the log's and stays)."""
+        self.series.clear()
+        self.run_start = 0
 
 
 class SeaMemory:
@@ -185,6 +279,10 @@ class FitWindow:
         c, s = self._h(cs)
         return (a22 * c * c - 2.0 * a12 * c * s + a11 * s * s) / det
 
+    def beta(self, i: int) -> tuple[float, float]:
+        """Calibration i's fitted β, ``error ≈ β·(cos ψ, sin ψ)`` (minus its current)."""
+        return self._solve(i)
+
     def current(self, i: int) -> tuple[float, float]:
         """Calibration i's fitted current (north, east), m/s."""
         x1, x2 = self._solve(i)
@@ -193,27 +291,54 @@ class FitWindow:
 
 class Cusum:
     """A two-sided CUSUM of normalised innovations (:data:`CUSUM_K`, :data:`CUSUM_H`),
-    with the squared errors of the applied calibration and of raw over its current run
-    (since it last stood at zero): the evidence an alarm is judged on."""
+    with the squared errors of the applied calibration and of raw over each side's run
+    (since that side last stood at zero): the evidence an alarm is judged on is the run
+    of the side that alarmed. A step is judged on the samples after it, not on the
+    other side's run of noise before it, over which raw's own offset would count
+    against raw and a step of the sensor read as a change of the sea."""
 
-    __slots__ = ("hi", "lo", "ss_app", "ss_raw")
+    __slots__ = ("_ss", "hi", "lo", "run_app", "run_raw", "ss_app", "ss_raw")
 
     def __init__(self) -> None:
         self.hi = self.lo = 0.0
         self.ss_app = self.ss_raw = 0.0
+        self._ss = [0.0, 0.0, 0.0, 0.0]
+        """The squared errors of the applied calibration and of raw over the high
+        side's run, then over the low side's."""
+        self.run_app = self.run_raw = 0.0
+        """The same over the whole run (since both sides last stood at zero)."""
 
     def add(self, z: float, e_app: float, e_raw: float) -> bool:
-        """Add one normalised innovation and both errors; True on an alarm."""
+        """Add one normalised innovation and both errors; True on an alarm.
+
+        :attr:`ss_app` and :attr:`ss_raw` are then the squared errors over the run of the
+        side further from zero (the one that alarmed)."""
+        ss = self._ss
         if self.hi == 0.0 and self.lo == 0.0:
-            self.ss_app = self.ss_raw = 0.0
+            self.run_app = self.run_raw = 0.0
+        if self.hi == 0.0:
+            ss[0] = ss[1] = 0.0
+        if self.lo == 0.0:
+            ss[2] = ss[3] = 0.0
         z = min(max(z, -CUSUM_CLIP), CUSUM_CLIP)
         self.hi = max(0.0, self.hi + z - CUSUM_K)
         self.lo = max(0.0, self.lo - z - CUSUM_K)
-        self.ss_app += e_app * e_app
-        self.ss_raw += e_raw * e_raw
+        a2, r2 = e_app * e_app, e_raw * e_raw
+        self.run_app += a2
+        self.run_raw += r2
+        if self.hi > 0.0:
+            ss[0] += a2
+            ss[1] += r2
+        if self.lo > 0.0:
+            ss[2] += a2
+            ss[3] += r2
+        side = 0 if self.hi >= self.lo else 2
+        self.ss_app, self.ss_raw = ss[side], ss[side + 1]
         return self.hi > CUSUM_H or self.lo > CUSUM_H
 
     def reset(self) -> None:
         """Start again (the applied calibration changed)."""
         self.hi = self.lo = 0.0
         self.ss_app = self.ss_raw = 0.0
+        self._ss = [0.0, 0.0, 0.0, 0.0]
+        self.run_app = self.run_raw = 0.0

@@ -76,6 +76,12 @@ class _Candidate:
     """Squared errors of raw and of it against the reference less the saved current (a
     restored calibration saved with one, :data:`emlogd.pipeline.supervisor.RESTORE_SEA_MAX_AGE_S`)."""
     n_sea: int = 0
+    sea_fixed: bool = False
+    """``beta`` is the sea as it stood before a change of the sensor the detector saw (a
+    calibration it withdrew): raw and it are judged in it, and it is not fitted again."""
+    early: bool = False
+    """A restored calibration applied on its first samples (they told it from raw in the
+    saved sea), validated in place over the rest of its window."""
     n: int = 0
     samples: list[tuple[float, float, float, float]] | None = None
     """A restored one's validation samples (in the water frame): raw's and its error against the reference,

@@ -37,7 +37,12 @@ Rules (the constants are this module's and
   a step of the sensor or the sea. On an alarm the calibration's errors and raw's
   over the alarm's run, against the current as it stood, decide: worse than raw, it
   is withdrawn and the learner learns the parameters again; else the sea changed, and
-  the detector's current starts afresh.
+  the detector's current starts afresh. When, where the innovation jumped, the log
+  jumped beyond its own scatter and the reference did not
+  (:class:`~emlogd.pipeline.evidence.Course`), the sensor changed and the sea is as it
+  was: the alarm is judged on the run of the side that alarmed alone, and the
+  withdrawn calibration re-validates, raw and it alike, in the current the detector
+  had before the jump.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again.
@@ -45,7 +50,9 @@ Rules (the constants are this module's and
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
   was saved in and against raw, the current its errors imply is one the sea cannot
-  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; when no reference
+  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; saved with its sea
+  and raw worse than it there over its first :data:`RESTORE_EARLY_SAMPLES`, it is
+  applied then and validated in place (withdrawn when that fails); when no reference
   has been heard
   :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
   status) and validated in place once a reference arrives.
@@ -60,6 +67,7 @@ from typing import TYPE_CHECKING, Protocol
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.evidence import (
+    Course,
     Cusum,
     FitWindow,
     SeaMemory,
@@ -122,6 +130,14 @@ most this long before the first reading, s; older, each is given a current of it
 like any candidate. On a straight leg a current of raw's own takes raw's offset, so
 only a known sea can tell a good restored calibration from raw there; within an hour a
 tidal current changes by a fraction of itself."""
+
+RESTORE_EARLY_SAMPLES = 5
+"""A restored calibration saved with its sea (:data:`RESTORE_SEA_MAX_AGE_S`) is applied
+after this many samples when, against the reference less the saved current, its RMSE
+over them is below raw's by raw's margin (:func:`~emlogd.pipeline.revalidation.worse`
+the other way round): the evidence is for it. It is validated in place over the rest
+of its window and withdrawn when that fails; with any other evidence raw passes
+through until then."""
 
 RESTORE_WAIT_S = 10.0
 """A restored calibration is applied unverified when no reference has been heard this
@@ -196,6 +212,7 @@ class Supervisor:
         self._t_beta = -math.inf
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
+        self.course = Course(CUSUM_HALF_LIFE_S)
         self.reopen = False
         """Change detected: the learner should learn the parameters again (taken by the owner)."""
         self.health = UutHealth(s.stuck_s, s.zero_s)
@@ -315,7 +332,7 @@ class Supervisor:
         d_raw = self._error(raw, ref, None)
         d_app = self._error(raw, ref, self.applied)
         self._score_output(raw, ref, proj, water)
-        if self._detect(t, cs, d_app, d_raw):
+        if self._detect(t, cs, d_app, d_raw, ref):
             d_app = d_raw
         hc = self._heading_regressor(t, cs)
         # raw is judged in the sea as the applied calibration sees it (else its own
@@ -380,6 +397,8 @@ class Supervisor:
         beta = cand.beta or (0.0, 0.0)
         d_c = self._error(raw, ref, cand.params)
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
+        if cand.sea_fixed:
+            e_raw = d_raw - (beta[0] * hc[0] + beta[1] * hc[1])  # raw in that sea too
         sea = self.restored_sea
         if cand.kind == "restored" and cs is not None and sea is not None:
             c_h = sea[0] * cs[0] + sea[1] * cs[1]
@@ -394,6 +413,30 @@ class Supervisor:
         cand.applied += e_app * e_app
         cand.cand += e_c * e_c
         cand.n += 1
+        if cand.kind == "restored" and cand.n == RESTORE_EARLY_SAMPLES == cand.n_sea:
+            self._early(t, cand)
+
+    def _early(self, t: float, cand: _Candidate) -> None:
+        """Apply a restored calibration on its first samples when, in the saved sea, raw
+        is worse than it (:data:`RESTORE_EARLY_SAMPLES`)."""
+        n = cand.n
+        s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
+        if self.applied is not None or not worse(s_raw, s_cand):
+            return
+        cand.early = True
+        self._apply(t, cand.params, cand.std or {})
+        self.note = "restored calibration applied on its first samples: validating"
+        self._emit(
+            t,
+            "calibrated",
+            {
+                "params": cand.params.as_dict(),
+                "rmse_raw_saved_sea": round(s_raw, 4),
+                "rmse_candidate_saved_sea": round(s_cand, 4),
+                "samples": n,
+                "kind": "restored-early",
+            },
+        )
 
     def _validated(self, t: float, cand: _Candidate) -> bool:
         """The candidate's validation window is complete (``validation_s``, or
@@ -412,7 +455,7 @@ class Supervisor:
         if self.previous is not None:
             self._beta["previous"] = mem.current(self.previous, t)
         cand = self.candidate
-        if cand is not None and cand.n:
+        if cand is not None and cand.n and not cand.sea_fixed:
             cand.beta = mem.current(cand.params, t)
         self._t_beta = t
 
@@ -420,7 +463,9 @@ class Supervisor:
         b = self._beta.get(slot)
         return d if b is None else d - (b[0] * hc[0] + b[1] * hc[1])
 
-    def _detect(self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float) -> bool:
+    def _detect(
+        self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float, ref: float
+    ) -> bool:
         """Change detection on the applied calibration; True when it was withdrawn.
 
         The innovation is the applied calibration's error minus what its own current
@@ -441,24 +486,38 @@ class Supervisor:
         nu = e_app - pred
         cu = self.cusum
         alarm = cu.add(nu / sigma, nu, e_raw - pred)
+        self.course.add(t, e_app + ref, ref, cu.hi == 0.0 and cu.lo == 0.0)
         if cu.hi == 0.0 and cu.lo == 0.0:
             w.add(t, cs, (e_app,))  # the baseline learns only while nothing is building up
         if not alarm:
             return False
-        n_app, n_raw = cu.ss_app, cu.ss_raw
+        step_log, step_ref = self.course.steps()
+        jumped = self.course.log_jumped(step_log, step_ref)
+        # a log that jumped is judged on the run of the side that alarmed (after the
+        # step); otherwise on the whole run, noise included
+        n_app, n_raw = (cu.ss_app, cu.ss_raw) if jumped else (cu.run_app, cu.run_raw)
         if n_app <= n_raw:
             self._reset_detector()
             return False
-        detail = {
+        detail: dict[str, object] = {
             "params": self.applied.as_dict(),
             "innovation_mps": round(nu, 4),
             "sigma_mps": round(sigma, 4),
             "ss_applied": round(n_app, 4),
             "ss_raw": round(n_raw, 4),
         }
+        detail["step_log_mps"] = round(step_log, 4)
+        detail["step_reference_mps"] = round(step_ref, 4)
+        beta = w.beta(0) if self.water and jumped else None
         self._withdraw(
             t, "the readings changed and the calibration fits them worse than raw", detail
         )
+        if self.candidate is not None and beta is not None:
+            # the log jumped and the reference did not: the sensor changed and the sea
+            # is as it was, so the calibration re-validates in that sea (raw and it
+            # alike), and comes back once the sensor does
+            self.candidate.beta = beta
+            self.candidate.sea_fixed = True
         self.memory = SeaMemory()  # what it held was the sensor before the change
         self._beta = {}
         self.reopen = True
@@ -530,7 +589,7 @@ class Supervisor:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
             good = not worse(r_cand, r_raw)
-        if cand.kind == "verify":
+        if cand.kind == "verify" or cand.early:
             if good:
                 self.unverified = False
                 self.note = ""
@@ -573,6 +632,7 @@ class Supervisor:
         self._t_beta = -math.inf  # the calibrations changed: their currents are fitted anew
         self.cusum.reset()
         self.detector.reset()
+        self.course.reset()
 
     def _recheck(self, t: float) -> None:
         w = self.recheck

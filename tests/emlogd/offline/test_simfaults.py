@@ -136,8 +136,9 @@ class TestTrials:
 
     @pytest.mark.xfail(
         strict=True,
-        reason="the dip (0.8 × a log that reads 17 % high) makes raw nearly right: a "
-        "calibration learnt before it loses to raw until the change detector sees it",
+        reason="the dip (0.8 × a log that reads 17 % high) makes raw nearly right: the "
+        "withdrawn calibration re-validates in raw's own current within the dip, and one "
+        "learnt across a switch of the current is applied",
     )
     def test_a_gain_dip_under_a_switching_current(self, tmp_path: Path) -> None:
         """0.8 for 10 min every 20, the current jumping 0 / 0.5 m/s every 10 min."""

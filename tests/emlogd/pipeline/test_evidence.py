@@ -7,7 +7,7 @@ import math
 import pytest
 
 from calib.models import Params
-from emlogd.pipeline.evidence import CUSUM_H, Cusum, FitWindow, SeaMemory
+from emlogd.pipeline.evidence import CUSUM_H, Cusum, FitWindow, SeaMemory, steps
 
 
 def _cs(deg: float) -> tuple[float, float]:
@@ -61,3 +61,30 @@ def test_the_cusum_ignores_one_glitch_and_alarms_on_a_step() -> None:
     alarms = [c.add(10.0, 0.5, 0.1) for _ in range(3)]
     assert alarms == [False, False, True]
     assert c.ss_app > c.ss_raw and c.hi > CUSUM_H
+
+
+def test_an_alarm_is_judged_on_the_run_of_its_own_side() -> None:
+    """A step down after a run of noise on the high side: the evidence is the low side's
+    run alone, not raw's offset over the noise before the step."""
+    c = Cusum()
+    for _ in range(10):  # noise builds the high side slowly; raw is off by 0.4 there
+        assert not c.add(2.0, 0.0, 0.4)
+    assert c.hi > 0.0
+    alarms = [c.add(-10.0, 0.5, 0.3) for _ in range(3)]
+    assert alarms == [False, False, True] and c.hi == 0.0
+    assert c.ss_app == pytest.approx(3 * 0.25) and c.ss_raw == pytest.approx(3 * 0.09)
+    # the whole run, noise included (what an alarm without a jump of the log is judged on)
+    assert c.run_app == pytest.approx(3 * 0.25) and c.run_raw == pytest.approx(1.6 + 0.27)
+
+
+def test_steps_tell_which_series_jumped() -> None:
+    """The vessel accelerating moves both series alike: that is their slope before the
+    run. A sensor step moves the reading alone, a current's the reference alone."""
+    before = [(float(t), 2.0 + 0.1 * t, 2.0 + 0.1 * t) for t in range(5)]
+    sensor = [(5.0, 2.5 - 0.5, 2.5), (6.0, 2.6 - 0.5, 2.6)]
+    log, ref = steps(before + sensor, len(before))
+    assert log == pytest.approx(-0.5) and ref == pytest.approx(0.0, abs=1e-9)
+    sea = [(5.0, 2.5, 2.8), (6.0, 2.6, 2.9)]
+    log, ref = steps(before + sea, len(before))
+    assert log == pytest.approx(0.0, abs=1e-9) and ref == pytest.approx(0.3)
+    assert steps(before, len(before)) == (0.0, 0.0)

@@ -263,6 +263,18 @@ def _prior(p: Params = TRUE) -> Calibration:
     return Calibration("log", Estimate(p, {"m": 0.01, "b": 0.01}), 0.0)
 
 
+def _saved_with_bow_current(p: Params) -> Rig:
+    """A rig on a straight leg (heading 0) in the water frame, not learning, restored
+    with ``p`` saved with 0.3 m/s of current on the bow."""
+    prior = Calibration(
+        "log",
+        Estimate(p, {"m": 0.01, "b": 0.01}, current_mps=(-0.3, 0.0)),
+        0.0,
+        current=True,
+    )
+    return Rig(prior, heading=0.0, current=True, learn=False)
+
+
 class TestChangeDetection:
     """A sensor that changes loses its calibration within seconds; a sea that changes does not."""
 
@@ -278,6 +290,27 @@ class TestChangeDetection:
         assert rig.cal.counters.changes == 1
         assert "relearn" in [k for t, k, _ in rig.events if t >= t_step]
         assert rig.cal.applied is None or rig.cal.applied != TRUE
+
+    def test_a_sensor_that_jumped_is_judged_in_the_sea_before_the_jump(self) -> None:
+        """A 35 % gain step on a straight leg in the water frame: the log jumped and the
+        reference did not, so the withdrawn calibration re-validates in the sea as it was
+        (raw and it alike) and stays out while the step lasts (a current fitted after
+        the step would take its error, and it would come back within the step)."""
+        rig = Rig(_prior(), heading=0.0, current=True, learn=False)
+        rig.run(60)
+        assert rig.cal.applied == TRUE
+        t_step = rig.t
+        rig.run(5, raw=lambda t, v: 0.65 * TRUE.forward(v))
+        cand = rig.cal.candidate
+        assert cand is not None and cand.kind == "revalidate" and cand.sea_fixed
+        rig.run(55, raw=lambda t, v: 0.65 * TRUE.forward(v))
+        after = [(k, d) for t, k, d in rig.events if t >= t_step]
+        (fall,) = [d for k, d in after if k == "fallback"]
+        assert abs(float(fall["step_log_mps"])) > 0.3  # type: ignore[arg-type]
+        assert abs(float(fall["step_reference_mps"])) < 0.05  # type: ignore[arg-type]
+        assert not [d for k, d in after if k == "calibrated"]
+        assert ("candidate_rejected", "revalidate") in [(k, d.get("kind")) for k, d in after]
+        assert rig.cal.applied is None
 
     def test_a_current_that_jumps_does_not_withdraw_a_good_calibration(self) -> None:
         """A 0.3 m/s head current at once: the calibration still beats raw, and stays.
@@ -331,13 +364,7 @@ class TestRestored:
         rng = np.random.default_rng(7)
 
         def rig_for(p: Params) -> Rig:
-            prior = Calibration(
-                "log",
-                Estimate(p, {"m": 0.01, "b": 0.01}, current_mps=(-0.3, 0.0)),
-                0.0,
-                current=True,
-            )
-            rig = Rig(prior, heading=0.0, current=True, learn=False)
+            rig = _saved_with_bow_current(p)
             rig.run(
                 RESTORE_VALIDATION_S + 30.0,
                 raw=lambda t, v: low.forward(2.0) + float(rng.normal(0.0, 0.05)),
@@ -348,6 +375,30 @@ class TestRestored:
         assert _applied(rig_for(low)) == low
         bad = Params("EM3", m=-0.5, b_mps=1.0)
         assert _applied(rig_for(bad)) is None
+
+    def test_with_its_saved_sea_it_is_applied_on_its_first_samples(self) -> None:
+        """Restored with the current it was saved with (0.3 m/s on the bow) and in that
+        sea: after RESTORE_EARLY_SAMPLES readings raw is worse than it, and it is applied
+        then, validated in place afterwards. A poisoned one (m = -0.5, b = +1) in the same
+        sea is never applied."""
+        from emlogd.pipeline.supervisor import RESTORE_EARLY_SAMPLES, RESTORE_VALIDATION_S
+
+        def rig_for(p: Params) -> tuple[Rig, list[float | None]]:
+            rig = _saved_with_bow_current(p)
+            outs = rig.run(RESTORE_EARLY_SAMPLES + 1.0, ref=lambda t, v: v - 0.3)
+            return rig, outs
+
+        rig, outs = rig_for(TRUE)
+        raw = [TRUE.forward(_speed(float(t))) for t in range(1, len(outs) + 1)]
+        assert outs[:RESTORE_EARLY_SAMPLES] == pytest.approx(raw[:RESTORE_EARLY_SAMPLES])
+        assert outs[-1] == pytest.approx(_speed(float(len(outs))))
+        early = [d for _, k, d in rig.events if k == "calibrated"]
+        assert _applied(rig) == TRUE and early and early[0]["kind"] == "restored-early"
+        rig.run(RESTORE_VALIDATION_S, ref=lambda t, v: v - 0.3)
+        assert _applied(rig) == TRUE and "calibration_verified" in rig.kinds()
+        bad, outs = rig_for(Params("EM3", m=-0.5, b_mps=1.0))
+        bad.run(RESTORE_VALIDATION_S, ref=lambda t, v: v - 0.3)
+        assert _applied(bad) is None and "candidate_rejected" in bad.kinds()
 
     def test_on_a_straight_leg_with_no_saved_sea_it_keeps_its_verdict(self) -> None:
         """No current saved, a straight leg at 3 m/s in 0.4 m/s of current on the stern:
