@@ -1,0 +1,252 @@
+"""The perturbation suite's rewrites of delimited logs (docs/real_variants.py): an
+Expedition export's or a logger's table re-cut (columns renamed, dropped, reordered or
+added; ``;`` with decimal commas, quoted cells, a byte-order mark; rows thinned;
+Expedition's sparse log; the logger's other firmware) and the tidal current the
+``tide`` variants add (:func:`tide`), which the NMEA rewrites use too."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+TIDE_KN = 1.5
+"""The ``tide`` variants' current along its major axis, kn (a strong tidal bay)."""
+
+TIDE_PERIOD_S = 44_712.0
+"""The ``tide`` variants' period: the semi-diurnal M2 tide's 12.42 h, s."""
+
+
+def tide(t: float) -> tuple[float, float]:
+    """The tidal current the ``tide`` variants add, (north, east) in knots at epoch
+    seconds ``t``: a semi-diurnal ellipse of :data:`TIDE_KN` along north and a third
+    of it across, turning over :data:`TIDE_PERIOD_S`."""
+    w = 2.0 * math.pi * t / TIDE_PERIOD_S
+    return TIDE_KN * math.cos(w), TIDE_KN / 3.0 * math.sin(w)
+
+
+def add_current(sog_kn: float, cog_deg: float, t: float) -> tuple[float, float]:
+    """A ground velocity (knots, degrees) with :func:`tide`'s current added."""
+    cn, ce = tide(t)
+    a = math.radians(cog_deg)
+    vn, ve = sog_kn * math.cos(a) + cn, sog_kn * math.sin(a) + ce
+    return math.hypot(vn, ve), math.degrees(math.atan2(ve, vn)) % 360.0
+
+
+def _table(text: str, delim: str) -> tuple[list[str], list[str], list[list[str]]]:
+    """(banner lines, header, rows) of a delimited text whose header is the first line
+    with the delimiter at least three times."""
+    lines = text.lstrip("\ufeff").splitlines()
+    h = next(i for i, ln in enumerate(lines) if ln.count(delim) >= 3)
+    header = lines[h].split(delim)
+    rows = [ln.split(delim) for ln in lines[h + 1 :] if ln.strip()]
+    return lines[:h], header, rows
+
+
+def _write(banner: list[str], header: list[str], rows: list[list[str]], delim: str) -> str:
+    return "\n".join([*banner, delim.join(header), *(delim.join(r) for r in rows)]) + "\n"
+
+
+Columns = Callable[[list[str], list[list[str]]], tuple[list[str], list[list[str]]]]
+"""A rewrite of a table: (header, rows) → (header, rows)."""
+
+
+def columns(fn: Columns) -> Callable[[str], str]:
+    """A CSV variant from a function of (header, rows)."""
+
+    def apply(text: str) -> str:
+        banner, header, rows = _table(text, ",")
+        header, rows = fn(header, rows)
+        return _write(banner, header, rows, ",")
+
+    return apply
+
+
+def rename(names: dict[str, str]) -> Callable[[str], str]:
+    return columns(lambda h, rows: ([names.get(c, c) for c in h], rows))
+
+
+def drop(names: set[str]) -> Callable[[str], str]:
+    def fn(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+        keep = [i for i, c in enumerate(h) if c not in names]
+        return [h[i] for i in keep], [[r[i] if i < len(r) else "" for i in keep] for r in rows]
+
+    return columns(fn)
+
+
+def reverse(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    n = len(h)
+    return h[::-1], [(r + [""] * (n - len(r)))[:n][::-1] for r in rows]
+
+
+def extra(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    extra = ["Vmg", "TargBsp", "Polar%", "Mark Lat", "Notes"]
+    return h + extra, [[*r, "1.0", "6.5", "93", "39.4", "tack"] for r in rows]
+
+
+def sparse_gnss(period_s: float) -> Callable[[str], str]:
+    """Expedition rows whose Sog/Cog (and Lat/Lon) cells are written only every
+    ``period_s`` (a slower GNSS): the other rows leave them empty."""
+
+    def fn(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+        idx = [h.index(c) for c in ("Sog", "Cog", "Lat", "Lon") if c in h]
+        t_kept = -math.inf
+        for r in rows:
+            try:
+                t = float(r[h.index("Utc")]) * 86400.0
+            except (ValueError, IndexError):
+                continue
+            if t >= t_kept + period_s - 0.05:
+                t_kept = t
+                continue
+            for i in idx:
+                if i < len(r):
+                    r[i] = ""
+        return h, rows
+
+    return columns(fn)
+
+
+def tidal_cells(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """Sog and Cog cells with :func:`tide`'s current added (rows whose cells are empty
+    keep them empty)."""
+    ti, si, ci = h.index("Utc"), h.index("Sog"), h.index("Cog")
+    for r in rows:
+        try:
+            t = (float(r[ti]) - 25569.0) * 86400.0
+            sog, cog = float(r[si]), float(r[ci])
+        except (ValueError, IndexError):
+            continue
+        v, c = add_current(sog, cog, t)
+        r[si], r[ci] = f"{v:.2f}", f"{c:.1f}"
+    return h, rows
+
+
+def semicolon(text: str) -> str:
+    """``;`` delimiter and decimal commas (a European spreadsheet's export)."""
+    banner, header, rows = _table(text, ",")
+    rows = [[c.replace(".", ",") for c in r] for r in rows]
+    return _write(banner, header, rows, ";")
+
+
+def quoted(text: str) -> str:
+    banner, header, rows = _table(text, ",")
+    q = [[f'"{c}"' for c in r] for r in [header, *rows]]
+    return _write(banner, q[0], q[1:], ",")
+
+
+def bom_crlf(text: str) -> str:
+    return "\ufeff" + "\r\n".join(text.splitlines()) + "\r\n"
+
+
+EXPEDITION_CHANNELS = {
+    "Utc": 0,
+    "Bsp": 1,
+    "Awa": 2,
+    "Aws": 3,
+    "Twa": 4,
+    "Tws": 5,
+    "Twd": 6,
+    "Leeway": 10,
+    "iSet": 11,
+    "iDrift": 12,
+    "Hdg": 13,
+    "Depth": 17,
+    "Heel": 18,
+    "Lat": 48,
+    "Lon": 49,
+    "Cog": 50,
+    "Sog": 51,
+}
+"""Expedition's channel numbers of the columns the sparse variant writes."""
+
+SPARSE_NAMES = {"Bsp": "BSP", "Hdg": "HDG", "Cog": "COG", "Sog": "SOG", "iSet": "Set"}
+SPARSE_NAMES |= {"iDrift": "Drift", "Awa": "AWA", "Aws": "AWS", "Twa": "TWA", "Tws": "TWS"}
+SPARSE_NAMES |= {"Twd": "TWD"}
+
+
+def expedition_log(text: str) -> str:
+    """Expedition's own sparse log: a ``!Boat`` line of names, a ``!boat`` line of
+    channel numbers, a version line, then rows ``boat,utc,channel,value,...`` holding
+    only the written cells."""
+    _, header, rows = _table(text, ",")
+    have = [c for c in header if c in EXPEDITION_CHANNELS]
+    names = ",".join(SPARSE_NAMES.get(c, c) for c in have)
+    numbers = ",".join(str(EXPEDITION_CHANNELS[c]) for c in have)
+    out = [f"!Boat,{names}", f"!boat,{numbers}", "!v10.5.3"]
+    ti = header.index("Utc")
+    for r in rows:
+        pairs = [
+            f"{EXPEDITION_CHANNELS[c]},{r[i]}"
+            for i, c in enumerate(header)
+            if c in EXPEDITION_CHANNELS and c != "Utc" and i < len(r) and r[i] != ""
+        ]
+        out.append(",".join(["0", r[ti], *pairs]))
+    return "\r\n".join(out) + "\r\n"
+
+
+# ------------------------------------------------------------------ TSV helpers
+
+
+def no_banner(text: str) -> str:
+    lines = text.splitlines(keepends=True)
+    h = next(i for i, ln in enumerate(lines) if ln.count("\t") >= 3)
+    return "".join(lines[h:])
+
+
+LOGGER_NAMES = {"Boatspeed": "BS", "Heading": "HDG", "Ext_SOG": "SOG", "Ext_COG": "COG"}
+LOGGER_NAMES |= {"Latitudine": "Lat", "Longitudine": "Lon", "SET": "Set", "DRIFT": "Drift"}
+"""The logger's other firmware's column names."""
+
+SETTINGS_LINES = 48
+"""The other firmware's banner: this many lines of settings before the header."""
+
+
+def logger_firmware(text: str) -> str:
+    """The logger's other firmware: its own column names, a banner of settings (section
+    rulers, ``NAME:<TAB>value`` lines, tables with tabs and commas) before the header,
+    and ``-`` for the current in the first hundred rows."""
+    lines = text.splitlines()
+    h = next(i for i, ln in enumerate(lines) if ln.count("\t") >= 3)
+    header = [LOGGER_NAMES.get(c, c) for c in lines[h].split("\t")]
+    banner = ["-------- DAMPING --------"]
+    banner += [f"CH{k}:\t0.{600 + k}" for k in range(SETTINGS_LINES // 2)]
+    banner += ["-------- CALIBRATION --------"]
+    banner += [
+        f"POINT {k}: {k}.0\t GAIN: 1.{k:03d}\tCURVE:\t0.0,0.0,0.0"
+        for k in range(SETTINGS_LINES // 2)
+    ]
+    banner += ["-------- LOG --------"]
+    sd = [header.index("Set"), header.index("Drift")]
+    rows = []
+    for n, ln in enumerate(lines[h + 1 :]):
+        cells = ln.split("\t")
+        if n < 100:
+            for i in sd:
+                if i < len(cells):
+                    cells[i] = "-"
+        rows.append("\t".join(cells))
+    return "\r\n".join([*lines[:h], *banner, "\t".join(header), *rows]) + "\r\n"
+
+
+def thin_rows(period_s: float) -> Callable[[str], str]:
+    """A TSV's rows kept only ``period_s`` apart (by their Time column)."""
+
+    def apply(text: str) -> str:
+        lines = text.splitlines(keepends=True)
+        h = next(i for i, ln in enumerate(lines) if ln.count("\t") >= 3)
+        ti = lines[h].split("\t").index("Time")
+        kept, t_kept = lines[: h + 1], -math.inf
+        for ln in lines[h + 1 :]:
+            cells = ln.split("\t")
+            try:
+                hh, mm, ss = (int(x) for x in cells[ti].split(":"))
+            except (ValueError, IndexError):
+                continue
+            t = hh * 3600 + mm * 60 + ss
+            t = t if t >= t_kept else t + 86400
+            if t >= t_kept + period_s:
+                kept.append(ln)
+                t_kept = t
+        return "".join(kept)
+
+    return apply
