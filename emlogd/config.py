@@ -27,10 +27,12 @@ import yaml
 
 from drivers import Use, get_decoder, protocols_for
 from drivers.errors import ConfigError
+from drivers.io.port import socket_url_problem
 from emlogd.configyaml import YAML_FAILURES, yaml_depth_error, yaml_why
 from emlogd.fileio import read_text_bounded
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
+    Check,
     Entry,
     InvalidValueError,
     boolean,
@@ -63,16 +65,27 @@ _UUT = UutSettings(port="", reference_port="")
 _TALKER = r"[A-Z]{2}"
 
 
+_ANY_URL = string(what="pyserial URL")
+
+
+def _url(v: object) -> str:
+    url: str = _ANY_URL(v)
+    problem = socket_url_problem(url)
+    if problem is not None:
+        raise InvalidValueError(problem)
+    return url
+
+
 @dataclass(frozen=True, slots=True)
 class PortConfig:
     """One input port (``ports`` list): the pipeline's settings and the device's."""
 
     settings: PortSettings = group(PortSettings, required=True)
     url: str = key(
-        check=string(what="pyserial URL"),
+        check=Check(_url, "pyserial URL"),
         path=True,
-        doc="Any pyserial URL: `/dev/ttyUSB0`, `socket://host:port`, ...; a relative path is "
-        "the config file's directory's.",
+        doc="Any pyserial URL: `/dev/ttyUSB0`, `socket://address:port` (an IP address: a "
+        "host name is refused), ...; a relative path is the config file's directory's.",
     )
     role: Role = key(
         check=literal(Role),

@@ -20,14 +20,16 @@ A ``socket://host:port`` input is connected without blocking (pyserial's own ope
 waits up to 5 s for the connect, and then drains whatever the peer has sent for as
 long as more keeps coming): :meth:`open` starts the connect and each :meth:`poll`
 looks whether it is done, for at most :data:`CONNECT_TIMEOUT_S`; the connected socket
-is then read like a device, with one ``os.read``. (A host name is resolved by the
-system's resolver, which may wait; an address costs nothing.)
+is then read like a device, with one ``os.read``. Its host must be an IP address
+(:func:`socket_url_problem`): a host name would be resolved by the system's resolver,
+which can wait for seconds in the caller's one thread at every retry.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import ipaddress
 import os
 import select
 import socket
@@ -148,6 +150,9 @@ class SerialSource:
         self._check_url()
 
     def _check_url(self) -> None:
+        problem = socket_url_problem(self.url)
+        if problem is not None:
+            raise DeviceError(f"port {self.name}: {problem}")
         try:
             serial.serial_for_url(self.url, do_not_open=True)
         except ValueError as exc:
@@ -217,7 +222,7 @@ class SerialSource:
             first = self._next_try is None and self._attempt == 0
             try:
                 family, kind, proto, _, addr = socket.getaddrinfo(
-                    host, port, type=socket.SOCK_STREAM
+                    host, port, type=socket.SOCK_STREAM, flags=socket.AI_NUMERICHOST
                 )[0]
                 sock = socket.socket(family, kind, proto)
             except OSError as exc:
@@ -369,3 +374,21 @@ def _tcp_address(url: str) -> tuple[str, int] | None:
     if parts.hostname is None or port is None:
         return None
     return parts.hostname, port
+
+
+def socket_url_problem(url: str) -> str | None:
+    """Why ``url``, a ``socket://`` URL, cannot be an input (its host is not an IP
+    address: resolving a name could hold the daemon's one thread), else None (any other
+    URL too)."""
+    address = _tcp_address(url)
+    if address is None:
+        return None
+    try:
+        ipaddress.ip_address(address[0])
+    except ValueError:
+        return (
+            f"{url!r}: a socket:// input needs an IP address, not a host name (resolving "
+            "one could hold the daemon for seconds); write the address, e.g. "
+            "socket://127.0.0.1:10110"
+        )
+    return None

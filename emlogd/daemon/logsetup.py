@@ -123,6 +123,7 @@ CLIENT_EVENTS = frozenset(
         "client_connected",
         "client_disconnected",
         "client_evicted",
+        "client_sent_data",
         "client_stalled",
         "client_too_slow",
     }

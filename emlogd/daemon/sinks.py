@@ -16,6 +16,11 @@ is discarded (a FIN would wait behind it, and so would the kernel's memory). The
 kernel acknowledges whatever fits in a client's receive buffer, read or not: a
 client that never reads is noticed once that buffer is full.
 
+The stream is output only: what a client sends is read and discarded, within a budget
+(:data:`TCP_INPUT_BURST` bytes, refilled at :data:`TCP_INPUT_RATE` bytes/s); a
+client that sends more is closed (``client_sent_data``), so a flooding client costs
+the daemon one read, not a core.
+
 A network output never stops the daemon: a TCP address that cannot be bound (in
 use, not yet configured) or a UDP destination that does not resolve leaves the sink
 ``unbound``/``unresolved`` (its :attr:`state`) and is retried from
@@ -61,6 +66,14 @@ TCP_CHECK_S = 0.25
 """How often :meth:`TcpServerSink.housekeep` reads each client's send queue (one
 ``ioctl`` per client): the resolution of the stall time."""
 
+TCP_INPUT_BURST = 4096
+"""Most bytes a TCP client may send at once (read and discarded) before it is closed
+(``client_sent_data``)."""
+
+TCP_INPUT_RATE = 1024.0
+"""Bytes/s a TCP client's input budget refills at: a client that echoes a few sentences
+now and then stays; one that sends faster is closed once its burst is spent."""
+
 RETRY_S = (1.0, 2.0, 5.0, 10.0, 30.0)
 """Delays between attempts to bind a TCP output or resolve a UDP destination."""
 
@@ -99,7 +112,8 @@ class SinkCounters:
 
     ``dropped_clients`` counts the clients the sink closed, whatever the reason; the
     reasons apart: ``too_slow`` (pending output over the bound), ``stalled`` (nothing
-    taken for the stall time), ``evicted`` (made room for a newcomer at the limit).
+    taken for the stall time), ``evicted`` (made room for a newcomer at the limit), ``sent_data`` (sent more than
+    its input budget, :data:`TCP_INPUT_BURST`).
     """
 
     sentences: int = 0
@@ -110,6 +124,7 @@ class SinkCounters:
     too_slow: int = 0
     stalled: int = 0
     evicted: int = 0
+    sent_data: int = 0
 
     def as_dict(self) -> dict[str, int]:
         """Plain types."""
@@ -122,6 +137,7 @@ class SinkCounters:
             "too_slow": self.too_slow,
             "stalled": self.stalled,
             "evicted": self.evicted,
+            "sent_data": self.sent_data,
         }
 
 
@@ -271,6 +287,7 @@ DROP_REASONS = {
     "client_too_slow": "too_slow",
     "client_stalled": "stalled",
     "client_evicted": "evicted",
+    "client_sent_data": "sent_data",
 }
 """Why the sink closes a client: the event logged, and its counter in :class:`SinkCounters`."""
 
@@ -290,7 +307,17 @@ def _send_queue(sock: socket.socket) -> int:
 
 
 class _Client:
-    __slots__ = ("addr", "backlog", "connected", "delivered", "progress", "queued", "sock")
+    __slots__ = (
+        "addr",
+        "allowance",
+        "backlog",
+        "connected",
+        "delivered",
+        "heard",
+        "progress",
+        "queued",
+        "sock",
+    )
 
     def __init__(self, sock: socket.socket, addr: object, now: float) -> None:
         self.sock = sock
@@ -303,6 +330,10 @@ class _Client:
         """Bytes the client's end acknowledged so far (as of the last check)."""
         self.progress = now
         """When the client last took something, or had nothing pending."""
+        self.allowance = float(TCP_INPUT_BURST)
+        """Bytes the client may still send (refilled at :data:`TCP_INPUT_RATE`)."""
+        self.heard = now
+        """When the allowance was last counted."""
 
     def check(self, now: float) -> int:
         """Read the send queue: note progress; return the pending bytes."""
@@ -319,8 +350,8 @@ class TcpServerSink:
     """NMEA over TCP: several clients, none of which can lock the others out.
 
     Register :meth:`fileno` for reading in the daemon's selector and call
-    :meth:`on_readable` when it fires (accepts clients, and discards anything a
-    client sends). Writes go straight to each client's socket; what the kernel
+    :meth:`on_readable` when it fires (accepts clients, and discards what a client
+    sends within its budget: a client that sends more is closed, ``client_sent_data``). Writes go straight to each client's socket; what the kernel
     does not take waits in a per-client backlog. :meth:`housekeep` closes a client
     whose pending output exceeds :attr:`TcpLimits.max_pending_bytes` or that has
     taken nothing for :attr:`TcpLimits.stall_s` while output was pending; at
@@ -449,15 +480,23 @@ class TcpServerSink:
         self._accept()
 
     def _drain(self, client: _Client) -> None:
-        """A client sent something or hung up: discard input, notice the close."""
+        """A client sent something or hung up: discard input within the client's budget
+        (closed past it), notice the close."""
         try:
-            data = client.sock.recv(4096)
+            data = client.sock.recv(TCP_INPUT_BURST)
         except (BlockingIOError, InterruptedError):
             return
         except OSError:
             data = b""
         if not data:
             self._drop(client, "client_disconnected")
+            return
+        now = self.monotonic()
+        refill = (now - client.heard) * TCP_INPUT_RATE
+        client.heard = now
+        client.allowance = min(client.allowance + refill, TCP_INPUT_BURST) - len(data)
+        if client.allowance < 0:
+            self._drop(client, "client_sent_data")
 
     def _drop(self, client: _Client, why: str) -> None:
         fd = client.sock.fileno()

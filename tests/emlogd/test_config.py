@@ -49,13 +49,13 @@ def test_defaults_and_relative_paths(tmp_path: Path) -> None:
     f = tmp_path / "c.yaml"
     f.write_text(
         "ports:\n  - {name: a, url: links/a, protocol: nmea0183, role: uut}\n"
-        "  - {name: b, url: socket://h:1, protocol: pd0, role: reference}\n"
+        "  - {name: b, url: socket://10.0.0.5:1, protocol: pd0, role: reference}\n"
         "calibration:\n  - {uut: a, reference: b, lag: 3.2}\n"
         "outputs: {pty: out/emlog0}\nstate_file: state.yaml\n"
     )
     cfg = load_config(f)
     assert cfg.ports[0].url == str(tmp_path / "links" / "a")
-    assert cfg.ports[1].url == "socket://h:1"
+    assert cfg.ports[1].url == "socket://10.0.0.5:1"
     assert cfg.outputs.pty == str(tmp_path / "out" / "emlog0")
     assert cfg.state_path == str(tmp_path / "state.yaml")
     assert cfg.calibration[0].settings.lag_s == 3.2
@@ -72,6 +72,7 @@ INVALID: list[tuple[str, str, str]] = [
     ("ports empty", "ports: []\n", "at least one port"),
     ("ports not a list", "ports: {a: 1}\n", "ports: expected a list"),
     ("port missing url", "ports:\n  - {name: a, protocol: pd6, role: uut}\n", "ports[0]: missing required key 'url'"),
+    ("socket host name", BASE.replace("/dev/dvl", "socket://dvl.local:10110"), "ports[1].url: 'socket://dvl.local:10110': a socket:// input needs an IP address"),
     ("unknown port key", "ports:\n  - {name: a, url: x, protocol: pd6, role: aux, speed: 1}\n", "ports[0].speed: unknown key"),
     ("bad protocol", BASE.replace("pd6", "pd9"), "ports[1].protocol: 'pd9'"),
     ("bad role", BASE.replace("role: reference", "role: boss"), "ports[1].role: 'boss'"),

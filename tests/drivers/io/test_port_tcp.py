@@ -9,7 +9,8 @@ from collections.abc import Iterator
 
 import pytest
 
-from drivers.io.port import CONNECT_TIMEOUT_S, SerialSource
+from drivers.errors import DeviceError
+from drivers.io.port import CONNECT_TIMEOUT_S, SerialSource, socket_url_problem
 from tests.sockets import unanswered_port
 
 LINE = b"$VWVHW,,T,,M,5.0,N,9.26,K*55\r\n"
@@ -90,3 +91,16 @@ def test_a_tcp_input_is_read_and_reconnected_after_the_peer_closes() -> None:
             assert src.reconnects == round_
             clock.t += 10.0  # past the backoff
         src.close()
+
+
+def test_a_socket_input_by_host_name_is_refused_an_address_is_not() -> None:
+    """A socket:// host must be an IP address (a name would go to the system's resolver,
+    in the daemon's one thread): a name is a DeviceError at construction (and a config
+    error: tests/emlogd/test_config.py), an IPv4 or IPv6 address or a device path is not."""
+    for name in ("localhost", "gnss.local", "h"):
+        assert socket_url_problem(f"socket://{name}:10110") is not None
+        with pytest.raises(DeviceError, match="needs an IP address, not a host name"):
+            SerialSource("gnss", f"socket://{name}:10110")
+    for ok in ("socket://127.0.0.1:10110", "socket://[::1]:10110", "/dev/ttyUSB0"):
+        assert socket_url_problem(ok) is None
+        SerialSource("gnss", ok).close()

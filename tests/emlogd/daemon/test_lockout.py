@@ -108,6 +108,40 @@ def _held(s: socket.socket) -> int:
 
 
 @pytest.mark.usefixtures("sensors")
+def test_a_tcp_client_that_floods_the_output_port_is_closed(
+    work: Path, daemon: DaemonProcess
+) -> None:
+    """A client sending as fast as it can to the (output-only) TCP port is reset as
+    client_sent_data within a second or two, once past its TCP_INPUT_BURST budget; a
+    client that sends one sentence keeps its slot, and a reading client is served on."""
+    port = tcp_port(work)
+    reader = socket.create_connection(("127.0.0.1", port), timeout=5)
+    polite = socket.create_connection(("127.0.0.1", port), timeout=5)
+    flood = socket.create_connection(("127.0.0.1", port), timeout=5)
+    try:
+        polite.sendall(b"$GPHDT,123.4,T*33\r\n")  # an echo: within the budget
+        flood.setblocking(False)
+        chunk = b"x" * 65536
+        t0 = time.monotonic()
+        with pytest.raises((ConnectionResetError, BrokenPipeError)):
+            while time.monotonic() - t0 < 5.0:
+                with contextlib.suppress(BlockingIOError):
+                    flood.send(chunk)
+                    continue
+                select.select([], [flood], [], 0.1)
+        assert time.monotonic() - t0 < 3.0
+        assert _first_sentence(reader, 3.0) < 3.0
+        assert _first_sentence(polite, 3.0) < 3.0
+        counters = _tcp_counters(daemon, port)
+        assert counters["sent_data"] == 1 and counters["clients"] == 2, counters
+        assert f'"peer": "{flood.getsockname()}"' in daemon.log_path.read_text()
+    finally:
+        for s in (reader, polite, flood):
+            s.close()
+    assert daemon.stop() == 0
+
+
+@pytest.mark.usefixtures("sensors")
 def test_a_tcp_client_that_does_not_read_is_evicted(work: Path, daemon: DaemonProcess) -> None:
     """A client that never reads and one that reads a byte now and then are reset as
     client_stalled; the one that never reads within tcp_stall_s (+ 3 s, under the

@@ -16,6 +16,8 @@ from emlogd.config import OutputConfig
 from emlogd.daemon.sinks import (
     TCP_BACKLOG_BYTES,
     TCP_CHECK_S,
+    TCP_INPUT_BURST,
+    TCP_INPUT_RATE,
     StreamSink,
     TcpLimits,
     TcpServerSink,
@@ -49,6 +51,40 @@ def _pump(sel: selectors.BaseSelector, until: float = 0.3) -> None:
     while time.monotonic() < end:
         for key, _ in sel.select(timeout=0.02):
             key.data()
+
+
+def test_a_tcp_client_is_closed_past_its_input_budget_refilled_at_the_rate() -> None:
+    """What a client sends is discarded within TCP_INPUT_BURST bytes, refilled at
+    TCP_INPUT_RATE bytes/s: a client sending at half the rate for long stays; one byte
+    over the budget closes it as client_sent_data (counted)."""
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    sink = TcpServerSink(
+        "127.0.0.1:0", selector=sel, on_event=lambda k, d: notes.append((k, d)), monotonic=clock
+    )
+    try:
+        c = socket.create_connection(sink.address)
+        _pump(sel)
+        half = b"x" * int(TCP_INPUT_RATE / 2)
+        for _ in range(3 * TCP_INPUT_BURST // len(half)):  # three bursts' worth, in time
+            clock.t += 1.0
+            c.sendall(half)
+            _pump(sel, 0.05)
+        assert sink.counters.clients == 1 and sink.counters.sent_data == 0
+        clock.t += 10 * TCP_INPUT_BURST / TCP_INPUT_RATE  # the budget refills to the burst only
+        c.sendall(b"x" * TCP_INPUT_BURST)
+        _pump(sel, 0.1)
+        assert sink.counters.clients == 1
+        c.sendall(b"x")
+        _pump(sel, 0.1)
+        assert sink.counters.clients == 0 and sink.counters.sent_data == 1
+        assert sink.counters.dropped_clients == 1
+        assert ("client_sent_data", str(c.getsockname())) in notes
+        c.close()
+    finally:
+        sink.close()
+        sel.close()
 
 
 def test_tcp_clients_receive_and_a_stuck_client_is_dropped() -> None:
