@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 import io
+import time
 
 import pytest
 
-from emlogd.cli.common import config_path, progress, progress_done
+from emlogd.cli import common
+from emlogd.cli.common import config_path, progress, progress_done, progress_start
 from emlogd.config import DEFAULT_PATH
 
 
@@ -17,12 +19,18 @@ class _Terminal(io.StringIO):
 
 
 def test_progress_only_on_a_terminal(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Progress redraws one line on a terminal stderr and writes nothing to a pipe or file."""
+    """Progress redraws one line on a terminal stderr; to a pipe or file it writes nothing
+    in a command's first PROGRESS_QUIET_S, then whole lines named by the command."""
     pipe = io.StringIO()
     monkeypatch.setattr("sys.stderr", pipe)
+    progress_start("import")  # the command starts now (the process may be older)
     progress("reading", 0.5)
     progress_done()
     assert pipe.getvalue() == ""
+    monkeypatch.setattr(common._state, "started", time.monotonic() - common.PROGRESS_QUIET_S)
+    progress("reading", 0.5)
+    assert pipe.getvalue().startswith("emlogd import: [")
+    assert pipe.getvalue().endswith("] reading  50.0 %\n")
     tty = _Terminal()
     monkeypatch.setattr("sys.stderr", tty)
     progress("reading", 0.5)
