@@ -137,9 +137,8 @@ ADAPT_NIS_CAP_SLOW = 25.0
 λ_slow by at most ``exp(4.5/N_λ)``)."""
 
 ADAPT_NIS_MIN = 1e-6
-"""A NIS counts at least this much in the slow noise scale's update (its logarithm: an
-innovation of exactly zero, a quantised reading's, would pull λ_slow to its floor at
-once)."""
+"""A NIS counts at least this much in the slow noise scale's update (its logarithm: a
+zero innovation, a quantised reading's, would pull λ_slow to its floor at once)."""
 
 MEAN_LOG_CHI2_1 = -1.2703628454614782
 """E[ln x] for x ~ χ²(1) (ψ(1/2) + ln 2): the mean log NIS of a consistent filter."""
@@ -484,43 +483,30 @@ class KfCalibrator:
         return (1.0 + rho) / (1.0 - rho)
 
     def _adapt(self, y: float, s: float) -> None:
-        """The noise scales and the innovations' correlation after one learnt raw update.
-
-        λ is the running mean, weighted by the share of S the noises make, of each
-        update's own measure ``λ̂ = (y² − S_state)/(R_raw + R_ref)`` (module docstring,
-        "Honest noise"): its mean is λ_true for innovations whose noise is λ_true times
-        the configured one, so λ reaches it within a few updates from any start and
-        then follows it with a memory of ``adapt_samples`` weights; one outlier (its NIS
-        capped at :data:`ADAPT_NIS_CAP`) moves it by at most ``(ADAPT_NIS_CAP − 1)·f/W``
-        of itself, W the weights in memory. ``ln λ_slow`` moves by the running mean of
-        ``ln NIS_slow − E[ln χ²(1)]`` (module docstring, "Evidence for an offer").
-        """
+        """The noise scales and the innovations' correlation after one learnt raw update
+        (module docstring, "Honest noise" and "Evidence for an offer"): one outlier, its
+        NIS capped at :data:`ADAPT_NIS_CAP`, moves λ by at most ``(ADAPT_NIS_CAP − 1)·f/W``
+        of itself, W the weights in memory."""
         self._n_adapt += 1
         a = 1.0 / min(self._n_adapt + ADAPT_START, self.config.adapt_samples)
         r_sum = self.config.r_raw_mps2 + self.config.r_ref_mps2
         lam, slow = self.noise_scale_matched, self.noise_scale_slow
-        # the innovation variance each scale gives: S with the noises' share at that
-        # scale, the state's share (just after the parameters were re-opened, nearly
-        # all of S) kept
+        # the innovation variance at each scale, the state's share of S kept
         s_lam, s_slow = (
             max(s + (x - self.noise_scale) * r_sum, min(s, x * r_sum)) for x in (lam, slow)
         )
-        # λ: each update's own measure, what the innovation leaves once the state's
-        # share is taken off, in a running mean weighted by the share the noises make
+        # λ: the running mean of each update's own measure, weighted by the noises' share
         share = min(lam * r_sum / s_lam, 1.0)
         lam_hat = max(lam + (min(y * y / s_lam, ADAPT_NIS_CAP) - 1.0) * s_lam / r_sum, 0.0)
         self._w_adapt = self._w_adapt * (1.0 - 1.0 / self.config.adapt_samples) + share
-        if self._w_adapt > 0.0:
-            lam += share / self._w_adapt * (lam_hat - lam)
-        self.noise_scale_matched = min(max(lam, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
+        lam += share / self._w_adapt * (lam_hat - lam)  # share > 0: λ is at least its floor
+        lam = self.noise_scale_matched = min(max(lam, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
         # λ_slow: the running mean of the log NIS at its own scale
         nis_slow = min(max(y * y / s_slow, ADAPT_NIS_MIN), ADAPT_NIS_CAP_SLOW)
         share_slow = min(slow * r_sum / s_slow, 1.0)
         slow *= math.exp(a * share_slow * (math.log(nis_slow) - MEAN_LOG_CHI2_1))
         self.noise_scale_slow = min(max(slow, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
-        self.noise_scale = (
-            self.noise_scale_matched if self.config.matched_noise else self.noise_scale_slow
-        )
+        self.noise_scale = lam if self.config.matched_noise else self.noise_scale_slow
         nu = y / math.sqrt(s)
         self._c0 += a * (nu * nu - self._c0)
         if self._nu_prev == self._nu_prev:
@@ -662,9 +648,8 @@ class KfCalibrator:
 
     @property
     def param_std_offer(self) -> dict[str, float]:
-        """The standard deviations an offer is judged on: :attr:`param_std` with λ
-        floored at the slow noise scale λ_slow (module docstring, "Evidence for an
-        offer"), never below :attr:`param_std`."""
+        """The standard deviations an offer is judged on: :attr:`param_std` with the scale
+        floored at λ_slow (module docstring, "Evidence for an offer")."""
         k = math.sqrt(max(self.noise_scale_slow / self.noise_scale, 1.0))
         return {name: k * sd for name, sd in self.param_std.items()}
 
