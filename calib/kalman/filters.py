@@ -51,14 +51,17 @@ its noise is too small to pull the scale. Beyond the paper:
   does not move or a bay's that turns). A noise scale λ multiplies both R and the
   current's random walk (the level of what the filter does not know of the sea and the
   sensors, in the proportions configured; the speed's random walk follows the vessel
-  and the parameters' is the paper's tuning, neither scaled): after the k-th learnt-from
-  raw update ``ln λ += f·(ln NIS − E[ln χ²(1)])/N``, N = min(k + :data:`ADAPT_START`,
-  N_λ) (N_λ = ``adapt_samples``; the NIS within [:data:`ADAPT_NIS_MIN`,
-  :data:`ADAPT_NIS_CAP`]), f = λ(R_raw + R_ref)/S the share of the innovation variance
-  the scaled noises make: a running mean of the log NIS, so λ comes within N_λ updates
-  to the level the innovations hold from any start (the data's own R, covariance
-  matching in the logarithm), and samples whose S is mostly the state's uncertainty
-  (the parameters just re-opened) barely move it; λ within [:data:`NOISE_SCALE_MIN`,
+  and the parameters' is the paper's tuning, neither scaled). λ is the data's own R
+  (covariance matching): each learnt-from raw update measures it as
+  ``λ̂ = (y² − S_state)/(R_raw + R_ref)``, what the innovation's square leaves once the
+  state's share of S is taken off (``S_state = S − λ(R_raw + R_ref)``; the NIS capped at
+  :data:`ADAPT_NIS_CAP`, λ̂ at least 0), and λ is the running mean of λ̂ weighted by
+  f = λ(R_raw + R_ref)/S, the share of S the noises make (samples whose S is mostly the
+  state's uncertainty, the parameters just re-opened, barely move it), with a memory
+  of N_λ = ``adapt_samples`` weights. Its first updates set it (no prior weight), so the
+  NIS mean is near 1 within a few updates from any start: block means of a GNSS speed
+  and a log quantised to 0.1 kn hold a twentieth to a tenth of a single sample's noise
+  variance. λ within [:data:`NOISE_SCALE_MIN`,
   :data:`NOISE_SCALE_MAX`]. Residuals correlated from one sample to the next (GNSS
   errors over seconds, a tack's log error over minutes) hold fewer independent
   samples than samples: the lag-one correlation ρ of the normalised raw innovations
@@ -71,6 +74,19 @@ its noise is too small to pull the scale. Beyond the paper:
   there the speed state carries the samples' memory and the noises are the tuning of
   how fast it learns (scaled to a simulated EMlog's innovations, the water-frame replay
   of docs/REPRODUCTION.md scored 0.18–0.25 m/s against 0.108 with the configured ones).
+- **Evidence for an offer** (:attr:`KfCalibrator.param_std_offer`): λ matched to the
+  data makes σ honest from the first blocks, before the blocks have shown a change of
+  speed, heading or current that tells the parameters apart from one another. A second,
+  slow noise scale λ_slow says how much to trust them: it starts at 1 and moves as a
+  running mean of the log NIS, ``ln λ_slow += f·(ln NIS_slow − E[ln χ²(1)])/N``,
+  N = min(k + :data:`ADAPT_START`, N_λ) (the NIS taken against the innovation variance
+  λ_slow gives, within [:data:`ADAPT_NIS_MIN`, :data:`ADAPT_NIS_CAP_SLOW`], f its
+  noises' share), so it comes down to λ over about N_λ updates, hours of blocks. Both
+  are tracked; ``matched_noise`` says which one scales the noises (λ: the σ and NIS
+  reported offline; λ_slow: the daemon, whose estimates, gates and offers are then those
+  of a filter adapted slowly). The σ an offer is judged on is P's times
+  ``√max(λ_slow/scale, 1)``, what P would say with the scale floored at λ_slow (P of
+  the parameters scales with the noises once the data determine them).
 - **Gating**: an update whose NIS exceeds ``max_nis`` is not applied and reported
   as gated (integrity monitoring decides what a run of them means).
 - **Reference outage** (no reference, or no heading with a current): predict, then
@@ -111,20 +127,26 @@ that repeats through a block (0.1 kn/√12), which no averaging removes."""
 NOISE_SCALE_MAX = 100.0
 """The largest noise scale λ: σ ten times what the sensors promise."""
 
-ADAPT_NIS_CAP = 25.0
-"""A NIS counts at most this much in the noise scale's update (one outlier moves λ by at
-most ``exp(4.5/N_λ)``)."""
+ADAPT_NIS_CAP = 9.0
+"""A NIS counts at most this much in the noise scale's update (a 3σ innovation: a χ²(1)
+capped there keeps a mean of 0.97, and one outlier cannot multiply λ by more than
+``1 + (ADAPT_NIS_CAP − 1)/W``, W the weights in the running mean)."""
+
+ADAPT_NIS_CAP_SLOW = 25.0
+"""A NIS counts at most this much in the slow noise scale's update (one outlier moves
+λ_slow by at most ``exp(4.5/N_λ)``)."""
 
 ADAPT_NIS_MIN = 1e-6
-"""A NIS counts at least this much in the noise scale's update (its logarithm: an
-innovation of exactly zero, a quantised reading's, would pull λ to its floor at once)."""
+"""A NIS counts at least this much in the slow noise scale's update (its logarithm: a
+zero innovation, a quantised reading's, would pull λ_slow to its floor at once)."""
 
 MEAN_LOG_CHI2_1 = -1.2703628454614782
 """E[ln x] for x ~ χ²(1) (ψ(1/2) + ln 2): the mean log NIS of a consistent filter."""
 
 ADAPT_START = 10
-"""The noise scale's first steps average over the samples so far plus this many (a
-running mean that settles in tens of samples, then a memory of ``adapt_samples``)."""
+"""The slow noise scale's and the innovations' correlation's first steps average over
+the samples so far plus this many (a running mean that settles in tens of samples, then
+a memory of ``adapt_samples``)."""
 
 SPEED_UNKNOWN_VAR_M2PS2 = 100.0
 """The speed state's variance when nothing is known of it (σ 10 m/s: any vessel's
@@ -165,6 +187,9 @@ class KfConfig:
         adapt_samples: N_λ, the memory of the noise scale and of the correlation, in
             learnt-from samples (60: 20 minutes of 20-s block means, a minute of
             samples at 1 Hz).
+        matched_noise: the noises are scaled by λ, matched to the innovations' covariance
+            (False: by the slow λ_slow, tracked both ways; the module docstring, "Honest
+            noise" and "Evidence for an offer").
 
     Raises:
         ValueError: a variance that is not positive (process noises may be 0).
@@ -180,6 +205,7 @@ class KfConfig:
     fused_operating_point: bool = True
     adaptive: bool = True
     adapt_samples: float = 60.0
+    matched_noise: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.adapt_samples) and self.adapt_samples >= 1.0):
@@ -244,10 +270,13 @@ class KfCalibrator:
         "_n_adapt",
         "_nu_prev",
         "_params",
+        "_w_adapt",
         "_x",
         "config",
         "layout",
         "noise_scale",
+        "noise_scale_matched",
+        "noise_scale_slow",
     )
 
     def __init__(
@@ -284,11 +313,17 @@ class KfCalibrator:
         self._gains: dict[object, list[float]] = {}
         self._params: tuple[tuple[float, ...], Params] | None = None
         self.noise_scale = 1.0
-        """λ: the factor on both measurement noises (1 without ``config.adaptive``)."""
+        """The factor on both measurement noises: λ, or λ_slow without
+        ``config.matched_noise`` (1 without ``config.adaptive``)."""
+        self.noise_scale_matched = 1.0
+        """λ: the noise scale matched to the innovations' covariance."""
+        self.noise_scale_slow = 1.0
+        """λ_slow: the slowly adapted noise scale an offer's σ is floored at."""
         self._c0 = 1.0
         self._c1 = 0.0
         self._nu_prev = math.nan
         self._n_adapt = 0
+        self._w_adapt = 0.0
 
     # -- the per-sample path ------------------------------------------------
 
@@ -448,24 +483,30 @@ class KfCalibrator:
         return (1.0 + rho) / (1.0 - rho)
 
     def _adapt(self, y: float, s: float) -> None:
-        """The noise scale and the innovations' correlation after one learnt raw update.
-
-        ``ln λ`` moves by the running mean of ``ln NIS − E[ln χ²(1)]`` (for Gaussian
-        innovations whose noise is ``λ_true`` times the configured one, its mean is
-        ``ln(λ_true/λ)`` where the noises make all of S), weighted by the share of S the
-        noises make. λ thus reaches the level the innovations hold in about
-        ``adapt_samples`` updates from any start and in both directions (a step of
-        ``NIS − 1`` is at least −1 in the logarithm, so a λ far too large would come
-        down over hundreds of updates), and one outlier moves it by its logarithm only.
-        """
-        nis = min(max(y * y / s, ADAPT_NIS_MIN), ADAPT_NIS_CAP)
+        """The noise scales and the innovations' correlation after one learnt raw update
+        (module docstring, "Honest noise" and "Evidence for an offer"): one outlier, its
+        NIS capped at :data:`ADAPT_NIS_CAP`, moves λ by at most ``(ADAPT_NIS_CAP − 1)·f/W``
+        of itself, W the weights in memory."""
         self._n_adapt += 1
         a = 1.0 / min(self._n_adapt + ADAPT_START, self.config.adapt_samples)
-        # the share of S the scaled noises make: the rest is the state's uncertainty,
-        # which λ does not move (just after the parameters were re-opened, nearly all)
-        share = min(self.noise_scale * (self.config.r_raw_mps2 + self.config.r_ref_mps2) / s, 1.0)
-        lam = self.noise_scale * math.exp(a * share * (math.log(nis) - MEAN_LOG_CHI2_1))
-        self.noise_scale = min(max(lam, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
+        r_sum = self.config.r_raw_mps2 + self.config.r_ref_mps2
+        lam, slow = self.noise_scale_matched, self.noise_scale_slow
+        # the innovation variance at each scale, the state's share of S kept
+        s_lam, s_slow = (
+            max(s + (x - self.noise_scale) * r_sum, min(s, x * r_sum)) for x in (lam, slow)
+        )
+        # λ: the running mean of each update's own measure, weighted by the noises' share
+        share = min(lam * r_sum / s_lam, 1.0)
+        lam_hat = max(lam + (min(y * y / s_lam, ADAPT_NIS_CAP) - 1.0) * s_lam / r_sum, 0.0)
+        self._w_adapt = self._w_adapt * (1.0 - 1.0 / self.config.adapt_samples) + share
+        lam += share / self._w_adapt * (lam_hat - lam)  # share > 0: λ is at least its floor
+        lam = self.noise_scale_matched = min(max(lam, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
+        # λ_slow: the running mean of the log NIS at its own scale
+        nis_slow = min(max(y * y / s_slow, ADAPT_NIS_MIN), ADAPT_NIS_CAP_SLOW)
+        share_slow = min(slow * r_sum / s_slow, 1.0)
+        slow *= math.exp(a * share_slow * (math.log(nis_slow) - MEAN_LOG_CHI2_1))
+        self.noise_scale_slow = min(max(slow, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
+        self.noise_scale = lam if self.config.matched_noise else self.noise_scale_slow
         nu = y / math.sqrt(s)
         self._c0 += a * (nu * nu - self._c0)
         if self._nu_prev == self._nu_prev:
@@ -549,8 +590,11 @@ class KfCalibrator:
         and noises as ``other``'s, and only what is known of the state differs."""
         self._x = list(other._x)
         self.noise_scale = other.noise_scale
+        self.noise_scale_matched = other.noise_scale_matched
+        self.noise_scale_slow = other.noise_scale_slow
         self._c0, self._c1 = other._c0, other._c1
         self._nu_prev, self._n_adapt = other._nu_prev, other._n_adapt
+        self._w_adapt = other._w_adapt
 
     def reacquire_speed(self) -> None:
         """Forget the speed state: :data:`SPEED_UNKNOWN_VAR_M2PS2`, its correlations
@@ -601,6 +645,13 @@ class KfCalibrator:
         """Standard deviation of each parameter from P, by short name."""
         P = self._P
         return {name: math.sqrt(P[1 + i][1 + i]) for i, name in enumerate(self.layout.params)}
+
+    @property
+    def param_std_offer(self) -> dict[str, float]:
+        """The standard deviations an offer is judged on: :attr:`param_std` with the scale
+        floored at λ_slow (module docstring, "Evidence for an offer")."""
+        k = math.sqrt(max(self.noise_scale_slow / self.noise_scale, 1.0))
+        return {name: k * sd for name, sd in self.param_std.items()}
 
     @property
     def current_mps(self) -> tuple[float, float] | None:

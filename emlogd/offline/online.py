@@ -31,11 +31,15 @@ def run_online(
 
     The captures run back to back through one filter (the state carries over), the
     reference, heading and readings merged in time order as they arrived. ``trace``
-    receives one row per learnt-from reading (``calibrate --trace``).
+    receives one row per learnt-from reading (``calibrate --trace``). The filter's
+    noises are matched to the innovations' covariance (an honest σ and NIS; the daemon
+    scales them by the slowly adapted noise scale its offers rest on).
     """
     s = dataclasses.replace(settings, lag_s=lag_s, learn=True)
     heading = SampleRing(4096, 2.0, angular=True, cadence=True)
-    cal = UutCalibration(s, None, lambda t: _heading(heading, t), lambda t, k, d: None)
+    cal = UutCalibration(
+        s, None, lambda t: _heading(heading, t), lambda t, k, d: None, matched_noise=True
+    )
     cal.tracer = trace
     for r in recs:
         heading.clear()

@@ -19,12 +19,14 @@ reference and the heading at ``t − lag`` (:mod:`emlogd.pipeline.align`) and, p
 5. an estimate far outside the envelope restarts the filter from the prior.
 
 Its only output to the supervisor is an :class:`Offer`: the estimate and its standard
-deviations, once every learnt unknown is within ``max_param_std`` and the estimate is
+deviations, once every learnt unknown is within ``max_param_std`` (judged on
+:attr:`calib.kalman.KfCalibrator.param_std_offer`) and the estimate is
 inside the envelope. Nothing here reads a clock or does I/O; times are receive times.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from collections.abc import Callable, Mapping
@@ -146,6 +148,11 @@ class Learner:
         s: the UUT's settings.
         prior: a checked, usable calibration to start the filter from, or None.
         emit: called as ``emit(t, kind, detail)`` for every event worth a log line.
+        matched_noise: the filter's noises scaled by the noise scale matched to the
+            innovations (``calibrate --method kf``: an honest σ and NIS); False (the
+            daemon) by the slowly adapted one, on which what is offered rests (an
+            honest σ from the first blocks would offer parameters the data do not yet
+            tell apart: :attr:`calib.kalman.KfCalibrator.param_std_offer`).
     """
 
     def __init__(
@@ -155,8 +162,11 @@ class Learner:
         prior: Calibration | None,
         emit: Callable[[float, str, Mapping[str, object]], None],
         counters: Counters,
+        *,
+        matched_noise: bool = False,
     ) -> None:
         self.s = s
+        self.matched_noise = matched_noise
         self.layout = layout
         self._emit = emit
         self.counters = counters
@@ -233,8 +243,11 @@ class Learner:
             if self.layout.current:
                 diag[-2:] = s.kf.current_p0_m2ps2
             cov0 = np.diag(diag)
+        cfg = s.kf
+        if cfg.matched_noise != self.matched_noise:
+            cfg = dataclasses.replace(cfg, matched_noise=self.matched_noise)
         kf = KfCalibrator(
-            s.model, s.kf, current=s.current, params0=params0, current0_mps=cur0, P0=cov0
+            s.model, cfg, current=s.current, params0=params0, current0_mps=cur0, P0=cov0
         )
         # the vessel's speed now is unknown (a saved covariance holds the variance the
         # speed had when saved): the first measurement sets it, and no reading is
@@ -616,14 +629,14 @@ class Learner:
             return None
         limits = self.s.max_param_std
         if self.shadow is not None:
-            after = self.shadow.param_std
+            after = self.shadow.param_std_offer
             for name in self.layout.params:
                 if name in self.learnt_ever and after[name] > limits.get(name, math.inf):
                     return None
             # the readings since the change determine the parameters: learning goes on
             # from what they say (a change the sea raised: about what was known)
             self.kf, self.shadow = self.shadow, None
-        std = self.kf.param_std
+        std = self.kf.param_std_offer
         for name in self.layout.params:
             if name in self.learnt_ever and std[name] > limits.get(name, math.inf):
                 return None

@@ -79,6 +79,8 @@ class UutCalibration:
         prior: a checked calibration to start from (warm start), or None.
         heading_at: returns the UUT's heading in degrees (true) at a time, or None.
         event: called as ``event(t, kind, detail)`` for every state change worth a log line.
+        matched_noise: the learner's filter scaled to the innovations' covariance
+            (:class:`emlogd.pipeline.learner.Learner`; offline ``calibrate``).
     """
 
     def __init__(
@@ -87,6 +89,8 @@ class UutCalibration:
         prior: Calibration | None,
         heading_at: Callable[[float], float | None],
         event: Callable[[float, str, Mapping[str, object]], None],
+        *,
+        matched_noise: bool = False,
     ) -> None:
         self.s = s
         self.layout = Layout(check_model(s.model), s.current)
@@ -96,7 +100,9 @@ class UutCalibration:
         if usable is not None and usable.params.model != s.model:
             usable = None
         self.counters = Counters()
-        self.learner = Learner(s, self.layout, usable, self._emit, self.counters)
+        self.learner = Learner(
+            s, self.layout, usable, self._emit, self.counters, matched_noise=matched_noise
+        )
         self.sup = Supervisor(
             s,
             self.layout,

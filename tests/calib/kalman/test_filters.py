@@ -171,6 +171,28 @@ class TestPaperFilters:
         nis = _blocks(kf, raw[180:], ref[180:])
         assert 0.8 <= float(np.mean(nis)) <= 1.2
 
+    def test_covariance_matching_sets_the_noise_scale_at_once(self) -> None:
+        """Noises promised 100 times larger than the blocks hold: after 30 block updates
+        λ is within 40 % of 0.01 (the NIS honest), while the slow scale λ_slow is still
+        above 0.03 and an offer's σ is P's times √(λ_slow/λ) (more than 1.5 times it)."""
+        cfg = KfConfig()
+        _t, _, raw, ref = _sim(300, 15, TRUTH["EM3"], cfg)
+        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 * 100.0, r_ref_mps2=cfg.r_ref_mps2 * 100.0)
+        kf = KfCalibrator("EM3", bad)
+        _blocks(kf, raw[:30], ref[:30])
+        assert kf.noise_scale == pytest.approx(0.01, rel=0.4)
+        assert kf.noise_scale_slow > 0.03
+        k = math.sqrt(kf.noise_scale_slow / kf.noise_scale)
+        assert k > 1.5
+        for name, sd in kf.param_std.items():
+            assert kf.param_std_offer[name] == pytest.approx(k * sd)
+
+    def test_an_offer_sigma_is_never_below_the_filters(self) -> None:
+        """λ_slow below λ: an offer's σ is the filter's own (the floor only raises it)."""
+        kf = KfCalibrator("EM3", KfConfig())
+        kf.noise_scale, kf.noise_scale_slow = 1.0, 0.1
+        assert kf.param_std_offer == kf.param_std
+
     def test_an_update_told_not_to_adapt_keeps_the_noise_scale(self) -> None:
         """``adapt=False`` (learning sample by sample): λ and the correlation stay."""
         cfg = KfConfig()
@@ -192,8 +214,10 @@ class TestPaperFilters:
         assert kf.param_std["m"] < 0.1 and shadow.param_std["m"] == pytest.approx(0.5)
         kf.noise_scale = 0.5
         kf.update(2.4, 2.3, 1.0)
+        kf.noise_scale_slow = 2.0
         shadow.follow(kf)
         assert shadow.x == kf.x and shadow.noise_scale == 0.5
+        assert shadow.noise_scale_slow == 2.0
         shadow.update(2.4, 2.3, 1.0)
         assert shadow.param_std["m"] > kf.param_std["m"]
 

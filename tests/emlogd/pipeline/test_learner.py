@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from calib.models import Layout, Params, check_model
@@ -157,3 +158,27 @@ def test_learning_from_blocks_a_real_change_reopens_by_its_size() -> None:
     _feed_blocks(lr, 2370, 3600, 1.3)
     assert lr.kf.params.m == pytest.approx(1.3 * 1.05 - 1.0, abs=0.02)
     assert lr.offer() is not None
+
+
+def test_the_daemon_scales_the_noises_slowly_and_calibrate_by_the_innovations() -> None:
+    """The daemon's filter (the default) scales its noises by the slowly adapted λ_slow,
+    on which its estimates, gates and offers rest; ``matched_noise`` (``calibrate
+    --method kf``) by λ matched to the innovations, which blocks of clean readings bring
+    far below λ_slow within ten minutes, and an offer is then judged on σ floored at λ_slow."""
+    daemon, offline = _gnss_learner(), _gnss_learner()
+    offline = Learner(offline.s, offline.layout, None, lambda t, k, d: None, Counters(),
+                      matched_noise=True)  # fmt: skip
+    true = Params("EM3", m=0.05, b_mps=0.0)
+    for lr in (daemon, offline):
+        rng = np.random.default_rng(5)
+        for i in range(600):
+            t = float(i)
+            v = 2.5 + 1.0 * math.sin(2 * math.pi * t / 300.0)
+            lr.add_reference(t, v, True, lambda _t: None)
+            raw = true.forward(v) + rng.normal(0.0, 0.05)
+            lr.step(lr.align(t, raw, lambda _t: None), "", None)
+    assert daemon.kf.noise_scale == daemon.kf.noise_scale_slow
+    assert offline.kf.noise_scale == offline.kf.noise_scale_matched
+    assert offline.kf.noise_scale_slow > 2.0 * offline.kf.noise_scale
+    std, floored = offline.kf.param_std, offline.kf.param_std_offer
+    assert floored["m"] > 1.4 * std["m"]
