@@ -207,12 +207,8 @@ def test_the_tide_moves_the_ground_not_the_water(tmp_path: Path) -> None:
 # The whole suite, variant by variant, against the unperturbed recording: every step
 # runs and nothing moves materially (real_variants.verdict).
 KNOWN: dict[tuple[str, str], str] = {
-    ("nmea", "gnss-0.5hz"): "the KF's scale at the median speed moves 0.10 (its σ of m is 0.41)",
-    ("expedition-csv", "sog-0.2hz"): "a 5-min window of the replay 1.20 times raw's RMSE",
     ("expedition-csv", "tide"): "a 5-min window of the replay 1.23 times raw's RMSE",
     ("logger-tsv", "rows-0.2hz"): "a 5-min window of the replay 1.50 times raw's RMSE",
-    ("nmea", "tide"): "the KF's scale at the median speed moves 0.09 (1.048 against 0.960), "
-    "and the replay ends in a fault",
 }
 """What does not hold yet, by (kind, variant): strict xfails."""
 
