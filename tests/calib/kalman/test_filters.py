@@ -162,10 +162,7 @@ class TestPaperFilters:
         """Noises promised 100 times larger than the blocks hold (a GNSS speed's 20-s
         means): λ is within 40 % of 0.01 after three memories of block updates (180),
         and the NIS of the next 1000 has mean 0.8–1.2."""
-        cfg = KfConfig()
-        _t, _, raw, ref = _sim(1200, 15, TRUTH["EM3"], cfg)
-        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 * 100.0, r_ref_mps2=cfg.r_ref_mps2 * 100.0)
-        kf = KfCalibrator("EM3", bad)
+        kf, raw, ref = _overstated_noises(1200)
         _blocks(kf, raw[:180], ref[:180])
         assert kf.noise_scale == pytest.approx(0.01, rel=0.4)
         nis = _blocks(kf, raw[180:], ref[180:])
@@ -175,10 +172,7 @@ class TestPaperFilters:
         """Noises promised 100 times larger than the blocks hold: after 30 block updates
         λ is within 40 % of 0.01 (the NIS honest), while the slow scale λ_slow is still
         above 0.03 and an offer's σ is P's times √(λ_slow/λ) (more than 1.5 times it)."""
-        cfg = KfConfig()
-        _t, _, raw, ref = _sim(300, 15, TRUTH["EM3"], cfg)
-        bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 * 100.0, r_ref_mps2=cfg.r_ref_mps2 * 100.0)
-        kf = KfCalibrator("EM3", bad)
+        kf, raw, ref = _overstated_noises(300)
         _blocks(kf, raw[:30], ref[:30])
         assert kf.noise_scale == pytest.approx(0.01, rel=0.4)
         assert kf.noise_scale_slow > 0.03
@@ -265,6 +259,15 @@ class TestPaperFilters:
         white = KfCalibrator("EM3", KfConfig())
         _blocks(white, forward_array(truth, v) + 0.05 * rng.standard_normal(n), ref)
         assert white.correlation < 1.3
+
+
+def _overstated_noises(n_blocks: int) -> tuple[KfCalibrator, np.ndarray, np.ndarray]:
+    """A filter whose noises are promised 100 times larger than the blocks of a
+    simulated EM3 run hold (a GNSS speed's 20-s means), and the run's readings."""
+    cfg = KfConfig()
+    _t, _, raw, ref = _sim(n_blocks, 15, TRUTH["EM3"], cfg)
+    bad = KfConfig(r_raw_mps2=cfg.r_raw_mps2 * 100.0, r_ref_mps2=cfg.r_ref_mps2 * 100.0)
+    return KfCalibrator("EM3", bad), raw, ref
 
 
 def _blocks(kf: KfCalibrator, raw: np.ndarray, ref: np.ndarray) -> list[float]:
