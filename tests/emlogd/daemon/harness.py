@@ -12,7 +12,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from calib.estimate import Estimate
+from calib.models import Params
 from emlogd.launch import STOP_TIMEOUT_S, DaemonProcess
+from emlogd.pipeline.calibration import Calibration
 
 SPEED = 20.0
 """How much faster than real time the fake sensors serve their capture."""
@@ -36,6 +39,21 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def saved_calibration(m: float = 0.1, *, n: int = 100, lag_s: float = 3.2) -> Calibration:
+    """A calibration as the state file holds one: EMlog1's EM3 scale ``m`` against the
+    DVL's bottom track, learnt from ``n`` samples at lag ``lag_s``."""
+    return Calibration(
+        estimate=Estimate(Params("EM3", m=m, b_mps=0.05), {"m": 0.001, "b": 0.002}),
+        uut="emlog1",
+        lag_s=lag_s,
+        covariance=((1e-4, 0.0, 0.0), (0.0, 1e-6, -1e-7), (0.0, -1e-7, 4e-6)),
+        t=1.75e9,
+        n_samples=n,
+        reference={"port": "dvl", "field": "bottom"},
+        nis_mean=1.01,
+    )
 
 
 def make_work(tmp_path: Path, config: str) -> Path:

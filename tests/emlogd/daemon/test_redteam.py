@@ -22,8 +22,6 @@ from pathlib import Path
 
 import pytest
 
-from calib.estimate import Estimate
-from calib.models import Params
 from drivers.errors import ConfigError, DeviceError
 from emlogd.calfile import CalibrationFileError, dumps, loads_state
 from emlogd.client import request
@@ -34,7 +32,16 @@ from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from emlogd.pipeline.calibration import Calibration
-from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, free_port, make_work, tcp_port, wait
+from tests.emlogd.daemon.harness import (
+    OUTPUTS,
+    SPEED,
+    Daemon,
+    free_port,
+    make_work,
+    saved_calibration,
+    tcp_port,
+    wait,
+)
 from tests.sockets import unanswered_port
 
 CONFIG = f"""\
@@ -64,16 +71,7 @@ HOSTILE_YAML = {
 
 
 def _cal(m: float = 0.1) -> Calibration:
-    return Calibration(
-        estimate=Estimate(Params("EM3", m=m, b_mps=0.05), {"m": 0.001, "b": 0.002}),
-        uut="emlog1",
-        lag_s=0.165,
-        covariance=((1e-4, 0.0, 0.0), (0.0, 1e-6, -1e-7), (0.0, -1e-7, 4e-6)),
-        t=1.75e9,
-        n_samples=100,
-        reference={"port": "dvl", "field": "bottom"},
-        nis_mean=1.01,
-    )
+    return saved_calibration(m, lag_s=0.165)  # emlog1's configured lag, 3.3 s / SPEED
 
 
 # -- the parsers: every hostile value is their own error --------------------------------

@@ -19,20 +19,12 @@ from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.integrity import Envelope
+from tests.emlogd.daemon.harness import saved_calibration
 from tests.synth import TWO_AXIS_FIGURES as FIGURES
 
 
 def _state(m: float = 0.1, n: int = 100) -> Calibration:
-    return Calibration(
-        estimate=Estimate(Params("EM3", m=m, b_mps=0.05), {"m": 0.001, "b": 0.002}),
-        uut="emlog1",
-        lag_s=3.2,
-        covariance=((1e-4, 0.0, 0.0), (0.0, 1e-6, -1e-7), (0.0, -1e-7, 4e-6)),
-        t=1.75e9,
-        n_samples=n,
-        reference={"port": "dvl", "field": "bottom"},
-        nis_mean=1.01,
-    )
+    return saved_calibration(m, n=n)
 
 
 def parse_state(text: str) -> dict[str, Calibration]:
