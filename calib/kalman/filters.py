@@ -100,7 +100,7 @@ Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 from __future__ import annotations
 
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -595,6 +595,48 @@ class KfCalibrator:
         self._c0, self._c1 = other._c0, other._c1
         self._nu_prev, self._n_adapt = other._nu_prev, other._n_adapt
         self._w_adapt = other._w_adapt
+
+    def condition(self, values: Mapping[str, float]) -> None:
+        """Fix some parameters at given values and move every other state by what the
+        covariance says it owes them: the Gaussian conditional ``x | θ_h = values``.
+
+        The held parameters' variance becomes 0; the others' means move by
+        ``P_·h P_hh⁻¹ (values − θ̂_h)`` and their covariance loses ``P_·h P_hh⁻¹ P_h·``.
+        A parameter the data do not determine, reported at its prior, then leaves the
+        others as the data say they are given that prior (what least squares holding it
+        fits), not as a few samples moved all of them together. A parameter whose
+        variance is already 0 is set to its value alone.
+
+        Args:
+            values: the value of each held parameter by short name (``a``, ``m``, ``b``).
+
+        Raises:
+            ModelError: a name that is not one of the filter's parameters, or a value
+                that is not finite.
+        """
+        lay = self.layout
+        x, P = self._x, self._P
+        for name, value in values.items():
+            if name not in lay.params:
+                raise ModelError(f"{name!r} is not a parameter of {lay.model}")
+            if not math.isfinite(value):
+                raise ModelError(f"{name} must be finite, got {value!r}")
+            i = lay.indices(name)[0]
+            var = P[i][i]
+            if not var > 0.0:
+                x[i] = value
+                continue
+            k = [row[i] / var for row in P]
+            d = x[i] - value
+            col = [row[i] for row in P]
+            for r in range(lay.n):
+                x[r] -= k[r] * d
+                for c in range(lay.n):
+                    P[r][c] -= k[r] * col[c]
+            x[i] = value
+            for j in range(lay.n):
+                P[i][j] = P[j][i] = 0.0
+        self._params = None
 
     def reacquire_speed(self) -> None:
         """Forget the speed state: :data:`SPEED_UNKNOWN_VAR_M2PS2`, its correlations

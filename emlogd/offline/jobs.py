@@ -10,7 +10,13 @@ fits:
   with the current when asked), estimating only what the data determine;
 - ``kf``: the daemon's own online calibration (:mod:`emlogd.offline.online`)
   fed the recorded samples in order — so ``emlogd calibrate --method kf`` and
-  ``emlogd replay`` give the same estimate for the same lag.
+  ``emlogd replay`` give the same estimate for the same lag where neither the
+  supervisor's change detector alarms nor the run leaves an unknown undetermined.
+  Offline it estimates one model over the recordings, as least squares does: a change
+  the supervisor saw does not re-open the learner (the daemon's does, so that what it
+  offers next rests on readings after the change; on GNSS most such alarms are raised
+  by the sea), and an unknown the whole run does not determine is reported at its
+  prior, the others conditioned on it (:meth:`calib.kalman.KfCalibrator.condition`).
 
 Whichever the method, the verdict on every unknown comes from the identifiability
 rule over all aligned samples (:func:`calib.excitation.identifiability`). Results carry
@@ -51,7 +57,14 @@ from calib.metrics import (
     water_scores,
     water_targets,
 )
-from calib.models import FloatArray, Layout, Params, check_model, correct_array
+from calib.models import (
+    FloatArray,
+    Layout,
+    Params,
+    check_model,
+    correct_array,
+    zero_params,
+)
 from drivers.errors import EmlogdError
 from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.calfile import CalibrationFileError, dumps, loads
@@ -416,7 +429,6 @@ def calibrate(
     else:
         with TraceWriter(trace) as tracer:
             cal = run_online(recs, settings, lag_report.lag_s, trace=tracer.row if trace else None)
-        params = cal.kf.params
         ident = identifiability(
             layout,
             ref - _projection(cal.kf.current_mps, heading) if settings.current else ref,
@@ -425,12 +437,19 @@ def calibrate(
             heading_deg=hd,
             rule=settings.rule,
         )
-        stderr = {k: (v if k in ident.determined else None) for k, v in cal.kf.param_std.items()}
+        # an unknown the recordings do not determine is at its prior (the run's start:
+        # the ideal sensor), the others conditioned on it: the filter learns what a
+        # recent window determines, and a few blocks may have moved it (and, through
+        # the covariance, the rest) where the whole run does not determine it
+        held = zero_params(settings.model).as_dict()
+        final = cal.kf.copy()
+        final.condition({k: v for k, v in held.items() if k not in ident.determined})
+        stderr = {k: (v if k in ident.determined else None) for k, v in final.param_std.items()}
         # the current is reported as the filter reports it (status, VDR, the trace's
         # current_determined): only when determined at the end of the run
-        cur = cal.kf.current_mps if cal.ident_current() else None
-        cur_std = cal.kf.current_std_mps if cur is not None else None
-        estimate = Estimate(params, stderr, cur, cur_std)
+        cur = final.current_mps if cal.ident_current() else None
+        cur_std = final.current_std_mps if cur is not None else None
+        estimate = Estimate(final.params, stderr, cur, cur_std)
         noise_scale = cal.kf.noise_scale
         if cal.nis:
             stats = nis_stats(np.array(cal.nis, dtype=np.float64))

@@ -33,12 +33,20 @@ def run_online(
     reference, heading and readings merged in time order as they arrived. ``trace``
     receives one row per learnt-from reading (``calibrate --trace``). The filter's
     noises are matched to the innovations' covariance (an honest σ and NIS; the daemon
-    scales them by the slowly adapted noise scale its offers rest on).
+    scales them by the slowly adapted noise scale its offers rest on), and a change the
+    supervisor's detector saw withdraws the applied calibration without re-opening the
+    learner (one model over the recordings; the daemon re-opens it so that its next
+    offer rests on readings after the change).
     """
     s = dataclasses.replace(settings, lag_s=lag_s, learn=True)
     heading = SampleRing(4096, 2.0, angular=True, cadence=True)
     cal = UutCalibration(
-        s, None, lambda t: _heading(heading, t), lambda t, k, d: None, matched_noise=True
+        s,
+        None,
+        lambda t: _heading(heading, t),
+        lambda t, k, d: None,
+        matched_noise=True,
+        reopen_on_change=False,
     )
     cal.tracer = trace
     for r in recs:

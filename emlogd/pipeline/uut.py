@@ -81,6 +81,11 @@ class UutCalibration:
         event: called as ``event(t, kind, detail)`` for every state change worth a log line.
         matched_noise: the learner's filter scaled to the innovations' covariance
             (:class:`emlogd.pipeline.learner.Learner`; offline ``calibrate``).
+        reopen_on_change: a change the supervisor's detector saw re-opens the learner's
+            parameters (:meth:`Learner.reopen_for_change`: what is offered next rests on
+            readings after the change). False (offline ``calibrate``, one model over the
+            recordings as least squares fits it): the supervisor still withdraws, the
+            learner keeps what every reading taught.
     """
 
     def __init__(
@@ -91,8 +96,10 @@ class UutCalibration:
         event: Callable[[float, str, Mapping[str, object]], None],
         *,
         matched_noise: bool = False,
+        reopen_on_change: bool = True,
     ) -> None:
         self.s = s
+        self.reopen_on_change = reopen_on_change
         self.layout = Layout(check_model(s.model), s.current)
         self.heading_at = heading_at
         self._event = event
@@ -357,6 +364,8 @@ class UutCalibration:
         sup.observe(a.t, a.raw, a.ref, cs, lr, proj=proj, water=water)
         if sup.reopen:
             sup.reopen = False
+            if not self.reopen_on_change:
+                return
             lr.reopen_for_change()
             self.counters.relearn += 1
             self._emit(a.t, "relearn", {"why": "the supervisor saw the readings change"})

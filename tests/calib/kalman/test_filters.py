@@ -408,6 +408,33 @@ class TestIntegrityHooks:
         assert P[1][1] == cfg.p0 and P[1][0] == P[1][2] == 0.0
         assert kf.params.m != 0.0
 
+    def test_condition_moves_the_others_along_what_the_data_left(self) -> None:
+        """At one speed the data fix (1 + m)·v + b only: conditioning b at its true value
+        puts m at the truth along that valley, exactly the Gaussian conditional of the
+        state (b's variance 0, the others' covariance reduced)."""
+        cfg = KfConfig()
+        kf = KfCalibrator("EM3", cfg, current=True)
+        rng = np.random.default_rng(5)
+        truth = TRUTH["EM3"]
+        for k in range(900):
+            psi = math.radians(90.0 * (k // 60))
+            v = 2.0 + rng.normal(0.0, 0.01)
+            ref = v + 0.2 * math.cos(psi) + rng.normal(0.0, cfg.r_ref_mps2**0.5)
+            raw = float(forward_array(truth, np.array([v]))[0]) + rng.normal(0.0, 0.02)
+            kf.update(raw, ref, 1.0, heading_cs=(math.cos(psi), math.sin(psi)))
+        assert abs(kf.params.m - truth.m) > 0.02  # the valley: b and m traded
+        x, P = np.array(kf.x), np.array(kf.covariance())
+        kf.condition({"b": truth.b_mps})
+        g = P[:, 2] / P[2, 2]
+        assert np.allclose(kf.x, x - g * (x[2] - truth.b_mps), atol=1e-12)
+        assert np.allclose(kf.covariance(), P - np.outer(g, P[2, :]), atol=1e-12)
+        assert kf.params.b_mps == truth.b_mps and kf.param_std["b"] == 0.0
+        assert kf.params.m == pytest.approx(truth.m, abs=0.01)
+        with pytest.raises(ModelError, match="not a parameter"):
+            kf.condition({"a": 0.0})
+        with pytest.raises(ModelError, match="finite"):
+            kf.condition({"m": math.nan})
+
     def test_age_current_grows_the_current_variance_up_to_its_prior(self) -> None:
         """age_current(s) adds the random walk over s to each current component, capped at
         the prior; the parameters' variances are untouched."""

@@ -18,7 +18,8 @@ E1C = dataclasses.replace(UutSettings(port="emlog1", reference_port="dvl"), curr
 
 def test_kf_trace(trial_files: dict[str, Path], tmp_path: Path) -> None:
     """--trace writes one row per learnt-from reading: full-precision times, the
-    parameters ending at the result's, the current with its σ, and the state."""
+    parameters ending at the result's (the filter's, where the run determines them; one
+    it does not is reported at its prior), the current with its σ, and the state."""
     recs = load_captures([trial_files["figure-8"]], E1C)
     path = tmp_path / "trace.csv"
     res = calibrate(recs, E1C, "kf", lag=3.3, trace=path)
@@ -27,7 +28,15 @@ def test_kf_trace(trial_files: dict[str, Path], tmp_path: Path) -> None:
     assert tuple(rows[0]) == TRACE_COLUMNS
     t = [float(r["t"]) for r in rows]
     assert len(rows) > 100 and all(b > a for a, b in itertools.pairwise(t))
-    assert float(rows[-1]["m"]) == pytest.approx(res.params.m, abs=1e-5)
+    assert res.ident.unidentifiable == ("m",) and res.params.m == 0.0
+    assert float(rows[-1]["m"]) != 0.0
+    e1 = dataclasses.replace(E1C, current=False)
+    whole = calibrate(load_captures([trial_files["figure-8"]], e1), e1, "kf", lag=3.3, trace=path)
+    with open(path, newline="") as f:
+        last = list(csv.DictReader(f))[-1]
+    assert whole.ident.identifiable
+    assert float(last["m"]) == pytest.approx(whole.params.m, abs=1e-5)
+    assert float(last["b"]) == pytest.approx(whole.params.b_mps, abs=1e-5)
     assert {r["state"] for r in rows} >= {"learning"}
     assert all(r["std_current_north_mps"] for r in rows[1:])
     with pytest.raises(OfflineError, match="--method kf"):

@@ -291,6 +291,22 @@ class TestChangeDetection:
         assert "relearn" in [k for t, k, _ in rig.events if t >= t_step]
         assert rig.cal.applied is None or rig.cal.applied != TRUE
 
+    def test_offline_a_change_withdraws_without_reopening_the_learner(self) -> None:
+        """Without ``reopen_on_change`` (offline calibrate: one model over the recording)
+        the same step is withdrawn as quickly, and the learner keeps what it knew."""
+        rig = Rig(_prior())
+        rig.cal.reopen_on_change = False
+        rig.run(60)
+        std_before = rig.cal.learner.param_std["m"]
+        t_step = rig.t
+        rig.run(20, raw=lambda t, v: 0.65 * TRUE.forward(v))
+        falls = [t for t, k, _ in rig.events if k == "fallback"]
+        assert falls and falls[0] - t_step <= 5.0
+        assert rig.cal.counters.changes == 1 and rig.cal.counters.relearn == 0
+        assert "relearn" not in rig.kinds()
+        assert rig.cal.learner.shadow is None
+        assert rig.cal.learner.param_std["m"] < 1.5 * std_before  # re-opened: σ 0.3
+
     def test_a_sensor_that_jumped_is_judged_in_the_sea_before_the_jump(self) -> None:
         """A 35 % gain step on a straight leg in the water frame: the log jumped and the
         reference did not, so the withdrawn calibration re-validates in the sea as it was
