@@ -1,7 +1,8 @@
 """Kalman filters KF-EM1..KF-EM4 (paper sections II-B and III-C-2), with optional current.
 
 - :mod:`calib.kalman.reference`: the numpy textbook filter (the oracle);
-- :mod:`calib.kalman.kernels`: the per-sample scalar update over plain floats;
+- :mod:`calib.kalman.kernels`: the per-sample scalar update over plain floats, the
+  Gaussian conditional on a known state, the covariance check;
 - :mod:`calib.kalman.filters`: :class:`KfCalibrator`, the online filter the daemon runs;
 - :mod:`calib.kalman.batch`: :func:`run_kf` over recorded arrays (offline commands).
 
@@ -15,9 +16,8 @@ from calib.kalman.filters import (
     KfCalibrator,
     KfConfig,
     StepResult,
-    check_covariance,
 )
-from calib.kalman.kernels import P_FLOOR, scalar_update
+from calib.kalman.kernels import P_FLOOR, check_covariance, scalar_update
 from calib.kalman.reference import Innovation, KalmanModel, State, make_state, predict, update
 
 __all__ = [

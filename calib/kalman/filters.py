@@ -108,7 +108,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError, ModelError
-from calib.kalman.kernels import scalar_update, to_lists
+from calib.kalman.kernels import check_covariance, condition, scalar_update, to_lists
 from calib.kalman.reference import Innovation
 from calib.models import CURRENT, Layout, Params, check_model, design_row, invert
 
@@ -597,45 +597,23 @@ class KfCalibrator:
         self._w_adapt = other._w_adapt
 
     def condition(self, values: Mapping[str, float]) -> None:
-        """Fix some parameters at given values and move every other state by what the
-        covariance says it owes them: the Gaussian conditional ``x | θ_h = values``.
-
-        The held parameters' variance becomes 0; the others' means move by
-        ``P_·h P_hh⁻¹ (values − θ̂_h)`` and their covariance loses ``P_·h P_hh⁻¹ P_h·``.
-        A parameter the data do not determine, reported at its prior, then leaves the
-        others as the data say they are given that prior (what least squares holding it
-        fits), not as a few samples moved all of them together. A parameter whose
-        variance is already 0 is set to its value alone.
-
-        Args:
-            values: the value of each held parameter by short name (``a``, ``m``, ``b``).
+        """Hold some parameters at given values, every other state moved to its Gaussian
+        conditional on them (:func:`calib.kalman.kernels.condition`): a parameter the data
+        do not determine, reported at its prior, leaves the others where the data put them
+        given that prior (what least squares holding it fits), not where a few samples
+        moved all of them together.
 
         Raises:
-            ModelError: a name that is not one of the filter's parameters, or a value
-                that is not finite.
+            ModelError: a name that is not a parameter of the filter, or a value that is
+                not finite.
         """
-        lay = self.layout
-        x, P = self._x, self._P
         for name, value in values.items():
-            if name not in lay.params:
-                raise ModelError(f"{name!r} is not a parameter of {lay.model}")
-            if not math.isfinite(value):
-                raise ModelError(f"{name} must be finite, got {value!r}")
-            i = lay.indices(name)[0]
-            var = P[i][i]
-            if not var > 0.0:
-                x[i] = value
-                continue
-            k = [row[i] / var for row in P]
-            d = x[i] - value
-            col = [row[i] for row in P]
-            for r in range(lay.n):
-                x[r] -= k[r] * d
-                for c in range(lay.n):
-                    P[r][c] -= k[r] * col[c]
-            x[i] = value
-            for j in range(lay.n):
-                P[i][j] = P[j][i] = 0.0
+            if name not in self.layout.params or not math.isfinite(value):
+                raise ModelError(
+                    f"cannot hold {name!r} at {value!r}: not a finite value of a "
+                    f"parameter of {self.layout.model}"
+                )
+            condition(self._x, self._P, self.layout.indices(name)[0], value)
         self._params = None
 
     def reacquire_speed(self) -> None:
@@ -717,26 +695,3 @@ class KfCalibrator:
     def speed_std_mps(self) -> float:
         """Standard deviation of v̂ in m/s."""
         return math.sqrt(self._P[0][0])
-
-
-def check_covariance(M: npt.ArrayLike, n: int) -> None:
-    """Raise ModelError unless M is an n×n finite, symmetric, positive-definite matrix.
-
-    Args:
-        M: the matrix.
-        n: the expected size.
-
-    Raises:
-        ModelError: wrong shape, non-finite, not symmetric or not positive definite.
-    """
-    A = np.asarray(M, dtype=np.float64)
-    if A.shape != (n, n):
-        raise ModelError(f"covariance must have shape ({n}, {n}), got {A.shape}")
-    if not np.all(np.isfinite(A)):
-        raise ModelError("covariance has non-finite entries")
-    scale = max(float(np.max(np.abs(A))), 1e-300)
-    if not np.allclose(A, A.T, rtol=0.0, atol=1e-9 * scale):
-        raise ModelError("covariance is not symmetric")
-    eig = np.linalg.eigvalsh(0.5 * (A + A.T))
-    if not float(eig[0]) > 0.0:
-        raise ModelError(f"covariance is not positive definite (smallest eigenvalue {eig[0]:.3g})")

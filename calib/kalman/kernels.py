@@ -27,6 +27,9 @@ applied with the innovation variance ``f·S`` (the gain is K/f and P shrinks by 
 what an independent sample would take off), while the returned S and the gate are the
 sample's own.
 
+:func:`condition` makes one state known (the Gaussian conditional of the others on it);
+:func:`check_covariance` checks a covariance given from outside (a saved calibration's).
+
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
 
@@ -36,6 +39,8 @@ from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
+
+from calib.errors import ModelError
 
 P_FLOOR = 1e-30
 """Smallest variance a diagonal element of P may take."""
@@ -106,3 +111,49 @@ def scalar_update(
 def to_lists(M: npt.ArrayLike) -> list[list[float]]:
     """A square matrix as n lists of n Python floats (a copy)."""
     return [[float(v) for v in row] for row in np.asarray(M, dtype=np.float64)]
+
+
+def condition(x: list[float], P: list[list[float]], i: int, value: float) -> None:
+    """State ``i`` known to be ``value``: the Gaussian conditional, in place.
+
+    Every state moves by ``P[·][i]/P[i][i]·(value − x[i])`` and the covariance loses
+    ``P[·][i]·P[i][·]/P[i][i]``; state ``i`` is then ``value`` with no variance and no
+    correlation. A state whose variance is already 0 is set to ``value`` alone.
+    """
+    n = len(x)
+    var = P[i][i]
+    if var > 0.0:
+        col = [row[i] for row in P]
+        d = (value - x[i]) / var
+        for r in range(n):
+            x[r] += col[r] * d
+            k = col[r] / var
+            row = P[r]
+            for c in range(n):
+                row[c] -= k * col[c]
+    x[i] = value
+    for j in range(n):
+        P[i][j] = P[j][i] = 0.0
+
+
+def check_covariance(M: npt.ArrayLike, n: int) -> None:
+    """Raise ModelError unless M is an n×n finite, symmetric, positive-definite matrix.
+
+    Args:
+        M: the matrix.
+        n: the expected size.
+
+    Raises:
+        ModelError: wrong shape, non-finite, not symmetric or not positive definite.
+    """
+    A = np.asarray(M, dtype=np.float64)
+    if A.shape != (n, n):
+        raise ModelError(f"covariance must have shape ({n}, {n}), got {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise ModelError("covariance has non-finite entries")
+    scale = max(float(np.max(np.abs(A))), 1e-300)
+    if not np.allclose(A, A.T, rtol=0.0, atol=1e-9 * scale):
+        raise ModelError("covariance is not symmetric")
+    eig = np.linalg.eigvalsh(0.5 * (A + A.T))
+    if not float(eig[0]) > 0.0:
+        raise ModelError(f"covariance is not positive definite (smallest eigenvalue {eig[0]:.3g})")

@@ -430,7 +430,7 @@ class TestIntegrityHooks:
         assert np.allclose(kf.covariance(), P - np.outer(g, P[2, :]), atol=1e-12)
         assert kf.params.b_mps == truth.b_mps and kf.param_std["b"] == 0.0
         assert kf.params.m == pytest.approx(truth.m, abs=0.01)
-        with pytest.raises(ModelError, match="not a parameter"):
+        with pytest.raises(ModelError, match="not a finite value of a parameter"):
             kf.condition({"a": 0.0})
         with pytest.raises(ModelError, match="finite"):
             kf.condition({"m": math.nan})
