@@ -6,8 +6,10 @@ current states, heading source...), reads the captures as the daemon would
 (:mod:`emlogd.offline.dataset`), finds the lag with :mod:`calib.lag`'s one rule, and
 fits:
 
-- ``ls``: batch least squares over every aligned sample (:func:`calib.lsq.fit_ls`,
-  with the current when asked), estimating only what the data determine;
+- ``ls``: batch least squares over every aligned sample the daemon's learner learns
+  from (:func:`calib.lsq.fit_ls`, with the current when asked; not a stalled reading,
+  far below the reference at speed, nor a reference below ``min_ref_speed_mps``),
+  estimating only what the data determine;
 - ``kf``: the daemon's own online calibration (:mod:`emlogd.offline.online`)
   fed the recorded samples in order — so ``emlogd calibrate --method kf`` and
   ``emlogd replay`` give the same estimate for the same lag where neither the
@@ -26,6 +28,7 @@ the stable JSON views documented in the README; ``--save`` writes a calibration 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -71,6 +74,7 @@ from emlogd.calfile import CalibrationFileError, dumps, loads
 from emlogd.fileio import write_atomic
 from emlogd.offline import ProgressFn
 from emlogd.offline.dataset import (
+    Aligned,
     CaptureContentError,
     Recording,
     block_means,
@@ -80,6 +84,7 @@ from emlogd.offline.dataset import (
 from emlogd.offline.headings import heading_refusal, needs_heading, why_no_sample
 from emlogd.offline.online import TraceWriter, run_online
 from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.integrity import STALL_FRACTION, STALL_MIN_REF_MPS
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import AVERAGE_S
 
@@ -401,15 +406,25 @@ def calibrate(
     if method == "ls":
         given = average_s if average_s is not None else settings.average_s
         window = given if given is not None else AVERAGE_S.get(settings.reference_field, 0.0)
-        fit_t, fit_raw, fit_ref, fit_hd = t, raw, ref, hd
+        # what the daemon's learner does not learn from is not fitted either: a reading
+        # far below the reference at speed (a log below its threshold, a stalled wheel)
+        # or a reference below the learning speed
+        learnt = [_learnable(p, settings) for p in pairs]
+        fit_t, fit_raw, fit_ref, fit_heading = concat_usable(learnt, settings.current)
+        if fit_raw.size == 0:
+            raise OfflineError(
+                f"no reading to learn from: all {raw.size} are stalled (below "
+                f"{STALL_FRACTION:g} of the reference at speed) or the reference is below "
+                f"{settings.min_ref_speed_mps:g} m/s"
+            )
         if window > 0.0:
-            fit_t, fit_raw, fit_ref, fit_heading = block_means(pairs, settings.current, window)
-            fit_hd = fit_heading if settings.current else None
+            fit_t, fit_raw, fit_ref, fit_heading = block_means(learnt, settings.current, window)
             if fit_raw.size < 3:
                 raise OfflineError(
                     f"fewer than 3 blocks of {window:g} s with a steady heading: "
                     "pass --average 0 to fit every sample"
                 )
+        fit_hd = fit_heading if settings.current else None
         fit = fit_ls(
             settings.model,
             fit_ref,
@@ -476,6 +491,17 @@ def calibrate(
         imo_raw=imo_raw,
         imo_cal=imo_cal,
     )
+
+
+def _learnable(p: Aligned, settings: UutSettings) -> Aligned:
+    """``p`` without the samples the daemon's learner would not learn from (their
+    reference taken away): a stalled reading (:meth:`UutHealth.stalled`) or a reference
+    slower than ``min_ref_speed_mps``."""
+    ref = p.ref
+    with np.errstate(invalid="ignore"):
+        stalled = (ref >= STALL_MIN_REF_MPS) & (p.raw < STALL_FRACTION * ref)
+        slow = np.abs(ref) < settings.min_ref_speed_mps
+    return dataclasses.replace(p, ref=np.where(stalled | slow, np.nan, ref))
 
 
 def _projection(cur: tuple[float, float] | None, heading_deg: FloatArray) -> FloatArray:

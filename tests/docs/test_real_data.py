@@ -95,8 +95,7 @@ replay applies nothing."""
 
 KNOWN: dict[str, str] = {
     "astra-race-2017-07-08-trieste": "the replay emits 1.14 times raw's RMSE over a 5-min window",
-    "irene-2013-09-22-leman": "the LS scale at its low median speed is 0.038 off the "
-    "independent fit, and the replay emits 1.13 times raw's RMSE over a 5-min window",
+    "irene-2013-09-22-leman": "the replay emits 1.13 times raw's RMSE over a 5-min window",
 }
 """What does not hold yet on this tree, by recording (docs/REAL_DATA.md): strict xfails,
 so a recording that starts passing fails here until it is taken off the list."""

@@ -210,6 +210,45 @@ def _recording(dt_ref: float, heading: float, valid: bool = True) -> Recording:
     )
 
 
+class TestStalledReadings:
+    """Least squares fits what the daemon's learner learns from: a stalled reading (a
+    wheel below its threshold reads far under the reference) is left out."""
+
+    @staticmethod
+    def _stalling(stalled: slice) -> Recording:
+        """20 min at 1 Hz of a log with m = 0.1, b = 0.05 m/s, reading 0 over ``stalled``."""
+        t = np.arange(0.0, 1200.0, 1.0)
+        v = 2.0 + 0.8 * np.sin(2.0 * np.pi * t / 300.0)
+        raw = 1.1 * v + 0.05
+        raw[stalled] = 0.0
+        return Recording(
+            path="x.cap",
+            uut="log",
+            ports={"log": "nmea0183"},
+            t_read=t + 0.5,
+            raw=raw,
+            t_ref=t + 0.5,
+            v_ref=v,
+            ok_ref=np.full(t.size, True),
+            heading=np.full(t.size, 10.0),
+            counters={},
+            uut_counters={},
+            t_start=0.0,
+            t_end=1200.0,
+        )
+
+    def test_a_stalled_stretch_does_not_pull_the_fit(self) -> None:
+        """Two minutes of zeros at 2 m/s: the fit is the sensor's, its RMSE scored on
+        every reading; every reading stalled: refused, saying why."""
+        s = UutSettings(port="log", reference_port="log")
+        res = calibrate([self._stalling(slice(600, 720))], s, "ls", lag=0.0, average_s=0.0)
+        assert res.params.m == pytest.approx(0.1, abs=1e-6)
+        assert res.params.b_mps == pytest.approx(0.05, abs=1e-6)
+        assert res.n_samples == 1200
+        with pytest.raises(OfflineError, match="all 1200 are stalled"):
+            calibrate([self._stalling(slice(None))], s, "ls", lag=0.0, average_s=0.0)
+
+
 class TestNothingAligns:
     """When no reading pairs with a reference, the error names the cause with its figures."""
 
