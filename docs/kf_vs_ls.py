@@ -5,7 +5,9 @@ docs/REAL_DATA.md (the NMEA logs, ``expedition-valencia.csv`` and
 ``regatta-analyser-2024-07-18-estonia.csv``; the ones missing are skipped). Each is
 imported, calibrated against GNSS in the water frame (EM3 with the current) by least
 squares and by the daemon's filter (``calibrate --method kf``), and the two compared:
-``z`` is the difference over the root-sum-square of their standard errors. Then the
+``z`` is the difference over the root-sum-square of their standard errors, and the
+last column each one's scale at the median speed (corrected / raw at the median
+reading); a recording calibrate refuses (a wrong heading) shows why. Then the
 same on synthetic 20-s block means of a GNSS-like reference (σ 0.3 m/s) through a
 tidal current swinging ±0, 0.5 and 1 m/s over 6 hours, where the truth is known: the
 filter as the paper has it (its operating point the reference, the configured noises)
@@ -19,6 +21,7 @@ import math
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +29,7 @@ from calib.kalman import KfCalibrator, KfConfig
 from calib.lsq import block_average, fit_ls
 from calib.models import Params
 from emlogd.offline.importer import EXPEDITION, import_csv, import_nmea
-from emlogd.offline.jobs import calibrate, load_captures
+from emlogd.offline.jobs import OfflineError, calibrate, load_captures
 from emlogd.pipeline.settings import UutSettings
 from tests.synth import water_frame_segment
 
@@ -75,13 +78,21 @@ def _cur(d: dict[str, object]) -> str:
     return f"{speed:.2f} kn ± {sd:.3f}"
 
 
+def _scale(d: dict[str, Any], speed_mps: float) -> float:
+    """Corrected / raw at ``speed_mps`` for a calibrate result."""
+    p = d["params"]
+    params = Params("EM3", m=p.get("m", 0.0), b_mps=p.get("b", 0.0))
+    return params.correct(speed_mps) / speed_mps
+
+
 def real(src: Path, out: Path) -> None:
     """LS and KF on every recording found."""
     print(
         "| recording | LS m | KF m | z(m) | LS b m/s | KF b m/s | z(b) | LS current | "
-        "KF current | KF NIS | RMSE raw / LS / KF m/s | identifiable LS / KF |"
+        "KF current | KF NIS | RMSE raw / LS / KF m/s | identifiable LS / KF | "
+        "scale at the median speed LS / KF |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     files = [
         *sorted(src.glob("*.nmea")),
         src / "expedition-valencia.csv",
@@ -99,15 +110,22 @@ def real(src: Path, out: Path) -> None:
             magnetic_variation_deg=var,
         )
         recs = load_captures([str(capture(f, out))], s)
-        ls = calibrate(recs, s, "ls", lag=0.0).to_dict()
-        kf = calibrate(recs, s, "kf", lag=0.0).to_dict()
+        try:
+            ls = calibrate(recs, s, "ls", lag=0.0).to_dict()
+            kf = calibrate(recs, s, "kf", lag=0.0).to_dict()
+        except OfflineError as exc:
+            print(f"| {f.stem} | refused: {exc} |" + " — |" * 11, flush=True)
+            continue
         nis = kf["nis_mean"]
+        al = [r.aligned(0.0) for r in recs]
+        med = float(np.median(np.concatenate([a.raw[a.usable(heading=True)] for a in al])))
         print(
             f"| {f.stem} | {_pm(ls, 'm')} | {_pm(kf, 'm')} | {_z(ls, kf, 'm')} | "
             f"{_pm(ls, 'b')} | {_pm(kf, 'b')} | {_z(ls, kf, 'b')} | {_cur(ls)} | {_cur(kf)} | "
             f"{'–' if nis is None else f'{nis:.2f}'} | "
             f"{ls['rmse_raw']:.3f} / {ls['rmse_cal']:.3f} / {kf['rmse_cal']:.3f} | "
-            f"{'yes' if ls['identifiable'] else 'no'} / {'yes' if kf['identifiable'] else 'no'} |",
+            f"{'yes' if ls['identifiable'] else 'no'} / {'yes' if kf['identifiable'] else 'no'} | "
+            f"{_scale(ls, med):.3f} / {_scale(kf, med):.3f} |",
             flush=True,
         )
 
