@@ -164,8 +164,8 @@ def add_parser(sub: Subparsers) -> None:
         "--method",
         choices=get_args(Method),
         default="ls",
-        help="ls: least squares over all samples (default); kf: the daemon's Kalman filter, "
-        "sample by sample",
+        help="ls (default): least squares over every sample the daemon learns from (no "
+        "stalled reading); kf: the daemon's Kalman filter, sample by sample",
     )
     p.add_argument("--save", metavar="PARAMS.yaml", help="write the calibration file")
     p.add_argument(
