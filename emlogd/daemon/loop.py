@@ -37,7 +37,7 @@ from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
-from emlogd.daemon.logsetup import EventLimiter, is_console, lost_lines, status_line
+from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import Outputs
 from emlogd.daemon.statefile import StateStore, same_records
@@ -343,6 +343,7 @@ class Daemon:
         for server in self.controls.values():
             server.housekeep()
         self.outputs.housekeep()
+        flush_log(0.0)  # log lines a slow reader left behind
         self._tick()
 
     def _watch(self, fd: int, call: Callable[[], None]) -> None:
