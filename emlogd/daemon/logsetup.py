@@ -255,6 +255,7 @@ CLIENT_EVENTS = frozenset(
         "client_evicted",
         "client_sent_data",
         "client_stalled",
+        "client_throttled",
         "client_too_slow",
     }
 )

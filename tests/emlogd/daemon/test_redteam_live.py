@@ -13,17 +13,26 @@ import functools
 import json
 import os
 import signal
+import socket
 import struct
 import subprocess
 import sys
 import termios
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from emlogd.launch import STOP_TIMEOUT_S
-from tests.emlogd.daemon.harness import make_work, wait
+from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
+from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
+from tests.emlogd.daemon.harness import SPEED, Daemon, make_work, tcp_port, wait
+from tests.emlogd.daemon.test_lockout import _first_sentence, _tcp_counters
 from tests.emlogd.daemon.test_redteam import CONFIG, F_SETPIPE_SZ, _answers
+
+
+PORTS = ("emlog1", "dvl")
+"""The sensors of ``CONFIG`` (a port served that the daemon never opens holds the
+fake's one clock)."""
 
 
 def _run(work: Path, out: int) -> subprocess.Popen[bytes]:
@@ -89,3 +98,60 @@ def test_a_log_reader_that_does_not_read_costs_log_lines_not_the_daemon(tmp_path
         os.close(r)
         if w >= 0:
             os.close(w)
+
+
+def _reconnect_loop(port: int, source: str, until: float, conns: list[int]) -> None:
+    """Connect from ``source`` and send 64 KiB blocks until closed, then again at once,
+    until ``until`` (monotonic): the client ``bench_tcp_flood --mode reconnect`` runs."""
+    block = b"x" * 65536
+    while time.monotonic() < until:
+        with contextlib.suppress(OSError):
+            s = socket.create_connection(("127.0.0.1", port), 0.5, source_address=(source, 0))
+            conns[0] += 1
+            with s:
+                while time.monotonic() < until:
+                    s.send(block)
+
+
+def test_a_client_reconnecting_at_once_after_each_reset_is_held_to_its_budget(
+    tmp_path: Path, trial_files: dict[str, Path]
+) -> None:
+    """Two threads of one host (127.0.0.2) sending to the TCP output port and connecting
+    again at once after each reset, for 3 s: the daemon makes clients of at most its
+    budget (``SOURCE_BURST`` at once, then ``SOURCE_RATE`` a second), resets the rest
+    as ``throttled``, and a newcomer from another host (127.0.0.3) connects within a
+    second and a half, while a reader connected before keeps receiving. Each of the
+    thousands of connections was accepted, registered, read and reset (0.37 cores)."""
+    work = make_work(tmp_path, CONFIG)
+    port = tcp_port(work)
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(
+            fake_sensors(trial_files["figure-8"], work / "links", PORTS, speed=SPEED)
+        )
+        d = Daemon(work)
+        stack.callback(d.kill)
+        reader = socket.create_connection(("127.0.0.1", port), timeout=5)
+        stack.callback(reader.close)
+        conns = [0]
+        until = time.monotonic() + 3.0
+        threads = [
+            threading.Thread(target=_reconnect_loop, args=(port, "127.0.0.2", until, conns))
+            for _ in range(2)
+        ]
+        for t in threads:
+            t.start()
+        time.sleep(1.0)
+        t0 = time.monotonic()
+        fresh = socket.create_connection(("127.0.0.1", port), 3.0, source_address=("127.0.0.3", 0))
+        connect_s = time.monotonic() - t0
+        fresh.close()
+        for t in threads:
+            t.join()
+        counters = _tcp_counters(d, port)
+        assert connect_s < 1.5, connect_s
+        assert counters["throttled"] > 0, counters
+        # the flooder's clients, all reset as sent_data; 1 s of slack for a slow machine
+        assert counters["sent_data"] <= SOURCE_BURST + SOURCE_RATE * 4.0, counters
+        assert counters["clients"] == 1, counters
+        assert _first_sentence(reader, 3.0) < 3.0  # the reader, still served
+        assert d.stop() == 0
