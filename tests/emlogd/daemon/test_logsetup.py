@@ -17,7 +17,7 @@ import structlog
 
 from emlogd.daemon import logsetup
 from emlogd.daemon.logsetup import configure_logging, is_console, status_line
-from tests.emlogd.daemon.test_redteam import F_SETPIPE_SZ
+from tests.emlogd.daemon.test_redteam import F_SETPIPE_SZ, _drain
 
 
 class TestConfigureLogging:
@@ -68,15 +68,6 @@ class TestConfigureLogging:
         """Unknown formats and levels raise ValueError."""
         with pytest.raises(ValueError):
             configure_logging(fmt, level, io.StringIO())  # type: ignore[arg-type]
-
-
-def _drain(fd: int) -> bytes:
-    """What the non-blocking ``fd`` holds now."""
-    data = b""
-    with contextlib.suppress(BlockingIOError):
-        while chunk := os.read(fd, 65536):
-            data += chunk
-    return data
 
 
 @pytest.fixture(params=["pipe", "socket"])
