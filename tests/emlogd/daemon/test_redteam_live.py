@@ -24,8 +24,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
+from emlogd.daemon.loop import RELOAD_MIN_S
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
-from tests.emlogd.daemon.harness import SPEED, Daemon, make_work, tcp_port, wait
+from tests.emlogd.daemon.harness import SPEED, Daemon, free_port, make_work, tcp_port, wait
 from tests.emlogd.daemon.test_lockout import _first_sentence, _tcp_counters
 from tests.emlogd.daemon.test_redteam import CONFIG, F_SETPIPE_SZ, _answers, _drain
 
@@ -150,3 +151,27 @@ def test_a_client_reconnecting_at_once_after_each_reset_is_held_to_its_budget(
         assert counters["clients"] == 1, counters
         assert _first_sentence(reader, 3.0) < 3.0  # the reader, still served
         assert d.stop() == 0
+
+
+def test_a_sighup_storm_costs_a_few_reloads(tmp_path: Path) -> None:
+    """100 SIGHUPs a second for 2 s, the config changed (a UDP output added) half-way:
+    at most one reload per ``RELOAD_MIN_S``, the last of them after the change, so the
+    UDP output is open; the daemon answers and stops with 0. Each SIGHUP was a reload
+    (reading and building the config, a log line), about 100 a second."""
+    work = make_work(tmp_path, CONFIG)
+    d = Daemon(work)
+    try:
+        cfg = work / "emlogd.yaml"
+        udp = f"127.0.0.1:{free_port()}"
+        t0 = time.monotonic()
+        for k in range(200):
+            if k == 100:
+                cfg.write_text(cfg.read_text().replace("outputs: {", f'outputs: {{udp: "{udp}", '))
+            d.send_signal(signal.SIGHUP)
+            time.sleep(max(t0 + (k + 1) * 0.01 - time.monotonic(), 0.0))
+        elapsed = time.monotonic() - t0
+        wait(lambda: f"udp:{udp}" in d.ask(cmd="status")["outputs"], "the UDP output", 5.0)  # type: ignore[operator]
+        assert d.events("reloaded") <= elapsed / RELOAD_MIN_S + 2, d.events("reloaded")
+        assert d.stop() == 0
+    finally:
+        d.kill()
