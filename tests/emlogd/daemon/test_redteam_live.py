@@ -12,6 +12,7 @@ import fcntl
 import functools
 import json
 import os
+import select
 import signal
 import socket
 import struct
@@ -20,12 +21,14 @@ import sys
 import termios
 import threading
 import time
+import tty
 from collections.abc import Iterator
 from pathlib import Path
 
 from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
 from emlogd.daemon.loop import RELOAD_MIN_S
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
+from tests.drivers.rdi_cases import HOSTILE_HEADER
 from tests.emlogd.daemon.harness import SPEED, Daemon, free_port, make_work, tcp_port, wait
 from tests.emlogd.daemon.test_lockout import _first_sentence, _tcp_counters
 from tests.emlogd.daemon.test_redteam import CONFIG, F_SETPIPE_SZ, _answers, _drain
@@ -175,3 +178,93 @@ def test_a_sighup_storm_costs_a_few_reloads(tmp_path: Path) -> None:
         assert d.stop() == 0
     finally:
         d.kill()
+
+
+PD0_CONFIG = """\
+ports:
+  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
+  - {name: dvl, url: links/dvl, protocol: pd0, role: reference}
+calibration:
+  - {uut: emlog1, reference: dvl, lag: 0.2}
+outputs: {pty: out/emlog0}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+"""
+"""An EMlog and a PD0 DVL, on ptys the test serves itself."""
+
+VHW = (b"$VWVHW,,T,,M,5.00,N,,K*4F\r\n", b"$VWVHW,,T,,M,5.01,N,,K*4E\r\n")
+"""Two readings the EMlog alternates (one repeated for ever is a stuck log, not emitted)."""
+
+
+def _raw_pty(link: Path) -> int:
+    """A pty in raw mode whose slave is published at ``link``; its master (non-blocking)."""
+    master, slave = os.openpty()
+    for fd in (master, slave):
+        tty.setraw(fd)
+    os.set_blocking(master, False)
+    link.symlink_to(os.ttyname(slave))
+    return master
+
+
+FLOOD = """\
+import os, select, sys, time
+fd, data, until = int(sys.argv[1]), bytes.fromhex(sys.argv[2]) * 1000, time.time() + float(sys.argv[3])
+while time.time() < until:
+    try:
+        os.write(fd, data)
+    except BlockingIOError:
+        select.select([], [fd], [], 0.01)
+"""
+"""Write a pattern (hex) to a descriptor as fast as it takes it, for some seconds: a
+process of its own, so that the test's reading thread never waits for it."""
+
+
+def _flood(fd: int, pattern: bytes, seconds: float) -> subprocess.Popen[bytes]:
+    argv = [sys.executable, "-c", FLOOD, str(fd), pattern.hex(), str(seconds)]
+    return subprocess.Popen(argv, pass_fds=(fd,))
+
+
+def _vhw_within(fd: int, seconds: float) -> bool:
+    """Whether a VHW comes out of the output pty ``fd`` within ``seconds``."""
+    end = time.monotonic() + seconds
+    data = b""
+    while b"VHW" not in data and (left := end - time.monotonic()) > 0:
+        if select.select([fd], [], [], left)[0]:
+            data += os.read(fd, 65536)
+    return b"VHW" in data
+
+
+def test_a_dvl_sending_pd0_headers_of_long_ensembles_with_wrong_checksums(
+    tmp_path: Path,
+) -> None:
+    """The PD0 port flooded with headers claiming 16 000-byte ensembles, one every 6
+    bytes, their checksums wrong, while the EMlog sends a VHW every 0.1 s: nine in ten
+    corrected VHW leave within 50 ms of their reading; each claimed ensemble is a
+    checksum reject.
+    Each header cost a 16 KB sum in the daemon's one thread: the median VHW waited
+    60 ms and 40 of 56 more than 100 ms."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    masters = [_raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    try:
+        d = Daemon(work, pty=True)
+        try:
+            tty.setraw(d.fd)
+            until = time.monotonic() + 4.0
+            flood = _flood(masters[1], HOSTILE_HEADER, 4.0)
+            late: list[bool] = []
+            while time.monotonic() < until:
+                sent = time.monotonic()
+                os.write(masters[0], VHW[len(late) % 2])
+                late.append(not _vhw_within(d.fd, 0.05))
+                time.sleep(max(sent + 0.1 - time.monotonic(), 0.0))
+            flood.wait(STOP_TIMEOUT_S)
+            assert sum(late) <= len(late) // 10, f"{sum(late)} of {len(late)} late"
+            rejects = d.status()["ports"]["dvl"]["rejects"]  # type: ignore[index]
+            assert rejects["checksum"] >= 10, rejects  # one per claimed ensemble
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for fd in masters:
+            os.close(fd)
