@@ -28,27 +28,21 @@ import math
 import struct
 from dataclasses import dataclass
 from datetime import datetime
-from typing import ClassVar, Literal, TypeAlias
+from typing import ClassVar, TypeAlias
 
 from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import (
-    MAX_DEPTH_M,
-    MAX_PITCH_DEG,
-    MAX_ROLL_DEG,
+    COORD_FRAMES,
     RDI_INVALID,
-    SALINITY_RANGE_PPT,
-    SOUND_SPEED_RANGE_MPS,
-    WATER_TEMP_RANGE_C,
+    CoordFrame,
     SpeedRecord,
     bottom_track,
+    check_ranges,
     rdi_mms,
     ship_frame,
 )
-
-CoordFrame = Literal["beam", "instrument", "ship", "earth"]
-FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
 
 HEADER = b"\x7f\x7f"
 MAX_ENSEMBLE = 16384
@@ -177,9 +171,17 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         c, depth_dm, heading, pitch, roll, sal, temp = struct.unpack_from(
             "<HHHhhHh", frame, vl + 14
         )
-        if heading > 36000:
-            raise OutOfRangeError(f"heading {heading / 100} outside 0..360", frame)
-        _leader_ranges(pitch / 100.0, roll / 100.0, temp / 100.0, sal, c, depth_dm / 10.0, frame)
+        check_ranges(
+            "variable leader",
+            frame,
+            heading=heading / 100.0,
+            pitch=pitch / 100.0,
+            roll=roll / 100.0,
+            temperature=temp / 100.0,
+            salinity=sal,
+            sound_speed=c,
+            depth=depth_dm / 10.0,
+        )
         _, mo, d, h, mi, sec, hs = rtc
         if not (1 <= mo <= 12 and 1 <= d <= 31 and h < 24 and mi < 60 and sec < 60 and hs < 100):
             raise OutOfRangeError(f"real-time clock {rtc} is no date and time", frame)
@@ -198,7 +200,7 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         return Pd0Ensemble(
             ensemble_number=ens,
             rtc=(rtc[0], rtc[1], rtc[2], rtc[3], rtc[4], rtc[5], rtc[6]),
-            coord_frame=FRAMES[(ex >> 3) & 3],
+            coord_frame=COORD_FRAMES[(ex >> 3) & 3],
             n_beams=n_beams,
             n_cells=n_cells,
             frequency_khz=FREQUENCIES_KHZ[config & 7],
@@ -232,25 +234,6 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
             # vessel motion: the opposite of the bottom's
             ship = ship_frame(-v1 / 1000.0, -v2 / 1000.0, record.heading_deg if earth else None)
         return (bottom_track(self.port, ship, record.heading_deg, "PD0:BT"),)
-
-
-def _leader_ranges(
-    pitch: float, roll: float, temp: float, sal: float, c: float, depth: float, raw: bytes
-) -> None:
-    """The variable leader's attitude and environment within their physical ranges."""
-    if not (
-        -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
-        and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
-        and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
-        and SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
-        and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
-        and depth <= MAX_DEPTH_M
-    ):
-        raise OutOfRangeError(
-            f"pitch {pitch}, roll {roll}, temperature {temp}, salinity {sal}, "
-            f"sound speed {c} or depth {depth} out of range",
-            raw,
-        )
 
 
 # ------------------------------------------------------------------ encoder
@@ -295,7 +278,7 @@ def encode_pd0(
         else:
             v = (rdi_mms(-stb), rdi_mms(-fwd), 0, 0)
         rng = max(round((range_m or 0.0) * 100.0), 1)
-    ex = FRAMES.index(coord_frame) << 3
+    ex = COORD_FRAMES.index(coord_frame) << 3
     fixed = bytearray(59)
     struct.pack_into("<HBBH", fixed, 0, FIXED_LEADER, 51, 1, 0b0100_1011)  # 600 kHz
     fixed[8], fixed[9] = 4, 1

@@ -25,27 +25,22 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass
-from typing import ClassVar, Literal, TypeAlias
+from typing import ClassVar, TypeAlias
 
 from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import (
-    MAX_DEPTH_M,
-    MAX_PITCH_DEG,
-    MAX_ROLL_DEG,
+    COORD_FRAMES,
     RDI_INVALID,
-    SALINITY_RANGE_PPT,
-    SOUND_SPEED_RANGE_MPS,
-    WATER_TEMP_RANGE_C,
+    CoordFrame,
     SpeedRecord,
     bottom_track,
+    check_ranges,
     rdi_mms,
     ship_frame,
 )
 
-CoordFrame = Literal["beam", "instrument", "ship", "earth"]
-FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
 HEADER = b"\x7d"
 LENGTHS = {0: 45, 1: 86}
 """Structure ID -> byte count without the checksum."""
@@ -147,22 +142,12 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
         config = f[3]
         h, m, sec, hundredths = f[20:24]
         c, temp = float(f[25]), f[26] / 100.0
-        if not (
-            h < 24
-            and m < 60
-            and sec < 60
-            and hundredths < 100
-            and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
-            and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
-        ):
-            raise OutOfRangeError(
-                f"first ping {h}:{m}:{sec}.{hundredths}, sound speed {c} or temperature {temp} "
-                "out of range",
-                frame,
-            )
+        if not (h < 24 and m < 60 and sec < 60 and hundredths < 100):
+            raise OutOfRangeError(f"first ping {h}:{m}:{sec}.{hundredths} out of range", frame)
+        check_ranges("PD4", frame, sound_speed=c, temperature=temp)
         common = {
             "format": "PD5" if sid == 1 else "PD4",
-            "coord_frame": FRAMES[(config >> 6) & 3],
+            "coord_frame": COORD_FRAMES[(config >> 6) & 3],
             "bottom_mms": _v(f[4:8]),
             "bottom_range_cm": (f[8], f[9], f[10], f[11]),
             "bottom_status": f[12],
@@ -178,18 +163,9 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
             return Pd45Ensemble(**common)
         g = _PD5_EXTRA.unpack_from(frame, _PD4.size)
         sal, depth, pitch, roll, hdg = float(g[0]), g[1] / 10.0, g[2] / 100.0, g[3] / 100.0, g[4]
-        if not (
-            SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
-            and depth <= MAX_DEPTH_M
-            and -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
-            and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
-            and hdg <= 36000
-        ):
-            raise OutOfRangeError(
-                f"PD5 salinity {sal}, depth {depth}, pitch {pitch}, roll {roll} or heading "
-                f"{hdg / 100} out of range",
-                frame,
-            )
+        check_ranges(
+            "PD5", frame, salinity=sal, depth=depth, pitch=pitch, roll=roll, heading=hdg / 100
+        )
         return Pd45Ensemble(
             **common,
             salinity_ppt=sal,
@@ -263,7 +239,7 @@ def encode_pd45(
             0x7D,
             sid,
             LENGTHS[sid],
-            FRAMES.index(coord_frame) << 6,
+            COORD_FRAMES.index(coord_frame) << 6,
             vx,
             vy,
             0 if vx != RDI_INVALID else RDI_INVALID,

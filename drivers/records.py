@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
-from drivers.errors import RejectReason
+from drivers.errors import OutOfRangeError, RejectReason
 
 SpeedKind = Literal["stw", "sog"]
 """``stw``: through water (EMlog, DVL water track); ``sog``: over ground (DVL bottom track)."""
@@ -65,6 +65,46 @@ PD4/PD5 and PD6 alike."""
 
 MAX_DEPTH_M = 12_000.0
 """Deepest instrument or bottom depth, m (the deepest ocean is ~11 km)."""
+
+PHYSICAL_RANGES: dict[str, tuple[float, float]] = {
+    "pitch": (-MAX_PITCH_DEG, MAX_PITCH_DEG),
+    "roll": (-MAX_ROLL_DEG, MAX_ROLL_DEG),
+    "heading": (0.0, 360.0),
+    "temperature": WATER_TEMP_RANGE_C,
+    "salinity": SALINITY_RANGE_PPT,
+    "sound_speed": SOUND_SPEED_RANGE_MPS,
+    "depth": (0.0, MAX_DEPTH_M),
+}
+"""The closed range of each physical field :func:`check_ranges` checks, by field name
+(degrees, °C, ppt, m/s, m)."""
+
+
+def check_ranges(what: str, raw: bytes, **fields: float) -> None:
+    """Each field (a :data:`PHYSICAL_RANGES` name) within its range; NaN is outside.
+
+    Args:
+        what: the block the fields came from, for the message (e.g. ``":TS"``).
+        raw: the rejected bytes.
+        **fields: the values by field name.
+
+    Raises:
+        OutOfRangeError: naming every field outside its range.
+        KeyError: a field name with no range.
+    """
+    bad = [
+        f"{name.replace('_', ' ')} {v}"
+        for name, v in fields.items()
+        if not PHYSICAL_RANGES[name][0] <= v <= PHYSICAL_RANGES[name][1]
+    ]
+    if bad:
+        raise OutOfRangeError(f"{what} {', '.join(bad)} out of range", raw)
+
+
+CoordFrame = Literal["beam", "instrument", "ship", "earth"]
+"""The frame of an RDI binary velocity (PD0, PD4/PD5), in the order of its two-bit code."""
+
+COORD_FRAMES: tuple[CoordFrame, ...] = get_args(CoordFrame)
+"""The frames indexed by their two-bit code."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

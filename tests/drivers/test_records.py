@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import pytest
 
-from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord
+from drivers.errors import OutOfRangeError
+from drivers.records import KMH_MPS, KNOT_MPS, PHYSICAL_RANGES, SpeedRecord, check_ranges
 
 
 def _speed(lon: float | None, tr: float | None) -> SpeedRecord:
@@ -61,3 +63,26 @@ class TestUnits:
         """1 kn = 1852/3600 m/s and 1 km/h = 1/3.6 m/s exactly."""
         assert pytest.approx(0.514444, abs=1e-6) == KNOT_MPS
         assert pytest.approx(KNOT_MPS) == 1.852 * KMH_MPS
+
+
+class TestCheckRanges:
+    """The one physical-range check every RDI decoder applies."""
+
+    @pytest.mark.parametrize("name", sorted(PHYSICAL_RANGES))
+    def test_bounds_are_closed_and_nan_is_outside(self, name: str) -> None:
+        """Each bound is within its field's range; a step past either, or NaN, is refused
+        with the field's name in the message."""
+        lo, hi = PHYSICAL_RANGES[name]
+        check_ranges("X", b"raw", **{name: lo})
+        check_ranges("X", b"raw", **{name: hi})
+        for bad in (lo - 0.01, hi + 0.01, math.nan):
+            with pytest.raises(OutOfRangeError, match=name.replace("_", " ")) as err:
+                check_ranges("X", b"raw", **{name: bad})
+            assert err.value.raw == b"raw"
+
+    def test_names_every_field_outside(self) -> None:
+        """Two fields outside and one within: both outside are named, the good one is not."""
+        with pytest.raises(OutOfRangeError) as err:
+            check_ranges(":TS", b"", salinity=60.0, depth=10.0, sound_speed=900.0)
+        text = str(err.value)
+        assert "salinity 60.0" in text and "sound speed 900.0" in text and "depth" not in text
