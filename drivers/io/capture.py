@@ -38,10 +38,10 @@ from collections import deque
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import BinaryIO, Literal, TextIO
 
 from drivers.errors import CaptureFormatError
+from drivers.io.closing import Closing
 
 MAGIC = "# emlogd capture v1"
 HEX_PREFIX = "hex:"
@@ -471,7 +471,7 @@ def read_ports(path: str | Path) -> dict[str, str]:
     return CaptureReader(path).ports
 
 
-class CaptureWriter:
+class CaptureWriter(Closing):
     """Write a capture v1 file (context manager).
 
     Args:
@@ -547,14 +547,3 @@ class CaptureWriter:
         if self._f is not None:
             self._f.close()
             self._f = None
-
-    def __enter__(self) -> CaptureWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
