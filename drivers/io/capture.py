@@ -471,6 +471,15 @@ def read_ports(path: str | Path) -> dict[str, str]:
     return CaptureReader(path).ports
 
 
+def capture_name(path: str | Path) -> str:
+    """A capture's file name without ``.cap``/``.gz`` (``runs/2-figure8.cap.gz``:
+    ``2-figure8``), the name tables and reports give it."""
+    name = Path(path).name
+    for suffix in (".gz", ".cap"):
+        name = name.removesuffix(suffix)
+    return name
+
+
 class CaptureWriter(Closing):
     """Write a capture v1 file (context manager).
 

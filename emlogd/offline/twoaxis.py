@@ -39,7 +39,7 @@ from calib.twoaxis import (
 )
 from calib.twoaxis_kf import kf_two_axis
 from drivers import make_decoder
-from drivers.io.capture import CaptureReader
+from drivers.io.capture import CaptureReader, capture_name
 from drivers.records import Rejected, SpeedRecord
 from emlogd.fileio import write_atomic
 from emlogd.offline.jobs import OfflineError
@@ -93,11 +93,8 @@ class TwoAxisRecording:
 
     @property
     def name(self) -> str:
-        """The capture's file name without ``.cap``/``.gz``."""
-        name = Path(self.path).name
-        for suffix in (".gz", ".cap"):
-            name = name.removesuffix(suffix)
-        return name
+        """The capture's file name without ``.cap``/``.gz`` (:func:`capture_name`)."""
+        return capture_name(self.path)
 
     def aligned(self, lag_s: float, max_gap_s: float = DEFAULT_MAX_GAP_S) -> TwoAxisAligned:
         """Readings paired with the reference and heading at ``t − lag`` (the alignment
