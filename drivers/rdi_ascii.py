@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, TypeAlias, TypeVar, get_args
 
-from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer, Use
+from drivers.base import FramedDecoder, Framer, Use
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
 from drivers.records import (
@@ -457,15 +457,8 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
     heading: ClassVar[bool] = True
     """:SA."""
 
-    def __init__(
-        self,
-        port: str = "",
-        *,
-        errors: ErrorPolicy = "raise",
-        options: DecoderOptions | None = None,
-    ) -> None:
-        self._block: _Block | None = None
-        super().__init__(port, errors=errors, options=options)
+    _block: _Block | None = None
+    """The ensemble being assembled (None between blocks)."""
 
     # The framer's frame is a line; the ensemble logic runs in feed() so that one
     # ensemble record comes out per block. parse_frame takes a whole block.
