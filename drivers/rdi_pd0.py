@@ -38,10 +38,10 @@ from drivers.records import (
     RDI_INVALID,
     CoordFrame,
     SpeedRecord,
-    bottom_track,
     check_ranges,
+    rdi_bottom_track,
     rdi_mms,
-    ship_frame,
+    rdi_velocities,
 )
 
 HEADER = b"\x7f\x7f"
@@ -118,10 +118,6 @@ def _length_of(buf: bytearray) -> int | None:
     return n
 
 
-def _int16(v: int) -> int | None:
-    return None if v == RDI_INVALID else v
-
-
 class Pd0Decoder(FramedDecoder[Pd0Record]):
     """PD0 decoder (see the module docstring)."""
 
@@ -195,7 +191,7 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
                 msb = frame[bt + 77 : bt + 81]
                 r = tuple(lo + (hi << 16) for lo, hi in zip(r, msb, strict=True))
             v = struct.unpack_from("<4h", frame, bt + 24)
-            bt_v = (_int16(v[0]), _int16(v[1]), _int16(v[2]), _int16(v[3]))
+            bt_v = rdi_velocities(v)
             bt_r = (r[0], r[1], r[2], r[3])
         return Pd0Ensemble(
             ensemble_number=ens,
@@ -223,17 +219,18 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         if record.bt_velocity_mms is None:
             return ()
         v1, v2 = record.bt_velocity_mms[0], record.bt_velocity_mms[1]
-        ship = None
-        if (
-            record.bottom_lock
-            and v1 is not None
-            and v2 is not None
-            and record.coord_frame != "beam"
-        ):
-            earth = record.coord_frame == "earth"
-            # vessel motion: the opposite of the bottom's
-            ship = ship_frame(-v1 / 1000.0, -v2 / 1000.0, record.heading_deg if earth else None)
-        return (bottom_track(self.port, ship, record.heading_deg, "PD0:BT"),)
+        # vessel motion: the opposite of the bottom's
+        vessel = (None if v1 is None else -v1, None if v2 is None else -v2)
+        return (
+            rdi_bottom_track(
+                self.port,
+                record.coord_frame,
+                record.bottom_lock,
+                vessel,
+                record.heading_deg,
+                "PD0:BT",
+            ),
+        )
 
 
 # ------------------------------------------------------------------ encoder

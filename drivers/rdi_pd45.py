@@ -35,10 +35,10 @@ from drivers.records import (
     RDI_INVALID,
     CoordFrame,
     SpeedRecord,
-    bottom_track,
     check_ranges,
+    rdi_bottom_track,
     rdi_mms,
-    ship_frame,
+    rdi_velocities,
 )
 
 HEADER = b"\x7d"
@@ -112,11 +112,6 @@ def _length_of(buf: bytearray) -> int | None:
     return n
 
 
-def _v(values: tuple[int, ...]) -> tuple[int | None, int | None, int | None, int | None]:
-    a, b, c, d = (None if x == RDI_INVALID else x for x in values)
-    return (a, b, c, d)
-
-
 class Pd45Decoder(FramedDecoder[Pd45Record]):
     """PD4/PD5 decoder (registry name ``pd4``; both formats are accepted). PD4 carries no
     heading: :class:`Pd5Decoder` is the port configured ``pd5``."""
@@ -148,10 +143,10 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
         common = {
             "format": "PD5" if sid == 1 else "PD4",
             "coord_frame": COORD_FRAMES[(config >> 6) & 3],
-            "bottom_mms": _v(f[4:8]),
+            "bottom_mms": rdi_velocities(f[4:8]),
             "bottom_range_cm": (f[8], f[9], f[10], f[11]),
             "bottom_status": f[12],
-            "water_mms": _v(f[13:17]),
+            "water_mms": rdi_velocities(f[13:17]),
             "water_layer_dm": (f[17], f[18]),
             "water_status": f[19],
             "first_ping": (f[20], f[21], f[22], f[23]),
@@ -180,16 +175,16 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
     def speed_records(self, record: Pd45Record) -> tuple[SpeedRecord, ...]:
         """Bottom velocity → vessel speed over ground, ship frame (role ``bottom``, source
         ``PD4:BT``/``PD5:BT``), with the PD5 heading taken as true."""
-        src = f"{record.format}:BT"
-        hdg = record.heading_deg
-        x, y = record.bottom_mms[0], record.bottom_mms[1]
-        frame = record.coord_frame
-        earth = frame == "earth"
-        ship = None
-        usable = record.bottom_lock and frame != "beam" and (hdg is not None or not earth)
-        if usable and x is not None and y is not None:
-            ship = ship_frame(x / 1000.0, y / 1000.0, hdg if earth else None)
-        return (bottom_track(self.port, ship, hdg, src),)
+        return (
+            rdi_bottom_track(
+                self.port,
+                record.coord_frame,
+                record.bottom_lock,
+                (record.bottom_mms[0], record.bottom_mms[1]),
+                record.heading_deg,
+                f"{record.format}:BT",
+            ),
+        )
 
 
 class Pd5Decoder(Pd45Decoder):

@@ -154,6 +154,15 @@ class SpeedRecord:
         return math.hypot(self.longitudinal_mps, self.transverse_mps)
 
 
+def rdi_velocities(
+    values: tuple[int, ...],
+) -> tuple[int | None, int | None, int | None, int | None]:
+    """Four RDI 16-bit velocities (mm/s) as read, :data:`RDI_INVALID` as None: what the
+    PD0 and PD4/PD5 decoders keep."""
+    a, b, c, d = (None if x == RDI_INVALID else x for x in values)
+    return (a, b, c, d)
+
+
 def rdi_mms(v: float | None) -> int:
     """A velocity in m/s as RDI's 16-bit mm/s (clamped to ±32767), :data:`RDI_INVALID`
     for None: what the PD0 and PD4/PD5 encoders write.
@@ -194,6 +203,40 @@ def bottom_track(
         heading_true_deg=heading_deg,
         source=source,
     )
+
+
+def rdi_bottom_track(
+    port: str,
+    frame: CoordFrame,
+    lock: bool,
+    vessel_mms: tuple[int | None, int | None],
+    heading_deg: float | None,
+    source: str,
+) -> SpeedRecord:
+    """An RDI binary bottom track (PD0, PD4/PD5) as a speed record (:func:`bottom_track`).
+
+    Args:
+        port: the port's name.
+        frame: the velocity's coordinate frame.
+        lock: the instrument has a bottom lock.
+        vessel_mms: the vessel's motion, mm/s (None: bad): (starboard, forward), or
+            (east, north) in earth coordinates, rotated into the ship frame by the heading.
+        heading_deg: the instrument's heading (taken as true), or None.
+        source: the record's source, e.g. ``"PD0:BT"``.
+
+    Returns:
+        The record, invalid in beam coordinates, without a lock, with a bad component,
+        or in earth coordinates without a heading.
+    """
+    a, b = vessel_mms
+    earth = frame == "earth"
+    ship = None
+    if lock and frame != "beam" and a is not None and b is not None:
+        if not earth:
+            ship = ship_frame(a / 1000.0, b / 1000.0, None)
+        elif heading_deg is not None:
+            ship = ship_frame(a / 1000.0, b / 1000.0, heading_deg)
+    return bottom_track(port, ship, heading_deg, source)
 
 
 @dataclass(frozen=True, slots=True)
