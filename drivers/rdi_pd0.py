@@ -24,7 +24,6 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
-import math
 import struct
 from dataclasses import dataclass
 from datetime import datetime
@@ -40,8 +39,8 @@ from drivers.records import (
     SpeedRecord,
     check_ranges,
     rdi_bottom_track,
-    rdi_mms,
     rdi_velocities,
+    rdi_vessel_mms,
 )
 
 HEADER = b"\x7f\x7f"
@@ -266,14 +265,8 @@ def encode_pd0(
         v = (RDI_INVALID, RDI_INVALID, RDI_INVALID, RDI_INVALID)
         rng = 0
     else:
-        fwd, stb = bottom_ship_mps
-        if coord_frame == "earth":
-            psi = math.radians(heading_deg)
-            e = fwd * math.sin(psi) + stb * math.cos(psi)
-            n = fwd * math.cos(psi) - stb * math.sin(psi)
-            v = (rdi_mms(-e), rdi_mms(-n), 0, 0)
-        else:
-            v = (rdi_mms(-stb), rdi_mms(-fwd), 0, 0)
+        a, b = rdi_vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
+        v = (-a, -b, 0, 0)  # the bottom's motion: the opposite of the vessel's
         rng = max(round((range_m or 0.0) * 100.0), 1)
     ex = COORD_FRAMES.index(coord_frame) << 3
     fixed = bytearray(59)

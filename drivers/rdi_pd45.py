@@ -22,7 +22,6 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
-import math
 import struct
 from dataclasses import dataclass
 from typing import ClassVar, TypeAlias
@@ -37,8 +36,8 @@ from drivers.records import (
     SpeedRecord,
     check_ranges,
     rdi_bottom_track,
-    rdi_mms,
     rdi_velocities,
+    rdi_vessel_mms,
 )
 
 HEADER = b"\x7d"
@@ -220,13 +219,7 @@ def encode_pd45(
         vx = vy = RDI_INVALID
         rng = 0
     else:
-        fwd, stb = bottom_ship_mps
-        if coord_frame == "earth":
-            psi = math.radians(heading_deg)
-            vx = rdi_mms(fwd * math.sin(psi) + stb * math.cos(psi))
-            vy = rdi_mms(fwd * math.cos(psi) - stb * math.sin(psi))
-        else:
-            vx, vy = rdi_mms(stb), rdi_mms(fwd)
+        vx, vy = rdi_vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
         rng = max(min(round((range_m or 0.0) * 100.0), 65535), 1)
     sid = 1 if pd5 else 0
     body = bytearray(

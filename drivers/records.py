@@ -239,6 +239,26 @@ def rdi_bottom_track(
     return bottom_track(port, ship, heading_deg, source)
 
 
+def rdi_vessel_mms(
+    ship_mps: tuple[float, float], frame: CoordFrame, heading_deg: float
+) -> tuple[int, int]:
+    """The vessel's (forward, starboard) motion in m/s as the RDI mm/s the PD0 and PD4/PD5
+    encoders write (:func:`rdi_mms`): (starboard, forward), or in earth coordinates
+    (east, north) rotated by the heading; the inverse of :func:`rdi_bottom_track`.
+
+    Raises:
+        ValueError: a non-finite value.
+    """
+    fwd, stb = ship_mps
+    if frame != "earth":
+        return rdi_mms(stb), rdi_mms(fwd)
+    psi = math.radians(heading_deg)
+    return (
+        rdi_mms(fwd * math.sin(psi) + stb * math.cos(psi)),
+        rdi_mms(fwd * math.cos(psi) - stb * math.sin(psi)),
+    )
+
+
 @dataclass(frozen=True, slots=True)
 class Rejected:
     """A rejected frame, yielded only when a decoder runs with ``errors="yield"``.

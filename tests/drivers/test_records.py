@@ -18,6 +18,7 @@ from drivers.records import (
     check_ranges,
     rdi_bottom_track,
     rdi_velocities,
+    rdi_vessel_mms,
 )
 
 
@@ -131,6 +132,18 @@ class TestRdiBottomTrack:
         a heading: an invalid record with no speed (the pipeline sees the loss)."""
         rec = rdi_bottom_track("d", frame, lock, vessel, heading, "PD5:BT")
         assert (rec.valid, rec.longitudinal_mps, rec.transverse_mps) == (False, None, None)
+
+    @pytest.mark.parametrize("frame", ["ship", "instrument", "earth"])
+    def test_the_encoders_mapping_is_its_inverse(
+        self, frame: Literal["ship", "instrument", "earth"]
+    ) -> None:
+        """What rdi_vessel_mms writes, rdi_bottom_track reads back as the same
+        (forward, starboard) motion, to the millimetre, at any heading."""
+        for heading in (0.0, 37.0, 200.0):
+            a, b = rdi_vessel_mms((2.5, -0.4), frame, heading)
+            rec = rdi_bottom_track("d", frame, True, (a, b), heading, "PD0:BT")
+            assert rec.longitudinal_mps == pytest.approx(2.5, abs=1e-3)
+            assert rec.transverse_mps == pytest.approx(-0.4, abs=1e-3)
 
     def test_invalid_marker_reads_as_none(self) -> None:
         """-32768 is None; every other value, the extremes included, is kept."""
