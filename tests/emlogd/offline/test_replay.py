@@ -284,6 +284,25 @@ runpy.run_module("emlogd", run_name="__main__")
 jumping by up to an hour at each reading, before anything is imported."""
 
 
+def _twice(args: list[str]) -> list[str]:
+    """``emlogd ARGS``' stdout from two processes: as it is, then with every clock jumping
+    (:data:`JUMPING_CLOCKS`) and another hash seed."""
+    import os
+    import subprocess
+    import sys
+
+    return [
+        subprocess.run(
+            [sys.executable, *prefix, *args],
+            env={**os.environ, "PYTHONPATH": str(ROOT), "PYTHONHASHSEED": str(k)},
+            capture_output=True,
+            check=True,
+            text=True,
+        ).stdout
+        for k, prefix in enumerate((["-m", "emlogd"], ["-c", JUMPING_CLOCKS]))
+    ]
+
+
 def test_replay_output_is_a_function_of_its_inputs(
     trial_files: dict[str, Path], tmp_path: Path
 ) -> None:
@@ -291,25 +310,31 @@ def test_replay_output_is_a_function_of_its_inputs(
     with every clock jumping and another hash seed, emits the same capture byte for byte and
     the same summary but the time it took: nothing in the replay reads a clock, and no order
     depends on the hash seed."""
-    import os
-    import subprocess
-    import sys
-
-    out: list[tuple[bytes, dict[str, object]]] = []
-    for k, prefix in enumerate((["-m", "emlogd"], ["-c", JUMPING_CLOCKS])):
-        cap = tmp_path / f"emitted{k}.cap"
-        p = subprocess.run(
-            [sys.executable, *prefix, "replay", str(trial_files["figure-8"]), "--config",
-             str(ROOT / "examples" / "emlogd.yaml"), "--out", str(cap), "--json"],
-            env={**os.environ, "PYTHONPATH": str(ROOT), "PYTHONHASHSEED": str(k)},
-            capture_output=True, check=True, text=True,
-        )  # fmt: skip
-        doc = json.loads(p.stdout)
+    cap = tmp_path / "emitted.cap"
+    args = [
+        "replay",
+        str(trial_files["figure-8"]),
+        "--config",
+        str(ROOT / "examples" / "emlogd.yaml"),
+    ]
+    out = []
+    for stdout in _twice([*args, "--out", str(cap), "--json"]):
+        doc = json.loads(stdout)
         doc.pop("elapsed_s")
         out.append((cap.read_bytes(), doc))
-    assert out[0][1]["emitted"] > 1000  # type: ignore[operator]
-    assert out[0][1]["uuts"]["emlog2"]["lag_s"] > 0.0  # type: ignore[index]
+    assert out[0][1]["emitted"] > 1000
+    assert out[0][1]["uuts"]["emlog2"]["lag_s"] > 0.0
     assert out[1] == out[0]
+
+
+def test_calibrate_is_a_function_of_its_inputs(trial_files: dict[str, Path]) -> None:
+    """calibrate --method kf on two captures (read in two processes, in whichever order they
+    finish) gives the same JSON with every clock jumping and another hash seed."""
+    caps = [str(trial_files["figure-8"]), str(trial_files["circles"])]
+    args = ["calibrate", *caps, "--uut", "emlog2", "--ref", "dvl", "--current", "--method", "kf"]
+    first, second = _twice([*args, "--json"])
+    assert json.loads(first)["lag"]["source"] == "auto"
+    assert second == first
 
 
 def test_out_appears_only_once_the_replay_has_run(
