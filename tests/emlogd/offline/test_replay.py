@@ -263,3 +263,97 @@ def test_a_record_that_fails_in_the_pipeline_costs_that_record_only(
     rec = record_capture(cap, UutSettings("emlog1", reference_port="dvl", lag_s=0.0))
     assert rec.internal["count"] == 3 and rec.counters["emlog1"]["rejects"]["internal"] == 3  # type: ignore[index]
     assert rec.raw.size == 60 - 3
+
+
+ROOT = Path(__file__).resolve().parents[3]
+
+JUMPING_CLOCKS = """
+import random, runpy, sys, time
+rng = random.Random(7)
+for name in ("time", "monotonic", "perf_counter", "process_time", "thread_time"):
+    real, off = getattr(time, name), [0.0]
+    def jumping(real=real, off=off):
+        off[0] += rng.choice((0.0, 0.003, 5.0, 3600.0))
+        return real() + off[0]
+    setattr(time, name, jumping)
+    setattr(time, name + "_ns", lambda j=jumping: int(j() * 1e9))
+sys.argv = ["emlogd", *sys.argv[1:]]
+runpy.run_module("emlogd", run_name="__main__")
+"""
+"""``python -c JUMPING_CLOCKS ARGS``: ``emlogd ARGS`` with every clock of the time module
+jumping by up to an hour at each reading, before anything is imported."""
+
+
+def _twice(args: list[str]) -> list[str]:
+    """``emlogd ARGS``' stdout from two processes: as it is, then with every clock jumping
+    (:data:`JUMPING_CLOCKS`) and another hash seed."""
+    import os
+    import subprocess
+    import sys
+
+    return [
+        subprocess.run(
+            [sys.executable, *prefix, *args],
+            env={**os.environ, "PYTHONPATH": str(ROOT), "PYTHONHASHSEED": str(k)},
+            capture_output=True,
+            check=True,
+            text=True,
+        ).stdout
+        for k, prefix in enumerate((["-m", "emlogd"], ["-c", JUMPING_CLOCKS]))
+    ]
+
+
+def test_replay_output_is_a_function_of_its_inputs(
+    trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """The same capture replayed (lag auto, the current learnt) in two processes, one of them
+    with every clock jumping and another hash seed, emits the same capture byte for byte and
+    the same summary but the time it took: nothing in the replay reads a clock, and no order
+    depends on the hash seed."""
+    cap = tmp_path / "emitted.cap"
+    args = [
+        "replay",
+        str(trial_files["figure-8"]),
+        "--config",
+        str(ROOT / "examples" / "emlogd.yaml"),
+    ]
+    out = []
+    for stdout in _twice([*args, "--out", str(cap), "--json"]):
+        doc = json.loads(stdout)
+        doc.pop("elapsed_s")
+        out.append((cap.read_bytes(), doc))
+    assert out[0][1]["emitted"] > 1000
+    assert out[0][1]["uuts"]["emlog2"]["lag_s"] > 0.0
+    assert out[1] == out[0]
+
+
+def test_calibrate_is_a_function_of_its_inputs(trial_files: dict[str, Path]) -> None:
+    """calibrate --method kf on two captures (read in two processes, in whichever order they
+    finish) gives the same JSON with every clock jumping and another hash seed."""
+    caps = [str(trial_files["figure-8"]), str(trial_files["circles"])]
+    args = ["calibrate", *caps, "--uut", "emlog2", "--ref", "dvl", "--current", "--method", "kf"]
+    first, second = _twice([*args, "--json"])
+    assert json.loads(first)["lag"]["source"] == "auto"
+    assert second == first
+
+
+def test_out_appears_only_once_the_replay_has_run(
+    trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """replay --out writes beside the file and renames it into place at the end: a replay
+    that fails leaves the file it would have replaced as it was, and none leaves a part file."""
+    from drivers.io.capture import CaptureReader
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(CFG)
+    out = tmp_path / "emitted.cap"
+    bad = tmp_path / "bad.cap"
+    bad.write_text(trial_files["straight"].read_text() + "(1.0) emlog1 $VWVHW\n")
+    out.write_text("old")
+    assert main(["replay", str(bad), "--config", str(cfg), "--out", str(out), "--strict"]) != 0
+    assert out.read_text() == "old"
+    assert (
+        main(["replay", str(trial_files["straight"]), "--config", str(cfg), "--out", str(out)]) == 0
+    )
+    assert CaptureReader(out).ports == {"emlog1": "nmea0183", "emlog2": "nmea0183"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.cap", "c.yaml", "emitted.cap"]
