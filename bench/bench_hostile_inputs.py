@@ -32,21 +32,17 @@ from collections.abc import Callable
 from pathlib import Path
 
 from emlogd.launch import DaemonProcess
+from tests.emlogd.daemon.harness import PD0_CONFIG, raw_pty
 
-CONFIG = """\
-ports:
-  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
-  - {name: dvl, url: links/dvl, protocol: pd0, role: reference}
+CONFIG = PD0_CONFIG.replace(
+    "calibration:",
+    """\
+  - {name: gnss, url: links/gnss, protocol: nmea0183, role: aux}
   - {name: pd5, url: links/pd5, protocol: pd5, role: aux}
   - {name: pd6, url: links/pd6, protocol: pd6, role: aux}
-  - {name: gnss, url: links/gnss, protocol: nmea0183, role: aux}
-calibration:
-  - {uut: emlog1, reference: dvl, lag: 0.2}
-outputs: {pty: out/emlog0}
-state_file: state/state.yaml
-control_socket: run/control.sock
-log_format: json
-"""
+calibration:""",
+)
+"""The EMlog and the PD0 DVL, and three aux ports: GNSS, PD5, PD6."""
 
 HOSTILE = ["1e308", "-1e308", "nan", "inf", "-inf", "-5", "9" * 26, "", "1e-320", "360.0001", "٣"]
 """Values put in every field."""
@@ -128,15 +124,6 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _pty(link: Path) -> int:
-    master, slave = os.openpty()
-    for fd in (master, slave):
-        tty.setraw(fd)
-    os.set_blocking(master, False)
-    link.symlink_to(os.ttyname(slave))
-    return master
-
-
 def _flood(fd: int, make: Callable[[random.Random], bytes], until: float, seed: str) -> None:
     rng = random.Random(seed)
     pending = b""
@@ -170,7 +157,7 @@ def main() -> None:
     for sub in ("links", "state", "run", "out"):
         (work / sub).mkdir()
     (work / "emlogd.yaml").write_text(CONFIG)
-    masters = {name: _pty(work / "links" / name) for name in ("emlog1", *FLOODS)}
+    masters = {name: raw_pty(work / "links" / name) for name in ("emlog1", *FLOODS)}
     daemon = DaemonProcess("emlogd.yaml", socket="run/control.sock", log="log", cwd=work)
     out = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
     tty.setraw(out)

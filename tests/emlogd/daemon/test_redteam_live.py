@@ -25,11 +25,21 @@ import tty
 from collections.abc import Iterator
 from pathlib import Path
 
+from emlogd.client import request
 from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
 from emlogd.daemon.loop import RELOAD_MIN_S
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
 from tests.drivers.rdi_cases import HOSTILE_HEADER
-from tests.emlogd.daemon.harness import SPEED, Daemon, free_port, make_work, tcp_port, wait
+from tests.emlogd.daemon.harness import (
+    PD0_CONFIG,
+    SPEED,
+    Daemon,
+    free_port,
+    make_work,
+    raw_pty,
+    tcp_port,
+    wait,
+)
 from tests.emlogd.daemon.test_lockout import _first_sentence, _tcp_counters
 from tests.emlogd.daemon.test_redteam import CONFIG, F_SETPIPE_SZ, _answers, _drain
 
@@ -180,31 +190,8 @@ def test_a_sighup_storm_costs_a_few_reloads(tmp_path: Path) -> None:
         d.kill()
 
 
-PD0_CONFIG = """\
-ports:
-  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
-  - {name: dvl, url: links/dvl, protocol: pd0, role: reference}
-calibration:
-  - {uut: emlog1, reference: dvl, lag: 0.2}
-outputs: {pty: out/emlog0}
-state_file: state/state.yaml
-control_socket: run/control.sock
-log_format: json
-"""
-"""An EMlog and a PD0 DVL, on ptys the test serves itself."""
-
 VHW = (b"$VWVHW,,T,,M,5.00,N,,K*4F\r\n", b"$VWVHW,,T,,M,5.01,N,,K*4E\r\n")
 """Two readings the EMlog alternates (one repeated for ever is a stuck log, not emitted)."""
-
-
-def _raw_pty(link: Path) -> int:
-    """A pty in raw mode whose slave is published at ``link``; its master (non-blocking)."""
-    master, slave = os.openpty()
-    for fd in (master, slave):
-        tty.setraw(fd)
-    os.set_blocking(master, False)
-    link.symlink_to(os.ttyname(slave))
-    return master
 
 
 FLOOD = """\
@@ -245,7 +232,7 @@ def test_a_dvl_sending_pd0_headers_of_long_ensembles_with_wrong_checksums(
     Each header cost a 16 KB sum in the daemon's one thread: the median VHW waited
     60 ms and 40 of 56 more than 100 ms."""
     work = make_work(tmp_path, PD0_CONFIG)
-    masters = [_raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
     try:
         d = Daemon(work, pty=True)
         try:
@@ -268,3 +255,43 @@ def test_a_dvl_sending_pd0_headers_of_long_ensembles_with_wrong_checksums(
     finally:
         for fd in masters:
             os.close(fd)
+
+
+CONNECT_FLOOD = """\
+import socket, sys, time
+path, until, held = sys.argv[1], time.time() + float(sys.argv[2]), []
+while time.time() < until:
+    s = socket.socket(socket.AF_UNIX)
+    try:
+        s.connect(path)
+    except OSError:
+        s.close()
+        continue
+    held.append(s)
+    if len(held) > 200:
+        held.pop(0).close()
+"""
+"""Connect to a unix socket as fast as it accepts, holding the last 200 connections."""
+
+
+def test_a_connect_flood_on_the_control_socket_does_not_lock_the_operators_out(
+    tmp_path: Path,
+) -> None:
+    """A local process connecting to the control socket as fast as it can (holding its
+    last 200 connections), for 3 s: every ``status`` request of the operators is answered
+    meanwhile (the daemon accepts a backlog's worth per wake-up, and the client's connect
+    waits in the kernel's queue up to its timeout, as the flooder's do). The daemon
+    accepted one connection per wake-up and the client's connect, non-blocking, failed
+    at once with EAGAIN whenever the backlog was full: "is emlogd running?"."""
+    d = Daemon(make_work(tmp_path, CONFIG))
+    argv = [sys.executable, "-c", CONNECT_FLOOD, str(d.socket), "3"]
+    try:
+        with _reaped(subprocess.Popen(argv)) as flood:
+            time.sleep(0.5)
+            for _ in range(5):
+                assert request(d.socket, {"cmd": "status"}, timeout_s=5.0)["ok"] is True
+                time.sleep(0.2)
+            flood.wait(STOP_TIMEOUT_S)
+        assert d.stop() == 0
+    finally:
+        d.kill()
