@@ -25,6 +25,7 @@ import tty
 from collections.abc import Iterator
 from pathlib import Path
 
+from drivers.io.port import DEVICE_CHECK_S
 from emlogd.client import request
 from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
 from emlogd.daemon.loop import RELOAD_MIN_S
@@ -295,3 +296,41 @@ def test_a_connect_flood_on_the_control_socket_does_not_lock_the_operators_out(
         assert d.stop() == 0
     finally:
         d.kill()
+
+
+def test_an_emlog_whose_device_path_moves_to_another_device_is_read_there(
+    tmp_path: Path,
+) -> None:
+    """The EMlog's link deleted and made again to name a new pty, the old one left open
+    and silent (a device re-created, an adapter re-enumerated under its udev name): the
+    daemon reads the new device within a few seconds (``DEVICE_CHECK_S`` of silence, then
+    a reopen). It read the old descriptor, silent, for ever: the port stale, the EMlog
+    at its path never read."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    link = work / "links" / "emlog1"
+    masters = [raw_pty(link)]
+    d = Daemon(work)
+    try:
+        for k in range(4):
+            os.write(masters[0], VHW[k % 2])
+        wait(lambda: _records(d) == 4, "the first device read", 5.0)
+        link.unlink()
+        masters.append(raw_pty(link))
+        deadline = time.monotonic() + DEVICE_CHECK_S + 4.0
+        k = 0
+        while _records(d) <= 4:
+            assert time.monotonic() < deadline, d.status()["ports"]
+            os.write(masters[1], VHW[k % 2])
+            k += 1
+            time.sleep(0.1)
+        assert d.stop() == 0
+    finally:
+        d.kill()
+        for fd in masters:
+            os.close(fd)
+
+
+def _records(d: Daemon) -> int:
+    ports = d.status()["ports"]
+    assert isinstance(ports, dict)
+    return int(ports["emlog1"]["records"])
