@@ -7,13 +7,14 @@ takes it: NMEA sentences of ten types with a hostile value (``1e308``, ``nan``,
 ``inf``, -5, 26 nines, ``٣``...) in every field and valid checksums, a line of a
 megabyte without newline, 4 KiB of NUL, random bytes (GNSS); PD0 headers claiming
 16 000-byte ensembles with wrong checksums, random bytes, random headers (DVL); PD5
-frames with random bodies (PD5); PD6 lines with those values (PD6). Meanwhile the
+frames with random bodies (PD5); PD6 lines with those values (PD6); or (``--ports
+dates``) valid RMC whose date moves by a day at each fix (GNSS). Meanwhile the
 EMlog sends a VHW every 0.1 s and the script times each corrected VHW on the output
 pty. Prints the daemon's CPU (cores), the VHW latency (median, 95th percentile; a VHW
 not out within 0.1 s counts as late), the slowest status request and each port's
 records and rejects.
 
-Run: ``PYTHONPATH=. python bench/bench_hostile_inputs.py [--ports all|gnss|dvl|pd5|pd6]
+Run: ``PYTHONPATH=. python bench/bench_hostile_inputs.py [--ports all|gnss|dvl|pd5|pd6|dates]
 [--seconds 8]``
 """
 
@@ -111,12 +112,24 @@ def pd6(rng: random.Random) -> bytes:
     return (kind + "," + ",".join(fields) + "\r\n").encode()
 
 
-FLOODS: dict[str, Callable[[random.Random], bytes]] = {
-    "gnss": gnss,
-    "dvl": dvl,
-    "pd5": pd5,
-    "pd6": pd6,
+def dates(rng: random.Random) -> bytes:
+    """50 valid RMC with a position, each fix a day after the one before (25 years)."""
+    out = b""
+    for _ in range(50):
+        k = rng.randrange(9125)
+        day = f"{1 + k % 28:02d}{1 + k // 28 % 12:02d}{k // 336 % 25:02d}"
+        out += sentence(f"GPRMC,120000.00,A,4500.000,N,01000.000,E,5.0,90.0,{day},2.0,E,A")
+    return out
+
+
+FLOODS: dict[str, tuple[str, Callable[[random.Random], bytes]]] = {
+    "gnss": ("gnss", gnss),
+    "dvl": ("dvl", dvl),
+    "pd5": ("pd5", pd5),
+    "pd6": ("pd6", pd6),
+    "dates": ("gnss", dates),
 }
+"""What ``--ports`` floods: the port, and its input (``all``: the first four)."""
 
 
 def _cpu_s(pid: int) -> float:
@@ -157,15 +170,17 @@ def main() -> None:
     for sub in ("links", "state", "run", "out"):
         (work / sub).mkdir()
     (work / "emlogd.yaml").write_text(CONFIG)
-    masters = {name: raw_pty(work / "links" / name) for name in ("emlog1", *FLOODS)}
+    links = ("emlog1", "gnss", "dvl", "pd5", "pd6")
+    masters = {name: raw_pty(work / "links" / name) for name in links}
     daemon = DaemonProcess("emlogd.yaml", socket="run/control.sock", log="log", cwd=work)
     out = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
     tty.setraw(out)
     try:
         until = time.monotonic() + args.seconds + 1.0
-        for name, make in FLOODS.items():
-            if args.ports in ("all", name) and os.fork() == 0:  # a process each: no GIL
-                _flood(masters[name], make, until, name)
+        for name, (port, make) in FLOODS.items():
+            wanted = args.ports == name or (args.ports == "all" and name != "dates")
+            if wanted and os.fork() == 0:  # a process each: no GIL
+                _flood(masters[port], make, until, name)
                 os._exit(0)
         time.sleep(1.0)
         cpu0, t0 = _cpu_s(daemon.pid), time.monotonic()
