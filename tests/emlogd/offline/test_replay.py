@@ -301,10 +301,11 @@ def test_calibrate_is_a_function_of_its_inputs(trial_files: dict[str, Path]) -> 
 
 
 def test_out_appears_only_once_the_replay_has_run(
-    trial_files: dict[str, Path], tmp_path: Path
+    trial_files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """replay --out writes beside the file and renames it into place at the end: a replay
-    that fails leaves the file it would have replaced as it was, and none leaves a part file."""
+    that fails leaves the file it would have replaced as it was, and none leaves a part file;
+    an --out that cannot be written is named in the error."""
     from drivers.io.capture import CaptureReader
 
     cfg = tmp_path / "c.yaml"
@@ -320,3 +321,8 @@ def test_out_appears_only_once_the_replay_has_run(
     )
     assert CaptureReader(out).ports == {"emlog1": "nmea0183", "emlog2": "nmea0183"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.cap", "c.yaml", "emitted.cap"]
+    capsys.readouterr()
+    nowhere = tmp_path / "missing" / "emitted.cap"
+    argv = ["replay", str(trial_files["straight"]), "--config", str(cfg), "--out", str(nowhere)]
+    assert main(argv) == 1
+    assert f"No such file or directory: '{nowhere}'" in capsys.readouterr().err
