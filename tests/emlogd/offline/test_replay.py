@@ -102,8 +102,14 @@ def test_truth_scores_emitted_speeds(trial: SimulationResult, trial_files: dict[
         assert 0 < t["n_samples"] <= trial.trajectories[0].lines[name]
         assert t["rmse_floor"] == pytest.approx(trial.trajectories[0].rmse_floor_mps[name], rel=0.1)
         assert t["rmse_corrected"] < 0.6 * t["rmse_raw"]
+        w = uuts[name]["truth_worst_window"]  # type: ignore[index]
+        wins = res.truth_windows[name]
+        assert w["windows"] == len(wins) > 0
+        assert w["ratio"] == round(max(x.ratio for x in wins), 4)
+        assert w["rmse_corrected"] / w["rmse_raw"] == pytest.approx(w["ratio"], abs=1e-3)
     plain = replay(_pipeline(), [trial_files["straight"]]).to_dict()["uuts"]
     assert plain["emlog1"]["truth"] is None  # type: ignore[index]
+    assert plain["emlog1"]["truth_worst_window"] is None  # type: ignore[index]
 
 
 def test_truth_pairs_each_emitted_speed_with_its_reading(tmp_path: Path) -> None:
