@@ -114,6 +114,35 @@ class TestRows:
         assert lines[2].count(" | ") == 6 and "a \\| b" in lines[2]
 
 
+class TestTrials:
+    """The benches that read a simulated trial name it, and its simulation is made once."""
+
+    def test_each_bench_reading_a_trial_names_it_in_its_command(self) -> None:
+        for b in ref.BENCHES:
+            assert ("DIR/full" in b.shown) == (b.trial == 1.0), b.key
+            assert ("DIR/scale-0.2" in b.shown) == (b.trial == 0.2), b.key
+
+    def test_a_trial_present_is_reused_and_a_failed_simulation_said(
+        self, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    ) -> None:
+        calls: list[list[str]] = []
+
+        def fails(argv: list[str]) -> str:
+            calls.append(argv)
+            raise ref.BenchError("exit status 2")
+
+        monkeypatch.setattr(ref, "run", fails)
+        ctx = ref.Context(tmp_path / "full", tmp_path / "small", tmp_path / "out")
+        ctx.full.mkdir()
+        for name in ("1-a", "2-b", "3-c", "4-d", "5-e"):
+            (ctx.full / f"{name}.cap").touch()
+        ref.simulate(ctx, 1.0)
+        assert calls == []
+        ref.simulate(ctx, 0.2)
+        assert calls[0][-3:] == ["--scale", "0.2", str(ctx.small)]
+        assert "failed: exit status 2" in capsys.readouterr().err
+
+
 class TestScriptsRun:
     """The cheapest scripts, run at a tiny size through the runner, parse."""
 
