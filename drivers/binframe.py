@@ -7,12 +7,14 @@ checksum matches, and resynchronises after garbage or a corrupted frame by
 searching again from the byte after the bad header. A run of garbage is reported
 once (one ``framing`` reject), not per byte; a checksum mismatch is one
 ``checksum`` reject, and the rest of that corrupted frame (skipped while searching
-for the next header) is part of the same reject, not a second one.
+for the next header) is part of the same reject, not a second one, a header in it
+whose checksum fails too included.
 
 A frame's checksum is the difference of two running sums kept along the buffer, so it
 costs the same whatever the frame's length: a stream of plausible headers claiming
 16 KB frames with wrong checksums, one every few bytes, would otherwise sum 16 KB per
-header (a hundred microseconds per byte received: 200 KB of it took 19 s).
+header (a hundred microseconds per byte received: 200 KB of it took 19 s), and those
+headers are one reject per claimed frame, not one each.
 
 Must not import: serial, os, time, threading (pure module).
 """
@@ -48,6 +50,7 @@ class BinaryFramer:
     __slots__ = (
         "_absorb",
         "_buf",
+        "_corrupt_left",
         "_garbage",
         "_header",
         "_length_of",
@@ -73,12 +76,16 @@ class BinaryFramer:
         """Running sums of the bytes received: the buffer's byte ``j`` is preceded by
         ``_sums[_sums_at + j]`` (entries before ``_sums_at`` are for bytes dropped)."""
         self._sums_at = 0
+        self._corrupt_left = 0
+        """Bytes left of the last frame reported with a wrong checksum: a header among
+        them whose checksum fails too is part of that reject."""
         self._garbage = 0
         self._absorb = False
 
     def _drop(self, n: int) -> None:
         """Drop the buffer's n leading bytes (and their running sums)."""
         del self._buf[:n]
+        self._corrupt_left -= n
         self._sums_at += n
         if self._sums_at > len(self._buf):  # amortised: the list is moved rarely
             del self._sums[: self._sums_at]
@@ -137,11 +144,13 @@ class BinaryFramer:
             stored = buf[n] | buf[n + 1] << 8
             computed = self._sum16(n)
             if computed != stored:
-                yield from self._end_garbage()
-                yield ChecksumError(
-                    f"{self._name} checksum {stored:04X} != computed {computed:04X}",
-                    bytes(buf[:64]),
-                )
+                if self._corrupt_left <= 0:  # else a header inside the frame reported
+                    yield from self._end_garbage()
+                    yield ChecksumError(
+                        f"{self._name} checksum {stored:04X} != computed {computed:04X}",
+                        bytes(buf[:64]),
+                    )
+                    self._corrupt_left = n + 2
                 self._drop(1)  # resync from the byte after this header
                 self._absorb = True
                 continue

@@ -60,12 +60,17 @@ class _Out:
         self.part = part_path(path) if path and _file_or_none(path) else None
         target = str(self.part) if self.part is not None else path
         as_capture = bool(path) and str(path).endswith((".cap", ".cap.gz"))
-        self.capture = _EmitCapture(str(target), uuts, pipeline) if target and as_capture else None
-        self.sink: BinaryIO | None = (
-            open(target, "wb")  # noqa: SIM115
-            if target and not as_capture
-            else (sys.stdout.buffer if to_stdout else None)
-        )
+        try:
+            self.capture = (
+                _EmitCapture(str(target), uuts, pipeline) if target and as_capture else None
+            )
+            self.sink: BinaryIO | None = (
+                open(target, "wb")  # noqa: SIM115
+                if target and not as_capture
+                else (sys.stdout.buffer if to_stdout else None)
+            )
+        except OSError as exc:  # named by --out, not by the part file
+            raise OSError(exc.errno, exc.strerror, path) from None
 
     def close(self, done: bool) -> None:
         """Close what was written; in place if ``done``, else the part file removed."""

@@ -12,6 +12,7 @@ import fcntl
 import functools
 import json
 import os
+import select
 import signal
 import socket
 import struct
@@ -20,13 +21,26 @@ import sys
 import termios
 import threading
 import time
+import tty
 from collections.abc import Iterator
 from pathlib import Path
 
+from drivers.io.port import DEVICE_CHECK_S
+from emlogd.client import request
 from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
 from emlogd.daemon.loop import RELOAD_MIN_S
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
-from tests.emlogd.daemon.harness import SPEED, Daemon, free_port, make_work, tcp_port, wait
+from tests.drivers.rdi_cases import HOSTILE_HEADER
+from tests.emlogd.daemon.harness import (
+    PD0_CONFIG,
+    SPEED,
+    Daemon,
+    free_port,
+    make_work,
+    raw_pty,
+    tcp_port,
+    wait,
+)
 from tests.emlogd.daemon.test_lockout import _first_sentence, _tcp_counters
 from tests.emlogd.daemon.test_redteam import CONFIG, F_SETPIPE_SZ, _answers, _drain
 
@@ -175,3 +189,148 @@ def test_a_sighup_storm_costs_a_few_reloads(tmp_path: Path) -> None:
         assert d.stop() == 0
     finally:
         d.kill()
+
+
+VHW = (b"$VWVHW,,T,,M,5.00,N,,K*4F\r\n", b"$VWVHW,,T,,M,5.01,N,,K*4E\r\n")
+"""Two readings the EMlog alternates (one repeated for ever is a stuck log, not emitted)."""
+
+
+FLOOD = """\
+import os, select, sys, time
+fd, data, until = int(sys.argv[1]), bytes.fromhex(sys.argv[2]) * 1000, time.time() + float(sys.argv[3])
+while time.time() < until:
+    try:
+        os.write(fd, data)
+    except BlockingIOError:
+        select.select([], [fd], [], 0.01)
+"""
+"""Write a pattern (hex) to a descriptor as fast as it takes it, for some seconds: a
+process of its own, so that the test's reading thread never waits for it."""
+
+
+def _flood(fd: int, pattern: bytes, seconds: float) -> subprocess.Popen[bytes]:
+    argv = [sys.executable, "-c", FLOOD, str(fd), pattern.hex(), str(seconds)]
+    return subprocess.Popen(argv, pass_fds=(fd,))
+
+
+def _vhw_within(fd: int, seconds: float) -> bool:
+    """Whether a VHW comes out of the output pty ``fd`` within ``seconds``."""
+    end = time.monotonic() + seconds
+    data = b""
+    while b"VHW" not in data and (left := end - time.monotonic()) > 0:
+        if select.select([fd], [], [], left)[0]:
+            data += os.read(fd, 65536)
+    return b"VHW" in data
+
+
+def test_a_dvl_sending_pd0_headers_of_long_ensembles_with_wrong_checksums(
+    tmp_path: Path,
+) -> None:
+    """The PD0 port flooded with headers claiming 16 000-byte ensembles, one every 6
+    bytes, their checksums wrong, while the EMlog sends a VHW every 0.1 s: nine in ten
+    corrected VHW leave within 50 ms of their reading; each claimed ensemble is a
+    checksum reject.
+    Each header cost a 16 KB sum in the daemon's one thread: the median VHW waited
+    60 ms and 40 of 56 more than 100 ms."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    try:
+        d = Daemon(work, pty=True)
+        try:
+            tty.setraw(d.fd)
+            until = time.monotonic() + 4.0
+            flood = _flood(masters[1], HOSTILE_HEADER, 4.0)
+            late: list[bool] = []
+            while time.monotonic() < until:
+                sent = time.monotonic()
+                os.write(masters[0], VHW[len(late) % 2])
+                late.append(not _vhw_within(d.fd, 0.05))
+                time.sleep(max(sent + 0.1 - time.monotonic(), 0.0))
+            flood.wait(STOP_TIMEOUT_S)
+            assert sum(late) <= len(late) // 10, f"{sum(late)} of {len(late)} late"
+            rejects = d.status()["ports"]["dvl"]["rejects"]  # type: ignore[index]
+            assert rejects["checksum"] >= 10, rejects  # one per claimed ensemble
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for fd in masters:
+            os.close(fd)
+
+
+CONNECT_FLOOD = """\
+import socket, sys, time
+path, until, held = sys.argv[1], time.time() + float(sys.argv[2]), []
+while time.time() < until:
+    s = socket.socket(socket.AF_UNIX)
+    try:
+        s.connect(path)
+    except OSError:
+        s.close()
+        continue
+    held.append(s)
+    if len(held) > 200:
+        held.pop(0).close()
+"""
+"""Connect to a unix socket as fast as it accepts, holding the last 200 connections."""
+
+
+def test_a_connect_flood_on_the_control_socket_does_not_lock_the_operators_out(
+    tmp_path: Path,
+) -> None:
+    """A local process connecting to the control socket as fast as it can (holding its
+    last 200 connections), for 3 s: every ``status`` request of the operators is answered
+    meanwhile (the daemon accepts a backlog's worth per wake-up, and the client's connect
+    waits in the kernel's queue up to its timeout, as the flooder's do). The daemon
+    accepted one connection per wake-up and the client's connect, non-blocking, failed
+    at once with EAGAIN whenever the backlog was full: "is emlogd running?"."""
+    d = Daemon(make_work(tmp_path, CONFIG))
+    argv = [sys.executable, "-c", CONNECT_FLOOD, str(d.socket), "3"]
+    try:
+        with _reaped(subprocess.Popen(argv)) as flood:
+            time.sleep(0.5)
+            for _ in range(5):
+                assert request(d.socket, {"cmd": "status"}, timeout_s=5.0)["ok"] is True
+                time.sleep(0.2)
+            flood.wait(STOP_TIMEOUT_S)
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
+def test_an_emlog_whose_device_path_moves_to_another_device_is_read_there(
+    tmp_path: Path,
+) -> None:
+    """The EMlog's link deleted and made again to name a new pty, the old one left open
+    and silent (a device re-created, an adapter re-enumerated under its udev name): the
+    daemon reads the new device within a few seconds (``DEVICE_CHECK_S`` of silence, then
+    a reopen). It read the old descriptor, silent, for ever: the port stale, the EMlog
+    at its path never read."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    link = work / "links" / "emlog1"
+    masters = [raw_pty(link)]
+    d = Daemon(work)
+    try:
+        for k in range(4):
+            os.write(masters[0], VHW[k % 2])
+        wait(lambda: _records(d) == 4, "the first device read", 5.0)
+        link.unlink()
+        masters.append(raw_pty(link))
+        deadline = time.monotonic() + DEVICE_CHECK_S + 4.0
+        k = 0
+        while _records(d) <= 4:
+            assert time.monotonic() < deadline, d.status()["ports"]
+            os.write(masters[1], VHW[k % 2])
+            k += 1
+            time.sleep(0.1)
+        assert d.stop() == 0
+    finally:
+        d.kill()
+        for fd in masters:
+            os.close(fd)
+
+
+def _records(d: Daemon) -> int:
+    ports = d.status()["ports"]
+    assert isinstance(ports, dict)
+    return int(ports["emlog1"]["records"])

@@ -18,6 +18,7 @@ from emlogd.offline.simulate import SimulationResult, TruthError, read_truth, si
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
+from tests.jumping import ROOT, run_twice
 
 CFG = """\
 ports:
@@ -265,44 +266,6 @@ def test_a_record_that_fails_in_the_pipeline_costs_that_record_only(
     assert rec.raw.size == 60 - 3
 
 
-ROOT = Path(__file__).resolve().parents[3]
-
-JUMPING_CLOCKS = """
-import random, runpy, sys, time
-rng = random.Random(7)
-for name in ("time", "monotonic", "perf_counter", "process_time", "thread_time"):
-    real, off = getattr(time, name), [0.0]
-    def jumping(real=real, off=off):
-        off[0] += rng.choice((0.0, 0.003, 5.0, 3600.0))
-        return real() + off[0]
-    setattr(time, name, jumping)
-    setattr(time, name + "_ns", lambda j=jumping: int(j() * 1e9))
-sys.argv = ["emlogd", *sys.argv[1:]]
-runpy.run_module("emlogd", run_name="__main__")
-"""
-"""``python -c JUMPING_CLOCKS ARGS``: ``emlogd ARGS`` with every clock of the time module
-jumping by up to an hour at each reading, before anything is imported."""
-
-
-def _twice(args: list[str]) -> list[str]:
-    """``emlogd ARGS``' stdout from two processes: as it is, then with every clock jumping
-    (:data:`JUMPING_CLOCKS`) and another hash seed."""
-    import os
-    import subprocess
-    import sys
-
-    return [
-        subprocess.run(
-            [sys.executable, *prefix, *args],
-            env={**os.environ, "PYTHONPATH": str(ROOT), "PYTHONHASHSEED": str(k)},
-            capture_output=True,
-            check=True,
-            text=True,
-        ).stdout
-        for k, prefix in enumerate((["-m", "emlogd"], ["-c", JUMPING_CLOCKS]))
-    ]
-
-
 def test_replay_output_is_a_function_of_its_inputs(
     trial_files: dict[str, Path], tmp_path: Path
 ) -> None:
@@ -318,7 +281,7 @@ def test_replay_output_is_a_function_of_its_inputs(
         str(ROOT / "examples" / "emlogd.yaml"),
     ]
     out = []
-    for stdout in _twice([*args, "--out", str(cap), "--json"]):
+    for stdout in run_twice([*args, "--out", str(cap), "--json"]):
         doc = json.loads(stdout)
         doc.pop("elapsed_s")
         out.append((cap.read_bytes(), doc))
@@ -332,16 +295,17 @@ def test_calibrate_is_a_function_of_its_inputs(trial_files: dict[str, Path]) -> 
     finish) gives the same JSON with every clock jumping and another hash seed."""
     caps = [str(trial_files["figure-8"]), str(trial_files["circles"])]
     args = ["calibrate", *caps, "--uut", "emlog2", "--ref", "dvl", "--current", "--method", "kf"]
-    first, second = _twice([*args, "--json"])
+    first, second = run_twice([*args, "--json"])
     assert json.loads(first)["lag"]["source"] == "auto"
     assert second == first
 
 
 def test_out_appears_only_once_the_replay_has_run(
-    trial_files: dict[str, Path], tmp_path: Path
+    trial_files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """replay --out writes beside the file and renames it into place at the end: a replay
-    that fails leaves the file it would have replaced as it was, and none leaves a part file."""
+    that fails leaves the file it would have replaced as it was, and none leaves a part file;
+    an --out that cannot be written is named in the error."""
     from drivers.io.capture import CaptureReader
 
     cfg = tmp_path / "c.yaml"
@@ -357,3 +321,8 @@ def test_out_appears_only_once_the_replay_has_run(
     )
     assert CaptureReader(out).ports == {"emlog1": "nmea0183", "emlog2": "nmea0183"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.cap", "c.yaml", "emitted.cap"]
+    capsys.readouterr()
+    nowhere = tmp_path / "missing" / "emitted.cap"
+    argv = ["replay", str(trial_files["straight"]), "--config", str(cfg), "--out", str(nowhere)]
+    assert main(argv) == 1
+    assert f"No such file or directory: '{nowhere}'" in capsys.readouterr().err
