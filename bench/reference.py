@@ -304,6 +304,26 @@ def parse_wake_costs(text: str) -> list[Figure]:
     ]  # fmt: skip
 
 
+def parse_live_profile(text: str) -> list[Figure]:
+    """``bench_live_profile.py``: the largest shares of the loop's CPU a function holds of
+    its own, and with what it calls (the loop itself left out)."""
+    total, seconds = grab(r"the loop's CPU under the profiler: " + NUM + " s over about " + NUM, text, 2)  # fmt: skip
+    row = re.compile(r"^  (.+?)\s+\d+\s+" + NUM + r"\s+" + NUM + " %$", re.MULTILINE)
+    own, _, cum = text.partition("by cumtime:")
+    tops = []
+    for block in (own.partition("by tottime:")[2], cum):
+        found = [(m[1], float(m[3])) for m in row.finditer(block) if "(_loop)" not in m[1]]
+        if not found:
+            raise BenchError("no function in the profile")
+        tops.append(", ".join(f"`{name}` {pct:.1f} %" for name, pct in found[:3]))
+    return [
+        Figure(f"the daemon's loop function by function at live rates (cProfile on the thread's "
+               f"CPU clock, {seconds:.0f} s: {total:.2f} s of CPU)",
+               f"the largest shares of the loop's CPU a function holds of its own: {tops[0]}; "
+               f"with what it calls: {tops[1]}"),
+    ]  # fmt: skip
+
+
 def parse_crossval_command(plain: str, current: str) -> list[Figure]:
     """Two ``emlogd crossval`` runs (without, with ``--current``), each its output followed
     by a ``wall W cpu C`` line this script appends."""
@@ -404,6 +424,9 @@ BENCHES = (
           _script("bench_import.py", lambda c: ["--mb", *(f"{x:g}" for x in IMPORT_MB)], parse_import)),
     Bench("daemon", "`bench/bench_daemon.py --skip growth --trial DIR/full`",
           _script("bench_daemon.py", lambda c: ["--skip", "growth", "--trial", str(c.full)], parse_daemon),
+          slow=True, trial=1.0),
+    Bench("profile", "`bench/bench_live_profile.py --trial DIR/full --top 12`",
+          _script("bench_live_profile.py", lambda c: ["--trial", str(c.full), "--top", "12"], parse_live_profile),
           slow=True, trial=1.0),
     Bench("wake", "`bench/bench_wake_costs.py --trial DIR/full`",
           _script("bench_wake_costs.py", lambda c: ["--trial", str(c.full)], parse_wake_costs),

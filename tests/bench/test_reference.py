@@ -44,6 +44,7 @@ PARSERS = {
     "import": (ref.parse_import, 1),
     "daemon": (ref.parse_daemon, 4),
     "wake_costs": (ref.parse_wake_costs, 2),
+    "live_profile": (ref.parse_live_profile, 1),
 }
 """Each kept output's parser and the rows it gives."""
 
