@@ -20,7 +20,10 @@ Rules (the constants are this module's and
 
 - **Emitting** (:meth:`Supervisor.correct`) uses only the applied calibration, never
   waits for the reference, and is silent while the log has a fault
-  (:class:`~emlogd.pipeline.integrity.UutHealth`).
+  (:class:`~emlogd.pipeline.integrity.UutHealth`). A reading whose reference is
+  already in (a log that lags the reference) is judged before it is emitted; one whose
+  innovation is beyond :data:`HOLD_SIGMAS` holds the calibration: raw goes out until
+  the change detector has decided.
 - **Validation**: an offer different enough from the applied calibration
   (``persist_min_change_sigma`` / ``persist_min_change_abs``) becomes a candidate,
   frozen and scored over the next ``validation_s`` (at least
@@ -112,6 +115,14 @@ CUSUM_MIN_SAMPLES = 10.0
 calibration (its own current and spread are known). While a CUSUM run builds up, its
 samples stay out of the window: a change is not absorbed by the baseline it is judged
 against."""
+
+HOLD_SIGMAS = 7.0
+"""An innovation of the applied calibration this many standard deviations out (the
+CUSUM's clip: no single glitch counts for more) holds it: raw passes through until
+the CUSUM run it opened ends (back to zero: the calibration is emitted again) or its
+alarm is decided (withdrawn, or the sea changed). A 20 % step of the log is such an
+innovation at once, and the two samples the CUSUM needs to alarm on it go out raw,
+not corrected for a sensor that is no longer there."""
 
 CUSUM_SIGMA_FLOOR_MPS = 0.02
 """The innovation's standard deviation is at least this, m/s (a window of quantised
@@ -213,6 +224,9 @@ class Supervisor:
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
         self.course = Course(CUSUM_HALF_LIFE_S)
+        self.held = False
+        """An innovation beyond :data:`HOLD_SIGMAS` opened the CUSUM's run: raw passes
+        through until it is decided."""
         self.reopen = False
         """Change detected: the learner should learn the parameters again (taken by the owner)."""
         self.health = UutHealth(s.stuck_s, s.zero_s)
@@ -242,11 +256,12 @@ class Supervisor:
     def correct(self, raw_mps: float) -> float | None:
         """The speed to send for a reading: applied calibration, or raw; None when silent.
 
-        Silent while the UUT has a fault (a stuck or dead log is not a measurement).
+        Silent while the UUT has a fault (a stuck or dead log is not a measurement);
+        raw while the applied calibration is held (:data:`HOLD_SIGMAS`).
         """
         if self.health.fault:
             return None
-        p = self.applied if self.s.apply else None
+        p = self.applied if self.s.apply and not self.held else None
         corrected = raw_mps if p is None else p.correct(raw_mps)
         out = emitted_speed(corrected, raw_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
         return out if math.isfinite(out) else None
@@ -486,8 +501,10 @@ class Supervisor:
         nu = e_app - pred
         cu = self.cusum
         alarm = cu.add(nu / sigma, nu, e_raw - pred)
-        self.course.add(t, e_app + ref, ref, cu.hi == 0.0 and cu.lo == 0.0)
-        if cu.hi == 0.0 and cu.lo == 0.0:
+        quiet = cu.hi == 0.0 and cu.lo == 0.0
+        self.course.add(t, e_app + ref, ref, quiet)
+        self.held = not quiet and (self.held or abs(nu) >= HOLD_SIGMAS * sigma)
+        if quiet:
             w.add(t, cs, (e_app,))  # the baseline learns only while nothing is building up
         if not alarm:
             return False
@@ -630,6 +647,7 @@ class Supervisor:
 
     def _reset_detector(self) -> None:
         self._t_beta = -math.inf  # the calibrations changed: their currents are fitted anew
+        self.held = False
         self.cusum.reset()
         self.detector.reset()
         self.course.reset()

@@ -34,8 +34,13 @@ class Rig:
         )
         self.t = 0.0
 
-    def run(self, seconds: float, raw: object = None, ref: object = None) -> list[float | None]:
-        """Advance; ``raw(t, v)`` and ``ref(t, v)`` may replace the true reading/reference."""
+    def run(
+        self, seconds: float, raw: object = None, ref: object = None, *, judged_first: bool = False
+    ) -> list[float | None]:
+        """Advance; ``raw(t, v)`` and ``ref(t, v)`` may replace the true reading/reference.
+
+        ``judged_first``: each reading is learnt from and judged before it is corrected
+        (as the pipeline does when its reference is in), else corrected first."""
         outs: list[float | None] = []
         for _ in range(int(seconds * 10)):
             self.t += 0.1
@@ -44,9 +49,12 @@ class Rig:
             self.cal.add_reference(self.t, r, True)
             if round(self.t * 10) % 10 == 0:
                 reading = raw(self.t, v) if callable(raw) else TRUE.forward(v)
-                outs.append(self.cal.correct(reading))
+                if not judged_first:
+                    outs.append(self.cal.correct(reading))
                 self.cal.add_reading(self.t, reading)
                 self.cal.drain(self.t)
+                if judged_first:
+                    outs.append(self.cal.correct(reading))
         return outs
 
     def kinds(self) -> list[str]:
@@ -290,6 +298,40 @@ class TestChangeDetection:
         assert rig.cal.counters.changes == 1
         assert "relearn" in [k for t, k, _ in rig.events if t >= t_step]
         assert rig.cal.applied is None or rig.cal.applied != TRUE
+
+    def test_a_gain_step_goes_out_raw_from_its_first_reading(self) -> None:
+        """A 20 % gain step judged before it is emitted: its first reading is an
+        innovation far beyond the noise, which holds the calibration (raw goes out) while
+        the CUSUM builds up to its alarm; no reading of the changed log goes out
+        corrected for the log before the change."""
+        rig = Rig(_prior())
+        rig.run(60, judged_first=True)
+        assert rig.cal.applied == TRUE
+
+        def dipped(t: float, v: float) -> float:
+            return 0.8 * TRUE.forward(v)
+
+        readings = [dipped(t, _speed(t)) for t in rig.t + np.arange(1.0, 6.0)]
+        outs = rig.run(5, raw=dipped, judged_first=True)
+        assert outs == pytest.approx(readings)
+        assert "fallback" in rig.kinds()
+
+    def test_one_glitch_holds_the_calibration_until_its_cusum_run_ends(self) -> None:
+        """One reading 20 % low goes out raw, and so do the next few while the CUSUM run
+        it opened decays; then the calibration is emitted again, never withdrawn."""
+        rig = Rig(_prior())
+        rig.run(60, judged_first=True)
+        t_glitch = rig.t + 1.0
+
+        def glitch(t: float, v: float) -> float:
+            return (0.8 if abs(t - t_glitch) < 0.05 else 1.0) * TRUE.forward(v)
+
+        outs = rig.run(20, raw=glitch, judged_first=True)
+        truth = [_speed(t) for t in t_glitch + np.arange(0.0, 20.0)]
+        assert outs[0] == pytest.approx(glitch(t_glitch, truth[0]))  # raw
+        assert outs[1] == pytest.approx(TRUE.forward(truth[1]))  # still held: raw
+        assert outs[10:] == pytest.approx(truth[10:], abs=1e-9)  # corrected again
+        assert "fallback" not in rig.kinds() and rig.cal.applied == TRUE
 
     def test_a_sensor_that_jumped_is_judged_in_the_sea_before_the_jump(self) -> None:
         """A 35 % gain step on a straight leg in the water frame: the log jumped and the
