@@ -22,7 +22,7 @@ Rules (the constants are this module's and
   waits for the reference, and is silent while the log has a fault
   (:class:`~emlogd.pipeline.integrity.UutHealth`). A reading whose reference is
   already in (a log that lags the reference) is judged before it is emitted; one whose
-  innovation is beyond :data:`HOLD_SIGMAS` holds the calibration: raw goes out until
+  innovation is beyond :data:`~emlogd.pipeline.evidence.HOLD_SIGMAS` holds the calibration: raw goes out until
   the change detector has decided.
 - **Validation**: an offer different enough from the applied calibration
   (``persist_min_change_sigma`` / ``persist_min_change_abs``) becomes a candidate,
@@ -40,12 +40,18 @@ Rules (the constants are this module's and
   a step of the sensor or the sea. On an alarm the calibration's errors and raw's
   over the alarm's run, against the current as it stood, decide: worse than raw, it
   is withdrawn and the learner learns the parameters again; else the sea changed, and
-  the detector's current starts afresh. When, where the innovation jumped, the log
+  the detector's current starts afresh; when the reference jumped
+  (:data:`~emlogd.pipeline.evidence.SEA_STEP_SIGMAS`) the learner's current re-opens
+  (raw passing through or not), so that the jump goes into the current, not into the
+  parameters. When, where the innovation jumped, the log
   jumped beyond its own scatter and the reference did not
   (:class:`~emlogd.pipeline.evidence.Course`), the sensor changed and the sea is as it
   was: the alarm is judged on the run of the side that alarmed alone, and the
   withdrawn calibration re-validates, raw and it alike, in the current the detector
   had before the jump.
+- **Drift** (:class:`~emlogd.pipeline.evidence.Drift`): a log that drifts against a
+  steady reference on a straight leg withdraws the applied calibration, and nothing is
+  applied while it drifts.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again.
@@ -69,11 +75,15 @@ from typing import TYPE_CHECKING, Protocol
 
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
+from emlogd.pipeline.evidence import HOLD_SIGMAS as HOLD_SIGMAS
+from emlogd.pipeline.evidence import SEA_STEP_SIGMAS as SEA_STEP_SIGMAS
 from emlogd.pipeline.evidence import (
     Course,
     Cusum,
+    Drift,
     FitWindow,
     SeaMemory,
+    sea_jumped,
 )
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
 from emlogd.pipeline.revalidation import RESTORE_MIN_HEADING_SPREAD as RESTORE_MIN_HEADING_SPREAD
@@ -115,14 +125,6 @@ CUSUM_MIN_SAMPLES = 10.0
 calibration (its own current and spread are known). While a CUSUM run builds up, its
 samples stay out of the window: a change is not absorbed by the baseline it is judged
 against."""
-
-HOLD_SIGMAS = 7.0
-"""An innovation of the applied calibration this many standard deviations out (the
-CUSUM's clip: no single glitch counts for more) holds it: raw passes through until
-the CUSUM run it opened ends (back to zero: the calibration is emitted again) or its
-alarm is decided (withdrawn, or the sea changed). A 20 % step of the log is such an
-innovation at once, and the two samples the CUSUM needs to alarm on it go out raw,
-not corrected for a sensor that is no longer there."""
 
 CUSUM_SIGMA_FLOOR_MPS = 0.02
 """The innovation's standard deviation is at least this, m/s (a window of quantised
@@ -224,9 +226,11 @@ class Supervisor:
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
         self.course = Course(CUSUM_HALF_LIFE_S)
+        self.drift = Drift()
         self.held = False
-        """An innovation beyond :data:`HOLD_SIGMAS` opened the CUSUM's run: raw passes
-        through until it is decided."""
+        """Raw passes through until the CUSUM run decides (:data:`HOLD_SIGMAS`)."""
+        self.sea_changed = False
+        """The reference jumped: the learner's current re-opens (taken by the owner)."""
         self.reopen = False
         """Change detected: the learner should learn the parameters again (taken by the owner)."""
         self.health = UutHealth(s.stuck_s, s.zero_s)
@@ -257,7 +261,7 @@ class Supervisor:
         """The speed to send for a reading: applied calibration, or raw; None when silent.
 
         Silent while the UUT has a fault (a stuck or dead log is not a measurement);
-        raw while the applied calibration is held (:data:`HOLD_SIGMAS`).
+        raw while the applied calibration is held (:data:`~emlogd.pipeline.evidence.HOLD_SIGMAS`).
         """
         if self.health.fault:
             return None
@@ -347,7 +351,13 @@ class Supervisor:
         d_raw = self._error(raw, ref, None)
         d_app = self._error(raw, ref, self.applied)
         self._score_output(raw, ref, proj, water)
-        if self._detect(t, cs, d_app, d_raw, ref):
+        self.drift.add(t, raw, ref, cs if self.water else None)
+        if self.drift.on and self.applied is not None:
+            why = {"params": self.applied.as_dict(), "drift_mps": round(self.drift.change_mps, 4)}
+            self._withdraw(t, "the log drifts against a steady reference", why)
+            self.reopen = True
+            d_app = d_raw
+        elif self._detect(t, cs, d_app, d_raw, ref):
             d_app = d_raw
         hc = self._heading_regressor(t, cs)
         # raw is judged in the sea as the applied calibration sees it (else its own
@@ -481,17 +491,11 @@ class Supervisor:
     def _detect(
         self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float, ref: float
     ) -> bool:
-        """Change detection on the applied calibration; True when it was withdrawn.
-
-        The innovation is the applied calibration's error minus what its own current
-        (:data:`CUSUM_HALF_LIFE_S`) predicts. On an alarm, the applied calibration and
-        raw are compared over the alarm's run against that same current (the sea as the
-        applied calibration saw it before the change): the calibration is withdrawn when
-        its errors are the larger — a sensor that changed. Otherwise the sea changed
-        (both moved alike): the detector's current starts afresh.
-        """
-        if self.applied is None:
-            return False
+        """Change detection on what is emitted (raw while it passes through); True when
+        the calibration was withdrawn (see the module docstring: the innovation is the
+        error less what its own current (:data:`CUSUM_HALF_LIFE_S`) predicts; an alarm
+        whose errors are raw's or smaller is the sea's, :attr:`sea_changed` when the
+        reference jumped)."""
         w = self.detector
         if w.n < CUSUM_MIN_SAMPLES:
             w.add(t, cs, (e_app,))
@@ -503,18 +507,24 @@ class Supervisor:
         alarm = cu.add(nu / sigma, nu, e_raw - pred)
         quiet = cu.hi == 0.0 and cu.lo == 0.0
         self.course.add(t, e_app + ref, ref, quiet)
-        self.held = not quiet and (self.held or abs(nu) >= HOLD_SIGMAS * sigma)
+        jump = abs(nu) >= HOLD_SIGMAS * sigma and self.course.log_jumped(*self.course.steps())
+        self.held = not quiet and (self.held or jump)
         if quiet:
             w.add(t, cs, (e_app,))  # the baseline learns only while nothing is building up
         if not alarm:
             return False
         step_log, step_ref = self.course.steps()
         jumped = self.course.log_jumped(step_log, step_ref)
+        if self.applied is None:
+            self._reset_detector(refit=False)  # raw's alarm: nothing applied changed
+            self.sea_changed = sea_jumped(step_log, step_ref, sigma)
+            return False
         # a log that jumped is judged on the run of the side that alarmed (after the
         # step); otherwise on the whole run, noise included
         n_app, n_raw = (cu.ss_app, cu.ss_raw) if jumped else (cu.run_app, cu.run_raw)
         if n_app <= n_raw:
             self._reset_detector()
+            self.sea_changed = sea_jumped(step_log, step_ref, sigma)
             return False
         detail: dict[str, object] = {
             "params": self.applied.as_dict(),
@@ -606,6 +616,8 @@ class Supervisor:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
             good = not worse(r_cand, r_raw)
+        if self.drift.on:  # a drifting log: whatever fitted it a moment ago will not
+            good, detail["drifting"] = False, True
         if cand.kind == "verify" or cand.early:
             if good:
                 self.unverified = False
@@ -645,8 +657,9 @@ class Supervisor:
         self._reset_detector()
         self.dirty = True
 
-    def _reset_detector(self) -> None:
-        self._t_beta = -math.inf  # the calibrations changed: their currents are fitted anew
+    def _reset_detector(self, refit: bool = True) -> None:
+        if refit:  # the calibrations changed: their currents are fitted anew
+            self._t_beta = -math.inf
         self.held = False
         self.cusum.reset()
         self.detector.reset()

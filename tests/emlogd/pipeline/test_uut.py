@@ -367,6 +367,57 @@ class TestChangeDetection:
         assert not [t for t, k, _ in rig.events if k == "fallback" and t >= t_jump]
         assert rig.cal.applied == TRUE
 
+    @pytest.mark.parametrize("prior", [True, False], ids=["applied", "raw"])
+    def test_a_current_that_jumps_reopens_the_learners_current(self, prior: bool) -> None:
+        """A 0.4 m/s head current at once on a straight leg: the reference jumped and the
+        log did not, so the learner's current re-opens (the jump goes into the current,
+        not into the bias), with a calibration applied and with raw passing alike."""
+        rig = Rig(_prior() if prior else None, heading=0.0, current=True)
+        rig.run(180)
+        cal = rig.cal
+        assert (cal.applied == TRUE) is prior
+        before = cal.learner.kf.current_std_mps
+        assert before is not None and before[0] < 0.2
+        t_jump = rig.t
+        rig.run(3, ref=lambda t, v: v - 0.4)
+        why = [str(d.get("why")) for t, k, d in rig.events if k == "relearn" and t > t_jump]
+        assert why == ["the reference jumped: the current learns again"]
+        after = cal.learner.kf.current_std_mps
+        assert after is not None and after[0] > 2.0 * before[0]
+
+    def test_a_small_jump_of_the_reference_does_not_reopen_the_current(self) -> None:
+        """A 0.1 m/s jump of the reference: the detector alarms, but the jump is within
+        ``SEA_STEP_SIGMAS`` of the innovations' spread: the learner's current is left as
+        it was."""
+        rig = Rig(None, heading=0.0, current=True)
+        rig.run(180)
+        t_jump = rig.t
+        rig.run(60, ref=lambda t, v: v - 0.1)
+        why = [str(d.get("why")) for t, k, d in rig.events if k == "relearn" and t > t_jump]
+        assert "the reference jumped: the current learns again" not in why
+
+    def test_a_log_that_drifts_on_a_straight_leg_is_withdrawn_and_kept_out(self) -> None:
+        """At a steady 1.6 m/s on a straight leg, the gain falls 0.05 % a second (fouling):
+        the calibration is withdrawn once the log has drifted, and no calibration is
+        applied while it drifts; the same leg without the drift keeps it."""
+        steady = Rig(_prior(), heading=0.0, current=True, learn=False)
+        steady.run(300, raw=lambda t, v: TRUE.forward(1.6), ref=lambda t, v: 1.6)
+        assert steady.cal.applied == TRUE and "fallback" not in steady.kinds()
+        rig = Rig(_prior(), heading=0.0, current=True, learn=False)
+        rig.run(60, raw=lambda t, v: TRUE.forward(1.6), ref=lambda t, v: 1.6)
+        assert rig.cal.applied == TRUE
+        t0 = rig.t
+        rig.run(
+            240,
+            raw=lambda t, v: TRUE.forward(1.6) * (1.0 - 0.0005 * (t - t0)),
+            ref=lambda t, v: 1.6,
+        )
+        falls = [(t, d) for t, k, d in rig.events if k == "fallback"]
+        assert [d["why"] for _, d in falls] == ["the log drifts against a steady reference"]
+        assert falls[0][0] - t0 <= 150.0
+        assert not [k for t, k, _ in rig.events if t > falls[0][0] and k == "calibrated"]
+        assert rig.cal.applied is None
+
 
 class TestRestored:
     """A restored calibration re-earns trust before it is applied."""
