@@ -350,7 +350,7 @@ class Pipeline:
         if g.variation_deg is not None:
             self.headings.variation[port] = g.variation_deg
         if g.valid:
-            self.headings.position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
+            self.headings.position(t, g.lat_deg, g.lon_deg, g.fix_t)
         valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
         if valid and g.sog_mps is not None and self.fusion is not None:
             self.fusion.ground(t, g.sog_mps)

@@ -59,7 +59,8 @@ Rules (the constants are this module's and
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
   was saved in and against raw, the current its errors imply is one the sea cannot
-  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; saved with its sea
+  have, :data:`RESTORE_SEA_SIGMAS`; refused so, judged again every
+  :data:`RESTORE_RETRY_S`), raw passing through meanwhile; saved with its sea
   and raw worse than it there over its first :data:`RESTORE_EARLY_SAMPLES`, it is
   applied then and validated in place (withdrawn when that fails); when no reference
   has been heard
@@ -152,6 +153,18 @@ the other way round): the evidence is for it. It is validated in place over the 
 of its window and withdrawn when that fails; with any other evidence raw passes
 through until then."""
 
+RESTORE_RETRY_S = 120.0
+"""A restored calibration refused on a window whose headings cannot tell a current from
+an offset, for the current its errors imply (beyond what the sea can have become since
+it was saved, :data:`RESTORE_SEA_SIGMAS`), is validated again this long after, s, while
+nothing is applied and the learner has nothing to offer: it was not shown wrong, only
+unexplained by the sea it was saved in, and that sea's allowance grows with the time
+since it was saved (a current that changed faster than the learner's random walk is
+seen as such a little later). Raw passes through meanwhile. One refused with the whole
+allowance (the learner's prior of a current component: saved without its sea, or long
+enough ago) is not judged again: time would not change its verdict, only give it more
+draws."""
+
 RESTORE_WAIT_S = 10.0
 """A restored calibration is applied unverified when no reference has been heard this
 long after the first reading, s."""
@@ -217,6 +230,9 @@ class Supervisor:
         )
         self.unverified = False
         """The applied calibration is a restored one no reference has confirmed yet."""
+        self.retry: tuple[_Candidate, float] | None = None
+        """A restored calibration refused on a straight leg, and when
+        (:data:`RESTORE_RETRY_S`)."""
         self.t_first: float | None = None
         self.heard_reference = False
         self.recheck = PairedWindow(s.recheck_s)
@@ -573,6 +589,11 @@ class Supervisor:
         """Freeze the learner's offer as a candidate when it is new enough."""
         offer = source.offer()
         if offer is None:
+            if self.retry is not None and self.applied is None:
+                old, t_refused = self.retry
+                if t - t_refused >= RESTORE_RETRY_S:
+                    self.retry = None
+                    self.candidate = _Candidate(old.params, math.nan, "restored", old.std)
             return
         base = self.applied if self.applied is not None else None
         if base is not None and not self._significant(base, offer.params, offer.param_std):
@@ -608,8 +629,13 @@ class Supervisor:
                 self.s.kf,
                 self.restored_sea,
                 self.restored_sea_std,
-                self.t_first,
+                cand.t0,
             )
+            # refused by the sea's allowance, short of the whole (RESTORE_RETRY_S)
+            allowance = detail.get("current_allowance_mps")
+            cap = math.sqrt(self.s.kf.current_p0_m2ps2)
+            if not good and isinstance(allowance, float) and allowance < cap:
+                self.retry = (cand, t)
         elif cand.kind == "restored" and cand.n_sea == n:
             good = judge_saved_sea(cand, detail)
         else:
@@ -649,6 +675,7 @@ class Supervisor:
             self._emit(t, "candidate_rejected", detail)
 
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
+        self.retry = None
         self.applied = p
         self.applied_std = dict(std)
         self.last_good = p
