@@ -72,13 +72,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
-from emlogd.pipeline.evidence import HOLD_SIGMAS as HOLD_SIGMAS
-from emlogd.pipeline.evidence import SEA_STEP_SIGMAS as SEA_STEP_SIGMAS
 from emlogd.pipeline.evidence import (
+    HOLD_SIGMAS,
     Course,
     Cusum,
     Drift,
@@ -86,12 +85,13 @@ from emlogd.pipeline.evidence import (
     SeaMemory,
     sea_jumped,
 )
-from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
+from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed, output_std
 from emlogd.pipeline.revalidation import RESTORE_MIN_HEADING_SPREAD as RESTORE_MIN_HEADING_SPREAD
 from emlogd.pipeline.revalidation import RESTORE_SEA_SIGMAS as RESTORE_SEA_SIGMAS
 from emlogd.pipeline.revalidation import WORSE_FACTOR as WORSE_FACTOR
 from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
+from emlogd.pipeline.revalidation import CandidateSource as CandidateSource
 from emlogd.pipeline.revalidation import _Candidate as _Candidate
 from emlogd.pipeline.revalidation import (
     judge_restored,
@@ -100,7 +100,6 @@ from emlogd.pipeline.revalidation import (
 )
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.learner import Offer
     from emlogd.pipeline.settings import UutSettings
 
 VALIDATION_MIN_SAMPLES = 20
@@ -170,17 +169,6 @@ RESTORE_WAIT_S = 10.0
 long after the first reading, s."""
 
 
-class CandidateSource(Protocol):
-    """What the supervisor may ask of the learner: an offer, and its uncertainty now."""
-
-    def offer(self) -> Offer | None:
-        """The learner's estimate as a candidate, or None when it has none to offer."""
-
-    @property
-    def param_std(self) -> Mapping[str, float]:
-        """The standard deviation of each parameter now."""
-
-
 class Supervisor:
     """What is applied to one UUT's readings (see the module docstring).
 
@@ -244,7 +232,7 @@ class Supervisor:
         self.course = Course(CUSUM_HALF_LIFE_S)
         self.drift = Drift()
         self.held = False
-        """Raw passes through until the CUSUM run decides (:data:`HOLD_SIGMAS`)."""
+        """Raw passes through until the CUSUM run decides (``HOLD_SIGMAS``)."""
         self.sea_changed = False
         """The reference jumped: the learner's current re-opens (taken by the owner)."""
         self.reopen = False
@@ -287,24 +275,9 @@ class Supervisor:
         return out if math.isfinite(out) else None
 
     def output_std(self, speed_mps: float) -> float:
-        """The standard deviation of a speed :meth:`correct` gave, m/s.
-
-        The reading's noise through the scale, plus the applied calibration's own σ at
-        that speed; raw passed through (no calibration yet) counts with 10 % + 0.1 m/s.
-        """
-        r_raw = self.s.kf.r_raw_mps2
+        """The standard deviation of a speed :meth:`correct` gave, m/s (:func:`output_std`)."""
         p = self.applied if self.s.apply else None
-        if p is None:
-            return math.sqrt(r_raw + (0.1 * speed_mps) ** 2 + 0.01)
-        std = self.applied_std
-        u = abs(speed_mps)
-        gain = p.a_spm * 2.0 * u + 1.0 + p.m
-        var = r_raw / max(gain * gain, 0.25)
-        for name, x in (("a", u * u), ("m", u), ("b", 1.0)):
-            sd = std.get(name)
-            if sd is not None and math.isfinite(sd):
-                var += (sd * x) ** 2 / max(gain * gain, 0.25)
-        return math.sqrt(var)
+        return output_std(p, self.applied_std, self.s.kf.r_raw_mps2, speed_mps)
 
     # -- supervision ----------------------------------------------------------
 
