@@ -34,8 +34,13 @@ class Rig:
         )
         self.t = 0.0
 
-    def run(self, seconds: float, raw: object = None, ref: object = None) -> list[float | None]:
-        """Advance; ``raw(t, v)`` and ``ref(t, v)`` may replace the true reading/reference."""
+    def run(
+        self, seconds: float, raw: object = None, ref: object = None, *, judged_first: bool = False
+    ) -> list[float | None]:
+        """Advance; ``raw(t, v)`` and ``ref(t, v)`` may replace the true reading/reference.
+
+        ``judged_first``: each reading is learnt from and judged before it is corrected
+        (as the pipeline does when its reference is in), else corrected first."""
         outs: list[float | None] = []
         for _ in range(int(seconds * 10)):
             self.t += 0.1
@@ -44,9 +49,12 @@ class Rig:
             self.cal.add_reference(self.t, r, True)
             if round(self.t * 10) % 10 == 0:
                 reading = raw(self.t, v) if callable(raw) else TRUE.forward(v)
-                outs.append(self.cal.correct(reading))
+                if not judged_first:
+                    outs.append(self.cal.correct(reading))
                 self.cal.add_reading(self.t, reading)
                 self.cal.drain(self.t)
+                if judged_first:
+                    outs.append(self.cal.correct(reading))
         return outs
 
     def kinds(self) -> list[str]:
@@ -291,6 +299,40 @@ class TestChangeDetection:
         assert "relearn" in [k for t, k, _ in rig.events if t >= t_step]
         assert rig.cal.applied is None or rig.cal.applied != TRUE
 
+    def test_a_gain_step_goes_out_raw_from_its_first_reading(self) -> None:
+        """A 20 % gain step judged before it is emitted: its first reading is an
+        innovation far beyond the noise, which holds the calibration (raw goes out) while
+        the CUSUM builds up to its alarm; no reading of the changed log goes out
+        corrected for the log before the change."""
+        rig = Rig(_prior())
+        rig.run(60, judged_first=True)
+        assert rig.cal.applied == TRUE
+
+        def dipped(t: float, v: float) -> float:
+            return 0.8 * TRUE.forward(v)
+
+        readings = [dipped(t, _speed(t)) for t in rig.t + np.arange(1.0, 6.0)]
+        outs = rig.run(5, raw=dipped, judged_first=True)
+        assert outs == pytest.approx(readings)
+        assert "fallback" in rig.kinds()
+
+    def test_one_glitch_holds_the_calibration_until_its_cusum_run_ends(self) -> None:
+        """One reading 20 % low goes out raw, and so do the next few while the CUSUM run
+        it opened decays; then the calibration is emitted again, never withdrawn."""
+        rig = Rig(_prior())
+        rig.run(60, judged_first=True)
+        t_glitch = rig.t + 1.0
+
+        def glitch(t: float, v: float) -> float:
+            return (0.8 if abs(t - t_glitch) < 0.05 else 1.0) * TRUE.forward(v)
+
+        outs = rig.run(20, raw=glitch, judged_first=True)
+        truth = [_speed(t) for t in t_glitch + np.arange(0.0, 20.0)]
+        assert outs[0] == pytest.approx(glitch(t_glitch, truth[0]))  # raw
+        assert outs[1] == pytest.approx(TRUE.forward(truth[1]))  # still held: raw
+        assert outs[10:] == pytest.approx(truth[10:], abs=1e-9)  # corrected again
+        assert "fallback" not in rig.kinds() and rig.cal.applied == TRUE
+
     def test_a_sensor_that_jumped_is_judged_in_the_sea_before_the_jump(self) -> None:
         """A 35 % gain step on a straight leg in the water frame: the log jumped and the
         reference did not, so the withdrawn calibration re-validates in the sea as it was
@@ -324,6 +366,57 @@ class TestChangeDetection:
         rig.run(60, ref=lambda t, v: v - 0.3)
         assert not [t for t, k, _ in rig.events if k == "fallback" and t >= t_jump]
         assert rig.cal.applied == TRUE
+
+    @pytest.mark.parametrize("prior", [True, False], ids=["applied", "raw"])
+    def test_a_current_that_jumps_reopens_the_learners_current(self, prior: bool) -> None:
+        """A 0.4 m/s head current at once on a straight leg: the reference jumped and the
+        log did not, so the learner's current re-opens (the jump goes into the current,
+        not into the bias), with a calibration applied and with raw passing alike."""
+        rig = Rig(_prior() if prior else None, heading=0.0, current=True)
+        rig.run(180)
+        cal = rig.cal
+        assert (cal.applied == TRUE) is prior
+        before = cal.learner.kf.current_std_mps
+        assert before is not None and before[0] < 0.2
+        t_jump = rig.t
+        rig.run(3, ref=lambda t, v: v - 0.4)
+        why = [str(d.get("why")) for t, k, d in rig.events if k == "relearn" and t > t_jump]
+        assert why == ["the reference jumped: the current learns again"]
+        after = cal.learner.kf.current_std_mps
+        assert after is not None and after[0] > 2.0 * before[0]
+
+    def test_a_small_jump_of_the_reference_does_not_reopen_the_current(self) -> None:
+        """A 0.1 m/s jump of the reference: the detector alarms, but the jump is within
+        ``SEA_STEP_SIGMAS`` of the innovations' spread: the learner's current is left as
+        it was."""
+        rig = Rig(None, heading=0.0, current=True)
+        rig.run(180)
+        t_jump = rig.t
+        rig.run(60, ref=lambda t, v: v - 0.1)
+        why = [str(d.get("why")) for t, k, d in rig.events if k == "relearn" and t > t_jump]
+        assert "the reference jumped: the current learns again" not in why
+
+    def test_a_log_that_drifts_on_a_straight_leg_is_withdrawn_and_kept_out(self) -> None:
+        """At a steady 1.6 m/s on a straight leg, the gain falls 0.05 % a second (fouling):
+        the calibration is withdrawn once the log has drifted, and no calibration is
+        applied while it drifts; the same leg without the drift keeps it."""
+        steady = Rig(_prior(), heading=0.0, current=True, learn=False)
+        steady.run(300, raw=lambda t, v: TRUE.forward(1.6), ref=lambda t, v: 1.6)
+        assert steady.cal.applied == TRUE and "fallback" not in steady.kinds()
+        rig = Rig(_prior(), heading=0.0, current=True, learn=False)
+        rig.run(60, raw=lambda t, v: TRUE.forward(1.6), ref=lambda t, v: 1.6)
+        assert rig.cal.applied == TRUE
+        t0 = rig.t
+        rig.run(
+            240,
+            raw=lambda t, v: TRUE.forward(1.6) * (1.0 - 0.0005 * (t - t0)),
+            ref=lambda t, v: 1.6,
+        )
+        falls = [(t, d) for t, k, d in rig.events if k == "fallback"]
+        assert [d["why"] for _, d in falls] == ["the log drifts against a steady reference"]
+        assert falls[0][0] - t0 <= 150.0
+        assert not [k for t, k, _ in rig.events if t > falls[0][0] and k == "calibrated"]
+        assert rig.cal.applied is None
 
 
 class TestRestored:
