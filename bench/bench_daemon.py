@@ -323,6 +323,33 @@ def _wakeups(pid: int) -> int:
     return 0
 
 
+def trial_dir(given: str | None) -> Path:
+    """``--trial``'s folder (else a temporary one), the simulated trial (seed 1) written
+    into it unless its figure-8 is there already."""
+    from emlogd.offline.simulate import simulate
+
+    trial = Path(given) if given else Path(tempfile.mkdtemp(prefix="emlogd-trial-"))
+    if not (trial / "2-figure8.cap").exists():
+        simulate(trial, seed=1)
+    return trial
+
+
+def run_wrapped(trial: Path, seconds: float, launcher: list[str]) -> None:
+    """``LAUNCHER run --config CFG`` (a wrapper around the daemon that writes what it
+    measured itself) for ``seconds`` after READY=1, on the three fake devices replaying
+    the trial's figure-8 at real speed: the live rates of :func:`bench_live`."""
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        cfg = _setup(work)
+        capture = trial / "2-figure8.cap"
+        with fake_sensors(capture, work / "links", ("emlog1", "emlog2", "dvl"), speed=1.0):
+            proc, _, srv = _start(work, cfg, launcher)
+            try:
+                time.sleep(seconds)
+            finally:
+                _stop(proc, srv)
+
+
 def bench_live(trial: Path, seconds: float) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)

@@ -25,10 +25,9 @@ import argparse
 import json
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from bench_daemon import _setup, _start, _stop
+from bench_daemon import run_wrapped, trial_dir
 
 WRAPPER = r"""
 import atexit, collections, json, sys, time
@@ -136,27 +135,14 @@ sys.exit(main(sys.argv[2:]))
 
 def main() -> None:
     """Run the timed daemon at live rates and print the CPU by wake-up and by step."""
-    from emlogd.launch import fake_sensors
-    from emlogd.offline.simulate import simulate
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=40.0)
     ap.add_argument("--trial", help="directory with the simulated trial (default: simulate one)")
     args = ap.parse_args()
-    trial = Path(args.trial) if args.trial else Path(tempfile.mkdtemp(prefix="emlogd-trial-"))
-    if not (trial / "2-figure8.cap").exists():
-        simulate(trial, seed=1)
+    trial = trial_dir(args.trial)
     with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        cfg = _setup(work)
-        out = work / "costs.json"
-        capture = trial / "2-figure8.cap"
-        with fake_sensors(capture, work / "links", ("emlog1", "emlog2", "dvl"), speed=1.0):
-            proc, _, srv = _start(work, cfg, [sys.executable, "-c", WRAPPER, str(out)])
-            try:
-                time.sleep(args.seconds)
-            finally:
-                _stop(proc, srv)
+        out = Path(tmp) / "costs.json"
+        run_wrapped(trial, args.seconds, [sys.executable, "-c", WRAPPER, str(out)])
         data = json.loads(out.read_text())
     wall = data["wall_s"]
     kinds = data["kinds"]

@@ -50,7 +50,7 @@ from calib.errors import DataError, ModelError
 from calib.estimate import Estimate, Estimated
 from calib.kalman import KfConfig, run_kf
 from calib.lsq import fit_ls
-from calib.metrics import improvement_pct, water_scores
+from calib.metrics import improvement_pct, water_scores, water_targets
 from calib.models import (
     CURRENT,
     FloatArray,
@@ -364,7 +364,7 @@ def _info(seg: _Arrays, current: bool) -> SegmentInfo:
     hd = seg.heading[ok] if current and seg.heading is not None else None
     raw = seg.raw[ok]
     # the raw RMSE of the cells (:func:`evaluate`): the same samples, the same frame
-    r_raw, _ = water_scores(seg.t[ok], seg.ref[ok], raw, raw, hd, zero_params("EM3"))
+    r_raw, _ = water_scores(water_targets(seg.t[ok], seg.ref[ok], raw, raw, hd, zero_params("EM3")))
     return SegmentInfo(
         name=seg.name,
         n_samples=int(np.count_nonzero(ok)),
@@ -465,7 +465,7 @@ def evaluate(trained: TrainedEstimator, seg: _Arrays, *, current: bool = False) 
     else:
         hd = seg.heading[ok] if current and seg.heading is not None else None
         r_raw, r_cal = water_scores(
-            seg.t[ok], seg.ref[ok], seg.raw[ok], cal[ok], hd, trained.params
+            water_targets(seg.t[ok], seg.ref[ok], seg.raw[ok], cal[ok], hd, trained.params)
         )
     return Evaluation(
         estimator=trained.estimator,

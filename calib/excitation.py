@@ -175,22 +175,6 @@ class Identifiability(Verdicts):
     cond_info: float
     nuisance_offset: bool
 
-    @property
-    def identifiable(self) -> bool:
-        """Every unknown is determined."""
-        return not self.unidentifiable
-
-    def verdict(self, unknown: str) -> Verdict:
-        """The verdict on one unknown.
-
-        Raises:
-            KeyError: not an unknown of this layout.
-        """
-        for v in self.verdicts:
-            if v.unknown == unknown:
-                return v
-        raise KeyError(unknown)
-
 
 def _columns(unknowns: Sequence[str], offset: bool) -> list[int]:
     cols = [c for u in unknowns for c in _COL[u]]

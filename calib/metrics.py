@@ -119,12 +119,34 @@ def water_rmse(
 
 
 CURRENT_WINDOW_S = 1800.0
-"""The window over which :func:`water_scores` takes the current as constant, s: long
+"""The window over which :func:`water_targets` takes the current as constant, s: long
 enough for the heading to cover the sectors that tell a current from a bias (a yacht
 tacks, a survey turns), short against a tide (a tidal current turns in hours)."""
 
 
 def water_scores(
+    targets: tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]],
+) -> tuple[float, float]:
+    """RMSE of the raw and of the corrected reading in the water frame: the one definition.
+
+    Each reading against the water speed :func:`water_targets` gives it (the same
+    targets :func:`water_imo` judges): the reference, or with headings the reference
+    minus the current of its time projected on the hull.
+
+    Args:
+        targets: what :func:`water_targets` returns for the readings.
+
+    Returns:
+        ``(rmse_raw, rmse_corrected)``, m/s; nan for a reading with no target at all.
+
+    Raises:
+        DataError: a reading with targets but no finite pair.
+    """
+    out = [rmse(target, est) if np.isfinite(target).any() else math.nan for target, est in targets]
+    return out[0], out[1]
+
+
+def water_targets(
     t_s: npt.ArrayLike,
     ref_mps: npt.ArrayLike,
     raw_mps: npt.ArrayLike,
@@ -134,12 +156,12 @@ def water_scores(
     *,
     window_s: float = CURRENT_WINDOW_S,
     min_heading_sectors: int = 3,
-) -> tuple[float, float]:
-    """RMSE of the raw and of the corrected reading in the water frame: the one definition.
+) -> tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]:
+    """The water speed each reading is scored against (:func:`water_scores`,
+    :func:`water_imo`): the one definition.
 
-    Without headings: against the reference. With them, each reading against the
-    reference minus the current of its time, projected on the hull: the current that
-    best explains each ``window_s`` window (:func:`calib.lsq.fit_current`) for that
+    Without headings: the reference. With them, for each reading the reference minus
+    the current of its time, projected on the hull: the current that best explains each ``window_s`` window (:func:`calib.lsq.fit_current`) for that
     reading's own calibration — the ideal sensor for the raw reading, ``params`` for
     the corrected one — so the raw RMSE of a series is the same whatever method
     calibrated it, and a current that turns over hours is followed. A window whose
@@ -157,46 +179,11 @@ def water_scores(
         min_heading_sectors: sectors a window needs to determine its current.
 
     Returns:
-        ``(rmse_raw, rmse_corrected)``, m/s.
-
-    Raises:
-        DataError: shapes that differ, or no finite pair.
-    """
-    targets = water_targets(
-        t_s,
-        ref_mps,
-        raw_mps,
-        corrected_mps,
-        heading_deg,
-        params,
-        window_s=window_s,
-        min_heading_sectors=min_heading_sectors,
-    )
-    if heading_deg is None:
-        return rmse(*targets[0]), rmse(*targets[1])
-    out = [rmse(target, est) if np.isfinite(target).any() else math.nan for target, est in targets]
-    return out[0], out[1]
-
-
-def water_targets(
-    t_s: npt.ArrayLike,
-    ref_mps: npt.ArrayLike,
-    raw_mps: npt.ArrayLike,
-    corrected_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike | None,
-    params: Params,
-    *,
-    window_s: float = CURRENT_WINDOW_S,
-    min_heading_sectors: int = 3,
-) -> tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]:
-    """The water speed each reading is scored against, as :func:`water_scores` defines it.
-
-    Returns:
         ``((target_raw, raw), (target_corrected, corrected))``: per sample, the target
         (nan where a sample is not scored) beside the reading, m/s.
 
     Raises:
-        DataError: as :func:`water_scores`.
+        DataError: shapes that differ, or a window that is not positive.
     """
     from calib.excitation import ExcitationRule
     from calib.lsq import fit_current  # calib.lsq imports this module

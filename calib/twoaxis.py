@@ -85,6 +85,7 @@ __all__ = [
     "TwoAxisIdent",
     "TwoAxisParams",
     "TwoAxisRule",
+    "TwoAxisSeries",
     "current_basis",
     "fit_current_two_axis",
     "fit_two_axis",
@@ -188,38 +189,61 @@ class TwoAxisFit:
 
 
 @dataclass(frozen=True, slots=True)
-class _Series:
-    gf: FloatArray
-    gs: FloatArray
+class TwoAxisSeries:
+    """Aligned two-axis series, checked: what every two-axis fit takes (build it with
+    :meth:`of`).
+
+    Attributes:
+        ref_fwd: the reference's ground (or, without a current, water) speed forward
+            along the hull, m/s, shape (N,), lag-aligned.
+        ref_stb: its speed to starboard, m/s, shape (N,).
+        raw_l: the longitudinal readings, m/s, shape (N,).
+        raw_t: the transverse readings (positive to starboard), m/s, shape (N,).
+        heading: headings at the reference's time, degrees, shape (N,).
+    """
+
+    ref_fwd: FloatArray
+    ref_stb: FloatArray
     raw_l: FloatArray
     raw_t: FloatArray
-    hd: FloatArray
+    heading: FloatArray
 
+    @classmethod
+    def of(
+        cls,
+        ref_fwd_mps: npt.ArrayLike,
+        ref_stb_mps: npt.ArrayLike,
+        raw_l_mps: npt.ArrayLike,
+        raw_t_mps: npt.ArrayLike,
+        heading_deg: npt.ArrayLike,
+    ) -> TwoAxisSeries:
+        """The series as float arrays, checked.
 
-def _check(
-    ref_fwd: npt.ArrayLike,
-    ref_stb: npt.ArrayLike,
-    raw_l: npt.ArrayLike,
-    raw_t: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
-) -> _Series:
-    arrays = [
-        np.asarray(a, dtype=np.float64).reshape(-1)
-        for a in (ref_fwd, ref_stb, raw_l, raw_t, heading_deg)
-    ]
-    n = arrays[0].size
-    if n == 0:
-        raise DataError("no samples")
-    if any(a.size != n for a in arrays):
-        raise DataError("references, readings and headings must have the same length")
-    if not all(bool(np.all(np.isfinite(a))) for a in arrays):
-        raise DataError("references, readings and headings must be finite")
-    return _Series(*arrays)
+        Raises:
+            DataError: no samples, lengths that differ, or a value that is not finite.
+        """
+        arrays = [
+            np.asarray(a, dtype=np.float64).reshape(-1)
+            for a in (ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
+        ]
+        n = arrays[0].size
+        if n == 0:
+            raise DataError("no samples")
+        if any(a.size != n for a in arrays):
+            raise DataError("references, readings and headings must have the same length")
+        if not all(bool(np.all(np.isfinite(a))) for a in arrays):
+            raise DataError("references, readings and headings must be finite")
+        return cls(*arrays)
+
+    @property
+    def n(self) -> int:
+        """The number of samples."""
+        return int(self.ref_fwd.size)
 
 
 def _prepare(
     name: ModelName,
-    s: _Series,
+    s: TwoAxisSeries,
     prior: TwoAxisParams | None,
     current: bool,
     t_s: npt.ArrayLike | None,
@@ -229,8 +253,8 @@ def _prepare(
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
     basis = None
     if current and current_knot_s is not None:
-        basis = current_basis(t_s, s.gf.size, current_knot_s)
-    return _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
+        basis = current_basis(t_s, s.n, current_knot_s)
+    return _Problem(s.ref_fwd, s.ref_stb, s.raw_l, s.raw_t, np.radians(s.heading), basis)
 
 
 MIN_KNOT_SHARE = 0.05
@@ -276,11 +300,7 @@ def current_basis(t_s: npt.ArrayLike | None, n: int, knot_s: float) -> FloatArra
 
 def fit_two_axis(
     model: str,
-    ref_fwd_mps: npt.ArrayLike,
-    ref_stb_mps: npt.ArrayLike,
-    raw_l_mps: npt.ArrayLike,
-    raw_t_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
+    s: TwoAxisSeries,
     *,
     current: bool = True,
     prior: TwoAxisParams | None = None,
@@ -292,12 +312,7 @@ def fit_two_axis(
 
     Args:
         model: the longitudinal model, ``"EM1"`` … ``"EM4"``.
-        ref_fwd_mps: the reference's ground (or, without ``current``, water) speed
-            forward along the hull, m/s, shape (N,), lag-aligned.
-        ref_stb_mps: its speed to starboard, m/s, shape (N,).
-        raw_l_mps: the longitudinal readings, m/s, shape (N,).
-        raw_t_mps: the transverse readings (positive to starboard), m/s, shape (N,).
-        heading_deg: headings at the reference's time, degrees, shape (N,).
+        s: the series (without ``current``, the reference is the water speed).
         current: estimate the sea current shared by both axes.
         prior: the value of an unknown the data do not determine (default the ideal
             sensor, aligned).
@@ -318,14 +333,13 @@ def fit_two_axis(
 
     Raises:
         ModelError: unknown model.
-        DataError: bad series, a prior of another model.
+        DataError: a prior of another model, or times unfit for ``current_knot_s``.
     """
     name = check_model(model)
-    s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
     problem = _prepare(name, s, prior, current, t_s, current_knot_s)
     x0 = _x0(prior, problem.size())
     u, w = problem.water(x0)
-    ident = judge_two_axis(name, u, w, s.raw_l, s.hd, current=current, rule=rule)
+    ident = judge_two_axis(name, u, w, s.raw_l, s.heading, current=current, rule=rule)
     x = x0
     outside: dict[str, str] = {}
 
@@ -336,7 +350,7 @@ def fit_two_axis(
             u,
             w,
             s.raw_l,
-            s.hd,
+            s.heading,
             current=current,
             info_of=problem,
             x=x,
@@ -349,7 +363,7 @@ def fit_two_axis(
         free = _free_indices(ident.determined, ident.nuisance_offset, problem.n_blocks)
         x = _solve(problem, x0, free)
         rl, rt = problem.residuals(x)
-        dof = max(s.gf.size - len(free) // 2, 1)
+        dof = max(s.n - len(free) // 2, 1)
         problem.scale = np.array(
             [
                 1.0 / max(math.sqrt(float(rl @ rl) / dof), 1e-6),
@@ -379,7 +393,7 @@ def fit_two_axis(
     factor = max(correlation_factor(rl), correlation_factor(rt))
     std = np.full(x.size, math.nan)
     cov_full = np.zeros((x.size, x.size))
-    if free and 2 * s.gf.size > len(free):
+    if free and 2 * s.n > len(free):
         jf = problem.jacobian(x)[:, free]
         try:
             cov = factor * np.linalg.inv(jf.T @ jf)
@@ -410,7 +424,7 @@ def fit_two_axis(
             g[1, _N_FIXED + 1 :: 2] = share[1:]
         var = np.einsum("ij,jk,ik->i", g, cov_full, g)
         cur_std = (math.sqrt(max(float(var[0]), 0.0)), math.sqrt(max(float(var[1]), 0.0)))
-    n = s.gf.size
+    n = s.n
     return TwoAxisFit(
         params=params,
         stderr=stderr,
@@ -436,13 +450,13 @@ class ModelState:
             a nuisance offset per axis when the current is not separable).
     """
 
-    def __init__(self, name: ModelName, s: _Series, ident: TwoAxisIdent) -> None:
+    def __init__(self, name: ModelName, s: TwoAxisSeries, ident: TwoAxisIdent) -> None:
         self.model = name
-        self.n = s.gf.size
+        self.n = s.n
         self.tie = _ties(name, ident)
         self.free = _free_indices(ident.determined, ident.nuisance_offset, 1)
-        psi = np.radians(s.hd)
-        self._gf, self._gs = s.gf.tolist(), s.gs.tolist()
+        psi = np.radians(s.heading)
+        self._gf, self._gs = s.ref_fwd.tolist(), s.ref_stb.tolist()
         self._rl, self._rt = s.raw_l.tolist(), s.raw_t.tolist()
         self._cp, self._sp = np.cos(psi).tolist(), np.sin(psi).tolist()
 
@@ -514,35 +528,18 @@ class ModelState:
         return np.array([self._rl[j] - pl, self._rt[j] - pt]), h
 
 
-def model_state(
-    model: str,
-    ref_fwd_mps: npt.ArrayLike,
-    ref_stb_mps: npt.ArrayLike,
-    raw_l_mps: npt.ArrayLike,
-    raw_t_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
-    ident: TwoAxisIdent,
-) -> ModelState:
+def model_state(model: str, s: TwoAxisSeries, ident: TwoAxisIdent) -> ModelState:
     """The state and measurement of a series under the verdicts ``ident``.
 
     Raises:
         ModelError: unknown model.
-        DataError: bad series.
     """
-    return ModelState(
-        check_model(model),
-        _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg),
-        ident,
-    )
+    return ModelState(check_model(model), s, ident)
 
 
 def fit_current_two_axis(
     params: TwoAxisParams,
-    ref_fwd_mps: npt.ArrayLike,
-    ref_stb_mps: npt.ArrayLike,
-    raw_l_mps: npt.ArrayLike,
-    raw_t_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
+    s: TwoAxisSeries,
     *,
     t_s: npt.ArrayLike | None = None,
     current_knot_s: float | None = None,
@@ -557,11 +554,7 @@ def fit_current_two_axis(
 
     Args:
         params: the frozen parameters.
-        ref_fwd_mps: ground speed forward, m/s.
-        ref_stb_mps: ground speed to starboard, m/s.
-        raw_l_mps: longitudinal readings, m/s.
-        raw_t_mps: transverse readings, m/s.
-        heading_deg: headings, degrees.
+        s: the series.
         t_s: sample times, s (needed with ``current_knot_s``).
         current_knot_s: the current linear between knots this far apart
             (:func:`current_basis`; None: one current).
@@ -570,13 +563,12 @@ def fit_current_two_axis(
         The current (north, east) at each sample, m/s, shape (N, 2).
 
     Raises:
-        DataError: bad series or times.
+        DataError: bad times.
     """
-    s = _check(ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg)
     basis = None
     if current_knot_s is not None:
-        basis = current_basis(t_s, s.gf.size, current_knot_s)
-    problem = _Problem(s.gf, s.gs, s.raw_l, s.raw_t, np.radians(s.hd), basis)
+        basis = current_basis(t_s, s.n, current_knot_s)
+    problem = _Problem(s.ref_fwd, s.ref_stb, s.raw_l, s.raw_t, np.radians(s.heading), basis)
     x0 = _x0(params, problem.size())
     x = _solve(problem, x0, _index(CURRENT, problem.n_blocks))
     cn, ce = problem.current_at(x)

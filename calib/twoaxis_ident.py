@@ -50,7 +50,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.errors import ModelError
 from calib.excitation import (
     DEFAULT_RULE,
     N_SECTORS,
@@ -171,17 +170,6 @@ class TwoAxisIdent(Verdicts):
     transverse_std_mps: float
     heading_sectors: int
     n_samples: int
-
-    def verdict(self, unknown: str) -> Verdict:
-        """The verdict on one unknown.
-
-        Raises:
-            ModelError: not an unknown of this window.
-        """
-        for v in self.verdicts:
-            if v.unknown == unknown:
-                return v
-        raise ModelError(f"{unknown!r} is not an unknown of this two-axis window")
 
 
 def _spread(x: FloatArray) -> float:

@@ -40,6 +40,7 @@ from calib.twoaxis import (
     TwoAxisFit,
     TwoAxisParams,
     TwoAxisRule,
+    TwoAxisSeries,
     fit_two_axis,
     model_state,
 )
@@ -69,11 +70,7 @@ MIN_NOISE_MPS = 1e-3
 def kf_two_axis(
     model: str,
     t_s: npt.ArrayLike,
-    ref_fwd_mps: npt.ArrayLike,
-    ref_stb_mps: npt.ArrayLike,
-    raw_l_mps: npt.ArrayLike,
-    raw_t_mps: npt.ArrayLike,
-    heading_deg: npt.ArrayLike,
+    s: TwoAxisSeries,
     *,
     current: bool = True,
     prior: TwoAxisParams | None = None,
@@ -86,11 +83,7 @@ def kf_two_axis(
     Args:
         model: the longitudinal model.
         t_s: sample times, s, non-decreasing.
-        ref_fwd_mps: ground speed forward, m/s.
-        ref_stb_mps: ground speed to starboard, m/s.
-        raw_l_mps: longitudinal readings, m/s.
-        raw_t_mps: transverse readings, m/s.
-        heading_deg: headings, degrees.
+        s: the series.
         current: estimate the current.
         prior: the value of the unknowns the window does not determine (the
             least-squares fit, the first nominal, holds them there too).
@@ -106,22 +99,18 @@ def kf_two_axis(
 
     Raises:
         ModelError: unknown model.
-        DataError: bad series or times.
+        DataError: bad times.
     """
     ls = fit_two_axis(
         model,
-        ref_fwd_mps,
-        ref_stb_mps,
-        raw_l_mps,
-        raw_t_mps,
-        heading_deg,
+        s,
         current=current,
         prior=prior,
         rule=rule,
         t_s=t_s,
         current_knot_s=current_knot_s,
     )
-    st = model_state(model, ref_fwd_mps, ref_stb_mps, raw_l_mps, raw_t_mps, heading_deg, ls.ident)
+    st = model_state(model, s, ls.ident)
     t = np.asarray(t_s, dtype=np.float64).reshape(-1)
     n = st.n
     if t.size != n or not np.all(np.isfinite(t)):

@@ -3,12 +3,15 @@
 :mod:`calib.excitation` (one axis) and :mod:`calib.twoaxis_ident` (two axes) judge
 their windows into these.
 
-Must not import: drivers, emlogd, or any I/O module (the stdlib only).
+Must not import: drivers, emlogd, or any I/O module (the stdlib and :mod:`calib.errors`
+only).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from calib.errors import ModelError
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,6 +39,22 @@ class Verdicts:
 
     __slots__ = ()
     verdicts: tuple[Verdict, ...]
+
+    def verdict(self, unknown: str) -> Verdict:
+        """The verdict on one unknown.
+
+        Raises:
+            ModelError: not an unknown of this window.
+        """
+        for v in self.verdicts:
+            if v.unknown == unknown:
+                return v
+        raise ModelError(f"{unknown!r} is not an unknown of this window")
+
+    @property
+    def identifiable(self) -> bool:
+        """Every unknown is determined."""
+        return not self.unidentifiable
 
     @property
     def determined(self) -> tuple[str, ...]:

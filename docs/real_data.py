@@ -11,7 +11,7 @@ commands, exactly as a user would:
    detection, else the Expedition preset or the generic column map);
 2. ``emlogd calibrate --uut nmea --ref nmea --ref-field gnss --current`` with
    ``--method ls`` and ``--method kf`` (lag auto);
-3. ``emlogd replay`` with ``examples/emlogd-gnss.yaml`` (lag auto), writing the
+3. ``emlogd replay --strict`` with ``examples/emlogd-gnss.yaml`` (lag auto), writing the
    corrected sentences to a capture.
 
 One table row per recording: the import's counts by reason; LS and KF parameters ± σ
@@ -250,9 +250,12 @@ def run_calibrate(cap: Path, method: str) -> tuple[dict[str, Any] | None, str]:
 
 
 def run_replay(cap: Path, out: Path) -> tuple[dict[str, Any] | None, str]:
-    """``emlogd replay`` with the GNSS config: the JSON summary, or None and why."""
+    """``emlogd replay`` with the GNSS config: the JSON summary, or None and why.
+
+    ``--strict``: the capture ``emlogd import`` wrote holds no malformed record, so one
+    (a capture cut short) fails the step instead of scoring a replay of part of it."""
     rc, stdout, err = emlogd(
-        ["replay", str(cap), "--config", str(CONFIG), "--out", str(out), "--json"]
+        ["replay", str(cap), "--config", str(CONFIG), "--out", str(out), "--json", "--strict"]
     )
     if rc != 0:
         return None, _last_line(err) or f"exit {rc}"

@@ -193,8 +193,16 @@ def no_banner(text: str) -> str:
     return "".join(lines[h:])
 
 
-LOGGER_NAMES = {"Boatspeed": "BS", "Heading": "HDG", "Ext_SOG": "SOG", "Ext_COG": "COG"}
-LOGGER_NAMES |= {"Latitudine": "Lat", "Longitudine": "Lon", "SET": "Set", "DRIFT": "Drift"}
+LOGGER_NAMES = {
+    "Boatspeed": "BS",
+    "Heading": "HDG",
+    "Ext_SOG": "SOG",
+    "Ext_COG": "COG",
+    "Latitudine": "Lat",
+    "Longitudine": "Lon",
+    "SET": "Set",
+    "DRIFT": "Drift",
+}
 """The logger's other firmware's column names."""
 
 SETTINGS_LINES = 48

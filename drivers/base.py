@@ -145,6 +145,11 @@ class Decoder(ABC, Generic[R]):
         self.options = options if options is not None else DecoderOptions()
         self.counters = DecoderCounters()
         self._pending: deque[bytes | FrameError] = deque()
+        self._ready()
+
+    def _ready(self) -> None:
+        """Called once at the end of construction, the port, policy and options set: a
+        subclass's own state (the base has none)."""
 
     def feed(self, data: bytes) -> Iterator[R | Rejected]:
         """Decode a chunk of received bytes.
@@ -236,14 +241,9 @@ class FramedDecoder(Decoder[R]):
     set) instead of :meth:`_split` and :meth:`_flush`.
     """
 
-    def __init__(
-        self,
-        port: str = "",
-        *,
-        errors: ErrorPolicy = "raise",
-        options: DecoderOptions | None = None,
-    ) -> None:
-        super().__init__(port, errors=errors, options=options)
+    _framer: Framer
+
+    def _ready(self) -> None:
         self._framer = self._make_framer()
 
     @abstractmethod

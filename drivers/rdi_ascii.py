@@ -32,20 +32,16 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, TypeAlias, TypeVar, get_args
 
-from drivers.base import DecoderOptions, ErrorPolicy, FramedDecoder, Framer, Use
+from drivers.base import FramedDecoder, Framer, Use
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
 from drivers.records import (
     MAX_DEPTH_M,
-    MAX_PITCH_DEG,
-    MAX_ROLL_DEG,
     RDI_INVALID,
-    SALINITY_RANGE_PPT,
-    SOUND_SPEED_RANGE_MPS,
-    WATER_TEMP_RANGE_C,
     Rejected,
     SpeedRecord,
     bottom_track,
+    check_ranges,
 )
 
 ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
@@ -228,25 +224,14 @@ def _dmg_of(
 
 def _attitude(pitch: float, roll: float, heading: float, raw: bytes) -> tuple[float, float, float]:
     """Pitch, roll and heading within range; a heading of 360 reads as 0."""
-    if not (
-        -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
-        and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
-        and 0 <= heading <= 360
-    ):
-        raise OutOfRangeError(f":SA attitude {pitch}, {roll}, {heading} out of range", raw)
+    check_ranges(":SA", raw, pitch=pitch, roll=roll, heading=heading)
     return pitch, roll, 0.0 if heading == 360 else heading
 
 
 def _environment(
     stamp: str, sal: float, temp: float, depth: float, c: float, bit: int, raw: bytes
 ) -> tuple[str, float, float, float, float, int]:
-    if not (
-        SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
-        and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
-        and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
-        and 0 <= depth <= MAX_DEPTH_M
-    ):
-        raise OutOfRangeError(f":TS environment {sal}, {temp}, {depth}, {c} out of range", raw)
+    check_ranges(":TS", raw, salinity=sal, temperature=temp, depth=depth, sound_speed=c)
     if not _stamp_ok(stamp):
         raise OutOfRangeError(f":TS time {stamp!r} is no date and time", raw)
     return stamp, sal, temp, depth, c, bit
@@ -472,15 +457,8 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
     heading: ClassVar[bool] = True
     """:SA."""
 
-    def __init__(
-        self,
-        port: str = "",
-        *,
-        errors: ErrorPolicy = "raise",
-        options: DecoderOptions | None = None,
-    ) -> None:
-        self._block: _Block | None = None
-        super().__init__(port, errors=errors, options=options)
+    _block: _Block | None = None
+    """The ensemble being assembled (None between blocks)."""
 
     # The framer's frame is a line; the ensemble logic runs in feed() so that one
     # ensemble record comes out per block. parse_frame takes a whole block.

@@ -24,31 +24,24 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
-import math
 import struct
 from dataclasses import dataclass
 from datetime import datetime
-from typing import ClassVar, Literal, TypeAlias
+from typing import ClassVar, TypeAlias
 
 from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import (
-    MAX_DEPTH_M,
-    MAX_PITCH_DEG,
-    MAX_ROLL_DEG,
+    COORD_FRAMES,
     RDI_INVALID,
-    SALINITY_RANGE_PPT,
-    SOUND_SPEED_RANGE_MPS,
-    WATER_TEMP_RANGE_C,
+    CoordFrame,
     SpeedRecord,
-    bottom_track,
-    rdi_mms,
-    ship_frame,
+    check_ranges,
+    rdi_bottom_track,
+    rdi_velocities,
+    rdi_vessel_mms,
 )
-
-CoordFrame = Literal["beam", "instrument", "ship", "earth"]
-FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
 
 HEADER = b"\x7f\x7f"
 MAX_ENSEMBLE = 16384
@@ -124,10 +117,6 @@ def _length_of(buf: bytearray) -> int | None:
     return n
 
 
-def _int16(v: int) -> int | None:
-    return None if v == RDI_INVALID else v
-
-
 class Pd0Decoder(FramedDecoder[Pd0Record]):
     """PD0 decoder (see the module docstring)."""
 
@@ -177,9 +166,17 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         c, depth_dm, heading, pitch, roll, sal, temp = struct.unpack_from(
             "<HHHhhHh", frame, vl + 14
         )
-        if heading > 36000:
-            raise OutOfRangeError(f"heading {heading / 100} outside 0..360", frame)
-        _leader_ranges(pitch / 100.0, roll / 100.0, temp / 100.0, sal, c, depth_dm / 10.0, frame)
+        check_ranges(
+            "variable leader",
+            frame,
+            heading=heading / 100.0,
+            pitch=pitch / 100.0,
+            roll=roll / 100.0,
+            temperature=temp / 100.0,
+            salinity=sal,
+            sound_speed=c,
+            depth=depth_dm / 10.0,
+        )
         _, mo, d, h, mi, sec, hs = rtc
         if not (1 <= mo <= 12 and 1 <= d <= 31 and h < 24 and mi < 60 and sec < 60 and hs < 100):
             raise OutOfRangeError(f"real-time clock {rtc} is no date and time", frame)
@@ -193,12 +190,12 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
                 msb = frame[bt + 77 : bt + 81]
                 r = tuple(lo + (hi << 16) for lo, hi in zip(r, msb, strict=True))
             v = struct.unpack_from("<4h", frame, bt + 24)
-            bt_v = (_int16(v[0]), _int16(v[1]), _int16(v[2]), _int16(v[3]))
+            bt_v = rdi_velocities(v)
             bt_r = (r[0], r[1], r[2], r[3])
         return Pd0Ensemble(
             ensemble_number=ens,
             rtc=(rtc[0], rtc[1], rtc[2], rtc[3], rtc[4], rtc[5], rtc[6]),
-            coord_frame=FRAMES[(ex >> 3) & 3],
+            coord_frame=COORD_FRAMES[(ex >> 3) & 3],
             n_beams=n_beams,
             n_cells=n_cells,
             frequency_khz=FREQUENCIES_KHZ[config & 7],
@@ -221,35 +218,17 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         if record.bt_velocity_mms is None:
             return ()
         v1, v2 = record.bt_velocity_mms[0], record.bt_velocity_mms[1]
-        ship = None
-        if (
-            record.bottom_lock
-            and v1 is not None
-            and v2 is not None
-            and record.coord_frame != "beam"
-        ):
-            earth = record.coord_frame == "earth"
-            # vessel motion: the opposite of the bottom's
-            ship = ship_frame(-v1 / 1000.0, -v2 / 1000.0, record.heading_deg if earth else None)
-        return (bottom_track(self.port, ship, record.heading_deg, "PD0:BT"),)
-
-
-def _leader_ranges(
-    pitch: float, roll: float, temp: float, sal: float, c: float, depth: float, raw: bytes
-) -> None:
-    """The variable leader's attitude and environment within their physical ranges."""
-    if not (
-        -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
-        and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
-        and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
-        and SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
-        and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
-        and depth <= MAX_DEPTH_M
-    ):
-        raise OutOfRangeError(
-            f"pitch {pitch}, roll {roll}, temperature {temp}, salinity {sal}, "
-            f"sound speed {c} or depth {depth} out of range",
-            raw,
+        # vessel motion: the opposite of the bottom's
+        vessel = (None if v1 is None else -v1, None if v2 is None else -v2)
+        return (
+            rdi_bottom_track(
+                self.port,
+                record.coord_frame,
+                record.bottom_lock,
+                vessel,
+                record.heading_deg,
+                "PD0:BT",
+            ),
         )
 
 
@@ -286,16 +265,10 @@ def encode_pd0(
         v = (RDI_INVALID, RDI_INVALID, RDI_INVALID, RDI_INVALID)
         rng = 0
     else:
-        fwd, stb = bottom_ship_mps
-        if coord_frame == "earth":
-            psi = math.radians(heading_deg)
-            e = fwd * math.sin(psi) + stb * math.cos(psi)
-            n = fwd * math.cos(psi) - stb * math.sin(psi)
-            v = (rdi_mms(-e), rdi_mms(-n), 0, 0)
-        else:
-            v = (rdi_mms(-stb), rdi_mms(-fwd), 0, 0)
+        a, b = rdi_vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
+        v = (-a, -b, 0, 0)  # the bottom's motion: the opposite of the vessel's
         rng = max(round((range_m or 0.0) * 100.0), 1)
-    ex = FRAMES.index(coord_frame) << 3
+    ex = COORD_FRAMES.index(coord_frame) << 3
     fixed = bytearray(59)
     struct.pack_into("<HBBH", fixed, 0, FIXED_LEADER, 51, 1, 0b0100_1011)  # 600 kHz
     fixed[8], fixed[9] = 4, 1

@@ -22,30 +22,24 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
-import math
 import struct
 from dataclasses import dataclass
-from typing import ClassVar, Literal, TypeAlias
+from typing import ClassVar, TypeAlias
 
 from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
 from drivers.records import (
-    MAX_DEPTH_M,
-    MAX_PITCH_DEG,
-    MAX_ROLL_DEG,
+    COORD_FRAMES,
     RDI_INVALID,
-    SALINITY_RANGE_PPT,
-    SOUND_SPEED_RANGE_MPS,
-    WATER_TEMP_RANGE_C,
+    CoordFrame,
     SpeedRecord,
-    bottom_track,
-    rdi_mms,
-    ship_frame,
+    check_ranges,
+    rdi_bottom_track,
+    rdi_velocities,
+    rdi_vessel_mms,
 )
 
-CoordFrame = Literal["beam", "instrument", "ship", "earth"]
-FRAMES: tuple[CoordFrame, ...] = ("beam", "instrument", "ship", "earth")
 HEADER = b"\x7d"
 LENGTHS = {0: 45, 1: 86}
 """Structure ID -> byte count without the checksum."""
@@ -117,11 +111,6 @@ def _length_of(buf: bytearray) -> int | None:
     return n
 
 
-def _v(values: tuple[int, ...]) -> tuple[int | None, int | None, int | None, int | None]:
-    a, b, c, d = (None if x == RDI_INVALID else x for x in values)
-    return (a, b, c, d)
-
-
 class Pd45Decoder(FramedDecoder[Pd45Record]):
     """PD4/PD5 decoder (registry name ``pd4``; both formats are accepted). PD4 carries no
     heading: :class:`Pd5Decoder` is the port configured ``pd5``."""
@@ -147,26 +136,16 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
         config = f[3]
         h, m, sec, hundredths = f[20:24]
         c, temp = float(f[25]), f[26] / 100.0
-        if not (
-            h < 24
-            and m < 60
-            and sec < 60
-            and hundredths < 100
-            and SOUND_SPEED_RANGE_MPS[0] <= c <= SOUND_SPEED_RANGE_MPS[1]
-            and WATER_TEMP_RANGE_C[0] <= temp <= WATER_TEMP_RANGE_C[1]
-        ):
-            raise OutOfRangeError(
-                f"first ping {h}:{m}:{sec}.{hundredths}, sound speed {c} or temperature {temp} "
-                "out of range",
-                frame,
-            )
+        if not (h < 24 and m < 60 and sec < 60 and hundredths < 100):
+            raise OutOfRangeError(f"first ping {h}:{m}:{sec}.{hundredths} out of range", frame)
+        check_ranges("PD4", frame, sound_speed=c, temperature=temp)
         common = {
             "format": "PD5" if sid == 1 else "PD4",
-            "coord_frame": FRAMES[(config >> 6) & 3],
-            "bottom_mms": _v(f[4:8]),
+            "coord_frame": COORD_FRAMES[(config >> 6) & 3],
+            "bottom_mms": rdi_velocities(f[4:8]),
             "bottom_range_cm": (f[8], f[9], f[10], f[11]),
             "bottom_status": f[12],
-            "water_mms": _v(f[13:17]),
+            "water_mms": rdi_velocities(f[13:17]),
             "water_layer_dm": (f[17], f[18]),
             "water_status": f[19],
             "first_ping": (f[20], f[21], f[22], f[23]),
@@ -178,18 +157,9 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
             return Pd45Ensemble(**common)
         g = _PD5_EXTRA.unpack_from(frame, _PD4.size)
         sal, depth, pitch, roll, hdg = float(g[0]), g[1] / 10.0, g[2] / 100.0, g[3] / 100.0, g[4]
-        if not (
-            SALINITY_RANGE_PPT[0] <= sal <= SALINITY_RANGE_PPT[1]
-            and depth <= MAX_DEPTH_M
-            and -MAX_PITCH_DEG <= pitch <= MAX_PITCH_DEG
-            and -MAX_ROLL_DEG <= roll <= MAX_ROLL_DEG
-            and hdg <= 36000
-        ):
-            raise OutOfRangeError(
-                f"PD5 salinity {sal}, depth {depth}, pitch {pitch}, roll {roll} or heading "
-                f"{hdg / 100} out of range",
-                frame,
-            )
+        check_ranges(
+            "PD5", frame, salinity=sal, depth=depth, pitch=pitch, roll=roll, heading=hdg / 100
+        )
         return Pd45Ensemble(
             **common,
             salinity_ppt=sal,
@@ -204,16 +174,16 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
     def speed_records(self, record: Pd45Record) -> tuple[SpeedRecord, ...]:
         """Bottom velocity → vessel speed over ground, ship frame (role ``bottom``, source
         ``PD4:BT``/``PD5:BT``), with the PD5 heading taken as true."""
-        src = f"{record.format}:BT"
-        hdg = record.heading_deg
-        x, y = record.bottom_mms[0], record.bottom_mms[1]
-        frame = record.coord_frame
-        earth = frame == "earth"
-        ship = None
-        usable = record.bottom_lock and frame != "beam" and (hdg is not None or not earth)
-        if usable and x is not None and y is not None:
-            ship = ship_frame(x / 1000.0, y / 1000.0, hdg if earth else None)
-        return (bottom_track(self.port, ship, hdg, src),)
+        return (
+            rdi_bottom_track(
+                self.port,
+                record.coord_frame,
+                record.bottom_lock,
+                (record.bottom_mms[0], record.bottom_mms[1]),
+                record.heading_deg,
+                f"{record.format}:BT",
+            ),
+        )
 
 
 class Pd5Decoder(Pd45Decoder):
@@ -249,13 +219,7 @@ def encode_pd45(
         vx = vy = RDI_INVALID
         rng = 0
     else:
-        fwd, stb = bottom_ship_mps
-        if coord_frame == "earth":
-            psi = math.radians(heading_deg)
-            vx = rdi_mms(fwd * math.sin(psi) + stb * math.cos(psi))
-            vy = rdi_mms(fwd * math.cos(psi) - stb * math.sin(psi))
-        else:
-            vx, vy = rdi_mms(stb), rdi_mms(fwd)
+        vx, vy = rdi_vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
         rng = max(min(round((range_m or 0.0) * 100.0), 65535), 1)
     sid = 1 if pd5 else 0
     body = bytearray(
@@ -263,7 +227,7 @@ def encode_pd45(
             0x7D,
             sid,
             LENGTHS[sid],
-            FRAMES.index(coord_frame) << 6,
+            COORD_FRAMES.index(coord_frame) << 6,
             vx,
             vy,
             0 if vx != RDI_INVALID else RDI_INVALID,

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
-from drivers.errors import RejectReason
+from drivers.errors import OutOfRangeError, RejectReason
 
 SpeedKind = Literal["stw", "sog"]
 """``stw``: through water (EMlog, DVL water track); ``sog``: over ground (DVL bottom track)."""
@@ -65,6 +65,46 @@ PD4/PD5 and PD6 alike."""
 
 MAX_DEPTH_M = 12_000.0
 """Deepest instrument or bottom depth, m (the deepest ocean is ~11 km)."""
+
+PHYSICAL_RANGES: dict[str, tuple[float, float]] = {
+    "pitch": (-MAX_PITCH_DEG, MAX_PITCH_DEG),
+    "roll": (-MAX_ROLL_DEG, MAX_ROLL_DEG),
+    "heading": (0.0, 360.0),
+    "temperature": WATER_TEMP_RANGE_C,
+    "salinity": SALINITY_RANGE_PPT,
+    "sound_speed": SOUND_SPEED_RANGE_MPS,
+    "depth": (0.0, MAX_DEPTH_M),
+}
+"""The closed range of each physical field :func:`check_ranges` checks, by field name
+(degrees, °C, ppt, m/s, m)."""
+
+
+def check_ranges(what: str, raw: bytes, **fields: float) -> None:
+    """Each field (a :data:`PHYSICAL_RANGES` name) within its range; NaN is outside.
+
+    Args:
+        what: the block the fields came from, for the message (e.g. ``":TS"``).
+        raw: the rejected bytes.
+        **fields: the values by field name.
+
+    Raises:
+        OutOfRangeError: naming every field outside its range.
+        KeyError: a field name with no range.
+    """
+    bad = [
+        f"{name.replace('_', ' ')} {v}"
+        for name, v in fields.items()
+        if not PHYSICAL_RANGES[name][0] <= v <= PHYSICAL_RANGES[name][1]
+    ]
+    if bad:
+        raise OutOfRangeError(f"{what} {', '.join(bad)} out of range", raw)
+
+
+CoordFrame = Literal["beam", "instrument", "ship", "earth"]
+"""The frame of an RDI binary velocity (PD0, PD4/PD5), in the order of its two-bit code."""
+
+COORD_FRAMES: tuple[CoordFrame, ...] = get_args(CoordFrame)
+"""The frames indexed by their two-bit code."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -114,6 +154,15 @@ class SpeedRecord:
         return math.hypot(self.longitudinal_mps, self.transverse_mps)
 
 
+def rdi_velocities(
+    values: tuple[int, ...],
+) -> tuple[int | None, int | None, int | None, int | None]:
+    """Four RDI 16-bit velocities (mm/s) as read, :data:`RDI_INVALID` as None: what the
+    PD0 and PD4/PD5 decoders keep."""
+    a, b, c, d = (None if x == RDI_INVALID else x for x in values)
+    return (a, b, c, d)
+
+
 def rdi_mms(v: float | None) -> int:
     """A velocity in m/s as RDI's 16-bit mm/s (clamped to ±32767), :data:`RDI_INVALID`
     for None: what the PD0 and PD4/PD5 encoders write.
@@ -153,6 +202,60 @@ def bottom_track(
         valid=ship is not None,
         heading_true_deg=heading_deg,
         source=source,
+    )
+
+
+def rdi_bottom_track(
+    port: str,
+    frame: CoordFrame,
+    lock: bool,
+    vessel_mms: tuple[int | None, int | None],
+    heading_deg: float | None,
+    source: str,
+) -> SpeedRecord:
+    """An RDI binary bottom track (PD0, PD4/PD5) as a speed record (:func:`bottom_track`).
+
+    Args:
+        port: the port's name.
+        frame: the velocity's coordinate frame.
+        lock: the instrument has a bottom lock.
+        vessel_mms: the vessel's motion, mm/s (None: bad): (starboard, forward), or
+            (east, north) in earth coordinates, rotated into the ship frame by the heading.
+        heading_deg: the instrument's heading (taken as true), or None.
+        source: the record's source, e.g. ``"PD0:BT"``.
+
+    Returns:
+        The record, invalid in beam coordinates, without a lock, with a bad component,
+        or in earth coordinates without a heading.
+    """
+    a, b = vessel_mms
+    earth = frame == "earth"
+    ship = None
+    if lock and frame != "beam" and a is not None and b is not None:
+        if not earth:
+            ship = ship_frame(a / 1000.0, b / 1000.0, None)
+        elif heading_deg is not None:
+            ship = ship_frame(a / 1000.0, b / 1000.0, heading_deg)
+    return bottom_track(port, ship, heading_deg, source)
+
+
+def rdi_vessel_mms(
+    ship_mps: tuple[float, float], frame: CoordFrame, heading_deg: float
+) -> tuple[int, int]:
+    """The vessel's (forward, starboard) motion in m/s as the RDI mm/s the PD0 and PD4/PD5
+    encoders write (:func:`rdi_mms`): (starboard, forward), or in earth coordinates
+    (east, north) rotated by the heading; the inverse of :func:`rdi_bottom_track`.
+
+    Raises:
+        ValueError: a non-finite value.
+    """
+    fwd, stb = ship_mps
+    if frame != "earth":
+        return rdi_mms(stb), rdi_mms(fwd)
+    psi = math.radians(heading_deg)
+    return (
+        rdi_mms(fwd * math.sin(psi) + stb * math.cos(psi)),
+        rdi_mms(fwd * math.cos(psi) - stb * math.sin(psi)),
     )
 
 

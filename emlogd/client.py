@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import socket
+import struct
 from pathlib import Path
 
 from drivers.errors import DeviceError
@@ -23,8 +24,14 @@ def request(path: str | Path, req: dict[str, object], timeout_s: float = 5.0) ->
     """
     try:
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            s.settimeout(timeout_s)
+            # a blocking connect bounded by SO_SNDTIMEO waits in the kernel's queue for
+            # room in a full listen backlog (a burst of clients), as the others do; with
+            # settimeout() the socket is non-blocking and the connect fails at once (EAGAIN)
+            whole, frac = divmod(timeout_s, 1.0)
+            tv = struct.pack("ll", int(whole), int(frac * 1e6))
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, tv)
             s.connect(str(path))
+            s.settimeout(timeout_s)
             s.sendall(json.dumps(req).encode("utf-8") + b"\n")
             buf = bytearray()
             while b"\n" not in buf:

@@ -4,7 +4,10 @@ read of a file that may be anything.
 :func:`write_atomic` writes a temporary file in the same directory, fsyncs it,
 renames it over the target (atomic on POSIX) and fsyncs the directory, so a crash
 leaves the old file or the new one, never a torn one. The daemon's state file and
-``emlogd calibrate --save`` both write through it.
+``emlogd calibrate --save`` both write through it. A file written in pieces (a capture
+that ``emlogd import`` or ``replay --out`` writes) is written under
+:func:`part_path` and renamed into place when complete, so no other process ever reads
+it half-written.
 
 :func:`read_text_bounded` reads the config and the state file: whatever is found at
 their path — a FIFO (whose ``open`` would wait for a writer for ever), a device, a
@@ -49,6 +52,15 @@ def fsync_dir(directory: Path) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def part_path(path: str | Path) -> Path:
+    """Where a file bound for ``path`` is written until it is complete: beside it, named
+    for this process (two processes writing the same ``path`` at once each write their
+    own), with ``path``'s ``.gz`` ending kept (what decides the compression)."""
+    path = Path(path)
+    gz = ".gz" if path.name.endswith(".gz") else ""
+    return path.with_name(f".{path.name}.{os.getpid()}.part{gz}")
 
 
 def write_atomic(path: Path, data: bytes, mode: int = 0o640) -> None:

@@ -21,10 +21,10 @@ import sys
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from types import TracebackType
 from typing import IO
 
 from drivers.errors import DeviceError, EmlogdError
+from drivers.io.closing import Closing
 from drivers.io.fake import FakeCapture
 from emlogd.client import request
 
@@ -47,7 +47,7 @@ class LaunchError(EmlogdError):
         self.tail = tail
 
 
-class DaemonProcess:
+class DaemonProcess(Closing):
     """``emlogd run`` as a subprocess, until :meth:`stop`, :meth:`kill` or the end of a
     ``with`` block (which stops it with SIGTERM, then SIGKILL if it hangs).
 
@@ -110,7 +110,7 @@ class DaemonProcess:
                 env={**os.environ, **env} if env is not None else None,
             )
         except BaseException:
-            self._close()
+            self._close_logs()
             raise
         if wait:
             try:
@@ -124,7 +124,7 @@ class DaemonProcess:
         self._files.append(f)
         return f
 
-    def _close(self) -> None:
+    def _close_logs(self) -> None:
         for f in self._files:
             f.close()
 
@@ -232,7 +232,7 @@ class DaemonProcess:
                 f"the end of {self.log_path}:",
                 self.tail(),
             ) from None
-        self._close()
+        self._close_logs()
         return rc
 
     def kill(self) -> int:
@@ -240,19 +240,13 @@ class DaemonProcess:
         if self.proc.poll() is None:
             self.proc.kill()
         rc = self.proc.wait()
-        self._close()
+        self._close_logs()
         return rc
 
-    def __enter__(self) -> DaemonProcess:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        with contextlib.suppress(LaunchError):  # killed: the exit code tells
+    def close(self) -> None:
+        """:meth:`stop`, what leaving a ``with`` block does: a daemon that had to be killed
+        raises nothing (its exit code tells)."""
+        with contextlib.suppress(LaunchError):
             self.stop()
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from calib.crossval import Segment
 from calib.errors import DataError
 from calib.models import FloatArray, Params, forward_array
-from calib.twoaxis import TwoAxisParams
+from calib.twoaxis import TwoAxisParams, TwoAxisSeries
 
 TrajectoryKind = Literal["transit", "figure-8", "straight", "circles", "return"]
 
@@ -289,3 +289,8 @@ def two_axis_trial(
         "rl": rl + rng.normal(0.0, 0.05, n),
         "rt": rt + rng.normal(0.0, 0.05, n),
     }
+
+
+def two_axis_series(d: dict[str, np.ndarray]) -> TwoAxisSeries:
+    """The fits' series of a :func:`two_axis_trial` (its ``gf gs rl rt hd``)."""
+    return TwoAxisSeries.of(d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])

@@ -38,10 +38,10 @@ from collections import deque
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import BinaryIO, Literal, TextIO
 
 from drivers.errors import CaptureFormatError
+from drivers.io.closing import Closing
 
 MAGIC = "# emlogd capture v1"
 HEX_PREFIX = "hex:"
@@ -471,7 +471,16 @@ def read_ports(path: str | Path) -> dict[str, str]:
     return CaptureReader(path).ports
 
 
-class CaptureWriter:
+def capture_name(path: str | Path) -> str:
+    """A capture's file name without ``.cap``/``.gz`` (``runs/2-figure8.cap.gz``:
+    ``2-figure8``), the name tables and reports give it."""
+    name = Path(path).name
+    for suffix in (".gz", ".cap"):
+        name = name.removesuffix(suffix)
+    return name
+
+
+class CaptureWriter(Closing):
     """Write a capture v1 file (context manager).
 
     Args:
@@ -547,14 +556,3 @@ class CaptureWriter:
         if self._f is not None:
             self._f.close()
             self._f = None
-
-    def __enter__(self) -> CaptureWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

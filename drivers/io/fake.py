@@ -23,9 +23,23 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TypedDict, Unpack
 
 from drivers.io.capture import CaptureReader
 from drivers.io.vpty import VirtualPort
+
+
+class ServeOptions(TypedDict, total=False):
+    """How a fake device serves, by keyword (:class:`FakeCapture`'s arguments after
+    ``links``, which give the defaults)."""
+
+    speed: float | None
+    loop: bool
+    wait_for_reader: bool
+    settle_s: float
+    linger: bool
+    sleep: Callable[[float], None]
+    on_end: Callable[[], None] | None
 
 
 class FakeCapture:
@@ -206,28 +220,9 @@ class FakeDevice(FakeCapture):
     """
 
     def __init__(
-        self,
-        capture: str | Path,
-        port: str,
-        link: str | Path,
-        *,
-        speed: float | None = 1.0,
-        loop: bool = False,
-        wait_for_reader: bool = True,
-        settle_s: float = 0.05,
-        linger: bool = True,
-        sleep: Callable[[float], None] = time.sleep,
+        self, capture: str | Path, port: str, link: str | Path, **options: Unpack[ServeOptions]
     ) -> None:
-        super().__init__(
-            capture,
-            {port: link},
-            speed=speed,
-            loop=loop,
-            wait_for_reader=wait_for_reader,
-            settle_s=settle_s,
-            linger=linger,
-            sleep=sleep,
-        )
+        super().__init__(capture, {port: link}, **options)
         self.port = port
         self.link = Path(link)
         self.vport = self.vports[port]

@@ -10,7 +10,11 @@ opens serial ports. A :class:`SerialSource`:
   retries with backoff (``backoff_s``) from :meth:`poll`; a device missing at start is
   the same case, not a crash;
 - detects silence: no data for ``stale_timeout_s`` emits one ``stale`` event, data
-  coming back emits ``alive``.
+  coming back emits ``alive``;
+- follows its path: a device silent for :data:`DEVICE_CHECK_S` whose path is gone or
+  names another device (a pty re-created at the same link, an adapter re-enumerated
+  under its udev name) while the old one stays open is closed and opened again at its
+  path (the old descriptor would be read, silent, for ever).
 
 Events are queued and drained with :meth:`events`. The daemon registers
 :meth:`fileno` in its selector (sources without a file descriptor, like
@@ -30,12 +34,14 @@ from __future__ import annotations
 import contextlib
 import errno
 import ipaddress
+import math
 import os
 import select
 import socket
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 from urllib.parse import urlsplit
 
@@ -45,6 +51,10 @@ from drivers.errors import DeviceError
 
 EMPTY_READS_LOST = 50
 """Consecutive empty reads of a raw descriptor after which the port counts as lost."""
+
+DEVICE_CHECK_S = 2.0
+"""Silence after which a device port checks, at most once per this long, that its path
+still names the device it holds open."""
 
 CONNECT_TIMEOUT_S = 5.0
 """Longest a ``socket://`` input's connect may take; then it failed, and is retried."""
@@ -139,6 +149,8 @@ class SerialSource:
         self._attempt = 0
         self._next_try: float | None = None
         self._last_data: float | None = None
+        self._next_check = -math.inf
+        """When a silent device may next be checked against its path."""
         self._stale = False
         self._ever_connected = False
         self.why_closed: str | None = "not opened yet"
@@ -351,6 +363,17 @@ class SerialSource:
         if self._ser is None and self._next_try is not None and now >= self._next_try:
             self.open()
         if (
+            self._raw_fd is not None
+            and self._tcp is None
+            and self._last_data is not None
+            and now - self._last_data >= DEVICE_CHECK_S
+            and now >= self._next_check
+        ):
+            self._next_check = now + DEVICE_CHECK_S
+            why = _path_moved(self.url, self._raw_fd)
+            if why is not None:
+                self._lost(why)
+        if (
             self._ser is not None
             and not self._stale
             and self._last_data is not None
@@ -359,6 +382,23 @@ class SerialSource:
             self._stale = True
             self._event("stale", f"no data for {now - self._last_data:.1f} s")
         return self.events()
+
+
+def _path_moved(url: str, fd: int) -> str | None:
+    """Why the device path ``url`` no longer names the device open on ``fd``; None while
+    it does (or it is no path)."""
+    if "://" in url:
+        return None
+    try:
+        held = os.fstat(fd)
+        named = Path(url).stat()
+    except FileNotFoundError:
+        return f"{url} is gone"
+    except OSError:
+        return None
+    if (named.st_dev, named.st_ino, named.st_rdev) != (held.st_dev, held.st_ino, held.st_rdev):
+        return f"{url} now names another device"
+    return None
 
 
 def _tcp_address(url: str) -> tuple[str, int] | None:

@@ -45,16 +45,16 @@ import struct
 import termios
 import tty
 from pathlib import Path
-from types import TracebackType
 
 from drivers.errors import DeviceError
+from drivers.io.closing import Closing
 
 LDISC_BUF = 4096
 """Bytes the Linux line discipline buffers for a reader (``N_TTY_BUF_SIZE``); FIONREAD
 never reports more, so ``max_backlog`` must stay below it."""
 
 
-class VirtualPort:
+class VirtualPort(Closing):
     """A pty published at ``link``.
 
     Args:
@@ -216,14 +216,3 @@ class VirtualPort:
                 self.link.unlink()
         os.close(self.master)
         self.master = -1
-
-    def __enter__(self) -> VirtualPort:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

@@ -18,14 +18,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     import structlog
 
     from emlogd.config import load_config
-    from emlogd.daemon.logsetup import configure_logging
+    from emlogd.daemon.logsetup import configure_logging, flush_log
     from emlogd.daemon.loop import Daemon
 
     cfg = load_config(config_path(args))
     # the corrected NMEA on stdout never shares it with the log: the log goes to stderr
     configure_logging(cfg.log_format, cfg.log_level, sys.stderr if cfg.outputs.stdout else None)
     log = structlog.get_logger("emlogd")
-    return Daemon(cfg.path, log, state_path=args.state).run()
+    try:
+        return Daemon(cfg.path, log, state_path=args.state).run()
+    finally:
+        flush_log()  # the last lines a slow log reader has not taken yet
 
 
 def cmd_check_config(args: argparse.Namespace) -> int:

@@ -15,8 +15,11 @@ answered from one read, a client sending more at once is closed with an error li
 No client can lock the operators out either: a request must be complete within
 :data:`REQUEST_S` of its first byte (a client dripping bytes gets an error line and
 is closed), a client that completes no request for :data:`IDLE_S` is closed, and at
-:data:`MAX_CLIENTS` a newcomer is served and the client that has waited longest
-since it connected or last completed a request is closed with an error line. A server may be read-only (``commands``: only ``status``), e.g. a
+:data:`MAX_CLIENTS` a newcomer is served and a client is closed with an error line:
+of the peer process holding the most connections, the one that has waited longest
+since it connected or last completed a request (a process connecting in a loop loses
+its own connections, never an operator's). Each wake-up accepts a backlog's worth of
+connections (:data:`ACCEPTS_PER_ROUND`). A server may be read-only (``commands``: only ``status``), e.g. a
 status socket open to every local user next to the operators' control socket. The
 client side is :func:`emlogd.client.request`.
 """
@@ -27,7 +30,9 @@ import contextlib
 import json
 import selectors
 import socket
+import struct
 import time
+from collections import Counter
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -43,8 +48,9 @@ MAX_DEPTH = 4
 """Deepest accepted nesting of arrays and objects in a request."""
 
 MAX_CLIENTS = 16
-"""Most clients connected to one socket at a time; a newcomer beyond it closes the
-client that completed no request for the longest time."""
+"""Most clients connected to one socket at a time; a newcomer beyond it closes a client
+(of the peer process holding the most, the one that completed no request for the
+longest time)."""
 
 MAX_PIPELINED = 4
 """Most requests answered from one read of a client: a client that sends more at once
@@ -56,6 +62,13 @@ every local user."""
 REQUEST_S = 5.0
 """A request must be complete (its newline received) this long after its first byte,
 or the client gets an error line and is closed."""
+
+ACCEPTS_PER_ROUND = 2 * MAX_CLIENTS
+"""Most connections accepted at one wake-up: a burst of clients leaves the listen backlog
+at once, so an operator's connect waits behind it no longer than a round."""
+
+BACKLOG = 32
+"""The listen backlog: connections waiting to be accepted."""
 
 IDLE_S = 30.0
 """A client that completes no request for this long is closed (it holds a slot)."""
@@ -131,11 +144,22 @@ def check_request(req: object, commands: Sequence[str] = COMMANDS) -> str:
     return ""
 
 
-class _Client:
-    __slots__ = ("buf", "seen", "sock", "started")
+def _peer(conn: socket.socket) -> int:
+    """The process id at the other end of a unix socket (0 when it cannot be read)."""
+    try:
+        cred = conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i"))
+    except OSError:
+        return 0
+    return int(struct.unpack("3i", cred)[0])
 
-    def __init__(self, sock: socket.socket, now: float) -> None:
+
+class _Client:
+    __slots__ = ("buf", "peer", "seen", "sock", "started")
+
+    def __init__(self, sock: socket.socket, now: float, peer: int = 0) -> None:
         self.sock = sock
+        self.peer = peer
+        """The process at the other end."""
         self.buf = bytearray()
         self.seen = now
         """When it connected or last completed a request."""
@@ -196,7 +220,7 @@ class ControlServer:
             self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             self.sock.bind(str(self.path))
             self.path.chmod(mode)
-            self.sock.listen(8)
+            self.sock.listen(BACKLOG)
             self.sock.setblocking(False)
         except OSError as exc:
             raise DeviceError(f"control socket {self.path}: {exc.strerror or exc}") from None
@@ -207,24 +231,39 @@ class ControlServer:
             self.on_event(kind, f"{self.path}: {detail}")
 
     def _accept(self) -> None:
-        try:
-            conn, _ = self.sock.accept()
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError as exc:
-            if self.pause.failed(exc):
-                with contextlib.suppress(KeyError, ValueError):
-                    self.selector.unregister(self.sock)
-            return
-        self.pause.accepted()
+        """Accept what waits in the backlog, at most :data:`ACCEPTS_PER_ROUND`."""
+        for _ in range(ACCEPTS_PER_ROUND):
+            try:
+                conn, _ = self.sock.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:
+                if self.pause.failed(exc):
+                    with contextlib.suppress(KeyError, ValueError):
+                        self.selector.unregister(self.sock)
+                return
+            self.pause.accepted()
+            self._admit(conn)
+
+    def _admit(self, conn: socket.socket) -> None:
+        """Serve a new client (closing the one waiting longest at the limit)."""
         while self.clients and len(self.clients) >= MAX_CLIENTS:
-            oldest = min(self.clients, key=lambda c: self.clients[c].seen)
+            oldest = self._eviction_candidate()
             self.evicted += 1
             self._reply(oldest, {"ok": False, "error": "too many clients: closed for a newcomer"})
             self._drop(oldest)
         conn.setblocking(False)
-        self.clients[conn] = _Client(conn, self.monotonic())
+        self.clients[conn] = _Client(conn, self.monotonic(), _peer(conn))
         self.selector.register(conn, selectors.EVENT_READ, lambda c=conn: self._read(c))
+
+    def _eviction_candidate(self) -> socket.socket:
+        """The client to close for a newcomer: of the peer process holding the most
+        connections, the one that waited longest (a process connecting in a loop loses
+        its own, not an operator's)."""
+        held = Counter(c.peer for c in self.clients.values())
+        most = max(held.values())
+        mine = [conn for conn, c in self.clients.items() if held[c.peer] == most]
+        return min(mine, key=lambda c: self.clients[c].seen)
 
     def housekeep(self) -> None:
         """Close the clients past a deadline; listen again once an accept pause is over."""

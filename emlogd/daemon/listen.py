@@ -1,5 +1,5 @@
 """What the daemon's listening sockets (control, TCP output) share: a cap on clients,
-and a pause when ``accept`` fails for lack of resources.
+a pause when ``accept`` fails for lack of resources, and a budget of connections.
 
 When the process is out of descriptors (``EMFILE``) or the kernel out of memory,
 ``accept`` keeps failing while the connection waits in the backlog, and a
@@ -7,6 +7,15 @@ level-triggered selector would report the listening socket readable forever: a b
 loop. :class:`AcceptPause` takes the socket out of the selector for a growing delay
 (:data:`PAUSE_S`), puts it back from :meth:`AcceptPause.resume_due` (called from the
 daemon's housekeeping), and reports the failures at most once per :data:`REPORT_S`.
+
+A client that connects again at once after each close (a flooder reset for what it
+sent, a script in a loop) would cost the daemon an accept, a registration and a close
+per connection, thousands a second. :class:`AcceptBudget` admits per source address at
+most :data:`SOURCE_BURST` connections at once, refilled at :data:`SOURCE_RATE` per
+second, and from all sources together :data:`ALL_BURST` refilled at :data:`ALL_RATE`;
+a connection past either is reset at once, without a read or a registration, and
+counted. A source's own excess never spends the budget of all (a flooder does not lock
+out the other hosts), and the sources remembered are at most :data:`SOURCES_KEPT`.
 """
 
 from __future__ import annotations
@@ -68,6 +77,10 @@ class AcceptPause:
             self._unreported += 1
         return True
 
+    def hold(self, delay: float) -> None:
+        """Suspend accepting for ``delay`` s (no failure: the caller chose to)."""
+        self.until = self.monotonic() + delay
+
     def accepted(self) -> None:
         """A connection was accepted: the next failure pauses briefly again."""
         self.run = 0
@@ -78,3 +91,81 @@ class AcceptPause:
             return False
         self.until = None
         return True
+
+
+SOURCE_BURST = 64
+"""Most connections one source address may open at once (twice the default client
+limit: a host starting its navigation programs together, a test opening 40)."""
+
+SOURCE_RATE = 2.0
+"""Connections a second one source's budget refills at: a client reconnecting every few
+seconds is never refused, a loop is held to this rate."""
+
+ALL_BURST = 128
+"""Most connections all sources together may open at once."""
+
+ALL_RATE = 20.0
+"""Connections a second the budget of all sources refills at."""
+
+SOURCES_KEPT = 1024
+"""Most source addresses whose budget is remembered; past it, those whose budget is full
+again are forgotten, then the longest unheard."""
+
+
+class _Bucket:
+    """A token bucket: ``burst`` at most, refilled at ``rate`` a second."""
+
+    __slots__ = ("at", "burst", "rate", "tokens")
+
+    def __init__(self, burst: float, rate: float, now: float) -> None:
+        self.burst = burst
+        self.rate = rate
+        self.tokens = burst
+        self.at = now
+
+    def level(self, now: float) -> float:
+        """The tokens at ``now`` (refilled since the last count)."""
+        self.tokens = min(self.burst, self.tokens + (now - self.at) * self.rate)
+        self.at = now
+        return self.tokens
+
+
+class AcceptBudget:
+    """How many connections the listener admits, per source address and in all.
+
+    Args:
+        monotonic: the clock of the refills.
+        source: (burst, rate) of one source address.
+        overall: (burst, rate) of all sources together.
+    """
+
+    def __init__(
+        self,
+        monotonic: Callable[[], float] = time.monotonic,
+        source: tuple[float, float] = (SOURCE_BURST, SOURCE_RATE),
+        overall: tuple[float, float] = (ALL_BURST, ALL_RATE),
+    ) -> None:
+        self.monotonic = monotonic
+        self.source = source
+        self.sources: dict[str, _Bucket] = {}
+        self.all = _Bucket(*overall, monotonic())
+
+    def admit(self, address: str) -> bool:
+        """Spend a connection of ``address`` (and of all); False: over a budget, refuse it."""
+        now = self.monotonic()
+        bucket = self.sources.pop(address, None) or _Bucket(*self.source, now)
+        self.sources[address] = bucket  # the most recently heard last
+        if len(self.sources) > SOURCES_KEPT:
+            self._forget(now)
+        if bucket.level(now) < 1.0 or self.all.level(now) < 1.0:
+            return False
+        bucket.tokens -= 1.0
+        self.all.tokens -= 1.0
+        return True
+
+    def _forget(self, now: float) -> None:
+        for address, bucket in list(self.sources.items()):
+            if bucket.level(now) >= bucket.burst:
+                del self.sources[address]
+        while len(self.sources) > SOURCES_KEPT:
+            del self.sources[next(iter(self.sources))]

@@ -4,17 +4,27 @@ the daemon's limit on repeated events and its one-line status for a terminal.
 Library modules only call ``structlog.get_logger(__name__)``; the CLI calls
 :func:`configure_logging` once. The stdlib root logger is never configured.
 
-Writing a log line never raises: a stream whose reader went away (a pipe closed,
-journald stopped: ``EPIPE``) or that fails otherwise costs that line, counted by
-:func:`lost_lines`, never the daemon (a ``BrokenPipeError`` out of a log call ended
-``emlogd run`` with exit code 0, which systemd's ``Restart=on-failure`` does not restart).
+Writing a log line never raises and never waits (:class:`LogStream`): a stream whose
+reader went away (a pipe closed, journald stopped: ``EPIPE``) or that fails otherwise
+costs that line, counted by :func:`lost_lines`, never the daemon (a ``BrokenPipeError``
+out of a log call ended ``emlogd run`` with exit code 0, which systemd's
+``Restart=on-failure`` does not restart); a reader that is alive but does not read
+(a stopped ``emlogd run | less``, a journald stuck) costs the lines past
+:data:`LOG_BACKLOG_BYTES`, counted alike (a blocking write held the daemon's one thread,
+its outputs and its control socket, for as long as the reader slept).
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
+import os
+import select
+import stat
 import sys
+import threading
+import time
 from typing import Literal, TextIO
 
 import structlog
@@ -32,22 +42,139 @@ _LEVELS = {
 _console = False
 _lost = 0
 
+LOG_BACKLOG_BYTES = 64 * 1024
+"""Most log output held back while the log's reader does not take it; a line that would
+pass it is dropped whole and counted (:func:`lost_lines`)."""
+
+LOG_EXIT_FLUSH_S = 1.0
+"""How long the daemon's last lines may wait for a slow reader when it exits."""
+
 
 def lost_lines() -> int:
-    """Log lines this process could not write (the stream failed)."""
+    """Log lines this process could not write (the stream failed, or its reader did not
+    take them)."""
     return _lost
 
 
+class LogStream:
+    """Log lines to a stream without ever blocking on its reader.
+
+    A pipe, FIFO or terminal is written through a non-blocking descriptor of its own
+    (the stream's reopened through ``/proc/self/fd``, so the flags of a descriptor
+    shared with a shell or a supervisor are untouched); a socket (journald's stream),
+    or a pipe that cannot be reopened, through the stream's descriptor whenever it polls
+    writable. Each write is whole lines of at most ``PIPE_BUF`` bytes (a pipe takes such
+    a write whole or not at all; a longer line goes in ``PIPE_BUF`` pieces). What the
+    reader does not take waits in a backlog of at most :data:`LOG_BACKLOG_BYTES`; a line
+    that would pass it is dropped. A regular file or
+    a stream without a descriptor is written as it is (a disk does not wait for a
+    reader; a full one fails, and the line is counted lost).
+    """
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self.pending = bytearray()
+        self._lock = threading.Lock()
+        self.fd = -1
+        self._own = False
+        self._ready: select.poll | None = None
+        try:
+            fd = stream.fileno()
+            mode = os.fstat(fd).st_mode
+        except (OSError, ValueError, AttributeError):  # in memory
+            return
+        if stat.S_ISREG(mode) or not (
+            stat.S_ISFIFO(mode) or stat.S_ISCHR(mode) or stat.S_ISSOCK(mode)
+        ):
+            return
+        with contextlib.suppress(OSError, ValueError):
+            stream.flush()
+        if not stat.S_ISSOCK(mode):
+            with contextlib.suppress(OSError):
+                flags = os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC
+                self.fd, self._own = os.open(f"/proc/self/fd/{fd}", flags), True
+                return
+        self.fd = fd
+        self._ready = select.poll()
+        self._ready.register(fd, select.POLLOUT)
+
+    def write(self, line: str) -> None:
+        """Write one line (its newline included), or hold it, or drop it (counted)."""
+        global _lost
+        if self.fd < 0:
+            try:
+                self.stream.write(line)
+                self.stream.flush()
+            except (OSError, ValueError):  # EPIPE, EIO, ENOSPC; ValueError: the stream closed
+                _lost += 1
+            return
+        data = line.encode("utf-8", "replace")
+        with self._lock:
+            self._flush()
+            if len(self.pending) + len(data) > LOG_BACKLOG_BYTES:
+                _lost += 1
+                return
+            self.pending += data
+            self._flush()
+
+    def flush(self, timeout_s: float = 0.0) -> None:
+        """Write what is held back, waiting up to ``timeout_s`` for the reader."""
+        end = time.monotonic() + timeout_s
+        with self._lock:
+            self._flush()
+            while self.pending and self.fd >= 0 and (left := end - time.monotonic()) > 0:
+                with contextlib.suppress(OSError):
+                    select.select([], [self.fd], [], left)
+                self._flush()
+
+    def _flush(self) -> None:
+        global _lost
+        while self.pending:
+            if self._ready is not None and not self._ready.poll(0):
+                return
+            # whole lines of at most PIPE_BUF bytes: a pipe takes them whole or not at all
+            end = self.pending.rfind(b"\n", 0, select.PIPE_BUF) + 1 or select.PIPE_BUF
+            try:
+                n = os.write(self.fd, self.pending[:end])
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # the reader is gone: what is held is lost
+                _lost += max(self.pending.count(b"\n"), 1)
+                self.pending.clear()
+                return
+            del self.pending[:n]
+
+    def close(self) -> None:
+        """Release the descriptor of its own (what is held is dropped)."""
+        if self._own and self.fd >= 0:
+            os.close(self.fd)
+        self.fd = -1
+
+
+_stream: LogStream | None = None
+
+
+def flush_log(timeout_s: float = LOG_EXIT_FLUSH_S) -> None:
+    """Write the log lines held back, waiting up to ``timeout_s`` for the reader (at
+    exit); the lines still held then are counted lost."""
+    global _lost
+    if _stream is not None:
+        _stream.flush(timeout_s)
+        if timeout_s > 0 and _stream.pending:
+            _lost += max(_stream.pending.count(b"\n"), 1)
+            _stream.pending.clear()
+
+
 class SafePrintLogger(structlog.PrintLogger):
-    """A :class:`structlog.PrintLogger` whose writes never raise: a failed write is
-    counted (:func:`lost_lines`) and the line dropped."""
+    """A :class:`structlog.PrintLogger` whose writes go through a :class:`LogStream`:
+    never raise, never block."""
+
+    def __init__(self, out: LogStream) -> None:
+        super().__init__(out.stream)
+        self._out = out
 
     def msg(self, message: str) -> None:
-        global _lost
-        try:
-            super().msg(message)
-        except (OSError, ValueError):  # EPIPE, EIO, ENOSPC; ValueError: the stream closed
-            _lost += 1
+        self._out.write(message + "\n")
 
     log = debug = info = warn = warning = msg
     fatal = failure = err = error = critical = exception = msg
@@ -56,11 +183,11 @@ class SafePrintLogger(structlog.PrintLogger):
 class SafePrintLoggerFactory:
     """Makes :class:`SafePrintLogger` instances on one stream."""
 
-    def __init__(self, file: TextIO) -> None:
-        self._file = file
+    def __init__(self, out: LogStream) -> None:
+        self._out = out
 
     def __call__(self, *args: object) -> SafePrintLogger:
-        return SafePrintLogger(self._file)
+        return SafePrintLogger(self._out)
 
 
 def is_console() -> bool:
@@ -87,8 +214,11 @@ def configure_logging(
         raise ValueError(f"log level must be one of {', '.join(_LEVELS)}, not {level!r}")
     out = stream if stream is not None else sys.stdout
     console = fmt == "console" or (fmt == "auto" and out.isatty())
-    global _console
+    global _console, _stream
     _console = console
+    if _stream is not None:
+        _stream.close()
+    _stream = LogStream(out)
     renderer: structlog.typing.Processor = (
         structlog.dev.ConsoleRenderer(colors=out.isatty())
         if console
@@ -103,7 +233,7 @@ def configure_logging(
             renderer,
         ],
         wrapper_class=structlog.make_filtering_bound_logger(_LEVELS[level]),
-        logger_factory=SafePrintLoggerFactory(out),
+        logger_factory=SafePrintLoggerFactory(_stream),
         cache_logger_on_first_use=False,
     )
 
@@ -125,6 +255,7 @@ CLIENT_EVENTS = frozenset(
         "client_evicted",
         "client_sent_data",
         "client_stalled",
+        "client_throttled",
         "client_too_slow",
     }
 )

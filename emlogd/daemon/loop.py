@@ -37,7 +37,7 @@ from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon.control import COMMANDS, ControlServer
-from emlogd.daemon.logsetup import EventLimiter, is_console, lost_lines, status_line
+from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import Outputs
 from emlogd.daemon.statefile import StateStore, same_records
@@ -50,6 +50,10 @@ SELECT_TIMEOUT_S = 0.2
 
 HOUSEKEEPING_S = 0.1
 """Least time between two rounds of reconnects, stale checks, status and watchdog."""
+
+RELOAD_MIN_S = 0.25
+"""Least time between two reloads: SIGHUPs sent faster (a script in a loop) are one
+reload when it is due, which reads the newest config."""
 
 _ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """How a resting port is registered: one readiness, then disarmed until re-armed."""
@@ -116,6 +120,7 @@ class Daemon:
         self.notifier = Notifier.from_env()
         self.stop = False
         self.reload = False
+        self.next_reload = -math.inf
         self.started = False
         """Everything opened: a stop persists (a start that failed writes nothing)."""
         self.state_errors = 0
@@ -314,8 +319,8 @@ class Daemon:
                 self._wake_rested(now)
             for name in self.unselectable:
                 self._read(name)  # a source without a file descriptor (loop://)
-            if self.reload:
-                self.reload = False
+            if self.reload and now >= self.next_reload:
+                self.reload, self.next_reload = False, now + RELOAD_MIN_S
                 self._reload()
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
@@ -343,6 +348,7 @@ class Daemon:
         for server in self.controls.values():
             server.housekeep()
         self.outputs.housekeep()
+        flush_log(0.0)  # log lines a slow reader left behind
         self._tick()
 
     def _watch(self, fd: int, call: Callable[[], None]) -> None:

@@ -16,6 +16,12 @@ is discarded (a FIN would wait behind it, and so would the kernel's memory). The
 kernel acknowledges whatever fits in a client's receive buffer, read or not: a
 client that never reads is noticed once that buffer is full.
 
+Connections are admitted within a budget per source address and in all
+(:class:`~emlogd.daemon.listen.AcceptBudget`): one past it is reset at once
+(``client_throttled``) and the listener rests a moment (:data:`THROTTLE_PAUSE_S`), so a
+client reconnecting in a loop costs a few accepts a pause, and only a few connections a
+second get further.
+
 The stream is output only: what a client sends is read and discarded, within a budget
 (:data:`TCP_INPUT_BURST` bytes, refilled at :data:`TCP_INPUT_RATE` bytes/s); a
 client that sends more is closed (``client_sent_data``), so a flooding client costs
@@ -48,7 +54,7 @@ from pathlib import Path
 from typing import BinaryIO, Protocol
 
 from drivers.errors import ConfigError
-from emlogd.daemon.listen import AcceptPause
+from emlogd.daemon.listen import AcceptBudget, AcceptPause
 
 TCP_BACKLOG_BYTES = 64 * 1024
 """Default largest pending output per TCP client (the daemon's backlog plus the
@@ -69,6 +75,18 @@ TCP_CHECK_S = 0.25
 TCP_INPUT_BURST = 4096
 """Most bytes a TCP client may send at once (read and discarded) before it is closed
 (``client_sent_data``)."""
+
+ACCEPTS_PER_ROUND = 16
+"""Most connections accepted at one wake-up (twice the listen backlog): a round ends
+even while a loop keeps connecting."""
+
+THROTTLE_PAUSE_S = 0.1
+"""How long the TCP output stops accepting after it reset a connection past the accept
+budget (:class:`~emlogd.daemon.listen.AcceptBudget`): meanwhile connections wait in the
+listen backlog (8) and the kernel drops the SYNs past it, so a reconnect loop costs a
+round of at most :data:`ACCEPTS_PER_ROUND` accepts per pause instead of one per
+connection; a newcomer from another host waits for the next round (or its SYN's
+retransmission, 1 s, when the backlog was full)."""
 
 TCP_INPUT_RATE = 1024.0
 """Bytes/s a TCP client's input budget refills at: a client that echoes a few sentences
@@ -113,7 +131,8 @@ class SinkCounters:
     ``dropped_clients`` counts the clients the sink closed, whatever the reason; the
     reasons apart: ``too_slow`` (pending output over the bound), ``stalled`` (nothing
     taken for the stall time), ``evicted`` (made room for a newcomer at the limit), ``sent_data`` (sent more than
-    its input budget, :data:`TCP_INPUT_BURST`).
+    its input budget, :data:`TCP_INPUT_BURST`). ``throttled`` counts the connections
+    reset at once, past the accept budget (never clients, not in ``dropped_clients``).
     """
 
     sentences: int = 0
@@ -125,6 +144,7 @@ class SinkCounters:
     stalled: int = 0
     evicted: int = 0
     sent_data: int = 0
+    throttled: int = 0
 
     def as_dict(self) -> dict[str, int]:
         """Plain types."""
@@ -138,6 +158,7 @@ class SinkCounters:
             "stalled": self.stalled,
             "evicted": self.evicted,
             "sent_data": self.sent_data,
+            "throttled": self.throttled,
         }
 
 
@@ -306,6 +327,13 @@ def _send_queue(sock: socket.socket) -> int:
     return int(struct.unpack("i", raw)[0])
 
 
+def _reset(sock: socket.socket) -> None:
+    """Close ``sock`` with a reset, discarding what is queued either way."""
+    with contextlib.suppress(OSError):
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, _RESET)
+    sock.close()
+
+
 class _Client:
     __slots__ = (
         "addr",
@@ -381,6 +409,7 @@ class TcpServerSink:
         self.state = "unbound"
         self.retry = _Retry(monotonic)
         self.pause = AcceptPause(lambda d: self._note("accept_error", d), monotonic)
+        self.budget = AcceptBudget(monotonic)
         self._next_check = -math.inf
         self._bind()
 
@@ -442,29 +471,51 @@ class TcpServerSink:
             self.on_event(kind, detail)
 
     def _accept(self) -> None:
-        while self.server is not None:
+        """Accept what waits (at most :data:`ACCEPTS_PER_ROUND`): each connection past the
+        budget is reset, and the listener then rests for :data:`THROTTLE_PAUSE_S`."""
+        throttled = False
+        for _ in range(ACCEPTS_PER_ROUND):
+            if self.server is None:
+                break
             try:
                 sock, addr = self.server.accept()
             except (BlockingIOError, InterruptedError):
-                return
+                break
             except OSError as exc:
                 self.counters.errors += 1
-                if self.pause.failed(exc) and self.selector is not None:
-                    with contextlib.suppress(KeyError, ValueError):
-                        self.selector.unregister(self.server)
+                if self.pause.failed(exc):
+                    self._stop_listening()
                 return
             self.pause.accepted()
-            now = self.monotonic()
-            while self.clients and len(self.clients) >= self.limits.max_clients:
-                self._drop(self._eviction_candidate(now), "client_evicted")
-            sock.setblocking(False)
-            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            client = _Client(sock, addr, now)
-            self.clients[sock.fileno()] = client
-            self.counters.clients = len(self.clients)
-            if self.selector is not None:
-                self.selector.register(sock, selectors.EVENT_READ, lambda c=client: self._drain(c))
-            self._note("client_connected", str(addr))
+            if not self.budget.admit(str(addr[0])):
+                _reset(sock)
+                self.counters.throttled += 1
+                self._note("client_throttled", str(addr))
+                throttled = True
+                continue
+            self._admit(sock, addr)
+        if throttled:
+            self.pause.hold(THROTTLE_PAUSE_S)
+            self._stop_listening()
+
+    def _stop_listening(self) -> None:
+        if self.selector is not None and self.server is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                self.selector.unregister(self.server)
+
+    def _admit(self, sock: socket.socket, addr: object) -> None:
+        """Make a client of an accepted connection (evicting one at the limit)."""
+        now = self.monotonic()
+        while self.clients and len(self.clients) >= self.limits.max_clients:
+            self._drop(self._eviction_candidate(now), "client_evicted")
+        sock.setblocking(False)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        client = _Client(sock, addr, now)
+        self.clients[sock.fileno()] = client
+        self.counters.clients = len(self.clients)
+        if self.selector is not None:
+            self.selector.register(sock, selectors.EVENT_READ, lambda c=client: self._drain(c))
+        self._note("client_connected", str(addr))
 
     def _eviction_candidate(self, now: float) -> _Client:
         """The client to close for a newcomer: the one stalled longest among those with
@@ -506,9 +557,9 @@ class TcpServerSink:
         self.clients.pop(fd, None)
         reason = DROP_REASONS.get(why)
         if reason is not None:  # reset: output queued for a client that does not take it
-            with contextlib.suppress(OSError):  # would hold the FIN, and kernel memory
-                client.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, _RESET)
-        client.sock.close()
+            _reset(client.sock)  # would hold the FIN, and kernel memory
+        else:
+            client.sock.close()
         self.counters.clients = len(self.clients)
         if reason is not None:
             self.counters.dropped_clients += 1

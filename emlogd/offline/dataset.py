@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 from calib.lsq import block_average
 from calib.models import FloatArray
-from drivers.io.capture import REORDER_WINDOW_S, CaptureReader
+from drivers.io.capture import REORDER_WINDOW_S, CaptureReader, capture_name
 from emlogd.contain import Containment
 from emlogd.offline import ProgressFn
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
@@ -115,11 +115,8 @@ class Recording:
 
     @property
     def name(self) -> str:
-        """The capture's file name without ``.cap``/``.gz`` (e.g. ``2-figure8``)."""
-        name = Path(self.path).name
-        for suffix in (".gz", ".cap"):
-            name = name.removesuffix(suffix)
-        return name
+        """The capture's file name without ``.cap``/``.gz`` (:func:`capture_name`)."""
+        return capture_name(self.path)
 
     def aligned(self, lag_s: float, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Aligned:
         """Readings paired with the reference and heading at ``t − lag`` (the alignment

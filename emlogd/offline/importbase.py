@@ -16,6 +16,7 @@ from typing import TextIO
 from drivers.errors import EmlogdError, FrameError
 from drivers.framing import nmea_checksum, split_nmea
 from drivers.io.capture import CaptureWriter
+from emlogd.fileio import part_path
 from emlogd.pipeline.variation import CourseOffsetCheck
 
 YEARS = (1980, 2100)
@@ -103,7 +104,7 @@ class CaptureSink:
 
     def __init__(self, out: str | Path, port: str, comment: str, report: ImportReport) -> None:
         self.path = Path(out)
-        self.tmp = self.path.with_name(self.path.name + ".part" + _gz(self.path))
+        self.tmp = part_path(self.path)
         self.port = port
         self.report = report
         self.check = CourseOffsetCheck()
@@ -129,10 +130,6 @@ class CaptureSink:
     def abort(self) -> None:
         self.w.close()
         self.tmp.unlink(missing_ok=True)
-
-
-def _gz(path: Path) -> str:
-    return ".gz" if path.name.endswith(".gz") else ""
 
 
 def count(counter: Counter[str], key: str, n: int) -> None:

@@ -471,8 +471,9 @@ def calibrate(
             nis_mean, nis_frac = stats.mean, stats.frac_inside
     params = estimate.params
     corrected = correct_array(params, raw)
-    rmse_raw, rmse_cal = water_scores(t, ref, raw, corrected, hd, params)
-    imo_raw, imo_cal = water_imo(water_targets(t, ref, raw, corrected, hd, params))
+    targets = water_targets(t, ref, raw, corrected, hd, params)
+    rmse_raw, rmse_cal = water_scores(targets)
+    imo_raw, imo_cal = water_imo(targets)
     return CalibrationResult(
         captures=tuple(r.path for r in recs),
         settings=settings,
@@ -600,8 +601,9 @@ def evaluate(
         raw, ref = pair.raw[ok], pair.ref[ok]
         cal = correct_array(params, raw)
         hd = pair.heading[ok] if settings.current else None
-        rmse_raw, rmse_cal = water_scores(pair.t[ok], ref, raw, cal, hd, params)
-        imo_raw, imo_cal = water_imo(water_targets(pair.t[ok], ref, raw, cal, hd, params))
+        targets = water_targets(pair.t[ok], ref, raw, cal, hd, params)
+        rmse_raw, rmse_cal = water_scores(targets)
+        imo_raw, imo_cal = water_imo(targets)
         rows.append(EvaluationRow(r.path, int(raw.size), rmse_raw, rmse_cal, imo_raw, imo_cal))
     return rows
 

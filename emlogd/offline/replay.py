@@ -16,6 +16,7 @@ sentence).
 
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -112,6 +113,7 @@ class ReplayResult:
                     "nis_mean": u["nis_mean"],
                     "samples_learnt": u["samples_learnt"],
                     "truth": self.truth[name].to_dict() if name in self.truth else None,
+                    "truth_worst_window": _worst_window(self.truth_windows.get(name)),
                     **({"two_axis": u["two_axis"]} if "two_axis" in u else {}),
                     **(
                         {"two_axis_truth": self.two_axis_truth[name]}
@@ -135,6 +137,22 @@ class ReplayResult:
             "capture_skips": dict(self.capture_skips),
             "internal": dict(self.internal),
         }
+
+
+def _worst_window(windows: Sequence[WindowScore] | None) -> dict[str, object] | None:
+    """The window whose emitted speeds are furthest above raw's against the truth
+    (``replay --json``'s ``truth_worst_window``), or None without one."""
+    if not windows:
+        return None
+    w = max(windows, key=lambda x: x.ratio)
+    return {
+        "t0": round(w.t0, 3),
+        "n_samples": w.n,
+        "rmse_raw": round(w.rmse_raw, 5),
+        "rmse_corrected": round(w.rmse_corrected, 5),
+        "ratio": round(w.ratio, 4) if math.isfinite(w.ratio) else None,
+        "windows": len(windows),
+    }
 
 
 def replay(

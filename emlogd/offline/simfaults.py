@@ -139,20 +139,14 @@ def score_windows(
 ) -> list[WindowScore]:
     """Score the emitted speeds against the truth per window of ``window_s``.
 
-    Readings are paired with the truth as :func:`~emlogd.offline.simulate.score_truth`
-    pairs them (the EMlog's true latency); windows are consecutive from the first
-    reading, those with fewer than :data:`MIN_WINDOW_SAMPLES` scored readings left out
-    (a silent output, or the idle time between trajectories).
+    Readings are paired with the truth by :meth:`~emlogd.offline.simtruth.Truth.paired`
+    (the EMlog's true latency); windows are consecutive from the first reading, those
+    with fewer than :data:`MIN_WINDOW_SAMPLES` scored readings left out (a silent
+    output, or the idle time between trajectories).
     """
-    _, latency = truth.emlog(port)
-    tt = np.asarray(t, dtype=np.float64)
-    r = np.asarray(raw, dtype=np.float64)
-    c = np.asarray(corrected, dtype=np.float64)
-    stw = truth.stw_at(tt - latency)
-    ok = np.isfinite(stw) & np.isfinite(r) & np.isfinite(c)
-    if not ok.any():
+    tt, r, c, stw = truth.paired(port, t, raw, corrected)
+    if not tt.size:
         return []
-    tt, r, c, stw = tt[ok], r[ok], c[ok], stw[ok]
     idx = np.floor((tt - tt[0]) / window_s).astype(np.int64)
     out: list[WindowScore] = []
     for w in np.unique(idx).tolist():

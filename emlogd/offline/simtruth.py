@@ -222,6 +222,28 @@ class Truth:
         )
         return params, float(spec["latency_s"])  # type: ignore[arg-type]
 
+    def paired(
+        self, port: str, t: npt.ArrayLike, raw: npt.ArrayLike, corrected: npt.ArrayLike
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """A UUT's readings paired with the truth: each reading received at ``t`` with
+        the true speed through the water at ``t`` minus the EMlog's true latency; the
+        samples without a truth there (idle time between trajectories) or without a
+        finite reading or corrected speed left out.
+
+        Returns:
+            ``(t, raw, corrected, true_stw)`` of the samples kept, in their order.
+
+        Raises:
+            TruthError: ``port`` is not a simulated EMlog.
+        """
+        _, latency = self.emlog(port)
+        tt = np.asarray(t, dtype=np.float64)
+        r = np.asarray(raw, dtype=np.float64)
+        c = np.asarray(corrected, dtype=np.float64)
+        stw = self.stw_at(tt - latency)
+        ok = np.isfinite(stw) & np.isfinite(r) & np.isfinite(c)
+        return tt[ok], r[ok], c[ok], stw[ok]
+
 
 def read_truth(directory: str | Path) -> Truth:
     """Read the truth that :func:`simulate` wrote into ``directory``.
@@ -305,27 +327,20 @@ class TruthScore:
 def score_truth(
     truth: Truth, port: str, t: npt.ArrayLike, raw: npt.ArrayLike, corrected: npt.ArrayLike
 ) -> TruthScore:
-    """Score a UUT's readings and their corrected speeds against the truth.
-
-    Each reading received at ``t`` is paired with the true speed through the water
-    at ``t`` minus the EMlog's true latency; samples without a truth there (idle time
-    between trajectories) or without a finite corrected speed are left out.
+    """Score a UUT's readings and their corrected speeds against the truth, paired as
+    :meth:`Truth.paired` pairs them; the floor is the readings corrected with the
+    EMlog's true error model.
 
     Raises:
         TruthError: ``port`` is not a simulated EMlog.
     """
-    params, latency = truth.emlog(port)
-    tt = np.asarray(t, dtype=np.float64)
-    r = np.asarray(raw, dtype=np.float64)
-    c = np.asarray(corrected, dtype=np.float64)
-    stw = truth.stw_at(tt - latency)
-    ok = np.isfinite(stw) & np.isfinite(r) & np.isfinite(c)
-    floor = correct_array(params, r[ok])
+    params, _ = truth.emlog(port)
+    _, r, c, stw = truth.paired(port, t, raw, corrected)
     return TruthScore(
-        int(ok.sum()),
-        rmse(r[ok], stw[ok]),
-        rmse(c[ok], stw[ok]),
-        rmse(floor, stw[ok]),
-        imo_verdict(stw[ok], r[ok]),
-        imo_verdict(stw[ok], c[ok]),
+        int(stw.size),
+        rmse(r, stw),
+        rmse(c, stw),
+        rmse(correct_array(params, r), stw),
+        imo_verdict(stw, r),
+        imo_verdict(stw, c),
     )

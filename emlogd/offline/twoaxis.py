@@ -32,6 +32,7 @@ from calib.models import FloatArray, Params, check_model
 from calib.twoaxis import (
     TwoAxisFit,
     TwoAxisParams,
+    TwoAxisSeries,
     fit_current_two_axis,
     fit_two_axis,
     leeway_deg,
@@ -39,7 +40,7 @@ from calib.twoaxis import (
 )
 from calib.twoaxis_kf import kf_two_axis
 from drivers import make_decoder
-from drivers.io.capture import CaptureReader
+from drivers.io.capture import CaptureReader, capture_name
 from drivers.records import Rejected, SpeedRecord
 from emlogd.fileio import write_atomic
 from emlogd.offline.jobs import OfflineError
@@ -93,11 +94,8 @@ class TwoAxisRecording:
 
     @property
     def name(self) -> str:
-        """The capture's file name without ``.cap``/``.gz``."""
-        name = Path(self.path).name
-        for suffix in (".gz", ".cap"):
-            name = name.removesuffix(suffix)
-        return name
+        """The capture's file name without ``.cap``/``.gz`` (:func:`capture_name`)."""
+        return capture_name(self.path)
 
     def aligned(self, lag_s: float, max_gap_s: float = DEFAULT_MAX_GAP_S) -> TwoAxisAligned:
         """Readings paired with the reference and heading at ``t − lag`` (the alignment
@@ -136,10 +134,13 @@ class TwoAxisAligned:
     def __len__(self) -> int:
         return int(self.t.size)
 
-    def series(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-        """``(ref_fwd, ref_stb, raw_l, raw_t, heading)``: the series
-        :func:`calib.twoaxis.fit_two_axis` and its kin take, in their order."""
-        return self.ref_fwd, self.ref_stb, self.raw_l, self.raw_t, self.heading
+    def series(self) -> TwoAxisSeries:
+        """The series :func:`calib.twoaxis.fit_two_axis` and its kin take.
+
+        Raises:
+            DataError: no samples, or a value that is not finite.
+        """
+        return TwoAxisSeries.of(self.ref_fwd, self.ref_stb, self.raw_l, self.raw_t, self.heading)
 
 
 def record_two_axis(path: str | Path, uut: str, reference: str) -> TwoAxisRecording:
@@ -281,7 +282,7 @@ def score(params: TwoAxisParams, a: TwoAxisAligned) -> AxisScores:
     for p in (ideal, params):
         cur = fit_current_two_axis(
             p,
-            *a.series(),
+            a.series(),
             t_s=a.t,
             current_knot_s=CURRENT_KNOT_S,
         )
@@ -351,7 +352,7 @@ def calibrate_two_axis(
     if method == "ls":
         fit = fit_two_axis(
             name,
-            *a.series(),
+            a.series(),
             t_s=a.t,
             current_knot_s=CURRENT_KNOT_S,
         )
@@ -359,7 +360,7 @@ def calibrate_two_axis(
         fit = kf_two_axis(
             name,
             a.t,
-            *a.series(),
+            a.series(),
             current_knot_s=CURRENT_KNOT_S,
         )
     scores = score(fit.params, a)
@@ -432,7 +433,7 @@ def crossval_two_axis(recs: Sequence[TwoAxisRecording], model: str, lag_s: float
             continue
         fit = fit_two_axis(
             name,
-            *tr.series(),
+            tr.series(),
             t_s=tr.t,
             current_knot_s=CURRENT_KNOT_S,
         )

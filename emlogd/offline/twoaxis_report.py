@@ -109,7 +109,7 @@ def _speeds(
     if len(a) == 0:
         return None
     params = res.fit.params
-    cur = fit_current_two_axis(params, *a.series(), t_s=a.t, current_knot_s=CURRENT_KNOT_S)
+    cur = fit_current_two_axis(params, a.series(), t_s=a.t, current_knot_s=CURRENT_KNOT_S)
     u, w = water_velocity(a.ref_fwd, a.ref_stb, a.heading, cur)
     cu, cw = params.correct(a.raw_l, a.raw_t)
     tt = a.t - a.t[0]

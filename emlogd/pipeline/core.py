@@ -350,7 +350,7 @@ class Pipeline:
         if g.variation_deg is not None:
             self.headings.variation[port] = g.variation_deg
         if g.valid:
-            self.headings.position(t if g.fix_t is None else g.fix_t, g.lat_deg, g.lon_deg)
+            self.headings.position(t, g.lat_deg, g.lon_deg, g.fix_t)
         valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
         if valid and g.sog_mps is not None and self.fusion is not None:
             self.fusion.ground(t, g.sog_mps)
@@ -393,6 +393,11 @@ class Pipeline:
         raw = speed_of(sp, u.s.component)
         if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh):
             return
+        if sp.source == u.s.uut_source:
+            # judged first when its reference is already in (a log that lags the
+            # reference): a change the supervisor sees in it is not emitted corrected
+            cal.add_reading(t, raw)
+            cal.drain(self.now)
         value = cal.correct(raw)
         if value is not None and sp.source == u.s.uut_source:
             u.stw = (t, value)
@@ -403,9 +408,6 @@ class Pipeline:
                 out.emits.append(Emit(t, u.s.port, sentence))
             if self.fusion is not None and sp.source == u.s.uut_source:
                 self._fuse(t, u, value, hdg_t, hdg_m, out)
-        if sp.source == u.s.uut_source:
-            cal.add_reading(t, raw)
-            cal.drain(self.now)
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
             out.emits.append(Emit(t, u.s.port, encode_status(st.status_fields(u))))

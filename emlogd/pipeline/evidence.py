@@ -1,4 +1,4 @@
-"""The supervisor's own evidence: each calibration's current, and the change detector.
+"""The supervisor's own evidence: each calibration's current, the change detector, drift.
 
 :mod:`emlogd.pipeline.supervisor` judges calibrations with these, never with the
 learner's current:
@@ -10,7 +10,9 @@ learner's current:
   current (or mean error without current states) over a forgetting window, with the
   prediction and its leverage for a new sample;
 - :class:`Cusum` — a two-sided CUSUM of normalised innovations, with the evidence an
-  alarm is judged on.
+  alarm is judged on; :class:`Course` and :func:`sea_jumped` — which series jumped at
+  an alarm (the log, or the reference: the sea);
+- :class:`Drift` — a log that drifts against a steady reference on a straight leg.
 
 Must not import: serial, os, time, threading, socket (pure module).
 """
@@ -58,6 +60,24 @@ CUSUM_CLIP = 7.0
 """A normalised innovation counts at most this much (one glitch is not a change)."""
 
 
+HOLD_SIGMAS = CUSUM_CLIP
+"""An innovation of the applied calibration this many standard deviations out (the
+CUSUM's clip: no single glitch counts for more) where the log jumped and the reference
+did not (:meth:`Course.log_jumped`) holds it: raw passes through until the CUSUM run
+it opened ends (back to zero: the calibration is emitted again) or its alarm is
+decided (withdrawn, or the sea changed). A 20 % step of the log is such an innovation
+at once, and the two samples the CUSUM needs to alarm on it go out raw, not corrected
+for a sensor that is no longer there; a turn or a change of the sea moves the
+reference and holds nothing (raw is the worse there)."""
+
+SEA_STEP_SIGMAS = 7.0
+"""At an alarm, a jump of the reference (where the innovation jumped, the log's own
+less than it, :class:`Course`) of at least this many
+innovation standard deviations is a change of the sea: the learner's current re-opens,
+so that the jump goes into the current and not into the parameters. Smaller alarms
+(a turn the detector's 60-s current has not caught up with) leave the learner as it
+is."""
+
 STEP_BEFORE_S = 5.0
 """The course of the corrected reading and of the reference before a CUSUM run is their
 slope over this long, s (:func:`steps`)."""
@@ -75,6 +95,13 @@ STEP_MAX_GAP_S = 5.0
 
 STEP_RUN_MAX = 1200
 """A CUSUM run keeps at most this many samples for :func:`steps` (two minutes at 10 Hz)."""
+
+
+def sea_jumped(step_log: float, step_ref: float, sigma: float) -> bool:
+    """At an alarm, the reference jumped (:func:`steps`) more than the log and by at
+    least :data:`SEA_STEP_SIGMAS` innovation standard deviations ``sigma``: the sea
+    changed at once."""
+    return abs(step_ref) > abs(step_log) and abs(step_ref) >= SEA_STEP_SIGMAS * sigma
 
 
 def steps(seq: Sequence[tuple[float, float, float]], first: int) -> tuple[float, float]:
@@ -149,6 +176,92 @@ class Course:
         """Forget the samples (the scatter is the log's and stays)."""
         self.series.clear()
         self.run_start = 0
+
+
+DRIFT_WINDOW_S = 120.0
+"""The log's drift is judged over the last this long, s, of an unbroken run (a gap of
+more than :data:`STEP_MAX_GAP_S` starts it again)."""
+
+DRIFT_INTERVAL_S = 1.0
+"""The drift window keeps at most one sample this often, s."""
+
+DRIFT_MIN_MPS = 0.03
+"""A drift counts when the raw reading changed by at least this over
+:data:`DRIFT_WINDOW_S`, m/s, and its error against the reference too ..."""
+
+DRIFT_SIGMAS = 5.0
+"""... each trend this many standard errors from zero (the scatter about it) ..."""
+
+DRIFT_STEADY_MPS = 0.03
+"""... while the reference changed by at most this, m/s, and by this much less than
+the reading did ..."""
+
+DRIFT_MAX_HEADING_SPREAD = 0.01
+"""... on a straight leg: the heading's spread over the window (one minus the mean
+resultant length of its unit vector) at most this (about ±8°). The vessel held its
+speed and heading, so the current along the hull held too, and the log moved: a
+fouling log on a straight run at constant speed, where no current the data determine
+can tell a calibration learnt before the drift from raw (the current along the hull
+takes any offset). A change of the speed moves the reference with the reading, one of
+the current or of the heading in a current moves the reference alone. Once on, the
+verdict stands while the error keeps its trend on the straight leg (the vessel may then
+change its speed) and, after a gap, until a full window judges again."""
+
+
+class Drift:
+    """The raw reading's and the reference's trends over :data:`DRIFT_WINDOW_S`: a log
+    that drifts against a steady reference on a straight leg (:attr:`on`)."""
+
+    def __init__(self) -> None:
+        self.series: deque[tuple[float, float, float, float, float]] = deque()
+        self.on = False
+        """The log drifts (the last window's verdict)."""
+        self.change_mps = 0.0
+        """The raw error's change over the last window judged, m/s."""
+
+    def add(self, t: float, raw: float, ref: float, cs: tuple[float, float] | None) -> None:
+        """One sample (kept when :data:`DRIFT_INTERVAL_S` after the last one kept);
+        ``cs``: the heading's (cos, sin), None without one (taken as straight)."""
+        q = self.series
+        if q and t - q[-1][0] < DRIFT_INTERVAL_S:
+            return
+        if q and t - q[-1][0] > STEP_MAX_GAP_S:
+            q.clear()  # the verdict stands until a full window after the gap judges again
+        c, s = cs if cs is not None else (math.nan, math.nan)
+        q.append((t, raw, ref, c, s))
+        while t - q[0][0] > DRIFT_WINDOW_S:
+            q.popleft()
+        if t - q[0][0] >= DRIFT_WINDOW_S - 2.0 * DRIFT_INTERVAL_S:
+            self._judge()
+
+    def _judge(self) -> None:
+        a = np.asarray(self.series, dtype=np.float64)
+        t = a[:, 0] - a[0, 0]
+        x = np.column_stack((t - float(np.mean(t)), np.ones(t.size)))
+        y = np.column_stack((a[:, 1] - a[:, 2], a[:, 1], a[:, 2]))
+        coef, res, _, _ = np.linalg.lstsq(x, y, rcond=None)
+        slope = coef[0]
+        sxx = float(x[:, 0] @ x[:, 0])
+        dof = max(t.size - 2, 1)
+        se = np.sqrt(res / dof / sxx) if res.size and sxx > 0.0 else np.full(3, np.inf)
+        span = float(t[-1])
+        change = slope * span
+        self.change_mps = float(change[0])
+        c, s = a[:, 3], a[:, 4]
+        straight = bool(np.isnan(c).any()) or (
+            1.0 - math.hypot(float(np.mean(c)), float(np.mean(s))) <= DRIFT_MAX_HEADING_SPREAD
+        )
+        trend = np.abs(change) >= DRIFT_MIN_MPS
+        trend &= np.abs(slope) >= DRIFT_SIGMAS * se
+        ref = abs(float(change[2]))
+        onset = bool(trend[1]) and ref <= DRIFT_STEADY_MPS
+        onset = onset and abs(float(change[1])) >= ref + DRIFT_STEADY_MPS
+        self.on = bool(trend[0]) and straight and (self.on or onset)
+
+    def reset(self) -> None:
+        """Forget the samples."""
+        self.series.clear()
+        self.on = False
 
 
 class SeaMemory:

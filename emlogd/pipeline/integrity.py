@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from calib.models import Params
@@ -619,3 +620,22 @@ class ReadingCheck:
             self._moving = (t, v)
         self._first_refused = None
         self._pending = None
+
+
+def output_std(
+    p: Params | None, std: Mapping[str, float | None], r_raw_mps2: float, speed_mps: float
+) -> float:
+    """The standard deviation of an emitted speed, m/s: the reading's noise
+    (``r_raw_mps2``) through the scale of the applied calibration ``p``, plus its own σ
+    ``std`` at that speed; raw passed through (``p`` None) counts with 10 % + 0.1 m/s.
+    """
+    if p is None:
+        return math.sqrt(r_raw_mps2 + (0.1 * speed_mps) ** 2 + 0.01)
+    u = abs(speed_mps)
+    gain = p.a_spm * 2.0 * u + 1.0 + p.m
+    var = r_raw_mps2 / max(gain * gain, 0.25)
+    for name, x in (("a", u * u), ("m", u), ("b", 1.0)):
+        sd = std.get(name)
+        if sd is not None and math.isfinite(sd):
+            var += (sd * x) ** 2 / max(gain * gain, 0.25)
+    return math.sqrt(var)

@@ -496,6 +496,19 @@ class Learner:
         while q and t - q[0][0] > CHANGE_WINDOW_S:
             q.popleft()
 
+    def reopen_current(self) -> bool:
+        """The reference jumped (the supervisor's detector saw the sea change): when
+        learning sample by sample (a DVL), the current's variance back to its prior, so
+        that the jump goes into the current and not into the parameters; True when it
+        did. Learning from block means (a noisy reference, whose own jumps a single
+        sample cannot tell from the sea's), nothing changes."""
+        if not self.layout.current or self.block is not None:
+            return False
+        for kf in (self.kf, self.shadow):
+            if kf is not None:
+                kf.reopen([CURRENT])
+        return True
+
     def reopen_for_change(self) -> None:
         """The readings changed (the supervisor's detector withdrew the calibration):
         re-open the parameters by the size of the change, as far as the readings

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -24,7 +24,22 @@ from calib.kalman import KfConfig
 from calib.models import Params
 from emlogd.pipeline.evidence import FIT_CURRENT_PRIOR_MPS, FIT_NOISE_MPS
 
+if TYPE_CHECKING:
+    from emlogd.pipeline.learner import Offer
+
 CandidateKind = Literal["new", "restored", "revalidate", "verify"]
+
+
+class CandidateSource(Protocol):
+    """What the supervisor may ask of the learner: an offer, and its uncertainty now."""
+
+    def offer(self) -> Offer | None:
+        """The learner's estimate as a candidate, or None when it has none to offer."""
+
+    @property
+    def param_std(self) -> Mapping[str, float]:
+        """The standard deviation of each parameter now."""
+
 
 WORSE_FACTOR = 1.05
 WORSE_MARGIN_MPS = 0.005

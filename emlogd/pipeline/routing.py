@@ -47,6 +47,11 @@ GNSS_QUEUE = 256
 """GNSS fixes waiting for their heading, per UUT (the oldest is dropped beyond)."""
 
 
+MODEL_VARIATION_S = 1.0
+"""Least receive time between two look-ups of the model's variation at a GNSS position
+(a computation, 0.5 ms, when the position's cell or the fix's day is new)."""
+
+
 class NavHeading(NamedTuple):
     """A heading, true and/or magnetic, and the variation sent with it, °."""
 
@@ -159,6 +164,8 @@ class Headings:
         self.fix_quality: dict[str, int] = {}
         self.model_var: float | None = None
         """The IGRF model's variation at the last GNSS position and date, ° east."""
+        self._model_t = -math.inf
+        """When the model was last looked up (receive time)."""
         rates = [u.max_turn_rate_dps for u in uuts]
         self.turn_rate_dps = max(rates) if rates else DEFAULT_TURN_RATE_DPS
         self.configured_variation = next(
@@ -238,12 +245,19 @@ class Headings:
             return self.model_var, "model"
         return None, None
 
-    def position(self, t: float, lat: float | None, lon: float | None) -> None:
-        """A GNSS position (RMC, GGA) at ``t``: the model's variation there and then."""
-        if lat is not None and lon is not None:
-            mv = model_variation(lat, lon, t)
-            if mv is not None:
-                self.model_var = mv
+    def position(
+        self, t: float, lat: float | None, lon: float | None, fix_t: float | None = None
+    ) -> None:
+        """A GNSS position (RMC, GGA) received at ``t``, fixed at ``fix_t`` (its own date
+        and time, else ``t``): the model's variation there and then, looked up at most once
+        per :data:`MODEL_VARIATION_S` of ``t`` (a fix whose date or cell changes at every
+        sentence would make each one a computation of the model)."""
+        if lat is None or lon is None or t - self._model_t < MODEL_VARIATION_S:
+            return
+        self._model_t = t
+        mv = model_variation(lat, lon, t if fix_t is None else fix_t)
+        if mv is not None:
+            self.model_var = mv
 
     def adopt(self, old: Headings, port: str) -> None:
         """Take over ``port``'s headings, variation and fix quality from ``old``."""

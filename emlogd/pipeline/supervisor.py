@@ -20,7 +20,10 @@ Rules (the constants are this module's and
 
 - **Emitting** (:meth:`Supervisor.correct`) uses only the applied calibration, never
   waits for the reference, and is silent while the log has a fault
-  (:class:`~emlogd.pipeline.integrity.UutHealth`).
+  (:class:`~emlogd.pipeline.integrity.UutHealth`). A reading whose reference is
+  already in (a log that lags the reference) is judged before it is emitted; one whose
+  innovation is beyond :data:`~emlogd.pipeline.evidence.HOLD_SIGMAS` holds the calibration: raw goes out until
+  the change detector has decided.
 - **Validation**: an offer different enough from the applied calibration
   (``persist_min_change_sigma`` / ``persist_min_change_abs``) becomes a candidate,
   frozen and scored over the next ``validation_s`` (at least
@@ -37,12 +40,18 @@ Rules (the constants are this module's and
   a step of the sensor or the sea. On an alarm the calibration's errors and raw's
   over the alarm's run, against the current as it stood, decide: worse than raw, it
   is withdrawn and the learner learns the parameters again; else the sea changed, and
-  the detector's current starts afresh. When, where the innovation jumped, the log
+  the detector's current starts afresh; when the reference jumped
+  (:data:`~emlogd.pipeline.evidence.SEA_STEP_SIGMAS`) the learner's current re-opens
+  (raw passing through or not), so that the jump goes into the current, not into the
+  parameters. When, where the innovation jumped, the log
   jumped beyond its own scatter and the reference did not
   (:class:`~emlogd.pipeline.evidence.Course`), the sensor changed and the sea is as it
   was: the alarm is judged on the run of the side that alarmed alone, and the
   withdrawn calibration re-validates, raw and it alike, in the current the detector
   had before the jump.
+- **Drift** (:class:`~emlogd.pipeline.evidence.Drift`): a log that drifts against a
+  steady reference on a straight leg withdraws the applied calibration, and nothing is
+  applied while it drifts.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again.
@@ -50,7 +59,8 @@ Rules (the constants are this module's and
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
   was saved in and against raw, the current its errors imply is one the sea cannot
-  have, :data:`RESTORE_SEA_SIGMAS`), raw passing through meanwhile; saved with its sea
+  have, :data:`RESTORE_SEA_SIGMAS`; refused so, judged again every
+  :data:`RESTORE_RETRY_S`), raw passing through meanwhile; saved with its sea
   and raw worse than it there over its first :data:`RESTORE_EARLY_SAMPLES`, it is
   applied then and validated in place (withdrawn when that fails); when no reference
   has been heard
@@ -62,22 +72,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.evidence import (
+    HOLD_SIGMAS,
     Course,
     Cusum,
+    Drift,
     FitWindow,
     SeaMemory,
+    sea_jumped,
 )
-from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
+from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed, output_std
 from emlogd.pipeline.revalidation import RESTORE_MIN_HEADING_SPREAD as RESTORE_MIN_HEADING_SPREAD
 from emlogd.pipeline.revalidation import RESTORE_SEA_SIGMAS as RESTORE_SEA_SIGMAS
 from emlogd.pipeline.revalidation import WORSE_FACTOR as WORSE_FACTOR
 from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
+from emlogd.pipeline.revalidation import CandidateSource as CandidateSource
 from emlogd.pipeline.revalidation import _Candidate as _Candidate
 from emlogd.pipeline.revalidation import (
     judge_restored,
@@ -86,7 +100,6 @@ from emlogd.pipeline.revalidation import (
 )
 
 if TYPE_CHECKING:
-    from emlogd.pipeline.learner import Offer
     from emlogd.pipeline.settings import UutSettings
 
 VALIDATION_MIN_SAMPLES = 20
@@ -139,20 +152,21 @@ the other way round): the evidence is for it. It is validated in place over the 
 of its window and withdrawn when that fails; with any other evidence raw passes
 through until then."""
 
+RESTORE_RETRY_S = 120.0
+"""A restored calibration refused on a window whose headings cannot tell a current from
+an offset, for the current its errors imply (beyond what the sea can have become since
+it was saved, :data:`RESTORE_SEA_SIGMAS`), is validated again this long after, s, while
+nothing is applied and the learner has nothing to offer: it was not shown wrong, only
+unexplained by the sea it was saved in, and that sea's allowance grows with the time
+since it was saved (a current that changed faster than the learner's random walk is
+seen as such a little later). Raw passes through meanwhile. One refused with the whole
+allowance (the learner's prior of a current component: saved without its sea, or long
+enough ago) is not judged again: time would not change its verdict, only give it more
+draws."""
+
 RESTORE_WAIT_S = 10.0
 """A restored calibration is applied unverified when no reference has been heard this
 long after the first reading, s."""
-
-
-class CandidateSource(Protocol):
-    """What the supervisor may ask of the learner: an offer, and its uncertainty now."""
-
-    def offer(self) -> Offer | None:
-        """The learner's estimate as a candidate, or None when it has none to offer."""
-
-    @property
-    def param_std(self) -> Mapping[str, float]:
-        """The standard deviation of each parameter now."""
 
 
 class Supervisor:
@@ -204,6 +218,9 @@ class Supervisor:
         )
         self.unverified = False
         """The applied calibration is a restored one no reference has confirmed yet."""
+        self.retry: tuple[_Candidate, float] | None = None
+        """A restored calibration refused on a straight leg, and when
+        (:data:`RESTORE_RETRY_S`)."""
         self.t_first: float | None = None
         self.heard_reference = False
         self.recheck = PairedWindow(s.recheck_s)
@@ -213,6 +230,11 @@ class Supervisor:
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
         self.course = Course(CUSUM_HALF_LIFE_S)
+        self.drift = Drift()
+        self.held = False
+        """Raw passes through until the CUSUM run decides (``HOLD_SIGMAS``)."""
+        self.sea_changed = False
+        """The reference jumped: the learner's current re-opens (taken by the owner)."""
         self.reopen = False
         """Change detected: the learner should learn the parameters again (taken by the owner)."""
         self.health = UutHealth(s.stuck_s, s.zero_s)
@@ -242,34 +264,20 @@ class Supervisor:
     def correct(self, raw_mps: float) -> float | None:
         """The speed to send for a reading: applied calibration, or raw; None when silent.
 
-        Silent while the UUT has a fault (a stuck or dead log is not a measurement).
+        Silent while the UUT has a fault (a stuck or dead log is not a measurement);
+        raw while the applied calibration is held (:data:`~emlogd.pipeline.evidence.HOLD_SIGMAS`).
         """
         if self.health.fault:
             return None
-        p = self.applied if self.s.apply else None
+        p = self.applied if self.s.apply and not self.held else None
         corrected = raw_mps if p is None else p.correct(raw_mps)
         out = emitted_speed(corrected, raw_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
         return out if math.isfinite(out) else None
 
     def output_std(self, speed_mps: float) -> float:
-        """The standard deviation of a speed :meth:`correct` gave, m/s.
-
-        The reading's noise through the scale, plus the applied calibration's own σ at
-        that speed; raw passed through (no calibration yet) counts with 10 % + 0.1 m/s.
-        """
-        r_raw = self.s.kf.r_raw_mps2
+        """The standard deviation of a speed :meth:`correct` gave, m/s (:func:`output_std`)."""
         p = self.applied if self.s.apply else None
-        if p is None:
-            return math.sqrt(r_raw + (0.1 * speed_mps) ** 2 + 0.01)
-        std = self.applied_std
-        u = abs(speed_mps)
-        gain = p.a_spm * 2.0 * u + 1.0 + p.m
-        var = r_raw / max(gain * gain, 0.25)
-        for name, x in (("a", u * u), ("m", u), ("b", 1.0)):
-            sd = std.get(name)
-            if sd is not None and math.isfinite(sd):
-                var += (sd * x) ** 2 / max(gain * gain, 0.25)
-        return math.sqrt(var)
+        return output_std(p, self.applied_std, self.s.kf.r_raw_mps2, speed_mps)
 
     # -- supervision ----------------------------------------------------------
 
@@ -332,7 +340,13 @@ class Supervisor:
         d_raw = self._error(raw, ref, None)
         d_app = self._error(raw, ref, self.applied)
         self._score_output(raw, ref, proj, water)
-        if self._detect(t, cs, d_app, d_raw, ref):
+        self.drift.add(t, raw, ref, cs if self.water else None)
+        if self.drift.on and self.applied is not None:
+            why = {"params": self.applied.as_dict(), "drift_mps": round(self.drift.change_mps, 4)}
+            self._withdraw(t, "the log drifts against a steady reference", why)
+            self.reopen = True
+            d_app = d_raw
+        elif self._detect(t, cs, d_app, d_raw, ref):
             d_app = d_raw
         hc = self._heading_regressor(t, cs)
         # raw is judged in the sea as the applied calibration sees it (else its own
@@ -466,17 +480,11 @@ class Supervisor:
     def _detect(
         self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float, ref: float
     ) -> bool:
-        """Change detection on the applied calibration; True when it was withdrawn.
-
-        The innovation is the applied calibration's error minus what its own current
-        (:data:`CUSUM_HALF_LIFE_S`) predicts. On an alarm, the applied calibration and
-        raw are compared over the alarm's run against that same current (the sea as the
-        applied calibration saw it before the change): the calibration is withdrawn when
-        its errors are the larger — a sensor that changed. Otherwise the sea changed
-        (both moved alike): the detector's current starts afresh.
-        """
-        if self.applied is None:
-            return False
+        """Change detection on what is emitted (raw while it passes through); True when
+        the calibration was withdrawn (see the module docstring: the innovation is the
+        error less what its own current (:data:`CUSUM_HALF_LIFE_S`) predicts; an alarm
+        whose errors are raw's or smaller is the sea's, :attr:`sea_changed` when the
+        reference jumped)."""
         w = self.detector
         if w.n < CUSUM_MIN_SAMPLES:
             w.add(t, cs, (e_app,))
@@ -486,18 +494,26 @@ class Supervisor:
         nu = e_app - pred
         cu = self.cusum
         alarm = cu.add(nu / sigma, nu, e_raw - pred)
-        self.course.add(t, e_app + ref, ref, cu.hi == 0.0 and cu.lo == 0.0)
-        if cu.hi == 0.0 and cu.lo == 0.0:
+        quiet = cu.hi == 0.0 and cu.lo == 0.0
+        self.course.add(t, e_app + ref, ref, quiet)
+        jump = abs(nu) >= HOLD_SIGMAS * sigma and self.course.log_jumped(*self.course.steps())
+        self.held = not quiet and (self.held or jump)
+        if quiet:
             w.add(t, cs, (e_app,))  # the baseline learns only while nothing is building up
         if not alarm:
             return False
         step_log, step_ref = self.course.steps()
         jumped = self.course.log_jumped(step_log, step_ref)
+        if self.applied is None:
+            self._reset_detector(refit=False)  # raw's alarm: nothing applied changed
+            self.sea_changed = sea_jumped(step_log, step_ref, sigma)
+            return False
         # a log that jumped is judged on the run of the side that alarmed (after the
         # step); otherwise on the whole run, noise included
         n_app, n_raw = (cu.ss_app, cu.ss_raw) if jumped else (cu.run_app, cu.run_raw)
         if n_app <= n_raw:
             self._reset_detector()
+            self.sea_changed = sea_jumped(step_log, step_ref, sigma)
             return False
         detail: dict[str, object] = {
             "params": self.applied.as_dict(),
@@ -546,6 +562,11 @@ class Supervisor:
         """Freeze the learner's offer as a candidate when it is new enough."""
         offer = source.offer()
         if offer is None:
+            if self.retry is not None and self.applied is None:
+                old, t_refused = self.retry
+                if t - t_refused >= RESTORE_RETRY_S:
+                    self.retry = None
+                    self.candidate = _Candidate(old.params, math.nan, "restored", old.std)
             return
         base = self.applied if self.applied is not None else None
         if base is not None and not self._significant(base, offer.params, offer.param_std):
@@ -581,14 +602,21 @@ class Supervisor:
                 self.s.kf,
                 self.restored_sea,
                 self.restored_sea_std,
-                self.t_first,
+                cand.t0,
             )
+            # refused by the sea's allowance, short of the whole (RESTORE_RETRY_S)
+            allowance = detail.get("current_allowance_mps")
+            cap = math.sqrt(self.s.kf.current_p0_m2ps2)
+            if not good and isinstance(allowance, float) and allowance < cap:
+                self.retry = (cand, t)
         elif cand.kind == "restored" and cand.n_sea == n:
             good = judge_saved_sea(cand, detail)
         else:
             # validated before: it need only not be worse than raw (where the data cannot
             # tell a sensor's error from the current, raw and it tie)
             good = not worse(r_cand, r_raw)
+        if self.drift.on:  # a drifting log: whatever fitted it a moment ago will not
+            good, detail["drifting"] = False, True
         if cand.kind == "verify" or cand.early:
             if good:
                 self.unverified = False
@@ -620,6 +648,7 @@ class Supervisor:
             self._emit(t, "candidate_rejected", detail)
 
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
+        self.retry = None
         self.applied = p
         self.applied_std = dict(std)
         self.last_good = p
@@ -628,8 +657,10 @@ class Supervisor:
         self._reset_detector()
         self.dirty = True
 
-    def _reset_detector(self) -> None:
-        self._t_beta = -math.inf  # the calibrations changed: their currents are fitted anew
+    def _reset_detector(self, refit: bool = True) -> None:
+        if refit:  # the calibrations changed: their currents are fitted anew
+            self._t_beta = -math.inf
+        self.held = False
         self.cusum.reset()
         self.detector.reset()
         self.course.reset()

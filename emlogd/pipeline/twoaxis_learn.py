@@ -46,6 +46,7 @@ from calib.twoaxis import (
     B_T,
     M_T,
     TwoAxisFit,
+    TwoAxisSeries,
     fit_two_axis,
     judge_two_axis,
 )
@@ -232,11 +233,7 @@ class TwoAxisLearner:
         try:
             fit = fit_two_axis(
                 model,
-                gf,
-                gs,
-                raw_l,
-                raw_t,
-                hd,
+                TwoAxisSeries.of(gf, gs, raw_l, raw_t, hd),
                 current=self.s.current,
                 t_s=t,
                 current_knot_s=CURRENT_KNOT_S,

@@ -362,6 +362,12 @@ class UutCalibration:
         proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
         water = current is not None and lr.ident_current()
         sup.observe(a.t, a.raw, a.ref, cs, lr, proj=proj, water=water)
+        if sup.sea_changed:
+            sup.sea_changed = False
+            if lr.reopen_current():
+                self._emit(
+                    a.t, "relearn", {"why": "the reference jumped: the current learns again"}
+                )
         if sup.reopen:
             sup.reopen = False
             if not self.reopen_on_change:

@@ -139,13 +139,16 @@ class TestWaterFrameAndCorrelation:
         truth = Params("EM3", m=0.05, b_mps=0.1)
         raw = forward_array(truth, water)
         cor = correct_array(truth, raw)
-        r_raw, r_cal = water_scores(t, ref, raw, cor, hd, truth)
+        r_raw, r_cal = water_scores(water_targets(t, ref, raw, cor, hd, truth))
         assert r_cal < 0.03
-        r_raw2, _ = water_scores(t, ref, raw, raw, hd, Params("EM3"))
+        r_raw2, _ = water_scores(water_targets(t, ref, raw, raw, hd, Params("EM3")))
         assert r_raw == pytest.approx(r_raw2)
-        _, r_const = water_scores(t, ref, raw, cor, hd, truth, window_s=1e9)
+        _, r_const = water_scores(water_targets(t, ref, raw, cor, hd, truth, window_s=1e9))
         assert r_const > 5.0 * r_cal
-        assert water_scores(t, ref, raw, cor, None, truth) == (rmse(ref, raw), rmse(ref, cor))
+        assert water_scores(water_targets(t, ref, raw, cor, None, truth)) == (
+            rmse(ref, raw),
+            rmse(ref, cor),
+        )
         # the IMO verdict scores against the same water speed: the corrected reading meets
         # it, the raw one (5 % scale) does not; against the reference (the current left
         # in) the corrected one would not either

@@ -15,16 +15,17 @@ from calib.twoaxis import (
     M_T,
     TwoAxisFit,
     TwoAxisParams,
+    TwoAxisSeries,
     current_basis,
     fit_current_two_axis,
     fit_two_axis,
     water_velocity,
 )
-from tests.synth import TWO_AXIS_CURRENT_NE, TWO_AXIS_TRUTH, two_axis_trial
+from tests.synth import TWO_AXIS_CURRENT_NE, TWO_AXIS_TRUTH, two_axis_series, two_axis_trial
 
 
 def _fit(d: dict[str, np.ndarray], model: str = "EM3") -> TwoAxisFit:
-    return fit_two_axis(model, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
+    return fit_two_axis(model, two_axis_series(d))
 
 
 class TestLeastSquares:
@@ -78,16 +79,18 @@ class TestLeastSquares:
         """A refused α is held at the prior's."""
         prior = TwoAxisParams(Params("EM3", m=-0.1), math.radians(2.0))
         d = two_axis_trial("straight", TWO_AXIS_TRUTH, seed=8)
-        fit = fit_two_axis("EM3", d["gf"], d["gs"], d["rl"], d["rt"], d["hd"], prior=prior)
+        fit = fit_two_axis("EM3", two_axis_series(d), prior=prior)
         assert fit.misalign_deg == pytest.approx(2.0)
 
     def test_bad_series_refused(self) -> None:
         with pytest.raises(DataError, match="same length"):
-            fit_two_axis("EM3", [1.0, 2.0], [0.0], [1.0, 2.0], [0.0, 0.0], [0.0, 0.0])
+            TwoAxisSeries.of([1.0, 2.0], [0.0], [1.0, 2.0], [0.0, 0.0], [0.0, 0.0])
         with pytest.raises(DataError, match="finite"):
-            fit_two_axis("EM3", [math.nan], [0.0], [1.0], [0.0], [0.0])
+            TwoAxisSeries.of([math.nan], [0.0], [1.0], [0.0], [0.0])
+        with pytest.raises(DataError, match="no samples"):
+            TwoAxisSeries.of([], [], [], [], [])
         with pytest.raises(ModelError):
-            fit_two_axis("EM9", [1.0], [0.0], [1.0], [0.0], [0.0])
+            fit_two_axis("EM9", TwoAxisSeries.of([1.0], [0.0], [1.0], [0.0], [0.0]))
 
     def test_to_dict_carries_misalignment(self) -> None:
         fit = _fit(two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=9))
@@ -104,7 +107,7 @@ def test_fit_current_with_frozen_params() -> None:
     (both axes see it); linear between knots it follows a current that turns."""
     for kind in ("circles", "straight"):
         d = two_axis_trial(kind, TWO_AXIS_TRUTH, seed=12)
-        cur = fit_current_two_axis(TWO_AXIS_TRUTH, d["gf"], d["gs"], d["rl"], d["rt"], d["hd"])
+        cur = fit_current_two_axis(TWO_AXIS_TRUTH, two_axis_series(d))
         assert cur.shape == (d["t"].size, 2)
         assert cur[0] == pytest.approx(TWO_AXIS_CURRENT_NE, abs=0.005)
     d = two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=12)
@@ -113,7 +116,10 @@ def test_fit_current_with_frozen_params() -> None:
     gf = d["gf"] + turn * np.cos(psi)
     gs = d["gs"] - turn * np.sin(psi)
     cur = fit_current_two_axis(
-        TWO_AXIS_TRUTH, gf, gs, d["rl"], d["rt"], d["hd"], t_s=d["t"], current_knot_s=120.0
+        TWO_AXIS_TRUTH,
+        TwoAxisSeries.of(gf, gs, d["rl"], d["rt"], d["hd"]),
+        t_s=d["t"],
+        current_knot_s=120.0,
     )
     assert np.max(np.abs(cur[:, 0] - (TWO_AXIS_CURRENT_NE[0] + turn))) < 0.02
     assert current_basis(d["t"][:10], 10, 300.0) is None
@@ -123,7 +129,9 @@ def test_dead_transverse_axis_refused_by_envelope() -> None:
     """A transverse axis that reads nothing would take a gain of zero (m_t = −1): the
     transverse scale is refused as outside the envelope and held."""
     d = two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=13)
-    fit = fit_two_axis("EM3", d["gf"], d["gs"], d["rl"], np.zeros_like(d["rt"]), d["hd"])
+    fit = fit_two_axis(
+        "EM3", TwoAxisSeries.of(d["gf"], d["gs"], d["rl"], np.zeros_like(d["rt"]), d["hd"])
+    )
     assert M_T in fit.ident.unidentifiable
     assert "transverse scale outside the envelope" in fit.ident.reason
     assert fit.params.m_t == fit.params.longitudinal.m
@@ -133,7 +141,7 @@ def test_water_frame_reference_determines_both_biases() -> None:
     """A reference already in the water frame (no current unknown): both biases learnt."""
     d = two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=14)
     u, w = water_velocity(d["gf"], d["gs"], d["hd"], TWO_AXIS_CURRENT_NE)
-    fit = fit_two_axis("EM3", u, w, d["rl"], d["rt"], d["hd"], current=False)
+    fit = fit_two_axis("EM3", TwoAxisSeries.of(u, w, d["rl"], d["rt"], d["hd"]), current=False)
     assert fit.identifiable, fit.ident.reason
     assert fit.params.b_t_mps == pytest.approx(0.04, abs=0.01)
     assert fit.params.longitudinal.b_mps == pytest.approx(-0.05, abs=0.02)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from calib.models import Params
-from calib.twoaxis import TwoAxisParams, TwoAxisRule, fit_two_axis
+from calib.twoaxis import TwoAxisParams, TwoAxisRule, TwoAxisSeries, fit_two_axis
 from emlogd.offline.simkinematics import TRAJECTORIES, interp, kinematics
 
 KNOT_MPS = 1852.0 / 3600.0
@@ -35,7 +35,9 @@ def _error(seed: int, scale: float = 0.5) -> tuple[float, float]:
     gf = np.round(interp(k, fwd, t) + rng.normal(0.0, 0.01, t.size), 3)
     gs = np.round(interp(k, stb, t) + rng.normal(0.0, 0.01, t.size), 3)
     hd = np.degrees(np.interp(t, k.t, np.unwrap(k.heading))) % 360.0
-    fit = fit_two_axis("EM3", gf, gs, rl, rt, hd, t_s=t, current_knot_s=300.0, rule=RULE)
+    fit = fit_two_axis(
+        "EM3", TwoAxisSeries.of(gf, gs, rl, rt, hd), t_s=t, current_knot_s=300.0, rule=RULE
+    )
     assert fit.misalign_std_deg is not None
     return fit.misalign_deg, fit.misalign_std_deg
 

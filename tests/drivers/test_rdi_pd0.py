@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -10,11 +11,12 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from drivers.binframe import BinaryFramer
 from drivers.errors import ChecksumError
 from drivers.rdi_pd0 import Pd0Decoder, Pd0Ensemble, encode_pd0
 from drivers.records import Rejected
 from tests.chunks import feed_in_chunks
-from tests.drivers.rdi_cases import OUT_OF_RANGE_LEADER
+from tests.drivers.rdi_cases import HOSTILE_HEADER, OUT_OF_RANGE_LEADER
 from tests.profiles import by_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "dvl"
@@ -143,7 +145,9 @@ def test_buffer_stays_bounded_under_garbage() -> None:
     dec = Pd0Decoder("dvl", errors="skip")
     for _ in range(50):
         list(dec.feed(b"\x00" * 10_000))
-    assert len(dec._framer._buf) < 100  # only a possible partial header is kept
+    framer = dec._framer
+    assert isinstance(framer, BinaryFramer)
+    assert len(framer._buf) < 100  # only a possible partial header is kept
     assert dec.counters.rejects["framing"] == 0  # the run is reported when it ends
     list(dec.flush())
     assert dec.counters.rejects["framing"] == 1
@@ -268,3 +272,22 @@ def test_an_impossible_clock_is_a_reject() -> None:
     dec = Pd0Decoder("d", errors="yield")
     (out,) = dec.decode_all(bad)
     assert isinstance(out, Rejected) and out.reason == "out_of_range" and "clock" in out.detail
+
+
+def test_headers_claiming_long_ensembles_with_wrong_checksums_cost_linear_time() -> None:
+    """100 KB of such headers, one every 6 bytes, all their checksums wrong, then a good
+    ensemble: decoded in well under a second and a half, one checksum reject per
+    claimed ensemble (the headers inside it are part of it), the good ensemble kept. Summing each claimed ensemble took 2 s (idle) to
+    10 s (loaded) for these 100 KB, a port of a DVL's speed held the daemon's thread."""
+    good = encode_pd0(
+        ensemble_number=7, timestamp=datetime(2025, 1, 1, tzinfo=UTC), heading_deg=0.0
+    )
+    dec = Pd0Decoder(errors="skip")
+    hostile = HOSTILE_HEADER * (100_000 // len(HOSTILE_HEADER))
+    data = hostile + b"\0" * 16_002 + good
+    t0 = time.process_time()
+    out = feed_in_chunks(dec, data, range(4096, len(data), 4096))
+    assert time.process_time() - t0 < 1.5
+    assert [o.ensemble_number for o in out if isinstance(o, Pd0Ensemble)] == [7]
+    # the headers inside a claimed ensemble reported are part of its reject
+    assert dec.counters.rejects["checksum"] == -(-len(hostile) // 16_002)

@@ -3,10 +3,23 @@
 from __future__ import annotations
 
 import dataclasses
+import math
+from typing import Literal
 
 import pytest
 
-from drivers.records import KMH_MPS, KNOT_MPS, SpeedRecord
+from drivers.errors import OutOfRangeError
+from drivers.records import (
+    KMH_MPS,
+    KNOT_MPS,
+    PHYSICAL_RANGES,
+    RDI_INVALID,
+    SpeedRecord,
+    check_ranges,
+    rdi_bottom_track,
+    rdi_velocities,
+    rdi_vessel_mms,
+)
 
 
 def _speed(lon: float | None, tr: float | None) -> SpeedRecord:
@@ -61,3 +74,77 @@ class TestUnits:
         """1 kn = 1852/3600 m/s and 1 km/h = 1/3.6 m/s exactly."""
         assert pytest.approx(0.514444, abs=1e-6) == KNOT_MPS
         assert pytest.approx(KNOT_MPS) == 1.852 * KMH_MPS
+
+
+class TestCheckRanges:
+    """The one physical-range check every RDI decoder applies."""
+
+    @pytest.mark.parametrize("name", sorted(PHYSICAL_RANGES))
+    def test_bounds_are_closed_and_nan_is_outside(self, name: str) -> None:
+        """Each bound is within its field's range; a step past either, or NaN, is refused
+        with the field's name in the message."""
+        lo, hi = PHYSICAL_RANGES[name]
+        check_ranges("X", b"raw", **{name: lo})
+        check_ranges("X", b"raw", **{name: hi})
+        for bad in (lo - 0.01, hi + 0.01, math.nan):
+            with pytest.raises(OutOfRangeError, match=name.replace("_", " ")) as err:
+                check_ranges("X", b"raw", **{name: bad})
+            assert err.value.raw == b"raw"
+
+    def test_names_every_field_outside(self) -> None:
+        """Two fields outside and one within: both outside are named, the good one is not."""
+        with pytest.raises(OutOfRangeError) as err:
+            check_ranges(":TS", b"", salinity=60.0, depth=10.0, sound_speed=900.0)
+        text = str(err.value)
+        assert "salinity 60.0" in text and "sound speed 900.0" in text and "depth" not in text
+
+
+class TestRdiBottomTrack:
+    """The one mapping of an RDI binary bottom track (PD0, PD4/PD5) to a speed record."""
+
+    def test_ship_and_earth_frames(self) -> None:
+        """Ship coordinates are (starboard, forward); earth coordinates (east, north) are
+        rotated by the heading (heading 90: east is forward, north is to port)."""
+        ship = rdi_bottom_track("d", "ship", True, (300, 2000), 10.0, "PD0:BT")
+        assert (ship.longitudinal_mps, ship.transverse_mps, ship.valid) == (2.0, 0.3, True)
+        earth = rdi_bottom_track("d", "earth", True, (2000, 300), 90.0, "PD0:BT")
+        assert earth.longitudinal_mps == pytest.approx(2.0)
+        assert earth.transverse_mps == pytest.approx(-0.3)
+        assert (earth.heading_true_deg, earth.role, earth.kind) == (90.0, "bottom", "sog")
+
+    @pytest.mark.parametrize(
+        ("frame", "lock", "vessel", "heading"),
+        [
+            ("beam", True, (300, 2000), 10.0),
+            ("ship", False, (300, 2000), 10.0),
+            ("ship", True, (None, 2000), 10.0),
+            ("earth", True, (300, 2000), None),
+        ],
+    )
+    def test_no_track_is_an_invalid_record(
+        self,
+        frame: Literal["beam", "ship", "earth"],
+        lock: bool,
+        vessel: tuple[int | None, int | None],
+        heading: float | None,
+    ) -> None:
+        """Beam coordinates, no bottom lock, a bad component, or earth coordinates without
+        a heading: an invalid record with no speed (the pipeline sees the loss)."""
+        rec = rdi_bottom_track("d", frame, lock, vessel, heading, "PD5:BT")
+        assert (rec.valid, rec.longitudinal_mps, rec.transverse_mps) == (False, None, None)
+
+    @pytest.mark.parametrize("frame", ["ship", "instrument", "earth"])
+    def test_the_encoders_mapping_is_its_inverse(
+        self, frame: Literal["ship", "instrument", "earth"]
+    ) -> None:
+        """What rdi_vessel_mms writes, rdi_bottom_track reads back as the same
+        (forward, starboard) motion, to the millimetre, at any heading."""
+        for heading in (0.0, 37.0, 200.0):
+            a, b = rdi_vessel_mms((2.5, -0.4), frame, heading)
+            rec = rdi_bottom_track("d", frame, True, (a, b), heading, "PD0:BT")
+            assert rec.longitudinal_mps == pytest.approx(2.5, abs=1e-3)
+            assert rec.transverse_mps == pytest.approx(-0.4, abs=1e-3)
+
+    def test_invalid_marker_reads_as_none(self) -> None:
+        """-32768 is None; every other value, the extremes included, is kept."""
+        assert rdi_velocities((RDI_INVALID, -32767, 0, 32767)) == (None, -32767, 0, 32767)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from emlogd.fileio import write_atomic
+from emlogd.fileio import part_path, write_atomic
 
 
 def test_replaces_the_file_with_mode_0640(tmp_path: Path) -> None:
@@ -35,3 +35,17 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(
         write_atomic(p, b"new")
     assert p.read_text() == "old"
     assert sorted(x.name for x in tmp_path.iterdir()) == ["f.yaml"]
+
+
+def test_a_part_file_is_named_for_its_process(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The file being written for a path lies beside it, hidden, keeps a ``.gz`` ending, and
+    differs between two processes writing the same path."""
+    out = tmp_path / "o.cap.gz"
+    mine = part_path(out)
+    monkeypatch.setattr(os, "getpid", lambda: os.getppid())
+    theirs = part_path(str(out))
+    assert mine.parent == tmp_path and mine.name.startswith(".o.cap.gz.")
+    assert mine.name.endswith(".gz") and not part_path(tmp_path / "o.cap").name.endswith(".gz")
+    assert mine != theirs

@@ -7,7 +7,8 @@ import json
 import math
 import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, BinaryIO
 
 from emlogd.cli.common import Subparsers, positive_float, progress, progress_done, two_axis_line
 from emlogd.cli.offline.args import capture_args, captures_arg, json_arg, truth_arg
@@ -39,6 +40,49 @@ class _EmitCapture:
 
     def close(self) -> None:
         self.writer.close()
+
+
+class _Out:
+    """Where ``replay`` writes its sentences: ``--out`` (a capture for a ``.cap`` or
+    ``.cap.gz`` name), else stdout unless ``--json``.
+
+    A file ``--out`` is written beside it (:func:`~emlogd.fileio.part_path`) and renamed
+    into place once the replay has run, so a reader (another command, another run's
+    scores) never sees it half-written, and a replay that fails leaves the old file; a
+    device or a pipe is written as it is."""
+
+    def __init__(
+        self, path: str | None, uuts: Sequence[str], pipeline: Pipeline, to_stdout: bool
+    ) -> None:
+        from emlogd.fileio import part_path
+
+        self.path = path
+        self.part = part_path(path) if path and _file_or_none(path) else None
+        target = str(self.part) if self.part is not None else path
+        as_capture = bool(path) and str(path).endswith((".cap", ".cap.gz"))
+        try:
+            self.capture = (
+                _EmitCapture(str(target), uuts, pipeline) if target and as_capture else None
+            )
+            self.sink: BinaryIO | None = (
+                open(target, "wb")  # noqa: SIM115
+                if target and not as_capture
+                else (sys.stdout.buffer if to_stdout else None)
+            )
+        except OSError as exc:  # named by --out, not by the part file
+            raise OSError(exc.errno, exc.strerror, path) from None
+
+    def close(self, done: bool) -> None:
+        """Close what was written; in place if ``done``, else the part file removed."""
+        if self.path and self.sink is not None:
+            self.sink.close()
+        if self.capture is not None:
+            self.capture.close()
+        if self.part is not None and self.path:
+            if done:
+                self.part.replace(self.path)
+            else:
+                self.part.unlink(missing_ok=True)
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -77,19 +121,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 sys.stderr.write(f"emlogd replay: the refused state file is kept as {aside}\n")
 
     to_stdout = args.out is None and not args.json
-    as_capture = bool(args.out) and args.out.endswith((".cap", ".cap.gz"))
-    capture = _EmitCapture(args.out, [u.port for u in uuts], pipeline) if as_capture else None
-    sink = (
-        open(args.out, "wb")  # noqa: SIM115
-        if args.out and not as_capture
-        else (sys.stdout.buffer if to_stdout else None)
-    )
+    out_file = _Out(args.out, [u.port for u in uuts], pipeline, to_stdout)
+    done = False
     try:
         result = replay(
             pipeline,
             args.captures,
-            sink=sink,
-            on_emit=capture.write if capture is not None else None,
+            sink=out_file.sink,
+            on_emit=out_file.capture.write if out_file.capture is not None else None,
             speed=None if args.fast or args.speed is None else args.speed,
             on_persist=persist,
             progress=progress,
@@ -97,12 +136,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
             reorder_window_s=args.reorder_window,
             truth=truth,
         )
+        done = True
     finally:
         progress_done()
-        if args.out and sink is not None:
-            sink.close()
-        if capture is not None:
-            capture.close()
+        out_file.close(done)
     if store is not None:
         persist(Output())
     doc = result.to_dict()
@@ -150,6 +187,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
         + "\n"
     )
     return 0
+
+
+def _file_or_none(path: str) -> bool:
+    """Whether ``path`` is a regular file or nothing yet (not a device, a pipe, a folder)."""
+    p = Path(path)
+    return p.is_file() or not p.exists()
 
 
 def _two_axis_lines(uuts: dict[str, dict[str, object]]) -> list[str]:

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from drivers.errors import CaptureFormatError
-from drivers.io.capture import MAGIC, CaptureReader, CaptureWriter, read_ports
+from drivers.io.capture import MAGIC, CaptureReader, CaptureWriter, capture_name, read_ports
 from tests.profiles import by_profile
 
 
@@ -357,3 +357,19 @@ def test_reorder_window_must_be_a_non_negative_number(tmp_path: Path) -> None:
     for bad in (-0.1, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="reorder_window_s"):
             CaptureReader(path, reorder_window_s=bad)
+
+
+@pytest.mark.parametrize(
+    ("path", "name"),
+    [
+        ("runs/2-figure8.cap.gz", "2-figure8"),
+        ("a.cap", "a"),
+        ("b.gz", "b"),
+        ("trial.v2.cap", "trial.v2"),
+        ("plain", "plain"),
+    ],
+)
+def test_capture_name_drops_the_capture_suffixes(path: str, name: str) -> None:
+    """A capture's name is its file name without the folder, ``.cap`` and ``.gz``; other
+    dots stay."""
+    assert capture_name(path) == name

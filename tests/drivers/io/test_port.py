@@ -7,9 +7,10 @@ import time
 from pathlib import Path
 
 import pytest
+import serial
 
 from drivers.errors import DeviceError
-from drivers.io.port import SerialSource
+from drivers.io.port import DEVICE_CHECK_S, SerialSource
 from drivers.io.vpty import VirtualPort
 
 
@@ -54,7 +55,7 @@ def test_loop_url_without_file_descriptor() -> None:
     """A loop:// URL, which has no file descriptor, opens and reads back what is written to it."""
     src = SerialSource("l", "loop://", baudrate=9600)
     assert src.open()
-    assert src._ser is not None
+    assert isinstance(src._ser, serial.SerialBase)
     src._ser.write(b"hello")
     assert _read_all(src, 5) == b"hello"
     src.close()
@@ -187,3 +188,38 @@ def test_hundred_replug_cycles(tmp_path: Path) -> None:
     """A hundred unplug/replug cycles each reconnect and read, and leak no file descriptor or memory
     (soak run)."""
     _replug_cycles(tmp_path, 100)
+
+
+def test_a_silent_device_whose_path_names_another_is_opened_again(tmp_path: Path) -> None:
+    """The link moved to a new pty while the old one stays open and silent: once silent
+    DEVICE_CHECK_S the source closes the old one (``disconnected``, naming why) and opens
+    the new one; a silent device whose path still names it is kept, and so is one whose
+    data flow while its path moved. It read the old pty, silent, for ever."""
+    link = tmp_path / "emlog1"
+    clock = [0.0]
+    old = VirtualPort(link)
+    src = SerialSource("emlog1", str(link), backoff_s=(0.01,), monotonic=lambda: clock[0])
+    new: VirtualPort | None = None
+    try:
+        assert src.open()
+        src.events()
+        clock[0] = DEVICE_CHECK_S
+        assert src.poll() == [] and _is_open(src)  # its path names it: kept
+        link.unlink()
+        new = VirtualPort(link)
+        old.write(b"one\r\n")
+        assert _read_all(src, 5) == b"one\r\n"  # data: the path is not looked at
+        assert src.poll() == []
+        clock[0] += DEVICE_CHECK_S
+        events = src.poll()
+        assert [e.kind for e in events] == ["disconnected"]
+        assert "now names another device" in events[0].detail
+        clock[0] += 1.0
+        assert [e.kind for e in src.poll()] == ["connected"]
+        new.write(b"two\r\n")
+        assert _read_all(src, 5) == b"two\r\n"
+    finally:
+        src.close()
+        old.close()
+        if new is not None:
+            new.close()

@@ -11,6 +11,7 @@ from drivers.errors import ChecksumError, FieldError, OutOfRangeError, UnknownSe
 from drivers.framing import with_checksum
 from drivers.nmea0183 import Heading, NmeaDecoder, NmeaRecord, Vbw, Vhw, encode_vbw, encode_vhw
 from drivers.records import KMH_MPS, KNOT_MPS, Rejected
+from tests.chunks import feed_in_chunks
 from tests.profiles import by_profile
 
 
@@ -201,15 +202,7 @@ def test_chunk_boundaries_do_not_matter(cuts: list[int]) -> None:
     """A stream mixing good, bad and spliced sentences decodes the same however it is cut into
     chunks."""
     whole, _ = _feed_all(STREAM)
-    dec = NmeaDecoder("x", errors="yield")
-    out: list[object] = []
-    prev = 0
-    for c in sorted(cuts):
-        out.extend(dec.feed(STREAM[prev:c]))
-        prev = c
-    out.extend(dec.feed(STREAM[prev:]))
-    out.extend(dec.flush())
-    assert out == whole
+    assert feed_in_chunks(NmeaDecoder("x", errors="yield"), STREAM, cuts) == whole
 
 
 def test_byte_at_a_time() -> None:

@@ -120,7 +120,8 @@ def test_record_missing_device_is_one_line_exit_1(
 def test_fake_ports_of_one_capture_keep_their_offsets(tmp_path: Path) -> None:
     """`emlogd fake` serving two ports (looping) and `emlogd record` capturing them back keep
     every record's offset from the capture (one clock for both ports, the loop included)
-    within 20 ms; the second port starts 0.55 s after the first."""
+    within 45 ms, under half the 0.1 s between records, so a record one slot off fails and
+    a loaded machine's scheduling does not; the second port starts 0.55 s after the first."""
     import statistics
     import subprocess
     import sys
@@ -170,4 +171,4 @@ def test_fake_ports_of_one_capture_keep_their_offsets(tmp_path: Path) -> None:
     assert min(seen.values()) >= 2, seen  # two whole passes at least, both ports
     shift = statistics.median(errors)
     worst = max(abs(e - shift) for e in errors)
-    assert worst <= 0.020, (worst, errors)
+    assert worst <= 0.045, (worst, errors)

@@ -9,6 +9,7 @@ import select
 import signal
 import socket
 import time
+import tty
 from collections.abc import Callable
 from pathlib import Path
 
@@ -32,6 +33,20 @@ status_log_interval_s: 1
 """
 """The outputs, state, control socket and logging of the configs here (``{tcp}``: see
 :func:`make_work`)."""
+
+
+PD0_CONFIG = """\
+ports:
+  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
+  - {name: dvl, url: links/dvl, protocol: pd0, role: reference}
+calibration:
+  - {uut: emlog1, reference: dvl, lag: 0.2}
+outputs: {pty: out/emlog0}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+"""
+"""An EMlog and a PD0 DVL, on ptys the test or benchmark serves itself (:func:`raw_pty`)."""
 
 
 def free_port() -> int:
@@ -68,6 +83,17 @@ def make_work(tmp_path: Path, config: str) -> Path:
 def tcp_port(work: Path) -> int:
     """The TCP output's port in ``work``'s config."""
     return int((work / "emlogd.yaml").read_text().split('tcp: "127.0.0.1:')[1].split('"')[0])
+
+
+def raw_pty(link: Path) -> int:
+    """A pty in raw mode whose slave is published at ``link`` (a serial device the test
+    or benchmark serves itself); its master, non-blocking."""
+    master, slave = os.openpty()
+    for fd in (master, slave):
+        tty.setraw(fd)
+    os.set_blocking(master, False)
+    link.symlink_to(os.ttyname(slave))
+    return master
 
 
 def wait(cond: Callable[[], bool], what: str, timeout_s: float = 20.0) -> None:

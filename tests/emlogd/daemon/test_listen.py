@@ -1,10 +1,21 @@
-"""AcceptPause: resource errors pause a listener with a growing delay, reported rate-limited."""
+"""AcceptPause: resource errors pause a listener with a growing delay, reported rate-limited;
+AcceptBudget: connections per source and in all."""
 
 from __future__ import annotations
 
 import errno
 
-from emlogd.daemon.listen import PAUSE_S, REPORT_S, AcceptPause
+from emlogd.daemon.listen import (
+    ALL_BURST,
+    ALL_RATE,
+    PAUSE_S,
+    REPORT_S,
+    SOURCE_BURST,
+    SOURCE_RATE,
+    SOURCES_KEPT,
+    AcceptBudget,
+    AcceptPause,
+)
 
 
 def _err(code: int) -> OSError:
@@ -16,7 +27,7 @@ def test_a_resource_error_pauses_and_the_pause_ends_once() -> None:
     now = [0.0]
     reports: list[str] = []
     pause = AcceptPause(reports.append, lambda: now[0])
-    assert pause.failed(_err(errno.EMFILE)) and pause.paused
+    assert pause.failed(_err(errno.EMFILE)) and pause.until is not None  # paused
     assert not pause.resume_due()
     now[0] = PAUSE_S[0]
     assert pause.resume_due() and not pause.paused and not pause.resume_due()
@@ -48,3 +59,28 @@ def test_pauses_grow_and_reports_are_rate_limited() -> None:
     pause.accepted()
     pause.failed(_err(errno.EMFILE))
     assert pause.until == now[0] + PAUSE_S[0]
+
+
+def test_the_accept_budget_holds_a_source_to_its_rate_and_spares_the_others() -> None:
+    """One source gets SOURCE_BURST connections at once, then SOURCE_RATE a second; its
+    refused excess spends nothing of the budget of all, so another source gets in."""
+    now = [0.0]
+    budget = AcceptBudget(lambda: now[0])
+    assert all(budget.admit("10.0.0.1") for _ in range(SOURCE_BURST))
+    assert not any(budget.admit("10.0.0.1") for _ in range(1000))
+    assert budget.admit("10.0.0.2")
+    now[0] = 1.0 / SOURCE_RATE
+    assert budget.admit("10.0.0.1") and not budget.admit("10.0.0.1")
+
+
+def test_the_budget_of_all_sources_holds_many_sources() -> None:
+    """Each a new address: ALL_BURST at once, then ALL_RATE a second in all; the sources
+    remembered never pass SOURCES_KEPT."""
+    now = [0.0]
+    budget = AcceptBudget(lambda: now[0])
+    admitted = sum(budget.admit(f"10.1.{k // 256}.{k % 256}") for k in range(5000))
+    assert admitted == ALL_BURST
+    assert len(budget.sources) <= SOURCES_KEPT
+    now[0] = 1.0
+    admitted = sum(budget.admit(f"10.2.{k // 256}.{k % 256}") for k in range(1000))
+    assert admitted == int(ALL_RATE)

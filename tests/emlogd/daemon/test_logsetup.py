@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import io
 import json
+import os
+import socket
+import time
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 import structlog
 
+from emlogd.daemon import logsetup
 from emlogd.daemon.logsetup import configure_logging, is_console, status_line
+from tests.emlogd.daemon.test_redteam import F_SETPIPE_SZ, _drain
 
 
 class TestConfigureLogging:
@@ -59,3 +68,72 @@ class TestConfigureLogging:
         """Unknown formats and levels raise ValueError."""
         with pytest.raises(ValueError):
             configure_logging(fmt, level, io.StringIO())  # type: ignore[arg-type]
+
+
+@pytest.fixture(params=["pipe", "socket"])
+def channel(request: pytest.FixtureRequest) -> Iterator[tuple[int, int]]:
+    """(read end, write end) of a pipe of one page, or of a unix stream socket pair of
+    small buffers: a log stream and its reader."""
+    if request.param == "pipe":
+        r, w = os.pipe()
+        fcntl.fcntl(w, F_SETPIPE_SZ, 4096)
+    else:
+        a, b = socket.socketpair()
+        b.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        a.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        r, w = a.detach(), b.detach()
+    os.set_blocking(r, False)
+    yield r, w
+    for fd in (r, w):
+        with contextlib.suppress(OSError):
+            os.close(fd)
+
+
+class TestLogStream:
+    """Log lines never wait for the reader: held back within a bound, the rest counted."""
+
+    def test_a_reader_that_does_not_read_costs_the_lines_past_the_backlog(
+        self, channel: tuple[int, int], monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        """200 lines of 100 bytes into a page nobody reads, with a backlog of 2000 bytes:
+        none waits, the lines past the page and the backlog are counted lost, and once
+        the reader reads, the others come whole and in order."""
+        monkeypatch.setattr(logsetup, "LOG_BACKLOG_BYTES", 2000)
+        r, w = channel
+        out = logsetup.LogStream(open(w, "w", closefd=False))  # noqa: SIM115
+        lost = logsetup.lost_lines()
+        t0 = time.monotonic()
+        for k in range(200):
+            out.write(f"{k:04d}" + "x" * 95 + "\n")
+        assert time.monotonic() - t0 < 1.0
+        dropped = logsetup.lost_lines() - lost
+        assert 100 < dropped < 200
+        got = _drain(r)
+        out.flush()
+        got += _drain(r)
+        lines = got.decode().splitlines()
+        assert len(lines) == 200 - dropped and not out.pending
+        assert all(len(x) == 99 for x in lines)
+        numbers = [int(x[:4]) for x in lines]
+        assert numbers == sorted(numbers) and numbers[0] == 0
+        out.close()
+
+    def test_a_reader_gone_costs_what_is_held(self, channel: tuple[int, int]) -> None:
+        """The reader closes with lines held back: they are counted lost, no exception."""
+        r, w = channel
+        out = logsetup.LogStream(open(w, "w", closefd=False))  # noqa: SIM115
+        for _ in range(100):
+            out.write("y" * 99 + "\n")
+        assert out.pending
+        os.close(r)
+        lost = logsetup.lost_lines()
+        out.write("z\n")
+        assert logsetup.lost_lines() > lost and not out.pending
+        out.close()
+
+    def test_a_regular_file_is_written_as_it_goes(self, tmp_path: Path) -> None:
+        """A disk does not wait for a reader: each line is in the file when written."""
+        with open(tmp_path / "log", "w") as f:
+            out = logsetup.LogStream(f)
+            out.write("one\n")
+            assert (tmp_path / "log").read_text() == "one\n"

@@ -27,6 +27,7 @@ from emlogd.calfile import CalibrationFileError, dumps, loads_state
 from emlogd.client import request
 from emlogd.config import MAX_CONFIG_BYTES, load_config, parse_config
 from emlogd.daemon.control import MAX_PIPELINED
+from emlogd.daemon.listen import SOURCE_BURST
 from emlogd.daemon.logsetup import CLIENT_EVENT_BURST
 from emlogd.daemon.statefile import MAX_STATE_BYTES, StateStore
 from emlogd.fileio import read_text_bounded
@@ -364,13 +365,14 @@ def test_a_stdout_reader_that_stops_reading_costs_its_sentences_only(
 
 
 def test_a_tcp_connect_loop_costs_a_bounded_number_of_log_lines(tmp_path: Path) -> None:
-    """200 TCP clients connecting and closing in a loop: at most ``CLIENT_EVENT_BURST``
-    lines of each client event per interval (each of the 400 was a line: a journal that
-    rate-limits the service then drops the daemon's other lines too); the daemon answers."""
+    """``SOURCE_BURST`` TCP clients (64, what one address may open at once) connecting and
+    closing in a loop: at most ``CLIENT_EVENT_BURST`` lines of each client event per
+    interval (each of the 128 was a line: a journal that rate-limits the service then
+    drops the daemon's other lines too); the daemon answers."""
     work = _work(tmp_path)
     d = Daemon(work)
     try:
-        for _ in range(200):
+        for _ in range(SOURCE_BURST):
             socket.create_connection(("127.0.0.1", tcp_port(work))).close()
             time.sleep(0.002)  # within the listen backlog: no SYN dropped and retried
         wait(lambda: d.events("client_disconnected") >= CLIENT_EVENT_BURST, "disconnects", 10.0)

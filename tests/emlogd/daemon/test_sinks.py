@@ -13,11 +13,13 @@ import pytest
 
 from drivers.errors import ConfigError
 from emlogd.config import OutputConfig
+from emlogd.daemon.listen import AcceptBudget
 from emlogd.daemon.sinks import (
     TCP_BACKLOG_BYTES,
     TCP_CHECK_S,
     TCP_INPUT_BURST,
     TCP_INPUT_RATE,
+    THROTTLE_PAUSE_S,
     StreamSink,
     TcpLimits,
     TcpServerSink,
@@ -411,3 +413,31 @@ def test_the_pty_output_belongs_to_its_readers_group(tmp_path: Path) -> None:
         assert st.st_gid == groups[0].gr_gid and stat.S_IMODE(st.st_mode) == 0o640
     finally:
         sink.close()
+
+
+def test_a_connection_past_the_accept_budget_is_reset_and_the_listener_rests() -> None:
+    """A source past its budget: its connection is reset without a read (``throttled``,
+    ``client_throttled``), the listener leaves the selector for THROTTLE_PAUSE_S, and
+    once it is back a connection from another address is a client."""
+    sink, sel, clock, notes = _server(TcpLimits())
+    sink.budget = AcceptBudget(clock, source=(1.0, 0.001))
+    held: list[socket.socket] = []
+    try:
+        held.append(socket.create_connection(sink.address))
+        held.append(socket.create_connection(sink.address))
+        _pump(sel, 0.1)
+        assert sink.counters.clients == 1 and sink.counters.throttled == 1
+        assert notes[-1][0] == "client_throttled"
+        with pytest.raises(ConnectionResetError):
+            held[1].recv(10)
+        assert len(sel.get_map()) == 1  # the client; the listener rests
+        clock.t += THROTTLE_PAUSE_S
+        sink.housekeep()
+        held.append(socket.create_connection(sink.address, source_address=("127.0.0.2", 0)))
+        _pump(sel, 0.1)
+        assert sink.counters.clients == 2 and sink.counters.throttled == 1
+    finally:
+        for s in held:
+            s.close()
+        sink.close()
+        sel.close()

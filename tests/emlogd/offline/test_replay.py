@@ -18,6 +18,7 @@ from emlogd.offline.simulate import SimulationResult, TruthError, read_truth, si
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
+from tests.jumping import ROOT, run_twice
 
 CFG = """\
 ports:
@@ -101,8 +102,14 @@ def test_truth_scores_emitted_speeds(trial: SimulationResult, trial_files: dict[
         assert 0 < t["n_samples"] <= trial.trajectories[0].lines[name]
         assert t["rmse_floor"] == pytest.approx(trial.trajectories[0].rmse_floor_mps[name], rel=0.1)
         assert t["rmse_corrected"] < 0.6 * t["rmse_raw"]
+        w = uuts[name]["truth_worst_window"]  # type: ignore[index]
+        wins = res.truth_windows[name]
+        assert w["windows"] == len(wins) > 0
+        assert w["ratio"] == round(max(x.ratio for x in wins), 4)
+        assert w["rmse_corrected"] / w["rmse_raw"] == pytest.approx(w["ratio"], abs=1e-3)
     plain = replay(_pipeline(), [trial_files["straight"]]).to_dict()["uuts"]
     assert plain["emlog1"]["truth"] is None  # type: ignore[index]
+    assert plain["emlog1"]["truth_worst_window"] is None  # type: ignore[index]
 
 
 def test_truth_pairs_each_emitted_speed_with_its_reading(tmp_path: Path) -> None:
@@ -263,3 +270,65 @@ def test_a_record_that_fails_in_the_pipeline_costs_that_record_only(
     rec = record_capture(cap, UutSettings("emlog1", reference_port="dvl", lag_s=0.0))
     assert rec.internal["count"] == 3 and rec.counters["emlog1"]["rejects"]["internal"] == 3  # type: ignore[index]
     assert rec.raw.size == 60 - 3
+
+
+def test_replay_output_is_a_function_of_its_inputs(
+    trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """The same capture replayed (lag auto, the current learnt) in two processes, one of them
+    with every clock jumping and another hash seed, emits the same capture byte for byte and
+    the same summary but the time it took: nothing in the replay reads a clock, and no order
+    depends on the hash seed."""
+    cap = tmp_path / "emitted.cap"
+    args = [
+        "replay",
+        str(trial_files["figure-8"]),
+        "--config",
+        str(ROOT / "examples" / "emlogd.yaml"),
+    ]
+    out = []
+    for stdout in run_twice([*args, "--out", str(cap), "--json"]):
+        doc = json.loads(stdout)
+        doc.pop("elapsed_s")
+        out.append((cap.read_bytes(), doc))
+    assert out[0][1]["emitted"] > 1000
+    assert out[0][1]["uuts"]["emlog2"]["lag_s"] > 0.0
+    assert out[1] == out[0]
+
+
+def test_calibrate_is_a_function_of_its_inputs(trial_files: dict[str, Path]) -> None:
+    """calibrate --method kf on two captures (read in two processes, in whichever order they
+    finish) gives the same JSON with every clock jumping and another hash seed."""
+    caps = [str(trial_files["figure-8"]), str(trial_files["circles"])]
+    args = ["calibrate", *caps, "--uut", "emlog2", "--ref", "dvl", "--current", "--method", "kf"]
+    first, second = run_twice([*args, "--json"])
+    assert json.loads(first)["lag"]["source"] == "auto"
+    assert second == first
+
+
+def test_out_appears_only_once_the_replay_has_run(
+    trial_files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """replay --out writes beside the file and renames it into place at the end: a replay
+    that fails leaves the file it would have replaced as it was, and none leaves a part file;
+    an --out that cannot be written is named in the error."""
+    from drivers.io.capture import CaptureReader
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(CFG)
+    out = tmp_path / "emitted.cap"
+    bad = tmp_path / "bad.cap"
+    bad.write_text(trial_files["straight"].read_text() + "(1.0) emlog1 $VWVHW\n")
+    out.write_text("old")
+    assert main(["replay", str(bad), "--config", str(cfg), "--out", str(out), "--strict"]) != 0
+    assert out.read_text() == "old"
+    assert (
+        main(["replay", str(trial_files["straight"]), "--config", str(cfg), "--out", str(out)]) == 0
+    )
+    assert CaptureReader(out).ports == {"emlog1": "nmea0183", "emlog2": "nmea0183"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.cap", "c.yaml", "emitted.cap"]
+    capsys.readouterr()
+    nowhere = tmp_path / "missing" / "emitted.cap"
+    argv = ["replay", str(trial_files["straight"]), "--config", str(cfg), "--out", str(nowhere)]
+    assert main(argv) == 1
+    assert f"No such file or directory: '{nowhere}'" in capsys.readouterr().err

@@ -134,23 +134,12 @@ class TestTrials:
         """The gain drops to 0.65 for good during the figure-8."""
         assert _worst(tmp_path, fault=SensorFault("step", 1700.0, factor=0.65)) <= RATIO
 
-    @pytest.mark.xfail(
-        strict=True,
-        reason="the dip (0.8 × a log that reads 17 % high) makes raw nearly right: the "
-        "withdrawn calibration re-validates in raw's own current within the dip, and one "
-        "learnt across a switch of the current is applied",
-    )
     def test_a_gain_dip_under_a_switching_current(self, tmp_path: Path) -> None:
         """0.8 for 10 min every 20, the current jumping 0 / 0.5 m/s every 10 min."""
         fault = SensorFault("dip", 900.0, factor=0.8, duration_s=600.0, period_s=1200.0)
         cur = SwitchingCurrent(0.5, 0.0, 600.0)
         assert _worst(tmp_path, fault=fault, current=cur) <= RATIO
 
-    @pytest.mark.xfail(
-        strict=True,
-        reason="fouling passes through the gain where raw is right (1/1.17): a calibration "
-        "validated on the straight run loses to raw until the circles expose it",
-    )
     def test_fouling(self, tmp_path: Path) -> None:
         """The gain falls linearly to 0.7 over 30 min."""
         fault = SensorFault("drift", 1000.0, factor=0.7, duration_s=1800.0)

@@ -43,6 +43,25 @@ def test_truth_is_interpolated_within_trajectories_only(trial: SimulationResult)
     assert np.isnan(got[1:]).all()
 
 
+def test_readings_are_paired_at_the_true_latency(trial: SimulationResult) -> None:
+    """paired() gives each reading the true speed at its time minus the EMlog's latency,
+    and leaves out a reading in the idle time, a non-finite reading and a non-finite
+    corrected speed, keeping the others in order."""
+    truth = read_truth(trial.outdir)
+    _, latency = truth.emlog("emlog1")
+    t1 = truth.t[truth.trajectory == 1]
+    a, b, c3, d = (t1[t1.size * k // 5] for k in (1, 2, 3, 4))
+    t = np.array([a, t1[-1] + 10.0 + latency, b, c3, d])
+    raw = np.array([1.0, 1.0, np.nan, 1.0, 1.5])
+    cor = np.array([1.1, 1.1, 1.1, np.inf, 1.6])
+    tt, r, c, stw = truth.paired("emlog1", t, raw, cor)
+    assert tt.tolist() == [a, d]
+    assert (r.tolist(), c.tolist()) == ([1.0, 1.5], [1.1, 1.6])
+    assert stw == pytest.approx(truth.stw_at(tt - latency))
+    with pytest.raises(TruthError):
+        truth.paired("dvl", t, raw, cor)
+
+
 def test_read_truth_errors(tmp_path: Path, trial: SimulationResult) -> None:
     """A missing or malformed truth is one TruthError naming the file."""
     with pytest.raises(TruthError, match=r"truth\.csv\.gz: no such file"):

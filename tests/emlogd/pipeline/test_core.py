@@ -52,29 +52,35 @@ class TestEmitting:
         assert statuses and all(x.split(",")[2] == "U" for x in statuses)
         assert _status(p)["reason"] == "learning switched off"
 
-    def test_feed_returns_the_reading_corrected_before_the_filter_learns_from_it(
+    def test_feed_returns_the_reading_corrected_after_it_was_judged(
         self, kit: SimpleNamespace, segment: Segment
     ) -> None:
         """feed() returns, as a new value each call, the reading corrected with the
-        calibration in use before the call; the filter learns from it in the same call."""
+        calibration in use once the reading was learnt from and judged in the same call
+        (its reference is in): a change seen in it is not emitted corrected."""
         s = kit.make_stream(segment("figure-8", 300.0, TRUE))
         p = kit.pipeline(lag_s=0.0)
         kit.run(p, s.items[: len(s.items) // 2])
         cal = p.uuts["log"].cal
         outs: list[Output] = []
+        changed = 0
         for t, port, data in s.items[len(s.items) // 2 :]:
             before = cal.n_learnt
             raw_kn = float(data.decode().split(",")[5]) if port == "log" else None
-            want = None if raw_kn is None else cal.correct(raw_kn * 0.514444)
+            was = None if raw_kn is None else cal.correct(raw_kn * 0.514444)
             out = p.feed(t, port, data)
             outs.append(out)
-            if want is not None:
+            if raw_kn is not None:
+                want = cal.correct(raw_kn * 0.514444)
+                assert want is not None
                 assert [f[5] for f in _vhw(out)] == [encode_vhw(want).split(",")[5]]
                 assert cal.n_learnt == before + 1  # learnt from in the same call
+                changed += want != was
             else:
                 assert _vhw(out) == []
         assert len({id(o) for o in outs}) == len(outs)
         assert sum(1 for o in outs if _vhw(o)) > 100
+        assert changed  # the calibration was updated by a reading that then went out with it
 
     def test_every_sentence_fits_and_checksums(
         self, kit: SimpleNamespace, segment: Segment

@@ -3,11 +3,20 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import pytest
 
 from calib.models import Params
-from emlogd.pipeline.evidence import CUSUM_H, Cusum, FitWindow, SeaMemory, steps
+from emlogd.pipeline.evidence import (
+    CUSUM_H,
+    DRIFT_WINDOW_S,
+    Cusum,
+    Drift,
+    FitWindow,
+    SeaMemory,
+    steps,
+)
 
 
 def _cs(deg: float) -> tuple[float, float]:
@@ -88,3 +97,65 @@ def test_steps_tell_which_series_jumped() -> None:
     log, ref = steps(before + sea, len(before))
     assert log == pytest.approx(0.0, abs=1e-9) and ref == pytest.approx(0.3)
     assert steps(before, len(before)) == (0.0, 0.0)
+
+
+def _drift(
+    raw: Callable[[float], float],
+    ref: Callable[[float], float],
+    seconds: float = 200.0,
+    heading: Callable[[float], float] = lambda t: 30.0,
+) -> Drift:
+    """A :class:`Drift` fed at 1 Hz with a little alternating noise on the reading."""
+    d = Drift()
+    for k in range(int(seconds)):
+        t = float(k)
+        d.add(t, raw(t) + (0.01 if k % 2 else -0.01), ref(t), _cs(heading(t)))
+    return d
+
+
+class TestDrift:
+    """A log that drifts against a steady reference, told from the sea and the vessel."""
+
+    def test_a_fouling_log_at_steady_speed_drifts(self) -> None:
+        """The reading falls 0.06 m/s over two minutes, the reference holds: on."""
+        d = _drift(lambda t: 1.9 - 0.0005 * t, lambda t: 1.6)
+        assert d.on and d.change_mps == pytest.approx(-0.06, abs=0.005)
+
+    def test_a_current_that_changes_is_no_drift(self) -> None:
+        """The reference (the ground speed) rises 0.04 m/s over two minutes (steady
+        enough), the reading holds: the error moved no more than the reference: off."""
+        d = _drift(lambda t: 1.9, lambda t: 1.6 + 0.00035 * t)
+        assert not d.on and d.change_mps == pytest.approx(-0.042, abs=0.005)
+
+    def test_a_vessel_that_speeds_up_is_no_drift(self) -> None:
+        """Both rise, the log by its 17 % scale error more: off."""
+        assert not _drift(lambda t: 1.17 * (1.6 + 0.002 * t), lambda t: 1.6 + 0.002 * t).on
+
+    def test_no_drift_is_judged_in_a_turn(self) -> None:
+        """The same fouling log while the vessel turns: a current would move the
+        reference with the heading, so nothing is judged: off."""
+        assert not _drift(lambda t: 1.9 - 0.0005 * t, lambda t: 1.6, heading=lambda t: t).on
+
+    def test_the_verdict_holds_while_the_drift_goes_on_and_across_a_gap(self) -> None:
+        """Once on, it stays while the error keeps its trend though the vessel speeds up
+        (the error then moves less than the reference); after a gap the verdict stands
+        until a full window judges again; a log that stopped drifting is then off."""
+        d = _drift(lambda t: 1.9 - 0.0005 * t, lambda t: 1.6)
+        assert d.on
+        for k in range(200, 260):
+            t = float(k)
+            up = 0.0008 * (t - 200.0)
+            d.add(t, 1.9 - 0.0005 * t + up + (0.01 if k % 2 else -0.01), 1.6 + up, _cs(30.0))
+        assert d.on
+        fresh = Drift()  # the last window alone, judged afresh: off
+        for k in range(260 - int(DRIFT_WINDOW_S), 260):
+            t = float(k)
+            up = 0.0008 * max(t - 200.0, 0.0)
+            fresh.add(t, 1.9 - 0.0005 * t + up + (0.01 if k % 2 else -0.01), 1.6 + up, _cs(30.0))
+        assert not fresh.on and fresh.change_mps < -0.05
+        for k in range(300, 300 + int(DRIFT_WINDOW_S) - 10):
+            d.add(float(k), 1.8 + (0.01 if k % 2 else -0.01), 1.6, _cs(30.0))
+        assert d.on
+        for k in range(300 + int(DRIFT_WINDOW_S) - 10, 300 + int(DRIFT_WINDOW_S) + 5):
+            d.add(float(k), 1.8 + (0.01 if k % 2 else -0.01), 1.6, _cs(30.0))
+        assert not d.on

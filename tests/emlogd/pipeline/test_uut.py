@@ -34,8 +34,13 @@ class Rig:
         )
         self.t = 0.0
 
-    def run(self, seconds: float, raw: object = None, ref: object = None) -> list[float | None]:
-        """Advance; ``raw(t, v)`` and ``ref(t, v)`` may replace the true reading/reference."""
+    def run(
+        self, seconds: float, raw: object = None, ref: object = None, *, judged_first: bool = False
+    ) -> list[float | None]:
+        """Advance; ``raw(t, v)`` and ``ref(t, v)`` may replace the true reading/reference.
+
+        ``judged_first``: each reading is learnt from and judged before it is corrected
+        (as the pipeline does when its reference is in), else corrected first."""
         outs: list[float | None] = []
         for _ in range(int(seconds * 10)):
             self.t += 0.1
@@ -44,9 +49,12 @@ class Rig:
             self.cal.add_reference(self.t, r, True)
             if round(self.t * 10) % 10 == 0:
                 reading = raw(self.t, v) if callable(raw) else TRUE.forward(v)
-                outs.append(self.cal.correct(reading))
+                if not judged_first:
+                    outs.append(self.cal.correct(reading))
                 self.cal.add_reading(self.t, reading)
                 self.cal.drain(self.t)
+                if judged_first:
+                    outs.append(self.cal.correct(reading))
         return outs
 
     def kinds(self) -> list[str]:
@@ -307,6 +315,40 @@ class TestChangeDetection:
         assert rig.cal.learner.shadow is None
         assert rig.cal.learner.param_std["m"] < 1.5 * std_before  # re-opened: σ 0.3
 
+    def test_a_gain_step_goes_out_raw_from_its_first_reading(self) -> None:
+        """A 20 % gain step judged before it is emitted: its first reading is an
+        innovation far beyond the noise, which holds the calibration (raw goes out) while
+        the CUSUM builds up to its alarm; no reading of the changed log goes out
+        corrected for the log before the change."""
+        rig = Rig(_prior())
+        rig.run(60, judged_first=True)
+        assert rig.cal.applied == TRUE
+
+        def dipped(t: float, v: float) -> float:
+            return 0.8 * TRUE.forward(v)
+
+        readings = [dipped(t, _speed(t)) for t in rig.t + np.arange(1.0, 6.0)]
+        outs = rig.run(5, raw=dipped, judged_first=True)
+        assert outs == pytest.approx(readings)
+        assert "fallback" in rig.kinds()
+
+    def test_one_glitch_holds_the_calibration_until_its_cusum_run_ends(self) -> None:
+        """One reading 20 % low goes out raw, and so do the next few while the CUSUM run
+        it opened decays; then the calibration is emitted again, never withdrawn."""
+        rig = Rig(_prior())
+        rig.run(60, judged_first=True)
+        t_glitch = rig.t + 1.0
+
+        def glitch(t: float, v: float) -> float:
+            return (0.8 if abs(t - t_glitch) < 0.05 else 1.0) * TRUE.forward(v)
+
+        outs = rig.run(20, raw=glitch, judged_first=True)
+        truth = [_speed(t) for t in t_glitch + np.arange(0.0, 20.0)]
+        assert outs[0] == pytest.approx(glitch(t_glitch, truth[0]))  # raw
+        assert outs[1] == pytest.approx(TRUE.forward(truth[1]))  # still held: raw
+        assert outs[10:] == pytest.approx(truth[10:], abs=1e-9)  # corrected again
+        assert "fallback" not in rig.kinds() and rig.cal.applied == TRUE
+
     def test_a_sensor_that_jumped_is_judged_in_the_sea_before_the_jump(self) -> None:
         """A 35 % gain step on a straight leg in the water frame: the log jumped and the
         reference did not, so the withdrawn calibration re-validates in the sea as it was
@@ -340,6 +382,57 @@ class TestChangeDetection:
         rig.run(60, ref=lambda t, v: v - 0.3)
         assert not [t for t, k, _ in rig.events if k == "fallback" and t >= t_jump]
         assert rig.cal.applied == TRUE
+
+    @pytest.mark.parametrize("prior", [True, False], ids=["applied", "raw"])
+    def test_a_current_that_jumps_reopens_the_learners_current(self, prior: bool) -> None:
+        """A 0.4 m/s head current at once on a straight leg: the reference jumped and the
+        log did not, so the learner's current re-opens (the jump goes into the current,
+        not into the bias), with a calibration applied and with raw passing alike."""
+        rig = Rig(_prior() if prior else None, heading=0.0, current=True)
+        rig.run(180)
+        cal = rig.cal
+        assert (cal.applied == TRUE) is prior
+        before = cal.learner.kf.current_std_mps
+        assert before is not None and before[0] < 0.2
+        t_jump = rig.t
+        rig.run(3, ref=lambda t, v: v - 0.4)
+        why = [str(d.get("why")) for t, k, d in rig.events if k == "relearn" and t > t_jump]
+        assert why == ["the reference jumped: the current learns again"]
+        after = cal.learner.kf.current_std_mps
+        assert after is not None and after[0] > 2.0 * before[0]
+
+    def test_a_small_jump_of_the_reference_does_not_reopen_the_current(self) -> None:
+        """A 0.1 m/s jump of the reference: the detector alarms, but the jump is within
+        ``SEA_STEP_SIGMAS`` of the innovations' spread: the learner's current is left as
+        it was."""
+        rig = Rig(None, heading=0.0, current=True)
+        rig.run(180)
+        t_jump = rig.t
+        rig.run(60, ref=lambda t, v: v - 0.1)
+        why = [str(d.get("why")) for t, k, d in rig.events if k == "relearn" and t > t_jump]
+        assert "the reference jumped: the current learns again" not in why
+
+    def test_a_log_that_drifts_on_a_straight_leg_is_withdrawn_and_kept_out(self) -> None:
+        """At a steady 1.6 m/s on a straight leg, the gain falls 0.05 % a second (fouling):
+        the calibration is withdrawn once the log has drifted, and no calibration is
+        applied while it drifts; the same leg without the drift keeps it."""
+        steady = Rig(_prior(), heading=0.0, current=True, learn=False)
+        steady.run(300, raw=lambda t, v: TRUE.forward(1.6), ref=lambda t, v: 1.6)
+        assert steady.cal.applied == TRUE and "fallback" not in steady.kinds()
+        rig = Rig(_prior(), heading=0.0, current=True, learn=False)
+        rig.run(60, raw=lambda t, v: TRUE.forward(1.6), ref=lambda t, v: 1.6)
+        assert rig.cal.applied == TRUE
+        t0 = rig.t
+        rig.run(
+            240,
+            raw=lambda t, v: TRUE.forward(1.6) * (1.0 - 0.0005 * (t - t0)),
+            ref=lambda t, v: 1.6,
+        )
+        falls = [(t, d) for t, k, d in rig.events if k == "fallback"]
+        assert [d["why"] for _, d in falls] == ["the log drifts against a steady reference"]
+        assert falls[0][0] - t0 <= 150.0
+        assert not [k for t, k, _ in rig.events if t > falls[0][0] and k == "calibrated"]
+        assert rig.cal.applied is None
 
 
 class TestRestored:
@@ -473,6 +566,45 @@ class TestRestored:
 
         assert applied_after(-300.0) == TRUE
         assert applied_after(0.0) is None
+
+    def test_refused_on_a_straight_leg_it_is_judged_again_as_the_sea_ages(self) -> None:
+        """Saved just now with no current (±0.05 m/s), then a straight leg at 2 m/s in 0.24
+        m/s of current on the stern (the sea moved faster than the learner's random walk):
+        the current it implies is beyond 3σ of the saved sea, and it is refused, raw
+        passing through. It was not shown wrong, and every RESTORE_RETRY_S it is judged
+        again, the saved sea aged to then: once the sea may have moved by 0.24 m/s it is
+        applied. A poisoned one (m = -0.5, b = +1) implies 1.7 m/s and stays refused."""
+        from emlogd.pipeline.supervisor import RESTORE_RETRY_S
+
+        rng = np.random.default_rng(17)
+
+        def rig_for(p: Params) -> Rig:
+            prior = Calibration(
+                "log",
+                Estimate(
+                    p, {"m": 0.01, "b": 0.01}, current_mps=(0.0, 0.0), current_std_mps=(0.05, 0.05)
+                ),
+                0.0,
+                current=True,
+                t=0.0,
+            )
+            return Rig(prior, heading=0.0, current=True, learn=False)
+
+        def leg(rig: Rig, seconds: float) -> None:
+            rig.run(
+                seconds,
+                raw=lambda t, v: TRUE.forward(2.0) + float(rng.normal(0.0, 0.03)),
+                ref=lambda t, v: 2.0 + 0.24,
+            )
+
+        good, bad = rig_for(TRUE), rig_for(Params("EM3", m=-0.5, b_mps=1.0))
+        leg(good, RESTORE_RETRY_S)
+        assert _applied(good) is None and "candidate_rejected" in good.kinds()
+        leg(good, 3.0 * RESTORE_RETRY_S)
+        assert _applied(good) == TRUE
+        assert good.kinds().count("candidate_rejected") >= 2  # refused at least once more first
+        leg(bad, 4.0 * RESTORE_RETRY_S)
+        assert _applied(bad) is None
 
     def test_without_a_reference_it_is_applied_unverified(self) -> None:
         """No reference heard RESTORE_WAIT_S after the first reading: applied, and said so."""

@@ -11,7 +11,9 @@ import pytest
 
 from drivers.framing import with_checksum
 from drivers.nmea0183 import encode_rmc, encode_vhw
+from emlogd.pipeline import routing
 from emlogd.pipeline.core import Pipeline
+from emlogd.pipeline.routing import MODEL_VARIATION_S
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.variation import (
     MAX_HEADING_OFFSET_DEG,
@@ -132,6 +134,29 @@ class TestRouting:
         assert p.variation_source("nmea") == (-5.0, "config")
         _feed(p, T0 + 2.0, with_checksum("IIHDG,100.0,,,3.0,E"))
         assert p.variation_source("nmea") == (3.0, "log")
+
+    def test_fixes_whose_date_changes_at_every_sentence_cost_one_model_a_second(
+        self, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        """RMC at 100 Hz for 2 s, each a day after the one before (a hostile or broken
+        receiver: dates across years): the model is computed at most once per
+        MODEL_VARIATION_S of receive time, not per sentence (0.5 ms each, a day and a
+        cell per sentence cost the daemon's thread half its time at 1000 sentences/s); the
+        variation still follows the fixes."""
+        calls: list[float] = []
+
+        def counted(lat: float, lon: float, t: float) -> float | None:
+            calls.append(t)
+            return model_variation(lat, lon, t)
+
+        monkeypatch.setattr(routing, "model_variation", counted)
+        p = _pipeline()
+        for k in range(200):
+            day = datetime.fromtimestamp(T0 + k * 86400.0, UTC)
+            _feed(p, T0 + k * 0.01, encode_rmc(day, 3.0, 100.0, lat_deg=46.2, lon_deg=6.2))
+        assert len(calls) <= 2 / MODEL_VARIATION_S + 1, len(calls)
+        assert calls[0] == T0  # the fix's own date
+        assert p.variation_source("nmea")[1] == "model"
 
 
 class TestStatusReason:

@@ -70,9 +70,6 @@ def test_replay_rejects_a_speed_that_is_not_positive(
     assert err.count("\n") == 1 and "--speed" in err and "Traceback" not in err
 
 
-"""The red team's sentence: a valid checksum, a deviation and a variation whose sum overflows."""
-
-
 HOSTILE_HDG = b"$HCHDG,10.0,1e308,E,1e308,E*73"
 """The red team's sentence: a valid checksum, a deviation and a variation whose sum overflows."""
 
