@@ -31,6 +31,7 @@ import pytest
 
 from drivers.io.port import DEVICE_CHECK_S
 from emlogd.client import request
+from emlogd.config import MAX_CONFIG_BYTES
 from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
 from emlogd.daemon.loop import RELOAD_MIN_S
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
@@ -426,3 +427,44 @@ def _status_answered(sock: socket.socket) -> bool:
     except OSError:
         return False
     return bool(json.loads(buf.splitlines()[0])["ok"])
+
+
+def _slow_config(config: str) -> str:
+    """``config`` grown to the size limit with a flow list of one-digit items under an
+    unknown key: the YAML the parser takes longest on for its size (a reload fails on
+    the key, once the whole file is parsed)."""
+    room = MAX_CONFIG_BYTES - len(config) - 16
+    return config + "zz: [" + "1," * (room // 2) + "1]\n"
+
+
+def test_a_reload_of_a_config_slow_to_parse_does_not_hold_the_output(tmp_path: Path) -> None:
+    """A SIGHUP into a config of 256 KiB that the YAML parser takes seconds on, while the
+    EMlog sends a VHW every 0.1 s: every corrected VHW leaves within 0.5 s of its reading
+    (the config is parsed beside the loop), and the reload is refused in the end, the
+    running config kept. Parsed in the daemon's one thread it held every output for the
+    parse: 8 s with the pure-Python parser, 1 s with libyaml's."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    config = (work / "emlogd.yaml").read_text()
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    try:
+        d = Daemon(work, pty=True)
+        try:
+            tty.setraw(d.fd)
+            (work / "emlogd.yaml").write_text(_slow_config(config))
+            late: list[float] = []
+            sent = time.monotonic()
+            os.kill(d.proc.pid, signal.SIGHUP)
+            while d.events("reload_failed") == 0:
+                assert time.monotonic() - sent < 30.0, "no reload_failed"
+                t0 = time.monotonic()
+                os.write(masters[0], VHW[len(late) % 2])
+                if not _vhw_within(d.fd, 0.5):
+                    late.append(t0 - sent)
+                time.sleep(max(t0 + 0.1 - time.monotonic(), 0.0))
+            assert not late, f"VHW late at {late} s after the SIGHUP"
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for fd in masters:
+            os.close(fd)
