@@ -442,7 +442,7 @@ def test_a_reload_of_a_config_slow_to_parse_does_not_hold_the_output(tmp_path: P
     EMlog sends a VHW every 0.1 s: every corrected VHW leaves within 0.5 s of its reading
     (the config is parsed beside the loop), and the reload is refused in the end, the
     running config kept. Parsed in the daemon's one thread it held every output for the
-    parse: 8 s with the pure-Python parser, 1 s with libyaml's."""
+    whole parse (6 s)."""
     work = make_work(tmp_path, PD0_CONFIG)
     config = (work / "emlogd.yaml").read_text()
     masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
