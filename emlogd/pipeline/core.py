@@ -393,6 +393,9 @@ class Pipeline:
         raw = speed_of(sp, u.s.component)
         if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh):
             return
+        trans = sp.transverse_mps
+        if sp.source == "VBW" and trans is not None and u.plausible_athwart(t, trans):
+            return  # neither emitted nor learnt, as an implausible reading
         value = cal.correct(raw)
         if value is not None and sp.source == u.s.uut_source:
             u.stw = (t, value)
