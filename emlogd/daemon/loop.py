@@ -26,7 +26,6 @@ import os
 import select
 import selectors
 import signal
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -37,6 +36,7 @@ from drivers.errors import ConfigError, DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
+from emlogd.daemon.configload import ConfigLoad
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
@@ -122,7 +122,7 @@ class Daemon:
         self.stop = False
         self.reload = False
         self.next_reload = -math.inf
-        self.loading: _ConfigLoad | None = None
+        self.loading: ConfigLoad | None = None
         """The reloaded config being parsed beside the loop (None: no reload under way)."""
         self.started = False
         """Everything opened: a stop persists (a start that failed writes nothing)."""
@@ -324,7 +324,7 @@ class Daemon:
                 self._read(name)  # a source without a file descriptor (loop://)
             if self.reload and now >= self.next_reload and self.loading is None:
                 self.reload, self.next_reload = False, now + RELOAD_MIN_S
-                self.loading = _ConfigLoad(self.config_path)
+                self.loading = ConfigLoad(self.config_path)
             if self.loading is not None and self.loading.done.is_set():
                 loaded, self.loading = self.loading.result, None
                 self._reload(loaded)
@@ -632,7 +632,7 @@ class Daemon:
         load, or whose pipeline cannot be built, changes nothing.
 
         Args:
-            loaded: the config as :class:`_ConfigLoad` loaded it, or its failure;
+            loaded: the config as :class:`ConfigLoad` loaded it, or its failure;
                 None: load it now.
         """
         if loaded is None:
@@ -686,32 +686,6 @@ class Daemon:
             outputs_opened=opened,
         )
         self._notify_status()
-
-
-class _ConfigLoad:
-    """A config file loaded in a thread of its own, beside the loop: parsing a config
-    near :data:`~emlogd.config.MAX_CONFIG_BYTES` takes the YAML parser up to a second
-    (eight without libyaml), which in the loop's thread held every output. The thread
-    takes the interpreter's lock in turns with the loop (every few milliseconds) and
-    sets :attr:`done` when it has :attr:`result`; the loop, awake at least every
-    :data:`SELECT_TIMEOUT_S`, then applies it.
-
-    Args:
-        path: the config file.
-    """
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self.result: Config | Exception = ConfigError(f"{path}: not loaded")
-        self.done = threading.Event()
-        threading.Thread(target=self._run, name="config-load", daemon=True).start()
-
-    def _run(self) -> None:
-        try:
-            self.result = load_config(self.path)
-        except Exception as exc:  # contained: handed to the loop as the reload's failure
-            self.result = exc
-        self.done.set()
 
 
 def _why(exc: Exception) -> str:

@@ -445,24 +445,32 @@ def test_a_reload_of_a_config_slow_to_parse_does_not_hold_the_output(tmp_path: P
     whole parse (6 s)."""
     work = make_work(tmp_path, PD0_CONFIG)
     config = (work / "emlogd.yaml").read_text()
+    with _pd0_daemon(work) as (d, emlog):
+        (work / "emlogd.yaml").write_text(_slow_config(config))
+        late: list[float] = []
+        sent = time.monotonic()
+        os.kill(d.proc.pid, signal.SIGHUP)
+        while d.events("reload_failed") == 0:
+            assert time.monotonic() - sent < 30.0, "no reload_failed"
+            t0 = time.monotonic()
+            os.write(emlog, VHW[len(late) % 2])
+            if not _vhw_within(d.fd, 0.5):
+                late.append(t0 - sent)
+            time.sleep(max(t0 + 0.1 - time.monotonic(), 0.0))
+        assert not late, f"VHW late at {late} s after the SIGHUP"
+        assert d.stop() == 0
+
+
+@contextlib.contextmanager
+def _pd0_daemon(work: Path) -> Iterator[tuple[Daemon, int]]:
+    """The daemon of ``PD0_CONFIG`` in ``work``, its output pty raw, and the EMlog's pty
+    master (the DVL's served, silent); killed and closed at the end of the block."""
     masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
     try:
         d = Daemon(work, pty=True)
         try:
             tty.setraw(d.fd)
-            (work / "emlogd.yaml").write_text(_slow_config(config))
-            late: list[float] = []
-            sent = time.monotonic()
-            os.kill(d.proc.pid, signal.SIGHUP)
-            while d.events("reload_failed") == 0:
-                assert time.monotonic() - sent < 30.0, "no reload_failed"
-                t0 = time.monotonic()
-                os.write(masters[0], VHW[len(late) % 2])
-                if not _vhw_within(d.fd, 0.5):
-                    late.append(t0 - sent)
-                time.sleep(max(t0 + 0.1 - time.monotonic(), 0.0))
-            assert not late, f"VHW late at {late} s after the SIGHUP"
-            assert d.stop() == 0
+            yield d, masters[0]
         finally:
             d.kill()
     finally:

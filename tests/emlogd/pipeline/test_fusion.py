@@ -65,12 +65,16 @@ class TestStatusSentence:
         assert fields[4].split(";")[0] == "emlog00xx"
 
 
-def _pipeline(speed_only: bool = True, calibrated: str | None = None) -> Pipeline:
-    cals = {}
-    if calibrated is not None:
-        cals[calibrated] = Calibration(
-            calibrated, Estimate(Params("EM3", m=0.0, b_mps=0.0), {}), None
-        )
+def _pipeline(
+    speed_only: bool = True,
+    calibrated: str | tuple[str, ...] | None = None,
+    param_std: dict[str, float] | None = None,
+) -> Pipeline:
+    names = (calibrated,) if isinstance(calibrated, str) else calibrated or ()
+    cals = {
+        u: Calibration(u, Estimate(Params("EM3", m=0.0, b_mps=0.0), param_std or {}), None)
+        for u in names
+    }
     return Pipeline(
         [PortSettings("a", "nmea0183"), PortSettings("b", "nmea0183"), PortSettings("dvl", "pd6")],
         [
@@ -504,23 +508,6 @@ class TestDisputeRules:
         assert fused.excluded == (("b", "stuck"),)
 
 
-def _calibrated_pair() -> Pipeline:
-    """Logs a and b, both with a calibration (identity, σ of m 0.001, of b 0.002)."""
-    cals = {
-        u: Calibration(u, Estimate(Params("EM3", m=0.0, b_mps=0.0), {"m": 0.001, "b": 0.002}), None)
-        for u in ("a", "b")
-    }
-    return Pipeline(
-        [PortSettings("a", "nmea0183"), PortSettings("b", "nmea0183"), PortSettings("dvl", "pd6")],
-        [
-            UutSettings(port="a", reference_port="dvl", lag_s=0.0),
-            UutSettings(port="b", reference_port="dvl", lag_s=0.0),
-        ],
-        cals,
-        fusion=FusionSettings(only=True, min_interval_s=0.0),
-    )
-
-
 ALTERNATING: dict[str, Callable[[float], float]] = {
     "two values": lambda t: (1.0, 0.96)[int(t) % 2],
     "three values": lambda t: (1.0, 1.04, 0.96)[int(t) % 3],
@@ -537,7 +524,8 @@ def test_a_log_alternating_between_values_counts_for_its_spread(
     a's raw reading (b weighted by its own spread about its prediction, not by its
     output σ alone). Weighted by the output σ, b counted as much as a: fused RMSE 0.056
     and 0.057 m/s against a's 0.048."""
-    out, rows = _run_two_logs(_calibrated_pair(), 1200.0, scale)
+    pair = _pipeline(calibrated=("a", "b"), param_std={"m": 0.001, "b": 0.002})
+    out, rows = _run_two_logs(pair, 1200.0, scale)
     fused = [(t, v) for t, v in _fused(out.emits) if v is not None]
     assert len(fused) > 2000
     t = np.array([x for x, _ in fused])
