@@ -16,9 +16,10 @@ No client can lock the operators out either: a request must be complete within
 :data:`REQUEST_S` of its first byte (a client dripping bytes gets an error line and
 is closed), a client that completes no request for :data:`IDLE_S` is closed, and at
 :data:`MAX_CLIENTS` a newcomer is served and a client is closed with an error line:
-of the peer process holding the most connections, the one that has waited longest
-since it connected or last completed a request (a process connecting in a loop loses
-its own connections, never an operator's). Each wake-up accepts a backlog's worth of
+of the peer user holding the most connections (``SO_PEERCRED``'s uid), of its process
+holding the most, the one that has waited longest since it connected or last completed
+a request (a process connecting in a loop, or a user's many processes, lose their own
+connections, never another user's operator's). Each wake-up accepts a backlog's worth of
 connections (:data:`ACCEPTS_PER_ROUND`). A server may be read-only (``commands``: only ``status``), e.g. a
 status socket open to every local user next to the operators' control socket. The
 client side is :func:`emlogd.client.request`.
@@ -49,8 +50,8 @@ MAX_DEPTH = 4
 
 MAX_CLIENTS = 16
 """Most clients connected to one socket at a time; a newcomer beyond it closes a client
-(of the peer process holding the most, the one that completed no request for the
-longest time)."""
+(of the peer user holding the most, of its process holding the most, the one that
+completed no request for the longest time)."""
 
 MAX_PIPELINED = 4
 """Most requests answered from one read of a client: a client that sends more at once
@@ -144,22 +145,27 @@ def check_request(req: object, commands: Sequence[str] = COMMANDS) -> str:
     return ""
 
 
-def _peer(conn: socket.socket) -> int:
-    """The process id at the other end of a unix socket (0 when it cannot be read)."""
+Peer = tuple[int, int]
+"""The user and process ids at the other end of a unix socket (as it connected)."""
+
+
+def _peer(conn: socket.socket) -> Peer:
+    """The peer's user and process ids (``(-1, 0)`` when they cannot be read)."""
     try:
         cred = conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i"))
     except OSError:
-        return 0
-    return int(struct.unpack("3i", cred)[0])
+        return (-1, 0)
+    pid, uid, _ = struct.unpack("3i", cred)
+    return (int(uid), int(pid))
 
 
 class _Client:
     __slots__ = ("buf", "peer", "seen", "sock", "started")
 
-    def __init__(self, sock: socket.socket, now: float, peer: int = 0) -> None:
+    def __init__(self, sock: socket.socket, now: float, peer: Peer = (-1, 0)) -> None:
         self.sock = sock
         self.peer = peer
-        """The process at the other end."""
+        """The user and process at the other end."""
         self.buf = bytearray()
         self.seen = now
         """When it connected or last completed a request."""
@@ -257,13 +263,17 @@ class ControlServer:
         self.selector.register(conn, selectors.EVENT_READ, lambda c=conn: self._read(c))
 
     def _eviction_candidate(self) -> socket.socket:
-        """The client to close for a newcomer: of the peer process holding the most
-        connections, the one that waited longest (a process connecting in a loop loses
-        its own, not an operator's)."""
-        held = Counter(c.peer for c in self.clients.values())
+        """The client to close for a newcomer: of the peer user holding the most
+        connections, of its process holding the most, the one that waited longest (a
+        process connecting in a loop loses its own, and so do a user's many processes,
+        never another user's operator)."""
+        users = Counter(c.peer[0] for c in self.clients.values())
+        top = max(users.values())
+        theirs = [c for c in self.clients.values() if users[c.peer[0]] == top]
+        held = Counter(c.peer for c in theirs)
         most = max(held.values())
-        mine = [conn for conn, c in self.clients.items() if held[c.peer] == most]
-        return min(mine, key=lambda c: self.clients[c].seen)
+        mine = [c for c in theirs if held[c.peer] == most]
+        return min(mine, key=lambda c: c.seen).sock
 
     def housekeep(self) -> None:
         """Close the clients past a deadline; listen again once an accept pause is over."""

@@ -36,6 +36,7 @@ from drivers.errors import ConfigError, DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
+from emlogd.daemon.configload import ConfigLoad
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
@@ -121,6 +122,8 @@ class Daemon:
         self.stop = False
         self.reload = False
         self.next_reload = -math.inf
+        self.loading: ConfigLoad | None = None
+        """The reloaded config being parsed beside the loop (None: no reload under way)."""
         self.started = False
         """Everything opened: a stop persists (a start that failed writes nothing)."""
         self.state_errors = 0
@@ -319,9 +322,12 @@ class Daemon:
                 self._wake_rested(now)
             for name in self.unselectable:
                 self._read(name)  # a source without a file descriptor (loop://)
-            if self.reload and now >= self.next_reload:
+            if self.reload and now >= self.next_reload and self.loading is None:
                 self.reload, self.next_reload = False, now + RELOAD_MIN_S
-                self._reload()
+                self.loading = ConfigLoad(self.config_path)
+            if self.loading is not None and self.loading.done.is_set():
+                loaded, self.loading = self.loading.result, None
+                self._reload(loaded)
             if now < next_housekeeping:
                 continue  # data wake-ups do no more than read, decode and emit
             next_housekeeping = now + HOUSEKEEPING_S
@@ -617,19 +623,27 @@ class Daemon:
             return {"uuts": list(reset), "reset": reset, "persisted": True}
         raise ValueError(f"unknown cmd {cmd!r}")
 
-    def _reload(self) -> None:
+    def _reload(self, loaded: Config | Exception | None = None) -> None:
         """Apply a new config, touching only what changed (docs/DEPLOY.md, "Reload").
 
         A port, an output or the control socket whose settings are equal is kept as
         it is (same descriptor, same pty, same clients); a UUT whose settings are equal
         keeps its calibration object (:meth:`Pipeline.adopt`). A config that does not
         load, or whose pipeline cannot be built, changes nothing.
+
+        Args:
+            loaded: the config as :class:`ConfigLoad` loaded it, or its failure;
+                None: load it now.
         """
-        try:
-            new = load_config(self.config_path)
-        except Exception as exc:  # contained: no config file stops the daemon
-            self.log.error("reload_failed", error=_why(exc), kept="previous config")
+        if loaded is None:
+            try:
+                loaded = load_config(self.config_path)
+            except Exception as exc:  # contained: no config file stops the daemon
+                loaded = exc
+        if isinstance(loaded, Exception):
+            self.log.error("reload_failed", error=_why(loaded), kept="previous config")
             return
+        new = loaded
         old_pipeline, old = self.pipeline, self.config
         assert old_pipeline is not None
         self._persist()

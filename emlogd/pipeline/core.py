@@ -393,6 +393,9 @@ class Pipeline:
         raw = speed_of(sp, u.s.component)
         if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh):
             return
+        trans = sp.transverse_mps
+        if sp.source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
+            return  # neither emitted nor learnt, as an implausible reading
         if sp.source == u.s.uut_source:
             # judged first when its reference is already in (a log that lags the
             # reference): a change the supervisor sees in it is not emitted corrected

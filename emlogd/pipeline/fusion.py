@@ -5,8 +5,10 @@ Each UUT's corrected speed comes with its standard deviation (:meth:`UutCalibrat
 output_std`): the reading's noise through the calibration's scale, plus what the
 calibration's own σ contributes at that speed; a log still uncalibrated counts with a
 generous 10 % + 0.1 m/s. The fused speed is the inverse-variance weighted mean of the
-latest corrected speed of each *used* log heard within ``max_age_s``; its σ is
-``1/√(Σ 1/σᵢ²)``. A log is left out, with a reason (:attr:`Fused.excluded`), when:
+latest corrected speed of each *used* log heard within ``max_age_s``, each σᵢ the
+larger of its output σ and its own spread (the RMS of its speeds about its short-term
+prediction over :data:`SCATTER_S`, steps included: a log alternating between two
+values counts for little); the fused σ is ``1/√(Σ 1/σᵢ²)``. A log is left out, with a reason (:attr:`Fused.excluded`), when:
 
 - ``accel``, ``rate``, ``reacquired``: one of its readings was implausible
   (:class:`~emlogd.pipeline.integrity.ReadingCheck`: a dropout to 0, a spike, a babble)
@@ -160,6 +162,7 @@ class _Log:
         "level",
         "n",
         "scatter2",
+        "spread2",
         "std",
         "t",
         "t_anchor",
@@ -181,6 +184,8 @@ class _Log:
         self.t_anchor = -math.inf
         self.level = math.nan
         self.scatter2 = 0.0
+        self.spread2 = 0.0
+        """Mean square of every speed about the prediction, steps included."""
         self.n = 0
         self.t_step = -math.inf
 
@@ -193,6 +198,7 @@ class _Log:
         scatter = max(math.sqrt(self.scatter2), STEP_FLOOR_MPS)
         dt = max(t - self.t, 0.0)
         self.n += 1
+        self.spread2 += max(min(dt / SCATTER_S, 1.0), 1.0 / self.n) * (r * r - self.spread2)
         if self.n > STEP_WARMUP and abs(r) > STEP_SIGMA * scatter:
             self.level = v
             self.t_step = t
@@ -201,6 +207,11 @@ class _Log:
         self.scatter2 += max(min(dt / SCATTER_S, 1.0), 1.0 / self.n) * (r * r - self.scatter2)
         self.level += min(dt / SELF_SMOOTH_S, 1.0) * r
         return False
+
+    def weight_std(self) -> float:
+        """The σ the log's speed is weighted with: its output σ, or its own spread about
+        its prediction when that is larger (a log alternating between two values)."""
+        return max(self.std, math.sqrt(self.spread2))
 
 
 class _Dispute:
@@ -312,7 +323,7 @@ class Fusion:
         if undecided:
             excluded = {**out, **dict.fromkeys(undecided, "disagree"), **losers}
             return Fused(math.nan, math.nan, (), tuple(sorted(excluded.items())))
-        used = [(1.0 / (live[p].std ** 2), live[p].v, p) for p in cand if p not in losers]
+        used = [(live[p].weight_std() ** -2, live[p].v, p) for p in cand if p not in losers]
         w = sum(x[0] for x in used)
         speed = sum(wi * v for wi, v, _ in used) / w
         order = tuple(p for _, _, p in sorted(used, key=lambda x: -x[0]))

@@ -287,6 +287,8 @@ class UutRoute:
         """GNSS fixes not projected because the course check flagged the heading."""
         self.checks: dict[str, ReadingCheck] = {}
         """The plausibility of the readings, per sentence (VHW, VBW)."""
+        self.athwart_check = ReadingCheck(s.limits)
+        """The plausibility of the athwart speeds of its VBW (the same limits)."""
         self.heading_check = HeadingCheck(s.envelope.max_current_mps)
         self.stw: tuple[float, float] | None = None
         """The latest corrected speed through the water (time, m/s)."""
@@ -303,6 +305,15 @@ class UutRoute:
             self.implausible[f"implausible_{why}"] += 1
         elif chk.reacquired:
             return "reacquired"
+        return why
+
+    def why_athwart_implausible(self, t: float, trans: float) -> str:
+        """``""`` when a VBW's athwart speed is plausible (or re-acquired a level), else
+        why not (counted with the readings'): a transverse speed jumping by tens of
+        knots between two readings is a fault, not a hull moving sideways."""
+        why = self.athwart_check.check(t, trans)
+        if why:
+            self.implausible[f"implausible_{why}"] += 1
         return why
 
     def reference(self, t: float, v: float | None, valid: bool) -> None:

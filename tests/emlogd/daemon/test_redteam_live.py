@@ -13,11 +13,13 @@ import functools
 import json
 import os
 import select
+import shutil
 import signal
 import socket
 import struct
 import subprocess
 import sys
+import tempfile
 import termios
 import threading
 import time
@@ -25,8 +27,11 @@ import tty
 from collections.abc import Iterator
 from pathlib import Path
 
+import pytest
+
 from drivers.io.port import DEVICE_CHECK_S
 from emlogd.client import request
+from emlogd.config import MAX_CONFIG_BYTES
 from emlogd.daemon.listen import SOURCE_BURST, SOURCE_RATE
 from emlogd.daemon.loop import RELOAD_MIN_S
 from emlogd.launch import STOP_TIMEOUT_S, fake_sensors
@@ -334,3 +339,140 @@ def _records(d: Daemon) -> int:
     ports = d.status()["ports"]
     assert isinstance(ports, dict)
     return int(ports["emlog1"]["records"])
+
+
+def _user_flood(path: Path, seconds: float, n: int, uid: int) -> int:
+    """Fork a process that becomes user ``uid`` and forks into ``n``, each holding one
+    connection to the unix socket ``path`` and connecting again at once whenever it is
+    closed, for ``seconds``; the first one's pid (it waits for the others). The
+    interpreter may not be readable by ``uid``: the children run on in the fork."""
+    first = os.fork()
+    if first:
+        return first
+    code = 0
+    try:
+        os.setgid(uid)
+        os.setuid(uid)
+        until = time.monotonic() + seconds
+        kids: list[int] = []
+        for _ in range(n - 1):
+            pid = os.fork()
+            if pid == 0:
+                kids = []  # a child: none of its own
+                break
+            kids.append(pid)
+        while time.monotonic() < until:
+            with socket.socket(socket.AF_UNIX) as s, contextlib.suppress(OSError):
+                s.settimeout(1.0)
+                s.connect(str(path))
+                s.recv(4096)  # held until the daemon closes it
+        for pid in kids:
+            os.waitpid(pid, 0)
+    except BaseException:
+        code = 1
+    os._exit(code)
+
+
+FLOOD_PROCESSES = 20
+"""Processes of the flooding user: more than ``MAX_CLIENTS``, one connection each."""
+
+NOBODY = 65534
+"""The flooding user's id (``nobody``)."""
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root to run a flood as another user")
+def test_a_users_many_processes_on_the_status_socket_do_not_evict_another_users_client(
+    tmp_path: Path,
+) -> None:
+    """Another user's 20 processes on the status socket (mode 0666), each holding one
+    connection and connecting again at once when closed, for 3 s: the operator's
+    connection, opened before and idle meanwhile, is still served afterwards (at the
+    client limit the user holding the most connections loses one of its own). Eviction
+    grouped by process: every flooder held one, as did the operator, whose connection,
+    idle longest, was the first closed."""
+    sockdir = Path(tempfile.mkdtemp(prefix="emlogd-red4-"))
+    try:
+        sockdir.chmod(0o755)  # the other user reaches the socket (tmp_path is root's only)
+        status = sockdir / "status.sock"
+        config = CONFIG.replace("outputs:", f"status_socket: {status}\noutputs:")
+        d = Daemon(make_work(tmp_path, config))
+        try:
+            with socket.socket(socket.AF_UNIX) as operator:
+                operator.settimeout(5.0)
+                operator.connect(str(status))
+                time.sleep(0.2)  # accepted before the flood
+                flood = _user_flood(status, 3.0, FLOOD_PROCESSES, NOBODY)
+                try:
+                    time.sleep(3.0)
+                    assert _status_answered(operator), d.status()
+                finally:
+                    os.waitpid(flood, 0)
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        shutil.rmtree(sockdir, ignore_errors=True)
+
+
+def _status_answered(sock: socket.socket) -> bool:
+    """A status request on ``sock`` gets an ``ok`` answer (and not the eviction's error)."""
+    try:
+        sock.sendall(b'{"cmd": "status"}\n')
+        buf = b""
+        while not buf.endswith(b"\n"):
+            chunk = sock.recv(65536)
+            if not chunk:
+                return False
+            buf += chunk
+    except OSError:
+        return False
+    return bool(json.loads(buf.splitlines()[0])["ok"])
+
+
+def _slow_config(config: str) -> str:
+    """``config`` grown to the size limit with a flow list of one-digit items under an
+    unknown key: the YAML the parser takes longest on for its size (a reload fails on
+    the key, once the whole file is parsed)."""
+    room = MAX_CONFIG_BYTES - len(config) - 16
+    return config + "zz: [" + "1," * (room // 2) + "1]\n"
+
+
+def test_a_reload_of_a_config_slow_to_parse_does_not_hold_the_output(tmp_path: Path) -> None:
+    """A SIGHUP into a config of 256 KiB that the YAML parser takes seconds on, while the
+    EMlog sends a VHW every 0.1 s: every corrected VHW leaves within 0.5 s of its reading
+    (the config is parsed beside the loop), and the reload is refused in the end, the
+    running config kept. Parsed in the daemon's one thread it held every output for the
+    whole parse (6 s)."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    config = (work / "emlogd.yaml").read_text()
+    with _pd0_daemon(work) as (d, emlog):
+        (work / "emlogd.yaml").write_text(_slow_config(config))
+        late: list[float] = []
+        sent = time.monotonic()
+        os.kill(d.proc.pid, signal.SIGHUP)
+        while d.events("reload_failed") == 0:
+            assert time.monotonic() - sent < 30.0, "no reload_failed"
+            t0 = time.monotonic()
+            os.write(emlog, VHW[len(late) % 2])
+            if not _vhw_within(d.fd, 0.5):
+                late.append(t0 - sent)
+            time.sleep(max(t0 + 0.1 - time.monotonic(), 0.0))
+        assert not late, f"VHW late at {late} s after the SIGHUP"
+        assert d.stop() == 0
+
+
+@contextlib.contextmanager
+def _pd0_daemon(work: Path) -> Iterator[tuple[Daemon, int]]:
+    """The daemon of ``PD0_CONFIG`` in ``work``, its output pty raw, and the EMlog's pty
+    master (the DVL's served, silent); killed and closed at the end of the block."""
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    try:
+        d = Daemon(work, pty=True)
+        try:
+            tty.setraw(d.fd)
+            yield d, masters[0]
+        finally:
+            d.kill()
+    finally:
+        for fd in masters:
+            os.close(fd)
