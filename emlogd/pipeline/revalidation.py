@@ -1,9 +1,10 @@
 """A calibration's validation window, and the verdicts on one validated before.
 
 :class:`_Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
-over a candidate's validation window. A calibration validated before (restored from
-the state file, or withdrawn for cause) need only not be worse than raw
-(:func:`worse`). A restored one in the water frame, where a current and an offset look
+over a candidate's validation window, in the water frame in one sea for raw and every
+calibration (:func:`common_current`). A new calibration, or one withdrawn for cause,
+must beat raw by the margin of :func:`worse`; a restored one need only not be worse
+than raw. A restored one in the water frame, where a current and an offset look
 alike on a straight leg, is judged after a current of its own where the window's
 headings spread (:func:`judge_own_currents`), else in the sea it was saved in
 (:func:`judge_saved_sea`) or by the current its errors imply (:func:`judge_restored`).
@@ -22,7 +23,13 @@ import numpy.typing as npt
 
 from calib.kalman import KfConfig
 from calib.models import Params
-from emlogd.pipeline.evidence import FIT_CURRENT_PRIOR_MPS, FIT_NOISE_MPS
+from emlogd.pipeline.evidence import (
+    CURRENT_HALF_LIFE_S,
+    CURRENT_MEMORY_S,
+    FIT_CURRENT_PRIOR_MPS,
+    FIT_NOISE_MPS,
+    SeaMemory,
+)
 
 CandidateKind = Literal["new", "restored", "revalidate", "verify"]
 
@@ -56,6 +63,39 @@ def _rms_after_current(
     ridge = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
     beta = np.linalg.solve(x.T @ x + ridge * np.eye(2), x.T @ d)
     return float(np.sqrt(np.mean((d - x @ beta) ** 2)))
+
+
+def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, float]:
+    """The sea a candidate and raw are validated in: the β (minus the current) of
+    ``raw − ref ≈ Σₖ αₖ·rawᵏ (k ≤ degree) + β·(cos ψ, sin ψ)`` over the memory's
+    samples, weighted like :meth:`~emlogd.pipeline.evidence.SeaMemory.current`.
+
+    The polynomial of the reading is free, so the fitted β is the same for raw and for
+    any correction of the error model's degree (``p(raw) − raw`` is such a
+    polynomial): one sea for every calibration judged, which none of them can fit to
+    its own errors. A current of each calibration's own takes the calibration's
+    offset on a straight leg and makes a wrong correction look as good as raw there;
+    a current fitted to one of them favours that one. Where the headings do not
+    determine β, the ridge of :data:`~emlogd.pipeline.evidence.FIT_CURRENT_PRIOR_MPS`
+    keeps it near zero and the polynomial takes the rest.
+    """
+    if not mem.n:
+        return 0.0, 0.0
+    data = mem.data[:, : mem.n] if mem.n < mem.data.shape[1] else mem.data
+    t, raw, ref, c, s = data
+    w = np.exp2(-(now - t) / CURRENT_HALF_LIFE_S) * (now - t <= CURRENT_MEMORY_S)
+    d = raw - ref
+    ok = np.isfinite(d) & (w > 0.0)
+    if np.count_nonzero(ok) < degree + 3:
+        return 0.0, 0.0
+    w, d, raw, c, s = w[ok], d[ok], raw[ok], c[ok], s[ok]
+    x = np.column_stack([raw**k for k in range(degree + 1)] + [c, s])
+    ridge = np.zeros(degree + 3)
+    ridge[-2:] = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
+    a = (x * w[:, None]).T @ x + np.diag(ridge)
+    b = (x * w[:, None]).T @ d
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    return float(sol[-2]), float(sol[-1])
 
 
 @dataclass

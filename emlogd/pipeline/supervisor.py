@@ -8,7 +8,7 @@ reading's time, the heading and the learner's offer (through :class:`CandidateSo
 candidate under validation.
 
 **Its own evidence** (:class:`~emlogd.pipeline.evidence.SeaMemory`): in the water frame every calibration it
-judges gets its own current, fitted by least squares on the heading's (cos, sin) from
+re-checks gets its own current, fitted by least squares on the heading's (cos, sin) from
 its own errors over the last :data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`; a calibration is scored by
 what that current cannot explain, and raw is scored in the sea as the applied
 calibration sees it (its own current would take its offset on every straight leg). A
@@ -24,8 +24,14 @@ Rules (the constants are this module's and
 - **Validation**: an offer different enough from the applied calibration
   (``persist_min_change_sigma`` / ``persist_min_change_abs``) becomes a candidate,
   frozen and scored over the next ``validation_s`` (at least
-  :data:`VALIDATION_MIN_SAMPLES`); it is applied only if it beats the raw reading and
-  is within :data:`CANDIDATE_FACTOR` / :data:`CANDIDATE_MARGIN_MPS` of the applied one.
+  :data:`VALIDATION_MIN_SAMPLES`); it is applied only if raw is worse than it by the
+  margin the re-check withdraws on (:func:`worse` the other way round: a gain within
+  it is no evidence) and it is within :data:`CANDIDATE_FACTOR` /
+  :data:`CANDIDATE_MARGIN_MPS` of the applied one. In the water frame raw, it and the
+  applied one are scored in one sea (:func:`~emlogd.pipeline.revalidation.common_current`:
+  a current fitted with a free correction of the reading, the same for all of them),
+  not each after a current of its own, which on a straight leg takes a calibration's
+  offset and ties a wrong correction with raw.
 - **Re-check**: the applied calibration is scored against raw over a forgetting
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
@@ -45,7 +51,10 @@ Rules (the constants are this module's and
   had before the jump.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again.
+  it validates again like a new one (over ``validation_s``, raw worse than it by the
+  margin, in the common sea: the withdrawal was evidence against it, and a tie is
+  none for it); withdrawn when the log jumped, it re-validates over
+  :data:`RESTORE_VALIDATION_S` in the sea before the jump.
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -80,6 +89,7 @@ from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
 from emlogd.pipeline.revalidation import _Candidate as _Candidate
 from emlogd.pipeline.revalidation import (
+    common_current,
     judge_restored,
     judge_saved_sea,
     worse,
@@ -118,10 +128,10 @@ CUSUM_SIGMA_FLOOR_MPS = 0.02
 readings at one speed has almost no spread)."""
 
 RESTORE_VALIDATION_S = 20.0
-"""A restored or withdrawn calibration (validated before) re-validates over this long,
-s (or ``validation_s`` when that is shorter), against ``validation_s`` for a new one: raw passes through meanwhile, and it need
-only not be worse than raw (:data:`WORSE_FACTOR`). The change detector and the
-re-check watch it from then on."""
+"""A restored calibration, or one withdrawn when the log jumped (re-validating in the sea
+before the jump), re-validates over this long, s (or ``validation_s`` when that is
+shorter), against ``validation_s`` for a new one or one withdrawn otherwise: raw passes
+through meanwhile. The change detector and the re-check watch it from then on."""
 
 RESTORE_SEA_MAX_AGE_S = 3600.0
 """A restored calibration saved with a determined current is re-validated in the sea it
@@ -397,6 +407,12 @@ class Supervisor:
         beta = cand.beta or (0.0, 0.0)
         d_c = self._error(raw, ref, cand.params)
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
+        common = self._beta.get("common")
+        if cand.kind in ("new", "revalidate") and not cand.sea_fixed and common is not None:
+            # raw, it and the applied one in one sea none of them was fitted to
+            c_h = common[0] * hc[0] + common[1] * hc[1]
+            e_raw, e_c = d_raw - c_h, d_c - c_h
+            e_app = self._error(raw, ref, self.applied) - c_h
         if cand.sea_fixed:
             e_raw = d_raw - (beta[0] * hc[0] + beta[1] * hc[1])  # raw in that sea too
         sea = self.restored_sea
@@ -440,9 +456,10 @@ class Supervisor:
 
     def _validated(self, t: float, cand: _Candidate) -> bool:
         """The candidate's validation window is complete (``validation_s``, or
-        :data:`RESTORE_VALIDATION_S` for one validated before)."""
+        :data:`RESTORE_VALIDATION_S` for a restored one and one withdrawn when the log
+        jumped)."""
         span = self.s.validation_s
-        if cand.kind != "new":
+        if cand.kind != "new" and not (cand.kind == "revalidate" and not cand.sea_fixed):
             span = min(RESTORE_VALIDATION_S, span)
         return t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES
 
@@ -450,6 +467,7 @@ class Supervisor:
         """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
         mem = self.memory
         self._beta = {"raw": mem.current(None, t)}
+        self._beta["common"] = common_current(mem, t, 2 if "a" in self.layout.params else 1)
         if self.applied is not None:
             self._beta["applied"] = mem.current(self.applied, t)
         if self.previous is not None:
@@ -573,7 +591,9 @@ class Supervisor:
             "kind": cand.kind,
         }
         if cand.kind == "new":
-            good = r_cand < r_raw and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+            good = (
+                worse(r_raw, r_cand) and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+            )
         elif cand.kind == "restored" and cand.samples is not None and len(cand.samples) == n:
             good = judge_restored(
                 cand,
@@ -585,9 +605,13 @@ class Supervisor:
             )
         elif cand.kind == "restored" and cand.n_sea == n:
             good = judge_saved_sea(cand, detail)
+        elif cand.kind == "revalidate" and not cand.sea_fixed:
+            # withdrawn for cause: the withdrawal is evidence against it, so only raw worse
+            # than it by the margin it was withdrawn on brings it back; a tie is no evidence
+            good = worse(r_raw, r_cand)
         else:
-            # validated before: it need only not be worse than raw (where the data cannot
-            # tell a sensor's error from the current, raw and it tie)
+            # restored, or withdrawn when the log jumped (judged in the sea before the
+            # jump): it need only not be worse than raw
             good = not worse(r_cand, r_raw)
         if cand.kind == "verify" or cand.early:
             if good:
