@@ -104,6 +104,13 @@ CURRENT_SIGNIFICANCE = 3.0
 within a third of the current's speed: a 1 m/s tidal stream known to ±0.1 m/s is a
 measurement; 0.1 m/s known to ±0.1 m/s is not."""
 
+OFFER_SIGMAS = 2.0
+"""An offer's correction at the speed through the water now (``f(v) − v``, the
+parameters learnt so far at ``v``) must be this many of its own standard deviations from
+zero (the parameters' covariance, scaled like the σ an offer is judged on): a
+correction the filter cannot tell from none is no evidence against the raw reading, and
+applying it trades the log's own error for the filter's (2σ: a two-sided 95 % test)."""
+
 
 @dataclass(frozen=True, slots=True)
 class Offer:
@@ -643,7 +650,29 @@ class Learner:
         est = self.kf.params
         if self.s.envelope.check(est, self.kf.current_mps):
             return None
+        if not self._correction_determined(std):
+            return None
         return Offer(est, std)
+
+    def _correction_determined(self, std_offer: Mapping[str, float]) -> bool:
+        """The correction at the speed through the water now is :data:`OFFER_SIGMAS` of
+        its own σ from zero (the parameters learnt so far; the others stay at their
+        values and count as known)."""
+        v = self.kf.speed_mps
+        cov = self.kf.covariance()
+        std = self.kf.param_std
+        x = {"a": v * v, "m": v, "b": 1.0}
+        theta = self.kf.params.theta
+        idx = [i for i, n in enumerate(self.layout.params) if n in self.learnt_ever]
+        if not idx:
+            return False
+        g = np.array([x[self.layout.params[i]] for i in idx])
+        p = np.array([[cov[1 + i][1 + j] for j in idx] for i in idx])
+        name = self.layout.params[idx[0]]
+        k2 = (std_offer[name] / std[name]) ** 2 if std[name] > 0.0 else 1.0
+        var = float(g @ p @ g) * k2
+        corr = sum(theta[i] * x[n] for i, n in enumerate(self.layout.params))
+        return abs(corr) > OFFER_SIGMAS * math.sqrt(max(var, 0.0))
 
     @property
     def param_std(self) -> Mapping[str, float]:
