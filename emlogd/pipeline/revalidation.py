@@ -1,10 +1,10 @@
 """A calibration's validation window, and the verdicts on one validated before.
 
 :class:`_Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
-over a candidate's validation window, in the water frame in one sea for raw and every
-calibration (:func:`common_current`). A new calibration, or one withdrawn for cause,
-must beat raw by the margin of :func:`worse`; a restored one need only not be worse
-than raw. A restored one in the water frame, where a current and an offset look
+over a candidate's validation window. A new calibration, or one withdrawn for cause,
+must beat raw by the margin of :func:`worse`, in the water frame both after a current
+of each one's own and in one sea for both (:func:`common_current`); a restored one
+need only not be worse than raw. A restored one in the water frame, where a current and an offset look
 alike on a straight leg, is judged after a current of its own where the window's
 headings spread (:func:`judge_own_currents`), else in the sea it was saved in
 (:func:`judge_saved_sea`) or by the current its errors imply (:func:`judge_restored`).
@@ -66,18 +66,19 @@ def _rms_after_current(
 
 
 def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, float]:
-    """The sea a candidate and raw are validated in: the β (minus the current) of
+    """The second sea a candidate and raw are validated in: the β (minus the current) of
     ``raw − ref ≈ Σₖ αₖ·rawᵏ (k ≤ degree) + β·(cos ψ, sin ψ)`` over the memory's
     samples, weighted like :meth:`~emlogd.pipeline.evidence.SeaMemory.current`.
 
     The polynomial of the reading is free, so the fitted β is the same for raw and for
     any correction of the error model's degree (``p(raw) − raw`` is such a
-    polynomial): one sea for every calibration judged, which none of them can fit to
-    its own errors. A current of each calibration's own takes the calibration's
-    offset on a straight leg and makes a wrong correction look as good as raw there;
-    a current fitted to one of them favours that one. Where the headings do not
-    determine β, the ridge of :data:`~emlogd.pipeline.evidence.FIT_CURRENT_PRIOR_MPS`
-    keeps it near zero and the polynomial takes the rest.
+    polynomial): one sea for raw and the candidate, which neither can fit to its own
+    errors. A current of each one's own takes its offset on a straight leg and can make
+    a wrong correction look better than raw there; this sea instead assumes one
+    correction over the whole memory, which a sensor that drifts breaks. Neither is
+    sure, so a candidate must beat raw in both. Where the headings do not determine β,
+    the ridge of :data:`~emlogd.pipeline.evidence.FIT_CURRENT_PRIOR_MPS` keeps it near
+    zero and the polynomial takes the rest.
     """
     if not mem.n:
         return 0.0, 0.0
@@ -128,11 +129,30 @@ class _Candidate:
     and the heading's (cos, sin): judged at the end (:func:`judge_restored`)."""
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`emlogd.pipeline.evidence.SeaMemory.current`), once fitted."""
+    common_raw: float = 0.0
+    common_cand: float = 0.0
+    """Squared errors of raw and of it in the common sea (:func:`common_current`)."""
+    n_common: int = 0
 
 
 def worse(r: float, r_raw: float) -> bool:
     """An RMSE ``r`` is worse than raw's (:data:`WORSE_FACTOR`, :data:`WORSE_MARGIN_MPS`)."""
     return r > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
+
+
+def beats_raw(cand: _Candidate, r_raw: float, r_cand: float, detail: dict[str, object]) -> bool:
+    """Raw is worse than a new or withdrawn candidate by the margin (:func:`worse` the
+    other way round), after a current of each one's own (``r_raw``, ``r_cand``) and,
+    where it was scored, in the common sea (:func:`common_current`)."""
+    if not worse(r_raw, r_cand):
+        return False
+    n = cand.n_common
+    if not n:
+        return True
+    c_raw, c_cand = math.sqrt(cand.common_raw / n), math.sqrt(cand.common_cand / n)
+    detail["rmse_raw_common_sea"] = round(c_raw, 4)
+    detail["rmse_candidate_common_sea"] = round(c_cand, 4)
+    return worse(c_raw, c_cand)
 
 
 def judge_saved_sea(cand: _Candidate, detail: dict[str, object]) -> bool:

@@ -8,7 +8,7 @@ reading's time, the heading and the learner's offer (through :class:`CandidateSo
 candidate under validation.
 
 **Its own evidence** (:class:`~emlogd.pipeline.evidence.SeaMemory`): in the water frame every calibration it
-re-checks gets its own current, fitted by least squares on the heading's (cos, sin) from
+judges gets its own current, fitted by least squares on the heading's (cos, sin) from
 its own errors over the last :data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`; a calibration is scored by
 what that current cannot explain, and raw is scored in the sea as the applied
 calibration sees it (its own current would take its offset on every straight leg). A
@@ -27,11 +27,10 @@ Rules (the constants are this module's and
   :data:`VALIDATION_MIN_SAMPLES`); it is applied only if raw is worse than it by the
   margin the re-check withdraws on (:func:`worse` the other way round: a gain within
   it is no evidence) and it is within :data:`CANDIDATE_FACTOR` /
-  :data:`CANDIDATE_MARGIN_MPS` of the applied one. In the water frame raw, it and the
-  applied one are scored in one sea (:func:`~emlogd.pipeline.revalidation.common_current`:
-  a current fitted with a free correction of the reading, the same for all of them),
-  not each after a current of its own, which on a straight leg takes a calibration's
-  offset and ties a wrong correction with raw.
+  :data:`CANDIDATE_MARGIN_MPS` of the applied one. In the water frame raw must be
+  worse than it both after a current of each one's own and in one sea for both
+  (:func:`~emlogd.pipeline.revalidation.common_current`: a current fitted with a free
+  correction of the reading, which neither can fit to its own offset).
 - **Re-check**: the applied calibration is scored against raw over a forgetting
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
@@ -51,10 +50,9 @@ Rules (the constants are this module's and
   had before the jump.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again like a new one (over ``validation_s``, raw worse than it by the
-  margin, in the common sea: the withdrawal was evidence against it, and a tie is
-  none for it); withdrawn when the log jumped, it re-validates over
-  :data:`RESTORE_VALIDATION_S` in the sea before the jump.
+  it validates again over :data:`RESTORE_VALIDATION_S`, with raw worse than it by the
+  margin in both seas (the withdrawal was evidence against it, and a tie is none for it);
+  withdrawn when the log jumped, in the sea before the jump and not worse than raw.
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -89,6 +87,7 @@ from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
 from emlogd.pipeline.revalidation import _Candidate as _Candidate
 from emlogd.pipeline.revalidation import (
+    beats_raw,
     common_current,
     judge_restored,
     judge_saved_sea,
@@ -128,10 +127,10 @@ CUSUM_SIGMA_FLOOR_MPS = 0.02
 readings at one speed has almost no spread)."""
 
 RESTORE_VALIDATION_S = 20.0
-"""A restored calibration, or one withdrawn when the log jumped (re-validating in the sea
-before the jump), re-validates over this long, s (or ``validation_s`` when that is
-shorter), against ``validation_s`` for a new one or one withdrawn otherwise: raw passes
-through meanwhile. The change detector and the re-check watch it from then on."""
+"""A restored or withdrawn calibration (validated before) re-validates over this long,
+s (or ``validation_s`` when that is shorter), against ``validation_s`` for a new one:
+raw passes through meanwhile. The change detector and the re-check watch it from then
+on."""
 
 RESTORE_SEA_MAX_AGE_S = 3600.0
 """A restored calibration saved with a determined current is re-validated in the sea it
@@ -409,10 +408,11 @@ class Supervisor:
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
         common = self._beta.get("common")
         if cand.kind in ("new", "revalidate") and not cand.sea_fixed and common is not None:
-            # raw, it and the applied one in one sea none of them was fitted to
+            # raw and it in one sea neither was fitted to
             c_h = common[0] * hc[0] + common[1] * hc[1]
-            e_raw, e_c = d_raw - c_h, d_c - c_h
-            e_app = self._error(raw, ref, self.applied) - c_h
+            cand.common_raw += (d_raw - c_h) ** 2
+            cand.common_cand += (d_c - c_h) ** 2
+            cand.n_common += 1
         if cand.sea_fixed:
             e_raw = d_raw - (beta[0] * hc[0] + beta[1] * hc[1])  # raw in that sea too
         sea = self.restored_sea
@@ -456,10 +456,9 @@ class Supervisor:
 
     def _validated(self, t: float, cand: _Candidate) -> bool:
         """The candidate's validation window is complete (``validation_s``, or
-        :data:`RESTORE_VALIDATION_S` for a restored one and one withdrawn when the log
-        jumped)."""
+        :data:`RESTORE_VALIDATION_S` for one validated before)."""
         span = self.s.validation_s
-        if cand.kind != "new" and not (cand.kind == "revalidate" and not cand.sea_fixed):
+        if cand.kind != "new":
             span = min(RESTORE_VALIDATION_S, span)
         return t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES
 
@@ -592,7 +591,8 @@ class Supervisor:
         }
         if cand.kind == "new":
             good = (
-                worse(r_raw, r_cand) and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+                beats_raw(cand, r_raw, r_cand, detail)
+                and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
             )
         elif cand.kind == "restored" and cand.samples is not None and len(cand.samples) == n:
             good = judge_restored(
@@ -608,7 +608,7 @@ class Supervisor:
         elif cand.kind == "revalidate" and not cand.sea_fixed:
             # withdrawn for cause: the withdrawal is evidence against it, so only raw worse
             # than it by the margin it was withdrawn on brings it back; a tie is no evidence
-            good = worse(r_raw, r_cand)
+            good = beats_raw(cand, r_raw, r_cand, detail)
         else:
             # restored, or withdrawn when the log jumped (judged in the sea before the
             # jump): it need only not be worse than raw

@@ -17,6 +17,7 @@ from emlogd.pipeline.revalidation import (
     WORSE_FACTOR,
     WORSE_MARGIN_MPS,
     _Candidate,
+    beats_raw,
     common_current,
     judge_own_currents,
     judge_restored,
@@ -113,3 +114,24 @@ def test_the_common_sea_is_one_current_whatever_the_correction() -> None:
     b1 = common_current(mems[1], 1199.0, 1)
     assert b0 == pytest.approx((-cur[0], -cur[1]), abs=0.01)
     assert b1 == pytest.approx(b0, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("own", "common", "beats"),
+    [
+        ((0.2, 0.1), None, True),  # no common sea scored (no current states)
+        ((0.2, 0.1), (0.2, 0.1), True),
+        ((0.2, 0.1), (0.1, 0.12), False),  # raw better in the common sea
+        ((0.1, 0.098), (0.2, 0.1), False),  # a tie after their own currents
+    ],
+)
+def test_a_candidate_beats_raw_in_both_seas(
+    own: tuple[float, float], common: tuple[float, float] | None, beats: bool
+) -> None:
+    """RMSEs (raw, candidate) after each one's own current and in the common sea: raw
+    must be worse than it by the margin in both."""
+    cand = _Candidate(Params("EM3"), 0.0)
+    if common is not None:
+        cand.n_common = 10
+        cand.common_raw, cand.common_cand = 10 * common[0] ** 2, 10 * common[1] ** 2
+    assert beats_raw(cand, own[0], own[1], {}) is beats

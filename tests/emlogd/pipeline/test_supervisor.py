@@ -126,39 +126,13 @@ def test_a_new_calibration_must_beat_raw_by_the_margin(offset: float, applied: b
 
 @pytest.mark.parametrize(("offset", "applied"), [(0.004, False), (0.1, True)])
 def test_a_withdrawn_calibration_comes_back_only_on_evidence(offset: float, applied: bool) -> None:
-    """A calibration withdrawn for cause re-validates over a new one's window: tying
-    raw (within the margin) it stays withdrawn; beating raw by the margin it is
-    applied again, and not before ``validation_s``."""
+    """A calibration withdrawn for cause re-validates: tying raw (within the margin) it
+    stays withdrawn; beating raw by the margin it is applied again."""
     sup, kinds = _sup(None)
     p = Params("EM3", b_mps=offset)
     sup.candidate = _Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
-    for k in range(int(sup.s.validation_s) + 10):
+    for k in range(40):
         u = 2.0 + 0.3 * math.sin(k / 20.0)
         sup.observe(float(k), u + offset + _noisy(k), u, None, _NoOffer())
-        if k < sup.s.validation_s - 1.0:
-            assert _applied(sup) is None and not kinds
     assert (_applied(sup) == p) is applied
     assert kinds == (["calibrated"] if applied else ["candidate_rejected"])
-
-
-def test_on_a_straight_leg_raw_and_a_candidate_are_judged_in_one_sea() -> None:
-    """GNSS in a 0.3-m/s current: a turn, then a long straight leg at varying speed, a
-    log reading 0.15 m/s high throughout. On the straight leg a current of each one's
-    own would take raw's offset and tie it with the exact correction; in the sea the
-    turn determined (one current for both, whatever their correction) the correction
-    beats raw and is applied, and a wrong one (0.15 m/s the other way) is refused."""
-    s = UutSettings(
-        port="log", reference_port="gps", reference_field="gnss", current=True, lag_s=0.0
-    )
-    cn, ce = 0.3, -0.1
-    for b, applied in ((0.15, True), (-0.15, False)):
-        sup, kinds = _sup(None, s)
-        for k in range(2400):
-            t = float(k)
-            hd = math.radians(360.0 * t / 600.0 if t < 600.0 else 30.0)
-            cs = (math.cos(hd), math.sin(hd))
-            u = 2.0 + 0.3 * math.sin(t / 40.0)
-            ref = u + cn * cs[0] + ce * cs[1]
-            source = _Offers(Params("EM3", b_mps=b)) if t >= 2000.0 else _NoOffer()
-            sup.observe(t, u + 0.15 + 0.5 * _noisy(k), ref, cs, source)
-        assert (_applied(sup) is not None) is applied, kinds
