@@ -65,14 +65,22 @@ def _rms_after_current(
     return float(np.sqrt(np.mean((d - x @ beta) ** 2)))
 
 
+COMMON_SEA_DEGREE = 2
+"""The degree of the free polynomial of the reading in :func:`common_current`: a
+quadratic spans the corrections of every error model (EM1–EM4), so the common sea is
+one for any of them, and a log whose error curves with speed (EM4's ``a``, which a
+configured EM3 does not model) does not leak its curvature into the current where
+speed and heading change together."""
+
+
 def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, float]:
     """The second sea a candidate and raw are validated in: the β (minus the current) of
     ``raw − ref ≈ Σₖ αₖ·rawᵏ (k ≤ degree) + β·(cos ψ, sin ψ)`` over the memory's
-    samples, weighted like :meth:`~emlogd.pipeline.evidence.SeaMemory.current`.
+    samples, weighted like :meth:`~emlogd.pipeline.evidence.SeaMemory.current`
+    (the supervisor's degree is :data:`COMMON_SEA_DEGREE`).
 
     The polynomial of the reading is free, so the fitted β is the same for raw and for
-    any correction of the error model's degree (``p(raw) − raw`` is such a
-    polynomial): one sea for raw and the candidate, which neither can fit to its own
+    any correction of at most that degree (``p(raw) − raw`` is such a polynomial): one sea for raw and the candidate, which neither can fit to its own
     errors. A current of each one's own takes its offset on a straight leg and can make
     a wrong correction look better than raw there; this sea instead assumes one
     correction over the whole memory, which a sensor that drifts breaks. Neither is

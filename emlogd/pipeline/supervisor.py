@@ -80,19 +80,20 @@ from emlogd.pipeline.evidence import (
     SeaMemory,
 )
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed
-from emlogd.pipeline.revalidation import RESTORE_MIN_HEADING_SPREAD as RESTORE_MIN_HEADING_SPREAD
-from emlogd.pipeline.revalidation import RESTORE_SEA_SIGMAS as RESTORE_SEA_SIGMAS
-from emlogd.pipeline.revalidation import WORSE_FACTOR as WORSE_FACTOR
-from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
-from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
-from emlogd.pipeline.revalidation import _Candidate as _Candidate
 from emlogd.pipeline.revalidation import (
+    COMMON_SEA_DEGREE,
     beats_raw,
     common_current,
     judge_restored,
     judge_saved_sea,
     worse,
 )
+from emlogd.pipeline.revalidation import RESTORE_MIN_HEADING_SPREAD as RESTORE_MIN_HEADING_SPREAD
+from emlogd.pipeline.revalidation import RESTORE_SEA_SIGMAS as RESTORE_SEA_SIGMAS
+from emlogd.pipeline.revalidation import WORSE_FACTOR as WORSE_FACTOR
+from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
+from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
+from emlogd.pipeline.revalidation import _Candidate as _Candidate
 
 if TYPE_CHECKING:
     from emlogd.pipeline.learner import Offer
@@ -466,7 +467,7 @@ class Supervisor:
         """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
         mem = self.memory
         self._beta = {"raw": mem.current(None, t)}
-        self._beta["common"] = common_current(mem, t, 2 if "a" in self.layout.params else 1)
+        self._beta["common"] = common_current(mem, t, COMMON_SEA_DEGREE)
         if self.applied is not None:
             self._beta["applied"] = mem.current(self.applied, t)
         if self.previous is not None:
