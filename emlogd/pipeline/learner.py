@@ -104,6 +104,13 @@ CURRENT_SIGNIFICANCE = 3.0
 within a third of the current's speed: a 1 m/s tidal stream known to ±0.1 m/s is a
 measurement; 0.1 m/s known to ±0.1 m/s is not."""
 
+OFFER_SIGMAS = 2.0
+"""An offer's correction at the speed through the water now (``f(v) − v``, the
+parameters learnt so far at ``v``) must be this many of its own standard deviations from
+zero (the parameters' covariance, scaled like the σ an offer is judged on): a
+correction the filter cannot tell from none is no evidence against the raw reading, and
+applying it trades the log's own error for the filter's (2σ: a two-sided 95 % test)."""
+
 
 @dataclass(frozen=True, slots=True)
 class Offer:
@@ -202,6 +209,8 @@ class Learner:
         self.gated_run_raw = 0
         self.gated_run_ref = 0
         self.recent: deque[tuple[float, float, float]] = deque()
+        """(time, raw innovation, speed) of the last :data:`CHANGE_WINDOW_S` of readings
+        with a valid reference: what a change of the readings is measured on."""
         self.recent_blocks: deque[tuple[float, float, float, float]] = deque(maxlen=CHANGE_BLOCKS)
         """(time, raw innovation, its variance S, speed) of the last learnt blocks: what a
         change is measured on when learning from block means."""
@@ -210,8 +219,6 @@ class Learner:
         re-opened to their prior at the change, learning from the same blocks (none of
         the knowledge from before it). An offer waits until it determines them again,
         and the learner then goes on from it (:meth:`offer`)."""
-        """(time, raw innovation, speed) of the last :data:`CHANGE_WINDOW_S` of readings
-        with a valid reference: what a change of the readings is measured on."""
         average = s.average_s if s.average_s is not None else AVERAGE_S.get(s.reference_field, 0.0)
         self.block = BlockMeans(average) if average > 0.0 else None
         """Learning from block means (a noisy reference), or None: from every sample."""
@@ -656,7 +663,29 @@ class Learner:
         est = self.kf.params
         if self.s.envelope.check(est, self.kf.current_mps):
             return None
+        if not self._correction_determined(std):
+            return None
         return Offer(est, std)
+
+    def _correction_determined(self, std_offer: Mapping[str, float]) -> bool:
+        """The correction at the speed through the water now is :data:`OFFER_SIGMAS` of
+        its own σ from zero (the parameters learnt so far; the others stay at their
+        values and count as known)."""
+        v = self.kf.speed_mps
+        cov = self.kf.covariance()
+        std = self.kf.param_std
+        x = {"a": v * v, "m": v, "b": 1.0}
+        theta = self.kf.params.theta
+        idx = [i for i, n in enumerate(self.layout.params) if n in self.learnt_ever]
+        if not idx:
+            return False
+        g = np.array([x[self.layout.params[i]] for i in idx])
+        p = np.array([[cov[1 + i][1 + j] for j in idx] for i in idx])
+        name = self.layout.params[idx[0]]
+        k2 = (std_offer[name] / std[name]) ** 2 if std[name] > 0.0 else 1.0
+        var = float(g @ p @ g) * k2
+        corr = sum(theta[i] * x[n] for i, n in enumerate(self.layout.params))
+        return abs(corr) > OFFER_SIGMAS * math.sqrt(max(var, 0.0))
 
     @property
     def param_std(self) -> Mapping[str, float]:

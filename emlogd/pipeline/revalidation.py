@@ -1,9 +1,10 @@
 """A calibration's validation window, and the verdicts on one validated before.
 
 :class:`_Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
-over a candidate's validation window. A calibration validated before (restored from
-the state file, or withdrawn for cause) need only not be worse than raw
-(:func:`worse`). A restored one in the water frame, where a current and an offset look
+over a candidate's validation window. A new calibration, or one withdrawn for cause,
+must beat raw by the margin of :func:`worse`, in the water frame both after a current
+of each one's own and in one sea for both (:func:`common_current`); a restored one
+need only not be worse than raw. A restored one in the water frame, where a current and an offset look
 alike on a straight leg, is judged after a current of its own where the window's
 headings spread (:func:`judge_own_currents`), else in the sea it was saved in
 (:func:`judge_saved_sea`) or by the current its errors imply (:func:`judge_restored`).
@@ -22,7 +23,13 @@ import numpy.typing as npt
 
 from calib.kalman import KfConfig
 from calib.models import Params
-from emlogd.pipeline.evidence import FIT_CURRENT_PRIOR_MPS, FIT_NOISE_MPS
+from emlogd.pipeline.evidence import (
+    CURRENT_HALF_LIFE_S,
+    CURRENT_MEMORY_S,
+    FIT_CURRENT_PRIOR_MPS,
+    FIT_NOISE_MPS,
+    SeaMemory,
+)
 
 if TYPE_CHECKING:
     from emlogd.pipeline.learner import Offer
@@ -39,6 +46,45 @@ class CandidateSource(Protocol):
     @property
     def param_std(self) -> Mapping[str, float]:
         """The standard deviation of each parameter now."""
+
+
+RESTORE_VALIDATION_S = 20.0
+"""A restored or withdrawn calibration (validated before) re-validates over this long,
+s (or ``validation_s`` when that is shorter), against ``validation_s`` for a new one:
+raw passes through meanwhile. The change detector and the re-check watch it from then
+on."""
+
+RESTORE_SEA_MAX_AGE_S = 3600.0
+"""A restored calibration saved with a determined current is re-validated in the sea it
+was saved in (raw and it against the reference less that current) when it was saved at
+most this long before the first reading, s; older, each is given a current of its own
+like any candidate. On a straight leg a current of raw's own takes raw's offset, so
+only a known sea can tell a good restored calibration from raw there; within an hour a
+tidal current changes by a fraction of itself."""
+
+RESTORE_EARLY_SAMPLES = 5
+"""A restored calibration saved with its sea (:data:`RESTORE_SEA_MAX_AGE_S`) is applied
+after this many samples when, against the reference less the saved current, its RMSE
+over them is below raw's by raw's margin (:func:`worse`
+the other way round): the evidence is for it. It is validated in place over the rest
+of its window and withdrawn when that fails; with any other evidence raw passes
+through until then."""
+
+RESTORE_RETRY_S = 120.0
+"""A restored calibration refused on a window whose headings cannot tell a current from
+an offset, for the current its errors imply (beyond what the sea can have become since
+it was saved, :data:`RESTORE_SEA_SIGMAS`), is validated again this long after, s, while
+nothing is applied and the learner has nothing to offer: it was not shown wrong, only
+unexplained by the sea it was saved in, and that sea's allowance grows with the time
+since it was saved (a current that changed faster than the learner's random walk is
+seen as such a little later). Raw passes through meanwhile. One refused with the whole
+allowance (the learner's prior of a current component: saved without its sea, or long
+enough ago) is not judged again: time would not change its verdict, only give it more
+draws."""
+
+RESTORE_WAIT_S = 10.0
+"""A restored calibration is applied unverified when no reference has been heard this
+long after the first reading, s."""
 
 
 WORSE_FACTOR = 1.05
@@ -73,6 +119,48 @@ def _rms_after_current(
     return float(np.sqrt(np.mean((d - x @ beta) ** 2)))
 
 
+COMMON_SEA_DEGREE = 2
+"""The degree of the free polynomial of the reading in :func:`common_current`: a
+quadratic spans the corrections of every error model (EM1–EM4), so the common sea is
+one for any of them, and a log whose error curves with speed (EM4's ``a``, which a
+configured EM3 does not model) does not leak its curvature into the current where
+speed and heading change together."""
+
+
+def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, float]:
+    """The second sea a candidate and raw are validated in: the β (minus the current) of
+    ``raw − ref ≈ Σₖ αₖ·rawᵏ (k ≤ degree) + β·(cos ψ, sin ψ)`` over the memory's
+    samples, weighted like :meth:`~emlogd.pipeline.evidence.SeaMemory.current`
+    (the supervisor's degree is :data:`COMMON_SEA_DEGREE`).
+
+    The polynomial of the reading is free, so the fitted β is the same for raw and for
+    any correction of at most that degree (``p(raw) − raw`` is such a polynomial): one sea for raw and the candidate, which neither can fit to its own
+    errors. A current of each one's own takes its offset on a straight leg and can make
+    a wrong correction look better than raw there; this sea instead assumes one
+    correction over the whole memory, which a sensor that drifts breaks. Neither is
+    sure, so a candidate must beat raw in both. Where the headings do not determine β,
+    the ridge of :data:`~emlogd.pipeline.evidence.FIT_CURRENT_PRIOR_MPS` keeps it near
+    zero and the polynomial takes the rest.
+    """
+    if not mem.n:
+        return 0.0, 0.0
+    data = mem.data[:, : mem.n] if mem.n < mem.data.shape[1] else mem.data
+    t, raw, ref, c, s = data
+    w = np.exp2(-(now - t) / CURRENT_HALF_LIFE_S) * (now - t <= CURRENT_MEMORY_S)
+    d = raw - ref
+    ok = np.isfinite(d) & (w > 0.0)
+    if np.count_nonzero(ok) < degree + 3:
+        return 0.0, 0.0
+    w, d, raw, c, s = w[ok], d[ok], raw[ok], c[ok], s[ok]
+    x = np.column_stack([raw**k for k in range(degree + 1)] + [c, s])
+    ridge = np.zeros(degree + 3)
+    ridge[-2:] = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
+    a = (x * w[:, None]).T @ x + np.diag(ridge)
+    b = (x * w[:, None]).T @ d
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    return float(sol[-2]), float(sol[-1])
+
+
 @dataclass
 class _Candidate:
     """A calibration under validation: what it is, since when, and its scores so far
@@ -89,7 +177,7 @@ class _Candidate:
     sea_raw: float = 0.0
     sea_cand: float = 0.0
     """Squared errors of raw and of it against the reference less the saved current (a
-    restored calibration saved with one, :data:`emlogd.pipeline.supervisor.RESTORE_SEA_MAX_AGE_S`)."""
+    restored calibration saved with one, :data:`RESTORE_SEA_MAX_AGE_S`)."""
     n_sea: int = 0
     sea_fixed: bool = False
     """``beta`` is the sea as it stood before a change of the sensor the detector saw (a
@@ -103,11 +191,30 @@ class _Candidate:
     and the heading's (cos, sin): judged at the end (:func:`judge_restored`)."""
     beta: tuple[float, float] | None = None
     """Its own current (see :meth:`emlogd.pipeline.evidence.SeaMemory.current`), once fitted."""
+    common_raw: float = 0.0
+    common_cand: float = 0.0
+    """Squared errors of raw and of it in the common sea (:func:`common_current`)."""
+    n_common: int = 0
 
 
 def worse(r: float, r_raw: float) -> bool:
     """An RMSE ``r`` is worse than raw's (:data:`WORSE_FACTOR`, :data:`WORSE_MARGIN_MPS`)."""
     return r > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
+
+
+def beats_raw(cand: _Candidate, r_raw: float, r_cand: float, detail: dict[str, object]) -> bool:
+    """Raw is worse than a new or withdrawn candidate by the margin (:func:`worse` the
+    other way round), after a current of each one's own (``r_raw``, ``r_cand``) and,
+    where it was scored, in the common sea (:func:`common_current`)."""
+    if not worse(r_raw, r_cand):
+        return False
+    n = cand.n_common
+    if not n:
+        return True
+    c_raw, c_cand = math.sqrt(cand.common_raw / n), math.sqrt(cand.common_cand / n)
+    detail["rmse_raw_common_sea"] = round(c_raw, 4)
+    detail["rmse_candidate_common_sea"] = round(c_cand, 4)
+    return worse(c_raw, c_cand)
 
 
 def judge_saved_sea(cand: _Candidate, detail: dict[str, object]) -> bool:

@@ -27,8 +27,13 @@ Rules (the constants are this module's and
 - **Validation**: an offer different enough from the applied calibration
   (``persist_min_change_sigma`` / ``persist_min_change_abs``) becomes a candidate,
   frozen and scored over the next ``validation_s`` (at least
-  :data:`VALIDATION_MIN_SAMPLES`); it is applied only if it beats the raw reading and
-  is within :data:`CANDIDATE_FACTOR` / :data:`CANDIDATE_MARGIN_MPS` of the applied one.
+  :data:`VALIDATION_MIN_SAMPLES`); it is applied only if raw is worse than it by the
+  margin the re-check withdraws on (:func:`worse` the other way round: a gain within
+  it is no evidence) and it is within :data:`CANDIDATE_FACTOR` /
+  :data:`CANDIDATE_MARGIN_MPS` of the applied one. In the water frame raw must be
+  worse than it both after a current of each one's own and in one sea for both
+  (:func:`~emlogd.pipeline.revalidation.common_current`: a current fitted with a free
+  correction of the reading, which neither can fit to its own offset).
 - **Re-check**: the applied calibration is scored against raw over a forgetting
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
@@ -54,7 +59,9 @@ Rules (the constants are this module's and
   applied while it drifts.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again.
+  it validates again over :data:`RESTORE_VALIDATION_S`, with raw worse than it by the
+  margin in both seas (the withdrawal was evidence against it, and a tie is none for it);
+  withdrawn when the log jumped, in the sea before the jump and not worse than raw.
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -86,18 +93,26 @@ from emlogd.pipeline.evidence import (
     sea_jumped,
 )
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed, output_std
+from emlogd.pipeline.revalidation import (
+    COMMON_SEA_DEGREE,
+    beats_raw,
+    common_current,
+    judge_restored,
+    judge_saved_sea,
+    worse,
+)
+from emlogd.pipeline.revalidation import RESTORE_EARLY_SAMPLES as RESTORE_EARLY_SAMPLES
 from emlogd.pipeline.revalidation import RESTORE_MIN_HEADING_SPREAD as RESTORE_MIN_HEADING_SPREAD
+from emlogd.pipeline.revalidation import RESTORE_RETRY_S as RESTORE_RETRY_S
+from emlogd.pipeline.revalidation import RESTORE_SEA_MAX_AGE_S as RESTORE_SEA_MAX_AGE_S
 from emlogd.pipeline.revalidation import RESTORE_SEA_SIGMAS as RESTORE_SEA_SIGMAS
+from emlogd.pipeline.revalidation import RESTORE_VALIDATION_S as RESTORE_VALIDATION_S
+from emlogd.pipeline.revalidation import RESTORE_WAIT_S as RESTORE_WAIT_S
 from emlogd.pipeline.revalidation import WORSE_FACTOR as WORSE_FACTOR
 from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
 from emlogd.pipeline.revalidation import CandidateSource as CandidateSource
 from emlogd.pipeline.revalidation import _Candidate as _Candidate
-from emlogd.pipeline.revalidation import (
-    judge_restored,
-    judge_saved_sea,
-    worse,
-)
 
 if TYPE_CHECKING:
     from emlogd.pipeline.settings import UutSettings
@@ -129,44 +144,6 @@ against."""
 CUSUM_SIGMA_FLOOR_MPS = 0.02
 """The innovation's standard deviation is at least this, m/s (a window of quantised
 readings at one speed has almost no spread)."""
-
-RESTORE_VALIDATION_S = 20.0
-"""A restored or withdrawn calibration (validated before) re-validates over this long,
-s (or ``validation_s`` when that is shorter), against ``validation_s`` for a new one: raw passes through meanwhile, and it need
-only not be worse than raw (:data:`WORSE_FACTOR`). The change detector and the
-re-check watch it from then on."""
-
-RESTORE_SEA_MAX_AGE_S = 3600.0
-"""A restored calibration saved with a determined current is re-validated in the sea it
-was saved in (raw and it against the reference less that current) when it was saved at
-most this long before the first reading, s; older, each is given a current of its own
-like any candidate. On a straight leg a current of raw's own takes raw's offset, so
-only a known sea can tell a good restored calibration from raw there; within an hour a
-tidal current changes by a fraction of itself."""
-
-RESTORE_EARLY_SAMPLES = 5
-"""A restored calibration saved with its sea (:data:`RESTORE_SEA_MAX_AGE_S`) is applied
-after this many samples when, against the reference less the saved current, its RMSE
-over them is below raw's by raw's margin (:func:`~emlogd.pipeline.revalidation.worse`
-the other way round): the evidence is for it. It is validated in place over the rest
-of its window and withdrawn when that fails; with any other evidence raw passes
-through until then."""
-
-RESTORE_RETRY_S = 120.0
-"""A restored calibration refused on a window whose headings cannot tell a current from
-an offset, for the current its errors imply (beyond what the sea can have become since
-it was saved, :data:`RESTORE_SEA_SIGMAS`), is validated again this long after, s, while
-nothing is applied and the learner has nothing to offer: it was not shown wrong, only
-unexplained by the sea it was saved in, and that sea's allowance grows with the time
-since it was saved (a current that changed faster than the learner's random walk is
-seen as such a little later). Raw passes through meanwhile. One refused with the whole
-allowance (the learner's prior of a current component: saved without its sea, or long
-enough ago) is not judged again: time would not change its verdict, only give it more
-draws."""
-
-RESTORE_WAIT_S = 10.0
-"""A restored calibration is applied unverified when no reference has been heard this
-long after the first reading, s."""
 
 
 class Supervisor:
@@ -411,6 +388,13 @@ class Supervisor:
         beta = cand.beta or (0.0, 0.0)
         d_c = self._error(raw, ref, cand.params)
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
+        common = self._beta.get("common")
+        if cand.kind in ("new", "revalidate") and not cand.sea_fixed and common is not None:
+            # raw and it in one sea neither was fitted to
+            c_h = common[0] * hc[0] + common[1] * hc[1]
+            cand.common_raw += (d_raw - c_h) ** 2
+            cand.common_cand += (d_c - c_h) ** 2
+            cand.n_common += 1
         if cand.sea_fixed:
             e_raw = d_raw - (beta[0] * hc[0] + beta[1] * hc[1])  # raw in that sea too
         sea = self.restored_sea
@@ -464,6 +448,7 @@ class Supervisor:
         """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
         mem = self.memory
         self._beta = {"raw": mem.current(None, t)}
+        self._beta["common"] = common_current(mem, t, COMMON_SEA_DEGREE)
         if self.applied is not None:
             self._beta["applied"] = mem.current(self.applied, t)
         if self.previous is not None:
@@ -594,7 +579,10 @@ class Supervisor:
             "kind": cand.kind,
         }
         if cand.kind == "new":
-            good = r_cand < r_raw and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+            good = (
+                beats_raw(cand, r_raw, r_cand, detail)
+                and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+            )
         elif cand.kind == "restored" and cand.samples is not None and len(cand.samples) == n:
             good = judge_restored(
                 cand,
@@ -611,9 +599,13 @@ class Supervisor:
                 self.retry = (cand, t)
         elif cand.kind == "restored" and cand.n_sea == n:
             good = judge_saved_sea(cand, detail)
+        elif cand.kind == "revalidate" and not cand.sea_fixed:
+            # withdrawn for cause: the withdrawal is evidence against it, so only raw worse
+            # than it by the margin it was withdrawn on brings it back; a tie is no evidence
+            good = beats_raw(cand, r_raw, r_cand, detail)
         else:
-            # validated before: it need only not be worse than raw (where the data cannot
-            # tell a sensor's error from the current, raw and it tie)
+            # restored, or withdrawn when the log jumped (judged in the sea before the
+            # jump): it need only not be worse than raw
             good = not worse(r_cand, r_raw)
         if self.drift.on:  # a drifting log: whatever fitted it a moment ago will not
             good, detail["drifting"] = False, True

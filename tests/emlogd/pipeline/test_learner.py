@@ -182,3 +182,22 @@ def test_the_daemon_scales_the_noises_slowly_and_calibrate_by_the_innovations() 
     assert offline.kf.noise_scale_slow > 2.0 * offline.kf.noise_scale
     std, floored = offline.kf.param_std, offline.kf.param_std_offer
     assert floored["m"] > 1.4 * std["m"]
+
+
+def test_a_log_that_reads_right_is_offered_no_correction() -> None:
+    """A log with no error, learnt as well as the 15 %-high one above: the correction at
+    the speed through the water is within OFFER_SIGMAS of its σ from zero, so nothing
+    is offered (the raw reading stays); the same run with the log 15 % high offers."""
+    rng = np.random.default_rng(5)
+    offers = {"right": 0, "high": 0}
+    for case, true in (("right", Params("EM3")), ("high", Params("EM3", m=0.15, b_mps=0.1))):
+        lr, _ = _learner()
+        for i in range(3000):
+            t = i * 0.1
+            v = 1.6 + 0.5 * math.sin(2 * math.pi * t / 60.0)
+            lr.add_reference(t, v + float(rng.normal(0.0, 0.02)), True, lambda _t: None)
+            if i % 10 == 0 and i:
+                lr.step(lr.align(t, true.forward(v), lambda _t: None), "", None)
+                offers[case] += lr.offer() is not None
+    assert offers["right"] == 0
+    assert offers["high"] > 100

@@ -11,11 +11,14 @@ import pytest
 
 from calib.kalman import KfConfig
 from calib.models import Params
+from emlogd.pipeline.evidence import SeaMemory
 from emlogd.pipeline.revalidation import (
     RESTORE_SEA_SIGMAS,
     WORSE_FACTOR,
     WORSE_MARGIN_MPS,
     _Candidate,
+    beats_raw,
+    common_current,
     judge_own_currents,
     judge_restored,
     judge_saved_sea,
@@ -89,3 +92,46 @@ def test_a_straight_leg_implying_an_impossible_current_is_refused() -> None:
     for share, ok in ((0.9, True), (1.1, False)):
         cand = _candidate(hd, share * prior + CURRENT[0], 0.0)
         assert judge_restored(cand, {}, kf, None, None, None) is ok
+
+
+def test_the_common_sea_is_one_current_whatever_the_correction() -> None:
+    """A turn at varying speed, a log 5 % high plus 0.1 m/s, GNSS in a current: the
+    common sea is the current (β = minus it), and the same when the memory holds any
+    affine correction of the readings instead of raw."""
+    cur = (0.3, -0.2)
+    p = Params("EM3", m=0.05, b_mps=0.1)
+    mems = (SeaMemory(), SeaMemory())
+    for k in range(1200):
+        t = float(k)
+        hd = math.radians(0.6 * t)
+        cs = (math.cos(hd), math.sin(hd))
+        u = 2.0 + 0.5 * math.sin(t / 50.0)
+        ref = u + cur[0] * cs[0] + cur[1] * cs[1]
+        raw = p.forward(u)
+        mems[0].add(t, raw, ref, cs)
+        mems[1].add(t, p.correct(raw), ref, cs)
+    b0 = common_current(mems[0], 1199.0, 1)
+    b1 = common_current(mems[1], 1199.0, 1)
+    assert b0 == pytest.approx((-cur[0], -cur[1]), abs=0.01)
+    assert b1 == pytest.approx(b0, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("own", "common", "beats"),
+    [
+        ((0.2, 0.1), None, True),  # no common sea scored (no current states)
+        ((0.2, 0.1), (0.2, 0.1), True),
+        ((0.2, 0.1), (0.1, 0.12), False),  # raw better in the common sea
+        ((0.1, 0.098), (0.2, 0.1), False),  # a tie after their own currents
+    ],
+)
+def test_a_candidate_beats_raw_in_both_seas(
+    own: tuple[float, float], common: tuple[float, float] | None, beats: bool
+) -> None:
+    """RMSEs (raw, candidate) after each one's own current and in the common sea: raw
+    must be worse than it by the margin in both."""
+    cand = _Candidate(Params("EM3"), 0.0)
+    if common is not None:
+        cand.n_common = 10
+        cand.common_raw, cand.common_cand = 10 * common[0] ** 2, 10 * common[1] ** 2
+    assert beats_raw(cand, own[0], own[1], {}) is beats

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+
+import pytest
 
 from calib.models import Layout, Params, check_model
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.learner import Offer
 from emlogd.pipeline.settings import UutSettings
-from emlogd.pipeline.supervisor import RESTORE_WAIT_S, Supervisor
+from emlogd.pipeline.supervisor import RESTORE_WAIT_S, Supervisor, _Candidate
 
 RESTORED = Params("EM3", m=0.1, b_mps=0.05)
 
@@ -29,8 +32,25 @@ def _applied(sup: Supervisor) -> Params | None:
     return sup.applied
 
 
-def _sup(restored: Params | None = RESTORED) -> tuple[Supervisor, list[str]]:
-    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0)
+class _Offers:
+    """A learner that offers one calibration."""
+
+    def __init__(self, p: Params) -> None:
+        self.p = p
+
+    def offer(self) -> Offer | None:
+        return Offer(self.p, {"m": 0.01, "b": 0.01})
+
+    @property
+    def param_std(self) -> Mapping[str, float]:
+        return {"m": 0.01, "b": 0.01}
+
+
+def _sup(
+    restored: Params | None = RESTORED, s: UutSettings | None = None
+) -> tuple[Supervisor, list[str]]:
+    if s is None:
+        s = UutSettings(port="log", reference_port="dvl", lag_s=0.0)
     kinds: list[str] = []
     sup = Supervisor(
         s,
@@ -83,3 +103,36 @@ def test_nothing_restored_is_a_reset() -> None:
     """Without a calibration there is nothing to keep."""
     sup, _ = _sup(None)
     assert sup.kept is None and sup.candidate is None and sup.note == ""
+
+
+def _noisy(k: int) -> float:
+    """A reading's noise: ±0.05 m/s alternating."""
+    return 0.05 if k % 2 else -0.05
+
+
+@pytest.mark.parametrize(("offset", "applied"), [(0.004, False), (0.1, True)])
+def test_a_new_calibration_must_beat_raw_by_the_margin(offset: float, applied: bool) -> None:
+    """A log reading ``offset`` high in ±0.05 m/s of noise, offered the exact bias: it
+    beats raw in both cases, but only the 0.1 m/s one by the margin raw would be
+    withdrawn on (a 4-mm gain is no evidence: raw stays)."""
+    sup, kinds = _sup(None)
+    source = _Offers(Params("EM3", b_mps=offset))
+    for k in range(300):
+        u = 2.0 + 0.3 * math.sin(k / 20.0)
+        sup.observe(float(k), u + offset + _noisy(k), u, None, source)
+    assert (_applied(sup) is not None) is applied
+    assert ("calibrated" in kinds) is applied and ("candidate_rejected" in kinds) is not applied
+
+
+@pytest.mark.parametrize(("offset", "applied"), [(0.004, False), (0.1, True)])
+def test_a_withdrawn_calibration_comes_back_only_on_evidence(offset: float, applied: bool) -> None:
+    """A calibration withdrawn for cause re-validates: tying raw (within the margin) it
+    stays withdrawn; beating raw by the margin it is applied again."""
+    sup, kinds = _sup(None)
+    p = Params("EM3", b_mps=offset)
+    sup.candidate = _Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
+    for k in range(40):
+        u = 2.0 + 0.3 * math.sin(k / 20.0)
+        sup.observe(float(k), u + offset + _noisy(k), u, None, _NoOffer())
+    assert (_applied(sup) == p) is applied
+    assert kinds == (["calibrated"] if applied else ["candidate_rejected"])
