@@ -251,7 +251,7 @@ def test_help_gaps_are_closed(capsys: pytest.CaptureFixture[str]) -> None:
     "to calibrate"; report's --json says it is for two axes only."""
     assert "without opening a device" in _help(["check-config"], capsys)
     text = " ".join(_help(["calibrate"], capsys).split())
-    assert "least squares over all samples (default)" in text
+    assert "ls (default): least squares over every sample the daemon learns from" in text
     assert "learn from the incoming data" in _help(["learn"], capsys)
     assert "default: each calibration's learn key" in " ".join(_help(["replay"], capsys).split())
     assert "(default 1;" in _help(["simulate"], capsys)
