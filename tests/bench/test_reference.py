@@ -8,24 +8,18 @@ here at a tiny size. No timing is asserted: only that every figure is read.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.scripts import load_script
+
 SAMPLES = Path(__file__).resolve().parent / "samples"
 
 
 def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("reference", ROOT / "bench" / "reference.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["reference"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("bench/reference.py")
 
 
 ref = _script()

@@ -8,9 +8,7 @@ recording — runs with ``pytest -m real`` (minutes per recording).
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -22,6 +20,7 @@ from emlogd.offline.dataset import record_capture
 from emlogd.offline.importer import import_nmea
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
 from emlogd.pipeline.settings import UutSettings
+from tests.scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 REAL = ROOT.parent / "shared" / "real"
@@ -30,12 +29,7 @@ pytestmark = pytest.mark.skipif(not REAL.is_dir(), reason=f"no real recordings a
 
 
 def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("real_data", ROOT / "docs" / "real_data.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["real_data"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("docs/real_data.py")
 
 
 KINDS = {
