@@ -481,6 +481,28 @@ class TestPlausibility:
             out.add(p.feed(T0 + 121.0 + k, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
         assert len(_speeds(out.emits, "a")) - n_before - len(babble) == 21
 
+    def test_a_lone_stuck_log_without_a_reference_goes_out_as_read(self) -> None:
+        """One log, not fused, no reference: stuck at 3.0 ± 0.03 m/s after 300 s of
+        moving. Nothing can tell it from a steady speed: its readings go out as read
+        (never corrected), and the status says uncalibrated with the reference stale."""
+        p, _ = _one_log()
+        rng = np.random.default_rng(1)
+        out = Output()
+        raw = []
+        for k in range(600):
+            t = float(k)
+            v = float(_truth(np.array([t]))[0] + rng.normal(0.0, NOISE_MPS))
+            if k >= 300:
+                v = 3.0 + rng.normal(0.0, 0.03)
+            raw.append(round(v / KNOT_MPS, 2) * KNOT_MPS)
+            out.add(p.feed(T0 + t, "a", _vhw(v)))
+        speeds = _speeds(out.emits, "a")
+        assert speeds[300:] == pytest.approx(raw[300:], abs=0.006)
+        pemls = [e.sentence for e in out.emits if e.sentence.startswith("$PEMLS")][-1]
+        assert split_nmea(pemls.encode()).decode().split(",")[2::9] == ["U", "S"]
+        st = p.status()["uuts"]["a"]  # type: ignore[index]
+        assert st["state"] == "uncalibrated" and st["reference"] == "stale"
+
     def test_a_log_back_from_zero_is_judged_against_its_last_moving_level(self) -> None:
         """Dropouts to 0.00 are refused; a log that re-acquired zero (dead for 15 s) and
         comes back at the speed it had is accepted at once, not after 10 s."""
