@@ -481,6 +481,48 @@ class TestPlausibility:
             out.add(p.feed(T0 + 121.0 + k, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
         assert len(_speeds(out.emits, "a")) - n_before - len(babble) == 21
 
+    def test_a_log_babbling_in_bursts_is_babbling(self) -> None:
+        """A minute at 10 Hz, one sentence a read; then reads of 20 sentences of 0–14 kn
+        every 0.1 s (a babble as a serial port delivers it: one receive time a read).
+        All of a read's readings count against the rate, not only its newest: nothing
+        of the babble goes out, each read's newest counted as rate. Only the newest was
+        judged, at one a read, the log's own rate: the ones within the acceleration
+        bound of the last accepted went out (and, fused, won over a stuck log)."""
+        p, rec = _one_log()
+        n_learnt = 0
+        out = Output()
+        rng = np.random.default_rng(4)
+        for k in range(600):
+            out.add(p.feed(T0 + k / 10.0, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        n_before, n_learnt = len(_speeds(out.emits, "a")), len(rec.readings)
+        for k in range(300):
+            burst = b"".join(_vhw(rng.uniform(0.0, 14.0) * KNOT_MPS) for _ in range(20))
+            out.add(p.feed(T0 + 60.0 + k / 10.0, "a", burst))
+        assert len(_speeds(out.emits, "a")) == n_before and len(rec.readings) == n_learnt
+        counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
+        assert counters["implausible_rate"] == 300 and counters["implausible_accel"] == 0
+
+    def test_a_stall_released_at_once_is_no_babble(self) -> None:
+        """A 10 Hz log whose readings of 2 s come in one read (a USB-serial stall), five
+        times a minute: each read's newest goes out; nothing is counted as rate."""
+        p, _ = _one_log()
+        out = Output()
+        rng = np.random.default_rng(5)
+        t = 0.0
+        for k in range(600):
+            t = k / 10.0
+            out.add(p.feed(T0 + t, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        for _ in range(5):
+            t += 2.0
+            burst = b"".join(_vhw(2.8 + rng.normal(0.0, NOISE_MPS)) for _ in range(20))
+            out.add(p.feed(T0 + t, "a", burst))
+            for _ in range(100):
+                t += 0.1
+                out.add(p.feed(T0 + t, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        assert len(_speeds(out.emits, "a")) == 600 + 5 * 101
+        counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
+        assert counters["implausible_rate"] == 0 and counters["backlog"] == 5 * 19
+
     def test_a_lone_stuck_log_without_a_reference_goes_out_as_read(self) -> None:
         """One log, not fused, no reference: stuck at 3.0 ± 0.03 m/s after 300 s of
         moving. Nothing can tell it from a steady speed: its readings go out as read
