@@ -546,7 +546,11 @@ class ReadingCheck:
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
         self._rate_dropped = False
-        self._drops: list[float] = []
+        self._drops: deque[float] = deque(maxlen=BABBLE_DROPS)
+        """The times of the last reads dropped for the rate, within :data:`BABBLE_S`: the
+        last :data:`BABBLE_DROPS` tell all the rule asks (a list of every drop within
+        the window, its oldest removed at every reading, cost the whole list per reading
+        of a log babbling one sentence a read)."""
         self.nominal_s: float | None = None
         """The log's nominal interval between readings, s (None until learnt)."""
         self.reacquired = False
@@ -578,7 +582,7 @@ class ReadingCheck:
         ):
             drops.append(t)
         while drops and t - drops[0] > BABBLE_S:
-            del drops[0]
+            drops.popleft()
         if drops and (drops[-1] == t or len(drops) >= BABBLE_DROPS):
             return "rate"
         return self._accel(t, v)
