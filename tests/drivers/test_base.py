@@ -16,10 +16,11 @@ from drivers.base import Decoder, DecoderOptions
 from drivers.errors import FieldError, FrameError
 from drivers.framing import LineFramer, with_checksum
 from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
+from drivers.rdi import CoordFrame
 from drivers.rdi_ascii import encode_pd6
 from drivers.rdi_pd0 import encode_pd0
 from drivers.rdi_pd45 import encode_pd45
-from drivers.records import CoordFrame, Rejected, SpeedRecord, SpeedRole
+from drivers.records import Rejected, SpeedRecord, SpeedRole
 from tests import nmea_encoders as enc
 
 DATA = Path(__file__).resolve().parents[1] / "data"
