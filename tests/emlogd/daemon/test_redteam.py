@@ -15,12 +15,9 @@ import json
 import os
 import signal
 import socket
-import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
 
 import pytest
 
@@ -41,6 +38,8 @@ from tests.emlogd.daemon.harness import (
     Daemon,
     free_port,
     make_work,
+    reaped,
+    run_daemon,
     saved_calibration,
     tcp_port,
     wait,
@@ -274,7 +273,8 @@ def test_the_log_reader_gone_costs_log_lines_not_the_daemon(tmp_path: Path) -> N
     r, w = os.pipe()
     sock = work / "run" / "control.sock"
     try:
-        with _writing_to(work, w, w) as proc:
+        with reaped(run_daemon(work, w)) as proc:
+            os.close(w)
             wait(functools.partial(_answers, sock), "the control socket")
             os.close(r)
             r = -1
@@ -285,28 +285,6 @@ def test_the_log_reader_gone_costs_log_lines_not_the_daemon(tmp_path: Path) -> N
     finally:
         if r >= 0:
             os.close(r)
-
-
-@contextlib.contextmanager
-def _writing_to(
-    work: Path, stdout: int, stderr: int | IO[bytes]
-) -> Iterator[subprocess.Popen[bytes]]:
-    """``emlogd run`` in ``work`` with its stdout on the pipe end ``stdout`` (closed here
-    once the daemon holds it) and its stderr on ``stderr``; killed at the end if it still
-    runs."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
-        stdout=stdout,
-        stderr=stderr,
-        cwd=work,
-    )
-    os.close(stdout)
-    try:
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
 
 
 def _answers(sock: Path) -> bool:
@@ -353,7 +331,8 @@ def test_a_stdout_reader_that_stops_reading_costs_its_sentences_only(
         open(work / "daemon.log", "wb") as log,
     ):
         try:
-            with _writing_to(work, w, log) as proc:
+            with reaped(run_daemon(work, w, log)) as proc:
+                os.close(w)
                 wait(functools.partial(_answers, sock), "the control socket")
                 flags = os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK
                 reader = os.open(work / "out" / "emlog0", flags)
