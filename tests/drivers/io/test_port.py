@@ -178,16 +178,11 @@ def _rss() -> int:
     return 0
 
 
-def test_replug_cycles_leak_no_descriptors(tmp_path: Path) -> None:
-    """Ten unplug/replug cycles each reconnect and read, and leak no file descriptor or memory."""
-    _replug_cycles(tmp_path, 10)
-
-
-@pytest.mark.soak
-def test_hundred_replug_cycles(tmp_path: Path) -> None:
-    """A hundred unplug/replug cycles each reconnect and read, and leak no file descriptor or memory
-    (soak run)."""
-    _replug_cycles(tmp_path, 100)
+@pytest.mark.parametrize("cycles", [10, pytest.param(100, marks=pytest.mark.soak)])
+def test_replug_cycles_leak_no_descriptors(tmp_path: Path, cycles: int) -> None:
+    """Unplug/replug cycles (10; 100 in the soak run) each reconnect and read, and leak no
+    file descriptor or memory."""
+    _replug_cycles(tmp_path, cycles)
 
 
 def test_a_silent_device_whose_path_names_another_is_opened_again(tmp_path: Path) -> None:
