@@ -365,6 +365,7 @@ NOBODY = 65534
 """The flooding user's id (``nobody``)."""
 
 
+@pytest.mark.root
 @pytest.mark.skipif(os.geteuid() != 0, reason="needs root to run a flood as another user")
 def test_a_users_many_processes_on_the_status_socket_do_not_evict_another_users_client(
     tmp_path: Path,

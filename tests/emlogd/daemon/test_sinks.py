@@ -374,6 +374,7 @@ def test_stream_sink_counts_errors_instead_of_raising() -> None:
     assert sink.counters.errors == 1 and sink.counters.sentences == 1
 
 
+@pytest.mark.root
 def test_the_pty_output_belongs_to_its_readers_group(tmp_path: Path) -> None:
     """``pty_group``: the pty behind the link is in that group, with the given mode."""
     import grp
