@@ -9,13 +9,14 @@ import json
 import sys
 from typing import Literal
 
-from emlogd.cli.common import UsageError
+from emlogd.cli.common import UsageError, key_arg
 from emlogd.cli.offline.args import uut_settings
 from emlogd.cli.offline.shared import check_writable, load, warn_lag
 from emlogd.offline import twoaxis
 from emlogd.offline.jobs import OfflineError, find_lag
 from emlogd.offline.simtruth import read_truth
 from emlogd.offline.tables import fmt, render
+from emlogd.pipeline.settings import UutSettings
 
 AXES_HELP = (
     "2: both axes of a log sending VBW against the DVL's bottom track (--ref-field "
@@ -25,7 +26,13 @@ AXES_HELP = (
 
 def axes_arg(p: argparse.ArgumentParser) -> None:
     """``--axes 1|2`` (default 1)."""
-    p.add_argument("--axes", type=int, choices=[1, 2], default=1, help=AXES_HELP)
+    p.add_argument(
+        "--axes",
+        type=key_arg(UutSettings, "axes", allow_auto=False),
+        default=1,
+        metavar="{1,2}",
+        help=AXES_HELP,
+    )
 
 
 def _records(args: argparse.Namespace, uut: str, ref: str) -> list[twoaxis.TwoAxisRecording]:
