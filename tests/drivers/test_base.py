@@ -16,18 +16,12 @@ from drivers.base import Decoder, DecoderOptions
 from drivers.errors import FieldError, FrameError
 from drivers.framing import LineFramer, with_checksum
 from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
+from drivers.rdi import CoordFrame
 from drivers.rdi_ascii import encode_pd6
 from drivers.rdi_pd0 import encode_pd0
 from drivers.rdi_pd45 import encode_pd45
-from drivers.records import CoordFrame, Rejected, SpeedRecord, SpeedRole
-from tests.nmea_encoders import (
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
-    encode_vtg,
-    encode_zda,
-)
+from drivers.records import Rejected, SpeedRecord, SpeedRole
+from tests import nmea_encoders as enc
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -130,12 +124,12 @@ def _nmea_samples() -> list[bytes]:
         encode_vhw(2.0, heading_true_deg=10.0, heading_mag_deg=12.0),
         encode_vbw(2.0, 0.1, ground_long_mps=2.1, ground_trans_mps=0.0, ground_valid=True),
         encode_rmc(T0, 3.0, 45.0, lat_deg=50.0, lon_deg=-4.0, variation_deg=-2.0),
-        encode_vtg(3.0, 45.0),
-        encode_gga(T0, 50.0, -4.0),
-        encode_zda(T0),
-        encode_hdt(90.0),
-        encode_hdm(88.0),
-        encode_hdg(88.0, 1.0, -2.0),
+        enc.encode_vtg(3.0, 45.0),
+        enc.encode_gga(T0, 50.0, -4.0),
+        enc.encode_zda(T0),
+        enc.encode_hdt(90.0),
+        enc.encode_hdm(88.0),
+        enc.encode_hdg(88.0, 1.0, -2.0),
         with_checksum("IIVLW,10.1,N,3.2,N"),
         with_checksum("YXMTW,15.2,C"),
         with_checksum("IIVDR,10.0,T,12.0,M,0.5,N"),
