@@ -490,7 +490,15 @@ class Pipeline:
         std = cal.output_std(value)
         calibrated = cal.applied is not None and u.s.apply
         cstd = consistency_std(std, u.s.r_raw_mps, value, calibrated)
-        fused = self.fusion.update(u.s.port, t, value, std, cstd_mps=cstd, calibrated=calibrated)
+        fused = self.fusion.update(
+            u.s.port,
+            t,
+            value,
+            std,
+            cstd_mps=cstd,
+            calibrated=calibrated,
+            referenced=cal.ref_state == "valid",
+        )
         if fused is None:
             return
         talker = self.fusion.s.talker
