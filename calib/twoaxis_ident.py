@@ -173,7 +173,7 @@ def judge_two_axis(
     heading_deg: FloatArray,
     *,
     current: bool,
-    info_of: twoaxis_model._Problem | None = None,
+    info_of: twoaxis_model.Problem | None = None,
     x: FloatArray | None = None,
     rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
     outside: dict[str, str] | None = None,
