@@ -28,7 +28,8 @@ values counts for little); the fused σ is ``1/√(Σ 1/σᵢ²)``. A log is lef
   is *still*: its block means over :data:`STILL_S` have stayed within
   :data:`STILL_SIGMAS` standard errors of a block mean (from the spread of its speeds
   within the blocks) and a quantum of each other, as a log stuck at one value with or
-  without noise reads. The fused output is then invalid: a stuck reading is not told
+  without noise reads — or *flat*, within the quantum for :data:`FLAT_S`, and not used
+  beside another log while flat that long. The fused output is then invalid: a stuck reading is not told
   from a steady speed by the log alone, and nothing else can tell. Still lasts until
   the block means spread beyond :data:`STILL_RELEASE_SIGMAS`, the log steps, or its
   speeds stop for a block;
@@ -209,6 +210,7 @@ class _Log:
         "t",
         "t_anchor",
         "t_break",
+        "t_company",
         "t_step",
         "t_still",
         "t_vouched",
@@ -245,6 +247,8 @@ class _Log:
         until they span :data:`STUCK_SPREAD_RATIO` of :data:`MOVE_SPAN_MPS`."""
         self.t_still = -math.inf
         """When the log last became still."""
+        self.t_company = -math.inf
+        """When the log was last used beside another log."""
         self.t_vouched = -math.inf
         """When the log was last used beside another still log (they vouch for each other)."""
         self.span = math.nan
@@ -459,11 +463,16 @@ class Fusion:
 
     @staticmethod
     def _vouched(t: float, used: list[_Log]) -> bool:
-        """Whether the logs about to be fused may be: False for one still log that
-        nothing vouches for; two or more still logs used together vouch for each other."""
+        """Whether the logs about to be fused may be: False for one log that nothing
+        vouches for, still or flat since it was last used beside another; two or more
+        still logs used together vouch for each other."""
         if len(used) == 1:
             lg = used[0]
-            return not lg.still or lg.referenced or lg.t_vouched >= lg.t_still
+            still = lg.still and lg.t_vouched < lg.t_still
+            flat = t - lg.t_anchor >= FLAT_S and lg.t_company < lg.t_anchor + FLAT_S
+            return lg.referenced or not (still or flat)
+        for lg in used:
+            lg.t_company = t
         if sum(1 for lg in used if lg.still) >= 2:
             for lg in used:
                 if lg.still:

@@ -553,11 +553,18 @@ class ReadingCheck:
             return DEFAULT_MAX_RATE_HZ
         return min(RATE_SLACK / self.nominal_s, DEFAULT_MAX_RATE_HZ)
 
-    def check(self, t: float, v: float) -> str:
-        """Judge one reading at receive time ``t``: ``""`` when plausible, else why not."""
+    def check(self, t: float, v: float, n: int = 1) -> str:
+        """Judge one reading at receive time ``t``: ``""`` when plausible, else why not.
+
+        ``n``: the readings of this sentence the read that brought it held (it the
+        newest; the others are backlog, not judged themselves): all of them count
+        against the rate, so a log babbling in bursts is no less babbling. A burst is
+        allowed what the time since the last read earned at the rate, beyond the
+        bucket's depth (a USB-serial stall released at once is no babble).
+        """
         self.reacquired = False
         drops = self._drops
-        if not self._rate(t):
+        if not self._rate(t, max(n, 1)):
             drops.append(t)
         while drops and t - drops[0] > BABBLE_S:
             del drops[0]
@@ -565,20 +572,23 @@ class ReadingCheck:
             return "rate"
         return self._accel(t, v)
 
-    def _rate(self, t: float) -> bool:
+    def _rate(self, t: float, n: int) -> bool:
         prev = self._t_rate
         if prev is not None:
             dt = max(t - prev, 0.0)
-            self._tokens = min(self._tokens + dt * self.max_rate_hz(), RATE_BURST)
+            self._tokens = min(self._tokens + dt * self.max_rate_hz(), RATE_BURST + n - 1)
+        else:  # the first read: nothing to judge its count against
+            self._tokens = RATE_BURST + n - 1
         self._t_rate = t
-        if self._tokens < 1.0:
+        if self._tokens < n:
             self._rate_dropped = True
+            self._tokens = min(self._tokens, RATE_BURST)
             return False
-        self._tokens -= 1.0
+        self._tokens -= n
         dropped, self._rate_dropped = self._rate_dropped, False
         if prev is not None and t > prev and not dropped and self.limits.max_rate_hz is None:
             iv = self._intervals
-            iv.append(t - prev)
+            iv.append((t - prev) / n)
             if len(iv) >= RATE_MIN_INTERVALS:
                 self.nominal_s = iv.upper()
         return True

@@ -60,8 +60,10 @@ BLOCK_S = 1.0
 offline command's α, 3.25 ± 0.14° for 3°, in a fifth of a second of CPU)."""
 WINDOW_S = 1800.0
 """The window fitted, s: the longest manoeuvre that determines α (a figure-8 of
-27 minutes; half of it leaves α's σ above the rule's 0.15°) and no longer (memory and
-the fit's CPU grow with it)."""
+27 minutes, α's σ 0.14–0.15°; its first 10–15 minutes give α near the rule's bound of
+0.25°, and the figures applied follow the sharper estimates as the window fills,
+:data:`emlogd.pipeline.twoaxis_sup.OFFER_SHARPER`) and no longer (memory and the
+fit's CPU grow with it)."""
 FIT_EVERY_S = 120.0
 """Block time between two fits, s: a manoeuvre that fills the window is fitted whole
 at least once before it slides out."""

@@ -15,7 +15,7 @@ from drivers.nmea0183 import encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import FUSED_PORT, Emit, Output, Pipeline
-from emlogd.pipeline.fusion import STILL_S, Fused, Fusion, FusionSettings
+from emlogd.pipeline.fusion import FLAT_S, STILL_S, Fused, Fusion, FusionSettings
 from emlogd.pipeline.integrity import STUCK_BLOCK_S
 from emlogd.pipeline.sentences import encode_fused_status
 from emlogd.pipeline.settings import PortSettings, UutSettings
@@ -369,8 +369,9 @@ class TestArbitration:
     def test_a_stuck_log_alone_beside_a_babbler_is_marked_invalid(self, noise_mps: float) -> None:
         """From t = 300 s log a reads 3.00 m/s (exactly, or ± 0.03 m/s of noise) while
         log b babbles at 50 Hz with 0–14 kn; no reference: nothing vouches for a. Within
-        STILL_S and one block the fused VHW has no speed and $PEMLF says V, naming a
-        still and b's rate; no fused speed after that presents a's reading as valid."""
+        FLAT_S (exactly) or STILL_S and one block (noisy) the fused VHW has no speed and
+        $PEMLF says V, naming a still; no fused speed after that presents a's reading as
+        valid. Before, a's reading went out as the valid fused speed."""
         p = _pipeline()
         rng = np.random.default_rng(11)
         out = Output()
@@ -388,7 +389,8 @@ class TestArbitration:
                 out.add(p.feed(T0 + t + 0.01 + j / 50.0, "b", _vhw(babble)))
         fused = _fused(out.emits)
         assert all(v is not None for t, v in fused if t < 300.0)
-        late = [v for t, v in fused if t >= 300.0 + STILL_S + STUCK_BLOCK_S]
+        within = FLAT_S + 1.0 if noise_mps == 0.0 else STILL_S + STUCK_BLOCK_S
+        late = [v for t, v in fused if t >= 300.0 + within]
         assert len(late) > 200 and all(v is None for v in late)
         last = _pemlf(out.emits)[-1]
         assert last[1] == "" and last[3:6] == ["0", "", "V"]
@@ -478,6 +480,70 @@ class TestPlausibility:
         for k in range(30):
             out.add(p.feed(T0 + 121.0 + k, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
         assert len(_speeds(out.emits, "a")) - n_before - len(babble) == 21
+
+    def test_a_log_babbling_in_bursts_is_babbling(self) -> None:
+        """A minute at 10 Hz, one sentence a read; then reads of 20 sentences of 0–14 kn
+        every 0.1 s (a babble as a serial port delivers it: one receive time a read).
+        All of a read's readings count against the rate, not only its newest: nothing
+        of the babble goes out, each read's newest counted as rate. Only the newest was
+        judged, at one a read, the log's own rate: the ones within the acceleration
+        bound of the last accepted went out (and, fused, won over a stuck log)."""
+        p, rec = _one_log()
+        n_learnt = 0
+        out = Output()
+        rng = np.random.default_rng(4)
+        for k in range(600):
+            out.add(p.feed(T0 + k / 10.0, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        n_before, n_learnt = len(_speeds(out.emits, "a")), len(rec.readings)
+        for k in range(300):
+            burst = b"".join(_vhw(rng.uniform(0.0, 14.0) * KNOT_MPS) for _ in range(20))
+            out.add(p.feed(T0 + 60.0 + k / 10.0, "a", burst))
+        assert len(_speeds(out.emits, "a")) == n_before and len(rec.readings) == n_learnt
+        counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
+        assert counters["implausible_rate"] == 300 and counters["implausible_accel"] == 0
+
+    def test_a_stall_released_at_once_is_no_babble(self) -> None:
+        """A 10 Hz log whose readings of 2 s come in one read (a USB-serial stall), five
+        times a minute: each read's newest goes out; nothing is counted as rate."""
+        p, _ = _one_log()
+        out = Output()
+        rng = np.random.default_rng(5)
+        t = 0.0
+        for k in range(600):
+            t = k / 10.0
+            out.add(p.feed(T0 + t, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        for _ in range(5):
+            t += 2.0
+            burst = b"".join(_vhw(2.8 + rng.normal(0.0, NOISE_MPS)) for _ in range(20))
+            out.add(p.feed(T0 + t, "a", burst))
+            for _ in range(100):
+                t += 0.1
+                out.add(p.feed(T0 + t, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        assert len(_speeds(out.emits, "a")) == 600 + 5 * 101
+        counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
+        assert counters["implausible_rate"] == 0 and counters["backlog"] == 5 * 19
+
+    def test_a_lone_stuck_log_without_a_reference_goes_out_as_read(self) -> None:
+        """One log, not fused, no reference: stuck at 3.0 ± 0.03 m/s after 300 s of
+        moving. Nothing can tell it from a steady speed: its readings go out as read
+        (never corrected), and the status says uncalibrated with the reference stale."""
+        p, _ = _one_log()
+        rng = np.random.default_rng(1)
+        out = Output()
+        raw = []
+        for k in range(600):
+            t = float(k)
+            v = float(_truth(np.array([t]))[0] + rng.normal(0.0, NOISE_MPS))
+            if k >= 300:
+                v = 3.0 + rng.normal(0.0, 0.03)
+            raw.append(round(v / KNOT_MPS, 2) * KNOT_MPS)
+            out.add(p.feed(T0 + t, "a", _vhw(v)))
+        speeds = _speeds(out.emits, "a")
+        assert speeds[300:] == pytest.approx(raw[300:], abs=0.006)
+        pemls = [e.sentence for e in out.emits if e.sentence.startswith("$PEMLS")][-1]
+        assert split_nmea(pemls.encode()).decode().split(",")[2::9] == ["U", "S"]
+        st = p.status()["uuts"]["a"]  # type: ignore[index]
+        assert st["state"] == "uncalibrated" and st["reference"] == "stale"
 
     def test_a_log_back_from_zero_is_judged_against_its_last_moving_level(self) -> None:
         """Dropouts to 0.00 are refused; a log that re-acquired zero (dead for 15 s) and
