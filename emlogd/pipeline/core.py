@@ -27,8 +27,8 @@ pipeline calls nothing of the caller's.
 
 A read that brings several readings of one sentence (a USB-serial stall released
 as a burst) carries one receive time for all: only the newest is fresh; the older
-ones are backlog — neither learnt from nor emitted as new — though all count against
-the log's rate (a babble arrives in such reads).
+ones are backlog — neither learnt from nor emitted as new — though the log's rate
+check counts them (a babble arrives in such reads).
 
 Outputs per UUT: VHW → corrected VHW (heading passed through); VBW → corrected VBW;
 a status sentence at most once per ``status_sentence_interval_s``, and with current states
@@ -317,8 +317,8 @@ class Pipeline:
 
     def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
         u = self.uuts.get(port)
-        # a UUT reading is fresh when it is the chunk's last of its sentence; all of
-        # them count against the log's rate
+        # a UUT reading is fresh when it is the chunk's last of its sentence; the rate
+        # check counts them all
         last: dict[str, int] = {}
         count: dict[str, int] = {}
         if u is not None:
@@ -397,7 +397,7 @@ class Pipeline:
         self, u: UutRoute, t: float, sp: SpeedRecord, *, fresh: bool, out: Output, n: int = 1
     ) -> None:
         """Correct a UUT reading and emit its sentence, then queue it for learning; ``n``:
-        the readings of its sentence in its read (the rate counts them all)."""
+        the readings of its sentence in its read (the rate check counts them)."""
         cal = u.cal
         raw = speed_of(sp, u.s.component)
         if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh, n):
@@ -538,16 +538,18 @@ class Pipeline:
         )
 
     def _after(self, t: float, out: Output) -> None:
+        two_axis = self.two_axis
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
-            ax = self.two_axis.get(u.s.port)
-            if ax is not None and ax.sup.changed:
-                ax.sup.changed, cal.dirty = False, True
-            if cal.dirty:
+            if two_axis:
+                ax = two_axis.get(u.s.port)
+                if ax is not None and ax.sup.changed:
+                    ax.sup.changed, cal.dirty = False, True
+            if cal.sup.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
                     out.persist.append(self._with_two_axis(snap))

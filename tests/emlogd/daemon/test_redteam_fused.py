@@ -10,9 +10,12 @@ import random
 import time
 from pathlib import Path
 
+import pytest
+
 from drivers.framing import split_nmea
 from drivers.nmea0183 import encode_vhw
 from drivers.records import KNOT_MPS
+from emlogd.pipeline.fusion import FLAT_S
 from tests.emlogd.daemon.harness import Daemon, make_work, raw_pty
 
 CONFIG = """\
@@ -74,6 +77,48 @@ def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) 
         assert [f for f in fused if f] == []
         counters = daemon.uut("emlog2")["counters"]
         assert isinstance(counters, dict) and counters["implausible_rate"] > 20, counters
+    finally:
+        daemon.stop()
+        os.close(m1)
+        os.close(m2)
+
+
+@pytest.mark.soak
+def test_a_stuck_log_beside_a_babbler_is_marked_invalid_live(tmp_path: Path) -> None:
+    """Both logs at 10 Hz for 3 s; then emlog1 reads 3.00 m/s flat and emlog2 babbles
+    in bursts, for 14 s: within FLAT_S and a second of the stuck reading the fused VHW
+    goes out without a speed and ``$PEMLF`` says V, naming emlog1 still; emlog2 is
+    never used. (Slow: the still rule needs FLAT_S of a flat log alone.)"""
+    work = make_work(tmp_path, CONFIG)
+    m1 = raw_pty(work / "links" / "emlog1")
+    m2 = raw_pty(work / "links" / "emlog2")
+    rng = random.Random(2)
+    daemon = Daemon(work, pty=True)
+    try:
+        t0 = time.monotonic()
+        k = 0
+        while time.monotonic() - t0 < 3.0:
+            v = 2.9 + 0.1 * ((k % 30) / 30.0)
+            os.write(m1, _vhw(v + rng.gauss(0.0, 0.02)))
+            os.write(m2, _vhw(v + rng.gauss(0.0, 0.02)))
+            daemon.pump(STEP_S)
+            k += 1
+        before = len(daemon.lines)
+        t1 = time.monotonic()
+        marks: list[int] = []
+        while time.monotonic() - t1 < 14.0:
+            os.write(m1, _vhw(3.0))
+            os.write(m2, b"".join(_vhw(rng.uniform(0.0, 14.0) * KNOT_MPS) for _ in range(20)))
+            daemon.pump(STEP_S)
+            if time.monotonic() - t1 > FLAT_S + 1.0 and not marks:
+                marks.append(len(daemon.lines))
+        status = [_fields(x) for x in daemon.lines[before + 4 :] if x.startswith(b"$PEMLF")]
+        assert status and all("emlog2" not in f[4].split(";") for f in status)
+        late = daemon.lines[marks[0] :]
+        fused = [_fields(x)[5] for x in late if x.startswith(b"$IIVHW")]
+        assert len(fused) > 20 and all(f == "" for f in fused), fused
+        last = [_fields(x) for x in late if x.startswith(b"$PEMLF")][-1]
+        assert last[3:6] == ["0", "", "V"] and "emlog1:still" in last[6], last
     finally:
         daemon.stop()
         os.close(m1)

@@ -484,8 +484,9 @@ class TestPlausibility:
     def test_a_log_babbling_in_bursts_is_babbling(self) -> None:
         """A minute at 10 Hz, one sentence a read; then reads of 20 sentences of 0–14 kn
         every 0.1 s (a babble as a serial port delivers it: one receive time a read).
-        All of a read's readings count against the rate, not only its newest: nothing
-        of the babble goes out, each read's newest counted as rate. Only the newest was
+        A read holding more readings than its time since the last earned at the rate
+        (READ_SLACK) is dropped for the rate: nothing of the babble goes out, nothing
+        is learnt, each read's newest counted as rate. Only the newest was
         judged, at one a read, the log's own rate: the ones within the acceleration
         bound of the last accepted went out (and, fused, won over a stuck log)."""
         p, rec = _one_log()
