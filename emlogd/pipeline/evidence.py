@@ -60,6 +60,26 @@ CUSUM_CLIP = 7.0
 """A normalised innovation counts at most this much (one glitch is not a change)."""
 
 
+CUSUM_MIN_SPAN_S = 10.0
+"""The change detector's baseline (a :class:`FitWindow`) is judged on once it spans
+this long, s, since it was last emptied (an alarm, a calibration applied or withdrawn).
+Ten samples of a 5–10 Hz log are a second or two of errors correlated over seconds at
+one heading: their spread understates the innovations' and the current fitted on them
+is that moment's offset. In a turn in a current (its share along the hull changes by
+up to 0.013 m/s a second at 3°/s in 0.25 m/s) such a baseline alarms again within
+seconds, each alarm empties it, and an alarm of that cascade, judged against raw on a
+run of a few samples, holds or withdraws a healthy calibration. Ten seconds is ten
+samples of a 1 Hz log and 30° of a 3°/s turn."""
+
+
+CUSUM_MAX_GAP_S = 60.0
+"""After the scored samples (readings with their reference) fell silent for longer than
+this, s (the reference or the log lost, captures minutes apart), the change detector
+starts afresh: its baseline is another sea's (a current that moved 0.2 m/s over five
+minutes is an innovation at once, and on a straight leg it cannot be told from an
+offset of the log)."""
+
+
 HOLD_SIGMAS = CUSUM_CLIP
 """An innovation of the applied calibration this many standard deviations out (the
 CUSUM's clip: no single glitch counts for more) where the log jumped and the reference
@@ -356,6 +376,8 @@ class FitWindow:
     def reset(self) -> None:
         """Empty the window."""
         self.t: float | None = None
+        self.t0: float | None = None
+        """The first sample's time since the window was emptied, s."""
         self.n = 0.0
         self.a = [0.0, 0.0, 0.0]
         self.b = [[0.0, 0.0] for _ in range(self.k)]
@@ -372,6 +394,7 @@ class FitWindow:
                 bk[1] *= lam
             self.ss = [x * lam for x in self.ss]
         self.t = t if self.t is None else max(t, self.t)
+        self.t0 = t if self.t0 is None else self.t0
         self.n += 1.0
         c, s = self._h(cs)
         self.a[0] += c * c

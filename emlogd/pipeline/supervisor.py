@@ -84,6 +84,8 @@ from typing import TYPE_CHECKING
 from calib.models import Layout, Params
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.evidence import (
+    CUSUM_MAX_GAP_S,
+    CUSUM_MIN_SPAN_S,
     HOLD_SIGMAS,
     Course,
     Cusum,
@@ -137,7 +139,8 @@ CUSUM_HALF_LIFE_S = 60.0
 
 CUSUM_MIN_SAMPLES = 10.0
 """The CUSUM runs once its window holds this many (forgotten) samples of the applied
-calibration (its own current and spread are known). While a CUSUM run builds up, its
+calibration (its own current and spread are known) and spans
+:data:`~emlogd.pipeline.evidence.CUSUM_MIN_SPAN_S`. While a CUSUM run builds up, its
 samples stay out of the window: a change is not absorbed by the baseline it is judged
 against."""
 
@@ -207,6 +210,7 @@ class Supervisor:
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
         self.course = Course(CUSUM_HALF_LIFE_S)
+        self.t_detect = -math.inf
         self.drift = Drift()
         self.held = False
         """Raw passes through until the CUSUM run decides (``HOLD_SIGMAS``)."""
@@ -470,8 +474,11 @@ class Supervisor:
         error less what its own current (:data:`CUSUM_HALF_LIFE_S`) predicts; an alarm
         whose errors are raw's or smaller is the sea's, :attr:`sea_changed` when the
         reference jumped)."""
+        if t - self.t_detect > CUSUM_MAX_GAP_S:
+            self._reset_detector(refit=False)  # its baseline is another sea's
+        self.t_detect = t
         w = self.detector
-        if w.n < CUSUM_MIN_SAMPLES:
+        if w.n < CUSUM_MIN_SAMPLES or w.t0 is None or t - w.t0 < CUSUM_MIN_SPAN_S:
             w.add(t, cs, (e_app,))
             return False
         sigma = max(w.rmse(0), CUSUM_SIGMA_FLOOR_MPS) * math.sqrt(1.0 + w.leverage(cs))
