@@ -8,7 +8,11 @@ it. Each is scored against the truth's speed through the water along and athwart
 hull at the reading's time less the sensor's true latency; the floor is the reading
 corrected with the true parameters (:meth:`calib.twoaxis.TwoAxisParams.correct`), as
 ``evaluate --axes 2 --truth`` scores it. Scores are given over the whole replay, over
-the readings emitted with the figures applied, and per trajectory of the trial.
+the readings emitted with the figures applied, and per trajectory of the trial; and
+the athwart speed per window of :data:`~emlogd.offline.simfaults.WINDOW_S` (those with
+fewer than :data:`~emlogd.offline.simfaults.MIN_WINDOW_SAMPLES` scored readings left
+out), whose worst against raw and against the floor say whether the corrected VBW was
+ever worse than the reading it replaced.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from calib.models import FloatArray
 from drivers import make_decoder
 from drivers.nmea0183 import NmeaDecoder
 from drivers.records import Rejected
+from emlogd.offline.simfaults import MIN_WINDOW_SAMPLES, WINDOW_S
 from emlogd.offline.simtruth import Truth
 from emlogd.pipeline.core import Emit, Pipeline
 
@@ -103,9 +108,52 @@ class AthwartScorer:
         return {
             **block(everything),
             "applied": block(on),
+            **_worst_windows(q, err["t_raw"], err["t_corrected"], err["t_floor"]),
             "by_trajectory": {
                 str(int(k)): block(traj == k)
                 | {"applied_share": round(float(np.mean(on[traj == k])), 3)}
                 for k in np.unique(traj)
             },
         }
+
+
+def _worst_windows(
+    t: FloatArray, e_raw: FloatArray, e_cor: FloatArray, e_floor: FloatArray
+) -> dict[str, object]:
+    """The athwart speed per window of :data:`WINDOW_S` from the first reading: the
+    window whose emitted RMSE is furthest above raw's (``worst_window_raw``) and the one
+    furthest above the floor's (``worst_window_floor``), each ``{"t0", "n_samples",
+    "rmse_t_raw", "rmse_t_corrected", "rmse_t_floor", "ratio"}``, and how many windows
+    were scored; None where no window has :data:`MIN_WINDOW_SAMPLES` scored readings."""
+    ok = np.isfinite(e_raw) & np.isfinite(e_cor) & np.isfinite(e_floor)
+    rows: list[dict[str, float | int]] = []
+    if np.any(ok):
+        tt, er, ec, ef = t[ok], e_raw[ok], e_cor[ok], e_floor[ok]
+        idx = np.floor((tt - tt[0]) / WINDOW_S).astype(np.int64)
+        for k in np.unique(idx).tolist():
+            sel = idx == k
+            n = int(np.count_nonzero(sel))
+            if n < MIN_WINDOW_SAMPLES:
+                continue
+            r, c, f = (math.sqrt(float(np.mean(x[sel] * x[sel]))) for x in (er, ec, ef))
+            rows.append({"t0": float(tt[0] + k * WINDOW_S), "n": n, "raw": r, "cor": c, "floor": f})
+
+    def worst(by: str) -> dict[str, object] | None:
+        scored = [w for w in rows if w[by] > 0.0]
+        if not scored:
+            return None
+        w = max(scored, key=lambda x: x["cor"] / x[by])
+        return {
+            "t0": round(w["t0"], 3),
+            "n_samples": w["n"],
+            "rmse_t_raw": round(w["raw"], 5),
+            "rmse_t_corrected": round(w["cor"], 5),
+            "rmse_t_floor": round(w["floor"], 5),
+            "ratio": round(w["cor"] / w[by], 4),
+        }
+
+    return {
+        "windows": len(rows),
+        "worst_window_raw": worst("raw"),
+        "worst_window_floor": worst("floor"),
+    }

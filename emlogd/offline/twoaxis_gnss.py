@@ -18,8 +18,8 @@ least squares takes as signal and so pulls each scale toward −1 (errors in
 variables). On the simulated figure-8 of 2026-11-27 (``emlogd simulate --seed 1
 --sensor emlog2:misalign=3,mt=-0.08,bt=0.04``, the DVL's heading, ``age_s`` 0.77,
 lag −0.32 s) :func:`calib.twoaxis.fit_two_axis` gave the transverse scale −0.21 for
-−0.08 and refused α on its σ (0.18° > 0.15°; 0.82° once the residuals' correlation,
-one fix per ten readings, is counted). A DVL's 0.01 m/s leaves 4 % of that.
+−0.08 and α a σ of 0.18° (0.82° once the residuals' correlation, one fix per ten
+readings, is counted). A DVL's 0.01 m/s leaves 4 % of that.
 """
 
 from __future__ import annotations

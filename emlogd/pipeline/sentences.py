@@ -20,7 +20,8 @@ The fused speed's status (``$P`` + maker + ``F``)::
 
 fields: the fused speed and its σ in knots (empty when invalid), the number of logs
 used and their names (heaviest weight first), the status (``A`` valid, ``V`` invalid:
-logs disagree and nothing tells which is right), and the logs left out with their
+logs disagree and nothing tells which is right, or the one log left is still and
+nothing vouches for it), and the logs left out with their
 reasons (``name:reason`` joined by ``;``; see :mod:`emlogd.pipeline.fusion`). Names are
 cut to fit 82 characters, the used ones first.
 """

@@ -31,7 +31,14 @@ from emlogd.pipeline.revalidation import worse
 
 OFFER_MIN_CHANGE_SIGMA = 1.0
 """A new estimate is validated against the figures in use only when one of α, m_t, b_t
-moved by more than this many of its σ (else the figures in use stay, without churn)."""
+moved by more than this many of its σ, or α's σ shrank (:data:`OFFER_SHARPER`); else
+the figures in use stay, without churn."""
+OFFER_SHARPER = 0.9
+"""A new estimate whose α has a σ under this share of the figures in use's is
+validated too, though within their σ: the window first determines α before the whole
+figure-8 is in (σ near the rule's bound, :class:`calib.twoaxis_ident.TwoAxisRule`),
+and the figures applied follow it as it fills (a 27-minute figure-8 ends near
+0.15°)."""
 
 Block = tuple[float, float, float, float, float]
 """One block mean as judged: (t s, forward corrected by the one-axis calibration m/s,
@@ -76,10 +83,12 @@ class Figures:
 
     def moved(self, other: Figures) -> bool:
         """Whether ``other`` differs from these by more than
-        :data:`OFFER_MIN_CHANGE_SIGMA` of its σ in any figure."""
+        :data:`OFFER_MIN_CHANGE_SIGMA` of its σ in any figure, or determines α more
+        sharply (its σ under :data:`OFFER_SHARPER` of these')."""
         k = OFFER_MIN_CHANGE_SIGMA
         return (
-            abs(other.misalign_deg - self.misalign_deg) > k * other.misalign_std_deg
+            other.misalign_std_deg < OFFER_SHARPER * self.misalign_std_deg
+            or abs(other.misalign_deg - self.misalign_deg) > k * other.misalign_std_deg
             or abs(other.m_t - self.m_t) > k * other.m_t_std
             or abs(other.b_t_mps - self.b_t_mps) > k * other.b_t_std_mps
         )

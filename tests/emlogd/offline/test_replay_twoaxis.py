@@ -7,10 +7,13 @@ import contextlib
 import io
 import json
 
+import numpy as np
 import pytest
 
 from emlogd.cli import main
 from emlogd.daemon.statefile import StateStore
+from emlogd.offline.replay_twoaxis import _worst_windows
+from emlogd.offline.simfaults import WINDOW_S
 from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
 
 CFG = """\
@@ -62,6 +65,11 @@ def test_two_axis_learnt_applied_and_scored(replayed: dict[str, object]) -> None
     assert on["rmse_t_raw"] > 3.0 * on["rmse_t_floor"]
     assert on["rmse_l_corrected"] <= on["rmse_l_one_axis"] + 0.002
     assert set(scores["by_trajectory"]) == {"2", "4"}
+    assert scores["windows"] >= 4
+    assert scores["worst_window_raw"]["ratio"] <= 1.0 + 1e-9
+    assert (
+        scores["worst_window_raw"]["rmse_t_corrected"] <= scores["worst_window_raw"]["rmse_t_raw"]
+    )
     assert "two_axis" not in uuts["emlog1"] and "two_axis_truth" not in uuts["emlog1"]
 
 
@@ -74,3 +82,26 @@ def test_the_validated_figures_are_persisted(replayed: dict[str, object]) -> Non
     assert isinstance(uuts, dict)
     assert saved["emlog2"].two_axis == pytest.approx(uuts["emlog2"]["two_axis"]["applied"])
     assert saved["emlog1"].two_axis is None
+
+
+def test_athwart_worst_windows() -> None:
+    """Per 5-minute window: the one where the emitted athwart speed is furthest above
+    raw (here the second, where it is twice raw) and the one furthest above the floor;
+    a window with too few readings is left out; nothing scored, None."""
+    n = 300
+    t = np.arange(3 * n + 10, dtype=np.float64) * (WINDOW_S / n)
+    raw = np.full(t.size, 0.1)
+    cor = np.where((t >= WINDOW_S) & (t < 2 * WINDOW_S), 0.2, 0.05)
+    floor = np.where(t < WINDOW_S, 0.01, 0.05)
+    got = _worst_windows(t, raw, cor, floor)
+    assert got["windows"] == 3
+    worst_raw, worst_floor = got["worst_window_raw"], got["worst_window_floor"]
+    assert isinstance(worst_raw, dict) and isinstance(worst_floor, dict)
+    assert worst_raw["t0"] == pytest.approx(WINDOW_S) and worst_raw["ratio"] == pytest.approx(2.0)
+    assert worst_floor["t0"] == pytest.approx(0.0) and worst_floor["ratio"] == pytest.approx(5.0)
+    nan = np.full(t.size, np.nan)
+    assert _worst_windows(t, nan, cor, floor) == {
+        "windows": 0,
+        "worst_window_raw": None,
+        "worst_window_floor": None,
+    }

@@ -20,7 +20,7 @@ from emlogd.pipeline.twoaxis_learn import (
     TwoAxisLearner,
     encode_two_axis_status,
 )
-from emlogd.pipeline.twoaxis_sup import Figures
+from emlogd.pipeline.twoaxis_sup import OFFER_SHARPER, Figures
 from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_trial
 
 SETTINGS = UutSettings(
@@ -92,6 +92,20 @@ def test_figure8_learns_and_applies(figure8: tuple[TwoAxisLearner, Events]) -> N
     assert out == pytest.approx((u, w), abs=0.02)
     msg = pynmea2.parse(encode_two_axis_status("log", "EML", lr), check=True)
     assert msg.data[:4] == ["T", "log", "A", f"{applied.misalign_deg:+.2f}"]
+
+
+def test_the_figures_applied_follow_the_sharpest_estimate(
+    figure8: tuple[TwoAxisLearner, Events],
+) -> None:
+    """α is first determined before the whole figure-8 is in the window, with a σ
+    near the rule's bound; the figures applied at the end are the window's sharpest
+    (within :data:`OFFER_SHARPER` of the last estimate's σ), not the first learnt."""
+    lr, events = figure8
+    est, applied = lr.estimate, lr.sup.applied
+    assert est is not None and applied is not None
+    assert applied.misalign_std_deg <= est.misalign_std_deg / OFFER_SHARPER
+    first = next(d for _, k, d in events if k == "two_axis_applied")
+    assert float(str(first["misalign_deg"])) != pytest.approx(applied.misalign_deg, abs=1e-3)
 
 
 def test_straight_run_refuses_alpha() -> None:

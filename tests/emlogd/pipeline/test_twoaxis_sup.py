@@ -16,6 +16,10 @@ def _applied(sup: TwoAxisSupervisor) -> Figures | None:
     return sup.applied
 
 
+def _candidate(sup: TwoAxisSupervisor) -> Figures | None:
+    return sup.candidate
+
+
 def _blocks(alpha_deg: float, n: int, t0: float = 0.0) -> list[Block]:
     """Block means of a log turned ``alpha_deg`` (m_t −0.1, b_t 0.05) swinging its sway
     in turns at a speed that varies, heading sweeping, a current (0.1, −0.2)."""
@@ -33,8 +37,8 @@ def _blocks(alpha_deg: float, n: int, t0: float = 0.0) -> list[Block]:
     return out
 
 
-def _figures(alpha_deg: float, t: float = 0.0) -> Figures:
-    return Figures(alpha_deg, 0.1, -0.1, 0.01, 0.05, 0.01, t)
+def _figures(alpha_deg: float, t: float = 0.0, alpha_std_deg: float = 0.1) -> Figures:
+    return Figures(alpha_deg, alpha_std_deg, -0.1, 0.01, 0.05, 0.01, t)
 
 
 def test_supervisor_applies_rejects_and_withdraws() -> None:
@@ -75,3 +79,23 @@ def test_hull_frame_inverts_the_sensor() -> None:
         raw_t = 0.9 * (w * math.cos(a) - u * math.sin(a)) + 0.05
         assert f.hull_frame(u + w * math.tan(a), raw_t) == pytest.approx((u, w), abs=1e-12)
     assert f.as_dict()["misalign_deg"] == 4.0
+
+
+def test_a_sharper_estimate_replaces_the_figures_in_use() -> None:
+    """An estimate within the σ of the figures applied is not validated (no churn),
+    unless it determines α more sharply: then it validates and is applied, so the
+    figures follow the window as it fills."""
+    events: Events = []
+    sup = TwoAxisSupervisor(60.0, 600.0, lambda t, k, d: events.append((t, k, dict(d))))
+    sup.offer(_figures(3.1, 0.0, alpha_std_deg=0.24))
+    for b in _blocks(3.0, 70):
+        sup.observe(b)
+    assert _applied(sup) == _figures(3.1, 0.0, alpha_std_deg=0.24)
+    sup.offer(_figures(3.05, 70.0, alpha_std_deg=0.23))  # within σ, hardly sharper
+    assert _candidate(sup) is None
+    sharper = _figures(3.0, 70.0, alpha_std_deg=0.15)
+    sup.offer(sharper)
+    assert _candidate(sup) == sharper
+    for b in _blocks(3.0, 70, 71.0):
+        sup.observe(b)
+    assert _applied(sup) == sharper and events[-1][1] == "two_axis_applied"
