@@ -208,12 +208,13 @@ def _inv_diag(info: FloatArray, cols: list[int]) -> FloatArray | None:
     From one eigendecomposition of that matrix scaled to a unit diagonal:
     ``(M⁻¹)ᵢᵢ = Σₖ Vᵢₖ² / λₖ`` over its eigenpairs, divided by the scale².
     """
-    sub = info[np.ix_(cols, cols)]
-    scale = np.sqrt(np.maximum(np.diag(sub), 1e-300))
-    eig, vec = np.linalg.eigh(sub / np.outer(scale, scale))
+    sub = info[cols][:, cols]
+    scale = np.sqrt(np.maximum(sub.diagonal(), 1e-300))
+    eig, vec = np.linalg.eigh(sub / (scale[:, None] * scale))
     if not float(eig[0]) > 1e-12 * max(float(eig[-1]), 1e-300):
         return None
-    return np.asarray((vec * vec) @ (1.0 / eig) / (scale * scale), dtype=np.float64)
+    inv_diag: FloatArray = (vec * vec) @ (1.0 / eig) / (scale * scale)
+    return inv_diag
 
 
 def judge(
@@ -365,7 +366,7 @@ class _Figures:
         key = tuple(cols)
         found = self._cond.get(key)
         if found is None:
-            eig = np.linalg.eigvalsh(self.info[np.ix_(cols, cols)])
+            eig = np.linalg.eigvalsh(self.info[cols][:, cols])
             found = float(eig[-1] / eig[0]) if float(eig[0]) > 0.0 else math.inf
             self._cond[key] = found
         return found

@@ -41,7 +41,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
@@ -84,9 +84,9 @@ sentence often follows the fix; a wrong heading is tens of degrees off, not a tu
 1.5 s)."""
 
 
-@dataclass(frozen=True, slots=True)
-class Emit:
-    """A sentence to send to every output sink.
+class Emit(NamedTuple):
+    """A sentence to send to every output sink (a named tuple: one is made per sentence,
+    in a third of a frozen dataclass's time).
 
     Attributes:
         t: the receive time of the UUT sentence that caused it, s.

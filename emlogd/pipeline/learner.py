@@ -31,7 +31,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 
@@ -120,9 +120,11 @@ class Offer:
     param_std: Mapping[str, float]
 
 
-@dataclass(frozen=True, slots=True)
-class Aligned:
-    """One reading with the reference and heading at ``t − lag`` (None when unknown)."""
+class Aligned(NamedTuple):
+    """One reading with the reference and heading at ``t − lag`` (None when unknown).
+
+    Named tuples, this and :class:`Learnt`: one of each is made per reading, in a third
+    of a frozen dataclass's time."""
 
     t: float
     raw: float
@@ -134,8 +136,7 @@ class Aligned:
     ref_state: RefState
 
 
-@dataclass(frozen=True, slots=True)
-class Learnt:
+class Learnt(NamedTuple):
     """What one filter step did with a reading."""
 
     valid: bool
@@ -660,12 +661,11 @@ class Learner:
         for name in self.layout.params:
             if name in self.learnt_ever and std[name] > limits.get(name, math.inf):
                 return None
-        est = self.kf.params
-        if self.s.envelope.check(est, self.kf.current_mps):
+        if self.s.envelope.check_values(*self.kf.amb(), self.kf.current_mps):
             return None
         if not self._correction_determined(std):
             return None
-        return Offer(est, std)
+        return Offer(self.kf.params, std)
 
     def _correction_determined(self, std_offer: Mapping[str, float]) -> bool:
         """The correction at the speed through the water now is :data:`OFFER_SIGMAS` of
