@@ -45,6 +45,19 @@ def _fields(line: bytes) -> list[str]:
     return split_nmea(line).decode().split(",")
 
 
+def _agreeing(daemon: Daemon, m1: int, m2: int, rng: random.Random) -> int:
+    """Both logs at 10 Hz, agreeing, for 3 s; the output lines read until then."""
+    t0 = time.monotonic()
+    k = 0
+    while time.monotonic() - t0 < 3.0:
+        v = 2.9 + 0.1 * ((k % 30) / 30.0)
+        os.write(m1, _vhw(v + rng.gauss(0.0, 0.02)))
+        os.write(m2, _vhw(v + rng.gauss(0.0, 0.02)))
+        daemon.pump(STEP_S)
+        k += 1
+    return len(daemon.lines)
+
+
 def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) -> None:
     """Both logs at 10 Hz for 3 s; then emlog1 falls silent and emlog2 babbles, 20
     sentences of 0–14 kn in one write every 0.1 s, for 4 s. No fused speed goes out
@@ -59,15 +72,7 @@ def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) 
     rng = random.Random(1)
     daemon = Daemon(work, pty=True)
     try:
-        t0 = time.monotonic()
-        k = 0
-        while time.monotonic() - t0 < 3.0:
-            v = 2.9 + 0.1 * ((k % 30) / 30.0)
-            os.write(m1, _vhw(v + rng.gauss(0.0, 0.02)))
-            os.write(m2, _vhw(v + rng.gauss(0.0, 0.02)))
-            daemon.pump(STEP_S)
-            k += 1
-        before = len(daemon.lines)
+        before = _agreeing(daemon, m1, m2, rng)
         t1 = time.monotonic()
         while time.monotonic() - t1 < 4.0:
             os.write(m2, b"".join(_vhw(rng.uniform(0.0, 14.0) * KNOT_MPS) for _ in range(20)))
@@ -95,15 +100,7 @@ def test_a_stuck_log_beside_a_babbler_is_marked_invalid_live(tmp_path: Path) -> 
     rng = random.Random(2)
     daemon = Daemon(work, pty=True)
     try:
-        t0 = time.monotonic()
-        k = 0
-        while time.monotonic() - t0 < 3.0:
-            v = 2.9 + 0.1 * ((k % 30) / 30.0)
-            os.write(m1, _vhw(v + rng.gauss(0.0, 0.02)))
-            os.write(m2, _vhw(v + rng.gauss(0.0, 0.02)))
-            daemon.pump(STEP_S)
-            k += 1
-        before = len(daemon.lines)
+        before = _agreeing(daemon, m1, m2, rng)
         t1 = time.monotonic()
         marks: list[int] = []
         while time.monotonic() - t1 < 14.0:
