@@ -468,7 +468,9 @@ time since the last read earned at the log's sentence rate (reads bunch up when 
 daemon is busy); beyond, its newest is dropped for the rate (a log babbling 20
 sentences a read). The sentence rate is learnt like the read rate, from the readings
 per second of the reads not dropped (a multiplexer batching a 10-Hz log once a second
-sends ten a read), at most :data:`DEFAULT_MAX_RATE_HZ` (``max_rate_hz`` fixes it)."""
+sends ten a read; a replay at 20 times real time reads a 10-Hz log at 200 Hz); until
+:data:`RATE_MIN_INTERVALS` reads have taught it, a read's count is not judged
+(``max_rate_hz`` fixes the rate and judges from the first read)."""
 
 RATE_HISTORY = 32
 """The nominal interval is the median of this many intervals between consecutive
@@ -585,7 +587,8 @@ class ReadingCheck:
         ok = self._rate(t)
         if prev is not None:
             dt = max(t - prev, 0.0)
-            if n > RATE_BURST + READ_SLACK * dt * self._sentence_rate_hz():
+            rate = self._sentence_rate_hz()
+            if rate is not None and n > RATE_BURST + READ_SLACK * dt * rate:
                 ok = False
             elif ok and dt > 0.0:
                 self._per_sentence.append(dt / max(n, 1))
@@ -597,13 +600,14 @@ class ReadingCheck:
             return "rate"
         return self._accel(t, v)
 
-    def _sentence_rate_hz(self) -> float:
-        """The readings per second a read may bring (:data:`READ_SLACK`), Hz."""
+    def _sentence_rate_hz(self) -> float | None:
+        """The readings per second a read may bring (:data:`READ_SLACK`), Hz; None until
+        learnt."""
         if self.limits.max_rate_hz is not None:
             return self.limits.max_rate_hz
         if len(self._per_sentence) < RATE_MIN_INTERVALS:
-            return DEFAULT_MAX_RATE_HZ
-        return min(1.0 / max(self._per_sentence.median(), 1e-9), DEFAULT_MAX_RATE_HZ)
+            return None
+        return 1.0 / max(self._per_sentence.median(), 1e-9)
 
     def _rate(self, t: float) -> bool:
         prev = self._t_rate
