@@ -53,7 +53,9 @@ import numpy as np
 from calib import twoaxis_model
 from calib.excitation import (
     DEFAULT_RULE,
+    LABELS,
     N_SECTORS,
+    UNITS,
     ExcitationRule,
     heading_sectors,
 )
@@ -117,16 +119,8 @@ class TwoAxisRule:
 
 DEFAULT_TWO_AXIS_RULE = TwoAxisRule()
 
-_LABEL = {
-    "a": "curvature",
-    "m": "scale",
-    "b": "bias",
-    ALPHA: "misalignment",
-    M_T: "transverse scale",
-    B_T: "transverse bias",
-    CURRENT: "current",
-}
-_UNIT = {"a": " s/m", "m": "", "b": " m/s", ALPHA: "°", M_T: "", B_T: " m/s", CURRENT: " m/s"}
+_LABEL = {**LABELS, ALPHA: "misalignment", M_T: "transverse scale", B_T: "transverse bias"}
+_UNIT = {**UNITS, ALPHA: "°", M_T: "", B_T: " m/s"}
 
 
 _ALPHA_WITH_SCALE = (
@@ -178,7 +172,7 @@ def judge_two_axis(
     heading_deg: FloatArray,
     *,
     current: bool,
-    info_of: twoaxis_model._Problem | None = None,
+    info_of: twoaxis_model.Problem | None = None,
     x: FloatArray | None = None,
     rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
     outside: dict[str, str] | None = None,

@@ -538,16 +538,18 @@ class Pipeline:
         )
 
     def _after(self, t: float, out: Output) -> None:
+        two_axis = self.two_axis
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
-            ax = self.two_axis.get(u.s.port)
-            if ax is not None and ax.sup.changed:
-                ax.sup.changed, cal.dirty = False, True
-            if cal.dirty:
+            if two_axis:
+                ax = two_axis.get(u.s.port)
+                if ax is not None and ax.sup.changed:
+                    ax.sup.changed, cal.dirty = False, True
+            if cal.sup.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
                     out.persist.append(self._with_two_axis(snap))

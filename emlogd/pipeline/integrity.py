@@ -97,7 +97,12 @@ class Envelope:
 
     def check(self, params: Params, current_mps: tuple[float, float] | None = None) -> str:
         """``""`` when the calibration is inside the envelope, else why not."""
-        a, m, b = params.a_spm, params.m, params.b_mps
+        return self.check_values(params.a_spm, params.m, params.b_mps, current_mps)
+
+    def check_values(
+        self, a: float, m: float, b: float, current_mps: tuple[float, float] | None = None
+    ) -> str:
+        """:meth:`check` on the parameters' values (a filter's state, unbuilt)."""
         if not (math.isfinite(a) and math.isfinite(m) and math.isfinite(b)):
             return "parameters not finite"
         if abs(m) > self.max_abs_m:

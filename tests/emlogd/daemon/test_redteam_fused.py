@@ -45,8 +45,9 @@ def _fields(line: bytes) -> list[str]:
     return split_nmea(line).decode().split(",")
 
 
-def _agreeing(daemon: Daemon, m1: int, m2: int, rng: random.Random) -> int:
-    """Both logs at 10 Hz, agreeing, for 3 s; the output lines read until then."""
+def _both_agree(daemon: Daemon, m1: int, m2: int, rng: random.Random) -> None:
+    """Both logs at 10 Hz for 3 s, reading the same slowly ramping speed with 0.02 m/s
+    of noise each."""
     t0 = time.monotonic()
     k = 0
     while time.monotonic() - t0 < 3.0:
@@ -55,7 +56,6 @@ def _agreeing(daemon: Daemon, m1: int, m2: int, rng: random.Random) -> int:
         os.write(m2, _vhw(v + rng.gauss(0.0, 0.02)))
         daemon.pump(STEP_S)
         k += 1
-    return len(daemon.lines)
 
 
 def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) -> None:
@@ -72,7 +72,8 @@ def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) 
     rng = random.Random(1)
     daemon = Daemon(work, pty=True)
     try:
-        before = _agreeing(daemon, m1, m2, rng)
+        _both_agree(daemon, m1, m2, rng)
+        before = len(daemon.lines)
         t1 = time.monotonic()
         while time.monotonic() - t1 < 4.0:
             os.write(m2, b"".join(_vhw(rng.uniform(0.0, 14.0) * KNOT_MPS) for _ in range(20)))
@@ -100,7 +101,8 @@ def test_a_stuck_log_beside_a_babbler_is_marked_invalid_live(tmp_path: Path) -> 
     rng = random.Random(2)
     daemon = Daemon(work, pty=True)
     try:
-        before = _agreeing(daemon, m1, m2, rng)
+        _both_agree(daemon, m1, m2, rng)
+        before = len(daemon.lines)
         t1 = time.monotonic()
         marks: list[int] = []
         while time.monotonic() - t1 < 14.0:
