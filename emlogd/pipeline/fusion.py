@@ -52,10 +52,11 @@ values counts for little); the fused σ is ``1/√(Σ 1/σᵢ²)``. A log is lef
      times its own recent scatter from its own short-term prediction (a plausible jump
      all the same: 0.38 → 0.68 m/s at a slow speed) — and the other did not (neither
      being flat for :data:`STEP_GUARD_S`);
-  5. ``still``: one log is still (as above) and the other is not, neither having
-     stepped (a real change against a steady log decides nothing);
-  6. ``minority``: one log is in more disputes than the other (three logs or more);
-  7. ``uncalibrated``: one log has a validated calibration and the other none.
+  5. ``minority``: one log is in more disputes than the other (three logs or more);
+  6. ``uncalibrated``: one log has a validated calibration and the other none.
+
+  Stillness decides no dispute: on a steady leg two healthy logs are both still or
+  not by the colour of their noise, which tells nothing about which is right.
 
   A step resets the smoothed differences of the log's pairs to the present one, so a
   log that steps away from the others is in dispute from its first stepped sample.
@@ -531,8 +532,6 @@ class Fusion:
         both_moving = max(t - la.t_anchor, t - lb.t_anchor) < STEP_GUARD_S
         if sa != sb and both_moving:
             return (a if sa else b), "step"
-        if la.still != lb.still and not (sa or sb):
-            return (a if la.still else b), "still"
         na = sum(1 for k, d in self.pairs.items() if a in k and d.t_onset is not None)
         nb = sum(1 for k, d in self.pairs.items() if b in k and d.t_onset is not None)
         if na != nb:

@@ -469,9 +469,13 @@ BABBLE_S = 10.0
 
 READ_SLACK = 2.0
 """A read may hold :data:`RATE_BURST` readings of a sentence plus this many times what the
-time since the last read earned at the log's rate (reads bunch up when the daemon is
-busy, and the rate is learnt from reads, which may each bring two readings); beyond,
-its newest is dropped for the rate (a log babbling 20 sentences a read)."""
+time since the last read earned at the log's sentence rate (reads bunch up when the
+daemon is busy); beyond, its newest is dropped for the rate (a log babbling 20
+sentences a read). The sentence rate is learnt like the read rate, from the readings
+per second of the reads not dropped (a multiplexer batching a 10-Hz log once a second
+sends ten a read; a replay at 20 times real time reads a 10-Hz log at 200 Hz); until
+:data:`RATE_MIN_INTERVALS` reads have taught it, a read's count is not judged
+(``max_rate_hz`` fixes the rate and judges from the first read)."""
 
 RATE_HISTORY = 32
 """The nominal interval is the median of this many intervals between consecutive
@@ -533,6 +537,7 @@ class ReadingCheck:
         "_last",
         "_moving",
         "_pending",
+        "_per_sentence",
         "_rate_dropped",
         "_t_rate",
         "_tokens",
@@ -548,6 +553,8 @@ class ReadingCheck:
         self._first_refused: float | None = None
         self._pending: tuple[float, float, float] | None = None
         self._intervals = MedianWindow(RATE_HISTORY)
+        self._per_sentence = MedianWindow(RATE_HISTORY)
+        """The intervals between reads not dropped, over the readings each held."""
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
         self._rate_dropped = False
@@ -574,23 +581,38 @@ class ReadingCheck:
         ``n``: the readings of this sentence the read that brought it held (it the
         newest; the others are backlog, not judged themselves). The rate is judged on
         reads; a read holding more than :data:`RATE_BURST` readings plus
-        :data:`READ_SLACK` times what the time since the last read earned at the rate
-        is dropped for the rate too: a log babbling in bursts is no less babbling, and
-        a USB-serial stall released at once is no babble.
+        :data:`READ_SLACK` times what the time since the last read earned at the
+        sentence rate is dropped for the rate too: a log babbling in bursts is no less
+        babbling, and a USB-serial stall released at once, or a multiplexer's batch, is
+        no babble.
         """
         self.reacquired = False
         drops = self._drops
         prev = self._t_rate
-        if not self._rate(t) or (
-            prev is not None
-            and n > RATE_BURST + READ_SLACK * max(t - prev, 0.0) * self.max_rate_hz()
-        ):
+        ok = self._rate(t)
+        if prev is not None:
+            dt = max(t - prev, 0.0)
+            rate = self._sentence_rate_hz()
+            if rate is not None and n > RATE_BURST + READ_SLACK * dt * rate:
+                ok = False
+            elif ok and dt > 0.0:
+                self._per_sentence.append(dt / max(n, 1))
+        if not ok:
             drops.append(t)
         while drops and t - drops[0] > BABBLE_S:
             drops.popleft()
         if drops and (drops[-1] == t or len(drops) >= BABBLE_DROPS):
             return "rate"
         return self._accel(t, v)
+
+    def _sentence_rate_hz(self) -> float | None:
+        """The readings per second a read may bring (:data:`READ_SLACK`), Hz; None until
+        learnt."""
+        if self.limits.max_rate_hz is not None:
+            return self.limits.max_rate_hz
+        if len(self._per_sentence) < RATE_MIN_INTERVALS:
+            return None
+        return 1.0 / max(self._per_sentence.median(), 1e-9)
 
     def _rate(self, t: float) -> bool:
         prev = self._t_rate
