@@ -92,6 +92,23 @@ def _open_binary(path: str) -> BinaryIO:
     return open(path, "rb")
 
 
+def _lines(f: BinaryIO) -> Iterator[bytes]:
+    """The lines of ``f``; one longer than :data:`MAX_LINE_BYTES` as ``b""`` (no line
+    read is empty: each holds its newline, or is the last), read to its end in pieces."""
+    readline = f.readline
+    while raw := readline(MAX_LINE_BYTES):
+        if len(raw) < MAX_LINE_BYTES or raw.endswith(b"\n"):
+            yield raw
+            continue
+        rest = readline(MAX_LINE_BYTES)
+        if rest.strip(b"\r\n") == b"":  # the line ends right at the bound
+            yield raw + rest
+            continue
+        while rest and not rest.endswith(b"\n"):
+            rest = readline(MAX_LINE_BYTES)
+        yield b""
+
+
 def _check_name(name: str) -> bool:
     return bool(name) and all(c in _NAME_OK for c in name)
 
@@ -110,6 +127,7 @@ SKIP_REASONS = (
     "out_of_order",
     "late_header",
     "truncated",
+    "too_long",
 )
 """Why a record is skipped (``errors="skip"``): the keys of :attr:`CaptureReader.skipped`."""
 
@@ -120,6 +138,11 @@ a bad time (``out_of_order``); one that follows it makes the jump real."""
 REORDER_WINDOW_S = 0.2
 """Default of ``reorder_window_s``: how far (s) a record may come before one it follows and
 still be put back in order (receive-time jitter of a busy machine is tens of ms)."""
+
+MAX_LINE_BYTES = 1 << 20
+"""A line longer than this is no record (the longest the writer writes, a 4 KiB read as
+hex, is under 9 KiB): skipped (``too_long``) and read in pieces of this size, never held
+whole, so a file of one huge line costs no more memory than this."""
 
 MAX_SKIPPED_LINES = 10
 """How many skipped lines :attr:`CaptureReader.skipped_lines` keeps (the first ones)."""
@@ -305,7 +328,7 @@ class CaptureReader:
         if first.rstrip(b"\r\n") != MAGIC.encode("ascii"):
             raise self._fail(1, f"not a capture v1 file (first line must be {MAGIC!r})")
         n = 1
-        for raw in f:
+        for raw in _lines(f):
             n += 1
             if not raw.startswith(b"#"):
                 break
@@ -391,8 +414,16 @@ class CaptureReader:
         n = 0
         with _open_binary(self.path) as f:
             try:
-                for raw in f:
+                for raw in _lines(f):
                     n += 1
+                    if not raw:
+                        self._skip(
+                            n,
+                            _BadRecordError(
+                                "too_long", f"a line longer than {MAX_LINE_BYTES} bytes"
+                            ),
+                        )
+                        continue
                     m = good(raw)
                     if m is not None:
                         stamp, name, payload = m.groups()

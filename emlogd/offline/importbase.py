@@ -1,6 +1,7 @@
 """What both imports share (:mod:`emlogd.offline.importer`): the report, the error, the
 capture being written, the input opened through gzip, the years a time may name, and
-the check of an NMEA log's lines (:class:`SentenceCheck`)."""
+the check of an NMEA log's lines (:class:`SentenceCheck`), its lines read with a bound
+(:func:`bounded_lines`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import gzip
 import io
 import math
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -23,6 +25,30 @@ YEARS = (1980, 2100)
 """A row or fix time outside these years is a misread time (GPS-era logs only)."""
 _YEAR_LO = datetime(YEARS[0], 1, 1, tzinfo=UTC).timestamp()
 _YEAR_HI = datetime(YEARS[1], 1, 1, tzinfo=UTC).timestamp()
+
+
+MAX_LINE_CHARS = 1 << 16
+"""A log line or CSV row longer than this many characters is skipped (counted
+``too_long``), read in pieces of this size: a file of one huge line (a binary dump, a
+lost newline) costs no more memory than this, and the CSV reader never meets a field
+past its own limit."""
+
+
+def bounded_lines(f: TextIO, skipped: Counter[str]) -> Iterator[str]:
+    """The lines of ``f`` (each with its line ending) up to :data:`MAX_LINE_CHARS`
+    characters; a longer one is read to its end in pieces, never held, and counted
+    ``too_long`` in ``skipped``."""
+    while line := f.readline(MAX_LINE_CHARS):
+        if len(line) < MAX_LINE_CHARS or line.endswith("\n"):
+            yield line
+            continue
+        rest = f.readline(MAX_LINE_CHARS)
+        if rest.strip("\r\n") == "":  # the line ends right at the bound
+            yield line + rest
+            continue
+        while rest and not rest.endswith("\n"):
+            rest = f.readline(MAX_LINE_CHARS)
+        skipped["too_long"] += 1
 
 
 def within_years(t: float) -> bool:

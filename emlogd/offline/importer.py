@@ -86,7 +86,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime, timedelta
@@ -124,6 +124,7 @@ from emlogd.offline.importbase import (
     ImportFormatError,
     ImportReport,
     SentenceCheck,
+    bounded_lines,
     count,
     open_text,
     within_years,
@@ -278,7 +279,7 @@ def import_nmea(
     try:
         for i, path in enumerate(paths):
             with open_text(path) as f:
-                for raw in f:
+                for raw in bounded_lines(f, report.skipped):
                     report.lines += 1
                     line, reason = checks.line(raw.strip())
                     if line is None:
@@ -423,7 +424,7 @@ def import_csv(
     candidates = candidate_maps(mapping, preset)
     report = ImportReport([str(path)], str(out), port)
     with open_text(path) as f:
-        head = _read_head(f, path)
+        head = _read_head(f, path, report.skipped)
         sparse = SparseLog.detect(head)
         found = find_header([sparse.header] if sparse else head, candidates)
         if found is None:
@@ -437,9 +438,9 @@ def import_csv(
         try:
             if sparse is not None:
                 report.notes["expedition_sparse_log"] += 1
-                rows = sparse.dense(_chain(head[sparse.first_row :], f), report)
+                rows = sparse.dense(_chain(head[sparse.first_row :], f, report.skipped), report)
             else:
-                rows = _chain(head[h_index + 1 :], f)
+                rows = _chain(head[h_index + 1 :], f, report.skipped)
             _csv_rows(rows, run)
             _finish_csv(path, run)
         except BaseException:
@@ -451,14 +452,15 @@ def import_csv(
     return report
 
 
-def _read_head(f: TextIO, path: str | Path) -> list[str]:
-    """The first :data:`HEADER_SCAN_LINES` lines, where the header must be.
+def _read_head(f: TextIO, path: str | Path, skipped: Counter[str]) -> list[str]:
+    """The first :data:`HEADER_SCAN_LINES` lines, where the header must be (one too long
+    counted in ``skipped``).
 
     Raises:
         ImportFormatError: the file is empty.
     """
     head: list[str] = []
-    for line in f:
+    for line in bounded_lines(f, skipped):
         head.append(line.rstrip("\r\n"))
         if len(head) >= HEADER_SCAN_LINES:
             break
@@ -509,16 +511,16 @@ def _finish_csv(path: str | Path, run: _CsvRun) -> None:
         )
 
 
-def _chain(first: list[str], rest: TextIO) -> Iterator[str]:
+def _chain(first: list[str], rest: TextIO, skipped: Counter[str]) -> Iterator[str]:
     yield from first
-    for line in rest:
+    for line in bounded_lines(rest, skipped):
         yield line.rstrip("\r\n")
 
 
 def _csv_rows(lines: Iterator[str], run: _CsvRun) -> None:
     """Turn the data rows into sentences (module docstring)."""
     report = run.report
-    for row in csv.reader(lines, delimiter=run.delim):
+    for row in _rows(csv.reader(lines, delimiter=run.delim), report):
         if not row or not any(c.strip() for c in row):
             continue
         report.lines += 1
@@ -529,6 +531,19 @@ def _csv_rows(lines: Iterator[str], run: _CsvRun) -> None:
         if not _row_sentences(t, new, run):
             reason = "incomplete" if new else "bad_cell" if bad else "no_new_value"
             report.skipped[reason] += 1
+
+
+def _rows(reader: Iterator[list[str]], report: ImportReport) -> Iterator[list[str]]:
+    """The rows of a CSV reader; one it cannot parse (a field past its limit: a quote
+    left open) is counted ``csv_error`` and skipped, the reader going on with the next."""
+    while True:
+        try:
+            yield next(reader)
+        except StopIteration:
+            return
+        except csv.Error:
+            report.lines += 1
+            report.skipped["csv_error"] += 1
 
 
 def _row_time(row: list[str], run: _CsvRun) -> float | None:

@@ -151,6 +151,8 @@ class Pipeline:
             when it fails. One of another error model than the UUT's is kept aside
             (:attr:`kept`) and the UUT starts from its own model's record in ``others``,
             else uncalibrated; the lag is taken from either when the config fixes none.
+            One of a UUT the config does not have is kept aside too, persisted with
+            :meth:`other_calibrations`.
         fusion: the fused output's settings, or None.
         others: the UUTs' calibrations of other error models (the state file's).
     """
@@ -188,6 +190,10 @@ class Pipeline:
         (restored when its config switches back to that model)."""
         for c in others:
             self.kept.setdefault(c.uut, {})[c.params.model] = c
+        configured = {s.port for s in uuts}
+        for name, c in cals.items():  # a UUT the config leaves out: kept for its return
+            if name not in configured and not c.reset:
+                self.kept.setdefault(name, {})[c.params.model] = c
         for s in uuts:
             if fusion is not None and s.port == FUSED_PORT:
                 raise ValueError(f"a UUT port may not be called {FUSED_PORT!r} with a fused output")
@@ -646,12 +652,14 @@ class Pipeline:
         return dataclasses.replace(snap, two_axis=ax.sup.kept.as_dict())
 
     def other_calibrations(self) -> list[Calibration]:
-        """Every UUT's calibrations of the models it is not using: persisted beside."""
+        """Every UUT's calibrations of the models it is not using, and those of the UUTs
+        the config leaves out (a log taken out of the config for a while starts from its
+        calibration when it comes back): persisted beside."""
         return [
             c
-            for name, u in self.uuts.items()
-            for model, c in sorted(self.kept.get(name, {}).items())
-            if model != u.s.model
+            for name, by_model in sorted(self.kept.items())
+            for model, c in sorted(by_model.items())
+            if name not in self.uuts or model != self.uuts[name].s.model
         ]
 
     # -- status ---------------------------------------------------------------

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gzip
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -10,7 +11,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from drivers.errors import CaptureFormatError
-from drivers.io.capture import MAGIC, CaptureReader, CaptureWriter, capture_name, read_ports
+from drivers.io.capture import (
+    MAGIC,
+    MAX_LINE_BYTES,
+    CaptureReader,
+    CaptureWriter,
+    capture_name,
+    read_ports,
+)
 from tests.profiles import by_profile
 
 
@@ -373,3 +381,34 @@ def test_capture_name_drops_the_capture_suffixes(path: str, name: str) -> None:
     """A capture's name is its file name without the folder, ``.cap`` and ``.gz``; other
     dots stay."""
     assert capture_name(path) == name
+
+
+@pytest.mark.parametrize("where", ["header", "records"])
+def test_a_line_of_many_megabytes_is_skipped_unheld(tmp_path: Path, where: str) -> None:
+    """24 MiB of one line (a lost newline, a binary dump) among the header's comments or
+    between records: skipped as ``too_long`` (a ``CaptureFormatError`` naming its line in
+    raise mode), the records around it read, the line never held whole. It was read
+    whole, 2.2 bytes of memory per byte of the line, by the header's scan and the reader."""
+    path = tmp_path / "long.cap"
+    long = b"#" + b"x" * (24 << 20) + b"\n"
+    path.write_bytes(
+        MAGIC.encode()
+        + b"\n# port a nmea0183\n"
+        + (long if where == "header" else b"")
+        + b"(1.0) a $A\n"
+        + (long if where == "records" else b"(1.5) a $B\n")
+        + b"(2.0) a $C\n"
+    )
+    tracemalloc.start()
+    try:
+        reader = CaptureReader(path, errors="skip")
+        got = [r.payload for r in reader]
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert reader.ports == {"a": "nmea0183"}
+    assert got == (["$A", "$C"] if where == "records" else ["$A", "$B", "$C"])
+    assert reader.skipped == {"too_long": 1}
+    assert peak < 8 * MAX_LINE_BYTES, peak  # the line: 24 MiB
+    with pytest.raises(CaptureFormatError, match=r":[34]: a line longer than"):
+        list(CaptureReader(path))

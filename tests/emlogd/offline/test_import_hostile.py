@@ -1,0 +1,73 @@
+"""Hostile files through both imports: a line far past any sentence or row (a binary dump,
+a lost newline), a CSV quote left open. Each is counted and skipped with its reason; the
+rows around it are imported, and the long line is never held whole."""
+
+from __future__ import annotations
+
+import io
+import tracemalloc
+from collections import Counter
+from pathlib import Path
+
+from emlogd.cli import main
+from emlogd.offline.importbase import MAX_LINE_CHARS, bounded_lines
+from emlogd.offline.importer import import_csv, import_nmea
+from tests.emlogd.offline.test_importer import IRENE
+
+LONG = 8 * 1024 * 1024
+"""The long line of these tests, characters (a gigabyte is the same, only slower)."""
+
+
+def test_bounded_lines_skip_only_what_is_past_the_bound() -> None:
+    """Lines up to the bound are given whole, the last one without its newline too; a
+    longer one, ended or not, is counted ``too_long`` and the next line given."""
+    n = MAX_LINE_CHARS
+    text = "a\n" + "b" * (n - 1) + "\n" + "c" * n + "\n" + "d" * (n + 1) + "\nE\n" + "f" * n
+    skipped: Counter[str] = Counter()
+    got = [(x[0], len(x)) for x in bounded_lines(io.StringIO(text), skipped)]
+    assert got == [("a", 2), ("b", n), ("c", n + 1), ("E", 2), ("f", n)]
+    assert skipped == {"too_long": 1}
+    skipped.clear()
+    rest = [x for x in bounded_lines(io.StringIO("g" * 3 * n + "\nh\n" + "i" * 5 * n), skipped)]
+    assert rest == ["h\n"] and skipped == {"too_long": 2}
+
+
+def test_a_csv_with_a_long_line_and_an_open_quote(tmp_path: Path) -> None:
+    """8 MiB of one line, then a quote left open over 200 KB of lines, between good rows:
+    each skipped with its reason (``too_long``, ``csv_error``) and the good rows written,
+    the command ending 0. The CSV reader's field limit ended ``emlogd import`` with an
+    internal error, and the line was held whole (430 MB of memory for 200 MB)."""
+    rows = [f"2020-01-01T00:00:{s:02d}Z,{5 + s / 100:.2f}\n" for s in range(6)]
+    src = tmp_path / "hostile.csv"
+    src.write_text(
+        "time,stw\n"
+        + "".join(rows[:2])
+        + "9" * LONG
+        + "\n"
+        + "".join(rows[2:4])
+        + '2020-01-01T00:00:10Z,"5\n'
+        + ("x" * 1000 + "\n") * 200
+        + "".join(rows[4:])
+    )
+    tracemalloc.start()
+    try:
+        rep = import_csv(src, tmp_path / "o.cap", {"time": "time", "stw": "stw"})
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert rep.skipped["too_long"] == 1 and rep.skipped["csv_error"] == 1, rep.skipped
+    assert rep.sentences["VHW"] == 6, rep.sentences
+    assert peak < LONG // 4, peak
+    assert main(["import", "--format", "csv", "--map", "time=time,stw=stw", "--out",
+                 str(tmp_path / "cli.cap"), str(src)]) == 0  # fmt: skip
+
+
+def test_an_nmea_log_with_a_long_line(tmp_path: Path) -> None:
+    """8 MiB of one line inside Irene's excerpt: counted ``too_long``, every sentence
+    around it imported as without it."""
+    src = tmp_path / "irene.nmea"
+    cut = IRENE.index("$IIRMC,132221")
+    src.write_text(IRENE[:cut] + "$" * LONG + "\n" + IRENE[cut:])
+    rep = import_nmea([src], tmp_path / "o.cap")
+    assert rep.skipped["too_long"] == 1, rep.skipped
+    assert rep.written == 10 and rep.sentences["RMC"] == 3, rep.sentences
