@@ -31,6 +31,17 @@ def _count(path: Path) -> tuple[int, int, object]:
     return n, reader.n_skipped, getattr(reader, "reordered", "n/a")
 
 
+def _read_back(what: str, lines: list[str], n_records: int, path: Path) -> None:
+    """Write ``lines`` as a capture at ``path`` and print what the reader gives back of
+    it (records read, skipped, reordered) under the heading ``what``."""
+    path.write_text("\n".join(lines))
+    n, skipped, reordered = _count(path)
+    print(
+        f"{what}: read {n}, skipped {skipped} "
+        f"({100 * skipped / n_records:.1f} %), reordered {reordered}"
+    )
+
+
 def main() -> None:
     src = Path(sys.argv[1]) if len(sys.argv) > 1 else DEMO
     opener = gzip.open if src.name.endswith(".gz") else open
@@ -46,25 +57,13 @@ def main() -> None:
         pos = s.index(".") - 3  # the hundreds of seconds
         s2 = s[:pos] + str(min(int(s[pos]) + 1, 9)) + s[pos + 1 :]
         flip[i] = f"({s2}){rest}"
-        path = Path(tmp) / "flip.cap"
-        path.write_text("\n".join(flip))
-        n, skipped, reordered = _count(path)
-        print(
-            f"one time {s} -> {s2}: read {n}, skipped {skipped} "
-            f"({100 * skipped / len(recs):.1f} %), reordered {reordered}"
-        )
+        _read_back(f"one time {s} -> {s2}", flip, len(recs), Path(tmp) / "flip.cap")
         rng = random.Random(1)
         jitter = list(lines)
         for i in recs:
             stamp, rest = jitter[i].split(")", 1)
             jitter[i] = f"({float(stamp[1:]) + rng.uniform(-0.05, 0.05):.6f}){rest}"
-        path = Path(tmp) / "jitter.cap"
-        path.write_text("\n".join(jitter))
-        n, skipped, reordered = _count(path)
-        print(
-            f"±50 ms jitter: read {n}, skipped {skipped} "
-            f"({100 * skipped / len(recs):.1f} %), reordered {reordered}"
-        )
+        _read_back("±50 ms jitter", jitter, len(recs), Path(tmp) / "jitter.cap")
     best = float("inf")
     for _ in range(3):
         t0 = time.perf_counter()

@@ -114,40 +114,75 @@ def _profile(records: list[tuple[float, str, bytes]]) -> None:
 
 
 PARTS = (
-    ("emlogd.pipeline.uut", "UutCalibration", "learn", "learning (all of it)"),
-    ("emlogd.pipeline.uut", "UutCalibration", "_judge", "  identifiability (both bounds)"),
-    ("calib.kalman.filters", "KfCalibrator", "update", "  Kalman filter steps"),
-    ("emlogd.pipeline.uut", "UutCalibration", "_lag_step", "  lag search"),
-    ("emlogd.pipeline.uut", "UutCalibration", "_score", "  scoring, validation, proposals"),
-    ("emlogd.pipeline.uut", "UutCalibration", "_envelope", "  envelope check"),
+    ("emlogd.pipeline.uut", "UutCalibration", "learn", "learning one reading (all of it)"),
+    ("emlogd.pipeline.learner", "Learner", "align", "  alignment (lag, reference, heading)"),
+    ("emlogd.pipeline.learner", "Learner", "_lag_step", "    lag search"),
+    ("emlogd.pipeline.learner", "Learner", "step", "  learner step"),
+    ("calib.kalman.filters", "KfCalibrator", "update", "    Kalman filter steps"),
+    ("emlogd.pipeline.learner", "Learner", "_judge", "    identifiability (both bounds)"),
+    ("emlogd.pipeline.learner", "Learner", "_envelope", "    envelope check"),
+    ("emlogd.pipeline.supervisor", "Supervisor", "observe", "  supervision (all of it)"),
+    ("emlogd.pipeline.evidence", "Drift", "add", "    drift"),
+    ("emlogd.pipeline.supervisor", "Supervisor", "_detect", "    change detection"),
+    ("emlogd.pipeline.supervisor", "Supervisor", "_propose", "    proposals"),
+    ("emlogd.pipeline.supervisor", "Supervisor", "_recheck", "    re-check"),
 )
+"""The calls :func:`_parts` times: module, class, method, label (indented under the
+call it is made from)."""
 
 
-def _parts(records: list[tuple[float, str, bytes]]) -> None:
-    """Seconds inside the main learning calls over one pipeline run (each call timed
-    with ``perf_counter``; the timing adds about 1 µs a call to the total)."""
+def part_methods() -> list[tuple[type, str, str]]:
+    """Each of :data:`PARTS` as (class, method name, label); raises AttributeError when a
+    method is gone (a renamed step must be renamed here too)."""
     import importlib
 
+    found = []
+    for module, cls_name, name, label in PARTS:
+        cls = getattr(importlib.import_module(module), cls_name)
+        if not callable(getattr(cls, name)):
+            raise AttributeError(f"{cls_name}.{name} is not a method")
+        found.append((cls, name, label))
+    return found
+
+
+def _parts(records: list[tuple[float, str, bytes]]) -> dict[str, float]:
+    """Seconds inside the main learning calls over one pipeline run (each call timed
+    with :data:`CLOCK`; the timing adds about 1 µs a call to the total); printed, and
+    returned by label. The methods are restored afterwards."""
     spent: dict[str, float] = {}
+    calls: dict[str, int] = {}
 
     def timed(fn: Callable[..., object], label: str) -> Callable[..., object]:
         def wrapper(*args: object, **kwargs: object) -> object:
-            t0 = time.perf_counter()
+            clock = CLOCK[0]
+            t0 = clock()
             try:
                 return fn(*args, **kwargs)
             finally:
-                spent[label] = spent.get(label, 0.0) + time.perf_counter() - t0
+                spent[label] = spent.get(label, 0.0) + clock() - t0
+                calls[label] = calls.get(label, 0) + 1
 
         return wrapper
 
-    for module, cls_name, name, label in PARTS:
-        cls = getattr(importlib.import_module(module), cls_name)
-        setattr(cls, name, timed(getattr(cls, name), label))
-    total, _ = _pipeline(records)
+    methods = part_methods()
+    saved = [(cls, name, cls.__dict__.get(name)) for cls, name, _ in methods]
+    try:
+        for cls, name, label in methods:
+            setattr(cls, name, timed(getattr(cls, name), label))
+        total, _ = _pipeline(records)
+    finally:
+        for cls, name, fn in saved:
+            if fn is None:
+                delattr(cls, name)  # an inherited method: the wrapper goes
+            else:
+                setattr(cls, name, fn)
     print(f"pipeline with the calls timed: {total:.2f} s; decoding alone: "
           f"{min(_decode_only(records) for _ in range(2)):.2f} s")  # fmt: skip
-    for _, _, _, label in PARTS:
-        print(f"  {label:34s} {spent.get(label, 0.0):6.2f} s")
+    for _, _, label in methods:
+        n = calls.get(label, 0)
+        per = 1e6 * spent.get(label, 0.0) / n if n else 0.0
+        print(f"  {label:40s} {spent.get(label, 0.0):6.2f} s  {n:8d} calls  {per:7.1f} µs/call")
+    return spent
 
 
 def main() -> None:

@@ -25,18 +25,10 @@ import time
 from pathlib import Path
 
 from emlogd.launch import DaemonProcess
+from tests.emlogd.daemon.harness import PD0_CONFIG, make_work, tcp_port
 
-CONFIG = """\
-ports:
-  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
-  - {name: dvl, url: links/dvl, protocol: pd6, role: reference}
-calibration:
-  - {uut: emlog1, reference: dvl, lag: 0.2}
-outputs: {tcp: "127.0.0.1:{port}"}
-state_file: state/state.yaml
-control_socket: run/control.sock
-log_format: json
-"""
+CONFIG = PD0_CONFIG.replace("outputs: {pty: out/emlog0}", 'outputs: {tcp: "127.0.0.1:{tcp}"}')
+"""The tests' EMlog and PD0 DVL, never served (their ports retry), and a TCP output."""
 
 CLIENTS = 2
 """Flooding clients (threads)."""
@@ -72,13 +64,8 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=10.0)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        for sub in ("links", "state", "run"):
-            (work / sub).mkdir()
-        with socket.socket() as probe:
-            probe.bind(("127.0.0.1", 0))
-            port = int(probe.getsockname()[1])
-        (work / "emlogd.yaml").write_text(CONFIG.replace("{port}", str(port)))
+        work = make_work(Path(tmp), CONFIG)
+        port = tcp_port(work)
         daemon = DaemonProcess("emlogd.yaml", socket="run/control.sock", log="log", cwd=work)
         try:
             sent = [[0] for _ in range(CLIENTS)]

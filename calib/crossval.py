@@ -363,7 +363,7 @@ def _info(seg: _Arrays, current: bool) -> SegmentInfo:
     ok = _usable(seg, current)
     hd = seg.heading[ok] if current and seg.heading is not None else None
     raw = seg.raw[ok]
-    # the raw RMSE of the cells (:func:`evaluate`): the same samples, the same frame
+    # the raw RMSE of the cells (:func:`_evaluate`): the same samples, the same frame
     r_raw, _ = water_scores(water_targets(seg.t[ok], seg.ref[ok], raw, raw, hd, zero_params("EM3")))
     return SegmentInfo(
         name=seg.name,
@@ -374,7 +374,7 @@ def _info(seg: _Arrays, current: bool) -> SegmentInfo:
     )
 
 
-def train(
+def _train(
     estimator: str, seg: _Arrays, kf_config: KfConfig, *, current: bool = False
 ) -> TrainedEstimator:
     """Train one estimator on one validated segment (see the module docstring).
@@ -446,7 +446,7 @@ def train(
     )
 
 
-def evaluate(trained: TrainedEstimator, seg: _Arrays, *, current: bool = False) -> Evaluation:
+def _evaluate(trained: TrainedEstimator, seg: _Arrays, *, current: bool = False) -> Evaluation:
     """Apply frozen parameters to a validated segment.
 
     Args:
@@ -482,8 +482,8 @@ def evaluate(trained: TrainedEstimator, seg: _Arrays, *, current: bool = False) 
 def _job(
     estimator: str, i_train: int, segs: Sequence[_Arrays], kf_config: KfConfig, current: bool
 ) -> tuple[TrainedEstimator, list[Evaluation]]:
-    trained = train(estimator, segs[i_train], kf_config, current=current)
-    return trained, [evaluate(trained, s, current=current) for s in segs]
+    trained = _train(estimator, segs[i_train], kf_config, current=current)
+    return trained, [_evaluate(trained, s, current=current) for s in segs]
 
 
 class _WorkerData:

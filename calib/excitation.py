@@ -398,12 +398,12 @@ def _information(s: _Structure, sigma2_mps2: float, std_factor: float) -> Identi
                 break
         sd = stds[worst]
         refused[worst] = (
-            f"{_LABEL[worst]} not determinable: weak excitation "
-            f"(standard error {sd:.3g} > {rule.max_std(worst) * std_factor:g}{_UNIT[worst]})"
+            f"{LABELS[worst]} not determinable: weak excitation "
+            f"(standard error {sd:.3g} > {rule.max_std(worst) * std_factor:g}{UNITS[worst]})"
             if math.isfinite(sd) and ratios[worst] > 1.0
-            else f"{_LABEL[worst]} not determinable: information matrix singular"
+            else f"{LABELS[worst]} not determinable: information matrix singular"
             if not math.isfinite(sd)
-            else f"{_LABEL[worst]} not determinable: ill-conditioned (cond {cond:.3g})"
+            else f"{LABELS[worst]} not determinable: ill-conditioned (cond {cond:.3g})"
         )
         free.remove(worst)
         if worst == CURRENT and "b" in free:
@@ -419,8 +419,11 @@ def _information(s: _Structure, sigma2_mps2: float, std_factor: float) -> Identi
     return Identifiability(layout, verdicts, stats, cond, offset)
 
 
-_LABEL = {"a": "curvature", "m": "scale", "b": "bias", CURRENT: "current"}
-_UNIT = {"a": " s/m", "m": "", "b": " m/s", CURRENT: " m/s"}
+LABELS = {"a": "curvature", "m": "scale", "b": "bias", CURRENT: "current"}
+"""Each unknown's name in a verdict's reason."""
+
+UNITS = {"a": " s/m", "m": "", "b": " m/s", CURRENT: " m/s"}
+"""Each unknown's unit in a verdict's reason."""
 
 
 def heading_sectors(heading_deg: npt.ArrayLike, weights: npt.ArrayLike | None = None) -> int:

@@ -293,6 +293,11 @@ def imo_bound_mps(speed_mps: npt.ArrayLike) -> FloatArray:
     return np.maximum(IMO_SPEED_FRACTION * v, IMO_MIN_ERROR_MPS)
 
 
+def imo_bound_one_mps(speed_mps: float) -> float:
+    """:func:`imo_bound_mps` at one speed, over a Python float (a per-sample score)."""
+    return max(IMO_SPEED_FRACTION * abs(speed_mps), IMO_MIN_ERROR_MPS)
+
+
 def imo_verdict(
     ref_mps: npt.ArrayLike,
     est_mps: npt.ArrayLike,

@@ -66,6 +66,13 @@ PARAM_NAMES: dict[ModelName, tuple[ParamName, ...]] = {
 }
 """The parameter vector θ of each model, in the paper's order."""
 
+AMB_STATES: dict[ModelName, tuple[int, int, int]] = {
+    model: tuple(1 + names.index(k) if k in names else 0 for k in ("a", "m", "b"))  # type: ignore[misc]
+    for model, names in PARAM_NAMES.items()
+}
+"""The filter state index of ``a``, ``m`` and ``b`` in each model (after the speed; 0:
+not a parameter of the model)."""
+
 UnknownName = Literal["a", "m", "b", "current"]
 """What a calibration can estimate: the model parameters and the sea current (both components)."""
 

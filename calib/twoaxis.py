@@ -60,11 +60,11 @@ from calib.twoaxis_model import (
     MAX_MISALIGN_DEG,
     TIE_HELD_SCALE,
     TRANSVERSE_NAMES,
+    Problem,
     TwoAxisParams,
     _free_indices,
     _index,
     _params_of,
-    _Problem,
     _x0,
     leeway_deg,
     water_velocity,
@@ -99,7 +99,7 @@ __all__ = [
 _MAX_ITER = 30
 
 
-def _solve(problem: _Problem, x0: FloatArray, free: list[int]) -> FloatArray:
+def _solve(problem: Problem, x0: FloatArray, free: list[int]) -> FloatArray:
     """Gauss–Newton over the ``free`` unknowns."""
     x = x0.copy()
     if not free:
@@ -248,13 +248,13 @@ def _prepare(
     current: bool,
     t_s: npt.ArrayLike | None,
     current_knot_s: float | None,
-) -> _Problem:
+) -> Problem:
     if prior is not None and prior.model != name:
         raise DataError(f"prior parameters are {prior.model}, the fit is {name}")
     basis = None
     if current and current_knot_s is not None:
         basis = current_basis(t_s, s.n, current_knot_s)
-    return _Problem(s.ref_fwd, s.ref_stb, s.raw_l, s.raw_t, np.radians(s.heading), basis)
+    return Problem(s.ref_fwd, s.ref_stb, s.raw_l, s.raw_t, np.radians(s.heading), basis)
 
 
 MIN_KNOT_SHARE = 0.05
@@ -568,7 +568,7 @@ def fit_current_two_axis(
     basis = None
     if current_knot_s is not None:
         basis = current_basis(t_s, s.n, current_knot_s)
-    problem = _Problem(s.ref_fwd, s.ref_stb, s.raw_l, s.raw_t, np.radians(s.heading), basis)
+    problem = Problem(s.ref_fwd, s.ref_stb, s.raw_l, s.raw_t, np.radians(s.heading), basis)
     x0 = _x0(params, problem.size())
     x = _solve(problem, x0, _index(CURRENT, problem.n_blocks))
     cn, ce = problem.current_at(x)

@@ -50,26 +50,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calib import twoaxis_model
 from calib.excitation import (
     DEFAULT_RULE,
+    LABELS,
     N_SECTORS,
+    UNITS,
     ExcitationRule,
     heading_sectors,
 )
 from calib.models import CURRENT, PARAM_NAMES, FloatArray, ModelName
-from calib.twoaxis_model import (
-    _AL,
-    _PARAM_INDEX,
-    ALPHA,
-    B_T,
-    M_T,
-    MAX_MISALIGN_DEG,
-    TIE_HELD_SCALE,
-    TRANSVERSE_NAMES,
-    _free_indices,
-    _index,
-    _Problem,
-)
+from calib.twoaxis_model import ALPHA, B_T, M_T, MAX_MISALIGN_DEG, TIE_HELD_SCALE, TRANSVERSE_NAMES
 from calib.verdicts import Verdict, Verdicts
 
 
@@ -128,16 +119,8 @@ class TwoAxisRule:
 
 DEFAULT_TWO_AXIS_RULE = TwoAxisRule()
 
-_LABEL = {
-    "a": "curvature",
-    "m": "scale",
-    "b": "bias",
-    ALPHA: "misalignment",
-    M_T: "transverse scale",
-    B_T: "transverse bias",
-    CURRENT: "current",
-}
-_UNIT = {"a": " s/m", "m": "", "b": " m/s", ALPHA: "°", M_T: "", B_T: " m/s", CURRENT: " m/s"}
+_LABEL = {**LABELS, ALPHA: "misalignment", M_T: "transverse scale", B_T: "transverse bias"}
+_UNIT = {**UNITS, ALPHA: "°", M_T: "", B_T: " m/s"}
 
 
 _ALPHA_WITH_SCALE = (
@@ -189,7 +172,7 @@ def judge_two_axis(
     heading_deg: FloatArray,
     *,
     current: bool,
-    info_of: _Problem | None = None,
+    info_of: twoaxis_model.Problem | None = None,
     x: FloatArray | None = None,
     rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
     outside: dict[str, str] | None = None,
@@ -222,7 +205,7 @@ def judge_two_axis(
     n = int(u_mps.size)
     stds: dict[str, float] = {}
     n_blocks = info_of.n_blocks if info_of is not None else 1
-    n_cols = len(_free_indices(free, offset, n_blocks))
+    n_cols = len(twoaxis_model._free_indices(free, offset, n_blocks))
     if free and 2 * n < rule.base.min_samples_per_param * n_cols:
         why = f"too few samples ({2 * n} < {rule.base.min_samples_per_param * n_cols})"
         for k in free:
@@ -359,14 +342,14 @@ def _information(
 def _stds(jac: FloatArray, free: list[str], offset: bool, n_blocks: int) -> dict[str, float]:
     """Each free unknown's σ from the information matrix (the larger component's for
     the current)."""
-    cols = _free_indices(free, offset, n_blocks)
+    cols = twoaxis_model._free_indices(free, offset, n_blocks)
     info = jac[:, cols].T @ jac[:, cols]
     try:
         diag = np.sqrt(np.maximum(np.diag(np.linalg.inv(info)), 0.0))
     except np.linalg.LinAlgError:
         diag = np.full(len(cols), math.inf)
     where = {c: i for i, c in enumerate(cols)}
-    return {k: max(float(diag[where[i]]) for i in _index(k, n_blocks)) for k in free}
+    return {k: max(float(diag[where[i]]) for i in twoaxis_model._index(k, n_blocks)) for k in free}
 
 
 def _weak(unknown: str, sd: float, rule: TwoAxisRule) -> str:
@@ -399,18 +382,19 @@ def _outside(x: FloatArray, determined: Sequence[str]) -> dict[str, str]:
     for k in determined:
         if k == ALPHA or k in ENVELOPE:
             bound = math.radians(MAX_MISALIGN_DEG) if k == ALPHA else ENVELOPE[k]
-            r = abs(float(x[_PARAM_INDEX[k]])) / bound
+            r = abs(float(x[twoaxis_model._PARAM_INDEX[k]])) / bound
             if r > ratio:
                 worst, ratio = k, r
     if not worst:
         return {}
+    value = float(x[twoaxis_model._PARAM_INDEX[worst]])
     if worst == ALPHA:
         return {
-            ALPHA: f"misalignment outside the envelope ({math.degrees(float(x[_AL])):.1f}°, "
+            ALPHA: f"misalignment outside the envelope ({math.degrees(value):.1f}°, "
             f"at most ±{MAX_MISALIGN_DEG:g}°)"
         }
     return {
-        worst: f"{_LABEL[worst]} outside the envelope ({float(x[_PARAM_INDEX[worst]]):.3g}"
+        worst: f"{_LABEL[worst]} outside the envelope ({value:.3g}"
         f"{_UNIT[worst]}, at most ±{ENVELOPE[worst]:g}{_UNIT[worst]})"
     }
 

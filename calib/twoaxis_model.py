@@ -27,7 +27,7 @@ shared by both axes (the same two states projected onto each)
 
 The state layout shared by the least squares (:mod:`calib.twoaxis`) and the filter
 (:mod:`calib.twoaxis_kf`): the unknowns' indices, the residuals and their Jacobian on
-both axes (``_Problem``), the prior as a state and a state as parameters.
+both axes (``Problem``), the prior as a state and a state as parameters.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
@@ -201,7 +201,7 @@ _N_FIXED = 10
 _PARAM_INDEX = {"a": _A, "m": _M, "b": _B, ALPHA: _AL, M_T: _MT, B_T: _BT}
 
 
-class _Problem:
+class Problem:
     """The data of one two-axis fit, and its residuals and Jacobian at a point."""
 
     def __init__(

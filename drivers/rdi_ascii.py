@@ -35,14 +35,8 @@ from typing import ClassVar, TypeAlias, TypeVar, get_args
 from drivers.base import FramedDecoder, Framer, Use
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
-from drivers.records import (
-    MAX_DEPTH_M,
-    RDI_INVALID,
-    Rejected,
-    SpeedRecord,
-    bottom_track,
-    check_ranges,
-)
+from drivers.rdi import INVALID, MAX_MMS, mms
+from drivers.records import MAX_DEPTH_M, Rejected, SpeedRecord, bottom_track, check_ranges
 
 ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
 """Line types of one ensemble, in transmission order."""
@@ -197,13 +191,13 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
 
 def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
     for v in values:
-        if not RDI_INVALID <= v <= 32767:
+        if not INVALID <= v <= MAX_MMS:
             raise OutOfRangeError(f":{kind} velocity {v} mm/s outside int16", raw)
-    if void or RDI_INVALID in values[:3]:
+    if void or INVALID in values[:3]:
         return None
     err = None
     if len(values) == 4:
-        err = None if values[3] == RDI_INVALID else values[3] / 1000.0
+        err = None if values[3] == INVALID else values[3] / 1000.0
     return Velocity(values[0] / 1000.0, values[1] / 1000.0, values[2] / 1000.0, err)
 
 
@@ -595,11 +589,7 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
 
 
 def _mm(v: float | None) -> str:
-    if v is None:
-        return f"{RDI_INVALID:+06d}"
-    if not math.isfinite(v):
-        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
-    return f"{max(min(round(v * 1000.0), 32767), -32767):+06d}"
+    return f"{mms(v):+06d}"
 
 
 def _vel_line(kind: str, values: tuple[float, ...] | None, n: int) -> str:

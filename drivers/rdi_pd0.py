@@ -29,19 +29,11 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, TypeAlias
 
+from drivers import rdi
 from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
-from drivers.records import (
-    COORD_FRAMES,
-    RDI_INVALID,
-    CoordFrame,
-    SpeedRecord,
-    check_ranges,
-    rdi_bottom_track,
-    rdi_velocities,
-    rdi_vessel_mms,
-)
+from drivers.records import SpeedRecord, check_ranges
 
 HEADER = b"\x7f\x7f"
 MAX_ENSEMBLE = 16384
@@ -78,7 +70,7 @@ class Pd0Ensemble:
 
     ensemble_number: int
     rtc: tuple[int, int, int, int, int, int, int]
-    coord_frame: CoordFrame
+    coord_frame: rdi.CoordFrame
     n_beams: int
     n_cells: int
     frequency_khz: int
@@ -190,12 +182,12 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
                 msb = frame[bt + 77 : bt + 81]
                 r = tuple(lo + (hi << 16) for lo, hi in zip(r, msb, strict=True))
             v = struct.unpack_from("<4h", frame, bt + 24)
-            bt_v = rdi_velocities(v)
+            bt_v = rdi.velocities(v)
             bt_r = (r[0], r[1], r[2], r[3])
         return Pd0Ensemble(
             ensemble_number=ens,
             rtc=(rtc[0], rtc[1], rtc[2], rtc[3], rtc[4], rtc[5], rtc[6]),
-            coord_frame=COORD_FRAMES[(ex >> 3) & 3],
+            coord_frame=rdi.COORD_FRAMES[(ex >> 3) & 3],
             n_beams=n_beams,
             n_cells=n_cells,
             frequency_khz=FREQUENCIES_KHZ[config & 7],
@@ -221,7 +213,7 @@ class Pd0Decoder(FramedDecoder[Pd0Record]):
         # vessel motion: the opposite of the bottom's
         vessel = (None if v1 is None else -v1, None if v2 is None else -v2)
         return (
-            rdi_bottom_track(
+            rdi.bottom_track(
                 self.port,
                 record.coord_frame,
                 record.bottom_lock,
@@ -244,7 +236,7 @@ def encode_pd0(
     roll_deg: float = 0.0,
     bottom_ship_mps: tuple[float, float] | None = None,
     range_m: float | None = None,
-    coord_frame: CoordFrame = "ship",
+    coord_frame: rdi.CoordFrame = "ship",
     temperature_c: float = 15.0,
     salinity_ppt: int = 35,
     sound_speed_mps: int = 1500,
@@ -262,13 +254,13 @@ def encode_pd0(
         ValueError: non-finite values.
     """
     if bottom_ship_mps is None:
-        v = (RDI_INVALID, RDI_INVALID, RDI_INVALID, RDI_INVALID)
+        v = (rdi.INVALID, rdi.INVALID, rdi.INVALID, rdi.INVALID)
         rng = 0
     else:
-        a, b = rdi_vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
+        a, b = rdi.vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
         v = (-a, -b, 0, 0)  # the bottom's motion: the opposite of the vessel's
         rng = max(round((range_m or 0.0) * 100.0), 1)
-    ex = COORD_FRAMES.index(coord_frame) << 3
+    ex = rdi.COORD_FRAMES.index(coord_frame) << 3
     fixed = bytearray(59)
     struct.pack_into("<HBBH", fixed, 0, FIXED_LEADER, 51, 1, 0b0100_1011)  # 600 kHz
     fixed[8], fixed[9] = 4, 1

@@ -26,19 +26,11 @@ import struct
 from dataclasses import dataclass
 from typing import ClassVar, TypeAlias
 
+from drivers import rdi
 from drivers.base import FramedDecoder, Framer, Use
 from drivers.binframe import BinaryFramer, sum16
 from drivers.errors import FieldError, OutOfRangeError
-from drivers.records import (
-    COORD_FRAMES,
-    RDI_INVALID,
-    CoordFrame,
-    SpeedRecord,
-    check_ranges,
-    rdi_bottom_track,
-    rdi_velocities,
-    rdi_vessel_mms,
-)
+from drivers.records import SpeedRecord, check_ranges
 
 HEADER = b"\x7d"
 LENGTHS = {0: 45, 1: 86}
@@ -70,7 +62,7 @@ class Pd45Ensemble:
     """
 
     format: str
-    coord_frame: CoordFrame
+    coord_frame: rdi.CoordFrame
     bottom_mms: tuple[int | None, int | None, int | None, int | None]
     bottom_range_cm: tuple[int, int, int, int]
     bottom_status: int
@@ -141,11 +133,11 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
         check_ranges("PD4", frame, sound_speed=c, temperature=temp)
         common = {
             "format": "PD5" if sid == 1 else "PD4",
-            "coord_frame": COORD_FRAMES[(config >> 6) & 3],
-            "bottom_mms": rdi_velocities(f[4:8]),
+            "coord_frame": rdi.COORD_FRAMES[(config >> 6) & 3],
+            "bottom_mms": rdi.velocities(f[4:8]),
             "bottom_range_cm": (f[8], f[9], f[10], f[11]),
             "bottom_status": f[12],
-            "water_mms": rdi_velocities(f[13:17]),
+            "water_mms": rdi.velocities(f[13:17]),
             "water_layer_dm": (f[17], f[18]),
             "water_status": f[19],
             "first_ping": (f[20], f[21], f[22], f[23]),
@@ -175,7 +167,7 @@ class Pd45Decoder(FramedDecoder[Pd45Record]):
         """Bottom velocity → vessel speed over ground, ship frame (role ``bottom``, source
         ``PD4:BT``/``PD5:BT``), with the PD5 heading taken as true."""
         return (
-            rdi_bottom_track(
+            rdi.bottom_track(
                 self.port,
                 record.coord_frame,
                 record.bottom_lock,
@@ -198,7 +190,7 @@ def encode_pd45(
     pd5: bool = False,
     bottom_ship_mps: tuple[float, float] | None = None,
     range_m: float | None = None,
-    coord_frame: CoordFrame = "ship",
+    coord_frame: rdi.CoordFrame = "ship",
     heading_deg: float = 0.0,
     pitch_deg: float = 0.0,
     roll_deg: float = 0.0,
@@ -216,10 +208,10 @@ def encode_pd45(
         ValueError: non-finite values.
     """
     if bottom_ship_mps is None:
-        vx = vy = RDI_INVALID
+        vx = vy = rdi.INVALID
         rng = 0
     else:
-        vx, vy = rdi_vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
+        vx, vy = rdi.vessel_mms(bottom_ship_mps, coord_frame, heading_deg)
         rng = max(min(round((range_m or 0.0) * 100.0), 65535), 1)
     sid = 1 if pd5 else 0
     body = bytearray(
@@ -227,20 +219,20 @@ def encode_pd45(
             0x7D,
             sid,
             LENGTHS[sid],
-            COORD_FRAMES.index(coord_frame) << 6,
+            rdi.COORD_FRAMES.index(coord_frame) << 6,
             vx,
             vy,
-            0 if vx != RDI_INVALID else RDI_INVALID,
-            0 if vx != RDI_INVALID else RDI_INVALID,
+            0 if vx != rdi.INVALID else rdi.INVALID,
+            0 if vx != rdi.INVALID else rdi.INVALID,
             rng,
             rng,
             rng,
             rng,
             0,
-            RDI_INVALID,
-            RDI_INVALID,
-            RDI_INVALID,
-            RDI_INVALID,
+            rdi.INVALID,
+            rdi.INVALID,
+            rdi.INVALID,
+            rdi.INVALID,
             0,
             0,
             0,

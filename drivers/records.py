@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal, get_args
+from typing import Literal
 
 from drivers.errors import OutOfRangeError, RejectReason
 
@@ -59,10 +59,6 @@ MAX_PITCH_DEG = 90.0
 MAX_ROLL_DEG = 180.0
 """Largest roll magnitude, degrees."""
 
-RDI_INVALID = -32768
-"""Teledyne RDI's bad-value marker in a 16-bit velocity or error velocity (mm/s): PD0,
-PD4/PD5 and PD6 alike."""
-
 MAX_DEPTH_M = 12_000.0
 """Deepest instrument or bottom depth, m (the deepest ocean is ~11 km)."""
 
@@ -98,13 +94,6 @@ def check_ranges(what: str, raw: bytes, **fields: float) -> None:
     ]
     if bad:
         raise OutOfRangeError(f"{what} {', '.join(bad)} out of range", raw)
-
-
-CoordFrame = Literal["beam", "instrument", "ship", "earth"]
-"""The frame of an RDI binary velocity (PD0, PD4/PD5), in the order of its two-bit code."""
-
-COORD_FRAMES: tuple[CoordFrame, ...] = get_args(CoordFrame)
-"""The frames indexed by their two-bit code."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -154,29 +143,6 @@ class SpeedRecord:
         return math.hypot(self.longitudinal_mps, self.transverse_mps)
 
 
-def rdi_velocities(
-    values: tuple[int, ...],
-) -> tuple[int | None, int | None, int | None, int | None]:
-    """Four RDI 16-bit velocities (mm/s) as read, :data:`RDI_INVALID` as None: what the
-    PD0 and PD4/PD5 decoders keep."""
-    a, b, c, d = (None if x == RDI_INVALID else x for x in values)
-    return (a, b, c, d)
-
-
-def rdi_mms(v: float | None) -> int:
-    """A velocity in m/s as RDI's 16-bit mm/s (clamped to ±32767), :data:`RDI_INVALID`
-    for None: what the PD0 and PD4/PD5 encoders write.
-
-    Raises:
-        ValueError: a non-finite value.
-    """
-    if v is None:
-        return RDI_INVALID
-    if not math.isfinite(v):
-        raise ValueError(f"cannot encode a non-finite velocity {v!r}")
-    return max(min(round(v * 1000.0), 32767), -32767)
-
-
 def ship_frame(a: float, b: float, heading_deg: float | None) -> tuple[float, float]:
     """A DVL's horizontal velocity (m/s) as (longitudinal, transverse) in the ship frame:
     ``(a, b)`` is (east, north) when a heading is given (earth coordinates, rotated by
@@ -202,60 +168,6 @@ def bottom_track(
         valid=ship is not None,
         heading_true_deg=heading_deg,
         source=source,
-    )
-
-
-def rdi_bottom_track(
-    port: str,
-    frame: CoordFrame,
-    lock: bool,
-    vessel_mms: tuple[int | None, int | None],
-    heading_deg: float | None,
-    source: str,
-) -> SpeedRecord:
-    """An RDI binary bottom track (PD0, PD4/PD5) as a speed record (:func:`bottom_track`).
-
-    Args:
-        port: the port's name.
-        frame: the velocity's coordinate frame.
-        lock: the instrument has a bottom lock.
-        vessel_mms: the vessel's motion, mm/s (None: bad): (starboard, forward), or
-            (east, north) in earth coordinates, rotated into the ship frame by the heading.
-        heading_deg: the instrument's heading (taken as true), or None.
-        source: the record's source, e.g. ``"PD0:BT"``.
-
-    Returns:
-        The record, invalid in beam coordinates, without a lock, with a bad component,
-        or in earth coordinates without a heading.
-    """
-    a, b = vessel_mms
-    earth = frame == "earth"
-    ship = None
-    if lock and frame != "beam" and a is not None and b is not None:
-        if not earth:
-            ship = ship_frame(a / 1000.0, b / 1000.0, None)
-        elif heading_deg is not None:
-            ship = ship_frame(a / 1000.0, b / 1000.0, heading_deg)
-    return bottom_track(port, ship, heading_deg, source)
-
-
-def rdi_vessel_mms(
-    ship_mps: tuple[float, float], frame: CoordFrame, heading_deg: float
-) -> tuple[int, int]:
-    """The vessel's (forward, starboard) motion in m/s as the RDI mm/s the PD0 and PD4/PD5
-    encoders write (:func:`rdi_mms`): (starboard, forward), or in earth coordinates
-    (east, north) rotated by the heading; the inverse of :func:`rdi_bottom_track`.
-
-    Raises:
-        ValueError: a non-finite value.
-    """
-    fwd, stb = ship_mps
-    if frame != "earth":
-        return rdi_mms(stb), rdi_mms(fwd)
-    psi = math.radians(heading_deg)
-    return (
-        rdi_mms(fwd * math.sin(psi) + stb * math.cos(psi)),
-        rdi_mms(fwd * math.cos(psi) - stb * math.sin(psi)),
     )
 
 

@@ -110,7 +110,7 @@ import numpy.typing as npt
 from calib.errors import DataError, ModelError
 from calib.kalman.kernels import check_covariance, condition, scalar_update, to_lists
 from calib.kalman.reference import Innovation
-from calib.models import CURRENT, Layout, Params, check_model, design_row, invert
+from calib.models import AMB_STATES, CURRENT, Layout, Params, check_model, design_row, invert
 
 DEFAULT_R_RAW_MPS2 = 0.0514**2
 """EMlog measurement variance: the Airmar DX900+ specification ±0.1 kn taken as 1σ."""
@@ -468,7 +468,7 @@ class KfCalibrator:
         v_raw = self.corrected(raw_mps)
         if not math.isfinite(v_raw):
             return v
-        a, m, _ = self._amb()
+        a, m, _ = self.amb()
         slope = 1.0 + m + 2.0 * a * v
         var_raw = self.noise_scale * self.config.r_raw_mps2 / max(slope * slope, MIN_SLOPE2)
         w = var_raw / (var_raw + self._P[0][0])
@@ -515,12 +515,13 @@ class KfCalibrator:
 
     def corrected(self, raw_mps: float) -> float:
         """The raw reading corrected with the current parameters (inverse model), m/s."""
-        a, m, b = self._amb()
+        a, m, b = self.amb()
         return invert(a, m, b, raw_mps)
 
-    def _amb(self) -> tuple[float, float, float]:
-        vals = dict(zip(self.layout.params, self._x[1 : 1 + len(self.layout.params)], strict=True))
-        return vals.get("a", 0.0), vals.get("m", 0.0), vals.get("b", 0.0)
+    def amb(self) -> tuple[float, float, float]:
+        """The parameters ``a``, ``m`` and ``b`` now (0.0 for one the model has not)."""
+        x, (ia, im, ib) = self._x, AMB_STATES[self.layout.model]
+        return (x[ia] if ia else 0.0, x[im] if im else 0.0, x[ib] if ib else 0.0)
 
     # -- covariance management ------------------------------------------------
 

@@ -39,12 +39,15 @@ def _decoder_options(args: argparse.Namespace) -> DecoderOptions:
 
 
 def _sniff_protocol(path: Path) -> str:
-    """Guess the protocol of a raw (non-capture) file from its first bytes."""
+    """Guess the protocol of a raw (non-capture) file from its first bytes (the binary
+    formats by their decoders' ``HEADER``)."""
+    from drivers import rdi_pd0, rdi_pd45
+
     with open(path, "rb") as f:
         head = f.read(_SNIFF_CHUNK)
-    if b"\x7f\x7f" in head[:64]:
+    if rdi_pd0.HEADER in head[:64]:
         return "pd0"
-    if head[:1] == b"\x7d":
+    if head.startswith(rdi_pd45.HEADER):
         return "pd4"
     text = head.lstrip()
     if text[:1] == b":":

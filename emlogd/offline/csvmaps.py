@@ -13,6 +13,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Literal
 
+from drivers.nmea0183.parsing import MAX_SPEED_MPS
 from drivers.records import KNOT_MPS
 from emlogd.offline.importbase import ImportFormatError, ImportReport
 
@@ -38,15 +39,12 @@ NO_VALUE = frozenset({"-", "--", "---"})
 DELIMITERS = (",", "\t", ";", "|")
 """The delimiters the header is tried with."""
 
-MAX_SPEED_KN = 80.0
-"""A speed through the water or over the ground above this is not a boat's, kn."""
-
 MAX_DRIFT_KN = 15.0
 """A current above this is not the sea's (the strongest tidal races run near 10 kn), kn."""
 
 LIMITS: dict[str, tuple[float, float]] = {
-    "stw": (0.0, MAX_SPEED_KN * KNOT_MPS),
-    "sog": (0.0, MAX_SPEED_KN * KNOT_MPS),
+    "stw": (0.0, MAX_SPEED_MPS),
+    "sog": (0.0, MAX_SPEED_MPS),
     "heading": (-360.0, 360.0),
     "cog": (-360.0, 360.0),
     "set": (-360.0, 360.0),

@@ -46,22 +46,12 @@ from emlogd.fileio import write_atomic
 from emlogd.offline.jobs import OfflineError
 from emlogd.offline.simtruth import Truth
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
+from emlogd.pipeline.twoaxis_learn import CURRENT_KNOT_S
 
 TwoAxisMethod = Literal["ls", "kf"]
 
 TWO_AXIS_KIND = "emlogd-two-axis-calibration"
 """The ``kind`` of a two-axis parameters file (``calibrate --axes 2 --save``)."""
-
-
-CURRENT_KNOT_S = 300.0
-"""Least squares fits a current linear between knots this many seconds apart. Both
-axes see the current, so a current that turns over half an hour leaves a residual on
-both: on the simulated figure-8 of ``emlogd simulate --seed 1 --sensor
-emlog2:misalign=3,mt=-0.08,bt=0.04`` (EM3), one current for its 27 minutes left
-residuals correlated over 75 samples and α refused; a current constant per 5-minute
-block, correlated over 4 and α 3.28 ± 0.30°; linear between knots 5 minutes apart
-(a figure-8 covers every heading in 90 s, a circle in 120 s), white residuals
-(correlation factor 1.0) and α 3.24 ± 0.14°."""
 
 
 @dataclass(frozen=True, eq=False)

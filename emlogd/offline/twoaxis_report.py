@@ -30,13 +30,13 @@ from calib.models import FloatArray
 from calib.twoaxis import fit_current_two_axis, water_velocity
 from emlogd.offline import report as figures
 from emlogd.offline.twoaxis import (
-    CURRENT_KNOT_S,
     TwoAxisRecording,
     TwoAxisResult,
     TwoAxisRow,
     calibrate_two_axis,
     evaluate_two_axis,
 )
+from emlogd.pipeline.twoaxis_learn import CURRENT_KNOT_S
 
 _TRACE_LABELS = (
     ("misalign_deg", "α (°)"),

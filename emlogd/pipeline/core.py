@@ -27,7 +27,8 @@ pipeline calls nothing of the caller's.
 
 A read that brings several readings of one sentence (a USB-serial stall released
 as a burst) carries one receive time for all: only the newest is fresh; the older
-ones are backlog — neither learnt from nor emitted as new.
+ones are backlog — neither learnt from nor emitted as new — though the log's rate
+check counts them (a babble arrives in such reads).
 
 Outputs per UUT: VHW → corrected VHW (heading passed through); VBW → corrected VBW;
 a status sentence at most once per ``status_sentence_interval_s``, and with current states
@@ -316,12 +317,15 @@ class Pipeline:
 
     def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
         u = self.uuts.get(port)
-        # a UUT reading is fresh when it is the chunk's last of its sentence
+        # a UUT reading is fresh when it is the chunk's last of its sentence; the rate
+        # check counts them all
         last: dict[str, int] = {}
+        count: dict[str, int] = {}
         if u is not None:
             for i, it in enumerate(items):
                 if isinstance(it, SpeedRecord) and it.role == "speed":
                     last[it.source] = i
+                    count[it.source] = count.get(it.source, 0) + 1
         for i, item in enumerate(items):
             if isinstance(item, NavHeading):
                 self.headings.add(t, port, item)
@@ -334,7 +338,9 @@ class Pipeline:
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
-                    self._reading(u, t, item, fresh=last[item.source] == i, out=out)
+                    fresh = last[item.source] == i
+                    n = count[item.source] if fresh else 1
+                    self._reading(u, t, item, fresh=fresh, out=out, n=n)
 
     def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
         for u in self._by_ref.get(port, ()):
@@ -387,11 +393,14 @@ class Pipeline:
             final=final,
         )
 
-    def _reading(self, u: UutRoute, t: float, sp: SpeedRecord, *, fresh: bool, out: Output) -> None:
-        """Correct a UUT reading and emit its sentence, then queue it for learning."""
+    def _reading(
+        self, u: UutRoute, t: float, sp: SpeedRecord, *, fresh: bool, out: Output, n: int = 1
+    ) -> None:
+        """Correct a UUT reading and emit its sentence, then queue it for learning; ``n``:
+        the readings of its sentence in its read (the rate check counts them)."""
         cal = u.cal
         raw = speed_of(sp, u.s.component)
-        if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh):
+        if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh, n):
             return
         trans = sp.transverse_mps
         if sp.source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
@@ -459,7 +468,9 @@ class Pipeline:
                 return None
         return prior
 
-    def _admit(self, u: UutRoute, t: float, source: str, raw: float, fresh: bool) -> bool:
+    def _admit(
+        self, u: UutRoute, t: float, source: str, raw: float, fresh: bool, n: int = 1
+    ) -> bool:
         """Whether a UUT's reading is corrected and emitted: in the log's range, not a
         backlog's, plausible (an implausible one is refused to the fusion too); the ones
         left out are counted by why."""
@@ -470,7 +481,7 @@ class Pipeline:
         if not fresh:
             cal.counters.backlog += 1
             return False
-        why = u.plausible(t, source, raw)
+        why = u.plausible(t, source, raw, n)
         if why and self.fusion is not None and source == u.s.uut_source:
             self.fusion.refuse(u.s.port, t, why)
         return not why or why == "reacquired"
@@ -490,7 +501,15 @@ class Pipeline:
         std = cal.output_std(value)
         calibrated = cal.applied is not None and u.s.apply
         cstd = consistency_std(std, u.s.r_raw_mps, value, calibrated)
-        fused = self.fusion.update(u.s.port, t, value, std, cstd_mps=cstd, calibrated=calibrated)
+        fused = self.fusion.update(
+            u.s.port,
+            t,
+            value,
+            std,
+            cstd_mps=cstd,
+            calibrated=calibrated,
+            referenced=cal.ref_state == "valid",
+        )
         if fused is None:
             return
         talker = self.fusion.s.talker
@@ -519,16 +538,18 @@ class Pipeline:
         )
 
     def _after(self, t: float, out: Output) -> None:
+        two_axis = self.two_axis
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
-            ax = self.two_axis.get(u.s.port)
-            if ax is not None and ax.sup.changed:
-                ax.sup.changed, cal.dirty = False, True
-            if cal.dirty:
+            if two_axis:
+                ax = two_axis.get(u.s.port)
+                if ax is not None and ax.sup.changed:
+                    ax.sup.changed, cal.dirty = False, True
+            if cal.sup.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
                     out.persist.append(self._with_two_axis(snap))

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from calib.metrics import IMO_BOUND_RTOL, IMO_MEETS_FRACTION, ImoVerdict, imo_bound_mps
+from calib.metrics import IMO_BOUND_RTOL, IMO_MEETS_FRACTION, ImoVerdict, imo_bound_one_mps
 
 
 @dataclass
@@ -42,7 +42,7 @@ class Counters:
 @dataclass(slots=True)
 class Score:
     """Running sums of squared errors against the reference (replay's RMSE figures), and
-    the samples within the IMO A.824(19) bound (:func:`calib.metrics.imo_bound_mps`)."""
+    the samples within the IMO A.824(19) bound (:func:`calib.metrics.imo_bound_one_mps`)."""
 
     n: int = 0
     ss_raw: float = 0.0
@@ -58,7 +58,7 @@ class Score:
         self.ss_raw += err_raw * err_raw
         self.ss_cor += err_cor * err_cor
         if ref_mps is not None and math.isfinite(ref_mps):
-            bound = float(imo_bound_mps(ref_mps)) * (1.0 + IMO_BOUND_RTOL)
+            bound = imo_bound_one_mps(ref_mps) * (1.0 + IMO_BOUND_RTOL)
             self.imo_n += 1
             self.imo_raw += abs(err_raw) <= bound
             self.imo_cor += abs(err_cor) <= bound

@@ -208,12 +208,23 @@ verdict stands while the error keeps its trend on the straight leg (the vessel m
 change its speed) and, after a gap, until a full window judges again."""
 
 
+DRIFT_ROWS = int(DRIFT_WINDOW_S / DRIFT_INTERVAL_S) + 1
+"""The most samples a drift window holds (one each :data:`DRIFT_INTERVAL_S` at most)."""
+
+
 class Drift:
     """The raw reading's and the reference's trends over :data:`DRIFT_WINDOW_S`: a log
-    that drifts against a steady reference on a straight leg (:attr:`on`)."""
+    that drifts against a steady reference on a straight leg (:attr:`on`).
+
+    The window's samples (time, raw, reference, cos, sin) are rows of one array, read
+    in place when judged; their times are also kept as floats, for the window's bounds.
+    """
 
     def __init__(self) -> None:
-        self.series: deque[tuple[float, float, float, float, float]] = deque()
+        self.times: deque[float] = deque()
+        """The times of the samples in the window, s."""
+        self._rows = np.empty((2 * DRIFT_ROWS, 5))
+        self._lo = 0
         self.on = False
         """The log drifts (the last window's verdict)."""
         self.change_mps = 0.0
@@ -222,45 +233,63 @@ class Drift:
     def add(self, t: float, raw: float, ref: float, cs: tuple[float, float] | None) -> None:
         """One sample (kept when :data:`DRIFT_INTERVAL_S` after the last one kept);
         ``cs``: the heading's (cos, sin), None without one (taken as straight)."""
-        q = self.series
-        if q and t - q[-1][0] < DRIFT_INTERVAL_S:
+        q = self.times
+        if q and t - q[-1] < DRIFT_INTERVAL_S:
             return
-        if q and t - q[-1][0] > STEP_MAX_GAP_S:
-            q.clear()  # the verdict stands until a full window after the gap judges again
+        if q and t - q[-1] > STEP_MAX_GAP_S:
+            self.reset_window()  # the verdict stands until a full window after the gap judges again
         c, s = cs if cs is not None else (math.nan, math.nan)
-        q.append((t, raw, ref, c, s))
-        while t - q[0][0] > DRIFT_WINDOW_S:
+        rows, n = self._rows, len(q)
+        if self._lo + n == len(rows):  # the array's end: the window back to its start
+            rows[:n] = rows[self._lo : self._lo + n]
+            self._lo = 0
+        rows[self._lo + n] = (t, raw, ref, c, s)
+        q.append(t)
+        while t - q[0] > DRIFT_WINDOW_S:
             q.popleft()
-        if t - q[0][0] >= DRIFT_WINDOW_S - 2.0 * DRIFT_INTERVAL_S:
+            self._lo += 1
+        if t - q[0] >= DRIFT_WINDOW_S - 2.0 * DRIFT_INTERVAL_S:
             self._judge()
 
     def _judge(self) -> None:
-        a = np.asarray(self.series, dtype=np.float64)
-        t = a[:, 0] - a[0, 0]
-        x = np.column_stack((t - float(np.mean(t)), np.ones(t.size)))
-        y = np.column_stack((a[:, 1] - a[:, 2], a[:, 1], a[:, 2]))
-        coef, res, _, _ = np.linalg.lstsq(x, y, rcond=None)
-        slope = coef[0]
-        sxx = float(x[:, 0] @ x[:, 0])
-        dof = max(t.size - 2, 1)
-        se = np.sqrt(res / dof / sxx) if res.size and sxx > 0.0 else np.full(3, np.inf)
-        span = float(t[-1])
-        change = slope * span
-        self.change_mps = float(change[0])
-        c, s = a[:, 3], a[:, 4]
-        straight = bool(np.isnan(c).any()) or (
-            1.0 - math.hypot(float(np.mean(c)), float(np.mean(s))) <= DRIFT_MAX_HEADING_SPREAD
-        )
-        trend = np.abs(change) >= DRIFT_MIN_MPS
-        trend &= np.abs(slope) >= DRIFT_SIGMAS * se
-        ref = abs(float(change[2]))
-        onset = bool(trend[1]) and ref <= DRIFT_STEADY_MPS
-        onset = onset and abs(float(change[1])) >= ref + DRIFT_STEADY_MPS
-        self.on = bool(trend[0]) and straight and (self.on or onset)
+        n = len(self.times)
+        a = self._rows[self._lo : self._lo + n]
+        # the least-squares line of each series (raw − reference, raw, reference) in
+        # time, from the window's sums about its first sample: one Gram matrix
+        d = a[:, :3] - a[0, :3]
+        (gtt, gtr, gtf), (_, grr, grf), (_, _, gff) = (d.T @ d).tolist()
+        st, sr, sf = d.sum(axis=0).tolist()
+        sxx = gtt - st * st / n
+        sums = ((gtr - gtf, sr - sf, grr - 2.0 * grf + gff), (gtr, sr, grr), (gtf, sf, gff))
+        slope, se = [0.0] * 3, [math.inf] * 3
+        for k, (sty, sy, syy) in enumerate(sums):
+            sxy = sty - st * sy / n
+            if sxx > 0.0:
+                slope[k] = sxy / sxx
+                if n > 2:
+                    rss = max(syy - sy * sy / n - slope[k] * sxy, 0.0)
+                    se[k] = math.sqrt(rss / (n - 2) / sxx)
+        span = float(d[-1, 0])
+        change = [b * span for b in slope]
+        self.change_mps = change[0]
+        sc, ss = a[:, 3:5].sum(axis=0).tolist()  # NaN when a sample had no heading
+        straight = math.isnan(sc) or (1.0 - math.hypot(sc / n, ss / n) <= DRIFT_MAX_HEADING_SPREAD)
+        trend = [
+            abs(change[k]) >= DRIFT_MIN_MPS and abs(slope[k]) >= DRIFT_SIGMAS * se[k]
+            for k in range(3)
+        ]
+        ref = abs(change[2])
+        onset = trend[1] and ref <= DRIFT_STEADY_MPS and abs(change[1]) >= ref + DRIFT_STEADY_MPS
+        self.on = trend[0] and straight and (self.on or onset)
+
+    def reset_window(self) -> None:
+        """Forget the samples, not the verdict."""
+        self.times.clear()
+        self._lo = 0
 
     def reset(self) -> None:
         """Forget the samples."""
-        self.series.clear()
+        self.reset_window()
         self.on = False
 
 

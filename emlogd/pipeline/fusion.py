@@ -15,7 +15,24 @@ values counts for little); the fused σ is ``1/√(Σ 1/σᵢ²)``. A log is lef
   or it re-acquired a new level, within ``hold_s`` — from its first implausible
   sample on, while another log is there;
 - ``stuck``: its speed has stayed within the quantum for :data:`FLAT_S` while another
-  log's moved;
+  log's moved, or its :data:`~emlogd.pipeline.integrity.STUCK_BLOCK_S` means have
+  spanned less than :data:`~emlogd.pipeline.integrity.STUCK_SPREAD_RATIO` of another
+  live log's over :data:`STILL_S` while those moved at least :data:`MOVE_SPAN_MPS`
+  without a step or an implausible reading in that time (a
+  stuck log with a little noise: the variance rule of
+  :class:`~emlogd.pipeline.integrity.UutHealth` with the other log as its reference;
+  it stands until its own block means span that ratio of :data:`MOVE_SPAN_MPS`);
+- ``still``: it is the one log left and nothing vouches for it — its UUT has no valid
+  reference (whose checks would see it stuck), and no other still log was used beside
+  it since it became still (two logs steady together vouch for each other) — and it
+  is *still*: its block means over :data:`STILL_S` have stayed within
+  :data:`STILL_SIGMAS` standard errors of a block mean (from the spread of its speeds
+  within the blocks) and a quantum of each other, as a log stuck at one value with or
+  without noise reads — or *flat*, within the quantum for :data:`FLAT_S`, and not used
+  beside another log while flat that long. The fused output is then invalid: a stuck reading is not told
+  from a steady speed by the log alone, and nothing else can tell. Still lasts until
+  the block means spread beyond :data:`STILL_RELEASE_SIGMAS`, the log steps, or its
+  speeds stop for a block;
 - it loses a *dispute*: two logs disagree when their speeds' difference, smoothed over
   :data:`PAIR_SMOOTH_S`, is beyond ``gate_chi2`` in units of their consistency σ (the
   output σ of a calibrated log; the reading's noise and :data:`UNCALIBRATED_SCALE_STD`
@@ -35,8 +52,10 @@ values counts for little); the fused σ is ``1/√(Σ 1/σᵢ²)``. A log is lef
      times its own recent scatter from its own short-term prediction (a plausible jump
      all the same: 0.38 → 0.68 m/s at a slow speed) — and the other did not (neither
      being flat for :data:`STEP_GUARD_S`);
-  5. ``minority``: one log is in more disputes than the other (three logs or more);
-  6. ``uncalibrated``: one log has a validated calibration and the other none.
+  5. ``still``: one log is still (as above) and the other is not, neither having
+     stepped (a real change against a steady log decides nothing);
+  6. ``minority``: one log is in more disputes than the other (three logs or more);
+  7. ``uncalibrated``: one log has a validated calibration and the other none.
 
   A step resets the smoothed differences of the log's pairs to the present one, so a
   log that steps away from the others is in dispute from its first stepped sample.
@@ -50,9 +69,10 @@ No I/O, no clock: times come with the data.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
-from emlogd.pipeline.integrity import QUANTUM_MPS
+from emlogd.pipeline.integrity import QUANTUM_MPS, STUCK_BLOCK_S, STUCK_SPREAD_RATIO
 
 UNCALIBRATED_SCALE_STD = 0.1
 """The consistency σ of an uncalibrated log's speed, as a fraction of it (with the
@@ -93,6 +113,23 @@ STEP_FLOOR_MPS = 0.02
 
 STEP_WARMUP = 10
 """Speeds a log needs before its steps are judged."""
+
+STILL_S = 60.0
+"""A log's block means are judged for stillness over this long, s (the default
+``stuck_s`` of a UUT's own stuck check)."""
+
+STILL_SIGMAS = 5.0
+"""A log whose block means span at most this many standard errors of a block mean
+(plus a quantum) over :data:`STILL_S` is still: the span of six means of white noise
+exceeds it about once in a hundred windows."""
+
+STILL_RELEASE_SIGMAS = 8.0
+"""A still log is still until its block means span more than this many standard errors
+(plus a quantum): a stuck log's noise does not free it."""
+
+MOVE_SPAN_MPS = 0.3
+"""A log's block means spanning this much over :data:`STILL_S` show the vessel's speed
+moved (the ``ref_move_mps`` of a UUT's own stuck check), m/s."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,17 +194,26 @@ def consistency_std(std_mps: float, r_raw_mps: float, speed_mps: float, calibrat
 class _Log:
     __slots__ = (
         "anchor",
+        "blk",
+        "blocks",
         "calibrated",
         "cstd",
         "level",
         "n",
+        "referenced",
         "scatter2",
+        "span",
         "spread2",
         "std",
+        "still",
+        "stuck",
         "t",
         "t_anchor",
         "t_break",
+        "t_company",
         "t_step",
+        "t_still",
+        "t_vouched",
         "v",
         "why",
     )
@@ -188,6 +234,60 @@ class _Log:
         """Mean square of every speed about the prediction, steps included."""
         self.n = 0
         self.t_step = -math.inf
+        self.referenced = False
+        self.blk = [0.0, 0.0, 0.0, 0.0]
+        """The block being summed: start time, n, Σ speed, Σ speed²."""
+        self.blocks: deque[tuple[float, float, float]] = deque(
+            maxlen=math.ceil(STILL_S / STUCK_BLOCK_S)
+        )
+        """The closed blocks over :data:`STILL_S`: (mean, variance within, n)."""
+        self.still = False
+        self.stuck = False
+        """Its block means stopped following another log's (the variance rule): it stands
+        until they span :data:`STUCK_SPREAD_RATIO` of :data:`MOVE_SPAN_MPS`."""
+        self.t_still = -math.inf
+        """When the log last became still."""
+        self.t_company = -math.inf
+        """When the log was last used beside another log."""
+        self.t_vouched = -math.inf
+        """When the log was last used beside another still log (they vouch for each other)."""
+        self.span = math.nan
+        """The span of the block means over :data:`STILL_S` (nan until they are full), m/s."""
+
+    def block(self, t: float, v: float) -> None:
+        """Add a speed to the block means behind :attr:`still` and :attr:`span`; a gap of
+        a block or more starts them afresh."""
+        b = self.blk
+        if b[1] and (t - self.t >= STUCK_BLOCK_S or t == self.t_step):
+            self.blocks.clear()
+            self.still, self.span = False, math.nan
+            b[1] = 0.0
+        elif b[1] and t - b[0] >= STUCK_BLOCK_S:
+            mean = b[2] / b[1]
+            self.blocks.append((mean, max(b[3] / b[1] - mean * mean, 0.0), b[1]))
+            b[1] = 0.0
+            self._judge(t)
+        if not b[1]:
+            b[:] = [t, 0.0, 0.0, 0.0]
+        b[1] += 1.0
+        b[2] += v
+        b[3] += v * v
+
+    def _judge(self, t: float) -> None:
+        blocks = self.blocks
+        if len(blocks) < (blocks.maxlen or 0):
+            self.still, self.span = False, math.nan
+            return
+        means = [m for m, _, _ in blocks]
+        self.span = max(means) - min(means)
+        if self.span + QUANTUM_MPS >= STUCK_SPREAD_RATIO * MOVE_SPAN_MPS:
+            self.stuck = False
+        var = sum(w for _, w, _ in blocks) / len(blocks)
+        se = math.sqrt(var / min(n for _, _, n in blocks))
+        was = self.still
+        self.still = self.span <= (STILL_RELEASE_SIGMAS if was else STILL_SIGMAS) * se + QUANTUM_MPS
+        if self.still and not was:
+            self.t_still = t
 
     def predict(self, t: float, v: float) -> bool:
         """Add a speed to the log's own prediction; True when it is a step."""
@@ -262,18 +362,22 @@ class Fusion:
         *,
         cstd_mps: float | None = None,
         calibrated: bool = False,
+        referenced: bool = False,
     ) -> Fused | None:
         """Record a log's corrected speed; the fused speed when one is due, else None.
 
-        ``cstd_mps`` is its consistency σ (:func:`consistency_std`; default ``std_mps``).
+        ``cstd_mps`` is its consistency σ (:func:`consistency_std`; default ``std_mps``);
+        ``referenced``: its UUT has a valid reference now (which checks it is not stuck).
         """
         if math.isfinite(speed_mps) and math.isfinite(std_mps) and std_mps > 0.0:
             lg = self._log(port)
             if lg.predict(t, speed_mps):
                 self._stepped.add(port)
+            lg.block(t, speed_mps)
             lg.t, lg.v, lg.std = t, speed_mps, std_mps
             lg.cstd = cstd_mps if cstd_mps is not None and cstd_mps > 0.0 else std_mps
             lg.calibrated = calibrated
+            lg.referenced = referenced
             if not abs(speed_mps - lg.anchor) <= QUANTUM_MPS:
                 lg.anchor, lg.t_anchor = speed_mps, t
         if t - self.t_last < self.s.min_interval_s:
@@ -301,13 +405,14 @@ class Fusion:
         if not live:
             return None
         out = {p: lg.why for p, lg in live.items() if t - lg.t_break < s.hold_s}
-        moving = [p for p, lg in live.items() if t - lg.t_anchor < FLAT_S]
-        for p, lg in live.items():
-            if p not in out and t - lg.t_anchor >= FLAT_S and any(q != p for q in moving):
-                out[p] = "stuck"
+        stuck = self._stuck(t, live)
+        out = {**stuck, **out}
         cand = sorted(p for p in live if p not in out)
         if not cand:  # every log had a recent implausible reading: the plausible ones
-            cand, out = sorted(live), {}
+            out = {p: why for p, why in out.items() if p in stuck}
+            cand = sorted(p for p in live if p not in stuck)
+        if not cand:
+            return Fused(math.nan, math.nan, (), tuple(sorted(out.items())))
         self._disputes(t, live, cand)
         losers: dict[str, str] = {}
         undecided: set[str] = set()
@@ -324,10 +429,55 @@ class Fusion:
             excluded = {**out, **dict.fromkeys(undecided, "disagree"), **losers}
             return Fused(math.nan, math.nan, (), tuple(sorted(excluded.items())))
         used = [(live[p].weight_std() ** -2, live[p].v, p) for p in cand if p not in losers]
+        if not self._vouched(t, [live[p] for _, _, p in used]):
+            out = {**out, **losers, used[0][2]: "still"}
+            return Fused(math.nan, math.nan, (), tuple(sorted(out.items())))
         w = sum(x[0] for x in used)
         speed = sum(wi * v for wi, v, _ in used) / w
         order = tuple(p for _, _, p in sorted(used, key=lambda x: -x[0]))
         return Fused(speed, 1.0 / math.sqrt(w), order, tuple(sorted({**out, **losers}.items())))
+
+    @staticmethod
+    def _stuck(t: float, live: dict[str, _Log]) -> dict[str, str]:
+        """The live logs left out as stuck: flat while another moves, or (the variance
+        rule) block means that stopped following another's moving ones."""
+        moving = [p for p, lg in live.items() if t - lg.t_anchor < FLAT_S]
+        span = max(
+            (
+                lg.span
+                for lg in live.values()
+                if math.isfinite(lg.span) and t - max(lg.t_step, lg.t_break) > STILL_S
+            ),
+            default=0.0,
+        )
+        stuck: dict[str, str] = {}
+        for p, lg in live.items():
+            if t - lg.t_anchor >= FLAT_S and any(q != p for q in moving):
+                stuck[p] = "stuck"
+            elif lg.stuck or (
+                span >= MOVE_SPAN_MPS and lg.span + QUANTUM_MPS < STUCK_SPREAD_RATIO * span
+            ):
+                lg.stuck = True
+                stuck[p] = "stuck"
+        return stuck
+
+    @staticmethod
+    def _vouched(t: float, used: list[_Log]) -> bool:
+        """Whether the logs about to be fused may be: False for one log that nothing
+        vouches for, still or flat since it was last used beside another; two or more
+        still logs used together vouch for each other."""
+        if len(used) == 1:
+            lg = used[0]
+            still = lg.still and lg.t_vouched < lg.t_still
+            flat = t - lg.t_anchor >= FLAT_S and lg.t_company < lg.t_anchor + FLAT_S
+            return lg.referenced or not (still or flat)
+        for lg in used:
+            lg.t_company = t
+        if sum(1 for lg in used if lg.still) >= 2:
+            for lg in used:
+                if lg.still:
+                    lg.t_vouched = t
+        return True
 
     def _disputes(self, t: float, live: dict[str, _Log], cand: list[str]) -> None:
         """Update each candidate pair's smoothed difference and dispute state."""
@@ -381,6 +531,8 @@ class Fusion:
         both_moving = max(t - la.t_anchor, t - lb.t_anchor) < STEP_GUARD_S
         if sa != sb and both_moving:
             return (a if sa else b), "step"
+        if la.still != lb.still and not (sa or sb):
+            return (a if la.still else b), "still"
         na = sum(1 for k, d in self.pairs.items() if a in k and d.t_onset is not None)
         nb = sum(1 for k, d in self.pairs.items() if b in k and d.t_onset is not None)
         if na != nb:

@@ -43,11 +43,15 @@ class HeadingCheck:
         max_current_mps: the largest current (the envelope's), m/s.
     """
 
-    __slots__ = ("_samples", "bound_mps", "implied_mps", "suspect")
+    __slots__ = ("_bad", "_samples", "bound_mps", "implied_mps", "suspect")
 
     def __init__(self, max_current_mps: float) -> None:
         self.bound_mps = max_current_mps + 3.0 * GNSS_SPEED_STD_MPS
         self._samples: deque[tuple[float, bool]] = deque()
+        self._bad = 0
+        """How many of :attr:`_samples` imply too strong a current (kept as they come and
+        go: a GNSS flooding fixes makes the window long, and counting it per fix made
+        each fix cost the whole window)."""
         self.suspect = False
         self.implied_mps: float | None = None
         """The current the last sample's heading implied, m/s."""
@@ -65,12 +69,14 @@ class HeadingCheck:
         ce = sog_mps * math.sin(cog) - stw_mps * math.sin(psi)
         self.implied_mps = math.hypot(cn, ce)
         s = self._samples
-        s.append((t, self.implied_mps > self.bound_mps))
+        too_strong = self.implied_mps > self.bound_mps
+        s.append((t, too_strong))
+        self._bad += too_strong
         while s and t - s[0][0] > WINDOW_S:
-            s.popleft()
+            self._bad -= s.popleft()[1]
         if len(s) < MIN_SAMPLES or t - s[0][0] < 0.5 * WINDOW_S:
             return
-        bad = sum(1 for _, b in s if b) / len(s)
+        bad = self._bad / len(s)
         if bad >= BAD_FRACTION:
             self.suspect = True
         elif bad < 0.5 * BAD_FRACTION:

@@ -97,7 +97,12 @@ class Envelope:
 
     def check(self, params: Params, current_mps: tuple[float, float] | None = None) -> str:
         """``""`` when the calibration is inside the envelope, else why not."""
-        a, m, b = params.a_spm, params.m, params.b_mps
+        return self.check_values(params.a_spm, params.m, params.b_mps, current_mps)
+
+    def check_values(
+        self, a: float, m: float, b: float, current_mps: tuple[float, float] | None = None
+    ) -> str:
+        """:meth:`check` on the parameters' values (a filter's state, unbuilt)."""
         if not (math.isfinite(a) and math.isfinite(m) and math.isfinite(b)):
             return "parameters not finite"
         if abs(m) > self.max_abs_m:
@@ -462,6 +467,12 @@ late reading's jitter is no babble."""
 BABBLE_S = 10.0
 """The window of :data:`BABBLE_DROPS`, and how long a babbling log must keep its rate, s."""
 
+READ_SLACK = 2.0
+"""A read may hold :data:`RATE_BURST` readings of a sentence plus this many times what the
+time since the last read earned at the log's rate (reads bunch up when the daemon is
+busy, and the rate is learnt from reads, which may each bring two readings); beyond,
+its newest is dropped for the rate (a log babbling 20 sentences a read)."""
+
 RATE_HISTORY = 32
 """The nominal interval is the median of this many intervals between consecutive
 readings with none dropped for the rate between them (a babble, held to the rate,
@@ -540,7 +551,11 @@ class ReadingCheck:
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
         self._rate_dropped = False
-        self._drops: list[float] = []
+        self._drops: deque[float] = deque(maxlen=BABBLE_DROPS)
+        """The times of the last reads dropped for the rate, within :data:`BABBLE_S`: the
+        last :data:`BABBLE_DROPS` tell all the rule asks (a list of every drop within
+        the window, its oldest removed at every reading, cost the whole list per reading
+        of a log babbling one sentence a read)."""
         self.nominal_s: float | None = None
         """The log's nominal interval between readings, s (None until learnt)."""
         self.reacquired = False
@@ -553,14 +568,26 @@ class ReadingCheck:
             return DEFAULT_MAX_RATE_HZ
         return min(RATE_SLACK / self.nominal_s, DEFAULT_MAX_RATE_HZ)
 
-    def check(self, t: float, v: float) -> str:
-        """Judge one reading at receive time ``t``: ``""`` when plausible, else why not."""
+    def check(self, t: float, v: float, n: int = 1) -> str:
+        """Judge one reading at receive time ``t``: ``""`` when plausible, else why not.
+
+        ``n``: the readings of this sentence the read that brought it held (it the
+        newest; the others are backlog, not judged themselves). The rate is judged on
+        reads; a read holding more than :data:`RATE_BURST` readings plus
+        :data:`READ_SLACK` times what the time since the last read earned at the rate
+        is dropped for the rate too: a log babbling in bursts is no less babbling, and
+        a USB-serial stall released at once is no babble.
+        """
         self.reacquired = False
         drops = self._drops
-        if not self._rate(t):
+        prev = self._t_rate
+        if not self._rate(t) or (
+            prev is not None
+            and n > RATE_BURST + READ_SLACK * max(t - prev, 0.0) * self.max_rate_hz()
+        ):
             drops.append(t)
         while drops and t - drops[0] > BABBLE_S:
-            del drops[0]
+            drops.popleft()
         if drops and (drops[-1] == t or len(drops) >= BABBLE_DROPS):
             return "rate"
         return self._accel(t, v)

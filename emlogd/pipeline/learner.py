@@ -618,7 +618,7 @@ class Learner:
         persisted); an estimate at twice the limits, or one that cannot be inverted,
         is a filter captured by something the model does not explain.
         """
-        why = self._wide.check(self.kf.params, self.kf.current_mps)
+        why = self._wide.check_values(*self.kf.amb(), self.kf.current_mps)
         if not why:
             return
         self.counters.envelope += 1
@@ -671,20 +671,22 @@ class Learner:
         """The correction at the speed through the water now is :data:`OFFER_SIGMAS` of
         its own σ from zero (the parameters learnt so far; the others stay at their
         values and count as known)."""
-        v = self.kf.speed_mps
-        cov = self.kf.covariance()
-        std = self.kf.param_std
+        kf, names = self.kf, self.layout.params
+        v = kf.speed_mps
         x = {"a": v * v, "m": v, "b": 1.0}
-        theta = self.kf.params.theta
-        idx = [i for i, n in enumerate(self.layout.params) if n in self.learnt_ever]
+        idx = [i for i, n in enumerate(names) if n in self.learnt_ever]
         if not idx:
             return False
-        g = np.array([x[self.layout.params[i]] for i in idx])
-        p = np.array([[cov[1 + i][1 + j] for j in idx] for i in idx])
-        name = self.layout.params[idx[0]]
+        cov = kf.covariance()
+        std = kf.param_std
+        g = [x[names[i]] for i in idx]
+        # gᵀ P g over the learnt parameters' block of the covariance
+        gp = [sum(g[r] * cov[1 + i][1 + j] for r, i in enumerate(idx)) for j in idx]
+        name = names[idx[0]]
         k2 = (std_offer[name] / std[name]) ** 2 if std[name] > 0.0 else 1.0
-        var = float(g @ p @ g) * k2
-        corr = sum(theta[i] * x[n] for i, n in enumerate(self.layout.params))
+        var = sum(a * b for a, b in zip(gp, g, strict=True)) * k2
+        theta = dict(zip(("a", "m", "b"), kf.amb(), strict=True))
+        corr = sum(theta[n] * x[n] for n in names)
         return abs(corr) > OFFER_SIGMAS * math.sqrt(max(var, 0.0))
 
     @property

@@ -1,6 +1,6 @@
 """A calibration's validation window, and the verdicts on one validated before.
 
-:class:`_Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
+:class:`Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
 over a candidate's validation window. A new calibration, or one withdrawn for cause,
 must beat raw by the margin of :func:`worse`, in the water frame both after a current
 of each one's own and in one sea for both (:func:`common_current`); a restored one
@@ -162,7 +162,7 @@ def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, floa
 
 
 @dataclass
-class _Candidate:
+class Candidate:
     """A calibration under validation: what it is, since when, and its scores so far
     (sums of squared errors of raw, of it and of the applied one over ``n`` samples)."""
 
@@ -202,7 +202,7 @@ def worse(r: float, r_raw: float) -> bool:
     return r > r_raw * WORSE_FACTOR + WORSE_MARGIN_MPS
 
 
-def beats_raw(cand: _Candidate, r_raw: float, r_cand: float, detail: dict[str, object]) -> bool:
+def beats_raw(cand: Candidate, r_raw: float, r_cand: float, detail: dict[str, object]) -> bool:
     """Raw is worse than a new or withdrawn candidate by the margin (:func:`worse` the
     other way round), after a current of each one's own (``r_raw``, ``r_cand``) and,
     where it was scored, in the common sea (:func:`common_current`)."""
@@ -217,7 +217,7 @@ def beats_raw(cand: _Candidate, r_raw: float, r_cand: float, detail: dict[str, o
     return worse(c_raw, c_cand)
 
 
-def judge_saved_sea(cand: _Candidate, detail: dict[str, object]) -> bool:
+def judge_saved_sea(cand: Candidate, detail: dict[str, object]) -> bool:
     """Raw and it against the reference less the saved current: not worse than raw."""
     n = cand.n
     s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
@@ -226,7 +226,7 @@ def judge_saved_sea(cand: _Candidate, detail: dict[str, object]) -> bool:
     return not worse(s_cand, s_raw)
 
 
-def judge_own_currents(cand: _Candidate, detail: dict[str, object]) -> bool | None:
+def judge_own_currents(cand: Candidate, detail: dict[str, object]) -> bool | None:
     """A restored calibration, on a window whose headings tell a current from an
     offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
     current of their own fitted to the window; not worse than raw. None on a
@@ -246,7 +246,7 @@ def judge_own_currents(cand: _Candidate, detail: dict[str, object]) -> bool | No
 
 
 def judge_restored(
-    cand: _Candidate,
+    cand: Candidate,
     detail: dict[str, object],
     kf: KfConfig,
     restored_sea: tuple[float, float, float] | None,

@@ -295,12 +295,13 @@ class UutRoute:
         self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
         """Readings neither emitted nor learnt, by reason (shown with the counters)."""
 
-    def plausible(self, t: float, source: str, raw: float) -> str:
-        """``""`` when the reading is plausible, else why not (counted)."""
+    def plausible(self, t: float, source: str, raw: float, n: int = 1) -> str:
+        """``""`` when the reading is plausible, else why not (counted); ``n``: the
+        readings of its sentence its read held (:meth:`ReadingCheck.check`)."""
         chk = self.checks.get(source)
         if chk is None:
             chk = self.checks[source] = ReadingCheck(self.s.limits)
-        why = chk.check(t, raw)
+        why = chk.check(t, raw, n)
         if why:
             self.implausible[f"implausible_{why}"] += 1
         elif chk.reacquired:

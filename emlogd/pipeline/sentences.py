@@ -20,7 +20,8 @@ The fused speed's status (``$P`` + maker + ``F``)::
 
 fields: the fused speed and its σ in knots (empty when invalid), the number of logs
 used and their names (heaviest weight first), the status (``A`` valid, ``V`` invalid:
-logs disagree and nothing tells which is right), and the logs left out with their
+logs disagree and nothing tells which is right, or the one log left is still and
+nothing vouches for it), and the logs left out with their
 reasons (``name:reason`` joined by ``;``; see :mod:`emlogd.pipeline.fusion`). Names are
 cut to fit 82 characters, the used ones first.
 """
@@ -72,6 +73,13 @@ def _num(x: float | None, spec: str) -> str:
     if x is None or not math.isfinite(x):
         return ""
     return format(x, spec)
+
+
+def _deg(x: float | None) -> str:
+    """A direction in its 0–359.9° field with one decimal, empty for None or non-finite."""
+    if x is None or not math.isfinite(x):
+        return ""
+    return f"{min(max(x % 360.0, 0.0), 359.9):.1f}"
 
 
 def encode_status(f: StatusFields) -> str:
@@ -150,13 +158,7 @@ def encode_vhw_void(
 ) -> str:
     """A VHW without a speed (VHW has no status field: an empty speed is invalid),
     headings passed through."""
-
-    def deg(x: float | None) -> str:
-        if x is None or not math.isfinite(x):
-            return ""
-        return f"{min(max(x % 360.0, 0.0), 359.9):.1f}"
-
-    return with_checksum(f"{talker}VHW,{deg(heading_true_deg)},T,{deg(heading_mag_deg)},M,,N,,K")
+    return with_checksum(f"{talker}VHW,{_deg(heading_true_deg)},T,{_deg(heading_mag_deg)},M,,N,,K")
 
 
 def encode_vhw(
@@ -179,14 +181,8 @@ def encode_vdr(
     The set is the direction the current flows towards. Fields are clamped to their
     widths (set 0–359.9°, drift 0–99.99 kn); a missing magnetic set is left empty.
     """
-
-    def deg(x: float | None) -> str:
-        if x is None or not math.isfinite(x):
-            return ""
-        return f"{min(max(x % 360.0, 0.0), 359.9):.1f}"
-
     drift = f"{min(max(drift_kn, 0.0), 99.99):.2f}" if math.isfinite(drift_kn) else ""
-    body = f"{talker}VDR,{deg(set_true_deg)},T,{deg(set_mag_deg)},M,{drift},N"
+    body = f"{talker}VDR,{_deg(set_true_deg)},T,{_deg(set_mag_deg)},M,{drift},N"
     return with_checksum(body)
 
 

@@ -110,9 +110,9 @@ from emlogd.pipeline.revalidation import RESTORE_VALIDATION_S as RESTORE_VALIDAT
 from emlogd.pipeline.revalidation import RESTORE_WAIT_S as RESTORE_WAIT_S
 from emlogd.pipeline.revalidation import WORSE_FACTOR as WORSE_FACTOR
 from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
+from emlogd.pipeline.revalidation import Candidate as Candidate
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
 from emlogd.pipeline.revalidation import CandidateSource as CandidateSource
-from emlogd.pipeline.revalidation import _Candidate as _Candidate
 
 if TYPE_CHECKING:
     from emlogd.pipeline.settings import UutSettings
@@ -188,14 +188,14 @@ class Supervisor:
         """The calibration last applied for good reason: kept (and persisted) when it is
         withdrawn for cause, until another is applied."""
         self.last_good_std: dict[str, float | None] = dict(restored_std)
-        self.candidate: _Candidate | None = (
-            _Candidate(restored, math.nan, "restored", dict(restored_std))
+        self.candidate: Candidate | None = (
+            Candidate(restored, math.nan, "restored", dict(restored_std))
             if restored is not None
             else None
         )
         self.unverified = False
         """The applied calibration is a restored one no reference has confirmed yet."""
-        self.retry: tuple[_Candidate, float] | None = None
+        self.retry: tuple[Candidate, float] | None = None
         """A restored calibration refused on a straight leg, and when
         (:data:`RESTORE_RETRY_S`)."""
         self.t_first: float | None = None
@@ -280,7 +280,7 @@ class Supervisor:
             and not self.heard_reference
             and t - self.t_first >= RESTORE_WAIT_S
         ):
-            self.candidate = _Candidate(cand.params, math.nan, "verify", cand.std)
+            self.candidate = Candidate(cand.params, math.nan, "verify", cand.std)
             self._apply(t, cand.params, cand.std or {})
             self.unverified = True
             self.note = "restored calibration unverified: no reference"
@@ -368,7 +368,7 @@ class Supervisor:
     def _validate(
         self,
         t: float,
-        cand: _Candidate,
+        cand: Candidate,
         raw: float,
         ref: float,
         cs: tuple[float, float] | None,
@@ -414,7 +414,7 @@ class Supervisor:
         if cand.kind == "restored" and cand.n == RESTORE_EARLY_SAMPLES == cand.n_sea:
             self._early(t, cand)
 
-    def _early(self, t: float, cand: _Candidate) -> None:
+    def _early(self, t: float, cand: Candidate) -> None:
         """Apply a restored calibration on its first samples when, in the saved sea, raw
         is worse than it (:data:`RESTORE_EARLY_SAMPLES`)."""
         n = cand.n
@@ -436,7 +436,7 @@ class Supervisor:
             },
         )
 
-    def _validated(self, t: float, cand: _Candidate) -> bool:
+    def _validated(self, t: float, cand: Candidate) -> bool:
         """The candidate's validation window is complete (``validation_s``, or
         :data:`RESTORE_VALIDATION_S` for one validated before)."""
         span = self.s.validation_s
@@ -537,7 +537,7 @@ class Supervisor:
         self.previous = None
         self.recheck.reset()
         self._reset_detector()
-        self.candidate = _Candidate(p, math.nan, "revalidate", std)
+        self.candidate = Candidate(p, math.nan, "revalidate", std)
         self.note = f"fell back to raw: {why}"
         self.counters.fallbacks += 1
         self.dirty = True
@@ -551,12 +551,12 @@ class Supervisor:
                 old, t_refused = self.retry
                 if t - t_refused >= RESTORE_RETRY_S:
                     self.retry = None
-                    self.candidate = _Candidate(old.params, math.nan, "restored", old.std)
+                    self.candidate = Candidate(old.params, math.nan, "restored", old.std)
             return
         base = self.applied if self.applied is not None else None
         if base is not None and not self._significant(base, offer.params, offer.param_std):
             return
-        self.candidate = _Candidate(offer.params, t)
+        self.candidate = Candidate(offer.params, t)
 
     def _significant(self, old: Params, new: Params, std: Mapping[str, float]) -> bool:
         sigmas, floor = self.s.persist_min_change_sigma, self.s.persist_min_change_abs
@@ -565,7 +565,7 @@ class Supervisor:
             for k, x, y in zip(self.layout.params, old.theta, new.theta, strict=True)
         )
 
-    def _decide(self, t: float, cand: _Candidate, source: CandidateSource) -> None:
+    def _decide(self, t: float, cand: Candidate, source: CandidateSource) -> None:
         self.candidate = None
         n = cand.n
         r_raw, r_cand = math.sqrt(cand.raw / n), math.sqrt(cand.cand / n)

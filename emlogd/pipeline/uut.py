@@ -41,7 +41,7 @@ from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.integrity import PairedWindow, UutHealth
 from emlogd.pipeline.learner import AVERAGE_S, Aligned, BlockMeans, LagFinder, Learner, RefState
-from emlogd.pipeline.supervisor import Supervisor, _Candidate
+from emlogd.pipeline.supervisor import Candidate, Supervisor
 
 if TYPE_CHECKING:
     from emlogd.pipeline.settings import UutSettings
@@ -238,12 +238,12 @@ class UutCalibration:
         self.sup.previous = p
 
     @property
-    def candidate(self) -> _Candidate | None:
+    def candidate(self) -> Candidate | None:
         """The candidate under validation, or None."""
         return self.sup.candidate
 
     @candidate.setter
-    def candidate(self, c: _Candidate | None) -> None:
+    def candidate(self, c: Candidate | None) -> None:
         self.sup.candidate = c
 
     @property

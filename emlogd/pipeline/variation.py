@@ -40,6 +40,8 @@ from datetime import UTC, datetime
 import numpy as np
 import pyIGRF14
 
+from calib.excitation import N_SECTORS, SECTOR_DEG
+
 MODEL_YEARS = (1900.0, 2030.0)
 """The years IGRF-14 covers (decimal years); outside them no model variation."""
 
@@ -113,11 +115,12 @@ class CourseOffsetCheck:
 
     Attributes:
         n: straight-leg samples taken.
-        sectors: samples per 45° heading sector.
+        sectors: samples per heading sector (:data:`calib.excitation.SECTOR_DEG`, the
+            sectors of the calibration's excitation rule).
     """
 
     n: int = 0
-    sectors: list[int] = field(default_factory=lambda: [0] * 8)
+    sectors: list[int] = field(default_factory=lambda: [0] * N_SECTORS)
     _ata: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     _atb: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _last: tuple[float, float] | None = None
@@ -136,7 +139,7 @@ class CourseOffsetCheck:
         self._ata += np.outer(row, row)
         self._atb += row * (sog_mps * math.sin(rel))
         self.n += 1
-        self.sectors[int((heading_deg % 360.0) // 45.0) % 8] += 1
+        self.sectors[int((heading_deg % 360.0) // SECTOR_DEG) % N_SECTORS] += 1
 
     @property
     def covered(self) -> int:

@@ -34,6 +34,30 @@ def _segment(
     )
 
 
+def _water_lag(
+    seg: WaterFrameSeries,
+    late_s: float,
+    max_lag_s: float,
+    *,
+    ref: np.ndarray | None = None,
+    keep: np.ndarray | None = None,
+) -> LagEstimate:
+    """The water-frame lag of the segment's log read at 1 Hz ``late_s`` behind its 10 Hz
+    reference (``ref`` instead of the segment's), the reference and heading only where
+    ``keep``."""
+    ref_mps = seg.ref_mps if ref is None else ref
+    k = np.ones(seg.t_s.size, dtype=bool) if keep is None else keep
+    return estimate_lag(
+        seg.t_s[::10] + late_s,
+        seg.raw_mps[::10],
+        seg.t_s[k],
+        ref_mps[k],
+        max_lag_s,
+        step_s=0.1,
+        heading=(seg.t_s[k], seg.heading_deg[k]),
+    )
+
+
 class TestEstimateLag:
     """estimate_lag finds the delay across rates."""
 
@@ -111,15 +135,7 @@ class TestWaterFrameLag:
         seg = _segment(kind, 900.0, 2, (-0.3, 0.1))
         t_meas, v_meas = seg.t_s[::10] + 3.2, seg.raw_mps[::10]
         plain = estimate_lag(t_meas, v_meas, seg.t_s, seg.ref_mps, 10.0, step_s=0.1)
-        water = estimate_lag(
-            t_meas,
-            v_meas,
-            seg.t_s,
-            seg.ref_mps,
-            10.0,
-            step_s=0.1,
-            heading=(seg.t_s, seg.heading_deg),
-        )
+        water = _water_lag(seg, 3.2, 10.0)
         assert water.lag_s == pytest.approx(3.2, abs=0.1)
         assert abs(plain.lag_s - 3.2) > 0.1 or accept(plain) != ""
         assert accept(water) == ""
@@ -138,18 +154,11 @@ class TestWaterFrameLag:
         c_n, c_e = -0.25 + 0.40 * f, 0.15 - 0.35 * f
         psi = np.radians(seg.heading_deg)
         ref = seg.ref_mps + c_n * np.cos(psi) + c_e * np.sin(psi)
-        t_meas, v_meas = seg.t_s[::10] + 3.2, seg.raw_mps[::10]
-
-        def lag() -> LagEstimate:
-            return estimate_lag(
-                t_meas, v_meas, seg.t_s, ref, 10.0, step_s=0.1, heading=(seg.t_s, seg.heading_deg)
-            )
-
-        blocks = lag()
+        blocks = _water_lag(seg, 3.2, 10.0, ref=ref)
         assert blocks.lag_s == pytest.approx(3.2, abs=0.1)
         assert accept(blocks) == ""
         monkeypatch.setattr(calib.lag, "CURRENT_BLOCK_S", 1e9)
-        constant = lag()
+        constant = _water_lag(seg, 3.2, 10.0, ref=ref)
         assert abs(constant.lag_s - 3.2) > 0.1 or accept(constant) != ""
 
     def test_the_coarse_search_finds_what_every_lag_finds(
@@ -158,22 +167,9 @@ class TestWaterFrameLag:
         """Scoring coarse lags first, then the steps around the best, gives the estimate of
         scoring every step (the water-frame score is smooth at the coarse step)."""
         seg = _segment("figure-8", 900.0, 3, (-0.2, 0.15))
-        t_meas, v_meas = seg.t_s[::10] + 1.7, seg.raw_mps[::10]
-
-        def lag() -> LagEstimate:
-            return estimate_lag(
-                t_meas,
-                v_meas,
-                seg.t_s,
-                seg.ref_mps,
-                8.0,
-                step_s=0.1,
-                heading=(seg.t_s, seg.heading_deg),
-            )
-
-        coarse = lag()
+        coarse = _water_lag(seg, 1.7, 8.0)
         monkeypatch.setattr(calib.lag, "COARSE_STEP_S", 0.1)
-        assert lag() == coarse
+        assert _water_lag(seg, 1.7, 8.0) == coarse
         assert coarse.lag_s == pytest.approx(1.7, abs=0.1)
 
     def test_a_gap_longer_than_a_current_block(self) -> None:
@@ -181,18 +177,9 @@ class TestWaterFrameLag:
         dropped (no division by an empty block), and the lag is still found."""
         seg = _segment("figure-8", 1800.0, 3, (-0.2, 0.15))
         out = (seg.t_s > 600.0) & (seg.t_s < 1300.0)
-        t_meas, v_meas = seg.t_s[::10] + 2.0, seg.raw_mps[::10]
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            est = estimate_lag(
-                t_meas,
-                v_meas,
-                seg.t_s[~out],
-                seg.ref_mps[~out],
-                8.0,
-                step_s=0.1,
-                heading=(seg.t_s[~out], seg.heading_deg[~out]),
-            )
+            est = _water_lag(seg, 2.0, 8.0, keep=~out)
         assert est.lag_s == pytest.approx(2.0, abs=0.3)
 
     def test_standard_error_and_acceptance(self) -> None:

@@ -14,6 +14,7 @@ from calib.metrics import (
     chi2_mean_bounds,
     correlation_factor,
     imo_bound_mps,
+    imo_bound_one_mps,
     imo_verdict,
     improvement_pct,
     nis_stats,
@@ -172,6 +173,11 @@ class TestImoVerdict:
         kn = self.KN
         bound = imo_bound_mps(np.array([0.0, 5.0, 10.0, 20.0]) * kn) / kn
         assert bound == pytest.approx([0.2, 0.2, 0.2, 0.4])
+
+    def test_bound_at_one_speed_is_the_arrays_exactly(self) -> None:
+        """The per-sample bound (a Python float) is the array's, bit for bit, astern too."""
+        speeds = np.array([0.0, 1.3, 5.0, 10.0, 20.0, -7.5]) * self.KN
+        assert [imo_bound_one_mps(float(v)) for v in speeds] == imo_bound_mps(speeds).tolist()
 
     @pytest.mark.parametrize("speed_kn", [4.0, 10.0, 20.0])
     def test_at_inside_and_outside_the_bound(self, speed_kn: float) -> None:

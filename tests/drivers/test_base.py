@@ -10,24 +10,22 @@ from pathlib import Path
 from typing import Any, get_args
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import drivers
+from drivers import rdi_pd0, rdi_pd45
 from drivers.base import Decoder, DecoderOptions
 from drivers.errors import FieldError, FrameError
 from drivers.framing import LineFramer, with_checksum
 from drivers.nmea0183 import encode_rmc, encode_vbw, encode_vhw
+from drivers.rdi import CoordFrame
 from drivers.rdi_ascii import encode_pd6
 from drivers.rdi_pd0 import encode_pd0
 from drivers.rdi_pd45 import encode_pd45
-from drivers.records import CoordFrame, Rejected, SpeedRecord, SpeedRole
-from tests.nmea_encoders import (
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
-    encode_vtg,
-    encode_zda,
-)
+from drivers.records import Rejected, SpeedRecord, SpeedRole
+from tests import nmea_encoders as enc
+from tests.profiles import by_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -130,12 +128,12 @@ def _nmea_samples() -> list[bytes]:
         encode_vhw(2.0, heading_true_deg=10.0, heading_mag_deg=12.0),
         encode_vbw(2.0, 0.1, ground_long_mps=2.1, ground_trans_mps=0.0, ground_valid=True),
         encode_rmc(T0, 3.0, 45.0, lat_deg=50.0, lon_deg=-4.0, variation_deg=-2.0),
-        encode_vtg(3.0, 45.0),
-        encode_gga(T0, 50.0, -4.0),
-        encode_zda(T0),
-        encode_hdt(90.0),
-        encode_hdm(88.0),
-        encode_hdg(88.0, 1.0, -2.0),
+        enc.encode_vtg(3.0, 45.0),
+        enc.encode_gga(T0, 50.0, -4.0),
+        enc.encode_zda(T0),
+        enc.encode_hdt(90.0),
+        enc.encode_hdm(88.0),
+        enc.encode_hdg(88.0, 1.0, -2.0),
         with_checksum("IIVLW,10.1,N,3.2,N"),
         with_checksum("YXMTW,15.2,C"),
         with_checksum("IIVDR,10.0,T,12.0,M,0.5,N"),
@@ -215,6 +213,30 @@ def _members(union: object) -> tuple[Any, ...]:
     """The member types of a record union (a single record type is its own member)."""
     args = get_args(union)
     return args if args else (union,)
+
+
+START = {
+    "nmea0183": b"$",
+    "pd6": b":",
+    "pd13": b":",
+    "pd0": rdi_pd0.HEADER,
+    "pd4": rdi_pd45.HEADER,
+    "pd5": rdi_pd45.HEADER,
+}
+"""The first bytes of each protocol's frames: random bytes after them reach its parser."""
+
+
+@pytest.mark.fuzz
+@pytest.mark.parametrize("name", sorted(drivers.PROTOCOLS))
+@settings(max_examples=by_profile(300), deadline=None)
+@given(data=st.binary(max_size=3000))
+def test_random_bytes_never_raise_in_skip_mode(name: str, data: bytes) -> None:
+    """Arbitrary bytes after the start of any protocol's frame never raise in skip mode
+    and yield only members of its record union (no Rejected: rejects are only counted)."""
+    dec = drivers.make_decoder(name, "p", errors="skip")
+    members = _members(_union(type(dec)))
+    for r in dec.decode_all(START[name] + data):
+        assert isinstance(r, members), type(r)
 
 
 class TestRecordUnions:

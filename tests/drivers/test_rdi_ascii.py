@@ -227,14 +227,6 @@ def test_every_position_corrupted_by_a_structural_byte(value: int) -> None:
         test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
 
 
-@pytest.mark.fuzz
-@settings(max_examples=by_profile(300), deadline=None)
-@given(st.binary(max_size=2000))
-def test_random_bytes_never_raise(data: bytes) -> None:
-    """Arbitrary bytes after a colon never raise in skip mode."""
-    PdAsciiDecoder("dvl", errors="skip").decode_all(b":" + data)
-
-
 # Every line type, as a good line and with each field in turn replaced by each value
 # of a list of good ones (some out of range), bad ones and other types' ones, and with a
 # field too many or too few.

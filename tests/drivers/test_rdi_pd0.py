@@ -219,16 +219,6 @@ def test_a_flipped_byte_never_yields_a_corrupted_ensemble(pos: int, xor: int) ->
     _flip_test(pos, xor)
 
 
-@pytest.mark.fuzz
-@settings(max_examples=by_profile(300), deadline=None)
-@given(st.binary(max_size=3000))
-def test_random_bytes_never_raise_in_skip_mode(data: bytes) -> None:
-    """Arbitrary bytes after a PD0 header never raise in skip mode and yield only ensembles."""
-    dec = Pd0Decoder("dvl", errors="skip")
-    for r in dec.decode_all(b"\x7f\x7f" + data):
-        assert isinstance(r, Pd0Ensemble)
-
-
 def test_a_corrupted_length_at_end_of_file_does_not_swallow_the_next_ensemble() -> None:
     """Found by the fuzz run: ensemble 2's length field +512 made the framer wait for
     bytes that never came, and the end of the file took ensemble 3 with it."""

@@ -9,24 +9,14 @@ import json
 import sys
 from typing import Literal
 
-from emlogd.cli.common import UsageError
+from emlogd.cli.common import UsageError, key_arg
 from emlogd.cli.offline.args import uut_settings
 from emlogd.cli.offline.shared import check_writable, load, warn_lag
+from emlogd.offline import twoaxis
 from emlogd.offline.jobs import OfflineError, find_lag
 from emlogd.offline.simtruth import read_truth
 from emlogd.offline.tables import fmt, render
-from emlogd.offline.twoaxis import (
-    AxisScores,
-    TwoAxisRecording,
-    TwoAxisResult,
-    calibrate_two_axis,
-    crossval_two_axis,
-    evaluate_two_axis,
-    load_two_axis,
-    record_two_axis,
-    save_two_axis,
-    truth_scores,
-)
+from emlogd.pipeline.settings import UutSettings
 
 AXES_HELP = (
     "2: both axes of a log sending VBW against the DVL's bottom track (--ref-field "
@@ -36,14 +26,20 @@ AXES_HELP = (
 
 def axes_arg(p: argparse.ArgumentParser) -> None:
     """``--axes 1|2`` (default 1)."""
-    p.add_argument("--axes", type=int, choices=[1, 2], default=1, help=AXES_HELP)
+    p.add_argument(
+        "--axes",
+        type=key_arg(UutSettings, "axes", allow_auto=False),
+        default=1,
+        metavar="{1,2}",
+        help=AXES_HELP,
+    )
 
 
-def _records(args: argparse.Namespace, uut: str, ref: str) -> list[TwoAxisRecording]:
+def _records(args: argparse.Namespace, uut: str, ref: str) -> list[twoaxis.TwoAxisRecording]:
     field = getattr(args, "ref_field", None) or "bottom"
     if field != "bottom":
         raise UsageError("--axes 2 needs the DVL's bottom track: --ref-field bottom")
-    return [record_two_axis(p, uut, ref) for p in args.captures]
+    return [twoaxis.record_two_axis(p, uut, ref) for p in args.captures]
 
 
 def _lag(args: argparse.Namespace) -> tuple[float, str]:
@@ -57,7 +53,7 @@ def _lag(args: argparse.Namespace) -> tuple[float, str]:
     return report.lag_s, report.source
 
 
-def _scores_row(name: str, s: AxisScores) -> list[str]:
+def _scores_row(name: str, s: twoaxis.AxisScores) -> list[str]:
     return [
         name,
         str(s.n_samples),
@@ -72,7 +68,7 @@ def _scores_row(name: str, s: AxisScores) -> list[str]:
 SCORE_HEADER = ["capture", "N", "fwd raw", "fwd cal", "athw raw", "athw cal", "leeway°"]
 
 
-def _summary(res: TwoAxisResult) -> list[str]:
+def _summary(res: twoaxis.TwoAxisResult) -> list[str]:
     """α ± σ (or why it is held), the transverse parameters and the RMSE per axis."""
     f = res.fit
     se = f.stderr
@@ -114,7 +110,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def _text(res: TwoAxisResult) -> str:
+def _text(res: twoaxis.TwoAxisResult) -> str:
     f = res.fit
     se = f.stderr
     held = set(f.ident.unidentifiable)
@@ -149,13 +145,15 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     recs = _records(args, args.uut, args.ref)
     model = getattr(args, "model", None) or "EM3"
     method: Literal["ls", "kf"] = "kf" if args.method == "kf" else "ls"
-    res = calibrate_two_axis(recs, model, method, lag_s, lag_source=source, reference=args.ref)
+    res = twoaxis.calibrate_two_axis(
+        recs, model, method, lag_s, lag_source=source, reference=args.ref
+    )
     if args.json:
         sys.stdout.write(json.dumps(res.to_dict(), indent=2) + "\n")
     else:
         sys.stdout.write(_text(res))
     if args.save:
-        save_two_axis(args.save, res)
+        twoaxis.save_two_axis(args.save, res)
         if not args.json:
             sys.stdout.write(f"saved        {args.save}\n")
     return 0
@@ -163,16 +161,16 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     """``evaluate --axes 2``: a two-axis calibration file applied to captures."""
-    params, doc = load_two_axis(args.params)
+    params, doc = twoaxis.load_two_axis(args.params)
     uut = args.uut or str(doc.get("uut", ""))
     ref = args.ref or str(doc.get("reference", "dvl"))
     lag = args.lag if args.lag is not None else doc.get("lag_s")
     if not isinstance(lag, (int, float)):
         raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
     recs = _records(args, uut, ref)
-    rows = evaluate_two_axis(recs, params, float(lag))
+    rows = twoaxis.evaluate_two_axis(recs, params, float(lag))
     truth = read_truth(args.truth) if args.truth else None
-    scored = [truth_scores(r, params, truth, float(lag)) for r in recs] if truth else []
+    scored = [twoaxis.truth_scores(r, params, truth, float(lag)) for r in recs] if truth else []
     if args.json:
         out = []
         for i, r in enumerate(rows):
@@ -215,7 +213,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
     recs = _records(args, args.uut, args.ref)
     model = getattr(args, "model", None) or "EM3"
     try:
-        rows = crossval_two_axis(recs, model, lag_s)
+        rows = twoaxis.crossval_two_axis(recs, model, lag_s)
     except OfflineError as exc:
         raise UsageError(str(exc)) from None
     if args.json:

@@ -541,3 +541,17 @@ class TestOperatingPoint:
         assert abs(fused.params.b_mps - 0.1) < 2.0 * std["b"] + 0.01
         paper = self._blocks(False)
         assert paper.params.m < 0.02 - 0.07 and paper.params.b_mps > 0.25
+
+
+@pytest.mark.parametrize("model", ["EM1", "EM2", "EM3", "EM4"])
+def test_amb_reads_the_parameters_of_the_state(model: str) -> None:
+    """``amb()`` is (a, m, b) of :attr:`KfCalibrator.params` (0 for one the model has
+    not), after updates and in a copy."""
+    kf = KfCalibrator(model, current=True)
+    for k in range(50):
+        psi = math.radians(7.0 * k)
+        kf.update(2.0 + 0.01 * k, 1.8 + 0.012 * k, 0.1, heading_cs=(math.cos(psi), math.sin(psi)))
+    for f in (kf, kf.copy()):
+        p = f.params
+        assert f.amb() == (p.a_spm, p.m, p.b_mps)
+    assert any(kf.amb())

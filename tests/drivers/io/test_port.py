@@ -34,6 +34,19 @@ def _is_open(src: SerialSource) -> bool:
     return src.is_open
 
 
+def _until(src: SerialSource, is_open: bool, step_s: float) -> bool:
+    """Drive ``src`` every ``step_s`` (poll while closed, read while open) until it is open
+    (``is_open``) or closed, 5 s at the most; whether it got there."""
+    deadline = time.monotonic() + 5
+    while _is_open(src) != is_open and time.monotonic() < deadline:
+        if is_open:
+            src.poll()
+        else:
+            src.read()
+        time.sleep(step_s)
+    return _is_open(src) == is_open
+
+
 def test_reads_a_real_pty_in_chunks(pty_pair: tuple[int, int, str]) -> None:
     """200 sentences written to a real pty arrive intact in fewer than 200 chunks stamped with the
     port and a time, after one connected event, and close drops the descriptor."""
@@ -90,19 +103,11 @@ def test_unplug_and_replug_at_the_same_path(tmp_path: Path) -> None:
     vp.write(b"one\r\n")
     assert _read_all(src, 5) == b"one\r\n"
     vp.close()  # unplugged
-    deadline = time.monotonic() + 5
-    while _is_open(src) and time.monotonic() < deadline:
-        src.read()
-        time.sleep(0.01)
-    assert not _is_open(src)
+    assert _until(src, False, 0.01)
     assert [e.kind for e in src.events()] == ["disconnected"]
     vp2 = VirtualPort(link)  # replugged: a new pty at the same symlink
     try:
-        deadline = time.monotonic() + 5
-        while not _is_open(src) and time.monotonic() < deadline:
-            src.poll()
-            time.sleep(0.02)
-        assert _is_open(src) and src.reconnects == 1
+        assert _until(src, True, 0.02) and src.reconnects == 1
         vp2.write(b"two\r\n")
         assert _read_all(src, 5) == b"two\r\n"
     finally:
@@ -148,20 +153,12 @@ def _replug_cycles(tmp_path: Path, cycles: int) -> None:
         vp = VirtualPort(link)
         if k == 0:
             src.open()
-        deadline = time.monotonic() + 5
-        while not _is_open(src) and time.monotonic() < deadline:
-            src.poll()
-            time.sleep(0.002)
-        assert _is_open(src), f"cycle {k}: no reconnect"
+        assert _until(src, True, 0.002), f"cycle {k}: no reconnect"
         msg = b"$cycle,%d*00\r\n" % k
         vp.write(msg)
         assert _read_all(src, len(msg)) == msg
         vp.close()  # unplug
-        deadline = time.monotonic() + 5
-        while _is_open(src) and time.monotonic() < deadline:
-            src.read()
-            time.sleep(0.002)
-        assert not _is_open(src)
+        assert _until(src, False, 0.002)
         if k == 1:
             fds_before = sum(1 for _ in Path("/proc/self/fd").iterdir())
             rss_before = _rss()
@@ -178,16 +175,11 @@ def _rss() -> int:
     return 0
 
 
-def test_replug_cycles_leak_no_descriptors(tmp_path: Path) -> None:
-    """Ten unplug/replug cycles each reconnect and read, and leak no file descriptor or memory."""
-    _replug_cycles(tmp_path, 10)
-
-
-@pytest.mark.soak
-def test_hundred_replug_cycles(tmp_path: Path) -> None:
-    """A hundred unplug/replug cycles each reconnect and read, and leak no file descriptor or memory
-    (soak run)."""
-    _replug_cycles(tmp_path, 100)
+@pytest.mark.parametrize("cycles", [10, pytest.param(100, marks=pytest.mark.soak)])
+def test_replug_cycles_leak_no_descriptors(tmp_path: Path, cycles: int) -> None:
+    """Unplug/replug cycles (10; 100 in the soak run) each reconnect and read, and leak no
+    file descriptor or memory."""
+    _replug_cycles(tmp_path, cycles)
 
 
 def test_a_silent_device_whose_path_names_another_is_opened_again(tmp_path: Path) -> None:

@@ -237,21 +237,6 @@ def test_a_corrupted_sentence_never_yields_a_wrong_record(pos: int, value: int) 
     _flip(pos, value)
 
 
-def _random(data: bytes) -> None:
-    dec = NmeaDecoder("x", errors="skip")
-    for r in dec.decode_all(data):
-        assert not isinstance(r, Rejected)
-
-
-@pytest.mark.fuzz
-@settings(max_examples=by_profile(300), deadline=None)
-@given(st.binary(max_size=2000))
-def test_random_bytes_never_raise(data: bytes) -> None:
-    """Arbitrary bytes never raise in skip mode and yield no Rejected record (rejects are only
-    counted)."""
-    _random(data)
-
-
 @settings(max_examples=300, deadline=None)
 @given(
     st.lists(

@@ -172,3 +172,36 @@ def test_fake_ports_of_one_capture_keep_their_offsets(tmp_path: Path) -> None:
     shift = statistics.median(errors)
     worst = max(abs(e - shift) for e in errors)
     assert worst <= 0.045, (worst, errors)
+
+
+def _raw_files(tmp_path: Path) -> dict[str, Path]:
+    """A raw file of each format dump tells apart, written by the decoders' encoders."""
+    from datetime import UTC, datetime
+
+    from drivers.nmea0183 import encode_vhw
+    from drivers.rdi_ascii import encode_pd6
+    from drivers.rdi_pd0 import encode_pd0
+    from drivers.rdi_pd45 import encode_pd45
+
+    t = datetime(2026, 3, 1, 12, tzinfo=UTC)
+    pd6 = encode_pd6(timestamp=t, heading_deg=10.0, bottom_ship_mps=(0.1, 2.0, 0.0), range_m=9.0)
+    contents = {
+        "pd0": encode_pd0(ensemble_number=1, timestamp=t, heading_deg=10.0) * 3,
+        "pd4": encode_pd45(bottom_ship_mps=(2.0, 0.1), range_m=9.0) * 3,
+        "pd6": "".join(line + "\r\n" for line in pd6).encode(),
+        "nmea0183": (encode_vhw(2.0) + "\r\n").encode() * 3,
+    }
+    for name, data in contents.items():
+        (tmp_path / name).write_bytes(data)
+    return {name: tmp_path / name for name in contents}
+
+
+def test_dump_tells_the_protocol_of_a_raw_file_by_its_first_bytes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Without --protocol, dump reads a raw file as the protocol its first bytes name (the
+    binary formats by their decoders' headers) and decodes its records."""
+    for protocol, path in _raw_files(tmp_path).items():
+        assert main(["dump", str(path)]) == 0
+        row = capsys.readouterr().out.splitlines()[-1].split()
+        assert row[:2] == [path.stem, protocol] and int(row[2]) > 0, (protocol, row)

@@ -8,10 +8,14 @@ import os
 import select
 import signal
 import socket
+import subprocess
+import sys
 import time
 import tty
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 from calib.estimate import Estimate
 from calib.models import Params
@@ -78,6 +82,29 @@ def make_work(tmp_path: Path, config: str) -> Path:
         (tmp_path / sub).mkdir()
     (tmp_path / "emlogd.yaml").write_text(config.replace("{tcp}", str(free_port())))
     return tmp_path
+
+
+def run_daemon(
+    work: Path, stdout: int | IO[bytes], stderr: int | IO[bytes] | None = None
+) -> subprocess.Popen[bytes]:
+    """``emlogd run`` in ``work`` as a bare subprocess (not a :class:`Daemon`: no log file,
+    no wait for the control socket), its stdout on ``stdout`` and its stderr on ``stderr``
+    (default: the same); end it in :func:`reaped`."""
+    argv = [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")]
+    return subprocess.Popen(
+        argv, cwd=work, stdout=stdout, stderr=stdout if stderr is None else stderr
+    )
+
+
+@contextmanager
+def reaped(proc: subprocess.Popen[bytes]) -> Iterator[subprocess.Popen[bytes]]:
+    """``proc``, killed at the end of the block if it still runs."""
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
 
 
 def tcp_port(work: Path) -> int:

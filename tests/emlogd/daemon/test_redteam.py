@@ -15,7 +15,6 @@ import json
 import os
 import signal
 import socket
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -39,6 +38,8 @@ from tests.emlogd.daemon.harness import (
     Daemon,
     free_port,
     make_work,
+    reaped,
+    run_daemon,
     saved_calibration,
     tcp_port,
     wait,
@@ -270,28 +271,20 @@ def test_the_log_reader_gone_costs_log_lines_not_the_daemon(tmp_path: Path) -> N
     next log line ended it with exit code 0, which systemd does not restart."""
     work = _work(tmp_path)
     r, w = os.pipe()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
-        stdout=w,
-        stderr=w,
-        cwd=work,
-    )
-    os.close(w)
     sock = work / "run" / "control.sock"
     try:
-        wait(functools.partial(_answers, sock), "the control socket")
-        os.close(r)
-        r = -1
-        wait(lambda: _lost(sock) >= 3, "three status lines lost", 10.0)  # one a second
-        assert proc.poll() is None
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(STOP_TIMEOUT_S) == 0
+        with reaped(run_daemon(work, w)) as proc:
+            os.close(w)
+            wait(functools.partial(_answers, sock), "the control socket")
+            os.close(r)
+            r = -1
+            wait(lambda: _lost(sock) >= 3, "three status lines lost", 10.0)  # one a second
+            assert proc.poll() is None
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(STOP_TIMEOUT_S) == 0
     finally:
         if r >= 0:
             os.close(r)
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
 
 
 def _answers(sock: Path) -> bool:
@@ -337,31 +330,24 @@ def test_a_stdout_reader_that_stops_reading_costs_its_sentences_only(
         fake_sensors(trial_files["figure-8"], work / "links", ("emlog1", "dvl"), speed=SPEED),
         open(work / "daemon.log", "wb") as log,
     ):
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")],
-            stdout=w,
-            stderr=log,
-            cwd=work,
-        )
-        os.close(w)
         try:
-            wait(functools.partial(_answers, sock), "the control socket")
-            reader = os.open(work / "out" / "emlog0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
-            try:
-                wait(lambda: _sentences(sock)["stdout"][1] > 0, "stdout full", 30.0)
-                _drain(reader)
-                time.sleep(2.0)
-                assert _drain(reader).count(b"\r\n") >= 10  # the pty goes on
-            finally:
-                os.close(reader)
-            assert _answers(sock)
-            proc.send_signal(signal.SIGTERM)
-            assert proc.wait(STOP_TIMEOUT_S) == 0
+            with reaped(run_daemon(work, w, log)) as proc:
+                os.close(w)
+                wait(functools.partial(_answers, sock), "the control socket")
+                flags = os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK
+                reader = os.open(work / "out" / "emlog0", flags)
+                try:
+                    wait(lambda: _sentences(sock)["stdout"][1] > 0, "stdout full", 30.0)
+                    _drain(reader)
+                    time.sleep(2.0)
+                    assert _drain(reader).count(b"\r\n") >= 10  # the pty goes on
+                finally:
+                    os.close(reader)
+                assert _answers(sock)
+                proc.send_signal(signal.SIGTERM)
+                assert proc.wait(STOP_TIMEOUT_S) == 0
         finally:
             os.close(r)
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
 
 
 def test_a_tcp_connect_loop_costs_a_bounded_number_of_log_lines(tmp_path: Path) -> None:

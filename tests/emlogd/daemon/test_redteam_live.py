@@ -43,6 +43,8 @@ from tests.emlogd.daemon.harness import (
     free_port,
     make_work,
     raw_pty,
+    reaped,
+    run_daemon,
     tcp_port,
     wait,
 )
@@ -54,26 +56,9 @@ PORTS = ("emlog1", "dvl")
 fake's one clock)."""
 
 
-def _run(work: Path, out: int) -> subprocess.Popen[bytes]:
-    """``emlogd run`` in ``work``, its stdout and stderr to the descriptor ``out``."""
-    argv = [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")]
-    return subprocess.Popen(argv, cwd=work, stdout=out, stderr=out)
-
-
 def _stop(proc: subprocess.Popen[bytes]) -> int:
     proc.send_signal(signal.SIGTERM)
     return proc.wait(STOP_TIMEOUT_S)
-
-
-@contextlib.contextmanager
-def _reaped(proc: subprocess.Popen[bytes]) -> Iterator[subprocess.Popen[bytes]]:
-    """``proc``, killed at the end of the block if it still runs."""
-    try:
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
 
 
 def _queued(fd: int) -> int:
@@ -95,7 +80,7 @@ def test_a_log_reader_that_does_not_read_costs_log_lines_not_the_daemon(tmp_path
     r, w = os.pipe()
     fcntl.fcntl(w, F_SETPIPE_SZ, 4096)  # one page: full with the first status line
     try:
-        with _reaped(_run(work, w)) as proc:
+        with reaped(run_daemon(work, w)) as proc:
             os.close(w)
             w = -1
             wait(functools.partial(_answers, sock), "the control socket", 10.0)
@@ -292,7 +277,7 @@ def test_a_connect_flood_on_the_control_socket_does_not_lock_the_operators_out(
     d = Daemon(make_work(tmp_path, CONFIG))
     argv = [sys.executable, "-c", CONNECT_FLOOD, str(d.socket), "3"]
     try:
-        with _reaped(subprocess.Popen(argv)) as flood:
+        with reaped(subprocess.Popen(argv)) as flood:
             time.sleep(0.5)
             for _ in range(5):
                 assert request(d.socket, {"cmd": "status"}, timeout_s=5.0)["ok"] is True
@@ -380,6 +365,7 @@ NOBODY = 65534
 """The flooding user's id (``nobody``)."""
 
 
+@pytest.mark.root
 @pytest.mark.skipif(os.geteuid() != 0, reason="needs root to run a flood as another user")
 def test_a_users_many_processes_on_the_status_socket_do_not_evict_another_users_client(
     tmp_path: Path,

@@ -7,7 +7,9 @@ import io
 import selectors
 import socket
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import TypeAlias
 
 import pytest
 
@@ -55,17 +57,52 @@ def _pump(sel: selectors.BaseSelector, until: float = 0.3) -> None:
             key.data()
 
 
-def test_a_tcp_client_is_closed_past_its_input_budget_refilled_at_the_rate() -> None:
-    """What a client sends is discarded within TCP_INPUT_BURST bytes, refilled at
-    TCP_INPUT_RATE bytes/s: a client sending at half the rate for long stays; one byte
-    over the budget closes it as client_sent_data (counted)."""
+class _Clock:
+    """A monotonic clock the test moves."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+Served: TypeAlias = tuple[
+    TcpServerSink, selectors.BaseSelector, _Clock, list[tuple[str, str]], list[socket.socket]
+]
+"""What :func:`_serving` yields: the sink, its selector, its clock, its events, the clients."""
+
+
+@contextlib.contextmanager
+def _serving(limits: TcpLimits | None = None) -> Iterator[Served]:
+    """A TCP server sink on a free port with ``limits`` (default: the config keys'
+    defaults), the clock it reads (moved by the test), the events it reported and a list
+    for the test's clients; the clients, the sink and its selector are closed at the end."""
     sel = selectors.DefaultSelector()
     clock = _Clock()
     notes: list[tuple[str, str]] = []
     sink = TcpServerSink(
-        "127.0.0.1:0", selector=sel, on_event=lambda k, d: notes.append((k, d)), monotonic=clock
+        "127.0.0.1:0",
+        selector=sel,
+        on_event=lambda k, d: notes.append((k, d)),
+        monotonic=clock,
+        limits=limits or TcpLimits(),
     )
+    held: list[socket.socket] = []
     try:
+        yield sink, sel, clock, notes, held
+    finally:
+        for c in held:
+            c.close()
+        sink.close()
+        sel.close()
+
+
+def test_a_tcp_client_is_closed_past_its_input_budget_refilled_at_the_rate() -> None:
+    """What a client sends is discarded within TCP_INPUT_BURST bytes, refilled at
+    TCP_INPUT_RATE bytes/s: a client sending at half the rate for long stays; one byte
+    over the budget closes it as client_sent_data (counted)."""
+    with _serving() as (sink, sel, clock, notes, _):
         c = socket.create_connection(sink.address)
         _pump(sel)
         half = b"x" * int(TCP_INPUT_RATE / 2)
@@ -84,18 +121,12 @@ def test_a_tcp_client_is_closed_past_its_input_budget_refilled_at_the_rate() -> 
         assert sink.counters.dropped_clients == 1
         assert ("client_sent_data", str(c.getsockname())) in notes
         c.close()
-    finally:
-        sink.close()
-        sel.close()
 
 
 def test_tcp_clients_receive_and_a_stuck_client_is_dropped() -> None:
     """A TCP client that never reads is dropped as client_too_slow without blocking the writer,
     while a reading client gets the sentences uncut and in order."""
-    sel = selectors.DefaultSelector()
-    notes: list[tuple[str, str]] = []
-    sink = TcpServerSink("127.0.0.1:0", selector=sel, on_event=lambda k, d: notes.append((k, d)))
-    try:
+    with _serving() as (sink, sel, _, notes, _):
         good = socket.create_connection(sink.address)
         stuck = socket.create_connection(sink.address)
         stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
@@ -133,37 +164,6 @@ def test_tcp_clients_receive_and_a_stuck_client_is_dropped() -> None:
         stuck.close()
         _pump(sel)
         assert sink.counters.clients == 0
-    finally:
-        sink.close()
-        sel.close()
-
-
-class _Clock:
-    """A monotonic clock the test moves."""
-
-    def __init__(self) -> None:
-        self.t = 0.0
-
-    def __call__(self) -> float:
-        return self.t
-
-
-def _server(
-    limits: TcpLimits,
-) -> tuple[TcpServerSink, selectors.BaseSelector, _Clock, list[tuple[str, str]]]:
-    """A TCP server sink on a free port with ``limits``, the clock it reads (moved by the
-    test) and the events it reported."""
-    sel = selectors.DefaultSelector()
-    clock = _Clock()
-    notes: list[tuple[str, str]] = []
-    sink = TcpServerSink(
-        "127.0.0.1:0",
-        selector=sel,
-        on_event=lambda k, d: notes.append((k, d)),
-        monotonic=clock,
-        limits=limits,
-    )
-    return sink, sel, clock, notes
 
 
 def _stuck_client(address: tuple[str, int]) -> socket.socket:
@@ -172,6 +172,21 @@ def _stuck_client(address: tuple[str, int]) -> socket.socket:
     s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     s.connect(address)
     return s
+
+
+def _behind(
+    sink: TcpServerSink, sel: selectors.BaseSelector, held: list[socket.socket]
+) -> socket.socket:
+    """A client that reads nothing (:func:`_stuck_client`, kept in ``held``), with 3000
+    sentences (93 KB) written past its window and the sink's first check of what it took."""
+    stuck = _stuck_client(sink.address)
+    held.append(stuck)
+    _pump(sel, 0.1)
+    for _ in range(3000):
+        sink.write(LINE)
+    _pump(sel, 0.1)
+    sink.housekeep()
+    return stuck
 
 
 def _read_all(s: socket.socket) -> int:
@@ -188,8 +203,7 @@ def test_a_tcp_client_that_takes_nothing_is_closed_after_the_stall_time() -> Non
     client_stalled (counted with its reason), a reading client stays; before stall_s
     nothing happens."""
     limits = TcpLimits(max_pending_bytes=1 << 24, stall_s=2.0)
-    sink, sel, clock, notes = _server(limits)
-    try:
+    with _serving(limits) as (sink, sel, clock, notes, _):
         good = socket.create_connection(sink.address)
         stuck = _stuck_client(sink.address)
         _pump(sel)
@@ -216,17 +230,13 @@ def test_a_tcp_client_that_takes_nothing_is_closed_after_the_stall_time() -> Non
         assert good.recv(100) == LINE
         good.close()
         stuck.close()
-    finally:
-        sink.close()
-        sel.close()
 
 
 def test_a_tcp_client_is_closed_when_the_kernel_holds_too_much_for_it() -> None:
     """Pending output counts the kernel's send queue, not only the daemon's backlog: a
     client whose queue exceeds max_pending_bytes is closed as client_too_slow at the next
     check, though every write went to the kernel."""
-    sink, sel, _clock, notes = _server(TcpLimits(max_pending_bytes=8192))
-    try:
+    with _serving(TcpLimits(max_pending_bytes=8192)) as (sink, sel, _clock, notes, _):
         stuck = _stuck_client(sink.address)
         _pump(sel)
         for _ in range(600):  # 19 KB
@@ -237,24 +247,14 @@ def test_a_tcp_client_is_closed_when_the_kernel_holds_too_much_for_it() -> None:
         assert sink.counters.too_slow == 1 and sink.counters.clients == 0
         assert ("client_too_slow", str(stuck.getsockname())) in notes
         stuck.close()
-    finally:
-        sink.close()
-        sel.close()
 
 
 def test_at_the_client_limit_a_newcomer_evicts_a_client() -> None:
     """At max_clients a newcomer gets in and receives: the client with output stalled
     longest goes first; among clients that keep up, the most recently connected."""
-    sink, sel, clock, notes = _server(TcpLimits(max_clients=3, max_pending_bytes=1 << 24))
-    held: list[socket.socket] = []
-    try:
-        stuck = _stuck_client(sink.address)
-        held.append(stuck)
-        _pump(sel, 0.1)
-        for _ in range(3000):
-            sink.write(LINE)
-        _pump(sel, 0.1)
-        sink.housekeep()  # the stuck client's first check: what its buffer took
+    limits = TcpLimits(max_clients=3, max_pending_bytes=1 << 24)
+    with _serving(limits) as (sink, sel, clock, notes, held):
+        stuck = _behind(sink, sel, held)
         clock.t += 1.0
         for _ in range(2):
             clock.t += 0.1
@@ -278,26 +278,14 @@ def test_at_the_client_limit_a_newcomer_evicts_a_client() -> None:
         sink.write(LINE)
         latest.settimeout(5)
         assert latest.recv(100) == LINE
-    finally:
-        for s in held:
-            s.close()
-        sink.close()
-        sel.close()
 
 
 def test_a_slow_reader_with_output_pending_is_not_taken_for_stalled() -> None:
     """At the client limit a client with output pending that took some since the last
     check keeps its slot: the most recently connected goes instead."""
-    sink, sel, clock, notes = _server(TcpLimits(max_clients=2, max_pending_bytes=1 << 24))
-    held: list[socket.socket] = []
-    try:
-        slow = _stuck_client(sink.address)
-        held.append(slow)
-        _pump(sel, 0.1)
-        for _ in range(3000):
-            sink.write(LINE)
-        _pump(sel, 0.1)
-        sink.housekeep()
+    limits = TcpLimits(max_clients=2, max_pending_bytes=1 << 24)
+    with _serving(limits) as (sink, sel, clock, notes, held):
+        slow = _behind(sink, sel, held)
         clock.t += 1.0
         latest = socket.create_connection(sink.address)
         held.append(latest)
@@ -310,19 +298,12 @@ def test_a_slow_reader_with_output_pending_is_not_taken_for_stalled() -> None:
         _pump(sel, 0.1)
         assert notes[-2] == ("client_evicted", str(latest.getsockname()))
         assert sink.counters.evicted == 1 and sink.counters.clients == 2
-    finally:
-        for s in held:
-            s.close()
-        sink.close()
-        sel.close()
 
 
 def test_tcp_connect_disconnect_loop_leaks_nothing() -> None:
     """Fifty connect, write, disconnect cycles leave no client and no selector registration but the
     listening socket."""
-    sel = selectors.DefaultSelector()
-    sink = TcpServerSink("127.0.0.1:0", selector=sel)
-    try:
+    with _serving() as (sink, sel, _, _, _):
         for _ in range(50):
             c = socket.create_connection(sink.address)
             _pump(sel, 0.02)
@@ -333,9 +314,6 @@ def test_tcp_connect_disconnect_loop_leaks_nothing() -> None:
         _pump(sel, 0.1)
         assert sink.counters.clients == 0
         assert len(sel.get_map()) == 1  # only the listening socket
-    finally:
-        sink.close()
-        sel.close()
 
 
 def test_an_unbindable_tcp_output_is_retried_until_it_binds() -> None:
@@ -396,6 +374,7 @@ def test_stream_sink_counts_errors_instead_of_raising() -> None:
     assert sink.counters.errors == 1 and sink.counters.sentences == 1
 
 
+@pytest.mark.root
 def test_the_pty_output_belongs_to_its_readers_group(tmp_path: Path) -> None:
     """``pty_group``: the pty behind the link is in that group, with the given mode."""
     import grp
@@ -419,10 +398,8 @@ def test_a_connection_past_the_accept_budget_is_reset_and_the_listener_rests() -
     """A source past its budget: its connection is reset without a read (``throttled``,
     ``client_throttled``), the listener leaves the selector for THROTTLE_PAUSE_S, and
     once it is back a connection from another address is a client."""
-    sink, sel, clock, notes = _server(TcpLimits())
-    sink.budget = AcceptBudget(clock, source=(1.0, 0.001))
-    held: list[socket.socket] = []
-    try:
+    with _serving() as (sink, sel, clock, notes, held):
+        sink.budget = AcceptBudget(clock, source=(1.0, 0.001))
         held.append(socket.create_connection(sink.address))
         held.append(socket.create_connection(sink.address))
         _pump(sel, 0.1)
@@ -436,8 +413,3 @@ def test_a_connection_past_the_accept_budget_is_reset_and_the_listener_rests() -
         held.append(socket.create_connection(sink.address, source_address=("127.0.0.2", 0)))
         _pump(sel, 0.1)
         assert sink.counters.clients == 2 and sink.counters.throttled == 1
-    finally:
-        for s in held:
-            s.close()
-        sink.close()
-        sel.close()

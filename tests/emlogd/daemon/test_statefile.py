@@ -291,15 +291,10 @@ def _kill_loop(tmp_path: Path, rounds: int) -> None:
     assert sorted(f.name for f in tmp_path.iterdir()) == ["state.yaml", "state.yaml.bak"]
 
 
-def test_kill_9_while_saving_never_loses_the_file(tmp_path: Path) -> None:
-    """kill -9 at any moment of a save leaves a loadable file."""
-    _kill_loop(tmp_path, 8)
-
-
-@pytest.mark.soak
-def test_kill_9_soak(tmp_path: Path) -> None:
-    """The same, sixty rounds."""
-    _kill_loop(tmp_path, 60)
+@pytest.mark.parametrize("rounds", [8, pytest.param(60, marks=pytest.mark.soak)])
+def test_kill_9_while_saving_never_loses_the_file(tmp_path: Path, rounds: int) -> None:
+    """kill -9 at any moment of a save leaves a loadable file (8 kills; 60 in the soak run)."""
+    _kill_loop(tmp_path, rounds)
 
 
 def test_a_backup_that_is_the_same_file_leaves_no_temporary(tmp_path: Path) -> None:

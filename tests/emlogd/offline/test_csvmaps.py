@@ -61,14 +61,16 @@ def test_the_header_is_found_past_a_banner_with_its_delimiter() -> None:
 
 def test_cells_in_si_units_within_a_boats_range() -> None:
     """Speeds in knots become m/s, angles wrap into [0, 360), ddmm.mmmm positions become
-    degrees; a cell beyond a boat's range or no number is counted by column and reason."""
+    degrees; a cell beyond a boat's range (the speed the NMEA decoder takes, which reads
+    the sentences written from it) or no number is counted by column and reason."""
     report = ImportReport([], "", "p")
     stw = Col("stw", 0, KNOT_MPS)
     assert cell_value("10", stw, report) == pytest.approx(10 * KNOT_MPS)
     assert cell_value("-10", Col("heading", 0, 1.0), report) == 350.0
     assert cell_value("4530.0000S", Col("lat", 0, 1.0), report) == pytest.approx(-45.5)
     assert cell_value("3,5", stw, report) == pytest.approx(3.5 * KNOT_MPS)  # a decimal comma
-    assert cell_value("81", stw, report) is None
+    assert cell_value("77", stw, report) == pytest.approx(77 * KNOT_MPS)
+    assert cell_value("79", stw, report) is None  # past the NMEA decoder's MAX_SPEED_MPS
     assert cell_value("fast", stw, report) is None
     assert cell_value("4530.0000E", Col("lat", 0, 1.0), report) is None
     assert report.cells == Counter(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
 import pytest
 
 from calib.models import Params
@@ -115,6 +116,21 @@ def _drift(
 
 class TestDrift:
     """A log that drifts against a steady reference, told from the sea and the vessel."""
+
+    def test_the_trend_is_the_last_windows_however_long_the_run(self) -> None:
+        """Over many windows (the samples' array wraps round), the error's change is the
+        least-squares line of the last window's samples, at epoch times too."""
+        d, rows = Drift(), []
+        for k in range(1000):
+            t = 1.7e9 + 1.1 * k
+            raw, ref = 1.9 - 0.0005 * k + (0.01 if k % 3 else -0.02), 1.6 + 0.0001 * k
+            d.add(t, raw, ref, _cs(30.0))
+            rows.append((t, raw - ref))
+        last = np.array([r for r in rows if rows[-1][0] - r[0] <= DRIFT_WINDOW_S])
+        t = last[:, 0] - last[0, 0]
+        slope = np.polyfit(t, last[:, 1], 1)[0]
+        assert d.change_mps == pytest.approx(slope * t[-1], rel=1e-9)
+        assert d.on
 
     def test_a_fouling_log_at_steady_speed_drifts(self) -> None:
         """The reading falls 0.06 m/s over two minutes, the reference holds: on."""

@@ -15,7 +15,8 @@ from drivers.nmea0183 import encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import FUSED_PORT, Emit, Output, Pipeline
-from emlogd.pipeline.fusion import Fused, Fusion, FusionSettings
+from emlogd.pipeline.fusion import FLAT_S, STILL_S, Fused, Fusion, FusionSettings
+from emlogd.pipeline.integrity import STUCK_BLOCK_S
 from emlogd.pipeline.sentences import encode_fused_status
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.supervisor import RESTORE_WAIT_S
@@ -340,6 +341,63 @@ class TestArbitration:
         assert stuck and stuck[0].t - T0 <= 311.0
         assert _pemlf(out.emits)[-1][3:7] == ["1", "a", "A", "b:stuck"]
 
+    def test_a_stuck_log_with_noise_is_left_out(self) -> None:
+        """Log b reads 3.00 ± 0.03 m/s from t = 300 s while a keeps moving (0.2 m/s swings
+        every 97 s): its noise keeps it from being flat, but its block means stop
+        following a's, so it is left out as stuck within STILL_S and one block, and from
+        then on the fused speed is a's reading. Before, it stayed in the mean (the gate
+        of two uncalibrated logs is about 1 m/s wide) and pulled the fused speed."""
+        p = _pipeline()
+        out, rows = _run_two_logs(p, 300.0, lambda t: 1.0)
+        rng = np.random.default_rng(13)
+        for k in range(300, 1200):
+            t = float(k)
+            va = float(_truth(np.array([t]))[0] + rng.normal(0.0, NOISE_MPS))
+            rows = np.vstack([rows, [t, round(va / KNOT_MPS, 2) * KNOT_MPS]])
+            out.add(p.feed(T0 + t, "a", _vhw(va)))
+            out.add(p.feed(T0 + t + 0.5, "b", _vhw(3.0 + rng.normal(0.0, 0.03))))
+        stuck = [e.t - T0 for e in out.emits if e.port == FUSED_PORT and "b:stuck" in e.sentence]
+        assert stuck and stuck[0] <= 300.0 + STILL_S + STUCK_BLOCK_S
+        a_at = dict(zip(rows[:, 0], rows[:, 1], strict=True))
+        after = [(t, v) for t, v in _fused(out.emits) if t >= stuck[0] + 1.0]
+        assert len(after) > 1000
+        for t, v in after:
+            assert v is not None and abs(v - a_at[math.floor(t)]) < 0.006
+        assert _pemlf(out.emits)[-1][3:7] == ["1", "a", "A", "b:stuck"]
+
+    @pytest.mark.parametrize("noise_mps", [0.0, 0.03], ids=["exact", "noisy"])
+    def test_a_stuck_log_alone_beside_a_babbler_is_marked_invalid(self, noise_mps: float) -> None:
+        """From t = 300 s log a reads 3.00 m/s (exactly, or ± 0.03 m/s of noise) while
+        log b babbles at 50 Hz with 0–14 kn; no reference: nothing vouches for a. Within
+        FLAT_S (exactly) or STILL_S and one block (noisy) the fused VHW has no speed and
+        $PEMLF says V, naming a still; no fused speed after that presents a's reading as
+        valid. Before, a's reading went out as the valid fused speed."""
+        p = _pipeline()
+        rng = np.random.default_rng(11)
+        out = Output()
+        for k in range(600):
+            t = float(k)
+            if k < 300:
+                va = float(_truth(np.array([t]))[0] + rng.normal(0.0, NOISE_MPS))
+                vb = float(_truth(np.array([t + 0.5]))[0] + rng.normal(0.0, NOISE_MPS))
+                out.add(p.feed(T0 + t, "a", _vhw(va)))
+                out.add(p.feed(T0 + t + 0.5, "b", _vhw(vb)))
+                continue
+            out.add(p.feed(T0 + t, "a", _vhw(3.0 + rng.normal(0.0, noise_mps))))
+            for j in range(50):
+                babble = float(rng.uniform(0.0, 14.0)) * KNOT_MPS
+                out.add(p.feed(T0 + t + 0.01 + j / 50.0, "b", _vhw(babble)))
+        fused = _fused(out.emits)
+        assert all(v is not None for t, v in fused if t < 300.0)
+        within = FLAT_S + 1.0 if noise_mps == 0.0 else STILL_S + STUCK_BLOCK_S
+        late = [v for t, v in fused if t >= 300.0 + within]
+        assert len(late) > 200 and all(v is None for v in late)
+        last = _pemlf(out.emits)[-1]
+        assert last[1] == "" and last[3:6] == ["0", "", "V"]
+        assert "a:still" in last[6].split(";")
+        st = p.status()["fused"]
+        assert st["valid"] is False and st["excluded"]["a"] == "still"  # type: ignore[index]
+
     def test_a_log_reading_zero_leaves_at_its_first_sample(self) -> None:
         """Log b drops to 0.00 at t = 300.5 s: the zero is not sent, the fused speed sent
         next (a's reading at 301 s) and its $PEMLF already leave b out; it never comes
@@ -423,6 +481,71 @@ class TestPlausibility:
             out.add(p.feed(T0 + 121.0 + k, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
         assert len(_speeds(out.emits, "a")) - n_before - len(babble) == 21
 
+    def test_a_log_babbling_in_bursts_is_babbling(self) -> None:
+        """A minute at 10 Hz, one sentence a read; then reads of 20 sentences of 0–14 kn
+        every 0.1 s (a babble as a serial port delivers it: one receive time a read).
+        A read holding more readings than its time since the last earned at the rate
+        (READ_SLACK) is dropped for the rate: nothing of the babble goes out, nothing
+        is learnt, each read's newest counted as rate. Only the newest was
+        judged, at one a read, the log's own rate: the ones within the acceleration
+        bound of the last accepted went out (and, fused, won over a stuck log)."""
+        p, rec = _one_log()
+        n_learnt = 0
+        out = Output()
+        rng = np.random.default_rng(4)
+        for k in range(600):
+            out.add(p.feed(T0 + k / 10.0, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        n_before, n_learnt = len(_speeds(out.emits, "a")), len(rec.readings)
+        for k in range(300):
+            burst = b"".join(_vhw(rng.uniform(0.0, 14.0) * KNOT_MPS) for _ in range(20))
+            out.add(p.feed(T0 + 60.0 + k / 10.0, "a", burst))
+        assert len(_speeds(out.emits, "a")) == n_before and len(rec.readings) == n_learnt
+        counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
+        assert counters["implausible_rate"] == 300 and counters["implausible_accel"] == 0
+
+    def test_a_stall_released_at_once_is_no_babble(self) -> None:
+        """A 10 Hz log whose readings of 2 s come in one read (a USB-serial stall), five
+        times a minute: each read's newest goes out; nothing is counted as rate."""
+        p, _ = _one_log()
+        out = Output()
+        rng = np.random.default_rng(5)
+        t = 0.0
+        for k in range(600):
+            t = k / 10.0
+            out.add(p.feed(T0 + t, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        for _ in range(5):
+            t += 2.0
+            burst = b"".join(_vhw(2.8 + rng.normal(0.0, NOISE_MPS)) for _ in range(20))
+            out.add(p.feed(T0 + t, "a", burst))
+            for _ in range(100):
+                t += 0.1
+                out.add(p.feed(T0 + t, "a", _vhw(2.8 + rng.normal(0.0, NOISE_MPS))))
+        assert len(_speeds(out.emits, "a")) == 600 + 5 * 101
+        counters = p.status()["uuts"]["a"]["counters"]  # type: ignore[index]
+        assert counters["implausible_rate"] == 0 and counters["backlog"] == 5 * 19
+
+    def test_a_lone_stuck_log_without_a_reference_goes_out_as_read(self) -> None:
+        """One log, not fused, no reference: stuck at 3.0 ± 0.03 m/s after 300 s of
+        moving. Nothing can tell it from a steady speed: its readings go out as read
+        (never corrected), and the status says uncalibrated with the reference stale."""
+        p, _ = _one_log()
+        rng = np.random.default_rng(1)
+        out = Output()
+        raw = []
+        for k in range(600):
+            t = float(k)
+            v = float(_truth(np.array([t]))[0] + rng.normal(0.0, NOISE_MPS))
+            if k >= 300:
+                v = 3.0 + rng.normal(0.0, 0.03)
+            raw.append(round(v / KNOT_MPS, 2) * KNOT_MPS)
+            out.add(p.feed(T0 + t, "a", _vhw(v)))
+        speeds = _speeds(out.emits, "a")
+        assert speeds[300:] == pytest.approx(raw[300:], abs=0.006)
+        pemls = [e.sentence for e in out.emits if e.sentence.startswith("$PEMLS")][-1]
+        assert split_nmea(pemls.encode()).decode().split(",")[2::9] == ["U", "S"]
+        st = p.status()["uuts"]["a"]  # type: ignore[index]
+        assert st["state"] == "uncalibrated" and st["reference"] == "stale"
+
     def test_a_log_back_from_zero_is_judged_against_its_last_moving_level(self) -> None:
         """Dropouts to 0.00 are refused; a log that re-acquired zero (dead for 15 s) and
         comes back at the speed it had is accepted at once, not after 10 s."""
@@ -456,6 +579,20 @@ class TestDisputeRules:
             fused = self._feed(f, float(k), va, 3.0)
         assert fused is not None and fused.sources == ("a",)
         assert fused.excluded == (("b", "stuck"),)
+
+    def test_a_still_log_loses_to_one_that_moves_without_a_step(self) -> None:
+        """Both logs at 3.0 ± 0.01 m/s for a minute, then b speeds up 0.004 m/s per second
+        (no step, less than MOVE_SPAN_MPS a minute) while a stays: when they come to
+        disagree, a — still, its block means within their noise — is left out."""
+        f = Fusion(FusionSettings(min_interval_s=0.0))
+        rng = np.random.default_rng(2)
+        fused = None
+        for k in range(150):
+            ramp = 0.004 * max(k - 60, 0)
+            va, vb = 3.0 + rng.normal(0.0, 0.01), 3.0 + ramp + rng.normal(0.0, 0.01)
+            fused = self._feed(f, float(k), va, vb)
+        assert fused is not None and fused.sources == ("b",)
+        assert fused.excluded == (("a", "still"),)
 
     def test_the_uncalibrated_log_loses(self) -> None:
         """Two moving logs 0.5 m/s apart, a calibrated: b is left out as uncalibrated."""

@@ -28,14 +28,7 @@ from drivers.records import Rejected
 from emlogd.config import parse_config
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import fusion_from_config, pipeline_from_config
-from tests.nmea_encoders import (
-    encode_gga,
-    encode_hdg,
-    encode_hdm,
-    encode_hdt,
-    encode_vtg,
-    encode_zda,
-)
+from tests import nmea_encoders as enc
 from tests.profiles import by_profile
 
 CONFIG = """\
@@ -77,16 +70,16 @@ def _nmea(port: str, k: int) -> bytes:
         "emlog3": [encode_vhw(v * 1.05)],
         "gps": [
             encode_rmc(when, v, h, lat_deg=43.1, lon_deg=5.9, variation_deg=1.5),
-            encode_vtg(v, h),
-            encode_gga(when, 43.1, 5.9),
-            encode_zda(when),
+            enc.encode_vtg(v, h),
+            enc.encode_gga(when, 43.1, 5.9),
+            enc.encode_zda(when),
             with_checksum("GPVDR,10.0,T,8.5,M,0.50,N"),
         ],
         "compass": [
-            encode_hdg(h, 1.0, 2.0),
-            encode_hdg(h, -1.0, -2.0),
-            encode_hdt(h),
-            encode_hdm(h),
+            enc.encode_hdg(h, 1.0, 2.0),
+            enc.encode_hdg(h, -1.0, -2.0),
+            enc.encode_hdt(h),
+            enc.encode_hdm(h),
         ],
     }
     lines = by_port[port]

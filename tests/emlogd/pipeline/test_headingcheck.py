@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
 
 from drivers.nmea0183 import encode_rmc, encode_vhw
 from emlogd.pipeline.core import Output, Pipeline
-from emlogd.pipeline.headingcheck import WINDOW_S, HeadingCheck
+from emlogd.pipeline.headingcheck import BAD_FRACTION, WINDOW_S, HeadingCheck
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from tests.nmea_encoders import encode_hdt
 
@@ -75,3 +76,25 @@ def test_the_check_needs_a_speed_and_recovers() -> None:
     for k in range(400, 600):
         hc.add(float(k), 180.0, 2.8, 2.8, 180.0)
     assert hc.reason() == ""
+
+
+def test_a_gnss_flooding_fixes_costs_each_fix_little() -> None:
+    """60 000 fixes over 200 s (300 a second, a GNSS port flooding valid RMC): the
+    heading right for 60 s, then 180° wrong. The verdict follows (consistent, then
+    suspect once 80 % of the window's samples are wrong, at 156 s), and the whole run
+    costs well under 3 s of CPU. The share of bad samples was counted over the whole
+    window at every fix once the window held 60 s: each fix cost the window (about
+    10⁹ steps here, a minute; 15.7 s of CPU per second of a GNSS at 2900 fixes a
+    second)."""
+    hc = HeadingCheck(1.5)
+    n, duration = 60_000, 200.0
+    verdicts = []
+    c0 = time.process_time()
+    for k in range(n):
+        t = duration * k / n
+        hc.add(t, 0.0 if t < 60.0 else 180.0, 2.8, 3.0, 0.0)
+        verdicts.append(hc.suspect)
+    assert time.process_time() - c0 < 3.0
+    first = verdicts.index(True)
+    assert duration * first / n == pytest.approx(60.0 + BAD_FRACTION * WINDOW_S, abs=0.1)
+    assert all(verdicts[first:])

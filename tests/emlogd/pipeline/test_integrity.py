@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from hypothesis import strategies as st
 
 from calib.models import Params
 from emlogd.pipeline.integrity import (
+    BABBLE_S,
     STUCK_BLOCK_S,
     Envelope,
     JumpFilter,
@@ -250,3 +252,20 @@ class TestReadingCheck:
         assert chk.check(5.0, 4.2) == "accel"  # readings kept coming: not 0.3 + 5 m/s
         assert chk.check(6.0, 2.9) == ""
         assert chk.check(8.0, 4.2) == ""  # 2 s of silence: 0.3 + 2 m/s
+
+
+def test_a_log_babbling_one_sentence_a_read_costs_each_reading_little() -> None:
+    """A 1-Hz log, then 650 000 reads of one sentence 20 µs apart (13 s of a babble at
+    50 kHz): every read is dropped for the rate, the log babbling from the third on,
+    and the whole run costs well under 3 s of CPU. Every drop within 10 s was kept in a
+    list whose oldest was removed at every reading: each cost the whole list (half a
+    million) once the babble was 10 s old, 55 µs a reading against 0.7."""
+    chk = ReadingCheck(ReadingLimits())
+    for k in range(60):
+        assert chk.check(float(k), 2.8) == ""
+    c0 = time.process_time()
+    whys = [chk.check(60.0 + k * 20e-6, 2.8) for k in range(650_000)]
+    assert time.process_time() - c0 < 3.0
+    assert set(whys[2:]) == {"rate"}
+    # back at 1 Hz: heard again once no read was dropped for BABBLE_S
+    assert chk.check(73.0 + BABBLE_S + 1.0, 2.8) == ""

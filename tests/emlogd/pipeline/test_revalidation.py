@@ -16,7 +16,7 @@ from emlogd.pipeline.revalidation import (
     RESTORE_SEA_SIGMAS,
     WORSE_FACTOR,
     WORSE_MARGIN_MPS,
-    _Candidate,
+    Candidate,
     beats_raw,
     common_current,
     judge_own_currents,
@@ -29,7 +29,7 @@ N = 200
 CURRENT = (0.3, -0.2)
 
 
-def _candidate(headings_deg: np.ndarray, offset_cand: float, offset_raw: float) -> _Candidate:
+def _candidate(headings_deg: np.ndarray, offset_cand: float, offset_raw: float) -> Candidate:
     """A restored candidate whose errors are a current (north, east) seen through the
     heading, plus an offset of its own and of raw's, with a little noise."""
     rng = np.random.default_rng(3)
@@ -37,7 +37,7 @@ def _candidate(headings_deg: np.ndarray, offset_cand: float, offset_raw: float) 
     sea = -(CURRENT[0] * c + CURRENT[1] * s)
     d_raw = sea + offset_raw + rng.normal(0.0, 0.01, c.size)
     d_c = sea + offset_cand + rng.normal(0.0, 0.01, c.size)
-    cand = _Candidate(Params("EM3"), 0.0, "restored")
+    cand = Candidate(Params("EM3"), 0.0, "restored")
     cand.samples = [
         (float(a), float(b), float(x), float(y))
         for a, b, x, y in zip(d_raw, d_c, c, s, strict=True)
@@ -130,7 +130,7 @@ def test_a_candidate_beats_raw_in_both_seas(
 ) -> None:
     """RMSEs (raw, candidate) after each one's own current and in the common sea: raw
     must be worse than it by the margin in both."""
-    cand = _Candidate(Params("EM3"), 0.0)
+    cand = Candidate(Params("EM3"), 0.0)
     if common is not None:
         cand.n_common = 10
         cand.common_raw, cand.common_cand = 10 * common[0] ** 2, 10 * common[1] ** 2

@@ -7,7 +7,14 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from drivers.framing import split_nmea
-from emlogd.pipeline.sentences import StatusFields, encode_status, encode_vbw, encode_vhw
+from emlogd.pipeline.sentences import (
+    StatusFields,
+    encode_status,
+    encode_vbw,
+    encode_vdr,
+    encode_vhw,
+    encode_vhw_void,
+)
 from tests.profiles import by_profile
 
 
@@ -133,3 +140,14 @@ def test_status_round_trip(m: float, b: float, sm: float, nis: float | None) -> 
     """m and b read back from the status sentence as sent, clamped to ±9.9999 and ±9.999, within 82
     characters."""
     _status_round_trip(m, b, sm, nis)
+
+
+def test_directions_fit_their_field() -> None:
+    """The void VHW's headings and the VDR's set are written in 0–359.9° with one decimal
+    (a heading of −10° as 350.0, 359.96° as 359.9), an unknown or non-finite one empty;
+    the VDR's drift is clamped to 0–99.99 kn."""
+    vhw = _fields(encode_vhw_void(-10.0, 359.96))
+    assert vhw[1:5] == ["350.0", "T", "359.9", "M"] and vhw[5] == vhw[7] == ""
+    assert _fields(encode_vhw_void(None, float("nan")))[1:5] == ["", "T", "", "M"]
+    vdr = _fields(encode_vdr(720.04, None, 120.0))
+    assert vdr[1:7] == ["0.0", "T", "", "M", "99.99", "N"]

@@ -11,7 +11,7 @@ from calib.models import Layout, Params, check_model
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.learner import Offer
 from emlogd.pipeline.settings import UutSettings
-from emlogd.pipeline.supervisor import RESTORE_WAIT_S, Supervisor, _Candidate
+from emlogd.pipeline.supervisor import RESTORE_WAIT_S, Candidate, Supervisor
 
 RESTORED = Params("EM3", m=0.1, b_mps=0.05)
 
@@ -130,7 +130,7 @@ def test_a_withdrawn_calibration_comes_back_only_on_evidence(offset: float, appl
     stays withdrawn; beating raw by the margin it is applied again."""
     sup, kinds = _sup(None)
     p = Params("EM3", b_mps=offset)
-    sup.candidate = _Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
+    sup.candidate = Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
     for k in range(40):
         u = 2.0 + 0.3 * math.sin(k / 20.0)
         sup.observe(float(k), u + offset + _noisy(k), u, None, _NoOffer())

@@ -118,3 +118,13 @@ def test_two_axes_need_the_bottom_track(
     argv = [*_base(misaligned, "calibrate", 1), "--axes", "2", "--lag", "0.5"]
     assert main([*argv, "--ref-field", "gnss"]) != 0
     assert "--ref-field bottom" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("axes", ["0", "3", "2.5"])
+def test_axes_takes_the_values_of_the_config_key(
+    axes: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--axes is checked like the config key ``axes`` (integer in [1, 2]): anything else
+    is a usage error naming the key's range, before any file is read."""
+    assert main(["calibrate", "x.cap", "--uut", "emlog2", "--ref", "dvl", "--axes", axes]) == 2
+    assert "config key axes: integer in [1, 2]" in capsys.readouterr().err
