@@ -76,3 +76,57 @@ class TestScalarUpdate:
         P = [[1e-40]]
         scalar_update(x, P, [1.0], 1.0, 1e-300, [1.0], math.inf)
         assert P[0][0] >= P_FLOOR
+
+
+class TestConsider:
+    """A held state considered (Schmidt–Kalman): not moved, its uncertainty kept in S and P."""
+
+    @pytest.mark.parametrize(
+        ("n", "mask"), [(n, m) for n in range(2, 6) for m in _masks(n)], ids=str
+    )
+    def test_matches_the_schmidt_kalman_update(self, n: int, mask: tuple[bool, ...]) -> None:
+        """x and P equal the full row's optimal gain with the held entries zeroed, P by
+        the Joseph form of that gain (numpy), to 1e-10; the held states' x and variance
+        do not change."""
+        rng = np.random.default_rng(7 * n + sum(1 << i for i, f in enumerate(mask) if f))
+        P = _random_spd(n, rng)
+        x = rng.normal(size=n)
+        h = rng.normal(size=n)
+        h[0] = 1.0
+        r = 0.2
+        S = float(h @ P @ h) + r
+        K = np.where(np.array(mask), P @ h / S, 0.0)
+        want_x = x + K * (0.7 - float(h @ x))
+        IKH = np.eye(n) - np.outer(K, h)
+        want_P = IKH @ P @ IKH.T + r * np.outer(K, K)
+        xs, Ps = x.tolist(), to_lists(P)
+        _y, s, applied = scalar_update(
+            xs, Ps, h.tolist(), 0.7, r, [float(f) for f in mask], math.inf, consider=True
+        )
+        assert applied and s == pytest.approx(S, rel=1e-12)
+        np.testing.assert_allclose(xs, want_x, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(Ps, want_P, rtol=1e-9, atol=1e-12)
+        for i, free in enumerate(mask):
+            if not free:
+                assert xs[i] == x[i] and Ps[i][i] == pytest.approx(P[i][i], rel=1e-12)
+
+    def test_a_bias_learnt_with_the_scale_held_carries_its_uncertainty(self) -> None:
+        """Raw = v + b + m·v at a constant 2 m/s (b + 2m = −0.15), the scale m held at 0
+        (σ 0.1) and the bias's prior σ 0.5: taken as known, the bias takes the scale's
+        whole error (−0.15) with σ_b falling to the noise's 0.005; considered, it takes
+        what its prior's share of ``b + 2m`` gives it (0.25/(0.25 + 0.04) of −0.15), its σ
+        stays near σ_m·v (0.19 of 0.2 m/s: its own prior is finite) and its covariance with
+        m near the Gaussian posterior's given ``b + 2m`` (−0.25·0.02/0.29; the held m never
+        moving, the filter is not that posterior)."""
+        for consider, b, lo, hi in ((True, -0.15 * 0.25 / 0.29, 0.18, 0.20),
+                                    (False, -0.15, 0.0, 0.01)):  # fmt: skip
+            x = [2.0, 0.0, 0.0]  # v, m, b
+            P = [[1e-6, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.25]]
+            for _ in range(1000):
+                scalar_update(x, P, [1.0, 2.0, 1.0], 2.0 + 0.05 - 0.2, 0.0025,
+                              [1.0, 0.0, 1.0], math.inf, consider=consider)  # fmt: skip
+            assert x[1] == 0.0 and x[2] == pytest.approx(b, abs=0.01)
+            assert lo < math.sqrt(P[2][2]) < hi
+            if consider:
+                assert P[1][1] == pytest.approx(0.01)
+                assert P[1][2] == pytest.approx(-0.25 * 0.02 / 0.29, rel=0.1)
