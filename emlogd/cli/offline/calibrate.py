@@ -8,7 +8,6 @@ import math
 import sys
 from typing import get_args
 
-from drivers.records import KNOT_MPS
 from emlogd.cli.common import Subparsers, UsageError, key_arg
 from emlogd.cli.offline import twoaxis
 from emlogd.cli.offline.args import (
@@ -24,6 +23,7 @@ from emlogd.cli.offline.shared import (
     check_writable,
     imo_cell,
     load,
+    warn_envelope,
     warn_lag,
     warn_recs,
 )
@@ -114,36 +114,6 @@ def _calibration_text(res: CalibrationResult) -> str:
     return "\n".join(out) + "\n"
 
 
-UNIT_GAIN_TOLERANCE = 0.15
-"""A fitted gain ``1 + m`` within this fraction of the ratio of knots to m/s (1.944) or of
-its inverse (0.514) is told as a unit mislabelled: the log's or the reference's speed in
-knots taken for m/s, or the reverse."""
-
-
-def warn_envelope(command: str, res: CalibrationResult) -> None:
-    """On stderr: a fit outside the UUT's envelope (what the daemon would refuse), and a
-    gain that tells a unit mislabelled: within :data:`UNIT_GAIN_TOLERANCE` of the ratio of
-    knots to m/s (or its inverse), or outside the envelope and inside it once divided by
-    that ratio."""
-    params = res.estimate.params
-    why = res.settings.envelope.check(params)
-    gain = 1.0 + params.m
-    env = res.settings.envelope
-    if any(
-        abs(gain / r - 1.0) <= UNIT_GAIN_TOLERANCE or (why and abs(gain / r - 1.0) <= env.max_abs_m)
-        for r in (KNOT_MPS, 1.0 / KNOT_MPS)
-    ):
-        sys.stderr.write(
-            f"emlogd {command}: warning: the log reads {gain:.2f}× the reference: the log's "
-            "or the reference's speed in knots taken for m/s, or the reverse?\n"
-        )
-    if why:
-        sys.stderr.write(
-            f"emlogd {command}: warning: the fit is outside the envelope ({why}): "
-            "the daemon refuses such a calibration\n"
-        )
-
-
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Estimate an error model of one EMlog against a reference from captures."""
     if args.axes == 2:
@@ -161,7 +131,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         recs, settings, args.method, lag=args.lag, trace=args.trace, average_s=args.average
     )
     warn_lag(args.command, res.lag.note)
-    warn_envelope(args.command, res)
+    warn_envelope(args.command, res.estimate.params, res.settings.envelope)
     if args.json:
         sys.stdout.write(
             json.dumps({**res.to_dict(), "capture_skips": capture_skips(recs)}, indent=2) + "\n"
