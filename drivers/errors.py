@@ -114,6 +114,12 @@ class CaptureFormatError(EmlogdError, ValueError):
         super().__init__(f"{path}:{line}: {message}")
         self.path = path
         self.line = line
+        self.message = message
+
+    def __reduce__(self) -> tuple[type[CaptureFormatError], tuple[str, int, str]]:
+        """Rebuilt from its three arguments: a capture read in a worker process (the
+        offline commands' pool) raises it in the parent as it is."""
+        return type(self), (self.path, self.line, self.message)
 
 
 class DeviceError(EmlogdError):

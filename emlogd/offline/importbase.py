@@ -8,6 +8,7 @@ from __future__ import annotations
 import gzip
 import io
 import math
+import zlib
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -37,7 +38,15 @@ past its own limit."""
 def bounded_lines(f: TextIO, skipped: Counter[str]) -> Iterator[str]:
     """The lines of ``f`` (each with its line ending) up to :data:`MAX_LINE_CHARS`
     characters; a longer one is read to its end in pieces, never held, and counted
-    ``too_long`` in ``skipped``."""
+    ``too_long`` in ``skipped``. A gzip stream cut short ends the lines, counted
+    ``truncated``."""
+    try:
+        yield from _bounded_lines(f, skipped)
+    except (EOFError, gzip.BadGzipFile, zlib.error):
+        skipped["truncated"] += 1
+
+
+def _bounded_lines(f: TextIO, skipped: Counter[str]) -> Iterator[str]:
     while line := f.readline(MAX_LINE_CHARS):
         if len(line) < MAX_LINE_CHARS or line.endswith("\n"):
             yield line

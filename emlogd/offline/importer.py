@@ -292,8 +292,8 @@ def import_nmea(
         spread.finish()
         if report.written == 0:
             raise ImportFormatError(
-                "no sentence could be given a time: the log needs RMC or ZDA fixes "
-                "(or GGA with --date YYYY-MM-DD)"
+                "no sentence could be given a time: the log needs RMC or ZDA fixes (or GGA "
+                f"with --date YYYY-MM-DD); skipped: {reasons(report.skipped) or 'none'}"
             )
     except BaseException:
         sink.abort()

@@ -627,7 +627,8 @@ def crossval(
     CPU count when there is enough work to pay for the processes.
 
     Raises:
-        OfflineError: fewer than two captures or duplicate names.
+        OfflineError: fewer than two captures, duplicate names, or a capture with fewer
+            than two samples paired with the reference.
     """
     if len(recs) < 2:
         raise OfflineError("cross-validation needs at least two captures")
@@ -639,6 +640,13 @@ def crossval(
     ]
     if len({s.name for s in segs}) != len(segs):
         raise OfflineError("captures must have distinct file names (they name the segments)")
+    for r, p in zip(recs, pairs, strict=True):
+        if len(p) < 2 or int(np.count_nonzero(np.isfinite(p.raw) & np.isfinite(p.ref))) < 2:
+            raise OfflineError(
+                f"{r.path}: fewer than 2 {settings.port} samples with a valid "
+                f"{settings.reference_port} reference: no segment to cross-validate "
+                "(leave the capture out)"
+            )
     n = sum(len(p) for p in pairs)
     if workers is None:
         workers = min(os.cpu_count() or 1, 4) if n > 20_000 else 1

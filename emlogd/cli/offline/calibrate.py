@@ -23,6 +23,7 @@ from emlogd.cli.offline.shared import (
     check_writable,
     imo_cell,
     load,
+    warn_envelope,
     warn_lag,
     warn_recs,
 )
@@ -130,6 +131,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         recs, settings, args.method, lag=args.lag, trace=args.trace, average_s=args.average
     )
     warn_lag(args.command, res.lag.note)
+    warn_envelope(args.command, res.estimate.params, res.settings.envelope)
     if args.json:
         sys.stdout.write(
             json.dumps({**res.to_dict(), "capture_skips": capture_skips(recs)}, indent=2) + "\n"

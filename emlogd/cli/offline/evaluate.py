@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from calib.errors import DataError
 from emlogd.cli.common import Subparsers, UsageError
 from emlogd.cli.offline import twoaxis
 from emlogd.cli.offline.args import (
@@ -26,9 +27,10 @@ from emlogd.cli.offline.shared import (
     score_rec,
     truth_cells,
     truth_of,
+    warn_envelope,
     warn_recs,
 )
-from emlogd.offline.jobs import evaluate, load_params
+from emlogd.offline.jobs import OfflineError, evaluate, load_params
 from emlogd.offline.tables import fmt, render
 
 
@@ -51,7 +53,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
     truth = truth_of(args, [settings.port])
     recs = load(args.captures, settings, args)
-    rows = evaluate(recs, cal.params, settings, lag_s)
+    warn_envelope(args.command, cal.params, settings.envelope)
+    try:
+        rows = evaluate(recs, cal.params, settings, lag_s)
+    except DataError as exc:  # a model that cannot be inverted (m = -1): no corrected speed
+        raise OfflineError(f"{args.params}: no corrected speed to score ({exc})") from None
     scores = [score_rec(truth, settings.port, r, cal.params) for r in recs]
     if args.json:
         doc = {

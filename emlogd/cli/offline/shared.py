@@ -13,10 +13,12 @@ from typing import TYPE_CHECKING
 
 from calib.metrics import ImoVerdict
 from drivers.io.capture import REORDER_WINDOW_S
+from drivers.records import KNOT_MPS
 from emlogd.cli.common import progress, progress_done
 from emlogd.offline.dataset import Recording
 from emlogd.offline.jobs import OfflineError, load_captures
 from emlogd.offline.tables import fmt
+from emlogd.pipeline.integrity import Envelope
 from emlogd.pipeline.settings import UutSettings
 
 if TYPE_CHECKING:
@@ -143,3 +145,32 @@ def check_writable(option: str, path: str) -> None:
         raise OfflineError(f"{option} {path}: the directory {parent} does not exist")
     if not os.access(parent, os.W_OK):
         raise OfflineError(f"{option} {path}: the directory {parent} is not writable")
+
+
+UNIT_GAIN_TOLERANCE = 0.15
+"""A fitted gain ``1 + m`` within this fraction of the ratio of knots to m/s (1.944) or of
+its inverse (0.514) is told as a unit mislabelled: the log's or the reference's speed in
+knots taken for m/s, or the reverse."""
+
+
+def warn_envelope(command: str, params: Params, envelope: Envelope) -> None:
+    """On stderr: a calibration (fitted or loaded) outside the UUT's envelope (what the daemon would refuse), and a
+    gain that tells a unit mislabelled: within :data:`UNIT_GAIN_TOLERANCE` of the ratio of
+    knots to m/s (or its inverse), or outside the envelope and inside it once divided by
+    that ratio."""
+    why = envelope.check(params)
+    gain = 1.0 + params.m
+    if any(
+        abs(gain / r - 1.0) <= UNIT_GAIN_TOLERANCE
+        or (why and abs(gain / r - 1.0) <= envelope.max_abs_m)
+        for r in (KNOT_MPS, 1.0 / KNOT_MPS)
+    ):
+        sys.stderr.write(
+            f"emlogd {command}: warning: the log reads {gain:.2f}× the reference: the log's "
+            "or the reference's speed in knots taken for m/s, or the reverse?\n"
+        )
+    if why:
+        sys.stderr.write(
+            f"emlogd {command}: warning: the calibration is outside the envelope ({why}): "
+            "the daemon refuses such a calibration\n"
+        )

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.errors import CaptureFormatError
 from drivers.io.capture import CaptureWriter
 from drivers.nmea0183 import encode_vhw
 from emlogd.offline.dataset import CaptureContentError, record_capture, record_captures
@@ -30,7 +31,8 @@ class TestRecording:
             (rec.heading[np.isfinite(rec.heading)] >= 0)
             & (rec.heading[np.isfinite(rec.heading)] < 360)
         )
-        assert rec.counters["dvl"]["records"] > 0
+        records = rec.counters["dvl"]["records"]
+        assert isinstance(records, int) and records > 0
 
     def test_aligned_at_a_lag_uses_the_alignment_rule(self, trial_files: dict[str, Path]) -> None:
         """Alignment pairs each reading with the reference at t − lag, nan across outages."""
@@ -75,3 +77,17 @@ def test_several_captures_in_parallel_give_the_same_recordings(
     for a, b in zip(serial, parallel, strict=True):
         np.testing.assert_array_equal(a.raw, b.raw)
         np.testing.assert_array_equal(a.v_ref, b.v_ref)
+
+
+def test_a_malformed_capture_read_in_a_worker_is_its_own_error(
+    trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """A file that is no capture among several read by worker processes: the parent
+    raises its ``CaptureFormatError`` naming the file and line. The error could not be
+    rebuilt in the parent (its three arguments): the pool broke and ``calibrate``,
+    ``evaluate``, ``crossval`` and ``report`` ended with ``internal error:
+    BrokenProcessPool``, the file unnamed."""
+    empty = tmp_path / "empty.cap"
+    empty.write_bytes(b"")
+    with pytest.raises(CaptureFormatError, match=r"empty\.cap:1: not a capture v1 file"):
+        record_captures([trial_files["straight"], empty], E1, workers=2)

@@ -4,13 +4,16 @@ rows around it are imported, and the long line is never held whole."""
 
 from __future__ import annotations
 
+import gzip
 import io
 import tracemalloc
 from collections import Counter
 from pathlib import Path
 
+import pytest
+
 from emlogd.cli import main
-from emlogd.offline.importbase import MAX_LINE_CHARS, bounded_lines
+from emlogd.offline.importbase import MAX_LINE_CHARS, ImportFormatError, bounded_lines
 from emlogd.offline.importer import import_csv, import_nmea
 from tests.emlogd.offline.test_importer import IRENE
 
@@ -71,3 +74,26 @@ def test_an_nmea_log_with_a_long_line(tmp_path: Path) -> None:
     rep = import_nmea([src], tmp_path / "o.cap")
     assert rep.skipped["too_long"] == 1, rep.skipped
     assert rep.written == 10 and rep.sentences["RMC"] == 3, rep.sentences
+
+
+def test_a_gzip_file_cut_short(tmp_path: Path) -> None:
+    """A gzip CSV export and a gzip NMEA log cut short: the rows and sentences before the
+    cut imported, the cut counted ``truncated``; a file of gzip's magic and garbage is
+    one error line naming why. Each ended with ``internal error: EOFError``."""
+    rows = "".join(
+        f"2020-01-01T00:{s // 60:02d}:{s % 60:02d}Z,{5 + s % 7 / 10:.1f}\n" for s in range(3000)
+    )
+    whole = gzip.compress(("time,stw\n" + rows).encode())
+    csv_gz = tmp_path / "cut.csv.gz"
+    csv_gz.write_bytes(whole[: len(whole) // 2])
+    rep = import_csv(csv_gz, tmp_path / "c.cap", {"time": "time", "stw": "stw"})
+    assert rep.skipped["truncated"] == 1 and 0 < rep.sentences["VHW"] < 3000, rep.skipped
+    log = gzip.compress((IRENE * 200).encode())
+    nmea_gz = tmp_path / "cut.nmea.gz"
+    nmea_gz.write_bytes(log[: len(log) * 3 // 4])
+    rep = import_nmea([nmea_gz], tmp_path / "n.cap")
+    assert rep.skipped["truncated"] == 1 and rep.written >= 10, rep.skipped
+    bad = tmp_path / "bad.nmea.gz"
+    bad.write_bytes(b"\x1f\x8b\x08\x00garbage")
+    with pytest.raises(ImportFormatError, match="skipped: truncated 1"):
+        import_nmea([bad], tmp_path / "b.cap")

@@ -52,3 +52,18 @@ def test_calibrate_evaluate_crossval(
     assert "LS-EM3: calibrated RMSE" in out and "trained on 2-figure8, tested on 3-straight" in out
     assert "160 out-of-sample evaluations" in out
     assert len(csv_path.read_text().splitlines()) == 1 + 8 * 25
+
+
+def test_a_capture_without_samples_is_named(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """A capture of its header only beside a trial's: one error line naming it, exit 1.
+    It ended ``crossval`` (and ``report``) with ``internal error: DataError: segment
+    'empty': need ≥ 2 finite, non-decreasing times``."""
+    empty = tmp_path / "empty.cap"
+    empty.write_text("# emlogd capture v1\n# port emlog1 nmea0183\n# port dvl pd6\n")
+    argv = ["crossval", str(empty), str(trial_files["straight"]), "--uut", "emlog1"]
+    assert main([*argv, "--ref", "dvl", "--lag", "3.3"]) == 1
+    err = capsys.readouterr().err
+    assert f"emlogd crossval: error: {empty}: fewer than 2 emlog1 samples" in err, err
+    assert "internal error" not in err

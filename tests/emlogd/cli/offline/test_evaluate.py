@@ -43,3 +43,26 @@ def test_the_imo_verdict_in_calibrate_and_evaluate(
     assert main(ev) == 0
     out = capsys.readouterr().out
     assert out.count("IMO raw") == 2 and out.count("IMO cal") == 2
+
+
+@pytest.mark.parametrize("m", [-1.0, 5.0])
+def test_a_calibration_outside_the_envelope(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path, m: float
+) -> None:
+    """A calibration file edited to m = -1 (a log that reads nothing: no inverse) or m = 5:
+    stderr says the daemon refuses it; m = -1 is one error line, exit 1. m = -1 ended with
+    ``internal error: DataError``, and m = 5 was scored without a word."""
+    cap = str(trial_files["straight"])
+    params = tmp_path / "p.yaml"
+    base = ["--uut", "emlog1", "--ref", "dvl", "--lag", "3.3"]
+    assert main(["calibrate", cap, *base, "--save", str(params)]) == 0
+    text = params.read_text()
+    start = text.index("      m: ")
+    params.write_text(text[:start] + f"      m: {m}\n" + text[text.index("\n", start) + 1 :])
+    capsys.readouterr()
+    assert main(["evaluate", cap, "--params", str(params)]) == (1 if m < 0 else 0)
+    err = capsys.readouterr().err
+    assert "outside the envelope" in err and "the daemon refuses" in err, err
+    assert "internal error" not in err
+    if m < 0:
+        assert f"emlogd evaluate: error: {params}: no corrected speed" in err, err
