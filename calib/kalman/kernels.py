@@ -24,9 +24,9 @@ does not move, but it is not taken as known — its column stays in the row (``h
 so its uncertainty enters S and the others' gains, the gain ``K = P hᵀ/S`` has the held
 states' entries zeroed, and P takes the same Joseph form for that gain (exact for any
 gain). The held state's variance is kept, and its cross-covariances carry what the
-others learnt of it: a bias learnt at a constant speed with the scale held keeps about
-the variance ``v²·σ²_m`` the held scale leaves in ``b + m·v`` (at most its own prior), and
-learning the scale later moves the bias with it.
+others learnt of it: a bias learnt at a constant speed with the scale held has the
+variance ``v²·σ²_m`` the held scale leaves in ``b + m·v``, and learning the scale later
+moves the bias with it.
 
 Diagonal entries are floored at :data:`P_FLOOR` to keep P positive under rounding.
 A measurement whose normalised innovation squared ``y²/S`` exceeds ``max_nis`` is
