@@ -44,13 +44,7 @@ its noise is too small to pull the scale. Beyond the paper:
 - **Learning is per unknown**: the caller says which unknowns the data determine
   (``learn``); the others are held at their value (the prior: the last good
   calibration, else nominal) and taken as known for that sample
-  (:mod:`calib.kalman.kernels`). The speed state always moves. With
-  ``consider_held`` a parameter held while others learn is *considered* (Schmidt–Kalman,
-  :mod:`calib.kalman.kernels`): it does not move, but its variance enters the raw
-  update's S and the learning states' covariance, so a bias learnt at a constant speed
-  with the scale held carries the scale's uncertainty (σ_m·v) and does not look known
-  when it is the held scale's error; the cross-covariance then moves the bias when the
-  scale learns.
+  (:mod:`calib.kalman.kernels`). The speed state always moves.
 - **Honest noise** (``adaptive=True``): the measurement noises the filter is given
   are what the sensors promise, not what a window of data holds (block means of a
   GNSS speed, a log quantised to 0.1 kn, a yacht's leeway, a lake's current that
@@ -196,8 +190,6 @@ class KfConfig:
         matched_noise: the noises are scaled by λ, matched to the innovations' covariance
             (False: by the slow λ_slow, tracked both ways; the module docstring, "Honest
             noise" and "Evidence for an offer").
-        consider_held: while some unknowns learn, the held ones are considered, not
-            known (the module docstring, "Learning is per unknown").
 
     Raises:
         ValueError: a variance that is not positive (process noises may be 0).
@@ -214,7 +206,6 @@ class KfConfig:
     adaptive: bool = True
     adapt_samples: float = 60.0
     matched_noise: bool = True
-    consider_held: bool = False
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.adapt_samples) and self.adapt_samples >= 1.0):
@@ -463,7 +454,6 @@ class KfCalibrator:
             gains,
             max_nis,
             self.correlation if learning else 1.0,
-            learning and self.config.consider_held,
         )
         learnt = use_ref and not ref_gated and applied
         if learnt and learning and fresh and adapt and self.config.adaptive:

@@ -19,15 +19,6 @@ the optimal gain and, for a rank-one H, expanded as::
 
     (I − KH')P(I − KH')ᵀ + K r Kᵀ = P − K uᵀ − u Kᵀ + S K Kᵀ,   u = P h'ᵀ, S = h' u + r.
 
-With ``consider`` a held state is *considered* instead (the Schmidt–Kalman filter): it
-does not move, but it is not taken as known — its column stays in the row (``h' = h``),
-so its uncertainty enters S and the others' gains, the gain ``K = P hᵀ/S`` has the held
-states' entries zeroed, and P takes the same Joseph form for that gain (exact for any
-gain). The held state's variance is kept, and its cross-covariances carry what the
-others learnt of it: a bias learnt at a constant speed with the scale held has the
-variance ``v²·σ²_m`` the held scale leaves in ``b + m·v``, and learning the scale later
-moves the bias with it.
-
 Diagonal entries are floored at :data:`P_FLOOR` to keep P positive under rounding.
 A measurement whose normalised innovation squared ``y²/S`` exceeds ``max_nis`` is
 not applied (the caller counts it as gated). A measurement correlated with its
@@ -64,7 +55,6 @@ def scalar_update(
     gains: Sequence[float],
     max_nis: float,
     deweight: float = 1.0,
-    consider: bool = False,
 ) -> tuple[float, float, bool]:
     """One scalar measurement update in place (see the module docstring).
 
@@ -78,8 +68,6 @@ def scalar_update(
         max_nis: gate: the update is skipped when ``y²/S`` exceeds it (``inf``: never).
         deweight: samples per independent sample (≥ 1): the update is made with the
             innovation variance ``deweight·S``.
-        consider: a held state's uncertainty enters S and the others' covariance
-            (Schmidt–Kalman); False: a held state is taken as known.
 
     Returns:
         ``(y, S, applied)``: the innovation, its variance, and whether it was applied.
@@ -90,7 +78,7 @@ def scalar_update(
     for j, hj in enumerate(h):
         if hj:
             y -= hj * x[j]
-            if consider or gains[j]:
+            if gains[j]:
                 hz.append((j, hj))
     u = []
     for row in P:

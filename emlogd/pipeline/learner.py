@@ -69,17 +69,6 @@ NUISANCE_REOPEN = 20
 becoming determined re-opens the current (what it learnt was conditional on the held
 scale)."""
 
-HOLD_CONSIDERED = False
-"""An unknown held while others learn is taken as known, not considered
-(:attr:`calib.kalman.KfConfig.consider_held`). Considered (Schmidt–Kalman), a bias learnt
-on a straight leg with the scale held carries the scale's σ·v and is not offered there,
-and the bias stays free to move with the scale afterwards; on the simulated trials of
-docs/REPRODUCTION.md ("Held-out trials") that was worse: five captures, seed 1, 0.218 /
-0.217 m/s against 0.107 / 0.132, seed 4 0.258 / 0.166 against 0.182 / 0.142; after a
-restart, seed 1's EMlog2 0.088 against 0.065 (its EM3 scale and bias followed the
-circles' speeds, m −0.25 and b +0.14 against −0.18 and +0.01, and the return's re-check
-withdrew them), seed 4's 0.089 against 0.105."""
-
 _TRACK_CURRENT = frozenset({CURRENT})
 """What learns while the operator has switched learning off (water frame only)."""
 
@@ -263,11 +252,8 @@ class Learner:
                 diag[-2:] = s.kf.current_p0_m2ps2
             cov0 = np.diag(diag)
         cfg = s.kf
-        if cfg.matched_noise != self.matched_noise or cfg.consider_held != HOLD_CONSIDERED:
-            # a held unknown is known or considered as HOLD_CONSIDERED says
-            cfg = dataclasses.replace(
-                cfg, matched_noise=self.matched_noise, consider_held=HOLD_CONSIDERED
-            )
+        if cfg.matched_noise != self.matched_noise:
+            cfg = dataclasses.replace(cfg, matched_noise=self.matched_noise)
         kf = KfCalibrator(
             s.model, cfg, current=s.current, params0=params0, current0_mps=cur0, P0=cov0
         )

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from calib.models import Layout, Params, check_model
-from emlogd.pipeline import learner as learner_module
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.learner import Learner
 from emlogd.pipeline.settings import UutSettings
@@ -202,46 +201,3 @@ def test_a_log_that_reads_right_is_offered_no_correction() -> None:
                 offers[case] += lr.offer() is not None
     assert offers["right"] == 0
     assert offers["high"] > 100
-
-
-@pytest.mark.parametrize("considered", [True, False])
-def test_a_scale_held_on_a_straight_leg_and_the_bias(
-    considered: bool, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """A log 10 % low with a bias of +0.05 m/s, ten minutes at a constant 2 m/s: ``b + 2m``
-    is determined, the scale is not and is held at its prior 0 (σ 0.5). Held as known
-    (the daemon, ``HOLD_CONSIDERED`` False), the bias takes the scale's error (−0.15 m/s,
-    right at that speed) with the σ of the readings' noise, and is offered; after 20
-    minutes of speed changes the bias still holds part of the scale's error (the offer's
-    scale −0.07). Considered, the bias carries the held scale's σ·v (σ_b about 0.45),
-    nothing is offered on the leg, and once the speed changes the offer is the true log's."""
-    monkeypatch.setattr(learner_module, "HOLD_CONSIDERED", considered)
-    lr, _ = _learner()
-    assert lr.kf.config.consider_held is considered
-    true = Params("EM3", m=-0.1, b_mps=0.05)
-    rng = np.random.default_rng(3)
-    on_leg = []
-    for i in range(1, 1800):
-        t = float(i)
-        v = 2.0 if t < 600.0 else 2.0 + 0.8 * math.sin(2 * math.pi * (t - 600.0) / 120.0)
-        lr.add_reference(t, v + float(rng.normal(0.0, 0.01)), True, lambda _t: None)
-        lr.step(lr.align(t, true.forward(v) + float(rng.normal(0.0, 0.05)), lambda _t: None),
-                "", None)  # fmt: skip
-        if t < 600.0:
-            assert lr.ident is not None and "m" not in lr.ident.determined
-            offer = lr.offer()
-            if offer is not None:
-                on_leg.append(offer.params.b_mps)
-        if t == 599.0:
-            assert (lr.param_std["b"] > 0.4) is considered
-            assert (lr.param_std["b"] < 0.01) is not considered
-    assert bool(on_leg) is not considered
-    if on_leg:
-        assert on_leg[-1] == pytest.approx(-0.15, abs=0.01)
-    offer = lr.offer()
-    assert offer is not None
-    if not considered:
-        assert offer.params.m == pytest.approx(-0.07, abs=0.01)
-        return
-    assert offer.params.m == pytest.approx(-0.1, abs=0.01)
-    assert offer.params.b_mps == pytest.approx(0.05, abs=0.02)
