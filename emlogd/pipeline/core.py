@@ -350,6 +350,7 @@ class Pipeline:
 
     def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
         for u in self._by_ref.get(port, ()):
+            u.ground.bottom(t, sp)  # the corrected VBW's ground pair
             if u.s.reference_field != sp.role:
                 continue
             u.reference(t, speed_of(sp, u.s.component), sp.valid)
@@ -440,7 +441,7 @@ class Pipeline:
         the athwart speed as read."""
         if sp.source == "VHW":
             return encode_vhw(value, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
-        trans = sp.transverse_mps
+        trans, g = sp.transverse_mps, u.ground.at(t)
         ax = self.two_axis.get(u.s.port)
         if ax is not None and trans is not None:
             hull = ax.correct(value, trans)
@@ -448,10 +449,10 @@ class Pipeline:
                 ax.reading(t, value, sp.longitudinal_mps, trans)
                 ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on)
             if hull is not None:
-                return encode_vbw(*hull, u.s.talker)
+                return encode_vbw(*hull, u.s.talker, g)
         if trans is not None and twoaxis.configured(u.s):
-            return encode_vbw(*twoaxis.hull_frame(u.s, value, trans), u.s.talker)
-        return encode_vbw(value, trans, u.s.talker)
+            return encode_vbw(*twoaxis.hull_frame(u.s, value, trans), u.s.talker, g)
+        return encode_vbw(value, trans, u.s.talker, g)
 
     def _prior(self, s: UutSettings, latest: Calibration | None) -> Calibration | None:
         """The calibration a UUT starts from: its latest when of its model, else its own

@@ -24,6 +24,7 @@ from drivers.nmea0183 import Gga, Rmc, Vtg
 from drivers.nmea0183 import Heading as NmeaHeading
 from drivers.records import Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
+from emlogd.pipeline.groundpair import GroundPair
 from emlogd.pipeline.headingcheck import HeadingCheck
 from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
 from emlogd.pipeline.settings import UutSettings
@@ -291,6 +292,8 @@ class UutRoute:
         """The plausibility of the athwart speeds of its VBW (the same limits)."""
         self.heading_check = HeadingCheck(s.envelope.max_current_mps)
         self.stw: tuple[float, float] | None = None
+        self.ground = GroundPair(s.ref_stale_s)
+        """The reference's latest speed over ground on the hull, for the corrected VBW."""
         """The latest corrected speed through the water (time, m/s)."""
         self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
         """Readings neither emitted nor learnt, by reason (shown with the counters)."""
@@ -334,7 +337,8 @@ class UutRoute:
     ) -> None:
         """Project queued GNSS samples on the hull once the heading covers their time.
 
-        Along the hull ``SOG·cos(COG − ψ)`` with the UUT's heading ψ interpolated at the
+        Along the hull ``SOG·cos(COG − ψ)`` (and across it ``SOG·sin(COG − ψ)``, the
+        corrected VBW's ground pair) with the UUT's heading ψ interpolated at the
         fix's time (a heading sentence usually follows the fix in the same second);
         below ``min_sog_mps`` the course is meaningless and the sample is invalid. A fix
         waits for its heading at most :data:`GNSS_HEADING_WAIT_S` (``final``: not at all).
@@ -350,6 +354,7 @@ class UutRoute:
                 return
             self.gnss.popleft()
             along: float | None = None
+            across: float | None = None
             ok = valid and sog is not None and cog is not None
             if ok and sog is not None and cog is not None:
                 psi = heading_at(t)
@@ -362,5 +367,7 @@ class UutRoute:
                         ok = False
                     else:
                         along = sog * math.cos(math.radians(cog - psi))
+                        across = sog * math.sin(math.radians(cog - psi))
                         ok = self.ref_jumps.accept(t, along)
             self.cal.add_reference(t, along if ok else None, ok)
+            self.ground.add(t, along, across, ok)

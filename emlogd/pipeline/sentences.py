@@ -186,6 +186,21 @@ def encode_vdr(
     return with_checksum(body)
 
 
-def encode_vbw(long_mps: float, trans_mps: float | None, talker: str = "VW") -> str:
-    """A corrected VBW: water pair only (a missing transverse speed is sent as 0)."""
-    return nmea0183.encode_vbw(long_mps, 0.0 if trans_mps is None else trans_mps, talker=talker)
+def encode_vbw(
+    long_mps: float,
+    trans_mps: float | None,
+    talker: str = "VW",
+    ground: tuple[float, float] | None = None,
+) -> str:
+    """A corrected VBW: the water pair with status A (a missing transverse speed is sent
+    as 0), the ground pair (along, across the hull, m/s) with status A when known
+    (:mod:`emlogd.pipeline.groundpair`), else empty with V; no stern fields."""
+    gl, gt = (None, None) if ground is None else ground
+    return nmea0183.encode_vbw(
+        long_mps,
+        0.0 if trans_mps is None else trans_mps,
+        ground_long_mps=gl,
+        ground_trans_mps=gt,
+        ground_valid=ground is not None,
+        talker=talker,
+    )

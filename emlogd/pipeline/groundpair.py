@@ -1,0 +1,69 @@
+"""The ground pair of a UUT's corrected VBW: its reference's speed over ground on the hull.
+
+IMO A.824(19) §2.6 asks a log that indicates speeds other than fore and aft for both
+the forward and the athwart speeds with their validity. The corrected ``$--VBW`` carries
+the speed through the water the UUT measured (corrected) and, in its ground pair, the
+vessel's speed over ground along and across the hull as its reference gave it last:
+
+- a DVL's **bottom track** (PD6 ``:BS``, PD0/PD4/PD5, in the ship frame or rotated into
+  it from the earth frame by the instrument's heading) from the UUT's reference port,
+  whatever field the UUT calibrates against;
+- a **GNSS** speed and course projected on the hull with the UUT's heading at the fix's
+  time (``SOG·cos(COG − ψ)``, ``SOG·sin(COG − ψ)``), for a UUT whose reference is GNSS,
+  when the projection along the hull is valid (:meth:`~emlogd.pipeline.routing.UutRoute.project`).
+
+A record flagged invalid (no bottom lock, a bad component, beam coordinates, a GNSS fix
+without status A or a fix, below ``min_sog_mps``, a heading the course check flagged)
+withdraws the pair at once; a pair older than the reference's staleness bound
+(``ref_stale_s``, judged by :func:`~emlogd.pipeline.staleness.silent`) is not sent. The
+sentence then carries the ground pair empty with status ``V``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from drivers.records import SpeedRecord
+from emlogd.pipeline.staleness import silent
+
+
+class GroundPair:
+    """The latest valid speed over ground along and across the hull of one UUT's reference.
+
+    Args:
+        stale_s: the reference's staleness bound, s (the UUT's ``ref_stale_s``).
+    """
+
+    __slots__ = ("latest", "stale_s")
+
+    def __init__(self, stale_s: float) -> None:
+        self.stale_s = stale_s
+        self.latest: tuple[float, float, float] | None = None
+        """The latest valid pair: (receive time s, along m/s + ahead, across m/s + to
+        starboard); None after an invalid record."""
+
+    def add(self, t: float, along: float | None, across: float | None, valid: bool) -> None:
+        """A reference sample at ``t``: kept when valid and finite, else the pair is withdrawn."""
+        if (
+            valid
+            and along is not None
+            and across is not None
+            and math.isfinite(along)
+            and math.isfinite(across)
+        ):
+            self.latest = (t, along, across)
+        else:
+            self.latest = None
+
+    def bottom(self, t: float, sp: SpeedRecord) -> None:
+        """A speed record of the reference's port: only a bottom track is a ground pair."""
+        if sp.role == "bottom":
+            self.add(t, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
+
+    def at(self, t: float) -> tuple[float, float] | None:
+        """The pair (along, across) m/s to send with a reading at ``t``: None without a
+        valid one, or when it is older than the staleness bound."""
+        g = self.latest
+        if g is None or silent(g[0], t, self.stale_s):
+            return None
+        return g[1], g[2]
