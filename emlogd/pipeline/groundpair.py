@@ -13,8 +13,10 @@ vessel's speed over ground along and across the hull as its reference gave it la
   when the projection along the hull is valid (:meth:`~emlogd.pipeline.routing.UutRoute.project`).
 
 A record flagged invalid (no bottom lock, a bad component, beam coordinates, a GNSS fix
-without status A or a fix, below ``min_sog_mps``, a heading the course check flagged)
-withdraws the pair at once; a pair older than the reference's staleness bound
+without status A or a fix, below ``min_sog_mps``, a heading the course check flagged),
+or one whose along or across speed jumps faster than the UUT's ``max_accel_mps2`` allows
+(each axis through a glitch filter like the reference's,
+:class:`~emlogd.pipeline.integrity.JumpFilter`), withdraws the pair at once; a pair older than the reference's staleness bound
 (``ref_stale_s``, judged by :func:`~emlogd.pipeline.staleness.silent`) is not sent. The
 sentence then carries the ground pair empty with status ``V``.
 """
@@ -24,6 +26,7 @@ from __future__ import annotations
 import math
 
 from drivers.records import SpeedRecord
+from emlogd.pipeline.integrity import JumpFilter
 from emlogd.pipeline.staleness import silent
 
 
@@ -32,24 +35,35 @@ class GroundPair:
 
     Args:
         stale_s: the reference's staleness bound, s (the UUT's ``ref_stale_s``).
+        max_accel_mps2: the largest acceleration on either axis, m/s² (the UUT's
+            ``max_accel_mps2``).
+        margin_mps: a change always allowed on either axis, m/s (the reference's
+            glitch filter's).
     """
 
-    __slots__ = ("latest", "stale_s")
+    __slots__ = ("jumps", "latest", "stale_s")
 
-    def __init__(self, stale_s: float) -> None:
+    def __init__(self, stale_s: float, max_accel_mps2: float, margin_mps: float) -> None:
         self.stale_s = stale_s
+        self.jumps = (
+            JumpFilter(max_accel_mps2, margin_mps),
+            JumpFilter(max_accel_mps2, margin_mps),
+        )
+        """The glitch filters of the along and the across speed."""
         self.latest: tuple[float, float, float] | None = None
         """The latest valid pair: (receive time s, along m/s + ahead, across m/s + to
         starboard); None after an invalid record."""
 
     def add(self, t: float, along: float | None, across: float | None, valid: bool) -> None:
-        """A reference sample at ``t``: kept when valid and finite, else the pair is withdrawn."""
+        """A reference sample at ``t``: kept when valid, finite and no glitch on either
+        axis, else the pair is withdrawn."""
         if (
             valid
             and along is not None
             and across is not None
             and math.isfinite(along)
             and math.isfinite(across)
+            and self.jumps[0].accept(t, along) & self.jumps[1].accept(t, across)  # both see it
         ):
             self.latest = (t, along, across)
         else:

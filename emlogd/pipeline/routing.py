@@ -292,7 +292,7 @@ class UutRoute:
         """The plausibility of the athwart speeds of its VBW (the same limits)."""
         self.heading_check = HeadingCheck(s.envelope.max_current_mps)
         self.stw: tuple[float, float] | None = None
-        self.ground = GroundPair(s.ref_stale_s)
+        self.ground = GroundPair(s.ref_stale_s, s.max_accel_mps2, REFERENCE_JUMP_WINDOW_S)
         """The reference's latest speed over ground on the hull, for the corrected VBW."""
         """The latest corrected speed through the water (time, m/s)."""
         self.implausible = {"implausible_accel": 0, "implausible_rate": 0}

@@ -96,6 +96,17 @@ def test_lost_bottom_lock_withdraws_the_ground_pair() -> None:
     assert _ground(_vbw(p, T0 + 2.5)) == pytest.approx((2.6, 0.1), abs=0.006)
 
 
+def test_bottom_track_glitch_is_not_sent() -> None:
+    """A bottom track jumping 4 m/s athwart in 0.1 s (a glitch no hull makes) is not sent:
+    the ground pair is empty with V until the next plausible one."""
+    p = _pipeline(PortSettings("dvl", "pd6"))
+    p.feed(T0, "dvl", _pd6((2.5, 0.2)))
+    p.feed(T0 + 0.1, "dvl", _pd6((2.5, 4.2)))
+    assert _empty(_vbw(p, T0 + 0.15))
+    p.feed(T0 + 0.2, "dvl", _pd6((2.5, 0.25)))
+    assert _ground(_vbw(p, T0 + 0.25)) == pytest.approx((2.5, 0.25), abs=0.006)
+
+
 def test_stale_reference_gives_no_ground_pair() -> None:
     """A bottom track older than the reference's staleness bound (``ref_stale_s``) is not
     sent; within it, it is."""
