@@ -19,6 +19,9 @@ or one whose along or across speed jumps faster than the UUT's ``max_accel_mps2`
 :class:`~emlogd.pipeline.integrity.JumpFilter`), withdraws the pair at once; a pair older than the reference's staleness bound
 (``ref_stale_s``, judged by :func:`~emlogd.pipeline.staleness.silent`) is not sent. The
 sentence then carries the ground pair empty with status ``V``.
+
+A UUT keeps its reference's pair only from its first VBW on (that one goes out with
+``V``): a log sending VHW alone costs nothing per reference sample.
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ class GroundPair:
             glitch filter's).
     """
 
-    __slots__ = ("jumps", "latest", "stale_s")
+    __slots__ = ("jumps", "latest", "stale_s", "wanted")
 
     def __init__(self, stale_s: float, max_accel_mps2: float, margin_mps: float) -> None:
         self.stale_s = stale_s
@@ -50,13 +53,17 @@ class GroundPair:
             JumpFilter(max_accel_mps2, margin_mps),
         )
         """The glitch filters of the along and the across speed."""
+        self.wanted = False
+        """Whether a VBW asked for the pair (:meth:`at`): until then nothing is kept."""
         self.latest: tuple[float, float, float] | None = None
         """The latest valid pair: (receive time s, along m/s + ahead, across m/s + to
         starboard); None after an invalid record."""
 
     def add(self, t: float, along: float | None, across: float | None, valid: bool) -> None:
         """A reference sample at ``t``: kept when valid, finite and no glitch on either
-        axis, else the pair is withdrawn."""
+        axis, else the pair is withdrawn; ignored before a VBW asked for the pair."""
+        if not self.wanted:
+            return
         if (
             valid
             and along is not None
@@ -77,6 +84,7 @@ class GroundPair:
     def at(self, t: float) -> tuple[float, float] | None:
         """The pair (along, across) m/s to send with a reading at ``t``: None without a
         valid one, or when it is older than the staleness bound."""
+        self.wanted = False
         g = self.latest
         if g is None or silent(g[0], t, self.stale_s):
             return None

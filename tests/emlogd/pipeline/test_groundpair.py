@@ -25,8 +25,12 @@ LOG = PortSettings("log", "nmea0183")
 
 
 def _pipeline(ref: PortSettings, **kw: object) -> Pipeline:
+    """A log sending VBW against ``ref``, its first VBW sent (the ground pair is kept from
+    then on)."""
     s = UutSettings(port="log", reference_port=ref.name, uut_source="VBW", **kw)  # type: ignore[arg-type]
-    return Pipeline([LOG, ref], [s])
+    p = Pipeline([LOG, ref], [s])
+    assert _empty(_vbw(p, T0 - 10.0))
+    return p
 
 
 def _pd6(ship: tuple[float, float] | None, heading: float = 30.0) -> bytes:
@@ -119,6 +123,18 @@ def test_stale_reference_gives_no_ground_pair() -> None:
 def test_no_reference_gives_no_ground_pair() -> None:
     """Without a reference sample the ground pair is empty with V."""
     assert _empty(_vbw(_pipeline(PortSettings("dvl", "pd6")), T0))
+
+
+def test_the_first_vbw_starts_the_ground_pair() -> None:
+    """A log keeps no ground pair before its first VBW (a VHW-only log costs nothing per
+    reference sample): that VBW goes out with V, the next with the pair."""
+    s = UutSettings(port="log", reference_port="dvl", uut_source="VBW")
+    p = Pipeline([LOG, PortSettings("dvl", "pd6")], [s])
+    p.feed(T0, "dvl", _pd6((2.5, 0.2)))
+    assert p.uuts["log"].ground.latest is None
+    assert _empty(_vbw(p, T0 + 0.1))
+    p.feed(T0 + 0.2, "dvl", _pd6((2.5, 0.2)))
+    assert _ground(_vbw(p, T0 + 0.3)) == pytest.approx((2.5, 0.2), abs=0.006)
 
 
 def test_gnss_velocity_turned_into_the_hull_frame() -> None:
