@@ -438,7 +438,7 @@ class Pipeline:
     def _sentence(self, u: UutRoute, t: float, sp: SpeedRecord, value: float) -> str:
         """A reading's corrected sentence: VHW; VBW with the learnt two-axis figures
         (the reading then learnt from, ``axes: 2``), else the configured ones, else
-        the athwart speed as read."""
+        the athwart speed as read; its ground pair the reference's (``groundpair``)."""
         if sp.source == "VHW":
             return encode_vhw(value, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
         trans, g = sp.transverse_mps, u.ground.at(t)
