@@ -84,7 +84,7 @@ class GroundPair:
     def at(self, t: float) -> tuple[float, float] | None:
         """The pair (along, across) m/s to send with a reading at ``t``: None without a
         valid one, or when it is older than the staleness bound."""
-        self.wanted = False
+        self.wanted = True
         g = self.latest
         if g is None or silent(g[0], t, self.stale_s):
             return None
