@@ -561,17 +561,18 @@ class KfCalibrator:
 
         Each component's variance grows by ``current_psd_m2ps3 · elapsed_s``, up to its
         prior (a current restored from hours ago is no longer known, and should not be
-        trusted as if it were). Nothing happens without current states.
+        trusted as if it were). A negative or NaN ``elapsed_s`` (saved by a clock ahead of
+        the data's) is an age unknown: the variance goes to its prior. Nothing happens
+        without current states.
         """
         lay = self.layout
-        if not lay.current or not elapsed_s > 0.0:
+        if not lay.current or elapsed_s == 0.0:
             return
         cfg = self.config
+        grow = cfg.current_psd_m2ps3 * elapsed_s if elapsed_s > 0.0 else math.inf
         for i in (lay.n - 2, lay.n - 1):
             var = self._P[i][i]
-            self._P[i][i] = max(
-                var, min(var + cfg.current_psd_m2ps3 * elapsed_s, cfg.current_p0_m2ps2)
-            )
+            self._P[i][i] = max(var, min(var + grow, cfg.current_p0_m2ps2))
 
     def copy(self) -> KfCalibrator:
         """An independent copy of the filter: its state, covariance, noise scale and the

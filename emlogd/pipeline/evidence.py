@@ -206,8 +206,10 @@ DRIFT_INTERVAL_S = 1.0
 """The drift window keeps at most one sample this often, s."""
 
 DRIFT_MIN_MPS = 0.03
-"""A drift counts when the raw reading changed by at least this over
-:data:`DRIFT_WINDOW_S`, m/s, and its error against the reference too ..."""
+"""A drift counts when the reading changed by at least this over :data:`DRIFT_WINDOW_S`,
+m/s, and its error against the reference too (the reading through the applied
+calibration, in speed through water, so that a change of the vessel's speed moves it
+with the reference and not by the log's gain times it; raw without one) ..."""
 
 DRIFT_SIGMAS = 5.0
 """... each trend this many standard errors from zero (the scatter about it) ..."""
@@ -228,13 +230,23 @@ verdict stands while the error keeps its trend on the straight leg (the vessel m
 change its speed) and, after a gap, until a full window judges again."""
 
 
+DRIFT_CONFIRM_S = 30.0
+"""A drift withdraws the applied calibration once its verdict has held this long, s
+(a quarter of :data:`DRIFT_WINDOW_S`: its trend held while a quarter of the window's
+samples were replaced by new ones). On a straight leg one window cannot tell a log
+that drifts from a vessel that slows in the water while the current along the hull
+rises (the ground reference holds, the log follows the water): with the reading's
+scatter such a window passes every test for a few seconds, while a fouling log's
+trend goes on. While the verdict waits, candidates are kept out."""
+
 DRIFT_ROWS = int(DRIFT_WINDOW_S / DRIFT_INTERVAL_S) + 1
 """The most samples a drift window holds (one each :data:`DRIFT_INTERVAL_S` at most)."""
 
 
 class Drift:
-    """The raw reading's and the reference's trends over :data:`DRIFT_WINDOW_S`: a log
-    that drifts against a steady reference on a straight leg (:attr:`on`).
+    """The reading's and the reference's trends over :data:`DRIFT_WINDOW_S`: a log
+    that drifts against a steady reference on a straight leg (:attr:`on`), for at least
+    :data:`DRIFT_CONFIRM_S` (:attr:`sustained`).
 
     The window's samples (time, raw, reference, cos, sin) are rows of one array, read
     in place when judged; their times are also kept as floats, for the window's bounds.
@@ -248,11 +260,25 @@ class Drift:
         self.on = False
         """The log drifts (the last window's verdict)."""
         self.change_mps = 0.0
-        """The raw error's change over the last window judged, m/s."""
+        """The reading's error's change over the last window judged, m/s (through the
+        calibration it was judged with)."""
+        self.since = math.inf
+        """The time the verdict came on, s (inf while off)."""
+        self.sustained = False
+        """The verdict has held :data:`DRIFT_CONFIRM_S` (the calibration is withdrawn)."""
 
-    def add(self, t: float, raw: float, ref: float, cs: tuple[float, float] | None) -> None:
+    def add(
+        self,
+        t: float,
+        raw: float,
+        ref: float,
+        cs: tuple[float, float] | None,
+        p: Params | None = None,
+    ) -> None:
         """One sample (kept when :data:`DRIFT_INTERVAL_S` after the last one kept);
-        ``cs``: the heading's (cos, sin), None without one (taken as straight)."""
+        ``cs``: the heading's (cos, sin), None without one (taken as straight); ``p``:
+        the calibration applied, through which the window's readings are judged (None:
+        the raw readings)."""
         q = self.times
         if q and t - q[-1] < DRIFT_INTERVAL_S:
             return
@@ -269,14 +295,23 @@ class Drift:
             q.popleft()
             self._lo += 1
         if t - q[0] >= DRIFT_WINDOW_S - 2.0 * DRIFT_INTERVAL_S:
-            self._judge()
+            self._judge(p)
 
-    def _judge(self) -> None:
+    def _judge(self, p: Params | None) -> None:
         n = len(self.times)
         a = self._rows[self._lo : self._lo + n]
-        # the least-squares line of each series (raw − reference, raw, reference) in
-        # time, from the window's sums about its first sample: one Gram matrix
-        d = a[:, :3] - a[0, :3]
+        x = a[:, :3]
+        if p is not None:
+            # the readings in speed through water: a change of the vessel's speed moves
+            # them with the reference, not by the log's gain times it
+            speed = correct_array(p, a[:, 1])
+            if bool(np.isfinite(speed).all()):
+                x = x.copy()
+                x[:, 1] = speed
+        # the least-squares line of each series (reading − reference, reading,
+        # reference) in time, from the window's sums about its first sample: one Gram
+        # matrix
+        d = x - x[0]
         (gtt, gtr, gtf), (_, grr, grf), (_, _, gff) = (d.T @ d).tolist()
         st, sr, sf = d.sum(axis=0).tolist()
         sxx = gtt - st * st / n
@@ -301,6 +336,9 @@ class Drift:
         ref = abs(change[2])
         onset = trend[1] and ref <= DRIFT_STEADY_MPS and abs(change[1]) >= ref + DRIFT_STEADY_MPS
         self.on = trend[0] and straight and (self.on or onset)
+        now = float(a[-1, 0])
+        self.since = min(self.since, now) if self.on else math.inf
+        self.sustained = now - self.since >= DRIFT_CONFIRM_S
 
     def reset_window(self) -> None:
         """Forget the samples, not the verdict."""
@@ -311,6 +349,8 @@ class Drift:
         """Forget the samples."""
         self.reset_window()
         self.on = False
+        self.since = math.inf
+        self.sustained = False
 
 
 class SeaMemory:

@@ -55,8 +55,8 @@ Rules (the constants are this module's and
   withdrawn calibration re-validates, raw and it alike, in the current the detector
   had before the jump.
 - **Drift** (:class:`~emlogd.pipeline.evidence.Drift`): a log that drifts against a
-  steady reference on a straight leg withdraws the applied calibration, and nothing is
-  applied while it drifts.
+  steady reference on a straight leg for :data:`~emlogd.pipeline.evidence.DRIFT_CONFIRM_S`
+  withdraws the applied calibration, and nothing is applied while it drifts.
 - **Withdrawn for cause** (re-check or change detection): the calibration stays the
   *last good* one (persisted, not a reset) and is the next candidate: re-applied once
   it validates again over :data:`RESTORE_VALIDATION_S`, with raw worse than it by the
@@ -321,8 +321,8 @@ class Supervisor:
         d_raw = self._error(raw, ref, None)
         d_app = self._error(raw, ref, self.applied)
         self._score_output(raw, ref, proj, water)
-        self.drift.add(t, raw, ref, cs if self.water else None)
-        if self.drift.on and self.applied is not None:
+        self.drift.add(t, raw, ref, cs if self.water else None, self.applied)
+        if self.drift.sustained and self.applied is not None:
             why = {"params": self.applied.as_dict(), "drift_mps": round(self.drift.change_mps, 4)}
             self._withdraw(t, "the log drifts against a steady reference", why)
             self.reopen = True

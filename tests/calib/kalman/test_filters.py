@@ -450,6 +450,18 @@ class TestIntegrityHooks:
         assert kf.covariance()[3][3] == cfg.current_p0_m2ps2
         assert kf.current_mps == (0.2, -0.1)
 
+    @pytest.mark.parametrize("elapsed_s", [-3600.0, math.nan])
+    def test_a_current_saved_in_the_future_is_of_unknown_age(self, elapsed_s: float) -> None:
+        """A state saved by a clock ahead of the data's (a negative age) or of no age: the
+        current is kept but its variance is its prior, not the tight one it was saved with."""
+        cfg = KfConfig()
+        P0 = np.diag([1.0, 1e-4, 1e-4, 1e-6, 1e-6])
+        kf = KfCalibrator("EM3", cfg, current=True, current0_mps=(0.2, -0.1), P0=P0)
+        kf.age_current(elapsed_s)
+        P = kf.covariance()
+        assert P[3][3] == P[4][4] == cfg.current_p0_m2ps2
+        assert P[1][1] == 1e-4 and kf.current_mps == (0.2, -0.1)
+
     def test_outage_freezes_parameters_and_carries_speed(self) -> None:
         """Without reference the parameters stay fixed and v follows the corrected raw reading."""
         cfg = KfConfig()

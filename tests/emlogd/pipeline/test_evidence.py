@@ -11,6 +11,7 @@ import pytest
 from calib.models import Params
 from emlogd.pipeline.evidence import (
     CUSUM_H,
+    DRIFT_CONFIRM_S,
     DRIFT_WINDOW_S,
     Cusum,
     Drift,
@@ -146,6 +147,48 @@ class TestDrift:
     def test_a_vessel_that_speeds_up_is_no_drift(self) -> None:
         """Both rise, the log by its 17 % scale error more: off."""
         assert not _drift(lambda t: 1.17 * (1.6 + 0.002 * t), lambda t: 1.6 + 0.002 * t).on
+
+    def test_a_fouling_log_withdraws_once_its_verdict_has_held(self) -> None:
+        """The fouling log's verdict comes on at the first full window and is sustained
+        (the calibration withdrawn) :data:`DRIFT_CONFIRM_S` later, not before."""
+        d, on, sustained = Drift(), math.inf, math.inf
+        for k in range(300):
+            t = float(k)
+            d.add(t, 1.9 - 0.0005 * t + (0.01 if k % 2 else -0.01), 1.6, _cs(30.0))
+            on = min(on, t) if d.on else on
+            sustained = min(sustained, t) if d.sustained else sustained
+        assert on < 200.0 and sustained == on + DRIFT_CONFIRM_S
+
+    def test_a_verdict_of_a_few_seconds_withdraws_nothing(self) -> None:
+        """Raw judged without a calibration (gain 1.17): a surge of ±0.02 m/s over two
+        minutes in a current rising 0.72 m/s an hour brings the verdict on for seconds at
+        a time (the ground reference holds, the reading moves by its gain): never
+        sustained."""
+        d, spells = Drift(), 0
+        for k in range(600):
+            t = float(k)
+            stw = 1.6 + 0.02 * math.sin(2.0 * math.pi * t / 120.0)
+            was = d.on
+            d.add(t, 1.17 * stw + 0.1 + (0.01 if k % 2 else -0.01), stw + 0.0002 * t, _cs(30.0))
+            spells += d.on and not was
+            assert not d.sustained
+        assert spells >= 3
+
+    def test_the_readings_are_judged_through_the_calibration(self) -> None:
+        """The same surge and current, a log of gain 1.27 judged through its calibration:
+        the corrected reading moves with the reference, so it never comes on (judged raw,
+        it does)."""
+        p = Params("EM3", m=0.27, b_mps=0.05)
+        through, raw = Drift(), Drift()
+        ever = [False, False]
+        for k in range(600):
+            t = float(k)
+            stw = 1.6 + 0.02 * math.sin(2.0 * math.pi * t / 120.0)
+            reading = p.forward(stw) + (0.01 if k % 2 else -0.01)
+            through.add(t, reading, stw + 0.0002 * t, _cs(30.0), p)
+            raw.add(t, reading, stw + 0.0002 * t, _cs(30.0))
+            ever = [ever[0] or through.on, ever[1] or raw.on]
+        assert ever == [False, True]
 
     def test_no_drift_is_judged_in_a_turn(self) -> None:
         """The same fouling log while the vessel turns: a current would move the

@@ -136,3 +136,20 @@ def test_a_withdrawn_calibration_comes_back_only_on_evidence(offset: float, appl
         sup.observe(float(k), u + offset + _noisy(k), u, None, _NoOffer())
     assert (_applied(sup) == p) is applied
     assert kinds == (["calibrated"] if applied else ["candidate_rejected"])
+
+
+def test_a_surging_vessel_in_a_rising_current_keeps_its_calibration() -> None:
+    """A healthy log (gain 1.27) on a straight leg: the vessel's speed through water
+    swings ±0.02 m/s over two minutes while the current along the hull rises 0.72 m/s an
+    hour, so the ground reference holds while the reading follows the water through its
+    gain. The log does not drift against the water: the calibration stays applied."""
+    p = Params("EM3", m=0.27, b_mps=0.05)
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)
+    sup, kinds = _sup(p, s)
+    heading = (math.cos(0.5), math.sin(0.5))
+    for k in range(900):
+        t = float(k)
+        stw = 1.6 + 0.02 * math.sin(2.0 * math.pi * t / 120.0)
+        ref = stw + 0.0002 * t
+        sup.observe(t, p.forward(stw) + 0.1 * _noisy(k), ref, heading, _NoOffer())
+    assert _applied(sup) == p, kinds
