@@ -103,12 +103,33 @@ STEP_BEFORE_S = 5.0
 slope over this long, s (:func:`steps`)."""
 
 STEP_SIGMAS = 4.0
+"""A reading whose innovation is beyond :data:`HOLD_SIGMAS` holds the calibration when,
+where the innovation jumped, the corrected reading's change is larger than the
+reference's and more than this many times its own sample-to-sample scatter
+(:meth:`Course.log_jumped`: one sample, all there is at a step's first reading)."""
+
+SHIFT_WINDOW_S = 3.0
+"""At an alarm, the means of the corrected reading, the reference and their difference
+are compared over this long, s, each side of a split of the CUSUM run
+(:func:`shift`): a sensor that changes shifts the mean of its error at once, a change
+of the vessel's speed moves both series over seconds (the hull's response), and one
+noisy sample of a 5–10 Hz log moves a mean little."""
+
+SHIFT_MIN_SAMPLES = 2
+"""Each side of a split holds at least this many samples (one sample has no spread)."""
+
+SHIFT_SIGMAS = 4.0
 """On an alarm that withdraws the calibration, the log jumped (the sensor changed, the
-sea did not) when, where the innovation jumped, the corrected reading's change is
-larger than the reference's and more than this many times its own sample-to-sample
-scatter; the calibration then re-validates in the sea as it stood before the change.
-A jump within the log's scatter tells nothing, and the calibration re-validates as any
-withdrawn one."""
+sea did not) when the mean of (corrected reading − reference) shifted at a split of the
+run by at least this many standard errors of the difference of the two means, and the
+reference's own mean moved by at most :data:`SHIFT_REFERENCE_SHARE` of the reading's
+(:class:`Shift`); the calibration then re-validates in the sea as it stood before the
+change. A shift within the error's scatter (a spike of the log, whose window's spread
+it widens) tells nothing, and the calibration re-validates as any withdrawn one."""
+
+SHIFT_REFERENCE_SHARE = 0.5
+"""... the reference's mean step (less the vessel's acceleration before the run) at most
+this share of the corrected reading's: a change of the speed moves both."""
 
 STEP_MAX_GAP_S = 5.0
 """Consecutive samples further apart than this, s, do not count in the scatter."""
@@ -142,20 +163,102 @@ def steps(seq: Sequence[tuple[float, float, float]], first: int) -> tuple[float,
     t, corr, ref = a[:, 0], a[:, 1], a[:, 2]
     k = first + int(np.argmax(np.abs(np.diff(corr - ref)[first - 1 :])))
     dt = t[k] - t[k - 1]
-    slope = [0.0, 0.0]
-    if first >= 3 and t[first - 1] > t[0]:
-        slope = [float(np.polyfit(t[:first], x[:first], 1)[0]) for x in (corr, ref)]
+    slope = _slopes(t, corr, ref, first)
     return (
         float(corr[k] - corr[k - 1] - slope[0] * dt),
         float(ref[k] - ref[k - 1] - slope[1] * dt),
     )
 
 
+@dataclass(frozen=True)
+class Shift:
+    """The step of the window means at the split of a CUSUM run where (corrected reading
+    − reference) shifted most (:func:`shift`), m/s; zero, with an infinite standard
+    error, when the run has no split with :data:`SHIFT_MIN_SAMPLES` each side."""
+
+    log_mps: float = 0.0
+    """The corrected reading's mean step, less the vessel's acceleration before the run."""
+    reference_mps: float = 0.0
+    """The reference's, alike."""
+    se_mps: float = math.inf
+    """The standard error of the step of their difference."""
+
+    @property
+    def log_jumped(self) -> bool:
+        """The sensor changed (:data:`SHIFT_SIGMAS`, :data:`SHIFT_REFERENCE_SHARE`)."""
+        step = abs(self.log_mps - self.reference_mps)
+        ref_small = abs(self.reference_mps) <= SHIFT_REFERENCE_SHARE * abs(self.log_mps)
+        return step >= SHIFT_SIGMAS * self.se_mps and ref_small
+
+    def detail(self, step_log: float, step_ref: float) -> dict[str, object]:
+        """An alarm's log detail: the one-sample steps (:func:`steps`) and this shift."""
+        return {
+            "step_log_mps": round(step_log, 4),
+            "step_reference_mps": round(step_ref, 4),
+            "shift_log_mps": round(self.log_mps, 4),
+            "shift_reference_mps": round(self.reference_mps, 4),
+            "shift_se_mps": round(self.se_mps, 4) if math.isfinite(self.se_mps) else None,
+        }
+
+
+def _slopes(t: np.ndarray, corr: np.ndarray, ref: np.ndarray, first: int) -> tuple[float, float]:
+    """The corrected reading's and the reference's slopes over the samples before the
+    run (the vessel's acceleration), m/s²; zero with fewer than three."""
+    if first >= 3 and t[first - 1] > t[0]:
+        return (
+            float(np.polyfit(t[:first], corr[:first], 1)[0]),
+            float(np.polyfit(t[:first], ref[:first], 1)[0]),
+        )
+    return 0.0, 0.0
+
+
+def shift(seq: Sequence[tuple[float, float, float]], first: int) -> Shift:
+    """Where the mean of (corrected reading − reference) shifted most in a CUSUM run:
+    over the samples (time, corrected reading, reference) from ``first`` on (those
+    before it, its course), each split of the run between :data:`SHIFT_WINDOW_S` of
+    samples before it and as long after it (at least :data:`SHIFT_MIN_SAMPLES` each);
+    at the split whose difference's mean moved most, each series' step of its mean less
+    its slope over the samples before the run times the windows' distance in time, and
+    the standard error of the difference's step (the larger window's variance of the
+    two over both counts: a spike in the few samples after a split widens it).
+    """
+    n = len(seq)
+    if n < 2 * SHIFT_MIN_SAMPLES:
+        return Shift()
+    a = np.asarray(seq, dtype=np.float64)
+    t, corr, ref = a[:, 0] - a[0, 0], a[:, 1], a[:, 2]
+    d = corr - ref
+    d = d - d[0]
+    k = np.arange(max(first, SHIFT_MIN_SAMPLES), n - SHIFT_MIN_SAMPLES + 1)
+    if not k.size:
+        return Shift()
+    lo = np.searchsorted(t, t[k] - SHIFT_WINDOW_S, side="left")
+    hi = np.searchsorted(t, t[k] + SHIFT_WINDOW_S, side="right")
+    nb, na = k - lo, hi - k
+    ok = (nb >= SHIFT_MIN_SAMPLES) & (na >= SHIFT_MIN_SAMPLES)
+    if not ok.any():
+        return Shift()
+    k, lo, hi, nb, na = k[ok], lo[ok], hi[ok], nb[ok], na[ok]
+    zero = np.zeros(1)
+    cums = [np.concatenate((zero, np.cumsum(x))) for x in (t, corr, ref, d, d * d)]
+    before = [(c[k] - c[lo]) / nb for c in cums]
+    after = [(c[hi] - c[k]) / na for c in cums]
+    sc, sr = _slopes(t, corr, ref, first)
+    dt = after[0] - before[0]
+    step_c = after[1] - before[1] - sc * dt
+    step_r = after[2] - before[2] - sr * dt
+    j = int(np.argmax(np.abs(step_c - step_r)))
+    var_b = max(before[4][j] - before[3][j] ** 2, 0.0) * nb[j] / (nb[j] - 1)
+    var_a = max(after[4][j] - after[3][j] ** 2, 0.0) * na[j] / (na[j] - 1)
+    se = math.sqrt(max(var_b, var_a) * (1.0 / nb[j] + 1.0 / na[j]))
+    return Shift(float(step_c[j]), float(step_r[j]), se)
+
+
 class Course:
     """The applied calibration's corrected readings and references, the last
     :data:`STEP_BEFORE_S` before a CUSUM run and the run's, and the reading's
     sample-to-sample scatter (forgotten with ``half_life_s``): which series jumped at
-    an alarm (:func:`steps`, :meth:`log_jumped`)."""
+    a reading (:func:`steps`, :meth:`log_jumped`) and at an alarm (:meth:`shift`)."""
 
     def __init__(self, half_life_s: float) -> None:
         self.half_life_s = half_life_s
@@ -186,6 +289,10 @@ class Course:
     def steps(self) -> tuple[float, float]:
         """The reading's and the reference's jump in the current run (:func:`steps`)."""
         return steps(self.series, self.run_start)
+
+    def shift(self) -> Shift:
+        """The means' step in the current run (:func:`shift`)."""
+        return shift(self.series, self.run_start)
 
     def log_jumped(self, step_log: float, step_ref: float) -> bool:
         """The reading jumped more than the reference and beyond its own scatter

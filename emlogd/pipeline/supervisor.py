@@ -48,9 +48,9 @@ Rules (the constants are this module's and
   the detector's current starts afresh; when the reference jumped
   (:data:`~emlogd.pipeline.evidence.SEA_STEP_SIGMAS`) the learner's current re-opens
   (raw passing through or not), so that the jump goes into the current, not into the
-  parameters. When, where the innovation jumped, the log
-  jumped beyond its own scatter and the reference did not
-  (:class:`~emlogd.pipeline.evidence.Course`), the sensor changed and the sea is as it
+  parameters. When the mean of the log's error shifted in the run beyond its standard
+  error and the reference's mean did not (:class:`~emlogd.pipeline.evidence.Shift`;
+  one noisy sample is no shift), the sensor changed and the sea is as it
   was: the alarm is judged on the run of the side that alarmed alone, and the
   withdrawn calibration re-validates, raw and it alike, in the current the detector
   had before the jump.
@@ -495,7 +495,7 @@ class Supervisor:
         if not alarm:
             return False
         step_log, step_ref = self.course.steps()
-        jumped = self.course.log_jumped(step_log, step_ref)
+        jumped = (shift := self.course.shift()).log_jumped  # the means shifted, not a spike
         if self.applied is None:
             self._reset_detector(refit=False)  # raw's alarm: nothing applied changed
             self.sea_changed = sea_jumped(step_log, step_ref, sigma)
@@ -514,8 +514,7 @@ class Supervisor:
             "ss_applied": round(n_app, 4),
             "ss_raw": round(n_raw, 4),
         }
-        detail["step_log_mps"] = round(step_log, 4)
-        detail["step_reference_mps"] = round(step_ref, 4)
+        detail |= shift.detail(step_log, step_ref)
         beta = w.beta(0) if self.water and jumped else None
         self._withdraw(
             t, "the readings changed and the calibration fits them worse than raw", detail

@@ -13,6 +13,7 @@ from emlogd.pipeline.evidence import (
     CUSUM_H,
     DRIFT_CONFIRM_S,
     DRIFT_WINDOW_S,
+    Course,
     Cusum,
     Drift,
     FitWindow,
@@ -99,6 +100,54 @@ def test_steps_tell_which_series_jumped() -> None:
     log, ref = steps(before + sea, len(before))
     assert log == pytest.approx(0.0, abs=1e-9) and ref == pytest.approx(0.3)
     assert steps(before, len(before)) == (0.0, 0.0)
+
+
+def _noisy_run(offset: Callable[[int], float]) -> Course:
+    """A 10-Hz log with 0.03 m/s of noise on a vessel accelerating 0.02 m/s², the
+    reference smooth: 5 s before a CUSUM run, then 3 s of run with ``offset(i)`` added
+    to the corrected reading's i-th sample of the run."""
+    rng = np.random.default_rng(7)
+    c = Course(60.0)
+    for i in range(-50, 30):
+        t = 1.7e9 + 0.1 * i
+        ref = 2.0 + 0.02 * 0.1 * i
+        c.add(t, ref + rng.normal(0.0, 0.03) + (offset(i) if i >= 0 else 0.0), ref, i < 0)
+    return c
+
+
+def test_a_spike_of_the_log_is_no_jump_and_a_shift_of_its_mean_is() -> None:
+    """One sample 0.25 m/s (8σ) off at the start of the run is noise: the mean of the
+    reading's error moved by a fraction of that, within its standard error, and the
+    log did not jump. A step of the sensor by the same 0.25 shifts the mean at once,
+    tens of standard errors, with the reference's mean steady: the log jumped. (One
+    sample's change reads both as the same jump.)"""
+    spike = _noisy_run(lambda i: 0.25 if i == 0 else 0.0)
+    step = _noisy_run(lambda i: 0.25)
+    for c in (spike, step):
+        log, ref = c.steps()
+        assert c.log_jumped(log, ref) and abs(log) == pytest.approx(0.25, abs=0.1)
+    s = spike.shift()
+    assert not s.log_jumped and abs(s.log_mps - s.reference_mps) < 4.0 * s.se_mps
+    s = step.shift()
+    assert s.log_jumped and s.log_mps == pytest.approx(0.25, abs=0.03)
+    assert abs(s.reference_mps) < 0.01 and s.log_mps > 10.0 * s.se_mps
+
+
+def test_a_change_of_speed_the_log_follows_is_no_jump() -> None:
+    """The vessel speeds up 0.3 m/s over 2 s, the log following the reference 0.5 s
+    late: the mean of its error shifts while it lags, but the reference's mean steps
+    as much as the reading's, and the log did not jump."""
+
+    def v(t: float) -> float:
+        return 2.0 + 0.3 * min(max(t / 2.0, 0.0), 1.0)
+
+    c = Course(60.0)
+    for i in range(-50, 40):
+        t = 0.1 * i
+        c.add(t, v(t - 0.5) + (0.01 if i % 2 else -0.01), v(t), i < 0)
+    s = c.shift()
+    assert abs(s.log_mps - s.reference_mps) > 4.0 * s.se_mps  # the lag's transient
+    assert not s.log_jumped and s.reference_mps == pytest.approx(s.log_mps, abs=0.1)
 
 
 def _drift(
