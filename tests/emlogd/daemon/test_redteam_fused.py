@@ -5,9 +5,11 @@ Rule kept (README, docs/RELIABILITY.md): nothing worse than raw reaches the auto
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -58,6 +60,24 @@ def _both_agree(daemon: Daemon, m1: int, m2: int, rng: random.Random) -> None:
         k += 1
 
 
+@contextlib.contextmanager
+def _two_logs(tmp_path: Path, seed: int) -> Iterator[tuple[Daemon, int, int, random.Random]]:
+    """The daemon on CONFIG with both logs' ptys, after :func:`_both_agree` (the random
+    draws seeded with ``seed``); stopped and the ptys closed at the end."""
+    work = make_work(tmp_path, CONFIG)
+    m1 = raw_pty(work / "links" / "emlog1")
+    m2 = raw_pty(work / "links" / "emlog2")
+    rng = random.Random(seed)
+    daemon = Daemon(work, pty=True)
+    try:
+        _both_agree(daemon, m1, m2, rng)
+        yield daemon, m1, m2, rng
+    finally:
+        daemon.stop()
+        os.close(m1)
+        os.close(m2)
+
+
 def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) -> None:
     """Both logs at 10 Hz for 3 s; then emlog1 falls silent and emlog2 babbles, 20
     sentences of 0–14 kn in one write every 0.1 s, for 4 s. No fused speed goes out
@@ -66,13 +86,7 @@ def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) 
     newest was judged, at the log's own rate: those within the acceleration bound of
     the last accepted went out as the valid fused speed, emlog2 alone (taken back as
     the one log left though it had just been refused)."""
-    work = make_work(tmp_path, CONFIG)
-    m1 = raw_pty(work / "links" / "emlog1")
-    m2 = raw_pty(work / "links" / "emlog2")
-    rng = random.Random(1)
-    daemon = Daemon(work, pty=True)
-    try:
-        _both_agree(daemon, m1, m2, rng)
+    with _two_logs(tmp_path, 1) as (daemon, _m1, m2, rng):
         before = len(daemon.lines)
         t1 = time.monotonic()
         while time.monotonic() - t1 < 4.0:
@@ -83,10 +97,6 @@ def test_a_log_babbling_in_bursts_never_becomes_the_fused_speed(tmp_path: Path) 
         assert [f for f in fused if f] == []
         counters = daemon.uut("emlog2")["counters"]
         assert isinstance(counters, dict) and counters["implausible_rate"] > 20, counters
-    finally:
-        daemon.stop()
-        os.close(m1)
-        os.close(m2)
 
 
 @pytest.mark.soak
@@ -95,13 +105,7 @@ def test_a_stuck_log_beside_a_babbler_is_marked_invalid_live(tmp_path: Path) -> 
     in bursts, for 14 s: within FLAT_S and a second of the stuck reading the fused VHW
     goes out without a speed and ``$PEMLF`` says V, naming emlog1 still; emlog2 is
     never used. (Slow: the still rule needs FLAT_S of a flat log alone.)"""
-    work = make_work(tmp_path, CONFIG)
-    m1 = raw_pty(work / "links" / "emlog1")
-    m2 = raw_pty(work / "links" / "emlog2")
-    rng = random.Random(2)
-    daemon = Daemon(work, pty=True)
-    try:
-        _both_agree(daemon, m1, m2, rng)
+    with _two_logs(tmp_path, 2) as (daemon, m1, m2, rng):
         before = len(daemon.lines)
         t1 = time.monotonic()
         marks: list[int] = []
@@ -118,7 +122,3 @@ def test_a_stuck_log_beside_a_babbler_is_marked_invalid_live(tmp_path: Path) -> 
         assert len(fused) > 20 and all(f == "" for f in fused), fused
         last = [_fields(x) for x in late if x.startswith(b"$PEMLF")][-1]
         assert last[3:6] == ["0", "", "V"] and "emlog1:still" in last[6], last
-    finally:
-        daemon.stop()
-        os.close(m1)
-        os.close(m2)
