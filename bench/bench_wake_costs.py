@@ -12,9 +12,12 @@ at real speed (1 Hz VHW, 10 Hz VBW + 5 Hz VHW, 10 Hz PD6), then prints two table
    steps are counted in their callers too; learning one UUT reading, and its
    alignment, filter step and supervision, wherever it is called from).
 
-The timing adds a few µs to each wake-up; compare trees with the same script
-(``PYTHONPATH`` at each tree: the wrapper finds the wait of either loop). Prints
-figures only.
+The two tables come from two runs of ``--seconds`` each: the first times only the
+wait, ``Pipeline.feed`` and ``Pipeline.tick`` (what a wake-up did is marked, not timed);
+the second times each step, which costs a few µs of CPU a timed call with the caches
+cold (about 20 µs a wake-up, which the first table would count as the daemon's own).
+Compare trees with the same script (``PYTHONPATH`` at each tree: the wrapper finds the
+wait of either loop). Prints figures only.
 
 Run: ``python bench/bench_wake_costs.py [--seconds 40] [--trial DIR]``
 """
@@ -26,6 +29,7 @@ import json
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from bench_daemon import run_wrapped, trial_dir
 
@@ -46,10 +50,26 @@ kinds = collections.defaultdict(lambda: [0, 0, 0, 0])  # wake-ups, wait, body, f
 cur = {"did": [], "feed": 0, "wait": 0, "back": None, "port": "housekeeping"}
 t0 = [0, 0.0]
 
+STEPS = sys.argv[2] == "steps"  # else the split: the wait and the pipeline's calls timed
+
+def mark(cls, meth, did):
+    # what a wake-up did, untimed (the split's run)
+    f = getattr(cls, meth, None)
+    if f is None:
+        return
+    def w(*a, **k):
+        cur["did"].append(did(a) if callable(did) else did)
+        return f(*a, **k)
+    setattr(cls, meth, w)
+
 def wrap(cls, meth, label, did=None):
     f = getattr(cls, meth, None)
     if f is None:
         return  # not in this version of the daemon
+    if not STEPS and meth not in ("feed", "tick"):
+        if did is not None:
+            mark(cls, meth, did)
+        return
     def w(*a, **k):
         if did is not None:
             cur["did"].append(did(a) if callable(did) else did)
@@ -129,8 +149,17 @@ def dump():
     json.dump(out, open(sys.argv[1], "w"))
 
 atexit.register(dump)
-sys.exit(main(sys.argv[2:]))
+sys.exit(main(sys.argv[3:]))
 """
+
+
+def _run(trial: Path, seconds: float, mode: str) -> dict[str, Any]:
+    """One timed run of the daemon (``mode``: ``split`` or ``steps``); what it measured."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "costs.json"
+        run_wrapped(trial, seconds, [sys.executable, "-c", WRAPPER, str(out), mode])
+        data: dict[str, Any] = json.loads(out.read_text())
+    return data
 
 
 def main() -> None:
@@ -140,10 +169,7 @@ def main() -> None:
     ap.add_argument("--trial", help="directory with the simulated trial (default: simulate one)")
     args = ap.parse_args()
     trial = trial_dir(args.trial)
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "costs.json"
-        run_wrapped(trial, args.seconds, [sys.executable, "-c", WRAPPER, str(out)])
-        data = json.loads(out.read_text())
+    data = _run(trial, args.seconds, "split")
     wall = data["wall_s"]
     kinds = data["kinds"]
     n_all = sum(k[0] for k in kinds.values())
@@ -167,7 +193,9 @@ def main() -> None:
             for name, x in zip(("wait", "daemon", "feed"), tot, strict=True)
         )
     )
-    print("CPU per call and share of one core by step:")
+    data = _run(trial, args.seconds, "steps")
+    wall = data["wall_s"]
+    print("CPU per call and share of one core by step (a second run, each step timed):")
     for label, (ns, n) in sorted(data["acc"].items(), key=lambda kv: -kv[1][0]):
         print(f"  {label:45s} {n:6d} calls {ns / n / 1e3:8.1f} us  {100 * ns / 1e9 / wall:6.3f} %")
 
