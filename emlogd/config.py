@@ -63,6 +63,9 @@ LogLevel = Literal["debug", "info", "warning", "error"]
 _UUT = UutSettings(port="", reference_port="")
 """The pipeline's defaults, for the ``outputs`` keys that reach every UUT."""
 _TALKER = r"[A-Z]{2}"
+_FILE_PATH = r"(?s)(?!(?:.*/)?\.{0,2}$).+"
+"""A path that names a file by its form: not ending in ``/``, ``.`` or ``..``, which name
+a directory (the state file's would be moved aside by the first save, with its files)."""
 
 
 _ANY_URL = string(what="pyserial URL")
@@ -272,7 +275,7 @@ class Config:
     state_path: str = key(
         "/var/lib/emlogd/state.yaml",
         name="state_file",
-        check=string(what="path"),
+        check=string(_FILE_PATH, "a file's path (not ending in /, . or ..)"),
         path=True,
         doc="The persisted calibrations (written atomically, with a `.bak`).",
     )

@@ -128,6 +128,8 @@ INVALID: list[tuple[str, str, str]] = [
     ("outputs a list", BASE + "outputs: [a]\n", "outputs: expected a mapping"),
     ("url a number", BASE.replace("url: /dev/dvl", "url: 7"), "ports[1].url: expected a non-empty string"),
     ("yaml merge key", BASE + "x: &d {talker: VW}\noutputs: {<<: *d}\n", "x: unknown key"),
+    ("state file a directory", BASE + "state_file: /var/lib/emlogd/\n", "state_file: '/var/lib/emlogd/' is not a file's path"),
+    ("state file a dot", BASE + "state_file: state/.\n", "state_file: 'state/.' is not a file's path"),
 ]  # fmt: skip
 
 

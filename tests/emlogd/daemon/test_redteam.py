@@ -257,6 +257,31 @@ def test_a_fifo_planted_as_the_state_file_of_the_running_daemon(tmp_path: Path) 
         d.kill()
 
 
+def test_a_directory_made_where_the_running_daemons_state_file_is(tmp_path: Path) -> None:
+    """The state file replaced under the running daemon by a directory holding a file:
+    a ``reset`` answers that the state file was not written and ``state_errors`` counts
+    it; the directory and its file stay where they are, the daemon runs on and exits 0.
+    The save moved the directory aside to ``.refused`` with its files, as it would a
+    damaged file, and wrote the state file in its place (a ``state_file`` ending in
+    ``/`` moved the directory it named)."""
+    work = _work(tmp_path)
+    store = StateStore(work / "state" / "state.yaml")
+    store.save({"emlog1": _cal()})
+    d = Daemon(work)
+    try:
+        store.path.unlink()
+        store.path.mkdir()
+        (store.path / "notes.txt").write_text("kept")
+        answer = d.ask(cmd="reset", port="emlog1")
+        assert answer.get("ok") is False and "not written" in str(answer.get("error")), answer
+        assert (store.path / "notes.txt").read_text() == "kept"
+        assert not store.refused.exists()
+        assert d.ask(cmd="status")["state_errors"] == 1
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
 def test_the_state_bound_holds_a_full_state_file() -> None:
     """The bound is far above what a state file holds: eight UUTs with their records of
     all four models."""
