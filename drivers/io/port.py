@@ -166,12 +166,6 @@ class SerialSource:
         problem = url_problem(self.url)
         if problem is not None:
             raise DeviceError(f"port {self.name}: {problem}")
-        try:
-            serial.serial_for_url(self.url, do_not_open=True)
-        except ValueError as exc:
-            raise DeviceError(f"port {self.name}: invalid URL {self.url!r}: {exc}") from None
-        except (serial.SerialException, OSError):
-            pass  # a device that is missing now is retried later
 
     # -- state ----------------------------------------------------------------
 
@@ -425,8 +419,16 @@ daemon), at every retry."""
 
 
 def url_problem(url: str) -> str | None:
-    """Why ``url`` cannot be an input (a scheme of :data:`BLOCKING_SCHEMES`, or a
-    ``socket://`` host that is not an IP address: :func:`socket_url_problem`), else None."""
+    """Why ``url`` cannot be an input (no URL pyserial knows, a scheme of
+    :data:`BLOCKING_SCHEMES`, or a ``socket://`` host that is not an IP address:
+    :func:`socket_url_problem`), else None. The config's check: a URL refused only when
+    its port is made would end the daemon at a reload, after the new config was taken."""
+    try:
+        serial.serial_for_url(url, do_not_open=True)
+    except ValueError as exc:
+        return f"invalid URL {url!r}: {exc}"
+    except (serial.SerialException, OSError):
+        pass  # a device that is missing now is retried later
     scheme = url.partition("://")[0].lower() if "://" in url else ""
     if scheme in BLOCKING_SCHEMES:
         return (

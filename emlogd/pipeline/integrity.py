@@ -132,7 +132,9 @@ def emitted_speed(
     Below ``low_speed_mps`` of raw reading the output follows the sensor: it blends
     from the raw reading (at half the threshold and below) to the corrected one (at
     the threshold), so a bias never turns a log at rest into phantom sternway or
-    headway. The result is never negative and never above ``max_mps``.
+    headway. The result is never above ``max_mps``, and never negative unless the raw
+    reading is (sternway the log reads goes out as read: held at 0, a log astern at
+    1 m/s went out at 0, ten times raw's error against the truth).
 
     Args:
         corrected_mps: the corrected speed, m/s.
@@ -146,7 +148,7 @@ def emitted_speed(
         out = w * corrected_mps + (1.0 - w) * raw_mps
     if not math.isfinite(out):
         return math.nan
-    return min(max(out, 0.0), max_mps)
+    return min(max(out, min(raw_mps, 0.0)), max_mps)
 
 
 class UutHealth:
@@ -485,6 +487,13 @@ must not teach a shorter interval)."""
 RATE_MIN_INTERVALS = 8
 """Intervals needed before the nominal rate is used (until then ``max_rate_hz`` alone)."""
 
+RATE_GAP = 1.5
+"""Once the nominal interval is known, a longer interval than this many times it is
+readings lost (line noise, readings out of the log's range), not the log's rate, and is
+not learnt: learnt, a few minutes of such gaps made the nominal interval theirs, and the
+log back at its own rate was babbling, every reading dropped for good. A log whose rate
+drops for good keeps its faster nominal rate, which it stays under."""
+
 
 @dataclass(frozen=True, slots=True)
 class ReadingLimits:
@@ -627,7 +636,8 @@ class ReadingCheck:
         dropped, self._rate_dropped = self._rate_dropped, False
         if prev is not None and t > prev and not dropped and self.limits.max_rate_hz is None:
             iv = self._intervals
-            iv.append(t - prev)
+            if self.nominal_s is None or t - prev <= RATE_GAP * self.nominal_s:
+                iv.append(t - prev)
             if len(iv) >= RATE_MIN_INTERVALS:
                 self.nominal_s = iv.upper()
         return True

@@ -169,10 +169,11 @@ def _work(tmp_path: Path) -> Path:
 
 
 def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> None:
-    """SIGHUP into each hostile value, a FIFO and a config past the bound: every one a
-    ``reload_failed`` with the running config kept and the daemon answering (a date
-    ``2001-02-30`` made it exit 1, a FIFO would have hung it); a good config after them
-    reloads."""
+    """SIGHUP into each hostile value, a FIFO, a config past the bound and one with a URL
+    pyserial does not know (``socet://``): every one a ``reload_failed`` with the running
+    config kept and the daemon answering (a date ``2001-02-30`` made it exit 1, a FIFO
+    would have hung it, the URL ended it with exit code 1 once the new config was
+    taken); a good config after them reloads."""
     work = _work(tmp_path)
     cfg = work / "emlogd.yaml"
     good = cfg.read_text()
@@ -183,6 +184,7 @@ def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> No
             for v in HOSTILE_YAML.values()
         ]
         bad.append(good + "#" * MAX_CONFIG_BYTES)
+        bad.append(good.replace("url: links/dvl", "url: 'socet://127.0.0.1:1'"))
         for n, text in enumerate([*bad, None], start=1):
             cfg.unlink()
             if text is None:

@@ -82,6 +82,15 @@ class TestEmittedSpeed:
         assert emitted_speed(-0.05, 0.1, 0.25, 10.0) == pytest.approx(0.1)
         assert emitted_speed(-0.2, 0.3, 0.25, 10.0) == 0.0
 
+    def test_sternway_the_log_reads_goes_out_as_read(self) -> None:
+        """A log astern reading -1.02 m/s (and the blend disabled: its correction) emits
+        what it reads, no further astern than it; it went out at 0 (a simulated log 5
+        min astern at 1 m/s: every 5-min window 4 to 10 times raw's error)."""
+        assert emitted_speed(-0.9, -1.02, 0.25, 10.0) == pytest.approx(-1.02)
+        assert emitted_speed(-0.9, -1.02, 0.0, 10.0) == pytest.approx(-0.9)
+        assert emitted_speed(-1.3, -1.02, 0.0, 10.0) == pytest.approx(-1.02)
+        assert emitted_speed(-0.2, -0.05, 0.25, 10.0) == pytest.approx(-0.05)
+
     def test_the_blend_is_continuous(self) -> None:
         """From half the threshold to the threshold the output blends raw into corrected."""
         assert emitted_speed(0.2, 0.25, 0.25, 10.0) == pytest.approx(0.2)
@@ -242,6 +251,20 @@ class TestReadingCheck:
             chk.check(k * 0.5, 2.8)
         assert chk.nominal_s == pytest.approx(0.5)
         assert chk.max_rate_hz() == pytest.approx(2.1)
+
+    def test_a_spell_of_lost_readings_does_not_lock_the_log_out(self) -> None:
+        """A 1-Hz log whose readings are lost, three in four, for 4 minutes (line noise;
+        readings out of the log's range, skipped before the check), then whole again:
+        heard again at once, its nominal interval still 1 s. The gaps taught a nominal
+        interval of 4 s, so the log at its own rate was babbling and every reading
+        dropped, for good (a log astern below -1 m/s went silent for the rest of a
+        simulated trial)."""
+        chk = ReadingCheck(ReadingLimits())
+        assert all(chk.check(float(k), 2.8) == "" for k in range(60))
+        assert all(chk.check(60.0 + 4.0 * k, 2.8) == "" for k in range(60))
+        back = [chk.check(300.0 + k, 2.8) for k in range(60)]
+        assert set(back) == {""}, back
+        assert chk.nominal_s == pytest.approx(1.0)
 
     def test_acceleration(self) -> None:
         """1 m/s² and 0.3 m/s of margin: 2.8 → 4.0 in 1 s is refused, → 4.0 in 1 s after
