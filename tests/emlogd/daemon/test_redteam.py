@@ -169,11 +169,12 @@ def _work(tmp_path: Path) -> Path:
 
 
 def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> None:
-    """SIGHUP into each hostile value, a FIFO, a config past the bound and one with a URL
-    pyserial does not know (``socet://``): every one a ``reload_failed`` with the running
-    config kept and the daemon answering (a date ``2001-02-30`` made it exit 1, a FIFO
-    would have hung it, the URL ended it with exit code 1 once the new config was
-    taken); a good config after them reloads."""
+    """SIGHUP into each hostile value, a FIFO, a config past the bound, one with a URL
+    pyserial does not know (``socet://``) and ones with a NUL character in the pty's,
+    the control socket's or the status socket's path: every one a ``reload_failed`` with
+    the running config kept and the daemon answering (a date ``2001-02-30`` made it exit
+    1, a FIFO would have hung it, the URL and the NULs ended it with exit code 1 once
+    the new config was taken); a good config after them reloads."""
     work = _work(tmp_path)
     cfg = work / "emlogd.yaml"
     good = cfg.read_text()
@@ -185,6 +186,10 @@ def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> No
         ]
         bad.append(good + "#" * MAX_CONFIG_BYTES)
         bad.append(good.replace("url: links/dvl", "url: 'socet://127.0.0.1:1'"))
+        for path in ("pty: out/emlog0", "control_socket: run/control.sock"):
+            key, value = path.split(": ")
+            bad.append(good.replace(path, f'{key}: "{value}\\0"'))
+        bad.append(good + 'status_socket: "run/status\\0.sock"\n')
         for n, text in enumerate([*bad, None], start=1):
             cfg.unlink()
             if text is None:
