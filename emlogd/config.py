@@ -394,6 +394,10 @@ class _Ctx:
             if exc.sub is not None:
                 raise self.fail(sub[exc.sub][0], f"{where}.{exc.sub}", str(exc)) from None
             raise self.fail(node, where, str(exc)) from None
+        if e.key.path and isinstance(v, str) and "\0" in v:
+            # no file name holds one: the open or bind raised ValueError, which ended
+            # the daemon at a reload (the output pty, the control and status sockets)
+            raise self.fail(node, where, f"{v!r}: a path cannot hold a NUL character")
         if (
             e.key.path
             and self.base is not None

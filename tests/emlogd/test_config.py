@@ -128,6 +128,8 @@ INVALID: list[tuple[str, str, str]] = [
     ("outputs a list", BASE + "outputs: [a]\n", "outputs: expected a mapping"),
     ("url a number", BASE.replace("url: /dev/dvl", "url: 7"), "ports[1].url: expected a non-empty string"),
     ("yaml merge key", BASE + "x: &d {talker: VW}\noutputs: {<<: *d}\n", "x: unknown key"),
+    ("pty path with a NUL", BASE + 'outputs: {pty: "out/e\\0"}\n', "outputs.pty: 'out/e\\x00': a path cannot hold a NUL character"),
+    ("control socket with a NUL", BASE + 'control_socket: "run/c\\0.sock"\n', "control_socket: 'run/c\\x00.sock': a path cannot hold a NUL character"),
     ("url of no pyserial scheme", BASE.replace("/dev/dvl", "socet://10.0.0.5:1"), "ports[1].url: invalid URL 'socet://10.0.0.5:1': invalid URL, protocol 'socet' not known"),
     ("rfc2217 url", BASE.replace("/dev/dvl", "rfc2217://10.0.0.5:2217"), "ports[1].url: 'rfc2217://10.0.0.5:2217': pyserial opens a rfc2217:// input in the daemon's one thread"),
     ("socket host name in capitals", BASE.replace("/dev/dvl", "SOCKET://dvl.local:10110"), "ports[1].url: 'SOCKET://dvl.local:10110': a socket:// input needs an IP address"),

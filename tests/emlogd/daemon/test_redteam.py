@@ -169,11 +169,13 @@ def _work(tmp_path: Path) -> Path:
 
 
 def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> None:
-    """SIGHUP into each hostile value, a FIFO, a config past the bound and one with a URL
-    pyserial does not know (``socet://``): every one a ``reload_failed`` with the running
-    config kept and the daemon answering (a date ``2001-02-30`` made it exit 1, a FIFO
-    would have hung it, the URL ended it with exit code 1 once the new config was
-    taken); a good config after them reloads."""
+    """SIGHUP into each hostile value, a FIFO, a config past the bound, one with a URL
+    pyserial does not know (``socet://``) and ones with a NUL character in the pty's,
+    the control socket's or the status socket's path: every one a ``reload_failed`` with
+    the running config kept and the daemon answering (a date ``2001-02-30`` made it exit
+    1, a FIFO would have hung it, the URL and the NULs ended it with exit code 1 once
+    the new config was taken); a NUL in ``pty_group`` (which ended it too) is a
+    ``reload_outputs_failed`` of that pty; a good config after them reloads."""
     work = _work(tmp_path)
     cfg = work / "emlogd.yaml"
     good = cfg.read_text()
@@ -185,6 +187,10 @@ def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> No
         ]
         bad.append(good + "#" * MAX_CONFIG_BYTES)
         bad.append(good.replace("url: links/dvl", "url: 'socet://127.0.0.1:1'"))
+        for path in ("pty: out/emlog0", "control_socket: run/control.sock"):
+            key, value = path.split(": ")
+            bad.append(good.replace(path, f'{key}: "{value}\\0"'))
+        bad.append(good + 'status_socket: "run/status\\0.sock"\n')
         for n, text in enumerate([*bad, None], start=1):
             cfg.unlink()
             if text is None:
@@ -195,9 +201,13 @@ def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> No
             wait(functools.partial(_failed_reloads, d, n), f"reload_failed #{n}", 10.0)
             assert d.running and d.answers(), d.tail()
         cfg.unlink()
+        cfg.write_text(good.replace("pty: out/emlog0", 'pty: out/emlog0, pty_group: "a\\0"'))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reload_outputs_failed") >= 1, "the pty refused", 10.0)
+        assert d.running and d.answers(), d.tail()
         cfg.write_text(good.replace("status_log_interval_s: 1", "status_log_interval_s: 2"))
         d.send_signal(signal.SIGHUP)
-        wait(lambda: d.events("reloaded") >= 1, "the good config reloaded", 10.0)
+        wait(lambda: d.events("reloaded") >= 2, "the good config reloaded", 10.0)
         assert d.stop() == 0
     finally:
         d.kill()
