@@ -29,13 +29,10 @@ SCALE = 0.3
 """The trial's duration factor: the transit 37.5 min, the return 9 min."""
 
 CFG = """\
-ports:
-  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}
-  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}
-  - {name: dvl, url: /dev/null, protocol: pd6, role: reference}
-calibration:
-  - {uut: emlog1, reference: dvl, current: true}
-  - {uut: emlog2, reference: dvl, current: true}
+ports: [{name: emlog1, url: /dev/null, protocol: nmea0183, role: uut},
+  {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut},
+  {name: dvl, url: /dev/null, protocol: pd6, role: reference}]
+calibration: [{uut: emlog1, reference: dvl, current: true}, {uut: emlog2, reference: dvl, current: true}]
 """
 
 Motion = Callable[[Kinematics], Kinematics]
