@@ -484,6 +484,8 @@ class Pipeline:
         cal = u.cal
         if not cal.in_range(raw):
             cal.counters.out_of_range += 1
+            if fresh:
+                u.arrived(t, source, n)
             return False
         if not fresh:
             cal.counters.backlog += 1

@@ -132,9 +132,8 @@ def emitted_speed(
     Below ``low_speed_mps`` of raw reading the output follows the sensor: it blends
     from the raw reading (at half the threshold and below) to the corrected one (at
     the threshold), so a bias never turns a log at rest into phantom sternway or
-    headway. The result is never above ``max_mps``, and never negative unless the raw
-    reading is (sternway the log reads goes out as read: held at 0, a log astern at
-    1 m/s went out at 0, ten times raw's error against the truth).
+    headway. The result is never above ``max_mps``, nor negative unless raw is (the
+    sternway a log reads goes out as read).
 
     Args:
         corrected_mps: the corrected speed, m/s.
@@ -487,13 +486,6 @@ must not teach a shorter interval)."""
 RATE_MIN_INTERVALS = 8
 """Intervals needed before the nominal rate is used (until then ``max_rate_hz`` alone)."""
 
-RATE_GAP = 1.5
-"""Once the nominal interval is known, a longer interval than this many times it is
-readings lost (line noise, readings out of the log's range), not the log's rate, and is
-not learnt: learnt, a few minutes of such gaps made the nominal interval theirs, and the
-log back at its own rate was babbling, every reading dropped for good. A log whose rate
-drops for good keeps its faster nominal rate, which it stays under."""
-
 
 @dataclass(frozen=True, slots=True)
 class ReadingLimits:
@@ -596,6 +588,15 @@ class ReadingCheck:
         no babble.
         """
         self.reacquired = False
+        return self._judge_rate(t, n) or self._accel(t, v)
+
+    def arrived(self, t: float, n: int = 1) -> None:
+        """A reading refused before its check (out of range) counts for the rate: the gaps
+        left taught a 1-Hz log astern 4 s, then it was babbling for good under way."""
+        self._judge_rate(t, n)
+
+    def _judge_rate(self, t: float, n: int) -> str:
+        """The rate's verdict on a read (:meth:`check`): ``"rate"`` or ``""``."""
         drops = self._drops
         prev = self._t_rate
         ok = self._rate(t)
@@ -612,7 +613,7 @@ class ReadingCheck:
             drops.popleft()
         if drops and (drops[-1] == t or len(drops) >= BABBLE_DROPS):
             return "rate"
-        return self._accel(t, v)
+        return ""
 
     def _sentence_rate_hz(self) -> float | None:
         """The readings per second a read may bring (:data:`READ_SLACK`), Hz; None until
@@ -636,8 +637,7 @@ class ReadingCheck:
         dropped, self._rate_dropped = self._rate_dropped, False
         if prev is not None and t > prev and not dropped and self.limits.max_rate_hz is None:
             iv = self._intervals
-            if self.nominal_s is None or t - prev <= RATE_GAP * self.nominal_s:
-                iv.append(t - prev)
+            iv.append(t - prev)
             if len(iv) >= RATE_MIN_INTERVALS:
                 self.nominal_s = iv.upper()
         return True

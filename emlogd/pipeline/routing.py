@@ -311,6 +311,12 @@ class UutRoute:
             return "reacquired"
         return why
 
+    def arrived(self, t: float, source: str, n: int = 1) -> None:
+        """A reading refused before its check arrived (:meth:`ReadingCheck.arrived`)."""
+        chk = self.checks.get(source)
+        if chk is not None:
+            chk.arrived(t, n)
+
     def why_athwart_implausible(self, t: float, trans: float) -> str:
         """``""`` when a VBW's athwart speed is plausible (or re-acquired a level), else
         why not (counted with the readings'): a transverse speed jumping by tens of

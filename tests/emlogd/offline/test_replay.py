@@ -20,22 +20,15 @@ from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
 from tests.jumping import ROOT, run_twice
 
-TRIAL_PORTS = """\
+CFG = """\
 ports:
   - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}
   - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}
   - {name: dvl, url: /dev/null, protocol: pd6, role: reference}
-"""
-"""The simulated trial's two logs and DVL, on /dev/null (a config's ``ports``)."""
-
-CFG = (
-    TRIAL_PORTS
-    + """\
 calibration:
   - {uut: emlog1, reference: dvl, lag: 3.3, max_param_std: {m: 0.05, b: 0.08}, current: false}
   - {uut: emlog2, reference: dvl, lag: 0.5, current: false, talker: VM}
 """
-)
 
 
 def _pipeline(cfg: str = CFG) -> Pipeline:

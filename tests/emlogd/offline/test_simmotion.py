@@ -21,7 +21,6 @@ from emlogd.offline.simkinematics import Kinematics, TrajectorySpec, kinematics
 from emlogd.offline.simulate import read_truth, simulate
 from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
-from tests.emlogd.offline.test_replay import TRIAL_PORTS
 
 RATIO = 1.05
 """The acceptance: emitted over raw RMSE against the truth, per window."""
@@ -29,14 +28,12 @@ RATIO = 1.05
 SCALE = 0.3
 """The trial's duration factor: the transit 37.5 min, the return 9 min."""
 
-CFG = (
-    TRIAL_PORTS
-    + """\
-calibration:
-  - {uut: emlog1, reference: dvl, current: true}
-  - {uut: emlog2, reference: dvl, current: true}
+CFG = """\
+ports: [{name: emlog1, url: /dev/null, protocol: nmea0183, role: uut},
+  {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut},
+  {name: dvl, url: /dev/null, protocol: pd6, role: reference}]
+calibration: [{uut: emlog1, reference: dvl, current: true}, {uut: emlog2, reference: dvl, current: true}]
 """
-)
 
 Motion = Callable[[Kinematics], Kinematics]
 
