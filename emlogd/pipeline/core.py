@@ -220,6 +220,8 @@ class Pipeline:
         self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
+        self._waiting = True
+        """Whether :meth:`_after` may have work without a record's items (it says)."""
 
     def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
         """A two-axis learner; the saved figures of a record its checks accept restored
@@ -315,10 +317,20 @@ class Pipeline:
             self.now = t
         if self.liveness.heard(port, t):
             out.events.append(Event(t, port, "alive", {}))
-        items = [item for rec in dec.feed(data) for item in nav_items(dec, rec)]
-        if items:
+        items: list[Nav] | None = None
+        for rec in dec.feed(data):
+            navs = nav_items(dec, rec)
+            if not navs:
+                continue
+            if items is None:
+                items = list(navs)
+            else:
+                items += navs
+        if items is not None:
             self._route(t, port, items, out)
-        self._after(t, out)
+            self._after(t, out)
+        elif self._waiting:  # nothing routed: only time moved on (see _after)
+            self._after(t, out)
         return out
 
     def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
@@ -327,7 +339,7 @@ class Pipeline:
         # check counts them all
         last: dict[str, int] = {}
         count: dict[str, int] = {}
-        if u is not None:
+        if u is not None and len(items) > 1:
             for i, it in enumerate(items):
                 if isinstance(it, SpeedRecord) and it.role == "speed":
                     last[it.source] = i
@@ -344,8 +356,8 @@ class Pipeline:
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
-                    fresh = last[item.source] == i
-                    n = count[item.source] if fresh else 1
+                    fresh = last.get(item.source, i) == i
+                    n = count.get(item.source, 1) if fresh else 1
                     self._reading(u, t, item, fresh=fresh, out=out, n=n)
 
     def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
@@ -545,13 +557,24 @@ class Pipeline:
         )
 
     def _after(self, t: float, out: Output) -> None:
+        """After a record's items: project the GNSS fixes and learn from the readings whose
+        time has come, hand out a changed calibration to persist, and the events.
+
+        Notes in :attr:`_waiting` whether anything is left that time alone can make due
+        (a fix or a reading still queued, a calibration not yet persisted): until then,
+        or until a record routes items, this call would do nothing, and :meth:`feed`
+        skips it (two thirds of a PD6 DVL's lines decode nothing).
+        """
         two_axis = self.two_axis
+        waiting = False
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
+                waiting = waiting or bool(u.gnss)
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
+                waiting = waiting or bool(cal.pending)
             if two_axis:
                 ax = two_axis.get(u.s.port)
                 if ax is not None and ax.sup.changed:
@@ -560,6 +583,8 @@ class Pipeline:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
                     out.persist.append(self._with_two_axis(snap))
+                waiting = waiting or cal.sup.dirty
+        self._waiting = waiting
         if self._pending_events:
             out.events.extend(self._pending_events)
             self._pending_events.clear()
@@ -603,6 +628,7 @@ class Pipeline:
         ports = [port] if port is not None else list(self.uuts)
         for p in ports:
             self.uuts[p].cal.learn_on = on
+        self._waiting = True
         return ports
 
     def reset(self, port: str | None = None) -> dict[str, dict[str, object]]:
@@ -636,6 +662,7 @@ class Pipeline:
             fresh.dirty = True
             fresh.t_persist = -math.inf
             u.cal = fresh
+            self._waiting = True
             if p in self.two_axis:
                 self.two_axis[p] = TwoAxisLearner(u.s, self._hooks(p)[1])
                 cleared.append("two-axis figures")

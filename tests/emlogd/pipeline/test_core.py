@@ -189,6 +189,26 @@ class TestLearning:
         b = kit.run(kit.pipeline(lag_s=0.0, current=True), s.items)
         assert [e.sentence for e in a.emits] == [e.sentence for e in b.emits]
 
+    def test_time_alone_learns_a_reading_whose_reference_never_comes(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """A reading waiting for its reference is learnt once that can no longer come,
+        whatever record moves the time on: one that decodes nothing (a DVL's line short
+        of its ensemble's end) as well as one that does."""
+        s = kit.make_stream(segment("straight", 5.0, TRUE))
+        p = kit.pipeline(lag_s=0.0)
+        for t, port, data in s.items:
+            p.feed(t, port, data)
+        cal = p.uuts["log"].cal
+        assert not cal.pending
+        t_read = s.items[-1][0] + 0.5
+        last_log = next(d for _, port, d in reversed(s.items) if port == "log")
+        p.feed(t_read, "log", last_log)
+        assert len(cal.pending) == 1  # its reference, at t_read, has not come
+        for k in range(1, 40):  # ensembles never finished: each line decodes nothing
+            assert not p.feed(t_read + 0.1 * k, "dvl", b":SA,+00.00,+00.00,121.28\r\n").emits
+        assert not cal.pending
+
 
 class TestLag:
     """The automatic lag and its restoration."""
