@@ -361,12 +361,13 @@ class Pipeline:
                     self._reading(u, t, item, fresh=fresh, out=out, n=n)
 
     def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
+        two_axis = self.two_axis
         for u in self._by_ref.get(port, ()):
             u.ground.bottom(t, sp)  # the corrected VBW's ground pair
             if u.s.reference_field != sp.role:
                 continue
             u.reference(t, speed_of(sp, u.s.component), sp.valid)
-            ax = self.two_axis.get(u.s.port)
+            ax = two_axis.get(u.s.port) if two_axis else None
             if ax is not None:
                 ax.reference(t, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
 
@@ -419,25 +420,28 @@ class Pipeline:
         the readings of its sentence in its read (the rate check counts them)."""
         cal = u.cal
         raw = speed_of(sp, u.s.component)
-        if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh, n):
+        source = sp.source
+        if not sp.valid or raw is None or not self._admit(u, t, source, raw, fresh, n):
             return
         trans = sp.transverse_mps
-        if sp.source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
+        if source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
             return  # neither emitted nor learnt, as an implausible reading
-        if sp.source == u.s.uut_source:
+        learnt = source == u.s.uut_source
+        if learnt:
             # judged first when its reference is already in (a log that lags the
             # reference): a change the supervisor sees in it is not emitted corrected
             cal.add_reading(t, raw)
             cal.drain(self.now)
         value = cal.correct(raw)
-        if value is not None and sp.source == u.s.uut_source:
-            u.stw = (t, value)
         if value is not None:
+            if learnt:
+                u.stw = (t, value)
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             sentence = self._sentence(u, t, sp, value)
-            if self.fusion is None or not self.fusion.s.only:
+            fusion = self.fusion
+            if fusion is None or not fusion.s.only:
                 out.emits.append(Emit(t, u.s.port, sentence))
-            if self.fusion is not None and sp.source == u.s.uut_source:
+            if fusion is not None and learnt:
                 self._fuse(t, u, value, hdg_t, hdg_m, out)
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
