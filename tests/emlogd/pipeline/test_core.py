@@ -318,6 +318,21 @@ class TestControl:
         (after,) = p.calibrations()
         assert after.reset and after.lag_s == 0.0
 
+    def test_a_reset_is_handed_out_by_the_next_record(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """The next record after a reset hands the reset record out to persist, even one
+        that decodes nothing (a DVL's line short of its ensemble's end)."""
+        s = kit.make_stream(segment("straight", 5.0, TRUE))
+        p = kit.pipeline(lag_s=0.0, learn=False)
+        kit.run(p, s.items)
+        line = b":SA,+00.00,+00.00,121.28\r\n"  # an ensemble never finished
+        t = s.items[-1][0]
+        assert not p.feed(t + 0.1, "dvl", line).persist
+        p.reset("log")
+        persisted = p.feed(t + 0.2, "dvl", line).persist
+        assert [(c.uut, c.reset) for c in persisted] == [("log", True)]
+
     def test_a_calibration_outside_the_envelope_is_refused_at_start(
         self, kit: SimpleNamespace
     ) -> None:
