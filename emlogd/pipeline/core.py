@@ -116,8 +116,7 @@ class Output:
     calibrations to persist. Each call returns a new one; the pipeline keeps no
     reference to it and calls nothing of the caller's.
 
-    A plain class (one is made per record): half the construction time of a dataclass
-    with list factories.
+    A plain class (one is made per record): half a list-factory dataclass's construction.
     """
 
     __slots__ = ("emits", "events", "persist")
@@ -132,12 +131,6 @@ class Output:
         self.emits.extend(other.emits)
         self.events.extend(other.events)
         self.persist.extend(other.persist)
-
-
-def _keep_lag(cal: UutCalibration, lag_s: float) -> None:
-    """Give a new UUT calibration a lag known before (it estimates none)."""
-    cal.lag_s = lag_s
-    cal.lag_finder = None
 
 
 class Pipeline:
@@ -211,7 +204,7 @@ class Pipeline:
                         and rec.lag_s is not None
                         and not check(rec, s.envelope, s.max_lag_s)
                     ):
-                        _keep_lag(u.cal, rec.lag_s)
+                        u.cal.lag_s, u.cal.lag_finder = rec.lag_s, None  # known: none estimated
                         break
             self.uuts[s.port] = u
             if s.axes == 2:
@@ -220,8 +213,7 @@ class Pipeline:
         self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
-        self._waiting = True
-        """Whether :meth:`_after` may have work without a record's items (it says)."""
+        self._waiting = True  # whether _after may have work without a record's items
 
     def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
         """A two-axis learner; the saved figures of a record its checks accept restored
@@ -317,26 +309,19 @@ class Pipeline:
             self.now = t
         if self.liveness.heard(port, t):
             out.events.append(Event(t, port, "alive", {}))
-        items: list[Nav] | None = None
+        items: list[Nav] = []
         for rec in dec.feed(data):
-            navs = nav_items(dec, rec)
-            if not navs:
-                continue
-            if items is None:
-                items = list(navs)
-            else:
-                items += navs
-        if items is not None:
+            items += nav_items(dec, rec)
+        if items:
             self._route(t, port, items, out)
-            self._after(t, out)
-        elif self._waiting:  # nothing routed: only time moved on (see _after)
+        if items or self._waiting:  # else nothing routed and nothing due (see _after)
             self._after(t, out)
         return out
 
     def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
         u = self.uuts.get(port)
-        # a UUT reading is fresh when it is the chunk's last of its sentence; the rate
-        # check counts them all
+        # a UUT reading is fresh when the chunk's last of its sentence; the rate check
+        # counts them all (a chunk of one item: fresh, the one of its sentence)
         last: dict[str, int] = {}
         count: dict[str, int] = {}
         if u is not None and len(items) > 1:
@@ -361,13 +346,12 @@ class Pipeline:
                     self._reading(u, t, item, fresh=fresh, out=out, n=n)
 
     def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
-        two_axis = self.two_axis
         for u in self._by_ref.get(port, ()):
             u.ground.bottom(t, sp)  # the corrected VBW's ground pair
             if u.s.reference_field != sp.role:
                 continue
             u.reference(t, speed_of(sp, u.s.component), sp.valid)
-            ax = two_axis.get(u.s.port) if two_axis else None
+            ax = self.two_axis.get(u.s.port) if self.two_axis else None
             if ax is not None:
                 ax.reference(t, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
 
@@ -438,10 +422,9 @@ class Pipeline:
                 u.stw = (t, value)
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             sentence = self._sentence(u, t, sp, value)
-            fusion = self.fusion
-            if fusion is None or not fusion.s.only:
+            if self.fusion is None or not self.fusion.s.only:
                 out.emits.append(Emit(t, u.s.port, sentence))
-            if fusion is not None and learnt:
+            if self.fusion is not None and learnt:
                 self._fuse(t, u, value, hdg_t, hdg_m, out)
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
@@ -561,33 +544,25 @@ class Pipeline:
         )
 
     def _after(self, t: float, out: Output) -> None:
-        """After a record's items: project the GNSS fixes and learn from the readings whose
-        time has come, hand out a changed calibration to persist, and the events.
-
-        Notes in :attr:`_waiting` whether anything is left that time alone can make due
-        (a fix or a reading still queued, a calibration not yet persisted): until then,
-        or until a record routes items, this call would do nothing, and :meth:`feed`
-        skips it (two thirds of a PD6 DVL's lines decode nothing).
-        """
+        """Project GNSS fixes, learn from the readings whose time came, hand out a changed
+        calibration and the events; note in :attr:`_waiting` whether time alone can make
+        anything due (a fix or reading queued, a calibration not persisted yet)."""
         two_axis = self.two_axis
         waiting = False
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
-                waiting = waiting or bool(u.gnss)
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
-                waiting = waiting or bool(cal.pending)
-            if two_axis:
-                ax = two_axis.get(u.s.port)
-                if ax is not None and ax.sup.changed:
-                    ax.sup.changed, cal.dirty = False, True
+            ax = two_axis.get(u.s.port) if two_axis else None
+            if ax is not None and ax.sup.changed:
+                ax.sup.changed, cal.dirty = False, True
             if cal.sup.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
                     out.persist.append(self._with_two_axis(snap))
-                waiting = waiting or cal.sup.dirty
+            waiting = waiting or bool(u.gnss or cal.pending or cal.sup.dirty)
         self._waiting = waiting
         if self._pending_events:
             out.events.extend(self._pending_events)
@@ -632,7 +607,6 @@ class Pipeline:
         ports = [port] if port is not None else list(self.uuts)
         for p in ports:
             self.uuts[p].cal.learn_on = on
-        self._waiting = True
         return ports
 
     def reset(self, port: str | None = None) -> dict[str, dict[str, object]]:
