@@ -116,8 +116,7 @@ class Output:
     calibrations to persist. Each call returns a new one; the pipeline keeps no
     reference to it and calls nothing of the caller's.
 
-    A plain class (one is made per record): half the construction time of a dataclass
-    with list factories.
+    A plain class (one is made per record): half a list-factory dataclass's construction.
     """
 
     __slots__ = ("emits", "events", "persist")
@@ -132,12 +131,6 @@ class Output:
         self.emits.extend(other.emits)
         self.events.extend(other.events)
         self.persist.extend(other.persist)
-
-
-def _keep_lag(cal: UutCalibration, lag_s: float) -> None:
-    """Give a new UUT calibration a lag known before (it estimates none)."""
-    cal.lag_s = lag_s
-    cal.lag_finder = None
 
 
 class Pipeline:
@@ -211,7 +204,7 @@ class Pipeline:
                         and rec.lag_s is not None
                         and not check(rec, s.envelope, s.max_lag_s)
                     ):
-                        _keep_lag(u.cal, rec.lag_s)
+                        u.cal.lag_s, u.cal.lag_finder = rec.lag_s, None  # known: none estimated
                         break
             self.uuts[s.port] = u
             if s.axes == 2:
@@ -220,6 +213,7 @@ class Pipeline:
         self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
+        self._waiting = True  # whether _after may have work without a record's items
 
     def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
         """A two-axis learner; the saved figures of a record its checks accept restored
@@ -315,19 +309,22 @@ class Pipeline:
             self.now = t
         if self.liveness.heard(port, t):
             out.events.append(Event(t, port, "alive", {}))
-        items = [item for rec in dec.feed(data) for item in nav_items(dec, rec)]
+        items: list[Nav] = []
+        for rec in dec.feed(data):
+            items += nav_items(dec, rec)
         if items:
             self._route(t, port, items, out)
-        self._after(t, out)
+        if items or self._waiting:  # else nothing routed and nothing due (see _after)
+            self._after(t, out)
         return out
 
     def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
         u = self.uuts.get(port)
-        # a UUT reading is fresh when it is the chunk's last of its sentence; the rate
-        # check counts them all
+        # a UUT reading is fresh when the chunk's last of its sentence; the rate check
+        # counts them all (a chunk of one item: fresh, the one of its sentence)
         last: dict[str, int] = {}
         count: dict[str, int] = {}
-        if u is not None:
+        if u is not None and len(items) > 1:
             for i, it in enumerate(items):
                 if isinstance(it, SpeedRecord) and it.role == "speed":
                     last[it.source] = i
@@ -344,8 +341,8 @@ class Pipeline:
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
-                    fresh = last[item.source] == i
-                    n = count[item.source] if fresh else 1
+                    fresh = last.get(item.source, i) == i
+                    n = count.get(item.source, 1) if fresh else 1
                     self._reading(u, t, item, fresh=fresh, out=out, n=n)
 
     def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
@@ -354,7 +351,7 @@ class Pipeline:
             if u.s.reference_field != sp.role:
                 continue
             u.reference(t, speed_of(sp, u.s.component), sp.valid)
-            ax = self.two_axis.get(u.s.port)
+            ax = self.two_axis.get(u.s.port) if self.two_axis else None
             if ax is not None:
                 ax.reference(t, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
 
@@ -407,25 +404,27 @@ class Pipeline:
         the readings of its sentence in its read (the rate check counts them)."""
         cal = u.cal
         raw = speed_of(sp, u.s.component)
-        if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh, n):
+        source = sp.source
+        if not sp.valid or raw is None or not self._admit(u, t, source, raw, fresh, n):
             return
         trans = sp.transverse_mps
-        if sp.source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
+        if source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
             return  # neither emitted nor learnt, as an implausible reading
-        if sp.source == u.s.uut_source:
+        learnt = source == u.s.uut_source
+        if learnt:
             # judged first when its reference is already in (a log that lags the
             # reference): a change the supervisor sees in it is not emitted corrected
             cal.add_reading(t, raw)
             cal.drain(self.now)
         value = cal.correct(raw)
-        if value is not None and sp.source == u.s.uut_source:
-            u.stw = (t, value)
         if value is not None:
+            if learnt:
+                u.stw = (t, value)
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             sentence = self._sentence(u, t, sp, value)
             if self.fusion is None or not self.fusion.s.only:
                 out.emits.append(Emit(t, u.s.port, sentence))
-            if self.fusion is not None and sp.source == u.s.uut_source:
+            if self.fusion is not None and learnt:
                 self._fuse(t, u, value, hdg_t, hdg_m, out)
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
@@ -547,21 +546,26 @@ class Pipeline:
         )
 
     def _after(self, t: float, out: Output) -> None:
+        """Project GNSS fixes, learn from the readings whose time came, hand out a changed
+        calibration and the events; note in :attr:`_waiting` whether time alone can make
+        anything due (a fix or reading queued, a calibration not persisted yet)."""
         two_axis = self.two_axis
+        waiting = False
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
-            if two_axis:
-                ax = two_axis.get(u.s.port)
-                if ax is not None and ax.sup.changed:
-                    ax.sup.changed, cal.dirty = False, True
+            ax = two_axis.get(u.s.port) if two_axis else None
+            if ax is not None and ax.sup.changed:
+                ax.sup.changed, cal.dirty = False, True
             if cal.sup.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
                     out.persist.append(self._with_two_axis(snap))
+            waiting = waiting or bool(u.gnss or cal.pending or cal.sup.dirty)
+        self._waiting = waiting
         if self._pending_events:
             out.events.extend(self._pending_events)
             self._pending_events.clear()
@@ -638,6 +642,7 @@ class Pipeline:
             fresh.dirty = True
             fresh.t_persist = -math.inf
             u.cal = fresh
+            self._waiting = True
             if p in self.two_axis:
                 self.two_axis[p] = TwoAxisLearner(u.s, self._hooks(p)[1])
                 cleared.append("two-axis figures")

@@ -362,8 +362,11 @@ class JumpFilter:
         if last is None:
             self._last = (t, value)
             return True
-        allowed = self.margin + self.max_rate * max(t - last[0], 0.0)
-        if self._diff(value, last[1]) <= allowed:
+        dt = t - last[0]
+        d = value - last[1]
+        if self.angular:
+            d = (d + 180.0) % 360.0 - 180.0
+        if abs(d) <= self.margin + self.max_rate * (0.0 if dt < 0.0 else dt):  # _diff, inline
             self._last = (t, value)
             self._pending = None
             return True
@@ -536,10 +539,12 @@ class ReadingCheck:
         "_first_refused",
         "_intervals",
         "_last",
+        "_max_hz",
         "_moving",
         "_pending",
         "_per_sentence",
         "_rate_dropped",
+        "_read_hz",
         "_t_rate",
         "_tokens",
         "limits",
@@ -567,14 +572,18 @@ class ReadingCheck:
         self.nominal_s: float | None = None
         """The log's nominal interval between readings, s (None until learnt)."""
         self.reacquired = False
+        fixed = limits.max_rate_hz
+        self._max_hz = DEFAULT_MAX_RATE_HZ if fixed is None else fixed
+        """:meth:`max_rate_hz`, set again when :attr:`nominal_s` changes."""
+        self._read_hz = fixed
+        """The readings per second a read may bring (:data:`READ_SLACK`), Hz: ``max_rate_hz``,
+        else learnt from the sentence rate's window once it holds
+        :data:`RATE_MIN_INTERVALS`; None until then."""
 
     def max_rate_hz(self) -> float:
-        """The rate readings are accepted at now, Hz."""
-        if self.limits.max_rate_hz is not None:
-            return self.limits.max_rate_hz
-        if self.nominal_s is None:
-            return DEFAULT_MAX_RATE_HZ
-        return min(RATE_SLACK / self.nominal_s, DEFAULT_MAX_RATE_HZ)
+        """The rate readings are accepted at now, Hz: ``max_rate_hz``, else the nominal rate
+        (:data:`RATE_SLACK`) at most :data:`DEFAULT_MAX_RATE_HZ`."""
+        return self._max_hz
 
     def check(self, t: float, v: float, n: int = 1) -> str:
         """Judge one reading at receive time ``t``: ``""`` when plausible, else why not.
@@ -601,12 +610,16 @@ class ReadingCheck:
         prev = self._t_rate
         ok = self._rate(t)
         if prev is not None:
-            dt = max(t - prev, 0.0)
-            rate = self._sentence_rate_hz()
+            dt = t - prev
+            dt = 0.0 if dt < 0.0 else dt
+            rate = self._read_hz
             if rate is not None and n > RATE_BURST + READ_SLACK * dt * rate:
                 ok = False
             elif ok and dt > 0.0:
-                self._per_sentence.append(dt / max(n, 1))
+                per = self._per_sentence
+                per.append(dt / max(n, 1))
+                if self.limits.max_rate_hz is None and len(per) >= RATE_MIN_INTERVALS:
+                    self._read_hz = 1.0 / max(per.median(), 1e-9)
         if not ok:
             drops.append(t)
         while drops and t - drops[0] > BABBLE_S:
@@ -615,20 +628,11 @@ class ReadingCheck:
             return "rate"
         return ""
 
-    def _sentence_rate_hz(self) -> float | None:
-        """The readings per second a read may bring (:data:`READ_SLACK`), Hz; None until
-        learnt."""
-        if self.limits.max_rate_hz is not None:
-            return self.limits.max_rate_hz
-        if len(self._per_sentence) < RATE_MIN_INTERVALS:
-            return None
-        return 1.0 / max(self._per_sentence.median(), 1e-9)
-
     def _rate(self, t: float) -> bool:
         prev = self._t_rate
         if prev is not None:
             dt = max(t - prev, 0.0)
-            self._tokens = min(self._tokens + dt * self.max_rate_hz(), RATE_BURST)
+            self._tokens = min(self._tokens + dt * self._max_hz, RATE_BURST)
         self._t_rate = t
         if self._tokens < 1.0:
             self._rate_dropped = True
@@ -639,7 +643,8 @@ class ReadingCheck:
             iv = self._intervals
             iv.append(t - prev)
             if len(iv) >= RATE_MIN_INTERVALS:
-                self.nominal_s = iv.upper()
+                self.nominal_s = nominal = iv.upper()
+                self._max_hz = min(RATE_SLACK / nominal, DEFAULT_MAX_RATE_HZ)
         return True
 
     def _accel(self, t: float, v: float) -> str:
