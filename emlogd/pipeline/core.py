@@ -14,9 +14,8 @@ Routing (per port, the decoders' common navigation records):
 - a **heading** (true, or magnetic with a variation: the log's, the configured one,
   else the IGRF model's at the last GNSS position, :mod:`emlogd.pipeline.variation`)
   goes to its port's ring; a GNSS reference is projected only with a heading the
-  course check has not flagged;
-  each UUT reads its heading from the port it is configured for, or (``auto``) from
-  its reference's port, else its own VHW heading, else any port with a heading;
+  course check has not flagged; each UUT reads its heading from its configured port,
+  or (``auto``) its reference's, else its own VHW heading, else any with a heading;
 - a UUT's **reading** is corrected with the calibration in use and its sentence made
   (the per-UUT :class:`~emlogd.pipeline.uut.UutCalibration` decides how), then queued
   for learning against the reference at ``t − lag``.
@@ -30,9 +29,9 @@ as a burst) carries one receive time for all: only the newest is fresh; the olde
 ones are backlog — neither learnt from nor emitted as new — though the log's rate
 check counts them (a babble arrives in such reads).
 
-Outputs per UUT: VHW → corrected VHW (heading passed through); VBW → corrected VBW;
-a status sentence at most once per ``status_sentence_interval_s``, and with current states
-a ``VDR`` (set and drift) whenever the heading determines the current.
+Outputs per UUT: VHW → corrected VHW (heading passed through); VBW → corrected VBW; a
+status sentence at most once per ``status_sentence_interval_s``; with current states a
+``VDR`` (set and drift) whenever the heading determines the current.
 """
 
 from __future__ import annotations
@@ -240,12 +239,11 @@ class Pipeline:
     def adopt(self, old: Pipeline) -> list[str]:
         """Take over from ``old`` (a reload) whatever did not change; return the UUTs kept.
 
-        A port with equal settings keeps its decoder (counters, a partial line), its
-        heading ring and its staleness. A UUT with equal settings keeps its whole
-        calibration object: learning state, lag estimate, the operator's learning
-        switch, scores. A UUT whose settings changed starts from the calibration this
-        pipeline was built with, and keeps the operator's learning switch unless its
-        ``learn`` setting changed.
+        A port with equal settings keeps its decoder (counters, a partial line), heading
+        ring and staleness; a UUT with equal settings its whole calibration object
+        (learning state, lag estimate, the operator's learning switch, scores). A UUT
+        whose settings changed starts from the calibration this pipeline was built
+        with, keeping the operator's learning switch unless its ``learn`` changed.
         """
         for name, p in self.ports.items():
             if old.ports.get(name) != p:
@@ -615,8 +613,8 @@ class Pipeline:
         """Forget the calibration of one UUT or all: the one in use and those of its other
         models; the lag and the operator's learning switch are kept.
 
-        Returns, per UUT reset, what it ``kept`` (``lag_s``, ``learning_enabled``) and
-        what it ``cleared`` (named).
+        Returns, per UUT reset, what it ``kept`` (``lag_s``, ``learning_enabled``) and what
+        it ``cleared`` (named).
         """
         ports = [port] if port is not None else list(self.uuts)
         done: dict[str, dict[str, object]] = {}

@@ -26,7 +26,8 @@ from drivers.records import Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.groundpair import GroundPair
 from emlogd.pipeline.headingcheck import HeadingCheck
-from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
+from emlogd.pipeline.integrity import JumpFilter
+from emlogd.pipeline.readings import ReadingCheck
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.staleness import GNSS_HEADING_WAIT_S, HEADING_MAX_GAP_S, HEADING_NEAREST_S
 from emlogd.pipeline.uut import UutCalibration

@@ -353,7 +353,7 @@ def test_the_local_recipe_config_is_the_example_at_ten_times_real_time(tmp_path:
     reading's acceleration limit the default x 10², its rate ceiling 20 Hz x 10, and the
     two logs' speeds under their own talkers on their own outputs."""
     from emlogd.offline.demo import LATENCIES_S
-    from emlogd.pipeline.integrity import DEFAULT_MAX_RATE_HZ
+    from emlogd.pipeline.readings import DEFAULT_MAX_RATE_HZ
 
     k = 10.0
     local = yaml.safe_load(dump_config(load_config(EXAMPLE.with_name("emlogd-local.yaml"))))
