@@ -30,7 +30,7 @@ CHILD = r"""
 import json, random, sys, time
 tree, n = sys.argv[1], int(sys.argv[2])
 from emlogd.pipeline.align import SampleRing
-from emlogd.pipeline.integrity import ReadingCheck, ReadingLimits
+from emlogd.pipeline.readings import ReadingCheck, ReadingLimits
 from emlogd.config import load_config
 import drivers
 

@@ -123,10 +123,19 @@ _LABEL = {**LABELS, ALPHA: "misalignment", M_T: "transverse scale", B_T: "transv
 _UNIT = {**UNITS, ALPHA: "°", M_T: "", B_T: " m/s"}
 
 
-_ALPHA_WITH_SCALE = (
-    "misalignment not separable from the transverse scale: its athwart signature is "
-    "(1 + m_t)·sin α times the forward speed, and the transverse scale is not determined"
-)
+TURNS_BOTH_WAYS = "turns to both sides (a figure-8) tell them apart"
+"""What an operator can sail to determine the misalignment, in its refusal's reason."""
+
+
+def _alpha_with_scale(why_scale: str) -> str:
+    """α's reason when the transverse scale is refused (``why_scale``): its athwart
+    signature ``(1 + m_t)·sin α·u`` is one more scale on the forward speed, in words an
+    operator reads in the status."""
+    return (
+        "misalignment not determinable: a misalignment and a transverse scale error "
+        f"both read as sideways speed in proportion to the forward speed ({why_scale}); "
+        f"{TURNS_BOTH_WAYS}"
+    )
 
 
 def unknowns_of(model: ModelName, current: bool) -> tuple[str, ...]:
@@ -303,8 +312,13 @@ def _misalign_rules(
             f"(w = {c:+.3f} {k:+.4f}·u m/s, the rest spreads {rest:.3f} m/s), so the "
             "athwart reading gives one slope (1 + m_t)·(w/u − sin α)"
         )
+        if ALPHA not in refused:
+            refused[ALPHA] = _alpha_with_scale(
+                "here the sideways speed through the water is a fixed fraction of the "
+                f"forward speed, {k:+.3f} of it: the turns all went one way, or none"
+            )
     if M_T in refused and ALPHA not in refused:
-        refused[ALPHA] = _ALPHA_WITH_SCALE
+        refused[ALPHA] = _alpha_with_scale(refused[M_T])
 
 
 def _information(
@@ -329,7 +343,7 @@ def _information(
         free.remove(worst)
         if worst == M_T and ALPHA in free:
             free.remove(ALPHA)
-            refused[ALPHA] = _ALPHA_WITH_SCALE
+            refused[ALPHA] = _alpha_with_scale(refused[M_T])
         if worst == CURRENT:
             offset = True
             for k in ("b", B_T):

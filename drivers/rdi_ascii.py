@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from typing import ClassVar, TypeAlias, TypeVar, get_args
@@ -36,14 +36,29 @@ from drivers.base import FramedDecoder, Framer, Use
 from drivers.errors import FieldError, FrameError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import LineFramer
 from drivers.rdi import INVALID, MAX_MMS, mms
-from drivers.records import MAX_DEPTH_M, Rejected, SpeedRecord, bottom_track, check_ranges
+from drivers.records import (
+    MAX_DEPTH_M,
+    PHYSICAL_RANGES,
+    Rejected,
+    SpeedRecord,
+    bottom_track,
+    check_ranges,
+    quick_init,
+)
 
 ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
 """Line types of one ensemble, in transmission order."""
 
 _RANK = {k: i for i, k in enumerate(ORDER)}
 
+_LAST = len(ORDER) - 1
+"""The rank of ``:BD``, the line that ends an ensemble."""
 
+_NOT_SENT = object()
+"""The value of a block's line that has not arrived (an invalid vector's is None)."""
+
+
+@quick_init
 @dataclass(frozen=True, slots=True)
 class Velocity:
     """A velocity triple (plus the error velocity for the instrument frame), m/s.
@@ -59,6 +74,7 @@ class Velocity:
     error: float | None = None
 
 
+@quick_init
 @dataclass(frozen=True, slots=True)
 class DistanceMadeGood:
     """``:WD``/``:BD``: distance made good east/north/up (m), range (m), time since good (s)."""
@@ -70,6 +86,7 @@ class DistanceMadeGood:
     time_since_good_s: float
 
 
+@quick_init
 @dataclass(frozen=True, slots=True)
 class Pd6Ensemble:
     """One PD6/PD13 ensemble (velocities None when invalid or not sent).
@@ -189,7 +206,7 @@ def _velocity(fields: list[str], n: int, kind: str, raw: bytes) -> Velocity | No
     )
 
 
-def _velocity_of(values: list[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
+def _velocity_of(values: Sequence[int], void: bool, kind: str, raw: bytes) -> Velocity | None:
     for v in values:
         if not INVALID <= v <= MAX_MMS:
             raise OutOfRangeError(f":{kind} velocity {v} mm/s outside int16", raw)
@@ -246,18 +263,11 @@ def _ranges(
     return p, (r[0] / 10.0, r[1] / 10.0, r[2] / 10.0, r[3] / 10.0)
 
 
-def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
-    """The ensemble record of an assembled block (lines by type, values parsed)."""
-    sa = lines["SA"]
-    ts = lines["TS"]
+def _ensemble(values: list[object]) -> Pd6Ensemble:
+    """The ensemble record of an assembled block (each line's value at its rank in
+    :data:`ORDER`, :data:`_NOT_SENT` where the line was not sent)."""
+    sa, ts, ra, wi, ws, we, wd, bi, bs, be, bd = values
     assert isinstance(sa, tuple) and isinstance(ts, tuple)
-    get = lines.get
-    ra = get("RA")
-    vel: list[Velocity | None] = []
-    for k in ("WI", "WS", "WE", "BI", "BS", "BE"):
-        v = get(k)
-        vel.append(v if isinstance(v, Velocity) else None)
-    wd, bd = get("WD"), get("BD")
     return Pd6Ensemble(
         pitch_deg=sa[0],
         roll_deg=sa[1],
@@ -270,32 +280,53 @@ def _ensemble(lines: dict[str, object]) -> Pd6Ensemble:
         bit=ts[5],
         pressure_kpa=ra[0] if isinstance(ra, tuple) else None,
         beam_ranges_m=ra[1] if isinstance(ra, tuple) else None,
-        water_instrument=vel[0],
-        water_ship=vel[1],
-        water_earth=vel[2],
+        water_instrument=wi if isinstance(wi, Velocity) else None,
+        water_ship=ws if isinstance(ws, Velocity) else None,
+        water_earth=we if isinstance(we, Velocity) else None,
         water_dmg=wd if isinstance(wd, DistanceMadeGood) else None,
-        bottom_instrument=vel[3],
-        bottom_ship=vel[4],
-        bottom_earth=vel[5],
+        bottom_instrument=bi if isinstance(bi, Velocity) else None,
+        bottom_ship=bs if isinstance(bs, Velocity) else None,
+        bottom_earth=be if isinstance(be, Velocity) else None,
         bottom_dmg=bd if isinstance(bd, DistanceMadeGood) else None,
     )
 
 
 # One pattern per line type for a line whose every field is good, a group per value
-# (blanks as _num, _int and the status checks allow them); any other line goes through
-# the field-by-field checks of _parse_fields, which name what is wrong.
+# (blanks as _num, _int and the status checks allow them; the :TS time a real date and
+# time, as _stamp_ok requires); any other line goes through the field-by-field checks
+# of _parse_fields, which name what is wrong. Each reader checks the ranges of the
+# common case inline and hands any other values to the checks that name what is out of
+# range (_attitude, _environment, _velocity_of, _dmg_of).
 _D = f" *({_DECIMAL_RE})"
 _I = f" *({_INTEGER_RE})"
 _STATUS = " *([AV]) *"
+_STAMP = (
+    " *([0-9]{2}(?:0[1-9]|1[0-2])(?:0[1-9]|[12][0-9]|3[01])(?:[01][0-9]|2[0-3])"
+    "[0-5][0-9][0-5][0-9][0-9]{2}) *"
+)
 _Groups: TypeAlias = tuple[str, ...]
+_PITCH, _ROLL, _SAL, _TEMP, _C, _DEPTH = (
+    PHYSICAL_RANGES[k] for k in ("pitch", "roll", "salinity", "temperature", "sound_speed", "depth")
+)
 
 
 def _sa(g: _Groups, kind: str, raw: bytes) -> object:
-    return _attitude(float(g[0]), float(g[1]), float(g[2]), raw)
+    pitch, roll, heading = float(g[0]), float(g[1]), float(g[2])
+    if _PITCH[0] <= pitch <= _PITCH[1] and _ROLL[0] <= roll <= _ROLL[1] and 0.0 <= heading < 360.0:
+        return pitch, roll, heading
+    return _attitude(pitch, roll, heading, raw)  # the checks that name what is wrong
 
 
 def _ts(g: _Groups, kind: str, raw: bytes) -> object:
-    return _environment(g[0], float(g[1]), float(g[2]), float(g[3]), float(g[4]), int(g[5]), raw)
+    stamp, sal, temp, depth, c = g[0], float(g[1]), float(g[2]), float(g[3]), float(g[4])
+    if (
+        _SAL[0] <= sal <= _SAL[1]
+        and _TEMP[0] <= temp <= _TEMP[1]
+        and _C[0] <= c <= _C[1]
+        and _DEPTH[0] <= depth <= _DEPTH[1]
+    ):
+        return stamp, sal, temp, depth, c, int(g[5])
+    return _environment(stamp, sal, temp, depth, c, int(g[5]), raw)
 
 
 def _ra(g: _Groups, kind: str, raw: bytes) -> object:
@@ -303,12 +334,21 @@ def _ra(g: _Groups, kind: str, raw: bytes) -> object:
     return _ranges(p, r, raw)
 
 
-def _vel(g: _Groups, kind: str, raw: bytes) -> object:
-    return _velocity_of([int(v) for v in g[:-1]], g[-1] == "V", kind, raw)
+def _vel3(g: _Groups, kind: str, raw: bytes) -> object:
+    x, y, z, status = int(g[0]), int(g[1]), int(g[2]), g[3]
+    if status == "A" and min(x, y, z) > INVALID and max(x, y, z) <= MAX_MMS:
+        return Velocity(x / 1000.0, y / 1000.0, z / 1000.0)
+    return _velocity_of((x, y, z), status == "V", kind, raw)
+
+
+def _vel4(g: _Groups, kind: str, raw: bytes) -> object:
+    return _velocity_of((int(g[0]), int(g[1]), int(g[2]), int(g[3])), g[4] == "V", kind, raw)
 
 
 def _dmg_line(g: _Groups, kind: str, raw: bytes) -> object:
     e, n, u, r, dt = map(float, g)
+    if r >= 0.0 and dt >= 0.0:
+        return DistanceMadeGood(e, n, u, r, dt)
     return _dmg_of(e, n, u, r, dt, kind, raw)
 
 
@@ -316,12 +356,12 @@ def _pattern(*fields: str) -> Callable[[str], re.Match[str] | None]:
     return re.compile(",".join(fields)).fullmatch
 
 
-_VEL3 = (_pattern(_I, _I, _I, _STATUS), _vel)
-_VEL4 = (_pattern(_I, _I, _I, _I, _STATUS), _vel)
+_VEL3 = (_pattern(_I, _I, _I, _STATUS), _vel3)
+_VEL4 = (_pattern(_I, _I, _I, _I, _STATUS), _vel4)
 _DMG = (_pattern(_D, _D, _D, _D, _D), _dmg_line)
 _LINES: dict[str, tuple[Callable[[str], re.Match[str] | None], Callable[..., object]]] = {
     "SA": (_pattern(_D, _D, _D), _sa),
-    "TS": (_pattern(" *([0-9]{14}) *", _D, _D, _D, _D, _I + "(?:, *[OWX] *)?"), _ts),
+    "TS": (_pattern(_STAMP, _D, _D, _D, _D, _I + "(?:, *[OWX] *)?"), _ts),
     "RA": (_pattern(_D, _D, _D, _D, _D), _ra),
     "WI": _VEL4,
     "BI": _VEL4,
@@ -332,19 +372,22 @@ _LINES: dict[str, tuple[Callable[[str], re.Match[str] | None], Callable[..., obj
     "WD": _DMG,
     "BD": _DMG,
 }
+"""The pattern of each line type's fields (after the type's comma) and how its groups
+are read."""
 
 
 def _parse_line(frame: bytes) -> tuple[str, object]:
     """What :meth:`PdAsciiDecoder.parse_line` does: a line whose fields are all good is
     read by its type's pattern, any other by :func:`_parse_fields` (same values, same
     errors)."""
-    try:
-        kind, _, rest = frame.decode("ascii")[1:].partition(",")
-    except UnicodeDecodeError:
-        return _parse_fields(frame)
+    # latin-1 never fails: a byte beyond ASCII matches no pattern
+    kind, _, rest = frame.decode("latin-1")[1:].partition(",")
     fast = _LINES.get(kind)
-    if fast is not None and (m := fast[0](rest)) is not None:
-        return kind, fast[1](m.groups(), kind, frame)
+    if fast is not None:
+        pattern, read = fast
+        m = pattern(rest)
+        if m is not None:
+            return kind, read(m.groups(), kind, frame)
     return _parse_fields(frame)
 
 
@@ -436,7 +479,8 @@ _FIELDS: dict[str, Callable[[str, list[str], bytes], object]] = {
 
 @dataclass(slots=True)
 class _Block:
-    lines: dict[str, object]
+    values: list[object]
+    """Each line's value at its rank in :data:`ORDER` (:data:`_NOT_SENT` until it comes)."""
     last_rank: int
     damaged: str = ""
 
@@ -479,7 +523,7 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
                 yield from self._reject(item)
                 continue
             try:
-                kind, value = self.parse_line(item)
+                kind, value = _parse_line(item)
             except FrameError as exc:
                 if not exc.raw:
                     exc.raw = item[:256]
@@ -511,8 +555,8 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
             return value
         rank = _RANK[kind]
         block = self._block
-        if kind == "SA":
-            self._block = _Block({"SA": value}, rank)
+        if rank == 0:  # :SA
+            self._block = _Block([value] + [_NOT_SENT] * _LAST, 0)
             if block is not None:
                 return FrameError("ensemble discarded: no :BD before the next :SA")
             return None
@@ -521,18 +565,18 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
         if rank <= block.last_rank:
             self._block = None
             return FrameError(f"ensemble discarded: :{kind} out of order or repeated", raw)
-        lines = block.lines
-        lines[kind] = value
+        values = block.values
+        values[rank] = value
         block.last_rank = rank
-        if kind != "BD":
+        if rank != _LAST:
             return None
         self._block = None
         if block.damaged:
             return FrameError(f"ensemble discarded: {block.damaged}", raw)
-        if "SA" not in lines or "TS" not in lines or "BS" not in lines:
-            missing = [k for k in ("SA", "TS", "BS") if k not in lines]
+        if _NOT_SENT in (values[_RANK["TS"]], values[_RANK["BS"]]):
+            missing = [k for k in ("TS", "BS") if values[_RANK[k]] is _NOT_SENT]
             return FrameError(f"ensemble discarded: no {', '.join(':' + m for m in missing)}", raw)
-        return _ensemble(lines)
+        return _ensemble(values)
 
     def parse_frame(self, frame: bytes) -> Pd6Record:
         """Decode one complete frame: a whole ensemble (its lines ``:SA`` … ``:BD``

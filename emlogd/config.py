@@ -27,7 +27,7 @@ import yaml
 
 from drivers import Use, get_decoder, protocols_for
 from drivers.errors import ConfigError
-from drivers.io.port import socket_url_problem
+from drivers.io.port import url_problem
 from emlogd.configyaml import YAML_FAILURES, yaml_depth_error, yaml_why
 from emlogd.fileio import read_text_bounded
 from emlogd.pipeline.fusion import FusionSettings
@@ -63,6 +63,9 @@ LogLevel = Literal["debug", "info", "warning", "error"]
 _UUT = UutSettings(port="", reference_port="")
 """The pipeline's defaults, for the ``outputs`` keys that reach every UUT."""
 _TALKER = r"[A-Z]{2}"
+_FILE_PATH = r"(?s)(?!(?:.*/)?\.{0,2}$).+"
+"""A path that names a file by its form: not ending in ``/``, ``.`` or ``..``, which name
+a directory (the state file's would be moved aside by the first save, with its files)."""
 
 
 _ANY_URL = string(what="pyserial URL")
@@ -70,7 +73,7 @@ _ANY_URL = string(what="pyserial URL")
 
 def _url(v: object) -> str:
     url: str = _ANY_URL(v)
-    problem = socket_url_problem(url)
+    problem = url_problem(url)
     if problem is not None:
         raise InvalidValueError(problem)
     return url
@@ -85,7 +88,8 @@ class PortConfig:
         check=Check(_url, "pyserial URL"),
         path=True,
         doc="Any pyserial URL: `/dev/ttyUSB0`, `socket://address:port` (an IP address: a "
-        "host name is refused), ...; a relative path is the config file's directory's.",
+        "host name is refused), ... but `rfc2217://` (its open waits in the daemon's one "
+        "thread); a relative path is the config file's directory's.",
     )
     role: Role = key(
         check=literal(Role),
@@ -272,7 +276,7 @@ class Config:
     state_path: str = key(
         "/var/lib/emlogd/state.yaml",
         name="state_file",
-        check=string(what="path"),
+        check=string(_FILE_PATH, "a file's path (not ending in /, . or ..)"),
         path=True,
         doc="The persisted calibrations (written atomically, with a `.bak`).",
     )
@@ -390,6 +394,10 @@ class _Ctx:
             if exc.sub is not None:
                 raise self.fail(sub[exc.sub][0], f"{where}.{exc.sub}", str(exc)) from None
             raise self.fail(node, where, str(exc)) from None
+        if e.key.path and isinstance(v, str) and "\0" in v:
+            # no file name holds one: the open or bind raised ValueError, which ended
+            # the daemon at a reload (the output pty, the control and status sockets)
+            raise self.fail(node, where, f"{v!r}: a path cannot hold a NUL character")
         if (
             e.key.path
             and self.base is not None

@@ -26,7 +26,8 @@ long as more keeps coming): :meth:`open` starts the connect and each :meth:`poll
 looks whether it is done, for at most :data:`CONNECT_TIMEOUT_S`; the connected socket
 is then read like a device, with one ``os.read``. Its host must be an IP address
 (:func:`socket_url_problem`): a host name would be resolved by the system's resolver,
-which can wait for seconds in the caller's one thread at every retry.
+which can wait for seconds in the caller's one thread at every retry. An ``rfc2217://``
+input is refused for the same reason (:func:`url_problem`).
 """
 
 from __future__ import annotations
@@ -162,15 +163,9 @@ class SerialSource:
         self._check_url()
 
     def _check_url(self) -> None:
-        problem = socket_url_problem(self.url)
+        problem = url_problem(self.url)
         if problem is not None:
             raise DeviceError(f"port {self.name}: {problem}")
-        try:
-            serial.serial_for_url(self.url, do_not_open=True)
-        except ValueError as exc:
-            raise DeviceError(f"port {self.name}: invalid URL {self.url!r}: {exc}") from None
-        except (serial.SerialException, OSError):
-            pass  # a device that is missing now is retried later
 
     # -- state ----------------------------------------------------------------
 
@@ -404,7 +399,7 @@ def _path_moved(url: str, fd: int) -> str | None:
 def _tcp_address(url: str) -> tuple[str, int] | None:
     """The host and port of a ``socket://host:port`` URL, else None (pyserial checks the
     URL itself: :meth:`SerialSource._check_url`)."""
-    if not url.startswith("socket://"):
+    if not url.lower().startswith("socket://"):  # pyserial takes the scheme in any case
         return None
     try:
         parts = urlsplit(url)
@@ -414,6 +409,34 @@ def _tcp_address(url: str) -> tuple[str, int] | None:
     if parts.hostname is None or port is None:
         return None
     return parts.hostname, port
+
+
+BLOCKING_SCHEMES = ("rfc2217",)
+"""pyserial URL schemes whose open waits in the caller's thread: ``rfc2217://`` resolves
+its host, connects and negotiates the telnet options with timeouts of seconds (3.4 s
+against a server that never answers, 5 s against one that is off, measured in the
+daemon), at every retry."""
+
+
+def url_problem(url: str) -> str | None:
+    """Why ``url`` cannot be an input (no URL pyserial knows, a scheme of
+    :data:`BLOCKING_SCHEMES`, or a ``socket://`` host that is not an IP address:
+    :func:`socket_url_problem`), else None. The config's check: a URL refused only when
+    its port is made would end the daemon at a reload, after the new config was taken."""
+    try:
+        serial.serial_for_url(url, do_not_open=True)
+    except ValueError as exc:
+        return f"invalid URL {url!r}: {exc}"
+    except (serial.SerialException, OSError):
+        pass  # a device that is missing now is retried later
+    scheme = url.partition("://")[0].lower() if "://" in url else ""
+    if scheme in BLOCKING_SCHEMES:
+        return (
+            f"{url!r}: pyserial opens a {scheme}:// input in the daemon's one thread, its "
+            "connect and negotiation waiting for seconds at every retry; give the device "
+            "server's raw TCP port as socket://ADDRESS:PORT"
+        )
+    return socket_url_problem(url)
 
 
 def socket_url_problem(url: str) -> str | None:

@@ -101,7 +101,7 @@ class VirtualPort(Closing):
             if group is not None:
                 gid = group if isinstance(group, int) else grp.getgrnam(group).gr_gid
                 os.chown(self.slave_path, -1, gid)
-        except (OSError, KeyError) as exc:
+        except (OSError, KeyError, ValueError) as exc:  # ValueError: a NUL in the group
             os.close(master)
             raise DeviceError(f"cannot configure the pty for {self.link}: {exc}") from None
         finally:

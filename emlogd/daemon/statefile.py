@@ -13,7 +13,9 @@ crash-safe:
 
 A kill -9 at any point leaves the previous or the new file, never a torn one.
 A write that fails (disk full, read-only, permissions) raises
-:class:`StateWriteError` and leaves the previous file untouched. On load a file
+:class:`StateWriteError` and leaves the previous file untouched; so does a directory
+at the file's path, which is never moved aside (a path ending in ``/`` names the
+directory the file was meant to be in). On load a file
 that cannot be parsed (or is no regular file, or longer than :data:`MAX_STATE_BYTES`), or whose records the caller's check refuses (parameters
 outside the envelope, a lag outside ``[0, max_lag_s]``, a covariance that is not
 positive-definite...), is reported and the backup used; without a good one the
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
 import fcntl
 import os
 import re
@@ -217,6 +220,10 @@ class StateStore:
             return None
         except (OSError, UnicodeDecodeError):
             text = None
+        if text is None and self.path.is_dir():
+            # a directory is no damaged state file: a path ending in "/" names the
+            # directory it was meant to be in, whose files no save may move away
+            raise IsADirectoryError(errno.EISDIR, "a directory, left where it is")
         if text is None or _refusal(text, self._check):
             # never back up a damaged or refused file over a good backup
             self.path.replace(self.refused)

@@ -34,7 +34,7 @@ from drivers.errors import EmlogdError
 from drivers.framing import split_nmea
 from drivers.io.fake import FakeCapture
 from emlogd.launch import DaemonProcess, LaunchError, fake_sensors
-from emlogd.pipeline.integrity import DEFAULT_MAX_RATE_HZ, ReadingLimits
+from emlogd.pipeline.readings import DEFAULT_MAX_RATE_HZ, ReadingLimits
 
 DEMO_CAPTURE = "demo-figure8.cap.gz"
 LATENCIES_S = {"emlog1": 3.2, "emlog2": 0.45}

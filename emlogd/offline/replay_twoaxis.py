@@ -11,8 +11,9 @@ corrected with the true parameters (:meth:`calib.twoaxis.TwoAxisParams.correct`)
 the readings emitted with the figures applied, and per trajectory of the trial; and
 the athwart speed per window of :data:`~emlogd.offline.simfaults.WINDOW_S` (those with
 fewer than :data:`~emlogd.offline.simfaults.MIN_WINDOW_SAMPLES` scored readings left
-out), whose worst against raw and against the floor say whether the corrected VBW was
-ever worse than the reading it replaced.
+out), over the whole replay and per trajectory (its windows from its first reading),
+whose worst against raw and against the floor say whether the corrected VBW was ever
+worse than the reading it replaced.
 """
 
 from __future__ import annotations
@@ -105,13 +106,15 @@ class AthwartScorer:
             return out
 
         everything = np.ones(q.size, dtype=bool)
+        athwart = (err["t_raw"], err["t_corrected"], err["t_floor"])
         return {
             **block(everything),
             "applied": block(on),
-            **_worst_windows(q, err["t_raw"], err["t_corrected"], err["t_floor"]),
+            **_worst_windows(q, *athwart),
             "by_trajectory": {
                 str(int(k)): block(traj == k)
                 | {"applied_share": round(float(np.mean(on[traj == k])), 3)}
+                | _worst_windows(*(x[traj == k] for x in (q, *athwart)))
                 for k in np.unique(traj)
             },
         }

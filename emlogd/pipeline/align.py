@@ -65,9 +65,12 @@ def cadence_gap(median_interval_s: float, floor_s: float) -> float:
     """The alignment gap for a series sampled every ``median_interval_s``, s.
 
     ``GAP_INTERVALS`` intervals, at least ``floor_s`` and at most
-    ``max(MAX_GAP_CAP_S, floor_s)``.
+    ``max(MAX_GAP_CAP_S, floor_s)`` (written out: it runs at every sample of a ring).
     """
-    return min(max(floor_s, GAP_INTERVALS * median_interval_s), max(MAX_GAP_CAP_S, floor_s))
+    g = GAP_INTERVALS * median_interval_s
+    lo = g if g > floor_s else floor_s  # max(floor_s, g)
+    cap = floor_s if floor_s > MAX_GAP_CAP_S else MAX_GAP_CAP_S  # max(MAX_GAP_CAP_S, floor_s)
+    return cap if cap < lo else lo  # min(lo, cap)
 
 
 def cadence_gaps(t_s: npt.ArrayLike, floor_s: float) -> FloatArray:
@@ -211,13 +214,14 @@ class SampleRing:
         buf = self._buf
         gap = self.max_gap_s
         if buf:
-            dt = t - buf[-1][0]
+            last = buf[-1]
+            dt = t - last[0]
             if dt < 0.0:
                 return False
             if self.cadence:
                 if dt > 0.0:
                     self._dts.append(dt)
-                gap = buf[-1][3] if dt == 0.0 else cadence_gap(self._dts.median(), gap)
+                gap = last[3] if dt == 0.0 else cadence_gap(self._dts.median(), gap)
         ok = valid and value is not None and math.isfinite(value)
         buf.append((t, value if ok and value is not None else math.nan, ok, gap))
         return True

@@ -14,9 +14,8 @@ Routing (per port, the decoders' common navigation records):
 - a **heading** (true, or magnetic with a variation: the log's, the configured one,
   else the IGRF model's at the last GNSS position, :mod:`emlogd.pipeline.variation`)
   goes to its port's ring; a GNSS reference is projected only with a heading the
-  course check has not flagged;
-  each UUT reads its heading from the port it is configured for, or (``auto``) from
-  its reference's port, else its own VHW heading, else any port with a heading;
+  course check has not flagged; each UUT reads its heading from its configured port,
+  or (``auto``) its reference's, else its own VHW heading, else any with a heading;
 - a UUT's **reading** is corrected with the calibration in use and its sentence made
   (the per-UUT :class:`~emlogd.pipeline.uut.UutCalibration` decides how), then queued
   for learning against the reference at ``t − lag``.
@@ -30,9 +29,9 @@ as a burst) carries one receive time for all: only the newest is fresh; the olde
 ones are backlog — neither learnt from nor emitted as new — though the log's rate
 check counts them (a babble arrives in such reads).
 
-Outputs per UUT: VHW → corrected VHW (heading passed through); VBW → corrected VBW;
-a status sentence at most once per ``status_sentence_interval_s``, and with current states
-a ``VDR`` (set and drift) whenever the heading determines the current.
+Outputs per UUT: VHW → corrected VHW (heading passed through); VBW → corrected VBW; a
+status sentence at most once per ``status_sentence_interval_s``; with current states a
+``VDR`` (set and drift) whenever the heading determines the current.
 """
 
 from __future__ import annotations
@@ -116,8 +115,7 @@ class Output:
     calibrations to persist. Each call returns a new one; the pipeline keeps no
     reference to it and calls nothing of the caller's.
 
-    A plain class (one is made per record): half the construction time of a dataclass
-    with list factories.
+    A plain class (one is made per record): half a list-factory dataclass's construction.
     """
 
     __slots__ = ("emits", "events", "persist")
@@ -132,12 +130,6 @@ class Output:
         self.emits.extend(other.emits)
         self.events.extend(other.events)
         self.persist.extend(other.persist)
-
-
-def _keep_lag(cal: UutCalibration, lag_s: float) -> None:
-    """Give a new UUT calibration a lag known before (it estimates none)."""
-    cal.lag_s = lag_s
-    cal.lag_finder = None
 
 
 class Pipeline:
@@ -211,7 +203,7 @@ class Pipeline:
                         and rec.lag_s is not None
                         and not check(rec, s.envelope, s.max_lag_s)
                     ):
-                        _keep_lag(u.cal, rec.lag_s)
+                        u.cal.lag_s, u.cal.lag_finder = rec.lag_s, None  # known: none estimated
                         break
             self.uuts[s.port] = u
             if s.axes == 2:
@@ -220,6 +212,7 @@ class Pipeline:
         self.liveness = Liveness({p.name: p.stale_timeout_s for p in ports})
         self.now = -math.inf
         self._pending_events: list[Event] = []
+        self._waiting = True  # whether _after may have work without a record's items
 
     def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
         """A two-axis learner; the saved figures of a record its checks accept restored
@@ -246,12 +239,11 @@ class Pipeline:
     def adopt(self, old: Pipeline) -> list[str]:
         """Take over from ``old`` (a reload) whatever did not change; return the UUTs kept.
 
-        A port with equal settings keeps its decoder (counters, a partial line), its
-        heading ring and its staleness. A UUT with equal settings keeps its whole
-        calibration object: learning state, lag estimate, the operator's learning
-        switch, scores. A UUT whose settings changed starts from the calibration this
-        pipeline was built with, and keeps the operator's learning switch unless its
-        ``learn`` setting changed.
+        A port with equal settings keeps its decoder (counters, a partial line), heading
+        ring and staleness; a UUT with equal settings its whole calibration object
+        (learning state, lag estimate, the operator's learning switch, scores). A UUT
+        whose settings changed starts from the calibration this pipeline was built
+        with, keeping the operator's learning switch unless its ``learn`` changed.
         """
         for name, p in self.ports.items():
             if old.ports.get(name) != p:
@@ -315,19 +307,22 @@ class Pipeline:
             self.now = t
         if self.liveness.heard(port, t):
             out.events.append(Event(t, port, "alive", {}))
-        items = [item for rec in dec.feed(data) for item in nav_items(dec, rec)]
+        items: list[Nav] = []
+        for rec in dec.feed(data):
+            items += nav_items(dec, rec)
         if items:
             self._route(t, port, items, out)
-        self._after(t, out)
+        if items or self._waiting:  # else nothing routed and nothing due (see _after)
+            self._after(t, out)
         return out
 
     def _route(self, t: float, port: str, items: list[Nav], out: Output) -> None:
         u = self.uuts.get(port)
-        # a UUT reading is fresh when it is the chunk's last of its sentence; the rate
-        # check counts them all
+        # a UUT reading is fresh when the chunk's last of its sentence; the rate check
+        # counts them all (a chunk of one item: fresh, the one of its sentence)
         last: dict[str, int] = {}
         count: dict[str, int] = {}
-        if u is not None:
+        if u is not None and len(items) > 1:
             for i, it in enumerate(items):
                 if isinstance(it, SpeedRecord) and it.role == "speed":
                     last[it.source] = i
@@ -344,8 +339,8 @@ class Pipeline:
             else:
                 self._reference(t, port, item)
                 if u is not None and item.role == "speed":
-                    fresh = last[item.source] == i
-                    n = count[item.source] if fresh else 1
+                    fresh = last.get(item.source, i) == i
+                    n = count.get(item.source, 1) if fresh else 1
                     self._reading(u, t, item, fresh=fresh, out=out, n=n)
 
     def _reference(self, t: float, port: str, sp: SpeedRecord) -> None:
@@ -354,7 +349,7 @@ class Pipeline:
             if u.s.reference_field != sp.role:
                 continue
             u.reference(t, speed_of(sp, u.s.component), sp.valid)
-            ax = self.two_axis.get(u.s.port)
+            ax = self.two_axis.get(u.s.port) if self.two_axis else None
             if ax is not None:
                 ax.reference(t, sp.longitudinal_mps, sp.transverse_mps, sp.valid)
 
@@ -407,25 +402,27 @@ class Pipeline:
         the readings of its sentence in its read (the rate check counts them)."""
         cal = u.cal
         raw = speed_of(sp, u.s.component)
-        if not sp.valid or raw is None or not self._admit(u, t, sp.source, raw, fresh, n):
+        source = sp.source
+        if not sp.valid or raw is None or not self._admit(u, t, source, raw, fresh, n):
             return
         trans = sp.transverse_mps
-        if sp.source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
+        if source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
             return  # neither emitted nor learnt, as an implausible reading
-        if sp.source == u.s.uut_source:
+        learnt = source == u.s.uut_source
+        if learnt:
             # judged first when its reference is already in (a log that lags the
             # reference): a change the supervisor sees in it is not emitted corrected
             cal.add_reading(t, raw)
             cal.drain(self.now)
         value = cal.correct(raw)
-        if value is not None and sp.source == u.s.uut_source:
-            u.stw = (t, value)
         if value is not None:
+            if learnt:
+                u.stw = (t, value)
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
             sentence = self._sentence(u, t, sp, value)
             if self.fusion is None or not self.fusion.s.only:
                 out.emits.append(Emit(t, u.s.port, sentence))
-            if self.fusion is not None and sp.source == u.s.uut_source:
+            if self.fusion is not None and learnt:
                 self._fuse(t, u, value, hdg_t, hdg_m, out)
         if t - u.t_status >= u.s.status_sentence_interval_s:
             u.t_status = t
@@ -484,6 +481,8 @@ class Pipeline:
         cal = u.cal
         if not cal.in_range(raw):
             cal.counters.out_of_range += 1
+            if fresh:
+                u.arrived(t, source, n)
             return False
         if not fresh:
             cal.counters.backlog += 1
@@ -545,21 +544,26 @@ class Pipeline:
         )
 
     def _after(self, t: float, out: Output) -> None:
+        """Project GNSS fixes, learn from the readings whose time came, hand out a changed
+        calibration and the events; note in :attr:`_waiting` whether time alone can make
+        anything due (a fix or reading queued, a calibration not persisted yet)."""
         two_axis = self.two_axis
+        waiting = False
         for u in self.uuts.values():
             if u.gnss:
                 self._project(u)
             cal = u.cal
             if cal.pending:
                 cal.drain(self.now)
-            if two_axis:
-                ax = two_axis.get(u.s.port)
-                if ax is not None and ax.sup.changed:
-                    ax.sup.changed, cal.dirty = False, True
+            ax = two_axis.get(u.s.port) if two_axis else None
+            if ax is not None and ax.sup.changed:
+                ax.sup.changed, cal.dirty = False, True
             if cal.sup.dirty:
                 snap = cal.take_snapshot(t)
                 if snap is not None:
                     out.persist.append(self._with_two_axis(snap))
+            waiting = waiting or bool(u.gnss or cal.pending or cal.sup.dirty)
+        self._waiting = waiting
         if self._pending_events:
             out.events.extend(self._pending_events)
             self._pending_events.clear()
@@ -609,8 +613,8 @@ class Pipeline:
         """Forget the calibration of one UUT or all: the one in use and those of its other
         models; the lag and the operator's learning switch are kept.
 
-        Returns, per UUT reset, what it ``kept`` (``lag_s``, ``learning_enabled``) and
-        what it ``cleared`` (named).
+        Returns, per UUT reset, what it ``kept`` (``lag_s``, ``learning_enabled``) and what
+        it ``cleared`` (named).
         """
         ports = [port] if port is not None else list(self.uuts)
         done: dict[str, dict[str, object]] = {}
@@ -636,6 +640,7 @@ class Pipeline:
             fresh.dirty = True
             fresh.t_persist = -math.inf
             u.cal = fresh
+            self._waiting = True
             if p in self.two_axis:
                 self.two_axis[p] = TwoAxisLearner(u.s, self._hooks(p)[1])
                 cleared.append("two-axis figures")

@@ -11,7 +11,7 @@ prediction over :data:`SCATTER_S`, steps included: a log alternating between two
 values counts for little); the fused σ is ``1/√(Σ 1/σᵢ²)``. A log is left out, with a reason (:attr:`Fused.excluded`), when:
 
 - ``accel``, ``rate``, ``reacquired``: one of its readings was implausible
-  (:class:`~emlogd.pipeline.integrity.ReadingCheck`: a dropout to 0, a spike, a babble)
+  (:class:`~emlogd.pipeline.readings.ReadingCheck`: a dropout to 0, a spike, a babble)
   or it re-acquired a new level, within ``hold_s`` — from its first implausible
   sample on, while another log is there;
 - ``stuck``: its speed has stayed within the quantum for :data:`FLAT_S` while another

@@ -20,8 +20,11 @@ or one whose along or across speed jumps faster than the UUT's ``max_accel_mps2`
 (``ref_stale_s``, judged by :func:`~emlogd.pipeline.staleness.silent`) is not sent. The
 sentence then carries the ground pair empty with status ``V``.
 
-A UUT keeps its reference's pair only from its first VBW on (that one goes out with
-``V``): a log sending VHW alone costs nothing per reference sample.
+Until a UUT's first VBW asks for the pair, only the reference's latest sample is kept,
+as it came (a log sending VHW alone pays one tuple per reference sample); the first
+VBW's look-up passes it through the checks above, so that VBW carries the pair when the
+reference's latest sample is valid and fresh, and ``V`` only when no reference sample
+has arrived, the latest is invalid, or it is older than the staleness bound.
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ class GroundPair:
             glitch filter's).
     """
 
-    __slots__ = ("jumps", "latest", "stale_s", "wanted")
+    __slots__ = ("jumps", "latest", "stale_s", "unchecked", "wanted")
 
     def __init__(self, stale_s: float, max_accel_mps2: float, margin_mps: float) -> None:
         self.stale_s = stale_s
@@ -54,15 +57,21 @@ class GroundPair:
         )
         """The glitch filters of the along and the across speed."""
         self.wanted = False
-        """Whether a VBW asked for the pair (:meth:`at`): until then nothing is kept."""
+        """Whether a VBW asked for the pair (:meth:`at`): until then only
+        :attr:`unchecked` is kept."""
+        self.unchecked: tuple[float, float | None, float | None, bool] | None = None
+        """Before the first VBW: the reference's latest sample as it came (receive time
+        s, along, across, valid), checked by the first look-up."""
         self.latest: tuple[float, float, float] | None = None
         """The latest valid pair: (receive time s, along m/s + ahead, across m/s + to
         starboard); None after an invalid record."""
 
     def add(self, t: float, along: float | None, across: float | None, valid: bool) -> None:
         """A reference sample at ``t``: kept when valid, finite and no glitch on either
-        axis, else the pair is withdrawn; ignored before a VBW asked for the pair."""
+        axis, else the pair is withdrawn; before a VBW asked for the pair, kept unchecked
+        (:attr:`unchecked`)."""
         if not self.wanted:
+            self.unchecked = (t, along, across, valid)
             return
         if (
             valid
@@ -84,7 +93,11 @@ class GroundPair:
     def at(self, t: float) -> tuple[float, float] | None:
         """The pair (along, across) m/s to send with a reading at ``t``: None without a
         valid one, or when it is older than the staleness bound."""
-        self.wanted = True
+        if not self.wanted:
+            self.wanted = True
+            if self.unchecked is not None:
+                self.add(*self.unchecked)
+                self.unchecked = None
         g = self.latest
         if g is None or silent(g[0], t, self.stale_s):
             return None

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 from drivers.base import Decoder, R
@@ -26,7 +26,8 @@ from drivers.records import Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.groundpair import GroundPair
 from emlogd.pipeline.headingcheck import HeadingCheck
-from emlogd.pipeline.integrity import JumpFilter, ReadingCheck
+from emlogd.pipeline.integrity import JumpFilter
+from emlogd.pipeline.readings import ReadingCheck
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.staleness import GNSS_HEADING_WAIT_S, HEADING_MAX_GAP_S, HEADING_NEAREST_S
 from emlogd.pipeline.uut import UutCalibration
@@ -85,49 +86,48 @@ class NavFix(NamedTuple):
 Nav = SpeedRecord | NavHeading | NavGnss | NavFix
 
 
-def nav_items(dec: Decoder[R], rec: R | Rejected) -> Iterable[Nav]:
-    """The navigation content of one decoded record of ``dec``.
+def nav_items(dec: Decoder[R], rec: R | Rejected) -> Sequence[Nav]:
+    """The navigation content of one decoded record of ``dec`` (empty for none).
 
     GNSS and heading sentences are told apart by type; every speed by its record's
     typed role, and a heading sent with a speed (VHW, a DVL's) comes before it.
     """
     if isinstance(rec, Rejected):
-        return
+        return ()
     if isinstance(rec, Rmc):
         fix_t = None if rec.time_utc is None else rec.time_utc.timestamp()
-        yield NavGnss(
-            rec.sog_mps,
-            rec.cog_true_deg,
-            rec.valid,
-            rec.variation_deg,
-            rec.lat_deg,
-            rec.lon_deg,
-            fix_t,
+        return (
+            NavGnss(
+                rec.sog_mps,
+                rec.cog_true_deg,
+                rec.valid,
+                rec.variation_deg,
+                rec.lat_deg,
+                rec.lon_deg,
+                fix_t,
+            ),
         )
-        return
     if isinstance(rec, Vtg):
-        yield NavGnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None)
-        return
+        return (NavGnss(rec.sog_mps, rec.cog_true_deg, rec.valid, None),)
     if isinstance(rec, Gga):
-        yield NavFix(rec.quality, rec.lat_deg, rec.lon_deg)
-        return
+        return (NavFix(rec.quality, rec.lat_deg, rec.lon_deg),)
     if isinstance(rec, NmeaHeading):
         if rec.heading_deg is None:
-            return
+            return ()
         if rec.true:
-            yield NavHeading(rec.heading_deg, None, None)
-            return
+            return (NavHeading(rec.heading_deg, None, None),)
         mag = rec.heading_deg + (rec.deviation_deg or 0.0)
         var = rec.variation_deg
-        yield NavHeading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var)
-        return
+        return (NavHeading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var),)
+    out: list[Nav] = []
     for sp in dec.speed_records(rec):
         if sp.role == "ground":
             continue  # a log's ground pair (VBW) is no reference
         ht, hm = sp.heading_true_deg, sp.heading_mag_deg
         if ht is not None or hm is not None:
-            yield NavHeading(ht, hm, None)
-        yield sp
+            out.append(NavHeading(ht, hm, None))
+        out.append(sp)
+    return out
 
 
 def speed_of(sp: SpeedRecord, component: str) -> float | None:
@@ -310,6 +310,12 @@ class UutRoute:
         elif chk.reacquired:
             return "reacquired"
         return why
+
+    def arrived(self, t: float, source: str, n: int = 1) -> None:
+        """A reading refused before its check arrived (:meth:`ReadingCheck.arrived`)."""
+        chk = self.checks.get(source)
+        if chk is not None:
+            chk.arrived(t, n)
 
     def why_athwart_implausible(self, t: float, trans: float) -> str:
         """``""`` when a VBW's athwart speed is plausible (or re-acquired a level), else

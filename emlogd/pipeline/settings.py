@@ -19,7 +19,7 @@ from calib.kalman import DEFAULT_R_RAW_MPS2, DEFAULT_R_REF_MPS2, KfConfig
 from calib.models import MODEL_NAMES, PARAM_NAMES, check_model
 from drivers import protocol_names
 from drivers.base import LINE_BUFFER_CAP, NMEA_MAX_LENGTH, SHORTEST_LINE_LIMIT
-from emlogd.pipeline.integrity import Envelope, ReadingLimits
+from emlogd.pipeline.integrity import Envelope
 from emlogd.pipeline.keys import (
     NAME,
     bool_or_auto,
@@ -35,6 +35,7 @@ from emlogd.pipeline.keys import (
     port_or_auto,
     string,
 )
+from emlogd.pipeline.readings import ReadingLimits
 
 RefField = Literal["bottom", "water", "speed", "gnss"]
 """A UUT's reference: the speed records of that role (:data:`drivers.records.SpeedRole`)

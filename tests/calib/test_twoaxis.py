@@ -61,7 +61,9 @@ class TestLeastSquares:
         signature is (1 + m_t)·sin α·u)."""
         fit = _fit(two_axis_trial("circles", TWO_AXIS_TRUTH, seed=5))
         assert M_T in fit.ident.unidentifiable and ALPHA in fit.ident.unidentifiable
-        assert "misalignment not separable from the transverse scale" in fit.ident.reason
+        why = fit.ident.verdict(ALPHA).reason
+        assert why.startswith("misalignment not determinable: a misalignment and a transverse")
+        assert "the turns all went one way" in why and "(a figure-8)" in why
         assert fit.params.m_t == fit.params.longitudinal.m
         assert fit.misalign_deg == 0.0
 

@@ -293,6 +293,24 @@ def test_the_pattern_path_reads_the_good_lines() -> None:
     assert read == set(rdi_ascii._LINES)
 
 
+def test_the_pattern_path_takes_only_a_real_date_and_time() -> None:
+    """A :TS time naming no real month, day, hour, minute or second is refused as out of range
+    on the pattern path as by the field checks; each real one is read alike by both."""
+    from drivers import rdi_ascii
+    from drivers.errors import OutOfRangeError
+
+    impossible = ["25001208000008", "25131208000008", "25060008000008", "25063208000008"]
+    impossible += ["25061224000008", "25061208600008", "25061208006008"]
+    real = ["25010100000000", "25123123595999", "99063019303099", "00091505050505"]
+    for stamp in impossible + real:
+        frame = f":TS,{stamp},35.0,+15.0,0000.0,1500.0,000".encode("ascii")
+        if stamp in impossible:
+            with pytest.raises(OutOfRangeError, match="no date and time"):
+                rdi_ascii._parse_line(frame)
+        else:
+            assert rdi_ascii._parse_line(frame) == rdi_ascii._parse_fields(frame)
+
+
 def test_an_unforeseen_exception_is_an_internal_reject(monkeypatch: pytest.MonkeyPatch) -> None:
     """A line whose parsing fails with an exception that is no FrameError discards its ensemble
     with an internal reject naming the exception, and the next ensemble still decodes."""

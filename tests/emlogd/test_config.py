@@ -128,6 +128,13 @@ INVALID: list[tuple[str, str, str]] = [
     ("outputs a list", BASE + "outputs: [a]\n", "outputs: expected a mapping"),
     ("url a number", BASE.replace("url: /dev/dvl", "url: 7"), "ports[1].url: expected a non-empty string"),
     ("yaml merge key", BASE + "x: &d {talker: VW}\noutputs: {<<: *d}\n", "x: unknown key"),
+    ("pty path with a NUL", BASE + 'outputs: {pty: "out/e\\0"}\n', "outputs.pty: 'out/e\\x00': a path cannot hold a NUL character"),
+    ("control socket with a NUL", BASE + 'control_socket: "run/c\\0.sock"\n', "control_socket: 'run/c\\x00.sock': a path cannot hold a NUL character"),
+    ("url of no pyserial scheme", BASE.replace("/dev/dvl", "socet://10.0.0.5:1"), "ports[1].url: invalid URL 'socet://10.0.0.5:1': invalid URL, protocol 'socet' not known"),
+    ("rfc2217 url", BASE.replace("/dev/dvl", "rfc2217://10.0.0.5:2217"), "ports[1].url: 'rfc2217://10.0.0.5:2217': pyserial opens a rfc2217:// input in the daemon's one thread"),
+    ("socket host name in capitals", BASE.replace("/dev/dvl", "SOCKET://dvl.local:10110"), "ports[1].url: 'SOCKET://dvl.local:10110': a socket:// input needs an IP address"),
+    ("state file a directory", BASE + "state_file: /var/lib/emlogd/\n", "state_file: '/var/lib/emlogd/' is not a file's path"),
+    ("state file a dot", BASE + "state_file: state/.\n", "state_file: 'state/.' is not a file's path"),
 ]  # fmt: skip
 
 
@@ -346,7 +353,7 @@ def test_the_local_recipe_config_is_the_example_at_ten_times_real_time(tmp_path:
     reading's acceleration limit the default x 10², its rate ceiling 20 Hz x 10, and the
     two logs' speeds under their own talkers on their own outputs."""
     from emlogd.offline.demo import LATENCIES_S
-    from emlogd.pipeline.integrity import DEFAULT_MAX_RATE_HZ
+    from emlogd.pipeline.readings import DEFAULT_MAX_RATE_HZ
 
     k = 10.0
     local = yaml.safe_load(dump_config(load_config(EXAMPLE.with_name("emlogd-local.yaml"))))

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import pytest
 
 from drivers.errors import DeviceError
-from drivers.io.port import CONNECT_TIMEOUT_S, SerialSource, socket_url_problem
+from drivers.io.port import CONNECT_TIMEOUT_S, SerialSource, socket_url_problem, url_problem
 from tests.sockets import unanswered_port
 
 LINE = b"$VWVHW,,T,,M,5.0,N,9.26,K*55\r\n"
@@ -104,3 +104,21 @@ def test_a_socket_input_by_host_name_is_refused_an_address_is_not() -> None:
     for ok in ("socket://127.0.0.1:10110", "socket://[::1]:10110", "/dev/ttyUSB0"):
         assert socket_url_problem(ok) is None
         SerialSource("gnss", ok).close()
+
+
+def test_an_rfc2217_input_and_a_socket_scheme_in_capitals_are_judged() -> None:
+    """pyserial takes a URL's scheme in any case and opens ``rfc2217://`` in the caller's
+    thread (resolve, connect, negotiate: 3.4 s against a server that never answers, 5 s
+    against one that is off, at every retry): ``rfc2217://`` is refused in any case, and
+    ``SOCKET://`` is a socket input like ``socket://``, its host an IP address and its
+    connect the port's own. ``SOCKET://`` and ``rfc2217://`` passed the check, then went
+    to pyserial's blocking open (``tests/emlogd/daemon/test_redteam.py -k socket_input``)."""
+    for url in ("rfc2217://127.0.0.1:2217", "RFC2217://10.0.0.5:2217"):
+        assert url_problem(url) is not None
+        with pytest.raises(DeviceError, match="rfc2217:// input in the daemon's one thread"):
+            SerialSource("gnss", url)
+    assert url_problem("SOCKET://gnss.local:10110") is not None
+    src = SerialSource("gnss", "SOCKET://127.0.0.1:10110")
+    assert src._tcp == ("127.0.0.1", 10110)
+    src.close()
+    assert url_problem("/dev/ttyUSB0") is None and url_problem("loop://") is None

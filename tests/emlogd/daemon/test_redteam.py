@@ -169,10 +169,13 @@ def _work(tmp_path: Path) -> Path:
 
 
 def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> None:
-    """SIGHUP into each hostile value, a FIFO and a config past the bound: every one a
-    ``reload_failed`` with the running config kept and the daemon answering (a date
-    ``2001-02-30`` made it exit 1, a FIFO would have hung it); a good config after them
-    reloads."""
+    """SIGHUP into each hostile value, a FIFO, a config past the bound, one with a URL
+    pyserial does not know (``socet://``) and ones with a NUL character in the pty's,
+    the control socket's or the status socket's path: every one a ``reload_failed`` with
+    the running config kept and the daemon answering (a date ``2001-02-30`` made it exit
+    1, a FIFO would have hung it, the URL and the NULs ended it with exit code 1 once
+    the new config was taken); a NUL in ``pty_group`` (which ended it too) is a
+    ``reload_outputs_failed`` of that pty; a good config after them reloads."""
     work = _work(tmp_path)
     cfg = work / "emlogd.yaml"
     good = cfg.read_text()
@@ -183,6 +186,11 @@ def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> No
             for v in HOSTILE_YAML.values()
         ]
         bad.append(good + "#" * MAX_CONFIG_BYTES)
+        bad.append(good.replace("url: links/dvl", "url: 'socet://127.0.0.1:1'"))
+        for path in ("pty: out/emlog0", "control_socket: run/control.sock"):
+            key, value = path.split(": ")
+            bad.append(good.replace(path, f'{key}: "{value}\\0"'))
+        bad.append(good + 'status_socket: "run/status\\0.sock"\n')
         for n, text in enumerate([*bad, None], start=1):
             cfg.unlink()
             if text is None:
@@ -193,9 +201,13 @@ def test_reloads_into_hostile_configs_keep_the_running_one(tmp_path: Path) -> No
             wait(functools.partial(_failed_reloads, d, n), f"reload_failed #{n}", 10.0)
             assert d.running and d.answers(), d.tail()
         cfg.unlink()
+        cfg.write_text(good.replace("pty: out/emlog0", 'pty: out/emlog0, pty_group: "a\\0"'))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reload_outputs_failed") >= 1, "the pty refused", 10.0)
+        assert d.running and d.answers(), d.tail()
         cfg.write_text(good.replace("status_log_interval_s: 1", "status_log_interval_s: 2"))
         d.send_signal(signal.SIGHUP)
-        wait(lambda: d.events("reloaded") >= 1, "the good config reloaded", 10.0)
+        wait(lambda: d.events("reloaded") >= 2, "the good config reloaded", 10.0)
         assert d.stop() == 0
     finally:
         d.kill()
@@ -238,20 +250,39 @@ def test_a_hostile_state_file_starts_from_the_backup(tmp_path: Path, damage: str
         d.kill()
 
 
-def test_a_fifo_planted_as_the_state_file_of_the_running_daemon(tmp_path: Path) -> None:
+@pytest.mark.parametrize("planted", ["fifo", "directory"])
+def test_a_fifo_planted_as_the_state_file_of_the_running_daemon(
+    tmp_path: Path, planted: str
+) -> None:
     """A FIFO put where the running daemon's state file is: its next save (a ``reset``)
-    does not block on it (it hung the daemon for good), moves it aside and writes."""
+    does not block on it (it hung the daemon for good), moves it aside and writes.
+
+    A directory holding a file put there instead: the ``reset`` answers that the state
+    file was not written and ``state_errors`` counts it; the directory and its file stay
+    where they are, the daemon runs on and exits 0. The save moved the directory aside
+    to ``.refused`` with its files, as it does a damaged file, and wrote the state file
+    in its place (a ``state_file`` ending in ``/`` moved the directory it named)."""
     work = _work(tmp_path)
     store = StateStore(work / "state" / "state.yaml")
     store.save({"emlog1": _cal()})
     d = Daemon(work)
     try:
         store.path.unlink()
-        os.mkfifo(store.path)
+        if planted == "fifo":
+            os.mkfifo(store.path)
+        else:
+            store.path.mkdir()
+            (store.path / "notes.txt").write_text("kept")
         answer = d.ask(cmd="reset", port="emlog1")  # a material change: written at once
-        assert answer.get("ok") is True, answer
-        assert store.path.is_file() and store.refused.exists()
-        assert loads_state(store.path.read_text())[0]["emlog1"].reset
+        if planted == "fifo":
+            assert answer.get("ok") is True, answer
+            assert store.path.is_file() and store.refused.exists()
+            assert loads_state(store.path.read_text())[0]["emlog1"].reset
+        else:
+            assert answer.get("ok") is False and "not written" in str(answer["error"]), answer
+            assert (store.path / "notes.txt").read_text() == "kept"
+            assert not store.refused.exists()
+            assert d.ask(cmd="status")["state_errors"] == 1
         assert d.stop() == 0
     finally:
         d.kill()
@@ -429,15 +460,19 @@ def test_pipelined_status_requests_cannot_hold_the_loop(tmp_path: Path) -> None:
         d.kill()
 
 
-def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: Path) -> None:
+@pytest.mark.parametrize("scheme", ["socket", "SOCKET"])
+def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(
+    tmp_path: Path, scheme: str
+) -> None:
     """The EMlog on ``socket://`` to a port whose listen queue is full (a SYN dropped, as
     by a host that is off): the daemon answers every status request at once for 3 s, the
     port ``connecting``. pyserial's connect waited up to 5 s in the daemon's one thread
-    at each retry (5.01 s measured), every output with it."""
+    at each retry (5.01 s measured), every output with it. The same with the scheme in
+    capitals (pyserial takes any case), which went to pyserial's open: status requests
+    5.04 s, the start 11 s."""
     with unanswered_port() as port:
-        work = make_work(
-            tmp_path, CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
-        )
+        url = f"{scheme}://127.0.0.1:{port}"
+        work = make_work(tmp_path, CONFIG.replace("url: links/emlog1", f"url: '{url}'"))
         d = Daemon(work)
         try:
             worst = 0.0

@@ -104,6 +104,20 @@ def test_failed_write_leaves_the_previous_file(tmp_path: Path) -> None:
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+def test_a_directory_at_the_path_is_never_moved_aside(tmp_path: Path) -> None:
+    """A directory where the state file should be (``state_file: /var/lib/emlogd/``
+    given to ``--state``, or made there): the save refuses, the directory and its files
+    left where they are; it was moved aside to ``.refused`` like a damaged file, with
+    every file in it, and a state file written in its place."""
+    store = StateStore(tmp_path / "state")
+    store.path.mkdir()
+    (store.path / "other.yaml").write_text("kept")
+    with pytest.raises(StateWriteError, match="a directory, left where it is"):
+        store.save({"emlog1": _state()})
+    assert (store.path / "other.yaml").read_text() == "kept"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["state"]
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only directory")
 def test_read_only_directory(tmp_path: Path) -> None:
     """A directory without write permission refuses the save; the file is intact."""

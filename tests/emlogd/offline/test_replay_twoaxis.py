@@ -65,6 +65,10 @@ def test_two_axis_learnt_applied_and_scored(replayed: dict[str, object]) -> None
     assert on["rmse_t_raw"] > 3.0 * on["rmse_t_floor"]
     assert on["rmse_l_corrected"] <= on["rmse_l_one_axis"] + 0.002
     assert set(scores["by_trajectory"]) == {"2", "4"}
+    eight, circles = scores["by_trajectory"]["2"], scores["by_trajectory"]["4"]
+    assert eight["windows"] >= 1 and circles["windows"] >= 1  # each from its first reading
+    assert circles["worst_window_raw"]["t0"] > eight["worst_window_raw"]["t0"]
+    assert circles["worst_window_raw"]["ratio"] <= 1.05  # never worse than raw there
     assert scores["windows"] >= 4
     assert scores["worst_window_raw"]["ratio"] <= 1.0 + 1e-9
     assert (

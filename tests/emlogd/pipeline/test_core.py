@@ -189,6 +189,26 @@ class TestLearning:
         b = kit.run(kit.pipeline(lag_s=0.0, current=True), s.items)
         assert [e.sentence for e in a.emits] == [e.sentence for e in b.emits]
 
+    def test_time_alone_learns_a_reading_whose_reference_never_comes(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """A reading waiting for its reference is learnt once that can no longer come,
+        whatever record moves the time on: one that decodes nothing (a DVL's line short
+        of its ensemble's end) as well as one that does."""
+        s = kit.make_stream(segment("straight", 5.0, TRUE))
+        p = kit.pipeline(lag_s=0.0)
+        for t, port, data in s.items:
+            p.feed(t, port, data)
+        cal = p.uuts["log"].cal
+        assert not cal.pending
+        t_read = s.items[-1][0] + 0.5
+        last_log = next(d for _, port, d in reversed(s.items) if port == "log")
+        p.feed(t_read, "log", last_log)
+        assert len(cal.pending) == 1  # its reference, at t_read, has not come
+        for k in range(1, 40):  # ensembles never finished: each line decodes nothing
+            assert not p.feed(t_read + 0.1 * k, "dvl", b":SA,+00.00,+00.00,121.28\r\n").emits
+        assert not cal.pending
+
 
 class TestLag:
     """The automatic lag and its restoration."""
@@ -297,6 +317,21 @@ class TestControl:
         assert _status(p)["state"] == "uncalibrated"
         (after,) = p.calibrations()
         assert after.reset and after.lag_s == 0.0
+
+    def test_a_reset_is_handed_out_by_the_next_record(
+        self, kit: SimpleNamespace, segment: Segment
+    ) -> None:
+        """The next record after a reset hands the reset record out to persist, even one
+        that decodes nothing (a DVL's line short of its ensemble's end)."""
+        s = kit.make_stream(segment("straight", 5.0, TRUE))
+        p = kit.pipeline(lag_s=0.0, learn=False)
+        kit.run(p, s.items)
+        line = b":SA,+00.00,+00.00,121.28\r\n"  # an ensemble never finished
+        t = s.items[-1][0]
+        assert not p.feed(t + 0.1, "dvl", line).persist
+        p.reset("log")
+        persisted = p.feed(t + 0.2, "dvl", line).persist
+        assert [(c.uut, c.reset) for c in persisted] == [("log", True)]
 
     def test_a_calibration_outside_the_envelope_is_refused_at_start(
         self, kit: SimpleNamespace

@@ -125,16 +125,36 @@ def test_no_reference_gives_no_ground_pair() -> None:
     assert _empty(_vbw(_pipeline(PortSettings("dvl", "pd6")), T0))
 
 
-def test_the_first_vbw_starts_the_ground_pair() -> None:
-    """A log keeps no ground pair before its first VBW (a VHW-only log costs nothing per
-    reference sample): that VBW goes out with V, the next with the pair."""
-    s = UutSettings(port="log", reference_port="dvl", uut_source="VBW")
-    p = Pipeline([LOG, PortSettings("dvl", "pd6")], [s])
+def _fresh(ref_stale_s: float = 5.0) -> Pipeline:
+    """A log sending VBW against a PD6 DVL, no VBW sent yet."""
+    s = UutSettings(port="log", reference_port="dvl", uut_source="VBW", ref_stale_s=ref_stale_s)
+    return Pipeline([LOG, PortSettings("dvl", "pd6")], [s])
+
+
+def test_the_first_vbw_carries_the_bottom_track_heard_before_it() -> None:
+    """Before its first VBW a log keeps only the reference's latest sample, unchecked (a
+    VHW-only log pays one tuple per reference sample); the first VBW's look-up checks it,
+    so that VBW already carries the pair with A."""
+    p = _fresh()
+    p.feed(T0 - 5.0, "dvl", _pd6((1.0, 0.5)))
     p.feed(T0, "dvl", _pd6((2.5, 0.2)))
     assert p.uuts["log"].ground.latest is None
-    assert _empty(_vbw(p, T0 + 0.1))
-    p.feed(T0 + 0.2, "dvl", _pd6((2.5, 0.2)))
-    assert _ground(_vbw(p, T0 + 0.3)) == pytest.approx((2.5, 0.2), abs=0.006)
+    assert _ground(_vbw(p, T0 + 0.1)) == pytest.approx((2.5, 0.2), abs=0.006)
+    p.feed(T0 + 0.2, "dvl", _pd6((2.5, 0.3)))
+    assert _ground(_vbw(p, T0 + 0.3)) == pytest.approx((2.5, 0.3), abs=0.006)
+
+
+@pytest.mark.parametrize(
+    ("ship", "at"), [(None, 0.1), ((2.5, 0.2), 3.1)], ids=["no-bottom-lock", "stale"]
+)
+def test_the_first_vbw_is_v_when_the_sample_before_it_is_invalid_or_stale(
+    ship: tuple[float, float] | None, at: float
+) -> None:
+    """The sample kept before the first VBW goes through the same checks: without bottom
+    lock, or older than ``ref_stale_s``, the first VBW's ground pair is empty with V."""
+    p = _fresh(ref_stale_s=3.0)
+    p.feed(T0, "dvl", _pd6(ship))
+    assert _empty(_vbw(p, T0 + at))
 
 
 def test_gnss_velocity_turned_into_the_hull_frame() -> None:

@@ -12,6 +12,7 @@ import pytest
 from calib.estimate import Estimate
 from calib.models import Params
 from calib.twoaxis import TwoAxisParams
+from emlogd.cli.common import two_axis_line
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
@@ -117,6 +118,21 @@ def test_straight_run_refuses_alpha() -> None:
     assert lr.correct(2.0, 0.1) is None
     assert [k for _, k, _ in events] == ["two_axis_refused"]
     assert encode_two_axis_status("log", "EML", lr).split(",")[-1].startswith("R*")
+
+
+def test_circles_one_way_refuse_alpha_in_words_an_operator_reads() -> None:
+    """Steady circles one way: the sway is a fixed fraction of the surge, so α is refused
+    and the status, its JSON and the status line say why in plain words (the sideways
+    speed a fixed fraction of the forward speed, the turns one way) and what determines
+    it (turns to both sides, a figure-8); nothing is applied, the VBW left as read."""
+    lr, events = _learn("circles", TWO_AXIS_TRUTH, 5, n=7000)
+    assert lr.estimate is None and lr.sup.applied is None and lr.correct(2.0, 0.1) is None
+    why = str(lr.status()["refused"])
+    assert why.startswith("misalignment not determinable: ")
+    assert "sideways speed through the water is a fixed fraction of the forward speed" in why
+    assert "the turns all went one way" in why and "turns to both sides (a figure-8)" in why
+    assert [d["why"] for _, k, d in events if k == "two_axis_refused"][-1] == why
+    assert why in two_axis_line(lr.status())
 
 
 def test_aligned_sensor_gives_zero_within_its_sigma() -> None:
