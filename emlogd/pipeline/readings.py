@@ -68,6 +68,19 @@ must not teach a shorter interval)."""
 RATE_MIN_INTERVALS = 8
 """Intervals needed before the nominal rate is used (until then ``max_rate_hz`` alone)."""
 
+RATE_RELEARN_S = 30.0
+"""A log whose every reading has been dropped for the rate this long (no pause) while
+they came faster than its nominal rate, each following the one before within the
+acceleration rule (:data:`RATE_RELEARN_STEADY` of them), has changed its rate, s: its
+nominal interval is learnt again from those readings, at most :data:`DEFAULT_MAX_RATE_HZ`.
+Since a read dropped for the rate teaches no interval, a log set from 1 Hz to 5 Hz, or
+back at 1 Hz after readings lost on the line had taught it a 4-s interval, was
+babbling for good; a babble's values (0-14 kn at random) do not follow each other."""
+
+RATE_RELEARN_STEADY = 0.9
+"""The share of a :data:`RATE_RELEARN_S` spell's readings that must each follow the one
+before within the acceleration rule for the log's rate to be learnt again."""
+
 
 @dataclass(frozen=True, slots=True)
 class ReadingLimits:
@@ -105,6 +118,21 @@ DEFAULT_MAX_RATE_HZ = 20.0
 is learnt below it; a log that babbles from its first sentence is held to this)."""
 
 
+class _Spell:
+    """A spell of readings dropped for the rate without a pause (:data:`RATE_RELEARN_S`):
+    its start, its last reading (time, value), the intervals between its readings, how
+    many followed the one before within the acceleration rule, of how many."""
+
+    __slots__ = ("intervals", "last", "n", "steady", "t0")
+
+    def __init__(self, t: float, v: float) -> None:
+        self.t0 = t
+        self.last = (t, v)
+        self.intervals = MedianWindow(RATE_HISTORY)
+        self.n = 0
+        self.steady = 0
+
+
 class ReadingCheck:
     """The plausibility of one log's readings (one sentence type), in time order.
 
@@ -124,6 +152,7 @@ class ReadingCheck:
         "_per_sentence",
         "_rate_dropped",
         "_read_hz",
+        "_spell",
         "_t_rate",
         "_tokens",
         "limits",
@@ -158,6 +187,9 @@ class ReadingCheck:
         """The readings per second a read may bring (:data:`READ_SLACK`), Hz: ``max_rate_hz``,
         else learnt from the sentence rate's window once it holds
         :data:`RATE_MIN_INTERVALS`; None until then."""
+        self._spell: _Spell | None = None
+        """The readings dropped for the rate since the last one let through (a learnt
+        rate only)."""
 
     def max_rate_hz(self) -> float:
         """The rate readings are accepted at now, Hz: ``max_rate_hz``, else the nominal rate
@@ -176,7 +208,47 @@ class ReadingCheck:
         no babble.
         """
         self.reacquired = False
-        return self._judge_rate(t, n) or self._accel(t, v)
+        why = self._judge_rate(t, n)
+        if not why:
+            self._spell = None
+            return self._accel(t, v)
+        if self.limits.max_rate_hz is None:
+            self._relearn(t, v)
+        return why
+
+    def _relearn(self, t: float, v: float) -> None:
+        """A reading dropped for the rate: the spell of them goes on; once it is
+        :data:`RATE_RELEARN_S` long, faster than the nominal rate and its readings
+        follow each other, the rate is learnt again from its intervals."""
+        sp = self._spell
+        if sp is None:
+            self._spell = _Spell(t, v)
+            return
+        t_last, v_last = sp.last
+        sp.last = (t, v)
+        dt = t - t_last
+        if dt <= 0.0:
+            return
+        sp.intervals.append(dt)
+        sp.n += 1
+        if abs(v - v_last) <= READING_MARGIN_MPS + self.limits.max_reading_accel_mps2 * dt:
+            sp.steady += 1
+        if t - sp.t0 < RATE_RELEARN_S or len(sp.intervals) < RATE_MIN_INTERVALS:
+            return
+        self._spell = None
+        nominal = sp.intervals.upper()
+        faster = self.nominal_s is None or nominal * RATE_SLACK < self.nominal_s
+        if not faster or sp.steady < RATE_RELEARN_STEADY * sp.n:
+            return  # the log's own rate in bursts, or a babble: a spell starts afresh
+        if nominal * DEFAULT_MAX_RATE_HZ < 1.0:
+            return
+        self._intervals = sp.intervals
+        self.nominal_s = nominal
+        self._max_hz = min(RATE_SLACK / nominal, DEFAULT_MAX_RATE_HZ)
+        self._tokens = RATE_BURST
+        self._drops.clear()
+        self._per_sentence.clear()
+        self._read_hz = None
 
     def arrived(self, t: float, n: int = 1) -> None:
         """A reading refused before its check (out of range) counts for the rate: the gaps

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import random
 import time
 
 import pytest
 
-from emlogd.pipeline.readings import BABBLE_S, ReadingCheck, ReadingLimits
+from emlogd.pipeline.readings import BABBLE_S, RATE_RELEARN_S, ReadingCheck, ReadingLimits
 
 
 class TestReadingCheck:
@@ -43,6 +44,54 @@ class TestReadingCheck:
                 assert chk.check(60.0 + k, 2.8) == ""
         back = [chk.check(300.0 + k, 2.8) for k in range(60)]
         assert set(back) == {""}, back
+        assert chk.nominal_s == pytest.approx(1.0)
+
+    def test_a_log_that_changes_its_rate_is_heard_at_the_new_one(self) -> None:
+        """A 1-Hz log set to 5 Hz after 2 minutes, its readings a steady 2.8 m/s with
+        0.02 m/s of noise: dropped as babbling at first, heard again within
+        RATE_RELEARN_S + 5 s at 5 Hz (nominal interval 0.2 s), every reading after.
+        Before, a read dropped for the rate taught no interval: the log was babbling,
+        every reading dropped for good."""
+        rng = random.Random(1)
+        chk = ReadingCheck(ReadingLimits())
+        assert all(chk.check(float(k), 2.8 + rng.gauss(0.0, 0.02)) == "" for k in range(120))
+        fast = [
+            (120.0 + k / 5.0, chk.check(120.0 + k / 5.0, 2.8 + rng.gauss(0.0, 0.02)))
+            for k in range(600)
+        ]
+        assert fast[25][1] == "rate"
+        heard = [t for t, why in fast if not why and t > 125.0]
+        assert heard and heard[0] <= 120.0 + RATE_RELEARN_S + 5.0, heard[:3]
+        assert all(why == "" for t, why in fast if t > heard[0])
+        assert chk.nominal_s == pytest.approx(0.2)
+
+    def test_a_log_back_at_its_rate_after_readings_lost_on_the_line_is_heard(self) -> None:
+        """A 1-Hz log losing three readings in four on the line for 4 minutes (the gaps
+        teach it a 4-s interval), then whole again: heard again within RATE_RELEARN_S +
+        10 s (the spell starts once it is babbling), at 1 s. Before, it was babbling at its own rate and dropped for good."""
+        chk = ReadingCheck(ReadingLimits())
+        assert all(chk.check(float(k), 2.8) == "" for k in range(60))
+        for k in range(0, 240, 4):
+            chk.check(60.0 + k, 2.8)
+        assert chk.nominal_s == pytest.approx(4.0)
+        back = [(300.0 + k, chk.check(300.0 + k, 2.8)) for k in range(120)]
+        heard = [t for t, why in back if not why and t > 305.0]
+        assert heard and heard[0] <= 300.0 + RATE_RELEARN_S + 10.0, back[:10]
+        assert chk.nominal_s == pytest.approx(1.0)
+
+    @pytest.mark.parametrize("hz", [5.0, 50.0])
+    def test_a_babble_is_not_learnt_as_a_rate(self, hz: float) -> None:
+        """A 1-Hz log that babbles 0-7 m/s at random at 5 Hz, or plausible values at
+        50 Hz (beyond any log's rate), for 5 minutes: every reading after the first
+        seconds is dropped, and its nominal interval stays 1 s."""
+        rng = random.Random(2)
+        chk = ReadingCheck(ReadingLimits())
+        assert all(chk.check(float(k), 2.8) == "" for k in range(60))
+        n = int(300 * hz)
+        for k in range(n):
+            v = rng.uniform(0.0, 7.0) if hz < 10.0 else 2.8 + rng.gauss(0.0, 0.02)
+            why = chk.check(60.0 + k / hz, v)
+            assert why == "rate" or k < 3 * hz, (k, why)
         assert chk.nominal_s == pytest.approx(1.0)
 
     def test_acceleration(self) -> None:
