@@ -41,6 +41,12 @@ reading nearer what it predicts than what raw does) by this many standard errors
 ``w``; raw is the better one when ``w`` is below ½ by as many. Between, the window does
 not tell them apart."""
 
+SEPARATION_PLAUSIBLE = 0.5
+"""A window gives no verdict when ``w`` is further than this outside [0, 1]: its errors
+are then neither raw's nor the calibration's in one current (a current that changed over
+the window, a reference with errors of its own, a calibration too near raw for its
+``G`` to stand out), and ``w`` measures that, not which of the two is right."""
+
 SEPARATION_SAMPLE_S = 1.0
 """A window counts at most one independent sample per this long, s, in the standard
 error of ``w`` (a 5–10 Hz log's errors are correlated over about a second)."""
@@ -125,7 +131,7 @@ class Separation:
         if detail is not None and math.isfinite(w):
             detail["separation_w"] = round(w, 3)
             detail["separation_se"] = round(se, 3)
-        if not math.isfinite(w) or not math.isfinite(se):
+        if not (math.isfinite(se) and -SEPARATION_PLAUSIBLE <= w <= 1.0 + SEPARATION_PLAUSIBLE):
             return None
         if w - SEPARATION_SIGMAS * se >= 0.5:
             return True

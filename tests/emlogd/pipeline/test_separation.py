@@ -67,3 +67,15 @@ def test_the_memory_before_a_silence_is_another_sea() -> None:
     sep = Separation()
     sep.add_memory(mem, CAL, t1 + 60.0)
     assert sep.n == 60 and sep.verdict() is None
+
+
+def test_errors_neither_one_explains_give_no_verdict() -> None:
+    """A log three times as wrong as the calibration says (``w`` near 3, far from both
+    raw's 0 and its 1): the window measures something else, not which one is right."""
+    sep = Separation()
+    for k in range(120):
+        v = 1.0 if k < 60 else 1.8
+        raw = v + 3.0 * (CAL.forward(v) - v) + _noise(k)
+        sep.add(float(k), raw - v, CAL.forward(v) - v, (1.0, 0.0))
+    w, se = sep.w()
+    assert w - 3.0 * se > 1.5 and sep.verdict() is None
