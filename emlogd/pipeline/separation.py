@@ -42,10 +42,12 @@ reading nearer what it predicts than what raw does) by this many standard errors
 not tell them apart."""
 
 SEPARATION_PLAUSIBLE = 0.5
-"""A window gives no verdict when ``w`` is further than this outside [0, 1]: its errors
-are then neither raw's nor the calibration's in one current (a current that changed over
-the window, a reference with errors of its own, a calibration too near raw for its
-``G`` to stand out), and ``w`` measures that, not which of the two is right."""
+"""A window does not re-apply the calibration when ``w`` is more than this above 1: its
+errors are then neither raw's nor the calibration's in one current (a current that
+changed over the window, a reference with errors of its own, a calibration too near raw
+for its ``G`` to stand out), and ``w`` measures that, not that the calibration is right.
+A ``w`` below ½ by :data:`SEPARATION_SIGMAS` refuses it however far below 0 (raw is then
+the safe one)."""
 
 SEPARATION_SAMPLE_S = 1.0
 """A window counts at most one independent sample per this long, s, in the standard
@@ -131,12 +133,12 @@ class Separation:
         if detail is not None and math.isfinite(w):
             detail["separation_w"] = round(w, 3)
             detail["separation_se"] = round(se, 3)
-        if not (math.isfinite(se) and -SEPARATION_PLAUSIBLE <= w <= 1.0 + SEPARATION_PLAUSIBLE):
+        if not math.isfinite(se):
             return None
-        if w - SEPARATION_SIGMAS * se >= 0.5:
-            return True
         if w + SEPARATION_SIGMAS * se <= 0.5:
             return False
+        if w - SEPARATION_SIGMAS * se >= 0.5 and w <= 1.0 + SEPARATION_PLAUSIBLE:
+            return True
         return None
 
     def add_memory(self, mem: SeaMemory, p: Params, now: float) -> None:
