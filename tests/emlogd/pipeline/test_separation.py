@@ -69,13 +69,16 @@ def test_the_memory_before_a_silence_is_another_sea() -> None:
     assert sep.n == 60 and sep.verdict() is None
 
 
-def test_errors_neither_one_explains_give_no_verdict() -> None:
-    """A log three times as wrong as the calibration says (``w`` near 3, far from both
-    raw's 0 and its 1): the window measures something else, not which one is right."""
+@pytest.mark.parametrize(("times", "verdict"), [(3.0, None), (-3.0, False)])
+def test_errors_neither_one_explains(times: float, verdict: bool | None) -> None:
+    """A log ``times`` as wrong as the calibration says (``w`` near it, far from both
+    raw's 0 and its 1): three times re-applies nothing (the window measures something
+    else, not that the calibration is right); minus three refuses it (raw is the safe
+    one)."""
     sep = Separation()
     for k in range(120):
         v = 1.0 if k < 60 else 1.8
-        raw = v + 3.0 * (CAL.forward(v) - v) + _noise(k)
+        raw = v + times * (CAL.forward(v) - v) + _noise(k)
         sep.add(float(k), raw - v, CAL.forward(v) - v, (1.0, 0.0))
     w, se = sep.w()
-    assert w - 3.0 * se > 1.5 and sep.verdict() is None
+    assert abs(w - times) < 0.5 and se < 0.3 and sep.verdict() is verdict
