@@ -30,6 +30,7 @@ from emlogd.pipeline.evidence import (
     FIT_NOISE_MPS,
     SeaMemory,
 )
+from emlogd.pipeline.separation import Separation
 
 if TYPE_CHECKING:
     from emlogd.pipeline.learner import Offer
@@ -195,6 +196,33 @@ class Candidate:
     common_cand: float = 0.0
     """Squared errors of raw and of it in the common sea (:func:`common_current`)."""
     n_common: int = 0
+    separation: Separation | None = None
+    """A calibration withdrawn for cause in the water frame (the log did not jump): the
+    fit that tells it from raw whatever the current (:mod:`emlogd.pipeline.separation`)."""
+
+    @classmethod
+    def withdrawn(cls, p: Params, std: Mapping[str, float | None], water: bool) -> Candidate:
+        """A calibration withdrawn for cause, to be validated again (in the water frame,
+        on what no current explains: :meth:`separate`)."""
+        return cls(p, math.nan, "revalidate", std, separation=Separation() if water else None)
+
+    def separate(self, t: float, d_raw: float, ref: float, cs: tuple[float, float] | None) -> None:
+        """One sample of raw's error against the reference ``ref`` for :attr:`separation`."""
+        if self.separation is not None and cs is not None:
+            self.separation.add(t, d_raw, self.params.forward(ref) - ref, cs)
+
+    def recall(self, mem: SeaMemory, t: float) -> None:
+        """The sea memory's samples before ``t`` for :attr:`separation`
+        (:meth:`~emlogd.pipeline.separation.Separation.add_memory`)."""
+        if self.separation is not None:
+            self.separation.add_memory(mem, self.params, t)
+
+    def in_sea_before(self, beta: tuple[float, float]) -> None:
+        """Judged in the sea ``beta`` as it stood before the log jumped, raw and it alike
+        (:attr:`sea_fixed`), not on :attr:`separation`."""
+        self.beta = beta
+        self.sea_fixed = True
+        self.separation = None
 
 
 def worse(r: float, r_raw: float) -> bool:
@@ -215,6 +243,28 @@ def beats_raw(cand: Candidate, r_raw: float, r_cand: float, detail: dict[str, ob
     detail["rmse_raw_common_sea"] = round(c_raw, 4)
     detail["rmse_candidate_common_sea"] = round(c_cand, 4)
     return worse(c_raw, c_cand)
+
+
+def judge_withdrawn(cand: Candidate, detail: dict[str, object], final: bool = True) -> bool | None:
+    """A calibration withdrawn for cause (the log did not jump), on its window so far.
+
+    Re-applied (True) when raw is worse than it by the margin after a current of each
+    one's own and in the common sea (:func:`beats_raw`: the withdrawal was evidence
+    against it, a tie none for it), or where the window tells it from raw whatever the
+    current (:attr:`Candidate.separation`) and it is the better one. Refused (False) on
+    that evidence alone: a current guessed from a window that cannot tell a current from
+    a scale error (one heading, one speed) may favour raw by chance. Neither: None, and
+    False once the window is ``final``.
+    """
+    n = cand.n
+    r_raw, r_cand = math.sqrt(cand.raw / n), math.sqrt(cand.cand / n)
+    sep = cand.separation
+    verdict = None if sep is None else sep.verdict(detail)
+    if verdict is not None:
+        return verdict
+    if beats_raw(cand, r_raw, r_cand, detail):
+        return True
+    return False if final or sep is None else None
 
 
 def judge_saved_sea(cand: Candidate, detail: dict[str, object]) -> bool:

@@ -15,8 +15,7 @@ calibration sees it (its own current would take its offset on every straight leg
 current therefore cannot make a bad calibration look good. Without current states the
 reference is the judge as it is.
 
-Rules (the constants are this module's and
-:mod:`emlogd.pipeline.revalidation`'s, re-exported here):
+Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'s):
 
 - **Emitting** (:meth:`Supervisor.correct`) uses only the applied calibration, never
   waits for the reference, and is silent while the log has a fault
@@ -57,11 +56,11 @@ Rules (the constants are this module's and
 - **Drift** (:class:`~emlogd.pipeline.evidence.Drift`): a log that drifts against a
   steady reference on a straight leg for :data:`~emlogd.pipeline.evidence.DRIFT_CONFIRM_S`
   withdraws the applied calibration, and nothing is applied while it drifts.
-- **Withdrawn for cause** (re-check or change detection): the calibration stays the
-  *last good* one (persisted, not a reset) and is the next candidate: re-applied once
-  it validates again over :data:`RESTORE_VALIDATION_S`, with raw worse than it by the
-  margin in both seas (the withdrawal was evidence against it, and a tie is none for it);
-  withdrawn when the log jumped, in the sea before the jump and not worse than raw.
+- **Withdrawn for cause** (re-check, drift, change detection): it stays the *last good*
+  one (persisted, not a reset) and is the next candidate from :data:`RESTORE_VALIDATION_S`
+  on: withdrawn when the log jumped, re-applied when not worse than raw in the sea before
+  the jump; else when raw is worse by the margin in both seas, or on what no current
+  explains (refused only so: :func:`~emlogd.pipeline.revalidation.judge_withdrawn`).
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -101,6 +100,7 @@ from emlogd.pipeline.revalidation import (
     common_current,
     judge_restored,
     judge_saved_sea,
+    judge_withdrawn,
     worse,
 )
 from emlogd.pipeline.revalidation import RESTORE_EARLY_SAMPLES as RESTORE_EARLY_SAMPLES
@@ -392,6 +392,7 @@ class Supervisor:
         beta = cand.beta or (0.0, 0.0)
         d_c = self._error(raw, ref, cand.params)
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
+        cand.separate(t, d_raw, ref, cs)
         common = self._beta.get("common")
         if cand.kind in ("new", "revalidate") and not cand.sea_fixed and common is not None:
             # raw and it in one sea neither was fitted to
@@ -446,7 +447,9 @@ class Supervisor:
         span = self.s.validation_s
         if cand.kind != "new":
             span = min(RESTORE_VALIDATION_S, span)
-        return t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES
+        done = t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES
+        final = t - cand.t0 >= self.s.validation_s  # a withdrawn one: until told from raw
+        return done and (cand.separation is None or judge_withdrawn(cand, {}, final) is not None)
 
     def _refit(self, t: float) -> None:
         """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
@@ -523,8 +526,9 @@ class Supervisor:
             # the log jumped and the reference did not: the sensor changed and the sea
             # is as it was, so the calibration re-validates in that sea (raw and it
             # alike), and comes back once the sensor does
-            self.candidate.beta = beta
-            self.candidate.sea_fixed = True
+            self.candidate.in_sea_before(beta)
+        elif self.candidate is not None:  # the same sensor: the speeds and turns before it
+            self.candidate.recall(self.memory, t)
         self.memory = SeaMemory()  # what it held was the sensor before the change
         self._beta = {}
         self.reopen = True
@@ -543,7 +547,7 @@ class Supervisor:
         self.previous = None
         self.recheck.reset()
         self._reset_detector()
-        self.candidate = Candidate(p, math.nan, "revalidate", std)
+        self.candidate = Candidate.withdrawn(p, std, self.water)
         self.note = f"fell back to raw: {why}"
         self.counters.fallbacks += 1
         self.dirty = True
@@ -606,9 +610,7 @@ class Supervisor:
         elif cand.kind == "restored" and cand.n_sea == n:
             good = judge_saved_sea(cand, detail)
         elif cand.kind == "revalidate" and not cand.sea_fixed:
-            # withdrawn for cause: the withdrawal is evidence against it, so only raw worse
-            # than it by the margin it was withdrawn on brings it back; a tie is no evidence
-            good = beats_raw(cand, r_raw, r_cand, detail)
+            good = judge_withdrawn(cand, detail) is True
         else:
             # restored, or withdrawn when the log jumped (judged in the sea before the
             # jump): it need only not be worse than raw

@@ -153,3 +153,23 @@ def test_a_surging_vessel_in_a_rising_current_keeps_its_calibration() -> None:
         ref = stw + 0.0002 * t
         sup.observe(t, p.forward(stw) + 0.1 * _noisy(k), ref, heading, _NoOffer())
     assert _applied(sup) == p, kinds
+
+
+def test_a_withdrawn_calibration_waits_for_evidence_no_current_explains() -> None:
+    """A log reading 25 % high, withdrawn for cause, re-validates at one heading where
+    the current along the hull (+0.25 m/s at 1 m/s) makes raw match the ground
+    reference: no current the window holds tells the two apart, so raw is not preferred
+    on a guess; once the vessel speeds up (raw's error then grows with the speed, which
+    no current at one heading can do) the calibration is applied again."""
+    p = Params("EM3", m=0.25)
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)
+    sup, kinds = _sup(None, s)
+    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    sup._withdraw(0.0, "a test", {})
+    heading = (1.0, 0.0)
+    for k in range(1, 181):
+        stw = 1.0 if k <= 60 else 1.6
+        sup.observe(float(k), p.forward(stw) + _noisy(k), stw + 0.25, heading, _NoOffer())
+        if k == 60:  # a minute at one speed: no verdict, raw passes through
+            assert "candidate_rejected" not in kinds and _applied(sup) is None
+    assert _applied(sup) == p and kinds == ["fallback", "calibrated"]
