@@ -43,7 +43,6 @@ from drivers.records import (
     SpeedRecord,
     bottom_track,
     check_ranges,
-    quick_init,
 )
 
 ORDER = ("SA", "TS", "RA", "WI", "WS", "WE", "WD", "BI", "BS", "BE", "BD")
@@ -58,7 +57,6 @@ _NOT_SENT = object()
 """The value of a block's line that has not arrived (an invalid vector's is None)."""
 
 
-@quick_init
 @dataclass(frozen=True, slots=True)
 class Velocity:
     """A velocity triple (plus the error velocity for the instrument frame), m/s.
@@ -74,7 +72,6 @@ class Velocity:
     error: float | None = None
 
 
-@quick_init
 @dataclass(frozen=True, slots=True)
 class DistanceMadeGood:
     """``:WD``/``:BD``: distance made good east/north/up (m), range (m), time since good (s)."""
@@ -86,7 +83,6 @@ class DistanceMadeGood:
     time_since_good_s: float
 
 
-@quick_init
 @dataclass(frozen=True, slots=True)
 class Pd6Ensemble:
     """One PD6/PD13 ensemble (velocities None when invalid or not sent).
@@ -318,6 +314,7 @@ def _sa(g: _Groups, kind: str, raw: bytes) -> object:
 
 
 def _ts(g: _Groups, kind: str, raw: bytes) -> object:
+    # the pattern's stamp is a real date and time (:func:`_stamp_ok`)
     stamp, sal, temp, depth, c = g[0], float(g[1]), float(g[2]), float(g[3]), float(g[4])
     if (
         _SAL[0] <= sal <= _SAL[1]
@@ -551,7 +548,8 @@ class PdAsciiDecoder(FramedDecoder[Pd6Record]):
 
     def _assemble(self, kind: str, value: object, raw: bytes) -> Pd6Record | FrameError | None:
         """Add a parsed line to the block: a finished record, a reject, or None."""
-        if isinstance(value, PdHealth):  # the :HM line, a record of its own
+        if kind == "HM":  # the :HM line, a record of its own
+            assert isinstance(value, PdHealth)
             return value
         rank = _RANK[kind]
         block = self._block

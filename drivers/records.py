@@ -15,47 +15,11 @@ Must not import: serial, os, time, threading (pure module).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Literal, TypeVar
+from typing import Literal
 
 from drivers.errors import OutOfRangeError, RejectReason
-
-_R = TypeVar("_R")
-
-
-def quick_init(cls: type[_R]) -> type[_R]:
-    """Give a frozen, slotted record dataclass an ``__init__`` that sets its slots directly.
-
-    The ``__init__`` :func:`dataclasses.dataclass` writes for a frozen class sets each
-    field through ``object.__setattr__``, about twice what the slot's own setter costs;
-    the records a decoder makes for every sentence or ensemble are given this one
-    instead, with the same parameters (order, defaults, keyword-only). Applied over
-    ``@dataclass``; a class with ``__post_init__``, a default factory or a field left
-    out of ``__init__`` is refused (TypeError).
-    """
-    fields = dataclasses.fields(cls)  # type: ignore[arg-type]
-    if hasattr(cls, "__post_init__") or any(
-        not f.init or f.default_factory is not dataclasses.MISSING for f in fields
-    ):
-        raise TypeError(f"{cls.__name__}: quick_init takes plain fields only")
-    names: dict[str, object] = {}
-    params: list[str] = []
-    for f in sorted(fields, key=lambda f: f.kw_only is True):  # keyword-only ones last
-        if f.kw_only is True and "*" not in params:
-            params.append("*")
-        names[f"_set_{f.name}"] = getattr(cls, f.name).__set__  # the slot's setter
-        names[f"_default_{f.name}"] = f.default
-        has_default = f.default is not dataclasses.MISSING
-        params.append(f"{f.name}=_default_{f.name}" if has_default else f.name)
-    body = "".join(f"\n    _set_{f.name}(self, {f.name})" for f in fields)
-    exec(f"def __init__(self, {', '.join(params)}) -> None:{body}", names)
-    init = names["__init__"]
-    init.__qualname__ = f"{cls.__qualname__}.__init__"  # type: ignore[attr-defined]
-    setattr(cls, "__init__", init)  # noqa: B010 - mypy refuses a method assigned
-    return cls
-
 
 SpeedKind = Literal["stw", "sog"]
 """``stw``: through water (EMlog, DVL water track); ``sog``: over ground (DVL bottom track)."""
@@ -132,7 +96,6 @@ def check_ranges(what: str, raw: bytes, **fields: float) -> None:
         raise OutOfRangeError(f"{what} {', '.join(bad)} out of range", raw)
 
 
-@quick_init
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SpeedRecord:
     """One vessel speed measurement in the ship frame, SI units, vessel-motion sign.

@@ -11,10 +11,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import TypeAlias, get_args
 
-from drivers.records import quick_init
 
-
-@quick_init
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Vhw:
     """VHW — water speed and heading.
@@ -37,7 +34,6 @@ class Vhw:
     stw_mps: float | None
 
 
-@quick_init
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Vbw:
     """VBW — dual ground/water speed (6- or 10-field form), m/s, + ahead / + starboard."""

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 
 import pytest
@@ -15,7 +14,6 @@ from drivers.records import (
     PHYSICAL_RANGES,
     SpeedRecord,
     check_ranges,
-    quick_init,
 )
 
 
@@ -94,55 +92,3 @@ class TestCheckRanges:
             check_ranges(":TS", b"", salinity=60.0, depth=10.0, sound_speed=900.0)
         text = str(err.value)
         assert "salinity 60.0" in text and "sound speed 900.0" in text and "depth" not in text
-
-
-class TestQuickInit:
-    """The slot-setting ``__init__`` of the records decoders make per sentence."""
-
-    def test_same_parameters_as_the_dataclass_init(self) -> None:
-        """Positional fields in order, then keyword-only ones, each default kept; every field set."""
-
-        @dataclasses.dataclass(frozen=True, slots=True)
-        class Plain:
-            a: int
-            b: str = "b"
-            c: float | None = dataclasses.field(default=None, kw_only=True)
-            d: int = dataclasses.field(default=4, kw_only=True)
-
-        @quick_init
-        @dataclasses.dataclass(frozen=True, slots=True)
-        class Quick:
-            a: int
-            b: str = "b"
-            c: float | None = dataclasses.field(default=None, kw_only=True)
-            d: int = dataclasses.field(default=4, kw_only=True)
-
-        def params(cls: type) -> list[tuple[str, object, object]]:
-            sig = inspect.signature(cls)
-            return [(p.name, p.kind, p.default) for p in sig.parameters.values()]
-
-        assert params(Quick) == params(Plain)
-        assert dataclasses.astuple(Quick(1)) == dataclasses.astuple(Plain(1)) == (1, "b", None, 4)
-        assert dataclasses.astuple(Quick(1, "x", c=2.0, d=5)) == (1, "x", 2.0, 5)
-        with pytest.raises(TypeError):
-            Quick(1, "x", 2.0)  # type: ignore[call-arg]
-        with pytest.raises(dataclasses.FrozenInstanceError):
-            Quick(1).a = 2  # type: ignore[misc]
-
-    def test_refuses_what_it_cannot_keep(self) -> None:
-        """A __post_init__ or a default factory would be skipped: such a class is refused."""
-
-        @dataclasses.dataclass(frozen=True, slots=True)
-        class Checked:
-            a: int
-
-            def __post_init__(self) -> None:
-                assert self.a > 0
-
-        @dataclasses.dataclass(frozen=True, slots=True)
-        class Listed:
-            a: list[int] = dataclasses.field(default_factory=list)
-
-        for cls in (Checked, Listed):
-            with pytest.raises(TypeError, match="plain fields only"):
-                quick_init(cls)
