@@ -101,8 +101,7 @@ class Daemon:
         port without a call, and one modify() arms it again after its read."""
         self.calls: dict[int, Callable[[], None]] = {}
         self.sel = selectors.EpollSelector()
-        """The sockets (control, TCP output), registered by their servers; nested in
-        :attr:`poll`."""
+        """The sockets (control, TCP output), registered by their servers; in :attr:`poll`."""
         self.sources: dict[str, SerialSource] = {}
         self.registered: dict[str, int] = {}
         self.unselectable: list[str] = []
@@ -490,10 +489,10 @@ class Daemon:
     def _persist(self, *, final: bool = False, operator: bool = False) -> str | None:
         """Write the calibrations; return None once they are on disk, else why not.
 
-        Coalesced: nothing is written when the file already holds the same records
-        (their time aside) — or, for an operator's command (``operator``), the same
-        calibrations (reset flags, parameters and σ, lag, model): a burst of
-        ``freeze`` or ``reset`` requests costs at most one fsync per actual change.
+        Coalesced: nothing is written when the file holds the same records (their time
+        aside), or for an operator's command (``operator``) the same calibrations (reset
+        flags, parameters and σ, lag, model): a burst of ``freeze`` or ``reset``
+        requests costs at most one fsync per actual change.
         """
         assert self.pipeline is not None and self.store is not None
         snaps = self.pipeline.calibrations()
@@ -511,6 +510,8 @@ class Daemon:
             return str(exc)
         if aside is not None:
             self.log.warning("state_file_set_aside", path=str(aside), backup_kept=True)
+        if self.store.backup_problem is not None:  # a directory in the way: written all the same
+            self.log.warning("state_backup_failed", why=self.store.backup_problem)
         self._written = written
         self.persists += 1
         self.log.info(

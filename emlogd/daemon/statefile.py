@@ -21,7 +21,10 @@ outside the envelope, a lag outside ``[0, max_lag_s]``, a covariance that is not
 positive-definite...), is reported and the backup used; without a good one the
 daemon starts uncalibrated. Such a file never becomes the backup: the next write
 moves it aside to ``<file>.refused`` (kept for a person to look at) and leaves the
-backup as it is.
+backup as it is. A directory where the backup or the refused file goes costs that
+step alone (:attr:`StateStore.backup_problem` says so): the new file is written all
+the same, since a state that can never be saved again loses every calibration learnt
+from then on at the next restart.
 
 Besides the calibration in use, each UUT keeps its last calibration of every other
 error model (``others``, :func:`emlogd.calfile.loads_state`): a config that switches
@@ -70,6 +73,9 @@ class StateStore:
         self.backup = self.path.with_name(self.path.name + ".bak")
         self.refused = self.path.with_name(self.path.name + ".refused")
         """Where a damaged or refused state file is moved by the next write."""
+        self.backup_problem: str | None = None
+        """Why the last :meth:`save` kept no backup, or set no refused file aside (a
+        directory in the way), or None."""
         self._check: Callable[[Calibration], str] | None = None
         """The check of the last :meth:`load`: a current file it refuses is no backup."""
 
@@ -180,6 +186,7 @@ class StateStore:
             StateWriteError: the write failed; the previous file is intact.
         """
         data = dumps(states, others=others).encode("utf-8")
+        self.backup_problem = None
         d = self.path.parent
         tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
         try:
@@ -224,7 +231,13 @@ class StateStore:
             # a directory is no damaged state file: a path ending in "/" names the
             # directory it was meant to be in, whose files no save may move away
             raise IsADirectoryError(errno.EISDIR, "a directory, left where it is")
-        if text is None or _refusal(text, self._check):
+        bad = text is None or _refusal(text, self._check)
+        step = self.refused if bad else self.backup
+        if step.is_dir():  # no file goes over a directory: that step alone is skipped
+            what = "the refused file not set aside" if bad else "no backup kept"
+            self.backup_problem = f"{what}: {step} is a directory"
+            return None
+        if bad or text is None:
             # never back up a damaged or refused file over a good backup
             self.path.replace(self.refused)
             return self.refused

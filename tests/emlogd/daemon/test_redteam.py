@@ -288,6 +288,31 @@ def test_a_fifo_planted_as_the_state_file_of_the_running_daemon(
         d.kill()
 
 
+def test_a_directory_planted_as_the_backup_costs_the_backup_alone(tmp_path: Path) -> None:
+    """A directory holding a file put where the running daemon's ``.bak`` goes: a
+    ``reset`` is written all the same (answered ok, the state file holds it,
+    ``state_errors`` 0), the log says ``state_backup_failed`` with the directory, which
+    stays with its file. Before, every save failed for good (``state_errors`` counted
+    each), and what was learnt after was lost at the next restart."""
+    work = _work(tmp_path)
+    store = StateStore(work / "state" / "state.yaml")
+    store.save({"emlog1": _cal()})
+    d = Daemon(work)
+    try:
+        store.backup.unlink(missing_ok=True)
+        store.backup.mkdir()
+        (store.backup / "notes.txt").write_text("kept")
+        assert d.ask(cmd="reset", port="emlog1").get("ok") is True, d.tail()
+        assert loads_state(store.path.read_text())[0]["emlog1"].reset
+        assert d.ask(cmd="status")["state_errors"] == 0
+        failed = [e for e in _log(d) if e.get("event") == "state_backup_failed"]
+        assert failed and str(store.backup) in str(failed[0]["why"]), failed
+        assert (store.backup / "notes.txt").read_text() == "kept"
+        assert d.stop() == 0
+    finally:
+        d.kill()
+
+
 def test_the_state_bound_holds_a_full_state_file() -> None:
     """The bound is far above what a state file holds: eight UUTs with their records of
     all four models."""

@@ -372,6 +372,33 @@ def test_a_refused_file_is_set_aside_even_without_a_backup(tmp_path: Path) -> No
     assert "m: -2.0" in store.refused.read_text()
 
 
+@pytest.mark.parametrize("blocked", ["backup", "refused"])
+def test_a_directory_where_the_backup_goes_costs_the_backup_alone(
+    tmp_path: Path, blocked: str
+) -> None:
+    """A directory (holding a file) at ``.bak``, or at ``.refused`` with the current file
+    refused: the save writes the new file all the same, the directory and its file stay,
+    and ``backup_problem`` says which step was skipped; the next save without it clears
+    it. Before, every save failed (StateWriteError) and each calibration learnt from then
+    on was lost at the next restart."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    in_the_way = store.backup if blocked == "backup" else store.refused
+    in_the_way.mkdir()
+    (in_the_way / "notes.txt").write_text("kept")
+    if blocked == "refused":
+        store.path.write_text(store.path.read_text().replace("m: 0.1", "m: -2.0"))
+        store.load(check=_check())  # type: ignore[arg-type]
+    assert store.save({"emlog1": _state(0.2)}) is None
+    assert parse_state(store.path.read_text())["emlog1"].params.m == 0.2
+    assert store.backup_problem is not None and str(in_the_way) in store.backup_problem
+    assert (in_the_way / "notes.txt").read_text() == "kept"
+    (in_the_way / "notes.txt").unlink()
+    in_the_way.rmdir()
+    assert store.save({"emlog1": _state(0.3)}) is None and store.backup_problem is None
+    assert parse_state(store.backup.read_text())["emlog1"].params.m == 0.2
+
+
 @pytest.mark.parametrize(
     ("lag", "max_lag", "why"),
     [
