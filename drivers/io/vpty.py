@@ -13,7 +13,7 @@ the symlink like a serial device. Properties:
   the master is non-blocking, and while no process has the slave open (the master
   polls ``POLLHUP``) nothing is written at all, so a reader that opens late sees no
   stale backlog, only what is written after it opened. Anything a reader writes back
-  is drained and discarded.
+  is drained and discarded, at most ``DRAIN_BYTES`` at each write.
 - A reader that keeps the slave open but stops reading does not get a stale backlog
   either: after every ``max_backlog // 4`` bytes written (and whenever the pty is
   full) the writer opens the slave briefly, asks how much waits unread in its line
@@ -52,6 +52,12 @@ from drivers.io.closing import Closing
 LDISC_BUF = 4096
 """Bytes the Linux line discipline buffers for a reader (``N_TTY_BUF_SIZE``); FIONREAD
 never reports more, so ``max_backlog`` must stay below it."""
+
+DRAIN_BYTES = 4 * LDISC_BUF
+"""The most of what readers wrote into the pty that one write drains and discards: a
+reader writing as fast as the drain reads never lets the pty be empty, and an
+unbounded drain held the writer (the daemon's one thread) for as long as it wrote.
+What is left waits in the pty, whose full buffer then stops the reader's writes."""
 
 
 class VirtualPort(Closing):
@@ -142,9 +148,14 @@ class VirtualPort(Closing):
         return not hup
 
     def _drain(self) -> None:
+        """Discard up to ``DRAIN_BYTES`` a reader wrote into the pty."""
+        left = DRAIN_BYTES
         with contextlib.suppress(BlockingIOError, OSError):
-            while os.read(self.master, 4096):
-                pass
+            while left > 0:
+                got = len(os.read(self.master, left))
+                if not got:
+                    return
+                left -= got
 
     def _trim_backlog(self, limit: int, *, full: bool) -> bool:
         """Discard a stalled reader's queue if above ``limit`` bytes (or ``full``)."""
