@@ -6,10 +6,16 @@ client costs itself, never the process or the other clients."""
 from __future__ import annotations
 
 import os
+import subprocess
 import time
 from pathlib import Path
 
-from tests.emlogd.daemon.harness import PD0_CONFIG, make_work
+import pytest
+
+from emlogd.calfile import loads_state
+from emlogd.daemon.statefile import StateStore
+from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work
+from tests.emlogd.daemon.test_redteam import _cal, _log, _work
 from tests.emlogd.daemon.test_redteam_live import VHW, _flood, _pd0_daemon, _vhw_within
 
 ECHO = b"$AAXXX,echo*00\r\n" * 256
@@ -47,3 +53,41 @@ def test_a_reader_writing_into_the_output_pty_costs_itself(tmp_path: Path) -> No
         assert sum(late) <= len(late) // 10, f"{sum(late)} of {len(late)} late"
         assert slowest < 0.5, slowest
         assert d.stop() == 0
+
+
+def _chattr(flag: str, path: Path) -> bool:
+    """``chattr flag path``; whether it took (root, a file system with the flag)."""
+    try:
+        done = subprocess.run(["chattr", flag, str(path)], capture_output=True, check=False)
+    except OSError:
+        return False
+    return done.returncode == 0
+
+
+@pytest.mark.root
+def test_an_immutable_backup_costs_the_backup_alone(tmp_path: Path) -> None:
+    """The running daemon's ``.bak`` made immutable (``chattr +i``: its rename fails
+    with ``EPERM`` even for root, as another user's file in a sticky directory does for
+    anyone else), then a ``reset``: answered ok, the state file holds it,
+    ``state_errors`` 0, the log says ``state_backup_failed``. Every save failed (the
+    reset answered that the state file was not written): what was learnt or reset from
+    then on was lost at the next restart."""
+    work = _work(tmp_path)
+    store = StateStore(work / "state" / "state.yaml")
+    store.save({"emlog1": _cal()})
+    store.save({"emlog1": _cal(0.11)})
+    if not _chattr("+i", store.backup):
+        pytest.skip("chattr +i needs root and a file system with the flag")
+    try:
+        d = Daemon(work)
+        try:
+            assert d.ask(cmd="reset", port="emlog1").get("ok") is True, d.tail()
+            assert loads_state(store.path.read_text())[0]["emlog1"].reset
+            assert d.ask(cmd="status")["state_errors"] == 0
+            failed = [e for e in _log(d) if e.get("event") == "state_backup_failed"]
+            assert failed and str(store.backup) in str(failed[0]["why"]), failed
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        _chattr("-i", store.backup)
