@@ -12,9 +12,12 @@ from pathlib import Path
 
 import pytest
 
+from drivers.errors import DeviceError
 from emlogd.calfile import loads_state
+from emlogd.client import request
+from emlogd.daemon.control import PATH_CHECK_S
 from emlogd.daemon.statefile import StateStore
-from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work
+from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, wait
 from tests.emlogd.daemon.test_redteam import _cal, _log, _work
 from tests.emlogd.daemon.test_redteam_live import VHW, _flood, _pd0_daemon, _vhw_within
 
@@ -91,3 +94,30 @@ def test_an_immutable_backup_costs_the_backup_alone(tmp_path: Path) -> None:
             d.kill()
     finally:
         _chattr("-i", store.backup)
+
+
+def _answers(sock: Path) -> bool:
+    try:
+        return request(sock, {"cmd": "status"}, timeout_s=1.0).get("ok") is True
+    except DeviceError:
+        return False
+
+
+def test_a_removed_control_socket_file_is_made_again(tmp_path: Path) -> None:
+    """The running daemon's control socket file removed (by hand, a clean-up of the run
+    directory): ``emlogd status`` answers again within ``PATH_CHECK_S`` and a second,
+    the log says ``control_socket_restored``; SIGTERM exits 0 and removes it. The
+    listening socket behind the removed name took no connection: the operators were
+    locked out until a restart."""
+    work = _work(tmp_path)
+    sock = work / "run" / "control.sock"
+    d = Daemon(work)
+    try:
+        sock.unlink()
+        assert not _answers(sock)
+        wait(lambda: _answers(sock), "the control socket made again", PATH_CHECK_S + 1.0)
+        assert d.events("control_socket_restored") == 1
+        assert d.stop() == 0
+        assert not sock.exists()
+    finally:
+        d.kill()
