@@ -8,7 +8,8 @@ the symlink like a serial device. Properties:
   while the master is open, whoever opens the slave afterwards.
 - The symlink is replaced atomically (temporary symlink + rename); a stale
   symlink is replaced, a regular file or directory at that path is refused. It is
-  removed on :meth:`close` if it still points at this pty.
+  removed on :meth:`close` if it still points at this pty; :meth:`check_link`
+  publishes it again if it was removed meanwhile.
 - Readers may open and close the slave at any time without blocking the writer:
   the master is non-blocking, and while no process has the slave open (the master
   polls ``POLLHUP``) nothing is written at all, so a reader that opens late sees no
@@ -132,6 +133,28 @@ class VirtualPort(Closing):
             tmp.unlink()
         tmp.symlink_to(self.slave_path)
         tmp.replace(link)
+
+    def check_link(self) -> str:
+        """Publish the link again if it was removed.
+
+        Returns:
+            ``""`` while the link names this pty, ``"restored"`` when it was removed and
+            is published again, else what is wrong (another file or link at its path,
+            left as it is; or why it cannot be made again).
+        """
+        try:
+            target = str(self.link.readlink())
+        except FileNotFoundError:
+            try:
+                self._publish()
+            except OSError as exc:
+                return f"removed, and cannot be made again: {exc.strerror or exc}"
+            return "restored"
+        except OSError:  # EINVAL: a file or a directory, no symlink
+            return "no symlink now: left as it is"
+        if target == self.slave_path:
+            return ""
+        return f"names {target} now: left as it is"
 
     def fileno(self) -> int:
         """The master's file descriptor."""

@@ -16,6 +16,7 @@ from drivers.errors import DeviceError
 from emlogd.calfile import loads_state
 from emlogd.client import request
 from emlogd.daemon.control import PATH_CHECK_S
+from emlogd.daemon.sinks import LINK_CHECK_S
 from emlogd.daemon.statefile import StateStore
 from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, wait
 from tests.emlogd.daemon.test_redteam import _cal, _log, _work
@@ -121,3 +122,28 @@ def test_a_removed_control_socket_file_is_made_again(tmp_path: Path) -> None:
         assert not sock.exists()
     finally:
         d.kill()
+
+
+def test_a_removed_output_pty_link_is_published_again(tmp_path: Path) -> None:
+    """The running daemon's output pty link removed: within ``LINK_CHECK_S`` and a second
+    it names the pty again, and a reader opening it then (an autopilot after its own
+    restart) reads the corrected VHW; the log says ``pty_link_restored``. The reader
+    found nothing at the link until the daemon's restart."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    link = work / "out" / "emlog0"
+    with _pd0_daemon(work) as (d, emlog):
+        link.unlink()
+        wait(link.is_symlink, "the pty link published again", LINK_CHECK_S + 1.0)
+        fd = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            got = False
+            for k in range(20):
+                os.write(emlog, VHW[k % 2])
+                if _vhw_within(fd, 0.1):
+                    got = True
+                    break
+            assert got, "no VHW through the link published again"
+        finally:
+            os.close(fd)
+        assert d.events("pty_link_restored") == 1
+        assert d.stop() == 0
