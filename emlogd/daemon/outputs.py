@@ -102,7 +102,7 @@ class Outputs:
                     TcpServerSink,
                     u.tcp,
                     selector=self.sel,
-                    on_event=functools.partial(self._client_event, tcp),
+                    on_event=functools.partial(self._client_event, u.tcp),
                     monotonic=self.monotonic,
                     limits=limits,
                 )

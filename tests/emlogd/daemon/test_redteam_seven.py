@@ -6,6 +6,8 @@ client costs itself, never the process or the other clients."""
 from __future__ import annotations
 
 import os
+import signal
+import socket
 import subprocess
 import time
 from pathlib import Path
@@ -18,7 +20,7 @@ from emlogd.client import request
 from emlogd.daemon.control import PATH_CHECK_S
 from emlogd.daemon.sinks import LINK_CHECK_S
 from emlogd.daemon.statefile import StateStore
-from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, wait
+from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, free_port, make_work, wait
 from tests.emlogd.daemon.test_redteam import _cal, _log, _work
 from tests.emlogd.daemon.test_redteam_live import VHW, _flood, _pd0_daemon, _vhw_within
 
@@ -146,4 +148,20 @@ def test_a_removed_output_pty_link_is_published_again(tmp_path: Path) -> None:
         finally:
             os.close(fd)
         assert d.events("pty_link_restored") == 1
+        assert d.stop() == 0
+
+
+def test_a_reload_into_a_logs_own_tcp_output_without_a_shared_one(tmp_path: Path) -> None:
+    """SIGHUP into a config giving the EMlog a TCP output of its own, with no shared TCP
+    output (valid): reloaded, the port takes a client, SIGTERM exits 0. Building the
+    outputs raised ``UnboundLocalError``: the daemon ended (``internal error``), and a
+    start with that config never got further."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    cfg = work / "emlogd.yaml"
+    port = free_port()
+    with _pd0_daemon(work) as (d, _):
+        cfg.write_text(cfg.read_text().replace("lag: 0.2}", f'lag: 0.2, tcp: "127.0.0.1:{port}"}}'))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reloaded") == 1, "the reload", 10.0)
+        socket.create_connection(("127.0.0.1", port), 2.0).close()
         assert d.stop() == 0
