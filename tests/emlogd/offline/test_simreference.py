@@ -21,15 +21,13 @@ from emlogd.settings import pipeline_from_config
 RATIO = 1.05
 """The acceptance: emitted over raw RMSE against the truth, per 5-min window."""
 
-CFG = """\
-ports:
-  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}
-  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}
-  - {name: dvl, url: /dev/null, protocol: pd6, role: reference}
-calibration:
-  - {uut: emlog1, reference: dvl, lag: 3.3, current: true}
-  - {uut: emlog2, reference: dvl, lag: 0.5, current: true}
-"""
+CFG = (
+    "ports: [{name: dvl, url: /dev/null, protocol: pd6, role: reference},"
+    " {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut},"
+    " {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}]\n"
+    "calibration: [{uut: emlog1, reference: dvl, lag: 3.3, current: true},"
+    " {uut: emlog2, reference: dvl, lag: 0.5, current: true}]\n"
+)
 
 
 def shifted(src: Path, dst: Path, port: str, shift_s: float) -> Path:
