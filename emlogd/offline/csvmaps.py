@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -124,11 +125,13 @@ LOGGER_TSV: dict[str, str] = {
     "drift": "DRIFT?",
 }
 """An Italian race logger's tab-separated export (``Date`` dd/mm/yy, ``Time`` of its
-clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions), under the names of both its
+clock, told by the first row as any ``auto`` time: another firmware or a spreadsheet
+may write the year in full, year first, or fractions of a second; magnetic ``Heading``, ``ddmm.mmmmN`` positions), under the names of both its
 firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
 
 GENERIC: dict[str, str] = {
     "time": "time|timestamp|datetime|date_time|utc",
+    "date": "date?",
     "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water",
     "heading": "hdg|heading|heading_true?",
     "sog": "sog|speed_over_ground?",
@@ -139,7 +142,7 @@ GENERIC: dict[str, str] = {
     "drift": "drift|current_drift?",
 }
 """A plain table of the usual short names (a processed log, a spreadsheet): one time
-column (told by its first cell), the speed through the water in knots (``speed`` is
+column (told by its first cell; a ``date`` column beside a time of day is joined to it), the speed through the water in knots (``speed`` is
 taken for it: a table that names its speed over ground ``sog``), a true heading."""
 
 PRESETS: dict[str, Preset] = {
@@ -149,7 +152,7 @@ PRESETS: dict[str, Preset] = {
     "logger-tsv": Preset(
         "logger-tsv",
         LOGGER_TSV,
-        "%d/%m/%y %H:%M:%S",
+        "auto",
         "magnetic",
         True,
         "race logger TSV (Date, Time, Boatspeed, Heading, Ext_SOG...)",
@@ -269,10 +272,16 @@ DATE_TIME_PATTERNS = (
     "%d.%m.%Y %H:%M:%S.%f",
     "%Y/%m/%d %H:%M:%S",
     "%Y/%m/%d %H:%M:%S.%f",
+    "%m/%d/%Y %I:%M:%S %p",
+    "%m/%d/%Y %I:%M:%S.%f %p",
 )
 """The date-and-time cells ``auto`` recognises besides ISO 8601, tried in this order on
-the first time cell: day first, as European loggers and spreadsheets write it (a
-month-first file needs ``--time-format``)."""
+the first time cell: day first, as European loggers and spreadsheets write it, and
+month first only with a 12-hour clock's AM/PM (as US-English Windows writes a date;
+another month-first file needs ``--time-format``)."""
+
+TIME_OF_DAY = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d+)?)?")
+"""A cell that holds a time of day alone (to be joined to a ``date`` column's cell)."""
 
 
 def guess_time_format(value: str) -> str | None:
