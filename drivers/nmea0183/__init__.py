@@ -5,7 +5,7 @@ CR/LF, the 82-character limit with a per-port leniency) and so is the checksum
 check (:func:`~drivers.framing.split_nmea`: a wrong checksum is always rejected, a
 missing one unless the port is configured ``checksum: optional``). Then:
 
-every sentence (VHW, VBW, VLW, MTW, HDT, HDG, HDM, RMC, VTG, GGA, ZDA, VDR and Rowe
+every sentence (VHW, VBW, VLW, MTW, HDT, HDG, HDM, THS, RMC, VTG, GGA, ZDA, VDR and Rowe
 ``$PRTI01``/``$PRTI02`` in their 12- and 14-field forms) is split and converted by
 :mod:`drivers.nmea0183.parsing` under one set of field rules: a number has ``float``
 syntax with no blank or underscore and is finite, an integer is digits, a flag field

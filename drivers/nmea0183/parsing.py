@@ -227,17 +227,28 @@ def _signed(value: float | None, direction: str, name: str, raw: bytes) -> float
     return -value if direction == "W" else value
 
 
-HEADING_FIELDS = {"HDT": 2, "HDM": 2, "HDG": 5}
+HEADING_FIELDS = {"HDT": 2, "HDM": 2, "HDG": 5, "THS": 2}
 """The heading sentences and how many fields follow their address."""
+
+THS_VALID_MODES = frozenset("AEM")
+"""THS modes whose heading is the ship's: autonomous, estimated (dead reckoning),
+manual input. ``S`` (simulator) and ``V`` (not valid) give no heading."""
 
 
 def parse_heading(kind: str, talker: str, f: list[str], raw: bytes) -> Heading:
-    """HDT (heading, T), HDM (heading, M) or HDG (sensor heading, deviation, E/W,
-    variation, E/W)."""
+    """HDT (heading, T), HDM (heading, M), HDG (sensor heading, deviation, E/W,
+    variation, E/W) or THS (true heading, mode: a GNSS compass's or an INS's HDT of
+    NMEA 0183 v3.01 on; the heading is None in a mode outside :data:`THS_VALID_MODES`)."""
     expected = HEADING_FIELDS[kind]
     if len(f) != expected:
         raise FieldError(f"{kind} has {len(f)} fields, expected {expected}", raw)
     heading = _heading(_num(f[0], f"{kind} heading", raw), kind, raw)
+    if kind == "THS":
+        _flag(f[1], "AEMSV", "THS mode", raw)
+        valid = f[1] in THS_VALID_MODES
+        return Heading(
+            talker=talker, sentence=kind, heading_deg=heading if valid else None, true=True
+        )
     if kind != "HDG":
         _flag(f[1], "T" if kind == "HDT" else "M", f"{kind} flag", raw)
         return Heading(talker=talker, sentence=kind, heading_deg=heading, true=kind == "HDT")

@@ -106,6 +106,32 @@ def test_distances_temperatures_and_headings_follow_the_number_rule(body: str) -
         _parse(body)
 
 
+@pytest.mark.parametrize(
+    ("body", "heading"),
+    [
+        ("GPTHS,123.4,A", 123.4),
+        ("INTHS,359.9,E", 359.9),
+        ("HETHS,12.0,M", 12.0),
+        ("GPTHS,123.4,V", None),
+        ("GPTHS,123.4,S", None),
+        ("GPTHS,,A", None),
+    ],
+)
+def test_ths_is_a_true_heading_in_a_valid_mode(body: str, heading: float | None) -> None:
+    """THS (a GNSS compass's true heading): the heading in modes A, E and M, none when the
+    sender says it is simulated or not valid."""
+    r = _parse(body)
+    assert isinstance(r, Heading) and r.true and r.sentence == "THS"
+    assert r.heading_deg == heading
+
+
+@pytest.mark.parametrize("body", ["GPTHS,123.4,X", "GPTHS,123.4", "GPTHS,400.0,A"])
+def test_ths_with_a_bad_mode_field_count_or_heading_is_refused(body: str) -> None:
+    """An unknown mode letter, a missing field, a heading past 360: rejects, no record."""
+    with pytest.raises(FieldError):
+        _parse(body)
+
+
 def test_distances_temperatures_and_headings_are_read() -> None:
     """VLW's four distances, MTW's temperature, HDT's true and HDM's magnetic heading and HDG's
     deviation and variation with their E/W sign are read from their fields."""
