@@ -124,6 +124,9 @@ SAME_SENTENCES = [
     ("logger-tsv", "no-banner"),
     ("logger-tsv", "utc-offset"),
     ("logger-tsv", "logger-firmware"),
+    ("logger-tsv", "date-in-full"),
+    ("logger-tsv", "date-year-first"),
+    ("logger-tsv", "time-fraction"),
 ]
 """Variants that change only the format: the import writes the same sentences."""
 
@@ -148,6 +151,56 @@ def test_without_the_current_columns_no_vdr(tmp_path: Path) -> None:
     base, rep, _ = _variant("expedition-csv", "no-current", tmp_path)
     assert rep.sentences["VDR"] == 0 < base.sentences["VDR"]
     assert rep.sentences["VHW"] == base.sentences["VHW"]
+
+
+@pytest.mark.parametrize("name", ["utc-text-us", "date-time-columns"])
+def test_expedition_times_as_text_keep_the_log(name: str, tmp_path: Path) -> None:
+    """Utc written as US-English text (month first, AM/PM), or Date and Time columns in
+    its place: the same water readings over the same span (to the second the text
+    keeps)."""
+    base, rep, _ = _variant("expedition-csv", name, tmp_path)
+    assert rep.sentences["VHW"] == base.sentences["VHW"]
+    assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start, abs=1.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "share"),
+    [("log-half-rate", 0.5), ("log-twice", 2.0), ("log-dropouts", 0.9), ("log-lags-2s", 1.0)],
+)
+def test_the_log_at_another_rate_or_lag_keeps_its_time(
+    name: str, share: float, tmp_path: Path
+) -> None:
+    """The log at half or twice its rate, silent 30 s every 5 min, or 2 s behind the
+    GNSS: as many VHW as that makes, over the same span; the pipeline keeps nearly every
+    reading of a log at twice its rate (the rate check learns its rate from the
+    imported times)."""
+    base, rep, cap = _variant("nmea", name, tmp_path)
+    assert rep.sentences["VHW"] == pytest.approx(share * base.sentences["VHW"], rel=0.05)
+    assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start, abs=2.0)
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    assert record_capture(cap, s).raw.size >= 0.85 * rep.sentences["VHW"]
+
+
+def test_a_gnss_compass_ths_alone_pairs(tmp_path: Path) -> None:
+    """THS the only heading: the readings pair with the GNSS reference as with HDG."""
+    _, rep, cap = _variant("nmea", "ths", tmp_path)
+    assert rep.sentences["THS"] > 0 and rep.sentences.get("HDG", 0) == 0
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    al = record_capture(cap, s).aligned(0.0)
+    assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
+
+
+def test_a_log_sending_vbw_alone_is_read_from_vbw(tmp_path: Path) -> None:
+    """VBW instead of VHW: docs/real_data.py tells the log's sentence and its readings
+    pair from VBW."""
+    _, rep, cap = _variant("nmea", "vbw", tmp_path)
+    assert rep.sentences.get("VHW", 0) == 0 < rep.sentences["VBW"]
+    assert rv._real_data().log_sentence(cap) == "VBW"
+    s = UutSettings(
+        port="nmea", reference_port="nmea", reference_field="gnss", current=True, uut_source="VBW"
+    )
+    al = record_capture(cap, s).aligned(0.0)
+    assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
 
 
 @pytest.mark.parametrize(
