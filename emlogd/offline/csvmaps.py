@@ -208,19 +208,57 @@ def _spec(spec: str) -> tuple[list[tuple[str, float]], bool]:
     return names, optional
 
 
+HEADER_UNITS: dict[str, float | None] = {
+    "kn": KNOT_MPS,
+    "kt": KNOT_MPS,
+    "kts": KNOT_MPS,
+    "knot": KNOT_MPS,
+    "knots": KNOT_MPS,
+    "m/s": 1.0,
+    "mps": 1.0,
+    "km/h": 1.0 / 3.6,
+    "kmh": 1.0 / 3.6,
+    "kph": 1.0 / 3.6,
+    "deg": None,
+    "degt": None,
+    "degrees": None,
+    "°": None,
+}
+"""Units a column name may carry (``Bsp (kn)``, ``SOG [m/s]``, ``stw_kn``): a speed's
+factor to m/s (it overrides the map's), or None for an angle's."""
+
+_UNIT_IN_NAME = re.compile(r"(?P<name>.+?)(?:\s*[(\[](?P<a>[^)\]]+)[)\]]|_(?P<b>[a-z/]+))")
+
+
+def _bare(name: str) -> tuple[str, float | None]:
+    """A column name without a unit it carries (:data:`HEADER_UNITS`), folded, and the
+    unit's factor to m/s (None: no speed unit)."""
+    m = _UNIT_IN_NAME.fullmatch(name.strip())
+    unit = (m.group("a") or m.group("b")).strip().casefold() if m else ""
+    if m is None or unit not in HEADER_UNITS:
+        return name.strip().casefold(), None
+    return m.group("name").strip().casefold(), HEADER_UNITS[unit]
+
+
 def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, Col], list[str]]:
     """Map keys to header columns; (columns found, required columns missing)."""
     stripped = [h.strip() for h in header]
     folded = [h.casefold() for h in stripped]
+    bare = [_bare(h) for h in stripped]
+    bare_names = [b for b, _ in bare]
     cols: dict[str, Col] = {}
     missing: list[str] = []
     for key, spec in mapping.items():
         names, optional = _spec(spec)
         for name, factor in names:
-            # the exact name, else the name in any case (BSP, bsp, Bsp)
+            # the exact name, else the name in any case (BSP, bsp, Bsp), else the name
+            # with a unit after it (Bsp (kn), SOG [m/s]: a speed unit is the column's)
             at = stripped.index(name) if name in stripped else None
             if at is None and name.casefold() in folded:
                 at = folded.index(name.casefold())
+            if at is None and name.casefold() in bare_names:
+                at = bare_names.index(name.casefold())
+                factor = bare[at][1] or factor
             if at is not None:
                 cols[key] = Col(key, at, factor if key in SPEEDS else 1.0)
                 break

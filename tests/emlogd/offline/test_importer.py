@@ -442,6 +442,30 @@ class TestCsv:
         assert rep.preset == "generic"
         assert rep.t_start == datetime(2005, 6, 13, 12, 0, 1, tzinfo=UTC).timestamp()
 
+    @pytest.mark.parametrize(
+        ("bsp", "sog", "stw_mps", "sog_mps"),
+        [
+            ("Bsp (kn)", "Sog [m/s]", 3.2 * KNOT_MPS, 2.0),
+            ("BSP [kts]", "SOG (km/h)", 3.2 * KNOT_MPS, 2.0 / 3.6),
+            ("bsp_mps", "sog_kn", 3.2, 2.0 * KNOT_MPS),
+        ],
+    )
+    def test_a_unit_after_a_column_name_is_the_columns(
+        self, tmp_path: Path, bsp: str, sog: str, stw_mps: float, sog_mps: float
+    ) -> None:
+        """Column names with their unit after them match the preset's names, and a
+        speed's unit is the column's (knots, m/s, km/h); an angle's is degrees."""
+        src = tmp_path / "log.csv"
+        src.write_text(f"Utc,{bsp},Hdg (deg),{sog},Cog (deg)\n{OLE_2005},3.2,90,2.0,95\n")
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.preset == "expedition"
+        dec = make_decoder("nmea0183", "nmea")
+        recs = [x for r in CaptureReader(tmp_path / "o.cap") for x in dec.feed(r.data)]
+        (vhw,) = [x for x in recs if isinstance(x, Vhw)]
+        (rmc,) = [x for x in recs if isinstance(x, Rmc)]
+        assert vhw.stw_mps == pytest.approx(stw_mps, abs=0.003) and vhw.heading_true_deg == 90
+        assert rmc.sog_mps == pytest.approx(sog_mps, abs=0.003) and rmc.cog_true_deg == 95
+
     def test_a_time_it_cannot_tell_is_quoted_with_the_option(self, tmp_path: Path) -> None:
         """Times of minutes alone are no format told by itself: the error quotes the first
         cell and names --time-format, and the pattern given reads them."""
