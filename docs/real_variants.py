@@ -19,8 +19,9 @@ header, channel numbers, ``channel,value`` pairs); the logger's TSV without its
 banner, with its local time given by ``--utc-offset``, with rows every 5 s, under its
 other firmware's column names after a banner of settings, with its date in full or
 year first, its time with tenths;
-and a strong tidal current (:func:`tide`) added to the GNSS of an NMEA log and of an
-Expedition export: the water-frame calibration should not move.
+and a strong tidal current (:func:`tide`) added to the GNSS of an NMEA log (also at
+3 kn, and with the GNSS at 0.5 Hz) and of an Expedition export: the water-frame
+calibration should not move.
 
 Each variant is imported, calibrated (LS and KF, ``--ref-field gnss --current``, no
 ``--variation``) and replayed (``examples/emlogd-gnss.yaml``, ``lag: auto``), and its
@@ -403,8 +404,9 @@ def first_date(text: str) -> str:
     return t.date().isoformat()
 
 
-def _tidal_rmc(f: list[str]) -> list[str]:
-    """RMC's speed and course over ground with :func:`tide`'s current added."""
+def _tidal_rmc(f: list[str], scale: float = 1.0) -> list[str]:
+    """RMC's speed and course over ground with :func:`tide`'s current (times ``scale``)
+    added."""
     if kind_of(f) != "RMC" or len(f) < 9:
         return f
     t = _rmc_time(f)
@@ -414,10 +416,14 @@ def _tidal_rmc(f: list[str]) -> list[str]:
         return f
     if t is None:
         return f
-    v, c = add_current(sog, cog, t.timestamp())
+    v, c = add_current(sog, cog, t.timestamp(), scale)
     g = list(f)
     g[7], g[8] = f"{v:.2f}", f"{c:.1f}"
     return g
+
+
+STRONG_TIDE = 2.0
+"""The ``tide-strong`` variant's current, times the ``tide`` variant's (3 kn)."""
 
 
 def _line_times(lines: list[str]) -> list[float]:
@@ -625,6 +631,18 @@ VARIANTS: tuple[Variant, ...] = (
         lambda text: ["--date", midnight_date(text)],
     ),
     Variant("tide", "nmea", _nm(_tidal_rmc), "a 1.5-kn tidal current turning over 12.42 h"),
+    Variant(
+        "tide-strong",
+        "nmea",
+        _nm(lambda f: _tidal_rmc(f, STRONG_TIDE)),
+        "a 3-kn tidal current (a tidal race, a fjord's narrows)",
+    ),
+    Variant(
+        "tide-gnss-0.5hz",
+        "nmea",
+        lambda text: _thin_gnss(2.0)(_nm(_tidal_rmc)(text)),
+        "the 1.5-kn tide with a GNSS at 0.5 Hz",
+    ),
     Variant("log-lags-2s", "nmea", _lagged(2.0), "the log 2 s behind the GNSS"),
     Variant("log-leads-2s", "nmea", _lagged(-2.0), "the log 2 s ahead of the GNSS"),
     Variant("log-half-rate", "nmea", _vhw_every(2), "every other VHW: the log at half its rate"),

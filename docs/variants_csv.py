@@ -18,17 +18,17 @@ TIDE_PERIOD_S = 44_712.0
 """The ``tide`` variants' period: the semi-diurnal M2 tide's 12.42 h, s."""
 
 
-def tide(t: float) -> tuple[float, float]:
+def tide(t: float, scale: float = 1.0) -> tuple[float, float]:
     """The tidal current the ``tide`` variants add, (north, east) in knots at epoch
-    seconds ``t``: a semi-diurnal ellipse of :data:`TIDE_KN` along north and a third
-    of it across, turning over :data:`TIDE_PERIOD_S`."""
+    seconds ``t``: a semi-diurnal ellipse of ``scale`` × :data:`TIDE_KN` along north and
+    a third of it across, turning over :data:`TIDE_PERIOD_S`."""
     w = 2.0 * math.pi * t / TIDE_PERIOD_S
-    return TIDE_KN * math.cos(w), TIDE_KN / 3.0 * math.sin(w)
+    return scale * TIDE_KN * math.cos(w), scale * TIDE_KN / 3.0 * math.sin(w)
 
 
-def add_current(sog_kn: float, cog_deg: float, t: float) -> tuple[float, float]:
+def add_current(sog_kn: float, cog_deg: float, t: float, scale: float = 1.0) -> tuple[float, float]:
     """A ground velocity (knots, degrees) with :func:`tide`'s current added."""
-    cn, ce = tide(t)
+    cn, ce = tide(t, scale)
     a = math.radians(cog_deg)
     vn, ve = sog_kn * math.cos(a) + cn, sog_kn * math.sin(a) + ce
     return math.hypot(vn, ve), math.degrees(math.atan2(ve, vn)) % 360.0

@@ -209,6 +209,7 @@ def test_a_log_sending_vbw_alone_is_read_from_vbw(tmp_path: Path) -> None:
         ("nmea", "gnss-0.5hz", 2.0),
         ("nmea", "gnss-0.2hz", 5.0),
         ("nmea", "fix-10s", 10.0),
+        ("nmea", "tide-gnss-0.5hz", 2.0),
         ("expedition-csv", "sog-0.5hz", 2.0),
         ("expedition-csv", "sog-0.2hz", 5.0),
     ],
@@ -246,14 +247,15 @@ def test_a_magnetic_heading_without_variation_pairs(name: str, tmp_path: Path) -
     assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
 
 
-def test_the_tide_moves_the_ground_not_the_water(tmp_path: Path) -> None:
-    """The tide variant changes speed and course over ground by the current it adds."""
+@pytest.mark.parametrize(("name", "scale"), [("tide", 1.0), ("tide-strong", rv.STRONG_TIDE)])
+def test_the_tide_moves_the_ground_not_the_water(name: str, scale: float, tmp_path: Path) -> None:
+    """The tide variants change speed and course over ground by the current they add."""
     t = 1.4e9
-    cn, ce = rv.vcsv.tide(t)
-    sog, _cog = rv.add_current(0.0, 0.0, t)
+    cn, ce = rv.vcsv.tide(t, scale)
+    sog, _cog = rv.add_current(0.0, 0.0, t, scale)
     assert sog == pytest.approx(np.hypot(cn, ce))
-    assert np.hypot(cn, ce) <= rv.vcsv.TIDE_KN
-    base, rep, _ = _variant("nmea", "tide", tmp_path)
+    assert np.hypot(cn, ce) <= scale * rv.vcsv.TIDE_KN
+    base, rep, _ = _variant("nmea", name, tmp_path)
     assert rep.sentences == base.sentences
 
 
