@@ -81,8 +81,8 @@ class Preset:
     Attributes:
         name: the ``--preset`` name.
         columns: the column map (``A|B`` alternatives, ``?`` optional).
-        time_format: ``ole``, ``iso``, ``epoch``, ``filetime``, ``auto`` (told by the
-            first time cell) or a ``strptime`` pattern.
+        time_format: ``ole``, ``iso``, ``epoch``, ``epoch_ms``, ``filetime``, ``auto``
+            (told by the first time cell) or a ``strptime`` pattern.
         heading_ref: the heading's reference.
         local_time: whether the times are the logger's local clock (then
             ``--utc-offset`` is needed, and its absence is noted).
@@ -297,6 +297,8 @@ def parse_time(value: str, fmt: str) -> float:
         return int(value) * FILETIME_TICK_S + FILETIME_EPOCH_S
     if fmt == "epoch":
         return float(value)
+    if fmt == "epoch_ms":
+        return float(value) / 1000.0
     t = datetime.fromisoformat(value) if fmt == "iso" else datetime.strptime(value, fmt)
     return (t if t.tzinfo else t.replace(tzinfo=UTC)).timestamp()
 
@@ -323,8 +325,9 @@ TIME_OF_DAY = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d+)?)?")
 
 
 def guess_time_format(value: str) -> str | None:
-    """``auto``: epoch seconds, an OLE date, Windows FILETIME ticks (100 ns since 1601),
-    ISO 8601 or one of :data:`DATE_TIME_PATTERNS`, told by the first time cell."""
+    """``auto``: epoch seconds or milliseconds (a JavaScript or Signal K export), an OLE
+    date, Windows FILETIME ticks (100 ns since 1601), ISO 8601 or one of
+    :data:`DATE_TIME_PATTERNS`, told by the first time cell."""
     try:
         x = float(value)
     except ValueError:
@@ -335,6 +338,8 @@ def guess_time_format(value: str) -> str | None:
         return "iso"
     if 1e8 < x < 1e10:
         return "epoch"
+    if 1e11 < x < 1e13:
+        return "epoch_ms"
     if 1e17 < x < 1e18 and value.isdigit():
         return "filetime"
     if 20_000.0 < x < 80_000.0:

@@ -38,8 +38,8 @@ match in any case, and with a unit after them (``Bsp (kn)``, ``SOG [m/s]``,
 ``stw_kn``: :data:`emlogd.offline.csvmaps.HEADER_UNITS`; a speed's unit is then the
 column's); with a delimiter other than the comma, a comma in a number is a decimal
 comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
-8601, epoch seconds, Windows FILETIME ticks, a day-first date and time or a
-month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each
+8601, epoch seconds or milliseconds, Windows FILETIME ticks, a day-first date and time
+or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each
 of these told by the first time cell), or a ``strptime`` pattern; with a ``date``
 column, a time cell holding a time of day alone is joined to the date with a space
 before parsing. When no row gives a time, the error quotes the first time cell and
@@ -311,7 +311,8 @@ def import_nmea(
 # ------------------------------------------------------------------ CSV exports
 
 TIME_FORMATS_TOLD = (
-    "epoch seconds, OLE days, FILETIME ticks, ISO 8601, day-first dates with 24-h times "
+    "epoch seconds or milliseconds, OLE days, FILETIME ticks, ISO 8601, day-first dates "
+    "with 24-h times "
     "to the second, month-first dates with AM/PM"
 )
 """What ``auto`` tells by itself (:func:`emlogd.offline.csvmaps.guess_time_format`), as
@@ -596,7 +597,7 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
 def _stamp_time(stamp: str, run: _CsvRun) -> float:
     """A time cell (or date + space + time) in epoch seconds, UTC; nan when unreadable.
     The first readable cell of an ``auto`` import tells the format."""
-    if run.fmt in ("ole", "epoch", "auto") and run.delim != ",":
+    if run.fmt in ("ole", "epoch", "epoch_ms", "auto") and run.delim != ",":
         stamp = stamp.replace(",", ".")  # a decimal comma
     if run.fmt == "auto":
         run.fmt = guess_time_format(stamp) or "auto"

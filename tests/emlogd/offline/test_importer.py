@@ -466,6 +466,15 @@ class TestCsv:
         assert vhw.stw_mps == pytest.approx(stw_mps, abs=0.003) and vhw.heading_true_deg == 90
         assert rmc.sog_mps == pytest.approx(sog_mps, abs=0.003) and rmc.cog_true_deg == 95
 
+    def test_epoch_milliseconds_are_told(self, tmp_path: Path) -> None:
+        """A JavaScript or Signal K export's epoch milliseconds: read as such."""
+        src = tmp_path / "log.csv"
+        t0 = datetime(2024, 7, 18, 11, 14, 55, 250_000, tzinfo=UTC).timestamp()
+        ms = round(t0 * 1000)
+        src.write_text(f"timestamp,stw,hdg\n{ms},5.0,90\n{ms + 1000},5.1,91\n")
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.t_start == pytest.approx(t0) and rep.t_end - rep.t_start == 1.0
+
     def test_a_time_it_cannot_tell_is_quoted_with_the_option(self, tmp_path: Path) -> None:
         """Times of minutes alone are no format told by itself: the error quotes the first
         cell and names --time-format, and the pattern given reads them."""
