@@ -74,8 +74,8 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
             )
         why = "the GNSS reference is projected on the hull" if field == "gnss" else "--current"
         return (
-            f"{head}: no heading arrived, and {why} needs one (HDT, HDG, HDM, THS, VHW, "
-            "a DVL's): "
+            f"{head}: no heading arrived, and {why} needs one (HDT, HDG, HDM, THS, $PASHR, "
+            "VHW, a DVL's): "
             "name its port with --heading PORT, or calibrate without --current"
         )
     valid = [r.t_ref[r.ok_ref] for r in recs]
