@@ -10,8 +10,8 @@ only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, R
 without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
 a midnight crossed by GGA times of day; the log 2 s behind or ahead of the GNSS, at
-half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS the
-only heading; VBW instead of VHW; Expedition exports with other column sets
+half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
+$PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
 ``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
 text, ``Date`` and ``Time`` columns) and Expedition's own sparse log (``!Boat``
@@ -534,22 +534,35 @@ def _vhw_twice(text: str) -> str:
     return nl.join(out) + nl
 
 
-def _ths(f: list[str]) -> list[str] | None:
-    """The heading as THS alone (a GNSS compass's true heading): HDG made true with
-    its variation (the model's where it has none), VHW's headings emptied."""
-    k = kind_of(f)
-    if k == "HDG":
-        try:
-            hdg = float(f[1])
-            var = float(f[4]) * (-1.0 if f[5] == "W" else 1.0) if f[4] else 0.0
-        except (ValueError, IndexError):
+def _true_heading_as(make: Callable[[float], list[str]]) -> Callable[[list[str]], list[str] | None]:
+    """The heading as one true-heading sentence alone (``make`` of the heading): HDG
+    made true with its variation (none taken as 0), HDT/HDM dropped, VHW's headings
+    emptied."""
+
+    def fn(f: list[str]) -> list[str] | None:
+        k = kind_of(f)
+        if k == "HDG":
+            try:
+                hdg = float(f[1])
+                var = float(f[4]) * (-1.0 if f[5] == "W" else 1.0) if f[4] else 0.0
+            except (ValueError, IndexError):
+                return None
+            return make((hdg + var) % 360.0)
+        if k in ("HDT", "HDM"):
             return None
-        return ["GPTHS", f"{(hdg + var) % 360.0:.1f}", "A"]
-    if k in ("HDT", "HDM"):
-        return None
-    if k == "VHW" and len(f) > 4:
-        return [f[0], "", "", "", "", *f[5:]]
-    return f
+        if k == "VHW" and len(f) > 4:
+            return [f[0], "", "", "", "", *f[5:]]
+        return f
+
+    return fn
+
+
+def _ths_of(hdg: float) -> list[str]:
+    return ["GPTHS", f"{hdg:.1f}", "A"]
+
+
+def _pashr_of(hdg: float) -> list[str]:
+    return ["PASHR", "", f"{hdg:.2f}", "T", "0.00", "0.00", "0.00", "0.1", "0.1", "0.2", "1", "0"]
 
 
 def _vbw(f: list[str]) -> list[str]:
@@ -656,7 +669,18 @@ VARIANTS: tuple[Variant, ...] = (
         _dropouts(frozenset({"RMC", "GGA", "GLL", "VTG", "ZDA"})),
         "the GNSS silent 30 s every 5 min",
     ),
-    Variant("ths", "nmea", _nm(_ths), "THS, a GNSS compass's true heading, the only heading"),
+    Variant(
+        "ths",
+        "nmea",
+        _nm(_true_heading_as(_ths_of)),
+        "THS, a GNSS compass's true heading, the only heading",
+    ),
+    Variant(
+        "pashr",
+        "nmea",
+        _nm(_true_heading_as(_pashr_of)),
+        "$PASHR, an INS's attitude, the only heading",
+    ),
     Variant("vbw", "nmea", _nm(_vbw), "VBW instead of VHW (a log sending VBW alone)"),
     Variant(
         "set-drift",

@@ -181,10 +181,12 @@ def test_the_log_at_another_rate_or_lag_keeps_its_time(
     assert record_capture(cap, s).raw.size >= 0.85 * rep.sentences["VHW"]
 
 
-def test_a_gnss_compass_ths_alone_pairs(tmp_path: Path) -> None:
-    """THS the only heading: the readings pair with the GNSS reference as with HDG."""
-    _, rep, cap = _variant("nmea", "ths", tmp_path)
-    assert rep.sentences["THS"] > 0 and rep.sentences.get("HDG", 0) == 0
+@pytest.mark.parametrize(("name", "sentence"), [("ths", "THS"), ("pashr", "PASHR")])
+def test_a_gnss_compass_or_an_ins_alone_pairs(name: str, sentence: str, tmp_path: Path) -> None:
+    """THS or $PASHR the only heading: the readings pair with the GNSS reference as with
+    HDG."""
+    _, rep, cap = _variant("nmea", name, tmp_path)
+    assert rep.sentences[sentence] > 0 and rep.sentences.get("HDG", 0) == 0
     s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
     al = record_capture(cap, s).aligned(0.0)
     assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
