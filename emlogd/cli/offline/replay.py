@@ -194,15 +194,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def other_sentences_only(pipeline: Pipeline, config: str) -> list[str]:
     """Per UUT whose configured sentence (``uut_source``) never arrived while another
     of its speed sentences did: why nothing was learnt, and the key that helps (a log
-    sending VBW alone replayed with the default VHW is passed through raw)."""
+    sending VBW alone replayed with the default VHW learns nothing)."""
     out = []
     for name, u in pipeline.uuts.items():
         seen = sorted(set(u.checks) - {u.s.uut_source})
         if seen and u.s.uut_source not in u.checks:
             out.append(
                 f"{name}: no {u.s.uut_source} reading arrived, only {', '.join(seen)}: nothing "
-                f"was learnt and its readings went out raw (set calibration[].uut_source: "
-                f"{seen[0]} in {config})"
+                f"was learnt from them (set calibration[].uut_source: {seen[0]} in {config})"
             )
     return out
 
