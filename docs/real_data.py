@@ -40,6 +40,7 @@ they are also written to ``OUTDIR/rows.json``.
 from __future__ import annotations
 
 import argparse
+import gzip
 import json
 import math
 import re
@@ -107,11 +108,12 @@ BOM = b"\xef\xbb\xbf"
 
 
 def kind(path: Path) -> str | None:
-    """What a file is, from its first lines: one of :data:`KINDS`, or None (not a log)."""
+    """What a file is, from its first lines (a ``.gz`` read through gzip, as ``emlogd
+    import`` reads it): one of :data:`KINDS`, or None (not a log)."""
     try:
-        with open(path, "rb") as f:
+        with gzip.open(path, "rb") if path.suffix == ".gz" else open(path, "rb") as f:
             raw = f.read(KIND_SCAN_BYTES)
-    except OSError:
+    except (OSError, EOFError):
         return None
     head = raw.removeprefix(BOM).decode("latin-1", errors="replace")
     lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
@@ -433,7 +435,13 @@ def run(src: Path, out: Path, only: list[str]) -> list[Row]:
     files = sorted(p for p in src.iterdir() if p.is_file())
     for path in files:
         what = kind(path)
-        if what is None or path.suffix == ".py" or path.name.endswith(".md"):
+        if path.suffix == ".py" or path.name.endswith(".md"):
+            continue
+        if what is None:
+            say(
+                f"{path.name}: skipped, not a log (no NMEA sentence, no table header among "
+                f"its first {KIND_SCAN_LINES} lines)"
+            )
             continue
         name = path.name.rsplit(".", 1)[0]
         if only and not any(o in name for o in only):
