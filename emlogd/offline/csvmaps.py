@@ -224,10 +224,13 @@ HEADER_UNITS: dict[str, float | None] = {
     "degrees": None,
     "°": None,
 }
-"""Units a column name may carry (``Bsp (kn)``, ``SOG [m/s]``, ``stw_kn``): a speed's
-factor to m/s (it overrides the map's), or None for an angle's."""
+"""Units a column name may carry (``Bsp (kn)``, ``SOG [m/s]``, ``stw_kn``, ``SOG kts``;
+in any case): a speed's factor to m/s (it overrides the map's), or None for an
+angle's."""
 
-_UNIT_IN_NAME = re.compile(r"(?P<name>.+?)(?:\s*[(\[](?P<a>[^)\]]+)[)\]]|_(?P<b>[a-z/]+))")
+_UNIT_IN_NAME = re.compile(
+    r"(?P<name>.+?)(?:\s*[(\[](?P<a>[^)\]]+)[)\]]|[_ ](?P<b>[a-z/°]+))", re.IGNORECASE
+)
 
 
 def _bare(name: str) -> tuple[str, float | None]:

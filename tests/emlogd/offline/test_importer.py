@@ -448,6 +448,7 @@ class TestCsv:
             ("Bsp (kn)", "Sog [m/s]", 3.2 * KNOT_MPS, 2.0),
             ("BSP [kts]", "SOG (km/h)", 3.2 * KNOT_MPS, 2.0 / 3.6),
             ("bsp_mps", "sog_kn", 3.2, 2.0 * KNOT_MPS),
+            ("BSP KTS", "SOG M/S", 3.2 * KNOT_MPS, 2.0),
         ],
     )
     def test_a_unit_after_a_column_name_is_the_columns(
