@@ -10,8 +10,8 @@ heading-against-course check of :mod:`emlogd.pipeline.variation`). From it:
 - :func:`heading_refusal`: a heading the check flagged (its offset from the course
   through the water beyond what leeway explains) makes the calibration refuse, with
   the figures;
-- :func:`why_no_sample`: when no reading has a reference, the cause — no reference
-  sample at all (a log without GNSS fixes); no heading; a magnetic heading without a
+- :func:`why_no_sample`: when no reading has a reference, the cause — no reading of
+  the log at all; no reference sample at all (a log without GNSS fixes); no heading; a magnetic heading without a
   variation; a reference too sparse for the alignment — and what helps.
 """
 
@@ -62,6 +62,12 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
     """The cause, and the option that helps, when no reading has a reference at ``lag_s``."""
     field = settings.reference_field
     head = f"no {settings.port} sample has a valid {settings.reference_port} reference"
+    if not any(r.raw.size for r in recs):
+        return (
+            f"{head}: no {settings.uut_source} reading of the log arrived on port "
+            f"{settings.port!r} at all (a speed log sends VHW or VBW; a table needs its "
+            "speed-through-water column)"
+        )
     if field == "gnss" and not any(r.t_ref.size for r in recs):
         return f"{head}: no GNSS fix arrived at all; the calibration needs {GNSS_NEEDS}"
     if needs_heading(settings) and not any(r.heading_info.get("port") for r in recs):

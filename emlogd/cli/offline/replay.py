@@ -192,13 +192,21 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def other_sentences_only(pipeline: Pipeline, config: str) -> list[str]:
-    """Per UUT whose configured sentence (``uut_source``) never arrived while another
-    of its speed sentences did: why nothing was learnt, and the key that helps (a log
-    sending VBW alone replayed with the default VHW learns nothing)."""
+    """Per UUT that sent no speed reading at all, or whose configured sentence
+    (``uut_source``) never arrived while another of its speed sentences did: why nothing
+    was learnt, and the key that helps (a log sending VBW alone replayed with the
+    default VHW learns nothing)."""
     out = []
     for name, u in pipeline.uuts.items():
         seen = sorted(set(u.checks) - {u.s.uut_source})
-        if seen and u.s.uut_source not in u.checks:
+        if not u.checks:
+            oor = u.cal.counters.out_of_range
+            why = f"all {oor} outside the log's range" if oor else "none arrived"
+            out.append(
+                f"{name}: no speed reading of the log (VHW, VBW) to use ({why}): nothing "
+                "was learnt or corrected"
+            )
+        elif seen and u.s.uut_source not in u.checks:
             out.append(
                 f"{name}: no {u.s.uut_source} reading arrived, only {', '.join(seen)}: nothing "
                 f"was learnt from them (set calibration[].uut_source: {seen[0]} in {config})"
