@@ -199,9 +199,9 @@ def other_sentences_only(pipeline: Pipeline, config: str) -> list[str]:
     out = []
     for name, u in pipeline.uuts.items():
         seen = sorted(set(u.checks) - {u.s.uut_source})
-        if not u.checks:
-            oor = u.cal.counters.out_of_range
-            why = f"all {oor} outside the log's range" if oor else "none arrived"
+        oor, late = u.cal.counters.out_of_range, u.cal.counters.backlog
+        if not u.checks and not late:
+            why = f"all {oor} outside the log's range" if oor else "none decoded"
             out.append(
                 f"{name}: no speed reading of the log (VHW, VBW) to use ({why}): nothing "
                 "was learnt or corrected"

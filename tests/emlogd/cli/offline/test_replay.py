@@ -171,7 +171,7 @@ def test_the_summary_has_a_two_axis_line_per_two_axis_uut() -> None:
     [
         ("VBW", "emlog1: no VHW reading arrived, only VBW: nothing was learnt from them "
          "(set calibration[].uut_source: VBW"),
-        ("none", "emlog1: no speed reading of the log (VHW, VBW) to use (none arrived)"),
+        ("none", "emlog1: no speed reading of the log (VHW, VBW) to use (none decoded)"),
         ("VHW", None),
     ],
 )  # fmt: skip
