@@ -9,14 +9,19 @@ without any variation in the log (HDG with empty variation fields, HDM, VHW magn
 only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, RMC
 without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
-a midnight crossed by GGA times of day; Expedition exports with other column sets
+a midnight crossed by GGA times of day; the log 2 s behind or ahead of the GNSS, at
+half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
+$PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
-``;`` with decimal commas, quoted cells, a byte-order mark) and Expedition's own sparse
-log (``!Boat`` header, channel numbers, ``channel,value`` pairs); the logger's TSV
-without its banner, with its local time given by ``--utc-offset``, with rows every 5 s,
-under its other firmware's column names after a banner of settings;
-and a strong tidal current (:func:`tide`) added to the GNSS of an NMEA log and of an
-Expedition export: the water-frame calibration should not move.
+``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
+text, ``Date`` and ``Time`` columns) and Expedition's own sparse log (``!Boat``
+header, channel numbers, ``channel,value`` pairs); the logger's TSV without its
+banner, with its local time given by ``--utc-offset``, with rows every 5 s, under its
+other firmware's column names after a banner of settings, with its date in full or
+year first, its time with tenths;
+and a strong tidal current (:func:`tide`) added to the GNSS of an NMEA log (also at
+3 kn, and with the GNSS at 0.5 Hz) and of an Expedition export: the water-frame
+calibration should not move.
 
 Each variant is imported, calibrated (LS and KF, ``--ref-field gnss --current``, no
 ``--variation``) and replayed (``examples/emlogd-gnss.yaml``, ``lag: auto``), and its
@@ -31,7 +36,9 @@ run's and :data:`WINDOW_TOLERANCE` by more than :data:`WINDOW_SLACK`.
 from __future__ import annotations
 
 import argparse
+import bisect
 import importlib
+import itertools
 import json
 import math
 import re
@@ -77,6 +84,15 @@ WINDOW_SLACK = 0.05
 
 GAP_S = 300.0
 """The gap variant removes this many seconds of the log's middle."""
+
+LAG_MATCH_S = 1.5
+"""The lag variants take the reading nearest the lagged time within this, s."""
+
+DROPOUT_EVERY_S = 300.0
+"""The dropout variants lose their sentences once every this many seconds, s."""
+
+DROPOUT_S = 30.0
+"""For this long, s."""
 
 # ------------------------------------------------------------------ NMEA helpers
 
@@ -388,8 +404,9 @@ def first_date(text: str) -> str:
     return t.date().isoformat()
 
 
-def _tidal_rmc(f: list[str]) -> list[str]:
-    """RMC's speed and course over ground with :func:`tide`'s current added."""
+def _tidal_rmc(f: list[str], scale: float = 1.0) -> list[str]:
+    """RMC's speed and course over ground with :func:`tide`'s current (times ``scale``)
+    added."""
     if kind_of(f) != "RMC" or len(f) < 9:
         return f
     t = _rmc_time(f)
@@ -399,10 +416,160 @@ def _tidal_rmc(f: list[str]) -> list[str]:
         return f
     if t is None:
         return f
-    v, c = add_current(sog, cog, t.timestamp())
+    v, c = add_current(sog, cog, t.timestamp(), scale)
     g = list(f)
     g[7], g[8] = f"{v:.2f}", f"{c:.1f}"
     return g
+
+
+STRONG_TIDE = 2.0
+"""The ``tide-strong`` variant's current, times the ``tide`` variant's (3 kn)."""
+
+
+def _line_times(lines: list[str]) -> list[float]:
+    """Each line's time as ``emlogd import`` gives it: spread evenly between the RMC
+    fixes around it (nan before the first fix and after the last)."""
+    fixes = [(i, t) for i, t in _fix_seconds("\n".join(lines))]
+    out = [math.nan] * len(lines)
+    for (i0, t0), (i1, t1) in itertools.pairwise(fixes):
+        for i in range(i0, i1):
+            out[i] = t0 + (t1 - t0) * (i - i0) / (i1 - i0)
+    return out
+
+
+def _lagged(lag_s: float) -> Callable[[str], str]:
+    """The log's speed (VHW knots and km/h) replaced by its reading ``lag_s`` earlier
+    (a log that lags the GNSS by ``lag_s``; negative: one that leads it), the nearest
+    VHW within :data:`LAG_MATCH_S`; a VHW without one is dropped."""
+
+    def apply(text: str) -> str:
+        nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+        lines = text.splitlines()
+        times = _line_times(lines)
+        vhw = [
+            (times[i], f)
+            for i, ln in enumerate(lines)
+            if (f := fields(ln)) is not None and kind_of(f) == "VHW" and math.isfinite(times[i])
+        ]
+        vt = [t for t, _ in vhw]
+        out: list[str] = []
+        for i, ln in enumerate(lines):
+            f = fields(ln)
+            if f is None or kind_of(f) != "VHW" or not math.isfinite(times[i]):
+                out.append(ln)
+                continue
+            want = times[i] - lag_s
+            k = bisect.bisect_left(vt, want)
+            near = min((j for j in (k - 1, k) if 0 <= j < len(vt)), key=lambda j: abs(vt[j] - want))
+            if abs(vt[near] - want) > LAG_MATCH_S:
+                continue
+            g, src = list(f), vhw[near][1]
+            g[5:9] = src[5:9]
+            out.append(sentence(",".join(g), ln[0]))
+        return nl.join(out) + nl
+
+    return apply
+
+
+def _dropouts(kinds: frozenset[str]) -> Callable[[str], str]:
+    """The named sentences left out for the last :data:`DROPOUT_S` of every
+    :data:`DROPOUT_EVERY_S` (a log or a receiver losing its output a while)."""
+
+    def apply(text: str) -> str:
+        nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+        lines = text.splitlines()
+        times = _line_times(lines)
+        t0 = next((t for t in times if math.isfinite(t)), 0.0)
+        out = [
+            ln
+            for ln, t in zip(lines, times, strict=True)
+            if not (
+                (f := fields(ln)) is not None
+                and kind_of(f) in kinds
+                and math.isfinite(t)
+                and (t - t0) % DROPOUT_EVERY_S > DROPOUT_EVERY_S - DROPOUT_S
+            )
+        ]
+        return nl.join(out) + nl
+
+    return apply
+
+
+def _vhw_every(n: int) -> Callable[[str], str]:
+    """Every ``n``-th VHW kept (a log at 1/n of its rate)."""
+
+    def apply(text: str) -> str:
+        seen = [0]
+
+        def fn(f: list[str]) -> list[str] | None:
+            if kind_of(f) != "VHW":
+                return f
+            seen[0] += 1
+            return f if seen[0] % n == 0 else None
+
+        return _map_nmea(text, fn)
+
+    return apply
+
+
+def _vhw_twice(text: str) -> str:
+    """Each fix interval's first VHW sent again halfway through the interval's lines (a
+    log at twice the GNSS's rate)."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    out: list[str] = []
+    block: list[str] = []
+
+    def flush() -> None:
+        again = [ln for ln in block if (f := fields(ln)) is not None and kind_of(f) == "VHW"]
+        mid = len(block) // 2
+        out.extend(block[:mid] + again[:1] + block[mid:])
+
+    for ln in text.splitlines():
+        f = fields(ln)
+        if f is not None and kind_of(f) == "RMC":
+            flush()
+            block = []
+        block.append(ln)
+    flush()
+    return nl.join(out) + nl
+
+
+def _true_heading_as(make: Callable[[float], list[str]]) -> Callable[[list[str]], list[str] | None]:
+    """The heading as one true-heading sentence alone (``make`` of the heading): HDG
+    made true with its variation (none taken as 0), HDT/HDM dropped, VHW's headings
+    emptied."""
+
+    def fn(f: list[str]) -> list[str] | None:
+        k = kind_of(f)
+        if k == "HDG":
+            try:
+                hdg = float(f[1])
+                var = float(f[4]) * (-1.0 if f[5] == "W" else 1.0) if f[4] else 0.0
+            except (ValueError, IndexError):
+                return None
+            return make((hdg + var) % 360.0)
+        if k in ("HDT", "HDM"):
+            return None
+        if k == "VHW" and len(f) > 4:
+            return [f[0], "", "", "", "", *f[5:]]
+        return f
+
+    return fn
+
+
+def _ths_of(hdg: float) -> list[str]:
+    return ["GPTHS", f"{hdg:.1f}", "A"]
+
+
+def _pashr_of(hdg: float) -> list[str]:
+    return ["PASHR", "", f"{hdg:.2f}", "T", "0.00", "0.00", "0.00", "0.1", "0.1", "0.2", "1", "0"]
+
+
+def _vbw(f: list[str]) -> list[str]:
+    """VHW's speed sent as VBW's longitudinal water speed (the ground pair empty)."""
+    if kind_of(f) == "VHW" and len(f) > 5 and f[5]:
+        return [f[0][:2] + "VBW", f[5], "0.00", "A", "", "", "V"]
+    return f
 
 
 # ------------------------------------------------------------------ the variants
@@ -478,6 +645,44 @@ VARIANTS: tuple[Variant, ...] = (
     ),
     Variant("tide", "nmea", _nm(_tidal_rmc), "a 1.5-kn tidal current turning over 12.42 h"),
     Variant(
+        "tide-strong",
+        "nmea",
+        _nm(lambda f: _tidal_rmc(f, STRONG_TIDE)),
+        "a 3-kn tidal current (a tidal race, a fjord's narrows)",
+    ),
+    Variant(
+        "tide-gnss-0.5hz",
+        "nmea",
+        lambda text: _thin_gnss(2.0)(_nm(_tidal_rmc)(text)),
+        "the 1.5-kn tide with a GNSS at 0.5 Hz",
+    ),
+    Variant("log-lags-2s", "nmea", _lagged(2.0), "the log 2 s behind the GNSS"),
+    Variant("log-leads-2s", "nmea", _lagged(-2.0), "the log 2 s ahead of the GNSS"),
+    Variant("log-half-rate", "nmea", _vhw_every(2), "every other VHW: the log at half its rate"),
+    Variant("log-twice", "nmea", _vhw_twice, "a VHW twice per fix: the log at twice its rate"),
+    Variant(
+        "log-dropouts", "nmea", _dropouts(frozenset({"VHW"})), "the log silent 30 s every 5 min"
+    ),
+    Variant(
+        "gnss-dropouts",
+        "nmea",
+        _dropouts(frozenset({"RMC", "GGA", "GLL", "VTG", "ZDA"})),
+        "the GNSS silent 30 s every 5 min",
+    ),
+    Variant(
+        "ths",
+        "nmea",
+        _nm(_true_heading_as(_ths_of)),
+        "THS, a GNSS compass's true heading, the only heading",
+    ),
+    Variant(
+        "pashr",
+        "nmea",
+        _nm(_true_heading_as(_pashr_of)),
+        "$PASHR, an INS's attitude, the only heading",
+    ),
+    Variant("vbw", "nmea", _nm(_vbw), "VBW instead of VHW (a log sending VBW alone)"),
+    Variant(
         "set-drift",
         "expedition-csv",
         vcsv.rename({"iSet": "Set", "iDrift": "Drift"}),
@@ -504,6 +709,18 @@ VARIANTS: tuple[Variant, ...] = (
     Variant("sog-0.2hz", "expedition-csv", vcsv.sparse_gnss(5.0), "Sog/Cog written every 5 s"),
     Variant("tide", "expedition-csv", vcsv.columns(vcsv.tidal_cells), "a 1.5-kn tidal current"),
     Variant(
+        "utc-text-us",
+        "expedition-csv",
+        vcsv.columns(vcsv.utc_text("%m/%d/%Y %I:%M:%S %p")),
+        "Utc as US-English Windows writes a date and time (month first, AM/PM)",
+    ),
+    Variant(
+        "date-time-columns",
+        "expedition-csv",
+        vcsv.columns(vcsv.date_time_columns),
+        "Date and Time columns instead of Utc (a spreadsheet's re-export)",
+    ),
+    Variant(
         "sparse-log",
         "expedition-csv",
         vcsv.expedition_log,
@@ -524,6 +741,13 @@ VARIANTS: tuple[Variant, ...] = (
         "the logger's other firmware: BS/HDG/SOG/COG names, a settings banner, '-' cells",
     ),
     Variant("rows-0.2hz", "logger-tsv", vcsv.thin_rows(5.0), "the logger's rows every 5 s"),
+    Variant(
+        "date-in-full", "logger-tsv", vcsv.tsv_dates("%d/%m/%Y"), "the logger's date dd/mm/yyyy"
+    ),
+    Variant(
+        "date-year-first", "logger-tsv", vcsv.tsv_dates("%Y/%m/%d"), "the logger's date yyyy/mm/dd"
+    ),
+    Variant("time-fraction", "logger-tsv", vcsv.tsv_fraction, "the logger's time with tenths"),
 )
 """Every variant (module docstring), by the kind of log it rewrites."""
 

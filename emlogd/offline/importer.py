@@ -34,13 +34,18 @@ written ``Name[mps]``), or a preset chosen by the header (:data:`PRESETS`). The
 delimiter (comma, tab, semicolon, bar) and the header line are found in the file:
 the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds the
 mapped columns, so a banner before it is passed over (and counted). Column names
-match in any case; with a delimiter other than the comma, a comma in a number is a
-decimal comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
-8601, epoch seconds, Windows FILETIME ticks, a day-first date and time
-(:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each of these told by the first
-time cell), or a ``strptime`` pattern; with a ``date`` column, date and time are
-joined with a space before parsing. Times without a zone are UTC unless ``--utc-offset`` says the logger
-kept local time. Positions are decimal degrees or ``ddmm.mmmmN``/``dddmm.mmmmE``.
+match in any case, and with a unit after them (``Bsp (kn)``, ``SOG [m/s]``,
+``stw_kn``: :data:`emlogd.offline.csvmaps.HEADER_UNITS`; a speed's unit is then the
+column's); with a delimiter other than the comma, a comma in a number is a decimal
+comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
+8601, epoch seconds or milliseconds, Windows FILETIME ticks, a day-first date and time
+or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each
+of these told by the first time cell), or a ``strptime`` pattern; with a ``date``
+column, a time cell holding a time of day alone is joined to the date with a space
+before parsing. When no row gives a time, the error quotes the first time cell and
+asks for ``--time-format``. Times without a zone are UTC unless ``--utc-offset`` says
+the logger kept local time. Positions are decimal degrees or
+``ddmm.mmmmN``/``dddmm.mmmmE``.
 Expedition's own sparse log (a ``!Boat`` line of names, a ``!boat`` line of channel
 numbers, rows of ``channel,value`` pairs) is told by its header and read as the rows
 of its flat export (:mod:`emlogd.offline.importer_sparse`); its times are OLE dates or
@@ -105,6 +110,7 @@ from emlogd.offline.csvmaps import (
     LIMITS,
     LOGGER_TSV,
     PRESETS,
+    TIME_OF_DAY,
     Col,
     HeadingRef,
     Preset,
@@ -304,6 +310,14 @@ def import_nmea(
 
 # ------------------------------------------------------------------ CSV exports
 
+TIME_FORMATS_TOLD = (
+    "epoch seconds or milliseconds, OLE days, FILETIME ticks, ISO 8601, day-first dates "
+    "with 24-h times "
+    "to the second, month-first dates with AM/PM"
+)
+"""What ``auto`` tells by itself (:func:`emlogd.offline.csvmaps.guess_time_format`), as
+the import's error names it."""
+
 CARRY_S = 10.0
 """A group's other cells are taken as last written for at most this long, s."""
 
@@ -369,6 +383,8 @@ class _CsvRun:
         default_factory=lambda: {name: _Group(keys) for name, keys in GROUPS.items()}
     )
     t_prev: float = -math.inf
+    bad_stamp: str = ""
+    """The first time cell that could not be read (quoted when no row gives a time)."""
 
     @property
     def report(self) -> ImportReport:
@@ -504,10 +520,17 @@ def _finish_csv(path: str | Path, run: _CsvRun) -> None:
     if run.sink.check.n:
         report.heading_check = run.sink.check.as_dict()
     if report.written == 0:
+        why = ""
+        if report.skipped["bad_time"] and run.bad_stamp:
+            why = (
+                f"; the time cells (the first {run.bad_stamp!r}) are in no format told by "
+                f"itself ({TIME_FORMATS_TOLD}): give --time-format PATTERN "
+                "(a strptime pattern, e.g. '%m/%d/%Y %H:%M:%S')"
+            )
         raise ImportFormatError(
             f"{path}: no row with a time and a speed through the water "
             f"(skipped: {reasons(report.skipped) or 'none'}; "
-            f"cells: {reasons(report.cells) or 'none'})"
+            f"cells: {reasons(report.cells) or 'none'}){why}"
         )
 
 
@@ -551,14 +574,15 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
     unreadable one, one outside :data:`YEARS` or one before the row before."""
     stamp = cell(row, run.cols["time"].index)
     date_col = run.cols.get("date")
-    if date_col is not None:
+    if date_col is not None and TIME_OF_DAY.fullmatch(stamp):
         day = cell(row, date_col.index)
-        stamp = f"{day} {stamp}" if day and stamp else ""
+        stamp = f"{day} {stamp}" if day else ""
     t = _stamp_time(stamp, run) if stamp else math.nan
     if not stamp:
         reason = "no_time"
     elif not math.isfinite(t):
         reason = "bad_time"
+        run.bad_stamp = run.bad_stamp or stamp
     elif not within_years(t):
         reason = "time_out_of_range"
     elif t < run.t_prev:
@@ -573,7 +597,7 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
 def _stamp_time(stamp: str, run: _CsvRun) -> float:
     """A time cell (or date + space + time) in epoch seconds, UTC; nan when unreadable.
     The first readable cell of an ``auto`` import tells the format."""
-    if run.fmt in ("ole", "epoch", "auto") and run.delim != ",":
+    if run.fmt in ("ole", "epoch", "epoch_ms", "auto") and run.delim != ",":
         stamp = stamp.replace(",", ".")  # a decimal comma
     if run.fmt == "auto":
         run.fmt = guess_time_format(stamp) or "auto"

@@ -410,6 +410,82 @@ class TestCsv:
         rmc = [x for r in CaptureReader(tmp_path / "o.cap") for x in dec.feed(r.data)]
         assert [x.variation_deg for x in rmc if isinstance(x, Rmc)] == [-3.5, -3.5]
 
+    @pytest.mark.parametrize(
+        "day", ["08/07/17", "08/07/2017", "2017/07/08", "2017-07-08", "08.07.2017"]
+    )
+    @pytest.mark.parametrize("clock", ["12:39:06", "12:39:06.0"])
+    def test_logger_tsv_dates_of_any_kind(self, tmp_path: Path, day: str, clock: str) -> None:
+        """The logger's Date and Time in another firmware's or a spreadsheet's writing
+        (the year in full, year first, dots, fractions of a second) are told by the first
+        row, as any automatic time: the same instant."""
+        src = tmp_path / "log.tsv"
+        src.write_text(
+            "Date\tTime\tBoatspeed\tHeading\tExt_SOG\tExt_COG\n"
+            f"{day}\t{clock}\t5.10\t309\t4.10\t312\n"
+        )
+        rep = import_csv(src, tmp_path / "o.cap", utc_offset_h=2.0)
+        assert rep.preset == "logger-tsv"
+        assert rep.t_start == datetime(2017, 7, 8, 10, 39, 6, tzinfo=UTC).timestamp()
+
+    @pytest.mark.parametrize(
+        ("day", "clock"),
+        [("13/06/2005", "12:00:01"), ("2005-06-13", "12:00:01"), ("", "2005-06-13T12:00:01")],
+    )
+    def test_a_plain_table_joins_its_date_to_a_time_of_day(
+        self, tmp_path: Path, day: str, clock: str
+    ) -> None:
+        """A plain table with Date and Time columns: a time of day is joined to the date;
+        a time cell that holds its own date is read alone."""
+        src = tmp_path / "log.csv"
+        src.write_text(f"Date,Time,Bsp,Hdg,Sog,Cog\n{day},{clock},3.2,90,3.4,95\n")
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.preset == "generic"
+        assert rep.t_start == datetime(2005, 6, 13, 12, 0, 1, tzinfo=UTC).timestamp()
+
+    @pytest.mark.parametrize(
+        ("bsp", "sog", "stw_mps", "sog_mps"),
+        [
+            ("Bsp (kn)", "Sog [m/s]", 3.2 * KNOT_MPS, 2.0),
+            ("BSP [kts]", "SOG (km/h)", 3.2 * KNOT_MPS, 2.0 / 3.6),
+            ("bsp_mps", "sog_kn", 3.2, 2.0 * KNOT_MPS),
+            ("BSP KTS", "SOG M/S", 3.2 * KNOT_MPS, 2.0),
+        ],
+    )
+    def test_a_unit_after_a_column_name_is_the_columns(
+        self, tmp_path: Path, bsp: str, sog: str, stw_mps: float, sog_mps: float
+    ) -> None:
+        """Column names with their unit after them match the preset's names, and a
+        speed's unit is the column's (knots, m/s, km/h); an angle's is degrees."""
+        src = tmp_path / "log.csv"
+        src.write_text(f"Utc,{bsp},Hdg (deg),{sog},Cog (deg)\n{OLE_2005},3.2,90,2.0,95\n")
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.preset == "expedition"
+        dec = make_decoder("nmea0183", "nmea")
+        recs = [x for r in CaptureReader(tmp_path / "o.cap") for x in dec.feed(r.data)]
+        (vhw,) = [x for x in recs if isinstance(x, Vhw)]
+        (rmc,) = [x for x in recs if isinstance(x, Rmc)]
+        assert vhw.stw_mps == pytest.approx(stw_mps, abs=0.003) and vhw.heading_true_deg == 90
+        assert rmc.sog_mps == pytest.approx(sog_mps, abs=0.003) and rmc.cog_true_deg == 95
+
+    def test_epoch_milliseconds_are_told(self, tmp_path: Path) -> None:
+        """A JavaScript or Signal K export's epoch milliseconds: read as such."""
+        src = tmp_path / "log.csv"
+        t0 = datetime(2024, 7, 18, 11, 14, 55, 250_000, tzinfo=UTC).timestamp()
+        ms = round(t0 * 1000)
+        src.write_text(f"timestamp,stw,hdg\n{ms},5.0,90\n{ms + 1000},5.1,91\n")
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.t_start == pytest.approx(t0) and rep.t_end - rep.t_start == 1.0
+
+    def test_a_time_it_cannot_tell_is_quoted_with_the_option(self, tmp_path: Path) -> None:
+        """Times of minutes alone are no format told by itself: the error quotes the first
+        cell and names --time-format, and the pattern given reads them."""
+        src = tmp_path / "log.csv"
+        src.write_text("Utc,Bsp,Hdg\n13/06/2005 12:00,3.2,90\n13/06/2005 12:01,3.3,91\n")
+        with pytest.raises(ImportFormatError, match=r"'13/06/2005 12:00'.*--time-format"):
+            import_csv(src, tmp_path / "o.cap")
+        rep = import_csv(src, tmp_path / "p.cap", time_format="%d/%m/%Y %H:%M")
+        assert rep.t_end - rep.t_start == 60.0
+
     @pytest.mark.parametrize(("error", "flagged"), [(0.0, False), (20.0, True)])
     def test_the_heading_is_checked_against_the_course(
         self, tmp_path: Path, error: float, flagged: bool
