@@ -19,14 +19,15 @@ the unknowns the window refuses are held at their prior as in least squares.
 
 **Without the misalignment, no transverse figures** (:func:`hold_without_misalignment`).
 Where α is refused, the transverse scale and bias are held at their prior too (the
-ideal sensor's 1 and 0: the athwart reading passes as read), each with the reason. The
-athwart reading is ``(1 + m_t)·(w − sin α·u) + b_t``: with α held, a fitted scale and
-bias take the phantom leeway ``−sin α·u`` at the training data's forward speeds and
-are wrong at any other (trained on one-way circles, the scale held at the forward
-axis's and the bias so fitted made the athwart speed worse than raw on three of the
-five trajectories of ``emlogd simulate``). Inside the fit they stay free (the scale
-tied to the forward one, :data:`TIE_HELD_SCALE`), so that the athwart axis still
-tells the current across the hull and the longitudinal fit keeps its benefit.
+ideal sensor's gain 1 and bias 0: the athwart reading passes as read), each with the
+reason. The athwart reading is ``(1 + m_t)·(w − sin α·u) + b_t``: with α held, a
+fitted scale and bias take the phantom leeway ``−sin α·u`` at the training data's
+forward speeds and are wrong at any other (on the one-way circles of ``emlogd
+simulate``, a scale tied to the forward axis's and a bias so fitted make the athwart
+speed worse than raw on three of its five trajectories). Inside the fit they stay
+free (the scale tied to the forward one, :data:`TIE_HELD_SCALE`), so that the
+athwart axis still tells the current across the hull and the longitudinal fit keeps
+that benefit.
 
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """

@@ -184,7 +184,7 @@ class TwoAxisLearner:
         f = self.sup.applied
         if f is None or not self.s.apply:
             return None
-        if self.sup.forward_own and f.lon is not None and raw_l_mps is not None:
+        if self.forward_on() and raw_l_mps is not None:
             u, w = f.hull_frame_own(raw_l_mps, athwart_mps)
         else:
             u, w = f.hull_frame(forward_mps, athwart_mps)
@@ -197,11 +197,17 @@ class TwoAxisLearner:
         supervisor lets them correct the forward speed and that reading is fresh
         (:data:`ATHWART_FRESH_S`); else ``one_axis_mps``, the one-axis calibration's."""
         f, last = self.sup.applied, self.athwart
-        if f is None or f.lon is None or raw_l_mps is None or last is None:
+        if f is None or not self.forward_on() or raw_l_mps is None or last is None:
             return one_axis_mps
-        if not (self.s.apply and self.sup.forward_own) or abs(t - last[0]) > ATHWART_FRESH_S:
+        if abs(t - last[0]) > ATHWART_FRESH_S:
             return one_axis_mps
         return f.hull_frame_own(raw_l_mps, last[1])[0]
+
+    def forward_on(self) -> bool:
+        """Whether the forward speed goes out by the applied figures' own longitudinal
+        parameters (applied, let by the supervisor, ``apply`` on)."""
+        f = self.sup.applied
+        return f is not None and f.lon is not None and self.sup.forward_own and self.s.apply
 
     # -- learning -----------------------------------------------------------
 
@@ -340,7 +346,7 @@ class TwoAxisLearner:
             "fits": self.fits,
             "fit_failures": self.fit_failures,
             "rmse_t": {k: (None if math.isnan(v) else v) for k, v in sup.last_scores.items()},
-            "forward": "two_axis" if sup.applied is not None and sup.forward_own else "one_axis",
+            "forward": "two_axis" if self.forward_on() else "one_axis",
             "rmse_l": {k: (None if math.isnan(v) else v) for k, v in sup.forward_scores.items()},
             "not_learnt": dict(self.counts),
         }
