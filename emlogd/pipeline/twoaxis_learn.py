@@ -56,6 +56,7 @@ from calib.twoaxis import (
 )
 from drivers.framing import with_checksum
 from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.integrity import emitted_speed
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor, lon_of_fit
 
@@ -184,8 +185,13 @@ class TwoAxisLearner:
         f = self.sup.applied
         if f is None or not self.s.apply:
             return None
-        if self.forward_on() and raw_l_mps is not None:
-            u, w = f.hull_frame_own(raw_l_mps, athwart_mps)
+        own = (
+            None
+            if raw_l_mps is None or not self.forward_on()
+            else self._own(raw_l_mps, athwart_mps)
+        )
+        if own is not None:
+            u, w = own
         else:
             u, w = f.hull_frame(forward_mps, athwart_mps)
         self.leeway_deg = math.degrees(math.atan2(w, u)) if u or w else 0.0
@@ -195,13 +201,25 @@ class TwoAxisLearner:
         """A VHW reading's forward speed: by the applied figures' own longitudinal
         parameters, turned back with the last VBW's athwart reading, where the
         supervisor lets them correct the forward speed and that reading is fresh
-        (:data:`ATHWART_FRESH_S`); else ``one_axis_mps``, the one-axis calibration's."""
+        (:data:`ATHWART_FRESH_S`); else ``one_axis_mps``, the one-axis calibration's
+        (also when ``raw_l_mps`` is None: the pipeline passes None while the one-axis
+        supervisor sends raw, so a change it detects withdraws both)."""
         f, last = self.sup.applied, self.athwart
         if f is None or not self.forward_on() or raw_l_mps is None or last is None:
             return one_axis_mps
         if abs(t - last[0]) > ATHWART_FRESH_S:
             return one_axis_mps
-        return f.hull_frame_own(raw_l_mps, last[1])[0]
+        own = self._own(raw_l_mps, last[1])
+        return one_axis_mps if own is None else own[0]
+
+    def _own(self, raw_l_mps: float, athwart_mps: float) -> tuple[float, float] | None:
+        """The hull-frame speeds by the applied figures' own longitudinal parameters, the
+        forward one under the low-speed and range policy the one-axis output obeys
+        (:func:`~emlogd.pipeline.integrity.emitted_speed`); None where that is no number."""
+        assert self.sup.applied is not None
+        u, w = self.sup.applied.hull_frame_own(raw_l_mps, athwart_mps)
+        u = emitted_speed(u, raw_l_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
+        return None if math.isnan(u) else (u, w)
 
     def forward_on(self) -> bool:
         """Whether the forward speed goes out by the applied figures' own longitudinal

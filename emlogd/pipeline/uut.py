@@ -224,6 +224,14 @@ class UutCalibration:
         self.sup.applied = p
 
     @property
+    def emitting(self) -> bool:
+        """Whether a reading goes out corrected by the applied calibration: one applied,
+        ``apply`` on, not held by the change detector, the log without a fault (else it
+        goes out raw, or not at all)."""
+        sup = self.sup
+        return sup.applied is not None and self.s.apply and not sup.held and not sup.health.fault
+
+    @property
     def applied_std(self) -> dict[str, float | None]:
         """The applied calibration's standard deviations."""
         return self.sup.applied_std

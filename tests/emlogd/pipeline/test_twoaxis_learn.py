@@ -185,15 +185,19 @@ def test_saved_figures_are_restored_checked_and_reset() -> None:
 
 
 def test_vhw_and_vbw_take_the_figures_own_forward_speed() -> None:
-    """Once the supervisor lets the applied figures correct the forward speed, the
-    VBW's forward speed and a VHW's are theirs (the VHW turned back with the VBW's
-    athwart reading just before it); a VHW without a fresh VBW before it, or figures
-    not let correct the forward speed, keep the one-axis calibration's."""
+    """Once the supervisor lets the applied figures correct the forward speed, and the
+    one-axis calibration goes out, the VBW's forward speed and a VHW's are theirs (the
+    VHW turned back with the VBW's athwart reading just before it); a VHW without a
+    fresh VBW before it, or figures not let correct the forward speed, keep the one-axis
+    calibration's; and while the one-axis supervisor sends raw (none applied, or held
+    by the change detector) so do they: a change it detects withdraws both."""
     p = _pipeline(TWO_AXIS_FIGURES)
-    ax = p.two_axis["log"]
+    ax, cal = p.two_axis["log"], p.uuts["log"].cal
     lon = Params("EM3", m=-0.2, b_mps=0.1)
     fig = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
     ax.sup.applied, ax.sup.forward_own = fig, True
+    one = Params("EM3", m=-0.1, b_mps=0.05)
+    cal.applied = one
 
     def sent(t: float, body: str) -> list[str]:
         out = p.feed(t, "log", with_checksum(body).encode() + b"\r\n")
@@ -206,8 +210,16 @@ def test_vhw_and_vbw_take_the_figures_own_forward_speed() -> None:
     vhw = pynmea2.parse(sent(1.5, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
     assert float(vhw.water_speed_knots) * KNOT == pytest.approx(u, abs=0.006)
     stale = pynmea2.parse(sent(3.0, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
-    assert float(stale.water_speed_knots) == pytest.approx(3.89)  # one-axis: uncalibrated
-    ax.sup.forward_own = False
+    one_axis = one.correct(3.89 * KNOT)
+    assert float(stale.water_speed_knots) * KNOT == pytest.approx(one_axis, abs=0.006)
+    cal.sup.held = True  # the change detector's hold: raw goes out, on both sentences
     sent(3.1, "VMVBW,3.89,-0.19,A,,,V")
     vhw = pynmea2.parse(sent(3.2, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
     assert float(vhw.water_speed_knots) == pytest.approx(3.89)
+    cal.sup.held, cal.applied = False, None
+    vhw = pynmea2.parse(sent(3.3, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
+    assert float(vhw.water_speed_knots) == pytest.approx(3.89)
+    cal.applied, ax.sup.forward_own = one, False
+    sent(3.4, "VMVBW,3.89,-0.19,A,,,V")
+    vhw = pynmea2.parse(sent(3.5, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
+    assert float(vhw.water_speed_knots) * KNOT == pytest.approx(one_axis, abs=0.006)
