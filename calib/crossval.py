@@ -520,7 +520,8 @@ def cross_validate(
         estimators: estimator names (default all eight).
         kf_config: tuning of the KF estimators.
         progress: called as ``progress(done, total, "KF-EM3 on figure-8")``.
-        workers: processes to use (1: run in this process).
+        workers: processes to use (1: run in this process), at most one per job
+            (estimator and segment).
         current: estimate the current too and score in the water frame (segments
             must carry headings).
 
@@ -553,8 +554,8 @@ def cross_validate(
             if progress is not None:
                 progress(done, total, f"{est} on {names[i]}")
     else:
-        with ProcessPoolExecutor(
-            max_workers=workers, initializer=_init_worker, initargs=(segs, cfg, current)
+        with ProcessPoolExecutor(  # never more processes than jobs: the pool forks them all
+            max_workers=min(workers, total), initializer=_init_worker, initargs=(segs, cfg, current)
         ) as pool:
             futures = {pool.submit(_worker_job, est, i): (est, i) for est, i in jobs}
             for done, fut in enumerate(as_completed(futures), start=1):

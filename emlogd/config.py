@@ -28,6 +28,7 @@ import yaml
 from drivers import Use, get_decoder, protocols_for
 from drivers.errors import ConfigError
 from drivers.io.port import url_problem
+from emlogd.configclash import path_clash, tcp_clash
 from emlogd.configyaml import YAML_FAILURES, yaml_depth_error, yaml_why
 from emlogd.fileio import read_text_bounded
 from emlogd.pipeline.fusion import FusionSettings
@@ -598,7 +599,16 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         for k, (_, vn) in top.items()
         if k in top_keys
     }
-    return Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
+    cfg = Config(path=path, ports=tuple(ports), calibration=tuple(uuts), outputs=outputs, **rest)
+    _refuse_path_clash(ctx, top, cfg)
+    return cfg
+
+
+def _refuse_path_clash(ctx: _Ctx, top: dict[str, tuple[yaml.Node, yaml.Node]], cfg: Config) -> None:
+    """Refuse two sockets, the state file or two ptys at one path (:func:`path_clash`)."""
+    clash, name, section = path_clash(cfg)
+    if clash:
+        raise ctx.fail(top.get(section, (None, None))[1], name, clash)
 
 
 def _parse_ports(ctx: _Ctx, node: yaml.Node) -> list[PortConfig]:
@@ -618,15 +628,13 @@ def _parse_ports(ctx: _Ctx, node: yaml.Node) -> list[PortConfig]:
 def _parse_outputs(
     ctx: _Ctx, node: yaml.Node, cals: Sequence[Mapping[str, Any]], by_name: Mapping[str, Any]
 ) -> OutputConfig:
-    """The ``outputs`` section: its pty none of the logs' own, no port named ``fused``
-    beside a fused output."""
+    """The ``outputs`` section: no two TCP outputs on one port (:func:`tcp_clash`), no
+    port named ``fused`` beside a fused output."""
     kw, _ = _section(ctx, node, "outputs", OutputConfig, "outputs.")
     outputs: OutputConfig = _build(OutputConfig, kw)
-    ptys = [c["pty"] for c in cals if c.get("pty")]
-    if outputs.pty in ptys or len(set(ptys)) != len(ptys):
-        raise ctx.fail(
-            node, "outputs.pty", "each output pty must be its own (a log's pty repeats another)"
-        )
+    clash = tcp_clash([t for t in (outputs.tcp, *(c.get("tcp") for c in cals)) if t])
+    if clash:
+        raise ctx.fail(node, "outputs.tcp", clash)
     if outputs.speed != "each" and "fused" in by_name:
         raise ctx.fail(
             node,

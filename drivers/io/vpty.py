@@ -8,12 +8,13 @@ the symlink like a serial device. Properties:
   while the master is open, whoever opens the slave afterwards.
 - The symlink is replaced atomically (temporary symlink + rename); a stale
   symlink is replaced, a regular file or directory at that path is refused. It is
-  removed on :meth:`close` if it still points at this pty.
+  removed on :meth:`close` if it still points at this pty; :meth:`check_link`
+  publishes it again if it was removed meanwhile.
 - Readers may open and close the slave at any time without blocking the writer:
   the master is non-blocking, and while no process has the slave open (the master
   polls ``POLLHUP``) nothing is written at all, so a reader that opens late sees no
   stale backlog, only what is written after it opened. Anything a reader writes back
-  is drained and discarded.
+  is drained and discarded, at most ``DRAIN_BYTES`` at each write.
 - A reader that keeps the slave open but stops reading does not get a stale backlog
   either: after every ``max_backlog // 4`` bytes written (and whenever the pty is
   full) the writer opens the slave briefly, asks how much waits unread in its line
@@ -52,6 +53,12 @@ from drivers.io.closing import Closing
 LDISC_BUF = 4096
 """Bytes the Linux line discipline buffers for a reader (``N_TTY_BUF_SIZE``); FIONREAD
 never reports more, so ``max_backlog`` must stay below it."""
+
+DRAIN_BYTES = 4 * LDISC_BUF
+"""The most of what readers wrote into the pty that one write drains and discards: a
+reader writing as fast as the drain reads never lets the pty be empty, and an
+unbounded drain held the writer (the daemon's one thread) for as long as it wrote.
+What is left waits in the pty, whose full buffer then stops the reader's writes."""
 
 
 class VirtualPort(Closing):
@@ -127,6 +134,28 @@ class VirtualPort(Closing):
         tmp.symlink_to(self.slave_path)
         tmp.replace(link)
 
+    def check_link(self) -> str:
+        """Publish the link again if it was removed.
+
+        Returns:
+            ``""`` while the link names this pty, ``"restored"`` when it was removed and
+            is published again, else what is wrong (another file or link at its path,
+            left as it is; or why it cannot be made again).
+        """
+        try:
+            target = str(self.link.readlink())
+        except FileNotFoundError:
+            try:
+                self._publish()
+            except OSError as exc:
+                return f"removed, and cannot be made again: {exc.strerror or exc}"
+            return "restored"
+        except OSError:  # EINVAL: a file or a directory, no symlink
+            return "no symlink now: left as it is"
+        if target == self.slave_path:
+            return ""
+        return f"names {target} now: left as it is"
+
     def fileno(self) -> int:
         """The master's file descriptor."""
         return self.master
@@ -142,9 +171,14 @@ class VirtualPort(Closing):
         return not hup
 
     def _drain(self) -> None:
+        """Discard up to ``DRAIN_BYTES`` a reader wrote into the pty."""
+        left = DRAIN_BYTES
         with contextlib.suppress(BlockingIOError, OSError):
-            while os.read(self.master, 4096):
-                pass
+            while left > 0:
+                got = len(os.read(self.master, left))
+                if not got:
+                    return
+                left -= got
 
     def _trim_backlog(self, limit: int, *, full: bool) -> bool:
         """Discard a stalled reader's queue if above ``limit`` bytes (or ``full``)."""

@@ -20,7 +20,8 @@ of the peer user holding the most connections (``SO_PEERCRED``'s uid), of its pr
 holding the most, the one that has waited longest since it connected or last completed
 a request (a process connecting in a loop, or a user's many processes, lose their own
 connections, never another user's operator's). Each wake-up accepts a backlog's worth of
-connections (:data:`ACCEPTS_PER_ROUND`). A server may be read-only (``commands``: only ``status``), e.g. a
+connections (:data:`ACCEPTS_PER_ROUND`). A socket file removed under the running
+server is made again within :data:`PATH_CHECK_S`. A server may be read-only (``commands``: only ``status``), e.g. a
 status socket open to every local user next to the operators' control socket. The
 client side is :func:`emlogd.client.request`.
 """
@@ -73,6 +74,13 @@ BACKLOG = 32
 
 IDLE_S = 30.0
 """A client that completes no request for this long is closed (it holds a slot)."""
+
+PATH_CHECK_S = 2.0
+"""How often a server checks that its path still names its socket, s: a socket file
+removed (by hand, by a clean-up of the run directory) is bound again at once, since
+the listening socket behind a removed name takes no connection and every operator
+would be locked out until a restart. A path that names something else is logged and
+left to whoever made it."""
 
 COMMANDS = ("status", "freeze", "learn", "reset")
 
@@ -217,20 +225,76 @@ class ControlServer:
         self.flooded = 0
         """Clients closed for more than :data:`MAX_PIPELINED` requests in one read."""
         self.pause = AcceptPause(lambda d: self._note("control_accept_error", d), monotonic)
+        self.mode = mode
+        self.rebound = 0
+        """Times the socket file, removed, was made again."""
+        self._next_check = monotonic() + PATH_CHECK_S
+        self._path_problem = ""
+        """What the last path check found wrong and logged (logged again only if new)."""
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             if self.path.is_socket():
                 if _listening(self.path):
                     raise DeviceError(f"control socket {self.path} is in use by another process")
                 self.path.unlink()  # stale: left by a process that died
-            self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-            self.sock.bind(str(self.path))
-            self.path.chmod(mode)
-            self.sock.listen(BACKLOG)
-            self.sock.setblocking(False)
+            self.sock, self._ident = self._bind()
         except OSError as exc:
             raise DeviceError(f"control socket {self.path}: {exc.strerror or exc}") from None
         selector.register(self.sock, selectors.EVENT_READ, self._accept)
+
+    def _bind(self) -> tuple[socket.socket, tuple[int, int]]:
+        """A listening socket bound at :attr:`path`, and the file's (device, inode).
+
+        Raises:
+            OSError: it cannot be made.
+        """
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            sock.bind(str(self.path))
+            self.path.chmod(self.mode)
+            st = self.path.lstat()
+            sock.listen(BACKLOG)
+            sock.setblocking(False)
+        except OSError:
+            sock.close()
+            raise
+        return sock, (st.st_dev, st.st_ino)
+
+    def _check_path(self) -> None:
+        """Bind again if the socket file was removed; log once if it names another file."""
+        try:
+            st = self.path.lstat()
+        except FileNotFoundError:
+            st = None
+        except OSError as exc:
+            self._path_trouble(f"cannot be checked: {exc.strerror or exc}")
+            return
+        if st is not None:
+            if (st.st_dev, st.st_ino) == self._ident:
+                self._path_problem = ""
+            else:
+                self._path_trouble("names another file now: left to it, not listened on")
+            return
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            sock, ident = self._bind()
+        except OSError as exc:
+            self._path_trouble(f"removed, and cannot be made again: {exc.strerror or exc}")
+            return
+        with contextlib.suppress(KeyError, ValueError):
+            self.selector.unregister(self.sock)
+        self.sock.close()
+        self.sock, self._ident = sock, ident
+        if not self.pause.paused:
+            self.selector.register(self.sock, selectors.EVENT_READ, self._accept)
+        self.rebound += 1
+        self._path_problem = ""
+        self._note("control_socket_restored", "the socket file was removed: made again")
+
+    def _path_trouble(self, why: str) -> None:
+        if why != self._path_problem:
+            self._path_problem = why
+            self._note("control_socket_path", why)
 
     def _note(self, kind: str, detail: str) -> None:
         if self.on_event is not None:
@@ -276,8 +340,12 @@ class ControlServer:
         return min(mine, key=lambda c: c.seen).sock
 
     def housekeep(self) -> None:
-        """Close the clients past a deadline; listen again once an accept pause is over."""
+        """Close the clients past a deadline; listen again once an accept pause is over;
+        every :data:`PATH_CHECK_S`, check the socket's path (:meth:`_check_path`)."""
         now = self.monotonic()
+        if now >= self._next_check:
+            self._next_check = now + PATH_CHECK_S
+            self._check_path()
         for conn, client in list(self.clients.items()):
             if client.started is not None and now - client.started > REQUEST_S:
                 self.timed_out += 1
@@ -358,14 +426,16 @@ class ControlServer:
             conn.close()
 
     def close(self) -> None:
-        """Close every connection and remove the socket file."""
+        """Close every connection and remove the socket file (if it is still this one)."""
         for conn in list(self.clients):
             self._drop(conn)
         with contextlib.suppress(KeyError, ValueError):
             self.selector.unregister(self.sock)
         self.sock.close()
         with contextlib.suppress(OSError):
-            self.path.unlink()
+            st = self.path.lstat()
+            if (st.st_dev, st.st_ino) == self._ident:  # another's file at the path stays
+                self.path.unlink()
 
 
 def _line(doc: dict[str, object]) -> bytes:

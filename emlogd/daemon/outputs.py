@@ -54,13 +54,19 @@ class Outputs:
             extra = {"suppressed": suppressed} if suppressed else {}
             self.log.info(kind, sink="tcp", peer=peer, **extra)
 
+    def _pty_event(self, kind: str, detail: str) -> None:
+        """A pty output's event about its link (rare: at most one per link check)."""
+        self.log.warning(kind, sink="pty", detail=detail)
+
     def specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
         """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
         out = cfg.outputs
         specs: dict[tuple[object, ...], Callable[[], Sink]] = {}
         if out.pty:
             pty, mode, group = out.pty, out.pty_mode, out.pty_group
-            specs[("pty", pty, mode, group)] = lambda: PtySink(pty, mode=mode, group=group)
+            specs[("pty", pty, mode, group)] = lambda: PtySink(
+                pty, mode=mode, group=group, on_event=self._pty_event, monotonic=self.monotonic
+            )
         limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
         if out.tcp:
             tcp = out.tcp
@@ -84,14 +90,19 @@ class Outputs:
             name, u = c.uut, c.outputs
             if u.pty:
                 specs[("uut", name, "pty", u.pty, out.pty_mode, out.pty_group)] = functools.partial(
-                    PtySink, u.pty, mode=out.pty_mode, group=out.pty_group
+                    PtySink,
+                    u.pty,
+                    mode=out.pty_mode,
+                    group=out.pty_group,
+                    on_event=self._pty_event,
+                    monotonic=self.monotonic,
                 )
             if u.tcp:
                 specs[("uut", name, "tcp", u.tcp, limits)] = functools.partial(
                     TcpServerSink,
                     u.tcp,
                     selector=self.sel,
-                    on_event=functools.partial(self._client_event, tcp),
+                    on_event=functools.partial(self._client_event, u.tcp),
                     monotonic=self.monotonic,
                     limits=limits,
                 )

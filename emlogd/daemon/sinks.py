@@ -594,19 +594,62 @@ class TcpServerSink:
             self.server.close()
 
 
-class PtySink:
-    """Sentences on a virtual serial port published at a stable symlink."""
+LINK_CHECK_S = 2.0
+"""How often a pty output checks that its link still names its pty, s: a link removed
+(by hand, a clean-up of the run directory) is published again, since a reader that
+opens the pty by its link (an autopilot after its own restart) found nothing there
+until the daemon's restart. A link naming something else is logged and left as it is."""
 
-    def __init__(self, link: str | Path, mode: int = 0o660, group: str | None = None) -> None:
+
+class PtySink:
+    """Sentences on a virtual serial port published at a stable symlink.
+
+    Args:
+        link: the symlink's path.
+        mode: permission bits of the pty.
+        group: the pty's group (None: unchanged).
+        on_event: called as ``on_event(kind, detail)`` when the link was published again
+            (``pty_link_restored``) or names something else (``pty_link``, once).
+        monotonic: the clock of the link's checks.
+    """
+
+    def __init__(
+        self,
+        link: str | Path,
+        mode: int = 0o660,
+        group: str | None = None,
+        *,
+        on_event: Callable[[str, str], None] | None = None,
+        monotonic: Callable[[], float] = time.monotonic,
+    ) -> None:
         from drivers.io.vpty import VirtualPort
 
         self.name = f"pty:{link}"
         self.counters = SinkCounters()
         self.state = "open"
         self.port = VirtualPort(link, mode=mode, group=group)
+        self.on_event = on_event
+        self.monotonic = monotonic
+        self._next_check = monotonic() + LINK_CHECK_S
+        self._problem = ""
 
     def housekeep(self) -> None:
-        pass
+        """Every :data:`LINK_CHECK_S`: the link published again if it was removed."""
+        now = self.monotonic()
+        if now < self._next_check:
+            return
+        self._next_check = now + LINK_CHECK_S
+        why = self.port.check_link()
+        if why == "restored":
+            why = ""
+            self._note("pty_link_restored", f"{self.port.link}: removed, published again")
+        elif why and why != self._problem:
+            self._note("pty_link", f"{self.port.link}: {why}")
+        self._problem = why
+
+    def _note(self, kind: str, detail: str) -> None:
+        if self.on_event is not None:
+            self.on_event(kind, detail)
 
     def write(self, line: bytes) -> None:
         try:

@@ -21,8 +21,9 @@ outside the envelope, a lag outside ``[0, max_lag_s]``, a covariance that is not
 positive-definite...), is reported and the backup used; without a good one the
 daemon starts uncalibrated. Such a file never becomes the backup: the next write
 moves it aside to ``<file>.refused`` (kept for a person to look at) and leaves the
-backup as it is. A directory where the backup or the refused file goes costs that
-step alone (:attr:`StateStore.backup_problem` says so): the new file is written all
+backup as it is. A directory where the backup or the refused file goes, or a file
+there that cannot be replaced (immutable, another user's in a sticky directory), costs
+that step alone (:attr:`StateStore.backup_problem` says so): the new file is written all
 the same, since a state that can never be saved again loses every calibration learnt
 from then on at the next restart.
 
@@ -239,21 +240,34 @@ class StateStore:
             return None
         if bad or text is None:
             # never back up a damaged or refused file over a good backup
-            self.path.replace(self.refused)
+            try:
+                self.path.replace(self.refused)
+            except OSError as exc:  # e.g. an immutable file there: that step alone fails
+                self.backup_problem = f"the refused file not set aside: {step}: {_why(exc)}"
+                return None
             return self.refused
         link = self.path.with_name(f".{self.path.name}.bak.{os.getpid()}.tmp")
-        with contextlib.suppress(FileNotFoundError):
-            link.unlink()
         try:
-            os.link(self.path, link)
-        except OSError:  # e.g. vfat: no hard links
-            write_synced(link, text.encode("utf-8"))
-        link.replace(self.backup)
+            with contextlib.suppress(FileNotFoundError):
+                link.unlink()
+            try:
+                os.link(self.path, link)
+            except OSError:  # e.g. vfat: no hard links
+                write_synced(link, text.encode("utf-8"))
+            link.replace(self.backup)
+        except OSError as exc:  # e.g. an immutable .bak, one of another user in a
+            # sticky directory: the backup alone is not kept, the new file is written
+            self.backup_problem = f"no backup kept: {self.backup}: {_why(exc)}"
         # rename() between two names of one file does nothing: after a writer killed
         # between linking the backup and replacing the file, both are one inode
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             link.unlink()
         return None
+
+
+def _why(exc: OSError) -> str:
+    """An ``OSError``'s reason without its file names."""
+    return exc.strerror or str(exc)
 
 
 def _refusal(text: str, check: Callable[[Calibration], str] | None) -> str:

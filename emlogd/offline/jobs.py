@@ -624,7 +624,8 @@ def crossval(
     """Every estimator trained on every capture, evaluated on every other one.
 
     Segments are named after the captures (file stem). ``workers`` defaults to the
-    CPU count when there is enough work to pay for the processes.
+    CPU count when there is enough work to pay for the processes, and is at most the
+    CPU count and one per job (:func:`calib.crossval.cross_validate`).
 
     Raises:
         OfflineError: fewer than two captures, duplicate names, or a capture with fewer
@@ -648,8 +649,10 @@ def crossval(
                 "(leave the capture out)"
             )
     n = sum(len(p) for p in pairs)
+    cores = os.cpu_count() or 1
     if workers is None:
-        workers = min(os.cpu_count() or 1, 4) if n > 20_000 else 1
+        workers = min(cores, 4) if n > 20_000 else 1
+    workers = min(workers, cores)  # CPU-bound: a process more than the cores adds none
     result = cross_validate(
         segs,
         estimators,

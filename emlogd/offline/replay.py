@@ -226,7 +226,7 @@ def replay(
         if scorer.athwart is not None:
             result.two_axis_truth = scorer.athwart.scores(truth)
     result.elapsed_s = time.perf_counter() - started
-    result.span_s = run.t_last - run.t_first if run.t_first is not None else 0.0
+    result.span_s = run.span()
     return result
 
 
@@ -246,22 +246,33 @@ class _Run:
     sleep: Callable[[float], None]
     monotonic: Callable[[], float]
     t_first: float | None = None
+    """The first record's time of the current run of captures in time order."""
     t_last: float = 0.0
     pace0: tuple[float, float] | None = None
     """The first record's time and the clock's then (pacing)."""
     t_tick: float = -float("inf")
+    spanned: float = 0.0
+    """The time spanned before the current run of records in time order (a capture
+    earlier than the one before it starts a new one)."""
     contain: Containment = field(default_factory=Containment)
 
     def file(self, path: Path, reader: CaptureReader, progress: ProgressFn | None) -> None:
         """Every record of one capture, in time order."""
         result, decoders = self.result, self.pipeline.decoders
         size = max(path.stat().st_size, 1)
+        first: float | None = None  # this capture's first record's time
         for t, port, data, line in reader.received():
             if port not in decoders:
                 result.unknown_ports[port] = result.unknown_ports.get(port, 0) + 1
                 continue
-            if self.t_first is None:
-                self.t_first = t
+            if first is None:
+                first = t
+                if self.t_first is None:
+                    self.t_first = t
+                elif t < self.t_last:  # a capture earlier than the one before it:
+                    self.spanned += self.t_last - self.t_first  # its time spanned too,
+                    self.t_first, self.t_tick, self.pace0 = t, -float("inf"), None
+                    # ticked and paced from its own first record on
             if self.speed is not None:
                 self._pace(t, self.speed)
             self._feed(t, port, data)
@@ -273,6 +284,11 @@ class _Run:
             if progress is not None and result.records % 20_000 == 0:
                 progress(f"replay {path.name}", min(line * 60.0 / size, 1.0))
         result.capture_skips[str(path)] = reader.skip_report()
+
+    def span(self) -> float:
+        """The time the records spanned, s: from the first to the last, each run of
+        captures in time order added up (never negative)."""
+        return self.spanned + (self.t_last - self.t_first if self.t_first is not None else 0.0)
 
     def _pace(self, t: float, speed: float) -> None:
         """Wait until record time ``t`` is due at ``speed`` times real time."""

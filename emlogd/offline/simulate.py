@@ -146,6 +146,7 @@ __all__ = [
     "GNSS_OUTPUT_DELAY_S",
     "GNSS_PORT",
     "MAX_CURRENT_MPS",
+    "MIN_SCALE",
     "SENSOR_LIMITS",
     "START_EPOCH_S",
     "TRAJECTORIES",
@@ -175,6 +176,12 @@ __all__ = [
 
 MAX_CURRENT_MPS = 3.0
 """Largest current component :func:`simulate` accepts, m/s."""
+
+MIN_SCALE = 0.005
+"""Smallest duration factor :func:`simulate` accepts: the shortest trajectory (the
+15-min straight leg) 4.5 s long, so that every capture holds readings of both logs
+with a reference (seeds 1–10 checked). A shorter one held none, and a scale near
+zero ended in an ``IndexError``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -213,8 +220,9 @@ def simulate(
 
     Args:
         outdir: output directory (created if missing; existing files are replaced).
-        seed: random seed; the output is a pure function of the arguments.
-        scale: duration factor (``0.1`` makes every trajectory 10 % as long).
+        seed: random seed (0 or more); the output is a pure function of the arguments.
+        scale: duration factor (``0.1`` makes every trajectory 10 % as long), from
+            :data:`MIN_SCALE` to 10.
         dvl_format: ``"pd6"`` (default) or ``"pd0"``.
         current: a constant sea current (north, east), m/s, each within ±3 m/s; None
             (default): the slowly varying current.
@@ -232,11 +240,13 @@ def simulate(
         What was written.
 
     Raises:
-        ValueError: ``scale`` not in (0, 10], an unknown ``dvl_format`` or ``circles``,
+        ValueError: ``scale`` not in [:data:`MIN_SCALE`, 10], a negative ``seed``, an unknown ``dvl_format`` or ``circles``,
             a current that is not finite or beyond ±3 m/s, or an EMlog outside the
             ranges of :func:`check_emlog` or on another port.
     """
     _check_arguments(scale, dvl_format, circles, current, emlogs)
+    if seed < 0:
+        raise ValueError(f"seed must be 0 or more, not {seed}")
     started = time.perf_counter()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -372,8 +382,8 @@ def _check_arguments(
     emlogs: tuple[EmlogSpec, EmlogSpec],
 ) -> None:
     """Refuse what :func:`simulate` refuses (its ``Raises``), naming the argument."""
-    if not 0.0 < scale <= 10.0:
-        raise ValueError(f"scale must be in (0, 10], not {scale}")
+    if not MIN_SCALE <= scale <= 10.0:
+        raise ValueError(f"scale must be in [{MIN_SCALE:g}, 10], not {scale}")
     if dvl_format not in ("pd6", "pd0"):
         raise ValueError(f"dvl_format must be 'pd6' or 'pd0', not {dvl_format!r}")
     if circles not in ("steps", "constant"):

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+from concurrent.futures import Executor, Future
+from typing import Any
 
 import numpy as np
 import pytest
@@ -92,6 +94,32 @@ class TestCrossValidate:
         b = cross_validate(segs, ["LS-EM3", "KF-EM3"], workers=2)
         assert a.evaluations == b.evaluations
         assert a.trained == b.trained
+
+    def test_never_more_processes_than_jobs(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        """workers=100 000 for 2 estimators on the segments: a pool of one process per
+        job, the same result. The pool forked every process asked for at once (160
+        processes for 16 jobs with ``crossval --workers 200``). The pool here forks
+        nothing (it runs the jobs in this process), so a regression costs no processes."""
+        import calib.crossval as cv
+
+        asked: list[int] = []
+
+        class Inline(Executor):
+            def __init__(self, max_workers: int, initializer: Any, initargs: Any) -> None:
+                asked.append(max_workers)
+                initializer(*initargs)
+
+            def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Future[Any]:
+                fut: Future[Any] = Future()
+                fut.set_result(fn(*args, **kwargs))
+                return fut
+
+        monkeypatch.setattr(cv, "ProcessPoolExecutor", Inline)
+        segs = _segments(minutes=2.0)
+        a = cross_validate(segs, ["LS-EM3", "KF-EM3"])
+        b = cross_validate(segs, ["LS-EM3", "KF-EM3"], workers=100_000)
+        assert asked == [2 * len(segs)]
+        assert a.evaluations == b.evaluations
 
     def test_outages_in_training_segment(self) -> None:
         """nan reference samples are outages for KF and dropped for LS."""

@@ -135,6 +135,11 @@ INVALID: list[tuple[str, str, str]] = [
     ("socket host name in capitals", BASE.replace("/dev/dvl", "SOCKET://dvl.local:10110"), "ports[1].url: 'SOCKET://dvl.local:10110': a socket:// input needs an IP address"),
     ("state file a directory", BASE + "state_file: /var/lib/emlogd/\n", "state_file: '/var/lib/emlogd/' is not a file's path"),
     ("state file a dot", BASE + "state_file: state/.\n", "state_file: 'state/.' is not a file's path"),
+    ("status socket at the control socket", BASE + "control_socket: run/c.sock\nstatus_socket: run/./c.sock\n", "status_socket: the same path as control_socket"),
+    ("pty at the state file", BASE + "state_file: /var/lib/emlogd/s\noutputs: {pty: /var/lib/emlogd/s}\n", "outputs.pty: the same path as state_file"),
+    ("a log's pty the shared one", BASE.replace("reference: dvl}", "reference: dvl, pty: /run/e0}") + "outputs: {pty: /run/e0}\n", "calibration[0].pty: the same path as outputs.pty"),
+    ("a log's tcp the shared one", BASE.replace("reference: dvl}", "reference: dvl, tcp: '127.0.0.1:10110'}") + "outputs: {tcp: '127.0.0.1:10110'}\n", "outputs.tcp: each TCP output must listen on its own port"),
+    ("a log's tcp on a wildcard's port", BASE.replace("reference: dvl}", "reference: dvl, tcp: '127.0.0.1:10110'}") + "outputs: {tcp: ':10110'}\n", "outputs.tcp: each TCP output must listen on its own port"),
 ]  # fmt: skip
 
 

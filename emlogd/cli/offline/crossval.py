@@ -114,7 +114,7 @@ def add_parser(sub: Subparsers) -> None:
         type=_workers_arg,
         default=None,
         metavar="N",
-        help="processes, at least 1 (default: all cores)",
+        help="processes, at least 1, at most one per core and per job (default: all cores)",
     )
     twoaxis.axes_arg(p)
     p.set_defaults(handler=cmd_crossval)

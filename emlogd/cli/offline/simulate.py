@@ -18,10 +18,12 @@ if TYPE_CHECKING:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Write the simulated sea trial (five captures, truth.yaml and truth.csv.gz)."""
-    from emlogd.offline.simulate import EMLOG1, EMLOG2, simulate, with_sensor
+    from emlogd.offline.simulate import EMLOG1, EMLOG2, MIN_SCALE, simulate, with_sensor
 
-    if not 0.0 < args.scale <= 10.0:
-        raise UsageError(f"--scale must be in (0, 10], not {args.scale}")
+    if not MIN_SCALE <= args.scale <= 10.0:
+        raise UsageError(f"--scale must be in [{MIN_SCALE:g}, 10], not {args.scale}")
+    if args.seed < 0:
+        raise UsageError(f"--seed must be 0 or more, not {args.seed}")
     emlogs = {EMLOG1.port: EMLOG1, EMLOG2.port: EMLOG2}
     for port, given in args.sensor or ():
         try:
@@ -103,12 +105,12 @@ def add_parser(sub: Subparsers) -> None:
         "gnss), plus truth.yaml and the truth per sample in truth.csv.gz.",
     )
     p.add_argument("outdir", help="output directory (created if missing)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--seed", type=int, default=1, help="random seed, 0 or more (default 1)")
     p.add_argument(
         "--scale",
         type=float,
         default=1.0,
-        help="duration factor in (0, 10] (default 1; 0.1: 10 %% as long)",
+        help="duration factor in [0.005, 10] (default 1; 0.1: 10 %% as long)",
     )
     p.add_argument(
         "--dvl-format", choices=get_args(DvlFormat), default="pd6", help="DVL output (default pd6)"

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import stat
+import struct
+import termios
 import time
 from pathlib import Path
 
 import pytest
 
 from drivers.errors import DeviceError
-from drivers.io.vpty import VirtualPort
+from drivers.io.vpty import DRAIN_BYTES, VirtualPort
 
 
 def _open(link: Path) -> int:
@@ -166,3 +169,33 @@ def test_close_keeps_a_link_that_is_no_longer_ours(tmp_path: Path) -> None:
     second.close()
     first.close()  # idempotent
     assert not link.is_symlink()
+
+
+def test_what_a_reader_writes_back_is_drained_a_bounded_amount_a_write(tmp_path: Path) -> None:
+    """A reader that writes into the pty: each write of the port drains and discards at
+    most ``DRAIN_BYTES`` of it, so a reader writing as fast as the drain reads cannot
+    hold the writer; what is left waits in the pty, and later writes drain it."""
+    link = tmp_path / "p"
+    with VirtualPort(link) as vp:
+        fd = os.open(link, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            echoed = 0
+            with contextlib.suppress(BlockingIOError):
+                while echoed < 3 * DRAIN_BYTES:
+                    echoed += os.write(fd, b"e" * 1024)
+            time.sleep(0.1)  # the kernel moves it to the master's side
+            assert echoed > DRAIN_BYTES
+            assert vp.write(b"x\r\n") == 3
+            left = _pending(vp.master)
+            assert left >= echoed - DRAIN_BYTES - 1024, (echoed, left)
+            for _ in range(echoed // DRAIN_BYTES + 1):
+                vp.write(b"x\r\n")
+            assert _pending(vp.master) == 0
+        finally:
+            os.close(fd)
+
+
+def _pending(fd: int) -> int:
+    """Bytes waiting to be read from ``fd``."""
+    raw = fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0")
+    return int(struct.unpack("i", raw)[0])

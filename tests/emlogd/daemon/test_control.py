@@ -13,7 +13,13 @@ from pathlib import Path
 import pytest
 
 from emlogd.client import request
-from emlogd.daemon.control import MAX_CLIENTS, MAX_REQUEST, REQUEST_S, ControlServer
+from emlogd.daemon.control import (
+    MAX_CLIENTS,
+    MAX_REQUEST,
+    PATH_CHECK_S,
+    REQUEST_S,
+    ControlServer,
+)
 
 
 class _Loop:
@@ -217,3 +223,47 @@ def test_at_the_client_limit_a_newcomer_is_served(sync: _Sync, tmp_path: Path) -
     assert b"too many clients" in _rest(held[1])
     for s in [*held, newcomer]:
         s.close()
+
+
+def _ask(sync: _Sync, path: Path) -> bytes:
+    """A status request's answer through ``path``, served from the test's thread."""
+    with _connect(path) as s:
+        s.sendall(b'{"cmd": "status"}\n')
+        sync.pump(0.05)
+        return s.recv(4096)
+
+
+def test_a_removed_socket_file_is_made_again(sync: _Sync, tmp_path: Path) -> None:
+    """The socket file removed under the running server (by hand, a clean-up of the run
+    directory): within PATH_CHECK_S it is bound again and answers, a client connected
+    before is still served, the event logged once; a path that names another file is
+    left to it (logged once) and survives the server's close. The listening socket
+    behind the removed name took no connection until a restart."""
+    events: list[tuple[str, str]] = []
+    sync.server.on_event = lambda kind, detail: events.append((kind, detail))
+    path = tmp_path / "s.sock"
+    before = _connect(path)
+    sync.pump()
+    path.unlink()
+    with pytest.raises(OSError):
+        _connect(path)
+    sync.server.housekeep()
+    assert not path.exists()  # not checked before PATH_CHECK_S
+    sync.clock.t += PATH_CHECK_S
+    sync.server.housekeep()
+    assert stat.S_ISSOCK(path.lstat().st_mode) and sync.server.rebound == 1
+    assert _ask(sync, path) == b'{"ok": true, "echo": "status"}\n'
+    before.sendall(b'{"cmd": "status"}\n')
+    sync.pump()
+    assert before.recv(4096) == b'{"ok": true, "echo": "status"}\n'
+    before.close()
+    assert [k for k, _ in events] == ["control_socket_restored"]
+    path.unlink()
+    path.write_text("another's")
+    for _ in range(3):
+        sync.clock.t += PATH_CHECK_S
+        sync.server.housekeep()
+    assert [k for k, _ in events] == ["control_socket_restored", "control_socket_path"]
+    assert "names another file" in events[-1][1]
+    sync.server.close()
+    assert path.read_text() == "another's"

@@ -91,3 +91,47 @@ def test_a_sync_keeps_equal_outputs_and_closes_the_others(
     finally:
         outputs.close()
     assert outputs.sinks == {}
+
+
+class _Events(_Log):
+    def __init__(self) -> None:
+        self.seen: list[tuple[str, dict[str, object]]] = []
+
+    def info(self, event: str, **kw: object) -> None:
+        self.seen.append((event, kw))
+
+    warning = info
+
+
+def test_a_logs_own_tcp_output_without_a_shared_one_opens() -> None:
+    """A log with its own TCP output and no shared TCP output (a valid config): the
+    output opens, a client connecting is logged, and emlog2's sentences reach it.
+    Building the outputs raised ``UnboundLocalError`` (the client events were bound to
+    the shared output's address, unset): the daemon ended at its start, or at the
+    reload into such a config, with ``internal error``."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    cfg = parse_config(
+        "ports:\n"
+        "  - {name: emlog2, url: 'loop://', protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: 'loop://', protocol: pd6, role: reference}\n"
+        "calibration:\n"
+        f"  - {{uut: emlog2, reference: dvl, tcp: '127.0.0.1:{port}'}}\n"
+        "outputs: {pty: null}\n"
+    )
+    log = _Events()
+    sel = selectors.DefaultSelector()
+    outputs = Outputs(sel, log, lambda: 0.0)
+    try:
+        _, opened = outputs.sync(cfg)
+        assert opened == [f"tcp:127.0.0.1:{port}"]
+        with socket.create_connection(("127.0.0.1", port), 2.0) as client:
+            for key, _ in sel.select(1.0):
+                key.data()
+            assert any(e == "client_connected" for e, _ in log.seen), log.seen
+            outputs.deliver([Emit(1.0, "emlog2", "$VMVHW,b")])
+            assert client.recv(4096) == b"$VMVHW,b\r\n"
+    finally:
+        outputs.close()
+        sel.close()

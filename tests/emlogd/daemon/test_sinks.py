@@ -413,3 +413,44 @@ def test_a_connection_past_the_accept_budget_is_reset_and_the_listener_rests() -
         held.append(socket.create_connection(sink.address, source_address=("127.0.0.2", 0)))
         _pump(sel, 0.1)
         assert sink.counters.clients == 2 and sink.counters.throttled == 1
+
+
+def test_a_removed_pty_link_is_published_again(tmp_path: Path) -> None:
+    """The pty output's link removed: at the next check (LINK_CHECK_S) it names the pty
+    again, a reader opening it reads what is written, ``pty_link_restored`` noted; a
+    link naming another file by then is left as it is, noted once, and kept at close.
+    A reader opening the pty by its link (an autopilot after its own restart) found
+    nothing there until the daemon's restart."""
+    import os
+
+    from emlogd.daemon.sinks import LINK_CHECK_S, PtySink
+
+    t = [0.0]
+    notes: list[tuple[str, str]] = []
+    link = tmp_path / "emlog0"
+    sink = PtySink(link, on_event=lambda k, d: notes.append((k, d)), monotonic=lambda: t[0])
+    try:
+        link.unlink()
+        sink.housekeep()
+        assert not link.is_symlink()  # not checked before LINK_CHECK_S
+        t[0] += LINK_CHECK_S
+        sink.housekeep()
+        assert str(link.readlink()) == sink.port.slave_path
+        assert [k for k, _ in notes] == ["pty_link_restored"]
+        fd = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            sink.write(b"$VWVHW,,T,,M,5.00,N,,K*4F\r\n")
+            time.sleep(0.05)
+            assert os.read(fd, 100) == b"$VWVHW,,T,,M,5.00,N,,K*4F\r\n"
+        finally:
+            os.close(fd)
+        link.unlink()
+        link.symlink_to("/dev/null")
+        for _ in range(3):
+            t[0] += LINK_CHECK_S
+            sink.housekeep()
+        assert [k for k, _ in notes] == ["pty_link_restored", "pty_link"]
+        assert "names /dev/null now" in notes[-1][1]
+    finally:
+        sink.close()
+    assert str(link.readlink()) == "/dev/null"

@@ -455,3 +455,39 @@ def test_refused_two_axis_figures_never_become_the_backup(tmp_path: Path) -> Non
     assert states["emlog1"].two_axis == fig and "using the backup" in report[-1]
     assert store.save({"emlog1": _state(0.3)}) == store.refused
     assert store.backup.read_bytes() == good_backup
+
+
+@pytest.mark.parametrize("blocked", ["backup", "refused"])
+def test_a_file_that_cannot_be_replaced_where_the_backup_goes_costs_the_backup_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, blocked: str
+) -> None:
+    """A ``.bak`` (or, the current file refused, a ``.refused``) that cannot be replaced
+    (``EPERM``: immutable, or another user's in a sticky directory): the save writes
+    the new file all the same and ``backup_problem`` names the step and why; no
+    temporary file is left; once it can be replaced the backup is kept again. Every
+    save failed (StateWriteError), as with the directory of the test above."""
+    store = StateStore(tmp_path / "state.yaml")
+    store.save({"emlog1": _state(0.1)})
+    in_the_way = store.backup if blocked == "backup" else store.refused
+    if blocked == "refused":
+        store.path.write_text(store.path.read_text().replace("m: 0.1", "m: -2.0"))
+        store.load(check=_check())  # type: ignore[arg-type]
+    replace = Path.replace
+
+    def refusing(self: Path, target: str | Path) -> Path:
+        if Path(target) == in_the_way:
+            raise PermissionError(1, "Operation not permitted", str(target))
+        return replace(self, target)
+
+    monkeypatch.setattr(Path, "replace", refusing)
+    rounds = (0.2, 0.3) if blocked == "backup" else (0.2,)  # a refused file is set aside once
+    for m in rounds:
+        assert store.save({"emlog1": _state(m)}) is None
+        assert parse_state(store.path.read_text())["emlog1"].params.m == m
+        assert store.backup_problem is not None, m
+        assert str(in_the_way) in store.backup_problem
+        assert "not permitted" in store.backup_problem
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+    monkeypatch.undo()
+    assert store.save({"emlog1": _state(0.4)}) is None and store.backup_problem is None
+    assert parse_state(store.backup.read_text())["emlog1"].params.m == rounds[-1]

@@ -384,3 +384,23 @@ class TestSparseReference:
         assert res.n_samples > 0.95 * recs[0].t_read.size
         assert res.lag.source in ("fallback", "auto") and res.lag.lag_s >= 0.0
         assert res.params.m == pytest.approx(0.05, abs=0.03)
+
+
+def test_crossval_asks_for_no_more_processes_than_cores(
+    trial_files: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``crossval --workers 100000``: the cross-validation is handed at most one process
+    per core (CPU-bound work), the pool itself at most one per job."""
+    import os
+
+    recs = load_captures([trial_files["figure-8"], trial_files["straight"]], E1)
+    handed: list[int] = []
+
+    def cross_validate(*args: Any, workers: int, **kw: Any) -> object:
+        handed.append(workers)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(jobs, "cross_validate", cross_validate)
+    with pytest.raises(RuntimeError, match="stop here"):
+        crossval(recs, E1, lag=3.3, workers=100_000)
+    assert handed == [os.cpu_count() or 1]

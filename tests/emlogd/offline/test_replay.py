@@ -213,8 +213,8 @@ def test_out_capture_holds_each_uuts_sentences(
     assert len(stamps & {round(t, 6) for t in read_times}) > 0.9 * len(stamps)
 
 
-def _small_capture(path: Path) -> None:
-    """60 s of an EMlog's VHW at 1 Hz and a PD6 DVL at 2 Hz."""
+def _small_capture(path: Path, t0: float = 1_700_000_000.0) -> None:
+    """60 s of an EMlog's VHW at 1 Hz and a PD6 DVL at 2 Hz, from ``t0``."""
     from datetime import UTC, datetime
 
     from drivers.io.capture import CaptureWriter
@@ -223,7 +223,7 @@ def _small_capture(path: Path) -> None:
 
     with CaptureWriter(path, {"emlog1": "nmea0183", "dvl": "pd6"}) as w:
         for k in range(120):
-            t = 1_700_000_000.0 + 0.5 * k
+            t = t0 + 0.5 * k
             for line in encode_pd6(
                 timestamp=datetime.fromtimestamp(t, UTC), heading_deg=10.0,
                 bottom_ship_mps=(0.0, 2.0, 0.0), range_m=20.0,
@@ -332,3 +332,32 @@ def test_out_appears_only_once_the_replay_has_run(
     argv = ["replay", str(trial_files["straight"]), "--config", str(cfg), "--out", str(nowhere)]
     assert main(argv) == 1
     assert f"No such file or directory: '{nowhere}'" in capsys.readouterr().err
+
+
+def test_a_capture_earlier_than_the_one_before_is_ticked_and_spans_its_time(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two captures given latest first (an hour apart): the pipeline is ticked through the
+    second one as through the first, and the span is the two captures' own (the JSON's
+    ``span_s``, the ``x real time`` of the summary). The second was never ticked (its
+    times all before the last tick: no staleness, no queued learning) and the span was
+    negative (``-116x real time``)."""
+    late, early = tmp_path / "late.cap", tmp_path / "early.cap"
+    _small_capture(late)
+    _small_capture(early, t0=1_700_000_000.0 - 3600.0)
+    ticks: list[float] = []
+    real = Pipeline.tick
+
+    def tick(self: Pipeline, t: float) -> object:
+        ticks.append(t)
+        return real(self, t)
+
+    monkeypatch.setattr(Pipeline, "tick", tick)
+    cfg = CFG.replace("  - {name: emlog2, url: /dev/null, protocol: nmea0183, role: uut}\n", "")
+    cfg = cfg.replace(
+        "  - {uut: emlog2, reference: dvl, lag: 0.5, current: false, talker: VM}\n", ""
+    )
+    res = replay(_pipeline(cfg), [late, early])
+    in_early = [t for t in ticks if t < 1_700_000_000.0 - 3000.0]
+    assert len(in_early) >= 100, len(in_early)  # one per TICK_S of its 60 s
+    assert res.span_s == pytest.approx(2 * 59.51, abs=0.02), res.span_s

@@ -18,6 +18,7 @@ from emlogd.offline.simulate import (
     EMLOG1,
     EMLOG2,
     FAULT_RATES,
+    MIN_SCALE,
     TRAJECTORIES,
     SimulationResult,
     TruthError,
@@ -272,6 +273,36 @@ def test_simulate_command_bad_sensor(
     assert main(["simulate", str(tmp_path / "x"), "--scale", "0.01", "--sensor", value]) == 2
     assert why in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "why"),
+    [
+        (["--seed", "-5"], "--seed must be 0 or more"),
+        (["--scale", "1e-5"], "--scale must be in [0.005, 10]"),
+        (["--scale", "0.004"], "--scale must be in [0.005, 10]"),
+    ],
+)
+def test_simulate_command_refuses_a_negative_seed_and_a_scale_too_small(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], why: str
+) -> None:
+    """A negative seed (which numpy's seed sequence refuses) and a scale under
+    ``MIN_SCALE`` (trajectories holding no reading with a reference) are usage errors,
+    nothing written; each was ``internal error`` (``ValueError``, ``IndexError``) or
+    ``nan`` figures."""
+    assert main(["simulate", str(tmp_path / "x"), "--scale", "0.01", *args]) == 2
+    assert why in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_simulate_at_the_smallest_scale_scores_every_capture(tmp_path: Path) -> None:
+    """At ``MIN_SCALE`` every capture holds readings of both logs with a reference: each
+    trajectory's raw RMSE is a number."""
+    r = simulate(tmp_path, seed=3, scale=MIN_SCALE)
+    figures = [x for tr in r.trajectories for x in tr.rmse_raw_mps.values()]
+    assert len(figures) == 10 and all(math.isfinite(x) for x in figures), figures
+    with pytest.raises(ValueError, match="seed must be 0 or more"):
+        simulate(tmp_path, seed=-1, scale=MIN_SCALE)
 
 
 def test_simulate_refuses_emlogs_on_other_ports_or_out_of_range(tmp_path: Path) -> None:

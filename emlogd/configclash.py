@@ -1,0 +1,63 @@
+"""What two parts of a valid config may not share: a TCP output's port, or a path among
+the control socket, the status socket, the state file and the output ptys. Each clash
+was found only when the daemon opened the second (an output unbound, or the start
+ended), and is refused when the config is loaded (or reloaded: the running one kept).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from emlogd.config import Config
+
+WILDCARD_HOSTS = frozenset({"", "0.0.0.0", "::"})
+"""The hosts a TCP output listens on every interface with: such a listener takes its
+port from every address, so another on that port clashes whatever its host."""
+
+
+def same_listener(a: str, b: str) -> bool:
+    """Whether two TCP outputs' ``HOST:PORT`` cannot both be bound: one port, and one
+    host or either a wildcard (:data:`WILDCARD_HOSTS`)."""
+    (ha, _, pa), (hb, _, pb) = a.rpartition(":"), b.rpartition(":")
+    ha, hb = ha.strip("[]"), hb.strip("[]")
+    return pa == pb and (ha == hb or ha in WILDCARD_HOSTS or hb in WILDCARD_HOSTS)
+
+
+def tcp_clash(listeners: Sequence[str]) -> str:
+    """Why two of the TCP outputs ``listeners`` cannot both listen, or ``""``."""
+    for i, a in enumerate(listeners):
+        for b in listeners[i + 1 :]:
+            if same_listener(a, b):
+                return (
+                    f"each TCP output must listen on its own port: {a} and {b} clash "
+                    "(a log's tcp repeats another)"
+                )
+    return ""
+
+
+def path_clash(cfg: Config) -> tuple[str, str, str]:
+    """Why two of the control socket, the status socket, the state file and the output
+    ptys share a path, the key of the second and its top-level section (``("", "",
+    "")``: none do). A status
+    socket at the control socket's path ended the start with "in use by another
+    process"; a pty at the state file's, "exists and is not a symlink"."""
+    named: list[tuple[str, str, str | None]] = [
+        ("control_socket", "control_socket", cfg.control_socket),
+        ("status_socket", "status_socket", cfg.status_socket),
+        ("state_file", "state_file", cfg.state_path),
+        ("outputs.pty", "outputs", cfg.outputs.pty),
+    ]
+    named += [
+        (f"calibration[{i}].pty", "calibration", c.outputs.pty)
+        for i, c in enumerate(cfg.calibration)
+    ]
+    seen: dict[str, str] = {}
+    for what, section, path in named:
+        if path:
+            other = seen.setdefault(os.path.normpath(path), what)
+            if other != what:
+                return f"the same path as {other} ({path}): each needs its own", what, section
+    return "", "", ""

@@ -1,0 +1,47 @@
+"""What two parts of a config may not share: a TCP output's port, one path for two of
+the sockets, the state file and the ptys."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from emlogd.config import parse_config
+from emlogd.configclash import path_clash, same_listener, tcp_clash
+
+CONFIG = """\
+ports:
+  - {name: emlog1, url: /dev/emlog1, protocol: nmea0183, role: uut}
+  - {name: dvl, url: /dev/dvl, protocol: pd6, role: reference}
+calibration:
+  - {uut: emlog1, reference: dvl}
+outputs: {pty: /run/emlogd/emlog0, tcp: ":10110"}
+control_socket: /run/emlogd/control.sock
+status_socket: /run/emlogd/status.sock
+state_file: /var/lib/emlogd/state.yaml
+"""
+
+
+def test_tcp_outputs_on_one_port_clash_only_where_both_cannot_bind() -> None:
+    """Two TCP outputs clash on one port with one host or a wildcard; on two hosts, or two
+    ports, they do not (both bind)."""
+    assert same_listener("127.0.0.1:10110", "127.0.0.1:10110")
+    assert same_listener(":10110", "127.0.0.1:10110")
+    assert same_listener("[::]:10110", "10.0.0.1:10110")
+    assert not same_listener("127.0.0.1:10110", "10.0.0.1:10110")
+    assert not same_listener("127.0.0.1:10110", "127.0.0.1:10111")
+    assert tcp_clash(["127.0.0.1:1", "127.0.0.1:2", "10.0.0.1:2"]) == ""
+    assert "127.0.0.1:2 and :2 clash" in tcp_clash(["127.0.0.1:1", "127.0.0.1:2", ":2"])
+
+
+def test_every_path_its_own_passes_and_the_second_of_one_is_named() -> None:
+    """A config whose sockets, state file and pty each have their own path passes; two at
+    one path (the same after normalisation) name the second and its section."""
+    good = parse_config(CONFIG)
+    assert path_clash(good) == ("", "", "")
+    cfg = dataclasses.replace(good, status_socket="/run/emlogd/./control.sock")
+    why, key, section = path_clash(cfg)
+    assert (key, section) == ("status_socket", "status_socket")
+    assert why.startswith("the same path as control_socket")
+    outputs = dataclasses.replace(good.outputs, pty="/var/lib/emlogd/state.yaml")
+    why, key, section = path_clash(dataclasses.replace(good, outputs=outputs))
+    assert (key, section) == ("outputs.pty", "outputs") and "as state_file" in why
