@@ -126,6 +126,11 @@ def sheared_current(k: Kinematics, t0: float) -> Kinematics:
     return dataclasses.replace(k, current_e=ce, current_n=np.zeros_like(ce))
 
 
+def still_water(k: Kinematics, t0: float) -> Kinematics:
+    """No current at all."""
+    return dataclasses.replace(k, current_n=np.zeros_like(k.t), current_e=np.zeros_like(k.t))
+
+
 CIRCLES = (
     TrajectorySpec(1, "transit", 60.0, 1.95),
     TrajectorySpec(2, "circles", 60.0, 1.85),
@@ -168,6 +173,13 @@ CASES = {
     c.name: c
     for c in (
         Case("control", "the trial as simulated (the same config, nothing changed)"),
+        Case("control-gnss", "the trial as simulated, GNSS reference", cfg=GNSS_CFG),
+        Case(
+            "gnss-still-water",
+            "GNSS reference, no current (the scale against the GNSS without a sea)",
+            cfg=GNSS_CFG,
+            current=still_water,
+        ),
         Case("speed-squared", speed_squared.__doc__ or "", log_view=speed_squared),
         Case("dead-band", dead_band.__doc__ or "", log_view=dead_band),
         Case("turn-bias", turn_bias.__doc__ or "", log_view=turn_bias),
@@ -318,8 +330,21 @@ def measure(case: Case, tmp: Path, mp: pytest.MonkeyPatch) -> dict[str, Any]:
     return out
 
 
+OPEN = {
+    "turn-bias": "open: a bias in turns is no parameter of the model; emlog2's window over "
+    "the figure-8 1.10x raw (docs/RELIABILITY.md)",
+}
+"""The cases that break the promise, pinned as strict xfails until fixed."""
+
+
 @pytest.mark.soak
-@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=OPEN[n])) if n in OPEN else n
+        for n in sorted(CASES)
+    ],
+)
 def test_no_window_worse_than_raw(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
