@@ -23,6 +23,7 @@ import sys
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -328,6 +329,62 @@ def measure(case: Case, tmp: Path, mp: pytest.MonkeyPatch) -> dict[str, Any]:
             "true": {"a": p.a_spm, "m": p.m, "b": p.b_mps},
         }
     return out
+
+
+def _k(n: int = 200) -> Kinematics:
+    t = np.arange(n, dtype=np.float64) * 0.05
+    return Kinematics(
+        t=t,
+        surge=np.linspace(0.0, 3.0, n),
+        sway=np.zeros(n),
+        heading=np.radians(2.0) * t,  # 2 °/s
+        current_e=np.zeros(n),
+        current_n=np.zeros(n),
+    )
+
+
+class TestWorlds:
+    """What each case changes, on a small grid (fast)."""
+
+    def test_log_views(self) -> None:
+        """Dead band zero below 0.5 m/s; +0.06 m/s at 2 °/s; +4 % at 2 m/s; a third."""
+        k = _k()
+        u = k.surge
+        assert np.all(dead_band(k).surge[u < 0.5] == 0.0)
+        assert np.array_equal(dead_band(k).surge[u >= 0.5], u[u >= 0.5])
+        assert np.allclose(turn_bias(k).surge - u, 0.06)
+        i = int(np.argmin(np.abs(u - 2.0)))
+        assert speed_squared(k).surge[i] / u[i] == pytest.approx(1.0 + 0.01 * u[i] ** 2)
+        assert np.allclose(slow(k).surge, u / 3.0)
+
+    def test_currents(self) -> None:
+        """The tide 0.5 m/s, north at trial time 0 and east a quarter period on; the
+        shear 0.6 m/s east at most and zero where the track has gone nowhere north."""
+        k = _k()
+        c0 = rotating_current(k, START_EPOCH_S)
+        assert c0.current_n[0] == pytest.approx(0.5) and c0.current_e[0] == pytest.approx(0.0)
+        cq = rotating_current(k, START_EPOCH_S + TIDE_S / 4)
+        assert cq.current_e[0] == pytest.approx(0.5)
+        sh = sheared_current(k, START_EPOCH_S)
+        assert np.max(np.abs(sh.current_e)) <= 0.6 and np.all(sh.current_n == 0.0)
+
+    def test_quantised_and_water_track(self) -> None:
+        """emlog1's VHW in whole tenths of a knot, emlog2's untouched; an ensemble
+        without bottom track carries :WS with the speed through the water."""
+        q = _quantised(0.1)
+        assert ",2.30,N," in q(2.34 * KNOT_MPS, talker=simsensors.EMLOG1.talker)
+        assert ",2.34,N," in q(2.34 * KNOT_MPS, talker=simsensors.EMLOG2.talker)
+        k = _k()
+        enc = _with_water(rdi_ascii.encode_pd6, k, 0.0)
+        stamp = datetime.fromtimestamp(5.0, UTC)
+        lines = enc(timestamp=stamp, heading_deg=0.0, bottom_ship_mps=None)
+        ws = [ln for ln in lines if ln.startswith(":WS")]
+        assert ws == [":WS,+00000,+01508,+00000,A"]  # surge at t = 5 s, mm/s
+        assert not [
+            ln
+            for ln in enc(timestamp=stamp, heading_deg=0.0, bottom_ship_mps=(0.0, 1.0, 0.0))
+            if ln.startswith(":WS")
+        ]
 
 
 OPEN = {
