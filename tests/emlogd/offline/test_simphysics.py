@@ -163,6 +163,9 @@ class Case:
     current: Callable[[Kinematics, float], Kinematics] | None = None
     trajectories: tuple[TrajectorySpec, ...] = TRAJECTORIES
     heading_bias_deg: float = 0.0
+    deviation: Callable[[float], float] = lambda _psi: 1.0
+    """The heading's error is ``heading_bias_deg × deviation(heading)`` (1: a constant
+    bias; a deviation card's error goes as the sine of the heading)."""
     gnss_lag_s: tuple[float, float, float] | None = None
     """(trial time, GNSS lag before it, GNSS lag from then on), s (by trajectory)."""
     water_track: bool = False
@@ -203,6 +206,19 @@ CASES = {
             heading_bias_deg=5.0,
         ),
         Case(
+            "deviation-dvl",
+            "the DVL's heading off by 5°·sin(heading) (a deviation card's error), DVL reference",
+            heading_bias_deg=5.0,
+            deviation=lambda psi: math.sin(math.radians(psi)),
+        ),
+        Case(
+            "deviation-gnss",
+            "the DVL's heading off by 5°·sin(heading), GNSS reference projected with it",
+            cfg=GNSS_CFG,
+            heading_bias_deg=5.0,
+            deviation=lambda psi: math.sin(math.radians(psi)),
+        ),
+        Case(
             "tide-circles",
             "0.5 m/s rotary tidal current (12.42 h) over 3 h of circles",
             current=rotating_current,
@@ -226,7 +242,8 @@ def _dvl_encoder(case: Case) -> Callable[..., list[str]]:
         return base
 
     def biased(**kw: Any) -> list[str]:
-        kw["heading_deg"] = (kw["heading_deg"] + case.heading_bias_deg) % 360.0
+        psi = kw["heading_deg"]
+        kw["heading_deg"] = (psi + case.heading_bias_deg * case.deviation(psi)) % 360.0
         return base(**kw)
 
     return biased
