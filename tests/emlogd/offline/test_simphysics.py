@@ -8,7 +8,7 @@ growing with the speed squared, a dead band, a bias in turns), a reference whose
 grows mid-run, a DVL that falls back to water track, a heading with a constant bias, a
 current rotating with the tide under circles, a current shear, straight legs only, very
 slow speeds, a log quantised to 0.1 kn. The trials are ``soak`` (a simulation and a
-replay each, 15–40 s); every case and its figure is in docs/RELIABILITY.md, measured by
+replay each, 30–60 s); every case and its figure is in docs/RELIABILITY.md, measured by
 running this file as a script::
 
     PYTHONPATH=. python tests/emlogd/offline/test_simphysics.py [CASE ...]
