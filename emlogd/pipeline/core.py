@@ -436,13 +436,13 @@ class Pipeline:
         """A reading's corrected sentence: VHW; VBW with the learnt two-axis figures (the
         reading then learnt from, ``axes: 2``; ``TwoAxisLearner.forward`` for a VHW), else
         the configured ones, else the athwart read; its ground pair the reference's."""
-        ax, own = self.two_axis.get(u.s.port), sp.longitudinal_mps if u.cal.emitting else None
+        ax = self.two_axis.get(u.s.port)
         if sp.source == "VHW":
-            v = value if ax is None else ax.forward(t, own, value)
+            v = value if ax is None else ax.forward(t, sp.longitudinal_mps, value, u.cal.guard)
             return encode_vhw(v, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
         trans, g = sp.transverse_mps, u.ground.at(t)
         if ax is not None and trans is not None:
-            hull = ax.correct(value, trans, own)
+            hull = ax.correct(value, trans, sp.longitudinal_mps, u.cal.guard)
             if sp.longitudinal_mps is not None:
                 ax.reading(t, value, sp.longitudinal_mps, trans)
                 ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on)

@@ -151,6 +151,8 @@ class TwoAxisLearner:
         starboard of its heading); None before one."""
         self.counts = {"no_lag": 0, "no_reference": 0, "no_heading": 0}
         """Readings not learnt from, by why."""
+        self.fallbacks = 0
+        """The one-axis supervisor's fallbacks when last seen (:meth:`answers`)."""
         self.athwart: tuple[float, float] | None = None
         """The last VBW's time and raw athwart reading (what a VHW reading is turned
         back with)."""
@@ -176,20 +178,23 @@ class TwoAxisLearner:
             self.tap(t, forward_mps, raw_l, raw_t, self.sup.applied is not None and self.s.apply)
 
     def correct(
-        self, forward_mps: float, athwart_mps: float, raw_l_mps: float | None = None
+        self,
+        forward_mps: float,
+        athwart_mps: float,
+        raw_l_mps: float | None = None,
+        guard: tuple[int, bool] = (0, False),
     ) -> tuple[float, float] | None:
         """The VBW's hull-frame speeds with the applied figures (None: none applied):
         their own forward speed from the raw one ``raw_l_mps`` where the supervisor
         lets it (:attr:`TwoAxisSupervisor.forward_own`), else ``forward_mps`` (the
-        one-axis calibration's) turned back."""
+        one-axis calibration's) turned back; ``guard`` the one-axis supervisor's
+        (:meth:`answers`)."""
         f = self.sup.applied
         if f is None or not self.s.apply:
             return None
-        own = (
-            None
-            if raw_l_mps is None or not self.forward_on()
-            else self._own(raw_l_mps, athwart_mps)
-        )
+        own = None
+        if raw_l_mps is not None and self.answers(*guard) and self.forward_on():
+            own = self._own(raw_l_mps, athwart_mps)
         if own is not None:
             u, w = own
         else:
@@ -197,15 +202,22 @@ class TwoAxisLearner:
         self.leeway_deg = math.degrees(math.atan2(w, u)) if u or w else 0.0
         return u, w
 
-    def forward(self, t: float, raw_l_mps: float | None, one_axis_mps: float) -> float:
+    def forward(
+        self,
+        t: float,
+        raw_l_mps: float | None,
+        one_axis_mps: float,
+        guard: tuple[int, bool] = (0, False),
+    ) -> float:
         """A VHW reading's forward speed: by the applied figures' own longitudinal
         parameters, turned back with the last VBW's athwart reading, where the
         supervisor lets them correct the forward speed and that reading is fresh
-        (:data:`ATHWART_FRESH_S`); else ``one_axis_mps``, the one-axis calibration's
-        (also when ``raw_l_mps`` is None: the pipeline passes None while the one-axis
-        supervisor sends raw, so a change it detects withdraws both)."""
+        (:data:`ATHWART_FRESH_S`) and the one-axis supervisor's ``guard`` lets them
+        (:meth:`answers`); else ``one_axis_mps``, the one-axis calibration's."""
         f, last = self.sup.applied, self.athwart
-        if f is None or not self.forward_on() or raw_l_mps is None or last is None:
+        if f is None or raw_l_mps is None or last is None or not self.answers(*guard):
+            return one_axis_mps
+        if not self.forward_on():
             return one_axis_mps
         if abs(t - last[0]) > ATHWART_FRESH_S:
             return one_axis_mps
@@ -220,6 +232,17 @@ class TwoAxisLearner:
         u, w = self.sup.applied.hull_frame_own(raw_l_mps, athwart_mps)
         u = emitted_speed(u, raw_l_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
         return None if math.isnan(u) else (u, w)
+
+    def answers(self, fallbacks: int, held: bool) -> bool:
+        """Whether the figures' own forward speed may go out under the one-axis
+        supervisor: not while it sends raw for a cause (``held``: the change detector's
+        hold, a fault), and not after a fallback of its (``fallbacks`` grew: a change it
+        detected, a calibration worse than raw) until the two-axis recheck has judged
+        the forward speed again on readings since (:attr:`TwoAxisSupervisor.forward_own`)."""
+        if fallbacks != self.fallbacks:
+            self.fallbacks = fallbacks
+            self.sup.forward_own = False
+        return not held
 
     def forward_on(self) -> bool:
         """Whether the forward speed goes out by the applied figures' own longitudinal

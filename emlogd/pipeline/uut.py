@@ -224,12 +224,12 @@ class UutCalibration:
         self.sup.applied = p
 
     @property
-    def emitting(self) -> bool:
-        """Whether a reading goes out corrected by the applied calibration: one applied,
-        ``apply`` on, not held by the change detector, the log without a fault (else it
-        goes out raw, or not at all)."""
+    def guard(self) -> tuple[int, bool]:
+        """What a two-axis forward speed answers to (:meth:`TwoAxisLearner.answers`): the
+        supervisor's fallbacks to raw or the previous calibration so far, and whether a
+        reading goes out raw for a cause now (held by the change detector, a fault)."""
         sup = self.sup
-        return sup.applied is not None and self.s.apply and not sup.held and not sup.health.fault
+        return sup.counters.fallbacks, sup.held or bool(sup.health.fault)
 
     @property
     def applied_std(self) -> dict[str, float | None]:
