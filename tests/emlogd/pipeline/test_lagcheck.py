@@ -97,14 +97,19 @@ def test_the_uut_withdraws_to_raw_and_learns_nothing() -> None:
     prior = Calibration("log", Estimate(TRUE, {"m": 0.01, "b": 0.01}), 0.5)
     cal = UutCalibration(s, prior, lambda t: None, lambda t, k, d: events.append((t, k, d)))
     learnt: list[int] = []
-    for k in range(12000):
+    applied_in_time = False
+    for k in range(13000):
         t = 200.0 + 0.1 * k
-        cal.add_reference(t, _speed(t - 120.0), True)
+        late = t >= 300.0
+        cal.add_reference(t, _speed(t - 120.0 if late else t), True)
         if k % 10 == 0:
             cal.add_reading(t, TRUE.forward(_speed(t)))
             cal.drain(t)
             learnt.append(cal.n_learnt)
+            applied_in_time |= not late and cal.applied is not None
+    assert applied_in_time  # in time, the restored calibration was applied
     assert any(k == "lag_check" for _, k, _ in events)
+    assert any(k == "fallback" for _, k, _ in events)
     assert cal.applied is None
     assert cal.correct(2.0) == 2.0
     assert "the reference's time does not match the log's" in cal.reason
