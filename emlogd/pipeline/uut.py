@@ -87,6 +87,9 @@ class UutCalibration:
             readings after the change). False (offline ``calibrate``, one model over the
             recordings as least squares fits it): the supervisor still withdraws, the
             learner keeps what every reading taught.
+        check_lag: a configured lag is checked against the data
+            (:mod:`emlogd.pipeline.lagcheck`). False (offline ``calibrate``): its lag is
+            the lag report's.
     """
 
     def __init__(
@@ -98,6 +101,7 @@ class UutCalibration:
         *,
         matched_noise: bool = False,
         reopen_on_change: bool = True,
+        check_lag: bool = True,
     ) -> None:
         self.s = s
         self.reopen_on_change = reopen_on_change
@@ -125,8 +129,9 @@ class UutCalibration:
             ),
             restored_sea_std=usable.current_std_mps if usable is not None else None,
         )
-        self.lagcheck = LagCheck(s.current)
-        """The lag in use checked against the data (:mod:`emlogd.pipeline.lagcheck`)."""
+        self.lagcheck = LagCheck(s.current) if check_lag and s.lag_s is not None else None
+        """The configured lag checked against the data (:mod:`emlogd.pipeline.lagcheck`);
+        None with ``lag: auto`` (an estimated lag is the data's own)."""
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
         self.state: CalState = "uncalibrated"
         self.reason = (
@@ -303,7 +308,7 @@ class UutCalibration:
         """One reference sample along the hull (already filtered for glitches)."""
         if not self.learner.add_reference(t, v_mps, valid, self._heading):
             return
-        if valid and v_mps is not None:
+        if self.lagcheck is not None and valid and v_mps is not None:
             self.lagcheck.reference(t, v_mps, self._heading(t) if self.layout.current else None)
         if self.recorder is not None:
             self.recorder.reference(t, v_mps, valid, self.heading_at(t))
@@ -340,8 +345,9 @@ class UutCalibration:
     def learn(self, t: float, raw: float) -> None:
         """Align, check the log's health, learn, supervise: one reading."""
         lr, sup = self.learner, self.sup
-        if self.lagcheck.reading(t, raw, lr.lag_s):
-            self._lag_verdict(t)
+        lc = self.lagcheck
+        if lc is not None and lc.reading(t, raw, lr.lag_s):
+            self._lag_verdict(t, lc.why)
         a = lr.align(t, raw, self._heading)
         sup.reading(t, a.ref_state not in ("none", "stale"))
         ref_ok = a.ref if a.ref_state == "valid" else None
@@ -352,7 +358,7 @@ class UutCalibration:
         elif sup.health.stalled(raw, ref_ok):
             self.counters.uut_stalled += 1
             gate = "uut_stalled"
-        if self.lagcheck.contradicted:
+        if lc is not None and lc.contradicted:
             gate = gate or "lag_contradicted"
         step = lr.step(a, gate, sup.applied)
         if step.valid and a.ref is not None and not gate:
@@ -362,11 +368,11 @@ class UutCalibration:
             ref = a.ref if step.valid else None
             self.tracer(self._trace_row(t, raw, ref, a.heading, step.innovation, step.learn_set))
 
-    def _lag_verdict(self, t: float) -> None:
+    def _lag_verdict(self, t: float, why: str) -> None:
         """The data contradict the lag in use (nothing learnt or applied from pairs of
         different moments: the calibration to raw), or agree again (what was learnt
         before re-opens)."""
-        why, sup = self.lagcheck.why, self.sup
+        sup = self.sup
         self._emit(t, "lag_check", {"lag_s": self.learner.lag_s, "why": why or "agrees"})
         if not why:
             self.learner.reopen_for_change()
@@ -424,7 +430,7 @@ class UutCalibration:
         else:
             new = "frozen" if self.applied is not None else "uncalibrated"
             self.reason = self._why_not_learning()
-        if self.lagcheck.why:
+        if self.lagcheck is not None and self.lagcheck.why:
             self.reason = f"raw passes through, nothing learnt: {self.lagcheck.why}"
         elif self.note:
             self.reason = f"{self.reason}; {self.note}"
