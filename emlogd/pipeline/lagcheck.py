@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 
@@ -59,6 +60,10 @@ LAG_CHECK_STEP_S = 1.0
 LAG_CHECK_READING_S = 1.0
 """Readings are kept at most one per this many seconds, s (a 5 Hz log thinned to 1 Hz:
 a check tells lags apart by seconds, and costs a fifth)."""
+
+LAG_CHECK_REFERENCE_S = 0.5
+"""Reference samples are kept at most one per this many seconds, s (a 10 Hz DVL thinned
+to 2 Hz: the check smooths both series over twice the readings' 1-s spacing anyway)."""
 
 LAG_CHECK_TOLERANCE_S = 5.0
 """A best lag this close to the lag in use, s, agrees with it: a configured lag is a
@@ -124,11 +129,17 @@ class LagCheck:
         """The last check that could tell contradicted the lag in use."""
         return bool(self.why)
 
-    def reference(self, t: float, v_mps: float, heading_deg: float | None) -> None:
-        """One valid reference sample along the hull and the heading at its time."""
+    def reference(
+        self, t: float, v_mps: float, heading_at: Callable[[float], float | None]
+    ) -> None:
+        """One valid reference sample along the hull (``heading_at``: the heading at a time)."""
+        if self.ref and t - self.ref[-1][0] < LAG_CHECK_REFERENCE_S:
+            return
         _push(self.ref, t, v_mps, self.keep_s)
-        if self.with_heading and heading_deg is not None:
-            _push(self.heading, t, heading_deg, self.keep_s)
+        if self.with_heading:
+            h = heading_at(t)
+            if h is not None:
+                _push(self.heading, t, h, self.keep_s)
 
     def reading(self, t: float, raw_mps: float, lag_s: float | None) -> bool:
         """One reading; True when a check changed the verdict (:attr:`why`)."""

@@ -309,7 +309,7 @@ class UutCalibration:
         if not self.learner.add_reference(t, v_mps, valid, self._heading):
             return
         if self.lagcheck is not None and valid and v_mps is not None:
-            self.lagcheck.reference(t, v_mps, self._heading(t) if self.layout.current else None)
+            self.lagcheck.reference(t, v_mps, self._heading)
         if self.recorder is not None:
             self.recorder.reference(t, v_mps, valid, self.heading_at(t))
 

@@ -38,7 +38,7 @@ def _feed(check: LagCheck, seconds: float, shift_s: float, lag_s: float, steady:
     for k in range(int(seconds * 2)):
         t = 200.0 + 0.5 * k
         v = 2.0 if steady else _speed(t - shift_s)
-        check.reference(t, v + 0.01 * np.sin(7.0 * t), None)
+        check.reference(t, v + 0.01 * np.sin(7.0 * t), lambda t: None)
         if k % 2 == 0:
             check.reading(t, 2.0 if steady else _speed(t), lag_s)
 
