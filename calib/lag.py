@@ -71,6 +71,7 @@ class LagEstimate:
         at_bound: the peak is at ±max_lag_s (the true lag may lie outside).
         std_s: standard error of the lag from the peak's curvature and the residual
             (white residuals assumed; ``inf`` when the peak is flat or at the bound), s.
+        corr_at: the score at ``at_s`` on the same samples (nan without one).
     """
 
     lag_s: float
@@ -79,6 +80,8 @@ class LagEstimate:
     n_samples: int
     at_bound: bool
     std_s: float = math.inf
+    corr_at: float = math.nan
+    """The correlation at ``at_s`` (:func:`estimate_lag`) on the same samples, or nan."""
 
 
 def _series(name: str, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -369,6 +372,8 @@ def estimate_lag(
     step_s: float | None = None,
     min_samples: int = 30,
     heading: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    at_s: float | None = None,
+    split: bool = True,
 ) -> LagEstimate:
     """Estimate the latency of a speed series relative to a reference.
 
@@ -383,6 +388,10 @@ def estimate_lag(
         heading: ``(t_h, heading_deg)`` of the heading at the reference's clock
             (strictly increasing times): score with the current modelled (see the
             module docstring).
+        at_s: also score this lag (within ``±max_lag_s``) on the same samples
+            (:attr:`LagEstimate.corr_at`): how much worse than the best a claimed lag is.
+        split: widen σ by the disagreement of the window's two halves (below); False
+            (a third of the cost): σ from the curvature alone.
 
     Returns:
         The lag, the peak correlation and diagnostics.
@@ -432,7 +441,7 @@ def estimate_lag(
         regress = (th, np.cos(rad), np.sin(rad))
     corr = _curve(tk, vk, tr, vr, regress, lags)
     lag, peak, std, at_bound = _peak(lags, corr, step_s, _dof(tk, regress is not None))
-    if not at_bound and tk.size >= 2 * min_samples:
+    if split and not at_bound and tk.size >= 2 * min_samples:
         # The curvature's σ assumes white residuals; the two halves of the window
         # must also agree (a flat, jagged correlation peak does not repeat).
         half = tk.size // 2
@@ -449,4 +458,7 @@ def estimate_lag(
             std = math.inf
         else:
             std = max(std, abs(halves[0][0] - halves[1][0]) / 2.0)
-    return LagEstimate(lag, min(peak, 1.0), step_s, int(tk.size), at_bound, std)
+    corr_at = math.nan
+    if at_s is not None:
+        corr_at = float(_curve(tk, vk, tr, vr, regress, np.array([float(at_s)]))[0])
+    return LagEstimate(lag, min(peak, 1.0), step_s, int(tk.size), at_bound, std, corr_at)

@@ -36,7 +36,8 @@ def run_online(
     scales them by the slowly adapted noise scale its offers rest on), and a change the
     supervisor's detector saw withdraws the applied calibration without re-opening the
     learner (one model over the recordings; the daemon re-opens it so that its next
-    offer rests on readings after the change).
+    offer rests on readings after the change). The lag is the lag report's, not checked
+    again (:mod:`emlogd.pipeline.lagcheck` is the daemon's and replay's).
     """
     s = dataclasses.replace(settings, lag_s=lag_s, learn=True)
     heading = SampleRing(4096, 2.0, angular=True, cadence=True)
@@ -47,6 +48,7 @@ def run_online(
         lambda t, k, d: None,
         matched_noise=True,
         reopen_on_change=False,
+        check_lag=False,
     )
     cal.tracer = trace
     for r in recs:

@@ -40,6 +40,7 @@ from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.integrity import PairedWindow, UutHealth
+from emlogd.pipeline.lagcheck import LagCheck
 from emlogd.pipeline.learner import AVERAGE_S, Aligned, BlockMeans, LagFinder, Learner, RefState
 from emlogd.pipeline.supervisor import Candidate, Supervisor
 
@@ -86,6 +87,9 @@ class UutCalibration:
             readings after the change). False (offline ``calibrate``, one model over the
             recordings as least squares fits it): the supervisor still withdraws, the
             learner keeps what every reading taught.
+        check_lag: a configured lag is checked against the data
+            (:mod:`emlogd.pipeline.lagcheck`). False (offline ``calibrate``): its lag is
+            the lag report's.
     """
 
     def __init__(
@@ -97,6 +101,7 @@ class UutCalibration:
         *,
         matched_noise: bool = False,
         reopen_on_change: bool = True,
+        check_lag: bool = True,
     ) -> None:
         self.s = s
         self.reopen_on_change = reopen_on_change
@@ -124,6 +129,9 @@ class UutCalibration:
             ),
             restored_sea_std=usable.current_std_mps if usable is not None else None,
         )
+        self.lagcheck = LagCheck(s.current) if check_lag and s.lag_s is not None else None
+        """The configured lag checked against the data (:mod:`emlogd.pipeline.lagcheck`);
+        None with ``lag: auto`` (an estimated lag is the data's own)."""
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
         self.state: CalState = "uncalibrated"
         self.reason = (
@@ -308,6 +316,8 @@ class UutCalibration:
         """One reference sample along the hull (already filtered for glitches)."""
         if not self.learner.add_reference(t, v_mps, valid, self._heading):
             return
+        if self.lagcheck is not None and valid and v_mps is not None:
+            self.lagcheck.reference(t, v_mps, self._heading)
         if self.recorder is not None:
             self.recorder.reference(t, v_mps, valid, self.heading_at(t))
 
@@ -343,6 +353,9 @@ class UutCalibration:
     def learn(self, t: float, raw: float) -> None:
         """Align, check the log's health, learn, supervise: one reading."""
         lr, sup = self.learner, self.sup
+        lc = self.lagcheck
+        if lc is not None and lc.reading(t, raw, lr.lag_s):
+            self._lag_verdict(t, lc.why)
         a = lr.align(t, raw, self._heading)
         sup.reading(t, a.ref_state not in ("none", "stale"))
         ref_ok = a.ref if a.ref_state == "valid" else None
@@ -353,6 +366,8 @@ class UutCalibration:
         elif sup.health.stalled(raw, ref_ok):
             self.counters.uut_stalled += 1
             gate = "uut_stalled"
+        if lc is not None and lc.contradicted:
+            gate = gate or "lag_contradicted"
         step = lr.step(a, gate, sup.applied)
         if step.valid and a.ref is not None and not gate:
             self._supervise(a)
@@ -360,6 +375,19 @@ class UutCalibration:
         if self.tracer is not None:
             ref = a.ref if step.valid else None
             self.tracer(self._trace_row(t, raw, ref, a.heading, step.innovation, step.learn_set))
+
+    def _lag_verdict(self, t: float, why: str) -> None:
+        """The data contradict the lag in use (nothing learnt or applied from pairs of
+        different moments: the calibration to raw), or agree again (what was learnt
+        before re-opens)."""
+        sup = self.sup
+        self._emit(t, "lag_check", {"lag_s": self.learner.lag_s, "why": why or "agrees"})
+        if not why:
+            self.learner.reopen_for_change()
+            return
+        sup.candidate = None
+        if sup.applied is not None:
+            sup._withdraw(t, why, {})
 
     def _supervise(self, a: Aligned) -> None:
         """The supervisor's verdicts on one reading; a change it saw re-opens the learner."""
@@ -410,7 +438,9 @@ class UutCalibration:
         else:
             new = "frozen" if self.applied is not None else "uncalibrated"
             self.reason = self._why_not_learning()
-        if self.note:
+        if self.lagcheck is not None and self.lagcheck.why:
+            self.reason = f"raw passes through, nothing learnt: {self.lagcheck.why}"
+        elif self.note:
             self.reason = f"{self.reason}; {self.note}"
         if self.learner.lag_note:
             self.reason = f"{self.reason}; {self.learner.lag_note}"

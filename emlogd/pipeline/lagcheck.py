@@ -1,0 +1,200 @@
+"""The lag in use, checked against the data: a reference whose clock is off.
+
+A configured lag is a claim about the time between the UUT's readings and its
+reference's, and the data can contradict it: a reference whose records reach the computer minutes late (buffered on its way), or
+stamped by a clock minutes off, pairs every reading with the reference of another
+moment, and a calibration fitted on such pairs is wrong by whatever the speed did in
+between. :class:`LagCheck` keeps the UUT's readings, its reference and heading of the
+last :data:`LAG_CHECK_WINDOW_S` plus twice :data:`LAG_CHECK_RANGE_S`, and every
+:data:`LAG_CHECK_EVERY_S` of readings scores the lag with :func:`calib.lag.estimate_lag`
+over ``±LAG_CHECK_RANGE_S`` (negative lags too: a reference stamped early; the lag
+search proper looks at ``0..max_lag_s`` only), and the correlation at the lag in use on
+the same readings (:attr:`calib.lag.LagEstimate.corr_at`). The verdict
+(:func:`verdict`):
+
+- **cannot tell** (the last verdict stands) when fewer than
+  :data:`LAG_CHECK_MIN_SAMPLES` readings were scored, or the best correlation is below
+  :data:`calib.lag.MIN_LAG_CORRELATION` (the speed has not varied enough for a
+  correlation to mean anything), or the best lag is at the range's bound (where it
+  lies, unknown), or it beats the lag in use by less than :data:`LAG_CHECK_MIN_GAIN`
+  (a flat curve: a slow speed change fits many lags alike);
+- **agrees** when the best lag is within :data:`LAG_CHECK_TOLERANCE_S` of the lag in
+  use;
+- **contradicts** the lag in use otherwise: the data say it is wrong beyond its
+  uncertainty.
+
+With ``lag: auto`` there is no check: the estimated lag (or the fallback while none is
+accepted) is the data's own (a lag search over ±180 s on real GNSS-referenced logs
+finds spurious peaks, r=1.00 at +21 s on one window of psaros33).
+
+While contradicted, the UUT learns nothing, its applied calibration (and any candidate)
+is withdrawn to raw, and the status says why (:attr:`LagCheck.why`); a later window
+that agrees ends it, and the learner's parameters re-open (what they learnt from pairs
+of different moments is not kept as knowledge). Nothing here reads a clock or does I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+
+import numpy as np
+
+from calib.errors import CalibrationError
+from calib.lag import MIN_LAG_CORRELATION, LagEstimate, estimate_lag
+
+LAG_CHECK_RANGE_S = 180.0
+"""The lags the check scores, ±s: a reference three minutes off either way is found;
+one farther off puts the best correlation at the bound."""
+
+LAG_CHECK_WINDOW_S = 300.0
+"""The readings each check scores, s (a speed change or a turn or two)."""
+
+LAG_CHECK_EVERY_S = 300.0
+"""A check is made every this many seconds of readings, s."""
+
+LAG_CHECK_STEP_S = 1.0
+"""The check's grid step, s: it tells lags apart by seconds, not tenths."""
+
+LAG_CHECK_READING_S = 1.0
+"""Readings are kept at most one per this many seconds, s (a 5 Hz log thinned to 1 Hz:
+a check tells lags apart by seconds, and costs a fifth)."""
+
+LAG_CHECK_REFERENCE_S = 0.5
+"""Reference samples are kept at most one per this many seconds, s (a 10 Hz DVL thinned
+to 2 Hz: the check smooths both series over twice the readings' 1-s spacing anyway)."""
+
+LAG_CHECK_TOLERANCE_S = 5.0
+"""A best lag this close to the lag in use, s, agrees with it: a configured lag is a
+latency of seconds, and an imported log's refused estimates lie within −3..+4 s."""
+
+LAG_CHECK_MIN_GAIN = 0.1
+"""The best correlation must beat the one at the lag in use by this much: a flat
+correlation curve (a slow speed change) places its peak anywhere."""
+
+LAG_CHECK_MIN_SAMPLES = 150
+"""Readings a check must score, at least (those whose reference is covered over the
+whole range, no outage near): on fewer, the fit of a current per block makes a
+correlation of 0.99 at any lag."""
+
+LAG_CHECK_RATE_HZ = 20.0
+"""Reference samples per second the buffers are sized for (a 10 Hz DVL twice over)."""
+
+
+def verdict(est: LagEstimate, lag_s: float) -> str | None:
+    """The check's verdict on ``lag_s``: why the data contradict it, ``""`` when they
+    agree, None when they cannot tell (see the module docstring).
+
+    Args:
+        est: the best lag over ``±LAG_CHECK_RANGE_S`` with ``corr_at`` at ``lag_s``
+            (:func:`calib.lag.estimate_lag`).
+        lag_s: the lag in use, s.
+    """
+    if not (est.n_samples >= LAG_CHECK_MIN_SAMPLES and est.peak_corr >= MIN_LAG_CORRELATION):
+        return None
+    if abs(est.lag_s - lag_s) <= LAG_CHECK_TOLERANCE_S:
+        return ""
+    if est.at_bound or not est.peak_corr - est.corr_at >= LAG_CHECK_MIN_GAIN:
+        return None
+    return (
+        f"the reference's time does not match the log's: best lag {est.lag_s:+.1f} s "
+        f"(r={est.peak_corr:.2f}), configured {lag_s:g} s (r={est.corr_at:.2f})"
+    )
+
+
+class LagCheck:
+    """The UUT's, its reference's and heading's recent series, and the verdict on the
+    lag in use (see the module docstring).
+
+    Args:
+        with_heading: score in the water frame (the current modelled).
+    """
+
+    def __init__(self, with_heading: bool) -> None:
+        self.with_heading = with_heading
+        self.keep_s = LAG_CHECK_WINDOW_S + 2.0 * LAG_CHECK_RANGE_S
+        cap = int(self.keep_s * LAG_CHECK_RATE_HZ) + 64
+        self.uut: deque[tuple[float, float]] = deque(maxlen=cap)
+        self.ref: deque[tuple[float, float]] = deque(maxlen=cap)
+        self.heading: deque[tuple[float, float]] = deque(maxlen=cap)
+        self.t_next: float | None = None
+        self.why = ""
+        """Why the data contradict the lag in use (the status reason), or empty."""
+        self.checks = 0
+        """Checks made (those that could not tell included)."""
+
+    @property
+    def contradicted(self) -> bool:
+        """The last check that could tell contradicted the lag in use."""
+        return bool(self.why)
+
+    def reference(
+        self, t: float, v_mps: float, heading_at: Callable[[float], float | None]
+    ) -> None:
+        """One valid reference sample along the hull (``heading_at``: the heading at a time)."""
+        if self.ref and t - self.ref[-1][0] < LAG_CHECK_REFERENCE_S:
+            return
+        _push(self.ref, t, v_mps, self.keep_s)
+        if self.with_heading:
+            h = heading_at(t)
+            if h is not None:
+                _push(self.heading, t, h, self.keep_s)
+
+    def reading(self, t: float, raw_mps: float, lag_s: float | None) -> bool:
+        """One reading; True when a check changed the verdict (:attr:`why`)."""
+        if not self.uut or t - self.uut[-1][0] >= LAG_CHECK_READING_S:
+            _push(self.uut, t, raw_mps, self.keep_s)
+        if self.t_next is None:
+            self.t_next = t + self.keep_s
+        if lag_s is None or t < self.t_next:
+            return False
+        self.t_next = t + LAG_CHECK_EVERY_S
+        why = self._check(lag_s)
+        if why is None or why == self.why:
+            return False
+        self.why = why
+        return True
+
+    def _check(self, lag_s: float) -> str | None:
+        """The verdict on ``lag_s`` over the window; None when it cannot tell."""
+        self.checks += 1
+        t_ref_end = self.ref[-1][0] if self.ref else -math.inf
+        uut = [s for s in self.uut if s[0] <= t_ref_end - LAG_CHECK_RANGE_S]
+        uut = [s for s in uut if s[0] >= uut[-1][0] - LAG_CHECK_WINDOW_S] if uut else uut
+        if len(uut) < 3 or len(self.ref) < 3:
+            return None
+        tm, vm = np.array(uut).T
+        tr, vr = np.array(self.ref).T
+        heading = None
+        if self.with_heading:
+            if len(self.heading) < 3:
+                return None
+            th, psi = np.array(self.heading).T
+            heading = (th, psi)
+        try:
+            est = estimate_lag(
+                tm,
+                vm,
+                tr,
+                vr,
+                LAG_CHECK_RANGE_S,
+                step_s=LAG_CHECK_STEP_S,
+                min_samples=LAG_CHECK_MIN_SAMPLES,
+                heading=heading,
+                at_s=lag_s,
+                split=False,
+            )
+        except CalibrationError:
+            return None
+        return verdict(est, lag_s)
+
+
+def _push(q: deque[tuple[float, float]], t: float, v: float, keep_s: float) -> None:
+    """Append ``(t, v)`` (a finite value after the newest time) and forget what is older
+    than ``keep_s``."""
+    if not math.isfinite(v) or (q and t <= q[-1][0]):
+        return
+    q.append((t, v))
+    while q and q[0][0] < t - keep_s:
+        q.popleft()

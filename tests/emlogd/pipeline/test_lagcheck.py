@@ -1,0 +1,116 @@
+"""The lag in use checked against the data: a reference whose clock is off is told, and
+the UUT learns nothing from it and applies nothing (emlogd.pipeline.lagcheck)."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+
+import numpy as np
+import pytest
+
+from calib.estimate import Estimate
+from calib.lag import LagEstimate
+from calib.models import Params
+from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.lagcheck import (
+    LAG_CHECK_MIN_GAIN,
+    LAG_CHECK_MIN_SAMPLES,
+    LAG_CHECK_TOLERANCE_S,
+    LagCheck,
+    verdict,
+)
+from emlogd.pipeline.settings import UutSettings
+from emlogd.pipeline.uut import UutCalibration
+
+_KNOTS = np.random.default_rng(7).uniform(1.0, 4.0, 400)
+"""A speed that wanders between 1 and 4 m/s, a new value every 10 s (never periodic)."""
+
+TRUE = Params("EM3", m=0.15, b_mps=0.1)
+
+
+def _speed(t: float) -> float:
+    return float(np.interp(t, 10.0 * np.arange(_KNOTS.size), _KNOTS))
+
+
+def _feed(check: LagCheck, seconds: float, shift_s: float, lag_s: float, steady: bool) -> None:
+    """The reference at 2 Hz stamped ``shift_s`` late, the readings at 1 Hz."""
+    for k in range(int(seconds * 2)):
+        t = 200.0 + 0.5 * k
+        v = 2.0 if steady else _speed(t - shift_s)
+        check.reference(t, v + 0.01 * np.sin(7.0 * t), lambda t: None)
+        if k % 2 == 0:
+            check.reading(t, 2.0 if steady else _speed(t), lag_s)
+
+
+@pytest.mark.parametrize("shift_s", [120.0, -120.0])
+def test_a_reference_two_minutes_off_contradicts_the_lag(shift_s: float) -> None:
+    """Stamped 120 s late (a lag of −120 s) or early (+120 s, beyond the lag search's
+    0..30 s): the check finds it and says so."""
+    check = LagCheck(with_heading=False)
+    _feed(check, 1000.0, shift_s, 0.5, steady=False)
+    assert check.contradicted
+    found = re.search(r"best lag ([+-][0-9.]+) s", check.why)
+    assert found is not None and float(found.group(1)) == pytest.approx(-shift_s, abs=2.0)
+    assert "configured 0.5 s" in check.why
+
+
+@pytest.mark.parametrize("lag_s", [0.0, 3.0])
+def test_a_reference_in_time_agrees(lag_s: float) -> None:
+    """In time, with the lag in use right or a few seconds off: never contradicted."""
+    check = LagCheck(with_heading=False)
+    _feed(check, 1500.0, 0.0, lag_s, steady=False)
+    assert check.checks >= 3
+    assert not check.contradicted
+
+
+def test_a_steady_speed_cannot_contradict() -> None:
+    """At a steady speed no correlation means anything: 120 s off goes unjudged."""
+    check = LagCheck(with_heading=False)
+    _feed(check, 1000.0, 120.0, 0.5, steady=True)
+    assert check.checks >= 1
+    assert not check.contradicted
+
+
+def _est(lag: float, peak: float, at: float, n: int = 300) -> LagEstimate:
+    return LagEstimate(lag, peak, 0.5, n, False, 1.0, at)
+
+
+def test_the_rule() -> None:
+    """Agrees within the tolerance; contradicts only a clearly better lag on enough
+    samples with a correlation that means something; else cannot tell."""
+    tol, gain = LAG_CHECK_TOLERANCE_S, LAG_CHECK_MIN_GAIN
+    assert verdict(_est(3.3 + 0.9 * tol, 0.95, 0.2), 3.3) == ""
+    assert verdict(_est(120.0, 0.95, 0.95 - 1.1 * gain), 3.3)
+    assert verdict(_est(120.0, 0.95, 0.95 - 0.9 * gain), 3.3) is None  # a flat curve
+    assert verdict(_est(120.0, 0.5, 0.0), 3.3) is None  # no correlation worth the name
+    assert verdict(_est(120.0, 0.95, 0.2, LAG_CHECK_MIN_SAMPLES - 1), 3.3) is None
+    bound = LagEstimate(180.0, 0.95, 0.5, 300, True, float("inf"), 0.2)
+    assert verdict(bound, 3.3) is None  # beyond the range: where, unknown
+
+
+def test_the_uut_withdraws_to_raw_and_learns_nothing() -> None:
+    """A UUT whose restored calibration is applied, then a reference 120 s late: the
+    calibration is withdrawn, raw passes, nothing is learnt, and the status says why."""
+    events: list[tuple[float, str, Mapping[str, object]]] = []
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.5)
+    prior = Calibration("log", Estimate(TRUE, {"m": 0.01, "b": 0.01}), 0.5)
+    cal = UutCalibration(s, prior, lambda t: None, lambda t, k, d: events.append((t, k, d)))
+    learnt: list[int] = []
+    applied_in_time = False
+    for k in range(13000):
+        t = 200.0 + 0.1 * k
+        late = t >= 300.0
+        cal.add_reference(t, _speed(t - 120.0 if late else t), True)
+        if k % 10 == 0:
+            cal.add_reading(t, TRUE.forward(_speed(t)))
+            cal.drain(t)
+            learnt.append(cal.n_learnt)
+            applied_in_time |= not late and cal.applied is not None
+    assert applied_in_time  # in time, the restored calibration was applied
+    assert any(k == "lag_check" for _, k, _ in events)
+    assert any(k == "fallback" for _, k, _ in events)
+    assert cal.applied is None
+    assert cal.correct(2.0) == 2.0
+    assert "the reference's time does not match the log's" in cal.reason
+    assert learnt[-1] == learnt[-200]  # the last 200 s taught nothing
