@@ -324,7 +324,7 @@ class Supervisor:
         self.drift.add(t, raw, ref, cs if self.water else None, self.applied)
         if self.drift.sustained and self.applied is not None:
             why = {"params": self.applied.as_dict(), "drift_mps": round(self.drift.change_mps, 4)}
-            self._withdraw(t, "the log drifts against a steady reference", why)
+            self.withdraw(t, "the log drifts against a steady reference", why)
             self.reopen = True
             d_app = d_raw
         elif self._detect(t, cs, d_app, d_raw, ref):
@@ -519,7 +519,7 @@ class Supervisor:
         }
         detail |= shift.detail(step_log, step_ref)
         beta = w.beta(0) if self.water and jumped else None
-        self._withdraw(
+        self.withdraw(
             t, "the readings changed and the calibration fits them worse than raw", detail
         )
         if self.candidate is not None and beta is not None:
@@ -535,7 +535,7 @@ class Supervisor:
         self.counters.changes += 1
         return True
 
-    def _withdraw(self, t: float, why: str, detail: dict[str, object]) -> None:
+    def withdraw(self, t: float, why: str, detail: dict[str, object]) -> None:
         """To raw for cause: the applied calibration stays the last good one and is the
         next candidate (re-applied once it validates again)."""
         p = self.applied
@@ -692,7 +692,7 @@ class Supervisor:
             self.dirty = True
             self._emit(t, "fallback", detail | {"to": "previous"})
             return
-        self._withdraw(
+        self.withdraw(
             t,
             f"the calibration was worse than raw over {self.s.recheck_s:g} s "
             f"({r_app:.3f} vs {r_raw:.3f} m/s)",

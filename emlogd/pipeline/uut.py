@@ -387,7 +387,7 @@ class UutCalibration:
             return
         sup.candidate = None
         if sup.applied is not None:
-            sup._withdraw(t, why, {})
+            sup.withdraw(t, why, {})
 
     def _supervise(self, a: Aligned) -> None:
         """The supervisor's verdicts on one reading; a change it saw re-opens the learner."""

@@ -165,7 +165,7 @@ def test_a_withdrawn_calibration_waits_for_evidence_no_current_explains() -> Non
     s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)
     sup, kinds = _sup(None, s)
     sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
-    sup._withdraw(0.0, "a test", {})
+    sup.withdraw(0.0, "a test", {})
     heading = (1.0, 0.0)
     for k in range(1, 181):
         stw = 1.0 if k <= 60 else 1.6
