@@ -12,10 +12,15 @@ at real speed (1 Hz VHW, 10 Hz VBW + 5 Hz VHW, 10 Hz PD6), then prints two table
    steps are counted in their callers too; learning one UUT reading, and its
    alignment, filter step and supervision, wherever it is called from).
 
-The two tables come from two runs of ``--seconds`` each: the first times only the
+3. The daemon alone: its loop thread's CPU with ``Pipeline.feed`` and ``Pipeline.tick``
+   stubbed (each returns an empty output at once), the same ports read at the same
+   rates: what the loop, the reads and the rests cost without the pipeline's work.
+
+The tables come from three runs of ``--seconds`` each: the first times only the
 wait, ``Pipeline.feed`` and ``Pipeline.tick`` (what a wake-up did is marked, not timed);
 the second times each step, which costs a few µs of CPU a timed call with the caches
-cold (about 20 µs a wake-up, which the first table would count as the daemon's own).
+cold (about 20 µs a wake-up, which the first table would count as the daemon's own);
+the third times nothing but the loop.
 Compare trees with the same script (``PYTHONPATH`` at each tree: the wrapper finds the
 wait of either loop). Prints figures only.
 
@@ -51,6 +56,9 @@ cur = {"did": [], "feed": 0, "wait": 0, "back": None, "port": "housekeeping"}
 t0 = [0, 0.0]
 
 STEPS = sys.argv[2] == "steps"  # else the split: the wait and the pipeline's calls timed
+if sys.argv[2] == "stub":  # the daemon alone: the pipeline's work left out
+    pp.Pipeline.feed = lambda self, t, port, data: pp.Output()
+    pp.Pipeline.tick = lambda self, t: pp.Output()
 
 def mark(cls, meth, did):
     # what a wake-up did, untimed (the split's run)
@@ -198,6 +206,14 @@ def main() -> None:
     print("CPU per call and share of one core by step (a second run, each step timed):")
     for label, (ns, n) in sorted(data["acc"].items(), key=lambda kv: -kv[1][0]):
         print(f"  {label:45s} {n:6d} calls {ns / n / 1e3:8.1f} us  {100 * ns / 1e9 / wall:6.3f} %")
+    data = _run(trial, args.seconds, "stub")
+    wall = data["wall_s"]
+    wakes = sum(k[0] for k in data["kinds"].values()) / wall
+    print(
+        "the daemon alone (a third run, Pipeline.feed and tick stubbed): the loop thread "
+        f"{100 * data['acc']['loop total'][0] / 1e9 / wall:.3f} % of a core at {wakes:.1f} "
+        "wake-ups/s"
+    )
 
 
 if __name__ == "__main__":

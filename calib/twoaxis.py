@@ -17,20 +17,32 @@ measurement with the reference's ground velocity taken as known (a DVL's millime
 noise), linearised about the least-squares fit and then about its own previous pass;
 the unknowns the window refuses are held at their prior as in least squares.
 
+**Without the misalignment, no transverse figures** (:func:`hold_without_misalignment`).
+Where α is refused, the transverse scale and bias are held at their prior too (the
+ideal sensor's gain 1 and bias 0: the athwart reading passes as read), each with the
+reason. The athwart reading is ``(1 + m_t)·(w − sin α·u) + b_t``: with α held, a
+fitted scale and bias take the phantom leeway ``−sin α·u`` at the training data's
+forward speeds and are wrong at any other (on the one-way circles of ``emlogd
+simulate``, a scale tied to the forward axis's and a bias so fitted make the athwart
+speed worse than raw on three of its five trajectories). Inside the fit they stay
+free (the scale tied to the forward one, :data:`TIE_HELD_SCALE`), so that the
+athwart axis still tells the current across the hull and the longitudinal fit keeps
+that benefit.
+
 Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError
 from calib.metrics import correlation_factor
-from calib.models import CURRENT, PARAM_NAMES, FloatArray, ModelName, check_model
+from calib.models import CURRENT, PARAM_NAMES, FloatArray, ModelName, Params, check_model
 from calib.twoaxis_ident import (
     DEFAULT_TWO_AXIS_RULE,
     ENVELOPE,
@@ -69,6 +81,7 @@ from calib.twoaxis_model import (
     leeway_deg,
     water_velocity,
 )
+from calib.verdicts import Verdict
 
 __all__ = [
     "ALPHA",
@@ -89,6 +102,7 @@ __all__ = [
     "current_basis",
     "fit_current_two_axis",
     "fit_two_axis",
+    "hold_without_misalignment",
     "judge_two_axis",
     "leeway_deg",
     "model_state",
@@ -298,6 +312,45 @@ def current_basis(t_s: npt.ArrayLike | None, n: int, knot_s: float) -> FloatArra
     return np.asarray(basis / total, dtype=np.float64)
 
 
+HELD_WITHOUT_MISALIGNMENT = (
+    "{label} held at {value}: without the misalignment it would take the sideways "
+    "reading a misalignment makes (−sin α·u) at these forward speeds, and be wrong at "
+    "any other"
+)
+"""The reason a transverse scale or bias is not learnt where α is refused
+(:func:`hold_without_misalignment`)."""
+
+
+def hold_without_misalignment(fit: TwoAxisFit, prior: TwoAxisParams | None = None) -> TwoAxisFit:
+    """A fit whose α is refused with its transverse scale and bias held at the prior's
+    (None: the ideal sensor's, ``m_t`` = ``b_t`` = 0), each refused with the reason
+    (:data:`HELD_WITHOUT_MISALIGNMENT`, or the reason it had), its σ not reported; a
+    fit that determined α, unchanged (module docstring)."""
+    if ALPHA not in fit.ident.unidentifiable:
+        return fit
+    p = fit.params
+    held = prior if prior is not None else TwoAxisParams(Params(p.model))
+    values = {M_T: f"{held.m_t:+.3g}", B_T: f"{held.b_t_mps:+.3g} m/s"}
+    labels = {M_T: "transverse scale", B_T: "transverse bias"}
+    verdicts = tuple(
+        Verdict(
+            v.unknown,
+            False,
+            HELD_WITHOUT_MISALIGNMENT.format(label=labels[v.unknown], value=values[v.unknown]),
+            None,
+        )
+        if v.unknown in labels and v.determined
+        else v
+        for v in fit.ident.verdicts
+    )
+    return replace(
+        fit,
+        params=TwoAxisParams(p.longitudinal, p.misalign_rad, held.m_t, held.b_t_mps),
+        stderr=fit.stderr | {M_T: None, B_T: None},
+        ident=replace(fit.ident, verdicts=verdicts),
+    )
+
+
 def fit_two_axis(
     model: str,
     s: TwoAxisSeries,
@@ -307,6 +360,7 @@ def fit_two_axis(
     rule: TwoAxisRule = DEFAULT_TWO_AXIS_RULE,
     t_s: npt.ArrayLike | None = None,
     current_knot_s: float | None = None,
+    hold: bool = True,
 ) -> TwoAxisFit:
     """Least squares of the two-axis model on aligned series (module docstring).
 
@@ -327,6 +381,9 @@ def fit_two_axis(
             across the hull on any heading, and the along-hull part of a straight
             leg's current is told from the bias (one for all the knots) by the
             turns.
+        hold: where α is refused, report the transverse scale and bias held at the
+            prior (:func:`hold_without_misalignment`); False: as fitted, for a
+            caller that holds them itself (the filter, which starts from this fit).
 
     Returns:
         The fit; never raises on poor excitation (see ``ident``).
@@ -425,7 +482,7 @@ def fit_two_axis(
         var = np.einsum("ij,jk,ik->i", g, cov_full, g)
         cur_std = (math.sqrt(max(float(var[0]), 0.0)), math.sqrt(max(float(var[1]), 0.0)))
     n = s.n
-    return TwoAxisFit(
+    fit = TwoAxisFit(
         params=params,
         stderr=stderr,
         current_mps=cur,
@@ -438,6 +495,7 @@ def fit_two_axis(
         method="LS",
         current_series=series,
     )
+    return hold_without_misalignment(fit, prior) if hold else fit
 
 
 class ModelState:

@@ -3,7 +3,8 @@
 The state holds the unknowns the window determines — the same verdicts as least
 squares (:func:`calib.twoaxis.judge_two_axis` on the series), the others held at the
 prior (a held transverse scale following the longitudinal one,
-:data:`calib.twoaxis.TIE_HELD_SCALE`). The sensor's parameters are nearly constant
+:data:`calib.twoaxis.TIE_HELD_SCALE`; where α is refused the transverse scale and
+bias are reported held at the prior, :func:`calib.twoaxis.hold_without_misalignment`). The sensor's parameters are nearly constant
 (:data:`KF_PARAM_Q_PER_S`), the current a random walk (:data:`KF_CURRENT_PSD_M2PS3`).
 Each sample's two readings are one vector measurement; the reference's ground
 velocity and the heading are taken as known (a DVL's millimetre noise is far below
@@ -42,6 +43,7 @@ from calib.twoaxis import (
     TwoAxisRule,
     TwoAxisSeries,
     fit_two_axis,
+    hold_without_misalignment,
     model_state,
 )
 
@@ -109,6 +111,7 @@ def kf_two_axis(
         rule=rule,
         t_s=t_s,
         current_knot_s=current_knot_s,
+        hold=False,
     )
     st = model_state(model, s, ls.ident)
     t = np.asarray(t_s, dtype=np.float64).reshape(-1)
@@ -141,7 +144,7 @@ def kf_two_axis(
     cn, ce = st.current(x)
     cs = st.current_std(std)
     rl, rt = res[:, 0], res[:, 1]
-    return TwoAxisFit(
+    fit = TwoAxisFit(
         params=params,
         stderr=stderr,
         current_mps=(cn, ce) if has_current else None,
@@ -155,6 +158,7 @@ def kf_two_axis(
         current_series=cur if has_current else None,
         trace=trace,
     )
+    return hold_without_misalignment(fit, prior)
 
 
 def _run(

@@ -63,10 +63,12 @@ TRANSVERSE_NAMES: tuple[str, ...] = (ALPHA, M_T, B_T)
 """The two-axis model's unknowns beyond the longitudinal model's, in their order."""
 
 TIE_HELD_SCALE = True
-"""A transverse scale the data do not determine follows the longitudinal scale (one
-coil's field drives both electrode pairs of an EM sensor, so their gains move
-together), rather than the prior's: the athwart speed is then corrected by the
-gain the forward axis shows."""
+"""Inside a fit, a transverse scale the data do not determine follows the longitudinal
+scale (one coil's field drives both electrode pairs of an EM sensor, so their gains
+move together), rather than the prior's, so that the athwart axis still tells the
+current across the hull. It is not reported: without it the misalignment is refused,
+and the fit reports the transverse scale and bias at the prior
+(:func:`calib.twoaxis.hold_without_misalignment`)."""
 
 MAX_MISALIGN_DEG = 20.0
 """The largest misalignment a two-axis calibration may hold, degrees (a sensor turned

@@ -11,8 +11,9 @@ commands, exactly as a user would:
    detection, else the Expedition preset or the generic column map);
 2. ``emlogd calibrate --uut nmea --ref nmea --ref-field gnss --current`` with
    ``--method ls`` and ``--method kf`` (lag auto);
-3. ``emlogd replay --strict`` with ``examples/emlogd-gnss.yaml`` (lag auto), writing the
-   corrected sentences to a capture.
+3. ``emlogd replay --strict`` with ``examples/emlogd-gnss.yaml`` (lag auto; a log that
+   sends VBW alone with ``uut_source: VBW`` added, as ``calibrate`` reads it), writing
+   the corrected sentences to a capture.
 
 One table row per recording: the import's counts by reason; LS and KF parameters ± σ
 and the effective scale at the median speed (corrected / raw) next to the folder's
@@ -39,6 +40,7 @@ they are also written to ``OUTDIR/rows.json``.
 from __future__ import annotations
 
 import argparse
+import gzip
 import json
 import math
 import re
@@ -62,7 +64,7 @@ from calib.metrics import imo_verdict  # noqa: E402
 from calib.models import FloatArray, Params  # noqa: E402
 from drivers import make_decoder  # noqa: E402
 from drivers.io.capture import CaptureReader  # noqa: E402
-from drivers.nmea0183 import Vdr, Vhw  # noqa: E402
+from drivers.nmea0183 import Vbw, Vdr, Vhw  # noqa: E402
 from emlogd.offline.dataset import record_capture  # noqa: E402
 from emlogd.pipeline.settings import UutSettings  # noqa: E402
 
@@ -106,11 +108,12 @@ BOM = b"\xef\xbb\xbf"
 
 
 def kind(path: Path) -> str | None:
-    """What a file is, from its first lines: one of :data:`KINDS`, or None (not a log)."""
+    """What a file is, from its first lines (a ``.gz`` read through gzip, as ``emlogd
+    import`` reads it): one of :data:`KINDS`, or None (not a log)."""
     try:
-        with open(path, "rb") as f:
+        with gzip.open(path, "rb") if path.suffix == ".gz" else open(path, "rb") as f:
             raw = f.read(KIND_SCAN_BYTES)
-    except OSError:
+    except (OSError, EOFError):
         return None
     head = raw.removeprefix(BOM).decode("latin-1", errors="replace")
     lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
@@ -124,8 +127,8 @@ def kind(path: Path) -> str | None:
     for ln in lines[:KIND_SCAN_LINES]:
         delim = max(TABLE_DELIMITERS, key=ln.count)
         cells = [c.strip().strip('"').lower() for c in ln.split(delim)]
-        if ("utc" in cells and "bsp" in cells) or cells[:1] == ["!boat"]:
-            return "expedition-csv"  # its export, or its own sparse log
+        if ("bsp" in cells and ("utc" in cells or "time" in cells)) or cells[:1] == ["!boat"]:
+            return "expedition-csv"  # its export (Utc, or Date and Time), or its sparse log
         if delim == "\t" and ln.count("\t") >= 3:
             return "logger-tsv"
         if len(cells) >= 4 and "time" in cells:
@@ -254,8 +257,13 @@ def run_replay(cap: Path, out: Path) -> tuple[dict[str, Any] | None, str]:
 
     ``--strict``: the capture ``emlogd import`` wrote holds no malformed record, so one
     (a capture cut short) fails the step instead of scoring a replay of part of it."""
+    config = CONFIG
+    if log_sentence(cap) == "VBW":  # the log sends VBW alone: the config's UUT learns it
+        config = out.with_name(f"{out.name.split('.')[0]}.vbw.yaml")
+        text = CONFIG.read_text(encoding="utf-8")
+        config.write_text(text.replace("  - uut: nmea\n", "  - uut: nmea\n    uut_source: VBW\n"))
     rc, stdout, err = emlogd(
-        ["replay", str(cap), "--config", str(CONFIG), "--out", str(out), "--json", "--strict"]
+        ["replay", str(cap), "--config", str(config), "--out", str(out), "--json", "--strict"]
     )
     if rc != 0:
         return None, _last_line(err) or f"exit {rc}"
@@ -263,8 +271,18 @@ def run_replay(cap: Path, out: Path) -> tuple[dict[str, Any] | None, str]:
     return doc, ""
 
 
-def vhw_speeds(cap: Path, port: str | None = None) -> tuple[FloatArray, FloatArray]:
-    """(t, speed m/s) of every VHW with a speed in a capture (one port, or any)."""
+def log_sentence(cap: Path) -> str:
+    """The log's speed sentence in a capture: ``VHW``, else ``VBW`` when it sends VBW
+    alone (as ``emlogd calibrate`` reads it)."""
+    t, _ = speeds(cap, "VHW")
+    return "VHW" if t.size or not speeds(cap, "VBW")[0].size else "VBW"
+
+
+def speeds(
+    cap: Path, sentence: str = "VHW", port: str | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """(t, speed m/s) of every VHW (or VBW: its longitudinal water speed) with a speed in
+    a capture (one port, or any)."""
     dec = make_decoder("nmea0183", "x", errors="skip")
     t: list[float] = []
     v: list[float] = []
@@ -272,9 +290,12 @@ def vhw_speeds(cap: Path, port: str | None = None) -> tuple[FloatArray, FloatArr
         if port is not None and r.port != port:
             continue
         for x in dec.feed(r.data):
-            if isinstance(x, Vhw) and x.stw_mps is not None:
+            if sentence == "VHW" and isinstance(x, Vhw) and x.stw_mps is not None:
                 t.append(r.t)
                 v.append(x.stw_mps)
+            elif sentence == "VBW" and isinstance(x, Vbw) and x.water_long_mps is not None:
+                t.append(r.t)
+                v.append(x.water_long_mps)
     return np.asarray(t, dtype=np.float64), np.asarray(v, dtype=np.float64)
 
 
@@ -310,7 +331,14 @@ def _current_fit(raw: FloatArray, along: FloatArray, hd: FloatArray) -> tuple[fl
 
 def water_scores(cap: Path, emitted_cap: Path) -> dict[str, float]:
     """Raw and emitted speed against the GNSS water speed (module docstring)."""
-    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    sentence = log_sentence(cap)
+    s = UutSettings(
+        port="nmea",
+        reference_port="nmea",
+        reference_field="gnss",
+        current=True,
+        uut_source="VBW" if sentence == "VBW" else "VHW",
+    )
     rec = record_capture(cap, s)
     al = rec.aligned(0.0)
     ok = al.usable(heading=True)
@@ -318,7 +346,7 @@ def water_scores(cap: Path, emitted_cap: Path) -> dict[str, float]:
     if t.size < MIN_WINDOW_SAMPLES:
         raise ValueError(f"{t.size} readings pair with a GNSS reference and a heading")
     # emitted speeds: each sentence of the replay's capture at the time of its sample
-    te, ve = vhw_speeds(emitted_cap)
+    te, ve = speeds(emitted_cap, sentence)
     idx = np.clip(np.searchsorted(te, t), 0, max(te.size - 1, 0))
     have = te.size > 0
     emitted = np.where(have & (np.abs(te[idx] - t) < 1e-6), ve[idx], np.nan) if have else t * np.nan
@@ -407,7 +435,13 @@ def run(src: Path, out: Path, only: list[str]) -> list[Row]:
     files = sorted(p for p in src.iterdir() if p.is_file())
     for path in files:
         what = kind(path)
-        if what is None or path.suffix == ".py" or path.name.endswith(".md"):
+        if path.suffix == ".py" or path.name.endswith(".md"):
+            continue
+        if what is None:
+            say(
+                f"{path.name}: skipped, not a log (no NMEA sentence, no table header among "
+                f"its first {KIND_SCAN_LINES} lines)"
+            )
             continue
         name = path.name.rsplit(".", 1)[0]
         if only and not any(o in name for o in only):

@@ -6,8 +6,10 @@ Expedition's sparse log; the logger's other firmware) and the tidal current the
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable
+from datetime import UTC, datetime, timedelta
 
 TIDE_KN = 1.5
 """The ``tide`` variants' current along its major axis, kn (a strong tidal bay)."""
@@ -16,17 +18,17 @@ TIDE_PERIOD_S = 44_712.0
 """The ``tide`` variants' period: the semi-diurnal M2 tide's 12.42 h, s."""
 
 
-def tide(t: float) -> tuple[float, float]:
+def tide(t: float, scale: float = 1.0) -> tuple[float, float]:
     """The tidal current the ``tide`` variants add, (north, east) in knots at epoch
-    seconds ``t``: a semi-diurnal ellipse of :data:`TIDE_KN` along north and a third
-    of it across, turning over :data:`TIDE_PERIOD_S`."""
+    seconds ``t``: a semi-diurnal ellipse of ``scale`` × :data:`TIDE_KN` along north and
+    a third of it across, turning over :data:`TIDE_PERIOD_S`."""
     w = 2.0 * math.pi * t / TIDE_PERIOD_S
-    return TIDE_KN * math.cos(w), TIDE_KN / 3.0 * math.sin(w)
+    return scale * TIDE_KN * math.cos(w), scale * TIDE_KN / 3.0 * math.sin(w)
 
 
-def add_current(sog_kn: float, cog_deg: float, t: float) -> tuple[float, float]:
+def add_current(sog_kn: float, cog_deg: float, t: float, scale: float = 1.0) -> tuple[float, float]:
     """A ground velocity (knots, degrees) with :func:`tide`'s current added."""
-    cn, ce = tide(t)
+    cn, ce = tide(t, scale)
     a = math.radians(cog_deg)
     vn, ve = sog_kn * math.cos(a) + cn, sog_kn * math.sin(a) + ce
     return math.hypot(vn, ve), math.degrees(math.atan2(ve, vn)) % 360.0
@@ -258,3 +260,62 @@ def thin_rows(period_s: float) -> Callable[[str], str]:
         return "".join(kept)
 
     return apply
+
+
+OLE_EPOCH = datetime(1899, 12, 30, tzinfo=UTC)
+"""Day 0 of the OLE dates in Expedition's ``Utc``."""
+
+
+def utc_text(pattern: str) -> Columns:
+    """``Utc`` written as text with a ``strftime`` pattern instead of an OLE date."""
+
+    def fn(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+        i = h.index("Utc")
+        for r in rows:
+            try:
+                r[i] = (OLE_EPOCH + timedelta(days=float(r[i]))).strftime(pattern)
+            except (ValueError, IndexError):
+                continue
+        return h, rows
+
+    return fn
+
+
+def date_time_columns(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """``Utc`` replaced by ``Date`` (dd/mm/yyyy) and ``Time`` (hh:mm:ss.ff) columns first."""
+    i = h.index("Utc")
+    out = []
+    for r in rows:
+        try:
+            t = OLE_EPOCH + timedelta(days=float(r[i]))
+        except (ValueError, IndexError):
+            continue
+        clock = f"{t:%H:%M:%S}.{t.microsecond // 10_000:02d}"
+        out.append([f"{t:%d/%m/%Y}", clock, *r[:i], *r[i + 1 :]])
+    return ["Date", "Time", *h[:i], *h[i + 1 :]], out
+
+
+def tsv_dates(pattern: str) -> Callable[[str], str]:
+    """The logger's ``Date`` (dd/mm/yy) written with another ``strftime`` pattern."""
+
+    def apply(text: str) -> str:
+        out = []
+        for ln in text.splitlines(keepends=True):
+            cells = ln.split("\t")
+            with contextlib.suppress(ValueError):
+                cells[0] = datetime.strptime(cells[0], "%d/%m/%y").strftime(pattern)
+            out.append("\t".join(cells))
+        return "".join(out)
+
+    return apply
+
+
+def tsv_fraction(text: str) -> str:
+    """The logger's ``Time`` with tenths of a second (``12:39:06.0``)."""
+    out = []
+    for ln in text.splitlines(keepends=True):
+        cells = ln.split("\t")
+        if len(cells) > 1 and cells[1].count(":") == 2:
+            cells[1] += ".0"
+        out.append("\t".join(cells))
+    return "".join(out)

@@ -24,7 +24,9 @@ YAML, under a kind and a schema version, one entry per UUT, each a
         unidentifiable: []
         nis_mean: 1.01
         two_axis: {misalign_deg: 3.1, misalign_std_deg: 0.14, m_t: -0.08, m_t_std: 0.005,
-                   b_t_mps: 0.04, b_t_std_mps: 0.004}   # axes: 2 only: the validated figures
+                   b_t_mps: 0.04, b_t_std_mps: 0.004,   # axes: 2 only: the validated figures,
+                   lon_a_spm: 0.0, lon_m: -0.11, lon_b_mps: -0.05}  # with the fit's forward
+                                      # axis when it determined it (all three or none)
         extra: {}             # producer's notes (offline: captures, RMSE)
     others:                   # the daemon's state only: each UUT's other error models
       emlog1:
@@ -49,7 +51,7 @@ from calib.estimate import Estimate
 from calib.models import MODEL_NAMES, PARAM_NAMES, Params
 from drivers.errors import EmlogdError
 from emlogd.configyaml import YAML_FAILURES, yaml_depth_error
-from emlogd.pipeline.calibration import TWO_AXIS_KEYS, Calibration
+from emlogd.pipeline.calibration import TWO_AXIS_KEYS, TWO_AXIS_LON_KEYS, Calibration
 
 KIND = "emlogd-calibration"
 SCHEMA = 2
@@ -227,9 +229,13 @@ def _two_axis(v: Any, where: str) -> dict[str, float] | None:
     :func:`emlogd.pipeline.calibration.check`'s)."""
     if v is None:
         return None
-    if not isinstance(v, dict) or set(v) != set(TWO_AXIS_KEYS):
-        raise CalibrationFileError(f"{where}: expected {', '.join(TWO_AXIS_KEYS)}")
-    return {k: _req(v[k], f"{where}.{k}") for k in TWO_AXIS_KEYS}
+    lon = TWO_AXIS_LON_KEYS if isinstance(v, dict) and "lon_m" in v else ()
+    if not isinstance(v, dict) or set(v) != set(TWO_AXIS_KEYS + lon):
+        raise CalibrationFileError(
+            f"{where}: expected {', '.join(TWO_AXIS_KEYS)} "
+            f"(and {', '.join(TWO_AXIS_LON_KEYS)}, all or none)"
+        )
+    return {k: _req(v[k], f"{where}.{k}") for k in TWO_AXIS_KEYS + lon}
 
 
 def loads(text: str) -> tuple[dict[str, Calibration], dict[str, dict[str, Any]]]:

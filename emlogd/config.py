@@ -109,8 +109,9 @@ class PortConfig:
         check=number(0.0, 1.0),
         unit="s",
         doc="Reference and aux ports: once readable, the port is left this long, then read "
-        "(an ensemble's lines in one read, stamped at that read). Keep it well under the "
-        "time the port takes to fill the 4 KiB tty buffer and under the gap between bursts; "
+        "at the daemon's next wake-up, at the latest 0.02 s later (an ensemble's lines in one "
+        "read, stamped at the end of the rest). Keep it well under the time the port takes "
+        "to fill the 4 KiB tty buffer, and it plus 0.02 s under the gap between bursts; "
         "0 disables. UUT ports never rest.",
     )
 

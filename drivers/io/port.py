@@ -187,17 +187,19 @@ class SerialSource:
         out, self._events = self._events, []
         return out
 
-    def counters_dict(self) -> dict[str, object]:
-        """Figures for the status event."""
-        return {
+    def counters_dict(self, *, stale: bool = True) -> dict[str, object]:
+        """Figures for the status event (``stale``: with the port's own staleness)."""
+        figures: dict[str, object] = {
             "open": self.is_open,
             "why_closed": None if self.is_open else self.why_closed,
             "bytes": self.bytes,
             "chunks": self.chunks,
             "reconnects": self.reconnects,
             "errors": self.errors,
-            "stale": self._stale,
         }
+        if stale:
+            figures["stale"] = self._stale
+        return figures
 
     # -- open / close ---------------------------------------------------------
 

@@ -15,6 +15,7 @@ from drivers.nmea0183.parsing import (
     HEADING_FIELDS,
     parse_heading,
     parse_mtw,
+    parse_pashr,
     parse_prti,
     parse_vbw,
     parse_vhw,
@@ -58,6 +59,8 @@ class NmeaDecoder(FramedDecoder[NmeaRecord]):
         if address.startswith("P"):
             if address in ("PRTI01", "PRTI02"):
                 return parse_prti(address, fields, frame)
+            if address == "PASHR":
+                return parse_pashr(fields, frame)
             raise UnknownSentenceError(f"proprietary sentence {address} not decoded", frame)
         if len(address) != 5 or not address.isalnum():
             raise FieldError(f"bad address field {address[:16]!r}", frame)

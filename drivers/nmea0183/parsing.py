@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable
 from datetime import UTC, date, datetime, timedelta
 
-from drivers.errors import FieldError, OutOfRangeError
+from drivers.errors import FieldError, OutOfRangeError, UnknownSentenceError
 from drivers.nmea0183.records import Gga, Heading, Mtw, Prti, Rmc, Vbw, Vdr, Vhw, Vlw, Vtg, Zda
 from drivers.records import KMH_MPS, KNOT_MPS, MAX_DEPTH_M, WATER_TEMP_RANGE_C
 
@@ -227,17 +227,28 @@ def _signed(value: float | None, direction: str, name: str, raw: bytes) -> float
     return -value if direction == "W" else value
 
 
-HEADING_FIELDS = {"HDT": 2, "HDM": 2, "HDG": 5}
+HEADING_FIELDS = {"HDT": 2, "HDM": 2, "HDG": 5, "THS": 2}
 """The heading sentences and how many fields follow their address."""
+
+THS_VALID_MODES = frozenset("AEM")
+"""THS modes whose heading is the ship's: autonomous, estimated (dead reckoning),
+manual input. ``S`` (simulator) and ``V`` (not valid) give no heading."""
 
 
 def parse_heading(kind: str, talker: str, f: list[str], raw: bytes) -> Heading:
-    """HDT (heading, T), HDM (heading, M) or HDG (sensor heading, deviation, E/W,
-    variation, E/W)."""
+    """HDT (heading, T), HDM (heading, M), HDG (sensor heading, deviation, E/W,
+    variation, E/W) or THS (true heading, mode: a GNSS compass's or an INS's HDT of
+    NMEA 0183 v3.01 on; the heading is None in a mode outside :data:`THS_VALID_MODES`)."""
     expected = HEADING_FIELDS[kind]
     if len(f) != expected:
         raise FieldError(f"{kind} has {len(f)} fields, expected {expected}", raw)
     heading = _heading(_num(f[0], f"{kind} heading", raw), kind, raw)
+    if kind == "THS":
+        _flag(f[1], "AEMSV", "THS mode", raw)
+        valid = f[1] in THS_VALID_MODES
+        return Heading(
+            talker=talker, sentence=kind, heading_deg=heading if valid else None, true=True
+        )
     if kind != "HDG":
         _flag(f[1], "T" if kind == "HDT" else "M", f"{kind} flag", raw)
         return Heading(talker=talker, sentence=kind, heading_deg=heading, true=kind == "HDT")
@@ -251,6 +262,37 @@ def parse_heading(kind: str, talker: str, f: list[str], raw: bytes) -> Heading:
         deviation_deg=_offset(dev, "HDG deviation", raw),
         variation_deg=_offset(var, "HDG variation", raw),
     )
+
+
+PASHR_FIELDS = 11
+"""$PASHR's attitude form (an INS's or a GNSS compass's, Hemisphere, Applanix, SBG):
+time, heading, ``T``, roll, pitch, heave, roll, pitch and heading accuracy, GNSS
+quality, INS status."""
+
+PASHR_ATT_FIELDS = 8
+"""Ashtech's $PASHR,ATT: ``ATT``, time, heading, pitch, roll, brms, mrms, reset flag."""
+
+
+def parse_pashr(f: list[str], raw: bytes) -> Heading:
+    """$PASHR's true heading: the attitude form (:data:`PASHR_FIELDS`) or Ashtech's
+    ``ATT`` (:data:`PASHR_ATT_FIELDS`); its other forms are not decoded.
+
+    Raises:
+        UnknownSentenceError: another $PASHR form (POS, ...).
+        FieldError: a field count or a field that does not fit the form.
+    """
+    if f[:1] == ["ATT"]:
+        if len(f) != PASHR_ATT_FIELDS:
+            raise FieldError(f"PASHR,ATT has {len(f)} fields, expected {PASHR_ATT_FIELDS}", raw)
+        heading = _heading(_num(f[2], "PASHR heading", raw), "PASHR", raw)
+        return Heading(talker="P", sentence="PASHR", heading_deg=heading, true=True)
+    if f[:1] and f[0][:1].isalpha():
+        raise UnknownSentenceError(f"$PASHR,{f[0][:8]} not decoded", raw)
+    if len(f) != PASHR_FIELDS:
+        raise FieldError(f"PASHR has {len(f)} fields, expected {PASHR_FIELDS}", raw)
+    _flag(f[2], "T", "PASHR heading flag", raw)
+    heading = _heading(_num(f[1], "PASHR heading", raw), "PASHR", raw)
+    return Heading(talker="P", sentence="PASHR", heading_deg=heading, true=True)
 
 
 def _int(field: str, name: str, raw: bytes, base: int = 10) -> int:

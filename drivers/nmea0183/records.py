@@ -72,13 +72,13 @@ class Mtw:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Heading:
-    """HDT, HDG or HDM.
+    """HDT, HDG, HDM or THS.
 
     Attributes:
         talker: talker ID.
-        sentence: ``"HDT"``, ``"HDG"`` or ``"HDM"``.
+        sentence: ``"HDT"``, ``"HDG"``, ``"HDM"`` or ``"THS"``.
         heading_deg: the heading as sent (HDG: magnetic *sensor* heading), or None.
-        true: the heading is true (HDT).
+        true: the heading is true (HDT, THS).
         deviation_deg: HDG deviation, + east, or None.
         variation_deg: HDG variation, + east, or None.
     """

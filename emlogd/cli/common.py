@@ -163,7 +163,8 @@ def key_arg(cls: type, field: str, *, allow_auto: bool = True) -> Callable[[str]
 
 def two_axis_line(two: dict[str, Any]) -> str:
     """A two-axis log's learnt figures (``axes: 2``): applied, validating or learning, α
-    ± σ with m_t and b_t, the leeway angle, and why the latest window refused α."""
+    ± σ with m_t and b_t, whose forward speed goes out, the leeway angle, and why the
+    latest window refused α."""
     fig = two.get("applied") or two.get("estimate")
     text = f"two axes: {two.get('state')}"
     if isinstance(fig, dict):
@@ -172,6 +173,8 @@ def two_axis_line(two: dict[str, Any]) -> str:
             f"m_t {fig['m_t']:+.4f} ± {fig['m_t_std']:.4f}, "
             f"b_t {fig['b_t_mps']:+.3f} ± {fig['b_t_std_mps']:.3f} m/s"
         )
+    if two.get("state") == "applied" and two.get("forward") == "two_axis":
+        text += ", forward speed by the two-axis fit"
     lee = two.get("leeway_deg")
     if isinstance(lee, float):
         text += f", leeway {lee:+.1f}°"

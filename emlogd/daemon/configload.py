@@ -34,3 +34,8 @@ class ConfigLoad:
         except Exception as exc:  # contained: handed to the loop as the reload's failure
             self.result = exc
         self.done.set()
+
+
+def why_not_loaded(exc: Exception) -> str:
+    """A config error's message; any other failure with its type (no check foresaw it)."""
+    return str(exc) if isinstance(exc, (ConfigError, OSError)) else f"{type(exc).__name__}: {exc}"

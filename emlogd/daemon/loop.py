@@ -32,11 +32,11 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from drivers.errors import ConfigError, DeviceError, EmlogdError
+from drivers.errors import DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
-from emlogd.daemon.configload import ConfigLoad
+from emlogd.daemon.configload import ConfigLoad, why_not_loaded
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
@@ -55,6 +55,11 @@ HOUSEKEEPING_S = 0.1
 RELOAD_MIN_S = 0.25
 """Least time between two reloads: SIGHUPs sent faster (a script in a loop) are one
 reload when it is due, which reads the newest config."""
+
+REST_MERGE_S = 0.02
+"""How much later than the end of its rest a resting port may be read: at the loop's first
+wake-up after it (a UUT's sentence, another port's burst), so that the read seldom costs a
+wake-up of its own; ``rest_s`` plus this must stay under the gap between bursts."""
 
 _ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """How a resting port is registered: one readiness, then disarmed until re-armed."""
@@ -248,12 +253,8 @@ class Daemon:
         self.rest_s.pop(name, None)
 
     def _close_sources(self) -> None:
-        for name, src in self.sources.items():
-            self._unregister(name)
-            src.close()
-        self.sources.clear()
-        self.resting.clear()
-        self.rest_s.clear()
+        for name in list(self.sources):
+            self._close_source(name)
 
     def _sync_controls(self) -> None:
         """Open the control socket (and the read-only status socket) the config names,
@@ -312,13 +313,8 @@ class Daemon:
         next_watchdog = self.monotonic() + wd if wd else None
         next_housekeeping = -math.inf
         while not self.stop:
-            timeout = SELECT_TIMEOUT_S
-            if self.resting:
-                timeout = min(timeout, max(min(self.resting.values()) - self.monotonic(), 0.0))
-            self._round(timeout)
+            self._round(self._wait_s())
             now = self.monotonic()
-            if self.resting and min(self.resting.values()) <= now:
-                self._wake_rested(now)
             for name in self.unselectable:
                 self._read(name)  # a source without a file descriptor (loop://)
             if self.reload and now >= self.next_reload and self.loading is None:
@@ -361,9 +357,22 @@ class Daemon:
         self.poll.register(fd, select.EPOLLIN)
         self.calls[fd] = call
 
+    def _wait_s(self) -> float:
+        """The loop's wait: until a resting port is due at the latest (the end of its rest
+        plus :data:`REST_MERGE_S`), at most :data:`SELECT_TIMEOUT_S`."""
+        if not self.resting:
+            return SELECT_TIMEOUT_S
+        late = min(self.resting.values()) + REST_MERGE_S - self.monotonic()
+        return min(SELECT_TIMEOUT_S, max(late, 0.0))
+
     def _round(self, timeout: float) -> None:
-        """Wait up to ``timeout`` s; run the callback of each descriptor that is readable."""
-        for fd, _ in self.poll.poll(timeout):
+        """Wait up to ``timeout`` s; read the resting ports whose rest is over, then run the
+        callback of each descriptor that is readable (a rested burst came first, and the
+        pipeline gets the data in the order of their stamps)."""
+        ready = self.poll.poll(timeout)
+        if self.resting:
+            self._wake_rested(self.monotonic())
+        for fd, _ in ready:
             call = self.calls.get(fd)
             if call is not None:
                 call()
@@ -412,18 +421,15 @@ class Daemon:
                 self.poll.unregister(fd)  # gone already if the descriptor was closed
 
     def _rest(self, name: str) -> None:
-        """A reference or aux port became readable: read it ``rest_s`` later.
-
-        Until then its one-shot registration stays disarmed, so that a burst (the
-        DVL's six lines per ensemble, about 3 ms apart) is one read instead of a
-        wake-up per line; what is read is stamped with the time of that read. UUT
-        ports never rest: their latency is the output's. ``rest_s: 0`` turns resting
-        off.
-        """
+        """A reference or aux port became readable: read it ``rest_s`` later (at the latest
+        :data:`REST_MERGE_S` after that), stamped with the end of its rest. Until then its
+        one-shot registration stays disarmed: a burst (the DVL's six lines per ensemble, 3 ms
+        apart) is one read, not a wake-up per line. UUT ports never rest: their latency is
+        the output's. ``rest_s: 0`` turns resting off."""
         self.resting[name] = self.monotonic() + self.rest_s[name]
 
-    def _read(self, name: str) -> None:
-        """Read one port and feed the pipeline."""
+    def _read(self, name: str, stamp: float | None = None) -> None:
+        """Read one port and feed the pipeline (the data stamped ``stamp``, else when read)."""
         src = self.sources[name]
         chunk = src.read()
         if src.has_events:
@@ -432,7 +438,7 @@ class Daemon:
             self._sync_registrations()
             return
         t, data = chunk
-        self._feed(t, name, data)
+        self._feed(t if stamp is None else stamp, name, data)
 
     def _feed(self, t: float, name: str, data: bytes) -> None:
         """Run the pipeline on one chunk of ``name``; a failure costs that chunk only."""
@@ -461,12 +467,13 @@ class Daemon:
             self.log.warning("internal", port=name, error=failure.error, data=failure.data, **extra)
 
     def _wake_rested(self, now: float) -> None:
-        """Read the ports whose rest is over at ``now`` (monotonic), and arm them again."""
-        due = [name for name, t in self.resting.items() if now >= t]
-        for name in due:
+        """Read the ports whose rest is over at ``now`` (monotonic), each stamped with the
+        end of its rest, and arm them again."""
+        due = [(name, t) for name, t in self.resting.items() if now >= t]
+        for name, t in due:
             del self.resting[name]
             if name in self.sources:
-                self._read(name)
+                self._read(name, self._epoch + t)
                 fd = self.registered.get(name)
                 if fd is not None and fd in self.rest_fds:
                     with contextlib.suppress(OSError):
@@ -524,10 +531,10 @@ class Daemon:
 
     def _log_port_events(self, events: list[PortEvent]) -> None:
         for ev in events:
-            level = (
-                self.log.warning if ev.kind in ("disconnected", "stale", "error") else self.log.info
+            warn = ev.kind in ("disconnected", "stale", "error")
+            (self.log.warning if warn else self.log.info)(
+                f"port_{ev.kind}", port=ev.port, detail=ev.detail
             )
-            level(f"port_{ev.kind}", port=ev.port, detail=ev.detail)
 
     def _status_event(self) -> None:
         assert self.pipeline is not None
@@ -536,7 +543,8 @@ class Daemon:
             # a person reads a terminal: one line, the full figures are in `emlogd status`
             self.log.info("status", **status_line(status), state_errors=self.state_errors)
             return
-        sources = {name: _source_status(src) for name, src in self.sources.items()}
+        # a port's staleness is the pipeline's (``ports``): the daemon's sources run none
+        sources = {name: src.counters_dict(stale=False) for name, src in self.sources.items()}
         sinks = self.outputs.status()
         self.log.info(
             "status",
@@ -642,7 +650,7 @@ class Daemon:
             except Exception as exc:  # contained: no config file stops the daemon
                 loaded = exc
         if isinstance(loaded, Exception):
-            self.log.error("reload_failed", error=_why(loaded), kept="previous config")
+            self.log.error("reload_failed", error=why_not_loaded(loaded), kept="previous config")
             return
         new = loaded
         old_pipeline, old = self.pipeline, self.config
@@ -652,7 +660,7 @@ class Daemon:
         try:
             pipeline = build_pipeline(new, snapshots, old_pipeline.other_calibrations())
         except Exception as exc:  # contained, as above
-            self.log.error("reload_failed", error=_why(exc), kept="previous config")
+            self.log.error("reload_failed", error=why_not_loaded(exc), kept="previous config")
             return
         kept_uuts = pipeline.adopt(old_pipeline)
         self.config, self.pipeline = new, pipeline
@@ -687,14 +695,3 @@ class Daemon:
             outputs_opened=opened,
         )
         self._notify_status()
-
-
-def _why(exc: Exception) -> str:
-    """A config error's message; any other failure with its type (no check foresaw it)."""
-    return str(exc) if isinstance(exc, (ConfigError, OSError)) else f"{type(exc).__name__}: {exc}"
-
-
-def _source_status(src: SerialSource) -> dict[str, object]:
-    """A source's figures without its own staleness, which the daemon does not run: a
-    port's staleness is the pipeline's (``ports`` in the status)."""
-    return {k: v for k, v in src.counters_dict().items() if k != "stale"}

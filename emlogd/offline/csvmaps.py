@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -80,8 +81,8 @@ class Preset:
     Attributes:
         name: the ``--preset`` name.
         columns: the column map (``A|B`` alternatives, ``?`` optional).
-        time_format: ``ole``, ``iso``, ``epoch``, ``filetime``, ``auto`` (told by the
-            first time cell) or a ``strptime`` pattern.
+        time_format: ``ole``, ``iso``, ``epoch``, ``epoch_ms``, ``filetime``, ``auto``
+            (told by the first time cell) or a ``strptime`` pattern.
         heading_ref: the heading's reference.
         local_time: whether the times are the logger's local clock (then
             ``--utc-offset`` is needed, and its absence is noted).
@@ -124,11 +125,13 @@ LOGGER_TSV: dict[str, str] = {
     "drift": "DRIFT?",
 }
 """An Italian race logger's tab-separated export (``Date`` dd/mm/yy, ``Time`` of its
-clock, magnetic ``Heading``, ``ddmm.mmmmN`` positions), under the names of both its
+clock, told by the first row as any ``auto`` time: another firmware or a spreadsheet
+may write the year in full, year first, or fractions of a second; magnetic ``Heading``, ``ddmm.mmmmN`` positions), under the names of both its
 firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
 
 GENERIC: dict[str, str] = {
     "time": "time|timestamp|datetime|date_time|utc",
+    "date": "date?",
     "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water",
     "heading": "hdg|heading|heading_true?",
     "sog": "sog|speed_over_ground?",
@@ -139,7 +142,7 @@ GENERIC: dict[str, str] = {
     "drift": "drift|current_drift?",
 }
 """A plain table of the usual short names (a processed log, a spreadsheet): one time
-column (told by its first cell), the speed through the water in knots (``speed`` is
+column (told by its first cell; a ``date`` column beside a time of day is joined to it), the speed through the water in knots (``speed`` is
 taken for it: a table that names its speed over ground ``sog``), a true heading."""
 
 PRESETS: dict[str, Preset] = {
@@ -149,7 +152,7 @@ PRESETS: dict[str, Preset] = {
     "logger-tsv": Preset(
         "logger-tsv",
         LOGGER_TSV,
-        "%d/%m/%y %H:%M:%S",
+        "auto",
         "magnetic",
         True,
         "race logger TSV (Date, Time, Boatspeed, Heading, Ext_SOG...)",
@@ -205,19 +208,60 @@ def _spec(spec: str) -> tuple[list[tuple[str, float]], bool]:
     return names, optional
 
 
+HEADER_UNITS: dict[str, float | None] = {
+    "kn": KNOT_MPS,
+    "kt": KNOT_MPS,
+    "kts": KNOT_MPS,
+    "knot": KNOT_MPS,
+    "knots": KNOT_MPS,
+    "m/s": 1.0,
+    "mps": 1.0,
+    "km/h": 1.0 / 3.6,
+    "kmh": 1.0 / 3.6,
+    "kph": 1.0 / 3.6,
+    "deg": None,
+    "degt": None,
+    "degrees": None,
+    "°": None,
+}
+"""Units a column name may carry (``Bsp (kn)``, ``SOG [m/s]``, ``stw_kn``, ``SOG kts``;
+in any case): a speed's factor to m/s (it overrides the map's), or None for an
+angle's."""
+
+_UNIT_IN_NAME = re.compile(
+    r"(?P<name>.+?)(?:\s*[(\[](?P<a>[^)\]]+)[)\]]|[_ ](?P<b>[a-z/°]+))", re.IGNORECASE
+)
+
+
+def _bare(name: str) -> tuple[str, float | None]:
+    """A column name without a unit it carries (:data:`HEADER_UNITS`), folded, and the
+    unit's factor to m/s (None: no speed unit)."""
+    m = _UNIT_IN_NAME.fullmatch(name.strip())
+    unit = (m.group("a") or m.group("b")).strip().casefold() if m else ""
+    if m is None or unit not in HEADER_UNITS:
+        return name.strip().casefold(), None
+    return m.group("name").strip().casefold(), HEADER_UNITS[unit]
+
+
 def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, Col], list[str]]:
     """Map keys to header columns; (columns found, required columns missing)."""
     stripped = [h.strip() for h in header]
     folded = [h.casefold() for h in stripped]
+    bare = [_bare(h) for h in stripped]
+    bare_names = [b for b, _ in bare]
     cols: dict[str, Col] = {}
     missing: list[str] = []
     for key, spec in mapping.items():
         names, optional = _spec(spec)
         for name, factor in names:
-            # the exact name, else the name in any case (BSP, bsp, Bsp)
+            # the exact name, else the name in any case (BSP, bsp, Bsp), else the name
+            # with a unit after it (Bsp (kn), SOG [m/s]: a speed unit is the column's)
             at = stripped.index(name) if name in stripped else None
             if at is None and name.casefold() in folded:
                 at = folded.index(name.casefold())
+            if at is None and name.casefold() in bare_names:
+                at = bare_names.index(name.casefold())
+                factor = bare[at][1] or factor
             if at is not None:
                 cols[key] = Col(key, at, factor if key in SPEEDS else 1.0)
                 break
@@ -256,6 +300,8 @@ def parse_time(value: str, fmt: str) -> float:
         return int(value) * FILETIME_TICK_S + FILETIME_EPOCH_S
     if fmt == "epoch":
         return float(value)
+    if fmt == "epoch_ms":
+        return float(value) / 1000.0
     t = datetime.fromisoformat(value) if fmt == "iso" else datetime.strptime(value, fmt)
     return (t if t.tzinfo else t.replace(tzinfo=UTC)).timestamp()
 
@@ -269,15 +315,22 @@ DATE_TIME_PATTERNS = (
     "%d.%m.%Y %H:%M:%S.%f",
     "%Y/%m/%d %H:%M:%S",
     "%Y/%m/%d %H:%M:%S.%f",
+    "%m/%d/%Y %I:%M:%S %p",
+    "%m/%d/%Y %I:%M:%S.%f %p",
 )
 """The date-and-time cells ``auto`` recognises besides ISO 8601, tried in this order on
-the first time cell: day first, as European loggers and spreadsheets write it (a
-month-first file needs ``--time-format``)."""
+the first time cell: day first, as European loggers and spreadsheets write it, and
+month first only with a 12-hour clock's AM/PM (as US-English Windows writes a date;
+another month-first file needs ``--time-format``)."""
+
+TIME_OF_DAY = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d+)?)?")
+"""A cell that holds a time of day alone (to be joined to a ``date`` column's cell)."""
 
 
 def guess_time_format(value: str) -> str | None:
-    """``auto``: epoch seconds, an OLE date, Windows FILETIME ticks (100 ns since 1601),
-    ISO 8601 or one of :data:`DATE_TIME_PATTERNS`, told by the first time cell."""
+    """``auto``: epoch seconds or milliseconds (a JavaScript or Signal K export), an OLE
+    date, Windows FILETIME ticks (100 ns since 1601), ISO 8601 or one of
+    :data:`DATE_TIME_PATTERNS`, told by the first time cell."""
     try:
         x = float(value)
     except ValueError:
@@ -288,6 +341,8 @@ def guess_time_format(value: str) -> str | None:
         return "iso"
     if 1e8 < x < 1e10:
         return "epoch"
+    if 1e11 < x < 1e13:
+        return "epoch_ms"
     if 1e17 < x < 1e18 and value.isdigit():
         return "filetime"
     if 20_000.0 < x < 80_000.0:

@@ -10,9 +10,9 @@ heading-against-course check of :mod:`emlogd.pipeline.variation`). From it:
 - :func:`heading_refusal`: a heading the check flagged (its offset from the course
   through the water beyond what leeway explains) makes the calibration refuse, with
   the figures;
-- :func:`why_no_sample`: when no reading has a reference, the cause — no heading; a
-  magnetic heading without a variation; a reference too sparse for the alignment —
-  and the option that helps.
+- :func:`why_no_sample`: when no reading has a reference, the cause — no reading of
+  the log at all; no reference sample at all (a log without GNSS fixes); no heading; a magnetic heading without a
+  variation; a reference too sparse for the alignment — and what helps.
 """
 
 from __future__ import annotations
@@ -24,6 +24,12 @@ import numpy as np
 from emlogd.offline.dataset import Recording
 from emlogd.pipeline.align import MAX_GAP_CAP_S
 from emlogd.pipeline.settings import UutSettings
+
+GNSS_NEEDS = (
+    "GNSS fixes with speed and course over ground: RMC, or VTG with GGA or ZDA for the "
+    "time (in a CSV export, the Sog and Cog columns)"
+)
+"""What a GNSS reference is made of, as the error names it when none arrived."""
 
 
 def needs_heading(settings: UutSettings) -> bool:
@@ -56,6 +62,14 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
     """The cause, and the option that helps, when no reading has a reference at ``lag_s``."""
     field = settings.reference_field
     head = f"no {settings.port} sample has a valid {settings.reference_port} reference"
+    if not any(r.raw.size for r in recs):
+        return (
+            f"{head}: no {settings.uut_source} reading of the log arrived on port "
+            f"{settings.port!r} at all (a speed log sends VHW or VBW; a table needs its "
+            "speed-through-water column)"
+        )
+    if field == "gnss" and not any(r.t_ref.size for r in recs):
+        return f"{head}: no GNSS fix arrived at all; the calibration needs {GNSS_NEEDS}"
     if needs_heading(settings) and not any(r.heading_info.get("port") for r in recs):
         refused = sum(int(r.heading_info.get("refused_magnetic") or 0) for r in recs)  # type: ignore[call-overload]
         if refused:
@@ -66,7 +80,8 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
             )
         why = "the GNSS reference is projected on the hull" if field == "gnss" else "--current"
         return (
-            f"{head}: no heading arrived, and {why} needs one (HDT, HDG, VHW, a DVL's): "
+            f"{head}: no heading arrived, and {why} needs one (HDT, HDG, HDM, THS, $PASHR, "
+            "VHW, a DVL's): "
             "name its port with --heading PORT, or calibrate without --current"
         )
     valid = [r.t_ref[r.ok_ref] for r in recs]

@@ -34,13 +34,18 @@ written ``Name[mps]``), or a preset chosen by the header (:data:`PRESETS`). The
 delimiter (comma, tab, semicolon, bar) and the header line are found in the file:
 the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds the
 mapped columns, so a banner before it is passed over (and counted). Column names
-match in any case; with a delimiter other than the comma, a comma in a number is a
-decimal comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
-8601, epoch seconds, Windows FILETIME ticks, a day-first date and time
-(:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each of these told by the first
-time cell), or a ``strptime`` pattern; with a ``date`` column, date and time are
-joined with a space before parsing. Times without a zone are UTC unless ``--utc-offset`` says the logger
-kept local time. Positions are decimal degrees or ``ddmm.mmmmN``/``dddmm.mmmmE``.
+match in any case, and with a unit after them (``Bsp (kn)``, ``SOG [m/s]``,
+``stw_kn``: :data:`emlogd.offline.csvmaps.HEADER_UNITS`; a speed's unit is then the
+column's); with a delimiter other than the comma, a comma in a number is a decimal
+comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
+8601, epoch seconds or milliseconds, Windows FILETIME ticks, a day-first date and time
+or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each
+of these told by the first time cell), or a ``strptime`` pattern; with a ``date``
+column, a time cell holding a time of day alone is joined to the date with a space
+before parsing. When no row gives a time, the error quotes the first time cell and
+asks for ``--time-format``. Times without a zone are UTC unless ``--utc-offset`` says
+the logger kept local time. Positions are decimal degrees or
+``ddmm.mmmmN``/``dddmm.mmmmE``.
 Expedition's own sparse log (a ``!Boat`` line of names, a ``!boat`` line of channel
 numbers, rows of ``channel,value`` pairs) is told by its header and read as the rows
 of its flat export (:mod:`emlogd.offline.importer_sparse`); its times are OLE dates or
@@ -87,16 +92,14 @@ from __future__ import annotations
 import csv
 import math
 from collections import Counter, deque
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from datetime import UTC, date, datetime, timedelta
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TextIO
 
-from drivers import make_decoder
-from drivers.errors import FrameError
-from drivers.nmea0183 import Gga, NmeaDecoder, NmeaRecord, Rmc, Zda, encode_rmc, encode_vhw
-from drivers.records import KNOT_MPS, Rejected
+from drivers.nmea0183 import encode_rmc, encode_vhw
+from drivers.records import KNOT_MPS
 from emlogd.offline import ProgressFn
 from emlogd.offline.csvmaps import (
     CSV_KEYS,
@@ -105,6 +108,7 @@ from emlogd.offline.csvmaps import (
     LIMITS,
     LOGGER_TSV,
     PRESETS,
+    TIME_OF_DAY,
     Col,
     HeadingRef,
     Preset,
@@ -123,13 +127,17 @@ from emlogd.offline.importbase import (
     CaptureSink,
     ImportFormatError,
     ImportReport,
-    SentenceCheck,
     bounded_lines,
     count,
     open_text,
     within_years,
 )
 from emlogd.offline.importer_sparse import SparseLog
+from emlogd.offline.importnmea import (
+    MAX_FIX_GAP_S,
+    MAX_PENDING_LINES,
+    import_nmea,
+)
 from emlogd.pipeline.sentences import encode_vdr
 from emlogd.pipeline.variation import model_variation
 
@@ -152,157 +160,15 @@ __all__ = [
     "parse_map",
 ]
 
-MAX_FIX_GAP_S = 60.0
-"""NMEA: fixes further apart than this leave the sentences between them untimed, s
-(spread evenly over a longer gap they could be off by minutes)."""
-
-MAX_PENDING_LINES = 100_000
-"""NMEA: sentences waiting for the next fix, at most (constant memory)."""
-
-
-# ------------------------------------------------------------------ NMEA logs
-
-
-DAY_ROLLOVER_S = 43_200.0
-"""NMEA: a GGA time of day this much (or more) before the last fix is the next day's
-(midnight passed in a log without a date in its fixes), s."""
-
-
-def _fix_time(
-    rec: NmeaRecord | Rejected, day: date | None, last: float | None = None
-) -> tuple[float | None, date | None]:
-    """(epoch seconds of a fix, the date it implies) for an RMC, ZDA or GGA record; a
-    GGA time of day :data:`DAY_ROLLOVER_S` before the ``last`` fix moves to the next day."""
-    if isinstance(rec, Rmc | Zda) and rec.time_utc is not None:
-        return rec.time_utc.timestamp(), rec.time_utc.date()
-    if isinstance(rec, Gga) and rec.time_of_day_s is not None and day is not None:
-        base = datetime(day.year, day.month, day.day, tzinfo=UTC)
-        t = (base + timedelta(seconds=rec.time_of_day_s)).timestamp()
-        if last is not None and last - t >= DAY_ROLLOVER_S:
-            day = day + timedelta(days=1)
-            t += 86_400.0
-        return t, day
-    return None, day
-
-
-class _Spreader:
-    """Sentences timed from the fixes around them, written as each next fix arrives."""
-
-    def __init__(self, out: CaptureSink, report: ImportReport) -> None:
-        self.out = out
-        self.report = report
-        self.fix: float | None = None  # the last fix's time
-        self.pending: list[str] = []  # the last fix's sentence, then those after it
-        self.overflow = 0
-
-    def add(self, text: str, t_fix: float | None) -> None:
-        r = self.report
-        if t_fix is not None and not within_years(t_fix):
-            r.notes["fix_time_out_of_range"] += 1
-            t_fix = None
-        if t_fix is not None and self.fix is not None and t_fix <= self.fix:
-            r.notes["fix_time_not_increasing"] += 1
-            t_fix = None
-        if t_fix is None:
-            if self.fix is None:
-                r.skipped["before_first_fix"] += 1
-            elif len(self.pending) >= MAX_PENDING_LINES:
-                self.overflow += 1
-            else:
-                self.pending.append(text)
-            return
-        if self.fix is not None:
-            self._release(t_fix)
-        self.fix = t_fix
-        self.pending = [text]
-
-    def _release(self, t_next: float) -> None:
-        assert self.fix is not None
-        r = self.report
-        if t_next - self.fix > MAX_FIX_GAP_S or self.overflow:
-            self.out.write(self.fix, self.pending[0])
-            count(r.skipped, "fix_gap", len(self.pending) - 1 + self.overflow)
-        else:
-            step = (t_next - self.fix) / len(self.pending)
-            for j, line in enumerate(self.pending):
-                self.out.write(self.fix + step * j, line)
-        self.overflow = 0
-
-    def finish(self) -> None:
-        if self.fix is None:
-            return
-        self.out.write(self.fix, self.pending[0])
-        count(self.report.skipped, "after_last_fix", len(self.pending) - 1 + self.overflow)
-
-
-def _sentence_fix(
-    decoder: NmeaDecoder, text: str, day: date | None, last: float | None
-) -> tuple[float | None, date | None]:
-    """(the time the sentence fixes, or None; the date known after it), ``last`` the
-    time of the fix before."""
-    fix: float | None = None
-    try:
-        decoded = decoder.decode_all((text + "\r\n").encode("ascii"))
-    except FrameError:
-        decoded = []  # a sentence the decoders do not parse is still kept
-    for rec in decoded:
-        fix, day = _fix_time(rec, day, last)
-    return fix, day
-
-
-def import_nmea(
-    paths: Sequence[str | Path],
-    out: str | Path,
-    *,
-    port: str = "nmea",
-    day: date | None = None,
-    progress: ProgressFn | None = None,
-) -> ImportReport:
-    """Import NMEA 0183 logs without receive times (see the module docstring).
-
-    Args:
-        paths: the log files, in time order (their sentences are concatenated).
-        out: the capture to write.
-        port: its port name.
-        day: the UTC date for GGA times when no RMC or ZDA gives one.
-        progress: called after each file.
-
-    Raises:
-        ImportFormatError: a file cannot be read, or no sentence has a time.
-    """
-    report = ImportReport([str(p) for p in paths], str(out), port)
-    decoder = make_decoder("nmea0183", port, errors="raise")
-    sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
-    spread = _Spreader(sink, report)
-    checks = SentenceCheck(report)
-    current_day = day
-    try:
-        for i, path in enumerate(paths):
-            with open_text(path) as f:
-                for raw in bounded_lines(f, report.skipped):
-                    report.lines += 1
-                    line, reason = checks.line(raw.strip())
-                    if line is None:
-                        report.skipped[reason or "empty"] += 1
-                        continue
-                    fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
-                    spread.add(line, fix)
-            if progress is not None:
-                progress(f"import {Path(path).name}", (i + 1) / len(paths))
-        spread.finish()
-        if report.written == 0:
-            raise ImportFormatError(
-                "no sentence could be given a time: the log needs RMC or ZDA fixes (or GGA "
-                f"with --date YYYY-MM-DD); skipped: {reasons(report.skipped) or 'none'}"
-            )
-    except BaseException:
-        sink.abort()
-        raise
-    sink.commit()
-    return report
-
-
 # ------------------------------------------------------------------ CSV exports
+
+TIME_FORMATS_TOLD = (
+    "epoch seconds or milliseconds, OLE days, FILETIME ticks, ISO 8601, day-first dates "
+    "with 24-h times "
+    "to the second, month-first dates with AM/PM"
+)
+"""What ``auto`` tells by itself (:func:`emlogd.offline.csvmaps.guess_time_format`), as
+the import's error names it."""
 
 CARRY_S = 10.0
 """A group's other cells are taken as last written for at most this long, s."""
@@ -369,6 +235,8 @@ class _CsvRun:
         default_factory=lambda: {name: _Group(keys) for name, keys in GROUPS.items()}
     )
     t_prev: float = -math.inf
+    bad_stamp: str = ""
+    """The first time cell that could not be read (quoted when no row gives a time)."""
 
     @property
     def report(self) -> ImportReport:
@@ -504,10 +372,17 @@ def _finish_csv(path: str | Path, run: _CsvRun) -> None:
     if run.sink.check.n:
         report.heading_check = run.sink.check.as_dict()
     if report.written == 0:
+        why = ""
+        if report.skipped["bad_time"] and run.bad_stamp:
+            why = (
+                f"; the time cells (the first {run.bad_stamp!r}) are in no format told by "
+                f"itself ({TIME_FORMATS_TOLD}): give --time-format PATTERN "
+                "(a strptime pattern, e.g. '%m/%d/%Y %H:%M:%S')"
+            )
         raise ImportFormatError(
             f"{path}: no row with a time and a speed through the water "
             f"(skipped: {reasons(report.skipped) or 'none'}; "
-            f"cells: {reasons(report.cells) or 'none'})"
+            f"cells: {reasons(report.cells) or 'none'}){why}"
         )
 
 
@@ -551,14 +426,15 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
     unreadable one, one outside :data:`YEARS` or one before the row before."""
     stamp = cell(row, run.cols["time"].index)
     date_col = run.cols.get("date")
-    if date_col is not None:
+    if date_col is not None and TIME_OF_DAY.fullmatch(stamp):
         day = cell(row, date_col.index)
-        stamp = f"{day} {stamp}" if day and stamp else ""
+        stamp = f"{day} {stamp}" if day else ""
     t = _stamp_time(stamp, run) if stamp else math.nan
     if not stamp:
         reason = "no_time"
     elif not math.isfinite(t):
         reason = "bad_time"
+        run.bad_stamp = run.bad_stamp or stamp
     elif not within_years(t):
         reason = "time_out_of_range"
     elif t < run.t_prev:
@@ -573,7 +449,7 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
 def _stamp_time(stamp: str, run: _CsvRun) -> float:
     """A time cell (or date + space + time) in epoch seconds, UTC; nan when unreadable.
     The first readable cell of an ``auto`` import tells the format."""
-    if run.fmt in ("ole", "epoch", "auto") and run.delim != ",":
+    if run.fmt in ("ole", "epoch", "epoch_ms", "auto") and run.delim != ",":
         stamp = stamp.replace(",", ".")  # a decimal comma
     if run.fmt == "auto":
         run.fmt = guess_time_format(stamp) or "auto"

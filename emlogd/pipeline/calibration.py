@@ -115,22 +115,34 @@ def check(cal: Calibration, envelope: Envelope, max_lag_s: float | None = None) 
 
 TWO_AXIS_KEYS = ("misalign_deg", "misalign_std_deg", "m_t", "m_t_std", "b_t_mps", "b_t_std_mps")
 """The figures of a record's ``two_axis``."""
+TWO_AXIS_LON_KEYS = ("lon_a_spm", "lon_m", "lon_b_mps")
+"""The longitudinal parameters a record's ``two_axis`` may carry besides (all three or
+none): the two-axis fit's ``a`` s/m, ``m``, ``b`` m/s on the sensor's axis, in the
+record's error model."""
 
 
 def check_two_axis(fig: Mapping[str, float] | None) -> str:
     """``""`` when a record's two-axis figures (None: none) may be used, else why not:
-    every figure of :data:`TWO_AXIS_KEYS` finite, |α| ≤
-    :data:`calib.twoaxis.MAX_MISALIGN_DEG`, the transverse scale and bias within the
-    two-axis envelope (:data:`calib.twoaxis.ENVELOPE`: 0.5 and 1 m/s), σ non-negative."""
+    every figure of :data:`TWO_AXIS_KEYS` (and of :data:`TWO_AXIS_LON_KEYS`, all or
+    none) finite, |α| ≤ :data:`calib.twoaxis.MAX_MISALIGN_DEG`, the transverse scale
+    and bias and the longitudinal parameters within the two-axis envelope
+    (:data:`calib.twoaxis.ENVELOPE`: 0.5 and 1 m/s; 0.1 s/m, 0.5, 1 m/s), σ
+    non-negative."""
     if fig is None:
         return ""
-    if sorted(fig) != sorted(TWO_AXIS_KEYS):
-        return f"two-axis figures must be {', '.join(TWO_AXIS_KEYS)}"
-    for k in TWO_AXIS_KEYS:
+    keys = sorted(TWO_AXIS_KEYS + (TWO_AXIS_LON_KEYS if "lon_m" in fig else ()))
+    if sorted(fig) != keys:
+        return (
+            f"two-axis figures must be {', '.join(TWO_AXIS_KEYS)} "
+            f"(and {', '.join(TWO_AXIS_LON_KEYS)}, all or none)"
+        )
+    for k in keys:
         v = fig[k]
         if not math.isfinite(v) or ("std" in k and v < 0.0):
             return f"two-axis {k} is {v!r}"
     bounds = {"misalign_deg": MAX_MISALIGN_DEG, "m_t": ENVELOPE["m_t"], "b_t_mps": ENVELOPE["b_t"]}
+    if "lon_m" in fig:
+        bounds |= {"lon_a_spm": ENVELOPE["a"], "lon_m": ENVELOPE["m"], "lon_b_mps": ENVELOPE["b"]}
     for k, bound in bounds.items():
         if abs(fig[k]) > bound:
             return f"two-axis {k} {fig[k]:+.3g} outside ±{bound:g}"

@@ -220,7 +220,7 @@ class Pipeline:
         ax = TwoAxisLearner(s, self._hooks(s.port)[1])
         saved = latest.two_axis if latest is not None else None
         if latest is not None and saved is not None and not check(latest, s.envelope, s.max_lag_s):
-            ax.sup.restore(Figures.from_dict(saved))
+            ax.sup.restore(Figures.from_dict(saved, latest.params.model))
         return ax
 
     def _new_cal(self, s: UutSettings, prior: Calibration | None) -> UutCalibration:
@@ -433,15 +433,16 @@ class Pipeline:
             self._vdr(u, t, out)
 
     def _sentence(self, u: UutRoute, t: float, sp: SpeedRecord, value: float) -> str:
-        """A reading's corrected sentence: VHW; VBW with the learnt two-axis figures
-        (the reading then learnt from, ``axes: 2``), else the configured ones, else
-        the athwart speed as read; its ground pair the reference's (``groundpair``)."""
-        if sp.source == "VHW":
-            return encode_vhw(value, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
-        trans, g = sp.transverse_mps, u.ground.at(t)
+        """A reading's corrected sentence: VHW; VBW with the learnt two-axis figures (the
+        reading then learnt from, ``axes: 2``; ``TwoAxisLearner.forward`` for a VHW), else
+        the configured ones, else the athwart read; its ground pair the reference's."""
         ax = self.two_axis.get(u.s.port)
+        if sp.source == "VHW":
+            v = value if ax is None else ax.forward(t, sp.longitudinal_mps, value, u.cal.guard)
+            return encode_vhw(v, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
+        trans, g = sp.transverse_mps, u.ground.at(t)
         if ax is not None and trans is not None:
-            hull = ax.correct(value, trans)
+            hull = ax.correct(value, trans, sp.longitudinal_mps, u.cal.guard)
             if sp.longitudinal_mps is not None:
                 ax.reading(t, value, sp.longitudinal_mps, trans)
                 ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on)
@@ -653,9 +654,8 @@ class Pipeline:
     def _with_two_axis(self, snap: Calibration) -> Calibration:
         """A UUT's record with its last good two-axis figures (``axes: 2``)."""
         ax = self.two_axis.get(snap.uut)
-        if ax is None or ax.sup.kept is None:
-            return snap
-        return dataclasses.replace(snap, two_axis=ax.sup.kept.as_dict())
+        kept = ax.sup.kept if ax is not None else None
+        return snap if kept is None else dataclasses.replace(snap, two_axis=kept.as_dict())
 
     def other_calibrations(self) -> list[Calibration]:
         """Every UUT's calibrations of the models it is not using, and those of the UUTs

@@ -462,7 +462,8 @@ class Drift:
 
 class SeaMemory:
     """The last :data:`CURRENT_MEMORY_S` of scored samples (reading, reference, heading),
-    from which any calibration's own current is fitted (:meth:`current`)."""
+    from which any calibration's own current is fitted (:meth:`current`), back to the
+    last silence longer than :data:`CUSUM_MAX_GAP_S` (:meth:`renew`)."""
 
     def __init__(self) -> None:
         cap = int(CURRENT_MEMORY_S / MEMORY_INTERVAL_S) + 64
@@ -470,6 +471,19 @@ class SeaMemory:
         self.i = 0
         self.n = 0
         self.t_last = -math.inf
+        self.t_renewed = -math.inf
+        """When the memory last forgot a sea before a silence (:meth:`renew`), s."""
+
+    def renew(self, t: float, young_s: float) -> bool:
+        """Forget the samples before a silence longer than :data:`CUSUM_MAX_GAP_S` up to
+        ``t``: they are another sea's (the change detector starts afresh there too), and
+        a current fitted on them judges the calibrations in that sea. True for ``young_s``
+        after that: a current fitted on the new sea's first samples is stale within
+        seconds."""
+        if self.n and t - self.t_last > CUSUM_MAX_GAP_S:
+            self.i = self.n = 0
+            self.t_renewed = t
+        return t - self.t_renewed < young_s
 
     def add(self, t: float, raw: float, ref: float, cs: tuple[float, float]) -> None:
         """One sample (kept when :data:`MEMORY_INTERVAL_S` after the last one kept)."""

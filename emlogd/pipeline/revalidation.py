@@ -107,7 +107,12 @@ its errors imply a current that the sea cannot have: its mean error against the
 reference less the saved current is beyond this many standard deviations of that current
 (its saved uncertainty grown by the learner's random walk over the time since it was
 saved), and never beyond the learner's prior standard deviation of a current component
-(``sqrt(current_p0_m2ps2)``, the whole allowance when no current was saved)."""
+(``sqrt(current_p0_m2ps2)``, the whole allowance when no current was saved)
+— and the current raw's errors imply is the likelier one by as much (the squares of the
+two, less the centre, differ by more than the allowance's square: a log ratio of
+``RESTORE_SEA_SIGMAS²/2`` under that sea's Gaussian). A sea that moved since it was saved
+makes raw's current as odd as the calibration's; a wrong calibration makes its own odd
+alone."""
 
 
 def _rms_after_current(
@@ -309,9 +314,11 @@ def judge_restored(
     (:data:`RESTORE_MIN_HEADING_SPREAD`), raw and it are each judged after a current
     of their own fitted to the window. Elsewhere (a straight leg) it is applied when
     it is not worse than raw in the saved sea, or when the current its errors imply
-    is one the sea can have (:data:`RESTORE_SEA_SIGMAS`); a state file that implies an
-    impossible current is refused.
-    """
+    is one the sea can have (:data:`RESTORE_SEA_SIGMAS`). Beyond, it is refused only
+    where the current raw's errors imply is the likelier by as many σ
+    (``implied² − implied_raw² > allowance²``): a state file that implies an impossible
+    current where raw implies a likely one is refused, and one whose sea moved (raw's
+    current as odd as its own) keeps the verdict that made it."""
     verdict = judge_own_currents(cand, detail)
     if verdict is not None:
         return verdict
@@ -330,7 +337,12 @@ def judge_restored(
         var = max(sd[0], sd[1]) ** 2 + kf.current_psd_m2ps3 * age
         allowance = min(RESTORE_SEA_SIGMAS * math.sqrt(var), allowance)
     # its mean error were the sea the centre: the current it implies, less the centre
-    implied = float(np.mean(d_c + centre[0] * c + centre[1] * s))
+    sea_cs = centre[0] * c + centre[1] * s
+    implied = float(np.mean(d_c + sea_cs))
+    implied_raw = float(np.mean(a[:, 0] + sea_cs))
     detail["implied_current_mps"] = round(implied, 4)
+    detail["implied_current_raw_mps"] = round(implied_raw, 4)
     detail["current_allowance_mps"] = round(allowance, 4)
-    return abs(implied) <= allowance
+    # refused only where raw's current is the likelier by RESTORE_SEA_SIGMAS: a sea that
+    # moved makes raw's current as odd as its own, a wrong calibration its own alone
+    return implied**2 - implied_raw**2 <= allowance**2

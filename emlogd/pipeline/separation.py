@@ -53,6 +53,17 @@ SEPARATION_SAMPLE_S = 1.0
 """A window counts at most one independent sample per this long, s, in the standard
 error of ``w`` (a 5–10 Hz log's errors are correlated over about a second)."""
 
+SEPARATION_BLOCK_S = 20.0
+"""The standard error of ``w`` is also taken from the fit's residuals summed over blocks
+of this long, s (the cluster-robust, "sandwich" variance with one cluster a block), and
+the larger of the two counts: a GNSS reference's errors are correlated over about 20 s,
+so that one sample a second overstates what a window knows many times over, while the
+blocks' scatter measures it whatever the correlation within a block."""
+
+SEPARATION_MIN_BLOCKS = 4
+"""The blocks' standard error counts once the window holds this many blocks
+(:data:`SEPARATION_BLOCK_S`): fewer give no estimate of their own scatter."""
+
 SEPARATION_MEMORY_S = CURRENT_HALF_LIFE_S
 """A calibration the change detector withdrew where the log did not jump is judged on
 the sea memory's samples of this long before the alarm as well, s (the same sensor: the
@@ -64,14 +75,15 @@ _RIDGE = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
 
 class Separation:
     """The least-squares fit ``d ≈ β·(cos ψ, sin ψ) + w·G`` over a window, by its sums
-    (fixed memory: the 3×3 normal equations)."""
+    per block of :data:`SEPARATION_BLOCK_S` (the 3×3 normal equations of each; a window
+    holds as many blocks as it spans)."""
 
-    __slots__ = ("_a", "_b", "_yy", "n", "t0", "t1")
+    __slots__ = ("_blocks", "_yy", "n", "t0", "t1")
 
     def __init__(self) -> None:
-        self._a = [0.0] * 6
-        """The normal matrix's upper triangle over (cos ψ, sin ψ, g): cc, cs, cg, ss, sg, gg."""
-        self._b = [0.0, 0.0, 0.0]
+        self._blocks: dict[int, list[float]] = {}
+        """Per block: the normal matrix's upper triangle over (cos ψ, sin ψ, g) (cc, cs,
+        cg, ss, sg, gg), then the right-hand side (cd, sd, gd)."""
         self._yy = 0.0
         self.n = 0
         self.t0 = math.inf
@@ -80,20 +92,22 @@ class Separation:
     def add(self, t: float, d: float, g: float, cs: tuple[float, float]) -> None:
         """One sample: raw's error against the reference and ``G``, m/s, and the
         heading's (cos, sin)."""
-        if not (math.isfinite(d) and math.isfinite(g)):
+        if not (math.isfinite(d) and math.isfinite(g) and math.isfinite(t)):
             return
         c, s = cs
-        a = self._a
+        key = math.floor(t / SEPARATION_BLOCK_S)
+        a = self._blocks.get(key)
+        if a is None:
+            a = self._blocks[key] = [0.0] * 9
         a[0] += c * c
         a[1] += c * s
         a[2] += c * g
         a[3] += s * s
         a[4] += s * g
         a[5] += g * g
-        b = self._b
-        b[0] += c * d
-        b[1] += s * d
-        b[2] += g * d
+        a[6] += c * d
+        a[7] += s * d
+        a[8] += g * d
         self._yy += d * d
         self.n += 1
         self.t0 = min(self.t0, t)
@@ -103,7 +117,8 @@ class Separation:
         """``w`` and its standard error (nan, inf when the window cannot give one)."""
         if self.n < 4:
             return math.nan, math.inf
-        cc, cs_, cg, ss, sg, gg = self._a
+        blocks = np.array(list(self._blocks.values()))
+        cc, cs_, cg, ss, sg, gg, b0, b1, b2 = blocks.sum(axis=0).tolist()
         cc += _RIDGE
         ss += _RIDGE
         # the inverse of the symmetric 3×3 matrix by cofactors
@@ -116,14 +131,24 @@ class Separation:
         m11 = cc * gg - cg * cg
         m12 = cg * cs_ - cc * sg
         m22 = cc * ss - cs_ * cs_
-        b0, b1, b2 = self._b
         beta_c = (m00 * b0 + m01 * b1 + m02 * b2) / det
         beta_s = (m01 * b0 + m11 * b1 + m12 * b2) / det
         w = (m02 * b0 + m12 * b1 + m22 * b2) / det
         rss = max(self._yy - (beta_c * b0 + beta_s * b1 + w * b2), 0.0)
         var = rss / (self.n - 3)
         n_eff = min(float(self.n), max((self.t1 - self.t0) / SEPARATION_SAMPLE_S, 1.0))
-        return w, math.sqrt(var * (m22 / det) * self.n / n_eff)
+        se = math.sqrt(var * (m22 / det) * self.n / n_eff)
+        n_blocks = blocks.shape[0]
+        if n_blocks >= SEPARATION_MIN_BLOCKS:
+            # each block's score (its residuals times the regressors) at the fit, and
+            # their scatter through w's row of the inverse
+            theta = (beta_c, beta_s, w)
+            a = blocks[:, (0, 1, 2, 1, 3, 4, 2, 4, 5)].reshape(n_blocks, 3, 3)
+            score = blocks[:, 6:9] - a @ np.asarray(theta)
+            row = np.array((m02, m12, m22)) / det
+            var_blocks = float(np.sum((score @ row) ** 2)) * n_blocks / (n_blocks - 1)
+            se = max(se, math.sqrt(var_blocks))
+        return w, se
 
     def verdict(self, detail: dict[str, object] | None = None) -> bool | None:
         """True: the calibration is the better one; False: raw is; None: the window does

@@ -161,8 +161,9 @@ class UutSettings:
         check=number(1, 2, integer=True),
         doc="2: learn the VBW's misalignment, transverse scale and bias online against a "
         "two-axis reference (a DVL's bottom track) and apply them to the corrected VBW once "
-        "its athwart speed beats the raw one (`emlogd.pipeline.twoaxis_learn`); 1: the "
-        "longitudinal axis only.",
+        "its athwart speed beats the raw one (`emlogd.pipeline.twoaxis_learn`), and the "
+        "fit's forward axis to the VBW's and VHW's forward speed once that beats the "
+        "one-axis calibration's; 1: the longitudinal axis only.",
     )
     component: Component = key(
         "longitudinal",

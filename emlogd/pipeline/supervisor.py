@@ -65,13 +65,12 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
   was saved in and against raw, the current its errors imply is one the sea cannot
-  have, :data:`RESTORE_SEA_SIGMAS`; refused so, judged again every
+  have and raw's a likelier, :data:`RESTORE_SEA_SIGMAS`; refused so, judged again every
   :data:`RESTORE_RETRY_S`), raw passing through meanwhile; saved with its sea
   and raw worse than it there over its first :data:`RESTORE_EARLY_SAMPLES`, it is
   applied then and validated in place (withdrawn when that fails); when no reference
-  has been heard
-  :data:`RESTORE_WAIT_S` after the first reading, applied *unverified* (said in the
-  status) and validated in place once a reference arrives.
+  has been heard :data:`RESTORE_WAIT_S` after the first reading, applied *unverified*
+  (said in the status) and validated in place once a reference arrives.
 """
 
 from __future__ import annotations
@@ -131,7 +130,8 @@ CANDIDATE_MARGIN_MPS = 0.002
 the applied one's × 1.02 + 2 mm/s."""
 
 CURRENT_REFRESH_S = 20.0
-"""Each calibration's current is fitted again this often, s (and when one is made)."""
+"""Each calibration's current is fitted again this often, s (and when one is made; on
+every sample for this long after a silence, :meth:`SeaMemory.renew`)."""
 
 CUSUM_HALF_LIFE_S = 60.0
 """The change detector's own window, s: short, so that its current follows the sea's
@@ -362,10 +362,10 @@ class Supervisor:
 
     def _heading_regressor(self, t: float, cs: tuple[float, float] | None) -> tuple[float, float]:
         """The heading's (cos, sin) the currents act through (zero without current
-        states); each calibration's current is fitted again when due."""
+        states); each calibration's current is fitted again when due (:meth:`SeaMemory.renew`)."""
         if not (self.water and cs is not None):
             return 0.0, 0.0
-        if t - self._t_beta >= CURRENT_REFRESH_S:
+        if self.memory.renew(t, CURRENT_REFRESH_S) or t - self._t_beta >= CURRENT_REFRESH_S:
             self._refit(t)
         return cs
 

@@ -21,7 +21,11 @@ shares its lag (the UUT's, once known) and its heading.
   window whose cheap rules (spreads, heading sectors) already refuse α is not fitted.
 - An estimate that determines α, ``m_t`` and ``b_t`` is offered to the two-axis
   supervisor (:mod:`emlogd.pipeline.twoaxis_sup`), which applies it to the VBW only
-  once its athwart speed is not worse than raw; a refusal keeps what was learnt.
+  once its athwart speed is not worse than raw; a refusal keeps what was learnt. With
+  it go the fit's longitudinal parameters when it determined them all, which the
+  supervisor lets correct the forward speed once that is not worse than the one-axis
+  calibration's nor raw's (a VHW reading, which has no athwart speed, takes the
+  athwart reading of the VBW before it, within :data:`ATHWART_FRESH_S`).
 
 A fit of a full window costs about 0.2 s of CPU with one BLAS thread (on a loaded
 machine a multi-threaded BLAS took seconds: ``OPENBLAS_NUM_THREADS=1`` suits the
@@ -52,8 +56,9 @@ from calib.twoaxis import (
 )
 from drivers.framing import with_checksum
 from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.integrity import emitted_speed
 from emlogd.pipeline.settings import UutSettings
-from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor
+from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor, lon_of_fit
 
 BLOCK_S = 1.0
 """The block means the window holds, s (a 27-minute figure-8 in 1-s blocks gives the
@@ -78,6 +83,11 @@ residuals correlated over 75 samples and α refused; a current constant per 5-mi
 block, correlated over 4 and α 3.28 ± 0.30°; linear between knots 5 minutes apart (a
 figure-8 covers every heading in 90 s, a circle in 120 s), white residuals (correlation
 factor 1.0) and α 3.24 ± 0.14°."""
+
+ATHWART_FRESH_S = 1.0
+"""A VHW reading's forward speed is the applied figures' own (turned back by α with the
+athwart speed) only when a VBW's athwart reading came this recently, s (the log's VBW
+at 10 Hz, its VHW at 5 Hz); else the one-axis calibration's."""
 
 NO_TWO_AXIS_REFERENCE = (
     "no reference speed athwart the hull at the readings' time (a DVL's bottom track "
@@ -141,6 +151,11 @@ class TwoAxisLearner:
         starboard of its heading); None before one."""
         self.counts = {"no_lag": 0, "no_reference": 0, "no_heading": 0}
         """Readings not learnt from, by why."""
+        self.fallbacks = 0
+        """The one-axis supervisor's fallbacks when last seen (:meth:`answers`)."""
+        self.athwart: tuple[float, float] | None = None
+        """The last VBW's time and raw athwart reading (what a VHW reading is turned
+        back with)."""
         self.tap: Callable[[float, float, float, float, bool], None] | None = None
         """Offline use (``replay --truth``): receives every VBW reading as ``(t, forward
         corrected by the one-axis calibration, raw forward, raw athwart, figures
@@ -158,17 +173,82 @@ class TwoAxisLearner:
         """One VBW reading: ``forward_mps`` corrected by the one-axis calibration, the
         raw forward and athwart readings."""
         self.pending.append((t, forward_mps, raw_l, raw_t))
+        self.athwart = (t, raw_t)
         if self.tap is not None:
             self.tap(t, forward_mps, raw_l, raw_t, self.sup.applied is not None and self.s.apply)
 
-    def correct(self, forward_mps: float, athwart_mps: float) -> tuple[float, float] | None:
-        """The VBW's hull-frame speeds with the applied figures (None: none applied)."""
+    def correct(
+        self,
+        forward_mps: float,
+        athwart_mps: float,
+        raw_l_mps: float | None = None,
+        guard: tuple[int, bool] = (0, False),
+    ) -> tuple[float, float] | None:
+        """The VBW's hull-frame speeds with the applied figures (None: none applied):
+        their own forward speed from the raw one ``raw_l_mps`` where the supervisor
+        lets it (:attr:`TwoAxisSupervisor.forward_own`), else ``forward_mps`` (the
+        one-axis calibration's) turned back; ``guard`` the one-axis supervisor's
+        (:meth:`answers`)."""
         f = self.sup.applied
         if f is None or not self.s.apply:
             return None
-        u, w = f.hull_frame(forward_mps, athwart_mps)
+        own = None
+        if raw_l_mps is not None and self.answers(*guard) and self.forward_on():
+            own = self._own(raw_l_mps, athwart_mps)
+        if own is not None:
+            u, w = own
+        else:
+            u, w = f.hull_frame(forward_mps, athwart_mps)
         self.leeway_deg = math.degrees(math.atan2(w, u)) if u or w else 0.0
         return u, w
+
+    def forward(
+        self,
+        t: float,
+        raw_l_mps: float | None,
+        one_axis_mps: float,
+        guard: tuple[int, bool] = (0, False),
+    ) -> float:
+        """A VHW reading's forward speed: by the applied figures' own longitudinal
+        parameters, turned back with the last VBW's athwart reading, where the
+        supervisor lets them correct the forward speed and that reading is fresh
+        (:data:`ATHWART_FRESH_S`) and the one-axis supervisor's ``guard`` lets them
+        (:meth:`answers`); else ``one_axis_mps``, the one-axis calibration's."""
+        f, last = self.sup.applied, self.athwart
+        if f is None or raw_l_mps is None or last is None or not self.answers(*guard):
+            return one_axis_mps
+        if not self.forward_on():
+            return one_axis_mps
+        if abs(t - last[0]) > ATHWART_FRESH_S:
+            return one_axis_mps
+        own = self._own(raw_l_mps, last[1])
+        return one_axis_mps if own is None else own[0]
+
+    def _own(self, raw_l_mps: float, athwart_mps: float) -> tuple[float, float] | None:
+        """The hull-frame speeds by the applied figures' own longitudinal parameters, the
+        forward one under the low-speed and range policy the one-axis output obeys
+        (:func:`~emlogd.pipeline.integrity.emitted_speed`); None where that is no number."""
+        assert self.sup.applied is not None
+        u, w = self.sup.applied.hull_frame_own(raw_l_mps, athwart_mps)
+        u = emitted_speed(u, raw_l_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
+        return None if math.isnan(u) else (u, w)
+
+    def answers(self, fallbacks: int, held: bool) -> bool:
+        """Whether the figures' own forward speed may go out under the one-axis
+        supervisor: not while it sends raw for a cause (``held``: the change detector's
+        hold, a fault), and not after a fallback of its (``fallbacks`` grew: a change it
+        detected, a calibration worse than raw) until the two-axis recheck has judged
+        the forward speed again on readings since (:attr:`TwoAxisSupervisor.forward_own`)."""
+        if fallbacks != self.fallbacks:
+            self.fallbacks = fallbacks
+            self.sup.forward_own = False
+        return not held
+
+    def forward_on(self) -> bool:
+        """Whether the forward speed goes out by the applied figures' own longitudinal
+        parameters (applied, let by the supervisor, ``apply`` on)."""
+        f = self.sup.applied
+        return f is not None and f.lon is not None and self.sup.forward_own and self.s.apply
 
     # -- learning -----------------------------------------------------------
 
@@ -223,7 +303,7 @@ class TwoAxisLearner:
             return
         b = acc.mean()
         self.blocks.append(b)
-        block: Block = (b[0], b[1], b[3], b[5], b[6])
+        block: Block = (b[0], b[1], b[3], b[5], b[6], b[2], b[4])
         self.sup.observe(block)
         span = b[0] - self.blocks[0][0]
         if learn and span >= MIN_FIT_S and b[0] - self.t_fit >= FIT_EVERY_S:
@@ -264,7 +344,8 @@ class TwoAxisLearner:
         if sa is None or sm is None or sb is None:
             self._refuse(t, "two-axis fit gave no standard errors")
             return
-        self.estimate = Figures(p.misalign_deg, sa, p.m_t, sm, p.b_t_mps, sb, t)
+        lon = lon_of_fit(p.model, p.longitudinal, std)
+        self.estimate = Figures(p.misalign_deg, sa, p.m_t, sm, p.b_t_mps, sb, t, lon)
         if self.refused:
             self._event(
                 t,
@@ -306,6 +387,8 @@ class TwoAxisLearner:
             "fits": self.fits,
             "fit_failures": self.fit_failures,
             "rmse_t": {k: (None if math.isnan(v) else v) for k, v in sup.last_scores.items()},
+            "forward": "two_axis" if self.forward_on() else "one_axis",
+            "rmse_l": {k: (None if math.isnan(v) else v) for k, v in sup.forward_scores.items()},
             "not_learnt": dict(self.counts),
         }
 

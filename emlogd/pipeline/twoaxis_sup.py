@@ -14,7 +14,22 @@ Each side is judged in the water frame with a current of its own: the athwart er
 less the best current across the hull over the window, ``c_N·sin ψ − c_E·cos ψ``
 (least squares, minimum norm: on a steady heading it takes each side's offset, so
 there the figures and raw score alike and neither is judged on an offset a current
-could explain). The forward axis is left to the one-axis calibration.
+could explain).
+
+**The forward speed.** Figures learnt with the longitudinal parameters determined carry
+them (:attr:`Figures.lon`: the two-axis fit's, on the sensor's axis). The athwart axis
+sees the current across the hull on any heading, so that fit does not trade the
+current with the forward scale as the one-axis fit must wherever the headings are few
+(trained on a figure-8, the one-axis calibration's forward speed is up to 1.9 times
+its floor on a transit, the two-axis fit's at it). Once the figures are applied, the
+forward speed is corrected by their longitudinal parameters and turned back by α
+(:meth:`Figures.hull_frame_own`) when, over the same window, its forward error after
+a current of its own along the hull (``c_N·cos ψ + c_E·sin ψ``) is not worse than
+the one-axis calibration's forward speed as emitted nor than the raw forward reading
+(:func:`forward_rmse`); else the one-axis calibration's forward speed is turned back
+(:meth:`Figures.hull_frame`). Each recheck judges it again: worse than either, the
+forward speed goes back to the one-axis calibration's; back to it, the figures'
+forward speed returns only where the one-axis one is worse than it by the margin.
 
 No I/O, no clock.
 """
@@ -26,7 +41,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
+from calib.errors import ModelError
+from calib.models import PARAM_NAMES, Params, check_model, correct_array
+from emlogd.pipeline.calibration import TWO_AXIS_LON_KEYS
 from emlogd.pipeline.revalidation import worse
 
 OFFER_MIN_CHANGE_SIGMA = 1.0
@@ -40,9 +59,14 @@ figure-8 is in (σ near the rule's bound, :class:`calib.twoaxis_ident.TwoAxisRul
 and the figures applied follow it as it fills (a 27-minute figure-8 ends near
 0.15°)."""
 
-Block = tuple[float, float, float, float, float]
+LON_KEYS = TWO_AXIS_LON_KEYS
+"""The keys of a figures' longitudinal parameters (:attr:`Figures.lon`) in
+:meth:`Figures.as_dict` and a state file's ``two_axis``: ``a`` s/m, ``m``, ``b`` m/s."""
+
+Block = tuple[float, float, float, float, float, float, float]
 """One block mean as judged: (t s, forward corrected by the one-axis calibration m/s,
-raw athwart m/s, the reference's ground speed to starboard m/s, heading degrees)."""
+raw athwart m/s, the reference's ground speed to starboard m/s, heading degrees, raw
+forward m/s, the reference's ground speed forward m/s)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,6 +81,8 @@ class Figures:
         b_t_mps: the transverse bias, m/s.
         b_t_std_mps: its σ, m/s.
         t: the time of the last block of the window they were learnt on, s.
+        lon: the longitudinal parameters on the sensor's axis learnt with them (None:
+            the fit did not determine them all, or a state file without them).
     """
 
     misalign_deg: float
@@ -66,6 +92,7 @@ class Figures:
     b_t_mps: float
     b_t_std_mps: float
     t: float
+    lon: Params | None = None
 
     def hull_frame(self, forward_mps: float, athwart_mps: float) -> tuple[float, float]:
         """The speed through the water along and athwart the hull, m/s.
@@ -81,6 +108,24 @@ class Figures:
         ca, sa = math.cos(a), math.sin(a)
         return forward_mps * ca * ca - ws * sa, ca * (ws + forward_mps * sa)
 
+    def hull_frame_own(self, raw_l_mps: float, athwart_mps: float) -> tuple[float, float]:
+        """The speed through the water along and athwart the hull, m/s, from the raw
+        readings by these figures alone: the forward reading corrected by
+        :attr:`lon` on the sensor's axis (``u_s``), the athwart one by the transverse
+        scale and bias (``w_s``), both turned back by α: ``u = u_s·cos α − w_s·sin α``,
+        ``w = u_s·sin α + w_s·cos α`` (:meth:`calib.twoaxis.TwoAxisParams.correct`).
+
+        Raises:
+            ValueError: figures without :attr:`lon`.
+        """
+        if self.lon is None:
+            raise ValueError("two-axis figures without longitudinal parameters")
+        us = self.lon.correct(raw_l_mps)
+        ws = (athwart_mps - self.b_t_mps) / (1.0 + self.m_t)
+        a = math.radians(self.misalign_deg)
+        ca, sa = math.cos(a), math.sin(a)
+        return us * ca - ws * sa, us * sa + ws * ca
+
     def moved(self, other: Figures) -> bool:
         """Whether ``other`` differs from these by more than
         :data:`OFFER_MIN_CHANGE_SIGMA` of its σ in any figure, or determines α more
@@ -94,9 +139,11 @@ class Figures:
         )
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, float]) -> Figures:
+    def from_dict(cls, d: Mapping[str, float], model: str | None = None) -> Figures:
         """Figures from :meth:`as_dict`'s keys (a state file's), learnt at no known
-        time: any block validates them."""
+        time: any block validates them. The longitudinal parameters (:data:`LON_KEYS`)
+        are taken when all are there and ``model`` (the UUT's error model, which the
+        record's is) has them (a parameter the model lacks must be 0); else none."""
         return cls(
             d["misalign_deg"],
             d["misalign_std_deg"],
@@ -105,11 +152,13 @@ class Figures:
             d["b_t_mps"],
             d["b_t_std_mps"],
             -math.inf,
+            _lon_of(d, model),
         )
 
     def as_dict(self) -> dict[str, float]:
-        """JSON keys (README: the ``two_axis`` block of ``emlogd status --json``)."""
-        return {
+        """JSON keys (README: the ``two_axis`` block of ``emlogd status --json``), with
+        :data:`LON_KEYS` when the figures carry longitudinal parameters."""
+        out = {
             "misalign_deg": self.misalign_deg,
             "misalign_std_deg": self.misalign_std_deg,
             "m_t": self.m_t,
@@ -117,12 +166,35 @@ class Figures:
             "b_t_mps": self.b_t_mps,
             "b_t_std_mps": self.b_t_std_mps,
         }
+        if self.lon is not None:
+            lon = self.lon
+            out |= dict(zip(LON_KEYS, (lon.a_spm, lon.m, lon.b_mps), strict=True))
+        return out
+
+
+def _lon_of(d: Mapping[str, float], model: str | None) -> Params | None:
+    """The longitudinal parameters of a figures' dict (:meth:`Figures.from_dict`)."""
+    if model is None or not all(k in d for k in LON_KEYS):
+        return None
+    try:
+        name = check_model(model)
+        a, m, b = (float(d[k]) for k in LON_KEYS)
+        return Params(name, a, m, b)
+    except (ModelError, TypeError, ValueError):
+        return None
+
+
+def lon_of_fit(model: str, params: Params, stderr: Mapping[str, float | None]) -> Params | None:
+    """A two-axis fit's longitudinal parameters when it determined every one of them
+    (each with a σ), else None: one held at its prior is not the log's."""
+    names = PARAM_NAMES[check_model(model)]
+    return params if all(stderr.get(k) is not None for k in names) else None
 
 
 def athwart_rmse(blocks: list[Block], figures: Figures | None) -> float:
     """RMS of the athwart error of ``blocks`` corrected with ``figures`` (None: raw)
     after a current of its own across the hull (module docstring), m/s."""
-    a = np.asarray(blocks, dtype=np.float64).reshape(-1, 5)
+    a = np.asarray(blocks, dtype=np.float64).reshape(-1, 7)
     if a.shape[0] == 0:
         return math.nan
     fwd, raw_t, gs, psi = a[:, 1], a[:, 2], a[:, 3], np.radians(a[:, 4])
@@ -137,6 +209,49 @@ def athwart_rmse(blocks: list[Block], figures: Figures | None) -> float:
     coef = np.linalg.lstsq(design, e, rcond=None)[0]
     r = e - design @ coef
     return math.sqrt(float(r @ r) / r.size)
+
+
+FORWARD_ONE_AXIS = "one_axis"
+FORWARD_RAW = "raw"
+FORWARD_OWN = "own"
+
+
+def forward_rmse(blocks: list[Block], figures: Figures | None) -> dict[str, float]:
+    """RMS of the forward error of ``blocks`` after a current of its own along the
+    hull (``c_N·cos ψ + c_E·sin ψ``, least squares, minimum norm), m/s: of the
+    one-axis calibration's forward speed as emitted (:data:`FORWARD_ONE_AXIS`), of the
+    raw forward reading (:data:`FORWARD_RAW`) and, for figures with longitudinal
+    parameters, of their own forward speed (:data:`FORWARD_OWN`,
+    :meth:`Figures.hull_frame_own`)."""
+    a = np.asarray(blocks, dtype=np.float64).reshape(-1, 7)
+    if a.shape[0] == 0:
+        return {}
+    fwd, raw_t, psi, raw_l, gf = a[:, 1], a[:, 2], np.radians(a[:, 4]), a[:, 5], a[:, 6]
+    design = np.column_stack([np.cos(psi), np.sin(psi)])
+
+    def rms(u: npt.NDArray[np.float64]) -> float:
+        e = u - gf
+        coef = np.linalg.lstsq(design, e, rcond=None)[0]
+        r = e - design @ coef
+        return math.sqrt(float(r @ r) / r.size)
+
+    out = {FORWARD_ONE_AXIS: rms(fwd), FORWARD_RAW: rms(raw_l)}
+    if figures is not None and figures.lon is not None:
+        us = correct_array(figures.lon, raw_l)
+        ws = (raw_t - figures.b_t_mps) / (1.0 + figures.m_t)
+        al = math.radians(figures.misalign_deg)
+        out[FORWARD_OWN] = rms(us * math.cos(al) - ws * math.sin(al))
+    return out
+
+
+def own_forward_ok(r: Mapping[str, float]) -> bool:
+    """The figures' own forward speed is not worse than the one-axis calibration's
+    nor than raw (:func:`emlogd.pipeline.revalidation.worse`) on scores of
+    :func:`forward_rmse`."""
+    own = r.get(FORWARD_OWN, math.nan)
+    if not math.isfinite(own):
+        return False
+    return not worse(own, r[FORWARD_ONE_AXIS]) and not worse(own, r[FORWARD_RAW])
 
 
 class TwoAxisSupervisor:
@@ -171,6 +286,11 @@ class TwoAxisSupervisor:
         self.last_scores: dict[str, float] = {}
         """The athwart RMSE of the last judgement, m/s (``raw``, ``candidate``,
         ``applied``)."""
+        self.forward_own = False
+        """The forward speed is the applied figures' own (:meth:`Figures.hull_frame_own`),
+        not the one-axis calibration's turned back by α (module docstring)."""
+        self.forward_scores: dict[str, float] = {}
+        """The forward RMSE of the last judgement, m/s (:func:`forward_rmse`'s keys)."""
 
     def restore(self, figures: Figures) -> None:
         """Figures from the state file: the last good ones, a candidate that
@@ -224,6 +344,10 @@ class TwoAxisSupervisor:
         self.changed = True
         self._recheck = []
         self.note = ""
+        self.forward_scores = forward_rmse(blocks, cand)
+        self.forward_own = own_forward_ok(self.forward_scores)
+        detail["forward"] = FORWARD_OWN if self.forward_own else FORWARD_ONE_AXIS
+        detail |= {f"rmse_l_{k}": round(v, 4) for k, v in self.forward_scores.items()}
         self._event(t, "two_axis_applied", detail)
 
     def _judge_applied(self, t: float) -> None:
@@ -234,6 +358,7 @@ class TwoAxisSupervisor:
         self.last_scores = {"raw": r_raw, "applied": r_app}
         if worse(r_app, r_raw):
             self.applied = None
+            self.forward_own = False
             self.candidate, self._cand_blocks = app, []  # the last good, re-validated
             self.note = "two-axis figures withdrawn: athwart worse than raw"
             self._event(
@@ -241,3 +366,22 @@ class TwoAxisSupervisor:
                 "two_axis_withdrawn",
                 {"rmse_t_raw": round(r_raw, 4), "rmse_t_applied": round(r_app, 4)},
             )
+            return
+        self._recheck_forward(t, blocks, app)
+
+    def _recheck_forward(self, t: float, blocks: list[Block], app: Figures) -> None:
+        """The applied figures' own forward speed judged again (module docstring)."""
+        if app.lon is None:
+            return
+        r = self.forward_scores = forward_rmse(blocks, app)
+        detail = {f"rmse_l_{k}": round(v, 4) for k, v in r.items()}
+        if self.forward_own and not own_forward_ok(r):
+            self.forward_own = False
+            self._event(t, "two_axis_forward_withdrawn", detail)
+        elif (
+            not self.forward_own
+            and worse(r[FORWARD_ONE_AXIS], r[FORWARD_OWN])
+            and own_forward_ok(r)
+        ):
+            self.forward_own = True
+            self._event(t, "two_axis_forward_applied", detail)

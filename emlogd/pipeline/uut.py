@@ -224,6 +224,14 @@ class UutCalibration:
         self.sup.applied = p
 
     @property
+    def guard(self) -> tuple[int, bool]:
+        """What a two-axis forward speed answers to (:meth:`TwoAxisLearner.answers`): the
+        supervisor's fallbacks to raw or the previous calibration so far, and whether a
+        reading goes out raw for a cause now (held by the change detector, a fault)."""
+        sup = self.sup
+        return sup.counters.fallbacks, sup.held or bool(sup.health.fault)
+
+    @property
     def applied_std(self) -> dict[str, float | None]:
         """The applied calibration's standard deviations."""
         return self.sup.applied_std

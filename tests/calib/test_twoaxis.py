@@ -21,6 +21,7 @@ from calib.twoaxis import (
     fit_two_axis,
     water_velocity,
 )
+from calib.twoaxis_kf import kf_two_axis
 from tests.synth import TWO_AXIS_CURRENT_NE, TWO_AXIS_TRUTH, two_axis_series, two_axis_trial
 
 
@@ -57,15 +58,52 @@ class TestLeastSquares:
 
     def test_circles_refuse_misalignment_with_transverse_scale(self) -> None:
         """In steady circles the sway follows the surge: the transverse scale is not
-        determined, held at the longitudinal one, and α is refused with it (its
-        signature is (1 + m_t)·sin α·u)."""
+        determined and α is refused with it (its signature is (1 + m_t)·sin α·u);
+        the transverse scale and bias are held at the prior's 0, the bias with the
+        reason (without α it would take the phantom leeway at these speeds)."""
         fit = _fit(two_axis_trial("circles", TWO_AXIS_TRUTH, seed=5))
         assert M_T in fit.ident.unidentifiable and ALPHA in fit.ident.unidentifiable
         why = fit.ident.verdict(ALPHA).reason
         assert why.startswith("misalignment not determinable: a misalignment and a transverse")
         assert "the turns all went one way" in why and "(a figure-8)" in why
-        assert fit.params.m_t == fit.params.longitudinal.m
+        assert fit.params.m_t == 0.0 and fit.params.b_t_mps == 0.0
         assert fit.misalign_deg == 0.0
+        assert fit.stderr[M_T] is None and fit.stderr[B_T] is None
+        assert fit.ident.verdict(B_T).reason.startswith(
+            "transverse bias held at +0 m/s: without the misalignment"
+        )
+        assert "sway follows the surge" in fit.ident.verdict(M_T).reason
+
+    @pytest.mark.parametrize("method", ["ls", "kf"])
+    def test_nothing_learnt_without_alpha_makes_the_athwart_speed_worse_than_raw(
+        self, method: str
+    ) -> None:
+        """Trained on one-way circles (α refused), the figures applied to a figure-8
+        leave its athwart reading as read: never worse than raw, by least squares and
+        by the filter. Before, the transverse scale held at the forward one (−0.11)
+        and the bias fitted with α held made it worse than raw there."""
+        d = two_axis_trial("circles", TWO_AXIS_TRUTH, seed=5, n=6000)
+        fit = _fit(d) if method == "ls" else kf_two_axis("EM3", d["t"], two_axis_series(d))
+        assert ALPHA in fit.ident.unidentifiable
+        e8 = two_axis_trial("figure-8", TWO_AXIS_TRUTH, seed=6, n=6000)
+        _, w = fit.params.correct(e8["rl"], e8["rt"])
+        assert np.array_equal(w, e8["rt"])
+        fitted = fit_two_axis("EM3", two_axis_series(d), hold=False)  # as it was reported
+        assert fitted.params.m_t == fitted.params.longitudinal.m
+        _, w_fitted = fitted.params.correct(e8["rl"], e8["rt"])
+
+        def rms(x: np.ndarray) -> float:
+            return float(np.sqrt(np.mean((x - e8["w"]) ** 2)))
+
+        assert rms(w_fitted) > rms(e8["rt"])
+
+    def test_a_held_transverse_figure_is_the_priors(self) -> None:
+        """With a prior, α refused holds the transverse scale and bias at the prior's."""
+        prior = TwoAxisParams(Params("EM3"), 0.0, -0.05, 0.02)
+        d = two_axis_trial("circles", TWO_AXIS_TRUTH, seed=5, n=6000)
+        fit = fit_two_axis("EM3", two_axis_series(d), prior=prior)
+        assert (fit.params.m_t, fit.params.b_t_mps) == (-0.05, 0.02)
+        assert "held at +0.02 m/s" in fit.ident.verdict(B_T).reason
 
     @pytest.mark.parametrize("seed", [6, 17, 18])
     def test_zero_misalignment_within_sigma(self, seed: int) -> None:
@@ -146,7 +184,7 @@ def test_dead_transverse_axis_refused_by_envelope() -> None:
     )
     assert M_T in fit.ident.unidentifiable
     assert "transverse scale outside the envelope" in fit.ident.reason
-    assert fit.params.m_t == fit.params.longitudinal.m
+    assert fit.params.m_t == 0.0 and fit.params.b_t_mps == 0.0
 
 
 def test_water_frame_reference_determines_both_biases() -> None:

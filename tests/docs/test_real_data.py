@@ -56,6 +56,24 @@ def test_every_file_is_recognised_by_its_content() -> None:
     assert found.get("LICENSE-anemomind") is None
 
 
+def test_a_gzipped_log_is_recognised_and_a_file_skipped_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A log compressed with gzip (``emlogd import`` reads it) is of its kind; a file
+    that is no log is named on stderr as skipped, never passed over silently."""
+    import gzip
+
+    rd = _script()
+    src = REAL / "irene-2014-06-27-leman.nmea"
+    head = b"".join(src.read_bytes().splitlines(keepends=True)[:200])
+    (tmp_path / "log.nmea.gz").write_bytes(gzip.compress(head))
+    (tmp_path / "notes.txt").write_text("a boat, a lake, a day\n")
+    assert rd.kind(tmp_path / "log.nmea.gz") == "nmea"
+    assert rd.kind(tmp_path / "notes.txt") is None
+    rd.run(tmp_path, tmp_path / "out", ["no-such-recording"])
+    assert "notes.txt: skipped, not a log" in capsys.readouterr().err
+
+
 def test_a_reference_slower_than_1_hz_aligns(tmp_path: Path) -> None:
     """Irene 2007 (RMC at 0.8 Hz, fixes 1.25 s apart; its magnetic heading given the
     lake's variation): the cadence-sized gap pairs 94 % of the readings with a GNSS

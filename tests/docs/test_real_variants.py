@@ -124,6 +124,9 @@ SAME_SENTENCES = [
     ("logger-tsv", "no-banner"),
     ("logger-tsv", "utc-offset"),
     ("logger-tsv", "logger-firmware"),
+    ("logger-tsv", "date-in-full"),
+    ("logger-tsv", "date-year-first"),
+    ("logger-tsv", "time-fraction"),
 ]
 """Variants that change only the format: the import writes the same sentences."""
 
@@ -150,12 +153,65 @@ def test_without_the_current_columns_no_vdr(tmp_path: Path) -> None:
     assert rep.sentences["VHW"] == base.sentences["VHW"]
 
 
+@pytest.mark.parametrize("name", ["utc-text-us", "date-time-columns"])
+def test_expedition_times_as_text_keep_the_log(name: str, tmp_path: Path) -> None:
+    """Utc written as US-English text (month first, AM/PM), or Date and Time columns in
+    its place: the same water readings over the same span (to the second the text
+    keeps)."""
+    base, rep, _ = _variant("expedition-csv", name, tmp_path)
+    assert rep.sentences["VHW"] == base.sentences["VHW"]
+    assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start, abs=1.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "share"),
+    [("log-half-rate", 0.5), ("log-twice", 2.0), ("log-dropouts", 0.9), ("log-lags-2s", 1.0)],
+)
+def test_the_log_at_another_rate_or_lag_keeps_its_time(
+    name: str, share: float, tmp_path: Path
+) -> None:
+    """The log at half or twice its rate, silent 30 s every 5 min, or 2 s behind the
+    GNSS: as many VHW as that makes, over the same span; the pipeline keeps nearly every
+    reading of a log at twice its rate (the rate check learns its rate from the
+    imported times)."""
+    base, rep, cap = _variant("nmea", name, tmp_path)
+    assert rep.sentences["VHW"] == pytest.approx(share * base.sentences["VHW"], rel=0.05)
+    assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start, abs=2.0)
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    assert record_capture(cap, s).raw.size >= 0.85 * rep.sentences["VHW"]
+
+
+@pytest.mark.parametrize(("name", "sentence"), [("ths", "THS"), ("pashr", "PASHR")])
+def test_a_gnss_compass_or_an_ins_alone_pairs(name: str, sentence: str, tmp_path: Path) -> None:
+    """THS or $PASHR the only heading: the readings pair with the GNSS reference as with
+    HDG."""
+    _, rep, cap = _variant("nmea", name, tmp_path)
+    assert rep.sentences[sentence] > 0 and rep.sentences.get("HDG", 0) == 0
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    al = record_capture(cap, s).aligned(0.0)
+    assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
+
+
+def test_a_log_sending_vbw_alone_is_read_from_vbw(tmp_path: Path) -> None:
+    """VBW instead of VHW: docs/real_data.py tells the log's sentence and its readings
+    pair from VBW."""
+    _, rep, cap = _variant("nmea", "vbw", tmp_path)
+    assert rep.sentences.get("VHW", 0) == 0 < rep.sentences["VBW"]
+    assert rv._real_data().log_sentence(cap) == "VBW"
+    s = UutSettings(
+        port="nmea", reference_port="nmea", reference_field="gnss", current=True, uut_source="VBW"
+    )
+    al = record_capture(cap, s).aligned(0.0)
+    assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
+
+
 @pytest.mark.parametrize(
     ("kind", "name", "period_s"),
     [
         ("nmea", "gnss-0.5hz", 2.0),
         ("nmea", "gnss-0.2hz", 5.0),
         ("nmea", "fix-10s", 10.0),
+        ("nmea", "tide-gnss-0.5hz", 2.0),
         ("expedition-csv", "sog-0.5hz", 2.0),
         ("expedition-csv", "sog-0.2hz", 5.0),
     ],
@@ -193,14 +249,15 @@ def test_a_magnetic_heading_without_variation_pairs(name: str, tmp_path: Path) -
     assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
 
 
-def test_the_tide_moves_the_ground_not_the_water(tmp_path: Path) -> None:
-    """The tide variant changes speed and course over ground by the current it adds."""
+@pytest.mark.parametrize(("name", "scale"), [("tide", 1.0), ("tide-strong", rv.STRONG_TIDE)])
+def test_the_tide_moves_the_ground_not_the_water(name: str, scale: float, tmp_path: Path) -> None:
+    """The tide variants change speed and course over ground by the current they add."""
     t = 1.4e9
-    cn, ce = rv.vcsv.tide(t)
-    sog, _cog = rv.add_current(0.0, 0.0, t)
+    cn, ce = rv.vcsv.tide(t, scale)
+    sog, _cog = rv.add_current(0.0, 0.0, t, scale)
     assert sog == pytest.approx(np.hypot(cn, ce))
-    assert np.hypot(cn, ce) <= rv.vcsv.TIDE_KN
-    base, rep, _ = _variant("nmea", "tide", tmp_path)
+    assert np.hypot(cn, ce) <= scale * rv.vcsv.TIDE_KN
+    base, rep, _ = _variant("nmea", name, tmp_path)
     assert rep.sentences == base.sentences
 
 
@@ -236,3 +293,32 @@ def test_the_whole_suite_per_variant(
         _BASES[kind] = rv.run_one(src, text, None, tmp_path_factory.mktemp(f"{kind}-base"))
     row = rv.run_one(src, text, VARIANTS[(kind, name)], tmp_path_factory.mktemp(name))
     assert rv.verdict(row, _BASES[kind]) == "ok"
+
+
+OTHER_RECORDINGS: dict[tuple[str, str], str] = {
+    ("irene-2007-11-03-leman.nmea", "tide-strong"): "the replay 1.03 times raw's RMSE over the "
+    "log and a 5-min window 1.92 times raw's: the learner's bias (-0.25 m/s, least squares' "
+    "-0.05) applied from 105 min on overshoots in the last minutes",
+}
+"""Variants run on another recording than their kind's (whose calibration the replay
+applies, so a wrong one shows), with what does not hold yet: strict xfails."""
+
+
+@pytest.mark.real
+@pytest.mark.parametrize(
+    ("recording", "name"),
+    [pytest.param(*k, marks=pytest.mark.xfail(reason=why)) for k, why in OTHER_RECORDINGS.items()],
+)
+def test_the_whole_suite_on_another_recording(
+    recording: str, name: str, tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    """As :func:`test_the_whole_suite_per_variant`, on a recording whose replay applies
+    its calibration."""
+    src = REAL / recording
+    if not src.is_file():
+        pytest.skip(f"{recording} absent")
+    text = src.read_bytes().decode("latin-1")
+    base = rv.run_one(src, text, None, tmp_path_factory.mktemp(f"{src.stem}-base"))
+    variant = next(v for v in rv.VARIANTS if v.kind == "nmea" and v.name == name)
+    row = rv.run_one(src, text, variant, tmp_path_factory.mktemp(name))
+    assert rv.verdict(row, base) == "ok"

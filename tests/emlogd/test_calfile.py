@@ -89,3 +89,18 @@ def test_two_axis_figures_round_trip_and_are_absent_otherwise() -> None:
         loads(text.replace("    b_t_std_mps: 0.004\n", ""))
     with pytest.raises(CalibrationFileError, match=r"two_axis\.m_t"):
         loads(text.replace("m_t: -0.08", "m_t: .nan"))
+
+
+def test_two_axis_longitudinal_parameters_round_trip_all_or_none() -> None:
+    """The two-axis fit's longitudinal parameters go through the file with the figures;
+    one of the three missing is an error naming the keys, and a file without any of
+    them (written before they were kept) still loads."""
+    lon = {"lon_a_spm": 0.0, "lon_m": -0.17, "lon_b_mps": 0.005}
+    two = dataclasses.replace(FULL, two_axis=FIGURES | lon)
+    text = dumps({"emlog2": two})
+    assert loads(text)[0]["emlog2"] == two
+    with pytest.raises(CalibrationFileError, match="lon_a_spm, lon_m, lon_b_mps"):
+        loads(text.replace("lon_b_mps: 0.005", "other: 0.005"))
+    with pytest.raises(CalibrationFileError, match=r"two_axis\.lon_m"):
+        loads(text.replace("lon_m: -0.17", "lon_m: .inf"))
+    assert loads(dumps({"emlog2": dataclasses.replace(FULL, two_axis=FIGURES)}))[0]

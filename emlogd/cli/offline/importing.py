@@ -166,7 +166,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     p.add_argument(
         "--time-format",
-        metavar="ole|iso|epoch|PATTERN",
+        metavar="ole|iso|epoch|epoch_ms|PATTERN",
         help="csv: the time column (a strptime PATTERN for date + ' ' + time with a date "
         "column); default: the preset's, else told by the first time",
     )

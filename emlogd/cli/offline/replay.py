@@ -143,6 +143,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if store is not None:
         persist(Output())
     doc = result.to_dict()
+    for line in other_sentences_only(pipeline, args.config):
+        sys.stderr.write(f"emlogd replay: warning: {line}\n")
     warn_skips(args.command, result.capture_skips)
     warn_internal(args.command, "replay", result.internal)
     if args.json:
@@ -187,6 +189,29 @@ def cmd_replay(args: argparse.Namespace) -> int:
         + "\n"
     )
     return 0
+
+
+def other_sentences_only(pipeline: Pipeline, config: str) -> list[str]:
+    """Per UUT that sent no speed reading at all, or whose configured sentence
+    (``uut_source``) never arrived while another of its speed sentences did: why nothing
+    was learnt, and the key that helps (a log sending VBW alone replayed with the
+    default VHW learns nothing)."""
+    out = []
+    for name, u in pipeline.uuts.items():
+        seen = sorted(set(u.checks) - {u.s.uut_source})
+        oor, late = u.cal.counters.out_of_range, u.cal.counters.backlog
+        if not u.checks and not late:
+            why = f"all {oor} outside the log's range" if oor else "none decoded"
+            out.append(
+                f"{name}: no speed reading of the log (VHW, VBW) to use ({why}): nothing "
+                "was learnt or corrected"
+            )
+        elif seen and u.s.uut_source not in u.checks:
+            out.append(
+                f"{name}: no {u.s.uut_source} reading arrived, only {', '.join(seen)}: nothing "
+                f"was learnt from them (set calibration[].uut_source: {seen[0]} in {config})"
+            )
+    return out
 
 
 def _file_or_none(path: str) -> bool:

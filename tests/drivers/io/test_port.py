@@ -127,6 +127,8 @@ def test_stale_and_alive_events(pty_pair: tuple[int, int, str]) -> None:
     assert src.poll() == []
     clock[0] = 102.5
     assert [e.kind for e in src.poll()] == ["stale"]
+    assert src.counters_dict()["stale"] is True
+    assert "stale" not in src.counters_dict(stale=False)  # the daemon's figures: none of it
     clock[0] = 110.0
     assert src.poll() == []  # reported once
     os.write(master, b"x\n")

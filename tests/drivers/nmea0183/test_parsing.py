@@ -10,7 +10,7 @@ from datetime import UTC, datetime
 
 import pytest
 
-from drivers.errors import FieldError, OutOfRangeError
+from drivers.errors import FieldError, OutOfRangeError, UnknownSentenceError
 from drivers.framing import with_checksum
 from drivers.nmea0183 import (
     Heading,
@@ -103,6 +103,64 @@ def test_distances_temperatures_and_headings_follow_the_number_rule(body: str) -
     """A VLW, MTW or HDx number with a blank, an underscore, or no finite value is a bad field,
     as in VHW and VBW (Python's float would read the first two)."""
     with pytest.raises(FieldError, match="is not a number"):
+        _parse(body)
+
+
+@pytest.mark.parametrize(
+    ("body", "heading"),
+    [
+        ("GPTHS,123.4,A", 123.4),
+        ("INTHS,359.9,E", 359.9),
+        ("HETHS,12.0,M", 12.0),
+        ("GPTHS,123.4,V", None),
+        ("GPTHS,123.4,S", None),
+        ("GPTHS,,A", None),
+    ],
+)
+def test_ths_is_a_true_heading_in_a_valid_mode(body: str, heading: float | None) -> None:
+    """THS (a GNSS compass's true heading): the heading in modes A, E and M, none when the
+    sender says it is simulated or not valid."""
+    r = _parse(body)
+    assert isinstance(r, Heading) and r.true and r.sentence == "THS"
+    assert r.heading_deg == heading
+
+
+@pytest.mark.parametrize("body", ["GPTHS,123.4,X", "GPTHS,123.4", "GPTHS,400.0,A"])
+def test_ths_with_a_bad_mode_field_count_or_heading_is_refused(body: str) -> None:
+    """An unknown mode letter, a missing field, a heading past 360: rejects, no record."""
+    with pytest.raises(FieldError):
+        _parse(body)
+
+
+@pytest.mark.parametrize(
+    ("body", "heading"),
+    [
+        ("PASHR,085335.000,224.19,T,-01.26,+00.83,+00.00,0.101,0.113,0.267,1,0", 224.19),
+        ("PASHR,085335.000,,T,-01.26,+00.83,+00.00,0.101,0.113,0.267,0,0", None),
+        ("PASHR,ATT,085335.0,224.19,-0.83,1.26,0.003,0.004,0", 224.19),
+    ],
+)
+def test_pashr_is_a_true_heading(body: str, heading: float | None) -> None:
+    """$PASHR (an INS's or a GNSS compass's attitude, and Ashtech's ATT): its heading,
+    true."""
+    r = _parse(body)
+    assert isinstance(r, Heading) and r.true and r.sentence == "PASHR"
+    assert r.heading_deg == heading
+
+
+@pytest.mark.parametrize(
+    ("body", "error"),
+    [
+        ("PASHR,POS,0,07,085335.00,4613.35,N,00610.28,E", UnknownSentenceError),
+        ("PASHR,085335.000,224.19,M,-01.26,+00.83,+00.00,0.101,0.113,0.267,1,0", FieldError),
+        ("PASHR,085335.000,224.19,T,-01.26", FieldError),
+        ("PASHR,ATT,085335.0,400.0,-0.83,1.26,0.003,0.004,0", FieldError),
+    ],
+)
+def test_other_pashr_forms_are_refused(body: str, error: type[Exception]) -> None:
+    """Another $PASHR form is not decoded; a magnetic flag, a short sentence or a
+    heading past 360 are rejects."""
+    with pytest.raises(error):
         _parse(body)
 
 

@@ -254,8 +254,9 @@ def test_status_without_a_daemon_or_config_names_the_options(
 
 
 def test_status_text_shows_the_two_axis_figures_and_the_refusal() -> None:
-    """``axes: 2``: a line under the UUT with the figures applied (α ± σ, m_t, b_t), the
-    leeway, and why the latest window refused α."""
+    """``axes: 2``: a line under the UUT with the figures applied (α ± σ, m_t, b_t),
+    whether the forward speed is the two-axis fit's, the leeway, and why the latest
+    window refused α."""
     from emlogd.cli.daemon import _status_text
 
     fig = {
@@ -275,3 +276,6 @@ def test_status_text_shows_the_two_axis_figures_and_the_refusal() -> None:
         "b_t +0.041 ± 0.003 m/s, leeway -1.2°; latest window: misalignment refused: "
         "misalignment not separable: speed through water nearly constant\n"
     ) in text
+    two["forward"] = "two_axis"
+    text = _status_text({"status": {"uuts": {"log": u}, "ports": {}}})
+    assert "b_t +0.041 ± 0.003 m/s, forward speed by the two-axis fit, leeway -1.2°" in text

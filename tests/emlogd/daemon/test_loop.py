@@ -349,12 +349,54 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r}
     assert [c[2] for c in spy.calls] == [
         b"$VWVHW\r\n",
-        b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read, stamped when read
+        b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read
     ]
     d._round(0)
     assert d.resting.keys() == {"dvl"}  # armed again: still readable, so resting again
     d._unregister("dvl")
     assert d.registered == {} and d.rest_fds == {}
+    for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
+        os.close(fd)
+    d.sel.close()
+    d.poll.close()
+
+
+def test_a_rested_port_is_read_at_the_next_wake_up_first_and_stamped_at_its_rest_end(
+    tmp_path: Path,
+) -> None:
+    """A resting port is not read before its rest is over; after, at the loop's next wake-up
+    (a UUT's sentence), before the UUT and stamped with the end of its rest; the loop waits
+    for it at the latest REST_MERGE_S past that end."""
+    from emlogd.daemon import loop as dmod
+
+    _setup(tmp_path)
+    now = [100.0]
+    d = dmod.Daemon(
+        tmp_path / "emlogd.yaml", log=None, clock=lambda: 5000.0, monotonic=lambda: now[0]
+    )
+    spy = d.pipeline = _SpyPipeline()  # type: ignore[assignment]
+    d.rest_s = {"dvl": 0.02}
+    r, w = os.pipe()
+    r2, w2 = os.pipe()
+    dvl = _Source("dvl", [(9.0, b":SA\r\n:BD\r\n")], fd=r)
+    emlog = _Source("emlog1", [(5000.01, b"$VWVHW,1\r\n"), (5000.05, b"$VWVHW,2\r\n")], fd=r2)
+    d.sources = {"dvl": dvl, "emlog1": emlog}  # type: ignore[dict-item]
+    d._sync_registrations()
+    assert d._wait_s() == dmod.SELECT_TIMEOUT_S  # nothing rests
+    os.write(w, b"x")
+    d._round(0)  # the DVL readable: it rests until 100.02
+    assert d._wait_s() == pytest.approx(0.02 + dmod.REST_MERGE_S)
+    now[0] = 100.01
+    os.write(w2, b"x")  # a UUT's sentence while the DVL rests
+    d._round(0)
+    now[0] = 100.025  # the rest is over; the UUT readable again (the pipe is not drained)
+    assert d._wait_s() == pytest.approx(100.02 + dmod.REST_MERGE_S - now[0])
+    d._round(0)
+    assert spy.calls == [
+        (5000.01, "emlog1", b"$VWVHW,1\r\n"),
+        (pytest.approx(5000.02), "dvl", b":SA\r\n:BD\r\n"),
+        (5000.05, "emlog1", b"$VWVHW,2\r\n"),
+    ]
     for fd in (r, w, r2, w2, d._wake_r, d._wake_w):
         os.close(fd)
     d.sel.close()
@@ -603,3 +645,13 @@ def test_the_hostile_hdg_sentence_is_counted_and_the_daemon_goes_on(
             dev.stop()
             dev.join(5)
     assert "internal error" not in (tmp_path / "daemon.log").read_text()
+
+
+def test_the_rest_key_documents_how_late_a_rested_port_is_read() -> None:
+    """``rest_s``'s documentation (and README's key table) names REST_MERGE_S's value."""
+    from emlogd.config import PortConfig
+    from emlogd.daemon.loop import REST_MERGE_S
+    from emlogd.pipeline.keys import entries
+
+    doc = next(e.key.doc for e in entries(PortConfig) if e.name == "rest_s")
+    assert doc.count(f"{REST_MERGE_S:g} s") == 2

@@ -82,6 +82,7 @@ def test_cells_in_si_units_within_a_boats_range() -> None:
     ("cell", "fmt"),
     [
         ("1700000000", "epoch"),
+        ("1700000000123", "epoch_ms"),
         ("38353.5", "ole"),
         ("2005-01-01T12:00:00", "iso"),
         ("12", None),
@@ -90,9 +91,13 @@ def test_cells_in_si_units_within_a_boats_range() -> None:
         ("13.06.2005 09:19:33", "%d.%m.%Y %H:%M:%S"),
         ("2005/06/13 09:19:33", "%Y/%m/%d %H:%M:%S"),
         ("06/13/2005 09:19:33", None),
+        ("6/13/2005 9:19:33 AM", "%m/%d/%Y %I:%M:%S %p"),
+        ("6/13/2005 9:19:33 PM", "%m/%d/%Y %I:%M:%S %p"),
+        ("13/06/2005 09:19", None),
     ],
 )
 def test_the_time_format_is_told_by_the_first_cell(cell: str, fmt: str | None) -> None:
-    """Epoch seconds, an OLE date, ISO 8601 or a day-first date and time are told apart;
-    anything else (a month-first date past the 12th) is not guessed."""
+    """Epoch seconds or milliseconds, an OLE date, ISO 8601, a day-first date and time or a month-first
+    one with AM/PM are told apart; anything else (a month-first date past the 12th on a
+    24-h clock, minutes alone) is not guessed."""
     assert guess_time_format(cell) == fmt

@@ -36,7 +36,8 @@ def _sail(
 ) -> Path:
     """A yacht on legs of 60 s through eight headings at 3 m/s (no current, log exact):
     RMC (with or without a position, never a variation), the heading as ``hdg`` (a
-    magnetic HDG with empty variation fields), ``hdt`` (true) or none, and VHW."""
+    magnetic HDG with empty variation fields), ``hdt`` or ``ths`` (true) or none, and VHW;
+    ``fix_every`` 0: no fix at all."""
     var = model_variation(LAT, LON, T0) or 0.0
     with CaptureWriter(path, {"nmea": "nmea0183"}) as w:
         for k in range(n):
@@ -50,7 +51,9 @@ def _sail(
                 )
             elif heading == "hdt":
                 w.write_line(t, "nmea", encode_hdt(sent).encode())
-            if k % fix_every == 0:
+            elif heading == "ths":
+                w.write_line(t, "nmea", with_checksum(f"GPTHS,{sent:.1f},A").encode())
+            if fix_every and k % fix_every == 0:
                 fix = encode_rmc(
                     datetime.fromtimestamp(t, UTC),
                     u,
@@ -99,6 +102,28 @@ class TestCauses:
         cap = _sail(tmp_path / "n.cap", heading="none")
         with pytest.raises(OfflineError, match=r"no heading arrived.*--heading PORT"):
             calibrate(load_captures([str(cap)], GNSS), GNSS, "ls", lag=0.0)
+
+    def test_no_fix_at_all(self, tmp_path: Path) -> None:
+        """A log with the water and the heading but no GNSS fix: the error says no fix
+        arrived and what a GNSS reference is made of (not that the heading is missing)."""
+        cap = _sail(tmp_path / "f.cap", heading="hdt", fix_every=0)
+        with pytest.raises(OfflineError, match=r"no GNSS fix arrived at all.*RMC, or VTG"):
+            calibrate(load_captures([str(cap)], GNSS), GNSS, "ls", lag=0.0)
+
+    def test_no_reading_of_the_log_at_all(self, tmp_path: Path) -> None:
+        """Fixes and a heading but no VHW: the error says no reading of the log arrived
+        (not that no reading is near a reference)."""
+        cap = _sail(tmp_path / "r.cap", heading="hdt")
+        s = dataclasses.replace(GNSS, uut_source="VBW")
+        with pytest.raises(OfflineError, match=r"no VBW reading of the log arrived on port"):
+            calibrate(load_captures([str(cap)], s), s, "ls", lag=0.0)
+
+    def test_a_gnss_compass_ths_is_the_heading(self, tmp_path: Path) -> None:
+        """THS (a GNSS compass's true heading) alone: the log's 5 % over-reading found
+        as with HDT."""
+        cap = _sail(tmp_path / "t.cap", heading="ths")
+        res = calibrate(load_captures([str(cap)], GNSS), GNSS, "ls", lag=0.0)
+        assert res.params.m == pytest.approx(-1.0 / 21.0, abs=0.01)
 
     def test_fixes_3_s_apart_pair(self, tmp_path: Path) -> None:
         """Fixes 3 s apart are within the alignment's cadence gap: every reading pairs

@@ -45,6 +45,11 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     doc = json.loads(buf.getvalue())
     assert isinstance(doc, dict)
     doc["saved"] = StateStore(out / "state.yaml").load()[0]
+    after = ["replay", str(trial.files[2]), str(trial.files[4]), *argv[3:]]
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main([*after, "--out", str(out / "after.nmea")]) == 0
+    doc["after"] = json.loads(buf.getvalue())
     return doc
 
 
@@ -86,6 +91,26 @@ def test_the_validated_figures_are_persisted(replayed: dict[str, object]) -> Non
     assert isinstance(uuts, dict)
     assert saved["emlog2"].two_axis == pytest.approx(uuts["emlog2"]["two_axis"]["applied"])
     assert saved["emlog1"].two_axis is None
+
+
+def test_the_forward_speed_after_a_restart_is_the_two_axis_fits(
+    replayed: dict[str, object],
+) -> None:
+    """The figures persisted carry the two-axis fit's longitudinal parameters; after a
+    restart (the straight run and the return from the state file) they validate again
+    and the VBW's forward speed is theirs, not the one-axis calibration's, which the
+    current traded with its scale: within 1.05 of the floor, and better than the
+    one-axis calibration's by at least 10 %."""
+    saved = replayed["saved"]
+    assert isinstance(saved, dict)
+    assert {"lon_m", "lon_b_mps"} <= set(saved["emlog2"].two_axis)
+    after = replayed["after"]
+    assert isinstance(after, dict)
+    two = after["uuts"]["emlog2"]["two_axis"]
+    assert two["state"] == "applied" and two["forward"] == "two_axis"
+    on = after["uuts"]["emlog2"]["two_axis_truth"]["applied"]
+    assert on["rmse_l_corrected"] <= 1.05 * on["rmse_l_floor"]
+    assert on["rmse_l_corrected"] <= 0.9 * on["rmse_l_one_axis"]
 
 
 def test_athwart_worst_windows() -> None:

@@ -95,3 +95,30 @@ def test_two_axis_figures_are_checked() -> None:
         assert why in check(dataclasses.replace(bad, reset=True), Envelope())
     fewer = {k: v for k, v in good.items() if k != "b_t_std_mps"}
     assert "must be" in check(dataclasses.replace(base, two_axis=fewer), Envelope())
+
+
+def test_two_axis_longitudinal_parameters_are_checked() -> None:
+    """The longitudinal parameters a record's two-axis figures carry: all three or none,
+    finite, within the envelope (|a| ≤ 0.1 s/m, |m| ≤ 0.5, |b| ≤ 1 m/s)."""
+    good = {
+        "misalign_deg": 3.0,
+        "misalign_std_deg": 0.1,
+        "m_t": -0.08,
+        "m_t_std": 0.01,
+        "b_t_mps": 0.04,
+        "b_t_std_mps": 0.01,
+        "lon_a_spm": 0.0,
+        "lon_m": -0.17,
+        "lon_b_mps": 0.005,
+    }
+    base = Calibration("log", Estimate(Params("EM3"), {}), 0.5, two_axis=good)
+    assert check(base, Envelope()) == ""
+    for key, value, why in (
+        ("lon_m", -0.7, "lon_m -0.7 outside ±0.5"),
+        ("lon_b_mps", 1.5, "lon_b_mps +1.5 outside ±1"),
+        ("lon_a_spm", 0.2, "lon_a_spm +0.2 outside ±0.1"),
+        ("lon_m", math.nan, "lon_m is nan"),
+    ):
+        assert why in check(dataclasses.replace(base, two_axis=good | {key: value}), Envelope())
+    fewer = {k: v for k, v in good.items() if k != "lon_b_mps"}
+    assert "all or none" in check(dataclasses.replace(base, two_axis=fewer), Envelope())

@@ -87,11 +87,28 @@ def test_a_straight_leg_implying_an_impossible_current_is_refused() -> None:
     detail: dict[str, object] = {}
     assert not judge_restored(_candidate(hd, 2.0 * allowance, 0.0), detail, kf, saved, std, 0.0)
     assert detail["current_allowance_mps"] == pytest.approx(round(allowance, 4))
-    # no saved sea: the whole prior allowance of a current component
+    # no saved sea: the whole prior allowance of a current component (raw right in no
+    # current, so that raw's current is the likely one)
     prior = math.sqrt(kf.current_p0_m2ps2)
     for share, ok in ((0.9, True), (1.1, False)):
-        cand = _candidate(hd, share * prior + CURRENT[0], 0.0)
+        cand = _candidate(hd, share * prior + CURRENT[0], CURRENT[0])
         assert judge_restored(cand, {}, kf, None, None, None) is ok
+
+
+def test_beyond_the_allowance_it_is_refused_only_where_raw_is_the_likelier() -> None:
+    """Straight leg, the calibration implying twice the allowance: where raw implies a
+    current as odd (the sea moved since it was saved), the window is no evidence against
+    the calibration and it keeps its verdict; where raw's current is the likelier by
+    the allowance's square, refused."""
+    hd = np.full(N, 0.0)
+    kf = KfConfig()
+    saved = (CURRENT[0], CURRENT[1], 0.0)
+    allowance = RESTORE_SEA_SIGMAS * 0.02
+    for raw_share, ok in ((-1.8, True), (1.9, True), (1.5, False), (0.0, False)):
+        detail: dict[str, object] = {}
+        cand = _candidate(hd, 2.0 * allowance, raw_share * allowance)
+        assert judge_restored(cand, detail, kf, saved, (0.02, 0.02), 0.0) is ok, raw_share
+        assert detail["implied_current_raw_mps"] == pytest.approx(raw_share * allowance, abs=0.01)
 
 
 def test_the_common_sea_is_one_current_whatever_the_correction() -> None:

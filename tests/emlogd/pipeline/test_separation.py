@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from calib.models import Params
@@ -82,3 +83,42 @@ def test_errors_neither_one_explains(times: float, verdict: bool | None) -> None
         sep.add(float(k), raw - v, CAL.forward(v) - v, (1.0, 0.0))
     w, se = sep.w()
     assert abs(w - times) < 0.5 and se < 0.3 and sep.verdict() is verdict
+
+
+def _correlated_window(seed: int, tau_s: float) -> Separation:
+    """Twenty minutes at 1 Hz on one heading, the speed through the water changing
+    between 1.0 and 1.8 m/s every 100 s; the log reads it (raw is right, ``w`` is 0) and
+    the reference's error is AR(1) with time constant ``tau_s`` (0: white), 0.05 m/s."""
+    rng = np.random.default_rng(seed)
+    phi = math.exp(-1.0 / tau_s) if tau_s > 0.0 else 0.0
+    e, sep = 0.0, Separation()
+    for k in range(1200):
+        v = 1.0 if (k // 100) % 2 else 1.8
+        e = phi * e + math.sqrt(1.0 - phi * phi) * 0.05 * float(rng.standard_normal())
+        ref = v + 0.1 + e
+        sep.add(float(k), v - ref, CAL.forward(ref) - ref, (1.0, 0.0))
+    return sep
+
+
+def test_the_standard_error_is_honest_about_correlated_residuals(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A reference whose errors are correlated over 20 s (GNSS): counting one sample a
+    second, ``w`` lands beyond 3 standard errors of its true 0 in most windows; from the
+    blocks' scatter in few. White errors: the blocks leave the standard error as it was
+    (within their own scatter)."""
+    from emlogd.pipeline import separation
+
+    def z_and_se(seed: int, tau_s: float) -> tuple[float, float]:
+        w, se = _correlated_window(seed, tau_s).w()
+        return abs(w) / se, se
+
+    honest = [z_and_se(seed, 20.0) for seed in range(20)]
+    white = [z_and_se(seed, 0.0)[1] for seed in range(20)]
+    monkeypatch.setattr(separation, "SEPARATION_MIN_BLOCKS", 10**9)  # one a second alone
+    naive = [z_and_se(seed, 20.0) for seed in range(20)]
+    white_naive = [z_and_se(seed, 0.0)[1] for seed in range(20)]
+    assert sum(z > 3.0 for z, _ in naive) >= 8
+    assert sum(z > 3.0 for z, _ in honest) <= 2
+    assert all(h[1] >= 2.0 * n[1] for h, n in zip(honest, naive, strict=True))
+    assert all(a <= 1.5 * b for a, b in zip(white, white_naive, strict=True))

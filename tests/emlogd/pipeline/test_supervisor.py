@@ -173,3 +173,32 @@ def test_a_withdrawn_calibration_waits_for_evidence_no_current_explains() -> Non
         if k == 60:  # a minute at one speed: no verdict, raw passes through
             assert "candidate_rejected" not in kinds and _applied(sup) is None
     assert _applied(sup) == p and kinds == ["fallback", "calibrated"]
+
+
+def test_after_a_silence_the_calibrations_are_judged_in_the_new_sea() -> None:
+    """A healthy log (gain 1.15) applied through ten minutes of turning in 0.1 m/s of
+    current to the south; then five minutes of silence (the next capture, another sea)
+    and a straight leg north in 0.12 m/s to the north. In the old sea raw would look
+    right there (its error +0.24 m/s, the current's change along the hull 0.22 m/s); the
+    sea memory forgets what came before the silence, the currents are fitted on the new
+    leg, and the calibration (applied again as the leg starts, its re-check window empty)
+    stays applied."""
+    p = Params("EM3", m=0.15)
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)
+    sup, kinds = _sup(None, s)
+    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    for k in range(600):
+        hd = math.radians(0.6 * k)
+        ref = 1.6 - 0.1 * math.cos(hd)
+        sup.observe(
+            float(k),
+            p.forward(1.6) + 0.2 * _noisy(k),
+            ref,
+            (math.cos(hd), math.sin(hd)),
+            _NoOffer(),
+        )
+    assert _applied(sup) == p, kinds
+    sup._apply(900.0, p, {"m": 0.01, "b": 0.01})  # validated on the old sea: re-check empty
+    for k in range(900, 1500):
+        sup.observe(float(k), p.forward(1.6) + 0.2 * _noisy(k), 1.6 + 0.12, (1.0, 0.0), _NoOffer())
+    assert _applied(sup) == p, kinds

@@ -12,6 +12,8 @@ import pytest
 from calib.estimate import Estimate
 from calib.models import Params
 from calib.twoaxis import TwoAxisParams
+from drivers.framing import with_checksum
+from drivers.records import KNOT_MPS as KNOT
 from emlogd.cli.common import two_axis_line
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
@@ -180,3 +182,45 @@ def test_saved_figures_are_restored_checked_and_reset() -> None:
     assert p.two_axis["log"].sup.candidate is None and p.calibrations()[0].two_axis is None
     refused = _pipeline(TWO_AXIS_FIGURES | {"misalign_deg": 25.0})
     assert refused.two_axis["log"].sup.candidate is None
+
+
+def test_vhw_and_vbw_take_the_figures_own_forward_speed() -> None:
+    """Once the supervisor lets the applied figures correct the forward speed, the VBW's
+    forward speed and a VHW's are theirs (the VHW turned back with the VBW's athwart
+    reading just before it); a VHW without a fresh VBW before it, or figures not let
+    correct the forward speed, keep the one-axis calibration's. The one-axis
+    supervisor's word stands over them: while its change detector holds raw, and after
+    a fallback of its until the two-axis recheck lets the forward speed again, the
+    one-axis output goes out (a change it detects withdraws both)."""
+    p = _pipeline(TWO_AXIS_FIGURES)
+    ax, cal = p.two_axis["log"], p.uuts["log"].cal
+    lon = Params("EM3", m=-0.2, b_mps=0.1)
+    fig = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
+    ax.sup.applied, ax.sup.forward_own = fig, True
+
+    def sent(t: float, body: str) -> list[str]:
+        out = p.feed(t, "log", with_checksum(body).encode() + b"\r\n")
+        return [e.sentence for e in out.emits if e.sentence[3:6] in ("VBW", "VHW")]
+
+    def vhw_kn(t: float) -> float:
+        sent(t - 0.05, "VMVBW,3.89,-0.19,A,,,V")
+        return float(pynmea2.parse(sent(t, "VMVHW,,T,,M,3.89,N,7.20,K")[0]).water_speed_knots)
+
+    vbw = pynmea2.parse(sent(1.0, "VMVBW,3.89,-0.19,A,,,V")[0])
+    u, w = fig.hull_frame_own(3.89 * KNOT, -0.19 * KNOT)
+    assert float(vbw.lon_water_spd) * KNOT == pytest.approx(u, abs=0.006)
+    assert float(vbw.trans_water_spd) * KNOT == pytest.approx(w, abs=0.006)
+    vhw = pynmea2.parse(sent(1.5, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
+    assert float(vhw.water_speed_knots) * KNOT == pytest.approx(u, abs=0.006)
+    stale = pynmea2.parse(sent(3.0, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
+    assert float(stale.water_speed_knots) == pytest.approx(3.89)  # one-axis: uncalibrated
+    cal.sup.held = True  # the change detector's hold: the one-axis output (raw)
+    assert vhw_kn(3.2) == pytest.approx(3.89)
+    cal.sup.held = False
+    assert vhw_kn(3.4) * KNOT == pytest.approx(u, abs=0.006)
+    cal.sup.counters.fallbacks += 1  # a fallback: withdrawn until the recheck lets it
+    assert vhw_kn(3.6) == pytest.approx(3.89) and not ax.sup.forward_own
+    ax.sup.forward_own = True  # the two-axis recheck judged it good since
+    assert vhw_kn(3.8) * KNOT == pytest.approx(u, abs=0.006)
+    ax.sup.forward_own = False
+    assert vhw_kn(4.0) == pytest.approx(3.89)

@@ -7,7 +7,18 @@ import math
 
 import pytest
 
-from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor, athwart_rmse
+from calib.models import Params
+from emlogd.pipeline.twoaxis_sup import (
+    FORWARD_ONE_AXIS,
+    FORWARD_OWN,
+    FORWARD_RAW,
+    Block,
+    Figures,
+    TwoAxisSupervisor,
+    athwart_rmse,
+    forward_rmse,
+    lon_of_fit,
+)
 
 Events = list[tuple[float, str, dict[str, object]]]
 
@@ -20,9 +31,21 @@ def _candidate(sup: TwoAxisSupervisor) -> Figures | None:
     return sup.candidate
 
 
-def _blocks(alpha_deg: float, n: int, t0: float = 0.0) -> list[Block]:
-    """Block means of a log turned ``alpha_deg`` (m_t −0.1, b_t 0.05) swinging its sway
-    in turns at a speed that varies, heading sweeping, a current (0.1, −0.2)."""
+def _own(sup: TwoAxisSupervisor) -> bool:
+    return sup.forward_own
+
+
+LON = Params("EM3", m=-0.11, b_mps=-0.05)
+"""The sensor's longitudinal error on its own axis in :func:`_blocks`."""
+
+
+def _blocks(
+    alpha_deg: float, n: int, t0: float = 0.0, one_axis_scale: float = 1.0, lon: Params = LON
+) -> list[Block]:
+    """Block means of a log turned ``alpha_deg`` (m_t −0.1, b_t 0.05, its forward axis
+    ``lon``) swinging its sway in turns at a speed that varies, heading sweeping, a
+    current (0.1, −0.2); the one-axis calibration's forward speed right (``u + w·tan
+    α``) times ``one_axis_scale``."""
     out: list[Block] = []
     a = math.radians(alpha_deg)
     for k in range(n):
@@ -32,13 +55,17 @@ def _blocks(alpha_deg: float, n: int, t0: float = 0.0) -> list[Block]:
         psi = (t * 3.0) % 360.0
         r = math.radians(psi)
         gs = w - 0.1 * math.sin(r) - 0.2 * math.cos(r)
+        gf = u + 0.1 * math.cos(r) - 0.2 * math.sin(r)
         raw_t = 0.9 * (w * math.cos(a) - u * math.sin(a)) + 0.05
-        out.append((t, u + w * math.tan(a), raw_t, gs, psi))
+        raw_l = lon.forward(u * math.cos(a) + w * math.sin(a))
+        out.append((t, one_axis_scale * (u + w * math.tan(a)), raw_t, gs, psi, raw_l, gf))
     return out
 
 
-def _figures(alpha_deg: float, t: float = 0.0, alpha_std_deg: float = 0.1) -> Figures:
-    return Figures(alpha_deg, alpha_std_deg, -0.1, 0.01, 0.05, 0.01, t)
+def _figures(
+    alpha_deg: float, t: float = 0.0, alpha_std_deg: float = 0.1, lon: Params | None = None
+) -> Figures:
+    return Figures(alpha_deg, alpha_std_deg, -0.1, 0.01, 0.05, 0.01, t, lon)
 
 
 def test_supervisor_applies_rejects_and_withdraws() -> None:
@@ -99,3 +126,86 @@ def test_a_sharper_estimate_replaces_the_figures_in_use() -> None:
     for b in _blocks(3.0, 70, 71.0):
         sup.observe(b)
     assert _applied(sup) == sharper and events[-1][1] == "two_axis_applied"
+
+
+def _validated(sup: TwoAxisSupervisor, figures: Figures, blocks: list[Block]) -> None:
+    sup.offer(figures)
+    for b in blocks:
+        sup.observe(b)
+    assert _applied(sup) == figures
+
+
+def test_own_forward_speed_replaces_a_worse_one_axis_one() -> None:
+    """Figures carrying the log's longitudinal parameters correct the forward speed
+    themselves once the one-axis calibration's (5 % high here, the scale it traded
+    with the current) is worse over the validation window; the VBW then turns back
+    the figures' own forward speed, and the one-axis one is no longer used."""
+    events: Events = []
+    sup = TwoAxisSupervisor(60.0, 600.0, lambda t, k, d: events.append((t, k, dict(d))))
+    blocks = _blocks(3.0, 70, one_axis_scale=1.05)
+    _validated(sup, _figures(3.0, lon=LON), blocks)
+    assert sup.forward_own and events[-1][2]["forward"] == FORWARD_OWN
+    r = sup.forward_scores
+    assert r[FORWARD_OWN] == pytest.approx(0.0, abs=1e-9)
+    assert r[FORWARD_OWN] < r[FORWARD_ONE_AXIS] < r[FORWARD_RAW]
+
+
+def test_own_forward_speed_refused_where_worse_than_the_one_axis_one() -> None:
+    """Longitudinal parameters that are wrong (no scale error where the log reads 11 %
+    low) leave the forward speed to the one-axis calibration; the athwart figures are
+    applied all the same. Figures without them never correct the forward speed."""
+    events: Events = []
+    sup = TwoAxisSupervisor(60.0, 600.0, lambda t, k, d: events.append((t, k, dict(d))))
+    _validated(sup, _figures(3.0, lon=Params("EM3", b_mps=-0.05)), _blocks(3.0, 70))
+    assert not sup.forward_own and events[-1][2]["forward"] == FORWARD_ONE_AXIS
+    sup = TwoAxisSupervisor(60.0, 600.0, lambda t, k, d: None)
+    _validated(sup, _figures(3.0), _blocks(3.0, 70, one_axis_scale=1.05))
+    assert not sup.forward_own and FORWARD_OWN not in sup.forward_scores
+
+
+def test_recheck_gives_the_forward_speed_back_to_the_one_axis_calibration() -> None:
+    """When the log's forward axis changes (fouled: 8 % lower) and the one-axis
+    calibration follows it, the recheck finds the figures' own forward speed worse and
+    goes back to the one-axis one, the athwart figures staying applied; when the
+    one-axis calibration is worse again by the margin, the figures' own returns."""
+    events: Events = []
+    sup = TwoAxisSupervisor(60.0, 120.0, lambda t, k, d: events.append((t, k, dict(d))))
+    _validated(sup, _figures(3.0, lon=LON), _blocks(3.0, 70, one_axis_scale=1.05))
+    assert _own(sup)
+    fouled = Params("EM3", m=-0.19, b_mps=-0.05)
+    for b in _blocks(3.0, 130, 71.0, lon=fouled):
+        sup.observe(b)
+    assert not _own(sup) and sup.applied is not None
+    assert events[-1][1] == "two_axis_forward_withdrawn"
+    for b in _blocks(3.0, 130, 202.0, one_axis_scale=1.1):
+        sup.observe(b)
+    assert _own(sup) and events[-1][1] == "two_axis_forward_applied"
+
+
+def test_hull_frame_own_inverts_the_sensor_and_round_trips() -> None:
+    """The raw readings corrected by the figures' own longitudinal parameters and
+    transverse scale and bias turn back to (u, w) exactly; the parameters go to the
+    state's keys and back (none without the model, or for another model's)."""
+    f = _figures(4.0, lon=LON)
+    a = math.radians(4.0)
+    for u, w in ((3.0, 0.0), (1.5, -0.4), (0.5, 0.7)):
+        raw_t = 0.9 * (w * math.cos(a) - u * math.sin(a)) + 0.05
+        raw_l = LON.forward(u * math.cos(a) + w * math.sin(a))
+        assert f.hull_frame_own(raw_l, raw_t) == pytest.approx((u, w), abs=1e-12)
+    d = f.as_dict()
+    assert d["lon_m"] == -0.11 and d["lon_b_mps"] == -0.05 and d["lon_a_spm"] == 0.0
+    assert Figures.from_dict(d, "EM3").lon == LON
+    assert Figures.from_dict(d).lon is None
+    assert Figures.from_dict(d, "EM1").lon is None  # EM1 has no scale
+    assert "lon_m" not in _figures(4.0).as_dict()
+    with pytest.raises(ValueError, match="without longitudinal"):
+        _figures(4.0).hull_frame_own(2.0, 0.0)
+
+
+def test_lon_of_fit_needs_every_longitudinal_parameter_determined() -> None:
+    assert lon_of_fit("EM3", LON, {"m": 0.01, "b": 0.01}) == LON
+    assert lon_of_fit("EM3", LON, {"m": 0.01, "b": None}) is None
+
+
+def test_forward_rmse_of_no_blocks() -> None:
+    assert forward_rmse([], None) == {}

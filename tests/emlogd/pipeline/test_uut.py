@@ -568,12 +568,13 @@ class TestRestored:
         assert applied_after(0.0) is None
 
     def test_refused_on_a_straight_leg_it_is_judged_again_as_the_sea_ages(self) -> None:
-        """Saved just now with no current (±0.05 m/s), then a straight leg at 2 m/s in 0.24
+        """Saved just now with no current (±0.05 m/s), then a straight leg at 2 m/s in 0.32
         m/s of current on the stern (the sea moved faster than the learner's random walk):
-        the current it implies is beyond 3σ of the saved sea, and it is refused, raw
-        passing through. It was not shown wrong, and every RESTORE_RETRY_S it is judged
-        again, the saved sea aged to then: once the sea may have moved by 0.24 m/s it is
-        applied. A poisoned one (m = -0.5, b = +1) implies 1.7 m/s and stays refused."""
+        the current it implies is beyond 3σ of the saved sea and raw's (0.08 m/s) the
+        likelier by more than that, and it is refused, raw passing through. It was not
+        shown wrong, and every RESTORE_RETRY_S it is judged again, the saved sea aged to
+        then: once the sea may have moved by as much it is applied. A poisoned one (m =
+        -0.5, b = +1) implies 1.7 m/s and stays refused."""
         from emlogd.pipeline.supervisor import RESTORE_RETRY_S
 
         rng = np.random.default_rng(17)
@@ -594,13 +595,13 @@ class TestRestored:
             rig.run(
                 seconds,
                 raw=lambda t, v: TRUE.forward(2.0) + float(rng.normal(0.0, 0.03)),
-                ref=lambda t, v: 2.0 + 0.24,
+                ref=lambda t, v: 2.0 + 0.32,
             )
 
         good, bad = rig_for(TRUE), rig_for(Params("EM3", m=-0.5, b_mps=1.0))
         leg(good, RESTORE_RETRY_S)
         assert _applied(good) is None and "candidate_rejected" in good.kinds()
-        leg(good, 3.0 * RESTORE_RETRY_S)
+        leg(good, 4.0 * RESTORE_RETRY_S)
         assert _applied(good) == TRUE
         assert good.kinds().count("candidate_rejected") >= 2  # refused at least once more first
         leg(bad, 4.0 * RESTORE_RETRY_S)

@@ -118,6 +118,19 @@ def test_the_hostile_hdg_sentence_is_counted_by_replay_and_calibrate(
     assert fits[0]["params"] and fits[1]["params"] == fits[0]["params"]
 
 
+def _log2_config(tmp_path: Path) -> Path:
+    """A config learning emlog1 against log2's VHW speed with no lag."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "ports:\n"
+        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
+        "  - {name: log2, url: /dev/null, protocol: nmea0183, role: reference}\n"
+        "calibration:\n"
+        "  - {uut: emlog1, reference: log2, reference_field: speed, lag: 0}\n"
+    )
+    return cfg
+
+
 def test_reorder_window_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """`replay --reorder-window` sets how far records may be out of time order: by default ±50 ms
     of jitter loses nothing (records put back in order, counted as reordered), with 0 the same
@@ -133,14 +146,7 @@ def test_reorder_window_option(capsys: pytest.CaptureFixture[str], tmp_path: Pat
         lines.append(f"({t:.6f}) {('emlog1', 'log2')[k % 2]} {encode_vhw(2.0)}")
     cap = tmp_path / "jitter.cap"
     cap.write_text("\n".join(lines) + "\n")
-    cfg = tmp_path / "c.yaml"
-    cfg.write_text(
-        "ports:\n"
-        "  - {name: emlog1, url: /dev/null, protocol: nmea0183, role: uut}\n"
-        "  - {name: log2, url: /dev/null, protocol: nmea0183, role: reference}\n"
-        "calibration:\n"
-        "  - {uut: emlog1, reference: log2, reference_field: speed, lag: 0}\n"
-    )
+    cfg = _log2_config(tmp_path)
     base = ["replay", str(cap), "--config", str(cfg), "--json", "--out", str(tmp_path / "o")]
     assert main(base) == 0
     skips = json.loads(capsys.readouterr().out)["capture_skips"][str(cap)]
@@ -164,3 +170,38 @@ def test_the_summary_has_a_two_axis_line_per_two_axis_uut() -> None:
         "emlog2 two axes: learning; latest window: misalignment refused: "
         "misalignment not determinable\n"
     ]
+
+
+@pytest.mark.parametrize(
+    ("sent", "warning"),
+    [
+        ("VBW", "emlog1: no VHW reading arrived, only VBW: nothing was learnt from them "
+         "(set calibration[].uut_source: VBW"),
+        ("none", "emlog1: no speed reading of the log (VHW, VBW) to use (none decoded)"),
+        ("VHW", None),
+    ],
+)  # fmt: skip
+def test_a_log_sending_another_sentence_than_configured_is_told(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, sent: str, warning: str | None
+) -> None:
+    """A log sending VBW alone, replayed with the default ``uut_source`` VHW: nothing is
+    learnt, and a warning says which sentence came and which key to set; a log sending
+    no speed sentence is told too; a VHW log is not warned about."""
+    from drivers.nmea0183 import encode_vbw, encode_vhw
+
+    lines = ["# emlogd capture v1", "# port emlog1 nmea0183", "# port log2 nmea0183"]
+    for k in range(200):
+        t = 1_700_000_000.0 + 0.5 * k
+        s = encode_vbw(2.0, 0.0) if sent == "VBW" else encode_vhw(2.0)
+        if sent != "none":
+            lines.append(f"({t:.6f}) emlog1 {s}")
+        lines.append(f"({t + 0.1:.6f}) log2 {encode_vhw(2.1)}")
+    cap = tmp_path / "vbw.cap"
+    cap.write_text("\n".join(lines) + "\n")
+    cfg = _log2_config(tmp_path)
+    assert main(["replay", str(cap), "--config", str(cfg), "--json"]) == 0
+    err = capsys.readouterr().err
+    if warning is None:
+        assert "emlog1:" not in err, err
+    else:
+        assert warning in err, err

@@ -1,0 +1,174 @@
+"""``emlogd import --format nmea``: NMEA 0183 logs without receive times, timed from
+their own fixes (the rules are in :mod:`emlogd.offline.importer`'s docstring)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from datetime import UTC, date, datetime, timedelta
+from pathlib import Path
+
+from drivers import make_decoder
+from drivers.errors import FrameError
+from drivers.nmea0183 import Gga, NmeaDecoder, NmeaRecord, Rmc, Zda
+from drivers.records import Rejected
+from emlogd.offline import ProgressFn
+from emlogd.offline.csvmaps import reasons
+from emlogd.offline.importbase import (
+    CaptureSink,
+    ImportFormatError,
+    ImportReport,
+    SentenceCheck,
+    bounded_lines,
+    count,
+    open_text,
+    within_years,
+)
+
+MAX_FIX_GAP_S = 60.0
+"""NMEA: fixes further apart than this leave the sentences between them untimed, s
+(spread evenly over a longer gap they could be off by minutes)."""
+
+MAX_PENDING_LINES = 100_000
+"""NMEA: sentences waiting for the next fix, at most (constant memory)."""
+
+
+# ------------------------------------------------------------------ NMEA logs
+
+
+DAY_ROLLOVER_S = 43_200.0
+"""NMEA: a GGA time of day this much (or more) before the last fix is the next day's
+(midnight passed in a log without a date in its fixes), s."""
+
+
+def _fix_time(
+    rec: NmeaRecord | Rejected, day: date | None, last: float | None = None
+) -> tuple[float | None, date | None]:
+    """(epoch seconds of a fix, the date it implies) for an RMC, ZDA or GGA record; a
+    GGA time of day :data:`DAY_ROLLOVER_S` before the ``last`` fix moves to the next day."""
+    if isinstance(rec, Rmc | Zda) and rec.time_utc is not None:
+        return rec.time_utc.timestamp(), rec.time_utc.date()
+    if isinstance(rec, Gga) and rec.time_of_day_s is not None and day is not None:
+        base = datetime(day.year, day.month, day.day, tzinfo=UTC)
+        t = (base + timedelta(seconds=rec.time_of_day_s)).timestamp()
+        if last is not None and last - t >= DAY_ROLLOVER_S:
+            day = day + timedelta(days=1)
+            t += 86_400.0
+        return t, day
+    return None, day
+
+
+class _Spreader:
+    """Sentences timed from the fixes around them, written as each next fix arrives."""
+
+    def __init__(self, out: CaptureSink, report: ImportReport) -> None:
+        self.out = out
+        self.report = report
+        self.fix: float | None = None  # the last fix's time
+        self.pending: list[str] = []  # the last fix's sentence, then those after it
+        self.overflow = 0
+
+    def add(self, text: str, t_fix: float | None) -> None:
+        r = self.report
+        if t_fix is not None and not within_years(t_fix):
+            r.notes["fix_time_out_of_range"] += 1
+            t_fix = None
+        if t_fix is not None and self.fix is not None and t_fix <= self.fix:
+            r.notes["fix_time_not_increasing"] += 1
+            t_fix = None
+        if t_fix is None:
+            if self.fix is None:
+                r.skipped["before_first_fix"] += 1
+            elif len(self.pending) >= MAX_PENDING_LINES:
+                self.overflow += 1
+            else:
+                self.pending.append(text)
+            return
+        if self.fix is not None:
+            self._release(t_fix)
+        self.fix = t_fix
+        self.pending = [text]
+
+    def _release(self, t_next: float) -> None:
+        assert self.fix is not None
+        r = self.report
+        if t_next - self.fix > MAX_FIX_GAP_S or self.overflow:
+            self.out.write(self.fix, self.pending[0])
+            count(r.skipped, "fix_gap", len(self.pending) - 1 + self.overflow)
+        else:
+            step = (t_next - self.fix) / len(self.pending)
+            for j, line in enumerate(self.pending):
+                self.out.write(self.fix + step * j, line)
+        self.overflow = 0
+
+    def finish(self) -> None:
+        if self.fix is None:
+            return
+        self.out.write(self.fix, self.pending[0])
+        count(self.report.skipped, "after_last_fix", len(self.pending) - 1 + self.overflow)
+
+
+def _sentence_fix(
+    decoder: NmeaDecoder, text: str, day: date | None, last: float | None
+) -> tuple[float | None, date | None]:
+    """(the time the sentence fixes, or None; the date known after it), ``last`` the
+    time of the fix before."""
+    fix: float | None = None
+    try:
+        decoded = decoder.decode_all((text + "\r\n").encode("ascii"))
+    except FrameError:
+        decoded = []  # a sentence the decoders do not parse is still kept
+    for rec in decoded:
+        fix, day = _fix_time(rec, day, last)
+    return fix, day
+
+
+def import_nmea(
+    paths: Sequence[str | Path],
+    out: str | Path,
+    *,
+    port: str = "nmea",
+    day: date | None = None,
+    progress: ProgressFn | None = None,
+) -> ImportReport:
+    """Import NMEA 0183 logs without receive times (see the module docstring).
+
+    Args:
+        paths: the log files, in time order (their sentences are concatenated).
+        out: the capture to write.
+        port: its port name.
+        day: the UTC date for GGA times when no RMC or ZDA gives one.
+        progress: called after each file.
+
+    Raises:
+        ImportFormatError: a file cannot be read, or no sentence has a time.
+    """
+    report = ImportReport([str(p) for p in paths], str(out), port)
+    decoder = make_decoder("nmea0183", port, errors="raise")
+    sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
+    spread = _Spreader(sink, report)
+    checks = SentenceCheck(report)
+    current_day = day
+    try:
+        for i, path in enumerate(paths):
+            with open_text(path) as f:
+                for raw in bounded_lines(f, report.skipped):
+                    report.lines += 1
+                    line, reason = checks.line(raw.strip())
+                    if line is None:
+                        report.skipped[reason or "empty"] += 1
+                        continue
+                    fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
+                    spread.add(line, fix)
+            if progress is not None:
+                progress(f"import {Path(path).name}", (i + 1) / len(paths))
+        spread.finish()
+        if report.written == 0:
+            raise ImportFormatError(
+                "no sentence could be given a time: the log needs RMC or ZDA fixes (or GGA "
+                f"with --date YYYY-MM-DD); skipped: {reasons(report.skipped) or 'none'}"
+            )
+    except BaseException:
+        sink.abort()
+        raise
+    sink.commit()
+    return report

@@ -1,0 +1,178 @@
+"""``emlogd import --format nmea``: NMEA logs timed by their fixes.
+
+The first lines of ``IRENE`` are from the yacht Irene's log on Lake Geneva (2014-06-27),
+published in the jpilet/anemomind repository under the MIT licence (© Anemomind SàRL).
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, date, datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from drivers import make_decoder
+from drivers.io.capture import CaptureReader
+from drivers.nmea0183 import Rmc, Vhw, encode_rmc, encode_vhw
+from drivers.records import KNOT_MPS
+from emlogd.offline.importer import ImportFormatError, import_nmea
+from tests.nmea_encoders import encode_gga, encode_zda
+
+IRENE = """\
+$IIMTW,+00.0,C*38
+$IIVHW,,,069,M,00.6,N,,*6D
+$IIHDG,069,,,01,E*1C
+$IIRMC,132220,A,4613.353,N,00610.289,E,01.9,238,270614,01,E,A*0B
+$IIVHW,,,263,M,01.0,N,,*62
+$IIVLW,01554,N,000.0,N*56
+$IIGLL,4613.353,N,00610.289,E,132220,A,A*51
+$IIHDG,263,,,01,E*14
+$IIRMC,132221,A,4613.352,N,00610.285,E,02.4,239,270614,01,E,A*08
+$IIVHW,,,260,M,01.3,N,,*62
+$IIDPT,009.4,-1.0,*4D
+$IIHDG,261,,,01,E*16
+$IIRMC,132222,A,4613.351,N,00610.279,E,03.2,259,270614,01,E,A*0A
+$IIVHW,,,261,M,01.6,N,,*66
+"""
+
+T0 = datetime(2014, 6, 27, 13, 22, 20, tzinfo=UTC).timestamp()
+
+
+def _records(path: Path) -> list[tuple[float, str, str]]:
+    reader = CaptureReader(path)
+    return [(r.t, r.port, r.payload) for r in reader]
+
+
+class TestNmea:
+    """NMEA logs: time from the fixes, sentences spread between them, rejects counted."""
+
+    def test_real_excerpt(self, tmp_path: Path) -> None:
+        """Irene's log: three RMC fixes 1 s apart time the sentences from the first fix to
+        the last; those before the first and after the last have no time."""
+        src = tmp_path / "irene.nmea"
+        src.write_text(IRENE)
+        out = tmp_path / "irene.cap"
+        rep = import_nmea([src], out)
+        recs = _records(out)
+        assert rep.lines == 14 and rep.written == 10 == len(recs)
+        assert rep.skipped == {"before_first_fix": 3, "after_last_fix": 1}
+        assert rep.sentences["RMC"] == 3 and rep.sentences["VHW"] == 2
+        times = [t for t, _, _ in recs]
+        # first fix at 13:22:20 with the 5 sentences up to the next fix spread over 1 s
+        assert times[:6] == pytest.approx([T0, T0 + 0.2, T0 + 0.4, T0 + 0.6, T0 + 0.8, T0 + 1])
+        # never past the last fix
+        assert times[-1] == pytest.approx(T0 + 2.0) and recs[-1][2].startswith("$IIRMC,132222")
+        assert {p for _, p, _ in recs} == {"nmea"}
+        assert recs[0][2].startswith("$IIRMC,132220")
+
+    def test_rejects_counted_by_reason(self, tmp_path: Path) -> None:
+        """Bad checksums, text and empty lines are counted, never written or fatal."""
+        t = datetime(2026, 1, 2, 3, 4, 5, tzinfo=UTC)
+        good = encode_rmc(t, 2.0, 90.0)
+        bad = good[:-2] + ("00" if good[-2:] != "00" else "11")
+        src = tmp_path / "log.nmea"
+        later = encode_rmc(t + timedelta(seconds=1), 2.0, 90.0)
+        lines = [good, encode_vhw(2.0), bad, "hello", "", "$VWVHW,no,sum", later]
+        src.write_text("\n".join(lines))
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 3
+        assert rep.skipped["checksum"] == 1
+        assert rep.skipped["not_nmea"] == 1 and rep.skipped["empty"] == 1
+        assert sum(rep.skipped.values()) == 4
+
+    def test_zda_then_gga_with_the_date_learnt(self, tmp_path: Path) -> None:
+        """Without RMC, ZDA times the log and gives the date GGA's times of day need."""
+        t = datetime(2026, 3, 4, 23, 59, 58, tzinfo=UTC)
+        lines = [
+            encode_zda(t),
+            encode_vhw(1.0),
+            encode_gga(t.replace(second=59), 46.0, 6.0),
+            encode_vhw(1.1),
+            encode_zda(t + timedelta(seconds=2)),
+        ]
+        src = tmp_path / "log.nmea"
+        src.write_text("\r\n".join(lines) + "\r\n")
+        out = tmp_path / "o.cap.gz"
+        rep = import_nmea([src], out)
+        recs = _records(out)
+        assert [r[0] - t.timestamp() for r in recs] == pytest.approx([0.0, 0.5, 1.0, 1.5, 2.0])
+        assert rep.notes == {}
+
+    def test_gga_only_needs_a_date(self, tmp_path: Path) -> None:
+        """GGA alone has no date: the import refuses without --date and works with it."""
+        t = datetime(2026, 3, 4, 10, 0, 0, tzinfo=UTC)
+        src = tmp_path / "gga.nmea"
+        t2 = t + timedelta(seconds=1)
+        src.write_text(
+            f"{encode_gga(t, 1.0, 2.0)}\n{encode_vhw(1.0)}\n{encode_gga(t2, 1.0, 2.0)}\n"
+        )
+        with pytest.raises(ImportFormatError, match="--date"):
+            import_nmea([src], tmp_path / "o.cap")
+        rep = import_nmea([src], tmp_path / "o.cap", day=date(2026, 3, 4))
+        assert rep.t_start == t.timestamp() and rep.written == 3
+
+    def test_fix_time_going_back_is_not_a_time_source(self, tmp_path: Path) -> None:
+        """A repeated or earlier fix time is kept as a sentence but times nothing."""
+        t = datetime(2026, 1, 1, 0, 0, 10, tzinfo=UTC)
+        early = t.replace(second=5)
+        lines = [encode_rmc(t, 1.0, 0.0), encode_rmc(early, 1.0, 0.0)]
+        lines += [encode_vhw(1.0), encode_rmc(t.replace(second=12), 1.0, 0.0)]
+        src = tmp_path / "log.nmea"
+        src.write_text("\n".join(lines))
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.notes == {"fix_time_not_increasing": 1}
+        times = [r[0] - t.timestamp() for r in _records(tmp_path / "o.cap")]
+        assert times == pytest.approx([0.0, 2 / 3, 4 / 3, 2.0])
+
+    def test_a_gap_between_fixes_times_nothing(self, tmp_path: Path) -> None:
+        """Fixes more than MAX_FIX_GAP_S apart (a logger paused): the sentences between
+        them are counted, not spread over the gap; the later fix times what follows."""
+        from emlogd.offline.importer import MAX_FIX_GAP_S
+
+        t = datetime(2026, 1, 1, 12, tzinfo=UTC)
+        late = t + timedelta(seconds=MAX_FIX_GAP_S + 1.0)
+        lines = [encode_rmc(t, 1.0, 0.0), encode_vhw(1.0), encode_vhw(1.1)]
+        lines += [encode_rmc(late, 1.0, 0.0), encode_vhw(1.2)]
+        lines += [encode_rmc(late + timedelta(seconds=1), 1.0, 0.0)]
+        src = tmp_path / "log.nmea"
+        src.write_text("\n".join(lines) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.skipped == {"fix_gap": 2}
+        times = [r[0] - t.timestamp() for r in _records(tmp_path / "o.cap")]
+        gap = MAX_FIX_GAP_S + 1.0
+        assert times == pytest.approx([0.0, gap, gap + 0.5, gap + 1.0])
+
+    def test_a_fix_outside_the_years_times_nothing(self, tmp_path: Path) -> None:
+        """A ZDA dated 2150 between fixes of 2026 is noted and kept as a sentence, and the
+        log goes on being timed by the good fixes."""
+        t = datetime(2026, 1, 1, 12, tzinfo=UTC)
+        lines = [encode_rmc(t, 1.0, 0.0), encode_zda(t.replace(year=2150))]
+        lines += [encode_rmc(t + timedelta(seconds=2), 1.0, 0.0)]
+        src = tmp_path / "log.nmea"
+        src.write_text("\n".join(lines) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.notes == {"fix_time_out_of_range": 1} and rep.written == 3
+        times = [r[0] - t.timestamp() for r in _records(tmp_path / "o.cap")]
+        assert times == pytest.approx([0.0, 1.0, 2.0])
+
+    def test_gzip_input(self, tmp_path: Path) -> None:
+        """A gzip-compressed log is read as the plain one."""
+        import gzip
+
+        src = tmp_path / "irene.nmea.gz"
+        src.write_bytes(gzip.compress(IRENE.encode()))
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 10
+
+    def test_imported_capture_decodes_to_the_values_written(self, tmp_path: Path) -> None:
+        """The capture replays through the NMEA decoder to the log's own values."""
+        src = tmp_path / "irene.nmea"
+        src.write_text(IRENE)
+        rep = import_nmea([src], tmp_path / "o.cap")
+        dec = make_decoder("nmea0183", "nmea", errors="skip")
+        recs = [x for r in CaptureReader(tmp_path / "o.cap") for x in dec.feed(r.data)]
+        rmc = [r for r in recs if isinstance(r, Rmc)]
+        vhw = [r for r in recs if isinstance(r, Vhw)]
+        assert len(rmc) == 3 and len(vhw) == 2 and rep.written == 10
+        assert rmc[1].sog_mps == pytest.approx(2.4 * KNOT_MPS)
+        assert vhw[0].heading_mag_deg == 263.0
