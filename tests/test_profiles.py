@@ -40,4 +40,5 @@ def test_a_fuzz_test_reads_its_size_from_the_profile() -> None:
     assert by_profile(300) == 300 and by_profile(25, 3000) == 25
     settings.load_profile(LONG)
     assert by_profile(300) == LONG_EXAMPLES and by_profile(25, 3000) == 3000
+    assert settings.default is not None
     assert settings.default.max_examples == LONG_EXAMPLES

@@ -12,7 +12,7 @@ import pytest
 from calib.crossval import ESTIMATORS, Segment, cross_validate, split_estimator
 from calib.errors import DataError, ModelError
 from calib.models import Params
-from tests.synth import simulate_segment, water_frame_segment
+from tests.synth import TrajectoryKind, simulate_segment, water_frame_segment
 
 TRUTH = Params("EM3", m=0.08, b_mps=0.1)
 KINDS = ("transit", "figure-8", "straight", "circles", "return")
@@ -154,7 +154,8 @@ class TestWaterFrameCrossval:
         """Trained on circles in a current, LS-EM3 with current beats the paper's LS-EM3 on a figure-8."""
         truth = Params("EM3", m=0.09, b_mps=0.08)
         segs = []
-        for kind, seed in (("circles", 1), ("figure-8", 2)):
+        runs: tuple[tuple[TrajectoryKind, int], ...] = (("circles", 1), ("figure-8", 2))
+        for kind, seed in runs:
             s = water_frame_segment(
                 kind, 1200.0, 1.0, truth, np.random.default_rng(seed), current_mps=(0.25, -0.2)
             )
@@ -173,7 +174,8 @@ class TestWaterFrameCrossval:
         (not separable there) instead of bending them, and is not worse than raw."""
         truth = Params("EM3", m=0.09, b_mps=0.08)
         segs = []
-        for kind, seed in (("transit", 1), ("figure-8", 2)):
+        runs: tuple[tuple[TrajectoryKind, int], ...] = (("transit", 1), ("figure-8", 2))
+        for kind, seed in runs:
             s = water_frame_segment(
                 kind, 900.0, 1.0, truth, np.random.default_rng(seed), current_mps=(0.3, 0.2)
             )

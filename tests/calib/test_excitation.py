@@ -18,15 +18,17 @@ from calib.excitation import (
     window_stats,
 )
 from calib.models import Layout, Params
-from tests.synth import water_frame_segment
+from tests.synth import TrajectoryKind, WaterFrameSeries, water_frame_segment
 
 SIGMA2 = 0.05**2
 EM3C = Layout("EM3", current=True)
 
 
-def _seg(kind: str, *, constant: bool = False, seconds: float = 1200.0, seed: int = 1):
+def _seg(
+    kind: TrajectoryKind, *, constant: bool = False, seconds: float = 1200.0, seed: int = 1
+) -> WaterFrameSeries:
     return water_frame_segment(
-        kind,  # type: ignore[arg-type]
+        kind,
         seconds,
         1.0,
         Params("EM3", m=0.05, b_mps=0.1),
@@ -44,7 +46,9 @@ class TestWindowStats:
         u = np.random.default_rng(1).uniform(1.0, 3.0, 500)
         st = window_stats(u, u, np.zeros(500))
         block = st.info[1:3, 1:3]
-        np.testing.assert_allclose(block, [[np.sum(u * u), np.sum(u)], [np.sum(u), 500.0]])
+        np.testing.assert_allclose(
+            block, np.array([[np.sum(u * u), np.sum(u)], [np.sum(u), 500.0]])
+        )
         assert np.linalg.det(block) == pytest.approx(500**2 * np.var(u), rel=1e-9)
 
     def test_speed_figures_come_from_the_readings(self) -> None:
@@ -185,7 +189,7 @@ class TestExcitationWindow:
     """The online window applies the same rule."""
 
     @pytest.mark.parametrize("kind", ["figure-8", "circles", "transit"])
-    def test_without_forgetting_it_equals_the_batch_verdict(self, kind: str) -> None:
+    def test_without_forgetting_it_equals_the_batch_verdict(self, kind: TrajectoryKind) -> None:
         """A window with no forgetting gives the batch verdicts and information matrix."""
         s = _seg(kind, constant=kind == "circles", seconds=600.0)
         win = ExcitationWindow(EM3C)

@@ -10,7 +10,7 @@ import pytest
 from calib.errors import DataError, ModelError
 from calib.lsq import Averaged, block_average, current_blocks, fit_current, fit_ls
 from calib.models import Params, forward_array
-from tests.synth import water_frame_segment
+from tests.synth import TrajectoryKind, WaterFrameSeries, water_frame_segment
 
 
 def _varying(n: int = 600, seed: int = 1) -> tuple[np.ndarray, np.random.Generator]:
@@ -69,9 +69,9 @@ class TestRecovery:
         H = np.column_stack([v, np.ones_like(v)])
         r = raw - v - H @ np.array(fit.params.theta)
         cov = (r @ r) / (v.size - 2) * np.linalg.inv(H.T @ H)
-        np.testing.assert_allclose(
-            [fit.param_std["m"], fit.param_std["b"]], np.sqrt(np.diag(cov)), rtol=1e-8
-        )
+        m_std, b_std = fit.param_std["m"], fit.param_std["b"]
+        assert m_std is not None and b_std is not None
+        np.testing.assert_allclose([m_std, b_std], np.sqrt(np.diag(cov)), rtol=1e-8)
         assert fit.cond_info == pytest.approx(np.linalg.cond(H.T @ H), rel=1e-6)
 
 
@@ -147,9 +147,11 @@ class TestWaterFrame:
     TRUTH = Params("EM3", m=0.09, b_mps=0.08)
     CURRENT = (-0.091, -0.066)
 
-    def _segment(self, kind: str, *, constant: bool = False, seed: int = 7):
+    def _segment(
+        self, kind: TrajectoryKind, *, constant: bool = False, seed: int = 7
+    ) -> WaterFrameSeries:
         return water_frame_segment(
-            kind,  # type: ignore[arg-type]
+            kind,
             1620.0,
             1.0,
             self.TRUTH,
@@ -290,10 +292,10 @@ class TestTidalCurrent:
     """A current that turns with the tide, seen through GNSS-like block means."""
 
     @staticmethod
-    def _blocks(kind: str, swing: float) -> tuple[Averaged, Params]:
+    def _blocks(kind: TrajectoryKind, swing: float) -> tuple[Averaged, Params]:
         truth = Params("EM3", m=0.02, b_mps=0.1)
         s = water_frame_segment(
-            kind,  # type: ignore[arg-type]
+            kind,
             6 * 3600,
             1.0,
             truth,

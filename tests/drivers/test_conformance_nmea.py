@@ -14,7 +14,7 @@ import pytest
 
 from drivers.base import DecoderOptions
 from drivers.errors import ChecksumError, FieldError
-from drivers.nmea0183 import Heading, Mtw, NmeaDecoder, Prti, Vbw, Vhw, Vlw
+from drivers.nmea0183 import Heading, Mtw, NmeaDecoder, NmeaRecord, Prti, Vbw, Vhw, Vlw
 from drivers.records import KNOT_MPS, Rejected
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "nmea"
@@ -22,12 +22,12 @@ SHARED = Path(__file__).resolve().parents[2] / ".." / "shared" / "conformance" /
 NM_M = 1852.0
 
 
-def _decode(name: str, path: Path = DATA) -> tuple[list[object], NmeaDecoder]:
+def _decode(name: str, path: Path = DATA) -> tuple[list[NmeaRecord | Rejected], NmeaDecoder]:
     dec = NmeaDecoder("x", errors="yield")
     return dec.decode_all((path / name).read_bytes()), dec
 
 
-def _one(sentence: str) -> object:
+def _one(sentence: str) -> NmeaRecord:
     return NmeaDecoder("x", options=DecoderOptions(checksum="optional")).parse_frame(
         sentence.encode()
     )

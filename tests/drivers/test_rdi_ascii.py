@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivers.errors import FrameError
+from drivers.errors import FrameError, RejectReason
 from drivers.rdi_ascii import Pd6Ensemble, PdAsciiDecoder, PdHealth, encode_pd6
 from drivers.records import Rejected
 from tests.chunks import feed_in_chunks
@@ -122,12 +123,12 @@ def test_a_bad_line_discards_the_block_and_is_counted_twice() -> None:
         (lambda b: b.replace(b":SA,+00.00,+00.00", b":SA,+95.00,+00.00"), "out_of_range"),
     ],
 )
-def test_line_validation(mangle: object, reason: str) -> None:
+def test_line_validation(mangle: Callable[[bytes], bytes], reason: RejectReason) -> None:
     """A wrong field count, status letter, out-of-range heading, short timestamp, unknown line id,
     impossible month, negative depth or pitch beyond 90° discards the ensemble with one reject of
     the matching reason."""
     dec = PdAsciiDecoder("dvl", errors="yield")
-    out = dec.decode_all(mangle(_lines()))  # type: ignore[operator]
+    out = dec.decode_all(mangle(_lines()))
     assert not any(isinstance(r, Pd6Ensemble) for r in out)
     assert dec.counters.rejects[reason] == 1
 
@@ -206,6 +207,7 @@ def test_a_corrupted_byte_never_yields_a_wrong_ensemble(pos: int, value: int) ->
     a leading blank (PD6 has no checksum to catch those); a flipped status may only lose it."""
     data = bytearray(_lines())
     original = PdAsciiDecoder("dvl").decode_all(bytes(data))[0]
+    assert isinstance(original, Pd6Ensemble)
     pos %= len(data)
     if data[pos] == value:
         return
@@ -224,7 +226,7 @@ def test_every_position_corrupted_by_a_structural_byte(value: int) -> None:
     changes its time or bottom-track speed (underscores, exponents and trailing blanks are
     not numbers)."""
     for pos in range(len(_lines())):
-        test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)  # type: ignore[attr-defined]
+        test_a_corrupted_byte_never_yields_a_wrong_ensemble.hypothesis.inner_test(pos, value)
 
 
 # Every line type, as a good line and with each field in turn replaced by each value

@@ -41,6 +41,7 @@ def test_earth_frame_needs_a_heading() -> None:
     speeds from PD5, rotated with its heading."""
     dec = Pd45Decoder("dvl")
     pd4 = dec.decode_all(encode_pd45(bottom_ship_mps=(1.0, 0.0), range_m=5, coord_frame="earth"))[0]
+    assert isinstance(pd4, Pd45Ensemble)
     (sp,) = dec.speed_records(pd4)
     assert not sp.valid  # PD4 carries no heading: earth velocities cannot be rotated
     pd5 = dec.decode_all(
@@ -48,6 +49,7 @@ def test_earth_frame_needs_a_heading() -> None:
             pd5=True, bottom_ship_mps=(1.0, 0.3), range_m=5, coord_frame="earth", heading_deg=77
         )
     )[0]
+    assert isinstance(pd5, Pd45Ensemble)
     (sp,) = dec.speed_records(pd5)
     assert sp.valid
     assert sp.longitudinal_mps == pytest.approx(1.0, abs=2e-3)
@@ -100,6 +102,7 @@ def test_round_trip_and_chunking(fwd: float, stb: float, pd5: bool, cuts: list[i
     dec = Pd45Decoder("dvl")
     out = feed_in_chunks(dec, data, cuts)
     assert len(out) == 2
+    assert isinstance(out[0], Pd45Ensemble)
     (sp,) = dec.speed_records(out[0])
     assert sp.longitudinal_mps == pytest.approx(round(fwd * 1000) / 1000, abs=1e-9)
 

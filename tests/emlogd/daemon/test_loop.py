@@ -321,7 +321,8 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
 
     _setup(tmp_path)
     d = dmod.Daemon(tmp_path / "emlogd.yaml", log=None)
-    d.pipeline = _SpyPipeline()  # type: ignore[assignment]
+    spy = _SpyPipeline()
+    d.pipeline = spy  # type: ignore[assignment]
     d.rest_s = {"dvl": 0.02, "emlog1": 0.02}
     r, w = os.pipe()
     r2, w2 = os.pipe()
@@ -334,8 +335,7 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     for fd in (w, w2):
         os.write(fd, b"x")  # both readable, and stay so (the fake sources never drain)
     d._round(0)  # one round of the loop's wait
-    spy = d.pipeline
-    assert [c[2] for c in spy.calls] == [b"$VWVHW\r\n"]  # type: ignore[attr-defined]
+    assert [c[2] for c in spy.calls] == [b"$VWVHW\r\n"]
     assert d.resting.keys() == {"dvl"} and len(dvl.chunks) == 2  # the UUT never rests
     d._unregister("emlog1")  # only the DVL from here on
     del d.sources["emlog1"]
@@ -347,7 +347,7 @@ def test_a_readable_reference_port_rests_then_is_read_once_and_armed_again(
     d.resting["dvl"] = 0.0  # due
     d._wake_rested(d.monotonic())
     assert len(dvl.chunks) == 1 and d.resting == {} and d.registered == {"dvl": r}
-    assert [c[2] for c in spy.calls] == [  # type: ignore[attr-defined]
+    assert [c[2] for c in spy.calls] == [
         b"$VWVHW\r\n",
         b":SA\r\n:TS\r\n:BD\r\n",  # the burst in one read
     ]

@@ -15,7 +15,7 @@ import pytest
 from emlogd.cli import main
 from emlogd.offline.importbase import MAX_LINE_CHARS, ImportFormatError, bounded_lines
 from emlogd.offline.importer import import_csv, import_nmea
-from tests.emlogd.offline.test_importer import IRENE
+from tests.emlogd.offline.test_importnmea import IRENE
 
 LONG = 8 * 1024 * 1024
 """The long line of these tests, characters (a gigabyte is the same, only slower)."""

@@ -12,7 +12,8 @@ import pytest
 from drivers import make_decoder
 from drivers.io.capture import CaptureReader
 from drivers.nmea0183 import Rmc, Vhw, encode_rmc, encode_vhw
-from emlogd.offline.importer import DAY_ROLLOVER_S, import_csv, import_nmea
+from emlogd.offline.importer import import_csv, import_nmea
+from emlogd.offline.importnmea import DAY_ROLLOVER_S
 from tests.nmea_encoders import encode_gga
 
 

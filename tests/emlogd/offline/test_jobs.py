@@ -78,7 +78,7 @@ class TestCalibrate:
             "improvement_pct", "identifiable", "unidentifiable", "condition_number", "current",
         ):  # fmt: skip
             assert key in d
-        assert set(d["params"]) == {"m", "b"}  # type: ignore[arg-type]
+        assert isinstance(d["params"], dict) and set(d["params"]) == {"m", "b"}
         assert d["unidentifiable"] == [] and d["current"] is None
         if method == "kf":
             assert d["nis_mean"] is not None
@@ -89,7 +89,8 @@ class TestCalibrate:
         res = calibrate(recs, E1C, "ls", lag=3.3)
         d = res.to_dict()
         assert d["current"] is not None
-        assert set(d["current"]) == {"north_mps", "east_mps", "std_north_mps", "std_east_mps"}  # type: ignore[arg-type]
+        assert isinstance(d["current"], dict)
+        assert set(d["current"]) == {"north_mps", "east_mps", "std_north_mps", "std_east_mps"}
         assert d["identifiable"] is (d["unidentifiable"] == [])
 
     def test_one_rmse_definition_for_both_methods(
@@ -181,7 +182,7 @@ class TestCalibrate:
         kf = pipeline.uuts["emlog1"].cal.kf
         est = pipeline.status()["uuts"]["emlog1"]["estimate"]  # type: ignore[index]
         for k, v in kf.params.as_dict().items():
-            assert est[k] == pytest.approx(v, abs=1e-9)  # type: ignore[index]
+            assert est[k] == pytest.approx(v, abs=1e-9)
         conditioned = kf.copy()
         conditioned.condition({k: 0.0 for k in held})
         for k, v in res.params.as_dict().items():
@@ -295,7 +296,9 @@ class TestFiles:
         ports = [PortSettings(n, p) for n, p in CaptureReader(transit).ports.items()]
         pipeline = Pipeline(ports, [settings], calibrations=cals)
         out = replay(pipeline, [transit])
-        (u,) = [v for k, v in out.to_dict()["uuts"].items() if k == "emlog1"]  # type: ignore[union-attr]
+        uuts = out.to_dict()["uuts"]
+        assert isinstance(uuts, dict)
+        (u,) = [v for k, v in uuts.items() if k == "emlog1"]
         assert u["state"] == "frozen" and u["lag_s"] == pytest.approx(3.3)
         assert u["rmse_corrected"] < 0.5 * u["rmse_raw"]
 

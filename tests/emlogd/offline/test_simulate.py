@@ -12,6 +12,7 @@ import yaml
 from calib.models import correct_array
 from drivers import make_decoder
 from drivers.io.capture import CaptureReader
+from drivers.records import Rejected
 from emlogd.cli import main
 from emlogd.offline.jobs import calibrate, evaluate, load_captures
 from emlogd.offline.simulate import (
@@ -181,6 +182,7 @@ def _emlog_readings(
     for rt, rport, data, _ in CaptureReader(path).received():
         if rport == port:
             for r in dec.feed(data):
+                assert not isinstance(r, Rejected)  # errors="skip" yields none
                 for sp in dec.speed_records(r):
                     if source in (None, sp.source) and sp.longitudinal_mps is not None:
                         t.append(rt)

@@ -60,7 +60,7 @@ def test_build_fills_groups_and_defaults() -> None:
 def test_a_key_without_a_default_is_required() -> None:
     """A key declared without default is a required field of the dataclass too."""
     with pytest.raises(TypeError):
-        _Outer()  # type: ignore[call-arg]
+        _Outer()
 
 
 def test_the_pipelines_settings_declare_their_keys() -> None:

@@ -74,10 +74,10 @@ class TestHeadings:
         assert h.order(_uut(heading="hdg")) == ["hdg"]
         h.add(10.0, "hdg", NavHeading(90.0, None, None))
         h.add(11.0, "hdg", NavHeading(91.0, None, None))
-        assert h.at(h.order(_uut()), 10.5) == (pytest.approx(90.5), "hdg")
+        assert h.at(h.order(_uut()), 10.5) == pytest.approx((90.5, "hdg"))
         h.add(10.0, "log", NavHeading(80.0, None, None))
         h.add(11.0, "log", NavHeading(80.0, None, None))
-        assert h.at(h.order(_uut()), 10.5) == (pytest.approx(80.0), "log")
+        assert h.at(h.order(_uut()), 10.5) == pytest.approx((80.0, "log"))
 
     def test_a_heading_beyond_the_gap_is_not_used(self) -> None:
         """A heading arriving every second bridges HEADING_MAX_GAP_S (its cadence's gap is
@@ -87,10 +87,10 @@ class TestHeadings:
         for k in range(11):
             h.add(float(k), "hdg", NavHeading(90.0, None, None))
         h.add(15.0, "hdg", NavHeading(95.0, None, None))
-        assert h.at(["hdg"], 10.5) == (pytest.approx(90.0), "hdg")
+        assert h.at(["hdg"], 10.5) == pytest.approx((90.0, "hdg"))
         assert h.at(["hdg"], 12.7) is None  # 2.7 s from 10 s: beyond 2.5 intervals of 1 s
         h.add(16.0, "hdg", NavHeading(96.0, None, None))
-        assert h.at(["hdg"], 15.5) == (pytest.approx(95.5), "hdg")
+        assert h.at(["hdg"], 15.5) == pytest.approx((95.5, "hdg"))
 
     def test_a_magnetic_heading_needs_a_variation(self) -> None:
         """Without any variation a magnetic heading is refused and counted; with the
@@ -100,7 +100,7 @@ class TestHeadings:
         assert h.rings["hdg"].refused_magnetic == 1 and h.variation_of("hdg") is None
         h = Headings(["hdg"], [_uut(magnetic_variation_deg=-3.0)])
         h.add(10.0, "hdg", NavHeading(None, 100.0, None))
-        assert h.at(["hdg"], 10.0) == (pytest.approx(97.0), "hdg")
+        assert h.at(["hdg"], 10.0) == pytest.approx((97.0, "hdg"))
         h.variation["hdg"] = 2.0
         assert h.variation_of("hdg") == 2.0 and h.variation_of("other") == 2.0
 
@@ -111,8 +111,12 @@ class TestGnssProjection:
     def _route(self, **kw: object) -> tuple[UutRoute, list[tuple[float, float | None, bool]]]:
         s = _uut(reference_field="gnss", lag_s=0.0, **kw)
         got: list[tuple[float, float | None, bool]] = []
-        cal = UutCalibration(s, None, lambda t: None, lambda t, k, d: None)
-        cal.add_reference = lambda t, v, ok: got.append((t, v, ok))  # type: ignore[method-assign]
+
+        class Recording(UutCalibration):
+            def add_reference(self, t: float, v_mps: float | None, valid: bool) -> None:
+                got.append((t, v_mps, valid))
+
+        cal = Recording(s, None, lambda t: None, lambda t, k, d: None)
         return UutRoute(s, cal, ["gnss"]), got
 
     def test_sog_is_projected_with_the_heading_at_the_fix(self) -> None:

@@ -74,8 +74,8 @@ def test_a_dead_log_while_the_dvl_keeps_bottom_lock(kit: SimpleNamespace, segmen
     stream = kit.make_stream(series, uut_raw=lambda t, raw: 0.0 if t >= 1200.0 else raw)
     p = kit.pipeline(lag_s=0.0)
     out = kit.run(p, stream.items)
-    st = p.status()["uuts"]["log"]  # type: ignore[index]
-    assert st["state"] == "fault" and "zero" in st["reason"]  # type: ignore[operator]
+    st = p.status()["uuts"]["log"]
+    assert st["state"] == "fault" and "zero" in st["reason"]
     late = [v for t, v in kit.emitted(out) if t > stream.t0 + 1230.0]
     assert late == []
     for cal in p.calibrations() + out.persist:
@@ -98,8 +98,8 @@ def test_a_stuck_log(kit: SimpleNamespace, segment: Segment) -> None:
     stream = kit.make_stream(series, uut_raw=stuck)
     p = kit.pipeline(lag_s=0.0)
     out = kit.run(p, stream.items)
-    st = p.status()["uuts"]["log"]  # type: ignore[index]
-    assert st["state"] == "fault" and "stuck" in st["reason"]  # type: ignore[operator]
+    st = p.status()["uuts"]["log"]
+    assert st["state"] == "fault" and "stuck" in st["reason"]
     _never_worse(kit, stream, out)
 
 
@@ -121,10 +121,10 @@ def test_a_dvl_glitch(kit: SimpleNamespace, segment: Segment) -> None:
     a, b = kit.pipeline(lag_s=0.0), kit.pipeline(lag_s=0.0)
     kit.run(a, clean.items)
     out = kit.run(b, items)
-    ea = a.status()["uuts"]["log"]["estimate"]  # type: ignore[index]
-    eb = b.status()["uuts"]["log"]["estimate"]  # type: ignore[index]
+    ea = a.status()["uuts"]["log"]["estimate"]
+    eb = b.status()["uuts"]["log"]["estimate"]
     for k in ("m", "b"):
-        assert eb[k] == pytest.approx(ea[k], abs=0.005)  # type: ignore[index]
+        assert eb[k] == pytest.approx(ea[k], abs=0.005)
     _never_worse(kit, glitched, out)
 
 
@@ -145,11 +145,11 @@ def test_a_stall_then_a_burst(kit: SimpleNamespace, segment: Segment) -> None:
         items.append((t, port, data))
     p = kit.pipeline(lag_s=0.0)
     kit.run(p, items[: len(items) // 2])
-    before = p.status()["uuts"]["log"]["estimate"]  # type: ignore[index]
+    before = p.status()["uuts"]["log"]["estimate"]
     out = kit.run(p, items[len(items) // 2 :])
-    st = p.status()["uuts"]["log"]  # type: ignore[index]
-    assert st["counters"]["backlog"] == 20  # type: ignore[index]
-    assert st["estimate"]["m"] == pytest.approx(before["m"], abs=0.01)  # type: ignore[index]
+    st = p.status()["uuts"]["log"]
+    assert st["counters"]["backlog"] == 20
+    assert st["estimate"]["m"] == pytest.approx(before["m"], abs=0.01)
     _never_worse(kit, stream, out)
 
 
