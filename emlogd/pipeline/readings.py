@@ -33,13 +33,23 @@ ZERO_MPS = 2.0 * QUANTUM_MPS
 zero is judged against its last accepted non-zero reading — the zero was the wrong
 level, or the vessel was at rest and no acceleration is known."""
 
+BURST_GAP_S = 0.5 / 20.0
+"""Readings closer than this to the one before are one *burst*, s (half the interval of
+the fastest log, :data:`DEFAULT_MAX_RATE_HZ`): a multiplexer or logger that batches, or a
+USB-serial adapter's 16-ms latency timer, hands a log's readings on a few ms apart and
+then nothing until the next batch. The log's rate is learnt as its bursts' interval
+and the readings a burst holds (:attr:`ReadingCheck.burst`): learnt from the longer of
+the two intervals of a log sending pairs, readings were let through at half the log's
+rate and the log was babbling, nearly every reading dropped."""
+
 RATE_SLACK = 1.05
 """A log's readings are accepted at up to this many times its nominal rate (the jitter
 of receive times and the drift between its clock and ours)."""
 
 RATE_BURST = 2.0
-"""Readings a log may send back to back above its rate (the token bucket's depth): one
-late reading followed by an early one is no babble."""
+"""Readings a log may send back to back above its rate (the token bucket's depth, plus
+the learnt burst's readings beyond the first): one late reading, or burst, followed by
+an early one is no babble."""
 
 BABBLE_DROPS = 3
 """This many readings dropped for the rate within :data:`BABBLE_S` make a log *babbling*:
@@ -62,8 +72,10 @@ sends ten a read; a replay at 20 times real time reads a 10-Hz log at 200 Hz); u
 
 RATE_HISTORY = 32
 """The nominal interval is the median of this many intervals between consecutive
-readings with none dropped for the rate between them (a babble, held to the rate,
-must not teach a shorter interval)."""
+bursts (:data:`BURST_GAP_S`; a reading alone is a burst of one) with none dropped for
+the rate between them, and the burst's size the median of as many bursts' readings,
+each with none dropped (a babble, held to the rate, must not teach a shorter interval
+nor a larger burst)."""
 
 RATE_MIN_INTERVALS = 8
 """Intervals needed before the nominal rate is used (until then ``max_rate_hz`` alone)."""
@@ -120,17 +132,31 @@ is learnt below it; a log that babbles from its first sentence is held to this).
 
 class _Spell:
     """A spell of readings dropped for the rate without a pause (:data:`RATE_RELEARN_S`):
-    its start, its last reading (time, value), the intervals between its readings, how
-    many followed the one before within the acceleration rule, of how many."""
+    its start, its last reading (time, value), the intervals between its bursts
+    (:data:`BURST_GAP_S`) and their readings, how many followed the one before within
+    the acceleration rule, of how many."""
 
-    __slots__ = ("intervals", "last", "n", "steady", "t0")
+    __slots__ = ("burst_n", "burst_t0", "intervals", "last", "n", "sizes", "steady", "t0")
 
     def __init__(self, t: float, v: float) -> None:
         self.t0 = t
         self.last = (t, v)
         self.intervals = MedianWindow(RATE_HISTORY)
+        self.sizes = MedianWindow(RATE_HISTORY)
+        self.burst_t0 = t
+        self.burst_n = 1
         self.n = 0
         self.steady = 0
+
+    def reading(self, t: float, dt: float) -> None:
+        """A reading ``dt`` after the one before: the burst goes on, or a new one starts."""
+        if dt < BURST_GAP_S:
+            self.burst_n += 1
+            return
+        self.intervals.append(t - self.burst_t0)
+        self.sizes.append(self.burst_n)
+        self.burst_t0 = t
+        self.burst_n = 1
 
 
 class ReadingCheck:
@@ -142,6 +168,9 @@ class ReadingCheck:
     """
 
     __slots__ = (
+        "_burst_n",
+        "_burst_t0",
+        "_depth",
         "_drops",
         "_first_refused",
         "_intervals",
@@ -152,9 +181,11 @@ class ReadingCheck:
         "_per_sentence",
         "_rate_dropped",
         "_read_hz",
+        "_sizes",
         "_spell",
         "_t_rate",
         "_tokens",
+        "burst",
         "limits",
         "nominal_s",
         "reacquired",
@@ -167,10 +198,17 @@ class ReadingCheck:
         self._first_refused: float | None = None
         self._pending: tuple[float, float, float] | None = None
         self._intervals = MedianWindow(RATE_HISTORY)
+        self._sizes = MedianWindow(RATE_HISTORY)
+        """The readings of the bursts with none dropped (:data:`BURST_GAP_S`)."""
+        self._burst_t0: float | None = None
+        self._burst_n = 0
         self._per_sentence = MedianWindow(RATE_HISTORY)
         """The intervals between reads not dropped, over the readings each held."""
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
+        self._depth = RATE_BURST
+        """The token bucket's depth: :data:`RATE_BURST` plus the burst's readings beyond
+        its first."""
         self._rate_dropped = False
         self._drops: deque[float] = deque(maxlen=BABBLE_DROPS)
         """The times of the last reads dropped for the rate, within :data:`BABBLE_S`: the
@@ -178,7 +216,10 @@ class ReadingCheck:
         the window, its oldest removed at every reading, cost the whole list per reading
         of a log babbling one sentence a read)."""
         self.nominal_s: float | None = None
-        """The log's nominal interval between readings, s (None until learnt)."""
+        """The log's nominal interval between bursts of readings (:data:`BURST_GAP_S`;
+        between readings for a log sending them one at a time), s (None until learnt)."""
+        self.burst = 1
+        """The readings a burst of the log holds (the median; 1 until learnt)."""
         self.reacquired = False
         fixed = limits.max_rate_hz
         self._max_hz = DEFAULT_MAX_RATE_HZ if fixed is None else fixed
@@ -227,9 +268,9 @@ class ReadingCheck:
         t_last, v_last = sp.last
         sp.last = (t, v)
         dt = t - t_last
-        if dt <= 0.0:
+        if dt < 0.0:
             return
-        sp.intervals.append(dt)
+        sp.reading(t, dt)
         sp.n += 1
         if abs(v - v_last) <= READING_MARGIN_MPS + self.limits.max_reading_accel_mps2 * dt:
             sp.steady += 1
@@ -237,15 +278,16 @@ class ReadingCheck:
             return
         self._spell = None
         nominal = sp.intervals.upper()
-        faster = self.nominal_s is None or nominal * RATE_SLACK < self.nominal_s
+        size = max(int(sp.sizes.median()), 1)
+        faster = self.nominal_s is None or nominal * RATE_SLACK * self.burst < self.nominal_s * size
         if not faster or sp.steady < RATE_RELEARN_STEADY * sp.n:
             return  # the log's own rate in bursts, or a babble: a spell starts afresh
-        if nominal * DEFAULT_MAX_RATE_HZ < 1.0:
+        if nominal * DEFAULT_MAX_RATE_HZ < size:
             return
         self._intervals = sp.intervals
-        self.nominal_s = nominal
-        self._max_hz = min(RATE_SLACK / nominal, DEFAULT_MAX_RATE_HZ)
-        self._tokens = RATE_BURST
+        self._sizes = sp.sizes
+        self._learnt(nominal, size)
+        self._tokens = self._depth
         self._drops.clear()
         self._per_sentence.clear()
         self._read_hz = None
@@ -283,20 +325,36 @@ class ReadingCheck:
         prev = self._t_rate
         if prev is not None:
             dt = max(t - prev, 0.0)
-            self._tokens = min(self._tokens + dt * self._max_hz, RATE_BURST)
+            self._tokens = min(self._tokens + dt * self._max_hz, self._depth)
         self._t_rate = t
         if self._tokens < 1.0:
             self._rate_dropped = True
             return False
         self._tokens -= 1.0
         dropped, self._rate_dropped = self._rate_dropped, False
-        if prev is not None and t > prev and not dropped and self.limits.max_rate_hz is None:
+        if self.limits.max_rate_hz is not None:
+            return True
+        t0 = self._burst_t0
+        if t0 is not None and prev is not None and not dropped and t - prev < BURST_GAP_S:
+            self._burst_n += 1  # the burst goes on
+            return True
+        if t0 is not None and t > t0 and not dropped:
             iv = self._intervals
-            iv.append(t - prev)
+            iv.append(t - t0)
+            self._sizes.append(self._burst_n)
             if len(iv) >= RATE_MIN_INTERVALS:
-                self.nominal_s = nominal = iv.upper()
-                self._max_hz = min(RATE_SLACK / nominal, DEFAULT_MAX_RATE_HZ)
+                self._learnt(iv.upper(), max(int(self._sizes.median()), 1))
+        self._burst_t0 = t
+        self._burst_n = 1
         return True
+
+    def _learnt(self, nominal: float, size: int) -> None:
+        """The nominal interval between bursts and their readings learnt: the rate and
+        the token bucket's depth follow."""
+        self.nominal_s = nominal
+        self.burst = size
+        self._max_hz = min(RATE_SLACK * size / nominal, DEFAULT_MAX_RATE_HZ)
+        self._depth = RATE_BURST + size - 1
 
     def _accel(self, t: float, v: float) -> str:
         last = self._last
