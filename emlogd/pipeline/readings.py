@@ -35,12 +35,20 @@ level, or the vessel was at rest and no acceleration is known."""
 
 BURST_GAP_S = 0.5 / 20.0
 """Readings closer than this to the one before are one *burst*, s (half the interval of
-the fastest log, :data:`DEFAULT_MAX_RATE_HZ`): a multiplexer or logger that batches, or a
+the fastest log, :data:`DEFAULT_MAX_RATE_HZ`), as are those closer than
+:data:`BURST_SHARE` of the median interval: a multiplexer or logger that batches, or a
 USB-serial adapter's 16-ms latency timer, hands a log's readings on a few ms apart and
 then nothing until the next batch. The log's rate is learnt as its bursts' interval
 and the readings a burst holds (:attr:`ReadingCheck.burst`): learnt from the longer of
 the two intervals of a log sending pairs, readings were let through at half the log's
 rate and the log was babbling, nearly every reading dropped."""
+
+BURST_SHARE = 0.25
+"""An interval shorter than this share of the (upper) median interval between readings
+joins its readings in one burst (:data:`BURST_GAP_S`): a log at twice the rate of the
+lines it is sent with, its second reading right after the first, comes 0.1 s then
+0.9 s apart; the receive-time jitter of a log sending one reading at a time is far
+less than this."""
 
 RATE_SLACK = 1.05
 """A log's readings are accepted at up to this many times its nominal rate (the jitter
@@ -136,27 +144,47 @@ class _Spell:
     (:data:`BURST_GAP_S`) and their readings, how many followed the one before within
     the acceleration rule, of how many."""
 
-    __slots__ = ("burst_n", "burst_t0", "intervals", "last", "n", "sizes", "steady", "t0")
+    __slots__ = ("gaps", "last", "n", "steady", "t0")
 
     def __init__(self, t: float, v: float) -> None:
         self.t0 = t
         self.last = (t, v)
-        self.intervals = MedianWindow(RATE_HISTORY)
-        self.sizes = MedianWindow(RATE_HISTORY)
-        self.burst_t0 = t
-        self.burst_n = 1
+        self.gaps: deque[tuple[float, bool]] = deque(maxlen=RATE_HISTORY)
         self.n = 0
         self.steady = 0
 
-    def reading(self, t: float, dt: float) -> None:
-        """A reading ``dt`` after the one before: the burst goes on, or a new one starts."""
-        if dt < BURST_GAP_S:
-            self.burst_n += 1
-            return
-        self.intervals.append(t - self.burst_t0)
-        self.sizes.append(self.burst_n)
-        self.burst_t0 = t
-        self.burst_n = 1
+
+def bursts(gaps: deque[tuple[float, bool]]) -> tuple[float, int] | None:
+    """The nominal interval between a log's bursts of readings and the readings a burst
+    holds (:data:`BURST_GAP_S`, :data:`BURST_SHARE`), from the intervals between its
+    readings in time order, each with whether readings were dropped before it (a burst
+    is not known across them): the upper median of the intervals between bursts and the
+    (lower) median of their readings; None until :data:`RATE_MIN_INTERVALS` bursts.
+    A log sending one reading at a time: the upper median interval, 1."""
+    order = sorted(g for g, _ in gaps)
+    if not order:
+        return None
+    split = max(BURST_GAP_S, BURST_SHARE * order[len(order) // 2])
+    intervals: list[float] = []
+    sizes: list[int] = []
+    since, n = 0.0, 1
+    for g, hole in gaps:
+        if hole:
+            since, n = 0.0, 1
+        if g < split:
+            since += g
+            n += 1
+            continue
+        intervals.append(since + g)
+        sizes.append(n)
+        since, n = 0.0, 1
+    if len(intervals) < RATE_MIN_INTERVALS:
+        return None
+    intervals.sort()
+    sizes.sort()
+    m = len(sizes)
+    size = sizes[m // 2] if m % 2 else sizes[m // 2 - 1]
+    return intervals[len(intervals) // 2], max(size, 1)
 
 
 class ReadingCheck:
@@ -168,12 +196,11 @@ class ReadingCheck:
     """
 
     __slots__ = (
-        "_burst_n",
-        "_burst_t0",
         "_depth",
         "_drops",
         "_first_refused",
-        "_intervals",
+        "_gaps",
+        "_hole",
         "_last",
         "_max_hz",
         "_moving",
@@ -181,7 +208,6 @@ class ReadingCheck:
         "_per_sentence",
         "_rate_dropped",
         "_read_hz",
-        "_sizes",
         "_spell",
         "_t_rate",
         "_tokens",
@@ -197,11 +223,10 @@ class ReadingCheck:
         self._moving: tuple[float, float] | None = None
         self._first_refused: float | None = None
         self._pending: tuple[float, float, float] | None = None
-        self._intervals = MedianWindow(RATE_HISTORY)
-        self._sizes = MedianWindow(RATE_HISTORY)
-        """The readings of the bursts with none dropped (:data:`BURST_GAP_S`)."""
-        self._burst_t0: float | None = None
-        self._burst_n = 0
+        self._gaps: deque[tuple[float, bool]] = deque(maxlen=RATE_HISTORY)
+        """The intervals between consecutive readings let through, each with whether
+        readings were dropped for the rate before it (:func:`bursts`)."""
+        self._hole = False
         self._per_sentence = MedianWindow(RATE_HISTORY)
         """The intervals between reads not dropped, over the readings each held."""
         self._t_rate: float | None = None
@@ -268,24 +293,26 @@ class ReadingCheck:
         t_last, v_last = sp.last
         sp.last = (t, v)
         dt = t - t_last
-        if dt < 0.0:
+        if dt <= 0.0:
             return
-        sp.reading(t, dt)
+        sp.gaps.append((dt, False))
         sp.n += 1
         if abs(v - v_last) <= READING_MARGIN_MPS + self.limits.max_reading_accel_mps2 * dt:
             sp.steady += 1
-        if t - sp.t0 < RATE_RELEARN_S or len(sp.intervals) < RATE_MIN_INTERVALS:
+        if t - sp.t0 < RATE_RELEARN_S or len(sp.gaps) < RATE_MIN_INTERVALS:
             return
         self._spell = None
-        nominal = sp.intervals.upper()
-        size = max(int(sp.sizes.median()), 1)
+        learnt = bursts(sp.gaps)
+        if learnt is None:
+            return
+        nominal, size = learnt
         faster = self.nominal_s is None or nominal * RATE_SLACK * self.burst < self.nominal_s * size
         if not faster or sp.steady < RATE_RELEARN_STEADY * sp.n:
             return  # the log's own rate in bursts, or a babble: a spell starts afresh
         if nominal * DEFAULT_MAX_RATE_HZ < size:
             return
-        self._intervals = sp.intervals
-        self._sizes = sp.sizes
+        self._gaps = sp.gaps
+        self._hole = True
         self._learnt(nominal, size)
         self._tokens = self._depth
         self._drops.clear()
@@ -334,18 +361,15 @@ class ReadingCheck:
         dropped, self._rate_dropped = self._rate_dropped, False
         if self.limits.max_rate_hz is not None:
             return True
-        t0 = self._burst_t0
-        if t0 is not None and prev is not None and not dropped and t - prev < BURST_GAP_S:
-            self._burst_n += 1  # the burst goes on
-            return True
-        if t0 is not None and t > t0 and not dropped:
-            iv = self._intervals
-            iv.append(t - t0)
-            self._sizes.append(self._burst_n)
-            if len(iv) >= RATE_MIN_INTERVALS:
-                self._learnt(iv.upper(), max(int(self._sizes.median()), 1))
-        self._burst_t0 = t
-        self._burst_n = 1
+        if dropped:
+            self._hole = True
+        elif prev is not None and t > prev:
+            self._gaps.append((t - prev, self._hole))
+            self._hole = False
+            if len(self._gaps) >= RATE_MIN_INTERVALS:
+                learnt = bursts(self._gaps)
+                if learnt is not None:
+                    self._learnt(*learnt)
         return True
 
     def _learnt(self, nominal: float, size: int) -> None:

@@ -143,24 +143,34 @@ class TestBursts:
     their readings, and a babble is dropped as before."""
 
     @staticmethod
-    def _pairs(chk: ReadingCheck, t0: float, seconds: int) -> list[str]:
+    def _pairs(
+        chk: ReadingCheck, t0: float, seconds: int, apart: float = 0.005, size: int = 2
+    ) -> list[str]:
         rng = random.Random(3)
         whys: list[str] = []
         for k in range(seconds):
             jitter = rng.uniform(-0.05, 0.05)
-            for i in range(2):
-                whys.append(chk.check(t0 + k + jitter + 0.005 * i, 2.8 + rng.gauss(0.0, 0.02)))
+            for i in range(size):
+                whys.append(chk.check(t0 + k + jitter + apart * i, 2.8 + rng.gauss(0.0, 0.02)))
         return whys
 
-    def test_a_log_sending_pairs_5_ms_apart_once_a_second_is_kept_whole(self) -> None:
-        """Two readings 5 ms apart once a second (±50 ms), for 5 minutes: every one kept,
-        learnt as bursts of two a second. Learnt from the longer of the two intervals,
-        the log was heard at 1 Hz and babbling: 37 of 1198 of a real log's kept."""
+    @pytest.mark.parametrize(("apart", "size"), [(0.005, 2), (0.005, 3), (0.1, 2)])
+    def test_a_log_sending_bursts_once_a_second_is_kept_whole(
+        self, apart: float, size: int
+    ) -> None:
+        """Two readings 5 ms apart once a second (±50 ms), or two 0.1 s apart (a log at
+        twice the rate of the lines it is sent with), for 5 minutes: every one kept,
+        learnt as bursts of two a second. Three 5 ms apart (beyond RATE_BURST before the
+        rate is learnt): dropped at first, heard within RATE_RELEARN_S + 5 s, every
+        reading after. Learnt from the longer of the two intervals, a log in pairs was
+        heard at 1 Hz and babbling: 37 of 1198 of a real log's kept."""
         chk = ReadingCheck(ReadingLimits())
-        whys = self._pairs(chk, 0.0, 300)
-        assert set(whys) == {""}, whys.index("rate")
-        assert chk.burst == 2 and chk.nominal_s == pytest.approx(1.0, abs=0.06)
-        assert chk.max_rate_hz() == pytest.approx(2.1, rel=0.06)
+        whys = self._pairs(chk, 0.0, 300, apart, size)
+        heard = 0 if size <= 2 else size * int(RATE_RELEARN_S + 5.0)
+        assert set(whys[heard:]) == {""}, whys.index("rate")
+        assert chk.burst == size
+        assert chk.nominal_s == pytest.approx(1.0, abs=0.06)
+        assert chk.max_rate_hz() == pytest.approx(1.05 * size, rel=0.06)
 
     @pytest.mark.parametrize("learnt", ["pairs", "single"])
     def test_a_100_hz_babble_is_dropped_and_raises_no_rate(self, learnt: str) -> None:
