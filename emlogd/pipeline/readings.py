@@ -129,7 +129,7 @@ class ReadingLimits:
         unit="Hz",
         doc="A log's readings beyond this rate are dropped, and all of them while it exceeds "
         "it (a babbling log); null: its nominal rate learnt from the median interval (+5 %), "
-        "at most 20 Hz.",
+        "times the readings of the bursts it sends them in, at most 20 Hz.",
     )
 
 
