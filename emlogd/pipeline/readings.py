@@ -199,6 +199,7 @@ class ReadingCheck:
         "_depth",
         "_drops",
         "_first_refused",
+        "_gap_order",
         "_gaps",
         "_hole",
         "_last",
@@ -227,6 +228,8 @@ class ReadingCheck:
         """The intervals between consecutive readings let through, each with whether
         readings were dropped for the rate before it (:func:`bursts`)."""
         self._hole = False
+        self._gap_order = MedianWindow(RATE_HISTORY)
+        """The same intervals, their order (:func:`bursts` runs only when one is short)."""
         self._per_sentence = MedianWindow(RATE_HISTORY)
         """The intervals between reads not dropped, over the readings each held."""
         self._t_rate: float | None = None
@@ -312,6 +315,9 @@ class ReadingCheck:
         if nominal * DEFAULT_MAX_RATE_HZ < size:
             return
         self._gaps = sp.gaps
+        self._gap_order.clear()
+        for g, _ in sp.gaps:
+            self._gap_order.append(g)
         self._hole = True
         self._learnt(nominal, size)
         self._tokens = self._depth
@@ -365,11 +371,17 @@ class ReadingCheck:
             self._hole = True
         elif prev is not None and t > prev:
             self._gaps.append((t - prev, self._hole))
+            order = self._gap_order
+            order.append(t - prev)
             self._hole = False
-            if len(self._gaps) >= RATE_MIN_INTERVALS:
-                learnt = bursts(self._gaps)
-                if learnt is not None:
-                    self._learnt(*learnt)
+            if len(order) >= RATE_MIN_INTERVALS:
+                upper = order.upper()
+                if order.lowest() >= max(BURST_GAP_S, BURST_SHARE * upper):
+                    self._learnt(upper, 1)  # no burst: every reading its own
+                else:
+                    learnt = bursts(self._gaps)
+                    if learnt is not None:
+                        self._learnt(*learnt)
         return True
 
     def _learnt(self, nominal: float, size: int) -> None:
