@@ -466,6 +466,20 @@ def vhw_twice(text: str) -> str:
     return nl.join(out) + nl
 
 
+def vhw_back_to_back(text: str) -> str:
+    """Each VHW sent twice, the second right after the first (a log at twice the GNSS's
+    rate behind a multiplexer that batches its sentences: two readings one line apart,
+    then none until the next fix)."""
+    nl = "\r\n" if "\r\n" in text[:4096] else "\n"
+    out: list[str] = []
+    for ln in text.splitlines():
+        out.append(ln)
+        f = fields(ln)
+        if f is not None and kind_of(f) == "VHW":
+            out.append(ln)
+    return nl.join(out) + nl
+
+
 def true_heading_as(make: Callable[[float], list[str]]) -> Callable[[list[str]], list[str] | None]:
     """The heading as one true-heading sentence alone (``make`` of the heading): HDG
     made true with its variation (none taken as 0), HDT/HDM dropped, VHW's headings

@@ -161,6 +161,14 @@ class MedianWindow:
         """
         return self._order[len(self._order) // 2]
 
+    def lowest(self) -> float:
+        """The smallest value.
+
+        Raises:
+            IndexError: the window is empty.
+        """
+        return self._order[0]
+
 
 _time = itemgetter(0)
 

@@ -33,13 +33,31 @@ ZERO_MPS = 2.0 * QUANTUM_MPS
 zero is judged against its last accepted non-zero reading — the zero was the wrong
 level, or the vessel was at rest and no acceleration is known."""
 
+BURST_GAP_S = 0.5 / 20.0
+"""Readings closer than this to the one before are one *burst*, s (half the interval of
+the fastest log, :data:`DEFAULT_MAX_RATE_HZ`), as are those closer than
+:data:`BURST_SHARE` of the median interval: a multiplexer or logger that batches, or a
+USB-serial adapter's 16-ms latency timer, hands a log's readings on a few ms apart and
+then nothing until the next batch. The log's rate is learnt as its bursts' interval
+and the readings a burst holds (:attr:`ReadingCheck.burst`): learnt from the longer of
+the two intervals of a log sending pairs, readings were let through at half the log's
+rate and the log was babbling, nearly every reading dropped."""
+
+BURST_SHARE = 0.25
+"""An interval shorter than this share of the (upper) median interval between readings
+joins its readings in one burst (:data:`BURST_GAP_S`): a log at twice the rate of the
+lines it is sent with, its second reading right after the first, comes 0.1 s then
+0.9 s apart; the receive-time jitter of a log sending one reading at a time is far
+less than this."""
+
 RATE_SLACK = 1.05
 """A log's readings are accepted at up to this many times its nominal rate (the jitter
 of receive times and the drift between its clock and ours)."""
 
 RATE_BURST = 2.0
-"""Readings a log may send back to back above its rate (the token bucket's depth): one
-late reading followed by an early one is no babble."""
+"""Readings a log may send back to back above its rate (the token bucket's depth, plus
+the learnt burst's readings beyond the first): one late reading, or burst, followed by
+an early one is no babble."""
 
 BABBLE_DROPS = 3
 """This many readings dropped for the rate within :data:`BABBLE_S` make a log *babbling*:
@@ -62,8 +80,10 @@ sends ten a read; a replay at 20 times real time reads a 10-Hz log at 200 Hz); u
 
 RATE_HISTORY = 32
 """The nominal interval is the median of this many intervals between consecutive
-readings with none dropped for the rate between them (a babble, held to the rate,
-must not teach a shorter interval)."""
+bursts (:data:`BURST_GAP_S`; a reading alone is a burst of one) with none dropped for
+the rate between them, and the burst's size the median of as many bursts' readings,
+each with none dropped (a babble, held to the rate, must not teach a shorter interval
+nor a larger burst)."""
 
 RATE_MIN_INTERVALS = 8
 """Intervals needed before the nominal rate is used (until then ``max_rate_hz`` alone)."""
@@ -109,7 +129,7 @@ class ReadingLimits:
         unit="Hz",
         doc="A log's readings beyond this rate are dropped, and all of them while it exceeds "
         "it (a babbling log); null: its nominal rate learnt from the median interval (+5 %), "
-        "at most 20 Hz.",
+        "times the readings of the bursts it sends them in, at most 20 Hz.",
     )
 
 
@@ -120,17 +140,51 @@ is learnt below it; a log that babbles from its first sentence is held to this).
 
 class _Spell:
     """A spell of readings dropped for the rate without a pause (:data:`RATE_RELEARN_S`):
-    its start, its last reading (time, value), the intervals between its readings, how
-    many followed the one before within the acceleration rule, of how many."""
+    its start, its last reading (time, value), the intervals between its bursts
+    (:data:`BURST_GAP_S`) and their readings, how many followed the one before within
+    the acceleration rule, of how many."""
 
-    __slots__ = ("intervals", "last", "n", "steady", "t0")
+    __slots__ = ("gaps", "last", "n", "steady", "t0")
 
     def __init__(self, t: float, v: float) -> None:
         self.t0 = t
         self.last = (t, v)
-        self.intervals = MedianWindow(RATE_HISTORY)
+        self.gaps: deque[tuple[float, bool]] = deque(maxlen=RATE_HISTORY)
         self.n = 0
         self.steady = 0
+
+
+def bursts(gaps: deque[tuple[float, bool]]) -> tuple[float, int] | None:
+    """The nominal interval between a log's bursts of readings and the readings a burst
+    holds (:data:`BURST_GAP_S`, :data:`BURST_SHARE`), from the intervals between its
+    readings in time order, each with whether readings were dropped before it (a burst
+    is not known across them): the upper median of the intervals between bursts and the
+    (lower) median of their readings; None until :data:`RATE_MIN_INTERVALS` bursts.
+    A log sending one reading at a time: the upper median interval, 1."""
+    order = sorted(g for g, _ in gaps)
+    if not order:
+        return None
+    split = max(BURST_GAP_S, BURST_SHARE * order[len(order) // 2])
+    intervals: list[float] = []
+    sizes: list[int] = []
+    since, n = 0.0, 1
+    for g, hole in gaps:
+        if hole:
+            since, n = 0.0, 1
+        if g < split:
+            since += g
+            n += 1
+            continue
+        intervals.append(since + g)
+        sizes.append(n)
+        since, n = 0.0, 1
+    if len(intervals) < RATE_MIN_INTERVALS:
+        return None
+    intervals.sort()
+    sizes.sort()
+    m = len(sizes)
+    size = sizes[m // 2] if m % 2 else sizes[m // 2 - 1]
+    return intervals[len(intervals) // 2], max(size, 1)
 
 
 class ReadingCheck:
@@ -142,9 +196,12 @@ class ReadingCheck:
     """
 
     __slots__ = (
+        "_depth",
         "_drops",
         "_first_refused",
-        "_intervals",
+        "_gap_order",
+        "_gaps",
+        "_hole",
         "_last",
         "_max_hz",
         "_moving",
@@ -155,6 +212,7 @@ class ReadingCheck:
         "_spell",
         "_t_rate",
         "_tokens",
+        "burst",
         "limits",
         "nominal_s",
         "reacquired",
@@ -166,11 +224,19 @@ class ReadingCheck:
         self._moving: tuple[float, float] | None = None
         self._first_refused: float | None = None
         self._pending: tuple[float, float, float] | None = None
-        self._intervals = MedianWindow(RATE_HISTORY)
+        self._gaps: deque[tuple[float, bool]] = deque(maxlen=RATE_HISTORY)
+        """The intervals between consecutive readings let through, each with whether
+        readings were dropped for the rate before it (:func:`bursts`)."""
+        self._hole = False
+        self._gap_order = MedianWindow(RATE_HISTORY)
+        """The same intervals, their order (:func:`bursts` runs only when one is short)."""
         self._per_sentence = MedianWindow(RATE_HISTORY)
         """The intervals between reads not dropped, over the readings each held."""
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
+        self._depth = RATE_BURST
+        """The token bucket's depth: :data:`RATE_BURST` plus the burst's readings beyond
+        its first."""
         self._rate_dropped = False
         self._drops: deque[float] = deque(maxlen=BABBLE_DROPS)
         """The times of the last reads dropped for the rate, within :data:`BABBLE_S`: the
@@ -178,7 +244,10 @@ class ReadingCheck:
         the window, its oldest removed at every reading, cost the whole list per reading
         of a log babbling one sentence a read)."""
         self.nominal_s: float | None = None
-        """The log's nominal interval between readings, s (None until learnt)."""
+        """The log's nominal interval between bursts of readings (:data:`BURST_GAP_S`;
+        between readings for a log sending them one at a time), s (None until learnt)."""
+        self.burst = 1
+        """The readings a burst of the log holds (the median; 1 until learnt)."""
         self.reacquired = False
         fixed = limits.max_rate_hz
         self._max_hz = DEFAULT_MAX_RATE_HZ if fixed is None else fixed
@@ -229,23 +298,29 @@ class ReadingCheck:
         dt = t - t_last
         if dt <= 0.0:
             return
-        sp.intervals.append(dt)
+        sp.gaps.append((dt, False))
         sp.n += 1
         if abs(v - v_last) <= READING_MARGIN_MPS + self.limits.max_reading_accel_mps2 * dt:
             sp.steady += 1
-        if t - sp.t0 < RATE_RELEARN_S or len(sp.intervals) < RATE_MIN_INTERVALS:
+        if t - sp.t0 < RATE_RELEARN_S or len(sp.gaps) < RATE_MIN_INTERVALS:
             return
         self._spell = None
-        nominal = sp.intervals.upper()
-        faster = self.nominal_s is None or nominal * RATE_SLACK < self.nominal_s
+        learnt = bursts(sp.gaps)
+        if learnt is None:
+            return
+        nominal, size = learnt
+        faster = self.nominal_s is None or nominal * RATE_SLACK * self.burst < self.nominal_s * size
         if not faster or sp.steady < RATE_RELEARN_STEADY * sp.n:
             return  # the log's own rate in bursts, or a babble: a spell starts afresh
-        if nominal * DEFAULT_MAX_RATE_HZ < 1.0:
+        if nominal * DEFAULT_MAX_RATE_HZ < size:
             return
-        self._intervals = sp.intervals
-        self.nominal_s = nominal
-        self._max_hz = min(RATE_SLACK / nominal, DEFAULT_MAX_RATE_HZ)
-        self._tokens = RATE_BURST
+        self._gaps = sp.gaps
+        self._gap_order.clear()
+        for g, _ in sp.gaps:
+            self._gap_order.append(g)
+        self._hole = True
+        self._learnt(nominal, size)
+        self._tokens = self._depth
         self._drops.clear()
         self._per_sentence.clear()
         self._read_hz = None
@@ -283,20 +358,39 @@ class ReadingCheck:
         prev = self._t_rate
         if prev is not None:
             dt = max(t - prev, 0.0)
-            self._tokens = min(self._tokens + dt * self._max_hz, RATE_BURST)
+            self._tokens = min(self._tokens + dt * self._max_hz, self._depth)
         self._t_rate = t
         if self._tokens < 1.0:
             self._rate_dropped = True
             return False
         self._tokens -= 1.0
         dropped, self._rate_dropped = self._rate_dropped, False
-        if prev is not None and t > prev and not dropped and self.limits.max_rate_hz is None:
-            iv = self._intervals
-            iv.append(t - prev)
-            if len(iv) >= RATE_MIN_INTERVALS:
-                self.nominal_s = nominal = iv.upper()
-                self._max_hz = min(RATE_SLACK / nominal, DEFAULT_MAX_RATE_HZ)
+        if self.limits.max_rate_hz is not None:
+            return True
+        if dropped:
+            self._hole = True
+        elif prev is not None and t > prev:
+            self._gaps.append((t - prev, self._hole))
+            order = self._gap_order
+            order.append(t - prev)
+            self._hole = False
+            if len(order) >= RATE_MIN_INTERVALS:
+                upper = order.upper()
+                if order.lowest() >= max(BURST_GAP_S, BURST_SHARE * upper):
+                    self._learnt(upper, 1)  # no burst: every reading its own
+                else:
+                    learnt = bursts(self._gaps)
+                    if learnt is not None:
+                        self._learnt(*learnt)
         return True
+
+    def _learnt(self, nominal: float, size: int) -> None:
+        """The nominal interval between bursts and their readings learnt: the rate and
+        the token bucket's depth follow."""
+        self.nominal_s = nominal
+        self.burst = size
+        self._max_hz = min(RATE_SLACK * size / nominal, DEFAULT_MAX_RATE_HZ)
+        self._depth = RATE_BURST + size - 1
 
     def _accel(self, t: float, v: float) -> str:
         last = self._last

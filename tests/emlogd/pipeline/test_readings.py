@@ -135,3 +135,60 @@ def test_a_log_babbling_one_sentence_a_read_keeps_no_memory_per_reading() -> Non
     assert set(whys[2:]) == {"rate"}
     # back at 1 Hz: heard again once no read was dropped for BABBLE_S
     assert chk.check(64.0 + BABBLE_S + 1.0, 2.8) == ""
+
+
+class TestBursts:
+    """A log whose readings come in regular small bursts (a multiplexer or logger that
+    batches, a USB-serial adapter's latency timer): its rate is its bursts' rate times
+    their readings, and a babble is dropped as before."""
+
+    @staticmethod
+    def _pairs(
+        chk: ReadingCheck, t0: float, seconds: int, apart: float = 0.005, size: int = 2
+    ) -> list[str]:
+        rng = random.Random(3)
+        whys: list[str] = []
+        for k in range(seconds):
+            jitter = rng.uniform(-0.05, 0.05)
+            for i in range(size):
+                whys.append(chk.check(t0 + k + jitter + apart * i, 2.8 + rng.gauss(0.0, 0.02)))
+        return whys
+
+    @pytest.mark.parametrize(("apart", "size"), [(0.005, 2), (0.005, 3), (0.1, 2)])
+    def test_a_log_sending_bursts_once_a_second_is_kept_whole(
+        self, apart: float, size: int
+    ) -> None:
+        """Two readings 5 ms apart once a second (±50 ms), or two 0.1 s apart (a log at
+        twice the rate of the lines it is sent with), for 5 minutes: every one kept,
+        learnt as bursts of two a second. Three 5 ms apart (beyond RATE_BURST before the
+        rate is learnt): dropped at first, heard within RATE_RELEARN_S + 5 s, every
+        reading after. Learnt from the longer of the two intervals, a log in pairs was
+        heard at 1 Hz and babbling: 37 of 1198 of a real log's kept."""
+        chk = ReadingCheck(ReadingLimits())
+        whys = self._pairs(chk, 0.0, 300, apart, size)
+        heard = 0 if size <= 2 else size * int(RATE_RELEARN_S + 5.0)
+        assert set(whys[heard:]) == {""}, whys.index("rate")
+        assert chk.burst == size
+        assert chk.nominal_s == pytest.approx(1.0, abs=0.06)
+        assert chk.max_rate_hz() == pytest.approx(1.05 * size, rel=0.06)
+
+    @pytest.mark.parametrize("learnt", ["pairs", "single"])
+    def test_a_100_hz_babble_is_dropped_and_raises_no_rate(self, learnt: str) -> None:
+        """A log learnt in pairs (or one reading a second), then babbling 0-14 kn at
+        random at 100 Hz for a minute: every reading after the first few is dropped,
+        neither its bursts' interval nor their size learnt from the babble; back in
+        pairs, heard again once none was dropped for BABBLE_S."""
+        rng = random.Random(4)
+        chk = ReadingCheck(ReadingLimits())
+        if learnt == "pairs":
+            assert set(self._pairs(chk, 0.0, 60)) == {""}
+        else:
+            assert all(chk.check(float(k), 2.8) == "" for k in range(60))
+        burst, nominal = chk.burst, chk.nominal_s
+        whys = [chk.check(60.0 + k / 100.0, rng.uniform(0.0, 7.2)) for k in range(6000)]
+        assert set(whys[5:]) == {"rate"}, [w for w in whys[5:] if w != "rate"][:5]
+        assert chk.burst == burst and chk.nominal_s == pytest.approx(nominal, abs=0.01)
+        assert chk.max_rate_hz() < 2.2
+        if learnt == "pairs":
+            back = self._pairs(chk, 121.0, 60)
+            assert set(back[2 * int(BABBLE_S) + 2 :]) == {""}
