@@ -217,9 +217,7 @@ class TwoAxisLearner:
         f, last = self.sup.applied, self.athwart
         if f is None or raw_l_mps is None or last is None or not self.answers(*guard):
             return one_axis_mps
-        if not self.forward_on():
-            return one_axis_mps
-        if abs(t - last[0]) > ATHWART_FRESH_S:
+        if not self.forward_on() or abs(t - last[0]) > ATHWART_FRESH_S:
             return one_axis_mps
         own = self._own(raw_l_mps, last[1])
         return one_axis_mps if own is None else own[0]

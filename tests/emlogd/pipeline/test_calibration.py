@@ -70,17 +70,21 @@ class TestCheck:
         assert checker([])(GOOD) == ""
 
 
+TWO_AXIS = {
+    "misalign_deg": -4.0,
+    "misalign_std_deg": 0.1,
+    "m_t": 0.2,
+    "m_t_std": 0.01,
+    "b_t_mps": -0.3,
+    "b_t_std_mps": 0.01,
+}
+"""A record's two-axis figures within the envelope."""
+
+
 def test_two_axis_figures_are_checked() -> None:
     """A record's two-axis figures: |α| ≤ 20°, |m_t| ≤ 0.5, |b_t| ≤ 1 m/s, σ ≥ 0, all six,
     finite — checked whatever else the record holds (a reset one too)."""
-    good = {
-        "misalign_deg": -4.0,
-        "misalign_std_deg": 0.1,
-        "m_t": 0.2,
-        "m_t_std": 0.01,
-        "b_t_mps": -0.3,
-        "b_t_std_mps": 0.01,
-    }
+    good = dict(TWO_AXIS)
     base = Calibration("log", Estimate(Params("EM3"), {}), 0.5, two_axis=good)
     assert check(base, Envelope()) == ""
     for key, value, why in (
@@ -100,17 +104,7 @@ def test_two_axis_figures_are_checked() -> None:
 def test_two_axis_longitudinal_parameters_are_checked() -> None:
     """The longitudinal parameters a record's two-axis figures carry: all three or none,
     finite, within the envelope (|a| ≤ 0.1 s/m, |m| ≤ 0.5, |b| ≤ 1 m/s)."""
-    good = {
-        "misalign_deg": 3.0,
-        "misalign_std_deg": 0.1,
-        "m_t": -0.08,
-        "m_t_std": 0.01,
-        "b_t_mps": 0.04,
-        "b_t_std_mps": 0.01,
-        "lon_a_spm": 0.0,
-        "lon_m": -0.17,
-        "lon_b_mps": 0.005,
-    }
+    good = TWO_AXIS | {"lon_a_spm": 0.0, "lon_m": -0.17, "lon_b_mps": 0.005}
     base = Calibration("log", Estimate(Params("EM3"), {}), 0.5, two_axis=good)
     assert check(base, Envelope()) == ""
     for key, value, why in (
