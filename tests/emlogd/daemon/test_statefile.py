@@ -491,3 +491,24 @@ def test_a_file_that_cannot_be_replaced_where_the_backup_goes_costs_the_backup_a
     monkeypatch.undo()
     assert store.save({"emlog1": _state(0.4)}) is None and store.backup_problem is None
     assert parse_state(store.backup.read_text())["emlog1"].params.m == rounds[-1]
+
+
+def test_holds_last_save_tells_a_file_replaced_or_removed(tmp_path: Path) -> None:
+    """True right after a save; False before any, and once another process replaced the
+    file (same size and all), rewrote it in place or removed it."""
+    store = StateStore(tmp_path / "state.yaml")
+    assert not store.holds_last_save()
+    store.save({"emlog1": saved_calibration(0.1)})
+    assert store.holds_last_save()
+    other = StateStore(tmp_path / "other.yaml")
+    other.save({"emlog1": saved_calibration(0.3)})
+    other.path.replace(store.path)
+    assert not store.holds_last_save()
+    store.save({"emlog1": saved_calibration(0.1)})
+    text = store.path.read_text()
+    time.sleep(0.05)  # past the file system's clock tick: the edit's time is a new one
+    store.path.write_text(text.replace("0.1", "0.3"))
+    assert not store.holds_last_save()
+    store.save({"emlog1": saved_calibration(0.1)})
+    store.path.unlink()
+    assert not store.holds_last_save()
