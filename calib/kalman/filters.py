@@ -39,7 +39,8 @@ its noise is too small to pull the scale. Beyond the paper:
   sample is treated as a reference outage).
 - **Process noise**: v is a random walk driven by acceleration white noise of
   spectral density ``accel_psd_m2ps3`` (``q_v = psd·dt``); the sensor parameters take
-  the paper's tiny ``q_params`` per step (they change over weeks); the current is a
+  the paper's tiny ``q_params`` per second (per step of a log at 1 Hz or slower:
+  :data:`Q_PARAMS_STEP_S`; they change over weeks); the current is a
   random walk of spectral density ``current_psd_m2ps3`` (it changes over minutes).
 - **Learning is per unknown**: the caller says which unknowns the data determine
   (``learn``); the others are held at their value (the prior: the last good
@@ -164,6 +165,16 @@ RHO_MAX = 0.95
 """The largest lag-one correlation taken: a raw update counts as at least 1/39 of a
 sample."""
 
+Q_PARAMS_STEP_S = 1.0
+"""The time step, s, that ``q_params`` is the parameters' random walk over (the paper's
+``Q`` per step of its 1-Hz log): a step of ``dt`` adds ``q_params·min(dt, 1 s)/1 s``. A
+sensor's scale and bias drift with time, not with its sentences, so a 10-Hz log's walk
+as fast per second as a 1-Hz log's; with ``Q`` per step they walked √10 faster, and a
+fast log's bias followed the curvature of an error the model has no term for at the
+speed of the moment (its current absorbing the difference on a straight leg). A step
+longer than this (a gap, a slower log) adds one step's worth, as the paper's filter
+does."""
+
 
 @dataclass(frozen=True, slots=True)
 class KfConfig:
@@ -173,8 +184,9 @@ class KfConfig:
         r_raw_mps2: raw EMlog measurement variance R, (m/s)², from the sensor spec.
         r_ref_mps2: reference measurement variance, (m/s)².
         p0: initial variance of every sensor parameter (paper: P0 = 0.25·I), units².
-        q_params: process noise added to each parameter variance per step (paper:
-            Q = 1e-7·I), parameter units².
+        q_params: process noise added to each parameter variance per second, at most
+            per step (paper: Q = 1e-7·I per step of its 1-Hz log;
+            :data:`Q_PARAMS_STEP_S`), parameter units².
         accel_psd_m2ps3: spectral density of the speed random walk, (m/s²)²/Hz.
         current_p0_m2ps2: initial variance of each current component, (m/s)².
         current_psd_m2ps3: spectral density of the current random walk, (m/s)²/s
@@ -339,8 +351,9 @@ class KfCalibrator:
         cfg = self.config
         P[0][0] += cfg.accel_psd_m2ps3 * dt_s
         p = len(self.layout.params)
+        q = cfg.q_params * min(dt_s, Q_PARAMS_STEP_S) / Q_PARAMS_STEP_S
         for i in range(1, 1 + p):
-            P[i][i] += cfg.q_params
+            P[i][i] += q
         if self.layout.current:
             dq = self.noise_scale * cfg.current_psd_m2ps3 * dt_s
             P[1 + p][1 + p] += dq
