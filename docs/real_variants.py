@@ -260,6 +260,16 @@ VARIANTS: tuple[Variant, ...] = (
     ),
     Variant("reordered", "expedition-csv", vcsv.columns(vcsv.reverse), "another column order"),
     Variant("extra-columns", "expedition-csv", vcsv.columns(vcsv.extra), "extra columns"),
+    Variant(
+        "hdg-magnetic",
+        "expedition-csv",
+        vcsv.columns(vcsv.magnetic_heading),
+        "the compass's magnetic heading (HdgMag) and a MagVar column instead of Hdg",
+    ),
+    Variant("subset", "expedition-csv", vcsv.columns(vcsv.subset), "five columns, reordered"),
+    Variant(
+        "duplicate-rows", "expedition-csv", vcsv.columns(vcsv.duplicate_rows), "each row twice"
+    ),
     Variant("semicolon", "expedition-csv", vcsv.semicolon, "';' delimiter and decimal commas"),
     Variant("quoted", "expedition-csv", vcsv.quoted, "every cell quoted"),
     Variant("bom-crlf", "expedition-csv", vcsv.bom_crlf, "a byte-order mark and CRLF"),
