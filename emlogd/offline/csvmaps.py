@@ -228,6 +228,7 @@ HEADER_UNITS: dict[str, float | None] = {
     "km/h": 1.0 / 3.6,
     "kmh": 1.0 / 3.6,
     "kph": 1.0 / 3.6,
+    "mph": 0.44704,
     "deg": None,
     "degt": None,
     "degrees": None,
@@ -402,7 +403,28 @@ def no_header(path: str | Path, head: list[str], candidates: Sequence[MapChoice]
         _, missing = _resolve(m, header)
         whys.append(f"{p.name if p else 'the map'} lacks {', '.join(missing)}")
     cols = ", ".join(h.strip() for h in header[:12])
-    return f"{path}: no header with the mapped columns ({'; '.join(whys)}); the file has {cols}"
+    units = _unknown_units(header)
+    told = (
+        f"; units not known in {', '.join(units)} (known: {', '.join(HEADER_UNITS)}): "
+        "map the column with its unit, e.g. stw=NAME[mps]"
+        if units
+        else ""
+    )
+    return (
+        f"{path}: no header with the mapped columns ({'; '.join(whys)}); the file has {cols}{told}"
+    )
+
+
+def _unknown_units(header: list[str]) -> list[str]:
+    """The header's names that carry a unit in brackets not in :data:`HEADER_UNITS`
+    (``Bsp (furlongs)``), quoted with the unit."""
+    out = []
+    for h in header:
+        m = _UNIT_IN_NAME.fullmatch(h.strip())
+        unit = (m.group("a") or "").strip() if m else ""
+        if unit and unit.casefold() not in HEADER_UNITS:
+            out.append(f"{h.strip()!r} ({unit!r})")
+    return out
 
 
 def cell(row: list[str], index: int) -> str:
