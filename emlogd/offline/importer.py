@@ -13,9 +13,14 @@ taken with its checksum added (``checksum_added`` in ``notes``); in a log with
 checksums a line without one is a cut line (``missing_checksum``). A line with
 something before its sentence (a logger's receive time, a tag) is read from its
 first ``$`` or ``!`` that starts a well-formed address (``line_prefix`` in
-``notes``); the fixes still time it. Time comes from
-the fixes: the UTC date and time of RMC, else ZDA, else GGA's time of day with a date
-given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a GGA time of day
+``notes``); the fixes still time it. NULs and a Ctrl-Z at a line's ends are no part
+of it; sentences run together on one line (a line end lost) are split after each
+checksum a sentence's address follows (``sentences_run_together``); a sentence cut
+over two lines is joined when the two together pass its checksum (``lines_joined``).
+Time comes from
+the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, or an
+RMC's without its date) with a date
+given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a time of day
 :data:`DAY_ROLLOVER_S` or more before the last fix is the next day's (midnight passed).
 A fix whose time does not increase is no
 time source, nor is one outside :data:`YEARS`. The sentences between two fixes are

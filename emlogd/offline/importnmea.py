@@ -3,6 +3,7 @@ their own fixes (the rules are in :mod:`emlogd.offline.importer`'s docstring).""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
@@ -114,6 +115,19 @@ class _Spreader:
         count(self.report.skipped, "after_last_fix", len(self.pending) - 1 + self.overflow)
 
 
+RUN_TOGETHER = re.compile(r"(?<=\*[0-9A-Fa-f]{2})(?=[$!][A-Z0-9]{5},)")
+"""Where one sentence ends (its checksum) and the next begins on the same line."""
+
+
+def run_together(text: str, report: ImportReport) -> list[str]:
+    """A line's sentences: several written on one line (a line end lost) split after
+    each checksum that a sentence's address follows (counted ``sentences_run_together``
+    in ``notes``)."""
+    parts = RUN_TOGETHER.split(text)
+    count(report.notes, "sentences_run_together", len(parts) - 1)
+    return parts
+
+
 class _Joiner:
     """Sentences split over two lines (a logger's buffer flushed mid-sentence) joined
     again: a line that starts a sentence but fails its check is held for one line, and
@@ -200,9 +214,10 @@ def import_nmea(
             with open_text(path) as f:
                 for raw in bounded_lines(f, report.skipped):
                     report.lines += 1
-                    for line in joiner.lines(raw.strip(LINE_PADDING)):
-                        fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
-                        spread.add(line, fix)
+                    for part in run_together(raw.strip(LINE_PADDING), report):
+                        for line in joiner.lines(part):
+                            fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
+                            spread.add(line, fix)
             joiner.flush()
             if progress is not None:
                 progress(f"import {Path(path).name}", (i + 1) / len(paths))

@@ -223,3 +223,15 @@ class TestLinesAsLoggersWriteThem:
         assert rep.written == 3
         assert rep.t_start == pytest.approx(t.timestamp())
         assert rep.t_end == pytest.approx(t.timestamp() + 2.0)
+
+    def test_sentences_run_together_on_one_line_are_split(self, tmp_path: Path) -> None:
+        """Line ends lost between sentences: each is read after the checksum before it
+        (``sentences_run_together``); a tag block before a sentence is no such end."""
+        lines = IRENE.splitlines()
+        joined = [lines[0], "".join(lines[1:5]), *lines[5:]]
+        joined[-1] = "\\s:GP0001,c:1403875342*6B\\" + joined[-1]
+        src = tmp_path / "run.nmea"
+        src.write_text("\n".join(joined) + "\n")
+        rep = import_nmea([src], tmp_path / "run.cap")
+        assert rep.notes["sentences_run_together"] == 3
+        assert rep.written == 10 and rep.sentences["VHW"] == 2
