@@ -396,7 +396,12 @@ def _finish_csv(path: str | Path, run: _CsvRun) -> None:
         report.heading_check = run.sink.check.as_dict()
     if report.written == 0:
         why = ""
-        if report.skipped["bad_time"] and run.bad_stamp:
+        if report.skipped["bad_time"] and TIME_OF_DAY.fullmatch(run.bad_stamp):
+            why = (
+                f"; the time cells hold a time of day alone (the first {run.bad_stamp!r}) "
+                "and no date column is mapped: a time needs its date (--map date=COLUMN)"
+            )
+        elif report.skipped["bad_time"] and run.bad_stamp:
             why = (
                 f"; the time cells (the first {run.bad_stamp!r}) are in no format told by "
                 f"itself ({TIME_FORMATS_TOLD}): give --time-format PATTERN "
