@@ -48,6 +48,7 @@ from types import ModuleType
 from typing import Any
 
 import variants_csv as vcsv
+import variants_lines as vl
 from variants_csv import add_current as add_current  # the tests' tide
 from variants_nmea import GAP_S as GAP_S  # the tests' gap
 from variants_nmea import (
@@ -218,6 +219,32 @@ VARIANTS: tuple[Variant, ...] = (
         "$PASHR, an INS's attitude, the only heading",
     ),
     Variant("vbw", "nmea", _nm(vbw), "VBW instead of VHW (a log sending VBW alone)"),
+    *(
+        Variant(f"stamp-{name}", "nmea", vl.stamped(name), f"a receive time ({name}) first")
+        for name in vl.STAMPS
+    ),
+    Variant("cr", "nmea", line_endings("\r"), "CR line endings alone"),
+    Variant("bom", "nmea", lambda text: "\ufeff" + text, "a UTF-8 byte-order mark"),
+    Variant("nul-padded", "nmea", vl.nul_padded, "NULs after each line and ending the file"),
+    Variant("split-lines", "nmea", vl.split_lines, "sentences split over two lines"),
+    Variant("ais", "nmea", vl.with_ais, "AIS sentences (!AIVDM) mixed in"),
+    Variant("doubled", "nmea", vl.doubled, "every line logged twice"),
+    Variant("log-0.2hz", "nmea", vhw_every(4), "every 4th VHW: the log at about 0.2 Hz"),
+    Variant(
+        "rmc-no-date",
+        "nmea",
+        vl.rmc_no_date,
+        "RMC without its date (given by --date)",
+        lambda text: ["--date", first_date(text)],
+    ),
+    Variant("midnight-rmc", "nmea", vl.midnight_rmc, "midnight crossed, RMC with its dates"),
+    Variant(
+        "midnight-rmc-no-date",
+        "nmea",
+        vl.midnight_rmc_no_date,
+        "midnight crossed by RMC without a date (--date the first fix's)",
+        lambda text: ["--date", midnight_date(text)],
+    ),
     Variant(
         "set-drift",
         "expedition-csv",

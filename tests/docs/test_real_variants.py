@@ -113,6 +113,12 @@ SAME_SENTENCES = [
     ("nmea", "crlf"),
     ("nmea", "lf"),
     ("nmea", "other-sentences"),
+    *(("nmea", f"stamp-{name}") for name in rv.vl.STAMPS),
+    ("nmea", "cr"),
+    ("nmea", "bom"),
+    ("nmea", "nul-padded"),
+    ("nmea", "split-lines"),
+    ("nmea", "ais"),
     ("expedition-csv", "set-drift"),
     ("expedition-csv", "upper-case"),
     ("expedition-csv", "reordered"),
@@ -165,7 +171,14 @@ def test_expedition_times_as_text_keep_the_log(name: str, tmp_path: Path) -> Non
 
 @pytest.mark.parametrize(
     ("name", "share"),
-    [("log-half-rate", 0.5), ("log-twice", 2.0), ("log-dropouts", 0.9), ("log-lags-2s", 1.0)],
+    [
+        ("log-half-rate", 0.5),
+        ("log-0.2hz", 0.25),
+        ("log-twice", 2.0),
+        ("doubled", 2.0),
+        ("log-dropouts", 0.9),
+        ("log-lags-2s", 1.0),
+    ],
 )
 def test_the_log_at_another_rate_or_lag_keeps_its_time(
     name: str, share: float, tmp_path: Path
@@ -242,10 +255,23 @@ def test_a_slower_gnss_gives_fewer_fixes(
     assert rep.sentences["VHW"] >= 0.9 * base.sentences["VHW"]
 
 
-@pytest.mark.parametrize("name", ["gga-vtg", "zda-gll-vtg", "midnight-gga", "gap", "truncated"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "gga-vtg",
+        "zda-gll-vtg",
+        "midnight-gga",
+        "midnight-rmc",
+        "rmc-no-date",
+        "midnight-rmc-no-date",
+        "gap",
+        "truncated",
+    ],
+)
 def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Path) -> None:
-    """GGA + VTG (with --date), ZDA + GLL + VTG, midnight crossed by GGA times of day, a
-    gap of minutes, cut lines: the water readings keep their time."""
+    """GGA + VTG (with --date), ZDA + GLL + VTG, midnight crossed by GGA times of day or
+    by RMC with or without its date (then --date), RMC without a date, a gap of minutes,
+    cut lines: the water readings keep their time."""
     base, rep, _ = _variant("nmea", name, tmp_path)
     span = base.t_end - base.t_start
     kept = 1.0 - rv.GAP_S / span if name == "gap" else 1.0
