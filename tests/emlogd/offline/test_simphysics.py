@@ -427,8 +427,8 @@ class TestWorlds:
 
 
 OPEN = {
-    "turn-bias": "open: a bias in turns is no parameter of the model; emlog2's window over "
-    "the figure-8 1.10x raw (docs/RELIABILITY.md)",
+    "turn-bias": "open: a bias in turns is no parameter of the model, and in a figure-8 a "
+    "current to any fit; emlog2's window over the figure-8 1.17x raw (docs/RELIABILITY.md)",
 }
 """The cases that break the promise, pinned as strict xfails until fixed."""
 
