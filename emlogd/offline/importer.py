@@ -27,8 +27,8 @@ never extrapolated past the last fix. Two fixes more than :data:`MAX_FIX_GAP_S` 
 without a fix.
 
 **CSV/TSV exports** of navigation software and loggers: a column map (``key=Column``
-for ``time``, ``date``, ``stw``, ``heading``, ``sog``, ``cog``, ``lat``, ``lon``,
-``set``, ``drift``, ``variation``; a column may be written ``A|B`` — the first
+for ``time``, ``date``, ``stw``, ``heading``, ``heading_mag``, ``sog``, ``cog``,
+``lat``, ``lon``, ``set``, ``drift``, ``variation``; a column may be written ``A|B`` — the first
 present in the header — and ``Name?`` when it may be absent; speeds in knots unless
 written ``Name[mps]``), or a preset chosen by the header (:data:`PRESETS`). The
 delimiter (comma, tab, semicolon, bar) and the header line are found in the file:
@@ -80,7 +80,11 @@ the variation when known), VHW for the water (speed and heading, true or magneti
 VDR for the current (set towards, drift in knots). Within a row RMC comes first, so
 the variation it carries is known when the VHW's magnetic heading arrives.
 
-The variation for a magnetic heading: a ``variation`` column, else ``--variation
+A ``heading_mag`` column (a compass's magnetic heading under a name that says so:
+``HdgMag``, ``heading_magnetic``) is the heading when no ``heading`` column is mapped,
+read as magnetic; a table with neither writes VHW with the speed alone, counted
+``no_heading_column`` in ``notes`` (calibrating against GNSS then needs a heading from
+elsewhere). The variation for a magnetic heading: a ``variation`` column, else ``--variation
 DEG``; without either the RMC has none, and calibration takes the IGRF model's at
 the fix's position and date (:mod:`emlogd.pipeline.variation`). The import runs the
 heading-against-course check of that module on the rows (``heading_check``), so a
@@ -300,6 +304,7 @@ def import_csv(
         h_index, delim, chosen, cols = found
         fmt = time_format or (chosen.time_format if chosen is not None else "auto")
         href = heading_ref or (chosen.heading_ref if chosen is not None else "true")
+        href = _magnetic_column(cols, href, heading_ref is not None)
         _describe(report, found, href, utc_offset_h is not None, variation_deg is not None)
         sink = CaptureSink(out, port, f"emlogd import --format csv: {path}", report)
         run = _CsvRun(sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s)
@@ -337,6 +342,17 @@ def _read_head(f: TextIO, path: str | Path, skipped: Counter[str]) -> list[str]:
     return head
 
 
+def _magnetic_column(cols: dict[str, Col], href: HeadingRef, href_given: bool) -> HeadingRef:
+    """A ``heading_mag`` column read as the heading when no ``heading`` column is
+    mapped (its reference magnetic unless ``--heading-ref`` says otherwise); dropped
+    beside one. The heading's reference."""
+    mag = cols.pop("heading_mag", None)
+    if mag is None or "heading" in cols:
+        return href
+    cols["heading"] = Col("heading", mag.index, mag.factor)
+    return href if href_given else "magnetic"
+
+
 def _describe(
     report: ImportReport,
     found: tuple[int, str, Preset | None, dict[str, Col]],
@@ -350,7 +366,9 @@ def _describe(
     h_index, _, chosen, cols = found
     report.preset = chosen.name if chosen is not None else None
     count(report.notes, "banner_lines", h_index)
-    report.heading_ref = href
+    report.heading_ref = href if "heading" in cols else None
+    if "heading" not in cols:
+        report.notes["no_heading_column"] += 1
     if chosen is not None and chosen.local_time and not offset_given:
         report.notes["local_time_taken_as_utc"] += 1
     if "heading" in cols and href == "magnetic":
