@@ -217,7 +217,7 @@ WORLDS = {
         Case("water-as-bottom", water_as_bottom.__doc__ or "", dvl_wrap=water_as_bottom),
         Case(
             "lost-then-step",
-            "the DVL's lock lost for 30 min; back in a current 0.42 m/s stronger",
+            "the DVL's lock lost for 30 min; back in a current that stepped by 0.42 m/s (0.3 south, 0.3 east)",
             current=stepped_current,
             lock=lost_lock,
             scale=LONG,
