@@ -24,7 +24,9 @@ out of order (receive-time jitter between ports) are given back sorted; a record
 further back is skipped alone (``out_of_order``), and so is a record that jumps
 forward when the records after it do not follow it (a corrupted time: a forward
 outlier is judged by the records after it, so it never makes the rest of the file
-"go backwards").
+"go backwards"). A step back followed by the records after it is the clock of the
+logger set back (:data:`STEP_RECORDS`): the records from the step on are shifted
+forward to follow the ones before it, and the step is reported.
 """
 
 from __future__ import annotations
@@ -135,6 +137,14 @@ CONFIRM_RECORDS = 3
 """How many records after a forward jump in time may fail to follow it before it is judged
 a bad time (``out_of_order``); one that follows it makes the jump real."""
 
+STEP_RECORDS = 10
+"""How many records from a step back in time on must follow one another (none back on
+the time before the step) for it to be judged the logger's clock set back: the records
+from the step on are shifted to follow the ones before it (:attr:`CaptureReader.steps`).
+Fewer, and each is a bad time (``out_of_order``): one record with a wrong time, or a few,
+cost themselves; a clock set back (a logger's clock corrected by NTP or GNSS time in the
+middle of a recording) cost every record after it, half a capture."""
+
 REORDER_WINDOW_S = 0.2
 """Default of ``reorder_window_s``: how far (s) a record may come before one it follows and
 still be put back in order (receive-time jitter of a busy machine is tens of ms)."""
@@ -177,6 +187,10 @@ class _Order:
         """A record that jumped forward, being judged."""
         self.followers: list[_Scanned] = []
         """The records after it that do not follow it."""
+        self.back: list[_Scanned] = []
+        """A step back in time and the records after it that follow it, being judged."""
+        self.shift = 0.0
+        """What the steps judged the logger's clock set back add to every time from them on, s."""
 
     def push(self, rec: _Scanned) -> list[_Scanned]:
         """Take one record; return the records it releases, in time order."""
@@ -200,6 +214,8 @@ class _Order:
                     self.held, self.followers = None, []
                 continue
             top = self.top
+            if self.back and t >= top - window:  # not after the step back: bad times
+                self._drop_back()
             if t > top + window:  # a jump forward (or the first record): judge it
                 self.held = rec
                 continue
@@ -210,12 +226,7 @@ class _Order:
                     out.append(buf.popleft())
                 continue
             if t < top - window:
-                self.reader._skip(
-                    rec[4],
-                    _BadRecordError(
-                        "out_of_order", f"time {t:.6f} more than {window:g} s before {top:.6f}"
-                    ),
-                )
+                queue.extendleft(reversed(self._behind(rec)))
                 continue
             i = len(buf)  # within the window: put it back in its place
             while i and buf[i - 1][0] > t:
@@ -224,10 +235,44 @@ class _Order:
             self.reader.reordered += 1
         return out
 
+    def _behind(self, rec: _Scanned) -> list[_Scanned]:
+        """Judge a record more than the window before the newest time: the records to take
+        again, shifted, once :data:`STEP_RECORDS` of them make a step back the clock's."""
+        back = self.back
+        if back and rec[0] < back[-1][0] - self.window:  # follows neither: a bad time
+            self._out_of_order(rec)
+            return []
+        back.append(rec)
+        if len(back) < STEP_RECORDS:
+            return []
+        step = self.top - back[0][0]  # the clock was set back: shift the rest
+        self.reader._stepped(back[0], step)
+        self.shift += step
+        again = [(r[0] + step, *r[1:]) for r in back]
+        back.clear()
+        return again
+
+    def _drop_back(self) -> None:
+        """The records held after a step back, each a bad time (``out_of_order``)."""
+        for r in self.back:
+            self._out_of_order(r)
+        self.back.clear()
+
+    def _out_of_order(self, rec: _Scanned) -> None:
+        self.reader._skip(
+            rec[4],
+            _BadRecordError(
+                "out_of_order",
+                f"time {rec[0]:.6f} more than {self.window:g} s before {self.top:.6f}",
+            ),
+        )
+
     def end(self) -> list[_Scanned]:
         """The end of the records: judge a jump still held (it stands unless records after
-        it contradict it), then give back the window."""
+        it contradict it), then give back the window (a step back too few records long
+        for a clock set back: bad times)."""
         out: list[_Scanned] = []
+        self._drop_back()
         while self.held is not None:
             held, followers = self.held, self.followers
             self.held, self.followers = None, []
@@ -299,6 +344,9 @@ class CaptureReader:
         self.ports: dict[str, str] = {}
         self.skipped: dict[str, int] = {}
         self.skipped_lines: list[tuple[int, str]] = []
+        self.steps: list[tuple[int, float]] = []
+        """The steps back of the logger's clock the last (or current) iteration found
+        (:data:`STEP_RECORDS`): (line, s); the records from each on are shifted by it."""
         try:
             with _open_binary(self.path) as f:
                 self._read_header(f)
@@ -311,12 +359,13 @@ class CaptureReader:
         return sum(self.skipped.values())
 
     def skip_report(self) -> dict[str, object]:
-        """``{"skipped": n, "reasons": {reason: n}, "reordered": n, "first": [{"line",
-        "error"}]}``."""
+        """``{"skipped": n, "reasons": {reason: n}, "reordered": n, "steps": [{"line",
+        "step_s"}], "first": [{"line", "error"}]}``."""
         return {
             "skipped": self.n_skipped,
             "reasons": dict(self.skipped),
             "reordered": self.reordered,
+            "steps": [{"line": n, "step_s": step} for n, step in self.steps],
             "first": [{"line": n, "error": msg} for n, msg in self.skipped_lines],
         }
 
@@ -377,13 +426,16 @@ class CaptureReader:
         self.skipped = {}
         self.skipped_lines = []
         self.reordered = 0
+        self.steps = []
         window = self.reorder_window_s
         order = _Order(self, window)
         buf = order.buf
         for rec in self._parse():
+            if order.shift:
+                rec = (rec[0] + order.shift, *rec[1:])
             t = rec[0]
             top = order.top
-            if top <= t <= top + window and order.held is None:
+            if top <= t <= top + window and order.held is None and not order.back:
                 order.top = t
                 buf.append(rec)
                 limit = t - window
@@ -392,6 +444,12 @@ class CaptureReader:
                 continue
             yield from order.push(rec)
         yield from order.end()
+
+    def _stepped(self, rec: _Scanned, step: float) -> None:
+        """The logger's clock judged set back by ``step`` s at ``rec`` (raise mode: an error)."""
+        if self.errors == "raise":
+            raise self._fail(rec[4], f"time {rec[0]:.6f} steps back {step:.3f} s")
+        self.steps.append((rec[4], step))
 
     def _jumped(self, rec: _Scanned, after: _Scanned) -> None:
         self._skip(

@@ -2,9 +2,13 @@
 
 Each port is a :class:`~drivers.io.port.SerialSource`, so a device that goes away is
 reopened as the daemon would (its events are handed to ``on_event``); every chunk is
-stamped with its receive time. A text port's bytes are split into lines, each stored
-verbatim; a binary port's chunks are stored as they came. Times never go backwards in
-the file: a chunk that arrives stamped earlier than the last one takes the last time.
+stamped with its receive time on the recording's timeline: the wall time at its start
+plus the monotonic time since, as the daemon stamps its data. A wall clock stepped
+back or forward meanwhile (NTP or GNSS time setting a computer that booted with a wrong
+clock, an operator) moves no stamp: stepped back an hour, every chunk of that hour took
+the last time written before the step, an hour of data at one instant. A text port's
+bytes are split into lines, each stored verbatim; a binary port's chunks are stored as
+they came. Times never go backwards in the file.
 """
 
 from __future__ import annotations
@@ -43,6 +47,8 @@ def record(
     should_stop: Callable[[], bool] = lambda: False,
     on_event: Callable[[PortEvent], object] = lambda ev: None,
     on_progress: Callable[[dict[str, int]], object] = lambda counts: None,
+    clock: Callable[[], float] = time.time,
+    monotonic: Callable[[], float] = time.monotonic,
 ) -> dict[str, int]:
     """Record ``specs`` into ``out`` until ``should_stop()``, ``duration_s`` or Ctrl-C.
 
@@ -54,6 +60,8 @@ def record(
         should_stop: polled at least every :data:`SELECT_TIMEOUT_S`.
         on_event: each port event (opened, lost, stale…).
         on_progress: the records written so far per port, after each wait.
+        clock: the wall clock, read once, at the start: it anchors the timeline.
+        monotonic: the clock the timeline advances with.
 
     Returns:
         The records written per port.
@@ -65,11 +73,19 @@ def record(
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         raise ValueError("port names must be unique")
+    epoch = clock() - monotonic()
+
+    def timeline() -> float:
+        return epoch + monotonic()
+
     sources = {
-        s.name: SerialSource(s.name, s.url, baudrate=s.baud, stale_timeout_s=stale_timeout_s)
+        s.name: SerialSource(
+            s.name, s.url, baudrate=s.baud, stale_timeout_s=stale_timeout_s, clock=timeline
+        )
         for s in specs
     }
     rec = _Recording(sources, {s.name: is_binary(s.protocol) for s in specs}, on_event)
+    rec.clock = timeline
     t_end = None if duration_s is None else time.monotonic() + duration_s
     try:
         for name, src in sources.items():
@@ -114,6 +130,8 @@ class _Recording:
         self.sel = selectors.DefaultSelector()
         self.registered: dict[str, int] = {}
         self.last_t = 0.0
+        self.clock: Callable[[], float] = time.time
+        """The recording's timeline (what the end's unterminated lines are stamped with)."""
 
     def watch(self) -> None:
         """Watch each port's current descriptor (a reopened port has a new one) and hand
@@ -152,4 +170,4 @@ class _Recording:
         """Each text port's unterminated line written as a chunk."""
         for name, buf in self.partial.items():
             if buf:
-                writer.write_chunk(max(time.time(), self.last_t), name, bytes(buf))
+                writer.write_chunk(max(self.clock(), self.last_t), name, bytes(buf))

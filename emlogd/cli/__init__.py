@@ -21,7 +21,14 @@ from collections.abc import Sequence
 from drivers import EmlogdError
 from emlogd import __version__
 from emlogd.cli import daemon, devices, offline
-from emlogd.cli.common import Handler, Parser, UsageError, progress_done, progress_start
+from emlogd.cli.common import (
+    Handler,
+    Parser,
+    UsageError,
+    open_std_streams,
+    progress_done,
+    progress_start,
+)
 
 __all__ = ["UsageError", "build_parser", "main"]
 
@@ -55,6 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; return the exit code."""
+    open_std_streams()  # started with them closed: /dev/null, not the next file opened
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

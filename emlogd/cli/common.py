@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -32,6 +33,39 @@ class Parser(argparse.ArgumentParser):
 
 Subparsers: TypeAlias = "argparse._SubParsersAction[Parser]"
 """What ``add_subparsers`` returns; each command group adds its commands to it."""
+
+
+STD_STREAMS = (
+    ("stdin", os.O_RDONLY, "r"),
+    ("stdout", os.O_WRONLY, "w"),
+    ("stderr", os.O_WRONLY, "w"),
+)
+"""The standard streams by descriptor (0, 1, 2): name, how ``/dev/null`` is opened for
+it and the mode of its stream."""
+
+
+def open_std_streams() -> list[str]:
+    """Give each standard descriptor (0, 1, 2) that is closed ``/dev/null``, and the
+    interpreter a stream on it; the names of those given, in order.
+
+    A process started with them closed (``emlogd run >&- 2>&-``, a script or a service
+    manager that closes them) has ``sys.stdout`` None, and the first descriptors it opens
+    take their numbers: a port, the state file or a client's socket written to as the
+    standard output.
+    """
+    given = []
+    for fd, (name, flags, mode) in enumerate(STD_STREAMS):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, flags)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+            given.append(name)
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(fd, mode, encoding="utf-8", closefd=False))  # noqa: SIM115
+    return given
 
 
 def is_tty(stream: Any) -> bool:

@@ -91,6 +91,15 @@ FIELDS: dict[str, tuple[type, str]] = {
 }
 """The keys a request may have, with their type."""
 
+KEYS_OF: dict[str, tuple[str, ...]] = {
+    "status": ("cmd", "port"),
+    "freeze": ("cmd", "port"),
+    "learn": ("cmd", "port", "on"),
+    "reset": ("cmd", "port"),
+}
+"""The keys each command takes: another is refused (``{"cmd": "freeze", "on": false}``, an
+unfreeze meant, froze)."""
+
 
 def nesting(line: bytes) -> int:
     """The deepest nesting of ``[`` and ``{`` in a JSON text (brackets in strings ignored)."""
@@ -148,8 +157,13 @@ def check_request(req: object, commands: Sequence[str] = COMMANDS) -> str:
         kind, what = FIELDS[key]
         if not isinstance(value, kind):
             return f"{key!r} must be {what}"
-    if req.get("cmd") not in commands:
+    cmd = req.get("cmd")
+    if cmd not in commands:
         return f"unknown cmd; valid here: {', '.join(commands)}"
+    keys = KEYS_OF.get(str(cmd), tuple(FIELDS))
+    extra = [k for k in req if k not in keys]
+    if extra:
+        return f"{cmd} takes no {extra[0]!r}; its keys: {', '.join(keys)}"
     return ""
 
 

@@ -7,8 +7,9 @@ descriptors (serial sources, output sinks, control socket, a self-pipe for
 signals), the clock, sd_notify and the state file; everything else happens in
 :class:`~emlogd.pipeline.core.Pipeline`, the same object ``emlogd replay`` drives.
 
-Signals: SIGTERM/SIGINT persist the good calibrations, close everything and exit
-0; SIGHUP reloads the config (a bad new config is logged and the old one kept).
+Signals (:mod:`emlogd.daemon.signals`): SIGTERM/SIGINT persist the good calibrations,
+close everything and exit 0; SIGHUP reloads the config (a bad new config is logged and
+the old one kept); SIGUSR1/SIGUSR2 are logged and change nothing.
 A sensor missing at start is a status, not a crash: its source retries with
 backoff and is opened when it appears. Bad input is counted by the decoders; a
 failure while the pipeline handles one chunk is contained (:mod:`emlogd.contain`:
@@ -25,7 +26,6 @@ import math
 import os
 import select
 import selectors
-import signal
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -36,6 +36,7 @@ from drivers.errors import DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
+from emlogd.daemon import signals
 from emlogd.daemon.configload import ConfigLoad, why_not_loaded
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
@@ -125,6 +126,7 @@ class Daemon:
         self.notifier = Notifier.from_env()
         self.stop = False
         self.reload = False
+        self.unused = signals.Unused()
         self.next_reload = -math.inf
         self.loading: ConfigLoad | None = None
         """The reloaded config being parsed beside the loop (None: no reload under way)."""
@@ -175,9 +177,7 @@ class Daemon:
             self._loop()
         finally:
             self._shutdown()
-            for sig, handler in old.items():
-                signal.signal(sig, handler)
-            signal.set_wakeup_fd(-1)
+            signals.restore(old)
             os.close(self._wake_r)
             os.close(self._wake_w)
         return 0
@@ -189,19 +189,9 @@ class Daemon:
         def on_hup(signum: int, frame: FrameType | None) -> None:
             self.reload = True
 
-        old: dict[int, Any] = {
-            signal.SIGTERM: signal.signal(signal.SIGTERM, on_stop),
-            signal.SIGINT: signal.signal(signal.SIGINT, on_stop),
-            signal.SIGHUP: signal.signal(signal.SIGHUP, on_hup),
-        }
-        signal.set_wakeup_fd(self._wake_w, warn_on_full_buffer=False)
-        self._watch(self._wake_r, self._drain_wakeup)
+        old = signals.install(on_stop, on_hup, self.unused, self._wake_w)
+        self._watch(self._wake_r, functools.partial(signals.drain, self._wake_r))
         return old
-
-    def _drain_wakeup(self) -> None:
-        with contextlib.suppress(BlockingIOError, InterruptedError):
-            while os.read(self._wake_r, 512):
-                pass
 
     def _start(self) -> None:
         cfg = self.config
@@ -349,6 +339,7 @@ class Daemon:
         for server in self.controls.values():
             server.housekeep()
         self.outputs.housekeep()
+        self.unused.log(self.log, self.monotonic())
         flush_log(0.0)  # log lines a slow reader left behind
         self._tick()
 

@@ -30,6 +30,7 @@ from emlogd.cli.offline.shared import (
     warn_envelope,
     warn_recs,
 )
+from emlogd.offline.headings import why_no_sample
 from emlogd.offline.jobs import OfflineError, evaluate, load_params
 from emlogd.offline.tables import fmt, render
 
@@ -58,6 +59,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         rows = evaluate(recs, cal.params, settings, lag_s)
     except DataError as exc:  # a model that cannot be inverted (m = -1): no corrected speed
         raise OfflineError(f"{args.params}: no corrected speed to score ({exc})") from None
+    if not any(r.n_samples for r in rows):  # nothing scored: no table of dashes, exit 0
+        raise OfflineError(why_no_sample(recs, settings, lag_s))
+    for r in rows:
+        if not r.n_samples:
+            sys.stderr.write(f"emlogd {args.command}: warning: {r.capture}: no sample scored\n")
     scores = [score_rec(truth, settings.port, r, cal.params) for r in recs]
     if args.json:
         doc = {

@@ -69,8 +69,16 @@ def truth_cells(score: TruthScore | None) -> list[str]:
 
 
 def warn_skips(command: str, skips: dict[str, dict[str, object]]) -> None:
-    """One warning line on stderr per capture with malformed records skipped."""
+    """One warning line on stderr per capture with malformed records skipped, and one per
+    step back of the logger's clock (the records after it shifted)."""
     for path, rep in skips.items():
+        steps = rep.get("steps")
+        for step in steps if isinstance(steps, list) else []:
+            sys.stderr.write(
+                f"emlogd {command}: warning: {path}:{step['line']}: the time steps back "
+                f"{step['step_s']:.3f} s (the logger's clock set back): the records from "
+                "there on are shifted to follow the ones before\n"
+            )
         n = rep.get("skipped", 0)
         if not isinstance(n, int) or n == 0:
             continue

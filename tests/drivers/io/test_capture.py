@@ -14,6 +14,7 @@ from drivers.errors import CaptureFormatError
 from drivers.io.capture import (
     MAGIC,
     MAX_LINE_BYTES,
+    STEP_RECORDS,
     CaptureReader,
     CaptureWriter,
     capture_name,
@@ -412,3 +413,40 @@ def test_a_line_of_many_megabytes_is_skipped_unheld(tmp_path: Path, where: str) 
     assert peak < 8 * MAX_LINE_BYTES, peak  # the line: 24 MiB
     with pytest.raises(CaptureFormatError, match=r":[34]: a line longer than"):
         list(CaptureReader(path))
+
+
+@pytest.mark.parametrize("step_s", [3600.0, 10.0])
+def test_a_clock_set_back_shifts_the_records_after_it(tmp_path: Path, step_s: float) -> None:
+    """The logger's clock set back an hour (or 10 s) half-way through, the records after
+    the step following one another: every record kept, in file order, the ones from the
+    step on shifted to follow the ones before it (0.1 s apart as written), the step
+    reported with its line; in raise mode the step is an error naming its line. Each
+    record after the step was skipped as out_of_order: half the capture."""
+    times = [T0 + 0.1 * k for k in range(300)] + [T0 + 30.0 - step_s + 0.1 * k for k in range(300)]
+    path = tmp_path / "stepped.cap"
+    _timed_capture(path, times)
+    got, reader = _read(path)
+    assert got == list(range(600)) and reader.n_skipped == 0
+    assert [r.t for r in CaptureReader(path, errors="skip")][300] == pytest.approx(times[299])
+    [(line, step)] = reader.steps
+    assert line == 304 and step == pytest.approx(step_s - 0.1)
+    assert reader.skip_report()["steps"] == [{"line": 304, "step_s": step}]
+    with pytest.raises(CaptureFormatError, match=r"stepped.cap:304: .* steps back"):
+        list(CaptureReader(path))
+
+
+def test_a_few_records_set_back_are_bad_times(tmp_path: Path) -> None:
+    """One short of ``STEP_RECORDS`` records an hour back, then the time before them again:
+    each is skipped as out_of_order, no step; so is a run that ends the file."""
+    times = [T0 + 0.1 * k for k in range(100)]
+    for k in range(50, 50 + STEP_RECORDS - 1):
+        times[k] -= 3600.0
+    path = tmp_path / "few.cap"
+    _timed_capture(path, times)
+    got, reader = _read(path)
+    bad = set(range(50, 50 + STEP_RECORDS - 1))
+    assert got == [k for k in range(100) if k not in bad] and not reader.steps
+    assert reader.skipped == {"out_of_order": STEP_RECORDS - 1}
+    _timed_capture(path, times[: 50 + STEP_RECORDS - 1])
+    got, reader = _read(path)
+    assert got == list(range(50)) and reader.skipped == {"out_of_order": STEP_RECORDS - 1}

@@ -69,3 +69,33 @@ def test_should_stop_ends_the_recording(pty_pair: tuple[int, int, str], tmp_path
     )
     assert counts == {"log": 0}
     assert time.monotonic() - t0 < 5.0
+
+
+def test_a_wall_clock_stepped_back_moves_no_stamp(
+    pty_pair: tuple[int, int, str], tmp_path: Path
+) -> None:
+    """The wall clock stepped back an hour just after the recording starts (NTP or GNSS
+    time setting a computer that booted with a wrong clock): the records are stamped on
+    the timeline anchored at the start, 0.3 s apart as they came. Stamped with the wall
+    clock, every record of that hour took the last time written before the step."""
+    master, _slave, path = pty_pair
+    out = tmp_path / "rec.cap"
+    start = time.time()
+    reads = iter([start])
+
+    def stepped() -> float:
+        return next(reads, time.time() - 3600.0)
+
+    def talk() -> None:
+        for speed in (b"3.50,N,6.48", b"3.60,N,6.67"):
+            time.sleep(0.3)
+            os.write(master, b"$VWVHW,,T,,M," + speed + b",K*6A\r\n")
+
+    writer = threading.Thread(target=talk)
+    writer.start()
+    record([PortSpec("log", path, 4800, "nmea0183")], out, duration_s=1.2, clock=stepped)
+    writer.join()
+    recs = list(CaptureReader(out))
+    assert len(recs) == 2
+    assert recs[0].t >= start
+    assert recs[1].t - recs[0].t == pytest.approx(0.3, abs=0.2)

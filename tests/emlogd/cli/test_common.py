@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import argparse
 import io
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 
 from emlogd.cli import common
 from emlogd.cli.common import config_path, progress, progress_done, progress_start
 from emlogd.config import DEFAULT_PATH
+
+ROOT = Path(__file__).resolve().parents[3]
 
 
 class _Terminal(io.StringIO):
@@ -43,3 +49,35 @@ def test_config_path_defaults_to_the_system_config() -> None:
     assert config_path(argparse.Namespace(config="x.yaml")) == "x.yaml"
     assert config_path(argparse.Namespace(config=None)) == str(DEFAULT_PATH)
     assert config_path(argparse.Namespace()) == str(DEFAULT_PATH)
+
+
+def close_std() -> None:
+    """Close descriptors 0, 1 and 2 (in a child before its exec)."""
+    for fd in (0, 1, 2):
+        os.close(fd)
+
+
+_PROBE = """
+import os, sys
+from emlogd.cli.common import open_std_streams
+given = open_std_streams()
+fd = os.open(sys.argv[1], os.O_WRONLY | os.O_CREAT)  # the next file opened
+os.write(fd, f"{given} {fd} {sys.stdout is not None}".encode())
+print("to /dev/null")
+"""
+
+
+def test_closed_standard_descriptors_are_given_dev_null(tmp_path: Path) -> None:
+    """A process started with descriptors 0, 1 and 2 closed gets ``/dev/null`` on each
+    and a stream on it: the next file it opens is not taken for its standard output, and
+    a print goes nowhere without an error."""
+    out = tmp_path / "probe.txt"
+    done = subprocess.run(
+        [sys.executable, "-c", _PROBE, str(out)],
+        preexec_fn=close_std,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        check=False,
+        timeout=60,
+    )
+    assert done.returncode == 0
+    assert out.read_text() == "['stdin', 'stdout', 'stderr'] 3 True"

@@ -87,6 +87,21 @@ def test_bad_requests_are_answered_not_fatal(loop: _Loop, tmp_path: Path) -> Non
     assert request(path, {"cmd": "freeze"})["ok"] is True
 
 
+def test_a_key_the_command_does_not_take_is_refused(loop: _Loop, tmp_path: Path) -> None:
+    """``{"cmd": "freeze", "on": false}`` (an unfreeze meant) and ``"on"`` with ``status``
+    or ``reset`` are refused naming the key and the command's keys, and never reach the
+    handler: the freeze was carried out, the ``on`` ignored."""
+    path = tmp_path / "run" / "control.sock"
+    for cmd in ("freeze", "status", "reset"):
+        answer = request(path, {"cmd": cmd, "on": False})
+        assert answer == {
+            "ok": False,
+            "error": f"{cmd} takes no 'on'; its keys: cmd, port",
+        }, answer
+    assert loop.seen == []
+    assert request(path, {"cmd": "learn", "port": "emlog1", "on": True})["ok"] is True
+
+
 def test_an_endless_line_drops_the_client(loop: _Loop, tmp_path: Path) -> None:
     """A request longer than MAX_REQUEST without a newline is answered 'request too long' and the
     connection closed; other clients are still served."""

@@ -66,3 +66,29 @@ def test_a_calibration_outside_the_envelope(
     assert "internal error" not in err
     if m < 0:
         assert f"emlogd evaluate: error: {params}: no corrected speed" in err, err
+
+
+def test_captures_with_no_sample_to_score(
+    capsys: pytest.CaptureFixture[str], trial_files: dict[str, Path], tmp_path: Path
+) -> None:
+    """Captures holding the reference's records only (the log's port silent), or their
+    header only: one error line saying why nothing is scored, exit 1, in text and JSON;
+    such a capture beside a good one is scored 0 with a warning naming it. Both were a
+    table of dashes (or JSON of zero samples) and exit 0."""
+    lines = trial_files["straight"].read_text().splitlines(keepends=True)[:20000]
+    cap, ref_only, header = (tmp_path / f"{n}.cap" for n in ("good", "ref-only", "header"))
+    cap.write_text("".join(lines))
+    params = tmp_path / "p.yaml"
+    base = ["--uut", "emlog1", "--ref", "dvl", "--lag", "3.3"]
+    assert main(["calibrate", str(cap), *base, "--save", str(params)]) == 0
+    ref_only.write_text("".join(ln for ln in lines if " emlog" not in ln or ln.startswith("#")))
+    header.write_text("".join(ln for ln in lines if ln.startswith("#")))
+    capsys.readouterr()
+    for path in (ref_only, header):
+        for extra in ([], ["--json"]):
+            assert main(["evaluate", str(path), "--params", str(params), *extra]) == 1
+            out = capsys.readouterr()
+            assert "no VHW reading of the log arrived on port 'emlog1'" in out.err, out.err
+            assert out.out == ""
+    assert main(["evaluate", str(cap), str(header), "--params", str(params)]) == 0
+    assert f"warning: {header}: no sample scored" in capsys.readouterr().err

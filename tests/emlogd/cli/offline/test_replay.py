@@ -205,3 +205,28 @@ def test_a_log_sending_another_sentence_than_configured_is_told(
         assert "emlog1:" not in err, err
     else:
         assert warning in err, err
+
+
+def test_a_clock_set_back_is_warned_and_its_records_replayed(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A capture whose logger's clock was set back an hour half-way: ``replay`` reads
+    every record (the half after the step was skipped as ``out_of_order``), reports the
+    step in ``capture_skips`` and warns naming its line."""
+    from drivers.nmea0183 import encode_vhw
+
+    lines = ["# emlogd capture v1", "# port emlog1 nmea0183", "# port log2 nmea0183"]
+    for k in range(400):
+        t = 1_700_000_000.0 + 0.05 * k - (3600.0 if k >= 200 else 0.0)
+        lines.append(f"({t:.6f}) {('emlog1', 'log2')[k % 2]} {encode_vhw(2.0 + 0.01 * (k % 3))}")
+    cap = tmp_path / "stepped.cap"
+    cap.write_text("\n".join(lines) + "\n")
+    cfg = _log2_config(tmp_path)
+    argv = ["replay", str(cap), "--config", str(cfg), "--json", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    skips = doc["capture_skips"][str(cap)]
+    assert skips["skipped"] == 0 and [s["line"] for s in skips["steps"]] == [204]
+    assert doc["ports"]["emlog1"]["records"] == 200
+    assert f"{cap}:204: the time steps back 3599.950 s" in captured.err

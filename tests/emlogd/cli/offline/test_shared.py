@@ -37,6 +37,7 @@ def test_malformed_records_are_skipped_or_strict(
         "skipped": 3,
         "reasons": {"missing_payload": 1, "bad_time": 1, "non_ascii": 1},
         "reordered": 0,
+        "steps": [],
         "first": [
             {"line": 1001, "error": "missing payload"},
             {"line": 2002, "error": "bad time '17497169x0.000000'"},

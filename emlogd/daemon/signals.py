@@ -1,0 +1,90 @@
+"""The daemon's signals: which it handles and how.
+
+SIGTERM and SIGINT stop the daemon (the good calibrations persisted), SIGHUP reloads
+its config; the handlers only set flags, and every handled signal wakes the loop
+through a self-pipe (``signal.set_wakeup_fd``). SIGUSR1 and SIGUSR2, whose default
+action ends a process, mean nothing to the daemon: one sent to it by mistake (a
+logrotate ``postrotate`` script's ``kill -USR1`` meant for another service, a
+``systemctl kill`` of the wrong unit) is counted and logged (:class:`Unused`) and the
+daemon runs on. SIGPIPE is ignored by the interpreter (a write to a peer that went away
+is an ``EPIPE`` error the outputs handle).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+from collections import Counter
+from collections.abc import Callable
+from types import FrameType
+from typing import Any
+
+Handler = Callable[[int, FrameType | None], None]
+
+UNUSED_SIGNALS = (signal.SIGUSR1, signal.SIGUSR2)
+"""Signals whose default action ends the process and that the daemon has no use for."""
+
+UNUSED_LOG_S = 10.0
+"""Least time between two ``signal_ignored`` log lines, s: a storm of such signals is
+one line per interval, with the count of each signal since the line before."""
+
+
+class Unused:
+    """The unused signals received: counted in the handler (no I/O there), logged by
+    the loop (:meth:`log`)."""
+
+    def __init__(self) -> None:
+        self.pending: Counter[str] = Counter()
+        """Each unused signal's count since the last log line, by name."""
+        self.total = 0
+        """Every unused signal received."""
+        self.next_log = -math.inf
+
+    def handler(self, signum: int, frame: FrameType | None) -> None:
+        """The handler of :data:`UNUSED_SIGNALS`: count it."""
+        self.pending[signal.Signals(signum).name] += 1
+        self.total += 1
+
+    def log(self, log: Any, now: float) -> None:
+        """Log the signals counted since the last line (``signal_ignored``), at most
+        once per :data:`UNUSED_LOG_S` (``now``: monotonic, s)."""
+        if not self.pending or now < self.next_log:
+            return
+        counts, self.pending = self.pending, Counter()
+        self.next_log = now + UNUSED_LOG_S
+        log.warning(
+            "signal_ignored",
+            signals=dict(counts),
+            total=self.total,
+            detail="emlogd has no use for it: SIGHUP reloads the config, SIGTERM stops",
+        )
+
+
+def install(on_stop: Handler, on_hup: Handler, unused: Unused, wake_fd: int) -> dict[int, Any]:
+    """Install the daemon's handlers and the wake-up descriptor; the handlers they
+    replaced, by signal (:func:`restore` puts them back)."""
+    old: dict[int, Any] = {
+        signal.SIGTERM: signal.signal(signal.SIGTERM, on_stop),
+        signal.SIGINT: signal.signal(signal.SIGINT, on_stop),
+        signal.SIGHUP: signal.signal(signal.SIGHUP, on_hup),
+    }
+    for sig in UNUSED_SIGNALS:
+        old[sig] = signal.signal(sig, unused.handler)
+    signal.set_wakeup_fd(wake_fd, warn_on_full_buffer=False)
+    return old
+
+
+def restore(old: dict[int, Any]) -> None:
+    """Put back the handlers :func:`install` replaced; no wake-up descriptor."""
+    for sig, handler in old.items():
+        signal.signal(sig, handler)
+    signal.set_wakeup_fd(-1)
+
+
+def drain(fd: int) -> None:
+    """Empty the (non-blocking) wake-up pipe's read end ``fd``."""
+    with contextlib.suppress(BlockingIOError, InterruptedError):
+        while os.read(fd, 512):
+            pass

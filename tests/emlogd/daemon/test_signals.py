@@ -1,0 +1,90 @@
+"""The daemon's signals (:mod:`emlogd.daemon.signals`): a signal it has no use for is
+counted and logged, never the end of the daemon."""
+
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+from typing import Any
+
+from emlogd.daemon.signals import UNUSED_LOG_S, UNUSED_SIGNALS, Unused, drain, install, restore
+from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, raw_pty, wait
+
+
+class _Log:
+    def __init__(self) -> None:
+        self.lines: list[tuple[str, dict[str, Any]]] = []
+
+    def warning(self, event: str, **kw: Any) -> None:
+        self.lines.append((event, kw))
+
+
+def test_unused_signals_are_counted_and_logged_once_per_interval() -> None:
+    """Each unused signal counted by name; one ``signal_ignored`` line per
+    ``UNUSED_LOG_S`` with the counts since the line before, none when none came."""
+    unused, log = Unused(), _Log()
+    for _ in range(3):
+        unused.handler(signal.SIGUSR1, None)
+    unused.handler(signal.SIGUSR2, None)
+    unused.log(log, 100.0)
+    unused.handler(signal.SIGUSR1, None)
+    unused.log(log, 100.0 + UNUSED_LOG_S / 2)  # too soon: kept for the next line
+    unused.log(log, 100.0 + UNUSED_LOG_S)
+    unused.log(log, 100.0 + 3 * UNUSED_LOG_S)  # nothing new: no line
+    assert [kw["signals"] for _, kw in log.lines] == [{"SIGUSR1": 3, "SIGUSR2": 1}, {"SIGUSR1": 1}]
+    assert {e for e, _ in log.lines} == {"signal_ignored"}
+    assert unused.total == 5
+
+
+def test_install_handles_the_unused_signals_and_restore_puts_back() -> None:
+    """Installed, SIGUSR1 and SIGUSR2 are counted in this process (their default action
+    would end it) and wake the loop's pipe; restored, the handlers before are back."""
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, *UNUSED_SIGNALS)}
+    r, w = os.pipe()
+    os.set_blocking(r, False)
+    os.set_blocking(w, False)
+    unused = Unused()
+    stops: list[int] = []
+    old = install(lambda s, f: stops.append(s), lambda s, f: None, unused, w)
+    try:
+        for sig in UNUSED_SIGNALS:
+            os.kill(os.getpid(), sig)
+        assert unused.total == 2
+        assert os.read(r, 16)  # the loop would wake
+        os.write(w, b"x" * 100)
+        drain(r)
+        assert not stops
+    finally:
+        restore(old)
+        os.close(r)
+        os.close(w)
+    assert {sig: signal.getsignal(sig) for sig in before} == before
+
+
+def test_sigusr1_and_sigusr2_do_not_end_the_live_daemon(tmp_path: Path) -> None:
+    """SIGUSR1 and SIGUSR2, five each, to the running daemon: it answers, logs
+    ``signal_ignored`` with their counts, and SIGTERM still persists and exits 0. SIGUSR1
+    ended it at once (killed by the signal: no calibration persisted, the control
+    socket and the pty link left behind)."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    try:
+        d = Daemon(work)
+        try:
+            for _ in range(5):
+                for sig in UNUSED_SIGNALS:
+                    d.send_signal(sig)
+            wait(lambda: d.events("signal_ignored") > 0, "a signal_ignored line", 10.0)
+            assert d.running
+            assert d.status()["ports"]
+            text = d.log_path.read_text()
+            assert '"SIGUSR1": ' in text and '"SIGUSR2": ' in text  # (a signal pending coalesces)
+            assert d.stop() == 0
+            assert d.events("calibration_persisted") == 1
+            assert not (work / "run" / "control.sock").exists()
+        finally:
+            d.kill()
+    finally:
+        for fd in masters:
+            os.close(fd)
