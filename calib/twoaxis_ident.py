@@ -11,8 +11,10 @@
    one unknown, and a nuisance offset per axis takes their sum;
 3. the **misalignment** needs the speed through the water to vary: its signature on
    the transverse axis is ``−(1 + m_t)·sin α·u``, which at constant u is a constant
-   — the transverse bias and the current across the hull again. A straight run
-   at one throttle setting refuses it, with the reason;
+   — the transverse bias again, and on one heading the current across the hull
+   too (where the heading turns, the current turns with it in the hull frame and
+   is told apart: the reason then names the bias alone). A straight run or
+   circles at one throttle setting refuse it, with the reason;
 4. the **transverse scale** needs the transverse speed through the water (the sway
    of turns) to vary apart from the forward speed by ``min_transverse_std_mps``
    (:func:`sway_apart_from_surge`); without it the misalignment is
@@ -294,6 +296,34 @@ def sway_apart_from_surge(u_mps: FloatArray, w_mps: FloatArray) -> tuple[float, 
     return float(coef[0]), float(coef[1]), float(np.std(rest))
 
 
+RUNS_AT_SPEEDS = "runs at different speeds tell them apart"
+"""What an operator can sail to separate the misalignment from the offsets, in its
+refusal's reason at one speed."""
+
+
+def _alpha_at_one_speed(spread_mps: float, with_current: bool) -> str:
+    """α's reason at one speed (rule 3): the sideways reading a misalignment makes,
+    ``−sin α·u``, is then a constant, as the transverse bias is, and on one heading
+    (``with_current``: the current refused for the heading's sectors) as the current
+    across the hull is too; where the heading turned (circles one way at one
+    throttle) the current turns with it in the hull frame and is told apart, so the
+    reason names the bias alone."""
+    if with_current:
+        return (
+            "misalignment not separable from the transverse bias and the current: "
+            f"speed through water nearly constant (spread {spread_mps:.2f} m/s) on one "
+            "heading, so the sideways reading a misalignment makes, the transverse bias "
+            "and the current across the hull are one steady offset; turns and "
+            f"{RUNS_AT_SPEEDS}"
+        )
+    return (
+        "misalignment not separable from the transverse bias: speed through water "
+        f"nearly constant (spread {spread_mps:.2f} m/s), so the sideways reading a "
+        "misalignment makes is one steady offset, as the bias is (the current, turning "
+        f"with the heading, is told apart); {RUNS_AT_SPEEDS}"
+    )
+
+
 def _misalign_rules(
     u: FloatArray, w: FloatArray, std_u: float, rule: TwoAxisRule, refused: dict[str, str]
 ) -> None:
@@ -301,10 +331,7 @@ def _misalign_rules(
     transverse scale the sway apart from the surge; without the transverse scale, no
     misalignment."""
     if std_u < rule.min_speed_std_misalign_mps:
-        refused[ALPHA] = (
-            "misalignment not separable from the transverse bias and the current: "
-            f"speed through water nearly constant (spread {std_u:.2f} m/s)"
-        )
+        refused[ALPHA] = _alpha_at_one_speed(std_u, CURRENT in refused)
     c, k, rest = sway_apart_from_surge(u, w)
     if rest < rule.min_transverse_std_mps:
         refused[M_T] = (

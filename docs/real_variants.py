@@ -27,7 +27,12 @@ Each variant is imported, calibrated (LS and KF, ``--ref-field gnss --current``,
 ``--variation``) and replayed (``examples/emlogd-gnss.yaml``, ``lag: auto``), and its
 row set beside the unperturbed recording's: the effective scale at the unperturbed
 median speed (LS and KF, and their change), the replay's emitted/raw RMSE against
-the GNSS water speed and its worst 5-min ratio. :func:`verdict` names what moved: a
+the GNSS water speed and its worst 5-min ratio. A variant that moves the ground alone
+(a tidal current added to the GNSS: ``ground_only``) is scored against the unperturbed
+recording's GNSS water speed, its water being that one: the water speed estimated from
+its own GNSS takes the current as constant over half-hour windows, and a 3-kn tide
+turning over 12.42 h moves by up to 0.4 m/s in one (its scores from its own GNSS are
+kept beside, ``scores_own_gnss``). :func:`verdict` names what moved: a
 step that failed, a scale more than :data:`MAX_SCALE_SHIFT` from the unperturbed run,
 a replay worse than raw over the log, a 5-min window worse than both the unperturbed
 run's and :data:`WINDOW_TOLERANCE` by more than :data:`WINDOW_SLACK`.
@@ -48,6 +53,7 @@ from types import ModuleType
 from typing import Any
 
 import variants_csv as vcsv
+import variants_lines as vl
 from variants_csv import add_current as add_current  # the tests' tide
 from variants_nmea import GAP_S as GAP_S  # the tests' gap
 from variants_nmea import (
@@ -121,6 +127,10 @@ class Variant:
     make: Callable[[str], str]
     tests: str
     options: Callable[[str], list[str]] = lambda _text: []
+    ground_only: bool = False
+    """The rewrite moves the ground alone (a current added to the GNSS), every line
+    kept in place: the water is the unperturbed recording's, and the replay is scored
+    against the unperturbed recording's GNSS water speed (:func:`run_one`)."""
 
 
 def _nm(fn: Callable[[list[str]], list[str] | None]) -> Callable[[str], str]:
@@ -179,12 +189,19 @@ VARIANTS: tuple[Variant, ...] = (
         "midnight crossed with GGA times of day and no ZDA",
         lambda text: ["--date", midnight_date(text)],
     ),
-    Variant("tide", "nmea", _nm(tidal_rmc), "a 1.5-kn tidal current turning over 12.42 h"),
+    Variant(
+        "tide",
+        "nmea",
+        _nm(tidal_rmc),
+        "a 1.5-kn tidal current turning over 12.42 h",
+        ground_only=True,
+    ),
     Variant(
         "tide-strong",
         "nmea",
         _nm(lambda f: tidal_rmc(f, STRONG_TIDE)),
         "a 3-kn tidal current (a tidal race, a fjord's narrows)",
+        ground_only=True,
     ),
     Variant(
         "tide-gnss-0.5hz",
@@ -218,6 +235,32 @@ VARIANTS: tuple[Variant, ...] = (
         "$PASHR, an INS's attitude, the only heading",
     ),
     Variant("vbw", "nmea", _nm(vbw), "VBW instead of VHW (a log sending VBW alone)"),
+    *(
+        Variant(f"stamp-{name}", "nmea", vl.stamped(name), f"a receive time ({name}) first")
+        for name in vl.STAMPS
+    ),
+    Variant("cr", "nmea", line_endings("\r"), "CR line endings alone"),
+    Variant("bom", "nmea", lambda text: "\ufeff" + text, "a UTF-8 byte-order mark"),
+    Variant("nul-padded", "nmea", vl.nul_padded, "NULs after each line and ending the file"),
+    Variant("split-lines", "nmea", vl.split_lines, "sentences split over two lines"),
+    Variant("ais", "nmea", vl.with_ais, "AIS sentences (!AIVDM) mixed in"),
+    Variant("doubled", "nmea", vl.doubled, "every line logged twice"),
+    Variant("log-0.2hz", "nmea", vhw_every(4), "every 4th VHW: the log at about 0.2 Hz"),
+    Variant(
+        "rmc-no-date",
+        "nmea",
+        vl.rmc_no_date,
+        "RMC without its date (given by --date)",
+        lambda text: ["--date", first_date(text)],
+    ),
+    Variant("midnight-rmc", "nmea", vl.midnight_rmc, "midnight crossed, RMC with its dates"),
+    Variant(
+        "midnight-rmc-no-date",
+        "nmea",
+        vl.midnight_rmc_no_date,
+        "midnight crossed by RMC without a date (--date the first fix's)",
+        lambda text: ["--date", midnight_date(text)],
+    ),
     Variant(
         "set-drift",
         "expedition-csv",
@@ -233,6 +276,16 @@ VARIANTS: tuple[Variant, ...] = (
     ),
     Variant("reordered", "expedition-csv", vcsv.columns(vcsv.reverse), "another column order"),
     Variant("extra-columns", "expedition-csv", vcsv.columns(vcsv.extra), "extra columns"),
+    Variant(
+        "hdg-magnetic",
+        "expedition-csv",
+        vcsv.columns(vcsv.magnetic_heading),
+        "the compass's magnetic heading (HdgMag) and a MagVar column instead of Hdg",
+    ),
+    Variant("subset", "expedition-csv", vcsv.columns(vcsv.subset), "five columns, reordered"),
+    Variant(
+        "duplicate-rows", "expedition-csv", vcsv.columns(vcsv.duplicate_rows), "each row twice"
+    ),
     Variant("semicolon", "expedition-csv", vcsv.semicolon, "';' delimiter and decimal commas"),
     Variant("quoted", "expedition-csv", vcsv.quoted, "every cell quoted"),
     Variant("bom-crlf", "expedition-csv", vcsv.bom_crlf, "a byte-order mark and CRLF"),
@@ -243,7 +296,13 @@ VARIANTS: tuple[Variant, ...] = (
         "Sog/Cog written every 2 s (a 0.5 Hz GNSS)",
     ),
     Variant("sog-0.2hz", "expedition-csv", vcsv.sparse_gnss(5.0), "Sog/Cog written every 5 s"),
-    Variant("tide", "expedition-csv", vcsv.columns(vcsv.tidal_cells), "a 1.5-kn tidal current"),
+    Variant(
+        "tide",
+        "expedition-csv",
+        vcsv.columns(vcsv.tidal_cells),
+        "a 1.5-kn tidal current",
+        ground_only=True,
+    ),
     Variant(
         "utc-text-us",
         "expedition-csv",
@@ -339,9 +398,30 @@ def run_one(src: Path, text: str, variant: Variant | None, out: Path) -> dict[st
     else:
         try:
             row["scores"] = rd.water_scores(cap, emitted)
-        except ValueError as exc:
+            if variant is not None and variant.ground_only:
+                row["scores_own_gnss"] = row["scores"]
+                row["scores"] = rd.water_scores(_truth(src, text, what, out), emitted)
+        except (ValueError, RuntimeError) as exc:
             row["errors"]["scores"] = str(exc)
     return row
+
+
+def _truth(src: Path, text: str, kind: str, out: Path) -> Path:
+    """The unperturbed recording imported, whose GNSS water speed scores a
+    ground-only variant's replay (the same lines at the same times, the same water).
+
+    Raises:
+        RuntimeError: the unperturbed recording does not import.
+    """
+    path = out / f"{src.stem}.truth{src.suffix}"
+    path.write_bytes(text.encode("latin-1", errors="replace"))
+    cap = out / f"{src.stem}.truth.cap.gz"
+    err = ""
+    for opts in import_options(kind, []):
+        rc, _, err = _real_data().emlogd(["import", str(path), *opts, "--out", str(cap)])
+        if rc == 0:
+            return cap
+    raise RuntimeError(f"the unperturbed recording does not import: {err.strip()[-200:]}")
 
 
 def scales(row: dict[str, Any], speed: float) -> tuple[float | None, float | None]:

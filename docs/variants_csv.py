@@ -85,6 +85,35 @@ def extra(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str
     return h + extra, [[*r, "1.0", "6.5", "93", "39.4", "tack"] for r in rows]
 
 
+VARIATION_DEG = 8.0
+"""The ``hdg-magnetic`` variant's variation, east positive (a Baltic one: large enough
+that a magnetic heading taken as true would show in the heading check)."""
+
+
+def magnetic_heading(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """``Hdg`` (true) rewritten as ``HdgMag`` (the compass's magnetic heading, true minus
+    :data:`VARIATION_DEG`) beside a ``MagVar`` column."""
+    hi = h.index("Hdg")
+    for r in rows:
+        with contextlib.suppress(ValueError, IndexError):
+            r[hi] = f"{(float(r[hi]) - VARIATION_DEG) % 360.0:.1f}"
+    head = [*h[:hi], "HdgMag", *h[hi + 1 :], "MagVar"]
+    return head, [[*r, f"{VARIATION_DEG:.1f}"] for r in rows]
+
+
+def subset(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """Only ``Cog``, ``Sog``, ``Hdg``, ``Bsp`` and ``Utc``, in that order (an export of
+    the columns someone picked)."""
+    keep = [h.index(c) for c in ("Cog", "Sog", "Hdg", "Bsp", "Utc")]
+    return [h[i] for i in keep], [[r[i] if i < len(r) else "" for i in keep] for r in rows]
+
+
+def duplicate_rows(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """Every row written twice (the same time twice: a re-export that joined two
+    copies)."""
+    return h, [list(x) for r in rows for x in (r, r)]
+
+
 def sparse_gnss(period_s: float) -> Callable[[str], str]:
     """Expedition rows whose Sog/Cog (and Lat/Lon) cells are written only every
     ``period_s`` (a slower GNSS): the other rows leave them empty."""

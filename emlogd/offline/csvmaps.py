@@ -47,6 +47,7 @@ LIMITS: dict[str, tuple[float, float]] = {
     "stw": (0.0, MAX_SPEED_MPS),
     "sog": (0.0, MAX_SPEED_MPS),
     "heading": (-360.0, 360.0),
+    "heading_mag": (-360.0, 360.0),
     "cog": (-360.0, 360.0),
     "set": (-360.0, 360.0),
     "drift": (0.0, MAX_DRIFT_KN * KNOT_MPS),
@@ -57,13 +58,14 @@ LIMITS: dict[str, tuple[float, float]] = {
 """Each column's plausible range after unit conversion (m/s, degrees; angles wrapped
 after the check)."""
 
-ANGLES = ("heading", "cog", "set")
+ANGLES = ("heading", "heading_mag", "cog", "set")
 SPEEDS = ("stw", "sog", "drift")
 CSV_KEYS = (
     "time",
     "date",
     "stw",
     "heading",
+    "heading_mag",
     "sog",
     "cog",
     "lat",
@@ -100,7 +102,9 @@ class Preset:
 EXPEDITION: dict[str, str] = {
     "time": "Utc",
     "stw": "Bsp",
-    "heading": "Hdg",
+    "heading": "Hdg?",
+    "heading_mag": "HdgMag|MagHdg|Hdg_M|HdgM?",
+    "variation": "Var|MagVar|Variation|Decl?",
     "sog": "Sog?",
     "cog": "Cog?",
     "lat": "Lat?",
@@ -110,7 +114,10 @@ EXPEDITION: dict[str, str] = {
 }
 """Expedition's columns (its ``Hdg`` is a true heading; times are OLE dates, or FILETIME
 ticks in its ``!log=v3`` logs). Its exports
-name the current ``iSet``/``iDrift`` or ``Set``/``Drift``, or leave it out."""
+name the current ``iSet``/``iDrift`` or ``Set``/``Drift``, or leave it out. An export
+without ``Hdg`` may hold the compass's magnetic heading (``HdgMag`` and its spellings,
+with a variation column ``Var`` or ``MagVar``), or no heading at all (then its water
+sentences carry the speed alone, and the import says so)."""
 
 LOGGER_TSV: dict[str, str] = {
     "date": "Date",
@@ -134,6 +141,8 @@ GENERIC: dict[str, str] = {
     "date": "date?",
     "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water",
     "heading": "hdg|heading|heading_true?",
+    "heading_mag": "heading_magnetic|magnetic_heading|hdg_mag|mag_hdg|hdm?",
+    "variation": "variation|magvar|mag_var|var|declination?",
     "sog": "sog|speed_over_ground?",
     "cog": "cog|course_over_ground?",
     "lat": "lat|latitude?",
@@ -219,6 +228,7 @@ HEADER_UNITS: dict[str, float | None] = {
     "km/h": 1.0 / 3.6,
     "kmh": 1.0 / 3.6,
     "kph": 1.0 / 3.6,
+    "mph": 0.44704,
     "deg": None,
     "degt": None,
     "degrees": None,
@@ -393,7 +403,28 @@ def no_header(path: str | Path, head: list[str], candidates: Sequence[MapChoice]
         _, missing = _resolve(m, header)
         whys.append(f"{p.name if p else 'the map'} lacks {', '.join(missing)}")
     cols = ", ".join(h.strip() for h in header[:12])
-    return f"{path}: no header with the mapped columns ({'; '.join(whys)}); the file has {cols}"
+    units = _unknown_units(header)
+    told = (
+        f"; units not known in {', '.join(units)} (known: {', '.join(HEADER_UNITS)}): "
+        "map the column with its unit, e.g. stw=NAME[mps]"
+        if units
+        else ""
+    )
+    return (
+        f"{path}: no header with the mapped columns ({'; '.join(whys)}); the file has {cols}{told}"
+    )
+
+
+def _unknown_units(header: list[str]) -> list[str]:
+    """The header's names that carry a unit in brackets not in :data:`HEADER_UNITS`
+    (``Bsp (furlongs)``), quoted with the unit."""
+    out = []
+    for h in header:
+        m = _UNIT_IN_NAME.fullmatch(h.strip())
+        unit = (m.group("a") or "").strip() if m else ""
+        if unit and unit.casefold() not in HEADER_UNITS:
+            out.append(f"{h.strip()!r} ({unit!r})")
+    return out
 
 
 def cell(row: list[str], index: int) -> str:

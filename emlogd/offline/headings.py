@@ -78,10 +78,16 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
                 "variation is known — none in the log, none configured, and no GNSS position "
                 "and date for the model: pass --variation DEG (east positive)"
             )
-        why = "the GNSS reference is projected on the hull" if field == "gnss" else "--current"
+        kinds = "HDT, HDG, HDM, THS, $PASHR, VHW, a DVL's"
+        if field == "gnss":
+            return (
+                f"{head}: no heading arrived, and the GNSS reference is projected on the "
+                f"hull with one ({kinds}): name its port with --heading PORT; a log without "
+                "any heading (course over ground alone) cannot be calibrated against GNSS, "
+                "since the current and the leeway are then not told from the log's error"
+            )
         return (
-            f"{head}: no heading arrived, and {why} needs one (HDT, HDG, HDM, THS, $PASHR, "
-            "VHW, a DVL's): "
+            f"{head}: no heading arrived, and --current needs one ({kinds}): "
             "name its port with --heading PORT, or calibrate without --current"
         )
     valid = [r.t_ref[r.ok_ref] for r in recs]

@@ -85,7 +85,7 @@ class ImportReport:
             increase; a carried-forward cell; banner lines; an assumed time zone).
         sentences: sentences written, by type.
         preset: the CSV preset used (None with a plain map or NMEA).
-        heading_ref: the CSV heading's reference.
+        heading_ref: the CSV heading's reference (None without a heading column).
         heading_check: the CSV heading against the course over ground (the check of
             :mod:`emlogd.pipeline.variation`, ``CourseOffsetCheck.as_dict``), None without
             heading and course.

@@ -13,9 +13,14 @@ taken with its checksum added (``checksum_added`` in ``notes``); in a log with
 checksums a line without one is a cut line (``missing_checksum``). A line with
 something before its sentence (a logger's receive time, a tag) is read from its
 first ``$`` or ``!`` that starts a well-formed address (``line_prefix`` in
-``notes``); the fixes still time it. Time comes from
-the fixes: the UTC date and time of RMC, else ZDA, else GGA's time of day with a date
-given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a GGA time of day
+``notes``); the fixes still time it. NULs and a Ctrl-Z at a line's ends are no part
+of it; sentences run together on one line (a line end lost) are split after each
+checksum a sentence's address follows (``sentences_run_together``); a sentence cut
+over two lines is joined when the two together pass its checksum (``lines_joined``).
+Time comes from
+the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, or an
+RMC's without its date) with a date
+given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a time of day
 :data:`DAY_ROLLOVER_S` or more before the last fix is the next day's (midnight passed).
 A fix whose time does not increase is no
 time source, nor is one outside :data:`YEARS`. The sentences between two fixes are
@@ -27,8 +32,8 @@ never extrapolated past the last fix. Two fixes more than :data:`MAX_FIX_GAP_S` 
 without a fix.
 
 **CSV/TSV exports** of navigation software and loggers: a column map (``key=Column``
-for ``time``, ``date``, ``stw``, ``heading``, ``sog``, ``cog``, ``lat``, ``lon``,
-``set``, ``drift``, ``variation``; a column may be written ``A|B`` — the first
+for ``time``, ``date``, ``stw``, ``heading``, ``heading_mag``, ``sog``, ``cog``,
+``lat``, ``lon``, ``set``, ``drift``, ``variation``; a column may be written ``A|B`` — the first
 present in the header — and ``Name?`` when it may be absent; speeds in knots unless
 written ``Name[mps]``), or a preset chosen by the header (:data:`PRESETS`). The
 delimiter (comma, tab, semicolon, bar) and the header line are found in the file:
@@ -80,7 +85,11 @@ the variation when known), VHW for the water (speed and heading, true or magneti
 VDR for the current (set towards, drift in knots). Within a row RMC comes first, so
 the variation it carries is known when the VHW's magnetic heading arrives.
 
-The variation for a magnetic heading: a ``variation`` column, else ``--variation
+A ``heading_mag`` column (a compass's magnetic heading under a name that says so:
+``HdgMag``, ``heading_magnetic``) is the heading when no ``heading`` column is mapped,
+read as magnetic; a table with neither writes VHW with the speed alone, counted
+``no_heading_column`` in ``notes`` (calibrating against GNSS then needs a heading from
+elsewhere). The variation for a magnetic heading: a ``variation`` column, else ``--variation
 DEG``; without either the RMC has none, and calibration takes the IGRF model's at
 the fix's position and date (:mod:`emlogd.pipeline.variation`). The import runs the
 heading-against-course check of that module on the rows (``heading_check``), so a
@@ -300,6 +309,7 @@ def import_csv(
         h_index, delim, chosen, cols = found
         fmt = time_format or (chosen.time_format if chosen is not None else "auto")
         href = heading_ref or (chosen.heading_ref if chosen is not None else "true")
+        href = _magnetic_column(cols, href, heading_ref is not None)
         _describe(report, found, href, utc_offset_h is not None, variation_deg is not None)
         sink = CaptureSink(out, port, f"emlogd import --format csv: {path}", report)
         run = _CsvRun(sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s)
@@ -337,6 +347,17 @@ def _read_head(f: TextIO, path: str | Path, skipped: Counter[str]) -> list[str]:
     return head
 
 
+def _magnetic_column(cols: dict[str, Col], href: HeadingRef, href_given: bool) -> HeadingRef:
+    """A ``heading_mag`` column read as the heading when no ``heading`` column is
+    mapped (its reference magnetic unless ``--heading-ref`` says otherwise); dropped
+    beside one. The heading's reference."""
+    mag = cols.pop("heading_mag", None)
+    if mag is None or "heading" in cols:
+        return href
+    cols["heading"] = Col("heading", mag.index, mag.factor)
+    return href if href_given else "magnetic"
+
+
 def _describe(
     report: ImportReport,
     found: tuple[int, str, Preset | None, dict[str, Col]],
@@ -350,7 +371,9 @@ def _describe(
     h_index, _, chosen, cols = found
     report.preset = chosen.name if chosen is not None else None
     count(report.notes, "banner_lines", h_index)
-    report.heading_ref = href
+    report.heading_ref = href if "heading" in cols else None
+    if "heading" not in cols:
+        report.notes["no_heading_column"] += 1
     if chosen is not None and chosen.local_time and not offset_given:
         report.notes["local_time_taken_as_utc"] += 1
     if "heading" in cols and href == "magnetic":
@@ -373,7 +396,12 @@ def _finish_csv(path: str | Path, run: _CsvRun) -> None:
         report.heading_check = run.sink.check.as_dict()
     if report.written == 0:
         why = ""
-        if report.skipped["bad_time"] and run.bad_stamp:
+        if report.skipped["bad_time"] and TIME_OF_DAY.fullmatch(run.bad_stamp):
+            why = (
+                f"; the time cells hold a time of day alone (the first {run.bad_stamp!r}) "
+                "and no date column is mapped: a time needs its date (--map date=COLUMN)"
+            )
+        elif report.skipped["bad_time"] and run.bad_stamp:
             why = (
                 f"; the time cells (the first {run.bad_stamp!r}) are in no format told by "
                 f"itself ({TIME_FORMATS_TOLD}): give --time-format PATTERN "

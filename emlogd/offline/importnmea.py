@@ -3,6 +3,7 @@ their own fixes (the rules are in :mod:`emlogd.offline.importer`'s docstring).""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
@@ -20,6 +21,7 @@ from emlogd.offline.importbase import (
     SentenceCheck,
     bounded_lines,
     count,
+    not_a_sentence,
     open_text,
     within_years,
 )
@@ -30,6 +32,10 @@ MAX_FIX_GAP_S = 60.0
 
 MAX_PENDING_LINES = 100_000
 """NMEA: sentences waiting for the next fix, at most (constant memory)."""
+
+LINE_PADDING = " \t\r\n\x00\x1a"
+"""Stripped from both ends of a log line: blanks, line ends, the NULs a logger pads its
+buffer with, and the DOS end-of-file mark (Ctrl-Z)."""
 
 
 # ------------------------------------------------------------------ NMEA logs
@@ -44,12 +50,14 @@ def _fix_time(
     rec: NmeaRecord | Rejected, day: date | None, last: float | None = None
 ) -> tuple[float | None, date | None]:
     """(epoch seconds of a fix, the date it implies) for an RMC, ZDA or GGA record; a
-    GGA time of day :data:`DAY_ROLLOVER_S` before the ``last`` fix moves to the next day."""
+    time of day alone (GGA, or an RMC whose date field is empty) takes ``day``, and
+    :data:`DAY_ROLLOVER_S` before the ``last`` fix moves to the next day."""
     if isinstance(rec, Rmc | Zda) and rec.time_utc is not None:
         return rec.time_utc.timestamp(), rec.time_utc.date()
-    if isinstance(rec, Gga) and rec.time_of_day_s is not None and day is not None:
+    tod = rec.time_of_day_s if isinstance(rec, Gga | Rmc) else None
+    if tod is not None and day is not None:
         base = datetime(day.year, day.month, day.day, tzinfo=UTC)
-        t = (base + timedelta(seconds=rec.time_of_day_s)).timestamp()
+        t = (base + timedelta(seconds=tod)).timestamp()
         if last is not None and last - t >= DAY_ROLLOVER_S:
             day = day + timedelta(days=1)
             t += 86_400.0
@@ -107,6 +115,59 @@ class _Spreader:
         count(self.report.skipped, "after_last_fix", len(self.pending) - 1 + self.overflow)
 
 
+RUN_TOGETHER = re.compile(r"(?<=\*[0-9A-Fa-f]{2})(?=[$!][A-Z0-9]{5},)")
+"""Where one sentence ends (its checksum) and the next begins on the same line."""
+
+
+def run_together(text: str, report: ImportReport) -> list[str]:
+    """A line's sentences: several written on one line (a line end lost) split after
+    each checksum that a sentence's address follows (counted ``sentences_run_together``
+    in ``notes``)."""
+    parts = RUN_TOGETHER.split(text)
+    count(report.notes, "sentences_run_together", len(parts) - 1)
+    return parts
+
+
+class _Joiner:
+    """Sentences split over two lines (a logger's buffer flushed mid-sentence) joined
+    again: a line that starts a sentence but fails its check is held for one line, and
+    taken with the next when that line starts no sentence and the two together pass
+    (counted ``lines_joined`` in ``notes``); otherwise counted by its reason."""
+
+    def __init__(self, checks: SentenceCheck, report: ImportReport) -> None:
+        self.checks = checks
+        self.report = report
+        self.held: tuple[str, str] | None = None  # (a cut line, why it failed)
+
+    def lines(self, text: str) -> list[str]:
+        """The sentence a log line gives (with the held line before it when they join),
+        as a list of none or one."""
+        out: list[str] = []
+        if self.held is not None:
+            cut, why = self.held
+            self.held = None
+            if text[:1] not in ("$", "!", "\\") and not_a_sentence(cut + text) is None:
+                self.report.notes["lines_joined"] += 1
+                line, reason = self.checks.line(cut + text)
+                if line is not None:
+                    return [line]
+            self.report.skipped[why] += 1
+        line, reason = self.checks.line(text)
+        if line is not None:
+            out.append(line)
+        elif text[:1] in ("$", "!") and "*" not in text:
+            self.held = (text, reason or "empty")
+        else:
+            self.report.skipped[reason or "empty"] += 1
+        return out
+
+    def flush(self) -> None:
+        """The end of a file: a held line is counted by its reason."""
+        if self.held is not None:
+            self.report.skipped[self.held[1]] += 1
+            self.held = None
+
+
 def _sentence_fix(
     decoder: NmeaDecoder, text: str, day: date | None, last: float | None
 ) -> tuple[float | None, date | None]:
@@ -146,26 +207,26 @@ def import_nmea(
     decoder = make_decoder("nmea0183", port, errors="raise")
     sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
     spread = _Spreader(sink, report)
-    checks = SentenceCheck(report)
+    joiner = _Joiner(SentenceCheck(report), report)
     current_day = day
     try:
         for i, path in enumerate(paths):
             with open_text(path) as f:
                 for raw in bounded_lines(f, report.skipped):
                     report.lines += 1
-                    line, reason = checks.line(raw.strip())
-                    if line is None:
-                        report.skipped[reason or "empty"] += 1
-                        continue
-                    fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
-                    spread.add(line, fix)
+                    for part in run_together(raw.strip(LINE_PADDING), report):
+                        for line in joiner.lines(part):
+                            fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
+                            spread.add(line, fix)
+            joiner.flush()
             if progress is not None:
                 progress(f"import {Path(path).name}", (i + 1) / len(paths))
         spread.finish()
         if report.written == 0:
             raise ImportFormatError(
-                "no sentence could be given a time: the log needs RMC or ZDA fixes (or GGA "
-                f"with --date YYYY-MM-DD); skipped: {reasons(report.skipped) or 'none'}"
+                "no sentence could be given a time: the log needs RMC or ZDA fixes with a "
+                "date (or GGA, or RMC without a date, with --date YYYY-MM-DD); skipped: "
+                f"{reasons(report.skipped) or 'none'}"
             )
     except BaseException:
         sink.abort()

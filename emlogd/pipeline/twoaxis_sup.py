@@ -28,8 +28,12 @@ a current of its own along the hull (``c_N·cos ψ + c_E·sin ψ``) is not worse
 the one-axis calibration's forward speed as emitted nor than the raw forward reading
 (:func:`forward_rmse`); else the one-axis calibration's forward speed is turned back
 (:meth:`Figures.hull_frame`). Each recheck judges it again: worse than either, the
-forward speed goes back to the one-axis calibration's; back to it, the figures'
-forward speed returns only where the one-axis one is worse than it by the margin.
+forward speed goes back to the one-axis calibration's, and the figures' forward speed
+returns only where the one-axis one is worse than it by the margin (the recheck was
+evidence against it). Set aside for want of the one-axis supervisor's word (its
+fallback, :meth:`emlogd.pipeline.twoaxis_learn.TwoAxisLearner.answers`), which is no
+evidence against it, it returns at the next recheck by the rule it was first applied
+by.
 
 No I/O, no clock.
 """
@@ -291,6 +295,9 @@ class TwoAxisSupervisor:
         not the one-axis calibration's turned back by α (module docstring)."""
         self.forward_scores: dict[str, float] = {}
         """The forward RMSE of the last judgement, m/s (:func:`forward_rmse`'s keys)."""
+        self.forward_doubted = False
+        """The figures' own forward speed was set aside by a recheck that found it worse:
+        it returns only where the one-axis one is worse than it by the margin."""
 
     def restore(self, figures: Figures) -> None:
         """Figures from the state file: the last good ones, a candidate that
@@ -346,6 +353,7 @@ class TwoAxisSupervisor:
         self.note = ""
         self.forward_scores = forward_rmse(blocks, cand)
         self.forward_own = own_forward_ok(self.forward_scores)
+        self.forward_doubted = not self.forward_own
         detail["forward"] = FORWARD_OWN if self.forward_own else FORWARD_ONE_AXIS
         detail |= {f"rmse_l_{k}": round(v, 4) for k, v in self.forward_scores.items()}
         self._event(t, "two_axis_applied", detail)
@@ -376,11 +384,11 @@ class TwoAxisSupervisor:
         r = self.forward_scores = forward_rmse(blocks, app)
         detail = {f"rmse_l_{k}": round(v, 4) for k, v in r.items()}
         if self.forward_own and not own_forward_ok(r):
-            self.forward_own = False
+            self.forward_own, self.forward_doubted = False, True
             self._event(t, "two_axis_forward_withdrawn", detail)
         elif (
             not self.forward_own
-            and worse(r[FORWARD_ONE_AXIS], r[FORWARD_OWN])
+            and (not self.forward_doubted or worse(r[FORWARD_ONE_AXIS], r[FORWARD_OWN]))
             and own_forward_ok(r)
         ):
             self.forward_own = True

@@ -64,7 +64,24 @@ def test_straight_run_refuses_current_biases_and_misalignment() -> None:
     assert ident.nuisance_offset
     assert "heading covered 1 of 8 sectors" in ident.verdict(CURRENT).reason
     assert "transverse bias not separable" in ident.verdict(B_T).reason
-    assert "misalignment not separable" in ident.verdict(ALPHA).reason
+    why = ident.verdict(ALPHA).reason
+    assert why.startswith("misalignment not separable from the transverse bias and the current")
+    assert "runs at different speeds tell them apart" in why
+
+
+def test_circles_at_one_speed_refuse_misalignment_for_the_bias_not_the_current() -> None:
+    """Circles one way at one throttle: the heading turns through every sector, so the
+    current (turning with it in the hull frame) is determined, but at one speed the
+    misalignment's sideways reading is one steady offset with the transverse bias:
+    the reason names the bias, not the current, and says what separates them."""
+    u, _, raw, hd = _window(0.0, 0.0, np.linspace(0.0, 720.0, N) % 360.0)
+    w = -0.03 * u
+    ident = judge_two_axis("EM3", u, w, raw, hd, current=True)
+    assert CURRENT in ident.determined and ALPHA in ident.unidentifiable
+    why = ident.verdict(ALPHA).reason
+    assert why.startswith("misalignment not separable from the transverse bias:")
+    assert "current across the hull" not in why and "is told apart" in why
+    assert why.endswith("runs at different speeds tell them apart")
 
 
 def test_misalignment_follows_the_transverse_scale() -> None:

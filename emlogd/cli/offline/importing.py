@@ -126,6 +126,12 @@ def _heading_lines(report: ImportReport) -> list[str]:
                 else ""
             )
         )
+    if report.notes["no_heading_column"]:
+        out.append(
+            "heading      none: no heading column, so the water sentences carry the speed "
+            "alone; calibrating against GNSS needs a heading (--map heading=COLUMN, or "
+            "heading_mag=COLUMN for a magnetic one, or a compass's log on the same port)"
+        )
     if report.variation == "none":
         out.append(
             "heading      magnetic, and no variation nor position: give --variation DEG "
@@ -156,8 +162,8 @@ def add_parser(sub: Subparsers) -> None:
     p.add_argument(
         "--map",
         metavar="KEY=COL,...",
-        help="csv: columns for time, stw (and date, heading, sog, cog, lat, lon, set, drift, "
-        "variation); A|B: the first present, Col?: optional; knots unless written Col[mps]",
+        help="csv: columns for time, stw (and date, heading, heading_mag, sog, cog, lat, lon, "
+        "set, drift, variation); A|B: the first present, Col?: optional; knots unless written Col[mps]",
     )
     p.add_argument(
         "--preset",

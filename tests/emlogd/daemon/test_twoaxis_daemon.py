@@ -110,11 +110,48 @@ def _matched(pairs: list[tuple[float, float]], raw: list[tuple[float, float]]) -
     return 0
 
 
+LEEWAY_TOL_DEG = 0.25
+"""How far a leeway angle may lie from the one of the VBW it was taken from, degrees:
+its 0.1° field plus the VBW's two-decimal knots (0.0026 m/s each) at 1 m/s or more."""
+
+
+def _leeway(pair: tuple[float, float]) -> float:
+    """The leeway angle of a hull-frame pair, degrees (+ starboard)."""
+    return math.degrees(math.atan2(pair[1], pair[0]))
+
+
+def _ground_pair_valid(msg: pynmea2.NMEASentence) -> bool:
+    """A VBW's ground pair: both numbers with ``A``, or both empty with ``V``."""
+    if msg.data_validity_grnd_spd == "V":
+        return msg.lon_grnd_spd is None and msg.trans_grnd_spd is None
+    return msg.data_validity_grnd_spd == "A" and None not in (msg.lon_grnd_spd, msg.trans_grnd_spd)
+
+
+def _status_after(text: list[str], first: int) -> int:
+    """How many ``$PEMLT`` sentences from ``text[first]`` on carry the figures (α, its
+    σ, m_t, b_t) and the leeway angle of the last corrected VBW sent before them."""
+    last: tuple[float, float] | None = None
+    checked = 0
+    for s in text[first:]:
+        if "VBW" in s[:6]:
+            msg = pynmea2.parse(s, check=True)
+            last = (float(msg.lon_water_spd) * KNOT_MPS, float(msg.trans_water_spd) * KNOT_MPS)
+        elif s.startswith("$PEMLT,emlog2,"):
+            f = pynmea2.parse(s, check=True).data
+            assert f[2:7] == ["A", "+3.00", "1.0e-01", "-0.0800", "+0.040"] and f[8] in ("", "R")
+            if last is not None and last[0] >= 1.0:
+                assert abs(float(f[7]) - _leeway(last)) <= LEEWAY_TOL_DEG, (s, last)
+                checked += 1
+    return checked
+
+
 def test_vbw_carries_the_corrected_athwart_speed_once_validated(work: Path, served: Path) -> None:
     """The restored figures validate and are applied ($PEMLT ``A``, the status
-    ``applied``); from then on every VBW (checksum and fields valid for pynmea2) is the
-    raw reading turned into the hull frame by them, its athwart speed without the
-    misalignment's phantom leeway; before, the VBW passed through as read."""
+    ``applied``); from then on every VBW (checksum and fields valid for pynmea2, its
+    ground pair with its validity) is the raw reading turned into the hull frame by
+    them, its athwart speed without the misalignment's phantom leeway; before, the VBW
+    passed through as read. The status sentence and the JSON carry α ± σ and the
+    leeway angle of the corrected VBW."""
     d = Daemon(work, pty=True)
     try:
 
@@ -125,6 +162,7 @@ def test_vbw_carries_the_corrected_athwart_speed_once_validated(work: Path, serv
         wait(applied, "the restored two-axis figures applied", timeout_s=20.0)
         d.pump(2.0)
         two = d.uut("emlog2")["two_axis"]
+        d.pump(0.5)
         assert isinstance(two, dict) and two["state"] == "applied"
         assert two["applied"] == pytest.approx(FIGURES)
     finally:
@@ -137,12 +175,14 @@ def test_vbw_carries_the_corrected_athwart_speed_once_validated(work: Path, serv
         if "VBW" not in s[:6]:
             continue
         msg = pynmea2.parse(s, check=True)
-        assert msg.data_validity_water_spd == "A"
+        assert msg.data_validity_water_spd == "A" and _ground_pair_valid(msg)
         pair = (float(msg.lon_water_spd) * KNOT_MPS, float(msg.trans_water_spd) * KNOT_MPS)
         (after if i > first else before).append(pair)
+    assert _status_after(text, first) >= 3
+    lee = two["leeway_deg"]  # the JSON's: a corrected VBW's, sent about when it was read
+    assert isinstance(lee, float)
+    assert min(abs(lee - _leeway(p)) for p in after if p[0] >= 1.0) <= LEEWAY_TOL_DEG
     raw = _raw_vbw(served)
     assert len(after) >= 50 and _matched(before, raw) >= 0.9 * len(before)
     assert _matched([_sensor_pair(*p) for p in after], raw) >= 0.9 * len(after)
     assert _matched(after, raw) < 0.1 * len(after)  # not the raw pairs: corrected
-    status = pynmea2.parse(text[first], check=True)
-    assert status.data[3] == "+3.00"

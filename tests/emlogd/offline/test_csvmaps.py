@@ -17,6 +17,7 @@ from emlogd.offline.csvmaps import (
     cell_value,
     find_header,
     guess_time_format,
+    no_header,
     parse_map,
 )
 from emlogd.offline.importbase import ImportFormatError, ImportReport
@@ -57,6 +58,17 @@ def test_the_header_is_found_past_a_banner_with_its_delimiter() -> None:
     assert {k: c.index for k, c in cols.items()} == {"date": 0, "time": 1, "stw": 2, "heading": 3}
     assert set(cols) <= set(LOGGER_TSV)
     assert find_header(["a,b,c"], candidate_maps(None, None)) is None
+
+
+def test_a_unit_in_a_name_is_read_or_named_as_unknown() -> None:
+    """``Bsp (mph)`` is read in miles per hour; a unit no table knows stops the import
+    with the column and its unit named, and how to map it."""
+    found = find_header(["Utc,Bsp (mph),Hdg"], candidate_maps(None, None))
+    assert found is not None and found[3]["stw"].factor == pytest.approx(0.44704)
+    head = ["Utc,Bsp (furlongs),Hdg"]
+    assert find_header(head, candidate_maps(None, None)) is None
+    why = no_header("x.csv", head, candidate_maps(None, None))
+    assert "units not known in 'Bsp (furlongs)' ('furlongs')" in why and "[mps]" in why
 
 
 def test_cells_in_si_units_within_a_boats_range() -> None:

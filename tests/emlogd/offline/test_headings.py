@@ -98,10 +98,14 @@ class TestCauses:
     """The error names what is missing, with the option that helps."""
 
     def test_no_heading(self, tmp_path: Path) -> None:
-        """GNSS without any heading: the error says so and names --heading."""
+        """GNSS without any heading: the error says so, names --heading and says why a
+        course over ground alone cannot stand in (never that leaving out --current
+        helps: the GNSS reference needs the heading either way)."""
         cap = _sail(tmp_path / "n.cap", heading="none")
-        with pytest.raises(OfflineError, match=r"no heading arrived.*--heading PORT"):
+        with pytest.raises(OfflineError, match=r"no heading arrived.*--heading PORT") as err:
             calibrate(load_captures([str(cap)], GNSS), GNSS, "ls", lag=0.0)
+        assert "course over ground alone" in str(err.value)
+        assert "without --current" not in str(err.value)
 
     def test_no_fix_at_all(self, tmp_path: Path) -> None:
         """A log with the water and the heading but no GNSS fix: the error says no fix

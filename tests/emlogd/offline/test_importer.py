@@ -324,6 +324,14 @@ class TestCsv:
         rep = import_csv(src, tmp_path / "p.cap", time_format="%d/%m/%Y %H:%M")
         assert rep.t_end - rep.t_start == 60.0
 
+    def test_a_time_of_day_without_a_date_asks_for_the_date(self, tmp_path: Path) -> None:
+        """Times of day alone and no date column: the error says a time needs its date
+        and names --map date= (not a time format, which would not help)."""
+        src = tmp_path / "log.csv"
+        src.write_text("Time,Speed (kts),Heading\n12:00:00,3.1,100\n12:00:01,3.2,101\n")
+        with pytest.raises(ImportFormatError, match=r"time of day alone.*'12:00:00'.*date="):
+            import_csv(src, tmp_path / "o.cap")
+
     @pytest.mark.parametrize(("error", "flagged"), [(0.0, False), (20.0, True)])
     def test_the_heading_is_checked_against_the_course(
         self, tmp_path: Path, error: float, flagged: bool

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from drivers import make_decoder
+from drivers.framing import nmea_checksum
 from drivers.io.capture import CaptureReader
 from drivers.nmea0183 import Rmc, Vhw, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS
@@ -176,3 +177,61 @@ class TestNmea:
         assert len(rmc) == 3 and len(vhw) == 2 and rep.written == 10
         assert rmc[1].sog_mps == pytest.approx(2.4 * KNOT_MPS)
         assert vhw[0].heading_mag_deg == 263.0
+
+
+class TestLinesAsLoggersWriteThem:
+    """NUL padding, a sentence split over two lines, RMC without its date."""
+
+    def test_nul_padding_and_ctrl_z_are_no_part_of_a_line(self, tmp_path: Path) -> None:
+        """Irene's lines each padded with NULs, the file ended by NULs and a Ctrl-Z: the
+        same sentences as the clean log."""
+        src = tmp_path / "pad.nmea"
+        src.write_text("".join(ln + "\x00" * 8 + "\n" for ln in IRENE.splitlines()) + "\x00\x1a")
+        rep = import_nmea([src], tmp_path / "pad.cap")
+        assert rep.written == 10 and rep.skipped["checksum"] == 0
+
+    def test_a_sentence_split_over_two_lines_is_joined(self, tmp_path: Path) -> None:
+        """A sentence cut in two lines is written whole (``lines_joined``); a cut line
+        followed by a sentence of its own stays a cut line."""
+        lines = IRENE.splitlines()
+        vhw = lines[4]
+        lines[4:5] = [vhw[:12], vhw[12:]]
+        lines.insert(10, "$IIDPT,009.4")  # cut, and the next line is a sentence
+        src = tmp_path / "split.nmea"
+        src.write_text("\n".join(lines) + "\n")
+        rep = import_nmea([src], tmp_path / "split.cap")
+        assert rep.notes["lines_joined"] == 1 and rep.skipped["missing_checksum"] == 1
+        assert rep.written == 10 and rep.sentences["VHW"] == 2
+        assert vhw in [p for _, _, p in _records(tmp_path / "split.cap")]
+
+    def test_rmc_without_a_date_takes_the_given_one(self, tmp_path: Path) -> None:
+        """RMC with its date field empty times the log from --date (midnight crossed
+        moves to the next day); without --date the error names what is missing."""
+
+        def no_date(t: datetime) -> str:
+            body = encode_rmc(t, 2.0, 90.0)[1:].split("*")[0].split(",")
+            body[9] = ""
+            text = ",".join(body)
+            return f"${text}*{nmea_checksum(text.encode('ascii')):02X}"
+
+        t = datetime(2026, 1, 2, 23, 59, 59, tzinfo=UTC)
+        src = tmp_path / "nodate.nmea"
+        src.write_text("\n".join([no_date(t), encode_vhw(2.0), no_date(t + timedelta(seconds=2))]))
+        with pytest.raises(ImportFormatError, match="RMC without a date"):
+            import_nmea([src], tmp_path / "x.cap")
+        rep = import_nmea([src], tmp_path / "o.cap", day=date(2026, 1, 2))
+        assert rep.written == 3
+        assert rep.t_start == pytest.approx(t.timestamp())
+        assert rep.t_end == pytest.approx(t.timestamp() + 2.0)
+
+    def test_sentences_run_together_on_one_line_are_split(self, tmp_path: Path) -> None:
+        """Line ends lost between sentences: each is read after the checksum before it
+        (``sentences_run_together``); a tag block before a sentence is no such end."""
+        lines = IRENE.splitlines()
+        joined = [lines[0], "".join(lines[1:5]), *lines[5:]]
+        joined[-1] = "\\s:GP0001,c:1403875342*6B\\" + joined[-1]
+        src = tmp_path / "run.nmea"
+        src.write_text("\n".join(joined) + "\n")
+        rep = import_nmea([src], tmp_path / "run.cap")
+        assert rep.notes["sentences_run_together"] == 3
+        assert rep.written == 10 and rep.sentences["VHW"] == 2
