@@ -41,6 +41,7 @@ from emlogd.pipeline.keys import (
     entries,
     group,
     hostport,
+    ipv4_port,
     key,
     literal,
     number,
@@ -140,7 +141,7 @@ class UutOutputs:
         None, check=hostport, doc="This log's own NMEA over TCP, instead of the shared outputs."
     )
     udp: str | None = key(
-        None, check=hostport, doc="This log's own UDP destination, instead of the shared outputs."
+        None, check=ipv4_port, doc="This log's own UDP destination, instead of the shared outputs."
     )
 
 
@@ -206,7 +207,7 @@ class OutputConfig:
         unit="s",
         doc="A TCP client that takes nothing this long while output is pending is closed.",
     )
-    udp: str | None = key(None, check=hostport, doc="NMEA over UDP, e.g. `192.168.1.255:10110`.")
+    udp: str | None = key(None, check=ipv4_port, doc="NMEA over UDP, e.g. `192.168.1.255:10110`.")
     stdout: bool = key(
         False, check=boolean, doc="NMEA on stdout too (the log then goes to stderr)."
     )
