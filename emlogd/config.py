@@ -40,7 +40,6 @@ from emlogd.pipeline.keys import (
     build,
     entries,
     group,
-    hostport,
     ipv4_port,
     key,
     literal,
@@ -138,7 +137,7 @@ class UutOutputs:
         doc="This log's own output pty: its sentences go there instead of the shared outputs.",
     )
     tcp: str | None = key(
-        None, check=hostport, doc="This log's own NMEA over TCP, instead of the shared outputs."
+        None, check=ipv4_port, doc="This log's own NMEA over TCP, instead of the shared outputs."
     )
     udp: str | None = key(
         None, check=ipv4_port, doc="This log's own UDP destination, instead of the shared outputs."
@@ -185,7 +184,7 @@ class OutputConfig:
     )
     tcp: str | None = key(
         None,
-        check=hostport,
+        check=ipv4_port,
         doc="NMEA over TCP, e.g. `127.0.0.1:10110` (several clients); `0.0.0.0:10110` or "
         "`:10110` listens on every interface.",
     )

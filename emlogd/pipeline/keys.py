@@ -316,7 +316,7 @@ def _ipv4_port(v: Any) -> Any:
 
 
 ipv4_port = Check(_ipv4_port, "IPv4:PORT or null")
-"""``IPV4:PORT`` (the address optional: 127.0.0.1) or null: a UDP destination."""
+"""``IPV4:PORT`` (the address optional) or null: a TCP output's or a UDP destination's."""
 
 
 def param_std(names: tuple[str, ...], lo: float, hi: float) -> Check:
