@@ -40,6 +40,7 @@ import errno
 import fcntl
 import os
 import re
+import stat
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
@@ -245,6 +246,10 @@ class StateStore:
             # a directory is no damaged state file: a path ending in "/" names the
             # directory it was meant to be in, whose files no save may move away
             raise IsADirectoryError(errno.EISDIR, "a directory, left where it is")
+        if text is None and _is_device(self.path):
+            # a device (state_file: /dev/null, meant as "no state") is no damaged file:
+            # moved aside, the node itself would be renamed and a file made in its place
+            raise OSError(errno.ENODEV, "a device or a socket, left where it is")
         bad = text is None or _refusal(text, self._check)
         step = self.refused if bad else self.backup
         if step.is_dir():  # no file goes over a directory: that step alone is skipped
@@ -276,6 +281,15 @@ class StateStore:
         with contextlib.suppress(OSError):
             link.unlink()
         return None
+
+
+def _is_device(path: Path) -> bool:
+    """Whether ``path`` itself (not a symlink's target) is a device node or a socket."""
+    try:
+        mode = path.lstat().st_mode
+    except OSError:
+        return False
+    return stat.S_ISCHR(mode) or stat.S_ISBLK(mode) or stat.S_ISSOCK(mode)
 
 
 def _identity(path: Path) -> tuple[int, int, int, int]:
