@@ -1,6 +1,6 @@
 """``emlogd import``: the logs people already have, turned into captures.
 
-Both formats stream (constant memory, any file size, ``.gz`` read through gzip), write
+Both formats stream (constant memory, any file size, ``.gz`` read through gzip, UTF-16 told by its byte-order mark), write
 the capture in time order, and count what they skipped by reason (a line, row or cell
 is never silently dropped). The capture is written next to its final name and moved
 there only when the import succeeds.
