@@ -60,6 +60,21 @@ def test_the_header_is_found_past_a_banner_with_its_delimiter() -> None:
     assert find_header(["a,b,c"], candidate_maps(None, None)) is None
 
 
+def test_names_written_with_spaces_match_the_maps_underscores() -> None:
+    """``Boat Speed (kn)``, ``Heading True``, ``Speed Over Ground``, ``Date Time``: the
+    generic map's ``boat_speed``, ``heading_true``, ``speed_over_ground``, ``date_time``."""
+    head = ["Date Time,Boat Speed (kn),Heading True,Speed Over Ground,Course-Over-Ground"]
+    found = find_header(head, candidate_maps(None, None))
+    assert found is not None and found[2] is PRESETS["generic"]
+    assert {k: c.index for k, c in found[3].items()} == {
+        "time": 0,
+        "stw": 1,
+        "heading": 2,
+        "sog": 3,
+        "cog": 4,
+    }
+
+
 def test_a_unit_in_a_name_is_read_or_named_as_unknown() -> None:
     """``Bsp (mph)`` is read in miles per hour; a unit no table knows stops the import
     with the column and its unit named, and how to map it."""
