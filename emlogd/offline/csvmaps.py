@@ -212,6 +212,12 @@ def _spec(spec: str) -> tuple[list[tuple[str, float]], bool]:
             names.append((alt[:-5], 1.0))
         elif alt.endswith("[kn]"):
             names.append((alt[:-4], KNOT_MPS))
+        elif alt.endswith("]") and "[" in alt:
+            unit = alt[alt.rindex("[") :]
+            raise ImportFormatError(
+                f"--map column {alt!r}: the unit {unit} is not known (a speed column's "
+                "unit: [mps] or [kn])"
+            )
         else:
             names.append((alt, KNOT_MPS))
     return names, optional

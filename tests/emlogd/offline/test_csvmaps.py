@@ -33,6 +33,14 @@ def test_bad_map(spec: str, match: str) -> None:
         parse_map(spec)
 
 
+def test_a_unit_the_map_does_not_know_is_named() -> None:
+    """``stw=Bsp[furlong]``: the error names the column and its unit, and the units a
+    map knows."""
+    maps = candidate_maps({"time": "Utc", "stw": "Bsp[furlong]"}, None)
+    with pytest.raises(ImportFormatError, match=r"'Bsp\[furlong\]'.*\[mps\] or \[kn\]"):
+        find_header(["Utc,Bsp"], maps)
+
+
 def test_candidate_maps() -> None:
     """Without a map every preset is tried in order; a map alone is tried as it is; the
     user's columns override a named preset's; an unknown preset or a map without stw is
