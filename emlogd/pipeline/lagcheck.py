@@ -1,23 +1,26 @@
 """The lag in use, checked against the data: a reference whose clock is off.
 
 A configured lag is a claim about the time between the UUT's readings and its
-reference's, and the data can contradict it: a reference whose records reach the computer minutes late (buffered on its way), or
-stamped by a clock minutes off, pairs every reading with the reference of another
+reference's, and the data can contradict it: a reference whose records reach the
+computer minutes late (buffered on its way), or stamped by a clock minutes off, pairs every reading with the reference of another
 moment, and a calibration fitted on such pairs is wrong by whatever the speed did in
 between. :class:`LagCheck` keeps the UUT's readings, its reference and heading of the
 last :data:`LAG_CHECK_WINDOW_S` plus twice :data:`LAG_CHECK_RANGE_S`, and every
-:data:`LAG_CHECK_EVERY_S` of readings scores the lag with :func:`calib.lag.estimate_lag`
+:data:`LAG_CHECK_EVERY_S` of readings scores the lag with :func:`calib.lagscan.scan_lags`
 over ``±LAG_CHECK_RANGE_S`` (negative lags too: a reference stamped early; the lag
-search proper looks at ``0..max_lag_s`` only), and the correlation at the lag in use on
-the same readings (:attr:`calib.lag.LagEstimate.corr_at`). The verdict
+search proper looks at ``0..max_lag_s`` only), and the lag in use the same way. Each lag
+is scored on the readings that overlap the reference at that lag (a DVL that loses the
+bottom for a minute leaves, across ±3 minutes, no reading that overlaps it at every lag),
+by an adjusted fit that fewer readings cannot flatter. The verdict
 (:func:`verdict`):
 
 - **cannot tell** (the last verdict stands) when fewer than
-  :data:`LAG_CHECK_MIN_SAMPLES` readings were scored, or the best correlation is below
-  :data:`calib.lag.MIN_LAG_CORRELATION` (the speed has not varied enough for a
-  correlation to mean anything), or the best lag is at the range's bound (where it
-  lies, unknown), or it beats the lag in use by less than :data:`LAG_CHECK_MIN_GAIN`
-  (a flat curve: a slow speed change fits many lags alike);
+  :data:`LAG_CHECK_MIN_SAMPLES` readings were scored at the best lag or at the lag in
+  use, or the best correlation is below :data:`calib.lag.MIN_LAG_CORRELATION` (the
+  speed has not varied enough for a correlation to mean anything), or the best lag is
+  at the range's bound or next to a lag scored on too few readings (where it lies,
+  unknown), or it beats the lag in use by less than :data:`LAG_CHECK_MIN_GAIN` (a flat
+  curve: a slow speed change fits many lags alike);
 - **agrees** when the best lag is within :data:`LAG_CHECK_TOLERANCE_S` of the lag in
   use;
 - **contradicts** the lag in use otherwise: the data say it is wrong beyond its
@@ -42,7 +45,8 @@ from collections.abc import Callable
 import numpy as np
 
 from calib.errors import CalibrationError
-from calib.lag import MIN_LAG_CORRELATION, LagEstimate, estimate_lag
+from calib.lag import MIN_LAG_CORRELATION, LagEstimate
+from calib.lagscan import scan_lags
 
 LAG_CHECK_RANGE_S = 180.0
 """The lags the check scores, ±s: a reference three minutes off either way is found;
@@ -74,9 +78,9 @@ LAG_CHECK_MIN_GAIN = 0.1
 correlation curve (a slow speed change) places its peak anywhere."""
 
 LAG_CHECK_MIN_SAMPLES = 150
-"""Readings a check must score, at least (those whose reference is covered over the
-whole range, no outage near): on fewer, the fit of a current per block makes a
-correlation of 0.99 at any lag."""
+"""Readings a lag must be scored on, at least (those whose reference at that lag is
+covered, no outage near): on fewer, the fit of a current per block makes a correlation
+of 0.99 at any lag."""
 
 LAG_CHECK_RATE_HZ = 20.0
 """Reference samples per second the buffers are sized for (a 10 Hz DVL twice over)."""
@@ -173,7 +177,7 @@ class LagCheck:
             th, psi = np.array(self.heading).T
             heading = (th, psi)
         try:
-            est = estimate_lag(
+            est = scan_lags(
                 tm,
                 vm,
                 tr,
@@ -183,7 +187,6 @@ class LagCheck:
                 min_samples=LAG_CHECK_MIN_SAMPLES,
                 heading=heading,
                 at_s=lag_s,
-                split=False,
             )
         except CalibrationError:
             return None

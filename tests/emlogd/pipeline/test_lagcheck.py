@@ -33,12 +33,25 @@ def _speed(t: float) -> float:
     return float(np.interp(t, 10.0 * np.arange(_KNOTS.size), _KNOTS))
 
 
-def _feed(check: LagCheck, seconds: float, shift_s: float, lag_s: float, steady: bool) -> None:
-    """The reference at 2 Hz stamped ``shift_s`` late, the readings at 1 Hz."""
+OUTAGE_EVERY_S = 200.0
+"""With outages, the reference is lost for the last 40 s of every this many seconds."""
+
+
+def _feed(
+    check: LagCheck,
+    seconds: float,
+    shift_s: float,
+    lag_s: float,
+    steady: bool,
+    outages: bool = False,
+) -> None:
+    """The reference at 2 Hz stamped ``shift_s`` late (with ``outages``, 40 s lost every
+    200 s), the readings at 1 Hz."""
     for k in range(int(seconds * 2)):
         t = 200.0 + 0.5 * k
         v = 2.0 if steady else _speed(t - shift_s)
-        check.reference(t, v + 0.01 * np.sin(7.0 * t), lambda t: None)
+        if not (outages and t % OUTAGE_EVERY_S >= OUTAGE_EVERY_S - 40.0):
+            check.reference(t, v + 0.01 * np.sin(7.0 * t), lambda t: None)
         if k % 2 == 0:
             check.reading(t, 2.0 if steady else _speed(t), lag_s)
 
@@ -55,11 +68,22 @@ def test_a_reference_two_minutes_off_contradicts_the_lag(shift_s: float) -> None
     assert "configured 0.5 s" in check.why
 
 
-@pytest.mark.parametrize("lag_s", [0.0, 3.0])
-def test_a_reference_in_time_agrees(lag_s: float) -> None:
-    """In time, with the lag in use right or a few seconds off: never contradicted."""
+@pytest.mark.parametrize("shift_s", [120.0, -120.0])
+def test_a_reference_with_outages_two_minutes_off_contradicts(shift_s: float) -> None:
+    """The reference lost for 40 s every 200 s: no reading overlaps it at every lag of
+    ±180 s, and each lag scored on its own overlap still finds the offset."""
     check = LagCheck(with_heading=False)
-    _feed(check, 1500.0, 0.0, lag_s, steady=False)
+    _feed(check, 1000.0, shift_s, 0.5, steady=False, outages=True)
+    found = re.search(r"best lag ([+-][0-9.]+) s", check.why)
+    assert found is not None and float(found.group(1)) == pytest.approx(-shift_s, abs=2.0)
+
+
+@pytest.mark.parametrize(("lag_s", "outages"), [(0.0, False), (3.0, False), (0.0, True)])
+def test_a_reference_in_time_agrees(lag_s: float, outages: bool) -> None:
+    """In time, with the lag in use right or a few seconds off, with outages or without:
+    never contradicted."""
+    check = LagCheck(with_heading=False)
+    _feed(check, 1500.0, 0.0, lag_s, steady=False, outages=outages)
     assert check.checks >= 3
     assert not check.contradicted
 
