@@ -28,6 +28,11 @@ CFG = (
     "calibration: [{uut: emlog1, reference: dvl, lag: 3.3, current: true},"
     " {uut: emlog2, reference: dvl, lag: 0.5, current: true}]\n"
 )
+"""The lags configured (checked every 5 min)."""
+
+CFG_AUTO = CFG.replace("lag: 3.3", "lag: auto").replace("lag: 0.5", "lag: auto")
+"""The lags found by the lag search (0..10 s: a reference minutes off is not found, and
+0 s is used)."""
 
 
 def shifted(src: Path, dst: Path, port: str, shift_s: float) -> Path:
@@ -44,21 +49,18 @@ def shifted(src: Path, dst: Path, port: str, shift_s: float) -> Path:
 
 
 @pytest.mark.soak
-@pytest.mark.parametrize(
-    "shift_s",
-    [
-        120.0,
-        -120.0,
-    ],
-)
-def test_a_reference_two_minutes_off_costs_no_window(tmp_path: Path, shift_s: float) -> None:
+@pytest.mark.parametrize("cfg", [CFG, CFG_AUTO], ids=["configured", "auto"])
+@pytest.mark.parametrize("shift_s", [120.0, -120.0])
+def test_a_reference_two_minutes_off_costs_no_window(
+    tmp_path: Path, shift_s: float, cfg: str
+) -> None:
     """The DVL's records stamped 120 s after the logs' (or before) over the whole trial
-    (scale 0.3, seed 1), the lags configured: every 5-min window of both logs within
-    1.05x raw."""
+    (scale 0.3, seed 1), the lags configured or found: every 5-min window of both logs
+    within 1.05x raw."""
     sim = simulate(tmp_path / "sim", seed=1, scale=0.3)
     (tmp_path / "late").mkdir()
     files = [shifted(f, tmp_path / "late" / f.name, "dvl", shift_s) for f in sim.files]
-    ports, uuts = pipeline_from_config(parse_config(CFG))
+    ports, uuts = pipeline_from_config(parse_config(cfg))
     res = replay(Pipeline(ports, uuts), files, truth=read_truth(sim.outdir))
     worst = {u: max(w.ratio for w in ws) for u, ws in res.truth_windows.items()}
     assert all(r <= RATIO for r in worst.values()), worst

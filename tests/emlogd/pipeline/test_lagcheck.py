@@ -14,6 +14,7 @@ from calib.lag import LagEstimate
 from calib.models import Params
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.lagcheck import (
+    LAG_CHECK_AUTO_MIN_OFFSET_S,
     LAG_CHECK_MIN_GAIN,
     LAG_CHECK_MIN_SAMPLES,
     LAG_CHECK_TOLERANCE_S,
@@ -113,6 +114,36 @@ def test_the_rule() -> None:
     assert verdict(bound, 3.3) is None  # beyond the range: where, unknown
 
 
+def test_the_lag_found_is_contradicted_by_a_clock_minutes_off_that_repeats() -> None:
+    """``lag: auto``: the first check that finds the reference 120 s off cannot tell yet;
+    the next that finds it again contradicts the lag in use."""
+    check = LagCheck(with_heading=False, auto=True)
+    _feed(check, 700.0, 120.0, 0.5, steady=False, outages=True)
+    assert check.checks == 1 and check.why == ""
+    _feed(check, 1000.0, 120.0, 0.5, steady=False, outages=True)
+    assert "best lag -1" in check.why and "in use 0.5 s" in check.why
+
+
+def test_the_lag_found_is_not_contradicted_by_a_false_peak_or_seconds() -> None:
+    """``lag: auto``: a best lag minutes off once, then elsewhere (a false peak), or
+    seconds off however often (the lag search's business), never contradicts; the same
+    offset twice in a row does, and a check that agrees starts the count again."""
+
+    def run(bests: list[float]) -> list[bool]:
+        check = LagCheck(with_heading=False, auto=True)
+        out = []
+        for best in bests:
+            why = verdict(_est(best, 0.95, 0.2), 0.5, "in use")
+            out.append(bool(check._confirmed(why, best, 0.5)))
+        return out
+
+    seconds = 0.5 + 0.9 * LAG_CHECK_AUTO_MIN_OFFSET_S
+    assert not any(run([136.0, -114.0, 136.0, 0.5, -114.0]))
+    assert not any(run([seconds] * 5))
+    assert run([-119.0, -117.0]) == [False, True]
+    assert run([-119.0, 0.5, -119.0]) == [False, False, False]
+
+
 def test_the_uut_withdraws_to_raw_and_learns_nothing() -> None:
     """A UUT whose restored calibration is applied, then a reference 120 s late: the
     calibration is withdrawn, raw passes, nothing is learnt, and the status says why."""
@@ -138,3 +169,11 @@ def test_the_uut_withdraws_to_raw_and_learns_nothing() -> None:
     assert cal.correct(2.0) == 2.0
     assert "the reference's time does not match the log's" in cal.reason
     assert learnt[-1] == learnt[-200]  # the last 200 s taught nothing
+
+
+def test_the_lag_found_is_checked_too() -> None:
+    """``lag: auto``: the UUT checks the lag in use, by the rule for a lag found."""
+    s = UutSettings(port="log", reference_port="dvl")
+    cal = UutCalibration(s, None, lambda t: None, lambda t, k, d: None)
+    assert s.lag_s is None
+    assert cal.lagcheck is not None and cal.lagcheck.auto
