@@ -212,6 +212,12 @@ def _spec(spec: str) -> tuple[list[tuple[str, float]], bool]:
             names.append((alt[:-5], 1.0))
         elif alt.endswith("[kn]"):
             names.append((alt[:-4], KNOT_MPS))
+        elif alt.endswith("]") and "[" in alt:
+            unit = alt[alt.rindex("[") :]
+            raise ImportFormatError(
+                f"--map column {alt!r}: the unit {unit} is not known (a speed column's "
+                "unit: [mps] or [kn])"
+            )
         else:
             names.append((alt, KNOT_MPS))
     return names, optional
@@ -253,24 +259,30 @@ def _bare(name: str) -> tuple[str, float | None]:
     return m.group("name").strip().casefold(), HEADER_UNITS[unit]
 
 
+def _fold(name: str) -> str:
+    """A column name compared: in any case, its spaces and hyphens as underscores."""
+    return re.sub(r"[\s\-]+", "_", name.strip().casefold())
+
+
 def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, Col], list[str]]:
     """Map keys to header columns; (columns found, required columns missing)."""
     stripped = [h.strip() for h in header]
-    folded = [h.casefold() for h in stripped]
+    folded = [_fold(h) for h in stripped]
     bare = [_bare(h) for h in stripped]
-    bare_names = [b for b, _ in bare]
+    bare_names = [_fold(b) for b, _ in bare]
     cols: dict[str, Col] = {}
     missing: list[str] = []
     for key, spec in mapping.items():
         names, optional = _spec(spec)
         for name, factor in names:
-            # the exact name, else the name in any case (BSP, bsp, Bsp), else the name
-            # with a unit after it (Bsp (kn), SOG [m/s]: a speed unit is the column's)
+            # the exact name, else the name in any case and with spaces or hyphens for
+            # its underscores (BSP, bsp, Boat Speed), else the name with a unit after it
+            # (Bsp (kn), SOG [m/s]: a speed unit is the column's)
             at = stripped.index(name) if name in stripped else None
-            if at is None and name.casefold() in folded:
-                at = folded.index(name.casefold())
-            if at is None and name.casefold() in bare_names:
-                at = bare_names.index(name.casefold())
+            if at is None and _fold(name) in folded:
+                at = folded.index(_fold(name))
+            if at is None and _fold(name) in bare_names:
+                at = bare_names.index(_fold(name))
                 factor = bare[at][1] or factor
             if at is not None:
                 cols[key] = Col(key, at, factor if key in SPEEDS else 1.0)

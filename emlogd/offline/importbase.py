@@ -182,8 +182,14 @@ def sentence_kind(line: str) -> str:
     return address if address.startswith("P") else address[2:]
 
 
+UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
+"""The byte-order marks of UTF-16 (little- and big-endian): a file that starts with one
+is read as UTF-16 (a spreadsheet saved as "Unicode text")."""
+
+
 def open_text(path: str | Path) -> TextIO:
-    """A text stream of a file, through gzip when it starts with gzip's magic."""
+    """A text stream of a file, through gzip when it starts with gzip's magic; UTF-8
+    (its byte-order mark dropped), or UTF-16 when it starts with that one's."""
     try:
         raw = open(path, "rb")  # noqa: SIM115
     except OSError as exc:
@@ -191,7 +197,8 @@ def open_text(path: str | Path) -> TextIO:
     if raw.peek(2)[:2] == b"\x1f\x8b":
         raw.close()
         return gzip.open(path, "rt", encoding="utf-8-sig", errors="replace")
-    return io.TextIOWrapper(raw, encoding="utf-8-sig", errors="replace")
+    encoding = "utf-16" if raw.peek(2)[:2] in UTF16_BOMS else "utf-8-sig"
+    return io.TextIOWrapper(raw, encoding=encoding, errors="replace")
 
 
 def not_a_sentence(text: str) -> str | None:

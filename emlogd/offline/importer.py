@@ -1,6 +1,6 @@
 """``emlogd import``: the logs people already have, turned into captures.
 
-Both formats stream (constant memory, any file size, ``.gz`` read through gzip), write
+Both formats stream (constant memory, any file size, ``.gz`` read through gzip, UTF-16 told by its byte-order mark), write
 the capture in time order, and count what they skipped by reason (a line, row or cell
 is never silently dropped). The capture is written next to its final name and moved
 there only when the import succeeds.
@@ -39,7 +39,7 @@ written ``Name[mps]``), or a preset chosen by the header (:data:`PRESETS`). The
 delimiter (comma, tab, semicolon, bar) and the header line are found in the file:
 the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds the
 mapped columns, so a banner before it is passed over (and counted). Column names
-match in any case, and with a unit after them (``Bsp (kn)``, ``SOG [m/s]``,
+match in any case, with spaces or hyphens for underscores (``Boat Speed``), and with a unit after them (``Bsp (kn)``, ``SOG [m/s]``,
 ``stw_kn``: :data:`emlogd.offline.csvmaps.HEADER_UNITS`; a speed's unit is then the
 column's); with a delimiter other than the comma, a comma in a number is a decimal
 comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO

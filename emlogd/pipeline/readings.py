@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
-from statistics import median
 
 from emlogd.pipeline.align import MedianWindow
 from emlogd.pipeline.integrity import QUANTUM_MPS
@@ -209,6 +208,7 @@ class ReadingCheck:
         "_pending",
         "_per_sentence",
         "_rate_dropped",
+        "_read_hz",
         "_spell",
         "_t_rate",
         "_tokens",
@@ -230,10 +230,8 @@ class ReadingCheck:
         self._hole = False
         self._gap_order = MedianWindow(RATE_HISTORY)
         """The same intervals, their order (:func:`bursts` runs only when one is short)."""
-        self._per_sentence: deque[float] = deque(maxlen=RATE_HISTORY)
-        """The intervals between reads not dropped, over the readings each held (without
-        ``max_rate_hz``): their median is the sentence's interval (:meth:`_read_hz`), read
-        only for a read holding more than :data:`RATE_BURST` readings."""
+        self._per_sentence = MedianWindow(RATE_HISTORY)
+        """The intervals between reads not dropped, over the readings each held."""
         self._t_rate: float | None = None
         self._tokens = RATE_BURST
         self._depth = RATE_BURST
@@ -254,6 +252,10 @@ class ReadingCheck:
         fixed = limits.max_rate_hz
         self._max_hz = DEFAULT_MAX_RATE_HZ if fixed is None else fixed
         """:meth:`max_rate_hz`, set again when :attr:`nominal_s` changes."""
+        self._read_hz = fixed
+        """The readings per second a read may bring (:data:`READ_SLACK`), Hz: ``max_rate_hz``,
+        else learnt from the sentence rate's window once it holds
+        :data:`RATE_MIN_INTERVALS`; None until then."""
         self._spell: _Spell | None = None
         """The readings dropped for the rate since the last one let through (a learnt
         rate only)."""
@@ -321,6 +323,7 @@ class ReadingCheck:
         self._tokens = self._depth
         self._drops.clear()
         self._per_sentence.clear()
+        self._read_hz = None
 
     def arrived(self, t: float, n: int = 1) -> None:
         """A reading refused before its check (out of range) counts for the rate: the gaps
@@ -335,12 +338,14 @@ class ReadingCheck:
         if prev is not None:
             dt = t - prev
             dt = 0.0 if dt < 0.0 else dt
-            # a read of at most RATE_BURST readings is within any rate (dt · rate ≥ 0)
-            rate = self._read_hz() if n > RATE_BURST else None
+            rate = self._read_hz
             if rate is not None and n > RATE_BURST + READ_SLACK * dt * rate:
                 ok = False
-            elif ok and dt > 0.0 and self.limits.max_rate_hz is None:
-                self._per_sentence.append(dt / max(n, 1))
+            elif ok and dt > 0.0:
+                per = self._per_sentence
+                per.append(dt / max(n, 1))
+                if self.limits.max_rate_hz is None and len(per) >= RATE_MIN_INTERVALS:
+                    self._read_hz = 1.0 / max(per.median(), 1e-9)
         if not ok:
             drops.append(t)
         while drops and t - drops[0] > BABBLE_S:
@@ -348,18 +353,6 @@ class ReadingCheck:
         if drops and (drops[-1] == t or len(drops) >= BABBLE_DROPS):
             return "rate"
         return ""
-
-    def _read_hz(self) -> float | None:
-        """The readings per second a read may bring (:data:`READ_SLACK`), Hz: ``max_rate_hz``,
-        else learnt from the sentence rate's window once it holds
-        :data:`RATE_MIN_INTERVALS`; None until then."""
-        fixed = self.limits.max_rate_hz
-        if fixed is not None:
-            return fixed
-        per = self._per_sentence
-        if len(per) < RATE_MIN_INTERVALS:
-            return None
-        return 1.0 / max(median(per), 1e-9)
 
     def _rate(self, t: float) -> bool:
         prev = self._t_rate
@@ -393,9 +386,7 @@ class ReadingCheck:
 
     def _learnt(self, nominal: float, size: int) -> None:
         """The nominal interval between bursts and their readings learnt: the rate and
-        the token bucket's depth follow (nothing to do when they are the ones in use)."""
-        if nominal == self.nominal_s and size == self.burst:
-            return
+        the token bucket's depth follow."""
         self.nominal_s = nominal
         self.burst = size
         self._max_hz = min(RATE_SLACK * size / nominal, DEFAULT_MAX_RATE_HZ)

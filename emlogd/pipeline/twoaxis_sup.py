@@ -3,7 +3,11 @@
 
 The figures the learner offers (:mod:`emlogd.pipeline.twoaxis_learn`) are applied only
 after they are not worse than the raw athwart reading over ``validation_s`` of block
-means learnt after the offer (and not worse than the figures in use), and the applied
+means learnt after the offer (and not worse than the figures in use); figures restored
+from the state file, validated before, over the restored one-axis calibration's
+window (:data:`~emlogd.pipeline.revalidation.RESTORE_VALIDATION_S`, or ``validation_s``
+when that is shorter): an installation's misalignment does not change across a
+restart, and raw's phantom leeway goes out meanwhile. The applied
 ones are rechecked against raw every ``recheck_s``; worse than raw, they are withdrawn
 and the athwart speed passes through raw while they (the last good ones) or another
 offer validate again. The rule
@@ -50,7 +54,7 @@ import numpy.typing as npt
 from calib.errors import ModelError
 from calib.models import PARAM_NAMES, Params, check_model, correct_array
 from emlogd.pipeline.calibration import TWO_AXIS_LON_KEYS
-from emlogd.pipeline.revalidation import worse
+from emlogd.pipeline.revalidation import RESTORE_VALIDATION_S, worse
 
 OFFER_MIN_CHANGE_SIGMA = 1.0
 """A new estimate is validated against the figures in use only when one of α, m_t, b_t
@@ -274,6 +278,8 @@ class TwoAxisSupervisor:
         event: Callable[[float, str, Mapping[str, object]], None],
     ) -> None:
         self.validation_s = validation_s
+        self._window = validation_s
+        """The candidate's validation window, s (shorter for restored figures)."""
         self.recheck_s = recheck_s
         self._event = event
         self.applied: Figures | None = None
@@ -301,9 +307,11 @@ class TwoAxisSupervisor:
 
     def restore(self, figures: Figures) -> None:
         """Figures from the state file: the last good ones, a candidate that
-        validates like a new offer before it is applied."""
+        validates before it is applied, over the restored window (module docstring)."""
         self.kept = figures
         self.offer(figures)
+        if self.candidate is figures:
+            self._window = min(RESTORE_VALIDATION_S, self.validation_s)
 
     def offer(self, figures: Figures) -> None:
         """A new estimate from the learner: validated unless it is the figures in use
@@ -313,6 +321,7 @@ class TwoAxisSupervisor:
             return
         self.candidate = figures
         self._cand_blocks = []
+        self._window = self.validation_s
 
     def observe(self, block: Block) -> None:
         """One block mean learnt from: the candidate's validation, the applied
@@ -320,7 +329,7 @@ class TwoAxisSupervisor:
         t = block[0]
         if self.candidate is not None and t > self.candidate.t:
             self._cand_blocks.append(block)
-            if t - self._cand_blocks[0][0] >= self.validation_s:
+            if t - self._cand_blocks[0][0] >= self._window:
                 self._judge_candidate(t)
         if self.applied is not None:
             self._recheck.append(block)
@@ -368,6 +377,7 @@ class TwoAxisSupervisor:
             self.applied = None
             self.forward_own = False
             self.candidate, self._cand_blocks = app, []  # the last good, re-validated
+            self._window = self.validation_s
             self.note = "two-axis figures withdrawn: athwart worse than raw"
             self._event(
                 t,

@@ -33,6 +33,14 @@ def test_bad_map(spec: str, match: str) -> None:
         parse_map(spec)
 
 
+def test_a_unit_the_map_does_not_know_is_named() -> None:
+    """``stw=Bsp[furlong]``: the error names the column and its unit, and the units a
+    map knows."""
+    maps = candidate_maps({"time": "Utc", "stw": "Bsp[furlong]"}, None)
+    with pytest.raises(ImportFormatError, match=r"'Bsp\[furlong\]'.*\[mps\] or \[kn\]"):
+        find_header(["Utc,Bsp"], maps)
+
+
 def test_candidate_maps() -> None:
     """Without a map every preset is tried in order; a map alone is tried as it is; the
     user's columns override a named preset's; an unknown preset or a map without stw is
@@ -58,6 +66,21 @@ def test_the_header_is_found_past_a_banner_with_its_delimiter() -> None:
     assert {k: c.index for k, c in cols.items()} == {"date": 0, "time": 1, "stw": 2, "heading": 3}
     assert set(cols) <= set(LOGGER_TSV)
     assert find_header(["a,b,c"], candidate_maps(None, None)) is None
+
+
+def test_names_written_with_spaces_match_the_maps_underscores() -> None:
+    """``Boat Speed (kn)``, ``Heading True``, ``Speed Over Ground``, ``Date Time``: the
+    generic map's ``boat_speed``, ``heading_true``, ``speed_over_ground``, ``date_time``."""
+    head = ["Date Time,Boat Speed (kn),Heading True,Speed Over Ground,Course-Over-Ground"]
+    found = find_header(head, candidate_maps(None, None))
+    assert found is not None and found[2] is PRESETS["generic"]
+    assert {k: c.index for k, c in found[3].items()} == {
+        "time": 0,
+        "stw": 1,
+        "heading": 2,
+        "sog": 3,
+        "cog": 4,
+    }
 
 
 def test_a_unit_in_a_name_is_read_or_named_as_unknown() -> None:

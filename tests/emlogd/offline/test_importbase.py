@@ -55,6 +55,18 @@ def test_gzip_input_is_told_by_its_magic(tmp_path: Path) -> None:
         assert (a.read(), b.read()) == ("$GPRMC\n", "$GPVTG\n")
 
 
+def test_utf16_and_a_utf8_bom_are_read_as_text(tmp_path: Path) -> None:
+    """A spreadsheet's "Unicode text" (UTF-16 with its byte-order mark, either endian)
+    and UTF-8 with a byte-order mark read as the plain text."""
+    text = "Utc\tBsp\n38516.4\t3.1\n"
+    (tmp_path / "le.txt").write_bytes(text.encode("utf-16"))
+    (tmp_path / "be.txt").write_bytes(b"\xfe\xff" + text.encode("utf-16-be"))
+    (tmp_path / "u8.txt").write_bytes(text.encode("utf-8-sig"))
+    for name in ("le.txt", "be.txt", "u8.txt"):
+        with open_text(tmp_path / name) as f:
+            assert f.read() == text, name
+
+
 def test_sentence_kind() -> None:
     """A sentence's type without its talker; a proprietary one by its address."""
     assert sentence_kind("$IIVHW,1") == "VHW" and sentence_kind("$PRTI01,1") == "PRTI01"

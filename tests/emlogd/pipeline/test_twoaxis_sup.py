@@ -206,6 +206,26 @@ def test_forward_speed_set_aside_by_a_fallback_returns_at_the_next_recheck() -> 
     assert not _own(sup)
 
 
+def test_restored_figures_validate_over_the_restored_window() -> None:
+    """Figures from the state file (validated before) are applied after 20 s of blocks
+    (the restored one-axis calibration's window), where a new offer waits for
+    ``validation_s``: raw's phantom leeway goes out for 20 s after a restart, not 2
+    minutes."""
+    sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: None)
+    sup.restore(_figures(3.0))
+    for b in _blocks(3.0, 22):
+        sup.observe(b)
+    assert _applied(sup) == _figures(3.0)
+    sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: None)
+    sup.offer(_figures(3.0))
+    for b in _blocks(3.0, 100):
+        sup.observe(b)
+    assert _applied(sup) is None and _candidate(sup) == _figures(3.0)
+    for b in _blocks(3.0, 30, 100.0):
+        sup.observe(b)
+    assert _applied(sup) == _figures(3.0)
+
+
 def test_hull_frame_own_inverts_the_sensor_and_round_trips() -> None:
     """The raw readings corrected by the figures' own longitudinal parameters and
     transverse scale and bias turn back to (u, w) exactly; the parameters go to the
