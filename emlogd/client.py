@@ -11,9 +11,15 @@ from __future__ import annotations
 import json
 import socket
 import struct
+import time
 from pathlib import Path
 
 from drivers.errors import DeviceError
+
+MAX_ANSWER = 4 << 20
+"""Longest answer line taken, bytes (a status of many UUTs is tens of KB): a peer at the
+socket's path streaming bytes without a newline is refused past it, within ``timeout_s``
+as a whole, rather than held in memory for as long as it sends."""
 
 
 def request(path: str | Path, req: dict[str, object], timeout_s: float = 5.0) -> dict[str, object]:
@@ -34,11 +40,18 @@ def request(path: str | Path, req: dict[str, object], timeout_s: float = 5.0) ->
             s.settimeout(timeout_s)
             s.sendall(json.dumps(req).encode("utf-8") + b"\n")
             buf = bytearray()
-            while b"\n" not in buf:
+            deadline = time.monotonic() + timeout_s
+            while True:
                 chunk = s.recv(65536)
-                if not chunk:
-                    break
                 buf += chunk
+                if not chunk or b"\n" in chunk:
+                    break
+                if len(buf) > MAX_ANSWER or time.monotonic() > deadline:
+                    raise DeviceError(
+                        f"{path}: no whole answer within {timeout_s:g} s and "
+                        f"{MAX_ANSWER} bytes: {len(buf)} bytes without a newline"
+                    )
+                s.settimeout(max(deadline - time.monotonic(), 0.001))
     except OSError as exc:
         raise DeviceError(
             f"cannot reach the daemon at {path}: {exc.strerror or exc} (is emlogd running?)"

@@ -40,7 +40,7 @@ from emlogd.pipeline.keys import (
     build,
     entries,
     group,
-    hostport,
+    ipv4_port,
     key,
     literal,
     number,
@@ -137,10 +137,10 @@ class UutOutputs:
         doc="This log's own output pty: its sentences go there instead of the shared outputs.",
     )
     tcp: str | None = key(
-        None, check=hostport, doc="This log's own NMEA over TCP, instead of the shared outputs."
+        None, check=ipv4_port, doc="This log's own NMEA over TCP, instead of the shared outputs."
     )
     udp: str | None = key(
-        None, check=hostport, doc="This log's own UDP destination, instead of the shared outputs."
+        None, check=ipv4_port, doc="This log's own UDP destination, instead of the shared outputs."
     )
 
 
@@ -184,7 +184,7 @@ class OutputConfig:
     )
     tcp: str | None = key(
         None,
-        check=hostport,
+        check=ipv4_port,
         doc="NMEA over TCP, e.g. `127.0.0.1:10110` (several clients); `0.0.0.0:10110` or "
         "`:10110` listens on every interface.",
     )
@@ -206,7 +206,7 @@ class OutputConfig:
         unit="s",
         doc="A TCP client that takes nothing this long while output is pending is closed.",
     )
-    udp: str | None = key(None, check=hostport, doc="NMEA over UDP, e.g. `192.168.1.255:10110`.")
+    udp: str | None = key(None, check=ipv4_port, doc="NMEA over UDP, e.g. `192.168.1.255:10110`.")
     stdout: bool = key(
         False, check=boolean, doc="NMEA on stdout too (the log then goes to stderr)."
     )

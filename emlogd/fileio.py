@@ -7,7 +7,10 @@ leaves the old file or the new one, never a torn one. The daemon's state file an
 ``emlogd calibrate --save`` both write through it. A file written in pieces (a capture
 that ``emlogd import`` or ``replay --out`` writes) is written under
 :func:`part_path` and renamed into place when complete, so no other process ever reads
-it half-written.
+it half-written. A target that exists and is no regular file (``--save /dev/stdout``,
+a device, a pipe) is written in place, never renamed over: the rename replaced the
+device node itself (``--save /dev/null`` run as root left a regular file at
+``/dev/null``).
 
 :func:`read_text_bounded` reads the config and the state file: whatever is found at
 their path — a FIFO (whose ``open`` would wait for a writer for ever), a device, a
@@ -63,12 +66,23 @@ def part_path(path: str | Path) -> Path:
     return path.with_name(f".{path.name}.{os.getpid()}.part{gz}")
 
 
+def replaceable(path: str | Path) -> bool:
+    """Whether a file written for ``path`` may be renamed over it: nothing is there yet,
+    or a regular file (through symlinks); not a device, a pipe, a socket or a directory."""
+    p = Path(path)
+    return p.is_file() or not p.exists()
+
+
 def write_atomic(path: Path, data: bytes, mode: int = 0o640) -> None:
     """Replace ``path`` by ``data`` atomically and durably (see the module docstring).
 
     Raises:
         OSError: the write failed; ``path`` is unchanged and no temporary is left.
     """
+    if not replaceable(path):  # a device, a pipe: written into, never replaced
+        with open(path, "wb") as f:
+            f.write(data)
+        return
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         write_synced(tmp, data, mode)

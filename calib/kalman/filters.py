@@ -39,7 +39,8 @@ its noise is too small to pull the scale. Beyond the paper:
   sample is treated as a reference outage).
 - **Process noise**: v is a random walk driven by acceleration white noise of
   spectral density ``accel_psd_m2ps3`` (``q_v = psd·dt``); the sensor parameters take
-  the paper's tiny ``q_params`` per step (they change over weeks); the current is a
+  the paper's tiny ``q_params`` per second (per step of a log at 1 Hz or slower:
+  :data:`Q_PARAMS_STEP_S`; they change over weeks); the current is a
   random walk of spectral density ``current_psd_m2ps3`` (it changes over minutes).
 - **Learning is per unknown**: the caller says which unknowns the data determine
   (``learn``); the others are held at their value (the prior: the last good
@@ -54,17 +55,16 @@ its noise is too small to pull the scale. Beyond the paper:
   and the parameters' is the paper's tuning, neither scaled). λ is the data's own R
   (covariance matching): each learnt-from raw update measures it as
   ``λ̂ = (y² − S_state)/(R_raw + R_ref)``, what the innovation's square leaves once the
-  state's share of S is taken off (``S_state = S − λ(R_raw + R_ref)``; the NIS capped at
-  :data:`ADAPT_NIS_CAP`, λ̂ at least 0), and λ is the running mean of λ̂ weighted by
+  state's share of S is taken off (``S_state = S − λ(R_raw + R_ref)``; the NIS capped,
+  λ̂ at least 0: :mod:`calib.kalman.adapt`), and λ is the running mean of λ̂ weighted by
   f = λ(R_raw + R_ref)/S, the share of S the noises make (samples whose S is mostly the
   state's uncertainty, the parameters just re-opened, barely move it), with a memory
   of N_λ = ``adapt_samples`` weights. Its first updates set it (no prior weight), so the
   NIS mean is near 1 within a few updates from any start: block means of a GNSS speed
   and a log quantised to 0.1 kn hold a twentieth to a tenth of a single sample's noise
-  variance. λ within [:data:`NOISE_SCALE_MIN`,
-  :data:`NOISE_SCALE_MAX`]. Residuals correlated from one sample to the next (GNSS
-  errors over seconds, a tack's log error over minutes) hold fewer independent
-  samples than samples: the lag-one correlation ρ of the normalised raw innovations
+  variance. λ within the bounds of :mod:`calib.kalman.adapt`. Residuals correlated from
+  one sample to the next (GNSS errors over seconds, a tack's log error over minutes)
+  hold fewer independent samples than samples: the lag-one correlation ρ of the normalised raw innovations
   (an average over N_λ samples, within [0, :data:`RHO_MAX`]) makes each raw update count
   as ``(1 − ρ)/(1 + ρ)`` of a sample (the AR(1) variance factor of a mean; the
   kernel's ``deweight``), so that P, the σ reported, says what the data determine.
@@ -80,7 +80,7 @@ its noise is too small to pull the scale. Beyond the paper:
   slow noise scale λ_slow says how much to trust them: it starts at 1 and moves as a
   running mean of the log NIS, ``ln λ_slow += f·(ln NIS_slow − E[ln χ²(1)])/N``,
   N = min(k + :data:`ADAPT_START`, N_λ) (the NIS taken against the innovation variance
-  λ_slow gives, within [:data:`ADAPT_NIS_MIN`, :data:`ADAPT_NIS_CAP_SLOW`], f its
+  λ_slow gives, within the bounds of :mod:`calib.kalman.adapt`, f its
   noises' share), so it comes down to λ over about N_λ updates, hours of blocks. Both
   are tracked; ``matched_noise`` says which one scales the noises (λ: the σ and NIS
   reported offline; λ_slow: the daemon, whose estimates, gates and offers are then those
@@ -108,6 +108,10 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.errors import DataError, ModelError
+from calib.kalman.adapt import (
+    matched_scale,
+    slow_scale,
+)
 from calib.kalman.kernels import check_covariance, condition, scalar_update, to_lists
 from calib.kalman.reference import Innovation
 from calib.models import AMB_STATES, CURRENT, Layout, Params, check_model, design_row, invert
@@ -117,31 +121,6 @@ DEFAULT_R_RAW_MPS2 = 0.0514**2
 
 DEFAULT_R_REF_MPS2 = 0.01**2
 """DVL bottom-track variance (Rowe SeaPILOT ±0.25 % ≈ 0.005 m/s at 2 m/s, doubled)."""
-
-NOISE_SCALE_MIN = 0.0025
-"""The smallest noise scale λ: σ a twentieth of what the sensors promise. With the
-default noises (a log's 0.1 kn, GNSS's 0.3 m/s) a block innovation's noise
-``√(λ·(R_raw + R_ref))`` is then 0.015 m/s: the quantisation error of a 0.1-kn reading
-that repeats through a block (0.1 kn/√12), which no averaging removes."""
-
-NOISE_SCALE_MAX = 100.0
-"""The largest noise scale λ: σ ten times what the sensors promise."""
-
-ADAPT_NIS_CAP = 9.0
-"""A NIS counts at most this much in the noise scale's update (a 3σ innovation: a χ²(1)
-capped there keeps a mean of 0.97, and one outlier cannot multiply λ by more than
-``1 + (ADAPT_NIS_CAP − 1)/W``, W the weights in the running mean)."""
-
-ADAPT_NIS_CAP_SLOW = 25.0
-"""A NIS counts at most this much in the slow noise scale's update (one outlier moves
-λ_slow by at most ``exp(4.5/N_λ)``)."""
-
-ADAPT_NIS_MIN = 1e-6
-"""A NIS counts at least this much in the slow noise scale's update (its logarithm: a
-zero innovation, a quantised reading's, would pull λ_slow to its floor at once)."""
-
-MEAN_LOG_CHI2_1 = -1.2703628454614782
-"""E[ln x] for x ~ χ²(1) (ψ(1/2) + ln 2): the mean log NIS of a consistent filter."""
 
 ADAPT_START = 10
 """The slow noise scale's and the innovations' correlation's first steps average over
@@ -164,6 +143,16 @@ RHO_MAX = 0.95
 """The largest lag-one correlation taken: a raw update counts as at least 1/39 of a
 sample."""
 
+Q_PARAMS_STEP_S = 1.0
+"""The time step, s, that ``q_params`` is the parameters' random walk over (the paper's
+``Q`` per step of its 1-Hz log): a step of ``dt`` adds ``q_params·min(dt, 1 s)/1 s``. A
+sensor's scale and bias drift with time, not with its sentences, so a 10-Hz log's walk
+as fast per second as a 1-Hz log's; with ``Q`` per step they walked √10 faster, and a
+fast log's bias followed the curvature of an error the model has no term for at the
+speed of the moment (its current absorbing the difference on a straight leg). A step
+longer than this (a gap, a slower log) adds one step's worth, as the paper's filter
+does."""
+
 
 @dataclass(frozen=True, slots=True)
 class KfConfig:
@@ -173,8 +162,9 @@ class KfConfig:
         r_raw_mps2: raw EMlog measurement variance R, (m/s)², from the sensor spec.
         r_ref_mps2: reference measurement variance, (m/s)².
         p0: initial variance of every sensor parameter (paper: P0 = 0.25·I), units².
-        q_params: process noise added to each parameter variance per step (paper:
-            Q = 1e-7·I), parameter units².
+        q_params: process noise added to each parameter variance per second, at most
+            per step (paper: Q = 1e-7·I per step of its 1-Hz log;
+            :data:`Q_PARAMS_STEP_S`), parameter units².
         accel_psd_m2ps3: spectral density of the speed random walk, (m/s²)²/Hz.
         current_p0_m2ps2: initial variance of each current component, (m/s)².
         current_psd_m2ps3: spectral density of the current random walk, (m/s)²/s
@@ -339,8 +329,9 @@ class KfCalibrator:
         cfg = self.config
         P[0][0] += cfg.accel_psd_m2ps3 * dt_s
         p = len(self.layout.params)
+        q = cfg.q_params * min(dt_s, Q_PARAMS_STEP_S) / Q_PARAMS_STEP_S
         for i in range(1, 1 + p):
-            P[i][i] += cfg.q_params
+            P[i][i] += q
         if self.layout.current:
             dq = self.noise_scale * cfg.current_psd_m2ps3 * dt_s
             P[1 + p][1 + p] += dq
@@ -485,27 +476,21 @@ class KfCalibrator:
     def _adapt(self, y: float, s: float) -> None:
         """The noise scales and the innovations' correlation after one learnt raw update
         (module docstring, "Honest noise" and "Evidence for an offer"): one outlier, its
-        NIS capped at :data:`ADAPT_NIS_CAP`, moves λ by at most ``(ADAPT_NIS_CAP − 1)·f/W``
-        of itself, W the weights in memory."""
+        NIS capped at :data:`~calib.kalman.adapt.ADAPT_NIS_CAP`, moves λ by at most
+        ``(ADAPT_NIS_CAP − 1)·f/W`` of itself, W the weights in memory."""
         self._n_adapt += 1
         a = 1.0 / min(self._n_adapt + ADAPT_START, self.config.adapt_samples)
         r_sum = self.config.r_raw_mps2 + self.config.r_ref_mps2
-        lam, slow = self.noise_scale_matched, self.noise_scale_slow
-        # the innovation variance at each scale, the state's share of S kept
-        s_lam, s_slow = (
-            max(s + (x - self.noise_scale) * r_sum, min(s, x * r_sum)) for x in (lam, slow)
+        s_state = s - self.noise_scale * r_sum  # the state's share of S
+        lam, self._w_adapt = matched_scale(
+            self.noise_scale_matched,
+            self._w_adapt,
+            y,
+            (s, s_state, r_sum),
+            self.config.adapt_samples,
         )
-        # λ: the running mean of each update's own measure, weighted by the noises' share
-        share = min(lam * r_sum / s_lam, 1.0)
-        lam_hat = max(lam + (min(y * y / s_lam, ADAPT_NIS_CAP) - 1.0) * s_lam / r_sum, 0.0)
-        self._w_adapt = self._w_adapt * (1.0 - 1.0 / self.config.adapt_samples) + share
-        lam += share / self._w_adapt * (lam_hat - lam)  # share > 0: λ is at least its floor
-        lam = self.noise_scale_matched = min(max(lam, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
-        # λ_slow: the running mean of the log NIS at its own scale
-        nis_slow = min(max(y * y / s_slow, ADAPT_NIS_MIN), ADAPT_NIS_CAP_SLOW)
-        share_slow = min(slow * r_sum / s_slow, 1.0)
-        slow *= math.exp(a * share_slow * (math.log(nis_slow) - MEAN_LOG_CHI2_1))
-        self.noise_scale_slow = min(max(slow, NOISE_SCALE_MIN), NOISE_SCALE_MAX)
+        self.noise_scale_matched = lam
+        self.noise_scale_slow = slow_scale(self.noise_scale_slow, y, (s, s_state, r_sum), a)
         self.noise_scale = lam if self.config.matched_noise else self.noise_scale_slow
         nu = y / math.sqrt(s)
         self._c0 += a * (nu * nu - self._c0)

@@ -490,7 +490,8 @@ class Daemon:
         Coalesced: nothing is written when the file holds the same records (their time
         aside), or for an operator's command (``operator``) the same calibrations (reset
         flags, parameters and σ, lag, model): a burst of ``freeze`` or ``reset``
-        requests costs at most one fsync per actual change.
+        requests costs at most one fsync per actual change. A file another process
+        removed or replaced since the last save is written again.
         """
         assert self.pipeline is not None and self.store is not None
         snaps = self.pipeline.calibrations()
@@ -498,7 +499,11 @@ class Daemon:
             return None
         others = self.pipeline.other_calibrations()
         written = snaps + others
-        if self._written is not None and same_records(written, self._written, material=operator):
+        if (
+            self._written is not None
+            and same_records(written, self._written, material=operator)
+            and self.store.holds_last_save()  # not removed or replaced since
+        ):
             return None
         try:
             aside = self.store.save({s.uut: s for s in snaps}, others)

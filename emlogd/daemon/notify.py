@@ -4,8 +4,11 @@
 namespace). Messages are newline-separated ``KEY=value`` assignments: ``READY=1``
 once the config is valid and the outputs are open, ``STATUS=...`` (one line),
 ``WATCHDOG=1`` at half the ``WATCHDOG_USEC`` interval, ``STOPPING=1``. Without
-``NOTIFY_SOCKET`` every call is a no-op; a send that fails is ignored (systemd may
-be gone during shutdown).
+``NOTIFY_SOCKET`` every call is a no-op; a send that fails is counted and ignored
+(systemd may be gone during shutdown). A send never waits: a socket whose reader
+does not read (a stuck or foreign receiver; a datagram socket's queue holds
+``net.unix.max_dgram_qlen`` messages, 10 by default) fails the send with ``EAGAIN``,
+where a blocking send held the daemon's one thread, and so every output, for good.
 """
 
 from __future__ import annotations
@@ -59,7 +62,7 @@ class Notifier:
             addr = "\0" + addr[1:]
         try:
             with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as s:
-                s.sendto(message.encode("utf-8", "replace"), addr)
+                s.sendto(message.encode("utf-8", "replace"), socket.MSG_DONTWAIT, addr)
         except OSError:
             self.failed += 1
             return False

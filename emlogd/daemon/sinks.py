@@ -277,7 +277,9 @@ class UdpSink:
         if self.addr is not None or not self.retry.due():
             return
         try:
-            info = socket.getaddrinfo(self.host, self.port, socket.AF_INET, socket.SOCK_DGRAM)
+            info = socket.getaddrinfo(  # an address, never the resolver (config: ipv4_port)
+                self.host, self.port, socket.AF_INET, socket.SOCK_DGRAM, 0, socket.AI_NUMERICHOST
+            )
             addr = info[0][4]
             self.addr = (str(addr[0]), int(addr[1]))
         except (OSError, IndexError) as exc:

@@ -40,6 +40,7 @@ import errno
 import fcntl
 import os
 import re
+import stat
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
@@ -79,6 +80,8 @@ class StateStore:
         directory in the way), or None."""
         self._check: Callable[[Calibration], str] | None = None
         """The check of the last :meth:`load`: a current file it refuses is no backup."""
+        self._saved: tuple[int, int, int, int] | None = None
+        """The identity of the file the last :meth:`save` wrote (:func:`_identity`)."""
 
     @property
     def real_path(self) -> Path:
@@ -196,12 +199,23 @@ class StateStore:
             aside = self._backup_current()
             tmp.replace(self.path)
             fsync_dir(self.path.parent)
+            self._saved = _identity(self.path)
         except OSError as exc:
             with contextlib.suppress(OSError):
                 tmp.unlink()
             raise StateWriteError(f"cannot write {self.path}: {exc.strerror or exc}") from None
         self._remove_orphans()
         return aside
+
+    def holds_last_save(self) -> bool:
+        """Whether the state file is still the file the last :meth:`save` wrote (same
+        inode, size and modification time): False once another process removed, replaced
+        or edited it, or before any save. A save skipped because nothing changed would
+        otherwise leave such a file in place, and the next start load it, or nothing."""
+        try:
+            return self._saved is not None and _identity(self.path) == self._saved
+        except OSError:
+            return False
 
     def _remove_orphans(self) -> None:
         """Delete temporary files left by a writer that was killed (its pid is gone)."""
@@ -232,6 +246,10 @@ class StateStore:
             # a directory is no damaged state file: a path ending in "/" names the
             # directory it was meant to be in, whose files no save may move away
             raise IsADirectoryError(errno.EISDIR, "a directory, left where it is")
+        if text is None and _is_device(self.path):
+            # a device (state_file: /dev/null, meant as "no state") is no damaged file:
+            # moved aside, the node itself would be renamed and a file made in its place
+            raise OSError(errno.ENODEV, "a device or a socket, left where it is")
         bad = text is None or _refusal(text, self._check)
         step = self.refused if bad else self.backup
         if step.is_dir():  # no file goes over a directory: that step alone is skipped
@@ -263,6 +281,21 @@ class StateStore:
         with contextlib.suppress(OSError):
             link.unlink()
         return None
+
+
+def _is_device(path: Path) -> bool:
+    """Whether ``path`` itself (not a symlink's target) is a device node or a socket."""
+    try:
+        mode = path.lstat().st_mode
+    except OSError:
+        return False
+    return stat.S_ISCHR(mode) or stat.S_ISBLK(mode) or stat.S_ISSOCK(mode)
+
+
+def _identity(path: Path) -> tuple[int, int, int, int]:
+    """A file's device, inode, size and modification time (ns), symlinks not followed."""
+    st = path.lstat()
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
 
 
 def _why(exc: OSError) -> str:

@@ -19,7 +19,7 @@ from typing import TextIO
 from drivers.errors import EmlogdError, FrameError
 from drivers.framing import nmea_checksum, split_nmea
 from drivers.io.capture import CaptureWriter
-from emlogd.fileio import part_path
+from emlogd.fileio import part_path, replaceable
 from emlogd.pipeline.variation import CourseOffsetCheck
 
 YEARS = (1980, 2100)
@@ -139,7 +139,8 @@ class CaptureSink:
 
     def __init__(self, out: str | Path, port: str, comment: str, report: ImportReport) -> None:
         self.path = Path(out)
-        self.tmp = part_path(self.path)
+        # a device or a pipe (--out /dev/stdout) is written into, never renamed over
+        self.tmp = part_path(self.path) if replaceable(self.path) else self.path
         self.port = port
         self.report = report
         self.check = CourseOffsetCheck()
@@ -160,11 +161,13 @@ class CaptureSink:
 
     def commit(self) -> None:
         self.w.close()
-        self.tmp.replace(self.path)
+        if self.tmp != self.path:
+            self.tmp.replace(self.path)
 
     def abort(self) -> None:
         self.w.close()
-        self.tmp.unlink(missing_ok=True)
+        if self.tmp != self.path:
+            self.tmp.unlink(missing_ok=True)
 
 
 def count(counter: Counter[str], key: str, n: int) -> None:

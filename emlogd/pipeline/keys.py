@@ -15,6 +15,7 @@ A check takes the value as parsed and returns it (possibly converted) or raises
 from __future__ import annotations
 
 import dataclasses
+import ipaddress
 import math
 import re
 from collections.abc import Callable, Iterator
@@ -298,6 +299,24 @@ def _hostport(v: Any) -> Any:
 
 hostport = Check(_hostport, "HOST:PORT or null")
 """``HOST:PORT`` (host optional) or null."""
+
+
+def _ipv4_port(v: Any) -> Any:
+    text = _hostport(v)
+    host = "" if text is None else text.rpartition(":")[0]
+    if host:
+        try:
+            ipaddress.IPv4Address(host)
+        except ValueError:
+            raise InvalidValueError(
+                f"{text!r}: needs an IPv4 address, not a host name (resolving it would hold "
+                "the daemon's one thread, every output with it, at every retry)"
+            ) from None
+    return text
+
+
+ipv4_port = Check(_ipv4_port, "IPv4:PORT or null")
+"""``IPV4:PORT`` (the address optional) or null: a TCP output's or a UDP destination's."""
 
 
 def param_std(names: tuple[str, ...], lo: float, hi: float) -> Check:

@@ -3,7 +3,11 @@
 
 The figures the learner offers (:mod:`emlogd.pipeline.twoaxis_learn`) are applied only
 after they are not worse than the raw athwart reading over ``validation_s`` of block
-means learnt after the offer (and not worse than the figures in use), and the applied
+means learnt after the offer (and not worse than the figures in use); figures restored
+from the state file, validated before, over the restored one-axis calibration's
+window (:data:`~emlogd.pipeline.revalidation.RESTORE_VALIDATION_S`, or ``validation_s``
+when that is shorter): an installation's misalignment does not change across a
+restart, and raw's phantom leeway goes out meanwhile. The applied
 ones are rechecked against raw every ``recheck_s``; worse than raw, they are withdrawn
 and the athwart speed passes through raw while they (the last good ones) or another
 offer validate again. The rule
@@ -28,8 +32,12 @@ a current of its own along the hull (``c_N·cos ψ + c_E·sin ψ``) is not worse
 the one-axis calibration's forward speed as emitted nor than the raw forward reading
 (:func:`forward_rmse`); else the one-axis calibration's forward speed is turned back
 (:meth:`Figures.hull_frame`). Each recheck judges it again: worse than either, the
-forward speed goes back to the one-axis calibration's; back to it, the figures'
-forward speed returns only where the one-axis one is worse than it by the margin.
+forward speed goes back to the one-axis calibration's, and the figures' forward speed
+returns only where the one-axis one is worse than it by the margin (the recheck was
+evidence against it). Set aside for want of the one-axis supervisor's word (its
+fallback, :meth:`emlogd.pipeline.twoaxis_learn.TwoAxisLearner.answers`), which is no
+evidence against it, it returns at the next recheck by the rule it was first applied
+by.
 
 No I/O, no clock.
 """
@@ -46,7 +54,7 @@ import numpy.typing as npt
 from calib.errors import ModelError
 from calib.models import PARAM_NAMES, Params, check_model, correct_array
 from emlogd.pipeline.calibration import TWO_AXIS_LON_KEYS
-from emlogd.pipeline.revalidation import worse
+from emlogd.pipeline.revalidation import RESTORE_VALIDATION_S, worse
 
 OFFER_MIN_CHANGE_SIGMA = 1.0
 """A new estimate is validated against the figures in use only when one of α, m_t, b_t
@@ -270,6 +278,8 @@ class TwoAxisSupervisor:
         event: Callable[[float, str, Mapping[str, object]], None],
     ) -> None:
         self.validation_s = validation_s
+        self._window = validation_s
+        """The candidate's validation window, s (shorter for restored figures)."""
         self.recheck_s = recheck_s
         self._event = event
         self.applied: Figures | None = None
@@ -291,12 +301,17 @@ class TwoAxisSupervisor:
         not the one-axis calibration's turned back by α (module docstring)."""
         self.forward_scores: dict[str, float] = {}
         """The forward RMSE of the last judgement, m/s (:func:`forward_rmse`'s keys)."""
+        self.forward_doubted = False
+        """The figures' own forward speed was set aside by a recheck that found it worse:
+        it returns only where the one-axis one is worse than it by the margin."""
 
     def restore(self, figures: Figures) -> None:
         """Figures from the state file: the last good ones, a candidate that
-        validates like a new offer before it is applied."""
+        validates before it is applied, over the restored window (module docstring)."""
         self.kept = figures
         self.offer(figures)
+        if self.candidate is figures:
+            self._window = min(RESTORE_VALIDATION_S, self.validation_s)
 
     def offer(self, figures: Figures) -> None:
         """A new estimate from the learner: validated unless it is the figures in use
@@ -306,6 +321,7 @@ class TwoAxisSupervisor:
             return
         self.candidate = figures
         self._cand_blocks = []
+        self._window = self.validation_s
 
     def observe(self, block: Block) -> None:
         """One block mean learnt from: the candidate's validation, the applied
@@ -313,7 +329,7 @@ class TwoAxisSupervisor:
         t = block[0]
         if self.candidate is not None and t > self.candidate.t:
             self._cand_blocks.append(block)
-            if t - self._cand_blocks[0][0] >= self.validation_s:
+            if t - self._cand_blocks[0][0] >= self._window:
                 self._judge_candidate(t)
         if self.applied is not None:
             self._recheck.append(block)
@@ -346,6 +362,7 @@ class TwoAxisSupervisor:
         self.note = ""
         self.forward_scores = forward_rmse(blocks, cand)
         self.forward_own = own_forward_ok(self.forward_scores)
+        self.forward_doubted = not self.forward_own
         detail["forward"] = FORWARD_OWN if self.forward_own else FORWARD_ONE_AXIS
         detail |= {f"rmse_l_{k}": round(v, 4) for k, v in self.forward_scores.items()}
         self._event(t, "two_axis_applied", detail)
@@ -360,6 +377,7 @@ class TwoAxisSupervisor:
             self.applied = None
             self.forward_own = False
             self.candidate, self._cand_blocks = app, []  # the last good, re-validated
+            self._window = self.validation_s
             self.note = "two-axis figures withdrawn: athwart worse than raw"
             self._event(
                 t,
@@ -376,11 +394,11 @@ class TwoAxisSupervisor:
         r = self.forward_scores = forward_rmse(blocks, app)
         detail = {f"rmse_l_{k}": round(v, 4) for k, v in r.items()}
         if self.forward_own and not own_forward_ok(r):
-            self.forward_own = False
+            self.forward_own, self.forward_doubted = False, True
             self._event(t, "two_axis_forward_withdrawn", detail)
         elif (
             not self.forward_own
-            and worse(r[FORWARD_ONE_AXIS], r[FORWARD_OWN])
+            and (not self.forward_doubted or worse(r[FORWARD_ONE_AXIS], r[FORWARD_OWN]))
             and own_forward_ok(r)
         ):
             self.forward_own = True

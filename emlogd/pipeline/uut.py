@@ -129,9 +129,9 @@ class UutCalibration:
             ),
             restored_sea_std=usable.current_std_mps if usable is not None else None,
         )
-        self.lagcheck = LagCheck(s.current) if check_lag and s.lag_s is not None else None
-        """The configured lag checked against the data (:mod:`emlogd.pipeline.lagcheck`);
-        None with ``lag: auto`` (an estimated lag is the data's own)."""
+        self.lagcheck = LagCheck(s.current, auto=s.lag_s is None) if check_lag else None
+        """The lag in use checked against the data (:mod:`emlogd.pipeline.lagcheck`; with
+        ``lag: auto`` only for a reference minutes off)."""
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
         self.state: CalState = "uncalibrated"
         self.reason = (

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -54,3 +56,30 @@ def test_request_without_daemon_is_a_clear_error(tmp_path: Path) -> None:
     """request() to a missing socket raises DeviceError asking whether emlogd is running."""
     with pytest.raises(DeviceError, match="is emlogd running"):
         request(tmp_path / "missing.sock", {"cmd": "status"})
+
+
+def test_an_answer_that_never_ends_is_refused_in_bounded_time(tmp_path: Path) -> None:
+    """A peer at the socket's path that streams bytes without a newline for as long as it
+    is read: a ``DeviceError`` within the timeout, holding at most ``MAX_ANSWER`` bytes
+    (and a little more). The client read and held it for as long as it came, each read
+    renewing the timeout."""
+    path = tmp_path / "c.sock"
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    srv.bind(str(path))
+    srv.listen(1)
+
+    def stream() -> None:
+        with srv:
+            conn, _ = srv.accept()
+            with conn, contextlib.suppress(OSError):
+                conn.settimeout(10.0)
+                for _ in range(4000):  # 256 MiB at most, then the peer gives up
+                    conn.sendall(b"x" * 65536)
+
+    t = threading.Thread(target=stream, daemon=True)
+    t.start()
+    t0 = time.monotonic()
+    with pytest.raises(DeviceError, match="without a newline"):
+        request(path, {"cmd": "status"}, timeout_s=2.0)
+    assert time.monotonic() - t0 < 4.0
+    t.join(15)

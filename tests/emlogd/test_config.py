@@ -140,6 +140,10 @@ INVALID: list[tuple[str, str, str]] = [
     ("a log's pty the shared one", BASE.replace("reference: dvl}", "reference: dvl, pty: /run/e0}") + "outputs: {pty: /run/e0}\n", "calibration[0].pty: the same path as outputs.pty"),
     ("a log's tcp the shared one", BASE.replace("reference: dvl}", "reference: dvl, tcp: '127.0.0.1:10110'}") + "outputs: {tcp: '127.0.0.1:10110'}\n", "outputs.tcp: each TCP output must listen on its own port"),
     ("a log's tcp on a wildcard's port", BASE.replace("reference: dvl}", "reference: dvl, tcp: '127.0.0.1:10110'}") + "outputs: {tcp: ':10110'}\n", "outputs.tcp: each TCP output must listen on its own port"),
+    ("udp host name", BASE + "outputs: {udp: 'display.local:10110'}\n", "outputs.udp: 'display.local:10110': needs an IPv4 address, not a host name"),
+    ("tcp host name", BASE + "outputs: {tcp: 'bridge.local:10110'}\n", "outputs.tcp: 'bridge.local:10110': needs an IPv4 address, not a host name"),
+    ("a log's tcp host name", BASE.replace("reference: dvl}", "reference: dvl, tcp: 'localhost:10111'}"), "calibration[0].tcp: 'localhost:10111': needs an IPv4 address"),
+    ("a log's udp host name", BASE.replace("reference: dvl}", "reference: dvl, udp: 'localhost:10110'}"), "calibration[0].udp: 'localhost:10110': needs an IPv4 address"),
 ]  # fmt: skip
 
 

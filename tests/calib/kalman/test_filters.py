@@ -356,6 +356,25 @@ class TestWaterFrame:
         assert kf.params == Params("EM3") and kf.current_mps == (0.0, 0.0)
 
 
+class TestParameterWalk:
+    def test_parameters_walk_per_second_whatever_the_rate(self) -> None:
+        """``q_params`` is the parameters' random walk per second (the paper's per step
+        of a 1-Hz log): 100 s at 10 Hz widen them as much as 100 s at 1 Hz, and a gap of
+        an hour adds one step's worth."""
+        q = 1e-6
+        cfg = KfConfig(q_params=q)
+        fast, slow, gap = (KfCalibrator("EM3", cfg) for _ in range(3))
+        before = np.diag(np.array(fast.covariance()))[1:3].copy()
+        for _ in range(1000):
+            fast.predict(0.1)
+        for _ in range(100):
+            slow.predict(1.0)
+        gap.predict(3600.0)
+        for kf, added in ((fast, 100 * q), (slow, 100 * q), (gap, q)):
+            grown = np.diag(np.array(kf.covariance()))[1:3] - before
+            np.testing.assert_allclose(grown, added, rtol=1e-6)
+
+
 class TestIntegrityHooks:
     """Gating, consider states and covariance management."""
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
+import threading
 from pathlib import Path
 
 from emlogd.daemon.notify import Notifier
@@ -78,3 +80,27 @@ def test_status_is_one_bounded_line(tmp_path: Path) -> None:
         got = _recv(srv)
     assert got.startswith("STATUS=a b") and len(got) == len("STATUS=") + 400
     assert "\n" not in got and "\r" not in got
+
+
+def test_a_socket_nobody_reads_never_holds_a_send(tmp_path: Path) -> None:
+    """A notify socket whose reader never reads (its queue full after a few datagrams):
+    every send returns at once, the ones that do not fit counted as failed; the reader's
+    queue, once drained, takes messages again. A blocking send waited for ever."""
+    path = tmp_path / "notify.sock"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
+        srv.bind(str(path))
+        n = Notifier(str(path))
+        results: list[bool] = []
+        sender = threading.Thread(
+            target=lambda: results.extend(n.watchdog() for _ in range(200)), daemon=True
+        )
+        sender.start()
+        sender.join(5.0)  # a blocking send: waits for ever (the thread left behind)
+        assert not sender.is_alive(), f"blocked after {n.sent} sends"
+        assert results[0] and not results[-1]
+        assert n.failed == results.count(False) > 0 and n.sent == results.count(True)
+        srv.setblocking(False)
+        with contextlib.suppress(BlockingIOError):
+            while srv.recv(4096):
+                pass
+        assert n.ready()

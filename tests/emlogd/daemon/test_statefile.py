@@ -6,6 +6,8 @@ import dataclasses
 import math
 import os
 import signal
+import socket
+import stat
 import subprocess
 import sys
 import time
@@ -491,3 +493,57 @@ def test_a_file_that_cannot_be_replaced_where_the_backup_goes_costs_the_backup_a
     monkeypatch.undo()
     assert store.save({"emlog1": _state(0.4)}) is None and store.backup_problem is None
     assert parse_state(store.backup.read_text())["emlog1"].params.m == rounds[-1]
+
+
+def test_holds_last_save_tells_a_file_replaced_or_removed(tmp_path: Path) -> None:
+    """True right after a save; False before any, and once another process replaced the
+    file (same size and all), rewrote it in place or removed it."""
+    store = StateStore(tmp_path / "state.yaml")
+    assert not store.holds_last_save()
+    store.save({"emlog1": saved_calibration(0.1)})
+    assert store.holds_last_save()
+    other = StateStore(tmp_path / "other.yaml")
+    other.save({"emlog1": saved_calibration(0.3)})
+    other.path.replace(store.path)
+    assert not store.holds_last_save()
+    store.save({"emlog1": saved_calibration(0.1)})
+    text = store.path.read_text()
+    time.sleep(0.05)  # past the file system's clock tick: the edit's time is a new one
+    store.path.write_text(text.replace("0.1", "0.3"))
+    assert not store.holds_last_save()
+    store.save({"emlog1": saved_calibration(0.1)})
+    store.path.unlink()
+    assert not store.holds_last_save()
+
+
+def _device_or_socket(path: Path, kind: str) -> socket.socket | None:
+    """A null device of its own (``mknod``: skip without the privilege) or a bound unix
+    socket at ``path``; the socket, to close."""
+    if kind == "device":
+        try:
+            os.mknod(path, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+        except PermissionError:
+            pytest.skip("mknod needs CAP_MKNOD")
+        return None
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    sock.bind(str(path))
+    return sock
+
+
+@pytest.mark.parametrize("kind", ["device", "socket"])
+def test_a_device_at_the_state_path_is_left_where_it_is(tmp_path: Path, kind: str) -> None:
+    """A character device (``state_file: /dev/null``, meant as "no state") or a socket at
+    the state file's path: the save refuses (``StateWriteError`` saying so) and the node
+    stays, nothing set aside. It was moved aside to ``.refused`` like a damaged file and a
+    regular file written in its place: ``/dev/null`` itself, for a daemon run as root."""
+    store = StateStore(tmp_path / "state.yaml")
+    sock = _device_or_socket(store.path, kind)
+    try:
+        mode = store.path.lstat().st_mode
+        with pytest.raises(StateWriteError, match="a device or a socket, left where it is"):
+            store.save({"emlog1": saved_calibration(0.1)})
+        assert store.path.lstat().st_mode == mode
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["state.yaml"]
+    finally:
+        if sock is not None:
+            sock.close()

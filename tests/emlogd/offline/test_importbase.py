@@ -4,6 +4,9 @@ temporary name and moved into place only on success, gzip input, the report's pl
 from __future__ import annotations
 
 import gzip
+import os
+import stat
+import threading
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -67,3 +70,19 @@ def test_utf16_and_a_utf8_bom_are_read_as_text(tmp_path: Path) -> None:
 def test_sentence_kind() -> None:
     """A sentence's type without its talker; a proprietary one by its address."""
     assert sentence_kind("$IIVHW,1") == "VHW" and sentence_kind("$PRTI01,1") == "PRTI01"
+
+
+def test_a_fifo_out_is_written_into_never_replaced(tmp_path: Path) -> None:
+    """``import --out`` naming a FIFO (as a device, ``/dev/stdout``): the capture is written
+    into it, the FIFO stays, no part file is left. The part file was renamed over it."""
+    fifo = tmp_path / "o.cap"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()), daemon=True)
+    reader.start()
+    sink = CaptureSink(fifo, "nmea", "test", ImportReport(["in"], str(fifo), "nmea"))
+    sink.write(100.0, "$IIVHW,,T,,M,1.0,N,,K*00")
+    sink.commit()
+    reader.join(5.0)
+    assert got and got[0].startswith(b"# emlogd capture v1") and b"$IIVHW" in got[0]
+    assert stat.S_ISFIFO(fifo.lstat().st_mode) and list(tmp_path.iterdir()) == [fifo]

@@ -357,7 +357,7 @@ def measure(case: Case, tmp: Path, mp: pytest.MonkeyPatch) -> dict[str, Any]:
         p = simsensors.EMLOG1.params if u == "emlog1" else simsensors.EMLOG2.params
         worst = max(ws, key=lambda w: w.ratio)
         out[u] = {
-            "worst": round(worst.ratio, 3),
+            "worst": round(worst.ratio, 4),
             "worst_at_s": round(worst.t0 - START_EPOCH_S),
             "worst_rmse": [round(worst.rmse_raw, 4), round(worst.rmse_corrected, 4)],
             "windows": len(ws),

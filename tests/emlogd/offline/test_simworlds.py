@@ -217,7 +217,7 @@ WORLDS = {
         Case("water-as-bottom", water_as_bottom.__doc__ or "", dvl_wrap=water_as_bottom),
         Case(
             "lost-then-step",
-            "the DVL's lock lost for 30 min; back in a current 0.42 m/s stronger",
+            "the DVL's lock lost for 30 min; back in a current that stepped by 0.42 m/s (0.3 south, 0.3 east)",
             current=stepped_current,
             lock=lost_lock,
             scale=LONG,
@@ -320,6 +320,9 @@ class TestWorlds:
 
 
 OPEN = {
+    "temperature-gain": "emlog2's window at 3 h 1.0504x raw (0.0606 vs 0.0577 m/s): the "
+    "drifting gain has brought the log's own error near zero, and the calibration "
+    "learnt as it drifted is applied there for 2 min (docs/RELIABILITY.md)",
     "fast": "emlog1 reads 1.17 × 8.8 m/s, above the default range max_speed_mps 8: its "
     "readings are refused and it is silent for 8 of 10 windows (fast-range: the range "
     "configured, both logs hold) (docs/RELIABILITY.md)",

@@ -14,6 +14,7 @@ from emlogd.pipeline.keys import (
     get,
     group,
     hostport,
+    ipv4_port,
     key,
     lag,
     number,
@@ -88,6 +89,13 @@ def test_the_pipelines_settings_declare_their_keys() -> None:
         (string(r"[A-Z]{2}", "two uppercase letters"), "vw", "'vw' is not two uppercase letters"),
         (lag, "soon", "expected auto or seconds in [0, 30], got 'soon'"),
         (hostport, "nowhere", "'nowhere' is not HOST:PORT (port 1..65535)"),
+        (ipv4_port, "nowhere", "'nowhere' is not HOST:PORT (port 1..65535)"),
+        (
+            ipv4_port,
+            "display.local:10110",
+            "'display.local:10110': needs an IPv4 address, not a host name (resolving it "
+            "would hold the daemon's one thread, every output with it, at every retry)",
+        ),
     ],
 )
 def test_checks_refuse_with_the_problem(check: object, value: object, message: str) -> None:
@@ -102,6 +110,8 @@ def test_checks_convert_and_pass() -> None:
     assert lag("auto") is None and lag(3) == 3.0 and isinstance(lag(3), float)
     assert number(0.0, 1.0, optional=True)(None) is None
     assert hostport(":10110") == ":10110"
+    assert ipv4_port(":10110") == ":10110" and ipv4_port(None) is None
+    assert ipv4_port("192.168.1.255:10110") == "192.168.1.255:10110"
 
 
 def test_param_std_names_the_parameter_at_fault() -> None:

@@ -14,6 +14,7 @@ from calib.lag import LagEstimate
 from calib.models import Params
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.lagcheck import (
+    LAG_CHECK_AUTO_MIN_OFFSET_S,
     LAG_CHECK_MIN_GAIN,
     LAG_CHECK_MIN_SAMPLES,
     LAG_CHECK_TOLERANCE_S,
@@ -33,12 +34,25 @@ def _speed(t: float) -> float:
     return float(np.interp(t, 10.0 * np.arange(_KNOTS.size), _KNOTS))
 
 
-def _feed(check: LagCheck, seconds: float, shift_s: float, lag_s: float, steady: bool) -> None:
-    """The reference at 2 Hz stamped ``shift_s`` late, the readings at 1 Hz."""
+OUTAGE_EVERY_S = 200.0
+"""With outages, the reference is lost for the last 40 s of every this many seconds."""
+
+
+def _feed(
+    check: LagCheck,
+    seconds: float,
+    shift_s: float,
+    lag_s: float,
+    steady: bool,
+    outages: bool = False,
+) -> None:
+    """The reference at 2 Hz stamped ``shift_s`` late (with ``outages``, 40 s lost every
+    200 s), the readings at 1 Hz."""
     for k in range(int(seconds * 2)):
         t = 200.0 + 0.5 * k
         v = 2.0 if steady else _speed(t - shift_s)
-        check.reference(t, v + 0.01 * np.sin(7.0 * t), lambda t: None)
+        if not (outages and t % OUTAGE_EVERY_S >= OUTAGE_EVERY_S - 40.0):
+            check.reference(t, v + 0.01 * np.sin(7.0 * t), lambda t: None)
         if k % 2 == 0:
             check.reading(t, 2.0 if steady else _speed(t), lag_s)
 
@@ -55,11 +69,22 @@ def test_a_reference_two_minutes_off_contradicts_the_lag(shift_s: float) -> None
     assert "configured 0.5 s" in check.why
 
 
-@pytest.mark.parametrize("lag_s", [0.0, 3.0])
-def test_a_reference_in_time_agrees(lag_s: float) -> None:
-    """In time, with the lag in use right or a few seconds off: never contradicted."""
+@pytest.mark.parametrize("shift_s", [120.0, -120.0])
+def test_a_reference_with_outages_two_minutes_off_contradicts(shift_s: float) -> None:
+    """The reference lost for 40 s every 200 s: no reading overlaps it at every lag of
+    ±180 s, and each lag scored on its own overlap still finds the offset."""
     check = LagCheck(with_heading=False)
-    _feed(check, 1500.0, 0.0, lag_s, steady=False)
+    _feed(check, 1000.0, shift_s, 0.5, steady=False, outages=True)
+    found = re.search(r"best lag ([+-][0-9.]+) s", check.why)
+    assert found is not None and float(found.group(1)) == pytest.approx(-shift_s, abs=2.0)
+
+
+@pytest.mark.parametrize(("lag_s", "outages"), [(0.0, False), (3.0, False), (0.0, True)])
+def test_a_reference_in_time_agrees(lag_s: float, outages: bool) -> None:
+    """In time, with the lag in use right or a few seconds off, with outages or without:
+    never contradicted."""
+    check = LagCheck(with_heading=False)
+    _feed(check, 1500.0, 0.0, lag_s, steady=False, outages=outages)
     assert check.checks >= 3
     assert not check.contradicted
 
@@ -89,6 +114,36 @@ def test_the_rule() -> None:
     assert verdict(bound, 3.3) is None  # beyond the range: where, unknown
 
 
+def test_the_lag_found_is_contradicted_by_a_clock_minutes_off_that_repeats() -> None:
+    """``lag: auto``: the first check that finds the reference 120 s off cannot tell yet;
+    the next that finds it again contradicts the lag in use."""
+    check = LagCheck(with_heading=False, auto=True)
+    _feed(check, 700.0, 120.0, 0.5, steady=False, outages=True)
+    assert check.checks == 1 and check.why == ""
+    _feed(check, 1000.0, 120.0, 0.5, steady=False, outages=True)
+    assert "best lag -1" in check.why and "in use 0.5 s" in check.why
+
+
+def test_the_lag_found_is_not_contradicted_by_a_false_peak_or_seconds() -> None:
+    """``lag: auto``: a best lag minutes off once, then elsewhere (a false peak), or
+    seconds off however often (the lag search's business), never contradicts; the same
+    offset twice in a row does, and a check that agrees starts the count again."""
+
+    def run(bests: list[float]) -> list[bool]:
+        check = LagCheck(with_heading=False, auto=True)
+        out = []
+        for best in bests:
+            why = verdict(_est(best, 0.95, 0.2), 0.5, "in use")
+            out.append(bool(check._confirmed(why, best, 0.5)))
+        return out
+
+    seconds = 0.5 + 0.9 * LAG_CHECK_AUTO_MIN_OFFSET_S
+    assert not any(run([136.0, -114.0, 136.0, 0.5, -114.0]))
+    assert not any(run([seconds] * 5))
+    assert run([-119.0, -117.0]) == [False, True]
+    assert run([-119.0, 0.5, -119.0]) == [False, False, False]
+
+
 def test_the_uut_withdraws_to_raw_and_learns_nothing() -> None:
     """A UUT whose restored calibration is applied, then a reference 120 s late: the
     calibration is withdrawn, raw passes, nothing is learnt, and the status says why."""
@@ -114,3 +169,11 @@ def test_the_uut_withdraws_to_raw_and_learns_nothing() -> None:
     assert cal.correct(2.0) == 2.0
     assert "the reference's time does not match the log's" in cal.reason
     assert learnt[-1] == learnt[-200]  # the last 200 s taught nothing
+
+
+def test_the_lag_found_is_checked_too() -> None:
+    """``lag: auto``: the UUT checks the lag in use, by the rule for a lag found."""
+    s = UutSettings(port="log", reference_port="dvl")
+    cal = UutCalibration(s, None, lambda t: None, lambda t, k, d: None)
+    assert s.lag_s is None
+    assert cal.lagcheck is not None and cal.lagcheck.auto

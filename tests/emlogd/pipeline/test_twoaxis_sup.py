@@ -182,6 +182,50 @@ def test_recheck_gives_the_forward_speed_back_to_the_one_axis_calibration() -> N
     assert _own(sup) and events[-1][1] == "two_axis_forward_applied"
 
 
+def test_forward_speed_set_aside_by_a_fallback_returns_at_the_next_recheck() -> None:
+    """Set aside for the one-axis supervisor's fallback (no evidence against it, as
+    ``TwoAxisLearner.answers`` does), the figures' own forward speed returns at the
+    next recheck where it is not worse than the one-axis one, though that is not worse
+    by the margin (3 mm/s against 5.5); set aside by a recheck that found it worse, it
+    waits for the margin."""
+    events: Events = []
+    sup = TwoAxisSupervisor(60.0, 120.0, lambda t, k, d: events.append((t, k, dict(d))))
+    _validated(sup, _figures(3.0, lon=LON), _blocks(3.0, 62, one_axis_scale=1.05))
+    close = Params("EM3", m=-0.1113, b_mps=-0.05)  # the figures' own 3 mm/s off
+    sup.forward_own = False  # the one-axis supervisor fell back
+    for b in _blocks(3.0, 130, 71.0, lon=close):
+        sup.observe(b)
+    r = sup.forward_scores
+    assert r[FORWARD_OWN] < r[FORWARD_ONE_AXIS] < r[FORWARD_OWN] * 1.05 + 0.005
+    assert _own(sup) and events[-1][1] == "two_axis_forward_applied"
+    for b in _blocks(3.0, 130, 202.0, lon=Params("EM3", m=-0.19, b_mps=-0.05)):
+        sup.observe(b)
+    assert not _own(sup) and events[-1][1] == "two_axis_forward_withdrawn"
+    for b in _blocks(3.0, 130, 333.0, lon=close):
+        sup.observe(b)
+    assert not _own(sup)
+
+
+def test_restored_figures_validate_over_the_restored_window() -> None:
+    """Figures from the state file (validated before) are applied after 20 s of blocks
+    (the restored one-axis calibration's window), where a new offer waits for
+    ``validation_s``: raw's phantom leeway goes out for 20 s after a restart, not 2
+    minutes."""
+    sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: None)
+    sup.restore(_figures(3.0))
+    for b in _blocks(3.0, 22):
+        sup.observe(b)
+    assert _applied(sup) == _figures(3.0)
+    sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: None)
+    sup.offer(_figures(3.0))
+    for b in _blocks(3.0, 100):
+        sup.observe(b)
+    assert _applied(sup) is None and _candidate(sup) == _figures(3.0)
+    for b in _blocks(3.0, 30, 100.0):
+        sup.observe(b)
+    assert _applied(sup) == _figures(3.0)
+
+
 def test_hull_frame_own_inverts_the_sensor_and_round_trips() -> None:
     """The raw readings corrected by the figures' own longitudinal parameters and
     transverse scale and bias turn back to (u, w) exactly; the parameters go to the
