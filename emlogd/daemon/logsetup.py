@@ -25,7 +25,8 @@ import stat
 import sys
 import threading
 import time
-from typing import Literal, TextIO
+from collections.abc import Callable
+from typing import Any, Literal, TextIO
 
 import structlog
 
@@ -302,6 +303,45 @@ class EventLimiter:
             return None
         self.window[key] = (start, n + 1)
         return self.dropped.pop(key, 0)
+
+
+CONTROL_EVENTS = frozenset({"control_freeze", "control_learn", "control_reset"})
+"""What the daemon logs of the operators' commands: a client sending thousands a second
+would write a line each (and a journal that rate-limits the service would then drop
+the daemon's other lines too)."""
+
+CONTROL_EVENT_BURST = 20
+"""Most lines of one operators' command per :data:`EVENT_INTERVAL_S`, the next line
+after the interval saying how many were left out (``suppressed``)."""
+
+
+class ControlLog:
+    """The log of the operators' commands (:data:`CONTROL_EVENTS`): at most
+    :data:`CONTROL_EVENT_BURST` lines of each per :data:`EVENT_INTERVAL_S`, the first
+    line after saying how many were left out (``suppressed``).
+
+    Args:
+        log: a structlog-style logger.
+        monotonic: the clock, s.
+    """
+
+    def __init__(self, log: Any, monotonic: Callable[[], float]) -> None:
+        self.log = log
+        self.monotonic = monotonic
+        self.limiter = EventLimiter(kinds=CONTROL_EVENTS, burst=CONTROL_EVENT_BURST)
+
+    def info(self, kind: str, **kw: Any) -> None:
+        """Log ``kind`` at info level, if its lines are not too many."""
+        self._emit(self.log.info, kind, kw)
+
+    def warning(self, kind: str, **kw: Any) -> None:
+        """Log ``kind`` at warning level, if its lines are not too many."""
+        self._emit(self.log.warning, kind, kw)
+
+    def _emit(self, emit: Callable[..., Any], kind: str, kw: dict[str, Any]) -> None:
+        suppressed = self.limiter.allow("control", kind, self.monotonic())
+        if suppressed is not None:
+            emit(kind, **kw, **({"suppressed": suppressed} if suppressed else {}))
 
 
 def status_line(status: dict[str, object]) -> dict[str, str]:

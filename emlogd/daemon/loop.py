@@ -36,7 +36,7 @@ from drivers.errors import DeviceError, EmlogdError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
-from emlogd.daemon import signals
+from emlogd.daemon import logsetup, signals
 from emlogd.daemon.configload import ConfigLoad, why_not_loaded
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
@@ -116,6 +116,7 @@ class Daemon:
         """The resting ports' descriptors (registered one-shot) and their names."""
         self._watch(self.sel.fileno(), self._serve)
         self.event_limiter = EventLimiter()
+        self.control_log = logsetup.ControlLog(log, monotonic)
         self.contain = Containment()
         self.rest_s: dict[str, float] = {}
         self.outputs = Outputs(self.sel, log, monotonic)
@@ -601,7 +602,7 @@ class Daemon:
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)
             err = self._persist(operator=True)
-            self.log.info("control_freeze", uuts=done, persisted=err is None)
+            self.control_log.info("control_freeze", uuts=done, persisted=err is None)
             if err is not None:
                 raise ValueError(
                     f"learning stopped for {', '.join(done)}, but the calibration "
@@ -614,12 +615,12 @@ class Daemon:
             if not isinstance(on, bool):
                 raise ValueError('learn needs "on": true or false')
             done = self.pipeline.set_learning(on, p)
-            self.log.info("control_learn", uuts=done, on=on)
+            self.control_log.info("control_learn", uuts=done, on=on)
             return {"uuts": done, "learning": on}
         if cmd == "reset":
             reset = self.pipeline.reset(p)
             err = self._persist(operator=True)
-            self.log.warning("control_reset", uuts=reset, persisted=err is None)
+            self.control_log.warning("control_reset", uuts=reset, persisted=err is None)
             if err is not None:
                 raise ValueError(
                     f"{', '.join(reset)} reset, but the state file was not written ({err}): "

@@ -2,12 +2,29 @@
 
 SIGTERM and SIGINT stop the daemon (the good calibrations persisted), SIGHUP reloads
 its config; the handlers only set flags, and every handled signal wakes the loop
-through a self-pipe (``signal.set_wakeup_fd``). SIGUSR1 and SIGUSR2, whose default
-action ends a process, mean nothing to the daemon: one sent to it by mistake (a
-logrotate ``postrotate`` script's ``kill -USR1`` meant for another service, a
-``systemctl kill`` of the wrong unit) is counted and logged (:class:`Unused`) and the
-daemon runs on. SIGPIPE is ignored by the interpreter (a write to a peer that went away
-is an ``EPIPE`` error the outputs handle).
+through a self-pipe (``signal.set_wakeup_fd``). The other signals whose default action
+ends a process and that no fault of the daemon's own raises (:data:`UNUSED_SIGNALS`)
+mean nothing to it: one sent to it by mistake (a logrotate ``postrotate`` script's
+``kill -USR1`` meant for another service, a ``systemctl kill`` of the wrong unit, a
+UPS monitor's SIGPWR, a shell's ``kill -ALRM``) is counted and logged (:class:`Unused`)
+and the daemon runs on:
+
+- SIGUSR1, SIGUSR2: no use is made of them.
+- SIGALRM, SIGVTALRM, SIGPROF: the daemon sets no timer (``alarm``, ``setitimer``), so
+  one is from outside.
+- SIGPWR: a power failure reported (by a UPS monitor, to init); a service is stopped
+  with SIGTERM when the machine shuts down, and the calibrations are persisted as they
+  change, so there is nothing to do at once.
+- SIGXCPU: the soft CPU-time limit (``RLIMIT_CPU``) passed; the kernel sends it every
+  second until the hard limit, then SIGKILL. Logged (the operators see the limit
+  coming), the daemon serving until then.
+- SIGIO (SIGPOLL), SIGSTKFLT and the real-time signals SIGRTMIN…SIGRTMAX: no
+  descriptor is in ``O_ASYNC`` mode, no real-time signal is used.
+
+SIGPIPE and SIGXFSZ are ignored by the interpreter (a write to a peer that went away is
+an ``EPIPE`` error, a write past ``RLIMIT_FSIZE`` an ``EFBIG`` one, both handled where
+they happen). The signals of the daemon's own faults (SIGSEGV, SIGBUS, SIGFPE, SIGILL,
+SIGABRT, SIGTRAP, SIGSYS) and SIGQUIT (a core dump asked for) keep their default action.
 """
 
 from __future__ import annotations
@@ -23,8 +40,27 @@ from typing import Any
 
 Handler = Callable[[int, FrameType | None], None]
 
-UNUSED_SIGNALS = (signal.SIGUSR1, signal.SIGUSR2)
+UNUSED_SIGNALS: tuple[int, ...] = (
+    signal.SIGUSR1,
+    signal.SIGUSR2,
+    signal.SIGALRM,
+    signal.SIGVTALRM,
+    signal.SIGPROF,
+    signal.SIGPWR,
+    signal.SIGXCPU,
+    signal.SIGIO,
+    signal.SIGSTKFLT,
+    *range(signal.SIGRTMIN, signal.SIGRTMAX + 1),
+)
 """Signals whose default action ends the process and that the daemon has no use for."""
+
+
+def signal_name(signum: int) -> str:
+    """A signal's name: ``SIGUSR1``; a real-time one's ``SIGRTMIN+3``."""
+    if signal.SIGRTMIN < signum < signal.SIGRTMAX:
+        return f"SIGRTMIN+{signum - signal.SIGRTMIN}"
+    return signal.Signals(signum).name
+
 
 UNUSED_LOG_S = 10.0
 """Least time between two ``signal_ignored`` log lines, s: a storm of such signals is
@@ -44,7 +80,7 @@ class Unused:
 
     def handler(self, signum: int, frame: FrameType | None) -> None:
         """The handler of :data:`UNUSED_SIGNALS`: count it."""
-        self.pending[signal.Signals(signum).name] += 1
+        self.pending[signal_name(signum)] += 1
         self.total += 1
 
     def log(self, log: Any, now: float) -> None:

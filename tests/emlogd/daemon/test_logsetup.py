@@ -137,3 +137,33 @@ class TestLogStream:
             out = logsetup.LogStream(f)
             out.write("one\n")
             assert (tmp_path / "log").read_text() == "one\n"
+
+
+def test_control_log_passes_a_burst_per_interval_then_counts_what_it_left_out() -> None:
+    """The operators' commands' lines: ``CONTROL_EVENT_BURST`` of each command per
+    interval, the first line after it carrying ``suppressed``; each command counted
+    apart, and other events never limited."""
+    now = [100.0]
+    lines: list[tuple[str, str, dict[str, object]]] = []
+
+    class _Log:
+        def info(self, kind: str, **kw: object) -> None:
+            lines.append(("info", kind, kw))
+
+        def warning(self, kind: str, **kw: object) -> None:
+            lines.append(("warning", kind, kw))
+
+    clog = logsetup.ControlLog(_Log(), lambda: now[0])
+    for _ in range(logsetup.CONTROL_EVENT_BURST + 5):
+        clog.info("control_learn", on=True)
+        clog.warning("control_reset", uuts=["emlog1"])
+    clog.info("another_event")
+    clog.info("another_event")
+    assert [k for _, k, _ in lines].count("control_learn") == logsetup.CONTROL_EVENT_BURST
+    assert [k for _, k, _ in lines].count("control_reset") == logsetup.CONTROL_EVENT_BURST
+    assert [k for _, k, _ in lines].count("another_event") == 2
+    now[0] += logsetup.EVENT_INTERVAL_S
+    clog.warning("control_reset", uuts=["emlog1"])
+    assert lines[-1] == ("warning", "control_reset", {"uuts": ["emlog1"], "suppressed": 5})
+    clog.warning("control_reset", uuts=["emlog1"])
+    assert "suppressed" not in lines[-1][2]

@@ -11,6 +11,23 @@ from typing import Any
 from emlogd.daemon.signals import UNUSED_LOG_S, UNUSED_SIGNALS, Unused, drain, install, restore
 from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, raw_pty, wait
 
+ENDING_SIGNALS = (
+    signal.SIGUSR1,
+    signal.SIGUSR2,
+    signal.SIGALRM,
+    signal.SIGVTALRM,
+    signal.SIGPROF,
+    signal.SIGPWR,
+    signal.SIGXCPU,
+    signal.SIGXFSZ,
+    signal.SIGIO,
+    signal.SIGSTKFLT,
+    signal.SIGRTMIN,
+    signal.SIGRTMIN + 3,
+    signal.SIGRTMAX,
+)
+"""Signals whose default action ends a process, none raised by a fault of the daemon's own."""
+
 
 class _Log:
     def __init__(self) -> None:
@@ -38,8 +55,9 @@ def test_unused_signals_are_counted_and_logged_once_per_interval() -> None:
 
 
 def test_install_handles_the_unused_signals_and_restore_puts_back() -> None:
-    """Installed, SIGUSR1 and SIGUSR2 are counted in this process (their default action
-    would end it) and wake the loop's pipe; restored, the handlers before are back."""
+    """Installed, every unused signal (SIGUSR1, SIGALRM, SIGPWR, SIGRTMIN+3…) is counted in
+    this process (its default action would end it) and wakes the loop's pipe; restored,
+    the handlers before are back."""
     before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, *UNUSED_SIGNALS)}
     r, w = os.pipe()
     os.set_blocking(r, False)
@@ -50,7 +68,8 @@ def test_install_handles_the_unused_signals_and_restore_puts_back() -> None:
     try:
         for sig in UNUSED_SIGNALS:
             os.kill(os.getpid(), sig)
-        assert unused.total == 2
+        assert unused.total == len(UNUSED_SIGNALS)
+        assert unused.pending["SIGALRM"] == unused.pending["SIGRTMIN+3"] == 1
         assert os.read(r, 16)  # the loop would wake
         os.write(w, b"x" * 100)
         drain(r)
@@ -62,18 +81,19 @@ def test_install_handles_the_unused_signals_and_restore_puts_back() -> None:
     assert {sig: signal.getsignal(sig) for sig in before} == before
 
 
-def test_sigusr1_and_sigusr2_do_not_end_the_live_daemon(tmp_path: Path) -> None:
-    """SIGUSR1 and SIGUSR2, five each, to the running daemon: it answers, logs
-    ``signal_ignored`` with their counts, and SIGTERM still persists and exits 0. SIGUSR1
-    ended it at once (killed by the signal: no calibration persisted, the control
-    socket and the pty link left behind)."""
+def test_unused_signals_do_not_end_the_live_daemon(tmp_path: Path) -> None:
+    """Every signal of ``ENDING_SIGNALS`` (the timers', SIGPWR, SIGXCPU, SIGXFSZ, SIGIO,
+    real-time ones...), five times each, to the running daemon: it answers, logs
+    ``signal_ignored`` with their counts, and SIGTERM still persists and exits 0.
+    Left to its default action, each ended it at once (killed by the signal: no
+    calibration persisted, the control socket and the pty link left behind)."""
     work = make_work(tmp_path, PD0_CONFIG)
     masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
     try:
         d = Daemon(work)
         try:
             for _ in range(5):
-                for sig in UNUSED_SIGNALS:
+                for sig in ENDING_SIGNALS:
                     d.send_signal(sig)
             wait(lambda: d.events("signal_ignored") > 0, "a signal_ignored line", 10.0)
             assert d.running
