@@ -85,6 +85,7 @@ from emlogd.pipeline.evidence import (
     CUSUM_MAX_GAP_S,
     CUSUM_MIN_SPAN_S,
     HOLD_SIGMAS,
+    Cadence,
     Course,
     Cusum,
     Drift,
@@ -139,10 +140,9 @@ CUSUM_HALF_LIFE_S = 60.0
 
 CUSUM_MIN_SAMPLES = 10.0
 """The CUSUM runs once its window holds this many (forgotten) samples of the applied
-calibration (its own current and spread are known) and spans
-:data:`~emlogd.pipeline.evidence.CUSUM_MIN_SPAN_S`. While a CUSUM run builds up, its
-samples stay out of the window: a change is not absorbed by the baseline it is judged
-against."""
+calibration (its own current and spread known; fewer at a slow cadence, :class:`Cadence`)
+and spans :data:`~emlogd.pipeline.evidence.CUSUM_MIN_SPAN_S`. A run's samples stay out of
+the window: a change is not absorbed by the baseline it is judged against."""
 
 CUSUM_SIGMA_FLOOR_MPS = 0.02
 """The innovation's standard deviation is at least this, m/s (a window of quantised
@@ -210,7 +210,8 @@ class Supervisor:
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
         self.course = Course(CUSUM_HALF_LIFE_S)
-        self.t_detect = -math.inf
+        self.cadence = Cadence()
+        """The scored readings' cadence and the last one's time (the change detector's)."""
         self.drift = Drift()
         self.held = False
         """Raw passes through until the CUSUM run decides (``HOLD_SIGMAS``)."""
@@ -444,11 +445,10 @@ class Supervisor:
     def _validated(self, t: float, cand: Candidate) -> bool:
         """The candidate's validation window is complete (``validation_s``, or
         :data:`RESTORE_VALIDATION_S` for one validated before)."""
-        span = self.s.validation_s
-        if cand.kind != "new":
-            span = min(RESTORE_VALIDATION_S, span)
+        v = self.s.validation_s
+        span = v if cand.kind == "new" else min(RESTORE_VALIDATION_S, v)
         done = t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES
-        final = t - cand.t0 >= self.s.validation_s  # a withdrawn one: until told from raw
+        final = t - cand.t0 >= v  # a withdrawn one: until told from raw
         return done and (cand.separation is None or judge_withdrawn(cand, {}, final) is not None)
 
     def _refit(self, t: float) -> None:
@@ -477,11 +477,11 @@ class Supervisor:
         error less what its own current (:data:`CUSUM_HALF_LIFE_S`) predicts; an alarm
         whose errors are raw's or smaller is the sea's, :attr:`sea_changed` when the
         reference jumped)."""
-        if t - self.t_detect > CUSUM_MAX_GAP_S:
+        if t - self.cadence.t > CUSUM_MAX_GAP_S:
             self._reset_detector(refit=False)  # its baseline is another sea's
-        self.t_detect = t
         w = self.detector
-        if w.n < CUSUM_MIN_SAMPLES or w.t0 is None or t - w.t0 < CUSUM_MIN_SPAN_S:
+        n_min = self.cadence.min_weight(t, CUSUM_MIN_SAMPLES, CUSUM_HALF_LIFE_S)
+        if w.n < n_min or w.t0 is None or t - w.t0 < CUSUM_MIN_SPAN_S:
             w.add(t, cs, (e_app,))
             return False
         sigma = max(w.rmse(0), CUSUM_SIGMA_FLOOR_MPS) * math.sqrt(1.0 + w.leverage(cs))
@@ -563,7 +563,7 @@ class Supervisor:
                     self.retry = None
                     self.candidate = Candidate(old.params, math.nan, "restored", old.std)
             return
-        base = self.applied if self.applied is not None else None
+        base = self.applied
         if base is not None and not self._significant(base, offer.params, offer.param_std):
             return
         self.candidate = Candidate(offer.params, t)
