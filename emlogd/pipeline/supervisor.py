@@ -80,12 +80,12 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 from calib.models import Layout, Params
+from emlogd.pipeline.cadence import Cadence
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.evidence import (
     CUSUM_MAX_GAP_S,
     CUSUM_MIN_SPAN_S,
     HOLD_SIGMAS,
-    Cadence,
     Course,
     Cusum,
     Drift,

@@ -1,0 +1,42 @@
+"""The readings' cadence and the weight the change detector's baseline needs at it."""
+
+from __future__ import annotations
+
+import pytest
+
+from emlogd.pipeline.cadence import CUSUM_MIN_FILL_S, Cadence
+from emlogd.pipeline.evidence import CUSUM_MAX_GAP_S
+
+
+def _cadence(dt: float, n: int = 30) -> Cadence:
+    c = Cadence()
+    for k in range(n):
+        c.add(k * dt)
+    return c
+
+
+@pytest.mark.parametrize("dt", [0.1, 1.0, 2.0])
+def test_at_a_reading_every_2_s_or_faster_the_baseline_needs_its_samples(dt: float) -> None:
+    """At 0.5 Hz and faster the change detector's baseline waits for its ten samples."""
+    assert _cadence(dt).min_weight(30 * dt, 10.0, 60.0) == 10.0
+
+
+def test_at_a_reading_every_5_s_the_baseline_needs_what_30_s_of_them_weigh() -> None:
+    """A window of a 60-s half-life holds at most 18 readings 5 s apart (fewer after a
+    run whose samples were kept out): the baseline needs the weight 30 s of them give
+    it, about 5, not ten."""
+    c = _cadence(5.0)
+    need = c.min_weight(150.0, 10.0, 60.0)
+    full = 1.0 / (1.0 - 0.5 ** (5.0 / 60.0))
+    assert need == pytest.approx((1.0 - 0.5 ** (CUSUM_MIN_FILL_S / 60.0)) * full)
+    assert 5.0 < need < 5.5 and full < 18.0
+    assert c.dt_s == pytest.approx(5.0)
+
+
+def test_a_silence_is_no_cadence() -> None:
+    """Readings 1 s apart around a silence longer than CUSUM_MAX_GAP_S: still 1 s."""
+    c = _cadence(1.0, 10)
+    c.add(9.0 + 2.0 * CUSUM_MAX_GAP_S)
+    c.add(10.0 + 2.0 * CUSUM_MAX_GAP_S)
+    assert c.dt_s == pytest.approx(1.0)
+    assert Cadence().min_weight(0.0, 10.0, 60.0) == 10.0  # no interval yet
