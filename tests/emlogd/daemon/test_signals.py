@@ -19,19 +19,19 @@ from tests.emlogd.cli.test_common import ROOT
 from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, raw_pty, wait
 
 ENDING_SIGNALS = (
-    signal.SIGUSR1,
-    signal.SIGUSR2,
-    signal.SIGALRM,
-    signal.SIGVTALRM,
-    signal.SIGPROF,
-    signal.SIGPWR,
-    signal.SIGXCPU,
-    signal.SIGXFSZ,
-    signal.SIGIO,
-    signal.SIGSTKFLT,
-    signal.SIGRTMIN,
-    signal.SIGRTMIN + 3,
     signal.SIGRTMAX,
+    signal.SIGRTMIN + 3,
+    signal.SIGRTMIN,
+    signal.SIGSTKFLT,
+    signal.SIGIO,
+    signal.SIGXFSZ,
+    signal.SIGXCPU,
+    signal.SIGPWR,
+    signal.SIGPROF,
+    signal.SIGVTALRM,
+    signal.SIGALRM,
+    signal.SIGUSR2,
+    signal.SIGUSR1,
 )
 """Signals whose default action ends a process, none raised by a fault of the daemon's own."""
 
