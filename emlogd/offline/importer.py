@@ -47,8 +47,10 @@ comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
 or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each
 of these told by the first time cell), or a ``strptime`` pattern; with a ``date``
 column, a time cell holding a time of day alone is joined to the date with a space
-before parsing. When no row gives a time, the error quotes the first time cell and
-asks for ``--time-format``. Times without a zone are UTC unless ``--utc-offset`` says
+before parsing; without one, to ``--date`` (the next day once a time of day comes
+:data:`DAY_ROLLOVER_S` or more before the row before: midnight passed). When no row
+gives a time, the error quotes the first time cell and asks for ``--time-format`` (for
+times of day alone, for the date). Times without a zone are UTC unless ``--utc-offset`` says
 the logger kept local time. Positions are decimal degrees or
 ``ddmm.mmmmN``/``dddmm.mmmmE``.
 Expedition's own sparse log (a ``!Boat`` line of names, a ``!boat`` line of channel
@@ -103,7 +105,7 @@ import math
 from collections import Counter, deque
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
 from typing import TextIO
 
@@ -143,6 +145,7 @@ from emlogd.offline.importbase import (
 )
 from emlogd.offline.importer_sparse import SparseLog
 from emlogd.offline.importnmea import (
+    DAY_ROLLOVER_S,
     MAX_FIX_GAP_S,
     MAX_PENDING_LINES,
     import_nmea,
@@ -238,6 +241,9 @@ class _CsvRun:
     utc_offset_h: float
     variation_deg: float | None
     carry_s: float
+    day: date | None = None
+    """The date of times of day without a date column (``--date``; the next day's
+    after midnight)."""
     last: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Column key → (time written, value)."""
     groups: dict[str, _Group] = field(
@@ -272,6 +278,7 @@ def import_csv(
     time_format: str | None = None,
     heading_ref: HeadingRef | None = None,
     utc_offset_h: float | None = None,
+    day: date | None = None,
     variation_deg: float | None = None,
     port: str = "nmea",
     carry_s: float = CARRY_S,
@@ -289,6 +296,7 @@ def import_csv(
             preset's; without one ``auto``: told by the first time cell).
         heading_ref: the heading's reference (default: the preset's, else true).
         utc_offset_h: the logger's clock minus UTC, hours (times are UTC without it).
+        day: the date of times of day alone when no date column is mapped.
         variation_deg: magnetic variation, east positive, when no column gives one.
         port: the capture's port name.
         carry_s: how long a group's other cells are taken as last written, s.
@@ -312,7 +320,9 @@ def import_csv(
         href = _magnetic_column(cols, href, heading_ref is not None)
         _describe(report, found, href, utc_offset_h is not None, variation_deg is not None)
         sink = CaptureSink(out, port, f"emlogd import --format csv: {path}", report)
-        run = _CsvRun(sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s)
+        run = _CsvRun(
+            sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s, day
+        )
         try:
             if sparse is not None:
                 report.notes["expedition_sparse_log"] += 1
@@ -399,7 +409,8 @@ def _finish_csv(path: str | Path, run: _CsvRun) -> None:
         if report.skipped["bad_time"] and TIME_OF_DAY.fullmatch(run.bad_stamp):
             why = (
                 f"; the time cells hold a time of day alone (the first {run.bad_stamp!r}) "
-                "and no date column is mapped: a time needs its date (--map date=COLUMN)"
+                "and no date column is mapped: a time needs its date (--map date=COLUMN, "
+                "or --date YYYY-MM-DD)"
             )
         elif report.skipped["bad_time"] and run.bad_stamp:
             why = (
@@ -454,10 +465,16 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
     unreadable one, one outside :data:`YEARS` or one before the row before."""
     stamp = cell(row, run.cols["time"].index)
     date_col = run.cols.get("date")
+    given = run.day is not None and date_col is None and TIME_OF_DAY.fullmatch(stamp)
     if date_col is not None and TIME_OF_DAY.fullmatch(stamp):
         day = cell(row, date_col.index)
         stamp = f"{day} {stamp}" if day else ""
+    elif given and run.day is not None:
+        stamp = f"{run.day.isoformat()} {stamp}"
     t = _stamp_time(stamp, run) if stamp else math.nan
+    if given and run.day is not None and run.t_prev - t >= DAY_ROLLOVER_S:
+        run.day += timedelta(days=1)  # midnight passed
+        t += 86_400.0
     if not stamp:
         reason = "no_time"
     elif not math.isfinite(t):

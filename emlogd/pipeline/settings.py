@@ -199,7 +199,9 @@ class UutSettings:
         show=lambda v: "auto" if v is None else v,
         doc="The EMlog's lag behind the reference; auto: estimated by cross-correlation "
         "from the first `lag_window_s` on, used once accepted (never negative, σ ≤ 0.1 s), "
-        "then fixed; until then 0 s, said in the status reason.",
+        "then fixed; until then 0 s, said in the status reason. Either is checked every "
+        "5 min of readings over ±180 s: a lag the data contradict (auto: a best lag 30 s "
+        "or more away, found twice) stops learning and applying, said in the status.",
     )
     lag_window_s: float = key(
         300.0,

@@ -278,6 +278,16 @@ def test_dump_round_trips_non_defaults(tmp_path: Path) -> None:
     assert parse_config(dump_config(cfg), cfg.path) == cfg
 
 
+def test_the_gnss_example_takes_a_sailing_yachts_speeds() -> None:
+    """examples/emlogd-gnss.yaml (a yacht's instrument bus against its GNSS) reads logs to
+    29 kn: a racing yacht's 20 kn is in its range, where the default range (8 m/s, a
+    survey vehicle's) would refuse those readings and leave the autopilot silent."""
+    cfg = load_config(EXAMPLE.with_name("emlogd-gnss.yaml"))
+    (uut,) = cfg.calibration
+    assert uut.settings.envelope.max_speed_mps >= 20 * 0.514444
+    assert uut.settings.current and uut.settings.reference_field == "gnss"
+
+
 def test_every_calibration_key_is_shown_in_the_example() -> None:
     """examples/emlogd.yaml shows every calibration key."""
     text = EXAMPLE.read_text()

@@ -74,11 +74,9 @@ def _import_nmea(args: argparse.Namespace) -> ImportReport:
 
 
 def _import_csv(args: argparse.Namespace) -> ImportReport:
-    """``--format csv``: one file, ``--date`` refused, the export imported."""
+    """``--format csv``: one file, the export imported (``--date`` for times of day alone)."""
     from emlogd.offline import importer
 
-    if args.date is not None:
-        raise UsageError("--date applies to --format nmea only")
     if len(args.files) != 1:
         raise UsageError("--format csv imports one file at a time")
     return importer.import_csv(
@@ -89,6 +87,7 @@ def _import_csv(args: argparse.Namespace) -> ImportReport:
         time_format=args.time_format,
         heading_ref=args.heading_ref,
         utc_offset_h=args.utc_offset,
+        day=args.date,
         variation_deg=args.variation,
         port=args.port,
         progress=progress,
@@ -157,7 +156,11 @@ def add_parser(sub: Subparsers) -> None:
     p.add_argument("--out", required=True, metavar="FILE.cap", help="capture to write (.gz ok)")
     p.add_argument("--port", default="nmea", help="port name in the capture (default nmea)")
     p.add_argument(
-        "--date", type=_date_arg, metavar="YYYY-MM-DD", help="nmea: UTC date for GGA-only logs"
+        "--date",
+        type=_date_arg,
+        metavar="YYYY-MM-DD",
+        help="UTC date for times of day alone: nmea, GGA-only logs or RMC without a "
+        "date; csv, a time column without a date column (the next day after midnight)",
     )
     p.add_argument(
         "--map",

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import math
-from datetime import UTC, datetime
+from datetime import UTC, date, datetime
 from pathlib import Path
 
 import pytest
@@ -332,6 +332,14 @@ class TestCsv:
         with pytest.raises(ImportFormatError, match=r"time of day alone.*'12:00:00'.*date="):
             import_csv(src, tmp_path / "o.cap")
 
+    def test_times_of_day_take_the_given_date_past_midnight(self, tmp_path: Path) -> None:
+        """Times of day alone with --date: that day's, the next day's after midnight."""
+        src = tmp_path / "log.csv"
+        src.write_text("Time,Speed (kts),Heading\n23:59:59,3.1,100\n00:00:01,3.2,101\n")
+        rep = import_csv(src, tmp_path / "o.cap", day=date(2024, 7, 18))
+        t0 = datetime(2024, 7, 18, 23, 59, 59, tzinfo=UTC).timestamp()
+        assert (rep.t_start, rep.t_end) == (t0, t0 + 2.0)
+
     @pytest.mark.parametrize(("error", "flagged"), [(0.0, False), (20.0, True)])
     def test_the_heading_is_checked_against_the_course(
         self, tmp_path: Path, error: float, flagged: bool
@@ -398,7 +406,7 @@ class TestCli:
         self, tmp_path: Path, capsys: pytest.CaptureFixture[str]
     ) -> None:
         """csv without --map takes the preset the header names; a header no preset knows
-        is one line naming what each preset lacks; nmea options are refused for csv."""
+        is one line naming what each preset lacks; csv options are refused for nmea."""
         src = _csv(tmp_path, [f"{OLE_2005},3.0,90,3,90,0,0"])
         out = str(tmp_path / "o.cap")
         assert main(["import", str(src), "--format", "csv", "--out", out]) == 0
@@ -407,8 +415,6 @@ class TestCli:
         assert main(["import", str(other), "--format", "csv", "--out", out]) == 1
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "expedition lacks 'Utc' for time" in err
-        args = ["import", str(src), "--format", "csv", "--out", out, "--preset", "expedition"]
-        assert main([*args, "--date", "2026-01-01"]) == 2
         assert main(["import", str(src), "--format", "nmea", "--out", out, "--map", "time=X"]) == 2
         assert main(["import", str(src), "--format", "nmea", "--out", out, "--variation", "2"]) == 2
 

@@ -428,7 +428,7 @@ class TestWorlds:
 
 OPEN = {
     "turn-bias": "open: a bias in turns is no parameter of the model, and in a figure-8 a "
-    "current to any fit; emlog2's window over the figure-8 1.17x raw (docs/RELIABILITY.md)",
+    "current to any fit; emlog2's window over the figure-8 1.12x raw (docs/RELIABILITY.md)",
 }
 """The cases that break the promise, pinned as strict xfails until fixed."""
 

@@ -320,9 +320,6 @@ class TestWorlds:
 
 
 OPEN = {
-    "temperature-gain": "emlog2's window at 3 h 1.0504x raw (0.0606 vs 0.0577 m/s): the "
-    "drifting gain has brought the log's own error near zero, and the calibration "
-    "learnt as it drifted is applied there for 2 min (docs/RELIABILITY.md)",
     "fast": "emlog1 reads 1.17 × 8.8 m/s, above the default range max_speed_mps 8: its "
     "readings are refused and it is silent for 8 of 10 windows (fast-range: the range "
     "configured, both logs hold) (docs/RELIABILITY.md)",

@@ -25,7 +25,6 @@ def test_a_utc_offset_beyond_the_time_zones_is_a_usage_error(
     [
         ("nmea", ["--map", "time=T,stw=S"], "--map applies to --format csv only"),
         ("nmea", ["--utc-offset", "1"], "--utc-offset applies to --format csv only"),
-        ("csv", ["--date", "2024-06-01"], "--date applies to --format nmea only"),
     ],
 )
 def test_an_option_of_the_other_format_is_refused(
