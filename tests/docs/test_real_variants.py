@@ -360,9 +360,7 @@ def test_the_tide_moves_the_ground_not_the_water(name: str, scale: float, tmp_pa
 
 # The whole suite, variant by variant, against the unperturbed recording: every step
 # runs and nothing moves materially (real_variants.verdict).
-KNOWN: dict[tuple[str, str], str] = {
-    ("logger-tsv", "rows-0.2hz"): "a 5-min window of the replay 1.31 times raw's RMSE",
-}
+KNOWN: dict[tuple[str, str], str] = {}
 """What does not hold yet, by (kind, variant): strict xfails."""
 
 _BASES: dict[str, Any] = {}
