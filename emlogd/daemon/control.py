@@ -21,7 +21,9 @@ holding the most, the one that has waited longest since it connected or last com
 a request (a process connecting in a loop, or a user's many processes, lose their own
 connections, never another user's operator's). Each wake-up accepts a backlog's worth of
 connections (:data:`ACCEPTS_PER_ROUND`). A socket file removed under the running
-server is made again within :data:`PATH_CHECK_S`. A server may be read-only (``commands``: only ``status``), e.g. a
+server is made again within :data:`PATH_CHECK_S`. An answer the socket's buffer does
+not take whole (a status of hundreds of UUTs) waits in the client's buffer and leaves
+as the client reads, within :data:`SEND_S`. A server may be read-only (``commands``: only ``status``), e.g. a
 status socket open to every local user next to the operators' control socket. The
 client side is :func:`emlogd.client.request`.
 """
@@ -71,6 +73,13 @@ at once, so an operator's connect waits behind it no longer than a round."""
 
 BACKLOG = 32
 """The listen backlog: connections waiting to be accepted."""
+
+SEND_S = 5.0
+"""An answer must be taken whole this long after it was ready, or the client is closed:
+an answer larger than the socket's buffer (the status of a few hundred UUTs is
+megabytes) waits in the client's own buffer and leaves as the client reads, its other
+requests read only once it has; a client that does not read holds that buffer no
+longer."""
 
 IDLE_S = 30.0
 """A client that completes no request for this long is closed (it holds a slot)."""
@@ -182,7 +191,7 @@ def _peer(conn: socket.socket) -> Peer:
 
 
 class _Client:
-    __slots__ = ("buf", "peer", "seen", "sock", "started")
+    __slots__ = ("buf", "out", "peer", "seen", "sending", "sock", "started")
 
     def __init__(self, sock: socket.socket, now: float, peer: Peer = (-1, 0)) -> None:
         self.sock = sock
@@ -193,6 +202,10 @@ class _Client:
         """When it connected or last completed a request."""
         self.started: float | None = None
         """When the first byte of its unfinished request came (None: none unfinished)."""
+        self.out = bytearray()
+        """Answers not yet sent (the socket's buffer was full)."""
+        self.sending: float | None = None
+        """When :attr:`out` began to wait (None: nothing waits)."""
 
 
 class ControlServer:
@@ -238,6 +251,8 @@ class ControlServer:
         """Clients closed for a request not complete within :data:`REQUEST_S`."""
         self.flooded = 0
         """Clients closed for more than :data:`MAX_PIPELINED` requests in one read."""
+        self.unread = 0
+        """Clients closed for not taking an answer within :data:`SEND_S`."""
         self.pause = AcceptPause(lambda d: self._note("control_accept_error", d), monotonic)
         self.mode = mode
         self.rebound = 0
@@ -338,7 +353,7 @@ class ControlServer:
             self._drop(oldest)
         conn.setblocking(False)
         self.clients[conn] = _Client(conn, self.monotonic(), _peer(conn))
-        self.selector.register(conn, selectors.EVENT_READ, lambda c=conn: self._read(c))
+        self.selector.register(conn, selectors.EVENT_READ, lambda c=conn: self._ready(c))
 
     def _eviction_candidate(self) -> socket.socket:
         """The client to close for a newcomer: of the peer user holding the most
@@ -367,25 +382,41 @@ class ControlServer:
                     conn, {"ok": False, "error": f"request not complete within {REQUEST_S:g} s"}
                 )
                 self._drop(conn)
-            elif now - client.seen > IDLE_S:
+            elif client.sending is not None and now - client.sending > SEND_S:
+                self.unread += 1
+                self._drop(conn)
+            elif client.sending is None and now - client.seen > IDLE_S:
                 self._drop(conn)
         if self.pause.resume_due():
             self.selector.register(self.sock, selectors.EVENT_READ, self._accept)
 
+    def _ready(self, conn: socket.socket) -> None:
+        """The selector's call: send what waits, then (nothing left waiting) read."""
+        client = self.clients.get(conn)
+        if client is None:
+            return
+        if client.out:
+            self._flush(conn, client)
+        if conn in self.clients and not client.out:
+            self._read(conn)
+
     def _read(self, conn: socket.socket) -> None:
+        """Read what the client sent and answer its whole requests (those read before
+        while an answer waited too)."""
+        data: bytes | None
         try:
             data = conn.recv(4096)
         except (BlockingIOError, InterruptedError):
-            return
+            data = None
         except OSError:
             data = b""
-        if not data:
+        if data == b"":
             self._drop(conn)
             return
         client = self.clients[conn]
         now = self.monotonic()
         buf = client.buf
-        buf += data
+        buf += data or b""
         answered = 0
         while b"\n" in buf and conn in self.clients:
             if answered == MAX_PIPELINED:
@@ -401,6 +432,8 @@ class ControlServer:
             client.seen = now
             client.started = None
             self._reply(conn, self._answer(line))
+        if conn in self.clients and client.out:
+            return  # the rest is read once the answers are taken (:meth:`_ready`)
         if buf and client.started is None:
             client.started = now
         if len(buf) > MAX_REQUEST and conn in self.clients:
@@ -427,10 +460,35 @@ class ControlServer:
             return {"ok": False, "error": str(exc)}
 
     def _reply(self, conn: socket.socket, doc: dict[str, object]) -> None:
+        """Send ``doc`` as a line, after the answers still waiting; what the socket does
+        not take waits in the client's buffer (:meth:`_flush`)."""
+        client = self.clients.get(conn)
+        if client is None:
+            with contextlib.suppress(OSError):
+                conn.send(_line(doc))
+            return
+        client.out += _line(doc)
+        self._flush(conn, client)
+
+    def _flush(self, conn: socket.socket, client: _Client) -> None:
+        """Send what the client's buffer holds, as much as the socket takes; watch the
+        socket for room while some is left, for requests once none is."""
         try:
-            conn.send(_line(doc))
+            while client.out:
+                sent = conn.send(client.out)
+                del client.out[:sent]
+        except (BlockingIOError, InterruptedError):
+            pass
         except OSError:
             self._drop(conn)
+            return
+        if client.out and client.sending is None:
+            client.sending = self.monotonic()
+            self.selector.modify(conn, selectors.EVENT_WRITE, lambda c=conn: self._ready(c))
+        elif not client.out and client.sending is not None:
+            client.sending = None
+            client.seen = self.monotonic()
+            self.selector.modify(conn, selectors.EVENT_READ, lambda c=conn: self._ready(c))
 
     def _drop(self, conn: socket.socket) -> None:
         if conn in self.clients:

@@ -21,6 +21,13 @@ and the daemon runs on:
 - SIGIO (SIGPOLL), SIGSTKFLT and the real-time signals SIGRTMIN…SIGRTMAX: no
   descriptor is in ``O_ASYNC`` mode, no real-time signal is used.
 
+SIGTTOU and SIGTTIN are ignored (:func:`ignore_terminal_stops`, before anything is
+logged): a daemon started in the background of a terminal that has ``stty tostop`` set,
+its log on that terminal, was stopped by SIGTTOU at its first log line, every output
+and socket with it, until someone sent SIGCONT. Ignored, the write goes through. SIGTSTP
+(Ctrl-Z at the terminal the daemon runs in the foreground of) is the operator's and
+keeps its default action.
+
 SIGPIPE and SIGXFSZ are ignored by the interpreter (a write to a peer that went away is
 an ``EPIPE`` error, a write past ``RLIMIT_FSIZE`` an ``EFBIG`` one, both handled where
 they happen). The signals of the daemon's own faults (SIGSEGV, SIGBUS, SIGFPE, SIGILL,
@@ -96,6 +103,17 @@ class Unused:
             total=self.total,
             detail="emlogd has no use for it: SIGHUP reloads the config, SIGTERM stops",
         )
+
+
+TERMINAL_STOPS = (signal.SIGTTOU, signal.SIGTTIN)
+"""Signals that stop a process of a background process group for using its terminal."""
+
+
+def ignore_terminal_stops() -> None:
+    """Ignore :data:`TERMINAL_STOPS`: a write to the terminal goes through, a read fails
+    (``EIO``) rather than stopping the daemon."""
+    for sig in TERMINAL_STOPS:
+        signal.signal(sig, signal.SIG_IGN)
 
 
 def install(on_stop: Handler, on_hup: Handler, unused: Unused, wake_fd: int) -> dict[int, Any]:

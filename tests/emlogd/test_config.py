@@ -399,3 +399,42 @@ def test_two_logs_under_one_talker_without_declared_outputs_load(tmp_path: Path)
     f.write_text(text)
     with pytest.raises(ConfigError):
         load_config(f)
+
+
+def _laughs(levels: int) -> str:
+    """A YAML flow list of ``levels`` anchors, each nine aliases of the one before:
+    9**levels strings if the aliases were expanded ("billion laughs")."""
+    names = "abcdefghijklmnop"
+    items = ['&a ["x", "x", "x", "x", "x", "x", "x", "x", "x"]']
+    for k in range(1, levels):
+        items.append(f"&{names[k]} [{', '.join(['*' + names[k - 1]] * 9)}]")
+    return "[" + ", ".join([*items, "*" + names[levels - 1]]) + "]"
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "ports: {laughs}\n",
+        "ports:\n  - {{name: {laughs}, url: a, protocol: nmea0183, role: uut}}\n",
+        "ports:\n  - {{name: e, url: a, protocol: nmea0183, role: uut, baud: {laughs}}}\n",
+    ],
+)
+def test_a_config_of_aliases_expanding_exponentially_is_refused_at_once(
+    tmp_path: Path, text: str
+) -> None:
+    """A config whose aliases would expand to 9**9 strings where a port list, a name or
+    a number is wanted: refused in milliseconds naming the key, nothing expanded (the
+    checks read the YAML nodes, an alias one node)."""
+    path = tmp_path / "c.yaml"
+    path.write_text(text.format(laughs=_laughs(9)))
+    with pytest.raises(ConfigError, match=r"c\.yaml:\d+: ports\[0\]"):
+        load_config(path)
+
+
+def test_a_config_path_in_a_symlink_loop_is_refused(tmp_path: Path) -> None:
+    """The config a symlink in a loop (``a -> b -> a``): a ConfigError saying it cannot
+    be read (``Too many levels of symbolic links``)."""
+    (tmp_path / "a.yaml").symlink_to(tmp_path / "b.yaml")
+    (tmp_path / "b.yaml").symlink_to(tmp_path / "a.yaml")
+    with pytest.raises(ConfigError, match=r"cannot read.*symbolic links"):
+        load_config(tmp_path / "a.yaml")

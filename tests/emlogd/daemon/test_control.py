@@ -18,8 +18,12 @@ from emlogd.daemon.control import (
     MAX_REQUEST,
     PATH_CHECK_S,
     REQUEST_S,
+    SEND_S,
     ControlServer,
 )
+
+BIG = 3 << 20
+"""An answer's size past any socket buffer, bytes (the status of a thousand UUTs is 2 MB)."""
 
 
 class _Loop:
@@ -282,3 +286,70 @@ def test_a_removed_socket_file_is_made_again(sync: _Sync, tmp_path: Path) -> Non
     assert "names another file" in events[-1][1]
     sync.server.close()
     assert path.read_text() == "another's"
+
+
+class _BigLoop(_Loop):
+    """The loop, its ``status`` answer :data:`BIG` bytes long."""
+
+    def handle(self, req: dict[str, object]) -> dict[str, object]:
+        if req["cmd"] == "status":
+            return {"blob": "x" * BIG}
+        return super().handle(req)
+
+
+def test_an_answer_larger_than_the_socket_buffer_arrives_whole(tmp_path: Path) -> None:
+    """A 3 MB answer reaches the client whole, and the requests sent after it in the same
+    write are answered after it, in order. The rest of the first ``send`` (a few hundred
+    KB) was lost: the client waited for its newline until its timeout."""
+    lp = _BigLoop(tmp_path / "run" / "control.sock")
+    try:
+        answer = request(tmp_path / "run" / "control.sock", {"cmd": "status"}, timeout_s=10)
+        assert answer["ok"] is True and answer["blob"] == "x" * BIG
+        s = _connect(tmp_path / "run" / "control.sock")
+        with s:
+            s.sendall(b'{"cmd": "status"}\n{"cmd": "freeze"}\n{"cmd": "learn"}\n')
+            f = s.makefile("rb")
+            lines = [f.readline() for _ in range(3)]
+        assert len(lines[0]) > BIG and b'"echo": "freeze"' in lines[1]
+        assert b'"echo": "learn"' in lines[2]
+    finally:
+        lp.close()
+
+
+def test_a_client_not_taking_its_answer_is_closed_the_others_served(tmp_path: Path) -> None:
+    """A client asking for a 3 MB answer and reading nothing holds it no longer than
+    ``SEND_S``: then it is closed (counted ``unread``); another client is answered
+    meanwhile."""
+    clock = _Clock()
+    sel = selectors.DefaultSelector()
+    server = ControlServer(
+        tmp_path / "s.sock",
+        lambda req: {"blob": "x" * BIG} if req["cmd"] == "status" else {"echo": req["cmd"]},
+        sel,
+        monotonic=clock,
+    )
+
+    def pump() -> None:
+        for key, _ in sel.select(timeout=0.05):
+            key.data()
+
+    try:
+        idle = _connect(tmp_path / "s.sock")
+        idle.sendall(b'{"cmd": "status"}\n')
+        pump()
+        other = _connect(tmp_path / "s.sock")
+        other.sendall(b'{"cmd": "freeze"}\n')
+        for _ in range(4):
+            pump()
+        assert b'"echo": "freeze"' in other.recv(4096)
+        clock.t += SEND_S / 2
+        server.housekeep()
+        assert server.unread == 0 and len(server.clients) == 2
+        clock.t += SEND_S
+        server.housekeep()
+        assert server.unread == 1 and len(server.clients) == 1
+        idle.close()
+        other.close()
+    finally:
+        server.close()
+        sel.close()

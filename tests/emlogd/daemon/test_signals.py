@@ -4,27 +4,34 @@ counted and logged, never the end of the daemon."""
 from __future__ import annotations
 
 import os
+import pty
+import select
 import signal
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
+from drivers.errors import DeviceError
+from emlogd.client import request
 from emlogd.daemon.signals import UNUSED_LOG_S, UNUSED_SIGNALS, Unused, drain, install, restore
+from tests.emlogd.cli.test_common import ROOT
 from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, raw_pty, wait
 
 ENDING_SIGNALS = (
-    signal.SIGUSR1,
-    signal.SIGUSR2,
-    signal.SIGALRM,
-    signal.SIGVTALRM,
-    signal.SIGPROF,
-    signal.SIGPWR,
-    signal.SIGXCPU,
-    signal.SIGXFSZ,
-    signal.SIGIO,
-    signal.SIGSTKFLT,
-    signal.SIGRTMIN,
-    signal.SIGRTMIN + 3,
     signal.SIGRTMAX,
+    signal.SIGRTMIN + 3,
+    signal.SIGRTMIN,
+    signal.SIGSTKFLT,
+    signal.SIGIO,
+    signal.SIGXFSZ,
+    signal.SIGXCPU,
+    signal.SIGPWR,
+    signal.SIGPROF,
+    signal.SIGVTALRM,
+    signal.SIGALRM,
+    signal.SIGUSR2,
+    signal.SIGUSR1,
 )
 """Signals whose default action ends a process, none raised by a fault of the daemon's own."""
 
@@ -108,3 +115,59 @@ def test_unused_signals_do_not_end_the_live_daemon(tmp_path: Path) -> None:
     finally:
         for fd in masters:
             os.close(fd)
+
+
+_BACKGROUND = """\
+import os, subprocess, sys, termios
+os.setsid()
+fd = os.open(sys.argv[1], os.O_RDWR)  # the session's controlling terminal
+attrs = termios.tcgetattr(fd)
+attrs[3] |= termios.TOSTOP
+termios.tcsetattr(fd, termios.TCSANOW, attrs)
+p = subprocess.Popen(sys.argv[2:], stdin=subprocess.DEVNULL, stdout=fd, stderr=fd, process_group=0)
+print(p.pid, flush=True)
+p.wait()
+"""
+"""Run argv[2:] in a background process group of a new session whose terminal is
+argv[1], with ``stty tostop``, its output on the terminal (``emlogd run &``)."""
+
+
+def test_a_daemon_in_the_background_of_a_tostop_terminal_runs(tmp_path: Path) -> None:
+    """``emlogd run &`` in a terminal with ``stty tostop``, its log on the terminal: it
+    runs, answers and logs there (its lines reach the terminal). SIGTTOU stopped it at
+    its first log line (state ``T``): no output, no answer, until a SIGCONT."""
+    work = make_work(tmp_path, PD0_CONFIG.replace("log_format: json", "log_format: console"))
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    term, slave = pty.openpty()
+    name = os.ttyname(slave)
+    os.close(slave)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    argv = [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")]
+    shell = subprocess.Popen(
+        [sys.executable, "-c", _BACKGROUND, name, *argv], cwd=work, stdout=subprocess.PIPE, env=env
+    )
+    pid = -1
+    try:
+        assert shell.stdout is not None
+        pid = int(shell.stdout.readline())
+        wait(lambda: _answers(work / "run" / "control.sock"), "the daemon's answer", 10.0)
+        said = b""
+        while select.select([term], [], [], 0.2)[0]:
+            said += os.read(term, 65536)
+        assert b"ready" in said
+        os.kill(pid, signal.SIGTERM)
+        assert shell.wait(timeout=10) == 0
+    finally:
+        if shell.poll() is None:
+            os.kill(pid, signal.SIGKILL)
+            os.kill(pid, signal.SIGCONT)
+            shell.wait()
+        for fd in (term, *masters):
+            os.close(fd)
+
+
+def _answers(sock: Path) -> bool:
+    try:
+        return bool(request(sock, {"cmd": "status"}, timeout_s=1.0)["ok"])
+    except DeviceError:
+        return False
