@@ -256,8 +256,8 @@ class UutSettings:
     q_params: float = key(
         _KF.q_params,
         check=number(0.0, 1.0),
-        doc="Random walk of the parameters per second, at most per sample (the paper's Q "
-        "per step of its 1-Hz log).",
+        doc="Random walk of the parameters per second, at most per sample, in the water "
+        "frame (the paper's Q per step of its 1-Hz log); against the ground, per sample.",
     )
     p0: float = key(
         _KF.p0, check=number(0.0, 100.0, lo_open=True), doc="Initial variance (the paper's P0)."

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from calib.errors import DataError, ModelError
@@ -357,13 +358,17 @@ class TestWaterFrame:
 
 
 class TestParameterWalk:
+    @staticmethod
+    def _grown(kf: KfCalibrator, before: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        return np.diag(np.array(kf.covariance()))[1:3] - before
+
     def test_parameters_walk_per_second_whatever_the_rate(self) -> None:
-        """``q_params`` is the parameters' random walk per second (the paper's per step
-        of a 1-Hz log): 100 s at 10 Hz widen them as much as 100 s at 1 Hz, and a gap of
-        an hour adds one step's worth."""
+        """In the water frame ``q_params`` is the parameters' random walk per second (the
+        paper's per step of a 1-Hz log): 100 s at 10 Hz widen them as much as 100 s at
+        1 Hz, and a gap of an hour adds one step's worth."""
         q = 1e-6
         cfg = KfConfig(q_params=q)
-        fast, slow, gap = (KfCalibrator("EM3", cfg) for _ in range(3))
+        fast, slow, gap = (KfCalibrator("EM3", cfg, current=True) for _ in range(3))
         before = np.diag(np.array(fast.covariance()))[1:3].copy()
         for _ in range(1000):
             fast.predict(0.1)
@@ -371,8 +376,18 @@ class TestParameterWalk:
             slow.predict(1.0)
         gap.predict(3600.0)
         for kf, added in ((fast, 100 * q), (slow, 100 * q), (gap, q)):
-            grown = np.diag(np.array(kf.covariance()))[1:3] - before
-            np.testing.assert_allclose(grown, added, rtol=1e-6)
+            np.testing.assert_allclose(self._grown(kf, before), added, rtol=1e-6)
+
+    def test_against_the_ground_the_parameters_walk_per_step(self) -> None:
+        """Without the current's states (the paper's filter against the ground) the
+        parameters walk ``q_params`` per step, as the paper's: they stand in for the
+        sea's changes too, which its tuning follows."""
+        q = 1e-6
+        kf = KfCalibrator("EM3", KfConfig(q_params=q))
+        before = np.diag(np.array(kf.covariance()))[1:3].copy()
+        for _ in range(1000):
+            kf.predict(0.1)
+        np.testing.assert_allclose(self._grown(kf, before), 1000 * q, rtol=1e-6)
 
 
 class TestIntegrityHooks:
