@@ -11,6 +11,8 @@ candidate's validation (:data:`VALIDATION_MIN_FILL_S`) follow the same rule.
 from __future__ import annotations
 
 import math
+import statistics
+from collections import deque
 
 from emlogd.pipeline.evidence import CUSUM_MAX_GAP_S
 
@@ -47,13 +49,21 @@ straddles what changed within it."""
 CADENCE_GAIN = 0.1
 """The weight of each new interval in :class:`Cadence`'s running mean."""
 
+CADENCE_INTERVALS = 9
+"""The re-check's and the validation's cadence is the median of this many most recent
+intervals (:attr:`Cadence.median_s`): a reference lost for half a minute in a log read
+every second (which moves the running mean past 2 s) is not a slow cadence."""
+
 
 class Cadence:
     """The scored readings' cadence: a running mean of the intervals between them, s
-    (an interval over :data:`CUSUM_MAX_GAP_S` is a silence, not a cadence)."""
+    (an interval over :data:`CUSUM_MAX_GAP_S` is a silence, not a cadence), and their
+    median (:data:`CADENCE_INTERVALS`)."""
 
     def __init__(self) -> None:
         self.dt_s = math.nan
+        self.median_s = math.nan
+        self._recent: deque[float] = deque(maxlen=CADENCE_INTERVALS)
         self.t = -math.inf
         """The last scored reading's time, s (-inf: none yet)."""
 
@@ -62,6 +72,8 @@ class Cadence:
         dt = t - self.t
         if 0.0 < dt <= CUSUM_MAX_GAP_S:
             self.dt_s = dt if math.isnan(self.dt_s) else self.dt_s + CADENCE_GAIN * (dt - self.dt_s)
+            self._recent.append(dt)
+            self.median_s = statistics.median(self._recent)
         self.t = t
 
     def min_weight(self, t: float, min_samples: float, half_life_s: float) -> float:
@@ -69,12 +81,12 @@ class Cadence:
         window forgetting with ``half_life_s`` fills to over :data:`CUSUM_MIN_FILL_S` of
         readings at the cadence when that is less."""
         self.add(t)
-        return self.weight(min_samples, CUSUM_MIN_FILL_S, half_life_s)
+        return self.weight(min_samples, CUSUM_MIN_FILL_S, half_life_s, self.dt_s)
 
-    def weight(self, min_samples: float, span_s: float, half_life_s: float) -> float:
+    @staticmethod
+    def weight(min_samples: float, span_s: float, half_life_s: float, dt: float) -> float:
         """``min_samples``, or the weight a window forgetting with ``half_life_s`` fills
-        to over ``span_s`` of readings at the cadence when that is less."""
-        dt = self.dt_s
+        to over ``span_s`` of readings ``dt`` apart when that is less."""
         if not dt > 0.0:
             return min_samples
         fill = (1.0 - 0.5 ** (span_s / half_life_s)) / (1.0 - 0.5 ** (dt / half_life_s))
@@ -83,7 +95,7 @@ class Cadence:
     def recheck_weight(self, half_life_s: float) -> float:
         """The weight the re-check's window (forgetting with ``half_life_s``) needs:
         :data:`RECHECK_MIN_SAMPLES`, or less at a slow cadence (:data:`RECHECK_MIN_FILL_S`)."""
-        return self.weight(RECHECK_MIN_SAMPLES, RECHECK_MIN_FILL_S, half_life_s)
+        return self.weight(RECHECK_MIN_SAMPLES, RECHECK_MIN_FILL_S, half_life_s, self.median_s)
 
     def validation_count(self) -> float:
         """The scored samples a candidate's validation needs: :data:`VALIDATION_MIN_SAMPLES`,
@@ -91,8 +103,9 @@ class Cadence:
         return self.count(VALIDATION_MIN_SAMPLES, VALIDATION_MIN_FILL_S)
 
     def count(self, min_samples: float, span_s: float) -> float:
-        """``min_samples``, or the readings ``span_s`` holds at the cadence when fewer."""
-        dt = self.dt_s
+        """``min_samples``, or the readings ``span_s`` holds at the median cadence when
+        fewer."""
+        dt = self.median_s
         if not dt > 0.0:
             return min_samples
         return min(min_samples, span_s / dt)

@@ -71,3 +71,14 @@ def test_at_a_reading_every_5_s_the_recheck_and_validation_need_a_span() -> None
     assert 25.0 < c.recheck_weight(300.0) < 26.0
     assert c.validation_count() == pytest.approx(VALIDATION_MIN_FILL_S / 5.0) == 8.0
     assert Cadence().validation_count() == VALIDATION_MIN_SAMPLES  # no interval yet
+
+
+def test_a_reference_lost_for_half_a_minute_is_no_slow_cadence() -> None:
+    """Readings 1 s apart around a 30-s loss of the reference (within CUSUM_MAX_GAP_S):
+    the running mean passes 2 s, but the re-check and a validation still count samples."""
+    c = _cadence(1.0)
+    c.add(29.0 + 30.0)
+    c.add(60.0)
+    assert c.dt_s > 2.0 and c.median_s == pytest.approx(1.0)
+    assert c.recheck_weight(300.0) == RECHECK_MIN_SAMPLES
+    assert c.validation_count() == VALIDATION_MIN_SAMPLES
