@@ -62,7 +62,8 @@ class Cadence:
 
     def __init__(self) -> None:
         self.dt_s = math.nan
-        self.median_s = math.nan
+        self._median = math.nan
+        self._stale = False
         self._recent: deque[float] = deque(maxlen=CADENCE_INTERVALS)
         self.t = -math.inf
         """The last scored reading's time, s (-inf: none yet)."""
@@ -73,8 +74,16 @@ class Cadence:
         if 0.0 < dt <= CUSUM_MAX_GAP_S:
             self.dt_s = dt if math.isnan(self.dt_s) else self.dt_s + CADENCE_GAIN * (dt - self.dt_s)
             self._recent.append(dt)
-            self.median_s = statistics.median(self._recent)
+            self._stale = True
         self.t = t
+
+    @property
+    def median_s(self) -> float:
+        """The median of the last :data:`CADENCE_INTERVALS` intervals, s (nan: none yet)."""
+        if self._stale:
+            self._median = statistics.median(self._recent)
+            self._stale = False
+        return self._median
 
     def min_weight(self, t: float, min_samples: float, half_life_s: float) -> float:
         """With a scored reading at ``t`` (:meth:`add`): ``min_samples``, or the weight a
