@@ -80,6 +80,8 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 from calib.models import Layout, Params
+from emlogd.pipeline.cadence import RECHECK_MIN_SAMPLES as RECHECK_MIN_SAMPLES
+from emlogd.pipeline.cadence import VALIDATION_MIN_SAMPLES as VALIDATION_MIN_SAMPLES
 from emlogd.pipeline.cadence import Cadence
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.evidence import (
@@ -118,12 +120,6 @@ from emlogd.pipeline.revalidation import CandidateSource as CandidateSource
 
 if TYPE_CHECKING:
     from emlogd.pipeline.settings import UutSettings
-
-VALIDATION_MIN_SAMPLES = 20
-"""A candidate needs at least this many scored samples in its validation window."""
-
-RECHECK_MIN_SAMPLES = 60.0
-"""The applied calibration is judged once its re-check window holds this many."""
 
 CANDIDATE_FACTOR = 1.02
 CANDIDATE_MARGIN_MPS = 0.002
@@ -447,7 +443,7 @@ class Supervisor:
         :data:`RESTORE_VALIDATION_S` for one validated before)."""
         v = self.s.validation_s
         span = v if cand.kind == "new" else min(RESTORE_VALIDATION_S, v)
-        done = t - cand.t0 >= span and cand.n >= VALIDATION_MIN_SAMPLES
+        done = t - cand.t0 >= span and cand.n >= self.cadence.validation_count()
         final = t - cand.t0 >= v  # a withdrawn one: until told from raw
         return done and (cand.separation is None or judge_withdrawn(cand, {}, final) is not None)
 
@@ -667,7 +663,7 @@ class Supervisor:
 
     def _recheck(self, t: float) -> None:
         w = self.recheck
-        if self.applied is None or w.n_effective < RECHECK_MIN_SAMPLES:
+        if self.applied is None or w.n_effective < self.cadence.recheck_weight(w.half_life_s):
             return
         r_raw, r_app, r_prev = w.rmse()
         if not worse(r_app, r_raw):

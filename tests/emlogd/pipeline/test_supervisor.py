@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import random
 from collections.abc import Mapping
 
 import pytest
@@ -202,3 +203,30 @@ def test_after_a_silence_the_calibrations_are_judged_in_the_new_sea() -> None:
     for k in range(900, 1500):
         sup.observe(float(k), p.forward(1.6) + 0.2 * _noisy(k), 1.6 + 0.12, (1.0, 0.0), _NoOffer())
     assert _applied(sup) == p, kinds
+
+
+def test_at_one_reading_every_5_s_a_calibration_wrong_after_a_step_is_withdrawn_soon() -> None:
+    """A log read every 5 s (gain 1.15, applied) against a reference wandering 0.07 m/s
+    over 3 minutes, in 0.02 m/s of seeded noise. The calibration is withdrawn at 1130 s
+    and re-validates; at 1200 s the log's gain steps to 1.0, so the calibration is wrong
+    from then on. Counted in samples, the re-validation (20 readings: 100 s) straddled
+    the step and re-applied it at 1225 s, and the re-check (60 readings in a window of a
+    300-s half-life: 8.5 minutes) withdrew it only at 1735 s; at the cadence's weight the
+    re-validation ends before the step and the re-check withdraws it within 150 s of it."""
+    rng = random.Random(1)
+    p = Params("EM3", m=0.15)
+    sup, kinds = _sup(None)
+    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    wrong: list[float] = []
+    for k in range(500):
+        t = 5.0 * k
+        if t == 1130.0:
+            sup.withdraw(t, "a test", {})
+        stw = 1.8 + 0.4 * math.sin(2.0 * math.pi * t / 900.0)
+        ref = stw + 0.07 * math.sin(2.0 * math.pi * t / 180.0) + rng.gauss(0.0, 0.02)
+        gain = 1.15 if t < 1200.0 else 1.0
+        sup.observe(t, gain * stw + rng.gauss(0.0, 0.02), ref, None, _NoOffer())
+        if t >= 1200.0 and _applied(sup) is not None:
+            wrong.append(t)
+    assert wrong and wrong[-1] - 1200.0 < 150.0, (wrong[:1], wrong[-1:], kinds)
+    assert _applied(sup) is None and kinds[-1] == "candidate_rejected"
