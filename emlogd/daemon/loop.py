@@ -543,13 +543,10 @@ class Daemon:
         # a port's staleness is the pipeline's (``ports``): the daemon's sources run none
         sources = {name: src.counters_dict(stale=False) for name, src in self.sources.items()}
         sinks = self.outputs.status()
+        sections = {"ports": status["ports"], "uuts": status["uuts"]}
+        sections.update(sources=sources, sinks=sinks)
         self.log.info(
-            "status",
-            ports=status["ports"],
-            uuts=status["uuts"],
-            sources=sources,
-            sinks=sinks,
-            state_errors=self.state_errors,
+            "status", **logsetup.capped_sections(sections), state_errors=self.state_errors
         )
         self._notify_status()
 
