@@ -165,7 +165,8 @@ class Daemon:
 
     def _state_store(self) -> StateStore:
         if self.store is None:
-            self.store = StateStore(self.state_override or Path(self.config.state_path))
+            path = self.state_override or Path(self.config.state_path)
+            self.store = StateStore(path, uuts=len(self.config.calibration))
         return self.store
 
     def _run(self) -> int:

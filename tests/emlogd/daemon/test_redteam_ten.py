@@ -13,7 +13,11 @@ import subprocess
 import time
 from pathlib import Path
 
+import structlog
+
 from emlogd.daemon.logsetup import STATUS_LOG_MAX_ITEMS
+from emlogd.daemon.loop import Daemon
+from emlogd.daemon.statefile import MAX_STATE_BYTES, max_state_bytes
 from tests.emlogd.daemon.harness import make_work, reaped, run_daemon
 
 MANY_UUTS = 60
@@ -84,3 +88,12 @@ def test_the_status_line_of_many_uuts_names_a_few_and_counts_the_rest(tmp_path: 
         os.close(r)
         if w >= 0:
             os.close(w)
+
+
+def test_the_daemon_reads_a_state_file_as_long_as_its_uuts_make_it(tmp_path: Path) -> None:
+    """The daemon's state file is read up to what its config's UUTs take
+    (:func:`max_state_bytes`): 60 UUTs, 60 × 16 KiB. One bound for any config refused
+    the file it had written for its many UUTs at its next start."""
+    work = make_work(tmp_path, _many_uuts_config(MANY_UUTS))
+    daemon = Daemon(work / "emlogd.yaml", structlog.get_logger("t"))
+    assert daemon._state_store().max_bytes == max_state_bytes(MANY_UUTS) > MAX_STATE_BYTES
