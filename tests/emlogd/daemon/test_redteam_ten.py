@@ -97,3 +97,24 @@ def test_the_daemon_reads_a_state_file_as_long_as_its_uuts_make_it(tmp_path: Pat
     work = make_work(tmp_path, _many_uuts_config(MANY_UUTS))
     daemon = Daemon(work / "emlogd.yaml", structlog.get_logger("t"))
     assert daemon._state_store().max_bytes == max_state_bytes(MANY_UUTS) > MAX_STATE_BYTES
+
+
+def test_a_reload_to_more_uuts_reads_the_state_file_as_far(tmp_path: Path) -> None:
+    """A reload from 1 UUT to 60 widens the state file's bound with them (and back):
+    the save of 60 UUTs' calibrations must be read whole at the next start."""
+    work = make_work(tmp_path, _many_uuts_config(1))
+    daemon = Daemon(work / "emlogd.yaml", structlog.get_logger("t"))
+    daemon._start()
+    try:
+        store = daemon._state_store()
+        assert store.max_bytes == MAX_STATE_BYTES
+        (work / "emlogd.yaml").write_text(_many_uuts_config(MANY_UUTS))
+        daemon._reload()
+        assert store.max_bytes == max_state_bytes(MANY_UUTS)
+        (work / "emlogd.yaml").write_text(_many_uuts_config(2))
+        daemon._reload()
+        assert store.max_bytes == MAX_STATE_BYTES
+    finally:
+        daemon._shutdown()
+        os.close(daemon._wake_r)
+        os.close(daemon._wake_w)
