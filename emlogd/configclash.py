@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -43,7 +44,8 @@ def path_clash(cfg: Config) -> tuple[str, str, str]:
     ptys share a path, the key of the second and its top-level section (``("", "",
     "")``: none do). A status
     socket at the control socket's path ended the start with "in use by another
-    process"; a pty at the state file's, "exists and is not a symlink"."""
+    process"; a pty at the state file's, "exists and is not a symlink". Two paths
+    through a symlinked directory to one place clash too (:func:`_real_place`)."""
     named: list[tuple[str, str, str | None]] = [
         ("control_socket", "control_socket", cfg.control_socket),
         ("status_socket", "status_socket", cfg.status_socket),
@@ -57,7 +59,16 @@ def path_clash(cfg: Config) -> tuple[str, str, str]:
     seen: dict[str, str] = {}
     for what, section, path in named:
         if path:
-            other = seen.setdefault(os.path.normpath(path), what)
+            other = seen.setdefault(_real_place(path), what)
             if other != what:
                 return f"the same path as {other} ({path}): each needs its own", what, section
     return "", "", ""
+
+
+def _real_place(path: str) -> str:
+    """Where ``path`` puts its file: its directory with every symlink resolved, and its
+    own name (a pty's link is itself a symlink, to the pty of the day). Two UUTs' ptys
+    at ``run/x`` and ``run2/x``, ``run2`` a symlink to ``run``, passed the check: the
+    second pty's link took the place and the first's output reached no reader."""
+    head, name = os.path.split(os.path.normpath(path))
+    return str(Path(os.path.realpath(head or ".")) / name)

@@ -344,16 +344,44 @@ class ControlLog:
             emit(kind, **kw, **({"suppressed": suppressed} if suppressed else {}))
 
 
-def status_line(status: dict[str, object]) -> dict[str, str]:
-    """Each UUT's state and calibration, each port's record count, in a few words."""
-    out: dict[str, str] = {}
-    uuts = status.get("uuts")
+STATUS_LOG_MAX_ITEMS = 12
+"""The most UUTs, ports, sources and sinks the periodic status line of the log names,
+each section's first in config order; how many more each section holds is its line's
+``left_out`` (``emlogd status`` has them all). About 2 KB a UUT: with 1000 UUTs the line
+was 2.2 MB, past :data:`LOG_BACKLOG_BYTES` into a pipe (dropped whole every time) and
+journald's line limit (48 KiB)."""
+
+
+def capped_sections(sections: dict[str, Any], limit: int = STATUS_LOG_MAX_ITEMS) -> dict[str, Any]:
+    """``sections`` with each dict among them cut to its first ``limit`` entries and
+    ``left_out`` counting, per section cut, the entries left out."""
+    out: dict[str, Any] = {}
+    left: dict[str, int] = {}
+    for key, value in sections.items():
+        if isinstance(value, dict) and len(value) > limit:
+            out[key] = dict(list(value.items())[:limit])
+            left[key] = len(value) - limit
+        else:
+            out[key] = value
+    if left:
+        out["left_out"] = left
+    return out
+
+
+def status_line(status: dict[str, object]) -> dict[str, Any]:
+    """Each UUT's state and calibration, each port's record count, in a few words (at
+    most :data:`STATUS_LOG_MAX_ITEMS` of each, ``left_out`` counting the rest)."""
+    out: dict[str, Any] = {}
+    capped = capped_sections({"uuts": status.get("uuts"), "ports": status.get("ports")})
+    uuts = capped["uuts"]
     if isinstance(uuts, dict):
         for name, u in uuts.items():
             params = u.get("params") or {}
             cal = " ".join(f"{k}={v:+.3f}" for k, v in params.items()) or "raw"
             out[name] = f"{u.get('state')} {cal} ref {u.get('reference')}"
-    ports = status.get("ports")
+    ports = capped["ports"]
     if isinstance(ports, dict):
         out["records"] = " ".join(f"{n}={p.get('records')}" for n, p in ports.items())
+    if "left_out" in capped:
+        out["left_out"] = capped["left_out"]
     return out

@@ -42,7 +42,7 @@ from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import Outputs
-from emlogd.daemon.statefile import StateStore, same_records
+from emlogd.daemon.statefile import StateStore, max_state_bytes, same_records
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import build_pipeline, pipeline_from_config
@@ -165,7 +165,8 @@ class Daemon:
 
     def _state_store(self) -> StateStore:
         if self.store is None:
-            self.store = StateStore(self.state_override or Path(self.config.state_path))
+            path = self.state_override or Path(self.config.state_path)
+            self.store = StateStore(path, uuts=len(self.config.calibration))
         return self.store
 
     def _run(self) -> int:
@@ -543,13 +544,10 @@ class Daemon:
         # a port's staleness is the pipeline's (``ports``): the daemon's sources run none
         sources = {name: src.counters_dict(stale=False) for name, src in self.sources.items()}
         sinks = self.outputs.status()
+        sections = {"ports": status["ports"], "uuts": status["uuts"]}
+        sections.update(sources=sources, sinks=sinks)
         self.log.info(
-            "status",
-            ports=status["ports"],
-            uuts=status["uuts"],
-            sources=sources,
-            sinks=sinks,
-            state_errors=self.state_errors,
+            "status", **logsetup.capped_sections(sections), state_errors=self.state_errors
         )
         self._notify_status()
 
@@ -661,6 +659,8 @@ class Daemon:
             return
         kept_uuts = pipeline.adopt(old_pipeline)
         self.config, self.pipeline = new, pipeline
+        if self.store is not None:  # a save of the new UUTs must load at the next start
+            self.store.max_bytes = max_state_bytes(len(new.calibration))
         before = {p.name: p for p in old.ports}
         after = {p.name: p for p in new.ports}
         changed_ports = [n for n in self.sources if before.get(n) != after.get(n)]

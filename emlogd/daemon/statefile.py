@@ -50,9 +50,20 @@ from emlogd.fileio import fsync_dir, read_text_bounded, write_synced
 from emlogd.pipeline.calibration import Calibration
 
 MAX_STATE_BYTES = 256 * 1024
-"""Longest state file read, bytes (a UUT's records of four error models take a few
-KiB). A longer file, or one that is not a regular file (a FIFO would block the read
-for ever, a directory), is damaged: reported unparsed, and the backup used."""
+"""Longest state file read, bytes, for up to 16 UUTs (:data:`MAX_STATE_BYTES_PER_UUT`
+each past them). A longer file, or one that is not a regular file (a FIFO would block
+the read for ever, a directory), is damaged: reported unparsed, and the backup used."""
+
+MAX_STATE_BYTES_PER_UUT = 16 * 1024
+"""What each UUT of the config adds to the longest state file read, bytes (a UUT's
+records of its error models take a few KiB). With one bound for any config, the
+daemon wrote a state file of 1000 UUTs (0.5 MB) that its next start refused as
+damaged: every calibration lost."""
+
+
+def max_state_bytes(uuts: int) -> int:
+    """The longest state file read for a config of ``uuts`` UUTs, bytes."""
+    return max(MAX_STATE_BYTES, uuts * MAX_STATE_BYTES_PER_UUT)
 
 
 class StateWriteError(EmlogdError):
@@ -68,10 +79,13 @@ class StateStore:
 
     Args:
         path: the state file (its directory must exist or be creatable).
+        uuts: the UUTs of the config, which bound the file read (:func:`max_state_bytes`).
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, uuts: int = 1) -> None:
         self.path = Path(path)
+        self.max_bytes = max_state_bytes(uuts)
+        """The longest file read (and written: a longer one would not load)."""
         self.backup = self.path.with_name(self.path.name + ".bak")
         self.refused = self.path.with_name(self.path.name + ".refused")
         """Where a damaged or refused state file is moved by the next write."""
@@ -155,7 +169,7 @@ class StateStore:
         report: list[str] = []
         for candidate in (self.path, self.backup):
             try:
-                text = read_text_bounded(candidate, MAX_STATE_BYTES)
+                text = read_text_bounded(candidate, self.max_bytes)
             except FileNotFoundError:
                 if candidate == self.path and self.backup.exists():
                     report.append(f"{candidate} is missing")
@@ -190,6 +204,11 @@ class StateStore:
             StateWriteError: the write failed; the previous file is intact.
         """
         data = dumps(states, others=others).encode("utf-8")
+        if len(data) > self.max_bytes:  # it would not load: keep the file that does
+            raise StateWriteError(
+                f"cannot write {self.path}: {len(data)} bytes, past the {self.max_bytes} "
+                "a load reads"
+            )
         self.backup_problem = None
         d = self.path.parent
         tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
@@ -237,7 +256,7 @@ class StateStore:
         The backup is a hard link, or a copy where the file system has none (vfat).
         """
         try:
-            text = read_text_bounded(self.path, MAX_STATE_BYTES)
+            text = read_text_bounded(self.path, self.max_bytes)
         except FileNotFoundError:
             return None
         except (OSError, UnicodeDecodeError):

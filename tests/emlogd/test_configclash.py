@@ -4,6 +4,7 @@ the sockets, the state file and the ptys."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 from emlogd.config import parse_config
 from emlogd.configclash import path_clash, same_listener, tcp_clash
@@ -45,3 +46,27 @@ def test_every_path_its_own_passes_and_the_second_of_one_is_named() -> None:
     outputs = dataclasses.replace(good.outputs, pty="/var/lib/emlogd/state.yaml")
     why, key, section = path_clash(dataclasses.replace(good, outputs=outputs))
     assert (key, section) == ("outputs.pty", "outputs") and "as state_file" in why
+
+
+def test_two_ptys_through_a_symlinked_directory_clash(tmp_path: Path) -> None:
+    """Two UUTs' ptys at ``run/x`` and ``alias/x``, ``alias`` a symlink to ``run``: the
+    second named; ``run/x`` and ``run/y`` pass, and so does a pty link that is itself a
+    symlink (to the pty of the day) beside another path."""
+    (tmp_path / "run").mkdir()
+    (tmp_path / "alias").symlink_to(tmp_path / "run")
+    good = parse_config(CONFIG)
+    uut = good.calibration[0]
+
+    def with_ptys(a: Path, b: Path) -> tuple[str, str, str]:
+        cals = tuple(
+            dataclasses.replace(uut, outputs=dataclasses.replace(uut.outputs, pty=str(p)))
+            for p in (a, b)
+        )
+        return path_clash(dataclasses.replace(good, calibration=cals))
+
+    why, key, section = with_ptys(tmp_path / "run" / "x", tmp_path / "alias" / "x")
+    assert (key, section) == ("calibration[1].pty", "calibration")
+    assert why.startswith("the same path as calibration[0].pty")
+    for name in ("x", "y"):
+        (tmp_path / "run" / name).symlink_to("/dev/null")
+    assert with_ptys(tmp_path / "run" / "x", tmp_path / "run" / "y") == ("", "", "")

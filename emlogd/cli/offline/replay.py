@@ -97,7 +97,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     cfg = load_config(args.config)
     _, uuts = pipeline_from_config(cfg)
     truth = truth_of(args, [u.port for u in uuts])
-    store = StateStore(args.state) if args.state else None
+    store = StateStore(args.state, uuts=len(uuts)) if args.state else None
     cals: dict[str, Calibration] = {}
     others: list[Calibration] = []
     if store is not None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import selectors
 import socket
 import stat
@@ -19,6 +20,7 @@ from emlogd.daemon.control import (
     PATH_CHECK_S,
     REQUEST_S,
     SEND_S,
+    STATUS_REUSE,
     ControlServer,
 )
 
@@ -350,6 +352,47 @@ def test_a_client_not_taking_its_answer_is_closed_the_others_served(tmp_path: Pa
         assert server.unread == 1 and len(server.clients) == 1
         idle.close()
         other.close()
+    finally:
+        server.close()
+        sel.close()
+
+
+def test_a_status_asked_by_many_at_once_is_built_once(tmp_path: Path) -> None:
+    """Eight clients asking ``status`` at one moment, its building taking 0.1 s: the
+    answer is built once and sent to each (a 1000-UUT status takes the daemon's thread
+    0.1 s: built for each, a dozen clients asking in a loop held every output for
+    seconds); STATUS_REUSE times its building later, after another command, and for
+    other arguments it is built anew."""
+    clock = _Clock()
+    built: list[dict[str, object]] = []
+
+    def handle(req: dict[str, object]) -> dict[str, object]:
+        built.append(req)
+        clock.t += 0.1  # what building it took
+        return {"n": len(built)}
+
+    sel = selectors.DefaultSelector()
+    path = tmp_path / "s.sock"
+    server = ControlServer(path, handle, sel, monotonic=clock)
+    sync = _Sync.__new__(_Sync)
+    sync.sel = sel
+    try:
+        clients = [_connect(path) for _ in range(8)]
+        for s in clients:
+            s.sendall(b'{"cmd": "status"}\n')
+        sync.pump(0.2)
+        assert [json.loads(s.recv(4096))["n"] for s in clients] == [1] * 8
+        clock.t += 0.1 * STATUS_REUSE - 0.01
+        assert _ask(sync, path) == b'{"ok": true, "n": 1}\n'
+        clock.t += 0.01
+        assert json.loads(_ask(sync, path))["n"] == 2
+        with _connect(path) as s:
+            s.sendall(b'{"cmd": "status", "port": "emlog1"}\n{"cmd": "reset"}\n')
+            sync.pump(0.05)
+        assert len(built) == 4
+        assert json.loads(_ask(sync, path))["n"] == 5  # the reset ended the reuse
+        for s in clients:
+            s.close()
     finally:
         server.close()
         sel.close()

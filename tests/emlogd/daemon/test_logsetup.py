@@ -16,7 +16,13 @@ import pytest
 import structlog
 
 from emlogd.daemon import logsetup
-from emlogd.daemon.logsetup import configure_logging, is_console, status_line
+from emlogd.daemon.logsetup import (
+    STATUS_LOG_MAX_ITEMS,
+    capped_sections,
+    configure_logging,
+    is_console,
+    status_line,
+)
 from tests.emlogd.daemon.test_redteam import F_SETPIPE_SZ, _drain
 
 
@@ -62,6 +68,29 @@ class TestConfigureLogging:
         assert line == {"emlog1": "frozen m=+0.100 b=+0.050 ref valid", "records": "emlog1=12"}
         configure_logging("json", "info", io.StringIO())
         assert not is_console()
+
+    def test_console_status_of_many_uuts_names_a_few_and_counts_the_rest(self) -> None:
+        """1000 UUTs: the terminal's line names the first STATUS_LOG_MAX_ITEMS of the UUTs
+        and the ports, ``left_out`` counting the rest (it named all: 60 KB a line)."""
+        status = {
+            "uuts": {f"e{i}": {"state": "learning", "reference": "valid"} for i in range(1000)},
+            "ports": {f"e{i}": {"records": i} for i in range(1001)},
+        }
+        line = status_line(status)
+        n = STATUS_LOG_MAX_ITEMS
+        assert line["left_out"] == {"uuts": 1000 - n, "ports": 1001 - n}
+        assert len(line) == n + 2
+        assert line["records"] == " ".join(f"e{i}={i}" for i in range(n))
+
+    def test_capped_sections_keeps_what_fits_as_it_is(self) -> None:
+        """A section within the limit, and a value that is no dict, are kept whole, with no
+        ``left_out``; one past it keeps its first entries in order."""
+        small = {"ports": {"a": 1, "b": 2}, "state_errors": 0}
+        assert capped_sections(small, limit=2) == small
+        assert capped_sections({"uuts": {"a": 1, "b": 2, "c": 3}}, limit=2) == {
+            "uuts": {"a": 1, "b": 2},
+            "left_out": {"uuts": 1},
+        }
 
     @pytest.mark.parametrize(("fmt", "level"), [("xml", "info"), ("json", "loud")])
     def test_bad_values(self, fmt: str, level: str) -> None:

@@ -18,7 +18,14 @@ import pytest
 from calib.estimate import Estimate
 from calib.models import Params
 from emlogd.calfile import CalibrationFileError, dumps, loads
-from emlogd.daemon.statefile import StateLockedError, StateStore, StateWriteError
+from emlogd.daemon.statefile import (
+    MAX_STATE_BYTES,
+    MAX_STATE_BYTES_PER_UUT,
+    StateLockedError,
+    StateStore,
+    StateWriteError,
+    max_state_bytes,
+)
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.integrity import Envelope
 from tests.emlogd.daemon.harness import saved_calibration
@@ -547,3 +554,35 @@ def test_a_device_at_the_state_path_is_left_where_it_is(tmp_path: Path, kind: st
     finally:
         if sock is not None:
             sock.close()
+
+
+def _many(n: int) -> dict[str, Calibration]:
+    return {f"e{i}": dataclasses.replace(_state(), uut=f"e{i}") for i in range(n)}
+
+
+def test_a_state_file_of_many_uuts_loads_whole(tmp_path: Path) -> None:
+    """A config of 600 UUTs: the state file (0.3 MB here) loads whole, saved again its
+    previous one is the backup. The read's one bound (256 KiB) refused the file the
+    daemon had written itself as damaged at its next start: every calibration lost."""
+    store = StateStore(tmp_path / "s.yaml", uuts=600)
+    assert store.max_bytes == 600 * MAX_STATE_BYTES_PER_UUT
+    store.save(_many(600))
+    assert store.path.stat().st_size > MAX_STATE_BYTES
+    states, report = StateStore(tmp_path / "s.yaml", uuts=600).load()
+    assert len(states) == 600 and report == []
+    assert store.save(_many(600)) is None  # the good file made the backup, not refused
+    assert store.backup.stat().st_size > MAX_STATE_BYTES
+    assert max_state_bytes(3) == MAX_STATE_BYTES
+
+
+def test_a_save_past_what_a_load_reads_keeps_the_file_that_loads(tmp_path: Path) -> None:
+    """States longer than the store's bound (600 UUTs' for a store of one): the save
+    is refused with ``StateWriteError`` and the previous file is byte-identical, rather
+    than replaced by a file the next start would refuse."""
+    store = StateStore(tmp_path / "s.yaml")
+    store.save({"emlog1": _state()})
+    before = store.path.read_bytes()
+    with pytest.raises(StateWriteError, match="past the 262144 a load reads"):
+        store.save(_many(600))
+    assert store.path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
