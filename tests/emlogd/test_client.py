@@ -6,6 +6,7 @@ import contextlib
 import socket
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -14,8 +15,8 @@ from drivers.errors import DeviceError
 from emlogd.client import request
 
 
-def _serve_once(path: Path, answer: bytes) -> threading.Thread:
-    """A unix socket at ``path`` that reads one line and sends ``answer``, in a thread."""
+def _serve(path: Path, reply: Callable[[socket.socket], None]) -> threading.Thread:
+    """A unix socket at ``path`` whose first client ``reply`` serves, in a thread."""
     srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     srv.bind(str(path))
     srv.listen(1)
@@ -24,14 +25,23 @@ def _serve_once(path: Path, answer: bytes) -> threading.Thread:
         with srv:
             conn, _ = srv.accept()
             with conn:
-                buf = b""
-                while b"\n" not in buf:
-                    buf += conn.recv(4096)
-                conn.sendall(answer)
+                reply(conn)
 
     t = threading.Thread(target=run, daemon=True)
     t.start()
     return t
+
+
+def _serve_once(path: Path, answer: bytes) -> threading.Thread:
+    """A unix socket at ``path`` that reads one line and sends ``answer``, in a thread."""
+
+    def reply(conn: socket.socket) -> None:
+        buf = b""
+        while b"\n" not in buf:
+            buf += conn.recv(4096)
+        conn.sendall(answer)
+
+    return _serve(path, reply)
 
 
 def test_request_sends_one_line_and_returns_the_answer(tmp_path: Path) -> None:
@@ -64,20 +74,14 @@ def test_an_answer_that_never_ends_is_refused_in_bounded_time(tmp_path: Path) ->
     (and a little more). The client read and held it for as long as it came, each read
     renewing the timeout."""
     path = tmp_path / "c.sock"
-    srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    srv.bind(str(path))
-    srv.listen(1)
 
-    def stream() -> None:
-        with srv:
-            conn, _ = srv.accept()
-            with conn, contextlib.suppress(OSError):
-                conn.settimeout(10.0)
-                for _ in range(4000):  # 256 MiB at most, then the peer gives up
-                    conn.sendall(b"x" * 65536)
+    def stream(conn: socket.socket) -> None:
+        with contextlib.suppress(OSError):
+            conn.settimeout(10.0)
+            for _ in range(4000):  # 256 MiB at most, then the peer gives up
+                conn.sendall(b"x" * 65536)
 
-    t = threading.Thread(target=stream, daemon=True)
-    t.start()
+    t = _serve(path, stream)
     t0 = time.monotonic()
     with pytest.raises(DeviceError, match="without a newline"):
         request(path, {"cmd": "status"}, timeout_s=2.0)

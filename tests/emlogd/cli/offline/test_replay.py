@@ -131,21 +131,28 @@ def _log2_config(tmp_path: Path) -> Path:
     return cfg
 
 
+def _alternating_capture(tmp_path: Path, name: str, times: list[float], knots: list[float]) -> Path:
+    """A capture of VHW sentences at ``times``, emlog1's and log2's in turn, reading
+    ``knots``."""
+    from drivers.nmea0183 import encode_vhw
+
+    lines = ["# emlogd capture v1", "# port emlog1 nmea0183", "# port log2 nmea0183"]
+    for k, (t, v) in enumerate(zip(times, knots, strict=True)):
+        lines.append(f"({t:.6f}) {('emlog1', 'log2')[k % 2]} {encode_vhw(v)}")
+    cap = tmp_path / name
+    cap.write_text("\n".join(lines) + "\n")
+    return cap
+
+
 def test_reorder_window_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """`replay --reorder-window` sets how far records may be out of time order: by default ±50 ms
     of jitter loses nothing (records put back in order, counted as reordered), with 0 the same
     capture skips records as out_of_order; a negative window is a usage error."""
     import random
 
-    from drivers.nmea0183 import encode_vhw
-
     rng = random.Random(3)
-    lines = ["# emlogd capture v1", "# port emlog1 nmea0183", "# port log2 nmea0183"]
-    for k in range(400):
-        t = 1_700_000_000.0 + 0.05 * k + rng.uniform(-0.05, 0.05)
-        lines.append(f"({t:.6f}) {('emlog1', 'log2')[k % 2]} {encode_vhw(2.0)}")
-    cap = tmp_path / "jitter.cap"
-    cap.write_text("\n".join(lines) + "\n")
+    times = [1_700_000_000.0 + 0.05 * k + rng.uniform(-0.05, 0.05) for k in range(400)]
+    cap = _alternating_capture(tmp_path, "jitter.cap", times, [2.0] * 400)
     cfg = _log2_config(tmp_path)
     base = ["replay", str(cap), "--config", str(cfg), "--json", "--out", str(tmp_path / "o")]
     assert main(base) == 0
@@ -213,14 +220,9 @@ def test_a_clock_set_back_is_warned_and_its_records_replayed(
     """A capture whose logger's clock was set back an hour half-way: ``replay`` reads
     every record (the half after the step was skipped as ``out_of_order``), reports the
     step in ``capture_skips`` and warns naming its line."""
-    from drivers.nmea0183 import encode_vhw
-
-    lines = ["# emlogd capture v1", "# port emlog1 nmea0183", "# port log2 nmea0183"]
-    for k in range(400):
-        t = 1_700_000_000.0 + 0.05 * k - (3600.0 if k >= 200 else 0.0)
-        lines.append(f"({t:.6f}) {('emlog1', 'log2')[k % 2]} {encode_vhw(2.0 + 0.01 * (k % 3))}")
-    cap = tmp_path / "stepped.cap"
-    cap.write_text("\n".join(lines) + "\n")
+    times = [1_700_000_000.0 + 0.05 * k - (3600.0 if k >= 200 else 0.0) for k in range(400)]
+    knots = [2.0 + 0.01 * (k % 3) for k in range(400)]
+    cap = _alternating_capture(tmp_path, "stepped.cap", times, knots)
     cfg = _log2_config(tmp_path)
     argv = ["replay", str(cap), "--config", str(cfg), "--json", "--out", str(tmp_path / "o")]
     assert main(argv) == 0
