@@ -19,7 +19,7 @@ from emlogd.pipeline.evidence import CUSUM_MAX_GAP_S
 CUSUM_MIN_FILL_S = 30.0
 """Readings slower than one every 2.5 s: the change detector's baseline is judged on once
 it holds the weight this long of readings at their cadence gives its window
-(:meth:`Cadence.min_weight`), when that is less than the supervisor's sample count. A
+(:meth:`Cadence.detector_weight`), when that is less than the supervisor's sample count. A
 window of a 60-s half-life holds at most 18 readings taken every 5 s and forgets over a
 CUSUM run (whose samples are kept out of it): after a run of a minute it holds fewer than
 ten, and a detector waiting for ten would be off for much of a log at 0.2 Hz while a
@@ -46,22 +46,18 @@ long holds at their cadence, when that is fewer than the supervisor's sample cou
 (:meth:`Cadence.count`). Twenty readings every 5 s take 100 s: a re-validation that long
 straddles what changed within it."""
 
-CADENCE_GAIN = 0.1
-"""The weight of each new interval in :class:`Cadence`'s running mean."""
-
 CADENCE_INTERVALS = 9
-"""The re-check's and the validation's cadence is the median of this many most recent
-intervals (:attr:`Cadence.median_s`): a reference lost for half a minute in a log read
-every second (which moves the running mean past 2 s) is not a slow cadence."""
+"""The cadence is the median of this many most recent intervals (:attr:`Cadence.median_s`):
+a reference lost for half a minute in a log read every second (which would move a
+running mean past 2 s) is not a slow cadence."""
 
 
 class Cadence:
-    """The scored readings' cadence: a running mean of the intervals between them, s
-    (an interval over :data:`CUSUM_MAX_GAP_S` is a silence, not a cadence), and their
-    median (:data:`CADENCE_INTERVALS`)."""
+    """The scored readings' cadence: the median of the intervals between them, s
+    (:data:`CADENCE_INTERVALS`; an interval over :data:`CUSUM_MAX_GAP_S` is a silence,
+    not a cadence)."""
 
     def __init__(self) -> None:
-        self.dt_s = math.nan
         self._median = math.nan
         self._stale = False
         self._recent: deque[float] = deque(maxlen=CADENCE_INTERVALS)
@@ -72,7 +68,6 @@ class Cadence:
         """A scored reading at ``t``."""
         dt = t - self.t
         if 0.0 < dt <= CUSUM_MAX_GAP_S:
-            self.dt_s = dt if math.isnan(self.dt_s) else self.dt_s + CADENCE_GAIN * (dt - self.dt_s)
             self._recent.append(dt)
             self._stale = True
         self.t = t
@@ -85,12 +80,10 @@ class Cadence:
             self._stale = False
         return self._median
 
-    def min_weight(self, t: float, min_samples: float, half_life_s: float) -> float:
-        """With a scored reading at ``t`` (:meth:`add`): ``min_samples``, or the weight a
-        window forgetting with ``half_life_s`` fills to over :data:`CUSUM_MIN_FILL_S` of
-        readings at the cadence when that is less."""
-        self.add(t)
-        return self.weight(min_samples, CUSUM_MIN_FILL_S, half_life_s, self.dt_s)
+    def detector_weight(self, min_samples: float, half_life_s: float) -> float:
+        """The weight the change detector's baseline (forgetting with ``half_life_s``)
+        needs: ``min_samples``, or less at a slow cadence (:data:`CUSUM_MIN_FILL_S`)."""
+        return self.weight(min_samples, CUSUM_MIN_FILL_S, half_life_s, self.median_s)
 
     @staticmethod
     def weight(min_samples: float, span_s: float, half_life_s: float, dt: float) -> float:

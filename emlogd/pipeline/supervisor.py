@@ -475,8 +475,9 @@ class Supervisor:
         reference jumped)."""
         if t - self.cadence.t > CUSUM_MAX_GAP_S:
             self._reset_detector(refit=False)  # its baseline is another sea's
+        self.cadence.add(t)
         w = self.detector
-        n_min = self.cadence.min_weight(t, CUSUM_MIN_SAMPLES, CUSUM_HALF_LIFE_S)
+        n_min = self.cadence.detector_weight(CUSUM_MIN_SAMPLES, CUSUM_HALF_LIFE_S)
         if w.n < n_min or w.t0 is None or t - w.t0 < CUSUM_MIN_SPAN_S:
             w.add(t, cs, (e_app,))
             return False

@@ -25,7 +25,7 @@ def _cadence(dt: float, n: int = 30) -> Cadence:
 @pytest.mark.parametrize("dt", [0.1, 1.0, 2.0])
 def test_at_a_reading_every_2_s_or_faster_the_baseline_needs_its_samples(dt: float) -> None:
     """At 0.5 Hz and faster the change detector's baseline waits for its ten samples."""
-    assert _cadence(dt).min_weight(30 * dt, 10.0, 60.0) == 10.0
+    assert _cadence(dt).detector_weight(10.0, 60.0) == 10.0
 
 
 def test_at_a_reading_every_5_s_the_baseline_needs_what_30_s_of_them_weigh() -> None:
@@ -33,11 +33,11 @@ def test_at_a_reading_every_5_s_the_baseline_needs_what_30_s_of_them_weigh() -> 
     run whose samples were kept out): the baseline needs the weight 30 s of them give
     it, about 5, not ten."""
     c = _cadence(5.0)
-    need = c.min_weight(150.0, 10.0, 60.0)
+    need = c.detector_weight(10.0, 60.0)
     full = 1.0 / (1.0 - 0.5 ** (5.0 / 60.0))
     assert need == pytest.approx((1.0 - 0.5 ** (CUSUM_MIN_FILL_S / 60.0)) * full)
     assert 5.0 < need < 5.5 and full < 18.0
-    assert c.dt_s == pytest.approx(5.0)
+    assert c.median_s == pytest.approx(5.0)
 
 
 def test_a_silence_is_no_cadence() -> None:
@@ -45,8 +45,8 @@ def test_a_silence_is_no_cadence() -> None:
     c = _cadence(1.0, 10)
     c.add(9.0 + 2.0 * CUSUM_MAX_GAP_S)
     c.add(10.0 + 2.0 * CUSUM_MAX_GAP_S)
-    assert c.dt_s == pytest.approx(1.0)
-    assert Cadence().min_weight(0.0, 10.0, 60.0) == 10.0  # no interval yet
+    assert c.median_s == pytest.approx(1.0)
+    assert Cadence().detector_weight(10.0, 60.0) == 10.0  # no interval yet
 
 
 @pytest.mark.parametrize("dt", [0.1, 1.0, 2.0])
@@ -75,10 +75,11 @@ def test_at_a_reading_every_5_s_the_recheck_and_validation_need_a_span() -> None
 
 def test_a_reference_lost_for_half_a_minute_is_no_slow_cadence() -> None:
     """Readings 1 s apart around a 30-s loss of the reference (within CUSUM_MAX_GAP_S):
-    the running mean passes 2 s, but the re-check and a validation still count samples."""
+    the change detector, the re-check and a validation still count samples."""
     c = _cadence(1.0)
     c.add(29.0 + 30.0)
     c.add(60.0)
-    assert c.dt_s > 2.0 and c.median_s == pytest.approx(1.0)
+    assert c.median_s == pytest.approx(1.0)
+    assert c.detector_weight(10.0, 60.0) == 10.0
     assert c.recheck_weight(300.0) == RECHECK_MIN_SAMPLES
     assert c.validation_count() == VALIDATION_MIN_SAMPLES
