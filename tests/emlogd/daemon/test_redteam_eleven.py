@@ -5,14 +5,30 @@ client costs itself, never the process or the other clients."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
+import signal
 import socket
+import threading
 import time
 from pathlib import Path
 
-from tests.emlogd.daemon.harness import PD0_CONFIG, free_port, make_work
+from emlogd.client import request
+from emlogd.daemon.statefile import StateStore
+
+from tests.emlogd.daemon.harness import (
+    PD0_CONFIG,
+    Daemon,
+    free_port,
+    make_work,
+    saved_calibration,
+)
 from tests.emlogd.daemon.test_lockout import _first_sentence
 from tests.emlogd.daemon.test_redteam_live import VHW, _pd0_daemon
+from tests.emlogd.daemon.test_redteam_reload import TWO_LOGS, _saved, _without_emlog2
+
+STORM_S = 3.0
+"""How long the commands and the SIGHUPs storm the daemon."""
 
 
 def test_a_tcp_reader_that_half_closes_is_served(tmp_path: Path) -> None:
@@ -40,3 +56,63 @@ def test_a_tcp_reader_that_half_closes_is_served(tmp_path: Path) -> None:
             assert isinstance(outputs, dict)
             assert outputs[f"tcp:127.0.0.1:{port}"]["clients"] == 2
         assert d.stop() == 0
+
+
+def _commands(sock: Path, until: float, tally: dict[str, int]) -> None:
+    """``freeze``, ``learn`` and ``status`` (of emlog2 every other time) and a ``reset``
+    of emlog1, one after the other as fast as they are answered, until ``until``."""
+    cmds = ["freeze", "learn", "status", "freeze", "reset"]
+    k = 0
+    while time.monotonic() < until:
+        req: dict[str, object] = {"cmd": cmds[k % len(cmds)]}
+        req["port"] = "emlog1" if req["cmd"] == "reset" or k % 2 else "emlog2"
+        k += 1
+        try:
+            answer = request(sock, req, timeout_s=5.0)
+        except OSError:
+            tally["unanswered"] += 1
+            continue
+        why = str(answer.get("error", ""))
+        tally["ok" if answer.get("ok") else "no_uut" if "no UUT" in why else "other"] += 1
+
+
+def test_commands_and_sighups_at_100_a_second_lose_no_calibration(tmp_path: Path) -> None:
+    """For 3 s a client sends ``freeze``/``learn``/``status``/``reset`` as fast as they
+    are answered while SIGHUPs come every 10 ms into configs with emlog2 and without it
+    (its log away, then back, in turns): every request is answered (ok, or "no UUT" while
+    emlog2 is out), the daemon reloads, exits 0, and emlog2's frozen calibration is in
+    the state file at the end."""
+    work = make_work(tmp_path, TWO_LOGS)
+    cfg = work / "emlogd.yaml"
+    both = cfg.read_text()
+    configs = (both, _without_emlog2(both))
+    store = StateStore(work / "state" / "state.yaml")
+    one = saved_calibration(0.1, lag_s=0.165)
+    two = dataclasses.replace(one, uut="emlog2", estimate=saved_calibration(0.2).estimate)
+    store.save({"emlog1": one, "emlog2": two})
+    d = Daemon(work)
+    try:
+        tally = dict.fromkeys(("ok", "no_uut", "other", "unanswered"), 0)
+        until = time.monotonic() + STORM_S
+        client = threading.Thread(target=_commands, args=(d.socket, until, tally))
+        client.start()
+        k = 0
+        while time.monotonic() < until:
+            staged = cfg.with_name("next.yaml")
+            staged.write_text(configs[k % 2])
+            staged.replace(cfg)  # whole: a reload never reads half a config
+            d.send_signal(signal.SIGHUP)
+            k += 1
+            time.sleep(0.01)
+        client.join()
+        cfg.write_text(both)
+        d.send_signal(signal.SIGHUP)
+        time.sleep(1.0)  # the last reload, RELOAD_MIN_S after the one before
+        assert tally["other"] == tally["unanswered"] == 0, tally
+        assert tally["ok"] > 20, tally
+        assert d.events("reloaded") >= 2 and d.events("reload_failed") == 0
+        assert d.ask(cmd="freeze", port="emlog2").get("ok") is True, d.tail()
+        assert d.stop() == 0
+    finally:
+        d.kill()
+    assert _saved(store).get("emlog2") == 0.2, _saved(store)
