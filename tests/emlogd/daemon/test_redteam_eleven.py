@@ -15,7 +15,6 @@ from pathlib import Path
 
 from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
-
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     Daemon,
