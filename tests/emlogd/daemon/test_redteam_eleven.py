@@ -14,13 +14,16 @@ import time
 from pathlib import Path
 
 from emlogd.client import request
+from emlogd.daemon.outputs import OUTPUT_RETRY_S
 from emlogd.daemon.statefile import StateStore
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     Daemon,
     free_port,
     make_work,
+    raw_pty,
     saved_calibration,
+    wait,
 )
 from tests.emlogd.daemon.test_lockout import _first_sentence
 from tests.emlogd.daemon.test_redteam_live import VHW, _pd0_daemon
@@ -115,3 +118,40 @@ def test_commands_and_sighups_at_100_a_second_lose_no_calibration(tmp_path: Path
     finally:
         d.kill()
     assert _saved(store).get("emlog2") == 0.2, _saved(store)
+
+
+def test_a_file_at_the_pty_path_costs_the_pty_alone(tmp_path: Path) -> None:
+    """A regular file at the output pty's path when the daemon starts (an operator's
+    ``echo … > /run/emlogd/emlog0`` while it was stopped): the daemon starts, the TCP
+    output serves the corrected VHW, the status says why the pty is not open; once the
+    file is gone the pty is published within ``OUTPUT_RETRY_S`` (``output_opened``).
+    The start ended with exit code 1, ``cannot publish …: exists and is not a symlink``:
+    under systemd a restart loop, no output at all, for as long as the file was there."""
+    port = free_port()
+    config = PD0_CONFIG.replace(
+        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
+    )
+    work = make_work(tmp_path, config)
+    link = work / "out" / "emlog0"
+    link.write_text("$VWVHW,,T,,M,5.00,N,,K*00\n")
+    emlog, dvl = (raw_pty(work / "links" / name) for name in ("emlog1", "dvl"))
+    d = Daemon(work)
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as reader:
+            for k in range(10):
+                os.write(emlog, VHW[k % 2])
+                time.sleep(0.1)
+            assert _first_sentence(reader, 3.0) < 3.0
+        outputs = d.ask(cmd="status")["outputs"]
+        assert isinstance(outputs, dict)
+        assert "exists and is not a symlink" in outputs[f"pty:{link}"]["state"], outputs
+        link.unlink()
+        wait(lambda: link.is_symlink(), "the pty published", OUTPUT_RETRY_S + 5.0)
+        assert d.events("output_opened") == 1
+        outputs = d.ask(cmd="status")["outputs"]
+        assert isinstance(outputs, dict) and outputs[f"pty:{link}"]["state"] == "open"
+        assert d.stop() == 0
+    finally:
+        d.kill()
+        os.close(emlog)
+        os.close(dvl)
