@@ -277,6 +277,7 @@ class Daemon:
                     commands=("status",) if read_only else COMMANDS,
                     on_event=lambda k, d: self.log.warning(k, detail=d),
                     monotonic=self.monotonic,
+                    wait=not self.started,  # at a start, a file in the way costs the socket
                 )
             except DeviceError as exc:
                 failed = exc

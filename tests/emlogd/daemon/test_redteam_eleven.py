@@ -14,14 +14,18 @@ import time
 from pathlib import Path
 
 from emlogd.client import request
+from emlogd.daemon.control import PATH_CHECK_S
 from emlogd.daemon.outputs import OUTPUT_RETRY_S
 from emlogd.daemon.statefile import StateStore
+from emlogd.launch import STOP_TIMEOUT_S
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     Daemon,
     free_port,
     make_work,
     raw_pty,
+    reaped,
+    run_daemon,
     saved_calibration,
     wait,
 )
@@ -153,5 +157,39 @@ def test_a_file_at_the_pty_path_costs_the_pty_alone(tmp_path: Path) -> None:
         assert d.stop() == 0
     finally:
         d.kill()
+        os.close(emlog)
+        os.close(dvl)
+
+
+def test_a_file_at_the_control_socket_path_costs_the_socket_alone(tmp_path: Path) -> None:
+    """A regular file at the control socket's path when the daemon starts (an operator's
+    ``echo '{"cmd":"status"}' > /run/emlogd/control.sock`` while it was stopped): the
+    daemon starts and its TCP output serves the corrected VHW, the log says why there is
+    no socket (``control_socket_path``); once the file is gone the socket is made within
+    ``PATH_CHECK_S`` and answers, and SIGTERM exits 0. The start ended with exit code 1
+    (``control socket …: Address already in use``): a restart loop, no output at all."""
+    port = free_port()
+    config = PD0_CONFIG.replace(
+        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
+    )
+    work = make_work(tmp_path, config)
+    sock = work / "run" / "control.sock"
+    sock.write_text('{"cmd":"status"}\n')
+    emlog, dvl = (raw_pty(work / "links" / name) for name in ("emlog1", "dvl"))
+    try:
+        with (work / "daemon.log").open("wb") as log, reaped(run_daemon(work, log)) as proc:
+            wait(lambda: (work / "out" / "emlog0").is_symlink(), "the daemon started", 20.0)
+            with socket.create_connection(("127.0.0.1", port), timeout=5) as reader:
+                for k in range(10):
+                    os.write(emlog, VHW[k % 2])
+                    time.sleep(0.1)
+                assert _first_sentence(reader, 3.0) < 3.0
+            assert "control_socket_path" in (work / "daemon.log").read_text()
+            sock.unlink()
+            wait(lambda: sock.is_socket(), "the control socket made", PATH_CHECK_S + 5.0)
+            assert request(sock, {"cmd": "status"}).get("ok") is True
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(STOP_TIMEOUT_S) == 0
+    finally:
         os.close(emlog)
         os.close(dvl)
