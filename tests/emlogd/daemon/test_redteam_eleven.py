@@ -6,6 +6,7 @@ client costs itself, never the process or the other clients."""
 from __future__ import annotations
 
 import dataclasses
+import errno
 import os
 import signal
 import socket
@@ -13,10 +14,15 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
+import structlog
+
 from emlogd.client import request
+from emlogd.daemon import statefile
 from emlogd.daemon.control import PATH_CHECK_S
+from emlogd.daemon.loop import Daemon as LoopDaemon
 from emlogd.daemon.outputs import OUTPUT_RETRY_S
-from emlogd.daemon.statefile import StateStore
+from emlogd.daemon.statefile import STATE_RETRY_S, StateStore
 from emlogd.launch import STOP_TIMEOUT_S
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
@@ -193,3 +199,41 @@ def test_a_file_at_the_control_socket_path_costs_the_socket_alone(tmp_path: Path
     finally:
         os.close(emlog)
         os.close(dvl)
+
+
+def test_a_save_that_failed_is_tried_again_until_it_is_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The state file's writes failing with ``ENOSPC`` (injected where the file is
+    written) when a ``reset`` is asked: answered that it was not written; once writes
+    work again the state file holds the reset within ``STATE_RETRY_S`` of housekeeping,
+    with nothing more asked. The save was never tried again before the stop: a power
+    cut meanwhile, and the next start loaded what the operator had reset (the same for
+    a ``freeze``: the calibration frozen in memory only)."""
+    work = make_work(tmp_path, TWO_LOGS)
+    store = StateStore(work / "state" / "state.yaml")
+    store.save({"emlog1": saved_calibration(0.1, lag_s=0.165)})
+    clock = [1000.0]
+    daemon = LoopDaemon(work / "emlogd.yaml", structlog.get_logger("t"), monotonic=lambda: clock[0])
+    daemon._start()
+    try:
+
+        def full(path: Path, data: bytes, mode: int = 0o640) -> None:
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        monkeypatch.setattr(statefile, "write_synced", full)
+        with pytest.raises(ValueError, match="not written"):
+            daemon._control({"cmd": "reset", "port": "emlog1"})
+        daemon._housekeep()  # the pipeline hands the reset out to persist: it fails too
+        assert daemon.state_errors == 2
+        monkeypatch.undo()
+        daemon._housekeep()  # nothing more asks for a save
+        assert _saved(store).get("emlog1") == 0.1
+        clock[0] += STATE_RETRY_S
+        daemon._housekeep()
+        assert "emlog1" not in _saved(store), _saved(store)  # the reset is on disk
+        assert daemon.state_errors == 2
+    finally:
+        daemon._shutdown()
+        os.close(daemon._wake_r)
+        os.close(daemon._wake_w)
