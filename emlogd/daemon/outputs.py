@@ -169,7 +169,8 @@ class Outputs:
                     sink.port.set_access(*access)
                 except DeviceError as exc:
                     failed = failed or exc
-        self.access = access
+        if failed is None:  # else set again at the next sync
+            self.access = access
         return failed
 
     def _open(
