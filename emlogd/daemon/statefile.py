@@ -214,6 +214,8 @@ class StateStore:
         tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
         try:
             d.mkdir(parents=True, exist_ok=True)
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()  # whatever is there: a FIFO would hold the open for a reader
             write_synced(tmp, data)
             aside = self._backup_current()
             tmp.replace(self.path)

@@ -70,3 +70,30 @@ def test_two_ptys_through_a_symlinked_directory_clash(tmp_path: Path) -> None:
     for name in ("x", "y"):
         (tmp_path / "run" / name).symlink_to("/dev/null")
     assert with_ptys(tmp_path / "run" / "x", tmp_path / "run" / "y") == ("", "", "")
+
+
+def test_a_port_reading_an_output_pty_is_named(tmp_path: Path) -> None:
+    """A port whose device is the output pty's link, a link to that link, or the control
+    socket is refused naming the port (the daemon read its own corrected VHW as a second
+    log's readings and sent them on as that log's); two ports on one device and a port
+    beside the outputs pass."""
+    good = parse_config(CONFIG)
+    (tmp_path / "links").mkdir()
+    (tmp_path / "links" / "relay").symlink_to("../out/emlog0")
+    (tmp_path / "links" / "relay2").symlink_to(tmp_path / "links" / "relay")
+    outputs = dataclasses.replace(good.outputs, pty=str(tmp_path / "out" / "emlog0"))
+
+    def with_url(url: str, port: int = 1) -> tuple[str, str, str]:
+        ports = list(good.ports)
+        ports[port] = dataclasses.replace(ports[port], url=url)
+        return path_clash(dataclasses.replace(good, ports=tuple(ports), outputs=outputs))
+
+    for url in ("out/emlog0", "out/./emlog0", "links/relay", "links/relay2"):
+        why, key, section = with_url(str(tmp_path / url))
+        assert (key, section) == ("ports[1].url", "ports"), url
+        assert why.startswith("the same path as outputs.pty"), why
+    why, key, _ = with_url("/run/emlogd/control.sock", 0)
+    assert key == "ports[0].url" and "as control_socket" in why
+    assert with_url("/dev/emlog1") == ("", "", "")
+    assert with_url(str(tmp_path / "links" / "other")) == ("", "", "")
+    assert with_url("socket://127.0.0.1:10110") == ("", "", "")
