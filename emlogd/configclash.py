@@ -7,10 +7,12 @@ refused when the config is loaded (or reloaded: the running one kept).
 
 from __future__ import annotations
 
+import ipaddress
 import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
+from urllib.parse import urlsplit
 
 if TYPE_CHECKING:
     from emlogd.config import Config
@@ -48,8 +50,9 @@ def path_clash(cfg: Config) -> tuple[str, str, str]:
     process"; a pty at the state file's, "exists and is not a symlink"; a port at an
     output pty's link read the daemon's own corrected sentences as a sensor's (a second
     log's speed made of the first's output). Two paths through a symlinked directory to
-    one place clash too (:func:`_real_place`). Ports may share a device with each other
-    (not checked here)."""
+    one place clash too (:func:`_real_place`), and so does a ``socket://`` input on a TCP
+    output's port of this host (:func:`_own_listener`). Ports may share a device with
+    each other (not checked here)."""
     named: list[tuple[str, str, str | None]] = [
         ("control_socket", "control_socket", cfg.control_socket),
         ("status_socket", "status_socket", cfg.status_socket),
@@ -66,12 +69,15 @@ def path_clash(cfg: Config) -> tuple[str, str, str]:
             other = seen.setdefault(_real_place(path), what)
             if other != what:
                 return f"the same path as {other} ({path}): each needs its own", what, section
+    listeners = [("outputs.tcp", cfg.outputs.tcp)]
+    listeners += [(f"calibration[{i}].tcp", c.outputs.tcp) for i, c in enumerate(cfg.calibration)]
     for i, port in enumerate(cfg.ports):
         hops = _hops(port.url) if "://" not in port.url else []
         read = next((seen[hop] for hop in hops if hop in seen), None)
+        read = read or next((k for k, t in listeners if t and _own_listener(port.url, t)), None)
         if read is not None:
             return (
-                f"the same path as {read} ({port.url}): a port cannot read the daemon's "
+                f"the same place as {read} ({port.url}): a port cannot read the daemon's "
                 "own output, state or sockets",
                 f"ports[{i}].url",
                 "ports",
@@ -105,3 +111,21 @@ def _hops(path: str) -> list[str]:
             break
         places.append(_real_place(str(link.parent / target)))
     return places
+
+
+def _own_listener(url: str, listener: str) -> bool:
+    """Whether the input ``url`` (``socket://HOST:PORT``) connects to the TCP output
+    ``listener`` (``HOST:PORT``): its port, and a loopback host or the listener's own. A
+    host of another address may be this host's or another's (a multiplexer on the usual
+    10110): not refused."""
+    if not url.lower().startswith("socket://"):
+        return False
+    try:
+        parts = urlsplit(url)
+        host, port = ipaddress.ip_address(parts.hostname or ""), parts.port
+    except ValueError:
+        return False
+    lhost, _, lport = listener.rpartition(":")
+    if port is None or str(port) != lport:
+        return False
+    return host.is_loopback or str(host) == lhost.strip("[]")

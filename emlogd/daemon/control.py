@@ -2,7 +2,8 @@
 
 Requests are one JSON object per line, ``{"cmd": "status"}``, ``{"cmd": "freeze"}``,
 ``{"cmd": "learn", "on": true}``, ``{"cmd": "reset", "port": "emlog1"}``; each gets
-one JSON line back, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``.
+one JSON line back, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``. The
+client's end of file (a half-close) ends its last request as a newline does.
 
 No client can knock the server over: every line gets an answer whatever it holds
 (any JSON type or nesting, unknown or duplicate keys, wrong types, invalid UTF-8); a
@@ -421,10 +422,14 @@ class ControlServer:
             data = None
         except OSError:
             data = b""
-        if data == b"":
-            self._drop(conn)
-            return
         client = self.clients[conn]
+        if data == b"":
+            if not client.buf.strip():
+                self._drop(conn)
+                return
+            # the end of file ends the last request (``printf '{"cmd":"status"}' | socat
+            # - UNIX-CONNECT:…``): answered, then closed once it is sent and read again
+            data = b"\n"
         now = self.monotonic()
         buf = client.buf
         buf += data or b""

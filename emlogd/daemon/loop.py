@@ -41,7 +41,7 @@ from emlogd.daemon.configload import ConfigLoad, why_not_loaded
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
-from emlogd.daemon.outputs import Outputs
+from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
 from emlogd.daemon.statefile import StateStore, max_state_bytes, same_records
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Output, Pipeline
@@ -215,7 +215,10 @@ class Daemon:
         self.pipeline = build_pipeline(cfg, cals, others)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
-        self.outputs.sync(cfg)
+        try:  # one that cannot be opened costs itself, tried again (Outputs.housekeep)
+            self.outputs.sync(cfg)
+        except DeviceError as exc:
+            self.log.error("outputs_failed", error=str(exc), retry_s=OUTPUT_RETRY_S)
         self._open_sources(cfg)
         self.started = True
 

@@ -254,6 +254,26 @@ def _ask(sync: _Sync, path: Path) -> bytes:
         return s.recv(4096)
 
 
+def test_a_request_ended_by_the_end_of_file_is_answered(sync: _Sync, tmp_path: Path) -> None:
+    """A request without its newline, the client then ending its sending (``printf
+    '{"cmd":"status"}' | socat - UNIX-CONNECT:…``), is answered and the connection
+    closed; an end of file after nothing, or after blanks, closes it with no answer.
+    The request was dropped with the connection: the operator got nothing."""
+    for sent, answer in (
+        (b'{"cmd": "status"}', b'{"ok": true, "echo": "status"}\n'),
+        (b'{"cmd": "freeze"}\n{"cmd": "learn"}', b'"echo": "learn"}\n'),
+        (b"", b""),
+        (b"  ", b""),
+    ):
+        with _connect(tmp_path / "s.sock") as s:
+            s.sendall(sent)
+            s.shutdown(socket.SHUT_WR)
+            sync.pump(0.1)
+            got = _rest(s)
+        assert got.endswith(answer) and bool(got) == bool(answer), (sent, got)
+    assert not sync.server.clients
+
+
 def test_a_removed_socket_file_is_made_again(sync: _Sync, tmp_path: Path) -> None:
     """The socket file removed under the running server (by hand, a clean-up of the run
     directory): within PATH_CHECK_S it is bound again and answers, a client connected
