@@ -230,6 +230,10 @@ class ControlServer:
         commands: the commands this socket takes (``("status",)``: read-only).
         on_event: called as ``on_event(kind, detail)`` for what is worth a log line.
         monotonic: the clock of idle timeouts and pauses.
+        wait: a path where the socket cannot be made (a regular file there) is logged
+            (``control_socket_path``) and the socket made by the path check once it can
+            be; without it, that is a ``DeviceError``. Another process listening there is
+            a ``DeviceError`` either way.
 
     Call :meth:`housekeep` now and then (idle clients, the end of a pause).
 
@@ -247,6 +251,7 @@ class ControlServer:
         commands: Sequence[str] = COMMANDS,
         on_event: Callable[[str, str], None] | None = None,
         monotonic: Callable[[], float] = time.monotonic,
+        wait: bool = False,
     ) -> None:
         self.path = Path(path)
         self.handler = handler
@@ -280,7 +285,13 @@ class ControlServer:
                 self.path.unlink()  # stale: left by a process that died
             self.sock, self._ident = self._bind()
         except OSError as exc:
-            raise DeviceError(f"control socket {self.path}: {exc.strerror or exc}") from None
+            if not wait:
+                raise DeviceError(f"control socket {self.path}: {exc.strerror or exc}") from None
+            # not listening: bound by the path check once the path is free
+            self.sock, self._ident = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM), (-1, -1)
+            why = f"cannot be made: {exc.strerror or exc}; tried again every {PATH_CHECK_S:g} s"
+            self._path_trouble(why)
+            return
         selector.register(self.sock, selectors.EVENT_READ, self._accept)
 
     def _bind(self) -> tuple[socket.socket, tuple[int, int]]:

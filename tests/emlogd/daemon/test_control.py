@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from drivers.errors import DeviceError
 from emlogd.client import request
 from emlogd.daemon.control import (
     MAX_CLIENTS,
@@ -415,4 +416,44 @@ def test_a_status_asked_by_many_at_once_is_built_once(tmp_path: Path) -> None:
             s.close()
     finally:
         server.close()
+        sel.close()
+
+
+def test_a_server_told_to_wait_makes_its_socket_once_the_path_is_free(tmp_path: Path) -> None:
+    """A regular file at the path: without ``wait`` a ``DeviceError``; with it the server
+    says why (``control_socket_path``), answers nothing, and makes its socket at the path
+    check after the file is gone, then answers. Another live server's socket at the path
+    is a ``DeviceError`` either way."""
+    path = tmp_path / "c.sock"
+    path.write_text("not a socket")
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    with pytest.raises(DeviceError, match="Address already in use"):
+        ControlServer(path, lambda req: {}, sel, monotonic=clock)
+    srv = ControlServer(
+        path,
+        lambda req: {"echo": req["cmd"]},
+        sel,
+        monotonic=clock,
+        on_event=lambda k, d: notes.append((k, d)),
+        wait=True,
+    )
+    try:
+        assert [k for k, _ in notes] == ["control_socket_path"] and "cannot be made" in notes[0][1]
+        path.unlink()
+        clock.t += PATH_CHECK_S
+        srv.housekeep()
+        assert path.is_socket() and notes[-1][0] == "control_socket_restored"
+        with pytest.raises(DeviceError, match="in use by another process"):
+            ControlServer(path, lambda req: {}, sel, monotonic=clock, wait=True)
+        with _connect(path) as s:
+            s.sendall(b'{"cmd": "status"}\n')
+            for key, _ in sel.select(timeout=1.0):
+                key.data()
+            for key, _ in sel.select(timeout=1.0):
+                key.data()
+            assert s.recv(4096) == b'{"ok": true, "echo": "status"}\n'
+    finally:
+        srv.close()
         sel.close()

@@ -6,6 +6,7 @@ client costs itself, never the process or the other clients."""
 from __future__ import annotations
 
 import dataclasses
+import errno
 import os
 import signal
 import socket
@@ -13,15 +14,24 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
+import structlog
+
 from emlogd.client import request
+from emlogd.daemon import statefile
+from emlogd.daemon.control import PATH_CHECK_S
+from emlogd.daemon.loop import Daemon as LoopDaemon
 from emlogd.daemon.outputs import OUTPUT_RETRY_S
-from emlogd.daemon.statefile import StateStore
+from emlogd.daemon.statefile import STATE_RETRY_S, StateStore
+from emlogd.launch import STOP_TIMEOUT_S
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     Daemon,
     free_port,
     make_work,
     raw_pty,
+    reaped,
+    run_daemon,
     saved_calibration,
     wait,
 )
@@ -155,3 +165,75 @@ def test_a_file_at_the_pty_path_costs_the_pty_alone(tmp_path: Path) -> None:
         d.kill()
         os.close(emlog)
         os.close(dvl)
+
+
+def test_a_file_at_the_control_socket_path_costs_the_socket_alone(tmp_path: Path) -> None:
+    """A regular file at the control socket's path when the daemon starts (an operator's
+    ``echo '{"cmd":"status"}' > /run/emlogd/control.sock`` while it was stopped): the
+    daemon starts and its TCP output serves the corrected VHW, the log says why there is
+    no socket (``control_socket_path``); once the file is gone the socket is made within
+    ``PATH_CHECK_S`` and answers, and SIGTERM exits 0. The start ended with exit code 1
+    (``control socket …: Address already in use``): a restart loop, no output at all."""
+    port = free_port()
+    config = PD0_CONFIG.replace(
+        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
+    )
+    work = make_work(tmp_path, config)
+    sock = work / "run" / "control.sock"
+    sock.write_text('{"cmd":"status"}\n')
+    emlog, dvl = (raw_pty(work / "links" / name) for name in ("emlog1", "dvl"))
+    try:
+        with (work / "daemon.log").open("wb") as log, reaped(run_daemon(work, log)) as proc:
+            wait(lambda: (work / "out" / "emlog0").is_symlink(), "the daemon started", 20.0)
+            with socket.create_connection(("127.0.0.1", port), timeout=5) as reader:
+                for k in range(10):
+                    os.write(emlog, VHW[k % 2])
+                    time.sleep(0.1)
+                assert _first_sentence(reader, 3.0) < 3.0
+            assert "control_socket_path" in (work / "daemon.log").read_text()
+            sock.unlink()
+            wait(lambda: sock.is_socket(), "the control socket made", PATH_CHECK_S + 5.0)
+            assert request(sock, {"cmd": "status"}).get("ok") is True
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(STOP_TIMEOUT_S) == 0
+    finally:
+        os.close(emlog)
+        os.close(dvl)
+
+
+def test_a_save_that_failed_is_tried_again_until_it_is_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The state file's writes failing with ``ENOSPC`` (injected where the file is
+    written) when a ``reset`` is asked: answered that it was not written; once writes
+    work again the state file holds the reset within ``STATE_RETRY_S`` of housekeeping,
+    with nothing more asked. The save was never tried again before the stop: a power
+    cut meanwhile, and the next start loaded what the operator had reset (the same for
+    a ``freeze``: the calibration frozen in memory only)."""
+    work = make_work(tmp_path, TWO_LOGS)
+    store = StateStore(work / "state" / "state.yaml")
+    store.save({"emlog1": saved_calibration(0.1, lag_s=0.165)})
+    clock = [1000.0]
+    daemon = LoopDaemon(work / "emlogd.yaml", structlog.get_logger("t"), monotonic=lambda: clock[0])
+    daemon._start()
+    try:
+
+        def full(path: Path, data: bytes, mode: int = 0o640) -> None:
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        monkeypatch.setattr(statefile, "write_synced", full)
+        with pytest.raises(ValueError, match="not written"):
+            daemon._control({"cmd": "reset", "port": "emlog1"})
+        daemon._housekeep()  # the pipeline hands the reset out to persist: it fails too
+        assert daemon.state_errors == 2
+        monkeypatch.undo()
+        daemon._housekeep()  # nothing more asks for a save
+        assert _saved(store).get("emlog1") == 0.1
+        clock[0] += STATE_RETRY_S
+        daemon._housekeep()
+        assert "emlog1" not in _saved(store), _saved(store)  # the reset is on disk
+        assert daemon.state_errors == 2
+    finally:
+        daemon._shutdown()
+        os.close(daemon._wake_r)
+        os.close(daemon._wake_w)
