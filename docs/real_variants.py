@@ -6,7 +6,8 @@ Usage: ``python docs/real_variants.py DIR [--only NAME ...] [--variant V ...] [-
 A variant is a pure function of the source file's text (:data:`VARIANTS`): the GNSS
 thinned to 0.5 and 0.2 Hz, fix times of 1-s and 10-s resolution; a magnetic heading
 without any variation in the log (HDG with empty variation fields, HDM, VHW magnetic
-only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, RMC
+only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, GLL +
+VTG without a date, RMC
 without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
 a midnight crossed by GGA times of day; the log 2 s behind or ahead of the GNSS, at
@@ -166,6 +167,12 @@ VARIANTS: tuple[Variant, ...] = (
     ),
     Variant(
         "zda-gll-vtg", "nmea", _nm(rmc_to(("ZDA", "GLL", "VTG"))), "ZDA + GLL + VTG instead of RMC"
+    ),
+    Variant(
+        "gll-vtg",
+        "nmea",
+        _nm(rmc_to(("GLL", "VTG"))),
+        "GLL + VTG alone (no RMC, ZDA, GGA), no --date: the date the file's name holds",
     ),
     Variant(
         "rmc-slow-no-course", "nmea", _nm(rmc_course_empty_slow), "RMC without a course below 1 kn"

@@ -18,9 +18,12 @@ of it; sentences run together on one line (a line end lost) are split after each
 checksum a sentence's address follows (``sentences_run_together``); a sentence cut
 over two lines is joined when the two together pass its checksum (``lines_joined``).
 Time comes from
-the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, or an
-RMC's without its date) with a date
-given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a time of day
+the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, an
+RMC's without its date, or a valid GLL's while no fix of another kind has come: a GNSS
+sending GLL and VTG alone) with a date
+given by ``--date`` (or learnt from an earlier RMC/ZDA of the log; in a log with no
+dated fix at all, the date its file's name holds, else the day the file was last
+written, noted ``date_from_file_name`` or ``date_from_file_time``); a time of day
 :data:`DAY_ROLLOVER_S` or more before the last fix is the next day's (midnight passed).
 A fix whose time does not increase is no
 time source, nor is one outside :data:`YEARS`. The sentences between two fixes are

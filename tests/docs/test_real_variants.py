@@ -314,6 +314,7 @@ def test_a_slower_gnss_gives_fewer_fixes(
     [
         "gga-vtg",
         "zda-gll-vtg",
+        "gll-vtg",
         "midnight-gga",
         "midnight-rmc",
         "rmc-no-date",
@@ -323,7 +324,8 @@ def test_a_slower_gnss_gives_fewer_fixes(
     ],
 )
 def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Path) -> None:
-    """GGA + VTG (with --date), ZDA + GLL + VTG, midnight crossed by GGA times of day or
+    """GGA + VTG (with --date), ZDA + GLL + VTG, GLL + VTG alone (the date the file's),
+    midnight crossed by GGA times of day or
     by RMC with or without its date (then --date), RMC without a date, a gap of minutes,
     cut lines: the water readings keep their time."""
     base, rep, _ = _variant("nmea", name, tmp_path)
