@@ -10,7 +10,10 @@ only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, G
 VTG without a date, RMC
 without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
-a midnight crossed by GGA times of day; the log 2 s behind or ahead of the GNSS, at
+a midnight crossed by GGA times of day (and by RMC with a leap second), two sessions
+3 h apart in one file, fix times a second late now and then, an hour moored first,
+variations signed without E/W, VHW in km/h alone, HDM with RMC's variation alone, a
+0.5-Hz GNSS with the log at twice its rate; the log 2 s behind or ahead of the GNSS, at
 half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
 $PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
@@ -267,6 +270,39 @@ VARIANTS: tuple[Variant, ...] = (
         vl.midnight_rmc_no_date,
         "midnight crossed by RMC without a date (--date the first fix's)",
         lambda text: ["--date", midnight_date(text)],
+    ),
+    Variant(
+        "two-sessions",
+        "nmea",
+        vl.two_sessions,
+        "two sessions of one day in one file, the second 3 h after the first",
+    ),
+    Variant("leap-second", "nmea", vl.leap_second, "midnight crossed with a leap second 23:59:60"),
+    Variant("late-fixes", "nmea", vl.late_fixes, "every 5th fix's time a second late (jitter)"),
+    Variant(
+        "moored-hour",
+        "nmea",
+        vl.moored,
+        "an hour moored before the start (at rest: nothing to learn from it)",
+    ),
+    Variant(
+        "signed-variation",
+        "nmea",
+        _nm(vl.signed_variation),
+        "RMC's and HDG's variation signed (west negative), no E/W",
+    ),
+    Variant("vhw-kmh", "nmea", _nm(vl.vhw_kmh_only), "VHW's speed in km/h alone"),
+    Variant(
+        "hdm-rmc-var",
+        "nmea",
+        _nm(vl.hdm_rmc_variation),
+        "HDM the only heading, the variation in RMC's field alone",
+    ),
+    Variant(
+        "gnss-0.5hz-log-2hz",
+        "nmea",
+        lambda text: thin_gnss(2.0)(vhw_twice(text)),
+        "a GNSS at 0.5 Hz and the log at twice its rate",
     ),
     Variant(
         "set-drift",

@@ -121,6 +121,8 @@ SAME_SENTENCES = [
     ("nmea", "nul-padded"),
     ("nmea", "split-lines"),
     ("nmea", "ais"),
+    ("nmea", "signed-variation"),
+    ("nmea", "vhw-kmh"),
     ("expedition-csv", "set-drift"),
     ("expedition-csv", "upper-case"),
     ("expedition-csv", "reordered"),
@@ -293,6 +295,7 @@ def test_a_log_sending_vbw_alone_is_read_from_vbw(tmp_path: Path) -> None:
         ("nmea", "gnss-0.2hz", 5.0),
         ("nmea", "fix-10s", 10.0),
         ("nmea", "tide-gnss-0.5hz", 2.0),
+        ("nmea", "gnss-0.5hz-log-2hz", 2.0),
         ("expedition-csv", "sog-0.5hz", 2.0),
         ("expedition-csv", "sog-0.2hz", 5.0),
     ],
@@ -321,13 +324,16 @@ def test_a_slower_gnss_gives_fewer_fixes(
         "midnight-rmc-no-date",
         "gap",
         "truncated",
+        "leap-second",
+        "late-fixes",
     ],
 )
 def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Path) -> None:
     """GGA + VTG (with --date), ZDA + GLL + VTG, GLL + VTG alone (the date the file's),
     midnight crossed by GGA times of day or
-    by RMC with or without its date (then --date), RMC without a date, a gap of minutes,
-    cut lines: the water readings keep their time."""
+    by RMC with or without its date (then --date) or with a leap second, RMC without a
+    date, a gap of minutes, cut lines, fix times a second late now and then: the water
+    readings keep their time."""
     base, rep, _ = _variant("nmea", name, tmp_path)
     span = base.t_end - base.t_start
     kept = 1.0 - rv.GAP_S / span if name == "gap" else 1.0
@@ -335,14 +341,33 @@ def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Pa
     assert rep.t_end - rep.t_start == pytest.approx(span, abs=2.0)
 
 
-@pytest.mark.parametrize("name", ["hdg-no-var", "hdm", "vhw-mag"])
+@pytest.mark.parametrize("name", ["hdg-no-var", "hdm", "vhw-mag", "hdm-rmc-var"])
 def test_a_magnetic_heading_without_variation_pairs(name: str, tmp_path: Path) -> None:
-    """No variation anywhere in the log: the heading is made true with the model's at the
-    fixes' positions, and the readings pair with the GNSS reference as before."""
+    """No variation anywhere in the log (or in RMC's field alone): the heading is made
+    true with the model's at the fixes' positions (or RMC's), and the readings pair
+    with the GNSS reference as before."""
     _, _, cap = _variant("nmea", name, tmp_path)
     s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
     al = record_capture(cap, s).aligned(0.0)
     assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
+
+
+@pytest.mark.parametrize(
+    ("name", "added_s"), [("two-sessions", rv.vl.SESSION_GAP_S), ("moored-hour", rv.vl.MOORED_S)]
+)
+def test_two_sessions_and_a_mooring_keep_every_reading(
+    name: str, added_s: float, tmp_path: Path
+) -> None:
+    """Two sessions 3 h apart in one file, an hour moored before the start: the span
+    grows by that time, every water reading of the log keeps its time (the few lines
+    between the sessions' fixes are counted ``fix_gap``), and at rest nothing pairs."""
+    base, rep, cap = _variant("nmea", name, tmp_path)
+    assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start + added_s, abs=2.0)
+    assert rep.sentences["VHW"] >= base.sentences["VHW"] - 2
+    assert (rep.skipped["fix_gap"] > 0) == (name == "two-sessions")
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    al = record_capture(cap, s).aligned(0.0)
+    assert np.count_nonzero(al.usable(heading=True)) <= base.sentences["VHW"]
 
 
 @pytest.mark.parametrize(("name", "scale"), [("tide", 1.0), ("tide-strong", rv.STRONG_TIDE)])
