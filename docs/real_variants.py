@@ -18,7 +18,9 @@ half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
 $PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
 ``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
-text, ``Date`` and ``Time`` columns) and Expedition's own sparse log (``!Boat``
+text, ``Date`` and ``Time`` columns, a row of units under the header, units in the
+names, OLE days of local time with ``--utc-offset``, NMEA field names) and
+Expedition's own sparse log (``!Boat``
 header, channel numbers, ``channel,value`` pairs); the logger's TSV without its
 banner, with its local time given by ``--utc-offset``, with rows every 5 s, under its
 other firmware's column names after a banner of settings, with its date in full or
@@ -363,6 +365,31 @@ VARIANTS: tuple[Variant, ...] = (
         "expedition-csv",
         vcsv.expedition_log,
         "Expedition's own sparse log (channel, value pairs)",
+    ),
+    Variant(
+        "units-row",
+        "expedition-csv",
+        vcsv.columns(vcsv.units_row),
+        "a row of units under the header",
+    ),
+    Variant(
+        "ole-local",
+        "expedition-csv",
+        vcsv.columns(vcsv.ole_local),
+        "Utc as OLE days of local time, given by --utc-offset 2",
+        lambda _text: ["--utc-offset", str(vcsv.LOCAL_OFFSET_H)],
+    ),
+    Variant(
+        "nmea-field-names",
+        "expedition-csv",
+        vcsv.rename(vcsv.NMEA_NAMES),
+        "another logger's NMEA field names (UTC, SOW, HDT, SOG, COG, SET, DRIFT)",
+    ),
+    Variant(
+        "name-units",
+        "expedition-csv",
+        vcsv.rename(vcsv.NAME_UNITS),
+        "units in the names: Bsp (kt), Hdg (°T), Cog (°T)",
     ),
     Variant("no-banner", "logger-tsv", vcsv.no_banner, "the logger's TSV without its banner"),
     Variant(

@@ -5,6 +5,7 @@ the check of an NMEA log's lines (:class:`SentenceCheck`), its lines read with a
 
 from __future__ import annotations
 
+import contextlib
 import gzip
 import io
 import math
@@ -187,18 +188,58 @@ UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 is read as UTF-16 (a spreadsheet saved as "Unicode text")."""
 
 
+SNIFF_BYTES = 1 << 16
+"""The first this many bytes of a file tell its encoding (:func:`open_text`)."""
+
+LEGACY_ENCODING = "cp1252"
+"""A file whose first bytes are not UTF-8 is read in Windows' Western code page (an
+export written on Windows: ``Hdg (°T)``, ``Zeit``, ``Geschw.`` with its 8-bit letters),
+which decodes Latin-1's letters too."""
+
+
 def open_text(path: str | Path) -> TextIO:
-    """A text stream of a file, through gzip when it starts with gzip's magic; UTF-8
-    (its byte-order mark dropped), or UTF-16 when it starts with that one's."""
+    """A text stream of a file, through gzip when it starts with gzip's magic; UTF-16
+    when it starts with that one's byte-order mark, else UTF-8 (its byte-order mark
+    dropped) when its first :data:`SNIFF_BYTES` decode as UTF-8, else
+    :data:`LEGACY_ENCODING`."""
     try:
-        raw = open(path, "rb")  # noqa: SIM115
+        raw: io.BufferedReader | gzip.GzipFile = io.BufferedReader(
+            io.FileIO(path, "rb"), SNIFF_BYTES
+        )
+        head = raw.peek(SNIFF_BYTES)[:SNIFF_BYTES]
+        if head[:2] == b"\x1f\x8b":
+            raw.close()
+            raw = gzip.GzipFile(path, "rb")
+            head = _gzip_head(path)
     except OSError as exc:
-        raise ImportFormatError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    if raw.peek(2)[:2] == b"\x1f\x8b":
-        raw.close()
-        return gzip.open(path, "rt", encoding="utf-8-sig", errors="replace")
-    encoding = "utf-16" if raw.peek(2)[:2] in UTF16_BOMS else "utf-8-sig"
-    return io.TextIOWrapper(raw, encoding=encoding, errors="replace")
+        raise ImportFormatError(
+            f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}"
+        ) from None
+    if head[:2] in UTF16_BOMS:
+        return io.TextIOWrapper(raw, encoding="utf-16", errors="replace")
+    return io.TextIOWrapper(raw, encoding=_encoding(head), errors="replace")
+
+
+def _gzip_head(path: str | Path) -> bytes:
+    """A gzip file's first :data:`SNIFF_BYTES` decompressed (those there are when it
+    is cut short: reading it says so, counted ``truncated``)."""
+    with gzip.GzipFile(path, "rb") as gz:
+        out = b""
+        with contextlib.suppress(EOFError, zlib.error, gzip.BadGzipFile):
+            while len(out) < SNIFF_BYTES and (chunk := gz.read(SNIFF_BYTES - len(out))):
+                out += chunk
+    return out
+
+
+def _encoding(head: bytes) -> str:
+    """UTF-8 (``utf-8-sig``) when ``head`` decodes as UTF-8 but for a character cut at
+    its end, else :data:`LEGACY_ENCODING`."""
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(head) - 3 or exc.reason != "unexpected end of data":
+            return LEGACY_ENCODING
+    return "utf-8-sig"
 
 
 def not_a_sentence(text: str) -> str | None:

@@ -131,6 +131,7 @@ from emlogd.offline.csvmaps import (
     cell_value,
     find_header,
     guess_time_format,
+    line_unknown_units,
     no_header,
     parse_map,
     parse_time,
@@ -322,6 +323,8 @@ def import_csv(
         href = heading_ref or (chosen.heading_ref if chosen is not None else "true")
         href = _magnetic_column(cols, href, heading_ref is not None)
         _describe(report, found, href, utc_offset_h is not None, variation_deg is not None)
+        for name in [] if sparse else line_unknown_units(head[h_index], delim):
+            report.notes[f"unit_not_known {name}"] += 1  # a column left out, said
         sink = CaptureSink(out, port, f"emlogd import --format csv: {path}", report)
         run = _CsvRun(
             sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s, day

@@ -100,13 +100,18 @@ _EXCERPTS: dict[str, ImportReport] = {}
 @pytest.mark.parametrize(("kind", "name"), sorted(VARIANTS))
 def test_every_variant_is_told_by_its_content(kind: str, name: str, tmp_path: Path) -> None:
     """docs/real_data.py tells each variant's kind as its recording's (a BOM, another
-    delimiter, a prefix before each sentence, a long banner, Expedition's sparse log)."""
+    delimiter, a prefix before each sentence, a long banner, Expedition's sparse log,
+    units after the names), or a table's under another logger's names."""
     text = _text(kind)
     v = VARIANTS[(kind, name)]
     src = tmp_path / f"variant{Path(SOURCES[kind]).suffix}"
     out = v.make(text)
     src.write_bytes(out.encode("utf-8") if out[:1] == "\ufeff" else out.encode("latin-1"))
-    assert rv._real_data().kind(src) == kind
+    assert rv._real_data().kind(src) == OTHER_KIND.get((kind, name), kind)
+
+
+OTHER_KIND = {("expedition-csv", "nmea-field-names"): "csv"}
+"""Variants that are another kind of log than their source (another logger's names)."""
 
 
 SAME_SENTENCES = [
@@ -132,6 +137,10 @@ SAME_SENTENCES = [
     ("expedition-csv", "quoted"),
     ("expedition-csv", "bom-crlf"),
     ("expedition-csv", "sparse-log"),
+    ("expedition-csv", "units-row"),
+    ("expedition-csv", "ole-local"),
+    ("expedition-csv", "nmea-field-names"),
+    ("expedition-csv", "name-units"),
     ("logger-tsv", "no-banner"),
     ("logger-tsv", "utc-offset"),
     ("logger-tsv", "logger-firmware"),
