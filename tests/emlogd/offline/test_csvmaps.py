@@ -100,13 +100,8 @@ def test_nmea_field_names_and_true_degrees_are_read() -> None:
     map's; ``°T`` after a name is an angle's unit (true), ``°M`` one no table knows."""
     found = find_header(["UTC,SOW,HDT,SOG,COG,TWD"], candidate_maps(None, None))
     assert found is not None and found[2] is PRESETS["generic"]
-    assert {k: c.index for k, c in found[3].items()} == {
-        "time": 0,
-        "stw": 1,
-        "heading": 2,
-        "sog": 3,
-        "cog": 4,
-    }
+    keys = ("time", "stw", "heading", "sog", "cog")
+    assert {k: c.index for k, c in found[3].items()} == dict(zip(keys, range(5), strict=True))
     found = find_header(["Timestamp,BSP (kt),HdgMag (°),COG (°T)"], candidate_maps(None, None))
     assert found is not None and set(found[3]) == {"time", "stw", "heading_mag", "cog"}
     assert unknown_units(["Hdg (°M)", "Cog (°T)", "Bsp (kt)"]) == ["'Hdg (°M)' ('°M')"]
