@@ -16,7 +16,7 @@ from typing import Literal
 
 from drivers.nmea0183.parsing import MAX_SPEED_MPS
 from drivers.records import KNOT_MPS
-from emlogd.offline.importbase import ImportFormatError, ImportReport
+from emlogd.offline.importbase import ImportFormatError, ImportReport, what_it_looks_like
 
 HeadingRef = Literal["true", "magnetic"]
 """A heading column's reference."""
@@ -429,6 +429,10 @@ def no_header(path: str | Path, head: list[str], candidates: Sequence[MapChoice]
         if units
         else ""
     )
+    first = next((ln for ln in head if ln.strip()), "")
+    looks = what_it_looks_like(first)
+    if looks and "table" not in looks:  # the file is no table at all
+        return f"{path}: no header: the file looks like {looks}; its first line reads {first.strip()[:80]!r}"
     return (
         f"{path}: no header with the mapped columns ({'; '.join(whys)}); the file has {cols}{told}"
     )

@@ -65,7 +65,8 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
     if not any(r.raw.size for r in recs):
         return (
             f"{head}: no {settings.uut_source} reading of the log arrived on port "
-            f"{settings.port!r} at all (a speed log sends VHW or VBW; a table needs its "
+            f"{settings.port!r} at all (a speed log sends VHW or VBW; VLW's distances alone "
+            "give no usable speed, their 0.1-nm steps a minute apart; a table needs its "
             "speed-through-water column)"
         )
     if field == "gnss" and not any(r.t_ref.size for r in recs):

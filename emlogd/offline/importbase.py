@@ -9,6 +9,7 @@ import contextlib
 import gzip
 import io
 import math
+import re
 import zlib
 from collections import Counter
 from collections.abc import Iterator
@@ -302,3 +303,38 @@ def _sentence_start(text: str) -> int:
 def well_formed(text: str) -> bool:
     """A sentence's address (``$`` or ``!`` and five letters or digits) and a comma."""
     return len(text) > 7 and text[1:6].isalnum() and text[6] == ","
+
+
+FOREIGN_FORMATS: tuple[tuple[re.Pattern[str], str], ...] = (
+    (
+        re.compile(r"\(\d+\.\d+\)\s+\w+\s+[0-9A-Fa-f]{3,8}#|\s*\w*can\d\s+[0-9A-Fa-f]{8}\s+\[\d\]"),
+        "an NMEA 2000 CAN dump (candump)",
+    ),
+    (
+        re.compile(r"[\d\-T:. Z]{10,30},\d,\d{5,6},\d{1,3},\d{1,3},\d{1,3},"),
+        "NMEA 2000 in Actisense/canboat text (time, priority, PGN, source...)",
+    ),
+    (re.compile(r"\{.*\"(updates|context|path)\""), "Signal K JSON"),
+    (re.compile(r"[^,;\t|$!]*([,;\t|][^,;\t|]*){3,}"), "a table (import it with --format csv)"),
+    (re.compile(r"[$!][A-Z0-9]{5},"), "an NMEA 0183 log (import it with --format nmea)"),
+)
+"""Formats a file given to the wrong import may be, told by its first line: NMEA 2000
+(CAN dumps, Actisense/canboat text), Signal K, a table, NMEA 0183; ``emlogd import``
+reads NMEA 0183 and tables only."""
+
+BINARY_FRACTION = 0.25
+"""A first line with more than this fraction of control or non-ASCII characters is
+binary (an NMEA 2000 recorder's .DAT, Actisense's .EBL)."""
+
+
+def what_it_looks_like(line: str) -> str:
+    """What a file whose first line is ``line`` seems to be, in words (empty when not
+    told): see :data:`FOREIGN_FORMATS`."""
+    text = line.strip("\r\n")
+    odd = sum(1 for c in text if not c.isascii() or (not c.isprintable() and c != "\t"))
+    if text and odd > BINARY_FRACTION * len(text):
+        return "binary data, not text (an NMEA 2000 recorder's or Actisense's file?)"
+    for pattern, what in FOREIGN_FORMATS:
+        if pattern.match(text):
+            return what
+    return ""

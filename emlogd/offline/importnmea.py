@@ -30,6 +30,7 @@ from emlogd.offline.importbase import (
     not_a_sentence,
     open_text,
     sentence_kind,
+    what_it_looks_like,
     within_years,
 )
 
@@ -262,6 +263,31 @@ def _start_day(paths: Sequence[str | Path], day: date | None, report: ImportRepo
     return found[0]
 
 
+FIRST_LINE_CHARS = 80
+"""A log none of whose lines is a sentence has its first line quoted up to this many
+characters in the error."""
+
+
+def _why_no_time(report: ImportReport, first: str, sentences: int) -> str:
+    """The error of an import that wrote nothing: an empty file, no line a sentence
+    (what the first line looks like), or sentences without a fix that times them."""
+    skipped = reasons(report.skipped) or "none"
+    if not first and not report.skipped:
+        return f"{', '.join(report.files)}: empty (no line to import)"
+    if sentences == 0 and first:
+        looks = what_it_looks_like(first)
+        return (
+            f"no line is an NMEA 0183 sentence with its checksum; the first reads {first!r}"
+            + (f", which looks like {looks}" if looks else "")
+            + f"; skipped: {skipped}"
+        )
+    return (
+        "no sentence could be given a time: the log needs RMC or ZDA fixes with a "
+        "date (or GGA, GLL, or RMC without a date, with --date YYYY-MM-DD); skipped: "
+        f"{skipped}"
+    )
+
+
 def import_nmea(
     paths: Sequence[str | Path],
     out: str | Path,
@@ -288,25 +314,25 @@ def import_nmea(
     sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
     spread = _Spreader(sink, report)
     joiner = _Joiner(SentenceCheck(report), report)
+    first = ""  # the first line, quoted when no line is a sentence
+    sentences = 0
     try:
         clock = _Clock(decoder, _start_day(paths, day, report))
         for i, path in enumerate(paths):
             with open_text(path) as f:
                 for raw in bounded_lines(f, report.skipped):
                     report.lines += 1
+                    first = first or raw.strip()[:FIRST_LINE_CHARS]
                     for part in run_together(raw.strip(LINE_PADDING), report):
                         for line in joiner.lines(part):
+                            sentences += 1
                             spread.add(line, clock.fix(line, spread.fix))
             joiner.flush()
             if progress is not None:
                 progress(f"import {Path(path).name}", (i + 1) / len(paths))
         spread.finish()
         if report.written == 0:
-            raise ImportFormatError(
-                "no sentence could be given a time: the log needs RMC or ZDA fixes with a "
-                "date (or GGA, GLL, or RMC without a date, with --date YYYY-MM-DD); skipped: "
-                f"{reasons(report.skipped) or 'none'}"
-            )
+            raise ImportFormatError(_why_no_time(report, first, sentences))
     except BaseException:
         sink.abort()
         raise
