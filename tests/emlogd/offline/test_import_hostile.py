@@ -121,7 +121,9 @@ def test_a_file_of_another_format_is_named(first: str, looks: str, tmp_path: Pat
         import_nmea([src], tmp_path / "o.cap")
     assert looks in str(exc.value)
     if looks != "--format csv":
-        with pytest.raises(ImportFormatError, match=rf"no header: the file looks like .*{re.escape(looks)}"):
+        with pytest.raises(
+            ImportFormatError, match=rf"no header: the file looks like .*{re.escape(looks)}"
+        ):
             import_csv(src, tmp_path / "o.cap")
     src.write_text("$IIVHW,,,263,M,01.0,N,,*62\n")
     with pytest.raises(ImportFormatError, match=r"an NMEA 0183 log .*--format nmea"):
