@@ -230,3 +230,19 @@ def test_a_malformed_gll_is_refused(body: str) -> None:
 
     with pytest.raises((FieldError, OutOfRangeError)):
         parse_gll(body[:2], body.split(",")[1:], body.encode("ascii"))
+
+
+@pytest.mark.parametrize(
+    ("body", "variation"),
+    [
+        ("GPRMC,132220,A,4613.353,N,00610.289,E,01.9,238,270614,2.5,W,A", -2.5),
+        ("GPRMC,132220,A,4613.353,N,00610.289,E,01.9,238,270614,-2.5,,A", -2.5),
+        ("HCHDG,263,,,-2.5,", -2.5),
+        ("HCHDG,263,,,2.5,W", -2.5),
+    ],
+)
+def test_a_variation_written_signed_without_its_direction(body: str, variation: float) -> None:
+    """A variation signed (west negative) with its E/W field empty reads as the signed
+    value, as ``2.5,W`` does."""
+    (rec,) = NmeaDecoder("n").decode_all(with_checksum(body).encode("ascii") + b"\r\n")
+    assert getattr(rec, "variation_deg", None) == variation
