@@ -19,7 +19,8 @@ $PASHR the only heading; VBW instead of VHW; Expedition exports with other colum
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
 ``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
 text, ``Date`` and ``Time`` columns, a row of units under the header, units in the
-names, OLE days of local time with ``--utc-offset``, NMEA field names) and
+names, OLE days of local time with ``--utc-offset``, NMEA field names, ``UtcDate``
+and ``UtcTime``) and
 Expedition's own sparse log (``!Boat``
 header, channel numbers, ``channel,value`` pairs); the logger's TSV without its
 banner, with its local time given by ``--utc-offset``, with rows every 5 s, under its
@@ -365,6 +366,12 @@ VARIANTS: tuple[Variant, ...] = (
         "expedition-csv",
         vcsv.expedition_log,
         "Expedition's own sparse log (channel, value pairs)",
+    ),
+    Variant(
+        "utc-date-time",
+        "expedition-csv",
+        vcsv.columns(vcsv.utc_date_time),
+        "UtcDate and UtcTime columns instead of Utc (another program's export)",
     ),
     Variant(
         "units-row",

@@ -313,6 +313,20 @@ def utc_text(pattern: str) -> Columns:
 
 def date_time_columns(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
     """``Utc`` replaced by ``Date`` (dd/mm/yyyy) and ``Time`` (hh:mm:ss.ff) columns first."""
+    return _split_utc(h, rows, ("Date", "Time"), "%d/%m/%Y")
+
+
+def utc_date_time(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """``Utc`` replaced by ``UtcDate`` (ISO) and ``UtcTime`` (hh:mm:ss.ff) columns first
+    (another navigation program's export)."""
+    return _split_utc(h, rows, ("UtcDate", "UtcTime"), "%Y-%m-%d")
+
+
+def _split_utc(
+    h: list[str], rows: list[list[str]], names: tuple[str, str], day: str
+) -> tuple[list[str], list[list[str]]]:
+    """``Utc`` replaced by a date column (``day``, a strftime pattern) and a time of day
+    column (hh:mm:ss.ff), named ``names``, first."""
     i = h.index("Utc")
     out = []
     for r in rows:
@@ -321,8 +335,8 @@ def date_time_columns(h: list[str], rows: list[list[str]]) -> tuple[list[str], l
         except (ValueError, IndexError):
             continue
         clock = f"{t:%H:%M:%S}.{t.microsecond // 10_000:02d}"
-        out.append([f"{t:%d/%m/%Y}", clock, *r[:i], *r[i + 1 :]])
-    return ["Date", "Time", *h[:i], *h[i + 1 :]], out
+        out.append([t.strftime(day), clock, *r[:i], *r[i + 1 :]])
+    return [*names, *h[:i], *h[i + 1 :]], out
 
 
 def tsv_dates(pattern: str) -> Callable[[str], str]:

@@ -137,8 +137,8 @@ may write the year in full, year first, or fractions of a second; magnetic ``Hea
 firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
 
 GENERIC: dict[str, str] = {
-    "time": "time|timestamp|datetime|date_time|utc",
-    "date": "date?",
+    "time": "time|timestamp|datetime|date_time|utc|utctime|utc_time|time_utc",
+    "date": "date|utcdate|utc_date|date_utc?",
     "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water|sow|water_speed",
     "heading": "hdg|heading|heading_true|hdt|hdgtrue|hdg_true|true_heading?",
     "heading_mag": "heading_magnetic|magnetic_heading|hdg_mag|mag_hdg|hdm|hdgmag?",
@@ -147,8 +147,8 @@ GENERIC: dict[str, str] = {
     "cog": "cog|course_over_ground?",
     "lat": "lat|latitude?",
     "lon": "lon|lng|long|longitude?",
-    "set": "set|current_set?",
-    "drift": "drift|current_drift?",
+    "set": "set|current_set|iset|tideset|tide_set?",
+    "drift": "drift|current_drift|idrift|tiderate|tide_rate?",
 }
 """A plain table of the usual short names (a processed log, a spreadsheet): one time
 column (told by its first cell; a ``date`` column beside a time of day is joined to it), the speed through the water in knots (``speed`` is

@@ -224,13 +224,15 @@ def test_without_the_current_columns_no_vdr(tmp_path: Path) -> None:
     assert rep.sentences["VHW"] == base.sentences["VHW"]
 
 
-@pytest.mark.parametrize("name", ["utc-text-us", "date-time-columns"])
+@pytest.mark.parametrize("name", ["utc-text-us", "date-time-columns", "utc-date-time"])
 def test_expedition_times_as_text_keep_the_log(name: str, tmp_path: Path) -> None:
-    """Utc written as US-English text (month first, AM/PM), or Date and Time columns in
-    its place: the same water readings over the same span (to the second the text
-    keeps)."""
+    """Utc written as US-English text (month first, AM/PM), or Date and Time columns
+    (UtcDate and UtcTime) in its place: the same water readings and current over the
+    same span (to the second the text keeps)."""
     base, rep, _ = _variant("expedition-csv", name, tmp_path)
     assert rep.sentences["VHW"] == base.sentences["VHW"]
+    if name != "utc-text-us":  # whole seconds: the current's repeats tell fewer samples
+        assert rep.sentences["VDR"] == base.sentences["VDR"]
     assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start, abs=1.0)
 
 
