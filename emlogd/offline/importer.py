@@ -50,7 +50,9 @@ comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
 or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each
 of these told by the first time cell), or a ``strptime`` pattern; with a ``date``
 column, a time cell holding a time of day alone is joined to the date with a space
-before parsing; without one, to ``--date`` (the next day once a time of day comes
+before parsing; without one, to ``--date``, else to the date the file's name holds,
+else to the day the file was last written (noted ``date_from_file_name`` or
+``date_from_file_time``) (the next day once a time of day comes
 :data:`DAY_ROLLOVER_S` or more before the row before: midnight passed). When no row
 gives a time, the error quotes the first time cell and asks for ``--time-format`` (for
 times of day alone, for the date). Times without a zone are UTC unless ``--utc-offset`` says
@@ -152,6 +154,7 @@ from emlogd.offline.importnmea import (
     DAY_ROLLOVER_S,
     MAX_FIX_GAP_S,
     MAX_PENDING_LINES,
+    file_day,
     import_nmea,
 )
 from emlogd.pipeline.sentences import encode_vdr
@@ -253,6 +256,9 @@ class _CsvRun:
     groups: dict[str, _Group] = field(
         default_factory=lambda: {name: _Group(keys) for name, keys in GROUPS.items()}
     )
+    day_note: str = ""
+    """The note counted when a time of day first takes :attr:`day` not given by
+    ``--date`` (the file's: ``date_from_file_name`` or ``date_from_file_time``)."""
     t_prev: float = -math.inf
     bad_stamp: str = ""
     """The first time cell that could not be read (quoted when no row gives a time)."""
@@ -329,6 +335,8 @@ def import_csv(
         run = _CsvRun(
             sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s, day
         )
+        if day is None and "date" not in cols and (found_day := file_day(path)) is not None:
+            run.day, run.day_note = found_day  # for times of day alone, noted when used
         try:
             if sparse is not None:
                 report.notes["expedition_sparse_log"] += 1
@@ -477,6 +485,9 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
         stamp = f"{day} {stamp}" if day else ""
     elif given and run.day is not None:
         stamp = f"{run.day.isoformat()} {stamp}"
+        if run.day_note:
+            run.report.notes[run.day_note] += 1
+            run.day_note = ""
     t = _stamp_time(stamp, run) if stamp else math.nan
     if given and run.day is not None and run.t_prev - t >= DAY_ROLLOVER_S:
         run.day += timedelta(days=1)  # midnight passed
