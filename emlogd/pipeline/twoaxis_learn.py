@@ -56,6 +56,7 @@ from calib.twoaxis import (
 )
 from drivers.framing import with_checksum
 from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.integrity import emitted_speed
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor, lon_of_fit
@@ -160,6 +161,18 @@ class TwoAxisLearner:
         """Offline use (``replay --truth``): receives every VBW reading as ``(t, forward
         corrected by the one-axis calibration, raw forward, raw athwart, figures
         applied)``."""
+
+    def restore(self, rec: Calibration) -> None:
+        """The figures of a state file's record (its ``two_axis``, checked), restored
+        with the sea saved with it when it has one (the early evidence of
+        :meth:`TwoAxisSupervisor.restore`)."""
+        if rec.two_axis is None:
+            return
+        sea = rec.current_mps if rec.current else None
+        self.sup.restore(
+            Figures.from_dict(rec.two_axis, rec.params.model),
+            (*sea, rec.t) if sea is not None else None,
+        )
 
     # -- inputs -------------------------------------------------------------
 

@@ -132,7 +132,10 @@ def test_circles_one_way_refuse_alpha_in_words_an_operator_reads() -> None:
     why = str(lr.status()["refused"])
     assert why.startswith("misalignment not determinable: ")
     assert "sideways speed through the water is a fixed fraction of the forward speed" in why
-    assert "the turns all went one way" in why and "turns to both sides (a figure-8)" in why
+    assert (
+        "one steady turn (one turn rate throughout, one way)" in why
+        and "turns to both sides (a figure-8)" in why
+    )
     assert [d["why"] for _, k, d in events if k == "two_axis_refused"][-1] == why
     assert why in two_axis_line(lr.status())
 
@@ -159,17 +162,20 @@ def test_a_reference_without_an_athwart_speed_is_said() -> None:
     assert lr.counts["no_reference"] > 40
 
 
-def _pipeline(fig: dict[str, float]) -> Pipeline:
-    """A pipeline with a log learning two axes, started from a record with ``fig``."""
+def _pipeline(fig: dict[str, float], sea: tuple[float, float] | None = None) -> Pipeline:
+    """A pipeline with a log learning two axes, started from a record with ``fig`` (and
+    the current ``sea`` saved with it at t = 100 s)."""
     s = UutSettings(port="log", reference_port="dvl", uut_source="VBW", axes=2)
-    rec = Calibration("log", Estimate(Params("EM3"), {}), 0.5, reset=True, two_axis=fig)
+    est = Estimate(Params("EM3"), {}, current_mps=sea)
+    rec = Calibration("log", est, 0.5, sea is not None, t=100.0, reset=True, two_axis=fig)
     return Pipeline(
         [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")], [s], {"log": rec}
     )
 
 
 def test_saved_figures_are_restored_checked_and_reset() -> None:
-    """Saved figures come back as a candidate that validates again (not applied yet);
+    """Saved figures come back as a candidate that validates again (not applied yet),
+    with the sea saved with them where the record has one;
     figures the record's check refuses (α beyond 20°) are not restored; a reset clears
     them and says so, and the record persisted then has none."""
     p = _pipeline(TWO_AXIS_FIGURES)
@@ -182,6 +188,9 @@ def test_saved_figures_are_restored_checked_and_reset() -> None:
     assert p.two_axis["log"].sup.candidate is None and p.calibrations()[0].two_axis is None
     refused = _pipeline(TWO_AXIS_FIGURES | {"misalign_deg": 25.0})
     assert refused.two_axis["log"].sup.candidate is None
+    assert p.two_axis["log"].sup.sea is None  # saved without a current
+    with_sea = _pipeline(TWO_AXIS_FIGURES, (0.1, -0.2))
+    assert with_sea.two_axis["log"].sup.sea == (0.1, -0.2, 100.0)  # the early evidence's
 
 
 def test_vhw_and_vbw_take_the_figures_own_forward_speed() -> None:
