@@ -4,6 +4,7 @@ them, and applied only once the athwart speed is not worse than raw."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pynmea2
@@ -11,7 +12,7 @@ import pytest
 
 from calib.estimate import Estimate
 from calib.models import Params
-from calib.twoaxis import TwoAxisParams
+from calib.twoaxis import TwoAxisParams, fit_two_axis
 from drivers.framing import with_checksum
 from drivers.records import KNOT_MPS as KNOT
 from emlogd.cli.common import two_axis_line
@@ -24,7 +25,7 @@ from emlogd.pipeline.twoaxis_learn import (
     encode_two_axis_status,
 )
 from emlogd.pipeline.twoaxis_sup import OFFER_SHARPER, Figures
-from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_trial
+from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_series, two_axis_trial
 
 SETTINGS = UutSettings(
     port="log", reference_port="dvl", uut_source="VBW", axes=2, current=True, validation_s=30.0
@@ -109,6 +110,30 @@ def test_the_figures_applied_follow_the_sharpest_estimate(
     assert applied.misalign_std_deg <= est.misalign_std_deg / OFFER_SHARPER
     first = next(d for _, k, d in events if k == "two_axis_applied")
     assert float(str(first["misalign_deg"])) != pytest.approx(applied.misalign_deg, abs=1e-3)
+
+
+def _estimate(lr: TwoAxisLearner) -> Figures | None:
+    return lr.estimate
+
+
+def _candidate(lr: TwoAxisLearner) -> Figures | None:
+    return lr.sup.candidate
+
+
+def test_an_estimate_whose_sigma_is_above_the_bound_is_refused() -> None:
+    """A fit that determines α but reports it ±0.4° (its residuals correlated: the model
+    does not fit the window) is refused with that reason and offered to no one; the
+    same fit at its own σ is taken and offered."""
+    fit = fit_two_axis("EM3", two_axis_series(two_axis_trial("figure-8", TWO_AXIS_TRUTH, 3)))
+    assert fit.stderr["misalign_deg"] is not None and fit.stderr["misalign_deg"] < 0.25
+    lr = TwoAxisLearner(SETTINGS, lambda t, k, det: None)
+    loose = dataclasses.replace(fit, stderr={**fit.stderr, "misalign_deg": 0.4})
+    lr._take(loose, 100.0)
+    assert lr.estimate is None and lr.sup.candidate is None
+    assert "±0.40°" in lr.refused and "above 0.25°" in lr.refused
+    lr._take(fit, 220.0)
+    est = _estimate(lr)
+    assert est is not None and _candidate(lr) == est and not lr.refused
 
 
 def test_straight_run_refuses_alpha() -> None:
