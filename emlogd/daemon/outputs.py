@@ -42,12 +42,13 @@ class Outputs:
         self.log = log
         self.monotonic = monotonic
         self.sinks: dict[tuple[object, ...], Sink] = {}
+        """The open outputs, keyed by the settings they were opened with."""
         self.failed: dict[tuple[object, ...], tuple[Callable[[], Sink], str]] = {}
         """The outputs that could not be opened: how to open each, and why it failed."""
         self.next_retry = 0.0
+        """When those are tried again (monotonic s)."""
         self.access: tuple[int, str | None] | None = None
         """The ptys' mode and group as last set (None: none set yet)."""
-        """The open outputs, keyed by the settings they were opened with."""
         self.routes: dict[str, list[Sink]] = {}
         """The logs with outputs of their own, and those outputs."""
         self.shared: list[Sink] = []
