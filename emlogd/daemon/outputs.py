@@ -1,7 +1,9 @@
 """The daemon's outputs: the sinks the config names, and where each sentence goes.
 
 A reload keeps an output whose settings are equal as it is (same pty, same clients):
-outputs are keyed by the settings they were opened with. A log given outputs of its own
+outputs are keyed by what only a new one changes (a pty's path, a TCP output's address,
+a UDP destination), and a pty's mode and group and a TCP output's limits are set on the
+open one (:meth:`Outputs.sync`). A log given outputs of its own
 (``calibration[].outputs``) writes its sentences there only; every other sentence goes
 to the shared outputs. An output that cannot be opened (a file at the pty's path) costs
 itself: the others open, and it is tried again every :data:`OUTPUT_RETRY_S`, its
@@ -42,7 +44,7 @@ class Outputs:
         self.log = log
         self.monotonic = monotonic
         self.sinks: dict[tuple[object, ...], Sink] = {}
-        """The open outputs, keyed by the settings they were opened with."""
+        """The open outputs, keyed as :meth:`specs` keys them."""
         self.failed: dict[tuple[object, ...], tuple[Callable[[], Sink], str]] = {}
         """The outputs that could not be opened: how to open each, and why it failed."""
         self.next_retry = 0.0
