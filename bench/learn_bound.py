@@ -4,7 +4,9 @@ reading every ``EVERY_S`` seconds, and the readings in between are not learnt at
 Learning and supervising block means of a log's readings (one step per block of
 ``EVERY_S`` instead of one per reading) does at least the work of one reading per
 block, and adds the means' own: the CPU saved with the readings in between simply
-skipped is the most any such scheme can save. The emission is untouched (every reading
+skipped is about the most any such scheme can save (not a strict bound: the work that
+follows a step, the lag search's and the supervisor's, depends on what was learnt). The
+emission is untouched (every reading
 is still checked, corrected with the calibration in force and encoded); what is learnt,
 and so what is applied, is not the same (a bound, not a candidate).
 :func:`thin_learning` wraps :meth:`emlogd.pipeline.uut.UutCalibration.learn` in this
