@@ -103,6 +103,15 @@ SENTENCE_IN_LINE = re.compile(r"[$!][A-Z0-9]{5},")
 TABLE_DELIMITERS = (",", ";", "\t", "|")
 """A table line's delimiter is the one of these it holds most."""
 
+TIME_NAMES = frozenset(
+    {"time", "utc", "timestamp", "datetime", "date_time", "date time", "utctime", "utc_time"}
+)
+"""A table whose header names one of these (in any case, a unit after it dropped) and
+three more columns is a table of samples."""
+
+UNIT_AFTER = re.compile(r"\s*[(\[].*$")
+"""A unit after a column's name (``Bsp (kt)``, ``SOG [m/s]``), dropped before matching."""
+
 BOM = b"\xef\xbb\xbf"
 """UTF-8's byte-order mark, which a spreadsheet may write first."""
 
@@ -126,12 +135,12 @@ def kind(path: Path) -> str | None:
         return "nmea"
     for ln in lines[:KIND_SCAN_LINES]:
         delim = max(TABLE_DELIMITERS, key=ln.count)
-        cells = [c.strip().strip('"').lower() for c in ln.split(delim)]
-        if ("bsp" in cells and ("utc" in cells or "time" in cells)) or cells[:1] == ["!boat"]:
+        cells = [UNIT_AFTER.sub("", c.strip().strip('"')).lower() for c in ln.split(delim)]
+        if ("bsp" in cells and TIME_NAMES.intersection(cells)) or cells[:1] == ["!boat"]:
             return "expedition-csv"  # its export (Utc, or Date and Time), or its sparse log
         if delim == "\t" and ln.count("\t") >= 3:
             return "logger-tsv"
-        if len(cells) >= 4 and "time" in cells:
+        if len(cells) >= 4 and TIME_NAMES.intersection(cells):
             return "csv"
     return None
 

@@ -6,15 +6,22 @@ Usage: ``python docs/real_variants.py DIR [--only NAME ...] [--variant V ...] [-
 A variant is a pure function of the source file's text (:data:`VARIANTS`): the GNSS
 thinned to 0.5 and 0.2 Hz, fix times of 1-s and 10-s resolution; a magnetic heading
 without any variation in the log (HDG with empty variation fields, HDM, VHW magnetic
-only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, RMC
+only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, GLL +
+VTG without a date, RMC
 without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
-a midnight crossed by GGA times of day; the log 2 s behind or ahead of the GNSS, at
+a midnight crossed by GGA times of day (and by RMC with a leap second), two sessions
+3 h apart in one file, fix times a second late now and then, an hour moored first,
+variations signed without E/W, VHW in km/h alone, HDM with RMC's variation alone, a
+0.5-Hz GNSS with the log at twice its rate; the log 2 s behind or ahead of the GNSS, at
 half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
 $PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
 ``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
-text, ``Date`` and ``Time`` columns) and Expedition's own sparse log (``!Boat``
+text, ``Date`` and ``Time`` columns, a row of units under the header, units in the
+names, OLE days of local time with ``--utc-offset``, NMEA field names, ``UtcDate``
+and ``UtcTime``) and
+Expedition's own sparse log (``!Boat``
 header, channel numbers, ``channel,value`` pairs); the logger's TSV without its
 banner, with its local time given by ``--utc-offset``, with rows every 5 s, under its
 other firmware's column names after a banner of settings, with its date in full or
@@ -168,6 +175,12 @@ VARIANTS: tuple[Variant, ...] = (
         "zda-gll-vtg", "nmea", _nm(rmc_to(("ZDA", "GLL", "VTG"))), "ZDA + GLL + VTG instead of RMC"
     ),
     Variant(
+        "gll-vtg",
+        "nmea",
+        _nm(rmc_to(("GLL", "VTG"))),
+        "GLL + VTG alone (no RMC, ZDA, GGA), no --date: the date the file's name holds",
+    ),
+    Variant(
         "rmc-slow-no-course", "nmea", _nm(rmc_course_empty_slow), "RMC without a course below 1 kn"
     ),
     Variant(
@@ -262,6 +275,39 @@ VARIANTS: tuple[Variant, ...] = (
         lambda text: ["--date", midnight_date(text)],
     ),
     Variant(
+        "two-sessions",
+        "nmea",
+        vl.two_sessions,
+        "two sessions of one day in one file, the second 3 h after the first",
+    ),
+    Variant("leap-second", "nmea", vl.leap_second, "midnight crossed with a leap second 23:59:60"),
+    Variant("late-fixes", "nmea", vl.late_fixes, "every 5th fix's time a second late (jitter)"),
+    Variant(
+        "moored-hour",
+        "nmea",
+        vl.moored,
+        "an hour moored before the start (at rest: nothing to learn from it)",
+    ),
+    Variant(
+        "signed-variation",
+        "nmea",
+        _nm(vl.signed_variation),
+        "RMC's and HDG's variation signed (west negative), no E/W",
+    ),
+    Variant("vhw-kmh", "nmea", _nm(vl.vhw_kmh_only), "VHW's speed in km/h alone"),
+    Variant(
+        "hdm-rmc-var",
+        "nmea",
+        _nm(vl.hdm_rmc_variation),
+        "HDM the only heading, the variation in RMC's field alone",
+    ),
+    Variant(
+        "gnss-0.5hz-log-2hz",
+        "nmea",
+        lambda text: thin_gnss(2.0)(vhw_twice(text)),
+        "a GNSS at 0.5 Hz and the log at twice its rate",
+    ),
+    Variant(
         "set-drift",
         "expedition-csv",
         vcsv.rename({"iSet": "Set", "iDrift": "Drift"}),
@@ -320,6 +366,37 @@ VARIANTS: tuple[Variant, ...] = (
         "expedition-csv",
         vcsv.expedition_log,
         "Expedition's own sparse log (channel, value pairs)",
+    ),
+    Variant(
+        "utc-date-time",
+        "expedition-csv",
+        vcsv.columns(vcsv.utc_date_time),
+        "UtcDate and UtcTime columns instead of Utc (another program's export)",
+    ),
+    Variant(
+        "units-row",
+        "expedition-csv",
+        vcsv.columns(vcsv.units_row),
+        "a row of units under the header",
+    ),
+    Variant(
+        "ole-local",
+        "expedition-csv",
+        vcsv.columns(vcsv.ole_local),
+        "Utc as OLE days of local time, given by --utc-offset 2",
+        lambda _text: ["--utc-offset", str(vcsv.LOCAL_OFFSET_H)],
+    ),
+    Variant(
+        "nmea-field-names",
+        "expedition-csv",
+        vcsv.rename(vcsv.NMEA_NAMES),
+        "another logger's NMEA field names (UTC, SOW, HDT, SOG, COG, SET, DRIFT)",
+    ),
+    Variant(
+        "name-units",
+        "expedition-csv",
+        vcsv.rename(vcsv.NAME_UNITS),
+        "units in the names: Bsp (kt), Hdg (°T), Cog (°T)",
     ),
     Variant("no-banner", "logger-tsv", vcsv.no_banner, "the logger's TSV without its banner"),
     Variant(

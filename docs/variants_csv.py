@@ -1,7 +1,8 @@
 """The perturbation suite's rewrites of delimited logs (docs/real_variants.py): an
 Expedition export's or a logger's table re-cut (columns renamed, dropped, reordered or
 added; ``;`` with decimal commas, quoted cells, a byte-order mark; rows thinned;
-Expedition's sparse log; the logger's other firmware) and the tidal current the
+Expedition's sparse log; the logger's other firmware; a row of units under the header,
+units in the names, NMEA field names, local OLE times) and the tidal current the
 ``tide`` variants add (:func:`tide`), which the NMEA rewrites use too."""
 
 from __future__ import annotations
@@ -312,6 +313,20 @@ def utc_text(pattern: str) -> Columns:
 
 def date_time_columns(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
     """``Utc`` replaced by ``Date`` (dd/mm/yyyy) and ``Time`` (hh:mm:ss.ff) columns first."""
+    return _split_utc(h, rows, ("Date", "Time"), "%d/%m/%Y")
+
+
+def utc_date_time(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """``Utc`` replaced by ``UtcDate`` (ISO) and ``UtcTime`` (hh:mm:ss.ff) columns first
+    (another navigation program's export)."""
+    return _split_utc(h, rows, ("UtcDate", "UtcTime"), "%Y-%m-%d")
+
+
+def _split_utc(
+    h: list[str], rows: list[list[str]], names: tuple[str, str], day: str
+) -> tuple[list[str], list[list[str]]]:
+    """``Utc`` replaced by a date column (``day``, a strftime pattern) and a time of day
+    column (hh:mm:ss.ff), named ``names``, first."""
     i = h.index("Utc")
     out = []
     for r in rows:
@@ -320,8 +335,8 @@ def date_time_columns(h: list[str], rows: list[list[str]]) -> tuple[list[str], l
         except (ValueError, IndexError):
             continue
         clock = f"{t:%H:%M:%S}.{t.microsecond // 10_000:02d}"
-        out.append([f"{t:%d/%m/%Y}", clock, *r[:i], *r[i + 1 :]])
-    return ["Date", "Time", *h[:i], *h[i + 1 :]], out
+        out.append([t.strftime(day), clock, *r[:i], *r[i + 1 :]])
+    return [*names, *h[:i], *h[i + 1 :]], out
 
 
 def tsv_dates(pattern: str) -> Callable[[str], str]:
@@ -348,3 +363,47 @@ def tsv_fraction(text: str) -> str:
             cells[1] += ".0"
         out.append("\t".join(cells))
     return "".join(out)
+
+
+UNITS = {"Utc": "days", "Bsp": "kt", "Hdg": "degT", "Sog": "kt", "Cog": "degT", "Lat": "deg"}
+"""The units row's cells, by column (the rest empty)."""
+
+
+def units_row(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """A row of units under the header (a spreadsheet's or a logger's second header)."""
+    return h, [[UNITS.get(c, "") for c in h], *rows]
+
+
+LOCAL_OFFSET_H = 2.0
+"""The local-time variant's clock minus UTC, h (Valencia in June: CEST)."""
+
+
+def ole_local(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """``Utc`` as OLE days of local time, :data:`LOCAL_OFFSET_H` ahead (its exact value:
+    the ``--utc-offset`` given takes it back)."""
+    i = h.index("Utc")
+    out = []
+    for r in rows:
+        g = list(r)
+        if i < len(g) and g[i]:
+            g[i] = repr(float(g[i]) + LOCAL_OFFSET_H / 24.0)
+        out.append(g)
+    return h, out
+
+
+NMEA_NAMES = {
+    "Utc": "UTC",
+    "Bsp": "SOW",
+    "Hdg": "HDT",
+    "Sog": "SOG",
+    "Cog": "COG",
+    "Twd": "TWD",
+    "iSet": "SET",
+    "iDrift": "DRIFT",
+    "Lat": "LAT",
+    "Lon": "LON",
+}
+"""Another logger's names: the NMEA fields' (``SOW`` speed over water, ``HDT``)."""
+
+NAME_UNITS = {"Bsp": "Bsp (kt)", "Hdg": "Hdg (°T)", "Sog": "Sog (kt)", "Cog": "Cog (°T)"}
+"""Units in the names, as a spreadsheet writes them (``°T``: true)."""

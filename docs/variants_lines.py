@@ -3,15 +3,29 @@ loggers and plotters other than the source's write them: a receive time before e
 sentence in other formats (ISO 8601, epoch seconds, a clock time alone, tab-separated,
 in brackets), NMEA 4 tag blocks, NULs padding the lines and the file, sentences split
 over two lines, AIS sentences mixed in, every line logged twice, RMC without its date
-(with ``--date``, also across midnight) and RMC across midnight with its dates."""
+(with ``--date``, also across midnight) and RMC across midnight with its dates; two
+sessions of one day in one file, a leap second at midnight, fix times a second late
+now and then, an hour moored before the start, variations signed without E/W, VHW in
+km/h alone, HDM with the variation in RMC alone."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 
-from variants_nmea import _line_times, _shift_to_midnight, checksum, fields, kind_of, map_nmea
+from variants_nmea import (
+    _fix_seconds,
+    _hhmmss,
+    _line_times,
+    _rmc_time,
+    _shift_to_midnight,
+    checksum,
+    fields,
+    kind_of,
+    map_nmea,
+    sentence,
+)
 
 SPLIT_EVERY = 7
 """The split variant cuts every this-many-th sentence in two lines."""
@@ -133,3 +147,140 @@ def midnight_rmc(text: str) -> str:
 def midnight_rmc_no_date(text: str) -> str:
     """The log across midnight, RMC without its date (``--date`` the first fix's)."""
     return map_nmea(_shift_to_midnight(text)[0], _no_date)
+
+
+SESSION_GAP_S = 3 * 3600.0
+"""The two-sessions variant starts its second half this much later, s."""
+
+LATE_FIX_EVERY = 5
+"""The late-fix variant labels every this-many-th fix a second late (a receiver's time
+tag jittering by a second)."""
+
+MOORED_S = 3600.0
+"""The moored variant adds this long at rest before the log's first fix, s."""
+
+
+def _decimals(hms: str) -> int:
+    """The decimals of a time field (``132220.50``: 2)."""
+    return len(hms.partition(".")[2])
+
+
+def _retimed(text: str, when: Callable[[int, datetime], datetime]) -> str:
+    """Each RMC's time and date replaced by ``when`` (of the fix's index and time); GGA,
+    GLL and ZDA left out (their times would contradict)."""
+    count = [0]
+
+    def fn(f: list[str]) -> list[str] | None:
+        k = kind_of(f)
+        if k in ("GGA", "GLL", "ZDA"):
+            return None
+        t = _rmc_time(f) if k == "RMC" else None
+        if t is None:
+            return f
+        count[0] += 1
+        new = when(count[0] - 1, t)
+        g = list(f)
+        g[1] = _hhmmss(new, _decimals(f[1]))
+        g[9] = f"{new.day:02d}{new.month:02d}{new.year % 100:02d}"
+        return g
+
+    return map_nmea(text, fn)
+
+
+def two_sessions(text: str) -> str:
+    """The log's second half :data:`SESSION_GAP_S` later (two sessions of one day logged
+    into one file)."""
+    fixes = [t for _, t in _fix_seconds(text)]
+    mid = fixes[len(fixes) // 2] if fixes else 0.0
+    gap = timedelta(seconds=SESSION_GAP_S)
+    return _retimed(text, lambda _i, t: t + gap if t.timestamp() >= mid else t)
+
+
+def leap_second(text: str) -> str:
+    """The log across midnight with a leap second: ``23:59:60`` between ``23:59:59``
+    and ``00:00:00``, the later fixes labelled a second earlier."""
+    shifted, _ = _shift_to_midnight(text)
+    fixes = [t for _, t in _fix_seconds(shifted)]
+    if not fixes:
+        return shifted
+    t0 = datetime.fromtimestamp(fixes[0], UTC)
+    midnight = datetime(t0.year, t0.month, t0.day, tzinfo=UTC) + timedelta(days=1)
+
+    def fn(f: list[str]) -> list[str] | None:
+        t = _rmc_time(f) if kind_of(f) == "RMC" else None
+        if t is None or t < midnight:
+            return f
+        g, n = list(f), _decimals(f[1])
+        t = t - timedelta(seconds=1)
+        if t < midnight:  # the inserted second: 23:59:60 of the day before
+            g[1] = _hhmmss(t, n).replace("235959", "235960", 1)
+            g[9] = f"{t.day:02d}{t.month:02d}{t.year % 100:02d}"
+        else:
+            g[1] = _hhmmss(t, n)
+        return g
+
+    return map_nmea(shifted, fn)
+
+
+def late_fixes(text: str) -> str:
+    """Every :data:`LATE_FIX_EVERY`-th fix's time a second late (equal to the next
+    fix's at 1 Hz)."""
+    late = timedelta(seconds=1)
+    return _retimed(text, lambda i, t: t + late if i % LATE_FIX_EVERY == 2 else t)
+
+
+def moored(text: str) -> str:
+    """:data:`MOORED_S` at rest before the first fix: each second the first fix's
+    sentences again, the speeds over ground and through the water 0, the heading and
+    position the first fix's."""
+    lines = text.splitlines()
+    at = [i for i, _ in _fix_seconds(text)]
+    if len(at) < 2:
+        return text
+    first = _rmc_time(fields(lines[at[0]]) or [])
+    if first is None:
+        return text
+    cycle = [fields(ln) for ln in lines[at[0] : at[1]]]
+    out: list[str] = []
+    for k in range(int(MOORED_S)):
+        t = first - timedelta(seconds=MOORED_S - k)
+        for f in cycle:
+            if f is None:
+                continue
+            g, kind = list(f), kind_of(f)
+            if kind == "RMC":
+                g[1], g[7] = _hhmmss(t, _decimals(f[1])), "0.0"
+                g[9] = f"{t.day:02d}{t.month:02d}{t.year % 100:02d}"
+            elif kind == "VHW" and len(g) > 7:
+                g[5] = "00.0" if g[5] else g[5]
+                g[7] = "0.0" if g[7] else g[7]
+            out.append(sentence(",".join(g)))
+    nl = _newline(text)
+    return nl.join(out) + nl + text
+
+
+def signed_variation(f: list[str]) -> list[str]:
+    """RMC's and HDG's variation written signed (west negative), the E/W field empty."""
+    g = list(f)
+    at = {"RMC": 10, "HDG": 4}.get(kind_of(f))
+    if at is not None and len(g) > at + 1 and g[at]:
+        g[at], g[at + 1] = ("-" if g[at + 1] == "W" else "") + g[at], ""
+    return g
+
+
+def vhw_kmh_only(f: list[str]) -> list[str]:
+    """VHW's speed in its km/h field alone (the knots field empty)."""
+    if kind_of(f) != "VHW" or len(f) < 9 or not f[5]:
+        return f
+    return [*f[:5], "", "", f"{float(f[5]) * 1.852:.1f}", "K", *f[9:]]
+
+
+def hdm_rmc_variation(f: list[str]) -> list[str] | None:
+    """HDG sent as HDM (its variation lost) and VHW without headings: the magnetic
+    heading alone, the variation only in RMC's field."""
+    k = kind_of(f)
+    if k == "HDG":
+        return [f[0][:2] + "HDM", f[1], "M"]
+    if k == "VHW" and len(f) > 4:
+        return [f[0], "", "", "", "", *f[5:]]
+    return f

@@ -27,6 +27,9 @@ X is mapped to starboard and Y to forward, assuming the DVL is mounted with beam
 forward (Rowe's default); PRTI02 is the earth frame (East, North) and gives no
 ship-frame speed record.
 
+GLL (position and time of day) is parsed (:func:`parse_gll`) for the import's timing
+of a log whose GNSS sends nothing else with a time; the decoder does not yield it.
+
 Must not import: serial, os, time, threading (pure module).
 """
 
@@ -47,6 +50,7 @@ from drivers.nmea0183.parsing import (
     UNITS_ROUNDING,
     ZDA_YEARS,
     parse_gga,
+    parse_gll,
     parse_heading,
     parse_mtw,
     parse_pashr,
@@ -63,6 +67,7 @@ from drivers.nmea0183.records import (
     GNSS_INVALID_MODES,
     RECORDS,
     Gga,
+    Gll,
     Heading,
     Mtw,
     NmeaRecord,
@@ -89,6 +94,7 @@ __all__ = [
     "UNITS_ROUNDING",
     "ZDA_YEARS",
     "Gga",
+    "Gll",
     "Heading",
     "Mtw",
     "NmeaDecoder",
@@ -105,6 +111,7 @@ __all__ = [
     "encode_vbw",
     "encode_vhw",
     "parse_gga",
+    "parse_gll",
     "parse_heading",
     "parse_mtw",
     "parse_pashr",

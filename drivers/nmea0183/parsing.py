@@ -14,7 +14,20 @@ from collections.abc import Callable
 from datetime import UTC, date, datetime, timedelta
 
 from drivers.errors import FieldError, OutOfRangeError, UnknownSentenceError
-from drivers.nmea0183.records import Gga, Heading, Mtw, Prti, Rmc, Vbw, Vdr, Vhw, Vlw, Vtg, Zda
+from drivers.nmea0183.records import (
+    Gga,
+    Gll,
+    Heading,
+    Mtw,
+    Prti,
+    Rmc,
+    Vbw,
+    Vdr,
+    Vhw,
+    Vlw,
+    Vtg,
+    Zda,
+)
 from drivers.records import KMH_MPS, KNOT_MPS, MAX_DEPTH_M, WATER_TEMP_RANGE_C
 
 MAX_SPEED_MPS = 40.0
@@ -491,6 +504,26 @@ def parse_gga(talker: str, f: list[str], raw: bytes) -> Gga:
         quality=quality,
         satellites=sats,
         hdop=hdop,
+    )
+
+
+def parse_gll(talker: str, f: list[str], raw: bytes) -> Gll:
+    """GLL: latitude, N/S, longitude, E/W (NMEA 1.5: 4 fields), the time of day and the
+    status (2.0: 6), the mode (2.3: 7)."""
+    if len(f) not in (4, 6, 7):
+        raise FieldError(f"GLL has {len(f)} fields, expected 4, 6 or 7", raw)
+    lat = _latlon(f[0], f[1], 2, "latitude", raw)
+    lon = _latlon(f[2], f[3], 3, "longitude", raw)
+    tod = _time_of_day(f[4], raw) if len(f) > 4 else None
+    status = f[5] if len(f) > 5 else ""
+    active = _status(status, "GLL status", raw) or status == ""
+    return Gll(
+        talker=talker,
+        lat_deg=lat,
+        lon_deg=lon,
+        time_of_day_s=tod,
+        status_active=active,
+        mode=_mode(f, 6, raw),
     )
 
 

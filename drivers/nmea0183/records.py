@@ -203,6 +203,36 @@ class Gga:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class Gll:
+    """GLL — position and time of day (NMEA 2.0+; 1.5's four fields carry no time).
+
+    Parsed for the import's timing of a log whose GNSS sends GLL alone
+    (:mod:`emlogd.offline.importnmea`); the decoder does not yield it, so it is no member
+    of :data:`NmeaRecord` (the live pipeline takes positions from RMC and GGA).
+
+    Attributes:
+        talker: talker ID.
+        lat_deg: latitude, degrees, + north, or None.
+        lon_deg: longitude, degrees, + east, or None.
+        time_of_day_s: seconds since midnight UTC, or None.
+        status_active: status ``A`` (an empty status counts as active: NMEA 1.5).
+        mode: the NMEA 2.3+ mode indicator, or None.
+    """
+
+    talker: str
+    lat_deg: float | None
+    lon_deg: float | None
+    time_of_day_s: float | None
+    status_active: bool
+    mode: str | None
+
+    @property
+    def valid(self) -> bool:
+        """An active fix from a measured mode."""
+        return self.status_active and (self.mode is None or self.mode not in GNSS_INVALID_MODES)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Zda:
     """ZDA — UTC date and time (aware), or None when a field is empty."""
 

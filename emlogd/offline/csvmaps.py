@@ -16,7 +16,7 @@ from typing import Literal
 
 from drivers.nmea0183.parsing import MAX_SPEED_MPS
 from drivers.records import KNOT_MPS
-from emlogd.offline.importbase import ImportFormatError, ImportReport
+from emlogd.offline.importbase import ImportFormatError, ImportReport, what_it_looks_like
 
 HeadingRef = Literal["true", "magnetic"]
 """A heading column's reference."""
@@ -137,22 +137,24 @@ may write the year in full, year first, or fractions of a second; magnetic ``Hea
 firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
 
 GENERIC: dict[str, str] = {
-    "time": "time|timestamp|datetime|date_time|utc",
-    "date": "date?",
-    "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water",
-    "heading": "hdg|heading|heading_true?",
-    "heading_mag": "heading_magnetic|magnetic_heading|hdg_mag|mag_hdg|hdm?",
+    "time": "time|timestamp|datetime|date_time|utc|utctime|utc_time|time_utc",
+    "date": "date|utcdate|utc_date|date_utc?",
+    "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water|sow|water_speed",
+    "heading": "hdg|heading|heading_true|hdt|hdgtrue|hdg_true|true_heading?",
+    "heading_mag": "heading_magnetic|magnetic_heading|hdg_mag|mag_hdg|hdm|hdgmag?",
     "variation": "variation|magvar|mag_var|var|declination?",
     "sog": "sog|speed_over_ground?",
     "cog": "cog|course_over_ground?",
     "lat": "lat|latitude?",
     "lon": "lon|lng|long|longitude?",
-    "set": "set|current_set?",
-    "drift": "drift|current_drift?",
+    "set": "set|current_set|iset|tideset|tide_set?",
+    "drift": "drift|current_drift|idrift|tiderate|tide_rate?",
 }
 """A plain table of the usual short names (a processed log, a spreadsheet): one time
 column (told by its first cell; a ``date`` column beside a time of day is joined to it), the speed through the water in knots (``speed`` is
-taken for it: a table that names its speed over ground ``sog``), a true heading."""
+taken for it: a table that names its speed over ground ``sog``; the NMEA field names
+``STW`` and ``SOW`` too), a true heading (``HDG``, ``HDT``, ``HdgTrue``) or a magnetic one
+(``HDM``, ``HdgMag``)."""
 
 PRESETS: dict[str, Preset] = {
     "expedition": Preset(
@@ -237,12 +239,17 @@ HEADER_UNITS: dict[str, float | None] = {
     "mph": 0.44704,
     "deg": None,
     "degt": None,
+    "deg t": None,
+    "degtrue": None,
+    "°t": None,
+    "°true": None,
     "degrees": None,
     "°": None,
 }
 """Units a column name may carry (``Bsp (kn)``, ``SOG [m/s]``, ``stw_kn``, ``SOG kts``;
 in any case): a speed's factor to m/s (it overrides the map's), or None for an
-angle's."""
+angle's (``°T``: true; a magnetic one, ``°M``, is not known: such a column is left out,
+and the import's notes name it)."""
 
 _UNIT_IN_NAME = re.compile(
     r"(?P<name>.+?)(?:\s*[(\[](?P<a>[^)\]]+)[)\]]|[_ ](?P<b>[a-z/°]+))", re.IGNORECASE
@@ -415,19 +422,28 @@ def no_header(path: str | Path, head: list[str], candidates: Sequence[MapChoice]
         _, missing = _resolve(m, header)
         whys.append(f"{p.name if p else 'the map'} lacks {', '.join(missing)}")
     cols = ", ".join(h.strip() for h in header[:12])
-    units = _unknown_units(header)
+    units = unknown_units(header)
     told = (
         f"; units not known in {', '.join(units)} (known: {', '.join(HEADER_UNITS)}): "
         "map the column with its unit, e.g. stw=NAME[mps]"
         if units
         else ""
     )
+    first = next((ln for ln in head if ln.strip()), "")
+    looks = what_it_looks_like(first)
+    if looks and "table" not in looks:  # the file is no table at all
+        return f"{path}: no header: the file looks like {looks}; its first line reads {first.strip()[:80]!r}"
     return (
         f"{path}: no header with the mapped columns ({'; '.join(whys)}); the file has {cols}{told}"
     )
 
 
-def _unknown_units(header: list[str]) -> list[str]:
+def line_unknown_units(line: str, delimiter: str) -> list[str]:
+    """:func:`unknown_units` of a header line."""
+    return unknown_units(_split(line, delimiter))
+
+
+def unknown_units(header: list[str]) -> list[str]:
     """The header's names that carry a unit in brackets not in :data:`HEADER_UNITS`
     (``Bsp (furlongs)``), quoted with the unit."""
     out = []

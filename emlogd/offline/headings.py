@@ -65,8 +65,9 @@ def why_no_sample(recs: Sequence[Recording], settings: UutSettings, lag_s: float
     if not any(r.raw.size for r in recs):
         return (
             f"{head}: no {settings.uut_source} reading of the log arrived on port "
-            f"{settings.port!r} at all (a speed log sends VHW or VBW; a table needs its "
-            "speed-through-water column)"
+            f"{settings.port!r} at all (a speed log sends VHW or VBW; VLW's distances alone "
+            "give no usable speed: in steps of 0.01 nm or more, a speed from them moves in "
+            "steps of 0.3 m/s over a minute; a table needs its speed-through-water column)"
         )
     if field == "gnss" and not any(r.t_ref.size for r in recs):
         return f"{head}: no GNSS fix arrived at all; the calibration needs {GNSS_NEEDS}"

@@ -5,9 +5,11 @@ the check of an NMEA log's lines (:class:`SentenceCheck`), its lines read with a
 
 from __future__ import annotations
 
+import contextlib
 import gzip
 import io
 import math
+import re
 import zlib
 from collections import Counter
 from collections.abc import Iterator
@@ -187,18 +189,58 @@ UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 is read as UTF-16 (a spreadsheet saved as "Unicode text")."""
 
 
+SNIFF_BYTES = 1 << 16
+"""The first this many bytes of a file tell its encoding (:func:`open_text`)."""
+
+LEGACY_ENCODING = "cp1252"
+"""A file whose first bytes are not UTF-8 is read in Windows' Western code page (an
+export written on Windows: ``Hdg (°T)``, ``Zeit``, ``Geschw.`` with its 8-bit letters),
+which decodes Latin-1's letters too."""
+
+
 def open_text(path: str | Path) -> TextIO:
-    """A text stream of a file, through gzip when it starts with gzip's magic; UTF-8
-    (its byte-order mark dropped), or UTF-16 when it starts with that one's."""
+    """A text stream of a file, through gzip when it starts with gzip's magic; UTF-16
+    when it starts with that one's byte-order mark, else UTF-8 (its byte-order mark
+    dropped) when its first :data:`SNIFF_BYTES` decode as UTF-8, else
+    :data:`LEGACY_ENCODING`."""
     try:
-        raw = open(path, "rb")  # noqa: SIM115
+        raw: io.BufferedReader | gzip.GzipFile = io.BufferedReader(
+            io.FileIO(path, "rb"), SNIFF_BYTES
+        )
+        head = raw.peek(SNIFF_BYTES)[:SNIFF_BYTES]
+        if head[:2] == b"\x1f\x8b":
+            raw.close()
+            raw = gzip.GzipFile(path, "rb")
+            head = _gzip_head(path)
     except OSError as exc:
-        raise ImportFormatError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    if raw.peek(2)[:2] == b"\x1f\x8b":
-        raw.close()
-        return gzip.open(path, "rt", encoding="utf-8-sig", errors="replace")
-    encoding = "utf-16" if raw.peek(2)[:2] in UTF16_BOMS else "utf-8-sig"
-    return io.TextIOWrapper(raw, encoding=encoding, errors="replace")
+        raise ImportFormatError(
+            f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}"
+        ) from None
+    if head[:2] in UTF16_BOMS:
+        return io.TextIOWrapper(raw, encoding="utf-16", errors="replace")
+    return io.TextIOWrapper(raw, encoding=_encoding(head), errors="replace")
+
+
+def _gzip_head(path: str | Path) -> bytes:
+    """A gzip file's first :data:`SNIFF_BYTES` decompressed (those there are when it
+    is cut short: reading it says so, counted ``truncated``)."""
+    with gzip.GzipFile(path, "rb") as gz:
+        out = b""
+        with contextlib.suppress(EOFError, zlib.error, gzip.BadGzipFile):
+            while len(out) < SNIFF_BYTES and (chunk := gz.read(SNIFF_BYTES - len(out))):
+                out += chunk
+    return out
+
+
+def _encoding(head: bytes) -> str:
+    """UTF-8 (``utf-8-sig``) when ``head`` decodes as UTF-8 but for a character cut at
+    its end, else :data:`LEGACY_ENCODING`."""
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(head) - 3 or exc.reason != "unexpected end of data":
+            return LEGACY_ENCODING
+    return "utf-8-sig"
 
 
 def not_a_sentence(text: str) -> str | None:
@@ -261,3 +303,38 @@ def _sentence_start(text: str) -> int:
 def well_formed(text: str) -> bool:
     """A sentence's address (``$`` or ``!`` and five letters or digits) and a comma."""
     return len(text) > 7 and text[1:6].isalnum() and text[6] == ","
+
+
+FOREIGN_FORMATS: tuple[tuple[re.Pattern[str], str], ...] = (
+    (
+        re.compile(r"\(\d+\.\d+\)\s+\w+\s+[0-9A-Fa-f]{3,8}#|\s*\w*can\d\s+[0-9A-Fa-f]{8}\s+\[\d\]"),
+        "an NMEA 2000 CAN dump (candump)",
+    ),
+    (
+        re.compile(r"[\d\-T:. Z]{10,30},\d,\d{5,6},\d{1,3},\d{1,3},\d{1,3},"),
+        "NMEA 2000 in Actisense/canboat text (time, priority, PGN, source...)",
+    ),
+    (re.compile(r"\{.*\"(updates|context|path)\""), "Signal K JSON"),
+    (re.compile(r"[^,;\t|$!]*([,;\t|][^,;\t|]*){3,}"), "a table (import it with --format csv)"),
+    (re.compile(r"[$!][A-Z0-9]{5},"), "an NMEA 0183 log (import it with --format nmea)"),
+)
+"""Formats a file given to the wrong import may be, told by its first line: NMEA 2000
+(CAN dumps, Actisense/canboat text), Signal K, a table, NMEA 0183; ``emlogd import``
+reads NMEA 0183 and tables only."""
+
+BINARY_FRACTION = 0.25
+"""A first line with more than this fraction of control or non-ASCII characters is
+binary (an NMEA 2000 recorder's .DAT, Actisense's .EBL)."""
+
+
+def what_it_looks_like(line: str) -> str:
+    """What a file whose first line is ``line`` seems to be, in words (empty when not
+    told): see :data:`FOREIGN_FORMATS`."""
+    text = line.strip("\r\n")
+    odd = sum(1 for c in text if not c.isascii() or (not c.isprintable() and c != "\t"))
+    if text and odd > BINARY_FRACTION * len(text):
+        return "binary data, not text (an NMEA 2000 recorder's or Actisense's file?)"
+    for pattern, what in FOREIGN_FORMATS:
+        if pattern.match(text):
+            return what
+    return ""

@@ -18,9 +18,12 @@ of it; sentences run together on one line (a line end lost) are split after each
 checksum a sentence's address follows (``sentences_run_together``); a sentence cut
 over two lines is joined when the two together pass its checksum (``lines_joined``).
 Time comes from
-the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, or an
-RMC's without its date) with a date
-given by ``--date`` (or learnt from an earlier RMC/ZDA of the log); a time of day
+the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, an
+RMC's without its date, or a valid GLL's while no fix of another kind has come: a GNSS
+sending GLL and VTG alone) with a date
+given by ``--date`` (or learnt from an earlier RMC/ZDA of the log; in a log with no
+dated fix at all, the date its file's name holds, else the day the file was last
+written, noted ``date_from_file_name`` or ``date_from_file_time``); a time of day
 :data:`DAY_ROLLOVER_S` or more before the last fix is the next day's (midnight passed).
 A fix whose time does not increase is no
 time source, nor is one outside :data:`YEARS`. The sentences between two fixes are
@@ -47,7 +50,9 @@ comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
 or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each
 of these told by the first time cell), or a ``strptime`` pattern; with a ``date``
 column, a time cell holding a time of day alone is joined to the date with a space
-before parsing; without one, to ``--date`` (the next day once a time of day comes
+before parsing; without one, to ``--date``, else to the date the file's name holds,
+else to the day the file was last written (noted ``date_from_file_name`` or
+``date_from_file_time``) (the next day once a time of day comes
 :data:`DAY_ROLLOVER_S` or more before the row before: midnight passed). When no row
 gives a time, the error quotes the first time cell and asks for ``--time-format`` (for
 times of day alone, for the date). Times without a zone are UTC unless ``--utc-offset`` says
@@ -128,6 +133,7 @@ from emlogd.offline.csvmaps import (
     cell_value,
     find_header,
     guess_time_format,
+    line_unknown_units,
     no_header,
     parse_map,
     parse_time,
@@ -148,6 +154,7 @@ from emlogd.offline.importnmea import (
     DAY_ROLLOVER_S,
     MAX_FIX_GAP_S,
     MAX_PENDING_LINES,
+    file_day,
     import_nmea,
 )
 from emlogd.pipeline.sentences import encode_vdr
@@ -249,6 +256,9 @@ class _CsvRun:
     groups: dict[str, _Group] = field(
         default_factory=lambda: {name: _Group(keys) for name, keys in GROUPS.items()}
     )
+    day_note: str = ""
+    """The note counted when a time of day first takes :attr:`day` not given by
+    ``--date`` (the file's: ``date_from_file_name`` or ``date_from_file_time``)."""
     t_prev: float = -math.inf
     bad_stamp: str = ""
     """The first time cell that could not be read (quoted when no row gives a time)."""
@@ -319,10 +329,14 @@ def import_csv(
         href = heading_ref or (chosen.heading_ref if chosen is not None else "true")
         href = _magnetic_column(cols, href, heading_ref is not None)
         _describe(report, found, href, utc_offset_h is not None, variation_deg is not None)
+        for name in [] if sparse else line_unknown_units(head[h_index], delim):
+            report.notes[f"unit_not_known {name}"] += 1  # a column left out, said
         sink = CaptureSink(out, port, f"emlogd import --format csv: {path}", report)
         run = _CsvRun(
             sink, delim, cols, fmt, href, utc_offset_h or 0.0, variation_deg, carry_s, day
         )
+        if day is None and "date" not in cols and (found_day := file_day(path)) is not None:
+            run.day, run.day_note = found_day  # for times of day alone, noted when used
         try:
             if sparse is not None:
                 report.notes["expedition_sparse_log"] += 1
@@ -471,6 +485,9 @@ def _row_time(row: list[str], run: _CsvRun) -> float | None:
         stamp = f"{day} {stamp}" if day else ""
     elif given and run.day is not None:
         stamp = f"{run.day.isoformat()} {stamp}"
+        if run.day_note:
+            run.report.notes[run.day_note] += 1
+            run.day_note = ""
     t = _stamp_time(stamp, run) if stamp else math.nan
     if given and run.day is not None and run.t_prev - t >= DAY_ROLLOVER_S:
         run.day += timedelta(days=1)  # midnight passed

@@ -1,16 +1,22 @@
 """``emlogd import --format nmea``: NMEA 0183 logs without receive times, timed from
-their own fixes (the rules are in :mod:`emlogd.offline.importer`'s docstring)."""
+their own fixes (the rules are in :mod:`emlogd.offline.importer`'s docstring): the
+UTC date and time of RMC or ZDA, else a time of day (GGA's, an RMC's without its date,
+or GLL's while no other fix has come) on the date ``--date`` gives, else an earlier
+fix's date, else the date the file's name holds (``2014-06-27``, ``20140627``), else
+the day the file was last written (the last two noted in the report)."""
 
 from __future__ import annotations
 
 import re
+from collections import Counter
 from collections.abc import Sequence
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
 
 from drivers import make_decoder
 from drivers.errors import FrameError
-from drivers.nmea0183 import Gga, NmeaDecoder, NmeaRecord, Rmc, Zda
+from drivers.framing import split_nmea
+from drivers.nmea0183 import Gga, Gll, NmeaDecoder, NmeaRecord, Rmc, Zda, parse_gll
 from drivers.records import Rejected
 from emlogd.offline import ProgressFn
 from emlogd.offline.csvmaps import reasons
@@ -23,6 +29,8 @@ from emlogd.offline.importbase import (
     count,
     not_a_sentence,
     open_text,
+    sentence_kind,
+    what_it_looks_like,
     within_years,
 )
 
@@ -47,14 +55,14 @@ DAY_ROLLOVER_S = 43_200.0
 
 
 def _fix_time(
-    rec: NmeaRecord | Rejected, day: date | None, last: float | None = None
+    rec: NmeaRecord | Gll | Rejected, day: date | None, last: float | None = None
 ) -> tuple[float | None, date | None]:
-    """(epoch seconds of a fix, the date it implies) for an RMC, ZDA or GGA record; a
-    time of day alone (GGA, or an RMC whose date field is empty) takes ``day``, and
-    :data:`DAY_ROLLOVER_S` before the ``last`` fix moves to the next day."""
+    """(epoch seconds of a fix, the date it implies) for an RMC, ZDA, GGA or GLL record;
+    a time of day alone (GGA, GLL, or an RMC whose date field is empty) takes ``day``,
+    and :data:`DAY_ROLLOVER_S` before the ``last`` fix moves to the next day."""
     if isinstance(rec, Rmc | Zda) and rec.time_utc is not None:
         return rec.time_utc.timestamp(), rec.time_utc.date()
-    tod = rec.time_of_day_s if isinstance(rec, Gga | Rmc) else None
+    tod = rec.time_of_day_s if isinstance(rec, Gga | Rmc | Gll) else None
     if tod is not None and day is not None:
         base = datetime(day.year, day.month, day.day, tzinfo=UTC)
         t = (base + timedelta(seconds=tod)).timestamp()
@@ -168,19 +176,116 @@ class _Joiner:
             self.held = None
 
 
-def _sentence_fix(
-    decoder: NmeaDecoder, text: str, day: date | None, last: float | None
-) -> tuple[float | None, date | None]:
-    """(the time the sentence fixes, or None; the date known after it), ``last`` the
-    time of the fix before."""
-    fix: float | None = None
+class _Clock:
+    """The fixes that time a log: RMC, ZDA and GGA as the decoders read them, GLL's
+    time of day (:func:`drivers.nmea0183.parse_gll`, a valid fix only) until a fix of
+    another kind has come (a GNSS sending GLL alone; beside RMC, an instrument bus's
+    GLL repeats the fix late)."""
+
+    def __init__(self, decoder: NmeaDecoder, day: date | None) -> None:
+        self.decoder = decoder
+        self.day = day
+        self.other_fix = False  # a fix of RMC, ZDA or GGA has come
+
+    def fix(self, text: str, last: float | None) -> float | None:
+        """The time the sentence fixes, or None; ``last`` the time of the fix before."""
+        fix: float | None = None
+        if sentence_kind(text) == "GLL":
+            gll = _gll(text)
+            if gll is not None and not self.other_fix:
+                fix, self.day = _fix_time(gll, self.day, last)
+            return fix
+        try:
+            decoded = self.decoder.decode_all((text + "\r\n").encode("ascii"))
+        except FrameError:
+            decoded = []  # a sentence the decoders do not parse is still kept
+        for rec in decoded:
+            fix, self.day = _fix_time(rec, self.day, last)
+            self.other_fix = self.other_fix or fix is not None
+        return fix
+
+
+def _gll(text: str) -> Gll | None:
+    """A GLL sentence's valid fix, or None (a void or unreadable one times nothing)."""
     try:
-        decoded = decoder.decode_all((text + "\r\n").encode("ascii"))
-    except FrameError:
-        decoded = []  # a sentence the decoders do not parse is still kept
-    for rec in decoded:
-        fix, day = _fix_time(rec, day, last)
-    return fix, day
+        body = split_nmea(text.encode("ascii"), required=True).decode("ascii")
+        rec = parse_gll(body[:2], body.split(",")[1:], text.encode("ascii"))
+    except (FrameError, UnicodeDecodeError):
+        return None
+    return rec if rec.valid else None
+
+
+DATED_FIX = re.compile(r"[$!]..(?:RMC,(?:[^,*]*,){8}\d{6}|ZDA,[^,*]*,\d{1,2},\d{1,2},\d{4})")
+"""An RMC with its date or a ZDA with its date, found in a log's lines before import."""
+
+FILE_NAME_DATE = re.compile(
+    r"(?<!\d)((?:19[89]|20\d)\d)[-_.]?(0[1-9]|1[0-2])[-_.]?(0[1-9]|[12]\d|3[01])(?!\d)"
+)
+"""A date in a log file's name (``2014-06-27``, ``2014_06_27``, ``20140627``)."""
+
+
+def _dated(paths: Sequence[str | Path]) -> bool:
+    """Whether any line of the logs holds a dated fix (:data:`DATED_FIX`): read to the
+    first one (a log of times of day alone is read through once more)."""
+    for path in paths:
+        with open_text(path) as f:
+            if any(DATED_FIX.search(line) for line in bounded_lines(f, Counter())):
+                return True
+    return False
+
+
+def file_day(path: str | Path) -> tuple[date, str] | None:
+    """The date a log file's name holds (``date_from_file_name``), else the UTC day the
+    file was last written (``date_from_file_time``), or None when neither is read."""
+    m = FILE_NAME_DATE.search(Path(path).name)
+    if m is not None:
+        try:
+            return date(int(m[1]), int(m[2]), int(m[3])), "date_from_file_name"
+        except ValueError:
+            pass
+    try:
+        mtime = Path(path).stat().st_mtime
+    except OSError:
+        return None
+    t = datetime.fromtimestamp(mtime, UTC)
+    return (t.date(), "date_from_file_time") if within_years(mtime) else None
+
+
+def _start_day(paths: Sequence[str | Path], day: date | None, report: ImportReport) -> date | None:
+    """The date of times of day before any fix dates them: ``day`` (``--date``), else,
+    for logs with no dated fix at all, the first file's (:func:`file_day`, noted)."""
+    if day is not None or not paths or _dated(paths):
+        return day
+    found = file_day(paths[0])
+    if found is None:
+        return None
+    report.notes[found[1]] += 1
+    return found[0]
+
+
+FIRST_LINE_CHARS = 80
+"""A log none of whose lines is a sentence has its first line quoted up to this many
+characters in the error."""
+
+
+def _why_no_time(report: ImportReport, first: str, sentences: int) -> str:
+    """The error of an import that wrote nothing: an empty file, no line a sentence
+    (what the first line looks like), or sentences without a fix that times them."""
+    skipped = reasons(report.skipped) or "none"
+    if not first and not report.skipped:
+        return f"{', '.join(report.files)}: empty (no line to import)"
+    if sentences == 0 and first:
+        looks = what_it_looks_like(first)
+        return (
+            f"no line is an NMEA 0183 sentence with its checksum; the first reads {first!r}"
+            + (f", which looks like {looks}" if looks else "")
+            + f"; skipped: {skipped}"
+        )
+    return (
+        "no sentence could be given a time: the log needs RMC or ZDA fixes with a "
+        "date (or GGA, GLL, or RMC without a date, with --date YYYY-MM-DD); skipped: "
+        f"{skipped}"
+    )
 
 
 def import_nmea(
@@ -197,7 +302,8 @@ def import_nmea(
         paths: the log files, in time order (their sentences are concatenated).
         out: the capture to write.
         port: its port name.
-        day: the UTC date for GGA times when no RMC or ZDA gives one.
+        day: the UTC date for times of day alone (GGA, GLL, RMC without a date) when no
+            RMC or ZDA gives one (without it, the file's: :func:`file_day`).
         progress: called after each file.
 
     Raises:
@@ -208,26 +314,25 @@ def import_nmea(
     sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
     spread = _Spreader(sink, report)
     joiner = _Joiner(SentenceCheck(report), report)
-    current_day = day
+    first = ""  # the first line, quoted when no line is a sentence
+    sentences = 0
     try:
+        clock = _Clock(decoder, _start_day(paths, day, report))
         for i, path in enumerate(paths):
             with open_text(path) as f:
                 for raw in bounded_lines(f, report.skipped):
                     report.lines += 1
+                    first = first or raw.strip()[:FIRST_LINE_CHARS]
                     for part in run_together(raw.strip(LINE_PADDING), report):
                         for line in joiner.lines(part):
-                            fix, current_day = _sentence_fix(decoder, line, current_day, spread.fix)
-                            spread.add(line, fix)
+                            sentences += 1
+                            spread.add(line, clock.fix(line, spread.fix))
             joiner.flush()
             if progress is not None:
                 progress(f"import {Path(path).name}", (i + 1) / len(paths))
         spread.finish()
         if report.written == 0:
-            raise ImportFormatError(
-                "no sentence could be given a time: the log needs RMC or ZDA fixes with a "
-                "date (or GGA, or RMC without a date, with --date YYYY-MM-DD); skipped: "
-                f"{reasons(report.skipped) or 'none'}"
-            )
+            raise ImportFormatError(_why_no_time(report, first, sentences))
     except BaseException:
         sink.abort()
         raise

@@ -100,13 +100,18 @@ _EXCERPTS: dict[str, ImportReport] = {}
 @pytest.mark.parametrize(("kind", "name"), sorted(VARIANTS))
 def test_every_variant_is_told_by_its_content(kind: str, name: str, tmp_path: Path) -> None:
     """docs/real_data.py tells each variant's kind as its recording's (a BOM, another
-    delimiter, a prefix before each sentence, a long banner, Expedition's sparse log)."""
+    delimiter, a prefix before each sentence, a long banner, Expedition's sparse log,
+    units after the names), or a table's under another logger's names."""
     text = _text(kind)
     v = VARIANTS[(kind, name)]
     src = tmp_path / f"variant{Path(SOURCES[kind]).suffix}"
     out = v.make(text)
     src.write_bytes(out.encode("utf-8") if out[:1] == "\ufeff" else out.encode("latin-1"))
-    assert rv._real_data().kind(src) == kind
+    assert rv._real_data().kind(src) == OTHER_KIND.get((kind, name), kind)
+
+
+OTHER_KIND = {("expedition-csv", "nmea-field-names"): "csv"}
+"""Variants that are another kind of log than their source (another logger's names)."""
 
 
 SAME_SENTENCES = [
@@ -121,6 +126,8 @@ SAME_SENTENCES = [
     ("nmea", "nul-padded"),
     ("nmea", "split-lines"),
     ("nmea", "ais"),
+    ("nmea", "signed-variation"),
+    ("nmea", "vhw-kmh"),
     ("expedition-csv", "set-drift"),
     ("expedition-csv", "upper-case"),
     ("expedition-csv", "reordered"),
@@ -130,6 +137,10 @@ SAME_SENTENCES = [
     ("expedition-csv", "quoted"),
     ("expedition-csv", "bom-crlf"),
     ("expedition-csv", "sparse-log"),
+    ("expedition-csv", "units-row"),
+    ("expedition-csv", "ole-local"),
+    ("expedition-csv", "nmea-field-names"),
+    ("expedition-csv", "name-units"),
     ("logger-tsv", "no-banner"),
     ("logger-tsv", "utc-offset"),
     ("logger-tsv", "logger-firmware"),
@@ -213,13 +224,15 @@ def test_without_the_current_columns_no_vdr(tmp_path: Path) -> None:
     assert rep.sentences["VHW"] == base.sentences["VHW"]
 
 
-@pytest.mark.parametrize("name", ["utc-text-us", "date-time-columns"])
+@pytest.mark.parametrize("name", ["utc-text-us", "date-time-columns", "utc-date-time"])
 def test_expedition_times_as_text_keep_the_log(name: str, tmp_path: Path) -> None:
-    """Utc written as US-English text (month first, AM/PM), or Date and Time columns in
-    its place: the same water readings over the same span (to the second the text
-    keeps)."""
+    """Utc written as US-English text (month first, AM/PM), or Date and Time columns
+    (UtcDate and UtcTime) in its place: the same water readings and current over the
+    same span (to the second the text keeps)."""
     base, rep, _ = _variant("expedition-csv", name, tmp_path)
     assert rep.sentences["VHW"] == base.sentences["VHW"]
+    if name != "utc-text-us":  # whole seconds: the current's repeats tell fewer samples
+        assert rep.sentences["VDR"] == base.sentences["VDR"]
     assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start, abs=1.0)
 
 
@@ -293,6 +306,7 @@ def test_a_log_sending_vbw_alone_is_read_from_vbw(tmp_path: Path) -> None:
         ("nmea", "gnss-0.2hz", 5.0),
         ("nmea", "fix-10s", 10.0),
         ("nmea", "tide-gnss-0.5hz", 2.0),
+        ("nmea", "gnss-0.5hz-log-2hz", 2.0),
         ("expedition-csv", "sog-0.5hz", 2.0),
         ("expedition-csv", "sog-0.2hz", 5.0),
     ],
@@ -314,18 +328,23 @@ def test_a_slower_gnss_gives_fewer_fixes(
     [
         "gga-vtg",
         "zda-gll-vtg",
+        "gll-vtg",
         "midnight-gga",
         "midnight-rmc",
         "rmc-no-date",
         "midnight-rmc-no-date",
         "gap",
         "truncated",
+        "leap-second",
+        "late-fixes",
     ],
 )
 def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Path) -> None:
-    """GGA + VTG (with --date), ZDA + GLL + VTG, midnight crossed by GGA times of day or
-    by RMC with or without its date (then --date), RMC without a date, a gap of minutes,
-    cut lines: the water readings keep their time."""
+    """GGA + VTG (with --date), ZDA + GLL + VTG, GLL + VTG alone (the date the file's),
+    midnight crossed by GGA times of day or
+    by RMC with or without its date (then --date) or with a leap second, RMC without a
+    date, a gap of minutes, cut lines, fix times a second late now and then: the water
+    readings keep their time."""
     base, rep, _ = _variant("nmea", name, tmp_path)
     span = base.t_end - base.t_start
     kept = 1.0 - rv.GAP_S / span if name == "gap" else 1.0
@@ -333,14 +352,33 @@ def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Pa
     assert rep.t_end - rep.t_start == pytest.approx(span, abs=2.0)
 
 
-@pytest.mark.parametrize("name", ["hdg-no-var", "hdm", "vhw-mag"])
+@pytest.mark.parametrize("name", ["hdg-no-var", "hdm", "vhw-mag", "hdm-rmc-var"])
 def test_a_magnetic_heading_without_variation_pairs(name: str, tmp_path: Path) -> None:
-    """No variation anywhere in the log: the heading is made true with the model's at the
-    fixes' positions, and the readings pair with the GNSS reference as before."""
+    """No variation anywhere in the log (or in RMC's field alone): the heading is made
+    true with the model's at the fixes' positions (or RMC's), and the readings pair
+    with the GNSS reference as before."""
     _, _, cap = _variant("nmea", name, tmp_path)
     s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
     al = record_capture(cap, s).aligned(0.0)
     assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
+
+
+@pytest.mark.parametrize(
+    ("name", "added_s"), [("two-sessions", rv.vl.SESSION_GAP_S), ("moored-hour", rv.vl.MOORED_S)]
+)
+def test_two_sessions_and_a_mooring_keep_every_reading(
+    name: str, added_s: float, tmp_path: Path
+) -> None:
+    """Two sessions 3 h apart in one file, an hour moored before the start: the span
+    grows by that time, every water reading of the log keeps its time (the few lines
+    between the sessions' fixes are counted ``fix_gap``), and at rest nothing pairs."""
+    base, rep, cap = _variant("nmea", name, tmp_path)
+    assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start + added_s, abs=2.0)
+    assert rep.sentences["VHW"] >= base.sentences["VHW"] - 2
+    assert (rep.skipped["fix_gap"] > 0) == (name == "two-sessions")
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    al = record_capture(cap, s).aligned(0.0)
+    assert np.count_nonzero(al.usable(heading=True)) <= base.sentences["VHW"]
 
 
 @pytest.mark.parametrize(("name", "scale"), [("tide", 1.0), ("tide-strong", rv.STRONG_TIDE)])

@@ -147,7 +147,7 @@ def add_parser(sub: Subparsers) -> None:
         "import",
         help="turn NMEA logs or CSV exports into a capture",
         description="Import logs without receive times into a capture v1 file on one port. "
-        "nmea: NMEA 0183 logs, timed by their RMC (else ZDA, else GGA + --date) fixes; "
+        "nmea: NMEA 0183 logs, timed by their RMC (else ZDA, else GGA or GLL + --date) fixes; "
         "csv: one CSV export with a column map (or --preset expedition), written as VHW, "
         "RMC and VDR sentences at the row times. Skipped lines are counted by reason.",
     )
@@ -159,8 +159,9 @@ def add_parser(sub: Subparsers) -> None:
         "--date",
         type=_date_arg,
         metavar="YYYY-MM-DD",
-        help="UTC date for times of day alone: nmea, GGA-only logs or RMC without a "
-        "date; csv, a time column without a date column (the next day after midnight)",
+        help="UTC date for times of day alone: nmea, GGA- or GLL-only logs or RMC without "
+        "a date (default: the file name's date, else its modification day); csv, a time "
+        "column without a date column (the next day after midnight)",
     )
     p.add_argument(
         "--map",

@@ -187,3 +187,62 @@ def test_distances_temperatures_and_headings_are_read() -> None:
     assert isinstance(r, Heading) and (r.deviation_deg, r.variation_deg) == (-2.0, 3.5)
     with pytest.raises(OutOfRangeError):
         _parse("VWVLW,-1.0,N,54.6,N")
+
+
+@pytest.mark.parametrize(
+    ("body", "tod", "active", "valid"),
+    [
+        ("IIGLL,4613.353,N,00610.289,E,132220,A,A", 48140.0, True, True),  # Irene's, 2.3
+        ("GPGLL,4613.353,N,00610.289,E,132220.50,A", 48140.5, True, True),  # 2.0
+        ("GPGLL,4613.353,N,00610.289,E,132220,V,N", 48140.0, False, False),  # void
+        ("GPGLL,4613.353,N,00610.289,E,132220,A,N", 48140.0, True, False),  # not valid mode
+        ("GPGLL,4613.353,N,00610.289,E", None, True, True),  # 1.5: no time
+    ],
+)
+def test_gll_gives_its_time_of_day_and_status(
+    body: str, tod: float | None, active: bool, valid: bool
+) -> None:
+    """GLL (parsed for the import's timing, not yielded by the decoder): its position,
+    time of day, status and mode."""
+    from drivers.nmea0183 import parse_gll
+
+    raw = with_checksum(body).encode("ascii")
+    rec = parse_gll(body[:2], body.split(",")[1:], raw)
+    assert rec.time_of_day_s == tod and rec.status_active is active and rec.valid is valid
+    assert rec.lat_deg == pytest.approx(46 + 13.353 / 60)
+    assert rec.lon_deg == pytest.approx(6 + 10.289 / 60)
+    with pytest.raises(UnknownSentenceError, match="GLL not decoded"):
+        NmeaDecoder("n").decode_all(raw + b"\r\n")
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "GPGLL,4613.353,N,00610.289,E,132220",  # 5 fields
+        "GPGLL,4613.353,N,00610.289,E,132220,X",  # bad status
+        "GPGLL,4613.353,N,00610.289,E,256000,A",  # bad time
+        "GPGLL,4613.353,Q,00610.289,E,132220,A",  # bad hemisphere
+    ],
+)
+def test_a_malformed_gll_is_refused(body: str) -> None:
+    """A GLL of another field count, status, time or hemisphere raises its reason."""
+    from drivers.nmea0183 import parse_gll
+
+    with pytest.raises((FieldError, OutOfRangeError)):
+        parse_gll(body[:2], body.split(",")[1:], body.encode("ascii"))
+
+
+@pytest.mark.parametrize(
+    ("body", "variation"),
+    [
+        ("GPRMC,132220,A,4613.353,N,00610.289,E,01.9,238,270614,2.5,W,A", -2.5),
+        ("GPRMC,132220,A,4613.353,N,00610.289,E,01.9,238,270614,-2.5,,A", -2.5),
+        ("HCHDG,263,,,-2.5,", -2.5),
+        ("HCHDG,263,,,2.5,W", -2.5),
+    ],
+)
+def test_a_variation_written_signed_without_its_direction(body: str, variation: float) -> None:
+    """A variation signed (west negative) with its E/W field empty reads as the signed
+    value, as ``2.5,W`` does."""
+    (rec,) = NmeaDecoder("n").decode_all(with_checksum(body).encode("ascii") + b"\r\n")
+    assert getattr(rec, "variation_deg", None) == variation

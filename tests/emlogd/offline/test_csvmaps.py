@@ -19,6 +19,7 @@ from emlogd.offline.csvmaps import (
     guess_time_format,
     no_header,
     parse_map,
+    unknown_units,
 )
 from emlogd.offline.importbase import ImportFormatError, ImportReport
 
@@ -92,6 +93,18 @@ def test_a_unit_in_a_name_is_read_or_named_as_unknown() -> None:
     assert find_header(head, candidate_maps(None, None)) is None
     why = no_header("x.csv", head, candidate_maps(None, None))
     assert "units not known in 'Bsp (furlongs)' ('furlongs')" in why and "[mps]" in why
+
+
+def test_nmea_field_names_and_true_degrees_are_read() -> None:
+    """Another logger's NMEA field names (``SOW``, ``HDT``, ``HdgMag``) are the generic
+    map's; ``°T`` after a name is an angle's unit (true), ``°M`` one no table knows."""
+    found = find_header(["UTC,SOW,HDT,SOG,COG,TWD"], candidate_maps(None, None))
+    assert found is not None and found[2] is PRESETS["generic"]
+    keys = ("time", "stw", "heading", "sog", "cog")
+    assert {k: c.index for k, c in found[3].items()} == dict(zip(keys, range(5), strict=True))
+    found = find_header(["Timestamp,BSP (kt),HdgMag (°),COG (°T)"], candidate_maps(None, None))
+    assert found is not None and set(found[3]) == {"time", "stw", "heading_mag", "cog"}
+    assert unknown_units(["Hdg (°M)", "Cog (°T)", "Bsp (kt)"]) == ["'Hdg (°M)' ('°M')"]
 
 
 def test_cells_in_si_units_within_a_boats_range() -> None:

@@ -116,11 +116,13 @@ class TestCauses:
 
     def test_no_reading_of_the_log_at_all(self, tmp_path: Path) -> None:
         """Fixes and a heading but no VHW: the error says no reading of the log arrived
-        (not that no reading is near a reference)."""
+        (not that no reading is near a reference), and that VLW's distances are no
+        speed."""
         cap = _sail(tmp_path / "r.cap", heading="hdt")
         s = dataclasses.replace(GNSS, uut_source="VBW")
-        with pytest.raises(OfflineError, match=r"no VBW reading of the log arrived on port"):
+        with pytest.raises(OfflineError, match=r"no VBW reading of the log arrived on port") as e:
             calibrate(load_captures([str(cap)], s), s, "ls", lag=0.0)
+        assert "VLW's distances alone give no usable speed" in str(e.value)
 
     def test_a_gnss_compass_ths_is_the_heading(self, tmp_path: Path) -> None:
         """THS (a GNSS compass's true heading) alone: the log's 5 % over-reading found

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gzip
 import io
+import re
 import tracemalloc
 from collections import Counter
 from pathlib import Path
@@ -97,3 +98,36 @@ def test_a_gzip_file_cut_short(tmp_path: Path) -> None:
     bad.write_bytes(b"\x1f\x8b\x08\x00garbage")
     with pytest.raises(ImportFormatError, match="skipped: truncated 1"):
         import_nmea([bad], tmp_path / "b.cap")
+
+
+@pytest.mark.parametrize(
+    ("first", "looks"),
+    [
+        ("(1436509053.650713) can0 09F80115#A0D4F4C19C400A24", "NMEA 2000 CAN dump"),
+        ("  can0  09F80115   [8]  A0 D4 F4 C1 9C 40 0A 24", "NMEA 2000 CAN dump"),
+        ("2016-04-09T16:41:39.628Z,2,127250,7,255,8,00,fc,69,ff", "Actisense/canboat"),
+        ('{"context":"vessels.self","updates":[]}', "Signal K JSON"),
+        ("\x89\x01\x02\x03\xff\xfe\x00\x10binary", "binary data"),
+        ("Utc,Bsp,Hdg,Sog", "--format csv"),
+    ],
+)
+def test_a_file_of_another_format_is_named(first: str, looks: str, tmp_path: Path) -> None:
+    """An NMEA import of a file none of whose lines is a sentence quotes its first line
+    and names what it looks like (NMEA 2000 dumps, Signal K, binary, a table); a CSV
+    import of such a file (or of an NMEA log) names it too; an empty file is said so."""
+    src = tmp_path / "log.txt"
+    src.write_bytes(((first + "\n") * 3).encode("latin-1"))
+    with pytest.raises(ImportFormatError, match="no line is an NMEA 0183 sentence") as exc:
+        import_nmea([src], tmp_path / "o.cap")
+    assert looks in str(exc.value)
+    if looks != "--format csv":
+        with pytest.raises(
+            ImportFormatError, match=rf"no header: the file looks like .*{re.escape(looks)}"
+        ):
+            import_csv(src, tmp_path / "o.cap")
+    src.write_text("$IIVHW,,,263,M,01.0,N,,*62\n")
+    with pytest.raises(ImportFormatError, match=r"an NMEA 0183 log .*--format nmea"):
+        import_csv(src, tmp_path / "o.cap")
+    src.write_bytes(b"")
+    with pytest.raises(ImportFormatError, match="empty"):
+        import_nmea([src], tmp_path / "o.cap")

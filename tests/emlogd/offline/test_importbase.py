@@ -10,7 +10,10 @@ import threading
 from datetime import UTC, datetime
 from pathlib import Path
 
+import pytest
+
 from emlogd.offline.importbase import (
+    SNIFF_BYTES,
     CaptureSink,
     ImportReport,
     open_text,
@@ -65,6 +68,26 @@ def test_utf16_and_a_utf8_bom_are_read_as_text(tmp_path: Path) -> None:
     for name in ("le.txt", "be.txt", "u8.txt"):
         with open_text(tmp_path / name) as f:
             assert f.read() == text, name
+
+
+def test_an_export_written_on_windows_is_read_in_its_code_page(tmp_path: Path) -> None:
+    """A file whose first bytes are not UTF-8 (``°`` and ``ö`` as single bytes) is read
+    in Windows' Western code page; UTF-8 stays UTF-8, even with a character cut at the
+    end of the bytes the encoding is told by; a gzip cut short still opens."""
+    text = "Utc,Bsp (kt),Hdg (°T),Geschwindigkeit über Grund\n38516.4,3.1,147,3.4\n"
+    (tmp_path / "cp.csv").write_bytes(text.encode("cp1252"))
+    (tmp_path / "u8.csv").write_bytes(text.encode("utf-8"))
+    cut = ("x" * (SNIFF_BYTES - 1) + "°\n").encode("utf-8")  # '°' across the boundary
+    (tmp_path / "cut.csv").write_bytes(cut)
+    (tmp_path / "gz.csv").write_bytes(gzip.compress(text.encode("cp1252")))
+    (tmp_path / "gz-cut.csv").write_bytes(gzip.compress(text.encode("cp1252"))[:-12])
+    for name in ("cp.csv", "u8.csv", "gz.csv"):
+        with open_text(tmp_path / name) as f:
+            assert f.read() == text, name
+    with open_text(tmp_path / "cut.csv") as f:
+        assert f.read().endswith("°\n")
+    with open_text(tmp_path / "gz-cut.csv") as f, pytest.raises(EOFError):
+        f.read()  # bounded_lines counts it ``truncated``
 
 
 def test_sentence_kind() -> None:

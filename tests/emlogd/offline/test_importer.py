@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from datetime import UTC, date, datetime
 from pathlib import Path
 
@@ -324,11 +325,25 @@ class TestCsv:
         rep = import_csv(src, tmp_path / "p.cap", time_format="%d/%m/%Y %H:%M")
         assert rep.t_end - rep.t_start == 60.0
 
-    def test_a_time_of_day_without_a_date_asks_for_the_date(self, tmp_path: Path) -> None:
-        """Times of day alone and no date column: the error says a time needs its date
-        and names --map date= (not a time format, which would not help)."""
+    def test_a_time_of_day_without_a_date_takes_the_files(self, tmp_path: Path) -> None:
+        """Times of day alone and no date column: the date in the file's name, else the
+        day the file was last written (noted); without either (a file time before
+        1980), the error says a time needs its date and names --map date= (not a time
+        format, which would not help)."""
+        text = "Time,Speed (kts),Heading\n12:00:00,3.1,100\n12:00:01,3.2,101\n"
         src = tmp_path / "log.csv"
-        src.write_text("Time,Speed (kts),Heading\n12:00:00,3.1,100\n12:00:01,3.2,101\n")
+        src.write_text(text)
+        written = datetime(2024, 7, 18, 15, 0, tzinfo=UTC).timestamp()
+        os.utime(src, (written, written))
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.t_start == datetime(2024, 7, 18, 12, tzinfo=UTC).timestamp()
+        assert rep.notes["date_from_file_time"] == 1
+        named = tmp_path / "log_20240719.csv"
+        named.write_text(text)
+        rep = import_csv(named, tmp_path / "o.cap")
+        assert rep.t_start == datetime(2024, 7, 19, 12, tzinfo=UTC).timestamp()
+        assert rep.notes["date_from_file_name"] == 1
+        os.utime(src, (0, 0))
         with pytest.raises(ImportFormatError, match=r"time of day alone.*'12:00:00'.*date="):
             import_csv(src, tmp_path / "o.cap")
 

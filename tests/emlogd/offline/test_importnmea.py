@@ -6,6 +6,7 @@ published in the jpilet/anemomind repository under the MIT licence (© Anemomind
 
 from __future__ import annotations
 
+import os
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from drivers.io.capture import CaptureReader
 from drivers.nmea0183 import Rmc, Vhw, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.offline.importer import ImportFormatError, import_nmea
-from tests.nmea_encoders import encode_gga, encode_zda
+from tests.nmea_encoders import encode_gga, encode_vtg, encode_zda
 
 IRENE = """\
 $IIMTW,+00.0,C*38
@@ -37,6 +38,11 @@ $IIVHW,,,261,M,01.6,N,,*66
 """
 
 T0 = datetime(2014, 6, 27, 13, 22, 20, tzinfo=UTC).timestamp()
+
+
+def _gll(hms: str, status: str) -> str:
+    body = f"GPGLL,4613.353,N,00610.289,E,{hms},{status},A"
+    return f"${body}*{nmea_checksum(body.encode('ascii')):02X}"
 
 
 def _records(path: Path) -> list[tuple[float, str, str]]:
@@ -99,18 +105,60 @@ class TestNmea:
         assert [r[0] - t.timestamp() for r in recs] == pytest.approx([0.0, 0.5, 1.0, 1.5, 2.0])
         assert rep.notes == {}
 
-    def test_gga_only_needs_a_date(self, tmp_path: Path) -> None:
-        """GGA alone has no date: the import refuses without --date and works with it."""
+    def test_gga_only_takes_the_given_date_else_the_files(self, tmp_path: Path) -> None:
+        """GGA alone has no date: --date gives it; without it, a log with no dated fix
+        takes the date in its file's name, else the day the file was last written
+        (noted); a log with no fix at all is refused, naming --date."""
         t = datetime(2026, 3, 4, 10, 0, 0, tzinfo=UTC)
-        src = tmp_path / "gga.nmea"
         t2 = t + timedelta(seconds=1)
-        src.write_text(
-            f"{encode_gga(t, 1.0, 2.0)}\n{encode_vhw(1.0)}\n{encode_gga(t2, 1.0, 2.0)}\n"
-        )
-        with pytest.raises(ImportFormatError, match="--date"):
+        text = f"{encode_gga(t, 1.0, 2.0)}\n{encode_vhw(1.0)}\n{encode_gga(t2, 1.0, 2.0)}\n"
+        src = tmp_path / "gga.nmea"
+        src.write_text(text)
+        written = datetime(2026, 3, 4, 23, 0, tzinfo=UTC).timestamp()
+        os.utime(src, (written, written))
+        rep = import_nmea([src], tmp_path / "o.cap", day=date(2026, 3, 5))
+        assert rep.t_start == t.timestamp() + 86_400.0 and rep.written == 3 and not rep.notes
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.t_start == t.timestamp() and rep.notes == {"date_from_file_time": 1}
+        named = tmp_path / "log_2026-03-04.nmea"
+        named.write_text(text)
+        rep = import_nmea([named], tmp_path / "o.cap")
+        assert rep.t_start == t.timestamp() and rep.notes == {"date_from_file_name": 1}
+        src.write_text(f"{encode_vhw(1.0)}\n{encode_vhw(1.1)}\n")
+        with pytest.raises(ImportFormatError, match="GLL, or RMC without a date, with --date"):
             import_nmea([src], tmp_path / "o.cap")
+
+    def test_gll_alone_times_the_log(self, tmp_path: Path) -> None:
+        """A GNSS sending GLL (time of day) and VTG alone: GLL's valid fixes time the
+        log on the given date; a void GLL times nothing."""
+        lines = [
+            _gll("100000", "A"),
+            encode_vtg(1.0, 90.0),
+            encode_vhw(1.0),
+            _gll("100001", "V"),
+            encode_vhw(1.1),
+            _gll("100002", "A"),
+            encode_vhw(1.2),
+        ]
+        src = tmp_path / "gll.nmea"
+        src.write_text("\n".join(lines) + "\n")
         rep = import_nmea([src], tmp_path / "o.cap", day=date(2026, 3, 4))
-        assert rep.t_start == t.timestamp() and rep.written == 3
+        t0 = datetime(2026, 3, 4, 10, 0, 0, tzinfo=UTC).timestamp()
+        times = [r[0] - t0 for r in _records(tmp_path / "o.cap")]
+        assert times == pytest.approx([0.0, 0.4, 0.8, 1.2, 1.6, 2.0])
+        assert rep.skipped == {"after_last_fix": 1} and rep.sentences["VTG"] == 1
+
+    def test_gll_beside_rmc_times_nothing(self, tmp_path: Path) -> None:
+        """Beside RMC (an instrument bus repeating the fix, late), GLL is no time
+        source once an RMC has come: a GLL a second behind costs no note."""
+        t = datetime(2026, 3, 4, 10, 0, 0, tzinfo=UTC)
+        lines = [encode_rmc(t, 1.0, 0.0), encode_vhw(1.0), _gll("095959", "A")]
+        lines += [encode_rmc(t + timedelta(seconds=1), 1.0, 0.0)]
+        src = tmp_path / "both.nmea"
+        src.write_text("\n".join(lines) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        times = [r[0] - t.timestamp() for r in _records(tmp_path / "o.cap")]
+        assert times == pytest.approx([0.0, 1 / 3, 2 / 3, 1.0]) and not rep.notes
 
     def test_fix_time_going_back_is_not_a_time_source(self, tmp_path: Path) -> None:
         """A repeated or earlier fix time is kept as a sentence but times nothing."""
@@ -206,7 +254,8 @@ class TestLinesAsLoggersWriteThem:
 
     def test_rmc_without_a_date_takes_the_given_one(self, tmp_path: Path) -> None:
         """RMC with its date field empty times the log from --date (midnight crossed
-        moves to the next day); without --date the error names what is missing."""
+        moves to the next day); without --date, the day the file was last written
+        (noted)."""
 
         def no_date(t: datetime) -> str:
             body = encode_rmc(t, 2.0, 90.0)[1:].split("*")[0].split(",")
@@ -217,8 +266,7 @@ class TestLinesAsLoggersWriteThem:
         t = datetime(2026, 1, 2, 23, 59, 59, tzinfo=UTC)
         src = tmp_path / "nodate.nmea"
         src.write_text("\n".join([no_date(t), encode_vhw(2.0), no_date(t + timedelta(seconds=2))]))
-        with pytest.raises(ImportFormatError, match="RMC without a date"):
-            import_nmea([src], tmp_path / "x.cap")
+        assert import_nmea([src], tmp_path / "x.cap").notes["date_from_file_time"] == 1
         rep = import_nmea([src], tmp_path / "o.cap", day=date(2026, 1, 2))
         assert rep.written == 3
         assert rep.t_start == pytest.approx(t.timestamp())
