@@ -64,12 +64,15 @@ only a known sea can tell a good restored calibration from raw there; within an 
 tidal current changes by a fraction of itself."""
 
 RESTORE_EARLY_SAMPLES = 5
-"""A restored calibration saved with its sea (:data:`RESTORE_SEA_MAX_AGE_S`) is applied
-after this many samples when, against the reference less the saved current, its RMSE
-over them is below raw's by raw's margin (:func:`worse`
-the other way round): the evidence is for it. It is validated in place over the rest
-of its window and withdrawn when that fails; with any other evidence raw passes
-through until then."""
+"""A restored calibration is applied after this many samples (:func:`judge_early`) when,
+saved with its sea (:data:`RESTORE_SEA_MAX_AGE_S`), its RMSE over them against the
+reference less the saved current is below raw's by raw's margin (:func:`worse` the other
+way round: the evidence is for it), or, in the water frame on a straight leg, when the
+verdict of its whole window (:func:`judge_restored`) already applies it on them: a sea
+that moved between the save and the restart makes raw's current as odd as its own, and
+more samples of one heading would not tell the two apart. It is validated in place over
+the rest of its window and withdrawn when that fails; otherwise raw passes through until
+then."""
 
 RESTORE_RETRY_S = 120.0
 """A restored calibration refused on a window whose headings cannot tell a current from
@@ -281,6 +284,13 @@ def judge_saved_sea(cand: Candidate, detail: dict[str, object]) -> bool:
     return not worse(s_cand, s_raw)
 
 
+def heading_spread(samples: list[tuple[float, float, float, float]]) -> float:
+    """One minus the mean resultant length of a restored calibration's validation
+    samples' headings (:data:`RESTORE_MIN_HEADING_SPREAD`)."""
+    a = np.asarray(samples, dtype=np.float64)
+    return 1.0 - math.hypot(float(np.mean(a[:, 2])), float(np.mean(a[:, 3])))
+
+
 def judge_own_currents(cand: Candidate, detail: dict[str, object]) -> bool | None:
     """A restored calibration, on a window whose headings tell a current from an
     offset (:data:`RESTORE_MIN_HEADING_SPREAD`): raw and it each judged after a
@@ -289,7 +299,7 @@ def judge_own_currents(cand: Candidate, detail: dict[str, object]) -> bool | Non
     assert cand.samples is not None
     a = np.asarray(cand.samples, dtype=np.float64)
     d_raw, d_c, c, s = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
-    spread = 1.0 - math.hypot(float(np.mean(c)), float(np.mean(s)))
+    spread = heading_spread(cand.samples)
     detail["heading_spread"] = round(spread, 3)
     if spread < RESTORE_MIN_HEADING_SPREAD:
         return None
@@ -346,3 +356,30 @@ def judge_restored(
     # refused only where raw's current is the likelier by RESTORE_SEA_SIGMAS: a sea that
     # moved makes raw's current as odd as its own, a wrong calibration its own alone
     return implied**2 - implied_raw**2 <= allowance**2
+
+
+def judge_early(
+    cand: Candidate,
+    detail: dict[str, object],
+    kf: KfConfig,
+    restored_sea: tuple[float, float, float] | None,
+    restored_sea_std: tuple[float, float] | None,
+) -> bool:
+    """A restored calibration on its first :data:`RESTORE_EARLY_SAMPLES`: applied then
+    when raw is worse than it by the margin in the saved sea, or, in the water frame on
+    a straight leg (headings spread less than :data:`RESTORE_MIN_HEADING_SPREAD`), when
+    :func:`judge_restored` on them applies it. A window that turns waits for the whole
+    window's currents of their own."""
+    n = cand.n
+    if cand.n_sea == n:
+        s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
+        detail["rmse_raw_saved_sea"] = round(s_raw, 4)
+        detail["rmse_candidate_saved_sea"] = round(s_cand, 4)
+        if worse(s_raw, s_cand):
+            return True
+    samples = cand.samples
+    if samples is None or len(samples) != n:
+        return False
+    if heading_spread(samples) >= RESTORE_MIN_HEADING_SPREAD:
+        return False
+    return judge_restored(cand, detail, kf, restored_sea, restored_sea_std, cand.t0)

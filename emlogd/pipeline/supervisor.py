@@ -65,8 +65,9 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   was saved in and against raw, the current its errors imply is one the sea cannot
   have and raw's a likelier, :data:`RESTORE_SEA_SIGMAS`; refused so, judged again every
   :data:`RESTORE_RETRY_S`), raw passing through meanwhile; saved with its sea
-  and raw worse than it there over its first :data:`RESTORE_EARLY_SAMPLES`, it is
-  applied then and validated in place (withdrawn when that fails); when no reference
+  and raw worse than it there over its first :data:`RESTORE_EARLY_SAMPLES`, or on a
+  straight leg kept by that leg's verdict on them already, it is applied then and
+  validated in place (withdrawn when that fails); when no reference
   has been heard :data:`RESTORE_WAIT_S` after the first reading, applied *unverified*
   (said in the status) and validated in place once a reference arrives.
 """
@@ -97,6 +98,7 @@ from emlogd.pipeline.revalidation import (
     COMMON_SEA_DEGREE,
     beats_raw,
     common_current,
+    judge_early,
     judge_restored,
     judge_saved_sea,
     judge_withdrawn,
@@ -413,30 +415,19 @@ class Supervisor:
         cand.applied += e_app * e_app
         cand.cand += e_c * e_c
         cand.n += 1
-        if cand.kind == "restored" and cand.n == RESTORE_EARLY_SAMPLES == cand.n_sea:
+        if cand.kind == "restored" and cand.n == RESTORE_EARLY_SAMPLES:
             self._early(t, cand)
 
     def _early(self, t: float, cand: Candidate) -> None:
-        """Apply a restored calibration on its first samples when, in the saved sea, raw
-        is worse than it (:data:`RESTORE_EARLY_SAMPLES`)."""
-        n = cand.n
-        s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
-        if self.applied is not None or not worse(s_raw, s_cand):
+        """Apply a restored calibration on its first samples (:func:`judge_early`)."""
+        detail: dict[str, object] = {"params": cand.params.as_dict()}
+        sea, sea_std = self.restored_sea, self.restored_sea_std
+        if self.applied is not None or not judge_early(cand, detail, self.s.kf, sea, sea_std):
             return
         cand.early = True
         self._apply(t, cand.params, cand.std or {})
         self.note = "restored calibration applied on its first samples: validating"
-        self._emit(
-            t,
-            "calibrated",
-            {
-                "params": cand.params.as_dict(),
-                "rmse_raw_saved_sea": round(s_raw, 4),
-                "rmse_candidate_saved_sea": round(s_cand, 4),
-                "samples": n,
-                "kind": "restored-early",
-            },
-        )
+        self._emit(t, "calibrated", detail | {"samples": cand.n, "kind": "restored-early"})
 
     def _validated(self, t: float, cand: Candidate) -> bool:
         """The candidate's validation window is complete (``validation_s``, or

@@ -19,6 +19,7 @@ from emlogd.pipeline.revalidation import (
     Candidate,
     beats_raw,
     common_current,
+    judge_early,
     judge_own_currents,
     judge_restored,
     judge_saved_sea,
@@ -93,6 +94,20 @@ def test_a_straight_leg_implying_an_impossible_current_is_refused() -> None:
     for share, ok in ((0.9, True), (1.1, False)):
         cand = _candidate(hd, share * prior + CURRENT[0], CURRENT[0])
         assert judge_restored(cand, {}, kf, None, None, None) is ok
+
+
+def test_early_on_a_straight_leg_as_the_whole_window_but_not_in_a_turn() -> None:
+    """Its first samples (no saved-sea scores): on a straight leg the whole window's
+    verdict applies it early when the current it implies is one the sea can have; in a
+    turn it waits for the currents of their own over the whole window."""
+    kf, saved, std = KfConfig(), (CURRENT[0], CURRENT[1], 0.0), (0.02, 0.02)
+    allowance = RESTORE_SEA_SIGMAS * 0.02
+    straight = _candidate(np.full(N, 0.0), 0.5 * allowance, 0.0)
+    assert judge_early(straight, {}, kf, saved, std)
+    assert not judge_early(_candidate(np.full(N, 0.0), 2.0 * allowance, 0.0), {}, kf, saved, std)
+    turn = _candidate(np.linspace(0.0, 180.0, N), 0.0, 0.2)
+    assert judge_own_currents(turn, {}) is True
+    assert not judge_early(turn, {}, kf, saved, std)
 
 
 def test_beyond_the_allowance_it_is_refused_only_where_raw_is_the_likelier() -> None:

@@ -283,6 +283,26 @@ def _saved_with_bow_current(p: Params) -> Rig:
     return Rig(prior, heading=0.0, current=True, learn=False)
 
 
+def _saved_in_still_water(saved_t: float) -> Rig:
+    """A rig on a straight leg (heading 0) in the water frame, not learning, restored
+    with TRUE saved at ``saved_t`` with no current (±0.05 m/s)."""
+    est = Estimate(
+        TRUE, {"m": 0.01, "b": 0.01}, current_mps=(0.0, 0.0), current_std_mps=(0.05, 0.05)
+    )
+    prior = Calibration("log", est, 0.0, current=True, t=saved_t)
+    return Rig(prior, heading=0.0, current=True, learn=False)
+
+
+def _stern_current_leg(rig: Rig, seconds: float, rng: np.random.Generator) -> list[float | None]:
+    """``seconds`` at 2 m/s through the water in 0.24 m/s of current on the stern, the
+    log reading ``TRUE.forward(2.0)`` with 0.03 m/s of noise."""
+    return rig.run(
+        seconds,
+        raw=lambda t, v: TRUE.forward(2.0) + float(rng.normal(0.0, 0.03)),
+        ref=lambda t, v: 2.0 + 0.24,
+    )
+
+
 class TestChangeDetection:
     """A sensor that changes loses its calibration within seconds; a sea that changes does not."""
 
@@ -541,31 +561,34 @@ class TestRestored:
         uncertainty and the learner's random walk): applied. Saved just now: refused."""
         from emlogd.pipeline.supervisor import RESTORE_VALIDATION_S
 
-        rng = np.random.default_rng(13)
-
         def applied_after(saved_t: float) -> Params | None:
-            prior = Calibration(
-                "log",
-                Estimate(
-                    TRUE,
-                    {"m": 0.01, "b": 0.01},
-                    current_mps=(0.0, 0.0),
-                    current_std_mps=(0.05, 0.05),
-                ),
-                0.0,
-                current=True,
-                t=saved_t,
-            )
-            rig = Rig(prior, heading=0.0, current=True, learn=False)
-            rig.run(
-                RESTORE_VALIDATION_S + 30.0,
-                raw=lambda t, v: TRUE.forward(2.0) + float(rng.normal(0.0, 0.03)),
-                ref=lambda t, v: 2.0 + 0.24,
-            )
+            rig = _saved_in_still_water(saved_t)
+            _stern_current_leg(rig, RESTORE_VALIDATION_S + 30.0, np.random.default_rng(13))
             return _applied(rig)
 
         assert applied_after(-300.0) == TRUE
         assert applied_after(0.0) is None
+
+    def test_on_a_straight_leg_a_sea_that_moved_applies_it_on_its_first_samples(self) -> None:
+        """The leg above (saved 300 s before in still water, 0.24 m/s of current on the
+        stern now): in the saved sea raw wins, and the current it implies is one the sea
+        can have moved to, which more samples of one heading would not change: applied
+        after RESTORE_EARLY_SAMPLES readings, verified at the end of its window. Saved
+        just now the same current is beyond the sea's allowance: raw passes through."""
+        from emlogd.pipeline.supervisor import RESTORE_EARLY_SAMPLES, RESTORE_VALIDATION_S
+
+        rng = np.random.default_rng(13)
+        rig = _saved_in_still_water(-300.0)
+        _stern_current_leg(rig, RESTORE_EARLY_SAMPLES + 1.0, rng)
+        early = [d for _, k, d in rig.events if k == "calibrated"]
+        assert _applied(rig) == TRUE and early and early[0]["kind"] == "restored-early"
+        assert early[0]["implied_current_mps"] == pytest.approx(-0.24, abs=0.05)
+        _stern_current_leg(rig, RESTORE_VALIDATION_S, rng)
+        assert _applied(rig) == TRUE and "calibration_verified" in rig.kinds()
+        now = _saved_in_still_water(0.0)
+        outs = _stern_current_leg(now, RESTORE_EARLY_SAMPLES + 1.0, rng)
+        assert _applied(now) is None and "calibrated" not in now.kinds()
+        assert all(o == pytest.approx(TRUE.forward(2.0), abs=0.2) for o in outs)
 
     def test_refused_on_a_straight_leg_it_is_judged_again_as_the_sea_ages(self) -> None:
         """Saved just now with no current (±0.05 m/s), then a straight leg at 2 m/s in 0.32
