@@ -84,7 +84,7 @@ class LagEstimate:
     """The correlation at ``at_s`` (:func:`estimate_lag`) on the same samples, or nan."""
 
 
-def _series(name: str, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+def checked_series(name: str, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     """Validate one (times, speeds) pair: finite, same length, strictly increasing times."""
     ta = np.asarray(t, dtype=np.float64).reshape(-1)
     va = np.asarray(v, dtype=np.float64).reshape(-1)
@@ -190,7 +190,7 @@ change of area) fitted as one constant leaves a residual that follows the headin
 that pulls the peak (by +1 s on a simulated figure-8 under a slowly varying current)."""
 
 
-class _Blocks:
+class CurrentBlocks:
     """The blocks of :data:`CURRENT_BLOCK_S` over the measurement times ``t``.
 
     Attributes:
@@ -227,7 +227,7 @@ class _Blocks:
 
 
 def _multiple(
-    y: FloatArray, ref: FloatArray, cos_h: FloatArray, sin_h: FloatArray, blocks: _Blocks
+    y: FloatArray, ref: FloatArray, cos_h: FloatArray, sin_h: FloatArray, blocks: CurrentBlocks
 ) -> float:
     """Multiple correlation of y with ``ref`` and, per block, a level and a drifting current.
 
@@ -257,7 +257,7 @@ reference's own noise, interpolated at every candidate lag, would otherwise make
 correlation curve jagged at the sample spacing (a 10 Hz DVL at ±1 cm/s)."""
 
 
-def _smooth(t: FloatArray, v: FloatArray, width_s: float) -> FloatArray:
+def smooth(t: FloatArray, v: FloatArray, width_s: float) -> FloatArray:
     """Centred moving average over about ``width_s`` (in samples of the median spacing)."""
     if t.size < 3:
         return v
@@ -296,7 +296,7 @@ def _curve(
 
     else:
         th, cos_h, sin_h = regress
-        blocks = _Blocks(tk, CURRENT_BLOCK_S)
+        blocks = CurrentBlocks(tk, CURRENT_BLOCK_S)
 
         def score(lag: float) -> float:
             return _multiple(
@@ -359,7 +359,7 @@ def _dof(t: FloatArray, water_frame: bool) -> int:
     """Degrees of freedom of the fit at the peak: the samples less the unknowns."""
     if not water_frame:
         return t.size - 2
-    return t.size - 1 - 5 * _Blocks(t, CURRENT_BLOCK_S).starts.size
+    return t.size - 1 - 5 * CurrentBlocks(t, CURRENT_BLOCK_S).starts.size
 
 
 def estimate_lag(
@@ -399,8 +399,8 @@ def estimate_lag(
     Raises:
         DataError: bad series, too little overlap, or a non-positive max_lag_s/step_s.
     """
-    tm, vm = _series("measurement", t_meas, v_meas)
-    tr, vr = _series("reference", t_ref, v_ref)
+    tm, vm = checked_series("measurement", t_meas, v_meas)
+    tr, vr = checked_series("reference", t_ref, v_ref)
     if not (math.isfinite(max_lag_s) and max_lag_s > 0.0):
         raise DataError("max_lag_s must be positive")
     if step_s is None:
@@ -425,13 +425,13 @@ def estimate_lag(
             f"only {int(np.count_nonzero(keep))} measurement samples overlap the reference "
             f"within ±{reach:g} s (need {min_samples})"
         )
-    vm = _smooth(tm, vm, width)
-    vr = _smooth(tr, vr, width)
+    vm = smooth(tm, vm, width)
+    vr = smooth(tr, vr, width)
     tk = tm[keep]
     vk = vm[keep]
     regress: tuple[FloatArray, FloatArray, FloatArray] | None = None
     if heading is not None:
-        th, psi = _series("heading", heading[0], heading[1])
+        th, psi = checked_series("heading", heading[0], heading[1])
         if th[0] > tk[0] - reach or th[-1] < tk[-1] + reach:
             keep_h = (tk - reach >= th[0]) & (tk + reach <= th[-1])
             if int(np.count_nonzero(keep_h)) < min_samples:

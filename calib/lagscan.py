@@ -35,10 +35,10 @@ from calib.lag import (
     GAP_SPACINGS,
     MAX_GAP_S,
     SMOOTH_S,
+    CurrentBlocks,
     LagEstimate,
-    _Blocks,
-    _series,
-    _smooth,
+    checked_series,
+    smooth,
 )
 from calib.models import FloatArray
 
@@ -48,7 +48,7 @@ series are averaged over two sample spacings, and a correlation peak minutes off
 tens of seconds wide, so a coarse grid finds it at a third of the cost."""
 
 
-def _adjusted(y: FloatArray, X: FloatArray, ref: FloatArray, blocks: _Blocks | None) -> float:
+def _adjusted(y: FloatArray, X: FloatArray, ref: FloatArray, blocks: CurrentBlocks | None) -> float:
     """Signed root of the adjusted R² of ``y`` on ``ref`` and the nuisance columns ``X``
     (fitted per block when ``blocks`` is given, once otherwise)."""
     n = y.size
@@ -116,19 +116,19 @@ def scan_lags(
         DataError: bad series, a non-positive range or step, or no lag scored on
             ``min_samples`` readings.
     """
-    tm, vm = _series("measurement", t_meas, v_meas)
-    tr, vr = _series("reference", t_ref, v_ref)
+    tm, vm = checked_series("measurement", t_meas, v_meas)
+    tr, vr = checked_series("reference", t_ref, v_ref)
     if not (math.isfinite(max_lag_s) and max_lag_s > 0.0 and math.isfinite(step_s) and step_s > 0):
         raise DataError("max_lag_s and step_s must be positive")
     n_half = max(math.floor(max_lag_s / step_s + 1e-9), 1)
     lags = np.arange(-n_half, n_half + 1, dtype=np.float64) * step_s
     width = max(SMOOTH_S, 2.0 * float(max(np.median(np.diff(tm)), np.median(np.diff(tr)))))
-    vm = _smooth(tm, vm, width)
-    vr = _smooth(tr, vr, width)
+    vm = smooth(tm, vm, width)
+    vr = smooth(tr, vr, width)
     starts, ends = _clear(tr, width)
     cos_h = sin_h = th = None
     if heading is not None:
-        th, psi = _series("heading", heading[0], heading[1])
+        th, psi = checked_series("heading", heading[0], heading[1])
         cos_h, sin_h = np.cos(np.radians(psi)), np.sin(np.radians(psi))
         starts, ends = np.maximum(starts, th[0]), np.minimum(ends, th[-1])
 
@@ -143,7 +143,7 @@ def scan_lags(
         ref = np.interp(sk, tr, vr)
         if th is None or cos_h is None or sin_h is None:
             return _adjusted(yk, np.ones((n, 1)), ref, None), n
-        blocks = _Blocks(tk, CURRENT_BLOCK_S)
+        blocks = CurrentBlocks(tk, CURRENT_BLOCK_S)
         c, s = np.interp(sk, th, cos_h), np.interp(sk, th, sin_h)
         tau = blocks.tau
         X = np.stack((np.ones(n), c, s, tau * c, tau * s), axis=1)

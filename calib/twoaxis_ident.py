@@ -127,6 +127,13 @@ _UNIT = {**UNITS, ALPHA: "°", M_T: "", B_T: " m/s"}
 
 TURNS_BOTH_WAYS = "turns to both sides (a figure-8) tell them apart"
 """What an operator can sail to determine the misalignment, in its refusal's reason."""
+ONE_SWAY_RATIO = "one steady turn (one turn rate throughout, one way), or none"
+"""Why the sway was a fixed fraction of the surge, in α's refusal: the sideslip of a
+turn is set by its rate (``w = −0.6·rate·u`` in the simulator, whose circles turn at
+one rate from their first sample to their last, at three throttle settings: no entry
+or exit transient; the log's sway is the hull's, with no sensor position and so no
+yaw-rate lever arm), so circles one way at any speed give one sway ratio and
+``(1 + m_t)·(w/u − sin α)`` one slope for two unknowns."""
 
 
 def _alpha_with_scale(why_scale: str) -> str:
@@ -342,7 +349,7 @@ def _misalign_rules(
         if ALPHA not in refused:
             refused[ALPHA] = _alpha_with_scale(
                 "here the sideways speed through the water is a fixed fraction of the "
-                f"forward speed, {k:+.3f} of it: the turns all went one way, or none"
+                f"forward speed, {k:+.3f} of it at every speed: {ONE_SWAY_RATIO}"
             )
     if M_T in refused and ALPHA not in refused:
         refused[ALPHA] = _alpha_with_scale(refused[M_T])

@@ -7,8 +7,9 @@ plus the monotonic time since, as the daemon stamps its data. A wall clock stepp
 back or forward meanwhile (NTP or GNSS time setting a computer that booted with a wrong
 clock, an operator) moves no stamp: stepped back an hour, every chunk of that hour took
 the last time written before the step, an hour of data at one instant. A text port's
-bytes are split into lines, each stored verbatim; a binary port's chunks are stored as
-they came. Times never go backwards in the file.
+bytes are split into lines, each stored verbatim (a line not ended within
+:data:`MAX_PARTIAL_BYTES` is stored as a chunk of what came so far, its rest after it);
+a binary port's chunks are stored as they came. Times never go backwards in the file.
 """
 
 from __future__ import annotations
@@ -22,6 +23,12 @@ from pathlib import Path
 from drivers import DeviceError, is_binary
 from drivers.io.capture import CaptureWriter
 from drivers.io.port import PortEvent, SerialSource
+
+MAX_PARTIAL_BYTES = 4096
+"""Most bytes of a text port's line kept waiting for its end: past it, what came is
+written as a chunk at once (the replayed bytes the same). A port that sends no newline
+(garbage, a wrong baud rate) was held whole and copied at every read: memory without
+bound and each read's cost growing with it, every port's stamps late behind it."""
 
 SELECT_TIMEOUT_S = 0.2
 """Longest wait for input: how often ``should_stop``, the deadline and the ports'
@@ -165,6 +172,10 @@ class _Recording:
         for line in lines:
             writer.write_line(t, name, line.rstrip(b"\r"))
             self.counts[name] += 1
+        if len(buf) > MAX_PARTIAL_BYTES:
+            writer.write_chunk(t, name, bytes(buf))
+            self.counts[name] += 1
+            buf.clear()
 
     def finish(self, writer: CaptureWriter) -> None:
         """Each text port's unterminated line written as a chunk."""

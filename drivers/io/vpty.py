@@ -25,7 +25,10 @@ the symlink like a serial device. Properties:
   not yet moved from its flip buffers to the line discipline (it does so
   asynchronously): at serial rates that is nothing, but a writer bursting faster
   than that can leave up to the pty's capacity (~20 KB); never more, because a
-  full pty is flushed before the next write. ``max_backlog=None`` keeps the kernel
+  full pty is flushed before the next write. A reader that holds the slave
+  exclusively (``TIOCEXCL``) cannot be opened: its full pty is flushed from the
+  master's side, which leaves the line discipline's 4 KiB of old data to it, then
+  recent data. ``max_backlog=None`` keeps the kernel
   behaviour (a real serial port: up to ~68 KB queue, further writes dropped), which
   fake devices use so that a slow test reader still gets every byte.
 
@@ -185,8 +188,8 @@ class VirtualPort(Closing):
         self._unchecked = 0
         try:
             fd = os.open(self.slave_path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-        except OSError:
-            return False
+        except OSError:  # EBUSY: a reader holds the slave exclusively (TIOCEXCL)
+            return full and self._flush_from_master()
         try:
             raw = fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0")
             queued: int = struct.unpack("i", raw)[0]
@@ -197,6 +200,20 @@ class VirtualPort(Closing):
             return False
         finally:
             os.close(fd)
+        self.flushes += 1
+        return True
+
+    def _flush_from_master(self) -> bool:
+        """Discard what waits for the reader beyond its line discipline (the kernel's
+        buffers behind it) from the master's side: a reader holding the slave
+        exclusively (``TIOCEXCL``: gpsd, uucp) cannot be opened, and its full pty took
+        no more writes, so on resuming it read the pty's capacity of the oldest data
+        and none of the newest. Its line discipline's 4 KiB (:data:`LDISC_BUF`) of old
+        data stay."""
+        try:
+            termios.tcflush(self.master, termios.TCOFLUSH)
+        except (OSError, termios.error):
+            return False
         self.flushes += 1
         return True
 

@@ -2,7 +2,8 @@
 
 Requests are one JSON object per line, ``{"cmd": "status"}``, ``{"cmd": "freeze"}``,
 ``{"cmd": "learn", "on": true}``, ``{"cmd": "reset", "port": "emlog1"}``; each gets
-one JSON line back, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``.
+one JSON line back, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``. The
+client's end of file (a half-close) ends its last request as a newline does.
 
 No client can knock the server over: every line gets an answer whatever it holds
 (any JSON type or nesting, unknown or duplicate keys, wrong types, invalid UTF-8); a
@@ -229,6 +230,10 @@ class ControlServer:
         commands: the commands this socket takes (``("status",)``: read-only).
         on_event: called as ``on_event(kind, detail)`` for what is worth a log line.
         monotonic: the clock of idle timeouts and pauses.
+        wait: a path where the socket cannot be made (a regular file there) is logged
+            (``control_socket_path``) and the socket made by the path check once it can
+            be; without it, that is a ``DeviceError``. Another process listening there is
+            a ``DeviceError`` either way.
 
     Call :meth:`housekeep` now and then (idle clients, the end of a pause).
 
@@ -246,6 +251,7 @@ class ControlServer:
         commands: Sequence[str] = COMMANDS,
         on_event: Callable[[str, str], None] | None = None,
         monotonic: Callable[[], float] = time.monotonic,
+        wait: bool = False,
     ) -> None:
         self.path = Path(path)
         self.handler = handler
@@ -279,7 +285,13 @@ class ControlServer:
                 self.path.unlink()  # stale: left by a process that died
             self.sock, self._ident = self._bind()
         except OSError as exc:
-            raise DeviceError(f"control socket {self.path}: {exc.strerror or exc}") from None
+            if not wait:
+                raise DeviceError(f"control socket {self.path}: {exc.strerror or exc}") from None
+            # not listening: bound by the path check once the path is free
+            self.sock, self._ident = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM), (-1, -1)
+            why = f"cannot be made: {exc.strerror or exc}; tried again every {PATH_CHECK_S:g} s"
+            self._path_trouble(why)
+            return
         selector.register(self.sock, selectors.EVENT_READ, self._accept)
 
     def _bind(self) -> tuple[socket.socket, tuple[int, int]]:
@@ -421,10 +433,14 @@ class ControlServer:
             data = None
         except OSError:
             data = b""
-        if data == b"":
-            self._drop(conn)
-            return
         client = self.clients[conn]
+        if data == b"":
+            if not client.buf.strip():
+                self._drop(conn)
+                return
+            # the end of file ends the last request (``printf '{"cmd":"status"}' | socat
+            # - UNIX-CONNECT:…``): answered, then closed once it is sent and read again
+            data = b"\n"
         now = self.monotonic()
         buf = client.buf
         buf += data or b""

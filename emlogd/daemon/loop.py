@@ -41,8 +41,8 @@ from emlogd.daemon.configload import ConfigLoad, why_not_loaded
 from emlogd.daemon.control import COMMANDS, ControlServer
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
-from emlogd.daemon.outputs import Outputs
-from emlogd.daemon.statefile import StateStore, max_state_bytes, same_records
+from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
+from emlogd.daemon.statefile import STATE_RETRY_S, StateStore, max_state_bytes, same_records
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import build_pipeline, pipeline_from_config
@@ -137,6 +137,7 @@ class Daemon:
         self.persists = 0
         self._written: list[Calibration] | None = None
         """The records last written to the state file."""
+        self.retry_persist = math.inf  # when a failed save is tried again
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
@@ -215,7 +216,10 @@ class Daemon:
         self.pipeline = build_pipeline(cfg, cals, others)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
-        self.outputs.sync(cfg)
+        try:  # one that cannot be opened costs itself, tried again (Outputs.housekeep)
+            self.outputs.sync(cfg)
+        except DeviceError as exc:
+            self.log.error("outputs_failed", error=str(exc), retry_s=OUTPUT_RETRY_S)
         self._open_sources(cfg)
         self.started = True
 
@@ -250,10 +254,9 @@ class Daemon:
 
     def _sync_controls(self) -> None:
         """Open the control socket (and the read-only status socket) the config names,
-        keeping an open one whose path did not change.
-
-        A socket of a kind whose new one cannot be created is kept at its old path (a
-        reload naming an unusable path left the daemon with no control socket at all).
+        keeping an open one whose path did not change. A socket of a kind whose new one
+        cannot be created is kept at its old path (a reload naming an unusable path left
+        the daemon with no control socket at all).
 
         Raises:
             DeviceError: a socket cannot be created (the others are still synced).
@@ -274,6 +277,7 @@ class Daemon:
                     commands=("status",) if read_only else COMMANDS,
                     on_event=lambda k, d: self.log.warning(k, detail=d),
                     monotonic=self.monotonic,
+                    wait=not self.started,  # at a start, a file in the way costs the socket
                 )
             except DeviceError as exc:
                 failed = exc
@@ -341,6 +345,8 @@ class Daemon:
         for server in self.controls.values():
             server.housekeep()
         self.outputs.housekeep()
+        if self.monotonic() >= self.retry_persist:
+            self._persist()
         self.unused.log(self.log, self.monotonic())
         flush_log(0.0)  # log lines a slow reader left behind
         self._tick()
@@ -496,6 +502,7 @@ class Daemon:
         removed or replaced since the last save is written again.
         """
         assert self.pipeline is not None and self.store is not None
+        self.retry_persist = math.inf
         snaps = self.pipeline.calibrations()
         if not snaps:
             return None
@@ -511,6 +518,7 @@ class Daemon:
             aside = self.store.save({s.uut: s for s in snaps}, others)
         except EmlogdError as exc:
             self.state_errors += 1
+            self.retry_persist = self.monotonic() + STATE_RETRY_S
             self.log.error("state_write_failed", error=str(exc), final=final)
             return str(exc)
         if aside is not None:
@@ -633,11 +641,8 @@ class Daemon:
         A port, an output or the control socket whose settings are equal is kept as
         it is (same descriptor, same pty, same clients); a UUT whose settings are equal
         keeps its calibration object (:meth:`Pipeline.adopt`). A config that does not
-        load, or whose pipeline cannot be built, changes nothing.
-
-        Args:
-            loaded: the config as :class:`ConfigLoad` loaded it, or its failure;
-                None: load it now.
+        load, or whose pipeline cannot be built, changes nothing. ``loaded``: the config
+        as :class:`ConfigLoad` loaded it, or its failure; None: load it now.
         """
         if loaded is None:
             try:

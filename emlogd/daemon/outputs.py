@@ -3,7 +3,9 @@
 A reload keeps an output whose settings are equal as it is (same pty, same clients):
 outputs are keyed by the settings they were opened with. A log given outputs of its own
 (``calibration[].outputs``) writes its sentences there only; every other sentence goes
-to the shared outputs.
+to the shared outputs. An output that cannot be opened (a file at the pty's path) costs
+itself: the others open, and it is tried again every :data:`OUTPUT_RETRY_S`, its
+reason in the status meanwhile.
 """
 
 from __future__ import annotations
@@ -19,6 +21,9 @@ from emlogd.config import Config
 from emlogd.daemon.logsetup import CLIENT_EVENT_BURST, CLIENT_EVENTS, EventLimiter
 from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
 from emlogd.pipeline.core import Emit
+
+OUTPUT_RETRY_S = 2.0
+"""How often an output that could not be opened is tried again, s."""
 
 
 class Outputs:
@@ -38,6 +43,10 @@ class Outputs:
         self.monotonic = monotonic
         self.sinks: dict[tuple[object, ...], Sink] = {}
         """The open outputs, keyed by the settings they were opened with."""
+        self.failed: dict[tuple[object, ...], tuple[Callable[[], Sink], str]] = {}
+        """The outputs that could not be opened: how to open each, and why it failed."""
+        self.next_retry = 0.0
+        """When those are tried again (monotonic s)."""
         self.routes: dict[str, list[Sink]] = {}
         """The logs with outputs of their own, and those outputs."""
         self.shared: list[Sink] = []
@@ -131,26 +140,36 @@ class Outputs:
         for key in [k for k in self.sinks if k not in specs]:
             with contextlib.suppress(OSError):
                 self.sinks.pop(key).close()
+        self.failed = {k: v for k, v in self.failed.items() if k in specs}
+        opened, failed = self._open({k: m for k, m in specs.items() if k not in self.sinks})
+        if failed is not None:
+            raise failed
+        return closed, opened
+
+    def _open(
+        self, specs: dict[tuple[object, ...], Callable[[], Sink]]
+    ) -> tuple[list[str], DeviceError | None]:
+        """Open ``specs`` (each failure kept in :attr:`failed`, the others opened all the
+        same) and route the open outputs; the names opened, and the first failure."""
         opened: list[str] = []
         failed: DeviceError | None = None
         for key, make in specs.items():
-            if key not in self.sinks:
-                try:
-                    self.sinks[key] = sink = make()
-                except (DeviceError, OSError) as exc:
-                    failed = failed or (
-                        exc if isinstance(exc, DeviceError) else DeviceError(f"{key}: {exc}")
-                    )
-                    continue
-                opened.append(sink.name)
+            try:
+                self.sinks[key] = sink = make()
+            except (DeviceError, OSError) as exc:
+                error = exc if isinstance(exc, DeviceError) else DeviceError(f"{key}: {exc}")
+                self.failed[key] = (make, str(error))
+                failed = failed or error
+                continue
+            self.failed.pop(key, None)
+            opened.append(sink.name)
         self.routes = {}
         for key, sink in self.sinks.items():
             if key[0] == "uut":
                 self.routes.setdefault(str(key[1]), []).append(sink)
         self.shared = [s for k, s in self.sinks.items() if k[0] != "uut"]
-        if failed is not None:
-            raise failed
-        return closed, opened
+        self.next_retry = self.monotonic() + OUTPUT_RETRY_S
+        return opened, failed
 
     def close(self) -> None:
         """Close every output."""
@@ -158,11 +177,17 @@ class Outputs:
             with contextlib.suppress(OSError):
                 sink.close()
         self.sinks.clear()
+        self.failed.clear()
 
     def housekeep(self) -> None:
-        """Each output's periodic work: retries, and a TCP output's checks of its clients."""
+        """Each output's periodic work: retries, and a TCP output's checks of its clients;
+        the outputs that could not be opened tried again when due."""
         for sink in self.sinks.values():
             sink.housekeep()
+        if self.failed and self.monotonic() >= self.next_retry:
+            opened, _ = self._open({k: make for k, (make, _) in self.failed.items()})
+            for name in opened:
+                self.log.info("output_opened", output=name)
 
     def deliver(self, emits: list[Emit]) -> None:
         """Write sentences to their outputs: a log with outputs of its own writes there,
@@ -187,5 +212,10 @@ class Outputs:
                 sink.write(data)
 
     def status(self) -> dict[str, dict[str, object]]:
-        """Per output: its counters and ``state`` (``open``, or why not)."""
-        return {s.name: {**s.counters.as_dict(), "state": s.state} for s in self.sinks.values()}
+        """Per output: its counters and ``state`` (``open``, or why not); an output that
+        could not be opened, named by its key, ``state`` why."""
+        doc = {s.name: {**s.counters.as_dict(), "state": s.state} for s in self.sinks.values()}
+        for key, (_, why) in self.failed.items():
+            kind, dest = (key[2], key[3]) if key[0] == "uut" else (key[0], key[1])
+            doc[f"{kind}:{dest}"] = {"state": f"not open: {why}"}
+        return doc

@@ -9,10 +9,11 @@ No TCP client holds the output hostage (:class:`TcpServerSink`, limits in
 kernel's send queue) exceeds a bound is closed (``client_too_slow``), and so is one
 that has taken nothing for :attr:`TcpLimits.stall_s` while output was pending
 (``client_stalled``); at the client limit a newcomer is let in and an existing
-client goes (``client_evicted``): the one that has been stalled longest, else the
-most recently connected (a burst of connections takes one slot over and over, never
-the long-standing readers'). Such a close is a reset: what is queued for the client
-is discarded (a FIN would wait behind it, and so would the kernel's memory). The
+client goes (``client_evicted``): one that ended its sending, else the one that has
+been stalled longest, else the most recently connected (a burst of connections takes
+one slot over and over, never the long-standing readers'). Such a close is a reset:
+what is queued for the client is discarded (a FIN would wait behind it, and so would
+the kernel's memory). The
 kernel acknowledges whatever fits in a client's receive buffer, read or not: a
 client that never reads is noticed once that buffer is full.
 
@@ -91,6 +92,12 @@ retransmission, 1 s, when the backlog was full)."""
 TCP_INPUT_RATE = 1024.0
 """Bytes/s a TCP client's input budget refills at: a client that echoes a few sentences
 now and then stays; one that sends faster is closed once its burst is spent."""
+
+TCP_ENDED_QUIET_S = 2.0
+"""How long a TCP client that ended its sending (read returned end of file) is kept
+while nothing is sent to it: a half-closed reader is served as long as output flows, a
+peer gone for good is noticed at the second write after its close (reset), or after
+this long without output."""
 
 RETRY_S = (1.0, 2.0, 5.0, 10.0, 30.0)
 """Delays between attempts to bind a TCP output or resolve a UDP destination."""
@@ -343,6 +350,7 @@ class _Client:
         "backlog",
         "connected",
         "delivered",
+        "ended",
         "heard",
         "progress",
         "queued",
@@ -364,6 +372,9 @@ class _Client:
         """Bytes the client may still send (refilled at :data:`TCP_INPUT_RATE`)."""
         self.heard = now
         """When the allowance was last counted."""
+        self.ended: float | None = None
+        """When the client ended its sending, or last had output sent after (None: it
+        has not ended it)."""
 
     def check(self, now: float) -> int:
         """Read the send queue: note progress; return the pending bytes."""
@@ -452,7 +463,9 @@ class TcpServerSink:
         self._next_check = now + TCP_CHECK_S
         for client in list(self.clients.values()):
             pending = client.check(now)
-            if pending > self.limits.max_pending_bytes:
+            if client.ended is not None and now - client.ended > TCP_ENDED_QUIET_S:
+                self._drop(client, "client_disconnected")
+            elif pending > self.limits.max_pending_bytes:
                 self._drop(client, "client_too_slow")
             elif now - client.progress > self.limits.stall_s:
                 self._drop(client, "client_stalled")
@@ -520,9 +533,13 @@ class TcpServerSink:
         self._note("client_connected", str(addr))
 
     def _eviction_candidate(self, now: float) -> _Client:
-        """The client to close for a newcomer: the one stalled longest among those with
-        output pending that took nothing since the last check (a reader with bytes in
-        flight took some), else the most recently connected."""
+        """The client to close for a newcomer: the one that ended its sending first (it
+        may be gone), else the one stalled longest among those with output pending that
+        took nothing since the last check (a reader with bytes in flight took some), else
+        the most recently connected."""
+        ended = [c for c in self.clients.values() if c.ended is not None]
+        if ended:
+            return min(ended, key=lambda c: c.connected)
         stalled = [c for c in self.clients.values() if c.check(now) > 0 and c.progress < now]
         if stalled:
             return min(stalled, key=lambda c: (c.progress, c.connected))
@@ -533,16 +550,21 @@ class TcpServerSink:
         self._accept()
 
     def _drain(self, client: _Client) -> None:
-        """A client sent something or hung up: discard input within the client's budget
-        (closed past it), notice the close."""
+        """A client sent something or ended its sending: discard input within the
+        client's budget (closed past it); at its end, stop reading it (end of file stays
+        readable) and serve it on (:data:`TCP_ENDED_QUIET_S`)."""
         try:
             data = client.sock.recv(TCP_INPUT_BURST)
         except (BlockingIOError, InterruptedError):
             return
         except OSError:
-            data = b""
-        if not data:
             self._drop(client, "client_disconnected")
+            return
+        if not data:
+            client.ended = self.monotonic()
+            if self.selector is not None:
+                with contextlib.suppress(KeyError, ValueError):
+                    self.selector.unregister(client.sock)
             return
         now = self.monotonic()
         refill = (now - client.heard) * TCP_INPUT_RATE
@@ -582,6 +604,8 @@ class TcpServerSink:
                 continue
             self.counters.bytes += sent
             client.queued += sent
+            if sent and client.ended is not None:
+                client.ended = self.monotonic()
             del buf[:sent]
             if len(buf) > self.limits.max_pending_bytes:
                 self._drop(client, "client_too_slow")

@@ -49,6 +49,11 @@ from emlogd.calfile import CalibrationFileError, dumps, loads_state
 from emlogd.fileio import fsync_dir, read_text_bounded, write_synced
 from emlogd.pipeline.calibration import Calibration
 
+STATE_RETRY_S = 30.0
+"""How long after a failed save (a full or read-only disk) the daemon tries it again, s,
+until one succeeds: what an operator froze or reset, or the learner persisted, reaches
+the disk once it can, not only at the stop."""
+
 MAX_STATE_BYTES = 256 * 1024
 """Longest state file read, bytes, for up to 16 UUTs (:data:`MAX_STATE_BYTES_PER_UUT`
 each past them). A longer file, or one that is not a regular file (a FIFO would block
@@ -214,6 +219,8 @@ class StateStore:
         tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
         try:
             d.mkdir(parents=True, exist_ok=True)
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()  # whatever is there: a FIFO would hold the open for a reader
             write_synced(tmp, data)
             aside = self._backup_current()
             tmp.replace(self.path)

@@ -71,7 +71,6 @@ from emlogd.pipeline.sentences import (
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.staleness import HEADING_NEAREST_S, Liveness
 from emlogd.pipeline.twoaxis_learn import TwoAxisLearner, encode_two_axis_status
-from emlogd.pipeline.twoaxis_sup import Figures
 from emlogd.pipeline.uut import UutCalibration
 
 FUSED_PORT = "fused"
@@ -216,11 +215,11 @@ class Pipeline:
 
     def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
         """A two-axis learner; the saved figures of a record its checks accept restored
-        (they validate again before they are applied)."""
+        (they validate again, early in the record's sea, before they are applied)."""
         ax = TwoAxisLearner(s, self._hooks(s.port)[1])
         saved = latest.two_axis if latest is not None else None
         if latest is not None and saved is not None and not check(latest, s.envelope, s.max_lag_s):
-            ax.sup.restore(Figures.from_dict(saved, latest.params.model))
+            ax.restore(latest)
         return ax
 
     def _new_cal(self, s: UutSettings, prior: Calibration | None) -> UutCalibration:

@@ -19,6 +19,12 @@ shares its lag (the UUT's, once known) and its heading.
   data cannot separate it — a straight run (the forward speed nearly constant), sway
   that follows the surge (the transverse scale not determined) — with the reason. A
   window whose cheap rules (spreads, heading sectors) already refuse α is not fitted.
+  The rule's bound on α's σ (``max_std_misalign_deg``, 0.25°) holds for the σ the fit
+  reports too, its residuals' correlation counted: a window the model does not fit
+  (on a held-out trial with its DVL's bottom lost for minutes, every other fit of the
+  figure-8 gave ±0.36–1.19°, 0.5–1.7° off, between fits at ±0.14–0.25° within 0.15°
+  of the truth) is refused with that reason, and a noisier estimate never replaces
+  the figures in use.
 - An estimate that determines α, ``m_t`` and ``b_t`` is offered to the two-axis
   supervisor (:mod:`emlogd.pipeline.twoaxis_sup`), which applies it to the VBW only
   once its athwart speed is not worse than raw; a refusal keeps what was learnt. With
@@ -48,6 +54,7 @@ from calib.models import check_model
 from calib.twoaxis import (
     ALPHA,
     B_T,
+    DEFAULT_TWO_AXIS_RULE,
     M_T,
     TwoAxisFit,
     TwoAxisSeries,
@@ -56,6 +63,7 @@ from calib.twoaxis import (
 )
 from drivers.framing import with_checksum
 from emlogd.pipeline.align import SampleRing
+from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.integrity import emitted_speed
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor, lon_of_fit
@@ -160,6 +168,18 @@ class TwoAxisLearner:
         """Offline use (``replay --truth``): receives every VBW reading as ``(t, forward
         corrected by the one-axis calibration, raw forward, raw athwart, figures
         applied)``."""
+
+    def restore(self, rec: Calibration) -> None:
+        """The figures of a state file's record (its ``two_axis``, checked), restored
+        with the sea saved with it when it has one (the early evidence of
+        :meth:`TwoAxisSupervisor.restore`)."""
+        if rec.two_axis is None:
+            return
+        sea = rec.current_mps if rec.current else None
+        self.sup.restore(
+            Figures.from_dict(rec.two_axis, rec.params.model),
+            (*sea, rec.t) if sea is not None else None,
+        )
 
     # -- inputs -------------------------------------------------------------
 
@@ -341,6 +361,16 @@ class TwoAxisLearner:
         sa, sm, sb = std.get("misalign_deg"), std.get(M_T), std.get(B_T)
         if sa is None or sm is None or sb is None:
             self._refuse(t, "two-axis fit gave no standard errors")
+            return
+        bound = DEFAULT_TWO_AXIS_RULE.max_std_misalign_deg
+        if sa > bound:
+            self._refuse(
+                t,
+                f"misalignment not determined closely enough in this window: ±{sa:.2f}° "
+                f"once its residuals' correlation is counted (one independent residual "
+                f"in {fit.correlation:.1f}), above {bound:.2f}°: the model does not fit "
+                "the window as well as its information says",
+            )
             return
         lon = lon_of_fit(p.model, p.longitudinal, std)
         self.estimate = Figures(p.misalign_deg, sa, p.m_t, sm, p.b_t_mps, sb, t, lon)

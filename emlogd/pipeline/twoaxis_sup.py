@@ -37,7 +37,23 @@ returns only where the one-axis one is worse than it by the margin (the recheck 
 evidence against it). Set aside for want of the one-axis supervisor's word (its
 fallback, :meth:`emlogd.pipeline.twoaxis_learn.TwoAxisLearner.answers`), which is no
 evidence against it, it returns at the next recheck by the rule it was first applied
-by.
+by. A tie goes to the figures' own, by physics: the two-axis fit determines the
+forward scale and offset with the current seen on both axes, where the one-axis fit
+trades them with the current wherever the headings are few, and a current of its own
+over the window hides an offset from this judgement. The one-axis calibration's
+forward speed reads below the figures' own only through its noise: at one speed (a
+straight run) any correction fits the offset, and one whose scale is nearer 0
+divides the reading's noise by less (the ratio ``(1 + m_own)/(1 + m_one)``, 2–3 % on
+the straight runs after a restart where the one-axis fit held its scale).
+
+**Restored figures early.** Figures restored with the sea of their state file (the
+current saved with the one-axis calibration, at most
+:data:`~emlogd.pipeline.revalidation.RESTORE_SEA_MAX_AGE_S` old) are applied on the
+first :data:`~emlogd.pipeline.revalidation.RESTORE_EARLY_SAMPLES` blocks when, against
+the reference less that current across the hull, raw's athwart speed is worse than
+theirs (:func:`~emlogd.pipeline.revalidation.worse`): the one-axis supervisor's rule
+for its restored calibration. They are validated in place over the rest of the window
+and withdrawn when that fails; with any other evidence raw passes meanwhile.
 
 No I/O, no clock.
 """
@@ -54,7 +70,12 @@ import numpy.typing as npt
 from calib.errors import ModelError
 from calib.models import PARAM_NAMES, Params, check_model, correct_array
 from emlogd.pipeline.calibration import TWO_AXIS_LON_KEYS
-from emlogd.pipeline.revalidation import RESTORE_VALIDATION_S, worse
+from emlogd.pipeline.revalidation import (
+    RESTORE_EARLY_SAMPLES,
+    RESTORE_SEA_MAX_AGE_S,
+    RESTORE_VALIDATION_S,
+    worse,
+)
 
 OFFER_MIN_CHANGE_SIGMA = 1.0
 """A new estimate is validated against the figures in use only when one of α, m_t, b_t
@@ -305,13 +326,25 @@ class TwoAxisSupervisor:
         """The figures' own forward speed was set aside by a recheck that found it worse:
         it returns only where the one-axis one is worse than it by the margin."""
 
-    def restore(self, figures: Figures) -> None:
+        self.sea: tuple[float, float, float] | None = None
+        """The restored figures' saved current (north, east, m/s) and its time, s, while
+        their early evidence is gathered (module docstring); None otherwise."""
+        self._sea_sums = [0.0, 0.0, 0]
+        """Over the restored figures' first blocks: raw's and their squared athwart error
+        in the saved sea, and how many blocks."""
+        self.early = False
+        """The applied figures are restored ones applied early, validating in place."""
+
+    def restore(self, figures: Figures, sea: tuple[float, float, float] | None = None) -> None:
         """Figures from the state file: the last good ones, a candidate that
-        validates before it is applied, over the restored window (module docstring)."""
+        validates before it is applied, over the restored window; ``sea``: the current
+        saved with them (north, east, m/s) and its time, s, the early evidence's
+        (module docstring)."""
         self.kept = figures
         self.offer(figures)
         if self.candidate is figures:
             self._window = min(RESTORE_VALIDATION_S, self.validation_s)
+            self.sea = sea
 
     def offer(self, figures: Figures) -> None:
         """A new estimate from the learner: validated unless it is the figures in use
@@ -322,6 +355,7 @@ class TwoAxisSupervisor:
         self.candidate = figures
         self._cand_blocks = []
         self._window = self.validation_s
+        self.sea = None
 
     def observe(self, block: Block) -> None:
         """One block mean learnt from: the candidate's validation, the applied
@@ -329,6 +363,8 @@ class TwoAxisSupervisor:
         t = block[0]
         if self.candidate is not None and t > self.candidate.t:
             self._cand_blocks.append(block)
+            if self.sea is not None:
+                self._early_evidence(block)
             if t - self._cand_blocks[0][0] >= self._window:
                 self._judge_candidate(t)
         if self.applied is not None:
@@ -336,9 +372,51 @@ class TwoAxisSupervisor:
             if t - self._recheck[0][0] >= self.recheck_s:
                 self._judge_applied(t)
 
+    def _early_evidence(self, block: Block) -> None:
+        """One of the restored figures' first blocks in their saved sea: applied once
+        raw is worse than them there (module docstring)."""
+        sea, cand = self.sea, self.candidate
+        assert sea is not None and cand is not None
+        t, fwd, raw_t, gs, hd = block[:5]
+        if not 0.0 <= t - sea[2] <= RESTORE_SEA_MAX_AGE_S:
+            self.sea = None
+            return
+        psi = math.radians(hd)
+        across = sea[0] * math.sin(psi) - sea[1] * math.cos(psi)  # w − gs of the current
+        sums = self._sea_sums
+        sums[0] += (raw_t - gs - across) ** 2
+        sums[1] += (_athwart(cand, fwd, raw_t) - gs - across) ** 2
+        sums[2] += 1
+        n = sums[2]
+        if n < RESTORE_EARLY_SAMPLES:
+            return
+        self.sea = None
+        r_raw, r_cand = math.sqrt(sums[0] / n), math.sqrt(sums[1] / n)
+        if self.applied is not None or not worse(r_raw, r_cand):
+            return
+        self.applied = cand
+        self.early = True
+        self._recheck = []
+        self.note = "restored two-axis figures applied on their first blocks: validating"
+        self._event(
+            t,
+            "two_axis_applied",
+            {
+                "misalign_deg": round(cand.misalign_deg, 3),
+                "rmse_t_raw_saved_sea": round(r_raw, 4),
+                "rmse_t_candidate_saved_sea": round(r_cand, 4),
+                "blocks": n,
+                "kind": "restored-early",
+                "forward": FORWARD_ONE_AXIS,
+            },
+        )
+
     def _judge_candidate(self, t: float) -> None:
         cand = self.candidate
         assert cand is not None
+        early, self.early = self.early and self.applied is cand, False
+        if early:
+            self.applied = None  # judged as the candidate it still is
         blocks, self._cand_blocks, self.candidate = self._cand_blocks, [], None
         r_raw, r_cand = athwart_rmse(blocks, None), athwart_rmse(blocks, cand)
         r_app = athwart_rmse(blocks, self.applied) if self.applied is not None else math.nan
@@ -350,6 +428,8 @@ class TwoAxisSupervisor:
         }
         if worse(r_cand, r_raw):
             self.note = "two-axis figures rejected: athwart worse than raw"
+            if early:
+                self.note = "restored two-axis figures withdrawn: athwart worse than raw"
             self._event(t, "two_axis_rejected", detail | {"why": self.note})
             return
         if self.applied is not None and worse(r_cand, r_app):
@@ -403,3 +483,8 @@ class TwoAxisSupervisor:
         ):
             self.forward_own = True
             self._event(t, "two_axis_forward_applied", detail)
+
+
+def _athwart(figures: Figures, forward_mps: float, athwart_mps: float) -> float:
+    """The athwart speed ``figures`` give (:meth:`Figures.hull_frame`'s), m/s."""
+    return figures.hull_frame(forward_mps, athwart_mps)[1]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from calib.errors import DataError
-from calib.lag import CURRENT_BLOCK_S, _Blocks, estimate_lag
+from calib.lag import CURRENT_BLOCK_S, CurrentBlocks, estimate_lag
 from calib.lagscan import _adjusted, scan_lags
 
 _KNOTS = np.random.default_rng(11).uniform(1.0, 4.0, 200)
@@ -71,7 +71,7 @@ def test_a_lag_is_not_favoured_by_fewer_readings() -> None:
     the plain fit's R² would sit near 11/30 (fewer readings at a lag would look better)."""
     rng = np.random.default_rng(3)
     t = np.arange(30.0) * 21.0
-    blocks = _Blocks(t, CURRENT_BLOCK_S)
+    blocks = CurrentBlocks(t, CURRENT_BLOCK_S)
     r2 = []
     for _ in range(200):
         psi = rng.uniform(0.0, 2.0 * np.pi, t.size)

@@ -138,6 +138,7 @@ INVALID: list[tuple[str, str, str]] = [
     ("status socket at the control socket", BASE + "control_socket: run/c.sock\nstatus_socket: run/./c.sock\n", "status_socket: the same path as control_socket"),
     ("pty at the state file", BASE + "state_file: /var/lib/emlogd/s\noutputs: {pty: /var/lib/emlogd/s}\n", "outputs.pty: the same path as state_file"),
     ("a log's pty the shared one", BASE.replace("reference: dvl}", "reference: dvl, pty: /run/e0}") + "outputs: {pty: /run/e0}\n", "calibration[0].pty: the same path as outputs.pty"),
+    ("a port reading the output pty", BASE.replace("/dev/dvl", "/run/e0") + "outputs: {pty: /run/e0}\n", "ports[1].url: the same place as outputs.pty (/run/e0): a port cannot read the daemon's own output"),
     ("a log's tcp the shared one", BASE.replace("reference: dvl}", "reference: dvl, tcp: '127.0.0.1:10110'}") + "outputs: {tcp: '127.0.0.1:10110'}\n", "outputs.tcp: each TCP output must listen on its own port"),
     ("a log's tcp on a wildcard's port", BASE.replace("reference: dvl}", "reference: dvl, tcp: '127.0.0.1:10110'}") + "outputs: {tcp: ':10110'}\n", "outputs.tcp: each TCP output must listen on its own port"),
     ("udp host name", BASE + "outputs: {udp: 'display.local:10110'}\n", "outputs.udp: 'display.local:10110': needs an IPv4 address, not a host name"),

@@ -70,3 +70,56 @@ def test_two_ptys_through_a_symlinked_directory_clash(tmp_path: Path) -> None:
     for name in ("x", "y"):
         (tmp_path / "run" / name).symlink_to("/dev/null")
     assert with_ptys(tmp_path / "run" / "x", tmp_path / "run" / "y") == ("", "", "")
+
+
+def test_a_port_reading_an_output_pty_is_named(tmp_path: Path) -> None:
+    """A port whose device is the output pty's link, a link to that link, or the control
+    socket is refused naming the port (the daemon read its own corrected VHW as a second
+    log's readings and sent them on as that log's); two ports on one device and a port
+    beside the outputs pass."""
+    good = parse_config(CONFIG)
+    (tmp_path / "links").mkdir()
+    (tmp_path / "links" / "relay").symlink_to("../out/emlog0")
+    (tmp_path / "links" / "relay2").symlink_to(tmp_path / "links" / "relay")
+    outputs = dataclasses.replace(good.outputs, pty=str(tmp_path / "out" / "emlog0"))
+
+    def with_url(url: str, port: int = 1) -> tuple[str, str, str]:
+        ports = list(good.ports)
+        ports[port] = dataclasses.replace(ports[port], url=url)
+        return path_clash(dataclasses.replace(good, ports=tuple(ports), outputs=outputs))
+
+    for url in ("out/emlog0", "out/./emlog0", "links/relay", "links/relay2"):
+        why, key, section = with_url(str(tmp_path / url))
+        assert (key, section) == ("ports[1].url", "ports"), url
+        assert why.startswith("the same place as outputs.pty"), why
+    why, key, _ = with_url("/run/emlogd/control.sock", 0)
+    assert key == "ports[0].url" and "as control_socket" in why
+    assert with_url("/dev/emlog1") == ("", "", "")
+    assert with_url(str(tmp_path / "links" / "other")) == ("", "", "")
+    assert with_url("socket://127.0.0.1:10112") == ("", "", "")
+
+
+def test_a_socket_input_on_a_tcp_output_of_this_host_is_named() -> None:
+    """A ``socket://`` input on the port of a TCP output, by a loopback address or the
+    output's own, is refused naming the input and the output (the daemon read its own
+    sentences back as a sensor's); another address on that port (a multiplexer on the
+    usual 10110) and a loopback address on another port pass."""
+    good = parse_config(CONFIG)  # outputs.tcp ":10110"
+    uut = good.calibration[0]
+    own = dataclasses.replace(uut, outputs=dataclasses.replace(uut.outputs, tcp="10.1.1.1:10111"))
+
+    def with_url(url: str) -> tuple[str, str, str]:
+        ports = (good.ports[0], dataclasses.replace(good.ports[1], url=url))
+        return path_clash(dataclasses.replace(good, ports=ports, calibration=(own,)))
+
+    for url, output in (
+        ("socket://127.0.0.1:10110", "outputs.tcp"),
+        ("SOCKET://127.0.0.2:10110", "outputs.tcp"),
+        ("socket://[::1]:10110", "outputs.tcp"),
+        ("socket://10.1.1.1:10111", "calibration[0].tcp"),
+    ):
+        why, key, section = with_url(url)
+        assert (key, section) == ("ports[1].url", "ports"), url
+        assert why.startswith(f"the same place as {output}"), why
+    for url in ("socket://192.168.1.10:10110", "socket://127.0.0.1:10112", "/dev/dvl"):
+        assert with_url(url) == ("", "", ""), url

@@ -11,7 +11,7 @@ import pytest
 
 from drivers import DeviceError
 from drivers.io.capture import CaptureReader
-from drivers.io.record import PortSpec, record
+from drivers.io.record import MAX_PARTIAL_BYTES, PortSpec, record
 
 
 def test_text_lines_and_binary_chunks_are_stored_with_receive_times(
@@ -99,3 +99,32 @@ def test_a_wall_clock_stepped_back_moves_no_stamp(
     assert len(recs) == 2
     assert recs[0].t >= start
     assert recs[1].t - recs[0].t == pytest.approx(0.3, abs=0.2)
+
+
+def test_a_text_port_that_never_ends_its_line_is_stored_in_bounded_chunks(
+    pty_pair: tuple[int, int, str], tmp_path: Path
+) -> None:
+    """A text port sending 256 KiB without a newline (garbage, a wrong baud rate) in
+    64-byte writes, then a sentence: the capture replays the very bytes sent, and no
+    record holds more than a read past MAX_PARTIAL_BYTES. The unended line was held whole
+    and copied at every read: memory without bound, each read's cost growing with it
+    (20 s of 32 KB/s in 64-byte writes cost 4.7 s of CPU, 0.6 s now)."""
+    master, _slave, path = pty_pair
+    out = tmp_path / "rec.cap"
+    garbage = bytes(range(11, 75)) * 4096  # no newline: 256 KiB
+    sentence = b"$VWVHW,,T,,M,3.50,N,6.48,K*6A\r\n"
+
+    def talk() -> None:
+        time.sleep(0.2)
+        for i in range(0, len(garbage), 64):
+            os.write(master, garbage[i : i + 64])
+        os.write(master, sentence)
+
+    writer = threading.Thread(target=talk)
+    writer.start()
+    counts = record([PortSpec("log", path, 115200, "nmea0183")], out, duration_s=3.0)
+    writer.join()
+    recs = list(CaptureReader(out))
+    assert b"".join(r.data for r in recs) == garbage + sentence
+    assert max(len(r.data) for r in recs) <= MAX_PARTIAL_BYTES + 4096  # a read past it
+    assert counts == {"log": len(recs)}

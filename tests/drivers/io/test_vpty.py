@@ -5,8 +5,11 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import shutil
 import stat
 import struct
+import subprocess
+import sys
 import termios
 import time
 from pathlib import Path
@@ -14,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from drivers.errors import DeviceError
-from drivers.io.vpty import DRAIN_BYTES, VirtualPort
+from drivers.io.vpty import DRAIN_BYTES, LDISC_BUF, VirtualPort
 
 
 def _open(link: Path) -> int:
@@ -117,6 +120,52 @@ def test_a_stalled_reader_resumes_with_recent_data(tmp_path: Path) -> None:
     # discipline, never the old backlog (without the limit: sentence 0 onwards)
     first = int(got[got.index(b"$") :].split(b",")[5])
     assert first >= 19_000, first
+
+
+EXCLUSIVE_READER = """
+import fcntl, os, sys, termios
+from pathlib import Path
+from drivers.io.vpty import VirtualPort
+link = Path(sys.argv[1])
+with VirtualPort(link, max_backlog=2048) as vp:
+    fd = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+    fcntl.ioctl(fd, termios.TIOCEXCL)
+    for k in range(20_000):
+        vp.write(b"$VWVHW,,T,,M,%05d,N,,K*00\\r\\n" % k)
+    got = b""
+    while True:
+        try:
+            chunk = os.read(fd, 65536)
+        except BlockingIOError:
+            break
+        got += chunk
+    print(len(got), got.split(b"\\r\\n")[-2].decode())
+"""
+"""A writer whose reader holds the slave exclusively (``TIOCEXCL``) and reads only after
+20 000 sentences: prints the bytes it read and the last sentence."""
+
+
+def test_a_stalled_reader_holding_the_pty_exclusively_resumes_with_recent_data(
+    tmp_path: Path,
+) -> None:
+    """A reader that sets ``TIOCEXCL`` on the slave (gpsd, uucp: no other process may open
+    it, so the writer's own check cannot) and stalls for 20 000 sentences: it resumes
+    with at most the line discipline's 4 KiB of old data and the pty's capacity of
+    recent data, the last sentence included (the pty flushed from the master's side).
+    Nothing trimmed its backlog: the full pty took no more, and the reader got the
+    20 KB written as it stalled, sentence 1 to 1021, none of the newest. Run without
+    ``CAP_SYS_ADMIN`` (root opens an exclusive tty all the same)."""
+    argv = [sys.executable, "-c", EXCLUSIVE_READER, str(tmp_path / "p")]
+    if os.geteuid() == 0:
+        setpriv = shutil.which("setpriv")
+        if setpriv is None:
+            pytest.skip("root without setpriv: an exclusive tty opens all the same")
+        argv = [setpriv, "--bounding-set=-sys_admin", *argv]
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[3])}
+    done = subprocess.run(argv, capture_output=True, check=True, env=env, timeout=60)
+    size, last = done.stdout.decode().split()
+    assert last == "$VWVHW,,T,,M,19999,N,,K*00", done.stdout
+    assert int(size) <= LDISC_BUF + 20 * 1024
 
 
 def test_a_live_reader_loses_nothing(tmp_path: Path) -> None:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from drivers.errors import DeviceError
 from emlogd.client import request
 from emlogd.daemon.control import (
     MAX_CLIENTS,
@@ -254,6 +255,26 @@ def _ask(sync: _Sync, path: Path) -> bytes:
         return s.recv(4096)
 
 
+def test_a_request_ended_by_the_end_of_file_is_answered(sync: _Sync, tmp_path: Path) -> None:
+    """A request without its newline, the client then ending its sending (``printf
+    '{"cmd":"status"}' | socat - UNIX-CONNECT:…``), is answered and the connection
+    closed; an end of file after nothing, or after blanks, closes it with no answer.
+    The request was dropped with the connection: the operator got nothing."""
+    for sent, answer in (
+        (b'{"cmd": "status"}', b'{"ok": true, "echo": "status"}\n'),
+        (b'{"cmd": "freeze"}\n{"cmd": "learn"}', b'"echo": "learn"}\n'),
+        (b"", b""),
+        (b"  ", b""),
+    ):
+        with _connect(tmp_path / "s.sock") as s:
+            s.sendall(sent)
+            s.shutdown(socket.SHUT_WR)
+            sync.pump(0.1)
+            got = _rest(s)
+        assert got.endswith(answer) and bool(got) == bool(answer), (sent, got)
+    assert not sync.server.clients
+
+
 def test_a_removed_socket_file_is_made_again(sync: _Sync, tmp_path: Path) -> None:
     """The socket file removed under the running server (by hand, a clean-up of the run
     directory): within PATH_CHECK_S it is bound again and answers, a client connected
@@ -395,4 +416,44 @@ def test_a_status_asked_by_many_at_once_is_built_once(tmp_path: Path) -> None:
             s.close()
     finally:
         server.close()
+        sel.close()
+
+
+def test_a_server_told_to_wait_makes_its_socket_once_the_path_is_free(tmp_path: Path) -> None:
+    """A regular file at the path: without ``wait`` a ``DeviceError``; with it the server
+    says why (``control_socket_path``), answers nothing, and makes its socket at the path
+    check after the file is gone, then answers. Another live server's socket at the path
+    is a ``DeviceError`` either way."""
+    path = tmp_path / "c.sock"
+    path.write_text("not a socket")
+    sel = selectors.DefaultSelector()
+    clock = _Clock()
+    notes: list[tuple[str, str]] = []
+    with pytest.raises(DeviceError, match="Address already in use"):
+        ControlServer(path, lambda req: {}, sel, monotonic=clock)
+    srv = ControlServer(
+        path,
+        lambda req: {"echo": req["cmd"]},
+        sel,
+        monotonic=clock,
+        on_event=lambda k, d: notes.append((k, d)),
+        wait=True,
+    )
+    try:
+        assert [k for k, _ in notes] == ["control_socket_path"] and "cannot be made" in notes[0][1]
+        path.unlink()
+        clock.t += PATH_CHECK_S
+        srv.housekeep()
+        assert path.is_socket() and notes[-1][0] == "control_socket_restored"
+        with pytest.raises(DeviceError, match="in use by another process"):
+            ControlServer(path, lambda req: {}, sel, monotonic=clock, wait=True)
+        with _connect(path) as s:
+            s.sendall(b'{"cmd": "status"}\n')
+            for key, _ in sel.select(timeout=1.0):
+                key.data()
+            for key, _ in sel.select(timeout=1.0):
+                key.data()
+            assert s.recv(4096) == b'{"ok": true, "echo": "status"}\n'
+    finally:
+        srv.close()
         sel.close()

@@ -3,14 +3,17 @@ are equal, and each sentence routed to its log's own outputs or the shared ones.
 
 from __future__ import annotations
 
+import dataclasses
 import selectors
 import socket
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
+from drivers.errors import DeviceError
 from emlogd.config import Config, parse_config
-from emlogd.daemon.outputs import Outputs
+from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
 from emlogd.pipeline.core import Emit
 
 
@@ -135,3 +138,38 @@ def test_a_logs_own_tcp_output_without_a_shared_one_opens() -> None:
     finally:
         outputs.close()
         sel.close()
+
+
+def test_an_output_that_cannot_be_opened_is_tried_again(tmp_path: Path) -> None:
+    """A log's own pty whose path holds a regular file: the sync raises, the shared UDP
+    output is open all the same, the status says why the pty is not; tried again at
+    housekeeping once OUTPUT_RETRY_S has passed, it opens when the file is gone (and a
+    reload without it forgets it)."""
+    clock = [0.0]
+    outputs = Outputs(selectors.DefaultSelector(), _Log(), lambda: clock[0])
+    link = tmp_path / "e2"
+    link.write_text("kept")
+    with _receiver() as shared:
+        base = _config(shared.getsockname()[1], None)
+        uut = base.calibration[1]
+        own = dataclasses.replace(uut, outputs=dataclasses.replace(uut.outputs, pty=str(link)))
+        cfg = dataclasses.replace(base, calibration=(base.calibration[0], own))
+        try:
+            with pytest.raises(DeviceError, match="not a symlink"):
+                outputs.sync(cfg)
+            assert [s.name for s in outputs.shared] == [f"udp:127.0.0.1:{shared.getsockname()[1]}"]
+            assert "not a symlink" in str(outputs.status()[f"pty:{link}"]["state"])
+            link.unlink()
+            outputs.housekeep()  # not yet due
+            assert not link.exists()
+            clock[0] += OUTPUT_RETRY_S
+            outputs.housekeep()
+            assert link.is_symlink() and outputs.status()[f"pty:{link}"]["state"] == "open"
+            assert [s.name for s in outputs.routes["emlog2"]] == [f"pty:{link}"]
+            assert not outputs.failed
+            link.unlink()
+            link.write_text("again")
+            outputs.sync(base)  # without it: closed (its file left), nothing to retry
+            assert not outputs.failed and f"pty:{link}" not in outputs.status()
+        finally:
+            outputs.close()

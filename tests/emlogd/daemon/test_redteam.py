@@ -519,9 +519,9 @@ def test_a_reload_whose_pty_cannot_be_published_still_opens_the_other_outputs(
     tmp_path: Path,
 ) -> None:
     """SIGHUP into a config whose pty path cannot be published (under a file) and that adds
-    a UDP output after it: ``reload_outputs_failed`` for the pty, and the UDP output open
-    all the same. The pty's failure left every output after it closed until the next
-    reload."""
+    a UDP output after it: ``reload_outputs_failed`` for the pty (the status says why it
+    is not open), and the UDP output open all the same. The pty's failure left every
+    output after it closed until the next reload."""
     work = _work(tmp_path)
     d = Daemon(work)
     try:
@@ -534,7 +534,10 @@ def test_a_reload_whose_pty_cannot_be_published_still_opens_the_other_outputs(
         wait(lambda: d.events("reload_outputs_failed") == 1, "reload_outputs_failed", 10.0)
         outputs = d.ask(cmd="status")["outputs"]
         assert isinstance(outputs, dict)
-        assert sorted(outputs) == [f"tcp:127.0.0.1:{tcp_port(work)}", f"udp:{udp}"], outputs
+        pty = f"pty:{work / 'emlogd.yaml' / 'emlog0'}"
+        assert sorted(outputs) == [pty, f"tcp:127.0.0.1:{tcp_port(work)}", f"udp:{udp}"], outputs
+        assert outputs[f"udp:{udp}"]["state"] == "open"
+        assert str(outputs[pty]["state"]).startswith("not open: cannot publish")
         assert d.stop() == 0
     finally:
         d.kill()

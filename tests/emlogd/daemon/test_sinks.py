@@ -19,6 +19,7 @@ from emlogd.daemon.listen import AcceptBudget
 from emlogd.daemon.sinks import (
     TCP_BACKLOG_BYTES,
     TCP_CHECK_S,
+    TCP_ENDED_QUIET_S,
     TCP_INPUT_BURST,
     TCP_INPUT_RATE,
     THROTTLE_PAUSE_S,
@@ -163,7 +164,53 @@ def test_tcp_clients_receive_and_a_stuck_client_is_dropped() -> None:
         good.close()
         stuck.close()
         _pump(sel)
+        for _ in range(2):  # a client gone is noticed at the second write after its close
+            sink.write(LINE)
+            _pump(sel, 0.05)
         assert sink.counters.clients == 0
+
+
+def test_a_client_that_ends_its_sending_is_served_on() -> None:
+    """A reader that half-closes (``shutdown(SHUT_WR)``, ``nc -N``) keeps receiving for
+    as long as output flows, no longer watched for input; a peer closed for good is
+    closed at the second write after its close, or once nothing was sent to it for
+    TCP_ENDED_QUIET_S; at the client limit a client that ended its sending goes first.
+    A client's end of file closed it at once: the half-closed reader never got a
+    sentence."""
+    with _serving(TcpLimits(max_clients=3)) as (sink, sel, clock, notes, held):
+        half, gone, quiet = (socket.create_connection(sink.address) for _ in range(3))
+        held += [half, gone, quiet]
+        gone_name = str(gone.getsockname())
+        _pump(sel)
+        half.shutdown(socket.SHUT_WR)
+        gone.close()
+        _pump(sel)
+        assert sink.counters.clients == 3 and len(sel.get_map()) == 2  # listener, quiet
+        for _ in range(5):
+            clock.t += 1.0
+            sink.write(LINE)
+            _pump(sel, 0.05)
+            sink.housekeep()
+        half.settimeout(5)
+        assert _read_all(half) == 5 * len(LINE)
+        assert sink.counters.clients == 2
+        assert ("client_disconnected", gone_name) in notes
+        clock.t += TCP_ENDED_QUIET_S + TCP_CHECK_S  # no output: a half-close and a close
+        sink.housekeep()  # look alike; both closed once quiet this long
+        assert sink.counters.clients == 1
+        later = socket.create_connection(sink.address)
+        held.append(later)
+        _pump(sel)
+        later.shutdown(socket.SHUT_WR)
+        later_name = str(later.getsockname())
+        _pump(sel)
+        clock.t += 0.1
+        for _ in range(2):
+            held.append(socket.create_connection(sink.address))
+            clock.t += 0.1
+            _pump(sel)
+        assert sink.counters.evicted == 1 and sink.counters.clients == 3
+        assert ("client_evicted", later_name) in notes
 
 
 def _stuck_client(address: tuple[str, int]) -> socket.socket:

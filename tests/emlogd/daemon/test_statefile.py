@@ -10,6 +10,7 @@ import socket
 import stat
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -111,6 +112,24 @@ def test_failed_write_leaves_the_previous_file(tmp_path: Path) -> None:
         blocked.save({"emlog1": _state(0.2)})
     assert store.path.read_bytes() == before
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_a_fifo_at_the_temporary_path_does_not_hold_the_save(tmp_path: Path) -> None:
+    """A FIFO put where the save writes its temporary file (``.state.yaml.PID.tmp``, a
+    name anyone who can write the directory can tell): the save writes the state file
+    all the same, at once. Its open waited for a reader of the FIFO, for ever: the
+    daemon's one thread held, no output, no answer."""
+    store = StateStore(tmp_path / "state.yaml")
+    os.mkfifo(tmp_path / f".state.yaml.{os.getpid()}.tmp")
+    saving = threading.Thread(target=store.save, args=({"emlog1": _state(0.1)},), daemon=True)
+    saving.start()
+    saving.join(5.0)
+    if saving.is_alive():  # let the held save go: open the FIFO for reading
+        os.close(os.open(tmp_path / f".state.yaml.{os.getpid()}.tmp", os.O_RDONLY))
+        saving.join(5.0)
+        pytest.fail("the save waited on the FIFO")
+    assert store.load()[0]["emlog1"].estimate.params.m == 0.1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["state.yaml"]
 
 
 def test_a_directory_at_the_path_is_never_moved_aside(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@ them, and applied only once the athwart speed is not worse than raw."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pynmea2
@@ -11,7 +12,7 @@ import pytest
 
 from calib.estimate import Estimate
 from calib.models import Params
-from calib.twoaxis import TwoAxisParams
+from calib.twoaxis import TwoAxisParams, fit_two_axis
 from drivers.framing import with_checksum
 from drivers.records import KNOT_MPS as KNOT
 from emlogd.cli.common import two_axis_line
@@ -24,7 +25,7 @@ from emlogd.pipeline.twoaxis_learn import (
     encode_two_axis_status,
 )
 from emlogd.pipeline.twoaxis_sup import OFFER_SHARPER, Figures
-from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_trial
+from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_series, two_axis_trial
 
 SETTINGS = UutSettings(
     port="log", reference_port="dvl", uut_source="VBW", axes=2, current=True, validation_s=30.0
@@ -111,6 +112,30 @@ def test_the_figures_applied_follow_the_sharpest_estimate(
     assert float(str(first["misalign_deg"])) != pytest.approx(applied.misalign_deg, abs=1e-3)
 
 
+def _estimate(lr: TwoAxisLearner) -> Figures | None:
+    return lr.estimate
+
+
+def _candidate(lr: TwoAxisLearner) -> Figures | None:
+    return lr.sup.candidate
+
+
+def test_an_estimate_whose_sigma_is_above_the_bound_is_refused() -> None:
+    """A fit that determines α but reports it ±0.4° (its residuals correlated: the model
+    does not fit the window) is refused with that reason and offered to no one; the
+    same fit at its own σ is taken and offered."""
+    fit = fit_two_axis("EM3", two_axis_series(two_axis_trial("figure-8", TWO_AXIS_TRUTH, 3)))
+    assert fit.stderr["misalign_deg"] is not None and fit.stderr["misalign_deg"] < 0.25
+    lr = TwoAxisLearner(SETTINGS, lambda t, k, det: None)
+    loose = dataclasses.replace(fit, stderr={**fit.stderr, "misalign_deg": 0.4})
+    lr._take(loose, 100.0)
+    assert lr.estimate is None and lr.sup.candidate is None
+    assert "±0.40°" in lr.refused and "above 0.25°" in lr.refused
+    lr._take(fit, 220.0)
+    est = _estimate(lr)
+    assert est is not None and _candidate(lr) == est and not lr.refused
+
+
 def test_straight_run_refuses_alpha() -> None:
     """A straight run at one speed: α refused with the reason (the forward speed nearly
     constant), nothing offered or applied, the VBW left as read."""
@@ -132,7 +157,10 @@ def test_circles_one_way_refuse_alpha_in_words_an_operator_reads() -> None:
     why = str(lr.status()["refused"])
     assert why.startswith("misalignment not determinable: ")
     assert "sideways speed through the water is a fixed fraction of the forward speed" in why
-    assert "the turns all went one way" in why and "turns to both sides (a figure-8)" in why
+    assert (
+        "one steady turn (one turn rate throughout, one way)" in why
+        and "turns to both sides (a figure-8)" in why
+    )
     assert [d["why"] for _, k, d in events if k == "two_axis_refused"][-1] == why
     assert why in two_axis_line(lr.status())
 
@@ -159,17 +187,20 @@ def test_a_reference_without_an_athwart_speed_is_said() -> None:
     assert lr.counts["no_reference"] > 40
 
 
-def _pipeline(fig: dict[str, float]) -> Pipeline:
-    """A pipeline with a log learning two axes, started from a record with ``fig``."""
+def _pipeline(fig: dict[str, float], sea: tuple[float, float] | None = None) -> Pipeline:
+    """A pipeline with a log learning two axes, started from a record with ``fig`` (and
+    the current ``sea`` saved with it at t = 100 s)."""
     s = UutSettings(port="log", reference_port="dvl", uut_source="VBW", axes=2)
-    rec = Calibration("log", Estimate(Params("EM3"), {}), 0.5, reset=True, two_axis=fig)
+    est = Estimate(Params("EM3"), {}, current_mps=sea)
+    rec = Calibration("log", est, 0.5, sea is not None, t=100.0, reset=True, two_axis=fig)
     return Pipeline(
         [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")], [s], {"log": rec}
     )
 
 
 def test_saved_figures_are_restored_checked_and_reset() -> None:
-    """Saved figures come back as a candidate that validates again (not applied yet);
+    """Saved figures come back as a candidate that validates again (not applied yet),
+    with the sea saved with them where the record has one;
     figures the record's check refuses (α beyond 20°) are not restored; a reset clears
     them and says so, and the record persisted then has none."""
     p = _pipeline(TWO_AXIS_FIGURES)
@@ -182,6 +213,9 @@ def test_saved_figures_are_restored_checked_and_reset() -> None:
     assert p.two_axis["log"].sup.candidate is None and p.calibrations()[0].two_axis is None
     refused = _pipeline(TWO_AXIS_FIGURES | {"misalign_deg": 25.0})
     assert refused.two_axis["log"].sup.candidate is None
+    assert p.two_axis["log"].sup.sea is None  # saved without a current
+    with_sea = _pipeline(TWO_AXIS_FIGURES, (0.1, -0.2))
+    assert with_sea.two_axis["log"].sup.sea == (0.1, -0.2, 100.0)  # the early evidence's
 
 
 def test_vhw_and_vbw_take_the_figures_own_forward_speed() -> None:

@@ -35,6 +35,10 @@ def _own(sup: TwoAxisSupervisor) -> bool:
     return sup.forward_own
 
 
+def _early(sup: TwoAxisSupervisor) -> bool:
+    return sup.early
+
+
 LON = Params("EM3", m=-0.11, b_mps=-0.05)
 """The sensor's longitudinal error on its own axis in :func:`_blocks`."""
 
@@ -204,6 +208,51 @@ def test_forward_speed_set_aside_by_a_fallback_returns_at_the_next_recheck() -> 
     for b in _blocks(3.0, 130, 333.0, lon=close):
         sup.observe(b)
     assert not _own(sup)
+
+
+def test_restored_figures_applied_early_in_their_saved_sea() -> None:
+    """Restored with the sea saved with them (the current the blocks see), the figures
+    are applied after 5 blocks, where raw's phantom leeway is worse than theirs in that
+    sea, and validated in place; without the sea, or with a sea older than an hour,
+    they wait for the restored window (20 s)."""
+    events: Events = []
+    sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: events.append((t, k, dict(d))))
+    sup.restore(_figures(3.0), (0.1, -0.2, -10.0))
+    blocks = _blocks(3.0, 25, 1.0)
+    for b in blocks[:5]:
+        sup.observe(b)
+    assert _applied(sup) == _figures(3.0) and _early(sup)
+    assert events[-1][2]["kind"] == "restored-early" and _candidate(sup) == _figures(3.0)
+    for b in blocks[5:]:
+        sup.observe(b)
+    assert _applied(sup) == _figures(3.0) and _candidate(sup) is None and not _early(sup)
+    for sea in (None, (0.1, -0.2, -3700.0)):
+        sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: None)
+        sup.restore(_figures(3.0), sea)
+        for b in blocks[:19]:
+            sup.observe(b)
+        assert _applied(sup) is None
+        for b in blocks[19:]:
+            sup.observe(b)
+        assert _applied(sup) == _figures(3.0)
+
+
+def test_restored_figures_applied_early_are_withdrawn_when_the_window_fails() -> None:
+    """Applied on their first blocks, restored figures whose window then reads worse
+    than raw (the log knocked to −10° after 5 s) are withdrawn at the window's end;
+    figures raw beats in the saved sea are not applied early."""
+    events: Events = []
+    sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: events.append((t, k, dict(d))))
+    sup.restore(_figures(3.0), (0.1, -0.2, 0.0))
+    for b in _blocks(3.0, 5, 1.0) + _blocks(-10.0, 20, 6.0):
+        sup.observe(b)
+    assert _applied(sup) is None and not _early(sup)
+    assert events[-1][1] == "two_axis_rejected" and "withdrawn" in sup.note
+    sup = TwoAxisSupervisor(120.0, 600.0, lambda t, k, d: None)
+    sup.restore(_figures(-3.0), (0.1, -0.2, 0.0))
+    for b in _blocks(3.0, 10):
+        sup.observe(b)
+    assert _applied(sup) is None and _candidate(sup) == _figures(-3.0)
 
 
 def test_restored_figures_validate_over_the_restored_window() -> None:
