@@ -274,6 +274,10 @@ def _why_no_time(report: ImportReport, first: str, sentences: int) -> str:
     skipped = reasons(report.skipped) or "none"
     if not first and not report.skipped:
         return f"{', '.join(report.files)}: empty (no line to import)"
+    if not first and set(report.skipped) == {"truncated"}:
+        return (
+            f"{', '.join(report.files)}: a gzip stream cut short or corrupt before its first line"
+        )
     if sentences == 0 and first:
         looks = what_it_looks_like(first)
         return (
