@@ -7,9 +7,11 @@ records in a fresh Python with ``PYTHONPATH`` at that tree and its own
 round. On a shared machine the load moves every figure by several per cent: the ratio
 to the first tree within a round is the figure to compare (its median over the rounds
 is printed). Each run also prints a digest of the pipeline's status at the end, the
-same for trees that do the same work. Prints figures only.
+same for trees that do the same work. A tree given as ``TREE@EVERY_S`` is timed with
+each UUT learning at most one reading every ``EVERY_S`` seconds (``bench/learn_bound.py``:
+a bound on what learning from block means could save). Prints figures only.
 
-Run: ``python bench/bench_replay_ab.py TREE [TREE ...] --outdir DIR [--rounds 4] [--records N]``
+Run: ``python bench/bench_replay_ab.py TREE[@EVERY_S] [TREE ...] --outdir DIR [--rounds 4] [--records N]``
 (``DIR``: a trial's five captures, e.g. ``emlogd simulate DIR --scale 0.2``).
 """
 
@@ -25,11 +27,15 @@ import sys
 import time
 from pathlib import Path
 
+from learn_bound import split_tree
 
-def _side(tree: Path, outdir: Path, n_records: int) -> None:
-    """In the child: time the pipeline of the tree on ``PYTHONPATH``; print the CPU
-    seconds and the status's digest."""
+
+def _side(tree: Path, outdir: Path, n_records: int, every_s: float) -> None:
+    """In the child: time the pipeline of the tree on ``PYTHONPATH`` (its learning thinned
+    to one reading every ``every_s`` per UUT when that is over 0); print the CPU seconds
+    and the status's digest."""
     import bench_replay
+    from learn_bound import thin_learning
 
     from drivers.io.capture import CaptureReader
 
@@ -38,6 +44,8 @@ def _side(tree: Path, outdir: Path, n_records: int) -> None:
         records += [(t, port, data) for t, port, data, _ in CaptureReader(f).received()]
     if n_records:
         records = records[:n_records]
+    if every_s > 0.0:
+        thin_learning(every_s)
     bench_replay.CLOCK[0] = time.process_time
     seconds, pipe = bench_replay._pipeline(records, tree / "examples" / "emlogd.yaml")
     status = json.dumps(pipe.status(), sort_keys=True, default=str)
@@ -46,23 +54,28 @@ def _side(tree: Path, outdir: Path, n_records: int) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("trees", nargs="+", type=Path, help="source trees (the first: the baseline)")
+    ap.add_argument(
+        "trees", nargs="+", help="source trees, TREE or TREE@EVERY_S (the first: the baseline)"
+    )
     ap.add_argument("--outdir", type=Path, required=True, help="the trial's directory")
     ap.add_argument("--rounds", type=int, default=4)
     ap.add_argument("--records", type=int, default=0, help="the first N records only (0: all)")
     ap.add_argument("--side", action="store_true", help=argparse.SUPPRESS)  # one tree, a child
     args = ap.parse_args()
-    trees = [t.resolve() for t in args.trees]
+    trees = args.trees
     if args.side:
-        _side(trees[0], args.outdir, args.records)
+        where, every_s = split_tree(trees[0])
+        _side(Path(where).resolve(), args.outdir, args.records, every_s)
         return
-    cpu: dict[Path, list[float]] = {t: [] for t in trees}
+    cpu: dict[str, list[float]] = {t: [] for t in trees}
     for r in range(args.rounds):
         for tree in trees if r % 2 == 0 else trees[::-1]:
+            where, every_s = split_tree(tree)
+            path = Path(where).resolve()
             out = subprocess.run(
-                [sys.executable, __file__, str(tree), "--side", "--outdir", str(args.outdir),
-                 "--records", str(args.records)],
-                env=dict(os.environ, PYTHONPATH=str(tree)), cwd=tree,
+                [sys.executable, __file__, f"{path}@{every_s}", "--side",
+                 "--outdir", str(args.outdir), "--records", str(args.records)],
+                env=dict(os.environ, PYTHONPATH=str(path)), cwd=path,
                 check=True, capture_output=True, text=True,
             )  # fmt: skip
             seconds, digest = out.stdout.split()

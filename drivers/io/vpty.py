@@ -107,11 +107,11 @@ class VirtualPort(Closing):
         try:
             tty.setraw(slave)
             self.slave_path = os.ttyname(slave)
-            Path(self.slave_path).chmod(mode)
-            if group is not None:
-                gid = group if isinstance(group, int) else grp.getgrnam(group).gr_gid
-                os.chown(self.slave_path, -1, gid)
-        except (OSError, KeyError, ValueError) as exc:  # ValueError: a NUL in the group
+            self.set_access(mode, group)
+        except DeviceError:
+            os.close(master)
+            raise
+        except OSError as exc:
             os.close(master)
             raise DeviceError(f"cannot configure the pty for {self.link}: {exc}") from None
         finally:
@@ -125,6 +125,21 @@ class VirtualPort(Closing):
         except OSError as exc:
             os.close(master)
             raise DeviceError(f"cannot publish {self.link}: {exc.strerror or exc}") from None
+
+    def set_access(self, mode: int, group: str | int | None) -> None:
+        """Give the pty ``mode`` and ``group`` (None: unchanged), in place: a reader that
+        has it open reads on.
+
+        Raises:
+            DeviceError: the mode or group cannot be set (an unknown group).
+        """
+        try:
+            Path(self.slave_path).chmod(mode)
+            if group is not None:
+                gid = group if isinstance(group, int) else grp.getgrnam(group).gr_gid
+                os.chown(self.slave_path, -1, gid)
+        except (OSError, KeyError, ValueError) as exc:  # ValueError: a NUL in the group
+            raise DeviceError(f"cannot configure the pty for {self.link}: {exc}") from None
 
     def _publish(self) -> None:
         link = self.link

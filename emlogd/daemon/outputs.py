@@ -1,7 +1,9 @@
 """The daemon's outputs: the sinks the config names, and where each sentence goes.
 
 A reload keeps an output whose settings are equal as it is (same pty, same clients):
-outputs are keyed by the settings they were opened with. A log given outputs of its own
+outputs are keyed by what only a new one changes (a pty's path, a TCP output's address,
+a UDP destination), and a pty's mode and group and a TCP output's limits are set on the
+open one (:meth:`Outputs.sync`). A log given outputs of its own
 (``calibration[].outputs``) writes its sentences there only; every other sentence goes
 to the shared outputs. An output that cannot be opened (a file at the pty's path) costs
 itself: the others open, and it is tried again every :data:`OUTPUT_RETRY_S`, its
@@ -42,11 +44,13 @@ class Outputs:
         self.log = log
         self.monotonic = monotonic
         self.sinks: dict[tuple[object, ...], Sink] = {}
-        """The open outputs, keyed by the settings they were opened with."""
+        """The open outputs, keyed as :meth:`specs` keys them."""
         self.failed: dict[tuple[object, ...], tuple[Callable[[], Sink], str]] = {}
         """The outputs that could not be opened: how to open each, and why it failed."""
         self.next_retry = 0.0
         """When those are tried again (monotonic s)."""
+        self.access: tuple[int, str | None] | None = None
+        """The ptys' mode and group as last set (None: none set yet)."""
         self.routes: dict[str, list[Sink]] = {}
         """The logs with outputs of their own, and those outputs."""
         self.shared: list[Sink] = []
@@ -68,18 +72,20 @@ class Outputs:
         self.log.warning(kind, sink="pty", detail=detail)
 
     def specs(self, cfg: Config) -> dict[tuple[object, ...], Callable[[], Sink]]:
-        """The outputs ``cfg`` asks for: how to open each, keyed by its settings."""
+        """The outputs ``cfg`` asks for: how to open each, keyed by what only a new one
+        changes (a pty's path, a TCP output's address: not its mode, group or limits,
+        which :meth:`_tune` gives an open one in place)."""
         out = cfg.outputs
         specs: dict[tuple[object, ...], Callable[[], Sink]] = {}
         if out.pty:
             pty, mode, group = out.pty, out.pty_mode, out.pty_group
-            specs[("pty", pty, mode, group)] = lambda: PtySink(
+            specs[("pty", pty)] = lambda: PtySink(
                 pty, mode=mode, group=group, on_event=self._pty_event, monotonic=self.monotonic
             )
         limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
         if out.tcp:
             tcp = out.tcp
-            specs[("tcp", tcp, limits)] = lambda: TcpServerSink(
+            specs[("tcp", tcp)] = lambda: TcpServerSink(
                 tcp,
                 selector=self.sel,
                 on_event=functools.partial(self._client_event, tcp),
@@ -98,7 +104,7 @@ class Outputs:
         for c in cfg.calibration:  # a log's own outputs, keyed ("uut", name, ...)
             name, u = c.uut, c.outputs
             if u.pty:
-                specs[("uut", name, "pty", u.pty, out.pty_mode, out.pty_group)] = functools.partial(
+                specs[("uut", name, "pty", u.pty)] = functools.partial(
                     PtySink,
                     u.pty,
                     mode=out.pty_mode,
@@ -107,7 +113,7 @@ class Outputs:
                     monotonic=self.monotonic,
                 )
             if u.tcp:
-                specs[("uut", name, "tcp", u.tcp, limits)] = functools.partial(
+                specs[("uut", name, "tcp", u.tcp)] = functools.partial(
                     TcpServerSink,
                     u.tcp,
                     selector=self.sel,
@@ -141,10 +147,34 @@ class Outputs:
             with contextlib.suppress(OSError):
                 self.sinks.pop(key).close()
         self.failed = {k: v for k, v in self.failed.items() if k in specs}
+        tuning = self._tune(cfg)
         opened, failed = self._open({k: m for k, m in specs.items() if k not in self.sinks})
+        failed = failed or tuning
         if failed is not None:
             raise failed
         return closed, opened
+
+    def _tune(self, cfg: Config) -> DeviceError | None:
+        """Give the open outputs the settings a reload may change in place: the ptys'
+        mode and group (a reader reads on), the TCP outputs' limits (the clients stay).
+        A pty was closed and another published for a new mode or group, the readers of
+        the old one hung up, and a TCP output rebound for new limits, every client
+        dropped. Returns the first failure (an unknown group), the rest tuned."""
+        out = cfg.outputs
+        limits = TcpLimits(out.tcp_max_clients, out.tcp_max_pending_bytes, out.tcp_stall_s)
+        access = (out.pty_mode, out.pty_group)
+        failed: DeviceError | None = None
+        for sink in self.sinks.values():
+            if isinstance(sink, TcpServerSink):
+                sink.limits = limits
+            elif isinstance(sink, PtySink) and access != self.access:
+                try:
+                    sink.port.set_access(*access)
+                except DeviceError as exc:
+                    failed = failed or exc
+        if failed is None:  # else set again at the next sync
+            self.access = access
+        return failed
 
     def _open(
         self, specs: dict[tuple[object, ...], Callable[[], Sink]]

@@ -93,7 +93,7 @@ TCP_INPUT_RATE = 1024.0
 """Bytes/s a TCP client's input budget refills at: a client that echoes a few sentences
 now and then stays; one that sends faster is closed once its burst is spent."""
 
-TCP_ENDED_QUIET_S = 2.0
+TCP_ENDED_QUIET_S = 5.0
 """How long a TCP client that ended its sending (read returned end of file) is kept
 while nothing is sent to it: a half-closed reader is served as long as output flows, a
 peer gone for good is noticed at the second write after its close (reset), or after

@@ -390,6 +390,7 @@ class _TruthScorer:
         for name, u in pipeline.uuts.items():
             rec = _Readings()
             u.cal.recorder = rec
+            u.passed = rec.reading  # scored as sent: raw above the range
             self.readings[name] = rec
             self.source[name] = u.s.uut_source
             self.decoders[name] = make_decoder("nmea0183", name, errors="skip")

@@ -400,20 +400,20 @@ class Pipeline:
         """Correct a UUT reading and emit its sentence, then queue it for learning; ``n``:
         the readings of its sentence in its read (the rate check counts them)."""
         cal = u.cal
-        raw = speed_of(sp, u.s.component)
-        source = sp.source
+        raw, source = speed_of(sp, u.s.component), sp.source
         if not sp.valid or raw is None or not self._admit(u, t, source, raw, fresh, n):
             return
+        over = not cal.in_range(raw)  # above the range: raw goes out (UutRoute.over_range)
         trans = sp.transverse_mps
         if source == "VBW" and trans is not None and u.why_athwart_implausible(t, trans):
             return  # neither emitted nor learnt, as an implausible reading
-        learnt = source == u.s.uut_source
+        learnt = source == u.s.uut_source and not over
         if learnt:
             # judged first when its reference is already in (a log that lags the
             # reference): a change the supervisor sees in it is not emitted corrected
             cal.add_reading(t, raw)
             cal.drain(self.now)
-        value = cal.correct(raw)
+        value = u.passed_raw(t, raw, source == u.s.uut_source) if over else cal.correct(raw)
         if value is not None:
             if learnt:
                 u.stw = (t, value)
@@ -475,11 +475,11 @@ class Pipeline:
     def _admit(
         self, u: UutRoute, t: float, source: str, raw: float, fresh: bool, n: int = 1
     ) -> bool:
-        """Whether a UUT's reading is corrected and emitted: in the log's range, not a
-        backlog's, plausible (an implausible one is refused to the fusion too); the ones
-        left out are counted by why."""
+        """Whether a UUT's reading is emitted: in the log's range (or passed raw above it),
+        not a backlog's, plausible (an implausible one is refused to the fusion too); the
+        ones left out are counted by why."""
         cal = u.cal
-        if not cal.in_range(raw):
+        if not cal.in_range(raw) and not u.over_range(raw):
             cal.counters.out_of_range += 1
             if fresh:
                 u.arrived(t, source, n)

@@ -33,6 +33,9 @@ class Counters:
     """The applied calibration withdrawn by change detection."""
     uut_stalled: int = 0
     """Readings far below the speed the reference implies (a stalled wheel): not learnt."""
+    over_range: int = 0
+    """Readings above the configured range passed raw, neither corrected nor learnt
+    (:meth:`~emlogd.pipeline.routing.UutRoute.over_range`)."""
 
     def as_dict(self) -> dict[str, int]:
         """Plain types."""

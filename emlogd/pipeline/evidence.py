@@ -113,7 +113,9 @@ SHIFT_WINDOW_S = 3.0
 are compared over this long, s, each side of a split of the CUSUM run
 (:func:`shift`): a sensor that changes shifts the mean of its error at once, a change
 of the vessel's speed moves both series over seconds (the hull's response), and one
-noisy sample of a 5–10 Hz log moves a mean little."""
+noisy sample of a 5–10 Hz log moves a mean little. A slower log's windows hold
+:data:`SHIFT_MIN_SAMPLES` at its cadence (the run's median interval): 3 s holds one
+reading of a 0.2–0.5 Hz log, and a step of it would never be seen as the sensor's."""
 
 SHIFT_MIN_SAMPLES = 2
 """Each side of a split holds at least this many samples (one sample has no spread)."""
@@ -215,7 +217,8 @@ def _slopes(t: np.ndarray, corr: np.ndarray, ref: np.ndarray, first: int) -> tup
 def shift(seq: Sequence[tuple[float, float, float]], first: int) -> Shift:
     """Where the mean of (corrected reading − reference) shifted most in a CUSUM run:
     over the samples (time, corrected reading, reference) from ``first`` on (those
-    before it, its course), each split of the run between :data:`SHIFT_WINDOW_S` of
+    before it, its course), each split of the run between :data:`SHIFT_WINDOW_S` (or
+    :data:`SHIFT_MIN_SAMPLES` median intervals, when longer) of
     samples before it and as long after it (at least :data:`SHIFT_MIN_SAMPLES` each);
     at the split whose difference's mean moved most, each series' step of its mean less
     its slope over the samples before the run times the windows' distance in time, and
@@ -232,8 +235,9 @@ def shift(seq: Sequence[tuple[float, float, float]], first: int) -> Shift:
     k = np.arange(max(first, SHIFT_MIN_SAMPLES), n - SHIFT_MIN_SAMPLES + 1)
     if not k.size:
         return Shift()
-    lo = np.searchsorted(t, t[k] - SHIFT_WINDOW_S, side="left")
-    hi = np.searchsorted(t, t[k] + SHIFT_WINDOW_S, side="right")
+    span = max(SHIFT_WINDOW_S, SHIFT_MIN_SAMPLES * float(np.median(np.diff(t))))
+    lo = np.searchsorted(t, t[k] - span, side="left")
+    hi = np.searchsorted(t, t[k] + span, side="right")
     nb, na = k - lo, hi - k
     ok = (nb >= SHIFT_MIN_SAMPLES) & (na >= SHIFT_MIN_SAMPLES)
     if not ok.any():

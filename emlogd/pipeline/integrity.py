@@ -78,8 +78,9 @@ class Envelope:
             scale's at a typical speed (0.5 at 2 m/s).
         max_abs_a_spm: largest |a|, s/m.
         max_current_mps: largest current magnitude, m/s.
-        max_speed_mps: the sensor's range: a reading above it is refused, a corrected
-            speed is clamped to it, and the inverse model must be monotonic without
+        max_speed_mps: the sensor's range: a reading above it goes out raw, neither
+            corrected nor learnt (refused beyond twice it: ``routing.OVER_RANGE_FACTOR``),
+            a corrected speed is clamped to it, and the inverse model must be monotonic without
             saturating over ``[0, max_speed_mps]``.
     """
 
@@ -91,7 +92,10 @@ class Envelope:
         8.0,
         check=number(0.0, 50.0, lo_open=True),
         unit="m/s",
-        doc="The sensor's range: a reading above it is refused, a corrected speed clamped.",
+        doc=(
+            "The sensor's range: a reading above it goes out raw, not corrected nor learnt "
+            "(refused beyond twice it), a corrected speed clamped."
+        ),
     )
 
     def check(self, params: Params, current_mps: tuple[float, float] | None = None) -> str:

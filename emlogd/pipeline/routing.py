@@ -49,6 +49,12 @@ GNSS_QUEUE = 256
 """GNSS fixes waiting for their heading, per UUT (the oldest is dropped beyond)."""
 
 
+OVER_RANGE_FACTOR = 2.0
+"""A plausible reading above the log's configured range (``max_speed_mps``) and at most
+this many times it goes out raw (:meth:`UutRoute.over_range`); beyond, it is refused: a
+survey vessel is not twice as fast as the range it was configured for, a log reading so
+has failed."""
+
 MODEL_VARIATION_S = 1.0
 """Least receive time between two look-ups of the model's variation at a GNSS position
 (a computation, 0.5 ms, when the position's cell or the fix's day is new)."""
@@ -297,6 +303,9 @@ class UutRoute:
         """The latest corrected speed through the water (time, m/s)."""
         self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
         """Readings neither emitted nor learnt, by reason (shown with the counters)."""
+        self.passed: Callable[[float, float], None] | None = None
+        """Offline use (replay's truth scores): receives each reading of the learnt sentence
+        passed raw above the range (:meth:`passed_raw`), as the recorder the learnt ones."""
 
     def plausible(self, t: float, source: str, raw: float, n: int = 1) -> str:
         """``""`` when the reading is plausible, else why not (counted); ``n``: the
@@ -310,6 +319,25 @@ class UutRoute:
         elif chk.reacquired:
             return "reacquired"
         return why
+
+    def over_range(self, raw: float) -> bool:
+        """A reading above the configured range, within :data:`OVER_RANGE_FACTOR` of it.
+
+        Such a reading is a fast vessel or a fault of the log; either way the calibration
+        is not known there (it is fitted, and checked monotonic, within the range): it goes
+        out raw, the best the log knows, not corrected, learnt nor fused, and is counted
+        (``over_range``); silence would leave the autopilot without a speed. A fault that
+        jumps there is refused by the plausibility check as any jump."""
+        vmax = self.s.envelope.max_speed_mps
+        return vmax < raw <= OVER_RANGE_FACTOR * vmax
+
+    def passed_raw(self, t: float, raw: float, learnt: bool) -> float | None:
+        """The speed sent for a reading :meth:`over_range`: raw (None while the log has
+        a fault, as any reading), counted; ``learnt``: of the learnt sentence (recorded)."""
+        self.cal.counters.over_range += 1
+        if learnt and self.passed is not None:
+            self.passed(t, raw)
+        return None if self.cal.sup.health.fault else raw
 
     def arrived(self, t: float, source: str, n: int = 1) -> None:
         """A reading refused before its check arrived (:meth:`ReadingCheck.arrived`)."""

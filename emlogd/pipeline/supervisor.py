@@ -37,22 +37,20 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
   else to raw pass-through.
-- **Change detection**: a two-sided CUSUM
-  (:class:`~emlogd.pipeline.evidence.Cusum`) on the applied calibration's innovations
-  (its error minus the error its own current predicts, over the window's spread
-  widened by the current's uncertainty at the heading) alarms within a few samples of
-  a step of the sensor or the sea. On an alarm the calibration's errors and raw's
-  over the alarm's run, against the current as it stood, decide: worse than raw, it
-  is withdrawn and the learner learns the parameters again; else the sea changed, and
-  the detector's current starts afresh; when the reference jumped
-  (:data:`~emlogd.pipeline.evidence.SEA_STEP_SIGMAS`) the learner's current re-opens
-  (raw passing through or not), so that the jump goes into the current, not into the
-  parameters. When the mean of the log's error shifted in the run beyond its standard
-  error and the reference's mean did not (:class:`~emlogd.pipeline.evidence.Shift`;
-  one noisy sample is no shift), the sensor changed and the sea is as it
-  was: the alarm is judged on the run of the side that alarmed alone, and the
-  withdrawn calibration re-validates, raw and it alike, in the current the detector
-  had before the jump.
+- **Change detection**: a two-sided CUSUM (:class:`~emlogd.pipeline.evidence.Cusum`) on the
+  applied calibration's innovations (its error minus the error its own current predicts, over
+  the window's spread widened by the current's uncertainty at the heading) alarms within a few
+  samples of a step of the sensor or the sea. On an alarm the calibration's errors and raw's
+  over the alarm's run, against the current as it stood, decide: worse than raw, it is withdrawn
+  and the learner learns the parameters again; else the sea changed, and the detector's baseline
+  starts again (from the alarm's run at a slow cadence, :attr:`Supervisor.run`); when the reference jumped
+  (:data:`~emlogd.pipeline.evidence.SEA_STEP_SIGMAS`) the learner's current re-opens (raw
+  passing through or not), so that the jump goes into the current, not into the parameters. When
+  the mean of the log's error shifted in the run beyond its standard error and the reference's
+  mean did not (:class:`~emlogd.pipeline.evidence.Shift`; one noisy sample is no shift), the
+  sensor changed and the sea is as it was: the alarm is judged on the run of the side that
+  alarmed alone, and the withdrawn calibration re-validates, raw and it alike, in the current
+  the detector had before the jump.
 - **Drift** (:class:`~emlogd.pipeline.evidence.Drift`): a log that drifts against a
   steady reference on a straight leg for :data:`~emlogd.pipeline.evidence.DRIFT_CONFIRM_S`
   withdraws the applied calibration, and nothing is applied while it drifts.
@@ -80,9 +78,8 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 from calib.models import Layout, Params
-from emlogd.pipeline.cadence import RECHECK_MIN_SAMPLES as RECHECK_MIN_SAMPLES
+from emlogd.pipeline.cadence import CUSUM_MIN_FILL_S, Cadence
 from emlogd.pipeline.cadence import VALIDATION_MIN_SAMPLES as VALIDATION_MIN_SAMPLES
-from emlogd.pipeline.cadence import Cadence
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.evidence import (
     CUSUM_MAX_GAP_S,
@@ -205,6 +202,9 @@ class Supervisor:
         self._t_beta = -math.inf
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
+        self.run = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
+        """The CUSUM run's samples: the baseline after a sea's alarm where an empty one
+        takes longer than CUSUM_MIN_FILL_S to fill (at 0.2 Hz it absorbs a step within)."""
         self.course = Course(CUSUM_HALF_LIFE_S)
         self.cadence = Cadence()
         """The scored readings' cadence and the last one's time (the change detector's)."""
@@ -468,11 +468,10 @@ class Supervisor:
     def _detect(
         self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float, ref: float
     ) -> bool:
-        """Change detection on what is emitted (raw while it passes through); True when
-        the calibration was withdrawn (see the module docstring: the innovation is the
-        error less what its own current (:data:`CUSUM_HALF_LIFE_S`) predicts; an alarm
-        whose errors are raw's or smaller is the sea's, :attr:`sea_changed` when the
-        reference jumped)."""
+        """Change detection on what is emitted (raw while it passes through); True when the
+        calibration was withdrawn (see the module docstring: the innovation is the error less
+        what its own current (:data:`CUSUM_HALF_LIFE_S`) predicts; an alarm whose errors are
+        raw's or smaller is the sea's, :attr:`sea_changed` when the reference jumped)."""
         if t - self.cadence.t > CUSUM_MAX_GAP_S:
             self._reset_detector(refit=False)  # its baseline is another sea's
         self.cadence.add(t)
@@ -490,21 +489,22 @@ class Supervisor:
         self.course.add(t, e_app + ref, ref, quiet)
         jump = abs(nu) >= HOLD_SIGMAS * sigma and self.course.log_jumped(*self.course.steps())
         self.held = not quiet and (self.held or jump)
-        if quiet:
-            w.add(t, cs, (e_app,))  # the baseline learns only while nothing is building up
+        (w if quiet else self.run).add(t, cs, (e_app,))  # the baseline learns while quiet
+        if quiet and self.run.n:
+            self.run.reset()
         if not alarm:
             return False
         step_log, step_ref = self.course.steps()
         jumped = (shift := self.course.shift()).log_jumped  # the means shifted, not a spike
         if self.applied is None:
-            self._reset_detector(refit=False)  # raw's alarm: nothing applied changed
+            self._reset_detector(refit=False, seed=True)  # raw's alarm: nothing applied changed
             self.sea_changed = sea_jumped(step_log, step_ref, sigma)
             return False
         # a log that jumped is judged on the run of the side that alarmed (after the
         # step); otherwise on the whole run, noise included
         n_app, n_raw = (cu.ss_app, cu.ss_raw) if jumped else (cu.run_app, cu.run_raw)
         if n_app <= n_raw:
-            self._reset_detector()
+            self._reset_detector(seed=True)
             self.sea_changed = sea_jumped(step_log, step_ref, sigma)
             return False
         detail: dict[str, object] = {
@@ -654,12 +654,15 @@ class Supervisor:
         self._reset_detector()
         self.dirty = True
 
-    def _reset_detector(self, refit: bool = True) -> None:
+    def _reset_detector(self, refit: bool = True, seed: bool = False) -> None:
         if refit:  # the calibrations changed: their currents are fitted anew
             self._t_beta = -math.inf
         self.held = False
         self.cusum.reset()
         self.detector.reset()
+        if seed and self.cadence.median_s * CUSUM_MIN_SAMPLES > CUSUM_MIN_FILL_S:
+            self.detector, self.run = self.run, self.detector
+        self.run.reset()
         self.course.reset()
 
     def _recheck(self, t: float) -> None:

@@ -4,8 +4,10 @@ are equal, and each sentence routed to its log's own outputs or the shared ones.
 from __future__ import annotations
 
 import dataclasses
+import os
 import selectors
 import socket
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -14,7 +16,9 @@ import pytest
 from drivers.errors import DeviceError
 from emlogd.config import Config, parse_config
 from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
+from emlogd.daemon.sinks import PtySink, TcpServerSink
 from emlogd.pipeline.core import Emit
+from tests.emlogd.daemon.harness import free_port
 
 
 class _Log:
@@ -173,3 +177,46 @@ def test_an_output_that_cannot_be_opened_is_tried_again(tmp_path: Path) -> None:
             assert not outputs.failed and f"pty:{link}" not in outputs.status()
         finally:
             outputs.close()
+
+
+def test_a_reload_changing_mode_or_limits_keeps_the_pty_and_the_clients(tmp_path: Path) -> None:
+    """A sync into new ``pty_mode`` and TCP limits keeps the pty (same slave, its reader
+    reads on, the new mode on it) and the TCP output (same sink, its client stays, the
+    new limits in force); an unknown ``pty_group`` is raised, the pty kept as it was. A
+    new mode made a new pty (its reader hung up) and new limits a new TCP output (every
+    client dropped)."""
+    port = free_port()
+    text = (
+        "ports:\n  - {name: emlog1, url: 'loop://', protocol: nmea0183, role: uut}\n"
+        "  - {name: dvl, url: 'loop://', protocol: pd6, role: reference}\n"
+        "calibration:\n  - {uut: emlog1, reference: dvl}\n"
+        f"outputs: {{pty: {tmp_path / 'e0'}, tcp: '127.0.0.1:{port}', pty_mode: 0660}}\n"
+    )
+    sel = selectors.DefaultSelector()
+    outputs = Outputs(sel, _Log(), lambda: 0.0)
+    try:
+        outputs.sync(parse_config(text))
+        pty, tcp = outputs.shared
+        reader = os.open(tmp_path / "e0", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        client = socket.create_connection(("127.0.0.1", port), timeout=5)
+        try:
+            for key, _ in sel.select(timeout=1.0):
+                key.data()  # the client accepted
+            changed = text.replace("pty_mode: 0660}", "pty_mode: 0640, tcp_stall_s: 3}")
+            assert outputs.sync(parse_config(changed)) == ([], [])
+            assert outputs.shared == [pty, tcp]
+            assert isinstance(tcp, TcpServerSink) and tcp.limits.stall_s == 3.0
+            assert isinstance(pty, PtySink)
+            assert stat.S_IMODE(Path(pty.port.slave_path).stat().st_mode) == 0o640
+            outputs.deliver([Emit(0.0, "emlog1", "$VWVHW,,T,,M,5.00,N,9.26,K*5C")])
+            assert os.read(reader, 100) == b"$VWVHW,,T,,M,5.00,N,9.26,K*5C\r\n"
+            assert client.recv(100) == b"$VWVHW,,T,,M,5.00,N,9.26,K*5C\r\n"
+            with pytest.raises(DeviceError, match="cannot configure"):
+                outputs.sync(parse_config(changed.replace("tcp_stall_s: 3", "pty_group: nogrp_x")))
+            assert outputs.shared == [pty, tcp]
+        finally:
+            client.close()
+            os.close(reader)
+    finally:
+        outputs.close()
+        sel.close()

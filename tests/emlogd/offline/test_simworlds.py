@@ -122,8 +122,8 @@ FAST = 4.5
 
 
 FAST_CFG = DVL_CFG.replace("current: true}", "current: true, max_speed_mps: 15}")
-"""Both logs against the DVL, their range 15 m/s (the default 8 refuses emlog1's
-readings, 1.17 × 8.8 m/s)."""
+"""Both logs against the DVL, their range 15 m/s (with the default 8 emlog1's readings,
+1.17 × 8.8 m/s, are above it and go out raw)."""
 
 
 def fast(k: Kinematics) -> Kinematics:
@@ -319,12 +319,9 @@ class TestWorlds:
         assert [keep(ln) for ln in lines] == [True, False, True, False, True, True, True]
 
 
-OPEN = {
-    "fast": "emlog1 reads 1.17 × 8.8 m/s, above the default range max_speed_mps 8: its "
-    "readings are refused and it is silent for 8 of 10 windows (fast-range: the range "
-    "configured, both logs hold) (docs/RELIABILITY.md)",
-}
-"""The worlds that break the promise, pinned as strict xfails until fixed."""
+OPEN: dict[str, str] = {}
+"""The worlds that break the promise, pinned as strict xfails until fixed (none: in
+``fast`` emlog1's readings above its range go out raw, :meth:`UutRoute.over_range`)."""
 
 
 @pytest.mark.soak

@@ -123,6 +123,22 @@ class TestEmitting:
         assert _vhw(out) == []
         assert _status(p)["counters"]["out_of_range"] == 2
 
+    def test_readings_above_the_range_go_out_raw(self, kit: SimpleNamespace) -> None:
+        """A log of an 8-m/s range (the default) on a vessel reaching 10 m/s: its readings
+        above the range, climbing as a vessel does, go out raw (neither corrected nor
+        learnt; the calibration is not known above its range) and are counted
+        ``over_range``; 16.5 m/s, beyond twice the range, is refused as before. Refused
+        too, the autopilot had no speed at all while the vessel was fast."""
+        p = kit.pipeline(lag_s=0.0, learn=False)
+        out = Output()
+        speeds = (7.5, 8.5, 9.5, 10.0, 9.5, 16.5)
+        for k, v in enumerate(speeds):
+            out.add(p.feed(kit.T0 + k, "log", (encode_vhw(v, talker="VW") + "\r\n").encode()))
+        sent = [round(float(f[5]) * 0.514444, 2) for f in _vhw(out)]
+        assert sent == [7.5, 8.5, 9.5, 10.0, 9.5]
+        c = _status(p)["counters"]
+        assert c["over_range"] == 4 and c["out_of_range"] == 1 and c["learnt"] == 0
+
 
 class TestLearning:
     """Align, learn, validate, apply."""

@@ -133,6 +133,21 @@ def test_a_spike_of_the_log_is_no_jump_and_a_shift_of_its_mean_is() -> None:
     assert abs(s.reference_mps) < 0.01 and s.log_mps > 10.0 * s.se_mps
 
 
+def test_a_step_of_a_log_read_every_5_s_shifts_its_mean() -> None:
+    """A log read every 5 s (0.2 Hz), 0.02 m/s of noise, steps by −0.23 m/s two readings
+    before the alarm (a 15 % gain step at 1.8 m/s), the reference steady: each side of
+    the split holds two readings (3 s held one, and no step of a slow log was the
+    sensor's)."""
+    rng = np.random.default_rng(1)
+    c = Course(60.0)
+    for i in range(-4, 6):
+        t = 1.7e9 + 5.0 * i
+        c.add(t, 1.8 + rng.normal(0.0, 0.02) - (0.23 if i >= 4 else 0.0), 1.8, i < 0)
+    s = c.shift()
+    assert s.log_jumped and s.log_mps == pytest.approx(-0.23, abs=0.05)
+    assert abs(s.reference_mps) < 1e-9
+
+
 def test_a_change_of_speed_the_log_follows_is_no_jump() -> None:
     """The vessel speeds up 0.3 m/s over 2 s, the log following the reference 0.5 s
     late: the mean of its error shifts while it lags, but the reference's mean steps

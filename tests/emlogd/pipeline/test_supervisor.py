@@ -230,3 +230,31 @@ def test_at_one_reading_every_5_s_a_calibration_wrong_after_a_step_is_withdrawn_
             wrong.append(t)
     assert wrong and wrong[-1] - 1200.0 < 150.0, (wrong[:1], wrong[-1:], kinds)
     assert _applied(sup) is None and kinds[-1] == "candidate_rejected"
+
+
+def test_at_one_reading_every_5_s_a_gain_step_after_an_alarm_of_the_sea_is_caught() -> None:
+    """The log and reference of the test above, the calibration applied all along: the
+    reference's wander alarms the change detector every 90 s or so, each alarm the sea's
+    (the calibration beats raw over its run). At 1200 s, 10 s after such an alarm, the
+    gain steps to 1.0. The baseline emptied at the alarm took 30 s of readings to fill
+    and absorbed the step, and the shift test's 3-s windows held one reading each side, so
+    the step's alarm was judged on the whole run (noise and raw's offset before the
+    step) as the sea's: withdrawn by the re-check at 1680 s. Now the baseline starts from
+    the alarm's run and the shift test holds two readings each side: withdrawn by the
+    change detector within 30 s."""
+    rng = random.Random(1)
+    p = Params("EM3", m=0.15)
+    sup, kinds = _sup(None)
+    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    wrong: list[float] = []
+    for k in range(300):
+        t = 5.0 * k
+        stw = 1.8 + 0.4 * math.sin(2.0 * math.pi * t / 900.0)
+        ref = stw + 0.07 * math.sin(2.0 * math.pi * t / 180.0) + rng.gauss(0.0, 0.02)
+        gain = 1.15 if t < 1200.0 else 1.0
+        sup.observe(t, gain * stw + rng.gauss(0.0, 0.02), ref, None, _NoOffer())
+        assert t >= 1200.0 or _applied(sup) == p, (t, kinds)  # no false withdrawal
+        if t >= 1200.0 and _applied(sup) is not None:
+            wrong.append(t)
+    assert wrong and wrong[-1] - 1200.0 < 30.0, (wrong[:1], wrong[-1:], kinds)
+    assert _applied(sup) is None and sup.counters.changes == 1, kinds
