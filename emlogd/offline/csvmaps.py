@@ -139,7 +139,7 @@ firmwares (``Boatspeed``/``Heading``/``Ext_SOG`` or ``BS``/``HDG``/``SOG``)."""
 GENERIC: dict[str, str] = {
     "time": "time|timestamp|datetime|date_time|utc|utctime|utc_time|time_utc",
     "date": "date|utcdate|utc_date|date_utc?",
-    "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water|sow|water_speed",
+    "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water|sow|water_speed|log",
     "heading": "hdg|heading|heading_true|hdt|hdgtrue|hdg_true|true_heading?",
     "heading_mag": "heading_magnetic|magnetic_heading|hdg_mag|mag_hdg|hdm|hdgmag?",
     "variation": "variation|magvar|mag_var|var|declination?",
@@ -153,7 +153,7 @@ GENERIC: dict[str, str] = {
 """A plain table of the usual short names (a processed log, a spreadsheet): one time
 column (told by its first cell; a ``date`` column beside a time of day is joined to it), the speed through the water in knots (``speed`` is
 taken for it: a table that names its speed over ground ``sog``; the NMEA field names
-``STW`` and ``SOW`` too), a true heading (``HDG``, ``HDT``, ``HdgTrue``) or a magnetic one
+``STW`` and ``SOW``, and an ECDIS logbook's ``Log``, too), a true heading (``HDG``, ``HDT``, ``HdgTrue``) or a magnetic one
 (``HDM``, ``HdgMag``)."""
 
 PRESETS: dict[str, Preset] = {
@@ -245,10 +245,12 @@ HEADER_UNITS: dict[str, float | None] = {
     "°true": None,
     "degrees": None,
     "°": None,
+    "˚": None,
+    "º": None,
 }
 """Units a column name may carry (``Bsp (kn)``, ``SOG [m/s]``, ``stw_kn``, ``SOG kts``;
 in any case): a speed's factor to m/s (it overrides the map's), or None for an
-angle's (``°T``: true; a magnetic one, ``°M``, is not known: such a column is left out,
+angle's (the degree sign, or the ring ``˚`` or ordinal ``º`` written for it; ``°T``: true; a magnetic one, ``°M``, is not known: such a column is left out,
 and the import's notes name it)."""
 
 _UNIT_IN_NAME = re.compile(

@@ -367,7 +367,8 @@ def _read_head(f: TextIO, path: str | Path, skipped: Counter[str]) -> list[str]:
         if len(head) >= HEADER_SCAN_LINES:
             break
     if not head:
-        raise ImportFormatError(f"{path}: empty file")
+        cut = " (a gzip stream cut short or corrupt before its first line)"
+        raise ImportFormatError(f"{path}: empty file{cut if skipped['truncated'] else ''}")
     return head
 
 

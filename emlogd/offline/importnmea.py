@@ -1,7 +1,8 @@
 """``emlogd import --format nmea``: NMEA 0183 logs without receive times, timed from
 their own fixes (the rules are in :mod:`emlogd.offline.importer`'s docstring): the
 UTC date and time of RMC or ZDA, else a time of day (GGA's, an RMC's without its date,
-or GLL's while no other fix has come) on the date ``--date`` gives, else an earlier
+or GLL's while no other fix has come: its fix then written as a GGA after it too) on
+the date ``--date`` gives, else an earlier
 fix's date, else the date the file's name holds (``2014-06-27``, ``20140627``), else
 the day the file was last written (the last two noted in the report)."""
 
@@ -15,7 +16,7 @@ from pathlib import Path
 
 from drivers import make_decoder
 from drivers.errors import FrameError
-from drivers.framing import split_nmea
+from drivers.framing import split_nmea, with_checksum
 from drivers.nmea0183 import Gga, Gll, NmeaDecoder, NmeaRecord, Rmc, Zda, parse_gll
 from drivers.records import Rejected
 from emlogd.offline import ProgressFn
@@ -186,14 +187,18 @@ class _Clock:
         self.decoder = decoder
         self.day = day
         self.other_fix = False  # a fix of RMC, ZDA or GGA has come
+        self.gga: str | None = None  # the GGA of the GLL that timed the last sentence
 
     def fix(self, text: str, last: float | None) -> float | None:
-        """The time the sentence fixes, or None; ``last`` the time of the fix before."""
+        """The time the sentence fixes, or None; ``last`` the time of the fix before.
+        A GLL that times it leaves its fix as a GGA in :attr:`gga`."""
         fix: float | None = None
+        self.gga = None
         if sentence_kind(text) == "GLL":
             gll = _gll(text)
             if gll is not None and not self.other_fix:
                 fix, self.day = _fix_time(gll, self.day, last)
+                self.gga = None if fix is None else gga_of_gll(text)
             return fix
         try:
             decoded = self.decoder.decode_all((text + "\r\n").encode("ascii"))
@@ -203,6 +208,15 @@ class _Clock:
             fix, self.day = _fix_time(rec, self.day, last)
             self.other_fix = self.other_fix or fix is not None
         return fix
+
+
+def gga_of_gll(text: str) -> str:
+    """The GGA of a valid GLL sentence's fix (its talker, time of day and position,
+    quality 1): the pipeline takes a GNSS position (for the variation model's) from
+    RMC or GGA, never GLL."""
+    f = split_nmea(text.encode("ascii"), required=True).decode("ascii").split(",")
+    body = f"{f[0][:2]}GGA,{f[5]},{f[1]},{f[2]},{f[3]},{f[4]},1,,,,M,,M,,"
+    return with_checksum(body, text[0])
 
 
 def _gll(text: str) -> Gll | None:
@@ -274,6 +288,10 @@ def _why_no_time(report: ImportReport, first: str, sentences: int) -> str:
     skipped = reasons(report.skipped) or "none"
     if not first and not report.skipped:
         return f"{', '.join(report.files)}: empty (no line to import)"
+    if not first and set(report.skipped) == {"truncated"}:
+        return (
+            f"{', '.join(report.files)}: a gzip stream cut short or corrupt before its first line"
+        )
     if sentences == 0 and first:
         looks = what_it_looks_like(first)
         return (
@@ -327,6 +345,9 @@ def import_nmea(
                         for line in joiner.lines(part):
                             sentences += 1
                             spread.add(line, clock.fix(line, spread.fix))
+                            if clock.gga is not None:  # a GLL's position, as GGA
+                                report.notes["gga_from_gll"] += 1
+                                spread.add(clock.gga, None)
             joiner.flush()
             if progress is not None:
                 progress(f"import {Path(path).name}", (i + 1) / len(paths))

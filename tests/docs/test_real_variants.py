@@ -363,6 +363,17 @@ def test_a_magnetic_heading_without_variation_pairs(name: str, tmp_path: Path) -
     assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
 
 
+def test_a_gll_only_log_with_a_magnetic_heading_pairs(tmp_path: Path) -> None:
+    """GLL + VTG alone and HDM without any variation: GLL's fixes, written as GGA too,
+    give the model its positions, and the readings pair with the GNSS reference."""
+    text = rv._nm(rv.hdm)(VARIANTS[("nmea", "gll-vtg")].make(_text("nmea")))
+    rep, cap = _import("nmea", text, tmp_path, [])
+    assert rep.notes["gga_from_gll"] > 0.9 * rep.sentences["GLL"]
+    s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
+    al = record_capture(cap, s).aligned(0.0)
+    assert np.count_nonzero(al.usable(heading=True)) > 0.8 * al.t.size
+
+
 @pytest.mark.parametrize(
     ("name", "added_s"), [("two-sessions", rv.vl.SESSION_GAP_S), ("moored-hour", rv.vl.MOORED_S)]
 )

@@ -96,8 +96,9 @@ def test_a_unit_in_a_name_is_read_or_named_as_unknown() -> None:
 
 
 def test_nmea_field_names_and_true_degrees_are_read() -> None:
-    """Another logger's NMEA field names (``SOW``, ``HDT``, ``HdgMag``) are the generic
-    map's; ``°T`` after a name is an angle's unit (true), ``°M`` one no table knows."""
+    """Another logger's NMEA field names (``SOW``, ``HDT``, ``HdgMag``) and an ECDIS
+    logbook's (``Log (kt)``, ``Heading (˚)``) are the generic map's; ``°T``, ``˚`` and
+    ``º`` after a name are an angle's unit, ``°M`` one no table knows."""
     found = find_header(["UTC,SOW,HDT,SOG,COG,TWD"], candidate_maps(None, None))
     assert found is not None and found[2] is PRESETS["generic"]
     keys = ("time", "stw", "heading", "sog", "cog")
@@ -105,6 +106,10 @@ def test_nmea_field_names_and_true_degrees_are_read() -> None:
     found = find_header(["Timestamp,BSP (kt),HdgMag (°),COG (°T)"], candidate_maps(None, None))
     assert found is not None and set(found[3]) == {"time", "stw", "heading_mag", "cog"}
     assert unknown_units(["Hdg (°M)", "Cog (°T)", "Bsp (kt)"]) == ["'Hdg (°M)' ('°M')"]
+    found = find_header(
+        ["Date Time,Log (kt),Heading (˚),COG (º),SOG (kt)"], candidate_maps(None, None)
+    )
+    assert found is not None and set(found[3]) == {"time", "stw", "heading", "cog", "sog"}
 
 
 def test_cells_in_si_units_within_a_boats_range() -> None:

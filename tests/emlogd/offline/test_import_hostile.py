@@ -96,8 +96,10 @@ def test_a_gzip_file_cut_short(tmp_path: Path) -> None:
     assert rep.skipped["truncated"] == 1 and rep.written >= 10, rep.skipped
     bad = tmp_path / "bad.nmea.gz"
     bad.write_bytes(b"\x1f\x8b\x08\x00garbage")
-    with pytest.raises(ImportFormatError, match="skipped: truncated 1"):
+    with pytest.raises(ImportFormatError, match="gzip stream cut short or corrupt before its"):
         import_nmea([bad], tmp_path / "b.cap")
+    with pytest.raises(ImportFormatError, match=r"empty file \(a gzip stream cut short"):
+        import_csv(bad, tmp_path / "b.cap")
 
 
 @pytest.mark.parametrize(

@@ -15,7 +15,7 @@ import pytest
 from drivers import make_decoder
 from drivers.framing import nmea_checksum
 from drivers.io.capture import CaptureReader
-from drivers.nmea0183 import Rmc, Vhw, encode_rmc, encode_vhw
+from drivers.nmea0183 import Gga, Rmc, Vhw, encode_rmc, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.offline.importer import ImportFormatError, import_nmea
 from tests.nmea_encoders import encode_gga, encode_vtg, encode_zda
@@ -130,7 +130,8 @@ class TestNmea:
 
     def test_gll_alone_times_the_log(self, tmp_path: Path) -> None:
         """A GNSS sending GLL (time of day) and VTG alone: GLL's valid fixes time the
-        log on the given date; a void GLL times nothing."""
+        log on the given date, each written as a GGA after it too (its position for
+        the pipeline, which reads none from GLL); a void GLL times nothing."""
         lines = [
             _gll("100000", "A"),
             encode_vtg(1.0, 90.0),
@@ -144,9 +145,13 @@ class TestNmea:
         src.write_text("\n".join(lines) + "\n")
         rep = import_nmea([src], tmp_path / "o.cap", day=date(2026, 3, 4))
         t0 = datetime(2026, 3, 4, 10, 0, 0, tzinfo=UTC).timestamp()
-        times = [r[0] - t0 for r in _records(tmp_path / "o.cap")]
-        assert times == pytest.approx([0.0, 0.4, 0.8, 1.2, 1.6, 2.0])
-        assert rep.skipped == {"after_last_fix": 1} and rep.sentences["VTG"] == 1
+        recs = _records(tmp_path / "o.cap")
+        assert [r[0] - t0 for r in recs] == pytest.approx([k / 3 for k in range(7)])
+        assert rep.skipped == {"after_last_fix": 2} and rep.sentences["VTG"] == 1
+        assert rep.notes == {"gga_from_gll": 2} and rep.sentences["GGA"] == 1
+        (gga,) = make_decoder("nmea0183", "n").decode_all(recs[1][2].encode() + b"\r\n")
+        assert isinstance(gga, Gga) and gga.quality == 1 and gga.time_of_day_s == 36_000.0
+        assert (gga.lat_deg, gga.lon_deg) == pytest.approx((46 + 13.353 / 60, 6 + 10.289 / 60))
 
     def test_gll_beside_rmc_times_nothing(self, tmp_path: Path) -> None:
         """Beside RMC (an instrument bus repeating the fix, late), GLL is no time
