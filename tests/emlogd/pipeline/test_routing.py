@@ -142,3 +142,22 @@ class TestGnssProjection:
         assert got == [] and len(u.gnss) == 1
         u.project(ring, lambda t: None, 12.5)
         assert got == [(10.0, None, False)] and not u.gnss
+
+
+class TestOverRange:
+    """A reading above the log's configured range goes out raw, up to twice the range."""
+
+    def test_above_the_range_up_to_twice_it_goes_out_raw_and_is_counted(self) -> None:
+        """Range 8 m/s: 8 is in range, 8.01 to 16 above it (passed raw), 16.01 refused.
+        Each passed reading counted; the replay's hook hears the learnt sentence's alone;
+        a log with a fault stays silent above its range as below it."""
+        s = _uut(lag_s=0.0)
+        cal = UutCalibration(s, None, lambda t: None, lambda t, k, d: None)
+        u = UutRoute(s, cal, ["dvl"])
+        assert [u.over_range(v) for v in (8.0, 8.01, 16.0, 16.01)] == [False, True, True, False]
+        heard: list[tuple[float, float]] = []
+        u.passed = lambda t, v: heard.append((t, v))
+        assert u.passed_raw(1.0, 9.5, True) == 9.5 and u.passed_raw(1.5, 9.6, False) == 9.6
+        assert heard == [(1.0, 9.5)] and cal.counters.over_range == 2
+        cal.sup.health.fault = "uut_stuck"
+        assert u.passed_raw(2.0, 9.5, True) is None
