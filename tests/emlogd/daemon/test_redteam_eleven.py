@@ -43,16 +43,21 @@ STORM_S = 3.0
 """How long the commands and the SIGHUPs storm the daemon."""
 
 
+def _with_tcp_output(tmp_path: Path) -> tuple[int, Path]:
+    """A work folder for :data:`PD0_CONFIG` with a TCP output beside the pty, and its port."""
+    port = free_port()
+    config = PD0_CONFIG.replace(
+        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
+    )
+    return port, make_work(tmp_path, config)
+
+
 def test_a_tcp_reader_that_half_closes_is_served(tmp_path: Path) -> None:
     """A reader of the TCP output that ends its sending at once (``shutdown(SHUT_WR)``:
     ``nc -N``, a script whose input is empty) receives the corrected VHW beside a plain
     reader, and the output counts it a client. The daemon took its end of file for a
     close: the reader got nothing, ``client_disconnected`` at once."""
-    port = free_port()
-    config = PD0_CONFIG.replace(
-        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
-    )
-    work = make_work(tmp_path, config)
+    port, work = _with_tcp_output(tmp_path)
     with _pd0_daemon(work) as (d, emlog):
         half = socket.create_connection(("127.0.0.1", port), timeout=5)
         plain = socket.create_connection(("127.0.0.1", port), timeout=5)
@@ -137,11 +142,7 @@ def test_a_file_at_the_pty_path_costs_the_pty_alone(tmp_path: Path) -> None:
     file is gone the pty is published within ``OUTPUT_RETRY_S`` (``output_opened``).
     The start ended with exit code 1, ``cannot publish …: exists and is not a symlink``:
     under systemd a restart loop, no output at all, for as long as the file was there."""
-    port = free_port()
-    config = PD0_CONFIG.replace(
-        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
-    )
-    work = make_work(tmp_path, config)
+    port, work = _with_tcp_output(tmp_path)
     link = work / "out" / "emlog0"
     link.write_text("$VWVHW,,T,,M,5.00,N,,K*00\n")
     emlog, dvl = (raw_pty(work / "links" / name) for name in ("emlog1", "dvl"))
@@ -174,11 +175,7 @@ def test_a_file_at_the_control_socket_path_costs_the_socket_alone(tmp_path: Path
     no socket (``control_socket_path``); once the file is gone the socket is made within
     ``PATH_CHECK_S`` and answers, and SIGTERM exits 0. The start ended with exit code 1
     (``control socket …: Address already in use``): a restart loop, no output at all."""
-    port = free_port()
-    config = PD0_CONFIG.replace(
-        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
-    )
-    work = make_work(tmp_path, config)
+    port, work = _with_tcp_output(tmp_path)
     sock = work / "run" / "control.sock"
     sock.write_text('{"cmd":"status"}\n')
     emlog, dvl = (raw_pty(work / "links" / name) for name in ("emlog1", "dvl"))
