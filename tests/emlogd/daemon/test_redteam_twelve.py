@@ -166,6 +166,11 @@ def _fields(payload: str, n: int) -> list[str] | None:
     return parts if len(parts) == n else None
 
 
+def _same(rel: float, t: float, port: str, s: str) -> list[Record]:
+    """The record as it is (the controls)."""
+    return [(t, port, s)]
+
+
 def _compass(offset_deg: float, *, gaps: bool) -> Edit:
     """A compass (port ``compass``, HDT) ``offset_deg`` off the DVL's heading; with
     ``gaps``, the DVL's own heading missing 10 s in every 20."""
@@ -236,7 +241,7 @@ def _twice(rel: float, t: float, port: str, s: str) -> list[Record]:
 
 def _delayed() -> Edit:
     """The EMlogs' values :data:`DELAY_S` late, their receive times right (a log's own
-    filter)."""
+    filter): at each reading the newest sentence at least that old, nothing before."""
     past: dict[str, list[tuple[float, str]]] = {}
 
     def edit(rel: float, t: float, port: str, s: str) -> list[Record]:
@@ -244,14 +249,16 @@ def _delayed() -> Edit:
             return [(t, port, s)]
         q = past.setdefault(port, [])
         q.append((t, s))
-        while q[0][0] <= t - DELAY_S:
+        while len(q) > 1 and q[1][0] <= t - DELAY_S:
             q.pop(0)
-        return [(t, port, q[0][1])]
+        return [(t, port, q[0][1])] if q[0][0] <= t - DELAY_S else []
 
     return edit
 
 
 WORLDS: dict[str, tuple[Callable[[], Edit], str]] = {
+    "control": (lambda: _same, "dvl"),
+    "control-gnss": (lambda: _same, "gnss"),
     "compass-180": (lambda: _compass(180.0, gaps=False), "dvl"),
     "compass-180-gaps": (lambda: _compass(180.0, gaps=True), "dvl"),
     "compass-180-gaps-gnss": (lambda: _compass(180.0, gaps=True), "gnss"),
@@ -328,19 +335,38 @@ def measure_world(world: str, tmp: Path) -> dict[str, Any]:
             "rmse_emitted": round(res.truth[u].rmse_corrected, 3),
             "state": status[u]["state"],
             "params": status[u]["params"],
+            "reason": status[u]["reason"],
+            "freezes": status[u]["freezes"],
+            "heading": status[u]["heading"],
         }
+    out["emitted"] = res.emitted
     return out
 
 
+OPEN = {
+    "uut-delayed": "emlog2's window from 1831 s 1.111x raw (0.573 vs 0.516 m/s): a "
+    "calibration validated at lag 0 on a log 30 s late; the lag check (lag: auto) "
+    "contradicts a lag only 30 s off or more in two checks in a row, and said nothing "
+    "for emlog2 (emlog1: best lag +33 s, raw passes through)",
+}
+"""The worlds that break the promise, each a strict xfail with what happens."""
+
+
 @pytest.mark.soak
-@pytest.mark.parametrize("world", list(WORLDS))
+@pytest.mark.parametrize(
+    "world",
+    [
+        pytest.param(w, marks=pytest.mark.xfail(strict=True, reason=OPEN[w])) if w in OPEN else w
+        for w in WORLDS
+    ],
+)
 def test_a_lying_sensor_never_makes_the_emitted_speed_worse_than_raw(
     world: str, tmp_path: Path
 ) -> None:
     """Every 5-min window of both logs within :data:`RATIO` of raw, both scored."""
     figures = measure_world(world, tmp_path)
-    assert set(figures) == {"emlog1", "emlog2"}
-    for u, f in figures.items():
+    for u in ("emlog1", "emlog2"):
+        f = figures[u]
         assert f["windows"] >= 10, (u, f)
         assert f["worst"] <= RATIO, (u, f)
 
