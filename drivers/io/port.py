@@ -39,6 +39,7 @@ import math
 import os
 import select
 import socket
+import stat
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -215,7 +216,8 @@ class SerialSource:
             )
             ser.open()
         except (serial.SerialException, OSError, ValueError) as exc:
-            self._schedule(f"cannot open {self.url}: {exc}")
+            kind = _not_a_device(self.url)
+            self._schedule(f"cannot open {self.url}: {kind or exc}")
             return False
         self._ser = ser
         # A plain POSIX port (device, pty) is read with one os.read on its
@@ -379,6 +381,32 @@ class SerialSource:
             self._stale = True
             self._event("stale", f"no data for {now - self._last_data:.1f} s")
         return self.events()
+
+
+_NOT_DEVICES = (
+    (stat.S_ISFIFO, "a FIFO"),
+    (stat.S_ISREG, "a regular file"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISDIR, "a directory"),
+)
+"""The kinds of file at an input's path that are no serial device, and their names."""
+
+
+def _not_a_device(url: str) -> str | None:
+    """What the file at the path ``url`` is when it is no device (a FIFO, a regular file,
+    a socket, a directory: an operator's ``mkfifo`` or capture left where the device
+    belongs), said in place of the termios error pyserial gives; None for a device, a
+    URL or a path that is not there."""
+    if "://" in url:
+        return None
+    try:
+        mode = Path(url).stat().st_mode
+    except OSError:
+        return None
+    for test, kind in _NOT_DEVICES:
+        if test(mode):
+            return f"{kind}, not a serial device or pty (tried again with backoff)"
+    return None
 
 
 def _path_moved(url: str, fd: int) -> str | None:

@@ -217,3 +217,17 @@ def test_a_silent_device_whose_path_names_another_is_opened_again(tmp_path: Path
         old.close()
         if new is not None:
             new.close()
+
+
+def test_a_fifo_or_a_regular_file_at_the_path_is_said_for_what_it_is(tmp_path: Path) -> None:
+    """A FIFO or a regular file where the device belongs is refused and retried, the
+    reason naming what it is (pyserial's own: ``Could not configure port: (25,
+    'Inappropriate ioctl for device')``); a missing path keeps pyserial's reason."""
+    fifo, plain, missing = tmp_path / "fifo", tmp_path / "plain", tmp_path / "missing"
+    os.mkfifo(fifo)
+    plain.write_text("$VWVHW,,T,,M,5.00,N,,K*4F\r\n")
+    for path, kind in ((fifo, "a FIFO"), (plain, "a regular file"), (missing, "No such file")):
+        src = SerialSource("emlog1", str(path), backoff_s=(0.5,))
+        assert not src.open()
+        assert src.why_closed is not None and kind in src.why_closed, src.why_closed
+        assert src.events()[0].kind == "disconnected"
