@@ -366,10 +366,13 @@ def judge_early(
     restored_sea_std: tuple[float, float] | None,
 ) -> bool:
     """A restored calibration on its first :data:`RESTORE_EARLY_SAMPLES`: applied then
-    when raw is worse than it by the margin in the saved sea, or, in the water frame on
-    a straight leg (headings spread less than :data:`RESTORE_MIN_HEADING_SPREAD`), when
-    :func:`judge_restored` on them applies it. A window that turns waits for the whole
-    window's currents of their own."""
+    when raw is worse than it by the margin in the saved sea, or, saved with its sea, in
+    the water frame on a straight leg (headings spread less than
+    :data:`RESTORE_MIN_HEADING_SPREAD`), when :func:`judge_restored` on them applies it.
+    A window that turns waits for the whole window's currents of their own; so does a
+    calibration saved without its sea, whose allowance there bounds nothing (a healthy
+    one applied on half a second of a 10-Hz log was withdrawn by the re-check's first
+    6 s at one heading)."""
     n = cand.n
     if cand.n_sea == n:
         s_raw, s_cand = math.sqrt(cand.sea_raw / n), math.sqrt(cand.sea_cand / n)
@@ -378,7 +381,7 @@ def judge_early(
         if worse(s_raw, s_cand):
             return True
     samples = cand.samples
-    if samples is None or len(samples) != n:
+    if restored_sea is None or samples is None or len(samples) != n:
         return False
     if heading_spread(samples) >= RESTORE_MIN_HEADING_SPREAD:
         return False
