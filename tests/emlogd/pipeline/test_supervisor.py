@@ -205,6 +205,17 @@ def test_after_a_silence_the_calibrations_are_judged_in_the_new_sea() -> None:
     assert _applied(sup) == p, kinds
 
 
+def _stepped_log(t: float, rng: random.Random) -> tuple[float, float]:
+    """The reading and the reference at ``t`` of the 0.2-Hz tests below: the speed
+    through the water swinging 1.4-2.2 m/s over 15 minutes, the reference wandering
+    0.07 m/s over 3 minutes, 0.02 m/s of noise on each, the log's gain 1.15 until
+    1200 s and 1.0 from then on."""
+    stw = 1.8 + 0.4 * math.sin(2.0 * math.pi * t / 900.0)
+    ref = stw + 0.07 * math.sin(2.0 * math.pi * t / 180.0) + rng.gauss(0.0, 0.02)
+    gain = 1.15 if t < 1200.0 else 1.0
+    return gain * stw + rng.gauss(0.0, 0.02), ref
+
+
 def test_at_one_reading_every_5_s_a_calibration_wrong_after_a_step_is_withdrawn_soon() -> None:
     """A log read every 5 s (gain 1.15, applied) against a reference wandering 0.07 m/s
     over 3 minutes, in 0.02 m/s of seeded noise. The calibration is withdrawn at 1130 s
@@ -222,10 +233,7 @@ def test_at_one_reading_every_5_s_a_calibration_wrong_after_a_step_is_withdrawn_
         t = 5.0 * k
         if t == 1130.0:
             sup.withdraw(t, "a test", {})
-        stw = 1.8 + 0.4 * math.sin(2.0 * math.pi * t / 900.0)
-        ref = stw + 0.07 * math.sin(2.0 * math.pi * t / 180.0) + rng.gauss(0.0, 0.02)
-        gain = 1.15 if t < 1200.0 else 1.0
-        sup.observe(t, gain * stw + rng.gauss(0.0, 0.02), ref, None, _NoOffer())
+        sup.observe(t, *_stepped_log(t, rng), None, _NoOffer())
         if t >= 1200.0 and _applied(sup) is not None:
             wrong.append(t)
     assert wrong and wrong[-1] - 1200.0 < 150.0, (wrong[:1], wrong[-1:], kinds)
@@ -249,10 +257,7 @@ def test_at_one_reading_every_5_s_a_gain_step_after_an_alarm_of_the_sea_is_caugh
     wrong: list[float] = []
     for k in range(300):
         t = 5.0 * k
-        stw = 1.8 + 0.4 * math.sin(2.0 * math.pi * t / 900.0)
-        ref = stw + 0.07 * math.sin(2.0 * math.pi * t / 180.0) + rng.gauss(0.0, 0.02)
-        gain = 1.15 if t < 1200.0 else 1.0
-        sup.observe(t, gain * stw + rng.gauss(0.0, 0.02), ref, None, _NoOffer())
+        sup.observe(t, *_stepped_log(t, rng), None, _NoOffer())
         assert t >= 1200.0 or _applied(sup) == p, (t, kinds)  # no false withdrawal
         if t >= 1200.0 and _applied(sup) is not None:
             wrong.append(t)
