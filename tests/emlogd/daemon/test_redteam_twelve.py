@@ -37,21 +37,7 @@ from emlogd.pipeline.core import Pipeline
 from emlogd.settings import pipeline_from_config
 from tests.emlogd.daemon.harness import Daemon, make_work, raw_pty, wait
 from tests.emlogd.daemon.test_redteam_live import VHW
-
-NOT_DEVICES_CONFIG = """\
-ports:
-  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
-  - {name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut}
-  - {name: dvl, url: links/dvl, protocol: pd0, role: reference}
-calibration:
-  - {uut: emlog1, reference: dvl, lag: 0.2}
-  - {uut: emlog2, reference: dvl, lag: 0.2, talker: VM, pty: out/emlog2}
-outputs: {pty: out/emlog0}
-state_file: state/state.yaml
-control_socket: run/control.sock
-log_format: json
-"""
-"""Two EMlogs and a DVL, each input's path given a file that is no device."""
+from tests.emlogd.daemon.test_redteam_reload import TWO_LOGS
 
 IDLE_S = 3.0
 """How long the daemon's CPU time is measured while its inputs are refused."""
@@ -86,7 +72,7 @@ def test_a_fifo_a_file_or_a_socket_at_an_input_path_is_refused_and_said(
     back at the FIFO's path is read within the backoff. The status said pyserial's
     termios error (``Could not configure port: (25, 'Inappropriate ioctl for
     device')``) for the FIFO and the file."""
-    work = make_work(tmp_path, NOT_DEVICES_CONFIG)
+    work = make_work(tmp_path, TWO_LOGS)  # each input's path given a file that is no device
     links = work / "links"
     os.mkfifo(links / "emlog1")
     (links / "emlog2").write_bytes(VHW[0] * 100)

@@ -216,6 +216,15 @@ def _stepped_log(t: float, rng: random.Random) -> tuple[float, float]:
     return gain * stw + rng.gauss(0.0, 0.02), ref
 
 
+def _stepped_log_applied() -> tuple[random.Random, Params, Supervisor, list[str]]:
+    """The seeded noise of :func:`_stepped_log`, the log's calibration before its step
+    (m 0.15), and a supervisor with it applied, with the kinds of its events."""
+    p = Params("EM3", m=0.15)
+    sup, kinds = _sup(None)
+    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    return random.Random(1), p, sup, kinds
+
+
 def test_at_one_reading_every_5_s_a_calibration_wrong_after_a_step_is_withdrawn_soon() -> None:
     """A log read every 5 s (gain 1.15, applied) against a reference wandering 0.07 m/s
     over 3 minutes, in 0.02 m/s of seeded noise. The calibration is withdrawn at 1130 s
@@ -224,10 +233,7 @@ def test_at_one_reading_every_5_s_a_calibration_wrong_after_a_step_is_withdrawn_
     the step and re-applied it at 1225 s, and the re-check (60 readings in a window of a
     300-s half-life: 8.5 minutes) withdrew it only at 1735 s; at the cadence's weight the
     re-validation ends before the step and the re-check withdraws it within 150 s of it."""
-    rng = random.Random(1)
-    p = Params("EM3", m=0.15)
-    sup, kinds = _sup(None)
-    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    rng, _, sup, kinds = _stepped_log_applied()
     wrong: list[float] = []
     for k in range(500):
         t = 5.0 * k
@@ -250,10 +256,7 @@ def test_at_one_reading_every_5_s_a_gain_step_after_an_alarm_of_the_sea_is_caugh
     step) as the sea's: withdrawn by the re-check at 1680 s. Now the baseline starts from
     the alarm's run and the shift test holds two readings each side: withdrawn by the
     change detector within 30 s."""
-    rng = random.Random(1)
-    p = Params("EM3", m=0.15)
-    sup, kinds = _sup(None)
-    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    rng, p, sup, kinds = _stepped_log_applied()
     wrong: list[float] = []
     for k in range(300):
         t = 5.0 * k
