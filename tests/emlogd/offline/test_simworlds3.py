@@ -165,9 +165,6 @@ WORLDS = {
 VHW_WORLDS: dict[str, Callable[[], Callable[..., str]]] = {"quantised-repeat": Repeating}
 """The worlds whose EMlogs' VHW encoder is replaced."""
 
-OPEN: dict[str, str] = {}
-"""The worlds that break the promise, each a strict xfail with what happens."""
-
 
 def _measure(name: str, tmp: Path, mp: pytest.MonkeyPatch) -> dict[str, Any]:
     make = VHW_WORLDS.get(name)
@@ -228,13 +225,7 @@ class TestWorlds:
 
 
 @pytest.mark.soak
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=OPEN[n])) if n in OPEN else n
-        for n in sorted(WORLDS)
-    ],
-)
+@pytest.mark.parametrize("name", sorted(WORLDS))
 def test_every_window_within_raw(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
