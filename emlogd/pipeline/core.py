@@ -418,7 +418,7 @@ class Pipeline:
             if learnt:
                 u.stw = (t, value)
             hdg_t, hdg_m = sp.heading_true_deg, sp.heading_mag_deg
-            sentence = self._sentence(u, t, sp, value)
+            sentence = self._sentence(u, t, sp, value, over)
             if self.fusion is None or not self.fusion.s.only:
                 out.emits.append(Emit(t, u.s.port, sentence))
             if self.fusion is not None and learnt:
@@ -431,11 +431,11 @@ class Pipeline:
                 out.emits.append(Emit(t, u.s.port, encode_two_axis_status(u.s.port, u.s.maker, ax)))
             self._vdr(u, t, out)
 
-    def _sentence(self, u: UutRoute, t: float, sp: SpeedRecord, value: float) -> str:
-        """A reading's corrected sentence: VHW; VBW with the learnt two-axis figures (the
-        reading then learnt from, ``axes: 2``; ``TwoAxisLearner.forward`` for a VHW), else
-        the configured ones, else the athwart read; its ground pair the reference's."""
-        ax = self.two_axis.get(u.s.port)
+    def _sentence(self, u: UutRoute, t: float, sp: SpeedRecord, value: float, over: bool) -> str:
+        """A reading's sentence: VHW; VBW with the learnt two-axis figures (then learnt
+        from, ``axes: 2``; ``TwoAxisLearner.forward`` for a VHW), else the configured ones,
+        else the athwart read; ground pair the reference's; ``over`` the range: both raw."""
+        ax = None if over else self.two_axis.get(u.s.port)
         if sp.source == "VHW":
             v = value if ax is None else ax.forward(t, sp.longitudinal_mps, value, u.cal.guard)
             return encode_vhw(v, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
@@ -447,7 +447,7 @@ class Pipeline:
                 ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on)
             if hull is not None:
                 return encode_vbw(*hull, u.s.talker, g)
-        if trans is not None and twoaxis.configured(u.s):
+        if trans is not None and not over and twoaxis.configured(u.s):
             return encode_vbw(*twoaxis.hull_frame(u.s, value, trans), u.s.talker, g)
         return encode_vbw(value, trans, u.s.talker, g)
 

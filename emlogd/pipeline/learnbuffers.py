@@ -15,9 +15,10 @@ from collections import deque
 import numpy as np
 
 from calib.errors import CalibrationError
-from calib.lag import accept, estimate_lag
+from calib.lag import LAG_FALLBACK_S, MIN_LAG_CORRELATION, LagEstimate, accept, estimate_lag
 from calib.lsq import BLOCK_MAX_GAP_S, MIN_HEADING_COHERENCE
 from calib.models import FloatArray
+from emlogd.pipeline.lagcheck import LAG_CHECK_AUTO_CONFIRM, LAG_CHECK_TOLERANCE_S
 
 LAG_WINDOW_GROWTH = 4.0
 """A refused lag estimate lets the window grow up to this many times ``lag_window_s``."""
@@ -98,6 +99,15 @@ class LagFinder:
     takes (never negative, within ``max_lag_s``, σ within
     :data:`calib.lag.MAX_LAG_STD_S`) is used, and it is final; until then the UUT
     learns on :data:`calib.lag.LAG_FALLBACK_S`.
+
+    Searches in a row (:data:`~emlogd.pipeline.lagcheck.LAG_CHECK_AUTO_CONFIRM`) whose
+    clear peak (:data:`calib.lag.MIN_LAG_CORRELATION`) is at their upper bound say the log
+    is later than ``max_lag_s`` (the correlation still rises there, window after window):
+    the fallback pairs each reading with the reference of another moment (:attr:`beyond`
+    says so, and the UUT learns and applies nothing) until an estimate is accepted or a
+    search's clear peak lies within the lag check's tolerance of the fallback
+    (:data:`~emlogd.pipeline.lagcheck.LAG_CHECK_TOLERANCE_S`). A log whose readings
+    are too sparse for the lag check (most of them dropped for the rate) is so told.
     """
 
     def __init__(self, window_s: float, max_lag_s: float, with_heading: bool) -> None:
@@ -109,6 +119,10 @@ class LagFinder:
         self.uut = _Series(cap)
         self.ref = _Series(cap)
         self.heading = _Series(cap)
+        self.beyond = ""
+        """Why the log lags its reference beyond the search (empty: not known to)."""
+        self.at_bound = 0
+        """Searches in a row whose clear peak was at the upper bound."""
 
     def ready(self) -> bool:
         """The UUT series spans the current target window."""
@@ -136,10 +150,26 @@ class LagFinder:
             why = str(exc)
         else:
             why = accept(est, max_lag_s=self.max_lag_s)
+            self._beyond(est)
             if not why:
+                self.beyond = ""
                 return est.lag_s, est.std_s, f"r={est.peak_corr:.2f}, σ {est.std_s:.3f} s"
         self._grow()
         return None, math.inf, why
+
+    def _beyond(self, est: LagEstimate) -> None:
+        """Whether ``est`` says the log lags beyond the search, or agrees with the
+        fallback lag (:attr:`beyond`; else it stands)."""
+        clear = est.peak_corr >= MIN_LAG_CORRELATION
+        bound = clear and est.at_bound
+        self.at_bound = self.at_bound + 1 if bound and est.lag_s > 0.0 else 0
+        if clear and not bound and abs(est.lag_s - LAG_FALLBACK_S) <= LAG_CHECK_TOLERANCE_S:
+            self.beyond = ""
+        elif self.at_bound >= LAG_CHECK_AUTO_CONFIRM and not self.beyond:
+            self.beyond = (
+                f"the log lags its reference beyond max_lag_s: {self.at_bound} lag searches "
+                f"in a row peak at their bound ({est.lag_s:+.1f} s, r={est.peak_corr:.2f})"
+            )
 
     def _grow(self) -> None:
         if self.target_s < LAG_WINDOW_GROWTH * self.window_s:

@@ -270,6 +270,8 @@ def judge_withdrawn(cand: Candidate, detail: dict[str, object], final: bool = Tr
     verdict = None if sep is None else sep.verdict(detail)
     if verdict is not None:
         return verdict
+    if sep is not None and sep.partial():  # the calibration half right: nothing re-applied
+        return False if final else None
     if beats_raw(cand, r_raw, r_cand, detail):
         return True
     return False if final or sep is None else None

@@ -47,7 +47,11 @@ errors are then neither raw's nor the calibration's in one current (a current th
 changed over the window, a reference with errors of its own, a calibration too near raw
 for its ``G`` to stand out), and ``w`` measures that, not that the calibration is right.
 A ``w`` below ½ by :data:`SEPARATION_SIGMAS` refuses it however far below 0 (raw is then
-the safe one)."""
+the safe one). A ``w`` below 1 by as many (:meth:`Separation.partial`) says the window's
+errors are a fraction of what the calibration predicts in any current: a part of the
+log's error is neither (a bias in turns, which a current takes on a figure-8's headings,
+with the speed dipping in each turn), and the RMSEs after currents fitted to that
+window, which take that part, re-apply nothing."""
 
 SEPARATION_SAMPLE_S = 1.0
 """A window counts at most one independent sample per this long, s, in the standard
@@ -165,6 +169,12 @@ class Separation:
         if w - SEPARATION_SIGMAS * se >= 0.5 and w <= 1.0 + SEPARATION_PLAUSIBLE:
             return True
         return None
+
+    def partial(self) -> bool:
+        """The window's ``w`` is below 1 by :data:`SEPARATION_SIGMAS` standard errors (see
+        :data:`SEPARATION_PLAUSIBLE`)."""
+        w, se = self.w()
+        return math.isfinite(se) and w + SEPARATION_SIGMAS * se < 1.0
 
     def add_memory(self, mem: SeaMemory, p: Params, now: float) -> None:
         """The memory's samples of the last :data:`SEPARATION_MEMORY_S` up to ``now``, back

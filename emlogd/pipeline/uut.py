@@ -132,6 +132,9 @@ class UutCalibration:
         self.lagcheck = LagCheck(s.current, auto=s.lag_s is None) if check_lag else None
         """The lag in use checked against the data (:mod:`emlogd.pipeline.lagcheck`; with
         ``lag: auto`` only for a reference minutes off)."""
+        self.lag_beyond = ""
+        """With the lag checked: why the lag search says the log lags beyond ``max_lag_s``
+        (:attr:`LagFinder.beyond`; nothing learnt or applied), or empty."""
         self.pending: deque[tuple[float, float]] = deque(maxlen=int((s.max_lag_s + 5.0) * 20) + 16)
         self.state: CalState = "uncalibrated"
         self.reason = (
@@ -356,6 +359,10 @@ class UutCalibration:
         lc = self.lagcheck
         if lc is not None and lc.reading(t, raw, lr.lag_s):
             self._lag_verdict(t, lc.why)
+        beyond = lr.lag_finder.beyond if lr.lag_finder is not None and lc is not None else ""
+        if beyond != self.lag_beyond:  # the lag search's own word on the fallback lag
+            self.lag_beyond = beyond
+            self._lag_verdict(t, beyond)
         a = lr.align(t, raw, self._heading)
         sup.reading(t, a.ref_state not in ("none", "stale"))
         ref_ok = a.ref if a.ref_state == "valid" else None
@@ -366,7 +373,7 @@ class UutCalibration:
         elif sup.health.stalled(raw, ref_ok):
             self.counters.uut_stalled += 1
             gate = "uut_stalled"
-        if lc is not None and lc.contradicted:
+        if (lc is not None and lc.contradicted) or beyond:
             gate = gate or "lag_contradicted"
         step = lr.step(a, gate, sup.applied)
         if step.valid and a.ref is not None and not gate:
@@ -438,8 +445,9 @@ class UutCalibration:
         else:
             new = "frozen" if self.applied is not None else "uncalibrated"
             self.reason = self._why_not_learning()
-        if self.lagcheck is not None and self.lagcheck.why:
-            self.reason = f"raw passes through, nothing learnt: {self.lagcheck.why}"
+        why = self.lag_beyond or (self.lagcheck.why if self.lagcheck is not None else "")
+        if why:
+            self.reason = f"raw passes through, nothing learnt: {why}"
         elif self.note:
             self.reason = f"{self.reason}; {self.note}"
         if self.learner.lag_note:

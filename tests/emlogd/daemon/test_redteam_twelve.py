@@ -332,12 +332,7 @@ def measure_world(world: str, tmp: Path) -> dict[str, Any]:
     return out
 
 
-OPEN = {
-    "uut-delayed-jumbled": "emlog2's window from 1831 s 1.111x raw (0.573 vs 0.516 m/s): "
-    "95 % of its readings dropped for the rate, a calibration validated at lag 0 on the "
-    "rest (a log 30 s late); the lag check (lag: auto) contradicts a lag only 30 s off "
-    "or more in two checks in a row, and said nothing for emlog2",
-}
+OPEN: dict[str, str] = {}
 """The worlds that break the promise, each a strict xfail with what happens."""
 
 

@@ -55,6 +55,38 @@ def test_a_refused_estimate_grows_the_window_then_slides_it() -> None:
     assert len(finder.uut) == n - n // 2
 
 
+def test_searches_peaking_at_their_bound_say_the_log_lags_beyond_them() -> None:
+    """A log 30 s late against a search up to 5 s: one search peaking at its upper bound
+    is not enough (a flat curve may peak there by chance), two in a row say the log
+    lags beyond the search (:attr:`LagFinder.beyond`), and it stands while the data say
+    nothing else; a log then found right on time (the lag accepted) clears it."""
+
+    def slow(t: float) -> float:  # a speed changing over minutes, no period near 30 s
+        return 2.0 + 0.5 * math.sin(2.0 * math.pi * t / 600.0)
+
+    finder = LagFinder(60.0, 5.0, with_heading=False)
+    for k in range(1200):
+        t = k / 10.0
+        finder.ref.append((t, slow(t)))
+        finder.uut.append((t, slow(t - 30.0)))
+    lag, _, why = finder.estimate()
+    said = [finder.beyond]
+    assert lag is None and "search bound" in why
+    finder.estimate()
+    said.append(finder.beyond)
+    _fill(finder, 120.0, 600.0, None)
+    finder.estimate()
+    said.append(finder.beyond)  # no correlation: no word against it
+    assert said[0] == "" and said[1] == said[2]
+    assert "lags its reference beyond max_lag_s: 2 lag searches in a row" in said[1]
+    _fill(finder, 600.0, 900.0, LAG_S)
+    while finder.uut.t[0] < 600.0:
+        finder.uut.drop_older_half()
+        finder.ref.drop_older_half()
+    lag, _, _ = finder.estimate()
+    assert lag == pytest.approx(LAG_S, abs=0.1) and not finder.beyond
+
+
 def test_series_are_bounded() -> None:
     """The series keep at most what the grown window and the lag search need."""
     finder = LagFinder(10.0, 1.0, with_heading=False)

@@ -9,6 +9,7 @@ import pytest
 
 from calib.models import Params
 from emlogd.pipeline.evidence import CUSUM_MAX_GAP_S, SeaMemory
+from emlogd.pipeline.revalidation import Candidate, judge_withdrawn
 from emlogd.pipeline.separation import Separation
 
 CAL = Params("EM3", m=0.2, b_mps=0.03)
@@ -122,3 +123,27 @@ def test_the_standard_error_is_honest_about_correlated_residuals(
     assert sum(z > 3.0 for z, _ in honest) <= 2
     assert all(h[1] >= 2.0 * n[1] for h, n in zip(honest, naive, strict=True))
     assert all(a <= 1.5 * b for a, b in zip(white, white_naive, strict=True))
+
+
+@pytest.mark.parametrize(("times", "partial"), [(0.65, True), (1.0, False), (3.0, False)])
+def test_errors_a_fraction_of_the_calibrations_are_partial(times: float, partial: bool) -> None:
+    """A log ``times`` as wrong as the calibration says: at 0.65 (between raw's 0 and its
+    1, too near ½ to be told from either by 3 standard errors of the noise and the
+    current) the window is :meth:`~Separation.partial`, and ``judge_withdrawn``
+    re-applies nothing on it, however the RMSEs after currents fitted to it stand (a
+    part of the error neither raw's nor the calibration's, which those currents take);
+    the calibration right, or ``w`` beyond 1, is no such window."""
+    sep = Separation()
+    for k in range(120):
+        v = 1.0 if k < 60 else 1.3
+        raw = v + times * (CAL.forward(v) - v) + _noise(k)
+        sep.add(float(k), raw - v, CAL.forward(v) - v, (1.0, 0.0))
+    assert sep.partial() is partial
+    if not partial:
+        return
+    assert sep.verdict() is None
+    cand = Candidate(CAL, 0.0, "revalidate", separation=sep, raw=1.0, cand=0.01, n=100)
+    assert judge_withdrawn(cand, {}, final=False) is None
+    assert judge_withdrawn(cand, {}, final=True) is False
+    cand.separation = None  # the RMSEs alone would re-apply it
+    assert judge_withdrawn(cand, {}) is True

@@ -258,3 +258,36 @@ def test_vhw_and_vbw_take_the_figures_own_forward_speed() -> None:
     assert vhw_kn(3.8) * KNOT == pytest.approx(u, abs=0.006)
     ax.sup.forward_own = False
     assert vhw_kn(4.0) == pytest.approx(3.89)
+
+
+def test_readings_above_the_range_go_out_raw_on_both_axes() -> None:
+    """A reading above the log's range (8 m/s, up to twice it) goes out raw on the
+    two-axis path as on the one-axis one: the VBW's forward and athwart speeds and the
+    VHW's as read, not turned back nor corrected by the applied figures (learnt or
+    configured) and not queued for the two-axis learner; counted ``over_range``. The
+    same readings within the range are corrected."""
+    p = _pipeline(TWO_AXIS_FIGURES)
+    ax = p.two_axis["log"]
+    lon = Params("EM3", m=-0.2, b_mps=0.1)
+    ax.sup.applied = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
+    ax.sup.forward_own = True
+    configured = Pipeline(
+        [PortSettings("log", "nmea0183"), PortSettings("dvl", "pd6")],
+        [UutSettings(port="log", reference_port="dvl", uut_source="VBW", misalign_deg=3.0)],
+    )
+
+    def sent(q: Pipeline, t: float, body: str) -> list[float]:
+        out = q.feed(t, "log", with_checksum(body).encode() + b"\r\n")
+        (line,) = [e.sentence for e in out.emits if e.sentence[3:6] in ("VBW", "VHW")]
+        msg = pynmea2.parse(line)
+        if msg.sentence_type == "VHW":
+            return [float(msg.water_speed_knots)]
+        return [float(msg.lon_water_spd), float(msg.trans_water_spd)]
+
+    for q in (p, configured):
+        assert sent(q, 1.0, "VMVBW,15.40,-0.80,A,,,V") != pytest.approx([15.4, -0.8])
+        assert sent(q, 2.0, "VMVBW,15.80,-0.80,A,,,V") == pytest.approx([15.8, -0.8])
+        assert sent(q, 2.5, "VMVHW,,T,,M,15.80,N,29.26,K") == pytest.approx([15.8])
+        counters = q.status()["uuts"]["log"]["counters"]  # type: ignore[index]
+        assert counters["over_range"] == 2
+    assert len(ax.pending) == 1  # the reading within the range alone
