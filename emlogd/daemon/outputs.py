@@ -193,10 +193,13 @@ class Outputs:
                 continue
             self.failed.pop(key, None)
             opened.append(sink.name)
-        self.routes = {}
+        # a log given outputs of its own writes to those that are open, never to the
+        # shared ones: its own not open, the shared output's reader got a second log's
+        # sentences between its own log's (two speeds on one line)
+        self.routes = {str(k[1]): [] for k in [*self.sinks, *self.failed] if k[0] == "uut"}
         for key, sink in self.sinks.items():
             if key[0] == "uut":
-                self.routes.setdefault(str(key[1]), []).append(sink)
+                self.routes[str(key[1])].append(sink)
         self.shared = [s for k, s in self.sinks.items() if k[0] != "uut"]
         self.next_retry = self.monotonic() + OUTPUT_RETRY_S
         return opened, failed
@@ -220,8 +223,8 @@ class Outputs:
                 self.log.info("output_opened", output=name)
 
     def deliver(self, emits: list[Emit]) -> None:
-        """Write sentences to their outputs: a log with outputs of its own writes there,
-        every other sentence to the shared ones."""
+        """Write sentences to their outputs: a log with outputs of its own writes to those
+        that are open (none open: nowhere), every other sentence to the shared ones."""
         if not self.routes:
             data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
             for sink in self.shared:

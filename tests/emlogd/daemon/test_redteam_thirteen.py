@@ -7,12 +7,17 @@ worse than raw reaches the autopilot."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
+import time
+import tty
 from pathlib import Path
 
-from tests.emlogd.daemon.harness import PD0_CONFIG, make_work
+from emlogd.daemon.outputs import OUTPUT_RETRY_S
+from tests.emlogd.daemon.harness import PD0_CONFIG, Daemon, make_work, raw_pty, wait
 from tests.emlogd.daemon.test_redteam_live import VHW, _pd0_daemon
+from tests.emlogd.daemon.test_redteam_reload import TWO_LOGS
 
 
 def test_a_watchdog_interval_of_a_digit_int_cannot_read_is_no_watchdog(tmp_path: Path) -> None:
@@ -40,3 +45,52 @@ def test_a_watchdog_interval_of_a_digit_int_cannot_read_is_no_watchdog(tmp_path:
                 except BlockingIOError:
                     break
             assert b"WATCHDOG=1" not in said, said
+
+
+OTHER_VHW = (b"$VWVHW,,T,,M,7.00,N,,K*4D\r\n", b"$VWVHW,,T,,M,7.01,N,,K*4C\r\n")
+"""The second EMlog's two readings (7 kn against the first's 5)."""
+
+
+def test_a_log_whose_own_pty_is_not_open_sends_nothing_to_the_shared_one(
+    tmp_path: Path,
+) -> None:
+    """emlog2 has a pty of its own (``calibration[].pty``), a regular file in its way at
+    the start; emlog1 goes out on the shared pty. The shared pty carries emlog1's
+    sentences only; once the file is gone emlog2's own pty is published and carries
+    emlog2's. emlog2's sentences went to the shared outputs while its own was not open:
+    the autopilot on the shared pty read 7 kn and 5 kn in turns (two logs on one line;
+    a talker it does not check tells them apart nowhere)."""
+    work = make_work(tmp_path, TWO_LOGS.replace("talker: VD}", "talker: VD, pty: out/two}"))
+    (work / "out" / "two").write_text("in the way\n")
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "emlog2", "dvl")]
+    try:
+        d = Daemon(work, pty=True)
+        own = -1
+        try:
+            tty.setraw(d.fd)
+            for k in range(10):
+                os.write(masters[0], VHW[k % 2])
+                os.write(masters[1], OTHER_VHW[k % 2])
+                d.pump(0.1)
+            shared = [line for line in d.lines if b"VHW" in line or b"PEMLS" in line]
+            assert any(line.startswith(b"$VWVHW,,T,,M,5.0") for line in shared), shared
+            assert not [x for x in shared if b"7.0" in x or b"emlog2" in x], shared
+            (work / "out" / "two").unlink()
+            wait(lambda: (work / "out" / "two").is_symlink(), "emlog2's pty", OUTPUT_RETRY_S + 3)
+            own = os.open(work / "out" / "two", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+            tty.setraw(own)
+            got = b""
+            for k in range(10):
+                os.write(masters[1], OTHER_VHW[k % 2])
+                time.sleep(0.1)
+                with contextlib.suppress(BlockingIOError):
+                    got += os.read(own, 4096)
+            assert b"$VDVHW,,T,,M,7.0" in got, got
+            assert d.stop() == 0
+        finally:
+            d.kill()
+            if own >= 0:
+                os.close(own)
+    finally:
+        for fd in masters:
+            os.close(fd)
