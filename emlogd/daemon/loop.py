@@ -672,6 +672,7 @@ class Daemon:
         for name in changed_ports:
             self._close_source(name)
         self._open_sources(new)
+        logsetup.follow_config(new.log_format, new.log_level, new.outputs.stdout)
         try:
             closed, opened = self.outputs.sync(new)
         except DeviceError as exc:
