@@ -3,17 +3,29 @@ lie in ways the twelfth did not try, edited into the simulated trial's captures 
 replayed against the truth.
 
 Rule kept (README, docs/RELIABILITY.md): nothing from outside stops the daemon, nothing
-worse than raw reaches the autopilot."""
+worse than raw reaches the autopilot (every 5-min window's RMSE of the emitted speed
+against the true speed through the water at most raw's × ``RATIO``). The worlds
+(:data:`WORLDS13`, built and judged as
+:func:`tests.emlogd.daemon.test_redteam_twelve.measure_world` does) are ``soak``; their
+figures are in docs/RELIABILITY.md, measured by running this file as a script::
+
+    PYTHONPATH=. python tests/emlogd/daemon/test_redteam_thirteen.py [WORLD ...]
+"""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import signal
 import socket
+import sys
+import tempfile
 import time
 import tty
 from pathlib import Path
+
+import pytest
 
 from emlogd.client import request
 from emlogd.daemon.outputs import OUTPUT_RETRY_S
@@ -29,6 +41,16 @@ from tests.emlogd.daemon.harness import (
 )
 from tests.emlogd.daemon.test_redteam_live import VHW, _pd0_daemon
 from tests.emlogd.daemon.test_redteam_reload import TWO_LOGS
+from tests.emlogd.daemon.test_redteam_twelve import (
+    FAULT_S,
+    RATIO,
+    Edit,
+    Record,
+    World,
+    _fields,
+    _nmea,
+    measure_world,
+)
 
 
 def test_a_watchdog_interval_of_a_digit_int_cannot_read_is_no_watchdog(tmp_path: Path) -> None:
@@ -158,3 +180,147 @@ def test_a_reload_turning_stdout_on_moves_the_log_to_stderr(tmp_path: Path) -> N
         os.close(out_r)
         for fd in masters:
             os.close(fd)
+
+
+SPIKE_EVERY = 20
+"""One EMlog sentence in this many reads :data:`SPIKE_FACTOR` times its value."""
+
+SPIKE_FACTOR = 2.5
+"""How far a spiking log's absurd reading is off (within the range at the trial's speeds)."""
+
+OTHER_LOG_FACTOR = 1.3
+"""The second log on the first log's line reads this many times the first's speed."""
+
+FLOOD_TYPES = 20
+"""Unknown sentence types each EMlog sentence is followed by (a talker's whole repertoire)."""
+
+
+def _heading_flips(rel: float, t: float, port: str, s: str) -> list[Record]:
+    """The DVL's heading 180° off in every other second (a heading source that flips:
+    two compasses behind one port, a sign lost in a converter)."""
+    sa = _fields(s, 4) if port == "dvl" and s.startswith(":SA,") else None
+    if sa is None or int(rel) % 2 == 0:
+        return [(t, port, s)]
+    try:
+        h = float(sa[3])
+    except ValueError:
+        return [(t, port, s)]
+    return [(t, port, ",".join([*sa[:3], f"{(h + 180.0) % 360.0:06.2f}"]))]
+
+
+def _vhw_speed(s: str) -> tuple[list[str], float] | None:
+    """A VHW sentence's fields and its speed in knots (None for another sentence)."""
+    if not s.startswith("$VWVHW,"):
+        return None
+    body = s[1 : s.find("*")].split(",")
+    try:
+        return body, float(body[5])
+    except (ValueError, IndexError):
+        return None
+
+
+def _with_knots(body: list[str], kn: float, talker: str = "VW") -> str:
+    """A VHW of ``body`` reading ``kn`` knots (and the km/h to match), from ``talker``."""
+    out = [talker + body[0][2:], *body[1:]]
+    out[5] = f"{kn:.2f}"
+    out[7] = f"{kn * 1.852:.2f}"
+    return _nmea(",".join(out))
+
+
+def _spikes() -> Edit:
+    """One EMlog VHW in :data:`SPIKE_EVERY` reading :data:`SPIKE_FACTOR` × its value."""
+    seen = [0]
+
+    def edit(rel: float, t: float, port: str, s: str) -> list[Record]:
+        vhw = _vhw_speed(s) if port.startswith("emlog") else None
+        if vhw is None:
+            return [(t, port, s)]
+        seen[0] += 1
+        if seen[0] % SPIKE_EVERY:
+            return [(t, port, s)]
+        return [(t, port, _with_knots(vhw[0], vhw[1] * SPIKE_FACTOR))]
+
+    return edit
+
+
+def _other_log(rel: float, t: float, port: str, s: str) -> list[Record]:
+    """A second log on emlog1's line (talker ``II``), reading :data:`OTHER_LOG_FACTOR` ×
+    emlog1's speed, each of its VHW 0.3 s after emlog1's, during :data:`FAULT_S`."""
+    vhw = _vhw_speed(s) if port == "emlog1" else None
+    if vhw is None or not FAULT_S[0] <= rel < FAULT_S[1]:
+        return [(t, port, s)]
+    return [(t, port, s), (t + 0.3, port, _with_knots(vhw[0], vhw[1] * OTHER_LOG_FACTOR, "II"))]
+
+
+def _type_flood(rel: float, t: float, port: str, s: str) -> list[Record]:
+    """Each EMlog sentence followed by :data:`FLOOD_TYPES` sentences of unknown types."""
+    if not port.startswith("emlog"):
+        return [(t, port, s)]
+    extra = [(t + 1e-5 * (k + 1), port, _nmea(f"VWX{k:02d},1,2,3")) for k in range(FLOOD_TYPES)]
+    return [(t, port, s), *extra]
+
+
+def _gnss_time_backwards(rel: float, t: float, port: str, s: str) -> list[Record]:
+    """The GNSS's RMC time of day running backwards from the trial's start (its clock
+    stepped back each fix), the speed and course right."""
+    if port != "gnss" or not s.startswith("$GPRMC,"):
+        return [(t, port, s)]
+    body = s[1 : s.find("*")].split(",")
+    back = (8 * 3600.0 - rel) % 86400.0
+    body[1] = f"{int(back // 3600):02d}{int(back % 3600 // 60):02d}{back % 60:05.2f}"
+    return [(t, port, _nmea(",".join(body)))]
+
+
+TORN_S = 0.5
+"""How late the end of each torn DVL ensemble comes after its beginning."""
+
+
+def _torn_ensembles() -> Edit:
+    """Every DVL ensemble torn across reads: its lines after ``:TS`` held back and
+    received :data:`TORN_S` after them (a converter releasing its buffer in chunks;
+    stamped with the record they come before, so the capture stays in time order), each
+    ensemble's end after the next one's ``:SA`` at 10 Hz: none whole."""
+    held: list[tuple[float, str]] = []
+
+    def edit(rel: float, t: float, port: str, s: str) -> list[Record]:
+        due = [(t, "dvl", line) for at, line in held if at <= t]
+        del held[: len(due)]
+        if port == "dvl" and s[:4] in (":BI,", ":BS,", ":BE,", ":BD,"):
+            held.append((t + TORN_S, s))
+            return due
+        return [*due, (t, port, s)]
+
+    return edit
+
+
+WORLDS13: dict[str, World] = {
+    "heading-flips": (lambda: _heading_flips, "dvl"),
+    "heading-flips-gnss": (lambda: _heading_flips, "gnss"),
+    "uut-spikes": (_spikes, "dvl"),
+    "other-log-on-the-line": (lambda: _other_log, "dvl"),
+    "sentence-type-flood": (lambda: _type_flood, "dvl"),
+    "gnss-time-backwards": (lambda: _gnss_time_backwards, "gnss"),
+    "torn-ensembles": (_torn_ensembles, "dvl"),
+}
+"""Each world: its edit (made fresh per run) and the reference learnt against."""
+
+
+@pytest.mark.soak
+@pytest.mark.parametrize("world", list(WORLDS13))
+def test_a_lying_sensor_never_makes_the_emitted_speed_worse_than_raw(
+    world: str, tmp_path: Path
+) -> None:
+    """Every 5-min window of both logs within ``RATIO`` of raw, both scored."""
+    figures = measure_world(world, tmp_path, WORLDS13)
+    for u in ("emlog1", "emlog2"):
+        f = figures[u]
+        assert f["windows"] >= 10, (u, f)
+        assert f["worst"] <= RATIO, (u, f)
+
+
+if __name__ == "__main__":
+    for name in sys.argv[1:] or list(WORLDS13):
+        with tempfile.TemporaryDirectory() as tmp:
+            figures = measure_world(name, Path(tmp), WORLDS13)
+            sys.stdout.write(json.dumps({name: figures}) + "\n")
+            sys.stdout.flush()
