@@ -443,6 +443,9 @@ class Daemon:
     def _feed(self, t: float, name: str, data: bytes) -> None:
         """Run the pipeline on one chunk of ``name``; a failure costs that chunk only."""
         assert self.pipeline is not None
+        data = self.outputs.echo.read(name, data)  # less the daemon's own output read back
+        if not data:  # all of it was (or a line not ended yet, held until it is)
+            return
         try:
             out = self.pipeline.feed(t, name, data)
         except Exception as exc:  # contained: no input stops the daemon
@@ -562,7 +565,7 @@ class Daemon:
 
     def _status(self, uut: str | None) -> dict[str, object]:
         assert self.pipeline is not None
-        return status_document(self.pipeline, self.sources, uut)
+        return status_document(self.pipeline, self.sources, uut, self.outputs.echo.echoes)
 
     def _notify_status(self) -> None:
         if self.pipeline is not None:

@@ -13,10 +13,12 @@ def status_document(
     pipeline: Pipeline,
     sources: Mapping[str, SerialSource],
     uut: str | None = None,
+    echoes: Mapping[str, int] | None = None,
 ) -> dict[str, object]:
     """The pipeline's status with each port's ``open`` (and ``why_closed``) from its
     source and ``state``: ``not open``, ``stale`` or ``open``; a port not open is stale
-    (no data can come). With ``uut``: that UUT and the ports it reads only."""
+    (no data can come); ``echoes``: its lines that were the daemon's own output, skipped
+    (:mod:`emlogd.daemon.echo`). With ``uut``: that UUT and the ports it reads only."""
     status = pipeline.status()
     ports = status["ports"]
     assert isinstance(ports, dict)
@@ -27,6 +29,7 @@ def status_document(
         port["why_closed"] = None if opened else (src.why_closed if src else "no source")
         port["stale"] = bool(port.get("stale")) or not opened
         port["state"] = "not open" if not opened else "stale" if port["stale"] else "open"
+        port["echoes"] = (echoes or {}).get(name, 0)
     if uut is not None:
         route = pipeline.uuts[uut]
         mine = {route.s.port, route.s.reference_port, route.heading_port}

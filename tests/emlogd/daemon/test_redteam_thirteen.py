@@ -17,13 +17,16 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import select
 import signal
 import socket
 import sys
 import tempfile
+import threading
 import time
 import tty
 from pathlib import Path
+from typing import cast
 
 import pytest
 
@@ -180,6 +183,57 @@ def test_a_reload_turning_stdout_on_moves_the_log_to_stderr(tmp_path: Path) -> N
         os.close(out_r)
         for fd in masters:
             os.close(fd)
+
+
+LOOP_TEST_S = 3.0
+"""How long the EMlog sends while its line carries the daemon's output back."""
+
+STATUS_OFTEN = "{pty: out/emlog0, status_sentence_interval_s: 0.2}"
+"""The outputs of that test: the status sentence, the proof of a loop, five times a second."""
+
+
+def _echo(d: Daemon, emlog: int, until: float) -> None:
+    """The output pty read (its lines into ``d.lines``) and written back into the EMlog's
+    line, until ``until``: a multiplexer forwarding the autopilot's bus to the log's input."""
+    buf = b""
+    while time.monotonic() < until:
+        if not select.select([d.fd], [], [], 0.05)[0]:
+            continue
+        with contextlib.suppress(BlockingIOError):
+            buf += os.read(d.fd, 4096)
+        *lines, buf = buf.split(b"\r\n")
+        for line in lines:
+            d.lines.append(line)
+            with contextlib.suppress(BlockingIOError):
+                os.write(emlog, line + b"\r\n")
+
+
+def test_the_daemons_output_read_back_on_the_logs_input_is_skipped(tmp_path: Path) -> None:
+    """Everything the daemon writes on its pty comes back on the EMlog's line (an NMEA
+    multiplexer forwarding every talker to every listener), the log sending a VHW every
+    0.1 s for 3 s: nearly every reading goes out (a few before the first ``$PEMLS`` came
+    back), none is dropped for the rate, and the port counts the echoes it skipped. Each
+    echo was read as a reading: the doubled rate was a babble, every reading dropped
+    (``implausible_rate``), 4 VHW out in 6 s."""
+    work = make_work(tmp_path, PD0_CONFIG.replace("{pty: out/emlog0}", STATUS_OFTEN))
+    with _pd0_daemon(work) as (d, emlog):
+        until = time.monotonic() + LOOP_TEST_S
+        echo = threading.Thread(target=_echo, args=(d, emlog, until + 0.5))
+        echo.start()
+        k = 0
+        while time.monotonic() < until:
+            os.write(emlog, VHW[k % 2])
+            k += 1
+            time.sleep(0.1)
+        echo.join()
+        out = [x for x in d.lines if x.startswith(b"$VWVHW")]
+        assert len(out) >= k - 5, (k, len(out))
+        u = d.uut("emlog1")
+        assert cast(dict[str, int], u["counters"])["implausible_rate"] == 0
+        ports = cast(dict[str, dict[str, int]], d.status()["ports"])
+        assert ports["emlog1"]["echoes"] > k // 2
+        assert d.events("output_read_back") == 1
+        assert d.stop() == 0
 
 
 SPIKE_EVERY = 20
