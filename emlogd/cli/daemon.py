@@ -18,14 +18,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     import structlog
 
     from emlogd.config import load_config
-    from emlogd.daemon.logsetup import configure_logging, flush_log
+    from emlogd.daemon.logsetup import configure_daemon_logging, flush_log
     from emlogd.daemon.loop import Daemon
     from emlogd.daemon.signals import ignore_terminal_stops
 
     ignore_terminal_stops()  # before any line reaches a terminal it may not write to
     cfg = load_config(config_path(args))
     # the corrected NMEA on stdout never shares it with the log: the log goes to stderr
-    configure_logging(cfg.log_format, cfg.log_level, sys.stderr if cfg.outputs.stdout else None)
+    configure_daemon_logging(cfg.log_format, cfg.log_level, cfg.outputs.stdout)
     log = structlog.get_logger("emlogd")
     try:
         return Daemon(cfg.path, log, state_path=args.state).run()

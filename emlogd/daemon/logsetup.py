@@ -239,6 +239,31 @@ def configure_logging(
     )
 
 
+_follows: tuple[LogFormat, str, bool] | None = None
+"""The settings the daemon's log was configured from (:func:`configure_daemon_logging`),
+which a reload follows; None when the process configured its log otherwise."""
+
+
+def configure_daemon_logging(fmt: LogFormat, level: str, nmea_on_stdout: bool) -> None:
+    """The daemon's log (:func:`configure_logging`): on stdout, or on stderr when the
+    corrected NMEA goes to stdout (``outputs.stdout``): the two never share it."""
+    global _follows
+    configure_logging(fmt, level, sys.stderr if nmea_on_stdout else None)
+    _follows = (fmt, level, nmea_on_stdout)
+
+
+def follow_config(fmt: LogFormat, level: str, nmea_on_stdout: bool) -> bool:
+    """At a reload, before the outputs are opened: the daemon's log configured again when
+    these settings changed (True); a log configured otherwise is left as it is. Kept
+    from the start, the log went on writing to stdout between the NMEA of an
+    ``outputs.stdout`` a reload turned on."""
+    if _follows is None or _follows == (fmt, level, nmea_on_stdout):
+        return False
+    flush_log(0.0)
+    configure_daemon_logging(fmt, level, nmea_on_stdout)
+    return True
+
+
 REPEATING_EVENTS = frozenset(
     {"reference", "stale", "alive", "state", "lag_retry", "identifiability"}
 )

@@ -43,6 +43,7 @@ from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lin
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
 from emlogd.daemon.statefile import STATE_RETRY_S, StateStore, max_state_bytes, same_records
+from emlogd.daemon.statusdoc import status_document
 from emlogd.pipeline.calibration import Calibration, checker
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import build_pipeline, pipeline_from_config
@@ -442,6 +443,9 @@ class Daemon:
     def _feed(self, t: float, name: str, data: bytes) -> None:
         """Run the pipeline on one chunk of ``name``; a failure costs that chunk only."""
         assert self.pipeline is not None
+        data = self.outputs.echo.read(name, data)  # less the daemon's own output read back
+        if not data:  # all of it was (or a line not ended yet, held until it is)
+            return
         try:
             out = self.pipeline.feed(t, name, data)
         except Exception as exc:  # contained: no input stops the daemon
@@ -560,28 +564,8 @@ class Daemon:
         self._notify_status()
 
     def _status(self, uut: str | None) -> dict[str, object]:
-        """The pipeline's status with each port's ``open`` (and ``why_closed``) from its
-        source and ``state``: ``not open``, ``stale`` or ``open``; a port not open is stale
-        (no data can come). With ``uut``: that UUT and the ports it reads only."""
         assert self.pipeline is not None
-        status = self.pipeline.status()
-        ports = status["ports"]
-        assert isinstance(ports, dict)
-        for name, port in ports.items():
-            src = self.sources.get(name)
-            opened = src is not None and src.is_open
-            port["open"] = opened
-            port["why_closed"] = None if opened else (src.why_closed if src else "no source")
-            port["stale"] = bool(port.get("stale")) or not opened
-            port["state"] = "not open" if not opened else "stale" if port["stale"] else "open"
-        if uut is not None:
-            route = self.pipeline.uuts[uut]
-            mine = {route.s.port, route.s.reference_port, route.heading_port}
-            uuts = status["uuts"]
-            assert isinstance(uuts, dict)
-            status["uuts"] = {uut: uuts[uut]}
-            status["ports"] = {n: v for n, v in ports.items() if n in mine}
-        return status
+        return status_document(self.pipeline, self.sources, uut, self.outputs.echo.echoes)
 
     def _notify_status(self) -> None:
         if self.pipeline is not None:
@@ -672,6 +656,7 @@ class Daemon:
         for name in changed_ports:
             self._close_source(name)
         self._open_sources(new)
+        logsetup.follow_config(new.log_format, new.log_level, new.outputs.stdout)
         try:
             closed, opened = self.outputs.sync(new)
         except DeviceError as exc:

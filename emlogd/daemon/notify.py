@@ -34,13 +34,14 @@ class Notifier:
 
     @classmethod
     def from_env(cls, env: Mapping[str, str] | None = None) -> Notifier:
-        """From ``NOTIFY_SOCKET``, ``WATCHDOG_USEC`` and ``WATCHDOG_PID`` (the pid must be ours)."""
+        """From ``NOTIFY_SOCKET``, ``WATCHDOG_USEC`` (ASCII digits, else no watchdog) and
+        ``WATCHDOG_PID`` (the pid must be ours)."""
         e = os.environ if env is None else env
         usec: int | None = None
         raw = e.get("WATCHDOG_USEC", "")
         pid = e.get("WATCHDOG_PID", "")
-        if raw.isdigit() and (not pid or pid == str(os.getpid())):
-            usec = int(raw)
+        if raw.isascii() and raw.isdigit() and (not pid or pid == str(os.getpid())):
+            usec = int(raw)  # ASCII: "²" is a digit to isdigit() and no number to int()
         return cls(e.get("NOTIFY_SOCKET"), usec)
 
     @property

@@ -20,6 +20,7 @@ from typing import Any
 
 from drivers.errors import DeviceError
 from emlogd.config import Config
+from emlogd.daemon.echo import EchoFilter
 from emlogd.daemon.logsetup import CLIENT_EVENT_BURST, CLIENT_EVENTS, EventLimiter
 from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
 from emlogd.pipeline.core import Emit
@@ -57,6 +58,10 @@ class Outputs:
         """The outputs of every other sentence."""
         self.client_events = EventLimiter(kinds=CLIENT_EVENTS, burst=CLIENT_EVENT_BURST)
         """The TCP outputs' lines about their clients, limited per output and event."""
+        self.echo = EchoFilter(
+            monotonic, lambda port: log.warning("output_read_back", port=port, skipped="echoes")
+        )
+        """What comes back of the sentences written (an input wired to the outputs)."""
 
     def _client_event(self, address: str, kind: str, peer: str) -> None:
         """A TCP output's event about one client: logged within :data:`CLIENT_EVENT_BURST`
@@ -141,6 +146,7 @@ class Outputs:
         Raises:
             DeviceError: an output could not be opened (the rest are in place).
         """
+        self.echo.configure(cfg)
         specs = self.specs(cfg)
         closed = [self.sinks[key].name for key in self.sinks if key not in specs]
         for key in [k for k in self.sinks if k not in specs]:
@@ -193,10 +199,13 @@ class Outputs:
                 continue
             self.failed.pop(key, None)
             opened.append(sink.name)
-        self.routes = {}
+        # a log given outputs of its own writes to those that are open, never to the
+        # shared ones: its own not open, the shared output's reader got a second log's
+        # sentences between its own log's (two speeds on one line)
+        self.routes = {str(k[1]): [] for k in [*self.sinks, *self.failed] if k[0] == "uut"}
         for key, sink in self.sinks.items():
             if key[0] == "uut":
-                self.routes.setdefault(str(key[1]), []).append(sink)
+                self.routes[str(key[1])].append(sink)
         self.shared = [s for k, s in self.sinks.items() if k[0] != "uut"]
         self.next_retry = self.monotonic() + OUTPUT_RETRY_S
         return opened, failed
@@ -220,10 +229,11 @@ class Outputs:
                 self.log.info("output_opened", output=name)
 
     def deliver(self, emits: list[Emit]) -> None:
-        """Write sentences to their outputs: a log with outputs of its own writes there,
-        every other sentence to the shared ones."""
+        """Write sentences to their outputs: a log with outputs of its own writes to those
+        that are open (none open: nowhere), every other sentence to the shared ones."""
+        data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
+        self.echo.wrote(data)
         if not self.routes:
-            data = b"".join(e.sentence.encode("ascii") + b"\r\n" for e in emits)
             for sink in self.shared:
                 sink.write(data)
             return

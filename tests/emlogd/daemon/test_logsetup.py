@@ -99,6 +99,27 @@ class TestConfigureLogging:
             configure_logging(fmt, level, io.StringIO())  # type: ignore[arg-type]
 
 
+def test_a_reload_moves_the_daemons_log_off_the_nmea_on_stdout(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The daemon's log follows the config at a reload: on stderr once ``outputs.stdout``
+    is on, back on stdout once it is off; a log configured otherwise is left alone."""
+    out, err = io.StringIO(), io.StringIO()
+    monkeypatch.setattr("sys.stdout", out)
+    monkeypatch.setattr("sys.stderr", err)
+    monkeypatch.setattr(logsetup, "_follows", None)
+    assert not logsetup.follow_config("json", "info", True)  # not the daemon's log
+    logsetup.configure_daemon_logging("json", "info", False)
+    assert not logsetup.follow_config("json", "info", False)
+    assert logsetup.follow_config("json", "info", True)
+    structlog.get_logger("t").info("on_stderr")
+    assert logsetup.follow_config("json", "info", False)
+    structlog.get_logger("t").info("on_stdout")
+    assert "on_stderr" in err.getvalue() and "on_stderr" not in out.getvalue()
+    assert "on_stdout" in out.getvalue() and "on_stdout" not in err.getvalue()
+    configure_logging("json", "info", io.StringIO())
+
+
 @pytest.fixture(params=["pipe", "socket"])
 def channel(request: pytest.FixtureRequest) -> Iterator[tuple[int, int]]:
     """(read end, write end) of a pipe of one page, or of a unix stream socket pair of

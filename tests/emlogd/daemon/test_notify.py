@@ -65,7 +65,7 @@ def test_watchdog_for_our_pid_and_malformed_values() -> None:
         {"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "30000000", "WATCHDOG_PID": str(os.getpid())}
     )
     assert ours.watchdog_interval_s == 15.0
-    for usec in ("", "abc", "-5", "0", "1e6"):
+    for usec in ("", "abc", "-5", "0", "1e6", "²", "١٠٠٠٠٠", " 100000"):
         n = Notifier.from_env({"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": usec})
         assert n.watchdog_interval_s is None, usec
 

@@ -448,12 +448,13 @@ def test_a_reload_of_a_config_slow_to_parse_does_not_hold_the_output(tmp_path: P
 
 
 @contextlib.contextmanager
-def _pd0_daemon(work: Path) -> Iterator[tuple[Daemon, int]]:
-    """The daemon of ``PD0_CONFIG`` in ``work``, its output pty raw, and the EMlog's pty
-    master (the DVL's served, silent); killed and closed at the end of the block."""
+def _pd0_daemon(work: Path, env: dict[str, str] | None = None) -> Iterator[tuple[Daemon, int]]:
+    """The daemon of ``PD0_CONFIG`` in ``work`` (its environment ``env``), its output pty
+    raw, and the EMlog's pty master (the DVL's served, silent); killed and closed at the
+    end of the block."""
     masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
     try:
-        d = Daemon(work, pty=True)
+        d = Daemon(work, pty=True, env=env)
         try:
             tty.setraw(d.fd)
             yield d, masters[0]

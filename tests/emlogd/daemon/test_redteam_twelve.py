@@ -244,7 +244,10 @@ def _delayed(*, by_type: bool) -> Edit:
     return edit
 
 
-WORLDS: dict[str, tuple[Callable[[], Edit], str]] = {
+World = tuple[Callable[[], Edit], str]
+"""A world: its edit (made fresh per run) and the reference learnt against."""
+
+WORLDS: dict[str, World] = {
     "control": (lambda: _same, "dvl"),
     "control-gnss": (lambda: _same, "gnss"),
     "compass-180": (lambda: _compass(180.0, gaps=False), "dvl"),
@@ -283,9 +286,12 @@ def _records(path: Path) -> Iterator[Record | str]:
             yield (float(m[1]), m[2], m[3]) if m else line
 
 
-def edit_trial(files: list[Path], world: str, out: Path) -> list[Path]:
-    """The trial's captures ``files`` with ``world``'s edit, written into ``out``."""
-    edit = WORLDS[world][0]()
+def edit_trial(
+    files: list[Path], world: str, out: Path, worlds: dict[str, World] | None = None
+) -> list[Path]:
+    """The trial's captures ``files`` with ``world``'s edit (of ``worlds``, default
+    :data:`WORLDS`), written into ``out``."""
+    edit = (worlds or WORLDS)[world][0]()
     edited: list[Path] = []
     for path in files:
         dst = out / path.name
@@ -302,13 +308,14 @@ def edit_trial(files: list[Path], world: str, out: Path) -> list[Path]:
     return edited
 
 
-def measure_world(world: str, tmp: Path) -> dict[str, Any]:
-    """``world`` replayed against the truth: per UUT its worst window's ratio, the
-    windows, the whole trial's RMSE raw and emitted, state and parameters."""
+def measure_world(world: str, tmp: Path, worlds: dict[str, World] | None = None) -> dict[str, Any]:
+    """``world`` (of ``worlds``, default :data:`WORLDS`) replayed against the truth: per
+    UUT its worst window's ratio, the windows, the whole trial's RMSE raw and emitted,
+    state and parameters."""
     sim = simulate(tmp / "trial", seed=1, scale=SCALE)
     (tmp / "edited").mkdir()
-    files = edit_trial(list(sim.files), world, tmp / "edited")
-    ref = WORLDS[world][1]
+    files = edit_trial(list(sim.files), world, tmp / "edited", worlds)
+    ref = (worlds or WORLDS)[world][1]
     ref_key = "reference: gnss, reference_field: gnss" if ref == "gnss" else "reference: dvl"
     ports, uuts = pipeline_from_config(parse_config(CFG.replace("reference: REF", ref_key)))
     res = replay(Pipeline(ports, uuts, {}), files, truth=read_truth(sim.outdir))
