@@ -31,7 +31,10 @@ shares its lag (the UUT's, once known) and its heading.
   it go the fit's longitudinal parameters when it determined them all, which the
   supervisor lets correct the forward speed once that is not worse than the one-axis
   calibration's nor raw's (a VHW reading, which has no athwart speed, takes the
-  athwart reading of the VBW before it, within :data:`ATHWART_FRESH_S`).
+  athwart reading of the VBW before it, within :data:`ATHWART_FRESH_S`); each reading
+  then goes out by whichever of the two has the smaller expected error
+  (:func:`emlogd.pipeline.twoaxis_sup.one_axis_better`), with the reading's noise
+  measured as the scatter of the readings inside the last :data:`NOISE_BLOCKS` blocks.
 
 A fit of a full window costs about 0.2 s of CPU with one BLAS thread (on a loaded
 machine a multi-threaded BLAS took seconds: ``OPENBLAS_NUM_THREADS=1`` suits the
@@ -50,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibrationError
-from calib.models import check_model
+from calib.models import Params, check_model
 from calib.twoaxis import (
     ALPHA,
     B_T,
@@ -66,7 +69,14 @@ from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.integrity import emitted_speed
 from emlogd.pipeline.settings import UutSettings
-from emlogd.pipeline.twoaxis_sup import Block, Figures, TwoAxisSupervisor, lon_of_fit
+from emlogd.pipeline.twoaxis_sup import (
+    Block,
+    Figures,
+    TwoAxisSupervisor,
+    lon_of_fit,
+    noise_gain,
+    one_axis_better,
+)
 
 BLOCK_S = 1.0
 """The block means the window holds, s (a 27-minute figure-8 in 1-s blocks gives the
@@ -92,6 +102,17 @@ block, correlated over 4 and α 3.28 ± 0.30°; linear between knots 5 minutes a
 figure-8 covers every heading in 90 s, a circle in 120 s), white residuals (correlation
 factor 1.0) and α 3.24 ± 0.14°."""
 
+NOISE_BLOCKS = 300
+"""The reading's noise (what a correction's gain passes, :func:`~emlogd.pipeline.
+twoaxis_sup.one_axis_better`) is the pooled scatter of the forward readings about their
+block's mean over this many of the last blocks (5 minutes of 1-s blocks: a speed that
+changes inside one second adds little, and the noise of a log does not change
+faster)."""
+MIN_NOISE_DOF = 100
+"""The least number of degrees of freedom (readings less one per block) the noise
+is measured on before a reading may go out by the one-axis correction in preference
+to the figures' own (10 s of a 10-Hz log)."""
+
 ATHWART_FRESH_S = 1.0
 """A VHW reading's forward speed is the applied figures' own (turned back by α with the
 athwart speed) only when a VBW's athwart reading came this recently, s (the log's VBW
@@ -109,11 +130,11 @@ _Pending = tuple[float, float, float, float]
 @dataclass(slots=True)
 class _Acc:
     """Sums of one block: t, forward (one-axis corrected), raw forward, raw athwart,
-    ground forward, ground starboard, cos ψ, sin ψ."""
+    ground forward, ground starboard, cos ψ, sin ψ, raw forward squared."""
 
     t0: float
     n: int = 0
-    sums: tuple[float, ...] = (0.0,) * 8
+    sums: tuple[float, ...] = (0.0,) * 9
 
     def add(self, row: tuple[float, ...]) -> None:
         self.sums = tuple(a + b for a, b in zip(self.sums, row, strict=True))
@@ -123,6 +144,12 @@ class _Acc:
         m = [x / self.n for x in self.sums]
         hd = math.degrees(math.atan2(m[7], m[6])) % 360.0
         return (*m[:6], hd)
+
+    def scatter(self) -> tuple[float, int]:
+        """The raw forward readings' sum of squares about their mean, and its degrees
+        of freedom."""
+        mean = self.sums[2] / self.n
+        return max(self.sums[8] - self.n * mean * mean, 0.0), self.n - 1
 
 
 class TwoAxisLearner:
@@ -164,6 +191,15 @@ class TwoAxisLearner:
         self.athwart: tuple[float, float] | None = None
         """The last VBW's time and raw athwart reading (what a VHW reading is turned
         back with)."""
+        self.scatter: deque[tuple[float, int]] = deque(maxlen=NOISE_BLOCKS)
+        """The last blocks' raw forward sums of squares about their means, and their
+        degrees of freedom (:meth:`noise_var`)."""
+        self._scatter_sum = [0.0, 0]
+        """Their totals."""
+        self.forward_by = {"own": 0, "one_axis": 0}
+        """Readings whose forward speed went out by the figures' own correction, or by the
+        one-axis one where that has the smaller expected error, while the figures' own
+        was let out (:func:`~emlogd.pipeline.twoaxis_sup.one_axis_better`)."""
         self.tap: Callable[[float, float, float, float, bool], None] | None = None
         """Offline use (``replay --truth``): receives every VBW reading as ``(t, forward
         corrected by the one-axis calibration, raw forward, raw athwart, figures
@@ -202,23 +238,31 @@ class TwoAxisLearner:
         forward_mps: float,
         athwart_mps: float,
         raw_l_mps: float | None = None,
-        guard: tuple[int, bool] = (0, False),
+        guard: tuple[int, bool, Params | None] = (0, False, None),
     ) -> tuple[float, float] | None:
         """The VBW's hull-frame speeds with the applied figures (None: none applied):
         their own forward speed from the raw one ``raw_l_mps`` where the supervisor
         lets it (:attr:`TwoAxisSupervisor.forward_own`), else ``forward_mps`` (the
-        one-axis calibration's) turned back; ``guard`` the one-axis supervisor's
-        (:meth:`answers`)."""
+        one-axis calibration's) turned back, also where that has the smaller expected
+        error (:meth:`_own_better`); ``guard`` the one-axis supervisor's
+        (:meth:`answers`) and its calibration in use (None: raw passes)."""
         f = self.sup.applied
         if f is None or not self.s.apply:
             return None
         own = None
-        if raw_l_mps is not None and self.answers(*guard) and self.forward_on():
+        if raw_l_mps is not None and self.answers(*guard[:2]) and self.forward_on():
             own = self._own(raw_l_mps, athwart_mps)
-        if own is not None:
+        one = f.hull_frame(forward_mps, athwart_mps)
+        ca = math.cos(math.radians(f.misalign_deg))
+        one_gain = ca * ca * noise_gain(guard[2], forward_mps)
+        if (
+            own is not None
+            and raw_l_mps is not None
+            and self._own_better(own[0], raw_l_mps, one[0], one_gain)
+        ):
             u, w = own
         else:
-            u, w = f.hull_frame(forward_mps, athwart_mps)
+            u, w = one
         self.leeway_deg = math.degrees(math.atan2(w, u)) if u or w else 0.0
         return u, w
 
@@ -227,20 +271,49 @@ class TwoAxisLearner:
         t: float,
         raw_l_mps: float | None,
         one_axis_mps: float,
-        guard: tuple[int, bool] = (0, False),
+        guard: tuple[int, bool, Params | None] = (0, False, None),
     ) -> float:
         """A VHW reading's forward speed: by the applied figures' own longitudinal
         parameters, turned back with the last VBW's athwart reading, where the
         supervisor lets them correct the forward speed and that reading is fresh
         (:data:`ATHWART_FRESH_S`) and the one-axis supervisor's ``guard`` lets them
-        (:meth:`answers`); else ``one_axis_mps``, the one-axis calibration's."""
+        (:meth:`answers`) and the one-axis calibration's has not the smaller expected
+        error (:meth:`_own_better`); else ``one_axis_mps``, the one-axis calibration's."""
         f, last = self.sup.applied, self.athwart
-        if f is None or raw_l_mps is None or last is None or not self.answers(*guard):
+        if f is None or raw_l_mps is None or last is None or not self.answers(*guard[:2]):
             return one_axis_mps
         if not self.forward_on() or abs(t - last[0]) > ATHWART_FRESH_S:
             return one_axis_mps
         own = self._own(raw_l_mps, last[1])
-        return one_axis_mps if own is None else own[0]
+        one_gain = noise_gain(guard[2], one_axis_mps)
+        if own is None or not self._own_better(own[0], raw_l_mps, one_axis_mps, one_gain):
+            return one_axis_mps
+        return own[0]
+
+    def _own_better(
+        self, own_mps: float, raw_l_mps: float, one_mps: float, one_gain: float
+    ) -> bool:
+        """Whether a reading's forward speed goes out by the applied figures' own
+        correction ``own_mps`` rather than the one-axis one ``one_mps`` (whose noise gain
+        is ``one_gain``): unless the one-axis one has the smaller expected error at the
+        measured noise (:func:`~emlogd.pipeline.twoaxis_sup.one_axis_better`); counted."""
+        f = self.sup.applied
+        var = self.noise_var()
+        if f is not None and f.lon is not None and var is not None:
+            us = f.lon.correct(raw_l_mps)
+            own_gain = math.cos(math.radians(f.misalign_deg)) * noise_gain(f.lon, us)
+            if one_axis_better(own_mps, own_gain, one_mps, one_gain, var):
+                self.forward_by["one_axis"] += 1
+                return False
+        self.forward_by["own"] += 1
+        return True
+
+    def noise_var(self) -> float | None:
+        """The forward reading's noise variance, m²/s²: the pooled scatter about their
+        block's mean of the last :data:`NOISE_BLOCKS` blocks' readings (None: under
+        :data:`MIN_NOISE_DOF` degrees of freedom)."""
+        ss, dof = self._scatter_sum
+        return max(ss, 0.0) / dof if dof >= MIN_NOISE_DOF else None
 
     def _own(self, raw_l_mps: float, athwart_mps: float) -> tuple[float, float] | None:
         """The hull-frame speeds by the applied figures' own longitudinal parameters, the
@@ -300,7 +373,8 @@ class TwoAxisLearner:
                 self.counts["no_heading"] += 1
                 continue
             psi = math.radians(hd)
-            self._add(t, (t, fwd_c, raw_l, raw_t, gf, gs, math.cos(psi), math.sin(psi)), learn)
+            row = (t, fwd_c, raw_l, raw_t, gf, gs, math.cos(psi), math.sin(psi), raw_l * raw_l)
+            self._add(t, row, learn)
         if final:
             self._close(learn)
             if learn and self.blocks and self.t_fit < self.blocks[-1][0]:
@@ -321,6 +395,14 @@ class TwoAxisLearner:
             return
         b = acc.mean()
         self.blocks.append(b)
+        if acc.n > 1:
+            totals = self._scatter_sum
+            if len(self.scatter) == self.scatter.maxlen:
+                ss, k = self.scatter[0]
+                totals[0], totals[1] = totals[0] - ss, totals[1] - k
+            ss, k = acc.scatter()
+            self.scatter.append((ss, k))
+            totals[0], totals[1] = totals[0] + ss, totals[1] + k
         block: Block = (b[0], b[1], b[3], b[5], b[6], b[2], b[4])
         self.sup.observe(block)
         span = b[0] - self.blocks[0][0]

@@ -46,6 +46,22 @@ straight run) any correction fits the offset, and one whose scale is nearer 0
 divides the reading's noise by less (the ratio ``(1 + m_own)/(1 + m_one)``, 2–3 % on
 the straight runs after a restart where the one-axis fit held its scale).
 
+**Per reading, the smaller expected error.** Where the figures' own forward speed is
+let out, each reading still goes out by whichever of the two corrections has the
+smaller expected squared error (:func:`one_axis_better`). A correction's error at
+one speed is its offset there plus the reading's noise times its gain ``1/f'(v)``
+(:func:`noise_gain`): the two-axis fit's is the sensor's local slope, the one-axis
+fit's — its scale traded with the current — lower wherever that scale is nearer 0.
+Taking the figures' own as unbiased (its scale and offset determined with the current
+seen on both axes), the one-axis correction's offset at this reading is their
+difference ``d``, known exactly from the two sets of parameters, and its expected
+squared error is the smaller when ``d² < (g_own² − g_one²)·σ²``, σ the reading's
+noise (measured by the learner, the scatter of the readings inside each block). On a
+straight run where the one-axis offset happens to fit (its scale held, its noise
+divided by less) that sends the one-axis speed; where its offset does not (the
+return after a restart, 2.3 times the floor) the figures' own. The uncertainty of the
+figures' own offset adds to both sides alike and drops out.
+
 **Restored figures early.** Figures restored with the sea of their state file (the
 current saved with the one-axis calibration, at most
 :data:`~emlogd.pipeline.revalidation.RESTORE_SEA_MAX_AGE_S` old) are applied on the
@@ -271,6 +287,27 @@ def forward_rmse(blocks: list[Block], figures: Figures | None) -> dict[str, floa
         al = math.radians(figures.misalign_deg)
         out[FORWARD_OWN] = rms(us * math.cos(al) - ws * math.sin(al))
     return out
+
+
+def noise_gain(p: Params | None, v_mps: float) -> float:
+    """How much of a reading's noise a correction passes at the corrected speed
+    ``v_mps``: ``1/f'(v) = 1/(2a·v + 1 + m)`` (None: raw passes, 1); inf where the
+    slope is not positive."""
+    if p is None:
+        return 1.0
+    slope = 2.0 * p.a_spm * v_mps + 1.0 + p.m
+    return 1.0 / slope if slope > 0.0 else math.inf
+
+
+def one_axis_better(
+    own_mps: float, own_gain: float, one_mps: float, one_gain: float, noise_var: float
+) -> bool:
+    """Whether the one-axis correction of a reading has the smaller expected squared
+    error than the figures' own (module docstring): the figures' own taken as unbiased,
+    the one-axis one's offset is their difference, and it wins when that squared is
+    under the noise it spares, ``(g_own² − g_one²)·σ²``."""
+    spare = (own_gain * own_gain - one_gain * one_gain) * noise_var
+    return math.isfinite(spare) and spare > 0.0 and (one_mps - own_mps) ** 2 < spare
 
 
 def own_forward_ok(r: Mapping[str, float]) -> bool:

@@ -235,12 +235,15 @@ class UutCalibration:
         self.sup.applied = p
 
     @property
-    def guard(self) -> tuple[int, bool]:
+    def guard(self) -> tuple[int, bool, Params | None]:
         """What a two-axis forward speed answers to (:meth:`TwoAxisLearner.answers`): the
-        supervisor's fallbacks to raw or the previous calibration so far, and whether a
-        reading goes out raw for a cause now (held by the change detector, a fault)."""
+        supervisor's fallbacks to raw or the previous calibration so far, whether a
+        reading goes out raw for a cause now (held by the change detector, a fault),
+        and the calibration a reading goes out by (None: raw passes), whose noise gain
+        the two-axis forward speed is weighed against."""
         sup = self.sup
-        return sup.counters.fallbacks, sup.held or bool(sup.health.fault)
+        in_use = sup.applied if sup.s.apply and not sup.held else None
+        return sup.counters.fallbacks, sup.held or bool(sup.health.fault), in_use
 
     @property
     def applied_std(self) -> dict[str, float | None]:

@@ -291,3 +291,54 @@ def test_readings_above_the_range_go_out_raw_on_both_axes() -> None:
         counters = q.status()["uuts"]["log"]["counters"]  # type: ignore[index]
         assert counters["over_range"] == 2
     assert len(ax.pending) == 1  # the reading within the range alone
+
+
+def test_the_reading_noise_is_measured_inside_the_blocks(
+    figure8: tuple[TwoAxisLearner, Events],
+) -> None:
+    """The forward reading's noise is the scatter about each block's mean (0.05 m/s on
+    the synthetic log, whose figure-8 changes its speed inside a second by far less)."""
+    var = figure8[0].noise_var()
+    assert var is not None and math.sqrt(var) == pytest.approx(0.05, rel=0.03)
+    assert TwoAxisLearner(SETTINGS, lambda *_: None).noise_var() is None
+
+
+def test_a_reading_goes_out_by_the_correction_of_the_smaller_expected_error() -> None:
+    """With the figures' own forward speed let out, a reading still goes out by the
+    one-axis calibration (turned back by α) where that one agrees with the figures' own
+    at this speed and divides the noise by more (its scale nearer 0): the smaller
+    expected squared error, on the VBW and the VHW alike; by the figures' own where the
+    one-axis offset there is larger than the noise it spares, and before the noise is
+    measured."""
+    p = _pipeline(TWO_AXIS_FIGURES)
+    ax, cal = p.two_axis["log"], p.uuts["log"].cal
+    lon = Params("EM3", m=-0.2, b_mps=0.1)
+    fig = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
+    ax.sup.applied, ax.sup.forward_own = fig, True
+    raw, ath = 3.89 * KNOT, -0.19 * KNOT
+    ca = math.cos(math.radians(3.0))
+    # the one-axis correction (learnt against the hull: u_s/cos α) 15 mm/s above the
+    # figures' own once turned back, under the 21 mm/s of noise its gain spares; 40 above
+    v = (lon.correct(raw) + 0.015 / ca) / ca
+    agree = Params("EM3", m=-0.15, b_mps=raw - 0.85 * v)
+    off = Params("EM3", m=-0.15, b_mps=raw - 0.85 * (v + 0.025 / ca**2))
+
+    def sent(t: float, one: Params) -> tuple[float, float]:
+        cal.sup.applied = one
+        out = []
+        for dt, body in ((0.0, "VMVBW,3.89,-0.19,A,,,V"), (0.05, "VMVHW,,T,,M,3.89,N,7.20,K")):
+            emits = p.feed(t + dt, "log", with_checksum(body).encode() + b"\r\n").emits
+            line = next(e.sentence for e in emits if e.sentence[3:6] in ("VBW", "VHW"))
+            msg = pynmea2.parse(line)
+            kn = msg.lon_water_spd if body[2:5] == "VBW" else msg.water_speed_knots
+            out.append(float(kn) * KNOT)
+        return out[0], out[1]
+
+    own = fig.hull_frame_own(raw, ath)[0]
+    assert sent(1.0, agree) == pytest.approx((own, own), abs=0.003)  # noise not measured
+    ax._scatter_sum[:] = [0.0025 * 1000, 1000]
+    one = fig.hull_frame(v, ath)[0]
+    assert one - own == pytest.approx(0.015) and v - own > 0.01
+    assert sent(2.0, agree) == pytest.approx((one, v), abs=0.003)
+    assert sent(3.0, off) == pytest.approx((own, own), abs=0.003)
+    assert ax.forward_by == {"own": 4, "one_axis": 2}

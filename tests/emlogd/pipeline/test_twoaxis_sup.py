@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
-from calib.models import Params
+from calib.models import Params, correct_array
 from emlogd.pipeline.twoaxis_sup import (
     FORWARD_ONE_AXIS,
     FORWARD_OWN,
@@ -18,6 +19,8 @@ from emlogd.pipeline.twoaxis_sup import (
     athwart_rmse,
     forward_rmse,
     lon_of_fit,
+    noise_gain,
+    one_axis_better,
 )
 
 Events = list[tuple[float, str, dict[str, object]]]
@@ -302,3 +305,35 @@ def test_lon_of_fit_needs_every_longitudinal_parameter_determined() -> None:
 
 def test_forward_rmse_of_no_blocks() -> None:
     assert forward_rmse([], None) == {}
+
+
+def test_noise_gain_is_the_inverse_local_slope() -> None:
+    """A correction passes a reading's noise times ``1/f'(v)``: 1 for raw, ``1/(1 + m)``
+    for a linear model, ``1/(2a·v + 1 + m)`` for EM4; inf where the slope is not
+    positive."""
+    assert noise_gain(None, 2.0) == 1.0
+    assert noise_gain(Params("EM3", m=-0.2, b_mps=0.1), 2.0) == pytest.approx(1.25)
+    assert noise_gain(Params("EM4", a_spm=0.02, m=-0.2, b_mps=0.1), 2.5) == pytest.approx(1 / 0.9)
+    assert noise_gain(Params("EM4", a_spm=-0.2, m=-0.2, b_mps=0.0), 2.5) == math.inf
+
+
+def test_one_axis_better_where_its_expected_squared_error_is_smaller() -> None:
+    """At one speed, a reading ``f(u) + n`` corrected by the sensor's own model (unbiased,
+    gain 1/0.8) and by a one-axis model of a scale nearer 0 (gain 1/0.85) offset by
+    ``d``: the rule picks the one-axis correction exactly where its mean squared error
+    over many readings is the smaller (``d² < (g_own² − g_one²)·σ²``, 2.1 cm/s here),
+    never one of a larger gain, and nothing without a finite gain."""
+    rng = np.random.default_rng(5)
+    sigma, u = 0.05, 2.0
+    own = Params("EM3", m=-0.2, b_mps=0.1)
+    raw = own.forward(u) + rng.normal(0.0, sigma, 200_000)
+    g_own = noise_gain(own, u)
+    for d in (0.0, 0.01, 0.02, 0.025, 0.03, -0.015, -0.025):
+        one = Params("EM3", m=-0.15, b_mps=own.forward(u) - 0.85 * (u + d))
+        g_one = noise_gain(one, u)
+        mse_own = float(np.mean((correct_array(own, raw) - u) ** 2))
+        mse_one = float(np.mean((correct_array(one, raw) - u) ** 2))
+        picked = one_axis_better(u, g_own, u + d, g_one, sigma * sigma)
+        assert picked == (mse_one < mse_own), d
+    assert one_axis_better(2.0, 1.0 / 0.85, 2.0, 1.25, 0.0025) is False  # a larger gain
+    assert one_axis_better(2.0, math.inf, 2.0, 1.0, 0.0025) is False
