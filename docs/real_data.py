@@ -87,7 +87,7 @@ MIN_WINDOW_SAMPLES = 60
 MIN_SECTORS = 3
 """A current window needs headings in at least this many 45° sectors."""
 
-KINDS = ("nmea", "expedition-csv", "logger-tsv", "csv")
+KINDS = ("nmea", "expedition-csv", "logger-tsv", "csv", "json")
 
 KIND_SCAN_LINES = 200
 """A table's header is looked for among this many first lines (a logger may write its
@@ -112,6 +112,10 @@ three more columns is a table of samples."""
 UNIT_AFTER = re.compile(r"\s*[(\[].*$")
 """A unit after a column's name (``Bsp (kt)``, ``SOG [m/s]``), dropped before matching."""
 
+JSON_MESSAGE = re.compile(r'[^{]*\{.*"(updates|pgn)"')
+"""A JSON-lines log's line: a Signal K delta or a canboat analyzer message (a receive
+time may come before it)."""
+
 BOM = b"\xef\xbb\xbf"
 """UTF-8's byte-order mark, which a spreadsheet may write first."""
 
@@ -128,6 +132,8 @@ def kind(path: Path) -> str | None:
     lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
     if not lines:
         return None
+    if sum(bool(JSON_MESSAGE.match(ln)) for ln in lines[:50]) > len(lines[:50]) // 2:
+        return "json"
     if (
         sum(bool(SENTENCE_IN_LINE.search(ln)) for ln in lines[:50])
         >= min(len(lines[:50]), 5) // 2 + 1
@@ -217,6 +223,8 @@ def run_import(path: Path, what: str, cap: Path) -> tuple[dict[str, Any] | None,
         attempts = [["--format", "nmea"]]
     elif what == "expedition-csv":
         attempts = [["--format", "csv"], ["--format", "csv", "--preset", "expedition"]]
+    elif what == "json":
+        attempts = [["--format", "json"]]
     elif what == "logger-tsv":
         attempts = [["--format", "csv"]]
     else:
