@@ -60,6 +60,7 @@ from types import ModuleType
 from typing import Any
 
 import variants_csv as vcsv
+import variants_json as vjson
 import variants_lines as vl
 from variants_csv import add_current as add_current  # the tests' tide
 from variants_nmea import GAP_S as GAP_S  # the tests' gap
@@ -306,6 +307,20 @@ VARIANTS: tuple[Variant, ...] = (
         "nmea",
         lambda text: thin_gnss(2.0)(vhw_twice(text)),
         "a GNSS at 0.5 Hz and the log at twice its rate",
+    ),
+    Variant(
+        "signalk",
+        "nmea",
+        vjson.signalk,
+        "a Signal K delta log (SI units, an AIS target's deltas among the boat's)",
+        lambda _text: ["--format", "json"],
+    ),
+    Variant(
+        "canboat",
+        "nmea",
+        vjson.canboat,
+        "NMEA 2000 as canboat analyzer JSON (PGNs 128259, 127250, 129026, 129025)",
+        lambda _text: ["--format", "json"],
     ),
     Variant(
         "set-drift",
