@@ -188,7 +188,8 @@ def add_parser(sub: Subparsers) -> None:
         "--map",
         metavar="KEY=COL,...",
         help="csv: columns for time, stw (and date, heading, heading_mag, sog, cog, lat, lon, "
-        "set, drift, variation); A|B: the first present, Col?: optional; knots unless written Col[mps]",
+        "set, drift, variation); A|B: the first present, Col?: optional; knots unless written "
+        "Col[mps], degrees unless Col[rad]",
     )
     p.add_argument(
         "--preset",
