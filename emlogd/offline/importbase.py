@@ -312,7 +312,8 @@ FOREIGN_FORMATS: tuple[tuple[re.Pattern[str], str], ...] = (
     ),
     (
         re.compile(r"[\d\-T:. Z]{10,30},\d,\d{5,6},\d{1,3},\d{1,3},\d{1,3},"),
-        "NMEA 2000 in Actisense/canboat text (time, priority, PGN, source...)",
+        "NMEA 2000 in Actisense/canboat text (time, priority, PGN, source...; import it "
+        "with --format n2k)",
     ),
     (
         re.compile(r"[^{]*\{.*\"(updates|context|path)\""),

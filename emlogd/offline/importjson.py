@@ -20,6 +20,10 @@ Two kinds of line are read, told by their keys (they may be mixed):
   not used, counted ``cog_not_true``), 129025 and 129029 ``Latitude`` and
   ``Longitude``, 127258 ``Variation``.
 
+- **NMEA 2000 in canboat's plain text** (``actisense-serial``'s output, a Signal K
+  server's data log of an NMEA 2000 connection), its bytes decoded into the same
+  messages (:mod:`emlogd.offline.importn2k`).
+
 A line may have text before its ``{`` (a logger's receive time): the message's own
 time is used. Each message's values are checked against the range a boat can produce
 (:data:`emlogd.offline.csvmaps.LIMITS`; counted in ``cells`` otherwise) and become
@@ -55,6 +59,7 @@ from emlogd.offline.importbase import (
     open_text,
     within_years,
 )
+from emlogd.offline.importn2k import plain_message
 from emlogd.pipeline.variation import model_variation
 
 CARRY_S = 10.0
@@ -181,8 +186,8 @@ def _line(line: str, run: _Run) -> None:
         return
     run.report.lines += 1
     doc = _json(line)
-    if doc is None:
-        run.report.skipped["not_json"] += 1
+    if doc is None and (doc := plain_message(line)) is None:
+        run.report.skipped["not_a_message"] += 1
     elif "updates" in doc:
         ctx = doc.get("context")
         if ctx is not None and run.self_context is not None and ctx != run.self_context:

@@ -52,7 +52,12 @@ def cmd_import(args: argparse.Namespace) -> int:
     """Turn NMEA logs or CSV exports into a capture."""
     if not args.port or not args.port.isidentifier():
         raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
-    importers = {"nmea": _import_nmea, "csv": _import_csv, "json": _import_json}
+    importers = {
+        "nmea": _import_nmea,
+        "csv": _import_csv,
+        "json": _import_json,
+        "n2k": _import_json,
+    }
     report = importers[args.format](args)
     progress_done()
     if args.json:
@@ -83,12 +88,15 @@ def _import_nmea(args: argparse.Namespace) -> ImportReport:
 
 
 def _import_json(args: argparse.Namespace) -> ImportReport:
-    """``--format json``: Signal K deltas or canboat analyzer JSON, the logs imported."""
+    """``--format json`` or ``n2k``: Signal K deltas, canboat analyzer JSON or canboat
+    plain text (NMEA 2000), the logs imported."""
     from emlogd.offline import importjson
 
     _refuse_csv_options(args)
     if args.date is not None:
-        raise UsageError("--date does not apply to --format json (its messages carry dates)")
+        raise UsageError(
+            f"--date does not apply to --format {args.format} (its messages carry dates)"
+        )
     return importjson.import_json(args.files, args.out, port=args.port, progress=progress)
 
 
@@ -169,11 +177,14 @@ def add_parser(sub: Subparsers) -> None:
         "nmea: NMEA 0183 logs, timed by their RMC (else ZDA, else GGA or GLL + --date) fixes; "
         "csv: one CSV export with a column map (or --preset expedition), written as VHW, "
         "RMC and VDR sentences at the row times; json: Signal K delta logs or NMEA 2000 as "
-        "canboat analyzer JSON, written as VHW and RMC at the messages' times. Skipped "
+        "canboat analyzer JSON, n2k: NMEA 2000 in canboat's plain text, written as VHW and "
+        "RMC at the messages' times. Skipped "
         "lines are counted by reason.",
     )
     p.add_argument("files", nargs="+", metavar="FILE", help="input files, in time order")
-    p.add_argument("--format", choices=["nmea", "csv", "json"], required=True, help="input format")
+    p.add_argument(
+        "--format", choices=["nmea", "csv", "json", "n2k"], required=True, help="input format"
+    )
     p.add_argument("--out", required=True, metavar="FILE.cap", help="capture to write (.gz ok)")
     p.add_argument("--port", default="nmea", help="port name in the capture (default nmea)")
     p.add_argument(

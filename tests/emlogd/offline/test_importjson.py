@@ -110,7 +110,7 @@ class TestSignalK:
         ]
         rep = import_json([_write(tmp_path / "sk.json", lines)], tmp_path / "o.cap")
         assert rep.sentences == {"VHW": 1}
-        assert rep.skipped == {"not_json": 1, "no_time": 1, "no_value": 2, "bad_time": 1}
+        assert rep.skipped == {"not_a_message": 1, "no_time": 1, "no_value": 2, "bad_time": 1}
         assert rep.cells == {"stw: out_of_range": 1}
         assert rep.heading_ref == "magnetic" and rep.variation == "none"
         (vhw,) = [x for x in _decoded(tmp_path / "o.cap") if isinstance(x, Vhw)]

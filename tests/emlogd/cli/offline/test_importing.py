@@ -27,6 +27,7 @@ def test_a_utc_offset_beyond_the_time_zones_is_a_usage_error(
         ("nmea", ["--utc-offset", "1"], "--utc-offset applies to --format csv only"),
         ("json", ["--preset", "expedition"], "--preset applies to --format csv only"),
         ("json", ["--date", "2025-06-27"], "--date does not apply to --format json"),
+        ("n2k", ["--date", "2025-06-27"], "--date does not apply to --format n2k"),
     ],
 )
 def test_an_option_of_the_other_format_is_refused(
