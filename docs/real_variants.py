@@ -323,6 +323,13 @@ VARIANTS: tuple[Variant, ...] = (
         lambda _text: ["--format", "json"],
     ),
     Variant(
+        "n2k-plain",
+        "nmea",
+        vjson.n2k_plain,
+        "NMEA 2000 as canboat's plain text (the same PGNs' bytes)",
+        lambda _text: ["--format", "n2k"],
+    ),
+    Variant(
         "set-drift",
         "expedition-csv",
         vcsv.rename({"iSet": "Set", "iDrift": "Drift"}),

@@ -1,6 +1,7 @@
 """The perturbation suite's JSON-lines rewrites of an NMEA log (docs/real_variants.py):
-the same log as a Signal K server's delta log and as canboat's analyzer JSON of the
-NMEA 2000 bus, written from their documented layouts.
+the same log as a Signal K server's delta log, as canboat's analyzer JSON of the
+NMEA 2000 bus and as its plain text (the PGNs' bytes), written from their documented
+layouts.
 
 Each sentence is timed as ``emlogd import`` times an NMEA log (spread evenly between
 its RMC fixes; those before the first fix and after the last dropped) and becomes the
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import struct
 from collections.abc import Iterator
 from datetime import UTC, datetime
 from typing import Any
@@ -152,4 +154,39 @@ def canboat(text: str) -> str:
             out.append(
                 _n2k(t, 129025, 2, {"Latitude": pos["latitude"], "Longitude": pos["longitude"]})
             )
+    return "".join(line + "\n" for line in out)
+
+
+def _plain(t: float, pgn: int, src: int, data: bytes) -> str:
+    stamp = datetime.fromtimestamp(t, UTC).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
+    return f"{stamp},2,{pgn},{src},255,{len(data)}," + ",".join(f"{b:02x}" for b in data)
+
+
+def _u16(x: float, scale: float) -> int:
+    return min(max(round(x / scale), 0), 0xFFFC)
+
+
+def n2k_plain(text: str) -> str:
+    """The log as NMEA 2000 in canboat's plain text: PGNs 128259, 127250 (magnetic,
+    with its variation), 129026 and 129025 in their byte layouts."""
+    out: list[str] = []
+    for t, f in _timed(text):
+        v = _values(f)
+        if "navigation.speedThroughWater" in v:
+            stw = _u16(v["navigation.speedThroughWater"], 0.01)
+            out.append(_plain(t, 128259, 35, struct.pack("<BHHBBB", 0, stw, 0xFFFF, 0, 0xFF, 0xFF)))
+        if "navigation.headingMagnetic" in v:
+            hdg = _u16(v["navigation.headingMagnetic"] % (2 * math.pi), 1e-4)
+            var_rad = v.get("navigation.magneticVariation")
+            var = 0x7FFF if var_rad is None else round(var_rad * 1e4)
+            data = struct.pack("<BHhhB", 0, hdg, 0x7FFF, var, 0xFD)
+            out.append(_plain(t, 127250, 204, data))
+        if "navigation.speedOverGround" in v:
+            cog = _u16(v["navigation.courseOverGroundTrue"], 1e-4)
+            sog = _u16(v["navigation.speedOverGround"], 0.01)
+            out.append(_plain(t, 129026, 2, struct.pack("<BBHHH", 0, 0xFC, cog, sog, 0xFFFF)))
+        if "navigation.position" in v:
+            pos = v["navigation.position"]
+            data = struct.pack("<ii", round(pos["latitude"] * 1e7), round(pos["longitude"] * 1e7))
+            out.append(_plain(t, 129025, 2, data))
     return "".join(line + "\n" for line in out)

@@ -74,7 +74,7 @@ def _import(kind: str, text: str, tmp: Path, options: list[str]) -> tuple[Import
     src.write_bytes(text.encode("utf-8") if text[:1] == "\ufeff" else text.encode("latin-1"))
     cap = tmp / "variant.cap.gz"
     opts = dict(zip(options[::2], options[1::2], strict=True))
-    if opts.get("--format") == "json":
+    if opts.get("--format") in ("json", "n2k"):
         return import_json([src], cap), cap
     if kind == "nmea":
         day = opts.get("--date")
@@ -117,6 +117,7 @@ OTHER_KIND = {
     ("expedition-csv", "nmea-field-names"): "csv",
     ("nmea", "signalk"): "json",
     ("nmea", "canboat"): "json",
+    ("nmea", "n2k-plain"): "n2k",
 }
 """Variants that are another kind of log than their source (another logger's names)."""
 
@@ -173,9 +174,9 @@ def test_a_change_of_format_imports_the_same_sentences(
         assert rep.t_start == pytest.approx(base.t_start - 7200.0)
 
 
-@pytest.mark.parametrize("name", ["signalk", "canboat"])
+@pytest.mark.parametrize("name", ["signalk", "canboat", "n2k-plain"])
 def test_a_json_lines_rewrite_keeps_the_water_and_the_fixes(name: str, tmp_path: Path) -> None:
-    """The log as Signal K deltas or canboat analyzer JSON: every fix, the log's
+    """The log as Signal K deltas, canboat analyzer JSON or plain text: every fix, the log's
     readings (but for those between fixes of one time, which the rewrite drops), the
     magnetic heading with its variation; an AIS target's deltas are not the boat's."""
     base, rep, _ = _variant("nmea", name, tmp_path)
