@@ -57,6 +57,7 @@ from emlogd.offline.importbase import (
     ImportReport,
     bounded_lines,
     open_text,
+    what_it_looks_like,
     within_years,
 )
 from emlogd.offline.importn2k import plain_message
@@ -111,6 +112,7 @@ class _Run:
     t_written: float = -math.inf
     t_newest: float = -math.inf
     refs: Counter[str] = field(default_factory=Counter)
+    first_line: str = ""
 
     @property
     def report(self) -> ImportReport:
@@ -185,6 +187,8 @@ def _line(line: str, run: _Run) -> None:
     if not line.strip():
         return
     run.report.lines += 1
+    if run.report.lines == 1:
+        run.first_line = line
     doc = _json(line)
     if doc is None and (doc := plain_message(line)) is None:
         run.report.skipped["not_a_message"] += 1
@@ -406,9 +410,11 @@ def _finish(paths: Sequence[str | Path], run: _Run) -> None:
     if run.sink.check.n:
         report.heading_check = run.sink.check.as_dict()
     if report.sentences["VHW"] == 0:
+        looks = what_it_looks_like(run.first_line) if report.skipped["not_a_message"] else ""
         raise ImportFormatError(
             f"{paths[0]}: no Signal K delta with navigation.speedThroughWater nor canboat "
             f"PGN 128259 'Speed Water Referenced' with a time (lines {report.lines}; "
             f"skipped: {reasons(report.skipped) or 'none'}; "
             f"values: {reasons(report.cells) or 'none'})"
+            + (f"; the file looks like {looks}" if looks else "")
         )

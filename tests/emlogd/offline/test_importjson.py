@@ -186,3 +186,10 @@ class TestCanboat:
             import_json([src], tmp_path / "o.cap")
         assert "speedThroughWater" in str(err.value) and str(src) in str(err.value)
         assert not (tmp_path / "o.cap").exists()
+
+
+def test_an_nmea_log_given_as_json_is_named(tmp_path: Path) -> None:
+    """An NMEA 0183 log imported with --format json: the error says what it looks like."""
+    src = _write(tmp_path / "log.nmea", ["$IIVHW,,,263,M,01.0,N,,*62"] * 3)
+    with pytest.raises(ImportFormatError, match="looks like an NMEA 0183 log"):
+        import_json([src], tmp_path / "o.cap")
