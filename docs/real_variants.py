@@ -253,6 +253,12 @@ VARIANTS: tuple[Variant, ...] = (
         Variant(f"stamp-{name}", "nmea", vl.stamped(name), f"a receive time ({name}) first")
         for name in vl.STAMPS
     ),
+    Variant(
+        "opencpn-csv",
+        "nmea",
+        vl.opencpn_csv,
+        "OpenCPN's data log in CSV: epoch ms, protocol, address, source, the sentence quoted",
+    ),
     Variant("cr", "nmea", line_endings("\r"), "CR line endings alone"),
     Variant("bom", "nmea", lambda text: "\ufeff" + text, "a UTF-8 byte-order mark"),
     Variant("nul-padded", "nmea", vl.nul_padded, "NULs after each line and ending the file"),

@@ -129,6 +129,7 @@ SAME_SENTENCES = [
     ("nmea", "lf"),
     ("nmea", "other-sentences"),
     *(("nmea", f"stamp-{name}") for name in rv.vl.STAMPS),
+    ("nmea", "opencpn-csv"),
     ("nmea", "cr"),
     ("nmea", "bom"),
     ("nmea", "nul-padded"),

@@ -81,6 +81,19 @@ class TestPrefixes:
         assert rep.written == 3 and rep.notes["line_prefix"] == 3 and rep.skipped == {}
         assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
 
+    def test_a_sentence_quoted_last_in_a_csv_row(self, tmp_path: Path) -> None:
+        """OpenCPN's data log in CSV: the sentence is the row's last cell, quoted; the
+        header rows are no sentences."""
+        t1 = T + timedelta(seconds=1)
+        lines = [encode_rmc(T, 2.0, 90.0), encode_vhw(1.9), encode_rmc(t1, 2.0, 90.0)]
+        head = "# timestamp_format: EPOCH_MILLIS\nreceived_at,protocol,msg_type,source,raw_data\n"
+        rows = [f'177806160{k}000,NMEA0183,{x[1:6]},ttyUSB0,"{x}"' for k, x in enumerate(lines)]
+        src = tmp_path / "log.csv"
+        src.write_text(head + "\n".join(rows) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 3 and rep.skipped == {"not_nmea": 2}
+        assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
+
     def test_text_with_a_dollar_is_no_sentence(self, tmp_path: Path) -> None:
         """A dollar amount in a text line starts no sentence."""
         src = tmp_path / "log.nmea"
