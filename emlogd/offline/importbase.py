@@ -311,7 +311,7 @@ FOREIGN_FORMATS: tuple[tuple[re.Pattern[str], str], ...] = (
         "an NMEA 2000 CAN dump (candump)",
     ),
     (
-        re.compile(r"[\d\-T:. Z]{10,30},\d,\d{5,6},\d{1,3},\d{1,3},\d{1,3},"),
+        re.compile(r"(\d+;A;)?[\d\-T:. Z]{10,30},\d,\d{5,6},\d{1,3},\d{1,3},\d{1,3},"),
         "NMEA 2000 in Actisense/canboat text (time, priority, PGN, source...; import it "
         "with --format n2k)",
     ),
