@@ -87,7 +87,7 @@ MIN_WINDOW_SAMPLES = 60
 MIN_SECTORS = 3
 """A current window needs headings in at least this many 45° sectors."""
 
-KINDS = ("nmea", "expedition-csv", "logger-tsv", "csv")
+KINDS = ("nmea", "expedition-csv", "logger-tsv", "csv", "json", "n2k")
 
 KIND_SCAN_LINES = 200
 """A table's header is looked for among this many first lines (a logger may write its
@@ -112,6 +112,13 @@ three more columns is a table of samples."""
 UNIT_AFTER = re.compile(r"\s*[(\[].*$")
 """A unit after a column's name (``Bsp (kt)``, ``SOG [m/s]``), dropped before matching."""
 
+JSON_MESSAGE = re.compile(r'[^{]*\{.*"(updates|pgn)"')
+"""A JSON-lines log's line: a Signal K delta or a canboat analyzer message (a receive
+time may come before it)."""
+
+N2K_PLAIN = re.compile(r"(.*?[;\s])?\d{4}-\d{2}-\d{2}[-T ][\d:.]+Z?,\d,\d{5,6},\d{1,3},\d{1,3},\d")
+"""A line of NMEA 2000 in canboat's plain text (time, priority, PGN, source, ...)."""
+
 BOM = b"\xef\xbb\xbf"
 """UTF-8's byte-order mark, which a spreadsheet may write first."""
 
@@ -128,6 +135,10 @@ def kind(path: Path) -> str | None:
     lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
     if not lines:
         return None
+    if sum(bool(JSON_MESSAGE.match(ln)) for ln in lines[:50]) > len(lines[:50]) // 2:
+        return "json"
+    if sum(bool(N2K_PLAIN.match(ln)) for ln in lines[:50]) > len(lines[:50]) // 2:
+        return "n2k"
     if (
         sum(bool(SENTENCE_IN_LINE.search(ln)) for ln in lines[:50])
         >= min(len(lines[:50]), 5) // 2 + 1
@@ -217,6 +228,8 @@ def run_import(path: Path, what: str, cap: Path) -> tuple[dict[str, Any] | None,
         attempts = [["--format", "nmea"]]
     elif what == "expedition-csv":
         attempts = [["--format", "csv"], ["--format", "csv", "--preset", "expedition"]]
+    elif what in ("json", "n2k"):
+        attempts = [["--format", what]]
     elif what == "logger-tsv":
         attempts = [["--format", "csv"]]
     else:

@@ -60,6 +60,7 @@ from types import ModuleType
 from typing import Any
 
 import variants_csv as vcsv
+import variants_json as vjson
 import variants_lines as vl
 from variants_csv import add_current as add_current  # the tests' tide
 from variants_nmea import GAP_S as GAP_S  # the tests' gap
@@ -252,6 +253,12 @@ VARIANTS: tuple[Variant, ...] = (
         Variant(f"stamp-{name}", "nmea", vl.stamped(name), f"a receive time ({name}) first")
         for name in vl.STAMPS
     ),
+    Variant(
+        "opencpn-csv",
+        "nmea",
+        vl.opencpn_csv,
+        "OpenCPN's data log in CSV: epoch ms, protocol, address, source, the sentence quoted",
+    ),
     Variant("cr", "nmea", line_endings("\r"), "CR line endings alone"),
     Variant("bom", "nmea", lambda text: "\ufeff" + text, "a UTF-8 byte-order mark"),
     Variant("nul-padded", "nmea", vl.nul_padded, "NULs after each line and ending the file"),
@@ -306,6 +313,27 @@ VARIANTS: tuple[Variant, ...] = (
         "nmea",
         lambda text: thin_gnss(2.0)(vhw_twice(text)),
         "a GNSS at 0.5 Hz and the log at twice its rate",
+    ),
+    Variant(
+        "signalk",
+        "nmea",
+        vjson.signalk,
+        "a Signal K delta log (SI units, an AIS target's deltas among the boat's)",
+        lambda _text: ["--format", "json"],
+    ),
+    Variant(
+        "canboat",
+        "nmea",
+        vjson.canboat,
+        "NMEA 2000 as canboat analyzer JSON (PGNs 128259, 127250, 129026, 129025)",
+        lambda _text: ["--format", "json"],
+    ),
+    Variant(
+        "n2k-plain",
+        "nmea",
+        vjson.n2k_plain,
+        "NMEA 2000 as canboat's plain text (the same PGNs' bytes)",
+        lambda _text: ["--format", "n2k"],
     ),
     Variant(
         "set-drift",

@@ -88,6 +88,26 @@ def stamped(name: str) -> Callable[[str], str]:
     return apply
 
 
+OPENCPN_HEADER = (
+    "# timestamp_format: EPOCH_MILLIS",
+    "received_at,protocol,msg_type,source,raw_data",
+)
+"""The first lines of OpenCPN's data log in CSV (its time format, then the columns)."""
+
+
+def opencpn_csv(text: str) -> str:
+    """The log as OpenCPN's data log in CSV: a row per sentence of its receive time in
+    epoch milliseconds, the protocol, the sentence's address, the source, and the
+    sentence last, quoted (it holds the delimiter)."""
+    nl = _newline(text)
+    lines = text.splitlines()
+    rows = [
+        f'{round(t * 1000.0)},NMEA0183,{ln[1:6]},ttyUSB0,"{ln}"'
+        for t, ln in zip(_filled_times(lines), lines, strict=True)
+    ]
+    return nl.join([*OPENCPN_HEADER, *rows]) + nl
+
+
 def nul_padded(text: str) -> str:
     """:data:`NUL_PAD` NULs after every line, and a block of NULs ending the file (a
     logger's buffer and its file written in fixed blocks)."""

@@ -204,24 +204,26 @@ class Col:
     factor: float
 
 
-def _spec(spec: str) -> tuple[list[tuple[str, float]], bool]:
-    """``A[mps]|B?`` → ([(name, factor to m/s)...], optional)."""
+DEG_PER_RAD = 180.0 / math.pi
+
+MAP_UNITS: dict[str, float] = {"[mps]": 1.0, "[kn]": KNOT_MPS, "[rad]": DEG_PER_RAD}
+"""Units a ``--map`` column may be written with: a speed's factor to m/s, or (``[rad]``)
+an angle's to degrees."""
+
+
+def _spec(spec: str) -> tuple[list[tuple[str, float | None]], bool]:
+    """``A[mps]|B?`` → ([(name, factor of its unit, None without one)...], optional)."""
     optional = spec.endswith("?")
-    names: list[tuple[str, float]] = []
+    names: list[tuple[str, float | None]] = []
     for alt in (spec[:-1] if optional else spec).split("|"):
         alt = alt.strip()
-        if alt.endswith("[mps]"):
-            names.append((alt[:-5], 1.0))
-        elif alt.endswith("[kn]"):
-            names.append((alt[:-4], KNOT_MPS))
-        elif alt.endswith("]") and "[" in alt:
-            unit = alt[alt.rindex("[") :]
+        unit = alt[alt.rindex("[") :] if alt.endswith("]") and "[" in alt else ""
+        if unit and unit not in MAP_UNITS:
             raise ImportFormatError(
                 f"--map column {alt!r}: the unit {unit} is not known (a speed column's "
-                "unit: [mps] or [kn])"
+                "unit: [mps] or [kn]; an angle's: [rad])"
             )
-        else:
-            names.append((alt, KNOT_MPS))
+        names.append((alt[: len(alt) - len(unit)], MAP_UNITS[unit] if unit else None))
     return names, optional
 
 
@@ -253,19 +255,36 @@ in any case): a speed's factor to m/s (it overrides the map's), or None for an
 angle's (the degree sign, or the ring ``˚`` or ordinal ``º`` written for it; ``°T``: true; a magnetic one, ``°M``, is not known: such a column is left out,
 and the import's notes name it)."""
 
+ANGLE_UNITS: dict[str, float] = {"rad": DEG_PER_RAD, "radian": DEG_PER_RAD, "radians": DEG_PER_RAD}
+"""Angle units a column name may carry besides degrees (``Hdg (rad)``, ``COG [rad]``,
+``heading_rad``: a logger writing Signal K's SI units): the factor to degrees (an
+angle column's)."""
+
 _UNIT_IN_NAME = re.compile(
     r"(?P<name>.+?)(?:\s*[(\[](?P<a>[^)\]]+)[)\]]|[_ ](?P<b>[a-z/°]+))", re.IGNORECASE
 )
 
 
-def _bare(name: str) -> tuple[str, float | None]:
-    """A column name without a unit it carries (:data:`HEADER_UNITS`), folded, and the
-    unit's factor to m/s (None: no speed unit)."""
+def _bare(name: str) -> tuple[str, str | None]:
+    """A column name without a unit it carries (:data:`HEADER_UNITS`,
+    :data:`ANGLE_UNITS`), folded, and the unit (None: none known)."""
     m = _UNIT_IN_NAME.fullmatch(name.strip())
     unit = (m.group("a") or m.group("b")).strip().casefold() if m else ""
-    if m is None or unit not in HEADER_UNITS:
+    if m is None or (unit not in HEADER_UNITS and unit not in ANGLE_UNITS):
         return name.strip().casefold(), None
-    return m.group("name").strip().casefold(), HEADER_UNITS[unit]
+    return m.group("name").strip().casefold(), unit
+
+
+def _factor(key: str, given: float | None, unit: str | None) -> float:
+    """A column's factor to SI: a speed's to m/s (the unit in its name, else the map's,
+    else knots), an angle's to degrees (radians in its name or the map's ``[rad]``),
+    else 1."""
+    if key in SPEEDS:
+        named = HEADER_UNITS.get(unit or "")
+        return named or (given if given in (1.0, KNOT_MPS) else KNOT_MPS)
+    if key in ANGLES:
+        return ANGLE_UNITS.get(unit or "") or (given if given == DEG_PER_RAD else 1.0)
+    return 1.0
 
 
 def _fold(name: str) -> str:
@@ -283,7 +302,8 @@ def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, C
     missing: list[str] = []
     for key, spec in mapping.items():
         names, optional = _spec(spec)
-        for name, factor in names:
+        for name, given in names:
+            unit = None
             # the exact name, else the name in any case and with spaces or hyphens for
             # its underscores (BSP, bsp, Boat Speed), else the name with a unit after it
             # (Bsp (kn), SOG [m/s]: a speed unit is the column's)
@@ -292,9 +312,9 @@ def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, C
                 at = folded.index(_fold(name))
             if at is None and _fold(name) in bare_names:
                 at = bare_names.index(_fold(name))
-                factor = bare[at][1] or factor
+                unit = bare[at][1]
             if at is not None:
-                cols[key] = Col(key, at, factor if key in SPEEDS else 1.0)
+                cols[key] = Col(key, at, _factor(key, given, unit))
                 break
         else:
             if not optional:
@@ -452,7 +472,7 @@ def unknown_units(header: list[str]) -> list[str]:
     for h in header:
         m = _UNIT_IN_NAME.fullmatch(h.strip())
         unit = (m.group("a") or "").strip() if m else ""
-        if unit and unit.casefold() not in HEADER_UNITS:
+        if unit and unit.casefold() not in HEADER_UNITS and unit.casefold() not in ANGLE_UNITS:
             out.append(f"{h.strip()!r} ({unit!r})")
     return out
 

@@ -311,16 +311,24 @@ FOREIGN_FORMATS: tuple[tuple[re.Pattern[str], str], ...] = (
         "an NMEA 2000 CAN dump (candump)",
     ),
     (
-        re.compile(r"[\d\-T:. Z]{10,30},\d,\d{5,6},\d{1,3},\d{1,3},\d{1,3},"),
-        "NMEA 2000 in Actisense/canboat text (time, priority, PGN, source...)",
+        re.compile(r"(\d+;A;)?[\d\-T:. Z]{10,30},\d,\d{5,6},\d{1,3},\d{1,3},\d{1,3},"),
+        "NMEA 2000 in Actisense/canboat text (time, priority, PGN, source...; import it "
+        "with --format n2k)",
     ),
-    (re.compile(r"\{.*\"(updates|context|path)\""), "Signal K JSON"),
+    (
+        re.compile(r"[^{]*\{.*\"(updates|context|path)\""),
+        "Signal K JSON (import it with --format json)",
+    ),
+    (
+        re.compile(r"[^{]*\{.*\"pgn\""),
+        "NMEA 2000 as canboat analyzer JSON (import it with --format json)",
+    ),
     (re.compile(r"[^,;\t|$!]*([,;\t|][^,;\t|]*){3,}"), "a table (import it with --format csv)"),
     (re.compile(r"[$!][A-Z0-9]{5},"), "an NMEA 0183 log (import it with --format nmea)"),
 )
 """Formats a file given to the wrong import may be, told by its first line: NMEA 2000
-(CAN dumps, Actisense/canboat text), Signal K, a table, NMEA 0183; ``emlogd import``
-reads NMEA 0183 and tables only."""
+(CAN dumps, Actisense/canboat text), Signal K, canboat JSON, a table, NMEA 0183;
+``emlogd import`` reads NMEA 0183, tables and JSON lines (``--format json``)."""
 
 BINARY_FRACTION = 0.25
 """A first line with more than this fraction of control or non-ASCII characters is

@@ -44,7 +44,7 @@ the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds 
 mapped columns, so a banner before it is passed over (and counted). Column names
 match in any case, with spaces or hyphens for underscores (``Boat Speed``), and with a unit after them (``Bsp (kn)``, ``SOG [m/s]``,
 ``stw_kn``: :data:`emlogd.offline.csvmaps.HEADER_UNITS`; a speed's unit is then the
-column's); with a delimiter other than the comma, a comma in a number is a decimal
+column's; ``Hdg (rad)``: an angle in radians, ``--map`` ``Name[rad]``); with a delimiter other than the comma, a comma in a number is a decimal
 comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
 8601, epoch seconds or milliseconds, Windows FILETIME ticks, a day-first date and time
 or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each

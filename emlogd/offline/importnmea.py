@@ -42,9 +42,11 @@ MAX_FIX_GAP_S = 60.0
 MAX_PENDING_LINES = 100_000
 """NMEA: sentences waiting for the next fix, at most (constant memory)."""
 
-LINE_PADDING = " \t\r\n\x00\x1a"
+LINE_PADDING = ' \t\r\n\x00\x1a"'
 """Stripped from both ends of a log line: blanks, line ends, the NULs a logger pads its
-buffer with, and the DOS end-of-file mark (Ctrl-Z)."""
+buffer with, the DOS end-of-file mark (Ctrl-Z), and the quote closing a CSV cell that
+holds the sentence (OpenCPN's data log: ``received_at,protocol,msg_type,source,raw_data``
+with the sentence quoted last, read from its ``$`` as any prefixed line)."""
 
 
 # ------------------------------------------------------------------ NMEA logs

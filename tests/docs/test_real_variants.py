@@ -25,6 +25,7 @@ import pytest
 from emlogd.offline.dataset import record_capture
 from emlogd.offline.importbase import ImportReport
 from emlogd.offline.importer import import_csv, import_nmea
+from emlogd.offline.importjson import import_json
 from emlogd.pipeline.settings import UutSettings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -73,6 +74,8 @@ def _import(kind: str, text: str, tmp: Path, options: list[str]) -> tuple[Import
     src.write_bytes(text.encode("utf-8") if text[:1] == "\ufeff" else text.encode("latin-1"))
     cap = tmp / "variant.cap.gz"
     opts = dict(zip(options[::2], options[1::2], strict=True))
+    if opts.get("--format") in ("json", "n2k"):
+        return import_json([src], cap), cap
     if kind == "nmea":
         day = opts.get("--date")
         from datetime import date
@@ -110,7 +113,12 @@ def test_every_variant_is_told_by_its_content(kind: str, name: str, tmp_path: Pa
     assert rv._real_data().kind(src) == OTHER_KIND.get((kind, name), kind)
 
 
-OTHER_KIND = {("expedition-csv", "nmea-field-names"): "csv"}
+OTHER_KIND = {
+    ("expedition-csv", "nmea-field-names"): "csv",
+    ("nmea", "signalk"): "json",
+    ("nmea", "canboat"): "json",
+    ("nmea", "n2k-plain"): "n2k",
+}
 """Variants that are another kind of log than their source (another logger's names)."""
 
 
@@ -121,6 +129,7 @@ SAME_SENTENCES = [
     ("nmea", "lf"),
     ("nmea", "other-sentences"),
     *(("nmea", f"stamp-{name}") for name in rv.vl.STAMPS),
+    ("nmea", "opencpn-csv"),
     ("nmea", "cr"),
     ("nmea", "bom"),
     ("nmea", "nul-padded"),
@@ -164,6 +173,19 @@ def test_a_change_of_format_imports_the_same_sentences(
     assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start)
     if name == "utc-offset":
         assert rep.t_start == pytest.approx(base.t_start - 7200.0)
+
+
+@pytest.mark.parametrize("name", ["signalk", "canboat", "n2k-plain"])
+def test_a_json_lines_rewrite_keeps_the_water_and_the_fixes(name: str, tmp_path: Path) -> None:
+    """The log as Signal K deltas, canboat analyzer JSON or plain text: every fix, the log's
+    readings (but for those between fixes of one time, which the rewrite drops), the
+    magnetic heading with its variation; an AIS target's deltas are not the boat's."""
+    base, rep, _ = _variant("nmea", name, tmp_path)
+    assert rep.sentences["RMC"] == base.sentences["RMC"]
+    assert 0.95 * base.sentences["VHW"] <= rep.sentences["VHW"] <= base.sentences["VHW"]
+    assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start, abs=2.0)
+    assert rep.heading_ref == "magnetic" and rep.variation == "column"
+    assert bool(rep.skipped["other_vessel"]) == (name == "signalk")
 
 
 def test_a_magnetic_heading_column_with_its_variation_is_made_true(tmp_path: Path) -> None:

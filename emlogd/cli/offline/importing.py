@@ -52,25 +52,52 @@ def cmd_import(args: argparse.Namespace) -> int:
     """Turn NMEA logs or CSV exports into a capture."""
     if not args.port or not args.port.isidentifier():
         raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
-    report = _import_nmea(args) if args.format == "nmea" else _import_csv(args)
+    importers = {
+        "nmea": _import_nmea,
+        "csv": _import_csv,
+        "json": _import_json,
+        "n2k": _import_json,
+    }
+    report = importers[args.format](args)
     progress_done()
     if args.json:
         sys.stdout.write(json.dumps(report.to_dict(), indent=2) + "\n")
     else:
-        sys.stdout.write(_report_text(report, "lines" if args.format == "nmea" else "rows"))
+        sys.stdout.write(_report_text(report, "rows" if args.format == "csv" else "lines"))
     return 0
+
+
+CSV_OPTIONS = ("map", "preset", "time_format", "heading_ref", "utc_offset", "variation")
+"""The options of ``--format csv`` alone."""
+
+
+def _refuse_csv_options(args: argparse.Namespace) -> None:
+    for opt in CSV_OPTIONS:
+        if getattr(args, opt) is not None:
+            raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
 
 
 def _import_nmea(args: argparse.Namespace) -> ImportReport:
     """``--format nmea``: the csv options refused, the logs imported."""
     from emlogd.offline import importer
 
-    for opt in ("map", "preset", "time_format", "heading_ref", "utc_offset", "variation"):
-        if getattr(args, opt) is not None:
-            raise UsageError(f"--{opt.replace('_', '-')} applies to --format csv only")
+    _refuse_csv_options(args)
     return importer.import_nmea(
         args.files, args.out, port=args.port, day=args.date, progress=progress
     )
+
+
+def _import_json(args: argparse.Namespace) -> ImportReport:
+    """``--format json`` or ``n2k``: Signal K deltas, canboat analyzer JSON or canboat
+    plain text (NMEA 2000), the logs imported."""
+    from emlogd.offline import importjson
+
+    _refuse_csv_options(args)
+    if args.date is not None:
+        raise UsageError(
+            f"--date does not apply to --format {args.format} (its messages carry dates)"
+        )
+    return importjson.import_json(args.files, args.out, port=args.port, progress=progress)
 
 
 def _import_csv(args: argparse.Namespace) -> ImportReport:
@@ -149,10 +176,15 @@ def add_parser(sub: Subparsers) -> None:
         description="Import logs without receive times into a capture v1 file on one port. "
         "nmea: NMEA 0183 logs, timed by their RMC (else ZDA, else GGA or GLL + --date) fixes; "
         "csv: one CSV export with a column map (or --preset expedition), written as VHW, "
-        "RMC and VDR sentences at the row times. Skipped lines are counted by reason.",
+        "RMC and VDR sentences at the row times; json: Signal K delta logs or NMEA 2000 as "
+        "canboat analyzer JSON, n2k: NMEA 2000 in canboat's plain text, written as VHW and "
+        "RMC at the messages' times. Skipped "
+        "lines are counted by reason.",
     )
     p.add_argument("files", nargs="+", metavar="FILE", help="input files, in time order")
-    p.add_argument("--format", choices=["nmea", "csv"], required=True, help="input format")
+    p.add_argument(
+        "--format", choices=["nmea", "csv", "json", "n2k"], required=True, help="input format"
+    )
     p.add_argument("--out", required=True, metavar="FILE.cap", help="capture to write (.gz ok)")
     p.add_argument("--port", default="nmea", help="port name in the capture (default nmea)")
     p.add_argument(
@@ -167,7 +199,8 @@ def add_parser(sub: Subparsers) -> None:
         "--map",
         metavar="KEY=COL,...",
         help="csv: columns for time, stw (and date, heading, heading_mag, sog, cog, lat, lon, "
-        "set, drift, variation); A|B: the first present, Col?: optional; knots unless written Col[mps]",
+        "set, drift, variation); A|B: the first present, Col?: optional; knots unless written "
+        "Col[mps], degrees unless Col[rad]",
     )
     p.add_argument(
         "--preset",

@@ -3,6 +3,7 @@ banner, each cell read into SI units within a boat's range, the time format told
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 
 import pytest
@@ -38,7 +39,7 @@ def test_a_unit_the_map_does_not_know_is_named() -> None:
     """``stw=Bsp[furlong]``: the error names the column and its unit, and the units a
     map knows."""
     maps = candidate_maps({"time": "Utc", "stw": "Bsp[furlong]"}, None)
-    with pytest.raises(ImportFormatError, match=r"'Bsp\[furlong\]'.*\[mps\] or \[kn\]"):
+    with pytest.raises(ImportFormatError, match=r"'Bsp\[furlong\]'.*\[mps\] or \[kn\].*\[rad\]"):
         find_header(["Utc,Bsp"], maps)
 
 
@@ -93,6 +94,29 @@ def test_a_unit_in_a_name_is_read_or_named_as_unknown() -> None:
     assert find_header(head, candidate_maps(None, None)) is None
     why = no_header("x.csv", head, candidate_maps(None, None))
     assert "units not known in 'Bsp (furlongs)' ('furlongs')" in why and "[mps]" in why
+
+
+def test_angles_in_radians_are_read_as_degrees() -> None:
+    """A logger writing Signal K's SI units: ``Hdg (rad)``, ``COG [rad]``, ``heading_rad``
+    and the map's ``[rad]`` make the angle's factor to degrees; a speed keeps its own
+    (m/s in its name, else knots); degrees stay degrees."""
+    head = ["time;speed (m/s);hdg (rad);sog (km/h);cog [rad];set (deg)"]
+    found = find_header(head, candidate_maps(None, None))
+    assert found is not None
+    factors = {k: c.factor for k, c in found[3].items()}
+    deg = 180.0 / math.pi
+    assert factors == pytest.approx(
+        {"time": 1.0, "stw": 1.0, "heading": deg, "sog": 1 / 3.6, "cog": deg, "set": 1.0}
+    )
+    assert unknown_units(head[0].split(";")) == []
+    found = find_header(["time,speed,heading_rad"], candidate_maps(None, None))
+    assert found is not None and found[3]["heading"].factor == pytest.approx(deg)
+    maps = candidate_maps({"time": "T", "stw": "B[mps]", "heading": "H[rad]"}, None)
+    found = find_header(["T,B,H"], maps)
+    assert found is not None
+    assert (found[3]["stw"].factor, found[3]["heading"].factor) == pytest.approx((1.0, deg))
+    rep = ImportReport([], "", "")
+    assert cell_value("3.14159265", found[3]["heading"], rep) == pytest.approx(180.0)
 
 
 def test_nmea_field_names_and_true_degrees_are_read() -> None:

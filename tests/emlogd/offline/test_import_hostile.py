@@ -108,7 +108,12 @@ def test_a_gzip_file_cut_short(tmp_path: Path) -> None:
         ("(1436509053.650713) can0 09F80115#A0D4F4C19C400A24", "NMEA 2000 CAN dump"),
         ("  can0  09F80115   [8]  A0 D4 F4 C1 9C 40 0A 24", "NMEA 2000 CAN dump"),
         ("2016-04-09T16:41:39.628Z,2,127250,7,255,8,00,fc,69,ff", "Actisense/canboat"),
-        ('{"context":"vessels.self","updates":[]}', "Signal K JSON"),
+        ("1460220099628;A;2016-04-09T16:41:39.628Z,2,127250,7,255,8,00", "--format n2k"),
+        ('{"context":"vessels.self","updates":[]}', "Signal K JSON (import it with --format json"),
+        (
+            '{"timestamp":"2013-08-22-19:11:05.607","prio":"2","pgn":"130306","fields":{}}',
+            "canboat analyzer JSON (import it with --format json",
+        ),
         ("\x89\x01\x02\x03\xff\xfe\x00\x10binary", "binary data"),
         ("Utc,Bsp,Hdg,Sog", "--format csv"),
     ],

@@ -4,6 +4,7 @@ FILETIME or OLE times. Synthetic, no shared files."""
 
 from __future__ import annotations
 
+import math
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import pytest
 from drivers import make_decoder
 from drivers.io.capture import CaptureReader
 from drivers.nmea0183 import Rmc, Vhw, encode_rmc, encode_vhw
+from drivers.records import KNOT_MPS
 from emlogd.offline.importer import import_csv, import_nmea
 from emlogd.offline.importnmea import DAY_ROLLOVER_S
 from tests.nmea_encoders import encode_gga
@@ -77,6 +79,19 @@ class TestPrefixes:
         src.write_text("\n".join(p + x for p, x in zip(stamps, lines, strict=True)) + "\n")
         rep = import_nmea([src], tmp_path / "o.cap")
         assert rep.written == 3 and rep.notes["line_prefix"] == 3 and rep.skipped == {}
+        assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
+
+    def test_a_sentence_quoted_last_in_a_csv_row(self, tmp_path: Path) -> None:
+        """OpenCPN's data log in CSV: the sentence is the row's last cell, quoted; the
+        header rows are no sentences."""
+        t1 = T + timedelta(seconds=1)
+        lines = [encode_rmc(T, 2.0, 90.0), encode_vhw(1.9), encode_rmc(t1, 2.0, 90.0)]
+        head = "# timestamp_format: EPOCH_MILLIS\nreceived_at,protocol,msg_type,source,raw_data\n"
+        rows = [f'177806160{k}000,NMEA0183,{x[1:6]},ttyUSB0,"{x}"' for k, x in enumerate(lines)]
+        src = tmp_path / "log.csv"
+        src.write_text(head + "\n".join(rows) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 3 and rep.skipped == {"not_nmea": 2}
         assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
 
     def test_text_with_a_dollar_is_no_sentence(self, tmp_path: Path) -> None:
@@ -188,3 +203,29 @@ class TestWindowsExports:
         assert rep.notes["unit_not_known 'Hdg (°M)' ('°M')"] == 1
         assert rep.heading_ref is None and rep.notes["no_heading_column"] == 1
         assert rep.sentences["VHW"] == 1 and rep.sentences["RMC"] == 5
+
+
+class TestSiUnits:
+    def test_a_logger_in_si_units_with_a_zone_offset(self, tmp_path: Path) -> None:
+        """A logger of Signal K's SI units: ``;`` with decimal commas, ISO times at
+        +02:00, speeds in m/s and km/h, angles in radians: knots and degrees out, the
+        times UTC."""
+        rows = [
+            f"2024-07-18T13:14:5{k}+02:00;{2 + k / 10:.1f};{math.radians(90 + k):.6f};"
+            f"{7.2 + k:.1f};{math.radians(95):.6f}".replace(".", ",")
+            for k in range(3)
+        ]
+        src = tmp_path / "si.csv"
+        src.write_text("time;speed (m/s);hdg (rad);sog (km/h);cog (rad)\n" + "\n".join(rows))
+        rep = import_csv(src, tmp_path / "o.cap")
+        assert rep.cells == {} and rep.sentences == {"VHW": 3, "RMC": 3}
+        assert rep.t_start == datetime(2024, 7, 18, 11, 14, 50, tzinfo=UTC).timestamp()
+        recs = [x for _, x in _decoded(tmp_path / "o.cap")]
+        vhw = [x for x in recs if isinstance(x, Vhw)]
+        assert [v.stw_knots for v in vhw] == pytest.approx(
+            [2.0 / KNOT_MPS, 2.1 / KNOT_MPS, 2.2 / KNOT_MPS], abs=0.01
+        )
+        assert [v.heading_true_deg for v in vhw] == pytest.approx([90.0, 91.0, 92.0])
+        rmc = [x for x in recs if isinstance(x, Rmc)]
+        assert rmc[0].sog_mps == pytest.approx(2.0, abs=0.01)
+        assert rmc[0].cog_true_deg == pytest.approx(95.0)

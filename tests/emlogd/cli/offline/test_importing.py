@@ -25,6 +25,9 @@ def test_a_utc_offset_beyond_the_time_zones_is_a_usage_error(
     [
         ("nmea", ["--map", "time=T,stw=S"], "--map applies to --format csv only"),
         ("nmea", ["--utc-offset", "1"], "--utc-offset applies to --format csv only"),
+        ("json", ["--preset", "expedition"], "--preset applies to --format csv only"),
+        ("json", ["--date", "2025-06-27"], "--date does not apply to --format json"),
+        ("n2k", ["--date", "2025-06-27"], "--date does not apply to --format n2k"),
     ],
 )
 def test_an_option_of_the_other_format_is_refused(
@@ -35,3 +38,14 @@ def test_an_option_of_the_other_format_is_refused(
     argv = ["import", str(tmp_path / "missing"), "--format", fmt, "--out", str(tmp_path / "o")]
     assert main([*argv, *option]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_json_lines_import(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """--format json reads a canboat analyzer log and reports its lines."""
+    src = tmp_path / "n2k.json"
+    src.write_text(
+        '{"timestamp":"2025-06-27T10:40:00Z","pgn":128259,"fields":{"Speed Water Referenced":2}}\n'
+    )
+    argv = ["import", str(src), "--format", "json", "--out", str(tmp_path / "o.cap")]
+    assert main(argv) == 0
+    assert "1 sentences on port nmea (0.0 min) from 1 lines" in capsys.readouterr().out
