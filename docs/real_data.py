@@ -22,7 +22,10 @@ the LS current against the log's own set and drift (VDR, where the log has one);
 KF's NIS mean; and the replay's emitted speed against the GNSS water speed: its RMSE
 next to raw's, the worst ratio emitted / raw over 5-minute windows, and the IMO
 A.824(19) verdict of each (``calib.metrics.imo_verdict``: the fraction of samples within
-2 % of the speed or 0.2 kn, whichever is greater; meets at 95 %).
+2 % of the speed or 0.2 kn, whichever is greater; meets at 95 %). A third table gives
+the headroom: the RMSE and the worst 5-min ratio of the independent fit's scale and of
+least squares' calibration, each applied to every scored reading from the start
+(:func:`headroom_params`).
 
 **The GNSS water speed** is the GNSS speed along the hull (SOG·cos(COG − ψ), as the
 pipeline projects it) less the current, fitted by least squares over each
@@ -61,7 +64,7 @@ if str(ROOT) not in sys.path:
 
 from calib.lsq import block_average  # noqa: E402
 from calib.metrics import imo_verdict  # noqa: E402
-from calib.models import FloatArray, Params  # noqa: E402
+from calib.models import FloatArray, Params, correct_array  # noqa: E402
 from drivers import make_decoder  # noqa: E402
 from drivers.io.capture import CaptureReader  # noqa: E402
 from drivers.nmea0183 import Vbw, Vdr, Vhw  # noqa: E402
@@ -351,8 +354,27 @@ def _current_fit(raw: FloatArray, along: FloatArray, hd: FloatArray) -> tuple[fl
     return float(sol[2]), float(sol[3])
 
 
-def water_scores(cap: Path, emitted_cap: Path) -> dict[str, float]:
-    """Raw and emitted speed against the GNSS water speed (module docstring)."""
+def _worst_ratio(tb: FloatArray, err_raw: FloatArray, err: FloatArray) -> float:
+    """The largest RMSE ratio ``err`` / ``err_raw`` over :data:`SCORE_WINDOW_S` windows
+    of at least :data:`MIN_WINDOW_SAMPLES` samples (NaN without one)."""
+    worst = math.nan
+    for t0 in np.arange(tb[0], tb[-1], SCORE_WINDOW_S) if tb.size else []:
+        sel = (tb >= t0) & (tb < t0 + SCORE_WINDOW_S)
+        if np.count_nonzero(sel) < MIN_WINDOW_SAMPLES:
+            continue
+        r = math.sqrt(float(np.mean(err_raw[sel] ** 2)))
+        e = math.sqrt(float(np.mean(err[sel] ** 2)))
+        if r > 0.0:
+            worst = e / r if not math.isfinite(worst) else max(worst, e / r)
+    return worst
+
+
+def water_scores(
+    cap: Path, emitted_cap: Path, fixed: dict[str, Params] | None = None
+) -> dict[str, float]:
+    """Raw and emitted speed against the GNSS water speed (module docstring); with
+    ``fixed``, also each calibration's RMSE and worst 5-min ratio had it been applied to
+    every scored reading from the start (``rmse_NAME``, ``worst_NAME``: the headroom)."""
     sentence = log_sentence(cap)
     s = UutSettings(
         port="nmea",
@@ -389,15 +411,11 @@ def water_scores(cap: Path, emitted_cap: Path) -> dict[str, float]:
     err_raw = (raw - water)[both]
     err_em = (emitted - water)[both]
     tb = t[both]
-    worst = math.nan
-    for t0 in np.arange(tb[0], tb[-1], SCORE_WINDOW_S) if tb.size else []:
-        sel = (tb >= t0) & (tb < t0 + SCORE_WINDOW_S)
-        if np.count_nonzero(sel) < MIN_WINDOW_SAMPLES:
-            continue
-        r = math.sqrt(float(np.mean(err_raw[sel] ** 2)))
-        e = math.sqrt(float(np.mean(err_em[sel] ** 2)))
-        if r > 0.0:
-            worst = e / r if not math.isfinite(worst) else max(worst, e / r)
+    headroom: dict[str, float] = {}
+    for name, p in (fixed or {}).items():
+        err = correct_array(p, raw[both]) - water[both]
+        headroom[f"rmse_{name}"] = math.sqrt(float(np.mean(err**2))) if err.size else math.nan
+        headroom[f"worst_{name}"] = _worst_ratio(tb, err_raw, err)
     imo_raw = imo_verdict(water[both], raw[both])
     imo_em = imo_verdict(water[both], emitted[both])
     return {
@@ -408,8 +426,9 @@ def water_scores(cap: Path, emitted_cap: Path) -> dict[str, float]:
         "imo_emitted_meets": float(imo_em.meets),
         "rmse_raw": math.sqrt(float(np.mean(err_raw**2))) if err_raw.size else math.nan,
         "rmse_emitted": math.sqrt(float(np.mean(err_em**2))) if err_em.size else math.nan,
-        "worst_5min_ratio": worst,
+        "worst_5min_ratio": _worst_ratio(tb, err_raw, err_em),
         "median_speed": float(np.median(raw)),
+        **headroom,
     }
 
 
@@ -437,9 +456,25 @@ def effective_scale(doc: dict[str, Any] | None, speed_mps: float) -> float | Non
     """Corrected / raw at ``speed_mps`` for a calibrate result."""
     if doc is None or not math.isfinite(speed_mps) or speed_mps <= 0.0:
         return None
+    return _params_of(doc).correct(speed_mps) / speed_mps
+
+
+def _params_of(doc: dict[str, Any]) -> Params:
+    """A calibrate result's parameters."""
     p = doc["params"]
-    params = Params(doc["model"], m=p.get("m", 0.0), b_mps=p.get("b", 0.0), a_spm=p.get("a", 0.0))
-    return params.correct(speed_mps) / speed_mps
+    return Params(doc["model"], m=p.get("m", 0.0), b_mps=p.get("b", 0.0), a_spm=p.get("a", 0.0))
+
+
+def headroom_params(row: Row) -> dict[str, Params]:
+    """The calibrations a replay could have applied from the start: the independent
+    fit's scale (``k``: corrected = k·raw) and least squares' over the whole log
+    (``ls``), where the row has them."""
+    out: dict[str, Params] = {}
+    if row.ref_k is not None and row.ref_k > 0.0:
+        out["k"] = Params("EM3", m=1.0 / row.ref_k - 1.0)
+    if row.ls is not None:
+        out["ls"] = _params_of(row.ls)
+    return out
 
 
 _STARTED = time.monotonic()
@@ -493,7 +528,7 @@ def run(src: Path, out: Path, only: list[str]) -> list[Row]:
             row.errors["replay"] = why
         else:
             try:
-                row.scores = water_scores(cap, emitted)
+                row.scores = water_scores(cap, emitted, headroom_params(row))
             except ValueError as exc:
                 row.errors["scores"] = str(exc)
         say(f"{name}: done in {time.monotonic() - t0:.0f} s")
@@ -584,6 +619,20 @@ def markdown(rows: list[Row]) -> str:
             worst = _f(s["worst_5min_ratio"], ".3f")
             imo = f"{_imo(s, 'emitted')} / {_imo(s, 'raw')}"
         out.append(f"| {r.name} | {cur} | {versus} | {nis} | {state} | {score} | {worst} | {imo} |")
+    out += [
+        "",
+        "| recording | raw RMSE (m/s) | emitted (worst 5-min) | the independent k from the start "
+        "(worst 5-min) | least squares from the start (worst 5-min) |",
+        "|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if r.scores is not None:
+            s = r.scores
+            cells = [f"{s['rmse_emitted']:.3f} ({_f(s['worst_5min_ratio'], '.3f')})"] + [
+                f"{_f(s.get('rmse_' + x), '.3f')} ({_f(s.get('worst_' + x), '.3f')})"
+                for x in ("k", "ls")
+            ]
+            out.append(f"| {r.name} | {s['rmse_raw']:.3f} | {' | '.join(cells)} |")
     failed = [(r.name, step, why) for r in rows for step, why in r.errors.items()]
     if failed:
         out += ["", "What failed:", ""]

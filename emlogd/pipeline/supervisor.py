@@ -42,7 +42,9 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   the window's spread widened by the current's uncertainty at the heading) alarms within a few
   samples of a step of the sensor or the sea. On an alarm the calibration's errors and raw's
   over the alarm's run, against the current as it stood, decide: worse than raw, it is withdrawn
-  and the learner learns the parameters again; else the sea changed, and the detector's baseline
+  and the learner learns the parameters again, unless the reference jumped and the log did
+  not (:func:`~emlogd.pipeline.evidence.sea_jumped`, no shift of the log's mean: a tack, a
+  tidal front); else the sea changed, and the detector's baseline
   starts again (from the alarm's run at a slow cadence, :attr:`Supervisor.run`); when the reference jumped
   (:data:`~emlogd.pipeline.evidence.SEA_STEP_SIGMAS`) the learner's current re-opens (raw
   passing through or not), so that the jump goes into the current, not into the parameters. When
@@ -494,9 +496,12 @@ class Supervisor:
         # a log that jumped is judged on the run of the side that alarmed (after the
         # step); otherwise on the whole run, noise included
         n_app, n_raw = (cu.ss_app, cu.ss_raw) if jumped else (cu.run_app, cu.run_raw)
-        if n_app <= n_raw:
+        sea = sea_jumped(step_log, step_ref, sigma)
+        # the reference jumped and the log did not: the sensor (whose parameters these
+        # are) is as it was, and which of raw and it fits the jumped sea is no evidence
+        if n_app <= n_raw or (sea and not jumped):
             self._reset_detector(seed=True)
-            self.sea_changed = sea_jumped(step_log, step_ref, sigma)
+            self.sea_changed = sea
             return False
         detail: dict[str, object] = {
             "params": self.applied.as_dict(),

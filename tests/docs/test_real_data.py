@@ -214,3 +214,21 @@ def test_the_replay_table_has_the_imo_verdict() -> None:
     assert next(ln for ln in lines if ln.startswith("| b |") and "fails (below)" in ln).endswith(
         "| — |"
     )
+
+
+def test_the_headroom_applies_the_independent_scale_and_least_squares_from_the_start() -> None:
+    """The headroom's calibrations: the independent fit's k makes every reading k times
+    itself, least squares' parameters are its own; the worst window is the largest
+    ratio over 5-minute windows of at least 60 samples (a shorter one left out)."""
+    rd = _script()
+    row = rd.Row("x", "nmea", ref_k=1.05, ls={"model": "EM3", "params": {"m": -0.1, "b": 0.2}})
+    fixed = rd.headroom_params(row)
+    assert fixed["k"].correct(3.0) == pytest.approx(3.15)
+    assert fixed["ls"].correct(2.0) == pytest.approx((2.0 - 0.2) / 0.9)
+    assert rd.headroom_params(rd.Row("y", "nmea")) == {}
+    t = np.arange(700.0)
+    err_raw = np.ones(700)
+    err = np.where(t < 300.0, 0.5, 2.0)
+    err[650:] = 9.0  # the last window holds 100 samples: counted
+    assert rd._worst_ratio(t, err_raw, err) == pytest.approx(math.sqrt((50 * 4 + 50 * 81) / 100))
+    assert rd._worst_ratio(t[:659], err_raw[:659], err[:659]) == pytest.approx(2.0)

@@ -266,3 +266,27 @@ def test_at_one_reading_every_5_s_a_gain_step_after_an_alarm_of_the_sea_is_caugh
             wrong.append(t)
     assert wrong and wrong[-1] - 1200.0 < 30.0, (wrong[:1], wrong[-1:], kinds)
     assert _applied(sup) is None and sup.counters.changes == 1, kinds
+
+
+@pytest.mark.parametrize("current", [False, True])
+def test_a_jump_of_the_reference_alone_keeps_the_calibration(current: bool) -> None:
+    """A healthy log (gain 1.1, applied) on a straight leg at 2 m/s through the water,
+    read at 1 Hz in 0.02 m/s of seeded noise; at 300 s the reference jumps by +0.2 m/s
+    and stays (a tidal front, or a tack's new leeway along the hull) while the log reads
+    as before. Over the alarm's run raw then fits the reference better than the
+    calibration (its +0.2 m/s error cancels the jump): that is the sea's doing, not the
+    sensor's, so the alarm is the sea's (the learner's current re-opens) and the
+    calibration stays applied."""
+    p = Params("EM3", m=0.1)
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=current)
+    sup, kinds = _sup(None, s)
+    sup._apply(0.0, p, {"m": 0.01, "b": 0.01})
+    rng = random.Random(3)
+    seen_sea = False
+    for k in range(420):
+        t = float(k)
+        ref = 2.0 + (0.2 if t >= 300.0 else 0.0) + rng.gauss(0.0, 0.02)
+        sup.observe(t, p.forward(2.0) + rng.gauss(0.0, 0.02), ref, (1.0, 0.0), _NoOffer())
+        seen_sea = seen_sea or sup.sea_changed
+        sup.sea_changed = False  # taken by the owner
+    assert seen_sea and _applied(sup) == p and "fallback" not in kinds, kinds
