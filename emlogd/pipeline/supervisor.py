@@ -96,6 +96,7 @@ from emlogd.pipeline.evidence import (
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed, output_std
 from emlogd.pipeline.revalidation import (
     COMMON_SEA_DEGREE,
+    UNDETERMINED_SEA,
     beats_raw,
     common_current,
     judge_early,
@@ -201,6 +202,7 @@ class Supervisor:
         self.recheck = PairedWindow(s.recheck_s)
         self.memory = SeaMemory()
         self._beta: dict[str, tuple[float, float]] = {}
+        self._common = UNDETERMINED_SEA
         self._t_beta = -math.inf
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
@@ -392,13 +394,9 @@ class Supervisor:
         d_c = self._error(raw, ref, cand.params)
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
         cand.separate(t, d_raw, ref, cs)
-        common = self._beta.get("common")
+        common = self._common if self._beta else None  # fitted with the others
         if cand.kind in ("new", "revalidate") and not cand.sea_fixed and common is not None:
-            # raw and it in one sea neither was fitted to
-            c_h = common[0] * hc[0] + common[1] * hc[1]
-            cand.common_raw += (d_raw - c_h) ** 2
-            cand.common_cand += (d_c - c_h) ** 2
-            cand.n_common += 1
+            cand.score_common(d_raw, d_c, common.along(hc))  # one sea neither was fitted to
         if cand.sea_fixed:
             e_raw = d_raw - (beta[0] * hc[0] + beta[1] * hc[1])  # raw in that sea too
         sea = self.restored_sea
@@ -442,7 +440,7 @@ class Supervisor:
         """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
         mem = self.memory
         self._beta = {"raw": mem.current(None, t)}
-        self._beta["common"] = common_current(mem, t, COMMON_SEA_DEGREE)
+        self._common = common_current(mem, t, COMMON_SEA_DEGREE)
         if self.applied is not None:
             self._beta["applied"] = mem.current(self.applied, t)
         if self.previous is not None:
