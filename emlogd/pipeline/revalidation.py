@@ -3,7 +3,8 @@
 :class:`Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
 over a candidate's validation window. A new calibration, or one withdrawn for cause,
 must beat raw by the margin of :func:`worse`, in the water frame both after a current
-of each one's own and in one sea for both (:func:`common_current`); a restored one
+of each one's own and in one sea for both (:func:`common_current`, where the headings
+determine it: :meth:`CommonSea.along`); a restored one
 need only not be worse than raw. A restored one in the water frame, where a current and an offset look
 alike on a straight leg, is judged after a current of its own where the window's
 headings spread (:func:`judge_own_currents`), else in the sea it was saved in

@@ -32,7 +32,9 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   :data:`CANDIDATE_MARGIN_MPS` of the applied one. In the water frame raw must be
   worse than it both after a current of each one's own and in one sea for both
   (:func:`~emlogd.pipeline.revalidation.common_current`: a current fitted with a free
-  correction of the reading, which neither can fit to its own offset).
+  correction of the reading, which neither can fit to its own offset; scored only at
+  headings along which the memory determines it,
+  :meth:`~emlogd.pipeline.revalidation.CommonSea.along`).
 - **Re-check**: the applied calibration is scored against raw over a forgetting
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
