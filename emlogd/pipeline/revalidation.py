@@ -3,7 +3,8 @@
 :class:`Candidate` is what the supervisor (:mod:`emlogd.pipeline.supervisor`) scores
 over a candidate's validation window. A new calibration, or one withdrawn for cause,
 must beat raw by the margin of :func:`worse`, in the water frame both after a current
-of each one's own and in one sea for both (:func:`common_current`); a restored one
+of each one's own and in one sea for both (:func:`common_current`, where the headings
+determine it: :meth:`CommonSea.along`); a restored one
 need only not be worse than raw. A restored one in the water frame, where a current and an offset look
 alike on a straight leg, is judged after a current of its own where the window's
 headings spread (:func:`judge_own_currents`), else in the sea it was saved in
@@ -16,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import TYPE_CHECKING, Literal, NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -136,11 +137,42 @@ configured EM3 does not model) does not leak its curvature into the current wher
 speed and heading change together."""
 
 
-def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, float]:
+COMMON_SEA_MAX_STD_MPS = 0.1
+"""A sample is scored in the common sea only where that sea's current along the hull at
+its heading is known to this, m/s (its standard deviation from the fit): where the
+memory's headings do not tell it from the free polynomial's offset (one heading, or two
+sectors whose offsets the polynomial takes), the ridge holds it near zero, which is the
+ground frame, not a sea; such a sample is no evidence for raw or against a candidate."""
+
+
+class CommonSea(NamedTuple):
+    """The common sea's β (north, east, m/s: minus the current) and its covariance
+    (m²/s²), from :func:`common_current`."""
+
+    n: float
+    e: float
+    var_nn: float
+    var_ne: float
+    var_ee: float
+
+    def along(self, cs: tuple[float, float]) -> float | None:
+        """β along the hull at the heading's (cos, sin) ``cs``, or None where the fit
+        does not determine it (:data:`COMMON_SEA_MAX_STD_MPS`)."""
+        c, s = cs
+        var = self.var_nn * c * c + 2.0 * self.var_ne * c * s + self.var_ee * s * s
+        return self.n * c + self.e * s if var <= COMMON_SEA_MAX_STD_MPS**2 else None
+
+
+UNDETERMINED_SEA = CommonSea(0.0, 0.0, math.inf, 0.0, math.inf)
+"""The common sea of a memory too short to fit one."""
+
+
+def common_current(mem: SeaMemory, now: float, degree: int) -> CommonSea:
     """The second sea a candidate and raw are validated in: the β (minus the current) of
     ``raw − ref ≈ Σₖ αₖ·rawᵏ (k ≤ degree) + β·(cos ψ, sin ψ)`` over the memory's
     samples, weighted like :meth:`~emlogd.pipeline.evidence.SeaMemory.current`
-    (the supervisor's degree is :data:`COMMON_SEA_DEGREE`).
+    (the supervisor's degree is :data:`COMMON_SEA_DEGREE`), and its covariance (each
+    sample's error :data:`~emlogd.pipeline.evidence.FIT_NOISE_MPS`).
 
     The polynomial of the reading is free, so the fitted β is the same for raw and for
     any correction of at most that degree (``p(raw) − raw`` is such a polynomial): one sea for raw and the candidate, which neither can fit to its own
@@ -149,17 +181,18 @@ def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, floa
     correction over the whole memory, which a sensor that drifts breaks. Neither is
     sure, so a candidate must beat raw in both. Where the headings do not determine β,
     the ridge of :data:`~emlogd.pipeline.evidence.FIT_CURRENT_PRIOR_MPS` keeps it near
-    zero and the polynomial takes the rest.
+    zero and the polynomial takes the rest: its variance along such a heading stays
+    near that prior's, and :meth:`CommonSea.along` gives no sea there.
     """
     if not mem.n:
-        return 0.0, 0.0
+        return UNDETERMINED_SEA
     data = mem.data[:, : mem.n] if mem.n < mem.data.shape[1] else mem.data
     t, raw, ref, c, s = data
     w = np.exp2(-(now - t) / CURRENT_HALF_LIFE_S) * (now - t <= CURRENT_MEMORY_S)
     d = raw - ref
     ok = np.isfinite(d) & (w > 0.0)
     if np.count_nonzero(ok) < degree + 3:
-        return 0.0, 0.0
+        return UNDETERMINED_SEA
     w, d, raw, c, s = w[ok], d[ok], raw[ok], c[ok], s[ok]
     x = np.column_stack([raw**k for k in range(degree + 1)] + [c, s])
     ridge = np.zeros(degree + 3)
@@ -167,7 +200,10 @@ def common_current(mem: SeaMemory, now: float, degree: int) -> tuple[float, floa
     a = (x * w[:, None]).T @ x + np.diag(ridge)
     b = (x * w[:, None]).T @ d
     sol, *_ = np.linalg.lstsq(a, b, rcond=None)
-    return float(sol[-2]), float(sol[-1])
+    cov = FIT_NOISE_MPS**2 * np.linalg.pinv(a)[-2:, -2:]
+    return CommonSea(
+        float(sol[-2]), float(sol[-1]), float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1])
+    )
 
 
 @dataclass
@@ -213,6 +249,14 @@ class Candidate:
         """A calibration withdrawn for cause, to be validated again (in the water frame,
         on what no current explains: :meth:`separate`)."""
         return cls(p, math.nan, "revalidate", std, separation=Separation() if water else None)
+
+    def score_common(self, d_raw: float, d_cand: float, sea: float | None) -> None:
+        """Raw's and its error against the reference in the common sea (β along the
+        hull ``sea``; None: not determined there, not scored)."""
+        if sea is not None:
+            self.common_raw += (d_raw - sea) ** 2
+            self.common_cand += (d_cand - sea) ** 2
+            self.n_common += 1
 
     def separate(self, t: float, d_raw: float, ref: float, cs: tuple[float, float] | None) -> None:
         """One sample of raw's error against the reference ``ref`` for :attr:`separation`."""

@@ -32,7 +32,9 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   :data:`CANDIDATE_MARGIN_MPS` of the applied one. In the water frame raw must be
   worse than it both after a current of each one's own and in one sea for both
   (:func:`~emlogd.pipeline.revalidation.common_current`: a current fitted with a free
-  correction of the reading, which neither can fit to its own offset).
+  correction of the reading, which neither can fit to its own offset; scored only at
+  headings along which the memory determines it,
+  :meth:`~emlogd.pipeline.revalidation.CommonSea.along`).
 - **Re-check**: the applied calibration is scored against raw over a forgetting
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
@@ -98,6 +100,7 @@ from emlogd.pipeline.evidence import (
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed, output_std
 from emlogd.pipeline.revalidation import (
     COMMON_SEA_DEGREE,
+    UNDETERMINED_SEA,
     beats_raw,
     common_current,
     judge_early,
@@ -203,6 +206,7 @@ class Supervisor:
         self.recheck = PairedWindow(s.recheck_s)
         self.memory = SeaMemory()
         self._beta: dict[str, tuple[float, float]] = {}
+        self._common = UNDETERMINED_SEA
         self._t_beta = -math.inf
         self.cusum = Cusum()
         self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
@@ -394,13 +398,9 @@ class Supervisor:
         d_c = self._error(raw, ref, cand.params)
         e_c = d_c - (beta[0] * hc[0] + beta[1] * hc[1])
         cand.separate(t, d_raw, ref, cs)
-        common = self._beta.get("common")
+        common = self._common if self._beta else None  # fitted with the others
         if cand.kind in ("new", "revalidate") and not cand.sea_fixed and common is not None:
-            # raw and it in one sea neither was fitted to
-            c_h = common[0] * hc[0] + common[1] * hc[1]
-            cand.common_raw += (d_raw - c_h) ** 2
-            cand.common_cand += (d_c - c_h) ** 2
-            cand.n_common += 1
+            cand.score_common(d_raw, d_c, common.along(hc))  # one sea neither was fitted to
         if cand.sea_fixed:
             e_raw = d_raw - (beta[0] * hc[0] + beta[1] * hc[1])  # raw in that sea too
         sea = self.restored_sea
@@ -444,7 +444,7 @@ class Supervisor:
         """Each calibration's own current from the memory (:data:`~emlogd.pipeline.evidence.CURRENT_HALF_LIFE_S`)."""
         mem = self.memory
         self._beta = {"raw": mem.current(None, t)}
-        self._beta["common"] = common_current(mem, t, COMMON_SEA_DEGREE)
+        self._common = common_current(mem, t, COMMON_SEA_DEGREE)
         if self.applied is not None:
             self._beta["applied"] = mem.current(self.applied, t)
         if self.previous is not None:

@@ -13,10 +13,12 @@ from calib.kalman import KfConfig
 from calib.models import Params
 from emlogd.pipeline.evidence import SeaMemory
 from emlogd.pipeline.revalidation import (
+    COMMON_SEA_DEGREE,
     RESTORE_SEA_SIGMAS,
     WORSE_FACTOR,
     WORSE_MARGIN_MPS,
     Candidate,
+    CommonSea,
     beats_raw,
     common_current,
     judge_early,
@@ -144,8 +146,61 @@ def test_the_common_sea_is_one_current_whatever_the_correction() -> None:
         mems[1].add(t, p.correct(raw), ref, cs)
     b0 = common_current(mems[0], 1199.0, 1)
     b1 = common_current(mems[1], 1199.0, 1)
-    assert b0 == pytest.approx((-cur[0], -cur[1]), abs=0.01)
-    assert b1 == pytest.approx(b0, abs=1e-6)
+    assert b0[:2] == pytest.approx((-cur[0], -cur[1]), abs=0.01)
+    assert b1[:2] == pytest.approx(b0[:2], abs=1e-6)
+    assert b0.along((1.0, 0.0)) == pytest.approx(-cur[0], abs=0.01)
+
+
+def _sea_on_legs(headings_deg: tuple[float, ...]) -> CommonSea:
+    """The common sea of 10 minutes per leg at each heading, the speed varying, a log
+    5 % high plus 0.1 m/s in a current of (0.3, −0.2) m/s."""
+    p = Params("EM3", m=0.05, b_mps=0.1)
+    mem = SeaMemory()
+    rng = np.random.default_rng(5)
+    t = 0.0
+    for hd in headings_deg:
+        cs = (math.cos(math.radians(hd)), math.sin(math.radians(hd)))
+        for _ in range(600):
+            u = 2.0 + 0.5 * math.sin(t / 50.0)
+            ref = u + 0.3 * cs[0] - 0.2 * cs[1] + float(rng.normal(0.0, 0.03))
+            mem.add(t, p.forward(u), ref, cs)
+            t += 1.0
+    return common_current(mem, t - 1.0, COMMON_SEA_DEGREE)
+
+
+@pytest.mark.parametrize(
+    ("legs", "at", "determined"),
+    [
+        ((0.0,), 0.0, False),  # one heading: the current along it is the polynomial's offset
+        ((0.0, 45.0), 45.0, False),  # two sectors: only the difference of their currents
+        ((0.0, 45.0), 0.0, False),
+        ((0.0, 120.0, 240.0), 240.0, True),  # three headings: the current itself
+        ((0.0, 120.0, 240.0), 90.0, True),
+    ],
+)
+def test_the_common_sea_is_no_sea_where_the_headings_do_not_determine_it(
+    legs: tuple[float, ...], at: float, determined: bool
+) -> None:
+    """Along a heading whose current the memory's headings cannot tell from the free
+    polynomial's offset, the common sea gives nothing to score in
+    (:data:`COMMON_SEA_MAX_STD_MPS`); where they determine it, it is the current."""
+    sea = _sea_on_legs(legs)
+    cs = (math.cos(math.radians(at)), math.sin(math.radians(at)))
+    along = sea.along(cs)
+    assert (along is not None) is determined
+    if along is not None:
+        assert along == pytest.approx(-(0.3 * cs[0] - 0.2 * cs[1]), abs=0.02)
+    assert common_current(SeaMemory(), 0.0, COMMON_SEA_DEGREE).along(cs) is None
+
+
+def test_a_candidate_is_scored_in_the_common_sea_only_where_it_is_determined() -> None:
+    cand = Candidate(Params("EM3"), 0.0)
+    cand.score_common(0.3, 0.05, None)
+    assert cand.n_common == 0
+    assert beats_raw(cand, 0.3, 0.05, {}) is True
+    cand.score_common(0.3, 0.05, 0.3)  # in that sea raw is right and the candidate not
+    assert (cand.n_common, cand.common_raw, cand.common_cand) == (1, 0.0, 0.0625)
+    assert beats_raw(cand, 0.3, 0.05, {}) is False
 
 
 @pytest.mark.parametrize(
