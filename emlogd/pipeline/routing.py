@@ -26,6 +26,7 @@ from drivers.records import Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.groundpair import GroundPair
 from emlogd.pipeline.headingcheck import HeadingCheck
+from emlogd.pipeline.headingsources import HeadingSources
 from emlogd.pipeline.integrity import JumpFilter
 from emlogd.pipeline.readings import ReadingCheck
 from emlogd.pipeline.settings import UutSettings
@@ -169,6 +170,8 @@ class Headings:
         self.variation: dict[str, float] = {}
         """The variation each port sent last (HDG, RMC), ° east."""
         self.fix_quality: dict[str, int] = {}
+        self.sources = HeadingSources()
+        """The sources compared: a wrong one is skipped (:meth:`at`, :meth:`ring`)."""
         self.model_var: float | None = None
         """The IGRF model's variation at the last GNSS position and date, ° east."""
         self._model_t = -math.inf
@@ -194,9 +197,10 @@ class Headings:
         """The true heading at ``t`` on the first port of ``order`` (:meth:`order`) that
         has one, and that port; or None. Outside an interpolation a sample within
         ``nearest_s`` of ``t`` is used as it is."""
+        wrong = self.sources.wrong
         for port in order:
             ph = self.rings.get(port)
-            if ph is None:
+            if ph is None or port in wrong:
                 continue
             h = ph.ring.at(t)
             if h is None:
@@ -209,7 +213,7 @@ class Headings:
         """The ring a UUT's heading comes from now: the first of ``order`` with data."""
         for port in order:
             ph = self.rings.get(port)
-            if ph is not None and len(ph.ring):
+            if ph is not None and len(ph.ring) and port not in self.sources.wrong:
                 return ph.ring
         return None
 
@@ -232,6 +236,7 @@ class Headings:
             return
         if ph.jumps.accept(t, true):
             ph.ring.add(t, wrap_deg(true))
+            self.sources.heading(t, port, wrap_deg(true))
 
     def variation_of(self, port: str) -> float | None:
         """The variation for ``port``'s magnetic values (:meth:`variation_source`)."""
@@ -297,6 +302,8 @@ class UutRoute:
         self.athwart_check = ReadingCheck(s.limits)
         """The plausibility of the athwart speeds of its VBW (the same limits)."""
         self.heading_check = HeadingCheck(s.envelope.max_current_mps)
+        self.sources_why = ""
+        """Why the heading sources it reads leave it none to trust (``""``: they agree)."""
         self.stw: tuple[float, float] | None = None
         self.ground = GroundPair(s.ref_stale_s, s.max_accel_mps2, REFERENCE_JUMP_WINDOW_S)
         """The reference's latest speed over ground on the hull, for the corrected VBW."""
