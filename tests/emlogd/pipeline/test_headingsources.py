@@ -46,7 +46,9 @@ def _run(
             hs.course(t + 0.02, "gnss", 2.0, (h + 2.0) % 360.0)
 
 
-@pytest.mark.parametrize(("a", "b", "d"), [(10.0, 350.0, 20.0), (350.0, 10.0, -20.0), (0, 180, 180)])
+@pytest.mark.parametrize(
+    ("a", "b", "d"), [(10.0, 350.0, 20.0), (350.0, 10.0, -20.0), (0, 180, 180)]
+)
 def test_the_difference_is_circular(a: float, b: float, d: float) -> None:
     assert angle_diff(a, b) == pytest.approx(d)
 
@@ -85,7 +87,7 @@ def test_the_course_on_straight_legs_names_the_wrong_source() -> None:
     assert "gnss:course agrees with dvl" in hs.wrong["compass"]
     assert hs.usable("dvl") and not hs.usable("compass")
     assert hs.suspect(["dvl", "compass"]) == ""
-    assert ("heading_source_wrong" in [e[2] for e in hs.events])
+    assert "heading_source_wrong" in [e[2] for e in hs.events]
 
 
 def test_the_compass_filling_the_dvls_gaps_is_judged_on_the_common_times() -> None:
