@@ -256,10 +256,13 @@ class HeadingSources:
                 continue
             gap = f"{a} and {b} {abs(w.diff_deg):.0f}° apart"
             found = self._arbitrate(t, a, b, wrong)
-            if found is None:
-                unresolved[(a, b)] = f"{gap}, nothing tells which is right"
-            else:
+            held = [n for n in (a, b) if n in self.wrong and " frozen: " not in self.wrong[n]]
+            if found is not None:
                 wrong[found[0]] = f"{gap}: {found[1]}"
+            elif held:  # a verdict stands while its pair disagrees (in a turn: no course)
+                wrong[held[0]] = self.wrong[held[0]]
+            else:
+                unresolved[(a, b)] = f"{gap}, nothing tells which is right"
         self._changes(t, wrong, unresolved)
 
     def _arbitrate(self, t: float, a: str, b: str, wrong: dict[str, str]) -> tuple[str, str] | None:
@@ -290,9 +293,11 @@ class HeadingSources:
             self.events.append((t, a, "heading_sources_disagree", detail))
         for a, b in sorted(set(self.unresolved) - set(unresolved)):
             self.events.append((t, a, "heading_sources_resolved", {"ports": [a, b]}))
-        if wrong != self.wrong or unresolved != self.unresolved:
+        if wrong.keys() != self.wrong.keys() or unresolved.keys() != self.unresolved.keys():
             self.version += 1
-        self.wrong, self.unresolved = wrong, unresolved
+        # a verdict kept keeps its words (the difference it was found at)
+        self.wrong = {n: self.wrong.get(n, why) for n, why in wrong.items()}
+        self.unresolved = {k: self.unresolved.get(k, why) for k, why in unresolved.items()}
 
     def _pair(self, a: str, b: str) -> PairWindow | None:
         return self.pairs.get((a, b) if a < b else (b, a))

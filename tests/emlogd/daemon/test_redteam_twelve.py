@@ -285,7 +285,12 @@ def _records(path: Path) -> Iterator[Record | str]:
 
 def edit_trial(files: list[Path], world: str, out: Path) -> list[Path]:
     """The trial's captures ``files`` with ``world``'s edit, written into ``out``."""
-    edit = WORLDS[world][0]()
+    return write_edited(files, WORLDS[world][0](), out)
+
+
+def write_edited(files: list[Path], edit: Edit, out: Path) -> list[Path]:
+    """The captures ``files`` with ``edit`` applied (a ``compass`` port declared after
+    the GNSS's), written into ``out``."""
     edited: list[Path] = []
     for path in files:
         dst = out / path.name

@@ -100,6 +100,23 @@ def test_the_compass_filling_the_dvls_gaps_is_judged_on_the_common_times() -> No
     assert set(hs.wrong) == {"compass"}
 
 
+def test_a_verdict_stands_through_turns_where_the_course_is_not_compared() -> None:
+    """The compass named wrong on straight legs stays wrong through ten minutes of a
+    10°/s turn (no course compared, its window emptied), not suspect again."""
+    hs = HeadingSources()
+    _run(hs, 3 * WINDOW_S, compass=180.0, course=True)
+    t0 = 3 * WINDOW_S
+    for k in range(6000):
+        t = t0 + k / 10.0
+        h = (10.0 * t) % 360.0
+        hs.heading(t + 0.01, "compass", (h + 180.0) % 360.0)
+        if k % 5 == 0:
+            hs.heading(t, "dvl", h)
+        if k % 10 == 0:
+            hs.course(t + 0.02, "gnss", 2.0, h)
+    assert set(hs.wrong) == {"compass"} and not hs.unresolved
+
+
 def test_a_third_compass_arbitrates() -> None:
     """A second compass agreeing with the DVL names the first one wrong, no course."""
     hs = HeadingSources()
