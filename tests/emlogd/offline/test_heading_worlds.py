@@ -61,10 +61,10 @@ def _frozen_from(t0: float) -> Edit:
 
     def edit(rel: float, t: float, port: str, s: str) -> list[Record]:
         parts = s.split(",")
-        if port == "dvl" and s.startswith(":SA,") and len(parts) == 4:
-            if t0 <= t < t0 + FROZEN_FOR_S:
-                held[:] = held or [parts[3]]
-                s = ",".join([*parts[:3], held[0]])
+        sa = port == "dvl" and s.startswith(":SA,") and len(parts) == 4
+        if sa and t0 <= t < t0 + FROZEN_FOR_S:
+            held[:] = held or [parts[3]]
+            s = ",".join([*parts[:3], held[0]])
         return [(t, port, s)]
 
     return edit
