@@ -142,3 +142,6 @@ def test_a_dvl_heading_frozen_in_the_figure_8_is_left_out_until_it_moves(
     right = [e for e in res.events if e.kind == "heading_source_right"]
     assert len(right) == 1 and t0 + FROZEN_FOR_S <= right[0].t < t0 + FROZEN_FOR_S + 10.0
     assert not res.event_counts.get("heading_suspect")
+    counters = _uut(res)["counters"]
+    assert isinstance(counters, dict)
+    assert counters["no_heading"] > 50  # its readings while the DVL's was left out

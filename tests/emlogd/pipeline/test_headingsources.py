@@ -117,15 +117,28 @@ def test_a_verdict_stands_through_turns_where_the_course_is_not_compared() -> No
     assert set(hs.wrong) == {"compass"} and not hs.unresolved
 
 
-def test_a_third_compass_arbitrates() -> None:
-    """A second compass agreeing with the DVL names the first one wrong, no course."""
+@pytest.mark.parametrize("liar", ["compass", "sbg"])
+def test_a_third_compass_arbitrates(liar: str) -> None:
+    """A second compass agreeing with the DVL names the first one wrong, no course
+    (the liar named before the DVL and after it)."""
     hs = HeadingSources()
     for k in range(int(3 * WINDOW_S)):
         h = _track(float(k))
         hs.heading(k + 0.0, "dvl", h)
-        hs.heading(k + 0.1, "compass", (h + 180.0) % 360.0)
+        hs.heading(k + 0.1, liar, (h + 180.0) % 360.0)
         hs.heading(k + 0.2, "ths", (h + 3.0) % 360.0)
-    assert set(hs.wrong) == {"compass"} and "ths agrees with dvl" in hs.wrong["compass"]
+    assert set(hs.wrong) == {liar} and "ths agrees with dvl" in hs.wrong[liar]
+
+
+def test_the_course_is_not_compared_in_turns() -> None:
+    """Circling at 6°/s for ten minutes, the course 8 s behind the heading (48°: the
+    vessel's inertia): never compared, no verdict."""
+    hs = HeadingSources()
+    for k in range(600):
+        hs.heading(float(k), "dvl", (6.0 * k) % 360.0)
+        hs.course(k + 0.5, "gnss", 2.0, (6.0 * (k - 8.0)) % 360.0)
+    w = hs.pairs.get(("dvl", "gnss" + COURSE))
+    assert w is None or not w.judged
 
 
 def test_agreement_again_clears_the_verdict() -> None:
