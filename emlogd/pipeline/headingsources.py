@@ -1,8 +1,9 @@
 """Do the vessel's heading sources agree? Which one lies?
 
 Every true heading the pipeline hears (a DVL's attitude, HDT/HDG/HDM/THS/``$PASHR``
-compasses, VHW's heading; one source per port) and the GNSS course over ground at speed
-(a weak source: a current sets the course off the heading) are compared two by two on
+compasses, VHW's heading; one source per port and sentence, ``port.SENTENCE``) and the
+GNSS course over ground at speed (a weak source, ``port.course``: a current sets the
+course off the heading) are compared two by two on
 common times — samples at most :data:`COMMON_S` apart, their circular difference against
 a tolerance of :data:`AGREE_DEG` widened by the turn rate times the time between them
 plus :data:`LAG_ALLOWANCE_S` (two sources' lags differ by that much in a turn). The
@@ -77,8 +78,19 @@ FROZEN_TURN_DEG = 20.0
 REJUDGE_S = 5.0
 """While a pair disagrees its verdict is made again this often, s."""
 
-COURSE = ":course"
+COURSE = ".course"
 """The suffix of a GNSS port's name that names its course as a source."""
+
+
+def source_name(port: str, sentence: str) -> str:
+    """A heading source's name: its port and the sentence it came in (``compass.HDT``,
+    ``dvl.PD6``; the port alone for a sentence not known)."""
+    return f"{port}.{sentence}" if sentence else port
+
+
+def port_of(name: str) -> str:
+    """The port of a source's name (:func:`source_name`)."""
+    return name.rsplit(".", 1)[0] if "." in name else name
 
 
 def angle_diff(a: float, b: float) -> float:
@@ -285,14 +297,16 @@ class HeadingSources:
     ) -> None:
         """Adopt a verdict: an event for each change (:attr:`events`)."""
         for n in sorted(set(wrong) - set(self.wrong)):
-            self.events.append((t, n, "heading_source_wrong", {"why": wrong[n]}))
+            detail: dict[str, object] = {"source": n, "why": wrong[n]}
+            self.events.append((t, port_of(n), "heading_source_wrong", detail))
         for n in sorted(set(self.wrong) - set(wrong)):
-            self.events.append((t, n, "heading_source_right", {}))
+            self.events.append((t, port_of(n), "heading_source_right", {"source": n}))
         for a, b in sorted(set(unresolved) - set(self.unresolved)):
-            detail: dict[str, object] = {"ports": [a, b], "why": unresolved[(a, b)]}
-            self.events.append((t, a, "heading_sources_disagree", detail))
+            detail = {"sources": [a, b], "why": unresolved[(a, b)]}
+            self.events.append((t, port_of(a), "heading_sources_disagree", detail))
         for a, b in sorted(set(self.unresolved) - set(unresolved)):
-            self.events.append((t, a, "heading_sources_resolved", {"ports": [a, b]}))
+            detail = {"sources": [a, b]}
+            self.events.append((t, port_of(a), "heading_sources_resolved", detail))
         if wrong.keys() != self.wrong.keys() or unresolved.keys() != self.unresolved.keys():
             self.version += 1
         # a verdict kept keeps its words (the difference it was found at)
@@ -302,15 +316,15 @@ class HeadingSources:
     def _pair(self, a: str, b: str) -> PairWindow | None:
         return self.pairs.get((a, b) if a < b else (b, a))
 
-    def usable(self, port: str) -> bool:
-        """Whether a heading may be read from ``port`` (not :attr:`wrong`)."""
-        return port not in self.wrong
+    def usable(self, name: str) -> bool:
+        """Whether a heading may be read from source ``name`` (not :attr:`wrong`)."""
+        return name not in self.wrong
 
     def suspect(self, order: Sequence[str]) -> str:
         """Why a UUT reading its heading from the ports of ``order`` has none to trust,
         or ``""``: two of them disagree and nothing tells which is right."""
         for (a, b), why in self.unresolved.items():
-            if a in order or b in order:
+            if port_of(a) in order or port_of(b) in order:
                 return f"heading sources disagree: {why}"
         return ""
 

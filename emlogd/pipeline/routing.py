@@ -26,7 +26,7 @@ from drivers.records import Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.groundpair import GroundPair
 from emlogd.pipeline.headingcheck import HeadingCheck
-from emlogd.pipeline.headingsources import HeadingSources
+from emlogd.pipeline.headingsources import HeadingSources, source_name
 from emlogd.pipeline.integrity import JumpFilter
 from emlogd.pipeline.readings import ReadingCheck
 from emlogd.pipeline.settings import UutSettings
@@ -67,6 +67,9 @@ class NavHeading(NamedTuple):
     true_deg: float | None
     magnetic_deg: float | None
     variation_deg: float | None
+    source: str = ""
+    """The sentence it came in (``HDT``, ``THS``, ``VHW``, ``PD6``…): a port may carry
+    several heading sources, each compared with the others (:mod:`.headingsources`)."""
 
 
 class NavGnss(NamedTuple):
@@ -122,17 +125,18 @@ def nav_items(dec: Decoder[R], rec: R | Rejected) -> Sequence[Nav]:
         if rec.heading_deg is None:
             return ()
         if rec.true:
-            return (NavHeading(rec.heading_deg, None, None),)
+            return (NavHeading(rec.heading_deg, None, None, rec.sentence),)
         mag = rec.heading_deg + (rec.deviation_deg or 0.0)
         var = rec.variation_deg
-        return (NavHeading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var),)
+        true = None if var is None else wrap_deg(mag + var)
+        return (NavHeading(true, wrap_deg(mag), var, rec.sentence),)
     out: list[Nav] = []
     for sp in dec.speed_records(rec):
         if sp.role == "ground":
             continue  # a log's ground pair (VBW) is no reference
         ht, hm = sp.heading_true_deg, sp.heading_mag_deg
         if ht is not None or hm is not None:
-            out.append(NavHeading(ht, hm, None))
+            out.append(NavHeading(ht, hm, None, sp.source.split(":", 1)[0]))
         out.append(sp)
     return out
 
@@ -171,7 +175,7 @@ class Headings:
         """The variation each port sent last (HDG, RMC), ° east."""
         self.fix_quality: dict[str, int] = {}
         self.sources = HeadingSources()
-        """The sources compared: a wrong one is skipped (:meth:`at`, :meth:`ring`)."""
+        """The sources compared: a wrong one's samples are not kept (:meth:`add`)."""
         self.model_var: float | None = None
         """The IGRF model's variation at the last GNSS position and date, ° east."""
         self._model_t = -math.inf
@@ -197,10 +201,9 @@ class Headings:
         """The true heading at ``t`` on the first port of ``order`` (:meth:`order`) that
         has one, and that port; or None. Outside an interpolation a sample within
         ``nearest_s`` of ``t`` is used as it is."""
-        wrong = self.sources.wrong
         for port in order:
             ph = self.rings.get(port)
-            if ph is None or port in wrong:
+            if ph is None:
                 continue
             h = ph.ring.at(t)
             if h is None:
@@ -213,7 +216,7 @@ class Headings:
         """The ring a UUT's heading comes from now: the first of ``order`` with data."""
         for port in order:
             ph = self.rings.get(port)
-            if ph is not None and len(ph.ring) and port not in self.sources.wrong:
+            if ph is not None and len(ph.ring):
                 return ph.ring
         return None
 
@@ -234,9 +237,10 @@ class Headings:
             ph.magnetic += 1
         if true is None or not math.isfinite(true):
             return
-        if ph.jumps.accept(t, true):
+        name = source_name(port, h.source)
+        self.sources.heading(t, name, wrap_deg(true))
+        if name not in self.sources.wrong and ph.jumps.accept(t, true):
             ph.ring.add(t, wrap_deg(true))
-            self.sources.heading(t, port, wrap_deg(true))
 
     def variation_of(self, port: str) -> float | None:
         """The variation for ``port``'s magnetic values (:meth:`variation_source`)."""

@@ -89,7 +89,7 @@ def test_the_course_names_the_compass_180_off_and_the_dvl_heading_is_used(
     res = _replay(write_edited(_files(trial), _compass(180.0, gaps=True), tmp_path))
     assert res.event_counts.get("heading_source_wrong") == 1
     wrong = [e for e in res.events if e.kind == "heading_source_wrong"]
-    assert wrong[0].port == "compass" and "gnss:course agrees with dvl" in str(wrong[0].detail)
+    assert wrong[0].port == "compass" and "gnss.course agrees with dvl.PD6" in str(wrong[0].detail)
     assert wrong[0].t - START_EPOCH_S < 90.0  # half the window, the course's judged too
     # held suspect at most until the course's window is judged, then trusted for good
     # (through the figure-8's turns, where the course is not compared)
@@ -100,7 +100,7 @@ def test_the_course_names_the_compass_180_off_and_the_dvl_heading_is_used(
         heading = u["heading"]
         assert isinstance(heading, dict)
         assert heading["port"] == "dvl"
-        assert list(heading["sources"]["wrong"]) == ["compass"]
+        assert list(heading["sources"]["wrong"]) == ["compass.HDT"]
         assert u["heading_suspect"] == ""
 
 
@@ -112,9 +112,9 @@ def test_without_a_third_source_the_heading_is_suspect_and_no_current_is_learnt(
     files = write_edited(_files(trial), _without_gnss(_compass(180.0, gaps=True)), tmp_path)
     res = _replay(files)
     u = _uut(res)
-    assert "heading sources disagree: compass and dvl 180° apart" in str(u["reason"])
+    assert "heading sources disagree: compass.HDT and dvl.PD6 180° apart" in str(u["reason"])
     assert u["heading_suspect"] == u["reason"]
-    assert u["heading"]["sources"]["unresolved"] == ["compass/dvl"]  # type: ignore[index]
+    assert u["heading"]["sources"]["unresolved"] == ["compass.HDT/dvl.PD6"]  # type: ignore[index]
     counters = u["counters"]
     assert isinstance(counters, dict)
     assert counters["no_heading"] > 0.8 * int(u["samples_learnt"])  # type: ignore[call-overload]
@@ -137,7 +137,7 @@ def test_a_dvl_heading_frozen_in_the_figure_8_is_left_out_until_it_moves(
     res = _replay(write_edited(files, _frozen_from(t0), tmp_path))
     wrong = [e for e in res.events if e.kind == "heading_source_wrong"]
     assert [e.port for e in wrong] == ["dvl"]
-    assert "dvl frozen: repeats" in str(wrong[0].detail)
+    assert "dvl.PD6 frozen: repeats" in str(wrong[0].detail)
     assert t0 + 20.0 <= wrong[0].t < t0 + 60.0
     right = [e for e in res.events if e.kind == "heading_source_right"]
     assert len(right) == 1 and t0 + FROZEN_FOR_S <= right[0].t < t0 + FROZEN_FOR_S + 10.0

@@ -14,6 +14,7 @@ from emlogd.pipeline.headingsources import (
     HeadingSources,
     angle_diff,
 )
+from emlogd.pipeline.routing import Headings, NavHeading
 
 
 def _track(t: float) -> float:
@@ -84,7 +85,7 @@ def test_the_course_on_straight_legs_names_the_wrong_source() -> None:
     hs = HeadingSources()
     _run(hs, 3 * WINDOW_S, compass=180.0, course=True)
     assert set(hs.wrong) == {"compass"}
-    assert "gnss:course agrees with dvl" in hs.wrong["compass"]
+    assert "gnss.course agrees with dvl" in hs.wrong["compass"]
     assert hs.usable("dvl") and not hs.usable("compass")
     assert hs.suspect(["dvl", "compass"]) == ""
     assert "heading_source_wrong" in [e[2] for e in hs.events]
@@ -170,7 +171,7 @@ def test_a_frozen_heading_is_named_while_the_course_turns() -> None:
         hs.heading(float(k), "dvl", 100.0)
         hs.course(k + 0.5, "gnss", 2.0, (100.0 + 0.2 * k) % 360.0)
     assert set(hs.wrong) == {"dvl"}
-    assert "repeats 100.0°" in hs.wrong["dvl"] and "gnss:course turned" in hs.wrong["dvl"]
+    assert "repeats 100.0°" in hs.wrong["dvl"] and "gnss.course turned" in hs.wrong["dvl"]
     hs.heading(400.0, "dvl", 180.5)
     hs.course(400.5, "gnss", 2.0, 180.0)
     assert not hs.wrong
@@ -209,8 +210,26 @@ def test_status_names_pairs_and_verdicts() -> None:
     hs = HeadingSources()
     _run(hs, 3 * WINDOW_S, compass=180.0, course=True)
     st = hs.status()
-    assert st["heard"] == ["compass", "dvl", "gnss:course"]
+    assert st["heard"] == ["compass", "dvl", "gnss.course"]
     pairs = st["pairs"]
     assert isinstance(pairs, dict) and pairs["compass/dvl"]["disagree"] is True
     assert abs(pairs["compass/dvl"]["diff_deg"]) == pytest.approx(180.0, abs=1.0)
     assert st["unresolved"] == [] and "compass" in st["wrong"]  # type: ignore[operator]
+
+
+def test_two_sentences_on_one_port_are_two_sources() -> None:
+    """HDT and VHW's heading on one multiplexed port, VHW's 180° off and filling HDT's
+    gaps (10 s in every 20), the course on another port: ``nmea.VHW`` is wrong, and
+    the port's heading in HDT's gaps is none, not VHW's."""
+    h = Headings(["nmea", "gnss"], [])
+    for k in range(int(3 * WINDOW_S)):
+        t = float(k)
+        true = _track(t)
+        if k % 20 < 10:
+            h.add(t, "nmea", NavHeading(true, None, None, "HDT"))
+        h.add(t + 0.3, "nmea", NavHeading((true + 180.0) % 360.0, None, None, "VHW"))
+        h.sources.course(t + 0.5, "gnss", 2.0, true)
+    assert set(h.sources.wrong) == {"nmea.VHW"}
+    assert h.at(["nmea"], 3 * WINDOW_S - 2.0) is None  # in HDT's gap
+    found = h.at(["nmea"], 3 * WINDOW_S - 15.5)
+    assert found is not None and abs(angle_diff(found[0], _track(3 * WINDOW_S - 15.5))) < 1.0
