@@ -3,8 +3,9 @@
 Usage: ``python docs/real_data.py DIR [--out OUTDIR] [--only NAME ...] [--json]``.
 
 Every file of DIR that is a log is recognised by its content (:func:`kind`: an NMEA
-0183 log, an Expedition CSV, a logger's TSV with a banner, or another CSV with an ISO
-time column — the broken-heading kind among them) and run through emlogd's own
+0183 log, an Expedition CSV, a logger's TSV with a banner, JSON lines (Signal K,
+canboat), canboat's NMEA 2000 text, or another CSV with an ISO time column — the
+broken-heading kind among them) and run through emlogd's own
 commands, exactly as a user would:
 
 1. ``emlogd import`` (``--format nmea``; CSV and TSV by the importer's header
@@ -138,10 +139,9 @@ def kind(path: Path) -> str | None:
     lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
     if not lines:
         return None
-    if sum(bool(JSON_MESSAGE.match(ln)) for ln in lines[:50]) > len(lines[:50]) // 2:
-        return "json"
-    if sum(bool(N2K_PLAIN.match(ln)) for ln in lines[:50]) > len(lines[:50]) // 2:
-        return "n2k"
+    for kind, pattern in (("json", JSON_MESSAGE), ("n2k", N2K_PLAIN)):
+        if sum(bool(pattern.match(ln)) for ln in lines[:50]) > len(lines[:50]) // 2:
+            return kind
     if (
         sum(bool(SENTENCE_IN_LINE.search(ln)) for ln in lines[:50])
         >= min(len(lines[:50]), 5) // 2 + 1
@@ -469,12 +469,8 @@ def headroom_params(row: Row) -> dict[str, Params]:
     """The calibrations a replay could have applied from the start: the independent
     fit's scale (``k``: corrected = k·raw) and least squares' over the whole log
     (``ls``), where the row has them."""
-    out: dict[str, Params] = {}
-    if row.ref_k is not None and row.ref_k > 0.0:
-        out["k"] = Params("EM3", m=1.0 / row.ref_k - 1.0)
-    if row.ls is not None:
-        out["ls"] = _params_of(row.ls)
-    return out
+    k = {"k": Params("EM3", m=1.0 / row.ref_k - 1.0)} if row.ref_k and row.ref_k > 0.0 else {}
+    return k | ({"ls": _params_of(row.ls)} if row.ls is not None else {})
 
 
 _STARTED = time.monotonic()

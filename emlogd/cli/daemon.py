@@ -177,6 +177,11 @@ def _heading_line(h: dict[str, Any]) -> str:
         text += f", {off:+.1f}° from the course" + (
             " — FLAGGED, not used" if check.get("flagged") else ""
         )
+    sources = h.get("sources") or {}
+    for port, why in (sources.get("wrong") or {}).items():
+        text += f"; {port} NOT USED ({why})"
+    for pair in sources.get("unresolved") or []:
+        text += f"; {pair} DISAGREE"
     return text
 
 

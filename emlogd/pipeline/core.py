@@ -39,8 +39,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 from drivers import DecoderOptions, make_decoder
 from drivers.base import Decoder
@@ -50,6 +49,9 @@ from emlogd.pipeline import twoaxis
 from emlogd.pipeline.align import wrap_deg
 from emlogd.pipeline.calibration import Calibration, check
 from emlogd.pipeline.fusion import Fusion, FusionSettings, consistency_std
+from emlogd.pipeline.output import Emit as Emit
+from emlogd.pipeline.output import Event as Event
+from emlogd.pipeline.output import Output as Output
 from emlogd.pipeline.routing import (
     Headings,
     Nav,
@@ -80,55 +82,6 @@ HEADING_CHECK_TOL_S = 1.5
 """A GNSS fix is judged with the heading nearest its time within this, s (a heading
 sentence often follows the fix; a wrong heading is tens of degrees off, not a turn's
 1.5 s)."""
-
-
-class Emit(NamedTuple):
-    """A sentence to send to every output sink (a named tuple: one is made per sentence,
-    in a third of a frozen dataclass's time).
-
-    Attributes:
-        t: the receive time of the UUT sentence that caused it, s.
-        port: the UUT port.
-        sentence: the NMEA sentence without CR LF (checksummed, ≤ 82 characters).
-    """
-
-    t: float
-    port: str
-    sentence: str
-
-
-@dataclass(frozen=True, slots=True)
-class Event:
-    """Something worth a log line (state changes, lag found, reference lost...)."""
-
-    t: float
-    port: str
-    kind: str
-    detail: Mapping[str, object]
-
-
-class Output:
-    """What one :meth:`Pipeline.feed`, :meth:`Pipeline.tick` or :meth:`Pipeline.flush`
-    call produced, returned to the caller, which delivers it: the sentences in the order
-    they were made (corrected speeds, status, VDR, fused speed), the events, and the
-    calibrations to persist. Each call returns a new one; the pipeline keeps no
-    reference to it and calls nothing of the caller's.
-
-    A plain class (one is made per record): half a list-factory dataclass's construction.
-    """
-
-    __slots__ = ("emits", "events", "persist")
-
-    def __init__(self) -> None:
-        self.emits: list[Emit] = []
-        self.events: list[Event] = []
-        self.persist: list[Calibration] = []
-
-    def add(self, other: Output) -> None:
-        """Append another call's output after this one's (a caller collecting several)."""
-        self.emits.extend(other.emits)
-        self.events.extend(other.events)
-        self.persist.extend(other.persist)
 
 
 class Pipeline:
@@ -212,6 +165,8 @@ class Pipeline:
         self.now = -math.inf
         self._pending_events: list[Event] = []
         self._waiting = True  # whether _after may have work without a record's items
+        self._sources_version = 0
+        """The heading sources' verdict last handed to the UUTs (:meth:`_heading_sources`)."""
 
     def _two_axis(self, s: UutSettings, latest: Calibration | None) -> TwoAxisLearner:
         """A two-axis learner; the saved figures of a record its checks accept restored
@@ -251,6 +206,7 @@ class Pipeline:
             self.liveness.adopt(old.liveness, [name])
             self.headings.adopt(old.headings, name)
         self.headings.model_var = old.headings.model_var
+        self.headings.sources = old.headings.sources
         kept: list[str] = []
         for name, u in self.uuts.items():
             o = old.uuts.get(name)
@@ -277,9 +233,10 @@ class Pipeline:
     # -- headings --------------------------------------------------------------
 
     def _heading_at(self, uut: str, t: float) -> float | None:
-        """The UUT's true heading at ``t``, unless the course over ground says it is wrong."""
+        """The UUT's true heading at ``t``, unless the course over ground says it is wrong
+        or two of its sources disagree with nothing to tell which is right."""
         u = self.uuts.get(uut)
-        if u is None or u.heading_check.suspect:
+        if u is None or u.heading_check.suspect or u.sources_why:
             return None
         return self._raw_heading_at(u, t)
 
@@ -362,6 +319,7 @@ class Pipeline:
         if valid and g.sog_mps is not None and self.fusion is not None:
             self.fusion.ground(t, g.sog_mps)
         if valid and g.sog_mps is not None and g.cog_true_deg is not None:
+            self.headings.sources.course(t, port, g.sog_mps, g.cog_true_deg)
             for u in self.uuts.values():
                 self._check_heading(t, u, g.sog_mps, g.cog_true_deg)
         for u in self._by_ref.get(port, ()):
@@ -564,9 +522,26 @@ class Pipeline:
                     out.persist.append(self._with_two_axis(snap))
             waiting = waiting or bool(u.gnss or cal.pending or cal.sup.dirty)
         self._waiting = waiting
+        if self.headings.sources.version != self._sources_version:
+            self._heading_sources(t)
         if self._pending_events:
             out.events.extend(self._pending_events)
             self._pending_events.clear()
+
+    def _heading_sources(self, t: float) -> None:
+        """The heading sources' new verdict: their events, and each UUT's heading
+        suspect (or trusted again) when two sources it reads disagree unresolved."""
+        src = self.headings.sources
+        self._sources_version = src.version
+        for ts, port, kind, detail in src.events:
+            self._pending_events.append(Event(ts, port, kind, detail))
+        src.events.clear()
+        for u in self.uuts.values():
+            why = src.suspect(u.heading_order)
+            if why != u.sources_why:
+                u.sources_why = why
+                kind = "heading_suspect" if why else "heading_consistent"
+                self._pending_events.append(Event(t, u.s.port, kind, {"why": why} if why else {}))
 
     # -- time -----------------------------------------------------------------
 

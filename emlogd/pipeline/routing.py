@@ -26,6 +26,7 @@ from drivers.records import Rejected, SpeedRecord
 from emlogd.pipeline.align import SampleRing, wrap_deg
 from emlogd.pipeline.groundpair import GroundPair
 from emlogd.pipeline.headingcheck import HeadingCheck
+from emlogd.pipeline.headingsources import HeadingSources, source_name
 from emlogd.pipeline.integrity import JumpFilter
 from emlogd.pipeline.readings import ReadingCheck
 from emlogd.pipeline.settings import UutSettings
@@ -66,6 +67,9 @@ class NavHeading(NamedTuple):
     true_deg: float | None
     magnetic_deg: float | None
     variation_deg: float | None
+    source: str = ""
+    """The sentence it came in (``HDT``, ``THS``, ``VHW``, ``PD6``…): a port may carry
+    several heading sources, each compared with the others (:mod:`.headingsources`)."""
 
 
 class NavGnss(NamedTuple):
@@ -121,17 +125,18 @@ def nav_items(dec: Decoder[R], rec: R | Rejected) -> Sequence[Nav]:
         if rec.heading_deg is None:
             return ()
         if rec.true:
-            return (NavHeading(rec.heading_deg, None, None),)
+            return (NavHeading(rec.heading_deg, None, None, rec.sentence),)
         mag = rec.heading_deg + (rec.deviation_deg or 0.0)
         var = rec.variation_deg
-        return (NavHeading(None if var is None else wrap_deg(mag + var), wrap_deg(mag), var),)
+        true = None if var is None else wrap_deg(mag + var)
+        return (NavHeading(true, wrap_deg(mag), var, rec.sentence),)
     out: list[Nav] = []
     for sp in dec.speed_records(rec):
         if sp.role == "ground":
             continue  # a log's ground pair (VBW) is no reference
         ht, hm = sp.heading_true_deg, sp.heading_mag_deg
         if ht is not None or hm is not None:
-            out.append(NavHeading(ht, hm, None))
+            out.append(NavHeading(ht, hm, None, sp.source.split(":", 1)[0]))
         out.append(sp)
     return out
 
@@ -169,6 +174,8 @@ class Headings:
         self.variation: dict[str, float] = {}
         """The variation each port sent last (HDG, RMC), ° east."""
         self.fix_quality: dict[str, int] = {}
+        self.sources = HeadingSources()
+        """The sources compared: a wrong one's samples are not kept (:meth:`add`)."""
         self.model_var: float | None = None
         """The IGRF model's variation at the last GNSS position and date, ° east."""
         self._model_t = -math.inf
@@ -230,7 +237,9 @@ class Headings:
             ph.magnetic += 1
         if true is None or not math.isfinite(true):
             return
-        if ph.jumps.accept(t, true):
+        name = source_name(port, h.source)
+        self.sources.heading(t, name, wrap_deg(true))
+        if name not in self.sources.wrong and ph.jumps.accept(t, true):
             ph.ring.add(t, wrap_deg(true))
 
     def variation_of(self, port: str) -> float | None:
@@ -297,6 +306,8 @@ class UutRoute:
         self.athwart_check = ReadingCheck(s.limits)
         """The plausibility of the athwart speeds of its VBW (the same limits)."""
         self.heading_check = HeadingCheck(s.envelope.max_current_mps)
+        self.sources_why = ""
+        """Why the heading sources it reads leave it none to trust (``""``: they agree)."""
         self.stw: tuple[float, float] | None = None
         self.ground = GroundPair(s.ref_stale_s, s.max_accel_mps2, REFERENCE_JUMP_WINDOW_S)
         """The reference's latest speed over ground on the hull, for the corrected VBW."""

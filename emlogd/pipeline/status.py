@@ -63,8 +63,11 @@ def fused_status(last: Fused | None) -> dict[str, object] | None:
 
 
 def heading_reason(u: UutRoute, headings: Headings) -> str | None:
-    """Why a GNSS reference projects nothing, when the heading is the cause: none, a
-    magnetic one without a variation, or one the course check flagged."""
+    """Why the UUT has no heading to trust, its sources disagreeing unresolved; or why a
+    GNSS reference projects nothing, when the heading is the cause: none, a magnetic one
+    without a variation, or one the course check flagged."""
+    if u.sources_why:
+        return u.sources_why
     if u.s.reference_field != "gnss" or u.cal.ref_state == "valid":
         return None
     if u.heading_check.suspect:
@@ -104,6 +107,7 @@ def heading_status(u: UutRoute, headings: Headings) -> dict[str, object]:
         "refused_magnetic": refused,
         "check": u.course_check.as_dict(),
         "refused_by_check": u.course_refused,
+        "sources": headings.sources.status(),
     }
 
 
@@ -170,7 +174,7 @@ def uut_status(
         "inputs": input_freshness(u, liveness, now),
         "heading_port": u.heading_port,
         "heading": heading_status(u, headings),
-        "heading_suspect": u.heading_check.reason(),
+        "heading_suspect": u.heading_check.reason() or u.sources_why,
         "learning_enabled": cal.learn_on,
         "model": u.s.model,
         "params": cal.applied.as_dict() if cal.applied is not None else None,

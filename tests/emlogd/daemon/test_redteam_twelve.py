@@ -291,7 +291,12 @@ def edit_trial(
 ) -> list[Path]:
     """The trial's captures ``files`` with ``world``'s edit (of ``worlds``, default
     :data:`WORLDS`), written into ``out``."""
-    edit = (worlds or WORLDS)[world][0]()
+    return write_edited(files, (worlds or WORLDS)[world][0](), out)
+
+
+def write_edited(files: list[Path], edit: Edit, out: Path) -> list[Path]:
+    """The captures ``files`` with ``edit`` applied (a ``compass`` port declared after
+    the GNSS's), written into ``out``."""
     edited: list[Path] = []
     for path in files:
         dst = out / path.name

@@ -30,7 +30,7 @@ class TestNavigationItems:
         recs = nmea.decode_all(f"{vhw}\r\n{vbw}\r\n".encode())
         items = [it for r in recs for it in nav_items(nmea, r)]
         assert [type(it).__name__ for it in items] == ["NavHeading", "SpeedRecord", "SpeedRecord"]
-        assert items[0] == NavHeading(10.0, 12.0, None)
+        assert items[0] == NavHeading(10.0, 12.0, None, "VHW")
         assert isinstance(items[1], SpeedRecord) and isinstance(items[2], SpeedRecord)
         assert (items[1].role, items[1].source, items[1].heading_mag_deg) == (
             "speed",
