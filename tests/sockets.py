@@ -1,8 +1,10 @@
-"""Socket helpers of the tests: a TCP port on 127.0.0.1 that does not answer."""
+"""Socket helpers of the tests: a TCP port on 127.0.0.1 that does not answer; what a
+non-blocking descriptor holds now."""
 
 from __future__ import annotations
 
 import contextlib
+import os
 import socket
 import time
 from collections.abc import Iterator
@@ -26,3 +28,12 @@ def unanswered_port() -> Iterator[int]:
     finally:
         for s in [*fill, ls]:
             s.close()
+
+
+def drain(fd: int) -> bytes:
+    """What the non-blocking descriptor ``fd`` (a pty's master, a pipe) holds now."""
+    data = b""
+    with contextlib.suppress(BlockingIOError):
+        while chunk := os.read(fd, 65536):
+            data += chunk
+    return data

@@ -23,7 +23,8 @@ from emlogd.daemon.logsetup import (
     is_console,
     status_line,
 )
-from tests.emlogd.daemon.test_redteam import F_SETPIPE_SZ, _drain
+from tests.emlogd.daemon.test_redteam import F_SETPIPE_SZ
+from tests.sockets import drain
 
 
 class TestConfigureLogging:
@@ -158,9 +159,9 @@ class TestLogStream:
         assert time.monotonic() - t0 < 1.0
         dropped = logsetup.lost_lines() - lost
         assert 100 < dropped < 200
-        got = _drain(r)
+        got = drain(r)
         out.flush()
-        got += _drain(r)
+        got += drain(r)
         lines = got.decode().splitlines()
         assert len(lines) == 200 - dropped and not out.pending
         assert all(len(x) == 99 for x in lines)

@@ -7,7 +7,6 @@ input never loses the frozen calibration."""
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import fcntl
 import functools
@@ -44,7 +43,7 @@ from tests.emlogd.daemon.harness import (
     tcp_port,
     wait,
 )
-from tests.sockets import unanswered_port
+from tests.sockets import drain, unanswered_port
 
 CONFIG = f"""\
 ports:
@@ -356,15 +355,6 @@ def _lost(sock: Path) -> int:
     return n
 
 
-def _drain(fd: int) -> bytes:
-    """What the non-blocking ``fd`` holds now."""
-    data = b""
-    with contextlib.suppress(BlockingIOError):
-        while chunk := os.read(fd, 65536):
-            data += chunk
-    return data
-
-
 def _sentences(sock: Path) -> dict[str, tuple[int, int]]:
     """(sentences, errors) of each output."""
     outputs = request(sock, {"cmd": "status"}, timeout_s=1.0)["outputs"]
@@ -394,9 +384,9 @@ def test_a_stdout_reader_that_stops_reading_costs_its_sentences_only(
                 reader = os.open(work / "out" / "emlog0", flags)
                 try:
                     wait(lambda: _sentences(sock)["stdout"][1] > 0, "stdout full", 30.0)
-                    _drain(reader)
+                    drain(reader)
                     time.sleep(2.0)
-                    assert _drain(reader).count(b"\r\n") >= 10  # the pty goes on
+                    assert drain(reader).count(b"\r\n") >= 10  # the pty goes on
                 finally:
                     os.close(reader)
                 assert _answers(sock)

@@ -49,7 +49,8 @@ from tests.emlogd.daemon.harness import (
     wait,
 )
 from tests.emlogd.daemon.test_lockout import _first_sentence, _tcp_counters
-from tests.emlogd.daemon.test_redteam import CONFIG, F_SETPIPE_SZ, _answers, _drain
+from tests.emlogd.daemon.test_redteam import CONFIG, F_SETPIPE_SZ, _answers
+from tests.sockets import drain
 
 PORTS = ("emlog1", "dvl")
 """The sensors of ``CONFIG`` (a port served that the daemon never opens holds the
@@ -92,7 +93,7 @@ def test_a_log_reader_that_does_not_read_costs_log_lines_not_the_daemon(tmp_path
             assert 0 < _queued(r) <= 4096
             assert _stop(proc) == 0
             os.set_blocking(r, False)
-            lines = _drain(r).decode().splitlines()
+            lines = drain(r).decode().splitlines()
             assert lines and all(json.loads(x)["event"] for x in lines), lines[-1]
     finally:
         os.close(r)

@@ -54,6 +54,7 @@ from tests.emlogd.daemon.test_redteam_twelve import (
     _nmea,
     measure_world,
 )
+from tests.sockets import drain
 
 
 def test_a_watchdog_interval_of_a_digit_int_cannot_read_is_no_watchdog(tmp_path: Path) -> None:
@@ -133,15 +134,6 @@ def test_a_log_whose_own_pty_is_not_open_sends_nothing_to_the_shared_one(
             os.close(fd)
 
 
-def _read_ready(fd: int) -> bytes:
-    """What the non-blocking pipe ``fd`` holds now."""
-    data = b""
-    with contextlib.suppress(BlockingIOError):
-        while chunk := os.read(fd, 65536):
-            data += chunk
-    return data
-
-
 def test_a_reload_turning_stdout_on_moves_the_log_to_stderr(tmp_path: Path) -> None:
     """The daemon started without ``outputs.stdout`` logs to stdout (a pipe here); a
     SIGHUP into a config with ``outputs.stdout: true`` moves the log to stderr before
@@ -164,19 +156,19 @@ def test_a_reload_turning_stdout_on_moves_the_log_to_stderr(tmp_path: Path) -> N
             proc.send_signal(signal.SIGHUP)
             stderr = work / "stderr.log"
             wait(lambda: b'"reloaded"' in stderr.read_bytes(), "the reload logged on stderr")
-            _read_ready(out_r)  # the log's lines before the reload
+            drain(out_r)  # the log's lines before the reload
             for k in range(10):
                 os.write(masters[0], VHW[k % 2])
                 time.sleep(0.05)
             request(work / "run" / "control.sock", {"cmd": "reset"})
             time.sleep(0.5)
-            lines = _read_ready(out_r).splitlines()
+            lines = drain(out_r).splitlines()
             assert [x for x in lines if x.startswith(b"$VWVHW")], lines
             assert all(x.startswith(b"$") for x in lines), lines
             assert b'"control_reset"' in stderr.read_bytes()
             cfg.write_text(plain)
             proc.send_signal(signal.SIGHUP)
-            wait(lambda: b'"reloaded"' in _read_ready(out_r), "the log back on stdout")
+            wait(lambda: b'"reloaded"' in drain(out_r), "the log back on stdout")
             proc.send_signal(signal.SIGTERM)
             assert proc.wait(STOP_TIMEOUT_S) == 0
     finally:
