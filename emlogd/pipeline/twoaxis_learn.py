@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibrationError
-from calib.models import Params, check_model
+from calib.models import check_model
 from calib.twoaxis import (
     ALPHA,
     B_T,
@@ -70,8 +70,10 @@ from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.integrity import emitted_speed
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.twoaxis_sup import (
+    NO_GUARD,
     Block,
     Figures,
+    Guard,
     TwoAxisSupervisor,
     lon_of_fit,
     noise_gain,
@@ -238,7 +240,7 @@ class TwoAxisLearner:
         forward_mps: float,
         athwart_mps: float,
         raw_l_mps: float | None = None,
-        guard: tuple[int, bool, Params | None] = (0, False, None),
+        guard: Guard = NO_GUARD,
     ) -> tuple[float, float] | None:
         """The VBW's hull-frame speeds with the applied figures (None: none applied):
         their own forward speed from the raw one ``raw_l_mps`` where the supervisor
@@ -250,11 +252,11 @@ class TwoAxisLearner:
         if f is None or not self.s.apply:
             return None
         own = None
-        if raw_l_mps is not None and self.answers(*guard[:2]) and self.forward_on():
+        if raw_l_mps is not None and self.answers(guard) and self.forward_on():
             own = self._own(raw_l_mps, athwart_mps)
         one = f.hull_frame(forward_mps, athwart_mps)
         ca = math.cos(math.radians(f.misalign_deg))
-        one_gain = ca * ca * noise_gain(guard[2], forward_mps)
+        one_gain = ca * ca * noise_gain(guard.in_use, forward_mps)
         if (
             own is not None
             and raw_l_mps is not None
@@ -271,7 +273,7 @@ class TwoAxisLearner:
         t: float,
         raw_l_mps: float | None,
         one_axis_mps: float,
-        guard: tuple[int, bool, Params | None] = (0, False, None),
+        guard: Guard = NO_GUARD,
     ) -> float:
         """A VHW reading's forward speed: by the applied figures' own longitudinal
         parameters, turned back with the last VBW's athwart reading, where the
@@ -280,12 +282,12 @@ class TwoAxisLearner:
         (:meth:`answers`) and the one-axis calibration's has not the smaller expected
         error (:meth:`_own_better`); else ``one_axis_mps``, the one-axis calibration's."""
         f, last = self.sup.applied, self.athwart
-        if f is None or raw_l_mps is None or last is None or not self.answers(*guard[:2]):
+        if f is None or raw_l_mps is None or last is None or not self.answers(guard):
             return one_axis_mps
         if not self.forward_on() or abs(t - last[0]) > ATHWART_FRESH_S:
             return one_axis_mps
         own = self._own(raw_l_mps, last[1])
-        one_gain = noise_gain(guard[2], one_axis_mps)
+        one_gain = noise_gain(guard.in_use, one_axis_mps)
         if own is None or not self._own_better(own[0], raw_l_mps, one_axis_mps, one_gain):
             return one_axis_mps
         return own[0]
@@ -324,16 +326,17 @@ class TwoAxisLearner:
         u = emitted_speed(u, raw_l_mps, self.s.low_speed_mps, self.s.envelope.max_speed_mps)
         return None if math.isnan(u) else (u, w)
 
-    def answers(self, fallbacks: int, held: bool) -> bool:
+    def answers(self, guard: Guard) -> bool:
         """Whether the figures' own forward speed may go out under the one-axis
-        supervisor: not while it sends raw for a cause (``held``: the change detector's
-        hold, a fault), and not after a fallback of its (``fallbacks`` grew: a change it
-        detected, a calibration worse than raw) until the two-axis recheck has judged
-        the forward speed again on readings since (:attr:`TwoAxisSupervisor.forward_own`)."""
-        if fallbacks != self.fallbacks:
-            self.fallbacks = fallbacks
+        supervisor's ``guard``: not while it sends raw for a cause (``held``: the change
+        detector's hold, a fault), and not after a fallback of its (``fallbacks`` grew: a
+        change it detected, a calibration worse than raw) until the two-axis recheck has
+        judged the forward speed again on readings since
+        (:attr:`TwoAxisSupervisor.forward_own`)."""
+        if guard.fallbacks != self.fallbacks:
+            self.fallbacks = guard.fallbacks
             self.sup.forward_own = False
-        return not held
+        return not guard.held
 
     def forward_on(self) -> bool:
         """Whether the forward speed goes out by the applied figures' own longitudinal

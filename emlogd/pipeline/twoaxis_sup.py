@@ -79,6 +79,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -287,6 +288,23 @@ def forward_rmse(blocks: list[Block], figures: Figures | None) -> dict[str, floa
         al = math.radians(figures.misalign_deg)
         out[FORWARD_OWN] = rms(us * math.cos(al) - ws * math.sin(al))
     return out
+
+
+class Guard(NamedTuple):
+    """What a two-axis forward speed answers to of the one-axis supervisor
+    (:meth:`~emlogd.pipeline.twoaxis_learn.TwoAxisLearner.answers`)."""
+
+    fallbacks: int
+    """Its fallbacks to raw or the previous calibration so far."""
+    held: bool
+    """Whether a reading goes out raw for a cause now (the change detector's hold, a fault)."""
+    in_use: Params | None
+    """The calibration a reading goes out by (None: raw passes), whose noise gain the
+    two-axis forward speed is weighed against."""
+
+
+NO_GUARD = Guard(0, False, None)
+"""No one-axis supervisor to answer to."""
 
 
 def noise_gain(p: Params | None, v_mps: float) -> float:

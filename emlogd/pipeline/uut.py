@@ -43,6 +43,7 @@ from emlogd.pipeline.integrity import PairedWindow, UutHealth
 from emlogd.pipeline.lagcheck import LagCheck
 from emlogd.pipeline.learner import AVERAGE_S, Aligned, BlockMeans, LagFinder, Learner, RefState
 from emlogd.pipeline.supervisor import Candidate, Supervisor
+from emlogd.pipeline.twoaxis_sup import Guard
 
 if TYPE_CHECKING:
     from emlogd.pipeline.settings import UutSettings
@@ -235,15 +236,11 @@ class UutCalibration:
         self.sup.applied = p
 
     @property
-    def guard(self) -> tuple[int, bool, Params | None]:
-        """What a two-axis forward speed answers to (:meth:`TwoAxisLearner.answers`): the
-        supervisor's fallbacks to raw or the previous calibration so far, whether a
-        reading goes out raw for a cause now (held by the change detector, a fault),
-        and the calibration a reading goes out by (None: raw passes), whose noise gain
-        the two-axis forward speed is weighed against."""
+    def guard(self) -> Guard:
+        """What a two-axis forward speed answers to of this supervisor."""
         sup = self.sup
         in_use = sup.applied if sup.s.apply and not sup.held else None
-        return sup.counters.fallbacks, sup.held or bool(sup.health.fault), in_use
+        return Guard(sup.counters.fallbacks, sup.held or bool(sup.health.fault), in_use)
 
     @property
     def applied_std(self) -> dict[str, float | None]:
