@@ -68,7 +68,7 @@ def _socket_path(args: argparse.Namespace) -> str:
 def _status_text(resp: dict[str, Any]) -> str:
     """The daemon's ``status`` answer as lines of text: per UUT its state and why, its
     calibration, what it holds and why, its inputs' freshness, its heading and its error
-    against the reference; per port whether it is open, stale or not
+    against the reference; per port whether it is open, never heard, stale or not
     open (and why), with its counts."""
     status = resp.get("status") or {}
     lines = []

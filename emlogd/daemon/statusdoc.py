@@ -16,8 +16,9 @@ def status_document(
     echoes: Mapping[str, int] | None = None,
 ) -> dict[str, object]:
     """The pipeline's status with each port's ``open`` (and ``why_closed``) from its
-    source and ``state``: ``not open``, ``stale`` or ``open``; a port not open is stale
-    (no data can come); ``echoes``: its lines that were the daemon's own output, skipped
+    source and ``state``: ``not open``, ``never heard`` (open, not a byte decoded since
+    the start: no age to give, and no sign yet that the device is there), ``stale`` or
+    ``open``; a port not open is stale (no data can come); ``echoes``: its lines that were the daemon's own output, skipped
     (:mod:`emlogd.daemon.echo`). With ``uut``: that UUT and the ports it reads only."""
     status = pipeline.status()
     ports = status["ports"]
@@ -28,7 +29,15 @@ def status_document(
         port["open"] = opened
         port["why_closed"] = None if opened else (src.why_closed if src else "no source")
         port["stale"] = bool(port.get("stale")) or not opened
-        port["state"] = "not open" if not opened else "stale" if port["stale"] else "open"
+        port["state"] = (
+            "not open"
+            if not opened
+            else "stale"
+            if port["stale"]
+            else "never heard"
+            if port.get("last_rx") is None
+            else "open"
+        )
         port["echoes"] = (echoes or {}).get(name, 0)
     if uut is not None:
         route = pipeline.uuts[uut]

@@ -29,14 +29,18 @@ class _Source:
 
 
 def test_each_port_says_whether_it_is_open_and_why_not() -> None:
-    """An open port never heard is ``open``; a closed one ``not open`` and stale, with
+    """An open port never heard is ``never heard``, ``open`` once it sent; a closed one ``not open`` and stale, with
     its source's reason; a port without a source says so; ``uut`` keeps that UUT and
     the ports it reads."""
     pipeline = build_pipeline(parse_config(CONFIG), {}, [])
     sources = {"emlog1": _Source(True), "dvl": _Source(False, "links/dvl: gone")}
     doc = status_document(pipeline, cast(Any, sources))
     ports = cast(dict[str, dict[str, object]], doc["ports"])
-    assert ports["emlog1"]["state"] == "open" and ports["emlog1"]["why_closed"] is None
+    assert ports["emlog1"]["state"] == "never heard" and ports["emlog1"]["why_closed"] is None
+    pipeline.feed(1.0, "emlog1", b"$VWVHW,,T,,M,5.00,N,,K*4F\r\n")
+    doc = status_document(pipeline, cast(Any, sources))
+    ports = cast(dict[str, dict[str, object]], doc["ports"])
+    assert ports["emlog1"]["state"] == "open" and ports["emlog1"]["stale"] is False
     assert ports["dvl"]["state"] == "not open" and ports["dvl"]["stale"] is True
     assert ports["dvl"]["why_closed"] == "links/dvl: gone"
     assert ports["emlog2"]["why_closed"] == "no source"
