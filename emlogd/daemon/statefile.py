@@ -12,6 +12,10 @@ crash-safe:
    is fsync-ed.
 
 A kill -9 at any point leaves the previous or the new file, never a torn one.
+A state file that is a symlink (a state kept on another volume) is written through
+its link: every step above happens at its real path (:attr:`StateStore.real_path`),
+beside which the backup, the refused file and the lock are kept; the link stays a
+link.
 A write that fails (disk full, read-only, permissions) raises
 :class:`StateWriteError` and leaves the previous file untouched; so does a directory
 at the file's path, which is never moved aside (a path ending in ``/`` names the
@@ -91,9 +95,6 @@ class StateStore:
         self.path = Path(path)
         self.max_bytes = max_state_bytes(uuts)
         """The longest file read (and written: a longer one would not load)."""
-        self.backup = self.path.with_name(self.path.name + ".bak")
-        self.refused = self.path.with_name(self.path.name + ".refused")
-        """Where a damaged or refused state file is moved by the next write."""
         self.backup_problem: str | None = None
         """Why the last :meth:`save` kept no backup, or set no refused file aside (a
         directory in the way), or None."""
@@ -106,6 +107,19 @@ class StateStore:
     def real_path(self) -> Path:
         """The state file with every symlink resolved (of the file and its directories)."""
         return Path(os.path.realpath(self.path))
+
+    @property
+    def backup(self) -> Path:
+        """The backup: ``<file>.bak`` next to the state file's real path."""
+        real = self.real_path
+        return real.with_name(real.name + ".bak")
+
+    @property
+    def refused(self) -> Path:
+        """Where a damaged or refused state file is moved by the next write:
+        ``<file>.refused`` next to its real path."""
+        real = self.real_path
+        return real.with_name(real.name + ".refused")
 
     @property
     def lock_path(self) -> Path:
@@ -215,22 +229,23 @@ class StateStore:
                 "a load reads"
             )
         self.backup_problem = None
-        d = self.path.parent
-        tmp = d / f".{self.path.name}.{os.getpid()}.tmp"
+        real = self.real_path  # a symlink's target replaced, the link left a link
+        d = real.parent
+        tmp = d / f".{real.name}.{os.getpid()}.tmp"
         try:
             d.mkdir(parents=True, exist_ok=True)
             with contextlib.suppress(FileNotFoundError):
                 tmp.unlink()  # whatever is there: a FIFO would hold the open for a reader
             write_synced(tmp, data)
-            aside = self._backup_current()
-            tmp.replace(self.path)
-            fsync_dir(self.path.parent)
-            self._saved = _identity(self.path)
+            aside = self._backup_current(real)
+            tmp.replace(real)
+            fsync_dir(d)
+            self._saved = _identity(real)
         except OSError as exc:
             with contextlib.suppress(OSError):
                 tmp.unlink()
             raise StateWriteError(f"cannot write {self.path}: {exc.strerror or exc}") from None
-        self._remove_orphans()
+        self._remove_orphans(real)
         return aside
 
     def holds_last_save(self) -> bool:
@@ -239,15 +254,16 @@ class StateStore:
         or edited it, or before any save. A save skipped because nothing changed would
         otherwise leave such a file in place, and the next start load it, or nothing."""
         try:
-            return self._saved is not None and _identity(self.path) == self._saved
+            return self._saved is not None and _identity(self.real_path) == self._saved
         except OSError:
             return False
 
-    def _remove_orphans(self) -> None:
-        """Delete temporary files left by a writer that was killed (its pid is gone)."""
-        orphan = re.compile(rf"\.{re.escape(self.path.name)}(?:\.bak)?\.([0-9]+)\.tmp")
+    def _remove_orphans(self, real: Path) -> None:
+        """Delete temporary files left by a writer that was killed (its pid is gone)
+        beside ``real``, the state file's real path."""
+        orphan = re.compile(rf"\.{re.escape(real.name)}(?:\.bak)?\.([0-9]+)\.tmp")
         try:
-            entries = list(self.path.parent.iterdir())
+            entries = list(real.parent.iterdir())
         except OSError:
             return
         for entry in entries:
@@ -256,28 +272,30 @@ class StateStore:
                 with contextlib.suppress(OSError):
                     entry.unlink()
 
-    def _backup_current(self) -> Path | None:
-        """Make the current file, if good, the backup; move a damaged or refused one
-        aside to :attr:`refused` (the backup stays); return where, or None.
+    def _backup_current(self, real: Path) -> Path | None:
+        """Make the current file (at its real path ``real``), if good, the backup; move a
+        damaged or refused one aside to :attr:`refused` (the backup stays); return where,
+        or None.
 
         The backup is a hard link, or a copy where the file system has none (vfat).
         """
         try:
-            text = read_text_bounded(self.path, self.max_bytes)
+            text = read_text_bounded(real, self.max_bytes)
         except FileNotFoundError:
             return None
         except (OSError, UnicodeDecodeError):
             text = None
-        if text is None and self.path.is_dir():
+        if text is None and real.is_dir():
             # a directory is no damaged state file: a path ending in "/" names the
             # directory it was meant to be in, whose files no save may move away
             raise IsADirectoryError(errno.EISDIR, "a directory, left where it is")
-        if text is None and _is_device(self.path):
+        if text is None and _is_device(real):
             # a device (state_file: /dev/null, meant as "no state") is no damaged file:
             # moved aside, the node itself would be renamed and a file made in its place
             raise OSError(errno.ENODEV, "a device or a socket, left where it is")
         bad = text is None or _refusal(text, self._check)
-        step = self.refused if bad else self.backup
+        refused, backup = self.refused, self.backup
+        step = refused if bad else backup
         if step.is_dir():  # no file goes over a directory: that step alone is skipped
             what = "the refused file not set aside" if bad else "no backup kept"
             self.backup_problem = f"{what}: {step} is a directory"
@@ -285,23 +303,23 @@ class StateStore:
         if bad or text is None:
             # never back up a damaged or refused file over a good backup
             try:
-                self.path.replace(self.refused)
+                real.replace(refused)
             except OSError as exc:  # e.g. an immutable file there: that step alone fails
                 self.backup_problem = f"the refused file not set aside: {step}: {_why(exc)}"
                 return None
-            return self.refused
-        link = self.path.with_name(f".{self.path.name}.bak.{os.getpid()}.tmp")
+            return refused
+        link = real.with_name(f".{real.name}.bak.{os.getpid()}.tmp")
         try:
             with contextlib.suppress(FileNotFoundError):
                 link.unlink()
             try:
-                os.link(self.path, link)
+                os.link(real, link)
             except OSError:  # e.g. vfat: no hard links
                 write_synced(link, text.encode("utf-8"))
-            link.replace(self.backup)
+            link.replace(backup)
         except OSError as exc:  # e.g. an immutable .bak, one of another user in a
             # sticky directory: the backup alone is not kept, the new file is written
-            self.backup_problem = f"no backup kept: {self.backup}: {_why(exc)}"
+            self.backup_problem = f"no backup kept: {backup}: {_why(exc)}"
         # rename() between two names of one file does nothing: after a writer killed
         # between linking the backup and replacing the file, both are one inode
         with contextlib.suppress(OSError):

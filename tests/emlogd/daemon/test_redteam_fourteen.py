@@ -9,7 +9,9 @@ import os
 import time
 from pathlib import Path
 
-from tests.emlogd.daemon.harness import PD0_CONFIG, make_work
+from emlogd.calfile import loads_state
+from emlogd.daemon.statefile import StateStore
+from tests.emlogd.daemon.harness import PD0_CONFIG, make_work, saved_calibration
 from tests.emlogd.daemon.test_redteam_live import VHW, _pd0_daemon
 
 
@@ -38,3 +40,33 @@ def test_an_open_port_that_never_sent_a_byte_is_never_heard(tmp_path: Path) -> N
         assert dvl["stale"] is False and dvl["open"] is True, dvl
         assert log["state"] == "open", log
         assert d.stop() == 0
+
+
+def test_a_state_file_that_is_a_symlink_is_written_through_its_link(tmp_path: Path) -> None:
+    """``state/state.yaml`` a symlink to ``keep/emlog.yaml`` (a state kept on another
+    volume) holding EMlog1's calibration: a ``reset`` saves through the link — the link
+    stays a link, its target holds the reset and its ``.bak`` the calibration before it,
+    no temporary file is left in either directory — and the lock is taken next to the
+    real path. The save renamed a regular file over the link: the target kept the old
+    calibration, which the link's next reader (a restart with the link put back, a
+    backup of the volume) took for the current one."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    keep = work / "keep"
+    keep.mkdir()
+    target = keep / "emlog.yaml"
+    StateStore(target).save({"emlog1": saved_calibration(0.1)})
+    link = work / "state" / "state.yaml"
+    link.symlink_to(Path("..") / "keep" / "emlog.yaml")
+    with _pd0_daemon(work) as (d, _):
+        assert (keep / "emlog.yaml.lock").exists()
+        assert not (work / "state" / "state.yaml.lock").exists()
+        assert d.ask(cmd="reset").get("ok") is True, d.tail()
+        assert link.is_symlink() and link.resolve() == target.resolve()
+        cals, _ = loads_state(target.read_text())
+        assert cals["emlog1"].reset, target.read_text()
+        old, _ = loads_state((keep / "emlog.yaml.bak").read_text())
+        assert not old["emlog1"].reset and old["emlog1"].params.m == 0.1
+        assert d.stop() == 0
+    assert link.is_symlink()
+    leftovers = [p.name for p in [*keep.iterdir(), *link.parent.iterdir()] if ".tmp" in p.name]
+    assert not leftovers, leftovers
