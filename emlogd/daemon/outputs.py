@@ -22,7 +22,8 @@ from drivers.errors import DeviceError
 from emlogd.config import Config
 from emlogd.daemon.echo import EchoFilter
 from emlogd.daemon.logsetup import CLIENT_EVENT_BURST, CLIENT_EVENTS, EventLimiter
-from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, UdpSink, stdout_sink
+from emlogd.daemon.sinks import PtySink, Sink, TcpLimits, TcpServerSink, stdout_sink
+from emlogd.daemon.udpsink import UdpSink
 from emlogd.pipeline.core import Emit
 
 OUTPUT_RETRY_S = 2.0

@@ -1,7 +1,8 @@
 """Output sinks for the corrected NMEA: pty, TCP server, UDP, stdout, file.
 
 Every sink takes whole sentences (bytes ending in CR LF) and never blocks the
-daemon loop: writes are non-blocking, UDP send errors are counted and skipped.
+daemon loop: writes are non-blocking, send errors are counted and skipped. The UDP
+output is :class:`emlogd.daemon.udpsink.UdpSink`.
 Sinks that need the selector (the TCP server) expose their file descriptors.
 
 No TCP client holds the output hostage (:class:`TcpServerSink`, limits in
@@ -252,65 +253,6 @@ class StreamSink:
     def close(self) -> None:
         if self.close_stream:
             self.stream.close()
-
-
-class UdpSink:
-    """Sentences as UDP datagrams to one destination (broadcast allowed).
-
-    The destination is resolved once; one that does not resolve is retried from
-    :meth:`housekeep` (sentences meanwhile are counted as errors).
-    """
-
-    def __init__(
-        self,
-        dest: str,
-        *,
-        on_event: Callable[[str, str], None] | None = None,
-        monotonic: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.name = f"udp:{dest}"
-        self.counters = SinkCounters()
-        self.host, self.port = parse_hostport(dest, default_host="127.0.0.1")
-        self.on_event = on_event
-        self.addr: tuple[str, int] | None = None
-        self.state = "unresolved"
-        self.retry = _Retry(monotonic)
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
-        self.sock.setblocking(False)
-        self.housekeep()
-
-    def housekeep(self) -> None:
-        if self.addr is not None or not self.retry.due():
-            return
-        try:
-            info = socket.getaddrinfo(  # an address, never the resolver (config: ipv4_port)
-                self.host, self.port, socket.AF_INET, socket.SOCK_DGRAM, 0, socket.AI_NUMERICHOST
-            )
-            addr = info[0][4]
-            self.addr = (str(addr[0]), int(addr[1]))
-        except (OSError, IndexError) as exc:
-            delay = self.retry.failed()
-            self.state = f"unresolved: {exc}"
-            if self.on_event is not None:
-                self.on_event("output_unresolved", f"{self.name}: {exc}; retry in {delay:g} s")
-            return
-        self.state = "open"
-
-    def write(self, line: bytes) -> None:
-        if self.addr is None:
-            self.counters.errors += 1
-            return
-        try:
-            self.sock.sendto(line, self.addr)
-        except OSError:
-            self.counters.errors += 1
-            return
-        self.counters.sentences += 1
-        self.counters.bytes += len(line)
-
-    def close(self) -> None:
-        self.sock.close()
 
 
 DROP_REASONS = {

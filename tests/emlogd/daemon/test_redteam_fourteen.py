@@ -6,12 +6,23 @@ Rule kept (README, docs/RELIABILITY.md): nothing from outside stops the daemon."
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import time
+import tty
 from pathlib import Path
+
+import pytest
 
 from emlogd.calfile import loads_state
 from emlogd.daemon.statefile import StateStore
-from tests.emlogd.daemon.harness import PD0_CONFIG, make_work, saved_calibration
+from tests.emlogd.daemon.harness import (
+    PD0_CONFIG,
+    Daemon,
+    make_work,
+    raw_pty,
+    saved_calibration,
+)
 from tests.emlogd.daemon.test_redteam_live import VHW, _pd0_daemon
 
 
@@ -70,3 +81,49 @@ def test_a_state_file_that_is_a_symlink_is_written_through_its_link(tmp_path: Pa
     assert link.is_symlink()
     leftovers = [p.name for p in [*keep.iterdir(), *link.parent.iterdir()] if ".tmp" in p.name]
     assert not leftovers, leftovers
+
+
+def _netns() -> bool:
+    """Whether ``unshare -rn`` can run a command in a network namespace of its own."""
+    try:
+        return subprocess.run(["unshare", "-rn", "true"], capture_output=True).returncode == 0
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not _netns(), reason="needs unshare -rn (a network namespace)")
+def test_a_udp_output_with_no_route_is_failing_and_the_pty_goes_on(tmp_path: Path) -> None:
+    """The daemon in a network namespace with no interface up (``unshare -rn``), a UDP
+    output to 192.0.2.9 beside the pty: every ``sendto`` fails with ``ENETUNREACH``. The
+    corrected VHW go out on the pty all the same; the UDP output's ``state`` is ``failing:
+    ENETUNREACH: Network is unreachable (N sends in a row)``, its ``errors`` count them, and
+    the log says ``output_failing`` once. The status said ``open``: the only sign of an
+    autopilot's network output sending nothing was a counter."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    cfg = work / "emlogd.yaml"
+    cfg.write_text(cfg.read_text().replace("{pty: out/emlog0}", UDP_BESIDE_PTY))
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
+    argv = ["unshare", "-rn", sys.executable, "-m", "emlogd", "run", "--config", str(cfg)]
+    try:
+        d = Daemon(work, pty=True, argv=argv)
+        try:
+            tty.setraw(d.fd)
+            for k in range(10):
+                os.write(masters[0], VHW[k % 2])
+                d.pump(0.1)
+            assert sum(line.startswith(b"$VWVHW") for line in d.lines) >= 5, d.lines
+            udp = d.ask(cmd="status")["outputs"]["udp:192.0.2.9:10110"]  # type: ignore[index]
+            state = str(udp["state"])
+            assert state.startswith("failing: ENETUNREACH: Network is unreachable ("), udp
+            assert udp["errors"] >= 5 and udp["sentences"] == 0, udp
+            assert d.events("output_failing") == 1, d.tail()
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for fd in masters:
+            os.close(fd)
+
+
+UDP_BESIDE_PTY = '{pty: out/emlog0, udp: "192.0.2.9:10110"}'
+"""The outputs of that test: the pty and a UDP destination with no route to it."""

@@ -1,4 +1,5 @@
-"""Output sinks: a TCP client that never reads is dropped, never blocks; UDP; streams."""
+"""Output sinks: a TCP client that never reads is dropped, never blocks; streams (UDP:
+test_udpsink.py)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,6 @@ from emlogd.daemon.sinks import (
     StreamSink,
     TcpLimits,
     TcpServerSink,
-    UdpSink,
     parse_hostport,
 )
 
@@ -393,21 +393,6 @@ def test_an_unbindable_tcp_output_is_retried_until_it_binds() -> None:
     finally:
         second.close()
         sel.close()
-
-
-def test_udp_sink_sends_datagrams() -> None:
-    """UdpSink sends each sentence as one datagram and counts it."""
-    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    rx.bind(("127.0.0.1", 0))
-    rx.settimeout(5)
-    sink = UdpSink(f"127.0.0.1:{rx.getsockname()[1]}")
-    try:
-        sink.write(LINE)
-        assert rx.recv(1024) == LINE
-        assert sink.counters.sentences == 1
-    finally:
-        sink.close()
-        rx.close()
 
 
 def test_stream_sink_counts_errors_instead_of_raising() -> None:
