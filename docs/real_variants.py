@@ -18,7 +18,8 @@ half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
 $PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
 (``Set``/``Drift``, no current, upper-case names, another order, extra columns,
 ``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
-text, ``Date`` and ``Time`` columns, a row of units under the header, units in the
+text, ``Date`` and ``Time`` columns, a row of units under the header (also of SI
+units, ``m/s`` and ``rad``, the cells in them), units in the
 names, OLE days of local time with ``--utc-offset``, NMEA field names, ``UtcDate``
 and ``UtcTime``) and
 Expedition's own sparse log (``!Boat``
@@ -406,6 +407,12 @@ VARIANTS: tuple[Variant, ...] = (
         "expedition-csv",
         vcsv.columns(vcsv.units_row),
         "a row of units under the header",
+    ),
+    Variant(
+        "units-row-si",
+        "expedition-csv",
+        vcsv.columns(vcsv.units_row_si),
+        "a row of SI units under the header (m/s, rad), the cells in them",
     ),
     Variant(
         "ole-local",

@@ -1,7 +1,8 @@
 """The perturbation suite's rewrites of delimited logs (docs/real_variants.py): an
 Expedition export's or a logger's table re-cut (columns renamed, dropped, reordered or
 added; ``;`` with decimal commas, quoted cells, a byte-order mark; rows thinned;
-Expedition's sparse log; the logger's other firmware; a row of units under the header,
+Expedition's sparse log; the logger's other firmware; a row of units under the header
+(knots and degrees, or SI units with the cells in them),
 units in the names, NMEA field names, local OLE times) and the tidal current the
 ``tide`` variants add (:func:`tide`), which the NMEA rewrites use too."""
 
@@ -372,6 +373,32 @@ UNITS = {"Utc": "days", "Bsp": "kt", "Hdg": "degT", "Sog": "kt", "Cog": "degT", 
 def units_row(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
     """A row of units under the header (a spreadsheet's or a logger's second header)."""
     return h, [[UNITS.get(c, "") for c in h], *rows]
+
+
+KNOT_MPS = 1852.0 / 3600.0
+RAD = math.pi / 180.0
+SI_UNITS = {
+    "Bsp": ("m/s", KNOT_MPS),
+    "Sog": ("m/s", KNOT_MPS),
+    "Hdg": ("rad", RAD),
+    "Cog": ("rad", RAD),
+}
+"""The SI units row's columns: (unit, the factor from the export's knots or degrees)."""
+
+
+def units_row_si(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
+    """A row of SI units under the header (``m/s``, ``rad``: a logger of Signal K's
+    units) and the speed and angle cells written in them."""
+    at = {h.index(c): f for c, (_, f) in SI_UNITS.items() if c in h}
+    out = []
+    for r in rows:
+        g = list(r)
+        for i, f in at.items():
+            if i < len(g) and g[i]:
+                g[i] = f"{float(g[i]) * f:.6f}"
+        out.append(g)
+    units = [SI_UNITS[c][0] if c in SI_UNITS else UNITS.get(c, "") for c in h]
+    return h, [units, *out]
 
 
 LOCAL_OFFSET_H = 2.0

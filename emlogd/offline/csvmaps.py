@@ -477,6 +477,89 @@ def unknown_units(header: list[str]) -> list[str]:
     return out
 
 
+MAGNETIC_UNITS = frozenset({"degm", "deg m", "°m", "°mag", "degmag", "deg mag"})
+"""A units row's cells that say a heading column is magnetic (``°M``, ``degM``)."""
+
+UNIT_KEYS = (*SPEEDS, *ANGLES, "variation")
+"""The columns a units row gives a unit to (a time's, a date's or a position's cell is
+passed over: ``days``, ``UTC``, ``ddmm.mm``)."""
+
+
+@dataclass(frozen=True)
+class UnitsRow:
+    """What a row of units under the header sets: the columns read in its units, the
+    headings it says are magnetic."""
+
+    cols: dict[str, Col]
+    magnetic: frozenset[str]
+
+
+def units_row(
+    row: list[str], header: list[str], cols: Mapping[str, Col], path: str | Path
+) -> UnitsRow | None:
+    """The row under the header read as its units (Expedition's and several loggers'
+    second header line), or None when it is data: a units row has no cell that is a
+    number or a time, and a unit in a mapped column's cell. Each speed or angle column
+    with a unit cell is read in that unit (:data:`HEADER_UNITS`, :data:`ANGLE_UNITS`;
+    ``°M`` or ``degM`` for a heading: magnetic); an empty cell leaves the column as it
+    was.
+
+    Raises:
+        ImportFormatError: a mapped column's unit not known for its kind (a speed's,
+            an angle's), or one that contradicts the unit in the column's name; the error
+            names the column.
+    """
+    cells = [c.strip() for c in row]
+    if not any(cells) or any(_is_value(c) for c in cells):
+        return None
+    if not any(cell(row, c.index) for k, c in cols.items() if k not in ("time", "date")):
+        return None
+    out = dict(cols)
+    magnetic: set[str] = set()
+    for key, c in cols.items():
+        given = cell(row, c.index)
+        unit = given.strip("()[] ").casefold()
+        if key not in UNIT_KEYS or not unit:
+            continue
+        name = header[c.index].strip() if c.index < len(header) else key
+        where = f"{path}: column {name!r} ({key})"
+        if key in SPEEDS:
+            factor = HEADER_UNITS.get(unit)
+            kinds = ", ".join(u for u, f in HEADER_UNITS.items() if f is not None)
+        elif unit in MAGNETIC_UNITS and key in ("heading", "heading_mag"):
+            factor, kinds = 1.0, ""
+            magnetic.add(key)
+        else:
+            degrees = unit in HEADER_UNITS and HEADER_UNITS[unit] is None
+            factor = ANGLE_UNITS.get(unit) or (1.0 if degrees else None)
+            kinds = ", ".join([*(u for u, f in HEADER_UNITS.items() if f is None), *ANGLE_UNITS])
+        if factor is None:
+            kind = "a speed" if key in SPEEDS else "an angle"
+            raise ImportFormatError(
+                f"{where}: the units row under the header gives it the unit {given!r}, "
+                f"not known for {kind} (known: {kinds}): correct the row, or remove it and "
+                f"map the column with its unit (--map {key}={name}[{'mps' if key in SPEEDS else 'rad'}])"
+            )
+        named = _bare(name)[1]
+        if named is not None and _factor(key, None, named) != factor:
+            raise ImportFormatError(
+                f"{where}: the units row under the header says {given!r}, its name {named!r}"
+            )
+        out[key] = Col(key, c.index, factor)
+    return UnitsRow(out, frozenset(magnetic))
+
+
+def _is_value(text: str) -> bool:
+    """Whether a cell holds a number, a position or a time (a data row's cell)."""
+    try:
+        float(text.replace(",", "."))
+    except ValueError:
+        return bool(guess_time_format(text) or TIME_OF_DAY.fullmatch(text)) or bool(
+            re.fullmatch(r"\d+(\.\d+)?\s*[NSEW]", text)
+        )
+    return True
+
+
 def cell(row: list[str], index: int) -> str:
     """A row's cell, stripped; empty when absent or a :data:`NO_VALUE` dash."""
     text = row[index].strip() if index < len(row) else ""

@@ -128,6 +128,7 @@ from emlogd.offline.csvmaps import (
     Col,
     HeadingRef,
     Preset,
+    UnitsRow,
     candidate_maps,
     cell,
     cell_value,
@@ -138,6 +139,7 @@ from emlogd.offline.csvmaps import (
     parse_map,
     parse_time,
     reasons,
+    units_row,
 )
 from emlogd.offline.importbase import (
     YEARS,
@@ -327,6 +329,13 @@ def import_csv(
         h_index, delim, chosen, cols = found
         fmt = time_format or (chosen.time_format if chosen is not None else "auto")
         href = heading_ref or (chosen.heading_ref if chosen is not None else "true")
+        units = None if sparse else _units_row(head, h_index, delim, cols, path)
+        if units is not None:
+            report.notes["units_row"] += 1
+            cols = units.cols
+            if units.magnetic and heading_ref is None and "heading" in units.magnetic:
+                href = "magnetic"
+            found = (h_index, delim, chosen, cols)
         href = _magnetic_column(cols, href, heading_ref is not None)
         _describe(report, found, href, utc_offset_h is not None, variation_deg is not None)
         for name in [] if sparse else line_unknown_units(head[h_index], delim):
@@ -342,7 +351,8 @@ def import_csv(
                 report.notes["expedition_sparse_log"] += 1
                 rows = sparse.dense(_chain(head[sparse.first_row :], f, report.skipped), report)
             else:
-                rows = _chain(head[h_index + 1 :], f, report.skipped)
+                first = h_index + (2 if units is not None else 1)
+                rows = _chain(head[first:], f, report.skipped)
             _csv_rows(rows, run)
             _finish_csv(path, run)
         except BaseException:
@@ -370,6 +380,16 @@ def _read_head(f: TextIO, path: str | Path, skipped: Counter[str]) -> list[str]:
         cut = " (a gzip stream cut short or corrupt before its first line)"
         raise ImportFormatError(f"{path}: empty file{cut if skipped['truncated'] else ''}")
     return head
+
+
+def _units_row(
+    head: list[str], h_index: int, delim: str, cols: dict[str, Col], path: str | Path
+) -> UnitsRow | None:
+    """The line under the header read as a row of units (:func:`units_row`), or None."""
+    if h_index + 1 >= len(head):
+        return None
+    row = next(csv.reader([head[h_index + 1]], delimiter=delim), [])
+    return units_row(row, next(csv.reader([head[h_index]], delimiter=delim)), cols, path)
 
 
 def _magnetic_column(cols: dict[str, Col], href: HeadingRef, href_given: bool) -> HeadingRef:

@@ -22,6 +22,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from drivers import make_decoder
+from drivers.io.capture import CaptureReader
+from drivers.nmea0183 import Rmc, Vhw
+from drivers.records import KNOT_MPS
 from emlogd.offline.dataset import record_capture
 from emlogd.offline.importbase import ImportReport
 from emlogd.offline.importer import import_csv, import_nmea
@@ -147,6 +151,7 @@ SAME_SENTENCES = [
     ("expedition-csv", "bom-crlf"),
     ("expedition-csv", "sparse-log"),
     ("expedition-csv", "units-row"),
+    ("expedition-csv", "units-row-si"),
     ("expedition-csv", "ole-local"),
     ("expedition-csv", "nmea-field-names"),
     ("expedition-csv", "name-units"),
@@ -173,6 +178,31 @@ def test_a_change_of_format_imports_the_same_sentences(
     assert rep.t_end - rep.t_start == pytest.approx(base.t_end - base.t_start)
     if name == "utc-offset":
         assert rep.t_start == pytest.approx(base.t_start - 7200.0)
+
+
+def test_a_units_row_of_si_units_reads_the_same_speeds_and_headings(tmp_path: Path) -> None:
+    """The export's speeds in m/s and angles in radians under a row that says so: the
+    water readings and the fixes are the unperturbed export's (to their rounding)."""
+    _, rep, cap = _variant("expedition-csv", "units-row-si", tmp_path)
+    assert rep.notes["units_row"] == 1
+    (tmp_path / "unperturbed").mkdir()
+    _, base_cap = _import("expedition-csv", _text("expedition-csv"), tmp_path / "unperturbed", [])
+    got, want = _vhw_rmc(cap), _vhw_rmc(base_cap)
+    assert len(got) == len(want) > 100
+    assert np.allclose(got, want, atol=0.011)
+
+
+def _vhw_rmc(cap: Path) -> np.ndarray:
+    """(STW kn, heading °, SOG kn, COG °) of each VHW and RMC of a capture, in order."""
+    dec = make_decoder("nmea0183", "nmea")
+    out = []
+    for r in CaptureReader(cap):
+        for x in dec.feed(r.data):
+            if isinstance(x, Vhw):
+                out.append((x.stw_knots or 0.0, x.heading_true_deg or 0.0, 0.0, 0.0))
+            elif isinstance(x, Rmc):
+                out.append((0.0, 0.0, (x.sog_mps or 0.0) / KNOT_MPS, x.cog_true_deg or 0.0))
+    return np.array(out, dtype=float)
 
 
 @pytest.mark.parametrize("name", ["signalk", "canboat", "n2k-plain"])
