@@ -5,7 +5,11 @@ Rule kept (README, docs/RELIABILITY.md): nothing from outside stops the daemon."
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
+import socket
+import stat
 import subprocess
 import sys
 import time
@@ -15,15 +19,19 @@ from pathlib import Path
 import pytest
 
 from emlogd.calfile import loads_state
+from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     Daemon,
+    free_port,
     make_work,
     raw_pty,
     saved_calibration,
+    wait,
 )
 from tests.emlogd.daemon.test_redteam_live import VHW, _pd0_daemon
+from tests.emlogd.daemon.test_redteam_thirteen import OTHER_VHW
 
 
 def _port(status: dict[str, object], name: str) -> dict[str, object]:
@@ -127,3 +135,97 @@ def test_a_udp_output_with_no_route_is_failing_and_the_pty_goes_on(tmp_path: Pat
 
 UDP_BESIDE_PTY = '{pty: out/emlog0, udp: "192.0.2.9:10110"}'
 """The outputs of that test: the pty and a UDP destination with no route to it."""
+
+
+def test_a_reload_swapping_the_control_and_status_sockets_swaps_them(tmp_path: Path) -> None:
+    """SIGHUP into a config whose ``control_socket`` is the old ``status_socket``'s path
+    and the other way round: afterwards the control socket's path takes ``reset`` and the
+    status socket's path refuses it (read-only, mode 0666 against 0660), both answer, and
+    no ``reload_control_failed`` is logged. Each new socket found its path held by the
+    daemon's own other socket, taken for another instance (``in use by another process``):
+    both kept at their old paths, the read-only socket where the config named the control
+    socket."""
+    work = make_work(tmp_path, PD0_CONFIG + "status_socket: run/status.sock\n")
+    cfg = work / "emlogd.yaml"
+    text = cfg.read_text()
+    control, status = work / "run" / "control.sock", work / "run" / "status.sock"
+    with _pd0_daemon(work) as (d, _):
+        assert request(status, {"cmd": "reset"}).get("ok") is False
+        swapped = text.replace("run/control.sock", "run/SWAP").replace(
+            "run/status.sock", "run/control.sock"
+        )
+        cfg.write_text(swapped.replace("run/SWAP", "run/status.sock"))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reloaded") >= 1, "the reload", 10.0)
+        assert d.events("reload_control_failed") == 0, d.tail()
+        assert request(status, {"cmd": "reset"}).get("ok") is True, d.tail()
+        refused = request(control, {"cmd": "reset"})
+        assert refused == {"ok": False, "error": "unknown cmd; valid here: status"}, refused
+        assert request(control, {"cmd": "status"}).get("ok") is True
+        assert stat.S_IMODE(control.stat().st_mode) == 0o666
+        assert stat.S_IMODE(status.stat().st_mode) == 0o660
+        d.socket = status
+        assert d.stop() == 0
+    assert not control.exists() and not status.exists()
+
+
+TWO_TCP = """\
+ports:
+  - {name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut}
+  - {name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut}
+  - {name: dvl, url: links/dvl, protocol: pd6, role: reference}
+calibration:
+  - {uut: emlog1, reference: dvl}
+  - {uut: emlog2, reference: dvl, talker: VD, tcp: "127.0.0.1:{two}"}
+outputs: {tcp: "127.0.0.1:{tcp}"}
+state_file: state/state.yaml
+control_socket: run/control.sock
+log_format: json
+"""
+"""Two EMlogs: emlog1's sentences on the shared TCP output, emlog2's on its own."""
+
+
+def _talkers(port: int, masters: list[int]) -> bytes:
+    """What a client of the TCP output at ``port`` receives while both EMlogs send."""
+    with socket.create_connection(("127.0.0.1", port), timeout=5.0) as c:
+        c.setblocking(False)
+        got = b""
+        for k in range(10):  # at 5 Hz: under each log's plausible rate
+            os.write(masters[0], VHW[k % 2])
+            os.write(masters[1], OTHER_VHW[k % 2])
+            time.sleep(0.2)
+            with contextlib.suppress(BlockingIOError):
+                got += c.recv(65536)
+        return got
+
+
+def test_a_reload_swapping_two_tcp_outputs_addresses_swaps_them(tmp_path: Path) -> None:
+    """SIGHUP into a config whose shared TCP output takes emlog2's own TCP port and emlog2
+    the shared one's: afterwards each port carries the other log's sentences (emlog1's
+    ``$VWVHW`` at 5 kn on the old own port, emlog2's ``$VDVHW`` at 7 kn on the old shared
+    one), no output failed to bind."""
+    a, b = free_port(), free_port()
+    work = make_work(tmp_path, TWO_TCP.replace("{two}", str(b)).replace("{tcp}", str(a)))
+    cfg = work / "emlogd.yaml"
+    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "emlog2", "dvl")]
+    try:
+        d = Daemon(work)
+        try:
+            got = _talkers(a, masters)
+            assert b"$VWVHW,,T,,M,5.0" in got and b"VDVHW" not in got, got
+            cfg.write_text(
+                cfg.read_text().replace(str(a), "A").replace(str(b), str(a)).replace("A", str(b))
+            )
+            d.send_signal(signal.SIGHUP)
+            wait(lambda: d.events("reloaded") >= 1, "the reload", 10.0)
+            assert d.events("reload_outputs_failed") == 0, d.tail()
+            got = _talkers(a, masters)
+            assert b"$VDVHW,,T,,M,7.0" in got and b"VWVHW" not in got, got
+            got = _talkers(b, masters)
+            assert b"$VWVHW,,T,,M,5.0" in got and b"VDVHW" not in got, got
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for fd in masters:
+            os.close(fd)
