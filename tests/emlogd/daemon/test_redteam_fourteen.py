@@ -15,6 +15,7 @@ import sys
 import time
 import tty
 from pathlib import Path
+from typing import cast
 
 import pytest
 
@@ -229,3 +230,67 @@ def test_a_reload_swapping_two_tcp_outputs_addresses_swaps_them(tmp_path: Path) 
     finally:
         for fd in masters:
             os.close(fd)
+
+
+STATUS_OFTEN = "{pty: out/emlog0, status_sentence_interval_s: 0.2}"
+"""The outputs of the echo tests: the status sentence, the proof of a loop, five times a
+second."""
+
+
+def _own_lines(d: Daemon, emlog: int) -> tuple[bytes, bytes]:
+    """A corrected VHW and a status sentence the daemon has just written (the EMlog sent
+    a reading for it): what a loop brings back."""
+    d.lines.clear()
+    os.write(emlog, VHW[0])
+    d.pump(0.5)
+    vhw = [x for x in d.lines if x.startswith(b"$VWVHW")]
+    status = [x for x in d.lines if x.startswith(b"$PEMLS")]
+    assert vhw and status, d.lines
+    return vhw[-1], status[-1]
+
+
+def _records(d: Daemon) -> tuple[int, int]:
+    """EMlog1's port: its records decoded and its lines skipped as echoes."""
+    port = cast(dict[str, dict[str, int]], d.status()["ports"])["emlog1"]
+    return port["records"], port["echoes"]
+
+
+def test_a_sentence_before_the_proof_of_a_loop_is_read(tmp_path: Path) -> None:
+    """The EMlog's line carries a line equal to the daemon's last VHW, then the daemon's
+    status sentence, in one read: the VHW before the proof is read as the log's (one
+    record more), the status sentence skipped (one echo); the same VHW line after the
+    proof is an echo. Nothing before the proof is judged an echo: a log whose sentence
+    equals the corrected one (a raw reading passed through) is never mistaken for it."""
+    work = make_work(tmp_path, PD0_CONFIG.replace("{pty: out/emlog0}", STATUS_OFTEN))
+    with _pd0_daemon(work) as (d, emlog):
+        vhw, status = _own_lines(d, emlog)
+        before = _records(d)
+        os.write(emlog, vhw + b"\r\n" + status + b"\r\n")
+        time.sleep(0.3)
+        assert _records(d) == (before[0] + 1, before[1] + 1), (before, _records(d))
+        vhw, _ = _own_lines(d, emlog)
+        before = _records(d)
+        os.write(emlog, vhw + b"\r\n")
+        time.sleep(0.3)
+        assert _records(d) == (before[0], before[1] + 1), (before, _records(d))
+        assert d.stop() == 0
+
+
+def test_a_proof_of_a_loop_split_across_reads_is_seen(tmp_path: Path) -> None:
+    """The daemon's status sentence comes back in two pieces, read apart (a serial line at
+    4800 Bd delivers a sentence over 60 ms, a few bytes a read), the first ending in
+    ``$PEM``: the loop is proven (``output_read_back`` logged, the sentence counted an
+    echo) and the corrected VHW coming back after it is skipped. Only a read holding the
+    whole ``$PEMLS,`` was seen as the proof: on a slow line the loop was never noticed
+    and every echo was read as the log's reading."""
+    work = make_work(tmp_path, PD0_CONFIG.replace("{pty: out/emlog0}", STATUS_OFTEN))
+    with _pd0_daemon(work) as (d, emlog):
+        vhw, status = _own_lines(d, emlog)
+        before = _records(d)
+        os.write(emlog, b"$VWVHW,,T,,M,5.01,N,,K*4E\r\n" + status[:4])
+        time.sleep(0.3)
+        os.write(emlog, status[4:] + b"\r\n" + vhw + b"\r\n")
+        time.sleep(0.3)
+        assert _records(d) == (before[0] + 1, before[1] + 2), (before, _records(d))
+        assert d.events("output_read_back") == 1, d.tail()
+        assert d.stop() == 0
