@@ -294,3 +294,36 @@ def test_a_proof_of_a_loop_split_across_reads_is_seen(tmp_path: Path) -> None:
         assert _records(d) == (before[0] + 1, before[1] + 2), (before, _records(d))
         assert d.events("output_read_back") == 1, d.tail()
         assert d.stop() == 0
+
+
+def test_a_config_caught_half_written_by_a_reload_is_read_once_whole(tmp_path: Path) -> None:
+    """The config rewritten as a deployment tool writes it — a third (cut in the middle of
+    the port list), SIGHUP, then the rest in four pieces 0.1 s apart, the new config
+    adding a status socket: the reload waits for the file to stay unchanged for
+    ``SETTLE_S`` and applies the whole new config (the status socket answers), with no
+    ``reload_failed``. The half file was parsed at the SIGHUP: ``reload_failed`` and the
+    old config kept, the new one ignored until another SIGHUP."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    cfg = work / "emlogd.yaml"
+    new = cfg.read_text().encode() + b"status_socket: run/status.sock\n"
+    cut = len(new) // 3
+    pieces = [
+        new[cut + k * (len(new) - cut) // 4 : cut + (k + 1) * (len(new) - cut) // 4]
+        for k in range(4)
+    ]
+    with _pd0_daemon(work) as (d, _):
+        fd = os.open(cfg, os.O_WRONLY | os.O_TRUNC)
+        try:
+            os.write(fd, new[:cut])
+            d.send_signal(signal.SIGHUP)
+            for piece in pieces:
+                time.sleep(0.1)
+                os.write(fd, piece)
+        finally:
+            os.close(fd)
+        assert cfg.read_bytes() == new
+        wait(lambda: d.events("reloaded") + d.events("reload_failed") >= 1, "the reload", 10.0)
+        assert d.events("reload_failed") == 0, d.tail()
+        status = work / "run" / "status.sock"
+        assert request(status, {"cmd": "status"}).get("ok") is True
+        assert d.stop() == 0
