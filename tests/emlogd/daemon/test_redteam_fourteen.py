@@ -327,3 +327,39 @@ def test_a_config_caught_half_written_by_a_reload_is_read_once_whole(tmp_path: P
         status = work / "run" / "status.sock"
         assert request(status, {"cmd": "status"}).get("ok") is True
         assert d.stop() == 0
+
+
+def test_a_port_that_cannot_be_opened_at_the_start_is_listed_and_tried_again(
+    tmp_path: Path,
+) -> None:
+    """The DVL's link names a regular file when the daemon starts: it starts, the status
+    lists ``ports_not_open: {dvl: why}`` and the EMlog's corrected VHW go out; once the
+    link names a pty the DVL is opened (its backoff, at most 5 s) and the list is empty.
+    The status gave the reason in the port's own entry only: nothing said at the top that
+    a sensor the config names was not there."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    emlog = raw_pty(work / "links" / "emlog1")
+    link = work / "links" / "dvl"
+    link.write_text("not a device\n")
+    dvl = -1
+    try:
+        d = Daemon(work, pty=True)
+        try:
+            tty.setraw(d.fd)
+            missing = cast(dict[str, str], d.status()["ports_not_open"])
+            assert list(missing) == ["dvl"] and "a regular file" in missing["dvl"], missing
+            for k in range(5):
+                os.write(emlog, VHW[k % 2])
+                d.pump(0.1)
+            assert any(line.startswith(b"$VWVHW") for line in d.lines), d.lines
+            link.unlink()
+            dvl = raw_pty(link)
+            wait(lambda: not d.status()["ports_not_open"], "the DVL opened", 10.0)
+            assert d.status()["ports"]["dvl"]["open"] is True  # type: ignore[index]
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    finally:
+        for fd in (emlog, dvl):
+            if fd >= 0:
+                os.close(fd)
