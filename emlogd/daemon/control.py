@@ -540,6 +540,24 @@ class ControlServer:
                 self.selector.unregister(conn)
             conn.close()
 
+    def retune(self, mode: int, commands: Sequence[str]) -> None:
+        """Serve ``commands`` with the socket file's mode ``mode`` from now on (a reload
+        that made this path the other kind's socket). The listener stays; when the
+        commands change, the connected clients are closed: one that connected to the
+        read-only socket gets no control through a reload."""
+        if tuple(commands) != self.commands:
+            for conn in list(self.clients):
+                self._drop(conn)
+            self._reuse.clear()
+        self.commands = tuple(commands)
+        self.mode = mode
+        try:
+            st = self.path.lstat()
+            if (st.st_dev, st.st_ino) == self._ident:  # another's file at the path: left
+                self.path.chmod(mode)
+        except OSError as exc:
+            self._path_trouble(f"cannot be given mode {mode:o}: {exc.strerror or exc}")
+
     def close(self) -> None:
         """Close every connection and remove the socket file (if it is still this one)."""
         for conn in list(self.clients):

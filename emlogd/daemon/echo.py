@@ -5,7 +5,10 @@ was dropped as a babble (``implausible_rate``) and the autopilot had no speed fo
 as the loop lasted; another log's echoed VHW read as this log's.
 
 The proof of a loop is the daemon's own status or fused sentence (``$P<maker>S``,
-``$P<maker>F``) arriving on an NMEA input: no device sends them. From then on, for
+``$P<maker>F``) arriving on an NMEA input: no device sends them. A read ending in the
+beginning of one (``$P``, ``$PEM``: a serial line delivers a sentence a few bytes a read)
+holds those bytes back until the next read, so a proof split across reads is seen
+whole. Lines before the proof are read as they came. From then on, for
 :data:`LOOP_S` after the last such sentence, that port's lines are judged whole (a
 partial line waits for its end, as the decoder's would) and each line byte-identical to
 one the daemon wrote within :data:`ECHO_S` is its echo: skipped, counted, and that
@@ -99,6 +102,10 @@ class EchoFilter:
         buf = self.partial.pop(port, b"") + data
         if now >= self.loop_until.get(port, -1.0) and not any(p in buf for p in self.own):
             self.loop_until.pop(port, None)
+            held = self._proof_begun(buf)
+            if held:  # the proof may be arriving: its start waits for the next read
+                self.partial[port] = buf[-held:]
+                return buf[:-held]
             return buf  # no loop: passed as it came
         *lines, tail = buf.split(b"\n")
         long = b""
@@ -108,6 +115,15 @@ class EchoFilter:
             self.partial[port] = tail
         self._forget(now)
         return b"".join(line + b"\n" for line in self._judge(port, now, lines)) + long
+
+    def _proof_begun(self, buf: bytes) -> int:
+        """How many bytes at the end of ``buf`` are the beginning of the daemon's own
+        sentence (``$``, ``$P``, ... ``$PEMLS``), 0 if none: a proof split across reads,
+        as a serial line's few bytes a read split it, is whole at the next one."""
+        for k in range(max((len(p) for p in self.own), default=1) - 1, 0, -1):
+            if any(len(p) > k and buf.endswith(p[:k]) for p in self.own):
+                return k
+        return 0
 
     def _judge(self, port: str, now: float, lines: Iterable[bytes]) -> Iterable[bytes]:
         for line in lines:

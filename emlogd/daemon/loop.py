@@ -38,7 +38,7 @@ from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon import logsetup, signals
 from emlogd.daemon.configload import ConfigLoad, why_not_loaded
-from emlogd.daemon.control import COMMANDS, ControlServer
+from emlogd.daemon.controls import Controls
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
@@ -121,8 +121,10 @@ class Daemon:
         self.contain = Containment()
         self.rest_s: dict[str, float] = {}
         self.outputs = Outputs(self.sel, log, monotonic)
-        self.controls: dict[tuple[str, str], ControlServer] = {}
-        """The control socket and the read-only status socket, keyed by (kind, path)."""
+        self.controls = Controls(
+            self.sel, self._control, lambda k, d: self.log.warning(k, detail=d), monotonic
+        )
+        """The control socket and the read-only status socket."""
         self.store: StateStore | None = None
         self.pipeline: Pipeline | None = None
         self.notifier = Notifier.from_env()
@@ -254,48 +256,20 @@ class Daemon:
             self._close_source(name)
 
     def _sync_controls(self) -> None:
-        """Open the control socket (and the read-only status socket) the config names,
-        keeping an open one whose path did not change. A socket of a kind whose new one
-        cannot be created is kept at its old path (a reload naming an unusable path left
-        the daemon with no control socket at all).
+        """Open the control and status sockets the config names (:class:`Controls`).
 
         Raises:
             DeviceError: a socket cannot be created (the others are still synced).
         """
-        want = {("control", self.config.control_socket)}
-        if self.config.status_socket:
-            want.add(("status", self.config.status_socket))
-        failed: DeviceError | None = None
-        failed_kinds: set[str] = set()
-        for kind, path in sorted(want - self.controls.keys()):
-            read_only = kind == "status"
-            try:
-                self.controls[(kind, path)] = ControlServer(
-                    path,
-                    self._control,
-                    self.sel,
-                    mode=0o666 if read_only else 0o660,
-                    commands=("status",) if read_only else COMMANDS,
-                    on_event=lambda k, d: self.log.warning(k, detail=d),
-                    monotonic=self.monotonic,
-                    wait=not self.started,  # at a start, a file in the way costs the socket
-                )
-            except DeviceError as exc:
-                failed = exc
-                failed_kinds.add(kind)
-        for key in [k for k in self.controls if k not in want and k[0] not in failed_kinds]:
-            self.controls.pop(key).close()
-        if failed is not None:
-            raise failed
+        cfg = self.config
+        self.controls.sync(cfg.control_socket, cfg.status_socket, started=self.started)
 
     def _shutdown(self) -> None:
         self.notifier.stopping()
         if self.started:
             self._persist(final=True)
         self._close_sources()
-        for server in self.controls.values():
-            server.close()
-        self.controls.clear()
+        self.controls.close()
         self.outputs.close()
         self.sel.close()
         self.poll.close()
@@ -343,8 +317,7 @@ class Daemon:
                 self._log_port_events(events)
         if changed:
             self._sync_registrations()
-        for server in self.controls.values():
-            server.housekeep()
+        self.controls.housekeep()
         self.outputs.housekeep()
         if self.monotonic() >= self.retry_persist:
             self._persist()

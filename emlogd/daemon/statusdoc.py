@@ -19,7 +19,10 @@ def status_document(
     source and ``state``: ``not open``, ``never heard`` (open, not a byte decoded since
     the start: no age to give, and no sign yet that the device is there), ``stale`` or
     ``open``; a port not open is stale (no data can come); ``echoes``: its lines that were the daemon's own output, skipped
-    (:mod:`emlogd.daemon.echo`). With ``uut``: that UUT and the ports it reads only."""
+    (:mod:`emlogd.daemon.echo`). ``ports_not_open``: each port that is not open and why
+    (a device missing or not a serial device at the start, lost since: its source tries it
+    again with backoff, the daemon running on the rest). With ``uut``: that UUT and the
+    ports it reads only."""
     status = pipeline.status()
     ports = status["ports"]
     assert isinstance(ports, dict)
@@ -45,5 +48,6 @@ def status_document(
         uuts = status["uuts"]
         assert isinstance(uuts, dict)
         status["uuts"] = {uut: uuts[uut]}
-        status["ports"] = {n: v for n, v in ports.items() if n in mine}
+        ports = status["ports"] = {n: v for n, v in ports.items() if n in mine}
+    status["ports_not_open"] = {n: v["why_closed"] for n, v in ports.items() if not v["open"]}
     return status

@@ -69,3 +69,20 @@ def test_a_line_without_end_is_not_held_past_its_bound() -> None:
     junk = b"x" * (MAX_PARTIAL + 1)
     assert f.read("emlog1", junk) == junk
     assert f.partial == {}
+
+
+def test_a_proof_split_across_reads_is_seen_and_what_came_before_it_read() -> None:
+    """Reads ending in ``$``, ``$P`` or ``$PEM`` hold those bytes back for the next read;
+    the status sentence completed there proves the loop, and the written line after it is
+    skipped, while the reading before the proof is passed; a held ``$`` that turns out to
+    begin a log's own sentence is passed with it."""
+    f, _, loops = _filter()
+    f.wrote(RAW + STATUS + RAW)
+    assert f.read("emlog1", RAW + STATUS[:4]) == RAW
+    assert f.read("emlog1", STATUS[4:] + RAW) == b""
+    assert loops == ["emlog1"] and f.echoes["emlog1"] == 2
+    g, _, _ = _filter()
+    assert g.read("emlog1", RAW + b"$") == RAW
+    assert g.read("emlog1", RAW[1:]) == RAW
+    assert g.read("emlog1", b"$P") == b""
+    assert g.read("emlog1", b"X") == b"$PX"
