@@ -10,8 +10,9 @@ only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, G
 VTG without a date, RMC
 without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
-a midnight crossed by GGA times of day (and by RMC with a leap second), two sessions
-3 h apart in one file, fix times a second late now and then, an hour moored first,
+a midnight crossed by GGA times of day (and by RMC with a leap second, or with its date
+advancing late), two sessions 3 h apart in one file, the fix times set back an hour
+from the middle on (a receiver reset), fix times a second late now and then, an hour moored first,
 variations signed without E/W, VHW in km/h alone, HDM with RMC's variation alone, a
 0.5-Hz GNSS with the log at twice its rate; the log 2 s behind or ahead of the GNSS, at
 half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
@@ -287,6 +288,18 @@ VARIANTS: tuple[Variant, ...] = (
         "nmea",
         vl.two_sessions,
         "two sessions of one day in one file, the second 3 h after the first",
+    ),
+    Variant(
+        "time-reset",
+        "nmea",
+        vl.time_reset,
+        "the fix times an hour earlier from the middle on (a receiver reset)",
+    ),
+    Variant(
+        "midnight-date-late",
+        "nmea",
+        vl.midnight_date_late,
+        "midnight crossed by RMC whose date advances 5 s late",
     ),
     Variant("leap-second", "nmea", vl.leap_second, "midnight crossed with a leap second 23:59:60"),
     Variant("late-fixes", "nmea", vl.late_fixes, "every 5th fix's time a second late (jitter)"),

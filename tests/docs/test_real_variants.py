@@ -389,14 +389,18 @@ def test_a_slower_gnss_gives_fewer_fixes(
         "truncated",
         "leap-second",
         "late-fixes",
+        "time-reset",
+        "midnight-date-late",
     ],
 )
 def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Path) -> None:
     """GGA + VTG (with --date), ZDA + GLL + VTG, GLL + VTG alone (the date the file's),
     midnight crossed by GGA times of day or
     by RMC with or without its date (then --date) or with a leap second, RMC without a
-    date, a gap of minutes, cut lines, fix times a second late now and then: the water
-    readings keep their time."""
+    date, a gap of minutes, cut lines, fix times a second late now and then, the fix
+    times set back an hour from the middle on (a receiver reset: the new time base
+    follows the old), RMC's date advancing 5 s after midnight: the water readings keep
+    their time."""
     base, rep, _ = _variant("nmea", name, tmp_path)
     span = base.t_end - base.t_start
     kept = 1.0 - rv.GAP_S / span if name == "gap" else 1.0
