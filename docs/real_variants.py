@@ -8,7 +8,7 @@ thinned to 0.5 and 0.2 Hz, fix times of 1-s and 10-s resolution; a magnetic head
 without any variation in the log (HDG with empty variation fields, HDM, VHW magnetic
 only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, GLL +
 VTG without a date, RMC
-without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
+without a course at low speed or at any speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
 a midnight crossed by GGA times of day (and by RMC with a leap second, or with its date
 advancing late), two sessions 3 h apart in one file, the fix times set back an hour
@@ -84,6 +84,7 @@ from variants_nmea import (
     other_sentences,
     pashr_of,
     prefixed,
+    rmc_course_empty,
     rmc_course_empty_slow,
     rmc_to,
     thin_gnss,
@@ -185,6 +186,12 @@ VARIANTS: tuple[Variant, ...] = (
     ),
     Variant(
         "rmc-slow-no-course", "nmea", _nm(rmc_course_empty_slow), "RMC without a course below 1 kn"
+    ),
+    Variant(
+        "rmc-no-course",
+        "nmea",
+        _nm(rmc_course_empty),
+        "RMC without a course at any speed (the course from the positions)",
     ),
     Variant(
         "other-sentences",

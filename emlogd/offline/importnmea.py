@@ -34,6 +34,7 @@ from emlogd.offline.importbase import (
     what_it_looks_like,
     within_years,
 )
+from emlogd.offline.importcourse import CourseFill
 
 MAX_FIX_GAP_S = 60.0
 """NMEA: fixes further apart than this leave the sentences between them untimed, s
@@ -442,6 +443,7 @@ def import_nmea(
     sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
     spread = _Spreader(sink, report)
     joiner = _Joiner(SentenceCheck(report), report)
+    course = CourseFill(report)
     first = ""  # the first line, quoted when no line is a sentence
     sentences = 0
     try:
@@ -452,7 +454,8 @@ def import_nmea(
                     report.lines += 1
                     first = first or raw.strip()[:FIRST_LINE_CHARS]
                     for part in run_together(raw.strip(LINE_PADDING), report):
-                        for line in joiner.lines(part):
+                        for cut in joiner.lines(part):
+                            line = course.line(cut)
                             sentences += 1
                             spread.add(line, clock.fix(line, spread.raw_fix))
                             if clock.gga is not None:  # a GLL's position, as GGA

@@ -12,6 +12,7 @@ unperturbed recording, where what does not hold yet is a strict xfail with its r
 from __future__ import annotations
 
 import importlib
+import math
 import os
 import subprocess
 import sys
@@ -202,6 +203,49 @@ def _vhw_rmc(cap: Path) -> np.ndarray:
                 out.append((x.stw_knots or 0.0, x.heading_true_deg or 0.0, 0.0, 0.0))
             elif isinstance(x, Rmc):
                 out.append((0.0, 0.0, (x.sog_mps or 0.0) / KNOT_MPS, x.cog_true_deg or 0.0))
+    return np.array(out, dtype=float)
+
+
+@pytest.mark.parametrize(
+    ("recording", "share"),
+    [("irene-2014-06-27-leman.nmea", 0.15), ("dasht-2016-05-07-trieste.nmea", 0.99)],
+)
+def test_rmc_without_a_course_takes_it_from_the_positions(
+    recording: str, share: float, tmp_path: Path
+) -> None:
+    """RMC without a course at any speed (the whole log): the import gives those whose
+    positions are far enough apart a course from them — Irene's 0.001' positions from
+    about 6 kn (a sixth of its fixes), DashT's 0.00001' at 3 Hz nearly all — within a
+    few degrees of the course the receiver sent, unbiased; the rest stay without."""
+    src = REAL / recording
+    if not src.is_file():
+        pytest.skip(f"{recording} absent")
+    text = src.read_bytes().decode("latin-1")
+    v = VARIANTS[("nmea", "rmc-no-course")]
+    courses = []
+    for i, t in enumerate((text, v.make(text))):
+        path = tmp_path / f"{i}.nmea"
+        path.write_bytes(t.encode("latin-1"))
+        rep = import_nmea([path], tmp_path / f"{i}.cap.gz")
+        courses.append(_rmc_courses(tmp_path / f"{i}.cap.gz"))
+    made, empty = rep.notes["course_from_positions"], rep.notes["course_empty"]
+    assert made + empty == rep.sentences["RMC"] and made >= share * rep.sentences["RMC"]
+    want, got = courses
+    given = ~np.isnan(got)
+    assert np.count_nonzero(given) == made and want.size == got.size
+    diff = (got[given] - want[given] + 180.0) % 360.0 - 180.0
+    assert np.median(np.abs(diff)) < 4.0 and abs(np.mean(diff)) < 1.0
+
+
+def _rmc_courses(cap: Path) -> np.ndarray:
+    """The course of each RMC of a capture, in order (nan without one)."""
+    dec = make_decoder("nmea0183", "nmea", errors="skip")
+    out = [
+        math.nan if x.cog_true_deg is None else x.cog_true_deg
+        for r in CaptureReader(cap)
+        for x in dec.feed(r.data)
+        if isinstance(x, Rmc)
+    ]
     return np.array(out, dtype=float)
 
 
