@@ -17,7 +17,8 @@ variations signed without E/W, VHW in km/h alone, HDM with RMC's variation alone
 0.5-Hz GNSS with the log at twice its rate; the log 2 s behind or ahead of the GNSS, at
 half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
 $PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
-(``Set``/``Drift``, no current, upper-case names, another order, extra columns,
+(``Set``/``Drift``, no current, upper-case names, another order, extra columns, a
+magnetic ``HdgMag`` with or without a variation column,
 ``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
 text, ``Date`` and ``Time`` columns, a row of units under the header (also of SI
 units, ``m/s`` and ``rad``, the cells in them), units in the
@@ -376,6 +377,12 @@ VARIANTS: tuple[Variant, ...] = (
         "expedition-csv",
         vcsv.columns(vcsv.magnetic_heading),
         "the compass's magnetic heading (HdgMag) and a MagVar column instead of Hdg",
+    ),
+    Variant(
+        "hdg-magnetic-no-var",
+        "expedition-csv",
+        vcsv.columns(vcsv.magnetic_heading_alone),
+        "the compass's magnetic heading (HdgMag) and no variation column: the model's",
     ),
     Variant("subset", "expedition-csv", vcsv.columns(vcsv.subset), "five columns, reordered"),
     Variant(

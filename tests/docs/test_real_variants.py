@@ -277,6 +277,19 @@ def test_a_magnetic_heading_column_with_its_variation_is_made_true(tmp_path: Pat
     }
 
 
+def test_a_magnetic_heading_column_without_a_variation_takes_the_models(tmp_path: Path) -> None:
+    """``HdgMag`` (the heading less the model's -1.26° there) and no variation column:
+    read as magnetic, the variation the model's at the positions, so the heading stands
+    from the course as the true one did (within 0.3°; taken as true, 1.26° off)."""
+    base, rep, _ = _variant("expedition-csv", "hdg-magnetic-no-var", tmp_path)
+    assert rep.heading_ref == "magnetic" and rep.variation == "model"
+    assert base.heading_check is not None and rep.heading_check is not None
+    assert rep.heading_check["offset_deg"] == pytest.approx(
+        base.heading_check["offset_deg"], abs=0.3
+    )
+    assert rep.sentences == base.sentences
+
+
 def test_a_subset_of_columns_keeps_the_water_and_the_fixes(tmp_path: Path) -> None:
     """Five columns in another order (no position, no current): the same VHW and RMC,
     no VDR."""
