@@ -8,15 +8,17 @@ thinned to 0.5 and 0.2 Hz, fix times of 1-s and 10-s resolution; a magnetic head
 without any variation in the log (HDG with empty variation fields, HDM, VHW magnetic
 only); other sentences and talkers (GGA + VTG instead of RMC, ZDA + GLL + VTG, GLL +
 VTG without a date, RMC
-without a course at low speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
+without a course at low speed or at any speed, VLW, MWV with nonsense, proprietary ``$P`` lines),
 lines without checksums, CRLF or LF endings, a truncated last line, a gap of minutes,
-a midnight crossed by GGA times of day (and by RMC with a leap second), two sessions
-3 h apart in one file, fix times a second late now and then, an hour moored first,
+a midnight crossed by GGA times of day (and by RMC with a leap second, or with its date
+advancing late), two sessions 3 h apart in one file, the fix times set back an hour
+from the middle on (a receiver reset), fix times a second late now and then, an hour moored first,
 variations signed without E/W, VHW in km/h alone, HDM with RMC's variation alone, a
 0.5-Hz GNSS with the log at twice its rate; the log 2 s behind or ahead of the GNSS, at
 half or twice its rate, silent (or the GNSS silent) 30 s every 5 minutes; THS or
 $PASHR the only heading; VBW instead of VHW; Expedition exports with other column sets
-(``Set``/``Drift``, no current, upper-case names, another order, extra columns,
+(``Set``/``Drift``, no current, upper-case names, another order, extra columns, a
+magnetic ``HdgMag`` with or without a variation column,
 ``;`` with decimal commas, quoted cells, a byte-order mark, ``Utc`` as US-English
 text, ``Date`` and ``Time`` columns, a row of units under the header (also of SI
 units, ``m/s`` and ``rad``, the cells in them), units in the
@@ -83,6 +85,7 @@ from variants_nmea import (
     other_sentences,
     pashr_of,
     prefixed,
+    rmc_course_empty,
     rmc_course_empty_slow,
     rmc_to,
     thin_gnss,
@@ -184,6 +187,12 @@ VARIANTS: tuple[Variant, ...] = (
     ),
     Variant(
         "rmc-slow-no-course", "nmea", _nm(rmc_course_empty_slow), "RMC without a course below 1 kn"
+    ),
+    Variant(
+        "rmc-no-course",
+        "nmea",
+        _nm(rmc_course_empty),
+        "RMC without a course at any speed (the course from the positions)",
     ),
     Variant(
         "other-sentences",
@@ -288,6 +297,18 @@ VARIANTS: tuple[Variant, ...] = (
         vl.two_sessions,
         "two sessions of one day in one file, the second 3 h after the first",
     ),
+    Variant(
+        "time-reset",
+        "nmea",
+        vl.time_reset,
+        "the fix times an hour earlier from the middle on (a receiver reset)",
+    ),
+    Variant(
+        "midnight-date-late",
+        "nmea",
+        vl.midnight_date_late,
+        "midnight crossed by RMC whose date advances 5 s late",
+    ),
     Variant("leap-second", "nmea", vl.leap_second, "midnight crossed with a leap second 23:59:60"),
     Variant("late-fixes", "nmea", vl.late_fixes, "every 5th fix's time a second late (jitter)"),
     Variant(
@@ -356,6 +377,12 @@ VARIANTS: tuple[Variant, ...] = (
         "expedition-csv",
         vcsv.columns(vcsv.magnetic_heading),
         "the compass's magnetic heading (HdgMag) and a MagVar column instead of Hdg",
+    ),
+    Variant(
+        "hdg-magnetic-no-var",
+        "expedition-csv",
+        vcsv.columns(vcsv.magnetic_heading_alone),
+        "the compass's magnetic heading (HdgMag) and no variation column: the model's",
     ),
     Variant("subset", "expedition-csv", vcsv.columns(vcsv.subset), "five columns, reordered"),
     Variant(

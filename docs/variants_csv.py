@@ -103,6 +103,24 @@ def magnetic_heading(h: list[str], rows: list[list[str]]) -> tuple[list[str], li
     return head, [[*r, f"{VARIATION_DEG:.1f}"] for r in rows]
 
 
+VALENCIA_MODEL_VARIATION_DEG = -1.26
+"""The IGRF model's variation at the Valencia log's first position and time (39.400° N,
+0.299° W, 2005-06-13; ``emlogd.pipeline.variation.model_variation``), degrees east."""
+
+
+def magnetic_heading_alone(
+    h: list[str], rows: list[list[str]]
+) -> tuple[list[str], list[list[str]]]:
+    """``Hdg`` rewritten as ``HdgMag``, the magnetic heading a compass there gives (true
+    minus :data:`VALENCIA_MODEL_VARIATION_DEG`), and no variation column: the variation
+    is the model's at the ``Lat``/``Lon`` positions."""
+    hi = h.index("Hdg")
+    for r in rows:
+        with contextlib.suppress(ValueError, IndexError):
+            r[hi] = f"{(float(r[hi]) - VALENCIA_MODEL_VARIATION_DEG) % 360.0:.1f}"
+    return [*h[:hi], "HdgMag", *h[hi + 1 :]], rows
+
+
 def subset(h: list[str], rows: list[list[str]]) -> tuple[list[str], list[list[str]]]:
     """Only ``Cog``, ``Sog``, ``Hdg``, ``Bsp`` and ``Utc``, in that order (an export of
     the columns someone picked)."""

@@ -4,7 +4,8 @@ sentence in other formats (ISO 8601, epoch seconds, a clock time alone, tab-sepa
 in brackets), NMEA 4 tag blocks, NULs padding the lines and the file, sentences split
 over two lines, AIS sentences mixed in, every line logged twice, RMC without its date
 (with ``--date``, also across midnight) and RMC across midnight with its dates; two
-sessions of one day in one file, a leap second at midnight, fix times a second late
+sessions of one day in one file, a receiver's clock set back an hour, midnight with
+RMC's date advancing late, a leap second at midnight, fix times a second late
 now and then, an hour moored before the start, variations signed without E/W, VHW in
 km/h alone, HDM with the variation in RMC alone."""
 
@@ -214,6 +215,45 @@ def two_sessions(text: str) -> str:
     mid = fixes[len(fixes) // 2] if fixes else 0.0
     gap = timedelta(seconds=SESSION_GAP_S)
     return _retimed(text, lambda _i, t: t + gap if t.timestamp() >= mid else t)
+
+
+RESET_BACK_S = 3600.0
+"""The time-reset variant's fixes go back this much from the log's middle on, s."""
+
+DATE_LATE_S = 5.0
+"""The midnight-date-late variant's RMC keep the day before's date this long after
+midnight, s."""
+
+
+def time_reset(text: str) -> str:
+    """From the log's middle on, every fix :data:`RESET_BACK_S` earlier (a receiver reset
+    that set its clock back, with its date)."""
+    fixes = [t for _, t in _fix_seconds(text)]
+    mid = fixes[len(fixes) // 2] if fixes else 0.0
+    back = timedelta(seconds=RESET_BACK_S)
+    return _retimed(text, lambda _i, t: t - back if t.timestamp() >= mid else t)
+
+
+def midnight_date_late(text: str) -> str:
+    """The log across midnight, RMC's date advancing only :data:`DATE_LATE_S` after it
+    (a receiver latching the date late: its time rolls over, its date stays)."""
+    shifted, _ = _shift_to_midnight(text)
+    fixes = [t for _, t in _fix_seconds(shifted)]
+    if not fixes:
+        return shifted
+    t0 = datetime.fromtimestamp(fixes[0], UTC)
+    midnight = datetime(t0.year, t0.month, t0.day, tzinfo=UTC) + timedelta(days=1)
+    late = midnight + timedelta(seconds=DATE_LATE_S)
+
+    def fn(f: list[str]) -> list[str] | None:
+        t = _rmc_time(f) if kind_of(f) == "RMC" else None
+        if t is None or not midnight <= t < late:
+            return f
+        g = list(f)
+        g[9] = f"{t0.day:02d}{t0.month:02d}{t0.year % 100:02d}"
+        return g
+
+    return map_nmea(shifted, fn)
 
 
 def leap_second(text: str) -> str:

@@ -242,6 +242,15 @@ def rmc_course_empty_slow(f: list[str]) -> list[str]:
     return f
 
 
+def rmc_course_empty(f: list[str]) -> list[str]:
+    """RMC's course left empty at every speed (a receiver that never sends it)."""
+    if kind_of(f) == "RMC" and len(f) > 8:
+        g = list(f)
+        g[8] = ""
+        return g
+    return f
+
+
 def prefixed(text: str) -> str:
     """A receive time (ms since the log's start) and a tag before each sentence, as
     some loggers write them."""

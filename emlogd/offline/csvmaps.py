@@ -499,7 +499,7 @@ def units_row(
 ) -> UnitsRow | None:
     """The row under the header read as its units (Expedition's and several loggers'
     second header line), or None when it is data: a units row has no cell that is a
-    number or a time, and a unit in a mapped column's cell. Each speed or angle column
+    number or a time, and a unit known in a mapped column's cell. Each speed or angle column
     with a unit cell is read in that unit (:data:`HEADER_UNITS`, :data:`ANGLE_UNITS`;
     ``°M`` or ``degM`` for a heading: magnetic); an empty cell leaves the column as it
     was.
@@ -512,13 +512,14 @@ def units_row(
     cells = [c.strip() for c in row]
     if not any(cells) or any(_is_value(c) for c in cells):
         return None
-    if not any(cell(row, c.index) for k, c in cols.items() if k not in ("time", "date")):
-        return None
+    given = [_unit_cell(cell(row, c.index)) for k, c in cols.items() if k in UNIT_KEYS]
+    if not any(u in HEADER_UNITS or u in ANGLE_UNITS or u in MAGNETIC_UNITS for u in given):
+        return None  # no unit known in a mapped column: a row of text, not of units
     out = dict(cols)
     magnetic: set[str] = set()
     for key, c in cols.items():
-        given = cell(row, c.index)
-        unit = given.strip("()[] ").casefold()
+        text = cell(row, c.index)
+        unit = _unit_cell(text)
         if key not in UNIT_KEYS or not unit:
             continue
         name = header[c.index].strip() if c.index < len(header) else key
@@ -536,17 +537,22 @@ def units_row(
         if factor is None:
             kind = "a speed" if key in SPEEDS else "an angle"
             raise ImportFormatError(
-                f"{where}: the units row under the header gives it the unit {given!r}, "
+                f"{where}: the units row under the header gives it the unit {text!r}, "
                 f"not known for {kind} (known: {kinds}): correct the row, or remove it and "
                 f"map the column with its unit (--map {key}={name}[{'mps' if key in SPEEDS else 'rad'}])"
             )
         named = _bare(name)[1]
         if named is not None and _factor(key, None, named) != factor:
             raise ImportFormatError(
-                f"{where}: the units row under the header says {given!r}, its name {named!r}"
+                f"{where}: the units row under the header says {text!r}, its name {named!r}"
             )
         out[key] = Col(key, c.index, factor)
     return UnitsRow(out, frozenset(magnetic))
+
+
+def _unit_cell(text: str) -> str:
+    """A units row's cell compared: in any case, without brackets around it."""
+    return text.strip("()[] ").casefold()
 
 
 def _is_value(text: str) -> bool:

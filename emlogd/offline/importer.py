@@ -26,7 +26,15 @@ dated fix at all, the date its file's name holds, else the day the file was last
 written, noted ``date_from_file_name`` or ``date_from_file_time``); a time of day
 :data:`DAY_ROLLOVER_S` or more before the last fix is the next day's (midnight passed).
 A fix whose time does not increase is no
-time source, nor is one outside :data:`YEARS`. The sentences between two fixes are
+time source, nor is one outside :data:`YEARS`, unless fixes going back follow one
+another (:data:`emlogd.offline.importnmea.RESET_FIXES` of them: a receiver reset, a
+date not advancing at midnight): they are then a new time base, shifted to follow the
+one before — by whole days when the jump back is one, the sentences between then
+kept; else to come a fix interval after its last fix, the sentences between counted
+``time_reset`` (noted ``time_base_reset``); a fix jumping forward back onto an earlier
+base takes that base's shift again (``time_base_returned``). An RMC whose course field is empty takes the bearing from the positions of the
+fixes before it when their spacing and its speed allow it
+(:mod:`emlogd.offline.importcourse`). The sentences between two fixes are
 spread evenly, in their order, over the interval up to the next fix. Sentences before the first fix and after the last
 have no time and are counted (``before_first_fix``, ``after_last_fix``): times are
 never extrapolated past the last fix. Two fixes more than :data:`MAX_FIX_GAP_S` apart
@@ -44,7 +52,10 @@ the header is the first of the first :data:`HEADER_SCAN_LINES` lines that holds 
 mapped columns, so a banner before it is passed over (and counted). Column names
 match in any case, with spaces or hyphens for underscores (``Boat Speed``), and with a unit after them (``Bsp (kn)``, ``SOG [m/s]``,
 ``stw_kn``: :data:`emlogd.offline.csvmaps.HEADER_UNITS`; a speed's unit is then the
-column's; ``Hdg (rad)``: an angle in radians, ``--map`` ``Name[rad]``); with a delimiter other than the comma, a comma in a number is a decimal
+column's; ``Hdg (rad)``: an angle in radians, ``--map`` ``Name[rad]``); a row of units
+under the header (no cell a number or a time) sets the mapped columns' units, and a
+unit it gives not known for its column stops the import naming the column
+(:func:`emlogd.offline.csvmaps.units_row`); with a delimiter other than the comma, a comma in a number is a decimal
 comma. Times are OLE dates (days since 1899-12-30: Excel, Expedition), ISO
 8601, epoch seconds or milliseconds, Windows FILETIME ticks, a day-first date and time
 or a month-first one with AM/PM (:data:`emlogd.offline.csvmaps.DATE_TIME_PATTERNS`; each

@@ -34,6 +34,7 @@ from emlogd.offline.importbase import (
     what_it_looks_like,
     within_years,
 )
+from emlogd.offline.importcourse import CourseFill
 
 MAX_FIX_GAP_S = 60.0
 """NMEA: fixes further apart than this leave the sentences between them untimed, s
@@ -76,21 +77,125 @@ def _fix_time(
     return None, day
 
 
+RESET_FIXES = 3
+"""NMEA: a fix time that goes back (a receiver reset, a midnight rolled without the date
+advancing) starts a new time base once this many fixes, the first included, follow one
+another on it — each later than the one before by at most :data:`MAX_FIX_GAP_S`, none
+at or after the last fix of the base before. Until then the fixes going back time
+nothing (``fix_time_not_increasing``), and a fix of the base before ends them."""
+
+DAY_S = 86_400.0
+
+
 class _Spreader:
-    """Sentences timed from the fixes around them, written as each next fix arrives."""
+    """Sentences timed from the fixes around them, written as each next fix arrives.
+
+    A fix time going back is judged (:data:`RESET_FIXES`): a new time base is shifted
+    to follow the one before (:meth:`_accept`) — by whole days when it is the base
+    before less whole days (a date that did not advance at midnight), else to come one
+    fix interval after that base's last fix, the sentences between counted
+    ``time_reset``. A fix that then jumps forward onto a base before (the date caught
+    up, the receiver's own time back) takes that base's shift again."""
 
     def __init__(self, out: CaptureSink, report: ImportReport) -> None:
         self.out = out
         self.report = report
-        self.fix: float | None = None  # the last fix's time
+        self.fix: float | None = None  # the last fix's time (shifted)
+        self.interval = 1.0  # the time between the last two fixes
         self.pending: list[str] = []  # the last fix's sentence, then those after it
         self.overflow = 0
+        self.shift = 0.0  # added to the fix times of the present base
+        self.shifts: list[float] = []  # the shifts of the bases before
+        self.back: list[tuple[str, float | None]] = []  # a new base being judged
+        self.back_fixes: list[float] = []
+
+    @property
+    def raw_fix(self) -> float | None:
+        """The last fix's time as the log wrote it (the day rollover's ``last``)."""
+        return None if self.fix is None else self.fix - self.shift
 
     def add(self, text: str, t_fix: float | None) -> None:
         r = self.report
         if t_fix is not None and not within_years(t_fix):
             r.notes["fix_time_out_of_range"] += 1
             t_fix = None
+        if t_fix is not None:
+            t_fix = self._onto_base(t_fix)
+        if self.back:
+            if self._judge(text, t_fix):
+                return
+        elif t_fix is not None and self.fix is not None and t_fix < self.fix:
+            r.notes["fix_time_not_increasing"] += 1
+            self.back, self.back_fixes = [(text, t_fix)], [t_fix]
+            return
+        self._place(text, t_fix)
+
+    def _onto_base(self, t_raw: float) -> float:
+        """A fix time on the present base, or on a base before when it jumps forward
+        past :data:`MAX_FIX_GAP_S` on the present one and follows the last fix on that
+        one (the base taken again)."""
+        t = t_raw + self.shift
+        if self.fix is None or t - self.fix <= MAX_FIX_GAP_S:
+            return t
+        for k in range(len(self.shifts) - 1, -1, -1):
+            if 0.0 < t_raw + self.shifts[k] - self.fix <= MAX_FIX_GAP_S:
+                self.shift = self.shifts[k]
+                del self.shifts[k:]
+                self.report.notes["time_base_returned"] += 1
+                return t_raw + self.shift
+        return t
+
+    def _judge(self, text: str, t_fix: float | None) -> bool:
+        """Another sentence while a new base is judged: whether it was taken (held, or
+        the base accepted); False once the judged fixes are given up (the sentence is
+        then placed as any)."""
+        assert self.fix is not None
+        last = self.back_fixes[-1]
+        if t_fix is None and len(self.back) < MAX_PENDING_LINES:
+            self.back.append((text, None))
+            return True
+        if t_fix is not None and last < t_fix < self.fix and t_fix - last <= MAX_FIX_GAP_S:
+            self.report.notes["fix_time_not_increasing"] += 1
+            self.back.append((text, t_fix))
+            self.back_fixes.append(t_fix)
+            if len(self.back_fixes) >= RESET_FIXES:
+                self._accept()
+            return True
+        held, self.back, self.back_fixes = self.back, [], []
+        for line, _ in held:  # no new base: the fixes going back timed nothing
+            self._place(line, None)
+        if t_fix is not None and t_fix < self.fix:  # going back again: judged anew
+            self.report.notes["fix_time_not_increasing"] += 1
+            self.back, self.back_fixes = [(text, t_fix)], [t_fix]
+            return True
+        return False
+
+    def _accept(self) -> None:
+        """The judged fixes are a new time base: shifted to follow the base before."""
+        assert self.fix is not None
+        r = self.report
+        first = self.back_fixes[0]
+        days = round((self.fix - first) / DAY_S)
+        step = days * DAY_S
+        if days < 1 or not 0.0 < first + step - self.fix <= MAX_FIX_GAP_S:
+            step = self.fix + self.interval - first
+            self.out.write(self.fix, self.pending[0])
+            count(r.skipped, "time_reset", len(self.pending) - 1 + self.overflow)
+            self.fix, self.pending, self.overflow = None, [], 0
+        count(r.notes, "fix_time_not_increasing", -len(self.back_fixes))
+        if r.notes["fix_time_not_increasing"] <= 0:
+            del r.notes["fix_time_not_increasing"]
+        r.notes["time_base_reset"] += 1
+        self.shifts.append(self.shift)
+        self.shift += step
+        held, self.back, self.back_fixes = self.back, [], []
+        for line, t in held:
+            self._place(line, None if t is None else t + step)
+
+    def _place(self, text: str, t_fix: float | None) -> None:
+        """A sentence on the present base: a fix later than the last times it, any
+        other waits for the next fix."""
+        r = self.report
         if t_fix is not None and self.fix is not None and t_fix <= self.fix:
             r.notes["fix_time_not_increasing"] += 1
             t_fix = None
@@ -103,6 +208,7 @@ class _Spreader:
                 self.pending.append(text)
             return
         if self.fix is not None:
+            self.interval = min(t_fix - self.fix, MAX_FIX_GAP_S)
             self._release(t_fix)
         self.fix = t_fix
         self.pending = [text]
@@ -120,6 +226,9 @@ class _Spreader:
         self.overflow = 0
 
     def finish(self) -> None:
+        held, self.back, self.back_fixes = self.back, [], []
+        for line, _ in held:
+            self._place(line, None)
         if self.fix is None:
             return
         self.out.write(self.fix, self.pending[0])
@@ -334,6 +443,7 @@ def import_nmea(
     sink = CaptureSink(out, port, f"emlogd import --format nmea: {', '.join(report.files)}", report)
     spread = _Spreader(sink, report)
     joiner = _Joiner(SentenceCheck(report), report)
+    course = CourseFill(report)
     first = ""  # the first line, quoted when no line is a sentence
     sentences = 0
     try:
@@ -344,9 +454,10 @@ def import_nmea(
                     report.lines += 1
                     first = first or raw.strip()[:FIRST_LINE_CHARS]
                     for part in run_together(raw.strip(LINE_PADDING), report):
-                        for line in joiner.lines(part):
+                        for cut in joiner.lines(part):
+                            line = course.line(cut)
                             sentences += 1
-                            spread.add(line, clock.fix(line, spread.fix))
+                            spread.add(line, clock.fix(line, spread.raw_fix))
                             if clock.gga is not None:  # a GLL's position, as GGA
                                 report.notes["gga_from_gll"] += 1
                                 spread.add(clock.gga, None)

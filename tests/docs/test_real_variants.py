@@ -12,6 +12,7 @@ unperturbed recording, where what does not hold yet is a strict xfail with its r
 from __future__ import annotations
 
 import importlib
+import math
 import os
 import subprocess
 import sys
@@ -205,6 +206,49 @@ def _vhw_rmc(cap: Path) -> np.ndarray:
     return np.array(out, dtype=float)
 
 
+@pytest.mark.parametrize(
+    ("recording", "share"),
+    [("irene-2014-06-27-leman.nmea", 0.15), ("dasht-2016-05-07-trieste.nmea", 0.99)],
+)
+def test_rmc_without_a_course_takes_it_from_the_positions(
+    recording: str, share: float, tmp_path: Path
+) -> None:
+    """RMC without a course at any speed (the whole log): the import gives those whose
+    positions are far enough apart a course from them — Irene's 0.001' positions from
+    about 6 kn (a sixth of its fixes), DashT's 0.00001' at 3 Hz nearly all — within a
+    few degrees of the course the receiver sent, unbiased; the rest stay without."""
+    src = REAL / recording
+    if not src.is_file():
+        pytest.skip(f"{recording} absent")
+    text = src.read_bytes().decode("latin-1")
+    v = VARIANTS[("nmea", "rmc-no-course")]
+    courses = []
+    for i, t in enumerate((text, v.make(text))):
+        path = tmp_path / f"{i}.nmea"
+        path.write_bytes(t.encode("latin-1"))
+        rep = import_nmea([path], tmp_path / f"{i}.cap.gz")
+        courses.append(_rmc_courses(tmp_path / f"{i}.cap.gz"))
+    made, empty = rep.notes["course_from_positions"], rep.notes["course_empty"]
+    assert made + empty == rep.sentences["RMC"] and made >= share * rep.sentences["RMC"]
+    want, got = courses
+    given = ~np.isnan(got)
+    assert np.count_nonzero(given) == made and want.size == got.size
+    diff = (got[given] - want[given] + 180.0) % 360.0 - 180.0
+    assert np.median(np.abs(diff)) < 4.0 and abs(np.mean(diff)) < 1.0
+
+
+def _rmc_courses(cap: Path) -> np.ndarray:
+    """The course of each RMC of a capture, in order (nan without one)."""
+    dec = make_decoder("nmea0183", "nmea", errors="skip")
+    out = [
+        math.nan if x.cog_true_deg is None else x.cog_true_deg
+        for r in CaptureReader(cap)
+        for x in dec.feed(r.data)
+        if isinstance(x, Rmc)
+    ]
+    return np.array(out, dtype=float)
+
+
 @pytest.mark.parametrize("name", ["signalk", "canboat", "n2k-plain"])
 def test_a_json_lines_rewrite_keeps_the_water_and_the_fixes(name: str, tmp_path: Path) -> None:
     """The log as Signal K deltas, canboat analyzer JSON or plain text: every fix, the log's
@@ -231,6 +275,19 @@ def test_a_magnetic_heading_column_with_its_variation_is_made_true(tmp_path: Pat
     assert {k: rep.sentences[k] for k in ("RMC", "VHW")} == {
         k: base.sentences[k] for k in ("RMC", "VHW")
     }
+
+
+def test_a_magnetic_heading_column_without_a_variation_takes_the_models(tmp_path: Path) -> None:
+    """``HdgMag`` (the heading less the model's -1.26° there) and no variation column:
+    read as magnetic, the variation the model's at the positions, so the heading stands
+    from the course as the true one did (within 0.3°; taken as true, 1.26° off)."""
+    base, rep, _ = _variant("expedition-csv", "hdg-magnetic-no-var", tmp_path)
+    assert rep.heading_ref == "magnetic" and rep.variation == "model"
+    assert base.heading_check is not None and rep.heading_check is not None
+    assert rep.heading_check["offset_deg"] == pytest.approx(
+        base.heading_check["offset_deg"], abs=0.3
+    )
+    assert rep.sentences == base.sentences
 
 
 def test_a_subset_of_columns_keeps_the_water_and_the_fixes(tmp_path: Path) -> None:
@@ -389,14 +446,18 @@ def test_a_slower_gnss_gives_fewer_fixes(
         "truncated",
         "leap-second",
         "late-fixes",
+        "time-reset",
+        "midnight-date-late",
     ],
 )
 def test_other_fixes_midnight_gaps_and_cuts_keep_the_log(name: str, tmp_path: Path) -> None:
     """GGA + VTG (with --date), ZDA + GLL + VTG, GLL + VTG alone (the date the file's),
     midnight crossed by GGA times of day or
     by RMC with or without its date (then --date) or with a leap second, RMC without a
-    date, a gap of minutes, cut lines, fix times a second late now and then: the water
-    readings keep their time."""
+    date, a gap of minutes, cut lines, fix times a second late now and then, the fix
+    times set back an hour from the middle on (a receiver reset: the new time base
+    follows the old), RMC's date advancing 5 s after midnight: the water readings keep
+    their time."""
     base, rep, _ = _variant("nmea", name, tmp_path)
     span = base.t_end - base.t_start
     kept = 1.0 - rv.GAP_S / span if name == "gap" else 1.0

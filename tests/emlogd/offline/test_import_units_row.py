@@ -108,10 +108,12 @@ def test_a_units_row_contradicting_a_unit_in_the_name_is_an_error(tmp_path: Path
         import_csv(src, tmp_path / "o.cap")
 
 
-@pytest.mark.parametrize("first", [f"{OLE - 1e-5:.6f},-,-,-,-", f"{OLE - 1e-5:.6f},3.1,N/A,,"])
+@pytest.mark.parametrize(
+    "first", [f"{OLE - 1e-5:.6f},-,-,-,-", f"{OLE - 1e-5:.6f},3.1,N/A,,", "start,n/a,n/a,n/a,"]
+)
 def test_a_first_data_row_is_not_taken_for_units(tmp_path: Path, first: str) -> None:
-    """A first row with a time, and numbers or dashes for values not yet known, is data:
-    no units row, every row imported."""
+    """A first row with a time, and numbers or dashes for values not yet known, is data;
+    so is a row of text with no unit known in it: no units row, every row read."""
     src = tmp_path / "log.csv"
     rows = [first, *_rows(3)]
     src.write_text("\n".join(["Utc,Bsp,Hdg,Sog,Cog", *rows]) + "\n")
