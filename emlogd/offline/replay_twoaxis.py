@@ -13,7 +13,9 @@ the athwart speed per window of :data:`~emlogd.offline.simfaults.WINDOW_S` (thos
 fewer than :data:`~emlogd.offline.simfaults.MIN_WINDOW_SAMPLES` scored readings left
 out), over the whole replay and per trajectory (its windows from its first reading),
 whose worst against raw and against the floor say whether the corrected VBW was ever
-worse than the reading it replaced.
+worse than the reading it replaced; and the forward speed per window likewise, whose
+worst against the one-axis calibration's (``forward_worst_window_one_axis``) says
+whether the emitted forward speed was ever worse than what ``axes: 1`` emits.
 """
 
 from __future__ import annotations
@@ -107,17 +109,36 @@ class AthwartScorer:
 
         everything = np.ones(q.size, dtype=bool)
         athwart = (err["t_raw"], err["t_corrected"], err["t_floor"])
+        forward = (err["l_one_axis"], err["l_corrected"], err["l_floor"])
+
+        def windows(sel: npt.NDArray[np.bool_]) -> dict[str, object]:
+            fw = _worst_windows(*(x[sel] for x in (q, *forward)))["worst_window_raw"]
+            if isinstance(fw, dict):
+                fw = {_FORWARD_KEYS.get(k, k): v for k, v in fw.items()}
+            return _worst_windows(*(x[sel] for x in (q, *athwart))) | {
+                "forward_worst_window_one_axis": fw
+            }
+
         return {
             **block(everything),
             "applied": block(on),
-            **_worst_windows(q, *athwart),
+            **windows(everything),
             "by_trajectory": {
                 str(int(k)): block(traj == k)
                 | {"applied_share": round(float(np.mean(on[traj == k])), 3)}
-                | _worst_windows(*(x[traj == k] for x in (q, *athwart)))
+                | windows(traj == k)
                 for k in np.unique(traj)
             },
         }
+
+
+_FORWARD_KEYS = {
+    "rmse_t_raw": "rmse_l_one_axis",
+    "rmse_t_corrected": "rmse_l_corrected",
+    "rmse_t_floor": "rmse_l_floor",
+}
+"""A forward window's scores named as the forward speed's (:func:`_worst_windows`
+names the athwart speed's)."""
 
 
 def _worst_windows(
@@ -127,7 +148,9 @@ def _worst_windows(
     window whose emitted RMSE is furthest above raw's (``worst_window_raw``) and the one
     furthest above the floor's (``worst_window_floor``), each ``{"t0", "n_samples",
     "rmse_t_raw", "rmse_t_corrected", "rmse_t_floor", "ratio"}``, and how many windows
-    were scored; None where no window has :data:`MIN_WINDOW_SAMPLES` scored readings."""
+    were scored; None where no window has :data:`MIN_WINDOW_SAMPLES` scored readings.
+    Given the forward errors (the one-axis calibration's for raw's), the same of the
+    forward speed, the keys' ``raw`` then the one-axis calibration's."""
     ok = np.isfinite(e_raw) & np.isfinite(e_cor) & np.isfinite(e_floor)
     rows: list[dict[str, float | int]] = []
     if np.any(ok):

@@ -399,7 +399,7 @@ class Pipeline:
             return encode_vhw(v, sp.heading_true_deg, sp.heading_mag_deg, u.s.talker)
         trans, g = sp.transverse_mps, u.ground.at(t)
         if ax is not None and trans is not None:
-            hull = ax.correct(value, trans, sp.longitudinal_mps, u.cal.guard)
+            hull = ax.correct(t, value, trans, sp.longitudinal_mps, u.cal.guard)
             if sp.longitudinal_mps is not None:
                 ax.reading(t, value, sp.longitudinal_mps, trans)
                 ax.drain(self.now, u.cal.lag_s, u.cal.heading_at, u.cal.learn_on)

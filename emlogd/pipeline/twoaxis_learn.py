@@ -33,8 +33,10 @@ shares its lag (the UUT's, once known) and its heading.
   calibration's nor raw's (a VHW reading, which has no athwart speed, takes the
   athwart reading of the VBW before it, within :data:`ATHWART_FRESH_S`); each reading
   then goes out by whichever of the two has the smaller expected error
-  (:func:`emlogd.pipeline.twoaxis_sup.one_axis_better`), with the reading's noise
-  measured as the scatter of the readings inside the last :data:`NOISE_BLOCKS` blocks.
+  (:func:`emlogd.pipeline.twoaxis_sup.one_axis_better`, weighed on the readings of the
+  second up to it, :class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`), with the
+  reading's noise measured as the scatter of the readings inside the last
+  :data:`NOISE_BLOCKS` blocks.
 
 A fit of a full window costs about 0.2 s of CPU with one BLAS thread (on a loaded
 machine a multi-threaded BLAS took seconds: ``OPENBLAS_NUM_THREADS=1`` suits the
@@ -73,11 +75,11 @@ from emlogd.pipeline.twoaxis_sup import (
     NO_GUARD,
     Block,
     Figures,
+    ForwardChoice,
     Guard,
     TwoAxisSupervisor,
     lon_of_fit,
     noise_gain,
-    one_axis_better,
 )
 
 BLOCK_S = 1.0
@@ -199,6 +201,9 @@ class TwoAxisLearner:
         self._scatter_sum = [0.0, 0]
         """Their totals."""
         self.forward_by = {"own": 0, "one_axis": 0}
+        self.choice = {"VBW": ForwardChoice(), "VHW": ForwardChoice()}
+        """The choice between the two corrections, per sentence whose forward speed it
+        is (a VBW's is turned back by α, a VHW's one-axis speed is not)."""
         """Readings whose forward speed went out by the figures' own correction, or by the
         one-axis one where that has the smaller expected error, while the figures' own
         was let out (:func:`~emlogd.pipeline.twoaxis_sup.one_axis_better`)."""
@@ -237,6 +242,7 @@ class TwoAxisLearner:
 
     def correct(
         self,
+        t: float,
         forward_mps: float,
         athwart_mps: float,
         raw_l_mps: float | None = None,
@@ -260,7 +266,7 @@ class TwoAxisLearner:
         if (
             own is not None
             and raw_l_mps is not None
-            and self._own_better(own[0], raw_l_mps, one[0], one_gain)
+            and self._own_better(t, "VBW", own[0], raw_l_mps, one[0], one_gain)
         ):
             u, w = own
         else:
@@ -288,23 +294,30 @@ class TwoAxisLearner:
             return one_axis_mps
         own = self._own(raw_l_mps, last[1])
         one_gain = noise_gain(guard.in_use, one_axis_mps)
-        if own is None or not self._own_better(own[0], raw_l_mps, one_axis_mps, one_gain):
+        if own is None or not self._own_better(t, "VHW", own[0], raw_l_mps, one_axis_mps, one_gain):
             return one_axis_mps
         return own[0]
 
     def _own_better(
-        self, own_mps: float, raw_l_mps: float, one_mps: float, one_gain: float
+        self,
+        t: float,
+        sentence: str,
+        own_mps: float,
+        raw_l_mps: float,
+        one_mps: float,
+        one_gain: float,
     ) -> bool:
-        """Whether a reading's forward speed goes out by the applied figures' own
-        correction ``own_mps`` rather than the one-axis one ``one_mps`` (whose noise gain
-        is ``one_gain``): unless the one-axis one has the smaller expected error at the
-        measured noise (:func:`~emlogd.pipeline.twoaxis_sup.one_axis_better`); counted."""
+        """Whether the forward speed of a reading at ``t`` (of a ``sentence``, VBW or
+        VHW) goes out by the applied figures' own correction ``own_mps`` rather than the
+        one-axis one ``one_mps`` (whose noise gain is ``one_gain``): unless the one-axis
+        one has the smaller expected error at the measured noise, weighed on the readings
+        of the last second (:class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`); counted."""
         f = self.sup.applied
-        var = self.noise_var()
-        if f is not None and f.lon is not None and var is not None:
+        if f is not None and f.lon is not None:
             us = f.lon.correct(raw_l_mps)
             own_gain = math.cos(math.radians(f.misalign_deg)) * noise_gain(f.lon, us)
-            if one_axis_better(own_mps, own_gain, one_mps, one_gain, var):
+            var = self.noise_var()
+            if self.choice[sentence].one_axis(t, own_mps, own_gain, one_mps, one_gain, var):
                 self.forward_by["one_axis"] += 1
                 return False
         self.forward_by["own"] += 1

@@ -53,9 +53,11 @@ one speed is its offset there plus the reading's noise times its gain ``1/f'(v)`
 (:func:`noise_gain`): the two-axis fit's is the sensor's local slope, the one-axis
 fit's — its scale traded with the current — lower wherever that scale is nearer 0.
 Taking the figures' own as unbiased (its scale and offset determined with the current
-seen on both axes), the one-axis correction's offset at this reading is their
-difference ``d``, known exactly from the two sets of parameters, and its expected
-squared error is the smaller when ``d² < (g_own² − g_one²)·σ²``, σ the reading's
+seen on both axes), the one-axis correction's offset at this speed is their
+difference ``d``, computed from the two sets of parameters and weighed as its mean
+over the readings of the last :data:`CHOICE_S` (one reading's ``d`` carries that
+reading's noise, :class:`ForwardChoice`), and its expected squared error is the
+smaller when ``d² < (g_own² − g_one²)·σ²``, σ the reading's
 noise (measured by the learner, the scatter of the readings inside each block). On a
 straight run where the one-axis offset happens to fit (its scale held, its noise
 divided by less) that sends the one-axis speed; where its offset does not (the
@@ -77,6 +79,7 @@ No I/O, no clock.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -317,15 +320,59 @@ def noise_gain(p: Params | None, v_mps: float) -> float:
     return 1.0 / slope if slope > 0.0 else math.inf
 
 
-def one_axis_better(
-    own_mps: float, own_gain: float, one_mps: float, one_gain: float, noise_var: float
-) -> bool:
+def one_axis_better(d_mps: float, own_gain: float, one_gain: float, noise_var: float) -> bool:
     """Whether the one-axis correction of a reading has the smaller expected squared
     error than the figures' own (module docstring): the figures' own taken as unbiased,
-    the one-axis one's offset is their difference, and it wins when that squared is
-    under the noise it spares, ``(g_own² − g_one²)·σ²``."""
+    the one-axis one's offset is ``d_mps``, the two corrections' difference, and it
+    wins when that squared is under the noise it spares, ``(g_own² − g_one²)·σ²``."""
     spare = (own_gain * own_gain - one_gain * one_gain) * noise_var
-    return math.isfinite(spare) and spare > 0.0 and (one_mps - own_mps) ** 2 < spare
+    return math.isfinite(spare) and spare > 0.0 and d_mps * d_mps < spare
+
+
+CHOICE_S = 1.0
+"""The one-axis correction's offset a reading's choice weighs (:class:`ForwardChoice`)
+is the mean of the two corrections' difference over the readings of this many seconds
+up to it. One reading's difference carries its noise times the difference of the two
+corrections' slopes (0.05 m/s of noise, scales −0.15 and −0.20: ±4 mm/s), enough to
+flip a choice near the bound from reading to reading; ten readings of a 10-Hz log
+divide that by three, and the speed a ship holds changes little in one second."""
+
+
+class ForwardChoice:
+    """Which correction a reading's forward speed goes out by, readings one after the
+    other: the one-axis one where :func:`one_axis_better` holds for the mean of the two
+    corrections' difference over the last :data:`CHOICE_S` (the reading's included),
+    else the figures' own. Keep one per stream of readings (a VBW's and a VHW's forward
+    speeds differ by their turning back)."""
+
+    def __init__(self) -> None:
+        self._diffs: deque[tuple[float, float]] = deque()
+        self._sum = 0.0
+
+    def one_axis(
+        self,
+        t: float,
+        own_mps: float,
+        own_gain: float,
+        one_mps: float,
+        one_gain: float,
+        noise_var: float | None,
+    ) -> bool:
+        """Whether the reading at ``t`` goes out by the one-axis correction ``one_mps``
+        rather than the figures' own ``own_mps`` (their noise gains given), at the
+        reading's noise variance ``noise_var`` (None: not measured, the figures' own)."""
+        diffs = self._diffs
+        if diffs and t < diffs[-1][0]:
+            diffs.clear()
+            self._sum = 0.0
+        d = one_mps - own_mps
+        diffs.append((t, d))
+        self._sum += d
+        while diffs[0][0] <= t - CHOICE_S:
+            self._sum -= diffs.popleft()[1]
+        if noise_var is None:
+            return False
+        return one_axis_better(self._sum / len(diffs), own_gain, one_gain, noise_var)
 
 
 def own_forward_ok(r: Mapping[str, float]) -> bool:

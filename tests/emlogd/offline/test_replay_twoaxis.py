@@ -56,8 +56,9 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
 def test_two_axis_learnt_applied_and_scored(replayed: dict[str, object]) -> None:
     """The figures learnt within 0.3° of 3° and applied; once applied the corrected
     athwart speed is within 1.1 times its floor where raw is four times it; the
-    forward speed of the VBW no worse than the one-axis calibration's; a one-axis
-    UUT's entry has no two-axis keys."""
+    forward speed of the VBW no worse than the one-axis calibration's, its worst
+    5-minute window against the one-axis calibration's scored over the replay and per
+    trajectory; a one-axis UUT's entry has no two-axis keys."""
     uuts = replayed["uuts"]
     assert isinstance(uuts, dict)
     two = uuts["emlog2"]["two_axis"]
@@ -79,6 +80,10 @@ def test_two_axis_learnt_applied_and_scored(replayed: dict[str, object]) -> None
     assert (
         scores["worst_window_raw"]["rmse_t_corrected"] <= scores["worst_window_raw"]["rmse_t_raw"]
     )
+    for sc in (scores, eight, circles):
+        fw = sc["forward_worst_window_one_axis"]
+        assert fw["n_samples"] > 100
+        assert fw["ratio"] == pytest.approx(fw["rmse_l_corrected"] / fw["rmse_l_one_axis"], 1e-3)
     assert "two_axis" not in uuts["emlog1"] and "two_axis_truth" not in uuts["emlog1"]
 
 

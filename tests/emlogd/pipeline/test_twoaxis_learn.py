@@ -24,7 +24,7 @@ from emlogd.pipeline.twoaxis_learn import (
     TwoAxisLearner,
     encode_two_axis_status,
 )
-from emlogd.pipeline.twoaxis_sup import OFFER_SHARPER, Figures
+from emlogd.pipeline.twoaxis_sup import OFFER_SHARPER, Figures, Guard, noise_gain
 from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_series, two_axis_trial
 
 SETTINGS = UutSettings(
@@ -91,7 +91,7 @@ def test_figure8_learns_and_applies(figure8: tuple[TwoAxisLearner, Events]) -> N
     raw_t = (1.0 + TWO_AXIS_TRUTH.m_t) * (
         w * math.cos(a) - u * math.sin(a)
     ) + TWO_AXIS_TRUTH.b_t_mps
-    out = lr.correct(u + w * math.tan(a), raw_t)
+    out = lr.correct(0.0, u + w * math.tan(a), raw_t)
     assert out is not None
     assert out == pytest.approx((u, w), abs=0.02)
     msg = pynmea2.parse(encode_two_axis_status("log", "EML", lr), check=True)
@@ -142,7 +142,7 @@ def test_straight_run_refuses_alpha() -> None:
     lr, events = _learn("straight", TWO_AXIS_TRUTH, 4, n=7000)
     assert lr.estimate is None and lr.sup.applied is None
     assert "speed through water nearly constant" in lr.refused
-    assert lr.correct(2.0, 0.1) is None
+    assert lr.correct(0.0, 2.0, 0.1) is None
     assert [k for _, k, _ in events] == ["two_axis_refused"]
     assert encode_two_axis_status("log", "EML", lr).split(",")[-1].startswith("R*")
 
@@ -153,7 +153,7 @@ def test_circles_one_way_refuse_alpha_in_words_an_operator_reads() -> None:
     speed a fixed fraction of the forward speed, the turns one way) and what determines
     it (turns to both sides, a figure-8); nothing is applied, the VBW left as read."""
     lr, events = _learn("circles", TWO_AXIS_TRUTH, 5, n=7000)
-    assert lr.estimate is None and lr.sup.applied is None and lr.correct(2.0, 0.1) is None
+    assert lr.estimate is None and lr.sup.applied is None and lr.correct(0.0, 2.0, 0.1) is None
     why = str(lr.status()["refused"])
     assert why.startswith("misalignment not determinable: ")
     assert "sideways speed through the water is a fixed fraction of the forward speed" in why
@@ -342,3 +342,39 @@ def test_a_reading_goes_out_by_the_correction_of_the_smaller_expected_error() ->
     assert sent(2.0, agree) == pytest.approx((one, v), abs=0.003)
     assert sent(3.0, off) == pytest.approx((own, own), abs=0.003)
     assert ax.forward_by == {"own": 4, "one_axis": 2}
+
+
+def test_a_reading_s_choice_is_weighed_on_the_second_before_it() -> None:
+    """The choice between the two corrections weighs the one-axis offset as its mean over
+    the readings of the last second, not the reading's own: readings alternating by
+    ±0.1 m/s of noise about a speed where the one-axis offset (15 mm/s) is inside the
+    21 mm/s its gain spares go out by the one-axis correction from the second reading
+    on, though every other reading's own offset (22 mm/s) is outside it; a reading
+    after a gap longer than the second weighs itself alone."""
+    lr = TwoAxisLearner(SETTINGS, lambda *_: None)
+    lon = Params("EM3", m=-0.2, b_mps=0.1)
+    fig = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
+    lr.sup.applied, lr.sup.forward_own = fig, True
+    lr._scatter_sum[:] = [0.0025 * 1000, 1000]
+    raw, ath = 2.0, -0.1
+    ca = math.cos(math.radians(3.0))
+    v = (lon.correct(raw) + 0.015 / ca) / ca
+    one = Params("EM3", m=-0.15, b_mps=raw - 0.85 * v)
+    guard = Guard(0, False, one)
+
+    def by_one_axis(t: float, r: float) -> bool:
+        out = lr.correct(t, one.correct(r), ath, r, guard)
+        assert out is not None
+        return out[0] == pytest.approx(fig.hull_frame(one.correct(r), ath)[0], abs=1e-12)
+
+    own_gain = ca * noise_gain(lon, lon.correct(raw))
+    one_gain = ca * ca * noise_gain(one, v)
+    bound = math.sqrt((own_gain**2 - one_gain**2) * 0.0025)
+    offsets = [
+        fig.hull_frame(one.correct(r), ath)[0] - fig.hull_frame_own(r, ath)[0]
+        for r in (raw - 0.1, raw + 0.1)
+    ]
+    assert abs(offsets[0]) > bound > abs(offsets[1]) and abs(sum(offsets) / 2) < bound
+    chosen = [by_one_axis(0.1 * k, raw + (0.1 if k % 2 else -0.1)) for k in range(20)]
+    assert chosen == [False] + [True] * 19
+    assert not by_one_axis(10.0, raw - 0.1)
