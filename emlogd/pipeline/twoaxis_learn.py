@@ -201,12 +201,12 @@ class TwoAxisLearner:
         self._scatter_sum = [0.0, 0]
         """Their totals."""
         self.forward_by = {"own": 0, "one_axis": 0}
-        self.choice = {"VBW": ForwardChoice(), "VHW": ForwardChoice()}
-        """The choice between the two corrections, per sentence whose forward speed it
-        is (a VBW's is turned back by α, a VHW's one-axis speed is not)."""
         """Readings whose forward speed went out by the figures' own correction, or by the
         one-axis one where that has the smaller expected error, while the figures' own
         was let out (:func:`~emlogd.pipeline.twoaxis_sup.one_axis_better`)."""
+        self.choice = {"VBW": ForwardChoice(), "VHW": ForwardChoice()}
+        """The choice between the two corrections, per sentence whose forward speed it
+        is (a VBW's is turned back by α, a VHW's one-axis speed is not)."""
         self.tap: Callable[[float, float, float, float, bool], None] | None = None
         """Offline use (``replay --truth``): receives every VBW reading as ``(t, forward
         corrected by the one-axis calibration, raw forward, raw athwart, figures
