@@ -378,3 +378,25 @@ def test_a_port_that_cannot_be_opened_at_the_start_is_listed_and_tried_again(
         for fd in (emlog, dvl):
             if fd >= 0:
                 os.close(fd)
+
+
+def test_a_reload_swapping_the_pty_and_the_control_socket_swaps_them(tmp_path: Path) -> None:
+    """SIGHUP into a config whose ``control_socket`` is the old pty's path and whose pty
+    is published at the old control socket's: within the reload the control socket
+    answers at its new path and the pty is published at its own (its link names a pty),
+    no ``reload_outputs_failed``. The pty found the old control socket in its way and
+    failed (``reload_outputs_failed``), published only by the retry 2 s later: no output
+    for the autopilot meanwhile, and an error in the log for a config that was good."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    cfg = work / "emlogd.yaml"
+    text = cfg.read_text().replace("out/emlog0", "SWAP").replace("run/control.sock", "out/emlog0")
+    pty, control = work / "run" / "control.sock", work / "out" / "emlog0"
+    with _pd0_daemon(work) as (d, _):
+        cfg.write_text(text.replace("SWAP", "run/control.sock"))
+        d.send_signal(signal.SIGHUP)
+        wait(lambda: d.events("reloaded") >= 1, "the reload", 10.0)
+        assert d.events("reload_outputs_failed") == 0, d.tail()
+        assert pty.is_symlink() and str(pty.readlink()).startswith("/dev/pts/")
+        assert request(control, {"cmd": "status"}).get("ok") is True
+        d.socket = control
+        assert d.stop() == 0
