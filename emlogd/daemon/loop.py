@@ -592,6 +592,14 @@ class Daemon:
             return {"uuts": list(reset), "reset": reset, "persisted": True}
         raise ValueError(f"unknown cmd {cmd!r}")
 
+    def _sync_outputs(self, cfg: Config) -> tuple[list[str], list[str], DeviceError | None]:
+        """:meth:`Outputs.sync`: the outputs closed and opened, and the first that failed."""
+        try:
+            closed, opened = self.outputs.sync(cfg)
+        except DeviceError as exc:
+            return [], [], exc
+        return closed, opened, None
+
     def _reload(self, loaded: Config | Exception | None = None) -> None:
         """Apply a new config, touching only what changed (docs/DEPLOY.md, "Reload").
 
@@ -630,15 +638,16 @@ class Daemon:
             self._close_source(name)
         self._open_sources(new)
         logsetup.follow_config(new.log_format, new.log_level, new.outputs.stdout)
-        try:
-            closed, opened = self.outputs.sync(new)
-        except DeviceError as exc:
-            closed, opened = [], []
-            self.log.error("reload_outputs_failed", error=str(exc))
+        closed, opened, failed = self._sync_outputs(new)
         try:
             self._sync_controls()
         except DeviceError as exc:
             self.log.error("reload_control_failed", error=str(exc))
+        if failed is not None:  # once more: a path the old control socket held is free now
+            _, more, failed = self._sync_outputs(new)
+            opened += more
+        if failed is not None:
+            self.log.error("reload_outputs_failed", error=str(failed))
         state_path = Path(new.state_path)
         if self.state_override is None and self.store is not None and state_path != self.store.path:
             self.log.warning(

@@ -230,6 +230,10 @@ class StateStore:
             )
         self.backup_problem = None
         real = self.real_path  # a symlink's target replaced, the link left a link
+        if _is_device(real):  # no temporary file beside it (in /dev for /dev/null)
+            raise StateWriteError(
+                f"cannot write {self.path}: a device or a socket, left where it is"
+            )
         d = real.parent
         tmp = d / f".{real.name}.{os.getpid()}.tmp"
         try:

@@ -575,6 +575,29 @@ def test_a_device_at_the_state_path_is_left_where_it_is(tmp_path: Path, kind: st
             sock.close()
 
 
+@pytest.mark.parametrize("kind", ["device", "socket"])
+def test_a_state_file_linked_to_a_device_is_refused_and_the_link_kept(
+    tmp_path: Path, kind: str
+) -> None:
+    """The state file a symlink to a character device (``→ /dev/null``) or a socket: the
+    save refuses (``StateWriteError``), the link and the node stay, and nothing is written
+    in the node's directory (``/dev`` for ``/dev/null``). The link was moved aside to
+    ``.refused`` and a regular file written in its place."""
+    nodes = tmp_path / "dev"
+    nodes.mkdir()
+    sock = _device_or_socket(nodes / "null", kind)
+    store = StateStore(tmp_path / "state.yaml")
+    store.path.symlink_to(nodes / "null")
+    try:
+        with pytest.raises(StateWriteError, match="a device or a socket, left where it is"):
+            store.save({"emlog1": saved_calibration(0.1)})
+        assert store.path.is_symlink() and sorted(p.name for p in nodes.iterdir()) == ["null"]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["dev", "state.yaml"]
+    finally:
+        if sock is not None:
+            sock.close()
+
+
 def _many(n: int) -> dict[str, Calibration]:
     return {f"e{i}": dataclasses.replace(_state(), uut=f"e{i}") for i in range(n)}
 
