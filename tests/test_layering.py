@@ -134,6 +134,30 @@ def _within(mod: str, packages: tuple[str, ...]) -> bool:
     return any(mod == p or mod.startswith(p + ".") for p in packages)
 
 
+def _stray_strings(node: ast.AST) -> list[int]:
+    """The lines of the string statements in ``node``'s bodies that are neither its
+    docstring nor right under an assignment (an attribute's docstring)."""
+    defines = isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
+    lines = []
+    for name in ("body", "orelse", "finalbody"):
+        body = getattr(node, name, None)
+        if not isinstance(body, list):
+            continue
+        for i, stmt in enumerate(body):
+            if not (
+                isinstance(stmt, ast.Expr)
+                and isinstance(stmt.value, ast.Constant)
+                and isinstance(stmt.value.value, str)
+            ):
+                continue
+            if i == 0 and name == "body" and defines:
+                continue
+            if i > 0 and isinstance(body[i - 1], ast.Assign | ast.AnnAssign):
+                continue
+            lines.append(stmt.lineno)
+    return lines
+
+
 class TestImportDirection:
     """Imports go one way: emlogd -> drivers, calib."""
 
@@ -247,6 +271,17 @@ class TestConventions:
                     if isinstance(node, ast.ClassDef):
                         bases = {ast.unparse(b) for b in node.bases}
                         assert "BaseException" not in bases, f"{path}:{node.name}"
+
+    def test_every_docstring_sits_on_its_definition(self) -> None:
+        """A string statement is a module's, class's or function's first statement or an
+        attribute's docstring right under its assignment: one anywhere else documents
+        nothing (two in a row, the second meant for an attribute whose own sits above)."""
+        stray = []
+        for package in PACKAGES:
+            for path in _sources(package):
+                for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                    stray += [f"{path.relative_to(ROOT)}:{line}" for line in _stray_strings(node)]
+        assert not stray, stray
 
     def test_no_logging_basicconfig(self) -> None:
         """Library code never configures the stdlib root logger."""
