@@ -234,14 +234,20 @@ def time_reset(text: str) -> str:
     return _retimed(text, lambda _i, t: t - back if t.timestamp() >= mid else t)
 
 
+def _across_midnight(text: str) -> tuple[str, datetime | None]:
+    """The log shifted to cross midnight (:func:`_shift_to_midnight`) and its first fix's
+    time (None: no fix)."""
+    shifted, _ = _shift_to_midnight(text)
+    fixes = [t for _, t in _fix_seconds(shifted)]
+    return shifted, datetime.fromtimestamp(fixes[0], UTC) if fixes else None
+
+
 def midnight_date_late(text: str) -> str:
     """The log across midnight, RMC's date advancing only :data:`DATE_LATE_S` after it
     (a receiver latching the date late: its time rolls over, its date stays)."""
-    shifted, _ = _shift_to_midnight(text)
-    fixes = [t for _, t in _fix_seconds(shifted)]
-    if not fixes:
+    shifted, t0 = _across_midnight(text)
+    if t0 is None:
         return shifted
-    t0 = datetime.fromtimestamp(fixes[0], UTC)
     midnight = datetime(t0.year, t0.month, t0.day, tzinfo=UTC) + timedelta(days=1)
     late = midnight + timedelta(seconds=DATE_LATE_S)
 
@@ -259,11 +265,9 @@ def midnight_date_late(text: str) -> str:
 def leap_second(text: str) -> str:
     """The log across midnight with a leap second: ``23:59:60`` between ``23:59:59``
     and ``00:00:00``, the later fixes labelled a second earlier."""
-    shifted, _ = _shift_to_midnight(text)
-    fixes = [t for _, t in _fix_seconds(shifted)]
-    if not fixes:
+    shifted, t0 = _across_midnight(text)
+    if t0 is None:
         return shifted
-    t0 = datetime.fromtimestamp(fixes[0], UTC)
     midnight = datetime(t0.year, t0.month, t0.day, tzinfo=UTC) + timedelta(days=1)
 
     def fn(f: list[str]) -> list[str] | None:

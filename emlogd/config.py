@@ -29,15 +29,14 @@ from drivers import Use, get_decoder, protocols_for
 from drivers.errors import ConfigError
 from drivers.io.port import url_problem
 from emlogd.configclash import path_clash, tcp_clash
+from emlogd.confignodes import Ctx, Loader, build_section, refuse_unknown, section
 from emlogd.configyaml import YAML_FAILURES, yaml_depth_error, yaml_why
 from emlogd.fileio import read_text_bounded
 from emlogd.pipeline.fusion import FusionSettings
 from emlogd.pipeline.keys import (
     Check,
-    Entry,
     InvalidValueError,
     boolean,
-    build,
     entries,
     group,
     ipv4_port,
@@ -323,12 +322,6 @@ SECTIONS: tuple[tuple[str, type], ...] = (
 )
 """Each section's prefix in a key's full name, and its dataclass."""
 
-RENAMED: dict[str, str] = {
-    "status_interval_s": "status_log_interval_s",
-    "outputs.status_interval_s": "outputs.status_sentence_interval_s",
-}
-"""Keys of earlier versions, refused with their new names."""
-
 
 def heading_expected(heading: str, reference_field: str, reference_protocol: str) -> bool:
     """A heading is known to come for a UUT: a heading port is named, the reference is a
@@ -341,110 +334,6 @@ def heading_expected(heading: str, reference_field: str, reference_protocol: str
     if heading != "auto" or reference_field == "gnss":
         return True
     return reference_field in ("bottom", "water") and get_decoder(reference_protocol).heading
-
-
-# ------------------------------------------------------------------ loading
-
-
-class _Loader(yaml.SafeLoader):
-    """SafeLoader that keeps nodes (for line numbers)."""
-
-
-class _Ctx:
-    def __init__(self, path: str, loader: _Loader, base: Path | None) -> None:
-        self.path = path
-        self.loader = loader
-        self.base = base
-
-    def fail(self, node: yaml.Node | None, where: str, msg: str) -> ConfigError:
-        line = node.start_mark.line + 1 if node is not None else 1
-        return ConfigError(
-            f"{self.path}:{line}: {where}: {msg}" if where else f"{self.path}:{line}: {msg}"
-        )
-
-    def mapping(self, node: yaml.Node, where: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
-        if not isinstance(node, yaml.MappingNode):
-            raise self.fail(node, where, "expected a mapping (key: value)")
-        out: dict[str, tuple[yaml.Node, yaml.Node]] = {}
-        for k, v in node.value:
-            if not isinstance(k, yaml.ScalarNode) or not isinstance(k.value, str):
-                raise self.fail(k, where, "keys must be strings")
-            if k.value in out:
-                raise self.fail(k, f"{where}.{k.value}" if where else k.value, "duplicate key")
-            out[k.value] = (k, v)
-        return out
-
-    def sequence(self, node: yaml.Node, where: str) -> list[yaml.Node]:
-        if not isinstance(node, yaml.SequenceNode):
-            raise self.fail(node, where, "expected a list")
-        return list(node.value)
-
-    def value(self, node: yaml.Node, where: str, e: Entry) -> Any:
-        """The checked value of key ``e`` at ``node``."""
-        sub: dict[str, tuple[yaml.Node, yaml.Node]] = {}
-        if e.key.check.mapping:
-            sub = self.mapping(node, where)
-        elif not isinstance(node, yaml.ScalarNode):
-            raise self.fail(node, where, "expected a single value")
-        try:
-            raw = self.loader.construct_object(node, deep=True)
-        except YAML_FAILURES as exc:
-            raise self.fail(node, where, f"not a valid value ({yaml_why(exc)})") from None
-        try:
-            v = e.key.check(raw)
-        except InvalidValueError as exc:
-            if exc.sub is not None:
-                raise self.fail(sub[exc.sub][0], f"{where}.{exc.sub}", str(exc)) from None
-            raise self.fail(node, where, str(exc)) from None
-        if e.key.path and isinstance(v, str) and "\0" in v:
-            # no file name holds one: the open or bind raised ValueError, which ended
-            # the daemon at a reload (the output pty, the control and status sockets)
-            raise self.fail(node, where, f"{v!r}: a path cannot hold a NUL character")
-        if (
-            e.key.path
-            and self.base is not None
-            and isinstance(v, str)
-            and "://" not in v
-            and not v.startswith("/")
-        ):
-            v = str(self.base / v)
-        return v
-
-
-def _known(ctx: _Ctx, kn: yaml.Node, where: str, full: str, valid: list[str]) -> None:
-    """Refuse a key that is not in ``valid`` (a renamed one with its new name)."""
-    if full in RENAMED:
-        raise ctx.fail(kn, where, f"renamed: use {RENAMED[full]}")
-    raise ctx.fail(kn, where, f"unknown key (valid: {', '.join(valid)})")
-
-
-def _section(
-    ctx: _Ctx, node: yaml.Node, where: str, cls: type, prefix: str
-) -> tuple[dict[str, Any], dict[str, yaml.Node]]:
-    """Check a mapping against the keys ``cls`` declares: the values by key name (a key
-    absent whose config default is not the field's included) and the value nodes."""
-    m = ctx.mapping(node, where)
-    by_name = {e.name: e for e in entries(cls)}
-    for k, (kn, _) in m.items():
-        if k not in by_name:
-            _known(ctx, kn, f"{where}.{k}" if where else k, prefix + k, list(by_name))
-    for e in by_name.values():
-        if e.required and e.name not in m:
-            raise ctx.fail(node, where, f"missing required key {e.name!r}")
-    kw = {k: ctx.value(vn, f"{where}.{k}" if where else k, by_name[k]) for k, (_, vn) in m.items()}
-    for e in by_name.values():
-        if e.name not in kw and e.key.absent:
-            kw[e.name] = e.key.absent[0]
-    return kw, {k: vn for k, (_, vn) in m.items()}
-
-
-def _build(
-    cls: type, kw: Mapping[str, Any], extra: Mapping[tuple[str, ...], Any] | None = None
-) -> Any:
-    """``cls`` from checked values by key name, and fields that are no keys by attribute
-    path in ``extra``."""
-    attrs = {e.name: e.attrs for e in entries(cls)}
-    return build(cls, {**{attrs[k]: v for k, v in kw.items()}, **(extra or {})})
 
 
 def _either(use: Use) -> str:
@@ -463,7 +352,7 @@ def _needs(field_: RefField) -> str:
 
 
 def _check_uut(
-    ctx: _Ctx,
+    ctx: Ctx,
     kw: dict[str, Any],
     at: Mapping[str, yaml.Node],
     where: str,
@@ -538,7 +427,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
     deep = yaml_depth_error(text)
     if deep:
         raise ConfigError(f"{path}:1: not valid YAML: {deep}")
-    loader = _Loader(text)
+    loader = Loader(text)
     try:
         root = loader.get_single_node()
     except YAML_FAILURES as exc:
@@ -549,7 +438,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
         ) from None
     finally:
         loader.dispose()
-    ctx = _Ctx(path, loader, base)
+    ctx = Ctx(path, loader, base)
     if root is None:
         raise ConfigError(f"{path}:1: the config is empty")
     top = ctx.mapping(root, "")
@@ -557,7 +446,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
     known = {"ports", "calibration", "outputs", *top_keys}
     for k, (kn, _) in top.items():
         if k not in known:
-            _known(ctx, kn, k, k, sorted(known))
+            refuse_unknown(ctx, kn, k, k, sorted(known))
     if "ports" not in top:
         raise ctx.fail(root, "", "missing required key 'ports'")
     ports = _parse_ports(ctx, top["ports"][1])
@@ -566,7 +455,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
     cal_nodes = ctx.sequence(top["calibration"][1], "calibration") if "calibration" in top else []
     for i, node in enumerate(cal_nodes):
         where = f"calibration[{i}]"
-        kw, at = _section(ctx, node, where, UutConfig, "calibration[].")
+        kw, at = section(ctx, node, where, UutConfig, "calibration[].")
         _check_uut(ctx, kw, at, where, by_name)
         if any(c["uut"] == kw["uut"] for c in cals):
             raise ctx.fail(at["uut"], f"{where}.uut", f"{kw['uut']!r} is calibrated twice")
@@ -592,7 +481,7 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
             ("settings", "maker"): outputs.maker,
             ("settings", "status_sentence_interval_s"): outputs.status_sentence_interval_s,
         }
-        uuts.append(_build(UutConfig, kw, extra))
+        uuts.append(build_section(UutConfig, kw, extra))
     _check_one_speed_per_talker(ctx, top["outputs"][1] if "outputs" in top else None, uuts, outputs)
     rest = {
         top_keys[k].attrs[0]: ctx.value(vn, k, top_keys[k])
@@ -604,34 +493,34 @@ def parse_config(text: str, path: str = "<config>", *, base: Path | None = None)
     return cfg
 
 
-def _refuse_path_clash(ctx: _Ctx, top: dict[str, tuple[yaml.Node, yaml.Node]], cfg: Config) -> None:
+def _refuse_path_clash(ctx: Ctx, top: dict[str, tuple[yaml.Node, yaml.Node]], cfg: Config) -> None:
     """Refuse two sockets, the state file or two ptys at one path (:func:`path_clash`)."""
     clash, name, section = path_clash(cfg)
     if clash:
         raise ctx.fail(top.get(section, (None, None))[1], name, clash)
 
 
-def _parse_ports(ctx: _Ctx, node: yaml.Node) -> list[PortConfig]:
+def _parse_ports(ctx: Ctx, node: yaml.Node) -> list[PortConfig]:
     """The ``ports`` section: at least one, each name once."""
     ports: list[PortConfig] = []
     for i, item in enumerate(ctx.sequence(node, "ports")):
         where = f"ports[{i}]"
-        kw, at = _section(ctx, item, where, PortConfig, "ports[].")
+        kw, at = section(ctx, item, where, PortConfig, "ports[].")
         if any(p.name == kw["name"] for p in ports):
             raise ctx.fail(at["name"], f"{where}.name", f"duplicate port name {kw['name']!r}")
-        ports.append(_build(PortConfig, kw))
+        ports.append(build_section(PortConfig, kw))
     if not ports:
         raise ctx.fail(node, "ports", "at least one port is needed")
     return ports
 
 
 def _parse_outputs(
-    ctx: _Ctx, node: yaml.Node, cals: Sequence[Mapping[str, Any]], by_name: Mapping[str, Any]
+    ctx: Ctx, node: yaml.Node, cals: Sequence[Mapping[str, Any]], by_name: Mapping[str, Any]
 ) -> OutputConfig:
     """The ``outputs`` section: no two TCP outputs on one port (:func:`tcp_clash`), no
     port named ``fused`` beside a fused output."""
-    kw, _ = _section(ctx, node, "outputs", OutputConfig, "outputs.")
-    outputs: OutputConfig = _build(OutputConfig, kw)
+    kw, _ = section(ctx, node, "outputs", OutputConfig, "outputs.")
+    outputs: OutputConfig = build_section(OutputConfig, kw)
     clash = tcp_clash([t for t in (outputs.tcp, *(c.get("tcp") for c in cals)) if t])
     if clash:
         raise ctx.fail(node, "outputs.tcp", clash)
@@ -645,7 +534,7 @@ def _parse_outputs(
 
 
 def _check_one_speed_per_talker(
-    ctx: _Ctx, node: yaml.Node | None, uuts: Sequence[UutConfig], outputs: OutputConfig
+    ctx: Ctx, node: yaml.Node | None, uuts: Sequence[UutConfig], outputs: OutputConfig
 ) -> None:
     """Refuse two logs' speeds under one talker on one declared output: an autopilot
     reading `$VWVHW` from two logs cannot tell them apart (a config without an

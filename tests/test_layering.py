@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -30,12 +31,23 @@ class Rule:
         top: top-level modules (``os``, ``emlogd``...) none of the folder's modules imports.
         within: packages or modules (``emlogd.cli``...) none of them imports, nor anything
             inside them.
+        only: if not None, the only top-level modules besides the standard library's that
+            the folder's modules import (a new dependency breaks the rule without a list
+            naming it).
         why: the rule in words (docs/ARCHITECTURE.md).
     """
 
     top: frozenset[str] = frozenset()
     within: tuple[str, ...] = ()
+    only: frozenset[str] | None = None
     why: str = ""
+
+    def forbidden(self, top: set[str]) -> set[str]:
+        """The top-level modules of ``top`` this rule forbids."""
+        bad = top & self.top
+        if self.only is not None:
+            bad |= {m for m in top if m not in self.only and m not in sys.stdlib_module_names}
+        return bad
 
 
 FOLDER_RULES = {
@@ -44,6 +56,7 @@ FOLDER_RULES = {
             {"drivers", "emlogd", "serial", "yaml", "structlog", "pynmea2", "matplotlib"}
             | {"socket", "selectors"}
         ),
+        only=frozenset({"numpy", "calib"}),
         why="the mathematics: numpy and the stdlib only, no I/O",
     ),
     "drivers": Rule(
@@ -121,6 +134,30 @@ def _within(mod: str, packages: tuple[str, ...]) -> bool:
     return any(mod == p or mod.startswith(p + ".") for p in packages)
 
 
+def _stray_strings(node: ast.AST) -> list[int]:
+    """The lines of the string statements in ``node``'s bodies that are neither its
+    docstring nor right under an assignment (an attribute's docstring)."""
+    defines = isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
+    lines = []
+    for name in ("body", "orelse", "finalbody"):
+        body = getattr(node, name, None)
+        if not isinstance(body, list):
+            continue
+        for i, stmt in enumerate(body):
+            if not (
+                isinstance(stmt, ast.Expr)
+                and isinstance(stmt.value, ast.Constant)
+                and isinstance(stmt.value.value, str)
+            ):
+                continue
+            if i == 0 and name == "body" and defines:
+                continue
+            if i > 0 and isinstance(body[i - 1], ast.Assign | ast.AnnAssign):
+                continue
+            lines.append(stmt.lineno)
+    return lines
+
+
 class TestImportDirection:
     """Imports go one way: emlogd -> drivers, calib."""
 
@@ -137,7 +174,7 @@ class TestImportDirection:
             return
         folder = _rule_folder(path)
         rule = FOLDER_RULES[folder]
-        bad = sorted(_imports(path) & rule.top) + sorted(
+        bad = sorted(rule.forbidden(_imports(path))) + sorted(
             m for m in _modules(path) if _within(m, rule.within)
         )
         assert not bad, f"{rel} imports {bad}: {folder}/ rule: {rule.why}"
@@ -153,6 +190,13 @@ class TestImportDirection:
         assert _rule_folder(ROOT / "calib" / "kalman" / "filters.py") == "calib"
         assert _rule_folder(ROOT / "emlogd" / "pipeline" / "core.py") == "emlogd/pipeline"
         assert _rule_folder(ROOT / "emlogd" / "config.py") == "emlogd"
+
+    def test_calib_imports_only_numpy_and_the_stdlib(self) -> None:
+        """calib's rule admits numpy, calib and the standard library and nothing else, so a
+        new third-party import (scipy) breaks it though no list names it."""
+        rule = FOLDER_RULES["calib"]
+        assert rule.forbidden({"numpy", "calib", "math", "dataclasses"}) == set()
+        assert rule.forbidden({"numpy", "scipy", "drivers", "os"}) == {"scipy", "drivers"}
 
     def test_only_the_cli_prints(self) -> None:
         """No module of emlogd/ but the CLI's calls print."""
@@ -227,6 +271,17 @@ class TestConventions:
                     if isinstance(node, ast.ClassDef):
                         bases = {ast.unparse(b) for b in node.bases}
                         assert "BaseException" not in bases, f"{path}:{node.name}"
+
+    def test_every_docstring_sits_on_its_definition(self) -> None:
+        """A string statement is a module's, class's or function's first statement or an
+        attribute's docstring right under its assignment: one anywhere else documents
+        nothing (two in a row, the second meant for an attribute whose own sits above)."""
+        stray = []
+        for package in PACKAGES:
+            for path in _sources(package):
+                for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                    stray += [f"{path.relative_to(ROOT)}:{line}" for line in _stray_strings(node)]
+        assert not stray, stray
 
     def test_no_logging_basicconfig(self) -> None:
         """Library code never configures the stdlib root logger."""

@@ -16,13 +16,18 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TextIO
+from typing import Literal, TextIO
 
 from drivers.errors import EmlogdError, FrameError
 from drivers.framing import nmea_checksum, split_nmea
 from drivers.io.capture import CaptureWriter
 from emlogd.fileio import part_path, replaceable
 from emlogd.pipeline.variation import CourseOffsetCheck
+
+ImportFormat = Literal["nmea", "csv", "json", "n2k"]
+"""What an import reads: NMEA 0183 logs (:mod:`emlogd.offline.importnmea`), a CSV export
+(:mod:`emlogd.offline.importer`), Signal K or canboat analyzer JSON and canboat's plain
+text of NMEA 2000 (:mod:`emlogd.offline.importjson`)."""
 
 YEARS = (1980, 2100)
 """A row or fix time outside these years is a misread time (GPS-era logs only)."""

@@ -309,9 +309,9 @@ class UutRoute:
         self.sources_why = ""
         """Why the heading sources it reads leave it none to trust (``""``: they agree)."""
         self.stw: tuple[float, float] | None = None
+        """The latest corrected speed through the water (time, m/s)."""
         self.ground = GroundPair(s.ref_stale_s, s.max_accel_mps2, REFERENCE_JUMP_WINDOW_S)
         """The reference's latest speed over ground on the hull, for the corrected VBW."""
-        """The latest corrected speed through the water (time, m/s)."""
         self.implausible = {"implausible_accel": 0, "implausible_rate": 0}
         """Readings neither emitted nor learnt, by reason (shown with the counters)."""
         self.passed: Callable[[float, float], None] | None = None

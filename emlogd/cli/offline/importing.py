@@ -11,10 +11,13 @@ from typing import TYPE_CHECKING, get_args
 
 from emlogd.cli.common import Subparsers, UsageError, key_arg, progress, progress_done
 from emlogd.cli.offline.args import json_arg
+from emlogd.offline.importbase import ImportFormat
 from emlogd.offline.importer import HeadingRef
 from emlogd.pipeline.settings import UutSettings
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from emlogd.offline.importer import ImportReport
 
 
@@ -52,7 +55,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     """Turn NMEA logs or CSV exports into a capture."""
     if not args.port or not args.port.isidentifier():
         raise UsageError(f"--port must be a name (letters, digits, _), not {args.port!r}")
-    importers = {
+    importers: dict[ImportFormat, Callable[[argparse.Namespace], ImportReport]] = {
         "nmea": _import_nmea,
         "csv": _import_csv,
         "json": _import_json,
@@ -182,9 +185,7 @@ def add_parser(sub: Subparsers) -> None:
         "lines are counted by reason.",
     )
     p.add_argument("files", nargs="+", metavar="FILE", help="input files, in time order")
-    p.add_argument(
-        "--format", choices=["nmea", "csv", "json", "n2k"], required=True, help="input format"
-    )
+    p.add_argument("--format", choices=get_args(ImportFormat), required=True, help="input format")
     p.add_argument("--out", required=True, metavar="FILE.cap", help="capture to write (.gz ok)")
     p.add_argument("--port", default="nmea", help="port name in the capture (default nmea)")
     p.add_argument(

@@ -123,6 +123,19 @@ def raw_pty(link: Path) -> int:
     return master
 
 
+@contextmanager
+def device_ptys(links: Path, names: tuple[str, ...]) -> Iterator[list[int]]:
+    """Raw ptys published as ``links/NAME`` for each name (:func:`raw_pty`), their masters
+    closed on the way out."""
+    masters: list[int] = []
+    try:
+        masters += [raw_pty(links / name) for name in names]
+        yield masters
+    finally:
+        for fd in masters:
+            os.close(fd)
+
+
 def wait(cond: Callable[[], bool], what: str, timeout_s: float = 20.0) -> None:
     """Poll ``cond`` every 50 ms until it holds; fail with ``what`` after ``timeout_s``."""
     deadline = time.monotonic() + timeout_s

@@ -25,6 +25,7 @@ from emlogd.daemon.statefile import StateStore
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     Daemon,
+    device_ptys,
     free_port,
     make_work,
     raw_pty,
@@ -111,9 +112,8 @@ def test_a_udp_output_with_no_route_is_failing_and_the_pty_goes_on(tmp_path: Pat
     work = make_work(tmp_path, PD0_CONFIG)
     cfg = work / "emlogd.yaml"
     cfg.write_text(cfg.read_text().replace("{pty: out/emlog0}", UDP_BESIDE_PTY))
-    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
     argv = ["unshare", "-rn", sys.executable, "-m", "emlogd", "run", "--config", str(cfg)]
-    try:
+    with device_ptys(work / "links", ("emlog1", "dvl")) as masters:
         d = Daemon(work, pty=True, argv=argv)
         try:
             tty.setraw(d.fd)
@@ -129,9 +129,6 @@ def test_a_udp_output_with_no_route_is_failing_and_the_pty_goes_on(tmp_path: Pat
             assert d.stop() == 0
         finally:
             d.kill()
-    finally:
-        for fd in masters:
-            os.close(fd)
 
 
 UDP_BESIDE_PTY = '{pty: out/emlog0, udp: "192.0.2.9:10110"}'
@@ -208,8 +205,7 @@ def test_a_reload_swapping_two_tcp_outputs_addresses_swaps_them(tmp_path: Path) 
     a, b = free_port(), free_port()
     work = make_work(tmp_path, TWO_TCP.replace("{two}", str(b)).replace("{tcp}", str(a)))
     cfg = work / "emlogd.yaml"
-    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "emlog2", "dvl")]
-    try:
+    with device_ptys(work / "links", ("emlog1", "emlog2", "dvl")) as masters:
         d = Daemon(work)
         try:
             got = _talkers(a, masters)
@@ -227,9 +223,6 @@ def test_a_reload_swapping_two_tcp_outputs_addresses_swaps_them(tmp_path: Path) 
             assert d.stop() == 0
         finally:
             d.kill()
-    finally:
-        for fd in masters:
-            os.close(fd)
 
 
 STATUS_OFTEN = "{pty: out/emlog0, status_sentence_interval_s: 0.2}"

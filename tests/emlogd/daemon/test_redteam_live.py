@@ -40,6 +40,7 @@ from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     SPEED,
     Daemon,
+    device_ptys,
     free_port,
     make_work,
     raw_pty,
@@ -224,8 +225,7 @@ def test_a_dvl_sending_pd0_headers_of_long_ensembles_with_wrong_checksums(
     Each header cost a 16 KB sum in the daemon's one thread: the median VHW waited
     60 ms and 40 of 56 more than 100 ms."""
     work = make_work(tmp_path, PD0_CONFIG)
-    masters = [raw_pty(work / "links" / name) for name in ("emlog1", "dvl")]
-    try:
+    with device_ptys(work / "links", ("emlog1", "dvl")) as masters:
         d = Daemon(work, pty=True)
         try:
             tty.setraw(d.fd)
@@ -244,9 +244,6 @@ def test_a_dvl_sending_pd0_headers_of_long_ensembles_with_wrong_checksums(
             assert d.stop() == 0
         finally:
             d.kill()
-    finally:
-        for fd in masters:
-            os.close(fd)
 
 
 CONNECT_FLOOD = """\

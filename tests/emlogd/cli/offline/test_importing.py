@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import get_args
 
 import pytest
 
-from emlogd.cli import main
+from emlogd.cli import build_parser, main
+from emlogd.offline.importbase import ImportFormat
 
 
 def test_a_utc_offset_beyond_the_time_zones_is_a_usage_error(
@@ -49,3 +51,21 @@ def test_json_lines_import(capsys: pytest.CaptureFixture[str], tmp_path: Path) -
     argv = ["import", str(src), "--format", "json", "--out", str(tmp_path / "o.cap")]
     assert main(argv) == 0
     assert "1 sentences on port nmea (0.0 min) from 1 lines" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("fmt", get_args(ImportFormat))
+def test_every_import_format_is_a_choice_that_runs(
+    fmt: str, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """--format offers each member of ImportFormat and nothing else, and each reaches its
+    importer (a missing file: exit 1 naming it, not a usage error)."""
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    fmt_action = next(
+        a
+        for a in sub.choices["import"]._actions  # type: ignore[index]
+        if a.dest == "format"
+    )
+    assert list(fmt_action.choices) == list(get_args(ImportFormat))
+    missing = tmp_path / "missing.log"
+    assert main(["import", str(missing), "--format", fmt, "--out", str(tmp_path / "o.cap")]) == 1
+    assert "missing.log" in capsys.readouterr().err
