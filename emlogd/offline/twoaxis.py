@@ -14,6 +14,11 @@ the water frame on each axis: each capture's current is fitted with the paramete
 frozen (:func:`calib.twoaxis.fit_current_two_axis`, the ideal aligned sensor for the
 raw readings), and the corrected forward and athwart speeds are compared with the
 reference less that current.
+
+The forward speed reported beside a one-axis calibration of the same readings (the
+result's ``one_axis``) is the daemon's (:mod:`emlogd.offline.twoaxis_forward`): each
+reading's by the correction of the smaller expected error, the one-axis
+calibration's wherever α is refused.
 """
 
 from __future__ import annotations
@@ -45,6 +50,12 @@ from drivers.records import Rejected, SpeedRecord
 from emlogd.fileio import write_atomic
 from emlogd.offline.jobs import OfflineError
 from emlogd.offline.simtruth import Truth
+from emlogd.offline.twoaxis_forward import (
+    NO_ONE_AXIS,
+    ForwardRule,
+    forward_speed,
+    one_axis_forward,
+)
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
 from emlogd.pipeline.twoaxis_learn import CURRENT_KNOT_S
 
@@ -222,10 +233,12 @@ class AxisScores:
     Attributes:
         n_samples: samples scored.
         rmse_l_raw: forward, the raw reading, m/s.
-        rmse_l_cal: forward, corrected, m/s.
+        rmse_l_cal: forward, corrected (:func:`~emlogd.offline.twoaxis_forward.
+            forward_speed`), m/s.
         rmse_t_raw: athwart, the raw reading, m/s.
         rmse_t_cal: athwart, corrected, m/s.
         leeway_rms_deg: RMS of the corrected leeway angle, degrees.
+        rmse_l_one_axis: forward, the one-axis calibration's, m/s (nan: none known).
     """
 
     n_samples: int
@@ -234,6 +247,7 @@ class AxisScores:
     rmse_t_raw: float
     rmse_t_cal: float
     leeway_rms_deg: float
+    rmse_l_one_axis: float = math.nan
 
     def to_dict(self) -> dict[str, object]:
         """Plain types for JSON."""
@@ -244,6 +258,7 @@ class AxisScores:
             "rmse_t_raw": _fin(self.rmse_t_raw),
             "rmse_t_cal": _fin(self.rmse_t_cal),
             "leeway_rms_deg": _fin(self.leeway_rms_deg),
+            "rmse_l_one_axis": _fin(self.rmse_l_one_axis),
         }
 
 
@@ -256,8 +271,9 @@ def _rms(x: FloatArray) -> float:
     return math.sqrt(float(np.mean(x * x))) if x.size else math.nan
 
 
-def score(params: TwoAxisParams, a: TwoAxisAligned) -> AxisScores:
-    """RMSE per axis of the raw and the corrected readings against the reference less
+def score(params: TwoAxisParams, a: TwoAxisAligned, rule: ForwardRule = NO_ONE_AXIS) -> AxisScores:
+    """RMSE per axis of the raw and the corrected readings (the forward speed by
+    ``rule``; the one-axis calibration's scored too where it has one) against the reference less
     the capture's current, fitted for each calibration (the raw reading's for the
     ideal sensor) linear between knots :data:`CURRENT_KNOT_S` apart
     (:func:`calib.twoaxis.fit_current_two_axis`). On a steady heading at a steady
@@ -268,6 +284,10 @@ def score(params: TwoAxisParams, a: TwoAxisAligned) -> AxisScores:
     if n == 0:
         return AxisScores(0, math.nan, math.nan, math.nan, math.nan, math.nan)
     ideal = TwoAxisParams(Params(params.model))
+    fwd = forward_speed(a.t, a.raw_l, a.raw_t, params, rule)
+    one = (
+        None if rule.one_axis is None else one_axis_forward(a.raw_l, a.raw_t, params, rule.one_axis)
+    )
     out: list[float] = []
     for p in (ideal, params):
         cur = fit_current_two_axis(
@@ -278,10 +298,10 @@ def score(params: TwoAxisParams, a: TwoAxisAligned) -> AxisScores:
         )
         u, w = water_velocity(a.ref_fwd, a.ref_stb, a.heading, cur)
         cu, cw = p.correct(a.raw_l, a.raw_t)
-        out += [_rms(cu - u), _rms(cw - w)]
-    cu, cw = params.correct(a.raw_l, a.raw_t)
-    lee = leeway_deg(cu, cw)
-    return AxisScores(n, out[0], out[2], out[1], out[3], _rms(lee))
+        out += [_rms((fwd if p is params else cu) - u), _rms(cw - w)]
+    one_rmse = _rms(one - u) if one is not None else math.nan
+    lee = leeway_deg(fwd, params.correct(a.raw_l, a.raw_t)[1])
+    return AxisScores(n, out[0], out[2], out[1], out[3], _rms(lee), one_rmse)
 
 
 @dataclass(frozen=True, slots=True)
@@ -295,6 +315,8 @@ class TwoAxisResult:
     lag_source: str
     captures: tuple[str, ...]
     scores: AxisScores
+    rule: ForwardRule = NO_ONE_AXIS
+    """Whose forward speed is reported, with the one-axis calibration beside."""
 
     def to_dict(self) -> dict[str, object]:
         """JSON keys (README: ``calibrate --axes 2 --json``)."""
@@ -306,8 +328,17 @@ class TwoAxisResult:
             "lag_s": self.lag_s,
             "lag_source": self.lag_source,
             **self.fit.to_dict(),
+            **self.rule.to_dict(),
             "scores": self.scores.to_dict(),
         }
+
+
+def forward_rule(fit: TwoAxisFit, one_axis: Params | None) -> ForwardRule:
+    """The forward rule of a fit beside the one-axis calibration ``one_axis``: α's
+    refusal, with its reason, where the fit did not determine it."""
+    if "alpha" not in fit.ident.unidentifiable:
+        return ForwardRule(one_axis)
+    return ForwardRule(one_axis, fit.ident.verdict("alpha").reason or "misalignment refused")
 
 
 def calibrate_two_axis(
@@ -318,10 +349,12 @@ def calibrate_two_axis(
     *,
     lag_source: str = "given",
     reference: str = "dvl",
+    one_axis: Params | None = None,
 ) -> TwoAxisResult:
     """Fit the two-axis model on every capture together (least squares: a current per
     current linear between knots :data:`CURRENT_KNOT_S` apart; the filter: a current
-    that wanders).
+    that wanders); ``one_axis`` the one-axis calibration of the same forward readings,
+    kept beside it and weighed against it for the forward speed (:func:`forward_rule`).
 
     Raises:
         OfflineError: no aligned sample, a bad method or model.
@@ -353,7 +386,8 @@ def calibrate_two_axis(
             a.series(),
             current_knot_s=CURRENT_KNOT_S,
         )
-    scores = score(fit.params, a)
+    rule = forward_rule(fit, one_axis)
+    scores = score(fit.params, a, rule)
     return TwoAxisResult(
         fit,
         recs[0].uut if recs else "",
@@ -362,6 +396,7 @@ def calibrate_two_axis(
         lag_source,
         tuple(r.path for r in recs),
         scores,
+        rule,
     )
 
 
@@ -378,10 +413,13 @@ class TwoAxisRow:
 
 
 def evaluate_two_axis(
-    recs: Sequence[TwoAxisRecording], params: TwoAxisParams, lag_s: float
+    recs: Sequence[TwoAxisRecording],
+    params: TwoAxisParams,
+    lag_s: float,
+    rule: ForwardRule = NO_ONE_AXIS,
 ) -> list[TwoAxisRow]:
-    """RMSE per axis, raw and corrected, per capture."""
-    return [TwoAxisRow(r.path, score(params, r.aligned(lag_s))) for r in recs]
+    """RMSE per axis, raw and corrected (the forward speed by ``rule``), per capture."""
+    return [TwoAxisRow(r.path, score(params, r.aligned(lag_s), rule)) for r in recs]
 
 
 @dataclass(frozen=True, slots=True)
@@ -407,8 +445,15 @@ class CrossRow:
         }
 
 
-def crossval_two_axis(recs: Sequence[TwoAxisRecording], model: str, lag_s: float) -> list[CrossRow]:
-    """Least squares trained on each capture, evaluated on every other.
+def crossval_two_axis(
+    recs: Sequence[TwoAxisRecording],
+    model: str,
+    lag_s: float,
+    one_axis: Sequence[Params | None] | None = None,
+) -> list[CrossRow]:
+    """Least squares trained on each capture, evaluated on every other; ``one_axis``
+    the one-axis calibration trained on each capture (None where there is none), the
+    forward speed weighed against it (:func:`forward_rule`).
 
     Raises:
         OfflineError: fewer than two captures.
@@ -427,6 +472,7 @@ def crossval_two_axis(recs: Sequence[TwoAxisRecording], model: str, lag_s: float
             t_s=tr.t,
             current_knot_s=CURRENT_KNOT_S,
         )
+        rule = forward_rule(fit, one_axis[i] if one_axis is not None else None)
         for j, te in enumerate(pairs):
             if j != i:
                 rows.append(
@@ -436,7 +482,7 @@ def crossval_two_axis(recs: Sequence[TwoAxisRecording], model: str, lag_s: float
                         fit.misalign_deg,
                         fit.misalign_std_deg,
                         fit.ident.reason,
-                        score(fit.params, te),
+                        score(fit.params, te, rule),
                     )
                 )
     return rows
@@ -481,6 +527,29 @@ def load_two_axis(path: str | Path) -> tuple[TwoAxisParams, dict[str, Any]]:
     return params, doc
 
 
+def rule_of(doc: dict[str, Any], path: str | Path = "") -> ForwardRule:
+    """The forward rule a two-axis calibration file states: its ``one_axis``
+    calibration (None in a file written without it) and α's refusal.
+
+    Raises:
+        OfflineError: a ``one_axis`` that is not a calibration (names the file).
+    """
+    one = doc.get("one_axis")
+    params = None
+    if one is not None:
+        try:
+            params = Params(
+                check_model(str(one["model"])),
+                float(one.get("a", 0.0)),
+                float(one.get("m", 0.0)),
+                float(one.get("b", 0.0)),
+            )
+        except (KeyError, TypeError, ValueError, AttributeError, CalibrationError) as exc:
+            raise OfflineError(f"{path}: bad one-axis calibration: {exc}") from None
+    refused = "alpha" in (doc.get("unidentifiable") or [])
+    return ForwardRule(params, str(doc.get("reason") or "misalignment refused") if refused else "")
+
+
 @dataclass(frozen=True, slots=True)
 class TruthAxisScores:
     """Readings of one capture scored against a simulated trial's truth, per axis.
@@ -493,6 +562,7 @@ class TruthAxisScores:
         rmse_t_raw: athwart, raw, m/s.
         rmse_t_cal: athwart, corrected, m/s.
         rmse_t_floor: athwart, corrected with the true parameters, m/s.
+        rmse_l_one_axis: forward, the one-axis calibration's, m/s (nan: none known).
     """
 
     n_samples: int
@@ -502,6 +572,7 @@ class TruthAxisScores:
     rmse_t_raw: float
     rmse_t_cal: float
     rmse_t_floor: float
+    rmse_l_one_axis: float = math.nan
 
     def to_dict(self) -> dict[str, object]:
         """Plain types for JSON (README: ``evaluate --axes 2 --truth``)."""
@@ -517,8 +588,10 @@ def truth_scores(
     params: TwoAxisParams,
     truth: Truth,
     lag_s: float,
+    rule: ForwardRule = NO_ONE_AXIS,
 ) -> TruthAxisScores:
-    """Raw, corrected and true-parameter corrected readings of ``rec`` against the
+    """Raw, corrected (the forward speed by ``rule``; the one-axis calibration's too
+    where it has one) and true-parameter corrected readings of ``rec`` against the
     truth's speed through the water along and athwart the hull at the reading's time
     less the sensor's true latency.
 
@@ -531,10 +604,13 @@ def truth_scores(
     q = a.t - latency
     u, w = truth.stw_at(q), truth.trans_at(q)
     ok = np.isfinite(u) & np.isfinite(w)
-    rl, rt = a.raw_l[ok], a.raw_t[ok]
+    # the choice weighs the readings of the second before each: made on every reading
+    cu_all = forward_speed(a.t, a.raw_l, a.raw_t, params, rule)
+    rl, rt, cu = a.raw_l[ok], a.raw_t[ok], cu_all[ok]
     u, w = u[ok], w[ok]
-    cu, cw = params.correct(rl, rt)
+    cw = params.correct(rl, rt)[1]
     fu, fw = true_params.correct(rl, rt)
+    one = None if rule.one_axis is None else one_axis_forward(rl, rt, params, rule.one_axis)
     return TruthAxisScores(
         int(ok.sum()),
         _rms(rl - u),
@@ -543,4 +619,5 @@ def truth_scores(
         _rms(rt - w),
         _rms(cw - w),
         _rms(fw - w),
+        _rms(one - u) if one is not None else math.nan,
     )

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.models import FloatArray
+from calib.models import FloatArray, Params
 from calib.twoaxis import fit_current_two_axis, water_velocity
 from emlogd.offline import report as figures
 from emlogd.offline.twoaxis import (
@@ -82,8 +82,11 @@ def report_two_axis(
     *,
     lag_source: str = "given",
     reference: str = "dvl",
+    one_axis: Params | None = None,
 ) -> TwoAxisReport:
-    """Calibrate both axes by least squares and by the filter, and write the figures.
+    """Calibrate both axes by least squares and by the filter, and write the figures;
+    ``one_axis`` the one-axis calibration of the same readings, the forward speed
+    weighed against it (:func:`emlogd.offline.twoaxis.forward_rule`).
 
     Raises:
         OfflineError: matplotlib missing, no aligned sample, a bad model.
@@ -91,9 +94,13 @@ def report_two_axis(
     plt = figures._pyplot()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    ls = calibrate_two_axis(recs, model, "ls", lag_s, lag_source=lag_source, reference=reference)
-    kf = calibrate_two_axis(recs, model, "kf", lag_s, lag_source=lag_source, reference=reference)
-    rows = tuple(evaluate_two_axis(recs, ls.fit.params, lag_s))
+    ls, kf = (
+        calibrate_two_axis(
+            recs, model, m, lag_s, lag_source=lag_source, reference=reference, one_axis=one_axis
+        )
+        for m in ("ls", "kf")
+    )
+    rows = tuple(evaluate_two_axis(recs, ls.fit.params, lag_s, ls.rule))
     lag_txt = f"lag {lag_s:.2f} s ({lag_source})"
     written = [p for r in recs if (p := _speeds(plt, out, r, ls, lag_txt)) is not None]
     written.append(_convergence(plt, out, kf))

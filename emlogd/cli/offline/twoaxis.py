@@ -9,13 +9,15 @@ import json
 import sys
 from typing import Literal
 
+from calib.models import Params
 from emlogd.cli.common import UsageError, key_arg
 from emlogd.cli.offline.args import uut_settings
 from emlogd.cli.offline.shared import check_writable, load, warn_lag
 from emlogd.offline import twoaxis
-from emlogd.offline.jobs import OfflineError, find_lag
+from emlogd.offline.jobs import OfflineError, calibrate, find_lag
 from emlogd.offline.simtruth import read_truth
 from emlogd.offline.tables import fmt, render
+from emlogd.offline.twoaxis_forward import ForwardRule
 from emlogd.pipeline.settings import UutSettings
 
 AXES_HELP = (
@@ -51,6 +53,31 @@ def _lag(args: argparse.Namespace) -> tuple[float, str]:
     report = find_lag(load(args.captures, settings, args), settings, None)
     warn_lag(args.command, report.note)
     return report.lag_s, report.source
+
+
+def _one_axis(args: argparse.Namespace, paths: list[str], lag_s: float) -> Params | None:
+    """The one-axis calibration of the same forward readings (``calibrate --current
+    --uut-source VBW --method ls`` with the lag given), kept beside the two-axis one and
+    weighed against it for the forward speed; None, with a note, where it cannot be
+    fitted."""
+    settings = uut_settings(args, uut_source="VBW", current=True)
+    try:
+        return calibrate(load(paths, settings, args), settings, "ls", lag=lag_s).estimate.params
+    except OfflineError as exc:
+        sys.stderr.write(f"emlogd {args.command}: no one-axis calibration beside: {exc}\n")
+        return None
+
+
+def _forward_text(rule: ForwardRule) -> str:
+    """Whose forward speed is reported, and why."""
+    if rule.reason is not None:
+        return rule.reason
+    if rule.one_axis is None:
+        return "the two-axis calibration's (no one-axis calibration beside it)"
+    return (
+        "each reading's by the two-axis or the one-axis calibration, whichever has the "
+        "smaller expected error (the daemon's rule)"
+    )
 
 
 def _scores_row(name: str, s: twoaxis.AxisScores) -> list[str]:
@@ -95,7 +122,10 @@ def cmd_report(args: argparse.Namespace) -> int:
     lag_s, source = _lag(args)
     recs = _records(args, args.uut, args.ref)
     model = getattr(args, "model", None) or "EM3"
-    rep = report_two_axis(recs, model, lag_s, args.out, lag_source=source, reference=args.ref)
+    one = _one_axis(args, args.captures, lag_s)
+    rep = report_two_axis(
+        recs, model, lag_s, args.out, lag_source=source, reference=args.ref, one_axis=one
+    )
     if args.json:
         sys.stdout.write(json.dumps(rep.to_dict(), indent=2) + "\n")
         return 0
@@ -130,6 +160,11 @@ def _text(res: twoaxis.TwoAxisResult) -> str:
             f"current      north {f.current_mps[0]:+.3f}, east {f.current_mps[1]:+.3f} m/s (mean)"
         )
     lines.append(f"identifiable {'yes' if f.identifiable else 'NO: ' + f.ident.reason}")
+    one = res.rule.one_axis
+    if one is not None:
+        terms = ", ".join(f"{k} {v:+.5f}" for k, v in one.as_dict().items())
+        lines.append(f"one axis     LS-{one.model} {terms} (the same forward readings)")
+    lines.append(f"forward      {_forward_text(res.rule)}")
     lines.append(f"RMSE fit     forward {f.rmse_l_mps:.4f}, athwart {f.rmse_t_mps:.4f} m/s")
     lines.append(render(SCORE_HEADER, [_scores_row("all", res.scores)]))
     return "\n".join(lines) + "\n"
@@ -146,7 +181,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     model = getattr(args, "model", None) or "EM3"
     method: Literal["ls", "kf"] = "kf" if args.method == "kf" else "ls"
     res = twoaxis.calibrate_two_axis(
-        recs, model, method, lag_s, lag_source=source, reference=args.ref
+        recs,
+        model,
+        method,
+        lag_s,
+        lag_source=source,
+        reference=args.ref,
+        one_axis=_one_axis(args, args.captures, lag_s),
     )
     if args.json:
         sys.stdout.write(json.dumps(res.to_dict(), indent=2) + "\n")
@@ -168,9 +209,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if not isinstance(lag, (int, float)):
         raise UsageError(f"{args.params} has no lag: pass --lag SECONDS")
     recs = _records(args, uut, ref)
-    rows = twoaxis.evaluate_two_axis(recs, params, float(lag))
+    rule = twoaxis.rule_of(doc, args.params)
+    rows = twoaxis.evaluate_two_axis(recs, params, float(lag), rule)
     truth = read_truth(args.truth) if args.truth else None
-    scored = [twoaxis.truth_scores(r, params, truth, float(lag)) for r in recs] if truth else []
+    scored = (
+        [twoaxis.truth_scores(r, params, truth, float(lag), rule) for r in recs] if truth else []
+    )
     if args.json:
         out = []
         for i, r in enumerate(rows):
@@ -178,23 +222,35 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             if scored:
                 d["truth"] = scored[i].to_dict()
             out.append(d)
-        sys.stdout.write(json.dumps({"axes": 2, "rows": out}, indent=2) + "\n")
+        doc_out = {"axes": 2, **rule.to_dict(), "rows": out}
+        sys.stdout.write(json.dumps(doc_out, indent=2) + "\n")
         return 0
     sys.stdout.write(
         f"two axes: misalignment {params.misalign_deg:+.3f}°, transverse scale "
         f"{params.m_t:+.4f}, bias {params.b_t_mps:+.4f} m/s, lag {float(lag):.2f} s\n"
+        f"forward speed: {_forward_text(rule)}\n"
     )
     sys.stdout.write(render(SCORE_HEADER, [_scores_row(r.capture, r.scores) for r in rows]))
     if scored:
         sys.stdout.write("\nagainst the truth (RMSE m/s: raw, calibrated, floor)\n")
         sys.stdout.write(
             render(
-                ["capture", "fwd raw", "fwd cal", "fwd floor", "athw raw", "athw cal", "floor"],
+                [
+                    "capture",
+                    "fwd raw",
+                    "fwd cal",
+                    "fwd 1 axis",
+                    "fwd floor",
+                    "athw raw",
+                    "athw cal",
+                    "floor",
+                ],
                 [
                     [
                         r.name,
                         fmt(s.rmse_l_raw, ".4f"),
                         fmt(s.rmse_l_cal, ".4f"),
+                        fmt(s.rmse_l_one_axis, ".4f"),
                         fmt(s.rmse_l_floor, ".4f"),
                         fmt(s.rmse_t_raw, ".4f"),
                         fmt(s.rmse_t_cal, ".4f"),
@@ -213,7 +269,8 @@ def cmd_crossval(args: argparse.Namespace) -> int:
     recs = _records(args, args.uut, args.ref)
     model = getattr(args, "model", None) or "EM3"
     try:
-        rows = twoaxis.crossval_two_axis(recs, model, lag_s)
+        ones = [_one_axis(args, [p], lag_s) for p in args.captures]
+        rows = twoaxis.crossval_two_axis(recs, model, lag_s, ones)
     except OfflineError as exc:
         raise UsageError(str(exc)) from None
     if args.json:
