@@ -14,7 +14,12 @@ opens serial ports. A :class:`SerialSource`:
 - follows its path: a device silent for :data:`DEVICE_CHECK_S` whose path is gone or
   names another device (a pty re-created at the same link, an adapter re-enumerated
   under its udev name) while the old one stays open is closed and opened again at its
-  path (the old descriptor would be read, silent, for ever).
+  path (the old descriptor would be read, silent, for ever);
+- keeps to its pty: a link that named a pty the port read (a fake device's, a
+  multiplexer's) and now, unchanged, names a pty made since under the same number (the
+  device went away and another program's pty took the freed number) is not opened
+  until the link is made again (:func:`pty_reused`): the other program's session is
+  no device of this port's.
 
 Events are queued and drained with :meth:`events`. The daemon registers
 :meth:`fileno` in its selector (sources without a file descriptor, like
@@ -63,6 +68,9 @@ CONNECT_TIMEOUT_S = 5.0
 
 CONNECT_POLL_S = 0.05
 """How often a ``socket://`` connect in progress is looked at, s."""
+
+PTY_MAJORS = range(136, 144)
+"""The major device numbers of Unix98 pty slaves (``/dev/pts/N``)."""
 
 EventKind = Literal["connected", "disconnected", "stale", "alive", "error"]
 
@@ -146,6 +154,9 @@ class SerialSource:
         """A connect in progress: its socket, its deadline, and whether it is the first
         attempt (its failure is then the ``disconnected`` event)."""
         self._raw_fd: int | None = None
+        self._held_pty: HeldPty | None = None
+        """The link and the pty it named when the port last opened through a link to a
+        pty (:func:`pty_reused`); None otherwise."""
         self._empty = 0
         self._events: list[PortEvent] = []
         self._attempt = 0
@@ -210,6 +221,10 @@ class SerialSource:
             return True
         if self._tcp is not None:
             return self._open_tcp(*self._tcp)
+        reused = pty_reused(self.url, self._held_pty)
+        if reused is not None:
+            self._schedule(reused)
+            return False
         try:
             ser = serial.serial_for_url(
                 self.url, baudrate=self.baudrate, timeout=0, do_not_open=True
@@ -267,6 +282,8 @@ class SerialSource:
     def _connected(self, raw_fd: int | None) -> None:
         self.why_closed = None
         self._raw_fd = raw_fd
+        if self._tcp is None and raw_fd is not None:
+            self._held_pty = held_pty(self.url, raw_fd)
         if self._ever_connected:
             self.reconnects += 1
         self._ever_connected = True
@@ -424,6 +441,60 @@ def _path_moved(url: str, fd: int) -> str | None:
     if (named.st_dev, named.st_ino, named.st_rdev) != (held.st_dev, held.st_ino, held.st_rdev):
         return f"{url} now names another device"
     return None
+
+
+@dataclass(frozen=True, slots=True)
+class HeldPty:
+    """A pty a port opened through a link: the link's identity and the pty's."""
+
+    link: tuple[int, int, int]
+    """The link's own (st_dev, st_ino, st_ctime_ns): another link made at the path
+    differs."""
+    rdev: int
+    """The pty's device number (its major and its number under ``/dev/pts``)."""
+    born_ns: int
+    """The pty's ``st_ctime_ns``: devpts makes its node when the pty is made, and a pty
+    made later under the same number has a later one (reading and writing leave it)."""
+
+
+def held_pty(url: str, fd: int) -> HeldPty | None:
+    """What :func:`pty_reused` needs of a port opened at the path ``url`` on ``fd``: None
+    unless ``url`` is a symbolic link and ``fd`` a pty slave."""
+    if "://" in url:
+        return None
+    try:
+        link = Path(url).lstat()
+        held = os.fstat(fd)
+    except OSError:
+        return None
+    if not stat.S_ISLNK(link.st_mode) or os.major(held.st_rdev) not in PTY_MAJORS:
+        return None
+    return HeldPty((link.st_dev, link.st_ino, link.st_ctime_ns), held.st_rdev, held.st_ctime_ns)
+
+
+def pty_reused(url: str, held: HeldPty | None) -> str | None:
+    """Why the port must not open ``url`` again: the link it opened a pty through
+    (``held``) is the same link, and it names a pty under the same number made since —
+    the port's device is gone and another program's pty took its number; None when the
+    link was made again (a restarted fake device, a multiplexer's new session) or names
+    the pty it did."""
+    if held is None:
+        return None
+    try:
+        path = Path(url)
+        link = path.lstat()
+        named = path.stat()
+        target = path.readlink()
+    except OSError:
+        return None
+    if (link.st_dev, link.st_ino, link.st_ctime_ns) != held.link:
+        return None
+    if named.st_rdev != held.rdev or named.st_ctime_ns == held.born_ns:
+        return None
+    return (
+        f"{url} still names {target}, a pty made since under the number of the "
+        "one it named: another program's (not read until the link is made again)"
+    )
 
 
 def _tcp_address(url: str) -> tuple[str, int] | None:

@@ -231,3 +231,68 @@ def test_a_fifo_or_a_regular_file_at_the_path_is_said_for_what_it_is(tmp_path: P
         assert not src.open()
         assert src.why_closed is not None and kind in src.why_closed, src.why_closed
         assert src.events()[0].kind == "disconnected"
+
+
+def _pty_numbered(number: str, tries: int = 50) -> tuple[int, int] | None:
+    """A raw pty whose slave is ``number`` (``/dev/pts/N``): the kernel gives the lowest
+    free number, so the one just freed comes back unless another process takes it
+    first; None when it did not within ``tries``."""
+    import tty
+
+    kept: list[tuple[int, int]] = []
+    try:
+        for _ in range(tries):
+            master, slave = os.openpty()
+            if os.ttyname(slave) == number:
+                tty.setraw(slave)
+                return master, slave
+            kept.append((master, slave))
+        return None
+    finally:
+        for fds in kept:
+            for fd in fds:
+                os.close(fd)
+
+
+def test_a_link_to_a_pty_whose_number_another_program_took_is_not_read(tmp_path: Path) -> None:
+    """The pty a link named is gone and a new pty took its number while the link stayed
+    as it was: the source does not open it (another program's session), says why, and
+    opens the pty once the link is made again; a device that comes back under a link
+    made again is read at once."""
+    import tty
+
+    link = tmp_path / "emlog1"
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    number = os.ttyname(slave)
+    os.close(slave)
+    link.symlink_to(number)
+    src = SerialSource("emlog1", str(link), backoff_s=(0.01,))
+    other: tuple[int, int] | None = None
+    try:
+        assert src.open()
+        src.events()
+        os.write(master, b"one\r\n")
+        assert _read_all(src, 5) == b"one\r\n"
+        os.close(master)  # the device goes away
+        assert _until(src, False, 0.01)
+        other = _pty_numbered(number)
+        if other is None:
+            pytest.skip(f"{number} was taken by another process before this test could")
+        time.sleep(0.05)
+        for _ in range(5):
+            src.poll()
+            time.sleep(0.02)
+        assert not _is_open(src)
+        assert src.why_closed is not None
+        assert "a pty made since under the number" in src.why_closed
+        link.unlink()
+        link.symlink_to(number)  # the operator (or the device's program) makes it again
+        assert _until(src, True, 0.02)
+        os.write(other[0], b"theirs\r\n")
+        assert _read_all(src, 8) == b"theirs\r\n"
+    finally:
+        src.close()
+        if other is not None:
+            for fd in other:
+                os.close(fd)

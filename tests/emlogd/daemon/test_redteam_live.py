@@ -318,10 +318,85 @@ def test_an_emlog_whose_device_path_moves_to_another_device_is_read_there(
             os.close(fd)
 
 
-def _records(d: Daemon) -> int:
+def test_an_emlog_link_whose_pty_number_another_program_took_is_not_read(
+    tmp_path: Path,
+) -> None:
+    """The EMlog's pty goes away and another program's new pty takes its number while the
+    link stays as it was: the daemon does not read that session (the port closed, saying
+    why) and reads the device again once its link is made again. It read the other
+    program's pty as the EMlog."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    link = work / "links" / "emlog1"
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    number = os.ttyname(slave)
+    os.close(slave)
+    link.symlink_to(number)
+    masters = [master]
+    d = Daemon(work)
+    try:
+        for k in range(4):
+            os.write(master, VHW[k % 2])
+        wait(lambda: _records(d) == 4, "the device read", 5.0)
+        os.close(masters.pop())  # the device goes away; the daemon closes the port
+        wait(lambda: not _port(d)["open"], "the port lost", 5.0)
+        other = _pty_numbered(number)
+        if other is None:
+            pytest.skip(f"{number} was taken by another process before this test could")
+        masters.append(other)
+        end = time.monotonic() + 2.0
+        while time.monotonic() < end:
+            os.write(other, VHW[0])
+            time.sleep(0.1)
+        port = _port(d)
+        assert _records(d) == 4 and not port["open"], port
+        assert "a pty made since under the number" in str(port["why_closed"]), port
+        link.unlink()
+        link.symlink_to(number)
+        deadline = time.monotonic() + 8.0
+        while _records(d) <= 4:
+            assert time.monotonic() < deadline, d.status()["ports"]
+            os.write(other, VHW[1])
+            time.sleep(0.1)
+        assert d.stop() == 0
+    finally:
+        d.kill()
+        for fd in masters:
+            os.close(fd)
+
+
+def _pty_numbered(number: str, tries: int = 50) -> int | None:
+    """The master of a raw pty whose slave is ``number``, the slave closed (the kernel
+    gives the lowest free number: the one just freed, unless another process takes it
+    first); None when it did not come within ``tries``."""
+    kept: list[int] = []
+    try:
+        for _ in range(tries):
+            master, slave = os.openpty()
+            name = os.ttyname(slave)
+            tty.setraw(slave)
+            os.close(slave)
+            if name == number:
+                os.set_blocking(master, False)
+                return master
+            kept.append(master)
+            time.sleep(0.02)
+        return None
+    finally:
+        for fd in kept:
+            os.close(fd)
+
+
+def _port(d: Daemon) -> dict[str, object]:
     ports = d.status()["ports"]
     assert isinstance(ports, dict)
-    return int(ports["emlog1"]["records"])
+    port = ports["emlog1"]
+    assert isinstance(port, dict)
+    return port
+
+
+def _records(d: Daemon) -> int:
+    return int(str(_port(d)["records"]))
 
 
 def _user_flood(path: Path, seconds: float, n: int, uid: int) -> int:
