@@ -1,6 +1,6 @@
 """The scored readings' cadence, and what the change detector's baseline needs at it.
 
-The supervisor's change detector (:mod:`emlogd.pipeline.supervisor`) judges on a window
+The supervisor's change detector (:mod:`emlogd.pipeline.detector`) judges on a window
 forgetting in time; how many readings that window can hold depends on how often they
 come. :class:`Cadence` follows the intervals and says how much weight the baseline
 needs before it is judged on: a count at 0.5 Hz and faster, the weight of a span of
@@ -19,7 +19,7 @@ from emlogd.pipeline.evidence import CUSUM_MAX_GAP_S
 CUSUM_MIN_FILL_S = 30.0
 """Readings slower than one every 2.5 s: the change detector's baseline is judged on once
 it holds the weight this long of readings at their cadence gives its window
-(:meth:`Cadence.detector_weight`), when that is less than the supervisor's sample count. A
+(:meth:`Cadence.detector_weight`), when that is less than the detector's sample count. A
 window of a 60-s half-life holds at most 18 readings taken every 5 s and forgets over a
 CUSUM run (whose samples are kept out of it): after a run of a minute it holds fewer than
 ten, and a detector waiting for ten would be off for much of a log at 0.2 Hz while a

@@ -21,7 +21,10 @@ reference and the heading at ``t − lag`` (:mod:`emlogd.pipeline.align`) and, p
 Its only output to the supervisor is an :class:`Offer`: the estimate and its standard
 deviations, once every learnt unknown is within ``max_param_std`` (judged on
 :attr:`calib.kalman.KfCalibrator.param_std_offer`) and the estimate is
-inside the envelope. Nothing here reads a clock or does I/O; times are receive times.
+inside the envelope. When the supervisor withdraws a calibration on a change of the
+readings, the parameters re-open by the change's size (:meth:`Learner.reopen_for_change`,
+:mod:`emlogd.pipeline.changewindow`). Nothing here reads a clock or does I/O; times are
+receive times.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from calib.lag import LAG_FALLBACK_S
 from calib.models import CURRENT, Layout, Params, zero_params
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
+from emlogd.pipeline.changewindow import ChangeWindow, widen
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.integrity import Envelope
 from emlogd.pipeline.learnbuffers import LAG_MAX_RATE_HZ as LAG_MAX_RATE_HZ
@@ -71,24 +75,6 @@ scale)."""
 
 _TRACK_CURRENT = frozenset({CURRENT})
 """What learns while the operator has switched learning off (water frame only)."""
-
-
-CHANGE_WINDOW_S = 10.0
-"""A change of the readings is measured over the learner's raw innovations of this last
-span, s: the supervisor's change detector alarms within a few samples of a step (3 on a
-35 % gain step), and at 1 Hz ten samples hold the new level against the reference's noise."""
-
-CHANGE_MIN_SAMPLES = 3
-"""Fewer raw innovations than this in :data:`CHANGE_WINDOW_S`: the change cannot be
-measured, and the parameters re-open to their prior."""
-
-CHANGE_BLOCKS = 6
-"""Learning from block means, a change is measured on the raw innovations of at most
-this many last blocks (two minutes of 20-s means): a step inside them shows in the
-mean of the blocks since it."""
-
-CHANGE_BLOCKS_S = 300.0
-"""Blocks older than this, s, do not measure a change (a sparse reference's blocks)."""
 
 
 AVERAGE_S: dict[str, float] = {"gnss": 20.0}
@@ -209,12 +195,8 @@ class Learner:
         self.nis_sum = 0.0
         self.gated_run_raw = 0
         self.gated_run_ref = 0
-        self.recent: deque[tuple[float, float, float]] = deque()
-        """(time, raw innovation, speed) of the last :data:`CHANGE_WINDOW_S` of readings
-        with a valid reference: what a change of the readings is measured on."""
-        self.recent_blocks: deque[tuple[float, float, float, float]] = deque(maxlen=CHANGE_BLOCKS)
-        """(time, raw innovation, its variance S, speed) of the last learnt blocks: what a
-        change is measured on when learning from block means."""
+        self.change = ChangeWindow()
+        """The last raw innovations, what a change of the readings is measured on."""
         self.shadow: KfCalibrator | None = None
         """After a change, learning from block means: the filter with its parameters
         re-opened to their prior at the change, learning from the same blocks (none of
@@ -336,7 +318,7 @@ class Learner:
         )
         self._gates(a.t, res.raw_gated, res.ref_gated, valid, gate)
         if valid and res.raw is not None and a.ref is not None and not gate:
-            self._recent(a.t, res.raw.y, a.ref)
+            self.change.add_sample(a.t, res.raw.y, a.ref)
         learnt = res.learnt and learn_set is not False
         if block is not None:
             usable = not (res.raw_gated or res.ref_gated) and res.raw is not None
@@ -410,10 +392,7 @@ class Learner:
         )
         if res.raw is not None and (res.learnt or res.raw_gated):
             # a gated block measures a change too: it is what did not fit
-            q = self.recent_blocks
-            q.append((a.t, res.raw.y, res.raw.S, abs(b_ref)))
-            while q and a.t - q[0][0] > CHANGE_BLOCKS_S:
-                q.popleft()
+            self.change.add_block(a.t, res.raw.y, res.raw.S, abs(b_ref))
         return b_learn, res
 
     def _account(self, learn_set: frozenset[str] | bool, nis: float) -> None:
@@ -498,12 +477,6 @@ class Learner:
                 {"determined": list(ident.determined), "why": ident.reason},
             )
 
-    def _recent(self, t: float, y: float, v: float) -> None:
-        q = self.recent
-        q.append((t, y, v))
-        while q and t - q[0][0] > CHANGE_WINDOW_S:
-            q.popleft()
-
     def reopen_current(self) -> bool:
         """The reference jumped (the supervisor's detector saw the sea change): when
         learning sample by sample (a DVL), the current's variance back to its prior, so
@@ -520,66 +493,24 @@ class Learner:
     def reopen_for_change(self) -> None:
         """The readings changed (the supervisor's detector withdrew the calibration):
         re-open the parameters by the size of the change, as far as the readings
-        measure it.
-
-        Learning sample by sample (a DVL), the change ``δ`` is the mean raw innovation
-        over :data:`CHANGE_WINDOW_S` against this learner's estimate and current (which
-        fitted the readings before): what a changed sensor would have to explain at the
-        speed ``v``. Each parameter's variance grows by that change alone (``δ²`` for the
-        bias, ``(δ/v)²`` for the scale, ``(δ/v²)²`` for the quadratic term), up to its
-        prior: a 35 % gain step at 2 m/s re-opens the scale to σ 0.3, an alarm the sea
-        raised leaves hours of learning as they were. Without enough innovations the
-        parameters re-open to their prior.
-
-        Learning from block means (a noisy reference: a block's innovation is one draw
-        of a noise of 0.3 m/s correlated over tens of seconds), the change is the
-        largest mean raw innovation over the last ``k`` blocks (``k`` = 1 …
-        :data:`CHANGE_BLOCKS`, a step inside them shows in the blocks since it), its
-        square taken with the variance of that mean added (``δ_k² + S̄/k``): the noise
-        can hide a change that large. The filter widens by that much, so its σ and NIS
-        still say what the readings before the change taught (an alarm the sea raised
-        on a 20-s mean is common); and a shadow filter re-opened to the prior
-        (:attr:`shadow`) learns from the same blocks and holds the offer until readings
-        after the change determine the parameters again, so that a calibration the
-        noise let through is not offered again within minutes of its withdrawal; the
-        learner then goes on from the shadow (what the readings after the change say).
-        """
+        measure it (:mod:`emlogd.pipeline.changewindow`). Learning from block means, a
+        shadow filter re-opened to the prior (:attr:`shadow`) learns from the same
+        blocks and holds the offer until readings after the change determine the
+        parameters again, so that a calibration the noise let through is not offered
+        again within minutes of its withdrawal."""
         if self.block is not None:
-            self._reopen_blocks()
-            return
-        q = self.recent
-        if len(q) < CHANGE_MIN_SAMPLES:
+            # a change while a shadow learns: the readings since the first say most
+            shadow = (self.shadow if self.shadow is not None else self.kf).copy()
+            shadow.reopen(self.layout.params)
+            self.shadow = shadow
+            change = self.change.block_change()
+        else:
+            change = self.change.sample_change()
+        if change is None:
             self.kf.reopen(self.layout.params)
             return
-        self._widen(abs(sum(y for _, y, _ in q) / len(q)), sum(abs(x) for _, _, x in q) / len(q))
-        q.clear()
-
-    def _reopen_blocks(self) -> None:
-        """:meth:`reopen_for_change` when learning from block means."""
-        # a change while a shadow learns: the readings since the first say most
-        shadow = (self.shadow if self.shadow is not None else self.kf).copy()
-        shadow.reopen(self.layout.params)
-        self.shadow = shadow
-        q = list(self.recent_blocks)
-        self.recent_blocks.clear()
-        if not q:
-            self.kf.reopen(self.layout.params)
-            return
-        worst, v_worst = 0.0, 0.0
-        for k in range(1, len(q) + 1):
-            last = q[-k:]
-            mean = sum(y for _, y, _, _ in last) / k
-            var = mean * mean + sum(s for _, _, s, _ in last) / (k * k)
-            if var > worst:
-                worst, v_worst = var, sum(v for _, _, _, v in last) / k
-        self._widen(math.sqrt(worst), v_worst)
-
-    def _widen(self, delta: float, v: float) -> None:
-        """Each parameter's variance grows by what a change ``delta`` (m/s) at ``v``
-        (m/s) would take of it alone."""
-        v = max(v, self.s.min_ref_speed_mps)
-        per = {"b": delta * delta, "m": (delta / v) ** 2, "a": (delta / (v * v)) ** 2}
-        self.kf.widen({name: per[name] for name in self.layout.params})
+        delta, v = change
+        widen(self.kf, self.layout.params, delta, max(v, self.s.min_ref_speed_mps))
 
     def _gates(self, t: float, raw_gated: bool, ref_gated: bool, valid: bool, fault: str) -> None:
         s = self.s

@@ -39,22 +39,15 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
   else to raw pass-through.
-- **Change detection**: a two-sided CUSUM (:class:`~emlogd.pipeline.evidence.Cusum`) on the
-  applied calibration's innovations (its error minus the error its own current predicts, over
-  the window's spread widened by the current's uncertainty at the heading) alarms within a few
-  samples of a step of the sensor or the sea. On an alarm the calibration's errors and raw's
-  over the alarm's run, against the current as it stood, decide: worse than raw, it is withdrawn
-  and the learner learns the parameters again, unless the reference jumped and the log did
-  not (:func:`~emlogd.pipeline.evidence.sea_jumped`, no shift of the log's mean: a tack, a
-  tidal front); else the sea changed, and the detector's baseline
-  starts again (from the alarm's run at a slow cadence, :attr:`Supervisor.run`); when the reference jumped
-  (:data:`~emlogd.pipeline.evidence.SEA_STEP_SIGMAS`) the learner's current re-opens (raw
-  passing through or not), so that the jump goes into the current, not into the parameters. When
-  the mean of the log's error shifted in the run beyond its standard error and the reference's
-  mean did not (:class:`~emlogd.pipeline.evidence.Shift`; one noisy sample is no shift), the
-  sensor changed and the sea is as it was: the alarm is judged on the run of the side that
-  alarmed alone, and the withdrawn calibration re-validates, raw and it alike, in the current
-  the detector had before the jump.
+- **Change detection** (:class:`~emlogd.pipeline.detector.ChangeDetector`, whose
+  docstring gives its rules): a CUSUM on the applied calibration's innovations alarms
+  within a few samples of a step of the sensor or the sea, and judges the alarm
+  (:class:`~emlogd.pipeline.detector.Alarm`). Worse than raw, the calibration is
+  withdrawn and the learner learns the parameters again; when the log's mean shifted
+  (the sensor changed, the sea is as it was) the withdrawn calibration re-validates,
+  raw and it alike, in the current the detector had before the jump. Else the sea
+  changed; when the reference jumped the learner's current re-opens (raw passing
+  through or not), so that the jump goes into the current, not into the parameters.
 - **Drift** (:class:`~emlogd.pipeline.evidence.Drift`): a log that drifts against a
   steady reference on a straight leg for :data:`~emlogd.pipeline.evidence.DRIFT_CONFIRM_S`
   withdraws the applied calibration, and nothing is applied while it drifts.
@@ -83,20 +76,10 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 from calib.models import Layout, Params
-from emlogd.pipeline.cadence import CUSUM_MIN_FILL_S, Cadence
 from emlogd.pipeline.cadence import VALIDATION_MIN_SAMPLES as VALIDATION_MIN_SAMPLES
 from emlogd.pipeline.counters import Counters, Score
-from emlogd.pipeline.evidence import (
-    CUSUM_MAX_GAP_S,
-    CUSUM_MIN_SPAN_S,
-    HOLD_SIGMAS,
-    Course,
-    Cusum,
-    Drift,
-    FitWindow,
-    SeaMemory,
-    sea_jumped,
-)
+from emlogd.pipeline.detector import ChangeDetector
+from emlogd.pipeline.evidence import Drift, SeaMemory
 from emlogd.pipeline.integrity import PairedWindow, UutHealth, emitted_speed, output_std
 from emlogd.pipeline.revalidation import (
     COMMON_SEA_DEGREE,
@@ -133,20 +116,6 @@ the applied one's × 1.02 + 2 mm/s."""
 CURRENT_REFRESH_S = 20.0
 """Each calibration's current is fitted again this often, s (and when one is made; on
 every sample for this long after a silence, :meth:`SeaMemory.renew`)."""
-
-CUSUM_HALF_LIFE_S = 60.0
-"""The change detector's own window, s: short, so that its current follows the sea's
-(a current that turns over minutes would otherwise leave a bias in the innovations)."""
-
-CUSUM_MIN_SAMPLES = 10.0
-"""The CUSUM runs once its window holds this many (forgotten) samples of the applied
-calibration (its own current and spread known; fewer at a slow cadence, :class:`Cadence`)
-and spans :data:`~emlogd.pipeline.evidence.CUSUM_MIN_SPAN_S`. A run's samples stay out of
-the window: a change is not absorbed by the baseline it is judged against."""
-
-CUSUM_SIGMA_FLOOR_MPS = 0.02
-"""The innovation's standard deviation is at least this, m/s (a window of quantised
-readings at one speed has almost no spread)."""
 
 
 class Supervisor:
@@ -208,17 +177,9 @@ class Supervisor:
         self._beta: dict[str, tuple[float, float]] = {}
         self._common = UNDETERMINED_SEA
         self._t_beta = -math.inf
-        self.cusum = Cusum()
-        self.detector = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
-        self.run = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
-        """The CUSUM run's samples: the baseline after a sea's alarm where an empty one
-        takes longer than CUSUM_MIN_FILL_S to fill (at 0.2 Hz it absorbs a step within)."""
-        self.course = Course(CUSUM_HALF_LIFE_S)
-        self.cadence = Cadence()
-        """The scored readings' cadence and the last one's time (the change detector's)."""
+        self.change = ChangeDetector(self.water)
+        """The change detector (its cadence is the scored readings')."""
         self.drift = Drift()
-        self.held = False
-        """Raw passes through until the CUSUM run decides (``HOLD_SIGMAS``)."""
         self.sea_changed = False
         """The reference jumped: the learner's current re-opens (taken by the owner)."""
         self.reopen = False
@@ -234,6 +195,12 @@ class Supervisor:
             else ""
         )
         """The last supervision decision worth showing with the state (a fallback)."""
+
+    @property
+    def held(self) -> bool:
+        """Raw passes through until the change detector's run decides
+        (:attr:`~emlogd.pipeline.detector.ChangeDetector.held`)."""
+        return self.change.held
 
     @property
     def kept(self) -> Params | None:
@@ -436,7 +403,7 @@ class Supervisor:
         :data:`RESTORE_VALIDATION_S` for one validated before)."""
         v = self.s.validation_s
         span = v if cand.kind == "new" else min(RESTORE_VALIDATION_S, v)
-        done = t - cand.t0 >= span and cand.n >= self.cadence.validation_count()
+        done = t - cand.t0 >= span and cand.n >= self.change.cadence.validation_count()
         final = t - cand.t0 >= v  # a withdrawn one: until told from raw
         return done and (cand.separation is None or judge_withdrawn(cand, {}, final) is not None)
 
@@ -461,57 +428,21 @@ class Supervisor:
     def _detect(
         self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float, ref: float
     ) -> bool:
-        """Change detection on what is emitted (raw while it passes through); True when the
-        calibration was withdrawn (see the module docstring: the innovation is the error less
-        what its own current (:data:`CUSUM_HALF_LIFE_S`) predicts; an alarm whose errors are
-        raw's or smaller is the sea's, :attr:`sea_changed` when the reference jumped)."""
-        if t - self.cadence.t > CUSUM_MAX_GAP_S:
-            self._reset_detector(refit=False)  # its baseline is another sea's
-        self.cadence.add(t)
-        w = self.detector
-        n_min = self.cadence.detector_weight(CUSUM_MIN_SAMPLES, CUSUM_HALF_LIFE_S)
-        if w.n < n_min or w.t0 is None or t - w.t0 < CUSUM_MIN_SPAN_S:
-            w.add(t, cs, (e_app,))
+        """Change detection on what is emitted (raw while it passes through,
+        :class:`~emlogd.pipeline.detector.ChangeDetector`); True when the calibration was
+        withdrawn. An alarm that withdraws nothing is the sea's: :attr:`sea_changed` when
+        the reference jumped."""
+        alarm = self.change.step(t, cs, e_app, e_raw, ref, self.applied is not None)
+        if alarm is None:
             return False
-        sigma = max(w.rmse(0), CUSUM_SIGMA_FLOOR_MPS) * math.sqrt(1.0 + w.leverage(cs))
-        pred = w.predict(0, cs)
-        nu = e_app - pred
-        cu = self.cusum
-        alarm = cu.add(nu / sigma, nu, e_raw - pred)
-        quiet = cu.hi == 0.0 and cu.lo == 0.0
-        self.course.add(t, e_app + ref, ref, quiet)
-        jump = abs(nu) >= HOLD_SIGMAS * sigma and self.course.log_jumped(*self.course.steps())
-        self.held = not quiet and (self.held or jump)
-        (w if quiet else self.run).add(t, cs, (e_app,))  # the baseline learns while quiet
-        if quiet and self.run.n:
-            self.run.reset()
-        if not alarm:
+        if not alarm.withdraw:
+            if self.applied is not None:
+                self._t_beta = -math.inf  # the sea changed: the currents are fitted anew
+            self.sea_changed = alarm.sea_jumped
             return False
-        step_log, step_ref = self.course.steps()
-        jumped = (shift := self.course.shift()).log_jumped  # the means shifted, not a spike
-        if self.applied is None:
-            self._reset_detector(refit=False, seed=True)  # raw's alarm: nothing applied changed
-            self.sea_changed = sea_jumped(step_log, step_ref, sigma)
-            return False
-        # a log that jumped is judged on the run of the side that alarmed (after the
-        # step); otherwise on the whole run, noise included
-        n_app, n_raw = (cu.ss_app, cu.ss_raw) if jumped else (cu.run_app, cu.run_raw)
-        sea = sea_jumped(step_log, step_ref, sigma)
-        # the reference jumped and the log did not: the sensor (whose parameters these
-        # are) is as it was, and which of raw and it fits the jumped sea is no evidence
-        if n_app <= n_raw or (sea and not jumped):
-            self._reset_detector(seed=True)
-            self.sea_changed = sea
-            return False
-        detail: dict[str, object] = {
-            "params": self.applied.as_dict(),
-            "innovation_mps": round(nu, 4),
-            "sigma_mps": round(sigma, 4),
-            "ss_applied": round(n_app, 4),
-            "ss_raw": round(n_raw, 4),
-        }
-        detail |= shift.detail(step_log, step_ref)
-        beta = w.beta(0) if self.water and jumped else None
+        assert self.applied is not None
+        detail: dict[str, object] = {"params": self.applied.as_dict()} | alarm.detail
+        beta = alarm.current_before
         self.withdraw(
             t, "the readings changed and the calibration fits them worse than raw", detail
         )
@@ -650,20 +581,17 @@ class Supervisor:
         self._reset_detector()
         self.dirty = True
 
-    def _reset_detector(self, refit: bool = True, seed: bool = False) -> None:
-        if refit:  # the calibrations changed: their currents are fitted anew
-            self._t_beta = -math.inf
-        self.held = False
-        self.cusum.reset()
-        self.detector.reset()
-        if seed and self.cadence.median_s * CUSUM_MIN_SAMPLES > CUSUM_MIN_FILL_S:
-            self.detector, self.run = self.run, self.detector
-        self.run.reset()
-        self.course.reset()
+    def _reset_detector(self) -> None:
+        """The applied calibration changed: the currents are fitted anew and the change
+        detector starts again."""
+        self._t_beta = -math.inf
+        self.change.reset()
 
     def _recheck(self, t: float) -> None:
         w = self.recheck
-        if self.applied is None or w.n_effective < self.cadence.recheck_weight(w.half_life_s):
+        if self.applied is None or w.n_effective < self.change.cadence.recheck_weight(
+            w.half_life_s
+        ):
             return
         r_raw, r_app, r_prev = w.rmse()
         if not worse(r_app, r_raw):

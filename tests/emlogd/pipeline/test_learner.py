@@ -73,21 +73,21 @@ def test_a_change_reopens_the_parameters_by_its_own_size() -> None:
     before = dict(big.param_std)
     assert before["m"] < 0.05 and before["b"] < 0.08
     for lr, shift in ((big, 0.6), (small, 0.01)):
-        lr.recent.clear()
+        lr.change.recent.clear()
         for k in range(10):
-            lr.recent.append((300.0 + k, shift + (0.05 if k % 2 else -0.05), 2.0))
+            lr.change.recent.append((300.0 + k, shift + (0.05 if k % 2 else -0.05), 2.0))
         lr.reopen_for_change()
     assert big.param_std["m"] == pytest.approx(0.3, abs=0.02)
     assert big.param_std["b"] == pytest.approx(0.5, abs=0.01)  # at most its prior
     assert small.param_std["m"] < before["m"] + 0.01
     assert small.param_std["b"] < before["b"] + 0.02
-    assert not small.recent
+    assert not small.change.recent
 
 
 def test_without_recent_innovations_a_change_reopens_to_the_prior() -> None:
     """No innovations to measure the change on: the parameters' σ go back to the prior."""
     lr = _learnt()
-    lr.recent.clear()
+    lr.change.recent.clear()
     lr.reopen_for_change()
     assert lr.param_std["m"] == pytest.approx(0.5) and lr.param_std["b"] == pytest.approx(0.5)
 

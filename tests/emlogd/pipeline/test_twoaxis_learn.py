@@ -248,9 +248,9 @@ def test_vhw_and_vbw_take_the_figures_own_forward_speed() -> None:
     assert float(vhw.water_speed_knots) * KNOT == pytest.approx(u, abs=0.006)
     stale = pynmea2.parse(sent(3.0, "VMVHW,,T,,M,3.89,N,7.20,K")[0])
     assert float(stale.water_speed_knots) == pytest.approx(3.89)  # one-axis: uncalibrated
-    cal.sup.held = True  # the change detector's hold: the one-axis output (raw)
+    cal.sup.change.held = True  # the change detector's hold: the one-axis output (raw)
     assert vhw_kn(3.2) == pytest.approx(3.89)
-    cal.sup.held = False
+    cal.sup.change.held = False
     assert vhw_kn(3.4) * KNOT == pytest.approx(u, abs=0.006)
     cal.sup.counters.fallbacks += 1  # a fallback: withdrawn until the recheck lets it
     assert vhw_kn(3.6) == pytest.approx(3.89) and not ax.sup.forward_own
