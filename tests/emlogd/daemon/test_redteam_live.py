@@ -304,18 +304,24 @@ def test_an_emlog_whose_device_path_moves_to_another_device_is_read_there(
         wait(lambda: _records(d) == 4, "the first device read", 5.0)
         link.unlink()
         masters.append(raw_pty(link))
-        deadline = time.monotonic() + DEVICE_CHECK_S + 4.0
-        k = 0
-        while _records(d) <= 4:
-            assert time.monotonic() < deadline, d.status()["ports"]
-            os.write(masters[1], VHW[k % 2])
-            k += 1
-            time.sleep(0.1)
-        assert d.stop() == 0
+        _write_until_read(d, masters[1], DEVICE_CHECK_S + 4.0)
     finally:
         d.kill()
         for fd in masters:
             os.close(fd)
+
+
+def _write_until_read(d: Daemon, master: int, within_s: float) -> None:
+    """Write VHW to ``master`` every 0.1 s until the EMlog's port has read a fifth
+    record, within ``within_s``; then stop the daemon cleanly."""
+    deadline = time.monotonic() + within_s
+    k = 0
+    while _records(d) <= 4:
+        assert time.monotonic() < deadline, d.status()["ports"]
+        os.write(master, VHW[k % 2])
+        k += 1
+        time.sleep(0.1)
+    assert d.stop() == 0
 
 
 def test_an_emlog_link_whose_pty_number_another_program_took_is_not_read(
@@ -353,12 +359,7 @@ def test_an_emlog_link_whose_pty_number_another_program_took_is_not_read(
         assert "a pty made since under the number" in str(port["why_closed"]), port
         link.unlink()
         link.symlink_to(number)
-        deadline = time.monotonic() + 8.0
-        while _records(d) <= 4:
-            assert time.monotonic() < deadline, d.status()["ports"]
-            os.write(other, VHW[1])
-            time.sleep(0.1)
-        assert d.stop() == 0
+        _write_until_read(d, other, 8.0)
     finally:
         d.kill()
         for fd in masters:
