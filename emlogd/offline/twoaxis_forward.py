@@ -23,7 +23,7 @@ import numpy as np
 
 from calib.models import FloatArray, Params, correct_array
 from calib.twoaxis import TwoAxisParams
-from emlogd.pipeline.twoaxis_learn import BLOCK_S, MIN_NOISE_DOF
+from emlogd.pipeline.twoaxis_learn import BLOCK_S, MIN_NOISE_DOF, ONE_AXIS_FORWARD
 from emlogd.pipeline.twoaxis_sup import ForwardChoice, noise_gain
 
 TWO_AXIS = "two_axis"
@@ -58,7 +58,7 @@ class ForwardRule:
         """Why the forward speed is the one-axis calibration's (None: it is not)."""
         if self.forward != ONE_AXIS:
             return None
-        return f"the one-axis calibration's: the misalignment is refused ({self.alpha_refused})"
+        return f"{ONE_AXIS_FORWARD}: the misalignment is refused ({self.alpha_refused})"
 
     def to_dict(self) -> dict[str, object]:
         """JSON keys: ``forward``, ``forward_reason`` and ``one_axis`` (the model's

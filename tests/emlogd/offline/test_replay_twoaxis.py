@@ -10,11 +10,13 @@ import json
 import numpy as np
 import pytest
 
+from calib.models import Params
 from emlogd.cli import main
 from emlogd.daemon.statefile import StateStore
 from emlogd.offline.replay_twoaxis import _worst_windows
 from emlogd.offline.simfaults import WINDOW_S
 from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
+from emlogd.offline.twoaxis_forward import ForwardRule
 
 CFG = """\
 ports:
@@ -28,12 +30,18 @@ calibration:
 
 
 @pytest.fixture(scope="module")
-def replayed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
-    """A fifth of the trial with emlog2 turned 3° to starboard (noise 0.01 m/s): the
-    figure-8 and the circles replayed with emlog2 learning two axes."""
+def trial(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
+    """A fifth of the trial with emlog2 turned 3° to starboard (noise 0.01 m/s)."""
     out = tmp_path_factory.mktemp("replay2")
     sensor = with_sensor(EMLOG2, {"misalign": 3.0, "mt": -0.08, "bt": 0.04, "noise": 0.01})
-    trial: SimulationResult = simulate(out, seed=3, scale=0.2, emlogs=(EMLOG1, sensor))
+    return simulate(out, seed=3, scale=0.2, emlogs=(EMLOG1, sensor))
+
+
+@pytest.fixture(scope="module")
+def replayed(trial: SimulationResult) -> dict[str, object]:
+    """The trial's figure-8 and circles replayed with emlog2 learning two axes, then the
+    straight run and the return after a restart from the state file."""
+    out = trial.files[0].parent
     cfg = out / "replay.yaml"
     cfg.write_text(CFG)
     caps = [str(trial.files[1]), str(trial.files[3])]
@@ -116,6 +124,33 @@ def test_the_forward_speed_after_a_restart_is_the_two_axis_fits(
     on = after["uuts"]["emlog2"]["two_axis_truth"]["applied"]
     assert on["rmse_l_corrected"] <= 1.05 * on["rmse_l_floor"]
     assert on["rmse_l_corrected"] <= 0.9 * on["rmse_l_one_axis"]
+
+
+def test_a_straight_run_says_why_the_forward_speed_is_the_one_axis_calibrations(
+    trial: SimulationResult,
+) -> None:
+    """The straight run alone: α refused, and the UUT's status (the JSON, the text
+    summary's two-axis line) says the forward speed is the one-axis calibration's
+    because of it, in the words of the offline ``forward_reason``."""
+    out = trial.files[0].parent
+    cfg = out / "straight.yaml"
+    cfg.write_text(CFG)
+    argv = ["replay", str(trial.files[2]), "--config", str(cfg), "--out", str(out / "st.nmea")]
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main([*argv, "--json"]) == 0
+    two = json.loads(buf.getvalue())["uuts"]["emlog2"]["two_axis"]
+    refused = two["refused"]
+    assert "speed through water nearly constant" in refused
+    assert two["state"] == "learning" and two["forward"] == "one_axis"
+    offline = ForwardRule(Params("EM3"), refused).reason
+    assert two["forward_reason"] == offline
+    assert offline == f"the one-axis calibration's: the misalignment is refused ({refused})"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(argv) == 0
+    line = next(x for x in buf.getvalue().splitlines() if x.startswith("emlog2 two axes"))
+    assert line == f"emlog2 two axes: learning; forward speed: {offline}"
 
 
 def test_athwart_worst_windows() -> None:

@@ -20,6 +20,7 @@ from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.twoaxis_learn import (
+    FALLBACK_REASON,
     NO_TWO_AXIS_REFERENCE,
     TwoAxisLearner,
     encode_two_axis_status,
@@ -163,6 +164,39 @@ def test_circles_one_way_refuse_alpha_in_words_an_operator_reads() -> None:
     )
     assert [d["why"] for _, k, d in events if k == "two_axis_refused"][-1] == why
     assert why in two_axis_line(lr.status())
+
+
+def test_the_status_says_why_the_forward_speed_is_the_one_axis_calibrations() -> None:
+    """``forward_reason`` in the status (and its line) whenever the forward speed is not
+    the applied figures' own: α refused by the latest window, figures validating, figures
+    without longitudinal parameters, set aside after the one-axis supervisor's
+    fallback, ``apply`` off; null while it is theirs."""
+    lr, _ = _learn("straight", TWO_AXIS_TRUTH, 4, n=7000)
+    st = lr.status()
+    assert st["forward"] == "one_axis"
+    assert (
+        st["forward_reason"]
+        == f"the one-axis calibration's: the misalignment is refused ({lr.refused})"
+    )
+    assert two_axis_line(st).count(lr.refused) == 1
+    lon = Params("EM3", m=-0.2, b_mps=0.1)
+    fig = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
+    lr.sup.candidate = fig
+    assert "two-axis figures validating" in str(lr.status()["forward_reason"])
+    lr.sup.candidate, lr.sup.applied = None, dataclasses.replace(fig, lon=None)
+    assert lr.status()["forward_reason"] == (
+        "the one-axis calibration's: the two-axis fit did not determine the forward scale "
+        "and offset"
+    )
+    lr.sup.applied, lr.sup.forward_own = fig, True
+    assert lr.status()["forward"] == "two_axis" and lr.status()["forward_reason"] is None
+    assert lr.answers(Guard(lr.fallbacks + 1, False, None))
+    reason = lr.status()["forward_reason"]
+    assert reason == f"the one-axis calibration's: {FALLBACK_REASON}"
+    assert f"; forward speed: {reason}" in two_axis_line(lr.status())
+    lr.sup.forward_own = True
+    lr.s = dataclasses.replace(lr.s, apply=False)
+    assert "apply is off" in str(lr.status()["forward_reason"])
 
 
 def test_aligned_sensor_gives_zero_within_its_sigma() -> None:
