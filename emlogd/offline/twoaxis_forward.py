@@ -1,7 +1,7 @@
 """The forward speed of ``--axes 2`` (calibrate, evaluate, crossval, report) by the
 daemon's rule: each reading's by whichever of the two-axis calibration's own
 correction and the one-axis calibration's (turned back by α) has the smaller expected
-error, weighed on the second up to it
+error, weighed on the readings of the last 2 s up to it
 (:class:`emlogd.pipeline.twoaxis_sup.ForwardChoice`, the daemon's own code), and the
 one-axis calibration's wherever α is refused (a straight run: the two-axis fit's
 forward parameters are then the longitudinal axis's alone, with the transverse scale

@@ -34,7 +34,8 @@ shares its lag (the UUT's, once known) and its heading.
   athwart reading of the VBW before it, within :data:`ATHWART_FRESH_S`); each reading
   then goes out by whichever of the two has the smaller expected error
   (:func:`emlogd.pipeline.twoaxis_sup.one_axis_better`, weighed on the readings of the
-  second up to it, :class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`), with the
+  last :data:`~emlogd.pipeline.twoaxis_sup.CHOICE_S` up to it,
+  :class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`), with the
   reading's noise measured as the scatter of the readings inside the last
   :data:`NOISE_BLOCKS` blocks.
 
@@ -324,7 +325,8 @@ class TwoAxisLearner:
         VHW) goes out by the applied figures' own correction ``own_mps`` rather than the
         one-axis one ``one_mps`` (whose noise gain is ``one_gain``): unless the one-axis
         one has the smaller expected error at the measured noise, weighed on the readings
-        of the last second (:class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`); counted."""
+        of the last :data:`~emlogd.pipeline.twoaxis_sup.CHOICE_S`
+        (:class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`); counted."""
         f = self.sup.applied
         if f is not None and f.lon is not None:
             us = f.lon.correct(raw_l_mps)
