@@ -336,13 +336,12 @@ up to it. One reading's difference carries its noise times the difference of the
 corrections' slopes (0.05 m/s of noise, scales −0.15 and −0.20: ±4 mm/s), enough to
 flip a choice near the bound from reading to reading; the mean over ``n`` readings
 divides that by √n, while the difference itself follows the speed, which the mean
-trails by half the window. Chosen by leaving trials out (docs/REPRODUCTION.md, the
-daemon's replays of the simulated trials with a misaligned log): on seeds 2–4 the
-VBW's forward RMSE over the one-axis calibration's, averaged over the trajectories
-replayed, was lowest at 2 s of 0.5, 1, 2, 3, 5, 10 and 30 s (3 s 0.00003 above it,
-1 s 0.0001, 10 and 30 s 0.0008–0.0012); held out, seeds 5 and 6 and the aligned logs
-of seeds 2–6 put 2 s first too, with no trajectory worse than the one-axis
-calibration's (at 30 s two figure-8s were)."""
+trails by half the window. Chosen by leaving trials out: of 0.5, 1, 2, 3, 5, 10 and
+30 s, 2 s gave the lowest mean over the trajectories of the VBW's forward RMSE over the
+one-axis calibration's in the daemon's replays of seeds 2–4 (a misaligned log), and
+of the held-out seeds 5 and 6 and the aligned logs of seeds 2–6, with no trajectory
+worse than the one-axis calibration's (docs/REPRODUCTION.md, the replays at 1 and
+2 s)."""
 
 
 class ForwardChoice:
