@@ -197,8 +197,9 @@ def key_arg(cls: type, field: str, *, allow_auto: bool = True) -> Callable[[str]
 
 def two_axis_line(two: dict[str, Any]) -> str:
     """A two-axis log's learnt figures (``axes: 2``): applied, validating or learning, α
-    ± σ with m_t and b_t, whose forward speed goes out, the leeway angle, and why the
-    latest window refused α."""
+    ± σ with m_t and b_t, whose forward speed goes out and why (``forward_reason``), the
+    leeway angle, and why the latest window refused α (said once: the forward speed's
+    reason may be that refusal)."""
     fig = two.get("applied") or two.get("estimate")
     text = f"two axes: {two.get('state')}"
     if isinstance(fig, dict):
@@ -212,8 +213,12 @@ def two_axis_line(two: dict[str, Any]) -> str:
     lee = two.get("leeway_deg")
     if isinstance(lee, float):
         text += f", leeway {lee:+.1f}°"
-    if two.get("refused"):
-        text += f"; latest window: misalignment refused: {two['refused']}"
+    why = two.get("forward_reason")
+    if why:
+        text += f"; forward speed: {why}"
+    refused = two.get("refused")
+    if refused and not (why and str(refused) in str(why)):
+        text += f"; latest window: misalignment refused: {refused}"
     if two.get("note"):
         text += f"; {two['note']}"
     return text

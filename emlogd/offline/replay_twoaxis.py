@@ -2,8 +2,10 @@
 VBW scored on both axes against a simulated trial's truth.
 
 Every VBW reading of such a log is recorded with the forward speed the one-axis
-calibration gave it (what a replay with ``axes: 1`` emits) and whether learnt
-two-axis figures were applied; the VBW it emitted is decoded as a receiver would read
+calibration gave it, scored as a replay with ``axes: 1`` emits it (in the VBW's
+hundredths of a knot, :func:`as_sent`: the emitted VBW carries the same rounding, which
+against the unrounded speed reads as a loss of up to 0.2 % where both are the same
+sentence), and whether learnt two-axis figures were applied; the VBW it emitted is decoded as a receiver would read
 it. Each is scored against the truth's speed through the water along and athwart the
 hull at the reading's time less the sensor's true latency; the floor is the reading
 corrected with the true parameters (:meth:`calib.twoaxis.TwoAxisParams.correct`), as
@@ -29,10 +31,18 @@ import numpy.typing as npt
 from calib.models import FloatArray
 from drivers import make_decoder
 from drivers.nmea0183 import NmeaDecoder
-from drivers.records import Rejected
+from drivers.nmea0183.encoders import fmt_number
+from drivers.records import KNOT_MPS, Rejected
 from emlogd.offline.simfaults import MIN_WINDOW_SAMPLES, WINDOW_S
 from emlogd.offline.simtruth import Truth
 from emlogd.pipeline.core import Emit, Pipeline
+
+
+def as_sent(v_mps: FloatArray) -> FloatArray:
+    """Speeds as a VBW sentence carries them and a receiver reads them back, m/s: in
+    knots to the encoder's two decimals (:func:`drivers.nmea0183.encoders.fmt_number`)."""
+    kn = [float(fmt_number(x / KNOT_MPS, 2)) if math.isfinite(x) else math.nan for x in v_mps]
+    return np.asarray(kn, dtype=np.float64) * KNOT_MPS
 
 
 def _rms(x: FloatArray) -> float | None:
@@ -94,7 +104,7 @@ class AthwartScorer:
             "t_raw": a[:, 3] - w,
             "t_corrected": em[:, 1] - w,
             "t_floor": fw - w,
-            "l_one_axis": a[:, 1] - u,
+            "l_one_axis": as_sent(a[:, 1]) - u,
             "l_corrected": em[:, 0] - u,
             "l_floor": fu - u,
         }

@@ -604,7 +604,7 @@ def truth_scores(
     q = a.t - latency
     u, w = truth.stw_at(q), truth.trans_at(q)
     ok = np.isfinite(u) & np.isfinite(w)
-    # the choice weighs the readings of the second before each: made on every reading
+    # the choice weighs the readings of the last CHOICE_S before each: made on every reading
     cu_all = forward_speed(a.t, a.raw_l, a.raw_t, params, rule)
     rl, rt, cu = a.raw_l[ok], a.raw_t[ok], cu_all[ok]
     u, w = u[ok], w[ok]

@@ -1,7 +1,7 @@
 """The forward speed of ``--axes 2`` (calibrate, evaluate, crossval, report) by the
 daemon's rule: each reading's by whichever of the two-axis calibration's own
 correction and the one-axis calibration's (turned back by α) has the smaller expected
-error, weighed on the second up to it
+error, weighed on the readings of the last 2 s up to it
 (:class:`emlogd.pipeline.twoaxis_sup.ForwardChoice`, the daemon's own code), and the
 one-axis calibration's wherever α is refused (a straight run: the two-axis fit's
 forward parameters are then the longitudinal axis's alone, with the transverse scale
@@ -23,7 +23,7 @@ import numpy as np
 
 from calib.models import FloatArray, Params, correct_array
 from calib.twoaxis import TwoAxisParams
-from emlogd.pipeline.twoaxis_learn import BLOCK_S, MIN_NOISE_DOF
+from emlogd.pipeline.twoaxis_learn import BLOCK_S, MIN_NOISE_DOF, ONE_AXIS_FORWARD
 from emlogd.pipeline.twoaxis_sup import ForwardChoice, noise_gain
 
 TWO_AXIS = "two_axis"
@@ -58,7 +58,7 @@ class ForwardRule:
         """Why the forward speed is the one-axis calibration's (None: it is not)."""
         if self.forward != ONE_AXIS:
             return None
-        return f"the one-axis calibration's: the misalignment is refused ({self.alpha_refused})"
+        return f"{ONE_AXIS_FORWARD}: the misalignment is refused ({self.alpha_refused})"
 
     def to_dict(self) -> dict[str, object]:
         """JSON keys: ``forward``, ``forward_reason`` and ``one_axis`` (the model's

@@ -34,7 +34,8 @@ shares its lag (the UUT's, once known) and its heading.
   athwart reading of the VBW before it, within :data:`ATHWART_FRESH_S`); each reading
   then goes out by whichever of the two has the smaller expected error
   (:func:`emlogd.pipeline.twoaxis_sup.one_axis_better`, weighed on the readings of the
-  second up to it, :class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`), with the
+  last :data:`~emlogd.pipeline.twoaxis_sup.CHOICE_S` up to it,
+  :class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`), with the
   reading's noise measured as the scatter of the readings inside the last
   :data:`NOISE_BLOCKS` blocks.
 
@@ -127,6 +128,19 @@ NO_TWO_AXIS_REFERENCE = (
     "gives both axes; GNSS and a one-axis log do not)"
 )
 """Why nothing is learnt while no reading has been paired with a two-axis reference."""
+
+FALLBACK_REASON = (
+    "set aside after a fallback of the one-axis calibration (a change detected, or it "
+    "was worse than raw): the two-axis fit's own forward speed is judged again at the "
+    "next two-axis recheck"
+)
+"""Why the figures' own forward speed is not let out after a fallback of the one-axis
+supervisor (:meth:`TwoAxisLearner.answers`)."""
+
+ONE_AXIS_FORWARD = "the one-axis calibration's"
+"""What a reason for the forward speed not being the two-axis figures' own starts with
+(:meth:`TwoAxisLearner.forward_reason`; the offline ``forward_reason`` too,
+:class:`emlogd.offline.twoaxis_forward.ForwardRule`)."""
 
 _Pending = tuple[float, float, float, float]
 
@@ -311,7 +325,8 @@ class TwoAxisLearner:
         VHW) goes out by the applied figures' own correction ``own_mps`` rather than the
         one-axis one ``one_mps`` (whose noise gain is ``one_gain``): unless the one-axis
         one has the smaller expected error at the measured noise, weighed on the readings
-        of the last second (:class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`); counted."""
+        of the last :data:`~emlogd.pipeline.twoaxis_sup.CHOICE_S`
+        (:class:`~emlogd.pipeline.twoaxis_sup.ForwardChoice`); counted."""
         f = self.sup.applied
         if f is not None and f.lon is not None:
             us = f.lon.correct(raw_l_mps)
@@ -348,7 +363,9 @@ class TwoAxisLearner:
         (:attr:`TwoAxisSupervisor.forward_own`)."""
         if guard.fallbacks != self.fallbacks:
             self.fallbacks = guard.fallbacks
-            self.sup.forward_own = False
+            if self.sup.forward_own:
+                self.sup.forward_own = False
+                self.sup.forward_why = FALLBACK_REASON
         return not guard.held
 
     def forward_on(self) -> bool:
@@ -356,6 +373,30 @@ class TwoAxisLearner:
         parameters (applied, let by the supervisor, ``apply`` on)."""
         f = self.sup.applied
         return f is not None and f.lon is not None and self.sup.forward_own and self.s.apply
+
+    def forward_reason(self, refused: str = "") -> str | None:
+        """Why the forward speed is the one-axis calibration's rather than the applied
+        figures' own (None: it is theirs, :meth:`forward_on`): ``apply`` off, no figures
+        applied (α refused by the latest window, ``refused`` (default: :attr:`refused`),
+        with its reason; figures validating; withdrawn), figures without longitudinal
+        parameters, or the supervisor's judgement of their own forward speed
+        (:attr:`TwoAxisSupervisor.forward_why`)."""
+        if self.forward_on():
+            return None
+        sup, refused = self.sup, refused or self.refused
+        if not self.s.apply:
+            why = "apply is off: no learnt two-axis figures are applied"
+        elif sup.applied is None and sup.candidate is not None:
+            why = "two-axis figures validating (their athwart speed against raw's)"
+        elif sup.applied is None and refused:
+            why = f"the misalignment is refused ({refused})"
+        elif sup.applied is None:
+            why = sup.note or "no two-axis figures learnt yet"
+        elif sup.applied.lon is None:
+            why = "the two-axis fit did not determine the forward scale and offset"
+        else:
+            why = sup.forward_why or "the two-axis fit's own forward speed not judged yet"
+        return f"{ONE_AXIS_FORWARD}: {why}"
 
     # -- learning -----------------------------------------------------------
 
@@ -514,6 +555,7 @@ class TwoAxisLearner:
             "fit_failures": self.fit_failures,
             "rmse_t": {k: (None if math.isnan(v) else v) for k, v in sup.last_scores.items()},
             "forward": "two_axis" if self.forward_on() else "one_axis",
+            "forward_reason": self.forward_reason(refused),
             "rmse_l": {k: (None if math.isnan(v) else v) for k, v in sup.forward_scores.items()},
             "not_learnt": dict(self.counts),
         }

@@ -329,13 +329,19 @@ def one_axis_better(d_mps: float, own_gain: float, one_gain: float, noise_var: f
     return math.isfinite(spare) and spare > 0.0 and d_mps * d_mps < spare
 
 
-CHOICE_S = 1.0
+CHOICE_S = 2.0
 """The one-axis correction's offset a reading's choice weighs (:class:`ForwardChoice`)
 is the mean of the two corrections' difference over the readings of this many seconds
 up to it. One reading's difference carries its noise times the difference of the two
 corrections' slopes (0.05 m/s of noise, scales −0.15 and −0.20: ±4 mm/s), enough to
-flip a choice near the bound from reading to reading; ten readings of a 10-Hz log
-divide that by three, and the speed a ship holds changes little in one second."""
+flip a choice near the bound from reading to reading; the mean over ``n`` readings
+divides that by √n, while the difference itself follows the speed, which the mean
+trails by half the window. Chosen by leaving trials out: of 0.5, 1, 2, 3, 5, 10 and
+30 s, 2 s gave the lowest mean over the trajectories of the VBW's forward RMSE over the
+one-axis calibration's in the daemon's replays of seeds 2–4 (a misaligned log), and
+of the held-out seeds 5 and 6 and the aligned logs of seeds 2–6, with no trajectory
+worse than the one-axis calibration's; seed 1, out of both, 1.0003 times it on one
+(its circles after a restart, 1.0032 at 1 s; docs/REPRODUCTION.md)."""
 
 
 class ForwardChoice:
@@ -375,14 +381,20 @@ class ForwardChoice:
         return one_axis_better(self._sum / len(diffs), own_gain, one_gain, noise_var)
 
 
-def own_forward_ok(r: Mapping[str, float]) -> bool:
-    """The figures' own forward speed is not worse than the one-axis calibration's
-    nor than raw (:func:`emlogd.pipeline.revalidation.worse`) on scores of
-    :func:`forward_rmse`."""
+def own_forward_verdict(r: Mapping[str, float]) -> str:
+    """Why the figures' own forward speed is worse than the one-axis calibration's or
+    than raw (:func:`emlogd.pipeline.revalidation.worse`) on scores of
+    :func:`forward_rmse`, with the scores; "" where it is not."""
     own = r.get(FORWARD_OWN, math.nan)
     if not math.isfinite(own):
-        return False
-    return not worse(own, r[FORWARD_ONE_AXIS]) and not worse(own, r[FORWARD_RAW])
+        return "the two-axis fit did not determine the forward scale and offset"
+    for key, name in ((FORWARD_ONE_AXIS, "the one-axis calibration's"), (FORWARD_RAW, "raw's")):
+        if worse(own, r[key]):
+            return (
+                f"the two-axis fit's own forward speed was worse than {name} "
+                f"({own:.4f} against {r[key]:.4f} m/s after a current of its own)"
+            )
+    return ""
 
 
 class TwoAxisSupervisor:
@@ -427,6 +439,10 @@ class TwoAxisSupervisor:
         self.forward_doubted = False
         """The figures' own forward speed was set aside by a recheck that found it worse:
         it returns only where the one-axis one is worse than it by the margin."""
+        self.forward_why = ""
+        """Why the applied figures' own forward speed is not let out, in words (with the
+        scores of the judgement that set it aside); "" while it is, or before figures
+        are applied."""
 
         self.sea: tuple[float, float, float] | None = None
         """The restored figures' saved current (north, east, m/s) and its time, s, while
@@ -500,6 +516,10 @@ class TwoAxisSupervisor:
         self.early = True
         self._recheck = []
         self.note = "restored two-axis figures applied on their first blocks: validating"
+        self.forward_why = (
+            "restored two-axis figures applied early: their own forward speed is judged "
+            "once they have validated"
+        )
         self._event(
             t,
             "two_axis_applied",
@@ -543,7 +563,8 @@ class TwoAxisSupervisor:
         self._recheck = []
         self.note = ""
         self.forward_scores = forward_rmse(blocks, cand)
-        self.forward_own = own_forward_ok(self.forward_scores)
+        self.forward_why = own_forward_verdict(self.forward_scores)
+        self.forward_own = not self.forward_why
         self.forward_doubted = not self.forward_own
         detail["forward"] = FORWARD_OWN if self.forward_own else FORWARD_ONE_AXIS
         detail |= {f"rmse_l_{k}": round(v, 4) for k, v in self.forward_scores.items()}
@@ -575,15 +596,23 @@ class TwoAxisSupervisor:
             return
         r = self.forward_scores = forward_rmse(blocks, app)
         detail = {f"rmse_l_{k}": round(v, 4) for k, v in r.items()}
-        if self.forward_own and not own_forward_ok(r):
+        verdict = own_forward_verdict(r)
+        if self.forward_own and verdict:
             self.forward_own, self.forward_doubted = False, True
+            self.forward_why = verdict
             self._event(t, "two_axis_forward_withdrawn", detail)
-        elif (
-            not self.forward_own
-            and (not self.forward_doubted or worse(r[FORWARD_ONE_AXIS], r[FORWARD_OWN]))
-            and own_forward_ok(r)
-        ):
-            self.forward_own = True
+        elif self.forward_own:
+            return
+        elif verdict:
+            self.forward_why = verdict
+        elif self.forward_doubted and not worse(r[FORWARD_ONE_AXIS], r[FORWARD_OWN]):
+            self.forward_why = (
+                "the two-axis fit's own forward speed, found worse at a recheck, returns "
+                "once the one-axis calibration's is worse than it by the margin "
+                f"({r[FORWARD_OWN]:.4f} against {r[FORWARD_ONE_AXIS]:.4f} m/s)"
+            )
+        else:
+            self.forward_own, self.forward_why = True, ""
             self._event(t, "two_axis_forward_applied", detail)
 
 

@@ -151,7 +151,8 @@ def test_vbw_carries_the_corrected_athwart_speed_once_validated(work: Path, serv
     ground pair with its validity) is the raw reading turned into the hull frame by
     them, its athwart speed without the misalignment's phantom leeway; before, the VBW
     passed through as read. The status sentence and the JSON carry α ± σ and the
-    leeway angle of the corrected VBW."""
+    leeway angle of the corrected VBW, and the JSON why the forward speed is the
+    one-axis calibration's."""
     d = Daemon(work, pty=True)
     try:
 
@@ -165,6 +166,10 @@ def test_vbw_carries_the_corrected_athwart_speed_once_validated(work: Path, serv
         d.pump(0.5)
         assert isinstance(two, dict) and two["state"] == "applied"
         assert two["applied"] == pytest.approx(FIGURES)
+        assert two["forward"] == "one_axis" and two["forward_reason"] == (
+            "the one-axis calibration's: the two-axis fit did not determine the forward "
+            "scale and offset"
+        )  # the state file's figures carry no longitudinal parameters
     finally:
         d.stop()
     text = [line.decode("ascii") for line in d.lines]

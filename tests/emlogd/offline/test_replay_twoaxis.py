@@ -10,11 +10,18 @@ import json
 import numpy as np
 import pytest
 
+from calib.models import Params
+from drivers.records import KNOT_MPS
 from emlogd.cli import main
 from emlogd.daemon.statefile import StateStore
-from emlogd.offline.replay_twoaxis import _worst_windows
+from emlogd.offline.replay_twoaxis import AthwartScorer, _worst_windows, as_sent
 from emlogd.offline.simfaults import WINDOW_S
+from emlogd.offline.simtruth import read_truth
 from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
+from emlogd.offline.twoaxis_forward import ForwardRule
+from emlogd.pipeline.core import Emit, Pipeline
+from emlogd.pipeline.sentences import encode_vbw
+from emlogd.pipeline.settings import PortSettings, UutSettings
 
 CFG = """\
 ports:
@@ -28,12 +35,18 @@ calibration:
 
 
 @pytest.fixture(scope="module")
-def replayed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
-    """A fifth of the trial with emlog2 turned 3° to starboard (noise 0.01 m/s): the
-    figure-8 and the circles replayed with emlog2 learning two axes."""
+def trial(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
+    """A fifth of the trial with emlog2 turned 3° to starboard (noise 0.01 m/s)."""
     out = tmp_path_factory.mktemp("replay2")
     sensor = with_sensor(EMLOG2, {"misalign": 3.0, "mt": -0.08, "bt": 0.04, "noise": 0.01})
-    trial: SimulationResult = simulate(out, seed=3, scale=0.2, emlogs=(EMLOG1, sensor))
+    return simulate(out, seed=3, scale=0.2, emlogs=(EMLOG1, sensor))
+
+
+@pytest.fixture(scope="module")
+def replayed(trial: SimulationResult) -> dict[str, object]:
+    """The trial's figure-8 and circles replayed with emlog2 learning two axes, then the
+    straight run and the return after a restart from the state file."""
+    out = trial.files[0].parent
     cfg = out / "replay.yaml"
     cfg.write_text(CFG)
     caps = [str(trial.files[1]), str(trial.files[3])]
@@ -116,6 +129,64 @@ def test_the_forward_speed_after_a_restart_is_the_two_axis_fits(
     on = after["uuts"]["emlog2"]["two_axis_truth"]["applied"]
     assert on["rmse_l_corrected"] <= 1.05 * on["rmse_l_floor"]
     assert on["rmse_l_corrected"] <= 0.9 * on["rmse_l_one_axis"]
+
+
+def test_a_straight_run_says_why_the_forward_speed_is_the_one_axis_calibrations(
+    trial: SimulationResult,
+) -> None:
+    """The straight run alone: α refused, and the UUT's status (the JSON, the text
+    summary's two-axis line) says the forward speed is the one-axis calibration's
+    because of it, in the words of the offline ``forward_reason``; the VBW's forward
+    speed is then the very sentence ``axes: 1`` sends, and scores exactly as the
+    one-axis calibration's (both in the VBW's hundredths of a knot)."""
+    out = trial.files[0].parent
+    cfg = out / "straight.yaml"
+    cfg.write_text(CFG)
+    argv = ["replay", str(trial.files[2]), "--config", str(cfg), "--out", str(out / "st.nmea")]
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main([*argv, "--json", "--truth", str(out)]) == 0
+    uut = json.loads(buf.getvalue())["uuts"]["emlog2"]
+    scores, two = uut["two_axis_truth"], uut["two_axis"]
+    assert scores["n_samples"] > 1000
+    assert scores["rmse_l_corrected"] == scores["rmse_l_one_axis"]
+    refused = two["refused"]
+    assert "speed through water nearly constant" in refused
+    assert two["state"] == "learning" and two["forward"] == "one_axis"
+    offline = ForwardRule(Params("EM3"), refused).reason
+    assert two["forward_reason"] == offline
+    assert offline == f"the one-axis calibration's: the misalignment is refused ({refused})"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(argv) == 0
+    line = next(x for x in buf.getvalue().splitlines() if x.startswith("emlog2 two axes"))
+    assert line == f"emlog2 two axes: learning; forward speed: {offline}"
+
+
+def test_the_one_axis_forward_speed_is_scored_as_axes_1_sends_it(
+    trial: SimulationResult,
+) -> None:
+    """The one-axis calibration's forward speed is scored in the VBW's hundredths of a
+    knot, as ``axes: 1`` sends it: a VBW that carries exactly that speed scores exactly
+    as it, though the unrounded speed (here 3 mm/s above the truth, under the 5 mm/s of a
+    hundredth of a knot) is nearer the truth."""
+    truth = read_truth(trial.files[0].parent)
+    _, latency = truth.emlog("emlog2")
+    s = UutSettings(port="emlog2", reference_port="dvl", uut_source="VBW", axes=2)
+    pipeline = Pipeline([PortSettings("emlog2", "nmea0183"), PortSettings("dvl", "pd6")], [s])
+    scorer = AthwartScorer(pipeline)
+    tap = pipeline.two_axis["emlog2"].tap
+    assert tap is not None
+    sel = np.flatnonzero(truth.trajectory == 2)[1:-1:10]
+    for t, u in zip(truth.t[sel] + latency, truth.stw_at(truth.t[sel]) + 0.003, strict=True):
+        tap(float(t), float(u), float(u), 0.0, False)
+        scorer.emitted([Emit(float(t), "emlog2", encode_vbw(float(u), 0.0, "VM"))])
+    got = scorer.scores(truth)["emlog2"]
+    assert got["n_samples"] == sel.size
+    assert got["rmse_l_one_axis"] == got["rmse_l_corrected"]
+    one = got["rmse_l_one_axis"]
+    assert isinstance(one, float) and abs(one - 0.003) > 0.0002  # the rounding counted
+    assert as_sent(np.array([1.0, np.nan]))[0] == pytest.approx(1.94 * KNOT_MPS, abs=1e-12)
 
 
 def test_athwart_worst_windows() -> None:

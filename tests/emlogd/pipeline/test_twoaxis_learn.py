@@ -20,11 +20,12 @@ from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
 from emlogd.pipeline.settings import PortSettings, UutSettings
 from emlogd.pipeline.twoaxis_learn import (
+    FALLBACK_REASON,
     NO_TWO_AXIS_REFERENCE,
     TwoAxisLearner,
     encode_two_axis_status,
 )
-from emlogd.pipeline.twoaxis_sup import OFFER_SHARPER, Figures, Guard, noise_gain
+from emlogd.pipeline.twoaxis_sup import CHOICE_S, OFFER_SHARPER, Figures, Guard, noise_gain
 from tests.synth import TWO_AXIS_FIGURES, TWO_AXIS_TRUTH, two_axis_series, two_axis_trial
 
 SETTINGS = UutSettings(
@@ -163,6 +164,39 @@ def test_circles_one_way_refuse_alpha_in_words_an_operator_reads() -> None:
     )
     assert [d["why"] for _, k, d in events if k == "two_axis_refused"][-1] == why
     assert why in two_axis_line(lr.status())
+
+
+def test_the_status_says_why_the_forward_speed_is_the_one_axis_calibrations() -> None:
+    """``forward_reason`` in the status (and its line) whenever the forward speed is not
+    the applied figures' own: α refused by the latest window, figures validating, figures
+    without longitudinal parameters, set aside after the one-axis supervisor's
+    fallback, ``apply`` off; null while it is theirs."""
+    lr, _ = _learn("straight", TWO_AXIS_TRUTH, 4, n=7000)
+    st = lr.status()
+    assert st["forward"] == "one_axis"
+    assert (
+        st["forward_reason"]
+        == f"the one-axis calibration's: the misalignment is refused ({lr.refused})"
+    )
+    assert two_axis_line(st).count(lr.refused) == 1
+    lon = Params("EM3", m=-0.2, b_mps=0.1)
+    fig = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
+    lr.sup.candidate = fig
+    assert "two-axis figures validating" in str(lr.status()["forward_reason"])
+    lr.sup.candidate, lr.sup.applied = None, dataclasses.replace(fig, lon=None)
+    assert lr.status()["forward_reason"] == (
+        "the one-axis calibration's: the two-axis fit did not determine the forward scale "
+        "and offset"
+    )
+    lr.sup.applied, lr.sup.forward_own = fig, True
+    assert lr.status()["forward"] == "two_axis" and lr.status()["forward_reason"] is None
+    assert lr.answers(Guard(lr.fallbacks + 1, False, None))
+    reason = lr.status()["forward_reason"]
+    assert reason == f"the one-axis calibration's: {FALLBACK_REASON}"
+    assert f"; forward speed: {reason}" in two_axis_line(lr.status())
+    lr.sup.forward_own = True
+    lr.s = dataclasses.replace(lr.s, apply=False)
+    assert "apply is off" in str(lr.status()["forward_reason"])
 
 
 def test_aligned_sensor_gives_zero_within_its_sigma() -> None:
@@ -344,13 +378,14 @@ def test_a_reading_goes_out_by_the_correction_of_the_smaller_expected_error() ->
     assert ax.forward_by == {"own": 4, "one_axis": 2}
 
 
-def test_a_reading_s_choice_is_weighed_on_the_second_before_it() -> None:
+def test_a_reading_s_choice_is_weighed_on_the_readings_before_it() -> None:
     """The choice between the two corrections weighs the one-axis offset as its mean over
-    the readings of the last second, not the reading's own: readings alternating by
-    ±0.1 m/s of noise about a speed where the one-axis offset (15 mm/s) is inside the
-    21 mm/s its gain spares go out by the one-axis correction from the second reading
-    on, though every other reading's own offset (22 mm/s) is outside it; a reading
-    after a gap longer than the second weighs itself alone."""
+    the readings of the last ``CHOICE_S`` (2 s), not the reading's own: readings
+    alternating by ±0.1 m/s of noise about a speed where the one-axis offset (15 mm/s)
+    is inside the 21 mm/s its gain spares go out by the one-axis correction from the
+    second reading on, though every other reading's own offset (22 mm/s) is outside it;
+    a reading less than ``CHOICE_S`` after the last is weighed with it, one after a
+    longer gap weighs itself alone."""
     lr = TwoAxisLearner(SETTINGS, lambda *_: None)
     lon = Params("EM3", m=-0.2, b_mps=0.1)
     fig = Figures(3.0, 0.1, -0.08, 0.01, 0.04, 0.01, 0.0, lon)
@@ -377,4 +412,7 @@ def test_a_reading_s_choice_is_weighed_on_the_second_before_it() -> None:
     assert abs(offsets[0]) > bound > abs(offsets[1]) and abs(sum(offsets) / 2) < bound
     chosen = [by_one_axis(0.1 * k, raw + (0.1 if k % 2 else -0.1)) for k in range(20)]
     assert chosen == [False] + [True] * 19
-    assert not by_one_axis(10.0, raw - 0.1)
+    assert CHOICE_S == 2.0
+    t = 1.9 + CHOICE_S - 0.1
+    assert by_one_axis(t, raw - 0.1)  # with the reading at 1.9 s (+0.1)
+    assert not by_one_axis(t + CHOICE_S + 0.1, raw - 0.1)

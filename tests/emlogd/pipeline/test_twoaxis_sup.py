@@ -213,6 +213,44 @@ def test_forward_speed_set_aside_by_a_fallback_returns_at_the_next_recheck() -> 
     assert not _own(sup)
 
 
+def test_why_the_own_forward_speed_is_not_let_out_is_said() -> None:
+    """Each judgement that keeps the figures' own forward speed out says why, with its
+    scores: worse than the one-axis calibration's over the validation, no longitudinal
+    parameters, worse at a recheck, then waiting for the one-axis one to be worse by
+    the margin; let out again, nothing is said."""
+    sup = TwoAxisSupervisor(60.0, 120.0, lambda t, k, d: None)
+    _validated(sup, _figures(3.0, lon=Params("EM3", b_mps=-0.05)), _blocks(3.0, 70))
+    r = sup.forward_scores
+    assert sup.forward_why == (
+        "the two-axis fit's own forward speed was worse than the one-axis calibration's "
+        f"({r[FORWARD_OWN]:.4f} against {r[FORWARD_ONE_AXIS]:.4f} m/s after a current of "
+        "its own)"
+    )
+    sup = TwoAxisSupervisor(60.0, 120.0, lambda t, k, d: None)
+    _validated(sup, _figures(3.0), _blocks(3.0, 70))
+    assert sup.forward_why == "the two-axis fit did not determine the forward scale and offset"
+    sup = TwoAxisSupervisor(60.0, 120.0, lambda t, k, d: None)
+    _validated(sup, _figures(3.0, lon=LON), _blocks(3.0, 70, one_axis_scale=1.05))
+    assert _own(sup) and sup.forward_why == ""
+    for b in _blocks(3.0, 130, 71.0, lon=Params("EM3", m=-0.19, b_mps=-0.05)):
+        sup.observe(b)
+    assert not _own(sup)
+    assert sup.forward_why.startswith(
+        "the two-axis fit's own forward speed was worse than the one-axis calibration's ("
+    )
+    close = Params("EM3", m=-0.1113, b_mps=-0.05)  # the figures' own 3 mm/s off
+    for b in _blocks(3.0, 260, 202.0, lon=close):  # the recheck's second window all close
+        sup.observe(b)
+    assert (
+        not _own(sup)
+        and "returns once the one-axis calibration's is worse than it by the margin"
+        in sup.forward_why
+    )
+    for b in _blocks(3.0, 130, 463.0, one_axis_scale=1.1):
+        sup.observe(b)
+    assert _own(sup) and sup.forward_why == ""
+
+
 def test_restored_figures_applied_early_in_their_saved_sea() -> None:
     """Restored with the sea saved with them (the current the blocks see), the figures
     are applied after 5 blocks, where raw's phantom leeway is worse than theirs in that
