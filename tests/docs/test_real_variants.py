@@ -586,8 +586,9 @@ unperturbed recording's water (``ground_only``). Scored against its own GNSS, a 
 window at the log's end is 1.6 to 1.9 times raw's: with headings in fewer than three
 sectors in its last three minutes, that window's current is the recording's mean, far
 from a 3-kn tide's at that hour; against the unperturbed water the same emitted speeds
-are 0.83 of raw's there. The 1.5-kn tide on Irene 2013 (at 1 Hz and with the GNSS at
-0.5 Hz) and on DashT with the GNSS at 0.5 Hz do not hold yet (:data:`KNOWN_OTHER`)."""
+are 0.83 of raw's there. The 1.5-kn tide with the GNSS at 0.5 Hz on Irene 2007 and DashT
+(whose least squares holds a scale its current per 30 minutes takes); on Irene 2013, at
+1 Hz and at 0.5 Hz, it does not hold yet (:data:`KNOWN_OTHER`)."""
 
 KNOWN_OTHER: dict[tuple[str, str], str] = {
     ("irene-2013-09-22-leman.nmea", "tide"): (
@@ -598,10 +599,6 @@ KNOWN_OTHER: dict[tuple[str, str], str] = {
     ("irene-2013-09-22-leman.nmea", "tide-gnss-0.5hz"): (
         "the unperturbed log's own calibration (m +0.054, b -0.057) applied 5 min earlier, "
         "in a window where raw reads 0.1 m/s low: 1.19 times raw's against the water"
-    ),
-    ("dasht-2016-05-07-trieste.nmea", "tide-gnss-0.5hz"): (
-        "least squares' current per 30 min cannot follow the tide on DashT's long legs: "
-        "LS scale 1.062 against 0.985"
     ),
 }
 """What does not hold yet among :data:`OTHER_RECORDINGS`: strict xfails."""
