@@ -101,6 +101,7 @@ class CourseFill:
                 self.held.append((text, f, len(self.fixes) - 1))
                 return self._release(final=False)
         if not self.held:
+            self._forget()
             return [text]
         self.held.append((text, None, -1))
         return self._release(final=False)
