@@ -17,7 +17,10 @@ Only what the data determine is estimated (:mod:`calib.excitation`): an unknown 
 window does not determine is held at its prior (the given prior parameters, else
 the ideal sensor; zero current) and reported as unidentifiable. When the current is
 not separable from the bias a nuisance offset takes their sum, so a scale can still
-be learnt from speed changes. Standard errors are ``√diag(σ̂²·(JᵀWJ)⁻¹)`` over the
+be learnt from speed changes. With a current per block (``current_block_s``) a
+parameter is held too when its standard deviation from that fit's information exceeds
+the rule's bound: the rule judges one current over the window, and the blocks' currents
+take whatever of a column follows the heading within each block. Standard errors are ``√diag(σ̂²·(JᵀWJ)⁻¹)`` over the
 estimated unknowns with ``σ̂² = κ·Σwₖrₖ² / (Σwₖ/N̄·(N − p))``, where κ is the residuals'
 correlation factor (:func:`calib.metrics.correlation_factor`, 1 for white residuals):
 residuals correlated over seconds or minutes hold κ times fewer independent samples.
@@ -31,7 +34,7 @@ Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -305,6 +308,7 @@ def fit_ls(
             ident = new
             break
         ident = new
+    ident = _judged_with_blocks(problem, x0, ident, index, w_mean, rule)
     free = _free(ident, index)
     x, rss, info = _solve(problem, x0, free)
     dof = max(n - len(free), 1)
@@ -374,6 +378,44 @@ def _reference_weight(noise_ratio: float | None, prior: Params | None) -> float:
         raise DataError(f"noise_ratio must be finite and non-negative, not {noise_ratio!r}")
     slope0 = 1.0 + (prior.m if prior is not None else 0.0)
     return 1.0 / (1.0 + noise_ratio * slope0 * slope0)
+
+
+def _judged_with_blocks(
+    problem: _Problem,
+    x0: FloatArray,
+    ident: Identifiability,
+    index: dict[str, list[int]],
+    w_mean: float,
+    rule: ExcitationRule,
+) -> Identifiability:
+    """``ident`` with every parameter held whose standard deviation, from the information
+    of the fit with a current per block, exceeds the rule's bound (σ̂² without κ, as
+    the rule). The rule judges one current over the window; a current per block also
+    takes whatever of a parameter's column follows the heading within each block (a
+    scale whose speed changes with the heading, the speed changing from one block to
+    the next), and what the blocks' currents can take the data do not determine."""
+    if problem.n_blocks <= 1:
+        return ident
+    free = _free(ident, index)
+    _, rss, info = _solve(problem, x0, free)
+    sigma2 = rss / (w_mean * max(problem.raw.size - len(free), 1))
+    try:
+        var = np.diag(np.linalg.inv(info)) * sigma2 * w_mean
+    except np.linalg.LinAlgError:
+        var = np.full(len(free), math.inf)
+    verdicts = []
+    for v in ident.verdicts:
+        if v.determined and v.unknown != CURRENT:
+            std = math.sqrt(max(float(var[free.index(index[v.unknown][0])]), 0.0))
+            if not std <= rule.max_std(v.unknown):
+                what = "scale" if v.unknown in ("a", "m") else "bias"
+                why = (
+                    f"{what} not determinable with a current per block: standard error "
+                    f"{std:.3g} > {rule.max_std(v.unknown):g}"
+                )
+                v = replace(v, determined=False, reason=why, std=None)
+        verdicts.append(v)
+    return replace(ident, verdicts=tuple(verdicts))
 
 
 def _free(ident: Identifiability, index: dict[str, list[int]]) -> list[int]:

@@ -39,7 +39,8 @@ row set beside the unperturbed recording's: the effective scale at the unperturb
 median speed (LS and KF, and their change), the replay's emitted/raw RMSE against
 the GNSS water speed and its worst 5-min ratio. A variant that moves the ground alone
 (a tidal current added to the GNSS: ``ground_only``) is scored against the unperturbed
-recording's GNSS water speed, its water being that one: the water speed estimated from
+recording's GNSS water speed (its GNSS thinned alike where the variant thins it:
+``Variant.water``), its water being that one: the water speed estimated from
 its own GNSS takes the current as constant over half-hour windows, and a 3-kn tide
 turning over 12.42 h moves by up to 0.4 m/s in one (its scores from its own GNSS are
 kept beside, ``scores_own_gnss``). :func:`verdict` names what moved: a
@@ -143,6 +144,10 @@ class Variant:
     """The rewrite moves the ground alone (a current added to the GNSS), every line
     kept in place: the water is the unperturbed recording's, and the replay is scored
     against the unperturbed recording's GNSS water speed (:func:`run_one`)."""
+    water: Callable[[str], str] = lambda text: text
+    """For a ``ground_only`` variant, the unperturbed recording as the rewrite leaves it
+    but for the ground's change (the same lines kept or dropped, at the same times):
+    the log its GNSS water speed is scored against."""
 
 
 def _nm(fn: Callable[[list[str]], list[str] | None]) -> Callable[[str], str]:
@@ -232,6 +237,8 @@ VARIANTS: tuple[Variant, ...] = (
         "nmea",
         lambda text: thin_gnss(2.0)(_nm(tidal_rmc)(text)),
         "the 1.5-kn tide with a GNSS at 0.5 Hz",
+        ground_only=True,
+        water=thin_gnss(2.0),
     ),
     Variant("log-lags-2s", "nmea", lagged(2.0), "the log 2 s behind the GNSS"),
     Variant("log-leads-2s", "nmea", lagged(-2.0), "the log 2 s ahead of the GNSS"),
@@ -539,22 +546,24 @@ def run_one(src: Path, text: str, variant: Variant | None, out: Path) -> dict[st
             row["scores"] = rd.water_scores(cap, emitted)
             if variant is not None and variant.ground_only:
                 row["scores_own_gnss"] = row["scores"]
-                row["scores"] = rd.water_scores(_truth(src, text, what, out), emitted)
+                truth = _truth(src, variant.water(text), what, out / tag)
+                row["scores"] = rd.water_scores(truth, emitted)
         except (ValueError, RuntimeError) as exc:
             row["errors"]["scores"] = str(exc)
     return row
 
 
-def _truth(src: Path, text: str, kind: str, out: Path) -> Path:
-    """The unperturbed recording imported, whose GNSS water speed scores a
-    ground-only variant's replay (the same lines at the same times, the same water).
+def _truth(src: Path, text: str, kind: str, stem: Path) -> Path:
+    """The unperturbed recording ``text`` (as the variant's :attr:`Variant.water` leaves
+    it) imported as ``stem.truth.cap.gz``, whose GNSS water speed scores a ground-only
+    variant's replay (the same lines at the same times, the same water).
 
     Raises:
         RuntimeError: the unperturbed recording does not import.
     """
-    path = out / f"{src.stem}.truth{src.suffix}"
+    path = stem.with_name(f"{stem.name}.truth{src.suffix}")
     path.write_bytes(text.encode("latin-1", errors="replace"))
-    cap = out / f"{src.stem}.truth.cap.gz"
+    cap = stem.with_name(f"{stem.name}.truth.cap.gz")
     err = ""
     for opts in import_options(kind, []):
         rc, _, err = _real_data().emlogd(["import", str(path), *opts, "--out", str(cap)])

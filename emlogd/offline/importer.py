@@ -32,8 +32,8 @@ date not advancing at midnight): they are then a new time base, shifted to follo
 one before — by whole days when the jump back is one, the sentences between then
 kept; else to come a fix interval after its last fix, the sentences between counted
 ``time_reset`` (noted ``time_base_reset``); a fix jumping forward back onto an earlier
-base takes that base's shift again (``time_base_returned``). An RMC whose course field is empty takes the bearing from the positions of the
-fixes before it when their spacing and its speed allow it
+base takes that base's shift again (``time_base_returned``). An RMC whose course field is empty takes the bearing between the positions of the
+fixes before and after it when their spacing and its speed allow it
 (:mod:`emlogd.offline.importcourse`). The sentences between two fixes are
 spread evenly, in their order, over the interval up to the next fix. Sentences before the first fix and after the last
 have no time and are counted (``before_first_fix``, ``after_last_fix``): times are

@@ -417,6 +417,14 @@ def _why_no_time(report: ImportReport, first: str, sentences: int) -> str:
     )
 
 
+def _add(spread: _Spreader, clock: _Clock, line: str, report: ImportReport) -> None:
+    """One sentence into the capture at the time the fixes give it."""
+    spread.add(line, clock.fix(line, spread.raw_fix))
+    if clock.gga is not None:  # a GLL's position, as GGA
+        report.notes["gga_from_gll"] += 1
+        spread.add(clock.gga, None)
+
+
 def import_nmea(
     paths: Sequence[str | Path],
     out: str | Path,
@@ -455,15 +463,14 @@ def import_nmea(
                     first = first or raw.strip()[:FIRST_LINE_CHARS]
                     for part in run_together(raw.strip(LINE_PADDING), report):
                         for cut in joiner.lines(part):
-                            line = course.line(cut)
                             sentences += 1
-                            spread.add(line, clock.fix(line, spread.raw_fix))
-                            if clock.gga is not None:  # a GLL's position, as GGA
-                                report.notes["gga_from_gll"] += 1
-                                spread.add(clock.gga, None)
+                            for line in course.lines(cut):
+                                _add(spread, clock, line, report)
             joiner.flush()
             if progress is not None:
                 progress(f"import {Path(path).name}", (i + 1) / len(paths))
+        for line in course.flush():
+            _add(spread, clock, line, report)
         spread.finish()
         if report.written == 0:
             raise ImportFormatError(_why_no_time(report, first, sentences))

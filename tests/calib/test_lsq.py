@@ -338,3 +338,33 @@ class TestTidalCurrent:
         assert ids[0] == ids[150] == ids[250] and ids[350] == ids[0] + 1
         with pytest.raises(DataError):
             current_blocks(None, hd, 100.0, 3)
+
+    @staticmethod
+    def _speed_follows_heading(
+        seed: int = 5,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, Params]:
+        """Two half hours on three headings each, the speed through the water following
+        the heading's cosine, +1 m/s in the first and −1 m/s in the second."""
+        rng = np.random.default_rng(seed)
+        truth = Params("EM3", m=0.05, b_mps=0.1)
+        t = np.arange(0.0, 3600.0, 20.0)
+        hd = np.array([0.0, 120.0, 240.0])[(t // 60.0 % 3).astype(int)]
+        sign = np.where(t < 1800.0, 1.0, -1.0)
+        u = 2.0 + sign * np.cos(np.radians(hd)) + rng.normal(0.0, 0.02, t.size)
+        ref = u + 0.2 * np.cos(np.radians(hd)) + 0.1 * np.sin(np.radians(hd))
+        raw = forward_array(truth, u) + rng.normal(0.0, 0.01, t.size)
+        return t, ref, raw, hd, truth
+
+    def test_a_scale_the_blocks_currents_take_is_held(self) -> None:
+        """One current over the hour determines the scale (the speed's tie to the heading
+        flips between the halves); a current per half hour takes it in each, so the fit
+        with blocks holds the scale at its prior and says why."""
+        t, ref, raw, hd, truth = self._speed_follows_heading()
+        one = fit_ls("EM3", ref, raw, heading_deg=hd, current=True)
+        assert "m" in one.ident.determined
+        assert abs(one.params.m - truth.m) < 0.01
+        fit = fit_ls("EM3", ref, raw, heading_deg=hd, current=True, t_s=t, current_block_s=1800.0)
+        assert len(fit.current_blocks) == 2
+        assert "m" not in fit.ident.determined
+        assert fit.params.m == 0.0
+        assert "with a current per block" in fit.reason

@@ -520,6 +520,27 @@ def test_the_tide_moves_the_ground_not_the_water(name: str, scale: float, tmp_pa
     assert (rep.t_start, rep.t_end) == (base.t_start, base.t_end)
 
 
+@pytest.mark.parametrize("name", ["tide", "tide-strong", "tide-gnss-0.5hz"])
+def test_a_ground_only_variant_is_scored_on_the_same_lines_without_the_tide(name: str) -> None:
+    """A tidal variant's water (the log its replay is scored against) holds the same
+    lines as the variant, in place, differing only in RMC's speed and course over ground:
+    a thinned GNSS thinned alike."""
+    v = VARIANTS[("nmea", name)]
+    assert v.ground_only
+    text = _text("nmea")
+    moved = v.make(text).splitlines()
+    water = v.water(text).splitlines()
+    assert len(moved) == len(water)
+    differ = [(a, b) for a, b in zip(moved, water, strict=True) if a != b]
+    assert differ
+    for a, b in differ:
+        fa, fb = a.split("*")[0].split(","), b.split("*")[0].split(",")
+        assert fa[0][3:] == "RMC"
+        assert fa[:7] == fb[:7]  # the time and the position
+        assert fa[9:] == fb[9:]  # the date onwards
+        assert fa[7:9] != fb[7:9]  # the speed and course over ground
+
+
 # The whole suite, variant by variant, against the unperturbed recording: every step
 # runs and nothing moves materially (real_variants.verdict).
 KNOWN: dict[tuple[str, str], str] = {}
@@ -552,18 +573,56 @@ def test_the_whole_suite_per_variant(
     assert rv.verdict(row, _BASES[kind]) == "ok"
 
 
-OTHER_RECORDINGS: tuple[tuple[str, str], ...] = (("irene-2007-11-03-leman.nmea", "tide-strong"),)
+OTHER_RECORDINGS: tuple[tuple[str, str], ...] = (
+    ("irene-2007-11-03-leman.nmea", "tide-strong"),
+    ("irene-2007-11-03-leman.nmea", "tide-gnss-0.5hz"),
+    ("irene-2013-09-22-leman.nmea", "tide"),
+    ("irene-2013-09-22-leman.nmea", "tide-gnss-0.5hz"),
+    ("dasht-2016-05-07-trieste.nmea", "tide-gnss-0.5hz"),
+    ("irene-2007-11-03-leman.nmea", "rmc-no-course"),
+    ("irene-2013-09-22-leman.nmea", "rmc-no-course"),
+    ("psaros33-2014-08-22-leman.nmea", "rmc-no-course"),
+)
 """Variants run on another recording than their kind's, whose calibration the replay
 applies (so a wrong one shows): the 3-kn tide on Irene 2007, scored against the
 unperturbed recording's water (``ground_only``). Scored against its own GNSS, a 5-min
 window at the log's end is 1.6 to 1.9 times raw's: with headings in fewer than three
 sectors in its last three minutes, that window's current is the recording's mean, far
 from a 3-kn tide's at that hour; against the unperturbed water the same emitted speeds
-are 0.83 of raw's there."""
+are 0.83 of raw's there. The 1.5-kn tide with the GNSS at 0.5 Hz on Irene 2007 and DashT
+(whose least squares holds a scale its current per 30 minutes takes); on Irene 2013, at
+1 Hz and at 0.5 Hz, it does not hold yet (:data:`KNOWN_OTHER`). RMC without a course
+at any speed, the course from the positions around each fix: Irene 2007 (fixes 2 s apart,
+positions to 0.001') and Irene 2013 hold; Psaros does not yet."""
+
+KNOWN_OTHER: dict[tuple[str, str], str] = {
+    ("irene-2013-09-22-leman.nmea", "tide"): (
+        "the bias takes the current the learner's current has not reached yet (a 0.77-m/s "
+        "tide against the current's prior of 0.5 m/s): m -0.032, b +0.124 applied at 42 "
+        "min, a 5-min window 1.89 times raw's (docs/REAL_DATA.md, the tide's leak)"
+    ),
+    ("irene-2013-09-22-leman.nmea", "tide-gnss-0.5hz"): (
+        "the unperturbed log's own calibration (m +0.054, b -0.057) applied 5 min earlier, "
+        "in a window where raw reads 0.1 m/s low: 1.19 times raw's against the water"
+    ),
+    ("psaros33-2014-08-22-leman.nmea", "rmc-no-course"): (
+        "courses over 15 m of 1.85-m positions are degrees off the receiver's: a 5-min "
+        "window 1.31 times raw's"
+    ),
+}
+"""What does not hold yet among :data:`OTHER_RECORDINGS`: strict xfails."""
 
 
 @pytest.mark.real
-@pytest.mark.parametrize(("recording", "name"), OTHER_RECORDINGS)
+@pytest.mark.parametrize(
+    ("recording", "name"),
+    [
+        pytest.param(r, n, marks=pytest.mark.xfail(reason=KNOWN_OTHER[(r, n)]))
+        if (r, n) in KNOWN_OTHER
+        else pytest.param(r, n)
+        for r, n in OTHER_RECORDINGS
+    ],
+)
 def test_the_whole_suite_on_another_recording(
     recording: str, name: str, tmp_path_factory: pytest.TempPathFactory
 ) -> None:
