@@ -101,8 +101,11 @@ class LagFinder:
     learns on :data:`calib.lag.LAG_FALLBACK_S`.
 
     Searches in a row (:data:`~emlogd.pipeline.lagcheck.LAG_CHECK_AUTO_CONFIRM`) whose
-    clear peak (:data:`calib.lag.MIN_LAG_CORRELATION`) is at their upper bound say the log
-    is later than ``max_lag_s`` (the correlation still rises there, window after window):
+    clear peak (:data:`calib.lag.MIN_LAG_CORRELATION`) is at the same bound say the log
+    is later than ``max_lag_s`` (the upper bound) or its reference later than the log by
+    more than ``max_lag_s`` (the lower: a reference buffered on its way, a clock offset
+    between ports; no latency of the log is negative) (the correlation still rises
+    there, window after window):
     the fallback pairs each reading with the reference of another moment (:attr:`beyond`
     says so, and the UUT learns and applies nothing) until an estimate is accepted or a
     search's clear peak lies within the lag check's tolerance of the fallback
@@ -122,7 +125,9 @@ class LagFinder:
         self.beyond = ""
         """Why the log lags its reference beyond the search (empty: not known to)."""
         self.at_bound = 0
-        """Searches in a row whose clear peak was at the upper bound."""
+        """Searches in a row whose clear peak was at the same bound."""
+        self.bound_side = 0.0
+        """The bound of the last search's clear peak: +1 upper, −1 lower, 0 neither."""
 
     def ready(self) -> bool:
         """The UUT series spans the current target window."""
@@ -162,12 +167,16 @@ class LagFinder:
         fallback lag (:attr:`beyond`; else it stands)."""
         clear = est.peak_corr >= MIN_LAG_CORRELATION
         bound = clear and est.at_bound
-        self.at_bound = self.at_bound + 1 if bound and est.lag_s > 0.0 else 0
+        side = math.copysign(1.0, est.lag_s) if bound and est.lag_s != 0.0 else 0.0
+        same = side != 0.0 and side == self.bound_side
+        self.at_bound = self.at_bound + 1 if same else (1 if side else 0)
+        self.bound_side = side
         if clear and not bound and abs(est.lag_s - LAG_FALLBACK_S) <= LAG_CHECK_TOLERANCE_S:
             self.beyond = ""
         elif self.at_bound >= LAG_CHECK_AUTO_CONFIRM and not self.beyond:
+            who = "the log lags its reference" if side > 0 else "the reference lags the log"
             self.beyond = (
-                f"the log lags its reference beyond max_lag_s: {self.at_bound} lag searches "
+                f"{who} beyond max_lag_s: {self.at_bound} lag searches "
                 f"in a row peak at their bound ({est.lag_s:+.1f} s, r={est.peak_corr:.2f})"
             )
 

@@ -55,11 +55,19 @@ def test_a_refused_estimate_grows_the_window_then_slides_it() -> None:
     assert len(finder.uut) == n - n // 2
 
 
-def test_searches_peaking_at_their_bound_say_the_log_lags_beyond_them() -> None:
-    """A log 30 s late against a search up to 5 s: one search peaking at its upper bound
-    is not enough (a flat curve may peak there by chance), two in a row say the log
-    lags beyond the search (:attr:`LagFinder.beyond`), and it stands while the data say
-    nothing else; a log then found right on time (the lag accepted) clears it."""
+@pytest.mark.parametrize(
+    ("delay_s", "said_who"),
+    [(30.0, "the log lags its reference"), (-30.0, "the reference lags the log")],
+    ids=["log-late", "reference-late"],
+)
+def test_searches_peaking_at_their_bound_say_the_log_lags_beyond_them(
+    delay_s: float, said_who: str
+) -> None:
+    """A log 30 s late against a search up to 5 s (or its reference 30 s late): one
+    search peaking at its upper (lower) bound is not enough (a flat curve may peak there
+    by chance), two in a row say the lag lies beyond the search
+    (:attr:`LagFinder.beyond`), and it stands while the data say nothing else; a log
+    then found right on time (the lag accepted) clears it."""
 
     def slow(t: float) -> float:  # a speed changing over minutes, no period near 30 s
         return 2.0 + 0.5 * math.sin(2.0 * math.pi * t / 600.0)
@@ -68,7 +76,7 @@ def test_searches_peaking_at_their_bound_say_the_log_lags_beyond_them() -> None:
     for k in range(1200):
         t = k / 10.0
         finder.ref.append((t, slow(t)))
-        finder.uut.append((t, slow(t - 30.0)))
+        finder.uut.append((t, slow(t - delay_s)))
     lag, _, why = finder.estimate()
     said = [finder.beyond]
     assert lag is None and "search bound" in why
@@ -78,7 +86,7 @@ def test_searches_peaking_at_their_bound_say_the_log_lags_beyond_them() -> None:
     finder.estimate()
     said.append(finder.beyond)  # no correlation: no word against it
     assert said[0] == "" and said[1] == said[2]
-    assert "lags its reference beyond max_lag_s: 2 lag searches in a row" in said[1]
+    assert f"{said_who} beyond max_lag_s: 2 lag searches in a row" in said[1]
     _fill(finder, 600.0, 900.0, LAG_S)
     while finder.uut.t[0] < 600.0:
         finder.uut.drop_older_half()
