@@ -21,7 +21,7 @@ import json
 import math
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -435,14 +435,16 @@ OPEN = {
 """The cases that break the promise, pinned as strict xfails until fixed."""
 
 
+def pinned(names: Iterable[str], open_: Mapping[str, str]) -> list[Any]:
+    """The case names, sorted, each in ``open_`` a strict xfail with its reason."""
+    return [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=open_[n])) if n in open_ else n
+        for n in sorted(names)
+    ]
+
+
 @pytest.mark.soak
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=OPEN[n])) if n in OPEN else n
-        for n in sorted(CASES)
-    ],
-)
+@pytest.mark.parametrize("name", pinned(CASES, OPEN))
 def test_no_window_worse_than_raw(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:

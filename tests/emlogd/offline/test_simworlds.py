@@ -41,6 +41,7 @@ from tests.emlogd.offline.test_simphysics import (
     STRAIGHT,
     Case,
     measure,
+    pinned,
     rotating_current,
 )
 
@@ -325,13 +326,7 @@ OPEN: dict[str, str] = {}
 
 
 @pytest.mark.soak
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=OPEN[n])) if n in OPEN else n
-        for n in sorted(WORLDS)
-    ],
-)
+@pytest.mark.parametrize("name", pinned(WORLDS, OPEN))
 def test_no_window_worse_than_raw_nor_log_silenced(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:

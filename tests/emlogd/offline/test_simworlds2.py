@@ -34,7 +34,7 @@ import pytest
 import emlogd.offline.simsensors as simsensors
 from drivers.nmea0183 import encode_rmc
 from emlogd.offline.simkinematics import START_EPOCH_S, Kinematics
-from tests.emlogd.offline.test_simphysics import GNSS_CFG, RATIO, Case, measure
+from tests.emlogd.offline.test_simphysics import GNSS_CFG, RATIO, Case, measure, pinned
 
 OFFSET_PER_H = 0.1
 """``offset-drift``: the log's offset grows by this each hour of trial, m/s."""
@@ -309,13 +309,7 @@ OPEN = {
 
 
 @pytest.mark.soak
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=OPEN[n])) if n in OPEN else n
-        for n in sorted(WORLDS)
-    ],
-)
+@pytest.mark.parametrize("name", pinned(WORLDS, OPEN))
 def test_every_window_within_raw_and_both_logs_scored(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
