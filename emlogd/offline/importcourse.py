@@ -32,6 +32,11 @@ from emlogd.offline.importbase import ImportReport
 COURSE_MAX_DT_S = 5.0
 """The fixes a course is taken from are at most this long before and after it, s."""
 
+HOLD_MAX_LINES = 1000
+"""Most lines held back behind an RMC waiting for the fixes after it: past them (the
+GNSS silent while the rest of the log goes on) it is given what the fixes before it
+allow, so the memory an import takes does not grow with a gap in the fixes."""
+
 COURSE_MIN_DISTANCE_M = 2.0
 """The positions a course is taken from are at least this far apart, m (a GNSS's
 position noise from one fix to the next is a few decimetres)."""
@@ -133,8 +138,13 @@ class CourseFill:
             text, f, i = self.held[0]
             if f is not None:
                 t = self.fixes[i][0]
-                if not final and _dt(t, self.fixes[-1][0]) <= COURSE_MAX_DT_S:
-                    break  # a later fix within reach may still come
+                ahead = _dt(t, self.fixes[-1][0])
+                if (
+                    not final
+                    and len(self.held) <= HOLD_MAX_LINES
+                    and (-COURSE_MAX_DT_S <= ahead <= COURSE_MAX_DT_S)
+                ):
+                    break  # a later fix within reach may still come (not past a time reset)
                 text = self._filled(text, f, i)
             out.append(text)
             self.held.popleft()

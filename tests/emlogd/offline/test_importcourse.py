@@ -161,3 +161,26 @@ def test_an_rmc_with_its_course_is_kept_as_written(tmp_path: Path) -> None:
     rep = import_nmea([src], tmp_path / "o.cap")
     assert not rep.notes
     assert [r.data.decode().strip() for r in CaptureReader(tmp_path / "o.cap")] == lines
+
+
+def test_a_waiting_rmc_holds_back_a_bounded_number_of_lines(tmp_path: Path) -> None:
+    """An RMC waiting for the fixes after it holds back at most HOLD_MAX_LINES lines (the
+    GNSS silent, the log going on), and none past a fix whose time went back (a receiver
+    reset): the lines come out as they are read, not at the end of the log."""
+    from emlogd.offline.importbase import ImportReport
+    from emlogd.offline.importcourse import HOLD_MAX_LINES, CourseFill
+
+    track = _track(3, 5.0, 60.0)
+    rmcs = [
+        _no_course(encode_rmc(t, 5.0 * KNOT_MPS, 0.0, lat_deg=a, lon_deg=o)) for t, a, o in track
+    ]
+    vhw = encode_vhw(5.0 * KNOT_MPS)
+    fill = CourseFill(ImportReport([], str(tmp_path / "o.cap"), "nmea"))
+    out = [x for line in rmcs[:2] for x in fill.lines(line)]
+    for _ in range(HOLD_MAX_LINES + 5):
+        out += fill.lines(vhw)
+    assert len(out) >= HOLD_MAX_LINES  # the silence does not hold the log back for ever
+    reset = encode_rmc(T0 - timedelta(hours=1), 5.0 * KNOT_MPS, 0.0, lat_deg=LAT0, lon_deg=LON0)
+    fill = CourseFill(ImportReport([], str(tmp_path / "o.cap"), "nmea"))
+    out = [x for line in [rmcs[0], _no_course(reset)] for x in fill.lines(line)]
+    assert out == [rmcs[0]]  # released at the reset, not waiting for a fix 5 s after it
