@@ -98,33 +98,6 @@ correction the filter cannot tell from none is no evidence against the raw readi
 applying it trades the log's own error for the filter's (2σ: a two-sided 95 % test)."""
 
 
-def water_speed(kf: KfCalibrator, a: Aligned, noisy_reference: bool) -> float:
-    """The speed through the water the identifiability window judges a scale on.
-
-    With a noisy reference in the water frame (``noisy_reference``: learning from
-    block means of a GNSS speed), the log's reading corrected by the parameters learnt
-    so far (the UUT's own speed through the water, :mod:`calib.excitation`). The GNSS
-    speed less the projected current estimate carries the GNSS's noise (0.3 m/s a
-    sample) and the estimate's own motion as speed variation, and while a current is
-    being learnt that motion is as large as its error: a 0.77-m/s tide against a prior
-    of 0.5 m/s moved the estimate by 0.3 m/s in its first minutes, the scale was judged
-    determined at 2.5 minutes on one heading and took the tide's offset (m −0.22), and
-    the bias its remainder (applied at +0.12 m/s where the log's own is −0.05).
-    Otherwise (a DVL, 0.01 m/s, or no current states), or when the reading cannot be
-    corrected, the reference less the projected current estimate, as the filter sees
-    it."""
-    current, cs = kf.current_mps, a.cs
-    ref = a.ref if a.ref is not None else a.raw
-    if current is None:
-        return ref
-    if noisy_reference:
-        corrected = kf.corrected(a.raw)
-        if math.isfinite(corrected):
-            return corrected
-    proj = 0.0 if cs is None else current[0] * cs[0] + current[1] * cs[1]
-    return ref - proj
-
-
 @dataclass(frozen=True, slots=True)
 class Offer:
     """The learner's estimate, offered to the supervisor as a candidate calibration."""
@@ -370,11 +343,12 @@ class Learner:
         return valid
 
     def _excitation(self, a: Aligned, valid: bool) -> None:
-        """Feed the identifiability window: the speed through the water at each valid
-        reference (:func:`water_speed`)."""
+        """Feed the identifiability window (speed through water by the current estimate)."""
         if not valid or a.ref is None:
             return
-        self.window.add(water_speed(self.kf, a, self.block is not None), a.raw, a.heading)
+        current, cs = self.kf.current_mps, a.cs
+        proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
+        self.window.add(a.ref - proj, a.raw, a.heading)
         self.n_since_eval += 1
         if self.n_since_eval >= EVAL_EVERY or self.ident is None:
             self._judge(a.t)

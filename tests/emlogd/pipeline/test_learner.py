@@ -201,30 +201,3 @@ def test_a_log_that_reads_right_is_offered_no_correction() -> None:
                 offers[case] += lr.offer() is not None
     assert offers["right"] == 0
     assert offers["high"] > 100
-
-
-@pytest.mark.parametrize("tide_mps", [0.0, 0.7])
-def test_a_current_being_learnt_is_no_speed_variation(tide_mps: float) -> None:
-    """One heading, the speed through the water swinging ±0.15 m/s, a GNSS reference
-    with a current along the hull: the scale is not determined in 10 minutes whatever
-    the current (the log's own speed judges it). Taken as the reference less the
-    current estimate, the estimate's motion towards a 0.7-m/s current read as speed
-    variation: the scale was judged determined at 110 s and learnt on one heading,
-    where it takes whatever offset the current has not yet."""
-    s = UutSettings(
-        port="log", reference_port="gps", lag_s=0.0, current=True, reference_field="gnss"
-    )
-    lr = Learner(s, Layout(check_model(s.model), s.current), None, lambda t, k, d: None, Counters())
-    rng = np.random.default_rng(1)
-    true = Params("EM3", m=0.05, b_mps=-0.05)
-    heading = 30.0
-    current_moved = 0.0
-    for i in range(600):
-        t = float(i)
-        v = 2.0 + 0.15 * math.sin(2 * math.pi * t / 120.0)
-        lr.add_reference(t, v + tide_mps + 0.1 * rng.standard_normal(), True, lambda _t: heading)
-        a = lr.align(t, true.forward(v) + 0.02 * rng.standard_normal(), lambda _t: heading)
-        lr.step(a, "", None)
-        assert "m" not in lr.learn_set, f"scale learnt at {t:.0f} s on one heading"
-        current_moved = max(current_moved, math.hypot(*(lr.kf.current_mps or (0.0, 0.0))))
-    assert current_moved > 0.5 * tide_mps  # the current did learn (as a nuisance offset)
