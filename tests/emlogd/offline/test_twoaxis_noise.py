@@ -27,9 +27,9 @@ from emlogd.pipeline.twoaxis_learn import CURRENT_KNOT_S
 KNOT_MPS = 1852.0 / 3600.0
 LAG_S = 0.46
 """The trials' ``--lag``: emlog2's latency, 0.45 s, and its VBW's transmission."""
-TRUE_DELAY_S = 0.45 + 0.0135
+TRUE_DELAY_S = 0.45 + 0.01
 """What separates a VBW's receive time from the water it read: the latency and the
-line's 52 bytes at 38400 baud."""
+line's transmission (its 38 bytes at 38400 baud)."""
 FloatPair = tuple[float, float]
 
 
