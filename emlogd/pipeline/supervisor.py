@@ -167,6 +167,9 @@ class Supervisor:
         )
         self.unverified = False
         """The applied calibration is a restored one no reference has confirmed yet."""
+        self.refused: Params | None = None
+        """A calibration withdrawn for cause whose re-validation refused it, until another
+        is applied: an offer within its σ of it is not a new candidate."""
         self.retry: tuple[Candidate, float] | None = None
         """A restored calibration refused on a straight leg, and when
         (:data:`RESTORE_RETRY_S`)."""
@@ -487,7 +490,7 @@ class Supervisor:
                     self.retry = None
                     self.candidate = Candidate(old.params, math.nan, "restored", old.std)
             return
-        base = self.applied
+        base = self.applied if self.applied is not None else self.refused
         if base is not None and not self._significant(base, offer.params, offer.param_std):
             return
         self.candidate = Candidate(offer.params, t)
@@ -568,11 +571,14 @@ class Supervisor:
         else:
             if cand.kind == "restored":
                 self.note = "the restored calibration failed its validation: raw passes through"
+            if cand.kind == "revalidate":
+                self.refused = cand.params
             self.counters.candidates_rejected += 1
             self._emit(t, "candidate_rejected", detail)
 
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
         self.retry = None
+        self.refused = None
         self.applied = p
         self.applied_std = dict(std)
         self.last_good = p
