@@ -56,6 +56,11 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   on: withdrawn when the log jumped, re-applied when not worse than raw in the sea before
   the jump; else when raw is worse by the margin in both seas, or on what no current
   explains (refused only so: :func:`~emlogd.pipeline.revalidation.judge_withdrawn`).
+  Refused, it is no new candidate either until the learner's offer differs from it as
+  much as an offer must differ from an applied one (``persist_min_change_sigma`` /
+  ``persist_min_change_abs``): an offer the learner has not moved from it holds nothing
+  the refusal did not weigh (on a straight leg the offset is not determined and stays
+  where the withdrawal found it while the log's offset drifts).
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
