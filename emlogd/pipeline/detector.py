@@ -153,10 +153,10 @@ class ChangeDetector:
             applied: a calibration is applied (else raw's alarm: nothing applied changed).
         """
         if t - self.cadence.t > CUSUM_MAX_GAP_S:
-            before = self.baseline if applied and self._judging(self.cadence.t) else None
+            emptied = self.baseline if applied and self._judging(self.cadence.t) else None
             self.reset()  # its baseline is another sea's
-            if before is not None:
-                self.before = before
+            if emptied is not None:
+                self.before = emptied
                 self.baseline = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
         self.cadence.add(t)
         w = self.baseline
