@@ -16,14 +16,6 @@ supervisor (:mod:`emlogd.pipeline.supervisor`) acts on the judgement (:class:`Al
   stands at zero (a run's samples go to :attr:`ChangeDetector.run`). After the scored
   readings fell silent for more than :data:`~emlogd.pipeline.evidence.CUSUM_MAX_GAP_S`
   it starts afresh: its baseline is another sea's.
-- **After a silence**: while the new baseline fills, the applied calibration's errors
-  and raw's are compared in the sea the emptied baseline saw (its current, as the
-  applied calibration saw it before the silence); once :data:`BLIND_MIN_SAMPLES` say raw
-  fits that sea better, the calibration is held until the new baseline judges. Back as
-  it was, the calibration fits its own sea and raw misses it by the correction: nothing
-  is held. Back where the reading moved more than half its correction towards raw (a
-  bias in turns cancelling the log's own error as a figure-8 begins), the calibration
-  would otherwise go out unjudged for the baseline's :data:`~emlogd.pipeline.evidence.CUSUM_MIN_SPAN_S`.
 - **Holding**: an innovation beyond :data:`~emlogd.pipeline.evidence.HOLD_SIGMAS` where
   the log jumped and the reference did not (:class:`~emlogd.pipeline.evidence.Course`)
   holds the calibration (:attr:`ChangeDetector.held`): raw goes out until the run ends
@@ -73,11 +65,6 @@ calibration (its own current and spread known; fewer at a slow cadence, :class:`
 and spans :data:`~emlogd.pipeline.evidence.CUSUM_MIN_SPAN_S`. A run's samples stay out of
 the window: a change is not absorbed by the baseline it is judged against."""
 
-BLIND_MIN_SAMPLES = 3.0
-"""After a silence that emptied the baseline, the calibration is held once this many
-readings, in the sea before the silence, fit raw better than it (one or two noisy
-readings are no evidence)."""
-
 CUSUM_SIGMA_FLOOR_MPS = 0.02
 """The innovation's standard deviation is at least this, m/s (a window of quantised
 readings at one speed has almost no spread)."""
@@ -123,14 +110,7 @@ class ChangeDetector:
         self.cadence = Cadence()
         """The scored readings' cadence and the last one's time."""
         self.held = False
-        """Raw passes through until the CUSUM run decides (``HOLD_SIGMAS``), or after a
-        silence until the new baseline judges (:data:`BLIND_MIN_SAMPLES`)."""
-        self.before: FitWindow | None = None
-        """The baseline a silence emptied while a calibration was applied, until the new
-        one judges: the sea as that calibration saw it before the silence."""
-        self.blind = [0.0, 0.0, 0.0]
-        """Since that silence: the readings, and the calibration's and raw's sums of
-        squared errors in that sea."""
+        """Raw passes through until the CUSUM run decides (``HOLD_SIGMAS``)."""
 
     def step(
         self,
@@ -153,19 +133,13 @@ class ChangeDetector:
             applied: a calibration is applied (else raw's alarm: nothing applied changed).
         """
         if t - self.cadence.t > CUSUM_MAX_GAP_S:
-            emptied = self.baseline if applied and self._judging(self.cadence.t) else None
             self.reset()  # its baseline is another sea's
-            if emptied is not None:
-                self.before = emptied
-                self.baseline = FitWindow(1, self.water, CUSUM_HALF_LIFE_S)
         self.cadence.add(t)
         w = self.baseline
-        if not self._judging(t):
+        n_min = self.cadence.detector_weight(CUSUM_MIN_SAMPLES, CUSUM_HALF_LIFE_S)
+        if w.n < n_min or w.t0 is None or t - w.t0 < CUSUM_MIN_SPAN_S:
             w.add(t, cs, (e_app,))
-            if self.before is not None and applied:
-                self._blind(cs, e_app, e_raw, self.before)
             return None
-        self.before = None
         sigma = max(w.rmse(0), CUSUM_SIGMA_FLOOR_MPS) * math.sqrt(1.0 + w.leverage(cs))
         pred = w.predict(0, cs)
         nu = e_app - pred
@@ -204,25 +178,6 @@ class ChangeDetector:
         before = w.beta(0) if self.water and jumped else None
         return Alarm(True, False, detail, before)
 
-    def _judging(self, t: float) -> bool:
-        """The baseline holds enough readings, over a long enough span, to judge at ``t``."""
-        w = self.baseline
-        n_min = self.cadence.detector_weight(CUSUM_MIN_SAMPLES, CUSUM_HALF_LIFE_S)
-        return w.n >= n_min and w.t0 is not None and t - w.t0 >= CUSUM_MIN_SPAN_S
-
-    def _blind(
-        self, cs: tuple[float, float] | None, e_app: float, e_raw: float, before: FitWindow
-    ) -> None:
-        """One reading while the baseline fills after a silence: held once
-        :data:`BLIND_MIN_SAMPLES` readings fit raw better than the calibration in the sea
-        before it."""
-        pred = before.predict(0, cs)
-        b = self.blind
-        b[0] += 1.0
-        b[1] += (e_app - pred) ** 2
-        b[2] += (e_raw - pred) ** 2
-        self.held = b[0] >= BLIND_MIN_SAMPLES and b[1] > b[2]
-
     def reset(self, seed: bool = False) -> None:
         """Start again (a calibration applied or withdrawn, a silence, a sea's alarm).
 
@@ -231,8 +186,6 @@ class ChangeDetector:
                 than :data:`~emlogd.pipeline.cadence.CUSUM_MIN_FILL_S` at the cadence.
         """
         self.held = False
-        self.before = None
-        self.blind = [0.0, 0.0, 0.0]
         self.cusum.reset()
         self.baseline.reset()
         if seed and self.cadence.median_s * CUSUM_MIN_SAMPLES > CUSUM_MIN_FILL_S:
