@@ -56,11 +56,6 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   on: withdrawn when the log jumped, re-applied when not worse than raw in the sea before
   the jump; else when raw is worse by the margin in both seas, or on what no current
   explains (refused only so: :func:`~emlogd.pipeline.revalidation.judge_withdrawn`).
-  Refused, it is no new candidate either until the learner's offer differs from it as
-  much as an offer must differ from an applied one (``persist_min_change_sigma`` /
-  ``persist_min_change_abs``): an offer the learner has not moved from it holds nothing
-  the refusal did not weigh (on a straight leg the offset is not determined and stays
-  where the withdrawal found it while the log's offset drifts).
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -172,9 +167,6 @@ class Supervisor:
         )
         self.unverified = False
         """The applied calibration is a restored one no reference has confirmed yet."""
-        self.refused: Params | None = None
-        """A calibration withdrawn for cause whose re-validation refused it, until another
-        is applied: an offer within its σ of it is not a new candidate."""
         self.retry: tuple[Candidate, float] | None = None
         """A restored calibration refused on a straight leg, and when
         (:data:`RESTORE_RETRY_S`)."""
@@ -495,7 +487,7 @@ class Supervisor:
                     self.retry = None
                     self.candidate = Candidate(old.params, math.nan, "restored", old.std)
             return
-        base = self.applied if self.applied is not None else self.refused
+        base = self.applied
         if base is not None and not self._significant(base, offer.params, offer.param_std):
             return
         self.candidate = Candidate(offer.params, t)
@@ -576,14 +568,11 @@ class Supervisor:
         else:
             if cand.kind == "restored":
                 self.note = "the restored calibration failed its validation: raw passes through"
-            if cand.kind == "revalidate":
-                self.refused = cand.params
             self.counters.candidates_rejected += 1
             self._emit(t, "candidate_rejected", detail)
 
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
         self.retry = None
-        self.refused = None
         self.applied = p
         self.applied_std = dict(std)
         self.last_good = p
