@@ -56,6 +56,12 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   on: withdrawn when the log jumped, re-applied when not worse than raw in the sea before
   the jump; else when raw is worse by the margin in both seas, or on what no current
   explains (refused only so: :func:`~emlogd.pipeline.revalidation.judge_withdrawn`).
+  Refused, it is no new candidate either until the learner's offer differs from it as
+  much as an offer must differ from an applied one (``persist_min_change_sigma`` /
+  ``persist_min_change_abs``), or until the headings since have spread
+  :data:`RESTORE_MIN_HEADING_SPREAD`: on one heading the offset is not determined (the
+  current takes it) and the offer stays where the withdrawal found it while the log's
+  offset drifts; after a turn the offer is evidence the refusal did not weigh.
 - **Restored** (state file, warm start): validated before it is applied (over
   :data:`RESTORE_VALIDATION_S`, not worse than raw; in a turn after currents fitted to
   the window; on a straight leg it keeps the verdict that made it unless, in the sea it
@@ -167,6 +173,12 @@ class Supervisor:
         )
         self.unverified = False
         """The applied calibration is a restored one no reference has confirmed yet."""
+        self.refused: Params | None = None
+        """A calibration withdrawn for cause whose re-validation refused it, until another
+        is applied or the headings since turn (:meth:`_turned_since_refusal`): an offer
+        within its σ of it is not a new candidate."""
+        self.since_refused = [0.0, 0.0, 0.0]
+        """The readings since the refusal and their headings' summed (cos, sin)."""
         self.retry: tuple[Candidate, float] | None = None
         """A restored calibration refused on a straight leg, and when
         (:data:`RESTORE_RETRY_S`)."""
@@ -320,6 +332,8 @@ class Supervisor:
             self._propose(t, source)
         if self.water and cs is not None:
             self.memory.add(t, raw, ref, cs)
+        if self.refused is not None and cs is not None and self._turned_since_refusal(cs):
+            self.refused = None
         self._recheck(t)
 
     def _score_output(self, raw: float, ref: float, proj: float, water: bool) -> None:
@@ -487,10 +501,23 @@ class Supervisor:
                     self.retry = None
                     self.candidate = Candidate(old.params, math.nan, "restored", old.std)
             return
-        base = self.applied
+        base = self.applied if self.applied is not None else self.refused
         if base is not None and not self._significant(base, offer.params, offer.param_std):
             return
         self.candidate = Candidate(offer.params, t)
+
+    def _turned_since_refusal(self, cs: tuple[float, float]) -> bool:
+        """The headings since the refusal spread :data:`RESTORE_MIN_HEADING_SPREAD` over
+        at least :data:`VALIDATION_MIN_SAMPLES` readings: the offset and a current are told
+        apart again, and what the learner offers then is evidence the refusal did not
+        weigh. On one heading the offset is not determined (the current takes it) and
+        the learner's offer stays where the withdrawal found it."""
+        n = self.since_refused
+        n[0] += 1.0
+        n[1] += cs[0]
+        n[2] += cs[1]
+        spread = 1.0 - math.hypot(n[1], n[2]) / n[0]
+        return n[0] >= VALIDATION_MIN_SAMPLES and spread >= RESTORE_MIN_HEADING_SPREAD
 
     def _significant(self, old: Params, new: Params, std: Mapping[str, float]) -> bool:
         sigmas, floor = self.s.persist_min_change_sigma, self.s.persist_min_change_abs
@@ -568,11 +595,15 @@ class Supervisor:
         else:
             if cand.kind == "restored":
                 self.note = "the restored calibration failed its validation: raw passes through"
+            if cand.kind == "revalidate":
+                self.refused = cand.params
+                self.since_refused = [0.0, 0.0, 0.0]
             self.counters.candidates_rejected += 1
             self._emit(t, "candidate_rejected", detail)
 
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
         self.retry = None
+        self.refused = None
         self.applied = p
         self.applied_std = dict(std)
         self.last_good = p

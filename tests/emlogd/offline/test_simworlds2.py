@@ -300,11 +300,7 @@ class TestWorlds:
         assert north == pytest.approx([10.0, 10.0, 10.0, 10.0, 0.0, 0.0])
 
 
-OPEN = {
-    "offset-drift": "open: emlog2's worst window 1.198x raw at 7200 s: a calibration "
-    "re-applied at 7410 s, after a withdrawal at 7169 s, is worse than raw while the "
-    "offset keeps drifting (docs/RELIABILITY.md)",
-}
+OPEN: dict[str, str] = {}
 """The worlds that break the promise, pinned as strict xfails until fixed."""
 
 

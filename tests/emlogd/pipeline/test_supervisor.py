@@ -33,6 +33,11 @@ def _applied(sup: Supervisor) -> Params | None:
     return sup.applied
 
 
+def _candidate(sup: Supervisor) -> Candidate | None:
+    """The candidate now (a call, as :func:`_applied`)."""
+    return sup.candidate
+
+
 class _Offers:
     """A learner that offers one calibration."""
 
@@ -137,6 +142,44 @@ def test_a_withdrawn_calibration_comes_back_only_on_evidence(offset: float, appl
         sup.observe(float(k), u + offset + _noisy(k), u, None, _NoOffer())
     assert (_applied(sup) == p) is applied
     assert kinds == (["calibrated"] if applied else ["candidate_rejected"])
+
+
+@pytest.mark.parametrize(("b_offered", "proposed"), [(0.004, False), (0.01, False), (0.05, True)])
+def test_a_refused_withdrawn_calibration_is_not_offered_again_unchanged(
+    b_offered: float, proposed: bool
+) -> None:
+    """A calibration withdrawn for cause and refused by its re-validation: an offer
+    within its σ of it (0.01 here) carries no evidence the refusal did not weigh and is
+    no new candidate; one the learner moved beyond its σ is."""
+    sup, kinds = _sup(None)
+    p = Params("EM3", b_mps=0.004)
+    sup.candidate = Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
+    for k in range(40):
+        u = 2.0 + 0.3 * math.sin(k / 20.0)
+        sup.observe(float(k), u + 0.004 + _noisy(k), u, None, _NoOffer())
+    assert kinds == ["candidate_rejected"] and _candidate(sup) is None
+    sup.observe(40.0, 2.0, 2.0, None, _Offers(Params("EM3", b_mps=b_offered)))
+    assert (_candidate(sup) is not None) is proposed
+
+
+@pytest.mark.parametrize(("turn_deg", "proposed"), [(0.0, False), (5.0, False), (120.0, True)])
+def test_a_refusal_lasts_until_the_headings_turn(turn_deg: float, proposed: bool) -> None:
+    """After the refusal, 40 readings whose heading sweeps ``turn_deg``: on one heading
+    (or 5°) the same offer is still no new candidate; after a 120° turn the offset and a
+    current are told apart again and it is one (the learner's offer is new evidence)."""
+    sup, _ = _sup(None)
+    p = Params("EM3", b_mps=0.004)
+    sup.candidate = Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
+    for k in range(40):
+        u = 2.0 + 0.3 * math.sin(k / 20.0)
+        sup.observe(float(k), u + 0.004 + _noisy(k), u, None, _NoOffer())
+    assert sup.refused == p
+    for k in range(40, 80):
+        h = math.radians(turn_deg * (k - 40) / 39.0)
+        u = 2.0 + 0.3 * math.sin(k / 20.0)
+        sup.observe(float(k), u + 0.004 + _noisy(k), u, (math.cos(h), math.sin(h)), _NoOffer())
+    sup.observe(80.0, 2.0, 2.0, (1.0, 0.0), _Offers(Params("EM3", b_mps=0.004)))
+    assert (_candidate(sup) is not None) is proposed
 
 
 def test_a_surging_vessel_in_a_rising_current_keeps_its_calibration() -> None:
