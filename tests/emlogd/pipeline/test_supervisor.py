@@ -144,6 +144,21 @@ def test_a_withdrawn_calibration_comes_back_only_on_evidence(offset: float, appl
     assert kinds == (["calibrated"] if applied else ["candidate_rejected"])
 
 
+REFUSED = Params("EM3", b_mps=0.004)
+"""The withdrawn calibration the refusal tests re-validate: a log reading 4 mm high."""
+
+
+def _refused() -> tuple[Supervisor, list[str]]:
+    """A supervisor whose re-validation of :data:`REFUSED` (withdrawn for cause) refused
+    it over 40 readings on one heading, and its event kinds."""
+    sup, kinds = _sup(None)
+    sup.candidate = Candidate(REFUSED, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
+    for k in range(40):
+        u = 2.0 + 0.3 * math.sin(k / 20.0)
+        sup.observe(float(k), u + 0.004 + _noisy(k), u, None, _NoOffer())
+    return sup, kinds
+
+
 @pytest.mark.parametrize(("b_offered", "proposed"), [(0.004, False), (0.01, False), (0.05, True)])
 def test_a_refused_withdrawn_calibration_is_not_offered_again_unchanged(
     b_offered: float, proposed: bool
@@ -151,12 +166,7 @@ def test_a_refused_withdrawn_calibration_is_not_offered_again_unchanged(
     """A calibration withdrawn for cause and refused by its re-validation: an offer
     within its σ of it (0.01 here) carries no evidence the refusal did not weigh and is
     no new candidate; one the learner moved beyond its σ is."""
-    sup, kinds = _sup(None)
-    p = Params("EM3", b_mps=0.004)
-    sup.candidate = Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
-    for k in range(40):
-        u = 2.0 + 0.3 * math.sin(k / 20.0)
-        sup.observe(float(k), u + 0.004 + _noisy(k), u, None, _NoOffer())
+    sup, kinds = _refused()
     assert kinds == ["candidate_rejected"] and _candidate(sup) is None
     sup.observe(40.0, 2.0, 2.0, None, _Offers(Params("EM3", b_mps=b_offered)))
     assert (_candidate(sup) is not None) is proposed
@@ -167,13 +177,8 @@ def test_a_refusal_lasts_until_the_headings_turn(turn_deg: float, proposed: bool
     """After the refusal, 40 readings whose heading sweeps ``turn_deg``: on one heading
     (or 5°) the same offer is still no new candidate; after a 120° turn the offset and a
     current are told apart again and it is one (the learner's offer is new evidence)."""
-    sup, _ = _sup(None)
-    p = Params("EM3", b_mps=0.004)
-    sup.candidate = Candidate(p, math.nan, "revalidate", {"m": 0.01, "b": 0.01})
-    for k in range(40):
-        u = 2.0 + 0.3 * math.sin(k / 20.0)
-        sup.observe(float(k), u + 0.004 + _noisy(k), u, None, _NoOffer())
-    assert sup.refused == p
+    sup, _ = _refused()
+    assert sup.refused == REFUSED
     for k in range(40, 80):
         h = math.radians(turn_deg * (k - 40) / 39.0)
         u = 2.0 + 0.3 * math.sin(k / 20.0)
