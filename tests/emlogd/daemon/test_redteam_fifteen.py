@@ -1,0 +1,67 @@
+"""The fifteenth red team's findings against the live daemon, each pinned: what its
+signals, ports, sockets and state file may do to it from outside.
+
+Rule kept (README, docs/RELIABILITY.md): nothing from outside stops the daemon."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+from drivers.errors import DeviceError
+from emlogd.client import request
+from tests.emlogd.daemon.harness import PD0_CONFIG, make_work, reaped, wait
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def _caught(pid: int, sig: int) -> bool:
+    """Whether process ``pid`` has a handler for ``sig`` (``SigCgt`` of its status)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("SigCgt:"):
+            return bool(int(line.split()[1], 16) >> (sig - 1) & 1)
+    return False
+
+
+def _numpy_loaded(pid: int) -> bool:
+    """Whether numpy's extension is mapped in process ``pid`` (the command line's heavy
+    imports under way or done)."""
+    return "_multiarray_umath" in Path(f"/proc/{pid}/maps").read_text()
+
+
+def test_a_sighup_and_a_sigusr1_while_it_starts_do_not_end_it(tmp_path: Path) -> None:
+    """``python -m emlogd run`` gets a SIGHUP and a SIGUSR1 as soon as it holds them,
+    before its imports: it starts, answers, reloads its config once (``reloaded``), logs
+    the SIGUSR1 (``signal_ignored``) and exits 0 on SIGTERM. The handlers were installed
+    once the config was loaded and the daemon built, a second or more after the process
+    started: a ``kill -HUP`` or a stray ``kill -USR1`` meanwhile ended it (exit −1,
+    −10), a restart under systemd."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    argv = [sys.executable, "-m", "emlogd", "run", "--config", str(work / "emlogd.yaml")]
+    with (work / "daemon.log").open("wb") as out:
+        proc = subprocess.Popen(argv, cwd=work, env=env, stdout=out, stderr=out)
+        with reaped(proc):
+            wait(lambda: proc.poll() is not None or _caught(proc.pid, signal.SIGHUP), "held")
+            assert not _numpy_loaded(proc.pid), "the signals were held only after the imports"
+            proc.send_signal(signal.SIGHUP)
+            proc.send_signal(signal.SIGUSR1)
+            sock = str(work / "run" / "control.sock")
+
+            def answers() -> bool:
+                assert proc.poll() is None, (work / "daemon.log").read_text()[-2000:]
+                try:
+                    return request(sock, {"cmd": "status"}, timeout_s=1.0).get("ok") is True
+                except DeviceError:
+                    return False
+
+            wait(answers, "the control socket answers")
+            log = work / "daemon.log"
+            wait(lambda: '"reloaded"' in log.read_text(), "the held SIGHUP reloaded")
+            wait(lambda: '"SIGUSR1": 1' in log.read_text(), "the held SIGUSR1 logged")
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(20) == 0
+    assert log.read_text().count('"event": "reloaded"') == 1
