@@ -11,9 +11,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from drivers.errors import DeviceError
 from emlogd.client import request
-from tests.emlogd.daemon.harness import PD0_CONFIG, make_work, reaped, wait
+from tests.emlogd.daemon.harness import PD0_CONFIG, free_port, make_work, reaped, run_daemon, wait
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -65,3 +67,29 @@ def test_a_sighup_and_a_sigusr1_while_it_starts_do_not_end_it(tmp_path: Path) ->
             proc.send_signal(signal.SIGTERM)
             assert proc.wait(20) == 0
     assert log.read_text().count('"event": "reloaded"') == 1
+
+
+@pytest.mark.parametrize("host", ["0.0.0.0", "[::ffff:127.0.0.1]"])
+def test_a_socket_input_on_its_own_tcp_output_by_another_spelling_is_refused(
+    tmp_path: Path, host: str
+) -> None:
+    """A config whose second EMlog is ``socket://0.0.0.0:P`` or
+    ``socket://[::ffff:127.0.0.1]:P``, P the port of the daemon's own TCP output on
+    127.0.0.1: ``emlogd run`` refuses it, naming the key, exit 1. Both passed the check
+    that refuses ``socket://127.0.0.1:P``, and the daemon read its own output as that
+    log's: emlog1's first corrected VHW taken as emlog2's reading, then every sentence
+    skipped as an echo, the port ``open`` and the real log never read."""
+    port = free_port()
+    config = PD0_CONFIG.replace(
+        "calibration:",
+        f'  - {{name: emlog2, url: "socket://{host}:{port}", protocol: nmea0183, role: uut}}\n'
+        "calibration:",
+    ).replace(
+        "outputs: {pty: out/emlog0}", f'outputs: {{pty: out/emlog0, tcp: "127.0.0.1:{port}"}}'
+    )
+    work = make_work(tmp_path, config)
+    with (work / "daemon.log").open("wb") as out, reaped(run_daemon(work, out)) as proc:
+        assert proc.wait(20) == 1
+    text = (work / "daemon.log").read_text()
+    assert "ports[2].url: the same place as outputs.tcp" in text, text
+    assert not (work / "run" / "control.sock").exists()
