@@ -14,8 +14,19 @@ from pathlib import Path
 import pytest
 
 from drivers.errors import DeviceError
+from emlogd.calfile import loads_state
 from emlogd.client import request
-from tests.emlogd.daemon.harness import PD0_CONFIG, free_port, make_work, reaped, run_daemon, wait
+from emlogd.daemon.statefile import StateStore
+from tests.emlogd.daemon.harness import (
+    PD0_CONFIG,
+    Daemon,
+    free_port,
+    make_work,
+    reaped,
+    run_daemon,
+    saved_calibration,
+    wait,
+)
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -93,3 +104,38 @@ def test_a_socket_input_on_its_own_tcp_output_by_another_spelling_is_refused(
     text = (work / "daemon.log").read_text()
     assert "ports[2].url: the same place as outputs.tcp" in text, text
     assert not (work / "run" / "control.sock").exists()
+
+
+@pytest.mark.parametrize("planted", ["symlink to the state file", "symlink elsewhere", "hard link"])
+def test_a_link_planted_at_the_lock_file_costs_no_file(tmp_path: Path, planted: str) -> None:
+    """``state/state.yaml.lock`` made, before a start, a symlink to the state file (a good
+    calibration, m = 0.1, and no backup yet), a symlink to another file, or a hard link
+    of the state file: the daemon starts, loads the calibration (``calibration_loaded``,
+    m 0.1), and leaves the state file and the other file byte-identical; a symlink is
+    replaced by a lock file of its own holding the pid. The lock's open followed the link
+    and wrote the pid over its target: the state file became ``12345``, reported
+    damaged, the daemon uncalibrated and the calibration lost for good (any file the
+    daemon may write, the same)."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    state = work / "state" / "state.yaml"
+    StateStore(state).save({"emlog1": saved_calibration(0.1)})
+    other = work / "other.txt"
+    other.write_text("kept\n")
+    lock = work / "state" / "state.yaml.lock"
+    if planted == "hard link":
+        os.link(state, lock)
+    else:
+        lock.symlink_to("state.yaml" if "state" in planted else "../other.txt")
+    before = state.read_bytes()
+    d = Daemon(work)
+    try:
+        assert state.read_bytes() == before and other.read_text() == "kept\n"
+        log = d.log_path.read_text()
+        assert '"calibration_loaded"' in log and '"m": 0.1' in log, log[-2000:]
+        if planted != "hard link":
+            assert not lock.is_symlink() and lock.read_text() == f"{d.pid}\n"
+        assert d.stop() == 0
+    finally:
+        d.kill()
+    cals, _ = loads_state(state.read_text())
+    assert cals["emlog1"].params.m == 0.1 and not cals["emlog1"].reset
