@@ -5,10 +5,14 @@ Rule kept (README, docs/RELIABILITY.md): nothing from outside stops the daemon."
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import subprocess
 import sys
+import threading
+import time
+import tty
 from pathlib import Path
 
 import pytest
@@ -20,6 +24,7 @@ from emlogd.daemon.statefile import StateStore
 from tests.emlogd.daemon.harness import (
     PD0_CONFIG,
     Daemon,
+    device_ptys,
     free_port,
     make_work,
     reaped,
@@ -27,6 +32,7 @@ from tests.emlogd.daemon.harness import (
     saved_calibration,
     wait,
 )
+from tests.emlogd.daemon.test_redteam_live import VHW
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -139,3 +145,49 @@ def test_a_link_planted_at_the_lock_file_costs_no_file(tmp_path: Path, planted: 
         d.kill()
     cals, _ = loads_state(state.read_text())
     assert cals["emlog1"].params.m == 0.1 and not cals["emlog1"].reset
+
+
+SLOW_FSYNC = """\
+import os, sys, time
+_fsync = os.fsync
+def _slow(fd):
+    time.sleep(0.3)
+    _fsync(fd)
+os.fsync = _slow
+from emlogd.entry import main
+sys.exit(main(sys.argv[1:]))
+"""
+"""``emlogd`` with every fsync taking 0.3 s more (a slow SD card, a stalled disk)."""
+
+
+@pytest.mark.xfail(strict=True, reason="open: the state file is saved in the loop's thread")
+def test_a_slow_disk_does_not_hold_the_outputs(tmp_path: Path) -> None:
+    """Every fsync takes 0.3 s (a slow SD card), the EMlog sends a VHW every 0.1 s and
+    a ``freeze`` saves the state file: no VHW waits 0.4 s for the next. Open: the save
+    (the file's fsync, then its directory's) runs in the loop's one thread, and every
+    output waits for it (0.6 s here)."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    StateStore(work / "state" / "state.yaml").save({"emlog1": saved_calibration(0.1)})
+    argv = [sys.executable, "-c", SLOW_FSYNC, "run", "--config", "emlogd.yaml"]
+    with device_ptys(work / "links", ("emlog1", "dvl")) as (emlog, _):
+        d = Daemon(work, pty=True, argv=argv, env=dict(os.environ, PYTHONPATH=str(REPO)))
+        try:
+            tty.setraw(d.fd)
+            sock = str(work / "run" / "control.sock")
+            freeze = threading.Timer(0.5, lambda: request(sock, {"cmd": "freeze"}, timeout_s=10))
+            freeze.start()
+            out: list[float] = []
+            end = time.monotonic() + 1.8
+            for k in range(10**6):
+                if time.monotonic() > end:
+                    break
+                os.write(emlog, VHW[k % 2])
+                d.lines.clear()
+                d.pump(0.1)
+                out += [time.monotonic()] * sum(b"VHW" in x for x in d.lines)
+            freeze.join()
+            assert d.stop() == 0
+        finally:
+            d.kill()
+    gaps = [b - a for a, b in itertools.pairwise(out)]
+    assert len(out) > 8 and max(gaps) < 0.4, (len(out), max(gaps, default=None))
