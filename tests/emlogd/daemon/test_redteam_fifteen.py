@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import termios
 import threading
 import time
 import tty
@@ -191,3 +192,39 @@ def test_a_slow_disk_does_not_hold_the_outputs(tmp_path: Path) -> None:
             d.kill()
     gaps = [b - a for a, b in itertools.pairwise(out)]
     assert len(out) > 8 and max(gaps) < 0.4, (len(out), max(gaps, default=None))
+
+
+def test_a_reader_that_leaves_the_output_pty_cooked_costs_the_others_nothing(
+    tmp_path: Path,
+) -> None:
+    """A second reader of the output pty sets canonical mode, signal characters with
+    ``$`` as the interrupt and echo (``stty -F /run/emlogd/emlog0 icanon isig intr '$'``,
+    a program that sets its own modes), then closes it. Within the link check
+    (``LINK_CHECK_S``, 2 s) the pty is raw again: the first reader, open all along,
+    receives whole corrected VHW, and the log says ``pty_modes_restored``. The modes
+    are the line discipline's, shared: they stayed, and every ``$`` the daemon wrote
+    flushed the line, so the autopilot got no sentence whole for as long as the pty
+    lived."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    with device_ptys(work / "links", ("emlog1", "dvl")) as (emlog, _):
+        d = Daemon(work, pty=True)
+        try:
+            tty.setraw(d.fd)
+            fd = os.open(work / "out" / "emlog0", os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+            attrs = termios.tcgetattr(fd)
+            attrs[3] |= termios.ICANON | termios.ISIG | termios.ECHO
+            attrs[6][termios.VINTR] = b"$"
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+            os.close(fd)
+            wait(lambda: d.events("pty_modes_restored") == 1, "modes restored", 3.0)
+            d.pump(0.1)
+            d.lines.clear()
+            for k in range(5):
+                os.write(emlog, VHW[k % 2])
+                d.pump(0.1)
+            d.pump(0.2)
+            whole = [x for x in d.lines if x.startswith(b"$VWVHW,") and b"*" in x]
+            assert len(whole) >= 4, d.lines
+            assert d.stop() == 0
+        finally:
+            d.kill()
