@@ -5,6 +5,7 @@ Rule kept (README, docs/RELIABILITY.md): nothing from outside stops the daemon."
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import signal
@@ -14,11 +15,13 @@ import termios
 import threading
 import time
 import tty
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
 
 from drivers.errors import DeviceError
+from drivers.rdi_pd0 import encode_pd0
 from emlogd.calfile import loads_state
 from emlogd.client import request
 from emlogd.daemon.statefile import StateStore
@@ -228,3 +231,42 @@ def test_a_reader_that_leaves_the_output_pty_cooked_costs_the_others_nothing(
             assert d.stop() == 0
         finally:
             d.kill()
+
+
+def test_a_stty_on_the_dvls_device_costs_it_two_seconds(tmp_path: Path) -> None:
+    """Another process sets the PD0 DVL's device canonical, with echo, signal characters,
+    CR to NL and bit stripping (``stty -F /dev/dvl sane`` by hand, say): within
+    ``DEVICE_CHECK_S`` (2 s) the port's modes are those of its open again
+    (``port_modes_restored`` in the log) and its ensembles are decoded; the device is
+    sent nothing back after that. The modes stayed: canonical mode held the binary
+    ensembles back (none decoded, for good), and echo sent everything the DVL said
+    back to it (2472 bytes in 2 s, commands to a real DVL)."""
+    work = make_work(tmp_path, PD0_CONFIG)
+    with device_ptys(work / "links", ("emlog1", "dvl")) as (_, dvl):
+        d = Daemon(work)
+        try:
+            fd = os.open(work / "links" / "dvl", os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+            attrs = termios.tcgetattr(fd)
+            attrs[0] |= termios.ICRNL | termios.ISTRIP
+            attrs[3] |= termios.ICANON | termios.ECHO | termios.ISIG
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+            os.close(fd)
+            wait(lambda: d.events("port_modes_restored") == 1, "modes restored", 3.0)
+            with contextlib.suppress(BlockingIOError):
+                os.read(dvl, 65536)  # what was echoed before
+            when = datetime(2026, 11, 29, tzinfo=UTC)
+            for k in range(10):
+                os.write(dvl, encode_pd0(ensemble_number=k, timestamp=when, heading_deg=10.0))
+                time.sleep(0.05)
+            wait(lambda: _records(d, "dvl") >= 9, "the ensembles decoded", 2.0)
+            with pytest.raises(BlockingIOError):
+                os.read(dvl, 65536)  # nothing echoed back to the device
+            assert d.stop() == 0
+        finally:
+            d.kill()
+
+
+def _records(d: Daemon, port: str) -> int:
+    ports = d.status()["ports"]
+    assert isinstance(ports, dict)
+    return int(ports[port]["records"])
