@@ -2,6 +2,6 @@
 
 import sys
 
-from emlogd.cli import main
+from emlogd.entry import main
 
 sys.exit(main())

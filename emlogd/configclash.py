@@ -115,7 +115,10 @@ def _hops(path: str) -> list[str]:
 
 def _own_listener(url: str, listener: str) -> bool:
     """Whether the input ``url`` (``socket://HOST:PORT``) connects to the TCP output
-    ``listener`` (``HOST:PORT``): its port, and a loopback host or the listener's own. A
+    ``listener`` (``HOST:PORT``): its port, and a loopback host or the listener's own,
+    an IPv4 address written IPv6-mapped (``[::ffff:127.0.0.1]``) as itself, and the
+    unspecified ``0.0.0.0`` or ``[::]``, which a connect takes for this host (both
+    spellings passed the check, and the daemon read its own sentences as the log's). A
     host of another address may be this host's or another's (a multiplexer on the usual
     10110): not refused."""
     if not url.lower().startswith("socket://"):
@@ -128,4 +131,6 @@ def _own_listener(url: str, listener: str) -> bool:
     lhost, _, lport = listener.rpartition(":")
     if port is None or str(port) != lport:
         return False
-    return host.is_loopback or str(host) == lhost.strip("[]")
+    if isinstance(host, ipaddress.IPv6Address) and host.ipv4_mapped is not None:
+        host = host.ipv4_mapped
+    return host.is_loopback or host.is_unspecified or str(host) == lhost.strip("[]")

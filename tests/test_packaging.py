@@ -57,7 +57,7 @@ class TestWheel:
         """The emlogd console script and the five runtime dependencies are declared; pynmea2
         (the tests' oracle, the bench's anchor) only under an extra."""
         meta = next(n for n in wheel.namelist() if n.endswith(".dist-info/entry_points.txt"))
-        assert "emlogd = emlogd.cli:main" in wheel.read(meta).decode()
+        assert "emlogd = emlogd.entry:main" in wheel.read(meta).decode()
         metadata = next(n for n in wheel.namelist() if n.endswith(".dist-info/METADATA"))
         text = wheel.read(metadata).decode()
         for dep in ("pyserial", "numpy", "pyyaml", "structlog", "pyIGRF14"):

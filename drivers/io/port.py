@@ -15,6 +15,11 @@ opens serial ports. A :class:`SerialSource`:
   names another device (a pty re-created at the same link, an adapter re-enumerated
   under its udev name) while the old one stays open is closed and opened again at its
   path (the old descriptor would be read, silent, for ever);
+- keeps its modes: the terminal modes pyserial set at the open (raw) are checked every
+  :data:`DEVICE_CHECK_S` and put back if another process changed them (``stty -F
+  /dev/ttyUSB0 sane`` by hand: canonical mode held a binary DVL's data back for good,
+  and echo sent everything the device said back to it), one ``modes_restored`` event
+  per :data:`MODES_EVENT_S` with the count since the one before;
 - keeps to its pty: a link that named a pty the port read (a fake device's, a
   multiplexer's) and now, unchanged, names a pty made since under the same number (the
   device went away and another program's pty took the freed number) is not opened
@@ -45,11 +50,12 @@ import os
 import select
 import socket
 import stat
+import termios
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 from urllib.parse import urlsplit
 
 import serial
@@ -72,7 +78,10 @@ CONNECT_POLL_S = 0.05
 PTY_MAJORS = range(136, 144)
 """The major device numbers of Unix98 pty slaves (``/dev/pts/N``)."""
 
-EventKind = Literal["connected", "disconnected", "stale", "alive", "error"]
+MODES_EVENT_S = 60.0
+"""Least time between two ``modes_restored`` events of one port, s."""
+
+EventKind = Literal["connected", "disconnected", "stale", "alive", "error", "modes_restored"]
 
 
 Chunk = tuple[float, bytes]
@@ -164,6 +173,14 @@ class SerialSource:
         self._last_data: float | None = None
         self._next_check = -math.inf
         """When a silent device may next be checked against its path."""
+        self._modes: list[Any] | None = None
+        """The device's terminal modes as set at the open (``tcgetattr``); None for a
+        socket or a port without a descriptor."""
+        self._next_modes = -math.inf
+        self._next_modes_event = -math.inf
+        self._modes_untold = 0
+        self.modes_restored = 0
+        """How often the device's modes were put back (:meth:`_keep_modes`)."""
         self._stale = False
         self._ever_connected = False
         self.why_closed: str | None = "not opened yet"
@@ -284,6 +301,10 @@ class SerialSource:
         self._raw_fd = raw_fd
         if self._tcp is None and raw_fd is not None:
             self._held_pty = held_pty(self.url, raw_fd)
+            try:
+                self._modes = termios.tcgetattr(raw_fd)
+            except (termios.error, OSError):
+                self._modes = None
         if self._ever_connected:
             self.reconnects += 1
         self._ever_connected = True
@@ -311,6 +332,7 @@ class SerialSource:
     def _close_port(self) -> None:
         ser, self._ser = self._ser, None
         self._raw_fd = None
+        self._modes = None
         if ser is not None:
             with contextlib.suppress(serial.SerialException, OSError):
                 ser.close()
@@ -389,6 +411,9 @@ class SerialSource:
             why = _path_moved(self.url, self._raw_fd)
             if why is not None:
                 self._lost(why)
+        if self._raw_fd is not None and self._modes is not None and now >= self._next_modes:
+            self._next_modes = now + DEVICE_CHECK_S
+            self._keep_modes(self._raw_fd, self._modes, now)
         if (
             self._ser is not None
             and not self._stale
@@ -398,6 +423,26 @@ class SerialSource:
             self._stale = True
             self._event("stale", f"no data for {now - self._last_data:.1f} s")
         return self.events()
+
+    def _keep_modes(self, fd: int, modes: list[Any], now: float) -> None:
+        """Put the device's terminal modes back to ``modes`` if another process changed
+        them; say so at most once per :data:`MODES_EVENT_S`."""
+        try:
+            if termios.tcgetattr(fd) == modes:
+                return
+            termios.tcsetattr(fd, termios.TCSANOW, modes)
+        except (termios.error, OSError):
+            return
+        self.modes_restored += 1
+        self._modes_untold += 1
+        if now >= self._next_modes_event:
+            self._next_modes_event = now + MODES_EVENT_S
+            n, self._modes_untold = self._modes_untold, 0
+            self._event(
+                "modes_restored",
+                f"{self.url}: its terminal modes were changed by another process; put back "
+                f"({n} time{'s' if n > 1 else ''})",
+            )
 
 
 _NOT_DEVICES = (

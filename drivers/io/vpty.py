@@ -5,7 +5,12 @@ the symlink like a serial device. Properties:
 
 - The slave is put in raw mode (no echo, no CR/LF translation) and chmod-ed to
   ``mode`` (default 0660, optionally chown-ed to ``group``); the settings persist
-  while the master is open, whoever opens the slave afterwards.
+  while the master is open, whoever opens the slave afterwards. The modes are the
+  line discipline's, shared by every reader: one that changes them (``stty -F``, a
+  program that sets canonical mode, signal characters, CR/LF translation) changes
+  what the others read, and they stay after it has gone. :meth:`check_modes` puts the
+  input and local modes back to raw (the control characters, ``VMIN``/``VTIME`` and
+  the rest as the reader set them).
 - The symlink is replaced atomically (temporary symlink + rename); a stale
   symlink is replaced, a regular file or directory at that path is refused. It is
   removed on :meth:`close` if it still points at this pty; :meth:`check_link`
@@ -106,6 +111,9 @@ class VirtualPort(Closing):
             raise DeviceError(f"cannot create a pty: {exc.strerror}") from None
         try:
             tty.setraw(slave)
+            raw = termios.tcgetattr(slave)
+            self._raw_modes: tuple[int, int] = (raw[0], raw[3])
+            """The raw input and local modes (``c_iflag``, ``c_lflag``)."""
             self.slave_path = os.ttyname(slave)
             self.set_access(mode, group)
         except DeviceError:
@@ -173,6 +181,22 @@ class VirtualPort(Closing):
         if target == self.slave_path:
             return ""
         return f"names {target} now: left as it is"
+
+    def check_modes(self) -> bool:
+        """Put the pty's input and local modes back to raw if a reader changed them; True
+        when it did. A reader that set canonical mode with ``$`` as its interrupt
+        character (``stty -F LINK icanon isig intr '$'``) left every later reader lines
+        cut at each ``$`` and flushed: no sentence whole. Modes are read and set through
+        the master (Linux applies a pty master's termios requests to its slave)."""
+        try:
+            attrs = termios.tcgetattr(self.master)
+            if (attrs[0], attrs[3]) == self._raw_modes:
+                return False
+            attrs[0], attrs[3] = self._raw_modes
+            termios.tcsetattr(self.master, termios.TCSANOW, attrs)
+        except (termios.error, OSError):
+            return False
+        return True
 
     def fileno(self) -> int:
         """The master's file descriptor."""

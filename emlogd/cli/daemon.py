@@ -20,9 +20,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     from emlogd.config import load_config
     from emlogd.daemon.logsetup import configure_daemon_logging, flush_log
     from emlogd.daemon.loop import Daemon
-    from emlogd.daemon.signals import ignore_terminal_stops
+    from emlogd.daemon.signals import hold_early, ignore_terminal_stops
 
     ignore_terminal_stops()  # before any line reaches a terminal it may not write to
+    hold_early()  # a SIGHUP (or a stray SIGUSR1) while starting is not the end of it
     cfg = load_config(config_path(args))
     # the corrected NMEA on stdout never shares it with the log: the log goes to stderr
     configure_daemon_logging(cfg.log_format, cfg.log_level, cfg.outputs.stdout)

@@ -514,7 +514,7 @@ class Daemon:
 
     def _log_port_events(self, events: list[PortEvent]) -> None:
         for ev in events:
-            warn = ev.kind in ("disconnected", "stale", "error")
+            warn = ev.kind in ("disconnected", "stale", "error", "modes_restored")
             (self.log.warning if warn else self.log.info)(
                 f"port_{ev.kind}", port=ev.port, detail=ev.detail
             )

@@ -21,6 +21,13 @@ and the daemon runs on:
 - SIGIO (SIGPOLL), SIGSTKFLT and the real-time signals SIGRTMIN…SIGRTMAX: no
   descriptor is in ``O_ASYNC`` mode, no real-time signal is used.
 
+Until the handlers are installed (:func:`install`, once the config is loaded and the
+daemon built: a second or more after the process starts), SIGHUP and the unused signals
+are held (:func:`hold_early`, the first thing ``emlogd run`` does): counted, and passed
+on by :func:`install` (a SIGHUP then is one reload, which reads the config anew). Their
+default action ended the starting daemon: a ``kill -HUP`` (a config tool's, a
+``postrotate`` script's) in its first second was a restart under systemd.
+
 SIGTTOU and SIGTTIN are ignored (:func:`ignore_terminal_stops`, before anything is
 logged): a daemon started in the background of a terminal that has ``stty tostop`` set,
 its log on that terminal, was stopped by SIGTTOU at its first log line, every output
@@ -116,9 +123,28 @@ def ignore_terminal_stops() -> None:
         signal.signal(sig, signal.SIG_IGN)
 
 
+HELD: tuple[int, ...] = (signal.SIGHUP, *UNUSED_SIGNALS)
+"""The signals :func:`hold_early` holds until :func:`install`."""
+
+_held: Counter[int] = Counter()
+"""Each held signal received before :func:`install`, by number."""
+
+
+def _hold(signum: int, frame: FrameType | None) -> None:
+    _held[signum] += 1
+
+
+def hold_early() -> None:
+    """Hold :data:`HELD` until :func:`install`: each received meanwhile is counted (no
+    I/O in the handler) and :func:`install` passes it on."""
+    for sig in HELD:
+        signal.signal(sig, _hold)
+
+
 def install(on_stop: Handler, on_hup: Handler, unused: Unused, wake_fd: int) -> dict[int, Any]:
-    """Install the daemon's handlers and the wake-up descriptor; the handlers they
-    replaced, by signal (:func:`restore` puts them back)."""
+    """Install the daemon's handlers and the wake-up descriptor, and pass on what
+    :func:`hold_early` held (a SIGHUP: ``on_hup`` once; the unused signals: counted in
+    ``unused``); the handlers they replaced, by signal (:func:`restore` puts them back)."""
     old: dict[int, Any] = {
         signal.SIGTERM: signal.signal(signal.SIGTERM, on_stop),
         signal.SIGINT: signal.signal(signal.SIGINT, on_stop),
@@ -127,6 +153,14 @@ def install(on_stop: Handler, on_hup: Handler, unused: Unused, wake_fd: int) -> 
     for sig in UNUSED_SIGNALS:
         old[sig] = signal.signal(sig, unused.handler)
     signal.set_wakeup_fd(wake_fd, warn_on_full_buffer=False)
+    held = dict(_held)  # after the handlers: nothing is held from here on
+    _held.clear()
+    for sig, n in held.items():
+        if sig == signal.SIGHUP:
+            on_hup(sig, None)
+        else:
+            unused.pending[signal_name(sig)] += n
+            unused.total += n
     return old
 
 

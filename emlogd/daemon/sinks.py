@@ -566,7 +566,12 @@ LINK_CHECK_S = 2.0
 """How often a pty output checks that its link still names its pty, s: a link removed
 (by hand, a clean-up of the run directory) is published again, since a reader that
 opens the pty by its link (an autopilot after its own restart) found nothing there
-until the daemon's restart. A link naming something else is logged and left as it is."""
+until the daemon's restart. A link naming something else is logged and left as it is.
+The pty's modes are checked as often (:meth:`drivers.io.vpty.VirtualPort.check_modes`)."""
+
+MODES_LOG_S = 60.0
+"""Least time between two ``pty_modes_restored`` lines of one pty, s: a reader that sets
+its modes at every open is one line a minute."""
 
 
 class PtySink:
@@ -600,13 +605,27 @@ class PtySink:
         self.monotonic = monotonic
         self._next_check = monotonic() + LINK_CHECK_S
         self._problem = ""
+        self._modes_restored = 0
+        self._next_modes_log = -math.inf
 
     def housekeep(self) -> None:
-        """Every :data:`LINK_CHECK_S`: the link published again if it was removed."""
+        """Every :data:`LINK_CHECK_S`: the link published again if it was removed, the
+        pty's modes put back to raw if a reader changed them (``pty_modes_restored``, at
+        most one line per :data:`MODES_LOG_S` with the count since the line before)."""
         now = self.monotonic()
         if now < self._next_check:
             return
         self._next_check = now + LINK_CHECK_S
+        if self.port.check_modes():
+            self._modes_restored += 1
+            if now >= self._next_modes_log:
+                self._next_modes_log = now + MODES_LOG_S
+                n, self._modes_restored = self._modes_restored, 0
+                self._note(
+                    "pty_modes_restored",
+                    f"{self.port.link}: a reader changed the pty's modes; put back to raw "
+                    f"({n} time{'s' if n > 1 else ''})",
+                )
         why = self.port.check_link()
         if why == "restored":
             why = ""

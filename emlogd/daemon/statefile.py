@@ -83,6 +83,31 @@ class StateLockedError(EmlogdError):
     """Another process holds the state file's lock."""
 
 
+LOCK_FLAGS = os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+"""How the lock file is opened: a symlink at its path is not followed, a FIFO's open
+does not wait for a writer."""
+
+
+def _open_lock(path: Path) -> int | None:
+    """``path``, the lock file, opened for reading and writing (created if missing), else
+    for reading (a read-only directory); None if neither can be done. A symlink at the
+    path is not the daemon's (it makes none there): removed, and a lock file made in its
+    place."""
+    for _ in range(2):
+        try:
+            return os.open(path, os.O_RDWR | os.O_CREAT | LOCK_FLAGS, 0o644)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP and path.is_symlink():
+                with contextlib.suppress(OSError):
+                    path.unlink()
+                    continue
+            try:
+                return os.open(path, os.O_RDONLY | LOCK_FLAGS)
+            except OSError:
+                return None
+    return None
+
+
 class StateStore:
     """The state file and its backup.
 
@@ -136,19 +161,21 @@ class StateStore:
         the lock's descriptor, or None when no lock file can be opened at all (a
         read-only or missing directory: writes will fail and be reported anyway).
 
+        The lock's path is never followed as a symlink (:func:`_open_lock`), and the pid
+        is written only into a regular file of one link: a symlink or a hard link planted
+        there (to the state file itself, to any file the daemon may write) had its target
+        truncated and the pid written in its place — the state file and its calibration
+        lost at the start.
+
         Raises:
             StateLockedError: another process holds it (the message names its pid).
         """
         path = self.lock_path
         with contextlib.suppress(OSError):
             path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError:
-            try:
-                fd = os.open(path, os.O_RDONLY)
-            except OSError:
-                return None
+        fd = _open_lock(path)
+        if fd is None:
+            return None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -162,8 +189,10 @@ class StateStore:
                 f"{self.path}{via} is in use by another emlogd (pid {holder}; lock {path})"
             ) from None
         with contextlib.suppress(OSError):
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
+            st = os.fstat(fd)
+            if stat.S_ISREG(st.st_mode) and st.st_nlink == 1:  # the lock's own file only
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
         return fd
 
     def load(

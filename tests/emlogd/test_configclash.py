@@ -101,7 +101,8 @@ def test_a_port_reading_an_output_pty_is_named(tmp_path: Path) -> None:
 
 def test_a_socket_input_on_a_tcp_output_of_this_host_is_named() -> None:
     """A ``socket://`` input on the port of a TCP output, by a loopback address or the
-    output's own, is refused naming the input and the output (the daemon read its own
+    output's own (also IPv6-mapped, and the unspecified address a connect takes for this
+    host), is refused naming the input and the output (the daemon read its own
     sentences back as a sensor's); another address on that port (a multiplexer on the
     usual 10110) and a loopback address on another port pass."""
     good = parse_config(CONFIG)  # outputs.tcp ":10110"
@@ -117,9 +118,18 @@ def test_a_socket_input_on_a_tcp_output_of_this_host_is_named() -> None:
         ("SOCKET://127.0.0.2:10110", "outputs.tcp"),
         ("socket://[::1]:10110", "outputs.tcp"),
         ("socket://10.1.1.1:10111", "calibration[0].tcp"),
+        ("socket://0.0.0.0:10110", "outputs.tcp"),  # a connect to it reaches this host
+        ("socket://[::]:10110", "outputs.tcp"),
+        ("socket://[::ffff:127.0.0.1]:10110", "outputs.tcp"),  # 127.0.0.1, IPv6-mapped
+        ("socket://[::ffff:10.1.1.1]:10111", "calibration[0].tcp"),
     ):
         why, key, section = with_url(url)
         assert (key, section) == ("ports[1].url", "ports"), url
         assert why.startswith(f"the same place as {output}"), why
-    for url in ("socket://192.168.1.10:10110", "socket://127.0.0.1:10112", "/dev/dvl"):
+    for url in (
+        "socket://192.168.1.10:10110",
+        "socket://[::ffff:192.168.1.10]:10110",
+        "socket://127.0.0.1:10112",
+        "/dev/dvl",
+    ):
         assert with_url(url) == ("", "", ""), url

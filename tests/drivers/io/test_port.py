@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import termios
 import time
 from pathlib import Path
 
@@ -296,3 +297,40 @@ def test_a_link_to_a_pty_whose_number_another_program_took_is_not_read(tmp_path:
         if other is not None:
             for fd in other:
                 os.close(fd)
+
+
+def test_modes_another_process_changed_are_put_back(tmp_path: Path) -> None:
+    """Another process sets the device's modes to canonical with echo and 9600 baud
+    (``stty -F /dev/dvl sane 9600`` by hand): the next :meth:`poll` a
+    ``DEVICE_CHECK_S`` later puts back the modes of the open (one ``modes_restored``
+    event); changed again within ``MODES_EVENT_S``, they are put back without another
+    event, ``modes_restored`` counting both."""
+    now = [100.0]
+    with VirtualPort(tmp_path / "dvl") as vp:
+        src = SerialSource(
+            "dvl", str(tmp_path / "dvl"), stale_timeout_s=60.0, monotonic=lambda: now[0]
+        )
+        try:
+            assert src.open()
+            src.events()
+            fd = os.open(vp.slave_path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+            kinds = []
+            try:
+                at_open = termios.tcgetattr(fd)
+                for _ in range(2):
+                    changed = termios.tcgetattr(fd)
+                    changed[3] |= termios.ICANON | termios.ECHO
+                    changed[4] = changed[5] = termios.B9600
+                    termios.tcsetattr(fd, termios.TCSANOW, changed)
+                    now[0] += DEVICE_CHECK_S
+                    kinds += [e.kind for e in src.poll()]
+                    assert termios.tcgetattr(fd) == at_open
+            finally:
+                os.close(fd)
+            assert kinds == ["modes_restored"]
+            assert src.modes_restored == 2
+            now[0] += DEVICE_CHECK_S
+            assert not src.poll()  # nothing changed: nothing to do
+            assert src.modes_restored == 2
+        finally:
+            src.close()

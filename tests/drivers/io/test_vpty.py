@@ -248,3 +248,29 @@ def _pending(fd: int) -> int:
     """Bytes waiting to be read from ``fd``."""
     raw = fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0")
     return int(struct.unpack("i", raw)[0])
+
+
+def test_modes_a_reader_changed_are_put_back_to_raw(tmp_path: Path) -> None:
+    """A reader sets canonical mode, signal characters with ``$`` as the interrupt,
+    CR to NL and echo, and a 2-s read timeout (``VMIN`` 0, ``VTIME`` 20): ``check_modes``
+    puts the input and local modes back to raw (True), keeps the control characters it
+    set, and finds nothing to do the next time (False)."""
+    with VirtualPort(tmp_path / "p") as vp:
+        assert vp.check_modes() is False
+        fd = os.open(tmp_path / "p", os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            attrs = termios.tcgetattr(fd)
+            attrs[0] |= termios.ICRNL | termios.ISTRIP
+            attrs[3] |= termios.ICANON | termios.ISIG | termios.ECHO
+            attrs[6][termios.VINTR] = b"$"
+            attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 0, 20
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+            assert vp.check_modes() is True
+            now = termios.tcgetattr(fd)
+            assert not now[0] & (termios.ICRNL | termios.ISTRIP)
+            assert not now[3] & (termios.ICANON | termios.ISIG | termios.ECHO)
+            assert now[6][termios.VINTR] == b"$"
+            assert (now[6][termios.VMIN], now[6][termios.VTIME]) == (0, 20)
+            assert vp.check_modes() is False
+        finally:
+            os.close(fd)
