@@ -3,36 +3,23 @@ simulated once per test run (shared by the run's workers)."""
 
 from __future__ import annotations
 
-import fcntl
-import os
-import pickle
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
+from tests.once import once_per_run
 
 
 def shared_simulation(
     factory: pytest.TempPathFactory, name: str, **kwargs: Any
 ) -> SimulationResult:
-    """``simulate(**kwargs)`` into ``sim-NAME`` beside the run's temporary directories:
-    the first process of the run to ask writes it (under a lock), the others (xdist's
-    workers) read the result it left. The tests only read the trial's files."""
-    root = factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        root = root.parent  # the run's directory, above each worker's own
-    done = root / f"sim-{name}.pickle"
-    with (root / f"sim-{name}.lock").open("a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if done.exists():
-            result = pickle.loads(done.read_bytes())
-            assert isinstance(result, SimulationResult)
-            return result
-        result = simulate(root / f"sim-{name}", **kwargs)
-        done.write_bytes(pickle.dumps(result))
-        return result
+    """``simulate(**kwargs)`` once per test run, shared by its workers
+    (:func:`tests.once.once_per_run`)."""
+    return once_per_run(
+        factory, f"sim-{name}", lambda folder: simulate(folder, **kwargs), SimulationResult
+    )
 
 
 @pytest.fixture(scope="session")
