@@ -1,5 +1,6 @@
-"""Shared fixtures: real pseudo-terminals, capture files on disk, fake devices; the
-hypothesis profile of the run (:mod:`tests.profiles`)."""
+"""Shared fixtures: real pseudo-terminals, capture files on disk, fake devices, real
+recordings imported once per run; the hypothesis profile of the run
+(:mod:`tests.profiles`)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,10 @@ import pytest
 
 from drivers.io.capture import CaptureWriter
 from drivers.io.fake import FakeDevice
+from emlogd.offline.importbase import ImportReport
+from emlogd.offline.importer import import_nmea
 from tests import profiles
+from tests.once import Imported, once_per_run
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -23,6 +27,21 @@ def pytest_configure(config: pytest.Config) -> None:
     if config.getoption("hypothesis_profile", None):
         return
     settings.load_profile(profiles.choose(config.getoption("markexpr", ""), os.environ))
+
+
+@pytest.fixture(scope="session")
+def imported(tmp_path_factory: pytest.TempPathFactory) -> Imported:
+    """``imported(src)``: the NMEA log ``src`` imported with the default options once per
+    test run (:func:`tests.once.once_per_run`): its report and its capture, to be read only."""
+
+    def imp(src: Path) -> tuple[ImportReport, Path]:
+        def build(folder: Path) -> tuple[ImportReport, Path]:
+            cap = folder / f"{src.stem}.cap.gz"
+            return import_nmea([src], cap), cap
+
+        return once_per_run(tmp_path_factory, f"import-{src.name}", build, tuple)
+
+    return imp
 
 
 @pytest.fixture

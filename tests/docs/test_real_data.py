@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from emlogd.offline.dataset import record_capture
-from emlogd.offline.importer import import_nmea
 from emlogd.pipeline.align import DEFAULT_MAX_GAP_S, interpolate
 from emlogd.pipeline.settings import UutSettings
+from tests.once import Imported
 from tests.scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -74,15 +74,14 @@ def test_a_gzipped_log_is_recognised_and_a_file_skipped_is_named(
     assert "notes.txt: skipped, not a log" in capsys.readouterr().err
 
 
-def test_a_reference_slower_than_1_hz_aligns(tmp_path: Path) -> None:
+def test_a_reference_slower_than_1_hz_aligns(imported: Imported) -> None:
     """Irene 2007 (RMC at 0.8 Hz, fixes 1.25 s apart; its magnetic heading given the
     lake's variation): the cadence-sized gap pairs 94 % of the readings with a GNSS
     reference, the fixed 1 s gap only 73 %."""
     src = REAL / "irene-2007-11-03-leman.nmea"
     if not src.is_file():
         pytest.skip("irene-2007-11-03-leman.nmea absent")
-    cap = tmp_path / "irene2007.cap.gz"
-    import_nmea([src], cap)
+    _, cap = imported(src)
     s = UutSettings(
         port="nmea", reference_port="nmea", reference_field="gnss", magnetic_variation_deg=1.0
     )

@@ -23,7 +23,7 @@ from drivers.io.capture import CaptureReader
 from drivers.records import KNOT_MPS, Rejected
 from emlogd.daemon.statefile import StateStore
 from emlogd.launch import fake_sensors
-from emlogd.offline.simulate import EMLOG1, EMLOG2, simulate, with_sensor
+from emlogd.offline.simulate import SimulationResult
 from emlogd.pipeline.calibration import Calibration
 from tests.emlogd.daemon.harness import OUTPUTS, SPEED, Daemon, wait
 from tests.synth import TWO_AXIS_FIGURES as FIGURES
@@ -40,11 +40,10 @@ calibration:
 
 
 @pytest.fixture(scope="module")
-def figure8(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A fifth of the figure-8 with emlog2 turned 3° to starboard (noise 0.01 m/s)."""
-    sensor = with_sensor(EMLOG2, {"misalign": 3.0, "mt": -0.08, "bt": 0.04, "noise": 0.01})
-    trial = simulate(tmp_path_factory.mktemp("fig8"), seed=3, scale=0.2, emlogs=(EMLOG1, sensor))
-    return trial.files[1]
+def figure8(misaligned_trial: SimulationResult) -> Path:
+    """A fifth of the figure-8 with emlog2 turned 3° to starboard (noise 0.01 m/s: the
+    session's ``misaligned_trial``)."""
+    return misaligned_trial.files[1]
 
 
 @pytest.fixture

@@ -13,11 +13,11 @@ import pytest
 from drivers.framing import with_checksum
 from drivers.io.capture import CaptureWriter
 from drivers.nmea0183 import encode_rmc, encode_vhw
-from emlogd.offline.importer import import_nmea
 from emlogd.offline.jobs import OfflineError, calibrate, load_captures
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.variation import model_variation
 from tests.nmea_encoders import encode_hdt
+from tests.once import Imported
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "real"
 T0 = datetime(2014, 8, 22, 16, 0, tzinfo=UTC).timestamp()
@@ -157,13 +157,12 @@ def test_a_wrong_heading_is_refused_with_its_figures(tmp_path: Path) -> None:
 class TestRealLogs:
     """The real recordings: magnetic headings without variation, and a broken heading."""
 
-    def test_irene_magnetic_heading_calibrates_with_the_model(self, tmp_path: Path) -> None:
+    def test_irene_magnetic_heading_calibrates_with_the_model(self, imported: Imported) -> None:
         """Irene 2007-11-03 ($IIHDG magnetic with empty variation fields, RMC without
         one): calibrated with the model's variation (+0.6° there and then) and the scale
         of the independent fit (k 1.075: m ≈ 1/k − 1 = −0.07) within 0.05, the
         tolerance the real-recording suite holds every recording to."""
-        cap = tmp_path / "i.cap.gz"
-        import_nmea([REAL / "irene-2007-11-03-leman.nmea"], cap)
+        _, cap = imported(REAL / "irene-2007-11-03-leman.nmea")
         res = calibrate(load_captures([str(cap)], GNSS), GNSS, "ls", lag=0.0)
         h = res.heading[str(cap)]
         assert h["variation_source"] == "model"

@@ -23,11 +23,11 @@ from emlogd.offline.importer import (
     EXPEDITION,
     ImportFormatError,
     import_csv,
-    import_nmea,
     parse_map,
 )
 from tests.emlogd.offline.test_importnmea import IRENE
 from tests.jumping import ROOT, run_twice
+from tests.once import Imported
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "real"
 
@@ -448,10 +448,10 @@ class TestCli:
 class TestRealLogs:
     """The real recordings import whole, every skipped line accounted for."""
 
-    def test_irene(self, tmp_path: Path) -> None:
+    def test_irene(self, imported: Imported) -> None:
         """Irene 06-27: all but the 9 lines before the first RMC fix and the 9 after the
         last are written, none timed past the last fix."""
-        rep = import_nmea([REAL / "irene-2014-06-27-leman.nmea"], tmp_path / "i.cap.gz")
+        rep, _ = imported(REAL / "irene-2014-06-27-leman.nmea")
         assert rep.written + sum(rep.skipped.values()) == rep.lines
         assert rep.skipped == {"before_first_fix": 9, "after_last_fix": 9}
         assert abs(rep.sentences["RMC"] - rep.sentences["VHW"]) <= 1 and rep.sentences["VHW"] > 7000
@@ -501,15 +501,14 @@ class TestRealLogs:
         assert res.current_mps is not None and math.hypot(*res.current_mps) < 0.15
         assert res.rmse_cal < 0.9 * res.rmse_raw
 
-    def test_irene_calibrated_log_stays_calibrated(self, tmp_path: Path) -> None:
+    def test_irene_calibrated_log_stays_calibrated(self, imported: Imported) -> None:
         """Irene 06-27 (a lake, a log already calibrated): the GNSS fit finds a scale
         within 5 % (the real-recording suite's tolerance) and a corrected speed no worse than raw — the noisy GNSS reference
         does not shrink the scale (a per-sample fit says −8 %)."""
         from emlogd.offline.jobs import calibrate, load_captures
         from emlogd.pipeline.settings import UutSettings
 
-        cap = tmp_path / "i.cap.gz"
-        import_nmea([REAL / "irene-2014-06-27-leman.nmea"], cap)
+        _, cap = imported(REAL / "irene-2014-06-27-leman.nmea")
         s = UutSettings(port="nmea", reference_port="nmea", reference_field="gnss", current=True)
         res = calibrate(load_captures([str(cap)], s), s, "ls", lag=0.0)
         assert abs(res.params.m) < 0.05

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable, Sequence
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -36,21 +37,45 @@ from emlogd.pipeline.settings import PortSettings, UutSettings
 E1 = UutSettings(port="emlog1", reference_port="dvl")
 E1C = dataclasses.replace(E1, current=True)
 
+Read = Callable[[Sequence[Path], UutSettings], list[Recording]]
+
+
+@pytest.fixture(scope="module")
+def read() -> Read:
+    """:func:`load_captures` with each capture read once per UUT settings for the module
+    (the multi-capture, parallel read itself: ``test_crossval_asks_for_no_more_processes_than_cores``).
+    The recordings are shared read-only: a job that wrote into one would raise."""
+    cache: dict[tuple[str, str], Recording] = {}
+
+    def load(paths: Sequence[Path], settings: UutSettings) -> list[Recording]:
+        for p in paths:
+            key = (str(p), repr(settings))
+            if key not in cache:
+                (rec,) = load_captures([p], settings)
+                for f in dataclasses.fields(rec):
+                    value = getattr(rec, f.name)
+                    if isinstance(value, np.ndarray):
+                        value.flags.writeable = False
+                cache[key] = rec
+        return [cache[(str(p), repr(settings))] for p in paths]
+
+    return load
+
 
 class TestLag:
     """The lag over whole captures."""
 
-    def test_lag_is_found_near_the_truth(self, trial_files: dict[str, Path]) -> None:
+    def test_lag_is_found_near_the_truth(self, trial_files: dict[str, Path], read: Read) -> None:
         """EMlog1's 3.2 s (+0.1 s of 4800-baud transmission) within 0.3 s, with the current modelled."""
-        recs = load_captures([trial_files["figure-8"], trial_files["circles"]], E1C)
+        recs = read([trial_files["figure-8"], trial_files["circles"]], E1C)
         lag = find_lag(recs, E1C, None)
         assert lag.source == "auto", lag.note
         assert lag.lag_s == pytest.approx(3.3, abs=0.3)
         assert set(lag.per_capture) == {"2-figure8", "4-circles"}
 
-    def test_given_lag_and_fallback(self, trial_files: dict[str, Path]) -> None:
+    def test_given_lag_and_fallback(self, trial_files: dict[str, Path], read: Read) -> None:
         """A given lag is used as is; a non-finite one is an error."""
-        recs = load_captures([trial_files["straight"]], E1)
+        recs = read([trial_files["straight"]], E1)
         assert find_lag(recs, E1, 3.2).source == "given"
         found = find_lag(recs, E1, None)
         assert found.source in ("fallback", "auto")
@@ -64,10 +89,10 @@ class TestCalibrate:
 
     @pytest.mark.parametrize("method", ["ls", "kf"])
     def test_figure8_calibration_cuts_the_error(
-        self, trial_files: dict[str, Path], method: str
+        self, trial_files: dict[str, Path], method: str, read: Read
     ) -> None:
         """LS and KF on the figure-8 cut the error by ≥ 60 % and report every key."""
-        recs = load_captures([trial_files["figure-8"]], E1)
+        recs = read([trial_files["figure-8"]], E1)
         res = calibrate(recs, E1, method, lag=3.3)  # type: ignore[arg-type]
         assert res.identifiable, res.ident.reason
         assert res.rmse_raw > 0.4
@@ -83,9 +108,9 @@ class TestCalibrate:
         if method == "kf":
             assert d["nis_mean"] is not None
 
-    def test_with_the_current(self, trial_files: dict[str, Path]) -> None:
+    def test_with_the_current(self, trial_files: dict[str, Path], read: Read) -> None:
         """With the current, circles give the current; the scale is reported undetermined or not."""
-        recs = load_captures([trial_files["circles"]], E1C)
+        recs = read([trial_files["circles"]], E1C)
         res = calibrate(recs, E1C, "ls", lag=3.3)
         d = res.to_dict()
         assert d["current"] is not None
@@ -94,12 +119,12 @@ class TestCalibrate:
         assert d["identifiable"] is (d["unidentifiable"] == [])
 
     def test_one_rmse_definition_for_both_methods(
-        self, trial_files: dict[str, Path], tmp_path: Path
+        self, trial_files: dict[str, Path], tmp_path: Path, read: Read
     ) -> None:
         """With the current, LS and KF report the same raw RMSE (the water frame does not
         depend on the method), and the KF reports a current exactly when its trace's last
         row says it is determined."""
-        recs = load_captures([trial_files["circles"]], E1C)
+        recs = read([trial_files["circles"]], E1C)
         trace = tmp_path / "t.csv"
         ls = calibrate(recs, E1C, "ls", lag=3.3)
         kf = calibrate(recs, E1C, "kf", lag=3.3, trace=trace)
@@ -110,9 +135,11 @@ class TestCalibrate:
         assert (kf.current_mps is not None) is determined
         assert kf.noise_scale is not None and ls.noise_scale is None
 
-    def test_worse_than_raw_is_not_identifiable(self, trial_files: dict[str, Path]) -> None:
+    def test_worse_than_raw_is_not_identifiable(
+        self, trial_files: dict[str, Path], read: Read
+    ) -> None:
         """A calibration whose RMSE exceeds the raw one is not called identifiable, and says why."""
-        recs = load_captures([trial_files["figure-8"]], E1)
+        recs = read([trial_files["figure-8"]], E1)
         res = calibrate(recs, E1, "ls", lag=3.3)
         assert res.identifiable and res.reason == ""
         worse = dataclasses.replace(res, rmse_cal=2.0 * res.rmse_raw)
@@ -120,22 +147,22 @@ class TestCalibrate:
         assert worse.reason == WORSE_THAN_RAW
         assert worse.to_dict()["identifiable"] is False
 
-    def test_straight_run_holds_the_scale(self, trial_files: dict[str, Path]) -> None:
+    def test_straight_run_holds_the_scale(self, trial_files: dict[str, Path], read: Read) -> None:
         """The straight run determines no scale: unidentifiable, held at the ideal sensor's."""
-        recs = load_captures([trial_files["straight"]], E1)
+        recs = read([trial_files["straight"]], E1)
         res = calibrate(recs, E1, "ls", lag=3.3)
         assert res.ident.unidentifiable == ("m",)
         assert "constant" in res.ident.reason and res.params.m == 0.0
         assert res.to_dict()["stderr"]["m"] is None  # type: ignore[index]
 
     def test_kf_holds_an_undetermined_unknown_at_its_prior(
-        self, trial_files: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+        self, trial_files: dict[str, Path], monkeypatch: pytest.MonkeyPatch, read: Read
     ) -> None:
         """Where the whole run's verdict leaves the bias undetermined (here forced, as on a
         recording whose speed varied only in its last minutes), the filter's bias is
         reported at its prior and the scale conditioned on it: the scale then takes what
         the bias held of the offset, as least squares holding the bias fits it."""
-        recs = load_captures([trial_files["figure-8"]], E1)
+        recs = read([trial_files["figure-8"]], E1)
         free = calibrate(recs, E1, "kf", lag=3.3)
         assert free.ident.identifiable and abs(free.params.b_mps) > 0.05
 
@@ -158,11 +185,11 @@ class TestCalibrate:
         assert held.rmse_cal < zeroed.rmse_cal
 
     def test_relative_calibration_against_the_other_emlog(
-        self, trial_files: dict[str, Path]
+        self, trial_files: dict[str, Path], read: Read
     ) -> None:
         """A UUT calibrates against another EMlog's speed."""
         rel = UutSettings(port="emlog1", reference_port="emlog2", reference_field="speed")
-        recs = load_captures([trial_files["figure-8"]], rel)
+        recs = read([trial_files["figure-8"]], rel)
         res = calibrate(recs, rel, "ls", lag=2.8)
         assert res.n_samples > 100 and res.rmse_cal < res.rmse_raw
 
@@ -280,13 +307,13 @@ class TestFiles:
     """Calibration files and evaluate."""
 
     def test_saved_calibration_replays_frozen_with_its_lag(
-        self, trial_files: dict[str, Path], tmp_path: Path
+        self, trial_files: dict[str, Path], tmp_path: Path, read: Read
     ) -> None:
         """A saved fit warm-starts a no-learn replay: its lag is used (no re-estimate)
         and the corrected speed is scored against the reference."""
         from emlogd.calfile import loads
 
-        recs = load_captures([trial_files["figure-8"], trial_files["circles"]], E1)
+        recs = read([trial_files["figure-8"], trial_files["circles"]], E1)
         res = calibrate(recs, E1, "ls", lag=3.3)
         path = tmp_path / "p.yaml"
         save_params(path, res)
@@ -302,9 +329,11 @@ class TestFiles:
         assert u["state"] == "frozen" and u["lag_s"] == pytest.approx(3.3)
         assert u["rmse_corrected"] < 0.5 * u["rmse_raw"]
 
-    def test_round_trip_and_evaluate(self, trial_files: dict[str, Path], tmp_path: Path) -> None:
+    def test_round_trip_and_evaluate(
+        self, trial_files: dict[str, Path], tmp_path: Path, read: Read
+    ) -> None:
         """--save writes a calibration file that evaluate applies to other captures."""
-        recs = load_captures([trial_files["figure-8"]], E1)
+        recs = read([trial_files["figure-8"]], E1)
         res = calibrate(recs, E1, "ls", lag=3.3)
         path = tmp_path / "p.yaml"
         save_params(path, res)
@@ -312,7 +341,7 @@ class TestFiles:
         assert cal.params == res.params and cal.lag_s == 3.3 and cal.method == "ls"
         assert cal.reference == {"port": "dvl", "field": "bottom"}
         assert extra["captures"] == [str(trial_files["figure-8"])]
-        others = load_captures([trial_files["transit"], trial_files["return"]], E1)
+        others = read([trial_files["transit"], trial_files["return"]], E1)
         rows = evaluate(others, cal.params, E1, 3.3)
         assert [Path(r.capture).name for r in rows] == ["1-transit.cap", "5-return.cap"]
         assert all(r.improvement_pct > 30 for r in rows)
@@ -338,9 +367,9 @@ class TestFiles:
             )
 
 
-def test_crossval_is_160_evaluations(trial_files: dict[str, Path]) -> None:
+def test_crossval_is_160_evaluations(trial_files: dict[str, Path], read: Read) -> None:
     """160 out-of-sample evaluations; the straight run determines no scale, the figure-8 does."""
-    recs = load_captures(list(trial_files.values()), E1)
+    recs = read(list(trial_files.values()), E1)
     result, lag = crossval(recs, E1, lag=3.3, workers=1)
     assert result.n_out_of_sample == 160
     assert lag.lag_s == 3.3

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from emlogd.daemon.statefile import StateStore
 from emlogd.offline.replay_twoaxis import AthwartScorer, _worst_windows, as_sent
 from emlogd.offline.simfaults import WINDOW_S
 from emlogd.offline.simtruth import read_truth
-from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
+from emlogd.offline.simulate import SimulationResult
 from emlogd.offline.twoaxis_forward import ForwardRule
 from emlogd.pipeline.core import Emit, Pipeline
 from emlogd.pipeline.sentences import encode_vbw
@@ -35,22 +36,23 @@ calibration:
 
 
 @pytest.fixture(scope="module")
-def trial(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
-    """A fifth of the trial with emlog2 turned 3° to starboard (noise 0.01 m/s)."""
-    out = tmp_path_factory.mktemp("replay2")
-    sensor = with_sensor(EMLOG2, {"misalign": 3.0, "mt": -0.08, "bt": 0.04, "noise": 0.01})
-    return simulate(out, seed=3, scale=0.2, emlogs=(EMLOG1, sensor))
+def trial(misaligned_trial: SimulationResult) -> SimulationResult:
+    """The session's fifth of the trial with emlog2 turned 3° to starboard (noise
+    0.01 m/s: ``tests/emlogd/conftest.py``)."""
+    return misaligned_trial
 
 
 @pytest.fixture(scope="module")
-def replayed(trial: SimulationResult) -> dict[str, object]:
+def replayed(
+    trial: SimulationResult, tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, object]:
     """The trial's figure-8 and circles replayed with emlog2 learning two axes, then the
     straight run and the return after a restart from the state file."""
-    out = trial.files[0].parent
+    out = tmp_path_factory.mktemp("replay2")
     cfg = out / "replay.yaml"
     cfg.write_text(CFG)
     caps = [str(trial.files[1]), str(trial.files[3])]
-    argv = ["replay", *caps, "--config", str(cfg), "--truth", str(out), "--json"]
+    argv = ["replay", *caps, "--config", str(cfg), "--truth", str(trial.outdir), "--json"]
     argv += ["--state", str(out / "state.yaml")]
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
@@ -132,20 +134,19 @@ def test_the_forward_speed_after_a_restart_is_the_two_axis_fits(
 
 
 def test_a_straight_run_says_why_the_forward_speed_is_the_one_axis_calibrations(
-    trial: SimulationResult,
+    trial: SimulationResult, tmp_path: Path
 ) -> None:
     """The straight run alone: α refused, and the UUT's status (the JSON, the text
     summary's two-axis line) says the forward speed is the one-axis calibration's
     because of it, in the words of the offline ``forward_reason``; the VBW's forward
     speed is then the very sentence ``axes: 1`` sends, and scores exactly as the
     one-axis calibration's (both in the VBW's hundredths of a knot)."""
-    out = trial.files[0].parent
-    cfg = out / "straight.yaml"
+    cfg = tmp_path / "straight.yaml"
     cfg.write_text(CFG)
-    argv = ["replay", str(trial.files[2]), "--config", str(cfg), "--out", str(out / "st.nmea")]
+    argv = ["replay", str(trial.files[2]), "--config", str(cfg), "--out", str(tmp_path / "st.nmea")]
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        assert main([*argv, "--json", "--truth", str(out)]) == 0
+        assert main([*argv, "--json", "--truth", str(trial.outdir)]) == 0
     uut = json.loads(buf.getvalue())["uuts"]["emlog2"]
     scores, two = uut["two_axis_truth"], uut["two_axis"]
     assert scores["n_samples"] > 1000

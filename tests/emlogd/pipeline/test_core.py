@@ -501,6 +501,9 @@ class TestWaterFrame:
         assert st["estimate"]["m"] > 0.04
         assert kit.rmse(s, kit.emitted(out)) < kit.raw_rmse(s)
 
+    # test_scenarios.py's test_circling_in_a_current[0.5-paper] pins the same property by
+    # default (the same circles in the same current, two hours, lag configured)
+    @pytest.mark.soak
     def test_circles_in_a_current_without_current_states_never_make_it_worse(
         self, kit: SimpleNamespace, segment: Segment
     ) -> None:

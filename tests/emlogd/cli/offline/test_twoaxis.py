@@ -12,14 +12,14 @@ from typing import Any
 import pytest
 
 from emlogd.cli import main
-from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
+from emlogd.offline.simulate import SimulationResult
 
 
 @pytest.fixture(scope="module")
-def misaligned(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
-    """A fifth of the trial, emlog2 turned 3° to starboard (its noise 0.01 m/s)."""
-    sensor = with_sensor(EMLOG2, {"misalign": 3.0, "mt": -0.08, "bt": 0.04, "noise": 0.01})
-    return simulate(tmp_path_factory.mktemp("cli2"), seed=3, scale=0.2, emlogs=(EMLOG1, sensor))
+def misaligned(misaligned_trial: SimulationResult) -> SimulationResult:
+    """A fifth of the trial, emlog2 turned 3° to starboard (its noise 0.01 m/s: the
+    session's ``misaligned_trial``)."""
+    return misaligned_trial
 
 
 def _base(trial: SimulationResult, command: str, *files: int) -> list[str]:
