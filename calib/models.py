@@ -50,6 +50,10 @@ from calib.errors import ModelError
 FloatArray = npt.NDArray[np.float64]
 """A float64 numpy array."""
 
+HeadingCS = tuple[float, float] | None
+"""A heading as ``(cos ψ, sin ψ)``, the row that projects a current (north, east) on the
+hull's axis; None where no heading is known (taken as straight)."""
+
 ModelName = Literal["EM1", "EM2", "EM3", "EM4"]
 """The four error models of the paper."""
 

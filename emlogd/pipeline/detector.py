@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from calib.models import HeadingCS
 from emlogd.pipeline.cadence import CUSUM_MIN_FILL_S, Cadence
 from emlogd.pipeline.evidence import (
     CUSUM_MAX_GAP_S,
@@ -115,7 +116,7 @@ class ChangeDetector:
     def step(
         self,
         t: float,
-        cs: tuple[float, float] | None,
+        cs: HeadingCS,
         e_app: float,
         e_raw: float,
         ref: float,

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.models import Params, correct_array
+from calib.models import HeadingCS, Params, correct_array
 
 FIT_CURRENT_PRIOR_MPS = 0.5
 FIT_NOISE_MPS = 0.05
@@ -378,16 +378,9 @@ class Drift:
         self.sustained = False
         """The verdict has held :data:`DRIFT_CONFIRM_S` (the calibration is withdrawn)."""
 
-    def add(
-        self,
-        t: float,
-        raw: float,
-        ref: float,
-        cs: tuple[float, float] | None,
-        p: Params | None = None,
-    ) -> None:
+    def add(self, t: float, raw: float, ref: float, cs: HeadingCS, p: Params | None = None) -> None:
         """One sample (kept when :data:`DRIFT_INTERVAL_S` after the last one kept);
-        ``cs``: the heading's (cos, sin), None without one (taken as straight); ``p``:
+        ``cs``: the heading (:data:`~calib.models.HeadingCS`); ``p``:
         the calibration applied, through which the window's readings are judged (None:
         the raw readings)."""
         q = self.times
@@ -548,7 +541,7 @@ class FitWindow:
         self.b = [[0.0, 0.0] for _ in range(self.k)]
         self.ss = [0.0] * self.k
 
-    def add(self, t: float, cs: tuple[float, float] | None, errors: Sequence[float]) -> None:
+    def add(self, t: float, cs: HeadingCS, errors: Sequence[float]) -> None:
         """One sample's errors (one per calibration) at time ``t``."""
         if self.half_life_s is not None and self.t is not None and t > self.t:
             lam = 0.5 ** ((t - self.t) / self.half_life_s)
@@ -570,7 +563,7 @@ class FitWindow:
             self.b[i][1] += s * d
             self.ss[i] += d * d
 
-    def _h(self, cs: tuple[float, float] | None) -> tuple[float, float]:
+    def _h(self, cs: HeadingCS) -> tuple[float, float]:
         """The regressors: the heading's (cos, sin) in the water frame, else a constant
         (without current states the window fits each calibration's mean error)."""
         return cs if cs is not None and self.water else (1.0, 0.0)
@@ -592,13 +585,13 @@ class FitWindow:
         b1, b2 = self.b[i]
         return math.sqrt(max(self.ss[i] - (x1 * b1 + x2 * b2), 0.0) / self.n)
 
-    def predict(self, i: int, cs: tuple[float, float] | None) -> float:
+    def predict(self, i: int, cs: HeadingCS) -> float:
         """Calibration i's error its current (or mean error) predicts at a heading, m/s."""
         x1, x2 = self._solve(i)
         c, s = self._h(cs)
         return x1 * c + x2 * s
 
-    def leverage(self, cs: tuple[float, float] | None) -> float:
+    def leverage(self, cs: HeadingCS) -> float:
         """``hᵀ(A + ridge)⁻¹h`` at a heading: how much of a new sample's error the
         current's uncertainty there may explain, in units of the sample variance."""
         r = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2

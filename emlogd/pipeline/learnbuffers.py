@@ -17,7 +17,7 @@ import numpy as np
 from calib.errors import CalibrationError
 from calib.lag import LAG_FALLBACK_S, MIN_LAG_CORRELATION, LagEstimate, accept, estimate_lag
 from calib.lsq import BLOCK_MAX_GAP_S, MIN_HEADING_COHERENCE
-from calib.models import FloatArray
+from calib.models import FloatArray, HeadingCS
 from emlogd.pipeline.lagcheck import LAG_CHECK_AUTO_CONFIRM, LAG_CHECK_TOLERANCE_S
 
 LAG_WINDOW_GROWTH = 4.0
@@ -54,9 +54,9 @@ class BlockMeans:
         t: float,
         raw: float,
         ref: float,
-        cs: tuple[float, float] | None,
+        cs: HeadingCS,
         learn: frozenset[str],
-    ) -> tuple[float, float, tuple[float, float] | None, frozenset[str]] | None:
+    ) -> tuple[float, float, HeadingCS, frozenset[str]] | None:
         """Add a sample; the block's (raw, ref, (cos, sin), unknowns) when it closes."""
         if self.n and (
             learn != self.learn
@@ -76,7 +76,7 @@ class BlockMeans:
         if t - self.t0 < self.window_s:
             return None
         n, learn_set = self.n, self.learn
-        mean_cs: tuple[float, float] | None = None
+        mean_cs: HeadingCS = None
         if self.with_heading:
             c, s = self.c / n, self.s / n
             norm = math.hypot(c, s)

@@ -41,7 +41,7 @@ import numpy as np
 from calib.excitation import ExcitationWindow, Identifiability
 from calib.kalman import Innovation, KfCalibrator, StepResult
 from calib.lag import LAG_FALLBACK_S
-from calib.models import CURRENT, Layout, Params, zero_params
+from calib.models import CURRENT, HeadingCS, Layout, Params, zero_params
 from emlogd.pipeline.align import SampleRing
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.changewindow import ChangeWindow, widen
@@ -117,7 +117,7 @@ class Aligned(NamedTuple):
     dt: float
     ref: float | None
     heading: float | None
-    cs: tuple[float, float] | None
+    cs: HeadingCS
     """The heading's (cos, sin), or None."""
     ref_state: RefState
 
@@ -284,7 +284,7 @@ class Learner:
         if ref_state != self.ref_state:
             self._emit(t, "reference", {"from": self.ref_state, "to": ref_state})
             self.ref_state = ref_state
-        cs: tuple[float, float] | None = None
+        cs: HeadingCS = None
         if heading is not None:
             psi = math.radians(heading)
             cs = (math.cos(psi), math.sin(psi))

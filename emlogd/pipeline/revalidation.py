@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.kalman import KfConfig
-from calib.models import Params
+from calib.models import HeadingCS, Params
 from emlogd.pipeline.evidence import (
     CURRENT_HALF_LIFE_S,
     CURRENT_MEMORY_S,
@@ -258,7 +258,7 @@ class Candidate:
             self.common_cand += (d_cand - sea) ** 2
             self.n_common += 1
 
-    def separate(self, t: float, d_raw: float, ref: float, cs: tuple[float, float] | None) -> None:
+    def separate(self, t: float, d_raw: float, ref: float, cs: HeadingCS) -> None:
         """One sample of raw's error against the reference ``ref`` for :attr:`separation`."""
         if self.separation is not None and cs is not None:
             self.separation.add(t, d_raw, self.params.forward(ref) - ref, cs)

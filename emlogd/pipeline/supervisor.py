@@ -81,7 +81,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
-from calib.models import Layout, Params
+from calib.models import HeadingCS, Layout, Params
 from emlogd.pipeline.cadence import VALIDATION_MIN_SAMPLES as VALIDATION_MIN_SAMPLES
 from emlogd.pipeline.counters import Counters, Score
 from emlogd.pipeline.detector import ChangeDetector
@@ -284,7 +284,7 @@ class Supervisor:
         t: float,
         raw: float,
         ref: float,
-        cs: tuple[float, float] | None,
+        cs: HeadingCS,
         source: CandidateSource,
         *,
         proj: float = 0.0,
@@ -346,7 +346,7 @@ class Supervisor:
         if water:
             self.score_water.add(raw + proj - ref, out + proj - ref)
 
-    def _heading_regressor(self, t: float, cs: tuple[float, float] | None) -> tuple[float, float]:
+    def _heading_regressor(self, t: float, cs: HeadingCS) -> tuple[float, float]:
         """The heading's (cos, sin) the currents act through (zero without current
         states); each calibration's current is fitted again when due (:meth:`SeaMemory.renew`)."""
         if not (self.water and cs is not None):
@@ -361,7 +361,7 @@ class Supervisor:
         cand: Candidate,
         raw: float,
         ref: float,
-        cs: tuple[float, float] | None,
+        cs: HeadingCS,
         hc: tuple[float, float],
         errors: tuple[float, float, float],
     ) -> None:
@@ -439,9 +439,7 @@ class Supervisor:
         b = self._beta.get(slot)
         return d if b is None else d - (b[0] * hc[0] + b[1] * hc[1])
 
-    def _detect(
-        self, t: float, cs: tuple[float, float] | None, e_app: float, e_raw: float, ref: float
-    ) -> bool:
+    def _detect(self, t: float, cs: HeadingCS, e_app: float, e_raw: float, ref: float) -> bool:
         """Change detection on what is emitted (raw while it passes through,
         :class:`~emlogd.pipeline.detector.ChangeDetector`); True when the calibration was
         withdrawn. An alarm that withdraws nothing is the sea's: :attr:`sea_changed` when
