@@ -43,6 +43,7 @@ Must not import: drivers, emlogd, or any I/O module (numpy and the stdlib only).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -648,4 +649,99 @@ class ExcitationWindow:
         """
         if self._judged is None:
             self._judged = _structure(self.layout, self.stats(), self.rule)
+        return _information(self._judged, sigma2_mps2, std_factor)
+
+
+_MONO = 10
+"""Monomials of degree ≤ 2 in (g, cos ψ, sin ψ): ``[1, g, c, s, g², gc, gs, c², cs, s²]``."""
+
+
+class GroundWindow(ExcitationWindow):
+    """:class:`ExcitationWindow` fed the reference's speed over the ground along the hull,
+    the speed through the water judged with **one** current for the whole window.
+
+    With a current, the speed through the water of a sample is ``g − c_N·cos ψ −
+    c_E·sin ψ``. Subtracting at each sample the filter's estimate *of that time* makes
+    the estimate's own motion (a current being learnt) read as speed variation, which
+    determines a scale that the sensor's readings do not; :meth:`evaluate` subtracts the
+    current it is given (the latest estimate) from every sample of the window instead.
+    The five design columns are quadratic in ``(1, g, cos ψ, sin ψ)``, so the forgotten
+    sums of the products of the ten monomials of degree ≤ 2 rebuild the information
+    matrix for any current exactly.
+    """
+
+    __slots__ = ("_z", "_judged_for")
+
+    def reset(self) -> None:
+        """Forget every sample."""
+        super().reset()
+        self._z = [0.0] * (_MONO * (_MONO + 1) // 2)
+        self._judged_for: tuple[float, float] | None = None
+
+    def add(self, u_mps: float, raw_mps: float, heading_deg: float | None = None) -> None:
+        """Add one sample: the reference's ground speed along the hull, the reading, the
+        heading."""
+        lam = self._lam
+        if heading_deg is None:
+            c = s = 0.0
+        else:
+            psi = math.radians(heading_deg)
+            c, s = math.cos(psi), math.sin(psi)
+            sec = self._sectors
+            for i in range(N_SECTORS):
+                sec[i] *= lam
+            sec[int((heading_deg % 360.0) // SECTOR_DEG) % N_SECTORS] += 1.0
+        g = u_mps
+        mono = (1.0, g, c, s, g * g, g * c, g * s, c * c, c * s, s * s)
+        z = self._z
+        k = 0
+        for i in range(_MONO):
+            mi = mono[i]
+            for j in range(i, _MONO):
+                z[k] = lam * z[k] + mi * mono[j]
+                k += 1
+        self._r0 = lam * self._r0 + 1.0
+        self._r1 = lam * self._r1 + raw_mps
+        self._r2 = lam * self._r2 + raw_mps * raw_mps
+        self._judged = None
+
+    def info_for(self, current_mps: tuple[float, float] | None) -> FloatArray:
+        """``HᵀWH`` over ``[u², u, 1, cos ψ, sin ψ]`` with ``u = g − c·(cos ψ, sin ψ)``
+        for one current ``c`` (north, east; None: zero) over the whole window."""
+        cn, ce = current_mps if current_mps is not None else (0.0, 0.0)
+        Z = np.zeros((_MONO, _MONO))
+        k = 0
+        for i in range(_MONO):
+            for j in range(i, _MONO):
+                Z[i, j] = Z[j, i] = self._z[k]
+                k += 1
+        # each design column as a combination of the monomials
+        Q = np.zeros((_MONO, 5))
+        # u² = g² − 2cN·gc − 2cE·gs + cN²·c² + 2cN·cE·cs + cE²·s²
+        Q[[4, 5, 6, 7, 8, 9], 0] = (1.0, -2.0 * cn, -2.0 * ce, cn * cn, 2.0 * cn * ce, ce * ce)
+        Q[[1, 2, 3], 1] = (1.0, -cn, -ce)
+        Q[0, 2] = 1.0
+        Q[2, 3] = 1.0
+        Q[3, 4] = 1.0
+        info: FloatArray = Q.T @ Z @ Q
+        return info
+
+    def stats(self, current_mps: tuple[float, float] | None = None) -> WindowStats:
+        """The window's figures with one current over it."""
+        base = super().stats()
+        return dataclasses.replace(base, info=self.info_for(current_mps))
+
+    def evaluate(
+        self,
+        sigma2_mps2: float,
+        *,
+        std_factor: float = 1.0,
+        current_mps: tuple[float, float] | None = None,
+    ) -> Identifiability:
+        """Judge the window (:func:`judge`) with the speed through the water of every
+        sample the ground speed less ``current_mps`` (north, east, m/s; None: zero)."""
+        key = current_mps if current_mps is not None else (0.0, 0.0)
+        if self._judged is None or self._judged_for != key:
+            self._judged = _structure(self.layout, self.stats(key), self.rule)
+            self._judged_for = key
         return _information(self._judged, sigma2_mps2, std_factor)
