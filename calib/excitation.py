@@ -670,7 +670,7 @@ class GroundWindow(ExcitationWindow):
     matrix for any current exactly.
     """
 
-    __slots__ = ("_z", "_judged_for")
+    __slots__ = ("_judged_for", "_z")
 
     def reset(self) -> None:
         """Forget every sample."""
