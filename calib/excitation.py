@@ -657,40 +657,50 @@ _MONO = 10
 
 
 class GroundWindow(ExcitationWindow):
-    """:class:`ExcitationWindow` fed the reference's speed over the ground along the hull,
-    the speed through the water judged with **one** current for the whole window.
+    """:class:`ExcitationWindow` fed the reference's speed over the ground along the hull
+    and the current estimate of each sample's time; judged with the current estimate of
+    the judgement's time.
 
     With a current, the speed through the water of a sample is ``g − c_N·cos ψ −
     c_E·sin ψ``. Subtracting at each sample the filter's estimate *of that time* makes
     the estimate's own motion (a current being learnt) read as speed variation, which
-    determines a scale that the sensor's readings do not; :meth:`evaluate` subtracts the
-    current it is given (the latest estimate) from every sample of the window instead.
-    The five design columns are quadratic in ``(1, g, cos ψ, sin ψ)``, so the forgotten
-    sums of the products of the ten monomials of degree ≤ 2 rebuild the information
-    matrix for any current exactly.
+    determines a scale the sensor's readings do not. Where the estimates of the window's
+    samples spread about the latest by :attr:`ExcitationRule.min_speed_std_mps` or more
+    (RMS; the spread of speed that alone lets a scale be judged), :meth:`evaluate`
+    subtracts the latest from every sample instead; below it, each sample's own (what the
+    estimate's small motion changes is the current's slow change, which the per-sample
+    estimate follows). The five design columns are quadratic in ``(1, g, cos ψ, sin ψ)``,
+    so the forgotten sums of the products of the ten monomials of degree ≤ 2 rebuild the
+    information matrix for any one current exactly.
     """
 
-    __slots__ = ("_judged_for", "_z")
+    __slots__ = ("_c1", "_c2", "_judged_for", "_z")
 
     def reset(self) -> None:
         """Forget every sample."""
         super().reset()
         self._z = [0.0] * (_MONO * (_MONO + 1) // 2)
+        self._c1 = [0.0, 0.0]
+        self._c2 = 0.0
         self._judged_for: tuple[float, float] | None = None
 
-    def add(self, u_mps: float, raw_mps: float, heading_deg: float | None = None) -> None:
+    def add(
+        self,
+        u_mps: float,
+        raw_mps: float,
+        heading_deg: float | None = None,
+        current_mps: tuple[float, float] | None = None,
+    ) -> None:
         """Add one sample: the reference's ground speed along the hull, the reading, the
-        heading."""
-        lam = self._lam
+        heading, the current estimate now (north, east, m/s; None: zero)."""
+        cn, ce = current_mps if current_mps is not None else (0.0, 0.0)
         if heading_deg is None:
             c = s = 0.0
         else:
             psi = math.radians(heading_deg)
             c, s = math.cos(psi), math.sin(psi)
-            sec = self._sectors
-            for i in range(N_SECTORS):
-                sec[i] *= lam
-            sec[int((heading_deg % 360.0) // SECTOR_DEG) % N_SECTORS] += 1.0
+        super().add(u_mps - (cn * c + ce * s), raw_mps, heading_deg)
+        lam = self._lam
         g = u_mps
         mono = (1.0, g, c, s, g * g, g * c, g * s, c * c, c * s, s * s)
         z = self._z
@@ -700,10 +710,19 @@ class GroundWindow(ExcitationWindow):
             for j in range(i, _MONO):
                 z[k] = lam * z[k] + mi * mono[j]
                 k += 1
-        self._r0 = lam * self._r0 + 1.0
-        self._r1 = lam * self._r1 + raw_mps
-        self._r2 = lam * self._r2 + raw_mps * raw_mps
-        self._judged = None
+        c1 = self._c1
+        c1[0] = lam * c1[0] + cn
+        c1[1] = lam * c1[1] + ce
+        self._c2 = lam * self._c2 + cn * cn + ce * ce
+
+    def motion_mps(self, current_mps: tuple[float, float]) -> float:
+        """The RMS over the window of each sample's current estimate about ``current_mps``."""
+        r0 = self._r0
+        if not r0 > 0.0:
+            return 0.0
+        cn, ce = current_mps
+        ms = (self._c2 - 2.0 * (cn * self._c1[0] + ce * self._c1[1])) / r0 + cn * cn + ce * ce
+        return math.sqrt(max(ms, 0.0))
 
     def info_for(self, current_mps: tuple[float, float] | None) -> FloatArray:
         """``HᵀWH`` over ``[u², u, 1, cos ψ, sin ψ]`` with ``u = g − c·(cos ψ, sin ψ)``
@@ -727,8 +746,11 @@ class GroundWindow(ExcitationWindow):
         return info
 
     def stats(self, current_mps: tuple[float, float] | None = None) -> WindowStats:
-        """The window's figures with one current over it."""
+        """The window's figures: with ``current_mps`` one current over it, without it each
+        sample's own estimate."""
         base = super().stats()
+        if current_mps is None:
+            return base
         return dataclasses.replace(base, info=self.info_for(current_mps))
 
     def evaluate(
@@ -738,9 +760,15 @@ class GroundWindow(ExcitationWindow):
         std_factor: float = 1.0,
         current_mps: tuple[float, float] | None = None,
     ) -> Identifiability:
-        """Judge the window (:func:`judge`) with the speed through the water of every
-        sample the ground speed less ``current_mps`` (north, east, m/s; None: zero)."""
-        key = current_mps if current_mps is not None else (0.0, 0.0)
+        """Judge the window (:func:`judge`): with ``current_mps`` (the latest estimate,
+        north, east, m/s) subtracted from every sample where the samples' own estimates
+        spread about it by ``min_speed_std_mps`` or more, else each sample's own."""
+        key = (
+            current_mps
+            if current_mps is not None
+            and self.motion_mps(current_mps) >= self.rule.min_speed_std_mps
+            else None
+        )
         if self._judged is None or self._judged_for != key:
             self._judged = _structure(self.layout, self.stats(key), self.rule)
             self._judged_for = key

@@ -344,12 +344,16 @@ class Learner:
 
     def _excitation(self, a: Aligned, valid: bool) -> None:
         """Feed the identifiability window: with current states the reference's speed
-        along the hull (the window subtracts one current, the latest estimate, from every
-        sample when judged: the estimate's motion while it learns is no speed variation),
-        else the reference's speed."""
+        along the hull and the current estimate now (the window judges with the latest
+        estimate where the estimate moved: its motion while it learns is no speed
+        variation), else the reference's speed."""
         if not valid or a.ref is None:
             return
-        self.window.add(a.ref, a.raw, a.heading)
+        window = self.window
+        if isinstance(window, GroundWindow):
+            window.add(a.ref, a.raw, a.heading, self.kf.current_mps)
+        else:
+            window.add(a.ref, a.raw, a.heading)
         self.n_since_eval += 1
         if self.n_since_eval >= EVAL_EVERY or self.ident is None:
             self._judge(a.t)
