@@ -9,6 +9,7 @@ import pytest
 
 from calib.errors import DataError
 from calib.excitation import (
+    DEFAULT_RULE,
     ExcitationRule,
     ExcitationWindow,
     GroundWindow,
@@ -278,3 +279,30 @@ class TestGroundWindow:
             assert got.determined == want.determined
         with_c = ground.evaluate(SIGMA2, current_mps=(0.6, -0.3)).stats.info
         assert not np.allclose(with_c, ground.evaluate(SIGMA2).stats.info, rtol=1e-3)
+
+    @pytest.mark.parametrize(("drift", "one_current"), [(0.1, False), (0.7, True)])
+    def test_the_latest_current_over_the_window_where_the_estimate_moved(
+        self, drift: float, one_current: bool
+    ) -> None:
+        """Fed each sample's current estimate, a ramp from zero to ``drift`` m/s north:
+        the estimates spread about the latest by 0.06 m/s RMS (under
+        ``min_speed_std_mps``) leave each sample's own subtracted; 0.4 m/s, the latest
+        subtracted from every sample."""
+        s = _seg("figure-8", seconds=600.0)
+        n = len(s.u_water_mps)
+        est = [(drift * i / (n - 1), 0.0) for i in range(n)]
+        latest = est[-1]
+        ground = GroundWindow(EM3C, half_life_samples=math.inf)
+        own, one = ExcitationWindow(EM3C), ExcitationWindow(EM3C)
+        for g, r, h, c in zip(s.u_water_mps, s.raw_mps, s.heading_deg, est, strict=True):
+            p = math.radians(float(h))
+            ground.add(float(g), float(r), float(h), c)
+            own.add(float(g) - c[0] * math.cos(p), float(r), float(h))
+            one.add(float(g) - latest[0] * math.cos(p), float(r), float(h))
+        spread = ground.motion_mps(latest)
+        assert (spread >= DEFAULT_RULE.min_speed_std_mps) == one_current
+        want = (one if one_current else own).stats().info
+        other = (own if one_current else one).stats().info
+        got = ground.evaluate(SIGMA2, current_mps=latest).stats.info
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-6)
+        assert not np.allclose(got, other, rtol=1e-6)
