@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 
-from calib.excitation import ExcitationWindow, GroundWindow, Identifiability
+from calib.excitation import ExcitationWindow, Identifiability
 from calib.kalman import Innovation, KfCalibrator, StepResult
 from calib.lag import LAG_FALLBACK_S
 from calib.models import CURRENT, Layout, Params, zero_params
@@ -175,7 +175,7 @@ class Learner:
             LagFinder(s.lag_window_s, s.max_lag_s, s.current) if self.lag_s is None else None
         )
         self.ref = SampleRing(int((s.max_lag_s + 5.0) * 50) + 64, cadence=True)
-        self.window = (GroundWindow if self.layout.current else ExcitationWindow)(
+        self.window = ExcitationWindow(
             self.layout, max(s.excitation_half_life_samples, 1.0), s.rule
         )
         self.ident: Identifiability | None = None
@@ -343,17 +343,12 @@ class Learner:
         return valid
 
     def _excitation(self, a: Aligned, valid: bool) -> None:
-        """Feed the identifiability window: with current states the reference's speed
-        along the hull and the current estimate now (the window judges with the latest
-        estimate where the estimate moved: its motion while it learns is no speed
-        variation), else the reference's speed."""
+        """Feed the identifiability window (speed through water by the current estimate)."""
         if not valid or a.ref is None:
             return
-        window = self.window
-        if isinstance(window, GroundWindow):
-            window.add(a.ref, a.raw, a.heading, self.kf.current_mps)
-        else:
-            window.add(a.ref, a.raw, a.heading)
+        current, cs = self.kf.current_mps, a.cs
+        proj = 0.0 if current is None or cs is None else current[0] * cs[0] + current[1] * cs[1]
+        self.window.add(a.ref - proj, a.raw, a.heading)
         self.n_since_eval += 1
         if self.n_since_eval >= EVAL_EVERY or self.ident is None:
             self._judge(a.t)
@@ -448,16 +443,11 @@ class Learner:
         self.n_since_eval = 0
         kf = self.s.kf
         sigma2 = kf.r_raw_mps2 + kf.r_ref_mps2
-        window = self.window
-        if isinstance(window, GroundWindow):
-            current = self.kf.current_mps
-            ident = window.evaluate(sigma2, std_factor=LEARN_STD_FACTOR, current_mps=current)
-        else:
-            ident = window.evaluate(sigma2, std_factor=LEARN_STD_FACTOR)
+        ident = self.window.evaluate(sigma2, std_factor=LEARN_STD_FACTOR)
         before = self.ident.determined if self.ident is not None else None
         self.ident = ident
-        if isinstance(window, GroundWindow):
-            strict = window.evaluate(sigma2, current_mps=current)
+        if self.layout.current:
+            strict = self.window.evaluate(sigma2)
             self.current_reportable = CURRENT in strict.determined
         learn = set(ident.determined)
         if self.layout.current:

@@ -9,10 +9,8 @@ import pytest
 
 from calib.errors import DataError
 from calib.excitation import (
-    DEFAULT_RULE,
     ExcitationRule,
     ExcitationWindow,
-    GroundWindow,
     heading_sectors,
     identifiability,
     judge,
@@ -253,56 +251,3 @@ class TestExcitationWindow:
         assert win.n_effective == 0.0
         with pytest.raises(ValueError):
             ExcitationWindow(Layout("EM1"), half_life_samples=0.0)
-
-
-class TestGroundWindow:
-    """The window fed ground speeds judges them with one current over the whole window."""
-
-    def test_one_current_gives_the_window_of_the_speeds_through_the_water(self) -> None:
-        """Fed the ground speed along the hull, judged with a current ``c``: the same
-        information matrix, sectors and verdicts as the plain window fed ``g − c·(cos ψ,
-        sin ψ)`` for every sample, for any ``c`` (and zero current: the ground speed)."""
-        s = _seg("figure-8", seconds=600.0)
-        psi = np.radians(s.heading_deg)
-        ground = GroundWindow(EM3C, half_life_samples=120.0)
-        for g, r, h in zip(s.u_water_mps, s.raw_mps, s.heading_deg, strict=True):
-            ground.add(float(g), float(r), float(h))
-        for c in ((0.0, 0.0), (0.6, -0.3), (-0.7, 0.1)):
-            plain = ExcitationWindow(EM3C, half_life_samples=120.0)
-            u = s.u_water_mps - c[0] * np.cos(psi) - c[1] * np.sin(psi)
-            for x, r, h in zip(u, s.raw_mps, s.heading_deg, strict=True):
-                plain.add(float(x), float(r), float(h))
-            got, want = ground.evaluate(SIGMA2, current_mps=c), plain.evaluate(SIGMA2)
-            np.testing.assert_allclose(got.stats.info, want.stats.info, rtol=1e-9, atol=1e-6)
-            assert got.stats.heading_sectors == want.stats.heading_sectors
-            assert got.stats.speed_std_mps == want.stats.speed_std_mps
-            assert got.determined == want.determined
-        with_c = ground.evaluate(SIGMA2, current_mps=(0.6, -0.3)).stats.info
-        assert not np.allclose(with_c, ground.evaluate(SIGMA2).stats.info, rtol=1e-3)
-
-    @pytest.mark.parametrize(("drift", "one_current"), [(0.1, False), (0.7, True)])
-    def test_the_latest_current_over_the_window_where_the_estimate_moved(
-        self, drift: float, one_current: bool
-    ) -> None:
-        """Fed each sample's current estimate, a ramp from zero to ``drift`` m/s north:
-        the estimates spread about the latest by 0.06 m/s RMS (under
-        ``min_speed_std_mps``) leave each sample's own subtracted; 0.4 m/s, the latest
-        subtracted from every sample."""
-        s = _seg("figure-8", seconds=600.0)
-        n = len(s.u_water_mps)
-        est = [(drift * i / (n - 1), 0.0) for i in range(n)]
-        latest = est[-1]
-        ground = GroundWindow(EM3C, half_life_samples=math.inf)
-        own, one = ExcitationWindow(EM3C), ExcitationWindow(EM3C)
-        for g, r, h, c in zip(s.u_water_mps, s.raw_mps, s.heading_deg, est, strict=True):
-            p = math.radians(float(h))
-            ground.add(float(g), float(r), float(h), c)
-            own.add(float(g) - c[0] * math.cos(p), float(r), float(h))
-            one.add(float(g) - latest[0] * math.cos(p), float(r), float(h))
-        spread = ground.motion_mps(latest)
-        assert (spread >= DEFAULT_RULE.min_speed_std_mps) == one_current
-        want = (one if one_current else own).stats().info
-        other = (own if one_current else one).stats().info
-        got = ground.evaluate(SIGMA2, current_mps=latest).stats.info
-        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-6)
-        assert not np.allclose(got, other, rtol=1e-6)

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from calib.excitation import ExcitationWindow
 from calib.models import Layout, Params, check_model
 from emlogd.pipeline.counters import Counters
 from emlogd.pipeline.learner import Learner
@@ -202,46 +201,3 @@ def test_a_log_that_reads_right_is_offered_no_correction() -> None:
                 offers[case] += lr.offer() is not None
     assert offers["right"] == 0
     assert offers["high"] > 100
-
-
-def test_the_identifiability_window_subtracts_the_latest_current_from_every_sample() -> None:
-    """Against GNSS in a 0.7-m/s stream the current estimate moves from its prior (zero)
-    while it learns: the window judges the speed through the water of every sample with
-    the estimate of the judgement's time, not each sample's own (whose motion would read
-    as speed variation and determine a scale the readings do not)."""
-    s = UutSettings(port="log", reference_port="gps", reference_field="gnss", lag_s=0.0,
-                    current=True)  # fmt: skip
-    lr = Learner(s, Layout(check_model(s.model), True), None, lambda t, k, d: None, Counters())
-    tide = (-0.7, 0.1)
-    fed: list[tuple[float, float, float]] = []
-    judged: tuple[int, tuple[float, float]] | None = None
-    estimates = []
-    for i in range(600):
-        t = float(i)
-        hdg = (t * 1.5) % 360.0  # a slow circle: every sector
-        c, sn = math.cos(math.radians(hdg)), math.sin(math.radians(hdg))
-        water = 2.5 + 0.3 * math.sin(2 * math.pi * t / 200.0)
-        ground = water + tide[0] * c + tide[1] * sn
-
-        def heading_at(_t: float, h: float = hdg) -> float:
-            return h
-
-        lr.add_reference(t, ground, True, heading_at)
-        a = lr.align(t, 1.05 * water, heading_at)
-        lr.step(a, "", None)
-        if a.ref_state == "valid" and a.ref is not None and a.heading is not None:
-            fed.append((a.ref, a.raw, a.heading))
-        cur = lr.kf.current_mps
-        assert cur is not None
-        estimates.append(cur)
-        if lr.n_since_eval == 0 and fed:
-            judged = (len(fed), (float(cur[0]), float(cur[1])))
-    assert judged is not None and lr.ident is not None
-    n, cur = judged
-    north = [e[0] for e in estimates]
-    assert max(north) - min(north) > 0.3  # the estimate moved while the window filled
-    want = ExcitationWindow(lr.layout, s.excitation_half_life_samples, s.rule)
-    for g, r, h in fed[:n]:
-        p = math.radians(h)
-        want.add(g - cur[0] * math.cos(p) - cur[1] * math.sin(p), r, h)
-    np.testing.assert_allclose(lr.ident.stats.info, want.stats().info, rtol=1e-9)
