@@ -14,8 +14,11 @@ A sensor missing at start is a status, not a crash: its source retries with
 backoff and is opened when it appears. Bad input is counted by the decoders; a
 failure while the pipeline handles one chunk is contained (:mod:`emlogd.contain`:
 counted as an ``internal`` reject of the port, logged at most once per 10 s per port
-and exception type) and the loop goes on: no input stops the daemon. A state file that
-cannot be written is reported and the previous file stays intact.
+and exception type) and the loop goes on: no input stops the daemon. The state file is
+written beside the loop (:mod:`emlogd.daemon.saver`): a slow disk holds no output; a
+``freeze`` or ``reset`` is answered once its save has landed, the other clients served
+meanwhile. A state file that cannot be written is reported and the previous file stays
+intact.
 """
 
 from __future__ import annotations
@@ -32,16 +35,18 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from drivers.errors import DeviceError, EmlogdError
+from drivers.errors import DeviceError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon import logsetup, signals
 from emlogd.daemon.configload import ConfigLoad, why_not_loaded
+from emlogd.daemon.control import Deferred
 from emlogd.daemon.controls import Controls
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
+from emlogd.daemon.saver import Saver
 from emlogd.daemon.statefile import STATE_RETRY_S, StateStore, max_state_bytes, same_records
 from emlogd.daemon.statusdoc import status_document
 from emlogd.pipeline.calibration import Calibration, checker
@@ -62,6 +67,11 @@ REST_MERGE_S = 0.02
 """How much later than the end of its rest a resting port may be read: at the loop's first
 wake-up after it (a UUT's sentence, another port's burst), so that the read seldom costs a
 wake-up of its own; ``rest_s`` plus this must stay under the gap between bursts."""
+
+STOP_SAVE_S = 10.0
+"""Longest wait of a stop for the saves in flight and queued (the final one among them),
+s: under systemd's ``TimeoutStopSec`` (15 s), so that a disk that hangs costs the last
+save, logged (``state_save_pending``), not a SIGKILL."""
 
 _ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """How a resting port is registered: one readiness, then disarmed until re-armed."""
@@ -140,6 +150,15 @@ class Daemon:
         self.persists = 0
         self._written: list[Calibration] | None = None
         """The records last written to the state file."""
+        self._submitted: list[Calibration] | None = None
+        """The records of the last save handed to :attr:`saver` (the file's once it lands)."""
+        self.saver: Saver | None = None
+        """The state file's writer thread (started with the daemon)."""
+        self._last_seq = 0
+        """The number of the last save submitted; :attr:`_landed_seq`, of the last landed."""
+        self._landed_seq = 0
+        self._waiters: list[tuple[int, Callable[[str | None], None]]] = []
+        """Control answers waiting for a save: (its number, called with the error or None)."""
         self.retry_persist = math.inf  # when a failed save is tried again
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
@@ -217,6 +236,8 @@ class Daemon:
                 **cal.params.as_dict(),
             )
         self.pipeline = build_pipeline(cfg, cals, others)
+        self.saver = Saver(store)
+        self._watch(self.saver.wake_fd, self._saves_landed)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
         try:  # one that cannot be opened costs itself, tried again (Outputs.housekeep)
@@ -268,6 +289,7 @@ class Daemon:
         self.notifier.stopping()
         if self.started:
             self._persist(final=True)
+        self._finish_saves()
         self._close_sources()
         self.controls.close()
         self.outputs.close()
@@ -469,48 +491,106 @@ class Daemon:
         if out.persist:
             self._persist()
 
-    def _persist(self, *, final: bool = False, operator: bool = False) -> str | None:
-        """Write the calibrations; return None once they are on disk, else why not.
+    def _persist(self, *, final: bool = False, operator: bool = False) -> int | None:
+        """Hand the calibrations to the writer thread (:attr:`saver`); return the number
+        of the save that will hold them, or None when the file holds them already.
 
-        Coalesced: nothing is written when the file holds the same records (their time
-        aside), or for an operator's command (``operator``) the same calibrations (reset
-        flags, parameters and σ, lag, model): a burst of ``freeze`` or ``reset``
-        requests costs at most one fsync per actual change. A file another process
-        removed or replaced since the last save is written again.
+        Coalesced: nothing is written when the file (or the save in flight or queued)
+        holds the same records (their time aside), or for an operator's command
+        (``operator``) the same calibrations (reset flags, parameters and σ, lag, model):
+        a burst of ``freeze`` or ``reset`` requests costs at most one fsync per actual
+        change. A file another process removed or replaced since the last save is
+        written again. How it went is :meth:`_saves_landed`'s.
         """
-        assert self.pipeline is not None and self.store is not None
+        assert self.pipeline is not None and self.store is not None and self.saver is not None
         self.retry_persist = math.inf
         snaps = self.pipeline.calibrations()
         if not snaps:
             return None
         others = self.pipeline.other_calibrations()
         written = snaps + others
-        if (
-            self._written is not None
-            and same_records(written, self._written, material=operator)
-            and self.store.holds_last_save()  # not removed or replaced since
+        in_flight = self._last_seq > self._landed_seq
+        if self._submitted is not None and same_records(
+            written, self._submitted, material=operator
         ):
-            return None
-        try:
-            aside = self.store.save({s.uut: s for s in snaps}, others)
-        except EmlogdError as exc:
-            self.state_errors += 1
-            self.retry_persist = self.monotonic() + STATE_RETRY_S
-            self.log.error("state_write_failed", error=str(exc), final=final)
-            return str(exc)
-        if aside is not None:
-            self.log.warning("state_file_set_aside", path=str(aside), backup_kept=True)
-        if self.store.backup_problem is not None:  # a directory in the way: written all the same
-            self.log.warning("state_backup_failed", why=self.store.backup_problem)
-        self._written = written
-        self.persists += 1
-        self.log.info(
-            "calibration_persisted",
-            uuts=[s.uut for s in snaps],
-            final=final,
-            path=str(self.store.path),
-        )
-        return None
+            if in_flight:
+                return self._last_seq
+            if self.store.holds_last_save():  # not removed or replaced since
+                return None
+        self._submitted = written
+        self._last_seq = self.saver.submit({s.uut: s for s in snaps}, others, final=final)
+        return self._last_seq
+
+    def _saves_landed(self) -> None:
+        """The writer thread's results: counters, log lines, and the control answers that
+        waited for them (a result holds every save submitted up to its number)."""
+        assert self.saver is not None and self.store is not None
+        for r in self.saver.drain():
+            self._landed_seq = max(self._landed_seq, r.seq)
+            if r.error is not None:
+                self.state_errors += 1
+                self.retry_persist = self.monotonic() + STATE_RETRY_S
+                self.log.error("state_write_failed", error=r.error, final=r.job.final)
+                if r.seq == self._last_seq:  # nothing newer queued: the retry writes it
+                    self._submitted = self._written
+            else:
+                if r.aside is not None:
+                    self.log.warning("state_file_set_aside", path=str(r.aside), backup_kept=True)
+                if r.backup_problem is not None:  # a directory in the way: written all the same
+                    self.log.warning("state_backup_failed", why=r.backup_problem)
+                self._written = [*r.job.states.values(), *r.job.others]
+                self.persists += 1
+                self.log.info(
+                    "calibration_persisted",
+                    uuts=list(r.job.states),
+                    final=r.job.final,
+                    path=str(self.store.path),
+                )
+            due = [w for w in self._waiters if w[0] <= r.seq]
+            self._waiters = [w for w in self._waiters if w[0] > r.seq]
+            for _, call in due:
+                call(r.error)
+
+    def _finish_saves(self) -> None:
+        """At the stop: wait for the saves in flight and queued (at most
+        :data:`STOP_SAVE_S`), report them, end the writer thread."""
+        if self.saver is None:
+            return
+        t0 = self.monotonic()
+        done = self.saver.wait_idle(STOP_SAVE_S)
+        self._saves_landed()
+        waited = self.monotonic() - t0
+        if not done:
+            self.log.error("state_save_pending", waited_s=round(waited, 2))
+            for _, call in self._waiters:
+                call(f"the daemon stopped before the save landed (waited {waited:.1f} s)")
+            self._waiters = []
+        elif waited > 1.0:
+            self.log.warning("state_save_slow", waited_s=round(waited, 2))
+        with contextlib.suppress(OSError, ValueError, KeyError):
+            self.poll.unregister(self.saver.wake_fd)
+        self.calls.pop(self.saver.wake_fd, None)
+        self.saver.close(0.0 if not done else STOP_SAVE_S)
+        self.saver = None
+
+    def _after_save(
+        self, ticket: int | None, reply: Callable[[str | None], dict[str, object]]
+    ) -> dict[str, object] | Deferred:
+        """``reply(error)`` now when nothing is to be written (``ticket`` None), else a
+        :class:`Deferred` answered with it once save ``ticket`` has landed (a
+        ``ValueError`` it raises is the refusal)."""
+        if ticket is None:
+            return reply(None)
+        answer = Deferred()
+
+        def settle(err: str | None) -> None:
+            try:
+                answer.answer(reply(err))
+            except ValueError as exc:
+                answer.refuse(str(exc))
+
+        self._waiters.append((ticket, settle))
+        return answer
 
     def _log_port_events(self, events: list[PortEvent]) -> None:
         for ev in events:
@@ -546,7 +626,7 @@ class Daemon:
 
     # -- control and reload -------------------------------------------------------
 
-    def _control(self, req: dict[str, object]) -> dict[str, object]:
+    def _control(self, req: dict[str, object]) -> dict[str, object] | Deferred:
         assert self.pipeline is not None
         cmd = req["cmd"]
         port = req.get("port")
@@ -564,15 +644,18 @@ class Daemon:
             }
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)
-            err = self._persist(operator=True)
-            self.control_log.info("control_freeze", uuts=done, persisted=err is None)
-            if err is not None:
-                raise ValueError(
-                    f"learning stopped for {', '.join(done)}, but the calibration "
-                    f"was not saved: {err}"
-                )
             states = {n: self.pipeline.uuts[n].cal.state for n in done}
-            return {"uuts": done, "learning": False, "persisted": True, "states": states}
+
+            def frozen(err: str | None) -> dict[str, object]:
+                self.control_log.info("control_freeze", uuts=done, persisted=err is None)
+                if err is not None:
+                    raise ValueError(
+                        f"learning stopped for {', '.join(done)}, but the calibration "
+                        f"was not saved: {err}"
+                    )
+                return {"uuts": done, "learning": False, "persisted": True, "states": states}
+
+            return self._after_save(self._persist(operator=True), frozen)
         if cmd == "learn":
             on = req.get("on", True)
             if not isinstance(on, bool):
@@ -582,14 +665,17 @@ class Daemon:
             return {"uuts": done, "learning": on}
         if cmd == "reset":
             reset = self.pipeline.reset(p)
-            err = self._persist(operator=True)
-            self.control_log.warning("control_reset", uuts=reset, persisted=err is None)
-            if err is not None:
-                raise ValueError(
-                    f"{', '.join(reset)} reset, but the state file was not written ({err}): "
-                    "the old calibration would load after a restart"
-                )
-            return {"uuts": list(reset), "reset": reset, "persisted": True}
+
+            def cleared(err: str | None) -> dict[str, object]:
+                self.control_log.warning("control_reset", uuts=reset, persisted=err is None)
+                if err is not None:
+                    raise ValueError(
+                        f"{', '.join(reset)} reset, but the state file was not written "
+                        f"({err}): the old calibration would load after a restart"
+                    )
+                return {"uuts": list(reset), "reset": reset, "persisted": True}
+
+            return self._after_save(self._persist(operator=True), cleared)
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _sync_outputs(self, cfg: Config) -> tuple[list[str], list[str], DeviceError | None]:
