@@ -46,10 +46,10 @@ from emlogd.daemon.controls import Controls
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
-from emlogd.daemon.saver import Saver
-from emlogd.daemon.statefile import STATE_RETRY_S, StateStore, max_state_bytes, same_records
+from emlogd.daemon.saver import Saves
+from emlogd.daemon.statefile import StateStore, max_state_bytes
 from emlogd.daemon.statusdoc import status_document
-from emlogd.pipeline.calibration import Calibration, checker
+from emlogd.pipeline.calibration import checker
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import build_pipeline, pipeline_from_config
 
@@ -67,11 +67,6 @@ REST_MERGE_S = 0.02
 """How much later than the end of its rest a resting port may be read: at the loop's first
 wake-up after it (a UUT's sentence, another port's burst), so that the read seldom costs a
 wake-up of its own; ``rest_s`` plus this must stay under the gap between bursts."""
-
-STOP_SAVE_S = 10.0
-"""Longest wait of a stop for the saves in flight and queued (the final one among them),
-s: under systemd's ``TimeoutStopSec`` (15 s), so that a disk that hangs costs the last
-save, logged (``state_save_pending``), not a SIGKILL."""
 
 _ONE_READ = select.EPOLLIN | select.EPOLLONESHOT
 """How a resting port is registered: one readiness, then disarmed until re-armed."""
@@ -146,23 +141,21 @@ class Daemon:
         """The reloaded config being parsed beside the loop (None: no reload under way)."""
         self.started = False
         """Everything opened: a stop persists (a start that failed writes nothing)."""
-        self.state_errors = 0
-        self.persists = 0
-        self._written: list[Calibration] | None = None
-        """The records last written to the state file."""
-        self._submitted: list[Calibration] | None = None
-        """The records of the last save handed to :attr:`saver` (the file's once it lands)."""
-        self.saver: Saver | None = None
-        """The state file's writer thread (started with the daemon)."""
-        self._last_seq = 0
-        """The number of the last save submitted; :attr:`_landed_seq`, of the last landed."""
-        self._landed_seq = 0
-        self._waiters: list[tuple[int, Callable[[str | None], None]]] = []
-        """Control answers waiting for a save: (its number, called with the error or None)."""
-        self.retry_persist = math.inf  # when a failed save is tried again
+        self.saves: Saves | None = None
+        """The state file's saves, in a writer thread (started with the daemon)."""
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
+
+    @property
+    def state_errors(self) -> int:
+        """Saves of the state file that failed."""
+        return self.saves.state_errors if self.saves is not None else 0
+
+    @property
+    def persists(self) -> int:
+        """Saves of the state file that landed."""
+        return self.saves.persists if self.saves is not None else 0
 
     def timeline(self) -> float:
         """The data time: the wall time at start plus the monotonic time since, s."""
@@ -236,8 +229,8 @@ class Daemon:
                 **cal.params.as_dict(),
             )
         self.pipeline = build_pipeline(cfg, cals, others)
-        self.saver = Saver(store)
-        self._watch(self.saver.wake_fd, self._saves_landed)
+        self.saves = Saves(store, self.log, self.monotonic)
+        self._watch(self.saves.wake_fd, self.saves.landed)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
         try:  # one that cannot be opened costs itself, tried again (Outputs.housekeep)
@@ -341,7 +334,7 @@ class Daemon:
             self._sync_registrations()
         self.controls.housekeep()
         self.outputs.housekeep()
-        if self.monotonic() >= self.retry_persist:
+        if self.saves is not None and self.monotonic() >= self.saves.retry_at:
             self._persist()
         self.unused.log(self.log, self.monotonic())
         flush_log(0.0)  # log lines a slow reader left behind
@@ -492,105 +485,21 @@ class Daemon:
             self._persist()
 
     def _persist(self, *, final: bool = False, operator: bool = False) -> int | None:
-        """Hand the calibrations to the writer thread (:attr:`saver`); return the number
-        of the save that will hold them, or None when the file holds them already.
-
-        Coalesced: nothing is written when the file (or the save in flight or queued)
-        holds the same records (their time aside), or for an operator's command
-        (``operator``) the same calibrations (reset flags, parameters and σ, lag, model):
-        a burst of ``freeze`` or ``reset`` requests costs at most one fsync per actual
-        change. A file another process removed or replaced since the last save is
-        written again. How it went is :meth:`_saves_landed`'s.
-        """
-        assert self.pipeline is not None and self.store is not None and self.saver is not None
-        self.retry_persist = math.inf
+        """Hand the calibrations to the writer thread (:meth:`Saves.persist`): the number
+        of the save that will hold them, or None when the file holds them already."""
+        assert self.pipeline is not None and self.saves is not None
         snaps = self.pipeline.calibrations()
-        if not snaps:
-            return None
-        others = self.pipeline.other_calibrations()
-        written = snaps + others
-        in_flight = self._last_seq > self._landed_seq
-        if self._submitted is not None and same_records(
-            written, self._submitted, material=operator
-        ):
-            if in_flight:
-                return self._last_seq
-            if self.store.holds_last_save():  # not removed or replaced since
-                return None
-        self._submitted = written
-        self._last_seq = self.saver.submit({s.uut: s for s in snaps}, others, final=final)
-        return self._last_seq
-
-    def _saves_landed(self) -> None:
-        """The writer thread's results: counters, log lines, and the control answers that
-        waited for them (a result holds every save submitted up to its number)."""
-        assert self.saver is not None and self.store is not None
-        for r in self.saver.drain():
-            self._landed_seq = max(self._landed_seq, r.seq)
-            if r.error is not None:
-                self.state_errors += 1
-                self.retry_persist = self.monotonic() + STATE_RETRY_S
-                self.log.error("state_write_failed", error=r.error, final=r.job.final)
-                if r.seq == self._last_seq:  # nothing newer queued: the retry writes it
-                    self._submitted = self._written
-            else:
-                if r.aside is not None:
-                    self.log.warning("state_file_set_aside", path=str(r.aside), backup_kept=True)
-                if r.backup_problem is not None:  # a directory in the way: written all the same
-                    self.log.warning("state_backup_failed", why=r.backup_problem)
-                self._written = [*r.job.states.values(), *r.job.others]
-                self.persists += 1
-                self.log.info(
-                    "calibration_persisted",
-                    uuts=list(r.job.states),
-                    final=r.job.final,
-                    path=str(self.store.path),
-                )
-            due = [w for w in self._waiters if w[0] <= r.seq]
-            self._waiters = [w for w in self._waiters if w[0] > r.seq]
-            for _, call in due:
-                call(r.error)
+        others = self.pipeline.other_calibrations() if snaps else []
+        return self.saves.persist(snaps, others, final=final, operator=operator)
 
     def _finish_saves(self) -> None:
-        """At the stop: wait for the saves in flight and queued (at most
-        :data:`STOP_SAVE_S`), report them, end the writer thread."""
-        if self.saver is None:
+        """At the stop: the saves waited for (:meth:`Saves.finish`), the thread ended."""
+        if self.saves is None:
             return
-        t0 = self.monotonic()
-        done = self.saver.wait_idle(STOP_SAVE_S)
-        self._saves_landed()
-        waited = self.monotonic() - t0
-        if not done:
-            self.log.error("state_save_pending", waited_s=round(waited, 2))
-            for _, call in self._waiters:
-                call(f"the daemon stopped before the save landed (waited {waited:.1f} s)")
-            self._waiters = []
-        elif waited > 1.0:
-            self.log.warning("state_save_slow", waited_s=round(waited, 2))
         with contextlib.suppress(OSError, ValueError, KeyError):
-            self.poll.unregister(self.saver.wake_fd)
-        self.calls.pop(self.saver.wake_fd, None)
-        self.saver.close(0.0 if not done else STOP_SAVE_S)
-        self.saver = None
-
-    def _after_save(
-        self, ticket: int | None, reply: Callable[[str | None], dict[str, object]]
-    ) -> dict[str, object] | Deferred:
-        """``reply(error)`` now when nothing is to be written (``ticket`` None), else a
-        :class:`Deferred` answered with it once save ``ticket`` has landed (a
-        ``ValueError`` it raises is the refusal)."""
-        if ticket is None:
-            return reply(None)
-        answer = Deferred()
-
-        def settle(err: str | None) -> None:
-            try:
-                answer.answer(reply(err))
-            except ValueError as exc:
-                answer.refuse(str(exc))
-
-        self._waiters.append((ticket, settle))
-        return answer
+            self.poll.unregister(self.saves.wake_fd)
+        self.calls.pop(self.saves.wake_fd, None)
+        self.saves.finish()
 
     def _log_port_events(self, events: list[PortEvent]) -> None:
         for ev in events:
@@ -627,7 +536,7 @@ class Daemon:
     # -- control and reload -------------------------------------------------------
 
     def _control(self, req: dict[str, object]) -> dict[str, object] | Deferred:
-        assert self.pipeline is not None
+        assert self.pipeline is not None and self.saves is not None
         cmd = req["cmd"]
         port = req.get("port")
         if port is not None and port not in self.pipeline.uuts:
@@ -655,7 +564,7 @@ class Daemon:
                     )
                 return {"uuts": done, "learning": False, "persisted": True, "states": states}
 
-            return self._after_save(self._persist(operator=True), frozen)
+            return self.saves.after(self._persist(operator=True), frozen)
         if cmd == "learn":
             on = req.get("on", True)
             if not isinstance(on, bool):
@@ -675,7 +584,7 @@ class Daemon:
                     )
                 return {"uuts": list(reset), "reset": reset, "persisted": True}
 
-            return self._after_save(self._persist(operator=True), cleared)
+            return self.saves.after(self._persist(operator=True), cleared)
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _sync_outputs(self, cfg: Config) -> tuple[list[str], list[str], DeviceError | None]:

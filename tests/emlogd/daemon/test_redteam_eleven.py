@@ -220,15 +220,16 @@ def test_a_save_that_failed_is_tried_again_until_it_is_written(
             raise OSError(errno.ENOSPC, "No space left on device")
 
         def landed() -> None:  # the loop's part: the writer thread's results handled
-            assert daemon.saver is not None and daemon.saver.wait_idle(5.0)
-            daemon._saves_landed()
+            assert daemon.saves is not None and daemon.saves.saver.wait_idle(5.0)
+            daemon.saves.landed()
 
         monkeypatch.setattr(statefile, "write_synced", full)
         answer = daemon._control({"cmd": "reset", "port": "emlog1"})
-        assert isinstance(answer, Deferred) and answer.line is None  # waits for the save
+        assert isinstance(answer, Deferred)
+        assert not answer.line  # it waits for the save
         landed()
-        assert answer.line is not None and b"not written" in answer.line, answer.line
-        assert json.loads(answer.line)["ok"] is False
+        line = answer.line or b"{}"
+        assert b"not written" in line and json.loads(line)["ok"] is False, line
         daemon._housekeep()  # the pipeline hands the reset out to persist: it fails too
         landed()
         assert daemon.state_errors == 2

@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from emlogd.daemon import loop, statefile
+from emlogd import fileio
+from emlogd.daemon import saver as saver_module
+from emlogd.daemon import statefile
 from emlogd.daemon.control import Deferred
 from emlogd.daemon.loop import Daemon
 from emlogd.daemon.saver import Saver
@@ -25,13 +27,18 @@ class _Gate:
         self.open = threading.Event()
         self.entered = threading.Event()
         self.writes = 0
-        self._write = statefile.write_synced
+        self._write = fileio.write_synced
 
     def __call__(self, path: Path, data: bytes, mode: int = 0o640) -> None:
         self.writes += 1
         self.entered.set()
         self.open.wait(10)
         self._write(path, data, mode)
+
+
+def _line(answer: Deferred) -> bytes | None:
+    """The deferred answer's line, once settled."""
+    return answer.line
 
 
 class _Log:
@@ -107,7 +114,8 @@ def test_the_stop_waits_for_the_save_in_flight(
         daemon._shutdown()
         _close(daemon)
     assert "emlog1" not in _saved(store)
-    assert answer.line is not None and b'"persisted": true' in answer.line, answer.line
+    line = _line(answer)
+    assert line is not None and b'"persisted": true' in line, line
     assert "calibration_persisted" in log.kinds() and "state_save_pending" not in log.kinds()
 
 
@@ -117,7 +125,7 @@ def test_the_stop_waits_no_longer_than_its_bound(
     """A disk that hangs: the stop waits STOP_SAVE_S (made 0.3 s here), logs
     ``state_save_pending``, refuses the answer that waited, and ends; the previous file
     stays."""
-    monkeypatch.setattr(loop, "STOP_SAVE_S", 0.3)
+    monkeypatch.setattr(saver_module, "STOP_SAVE_S", 0.3)
     daemon, store, log = _daemon(tmp_path)
     gate = _Gate()
     monkeypatch.setattr(statefile, "write_synced", gate)
@@ -125,15 +133,45 @@ def test_the_stop_waits_no_longer_than_its_bound(
         answer = daemon._control({"cmd": "reset", "port": "emlog1"})
         assert isinstance(answer, Deferred)
         assert gate.entered.wait(5)
-        saver = daemon.saver
-        assert saver is not None
+        assert daemon.saves is not None
+        saver = daemon.saves.saver
     finally:
         daemon._shutdown()
         _close(daemon)
     try:
         assert "state_save_pending" in log.kinds()
-        assert answer.line is not None and b"stopped before the save landed" in answer.line
+        line = _line(answer)
+        assert line is not None and b"stopped before the save landed" in line, line
         assert _saved(store) == {"emlog1": 0.1}
     finally:
         gate.open.set()
         assert saver.wait_idle(5)
+
+
+def test_a_command_repeated_while_its_save_is_in_flight_waits_for_that_save(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two ``reset``s of one UUT while the first one's save is held: the second changes
+    nothing more, so it submits no save of its own but is answered with the first once
+    that lands: one write, both answered that they persisted."""
+    daemon, store, _ = _daemon(tmp_path)
+    gate = _Gate()
+    monkeypatch.setattr(statefile, "write_synced", gate)
+    try:
+        first = daemon._control({"cmd": "reset", "port": "emlog1"})
+        assert gate.entered.wait(5)
+        second = daemon._control({"cmd": "reset", "port": "emlog1"})
+        assert isinstance(first, Deferred) and isinstance(second, Deferred)
+        assert not second.line
+        gate.open.set()
+        assert daemon.saves is not None and daemon.saves.saver.wait_idle(5)
+        daemon.saves.landed()
+        for answer in (first, second):
+            line = _line(answer)
+            assert line is not None and b'"persisted": true' in line, line
+        assert gate.writes == 1
+    finally:
+        gate.open.set()
+        daemon._shutdown()
+        _close(daemon)
+    assert "emlog1" not in _saved(store)
