@@ -1,6 +1,7 @@
 """``emlogd run``: the daemon loop around the pipeline.
 
-One process, one thread, one epoll loop: a readable port runs its callback
+One process, one loop thread, one epoll loop (beside it only the state file's writer
+and a reloaded config's parse): a readable port runs its callback
 straight from ``epoll.poll`` (the sockets of the control server and the TCP output
 sit in a ``selectors`` selector nested in it). The loop owns the file
 descriptors (serial sources, output sinks, control socket, a self-pipe for
