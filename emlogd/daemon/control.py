@@ -32,6 +32,7 @@ client side is :func:`emlogd.client.request`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import selectors
 import socket
@@ -44,7 +45,42 @@ from pathlib import Path
 from drivers.errors import DeviceError
 from emlogd.daemon.listen import AcceptPause
 
-Handler = Callable[[dict[str, object]], dict[str, object]]
+
+class Deferred:
+    """An answer the handler gives later (a ``freeze`` waiting for its save to land):
+    settled once by :meth:`answer` or :meth:`refuse`. Until then the client waits, its
+    further requests unread, while the other clients and the outputs are served."""
+
+    __slots__ = ("_then", "line")
+
+    def __init__(self) -> None:
+        self.line: bytes | None = None
+        """The answer's line once settled."""
+        self._then: Callable[[bytes], None] | None = None
+
+    def answer(self, doc: dict[str, object]) -> None:
+        """Settle with ``{"ok": true, **doc}``."""
+        self._settle(_line({"ok": True, **doc}))
+
+    def refuse(self, error: str) -> None:
+        """Settle with ``{"ok": false, "error": error}``."""
+        self._settle(_line({"ok": False, "error": error}))
+
+    def then(self, call: Callable[[bytes], None]) -> None:
+        """Call ``call`` with the answer's line once settled (at once if it is)."""
+        self._then = call
+        if self.line is not None:
+            call(self.line)
+
+    def _settle(self, line: bytes) -> None:
+        if self.line is not None:
+            return
+        self.line = line
+        if self._then is not None:
+            self._then(line)
+
+
+Handler = Callable[[dict[str, object]], "dict[str, object] | Deferred"]
 
 MAX_REQUEST = 4096
 """Longest accepted request line, bytes."""
@@ -201,7 +237,7 @@ def _peer(conn: socket.socket) -> Peer:
 
 
 class _Client:
-    __slots__ = ("buf", "out", "peer", "seen", "sending", "sock", "started")
+    __slots__ = ("buf", "out", "peer", "seen", "sending", "sock", "started", "waiting")
 
     def __init__(self, sock: socket.socket, now: float, peer: Peer = (-1, 0)) -> None:
         self.sock = sock
@@ -216,6 +252,9 @@ class _Client:
         """Answers not yet sent (the socket's buffer was full)."""
         self.sending: float | None = None
         """When :attr:`out` began to wait (None: nothing waits)."""
+        self.waiting = False
+        """An answer is deferred (:class:`Deferred`): the socket is out of the selector
+        and the client's further requests wait in :attr:`buf`."""
 
 
 class ControlServer:
@@ -223,7 +262,8 @@ class ControlServer:
 
     Args:
         path: socket path (its directory is created; a stale socket is replaced).
-        handler: turns a request dict into a response dict (may raise ValueError).
+        handler: turns a request dict into a response dict (may raise ValueError), or a
+            :class:`Deferred` settled later (the client waits, the others are served).
         selector: the daemon's selector; the server registers its sockets there
             with a callable as data.
         mode: permission bits of the socket file.
@@ -408,7 +448,7 @@ class ControlServer:
             elif client.sending is not None and now - client.sending > SEND_S:
                 self.unread += 1
                 self._drop(conn)
-            elif client.sending is None and now - client.seen > IDLE_S:
+            elif client.sending is None and not client.waiting and now - client.seen > IDLE_S:
                 self._drop(conn)
         if self.pause.resume_due():
             self.selector.register(self.sock, selectors.EVENT_READ, self._accept)
@@ -416,7 +456,7 @@ class ControlServer:
     def _ready(self, conn: socket.socket) -> None:
         """The selector's call: send what waits, then (nothing left waiting) read."""
         client = self.clients.get(conn)
-        if client is None:
+        if client is None or client.waiting:  # waiting: an event of the same select
             return
         if client.out:
             self._flush(conn, client)
@@ -441,9 +481,13 @@ class ControlServer:
             # the end of file ends the last request (``printf '{"cmd":"status"}' | socat
             # - UNIX-CONNECT:…``): answered, then closed once it is sent and read again
             data = b"\n"
+        client.buf += data or b""
+        self._answer_buffered(conn, client)
+
+    def _answer_buffered(self, conn: socket.socket, client: _Client) -> None:
+        """Answer the whole requests in the client's buffer (up to a deferred answer)."""
         now = self.monotonic()
         buf = client.buf
-        buf += data or b""
         answered = 0
         while b"\n" in buf and conn in self.clients:
             if answered == MAX_PIPELINED:
@@ -458,7 +502,11 @@ class ControlServer:
             buf[:] = rest
             client.seen = now
             client.started = None
-            self._send(conn, self._answer(line, now))
+            answer = self._answer(line, now)
+            if isinstance(answer, Deferred) and answer.line is None:
+                self._defer(conn, client, answer)
+                return
+            self._send(conn, answer if isinstance(answer, bytes) else answer.line or b"")
         if conn in self.clients and client.out:
             return  # the rest is read once the answers are taken (:meth:`_ready`)
         if buf and client.started is None:
@@ -467,7 +515,28 @@ class ControlServer:
             self._reply(conn, {"ok": False, "error": "request too long"})
             self._drop(conn)
 
-    def _answer(self, line: bytes, now: float) -> bytes:
+    def _defer(self, conn: socket.socket, client: _Client, answer: Deferred) -> None:
+        """Hold the client until ``answer`` is settled: out of the selector (its requests
+        unread, in order), then answered and served again (:meth:`_settled`)."""
+        client.waiting = True
+        with contextlib.suppress(KeyError, ValueError):
+            self.selector.unregister(conn)
+        answer.then(functools.partial(self._settled, conn))
+
+    def _settled(self, conn: socket.socket, data: bytes) -> None:
+        """A deferred answer is ready: send it and go on with the client's requests."""
+        client = self.clients.get(conn)
+        if client is None or not client.waiting:
+            return  # closed meanwhile
+        client.waiting = False
+        client.seen = self.monotonic()
+        client.sending = None  # registered for reading: the flush watches for room again
+        self.selector.register(conn, selectors.EVENT_READ, lambda c=conn: self._ready(c))
+        self._send(conn, data)
+        if conn in self.clients and not client.out:
+            self._answer_buffered(conn, client)
+
+    def _answer(self, line: bytes, now: float) -> bytes | Deferred:
         """The answer's line: a ``status`` answer to the same request is sent again as it
         was for :data:`STATUS_REUSE` times what its building took."""
         if len(line) > MAX_REQUEST:
@@ -489,9 +558,12 @@ class ControlServer:
         elif (kept := self._reuse.get(key)) is not None and now < kept[0]:
             return kept[1]
         try:
-            data = _line({"ok": True, **self.handler(req)})
+            doc = self.handler(req)
         except (ValueError, KeyError) as exc:
             return _line({"ok": False, "error": str(exc)})
+        if isinstance(doc, Deferred):
+            return doc
+        data = _line({"ok": True, **doc})
         if req.get("cmd") == "status":
             done = self.monotonic()
             self._reuse = {k: v for k, v in self._reuse.items() if done < v[0]}

@@ -1,6 +1,7 @@
 """``emlogd run``: the daemon loop around the pipeline.
 
-One process, one thread, one epoll loop: a readable port runs its callback
+One process, one loop thread, one epoll loop (beside it only the state file's writer
+and a reloaded config's parse): a readable port runs its callback
 straight from ``epoll.poll`` (the sockets of the control server and the TCP output
 sit in a ``selectors`` selector nested in it). The loop owns the file
 descriptors (serial sources, output sinks, control socket, a self-pipe for
@@ -14,8 +15,11 @@ A sensor missing at start is a status, not a crash: its source retries with
 backoff and is opened when it appears. Bad input is counted by the decoders; a
 failure while the pipeline handles one chunk is contained (:mod:`emlogd.contain`:
 counted as an ``internal`` reject of the port, logged at most once per 10 s per port
-and exception type) and the loop goes on: no input stops the daemon. A state file that
-cannot be written is reported and the previous file stays intact.
+and exception type) and the loop goes on: no input stops the daemon. The state file is
+written beside the loop (:mod:`emlogd.daemon.saver`): a slow disk holds no output; a
+``freeze`` or ``reset`` is answered once its save has landed, the other clients served
+meanwhile. A state file that cannot be written is reported and the previous file stays
+intact.
 """
 
 from __future__ import annotations
@@ -32,19 +36,21 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from drivers.errors import DeviceError, EmlogdError
+from drivers.errors import DeviceError
 from drivers.io.port import PortEvent, SerialSource
 from emlogd.config import Config, load_config
 from emlogd.contain import Containment
 from emlogd.daemon import logsetup, signals
 from emlogd.daemon.configload import ConfigLoad, why_not_loaded
+from emlogd.daemon.control import Deferred
 from emlogd.daemon.controls import Controls
 from emlogd.daemon.logsetup import EventLimiter, flush_log, is_console, lost_lines, status_line
 from emlogd.daemon.notify import Notifier
 from emlogd.daemon.outputs import OUTPUT_RETRY_S, Outputs
-from emlogd.daemon.statefile import STATE_RETRY_S, StateStore, max_state_bytes, same_records
+from emlogd.daemon.saver import Saves
+from emlogd.daemon.statefile import StateStore, max_state_bytes
 from emlogd.daemon.statusdoc import status_document
-from emlogd.pipeline.calibration import Calibration, checker
+from emlogd.pipeline.calibration import checker
 from emlogd.pipeline.core import Output, Pipeline
 from emlogd.settings import build_pipeline, pipeline_from_config
 
@@ -136,14 +142,21 @@ class Daemon:
         """The reloaded config being parsed beside the loop (None: no reload under way)."""
         self.started = False
         """Everything opened: a stop persists (a start that failed writes nothing)."""
-        self.state_errors = 0
-        self.persists = 0
-        self._written: list[Calibration] | None = None
-        """The records last written to the state file."""
-        self.retry_persist = math.inf  # when a failed save is tried again
+        self.saves: Saves | None = None
+        """The state file's saves, in a writer thread (started with the daemon)."""
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
+
+    @property
+    def state_errors(self) -> int:
+        """Saves of the state file that failed."""
+        return self.saves.state_errors if self.saves is not None else 0
+
+    @property
+    def persists(self) -> int:
+        """Saves of the state file that landed."""
+        return self.saves.persists if self.saves is not None else 0
 
     def timeline(self) -> float:
         """The data time: the wall time at start plus the monotonic time since, s."""
@@ -217,6 +230,8 @@ class Daemon:
                 **cal.params.as_dict(),
             )
         self.pipeline = build_pipeline(cfg, cals, others)
+        self.saves = Saves(store, self.log, self.monotonic)
+        self._watch(self.saves.wake_fd, self.saves.landed)
         # the control socket first: it refuses to replace another live instance's
         self._sync_controls()
         try:  # one that cannot be opened costs itself, tried again (Outputs.housekeep)
@@ -268,6 +283,7 @@ class Daemon:
         self.notifier.stopping()
         if self.started:
             self._persist(final=True)
+        self._finish_saves()
         self._close_sources()
         self.controls.close()
         self.outputs.close()
@@ -319,7 +335,7 @@ class Daemon:
             self._sync_registrations()
         self.controls.housekeep()
         self.outputs.housekeep()
-        if self.monotonic() >= self.retry_persist:
+        if self.saves is not None and self.monotonic() >= self.saves.retry_at:
             self._persist()
         self.unused.log(self.log, self.monotonic())
         flush_log(0.0)  # log lines a slow reader left behind
@@ -469,48 +485,22 @@ class Daemon:
         if out.persist:
             self._persist()
 
-    def _persist(self, *, final: bool = False, operator: bool = False) -> str | None:
-        """Write the calibrations; return None once they are on disk, else why not.
-
-        Coalesced: nothing is written when the file holds the same records (their time
-        aside), or for an operator's command (``operator``) the same calibrations (reset
-        flags, parameters and σ, lag, model): a burst of ``freeze`` or ``reset``
-        requests costs at most one fsync per actual change. A file another process
-        removed or replaced since the last save is written again.
-        """
-        assert self.pipeline is not None and self.store is not None
-        self.retry_persist = math.inf
+    def _persist(self, *, final: bool = False, operator: bool = False) -> int | None:
+        """Hand the calibrations to the writer thread (:meth:`Saves.persist`): the number
+        of the save that will hold them, or None when the file holds them already."""
+        assert self.pipeline is not None and self.saves is not None
         snaps = self.pipeline.calibrations()
-        if not snaps:
-            return None
-        others = self.pipeline.other_calibrations()
-        written = snaps + others
-        if (
-            self._written is not None
-            and same_records(written, self._written, material=operator)
-            and self.store.holds_last_save()  # not removed or replaced since
-        ):
-            return None
-        try:
-            aside = self.store.save({s.uut: s for s in snaps}, others)
-        except EmlogdError as exc:
-            self.state_errors += 1
-            self.retry_persist = self.monotonic() + STATE_RETRY_S
-            self.log.error("state_write_failed", error=str(exc), final=final)
-            return str(exc)
-        if aside is not None:
-            self.log.warning("state_file_set_aside", path=str(aside), backup_kept=True)
-        if self.store.backup_problem is not None:  # a directory in the way: written all the same
-            self.log.warning("state_backup_failed", why=self.store.backup_problem)
-        self._written = written
-        self.persists += 1
-        self.log.info(
-            "calibration_persisted",
-            uuts=[s.uut for s in snaps],
-            final=final,
-            path=str(self.store.path),
-        )
-        return None
+        others = self.pipeline.other_calibrations() if snaps else []
+        return self.saves.persist(snaps, others, final=final, operator=operator)
+
+    def _finish_saves(self) -> None:
+        """At the stop: the saves waited for (:meth:`Saves.finish`), the thread ended."""
+        if self.saves is None:
+            return
+        with contextlib.suppress(OSError, ValueError, KeyError):
+            self.poll.unregister(self.saves.wake_fd)
+        self.calls.pop(self.saves.wake_fd, None)
+        self.saves.finish()
 
     def _log_port_events(self, events: list[PortEvent]) -> None:
         for ev in events:
@@ -546,8 +536,8 @@ class Daemon:
 
     # -- control and reload -------------------------------------------------------
 
-    def _control(self, req: dict[str, object]) -> dict[str, object]:
-        assert self.pipeline is not None
+    def _control(self, req: dict[str, object]) -> dict[str, object] | Deferred:
+        assert self.pipeline is not None and self.saves is not None
         cmd = req["cmd"]
         port = req.get("port")
         if port is not None and port not in self.pipeline.uuts:
@@ -564,15 +554,18 @@ class Daemon:
             }
         if cmd == "freeze":
             done = self.pipeline.set_learning(False, p)
-            err = self._persist(operator=True)
-            self.control_log.info("control_freeze", uuts=done, persisted=err is None)
-            if err is not None:
-                raise ValueError(
-                    f"learning stopped for {', '.join(done)}, but the calibration "
-                    f"was not saved: {err}"
-                )
             states = {n: self.pipeline.uuts[n].cal.state for n in done}
-            return {"uuts": done, "learning": False, "persisted": True, "states": states}
+
+            def frozen(err: str | None) -> dict[str, object]:
+                self.control_log.info("control_freeze", uuts=done, persisted=err is None)
+                if err is not None:
+                    raise ValueError(
+                        f"learning stopped for {', '.join(done)}, but the calibration "
+                        f"was not saved: {err}"
+                    )
+                return {"uuts": done, "learning": False, "persisted": True, "states": states}
+
+            return self.saves.after(self._persist(operator=True), frozen)
         if cmd == "learn":
             on = req.get("on", True)
             if not isinstance(on, bool):
@@ -582,14 +575,17 @@ class Daemon:
             return {"uuts": done, "learning": on}
         if cmd == "reset":
             reset = self.pipeline.reset(p)
-            err = self._persist(operator=True)
-            self.control_log.warning("control_reset", uuts=reset, persisted=err is None)
-            if err is not None:
-                raise ValueError(
-                    f"{', '.join(reset)} reset, but the state file was not written ({err}): "
-                    "the old calibration would load after a restart"
-                )
-            return {"uuts": list(reset), "reset": reset, "persisted": True}
+
+            def cleared(err: str | None) -> dict[str, object]:
+                self.control_log.warning("control_reset", uuts=reset, persisted=err is None)
+                if err is not None:
+                    raise ValueError(
+                        f"{', '.join(reset)} reset, but the state file was not written "
+                        f"({err}): the old calibration would load after a restart"
+                    )
+                return {"uuts": list(reset), "reset": reset, "persisted": True}
+
+            return self.saves.after(self._persist(operator=True), cleared)
         raise ValueError(f"unknown cmd {cmd!r}")
 
     def _sync_outputs(self, cfg: Config) -> tuple[list[str], list[str], DeviceError | None]:

@@ -16,6 +16,7 @@ import pytest
 from drivers.errors import DeviceError
 from emlogd.client import request
 from emlogd.daemon.control import (
+    IDLE_S,
     MAX_CLIENTS,
     MAX_REQUEST,
     PATH_CHECK_S,
@@ -23,6 +24,7 @@ from emlogd.daemon.control import (
     SEND_S,
     STATUS_REUSE,
     ControlServer,
+    Deferred,
 )
 
 BIG = 3 << 20
@@ -456,4 +458,61 @@ def test_a_server_told_to_wait_makes_its_socket_once_the_path_is_free(tmp_path: 
             assert s.recv(4096) == b'{"ok": true, "echo": "status"}\n'
     finally:
         srv.close()
+        sel.close()
+
+
+def test_a_deferred_answer_holds_its_client_alone(tmp_path: Path) -> None:
+    """A handler that answers a ``freeze`` later (:class:`Deferred`, the daemon's wait for
+    its save): that client gets nothing, and its next request (pipelined) is not
+    answered, until the answer is settled; another client is served meanwhile, and an
+    idle check does not close the waiting one. Then it gets the freeze's answer, then
+    the next's, in order."""
+    pending: list[Deferred] = []
+
+    def handle(req: dict[str, object]) -> dict[str, object] | Deferred:
+        if req["cmd"] == "freeze":
+            pending.append(Deferred())
+            return pending[-1]
+        return {"echo": req["cmd"]}
+
+    clock = _Clock()
+    sel = selectors.DefaultSelector()
+    path = tmp_path / "s.sock"
+    server = ControlServer(path, handle, sel, monotonic=clock)
+
+    def pump(s: float = 0.05) -> None:
+        end = time.monotonic() + s
+        while time.monotonic() < end:
+            for key, _ in sel.select(timeout=0.01):
+                key.data()
+
+    try:
+        waiting = _connect(path)
+        waiting.sendall(b'{"cmd": "freeze"}\n{"cmd": "learn", "on": true}\n')
+        pump()
+        assert len(pending) == 1
+        waiting.settimeout(0.1)
+        with pytest.raises(TimeoutError):
+            waiting.recv(4096)
+        with _connect(path) as other:
+            other.sendall(b'{"cmd": "status"}\n')
+            pump()
+            assert other.recv(4096) == b'{"ok": true, "echo": "status"}\n'
+        clock.t += IDLE_S + 1
+        server.housekeep()
+        assert len(server.clients) == 1
+        pending[0].answer({"persisted": True})
+        pump()
+        waiting.settimeout(5)
+        got = b""
+        while got.count(b"\n") < 2:
+            got += waiting.recv(4096)
+        assert got == b'{"ok": true, "persisted": true}\n{"ok": true, "echo": "learn"}\n'
+        waiting.sendall(b'{"cmd": "freeze"}\n')
+        pump()
+        pending[1].refuse("not saved")
+        assert waiting.recv(4096) == b'{"ok": false, "error": "not saved"}\n'
+        waiting.close()
+    finally:
+        server.close()
         sel.close()

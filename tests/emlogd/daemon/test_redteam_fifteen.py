@@ -164,12 +164,11 @@ sys.exit(main(sys.argv[1:]))
 """``emlogd`` with every fsync taking 0.3 s more (a slow SD card, a stalled disk)."""
 
 
-@pytest.mark.xfail(strict=True, reason="open: the state file is saved in the loop's thread")
 def test_a_slow_disk_does_not_hold_the_outputs(tmp_path: Path) -> None:
     """Every fsync takes 0.3 s (a slow SD card), the EMlog sends a VHW every 0.1 s and
-    a ``freeze`` saves the state file: no VHW waits 0.4 s for the next. Open: the save
-    (the file's fsync, then its directory's) runs in the loop's one thread, and every
-    output waits for it (0.6 s here)."""
+    a ``freeze`` saves the state file: no VHW waits 0.4 s for the next, and the freeze
+    is answered that it persisted. The save (the file's fsync, then its directory's)
+    ran in the loop's one thread, and every output waited for it (0.6 s here)."""
     work = make_work(tmp_path, PD0_CONFIG)
     StateStore(work / "state" / "state.yaml").save({"emlog1": saved_calibration(0.1)})
     argv = [sys.executable, "-c", SLOW_FSYNC, "run", "--config", "emlogd.yaml"]
@@ -178,7 +177,10 @@ def test_a_slow_disk_does_not_hold_the_outputs(tmp_path: Path) -> None:
         try:
             tty.setraw(d.fd)
             sock = str(work / "run" / "control.sock")
-            freeze = threading.Timer(0.5, lambda: request(sock, {"cmd": "freeze"}, timeout_s=10))
+            answers: list[dict[str, object]] = []
+            freeze = threading.Timer(
+                0.5, lambda: answers.append(request(sock, {"cmd": "freeze"}, timeout_s=10))
+            )
             freeze.start()
             out: list[float] = []
             end = time.monotonic() + 1.8
@@ -195,6 +197,7 @@ def test_a_slow_disk_does_not_hold_the_outputs(tmp_path: Path) -> None:
             d.kill()
     gaps = [b - a for a, b in itertools.pairwise(out)]
     assert len(out) > 8 and max(gaps) < 0.4, (len(out), max(gaps, default=None))
+    assert answers and answers[0]["ok"] and answers[0]["persisted"] is True, answers
 
 
 def test_a_reader_that_leaves_the_output_pty_cooked_costs_the_others_nothing(
