@@ -3,7 +3,10 @@ daemon's signals while ``emlogd run`` starts: ``tests/emlogd/daemon/test_redteam
 
 from __future__ import annotations
 
+import os
 import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -37,3 +40,37 @@ def test_another_command_holds_no_signal(
     assert main(["check-config", str(cfg)]) == 0
     assert "ok" in capsys.readouterr().out
     assert (signal.getsignal(signal.SIGHUP), signal.getsignal(signal.SIGUSR1)) == before
+
+
+HOLD_PROBE = """
+import signal, sys
+
+class Probe:
+    def find_spec(self, name, path, target=None):
+        if name == "emlogd.cli":  # the command line's heavy imports about to start
+            held = signal.getsignal(signal.SIGHUP) not in (signal.SIG_DFL, signal.SIG_IGN)
+            print("held" if held else "not held", flush=True)
+            raise SystemExit(0)
+        return None
+
+sys.meta_path.insert(0, Probe())
+from emlogd.entry import main
+main(sys.argv[1:])
+"""
+
+
+@pytest.mark.parametrize(("argv", "said"), [(["run"], "held"), (["check-config"], "not held")])
+def test_run_holds_sighup_before_the_command_line_is_imported(argv: list[str], said: str) -> None:
+    """In a fresh interpreter, when ``emlogd.cli`` (numpy, the whole pipeline: a second
+    of a start) is about to be imported, ``emlogd run`` already catches SIGHUP; another
+    command does not."""
+    repo = Path(__file__).resolve().parents[2]
+    out = subprocess.run(
+        [sys.executable, "-c", HOLD_PROBE, *argv],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=dict(os.environ, PYTHONPATH=str(repo)),
+        check=False,
+    )
+    assert out.stdout.strip() == said, out.stderr[-2000:]
