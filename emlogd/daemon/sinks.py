@@ -57,6 +57,7 @@ from typing import BinaryIO, Protocol
 
 from drivers.errors import ConfigError
 from emlogd.daemon.listen import AcceptBudget, AcceptPause
+from emlogd.daemon.logsetup import EventLimiter
 
 TCP_BACKLOG_BYTES = 64 * 1024
 """Default largest pending output per TCP client (the daemon's backlog plus the
@@ -571,7 +572,7 @@ The pty's modes are checked as often (:meth:`drivers.io.vpty.VirtualPort.check_m
 
 MODES_LOG_S = 60.0
 """Least time between two ``pty_modes_restored`` lines of one pty, s: a reader that sets
-its modes at every open is one line a minute."""
+its modes at every open is one line a minute (:class:`~emlogd.daemon.logsetup.EventLimiter`)."""
 
 
 class PtySink:
@@ -605,8 +606,7 @@ class PtySink:
         self.monotonic = monotonic
         self._next_check = monotonic() + LINK_CHECK_S
         self._problem = ""
-        self._modes_restored = 0
-        self._next_modes_log = -math.inf
+        self._modes_told = EventLimiter(MODES_LOG_S, frozenset({"pty_modes_restored"}))
 
     def housekeep(self) -> None:
         """Every :data:`LINK_CHECK_S`: the link published again if it was removed, the
@@ -617,10 +617,9 @@ class PtySink:
             return
         self._next_check = now + LINK_CHECK_S
         if self.port.check_modes():
-            self._modes_restored += 1
-            if now >= self._next_modes_log:
-                self._next_modes_log = now + MODES_LOG_S
-                n, self._modes_restored = self._modes_restored, 0
+            untold = self._modes_told.allow(self.name, "pty_modes_restored", now)
+            if untold is not None:
+                n = untold + 1
                 self._note(
                     "pty_modes_restored",
                     f"{self.port.link}: a reader changed the pty's modes; put back to raw "

@@ -486,3 +486,34 @@ def test_a_removed_pty_link_is_published_again(tmp_path: Path) -> None:
     finally:
         sink.close()
     assert str(link.readlink()) == "/dev/null"
+
+
+def test_a_pty_whose_modes_a_reader_keeps_changing_is_one_line_a_minute(tmp_path: Path) -> None:
+    """A reader that sets canonical mode before every link check: the modes are put back
+    at each check, and ``pty_modes_restored`` is said once per ``MODES_LOG_S``, the next
+    line with how many times since the one before."""
+    import os
+    import termios
+
+    from emlogd.daemon.sinks import LINK_CHECK_S, MODES_LOG_S, PtySink
+
+    t = [0.0]
+    notes: list[tuple[str, str]] = []
+    link = tmp_path / "emlog0"
+    sink = PtySink(link, on_event=lambda k, d: notes.append((k, d)), monotonic=lambda: t[0])
+    fd = os.open(link, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        checks = int(MODES_LOG_S / LINK_CHECK_S)
+        for _ in range(checks + 1):
+            attrs = termios.tcgetattr(fd)
+            attrs[3] |= termios.ICANON
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+            t[0] += LINK_CHECK_S
+            sink.housekeep()
+            assert not termios.tcgetattr(fd)[3] & termios.ICANON
+        said = [d for k, d in notes if k == "pty_modes_restored"]
+        assert len(said) == 2, said
+        assert said[0].endswith("(1 time)") and said[1].endswith(f"({checks} times)"), said
+    finally:
+        os.close(fd)
+        sink.close()
