@@ -38,7 +38,7 @@ def once_per_run(
             result = pickle.loads(done.read_bytes())
         else:
             folder = root / f"once-{name}"
-            folder.mkdir()
+            folder.mkdir(exist_ok=True)  # a build that failed is tried again
             result = build(folder)
             done.write_bytes(pickle.dumps(result))
     assert isinstance(result, kind)
