@@ -20,17 +20,33 @@ TIDE_PERIOD_S = 44_712.0
 """The ``tide`` variants' period: the semi-diurnal M2 tide's 12.42 h, s."""
 
 
-def tide(t: float, scale: float = 1.0) -> tuple[float, float]:
+def tide(
+    t: float, scale: float = 1.0, phase: float = 0.0, turn_deg: float = 0.0
+) -> tuple[float, float]:
     """The tidal current the ``tide`` variants add, (north, east) in knots at epoch
     seconds ``t``: a semi-diurnal ellipse of ``scale`` × :data:`TIDE_KN` along north and
-    a third of it across, turning over :data:`TIDE_PERIOD_S`."""
-    w = 2.0 * math.pi * t / TIDE_PERIOD_S
-    return scale * TIDE_KN * math.cos(w), scale * TIDE_KN / 3.0 * math.sin(w)
+    a third of it across, turning over :data:`TIDE_PERIOD_S`; ``phase`` (a fraction of
+    the period) later in its cycle and its major axis turned ``turn_deg`` clockwise from
+    north (the ``tide-pNN``/``-r90`` variants: the same log met at another hour of the
+    tide, or in a stream across it)."""
+    w = 2.0 * math.pi * (t + phase * TIDE_PERIOD_S) / TIDE_PERIOD_S
+    n, e = scale * TIDE_KN * math.cos(w), scale * TIDE_KN / 3.0 * math.sin(w)
+    if not turn_deg:
+        return n, e
+    r = math.radians(turn_deg)
+    return n * math.cos(r) - e * math.sin(r), n * math.sin(r) + e * math.cos(r)
 
 
-def add_current(sog_kn: float, cog_deg: float, t: float, scale: float = 1.0) -> tuple[float, float]:
+def add_current(
+    sog_kn: float,
+    cog_deg: float,
+    t: float,
+    scale: float = 1.0,
+    phase: float = 0.0,
+    turn_deg: float = 0.0,
+) -> tuple[float, float]:
     """A ground velocity (knots, degrees) with :func:`tide`'s current added."""
-    cn, ce = tide(t, scale)
+    cn, ce = tide(t, scale, phase, turn_deg)
     a = math.radians(cog_deg)
     vn, ve = sog_kn * math.cos(a) + cn, sog_kn * math.sin(a) + ce
     return math.hypot(vn, ve), math.degrees(math.atan2(ve, vn)) % 360.0

@@ -345,9 +345,11 @@ def first_date(text: str) -> str:
     return t.date().isoformat()
 
 
-def tidal_rmc(f: list[str], scale: float = 1.0) -> list[str]:
-    """RMC's speed and course over ground with :func:`tide`'s current (times ``scale``)
-    added."""
+def tidal_rmc(
+    f: list[str], scale: float = 1.0, phase: float = 0.0, turn_deg: float = 0.0
+) -> list[str]:
+    """RMC's speed and course over ground with :func:`tide`'s current (times ``scale``,
+    at ``phase`` of its cycle, its axis turned ``turn_deg``) added."""
     if kind_of(f) != "RMC" or len(f) < 9:
         return f
     t = _rmc_time(f)
@@ -357,7 +359,7 @@ def tidal_rmc(f: list[str], scale: float = 1.0) -> list[str]:
         return f
     if t is None:
         return f
-    v, c = add_current(sog, cog, t.timestamp(), scale)
+    v, c = add_current(sog, cog, t.timestamp(), scale, phase, turn_deg)
     g = list(f)
     g[7], g[8] = f"{v:.2f}", f"{c:.1f}"
     return g

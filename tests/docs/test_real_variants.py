@@ -527,7 +527,30 @@ def test_the_tide_moves_the_ground_not_the_water(name: str, scale: float, tmp_pa
     assert (rep.t_start, rep.t_end) == (base.t_start, base.t_end)
 
 
-@pytest.mark.parametrize("name", ["tide", "tide-strong", "tide-gnss-0.5hz"])
+def test_the_tide_met_at_another_hour_or_across() -> None:
+    """``tide-pNN``/``-r90``: the same tide a fraction of its cycle later, its axis turned
+    clockwise (a stream running east where ``tide``'s runs north), and one variant for
+    every other (phase, axis) pair."""
+    t, period = 1.4e9, rv.vcsv.TIDE_PERIOD_S
+    assert rv.vcsv.tide(t, 1.0, 0.25) == pytest.approx(rv.vcsv.tide(t + period / 4))
+    n, e = rv.vcsv.tide(t)
+    n90, e90 = rv.vcsv.tide(t, 1.0, 0.0, 90.0)
+    assert (n90, e90) == pytest.approx((-e, n))
+    sog, cog = rv.add_current(0.0, 0.0, t, 1.0, 0.5, 90.0)
+    cn, ce = rv.vcsv.tide(t, 1.0, 0.5, 90.0)
+    assert sog == pytest.approx(np.hypot(cn, ce), abs=1e-9)
+    assert math.radians(cog) == pytest.approx(math.atan2(ce, cn) % (2 * math.pi))
+    names = {n for k, n in VARIANTS if k == "nmea" and n.startswith("tide-")}
+    hours = {
+        "tide" + (f"-p{round(p * 100)}" if p else "") + (f"-r{r:.0f}" if r else "")
+        for p in rv.TIDE_PHASES
+        for r in rv.TIDE_TURNS_DEG
+    } - {"tide"}
+    assert hours <= names and len(hours) == 7
+    assert all(VARIANTS[("nmea", h)].ground_only for h in hours)
+
+
+@pytest.mark.parametrize("name", ["tide", "tide-strong", "tide-gnss-0.5hz", "tide-p50-r90"])
 def test_a_ground_only_variant_is_scored_on_the_same_lines_without_the_tide(name: str) -> None:
     """A tidal variant's water (the log its replay is scored against) holds the same
     lines as the variant, in place, differing only in RMC's speed and course over ground:
