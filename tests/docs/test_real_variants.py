@@ -603,6 +603,37 @@ def test_the_whole_suite_per_variant(
     assert rv.verdict(row, _BASES[kind]) == "ok"
 
 
+_TIDE_LEAK = (
+    "the tide met at another hour: a bias or scale takes what the learner's current has "
+    "not reached, validated on one heading (docs/REAL_DATA.md, the same tide at other hours)"
+)
+
+TIDE_HOURS_FAILING: dict[tuple[str, str], str] = {
+    ("irene-2013-09-22-leman.nmea", "tide-p50"): f"a 5-min window 1.23 times raw's: {_TIDE_LEAK}",
+    ("irene-2014-06-29-leman.nmea", "tide-p25"): f"a 5-min window 1.30 times raw's: {_TIDE_LEAK}",
+    ("irene-2014-06-29-leman.nmea", "tide-p50"): f"a 5-min window 1.82 times raw's: {_TIDE_LEAK}",
+    ("irene-2014-06-29-leman.nmea", "tide-p50-r90"): (
+        f"a 5-min window 1.18 times raw's: {_TIDE_LEAK}"
+    ),
+    (
+        "psaros33-2014-08-22-leman.nmea",
+        "tide-p50",
+    ): f"a 5-min window 1.41 times raw's: {_TIDE_LEAK}",
+    ("psaros33-2014-08-22-leman.nmea", "tide-p50-r90"): (
+        f"a 5-min window 2.96 times raw's: {_TIDE_LEAK}"
+    ),
+    (
+        "psaros33-2014-08-22-leman.nmea",
+        "tide-p75",
+    ): f"a 5-min window 1.24 times raw's: {_TIDE_LEAK}",
+    ("dasht-2016-05-07-trieste.nmea", "tide-p25"): (
+        f"worse than raw over the log (0.316 against 0.279 m/s), the filter's scale 1.151: "
+        f"{_TIDE_LEAK}"
+    ),
+}
+"""The runs of the tide at other hours (``tide-pNN``, ``-r90``) that fail on this code,
+with their measured figures; the other 47 of the 56 hold (docs/REAL_DATA.md)."""
+
 OTHER_RECORDINGS: tuple[tuple[str, str], ...] = (
     ("irene-2007-11-03-leman.nmea", "tide-strong"),
     ("irene-2007-11-03-leman.nmea", "tide-gnss-0.5hz"),
@@ -612,6 +643,7 @@ OTHER_RECORDINGS: tuple[tuple[str, str], ...] = (
     ("irene-2007-11-03-leman.nmea", "rmc-no-course"),
     ("irene-2013-09-22-leman.nmea", "rmc-no-course"),
     ("psaros33-2014-08-22-leman.nmea", "rmc-no-course"),
+    *TIDE_HOURS_FAILING,
 )
 """Variants run on another recording than their kind's, whose calibration the replay
 applies (so a wrong one shows): the 3-kn tide on Irene 2007, scored against the
@@ -639,6 +671,7 @@ KNOWN_OTHER: dict[tuple[str, str], str] = {
         "courses over 15 m of 1.85-m positions are degrees off the receiver's: a 5-min "
         "window 1.31 times raw's"
     ),
+    **TIDE_HOURS_FAILING,
 }
 """What does not hold yet among :data:`OTHER_RECORDINGS`: strict xfails."""
 
