@@ -84,7 +84,7 @@ from emlogd.offline.dataset import (
 from emlogd.offline.headings import heading_refusal, needs_heading, why_no_sample
 from emlogd.offline.online import TraceWriter, run_online
 from emlogd.pipeline.calibration import Calibration
-from emlogd.pipeline.integrity import STALL_FRACTION, STALL_MIN_REF_MPS
+from emlogd.pipeline.integrity import STALL_FRACTION, STALL_MIN_REF_MPS, ZERO_MPS
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import AVERAGE_S
 
@@ -500,7 +500,12 @@ def _learnable(p: Aligned, settings: UutSettings) -> Aligned:
     slower than ``min_ref_speed_mps``."""
     ref = p.ref
     with np.errstate(invalid="ignore"):
-        stalled = (ref >= STALL_MIN_REF_MPS) & (p.raw < STALL_FRACTION * ref)
+        at_zero = np.abs(p.raw) <= ZERO_MPS
+        stalled = np.where(
+            at_zero,
+            np.abs(ref) > 2.0 * ZERO_MPS,
+            (ref >= STALL_MIN_REF_MPS) & (p.raw < STALL_FRACTION * ref),
+        )
         slow = np.abs(ref) < settings.min_ref_speed_mps
     return dataclasses.replace(p, ref=np.where(stalled | slow, np.nan, ref))
 

@@ -66,6 +66,15 @@ current faster than the water speed also gives it; such samples are then only sk
 STALL_MIN_REF_MPS = 0.5
 """The stall rule applies while the reference is at least this fast, m/s."""
 
+ZERO_MPS = 2.0 * QUANTUM_MPS
+"""A reading within this of zero is a log reading zero (:meth:`UutHealth.stalled`): below
+its threshold a log reads 0.00 (a dead band), which says that it does not measure, not
+that the water is still. Against a reference that shows the vessel moving such a
+reading is neither learnt from nor validated, from its first sample, at any speed the
+learner learns at: a dead band of 0.5 m/s left the readings between the learning speed
+and :data:`STALL_MIN_REF_MPS` in the fit, each 0.3–0.5 m/s off, every time a vessel
+stopping and starting crossed it."""
+
 
 @dataclass(frozen=True, slots=True)
 class Envelope:
@@ -253,7 +262,7 @@ class UutHealth:
             self._ref_lo = min(self._ref_lo, self._ref_s)
             self._ref_hi = max(self._ref_hi, self._ref_s)
         self._variance(t, raw_mps, ref_mps, heading_deg)
-        at_zero = abs(raw_mps) <= 2.0 * QUANTUM_MPS
+        at_zero = abs(raw_mps) <= ZERO_MPS
         if ref_mps is not None and ref_mps > self.moving_mps:
             self._t_moving = t
         if (
@@ -322,12 +331,14 @@ class UutHealth:
 
     @staticmethod
     def stalled(raw_mps: float, ref_mps: float | None) -> bool:
-        """A reading far below the reference at speed (:data:`STALL_FRACTION`)."""
-        return (
-            ref_mps is not None
-            and ref_mps >= STALL_MIN_REF_MPS
-            and raw_mps < STALL_FRACTION * ref_mps
-        )
+        """A reading far below the reference at speed (:data:`STALL_FRACTION`), or at
+        zero while the reference moves (:data:`ZERO_MPS`; the caller gives a reference
+        only where it is valid, at or above the learning speed)."""
+        if ref_mps is None:
+            return False
+        if abs(raw_mps) <= ZERO_MPS:
+            return abs(ref_mps) > 2.0 * ZERO_MPS
+        return ref_mps >= STALL_MIN_REF_MPS and raw_mps < STALL_FRACTION * ref_mps
 
 
 class JumpFilter:

@@ -8,9 +8,10 @@ the speed and the turn rate); a log reading 4 % low while the sea is up for 20 m
 noise up too); fouling that sets in during the learn (the gain 8 % lower over 40 min,
 then steady); a log whose gain changes above 2 m/s (a knee, beyond EM4's curve); a
 reference DVL whose own scale is 1 % high in one water mass (20 min); a log quantised
-to 0.1 kn whose firmware repeats its last value for 3 s. ``soak``: a simulation and a
-replay each; every figure is in docs/RELIABILITY.md, measured by running this file as
-a script::
+to 0.1 kn whose firmware repeats its last value for 3 s; logs without error (the
+promise is sharpest where raw is good), one with a dead band of 0.5 m/s, in a harbour's
+stops and starts. ``soak``: a simulation and a replay each; every figure is in
+docs/RELIABILITY.md, measured by running this file as a script::
 
     PYTHONPATH=. python tests/emlogd/offline/test_simworlds3.py [CASE ...]
 """
@@ -30,10 +31,13 @@ import numpy as np
 import pytest
 
 import emlogd.offline.simsensors as simsensors
-from drivers.nmea0183 import encode_vhw
+import tests.emlogd.offline.test_simphysics as simphysics
+from calib.models import Params
+from drivers.nmea0183 import encode_vbw, encode_vhw
 from drivers.records import KNOT_MPS
 from emlogd.offline.simkinematics import START_EPOCH_S, Kinematics
-from tests.emlogd.offline.test_simphysics import RATIO, Case, measure
+from emlogd.offline.simulate import simulate
+from tests.emlogd.offline.test_simphysics import RATIO, Case, measure, pinned
 
 HEEL_DEG_PER_MPS_DPS = 1.0
 """``heel-gain``: the heel in a turn, degrees per (m/s × °/s) of speed times turn rate
@@ -150,6 +154,60 @@ class Repeating:
         return encode_vhw(v, talker=talker)
 
 
+EXACT = tuple(
+    dataclasses.replace(e, params=Params("EM4", 0.0, 0.0, 0.0))
+    for e in (simsensors.EMLOG1, simsensors.EMLOG2)
+)
+"""Both logs without error (EM4 with a = m = b = 0), their noise, lag and rate as
+simulated: a log calibrated well before the daemon runs on it."""
+
+HARBOUR_S = (240.0, 60.0, 30.0, 120.0)
+"""``dead-band-harbour``: a stop and a start every 240 s of each trajectory, s: 60 s at
+rest, 30 s speeding up to the trajectory's speed, 120 s under way, 30 s stopping (the
+current as simulated carries the vessel at rest)."""
+
+
+def harbour(k: Kinematics) -> Kinematics:
+    """The speed through the water times the manoeuvres' envelope (:data:`HARBOUR_S`)."""
+    period, rest, ramp, way = HARBOUR_S
+    env = np.interp(
+        np.mod(k.t, period),
+        [0.0, rest, rest + ramp, rest + ramp + way, period],
+        [0.0, 0.0, 1.0, 1.0, 0.0],
+    )
+    return dataclasses.replace(k, surge=k.surge * env, sway=k.sway * env)
+
+
+DEAD_BAND_MPS = 0.5
+"""``dead-band-harbour``: emlog2 reads zero below this reading, m/s (VHW and VBW);
+``dead-band-harbour-1hz``: both logs."""
+
+
+class DeadBand:
+    """The sentences of the logs ``talkers`` reading 0.00 below :data:`DEAD_BAND_MPS`,
+    the others' as sent."""
+
+    def __init__(self, talkers: tuple[str, ...]) -> None:
+        self.talkers = talkers
+
+    def vhw(self, v: float, *, talker: str) -> str:
+        if talker in self.talkers and v < DEAD_BAND_MPS:
+            v = 0.0
+        return encode_vhw(v, talker=talker)
+
+    def vbw(self, long_: float, trans: float, *, talker: str) -> str:
+        if talker in self.talkers and long_ < DEAD_BAND_MPS:
+            long_ = 0.0
+        return encode_vbw(long_, trans, talker=talker)
+
+
+DEAD_BANDS = {
+    "dead-band-harbour": (simsensors.EMLOG2.talker,),
+    "dead-band-harbour-1hz": (simsensors.EMLOG1.talker, simsensors.EMLOG2.talker),
+}
+"""The worlds whose logs have a dead band: their talkers."""
+
+
 WORLDS = {
     c.name: c
     for c in (
@@ -159,8 +217,34 @@ WORLDS = {
         Case("speed-knee", speed_knee.__doc__ or "", log_view=speed_knee),
         Case("dvl-water-mass", water_mass.__doc__ or "", dvl_wrap=water_mass),
         Case("quantised-repeat", Repeating.__doc__ or ""),
+        Case("exact-logs", EXACT.__doc__ or "both logs without error"),
+        Case("dead-band-harbour", "emlog2 with a dead band, stopping and starting", motion=harbour),
+        Case("dead-band-harbour-1hz", "both logs with a dead band, the same", motion=harbour),
     )
 }
+
+SENSORS: dict[str, tuple[int, tuple[simsensors.EmlogSpec, ...]]] = {
+    "exact-logs": (1, EXACT),
+    "dead-band-harbour": (2, EXACT),
+    "dead-band-harbour-1hz": (2, EXACT),
+}
+"""The worlds whose logs are not the simulator's: the seed and the two logs. The dead
+band is measured on seed 2, whose trial the exact logs pass (seed 1's is open:
+:data:`OPEN`)."""
+
+OPEN = {
+    "exact-logs": "open: emlog2's window from 1201 s 1.558x raw (0.0784 vs 0.0503 m/s): a "
+    "scale of -0.03 learnt on the transit's one heading while the simulated current "
+    "turned (0.2 m/s in 20 min, the speed falling with it), applied at 1268 s after a "
+    "turn; raw's own current and the common sea, fitted over 30 min of a current that "
+    "moved, left raw 0.09 and 0.12 m/s against the candidate's 0.06 and 0.07 (a "
+    "constant current: 1.000; seeds 2-5 with logs 1 % off: 1.000) (docs/RELIABILITY.md)",
+    "dead-band-harbour-1hz": "open: emlog1's window from 604 s 1.090x raw (0.0717 vs 0.0658 "
+    "m/s): a scale of 0.041 (b 0) learnt and applied at 455 s while its lag was not yet "
+    "measured (0 s used against 3.2 s; found at 1017 s), each ramp's readings paired 3.2 s "
+    "off the reference; withdrawn at 656 s (docs/RELIABILITY.md)",
+}
+"""The worlds that break the promise, pinned as strict xfails until fixed."""
 
 VHW_WORLDS: dict[str, Callable[[], Callable[..., str]]] = {"quantised-repeat": Repeating}
 """The worlds whose EMlogs' VHW encoder is replaced."""
@@ -170,6 +254,17 @@ def _measure(name: str, tmp: Path, mp: pytest.MonkeyPatch) -> dict[str, Any]:
     make = VHW_WORLDS.get(name)
     if make is not None:
         mp.setattr(simsensors, "encode_vhw", make())
+    if name in DEAD_BANDS:
+        band = DeadBand(DEAD_BANDS[name])
+        mp.setattr(simsensors, "encode_vhw", band.vhw)
+        mp.setattr(simsensors, "encode_vbw", band.vbw)
+    if name in SENSORS:
+        seed, logs = SENSORS[name]
+
+        def with_logs(outdir: str | Path, **kw: Any) -> Any:
+            return simulate(outdir, **(kw | {"seed": seed}), emlogs=(logs[0], logs[1]))
+
+        mp.setattr(simphysics, "simulate", with_logs)
     return measure(WORLDS[name], tmp, mp)
 
 
@@ -223,9 +318,25 @@ class TestWorlds:
         assert kn == [2.3, 2.3, 2.3, 2.7]
         assert ",2.34,N," in rep(2.34 * KNOT_MPS, talker=simsensors.EMLOG2.talker)
 
+    def test_the_harbour_and_the_dead_band(self) -> None:
+        """The manoeuvres: at rest, half-way up, under way, half-way down, at rest; the dead
+        band zeroes emlog2's readings below 0.5 m/s only, emlog1's never; the exact
+        logs read what they see."""
+        k = dataclasses.replace(_k(), surge=np.full(40000, 2.0))
+        h = harbour(k).surge
+        assert h[[300, 750, 1500, 2250, 2700]] == pytest.approx([0.0, 1.0, 2.0, 1.0, 0.0])
+        t1, t2 = simsensors.EMLOG1.talker, simsensors.EMLOG2.talker
+        band = DeadBand(DEAD_BANDS["dead-band-harbour"])
+        assert ",0.00,N," in band.vhw(0.49, talker=t2)
+        assert ",0.97,N," in band.vhw(0.5, talker=t2)
+        assert ",0.95,N," in band.vhw(0.49, talker=t1)
+        assert band.vbw(0.3, 0.1, talker=t2).startswith(f"${t2}VBW,0.00,")
+        assert ",0.00,N," in DeadBand(DEAD_BANDS["dead-band-harbour-1hz"]).vhw(0.49, talker=t1)
+        assert all(e.params.forward(2.0) == 2.0 for e in EXACT)
+
 
 @pytest.mark.soak
-@pytest.mark.parametrize("name", sorted(WORLDS))
+@pytest.mark.parametrize("name", pinned(WORLDS, OPEN))
 def test_every_window_within_raw(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:

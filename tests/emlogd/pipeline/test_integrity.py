@@ -155,6 +155,18 @@ class TestUutHealth:
         assert not UutHealth.stalled(0.5, 0.6)
         assert not UutHealth.stalled(0.2, None)
 
+    def test_a_reading_at_zero_while_the_reference_moves(self) -> None:
+        """A log below its threshold (a dead band) reads 0.00: at any reference speed
+        that is learnt (0.3–0.5 m/s too, below the stall rule's speed), and astern, the
+        reading is stalled from its first sample; at rest it is not, nor is a slow
+        reading above zero."""
+        assert UutHealth.stalled(0.0, 0.35)
+        assert UutHealth.stalled(0.005, 0.45)
+        assert UutHealth.stalled(0.0, -0.4)
+        assert not UutHealth.stalled(0.0, 0.02)
+        assert not UutHealth.stalled(0.0, None)
+        assert not UutHealth.stalled(0.02, 0.35)
+
     def test_constant_speed_and_reference_is_no_fault(self) -> None:
         """A steady log on a steady reference is not stuck."""
         h = UutHealth(stuck_s=30.0)
