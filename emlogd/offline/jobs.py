@@ -84,7 +84,7 @@ from emlogd.offline.dataset import (
 from emlogd.offline.headings import heading_refusal, needs_heading, why_no_sample
 from emlogd.offline.online import TraceWriter, run_online
 from emlogd.pipeline.calibration import Calibration
-from emlogd.pipeline.integrity import STALL_FRACTION, STALL_MIN_REF_MPS, ZERO_MPS
+from emlogd.pipeline.integrity import STALL_FRACTION, UutHealth
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import AVERAGE_S
 
@@ -413,8 +413,9 @@ def calibrate(
         fit_t, fit_raw, fit_ref, fit_heading = concat_usable(learnt, settings.current)
         if fit_raw.size == 0:
             raise OfflineError(
-                f"no reading to learn from: all {raw.size} are stalled (below "
-                f"{STALL_FRACTION:g} of the reference at speed) or the reference is below "
+                f"no reading to learn from: all {raw.size} are stalled (at zero while the "
+                f"reference moves, or below {STALL_FRACTION:g} of it at speed) or the "
+                "reference is below "
                 f"{settings.min_ref_speed_mps:g} m/s"
             )
         if window > 0.0:
@@ -500,14 +501,12 @@ def _learnable(p: Aligned, settings: UutSettings) -> Aligned:
     slower than ``min_ref_speed_mps``."""
     ref = p.ref
     with np.errstate(invalid="ignore"):
-        at_zero = np.abs(p.raw) <= ZERO_MPS
-        stalled = np.where(
-            at_zero,
-            np.abs(ref) > 2.0 * ZERO_MPS,
-            (ref >= STALL_MIN_REF_MPS) & (p.raw < STALL_FRACTION * ref),
-        )
+        stalled = np.asarray(_STALLED(p.raw, ref), dtype=bool)  # the learner's rule, per sample
         slow = np.abs(ref) < settings.min_ref_speed_mps
     return dataclasses.replace(p, ref=np.where(stalled | slow, np.nan, ref))
+
+
+_STALLED = np.frompyfunc(UutHealth.stalled, 2, 1)
 
 
 def _projection(cur: tuple[float, float] | None, heading_deg: FloatArray) -> FloatArray:

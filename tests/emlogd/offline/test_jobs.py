@@ -276,6 +276,18 @@ class TestStalledReadings:
         with pytest.raises(OfflineError, match="all 1200 are stalled"):
             calibrate([self._stalling(slice(None))], s, "ls", lag=0.0, average_s=0.0)
 
+    def test_a_dead_band_below_the_stall_speed_does_not_pull_the_fit(self) -> None:
+        """Two minutes at 0.4 m/s (above the learning speed, below the stall rule's
+        0.5 m/s) with the log reading 0.00 (its dead band): left out as the daemon's
+        learner leaves it, the fit is the sensor's."""
+        rec = self._stalling(slice(600, 720))
+        v = rec.v_ref.copy()
+        v[600:720] = 0.4
+        s = UutSettings(port="log", reference_port="log")
+        res = calibrate([dataclasses.replace(rec, v_ref=v)], s, "ls", lag=0.0, average_s=0.0)
+        assert res.params.m == pytest.approx(0.1, abs=1e-6)
+        assert res.params.b_mps == pytest.approx(0.05, abs=1e-6)
+
 
 class TestNothingAligns:
     """When no reading pairs with a reference, the error names the cause with its figures."""
