@@ -92,6 +92,7 @@ from variants_nmea import (
     thin_gnss,
     ths_of,
     tidal_rmc,
+    tide_hours,
     true_heading_as,
     truncated,
     vbw,
@@ -99,6 +100,8 @@ from variants_nmea import (
     vhw_magnetic_only,
     vhw_twice,
 )
+from variants_nmea import TIDE_PHASES as TIDE_PHASES  # the tests' hours
+from variants_nmea import TIDE_TURNS_DEG as TIDE_TURNS_DEG
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -152,40 +155,6 @@ class Variant:
 
 def _nm(fn: Callable[[list[str]], list[str] | None]) -> Callable[[str], str]:
     return lambda text: expand(map_nmea(text, fn))
-
-
-TIDE_PHASES = (0.0, 0.25, 0.5, 0.75)
-"""The ``tide`` variant's hours met by the ``tide-pNN`` variants: fractions of its
-12.42-h cycle later (0: the ``tide`` variant's own)."""
-
-TIDE_TURNS_DEG = (0.0, 90.0)
-"""... and its major axis north (``tide``'s) or turned to east (``-r90``)."""
-
-
-def _tide_hours() -> tuple[Variant, ...]:
-    """The ``tide`` variant at the other phases and axes of :data:`TIDE_PHASES` ×
-    :data:`TIDE_TURNS_DEG`: one log meets a stream at one hour, so a rule chosen on one
-    recording's tide is checked on the same tide met at other hours and across."""
-    out = []
-    for phase in TIDE_PHASES:
-        for turn in TIDE_TURNS_DEG:
-            if not phase and not turn:
-                continue  # the ``tide`` variant
-            name = (
-                "tide"
-                + (f"-p{round(phase * 100)}" if phase else "")
-                + (f"-r{turn:.0f}" if turn else "")
-            )
-            out.append(
-                Variant(
-                    name,
-                    "nmea",
-                    _nm(lambda f, p=phase, r=turn: tidal_rmc(f, 1.0, p, r)),
-                    f"the 1.5-kn tide {phase:g} of its cycle later, its axis turned {turn:.0f}°",
-                    ground_only=True,
-                )
-            )
-    return tuple(out)
 
 
 VARIANTS: tuple[Variant, ...] = (
@@ -274,7 +243,7 @@ VARIANTS: tuple[Variant, ...] = (
         ground_only=True,
         water=thin_gnss(2.0),
     ),
-    *_tide_hours(),
+    *(Variant(n, "nmea", fn, doc, ground_only=True) for n, fn, doc in tide_hours()),
     Variant("log-lags-2s", "nmea", lagged(2.0), "the log 2 s behind the GNSS"),
     Variant("log-leads-2s", "nmea", lagged(-2.0), "the log 2 s ahead of the GNSS"),
     Variant("log-half-rate", "nmea", vhw_every(2), "every other VHW: the log at half its rate"),

@@ -368,6 +368,33 @@ def tidal_rmc(
 STRONG_TIDE = 2.0
 """The ``tide-strong`` variant's current, times the ``tide`` variant's (3 kn)."""
 
+TIDE_PHASES = (0.0, 0.25, 0.5, 0.75)
+"""The ``tide`` variant's hours met by the ``tide-pNN`` variants: fractions of its
+12.42-h cycle later (0: the ``tide`` variant's own)."""
+
+TIDE_TURNS_DEG = (0.0, 90.0)
+"""... and its major axis north (``tide``'s) or turned to east (``-r90``)."""
+
+
+def tide_hours() -> list[tuple[str, Callable[[str], str], str]]:
+    """(name, rewrite, description) of the ``tide`` variant at the other phases and axes
+    of :data:`TIDE_PHASES` × :data:`TIDE_TURNS_DEG`: one log meets a stream at one hour,
+    so a rule chosen on one recording's tide is checked on the same tide met at other
+    hours and across."""
+    out = []
+    for phase in TIDE_PHASES:
+        for turn in TIDE_TURNS_DEG:
+            if phase or turn:  # (0, 0): the ``tide`` variant
+                name = "tide" + (f"-p{round(phase * 100)}" if phase else "")
+                name += f"-r{turn:.0f}" if turn else ""
+
+                def rewrite(text: str, p: float = phase, r: float = turn) -> str:
+                    return expand(map_nmea(text, lambda f: tidal_rmc(f, 1.0, p, r)))
+
+                doc = f"the 1.5-kn tide {phase:g} of its cycle later, its axis turned {turn:.0f}°"
+                out.append((name, rewrite, doc))
+    return out
+
 
 def _line_times(lines: list[str]) -> list[float]:
     """Each line's time as ``emlogd import`` gives it: spread evenly between the RMC

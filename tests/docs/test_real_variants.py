@@ -609,25 +609,19 @@ _TIDE_LEAK = (
 )
 
 TIDE_HOURS_FAILING: dict[tuple[str, str], str] = {
-    ("irene-2013-09-22-leman.nmea", "tide-p50"): f"a 5-min window 1.23 times raw's: {_TIDE_LEAK}",
-    ("irene-2014-06-29-leman.nmea", "tide-p50-r90"): (
-        f"a 5-min window 1.18 times raw's: {_TIDE_LEAK}"
-    ),
-    (
-        "psaros33-2014-08-22-leman.nmea",
-        "tide-p50",
-    ): f"a 5-min window 1.41 times raw's: {_TIDE_LEAK}",
-    ("psaros33-2014-08-22-leman.nmea", "tide-p50-r90"): (
-        f"a 5-min window 2.96 times raw's: {_TIDE_LEAK}"
-    ),
-    (
-        "psaros33-2014-08-22-leman.nmea",
-        "tide-p75",
-    ): f"a 5-min window 1.24 times raw's: {_TIDE_LEAK}",
-    ("dasht-2016-05-07-trieste.nmea", "tide-p25"): (
-        f"worse than raw over the log (0.316 against 0.279 m/s), the filter's scale 1.151: "
-        f"{_TIDE_LEAK}"
-    ),
+    (f"{rec}.nmea", name): f"{why}: {_TIDE_LEAK}"
+    for rec, name, why in (
+        ("irene-2013-09-22-leman", "tide-p50", "a 5-min window 1.23 times raw's"),
+        ("irene-2014-06-29-leman", "tide-p50-r90", "a 5-min window 1.18 times raw's"),
+        ("psaros33-2014-08-22-leman", "tide-p50", "a 5-min window 1.41 times raw's"),
+        ("psaros33-2014-08-22-leman", "tide-p50-r90", "a 5-min window 2.96 times raw's"),
+        ("psaros33-2014-08-22-leman", "tide-p75", "a 5-min window 1.24 times raw's"),
+        (
+            "dasht-2016-05-07-trieste",
+            "tide-p25",
+            "worse than raw over the log (0.316 against 0.279 m/s), the filter's scale 1.151",
+        ),
+    )
 }
 """The runs of the tide at other hours (``tide-pNN``, ``-r90``) that fail on this code,
 with their measured figures; the other 47 of the 56 hold (docs/REAL_DATA.md)."""
