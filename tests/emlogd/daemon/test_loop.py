@@ -490,10 +490,13 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
     cfg = tmp_path / "emlogd.yaml"
     text = cfg.read_text()
     assert "  - {uut: emlog2, reference: dvl," in text
+    # its readings at 20x real time: held to the replay's rate and acceleration, not
+    # dropped as a babble (the log's own pty would carry its first sentences only)
     cfg.write_text(
         text.replace(
             "  - {uut: emlog2, reference: dvl,",
-            "  - {uut: emlog2, reference: dvl, pty: out/emlog2,",
+            "  - {uut: emlog2, reference: dvl, pty: out/emlog2, max_rate_hz: 10000,"
+            f" max_reading_accel_mps2: {SPEED**2:g},",
         )
     )
     links = tmp_path / "links"
