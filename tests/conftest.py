@@ -4,8 +4,19 @@ recordings imported once per run; the hypothesis profile of the run
 
 from __future__ import annotations
 
-import contextlib
 import os
+
+# One BLAS thread per process, set before numpy is first imported (this file is the
+# first the run imports; the daemons and commands the tests start inherit it): the run's
+# two workers on two cores each spawned an OpenBLAS thread per core, and on a busy
+# machine a small least-squares fit waited on a descheduled thread (numpy.linalg.lstsq
+# 2.7 ms -> 52 ms a call, test_twoaxis_learn's figure-8 0.3 s -> 12 s). An explicit
+# setting wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import contextlib
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 

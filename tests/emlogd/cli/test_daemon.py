@@ -34,10 +34,13 @@ def test_control_commands_without_daemon(
     assert "is emlogd running" in capsys.readouterr().err
 
 
+@pytest.mark.soak
 def test_demo_with_a_relative_workdir(
     capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """demo --workdir with a relative path runs (the daemon runs inside it) and keeps its state."""
+    """demo --workdir with a relative path runs (the daemon runs inside it) and keeps its state.
+    (Soak: the default run's tests/emlogd/offline/test_demo.py::
+    test_demo_runs_improves_and_matches_replay runs the same command and checks the same.)"""
     monkeypatch.chdir(tmp_path)
     rc = main(["demo", "--workdir", "demo_wd", "--speed", "50"])
     captured = capsys.readouterr()

@@ -81,8 +81,12 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         devices["emlog2"].stop()
         devices["emlog2"].join(5)
         d.pump(1.0)
+        unplugged = d.status()["ports"]
+        assert isinstance(unplugged, dict)
         devices["emlog2"] = FakeDevice(capture, "emlog2", links / "emlog2", speed=SPEED).start()
-        while not all(dev.finished.is_set() for dev in devices.values()):
+        # to the end of the capture of EMlog1 and the DVL (the replugged EMlog2 replays
+        # its own from the start, and goes on through the rest)
+        while not (devices["emlog1"].finished.is_set() and devices["dvl"].finished.is_set()):
             d.pump(0.5)
             assert d.running
         d.pump(0.5)
@@ -97,7 +101,7 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         # calibration has beaten it over its validation window (0.64 of raw here)
         assert e1["rmse_corrected"] < 0.75 * e1["rmse_raw"], e1
         assert sum(ports["junk"]["rejects"].values()) > 100  # the garbage port is counted
-        assert ports["emlog2"]["records"] > 0
+        assert ports["emlog2"]["records"] > unplugged["emlog2"]["records"] > 0  # read again
         vhw = [ln for ln in d.lines if ln[3:6] == b"VHW"]
         status = [ln for ln in d.lines if ln.startswith(b"$PEMLS")]
         assert len(vhw) > 200 and status
@@ -490,10 +494,13 @@ def test_a_log_with_its_own_pty_and_talker(tmp_path: Path, trial_files: dict[str
     cfg = tmp_path / "emlogd.yaml"
     text = cfg.read_text()
     assert "  - {uut: emlog2, reference: dvl," in text
+    # its readings at 20x real time: held to the replay's rate and acceleration, not
+    # dropped as a babble (the log's own pty would carry its first sentences only)
     cfg.write_text(
         text.replace(
             "  - {uut: emlog2, reference: dvl,",
-            "  - {uut: emlog2, reference: dvl, pty: out/emlog2,",
+            "  - {uut: emlog2, reference: dvl, pty: out/emlog2, max_rate_hz: 10000,"
+            f" max_reading_accel_mps2: {SPEED**2:g},",
         )
     )
     links = tmp_path / "links"

@@ -183,8 +183,10 @@ log_format: json
 """Two EMlogs: emlog1's sentences on the shared TCP output, emlog2's on its own."""
 
 
-def _talkers(port: int, masters: list[int]) -> bytes:
-    """What a client of the TCP output at ``port`` receives while both EMlogs send."""
+def _talkers(port: int, masters: list[int], want: bytes) -> bytes:
+    """What a client of the TCP output at ``port`` receives while both EMlogs send: 3
+    sentences each once ``want`` came (the other log's, sent with them, would have come
+    too), at most 10."""
     with socket.create_connection(("127.0.0.1", port), timeout=5.0) as c:
         c.setblocking(False)
         got = b""
@@ -194,6 +196,8 @@ def _talkers(port: int, masters: list[int]) -> bytes:
             time.sleep(0.2)
             with contextlib.suppress(BlockingIOError):
                 got += c.recv(65536)
+            if k >= 2 and want in got:
+                break
         return got
 
 
@@ -208,7 +212,7 @@ def test_a_reload_swapping_two_tcp_outputs_addresses_swaps_them(tmp_path: Path) 
     with device_ptys(work / "links", ("emlog1", "emlog2", "dvl")) as masters:
         d = Daemon(work)
         try:
-            got = _talkers(a, masters)
+            got = _talkers(a, masters, b"$VWVHW,,T,,M,5.0")
             assert b"$VWVHW,,T,,M,5.0" in got and b"VDVHW" not in got, got
             cfg.write_text(
                 cfg.read_text().replace(str(a), "A").replace(str(b), str(a)).replace("A", str(b))
@@ -216,9 +220,9 @@ def test_a_reload_swapping_two_tcp_outputs_addresses_swaps_them(tmp_path: Path) 
             d.send_signal(signal.SIGHUP)
             wait(lambda: d.events("reloaded") >= 1, "the reload", 10.0)
             assert d.events("reload_outputs_failed") == 0, d.tail()
-            got = _talkers(a, masters)
+            got = _talkers(a, masters, b"$VDVHW,,T,,M,7.0")
             assert b"$VDVHW,,T,,M,7.0" in got and b"VWVHW" not in got, got
-            got = _talkers(b, masters)
+            got = _talkers(b, masters, b"$VWVHW,,T,,M,5.0")
             assert b"$VWVHW,,T,,M,5.0" in got and b"VDVHW" not in got, got
             assert d.stop() == 0
         finally:

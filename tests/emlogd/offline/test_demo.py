@@ -1,25 +1,42 @@
-"""The demo end to end (the README's first command runs it)."""
+"""The demo end to end (the README's first command runs it), through ``emlogd demo``."""
 
 from __future__ import annotations
 
 import io
 import threading
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from emlogd.cli import main
+from emlogd.offline import demo
 from emlogd.offline.demo import DemoError, run_demo
 
 
-def test_demo_runs_improves_and_matches_replay(tmp_path: Path) -> None:
-    """The demo calibrates EMlog1 (≥ 30 % better), never makes EMlog2 worse than raw, and
-    reports for both an improvement within 5 points of emlogd replay's on the same capture."""
-    out = io.StringIO()
+def test_demo_runs_improves_and_matches_replay(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``emlogd demo --workdir DIR`` with a relative DIR (the daemon runs inside it and
+    keeps its log and state there) exits 0; the demo calibrates EMlog1 (≥ 30 % better),
+    never makes EMlog2 worse than raw, and reports for both an improvement within 5
+    points of emlogd replay's on the same capture."""
+    monkeypatch.chdir(tmp_path)
     lines: list[str] = []
-    uuts = run_demo(speed=25.0, out=out, workdir=tmp_path, progress=lines.append)
-    text = out.getvalue()
+    ran: list[dict[str, dict[str, object]]] = []
+
+    def run_and_keep(**kwargs: Any) -> dict[str, dict[str, object]]:
+        ran.append(run_demo(**kwargs, progress=lines.append))
+        return ran[-1]
+
+    monkeypatch.setattr(demo, "run_demo", run_and_keep)  # what the command calls
+    rc = main(["demo", "--workdir", "demo_wd", "--speed", "25"])
+    captured = capsys.readouterr()
+    assert rc == 0 and "Traceback" not in captured.err, captured.err
+    text = captured.out
     assert "corrected VHW" in text and "better" in text and "What this shows" in text
     assert lines and "emlog1" in lines[-1]
+    (uuts,) = ran
     for name, factor in (("emlog1", 0.7), ("emlog2", 1.0)):
         u = uuts[name]
         raw, cor = u["rmse_raw"], u["rmse_corrected"]
@@ -29,7 +46,8 @@ def test_demo_runs_improves_and_matches_replay(tmp_path: Path) -> None:
         assert isinstance(live, float) and isinstance(replayed, float)
         assert abs(live - replayed) <= 5.0, (name, live, replayed)
         assert f"({live:.0f} % better; replay {replayed:.0f} %)" in text
-    assert (tmp_path / "state" / "state.yaml").exists()
+    assert (tmp_path / "demo_wd" / "daemon.log").exists()
+    assert (tmp_path / "demo_wd" / "state" / "state.yaml").exists()
 
 
 def test_a_daemon_that_cannot_start_is_a_demo_error(tmp_path: Path) -> None:

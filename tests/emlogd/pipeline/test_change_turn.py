@@ -13,6 +13,7 @@ from calib.models import Params
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.settings import UutSettings
 from emlogd.pipeline.uut import UutCalibration
+from tests.profiles import by_profile
 
 TRUE = Params("EM3", m=-0.11, b_mps=-0.05)
 CURRENT = (0.2, 0.15)
@@ -53,6 +54,7 @@ def _turn(seed: int, rate_dps: float, seconds: float = 240.0) -> tuple[list[floa
     return falls, held
 
 
+@pytest.mark.fuzz
 @pytest.mark.parametrize("rate_dps", [3.0, 6.0])
 def test_a_speed_step_in_a_turn_in_a_current_holds_and_withdraws_nothing(
     rate_dps: float,
@@ -62,9 +64,10 @@ def test_a_speed_step_in_a_turn_in_a_current_holds_and_withdraws_nothing(
     window. A baseline of a second of a 10-Hz log is no baseline (its current is the
     offset of that moment, its spread too small): the detector alarmed again within
     seconds, and an alarm of such a cascade held or withdrew the healthy calibration
-    (without the span: 3 of these 12 seeds at 3°/s, 4 at 6°/s). The window must span
-    ``CUSUM_MIN_SPAN_S`` first."""
-    for seed in range(12):
+    (without the span: seeds 0, 1 and 9 of 12 at 3°/s, 0, 1, 3 and 6 at 6°/s). The
+    window must span ``CUSUM_MIN_SPAN_S`` first. The quick profile runs the first 4
+    seeds (2 and 3 of those alarms), the long one (``-m fuzz``) all 12."""
+    for seed in range(by_profile(4, 12)):
         falls, held = _turn(seed, rate_dps)
         assert (seed, falls, held) == (seed, [], 0)
 
