@@ -12,7 +12,13 @@ the heading's cos and sin), or ``β·(cos ψ, sin ψ)``. Over a window,
 calibration right in some current, ``w = 0`` raw right in some current, and what tells
 them apart is the part of ``G`` no current can make (a change of the speed, or a turn
 that moves the current's share along the hull). ``G`` is computed from the reference,
-not from the reading, so the reading's noise is in ``d`` alone and does not bias ``w``.
+not from the reading, so the reading's noise is in ``d`` alone. The reference's own
+noise is in both: ``−e`` in ``d`` and about ``m·e`` in ``G`` (``m`` the calibration's
+slope), which pulls a per-sample ``w`` towards ``−1/m`` (with a 0.1-m/s GNSS and
+m −0.05, a right calibration's ``w`` reads 1.4 and raw's 0.4 where the speed swings by
+±0.8 m/s). ``G`` therefore enters as its mean over each block of
+:data:`SEPARATION_BLOCK_S`, over which that noise averages down while the speed
+changes and turns that separate the two stay.
 At one heading and one speed the current takes either one's offset and ``w`` is not
 determined: the window then gives no verdict, whichever of them a guessed current would
 favour.
@@ -25,6 +31,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from calib.models import Params, forward_array
 from emlogd.pipeline.evidence import (
@@ -62,7 +69,8 @@ SEPARATION_BLOCK_S = 20.0
 of this long, s (the cluster-robust, "sandwich" variance with one cluster a block), and
 the larger of the two counts: a GNSS reference's errors are correlated over about 20 s,
 so that one sample a second overstates what a window knows many times over, while the
-blocks' scatter measures it whatever the correlation within a block."""
+blocks' scatter measures it whatever the correlation within a block. ``G`` enters the
+fit as its mean over each block (the module's docstring: the reference's noise in it)."""
 
 SEPARATION_MIN_BLOCKS = 4
 """The blocks' standard error counts once the window holds this many blocks
@@ -102,26 +110,38 @@ class Separation:
         key = math.floor(t / SEPARATION_BLOCK_S)
         a = self._blocks.get(key)
         if a is None:
-            a = self._blocks[key] = [0.0] * 9
-        a[0] += c * c
-        a[1] += c * s
-        a[2] += c * g
-        a[3] += s * s
-        a[4] += s * g
-        a[5] += g * g
-        a[6] += c * d
-        a[7] += s * d
-        a[8] += g * d
+            a = self._blocks[key] = [0.0] * 10
+        a[0] += 1.0
+        a[1] += c
+        a[2] += s
+        a[3] += g
+        a[4] += d
+        a[5] += c * c
+        a[6] += c * s
+        a[7] += s * s
+        a[8] += c * d
+        a[9] += s * d
         self._yy += d * d
         self.n += 1
         self.t0 = min(self.t0, t)
         self.t1 = max(self.t1, t)
 
+    def _normal(self) -> npt.NDArray[np.float64]:
+        """Per block the normal equations' sums over (cos ψ, sin ψ, Ḡ) (cc, cs, cg, ss,
+        sg, gg), then the right-hand side (cd, sd, gd), with Ḡ the block's mean ``G``
+        (:data:`SEPARATION_BLOCK_S`)."""
+        b = np.array(list(self._blocks.values()))
+        n, sc, ss_, sg, sd = b[:, 0], b[:, 1], b[:, 2], b[:, 3], b[:, 4]
+        g = sg / n
+        return np.column_stack(
+            (b[:, 5], b[:, 6], g * sc, b[:, 7], g * ss_, g * g * n, b[:, 8], b[:, 9], g * sd)
+        )
+
     def w(self) -> tuple[float, float]:
         """``w`` and its standard error (nan, inf when the window cannot give one)."""
         if self.n < 4:
             return math.nan, math.inf
-        blocks = np.array(list(self._blocks.values()))
+        blocks = self._normal()
         cc, cs_, cg, ss, sg, gg, b0, b1, b2 = blocks.sum(axis=0).tolist()
         cc += _RIDGE
         ss += _RIDGE

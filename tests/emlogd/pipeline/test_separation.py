@@ -147,3 +147,23 @@ def test_errors_a_fraction_of_the_calibrations_are_partial(times: float, partial
     assert judge_withdrawn(cand, {}, final=True) is False
     cand.separation = None  # the RMSEs alone would re-apply it
     assert judge_withdrawn(cand, {}) is True
+
+
+@pytest.mark.parametrize("truth", ["cal", "raw"])
+def test_the_references_noise_does_not_pull_w(truth: str) -> None:
+    """A GNSS reference with 0.1 m/s of white noise, a calibration of m −0.05 (the
+    reference's noise is in ``d`` and, times m, in ``G``: computed per sample, ``w`` is
+    pulled towards −1/m: 1.40 and 0.42 here), one heading and a speed that swings by
+    ±0.8 m/s over four minutes: the one that reads the log right wins."""
+    cal = Params("EM3", m=-0.05, b_mps=0.02)
+    rng = np.random.default_rng(7)
+    sep = Separation()
+    cs = (math.cos(0.4), math.sin(0.4))
+    for k in range(1200):
+        v = 2.0 + 0.8 * math.sin(2.0 * math.pi * k / 240.0)
+        ref = v + 0.15 * cs[0] - 0.2 * cs[1] + 0.1 * float(rng.standard_normal())
+        raw = (cal.forward(v) if truth == "cal" else v) + _noise(k) * 0.4
+        sep.add(float(k), raw - ref, cal.forward(ref) - ref, cs)
+    w, _ = sep.w()
+    assert abs(w - (1.0 if truth == "cal" else 0.0)) < 0.25
+    assert sep.verdict() is (truth == "cal")
