@@ -17,8 +17,8 @@ noise is in both: ``−e`` in ``d`` and about ``m·e`` in ``G`` (``m`` the calib
 slope), which pulls a per-sample ``w`` towards ``−1/m`` (with a 0.1-m/s GNSS and
 m −0.05, a right calibration's ``w`` reads 1.4 and raw's 0.4 where the speed swings by
 ±0.8 m/s). ``G`` therefore enters as its mean over each block of
-:data:`SEPARATION_BLOCK_S`, over which that noise averages down while the speed
-changes and turns that separate the two stay.
+:data:`SEPARATION_BLOCK_S`, over which that noise averages down while the changes of
+speed and heading slower than a block, which separate the two, stay.
 At one heading and one speed the current takes either one's offset and ``w`` is not
 determined: the window then gives no verdict, whichever of them a guessed current would
 favour.
