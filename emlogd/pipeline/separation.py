@@ -87,15 +87,15 @@ _RIDGE = (FIT_NOISE_MPS / FIT_CURRENT_PRIOR_MPS) ** 2
 
 class Separation:
     """The least-squares fit ``d ≈ β·(cos ψ, sin ψ) + w·G`` over a window, by its sums
-    per block of :data:`SEPARATION_BLOCK_S` (the 3×3 normal equations of each; a window
-    holds as many blocks as it spans)."""
+    per block of :data:`SEPARATION_BLOCK_S` (from which :meth:`_normal` builds each one's 3×3
+    normal equations; a window holds as many blocks as it spans)."""
 
     __slots__ = ("_blocks", "_yy", "n", "t0", "t1")
 
     def __init__(self) -> None:
         self._blocks: dict[int, list[float]] = {}
-        """Per block: the normal matrix's upper triangle over (cos ψ, sin ψ, g) (cc, cs,
-        cg, ss, sg, gg), then the right-hand side (cd, sd, gd)."""
+        """Per block: its count and the sums of cos ψ, sin ψ, g and d, then of cc, cs, ss,
+        cd and sd (:meth:`_normal` builds the block's normal equations over its mean g)."""
         self._yy = 0.0
         self.n = 0
         self.t0 = math.inf
