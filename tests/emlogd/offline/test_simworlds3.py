@@ -10,7 +10,7 @@ then steady); a log whose gain changes above 2 m/s (a knee, beyond EM4's curve);
 reference DVL whose own scale is 1 % high in one water mass (20 min); a log quantised
 to 0.1 kn whose firmware repeats its last value for 3 s; logs without error (the
 promise is sharpest where raw is good), one with a dead band of 0.5 m/s, in a harbour's
-stops and starts. ``soak``: a simulation and a replay each; every figure is in
+stops and starts; a current stepping 0.67 m/s at a front crossed every 10 min. ``soak``: a simulation and a replay each; every figure is in
 docs/RELIABILITY.md, measured by running this file as a script::
 
     PYTHONPATH=. python tests/emlogd/offline/test_simworlds3.py [CASE ...]
@@ -208,6 +208,24 @@ DEAD_BANDS = {
 """The worlds whose logs have a dead band: their talkers."""
 
 
+FRONT_S = 600.0
+"""``current-front``: the vessel crosses a front every this many seconds of the trial
+(a river plume's edge, a tidal race): the current steps at once between ..."""
+
+FRONT_CURRENTS = ((0.3, -0.1), (-0.3, 0.2))
+"""... these two (east, north, m/s), 0.67 m/s apart."""
+
+
+def current_front(k: Kinematics, t0: float) -> Kinematics:
+    """The current stepping between :data:`FRONT_CURRENTS` every :data:`FRONT_S`."""
+    t = t0 - START_EPOCH_S + k.t
+    side = np.floor(t / FRONT_S) % 2 == 1
+    (e0, n0), (e1, n1) = FRONT_CURRENTS
+    return dataclasses.replace(
+        k, current_e=np.where(side, e1, e0), current_n=np.where(side, n1, n0)
+    )
+
+
 WORLDS = {
     c.name: c
     for c in (
@@ -220,6 +238,7 @@ WORLDS = {
         Case("exact-logs", EXACT.__doc__ or "both logs without error"),
         Case("dead-band-harbour", "emlog2 with a dead band, stopping and starting", motion=harbour),
         Case("dead-band-harbour-1hz", "both logs with a dead band, the same", motion=harbour),
+        Case("current-front", current_front.__doc__ or "", current=current_front),
     )
 }
 
@@ -317,6 +336,14 @@ class TestWorlds:
         kn = [float(rep(v * KNOT_MPS, talker=talker).split(",")[5]) for v in (2.34, 2.5, 2.6, 2.71)]
         assert kn == [2.3, 2.3, 2.3, 2.7]
         assert ",2.34,N," in rep(2.34 * KNOT_MPS, talker=simsensors.EMLOG2.talker)
+
+    def test_the_front(self) -> None:
+        """The current one side of the front for :data:`FRONT_S`, then the other's, then
+        back."""
+        k = current_front(_k(), START_EPOCH_S + 100.0)
+        at = [int(x * 10) for x in (0.0, 499.0, 500.0, 1099.0, 1100.0)]
+        assert k.current_e[at] == pytest.approx([0.3, 0.3, -0.3, -0.3, 0.3])
+        assert k.current_n[at] == pytest.approx([-0.1, -0.1, 0.2, 0.2, -0.1])
 
     def test_the_harbour_and_the_dead_band(self) -> None:
         """The manoeuvres: at rest, half-way up, under way, half-way down, at rest; the dead
