@@ -460,8 +460,7 @@ class Drift:
 class SeaMemory:
     """The last :data:`CURRENT_MEMORY_S` of scored samples (reading, reference, heading),
     from which any calibration's own current is fitted (:meth:`current`), back to the
-    last silence longer than :data:`CUSUM_MAX_GAP_S` (:meth:`renew`) or the last jump of
-    the sea (:meth:`forget`)."""
+    last silence longer than :data:`CUSUM_MAX_GAP_S` (:meth:`renew`)."""
 
     def __init__(self) -> None:
         cap = int(CURRENT_MEMORY_S / MEMORY_INTERVAL_S) + 64
@@ -482,15 +481,6 @@ class SeaMemory:
             self.i = self.n = 0
             self.t_renewed = t
         return t - self.t_renewed < young_s
-
-    def forget(self, t: float) -> None:
-        """Forget every sample at ``t``, when the sea jumped (a front crossed: the
-        reference stepped and the log did not): those before are another sea's, as
-        before a silence (:meth:`renew`), and a current fitted across the two is
-        neither's; a candidate validated in it is judged against a sea that is not
-        there. Young for as long after as :meth:`renew` says."""
-        self.i = self.n = 0
-        self.t_renewed = t
 
     def add(self, t: float, raw: float, ref: float, cs: tuple[float, float]) -> None:
         """One sample (kept when :data:`MEMORY_INTERVAL_S` after the last one kept)."""

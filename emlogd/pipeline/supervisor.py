@@ -47,10 +47,7 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   (the sensor changed, the sea is as it was) the withdrawn calibration re-validates,
   raw and it alike, in the current the detector had before the jump. Else the sea
   changed; when the reference jumped the learner's current re-opens (raw passing
-  through or not), so that the jump goes into the current, not into the parameters,
-  and the supervisor's memory forgets the samples before it (another sea's, as after a
-  silence: a current fitted across a front is neither side's, and a candidate
-  validated in it by chance beat raw there).
+  through or not), so that the jump goes into the current, not into the parameters.
 - **Drift** (:class:`~emlogd.pipeline.evidence.Drift`): a log that drifts against a
   steady reference on a straight leg for :data:`~emlogd.pipeline.evidence.DRIFT_CONFIRM_S`
   withdraws the applied calibration, and nothing is applied while it drifts.
@@ -453,9 +450,6 @@ class Supervisor:
         if not alarm.withdraw:
             if self.applied is not None:
                 self._t_beta = -math.inf  # the sea changed: the currents are fitted anew
-            if alarm.sea_jumped:  # the samples before are another sea's
-                self.memory.forget(t)
-                self._t_beta = -math.inf
             self.sea_changed = alarm.sea_jumped
             return False
         assert self.applied is not None

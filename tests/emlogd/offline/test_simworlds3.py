@@ -10,7 +10,8 @@ then steady); a log whose gain changes above 2 m/s (a knee, beyond EM4's curve);
 reference DVL whose own scale is 1 % high in one water mass (20 min); a log quantised
 to 0.1 kn whose firmware repeats its last value for 3 s; logs without error (the
 promise is sharpest where raw is good), one with a dead band of 0.5 m/s, in a harbour's
-stops and starts; a current stepping 0.67 m/s at a front crossed every 10 min. ``soak``: a simulation and a replay each; every figure is in
+stops and starts; a current stepping 0.67 m/s at a front crossed every 10 min (open).
+``soak``: a simulation and a replay each; every figure is in
 docs/RELIABILITY.md, measured by running this file as a script::
 
     PYTHONPATH=. python tests/emlogd/offline/test_simworlds3.py [CASE ...]
@@ -258,6 +259,14 @@ OPEN = {
     "turn; raw's own current and the common sea, fitted over 30 min of a current that "
     "moved, left raw 0.09 and 0.12 m/s against the candidate's 0.06 and 0.07 (a "
     "constant current: 1.000; seeds 2-5 with logs 1 % off: 1.000) (docs/RELIABILITY.md)",
+    "current-front": "open: emlog1's window from 604 s 1.149x raw (0.686 vs 0.597 m/s): a "
+    "scale of -0.115 (b 0; the sensor's +0.23) applied at 727 s for 65 s, validated against "
+    "raw (0.487 vs 0.518) after each one's own current fitted over the supervisor's memory, "
+    "whose samples span both sides of the front crossed at 600 s. The memory forgetting "
+    "its samples at every jump of the sea fixed it (1.000, and a front every 5 min: 1.102 "
+    "-> 1.000) but not the real recordings (Astra's worst window 1.586, Irene 2013 1.104, "
+    "Psaros 1.074); at a jump on a heading held 60 s only: Irene 2013 1.104, Psaros 1.074, "
+    "the 5-min front's emlog2 1.754 (docs/RELIABILITY.md)",
     "dead-band-harbour-1hz": "open: emlog1's window from 604 s 1.090x raw (0.0717 vs 0.0658 "
     "m/s): a scale of 0.041 (b 0) learnt and applied at 455 s while its lag was not yet "
     "measured (0 s used against 3.2 s; found at 1017 s), each ramp's readings paired 3.2 s "

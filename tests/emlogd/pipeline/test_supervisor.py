@@ -338,26 +338,3 @@ def test_a_jump_of_the_reference_alone_keeps_the_calibration(current: bool) -> N
         seen_sea = seen_sea or sup.sea_changed
         sup.sea_changed = False  # taken by the owner
     assert seen_sea and _applied(sup) == p and "fallback" not in kinds, kinds
-
-
-def test_after_a_jump_of_the_sea_the_currents_are_the_new_seas() -> None:
-    """The same straight leg with current states: the reference jumps by +0.2 m/s at
-    300 s (a front crossed) and the log reads as before. Once the alarm called it the
-    sea's, the supervisor's memory holds the new sea only: raw's own current 30 s later
-    is the new sea's offset (raw − reference after the front), not a blend weighted by
-    the five minutes before it (a candidate judged in such a blend beat raw by chance:
-    the ``current-front`` world of ``tests/emlogd/offline/test_simworlds3.py``)."""
-    p = Params("EM3", m=0.1)
-    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)
-    sup, _ = _sup(None, s)
-    rng = random.Random(3)
-    seen_sea = False
-    for k in range(330):
-        t = float(k)
-        ref = 2.0 + (0.2 if t >= 300.0 else 0.0) + rng.gauss(0.0, 0.02)
-        sup.observe(t, p.forward(2.0) + rng.gauss(0.0, 0.02), ref, (1.0, 0.0), _NoOffer())
-        seen_sea = seen_sea or sup.sea_changed
-        sup.sea_changed = False  # taken by the owner
-    beta_north, _ = sup.memory.current(None, 329.0)
-    assert seen_sea
-    assert beta_north == pytest.approx(p.forward(2.0) - 2.2, abs=0.02)
