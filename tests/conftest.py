@@ -1,5 +1,6 @@
 """Shared fixtures: real pseudo-terminals, capture files on disk, fake devices, real
-recordings imported once per run; the hypothesis profile of the run
+recordings imported once per run, captures read once per process by the offline
+commands (:mod:`tests.recordings`); the hypothesis profile of the run
 (:mod:`tests.profiles`)."""
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from emlogd.offline.importbase import ImportReport
 from emlogd.offline.importer import import_nmea
 from tests import profiles
 from tests.once import Imported, once_per_run
+from tests.recordings import ReadOnce
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -38,6 +40,19 @@ def pytest_configure(config: pytest.Config) -> None:
     if config.getoption("hypothesis_profile", None):
         return
     settings.load_profile(profiles.choose(config.getoption("markexpr", ""), os.environ))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def read_once() -> Iterator[ReadOnce]:
+    """The offline commands read each capture once per test process
+    (:class:`tests.recordings.ReadOnce`): the same trials and examples are read by many
+    tests with the same inputs."""
+    from emlogd.offline.dataset import record_captures
+
+    with pytest.MonkeyPatch.context() as mp:
+        reader = ReadOnce(record_captures)
+        mp.setattr("emlogd.offline.jobs.record_captures", reader)
+        yield reader
 
 
 @pytest.fixture(scope="session")

@@ -1,0 +1,57 @@
+"""The tests' reading of captures once per process (tests/recordings.py): served again
+only for the same inputs, equal to a reading of its own, and a copy."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from emlogd.offline.dataset import record_captures
+from emlogd.pipeline.settings import UutSettings
+from tests.recordings import ReadOnce
+
+ROOT = Path(__file__).resolve().parents[1]
+CAPTURE = ROOT / "examples" / "captures" / "3-straight.cap.gz"
+E1 = UutSettings(port="emlog1", reference_port="dvl", lag_s=3.2)
+
+
+def test_a_capture_is_read_once_for_the_same_inputs_and_again_for_others(
+    tmp_path: Path,
+) -> None:
+    """The same capture and settings (another lag: the reading uses none) are served
+    without a second reading and equal the reading's own; another UUT, strict, or a
+    rewritten file are read again; each caller gets its own copy."""
+    cap = tmp_path / CAPTURE.name
+    shutil.copyfile(CAPTURE, cap)
+    once = ReadOnce(record_captures)
+    first = once([cap], E1, workers=1)[0]
+    again = once([cap], UutSettings(port="emlog1", reference_port="dvl", lag_s=0.5))[0]
+    assert once.reads == 1
+    own = record_captures([cap], E1, workers=1)[0]
+    for name in ("t_read", "raw", "t_ref", "v_ref", "ok_ref", "heading"):
+        assert np.array_equal(getattr(again, name), getattr(own, name), equal_nan=True), name
+    assert again.counters == own.counters and again.path == own.path
+    again.raw[:] = -1.0
+    assert not np.array_equal(once([cap], E1)[0].raw, again.raw)
+    assert once.reads == 1
+    once([cap], UutSettings(port="emlog2", reference_port="dvl"))
+    assert once.reads == 2
+    once([cap], E1, strict=True)
+    assert once.reads == 3
+    st = cap.stat()
+    os.utime(cap, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+    assert once([cap], E1)[0].raw.size == first.raw.size
+    assert once.reads == 4
+
+
+def test_progress_is_said_for_each_capture_in_order(tmp_path: Path) -> None:
+    """Served or read, each capture's progress is said as the real reading says it."""
+    once = ReadOnce(record_captures)
+    said: list[tuple[str, float]] = []
+    for _ in range(2):
+        said.clear()
+        once([CAPTURE, CAPTURE], E1, progress=lambda m, f: said.append((m, f)))
+        assert said == [(f"read {CAPTURE.name}", 0.5), (f"read {CAPTURE.name}", 1.0)]
