@@ -29,7 +29,7 @@ from emlogd.offline.importbase import ImportReport
 from emlogd.offline.importer import import_nmea
 from tests import profiles
 from tests.once import Imported, once_per_run
-from tests.recordings import ReadOnce
+from tests.recordings import ReadOnce, TwoAxisOnce
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -45,13 +45,15 @@ def pytest_configure(config: pytest.Config) -> None:
 @pytest.fixture(scope="session", autouse=True)
 def read_once() -> Iterator[ReadOnce]:
     """The offline commands read each capture once per test process
-    (:class:`tests.recordings.ReadOnce`): the same trials and examples are read by many
-    tests with the same inputs."""
+    (:class:`tests.recordings.ReadOnce`, :class:`tests.recordings.TwoAxisOnce`): the same
+    trials and examples are read by many tests with the same inputs."""
     from emlogd.offline.dataset import record_captures
+    from emlogd.offline.twoaxis import record_two_axis
 
     with pytest.MonkeyPatch.context() as mp:
         reader = ReadOnce(record_captures)
         mp.setattr("emlogd.offline.jobs.record_captures", reader)
+        mp.setattr("emlogd.offline.twoaxis.record_two_axis", TwoAxisOnce(record_two_axis))
         yield reader
 
 

@@ -8,10 +8,13 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from emlogd.offline.dataset import record_captures
+from emlogd.offline.jobs import OfflineError
+from emlogd.offline.twoaxis import record_two_axis
 from emlogd.pipeline.settings import UutSettings
-from tests.recordings import ReadOnce
+from tests.recordings import ReadOnce, TwoAxisOnce
 
 ROOT = Path(__file__).resolve().parents[1]
 CAPTURE = ROOT / "examples" / "captures" / "3-straight.cap.gz"
@@ -55,3 +58,24 @@ def test_progress_is_said_for_each_capture_in_order(tmp_path: Path) -> None:
         said.clear()
         once([CAPTURE, CAPTURE], E1, progress=lambda m, f: said.append((m, f)))
         assert said == [(f"read {CAPTURE.name}", 0.5), (f"read {CAPTURE.name}", 1.0)]
+
+
+def test_a_two_axis_reading_is_kept_per_file_and_ports(tmp_path: Path) -> None:
+    """``--axes 2``'s reading: served again for the same file and ports, equal to a
+    reading of its own and a copy; other ports (here a log without VBW: refused) or a
+    rewritten file are read again."""
+    cap = tmp_path / CAPTURE.name
+    shutil.copyfile(CAPTURE, cap)
+    once = TwoAxisOnce(record_two_axis)
+    once(cap, "emlog2", "dvl").raw_l[:] = -1.0
+    again = once(cap, "emlog2", "dvl")
+    assert once.reads == 1
+    own = record_two_axis(cap, "emlog2", "dvl")
+    for name in ("t_read", "raw_l", "raw_t"):
+        assert np.array_equal(getattr(again, name), getattr(own, name), equal_nan=True), name
+    with pytest.raises(OfflineError, match="emlog1 sends no VBW"):
+        once(cap, "emlog1", "dvl")  # read: emlog1 has no athwart speed to give
+    st = cap.stat()
+    os.utime(cap, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+    once(cap, "emlog2", "dvl")
+    assert once.reads == 2
