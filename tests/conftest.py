@@ -1,5 +1,5 @@
 """Shared fixtures: real pseudo-terminals, capture files on disk, fake devices, real
-recordings imported once per run, captures read once per process by the offline
+recordings imported once per run, captures read once per run by the offline
 commands (:mod:`tests.recordings`); the hypothesis profile of the run
 (:mod:`tests.profiles`)."""
 
@@ -28,7 +28,7 @@ from drivers.io.fake import FakeDevice
 from emlogd.offline.importbase import ImportReport
 from emlogd.offline.importer import import_nmea
 from tests import profiles
-from tests.once import Imported, once_per_run
+from tests.once import Imported, once_per_run, run_folder
 from tests.recordings import ReadOnce, TwoAxisOnce
 
 
@@ -43,17 +43,20 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 @pytest.fixture(scope="session", autouse=True)
-def read_once() -> Iterator[ReadOnce]:
-    """The offline commands read each capture once per test process
-    (:class:`tests.recordings.ReadOnce`, :class:`tests.recordings.TwoAxisOnce`): the same
-    trials and examples are read by many tests with the same inputs."""
+def read_once(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ReadOnce]:
+    """The offline commands read each capture once per test run
+    (:class:`tests.recordings.ReadOnce`, :class:`tests.recordings.TwoAxisOnce`, shared by
+    the run's workers): the same trials and examples are read by many tests with the
+    same inputs."""
     from emlogd.offline.dataset import record_captures
     from emlogd.offline.twoaxis import record_two_axis
 
+    folder = run_folder(tmp_path_factory) / "read-once"
     with pytest.MonkeyPatch.context() as mp:
-        reader = ReadOnce(record_captures)
+        reader = ReadOnce(record_captures, folder)
         mp.setattr("emlogd.offline.jobs.record_captures", reader)
-        mp.setattr("emlogd.offline.twoaxis.record_two_axis", TwoAxisOnce(record_two_axis))
+        two = TwoAxisOnce(record_two_axis, folder)
+        mp.setattr("emlogd.offline.twoaxis.record_two_axis", two)
         yield reader
 
 
