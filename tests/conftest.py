@@ -1,5 +1,6 @@
 """Shared fixtures: real pseudo-terminals, capture files on disk, fake devices, real
-recordings imported once per run; the hypothesis profile of the run
+recordings imported once per run, captures read once per run by the offline
+commands (:mod:`tests.recordings`); the hypothesis profile of the run
 (:mod:`tests.profiles`)."""
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from drivers.io.fake import FakeDevice
 from emlogd.offline.importbase import ImportReport
 from emlogd.offline.importer import import_nmea
 from tests import profiles
-from tests.once import Imported, once_per_run
+from tests.once import Imported, once_per_run, run_folder
+from tests.recordings import ReadOnce, TwoAxisOnce
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -38,6 +40,24 @@ def pytest_configure(config: pytest.Config) -> None:
     if config.getoption("hypothesis_profile", None):
         return
     settings.load_profile(profiles.choose(config.getoption("markexpr", ""), os.environ))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def read_once(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ReadOnce]:
+    """The offline commands read each capture once per test run
+    (:class:`tests.recordings.ReadOnce`, :class:`tests.recordings.TwoAxisOnce`, shared by
+    the run's workers): the same trials and examples are read by many tests with the
+    same inputs."""
+    from emlogd.offline.dataset import record_captures
+    from emlogd.offline.twoaxis import record_two_axis
+
+    folder = run_folder(tmp_path_factory) / "read-once"
+    with pytest.MonkeyPatch.context() as mp:
+        reader = ReadOnce(record_captures, folder)
+        mp.setattr("emlogd.offline.jobs.record_captures", reader)
+        two = TwoAxisOnce(record_two_axis, folder)
+        mp.setattr("emlogd.offline.twoaxis.record_two_axis", two)
+        yield reader
 
 
 @pytest.fixture(scope="session")

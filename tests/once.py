@@ -23,14 +23,18 @@ Imported = Callable[[Path], tuple[ImportReport, Path]]
 capture, imported once per run."""
 
 
+def run_folder(factory: pytest.TempPathFactory) -> Path:
+    """The test run's own temporary folder: above each xdist worker's, shared by them."""
+    root = factory.getbasetemp()
+    return root.parent if os.environ.get("PYTEST_XDIST_WORKER") else root
+
+
 def once_per_run(
     factory: pytest.TempPathFactory, name: str, build: Callable[[Path], T], kind: type[T]
 ) -> T:
     """``build(folder)``'s result, built once per test run into ``folder``
     (``once-NAME`` beside the run's temporary directories) and of type ``kind``."""
-    root = factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        root = root.parent  # the run's directory, above each worker's own
+    root = run_folder(factory)
     done = root / f"once-{name}.pickle"
     with (root / f"once-{name}.lock").open("a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)

@@ -30,7 +30,7 @@ def test_demo_runs_improves_and_matches_replay(
         return ran[-1]
 
     monkeypatch.setattr(demo, "run_demo", run_and_keep)  # what the command calls
-    rc = main(["demo", "--workdir", "demo_wd", "--speed", "25"])
+    rc = main(["demo", "--workdir", "demo_wd", "--speed", "50"])
     captured = capsys.readouterr()
     assert rc == 0 and "Traceback" not in captured.err, captured.err
     text = captured.out

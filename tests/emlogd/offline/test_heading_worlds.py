@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -105,12 +106,29 @@ def test_the_course_names_the_compass_180_off_and_the_dvl_heading_is_used(
 
 
 def test_without_a_third_source_the_heading_is_suspect_and_no_current_is_learnt(
-    trial: SimulationResult, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    trial: SimulationResult,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """No GNSS: the two sources' disagreement is said (events, status, reason) and the
-    logs read no heading from then on; ``emlogd replay --json`` counts the events."""
+    logs read no heading from then on; ``emlogd replay --json`` counts the events (the
+    status read from the result of that replay)."""
     files = write_edited(_files(trial), _without_gnss(_compass(180.0, gaps=True)), tmp_path)
-    res = _replay(files)
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(DVL_CFG)
+    results: list[ReplayResult] = []
+
+    def kept(*args: Any, **kwargs: Any) -> ReplayResult:
+        results.append(replay(*args, **kwargs))
+        return results[-1]
+
+    monkeypatch.setattr("emlogd.offline.replay.replay", kept)  # what the command calls
+    assert main(["replay", *map(str, files), "--config", str(cfg), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["events"]["heading_sources_disagree"] == 1
+    assert doc["events"]["heading_suspect"] == 2
+    (res,) = results
     u = _uut(res)
     assert "heading sources disagree: compass.HDT and dvl.PD6 180° apart" in str(u["reason"])
     assert u["heading_suspect"] == u["reason"]
@@ -121,12 +139,6 @@ def test_without_a_third_source_the_heading_is_suspect_and_no_current_is_learnt(
     current = u["current"]
     assert current is None or not current["determined"]  # type: ignore[index]
     assert res.event_counts["heading_suspect"] == 2  # one per log
-    cfg = tmp_path / "c.yaml"
-    cfg.write_text(DVL_CFG)
-    assert main(["replay", *map(str, files), "--config", str(cfg), "--json"]) == 0
-    doc = json.loads(capsys.readouterr().out)
-    assert doc["events"]["heading_sources_disagree"] == 1
-    assert doc["events"]["heading_suspect"] == 2
 
 
 def test_a_dvl_heading_frozen_in_the_figure_8_is_left_out_until_it_moves(

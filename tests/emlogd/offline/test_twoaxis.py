@@ -9,7 +9,7 @@ import pytest
 
 from emlogd.offline.jobs import OfflineError
 from emlogd.offline.simtruth import read_truth
-from emlogd.offline.simulate import EMLOG1, EMLOG2, SimulationResult, simulate, with_sensor
+from emlogd.offline.simulate import SimulationResult
 from emlogd.offline.twoaxis import (
     TwoAxisRecording,
     TwoAxisResult,
@@ -27,12 +27,11 @@ LAG_S = 0.46
 
 
 @pytest.fixture(scope="module")
-def misaligned(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
+def misaligned(misaligned_trial: SimulationResult) -> SimulationResult:
     """A fifth of the trial with emlog2 turned 3° to starboard, its transverse axis
     8 % low and 0.04 m/s to starboard; its noise 0.01 m/s, so five minutes of figure-8
-    determine the misalignment."""
-    sensor = with_sensor(EMLOG2, {"misalign": 3.0, "mt": -0.08, "bt": 0.04, "noise": 0.01})
-    return simulate(tmp_path_factory.mktemp("twoaxis"), seed=2, scale=0.2, emlogs=(EMLOG1, sensor))
+    determine the misalignment (the session's ``misaligned_trial``)."""
+    return misaligned_trial
 
 
 @pytest.fixture(scope="module")

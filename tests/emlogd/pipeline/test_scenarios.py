@@ -53,7 +53,7 @@ def _never_worse(
     [
         # the weaker current of the same property: the soak run's (0.5-paper keeps it by default)
         pytest.param(0.3, False, 2.0, marks=pytest.mark.soak, id="0.3-paper"),
-        pytest.param(0.5, False, 2.0, id="0.5-paper"),
+        pytest.param(0.5, False, 1.0, id="0.5-paper"),
         pytest.param(0.5, True, 1.0, id="0.5-water"),
     ],
 )
