@@ -153,6 +153,7 @@ from emlogd.offline.csvmaps import (
     units_row,
 )
 from emlogd.offline.importbase import (
+    MAX_LINE_CHARS,
     YEARS,
     CaptureSink,
     ImportFormatError,
@@ -380,13 +381,18 @@ def _read_head(f: TextIO, path: str | Path, skipped: Counter[str]) -> list[str]:
     counted in ``skipped``).
 
     Raises:
-        ImportFormatError: the file is empty.
+        ImportFormatError: the file is empty, or each of its lines too long for a row.
     """
     head: list[str] = []
     for line in bounded_lines(f, skipped):
         head.append(line.rstrip("\r\n"))
         if len(head) >= HEADER_SCAN_LINES:
             break
+    if not head and skipped["too_long"]:
+        raise ImportFormatError(
+            f"{path}: no header: its {skipped['too_long']} line(s) each over "
+            f"{MAX_LINE_CHARS} characters (a lost line ending, or not a CSV export)"
+        )
     if not head:
         cut = " (a gzip stream cut short or corrupt before its first line)"
         raise ImportFormatError(f"{path}: empty file{cut if skipped['truncated'] else ''}")

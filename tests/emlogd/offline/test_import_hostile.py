@@ -138,3 +138,14 @@ def test_a_file_of_another_format_is_named(first: str, looks: str, tmp_path: Pat
     src.write_bytes(b"")
     with pytest.raises(ImportFormatError, match="empty"):
         import_nmea([src], tmp_path / "o.cap")
+
+
+def test_a_csv_of_one_huge_line_is_not_called_empty(tmp_path: Path) -> None:
+    """A file whose only line is past :data:`MAX_LINE_CHARS` (a lost line ending): the CSV
+    import says its line is too long for a row, not that the file is empty."""
+    src = tmp_path / "one.csv"
+    src.write_text("Utc,Bsp," + "1" * (2 * MAX_LINE_CHARS) + "\n")
+    with pytest.raises(
+        ImportFormatError, match=rf"no header: its 1 line\(s\) each over {MAX_LINE_CHARS}"
+    ):
+        import_csv(src, tmp_path / "o.cap")
