@@ -41,7 +41,7 @@ ports:
   - {{name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut, baud: 4800}}
   - {{name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut, baud: 38400}}
   - {{name: dvl, url: links/dvl, protocol: pd6, role: reference, baud: 115200, stale_timeout_s: 1,
-     rest_s: 0}}  # exact receive times at 20x-40x (resting is a real-time CPU saver)
+     rest_s: 0}}  # exact receive times at 20x (resting is a real-time CPU saver)
   - {{name: junk, url: links/junk, protocol: nmea0183, role: aux}}
 calibration:
   - {{uut: emlog1, reference: dvl, lag: {3.3 / speed:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
