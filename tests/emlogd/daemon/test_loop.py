@@ -33,10 +33,7 @@ from tests.emlogd.daemon.harness import (
     wait,
 )
 
-
-def _config(speed: float) -> str:
-    """The daemon's config for captures replayed at ``speed`` times real time."""
-    return f"""\
+CONFIG = f"""\
 ports:
   - {{name: emlog1, url: links/emlog1, protocol: nmea0183, role: uut, baud: 4800}}
   - {{name: emlog2, url: links/emlog2, protocol: nmea0183, role: uut, baud: 38400}}
@@ -44,25 +41,19 @@ ports:
      rest_s: 0}}  # exact receive times at 20x (resting is a real-time CPU saver)
   - {{name: junk, url: links/junk, protocol: nmea0183, role: aux}}
 calibration:
-  - {{uut: emlog1, reference: dvl, lag: {3.3 / speed:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
+  - {{uut: emlog1, reference: dvl, lag: {3.3 / SPEED:.4f}, max_param_std: {{m: 0.05, b: 0.08}},
      current: false,
      excitation_half_life_samples: 120, persist_interval_s: 0.5,
-     validation_s: {120 / speed:.3f}, recheck_s: {300 / speed:.2f}}}
-  - {{uut: emlog2, reference: dvl, lag: {0.5 / speed:.4f}, persist_interval_s: 0.5, current: false,
-     validation_s: {120 / speed:.3f}, recheck_s: {300 / speed:.2f}, talker: VM}}
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}}}
+  - {{uut: emlog2, reference: dvl, lag: {0.5 / SPEED:.4f}, persist_interval_s: 0.5, current: false,
+     validation_s: {120 / SPEED:.3f}, recheck_s: {300 / SPEED:.2f}, talker: VM}}
 {OUTPUTS}"""
 
 
-CONFIG = _config(SPEED)
-
-E2E_SPEED = 2 * SPEED
-"""The end-to-end test's replay speed: the whole figure-8 (324 s) in 8 s."""
-
-
-def _setup(tmp_path: Path, speed: float = SPEED) -> Path:
-    """``tmp_path`` a work directory (:func:`make_work`, for captures at ``speed``) and a
-    capture of garbage for the ``junk`` port; returns the capture."""
-    make_work(tmp_path, _config(speed))
+def _setup(tmp_path: Path) -> Path:
+    """``tmp_path`` a work directory (:func:`make_work`) and a capture of garbage for the
+    ``junk`` port; returns the capture."""
+    make_work(tmp_path, CONFIG)
     junk = tmp_path / "junk.cap"
     with CaptureWriter(junk, {"junk": "nmea0183"}) as w:
         for k in range(3000):
@@ -74,37 +65,25 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
     """The daemon learns EMlog1 (corrected RMSE < 0.75 raw), counts a garbage port, survives an
     EMlog unplug and a TCP client that never reads, freezes and keeps emitting when the DVL stops,
     and restarts frozen from the state SIGTERM wrote."""
-    junk = _setup(tmp_path, E2E_SPEED)
-    cfg = tmp_path / "emlogd.yaml"
-    text = cfg.read_text()
-    assert "  - {uut: emlog1, reference: dvl," in text
-    # EMlog1's 1-Hz readings at 40x real time: held to the replay's rate and acceleration
-    # (20 Hz is the most a log's rate is learnt at; at 20x it was just under it)
-    cfg.write_text(
-        text.replace(
-            "  - {uut: emlog1, reference: dvl,",
-            "  - {uut: emlog1, reference: dvl,"
-            f" max_rate_hz: {2 * E2E_SPEED:g}, max_reading_accel_mps2: {E2E_SPEED**2:g},",
-        )
-    )
+    junk = _setup(tmp_path)
     capture = trial_files["figure-8"]
     links = tmp_path / "links"
     # one device per port: the test unplugs them one by one
-    devices = {p: FakeDevice(capture, p, links / p, speed=E2E_SPEED).start() for p in PORTS}
+    devices = {p: FakeDevice(capture, p, links / p, speed=SPEED).start() for p in PORTS}
     garbage = FakeDevice(junk, "junk", links / "junk", speed=None, loop=True).start()
     d = Daemon(tmp_path, pty=True)
     try:
         # a TCP client that connects and never reads must not stall the pty output
         lazy = socket.create_connection(("127.0.0.1", tcp_port(tmp_path)))
         lazy.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1024)
-        d.pump(120 / E2E_SPEED)
+        d.pump(6.0)
         # unplug and replug EMlog2 at the same path
         devices["emlog2"].stop()
         devices["emlog2"].join(5)
         d.pump(1.0)
         unplugged = d.status()["ports"]
         assert isinstance(unplugged, dict)
-        devices["emlog2"] = FakeDevice(capture, "emlog2", links / "emlog2", speed=E2E_SPEED).start()
+        devices["emlog2"] = FakeDevice(capture, "emlog2", links / "emlog2", speed=SPEED).start()
         # to the end of the capture of EMlog1 and the DVL (the replugged EMlog2 replays
         # its own from the start, and goes on through the rest)
         while not (devices["emlog1"].finished.is_set() and devices["dvl"].finished.is_set()):
@@ -117,7 +96,7 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         assert isinstance(uuts, dict) and isinstance(ports, dict)
         e1 = uuts["emlog1"]
         assert e1["params"] is not None, e1
-        # ≥ 25 % better than raw over the whole run: this short 40x run is mostly the
+        # ≥ 25 % better than raw over the whole run: this short 20x run is mostly the
         # learning transient, and the raw reading passes through until the first
         # calibration has beaten it over its validation window (0.64 of raw here)
         assert e1["rmse_corrected"] < 0.75 * e1["rmse_raw"], e1
@@ -132,18 +111,14 @@ def test_daemon_end_to_end(tmp_path: Path, trial_files: dict[str, Path]) -> None
         for p in ("emlog1",):
             devices[p].stop()
             devices[p].join(5)
-            devices[p] = FakeDevice(capture, p, links / p, speed=E2E_SPEED).start()
-        deadline = time.monotonic() + 10.0
-        while True:  # until the DVL is stale (silent > 1 s) and EMlog1 frozen
-            d.pump(0.25)
-            now = d.status()
-            st2, ports2 = now["uuts"], now["ports"]
-            assert isinstance(st2, dict) and isinstance(ports2, dict)
-            if ports2["dvl"]["stale"] is True and st2["emlog1"]["state"] == "frozen":
-                break
-            assert time.monotonic() < deadline, (st2["emlog1"], ports2["dvl"])
+            devices[p] = FakeDevice(capture, p, links / p, speed=SPEED).start()
+        d.pump(3.0)
+        st2 = d.status()["uuts"]
+        assert isinstance(st2, dict)
         assert st2["emlog1"]["state"] == "frozen" and st2["emlog1"]["params"] == frozen
         assert st2["emlog1"]["reference"] in ("stale", "lost")
+        ports2 = d.status()["ports"]
+        assert isinstance(ports2, dict) and ports2["dvl"]["stale"] is True  # silent > 1 s
         n_before = len([ln for ln in d.lines if ln[3:6] == b"VHW"])
         d.pump(1.0)
         assert len([ln for ln in d.lines if ln[3:6] == b"VHW"]) > n_before
