@@ -188,7 +188,7 @@ Arrival = tuple[float, str]
 def piped_simulate(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> tuple[list[Arrival], list[Arrival], float]:
-    """``emlogd simulate --scale 0.4`` with stdout and stderr both pipes, run once for the
+    """``emlogd simulate --scale 0.2`` with stdout and stderr both pipes, run once for the
     tests below: the stdout lines, the stderr lines as they arrived, and when it ended."""
     import os
     import selectors
@@ -198,8 +198,9 @@ def piped_simulate(
 
     root = Path(__file__).resolve().parents[3]
     env = {**os.environ, "PYTHONPATH": str(root)}
+    env.pop("PYTHONUNBUFFERED", None)  # the line buffering tested is the command's own
     out_dir = tmp_path_factory.mktemp("piped") / "s"
-    argv = [sys.executable, "-m", "emlogd", "simulate", str(out_dir), "--scale", "0.4"]
+    argv = [sys.executable, "-m", "emlogd", "simulate", str(out_dir), "--scale", "0.2"]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     assert proc.stdout is not None and proc.stderr is not None
     arrivals: dict[int, list[Arrival]] = {}

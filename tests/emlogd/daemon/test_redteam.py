@@ -475,19 +475,17 @@ def test_pipelined_status_requests_cannot_hold_the_loop(tmp_path: Path) -> None:
         d.kill()
 
 
-@pytest.mark.parametrize("scheme", ["socket", "SOCKET"])
-def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(
-    tmp_path: Path, scheme: str
-) -> None:
-    """The EMlog on ``socket://`` to a port whose listen queue is full (a SYN dropped, as
-    by a host that is off): the daemon answers every status request at once for 3 s, the
-    port ``connecting``. pyserial's connect waited up to 5 s in the daemon's one thread
-    at each retry (5.01 s measured), every output with it. The same with the scheme in
-    capitals (pyserial takes any case), which went to pyserial's open: status requests
-    5.04 s, the start 11 s."""
+def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(tmp_path: Path) -> None:
+    """The EMlog on ``socket://`` and the DVL on ``SOCKET://`` to a port whose listen
+    queue is full (a SYN dropped, as by a host that is off): the daemon answers every
+    status request at once for 3 s, both ports ``connecting``. pyserial's connect waited
+    up to 5 s in the daemon's one thread at each retry (5.01 s measured), every output
+    with it. The scheme in capitals (pyserial takes any case) went to pyserial's open:
+    status requests 5.04 s, the start 11 s."""
     with unanswered_port() as port:
-        url = f"{scheme}://127.0.0.1:{port}"
-        work = make_work(tmp_path, CONFIG.replace("url: links/emlog1", f"url: '{url}'"))
+        config = CONFIG.replace("url: links/emlog1", f"url: 'socket://127.0.0.1:{port}'")
+        config = config.replace("url: links/dvl", f"url: 'SOCKET://127.0.0.1:{port}'")
+        work = make_work(tmp_path, config)
         d = Daemon(work)
         try:
             worst = 0.0
@@ -499,7 +497,8 @@ def test_a_socket_input_whose_connect_goes_unanswered_stalls_nothing(
                 time.sleep(0.05)
             assert worst < 1.0, worst
             assert isinstance(state, dict)
-            assert "connecting" in str(state["emlog1"]["why_closed"]), state["emlog1"]
+            for name in ("emlog1", "dvl"):
+                assert "connecting" in str(state[name]["why_closed"]), state[name]
             assert d.stop() == 0
         finally:
             d.kill()

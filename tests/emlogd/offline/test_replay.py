@@ -13,7 +13,7 @@ import pytest
 from calib.estimate import Estimate
 from emlogd.cli import main
 from emlogd.config import parse_config
-from emlogd.offline.replay import replay
+from emlogd.offline.replay import ReplayResult, replay
 from emlogd.offline.simulate import SimulationResult, TruthError, read_truth, simulate
 from emlogd.pipeline.calibration import Calibration
 from emlogd.pipeline.core import Pipeline
@@ -36,12 +36,20 @@ def _pipeline(cfg: str = CFG) -> Pipeline:
     return Pipeline(ports, uuts)
 
 
-def test_replay_learns_and_emits(trial_files: dict[str, Path]) -> None:
+@pytest.fixture(scope="module")
+def transit(trial: SimulationResult, trial_files: dict[str, Path]) -> tuple[ReplayResult, bytes]:
+    """The transit then the figure-8 replayed once for the tests that read it, with the
+    truth, and what it emitted."""
+    sink = io.BytesIO()
+    files = [trial_files["transit"], trial_files["figure-8"]]
+    res = replay(_pipeline(), files, sink=sink, truth=read_truth(trial.outdir))
+    return res, sink.getvalue()
+
+
+def test_replay_learns_and_emits(transit: tuple[ReplayResult, bytes]) -> None:
     """Replaying transit then figure-8 learns EMlog1 (corrected RMSE under half of raw), counts DVL
     records and reject reasons, and emits VHW and $PEMLS lines, all counted in emitted."""
-    p = _pipeline()
-    sink = io.BytesIO()
-    res = replay(p, [trial_files["transit"], trial_files["figure-8"]], sink=sink)
+    res, emitted = transit
     doc = res.to_dict()
     e1 = doc["uuts"]["emlog1"]  # type: ignore[index]
     assert e1["state"] in ("learning", "frozen")
@@ -49,7 +57,7 @@ def test_replay_learns_and_emits(trial_files: dict[str, Path]) -> None:
     assert e1["rmse_corrected"] < 0.5 * e1["rmse_raw"]
     assert doc["ports"]["dvl"]["records"] > 0  # type: ignore[index]
     assert set(doc["ports"]["dvl"]["rejects"]) >= {"checksum", "framing"}  # type: ignore[index]
-    lines = sink.getvalue().split(b"\r\n")
+    lines = emitted.split(b"\r\n")
     assert any(ln.startswith(b"$VWVHW") for ln in lines)
     assert any(ln.startswith(b"$PEMLS,emlog1,") for ln in lines)
     assert res.emitted == len([ln for ln in lines if ln])
@@ -92,15 +100,21 @@ def test_paced_replay_sleeps_by_record_time(trial_files: dict[str, Path]) -> Non
     assert sum(slept) == pytest.approx(res.span_s / 100.0, rel=0.02)
 
 
-def test_truth_scores_emitted_speeds(trial: SimulationResult, trial_files: dict[str, Path]) -> None:
-    """With the truth, each UUT's emitted speeds are scored against the true speed through water."""
-    res = replay(_pipeline(), [trial_files["transit"]], truth=read_truth(trial.outdir))
+def test_truth_scores_emitted_speeds(
+    trial: SimulationResult, trial_files: dict[str, Path], transit: tuple[ReplayResult, bytes]
+) -> None:
+    """With the truth, each UUT's emitted speeds over both files are scored against the
+    true speed through water (the floor the two trajectories' floors pooled by lines)."""
+    res = transit[0]
     uuts = res.to_dict()["uuts"]
+    trajs = trial.trajectories[:2]
     for name in ("emlog1", "emlog2"):
         t = uuts[name]["truth"]  # type: ignore[index]
         assert set(t) == {"n_samples", "rmse_raw", "rmse_corrected", "rmse_floor", "imo"}
-        assert 0 < t["n_samples"] <= trial.trajectories[0].lines[name]
-        assert t["rmse_floor"] == pytest.approx(trial.trajectories[0].rmse_floor_mps[name], rel=0.1)
+        lines = [tr.lines[name] for tr in trajs]
+        assert 0 < t["n_samples"] <= sum(lines)
+        pooled = sum(n * tr.rmse_floor_mps[name] ** 2 for n, tr in zip(lines, trajs, strict=True))
+        assert t["rmse_floor"] == pytest.approx((pooled / sum(lines)) ** 0.5, rel=0.1)
         assert t["rmse_corrected"] < 0.6 * t["rmse_raw"]
         w = uuts[name]["truth_worst_window"]  # type: ignore[index]
         wins = res.truth_windows[name]

@@ -91,14 +91,6 @@ def trial(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
     return simulate(tmp_path_factory.mktemp("fwd"), seed=4, scale=0.5, emlogs=(EMLOG1, sensor))
 
 
-@pytest.fixture(scope="module")
-def short_trial(tmp_path_factory: pytest.TempPathFactory) -> SimulationResult:
-    """The same sensors over a fifth of the trial: enough for a refusal of α, which a
-    shorter trajectory only makes surer."""
-    sensor = with_sensor(EMLOG2, {"misalign": 3.0, "mt": -0.08, "bt": 0.04})
-    return simulate(tmp_path_factory.mktemp("fwd"), seed=4, scale=0.2, emlogs=(EMLOG1, sensor))
-
-
 def _json(argv: list[str]) -> dict[str, object]:
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
@@ -140,13 +132,14 @@ def test_offline_forward_not_worse_than_the_one_axis_calibration(
 
 @pytest.mark.parametrize(("train", "why"), [(0, "not determinable"), (2, "nearly constant")])
 def test_alpha_refused_the_forward_speed_is_the_one_axis_calibrations(
-    short_trial: SimulationResult, tmp_path: Path, train: int, why: str
+    misaligned_trial: SimulationResult, tmp_path: Path, train: int, why: str
 ) -> None:
-    """Trained where α is refused (the transit: the transverse scale not determined; the
-    straight run: the speed nearly constant), the forward speed reported is the
+    """Trained where α is refused on the run's misaligned trial (a fifth of the trial:
+    the transit, the transverse scale not determined; the straight run, the speed nearly
+    constant), the forward speed reported is the
     one-axis calibration's on every trajectory, with the reason, in calibrate's and
     evaluate's JSON alike."""
-    ev = _evaluated(short_trial, short_trial.files[train], tmp_path / "two.yaml")
+    ev = _evaluated(misaligned_trial, misaligned_trial.files[train], tmp_path / "two.yaml")
     cal = ev["calibrated"]
     assert isinstance(cal, dict) and "alpha" in cal["unidentifiable"]
     for doc in (cal, ev):
