@@ -25,7 +25,7 @@ import os
 import pickle
 from collections.abc import Callable, Hashable, Sequence
 from pathlib import Path
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 from drivers.io.capture import REORDER_WINDOW_S
 from emlogd.offline import ProgressFn
@@ -117,23 +117,19 @@ class ReadOnce:
         paths: Sequence[str | Path],
         settings: UutSettings,
         *,
-        workers: int | None = None,
         progress: ProgressFn | None = None,
-        strict: bool = False,
-        reorder_window_s: float = REORDER_WINDOW_S,
+        **options: Any,
     ) -> list[Recording]:
-        """The recordings of ``paths`` in order, as ``record_captures`` gives them."""
-        keys = [self.key(p, settings, strict, reorder_window_s) for p in paths]
+        """The recordings of ``paths`` in order, as ``record_captures`` gives them
+        (``options``: its other keywords, passed on; ``strict`` and
+        ``reorder_window_s`` are also keys)."""
+        strict = bool(options.get("strict", False))
+        reorder_s = float(options.get("reorder_window_s", REORDER_WINDOW_S))
+        keys = [self.key(p, settings, strict, reorder_s) for p in paths]
         kept = [self.kept.get(k) for k in keys]
         missing = [i for i, rec in enumerate(kept) if rec is None]
         if missing:
-            got = self.read(
-                [paths[i] for i in missing],
-                settings,
-                workers=workers,
-                strict=strict,
-                reorder_window_s=reorder_window_s,
-            )
+            got = self.read([paths[i] for i in missing], settings, **options)
             self.reads += len(missing)
             for i, rec in zip(missing, got, strict=True):
                 self.kept.put(keys[i], rec)
