@@ -13,7 +13,6 @@ from emlogd.cli import main
 from emlogd.offline import demo
 from emlogd.offline.demo import DemoError, run_demo
 
-
 FAST, SLOW = 50.0, 10.0
 """The demo's speeds in the test: 50x, and 10x once the daemon fell behind at 50x."""
 
