@@ -105,7 +105,9 @@ the variation it carries is known when the VHW's magnetic heading arrives.
 
 A ``heading_mag`` column (a compass's magnetic heading under a name that says so:
 ``HdgMag``, ``heading_magnetic``) is the heading when no ``heading`` column is mapped,
-read as magnetic; a table with neither writes VHW with the speed alone, counted
+read as magnetic; a heading whose name says its reference (``Hdg (°M)``, ``HDG_mag``,
+``Heading (°T)``, ``HDG_true``) is read in it, over the preset's, unless
+``--heading-ref`` is given; a table with neither writes VHW with the speed alone, counted
 ``no_heading_column`` in ``notes`` (calibrating against GNSS then needs a heading from
 elsewhere). The variation for a magnetic heading: a ``variation`` column, else ``--variation
 DEG``; without either the RMC has none, and calibration takes the IGRF model's at
@@ -340,7 +342,7 @@ def import_csv(
             raise ImportFormatError(no_header(path, head, candidates))
         h_index, delim, chosen, cols = found
         fmt = time_format or (chosen.time_format if chosen is not None else "auto")
-        href = heading_ref or (chosen.heading_ref if chosen is not None else "true")
+        href = heading_ref or _named_ref(cols) or (chosen.heading_ref if chosen else "true")
         units = None if sparse else _units_row(head, h_index, delim, cols, path)
         if units is not None:
             report.notes["units_row"] += 1
@@ -407,6 +409,14 @@ def _units_row(
         return None
     row = next(csv.reader([head[h_index + 1]], delimiter=delim), [])
     return units_row(row, next(csv.reader([head[h_index]], delimiter=delim)), cols, path)
+
+
+def _named_ref(cols: dict[str, Col]) -> HeadingRef | None:
+    """The heading's reference as its column's name says it (``Hdg (°M)``), else None."""
+    for key in ("heading", "heading_mag"):
+        if key in cols:
+            return cols[key].ref
+    return None
 
 
 def _magnetic_column(cols: dict[str, Col], href: HeadingRef, href_given: bool) -> HeadingRef:

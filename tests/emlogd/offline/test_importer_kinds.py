@@ -192,16 +192,16 @@ class TestGenericTable:
 class TestWindowsExports:
     """A table written on Windows: its code page, units after the names."""
 
-    def test_a_magnetic_degree_column_is_left_out_and_named(self, tmp_path: Path) -> None:
-        """``Hdg (°M)``, a unit no table knows, in a cp1252 file: the column is left
-        out, the notes name it with its unit, ``°T`` columns and the rest are read."""
+    def test_a_magnetic_degree_column_is_a_magnetic_heading(self, tmp_path: Path) -> None:
+        """``Hdg (°M)`` in a cp1252 file: the column is the heading, read as magnetic
+        (the model's variation at the fixes), ``°T`` columns and the rest are read."""
         rows = [f"{38516.4 + i / 86_400:.6f},3.1,147,{150 + i},3.4" for i in range(5)]
         text = "Utc,Bsp (kt),Hdg (°M),Cog (°T),Sog (kt)\n" + "\n".join(rows) + "\n"
         src = tmp_path / "x.csv"
         src.write_bytes(text.encode("cp1252"))
         rep = import_csv(src, tmp_path / "x.cap")
-        assert rep.notes["unit_not_known 'Hdg (°M)' ('°M')"] == 1
-        assert rep.heading_ref is None and rep.notes["no_heading_column"] == 1
+        assert not any(k.startswith("unit_not_known") for k in rep.notes)
+        assert rep.heading_ref == "magnetic" and "no_heading_column" not in rep.notes
         assert rep.sentences["VHW"] == 1 and rep.sentences["RMC"] == 5
 
 
