@@ -13,7 +13,9 @@ taken with its checksum added (``checksum_added`` in ``notes``); in a log with
 checksums a line without one is a cut line (``missing_checksum``). A line with
 something before its sentence (a logger's receive time, a tag) is read from its
 first ``$`` or ``!`` that starts a well-formed address (``line_prefix`` in
-``notes``); the fixes still time it. NULs and a Ctrl-Z at a line's ends are no part
+``notes``), and one with something after its checksum past a blank, a comma, a
+semicolon or a bar (a receive time written after it) to its checksum (``line_suffix``);
+the fixes still time it. NULs and a Ctrl-Z at a line's ends are no part
 of it; sentences run together on one line (a line end lost) are split after each
 checksum a sentence's address follows (``sentences_run_together``); a sentence cut
 over two lines is joined when the two together pass its checksum (``lines_joined``).

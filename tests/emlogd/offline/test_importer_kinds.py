@@ -81,6 +81,23 @@ class TestPrefixes:
         assert rep.written == 3 and rep.notes["line_prefix"] == 3 and rep.skipped == {}
         assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
 
+    def test_a_receive_time_after_each_sentence_is_passed_over(self, tmp_path: Path) -> None:
+        """A logger that writes its time after each sentence (a space, a comma or a tab
+        after the checksum): the sentence is read to its checksum (it was refused as a
+        log without a sentence with its checksum, and told to use --format nmea); a
+        sentence whose checksum is wrong stays refused."""
+        t1 = T + timedelta(seconds=1)
+        lines = [encode_rmc(T, 2.0, 90.0), encode_vhw(1.9), encode_rmc(t1, 2.0, 90.0)]
+        stamps = [" 2026-05-06T10:00:00.120Z", ",1778061600500", "\t10:00:01.2"]
+        bad = encode_vhw(2.5)[:-2] + "00 2026-05-06T10:00:01.500Z"
+        src = tmp_path / "log.nmea"
+        rows = [x + p for x, p in zip(lines, stamps, strict=True)]
+        src.write_text("\n".join([*rows[:2], bad, rows[2]]) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 3 and rep.notes["line_suffix"] == 3
+        assert rep.skipped == {"checksum": 1}
+        assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
+
     def test_a_sentence_quoted_last_in_a_csv_row(self, tmp_path: Path) -> None:
         """OpenCPN's data log in CSV: the sentence is the row's last cell, quoted; the
         header rows are no sentences."""
