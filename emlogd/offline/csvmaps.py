@@ -440,8 +440,38 @@ def _date_time_pattern(value: str) -> str | None:
     return None
 
 
+DEGREES_MINUTES = re.compile(
+    r"(?P<pre>[NSEW])?\s*(?P<deg>\d{1,3})\s*[°º˚\s]\s*(?P<min>\d{1,2}(?:\.\d+)?)\s*['′]?"
+    r"(?:\s*(?P<sec>\d{1,2}(?:\.\d+)?)\s*(?:\"|″|'')?)?\s*(?P<post>[NSEW])?",
+    re.IGNORECASE,
+)
+"""A position written in degrees and minutes (and seconds) with its signs, and a
+hemisphere letter before or after: ``45°40.8145'N``, ``N 45° 40.8145'``, ``013 41.0614
+E``, ``45°40'48.9"N``."""
+
+
+def _degrees_minutes(m: re.Match[str], key: str) -> float:
+    """:data:`DEGREES_MINUTES`' match → signed degrees.
+
+    Raises:
+        ValueError: no hemisphere letter, or two, or one of the other axis; minutes or
+            seconds of 60 or more.
+    """
+    hemis = [h.upper() for h in (m["pre"], m["post"]) if h]
+    if len(hemis) != 1 or (key == "lat") != (hemis[0] in "NS"):
+        raise ValueError(f"hemisphere {''.join(hemis) or 'missing'} in a {key} cell")
+    minutes, seconds = float(m["min"]), float(m["sec"] or 0.0)
+    if minutes >= 60.0 or seconds >= 60.0:
+        raise ValueError(f"{minutes} minutes, {seconds} seconds")
+    x = int(m["deg"]) + minutes / 60.0 + seconds / 3600.0
+    return -x if hemis[0] in "SW" else x
+
+
 def _position(cell: str, key: str) -> float:
-    """Decimal degrees, or ``ddmm.mmmm`` / ``dddmm.mmmm`` with a hemisphere letter."""
+    """Decimal degrees, or ``ddmm.mmmm`` / ``dddmm.mmmm`` with a hemisphere letter, or
+    degrees and minutes written with their signs (:data:`DEGREES_MINUTES`)."""
+    if (m := DEGREES_MINUTES.fullmatch(cell.strip())) is not None:
+        return _degrees_minutes(m, key)
     hemi = cell[-1].upper()
     if hemi in "NSEW":
         if (key == "lat") != (hemi in "NS"):

@@ -69,8 +69,10 @@ else to the day the file was last written (noted ``date_from_file_name`` or
 :data:`DAY_ROLLOVER_S` or more before the row before: midnight passed). When no row
 gives a time, the error quotes the first time cell and asks for ``--time-format`` (for
 times of day alone, for the date). Times without a zone are UTC unless ``--utc-offset`` says
-the logger kept local time. Positions are decimal degrees or
-``ddmm.mmmmN``/``dddmm.mmmmE``.
+the logger kept local time. Positions are decimal degrees,
+``ddmm.mmmmN``/``dddmm.mmmmE``, or degrees and minutes (and seconds) with their signs
+and a hemisphere letter (``45°40.8145'N``, ``N 45 40.8145``); one without its letter
+is no position.
 Expedition's own sparse log (a ``!Boat`` line of names, a ``!boat`` line of channel
 numbers, rows of ``channel,value`` pairs) is told by its header and read as the rows
 of its flat export (:mod:`emlogd.offline.importer_sparse`); its times are OLE dates or

@@ -10,7 +10,9 @@ import pytest
 
 from drivers import make_decoder
 from drivers.io.capture import CaptureReader
-from drivers.nmea0183 import Vhw
+from drivers.nmea0183 import Rmc, Vhw
+from emlogd.offline.csvmaps import Col, cell_value
+from emlogd.offline.importbase import ImportReport
 from emlogd.offline.importer import import_csv
 
 OLE_2005 = 38516.5  # 2005-06-13 12:00 UTC
@@ -69,3 +71,42 @@ def test_the_loggers_heading_named_with_its_units_keeps_its_preset(tmp_path: Pat
         rep = import_csv(p, tmp_path / "o.cap", utc_offset_h=2.0)
         assert rep.preset == "logger-tsv" and rep.heading_ref == ref
         assert rep.sentences.get("RMC") == 1 and rep.sentences.get("VHW") == 1
+
+
+@pytest.mark.parametrize(
+    ("lat", "lon"),
+    [
+        ("45°40.8145'N", "13°41.0614'E"),
+        ("N 45° 40.8145'", "E 013° 41.0614'"),
+        ("45 40.8145 N", "013 41.0614 E"),
+        ("45°40'48.87\"N", "13°41'03.684\"E"),
+    ],
+)
+def test_positions_in_degrees_and_minutes_are_read(tmp_path: Path, lat: str, lon: str) -> None:
+    """The logger's positions written in degrees and minutes with their signs (another
+    firmware's, a spreadsheet's): each a position, so the magnetic heading has the
+    model's variation (the cells were not numbers, and calibration found no position
+    for the model)."""
+    p = tmp_path / "log.tsv"
+    head = "Date\tTime\tBoatspeed\tHeading\tExt_SOG\tExt_COG\tLatitudine\tLongitudine"
+    rows = [f"08/07/17\t12:39:0{i}\t5.{i}\t309\t4.{i}\t312\t{lat}\t{lon}" for i in range(3)]
+    p.write_text(head + "\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    rep = import_csv(p, tmp_path / "o.cap", utc_offset_h=2.0)
+    assert rep.cells == {} and rep.variation == "model"
+    dec = make_decoder("nmea0183", "nmea")
+    fixes = [x for r in CaptureReader(tmp_path / "o.cap") for x in dec.feed(r.data)]
+    rmc = [x for x in fixes if isinstance(x, Rmc)]
+    assert len(rmc) == 3
+    assert all(x.lat_deg == pytest.approx(45.680242, abs=2e-6) for x in rmc)
+    assert all(x.lon_deg == pytest.approx(13.684357, abs=2e-6) for x in rmc)
+
+
+@pytest.mark.parametrize("cell", ["45°40.8145'", "45°70.1'N", "45°40.1'E"])
+def test_a_degrees_and_minutes_cell_without_its_hemisphere_or_beyond_is_no_position(
+    cell: str,
+) -> None:
+    """Without a hemisphere letter, with one of the other axis, or 60 minutes or more:
+    not a position (counted), never a guess."""
+    rep = ImportReport([], "", "")
+    assert cell_value(cell, Col("lat", 0, 1.0), rep) is None
+    assert rep.cells == {"lat: not_a_number": 1}
