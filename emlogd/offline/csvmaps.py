@@ -291,9 +291,19 @@ def _bare(name: str) -> tuple[str, str | None]:
     return m.group("name").strip().casefold(), unit
 
 
+TIME_ZONE_UNITS = frozenset({"utc", "gmt"})
+"""What a time or date column's name may say after it (``Time (UTC)``, ``Date [GMT]``):
+its zone, UTC, as times without a zone are taken."""
+
+
 def _known_unit(unit: str) -> bool:
     """Whether a unit (folded) is one a column's name may carry."""
-    return unit in HEADER_UNITS or unit in ANGLE_UNITS or unit in MAGNETIC_UNITS
+    return (
+        unit in HEADER_UNITS
+        or unit in ANGLE_UNITS
+        or unit in MAGNETIC_UNITS
+        or unit in TIME_ZONE_UNITS
+    )
 
 
 def _ref(key: str, unit: str | None) -> HeadingRef | None:
@@ -392,13 +402,17 @@ DATE_TIME_PATTERNS = (
     "%d/%m/%y %H:%M:%S.%f",
     "%d.%m.%Y %H:%M:%S",
     "%d.%m.%Y %H:%M:%S.%f",
+    "%d-%m-%Y %H:%M:%S",
+    "%d-%m-%Y %H:%M:%S.%f",
+    "%d-%m-%y %H:%M:%S",
+    "%d-%m-%y %H:%M:%S.%f",
     "%Y/%m/%d %H:%M:%S",
     "%Y/%m/%d %H:%M:%S.%f",
     "%m/%d/%Y %I:%M:%S %p",
     "%m/%d/%Y %I:%M:%S.%f %p",
 )
 """The date-and-time cells ``auto`` recognises besides ISO 8601, tried in this order on
-the first time cell: day first, as European loggers and spreadsheets write it, and
+the first time cell: day first, as European loggers and spreadsheets write it (``/``, ``.`` or ``-`` between), and
 month first only with a 12-hour clock's AM/PM (as US-English Windows writes a date;
 another month-first file needs ``--time-format``)."""
 

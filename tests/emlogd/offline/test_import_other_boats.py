@@ -4,6 +4,7 @@ recordings' own are."""
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
@@ -110,3 +111,24 @@ def test_a_degrees_and_minutes_cell_without_its_hemisphere_or_beyond_is_no_posit
     rep = ImportReport([], "", "")
     assert cell_value(cell, Col("lat", 0, 1.0), rep) is None
     assert rep.cells == {"lat: not_a_number": 1}
+
+
+def test_a_day_first_date_with_dashes_and_a_time_named_utc(tmp_path: Path) -> None:
+    """``08-07-2017`` (a day-first date with dashes, as Dutch and Danish locales write
+    it) and a ``Time (UTC)`` column beside it: the rows' times as with ``08/07/17`` and
+    ``Time`` (the dashes were no format told by itself, and ``(UTC)`` no unit)."""
+    caps = []
+    for date_head, time_head, day in (
+        ("date", "time", "08/07/17"),
+        ("Date", "Time (UTC)", "08-07-2017"),
+        ("Date [UTC]", "Time [GMT]", "08-07-17"),
+    ):
+        p = tmp_path / f"{len(caps)}.csv"
+        rows = [f"{day},12:39:0{i},5.{i},30{i},5.{i},31{i}" for i in range(4)]
+        p.write_text(f"{date_head},{time_head},stw,hdg,sog,cog\n" + "\n".join(rows) + "\n")
+        cap = tmp_path / f"{len(caps)}.cap"
+        rep = import_csv(p, cap)
+        assert rep.preset == "generic" and rep.sentences == {"RMC": 4, "VHW": 4}
+        caps.append([(r.t, r.data) for r in CaptureReader(cap)])
+    assert caps[0][0][0] == datetime(2017, 7, 8, 12, 39, tzinfo=UTC).timestamp()
+    assert caps[1] == caps[0] and caps[2] == caps[0]
