@@ -117,7 +117,7 @@ def test_a_day_first_date_with_dashes_and_a_time_named_utc(tmp_path: Path) -> No
     """``08-07-2017`` (a day-first date with dashes, as Dutch and Danish locales write
     it) and a ``Time (UTC)`` column beside it: the rows' times as with ``08/07/17`` and
     ``Time`` (the dashes were no format told by itself, and ``(UTC)`` no unit)."""
-    caps = []
+    caps: list[list[tuple[float, bytes]]] = []
     for date_head, time_head, day in (
         ("date", "time", "08/07/17"),
         ("Date", "Time (UTC)", "08-07-2017"),
