@@ -34,8 +34,10 @@ HEADER_SCAN_LINES = 200
 """The header must be among the first this many lines (a banner before it: a logger
 may write its settings, damping and calibration tables first)."""
 
-NO_VALUE = frozenset({"-", "--", "---"})
-"""Cells that say "no value" (a logger's dash before its estimate is known): empty."""
+NO_VALUE = frozenset({"-", "--", "---", "nan", "n/a", "na", "null", "none"})
+"""Cells that say "no value", in any case (a logger's dash before its estimate is known,
+the ``NaN`` of a pandas or MATLAB export, a spreadsheet's ``N/A``, a database's
+``NULL``): empty, so not counted as bad cells."""
 
 DELIMITERS = (",", "\t", ";", "|")
 """The delimiters the header is tried with."""
@@ -636,9 +638,9 @@ def _is_value(text: str) -> bool:
 
 
 def cell(row: list[str], index: int) -> str:
-    """A row's cell, stripped; empty when absent or a :data:`NO_VALUE` dash."""
+    """A row's cell, stripped; empty when absent or a :data:`NO_VALUE`."""
     text = row[index].strip() if index < len(row) else ""
-    return "" if text in NO_VALUE else text
+    return "" if text.casefold() in NO_VALUE else text
 
 
 def cell_value(cell: str, c: Col, report: ImportReport) -> float | None:

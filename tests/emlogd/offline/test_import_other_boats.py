@@ -132,3 +132,17 @@ def test_a_day_first_date_with_dashes_and_a_time_named_utc(tmp_path: Path) -> No
         caps.append([(r.t, r.data) for r in CaptureReader(cap)])
     assert caps[0][0][0] == datetime(2017, 7, 8, 12, 39, tzinfo=UTC).timestamp()
     assert caps[1] == caps[0] and caps[2] == caps[0]
+
+
+@pytest.mark.parametrize("missing", ["", "NaN", "nan", "N/A", "NULL", "None", "-"])
+def test_a_missing_value_written_as_a_word_is_an_empty_cell(tmp_path: Path, missing: str) -> None:
+    """A pandas export's ``NaN``, a spreadsheet's ``N/A``, a database's ``NULL``: the
+    cell is empty (its column's last value carried), not a bad cell in the report."""
+    p = tmp_path / "log.csv"
+    rows = [
+        f"2024-07-18T11:14:5{i}Z,7.{i},{missing if i % 2 else '313'},8.{i},334" for i in range(4)
+    ]
+    p.write_text("time,speed,hdg,sog,cog\n" + "\n".join(rows) + "\n")
+    rep = import_csv(p, tmp_path / "o.cap")
+    assert rep.cells == {} and rep.sentences == {"RMC": 4, "VHW": 4}
+    assert [v.heading_true_deg for v in _vhw(tmp_path / "o.cap")] == [313.0] * 4
