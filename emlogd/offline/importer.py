@@ -113,7 +113,9 @@ read as magnetic; a heading whose name says its reference (``Hdg (°M)``, ``HDG_
 ``Heading (°T)``, ``HDG_true``) is read in it, over the preset's, unless
 ``--heading-ref`` is given; a table with neither writes VHW with the speed alone, counted
 ``no_heading_column`` in ``notes`` (calibrating against GNSS then needs a heading from
-elsewhere). The variation for a magnetic heading: a ``variation`` column, else ``--variation
+elsewhere); one without a speed or a course over ground column writes no RMC,
+counted ``no_sog_cog_column`` (its fixes give no ground velocity: the positions alone
+are not differenced into one, and calibrating against GNSS needs one from elsewhere). The variation for a magnetic heading: a ``variation`` column, else ``--variation
 DEG``; without either the RMC has none, and calibration takes the IGRF model's at
 the fix's position and date (:mod:`emlogd.pipeline.variation`). The import runs the
 heading-against-course check of that module on the rows (``heading_check``), so a
@@ -450,6 +452,8 @@ def _describe(
     report.heading_ref = href if "heading" in cols else None
     if "heading" not in cols:
         report.notes["no_heading_column"] += 1
+    if "sog" not in cols or "cog" not in cols:
+        report.notes["no_sog_cog_column"] += 1
     if chosen is not None and chosen.local_time and not offset_given:
         report.notes["local_time_taken_as_utc"] += 1
     if "heading" in cols and href == "magnetic":

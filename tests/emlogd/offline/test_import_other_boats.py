@@ -146,3 +146,16 @@ def test_a_missing_value_written_as_a_word_is_an_empty_cell(tmp_path: Path, miss
     rep = import_csv(p, tmp_path / "o.cap")
     assert rep.cells == {} and rep.sentences == {"RMC": 4, "VHW": 4}
     assert [v.heading_true_deg for v in _vhw(tmp_path / "o.cap")] == [313.0] * 4
+
+
+def test_an_export_without_sog_or_cog_says_so(tmp_path: Path) -> None:
+    """An Expedition export with its positions but without ``Sog``/``Cog``: no RMC, and
+    the report says why (it said nothing, and calibration against GNSS then found no
+    fix); with both columns, no such note."""
+    p = tmp_path / "log.csv"
+    rows = [f"{OLE_2005 + i * SEC:.8f},5.0,{90 + i},39.4,-0.3" for i in range(3)]
+    p.write_text("Utc,Bsp,Hdg,Lat,Lon\n" + "\n".join(rows) + "\n")
+    rep = import_csv(p, tmp_path / "o.cap")
+    assert rep.notes["no_sog_cog_column"] == 1 and "RMC" not in rep.sentences
+    rep = import_csv(_expedition(tmp_path, "Hdg"), tmp_path / "o.cap")
+    assert "no_sog_cog_column" not in rep.notes and rep.sentences["RMC"] >= 1
