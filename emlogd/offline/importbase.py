@@ -151,6 +151,7 @@ class CaptureSink:
         self.port = port
         self.report = report
         self.check = CourseOffsetCheck()
+        self.water_talkers: Counter[str] = Counter()  # VHW/VBW written, by talker
         try:
             self.w = CaptureWriter(self.tmp, {port: "nmea0183"})
             self.w.comment(comment.encode("ascii", "replace").decode("ascii"))
@@ -161,7 +162,10 @@ class CaptureSink:
         self.w.write_line(t, self.port, line.encode("ascii"))
         r = self.report
         r.written += 1
-        r.sentences[sentence_kind(line)] += 1
+        kind = sentence_kind(line)
+        r.sentences[kind] += 1
+        if kind in ("VHW", "VBW"):
+            self.water_talkers[line[1:3]] += 1
         if r.written == 1:
             r.t_start = t
         r.t_end = t

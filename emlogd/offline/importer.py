@@ -19,7 +19,9 @@ the fixes still time it. NULs and a Ctrl-Z at a line's ends are no part
 of it; sentences run together on one line (a line end lost) are split after each
 checksum a sentence's address follows (``sentences_run_together``); a sentence cut
 over two lines is joined when the two together pass its checksum (``lines_joined``).
-Time comes from
+VHW or VBW from two talkers or more, each a tenth of them or more, is noted
+``water_talkers II+VW`` (two logs on one port: both are kept, and calibration takes
+them as one log). Time comes from
 the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, an
 RMC's without its date, or a valid GLL's while no fix of another kind has come: a GNSS
 sending GLL and VTG alone) with a date

@@ -4,17 +4,17 @@ recordings' own are."""
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
 
 from drivers import make_decoder
 from drivers.io.capture import CaptureReader
-from drivers.nmea0183 import Rmc, Vhw
+from drivers.nmea0183 import Rmc, Vhw, encode_rmc, encode_vhw
 from emlogd.offline.csvmaps import Col, cell_value
 from emlogd.offline.importbase import ImportReport
-from emlogd.offline.importer import import_csv
+from emlogd.offline.importer import import_csv, import_nmea
 
 OLE_2005 = 38516.5  # 2005-06-13 12:00 UTC
 SEC = 1.0 / 86400.0
@@ -159,3 +159,25 @@ def test_an_export_without_sog_or_cog_says_so(tmp_path: Path) -> None:
     assert rep.notes["no_sog_cog_column"] == 1 and "RMC" not in rep.sentences
     rep = import_csv(_expedition(tmp_path, "Hdg"), tmp_path / "o.cap")
     assert "no_sog_cog_column" not in rep.notes and rep.sentences["RMC"] >= 1
+
+
+def test_two_logs_on_one_port_are_noted(tmp_path: Path) -> None:
+    """VHW from two talkers, each a share of the speeds (a second log on the
+    multiplexer): the import keeps both and notes it; a few sentences under another
+    talker (a line error in its address) are not noted."""
+    t0 = datetime(2026, 5, 6, 10, tzinfo=UTC)
+    lines = []
+    for k in range(40):
+        lines += [encode_rmc(t0 + timedelta(seconds=k), 5.0, 90.0), encode_vhw(4.8, talker="II")]
+        if k % 2:
+            lines.append(encode_vhw(5.5, talker="VW"))
+    src = tmp_path / "two.nmea"
+    src.write_text("\n".join(lines) + "\n")
+    rep = import_nmea([src], tmp_path / "o.cap")
+    # both kept: 40 + 20, less the two after the last fix (untimed)
+    assert rep.notes["water_talkers II+VW"] == 1 and rep.sentences["VHW"] == 58
+    one = [x for x in lines if "VWVHW" not in x]
+    one[5] = encode_vhw(4.8, talker="GP")
+    src.write_text("\n".join(one) + "\n")
+    rep = import_nmea([src], tmp_path / "o.cap")
+    assert not any(k.startswith("water_talkers") for k in rep.notes)
