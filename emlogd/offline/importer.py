@@ -328,7 +328,8 @@ def import_csv(
             has), or None (``auto`` without a map, else none).
         time_format: ``ole``, ``iso``, ``epoch``, a ``strptime`` pattern, or None (the
             preset's; without one ``auto``: told by the first time cell).
-        heading_ref: the heading's reference (default: the preset's, else true).
+        heading_ref: the heading's reference (default: as the column's name says it, else
+            the preset's, else true).
         utc_offset_h: the logger's clock minus UTC, hours (times are UTC without it).
         day: the date of times of day alone when no date column is mapped.
         variation_deg: magnetic variation, east positive, when no column gives one.
