@@ -460,9 +460,13 @@ def parse_rmc(talker: str, f: list[str], raw: bytes) -> Rmc:
 
 
 def parse_vtg(talker: str, f: list[str], raw: bytes) -> Vtg:
-    """VTG: 8 fields, 9 with the mode indicator (NMEA 2.3)."""
+    """VTG: 8 fields, 9 with the mode indicator (NMEA 2.3); or the 4 of its form before
+    NMEA 2.0 (course true, course magnetic, knots, km/h: no unit letters), as older
+    receivers send it."""
+    if len(f) == 4:
+        f = [f[0], "T", f[1], "M", f[2], "N", f[3], "K"]
     if len(f) not in (8, 9):
-        raise FieldError(f"VTG has {len(f)} fields, expected 8 or 9", raw)
+        raise FieldError(f"VTG has {len(f)} fields, expected 8 or 9 (or 4)", raw)
     cog_t = _heading(_num(f[0], "VTG course true", raw), "VTG course true", raw)
     _flag(f[1], "T", "VTG field 2", raw)
     cog_m = _heading(_num(f[2], "VTG course magnetic", raw), "VTG course magnetic", raw)

@@ -9,7 +9,7 @@ import math
 import re
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Literal
@@ -34,8 +34,10 @@ HEADER_SCAN_LINES = 200
 """The header must be among the first this many lines (a banner before it: a logger
 may write its settings, damping and calibration tables first)."""
 
-NO_VALUE = frozenset({"-", "--", "---"})
-"""Cells that say "no value" (a logger's dash before its estimate is known): empty."""
+NO_VALUE = frozenset({"-", "--", "---", "nan", "n/a", "na", "null", "none"})
+"""Cells that say "no value", in any case (a logger's dash before its estimate is known,
+the ``NaN`` of a pandas or MATLAB export, a spreadsheet's ``N/A``, a database's
+``NULL``): empty, so not counted as bad cells."""
 
 DELIMITERS = (",", "\t", ";", "|")
 """The delimiters the header is tried with."""
@@ -102,7 +104,7 @@ class Preset:
 EXPEDITION: dict[str, str] = {
     "time": "Utc",
     "stw": "Bsp",
-    "heading": "Hdg?",
+    "heading": "Hdg|HdgTrue|TrueHdg|HDT|Heading|HeadingTrue|TrueHeading?",
     "heading_mag": "HdgMag|MagHdg|Hdg_M|HdgM?",
     "variation": "Var|MagVar|Variation|Decl?",
     "sog": "Sog?",
@@ -112,8 +114,9 @@ EXPEDITION: dict[str, str] = {
     "set": "iSet|Set?",
     "drift": "iDrift|Drift?",
 }
-"""Expedition's columns (its ``Hdg`` is a true heading; times are OLE dates, or FILETIME
-ticks in its ``!log=v3`` logs). Its exports
+"""Expedition's columns (its ``Hdg`` is a true heading, as are the other names a
+re-export gives it: ``HdgTrue``, ``Hdg_true``, ``TrueHdg``, ``HDT``, ``Heading``;
+times are OLE dates, or FILETIME ticks in its ``!log=v3`` logs). Its exports
 name the current ``iSet``/``iDrift`` or ``Set``/``Drift``, or leave it out. An export
 without ``Hdg`` may hold the compass's magnetic heading (``HdgMag`` and its spellings,
 with a variation column ``Var`` or ``MagVar``), or no heading at all (then its water
@@ -140,7 +143,7 @@ GENERIC: dict[str, str] = {
     "time": "time|timestamp|datetime|date_time|utc|utctime|utc_time|time_utc",
     "date": "date|utcdate|utc_date|date_utc?",
     "stw": "stw|speed|bsp|boatspeed|boat_speed|speed_through_water|sow|water_speed|log",
-    "heading": "hdg|heading|heading_true|hdt|hdgtrue|hdg_true|true_heading?",
+    "heading": "hdg|heading|heading_true|hdt|hdgtrue|hdg_true|true_heading|truehdg|true_hdg?",
     "heading_mag": "heading_magnetic|magnetic_heading|hdg_mag|mag_hdg|hdm|hdgmag?",
     "variation": "variation|magvar|mag_var|var|declination?",
     "sog": "sog|speed_over_ground?",
@@ -202,6 +205,8 @@ class Col:
     key: str
     index: int
     factor: float
+    ref: HeadingRef | None = None
+    """A heading's reference as its name says it (``Hdg (°M)``: magnetic), else None."""
 
 
 DEG_PER_RAD = 180.0 / math.pi
@@ -245,6 +250,7 @@ HEADER_UNITS: dict[str, float | None] = {
     "degtrue": None,
     "°t": None,
     "°true": None,
+    "true": None,
     "degrees": None,
     "°": None,
     "˚": None,
@@ -252,8 +258,20 @@ HEADER_UNITS: dict[str, float | None] = {
 }
 """Units a column name may carry (``Bsp (kn)``, ``SOG [m/s]``, ``stw_kn``, ``SOG kts``;
 in any case): a speed's factor to m/s (it overrides the map's), or None for an
-angle's (the degree sign, or the ring ``˚`` or ordinal ``º`` written for it; ``°T``: true; a magnetic one, ``°M``, is not known: such a column is left out,
-and the import's notes name it)."""
+angle's (the degree sign, or the ring ``˚`` or ordinal ``º`` written for it; ``°T``,
+``true``: a true heading; a magnetic one, ``°M``, ``degM``, ``mag``, is
+:data:`MAGNETIC_UNITS`). A heading's name that says its reference gives it
+(:attr:`Col.ref`): ``Hdg (°M)`` is read as magnetic whatever the preset's reference,
+``Heading (°T)`` as true, unless ``--heading-ref`` is given."""
+
+MAGNETIC_UNITS = frozenset(
+    {"degm", "deg m", "°m", "°mag", "degmag", "deg mag", "mag", "magnetic", "˚m", "ºm"}
+)
+"""Units that say a heading is magnetic (``°M``, ``degM``, ``Hdg (mag)``, ``HDG_mag``),
+in a column's name or in a units row's cell."""
+
+TRUE_UNITS = frozenset({"°t", "degt", "deg t", "degtrue", "°true", "true", "˚t", "ºt"})
+"""Units that say a heading is true (``°T``, ``Hdg (true)``, ``HDG_true``)."""
 
 ANGLE_UNITS: dict[str, float] = {"rad": DEG_PER_RAD, "radian": DEG_PER_RAD, "radians": DEG_PER_RAD}
 """Angle units a column name may carry besides degrees (``Hdg (rad)``, ``COG [rad]``,
@@ -270,9 +288,31 @@ def _bare(name: str) -> tuple[str, str | None]:
     :data:`ANGLE_UNITS`), folded, and the unit (None: none known)."""
     m = _UNIT_IN_NAME.fullmatch(name.strip())
     unit = (m.group("a") or m.group("b")).strip().casefold() if m else ""
-    if m is None or (unit not in HEADER_UNITS and unit not in ANGLE_UNITS):
+    if m is None or not _known_unit(unit):
         return name.strip().casefold(), None
     return m.group("name").strip().casefold(), unit
+
+
+TIME_ZONE_UNITS = frozenset({"utc", "gmt"})
+"""What a time or date column's name may say after it (``Time (UTC)``, ``Date [GMT]``):
+its zone, UTC, as times without a zone are taken."""
+
+
+def _known_unit(unit: str) -> bool:
+    """Whether a unit (folded) is one a column's name may carry."""
+    return (
+        unit in HEADER_UNITS
+        or unit in ANGLE_UNITS
+        or unit in MAGNETIC_UNITS
+        or unit in TIME_ZONE_UNITS
+    )
+
+
+def _ref(key: str, unit: str | None) -> HeadingRef | None:
+    """A heading column's reference as the unit in its name says it, else None."""
+    if key not in ("heading", "heading_mag") or unit is None:
+        return None
+    return "magnetic" if unit in MAGNETIC_UNITS else "true" if unit in TRUE_UNITS else None
 
 
 def _factor(key: str, given: float | None, unit: str | None) -> float:
@@ -314,7 +354,7 @@ def _resolve(mapping: Mapping[str, str], header: list[str]) -> tuple[dict[str, C
                 at = bare_names.index(_fold(name))
                 unit = bare[at][1]
             if at is not None:
-                cols[key] = Col(key, at, _factor(key, given, unit))
+                cols[key] = Col(key, at, _factor(key, given, unit), _ref(key, unit))
                 break
         else:
             if not optional:
@@ -364,13 +404,17 @@ DATE_TIME_PATTERNS = (
     "%d/%m/%y %H:%M:%S.%f",
     "%d.%m.%Y %H:%M:%S",
     "%d.%m.%Y %H:%M:%S.%f",
+    "%d-%m-%Y %H:%M:%S",
+    "%d-%m-%Y %H:%M:%S.%f",
+    "%d-%m-%y %H:%M:%S",
+    "%d-%m-%y %H:%M:%S.%f",
     "%Y/%m/%d %H:%M:%S",
     "%Y/%m/%d %H:%M:%S.%f",
     "%m/%d/%Y %I:%M:%S %p",
     "%m/%d/%Y %I:%M:%S.%f %p",
 )
 """The date-and-time cells ``auto`` recognises besides ISO 8601, tried in this order on
-the first time cell: day first, as European loggers and spreadsheets write it, and
+the first time cell: day first, as European loggers and spreadsheets write it (``/``, ``.`` or ``-`` between), and
 month first only with a 12-hour clock's AM/PM (as US-English Windows writes a date;
 another month-first file needs ``--time-format``)."""
 
@@ -412,8 +456,38 @@ def _date_time_pattern(value: str) -> str | None:
     return None
 
 
+DEGREES_MINUTES = re.compile(
+    r"(?P<pre>[NSEW])?\s*(?P<deg>\d{1,3})\s*[°º˚\s]\s*(?P<min>\d{1,2}(?:\.\d+)?)\s*['′]?"
+    r"(?:\s*(?P<sec>\d{1,2}(?:\.\d+)?)\s*(?:\"|″|'')?)?\s*(?P<post>[NSEW])?",
+    re.IGNORECASE,
+)
+"""A position written in degrees and minutes (and seconds) with its signs, and a
+hemisphere letter before or after: ``45°40.8145'N``, ``N 45° 40.8145'``, ``013 41.0614
+E``, ``45°40'48.9"N``."""
+
+
+def _degrees_minutes(m: re.Match[str], key: str) -> float:
+    """:data:`DEGREES_MINUTES`' match → signed degrees.
+
+    Raises:
+        ValueError: no hemisphere letter, or two, or one of the other axis; minutes or
+            seconds of 60 or more.
+    """
+    hemis = [h.upper() for h in (m["pre"], m["post"]) if h]
+    if len(hemis) != 1 or (key == "lat") != (hemis[0] in "NS"):
+        raise ValueError(f"hemisphere {''.join(hemis) or 'missing'} in a {key} cell")
+    minutes, seconds = float(m["min"]), float(m["sec"] or 0.0)
+    if minutes >= 60.0 or seconds >= 60.0:
+        raise ValueError(f"{minutes} minutes, {seconds} seconds")
+    x = int(m["deg"]) + minutes / 60.0 + seconds / 3600.0
+    return -x if hemis[0] in "SW" else x
+
+
 def _position(cell: str, key: str) -> float:
-    """Decimal degrees, or ``ddmm.mmmm`` / ``dddmm.mmmm`` with a hemisphere letter."""
+    """Decimal degrees, or ``ddmm.mmmm`` / ``dddmm.mmmm`` with a hemisphere letter, or
+    degrees and minutes written with their signs (:data:`DEGREES_MINUTES`)."""
+    if (m := DEGREES_MINUTES.fullmatch(cell.strip())) is not None:
+        return _degrees_minutes(m, key)
     hemi = cell[-1].upper()
     if hemi in "NSEW":
         if (key == "lat") != (hemi in "NS"):
@@ -472,13 +546,10 @@ def unknown_units(header: list[str]) -> list[str]:
     for h in header:
         m = _UNIT_IN_NAME.fullmatch(h.strip())
         unit = (m.group("a") or "").strip() if m else ""
-        if unit and unit.casefold() not in HEADER_UNITS and unit.casefold() not in ANGLE_UNITS:
+        if unit and not _known_unit(unit.casefold()):
             out.append(f"{h.strip()!r} ({unit!r})")
     return out
 
-
-MAGNETIC_UNITS = frozenset({"degm", "deg m", "°m", "°mag", "degmag", "deg mag"})
-"""A units row's cells that say a heading column is magnetic (``°M``, ``degM``)."""
 
 UNIT_KEYS = (*SPEEDS, *ANGLES, "variation")
 """The columns a units row gives a unit to (a time's, a date's or a position's cell is
@@ -546,7 +617,7 @@ def units_row(
             raise ImportFormatError(
                 f"{where}: the units row under the header says {text!r}, its name {named!r}"
             )
-        out[key] = Col(key, c.index, factor)
+        out[key] = replace(c, factor=factor)
     return UnitsRow(out, frozenset(magnetic))
 
 
@@ -567,9 +638,9 @@ def _is_value(text: str) -> bool:
 
 
 def cell(row: list[str], index: int) -> str:
-    """A row's cell, stripped; empty when absent or a :data:`NO_VALUE` dash."""
+    """A row's cell, stripped; empty when absent or a :data:`NO_VALUE`."""
     text = row[index].strip() if index < len(row) else ""
-    return "" if text in NO_VALUE else text
+    return "" if text.casefold() in NO_VALUE else text
 
 
 def cell_value(cell: str, c: Col, report: ImportReport) -> float | None:

@@ -151,6 +151,7 @@ class CaptureSink:
         self.port = port
         self.report = report
         self.check = CourseOffsetCheck()
+        self.water_talkers: Counter[str] = Counter()  # VHW/VBW written, by talker
         try:
             self.w = CaptureWriter(self.tmp, {port: "nmea0183"})
             self.w.comment(comment.encode("ascii", "replace").decode("ascii"))
@@ -161,7 +162,10 @@ class CaptureSink:
         self.w.write_line(t, self.port, line.encode("ascii"))
         r = self.report
         r.written += 1
-        r.sentences[sentence_kind(line)] += 1
+        kind = sentence_kind(line)
+        r.sentences[kind] += 1
+        if kind in ("VHW", "VBW"):
+            self.water_talkers[line[1:3]] += 1
         if r.written == 1:
             r.t_start = t
         r.t_end = t
@@ -275,12 +279,18 @@ class SentenceCheck:
     def line(self, text: str) -> tuple[str | None, str | None]:
         """(the sentence to write, or None; why the line is skipped, or None). A line
         with something before its sentence (a logger's receive time, a channel tag) is
-        read from its first ``$`` or ``!`` (counted as ``line_prefix``)."""
+        read from its first ``$`` or ``!`` (counted as ``line_prefix``); one with
+        something after its checksum (a receive time written after the sentence) is read
+        to its checksum (``line_suffix``)."""
         start = _sentence_start(text)
         if start > 0:
             self.report.notes["line_prefix"] += 1
             text = text[start:]
         reason = not_a_sentence(text)
+        end = SUFFIX_AFTER.search(text) if reason is not None else None
+        if end is not None and not_a_sentence(text[: end.start()]) is None:
+            self.report.notes["line_suffix"] += 1
+            text, reason = text[: end.start()], None
         if reason is None:
             self.with_ += 1
             return text, None
@@ -292,6 +302,11 @@ class SentenceCheck:
         self.report.notes["checksum_added"] += 1
         body = text[1:]
         return f"{text[0]}{body}*{nmea_checksum(body.encode('ascii')):02X}", None
+
+
+SUFFIX_AFTER = re.compile(r"(?<=\*[0-9A-Fa-f]{2})[\s,;|].*\Z", re.DOTALL)
+"""What follows a sentence's checksum after a separator (a space, a tab, a comma, a
+semicolon, a bar): a logger's receive time written after the sentence."""
 
 
 def _sentence_start(text: str) -> int:

@@ -13,11 +13,15 @@ taken with its checksum added (``checksum_added`` in ``notes``); in a log with
 checksums a line without one is a cut line (``missing_checksum``). A line with
 something before its sentence (a logger's receive time, a tag) is read from its
 first ``$`` or ``!`` that starts a well-formed address (``line_prefix`` in
-``notes``); the fixes still time it. NULs and a Ctrl-Z at a line's ends are no part
+``notes``), and one with something after its checksum past a blank, a comma, a
+semicolon or a bar (a receive time written after it) to its checksum (``line_suffix``);
+the fixes still time it. NULs and a Ctrl-Z at a line's ends are no part
 of it; sentences run together on one line (a line end lost) are split after each
 checksum a sentence's address follows (``sentences_run_together``); a sentence cut
 over two lines is joined when the two together pass its checksum (``lines_joined``).
-Time comes from
+VHW or VBW from two talkers or more, each a tenth of them or more, is noted
+``water_talkers II+VW`` (two logs on one port: both are kept, and calibration takes
+them as one log). Time comes from
 the fixes: the UTC date and time of RMC, else ZDA, else a time of day (GGA's, an
 RMC's without its date, or a valid GLL's while no fix of another kind has come: a GNSS
 sending GLL and VTG alone) with a date
@@ -67,8 +71,10 @@ else to the day the file was last written (noted ``date_from_file_name`` or
 :data:`DAY_ROLLOVER_S` or more before the row before: midnight passed). When no row
 gives a time, the error quotes the first time cell and asks for ``--time-format`` (for
 times of day alone, for the date). Times without a zone are UTC unless ``--utc-offset`` says
-the logger kept local time. Positions are decimal degrees or
-``ddmm.mmmmN``/``dddmm.mmmmE``.
+the logger kept local time. Positions are decimal degrees,
+``ddmm.mmmmN``/``dddmm.mmmmE``, or degrees and minutes (and seconds) with their signs
+and a hemisphere letter (``45°40.8145'N``, ``N 45 40.8145``); one without its letter
+is no position.
 Expedition's own sparse log (a ``!Boat`` line of names, a ``!boat`` line of channel
 numbers, rows of ``channel,value`` pairs) is told by its header and read as the rows
 of its flat export (:mod:`emlogd.offline.importer_sparse`); its times are OLE dates or
@@ -105,9 +111,13 @@ the variation it carries is known when the VHW's magnetic heading arrives.
 
 A ``heading_mag`` column (a compass's magnetic heading under a name that says so:
 ``HdgMag``, ``heading_magnetic``) is the heading when no ``heading`` column is mapped,
-read as magnetic; a table with neither writes VHW with the speed alone, counted
+read as magnetic; a heading whose name says its reference (``Hdg (°M)``, ``HDG_mag``,
+``Heading (°T)``, ``HDG_true``) is read in it, over the preset's, unless
+``--heading-ref`` is given; a table with neither writes VHW with the speed alone, counted
 ``no_heading_column`` in ``notes`` (calibrating against GNSS then needs a heading from
-elsewhere). The variation for a magnetic heading: a ``variation`` column, else ``--variation
+elsewhere); one without a speed or a course over ground column writes no RMC,
+counted ``no_sog_cog_column`` (its fixes give no ground velocity: the positions alone
+are not differenced into one, and calibrating against GNSS needs one from elsewhere). The variation for a magnetic heading: a ``variation`` column, else ``--variation
 DEG``; without either the RMC has none, and calibration takes the IGRF model's at
 the fix's position and date (:mod:`emlogd.pipeline.variation`). The import runs the
 heading-against-course check of that module on the rows (``heading_check``), so a
@@ -318,7 +328,8 @@ def import_csv(
             has), or None (``auto`` without a map, else none).
         time_format: ``ole``, ``iso``, ``epoch``, a ``strptime`` pattern, or None (the
             preset's; without one ``auto``: told by the first time cell).
-        heading_ref: the heading's reference (default: the preset's, else true).
+        heading_ref: the heading's reference (default: as the column's name says it, else
+            the preset's, else true).
         utc_offset_h: the logger's clock minus UTC, hours (times are UTC without it).
         day: the date of times of day alone when no date column is mapped.
         variation_deg: magnetic variation, east positive, when no column gives one.
@@ -340,7 +351,7 @@ def import_csv(
             raise ImportFormatError(no_header(path, head, candidates))
         h_index, delim, chosen, cols = found
         fmt = time_format or (chosen.time_format if chosen is not None else "auto")
-        href = heading_ref or (chosen.heading_ref if chosen is not None else "true")
+        href = heading_ref or _named_ref(cols) or (chosen.heading_ref if chosen else "true")
         units = None if sparse else _units_row(head, h_index, delim, cols, path)
         if units is not None:
             report.notes["units_row"] += 1
@@ -409,6 +420,14 @@ def _units_row(
     return units_row(row, next(csv.reader([head[h_index]], delimiter=delim)), cols, path)
 
 
+def _named_ref(cols: dict[str, Col]) -> HeadingRef | None:
+    """The heading's reference as its column's name says it (``Hdg (°M)``), else None."""
+    for key in ("heading", "heading_mag"):
+        if key in cols:
+            return cols[key].ref
+    return None
+
+
 def _magnetic_column(cols: dict[str, Col], href: HeadingRef, href_given: bool) -> HeadingRef:
     """A ``heading_mag`` column read as the heading when no ``heading`` column is
     mapped (its reference magnetic unless ``--heading-ref`` says otherwise); dropped
@@ -436,6 +455,8 @@ def _describe(
     report.heading_ref = href if "heading" in cols else None
     if "heading" not in cols:
         report.notes["no_heading_column"] += 1
+    if "sog" not in cols or "cog" not in cols:
+        report.notes["no_sog_cog_column"] += 1
     if chosen is not None and chosen.local_time and not offset_given:
         report.notes["local_time_taken_as_utc"] += 1
     if "heading" in cols and href == "magnetic":

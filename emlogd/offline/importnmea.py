@@ -425,6 +425,21 @@ def _add(spread: _Spreader, clock: _Clock, line: str, report: ImportReport) -> N
         spread.add(clock.gga, None)
 
 
+WATER_TALKER_SHARE = 0.1
+"""A talker sending at least this share of a log's VHW and VBW is a speed source of its
+own (below it: a few sentences whose address a line error changed)."""
+
+
+def _note_water_talkers(talkers: Counter[str], report: ImportReport) -> None:
+    """Speed through the water from two talkers or more, each with at least
+    :data:`WATER_TALKER_SHARE` of it, noted ``water_talkers II+VW``: two logs on one
+    port, or one relayed under two talkers; calibration takes them as one log."""
+    total = sum(talkers.values())
+    many = sorted(t for t, n in talkers.items() if n >= WATER_TALKER_SHARE * total)
+    if len(many) > 1:
+        report.notes[f"water_talkers {'+'.join(many)}"] += 1
+
+
 def import_nmea(
     paths: Sequence[str | Path],
     out: str | Path,
@@ -474,6 +489,7 @@ def import_nmea(
         spread.finish()
         if report.written == 0:
             raise ImportFormatError(_why_no_time(report, first, sentences))
+        _note_water_talkers(sink.water_talkers, report)
     except BaseException:
         sink.abort()
         raise

@@ -217,7 +217,7 @@ def add_parser(sub: Subparsers) -> None:
     p.add_argument(
         "--heading-ref",
         choices=get_args(HeadingRef),
-        help="csv: the heading's reference (default: the preset's, else true)",
+        help="csv: the heading's reference (default: as the column's name says it, Hdg (°M) or HDG_true, else the preset's, else true)",
     )
     p.add_argument(
         "--utc-offset",

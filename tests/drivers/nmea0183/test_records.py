@@ -7,6 +7,7 @@ from datetime import UTC, datetime
 
 import pytest
 
+from drivers.errors import FieldError
 from drivers.framing import with_checksum
 from drivers.nmea0183 import RECORDS, Gga, NmeaDecoder, Rmc, Vdr, Vtg, Zda
 from drivers.records import KMH_MPS, KNOT_MPS
@@ -44,6 +45,17 @@ class TestValidity:
         assert r.cog_mag_deg is None
         r = _parse("GPVTG,10.0,T,,M,4.0,N,,K,N")
         assert isinstance(r, Vtg) and not r.valid
+
+    def test_vtg_before_nmea_2(self) -> None:
+        """VTG's form before NMEA 2.0 (four fields, no unit letters: course true and
+        magnetic, knots, km/h) as an older receiver sends it; five fields are none."""
+        r = _parse("GPVTG,054.7,034.4,005.5,010.2")
+        assert isinstance(r, Vtg) and r.cog_true_deg == pytest.approx(54.7)
+        assert r.cog_mag_deg == pytest.approx(34.4) and r.sog_mps == pytest.approx(5.5 * KNOT_MPS)
+        r = _parse("GPVTG,054.7,,,010.2")
+        assert isinstance(r, Vtg) and r.sog_mps == pytest.approx(10.2 * KMH_MPS)
+        with pytest.raises(FieldError):
+            _parse("GPVTG,054.7,034.4,005.5,010.2,X")
 
     def test_gga_quality(self) -> None:
         """GGA's fix quality 0 means no fix; an empty field reads as 0."""

@@ -122,14 +122,17 @@ def test_angles_in_radians_are_read_as_degrees() -> None:
 def test_nmea_field_names_and_true_degrees_are_read() -> None:
     """Another logger's NMEA field names (``SOW``, ``HDT``, ``HdgMag``) and an ECDIS
     logbook's (``Log (kt)``, ``Heading (˚)``) are the generic map's; ``°T``, ``˚`` and
-    ``º`` after a name are an angle's unit, ``°M`` one no table knows."""
+    ``º`` after a name are an angle's unit, ``°M`` a magnetic heading's, ``°F`` one no
+    table knows."""
     found = find_header(["UTC,SOW,HDT,SOG,COG,TWD"], candidate_maps(None, None))
     assert found is not None and found[2] is PRESETS["generic"]
     keys = ("time", "stw", "heading", "sog", "cog")
     assert {k: c.index for k, c in found[3].items()} == dict(zip(keys, range(5), strict=True))
     found = find_header(["Timestamp,BSP (kt),HdgMag (°),COG (°T)"], candidate_maps(None, None))
     assert found is not None and set(found[3]) == {"time", "stw", "heading_mag", "cog"}
-    assert unknown_units(["Hdg (°M)", "Cog (°T)", "Bsp (kt)"]) == ["'Hdg (°M)' ('°M')"]
+    assert unknown_units(["Hdg (°M)", "Cog (°T)", "Bsp (kt)", "Tmp (°F)"]) == ["'Tmp (°F)' ('°F')"]
+    found = find_header(["Utc,Bsp,Hdg (°M)"], candidate_maps(None, None))
+    assert found is not None and found[3]["heading"].ref == "magnetic"
     found = find_header(
         ["Date Time,Log (kt),Heading (˚),COG (º),SOG (kt)"], candidate_maps(None, None)
     )

@@ -81,6 +81,23 @@ class TestPrefixes:
         assert rep.written == 3 and rep.notes["line_prefix"] == 3 and rep.skipped == {}
         assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
 
+    def test_a_receive_time_after_each_sentence_is_passed_over(self, tmp_path: Path) -> None:
+        """A logger that writes its time after each sentence (a space, a comma or a tab
+        after the checksum): the sentence is read to its checksum (it was refused as a
+        log without a sentence with its checksum, and told to use --format nmea); a
+        sentence whose checksum is wrong stays refused."""
+        t1 = T + timedelta(seconds=1)
+        lines = [encode_rmc(T, 2.0, 90.0), encode_vhw(1.9), encode_rmc(t1, 2.0, 90.0)]
+        stamps = [" 2026-05-06T10:00:00.120Z", ",1778061600500", "\t10:00:01.2"]
+        bad = encode_vhw(2.5)[:-2] + "00 2026-05-06T10:00:01.500Z"
+        src = tmp_path / "log.nmea"
+        rows = [x + p for x, p in zip(lines, stamps, strict=True)]
+        src.write_text("\n".join([*rows[:2], bad, rows[2]]) + "\n")
+        rep = import_nmea([src], tmp_path / "o.cap")
+        assert rep.written == 3 and rep.notes["line_suffix"] == 3
+        assert rep.skipped == {"checksum": 1}
+        assert [type(x) for _, x in _decoded(tmp_path / "o.cap")] == [Rmc, Vhw, Rmc]
+
     def test_a_sentence_quoted_last_in_a_csv_row(self, tmp_path: Path) -> None:
         """OpenCPN's data log in CSV: the sentence is the row's last cell, quoted; the
         header rows are no sentences."""
@@ -192,16 +209,16 @@ class TestGenericTable:
 class TestWindowsExports:
     """A table written on Windows: its code page, units after the names."""
 
-    def test_a_magnetic_degree_column_is_left_out_and_named(self, tmp_path: Path) -> None:
-        """``Hdg (°M)``, a unit no table knows, in a cp1252 file: the column is left
-        out, the notes name it with its unit, ``°T`` columns and the rest are read."""
+    def test_a_magnetic_degree_column_is_a_magnetic_heading(self, tmp_path: Path) -> None:
+        """``Hdg (°M)`` in a cp1252 file: the column is the heading, read as magnetic
+        (the model's variation at the fixes), ``°T`` columns and the rest are read."""
         rows = [f"{38516.4 + i / 86_400:.6f},3.1,147,{150 + i},3.4" for i in range(5)]
         text = "Utc,Bsp (kt),Hdg (°M),Cog (°T),Sog (kt)\n" + "\n".join(rows) + "\n"
         src = tmp_path / "x.csv"
         src.write_bytes(text.encode("cp1252"))
         rep = import_csv(src, tmp_path / "x.cap")
-        assert rep.notes["unit_not_known 'Hdg (°M)' ('°M')"] == 1
-        assert rep.heading_ref is None and rep.notes["no_heading_column"] == 1
+        assert not any(k.startswith("unit_not_known") for k in rep.notes)
+        assert rep.heading_ref == "magnetic" and "no_heading_column" not in rep.notes
         assert rep.sentences["VHW"] == 1 and rep.sentences["RMC"] == 5
 
 
