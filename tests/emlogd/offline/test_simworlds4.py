@@ -1,0 +1,201 @@
+"""A sailing vessel beating to windward in a tide, against the promise of
+``test_simphysics.py`` (every 5-min window's RMSE of the emitted speed against the true
+speed through the water at most raw's × 1.05), built with its :class:`Case` and
+measured with its :func:`measure`.
+
+The vessel sails two headings only, 90° apart (010° and 100°), tacking every 8 min: a
+20-s turn in which it loses 0.8 m/s (the hull's response 3 s), leeway 6° to leeward,
+gusts moving the speed by about 0.1 m/s, in a tidal ellipse of 0.5 m/s along 060°
+(0.15 m/s across it, 12.42 h). With the simulator's logs it holds; with logs that are
+nearly right (the promise is sharpest where raw is good) it is open.
+``soak``: a simulation and a replay each; every figure is in docs/RELIABILITY.md,
+measured by running this file as a script::
+
+    PYTHONPATH=. python tests/emlogd/offline/test_simworlds4.py [CASE ...]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import emlogd.offline.simsensors as simsensors
+import tests.emlogd.offline.test_simphysics as simphysics
+from calib.models import Params
+from emlogd.offline.simkinematics import START_EPOCH_S, Kinematics, _lowpass
+from emlogd.offline.simulate import simulate
+from tests.emlogd.offline.test_simphysics import RATIO, TIDE_S, Case, measure, pinned
+
+TACK_S = 480.0
+"""``beating``: a tack every this long, s ..."""
+
+TACK_TURN_S = 20.0
+"""... the turn through :data:`TACK_DEG` taking this long, s ..."""
+
+TACK_DEG = 90.0
+"""... between the two headings (close-hauled on each tack) ..."""
+
+FIRST_HEADING_DEG = 10.0
+"""... the first of them, degrees true ..."""
+
+TACK_LOSS_MPS = 0.8
+"""... the speed lost while turning, m/s ..."""
+
+HULL_TAU_S = 3.0
+"""... the hull's response to it, s (a light boat) ..."""
+
+BEAT_MPS = 2.3
+"""... the speed through the water on each tack, m/s ..."""
+
+LEEWAY_DEG = 6.0
+"""... and the leeway (sideslip to leeward, its side changing with the tack)."""
+
+
+def beating(k: Kinematics) -> Kinematics:
+    """Two headings :data:`TACK_DEG` apart, a tack every :data:`TACK_S`; gusts (white
+    noise averaged over 30 s, about 0.1 m/s) move the speed."""
+    t = k.t
+    tack = np.floor(t / TACK_S) % 2
+    frac = np.clip(np.mod(t, TACK_S) / TACK_TURN_S, 0.0, 1.0)
+    s = (1.0 - tack) + (2.0 * tack - 1.0) * frac  # 0 on the first tack, 1 on the other
+    heading = np.mod(math.radians(FIRST_HEADING_DEG) + s * math.radians(TACK_DEG), 2 * math.pi)
+    rng = np.random.default_rng(round(float(t[-1])))
+    gust = np.convolve(rng.normal(0.0, 0.3, t.size), np.ones(300) / 300, mode="same")
+    cmd = BEAT_MPS + 5.0 * gust - TACK_LOSS_MPS * (frac < 1.0)
+    surge = _lowpass(np.clip(cmd, 0.8, 3.2), HULL_TAU_S)
+    sway = np.where(s > 0.5, 1.0, -1.0) * math.tan(math.radians(LEEWAY_DEG)) * surge
+    return dataclasses.replace(k, surge=surge, sway=sway, heading=heading)
+
+
+TIDE_MAJOR_MPS, TIDE_MINOR_MPS, TIDE_AXIS_DEG = 0.5, 0.15, 60.0
+"""The tidal ellipse: its major and minor semi-axes, m/s, and the major axis, degrees."""
+
+
+def tidal_ellipse(k: Kinematics, t0: float) -> Kinematics:
+    """The current round :data:`TIDE_MAJOR_MPS` × :data:`TIDE_MINOR_MPS` along
+    :data:`TIDE_AXIS_DEG` once per :data:`~tests.emlogd.offline.test_simphysics.TIDE_S`."""
+    ph = 2.0 * math.pi * (t0 - START_EPOCH_S + k.t) / TIDE_S
+    a, b = TIDE_MAJOR_MPS * np.cos(ph), TIDE_MINOR_MPS * np.sin(ph)
+    ax = math.radians(TIDE_AXIS_DEG)
+    return dataclasses.replace(
+        k,
+        current_n=a * math.cos(ax) - b * math.sin(ax),
+        current_e=a * math.sin(ax) + b * math.cos(ax),
+    )
+
+
+EXACT = tuple(
+    dataclasses.replace(e, params=Params("EM4", 0.0, 0.0, 0.0))
+    for e in (simsensors.EMLOG1, simsensors.EMLOG2)
+)
+"""Both logs without error (their noise, lag and rate as simulated)."""
+
+ONE_PERCENT = (
+    dataclasses.replace(simsensors.EMLOG1, params=Params("EM4", 0.0, 0.01, 0.0)),
+    dataclasses.replace(simsensors.EMLOG2, params=Params("EM4", 0.0, -0.01, 0.0)),
+)
+"""emlog1 1 % high, emlog2 1 % low, nothing else."""
+
+WORLDS = {
+    c.name: c
+    for c in (
+        Case("beating", beating.__doc__ or "", motion=beating, current=tidal_ellipse),
+        Case("beating-exact", "the same, both logs exact", motion=beating, current=tidal_ellipse),
+        Case("beating-1pct", "the same, the logs 1 % off", motion=beating, current=tidal_ellipse),
+    )
+}
+
+SENSORS: dict[str, tuple[int, tuple[simsensors.EmlogSpec, ...]]] = {
+    "beating-exact": (1, EXACT),
+    "beating-1pct": (2, ONE_PERCENT),
+}
+"""The worlds whose logs are not the simulator's: the seed and the two logs."""
+
+OPEN = {
+    "beating-exact": "open: emlog1's windows from 1504 s 14.5-16.5x raw (0.295 vs 0.030 "
+    "m/s at 2104 s): m 0.106, b -0.740 applied at 1593 s and never withdrawn. Two headings "
+    "leave the offset and the current along their bisector apart only in the tacks, where "
+    "the speed dips too: the common sea's free polynomial of the reading takes what the "
+    "tacks' headings should give the current; raw scored 0.653 in it against the "
+    "candidate's 0.230, and 0.067 against 0.046 after each one's own current "
+    "(docs/RELIABILITY.md)",
+    "beating-1pct": "open: emlog1's window from 604 s 6.88x raw (0.177 vs 0.037 m/s): a "
+    "scale of -0.092 (b 0; the sensor's +0.01) applied at 608 s while its lag was not yet "
+    "measured (0 s used against 3.2 s, found at 680 s), raw 0.312 against 0.268 after each "
+    "one's own current and 1.298 against 1.068 in the common sea (docs/RELIABILITY.md)",
+}
+"""The worlds that break the promise, pinned as strict xfails until fixed."""
+
+
+def _measure(name: str, tmp: Path, mp: pytest.MonkeyPatch) -> dict[str, Any]:
+    if name in SENSORS:
+        seed, logs = SENSORS[name]
+
+        def with_logs(outdir: str | Path, **kw: Any) -> Any:
+            return simulate(outdir, **(kw | {"seed": seed}), emlogs=(logs[0], logs[1]))
+
+        mp.setattr(simphysics, "simulate", with_logs)
+    return measure(WORLDS[name], tmp, mp)
+
+
+def _k(n: int = 20000) -> Kinematics:
+    t = np.arange(n, dtype=np.float64) * 0.1
+    z = np.zeros(n)
+    return Kinematics(t=t, surge=np.full(n, 1.0), sway=z, heading=z, current_e=z, current_n=z)
+
+
+class TestWorlds:
+    """What each world changes, on a small grid (fast)."""
+
+    def test_two_headings_a_tack_every_eight_minutes(self) -> None:
+        """On each tack one heading (010° or 100°), the turn between them 20 s long with
+        the speed down by up to 0.8 m/s, leeway to the tack's leeward side."""
+        b = beating(_k())
+        deg = np.degrees(b.heading)
+        at = [int(x * 10) for x in (100.0, 470.0, 600.0, 950.0, 1100.0)]
+        assert deg[at] == pytest.approx([10.0, 10.0, 100.0, 100.0, 10.0], abs=1e-9)
+        legs = (np.mod(b.t, TACK_S) >= 60.0) & (np.mod(b.t, TACK_S) < 470.0)
+        assert float(np.mean(b.surge[legs])) == pytest.approx(BEAT_MPS, abs=0.05)
+        turn = (np.mod(b.t, TACK_S) > 10.0) & (np.mod(b.t, TACK_S) < TACK_TURN_S)
+        assert float(np.max(b.surge[legs] - np.mean(b.surge[legs]))) < 0.4
+        assert float(np.mean(b.surge[turn])) < BEAT_MPS - 0.5
+        assert b.sway[at[0]] / b.surge[at[0]] == pytest.approx(-math.tan(math.radians(6.0)))
+        assert b.sway[at[2]] / b.surge[at[2]] == pytest.approx(math.tan(math.radians(6.0)))
+        mid = int(480.0 * 10 + 100)  # 10 s into the second tack's turn: half-way round
+        assert deg[mid] == pytest.approx(55.0, abs=1.0)
+
+    def test_the_tidal_ellipse(self) -> None:
+        """0.5 m/s along 060° at the trial's start, 0.15 m/s across it a quarter of a
+        tide later."""
+        e = tidal_ellipse(_k(), START_EPOCH_S)
+        assert (e.current_n[0], e.current_e[0]) == pytest.approx(
+            (0.5 * math.cos(math.radians(60.0)), 0.5 * math.sin(math.radians(60.0)))
+        )
+        q = tidal_ellipse(_k(), START_EPOCH_S + TIDE_S / 4.0)
+        assert math.hypot(q.current_n[0], q.current_e[0]) == pytest.approx(0.15)
+        assert all(p.params.forward(2.0) == 2.0 for p in EXACT)
+
+
+@pytest.mark.soak
+@pytest.mark.parametrize("name", pinned(WORLDS, OPEN))
+def test_every_window_within_raw(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    """Both logs: every 5-min window within 1.05 × raw's RMSE against the truth."""
+    got = _measure(name, tmp_path, monkeypatch)
+    assert max(v["worst"] for v in got.values()) <= RATIO, got
+
+
+if __name__ == "__main__":
+    for arg in sys.argv[1:] or sorted(WORLDS):
+        with tempfile.TemporaryDirectory() as d, pytest.MonkeyPatch.context() as m:
+            sys.stdout.write(json.dumps({arg: _measure(arg, Path(d), m)}, default=str) + "\n")
+            sys.stdout.flush()
