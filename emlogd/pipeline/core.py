@@ -317,7 +317,7 @@ class Pipeline:
             self.headings.position(t, g.lat_deg, g.lon_deg, g.fix_t)
         valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
         if valid:  # the last fix sent again and again: no reference (stalefix)
-            stale = self.headings.repeated_fix(t, port, g)
+            stale = self.headings.repeated_fix(port, g)
             if stale is None:
                 self._pending_events.append(Event(t, port, "gnss_repeated", {}))
             valid = stale is False

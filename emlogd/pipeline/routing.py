@@ -288,13 +288,15 @@ class Headings:
             self.fix_quality[port] = old.fix_quality[port]
         self.repeats.adopt(old.repeats, port)
 
-    def repeated_fix(self, t: float, port: str, g: NavGnss) -> bool | None:
-        """Whether ``port``'s fix ``g`` repeats a moving one for long enough to be stale
-        (:class:`~emlogd.pipeline.stalefix.RepeatedFixes`; None: it has just become so)."""
+    def repeated_fix(self, port: str, g: NavGnss) -> bool | None:
+        """Whether ``port``'s fix ``g`` repeats a moving one for long enough, by its own
+        time, to be stale (:class:`~emlogd.pipeline.stalefix.RepeatedFixes`; None: it
+        has just become so)."""
         parts = (g.lat_deg, g.lon_deg, g.sog_mps, g.cog_true_deg)
-        if parts[0] is None or parts[1] is None or parts[2] is None or parts[3] is None:
-            return self.repeats.stale(t, port, None)
-        return self.repeats.stale(t, port, (parts[0], parts[1], parts[2], parts[3]))
+        if None in parts or g.fix_t is None:
+            return self.repeats.stale(0.0, port, None)
+        lat, lon, sog, cog = (float(x) for x in parts if x is not None)
+        return self.repeats.stale(g.fix_t, port, (lat, lon, sog, cog))
 
 
 class UutRoute:

@@ -76,3 +76,23 @@ def test_a_receiver_sending_its_last_fix_again_is_no_reference() -> None:
     assert not valid & set(range(15, 50))
     events = [e for e in out.events if e.kind == "gnss_repeated"]
     assert [(e.port, round(e.t - t0, 1)) for e in events] == [("nmea", 15.1)]
+
+
+def test_one_fix_sent_again_with_its_own_time_is_no_repeat() -> None:
+    """One RMC at 4.5 m/s, its own time too, received once a second for 8 s (a receiver
+    or a logger sending the fix it has again, as Psaros's log holds for three seconds at
+    8.7 kn): its clock says no time passed, so it is not judged stale; by receipt times
+    it would have been after 10 m (3 s)."""
+    p = Pipeline(
+        [PortSettings("nmea", "nmea0183")],
+        [UutSettings(port="nmea", reference_port="nmea", reference_field="gnss")],
+    )
+    out = Output()
+    t0 = 1_750_000_000.0
+    rmc = encode_rmc(datetime.fromtimestamp(t0, UTC), 4.5, 45.0, lat_deg=43.1, lon_deg=5.9)
+    for k in range(8):
+        out.add(p.feed(t0 + k, "nmea", (rmc + "\r\n").encode()))
+    assert not [e for e in out.events if e.kind == "gnss_repeated"]
+    r = RepeatedFixes()
+    fast = (*FIX[:2], 4.5, FIX[3])
+    assert [r.stale(t0 + k, "gnss", fast) for k in range(5)][-2:] == [None, True]
