@@ -24,6 +24,7 @@ import math
 import sys
 import tempfile
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -193,13 +194,20 @@ def _measure(name: str, tmp: Path, mp: pytest.MonkeyPatch) -> dict[str, Any]:
         stale = _stale_receiver(simsensors.gnss_lines, STALE_FIELDS[name])
         mp.setattr(simsensors, "gnss_lines", stale)
     if name in SENSORS:
-        seed, logs = SENSORS[name]
-
-        def with_logs(outdir: str | Path, **kw: Any) -> Any:
-            return simulate(outdir, **(kw | {"seed": seed}), emlogs=(logs[0], logs[1]))
-
-        mp.setattr(simphysics, "simulate", with_logs)
+        seed, (log1, log2) = SENSORS[name]
+        mp.setattr(simphysics, "simulate", partial(_simulate_with, seed=seed, logs=(log1, log2)))
     return measure(WORLDS[name], tmp, mp)
+
+
+def _simulate_with(
+    outdir: str | Path,
+    *,
+    seed: int,
+    logs: tuple[simsensors.EmlogSpec, simsensors.EmlogSpec],
+    **kw: Any,
+) -> Any:
+    """:func:`simulate` of ``seed`` with the two logs ``logs`` (the rest as asked)."""
+    return simulate(outdir, **{**kw, "seed": seed, "emlogs": logs})
 
 
 def _k(n: int = 20000) -> Kinematics:
@@ -268,16 +276,22 @@ class TestWorlds:
 
 @pytest.mark.soak
 @pytest.mark.parametrize("name", pinned(WORLDS, OPEN))
-def test_every_window_within_raw(
+def test_no_window_of_either_log_worse_than_raw(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
     """Both logs: every 5-min window within 1.05 × raw's RMSE against the truth."""
-    got = _measure(name, tmp_path, monkeypatch)
-    assert max(v["worst"] for v in got.values()) <= RATIO, got
+    worst = {u: v["worst"] for u, v in _measure(name, tmp_path, monkeypatch).items()}
+    assert max(worst.values()) <= RATIO, worst
+
+
+def main(names: list[str]) -> None:
+    """Print each world's figures as a JSON line (every world without ``names``)."""
+    for name in names or sorted(WORLDS):
+        with tempfile.TemporaryDirectory() as d, pytest.MonkeyPatch.context() as m:
+            row = {name: _measure(name, Path(d), m)}
+        sys.stdout.write(f"{json.dumps(row, default=str)}\n")
+        sys.stdout.flush()
 
 
 if __name__ == "__main__":
-    for arg in sys.argv[1:] or sorted(WORLDS):
-        with tempfile.TemporaryDirectory() as d, pytest.MonkeyPatch.context() as m:
-            sys.stdout.write(json.dumps({arg: _measure(arg, Path(d), m)}, default=str) + "\n")
-            sys.stdout.flush()
+    main(sys.argv[1:])
