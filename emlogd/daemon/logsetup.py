@@ -265,7 +265,7 @@ def follow_config(fmt: LogFormat, level: str, nmea_on_stdout: bool) -> bool:
 
 
 REPEATING_EVENTS = frozenset(
-    {"reference", "stale", "alive", "state", "lag_retry", "identifiability"}
+    {"reference", "stale", "alive", "state", "lag_retry", "identifiability", "gnss_repeated"}
 )
 """Events a flapping input repeats (bottom lock coming and going): logged at most once
 per :data:`EVENT_INTERVAL_S` per port, the next line saying how many were left out."""

@@ -316,6 +316,11 @@ class Pipeline:
         if g.valid:
             self.headings.position(t, g.lat_deg, g.lon_deg, g.fix_t)
         valid = g.valid and self.headings.fix_quality.get(port, 1) > 0
+        if valid:  # the last fix sent again and again: no reference (stalefix)
+            stale = self.headings.repeated_fix(port, g)
+            if stale is None:
+                self._pending_events.append(Event(t, port, "gnss_repeated", {}))
+            valid = stale is False
         if valid and g.sog_mps is not None and self.fusion is not None:
             self.fusion.ground(t, g.sog_mps)
         if valid and g.sog_mps is not None and g.cog_true_deg is not None:

@@ -30,6 +30,7 @@ from emlogd.pipeline.headingsources import HeadingSources, source_name
 from emlogd.pipeline.integrity import JumpFilter
 from emlogd.pipeline.readings import ReadingCheck
 from emlogd.pipeline.settings import UutSettings
+from emlogd.pipeline.stalefix import RepeatedFixes
 from emlogd.pipeline.staleness import GNSS_HEADING_WAIT_S, HEADING_MAX_GAP_S, HEADING_NEAREST_S
 from emlogd.pipeline.uut import UutCalibration
 from emlogd.pipeline.variation import CourseOffsetCheck, model_variation
@@ -174,6 +175,8 @@ class Headings:
         self.variation: dict[str, float] = {}
         """The variation each port sent last (HDG, RMC), ° east."""
         self.fix_quality: dict[str, int] = {}
+        self.repeats = RepeatedFixes()
+        """Each GNSS port's run of repeated fixes (a receiver sending its last fix again)."""
         self.sources = HeadingSources()
         """The sources compared: a wrong one's samples are not kept (:meth:`add`)."""
         self.model_var: float | None = None
@@ -283,6 +286,17 @@ class Headings:
             self.variation[port] = old.variation[port]
         if port in old.fix_quality:
             self.fix_quality[port] = old.fix_quality[port]
+        self.repeats.adopt(old.repeats, port)
+
+    def repeated_fix(self, port: str, g: NavGnss) -> bool | None:
+        """Whether ``port``'s fix ``g`` repeats a moving one for long enough, by its own
+        time, to be stale (:class:`~emlogd.pipeline.stalefix.RepeatedFixes`; None: it
+        has just become so)."""
+        parts = (g.lat_deg, g.lon_deg, g.sog_mps, g.cog_true_deg)
+        if None in parts or g.fix_t is None:
+            return self.repeats.stale(0.0, port, None)
+        lat, lon, sog, cog = (float(x) for x in parts if x is not None)
+        return self.repeats.stale(g.fix_t, port, (lat, lon, sog, cog))
 
 
 class UutRoute:
