@@ -110,6 +110,7 @@ from emlogd.pipeline.revalidation import WORSE_MARGIN_MPS as WORSE_MARGIN_MPS
 from emlogd.pipeline.revalidation import Candidate as Candidate
 from emlogd.pipeline.revalidation import CandidateKind as CandidateKind
 from emlogd.pipeline.revalidation import CandidateSource as CandidateSource
+from emlogd.pipeline.separation import Separation
 
 if TYPE_CHECKING:
     from emlogd.pipeline.settings import UutSettings
@@ -538,10 +539,7 @@ class Supervisor:
             "kind": cand.kind,
         }
         if cand.kind == "new":
-            good = (
-                beats_raw(cand, r_raw, r_cand, detail)
-                and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
-            )
+            good = self._judge_new(t, cand, detail, r_raw, r_cand, r_app)
         elif cand.kind == "restored" and cand.samples is not None and len(cand.samples) == n:
             good = judge_restored(
                 cand,
@@ -598,6 +596,43 @@ class Supervisor:
                 self.since_refused = [0.0, 0.0, 0.0]
             self.counters.candidates_rejected += 1
             self._emit(t, "candidate_rejected", detail)
+
+    def _refuted(self, t: float, p: Params, detail: dict[str, object]) -> bool:
+        """The sea memory tells raw from ``p`` whatever the current, and raw is the
+        better one (:meth:`~emlogd.pipeline.separation.Separation.verdict` False; in the
+        water frame only). A current of each one's own, and the common sea's, can take
+        an offset where the headings do not tell a current from it (two headings either
+        side of the current's direction); what no current can make, the changes of
+        speed and the turns, decides here."""
+        if not self.water:
+            return False
+        sep = Separation()
+        sep.add_memory(self.memory, p, t)
+        return sep.verdict(detail) is False
+
+    def _judge_new(
+        self,
+        t: float,
+        cand: Candidate,
+        detail: dict[str, object],
+        r_raw: float,
+        r_cand: float,
+        r_app: float,
+    ) -> bool:
+        """A new candidate's verdict: it beats raw (:func:`beats_raw`), is within
+        :data:`CANDIDATE_FACTOR` of the applied calibration and is not refuted
+        (:meth:`_refuted`). First the applied calibration faces the same memory: refuted,
+        it is withdrawn for cause and the candidate, judged on that memory, goes with it."""
+        applied = self.applied
+        gone: dict[str, object] = {}
+        if applied is not None and self._refuted(t, applied, gone):
+            self.withdraw(t, "the sea memory tells raw from it, and raw is the better one", gone)
+            return False
+        return (
+            beats_raw(cand, r_raw, r_cand, detail)
+            and r_cand <= r_app * CANDIDATE_FACTOR + CANDIDATE_MARGIN_MPS
+            and not self._refuted(t, cand.params, detail)
+        )
 
     def _apply(self, t: float, p: Params, std: Mapping[str, float | None]) -> None:
         self.retry = None

@@ -338,3 +338,52 @@ def test_a_jump_of_the_reference_alone_keeps_the_calibration(current: bool) -> N
         seen_sea = seen_sea or sup.sea_changed
         sup.sea_changed = False  # taken by the owner
     assert seen_sea and _applied(sup) == p and "fallback" not in kinds, kinds
+
+
+TACKED = Params("EM3", m=0.1, b_mps=-0.6)
+"""The calibration the two-heading tests apply: right for a log whose error it is,
+wrong by 0.6 m/s less a tenth of the speed for an exact one."""
+
+
+@pytest.mark.parametrize(("log", "withdrawn"), [(Params("EM3"), True), (TACKED, False)])
+def test_a_calibration_the_sea_memory_refutes_goes_at_the_next_verdict(
+    log: Params, withdrawn: bool
+) -> None:
+    """Two headings 90° apart, eight minutes each, either side of a 0.5-m/s current
+    along their bisector (0.35 m/s along the hull on both), the speed through the water
+    swinging 1.7-2.3 m/s. Applied to an exact log, :data:`TACKED`'s error is a current
+    on each heading, so a current of its own (and raw judged in it) keeps it; but its
+    error grows with the speed and no current follows the speed, so the sea memory
+    tells raw from it: at the next new candidate's verdict it is withdrawn for cause
+    (kept as the last good one). Applied to a log whose error it is, it stays."""
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)
+    sup, kinds = _sup(None, s)
+    sup._apply(0.0, TACKED, {"m": 0.01, "b": 0.01})
+    offer = _Offers(Params("EM3", m=0.1, b_mps=-0.5))
+    for k in range(1200):
+        t = float(k)
+        h = math.radians(10.0 if (k // 480) % 2 == 0 else 100.0)
+        stw = 2.0 + 0.3 * math.sin(2.0 * math.pi * t / 90.0)
+        ref = stw + 0.5 * math.cos(h - math.radians(55.0))
+        sup.observe(t, log.forward(stw) + 0.2 * _noisy(k), ref, (math.cos(h), math.sin(h)), offer)
+    assert ("fallback" in kinds) is withdrawn, kinds
+    assert (_applied(sup) is None) is withdrawn
+    assert sup.kept is not None
+
+
+def test_an_offer_the_sea_memory_refutes_is_not_applied() -> None:
+    """The same two headings and current, nothing applied, an exact log offered
+    :data:`TACKED`: after a current of each one's own (a current takes its error on
+    each heading) it beats raw, but the sea memory tells raw from it (its error follows
+    the speed): refused."""
+    s = UutSettings(port="log", reference_port="dvl", lag_s=0.0, current=True)
+    sup, kinds = _sup(None, s)
+    offer = _Offers(TACKED)
+    for k in range(1200):
+        t = float(k)
+        h = math.radians(10.0 if (k // 480) % 2 == 0 else 100.0)
+        stw = 2.0 + 0.3 * math.sin(2.0 * math.pi * t / 90.0)
+        ref = stw + 0.5 * math.cos(h - math.radians(55.0))
+        sup.observe(t, stw + 0.2 * _noisy(k), ref, (math.cos(h), math.sin(h)), offer)
+    assert "calibrated" not in kinds and "candidate_rejected" in kinds, kinds
+    assert _applied(sup) is None
