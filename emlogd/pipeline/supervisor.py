@@ -35,6 +35,13 @@ Rules (the constants are this module's and :mod:`~emlogd.pipeline.revalidation`'
   correction of the reading, which neither can fit to its own offset; scored only at
   headings along which the memory determines it,
   :meth:`~emlogd.pipeline.revalidation.CommonSea.along`).
+- **Refuted by the memory** (:meth:`Supervisor._refuted`): a new candidate is refused,
+  and at its verdict the applied calibration withdrawn for cause, when the sea memory
+  tells raw from it whatever the current and raw is the better one
+  (:class:`~emlogd.pipeline.separation.Separation`, ``w`` below ½ by
+  :data:`~emlogd.pipeline.separation.SEPARATION_SIGMAS`). On two headings either side
+  of a current, a current of its own, and the common sea, can each take a wrong offset;
+  the changes of speed and the turns, which no current makes, cannot.
 - **Re-check**: the applied calibration is scored against raw over a forgetting
   window of ``recheck_s`` (:class:`~emlogd.pipeline.integrity.PairedWindow`); once worse than raw (:data:`WORSE_FACTOR`,
   :data:`WORSE_MARGIN_MPS`) it falls back to the previous one if that beats raw,
