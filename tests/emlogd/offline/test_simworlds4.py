@@ -165,22 +165,21 @@ SENSORS: dict[str, tuple[int, tuple[simsensors.EmlogSpec, ...]]] = {
 """The worlds whose logs are not the simulator's: the seed and the two logs."""
 
 OPEN = {
-    "beating-exact": "open: emlog1's windows from 1504 s 13.7-16.5x raw (the worst from "
-    "2104 s: 0.457 vs 0.028 m/s): m 0.106, b -0.740 applied at 1593 s, never withdrawn. "
-    "Two headings leave the offset and the current along their bisector apart only in "
-    "the tacks, where the speed dips too: the common sea's free polynomial of the reading "
-    "takes what the tacks' headings should give the current; raw scored 0.653 in it "
-    "against the candidate's 0.230, and 0.067 against 0.046 after each one's own current "
-    "(docs/RELIABILITY.md)",
+    "beating-exact": "open: emlog1's windows from 1504 s up to 15.1x raw (0.418 vs 0.028 "
+    "m/s): m 0.106, b -0.740 applied at 1593 s, withdrawn at 2078 s when the sea memory "
+    "told raw from it (w -0.01 +/- 0.11). Two headings leave the offset and the current "
+    "along their bisector apart only in the tacks: at 1593 s it beat raw after each one's "
+    "own current (0.046 vs 0.067) and in the common sea (0.230 vs 0.653), and the memory "
+    "did not yet refute it (w 0.30 +/- 0.11) (docs/RELIABILITY.md)",
     "gnss-velocity-frozen": "open: 2.905x / 1.626x raw (emlog1's window from 1504 s, "
     "emlog2's from 1501 s), as gnss-stale's before 2a8b6d6: SOG and COG frozen for 10 min "
     "while the position moves on are taken as references (a repeated position is what "
     "stalefix judges); the distance between the fixes against their SOG would tell "
     "(docs/RELIABILITY.md)",
-    "beating-1pct": "open: emlog1's window from 604 s 6.88x raw (0.257 vs 0.037 m/s): a "
-    "scale of -0.092 (b 0; the sensor's +0.01) applied at 608 s while its lag was not yet "
-    "measured (0 s used against 3.2 s, found at 680 s), raw 0.312 against 0.268 after each "
-    "one's own current and 1.298 against 1.068 in the common sea (docs/RELIABILITY.md)",
+    "beating-1pct": "open: emlog1's windows from 1504 s up to 12.1x raw (0.429 vs 0.035 "
+    "m/s), as beating-exact's: m 0.106, b -0.714 applied at 1593 s (w 0.26 +/- 0.11), "
+    "withdrawn at 2078 s (w -0.07 +/- 0.11); emlog2's window from 601 s 2.25x raw (0.122 "
+    "vs 0.054 m/s) (docs/RELIABILITY.md)",
 }
 """The worlds that break the promise, pinned as strict xfails until fixed."""
 
